@@ -1,0 +1,412 @@
+//! evoloop: the launcher. One command starts the plant, controller and optimiser processes with
+//! one scenario file, supervises them, stops them all on Ctrl-C/SIGTERM or when the scenario
+//! ends, and writes the run report (run.csv, summary.json, response.png).
+
+use clap::{Parser, Subcommand};
+use evoloop::cli::{stop_flag, OverrideArgs};
+use evoloop::config::{Mode, Scenario};
+use evoloop::ipc::messages::Telemetry;
+use evoloop::ipc::{Ipc, Topic, DEFAULT_PREFIX};
+use evoloop::report::build::build_report;
+use evoloop::report::summary::{FloorReport, Summary};
+use evoloop::rt::clock::sleep_loop_lateness;
+use evoloop::rt::timing::Percentiles;
+use evoloop::rt::apply_privileges;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ExitCode};
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+const DEFAULT_SCENARIO: &str = "config/two_mass.toml";
+
+#[derive(Parser)]
+#[command(
+    name = "evoloop",
+    version,
+    about = "Real-time control loops tuned by evolutionary optimisers while the plant runs",
+    long_about = "evoloop starts a plant simulator, a fixed-rate controller and an optimiser as separate \
+processes that talk over iceoryx2 shared memory.\n\nWithout a subcommand it runs the default scenario \
+(config/two_mass.toml) and writes its report to runs/two_mass/."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Cmd>,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run a scenario: start the three processes, supervise them, write the report.
+    Run(RunArgs),
+    /// Validate a scenario file and print what it resolves to.
+    Check {
+        /// Scenario file (TOML).
+        file: PathBuf,
+    },
+    /// Measure the machine's timing floor: a bare absolute-deadline sleep loop.
+    Floor {
+        /// Loop rate in Hz.
+        #[arg(long, default_value_t = 1000.0)]
+        rate: f64,
+        /// Seconds to run.
+        #[arg(long, default_value_t = 5.0)]
+        duration: f64,
+        /// Ask for SCHED_FIFO with this priority (falls back when not permitted).
+        #[arg(long)]
+        fifo: Option<i32>,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    /// Scenario file (TOML).
+    #[arg(default_value = DEFAULT_SCENARIO)]
+    file: PathBuf,
+    #[command(flatten)]
+    overrides: OverrideArgs,
+    /// Run id used in the service names (default: generated, unique on this machine).
+    #[arg(long)]
+    run_id: Option<String>,
+    /// Prefix of iceoryx2's files (separate namespace, e.g. for parallel tests).
+    #[arg(long, default_value = DEFAULT_PREFIX)]
+    ipc_prefix: String,
+    /// No progress lines.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        None => run(RunArgs {
+            file: default_scenario(),
+            overrides: OverrideArgs::default(),
+            run_id: None,
+            ipc_prefix: DEFAULT_PREFIX.into(),
+            quiet: false,
+        }),
+        Some(Cmd::Run(a)) => run(a),
+        Some(Cmd::Check { file }) => check(&file),
+        Some(Cmd::Floor {
+            rate,
+            duration,
+            fifo,
+            json,
+        }) => floor_cmd(rate, duration, fifo, json),
+    }
+}
+
+/// The default scenario, relative to the working directory or to the source tree.
+fn default_scenario() -> PathBuf {
+    let p = PathBuf::from(DEFAULT_SCENARIO);
+    if p.exists() {
+        return p;
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENARIO)
+}
+
+fn check(file: &Path) -> ExitCode {
+    match Scenario::load(file, &Default::default()) {
+        Ok(s) => {
+            println!(
+                "{}: ok: scenario `{}`, plant {:?}, controller {:?}, reference {:?}, {} mode, period {} s, {} s ({} cycles), optimiser {:?} with {} scheduled set(s), output {}",
+                file.display(),
+                s.name,
+                s.plant.kind,
+                s.controller.kind,
+                s.reference,
+                format!("{:?}", s.timing.mode).to_lowercase(),
+                s.timing.period,
+                s.timing.duration,
+                s.cycles(),
+                s.optimiser.mode,
+                s.optimiser.schedule.len(),
+                s.output.dir.display()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn floor_cmd(rate: f64, duration: f64, fifo: Option<i32>, json: bool) -> ExitCode {
+    if !(rate > 0.0 && rate <= 100_000.0) || !(duration > 0.0 && duration <= 3600.0) {
+        eprintln!("error: --rate must be in (0, 100000] Hz and --duration in (0, 3600] s");
+        return ExitCode::from(2);
+    }
+    let f = measure_floor(1.0 / rate, duration, fifo);
+    if json {
+        println!("{}", serde_json::to_string_pretty(&f).unwrap_or_default());
+    } else {
+        let l = &f.lateness;
+        println!(
+            "bare sleep loop at {rate} Hz for {duration} s (SCHED_FIFO: {}): lateness p50 {} ns, p90 {} ns, p99 {} ns, p99.9 {} ns, max {} ns over {} cycles",
+            f.rt.sched_fifo, l.p50_ns, l.p90_ns, l.p99_ns, l.p99_9_ns, l.max_ns, l.count
+        );
+        for n in &f.rt.notes {
+            println!("note: {n}");
+        }
+    }
+    ExitCode::SUCCESS
+}
+
+/// The bare absolute-deadline sleep loop, in its own thread with the given priority.
+fn measure_floor(period: f64, duration: f64, fifo: Option<i32>) -> FloorReport {
+    let period_ns = (period * 1e9).round() as u64;
+    let cycles = (duration / period).round().max(1.0) as usize;
+    std::thread::spawn(move || {
+        let rt = apply_privileges(&evoloop::rt::RtRequest {
+            fifo_priority: fifo,
+            lock_memory: false,
+            cpu: None,
+        });
+        let late = sleep_loop_lateness(period_ns, cycles);
+        FloorReport {
+            period_s: period,
+            rt,
+            lateness: Percentiles::from_samples(late),
+            ..Default::default()
+        }
+    })
+    .join()
+    .unwrap_or_default()
+}
+
+fn sibling(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from(name));
+    exe.with_file_name(name)
+}
+
+fn signal(child: &Child, sig: i32) {
+    // SAFETY: plain syscall on our own child's pid.
+    unsafe { libc::kill(child.id() as i32, sig) };
+}
+
+fn run(a: RunArgs) -> ExitCode {
+    let ov = a.overrides.to_overrides();
+    let scn = match Scenario::load(&a.file, &ov) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let stop = stop_flag();
+    let dir = scn.output.dir.clone();
+    if let Err(e) = std::fs::create_dir_all(&dir) {
+        eprintln!("error: cannot create output directory {}: {e}", dir.display());
+        return ExitCode::from(2);
+    }
+    // Remove the previous run's files so a failed run never leaves a stale report looking fresh.
+    for f in [
+        "run.csv",
+        "timing.csv",
+        "summary.json",
+        "response.png",
+        "controller.json",
+        "plant.json",
+        "optimiser.json",
+    ] {
+        let _ = std::fs::remove_file(dir.join(f));
+    }
+    let _ = evoloop::process::write_json(&dir, "scenario.json", &scn);
+    let run_id = a.run_id.clone().unwrap_or_else(|| {
+        format!(
+            "{}-{:x}",
+            std::process::id(),
+            evoloop::rt::now_ns() & 0xffff_ffff
+        )
+    });
+    // The launcher's own node: creating it cleans up what killed runs left behind, and it
+    // watches the telemetry for progress lines.
+    let ipc = match Ipc::new("evoloop", &run_id, &a.ipc_prefix) {
+        Ok(i) => i,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let cleaned = ipc.cleanup_dead_nodes();
+    let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 1, false).ok();
+
+    // The absolute config path and the output dir are passed on so children agree exactly.
+    let config = std::fs::canonicalize(&a.file).unwrap_or(a.file.clone());
+    let mut child_ov = a.overrides.clone();
+    child_ov.out = Some(dir.clone());
+    let mut args = vec![
+        "--config".to_string(),
+        config.display().to_string(),
+        "--run-id".into(),
+        run_id.clone(),
+        "--ipc-prefix".into(),
+        a.ipc_prefix.clone(),
+    ];
+    args.extend(child_ov.to_args());
+    let names = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
+    let mut children: Vec<(&str, Child)> = Vec::new();
+    for name in names {
+        match std::process::Command::new(sibling(name)).args(&args).spawn() {
+            Ok(c) => children.push((name, c)),
+            Err(e) => {
+                eprintln!("error: cannot start {name} ({}): {e}", sibling(name).display());
+                for (_, c) in &mut children {
+                    signal(c, libc::SIGTERM);
+                    let _ = c.wait();
+                }
+                return ExitCode::from(1);
+            }
+        }
+    }
+    if !a.quiet {
+        eprintln!(
+            "evoloop: run {run_id}: scenario `{}` ({} mode, {} s at {} s period), output {}",
+            scn.name,
+            format!("{:?}", scn.timing.mode).to_lowercase(),
+            scn.timing.duration,
+            scn.timing.period,
+            dir.display()
+        );
+    }
+    let t0 = Instant::now();
+    let mut last_progress = Instant::now();
+    let mut failed: Vec<String> = Vec::new();
+    let mut exited = vec![false; children.len()];
+    let mut interrupted = false;
+    let mut stop_sent: Option<Instant> = None;
+    while exited.iter().any(|e| !e) {
+        for (i, (name, c)) in children.iter_mut().enumerate() {
+            if exited[i] {
+                continue;
+            }
+            if let Ok(Some(status)) = c.try_wait() {
+                exited[i] = true;
+                if !status.success() && !(interrupted && status.code().is_some()) {
+                    failed.push(format!("{name} exited with {status}"));
+                }
+            }
+        }
+        if stop.load(Ordering::SeqCst) && !interrupted {
+            interrupted = true;
+            eprintln!("evoloop: stopping all processes");
+        }
+        if (interrupted || !failed.is_empty()) && stop_sent.is_none() {
+            for (i, (_, c)) in children.iter().enumerate() {
+                if !exited[i] {
+                    signal(c, libc::SIGTERM);
+                }
+            }
+            stop_sent = Some(Instant::now());
+        }
+        if stop_sent.is_some_and(|s| s.elapsed() > Duration::from_secs(5)) {
+            for (i, (name, c)) in children.iter_mut().enumerate() {
+                if !exited[i] {
+                    eprintln!("evoloop: {name} did not stop within 5 s; killing it");
+                    let _ = c.kill();
+                }
+            }
+        }
+        if !a.quiet && last_progress.elapsed() >= Duration::from_secs(1) {
+            last_progress = Instant::now();
+            if let Some(Ok(Some(tel))) = telemetry.as_ref().map(|s| s.latest()) {
+                eprintln!(
+                    "  t = {:8.2} / {} s   e = {:+.4}   u = {:+.4}   params v{}   overruns {}   misses {}",
+                    tel.t, scn.timing.duration, tel.tracking_error, tel.u[0], tel.param_version,
+                    tel.overruns, tel.missed
+                );
+            }
+        }
+        // Supervision, not the control path: a 5 ms poll of child status costs nothing here.
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    for (_, c) in &mut children {
+        let _ = c.wait();
+    }
+    drop(telemetry);
+    drop(ipc);
+    let wall = t0.elapsed().as_secs_f64();
+    if !failed.is_empty() {
+        for f in &failed {
+            eprintln!("error: {f}");
+        }
+        return ExitCode::from(1);
+    }
+    let floor = (scn.timing.mode == Mode::Realtime && scn.timing.measure_floor && !interrupted)
+        .then(|| {
+            let secs = scn.timing.duration.min(5.0);
+            if !a.quiet {
+                eprintln!("evoloop: measuring the bare sleep-loop floor for {secs} s");
+            }
+            measure_floor(scn.timing.period, secs, scn.timing.fifo_priority)
+        });
+    match build_report(&scn, &run_id, wall, floor, cleaned) {
+        Ok(s) => print_summary(&s, &dir, scn.output.plots),
+        Err(e) => {
+            eprintln!("error: report: {e}");
+            return ExitCode::from(1);
+        }
+    }
+    if interrupted {
+        ExitCode::from(130)
+    } else {
+        ExitCode::SUCCESS
+    }
+}
+
+fn print_summary(s: &Summary, dir: &Path, plots: bool) {
+    let r = &s.response;
+    println!(
+        "evoloop: {} samples in {:.2} s ({:.0} samples/s), {} mode",
+        s.samples, s.wall_s, s.throughput_samples_per_s, s.mode
+    );
+    println!(
+        "  response: settling time {} (2 % band), overshoot {:.2} %, IAE {:.4}, ISE {:.4}, final error {:+.2e}",
+        r.settling_time_s
+            .map(|v| format!("{v:.2} s"))
+            .unwrap_or_else(|| "not settled".into()),
+        r.overshoot_pct,
+        r.iae,
+        r.ise,
+        r.final_error
+    );
+    let l = &s.timing.lateness;
+    if s.mode == "realtime" {
+        println!(
+            "  timing: lateness p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns; overruns {}, missed deadlines {}, stale states {}",
+            l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.overruns, s.deadline_misses, s.timing.stale_states
+        );
+        if let Some(f) = &s.floor {
+            println!(
+                "  floor (bare sleep loop, same run): lateness p50 {} ns, p99 {} ns, p99.9 {} ns; controller/floor p99 = {:.2}",
+                f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99
+            );
+        }
+        let c = &s.realtime_privileges.controller;
+        println!(
+            "  controller privileges: SCHED_FIFO {} (prio {}), mlockall {}, cpu {:?}",
+            c.sched_fifo, c.priority, c.mlockall, c.cpu
+        );
+        for n in &c.notes {
+            println!("    note: {n}");
+        }
+    }
+    let pv = &s.parameter_versions;
+    println!(
+        "  parameters: version {} in service; {} accepted, {} rejected",
+        pv.final_version,
+        pv.accepted.len(),
+        pv.rejected.len()
+    );
+    for p in &pv.rejected {
+        println!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
+    }
+    println!(
+        "  wrote {}/run.csv, summary.json{}",
+        dir.display(),
+        if plots { ", response.png" } else { "" }
+    );
+}

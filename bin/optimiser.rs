@@ -1,0 +1,156 @@
+//! evoloop-optimiser: the tuner's process. This first cut subscribes to the state and command
+//! streams and publishes parameter sets on the path real tuning will use: in `schedule` mode it
+//! publishes the scenario's configured sets at their configured times.
+//!
+//! lockstep: it consumes every sample in order and acknowledges every `sync_samples`-th one; a set
+//!           due within the next interval is published before the acknowledgement with
+//!           `apply_at_seq`, so the controller applies it on the same sample in every run.
+//! realtime: it runs free at lower priority (nice) and publishes a set as soon as the plant's
+//!           time passes the set's time; the controller applies it at its next cycle.
+
+use clap::Parser;
+use evoloop::cli::{stop_flag, ProcessArgs};
+use evoloop::config::{Mode, OptimiserMode, Scenario};
+use evoloop::ipc::messages::{Command, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END};
+use evoloop::ipc::{Ipc, IpcError, Pub, Sub, Topic, Wait};
+use evoloop::process::{fail, load_scenario, write_json, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use evoloop::report::summary::{OptimiserReport, PublishedSet};
+use evoloop::rt::privileges::set_nice;
+use evoloop::sim::{scheduled_seq, scheduled_set};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+const WHO: &str = "evoloop-optimiser";
+
+#[derive(Parser)]
+#[command(name = "evoloop-optimiser", about = "evoloop optimiser process (started by `evoloop run`)")]
+struct Cli {
+    #[command(flatten)]
+    args: ProcessArgs,
+}
+
+struct Ports {
+    params: Pub<ParamSet>,
+    ack: Pub<OptimiserAck>,
+    command: Sub<Command>,
+    state: Sub<PlantState>,
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let scn = load_scenario(&cli.args, WHO);
+    let stop = stop_flag();
+    let ipc = Ipc::new(WHO, &cli.args.run_id, &cli.args.ipc_prefix)
+        .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
+    let buffer = evoloop::ipc::MAX_SYNC_SAMPLES + 8;
+    let ports = (|| -> Result<Ports, IpcError> {
+        Ok(Ports {
+            params: ipc.publisher(Topic::Params, false)?,
+            ack: ipc.publisher(Topic::OptimiserAck, true)?,
+            command: ipc.subscriber(Topic::Command, buffer, false)?,
+            // Last: the plant starts the run once it sees this subscriber.
+            state: ipc.subscriber(Topic::State, buffer, true)?,
+        })
+    })()
+    .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
+    let mut report = OptimiserReport {
+        mode: format!("{:?}", scn.optimiser.mode).to_lowercase(),
+        ..Default::default()
+    };
+    // The optimiser yields the CPU to the control loop.
+    if set_nice(scn.optimiser.nice) {
+        report.nice = Some(scn.optimiser.nice);
+    }
+    let result = run(&scn, &ports, &stop, &mut report);
+    report.interrupted = stop.load(Ordering::SeqCst);
+    if let Err(e) = write_json(&scn.output.dir, "optimiser.json", &report) {
+        eprintln!("{WHO}: cannot write optimiser.json: {e}");
+    }
+    if let Err((code, msg)) = result {
+        fail(WHO, code, &msg);
+    }
+}
+
+fn run(
+    scn: &Scenario,
+    ports: &Ports,
+    stop: &AtomicBool,
+    report: &mut OptimiserReport,
+) -> Result<(), (i32, String)> {
+    let lockstep = scn.timing.mode == Mode::Lockstep;
+    let schedule_on = scn.optimiser.mode == OptimiserMode::Schedule;
+    let sync = scn.sync_samples();
+    let dt = scn.timing.period;
+    let spin = Duration::from_micros(scn.timing.spin_us);
+    let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
+    let mut next_set = 0usize;
+    let mut last_state = Instant::now();
+    let io = |e: IpcError| (EXIT_SETUP, e.to_string());
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(());
+        }
+        let state = match ports.state.wait_next(spin, Duration::from_millis(100)).map_err(io)? {
+            Wait::Got(s) => s,
+            Wait::TimedOut => {
+                // In realtime the plant keeps sampling; silence this long means it is gone.
+                if last_state.elapsed() > timeout {
+                    return Err((EXIT_PEER_TIMEOUT, format!("no plant state within {timeout:?}")));
+                }
+                continue;
+            }
+        };
+        last_state = Instant::now();
+        report.states_seen += 1;
+        while ports.command.next().map_err(io)?.is_some() {
+            report.commands_seen += 1;
+        }
+        if state.flags & STATE_FLAG_END != 0 {
+            return Ok(());
+        }
+        let schedule = &scn.optimiser.schedule;
+        if lockstep {
+            if state.seq % sync != 0 {
+                continue;
+            }
+            // Publish every set due within the next interval, then let the plant go on.
+            while schedule_on && next_set < schedule.len() {
+                let at = scheduled_seq(schedule[next_set].at, dt);
+                if at > state.seq + sync {
+                    break;
+                }
+                publish(scn, ports, next_set, at.max(state.seq + 1), report).map_err(io)?;
+                next_set += 1;
+            }
+            ports
+                .ack
+                .send(&OptimiserAck {
+                    through_seq: state.seq,
+                })
+                .map_err(io)?;
+        } else {
+            while schedule_on && next_set < schedule.len() && state.t >= schedule[next_set].at {
+                publish(scn, ports, next_set, 0, report).map_err(io)?;
+                next_set += 1;
+            }
+        }
+    }
+}
+
+fn publish(
+    scn: &Scenario,
+    ports: &Ports,
+    i: usize,
+    apply_at_seq: u64,
+    report: &mut OptimiserReport,
+) -> Result<(), IpcError> {
+    let set = scheduled_set(scn, i, apply_at_seq);
+    ports.params.send(&set)?;
+    report.published.push(PublishedSet {
+        version: set.version,
+        at: scn.optimiser.schedule[i].at,
+        apply_at_seq,
+        values: set.values().to_vec(),
+    });
+    Ok(())
+}

@@ -1,0 +1,235 @@
+//! evoloop-plant: plays the hardware. Integrates the plant (RK4, fixed sub-steps), samples it
+//! every control period and applies the latest command as a zero-order hold.
+//!
+//! lockstep: publish sample k, wait for the command answering k, integrate one period, repeat;
+//!           every `sync_samples` samples also wait for the optimiser's acknowledgement, so the
+//!           optimiser's parameter sets land on the same sample in every run.
+//! realtime: tick on absolute deadlines of the wall clock; between ticks, integrate up to the
+//!           moment each command arrives and switch to it; fall back to the safe command when
+//!           commands stop for `command_timeout_periods`.
+
+use clap::Parser;
+use evoloop::cli::{stop_flag, ProcessArgs};
+use evoloop::config::{Mode, Scenario};
+use evoloop::ipc::messages::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
+use evoloop::ipc::{Ipc, Pub, Sub, Topic, Wait};
+use evoloop::plant::PlantSim;
+use evoloop::process::{fail, load_scenario, write_json, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use evoloop::report::summary::PlantReport;
+use evoloop::rt::{apply_privileges, now_ns, sleep_until_ns};
+use evoloop::MAX_JOINTS;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+const WHO: &str = "evoloop-plant";
+
+#[derive(Parser)]
+#[command(name = "evoloop-plant", about = "evoloop plant simulator process (started by `evoloop run`)")]
+struct Cli {
+    #[command(flatten)]
+    args: ProcessArgs,
+}
+
+struct Ports {
+    state: Pub<PlantState>,
+    command: Sub<Command>,
+    ack: Sub<OptimiserAck>,
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let scn = load_scenario(&cli.args, WHO);
+    let stop = stop_flag();
+    let ipc = Ipc::new(WHO, &cli.args.run_id, &cli.args.ipc_prefix)
+        .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
+    let ports = (|| -> Result<Ports, evoloop::ipc::IpcError> {
+        Ok(Ports {
+            command: ipc.subscriber(Topic::Command, 8, true)?,
+            ack: ipc.subscriber(Topic::OptimiserAck, 4, true)?,
+            state: ipc.publisher(Topic::State, true)?,
+        })
+    })()
+    .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
+
+    let mut sim = PlantSim::new(scn.build_plant(), scn.plant.step, scn.plant.noise_std, scn.seed);
+    let mut report = PlantReport {
+        mode: format!("{:?}", scn.timing.mode).to_lowercase(),
+        ..Default::default()
+    };
+    if scn.timing.mode == Mode::Realtime {
+        report.rt = apply_privileges(&scn.plant_rt());
+    }
+    // Start only when the controller and the optimiser have subscribed to the state (each
+    // creates that subscriber last, after all its other ports).
+    wait_for_peers(&ports, &stop, scn.timing.lockstep_timeout.max(10.0));
+    let t0 = Instant::now();
+    let result = match scn.timing.mode {
+        Mode::Lockstep => run_lockstep(&scn, &ports, &mut sim, &stop, &mut report),
+        Mode::Realtime => run_realtime(&scn, &ports, &mut sim, &stop, &mut report),
+    };
+    report.wall_s = t0.elapsed().as_secs_f64();
+    report.interrupted = stop.load(Ordering::SeqCst);
+    if let Err(e) = write_json(&scn.output.dir, "plant.json", &report) {
+        eprintln!("{WHO}: cannot write plant.json: {e}");
+    }
+    if let Err((code, msg)) = result {
+        fail(WHO, code, &msg);
+    }
+}
+
+fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
+    let t0 = Instant::now();
+    while ports.command.peer_publishers() < 1 || ports.state.subscribers() < 2 {
+        if stop.load(Ordering::SeqCst) {
+            return;
+        }
+        if t0.elapsed().as_secs_f64() > timeout_s {
+            fail(WHO, EXIT_PEER_TIMEOUT, "controller/optimiser did not connect in time");
+        }
+        // Start-up only, never in the loop: peers appear once, so a short nap is fine here.
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+fn publish(ports: &Ports, msg: &PlantState) -> Result<(), (i32, String)> {
+    ports.state.send(msg).map_err(|e| (EXIT_SETUP, e.to_string()))
+}
+
+fn run_lockstep(
+    scn: &Scenario,
+    ports: &Ports,
+    sim: &mut PlantSim,
+    stop: &AtomicBool,
+    report: &mut PlantReport,
+) -> Result<(), (i32, String)> {
+    let n = scn.cycles();
+    let dt = scn.timing.period;
+    let sync = scn.sync_samples();
+    let spin = Duration::from_micros(scn.timing.spin_us);
+    let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout);
+    let n_u = sim.plant.n_inputs();
+    let mut u = [0.0; MAX_JOINTS];
+    let mut msg = PlantState::default();
+    for k in 0..=n {
+        sim.sample(k, now_ns(), &u[..n_u], &mut msg);
+        if k == n {
+            msg.flags = STATE_FLAG_END;
+            publish(ports, &msg)?;
+            break;
+        }
+        publish(ports, &msg)?;
+        report.samples += 1;
+        if k % sync == 0 {
+            wait_until(&ports.ack, spin, timeout, stop, |a: &OptimiserAck| a.through_seq >= k)
+                .map_err(|_| {
+                    (
+                        EXIT_PEER_TIMEOUT,
+                        format!("optimiser did not acknowledge sample {k} within {timeout:?}"),
+                    )
+                })?;
+        }
+        let cmd = wait_until(&ports.command, spin, timeout, stop, |c: &Command| c.state_seq == k)
+            .map_err(|_| {
+                (
+                    EXIT_PEER_TIMEOUT,
+                    format!("controller did not answer sample {k} within {timeout:?}"),
+                )
+            })?;
+        let Some(cmd) = cmd else { return Ok(()) }; // stopped by a signal
+        report.commands_received += 1;
+        u[..n_u].copy_from_slice(&cmd.u[..n_u]);
+        sim.advance(&u[..n_u], dt);
+    }
+    Ok(())
+}
+
+/// Wait for a message satisfying `done`, discarding others. Ok(None) when stopped by a signal,
+/// Err(()) on timeout.
+fn wait_until<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
+    sub: &Sub<T>,
+    spin: Duration,
+    timeout: Duration,
+    stop: &AtomicBool,
+    done: impl Fn(&T) -> bool,
+) -> Result<Option<T>, ()> {
+    let t0 = Instant::now();
+    // Block in slices so a signal is noticed within 100 ms even if a peer hangs.
+    let slice = Duration::from_millis(100);
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let left = timeout.saturating_sub(t0.elapsed());
+        if left.is_zero() {
+            return Err(());
+        }
+        match sub.wait_next(spin, left.min(slice)) {
+            Ok(Wait::Got(m)) if done(&m) => return Ok(Some(m)),
+            Ok(_) => {}
+            Err(_) => return Err(()),
+        }
+    }
+}
+
+fn run_realtime(
+    scn: &Scenario,
+    ports: &Ports,
+    sim: &mut PlantSim,
+    stop: &AtomicBool,
+    report: &mut PlantReport,
+) -> Result<(), (i32, String)> {
+    let n = scn.cycles();
+    let period = scn.period_ns();
+    let n_u = sim.plant.n_inputs();
+    let safe = [scn.plant.safe_command; MAX_JOINTS];
+    let timeout_ns = scn.plant.command_timeout_periods as u64 * period;
+    let mut u = [0.0; MAX_JOINTS];
+    let mut msg = PlantState::default();
+    let epoch = now_ns();
+    let mut last_cmd = epoch;
+    let mut safe_mode = false;
+    for k in 0..=n {
+        let tick = epoch + k * period;
+        sleep_until_ns(tick);
+        // Integrate up to this sample's simulated time with the command in force.
+        sim.advance(&u[..n_u], k as f64 * scn.timing.period - sim.t);
+        sim.sample(k, now_ns(), &u[..n_u], &mut msg);
+        if safe_mode {
+            msg.flags |= STATE_FLAG_SAFE;
+            report.safe_samples += 1;
+        }
+        if k == n || stop.load(Ordering::Relaxed) {
+            msg.flags |= STATE_FLAG_END;
+            publish(ports, &msg)?;
+            break;
+        }
+        publish(ports, &msg)?;
+        report.samples += 1;
+        // Until the next tick: apply each command the moment it arrives (zero-order hold).
+        let next = tick + period;
+        loop {
+            let now = now_ns();
+            if now >= next {
+                break;
+            }
+            match ports.command.wait_next(Duration::ZERO, Duration::from_nanos(next - now)) {
+                Ok(Wait::Got(cmd)) => {
+                    let at = now_ns().min(next);
+                    let t_at = (at - epoch) as f64 * 1e-9;
+                    sim.advance(&u[..n_u], t_at - sim.t);
+                    u[..n_u].copy_from_slice(&cmd.u[..n_u]);
+                    last_cmd = at;
+                    safe_mode = false;
+                    report.commands_received += 1;
+                }
+                Ok(Wait::TimedOut) => break,
+                Err(e) => return Err((EXIT_SETUP, e.to_string())),
+            }
+        }
+        if now_ns().saturating_sub(last_cmd) > timeout_ns && !safe_mode {
+            safe_mode = true;
+            u[..n_u].copy_from_slice(&safe[..n_u]);
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,119 @@
+//! One controller cycle as the controller process runs it, shared with the in-process simulation
+//! so both compute the same numbers: take due parameter sets, validate and swap them in at the
+//! cycle boundary, evaluate the reference and the control law, fill the telemetry.
+
+use super::{validate_params, Controller, ParamBounds};
+use crate::ipc::messages::{ParamCode, ParamSet, PlantState, Telemetry};
+use crate::reference::Reference;
+use crate::MAX_JOINTS;
+
+/// Capacity of the queue of parameter sets waiting for their cycle.
+pub const PENDING_CAPACITY: usize = 16;
+
+/// A parameter-set event, for the run's record.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParamEvent {
+    pub cycle: u64,
+    pub t: f64,
+    pub version: u64,
+    pub code: ParamCode,
+    pub index: u32,
+}
+
+pub struct ControlCycle {
+    pub controller: Box<dyn Controller>,
+    pub reference: Reference,
+    bounds: ParamBounds,
+    version: u64,
+    /// Sets received but not yet due (lockstep: `apply_at_seq` in the future). Preallocated.
+    pending: Vec<ParamSet>,
+    /// Sets dropped because the queue was full.
+    pub pending_dropped: u64,
+    pub u: [f64; MAX_JOINTS],
+    cycle: u64,
+}
+
+impl ControlCycle {
+    pub fn new(controller: Box<dyn Controller>, reference: Reference, bounds: ParamBounds) -> Self {
+        Self {
+            controller,
+            reference,
+            bounds,
+            version: 0,
+            pending: Vec::with_capacity(PENDING_CAPACITY),
+            pending_dropped: 0,
+            u: [0.0; MAX_JOINTS],
+            cycle: 0,
+        }
+    }
+
+    /// Parameter version in service (0 = the configured initial set).
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+
+    /// Queue a received parameter set; it is looked at in the cycle it is due. Never allocates.
+    pub fn offer(&mut self, set: &ParamSet) {
+        if self.pending.len() < PENDING_CAPACITY {
+            self.pending.push(*set);
+        } else {
+            self.pending_dropped += 1;
+        }
+    }
+
+    /// Run one cycle on `state`; returns u and fills `tel` (all but the timing fields), and the
+    /// parameter event of this cycle if one happened. At most one set is handled per cycle, so
+    /// each accept/reject gets its own telemetry record.
+    pub fn step(&mut self, state: &PlantState, tel: &mut Telemetry) -> Option<ParamEvent> {
+        let r = self.reference.value(state.t);
+        let mut event = None;
+        if let Some(i) = self
+            .pending
+            .iter()
+            .position(|p| p.apply_at_seq <= state.seq)
+        {
+            let set = self.pending.remove(i);
+            let c = self.controller.as_ref();
+            let (code, index) =
+                match validate_params(&set, c.kind(), c.n_params(), self.version, &self.bounds) {
+                    Ok(()) => {
+                        self.controller.swap_params(set.values(), state, r);
+                        self.version = set.version;
+                        (ParamCode::Accepted, 0)
+                    }
+                    Err(rej) => (rej.code, rej.index),
+                };
+            event = Some(ParamEvent {
+                cycle: self.cycle,
+                t: state.t,
+                version: set.version,
+                code,
+                index,
+            });
+        }
+        let n_u = self.controller.n_outputs();
+        self.controller.step(state, r, &mut self.u[..n_u]);
+        tel.cycle = self.cycle;
+        tel.state_seq = state.seq;
+        tel.t = state.t;
+        tel.reference = r;
+        tel.tracking_error = r - state.y[0];
+        tel.n_u = n_u as u32;
+        tel.u = self.u;
+        tel.param_version = self.version;
+        match event {
+            Some(e) => {
+                tel.param_code = e.code as u32;
+                tel.param_event_version = e.version;
+                tel.param_index = e.index;
+            }
+            None => {
+                tel.param_code = ParamCode::None as u32;
+                tel.param_event_version = 0;
+                tel.param_index = 0;
+            }
+        }
+        self.cycle += 1;
+        event
+    }
+}

@@ -1,0 +1,91 @@
+//! State feedback with integral action (two-mass paper, eq. 2 and Fig. 1):
+//!   u = -K x̂,  x̂ = [x; ξ],  ξ' = r - y,
+//! with K = [k1, ..., kn, k_{n+1}] in the column order of the paper's Table 9 (so the paper's
+//! integral gain k_i equals -k_{n+1}). x is the plant's full state in its documented order.
+//!
+//! The integrator is stored as its contribution to u, I = -k_{n+1} ξ (as ros2_control stores
+//! Ki·∫e), which makes the bumpless swap a one-line re-initialisation of I.
+//! Optional output limit with conditional integration (the integrator holds while the output is
+//! saturated and the error would drive it further into saturation).
+
+use super::Controller;
+use crate::ipc::messages::{PlantState, KIND_STATE_FEEDBACK};
+
+pub struct StateFeedback {
+    gains: Vec<f64>,
+    n_x: usize,
+    /// Control period (s): the integrator's step.
+    period: f64,
+    /// Integral contribution to u.
+    integral: f64,
+    u_limit: Option<f64>,
+}
+
+impl StateFeedback {
+    /// `gains` has n_x + 1 entries.
+    pub fn new(gains: &[f64], period: f64, u_limit: Option<f64>) -> Self {
+        assert!(gains.len() >= 2, "state feedback needs n_x + 1 >= 2 gains");
+        Self {
+            n_x: gains.len() - 1,
+            gains: gains.to_vec(),
+            period,
+            integral: 0.0,
+            u_limit,
+        }
+    }
+
+    /// The unsaturated law -K_x x + I.
+    fn law(&self, x: &[f64]) -> f64 {
+        let mut u = self.integral;
+        for i in 0..self.n_x {
+            u -= self.gains[i] * x[i];
+        }
+        u
+    }
+
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+}
+
+impl Controller for StateFeedback {
+    fn kind(&self) -> u32 {
+        KIND_STATE_FEEDBACK
+    }
+    fn n_params(&self) -> usize {
+        self.gains.len()
+    }
+    fn params(&self) -> &[f64] {
+        &self.gains
+    }
+    fn n_outputs(&self) -> usize {
+        1
+    }
+
+    fn step(&mut self, state: &PlantState, reference: f64, u: &mut [f64]) {
+        let raw = self.law(&state.x[..self.n_x]);
+        let out = match self.u_limit {
+            Some(l) => raw.clamp(-l, l),
+            None => raw,
+        };
+        let e = reference - state.y[0];
+        let di = -self.gains[self.n_x] * self.period * e;
+        let saturated_further = out != raw && di.signum() == raw.signum();
+        if !saturated_further {
+            self.integral += di;
+        }
+        u[0] = out;
+    }
+
+    fn swap_params(&mut self, new: &[f64], state: &PlantState, _reference: f64) {
+        let x = &state.x[..self.n_x];
+        let u_old = self.law(x);
+        self.gains.copy_from_slice(new);
+        // Choose I so that -K_new x + I = u_old on this sample: no step in u.
+        let mut kx = 0.0;
+        for i in 0..self.n_x {
+            kx += self.gains[i] * x[i];
+        }
+        self.integral = u_old + kx;
+    }
+}

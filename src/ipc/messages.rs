@@ -1,0 +1,205 @@
+//! Fixed-size `#[repr(C)]` message types that iceoryx2 sends zero-copy between the processes.
+//!
+//! They live in one place so every binary agrees on the type name and layout; the type names carry
+//! a version suffix because iceoryx2 checks only name, size and alignment when a service opens.
+
+use crate::{MAX_JOINTS, MAX_PARAMS, MAX_STATES};
+use iceoryx2::prelude::*;
+
+/// `PlantState::flags`: the plant applied its safe command because commands stopped arriving.
+pub const STATE_FLAG_SAFE: u32 = 1;
+/// `PlantState::flags`: the scenario is over; this is the last message of the run.
+pub const STATE_FLAG_END: u32 = 2;
+
+/// One sample of the plant, published by the plant process every control period.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("evoloop::PlantState.v1")]
+pub struct PlantState {
+    /// Sample index, 0, 1, 2, ...
+    pub seq: u64,
+    /// CLOCK_MONOTONIC time at which the sample was taken, ns.
+    pub stamp_ns: u64,
+    /// Simulated time of the sample, s.
+    pub t: f64,
+    /// Number of valid entries in `x`, `q`/`qd` and `y`.
+    pub n_x: u32,
+    pub n_q: u32,
+    pub n_y: u32,
+    /// `STATE_FLAG_*` bits.
+    pub flags: u32,
+    /// Full state vector in the plant's documented order.
+    pub x: [f64; MAX_STATES],
+    /// Joint (body) positions and velocities.
+    pub q: [f64; MAX_JOINTS],
+    pub qd: [f64; MAX_JOINTS],
+    /// Measured outputs (with sensor noise and quantisation where the plant has them).
+    pub y: [f64; MAX_JOINTS],
+    /// The command that was applied over the interval that ended at this sample.
+    pub u_applied: [f64; MAX_JOINTS],
+}
+
+impl Default for PlantState {
+    fn default() -> Self {
+        Self {
+            seq: 0,
+            stamp_ns: 0,
+            t: 0.0,
+            n_x: 0,
+            n_q: 0,
+            n_y: 0,
+            flags: 0,
+            x: [0.0; MAX_STATES],
+            q: [0.0; MAX_JOINTS],
+            qd: [0.0; MAX_JOINTS],
+            y: [0.0; MAX_JOINTS],
+            u_applied: [0.0; MAX_JOINTS],
+        }
+    }
+}
+
+/// The controller's answer to one state sample.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[type_name("evoloop::Command.v1")]
+pub struct Command {
+    /// Controller cycle index.
+    pub cycle: u64,
+    /// `PlantState::seq` this command answers.
+    pub state_seq: u64,
+    /// CLOCK_MONOTONIC time at which the command was published, ns.
+    pub stamp_ns: u64,
+    /// Parameter-set version in service when the command was computed.
+    pub param_version: u64,
+    pub n_u: u32,
+    pub _pad: u32,
+    pub u: [f64; MAX_JOINTS],
+}
+
+/// Why a parameter set was refused (`Telemetry::param_code`).
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamCode {
+    /// Nothing happened to the parameters this cycle.
+    None = 0,
+    Accepted = 1,
+    RejectedNonFinite = 2,
+    RejectedWrongKind = 3,
+    RejectedWrongLength = 4,
+    RejectedOutOfBounds = 5,
+    RejectedStale = 6,
+}
+
+impl ParamCode {
+    pub fn from_u32(v: u32) -> Self {
+        match v {
+            1 => Self::Accepted,
+            2 => Self::RejectedNonFinite,
+            3 => Self::RejectedWrongKind,
+            4 => Self::RejectedWrongLength,
+            5 => Self::RejectedOutOfBounds,
+            6 => Self::RejectedStale,
+            _ => Self::None,
+        }
+    }
+    /// Short reason for logs and reports.
+    pub fn reason(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Accepted => "accepted",
+            Self::RejectedNonFinite => "rejected: a value is NaN or infinite",
+            Self::RejectedWrongKind => "rejected: parameter set is for another controller kind",
+            Self::RejectedWrongLength => "rejected: wrong number of values",
+            Self::RejectedOutOfBounds => "rejected: a value is outside the configured bounds",
+            Self::RejectedStale => "rejected: version is not newer than the one in service",
+        }
+    }
+}
+
+/// `Telemetry::flags`: the state the controller used was older than the stale limit.
+pub const TELEMETRY_FLAG_STALE: u32 = 1;
+/// `Telemetry::flags`: this cycle's compute overran its period.
+pub const TELEMETRY_FLAG_OVERRUN: u32 = 2;
+/// `Telemetry::flags`: this cycle started a full period or more after its deadline.
+pub const TELEMETRY_FLAG_MISSED: u32 = 4;
+
+/// One controller cycle as the controller saw it.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[type_name("evoloop::Telemetry.v1")]
+pub struct Telemetry {
+    pub cycle: u64,
+    pub state_seq: u64,
+    /// Simulated time of the state used, s.
+    pub t: f64,
+    /// Wake-up lateness against the cycle's absolute deadline (0 in lockstep), ns.
+    pub lateness_ns: i64,
+    /// Time spent computing the control law and publishing, ns.
+    pub compute_ns: u64,
+    /// Age of the state sample when the control law used it, ns.
+    pub state_age_ns: u64,
+    pub reference: f64,
+    pub tracking_error: f64,
+    pub n_u: u32,
+    pub flags: u32,
+    pub u: [f64; MAX_JOINTS],
+    /// Parameter version in service after this cycle.
+    pub param_version: u64,
+    /// Version concerned by `param_code` (accepted or rejected this cycle).
+    pub param_event_version: u64,
+    /// `ParamCode` as u32.
+    pub param_code: u32,
+    /// Index of the offending value for `RejectedOutOfBounds`/`RejectedNonFinite`.
+    pub param_index: u32,
+    /// Running counts since the start of the run.
+    pub overruns: u64,
+    pub missed: u64,
+}
+
+/// Controller kinds a parameter set can be meant for (`ParamSet::kind`).
+pub const KIND_STATE_FEEDBACK: u32 = 1;
+
+/// A parameter set from the optimiser to the controller.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("evoloop::ParamSet.v1")]
+pub struct ParamSet {
+    /// Strictly increasing; the controller refuses a version not newer than the one in service.
+    pub version: u64,
+    /// State sequence number at whose cycle the set is to be applied; 0 = the next cycle.
+    /// Lockstep runs use it so a swap lands on the same sample every run.
+    pub apply_at_seq: u64,
+    /// The optimiser's expected cost of this set on its model (NaN when unknown).
+    pub expected_cost: f64,
+    pub kind: u32,
+    pub n: u32,
+    pub values: [f64; MAX_PARAMS],
+}
+
+impl Default for ParamSet {
+    fn default() -> Self {
+        Self {
+            version: 0,
+            apply_at_seq: 0,
+            expected_cost: f64::NAN,
+            kind: 0,
+            n: 0,
+            values: [0.0; MAX_PARAMS],
+        }
+    }
+}
+
+impl ParamSet {
+    pub fn values(&self) -> &[f64] {
+        &self.values[..(self.n as usize).min(MAX_PARAMS)]
+    }
+}
+
+/// Lockstep pacing: the optimiser has consumed every sample up to `through_seq` and published
+/// whatever it meant to publish before it; the plant may go past that sample.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[type_name("evoloop::OptimiserAck.v1")]
+pub struct OptimiserAck {
+    pub through_seq: u64,
+}

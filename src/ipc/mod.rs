@@ -1,0 +1,355 @@
+//! The inter-process layer: iceoryx2 nodes, the run's services, and typed publish/subscribe
+//! channels paired with events so a waiting process blocks instead of polling.
+//!
+//! Every service name carries the run id (`evoloop/<run id>/<topic>`) so two runs on one machine
+//! never cross-talk, and every file iceoryx2 creates carries the run's prefix (`--ipc-prefix`,
+//! default `evoloop_`) so a run's resources can be told apart from other iceoryx2 users.
+
+pub mod messages;
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use std::fmt::{self, Debug};
+use std::time::{Duration, Instant};
+
+/// An IPC failure with what was being done when it happened.
+#[derive(Debug)]
+pub struct IpcError {
+    pub context: String,
+    pub cause: String,
+}
+
+impl fmt::Display for IpcError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "iceoryx2: {}: {}", self.context, self.cause)
+    }
+}
+
+impl std::error::Error for IpcError {}
+
+fn err(context: impl Into<String>, cause: impl Debug) -> IpcError {
+    IpcError {
+        context: context.into(),
+        cause: format!("{cause:?}"),
+    }
+}
+
+/// The topics of a run. Each has one QoS, used by whichever process creates the service first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Topic {
+    State,
+    Command,
+    Telemetry,
+    Params,
+    OptimiserAck,
+}
+
+impl Topic {
+    pub fn name(self) -> &'static str {
+        match self {
+            Topic::State => "state",
+            Topic::Command => "command",
+            Topic::Telemetry => "telemetry",
+            Topic::Params => "params",
+            Topic::OptimiserAck => "optimiser_ack",
+        }
+    }
+    /// Largest per-subscriber queue. The optimiser reads every state/command sample between its
+    /// lockstep acknowledgements, so those queues must hold a whole sync interval.
+    pub fn max_buffer(self) -> usize {
+        match self {
+            Topic::State | Topic::Command => MAX_SYNC_SAMPLES + 8,
+            Topic::Telemetry => 64,
+            Topic::Params => 16,
+            Topic::OptimiserAck => 4,
+        }
+    }
+}
+
+/// Most samples between two optimiser acknowledgements in lockstep (config validation enforces it).
+pub const MAX_SYNC_SAMPLES: usize = 256;
+
+/// Default prefix of every file iceoryx2 creates for evoloop.
+pub const DEFAULT_PREFIX: &str = "evoloop_";
+
+/// iceoryx2 configuration for a prefix (separate namespace per prefix).
+pub fn ipc_config(prefix: &str) -> Result<Config, IpcError> {
+    let mut cfg = Config::global_config().clone();
+    cfg.global.prefix =
+        FileName::new(prefix.as_bytes()).map_err(|e| err(format!("ipc prefix {prefix:?}"), e))?;
+    Ok(cfg)
+}
+
+/// One process's membership in a run: its iceoryx2 node and the run id.
+pub struct Ipc {
+    pub node: Node<ipc::Service>,
+    pub run_id: String,
+}
+
+impl Ipc {
+    /// Create the process's node. Signal handling is left to the process (ctrlc), so a SIGTERM
+    /// mid-wait ends the wait through our own flag and the ports are dropped cleanly.
+    /// Node creation also removes the resources of dead nodes of earlier, killed runs.
+    pub fn new(process: &str, run_id: &str, prefix: &str) -> Result<Self, IpcError> {
+        set_log_level(LogLevel::Error);
+        let cfg = ipc_config(prefix)?;
+        let name = NodeName::new(process).map_err(|e| err("node name", e))?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .config(&cfg)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| err(format!("creating node {process}"), e))?;
+        Ok(Self {
+            node,
+            run_id: run_id.to_string(),
+        })
+    }
+
+    pub fn service_name(&self, topic: Topic) -> Result<ServiceName, IpcError> {
+        let s = format!("evoloop/{}/{}", self.run_id, topic.name());
+        ServiceName::new(&s).map_err(|e| err(format!("service name {s}"), e))
+    }
+
+    /// Remove what dead processes of earlier runs left behind; returns how many nodes were cleaned.
+    pub fn cleanup_dead_nodes(&self) -> usize {
+        self.node.try_cleanup_dead_nodes().cleanups as usize
+    }
+
+    fn pubsub<T: Debug + ZeroCopySend + 'static>(
+        &self,
+        topic: Topic,
+    ) -> Result<PubSubFactory<T>, IpcError> {
+        let name = self.service_name(topic)?;
+        // Peers open the same service concurrently at start-up; iceoryx2 reports a service that is
+        // being created or torn down by someone else as an error for a short moment, so retry.
+        let mut last = None;
+        for _ in 0..50 {
+            match self
+                .node
+                .service_builder(&name)
+                .publish_subscribe::<T>()
+                .subscriber_max_buffer_size(topic.max_buffer())
+                .subscriber_max_borrowed_samples(2)
+                .history_size(0)
+                .max_publishers(2)
+                .max_subscribers(6)
+                .max_nodes(8)
+                .enable_safe_overflow(true)
+                .open_or_create()
+            {
+                Ok(s) => return Ok(s),
+                Err(e) => {
+                    last = Some(e);
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+            }
+        }
+        Err(err(format!("opening service {}", name.as_str()), last))
+    }
+
+    fn event(
+        &self,
+        topic: Topic,
+    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, IpcError> {
+        let name = self.service_name(topic)?;
+        let mut last = None;
+        for _ in 0..50 {
+            match self
+                .node
+                .service_builder(&name)
+                .event()
+                .max_notifiers(4)
+                .max_listeners(6)
+                .max_nodes(8)
+                .open_or_create()
+            {
+                Ok(s) => return Ok(s),
+                Err(e) => {
+                    last = Some(e);
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+            }
+        }
+        Err(err(format!("opening event {}", name.as_str()), last))
+    }
+
+    /// A publisher; with `wake` it also notifies listeners after each send.
+    pub fn publisher<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        topic: Topic,
+        wake: bool,
+    ) -> Result<Pub<T>, IpcError> {
+        let svc = self.pubsub::<T>(topic)?;
+        let publisher = svc
+            .publisher_builder()
+            .max_loaned_samples(1)
+            .create()
+            .map_err(|e| err(format!("publisher on {}", topic.name()), e))?;
+        let notifier = if wake {
+            let ev = self.event(topic)?;
+            Some(
+                ev.notifier_builder()
+                    .create()
+                    .map_err(|e| err(format!("notifier on {}", topic.name()), e))?,
+            )
+        } else {
+            None
+        };
+        Ok(Pub {
+            publisher,
+            notifier,
+            topic,
+            service: svc,
+        })
+    }
+
+    /// A subscriber with its own queue depth; with `wake` it can block until a sample arrives.
+    pub fn subscriber<T: Debug + ZeroCopySend + Copy + 'static>(
+        &self,
+        topic: Topic,
+        buffer: usize,
+        wake: bool,
+    ) -> Result<Sub<T>, IpcError> {
+        let svc = self.pubsub::<T>(topic)?;
+        let subscriber = svc
+            .subscriber_builder()
+            .buffer_size(buffer.clamp(1, topic.max_buffer()))
+            .create()
+            .map_err(|e| err(format!("subscriber on {}", topic.name()), e))?;
+        let listener = if wake {
+            let ev = self.event(topic)?;
+            Some(
+                ev.listener_builder()
+                    .create()
+                    .map_err(|e| err(format!("listener on {}", topic.name()), e))?,
+            )
+        } else {
+            None
+        };
+        Ok(Sub {
+            subscriber,
+            listener,
+            topic,
+            service: svc,
+        })
+    }
+}
+
+/// A typed publisher, optionally paired with an event notifier.
+pub struct Pub<T: Debug + ZeroCopySend + 'static> {
+    publisher: Publisher<ipc::Service, T, ()>,
+    notifier: Option<Notifier<ipc::Service>>,
+    topic: Topic,
+    service: PubSubFactory<T>,
+}
+
+type PubSubFactory<T> =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>;
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Pub<T> {
+    /// Copy `value` into a shared-memory slot, send it and wake the listeners. No allocation.
+    pub fn send(&self, value: &T) -> Result<(), IpcError> {
+        let sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| err(format!("loan on {}", self.topic.name()), e))?;
+        sample
+            .write_payload(*value)
+            .send()
+            .map_err(|e| err(format!("send on {}", self.topic.name()), e))?;
+        if let Some(n) = &self.notifier {
+            n.notify()
+                .map_err(|e| err(format!("notify on {}", self.topic.name()), e))?;
+        }
+        Ok(())
+    }
+
+    /// Number of subscribers (all processes) connected to this topic.
+    pub fn subscribers(&self) -> usize {
+        self.service.dynamic_config().number_of_subscribers()
+    }
+}
+
+/// A typed subscriber, optionally paired with an event listener for blocking waits.
+pub struct Sub<T: Debug + ZeroCopySend + 'static> {
+    subscriber: Subscriber<ipc::Service, T, ()>,
+    listener: Option<Listener<ipc::Service>>,
+    topic: Topic,
+    service: PubSubFactory<T>,
+}
+
+/// What a bounded wait ended with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wait<T> {
+    Got(T),
+    TimedOut,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
+    /// The oldest unread sample, if any (in-order consumption).
+    pub fn next(&self) -> Result<Option<T>, IpcError> {
+        match self.subscriber.receive() {
+            Ok(Some(s)) => Ok(Some(*s.payload())),
+            Ok(None) => Ok(None),
+            Err(e) => Err(err(format!("receive on {}", self.topic.name()), e)),
+        }
+    }
+
+    /// The newest sample, dropping older unread ones (zero-order-hold consumers).
+    pub fn latest(&self) -> Result<Option<T>, IpcError> {
+        let mut last = None;
+        while let Some(v) = self.next()? {
+            last = Some(v);
+        }
+        Ok(last)
+    }
+
+    /// Wait for the next sample: poll for up to `spin`, then block on the event until `timeout`
+    /// has passed in all. Never sleeps for a fixed time: a notification wakes it at once.
+    pub fn wait_next(&self, spin: Duration, timeout: Duration) -> Result<Wait<T>, IpcError> {
+        let start = Instant::now();
+        loop {
+            if let Some(v) = self.next()? {
+                return Ok(Wait::Got(v));
+            }
+            let waited = start.elapsed();
+            if waited >= timeout {
+                return Ok(Wait::TimedOut);
+            }
+            if waited < spin {
+                std::hint::spin_loop();
+                continue;
+            }
+            match &self.listener {
+                Some(l) => {
+                    l.timed_wait(|_| {}, timeout - waited)
+                        .map_err(|e| err(format!("wait on {}", self.topic.name()), e))?;
+                }
+                None => std::hint::spin_loop(),
+            }
+        }
+    }
+
+    /// Block on the event until something arrives or `timeout` passes, without consuming samples.
+    pub fn wait_event(&self, timeout: Duration) -> Result<(), IpcError> {
+        if let Some(l) = &self.listener {
+            l.timed_wait(|_| {}, timeout)
+                .map_err(|e| err(format!("wait on {}", self.topic.name()), e))?;
+        }
+        Ok(())
+    }
+
+    /// Number of subscribers (all processes) currently connected to this topic.
+    pub fn peer_subscribers(&self) -> usize {
+        self.service.dynamic_config().number_of_subscribers()
+    }
+
+    /// Number of publishers currently connected to this topic.
+    pub fn peer_publishers(&self) -> usize {
+        self.service.dynamic_config().number_of_publishers()
+    }
+}

@@ -1,0 +1,26 @@
+//! evoloop: soft real-time control loops whose controllers are tuned by evolutionary optimisers
+//! while the plant runs.
+//!
+//! The library holds everything the processes share. The algorithms (plants, control laws,
+//! references) know nothing of processes or iceoryx2; `ipc` and `rt` are the only modules that
+//! touch shared memory, clocks and scheduling, and the binaries in `bin/` wire the two together.
+//! So a control law runs the same in the controller process, in an optimiser's model evaluation
+//! and in a unit test.
+
+pub mod cli;
+pub mod config;
+pub mod control;
+pub mod ipc;
+pub mod plant;
+pub mod process;
+pub mod reference;
+pub mod report;
+pub mod rt;
+pub mod sim;
+
+/// Largest number of joints/inputs/outputs a message carries (8-joint arms fit).
+pub const MAX_JOINTS: usize = 8;
+/// Largest plant state vector a message carries (positions, velocities and extra states).
+pub const MAX_STATES: usize = 32;
+/// Largest parameter set (identified models of later issues fit: RBF networks, fuzzy rule bases).
+pub const MAX_PARAMS: usize = 1024;

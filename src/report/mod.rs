@@ -1,0 +1,126 @@
+//! Run records and the report: the fixed-capacity logs the processes fill during a run, CSV
+//! writing/reading, response metrics (settling time, overshoot, IAE, ISE) and plots.
+
+pub mod build;
+pub mod metrics;
+pub mod plot;
+pub mod summary;
+
+use std::io::{BufRead, BufWriter, Write};
+use std::path::Path;
+
+/// A table of f64 rows with fixed width, allocated for the whole run up front so recording a
+/// row in the control cycle never allocates. Rows beyond the capacity are counted, not stored.
+pub struct RunLog {
+    header: Vec<String>,
+    data: Vec<f64>,
+    capacity_rows: usize,
+    pub dropped: u64,
+}
+
+impl RunLog {
+    pub fn new(header: Vec<String>, rows: usize) -> Self {
+        Self {
+            data: Vec::with_capacity(rows * header.len()),
+            header,
+            capacity_rows: rows,
+            dropped: 0,
+        }
+    }
+
+    pub fn width(&self) -> usize {
+        self.header.len()
+    }
+
+    pub fn len(&self) -> usize {
+        self.data.len() / self.header.len().max(1)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+
+    /// Append one row (`row.len()` must equal the width). No allocation.
+    #[inline]
+    pub fn push(&mut self, row: &[f64]) {
+        debug_assert_eq!(row.len(), self.header.len());
+        if self.len() < self.capacity_rows {
+            self.data.extend_from_slice(row);
+        } else {
+            self.dropped += 1;
+        }
+    }
+
+    pub fn row(&self, i: usize) -> &[f64] {
+        let w = self.width();
+        &self.data[i * w..(i + 1) * w]
+    }
+
+    /// Write as CSV with the shortest exact decimal form of each number, so equal runs give
+    /// byte-identical files.
+    pub fn write_csv(&self, path: &Path) -> std::io::Result<()> {
+        let mut w = BufWriter::new(std::fs::File::create(path)?);
+        writeln!(w, "{}", self.header.join(","))?;
+        for i in 0..self.len() {
+            let row = self.row(i);
+            for (j, v) in row.iter().enumerate() {
+                if j > 0 {
+                    w.write_all(b",")?;
+                }
+                write!(w, "{v}")?;
+            }
+            w.write_all(b"\n")?;
+        }
+        w.flush()
+    }
+}
+
+/// A CSV table read back: header and columns.
+pub struct Table {
+    pub header: Vec<String>,
+    pub rows: Vec<Vec<f64>>,
+}
+
+impl Table {
+    pub fn read(path: &Path) -> std::io::Result<Table> {
+        let f = std::io::BufReader::new(std::fs::File::open(path)?);
+        let mut lines = f.lines();
+        let header: Vec<String> = match lines.next() {
+            Some(h) => h?.split(',').map(str::to_string).collect(),
+            None => Vec::new(),
+        };
+        let mut rows = Vec::new();
+        for (i, line) in lines.enumerate() {
+            let line = line?;
+            if line.is_empty() {
+                continue;
+            }
+            let row: Result<Vec<f64>, _> = line.split(',').map(str::parse::<f64>).collect();
+            rows.push(row.map_err(|e| {
+                std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    format!("{}: line {}: {e}", path.display(), i + 2),
+                )
+            })?);
+        }
+        Ok(Table { header, rows })
+    }
+
+    /// Column by header name.
+    pub fn col(&self, name: &str) -> Option<Vec<f64>> {
+        let j = self.header.iter().position(|h| h == name)?;
+        Some(self.rows.iter().map(|r| r[j]).collect())
+    }
+
+    /// Columns whose names start with `prefix` followed by a digit (y0, y1, ...).
+    pub fn cols_with_prefix(&self, prefix: &str) -> Vec<(String, Vec<f64>)> {
+        self.header
+            .iter()
+            .filter(|h| {
+                h.strip_prefix(prefix)
+                    .is_some_and(|rest| rest.chars().all(|c| c.is_ascii_digit()) && !rest.is_empty())
+            })
+            .map(|h| (h.clone(), self.col(h).unwrap_or_default()))
+            .collect()
+    }
+}

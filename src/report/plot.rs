@@ -1,0 +1,119 @@
+//! Plots a person would rather look at than read: reference vs output and the control signal,
+//! with the parameter swaps marked. PNG via plotters with an embedded DejaVu font, so no system
+//! fonts are needed.
+
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+use std::path::Path;
+use std::sync::Once;
+
+static FONT: Once = Once::new();
+
+fn ensure_font() {
+    FONT.call_once(|| {
+        // The embedded font is valid TrueType; a failure would only lose the labels.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
+    });
+}
+
+/// A named series.
+pub struct Series<'a> {
+    pub name: &'a str,
+    pub values: &'a [f64],
+}
+
+fn bounds(series: &[Series]) -> (f64, f64) {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for s in series {
+        for v in s.values.iter().filter(|v| v.is_finite()) {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
+    }
+    if !lo.is_finite() {
+        return (-1.0, 1.0);
+    }
+    let pad = ((hi - lo) * 0.08).max(1e-6);
+    (lo - pad, hi + pad)
+}
+
+const COLOURS: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(140, 86, 75),
+    RGBColor(148, 103, 189),
+    RGBColor(23, 190, 207),
+];
+
+/// Two stacked panels sharing the time axis: `top` (e.g. reference and outputs) and `bottom`
+/// (control), with vertical lines at `marks` (e.g. accepted parameter swaps).
+pub fn two_panel_png(
+    path: &Path,
+    title: &str,
+    t: &[f64],
+    top: &[Series],
+    top_label: &str,
+    bottom: &[Series],
+    bottom_label: &str,
+    marks: &[f64],
+) -> Result<(), String> {
+    ensure_font();
+    let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let root = root
+        .titled(title, ("sans-serif", 24))
+        .map_err(|e| e.to_string())?;
+    let (upper, lower) = root.split_vertically(460);
+    let t0 = t.first().copied().unwrap_or(0.0);
+    let t1 = t.last().copied().unwrap_or(1.0).max(t0 + 1e-9);
+    for (area, series, label) in [(&upper, top, top_label), (&lower, bottom, bottom_label)] {
+        let (lo, hi) = bounds(series);
+        let mut chart = ChartBuilder::on(area)
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t0..t1, lo..hi)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("t [s]")
+            .y_desc(label)
+            .label_style(("sans-serif", 16))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for m in marks {
+            chart
+                .draw_series(LineSeries::new(
+                    [(*m, lo), (*m, hi)],
+                    ShapeStyle::from(&RGBColor(255, 127, 14)).stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?;
+        }
+        for (i, s) in series.iter().enumerate() {
+            let c = COLOURS[i % COLOURS.len()];
+            // Thin out very long runs: a PNG 1200 px wide cannot show more than a few thousand points.
+            let stride = (t.len() / 6000).max(1);
+            chart
+                .draw_series(LineSeries::new(
+                    t.iter()
+                        .zip(s.values)
+                        .step_by(stride)
+                        .map(|(a, b)| (*a, *b)),
+                    ShapeStyle::from(&c).stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?
+                .label(s.name)
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()
+            .map_err(|e| e.to_string())?;
+    }
+    root.present().map_err(|e| e.to_string())
+}

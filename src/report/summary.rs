@@ -1,0 +1,116 @@
+//! What each process reports at the end of a run (`controller.json`, `plant.json`,
+//! `optimiser.json` in the output directory) and the run summary the launcher assembles from them
+//! (`summary.json`).
+
+use super::metrics::ResponseMetrics;
+use crate::rt::timing::Percentiles;
+use crate::rt::{RtGranted, TimingSummary};
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct ParamRecord {
+    pub version: u64,
+    pub cycle: u64,
+    pub t: f64,
+    /// "accepted" or the rejection reason.
+    pub outcome: String,
+    /// Offending value index for bounds/non-finite rejections.
+    pub index: Option<u32>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct ControllerReport {
+    pub mode: String,
+    pub cycles: u64,
+    pub wall_s: f64,
+    pub rt: RtGranted,
+    pub timing: TimingSummary,
+    pub params: Vec<ParamRecord>,
+    pub final_version: u64,
+    pub final_params: Vec<f64>,
+    pub pending_dropped: u64,
+    pub log_dropped: u64,
+    /// Set when the run was stopped by a signal before its end.
+    pub interrupted: bool,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct PlantReport {
+    pub mode: String,
+    pub samples: u64,
+    pub wall_s: f64,
+    pub rt: RtGranted,
+    /// Samples during which the safe command was applied because commands had stopped.
+    pub safe_samples: u64,
+    pub commands_received: u64,
+    pub interrupted: bool,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct PublishedSet {
+    pub version: u64,
+    pub at: f64,
+    pub apply_at_seq: u64,
+    pub values: Vec<f64>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct OptimiserReport {
+    pub mode: String,
+    pub states_seen: u64,
+    pub commands_seen: u64,
+    pub published: Vec<PublishedSet>,
+    pub nice: Option<i32>,
+    pub interrupted: bool,
+}
+
+/// The bare absolute-deadline sleep loop measured in the same run: the machine's floor.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct FloorReport {
+    pub period_s: f64,
+    pub rt: RtGranted,
+    pub lateness: Percentiles,
+    /// Controller lateness percentile over the floor's, same run.
+    pub ratio_p50: f64,
+    pub ratio_p99: f64,
+    pub ratio_p99_9: f64,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct ParamVersions {
+    pub final_version: u64,
+    pub accepted: Vec<ParamRecord>,
+    pub rejected: Vec<ParamRecord>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct RealtimePrivileges {
+    pub controller: RtGranted,
+    pub plant: RtGranted,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct Summary {
+    pub scenario: String,
+    pub config: String,
+    pub run_id: String,
+    pub mode: String,
+    pub seed: u64,
+    pub duration_s: f64,
+    pub period_s: f64,
+    pub samples: u64,
+    pub wall_s: f64,
+    /// Control cycles per wall-clock second across the processes.
+    pub throughput_samples_per_s: f64,
+    pub response: ResponseMetrics,
+    pub timing: TimingSummary,
+    pub overruns: u64,
+    pub deadline_misses: u64,
+    pub parameter_versions: ParamVersions,
+    pub realtime_privileges: RealtimePrivileges,
+    pub floor: Option<FloorReport>,
+    pub plant_safe_samples: u64,
+    pub optimiser_published: usize,
+    pub interrupted: bool,
+    pub stale_resources_cleaned: usize,
+}

@@ -1,0 +1,77 @@
+//! Real-time privileges: SCHED_FIFO, mlockall and CPU affinity, each tried when asked for and
+//! reported honestly, with a clean fallback when the process is not permitted.
+
+use serde::{Deserialize, Serialize};
+
+/// What a process asks for.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RtRequest {
+    /// SCHED_FIFO priority (1-99); None = stay SCHED_OTHER.
+    pub fifo_priority: Option<i32>,
+    pub lock_memory: bool,
+    /// CPU to pin to; None = no pinning.
+    pub cpu: Option<usize>,
+}
+
+/// What the process got; goes into summary.json so timing figures can be read in context.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct RtGranted {
+    pub sched_fifo: bool,
+    pub priority: i32,
+    pub mlockall: bool,
+    pub cpu: Option<usize>,
+    /// Why something asked for was not granted.
+    pub notes: Vec<String>,
+}
+
+fn os_error() -> String {
+    std::io::Error::last_os_error().to_string()
+}
+
+/// Apply the request to the calling thread/process; never fails, reports what it got.
+pub fn apply_privileges(req: &RtRequest) -> RtGranted {
+    let mut got = RtGranted::default();
+    if req.lock_memory {
+        // SAFETY: plain syscall with constant flags.
+        if unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) } == 0 {
+            got.mlockall = true;
+        } else {
+            got.notes.push(format!("mlockall refused: {}", os_error()));
+        }
+    }
+    if let Some(cpu) = req.cpu {
+        // SAFETY: cpu_set_t is plain data; CPU_SET bounds-checks against its size.
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            libc::CPU_SET(cpu, &mut set);
+            if libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) == 0 {
+                got.cpu = Some(cpu);
+            } else {
+                got.notes
+                    .push(format!("affinity to cpu {cpu} refused: {}", os_error()));
+            }
+        }
+    }
+    if let Some(prio) = req.fifo_priority {
+        let param = libc::sched_param {
+            sched_priority: prio,
+        };
+        // SAFETY: param is valid for the call.
+        if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0 {
+            got.sched_fifo = true;
+            got.priority = prio;
+        } else {
+            got.notes.push(format!(
+                "SCHED_FIFO priority {prio} refused: {} (running SCHED_OTHER)",
+                os_error()
+            ));
+        }
+    }
+    got
+}
+
+/// Lower the calling process's priority (nice), for background work such as the optimiser.
+pub fn set_nice(nice: i32) -> bool {
+    // SAFETY: plain syscall.
+    unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, nice) == 0 }
+}
