@@ -1,0 +1,152 @@
+//! Helpers for the tests that spawn the real binaries.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+static COUNTER: AtomicUsize = AtomicUsize::new(0);
+
+/// A unique iceoryx2 prefix and run id for this test, so tests running in parallel never share
+/// services and leftovers can be attributed to exactly one test.
+pub fn unique(tag: &str) -> (String, String) {
+    let n = COUNTER.fetch_add(1, Ordering::SeqCst);
+    let id = format!("t{}{}{}", tag, std::process::id(), n);
+    (format!("{id}_"), id)
+}
+
+pub fn evoloop() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_evoloop"))
+}
+
+/// The base scenario of the tests: the two-mass plant with the Table 9 DEFC gains.
+pub fn scenario(reference: &str, extra: &str) -> String {
+    format!(
+        r#"
+seed = 1
+[plant]
+kind = "two_mass"
+step = 0.0005
+[plant.two_mass]
+spring = 1.0
+[controller]
+kind = "state_feedback"
+u_limit = 100.0
+[controller.state_feedback]
+gains = [18.49, 19.04, 47.27, 7.30, -10.54]
+lower = [-100.0, -100.0, -100.0, -100.0, -100.0]
+upper = [100.0, 100.0, 100.0, 100.0, 100.0]
+[reference]
+{reference}
+[timing]
+period = 0.001
+duration = 25.0
+{extra}
+"#
+    )
+}
+
+pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).expect("write scenario");
+    p
+}
+
+/// `evoloop run FILE --out OUT` with a unique prefix/run id plus `args`.
+pub fn run(config: &Path, out: &Path, tag: &str, args: &[&str]) -> Output {
+    let (prefix, run_id) = unique(tag);
+    Command::new(evoloop())
+        .arg("run")
+        .arg(config)
+        .arg("--out")
+        .arg(out)
+        .args(["--ipc-prefix", &prefix, "--run-id", &run_id, "--quiet"])
+        .args(args)
+        .output()
+        .expect("start evoloop")
+}
+
+pub fn assert_ok(out: &Output) {
+    assert!(
+        out.status.success(),
+        "evoloop failed: {}\nstdout:\n{}\nstderr:\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+pub fn json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).expect("valid JSON")
+}
+
+/// Files iceoryx2 left in shared memory and its directories under `prefix`, apart from the
+/// one global management segment per prefix that iceoryx2 keeps on purpose (shared by every run
+/// of that prefix, not owned by any one run).
+pub fn leftovers(prefix: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    let mut scan = |dir: &Path| {
+        if let Ok(rd) = std::fs::read_dir(dir) {
+            for e in rd.flatten() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if name.starts_with(prefix) && !name.ends_with(".global_mgmt") {
+                    found.push(e.path().display().to_string());
+                }
+            }
+        }
+    };
+    scan(Path::new("/dev/shm"));
+    scan(Path::new("/tmp/iceoryx2"));
+    scan(Path::new("/tmp/iceoryx2/services"));
+    scan(Path::new("/tmp/iceoryx2/nodes"));
+    found
+}
+
+/// Pids of live processes whose command line mentions `needle` (e.g. a run id).
+pub fn processes_with(needle: &str) -> Vec<u32> {
+    let mut pids = Vec::new();
+    let me = std::process::id();
+    if let Ok(rd) = std::fs::read_dir("/proc") {
+        for e in rd.flatten() {
+            let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+                continue;
+            };
+            if pid == me {
+                continue;
+            }
+            let Ok(cmd) = std::fs::read(e.path().join("cmdline")) else {
+                continue;
+            };
+            let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+            // Zombies have an empty cmdline; they are gone as far as the run is concerned.
+            if cmd.contains(needle) {
+                pids.push(pid);
+            }
+        }
+    }
+    pids
+}
+
+pub struct Csv {
+    pub header: Vec<String>,
+    pub rows: Vec<Vec<f64>>,
+}
+
+impl Csv {
+    pub fn read(path: &Path) -> Csv {
+        let t = evoloop::report::Table::read(path).expect("readable csv");
+        Csv {
+            header: t.header,
+            rows: t.rows,
+        }
+    }
+    pub fn col(&self, name: &str) -> Vec<f64> {
+        let j = self
+            .header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name} in {:?}", self.header));
+        self.rows.iter().map(|r| r[j]).collect()
+    }
+}
