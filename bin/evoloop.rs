@@ -224,7 +224,7 @@ fn run(a: RunArgs) -> ExitCode {
     });
     // The launcher's own node: creating it cleans up what killed runs left behind, and it
     // watches the telemetry for progress lines.
-    let ipc = match Ipc::new("evoloop", &run_id, &a.ipc_prefix) {
+    let ipc = match Ipc::with_cleanup("evoloop", &run_id, &a.ipc_prefix, false) {
         Ok(i) => i,
         Err(e) => {
             eprintln!("error: {e}");

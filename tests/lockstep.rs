@@ -50,10 +50,9 @@ fn lockstep_step_response_settles_within_two_percent_and_writes_the_run_files() 
 fn noisy_scenario() -> String {
     scenario(
         "kind = \"square\"\namplitude = 0.5\nperiod = 8.0\nstart = 0.5",
-        "mode = \"lockstep\"\n[optimiser]\nmode = \"schedule\"\nsync_period = 0.005\n[[optimiser.schedule]]\nat = 4.0\nvalues = [12.1946, 11.7906, 18.7567, 4.958, -10.0]",
+        "mode = \"lockstep\"\nduration = 10.0\n[optimiser]\nmode = \"schedule\"\nsync_period = 0.005\n[[optimiser.schedule]]\nat = 4.0\nvalues = [12.1946, 11.7906, 18.7567, 4.958, -10.0]",
     )
     .replace("step = 0.0005", "step = 0.0005\nnoise_std = 0.01")
-    .replace("duration = 25.0", "duration = 10.0")
 }
 
 #[test]

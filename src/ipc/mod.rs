@@ -94,8 +94,20 @@ impl Ipc {
     /// mid-wait ends the wait through our own flag and the ports are dropped cleanly.
     /// Node creation also removes the resources of dead nodes of earlier, killed runs.
     pub fn new(process: &str, run_id: &str, prefix: &str) -> Result<Self, IpcError> {
+        Self::with_cleanup(process, run_id, prefix, true)
+    }
+
+    /// As `new`; with `cleanup_on_create` false, dead nodes are left for an explicit
+    /// `cleanup_dead_nodes` call, which reports how many it removed (the launcher does this).
+    pub fn with_cleanup(
+        process: &str,
+        run_id: &str,
+        prefix: &str,
+        cleanup_on_create: bool,
+    ) -> Result<Self, IpcError> {
         set_log_level(LogLevel::Error);
-        let cfg = ipc_config(prefix)?;
+        let mut cfg = ipc_config(prefix)?;
+        cfg.global.node.cleanup_dead_nodes_on_creation = cleanup_on_create;
         let name = NodeName::new(process).map_err(|e| err("node name", e))?;
         let node = NodeBuilder::new()
             .name(&name)

@@ -20,7 +20,14 @@ pub fn evoloop() -> PathBuf {
 }
 
 /// The base scenario of the tests: the two-mass plant with the Table 9 DEFC gains.
+/// `extra` lines go into `[timing]` (and may open further tables); a `duration` in them replaces
+/// the default 25 s.
 pub fn scenario(reference: &str, extra: &str) -> String {
+    let duration = if extra.contains("duration") {
+        ""
+    } else {
+        "duration = 25.0"
+    };
     format!(
         r#"
 seed = 1
@@ -40,7 +47,7 @@ upper = [100.0, 100.0, 100.0, 100.0, 100.0]
 {reference}
 [timing]
 period = 0.001
-duration = 25.0
+{duration}
 {extra}
 "#
     )

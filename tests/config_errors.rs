@@ -1,0 +1,100 @@
+//! A malformed scenario fails with a message naming the file, the key and the reason, both from
+//! the library and from `evoloop check`.
+
+mod common;
+use common::*;
+use evoloop::config::{Overrides, Scenario};
+use std::path::Path;
+
+fn base() -> String {
+    scenario("kind = \"step\"\namplitude = 1.0", "duration = 25.0")
+}
+
+fn err_of(text: &str) -> String {
+    Scenario::parse(text, Path::new("config/bad.toml"), &Overrides::default())
+        .expect_err("config must be refused")
+        .to_string()
+}
+
+#[test]
+fn the_base_scenario_is_valid() {
+    Scenario::parse(&base(), Path::new("config/ok.toml"), &Overrides::default()).unwrap();
+}
+
+#[test]
+fn an_unknown_key_is_named_with_its_path() {
+    let e = err_of(&base().replace("spring = 1.0", "sprign = 1.0"));
+    assert!(e.starts_with("config/bad.toml"), "{e}");
+    assert!(e.contains("plant.two_mass"), "{e}");
+    assert!(e.contains("unknown field `sprign`"), "{e}");
+    assert!(e.contains("spring"), "lists the expected keys: {e}");
+}
+
+#[test]
+fn a_wrong_type_is_named_with_its_key() {
+    let e = err_of(&base().replace("period = 0.001", "period = \"fast\""));
+    assert!(e.contains("config/bad.toml"), "{e}");
+    assert!(e.contains("`timing.period`"), "{e}");
+    assert!(e.contains("invalid type"), "{e}");
+}
+
+#[test]
+fn an_out_of_range_value_is_named_with_its_key_and_range() {
+    let e = err_of(&base().replace("period = 0.001", "period = -0.01"));
+    assert!(e.contains("`timing.period`"), "{e}");
+    assert!(e.contains("-0.01"), "{e}");
+    let e = err_of(&base().replace("spring = 1.0", "spring = 0.0"));
+    assert!(e.contains("`plant.two_mass.spring`"), "{e}");
+    let e = err_of(&base().replace("step = 0.0005", "step = 0.01"));
+    assert!(e.contains("`plant.step`") && e.contains("longer than the control period"), "{e}");
+}
+
+#[test]
+fn a_missing_key_and_wrong_lengths_are_reported() {
+    let e = err_of(&base().replace("kind = \"state_feedback\"", ""));
+    assert!(e.contains("missing field `kind`") && e.contains("controller"), "{e}");
+    let e = err_of(&base().replace("gains = [18.49, 19.04, 47.27, 7.30, -10.54]", "gains = [1.0, 2.0]"));
+    assert!(e.contains("`controller.state_feedback.gains`") && e.contains("needs 5"), "{e}");
+    let e = err_of(&base().replace("gains = [18.49,", "gains = [180.0,"));
+    assert!(e.contains("gains[0]") && e.contains("outside its bounds"), "{e}");
+    let e = err_of(&base().replace("kind = \"step\"\namplitude = 1.0", "kind = \"square\"\namplitude = 1.0"));
+    assert!(e.contains("`reference.period`") && e.contains("missing"), "{e}");
+}
+
+#[test]
+fn evoloop_check_prints_the_error_and_exits_non_zero() {
+    let tmp = tempfile::tempdir().unwrap();
+    let good = write(tmp.path(), "good.toml", &base());
+    let o = std::process::Command::new(evoloop()).arg("check").arg(&good).output().unwrap();
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("ok"));
+
+    for (bad, needle) in [
+        (base().replace("spring = 1.0", "sprign = 1.0"), "sprign"),
+        (base().replace("duration = 25.0", "duration = \"long\""), "timing.duration"),
+        (base().replace("duration = 25.0", "duration = -3.0"), "timing.duration"),
+    ] {
+        let f = write(tmp.path(), "bad.toml", &bad);
+        let o = std::process::Command::new(evoloop()).arg("check").arg(&f).output().unwrap();
+        assert_eq!(o.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("bad.toml") && err.contains(needle), "{err}");
+    }
+    // `run` refuses the same file before starting anything.
+    let o = run(&tmp.path().join("bad.toml"), &tmp.path().join("out"), "cfg", &[]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn the_shipped_scenarios_are_valid() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
+    let mut n = 0;
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") {
+            Scenario::load(&p, &Overrides::default()).unwrap_or_else(|e| panic!("{e}"));
+            n += 1;
+        }
+    }
+    assert!(n >= 2);
+}

@@ -1,0 +1,111 @@
+//! Stopping: SIGINT to the launcher stops all three processes and leaves nothing of the run in
+//! shared memory; after a killed run, the next start cleans the dead run's resources.
+
+mod common;
+use common::*;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn realtime_config(dir: &std::path::Path) -> std::path::PathBuf {
+    write(
+        dir,
+        "rt.toml",
+        &scenario("kind = \"step\"\namplitude = 1.0", "mode = \"realtime\"\nduration = 60.0\nmeasure_floor = false"),
+    )
+}
+
+/// Start `evoloop run` in realtime mode and wait until all four processes are up.
+fn start(cfg: &std::path::Path, out: &std::path::Path, prefix: &str, run_id: &str) -> std::process::Child {
+    let child = Command::new(evoloop())
+        .arg("run")
+        .arg(cfg)
+        .arg("--out")
+        .arg(out)
+        .args(["--ipc-prefix", prefix, "--run-id", run_id, "--quiet"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while processes_with(run_id).len() < 4 {
+        assert!(t0.elapsed() < Duration::from_secs(20), "processes did not start");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Let the loop run a little.
+    std::thread::sleep(Duration::from_millis(1500));
+    child
+}
+
+fn wait_exit(child: &mut std::process::Child, limit: Duration) -> std::process::ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return s;
+        }
+        assert!(t0.elapsed() < limit, "launcher did not stop within {limit:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = realtime_config(tmp.path());
+    let out = tmp.path().join("out");
+    let (prefix, run_id) = unique("int");
+    let mut child = start(&cfg, &out, &prefix, &run_id);
+    assert!(!leftovers(&prefix).is_empty(), "the running run has its shared memory");
+    // SAFETY: signalling our own child.
+    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    let status = wait_exit(&mut child, Duration::from_secs(15));
+    assert_eq!(status.code(), Some(130), "interrupted runs exit with 130");
+    let t0 = Instant::now();
+    while !processes_with(&run_id).is_empty() {
+        assert!(t0.elapsed() < Duration::from_secs(5), "processes left: {:?}", processes_with(&run_id));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert_eq!(leftovers(&prefix), Vec::<String>::new(), "shared-memory files left behind");
+    // What ran before the stop is still reported.
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["interrupted"], true);
+    assert!(s["samples"].as_u64().unwrap() > 100);
+}
+
+#[test]
+fn a_killed_run_is_cleaned_up_by_the_next_start() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = realtime_config(tmp.path());
+    let (prefix, run_id) = unique("kill");
+    let mut child = start(&cfg, &tmp.path().join("dead"), &prefix, &run_id);
+    for pid in processes_with(&run_id) {
+        // SAFETY: these are this test's processes (their command line carries its run id).
+        unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+    }
+    let _ = child.wait();
+    let t0 = Instant::now();
+    while !processes_with(&run_id).is_empty() {
+        assert!(t0.elapsed() < Duration::from_secs(5));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(!leftovers(&prefix).is_empty(), "a killed run leaves resources behind");
+
+    // The next run in the same namespace starts, cleans the dead run, and leaves nothing.
+    let lock = write(
+        tmp.path(),
+        "ls.toml",
+        &scenario("kind = \"step\"\namplitude = 1.0", "mode = \"lockstep\"\nduration = 2.0"),
+    );
+    let out = tmp.path().join("next");
+    let o = Command::new(evoloop())
+        .arg("run")
+        .arg(&lock)
+        .arg("--out")
+        .arg(&out)
+        .args(["--ipc-prefix", &prefix, "--quiet"])
+        .output()
+        .unwrap();
+    assert_ok(&o);
+    let s = json(&out.join("summary.json"));
+    assert!(s["stale_resources_cleaned"].as_u64().unwrap() >= 1, "{s}");
+    assert_eq!(leftovers(&prefix), Vec::<String>::new());
+}
