@@ -22,14 +22,19 @@ use evoloop::process::{fail, load_scenario, write_json, EXIT_PEER_TIMEOUT, EXIT_
 use evoloop::report::summary::{ControllerReport, ParamRecord};
 use evoloop::report::RunLog;
 use evoloop::rt::timing::Percentiles;
-use evoloop::rt::{apply_privileges, now_ns, sleep_until_ns, CycleTiming, TimingLog, TimingSummary};
+use evoloop::rt::{
+    apply_privileges, now_ns, sleep_until_ns, CycleTiming, TimingLog, TimingSummary,
+};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 const WHO: &str = "evoloop-controller";
 
 #[derive(Parser)]
-#[command(name = "evoloop-controller", about = "evoloop fixed-rate controller process (started by `evoloop run`)")]
+#[command(
+    name = "evoloop-controller",
+    about = "evoloop fixed-rate controller process (started by `evoloop run`)"
+)]
 struct Cli {
     #[command(flatten)]
     args: ProcessArgs,
@@ -216,7 +221,10 @@ fn next_state(
                 format!("no plant state within {timeout:?}"),
             ));
         }
-        match ports.state.wait_next(spin, left.min(Duration::from_millis(100))) {
+        match ports
+            .state
+            .wait_next(spin, left.min(Duration::from_millis(100)))
+        {
             Ok(Wait::Got(s)) => return Ok(Some(s)),
             Ok(Wait::TimedOut) => {}
             Err(e) => return Err((EXIT_SETUP, e.to_string())),
@@ -235,7 +243,11 @@ fn run_lockstep(
     // The first sample may take as long as the start-up of all processes.
     let mut first = true;
     loop {
-        let wait = if first { timeout.max(Duration::from_secs(10)) } else { timeout };
+        let wait = if first {
+            timeout.max(Duration::from_secs(10))
+        } else {
+            timeout
+        };
         let Some(state) = next_state(ports, spin, wait, stop)? else {
             return Ok(());
         };
@@ -345,10 +357,16 @@ fn finish(scn: &Scenario, lp: &Loop, report: &mut ControllerReport) {
         eprintln!("{WHO}: cannot write run.csv: {e}");
     }
     let mut timing = RunLog::new(
-        ["cycle", "lateness_ns", "compute_ns", "state_age_ns", "flags"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
+        [
+            "cycle",
+            "lateness_ns",
+            "compute_ns",
+            "state_age_ns",
+            "flags",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect(),
         rows.len(),
     );
     for r in rows {

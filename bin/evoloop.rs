@@ -9,13 +9,22 @@ use evoloop::ipc::messages::Telemetry;
 use evoloop::ipc::{Ipc, Topic, DEFAULT_PREFIX};
 use evoloop::report::build::build_report;
 use evoloop::report::summary::{FloorReport, Summary};
+use evoloop::rt::apply_privileges;
 use evoloop::rt::clock::sleep_loop_lateness;
 use evoloop::rt::timing::Percentiles;
-use evoloop::rt::apply_privileges;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ExitCode};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
+
+/// Print to stdout/stderr ignoring errors: a closed pipe (`evoloop run | head`) must not kill the
+/// launcher while it supervises the processes.
+macro_rules! out {
+    ($($a:tt)*) => {{ use std::io::Write; let _ = writeln!(std::io::stdout(), $($a)*); }};
+}
+macro_rules! err {
+    ($($a:tt)*) => {{ use std::io::Write; let _ = writeln!(std::io::stderr(), $($a)*); }};
+}
 
 const DEFAULT_SCENARIO: &str = "config/two_mass.toml";
 
@@ -110,7 +119,7 @@ fn default_scenario() -> PathBuf {
 fn check(file: &Path) -> ExitCode {
     match Scenario::load(file, &Default::default()) {
         Ok(s) => {
-            println!(
+            out!(
                 "{}: ok: scenario `{}`, plant {:?}, controller {:?}, reference {:?}, {} mode, period {} s, {} s ({} cycles), optimiser {:?} with {} scheduled set(s), output {}",
                 file.display(),
                 s.name,
@@ -128,28 +137,30 @@ fn check(file: &Path) -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("error: {e}");
+            err!("error: {e}");
             ExitCode::from(2)
         }
     }
 }
 
 fn floor_cmd(rate: f64, duration: f64, fifo: Option<i32>, json: bool) -> ExitCode {
-    if !(rate > 0.0 && rate <= 100_000.0) || !(duration > 0.0 && duration <= 3600.0) {
-        eprintln!("error: --rate must be in (0, 100000] Hz and --duration in (0, 3600] s");
+    let rate_ok = rate > 0.0 && rate <= 100_000.0;
+    let duration_ok = duration > 0.0 && duration <= 3600.0;
+    if !rate_ok || !duration_ok {
+        err!("error: --rate must be in (0, 100000] Hz and --duration in (0, 3600] s");
         return ExitCode::from(2);
     }
     let f = measure_floor(1.0 / rate, duration, fifo);
     if json {
-        println!("{}", serde_json::to_string_pretty(&f).unwrap_or_default());
+        out!("{}", serde_json::to_string_pretty(&f).unwrap_or_default());
     } else {
         let l = &f.lateness;
-        println!(
+        out!(
             "bare sleep loop at {rate} Hz for {duration} s (SCHED_FIFO: {}): lateness p50 {} ns, p90 {} ns, p99 {} ns, p99.9 {} ns, max {} ns over {} cycles",
             f.rt.sched_fifo, l.p50_ns, l.p90_ns, l.p99_ns, l.p99_9_ns, l.max_ns, l.count
         );
         for n in &f.rt.notes {
-            println!("note: {n}");
+            out!("note: {n}");
         }
     }
     ExitCode::SUCCESS
@@ -192,14 +203,17 @@ fn run(a: RunArgs) -> ExitCode {
     let scn = match Scenario::load(&a.file, &ov) {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("error: {e}");
+            err!("error: {e}");
             return ExitCode::from(2);
         }
     };
     let stop = stop_flag();
     let dir = scn.output.dir.clone();
     if let Err(e) = std::fs::create_dir_all(&dir) {
-        eprintln!("error: cannot create output directory {}: {e}", dir.display());
+        err!(
+            "error: cannot create output directory {}: {e}",
+            dir.display()
+        );
         return ExitCode::from(2);
     }
     // Remove the previous run's files so a failed run never leaves a stale report looking fresh.
@@ -227,7 +241,7 @@ fn run(a: RunArgs) -> ExitCode {
     let ipc = match Ipc::with_cleanup("evoloop", &run_id, &a.ipc_prefix, false) {
         Ok(i) => i,
         Err(e) => {
-            eprintln!("error: {e}");
+            err!("error: {e}");
             return ExitCode::from(2);
         }
     };
@@ -250,10 +264,16 @@ fn run(a: RunArgs) -> ExitCode {
     let names = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
     let mut children: Vec<(&str, Child)> = Vec::new();
     for name in names {
-        match std::process::Command::new(sibling(name)).args(&args).spawn() {
+        match std::process::Command::new(sibling(name))
+            .args(&args)
+            .spawn()
+        {
             Ok(c) => children.push((name, c)),
             Err(e) => {
-                eprintln!("error: cannot start {name} ({}): {e}", sibling(name).display());
+                err!(
+                    "error: cannot start {name} ({}): {e}",
+                    sibling(name).display()
+                );
                 for (_, c) in &mut children {
                     signal(c, libc::SIGTERM);
                     let _ = c.wait();
@@ -263,7 +283,7 @@ fn run(a: RunArgs) -> ExitCode {
         }
     }
     if !a.quiet {
-        eprintln!(
+        err!(
             "evoloop: run {run_id}: scenario `{}` ({} mode, {} s at {} s period), output {}",
             scn.name,
             format!("{:?}", scn.timing.mode).to_lowercase(),
@@ -285,14 +305,17 @@ fn run(a: RunArgs) -> ExitCode {
             }
             if let Ok(Some(status)) = c.try_wait() {
                 exited[i] = true;
-                if !status.success() && !(interrupted && status.code().is_some()) {
+                // After a stop request a child's clean exit code is expected; death by a
+                // signal (no code) is still a failure.
+                let expected = status.success() || (interrupted && status.code().is_some());
+                if !expected {
                     failed.push(format!("{name} exited with {status}"));
                 }
             }
         }
         if stop.load(Ordering::SeqCst) && !interrupted {
             interrupted = true;
-            eprintln!("evoloop: stopping all processes");
+            err!("evoloop: stopping all processes");
         }
         if (interrupted || !failed.is_empty()) && stop_sent.is_none() {
             for (i, (_, c)) in children.iter().enumerate() {
@@ -305,7 +328,7 @@ fn run(a: RunArgs) -> ExitCode {
         if stop_sent.is_some_and(|s| s.elapsed() > Duration::from_secs(5)) {
             for (i, (name, c)) in children.iter_mut().enumerate() {
                 if !exited[i] {
-                    eprintln!("evoloop: {name} did not stop within 5 s; killing it");
+                    err!("evoloop: {name} did not stop within 5 s; killing it");
                     let _ = c.kill();
                 }
             }
@@ -313,7 +336,7 @@ fn run(a: RunArgs) -> ExitCode {
         if !a.quiet && last_progress.elapsed() >= Duration::from_secs(1) {
             last_progress = Instant::now();
             if let Some(Ok(Some(tel))) = telemetry.as_ref().map(|s| s.latest()) {
-                eprintln!(
+                err!(
                     "  t = {:8.2} / {} s   e = {:+.4}   u = {:+.4}   params v{}   overruns {}   misses {}",
                     tel.t, scn.timing.duration, tel.tracking_error, tel.u[0], tel.param_version,
                     tel.overruns, tel.missed
@@ -331,7 +354,7 @@ fn run(a: RunArgs) -> ExitCode {
     let wall = t0.elapsed().as_secs_f64();
     if !failed.is_empty() {
         for f in &failed {
-            eprintln!("error: {f}");
+            err!("error: {f}");
         }
         return ExitCode::from(1);
     }
@@ -339,14 +362,14 @@ fn run(a: RunArgs) -> ExitCode {
         .then(|| {
             let secs = scn.timing.duration.min(5.0);
             if !a.quiet {
-                eprintln!("evoloop: measuring the bare sleep-loop floor for {secs} s");
+                err!("evoloop: measuring the bare sleep-loop floor for {secs} s");
             }
             measure_floor(scn.timing.period, secs, scn.timing.fifo_priority)
         });
     match build_report(&scn, &run_id, wall, floor, cleaned) {
         Ok(s) => print_summary(&s, &dir, scn.output.plots),
         Err(e) => {
-            eprintln!("error: report: {e}");
+            err!("error: report: {e}");
             return ExitCode::from(1);
         }
     }
@@ -359,11 +382,14 @@ fn run(a: RunArgs) -> ExitCode {
 
 fn print_summary(s: &Summary, dir: &Path, plots: bool) {
     let r = &s.response;
-    println!(
+    out!(
         "evoloop: {} samples in {:.2} s ({:.0} samples/s), {} mode",
-        s.samples, s.wall_s, s.throughput_samples_per_s, s.mode
+        s.samples,
+        s.wall_s,
+        s.throughput_samples_per_s,
+        s.mode
     );
-    println!(
+    out!(
         "  response: settling time {} (2 % band), overshoot {:.2} %, IAE {:.4}, ISE {:.4}, final error {:+.2e}",
         r.settling_time_s
             .map(|v| format!("{v:.2} s"))
@@ -375,36 +401,39 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
     );
     let l = &s.timing.lateness;
     if s.mode == "realtime" {
-        println!(
+        out!(
             "  timing: lateness p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns; overruns {}, missed deadlines {}, stale states {}",
             l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.overruns, s.deadline_misses, s.timing.stale_states
         );
         if let Some(f) = &s.floor {
-            println!(
+            out!(
                 "  floor (bare sleep loop, same run): lateness p50 {} ns, p99 {} ns, p99.9 {} ns; controller/floor p99 = {:.2}",
                 f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99
             );
         }
         let c = &s.realtime_privileges.controller;
-        println!(
+        out!(
             "  controller privileges: SCHED_FIFO {} (prio {}), mlockall {}, cpu {:?}",
-            c.sched_fifo, c.priority, c.mlockall, c.cpu
+            c.sched_fifo,
+            c.priority,
+            c.mlockall,
+            c.cpu
         );
         for n in &c.notes {
-            println!("    note: {n}");
+            out!("    note: {n}");
         }
     }
     let pv = &s.parameter_versions;
-    println!(
+    out!(
         "  parameters: version {} in service; {} accepted, {} rejected",
         pv.final_version,
         pv.accepted.len(),
         pv.rejected.len()
     );
     for p in &pv.rejected {
-        println!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
+        out!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
     }
-    println!(
+    out!(
         "  wrote {}/run.csv, summary.json{}",
         dir.display(),
         if plots { ", response.png" } else { "" }

@@ -23,7 +23,10 @@ use std::time::{Duration, Instant};
 const WHO: &str = "evoloop-optimiser";
 
 #[derive(Parser)]
-#[command(name = "evoloop-optimiser", about = "evoloop optimiser process (started by `evoloop run`)")]
+#[command(
+    name = "evoloop-optimiser",
+    about = "evoloop optimiser process (started by `evoloop run`)"
+)]
 struct Cli {
     #[command(flatten)]
     args: ProcessArgs,
@@ -90,12 +93,19 @@ fn run(
         if stop.load(Ordering::Relaxed) {
             return Ok(());
         }
-        let state = match ports.state.wait_next(spin, Duration::from_millis(100)).map_err(io)? {
+        let state = match ports
+            .state
+            .wait_next(spin, Duration::from_millis(100))
+            .map_err(io)?
+        {
             Wait::Got(s) => s,
             Wait::TimedOut => {
                 // In realtime the plant keeps sampling; silence this long means it is gone.
                 if last_state.elapsed() > timeout {
-                    return Err((EXIT_PEER_TIMEOUT, format!("no plant state within {timeout:?}")));
+                    return Err((
+                        EXIT_PEER_TIMEOUT,
+                        format!("no plant state within {timeout:?}"),
+                    ));
                 }
                 continue;
             }

@@ -24,7 +24,10 @@ use std::time::{Duration, Instant};
 const WHO: &str = "evoloop-plant";
 
 #[derive(Parser)]
-#[command(name = "evoloop-plant", about = "evoloop plant simulator process (started by `evoloop run`)")]
+#[command(
+    name = "evoloop-plant",
+    about = "evoloop plant simulator process (started by `evoloop run`)"
+)]
 struct Cli {
     #[command(flatten)]
     args: ProcessArgs,
@@ -51,7 +54,12 @@ fn main() {
     })()
     .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
 
-    let mut sim = PlantSim::new(scn.build_plant(), scn.plant.step, scn.plant.noise_std, scn.seed);
+    let mut sim = PlantSim::new(
+        scn.build_plant(),
+        scn.plant.step,
+        scn.plant.noise_std,
+        scn.seed,
+    );
     let mut report = PlantReport {
         mode: format!("{:?}", scn.timing.mode).to_lowercase(),
         ..Default::default()
@@ -84,7 +92,11 @@ fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
             return;
         }
         if t0.elapsed().as_secs_f64() > timeout_s {
-            fail(WHO, EXIT_PEER_TIMEOUT, "controller/optimiser did not connect in time");
+            fail(
+                WHO,
+                EXIT_PEER_TIMEOUT,
+                "controller/optimiser did not connect in time",
+            );
         }
         // Start-up only, never in the loop: peers appear once, so a short nap is fine here.
         std::thread::sleep(Duration::from_millis(1));
@@ -92,7 +104,10 @@ fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
 }
 
 fn publish(ports: &Ports, msg: &PlantState) -> Result<(), (i32, String)> {
-    ports.state.send(msg).map_err(|e| (EXIT_SETUP, e.to_string()))
+    ports
+        .state
+        .send(msg)
+        .map_err(|e| (EXIT_SETUP, e.to_string()))
 }
 
 fn run_lockstep(
@@ -120,21 +135,25 @@ fn run_lockstep(
         publish(ports, &msg)?;
         report.samples += 1;
         if k % sync == 0 {
-            wait_until(&ports.ack, spin, timeout, stop, |a: &OptimiserAck| a.through_seq >= k)
-                .map_err(|_| {
-                    (
-                        EXIT_PEER_TIMEOUT,
-                        format!("optimiser did not acknowledge sample {k} within {timeout:?}"),
-                    )
-                })?;
-        }
-        let cmd = wait_until(&ports.command, spin, timeout, stop, |c: &Command| c.state_seq == k)
+            wait_until(&ports.ack, spin, timeout, stop, |a: &OptimiserAck| {
+                a.through_seq >= k
+            })
             .map_err(|_| {
                 (
                     EXIT_PEER_TIMEOUT,
-                    format!("controller did not answer sample {k} within {timeout:?}"),
+                    format!("optimiser did not acknowledge sample {k} within {timeout:?}"),
                 )
             })?;
+        }
+        let cmd = wait_until(&ports.command, spin, timeout, stop, |c: &Command| {
+            c.state_seq == k
+        })
+        .map_err(|_| {
+            (
+                EXIT_PEER_TIMEOUT,
+                format!("controller did not answer sample {k} within {timeout:?}"),
+            )
+        })?;
         let Some(cmd) = cmd else { return Ok(()) }; // stopped by a signal
         report.commands_received += 1;
         u[..n_u].copy_from_slice(&cmd.u[..n_u]);
@@ -212,7 +231,10 @@ fn run_realtime(
             if now >= next {
                 break;
             }
-            match ports.command.wait_next(Duration::ZERO, Duration::from_nanos(next - now)) {
+            match ports
+                .command
+                .wait_next(Duration::ZERO, Duration::from_nanos(next - now))
+            {
                 Ok(Wait::Got(cmd)) => {
                     let at = now_ns().min(next);
                     let t_at = (at - epoch) as f64 * 1e-9;

@@ -39,6 +39,9 @@ pub struct OverrideArgs {
     /// Optimiser mode: off (listens only) or schedule (publishes the configured sets).
     #[arg(long)]
     pub optimiser: Option<OptimiserMode>,
+    /// Realtime mode without SCHED_FIFO, mlockall or CPU pinning, whatever the scenario asks.
+    #[arg(long)]
+    pub no_rt: bool,
 }
 
 impl OverrideArgs {
@@ -49,6 +52,7 @@ impl OverrideArgs {
             seed: self.seed,
             out: self.out.clone(),
             optimiser: self.optimiser,
+            no_rt: self.no_rt,
         }
     }
 
@@ -80,6 +84,9 @@ impl OverrideArgs {
                 OptimiserMode::Off => "off".into(),
                 OptimiserMode::Schedule => "schedule".into(),
             });
+        }
+        if self.no_rt {
+            a.push("--no-rt".into());
         }
         a
     }

@@ -156,7 +156,9 @@ impl std::str::FromStr for Mode {
         match s {
             "lockstep" => Ok(Mode::Lockstep),
             "realtime" => Ok(Mode::Realtime),
-            _ => Err(format!("unknown mode {s:?} (expected lockstep or realtime)")),
+            _ => Err(format!(
+                "unknown mode {s:?} (expected lockstep or realtime)"
+            )),
         }
     }
 }
@@ -185,7 +187,9 @@ impl std::str::FromStr for OptimiserMode {
         match s {
             "off" => Ok(OptimiserMode::Off),
             "schedule" => Ok(OptimiserMode::Schedule),
-            _ => Err(format!("unknown optimiser mode {s:?} (expected off or schedule)")),
+            _ => Err(format!(
+                "unknown optimiser mode {s:?} (expected off or schedule)"
+            )),
         }
     }
 }
@@ -287,6 +291,8 @@ pub struct Overrides {
     pub seed: Option<u64>,
     pub out: Option<PathBuf>,
     pub optimiser: Option<OptimiserMode>,
+    /// Drop every real-time privilege request (SCHED_FIFO, mlockall, pinning).
+    pub no_rt: bool,
 }
 
 impl Scenario {
@@ -501,6 +507,7 @@ impl Validator {
         if spin_us > 1_000_000 {
             return self.fail("timing.spin_us", format!("at most 1000000 (got {spin_us})"));
         }
+        let rt = !ov.no_rt;
         Ok(Timing {
             mode: ov.mode.or(t.mode).unwrap_or(Mode::Lockstep),
             period,
@@ -513,11 +520,12 @@ impl Validator {
                 3600.0,
             )?,
             phase: self.range("timing.phase", t.phase.unwrap_or(0.05), 0.0, 0.95)?,
-            fifo_priority: prio("timing.fifo_priority", t.fifo_priority)?,
-            plant_fifo_priority: prio("timing.plant_fifo_priority", t.plant_fifo_priority)?,
-            lock_memory: t.lock_memory.unwrap_or(false),
-            controller_cpu: t.controller_cpu,
-            plant_cpu: t.plant_cpu,
+            fifo_priority: prio("timing.fifo_priority", t.fifo_priority)?.filter(|_| rt),
+            plant_fifo_priority: prio("timing.plant_fifo_priority", t.plant_fifo_priority)?
+                .filter(|_| rt),
+            lock_memory: t.lock_memory.unwrap_or(false) && rt,
+            controller_cpu: t.controller_cpu.filter(|_| rt),
+            plant_cpu: t.plant_cpu.filter(|_| rt),
             measure_floor: t.measure_floor.unwrap_or(true),
         })
     }
@@ -580,7 +588,11 @@ impl Validator {
         }
     }
 
-    fn controller(&self, c: RawController, plant: &PlantSpec) -> Result<ControllerSpec, ConfigError> {
+    fn controller(
+        &self,
+        c: RawController,
+        plant: &PlantSpec,
+    ) -> Result<ControllerSpec, ConfigError> {
         let u_limit = match c.u_limit {
             Some(l) => Some(self.positive("controller.u_limit", l)?),
             None => None,
@@ -740,7 +752,9 @@ impl Validator {
             nice: None,
             schedule: None,
         });
-        let sync_period = o.sync_period.unwrap_or((timing.period * 10.0).max(timing.period));
+        let sync_period = o
+            .sync_period
+            .unwrap_or((timing.period * 10.0).max(timing.period));
         self.positive("optimiser.sync_period", sync_period)?;
         let samples = sync_period / timing.period;
         if samples < 1.0 - 1e-9 || samples > MAX_SYNC_SAMPLES as f64 {
@@ -753,7 +767,10 @@ impl Validator {
         }
         let nice = o.nice.unwrap_or(10);
         if !(-20..=19).contains(&nice) {
-            return self.fail("optimiser.nice", format!("must be within -20..=19 (got {nice})"));
+            return self.fail(
+                "optimiser.nice",
+                format!("must be within -20..=19 (got {nice})"),
+            );
         }
         let mut schedule = Vec::new();
         for (i, s) in o.schedule.unwrap_or_default().into_iter().enumerate() {

@@ -46,42 +46,82 @@ fn an_out_of_range_value_is_named_with_its_key_and_range() {
     let e = err_of(&base().replace("spring = 1.0", "spring = 0.0"));
     assert!(e.contains("`plant.two_mass.spring`"), "{e}");
     let e = err_of(&base().replace("step = 0.0005", "step = 0.01"));
-    assert!(e.contains("`plant.step`") && e.contains("longer than the control period"), "{e}");
+    assert!(
+        e.contains("`plant.step`") && e.contains("longer than the control period"),
+        "{e}"
+    );
 }
 
 #[test]
 fn a_missing_key_and_wrong_lengths_are_reported() {
     let e = err_of(&base().replace("kind = \"state_feedback\"", ""));
-    assert!(e.contains("missing field `kind`") && e.contains("controller"), "{e}");
-    let e = err_of(&base().replace("gains = [18.49, 19.04, 47.27, 7.30, -10.54]", "gains = [1.0, 2.0]"));
-    assert!(e.contains("`controller.state_feedback.gains`") && e.contains("needs 5"), "{e}");
+    assert!(
+        e.contains("missing field `kind`") && e.contains("controller"),
+        "{e}"
+    );
+    let e = err_of(&base().replace(
+        "gains = [18.49, 19.04, 47.27, 7.30, -10.54]",
+        "gains = [1.0, 2.0]",
+    ));
+    assert!(
+        e.contains("`controller.state_feedback.gains`") && e.contains("needs 5"),
+        "{e}"
+    );
     let e = err_of(&base().replace("gains = [18.49,", "gains = [180.0,"));
-    assert!(e.contains("gains[0]") && e.contains("outside its bounds"), "{e}");
-    let e = err_of(&base().replace("kind = \"step\"\namplitude = 1.0", "kind = \"square\"\namplitude = 1.0"));
-    assert!(e.contains("`reference.period`") && e.contains("missing"), "{e}");
+    assert!(
+        e.contains("gains[0]") && e.contains("outside its bounds"),
+        "{e}"
+    );
+    let e = err_of(&base().replace(
+        "kind = \"step\"\namplitude = 1.0",
+        "kind = \"square\"\namplitude = 1.0",
+    ));
+    assert!(
+        e.contains("`reference.period`") && e.contains("missing"),
+        "{e}"
+    );
 }
 
 #[test]
 fn evoloop_check_prints_the_error_and_exits_non_zero() {
     let tmp = tempfile::tempdir().unwrap();
     let good = write(tmp.path(), "good.toml", &base());
-    let o = std::process::Command::new(evoloop()).arg("check").arg(&good).output().unwrap();
+    let o = std::process::Command::new(evoloop())
+        .arg("check")
+        .arg(&good)
+        .output()
+        .unwrap();
     assert!(o.status.success());
     assert!(String::from_utf8_lossy(&o.stdout).contains("ok"));
 
     for (bad, needle) in [
         (base().replace("spring = 1.0", "sprign = 1.0"), "sprign"),
-        (base().replace("duration = 25.0", "duration = \"long\""), "timing.duration"),
-        (base().replace("duration = 25.0", "duration = -3.0"), "timing.duration"),
+        (
+            base().replace("duration = 25.0", "duration = \"long\""),
+            "timing.duration",
+        ),
+        (
+            base().replace("duration = 25.0", "duration = -3.0"),
+            "timing.duration",
+        ),
     ] {
         let f = write(tmp.path(), "bad.toml", &bad);
-        let o = std::process::Command::new(evoloop()).arg("check").arg(&f).output().unwrap();
+        let o = std::process::Command::new(evoloop())
+            .arg("check")
+            .arg(&f)
+            .output()
+            .unwrap();
         assert_eq!(o.status.code(), Some(2));
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(err.contains("bad.toml") && err.contains(needle), "{err}");
     }
     // `run` refuses the same file before starting anything.
-    let o = run(&tmp.path().join("bad.toml"), &tmp.path().join("out"), "cfg", &[]);
+    let o = run(
+        &tmp.path().join("bad.toml"),
+        &tmp.path().join("out"),
+        "cfg",
+        &[],
+    );
     assert_eq!(o.status.code(), Some(2));
 }
 

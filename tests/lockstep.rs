@@ -12,12 +12,23 @@ fn lockstep_step_response_settles_within_two_percent_and_writes_the_run_files() 
     let cfg = write(
         tmp.path(),
         "step.toml",
-        &scenario("kind = \"step\"\namplitude = 1.0\nstart = 0.5", "mode = \"lockstep\""),
+        &scenario(
+            "kind = \"step\"\namplitude = 1.0\nstart = 0.5",
+            "mode = \"lockstep\"",
+        ),
     );
     let out = tmp.path().join("out");
     let o = run(&cfg, &out, "settle", &[]);
     assert_ok(&o);
-    for f in ["run.csv", "summary.json", "response.png", "timing.csv", "controller.json", "plant.json", "optimiser.json"] {
+    for f in [
+        "run.csv",
+        "summary.json",
+        "response.png",
+        "timing.csv",
+        "controller.json",
+        "plant.json",
+        "optimiser.json",
+    ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     let png = std::fs::read(out.join("response.png")).unwrap();
@@ -33,7 +44,12 @@ fn lockstep_step_response_settles_within_two_percent_and_writes_the_run_files() 
     for i in 0..t.len() {
         if t[i] >= 20.0 {
             assert!((y[i] - 1.0).abs() <= 0.02, "y = {} at t = {}", y[i], t[i]);
-            assert!((body2[i] - 1.0).abs() <= 0.02, "body 2 at {} at t = {}", body2[i], t[i]);
+            assert!(
+                (body2[i] - 1.0).abs() <= 0.02,
+                "body 2 at {} at t = {}",
+                body2[i],
+                t[i]
+            );
         }
     }
     let s = json(&out.join("summary.json"));
@@ -42,7 +58,13 @@ fn lockstep_step_response_settles_within_two_percent_and_writes_the_run_files() 
     assert_eq!(s["samples"], 25_000);
     assert_eq!(s["mode"], "lockstep");
     assert!(s["throughput_samples_per_s"].as_f64().unwrap() > 0.0);
-    for key in ["overruns", "deadline_misses", "timing", "parameter_versions", "realtime_privileges"] {
+    for key in [
+        "overruns",
+        "deadline_misses",
+        "timing",
+        "parameter_versions",
+        "realtime_privileges",
+    ] {
         assert!(s.get(key).is_some(), "summary.json lacks {key}");
     }
 }
@@ -81,10 +103,20 @@ fn the_multi_process_lockstep_run_equals_the_in_process_simulation_bit_for_bit()
     let sim = evoloop::sim::simulate(&scn);
     let csv = Csv::read(&out.join("run.csv"));
     assert_eq!(csv.rows.len(), sim.rows.len());
-    let (t, r, y, u, v) = (csv.col("t"), csv.col("reference"), csv.col("y0"), csv.col("u0"), csv.col("param_version"));
+    let (t, r, y, u, v) = (
+        csv.col("t"),
+        csv.col("reference"),
+        csv.col("y0"),
+        csv.col("u0"),
+        csv.col("param_version"),
+    );
     for (i, row) in sim.rows.iter().enumerate() {
         assert_eq!(t[i].to_bits(), row.state.t.to_bits(), "t at {i}");
-        assert_eq!(r[i].to_bits(), row.telemetry.reference.to_bits(), "r at {i}");
+        assert_eq!(
+            r[i].to_bits(),
+            row.telemetry.reference.to_bits(),
+            "r at {i}"
+        );
         assert_eq!(y[i].to_bits(), row.state.y[0].to_bits(), "y at {i}");
         assert_eq!(u[i].to_bits(), row.telemetry.u[0].to_bits(), "u at {i}");
         assert_eq!(v[i] as u64, row.telemetry.param_version, "version at {i}");

@@ -42,20 +42,52 @@ values = [1.0, 1.0, 1.0]
     assert_eq!(p[0]["outcome"], "accepted");
     assert_eq!(p[0]["cycle"], 15_000, "applied at the cycle of its sample");
     assert_eq!(p[1]["version"], 2);
-    assert!(p[1]["outcome"].as_str().unwrap().contains("NaN"), "{}", p[1]);
+    assert!(
+        p[1]["outcome"].as_str().unwrap().contains("NaN"),
+        "{}",
+        p[1]
+    );
     assert_eq!(p[1]["index"], 1);
     assert_eq!(p[2]["version"], 3);
-    assert!(p[2]["outcome"].as_str().unwrap().contains("bounds"), "{}", p[2]);
+    assert!(
+        p[2]["outcome"].as_str().unwrap().contains("bounds"),
+        "{}",
+        p[2]
+    );
     assert_eq!(p[2]["index"], 3);
     assert_eq!(p[3]["version"], 4);
-    assert!(p[3]["outcome"].as_str().unwrap().contains("number of values"), "{}", p[3]);
+    assert!(
+        p[3]["outcome"]
+            .as_str()
+            .unwrap()
+            .contains("number of values"),
+        "{}",
+        p[3]
+    );
     assert_eq!(c["final_version"], 1);
-    let fp: Vec<f64> = c["final_params"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let fp: Vec<f64> = c["final_params"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
     assert_eq!(fp, NEW.to_vec(), "the loop runs on the last accepted set");
 
     let s = json(&out.join("summary.json"));
-    assert_eq!(s["parameter_versions"]["accepted"].as_array().unwrap().len(), 1);
-    assert_eq!(s["parameter_versions"]["rejected"].as_array().unwrap().len(), 3);
+    assert_eq!(
+        s["parameter_versions"]["accepted"]
+            .as_array()
+            .unwrap()
+            .len(),
+        1
+    );
+    assert_eq!(
+        s["parameter_versions"]["rejected"]
+            .as_array()
+            .unwrap()
+            .len(),
+        3
+    );
 
     // The loop ran every cycle; the version column switches exactly once, at t = 15 s.
     let csv = Csv::read(&out.join("run.csv"));
@@ -63,14 +95,20 @@ values = [1.0, 1.0, 1.0]
     let (t, u, v) = (csv.col("t"), csv.col("u0"), csv.col("param_version"));
     let k = v.iter().position(|&x| x == 1.0).unwrap();
     assert!((t[k] - 15.0).abs() < 1e-9);
-    assert!(v[k..].iter().all(|&x| x == 1.0), "rejected sets never entered service");
+    assert!(
+        v[k..].iter().all(|&x| x == 1.0),
+        "rejected sets never entered service"
+    );
     assert!(v[..k].iter().all(|&x| x == 0.0));
 
     // No bump in u at the swap: the change across the swap is as small as in the steady state
     // around it, while a plain swap (integrator kept) would have jumped by (K_old - K_new) x.
     let (x2, x1) = (csv.col("q1")[k], csv.col("q0")[k]);
     let naive_jump = ((OLD[0] - NEW[0]) * x2 + (OLD[1] - NEW[1]) * x1).abs();
-    assert!(naive_jump > 1.0, "the test state must make a plain swap visible ({naive_jump})");
+    assert!(
+        naive_jump > 1.0,
+        "the test state must make a plain swap visible ({naive_jump})"
+    );
     let around = (k - 50..k + 50)
         .filter(|&i| i != k)
         .map(|i| (u[i] - u[i - 1]).abs())

@@ -10,12 +10,20 @@ fn realtime_config(dir: &std::path::Path) -> std::path::PathBuf {
     write(
         dir,
         "rt.toml",
-        &scenario("kind = \"step\"\namplitude = 1.0", "mode = \"realtime\"\nduration = 60.0\nmeasure_floor = false"),
+        &scenario(
+            "kind = \"step\"\namplitude = 1.0",
+            "mode = \"realtime\"\nduration = 60.0\nmeasure_floor = false",
+        ),
     )
 }
 
 /// Start `evoloop run` in realtime mode and wait until all four processes are up.
-fn start(cfg: &std::path::Path, out: &std::path::Path, prefix: &str, run_id: &str) -> std::process::Child {
+fn start(
+    cfg: &std::path::Path,
+    out: &std::path::Path,
+    prefix: &str,
+    run_id: &str,
+) -> std::process::Child {
     let child = Command::new(evoloop())
         .arg("run")
         .arg(cfg)
@@ -28,7 +36,10 @@ fn start(cfg: &std::path::Path, out: &std::path::Path, prefix: &str, run_id: &st
         .unwrap();
     let t0 = Instant::now();
     while processes_with(run_id).len() < 4 {
-        assert!(t0.elapsed() < Duration::from_secs(20), "processes did not start");
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "processes did not start"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
     // Let the loop run a little.
@@ -42,7 +53,10 @@ fn wait_exit(child: &mut std::process::Child, limit: Duration) -> std::process::
         if let Some(s) = child.try_wait().unwrap() {
             return s;
         }
-        assert!(t0.elapsed() < limit, "launcher did not stop within {limit:?}");
+        assert!(
+            t0.elapsed() < limit,
+            "launcher did not stop within {limit:?}"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
 }
@@ -54,17 +68,28 @@ fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
     let out = tmp.path().join("out");
     let (prefix, run_id) = unique("int");
     let mut child = start(&cfg, &out, &prefix, &run_id);
-    assert!(!leftovers(&prefix).is_empty(), "the running run has its shared memory");
+    assert!(
+        !leftovers(&prefix).is_empty(),
+        "the running run has its shared memory"
+    );
     // SAFETY: signalling our own child.
     unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
     let status = wait_exit(&mut child, Duration::from_secs(15));
     assert_eq!(status.code(), Some(130), "interrupted runs exit with 130");
     let t0 = Instant::now();
     while !processes_with(&run_id).is_empty() {
-        assert!(t0.elapsed() < Duration::from_secs(5), "processes left: {:?}", processes_with(&run_id));
+        assert!(
+            t0.elapsed() < Duration::from_secs(5),
+            "processes left: {:?}",
+            processes_with(&run_id)
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
-    assert_eq!(leftovers(&prefix), Vec::<String>::new(), "shared-memory files left behind");
+    assert_eq!(
+        leftovers(&prefix),
+        Vec::<String>::new(),
+        "shared-memory files left behind"
+    );
     // What ran before the stop is still reported.
     let s = json(&out.join("summary.json"));
     assert_eq!(s["interrupted"], true);
@@ -87,13 +112,19 @@ fn a_killed_run_is_cleaned_up_by_the_next_start() {
         assert!(t0.elapsed() < Duration::from_secs(5));
         std::thread::sleep(Duration::from_millis(20));
     }
-    assert!(!leftovers(&prefix).is_empty(), "a killed run leaves resources behind");
+    assert!(
+        !leftovers(&prefix).is_empty(),
+        "a killed run leaves resources behind"
+    );
 
     // The next run in the same namespace starts, cleans the dead run, and leaves nothing.
     let lock = write(
         tmp.path(),
         "ls.toml",
-        &scenario("kind = \"step\"\namplitude = 1.0", "mode = \"lockstep\"\nduration = 2.0"),
+        &scenario(
+            "kind = \"step\"\namplitude = 1.0",
+            "mode = \"lockstep\"\nduration = 2.0",
+        ),
     );
     let out = tmp.path().join("next");
     let o = Command::new(evoloop())

@@ -36,11 +36,16 @@ impl StateFeedback {
 
     /// The unsaturated law -K_x x + I.
     fn law(&self, x: &[f64]) -> f64 {
-        let mut u = self.integral;
-        for i in 0..self.n_x {
-            u -= self.gains[i] * x[i];
-        }
-        u
+        self.integral - self.state_term(x)
+    }
+
+    /// K_x x (the state part of the law, without the integrator).
+    fn state_term(&self, x: &[f64]) -> f64 {
+        self.gains[..self.n_x]
+            .iter()
+            .zip(x)
+            .map(|(k, xi)| k * xi)
+            .sum()
     }
 
     pub fn integral(&self) -> f64 {
@@ -82,10 +87,6 @@ impl Controller for StateFeedback {
         let u_old = self.law(x);
         self.gains.copy_from_slice(new);
         // Choose I so that -K_new x + I = u_old on this sample: no step in u.
-        let mut kx = 0.0;
-        for i in 0..self.n_x {
-            kx += self.gains[i] * x[i];
-        }
-        self.integral = u_old + kx;
+        self.integral = u_old + self.state_term(x);
     }
 }

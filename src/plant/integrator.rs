@@ -23,22 +23,20 @@ impl Rk4 {
 
     /// One step of size h from (t, x) with u held; x is updated in place.
     pub fn step(&mut self, p: &dyn Plant, t: f64, x: &mut [f64], u: &[f64], h: f64) {
-        let n = x.len();
+        fn stage(tmp: &mut [f64], x: &[f64], k: &[f64], a: f64) {
+            for ((ti, xi), ki) in tmp.iter_mut().zip(x).zip(k) {
+                *ti = xi + a * ki;
+            }
+        }
         p.derivative(t, x, u, &mut self.k1);
-        for i in 0..n {
-            self.tmp[i] = x[i] + 0.5 * h * self.k1[i];
-        }
+        stage(&mut self.tmp, x, &self.k1, 0.5 * h);
         p.derivative(t + 0.5 * h, &self.tmp, u, &mut self.k2);
-        for i in 0..n {
-            self.tmp[i] = x[i] + 0.5 * h * self.k2[i];
-        }
+        stage(&mut self.tmp, x, &self.k2, 0.5 * h);
         p.derivative(t + 0.5 * h, &self.tmp, u, &mut self.k3);
-        for i in 0..n {
-            self.tmp[i] = x[i] + h * self.k3[i];
-        }
+        stage(&mut self.tmp, x, &self.k3, h);
         p.derivative(t + h, &self.tmp, u, &mut self.k4);
-        for i in 0..n {
-            x[i] += h / 6.0 * (self.k1[i] + 2.0 * self.k2[i] + 2.0 * self.k3[i] + self.k4[i]);
+        for (i, xi) in x.iter_mut().enumerate() {
+            *xi += h / 6.0 * (self.k1[i] + 2.0 * self.k2[i] + 2.0 * self.k3[i] + self.k4[i]);
         }
     }
 }

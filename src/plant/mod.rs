@@ -83,8 +83,7 @@ impl PlantSim {
         let n = (dt / self.step - 1e-9).ceil().max(1.0) as usize;
         let h = dt / n as f64;
         for _ in 0..n {
-            self.rk
-                .step(self.plant.as_ref(), self.t, &mut self.x, u, h);
+            self.rk.step(self.plant.as_ref(), self.t, &mut self.x, u, h);
             self.t += h;
         }
     }

@@ -1,7 +1,7 @@
 //! Assemble the run report from what the processes wrote: `summary.json` and `response.png`.
 
 use super::metrics::response_metrics;
-use super::plot::{two_panel_png, Series};
+use super::plot::{two_panel_png, Panel, Series};
 use super::summary::{
     ControllerReport, FloorReport, OptimiserReport, ParamVersions, PlantReport, RealtimePrivileges,
     Summary,
@@ -10,7 +10,10 @@ use super::Table;
 use crate::config::Scenario;
 use std::path::Path;
 
-fn read_json<T: serde::de::DeserializeOwned + Default>(dir: &Path, name: &str) -> Result<T, String> {
+fn read_json<T: serde::de::DeserializeOwned + Default>(
+    dir: &Path,
+    name: &str,
+) -> Result<T, String> {
     let p = dir.join(name);
     let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
     serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))
@@ -42,8 +45,11 @@ pub fn build_report(
         scn.timing.period,
         scn.reference.last_change(horizon),
     );
-    let (accepted, rejected): (Vec<_>, Vec<_>) =
-        ctrl.params.iter().cloned().partition(|p| p.outcome == "accepted");
+    let (accepted, rejected): (Vec<_>, Vec<_>) = ctrl
+        .params
+        .iter()
+        .cloned()
+        .partition(|p| p.outcome == "accepted");
     let floor = floor.map(|mut f| {
         let ratio = |a: i64, b: i64| if b > 0 { a as f64 / b as f64 } else { f64::NAN };
         f.ratio_p50 = ratio(ctrl.timing.lateness.p50_ns, f.lateness.p50_ns);
@@ -106,10 +112,14 @@ pub fn build_report(
                 scn.name, ctrl.mode
             ),
             &t,
-            &top,
-            "position",
-            &bottom,
-            "control u",
+            Panel {
+                series: &top,
+                label: "position",
+            },
+            Panel {
+                series: &bottom,
+                label: "control u",
+            },
             &marks,
         )?;
     }

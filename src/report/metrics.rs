@@ -22,7 +22,13 @@ pub struct ResponseMetrics {
 
 /// Metrics of output `y` tracking `r`, sampled at times `t` with period `dt`; `t_change` is the
 /// time of the last reference change.
-pub fn response_metrics(t: &[f64], r: &[f64], y: &[f64], dt: f64, t_change: f64) -> ResponseMetrics {
+pub fn response_metrics(
+    t: &[f64],
+    r: &[f64],
+    y: &[f64],
+    dt: f64,
+    t_change: f64,
+) -> ResponseMetrics {
     let n = t.len().min(r.len()).min(y.len());
     if n == 0 {
         return ResponseMetrics::default();
@@ -45,7 +51,11 @@ pub fn response_metrics(t: &[f64], r: &[f64], y: &[f64], dt: f64, t_change: f64)
     let r_final = r[n - 1];
     let r_before = if i0 > 0 { r[i0 - 1] } else { 0.0 };
     let step = (r_final - r_before).abs();
-    let scale = if step > 0.0 { step } else { r_final.abs().max(1e-12) };
+    let scale = if step > 0.0 {
+        step
+    } else {
+        r_final.abs().max(1e-12)
+    };
     let tol = band * scale;
     // Last sample outside the band: settled from the next one on.
     let last_out = (i0..n).rev().find(|&i| (r[i] - y[i]).abs() > tol);

@@ -117,8 +117,9 @@ impl Table {
         self.header
             .iter()
             .filter(|h| {
-                h.strip_prefix(prefix)
-                    .is_some_and(|rest| rest.chars().all(|c| c.is_ascii_digit()) && !rest.is_empty())
+                h.strip_prefix(prefix).is_some_and(|rest| {
+                    rest.chars().all(|c| c.is_ascii_digit()) && !rest.is_empty()
+                })
             })
             .map(|h| (h.clone(), self.col(h).unwrap_or_default()))
             .collect()

@@ -12,7 +12,11 @@ static FONT: Once = Once::new();
 fn ensure_font() {
     FONT.call_once(|| {
         // The embedded font is valid TrueType; a failure would only lose the labels.
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
+        let _ = plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            dejavu::sans::regular(),
+        );
     });
 }
 
@@ -47,16 +51,20 @@ const COLOURS: [RGBColor; 6] = [
     RGBColor(23, 190, 207),
 ];
 
-/// Two stacked panels sharing the time axis: `top` (e.g. reference and outputs) and `bottom`
+/// One panel of a plot: its series and its y-axis label.
+pub struct Panel<'a> {
+    pub series: &'a [Series<'a>],
+    pub label: &'a str,
+}
+
+/// Two stacked panels sharing the time axis `t`: `top` (e.g. reference and outputs) and `bottom`
 /// (control), with vertical lines at `marks` (e.g. accepted parameter swaps).
 pub fn two_panel_png(
     path: &Path,
     title: &str,
     t: &[f64],
-    top: &[Series],
-    top_label: &str,
-    bottom: &[Series],
-    bottom_label: &str,
+    top: Panel,
+    bottom: Panel,
     marks: &[f64],
 ) -> Result<(), String> {
     ensure_font();
@@ -68,7 +76,7 @@ pub fn two_panel_png(
     let (upper, lower) = root.split_vertically(460);
     let t0 = t.first().copied().unwrap_or(0.0);
     let t1 = t.last().copied().unwrap_or(1.0).max(t0 + 1e-9);
-    for (area, series, label) in [(&upper, top, top_label), (&lower, bottom, bottom_label)] {
+    for (area, Panel { series, label }) in [(&upper, top), (&lower, bottom)] {
         let (lo, hi) = bounds(series);
         let mut chart = ChartBuilder::on(area)
             .margin(12)

@@ -1,0 +1,156 @@
+//! The control cycle does not allocate: a counting global allocator watches the plant step, the
+//! controller cycle (with a parameter swap in it), the run logs and the iceoryx2 send/receive of
+//! state, command and telemetry, after the set-up allocated everything once.
+//!
+//! One exception is iceoryx2's own and is pinned here so it cannot grow unnoticed: in 0.10 each
+//! `Publisher::loan_uninit` allocates one small reference-count block for the loaned sample
+//! (`ChunkMutSharedState::new`), freed when the sample is sent. evoloop's code allocates nothing.
+
+use evoloop::control::cycle::ControlCycle;
+use evoloop::control::{ParamBounds, StateFeedback};
+use evoloop::ipc::messages::{Command, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
+use evoloop::ipc::{Ipc, Topic};
+use evoloop::plant::two_mass::{Sensor, TwoMass};
+use evoloop::plant::PlantSim;
+use evoloop::reference::Reference;
+use evoloop::report::RunLog;
+use evoloop::rt::{CycleTiming, TimingLog};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+struct Counting;
+static COUNT: AtomicU64 = AtomicU64::new(0);
+static SENDS: AtomicU64 = AtomicU64::new(0);
+
+/// Send through iceoryx2, counting the sends so their known allocation can be told apart.
+fn send<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
+    p: &evoloop::ipc::Pub<T>,
+    v: &T,
+) {
+    SENDS.fetch_add(1, Ordering::Relaxed);
+    p.send(v).unwrap();
+}
+static ARMED: AtomicBool = AtomicBool::new(false);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        if ARMED.load(Ordering::Relaxed) {
+            COUNT.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        if ARMED.load(Ordering::Relaxed) {
+            COUNT.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static A: Counting = Counting;
+
+#[test]
+fn the_control_cycle_allocates_nothing() {
+    let prefix = format!("tnoalloc{}_", std::process::id());
+    let ipc = Ipc::new("noalloc", "noalloc", &prefix).unwrap();
+    let st_pub = ipc.publisher::<PlantState>(Topic::State, true).unwrap();
+    let st_sub = ipc.subscriber::<PlantState>(Topic::State, 4, true).unwrap();
+    let cmd_pub = ipc.publisher::<Command>(Topic::Command, true).unwrap();
+    let cmd_sub = ipc.subscriber::<Command>(Topic::Command, 4, true).unwrap();
+    let tel_pub = ipc.publisher::<Telemetry>(Topic::Telemetry, false).unwrap();
+    let par_sub = ipc.subscriber::<ParamSet>(Topic::Params, 4, false).unwrap();
+
+    let dt = 0.001;
+    let gains = [18.49, 19.04, 47.27, 7.30, -10.54];
+    let mut plant = PlantSim::new(
+        Box::new(TwoMass::new(1.0, 1.0, 1.0, Sensor::Far)),
+        5e-4,
+        0.01,
+        1,
+    );
+    let bounds = ParamBounds {
+        lower: vec![-100.0; 5],
+        upper: vec![100.0; 5],
+    };
+    let mut cyc = ControlCycle::new(
+        Box::new(StateFeedback::new(&gains, dt, Some(100.0))),
+        Reference::Steps {
+            times: vec![0.1, 1.0],
+            values: vec![1.0, 0.5],
+        },
+        bounds,
+    );
+    let n = 3000;
+    let mut log = RunLog::new((0..7).map(|i| format!("c{i}")).collect(), n);
+    let mut timing = TimingLog::with_capacity(n);
+    let mut row = [0.0; 7];
+    let mut set = ParamSet {
+        version: 1,
+        apply_at_seq: 1500,
+        kind: KIND_STATE_FEEDBACK,
+        n: 5,
+        ..Default::default()
+    };
+    set.values[..5].copy_from_slice(&[12.1946, 11.7906, 18.7567, 4.958, -10.0]);
+    let mut msg = PlantState::default();
+    let mut tel = Telemetry::default();
+    let mut u = [0.0];
+
+    // One warm-up cycle lets iceoryx2 set up its connections (lazily, on first send/receive).
+    let mut cycle = |k: u64, cyc: &mut ControlCycle, plant: &mut PlantSim| {
+        plant.sample(k, evoloop::rt::now_ns(), &u, &mut msg);
+        send(&st_pub, &msg);
+        let s = st_sub.next().unwrap().unwrap();
+        while let Some(p) = par_sub.next().unwrap() {
+            cyc.offer(&p);
+        }
+        cyc.step(&s, &mut tel);
+        let c = Command {
+            cycle: k,
+            state_seq: s.seq,
+            u: cyc.u,
+            n_u: 1,
+            ..Default::default()
+        };
+        send(&cmd_pub, &c);
+        send(&tel_pub, &tel);
+        let got = cmd_sub.next().unwrap().unwrap();
+        u[0] = got.u[0];
+        plant.advance(&u, dt);
+        row[0] = s.t;
+        row[1] = tel.reference;
+        row[2] = s.y[0];
+        row[3] = u[0];
+        log.push(&row);
+        timing.push(CycleTiming {
+            cycle: k,
+            ..Default::default()
+        });
+    };
+    cycle(0, &mut cyc, &mut plant);
+    cyc.offer(&set);
+    SENDS.store(0, Ordering::SeqCst);
+    ARMED.store(true, Ordering::SeqCst);
+    for k in 1..n as u64 {
+        cycle(k, &mut cyc, &mut plant);
+    }
+    ARMED.store(false, Ordering::SeqCst);
+    let allocations = COUNT.load(Ordering::SeqCst);
+    let sends = SENDS.load(Ordering::SeqCst);
+    assert_eq!(
+        cyc.version(),
+        1,
+        "the swap happened inside the measured cycles"
+    );
+    assert_eq!(sends, 3 * (n as u64 - 1));
+    assert_eq!(
+        allocations - sends,
+        0,
+        "{allocations} allocations in {} control cycles with {sends} iceoryx2 sends",
+        n - 1
+    );
+}
