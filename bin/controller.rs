@@ -10,15 +10,15 @@
 //!           are measured every cycle, overruns and missed deadlines counted.
 
 use clap::Parser;
-use evoloop::cli::{stop_flag, ProcessArgs};
+use evoloop::cli::ProcessArgs;
 use evoloop::config::{Mode, Scenario};
 use evoloop::control::cycle::{ControlCycle, ParamEvent};
 use evoloop::ipc::messages::{
     Command, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END, TELEMETRY_FLAG_MISSED,
     TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
 };
-use evoloop::ipc::{Ipc, IpcError, Pub, Sub, Topic, Wait};
-use evoloop::process::{fail, load_scenario, write_json, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use evoloop::ipc::{IpcError, Pub, Sub, Topic, Wait};
+use evoloop::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use evoloop::report::summary::{ControllerReport, ParamRecord};
 use evoloop::report::RunLog;
 use evoloop::rt::timing::Percentiles;
@@ -166,11 +166,12 @@ impl Loop {
 
 fn main() {
     let cli = Cli::parse();
-    let scn = load_scenario(&cli.args, WHO);
-    let stop = stop_flag();
-    let ipc = Ipc::new(WHO, &cli.args.run_id, &cli.args.ipc_prefix)
-        .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
-    let ports = (|| -> Result<Ports, IpcError> {
+    let Started {
+        scenario: scn,
+        stop,
+        ipc,
+    } = start(&cli.args, WHO);
+    let ports = ports(WHO, || {
         Ok(Ports {
             params: ipc.subscriber(Topic::Params, 16, false)?,
             command: ipc.publisher(Topic::Command, true)?,
@@ -178,8 +179,7 @@ fn main() {
             // Last: the plant starts the run once it sees this subscriber.
             state: ipc.subscriber(Topic::State, 8, true)?,
         })
-    })()
-    .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
+    });
 
     let mut lp = Loop::new(&scn);
     let mut report = ControllerReport {

@@ -9,11 +9,11 @@
 //!           time passes the set's time; the controller applies it at its next cycle.
 
 use clap::Parser;
-use evoloop::cli::{stop_flag, ProcessArgs};
+use evoloop::cli::ProcessArgs;
 use evoloop::config::{Mode, OptimiserMode, Scenario};
 use evoloop::ipc::messages::{Command, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END};
-use evoloop::ipc::{Ipc, IpcError, Pub, Sub, Topic, Wait};
-use evoloop::process::{fail, load_scenario, write_json, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use evoloop::ipc::{IpcError, Pub, Sub, Topic, Wait};
+use evoloop::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use evoloop::report::summary::{OptimiserReport, PublishedSet};
 use evoloop::rt::privileges::set_nice;
 use evoloop::sim::{scheduled_seq, scheduled_set};
@@ -41,12 +41,13 @@ struct Ports {
 
 fn main() {
     let cli = Cli::parse();
-    let scn = load_scenario(&cli.args, WHO);
-    let stop = stop_flag();
-    let ipc = Ipc::new(WHO, &cli.args.run_id, &cli.args.ipc_prefix)
-        .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
+    let Started {
+        scenario: scn,
+        stop,
+        ipc,
+    } = start(&cli.args, WHO);
     let buffer = evoloop::ipc::MAX_SYNC_SAMPLES + 8;
-    let ports = (|| -> Result<Ports, IpcError> {
+    let ports = ports(WHO, || {
         Ok(Ports {
             params: ipc.publisher(Topic::Params, false)?,
             ack: ipc.publisher(Topic::OptimiserAck, true)?,
@@ -54,8 +55,7 @@ fn main() {
             // Last: the plant starts the run once it sees this subscriber.
             state: ipc.subscriber(Topic::State, buffer, true)?,
         })
-    })()
-    .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
+    });
     let mut report = OptimiserReport {
         mode: format!("{:?}", scn.optimiser.mode).to_lowercase(),
         ..Default::default()

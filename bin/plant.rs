@@ -9,12 +9,12 @@
 //!           commands stop for `command_timeout_periods`.
 
 use clap::Parser;
-use evoloop::cli::{stop_flag, ProcessArgs};
+use evoloop::cli::ProcessArgs;
 use evoloop::config::{Mode, Scenario};
 use evoloop::ipc::messages::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
-use evoloop::ipc::{Ipc, Pub, Sub, Topic, Wait};
+use evoloop::ipc::{Pub, Sub, Topic, Wait};
 use evoloop::plant::PlantSim;
-use evoloop::process::{fail, load_scenario, write_json, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use evoloop::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use evoloop::report::summary::PlantReport;
 use evoloop::rt::{apply_privileges, now_ns, sleep_until_ns};
 use evoloop::MAX_JOINTS;
@@ -41,18 +41,18 @@ struct Ports {
 
 fn main() {
     let cli = Cli::parse();
-    let scn = load_scenario(&cli.args, WHO);
-    let stop = stop_flag();
-    let ipc = Ipc::new(WHO, &cli.args.run_id, &cli.args.ipc_prefix)
-        .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
-    let ports = (|| -> Result<Ports, evoloop::ipc::IpcError> {
+    let Started {
+        scenario: scn,
+        stop,
+        ipc,
+    } = start(&cli.args, WHO);
+    let ports = ports(WHO, || {
         Ok(Ports {
             command: ipc.subscriber(Topic::Command, 8, true)?,
             ack: ipc.subscriber(Topic::OptimiserAck, 4, true)?,
             state: ipc.publisher(Topic::State, true)?,
         })
-    })()
-    .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e.to_string()));
+    });
 
     let mut sim = PlantSim::new(
         scn.build_plant(),

@@ -1,15 +1,44 @@
 //! Pieces every process binary shares: loading the scenario the launcher handed over, the exit
 //! convention, and writing a JSON report into the run directory.
 
-use crate::cli::ProcessArgs;
+use crate::cli::{stop_flag, ProcessArgs};
 use crate::config::Scenario;
+use crate::ipc::{Ipc, IpcError};
 use serde::Serialize;
 use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 
 /// Exit code of a process whose peer stopped answering (lockstep timeout).
 pub const EXIT_PEER_TIMEOUT: i32 = 3;
 /// Exit code of a process that could not set itself up (config, IPC).
 pub const EXIT_SETUP: i32 = 2;
+
+/// What every process starts with: its scenario, its stop flag (set by SIGINT/SIGTERM) and its
+/// iceoryx2 node in the run.
+pub struct Started {
+    pub scenario: Scenario,
+    pub stop: Arc<AtomicBool>,
+    pub ipc: Ipc,
+}
+
+/// Load the scenario, install the signal flag, join the run; exit with a message on failure.
+pub fn start(args: &ProcessArgs, who: &str) -> Started {
+    let scenario = load_scenario(args, who);
+    let stop = stop_flag();
+    let ipc = Ipc::new(who, &args.run_id, &args.ipc_prefix)
+        .unwrap_or_else(|e| fail(who, EXIT_SETUP, &e.to_string()));
+    Started {
+        scenario,
+        stop,
+        ipc,
+    }
+}
+
+/// Build the process's ports, or exit with the IPC error.
+pub fn ports<P>(who: &str, build: impl FnOnce() -> Result<P, IpcError>) -> P {
+    build().unwrap_or_else(|e| fail(who, EXIT_SETUP, &e.to_string()))
+}
 
 /// Load the scenario with the launcher's overrides, or exit with the config error.
 pub fn load_scenario(args: &ProcessArgs, who: &str) -> Scenario {

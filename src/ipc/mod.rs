@@ -37,6 +37,23 @@ fn err(context: impl Into<String>, cause: impl Debug) -> IpcError {
     }
 }
 
+/// Open or create a service, retrying for up to half a second: peers open the same service
+/// concurrently at start-up, and iceoryx2 reports a service that another process is creating or
+/// tearing down as an error for a short moment.
+fn retry<T, E: Debug>(what: &str, mut f: impl FnMut() -> Result<T, E>) -> Result<T, IpcError> {
+    let mut last = None;
+    for _ in 0..50 {
+        match f() {
+            Ok(v) => return Ok(v),
+            Err(e) => {
+                last = Some(e);
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        }
+    }
+    Err(err(what, last))
+}
+
 /// The topics of a run. Each has one QoS, used by whichever process creates the service first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Topic {
@@ -136,12 +153,8 @@ impl Ipc {
         topic: Topic,
     ) -> Result<PubSubFactory<T>, IpcError> {
         let name = self.service_name(topic)?;
-        // Peers open the same service concurrently at start-up; iceoryx2 reports a service that is
-        // being created or torn down by someone else as an error for a short moment, so retry.
-        let mut last = None;
-        for _ in 0..50 {
-            match self
-                .node
+        retry(&format!("opening service {}", name.as_str()), || {
+            self.node
                 .service_builder(&name)
                 .publish_subscribe::<T>()
                 .subscriber_max_buffer_size(topic.max_buffer())
@@ -152,15 +165,7 @@ impl Ipc {
                 .max_nodes(8)
                 .enable_safe_overflow(true)
                 .open_or_create()
-            {
-                Ok(s) => return Ok(s),
-                Err(e) => {
-                    last = Some(e);
-                    std::thread::sleep(Duration::from_millis(10));
-                }
-            }
-        }
-        Err(err(format!("opening service {}", name.as_str()), last))
+        })
     }
 
     fn event(
@@ -168,25 +173,15 @@ impl Ipc {
         topic: Topic,
     ) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, IpcError> {
         let name = self.service_name(topic)?;
-        let mut last = None;
-        for _ in 0..50 {
-            match self
-                .node
+        retry(&format!("opening event {}", name.as_str()), || {
+            self.node
                 .service_builder(&name)
                 .event()
                 .max_notifiers(4)
                 .max_listeners(6)
                 .max_nodes(8)
                 .open_or_create()
-            {
-                Ok(s) => return Ok(s),
-                Err(e) => {
-                    last = Some(e);
-                    std::thread::sleep(Duration::from_millis(10));
-                }
-            }
-        }
-        Err(err(format!("opening event {}", name.as_str()), last))
+        })
     }
 
     /// A publisher; with `wake` it also notifies listeners after each send.
