@@ -66,3 +66,75 @@ fn a_realtime_run_keeps_its_rate_and_its_timing_statistics_add_up() {
         .count() as u64;
     assert_eq!(overrun_flags, s["overruns"].as_u64().unwrap());
 }
+
+#[test]
+fn a_stalled_controller_is_counted_and_the_plant_falls_back_to_its_safe_command() {
+    use std::time::{Duration, Instant};
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write(
+        tmp.path(),
+        "stall.toml",
+        &scenario(
+            "kind = \"step\"\namplitude = 1.0",
+            "mode = \"realtime\"\nduration = 3.0\nmeasure_floor = false\nfifo_priority = 60\nplant_fifo_priority = 50",
+        )
+        .replace("step = 0.0005", "step = 0.0005\ncommand_timeout_periods = 10"),
+    );
+    let out = tmp.path().join("out");
+    let (prefix, run_id) = unique("stall");
+    let mut child = std::process::Command::new(evoloop())
+        .arg("run")
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&out)
+        .args(["--ipc-prefix", &prefix, "--run-id", &run_id, "--quiet"])
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    let controller = loop {
+        let pids = processes_with(&run_id);
+        let found = pids.into_iter().find(|p| {
+            std::fs::read(format!("/proc/{p}/cmdline"))
+                .map(|c| String::from_utf8_lossy(&c).contains("evoloop-controller"))
+                .unwrap_or(false)
+        });
+        if let Some(p) = found {
+            break p;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "controller did not start"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    std::thread::sleep(Duration::from_millis(1000));
+    // Freeze the controller for 300 ms: no commands, no cycles.
+    // SAFETY: signalling this test's own process (found by its run id).
+    unsafe { libc::kill(controller as i32, libc::SIGSTOP) };
+    std::thread::sleep(Duration::from_millis(300));
+    unsafe { libc::kill(controller as i32, libc::SIGCONT) };
+    let status = child.wait().unwrap();
+    assert!(
+        status.success(),
+        "the run survives a stalled controller: {status}"
+    );
+
+    let plant = json(&out.join("plant.json"));
+    let safe = plant["safe_samples"].as_u64().unwrap();
+    assert!(
+        safe > 0,
+        "the plant never applied its safe command: {plant}"
+    );
+    assert!(safe < 1000, "safe command beyond the stall: {safe} samples");
+    let s = json(&out.join("summary.json"));
+    assert!(
+        s["deadline_misses"].as_u64().unwrap() > 0,
+        "the stall was not counted as missed deadlines"
+    );
+    assert!(
+        s["overruns"].as_u64().unwrap() > 0,
+        "the stalled cycle was not counted as an overrun"
+    );
+    assert_eq!(s["plant_safe_samples"].as_u64().unwrap(), safe);
+}
