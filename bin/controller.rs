@@ -180,6 +180,9 @@ fn main() {
             state: ipc.subscriber(Topic::State, 8, true)?,
         })
     });
+    if let Err(e) = ipc.announce(Topic::Ready) {
+        fail(WHO, EXIT_SETUP, &e.to_string());
+    }
 
     let mut lp = Loop::new(&scn);
     let mut report = ControllerReport {

@@ -70,9 +70,8 @@ enum Cmd {
 
 #[derive(clap::Args)]
 struct RunArgs {
-    /// Scenario file (TOML).
-    #[arg(default_value = DEFAULT_SCENARIO)]
-    file: PathBuf,
+    /// Scenario file (TOML) [default: config/two_mass.toml, here or in the source tree]
+    file: Option<PathBuf>,
     #[command(flatten)]
     overrides: OverrideArgs,
     /// Run id used in the service names (default: generated, unique on this machine).
@@ -90,7 +89,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         None => run(RunArgs {
-            file: default_scenario(),
+            file: None,
             overrides: OverrideArgs::default(),
             run_id: None,
             ipc_prefix: DEFAULT_PREFIX.into(),
@@ -199,8 +198,9 @@ fn signal(child: &Child, sig: i32) {
 }
 
 fn run(a: RunArgs) -> ExitCode {
+    let file = a.file.clone().unwrap_or_else(default_scenario);
     let ov = a.overrides.to_overrides();
-    let scn = match Scenario::load(&a.file, &ov) {
+    let scn = match Scenario::load(&file, &ov) {
         Ok(s) => s,
         Err(e) => {
             err!("error: {e}");
@@ -249,7 +249,7 @@ fn run(a: RunArgs) -> ExitCode {
     let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 1, false).ok();
 
     // The absolute config path and the output dir are passed on so children agree exactly.
-    let config = std::fs::canonicalize(&a.file).unwrap_or(a.file.clone());
+    let config = std::fs::canonicalize(&file).unwrap_or(file.clone());
     let mut child_ov = a.overrides.clone();
     child_ov.out = Some(dir.clone());
     let mut args = vec![

@@ -56,6 +56,9 @@ fn main() {
             state: ipc.subscriber(Topic::State, buffer, true)?,
         })
     });
+    if let Err(e) = ipc.announce(Topic::Ready) {
+        fail(WHO, EXIT_SETUP, &e.to_string());
+    }
     let mut report = OptimiserReport {
         mode: format!("{:?}", scn.optimiser.mode).to_lowercase(),
         ..Default::default()
@@ -84,7 +87,12 @@ fn run(
     let schedule_on = scn.optimiser.mode == OptimiserMode::Schedule;
     let sync = scn.sync_samples();
     let dt = scn.timing.period;
-    let spin = Duration::from_micros(scn.timing.spin_us);
+    // Spinning pays off only in lockstep, where the next sample follows at once.
+    let spin = if lockstep {
+        Duration::from_micros(scn.timing.spin_us)
+    } else {
+        Duration::ZERO
+    };
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
     let mut next_set = 0usize;
     let mut last_state = Instant::now();

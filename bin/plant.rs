@@ -12,7 +12,7 @@ use clap::Parser;
 use evoloop::cli::ProcessArgs;
 use evoloop::config::{Mode, Scenario};
 use evoloop::ipc::messages::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
-use evoloop::ipc::{Pub, Sub, Topic, Wait};
+use evoloop::ipc::{Doorbell, Pub, Sub, Topic, Wait};
 use evoloop::plant::PlantSim;
 use evoloop::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use evoloop::report::summary::PlantReport;
@@ -34,6 +34,7 @@ struct Cli {
 }
 
 struct Ports {
+    ready: Doorbell,
     state: Pub<PlantState>,
     command: Sub<Command>,
     ack: Sub<OptimiserAck>,
@@ -48,6 +49,7 @@ fn main() {
     } = start(&cli.args, WHO);
     let ports = ports(WHO, || {
         Ok(Ports {
+            ready: ipc.doorbell(Topic::Ready)?,
             command: ipc.subscriber(Topic::Command, 8, true)?,
             ack: ipc.subscriber(Topic::OptimiserAck, 4, true)?,
             state: ipc.publisher(Topic::State, true)?,
@@ -98,8 +100,11 @@ fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
                 "controller/optimiser did not connect in time",
             );
         }
-        // Start-up only, never in the loop: peers appear once, so a short nap is fine here.
-        std::thread::sleep(Duration::from_millis(1));
+        // Each peer announces itself once its ports exist; re-check on every announcement (and
+        // every 100 ms, in case one came before this listener existed).
+        if let Err(e) = ports.ready.wait(Duration::from_millis(100)) {
+            fail(WHO, EXIT_SETUP, &e.to_string());
+        }
     }
 }
 

@@ -62,6 +62,8 @@ pub enum Topic {
     Telemetry,
     Params,
     OptimiserAck,
+    /// Event only: a process has created all its ports.
+    Ready,
 }
 
 impl Topic {
@@ -72,6 +74,7 @@ impl Topic {
             Topic::Telemetry => "telemetry",
             Topic::Params => "params",
             Topic::OptimiserAck => "optimiser_ack",
+            Topic::Ready => "ready",
         }
     }
     /// Largest per-subscriber queue. The optimiser reads every state/command sample between its
@@ -81,7 +84,7 @@ impl Topic {
             Topic::State | Topic::Command => MAX_SYNC_SAMPLES + 8,
             Topic::Telemetry => 64,
             Topic::Params => 16,
-            Topic::OptimiserAck => 4,
+            Topic::OptimiserAck | Topic::Ready => 4,
         }
     }
 }
@@ -184,6 +187,28 @@ impl Ipc {
         })
     }
 
+    /// Announce on an event-only topic (e.g. `Topic::Ready`) that something happened.
+    pub fn announce(&self, topic: Topic) -> Result<(), IpcError> {
+        let n = self
+            .event(topic)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| err(format!("notifier on {}", topic.name()), e))?;
+        n.notify()
+            .map_err(|e| err(format!("notify on {}", topic.name()), e))?;
+        Ok(())
+    }
+
+    /// A listener on an event-only topic.
+    pub fn doorbell(&self, topic: Topic) -> Result<Doorbell, IpcError> {
+        let listener = self
+            .event(topic)?
+            .listener_builder()
+            .create()
+            .map_err(|e| err(format!("listener on {}", topic.name()), e))?;
+        Ok(Doorbell { listener, topic })
+    }
+
     /// A publisher; with `wake` it also notifies listeners after each send.
     pub fn publisher<T: Debug + ZeroCopySend + Copy + 'static>(
         &self,
@@ -281,6 +306,22 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Pub<T> {
     }
 }
 
+/// The listening end of an event-only topic.
+pub struct Doorbell {
+    listener: Listener<ipc::Service>,
+    topic: Topic,
+}
+
+impl Doorbell {
+    /// Block until an announcement arrives or `timeout` passes.
+    pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
+        self.listener
+            .timed_wait(|_| {}, timeout)
+            .map(|_| ())
+            .map_err(|e| err(format!("wait on {}", self.topic.name()), e))
+    }
+}
+
 /// A typed subscriber, optionally paired with an event listener for blocking waits.
 pub struct Sub<T: Debug + ZeroCopySend + 'static> {
     subscriber: Subscriber<ipc::Service, T, ()>,
@@ -339,20 +380,6 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
                 None => std::hint::spin_loop(),
             }
         }
-    }
-
-    /// Block on the event until something arrives or `timeout` passes, without consuming samples.
-    pub fn wait_event(&self, timeout: Duration) -> Result<(), IpcError> {
-        if let Some(l) = &self.listener {
-            l.timed_wait(|_| {}, timeout)
-                .map_err(|e| err(format!("wait on {}", self.topic.name()), e))?;
-        }
-        Ok(())
-    }
-
-    /// Number of subscribers (all processes) currently connected to this topic.
-    pub fn peer_subscribers(&self) -> usize {
-        self.service.dynamic_config().number_of_subscribers()
     }
 
     /// Number of publishers currently connected to this topic.
