@@ -350,6 +350,12 @@ fn run(a: RunArgs) -> ExitCode {
         let _ = c.wait();
     }
     drop(telemetry);
+    // A child that died without dropping its ports (killed) left its resources behind: remove
+    // them now rather than leave them for the next run.
+    let cleaned_after = ipc.cleanup_dead_nodes();
+    if cleaned_after > 0 && !a.quiet {
+        err!("evoloop: removed the resources of {cleaned_after} dead process(es)");
+    }
     drop(ipc);
     let wall = t0.elapsed().as_secs_f64();
     if !failed.is_empty() {

@@ -140,3 +140,29 @@ fn a_killed_run_is_cleaned_up_by_the_next_start() {
     assert!(s["stale_resources_cleaned"].as_u64().unwrap() >= 1, "{s}");
     assert_eq!(leftovers(&prefix), Vec::<String>::new());
 }
+
+#[test]
+fn a_child_that_dies_fails_the_run_and_the_others_are_stopped() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = realtime_config(tmp.path());
+    let (prefix, run_id) = unique("die");
+    let mut child = start(&cfg, &tmp.path().join("out"), &prefix, &run_id);
+    let plant = processes_with(&run_id)
+        .into_iter()
+        .find(|p| {
+            std::fs::read(format!("/proc/{p}/cmdline"))
+                .map(|c| String::from_utf8_lossy(&c).contains("evoloop-plant"))
+                .unwrap_or(false)
+        })
+        .expect("plant process");
+    // SAFETY: this test's own plant process.
+    unsafe { libc::kill(plant as i32, libc::SIGKILL) };
+    let status = wait_exit(&mut child, Duration::from_secs(15));
+    assert_eq!(status.code(), Some(1), "a failed child fails the run");
+    let t0 = Instant::now();
+    while !processes_with(&run_id).is_empty() {
+        assert!(t0.elapsed() < Duration::from_secs(5), "processes left: {:?}", processes_with(&run_id));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert_eq!(leftovers(&prefix), Vec::<String>::new(), "the dead plant's resources were not cleaned");
+}
