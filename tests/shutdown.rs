@@ -161,8 +161,16 @@ fn a_child_that_dies_fails_the_run_and_the_others_are_stopped() {
     assert_eq!(status.code(), Some(1), "a failed child fails the run");
     let t0 = Instant::now();
     while !processes_with(&run_id).is_empty() {
-        assert!(t0.elapsed() < Duration::from_secs(5), "processes left: {:?}", processes_with(&run_id));
+        assert!(
+            t0.elapsed() < Duration::from_secs(5),
+            "processes left: {:?}",
+            processes_with(&run_id)
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
-    assert_eq!(leftovers(&prefix), Vec::<String>::new(), "the dead plant's resources were not cleaned");
+    assert_eq!(
+        leftovers(&prefix),
+        Vec::<String>::new(),
+        "the dead plant's resources were not cleaned"
+    );
 }
