@@ -11,10 +11,12 @@ pub mod cli;
 pub mod config;
 pub mod control;
 pub mod ipc;
+pub mod optim;
 pub mod plant;
 pub mod process;
 pub mod reference;
 pub mod report;
+pub mod robust;
 pub mod rt;
 pub mod sim;
 

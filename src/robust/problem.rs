@@ -1,0 +1,138 @@
+//! The robust design problem of the two-mass paper (Sections 2-4), as the paper's tables imply it.
+//!
+//! Reading (verified against Table 9; see README and `evoloop robust study`'s report):
+//! - state order with the measured body first, x = [x_meas, x_act, v_meas, v_act], force on the
+//!   actuated body: A = [[0,0,1,0],[0,0,0,1],[-k,k,0,0],[k,-k,0,0]], B = [0,0,0,1]', C = [1,0,0,0]
+//!   (the collocated variant has C = [0,1,0,0]);
+//! - augmented with the integrator xi' = r - y: Â = [[A,0],[-C,0]], B̂ = [B;0], u = -K x̂ with
+//!   K = [k1..k5] in Table 9's column order (the paper's k_i = -k5);
+//! - perturbation structure where k enters A (rows 3-4, columns 1-2): Ê = diag(0,0,1,1,0),
+//!   Ĥ = diag(1,1,0,0,0) (default); the text's literal "rows 3-4 of Ê, columns 2-3 of Ĥ" is
+//!   available as `Perturbation::Literal` (Ĥ = diag(0,1,1,0,0));
+//! - the wedge with zeta = 0.7, rho = 1; the nominal plant is the worst case k = 0.5;
+//! - the objective of Table 2 (DOCHM): F(X) = summed pole distance to the wedge when positive,
+//!   else f(X) = -r_c.
+
+use super::pole_region::Wedge;
+use super::stability_radius::stability_radius;
+use crate::plant::two_mass::{Sensor, TwoMass};
+use nalgebra::{Complex, DMatrix};
+use serde::Serialize;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Perturbation {
+    /// Ê = diag(0,0,1,1,0), Ĥ = diag(1,1,0,0,0): exactly where the spring constant enters.
+    #[default]
+    Spring,
+    /// Ê = diag(0,0,1,1,0), Ĥ = diag(0,1,1,0,0): the text's literal wording.
+    Literal,
+}
+
+/// The augmented open loop (Â, B̂) of the two-mass plant with spring `k` (m1 = m2 = 1).
+pub fn augmented(k: f64, sensor: Sensor) -> (DMatrix<f64>, DMatrix<f64>) {
+    let (a, b, c) = TwoMass::new(1.0, 1.0, k, sensor).matrices();
+    let mut ah = DMatrix::zeros(5, 5);
+    for i in 0..4 {
+        for j in 0..4 {
+            ah[(i, j)] = a[i][j];
+        }
+        ah[(4, i)] = -c[i];
+    }
+    let bh = DMatrix::from_column_slice(5, 1, &[b[0], b[1], b[2], b[3], 0.0]);
+    (ah, bh)
+}
+
+/// Everything one candidate gain vector is judged by.
+#[derive(Debug, Clone, Serialize)]
+pub struct Evaluation {
+    pub poles: Vec<(f64, f64)>,
+    /// F(X): summed distance of the poles to the wedge (0 = feasible).
+    pub wedge_distance: f64,
+    pub in_wedge: bool,
+    /// r_c (0 when the closed loop is unstable).
+    pub stability_radius: f64,
+    /// The DOCHM objective: F(X) if positive, else -r_c.
+    pub objective: f64,
+}
+
+#[derive(Debug, Clone)]
+pub struct RobustProblem {
+    pub a_hat: DMatrix<f64>,
+    pub b_hat: DMatrix<f64>,
+    pub e: DMatrix<f64>,
+    pub h: DMatrix<f64>,
+    pub wedge: Wedge,
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+}
+
+impl RobustProblem {
+    pub fn new(k: f64, sensor: Sensor, perturbation: Perturbation, wedge: Wedge, bound: f64) -> Self {
+        let (a_hat, b_hat) = augmented(k, sensor);
+        let e = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vec![0.0, 0.0, 1.0, 1.0, 0.0]));
+        let h_diag = match perturbation {
+            Perturbation::Spring => vec![1.0, 1.0, 0.0, 0.0, 0.0],
+            Perturbation::Literal => vec![0.0, 1.0, 1.0, 0.0, 0.0],
+        };
+        let h = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(h_diag));
+        Self {
+            a_hat,
+            b_hat,
+            e,
+            h,
+            wedge,
+            lower: vec![-bound; 5],
+            upper: vec![bound; 5],
+        }
+    }
+
+    /// The paper's problem: k = 0.5, sensor on body 2, zeta = 0.7, rho = 1, bounds +-50.
+    pub fn paper() -> Self {
+        Self::new(
+            0.5,
+            Sensor::Far,
+            Perturbation::Spring,
+            Wedge { zeta: 0.7, rho: 1.0 },
+            50.0,
+        )
+    }
+
+    /// Ã = Â - B̂ K.
+    pub fn closed_loop(&self, gains: &[f64]) -> DMatrix<f64> {
+        let k = DMatrix::from_row_slice(1, gains.len(), gains);
+        &self.a_hat - &self.b_hat * k
+    }
+
+    pub fn poles(&self, gains: &[f64]) -> Vec<Complex<f64>> {
+        self.closed_loop(gains).complex_eigenvalues().iter().copied().collect()
+    }
+
+    /// The DOCHM objective only (what the optimiser minimises): F(X) when infeasible, else
+    /// -r_c. The H-infinity norm is computed only for feasible candidates.
+    pub fn objective(&self, gains: &[f64]) -> f64 {
+        let acl = self.closed_loop(gains);
+        let poles = acl.complex_eigenvalues();
+        let f = self.wedge.total_distance(poles.as_slice());
+        if f > 0.0 {
+            f
+        } else {
+            -stability_radius(&acl, &self.e, &self.h)
+        }
+    }
+
+    /// Full evaluation for reports.
+    pub fn evaluate(&self, gains: &[f64]) -> Evaluation {
+        let acl = self.closed_loop(gains);
+        let poles: Vec<Complex<f64>> = acl.complex_eigenvalues().iter().copied().collect();
+        let f = self.wedge.total_distance(&poles);
+        let rc = stability_radius(&acl, &self.e, &self.h);
+        Evaluation {
+            poles: poles.iter().map(|p| (p.re, p.im)).collect(),
+            wedge_distance: f,
+            in_wedge: f == 0.0,
+            stability_radius: rc,
+            objective: if f > 0.0 { f } else { -rc },
+        }
+    }
+}
