@@ -51,6 +51,12 @@ enum Cmd {
         /// Scenario file (TOML).
         file: PathBuf,
     },
+    /// Robust state feedback for the two-mass benchmark: stability radius, LQR, DE tuning, the
+    /// paper's reproduction.
+    Robust {
+        #[command(subcommand)]
+        cmd: evoloop::robust::cli::RobustCmd,
+    },
     /// Measure the machine's timing floor: a bare absolute-deadline sleep loop.
     Floor {
         /// Loop rate in Hz.
@@ -97,6 +103,7 @@ fn main() -> ExitCode {
         }),
         Some(Cmd::Run(a)) => run(a),
         Some(Cmd::Check { file }) => check(&file),
+        Some(Cmd::Robust { cmd }) => ExitCode::from(evoloop::robust::cli::main(cmd) as u8),
         Some(Cmd::Floor {
             rate,
             duration,

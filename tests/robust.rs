@@ -18,12 +18,22 @@ fn lqr_solves_the_riccati_equation_and_reproduces_table_9() {
     let (a, b) = augmented(1.2, Sensor::Actuated);
     let r = DMatrix::from_element(1, 1, 1.0);
     for (q, printed) in [
-        (diag(&[10.0, 1.0, 1.0, 1.0, 10.0]), [1.57, 5.76, 3.23, 3.54, -3.16]),
-        (diag(&[100.0, 1.0, 1.0, 1.0, 1000.0]), [8.96, 20.89, 5.95, 6.54, -31.62]),
+        (
+            diag(&[10.0, 1.0, 1.0, 1.0, 10.0]),
+            [1.57, 5.76, 3.23, 3.54, -3.16],
+        ),
+        (
+            diag(&[100.0, 1.0, 1.0, 1.0, 1000.0]),
+            [8.96, 20.89, 5.95, 6.54, -31.62],
+        ),
     ] {
         let sol = lqr(&a, &b, &q, &r).unwrap();
         let s = &b * b.transpose();
-        assert!(riccati_residual(&a, &s, &q, &sol.p) < 1e-9, "residual {}", sol.residual);
+        assert!(
+            riccati_residual(&a, &s, &q, &sol.p) < 1e-9,
+            "residual {}",
+            sol.residual
+        );
         assert!((&sol.p - sol.p.transpose()).norm() < 1e-12, "P symmetric");
         assert!(sol.p.clone().cholesky().is_some(), "P positive definite");
         for (i, want) in printed.iter().enumerate() {
@@ -38,8 +48,18 @@ fn lqr_solves_the_riccati_equation_and_reproduces_table_9() {
 #[test]
 fn lqr_matches_the_scalar_closed_form() {
     // x' = a x + b u: P = (a + sqrt(a^2 + b^2 q / r)) r / b^2.
-    for (a, b, q, r) in [(1.0, 1.0, 1.0, 1.0), (-2.0, 0.5, 3.0, 0.2), (0.3, 2.0, 10.0, 4.0)] {
-        let sol = lqr(&DMatrix::from_element(1, 1, a), &DMatrix::from_element(1, 1, b), &DMatrix::from_element(1, 1, q), &DMatrix::from_element(1, 1, r)).unwrap();
+    for (a, b, q, r) in [
+        (1.0, 1.0, 1.0, 1.0),
+        (-2.0, 0.5, 3.0, 0.2),
+        (0.3, 2.0, 10.0, 4.0),
+    ] {
+        let sol = lqr(
+            &DMatrix::from_element(1, 1, a),
+            &DMatrix::from_element(1, 1, b),
+            &DMatrix::from_element(1, 1, q),
+            &DMatrix::from_element(1, 1, r),
+        )
+        .unwrap();
         let p = (a + (a * a + b * b * q / r).sqrt()) * r / (b * b);
         assert!((sol.p[(0, 0)] - p).abs() < 1e-10 * p.max(1.0));
     }
@@ -58,7 +78,10 @@ fn hinf_norm_agrees_with_a_dense_sweep_on_random_stable_loops() {
         }
         let (norm, _) = hinf_norm(&acl, &prob.e, &prob.h).unwrap();
         let sweep = hinf_norm_sweep(&acl, &prob.e, &prob.h, 4000);
-        assert!(((norm - sweep) / sweep).abs() < 1e-6, "{k:?}: level set {norm} vs sweep {sweep}");
+        assert!(
+            ((norm - sweep) / sweep).abs() < 1e-6,
+            "{k:?}: level set {norm} vs sweep {sweep}"
+        );
         checked += 1;
     }
 }
@@ -66,7 +89,12 @@ fn hinf_norm_agrees_with_a_dense_sweep_on_random_stable_loops() {
 #[test]
 fn hinf_norm_of_a_first_and_second_order_system_is_analytic() {
     // 1/(s + a): norm 1/a at w = 0.
-    let (n, w) = hinf_norm(&DMatrix::from_element(1, 1, -2.0), &DMatrix::from_element(1, 1, 1.0), &DMatrix::from_element(1, 1, 1.0)).unwrap();
+    let (n, w) = hinf_norm(
+        &DMatrix::from_element(1, 1, -2.0),
+        &DMatrix::from_element(1, 1, 1.0),
+        &DMatrix::from_element(1, 1, 1.0),
+    )
+    .unwrap();
     assert!((n - 0.5).abs() < 1e-9 && w == 0.0);
     // wn^2/(s^2 + 2 z wn s + wn^2), z < 1/sqrt2: peak 1/(2 z sqrt(1 - z^2)).
     let (z, wn) = (0.1f64, 3.0f64);
@@ -84,9 +112,17 @@ fn the_table_9_defc_gains_are_stable_and_in_the_wedge_at_k_half() {
     let prob = RobustProblem::paper();
     let ev = prob.evaluate(&[18.49, 19.04, 47.27, 7.30, -10.54]);
     assert!(ev.in_wedge, "{ev:?}");
-    assert!(ev.stability_radius > 0.3 && ev.stability_radius < 0.34, "r_c = {}", ev.stability_radius);
+    assert!(
+        ev.stability_radius > 0.3 && ev.stability_radius < 0.34,
+        "r_c = {}",
+        ev.stability_radius
+    );
     // An unstable gain set has r_c = 0.
-    assert_eq!(prob.evaluate(&[8.96, 20.89, 5.95, 6.54, -31.62]).stability_radius, 0.0);
+    assert_eq!(
+        prob.evaluate(&[8.96, 20.89, 5.95, 6.54, -31.62])
+            .stability_radius,
+        0.0
+    );
 }
 
 #[test]
@@ -120,11 +156,18 @@ fn de_finds_the_box_constrained_optimum_in_at_least_14_of_15_seeded_runs() {
         let r = run(&mut de, &f, 2, 1000, Some(-0.3489), |_| {});
         let ev = prob.evaluate(&r.best);
         if ev.in_wedge && ev.stability_radius >= 0.3489 {
-            assert!(r.best[2] > 49.5, "k3 = {} should be at its bound", r.best[2]);
+            assert!(
+                r.best[2] > 49.5,
+                "k3 = {} should be at its bound",
+                r.best[2]
+            );
             hits += 1;
         }
     }
-    assert!(hits >= 14, "{hits} of 15 runs reached r_c >= 0.3489 in the wedge");
+    assert!(
+        hits >= 14,
+        "{hits} of 15 runs reached r_c >= 0.3489 in the wedge"
+    );
 }
 
 #[test]
@@ -144,6 +187,10 @@ fn hooke_jeeves_finds_the_minimum_of_a_bounded_quadratic() {
     use evoloop::optim::HookeJeeves;
     let f = |x: &[f64]| (x[0] - 1.0).powi(2) + 10.0 * (x[1] + 2.0).powi(2) + (x[2] - 9.0).powi(2);
     let r = HookeJeeves::default().minimise(f, &[0.0, 0.0, 0.0], &[-5.0; 3], &[5.0; 3]);
-    assert!((r.x[0] - 1.0).abs() < 1e-6 && (r.x[1] + 2.0).abs() < 1e-6, "{:?}", r.x);
+    assert!(
+        (r.x[0] - 1.0).abs() < 1e-6 && (r.x[1] + 2.0).abs() < 1e-6,
+        "{:?}",
+        r.x
+    );
     assert_eq!(r.x[2], 5.0, "the third coordinate stops on its bound");
 }

@@ -67,7 +67,12 @@ impl DeConfig {
         if self.lower.len() != self.upper.len() || self.lower.is_empty() {
             return Err("bounds must have the same, non-zero length".into());
         }
-        if self.lower.iter().zip(&self.upper).any(|(l, u)| !(l < u)) {
+        if self
+            .lower
+            .iter()
+            .zip(&self.upper)
+            .any(|(l, u)| l.partial_cmp(u) != Some(std::cmp::Ordering::Less))
+        {
             return Err("every lower bound must be below its upper bound".into());
         }
         Ok(())
@@ -93,7 +98,11 @@ impl DifferentialEvolution {
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         let d = cfg.lower.len();
         let pop: Vec<Vec<f64>> = (0..cfg.np)
-            .map(|_| (0..d).map(|j| rng.gen_range(cfg.lower[j]..cfg.upper[j])).collect())
+            .map(|_| {
+                (0..d)
+                    .map(|j| rng.gen_range(cfg.lower[j]..cfg.upper[j]))
+                    .collect()
+            })
             .collect();
         Ok(Self {
             trials: pop.clone(),
@@ -202,7 +211,12 @@ impl Optimiser for DifferentialEvolution {
         }
         (0..self.cfg.lower.len()).all(|d| {
             let mean = self.window.iter().map(|x| x[d]).sum::<f64>() / n as f64;
-            let var = self.window.iter().map(|x| (x[d] - mean).powi(2)).sum::<f64>() / n as f64;
+            let var = self
+                .window
+                .iter()
+                .map(|x| (x[d] - mean).powi(2))
+                .sum::<f64>()
+                / n as f64;
             var.sqrt() < self.cfg.epsilon * (self.cfg.upper[d] - self.cfg.lower[d])
         })
     }

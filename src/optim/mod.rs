@@ -27,7 +27,11 @@ pub trait Optimiser {
 
 /// Evaluate `candidates` with `f` on `threads` threads (1 = in this thread). The result does not
 /// depend on the thread count: each value is computed independently.
-pub fn evaluate<F: Fn(&[f64]) -> f64 + Sync>(candidates: &[Vec<f64>], f: &F, threads: usize) -> Vec<f64> {
+pub fn evaluate<F: Fn(&[f64]) -> f64 + Sync>(
+    candidates: &[Vec<f64>],
+    f: &F,
+    threads: usize,
+) -> Vec<f64> {
     let mut out = vec![0.0; candidates.len()];
     let threads = threads.max(1).min(candidates.len().max(1));
     if threads == 1 {

@@ -125,3 +125,95 @@ pub fn two_panel_png(
     }
     root.present().map_err(|e| e.to_string())
 }
+
+/// How an x-y series is drawn.
+#[derive(Clone, Copy, PartialEq)]
+pub enum Style {
+    Line,
+    Points,
+}
+
+/// A named x-y series.
+pub struct XySeries<'a> {
+    pub name: &'a str,
+    pub x: &'a [f64],
+    pub y: &'a [f64],
+    pub style: Style,
+}
+
+/// One x-y chart (lines and/or scatter) with a legend; empty names are left out of it.
+pub fn xy_png(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[XySeries],
+    x_range: Option<(f64, f64)>,
+    y_range: Option<(f64, f64)>,
+) -> Result<(), String> {
+    ensure_font();
+    let root = BitMapBackend::new(path, (1000, 700)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let xs: Vec<Series> = series
+        .iter()
+        .map(|s| Series {
+            name: s.name,
+            values: s.x,
+        })
+        .collect();
+    let ys: Vec<Series> = series
+        .iter()
+        .map(|s| Series {
+            name: s.name,
+            values: s.y,
+        })
+        .collect();
+    let (x0, x1) = x_range.unwrap_or_else(|| bounds(&xs));
+    let (y0, y1) = y_range.unwrap_or_else(|| bounds(&ys));
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(14)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .label_style(("sans-serif", 16))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let mut legend = false;
+    for (i, s) in series.iter().enumerate() {
+        let c = COLOURS[i % COLOURS.len()];
+        let pts =
+            s.x.iter()
+                .zip(s.y)
+                .filter(|(a, b)| a.is_finite() && b.is_finite())
+                .map(|(a, b)| (*a, *b));
+        let anno = match s.style {
+            Style::Line => chart
+                .draw_series(LineSeries::new(pts, ShapeStyle::from(&c).stroke_width(2)))
+                .map_err(|e| e.to_string())?,
+            Style::Points => chart
+                .draw_series(pts.map(|p| Circle::new(p, 3, c.filled())))
+                .map_err(|e| e.to_string())?,
+        };
+        if !s.name.is_empty() {
+            legend = true;
+            anno.label(s.name)
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(3)));
+        }
+    }
+    if legend {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()
+            .map_err(|e| e.to_string())?;
+    }
+    root.present().map_err(|e| e.to_string())
+}

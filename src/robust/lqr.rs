@@ -30,7 +30,9 @@ impl fmt::Display for LqrError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             LqrError::Dimensions(s) => write!(f, "LQR: dimensions: {s}"),
-            LqrError::RNotPositiveDefinite => write!(f, "LQR: R must be symmetric positive definite"),
+            LqrError::RNotPositiveDefinite => {
+                write!(f, "LQR: R must be symmetric positive definite")
+            }
             LqrError::NoStabilisingSolution => write!(
                 f,
                 "LQR: no stabilising solution ((A, B) not stabilisable or (Q, A) not detectable)"
@@ -76,13 +78,15 @@ pub fn lqr(
     // P solves [W12; W22 + I] P = -[W11 + I; W21] (least squares, 2n x n).
     let eye = DMatrix::<f64>::identity(n, n);
     let mut lhs = DMatrix::zeros(2 * n, n);
-    lhs.view_mut((0, 0), (n, n)).copy_from(&w.view((0, n), (n, n)));
+    lhs.view_mut((0, 0), (n, n))
+        .copy_from(&w.view((0, n), (n, n)));
     lhs.view_mut((n, 0), (n, n))
         .copy_from(&(w.view((n, n), (n, n)) + &eye));
     let mut rhs = DMatrix::zeros(2 * n, n);
     rhs.view_mut((0, 0), (n, n))
         .copy_from(&(-(w.view((0, 0), (n, n)) + &eye)));
-    rhs.view_mut((n, 0), (n, n)).copy_from(&(-w.view((n, 0), (n, n))));
+    rhs.view_mut((n, 0), (n, n))
+        .copy_from(&(-w.view((n, 0), (n, n))));
     let svd = lhs.svd(true, true);
     let mut p = svd
         .solve(&rhs, 1e-14)
@@ -99,7 +103,8 @@ pub fn lqr(
         }
     }
     let residual = riccati_residual(a, &s, q, &p);
-    if !(residual < 1e-8) {
+    // NaN counts as too large.
+    if residual.is_nan() || residual >= 1e-8 {
         return Err(LqrError::Inaccurate(residual));
     }
     Ok(LqrSolution {
@@ -110,7 +115,12 @@ pub fn lqr(
 }
 
 /// ||A'P + PA - PSP + Q||_F / max(1, ||Q||_F).
-pub fn riccati_residual(a: &DMatrix<f64>, s: &DMatrix<f64>, q: &DMatrix<f64>, p: &DMatrix<f64>) -> f64 {
+pub fn riccati_residual(
+    a: &DMatrix<f64>,
+    s: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    p: &DMatrix<f64>,
+) -> f64 {
     let res = a.transpose() * p + p * a - p * s * p + q;
     res.norm() / q.norm().max(1.0)
 }

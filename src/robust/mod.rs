@@ -2,10 +2,12 @@
 //! continuous-time LQR, the complex stability radius by an H-infinity norm algorithm, the wedge
 //! pole region, and the two-mass design problem that DE solves.
 
+pub mod cli;
 pub mod lqr;
 pub mod pole_region;
 pub mod problem;
 pub mod stability_radius;
+pub mod study;
 
 pub use lqr::{lqr, LqrError, LqrSolution};
 pub use pole_region::Wedge;

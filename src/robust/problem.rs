@@ -68,7 +68,13 @@ pub struct RobustProblem {
 }
 
 impl RobustProblem {
-    pub fn new(k: f64, sensor: Sensor, perturbation: Perturbation, wedge: Wedge, bound: f64) -> Self {
+    pub fn new(
+        k: f64,
+        sensor: Sensor,
+        perturbation: Perturbation,
+        wedge: Wedge,
+        bound: f64,
+    ) -> Self {
         let (a_hat, b_hat) = augmented(k, sensor);
         let e = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(vec![0.0, 0.0, 1.0, 1.0, 0.0]));
         let h_diag = match perturbation {
@@ -93,7 +99,10 @@ impl RobustProblem {
             0.5,
             Sensor::Far,
             Perturbation::Spring,
-            Wedge { zeta: 0.7, rho: 1.0 },
+            Wedge {
+                zeta: 0.7,
+                rho: 1.0,
+            },
             50.0,
         )
     }
@@ -105,7 +114,11 @@ impl RobustProblem {
     }
 
     pub fn poles(&self, gains: &[f64]) -> Vec<Complex<f64>> {
-        self.closed_loop(gains).complex_eigenvalues().iter().copied().collect()
+        self.closed_loop(gains)
+            .complex_eigenvalues()
+            .iter()
+            .copied()
+            .collect()
     }
 
     /// The DOCHM objective only (what the optimiser minimises): F(X) when infeasible, else

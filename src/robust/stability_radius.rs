@@ -23,7 +23,9 @@ impl fmt::Display for HinfError {
         match self {
             HinfError::Dimensions(s) => write!(f, "H-infinity norm: dimensions: {s}"),
             HinfError::NotStable => write!(f, "H-infinity norm: A is not Hurwitz"),
-            HinfError::NoConvergence => write!(f, "H-infinity norm: level-set iteration did not converge"),
+            HinfError::NoConvergence => {
+                write!(f, "H-infinity norm: level-set iteration did not converge")
+            }
         }
     }
 }
@@ -51,8 +53,12 @@ impl Transfer {
                 h.shape()
             )));
         }
-        let cols: Vec<usize> = (0..e.ncols()).filter(|&j| e.column(j).iter().any(|v| *v != 0.0)).collect();
-        let rows: Vec<usize> = (0..h.nrows()).filter(|&i| h.row(i).iter().any(|v| *v != 0.0)).collect();
+        let cols: Vec<usize> = (0..e.ncols())
+            .filter(|&j| e.column(j).iter().any(|v| *v != 0.0))
+            .collect();
+        let rows: Vec<usize> = (0..h.nrows())
+            .filter(|&i| h.row(i).iter().any(|v| *v != 0.0))
+            .collect();
         Ok(Self {
             a: a.clone(),
             e: e.select_columns(&cols),
@@ -105,7 +111,11 @@ impl Transfer {
 
 /// The H-infinity norm of G(s) = H (sI - A)^-1 E for Hurwitz A, and a frequency where it is
 /// attained.
-pub fn hinf_norm(a: &DMatrix<f64>, e: &DMatrix<f64>, h: &DMatrix<f64>) -> Result<(f64, f64), HinfError> {
+pub fn hinf_norm(
+    a: &DMatrix<f64>,
+    e: &DMatrix<f64>,
+    h: &DMatrix<f64>,
+) -> Result<(f64, f64), HinfError> {
     let poles = a.complex_eigenvalues();
     if poles.iter().any(|p| p.re >= 0.0) {
         return Err(HinfError::NotStable);

@@ -80,3 +80,40 @@ pub fn simulate(scn: &Scenario) -> SimResult {
     }
     SimResult { rows, events }
 }
+
+/// A closed-loop response of `plant` under `controller` to `reference`, sampled every `period`
+/// for `duration` s (integration step `step`): times, first outputs and first controls. Stops
+/// early (returning what it has) when the output leaves +-`diverged`.
+pub fn response(
+    plant: Box<dyn crate::plant::Plant>,
+    mut controller: Box<dyn crate::control::Controller>,
+    reference: &crate::reference::Reference,
+    period: f64,
+    step: f64,
+    duration: f64,
+    diverged: f64,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let n_u = plant.n_inputs();
+    let mut sim = PlantSim::new(plant, step, 0.0, 0);
+    let n = (duration / period).round() as usize;
+    let (mut t, mut y, mut us) = (
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+    );
+    let mut state = PlantState::default();
+    let mut u = [0.0; crate::MAX_JOINTS];
+    for k in 0..n {
+        sim.sample(k as u64, 0, &u[..n_u], &mut state);
+        let r = reference.value(state.t);
+        controller.step(&state, r, &mut u[..n_u]);
+        t.push(state.t);
+        y.push(state.y[0]);
+        us.push(u[0]);
+        if !state.y[0].is_finite() || state.y[0].abs() > diverged {
+            break;
+        }
+        sim.advance(&u[..n_u], period);
+    }
+    (t, y, us)
+}

@@ -1,0 +1,136 @@
+//! `evoloop robust ...` from the command line: results, JSON keys, and clear errors with exit 2.
+
+use std::process::Command;
+
+fn evoloop(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_evoloop"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn json(o: &std::process::Output) -> serde_json::Value {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
+}
+
+#[test]
+fn radius_reports_the_table_9_defc_row() {
+    let v = json(&evoloop(&[
+        "robust",
+        "radius",
+        "--gains",
+        "18.49,19.04,47.27,7.30,-10.54",
+        "--json",
+    ]));
+    let rc = v["stability_radius"].as_f64().unwrap();
+    assert!((rc - 0.318787).abs() < 1e-5, "{rc}");
+    assert_eq!(v["in_wedge"], true);
+    assert_eq!(v["poles"].as_array().unwrap().len(), 5);
+    assert_eq!(v["wedge_distance"].as_f64().unwrap(), 0.0);
+}
+
+#[test]
+fn lqr_prints_table_9_lqr2_on_the_collocated_plant() {
+    let v = json(&evoloop(&[
+        "robust",
+        "lqr",
+        "--q",
+        "100,1,1,1,1000",
+        "--r",
+        "1",
+        "--k",
+        "1.2",
+        "--collocated",
+        "--json",
+    ]));
+    let k: Vec<f64> = v["gains"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let printed = [8.96, 20.89, 5.95, 6.54, -31.62];
+    for i in 0..5 {
+        assert!((k[i] - printed[i]).abs() < 0.005, "{k:?}");
+    }
+}
+
+#[test]
+fn tune_reaches_the_optimum_and_reports_its_run() {
+    let v = json(&evoloop(&[
+        "robust", "tune", "--seed", "2", "--target", "0.3489", "--json",
+    ]));
+    assert!(v["stability_radius"].as_f64().unwrap() >= 0.3489);
+    assert_eq!(v["in_wedge"], true);
+    for key in [
+        "gains",
+        "poles",
+        "iterations",
+        "evaluations",
+        "seconds",
+        "stopped_by",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+}
+
+#[test]
+fn bad_input_is_refused_with_exit_code_2() {
+    for (args, needle) in [
+        (vec!["robust", "radius", "--gains", "1,2,3"], "5 values"),
+        (vec!["robust", "radius", "--gains", "1,a,3,4,5"], "invalid"),
+        (
+            vec!["robust", "radius", "--gains", "1,2,3,4,5", "--zeta", "1.2"],
+            "zeta",
+        ),
+        (
+            vec!["robust", "radius", "--gains", "1,2,3,4,5", "--zeta", "0"],
+            "zeta",
+        ),
+        (
+            vec!["robust", "radius", "--gains", "1,2,3,4,5", "--rho", "-1"],
+            "rho",
+        ),
+        (vec!["robust", "lqr", "--q", "1,1,1"], "--q"),
+        (vec!["robust", "lqr", "--r", "0"], "--r"),
+        (vec!["robust", "tune", "--cr", "1.5"], "CR"),
+    ] {
+        let o = evoloop(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn study_writes_the_report_data_and_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("study");
+    let o = evoloop(&[
+        "robust",
+        "study",
+        "--out",
+        out.to_str().unwrap(),
+        "--runs",
+        "2",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in [
+        "report.md",
+        "study.json",
+        "runs.csv",
+        "responses.csv",
+        "poles.png",
+        "step_defc_described.png",
+        "step_lqr2_collocated.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for t in ["Tables 5-8", "Table 9", "Table 10", "Fig. 5"] {
+        assert!(report.contains(t), "report lacks {t}");
+    }
+    let runs = std::fs::read_to_string(out.join("runs.csv")).unwrap();
+    assert_eq!(runs.lines().count(), 1 + 4 * 2, "one row per run");
+}
