@@ -147,13 +147,12 @@ fn de_finds_the_box_constrained_optimum_in_at_least_14_of_15_seeded_runs() {
     // iterations, run until it reaches the literature optimum (r_c just under 0.349, k3 on its
     // bound) instead of stopping on the diversity rule.
     let prob = RobustProblem::paper();
-    let f = |x: &[f64]| prob.objective(x);
     let mut hits = 0;
     for seed in 1..=15 {
         let mut cfg = DeConfig::paper(0.5, 0.9, prob.lower.clone(), prob.upper.clone(), seed);
         cfg.diversity_stop = false;
         let mut de = DifferentialEvolution::new(cfg).unwrap();
-        let r = run(&mut de, &f, 2, 1000, Some(-0.3489), |_| {});
+        let r = run(&mut de, &prob, 2, 1000, Some(-0.3489), |_| {});
         let ev = prob.evaluate(&r.best);
         if ev.in_wedge && ev.stability_radius >= 0.3489 {
             assert!(
@@ -193,4 +192,24 @@ fn hooke_jeeves_finds_the_minimum_of_a_bounded_quadratic() {
         r.x
     );
     assert_eq!(r.x[2], 5.0, "the third coordinate stops on its bound");
+}
+
+#[test]
+fn early_rejection_of_losing_trials_changes_nothing_in_the_run() {
+    // The problem's bounded objective stops once a trial is proven worse than its target; the
+    // run must be identical to one with exact values for every candidate.
+    let prob = RobustProblem::paper();
+    let exact = |x: &[f64]| prob.objective(x);
+    let mut runs = Vec::new();
+    for bounded in [false, true] {
+        let cfg = DeConfig::paper(0.5, 0.9, prob.lower.clone(), prob.upper.clone(), 9);
+        let mut de = DifferentialEvolution::new(cfg).unwrap();
+        let r = if bounded {
+            run(&mut de, &prob, 1, 150, None, |_| {})
+        } else {
+            run(&mut de, &exact, 1, 150, None, |_| {})
+        };
+        runs.push((r.best, r.value, r.history));
+    }
+    assert_eq!(runs[0], runs[1]);
 }

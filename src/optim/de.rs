@@ -162,6 +162,19 @@ impl Optimiser for DifferentialEvolution {
         }
     }
 
+    fn candidates(&self) -> &[Vec<f64>] {
+        if self.initialised {
+            &self.trials
+        } else {
+            &self.pop
+        }
+    }
+
+    fn thresholds(&self) -> Option<&[f64]> {
+        // Trial i only matters if it is not worse than target i.
+        self.initialised.then_some(&self.values[..])
+    }
+
     fn tell(&mut self, values: &[f64]) {
         assert_eq!(values.len(), self.cfg.np, "one value per candidate");
         self.evaluations += values.len();

@@ -284,11 +284,10 @@ fn tune(a: TuneArgs) -> i32 {
     if a.max_iter == 0 || a.threads == 0 {
         return usage("--max-iter and --threads must be >= 1");
     }
-    let obj = |x: &[f64]| prob.objective(x);
     let bar = std::io::stderr().is_terminal() && !a.json;
     let r = run(
         &mut de,
-        &obj,
+        &prob,
         a.threads,
         a.max_iter,
         a.target.map(|t| -t),

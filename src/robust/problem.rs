@@ -14,7 +14,8 @@
 //!   else f(X) = -r_c.
 
 use super::pole_region::Wedge;
-use super::stability_radius::stability_radius;
+use super::stability_radius::{hinf_from_poles, stability_radius, Bounded};
+use crate::optim::Objective;
 use crate::plant::two_mass::{Sensor, TwoMass};
 use nalgebra::{Complex, DMatrix};
 use serde::Serialize;
@@ -41,6 +42,15 @@ pub fn augmented(k: f64, sensor: Sensor) -> (DMatrix<f64>, DMatrix<f64>) {
     }
     let bh = DMatrix::from_column_slice(5, 1, &[b[0], b[1], b[2], b[3], 0.0]);
     (ah, bh)
+}
+
+impl Objective for RobustProblem {
+    fn value(&self, x: &[f64]) -> f64 {
+        self.objective(x)
+    }
+    fn value_below(&self, x: &[f64], threshold: f64) -> f64 {
+        self.objective_below(x, threshold)
+    }
 }
 
 /// Everything one candidate gain vector is judged by.
@@ -124,13 +134,30 @@ impl RobustProblem {
     /// The DOCHM objective only (what the optimiser minimises): F(X) when infeasible, else
     /// -r_c. The H-infinity norm is computed only for feasible candidates.
     pub fn objective(&self, gains: &[f64]) -> f64 {
+        self.objective_below(gains, f64::INFINITY)
+    }
+
+    /// The objective, allowed to stop early once it is proven above `threshold` (see
+    /// `Objective::value_below`): a feasible candidate only beats a feasible target of value
+    /// -r_t if its norm is at most 1/r_t, and one frequency with a larger gain disproves that.
+    pub fn objective_below(&self, gains: &[f64], threshold: f64) -> f64 {
         let acl = self.closed_loop(gains);
         let poles = acl.complex_eigenvalues();
         let f = self.wedge.total_distance(poles.as_slice());
         if f > 0.0 {
-            f
+            return f;
+        }
+        // Feasible: every pole has Re <= -rho < 0, so the loop is Hurwitz.
+        let level = if threshold < 0.0 {
+            -1.0 / threshold
         } else {
-            -stability_radius(&acl, &self.e, &self.h)
+            f64::INFINITY
+        };
+        match hinf_from_poles(&acl, &self.e, &self.h, poles.as_slice(), level) {
+            Ok(Bounded::Exact(n, _)) if n > 0.0 => -1.0 / n,
+            Ok(Bounded::Exact(..)) => f64::NEG_INFINITY,
+            Ok(Bounded::Above(lb)) => -1.0 / lb,
+            Err(_) => 0.0,
         }
     }
 

@@ -80,7 +80,11 @@ impl Transfer {
             return f64::INFINITY; // jw is a pole
         };
         let g = self.h.map(|v| Complex::new(v, 0.0)) * x;
-        g.singular_values().max()
+        if g.nrows() <= 2 && g.ncols() <= 2 {
+            sigma_max_2x2(&g)
+        } else {
+            g.singular_values().max()
+        }
     }
 
     fn hamiltonian(&self, gamma: f64) -> DMatrix<f64> {
@@ -109,6 +113,27 @@ impl Transfer {
     }
 }
 
+/// Largest singular value of a complex matrix of at most 2 x 2, in closed form:
+/// sigma_max^2 = (|G|_F^2 + sqrt(|G|_F^4 - 4 |det G|^2)) / 2 (for 1 x n or n x 1 it is |G|_F).
+fn sigma_max_2x2(g: &DMatrix<Complex<f64>>) -> f64 {
+    let fro2: f64 = g.iter().map(|z| z.norm_sqr()).sum();
+    if g.nrows() < 2 || g.ncols() < 2 {
+        return fro2.sqrt();
+    }
+    let det = g[(0, 0)] * g[(1, 1)] - g[(0, 1)] * g[(1, 0)];
+    let disc = (fro2 * fro2 - 4.0 * det.norm_sqr()).max(0.0);
+    (0.5 * (fro2 + disc.sqrt())).sqrt()
+}
+
+/// What a bounded norm computation found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Bounded {
+    /// The norm and a frequency where it is attained.
+    Exact(f64, f64),
+    /// The norm is proven above the level: this is a lower bound on it that exceeds the level.
+    Above(f64),
+}
+
 /// The H-infinity norm of G(s) = H (sI - A)^-1 E for Hurwitz A, and a frequency where it is
 /// attained.
 pub fn hinf_norm(
@@ -116,10 +141,36 @@ pub fn hinf_norm(
     e: &DMatrix<f64>,
     h: &DMatrix<f64>,
 ) -> Result<(f64, f64), HinfError> {
+    match hinf_norm_bounded(a, e, h, f64::INFINITY)? {
+        Bounded::Exact(n, w) => Ok((n, w)),
+        Bounded::Above(lb) => Ok((lb, f64::NAN)), // unreachable: no bound exceeds infinity
+    }
+}
+
+/// As `hinf_norm`, but stops as soon as a lower bound exceeds `level` (the caller only needs to
+/// know the norm is above it): most candidates an optimiser rejects are settled this way without
+/// a single Hamiltonian eigenvalue problem.
+pub fn hinf_norm_bounded(
+    a: &DMatrix<f64>,
+    e: &DMatrix<f64>,
+    h: &DMatrix<f64>,
+    level: f64,
+) -> Result<Bounded, HinfError> {
     let poles = a.complex_eigenvalues();
     if poles.iter().any(|p| p.re >= 0.0) {
         return Err(HinfError::NotStable);
     }
+    hinf_from_poles(a, e, h, poles.as_slice(), level)
+}
+
+/// The bounded norm when the caller already has A's eigenvalues (all in the open left half-plane).
+pub fn hinf_from_poles(
+    a: &DMatrix<f64>,
+    e: &DMatrix<f64>,
+    h: &DMatrix<f64>,
+    poles: &[Complex<f64>],
+    level: f64,
+) -> Result<Bounded, HinfError> {
     let g = Transfer::new(a, e, h)?;
     // Lower bound from the frequencies where a peak is likely: DC and each pole's natural and
     // damped frequency.
@@ -133,13 +184,16 @@ pub fn hinf_norm(
         }
     }
     if best.0 == 0.0 {
-        return Ok((0.0, 0.0));
+        return Ok(Bounded::Exact(0.0, 0.0));
+    }
+    if best.0 > level {
+        return Ok(Bounded::Above(best.0));
     }
     for _ in 0..50 {
         let gamma = (1.0 + 2.0 * HINF_TOL) * best.0;
         let w = g.crossings(gamma);
         if w.is_empty() {
-            return Ok(best);
+            return Ok(Bounded::Exact(best.0, best.1));
         }
         // Midpoints of consecutive crossings (or the crossing itself when it is a tangent).
         let candidates: Vec<f64> = if w.len() == 1 {
@@ -157,7 +211,10 @@ pub fn hinf_norm(
         }
         if !improved {
             // The crossings are numerical noise around the peak: the bound is already tight.
-            return Ok(best);
+            return Ok(Bounded::Exact(best.0, best.1));
+        }
+        if best.0 > level {
+            return Ok(Bounded::Above(best.0));
         }
     }
     Err(HinfError::NoConvergence)
