@@ -81,6 +81,8 @@ struct RawTwoMass {
     spring: Option<f64>,
     sensor: Option<Sensor>,
     initial_positions: Option<[f64; 2]>,
+    spring_times: Option<Vec<f64>>,
+    spring_values: Option<Vec<f64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -235,6 +237,8 @@ pub struct PlantSpec {
     pub spring: f64,
     pub sensor: Sensor,
     pub initial_positions: [f64; 2],
+    /// Spring-constant schedule (time, k), linearly interpolated; empty = constant `spring`.
+    pub spring_schedule: Vec<(f64, f64)>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -354,7 +358,7 @@ impl Scenario {
                     self.plant.sensor,
                 );
                 p.x0 = self.plant.initial_positions;
-                Box::new(p)
+                Box::new(p.with_spring_schedule(&self.plant.spring_schedule))
             }
         }
     }
@@ -562,7 +566,15 @@ impl Validator {
                     spring: None,
                     sensor: None,
                     initial_positions: None,
+                    spring_times: None,
+                    spring_values: None,
                 });
+                let spring_schedule = self.schedule(
+                    "plant.two_mass.spring_times",
+                    "plant.two_mass.spring_values",
+                    tm.spring_times,
+                    tm.spring_values,
+                )?;
                 let x0 = tm.initial_positions.unwrap_or([0.0; 2]);
                 for (i, v) in x0.iter().enumerate() {
                     self.finite(&format!("plant.two_mass.initial_positions[{i}]"), *v)?;
@@ -583,9 +595,49 @@ impl Validator {
                     )?,
                     sensor: tm.sensor.unwrap_or_default(),
                     initial_positions: x0,
+                    spring_schedule,
                 })
             }
         }
+    }
+
+    /// A (time, value) schedule from two arrays: same length, at most 8 points, times
+    /// increasing, values positive.
+    fn schedule(
+        &self,
+        key_t: &str,
+        key_v: &str,
+        times: Option<Vec<f64>>,
+        values: Option<Vec<f64>>,
+    ) -> Result<Vec<(f64, f64)>, ConfigError> {
+        let (times, values) = match (times, values) {
+            (None, None) => return Ok(Vec::new()),
+            (Some(t), Some(v)) => (t, v),
+            (Some(_), None) => return self.fail(key_v, "missing (required with its times)"),
+            (None, Some(_)) => return self.fail(key_t, "missing (required with its values)"),
+        };
+        let max = crate::plant::two_mass::MAX_SCHEDULE;
+        if times.is_empty() || times.len() > max || times.len() != values.len() {
+            return self.fail(
+                key_v,
+                format!(
+                    "needs 1..={max} entries, as many as the times ({} times, {} values)",
+                    times.len(),
+                    values.len()
+                ),
+            );
+        }
+        for i in 0..times.len() {
+            self.range(&format!("{key_t}[{i}]"), times[i], 0.0, 1e9)?;
+            self.range(&format!("{key_v}[{i}]"), values[i], 1e-6, 1e6)?;
+            if i > 0 && times[i] <= times[i - 1] {
+                return self.fail(
+                    &format!("{key_t}[{i}]"),
+                    "times must be strictly increasing",
+                );
+            }
+        }
+        Ok(times.into_iter().zip(values).collect())
     }
 
     fn controller(

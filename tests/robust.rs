@@ -213,3 +213,45 @@ fn early_rejection_of_losing_trials_changes_nothing_in_the_run() {
     }
     assert_eq!(runs[0], runs[1]);
 }
+
+#[test]
+fn the_tuned_and_paper_gains_stabilise_the_plant_over_the_whole_spring_range() {
+    let tuned = [13.7496, 21.7200, 49.9987, 8.1792, -8.3732];
+    let paper = [18.49, 19.04, 47.27, 7.30, -10.54];
+    for i in 0..=30 {
+        let k = 0.5 + 1.5 * i as f64 / 30.0;
+        let prob = RobustProblem::new(
+            k,
+            Sensor::Far,
+            evoloop::robust::Perturbation::Spring,
+            Wedge {
+                zeta: 0.7,
+                rho: 1.0,
+            },
+            50.0,
+        );
+        for g in [tuned, paper] {
+            assert!(
+                prob.poles(&g).iter().all(|p| p.re < 0.0),
+                "unstable at k = {k} with {g:?}"
+            );
+        }
+    }
+    assert!(RobustProblem::paper().evaluate(&tuned).stability_radius >= 0.3489);
+}
+
+#[test]
+fn the_spring_schedule_interpolates_and_drives_the_dynamics() {
+    use evoloop::plant::two_mass::TwoMass;
+    use evoloop::plant::Plant;
+    let p =
+        TwoMass::new(1.0, 1.0, 1.0, Sensor::Far).with_spring_schedule(&[(10.0, 0.5), (20.0, 2.0)]);
+    assert_eq!(p.spring_at(0.0), 0.5);
+    assert_eq!(p.spring_at(15.0), 1.25);
+    assert_eq!(p.spring_at(99.0), 2.0);
+    let x = [1.0, 0.0, 0.0, 0.0];
+    let mut dx = [0.0; 4];
+    p.derivative(15.0, &x, &[0.0], &mut dx);
+    assert_eq!(dx[2], -1.25, "spring force on body 2 uses k(t)");
+    assert_eq!(TwoMass::new(1.0, 1.0, 1.0, Sensor::Far).spring_at(5.0), 1.0);
+}

@@ -31,7 +31,15 @@ pub struct TwoMass {
     pub sensor: Sensor,
     /// Initial positions of body 1 and body 2.
     pub x0: [f64; 2],
+    /// Optional spring-constant schedule: (time, k) points, linearly interpolated, held before
+    /// the first and after the last; `k` applies when it is empty. Fixed size so the plant stays
+    /// `Copy` and its derivative allocation-free.
+    pub k_schedule: [(f64, f64); MAX_SCHEDULE],
+    pub k_points: usize,
 }
+
+/// Most points in a spring-constant schedule.
+pub const MAX_SCHEDULE: usize = 8;
 
 impl TwoMass {
     pub fn new(m1: f64, m2: f64, k: f64, sensor: Sensor) -> Self {
@@ -41,6 +49,32 @@ impl TwoMass {
             k,
             sensor,
             x0: [0.0; 2],
+            k_schedule: [(0.0, 0.0); MAX_SCHEDULE],
+            k_points: 0,
+        }
+    }
+
+    /// Make the spring constant follow `points` (time, k) over the run (at most MAX_SCHEDULE,
+    /// times increasing).
+    pub fn with_spring_schedule(mut self, points: &[(f64, f64)]) -> Self {
+        let n = points.len().min(MAX_SCHEDULE);
+        self.k_schedule[..n].copy_from_slice(&points[..n]);
+        self.k_points = n;
+        self
+    }
+
+    /// The spring constant at time t.
+    pub fn spring_at(&self, t: f64) -> f64 {
+        let pts = &self.k_schedule[..self.k_points];
+        match pts {
+            [] => self.k,
+            [first, ..] if t <= first.0 => first.1,
+            [.., last] if t >= last.0 => last.1,
+            _ => {
+                let i = pts.iter().position(|p| p.0 > t).unwrap_or(pts.len() - 1);
+                let (a, b) = (pts[i - 1], pts[i]);
+                a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0)
+            }
         }
     }
 
@@ -81,8 +115,8 @@ impl Plant for TwoMass {
     fn n_joints(&self) -> usize {
         2
     }
-    fn derivative(&self, _t: f64, x: &[f64], u: &[f64], dx: &mut [f64]) {
-        let spring = self.k * (x[0] - x[1]); // force pulling body 2 back towards body 1
+    fn derivative(&self, t: f64, x: &[f64], u: &[f64], dx: &mut [f64]) {
+        let spring = self.spring_at(t) * (x[0] - x[1]); // force pulling body 2 back towards body 1
         dx[0] = x[2];
         dx[1] = x[3];
         dx[2] = -spring / self.m2;
