@@ -1,0 +1,102 @@
+//! Per-call costs of the hot paths: the control cycle, the plant integration, the stability
+//! radius and one DE generation. `cargo bench --bench hot_paths`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use evoloop::control::cycle::ControlCycle;
+use evoloop::control::{ParamBounds, StateFeedback};
+use evoloop::ipc::messages::{PlantState, Telemetry};
+use evoloop::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
+use evoloop::plant::two_mass::{Sensor, TwoMass};
+use evoloop::plant::PlantSim;
+use evoloop::reference::Reference;
+use evoloop::robust::stability_radius::{hinf_norm, stability_radius};
+use evoloop::robust::RobustProblem;
+use std::hint::black_box;
+
+const DEFC: [f64; 5] = [18.49, 19.04, 47.27, 7.30, -10.54];
+const TUNED: [f64; 5] = [13.7496, 21.7200, 49.9987, 8.1792, -8.3732];
+
+fn control(c: &mut Criterion) {
+    let mut cycle = ControlCycle::new(
+        Box::new(StateFeedback::new(&DEFC, 0.001, Some(100.0))),
+        Reference::Step {
+            amplitude: 1.0,
+            start: 0.0,
+        },
+        ParamBounds {
+            lower: vec![-100.0; 5],
+            upper: vec![100.0; 5],
+        },
+    );
+    let mut state = PlantState {
+        n_x: 4,
+        n_y: 1,
+        ..Default::default()
+    };
+    state.x[..4].copy_from_slice(&[0.3, 0.2, 0.01, -0.02]);
+    state.y[0] = 0.3;
+    let mut tel = Telemetry::default();
+    c.bench_function("control cycle: state feedback + telemetry", |b| {
+        b.iter(|| {
+            state.seq += 1;
+            black_box(cycle.step(black_box(&state), &mut tel));
+        })
+    });
+    let mut sim = PlantSim::new(
+        Box::new(TwoMass::new(1.0, 1.0, 1.0, Sensor::Far)),
+        5e-4,
+        0.0,
+        1,
+    );
+    c.bench_function("two-mass plant: one 1 ms period (2 RK4 sub-steps)", |b| {
+        b.iter(|| sim.advance(black_box(&[0.1]), 0.001))
+    });
+    let mut msg = PlantState::default();
+    c.bench_function("two-mass plant: sample into a state message", |b| {
+        b.iter(|| sim.sample(1, 0, &[0.1], black_box(&mut msg)))
+    });
+}
+
+fn robust(c: &mut Criterion) {
+    let prob = RobustProblem::paper();
+    let acl = prob.closed_loop(&TUNED);
+    c.bench_function(
+        "stability radius r_c (5 states, level-set H-infinity)",
+        |b| b.iter(|| black_box(stability_radius(black_box(&acl), &prob.e, &prob.h))),
+    );
+    c.bench_function("H-infinity norm (same loop)", |b| {
+        b.iter(|| black_box(hinf_norm(black_box(&acl), &prob.e, &prob.h).unwrap()))
+    });
+    assert!(prob.evaluate(&DEFC).in_wedge);
+    c.bench_function(
+        "DOCHM objective, feasible candidate (poles + wedge + r_c)",
+        |b| b.iter(|| black_box(prob.objective(black_box(&DEFC)))),
+    );
+    c.bench_function(
+        "DOCHM objective, infeasible candidate (poles + wedge)",
+        |b| b.iter(|| black_box(prob.objective(black_box(&[1.0, 1.0, 1.0, 1.0, -1.0])))),
+    );
+    let mut group = c.benchmark_group("DE generation (NP = 100)");
+    group.sample_size(20);
+    for threads in [1, 2] {
+        let cfg = DeConfig::paper(0.5, 0.9, prob.lower.clone(), prob.upper.clone(), 1);
+        let mut de = DifferentialEvolution::new(cfg).unwrap();
+        // Start from a converged-ish population, as in most of a run.
+        for _ in 0..200 {
+            de.ask();
+            let v = evaluate(de.candidates(), de.thresholds(), &prob, 2);
+            de.tell(&v);
+        }
+        group.bench_function(format!("{threads} thread(s)"), |b| {
+            b.iter(|| {
+                de.ask();
+                let v = evaluate(de.candidates(), de.thresholds(), &prob, threads);
+                de.tell(&v);
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, control, robust);
+criterion_main!(benches);
