@@ -255,3 +255,32 @@ fn the_spring_schedule_interpolates_and_drives_the_dynamics() {
     assert_eq!(dx[2], -1.25, "spring force on body 2 uses k(t)");
     assert_eq!(TwoMass::new(1.0, 1.0, 1.0, Sensor::Far).spring_at(5.0), 1.0);
 }
+
+#[test]
+fn the_hqr_eigenvalues_match_the_schur_decomposition() {
+    use evoloop::robust::eigen::eigenvalues;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(17);
+    let key = |z: &Complex<f64>| (z.re, z.im);
+    for trial in 0..300 {
+        let n = 1 + trial % 12;
+        let m = DMatrix::from_fn(n, n, |_, _| rng.gen_range(-3.0..3.0));
+        let mut ours = eigenvalues(&m).expect("converges");
+        let mut theirs: Vec<Complex<f64>> = m.complex_eigenvalues().iter().copied().collect();
+        assert_eq!(ours.len(), n);
+        // Match each of ours to the nearest of theirs (eigenvalues are unordered).
+        for z in ours.drain(..) {
+            let (i, d) = theirs
+                .iter()
+                .enumerate()
+                .map(|(i, w)| (i, (w - z).norm()))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .unwrap();
+            assert!(
+                d < 1e-7 * (1.0 + z.norm()),
+                "n = {n}: {:?} has no match",
+                key(&z)
+            );
+            theirs.remove(i);
+        }
+    }
+}

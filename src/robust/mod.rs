@@ -3,6 +3,7 @@
 //! pole region, and the two-mass design problem that DE solves.
 
 pub mod cli;
+pub mod eigen;
 pub mod lqr;
 pub mod pole_region;
 pub mod problem;

@@ -13,6 +13,7 @@
 //! - the objective of Table 2 (DOCHM): F(X) = summed pole distance to the wedge when positive,
 //!   else f(X) = -r_c.
 
+use super::eigen::eig;
 use super::pole_region::Wedge;
 use super::stability_radius::{hinf_from_poles, stability_radius, Bounded};
 use crate::optim::Objective;
@@ -142,8 +143,8 @@ impl RobustProblem {
     /// -r_t if its norm is at most 1/r_t, and one frequency with a larger gain disproves that.
     pub fn objective_below(&self, gains: &[f64], threshold: f64) -> f64 {
         let acl = self.closed_loop(gains);
-        let poles = acl.complex_eigenvalues();
-        let f = self.wedge.total_distance(poles.as_slice());
+        let poles = eig(&acl);
+        let f = self.wedge.total_distance(&poles);
         if f > 0.0 {
             return f;
         }
@@ -153,7 +154,7 @@ impl RobustProblem {
         } else {
             f64::INFINITY
         };
-        match hinf_from_poles(&acl, &self.e, &self.h, poles.as_slice(), level) {
+        match hinf_from_poles(&acl, &self.e, &self.h, &poles, level) {
             Ok(Bounded::Exact(n, _)) if n > 0.0 => -1.0 / n,
             Ok(Bounded::Exact(..)) => f64::NEG_INFINITY,
             Ok(Bounded::Above(lb)) => -1.0 / lb,
@@ -164,7 +165,7 @@ impl RobustProblem {
     /// Full evaluation for reports.
     pub fn evaluate(&self, gains: &[f64]) -> Evaluation {
         let acl = self.closed_loop(gains);
-        let poles: Vec<Complex<f64>> = acl.complex_eigenvalues().iter().copied().collect();
+        let poles = eig(&acl);
         let f = self.wedge.total_distance(&poles);
         let rc = stability_radius(&acl, &self.e, &self.h);
         Evaluation {
