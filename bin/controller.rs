@@ -280,6 +280,8 @@ fn run_realtime(
     let phase = (scn.timing.phase * period as f64) as u64;
     let n = scn.cycles();
     let mut k = state.seq;
+    // Periods that passed before the controller had its first sample had no cycle: missed.
+    lp.missed += state.seq;
     while k < n {
         if stop.load(Ordering::Relaxed) {
             return Ok(());

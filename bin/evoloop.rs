@@ -57,6 +57,11 @@ enum Cmd {
         #[command(subcommand)]
         cmd: evoloop::robust::cli::RobustCmd,
     },
+    /// Benchmarks measured against the machine's own floor in the same run.
+    Bench {
+        #[command(subcommand)]
+        cmd: BenchCmd,
+    },
     /// Measure the machine's timing floor: a bare absolute-deadline sleep loop.
     Floor {
         /// Loop rate in Hz.
@@ -72,6 +77,15 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+}
+
+#[derive(Subcommand)]
+enum BenchCmd {
+    /// Round trip plant -> controller -> plant against a bare iceoryx2 ping-pong.
+    Latency(evoloop::bench::latency::LatencyArgs),
+    /// The peer process of `bench latency` (started by it).
+    #[command(hide = true)]
+    LatencyPeer(evoloop::bench::latency::PeerArgs),
 }
 
 #[derive(clap::Args)]
@@ -103,6 +117,10 @@ fn main() -> ExitCode {
         }),
         Some(Cmd::Run(a)) => run(a),
         Some(Cmd::Check { file }) => check(&file),
+        Some(Cmd::Bench { cmd }) => ExitCode::from(match cmd {
+            BenchCmd::Latency(a) => evoloop::bench::latency::main(a),
+            BenchCmd::LatencyPeer(a) => evoloop::bench::latency::peer(a),
+        } as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(evoloop::robust::cli::main(cmd) as u8),
         Some(Cmd::Floor {
             rate,

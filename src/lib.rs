@@ -7,6 +7,7 @@
 //! So a control law runs the same in the controller process, in an optimiser's model evaluation
 //! and in a unit test.
 
+pub mod bench;
 pub mod cli;
 pub mod config;
 pub mod control;

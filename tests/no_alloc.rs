@@ -55,8 +55,8 @@ static A: Counting = Counting;
 
 #[test]
 fn the_control_cycle_allocates_nothing() {
-    let prefix = format!("tnoalloc{}_", std::process::id());
-    let ipc = Ipc::new("noalloc", "noalloc", &prefix).unwrap();
+    let run_id = format!("noalloc{}", std::process::id());
+    let ipc = Ipc::new("noalloc", &run_id, evoloop::ipc::DEFAULT_PREFIX).unwrap();
     let st_pub = ipc.publisher::<PlantState>(Topic::State, true).unwrap();
     let st_sub = ipc.subscriber::<PlantState>(Topic::State, 4, true).unwrap();
     let cmd_pub = ipc.publisher::<Command>(Topic::Command, true).unwrap();

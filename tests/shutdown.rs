@@ -90,6 +90,7 @@ fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
         Vec::<String>::new(),
         "shared-memory files left behind"
     );
+    forget_prefix(&prefix);
     // What ran before the stop is still reported.
     let s = json(&out.join("summary.json"));
     assert_eq!(s["interrupted"], true);
@@ -139,6 +140,7 @@ fn a_killed_run_is_cleaned_up_by_the_next_start() {
     let s = json(&out.join("summary.json"));
     assert!(s["stale_resources_cleaned"].as_u64().unwrap() >= 1, "{s}");
     assert_eq!(leftovers(&prefix), Vec::<String>::new());
+    forget_prefix(&prefix);
 }
 
 #[test]
@@ -173,4 +175,5 @@ fn a_child_that_dies_fails_the_run_and_the_others_are_stopped() {
         Vec::<String>::new(),
         "the dead plant's resources were not cleaned"
     );
+    forget_prefix(&prefix);
 }

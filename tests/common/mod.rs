@@ -59,15 +59,16 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     p
 }
 
-/// `evoloop run FILE --out OUT` with a unique prefix/run id plus `args`.
+/// `evoloop run FILE --out OUT` with a unique run id (default prefix) plus `args`.
 pub fn run(config: &Path, out: &Path, tag: &str, args: &[&str]) -> Output {
-    let (prefix, run_id) = unique(tag);
+    let (_, run_id) = unique(tag);
+    let prefix = evoloop::ipc::DEFAULT_PREFIX;
     Command::new(evoloop())
         .arg("run")
         .arg(config)
         .arg("--out")
         .arg(out)
-        .args(["--ipc-prefix", &prefix, "--run-id", &run_id, "--quiet"])
+        .args(["--ipc-prefix", prefix, "--run-id", &run_id, "--quiet"])
         .args(args)
         .output()
         .expect("start evoloop")
@@ -155,5 +156,18 @@ impl Csv {
             .position(|h| h == name)
             .unwrap_or_else(|| panic!("no column {name} in {:?}", self.header));
         self.rows.iter().map(|r| r[j]).collect()
+    }
+}
+
+/// Remove the one global management segment iceoryx2 keeps per prefix, once a test that used its
+/// own prefix is done with it (so test runs do not pile files up in /dev/shm).
+pub fn forget_prefix(prefix: &str) {
+    if let Ok(rd) = std::fs::read_dir("/dev/shm") {
+        for e in rd.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if name.starts_with(prefix) && name.ends_with(".global_mgmt") {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
     }
 }

@@ -1,0 +1,584 @@
+//! `evoloop bench latency`: the round trip plant -> controller -> plant with the real message
+//! types and the real control cycle, in two wake-up styles (busy polling; iceoryx2 event
+//! wake-up), and in the same run a bare iceoryx2 ping-pong of the same payload size between two
+//! processes as the reference. The peer side runs in a child process (`evoloop bench
+//! latency-peer`), so every round trip crosses processes as in a real run.
+
+use crate::control::cycle::ControlCycle;
+use crate::control::{ParamBounds, StateFeedback};
+use crate::ipc::messages::{Command, PlantState, Telemetry, STATE_FLAG_END};
+use crate::ipc::{ipc_config, Ipc, IpcError, Topic, Wait};
+use crate::reference::Reference;
+use crate::report::plot::{xy_png, Style, XySeries};
+use crate::rt::now_ns;
+use crate::rt::timing::Percentiles;
+use clap::{Args, ValueEnum};
+use iceoryx2::prelude::*;
+use serde::Serialize;
+use std::path::PathBuf;
+use std::process::{Child, Command as Proc, Stdio};
+use std::time::Duration;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Variant {
+    /// evoloop state/command with the control law, peers busy-poll.
+    EvoloopBusy,
+    /// evoloop state/command with the control law, peers block on iceoryx2 events.
+    EvoloopEvent,
+    /// Bare iceoryx2 byte-slice ping-pong, busy-poll (reference).
+    BareBusy,
+    /// Bare iceoryx2 byte-slice ping-pong with event wake-ups (reference).
+    BareEvent,
+}
+
+impl Variant {
+    fn name(self) -> &'static str {
+        match self {
+            Variant::EvoloopBusy => "evoloop_busy",
+            Variant::EvoloopEvent => "evoloop_event",
+            Variant::BareBusy => "bare_busy",
+            Variant::BareEvent => "bare_event",
+        }
+    }
+    fn busy(self) -> bool {
+        matches!(self, Variant::EvoloopBusy | Variant::BareBusy)
+    }
+}
+
+#[derive(Args)]
+pub struct LatencyArgs {
+    /// Timed round trips per variant.
+    #[arg(long, default_value_t = 20_000)]
+    pub samples: usize,
+    /// Payload of the bare ping-pong in bytes (default: the size of the evoloop state message).
+    #[arg(long)]
+    pub payload: Option<usize>,
+    #[arg(long)]
+    pub json: bool,
+    /// Write latency.json, latency.csv and latency_cdf.png here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct PeerArgs {
+    #[arg(long, value_enum)]
+    pub variant: Variant,
+    #[arg(long)]
+    pub prefix: String,
+    #[arg(long)]
+    pub run_id: String,
+    #[arg(long)]
+    pub payload: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct VariantResult {
+    pub variant: Variant,
+    pub samples: u64,
+    pub min_ns: i64,
+    pub p50_ns: i64,
+    pub p90_ns: i64,
+    pub p99_ns: i64,
+    pub p99_9_ns: i64,
+    pub p99_99_ns: i64,
+    pub max_ns: i64,
+    /// Against the bare ping-pong of the same wake-up style, same run.
+    pub ratio_p50: Option<f64>,
+    pub ratio_p99_9: Option<f64>,
+}
+
+const WARMUP: usize = 2_000;
+
+fn err(context: &str, e: impl std::fmt::Debug) -> IpcError {
+    IpcError {
+        context: context.into(),
+        cause: format!("{e:?}"),
+    }
+}
+
+fn spawn_peer(v: Variant, prefix: &str, run_id: &str, payload: usize) -> std::io::Result<Child> {
+    let exe = std::env::current_exe()?;
+    Proc::new(exe)
+        .args(["bench", "latency-peer", "--variant"])
+        .arg(
+            v.to_possible_value()
+                .map(|p| p.get_name().to_string())
+                .unwrap_or_default(),
+        )
+        .args(["--prefix", prefix, "--run-id", run_id, "--payload"])
+        .arg(payload.to_string())
+        .stdout(Stdio::null())
+        .spawn()
+}
+
+/// Run every variant and report.
+pub fn main(a: LatencyArgs) -> i32 {
+    if a.samples < 100 || a.samples > 10_000_000 {
+        eprintln!("error: --samples must be in 100..=10000000");
+        return 2;
+    }
+    let payload = a.payload.unwrap_or(std::mem::size_of::<PlantState>());
+    if payload == 0 || payload > 1 << 20 {
+        eprintln!("error: --payload must be in 1..=1048576 bytes");
+        return 2;
+    }
+    let prefix = crate::ipc::DEFAULT_PREFIX.to_string();
+    let mut raw: Vec<(Variant, Vec<i64>)> = Vec::new();
+    for v in [
+        Variant::BareBusy,
+        Variant::EvoloopBusy,
+        Variant::BareEvent,
+        Variant::EvoloopEvent,
+    ] {
+        let run_id = format!("{}-{}", std::process::id(), v.name());
+        if !a.json {
+            eprintln!("measuring {} ({} round trips)...", v.name(), a.samples);
+        }
+        let mut child = match spawn_peer(v, &prefix, &run_id, payload) {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("error: cannot start the peer process: {e}");
+                return 1;
+            }
+        };
+        let r = if matches!(v, Variant::BareBusy | Variant::BareEvent) {
+            ping_bare(v, &prefix, &run_id, payload, a.samples)
+        } else {
+            ping_evoloop(v, &prefix, &run_id, a.samples)
+        };
+        let _ = child.wait();
+        match r {
+            Ok(s) => raw.push((v, s)),
+            Err(e) => {
+                let _ = child.kill();
+                eprintln!("error: {e}");
+                return 1;
+            }
+        }
+    }
+    let results: Vec<VariantResult> = raw
+        .iter()
+        .map(|(v, s)| {
+            let p = Percentiles::from_samples(s.iter().copied());
+            let mut sorted = s.clone();
+            sorted.sort_unstable();
+            let p9999 =
+                sorted[((sorted.len() as f64 * 0.9999).ceil() as usize).min(sorted.len()) - 1];
+            VariantResult {
+                variant: *v,
+                samples: p.count,
+                min_ns: p.min_ns,
+                p50_ns: p.p50_ns,
+                p90_ns: p.p90_ns,
+                p99_ns: p.p99_ns,
+                p99_9_ns: p.p99_9_ns,
+                p99_99_ns: p9999,
+                max_ns: p.max_ns,
+                ratio_p50: None,
+                ratio_p99_9: None,
+            }
+        })
+        .collect();
+    let mut results = results;
+    for i in 0..results.len() {
+        let reference = match results[i].variant {
+            Variant::EvoloopBusy => Variant::BareBusy,
+            Variant::EvoloopEvent => Variant::BareEvent,
+            _ => continue,
+        };
+        if let Some(r) = results.iter().find(|r| r.variant == reference).cloned() {
+            results[i].ratio_p50 = Some(results[i].p50_ns as f64 / r.p50_ns.max(1) as f64);
+            results[i].ratio_p99_9 = Some(results[i].p99_9_ns as f64 / r.p99_9_ns.max(1) as f64);
+        }
+    }
+    let report = serde_json::json!({
+        "payload_bytes": payload,
+        "samples": a.samples,
+        "variants": results.iter().map(|r| (r.variant.name().to_string(), serde_json::to_value(r).unwrap_or_default())).collect::<serde_json::Map<_, _>>(),
+    });
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).unwrap_or_default()
+        );
+    } else {
+        println!(
+            "round trip, {payload}-byte payload, {} samples per variant (ns):",
+            a.samples
+        );
+        println!(
+            "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  ratio p50 / p99.9 to bare",
+            "variant", "min", "p50", "p90", "p99", "p99.9", "p99.99", "max"
+        );
+        for r in &results {
+            let ratio = match (r.ratio_p50, r.ratio_p99_9) {
+                (Some(a), Some(b)) => format!("{a:.2} / {b:.2}"),
+                _ => "(reference)".into(),
+            };
+            println!(
+                "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  {ratio}",
+                r.variant.name(),
+                r.min_ns,
+                r.p50_ns,
+                r.p90_ns,
+                r.p99_ns,
+                r.p99_9_ns,
+                r.p99_99_ns,
+                r.max_ns
+            );
+        }
+    }
+    if let Some(dir) = &a.out {
+        if let Err(e) = write_out(dir, &report, &results, &raw) {
+            eprintln!("error: {e}");
+            return 1;
+        }
+    }
+    0
+}
+
+fn write_out(
+    dir: &std::path::Path,
+    report: &serde_json::Value,
+    results: &[VariantResult],
+    raw: &[(Variant, Vec<i64>)],
+) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+    std::fs::write(
+        dir.join("latency.json"),
+        serde_json::to_string_pretty(report).unwrap_or_default(),
+    )
+    .map_err(|e| e.to_string())?;
+    let mut csv = String::from("variant,min_ns,p50_ns,p90_ns,p99_ns,p99_9_ns,p99_99_ns,max_ns\n");
+    for r in results {
+        csv += &format!(
+            "{},{},{},{},{},{},{},{}\n",
+            r.variant.name(),
+            r.min_ns,
+            r.p50_ns,
+            r.p90_ns,
+            r.p99_ns,
+            r.p99_9_ns,
+            r.p99_99_ns,
+            r.max_ns
+        );
+    }
+    std::fs::write(dir.join("latency.csv"), csv).map_err(|e| e.to_string())?;
+    // CDF on a log time axis: x = log10(RTT / ns), y = fraction of round trips at or below.
+    let curves: Vec<(String, Vec<f64>, Vec<f64>)> = raw
+        .iter()
+        .map(|(v, s)| {
+            let mut s = s.clone();
+            s.sort_unstable();
+            let n = s.len();
+            let step = (n / 2000).max(1);
+            let idx: Vec<usize> = (0..n).step_by(step).chain(std::iter::once(n - 1)).collect();
+            (
+                v.name().to_string(),
+                idx.iter().map(|&i| (s[i].max(1) as f64).log10()).collect(),
+                idx.iter().map(|&i| (i + 1) as f64 / n as f64).collect(),
+            )
+        })
+        .collect();
+    let series: Vec<XySeries> = curves
+        .iter()
+        .map(|(n, x, y)| XySeries {
+            name: n,
+            x,
+            y,
+            style: Style::Line,
+        })
+        .collect();
+    xy_png(
+        &dir.join("latency_cdf.png"),
+        "Round-trip latency CDF: evoloop vs bare iceoryx2, busy-poll and event wake-up",
+        "log10(round trip / ns)",
+        "fraction of round trips",
+        &series,
+        None,
+        Some((0.0, 1.0)),
+    )
+}
+
+/// Wait (set-up only, before any timing) until `connected` holds, for up to 10 s.
+fn wait_connected(mut connected: impl FnMut() -> bool) -> Result<(), IpcError> {
+    let t0 = std::time::Instant::now();
+    while !connected() {
+        if t0.elapsed() > Duration::from_secs(10) {
+            return Err(err("bench", "the peer process did not connect within 10 s"));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    Ok(())
+}
+
+fn ping_evoloop(
+    v: Variant,
+    prefix: &str,
+    run_id: &str,
+    samples: usize,
+) -> Result<Vec<i64>, IpcError> {
+    let ipc = Ipc::new("bench-plant", run_id, prefix)?;
+    let busy = v.busy();
+    let cmd = ipc.subscriber::<Command>(Topic::Command, 4, !busy)?;
+    let state = ipc.publisher::<PlantState>(Topic::State, !busy)?;
+    wait_connected(|| state.subscribers() >= 1 && cmd.peer_publishers() >= 1)?;
+    let mut msg = PlantState {
+        n_x: 4,
+        n_y: 1,
+        ..Default::default()
+    };
+    let mut out = Vec::with_capacity(samples);
+    let timeout = Duration::from_secs(5);
+    for k in 0..(WARMUP + samples) as u64 {
+        msg.seq = k;
+        msg.x[0] = (k % 100) as f64 * 1e-3;
+        msg.y[0] = msg.x[0];
+        let t0 = now_ns();
+        msg.stamp_ns = t0;
+        state.send(&msg)?;
+        loop {
+            let got = if busy {
+                cmd.next()?.map(Wait::Got).unwrap_or(Wait::TimedOut)
+            } else {
+                cmd.wait_next(Duration::ZERO, timeout)?
+            };
+            match got {
+                Wait::Got(c) if c.state_seq == k => break,
+                Wait::Got(_) => {}
+                Wait::TimedOut if busy => std::hint::spin_loop(),
+                Wait::TimedOut => return Err(err("bench", "peer did not answer within 5 s")),
+            }
+        }
+        if k as usize >= WARMUP {
+            out.push(now_ns() as i64 - t0 as i64);
+        }
+    }
+    msg.flags = STATE_FLAG_END;
+    state.send(&msg)?;
+    Ok(out)
+}
+
+/// The peer side of a variant (child process).
+pub fn peer(a: PeerArgs) -> i32 {
+    let r = match a.variant {
+        Variant::EvoloopBusy | Variant::EvoloopEvent => {
+            pong_evoloop(a.variant, &a.prefix, &a.run_id)
+        }
+        Variant::BareBusy | Variant::BareEvent => {
+            pong_bare(a.variant, &a.prefix, &a.run_id, a.payload)
+        }
+    };
+    match r {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("latency-peer: error: {e}");
+            1
+        }
+    }
+}
+
+fn pong_evoloop(v: Variant, prefix: &str, run_id: &str) -> Result<(), IpcError> {
+    let ipc = Ipc::new("bench-controller", run_id, prefix)?;
+    let busy = v.busy();
+    let cmd = ipc.publisher::<Command>(Topic::Command, !busy)?;
+    let state = ipc.subscriber::<PlantState>(Topic::State, 4, !busy)?;
+    let mut cycle = ControlCycle::new(
+        Box::new(StateFeedback::new(
+            &[18.49, 19.04, 47.27, 7.30, -10.54],
+            0.001,
+            Some(100.0),
+        )),
+        Reference::Step {
+            amplitude: 1.0,
+            start: 0.0,
+        },
+        ParamBounds {
+            lower: vec![-100.0; 5],
+            upper: vec![100.0; 5],
+        },
+    );
+    let mut tel = Telemetry::default();
+    loop {
+        let s = if busy {
+            match state.next()? {
+                Some(s) => s,
+                None => {
+                    std::hint::spin_loop();
+                    continue;
+                }
+            }
+        } else {
+            match state.wait_next(Duration::ZERO, Duration::from_secs(10))? {
+                Wait::Got(s) => s,
+                Wait::TimedOut => return Err(err("bench", "no state within 10 s")),
+            }
+        };
+        if s.flags & STATE_FLAG_END != 0 {
+            return Ok(());
+        }
+        cycle.step(&s, &mut tel);
+        cmd.send(&Command {
+            cycle: tel.cycle,
+            state_seq: s.seq,
+            n_u: 1,
+            u: cycle.u,
+            ..Default::default()
+        })?;
+    }
+}
+
+type SlicePub = iceoryx2::port::publisher::Publisher<ipc::Service, [u8], ()>;
+type SliceSub = iceoryx2::port::subscriber::Subscriber<ipc::Service, [u8], ()>;
+
+/// Bare iceoryx2 ports: a byte-slice publisher on `out`, a subscriber on `inp`, and for the
+/// event variant a notifier/listener pair on the same names.
+struct Bare {
+    _node: Node<ipc::Service>,
+    out_svc:
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
+    in_svc: iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
+    publisher: SlicePub,
+    subscriber: SliceSub,
+    notifier: Option<iceoryx2::port::notifier::Notifier<ipc::Service>>,
+    listener: Option<iceoryx2::port::listener::Listener<ipc::Service>>,
+}
+
+fn bare(
+    prefix: &str,
+    run_id: &str,
+    out: &str,
+    inp: &str,
+    payload: usize,
+    events: bool,
+) -> Result<Bare, IpcError> {
+    set_log_level(LogLevel::Error);
+    let cfg = ipc_config(prefix)?;
+    let node = NodeBuilder::new()
+        .config(&cfg)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| err("node", e))?;
+    let name =
+        |t: &str| ServiceName::new(&format!("bench/{run_id}/{t}")).map_err(|e| err("name", e));
+    let svc = |t: &str| {
+        node.service_builder(&name(t)?)
+            .publish_subscribe::<[u8]>()
+            .open_or_create()
+            .map_err(|e| err("service", e))
+    };
+    let out_svc = svc(out)?;
+    let in_svc = svc(inp)?;
+    let publisher = out_svc
+        .publisher_builder()
+        .initial_max_slice_len(payload)
+        .create()
+        .map_err(|e| err("publisher", e))?;
+    let subscriber = in_svc
+        .subscriber_builder()
+        .create()
+        .map_err(|e| err("subscriber", e))?;
+    let (notifier, listener) = if events {
+        let ev = |t: &str| {
+            node.service_builder(&name(t)?)
+                .event()
+                .open_or_create()
+                .map_err(|e| err("event", e))
+        };
+        (
+            Some(
+                ev(out)?
+                    .notifier_builder()
+                    .create()
+                    .map_err(|e| err("notifier", e))?,
+            ),
+            Some(
+                ev(inp)?
+                    .listener_builder()
+                    .create()
+                    .map_err(|e| err("listener", e))?,
+            ),
+        )
+    } else {
+        (None, None)
+    };
+    Ok(Bare {
+        _node: node,
+        out_svc,
+        in_svc,
+        publisher,
+        subscriber,
+        notifier,
+        listener,
+    })
+}
+
+impl Bare {
+    /// Both directions have their peer port.
+    fn connected(&self) -> bool {
+        self.out_svc.dynamic_config().number_of_subscribers() >= 1
+            && self.in_svc.dynamic_config().number_of_publishers() >= 1
+    }
+
+    fn send(&self, fill: u8, payload: usize) -> Result<(), IpcError> {
+        let s = self
+            .publisher
+            .loan_slice_uninit(payload)
+            .map_err(|e| err("loan", e))?;
+        let s = s.write_from_fn(|i| if i == 0 { fill } else { i as u8 });
+        s.send().map_err(|e| err("send", e))?;
+        if let Some(n) = &self.notifier {
+            n.notify().map_err(|e| err("notify", e))?;
+        }
+        Ok(())
+    }
+    /// Wait for the next message; returns its first byte.
+    fn recv(&self) -> Result<u8, IpcError> {
+        loop {
+            if let Some(s) = self.subscriber.receive().map_err(|e| err("receive", e))? {
+                return Ok(s.payload().first().copied().unwrap_or(0));
+            }
+            match &self.listener {
+                Some(l) => {
+                    l.timed_wait(|_| {}, Duration::from_secs(5))
+                        .map_err(|e| err("wait", e))?;
+                }
+                None => std::hint::spin_loop(),
+            }
+        }
+    }
+}
+
+fn ping_bare(
+    v: Variant,
+    prefix: &str,
+    run_id: &str,
+    payload: usize,
+    samples: usize,
+) -> Result<Vec<i64>, IpcError> {
+    let b = bare(prefix, run_id, "ping", "pong", payload, !v.busy())?;
+    wait_connected(|| b.connected())?;
+    let mut out = Vec::with_capacity(samples);
+    for k in 0..WARMUP + samples {
+        let t0 = now_ns();
+        b.send(0, payload)?;
+        b.recv()?;
+        if k >= WARMUP {
+            out.push(now_ns() as i64 - t0 as i64);
+        }
+    }
+    b.send(1, payload)?;
+    Ok(out)
+}
+
+fn pong_bare(v: Variant, prefix: &str, run_id: &str, payload: usize) -> Result<(), IpcError> {
+    let b = bare(prefix, run_id, "pong", "ping", payload, !v.busy())?;
+    loop {
+        if b.recv()? == 1 {
+            return Ok(());
+        }
+        b.send(0, payload)?;
+    }
+}

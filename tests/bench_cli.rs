@@ -1,0 +1,44 @@
+//! `evoloop bench latency`: every variant measured, percentiles ordered, ratios against the bare
+//! iceoryx2 reference present, files written. No timing thresholds.
+
+#[test]
+fn bench_latency_reports_every_variant_against_the_bare_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+        .args(["bench", "latency", "--samples", "500", "--json", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for name in ["bare_busy", "evoloop_busy", "bare_event", "evoloop_event"] {
+        let r = &v["variants"][name];
+        let keys = [
+            "min_ns",
+            "p50_ns",
+            "p90_ns",
+            "p99_ns",
+            "p99_9_ns",
+            "p99_99_ns",
+            "max_ns",
+        ];
+        let vals: Vec<i64> = keys
+            .iter()
+            .map(|k| r[k].as_i64().unwrap_or_else(|| panic!("{name}.{k}")))
+            .collect();
+        assert!(vals.windows(2).all(|w| w[0] <= w[1]), "{name}: {vals:?}");
+        assert_eq!(r["samples"], 500);
+    }
+    for name in ["evoloop_busy", "evoloop_event"] {
+        assert!(v["variants"][name]["ratio_p50"].as_f64().unwrap() > 0.0);
+        assert!(v["variants"][name]["ratio_p99_9"].as_f64().unwrap() > 0.0);
+    }
+    for f in ["latency.json", "latency.csv", "latency_cdf.png"] {
+        assert!(dir.path().join(f).is_file(), "{f}");
+    }
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+        .args(["bench", "latency", "--samples", "5"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+}
