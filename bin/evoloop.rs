@@ -83,6 +83,8 @@ enum Cmd {
 enum BenchCmd {
     /// Round trip plant -> controller -> plant against a bare iceoryx2 ping-pong.
     Latency(evoloop::bench::latency::LatencyArgs),
+    /// The controller loop's timing at a rate, under load, against the bare sleep-loop floor.
+    Loop(evoloop::bench::loop_bench::LoopArgs),
     /// The peer process of `bench latency` (started by it).
     #[command(hide = true)]
     LatencyPeer(evoloop::bench::latency::PeerArgs),
@@ -120,6 +122,7 @@ fn main() -> ExitCode {
         Some(Cmd::Bench { cmd }) => ExitCode::from(match cmd {
             BenchCmd::Latency(a) => evoloop::bench::latency::main(a),
             BenchCmd::LatencyPeer(a) => evoloop::bench::latency::peer(a),
+            BenchCmd::Loop(a) => evoloop::bench::loop_bench::main(a),
         } as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(evoloop::robust::cli::main(cmd) as u8),
         Some(Cmd::Floor {

@@ -42,3 +42,47 @@ fn bench_latency_reports_every_variant_against_the_bare_reference() {
         .unwrap();
     assert_eq!(bad.status.code(), Some(2));
 }
+
+#[test]
+fn bench_loop_measures_the_loop_and_its_floor_in_the_same_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+        .args([
+            "bench",
+            "loop",
+            "--rate",
+            "1000",
+            "--duration",
+            "1",
+            "--load",
+            "hog",
+            "--json",
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let results = v["results"].as_array().unwrap();
+    assert_eq!(results.len(), 2, "with and without real-time privileges");
+    for r in results {
+        let cycles = r["cycles"].as_u64().unwrap();
+        let missed = r["deadline_misses"].as_u64().unwrap();
+        assert!(
+            (990..=1000).contains(&(cycles + missed)),
+            "{cycles} + {missed}"
+        );
+        for k in ["lateness", "floor_lateness"] {
+            let p = &r[k];
+            let vals: Vec<i64> = ["min_ns", "p50_ns", "p90_ns", "p99_ns", "p99_9_ns", "max_ns"]
+                .iter()
+                .map(|q| p[q].as_i64().unwrap())
+                .collect();
+            assert!(vals.windows(2).all(|w| w[0] <= w[1]), "{k}: {vals:?}");
+        }
+        assert!(r["ratio_p99"].as_f64().unwrap() > 0.0);
+    }
+    assert!(dir.path().join("loop_lateness.png").is_file());
+    assert!(dir.path().join("loop.json").is_file());
+}

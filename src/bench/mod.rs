@@ -2,3 +2,4 @@
 //! run.
 
 pub mod latency;
+pub mod loop_bench;

@@ -1,0 +1,313 @@
+//! `evoloop bench loop`: the real controller loop (plant, controller and optimiser processes in
+//! realtime mode on the two-mass scenario) at a given rate, under a chosen background load, with
+//! and without real-time privileges; each run also measures the bare absolute-deadline sleep loop
+//! at the same period under the same load, as the machine's floor.
+
+use crate::report::plot::{xy_png, Style, XySeries};
+use crate::report::summary::Summary;
+use crate::report::Table;
+use clap::{Args, ValueEnum};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Load {
+    /// Nothing else running.
+    Off,
+    /// The optimiser's workload: DE/rand/1/bin on the two-mass design problem on 2 threads at
+    /// nice 10 (`evoloop robust tune`), running for the whole measurement.
+    Optimiser,
+    /// One busy-looping thread per CPU at normal priority.
+    Hog,
+}
+
+#[derive(Args)]
+pub struct LoopArgs {
+    /// Loop rate in Hz (1000 and 10000 are the usual ones).
+    #[arg(long, default_value_t = 1000.0)]
+    pub rate: f64,
+    /// Seconds per measurement.
+    #[arg(long, default_value_t = 5.0)]
+    pub duration: f64,
+    #[arg(long, value_enum, default_value_t = Load::Off)]
+    pub load: Load,
+    /// Only with SCHED_FIFO/mlockall (default: with and without).
+    #[arg(long)]
+    pub rt_only: bool,
+    #[arg(long)]
+    pub json: bool,
+    /// Output directory (runs, loop.json, loop_lateness.png).
+    #[arg(long, default_value = "runs/bench_loop")]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct LoopResult {
+    pub privileges: String,
+    pub load: Load,
+    pub rate_hz: f64,
+    pub summary: Summary,
+}
+
+fn scenario(rate: f64, duration: f64) -> String {
+    format!(
+        r#"name = "bench_loop"
+[plant]
+kind = "two_mass"
+step = {step}
+[controller]
+kind = "state_feedback"
+[controller.state_feedback]
+gains = [18.49, 19.04, 47.27, 7.30, -10.54]
+[reference]
+kind = "square"
+amplitude = 0.5
+offset = 0.5
+period = 10.0
+[timing]
+mode = "realtime"
+period = {period}
+duration = {duration}
+fifo_priority = 80
+plant_fifo_priority = 70
+lock_memory = true
+measure_floor = true
+"#,
+        period = 1.0 / rate,
+        step = (1.0 / rate).min(5e-4),
+    )
+}
+
+/// Start the background load; the returned guard stops it.
+struct LoadGuard {
+    stop: Arc<AtomicBool>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+    child: Option<Child>,
+}
+
+impl Drop for LoadGuard {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+        if let Some(c) = &mut self.child {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn start_load(load: Load) -> std::io::Result<LoadGuard> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let mut g = LoadGuard {
+        stop: stop.clone(),
+        threads: Vec::new(),
+        child: None,
+    };
+    match load {
+        Load::Off => {}
+        Load::Hog => {
+            let n = std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(2);
+            for _ in 0..n {
+                let s = stop.clone();
+                g.threads.push(std::thread::spawn(move || {
+                    let mut x = 0u64;
+                    while !s.load(Ordering::Relaxed) {
+                        x = x.wrapping_mul(6364136223846793005).wrapping_add(1);
+                        std::hint::black_box(x);
+                    }
+                }));
+            }
+        }
+        Load::Optimiser => {
+            let exe = std::env::current_exe()?;
+            let mut cmd = Command::new("nice");
+            cmd.args(["-n", "10"])
+                .arg(exe)
+                .args([
+                    "robust",
+                    "tune",
+                    "--max-iter",
+                    "100000000",
+                    "--threads",
+                    "2",
+                    "--json",
+                ])
+                .stdout(Stdio::null())
+                .stderr(Stdio::null());
+            g.child = Some(cmd.spawn()?);
+        }
+    }
+    Ok(g)
+}
+
+fn run_once(out: &Path, cfg: &Path, no_rt: bool) -> Result<Summary, String> {
+    let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+    let mut cmd = Command::new(exe);
+    cmd.arg("run").arg(cfg).arg("--out").arg(out).arg("--quiet");
+    if no_rt {
+        cmd.arg("--no-rt");
+    }
+    let o = cmd.output().map_err(|e| e.to_string())?;
+    if !o.status.success() {
+        return Err(format!(
+            "run failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+        ));
+    }
+    let text = std::fs::read_to_string(out.join("summary.json")).map_err(|e| e.to_string())?;
+    serde_json::from_str(&text).map_err(|e| e.to_string())
+}
+
+pub fn main(a: LoopArgs) -> i32 {
+    if !(a.rate >= 10.0 && a.rate <= 20_000.0) {
+        eprintln!("error: --rate must be in [10, 20000] Hz (got {})", a.rate);
+        return 2;
+    }
+    if !(a.duration >= 0.5 && a.duration <= 3600.0) {
+        eprintln!(
+            "error: --duration must be in [0.5, 3600] s (got {})",
+            a.duration
+        );
+        return 2;
+    }
+    if let Err(e) = std::fs::create_dir_all(&a.out) {
+        eprintln!("error: {}: {e}", a.out.display());
+        return 1;
+    }
+    let cfg = a.out.join("bench_loop.toml");
+    if let Err(e) = std::fs::write(&cfg, scenario(a.rate, a.duration)) {
+        eprintln!("error: {e}");
+        return 1;
+    }
+    let _load = match start_load(a.load) {
+        Ok(g) => g,
+        Err(e) => {
+            eprintln!("error: cannot start the {:?} load: {e}", a.load);
+            return 1;
+        }
+    };
+    let settings: &[(&str, bool)] = if a.rt_only {
+        &[("fifo", false)]
+    } else {
+        &[("fifo", false), ("no_rt", true)]
+    };
+    let mut results = Vec::new();
+    for (name, no_rt) in settings {
+        if !a.json {
+            eprintln!(
+                "measuring {} Hz, {name}, load {:?}, {} s...",
+                a.rate, a.load, a.duration
+            );
+        }
+        match run_once(&a.out.join(name), &cfg, *no_rt) {
+            Ok(summary) => results.push(LoopResult {
+                privileges: name.to_string(),
+                load: a.load,
+                rate_hz: a.rate,
+                summary,
+            }),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return 1;
+            }
+        }
+    }
+    let table: Vec<serde_json::Value> = results
+        .iter()
+        .map(|r| {
+            let s = &r.summary;
+            let l = &s.timing.lateness;
+            let f = s.floor.clone().unwrap_or_default();
+            serde_json::json!({
+                "privileges": r.privileges, "load": r.load, "rate_hz": r.rate_hz,
+                "sched_fifo": s.realtime_privileges.controller.sched_fifo,
+                "cycles": s.samples, "overruns": s.overruns, "deadline_misses": s.deadline_misses,
+                "stale_states": s.timing.stale_states,
+                "lateness": l, "compute": s.timing.compute, "state_age": s.timing.state_age,
+                "floor_lateness": f.lateness,
+                "ratio_p50": f.ratio_p50, "ratio_p99": f.ratio_p99, "ratio_p99_9": f.ratio_p99_9,
+            })
+        })
+        .collect();
+    let report = serde_json::json!({ "rate_hz": a.rate, "duration_s": a.duration, "load": a.load, "results": table });
+    let _ = std::fs::write(
+        a.out.join("loop.json"),
+        serde_json::to_string_pretty(&report).unwrap_or_default(),
+    );
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).unwrap_or_default()
+        );
+    } else {
+        println!(
+            "controller loop at {} Hz for {} s, load {:?} (ns):",
+            a.rate, a.duration, a.load
+        );
+        println!("{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  floor p50/p99/p99.9      ratio p99 (p99.9)", "privs", "what", "p50", "p99", "p99.9", "max", "compute50", "age p50", "overrun", "missed");
+        for r in &results {
+            let s = &r.summary;
+            let l = &s.timing.lateness;
+            let f = s.floor.clone().unwrap_or_default();
+            println!(
+                "{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  {}/{}/{}  {:.2} ({:.2})",
+                r.privileges, "lateness", l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.timing.compute.p50_ns,
+                s.timing.state_age.p50_ns, s.overruns, s.deadline_misses,
+                f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99, f.ratio_p99_9
+            );
+        }
+        println!(
+            "wrote {}/loop.json, loop_lateness.png and the runs",
+            a.out.display()
+        );
+    }
+    if let Err(e) = plot(&a.out, &results) {
+        eprintln!("error: plot: {e}");
+        return 1;
+    }
+    0
+}
+
+/// Lateness over time of each measured run.
+fn plot(dir: &Path, results: &[LoopResult]) -> Result<(), String> {
+    let mut curves = Vec::new();
+    for r in results {
+        let t =
+            Table::read(&dir.join(&r.privileges).join("timing.csv")).map_err(|e| e.to_string())?;
+        let cycle = t.col("cycle").unwrap_or_default();
+        let late: Vec<f64> = t
+            .col("lateness_ns")
+            .unwrap_or_default()
+            .iter()
+            .map(|v| v / 1000.0)
+            .collect();
+        let secs: Vec<f64> = cycle.iter().map(|c| c / r.rate_hz).collect();
+        curves.push((format!("{} lateness", r.privileges), secs, late));
+    }
+    let series: Vec<XySeries> = curves
+        .iter()
+        .map(|(n, x, y)| XySeries {
+            name: n,
+            x,
+            y,
+            style: Style::Points,
+        })
+        .collect();
+    xy_png(
+        &dir.join("loop_lateness.png"),
+        "Controller wake-up lateness over time",
+        "t [s]",
+        "lateness [µs]",
+        &series,
+        None,
+        None,
+    )
+}
