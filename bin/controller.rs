@@ -275,8 +275,10 @@ fn run_realtime(
     let Some(mut state) = next_state(ports, Duration::ZERO, Duration::from_secs(10), stop)? else {
         return Ok(());
     };
-    // Align to the plant's sample clock: cycle k runs `phase` of a period after sample k.
-    let epoch = state.stamp_ns - state.seq * period;
+    // Align to the plant's sample clock: cycle k runs `phase` of a period after sample k. A
+    // sample's stamp is its tick plus the plant's wake-up latency, so the earliest
+    // stamp - seq * period seen so far is the best estimate of the plant's epoch.
+    let mut epoch = state.stamp_ns - state.seq * period;
     let phase = (scn.timing.phase * period as f64) as u64;
     let n = scn.cycles();
     let mut k = state.seq;
@@ -300,7 +302,10 @@ fn run_realtime(
             flags |= TELEMETRY_FLAG_MISSED;
         }
         match ports.state.latest() {
-            Ok(Some(s)) => state = s,
+            Ok(Some(s)) => {
+                state = s;
+                epoch = epoch.min(s.stamp_ns.saturating_sub(s.seq * period));
+            }
             Ok(None) => {}
             Err(e) => return Err((EXIT_SETUP, e.to_string())),
         }

@@ -210,12 +210,36 @@ fn run_realtime(
     let mut u = [0.0; MAX_JOINTS];
     let mut msg = PlantState::default();
     let epoch = now_ns();
+    let secs = |ns: u64| (ns - epoch) as f64 * 1e-9;
     let mut last_cmd = epoch;
     let mut safe_mode = false;
     for k in 0..=n {
         let tick = epoch + k * period;
         sleep_until_ns(tick);
-        // Integrate up to this sample's simulated time with the command in force.
+        // Each command that arrived since the last sample is applied from the moment it was
+        // sent (its stamp), as hardware would apply it on arrival: integrate up to that moment
+        // with the command in force, then switch (zero-order hold). Reconstructing the switch
+        // times from the stamps needs no sub-period wake-ups, whose timers are coarse.
+        loop {
+            let cmd = match ports.command.next() {
+                Ok(Some(c)) => c,
+                Ok(None) => break,
+                Err(e) => return Err((EXIT_SETUP, e.to_string())),
+            };
+            let at = cmd.stamp_ns.clamp(epoch + (sim.t * 1e9) as u64, tick);
+            // The controller is back (if the safe command had taken over).
+            safe_mode = false;
+            sim.advance(&u[..n_u], secs(at) - sim.t);
+            u[..n_u].copy_from_slice(&cmd.u[..n_u]);
+            last_cmd = at;
+            report.commands_received += 1;
+        }
+        // Commands stopped: the safe command from the moment the timeout ran out.
+        if !safe_mode && tick.saturating_sub(last_cmd) > timeout_ns {
+            sim.advance(&u[..n_u], secs(last_cmd + timeout_ns) - sim.t);
+            u[..n_u].copy_from_slice(&safe[..n_u]);
+            safe_mode = true;
+        }
         sim.advance(&u[..n_u], k as f64 * scn.timing.period - sim.t);
         sim.sample(k, now_ns(), &u[..n_u], &mut msg);
         if safe_mode {
@@ -229,34 +253,6 @@ fn run_realtime(
         }
         publish(ports, &msg)?;
         report.samples += 1;
-        // Until the next tick: apply each command the moment it arrives (zero-order hold).
-        let next = tick + period;
-        loop {
-            let now = now_ns();
-            if now >= next {
-                break;
-            }
-            match ports
-                .command
-                .wait_next(Duration::ZERO, Duration::from_nanos(next - now))
-            {
-                Ok(Wait::Got(cmd)) => {
-                    let at = now_ns().min(next);
-                    let t_at = (at - epoch) as f64 * 1e-9;
-                    sim.advance(&u[..n_u], t_at - sim.t);
-                    u[..n_u].copy_from_slice(&cmd.u[..n_u]);
-                    last_cmd = at;
-                    safe_mode = false;
-                    report.commands_received += 1;
-                }
-                Ok(Wait::TimedOut) => break,
-                Err(e) => return Err((EXIT_SETUP, e.to_string())),
-            }
-        }
-        if now_ns().saturating_sub(last_cmd) > timeout_ns && !safe_mode {
-            safe_mode = true;
-            u[..n_u].copy_from_slice(&safe[..n_u]);
-        }
     }
     Ok(())
 }

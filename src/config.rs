@@ -523,7 +523,7 @@ impl Validator {
                 0.01,
                 3600.0,
             )?,
-            phase: self.range("timing.phase", t.phase.unwrap_or(0.05), 0.0, 0.95)?,
+            phase: self.range("timing.phase", t.phase.unwrap_or(0.1), 0.0, 0.95)?,
             fifo_priority: prio("timing.fifo_priority", t.fifo_priority)?.filter(|_| rt),
             plant_fifo_priority: prio("timing.plant_fifo_priority", t.plant_fifo_priority)?
                 .filter(|_| rt),

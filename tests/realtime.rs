@@ -139,3 +139,64 @@ fn a_stalled_controller_is_counted_and_the_plant_falls_back_to_its_safe_command(
     assert_eq!(s["plant_safe_samples"].as_u64().unwrap(), safe);
     forget_prefix(&prefix);
 }
+
+#[test]
+fn the_controller_flags_stale_state_when_the_plant_stalls() {
+    use std::time::{Duration, Instant};
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write(
+        tmp.path(),
+        "stale.toml",
+        &scenario(
+            "kind = \"step\"\namplitude = 1.0",
+            "mode = \"realtime\"\nduration = 3.0\nmeasure_floor = false\nfifo_priority = 60\nplant_fifo_priority = 50",
+        )
+        .replace("kind = \"state_feedback\"", "kind = \"state_feedback\"\nstale_after_periods = 3"),
+    );
+    let out = tmp.path().join("out");
+    let (prefix, run_id) = unique("stale");
+    let mut child = std::process::Command::new(evoloop())
+        .arg("run")
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&out)
+        .args(["--ipc-prefix", &prefix, "--run-id", &run_id, "--quiet"])
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    let plant = loop {
+        let found = processes_with(&run_id).into_iter().find(|p| {
+            std::fs::read(format!("/proc/{p}/cmdline"))
+                .map(|c| String::from_utf8_lossy(&c).contains("evoloop-plant"))
+                .unwrap_or(false)
+        });
+        if let Some(p) = found {
+            break p;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "plant did not start"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    std::thread::sleep(Duration::from_millis(1000));
+    // Freeze the plant for 200 ms: the controller keeps its deadlines on ever older state.
+    // SAFETY: this test's own plant process.
+    unsafe { libc::kill(plant as i32, libc::SIGSTOP) };
+    std::thread::sleep(Duration::from_millis(200));
+    unsafe { libc::kill(plant as i32, libc::SIGCONT) };
+    let status = child.wait().unwrap();
+    assert!(status.success(), "{status}");
+    let s = json(&out.join("summary.json"));
+    let stale = s["timing"]["stale_states"].as_u64().unwrap();
+    assert!(stale > 0, "no stale state flagged: {}", s["timing"]);
+    let timing = Csv::read(&out.join("timing.csv"));
+    let flagged = timing
+        .col("flags")
+        .iter()
+        .filter(|f| (**f as u32) & 1 != 0)
+        .count() as u64;
+    assert_eq!(flagged, stale, "telemetry flags and the summary agree");
+    forget_prefix(&prefix);
+}
