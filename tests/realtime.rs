@@ -69,7 +69,7 @@ fn a_realtime_run_keeps_its_rate_and_its_timing_statistics_add_up() {
 
 #[test]
 fn a_stalled_controller_is_counted_and_the_plant_falls_back_to_its_safe_command() {
-    use std::time::{Duration, Instant};
+    use std::time::Duration;
     let tmp = tempfile::tempdir().unwrap();
     let cfg = write(
         tmp.path(),
@@ -82,32 +82,8 @@ fn a_stalled_controller_is_counted_and_the_plant_falls_back_to_its_safe_command(
     );
     let out = tmp.path().join("out");
     let (prefix, run_id) = unique("stall");
-    let mut child = std::process::Command::new(evoloop())
-        .arg("run")
-        .arg(&cfg)
-        .arg("--out")
-        .arg(&out)
-        .args(["--ipc-prefix", &prefix, "--run-id", &run_id, "--quiet"])
-        .stdout(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    let controller = loop {
-        let pids = processes_with(&run_id);
-        let found = pids.into_iter().find(|p| {
-            std::fs::read(format!("/proc/{p}/cmdline"))
-                .map(|c| String::from_utf8_lossy(&c).contains("evoloop-controller"))
-                .unwrap_or(false)
-        });
-        if let Some(p) = found {
-            break p;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(20),
-            "controller did not start"
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    };
+    let mut child = spawn_run(&cfg, &out, &prefix, &run_id);
+    let controller = process_named(&run_id, "evoloop-controller");
     std::thread::sleep(Duration::from_millis(1000));
     // Freeze the controller for 300 ms: no commands, no cycles.
     // SAFETY: signalling this test's own process (found by its run id).
@@ -142,7 +118,7 @@ fn a_stalled_controller_is_counted_and_the_plant_falls_back_to_its_safe_command(
 
 #[test]
 fn the_controller_flags_stale_state_when_the_plant_stalls() {
-    use std::time::{Duration, Instant};
+    use std::time::Duration;
     let tmp = tempfile::tempdir().unwrap();
     let cfg = write(
         tmp.path(),
@@ -155,31 +131,8 @@ fn the_controller_flags_stale_state_when_the_plant_stalls() {
     );
     let out = tmp.path().join("out");
     let (prefix, run_id) = unique("stale");
-    let mut child = std::process::Command::new(evoloop())
-        .arg("run")
-        .arg(&cfg)
-        .arg("--out")
-        .arg(&out)
-        .args(["--ipc-prefix", &prefix, "--run-id", &run_id, "--quiet"])
-        .stdout(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    let plant = loop {
-        let found = processes_with(&run_id).into_iter().find(|p| {
-            std::fs::read(format!("/proc/{p}/cmdline"))
-                .map(|c| String::from_utf8_lossy(&c).contains("evoloop-plant"))
-                .unwrap_or(false)
-        });
-        if let Some(p) = found {
-            break p;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(20),
-            "plant did not start"
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    };
+    let mut child = spawn_run(&cfg, &out, &prefix, &run_id);
+    let plant = process_named(&run_id, "evoloop-plant");
     std::thread::sleep(Duration::from_millis(1000));
     // Freeze the plant for 200 ms: the controller keeps its deadlines on ever older state.
     // SAFETY: this test's own plant process.

@@ -3,7 +3,7 @@
 
 mod common;
 use common::*;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 fn realtime_config(dir: &std::path::Path) -> std::path::PathBuf {
@@ -24,16 +24,7 @@ fn start(
     prefix: &str,
     run_id: &str,
 ) -> std::process::Child {
-    let child = Command::new(evoloop())
-        .arg("run")
-        .arg(cfg)
-        .arg("--out")
-        .arg(out)
-        .args(["--ipc-prefix", prefix, "--run-id", run_id, "--quiet"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let child = spawn_run(cfg, out, prefix, run_id);
     let t0 = Instant::now();
     while processes_with(run_id).len() < 4 {
         assert!(
@@ -149,14 +140,7 @@ fn a_child_that_dies_fails_the_run_and_the_others_are_stopped() {
     let cfg = realtime_config(tmp.path());
     let (prefix, run_id) = unique("die");
     let mut child = start(&cfg, &tmp.path().join("out"), &prefix, &run_id);
-    let plant = processes_with(&run_id)
-        .into_iter()
-        .find(|p| {
-            std::fs::read(format!("/proc/{p}/cmdline"))
-                .map(|c| String::from_utf8_lossy(&c).contains("evoloop-plant"))
-                .unwrap_or(false)
-        })
-        .expect("plant process");
+    let plant = process_named(&run_id, "evoloop-plant");
     // SAFETY: this test's own plant process.
     unsafe { libc::kill(plant as i32, libc::SIGKILL) };
     let status = wait_exit(&mut child, Duration::from_secs(15));

@@ -171,3 +171,38 @@ pub fn forget_prefix(prefix: &str) {
         }
     }
 }
+
+/// Start `evoloop run` in the background with its own prefix and run id (stdout discarded).
+pub fn spawn_run(config: &Path, out: &Path, prefix: &str, run_id: &str) -> std::process::Child {
+    Command::new(evoloop())
+        .arg("run")
+        .arg(config)
+        .arg("--out")
+        .arg(out)
+        .args(["--ipc-prefix", prefix, "--run-id", run_id, "--quiet"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start evoloop")
+}
+
+/// Pid of the run's process whose binary is `binary` (e.g. "evoloop-plant"), waiting up to 20 s
+/// for it to appear.
+pub fn process_named(run_id: &str, binary: &str) -> u32 {
+    let t0 = std::time::Instant::now();
+    loop {
+        let found = processes_with(run_id).into_iter().find(|p| {
+            std::fs::read(format!("/proc/{p}/cmdline"))
+                .map(|c| String::from_utf8_lossy(&c).contains(binary))
+                .unwrap_or(false)
+        });
+        if let Some(p) = found {
+            return p;
+        }
+        assert!(
+            t0.elapsed() < std::time::Duration::from_secs(20),
+            "{binary} did not start"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+}
