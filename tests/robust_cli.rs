@@ -134,3 +134,23 @@ fn study_writes_the_report_data_and_figures() {
     let runs = std::fs::read_to_string(out.join("runs.csv")).unwrap();
     assert_eq!(runs.lines().count(), 1 + 4 * 2, "one row per run");
 }
+
+#[test]
+fn the_literal_perturbation_reading_is_available_and_differs() {
+    let g = "18.49,19.04,47.27,7.30,-10.54";
+    let spring = json(&evoloop(&["robust", "radius", "--gains", g, "--json"]));
+    let literal = json(&evoloop(&[
+        "robust",
+        "radius",
+        "--gains",
+        g,
+        "--perturbation",
+        "literal",
+        "--json",
+    ]));
+    let (a, b) = (
+        spring["stability_radius"].as_f64().unwrap(),
+        literal["stability_radius"].as_f64().unwrap(),
+    );
+    assert!(a > 0.0 && b > 0.0 && (a - b).abs() > 1e-3, "{a} vs {b}");
+}
