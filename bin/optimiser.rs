@@ -12,7 +12,7 @@ use clap::Parser;
 use evoloop::cli::ProcessArgs;
 use evoloop::config::{Mode, OptimiserMode, Scenario};
 use evoloop::ipc::messages::{Command, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END};
-use evoloop::ipc::{IpcError, Pub, Sub, Topic, Wait};
+use evoloop::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
 use evoloop::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use evoloop::report::summary::{OptimiserReport, PublishedSet};
 use evoloop::rt::privileges::set_nice;
@@ -33,6 +33,8 @@ struct Cli {
 }
 
 struct Ports {
+    /// Lockstep: the plant rings at every sample the optimiser must acknowledge.
+    sync: Doorbell,
     params: Pub<ParamSet>,
     ack: Pub<OptimiserAck>,
     command: Sub<Command>,
@@ -47,13 +49,17 @@ fn main() {
         ipc,
     } = start(&cli.args, WHO);
     let buffer = evoloop::ipc::MAX_SYNC_SAMPLES + 8;
+    let lockstep = scn.timing.mode == Mode::Lockstep;
     let ports = ports(WHO, || {
         Ok(Ports {
+            sync: ipc.doorbell(Topic::Sync)?,
             params: ipc.publisher(Topic::Params, false)?,
             ack: ipc.publisher(Topic::OptimiserAck, true)?,
             command: ipc.subscriber(Topic::Command, buffer, false)?,
             // Last: the plant starts the run once it sees this subscriber.
-            state: ipc.subscriber(Topic::State, buffer, true)?,
+            // In lockstep the optimiser sleeps on the sync bell and catches up on the queue,
+            // instead of being woken (or spinning) for every sample.
+            state: ipc.subscriber(Topic::State, buffer, !lockstep)?,
         })
     });
     if let Err(e) = ipc.announce(Topic::Ready) {
@@ -87,12 +93,6 @@ fn run(
     let schedule_on = scn.optimiser.mode == OptimiserMode::Schedule;
     let sync = scn.sync_samples();
     let dt = scn.timing.period;
-    // Spinning pays off only in lockstep, where the next sample follows at once.
-    let spin = if lockstep {
-        Duration::from_micros(scn.timing.spin_us)
-    } else {
-        Duration::ZERO
-    };
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
     let mut next_set = 0usize;
     let mut last_state = Instant::now();
@@ -101,11 +101,22 @@ fn run(
         if stop.load(Ordering::Relaxed) {
             return Ok(());
         }
-        let state = match ports
-            .state
-            .wait_next(spin, Duration::from_millis(100))
-            .map_err(io)?
-        {
+        let slice = Duration::from_millis(100);
+        let got = if lockstep {
+            match ports.state.next().map_err(io)? {
+                Some(s) => Wait::Got(s),
+                None => {
+                    ports.sync.wait(slice).map_err(io)?;
+                    match ports.state.next().map_err(io)? {
+                        Some(s) => Wait::Got(s),
+                        None => Wait::TimedOut,
+                    }
+                }
+            }
+        } else {
+            ports.state.wait_next(Duration::ZERO, slice).map_err(io)?
+        };
+        let state = match got {
             Wait::Got(s) => s,
             Wait::TimedOut => {
                 // In realtime the plant keeps sampling; silence this long means it is gone.

@@ -12,7 +12,7 @@ use clap::Parser;
 use evoloop::cli::ProcessArgs;
 use evoloop::config::{Mode, Scenario};
 use evoloop::ipc::messages::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
-use evoloop::ipc::{Doorbell, Pub, Sub, Topic, Wait};
+use evoloop::ipc::{Bell, Doorbell, Pub, Sub, Topic, Wait};
 use evoloop::plant::PlantSim;
 use evoloop::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use evoloop::report::summary::PlantReport;
@@ -35,6 +35,7 @@ struct Cli {
 
 struct Ports {
     ready: Doorbell,
+    sync: Bell,
     state: Pub<PlantState>,
     command: Sub<Command>,
     ack: Sub<OptimiserAck>,
@@ -50,6 +51,7 @@ fn main() {
     let ports = ports(WHO, || {
         Ok(Ports {
             ready: ipc.doorbell(Topic::Ready)?,
+            sync: ipc.bell(Topic::Sync)?,
             command: ipc.subscriber(Topic::Command, 8, true)?,
             ack: ipc.subscriber(Topic::OptimiserAck, 4, true)?,
             state: ipc.publisher(Topic::State, true)?,
@@ -132,14 +134,18 @@ fn run_lockstep(
     let mut msg = PlantState::default();
     for k in 0..=n {
         sim.sample(k, now_ns(), &u[..n_u], &mut msg);
+        let ring = |ports: &Ports| ports.sync.ring().map_err(|e| (EXIT_SETUP, e.to_string()));
         if k == n {
             msg.flags = STATE_FLAG_END;
             publish(ports, &msg)?;
+            ring(ports)?;
             break;
         }
         publish(ports, &msg)?;
         report.samples += 1;
         if k % sync == 0 {
+            // The optimiser sleeps between these samples and catches up on the queue here.
+            ring(ports)?;
             wait_until(&ports.ack, spin, timeout, stop, |a: &OptimiserAck| {
                 a.through_seq >= k
             })

@@ -804,9 +804,9 @@ impl Validator {
             nice: None,
             schedule: None,
         });
-        let sync_period = o
-            .sync_period
-            .unwrap_or((timing.period * 10.0).max(timing.period));
+        // Default: an acknowledgement every 100 periods (a barrier costs two cross-process
+        // wake-ups; rarer barriers let lockstep run at hundreds of thousands of samples/s).
+        let sync_period = o.sync_period.unwrap_or(timing.period * 100.0);
         self.positive("optimiser.sync_period", sync_period)?;
         let samples = sync_period / timing.period;
         if samples < 1.0 - 1e-9 || samples > MAX_SYNC_SAMPLES as f64 {

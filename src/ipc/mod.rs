@@ -64,6 +64,8 @@ pub enum Topic {
     OptimiserAck,
     /// Event only: a process has created all its ports.
     Ready,
+    /// Event only (lockstep): the plant reached a sample the optimiser must acknowledge.
+    Sync,
 }
 
 impl Topic {
@@ -75,6 +77,7 @@ impl Topic {
             Topic::Params => "params",
             Topic::OptimiserAck => "optimiser_ack",
             Topic::Ready => "ready",
+            Topic::Sync => "sync",
         }
     }
     /// Largest per-subscriber queue. The optimiser reads every state/command sample between its
@@ -84,7 +87,7 @@ impl Topic {
             Topic::State | Topic::Command => MAX_SYNC_SAMPLES + 8,
             Topic::Telemetry => 64,
             Topic::Params => 16,
-            Topic::OptimiserAck | Topic::Ready => 4,
+            Topic::OptimiserAck | Topic::Ready | Topic::Sync => 4,
         }
     }
 }
@@ -187,16 +190,19 @@ impl Ipc {
         })
     }
 
-    /// Announce on an event-only topic (e.g. `Topic::Ready`) that something happened.
+    /// Announce once on an event-only topic (e.g. `Topic::Ready`) that something happened.
     pub fn announce(&self, topic: Topic) -> Result<(), IpcError> {
-        let n = self
+        self.bell(topic)?.ring()
+    }
+
+    /// The ringing end of an event-only topic, kept for repeated use.
+    pub fn bell(&self, topic: Topic) -> Result<Bell, IpcError> {
+        let notifier = self
             .event(topic)?
             .notifier_builder()
             .create()
             .map_err(|e| err(format!("notifier on {}", topic.name()), e))?;
-        n.notify()
-            .map_err(|e| err(format!("notify on {}", topic.name()), e))?;
-        Ok(())
+        Ok(Bell { notifier, topic })
     }
 
     /// A listener on an event-only topic.
@@ -303,6 +309,21 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Pub<T> {
     /// Number of subscribers (all processes) connected to this topic.
     pub fn subscribers(&self) -> usize {
         self.service.dynamic_config().number_of_subscribers()
+    }
+}
+
+/// The ringing end of an event-only topic.
+pub struct Bell {
+    notifier: Notifier<ipc::Service>,
+    topic: Topic,
+}
+
+impl Bell {
+    pub fn ring(&self) -> Result<(), IpcError> {
+        self.notifier
+            .notify()
+            .map(|_| ())
+            .map_err(|e| err(format!("notify on {}", self.topic.name()), e))
     }
 }
 
