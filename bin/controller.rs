@@ -17,7 +17,7 @@ use evoloop::ipc::messages::{
     Command, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END, TELEMETRY_FLAG_MISSED,
     TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
 };
-use evoloop::ipc::{IpcError, Pub, Sub, Topic, Wait};
+use evoloop::ipc::{IpcError, Pub, Sub, Topic, Waited};
 use evoloop::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use evoloop::report::summary::{ControllerReport, ParamRecord};
 use evoloop::report::RunLog;
@@ -206,32 +206,21 @@ fn main() {
 }
 
 /// Wait for the next state, in slices so a signal is noticed. Ok(None): stopped.
+/// Wait for the next state sample. Ok(None): stopped by a signal.
 fn next_state(
     ports: &Ports,
     spin: Duration,
     timeout: Duration,
     stop: &AtomicBool,
 ) -> Result<Option<PlantState>, (i32, String)> {
-    let t0 = Instant::now();
-    loop {
-        if stop.load(Ordering::Relaxed) {
-            return Ok(None);
-        }
-        let left = timeout.saturating_sub(t0.elapsed());
-        if left.is_zero() {
-            return Err((
-                EXIT_PEER_TIMEOUT,
-                format!("no plant state within {timeout:?}"),
-            ));
-        }
-        match ports
-            .state
-            .wait_next(spin, left.min(Duration::from_millis(100)))
-        {
-            Ok(Wait::Got(s)) => return Ok(Some(s)),
-            Ok(Wait::TimedOut) => {}
-            Err(e) => return Err((EXIT_SETUP, e.to_string())),
-        }
+    match ports.state.wait_for(spin, timeout, stop, |_| true) {
+        Ok(Waited::Got(s)) => Ok(Some(s)),
+        Ok(Waited::Stopped) => Ok(None),
+        Ok(Waited::TimedOut) => Err((
+            EXIT_PEER_TIMEOUT,
+            format!("no plant state within {timeout:?}"),
+        )),
+        Err(e) => Err((EXIT_SETUP, e.to_string())),
     }
 }
 

@@ -12,7 +12,7 @@ use clap::Parser;
 use evoloop::cli::ProcessArgs;
 use evoloop::config::{Mode, Scenario};
 use evoloop::ipc::messages::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
-use evoloop::ipc::{Bell, Doorbell, Pub, Sub, Topic, Wait};
+use evoloop::ipc::{Bell, Doorbell, Pub, Sub, Topic, Waited};
 use evoloop::plant::PlantSim;
 use evoloop::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use evoloop::report::summary::PlantReport;
@@ -146,59 +146,40 @@ fn run_lockstep(
         if k % sync == 0 {
             // The optimiser sleeps between these samples and catches up on the queue here.
             ring(ports)?;
-            wait_until(&ports.ack, spin, timeout, stop, |a: &OptimiserAck| {
-                a.through_seq >= k
-            })
-            .map_err(|_| {
-                (
-                    EXIT_PEER_TIMEOUT,
-                    format!("optimiser did not acknowledge sample {k} within {timeout:?}"),
-                )
-            })?;
+            let ack = ports
+                .ack
+                .wait_for(spin, timeout, stop, |a: &OptimiserAck| a.through_seq >= k)
+                .map_err(|e| (EXIT_SETUP, e.to_string()))?;
+            match ack {
+                Waited::Got(_) => {}
+                Waited::Stopped => return Ok(()),
+                Waited::TimedOut => {
+                    return Err((
+                        EXIT_PEER_TIMEOUT,
+                        format!("optimiser did not acknowledge sample {k} within {timeout:?}"),
+                    ))
+                }
+            }
         }
-        let cmd = wait_until(&ports.command, spin, timeout, stop, |c: &Command| {
-            c.state_seq == k
-        })
-        .map_err(|_| {
-            (
-                EXIT_PEER_TIMEOUT,
-                format!("controller did not answer sample {k} within {timeout:?}"),
-            )
-        })?;
-        let Some(cmd) = cmd else { return Ok(()) }; // stopped by a signal
+        let cmd = match ports
+            .command
+            .wait_for(spin, timeout, stop, |c: &Command| c.state_seq == k)
+            .map_err(|e| (EXIT_SETUP, e.to_string()))?
+        {
+            Waited::Got(c) => c,
+            Waited::Stopped => return Ok(()),
+            Waited::TimedOut => {
+                return Err((
+                    EXIT_PEER_TIMEOUT,
+                    format!("controller did not answer sample {k} within {timeout:?}"),
+                ))
+            }
+        };
         report.commands_received += 1;
         u[..n_u].copy_from_slice(&cmd.u[..n_u]);
         sim.advance(&u[..n_u], dt);
     }
     Ok(())
-}
-
-/// Wait for a message satisfying `done`, discarding others. Ok(None) when stopped by a signal,
-/// Err(()) on timeout.
-fn wait_until<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
-    sub: &Sub<T>,
-    spin: Duration,
-    timeout: Duration,
-    stop: &AtomicBool,
-    done: impl Fn(&T) -> bool,
-) -> Result<Option<T>, ()> {
-    let t0 = Instant::now();
-    // Block in slices so a signal is noticed within 100 ms even if a peer hangs.
-    let slice = Duration::from_millis(100);
-    loop {
-        if stop.load(Ordering::Relaxed) {
-            return Ok(None);
-        }
-        let left = timeout.saturating_sub(t0.elapsed());
-        if left.is_zero() {
-            return Err(());
-        }
-        match sub.wait_next(spin, left.min(slice)) {
-            Ok(Wait::Got(m)) if done(&m) => return Ok(Some(m)),
-            Ok(_) => {}
-            Err(_) => return Err(()),
-        }
-    }
 }
 
 fn run_realtime(

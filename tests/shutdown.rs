@@ -38,6 +38,19 @@ fn start(
     child
 }
 
+/// Wait (up to 5 s) until no process of the run is left.
+fn wait_gone(run_id: &str) {
+    let t0 = Instant::now();
+    while !processes_with(run_id).is_empty() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(5),
+            "processes left: {:?}",
+            processes_with(run_id)
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 fn wait_exit(child: &mut std::process::Child, limit: Duration) -> std::process::ExitStatus {
     let t0 = Instant::now();
     loop {
@@ -67,15 +80,7 @@ fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
     unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
     let status = wait_exit(&mut child, Duration::from_secs(15));
     assert_eq!(status.code(), Some(130), "interrupted runs exit with 130");
-    let t0 = Instant::now();
-    while !processes_with(&run_id).is_empty() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(5),
-            "processes left: {:?}",
-            processes_with(&run_id)
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_gone(&run_id);
     assert_eq!(
         leftovers(&prefix),
         Vec::<String>::new(),
@@ -99,11 +104,7 @@ fn a_killed_run_is_cleaned_up_by_the_next_start() {
         unsafe { libc::kill(pid as i32, libc::SIGKILL) };
     }
     let _ = child.wait();
-    let t0 = Instant::now();
-    while !processes_with(&run_id).is_empty() {
-        assert!(t0.elapsed() < Duration::from_secs(5));
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_gone(&run_id);
     assert!(
         !leftovers(&prefix).is_empty(),
         "a killed run leaves resources behind"
@@ -145,15 +146,7 @@ fn a_child_that_dies_fails_the_run_and_the_others_are_stopped() {
     unsafe { libc::kill(plant as i32, libc::SIGKILL) };
     let status = wait_exit(&mut child, Duration::from_secs(15));
     assert_eq!(status.code(), Some(1), "a failed child fails the run");
-    let t0 = Instant::now();
-    while !processes_with(&run_id).is_empty() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(5),
-            "processes left: {:?}",
-            processes_with(&run_id)
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_gone(&run_id);
     assert_eq!(
         leftovers(&prefix),
         Vec::<String>::new(),

@@ -282,15 +282,7 @@ fn write_out(
             )
         })
         .collect();
-    let series: Vec<XySeries> = curves
-        .iter()
-        .map(|(n, x, y)| XySeries {
-            name: n,
-            x,
-            y,
-            style: Style::Line,
-        })
-        .collect();
+    let series = XySeries::from_curves(&curves, Style::Line);
     xy_png(
         &dir.join("latency_cdf.png"),
         "Round-trip latency CDF: evoloop vs bare iceoryx2, busy-poll and event wake-up",

@@ -292,15 +292,7 @@ fn plot(dir: &Path, results: &[LoopResult]) -> Result<(), String> {
         let secs: Vec<f64> = cycle.iter().map(|c| c / r.rate_hz).collect();
         curves.push((format!("{} lateness", r.privileges), secs, late));
     }
-    let series: Vec<XySeries> = curves
-        .iter()
-        .map(|(n, x, y)| XySeries {
-            name: n,
-            x,
-            y,
-            style: Style::Points,
-        })
-        .collect();
+    let series = XySeries::from_curves(&curves, Style::Points);
     xy_png(
         &dir.join("loop_lateness.png"),
         "Controller wake-up lateness over time",

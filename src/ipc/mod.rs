@@ -358,7 +358,46 @@ pub enum Wait<T> {
     TimedOut,
 }
 
+/// How `Sub::wait_for` ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Waited<T> {
+    Got(T),
+    /// The stop flag was raised (SIGINT/SIGTERM).
+    Stopped,
+    TimedOut,
+}
+
+/// A blocking wait is cut into slices this long so a stop request is noticed even when the peer
+/// has gone silent.
+const STOP_CHECK: Duration = Duration::from_millis(100);
+
 impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
+    /// Wait up to `timeout` for a sample satisfying `done`, discarding the others, noticing
+    /// `stop` within 100 ms. Polls for `spin` per slice before blocking on the event.
+    pub fn wait_for(
+        &self,
+        spin: Duration,
+        timeout: Duration,
+        stop: &std::sync::atomic::AtomicBool,
+        done: impl Fn(&T) -> bool,
+    ) -> Result<Waited<T>, IpcError> {
+        let t0 = Instant::now();
+        loop {
+            if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                return Ok(Waited::Stopped);
+            }
+            let left = timeout.saturating_sub(t0.elapsed());
+            if left.is_zero() {
+                return Ok(Waited::TimedOut);
+            }
+            if let Wait::Got(m) = self.wait_next(spin, left.min(STOP_CHECK))? {
+                if done(&m) {
+                    return Ok(Waited::Got(m));
+                }
+            }
+        }
+    }
+
     /// The oldest unread sample, if any (in-order consumption).
     pub fn next(&self) -> Result<Option<T>, IpcError> {
         match self.subscriber.receive() {

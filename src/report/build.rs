@@ -10,10 +10,7 @@ use super::Table;
 use crate::config::Scenario;
 use std::path::Path;
 
-fn read_json<T: serde::de::DeserializeOwned + Default>(
-    dir: &Path,
-    name: &str,
-) -> Result<T, String> {
+fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
     let p = dir.join(name);
     let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
     serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))

@@ -141,6 +141,19 @@ pub struct XySeries<'a> {
     pub style: Style,
 }
 
+/// A named curve owned by its caller: (name, x, y).
+pub type Curve = (String, Vec<f64>, Vec<f64>);
+
+impl<'a> XySeries<'a> {
+    /// Borrow each curve as a series drawn in `style`.
+    pub fn from_curves(curves: &'a [Curve], style: Style) -> Vec<XySeries<'a>> {
+        curves
+            .iter()
+            .map(|(name, x, y)| XySeries { name, x, y, style })
+            .collect()
+    }
+}
+
 /// One x-y chart (lines and/or scatter) with a legend; empty names are left out of it.
 pub fn xy_png(
     path: &Path,
