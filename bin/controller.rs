@@ -60,6 +60,7 @@ struct Loop {
     n_y: usize,
     n_u: usize,
     n_q: usize,
+    n_r: usize,
     row: Vec<f64>,
 }
 
@@ -67,7 +68,10 @@ impl Loop {
     fn new(scn: &Scenario) -> Self {
         let plant = scn.build_plant();
         let (n_y, n_u, n_q) = (plant.n_outputs(), plant.n_inputs(), plant.n_joints());
+        // Joint 0's reference keeps the name `reference`; joint-space trajectories add r1, r2, ...
+        let n_r = scn.reference.joints();
         let mut header = vec!["t".to_string(), "reference".to_string()];
+        header.extend((1..n_r).map(|i| format!("r{i}")));
         header.extend((0..n_y).map(|i| format!("y{i}")));
         header.extend((0..n_u).map(|i| format!("u{i}")));
         header.extend((0..n_q).map(|i| format!("q{i}")));
@@ -86,6 +90,7 @@ impl Loop {
             n_y,
             n_u,
             n_q,
+            n_r,
         }
     }
 
@@ -146,6 +151,10 @@ impl Loop {
         r[0] = state.t;
         r[1] = tel.reference;
         let mut j = 2;
+        for i in 1..self.n_r {
+            r[j] = self.cycle.setpoint.q[i];
+            j += 1;
+        }
         for i in 0..self.n_y {
             r[j] = state.y[i];
             j += 1;

@@ -57,6 +57,9 @@ enum Cmd {
         #[command(subcommand)]
         cmd: evoloop::robust::cli::RobustCmd,
     },
+    /// Rigid-body dynamics of a robot file (D-H TOML or URDF) at one state: tau, M, G, V, and,
+    /// given --tau, the forward dynamics.
+    Dynamics(evoloop::dynamics::cli::DynamicsArgs),
     /// Benchmarks measured against the machine's own floor in the same run.
     Bench {
         #[command(subcommand)]
@@ -125,6 +128,7 @@ fn main() -> ExitCode {
             BenchCmd::Loop(a) => evoloop::bench::loop_bench::main(a),
         } as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(evoloop::robust::cli::main(cmd) as u8),
+        Some(Cmd::Dynamics(a)) => ExitCode::from(evoloop::dynamics::cli::main(a) as u8),
         Some(Cmd::Floor {
             rate,
             duration,

@@ -5,7 +5,8 @@
 //! names the file, the key (as a dotted path) and the reason, like
 //! `config/two_mass.toml: key `timing.period`: must be > 0 (got -0.01)`.
 
-use crate::control::{Controller, ParamBounds, StateFeedback};
+use crate::control::{ComputedTorque, Controller, ParamBounds, PdServo, StateFeedback};
+use crate::dynamics::Model;
 use crate::ipc::MAX_SYNC_SAMPLES;
 use crate::plant::two_mass::{Sensor, TwoMass};
 use crate::plant::Plant;
@@ -65,12 +66,23 @@ struct RawPlant {
     safe_command: Option<f64>,
     command_timeout_periods: Option<u32>,
     two_mass: Option<RawTwoMass>,
+    arm: Option<RawArm>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PlantKind {
     TwoMass,
+    /// A rigid-body arm from a D-H table or URDF file.
+    Arm,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawArm {
+    /// D-H TOML or URDF, relative to the scenario file.
+    robot: PathBuf,
+    initial_q: Option<Vec<f64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -92,12 +104,44 @@ struct RawController {
     u_limit: Option<f64>,
     stale_after_periods: Option<u32>,
     state_feedback: Option<RawStateFeedback>,
+    pd_servo: Option<RawJointGains>,
+    computed_torque: Option<RawJointGains>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ControllerKind {
     StateFeedback,
+    /// Joint P-D servo (RKGNN paper's "actual controller").
+    PdServo,
+    /// Computed torque with a rigid-body model.
+    ComputedTorque,
+}
+
+impl ControllerKind {
+    /// The `ipc::messages::KIND_*` its parameter sets carry.
+    pub fn message_kind(self) -> u32 {
+        use crate::ipc::messages as m;
+        match self {
+            ControllerKind::StateFeedback => m::KIND_STATE_FEEDBACK,
+            ControllerKind::PdServo => m::KIND_PD_SERVO,
+            ControllerKind::ComputedTorque => m::KIND_COMPUTED_TORQUE,
+        }
+    }
+}
+
+/// Per-joint gains of the P-D servo (`kp`, `kd`) and of computed torque (`kp`, `kv`, plus the
+/// start-up damping rate and an optional model file other than the plant's robot).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawJointGains {
+    kp: Vec<f64>,
+    kd: Option<Vec<f64>>,
+    kv: Option<Vec<f64>>,
+    startup_rate: Option<f64>,
+    model: Option<PathBuf>,
+    lower: Option<Vec<f64>>,
+    upper: Option<Vec<f64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -118,6 +162,11 @@ struct RawReference {
     offset: Option<f64>,
     times: Option<Vec<f64>>,
     values: Option<Vec<f64>>,
+    waypoints: Option<Vec<Vec<f64>>>,
+    offsets: Option<Vec<f64>>,
+    amplitudes: Option<Vec<Vec<f64>>>,
+    frequencies: Option<Vec<f64>>,
+    phases: Option<Vec<Vec<f64>>>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -126,6 +175,8 @@ enum ReferenceKind {
     Step,
     Square,
     Steps,
+    Quintic,
+    Sines,
 }
 
 #[derive(Debug, Deserialize)]
@@ -239,6 +290,16 @@ pub struct PlantSpec {
     pub initial_positions: [f64; 2],
     /// Spring-constant schedule (time, k), linearly interpolated; empty = constant `spring`.
     pub spring_schedule: Vec<(f64, f64)>,
+    /// The arm, for `kind = "arm"`.
+    pub arm: Option<ArmSpec>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ArmSpec {
+    /// The robot file as resolved (relative to the scenario file).
+    pub robot: PathBuf,
+    pub model: Model,
+    pub initial_q: Vec<f64>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -249,6 +310,12 @@ pub struct ControllerSpec {
     pub upper: Vec<f64>,
     pub u_limit: Option<f64>,
     pub stale_after_periods: u32,
+    /// Computed torque: psi's rate per sample (0 = off).
+    pub startup_rate: f64,
+    /// Computed torque: the controller's model (the plant's robot unless `model` is given).
+    pub model: Option<Model>,
+    /// Arms: torque limit per joint (from the robot description; infinite where none).
+    pub torque_limits: Vec<f64>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -350,6 +417,14 @@ impl Scenario {
     /// The plant model, with the configured parameters.
     pub fn build_plant(&self) -> Box<dyn Plant> {
         match self.plant.kind {
+            PlantKind::Arm => {
+                let arm = self
+                    .plant
+                    .arm
+                    .as_ref()
+                    .expect("validated: arm plants have [plant.arm]");
+                Box::new(crate::plant::Arm::new(arm.model.clone(), &arm.initial_q))
+            }
             PlantKind::TwoMass => {
                 let mut p = TwoMass::new(
                     self.plant.m1,
@@ -370,6 +445,18 @@ impl Scenario {
                 &self.controller.gains,
                 self.timing.period,
                 self.controller.u_limit,
+            )),
+            ControllerKind::PdServo => Box::new(PdServo::new(
+                &self.controller.gains,
+                &self.controller.torque_limits,
+            )),
+            ControllerKind::ComputedTorque => Box::new(ComputedTorque::new(
+                self.controller
+                    .model
+                    .clone()
+                    .expect("validated: computed torque has a model"),
+                &self.controller.gains,
+                self.controller.startup_rate,
             )),
         }
     }
@@ -397,6 +484,9 @@ impl Scenario {
         }
     }
 }
+
+/// Gains, lower bounds, upper bounds.
+type GainsAndBounds = (Vec<f64>, Vec<f64>, Vec<f64>);
 
 struct Validator {
     file: PathBuf,
@@ -452,9 +542,9 @@ impl Validator {
                 .unwrap_or_else(|| "scenario".into())
         });
         let timing = self.timing(raw.timing, ov)?;
-        let plant = self.plant(raw.plant, &timing)?;
-        let controller = self.controller(raw.controller, &plant)?;
         let reference = self.reference(raw.reference)?;
+        let plant = self.plant(raw.plant, &timing, &reference, path)?;
+        let controller = self.controller(raw.controller, &plant, path)?;
         let optimiser = self.optimiser(raw.optimiser, &timing, ov)?;
         let out_raw = raw.output.unwrap_or(RawOutput {
             dir: None,
@@ -534,7 +624,36 @@ impl Validator {
         })
     }
 
-    fn plant(&self, p: RawPlant, timing: &Timing) -> Result<PlantSpec, ConfigError> {
+    /// A path from the config, relative to the scenario file's directory.
+    fn resolve(scenario: &Path, rel: &Path) -> PathBuf {
+        if rel.is_absolute() {
+            rel.to_path_buf()
+        } else {
+            scenario.parent().unwrap_or(Path::new(".")).join(rel)
+        }
+    }
+
+    /// A robot file named by `key`, loaded and checked; its errors keep their own file and item.
+    fn robot(
+        &self,
+        key: &str,
+        scenario: &Path,
+        rel: &Path,
+    ) -> Result<(PathBuf, Model), ConfigError> {
+        let path = Self::resolve(scenario, rel);
+        match crate::dynamics::load(&path) {
+            Ok(m) => Ok((path, m)),
+            Err(e) => self.fail(key, format!("robot file does not load: {e}")),
+        }
+    }
+
+    fn plant(
+        &self,
+        p: RawPlant,
+        timing: &Timing,
+        reference: &Reference,
+        scenario: &Path,
+    ) -> Result<PlantSpec, ConfigError> {
         let step = p.step.unwrap_or(timing.period.min(1e-3));
         self.positive("plant.step", step)?;
         if step > timing.period {
@@ -559,7 +678,71 @@ impl Validator {
             return self.fail("plant.command_timeout_periods", "must be >= 1");
         }
         match p.kind {
+            PlantKind::Arm => {
+                self.unused("plant.two_mass", p.two_mass.is_some(), "by an arm plant")?;
+                let Some(arm) = p.arm else {
+                    return self.fail("plant.arm", "missing table [plant.arm] with `robot`");
+                };
+                let (robot, model) = self.robot("plant.arm.robot", scenario, &arm.robot)?;
+                let n = model.dof();
+                if reference.joints() != n {
+                    return self.fail(
+                        "reference",
+                        format!(
+                            "drives {} joint(s) but the robot `{}` has {n}; use a joint-space reference (quintic or sines) with {n} values per point",
+                            reference.joints(),
+                            model.name
+                        ),
+                    );
+                }
+                let initial_q = match arm.initial_q {
+                    Some(q) => {
+                        if q.len() != n {
+                            return self.fail(
+                                "plant.arm.initial_q",
+                                format!("needs {n} values (one per joint), got {}", q.len()),
+                            );
+                        }
+                        for (i, v) in q.iter().enumerate() {
+                            let b = &model.bodies[i].limits;
+                            self.range(&format!("plant.arm.initial_q[{i}]"), *v, b.q_min, b.q_max)?;
+                        }
+                        q
+                    }
+                    // Start where the trajectory starts.
+                    None => {
+                        let mut sp = crate::reference::Setpoint::default();
+                        reference.sample(0.0, &mut sp);
+                        sp.q[..n].to_vec()
+                    }
+                };
+                Ok(PlantSpec {
+                    kind: p.kind,
+                    step,
+                    noise_std,
+                    safe_command,
+                    command_timeout_periods,
+                    m1: 0.0,
+                    m2: 0.0,
+                    spring: 0.0,
+                    sensor: Sensor::default(),
+                    initial_positions: [0.0; 2],
+                    spring_schedule: Vec::new(),
+                    arm: Some(ArmSpec {
+                        robot,
+                        model,
+                        initial_q,
+                    }),
+                })
+            }
             PlantKind::TwoMass => {
+                self.unused("plant.arm", p.arm.is_some(), "by a two-mass plant")?;
+                if reference.joints() != 1 {
+                    return self.fail(
+                        "reference",
+                        "the two-mass plant follows a scalar reference (step, square or steps)",
+                    );
+                }
                 let tm = p.two_mass.unwrap_or(RawTwoMass {
                     m1: None,
                     m2: None,
@@ -596,6 +779,7 @@ impl Validator {
                     sensor: tm.sensor.unwrap_or_default(),
                     initial_positions: x0,
                     spring_schedule,
+                    arm: None,
                 })
             }
         }
@@ -640,26 +824,111 @@ impl Validator {
         Ok(times.into_iter().zip(values).collect())
     }
 
+    /// A tunable gain vector with its bounds: finite, `n` values, lower <= gain <= upper.
+    fn gains_in_bounds(
+        &self,
+        key: &str,
+        gains: Vec<f64>,
+        lower: Option<Vec<f64>>,
+        upper: Option<Vec<f64>>,
+        default_bound: f64,
+    ) -> Result<GainsAndBounds, ConfigError> {
+        let n = gains.len();
+        for (i, g) in gains.iter().enumerate() {
+            self.finite(&format!("{key}.gains[{i}]"), *g)?;
+        }
+        let lower = lower.unwrap_or_else(|| vec![-default_bound; n]);
+        let upper = upper.unwrap_or_else(|| vec![default_bound; n]);
+        for (k, b) in [("lower", &lower), ("upper", &upper)] {
+            if b.len() != n {
+                return self.fail(
+                    &format!("{key}.{k}"),
+                    format!("needs {n} values, got {}", b.len()),
+                );
+            }
+            for (i, v) in b.iter().enumerate() {
+                self.finite(&format!("{key}.{k}[{i}]"), *v)?;
+            }
+        }
+        for i in 0..n {
+            if lower[i] > upper[i] {
+                return self.fail(
+                    &format!("{key}.lower[{i}]"),
+                    format!("lower bound {} is above upper bound {}", lower[i], upper[i]),
+                );
+            }
+            if gains[i] < lower[i] || gains[i] > upper[i] {
+                return self.fail(
+                    &format!("{key}.gains[{i}]"),
+                    format!(
+                        "{} is outside its bounds [{}, {}]",
+                        gains[i], lower[i], upper[i]
+                    ),
+                );
+            }
+        }
+        Ok((gains, lower, upper))
+    }
+
     fn controller(
         &self,
         c: RawController,
         plant: &PlantSpec,
+        scenario: &Path,
     ) -> Result<ControllerSpec, ConfigError> {
         let u_limit = match c.u_limit {
             Some(l) => Some(self.positive("controller.u_limit", l)?),
             None => None,
         };
-        let n_x = match plant.kind {
-            PlantKind::TwoMass => 4,
+        let stale = c.stale_after_periods.unwrap_or(3);
+        if stale == 0 {
+            return self.fail("controller.stale_after_periods", "must be >= 1");
+        }
+        let tables = [
+            (
+                ControllerKind::StateFeedback,
+                "state_feedback",
+                c.state_feedback.is_some(),
+            ),
+            (ControllerKind::PdServo, "pd_servo", c.pd_servo.is_some()),
+            (
+                ControllerKind::ComputedTorque,
+                "computed_torque",
+                c.computed_torque.is_some(),
+            ),
+        ];
+        for (kind, name, present) in tables {
+            if kind != c.kind {
+                self.unused(
+                    &format!("controller.{name}"),
+                    present,
+                    "by this controller kind",
+                )?;
+            }
+        }
+        let mut spec = ControllerSpec {
+            kind: c.kind,
+            gains: Vec::new(),
+            lower: Vec::new(),
+            upper: Vec::new(),
+            u_limit,
+            stale_after_periods: stale,
+            startup_rate: 0.0,
+            model: None,
+            torque_limits: Vec::new(),
         };
         match c.kind {
             ControllerKind::StateFeedback => {
+                if plant.kind != PlantKind::TwoMass {
+                    return self.fail("controller.kind", "state_feedback drives the two_mass plant; arms take pd_servo or computed_torque");
+                }
                 let Some(sf) = c.state_feedback else {
                     return self.fail(
                         "controller.state_feedback",
                         "missing table [controller.state_feedback] with `gains`",
                     );
                 };
+                let n_x = 4;
                 let n = n_x + 1;
                 if sf.gains.len() != n {
                     return self.fail(
@@ -670,53 +939,103 @@ impl Validator {
                         ),
                     );
                 }
-                for (i, g) in sf.gains.iter().enumerate() {
-                    self.finite(&format!("controller.state_feedback.gains[{i}]"), *g)?;
+                (spec.gains, spec.lower, spec.upper) = self.gains_in_bounds(
+                    "controller.state_feedback",
+                    sf.gains,
+                    sf.lower,
+                    sf.upper,
+                    1e3,
+                )?;
+            }
+            ControllerKind::PdServo | ControllerKind::ComputedTorque => {
+                let (name, second, table) = if c.kind == ControllerKind::PdServo {
+                    ("pd_servo", "kd", c.pd_servo)
+                } else {
+                    ("computed_torque", "kv", c.computed_torque)
+                };
+                let key = format!("controller.{name}");
+                let Some(arm) = plant.arm.as_ref() else {
+                    return self.fail(
+                        "controller.kind",
+                        format!("{name} drives an arm plant (plant.kind = \"arm\")"),
+                    );
+                };
+                let Some(g) = table else {
+                    return self.fail(
+                        &key,
+                        format!("missing table [{key}] with `kp` and `{second}`"),
+                    );
+                };
+                let n = arm.model.dof();
+                let (k2, other) = if c.kind == ControllerKind::PdServo {
+                    (g.kd, g.kv.is_some().then_some("kv"))
+                } else {
+                    (g.kv, g.kd.is_some().then_some("kd"))
+                };
+                if let Some(o) = other {
+                    return self.fail(
+                        &format!("{key}.{o}"),
+                        format!("unknown here: this controller takes `kp` and `{second}`"),
+                    );
                 }
-                let lower = sf.lower.unwrap_or_else(|| vec![-1e3; n]);
-                let upper = sf.upper.unwrap_or_else(|| vec![1e3; n]);
-                for (key, b) in [
-                    ("controller.state_feedback.lower", &lower),
-                    ("controller.state_feedback.upper", &upper),
-                ] {
-                    if b.len() != n {
-                        return self.fail(key, format!("needs {n} values, got {}", b.len()));
-                    }
-                    for (i, v) in b.iter().enumerate() {
-                        self.finite(&format!("{key}[{i}]"), *v)?;
-                    }
-                }
-                for i in 0..n {
-                    if lower[i] > upper[i] {
+                let Some(k2) = k2 else {
+                    return self.fail(&format!("{key}.{second}"), "missing");
+                };
+                for (k, v) in [("kp", &g.kp), (second, &k2)] {
+                    if v.len() != n {
                         return self.fail(
-                            &format!("controller.state_feedback.lower[{i}]"),
-                            format!("lower bound {} is above upper bound {}", lower[i], upper[i]),
+                            &format!("{key}.{k}"),
+                            format!("needs {n} values (one per joint), got {}", v.len()),
                         );
                     }
-                    if sf.gains[i] < lower[i] || sf.gains[i] > upper[i] {
-                        return self.fail(
-                            &format!("controller.state_feedback.gains[{i}]"),
-                            format!(
-                                "{} is outside its bounds [{}, {}]",
-                                sf.gains[i], lower[i], upper[i]
-                            ),
-                        );
+                    for (i, x) in v.iter().enumerate() {
+                        if !x.is_finite() || *x < 0.0 {
+                            return self.fail(
+                                &format!("{key}.{k}[{i}]"),
+                                format!("must be a finite gain >= 0 (got {x})"),
+                            );
+                        }
                     }
                 }
-                let stale = c.stale_after_periods.unwrap_or(3);
-                if stale == 0 {
-                    return self.fail("controller.stale_after_periods", "must be >= 1");
+                let gains: Vec<f64> = g.kp.iter().chain(&k2).copied().collect();
+                (spec.gains, spec.lower, spec.upper) =
+                    self.gains_in_bounds(&key, gains, g.lower, g.upper, 1e6)?;
+                spec.torque_limits = arm.model.bodies.iter().map(|b| b.limits.effort).collect();
+                if c.kind == ControllerKind::ComputedTorque {
+                    spec.startup_rate = self.range(
+                        &format!("{key}.startup_rate"),
+                        g.startup_rate.unwrap_or(0.03),
+                        0.0,
+                        10.0,
+                    )?;
+                    spec.model = Some(match g.model {
+                        Some(rel) => {
+                            let (_, m) = self.robot(&format!("{key}.model"), scenario, &rel)?;
+                            if m.dof() != n {
+                                return self.fail(
+                                    &format!("{key}.model"),
+                                    format!("has {} joints, the plant {n}", m.dof()),
+                                );
+                            }
+                            m
+                        }
+                        None => arm.model.clone(),
+                    });
+                } else {
+                    self.unused(
+                        &format!("{key}.startup_rate"),
+                        g.startup_rate.is_some(),
+                        "by the P-D servo",
+                    )?;
+                    self.unused(
+                        &format!("{key}.model"),
+                        g.model.is_some(),
+                        "by the P-D servo",
+                    )?;
                 }
-                Ok(ControllerSpec {
-                    kind: c.kind,
-                    gains: sf.gains,
-                    lower,
-                    upper,
-                    u_limit,
-                    stale_after_periods: stale,
-                })
             }
         }
+        Ok(spec)
     }
 
     fn reference(&self, r: RawReference) -> Result<Reference, ConfigError> {
@@ -729,20 +1048,130 @@ impl Validator {
                 ),
             }
         };
+        let present = [
+            ("amplitude", r.amplitude.is_some()),
+            ("start", r.start.is_some()),
+            ("period", r.period.is_some()),
+            ("offset", r.offset.is_some()),
+            ("times", r.times.is_some()),
+            ("values", r.values.is_some()),
+            ("waypoints", r.waypoints.is_some()),
+            ("offsets", r.offsets.is_some()),
+            ("amplitudes", r.amplitudes.is_some()),
+            ("frequencies", r.frequencies.is_some()),
+            ("phases", r.phases.is_some()),
+        ];
+        let (kind_name, allowed): (&str, &[&str]) = match r.kind {
+            ReferenceKind::Step => ("step", &["amplitude", "start"]),
+            ReferenceKind::Square => ("square", &["amplitude", "period", "offset", "start"]),
+            ReferenceKind::Steps => ("steps", &["times", "values"]),
+            ReferenceKind::Quintic => ("quintic", &["times", "waypoints"]),
+            ReferenceKind::Sines => ("sines", &["offsets", "amplitudes", "frequencies", "phases"]),
+        };
+        for (k, p) in present {
+            if p && !allowed.contains(&k) {
+                return self.fail(
+                    &format!("reference.{k}"),
+                    format!(
+                        "not used by a `{kind_name}` reference (it takes {}); remove it",
+                        allowed.join(", ")
+                    ),
+                );
+            }
+        }
+        let joints = |key: &str, v: &[f64], n: usize| -> Result<(), ConfigError> {
+            if v.len() != n || n == 0 || n > crate::MAX_JOINTS {
+                return self.fail(
+                    key,
+                    format!(
+                        "needs {n} values, one per joint (1..={}), got {}",
+                        crate::MAX_JOINTS,
+                        v.len()
+                    ),
+                );
+            }
+            for (i, x) in v.iter().enumerate() {
+                self.finite(&format!("{key}[{i}]"), *x)?;
+            }
+            Ok(())
+        };
         match r.kind {
-            ReferenceKind::Step => {
-                self.unused("reference.period", r.period.is_some(), "by a step")?;
-                self.unused("reference.times", r.times.is_some(), "by a step")?;
-                self.unused("reference.values", r.values.is_some(), "by a step")?;
-                self.unused("reference.offset", r.offset.is_some(), "by a step")?;
-                Ok(Reference::Step {
-                    amplitude: need("amplitude", r.amplitude)?,
-                    start: self.range("reference.start", r.start.unwrap_or(0.0), 0.0, 1e9)?,
+            ReferenceKind::Quintic => {
+                let (Some(times), Some(waypoints)) = (r.times, r.waypoints) else {
+                    return self.fail("reference.waypoints", "a quintic trajectory needs `times` and `waypoints` (one array of joint values per time)");
+                };
+                if times.len() < 2 || times.len() != waypoints.len() {
+                    return self.fail(
+                        "reference.waypoints",
+                        format!(
+                            "needs at least 2 waypoints, as many as `times` ({}), got {}",
+                            times.len(),
+                            waypoints.len()
+                        ),
+                    );
+                }
+                let n = waypoints[0].len();
+                for (k, w) in waypoints.iter().enumerate() {
+                    joints(&format!("reference.waypoints[{k}]"), w, n)?;
+                }
+                for i in 0..times.len() {
+                    self.range(&format!("reference.times[{i}]"), times[i], 0.0, 1e9)?;
+                    if i > 0 && times[i] <= times[i - 1] {
+                        return self.fail(
+                            &format!("reference.times[{i}]"),
+                            "times must be strictly increasing",
+                        );
+                    }
+                }
+                Ok(Reference::Quintic { times, waypoints })
+            }
+            ReferenceKind::Sines => {
+                let (Some(offsets), Some(amplitudes), Some(frequencies)) =
+                    (r.offsets, r.amplitudes, r.frequencies)
+                else {
+                    return self.fail("reference.amplitudes", "a sum of sinusoids needs `offsets` (per joint), `amplitudes` (per joint, per frequency) and `frequencies` (Hz)");
+                };
+                let n = offsets.len();
+                joints("reference.offsets", &offsets, n)?;
+                if frequencies.is_empty() {
+                    return self.fail("reference.frequencies", "needs at least one frequency");
+                }
+                for (h, f) in frequencies.iter().enumerate() {
+                    self.range(&format!("reference.frequencies[{h}]"), *f, 0.0, 1e4)?;
+                }
+                let nh = frequencies.len();
+                let phases = r.phases.unwrap_or_else(|| vec![vec![0.0; nh]; n]);
+                for (key, m) in [("amplitudes", &amplitudes), ("phases", &phases)] {
+                    if m.len() != n {
+                        return self.fail(
+                            &format!("reference.{key}"),
+                            format!("needs {n} rows (one per joint), got {}", m.len()),
+                        );
+                    }
+                    for (j, row) in m.iter().enumerate() {
+                        if row.len() != nh {
+                            return self.fail(
+                                &format!("reference.{key}[{j}]"),
+                                format!("needs {nh} values (one per frequency), got {}", row.len()),
+                            );
+                        }
+                        for (h, x) in row.iter().enumerate() {
+                            self.finite(&format!("reference.{key}[{j}][{h}]"), *x)?;
+                        }
+                    }
+                }
+                Ok(Reference::Sines {
+                    offsets,
+                    amplitudes,
+                    frequencies,
+                    phases,
                 })
             }
+            ReferenceKind::Step => Ok(Reference::Step {
+                amplitude: need("amplitude", r.amplitude)?,
+                start: self.range("reference.start", r.start.unwrap_or(0.0), 0.0, 1e9)?,
+            }),
             ReferenceKind::Square => {
-                self.unused("reference.times", r.times.is_some(), "by a square wave")?;
-                self.unused("reference.values", r.values.is_some(), "by a square wave")?;
                 let period = need("period", r.period)?;
                 self.positive("reference.period", period)?;
                 Ok(Reference::Square {
@@ -753,14 +1182,6 @@ impl Validator {
                 })
             }
             ReferenceKind::Steps => {
-                for (k, present) in [
-                    ("amplitude", r.amplitude.is_some()),
-                    ("start", r.start.is_some()),
-                    ("period", r.period.is_some()),
-                    ("offset", r.offset.is_some()),
-                ] {
-                    self.unused(&format!("reference.{k}"), present, "by a step sequence")?;
-                }
                 let (Some(times), Some(values)) = (r.times, r.values) else {
                     return self.fail(
                         "reference.times",

@@ -11,6 +11,7 @@ pub mod bench;
 pub mod cli;
 pub mod config;
 pub mod control;
+pub mod dynamics;
 pub mod ipc;
 pub mod optim;
 pub mod plant;

@@ -1,6 +1,51 @@
-//! Reference signals r(t): a step, a square wave and a sequence of steps.
+//! Reference signals: scalar set-points r(t) (a step, a square wave, a sequence of steps) and
+//! joint-space trajectories with position, velocity and acceleration (rest-to-rest quintic
+//! segments through waypoints; sums of sinusoids), all sampled into a `Setpoint`.
 
+use crate::MAX_JOINTS;
 use serde::Serialize;
+use std::f64::consts::TAU;
+
+/// What the controller tracks at one instant: per joint (or output) a desired position,
+/// velocity and acceleration. Scalar references fill joint 0 with zero derivatives.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Setpoint {
+    pub n: usize,
+    pub q: [f64; MAX_JOINTS],
+    pub qd: [f64; MAX_JOINTS],
+    pub qdd: [f64; MAX_JOINTS],
+}
+
+impl Default for Setpoint {
+    fn default() -> Self {
+        Self {
+            n: 1,
+            q: [0.0; MAX_JOINTS],
+            qd: [0.0; MAX_JOINTS],
+            qdd: [0.0; MAX_JOINTS],
+        }
+    }
+}
+
+impl Setpoint {
+    pub fn scalar(r: f64) -> Self {
+        let mut s = Self::default();
+        s.q[0] = r;
+        s
+    }
+}
+
+/// Rest-to-rest quintic blend s(x) = 10x^3 - 15x^4 + 6x^5 on x in [0, 1] and its first two
+/// derivatives in x (zero velocity and acceleration at both ends).
+fn quintic(x: f64) -> (f64, f64, f64) {
+    let x2 = x * x;
+    let x3 = x2 * x;
+    (
+        x3 * (10.0 - 15.0 * x + 6.0 * x2),
+        30.0 * x2 * (1.0 - 2.0 * x + x2),
+        60.0 * x * (1.0 - 3.0 * x + 2.0 * x2),
+    )
+}
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub enum Reference {
@@ -16,9 +61,84 @@ pub enum Reference {
     },
     /// Piecewise constant: `values[i]` from `times[i]` on (0 before `times[0]`); times increasing.
     Steps { times: Vec<f64>, values: Vec<f64> },
+    /// Joint space, rest-to-rest quintic segments: `waypoints[k]` (one value per joint) at
+    /// `times[k]`, held before the first and after the last; zero velocity and acceleration at
+    /// every waypoint.
+    Quintic {
+        times: Vec<f64>,
+        waypoints: Vec<Vec<f64>>,
+    },
+    /// Joint space, sums of sinusoids:
+    /// q_j(t) = offsets[j] + sum_h amplitudes[j][h] sin(2 pi frequencies[h] t + phases[j][h]).
+    Sines {
+        offsets: Vec<f64>,
+        amplitudes: Vec<Vec<f64>>,
+        frequencies: Vec<f64>,
+        phases: Vec<Vec<f64>>,
+    },
 }
 
 impl Reference {
+    /// Number of joints (outputs) the reference drives.
+    pub fn joints(&self) -> usize {
+        match self {
+            Reference::Quintic { waypoints, .. } => waypoints.first().map_or(1, |w| w.len()),
+            Reference::Sines { offsets, .. } => offsets.len(),
+            _ => 1,
+        }
+    }
+
+    /// Sample the reference at time t. Allocation-free.
+    pub fn sample(&self, t: f64, sp: &mut Setpoint) {
+        sp.n = self.joints();
+        sp.qd = [0.0; MAX_JOINTS];
+        sp.qdd = [0.0; MAX_JOINTS];
+        match self {
+            Reference::Quintic { times, waypoints } => {
+                let last = times.len() - 1;
+                let k = times.iter().rposition(|tk| t >= *tk);
+                match k {
+                    None => sp.q[..sp.n].copy_from_slice(&waypoints[0]),
+                    Some(k) if k == last => sp.q[..sp.n].copy_from_slice(&waypoints[last]),
+                    Some(k) => {
+                        let dt = times[k + 1] - times[k];
+                        let (s, ds, dds) = quintic((t - times[k]) / dt);
+                        let (from, to) = (&waypoints[k], &waypoints[k + 1]);
+                        for j in 0..sp.n {
+                            let (a, b) = (from[j], to[j]);
+                            sp.q[j] = a + (b - a) * s;
+                            sp.qd[j] = (b - a) * ds / dt;
+                            sp.qdd[j] = (b - a) * dds / (dt * dt);
+                        }
+                    }
+                }
+            }
+            Reference::Sines {
+                offsets,
+                amplitudes,
+                frequencies,
+                phases,
+            } => {
+                for j in 0..sp.n {
+                    let (mut q, mut qd, mut qdd) = (offsets[j], 0.0, 0.0);
+                    for (h, f) in frequencies.iter().enumerate() {
+                        let w = TAU * f;
+                        let (sn, cs) = (w * t + phases[j][h]).sin_cos();
+                        let a = amplitudes[j][h];
+                        q += a * sn;
+                        qd += a * w * cs;
+                        qdd -= a * w * w * sn;
+                    }
+                    sp.q[j] = q;
+                    sp.qd[j] = qd;
+                    sp.qdd[j] = qdd;
+                }
+            }
+            _ => sp.q[0] = self.value(t),
+        }
+    }
+
+    /// Scalar value r(t) (joint 0 of a joint-space trajectory).
     pub fn value(&self, t: f64) -> f64 {
         match self {
             Reference::Step { amplitude, start } => {
@@ -56,6 +176,11 @@ impl Reference {
                 }
                 r
             }
+            Reference::Quintic { .. } | Reference::Sines { .. } => {
+                let mut sp = Setpoint::default();
+                self.sample(t, &mut sp);
+                sp.q[0]
+            }
         }
     }
 
@@ -75,6 +200,13 @@ impl Reference {
                 .copied()
                 .filter(|t| *t <= horizon)
                 .fold(0.0, f64::max),
+            Reference::Quintic { times, .. } => times
+                .iter()
+                .copied()
+                .filter(|t| *t <= horizon)
+                .fold(0.0, f64::max),
+            // A trajectory that never rests: there is no settling to measure.
+            Reference::Sines { .. } => horizon,
         }
     }
 }

@@ -6,7 +6,7 @@ use evoloop::control::{validate_params, Controller, ParamBounds, StateFeedback};
 use evoloop::ipc::messages::{ParamCode, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::{Plant, PlantSim};
-use evoloop::reference::Reference;
+use evoloop::reference::{Reference, Setpoint};
 use evoloop::report::metrics::response_metrics;
 use evoloop::rt::timing::Percentiles;
 use nalgebra::{DMatrix, DVector};
@@ -165,7 +165,7 @@ fn state_feedback_is_minus_k_x_hat_with_a_forward_euler_integrator() {
     let mut xi = 0.0;
     for k in 0..5 {
         let y = x[0] + 0.01 * k as f64;
-        c.step(&state(x, y, k), 1.0, &mut u);
+        c.step(&state(x, y, k), &Setpoint::scalar(1.0), &mut u);
         let expect = -(0..4).map(|i| DEFC[i] * x[i]).sum::<f64>() - DEFC[4] * xi;
         assert!((u[0] - expect).abs() < 1e-12);
         xi += dt * (1.0 - y);
@@ -205,7 +205,7 @@ fn a_swap_is_bumpless_and_then_follows_the_new_gains_exactly() {
     let mut u_prev = 0.0;
     for (k, s) in xs.iter().enumerate() {
         let mut u_old = [0.0];
-        old.step(s, 1.0, &mut u_old);
+        old.step(s, &Setpoint::scalar(1.0), &mut u_old);
         let ev = cyc.step(s, &mut tel);
         let u = cyc.u[0];
         if k < 20 {

@@ -4,7 +4,7 @@
 
 use super::{validate_params, Controller, ParamBounds};
 use crate::ipc::messages::{ParamCode, ParamSet, PlantState, Telemetry};
-use crate::reference::Reference;
+use crate::reference::{Reference, Setpoint};
 use crate::MAX_JOINTS;
 
 /// Capacity of the queue of parameter sets waiting for their cycle.
@@ -30,6 +30,8 @@ pub struct ControlCycle {
     /// Sets dropped because the queue was full.
     pub pending_dropped: u64,
     pub u: [f64; MAX_JOINTS],
+    /// The set-point of the last cycle (all joints).
+    pub setpoint: Setpoint,
     cycle: u64,
 }
 
@@ -43,6 +45,7 @@ impl ControlCycle {
             pending: Vec::with_capacity(PENDING_CAPACITY),
             pending_dropped: 0,
             u: [0.0; MAX_JOINTS],
+            setpoint: Setpoint::default(),
             cycle: 0,
         }
     }
@@ -65,7 +68,8 @@ impl ControlCycle {
     /// parameter event of this cycle if one happened. At most one set is handled per cycle, so
     /// each accept/reject gets its own telemetry record.
     pub fn step(&mut self, state: &PlantState, tel: &mut Telemetry) -> Option<ParamEvent> {
-        let r = self.reference.value(state.t);
+        self.reference.sample(state.t, &mut self.setpoint);
+        let sp = self.setpoint;
         let mut event = None;
         if let Some(i) = self
             .pending
@@ -77,7 +81,7 @@ impl ControlCycle {
             let (code, index) =
                 match validate_params(&set, c.kind(), c.n_params(), self.version, &self.bounds) {
                     Ok(()) => {
-                        self.controller.swap_params(set.values(), state, r);
+                        self.controller.swap_params(set.values(), state, &sp);
                         self.version = set.version;
                         (ParamCode::Accepted, 0)
                     }
@@ -92,12 +96,12 @@ impl ControlCycle {
             });
         }
         let n_u = self.controller.n_outputs();
-        self.controller.step(state, r, &mut self.u[..n_u]);
+        self.controller.step(state, &sp, &mut self.u[..n_u]);
         tel.cycle = self.cycle;
         tel.state_seq = state.seq;
         tel.t = state.t;
-        tel.reference = r;
-        tel.tracking_error = r - state.y[0];
+        tel.reference = sp.q[0];
+        tel.tracking_error = sp.q[0] - state.y[0];
         tel.n_u = n_u as u32;
         tel.u = self.u;
         tel.param_version = self.version;

@@ -2,13 +2,18 @@
 //! cycle without allocating. Parameter sets arrive from the optimiser; `validate` checks them at
 //! the boundary and `swap_params` puts an accepted set in service without a bump in u.
 
+pub mod computed_torque;
+pub mod pd_servo;
 pub mod state_feedback;
 pub mod validate;
 
+pub use computed_torque::ComputedTorque;
+pub use pd_servo::PdServo;
 pub use state_feedback::StateFeedback;
 pub use validate::{validate_params, ParamBounds, Rejection};
 
 use crate::ipc::messages::PlantState;
+use crate::reference::Setpoint;
 
 pub trait Controller: Send {
     /// `ipc::messages::KIND_*` this controller accepts parameter sets for.
@@ -19,13 +24,14 @@ pub trait Controller: Send {
     fn params(&self) -> &[f64];
     /// Number of control outputs.
     fn n_outputs(&self) -> usize;
-    /// One control cycle: read the state sample and reference, write u, advance internal state
-    /// (integrators) to the next cycle. Must not allocate.
-    fn step(&mut self, state: &PlantState, reference: f64, u: &mut [f64]);
+    /// One control cycle: read the state sample and the set-point, write u, advance internal
+    /// state (integrators) to the next cycle. Must not allocate.
+    fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]);
     /// Put a validated parameter set in service at this cycle boundary, before `step`, adjusting
     /// internal state so that `step` on the same sample returns the same u as the old set would
-    /// have (bumpless transfer).
-    fn swap_params(&mut self, new: &[f64], state: &PlantState, reference: f64);
+    /// have (bumpless transfer). Laws without internal state cannot absorb the difference; they
+    /// switch outright (the jump is proportional to the gain change times the tracking error).
+    fn swap_params(&mut self, new: &[f64], state: &PlantState, sp: &Setpoint);
 }
 
 pub mod cycle;

@@ -10,6 +10,7 @@
 
 use super::Controller;
 use crate::ipc::messages::{PlantState, KIND_STATE_FEEDBACK};
+use crate::reference::Setpoint;
 
 pub struct StateFeedback {
     gains: Vec<f64>,
@@ -67,7 +68,8 @@ impl Controller for StateFeedback {
         1
     }
 
-    fn step(&mut self, state: &PlantState, reference: f64, u: &mut [f64]) {
+    fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
+        let reference = sp.q[0];
         let raw = self.law(&state.x[..self.n_x]);
         let out = match self.u_limit {
             Some(l) => raw.clamp(-l, l),
@@ -82,7 +84,7 @@ impl Controller for StateFeedback {
         u[0] = out;
     }
 
-    fn swap_params(&mut self, new: &[f64], state: &PlantState, _reference: f64) {
+    fn swap_params(&mut self, new: &[f64], state: &PlantState, _sp: &Setpoint) {
         let x = &state.x[..self.n_x];
         let u_old = self.law(x);
         self.gains.copy_from_slice(new);

@@ -158,6 +158,8 @@ pub struct Telemetry {
 
 /// Controller kinds a parameter set can be meant for (`ParamSet::kind`).
 pub const KIND_STATE_FEEDBACK: u32 = 1;
+pub const KIND_PD_SERVO: u32 = 2;
+pub const KIND_COMPUTED_TORQUE: u32 = 3;
 
 /// A parameter set from the optimiser to the controller.
 #[repr(C)]

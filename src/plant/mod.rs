@@ -5,9 +5,11 @@
 //! The same `PlantSim` runs in the plant process, in the in-process simulation used by tests and
 //! (in later issues) in the optimiser's model evaluations.
 
+pub mod arm;
 pub mod integrator;
 pub mod two_mass;
 
+pub use arm::Arm;
 pub use integrator::Rk4;
 pub use two_mass::TwoMass;
 
@@ -35,6 +37,8 @@ pub trait Plant: Send {
     fn joints(&self, x: &[f64], q: &mut [f64], qd: &mut [f64]);
     /// Initial state.
     fn initial_state(&self, x: &mut [f64]);
+    /// Hard constraints applied after every integration step (e.g. joint stops). Default: none.
+    fn constrain(&self, _x: &mut [f64]) {}
 }
 
 /// A plant being simulated: the model plus all the buffers its integration needs, allocated once
@@ -84,6 +88,7 @@ impl PlantSim {
         let h = dt / n as f64;
         for _ in 0..n {
             self.rk.step(self.plant.as_ref(), self.t, &mut self.x, u, h);
+            self.plant.constrain(&mut self.x);
             self.t += h;
         }
     }

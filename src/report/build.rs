@@ -42,6 +42,15 @@ pub fn build_report(
         scn.timing.period,
         scn.reference.last_change(horizon),
     );
+    // Joint i's reference: `reference` for joint 0, then r1, r2, ... for trajectories.
+    let mut refs = vec![r.clone()];
+    refs.extend(run.cols_with_prefix("r").into_iter().map(|c| c.1));
+    let n_track = refs.len().min(ys.len());
+    let ref_cols: Vec<&[f64]> = refs[..n_track].iter().map(|v| v.as_slice()).collect();
+    let y_cols: Vec<&[f64]> = ys[..n_track].iter().map(|c| c.1.as_slice()).collect();
+    let tracking = super::metrics::tracking(&ref_cols, &y_cols, 0);
+    let after_1s = t.iter().position(|x| *x >= 1.0).unwrap_or(t.len());
+    let tracking_after_1s = super::metrics::tracking(&ref_cols, &y_cols, after_1s);
     let (accepted, rejected): (Vec<_>, Vec<_>) = ctrl
         .params
         .iter()
@@ -70,6 +79,8 @@ pub fn build_report(
             0.0
         },
         response,
+        tracking,
+        tracking_after_1s,
         overruns: ctrl.timing.overruns,
         deadline_misses: ctrl.timing.missed_deadlines,
         timing: ctrl.timing.clone(),
@@ -90,10 +101,20 @@ pub fn build_report(
     };
     crate::process::write_json(dir, "summary.json", &summary).map_err(|e| e.to_string())?;
     if scn.output.plots {
-        let mut top = vec![Series {
-            name: "reference",
-            values: &r,
-        }];
+        let ref_names: Vec<String> = (0..refs.len())
+            .map(|i| {
+                if i == 0 {
+                    "reference".into()
+                } else {
+                    format!("r{i}")
+                }
+            })
+            .collect();
+        let mut top: Vec<Series> = refs
+            .iter()
+            .zip(&ref_names)
+            .map(|(v, name)| Series { name, values: v })
+            .collect();
         for (name, v) in &ys {
             top.push(Series { name, values: v });
         }

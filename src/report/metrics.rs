@@ -71,3 +71,41 @@ pub fn response_metrics(
     }
     m
 }
+
+/// Tracking error per joint over a run: e_i = r_i - y_i.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Tracking {
+    /// Root-mean-square error per joint.
+    pub rms: Vec<f64>,
+    /// Largest |e| per joint.
+    pub max_abs: Vec<f64>,
+    /// RMS over all joints and samples.
+    pub rms_all: f64,
+}
+
+/// Tracking metrics from reference and output columns (one per joint), skipping the samples
+/// before `from` (e.g. a start-up transient).
+pub fn tracking(refs: &[&[f64]], ys: &[&[f64]], from: usize) -> Tracking {
+    let mut out = Tracking::default();
+    let (mut sum_all, mut n_all) = (0.0, 0usize);
+    for (r, y) in refs.iter().zip(ys) {
+        let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0usize);
+        for (ri, yi) in r.iter().zip(y.iter()).skip(from) {
+            let e = ri - yi;
+            sum += e * e;
+            max = max.max(e.abs());
+            n += 1;
+        }
+        out.rms
+            .push(if n > 0 { (sum / n as f64).sqrt() } else { 0.0 });
+        out.max_abs.push(max);
+        sum_all += sum;
+        n_all += n;
+    }
+    out.rms_all = if n_all > 0 {
+        (sum_all / n_all as f64).sqrt()
+    } else {
+        0.0
+    };
+    out
+}

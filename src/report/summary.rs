@@ -103,6 +103,10 @@ pub struct Summary {
     /// Control cycles per wall-clock second across the processes.
     pub throughput_samples_per_s: f64,
     pub response: ResponseMetrics,
+    /// Tracking error per joint (r_i - y_i) over the whole run.
+    pub tracking: super::metrics::Tracking,
+    /// The same from t = 1 s on (past start-up transients such as computed torque's psi(k)).
+    pub tracking_after_1s: super::metrics::Tracking,
     pub timing: TimingSummary,
     pub overruns: u64,
     pub deadline_misses: u64,

@@ -18,7 +18,7 @@ pub fn scheduled_set(scn: &Scenario, i: usize, apply_at_seq: u64) -> ParamSet {
     let mut p = ParamSet {
         version: i as u64 + 1,
         apply_at_seq,
-        kind: crate::ipc::messages::KIND_STATE_FEEDBACK,
+        kind: scn.controller.kind.message_kind(),
         n: s.values.len() as u32,
         ..ParamSet::default()
     };
@@ -105,8 +105,9 @@ pub fn response(
     let mut u = [0.0; crate::MAX_JOINTS];
     for k in 0..n {
         sim.sample(k as u64, 0, &u[..n_u], &mut state);
-        let r = reference.value(state.t);
-        controller.step(&state, r, &mut u[..n_u]);
+        let mut sp = crate::reference::Setpoint::default();
+        reference.sample(state.t, &mut sp);
+        controller.step(&state, &sp, &mut u[..n_u]);
         t.push(state.t);
         y.push(state.y[0]);
         us.push(u[0]);

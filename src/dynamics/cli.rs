@@ -1,0 +1,194 @@
+//! `evoloop dynamics`: inverse and forward dynamics of a robot file at one state.
+
+use super::Model;
+use clap::Args;
+use nalgebra::DMatrix;
+use serde_json::json;
+use std::path::PathBuf;
+
+#[derive(Args)]
+#[command(allow_negative_numbers = true)]
+pub struct DynamicsArgs {
+    /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Joint positions, comma separated (rad or m), in the file's joint order [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub q: Option<Vec<f64>>,
+    /// Joint velocities [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub qd: Option<Vec<f64>>,
+    /// Joint accelerations [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub qdd: Option<Vec<f64>>,
+    /// Joint torques/forces: also print the forward dynamics qdd = M^-1 (tau - V - G - F).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub tau: Option<Vec<f64>>,
+    /// Print JSON (keys joints, tau, M, G, V, F, C and, given --tau, qdd).
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn vector(name: &str, v: Option<Vec<f64>>, n: usize) -> Result<Vec<f64>, String> {
+    let v = v.unwrap_or_else(|| vec![0.0; n]);
+    if v.len() != n {
+        return Err(format!(
+            "--{name} needs {n} values (one per joint), got {}",
+            v.len()
+        ));
+    }
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(format!("--{name}[{i}] is not a finite number"));
+    }
+    Ok(v)
+}
+
+fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows())
+        .map(|i| m.row(i).iter().copied().collect())
+        .collect()
+}
+
+/// Everything `evoloop dynamics` prints, computed by the library's algorithms.
+pub struct Evaluation {
+    pub tau: Vec<f64>,
+    pub m: DMatrix<f64>,
+    pub g: Vec<f64>,
+    pub v: Vec<f64>,
+    pub f: Vec<f64>,
+    pub c: DMatrix<f64>,
+    pub qdd: Option<Vec<f64>>,
+}
+
+pub fn evaluate(
+    model: &Model,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    tau_in: Option<&[f64]>,
+) -> Result<Evaluation, String> {
+    let n = model.dof();
+    let mut d = model.data();
+    let mut tau = vec![0.0; n];
+    model.inverse_dynamics(&mut d, q, qd, qdd, &mut tau);
+    let m = model.mass_matrix(&mut d, q).clone();
+    let mut g = vec![0.0; n];
+    model.gravity_torque(&mut d, q, &mut g);
+    let mut v = vec![0.0; n];
+    model.coriolis(&mut d, q, qd, &mut v);
+    let mut f = vec![0.0; n];
+    model.friction(qd, &mut f);
+    let mut c = DMatrix::zeros(n, n);
+    model.coriolis_matrix(&mut d, q, qd, &mut c);
+    let qdd_out = match tau_in {
+        Some(t) => {
+            let mut out = vec![0.0; n];
+            model
+                .forward_dynamics(&mut d, q, qd, t, &mut out)
+                .map_err(|e| {
+                    format!(
+                        "M(q) is not positive definite at this q (joint {})",
+                        e.joint
+                    )
+                })?;
+            Some(out)
+        }
+        None => None,
+    };
+    Ok(Evaluation {
+        tau,
+        m,
+        g,
+        v,
+        f,
+        c,
+        qdd: qdd_out,
+    })
+}
+
+pub fn main(a: DynamicsArgs) -> i32 {
+    let usage = |msg: &str| {
+        eprintln!("evoloop dynamics: {msg}");
+        2
+    };
+    let model = match super::load(&a.robot) {
+        Ok(m) => m,
+        Err(e) => return usage(&e.to_string()),
+    };
+    let n = model.dof();
+    let q = match vector("q", a.q, n) {
+        Ok(v) => v,
+        Err(e) => return usage(&e),
+    };
+    let qd = match vector("qd", a.qd, n) {
+        Ok(v) => v,
+        Err(e) => return usage(&e),
+    };
+    let qdd = match vector("qdd", a.qdd, n) {
+        Ok(v) => v,
+        Err(e) => return usage(&e),
+    };
+    let tau_in = match a.tau {
+        Some(t) => match vector("tau", Some(t), n) {
+            Ok(v) => Some(v),
+            Err(e) => return usage(&e),
+        },
+        None => None,
+    };
+    let ev = match evaluate(&model, &q, &qd, &qdd, tau_in.as_deref()) {
+        Ok(e) => e,
+        Err(e) => return usage(&e),
+    };
+    let joints: Vec<&str> = model.bodies.iter().map(|b| b.joint.as_str()).collect();
+    if a.json {
+        let mut out = json!({
+            "robot": model.name,
+            "joints": joints,
+            "gravity": [model.gravity.x, model.gravity.y, model.gravity.z],
+            "q": q, "qd": qd, "qdd_in": qdd,
+            "tau": ev.tau,
+            "M": rows(&ev.m),
+            "G": ev.g,
+            "V": ev.v,
+            "F": ev.f,
+            "C": rows(&ev.c),
+        });
+        if let Some(x) = &ev.qdd {
+            out["qdd"] = json!(x);
+            out["tau_in"] = json!(tau_in);
+        }
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&out).expect("plain numbers serialise")
+        );
+        return 0;
+    }
+    let fmt = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:>12.6}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    println!(
+        "robot {} ({} joints: {}), gravity {:?} m/s^2, SI units",
+        model.name,
+        n,
+        joints.join(", "),
+        model.gravity.to_array()
+    );
+    println!("tau = M qdd + V + G + F:\n  {}", fmt(&ev.tau));
+    println!("M(q):");
+    for i in 0..n {
+        println!("  {}", fmt(&rows(&ev.m)[i]));
+    }
+    println!("G(q):\n  {}", fmt(&ev.g));
+    println!("V(q, qd):\n  {}", fmt(&ev.v));
+    println!("F(qd):\n  {}", fmt(&ev.f));
+    if let Some(x) = &ev.qdd {
+        println!(
+            "forward dynamics qdd = M^-1 (tau - V - G - F) for the given tau:\n  {}",
+            fmt(x)
+        );
+    }
+    0
+}

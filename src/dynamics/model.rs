@@ -1,0 +1,443 @@
+//! A kinematic tree of rigid bodies, each attached to its parent by one revolute or prismatic
+//! joint, and the dynamics algorithms on it. `Model` is the robot (immutable, shareable);
+//! `Data` holds every buffer the algorithms write, allocated once (Pinocchio's Model/Data split),
+//! so no call allocates and a controller and a plant can each own their own `Data`.
+//!
+//! Equation of motion (RKGNN paper, eq. 1): tau = M(q) qdd + V(q, qd) + G(q) + F(qd).
+
+use super::spatial::{Force, Inertia, Motion, Transform};
+use glam::{DMat3, DVec3};
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JointKind {
+    Revolute,
+    Prismatic,
+}
+
+/// Joint friction: viscous plus Coulomb, the Coulomb part smoothed by tanh(qd / v_smooth) so the
+/// equations stay Lipschitz through zero velocity (an integrator-friendly stand-in for stiction).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Friction {
+    pub viscous: f64,
+    pub coulomb: f64,
+    pub v_smooth: f64,
+}
+
+impl Default for Friction {
+    fn default() -> Self {
+        Self {
+            viscous: 0.0,
+            coulomb: 0.0,
+            v_smooth: 0.01,
+        }
+    }
+}
+
+impl Friction {
+    pub fn torque(&self, qd: f64) -> f64 {
+        self.viscous * qd + self.coulomb * (qd / self.v_smooth).tanh()
+    }
+}
+
+/// Joint limits; infinite where the description gives none.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Limits {
+    pub q_min: f64,
+    pub q_max: f64,
+    pub velocity: f64,
+    pub effort: f64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            q_min: f64::NEG_INFINITY,
+            q_max: f64::INFINITY,
+            velocity: f64::INFINITY,
+            effort: f64::INFINITY,
+        }
+    }
+}
+
+/// One moving body and the joint that moves it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Body {
+    /// The joint's name (URDF joint name, or `joint<i>` for D-H rows).
+    pub joint: String,
+    /// The body's (link's) name.
+    pub link: String,
+    /// Index of the parent body; `None` for bodies attached to the fixed root.
+    pub parent: Option<usize>,
+    /// Parent body frame → joint frame (before the joint moves).
+    #[serde(skip)]
+    pub placement: Transform,
+    pub kind: JointKind,
+    /// Unit joint axis in the joint frame.
+    #[serde(skip)]
+    pub axis: DVec3,
+    /// The body's inertia in its own frame (the joint frame after the joint's motion).
+    #[serde(skip)]
+    pub inertia: Inertia,
+    pub friction: Friction,
+    pub limits: Limits,
+    /// Reflected rotor inertia added to M's diagonal (Pinocchio's and MuJoCo's `armature`).
+    pub armature: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Model {
+    pub name: String,
+    /// Bodies in an order where every parent precedes its children.
+    pub bodies: Vec<Body>,
+    /// Gravitational acceleration in root coordinates (m/s^2).
+    #[serde(skip)]
+    pub gravity: DVec3,
+}
+
+/// Buffers for the algorithms on one model.
+#[derive(Debug, Clone)]
+pub struct Data {
+    /// Parent → body transforms at the last `update` configuration.
+    pub x: Vec<Transform>,
+    /// Joint motion subspaces (axis) per body, in body coordinates.
+    s: Vec<Motion>,
+    v: Vec<Motion>,
+    a: Vec<Motion>,
+    f: Vec<Force>,
+    ic: Vec<Inertia>,
+    /// The joint-space inertia matrix from the last `mass_matrix` call.
+    pub m: DMatrix<f64>,
+    /// Workspace for the Cholesky factor (M is kept intact).
+    chol: DMatrix<f64>,
+    rhs: DVector<f64>,
+    tmp: Vec<f64>,
+    tmp2: Vec<f64>,
+}
+
+/// M(q) is not positive definite at this configuration (a body carries no inertia).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NotPositiveDefinite {
+    /// The first joint whose pivot failed.
+    pub joint: usize,
+}
+
+impl Model {
+    /// Number of joints (degrees of freedom).
+    pub fn dof(&self) -> usize {
+        self.bodies.len()
+    }
+
+    pub fn data(&self) -> Data {
+        let n = self.dof();
+        Data {
+            x: vec![Transform::IDENTITY; n],
+            s: self
+                .bodies
+                .iter()
+                .map(|b| match b.kind {
+                    JointKind::Revolute => Motion {
+                        w: b.axis,
+                        v: DVec3::ZERO,
+                    },
+                    JointKind::Prismatic => Motion {
+                        w: DVec3::ZERO,
+                        v: b.axis,
+                    },
+                })
+                .collect(),
+            v: vec![Motion::ZERO; n],
+            a: vec![Motion::ZERO; n],
+            f: vec![Force::ZERO; n],
+            ic: vec![Inertia::ZERO; n],
+            m: DMatrix::zeros(n, n),
+            chol: DMatrix::zeros(n, n),
+            rhs: DVector::zeros(n),
+            tmp: vec![0.0; n],
+            tmp2: vec![0.0; n],
+        }
+    }
+
+    /// The parent → body transforms for configuration q.
+    pub fn update(&self, d: &mut Data, q: &[f64]) {
+        for (i, b) in self.bodies.iter().enumerate() {
+            let joint = match b.kind {
+                JointKind::Revolute => {
+                    // Rotation about the unit axis by q: child axes in joint coordinates are
+                    // R(axis, q); the transform rotates joint coordinates into child ones by Rᵀ.
+                    let r = if b.axis == DVec3::Z {
+                        DMat3::from_rotation_z(q[i])
+                    } else {
+                        DMat3::from_axis_angle(b.axis, q[i])
+                    };
+                    Transform::from_placement(r, DVec3::ZERO)
+                }
+                JointKind::Prismatic => Transform {
+                    e: DMat3::IDENTITY,
+                    r: b.axis * q[i],
+                },
+            };
+            d.x[i] = b.placement.then(&joint);
+        }
+    }
+
+    /// Recursive Newton-Euler on the transforms of the last `update`: tau = M qdd + V + G
+    /// (qdd = None means zero acceleration; `gravity` false drops G). Friction not included.
+    fn rnea_pass(
+        &self,
+        d: &mut Data,
+        qd: &[f64],
+        qdd: Option<&[f64]>,
+        gravity: bool,
+        tau: &mut [f64],
+    ) {
+        // Gravity enters as a fictitious upward acceleration of the root (Featherstone 5.3).
+        let a_root = Motion {
+            w: DVec3::ZERO,
+            v: if gravity { -self.gravity } else { DVec3::ZERO },
+        };
+        for (i, b) in self.bodies.iter().enumerate() {
+            let x = d.x[i];
+            let (v_p, a_p) = match b.parent {
+                Some(p) => (d.v[p], d.a[p]),
+                None => (Motion::ZERO, a_root),
+            };
+            let vj = d.s[i].scaled(qd[i]);
+            let v = x.apply_motion(v_p) + vj;
+            let mut a = x.apply_motion(a_p) + v.cross_motion(vj);
+            if let Some(qdd) = qdd {
+                a = a + d.s[i].scaled(qdd[i]);
+            }
+            d.v[i] = v;
+            d.a[i] = a;
+            d.f[i] = b.inertia.apply(a) + v.cross_force(b.inertia.apply(v));
+        }
+        for i in (0..self.dof()).rev() {
+            let fi = d.f[i];
+            tau[i] = d.s[i].dot(fi);
+            if let Some(qdd) = qdd {
+                tau[i] += self.bodies[i].armature * qdd[i];
+            }
+            if let Some(p) = self.bodies[i].parent {
+                let fp = d.x[i].apply_transpose_force(fi);
+                d.f[p] = d.f[p] + fp;
+            }
+        }
+    }
+
+    /// Composite rigid body algorithm on the transforms of the last `update`, into `d.m`.
+    fn crba_pass(&self, d: &mut Data) {
+        let n = self.dof();
+        for i in 0..n {
+            d.ic[i] = self.bodies[i].inertia;
+        }
+        for i in (0..n).rev() {
+            if let Some(p) = self.bodies[i].parent {
+                let add = d.ic[i].to_parent(&d.x[i]);
+                d.ic[p] = d.ic[p] + add;
+            }
+        }
+        for i in 0..n {
+            let mut f = d.ic[i].apply(d.s[i]);
+            d.m[(i, i)] = d.s[i].dot(f) + self.bodies[i].armature;
+            let mut j = i;
+            while let Some(p) = self.bodies[j].parent {
+                f = d.x[j].apply_transpose_force(f);
+                j = p;
+                let mij = d.s[j].dot(f);
+                d.m[(i, j)] = mij;
+                d.m[(j, i)] = mij;
+            }
+        }
+        // Entries between bodies on different branches stay zero.
+    }
+
+    /// Joint friction F(qd).
+    pub fn friction(&self, qd: &[f64], out: &mut [f64]) {
+        for (i, b) in self.bodies.iter().enumerate() {
+            out[i] = b.friction.torque(qd[i]);
+        }
+    }
+
+    /// Inverse dynamics tau = M qdd + V + G + F.
+    pub fn inverse_dynamics(
+        &self,
+        d: &mut Data,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        tau: &mut [f64],
+    ) {
+        self.update(d, q);
+        self.rnea_pass(d, qd, Some(qdd), true, tau);
+        for (i, b) in self.bodies.iter().enumerate() {
+            tau[i] += b.friction.torque(qd[i]);
+        }
+    }
+
+    /// Rigid-body inverse dynamics M qdd + V + G (no friction): what Pinocchio's `rnea` returns.
+    pub fn rnea(&self, d: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64], tau: &mut [f64]) {
+        self.update(d, q);
+        self.rnea_pass(d, qd, Some(qdd), true, tau);
+    }
+
+    /// The joint-space inertia matrix M(q), left in `d.m` (and returned).
+    pub fn mass_matrix<'d>(&self, d: &'d mut Data, q: &[f64]) -> &'d DMatrix<f64> {
+        self.update(d, q);
+        self.crba_pass(d);
+        &d.m
+    }
+
+    /// The gravity vector G(q).
+    pub fn gravity_torque(&self, d: &mut Data, q: &[f64], out: &mut [f64]) {
+        self.update(d, q);
+        let zero = std::mem::take(&mut d.tmp);
+        self.rnea_pass(d, &zero, None, true, out);
+        d.tmp = zero;
+    }
+
+    /// The centrifugal and Coriolis vector V(q, qd).
+    pub fn coriolis(&self, d: &mut Data, q: &[f64], qd: &[f64], out: &mut [f64]) {
+        self.update(d, q);
+        self.rnea_pass(d, qd, None, false, out);
+    }
+
+    /// The Coriolis matrix C(q, qd) of the Christoffel symbols, with V = C qd and Mdot - 2C skew
+    /// symmetric. V is a quadratic form in qd whose symmetric coefficients are exactly the
+    /// Christoffel symbols of the first kind, so column j of C is the polarisation
+    /// (V(qd + e_j) - V(qd - e_j)) / 4: exact for a quadratic, 2n passes of RNEA.
+    pub fn coriolis_matrix(&self, d: &mut Data, q: &[f64], qd: &[f64], c: &mut DMatrix<f64>) {
+        let n = self.dof();
+        self.update(d, q);
+        let mut plus = std::mem::take(&mut d.tmp);
+        let mut minus = std::mem::take(&mut d.tmp2);
+        for j in 0..n {
+            plus.copy_from_slice(qd);
+            plus[j] += 1.0;
+            minus.copy_from_slice(qd);
+            minus[j] -= 1.0;
+            let mut vp = [0.0; crate::MAX_JOINTS];
+            let mut vm = [0.0; crate::MAX_JOINTS];
+            self.rnea_pass(d, &plus, None, false, &mut vp[..n]);
+            self.rnea_pass(d, &minus, None, false, &mut vm[..n]);
+            for i in 0..n {
+                c[(i, j)] = 0.25 * (vp[i] - vm[i]);
+            }
+        }
+        d.tmp = plus;
+        d.tmp2 = minus;
+    }
+
+    /// Forward dynamics qdd = M^-1 (tau - V - G - F), by a Cholesky factorisation of M.
+    pub fn forward_dynamics(
+        &self,
+        d: &mut Data,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        qdd: &mut [f64],
+    ) -> Result<(), NotPositiveDefinite> {
+        let n = self.dof();
+        self.update(d, q);
+        let mut bias = std::mem::take(&mut d.tmp);
+        self.rnea_pass(d, qd, None, true, &mut bias);
+        self.crba_pass(d);
+        for i in 0..n {
+            d.rhs[i] = tau[i] - bias[i] - self.bodies[i].friction.torque(qd[i]);
+        }
+        d.tmp = bias;
+        d.chol.copy_from(&d.m);
+        cholesky_solve_in_place(&mut d.chol, &mut d.rhs)?;
+        qdd.copy_from_slice(&d.rhs.as_slice()[..n]);
+        Ok(())
+    }
+
+    /// Kinetic energy 1/2 qdᵀ M(q) qd.
+    pub fn kinetic_energy(&self, d: &mut Data, q: &[f64], qd: &[f64]) -> f64 {
+        let m = self.mass_matrix(d, q);
+        let n = qd.len();
+        let mut e = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                e += qd[i] * m[(i, j)] * qd[j];
+            }
+        }
+        0.5 * e
+    }
+
+    /// Potential energy of gravity, -Σ m_i g·c_i (zero at the root's origin). For tests and
+    /// reports; allocates.
+    pub fn potential_energy(&self, d: &mut Data, q: &[f64]) -> f64 {
+        self.update(d, q);
+        let mut world: Vec<Transform> = Vec::with_capacity(self.dof());
+        let mut pe = 0.0;
+        for (i, b) in self.bodies.iter().enumerate() {
+            let x0 = match b.parent {
+                Some(p) => world[p].then(&d.x[i]),
+                None => d.x[i],
+            };
+            world.push(x0);
+            pe -= b.inertia.m * self.gravity.dot(x0.point_to_parent(b.inertia.com()));
+        }
+        pe
+    }
+
+    /// Root-frame origins of the bodies (forward kinematics), for tests and plots; allocates.
+    pub fn body_origins(&self, d: &mut Data, q: &[f64]) -> Vec<DVec3> {
+        self.update(d, q);
+        let mut world: Vec<Transform> = Vec::with_capacity(self.dof());
+        for (i, b) in self.bodies.iter().enumerate() {
+            let x0 = match b.parent {
+                Some(p) => world[p].then(&d.x[i]),
+                None => d.x[i],
+            };
+            world.push(x0);
+        }
+        world.iter().map(|x| x.r).collect()
+    }
+}
+
+/// In-place Cholesky M = L Lᵀ (lower triangle of `a` overwritten by L) and solve of M x = b into
+/// `b`. Written out rather than through nalgebra's `Cholesky`, which takes its matrix by value:
+/// this keeps the factor in a buffer that lives in `Data` and the call allocation-free.
+pub(crate) fn cholesky_solve_in_place(
+    a: &mut DMatrix<f64>,
+    b: &mut DVector<f64>,
+) -> Result<(), NotPositiveDefinite> {
+    let n = a.nrows();
+    for j in 0..n {
+        let mut s = a[(j, j)];
+        for k in 0..j {
+            s -= a[(j, k)] * a[(j, k)];
+        }
+        if s.is_nan() || s <= 0.0 {
+            return Err(NotPositiveDefinite { joint: j });
+        }
+        let l = s.sqrt();
+        a[(j, j)] = l;
+        for i in j + 1..n {
+            let mut s = a[(i, j)];
+            for k in 0..j {
+                s -= a[(i, k)] * a[(j, k)];
+            }
+            a[(i, j)] = s / l;
+        }
+    }
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= a[(i, k)] * b[k];
+        }
+        b[i] = s / a[(i, i)];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= a[(k, i)] * b[k];
+        }
+        b[i] = s / a[(i, i)];
+    }
+    Ok(())
+}

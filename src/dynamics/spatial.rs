@@ -1,0 +1,301 @@
+//! The little spatial (6-D) algebra the recursions need, on glam's 3-D types: motion and force
+//! vectors as pairs of 3-vectors, Plücker transforms as a rotation and a translation, and rigid-body
+//! inertias in the compact form (m, h = m c, I_o). Conventions follow Featherstone, *Rigid Body
+//! Dynamics Algorithms* (2008), chapter 2, with the angular part first.
+
+use glam::{DMat3, DVec3};
+
+/// A spatial motion vector (angular velocity w, linear velocity v of the body point at the
+/// frame's origin), in the coordinates of one body frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Motion {
+    pub w: DVec3,
+    pub v: DVec3,
+}
+
+/// A spatial force (moment n about the frame's origin, force f), in one body frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Force {
+    pub n: DVec3,
+    pub f: DVec3,
+}
+
+impl Motion {
+    pub const ZERO: Motion = Motion {
+        w: DVec3::ZERO,
+        v: DVec3::ZERO,
+    };
+
+    pub fn scaled(self, s: f64) -> Motion {
+        Motion {
+            w: self.w * s,
+            v: self.v * s,
+        }
+    }
+
+    /// The motion cross product self ×m m.
+    pub fn cross_motion(self, m: Motion) -> Motion {
+        Motion {
+            w: self.w.cross(m.w),
+            v: self.w.cross(m.v) + self.v.cross(m.w),
+        }
+    }
+
+    /// The force cross product self ×* f.
+    pub fn cross_force(self, f: Force) -> Force {
+        Force {
+            n: self.w.cross(f.n) + self.v.cross(f.f),
+            f: self.w.cross(f.f),
+        }
+    }
+
+    /// The scalar product with a force (power).
+    pub fn dot(self, f: Force) -> f64 {
+        self.w.dot(f.n) + self.v.dot(f.f)
+    }
+}
+
+impl Force {
+    pub const ZERO: Force = Force {
+        n: DVec3::ZERO,
+        f: DVec3::ZERO,
+    };
+}
+
+/// A Plücker transform from a parent frame to a child frame: `e` rotates parent coordinates into
+/// child coordinates, `r` is the child's origin in parent coordinates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transform {
+    pub e: DMat3,
+    pub r: DVec3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self::IDENTITY
+    }
+}
+
+impl Transform {
+    pub const IDENTITY: Transform = Transform {
+        e: DMat3::IDENTITY,
+        r: DVec3::ZERO,
+    };
+
+    /// The transform to a frame placed at `pos` with axes `rot` (columns = the child's axes in
+    /// parent coordinates), as URDF `<origin>` and D-H rows describe it.
+    pub fn from_placement(rot: DMat3, pos: DVec3) -> Transform {
+        Transform {
+            e: rot.transpose(),
+            r: pos,
+        }
+    }
+
+    /// The child frame's axes in parent coordinates (inverse of `from_placement`).
+    pub fn rotation(&self) -> DMat3 {
+        self.e.transpose()
+    }
+
+    /// `self` then `next` (parent → self's child → next's child).
+    pub fn then(&self, next: &Transform) -> Transform {
+        Transform {
+            e: next.e * self.e,
+            r: self.r + self.e.transpose() * next.r,
+        }
+    }
+
+    /// A motion vector from parent to child coordinates.
+    pub fn apply_motion(&self, m: Motion) -> Motion {
+        Motion {
+            w: self.e * m.w,
+            v: self.e * (m.v - self.r.cross(m.w)),
+        }
+    }
+
+    /// A force from child to parent coordinates (the transpose of the motion transform).
+    pub fn apply_transpose_force(&self, f: Force) -> Force {
+        let n = self.e.transpose() * f.n;
+        let fp = self.e.transpose() * f.f;
+        Force {
+            n: n + self.r.cross(fp),
+            f: fp,
+        }
+    }
+
+    /// A point given in child coordinates, in parent coordinates.
+    pub fn point_to_parent(&self, p: DVec3) -> DVec3 {
+        self.r + self.e.transpose() * p
+    }
+}
+
+/// A rigid-body inertia about a frame's origin: mass, first moment h = m c, and the rotational
+/// inertia about the origin. This form adds by plain addition and needs no division by the mass,
+/// so massless bodies compose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inertia {
+    pub m: f64,
+    pub h: DVec3,
+    pub i: DMat3,
+}
+
+impl Default for Inertia {
+    fn default() -> Self {
+        Self::ZERO
+    }
+}
+
+fn outer(a: DVec3, b: DVec3) -> DMat3 {
+    DMat3::from_cols(a * b.x, a * b.y, a * b.z)
+}
+
+impl Inertia {
+    pub const ZERO: Inertia = Inertia {
+        m: 0.0,
+        h: DVec3::ZERO,
+        i: DMat3::ZERO,
+    };
+
+    /// From mass, centre of mass and the inertia tensor about the centre of mass (parallel axis).
+    pub fn from_com(m: f64, com: DVec3, i_com: DMat3) -> Inertia {
+        Inertia {
+            m,
+            h: com * m,
+            i: i_com + (DMat3::IDENTITY * com.length_squared() - outer(com, com)) * m,
+        }
+    }
+
+    /// The centre of mass (origin for a massless body).
+    pub fn com(&self) -> DVec3 {
+        if self.m > 0.0 {
+            self.h / self.m
+        } else {
+            DVec3::ZERO
+        }
+    }
+
+    /// The inertia about the centre of mass.
+    pub fn i_com(&self) -> DMat3 {
+        let c = self.com();
+        self.i - (DMat3::IDENTITY * c.length_squared() - outer(c, c)) * self.m
+    }
+
+    /// The momentum I·m.
+    pub fn apply(&self, m: Motion) -> Force {
+        Force {
+            n: self.i * m.w + self.h.cross(m.v),
+            f: m.v * self.m - self.h.cross(m.w),
+        }
+    }
+
+    /// This inertia (given in the child frame of `x`) in the parent frame: Xᵀ I X.
+    pub fn to_parent(&self, x: &Transform) -> Inertia {
+        let et = x.e.transpose();
+        let h = et * self.h;
+        let i_rot = et * self.i * x.e;
+        let r = x.r;
+        // Shift of the reference point from the child origin (at r) to the parent origin:
+        // I_O = I_P - m r̃ r̃ - r̃ h̃ - h̃ r̃, with ã b̃ = b aᵀ - (a·b) 1.
+        let rh = r.dot(h);
+        let i = i_rot
+            - (outer(r, r) - DMat3::IDENTITY * r.length_squared()) * self.m
+            - (outer(h, r) + outer(r, h) - DMat3::IDENTITY * (2.0 * rh));
+        Inertia {
+            m: self.m,
+            h: h + r * self.m,
+            i,
+        }
+    }
+}
+
+impl std::ops::Add for Motion {
+    type Output = Motion;
+    fn add(self, o: Motion) -> Motion {
+        Motion {
+            w: self.w + o.w,
+            v: self.v + o.v,
+        }
+    }
+}
+
+impl std::ops::Add for Force {
+    type Output = Force;
+    fn add(self, o: Force) -> Force {
+        Force {
+            n: self.n + o.n,
+            f: self.f + o.f,
+        }
+    }
+}
+
+impl std::ops::Add for Inertia {
+    type Output = Inertia;
+    fn add(self, o: Inertia) -> Inertia {
+        Inertia {
+            m: self.m + o.m,
+            h: self.h + o.h,
+            i: self.i + o.i,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample_transform() -> Transform {
+        let rot = DMat3::from_axis_angle(DVec3::new(1.0, 2.0, -0.5).normalize(), 0.7);
+        Transform::from_placement(rot, DVec3::new(0.3, -0.2, 0.9))
+    }
+
+    #[test]
+    fn power_is_invariant_under_transforms() {
+        let x = sample_transform();
+        let m = Motion {
+            w: DVec3::new(0.1, -0.4, 2.0),
+            v: DVec3::new(1.0, 0.5, -0.3),
+        };
+        let f = Force {
+            n: DVec3::new(-0.7, 0.2, 0.1),
+            f: DVec3::new(0.4, 3.0, -1.0),
+        };
+        // (X m) · f_child = m · (Xᵀ f_child)
+        let lhs = x.apply_motion(m).dot(f);
+        let rhs = m.dot(x.apply_transpose_force(f));
+        assert!((lhs - rhs).abs() < 1e-12);
+    }
+
+    #[test]
+    fn inertia_transform_matches_momentum_transform() {
+        // Xᵀ I X m (via to_parent) equals Xᵀ (I (X m)) for any motion m.
+        let x = sample_transform();
+        let body = Inertia::from_com(
+            2.5,
+            DVec3::new(0.1, 0.2, -0.05),
+            DMat3::from_diagonal(DVec3::new(0.3, 0.2, 0.1)),
+        );
+        let m = Motion {
+            w: DVec3::new(0.3, 1.1, -0.2),
+            v: DVec3::new(-0.5, 0.25, 0.8),
+        };
+        let a = body.to_parent(&x).apply(m);
+        let b = x.apply_transpose_force(body.apply(x.apply_motion(m)));
+        assert!((a.n - b.n).length() < 1e-12 && (a.f - b.f).length() < 1e-12);
+        // Round trip of the centre-of-mass form.
+        let back = body.i_com();
+        assert!((back - DMat3::from_diagonal(DVec3::new(0.3, 0.2, 0.1)))
+            .abs_diff_eq(DMat3::ZERO, 1e-12));
+    }
+
+    #[test]
+    fn composition_is_sequential_application() {
+        let a = sample_transform();
+        let b = Transform::from_placement(DMat3::from_rotation_z(-1.2), DVec3::new(0.0, 0.5, 0.1));
+        let m = Motion {
+            w: DVec3::new(0.2, 0.0, 1.0),
+            v: DVec3::new(0.0, -1.0, 0.3),
+        };
+        let ab = a.then(&b).apply_motion(m);
+        let seq = b.apply_motion(a.apply_motion(m));
+        assert!((ab.w - seq.w).length() < 1e-12 && (ab.v - seq.v).length() < 1e-12);
+    }
+}
