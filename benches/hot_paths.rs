@@ -98,5 +98,93 @@ fn robust(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, control, robust);
+/// Rigid-body dynamics of the 6-DOF industrial arm (config/robots/industrial6.toml) at a generic
+/// state; Pinocchio's figures for a 6-DOF arm on a machine like this: RNEA 0.80 us, CRBA 0.47 us,
+/// ABA 1.64 us.
+fn dynamics(c: &mut Criterion) {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/robots/industrial6.toml");
+    let model = evoloop::dynamics::load(&path).expect("robot loads");
+    let mut d = model.data();
+    let q = [0.3, -0.5, 0.8, 0.1, 0.2, 0.3];
+    let qd = [0.5, 1.0, -1.0, 1.0, 1.0, 1.0];
+    let qdd = [1.0, -0.5, 0.3, 2.0, -1.0, 0.5];
+    let tau = [20.0, -200.0, 20.0, 3.0, 3.0, 1.5];
+    let mut out = [0.0; 6];
+    c.bench_function("dynamics 6-DOF: inverse dynamics (RNEA + friction)", |b| {
+        b.iter(|| {
+            model.inverse_dynamics(
+                &mut d,
+                black_box(&q),
+                black_box(&qd),
+                black_box(&qdd),
+                &mut out,
+            )
+        })
+    });
+    c.bench_function(
+        "dynamics 6-DOF: inverse dynamics (rigid-body RNEA only)",
+        |b| {
+            b.iter(|| {
+                model.rnea(
+                    &mut d,
+                    black_box(&q),
+                    black_box(&qd),
+                    black_box(&qdd),
+                    &mut out,
+                )
+            })
+        },
+    );
+    c.bench_function("dynamics 6-DOF: mass matrix M(q) (CRBA)", |b| {
+        b.iter(|| {
+            black_box(model.mass_matrix(&mut d, black_box(&q)));
+        })
+    });
+    c.bench_function(
+        "dynamics 6-DOF: forward dynamics (RNEA + CRBA + Cholesky)",
+        |b| {
+            b.iter(|| {
+                model.forward_dynamics(
+                    &mut d,
+                    black_box(&q),
+                    black_box(&qd),
+                    black_box(&tau),
+                    &mut out,
+                )
+            })
+        },
+    );
+    let mut sim = PlantSim::new(
+        Box::new(evoloop::plant::Arm::new(model.clone(), &q)),
+        5e-4,
+        0.0,
+        1,
+    );
+    c.bench_function(
+        "industrial6 plant: one 1 ms period (2 RK4 sub-steps)",
+        |b| b.iter(|| sim.advance(black_box(&tau), 0.001)),
+    );
+    let mut ct = evoloop::control::ComputedTorque::new(model.clone(), &[400.0; 12], 0.03);
+    let mut state = PlantState {
+        n_q: 6,
+        n_y: 6,
+        ..Default::default()
+    };
+    state.y[..6].copy_from_slice(&q);
+    state.qd[..6].copy_from_slice(&qd);
+    let mut sp = evoloop::reference::Setpoint {
+        n: 6,
+        ..Default::default()
+    };
+    sp.q[..6].copy_from_slice(&[0.31, -0.49, 0.79, 0.1, 0.21, 0.3]);
+    let mut u = [0.0; 6];
+    c.bench_function("computed-torque law, 6-DOF", |b| {
+        b.iter(|| {
+            evoloop::control::Controller::step(&mut ct, black_box(&state), black_box(&sp), &mut u)
+        })
+    });
+}
+
+criterion_group!(benches, control, robust, dynamics);
 criterion_main!(benches);

@@ -254,6 +254,7 @@ fn run(a: RunArgs) -> ExitCode {
         "timing.csv",
         "summary.json",
         "response.png",
+        "tracking.png",
         "controller.json",
         "plant.json",
         "optimiser.json",
@@ -427,16 +428,33 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
         s.throughput_samples_per_s,
         s.mode
     );
-    out!(
-        "  response: settling time {} (2 % band), overshoot {:.2} %, IAE {:.4}, ISE {:.4}, final error {:+.2e}",
-        r.settling_time_s
-            .map(|v| format!("{v:.2} s"))
-            .unwrap_or_else(|| "not settled".into()),
-        r.overshoot_pct,
-        r.iae,
-        r.ise,
-        r.final_error
-    );
+    if s.tracking.rms.len() > 1 {
+        // Joint-space trajectories: step-response figures mean nothing, tracking errors do.
+        let fmt = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:.2e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let t = &s.tracking_after_1s;
+        out!(
+            "  tracking after 1 s (rad or m, per joint): rms [{}], max |e| [{}]; whole run rms {:.2e}",
+            fmt(&t.rms),
+            fmt(&t.max_abs),
+            s.tracking.rms_all
+        );
+    } else {
+        out!(
+            "  response: settling time {} (2 % band), overshoot {:.2} %, IAE {:.4}, ISE {:.4}, final error {:+.2e}",
+            r.settling_time_s
+                .map(|v| format!("{v:.2} s"))
+                .unwrap_or_else(|| "not settled".into()),
+            r.overshoot_pct,
+            r.iae,
+            r.ise,
+            r.final_error
+        );
+    }
     let l = &s.timing.lateness;
     if s.mode == "realtime" {
         out!(
@@ -474,6 +492,10 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
     out!(
         "  wrote {}/run.csv, summary.json{}",
         dir.display(),
-        if plots { ", response.png" } else { "" }
+        match (plots, s.tracking.rms.len() > 1) {
+            (true, true) => ", response.png, tracking.png",
+            (true, false) => ", response.png",
+            _ => "",
+        }
     );
 }

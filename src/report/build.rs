@@ -140,6 +140,41 @@ pub fn build_report(
             },
             &marks,
         )?;
+        if n_track > 1 {
+            // Joint-space tracking: the errors are far below what the overlaid curves resolve.
+            let errors: Vec<Vec<f64>> = (0..n_track)
+                .map(|j| {
+                    ref_cols[j]
+                        .iter()
+                        .zip(y_cols[j])
+                        .map(|(r, y)| r - y)
+                        .collect()
+                })
+                .collect();
+            let names: Vec<String> = (0..n_track).map(|j| format!("e{j}")).collect();
+            let top: Vec<Series> = errors
+                .iter()
+                .zip(&names)
+                .map(|(v, name)| Series { name, values: v })
+                .collect();
+            two_panel_png(
+                &dir.join("tracking.png"),
+                &format!(
+                    "{} ({} mode): tracking error r - y per joint, and joint torques",
+                    scn.name, ctrl.mode
+                ),
+                &t,
+                Panel {
+                    series: &top,
+                    label: "error (rad or m)",
+                },
+                Panel {
+                    series: &bottom,
+                    label: "torque u",
+                },
+                &marks,
+            )?;
+        }
     }
     Ok(summary)
 }

@@ -1,0 +1,197 @@
+//! `evoloop dynamics` and the arm scenario files from the command line: the JSON keys, the
+//! URDF's chain order, agreement with the library, and clear errors (exit 2).
+
+use std::path::Path;
+use std::process::Command;
+
+fn evoloop(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_evoloop"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn json(o: &std::process::Output) -> serde_json::Value {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
+}
+
+fn floats(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+#[test]
+fn dynamics_prints_tau_m_g_v_and_forward_dynamics_for_dh_and_urdf_alike() {
+    let args = |robot: &'static str| {
+        [
+            "dynamics",
+            "--robot",
+            robot,
+            "--q",
+            "0.3,-0.5,0.8",
+            "--qd",
+            "0.5,1,-1",
+            "--qdd",
+            "1,2,-3",
+            "--tau",
+            "1,12,3",
+            "--json",
+        ]
+    };
+    let a = json(&evoloop(&args("config/robots/arm3.toml")));
+    let b = json(&evoloop(&args("config/robots/arm3.urdf")));
+    for key in ["tau", "G", "V", "qdd"] {
+        let (x, y) = (floats(&a[key]), floats(&b[key]));
+        assert_eq!(x.len(), 3, "{key}");
+        for i in 0..3 {
+            assert!(
+                (x[i] - y[i]).abs() < 1e-9 * (1.0 + x[i].abs()),
+                "{key}[{i}]: {} vs {}",
+                x[i],
+                y[i]
+            );
+        }
+    }
+    assert_eq!(a["M"].as_array().unwrap().len(), 3);
+    assert_eq!(
+        b["joints"],
+        serde_json::json!(["waist", "shoulder", "elbow"])
+    );
+    // tau = M qdd + V + G + F, printed parts add up.
+    let m: Vec<Vec<f64>> = a["M"].as_array().unwrap().iter().map(floats).collect();
+    let (g, v, f, tau) = (
+        floats(&a["G"]),
+        floats(&a["V"]),
+        floats(&a["F"]),
+        floats(&a["tau"]),
+    );
+    let qdd = [1.0, 2.0, -3.0];
+    for i in 0..3 {
+        let sum: f64 = (0..3).map(|j| m[i][j] * qdd[j]).sum::<f64>() + v[i] + g[i] + f[i];
+        assert!((sum - tau[i]).abs() < 1e-9, "row {i}");
+    }
+    // Forward dynamics of the given tau against the library's inverse dynamics.
+    let model = evoloop::dynamics::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("config/robots/arm3.toml"),
+    )
+    .unwrap();
+    let mut d = model.data();
+    let mut back = [0.0; 3];
+    model.inverse_dynamics(
+        &mut d,
+        &[0.3, -0.5, 0.8],
+        &[0.5, 1.0, -1.0],
+        &floats(&a["qdd"]),
+        &mut back,
+    );
+    for (i, t) in [1.0, 12.0, 3.0].iter().enumerate() {
+        assert!((back[i] - t).abs() < 1e-9);
+    }
+    // Without --tau there is no qdd; the text form prints the same sections.
+    let plain = evoloop(&["dynamics", "--robot", "config/robots/industrial6.toml"]);
+    assert!(plain.status.success());
+    let text = String::from_utf8_lossy(&plain.stdout);
+    for part in ["tau = M qdd", "M(q):", "G(q):", "V(q, qd):"] {
+        assert!(text.contains(part), "{part} missing in:\n{text}");
+    }
+    assert!(!text.contains("forward dynamics"));
+}
+
+#[test]
+fn dynamics_refuses_bad_input_with_exit_2() {
+    let o = evoloop(&[
+        "dynamics",
+        "--robot",
+        "config/robots/arm3.toml",
+        "--q",
+        "1,2",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--q needs 3 values"));
+    let o = evoloop(&["dynamics", "--robot", "config/robots/nope.urdf"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cannot read"));
+    let o = evoloop(&["dynamics", "--robot", "Cargo.toml"]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn arm_scenarios_check_and_bad_ones_name_the_key() {
+    for c in [
+        "arm3_ct",
+        "arm3_pd",
+        "arm3_train1",
+        "arm3_train2",
+        "industrial6_ct",
+    ] {
+        let o = evoloop(&["check", &format!("config/{c}.toml")]);
+        assert!(
+            o.status.success(),
+            "{c}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let base =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3_ct.toml"))
+            .unwrap();
+    // Robot paths are relative to the scenario file: point them back at the source tree.
+    let robots = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/robots");
+    let base = base.replace("\"robots/", &format!("\"{}/", robots.display()));
+    let cases = [
+        (
+            base.replace("arm3.toml\"", "missing.toml\""),
+            "plant.arm.robot",
+            "cannot read",
+        ),
+        (
+            base.replace("kp = [400.0, 400.0, 400.0]", "kp = [400.0, 400.0]"),
+            "controller.computed_torque.kp",
+            "needs 3 values",
+        ),
+        (
+            base.replace("kp = [400.0, 400.0, 400.0]", "kp = [400.0, -1.0, 400.0]"),
+            "controller.computed_torque.kp[1]",
+            ">= 0",
+        ),
+        (
+            base.replace("offsets = [0.0, 0.7, -1.3]", "offsets = [0.0, 0.7]"),
+            "reference",
+            "",
+        ),
+        (
+            base.replace("kind = \"computed_torque\"", "kind = \"state_feedback\""),
+            "controller",
+            "",
+        ),
+        (
+            base.replace("startup_rate = 0.03", "startup_rate = -1.0"),
+            "controller.computed_torque.startup_rate",
+            "within",
+        ),
+        (
+            base.replace(
+                "frequencies = [0.2, 0.5]",
+                "frequencies = [0.2, 0.5]\ntimes = [1.0]",
+            ),
+            "reference.times",
+            "not used by a `sines` reference",
+        ),
+    ];
+    for (i, (text, key, reason)) in cases.iter().enumerate() {
+        let f = tmp.path().join(format!("bad{i}.toml"));
+        std::fs::write(&f, text).unwrap();
+        let o = evoloop(&["check", f.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "case {i}: {err}");
+        assert!(
+            err.contains(&format!("bad{i}.toml")) && err.contains(key) && err.contains(reason),
+            "case {i}: {err}"
+        );
+    }
+}
