@@ -523,6 +523,17 @@ impl Validator {
         Ok(v)
     }
 
+    /// `v` has exactly `n` finite values (`what` says what they are per, e.g. " (one per joint)").
+    fn finite_values(&self, key: &str, v: &[f64], n: usize, what: &str) -> Result<(), ConfigError> {
+        if v.len() != n {
+            return self.fail(key, format!("needs {n} values{what}, got {}", v.len()));
+        }
+        for (i, x) in v.iter().enumerate() {
+            self.finite(&format!("{key}[{i}]"), *x)?;
+        }
+        Ok(())
+    }
+
     fn unused(&self, key: &str, present: bool, why: &str) -> Result<(), ConfigError> {
         if present {
             return self.fail(key, format!("not used {why}; remove it"));
@@ -840,15 +851,7 @@ impl Validator {
         let lower = lower.unwrap_or_else(|| vec![-default_bound; n]);
         let upper = upper.unwrap_or_else(|| vec![default_bound; n]);
         for (k, b) in [("lower", &lower), ("upper", &upper)] {
-            if b.len() != n {
-                return self.fail(
-                    &format!("{key}.{k}"),
-                    format!("needs {n} values, got {}", b.len()),
-                );
-            }
-            for (i, v) in b.iter().enumerate() {
-                self.finite(&format!("{key}.{k}[{i}]"), *v)?;
-            }
+            self.finite_values(&format!("{key}.{k}"), b, n, "")?;
         }
         for i in 0..n {
             if lower[i] > upper[i] {
@@ -1080,20 +1083,10 @@ impl Validator {
             }
         }
         let joints = |key: &str, v: &[f64], n: usize| -> Result<(), ConfigError> {
-            if v.len() != n || n == 0 || n > crate::MAX_JOINTS {
-                return self.fail(
-                    key,
-                    format!(
-                        "needs {n} values, one per joint (1..={}), got {}",
-                        crate::MAX_JOINTS,
-                        v.len()
-                    ),
-                );
+            if n == 0 || n > crate::MAX_JOINTS {
+                return self.fail(key, format!("1..={} joints, got {n}", crate::MAX_JOINTS));
             }
-            for (i, x) in v.iter().enumerate() {
-                self.finite(&format!("{key}[{i}]"), *x)?;
-            }
-            Ok(())
+            self.finite_values(key, v, n, " (one per joint)")
         };
         match r.kind {
             ReferenceKind::Quintic => {
@@ -1149,15 +1142,12 @@ impl Validator {
                         );
                     }
                     for (j, row) in m.iter().enumerate() {
-                        if row.len() != nh {
-                            return self.fail(
-                                &format!("reference.{key}[{j}]"),
-                                format!("needs {nh} values (one per frequency), got {}", row.len()),
-                            );
-                        }
-                        for (h, x) in row.iter().enumerate() {
-                            self.finite(&format!("reference.{key}[{j}][{h}]"), *x)?;
-                        }
+                        self.finite_values(
+                            &format!("reference.{key}[{j}]"),
+                            row,
+                            nh,
+                            " (one per frequency)",
+                        )?;
                     }
                 }
                 Ok(Reference::Sines {

@@ -15,11 +15,8 @@ use evoloop::plant::PlantSim;
 use evoloop::reference::Reference;
 use evoloop::report::RunLog;
 use evoloop::rt::{CycleTiming, TimingLog};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 
-struct Counting;
-static COUNT: AtomicU64 = AtomicU64::new(0);
 static SENDS: AtomicU64 = AtomicU64::new(0);
 
 /// Send through iceoryx2, counting the sends so their known allocation can be told apart.
@@ -30,28 +27,13 @@ fn send<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
     SENDS.fetch_add(1, Ordering::Relaxed);
     p.send(v).unwrap();
 }
-static ARMED: AtomicBool = AtomicBool::new(false);
 
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        if ARMED.load(Ordering::Relaxed) {
-            COUNT.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        if ARMED.load(Ordering::Relaxed) {
-            COUNT.fetch_add(1, Ordering::Relaxed);
-        }
-        unsafe { System.realloc(p, l, n) }
-    }
-}
+#[path = "common/counting_alloc.rs"]
+mod counting_alloc;
+use counting_alloc::{ARMED, COUNT};
 
 #[global_allocator]
-static A: Counting = Counting;
+static A: counting_alloc::Counting = counting_alloc::Counting;
 
 #[test]
 fn the_control_cycle_allocates_nothing() {
