@@ -60,6 +60,9 @@ enum Cmd {
     /// Rigid-body dynamics of a robot file (D-H TOML or URDF) at one state: tau, M, G, V, and,
     /// given --tau, the forward dynamics.
     Dynamics(evoloop::dynamics::cli::DynamicsArgs),
+    /// The fuzzy-network paper's GA experiments: `tune config/arsinh_tune.toml` (Section 5.1),
+    /// `tune config/maglev_tune.toml` (Section 5.2).
+    Tune(evoloop::tune::TuneArgs),
     /// Benchmarks measured against the machine's own floor in the same run.
     Bench {
         #[command(subcommand)]
@@ -128,6 +131,7 @@ fn main() -> ExitCode {
             BenchCmd::Loop(a) => evoloop::bench::loop_bench::main(a),
         } as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(evoloop::robust::cli::main(cmd) as u8),
+        Some(Cmd::Tune(a)) => ExitCode::from(evoloop::tune::main(a) as u8),
         Some(Cmd::Dynamics(a)) => ExitCode::from(evoloop::dynamics::cli::main(a) as u8),
         Some(Cmd::Floor {
             rate,

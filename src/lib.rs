@@ -12,6 +12,7 @@ pub mod cli;
 pub mod config;
 pub mod control;
 pub mod dynamics;
+pub mod fuzzy;
 pub mod ipc;
 pub mod optim;
 pub mod plant;
@@ -21,6 +22,7 @@ pub mod report;
 pub mod robust;
 pub mod rt;
 pub mod sim;
+pub mod tune;
 
 /// Largest number of joints/inputs/outputs a message carries (8-joint arms fit).
 pub const MAX_JOINTS: usize = 8;

@@ -38,6 +38,19 @@ impl HookeJeeves {
         lower: &[f64],
         upper: &[f64],
     ) -> LocalResult {
+        self.minimise_from(f, x0, None, lower, upper)
+    }
+
+    /// As `minimise`, with the value at x0 already known (`f0`, not re-evaluated when x0 is
+    /// inside the box). At most `max_evaluations` calls of `f`.
+    pub fn minimise_from(
+        &self,
+        f: impl Fn(&[f64]) -> f64,
+        x0: &[f64],
+        f0: Option<f64>,
+        lower: &[f64],
+        upper: &[f64],
+    ) -> LocalResult {
         let d = x0.len();
         let width: Vec<f64> = (0..d).map(|i| upper[i] - lower[i]).collect();
         let mut step: Vec<f64> = width.iter().map(|w| w * self.initial_step).collect();
@@ -47,7 +60,11 @@ impl HookeJeeves {
             }
         };
         let evals = std::cell::Cell::new(0usize);
+        // The budget is strict: past it every probe counts as "no better" without evaluating.
         let eval = |x: &[f64]| {
+            if evals.get() >= self.max_evaluations {
+                return f64::INFINITY;
+            }
             evals.set(evals.get() + 1);
             let v = f(x);
             if v.is_nan() {
@@ -58,7 +75,10 @@ impl HookeJeeves {
         };
         let mut base = x0.to_vec();
         clamp(&mut base);
-        let mut fbase = eval(&base);
+        let mut fbase = match f0 {
+            Some(v) if base == x0 => v,
+            _ => eval(&base),
+        };
         // Exploratory moves around `x` (value fx); returns the improved point and value.
         let explore = |x: &[f64], fx: f64, step: &[f64], eval: &dyn Fn(&[f64]) -> f64| {
             let mut p = x.to_vec();

@@ -3,9 +3,12 @@
 //! tells it the objective values (minimised). Seeded for reproducibility.
 
 pub mod de;
+pub mod ga;
 pub mod hooke_jeeves;
+pub mod hybrid;
 
 pub use de::{DeConfig, DifferentialEvolution};
+pub use ga::{Ga, GaConfig};
 pub use hooke_jeeves::{HookeJeeves, LocalResult};
 
 use std::time::Instant;

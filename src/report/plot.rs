@@ -230,3 +230,73 @@ pub fn xy_png(
     }
     root.present().map_err(|e| e.to_string())
 }
+
+/// A colour map of z over a grid (`z[j][i]` at x = xs[i], y = ys[j]), blue (low) to red (high),
+/// with the z range in the title: for control surfaces.
+pub fn heatmap_png(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    xs: &[f64],
+    ys: &[f64],
+    z: &[Vec<f64>],
+) -> Result<(), String> {
+    ensure_font();
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in z.iter().flatten().filter(|v| v.is_finite()) {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    if !lo.is_finite() || xs.len() < 2 || ys.len() < 2 {
+        return Err("heatmap needs a grid of at least 2 x 2 finite values".into());
+    }
+    let root = BitMapBackend::new(path, (900, 760)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (dx, dy) = (xs[1] - xs[0], ys[1] - ys[0]);
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{title} (blue {lo:.3} .. red {hi:.3})"),
+            ("sans-serif", 20),
+        )
+        .margin(14)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(
+            xs[0] - dx / 2.0..xs[xs.len() - 1] + dx / 2.0,
+            ys[0] - dy / 2.0..ys[ys.len() - 1] + dy / 2.0,
+        )
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .label_style(("sans-serif", 16))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let colour = |v: f64| {
+        let s = if hi > lo { (v - lo) / (hi - lo) } else { 0.5 };
+        // Blue -> white -> red.
+        let (r, g, b) = if s < 0.5 {
+            let t = s * 2.0;
+            (t, t, 1.0)
+        } else {
+            let t = (1.0 - s) * 2.0;
+            (1.0, t, t)
+        };
+        RGBColor((r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8)
+    };
+    for (j, y) in ys.iter().enumerate() {
+        for (i, x) in xs.iter().enumerate() {
+            let c = colour(z[j][i]);
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(x - dx / 2.0, y - dy / 2.0), (x + dx / 2.0, y + dy / 2.0)],
+                    c.filled(),
+                )))
+                .map_err(|e| e.to_string())?;
+        }
+    }
+    root.present().map_err(|e| e.to_string())
+}

@@ -1,0 +1,251 @@
+//! The real-coded genetic algorithm of the fuzzy-network paper (Section 4), steady state:
+//! - fitness-proportional selection of two parents (minimisation: windowed fitness
+//!   f_i = G_worst - G_i + 0.1 (G_worst - G_best), so the worst member keeps a small chance);
+//! - one-point weighted-average crossover (eqs. 17-18) with probability P_C: y ~ U[0, L),
+//!   k = floor(y), W = y - k; genes before k stay, genes after k are exchanged, gene k becomes
+//!   W A(k) + (1 - W) B(k) and W B(k) + (1 - W) A(k);
+//! - non-uniform mutation (eq. 19, Michalewicz) of each gene with probability P_M = 1/L:
+//!   X ~ U[-1, 1], s' = s + (s_max - s)(1 - X^e) for X >= 0, s - (s - s_min)(1 - (-X)^e)
+//!   otherwise, e = (1 - t / N_max)^2, so steps shrink from global to local over the run;
+//! - the two children replace the two worst members of the old population.
+//!
+//! A child whose value is not finite (e.g. a controller that destabilises the loop) is replaced
+//! by a copy of the current best, as the paper does for the maglev experiments.
+//! Each iteration asks for two evaluations; the first `ask` returns the initial population.
+
+use super::Optimiser;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+#[derive(Debug, Clone)]
+pub struct GaConfig {
+    pub population: usize,
+    pub p_crossover: f64,
+    /// Per-gene mutation probability; None = 1 / (number of genes).
+    pub p_mutation: Option<f64>,
+    /// N_max of eq. 19: the iteration at which mutation steps have shrunk to zero.
+    pub max_iterations: usize,
+    pub seed: u64,
+}
+
+impl Default for GaConfig {
+    fn default() -> Self {
+        Self {
+            population: 10,
+            p_crossover: 0.9,
+            p_mutation: None,
+            max_iterations: 150,
+            seed: 1,
+        }
+    }
+}
+
+pub struct Ga {
+    cfg: GaConfig,
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    rng: ChaCha8Rng,
+    pop: Vec<Vec<f64>>,
+    values: Vec<f64>,
+    asked: Vec<Vec<f64>>,
+    initialised: bool,
+    iteration: usize,
+    evaluations: usize,
+    best: (Vec<f64>, f64),
+    /// Population slots the last two children went to.
+    slots: Vec<usize>,
+}
+
+impl Ga {
+    /// A GA over the box [lower, upper]; `seeds` (user-specified sets, clamped into the box) fill
+    /// the first places of the initial population, the rest is uniform random.
+    pub fn new(cfg: GaConfig, lower: &[f64], upper: &[f64], seeds: &[Vec<f64>]) -> Self {
+        assert_eq!(lower.len(), upper.len());
+        assert!(cfg.population >= 2, "a population of at least two");
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        let mut pop: Vec<Vec<f64>> = seeds
+            .iter()
+            .take(cfg.population)
+            .map(|s| {
+                s.iter()
+                    .zip(lower.iter().zip(upper))
+                    .map(|(v, (l, u))| v.clamp(*l, *u))
+                    .collect()
+            })
+            .collect();
+        while pop.len() < cfg.population {
+            pop.push(
+                lower
+                    .iter()
+                    .zip(upper)
+                    .map(|(l, u)| if u > l { rng.gen_range(*l..*u) } else { *l })
+                    .collect(),
+            );
+        }
+        Self {
+            asked: pop.clone(),
+            pop,
+            values: Vec::new(),
+            lower: lower.to_vec(),
+            upper: upper.to_vec(),
+            rng,
+            initialised: false,
+            iteration: 0,
+            evaluations: 0,
+            best: (Vec::new(), f64::INFINITY),
+            slots: Vec::new(),
+            cfg,
+        }
+    }
+
+    /// The population and its values (after the first `tell`).
+    pub fn population(&self) -> (&[Vec<f64>], &[f64]) {
+        (&self.pop, &self.values)
+    }
+
+    /// The population slots the children of the last iteration now occupy.
+    pub fn last_slots(&self) -> &[usize] {
+        &self.slots
+    }
+
+    /// Replace member `i` (e.g. after a local search improved it) and its value.
+    pub fn replace(&mut self, i: usize, x: Vec<f64>, value: f64) {
+        if value < self.best.1 {
+            self.best = (x.clone(), value);
+        }
+        self.pop[i] = x;
+        self.values[i] = value;
+    }
+
+    fn select(&mut self) -> usize {
+        let worst = self
+            .values
+            .iter()
+            .cloned()
+            .fold(f64::NEG_INFINITY, f64::max);
+        let best = self.values.iter().cloned().fold(f64::INFINITY, f64::min);
+        let fit: Vec<f64> = if best > 0.0 {
+            // Costs are positive (performance indices): fitness 1/G, invariant to G's scale.
+            self.values.iter().map(|v| 1.0 / v).collect()
+        } else {
+            let window = 0.1 * (worst - best) + 1e-12 * worst.abs().max(1e-300);
+            self.values.iter().map(|v| worst - v + window).collect()
+        };
+        let total: f64 = fit.iter().sum();
+        let mut r = self.rng.gen_range(0.0..total);
+        for (i, f) in fit.iter().enumerate() {
+            if r < *f {
+                return i;
+            }
+            r -= f;
+        }
+        fit.len() - 1
+    }
+
+    fn mutate(&mut self, x: &mut [f64]) {
+        let l = x.len();
+        let pm = self.cfg.p_mutation.unwrap_or(1.0 / l as f64);
+        let progress = (self.iteration as f64 / self.cfg.max_iterations.max(1) as f64).min(1.0);
+        let e = (1.0 - progress).powi(2);
+        for (i, xi) in x.iter_mut().enumerate() {
+            if self.rng.gen::<f64>() >= pm {
+                continue;
+            }
+            let r: f64 = self.rng.gen_range(-1.0..=1.0);
+            let (lo, hi) = (self.lower[i], self.upper[i]);
+            *xi = if r >= 0.0 {
+                *xi + (hi - *xi) * (1.0 - r.powf(e))
+            } else {
+                *xi - (*xi - lo) * (1.0 - (-r).powf(e))
+            }
+            .clamp(lo, hi);
+        }
+    }
+}
+
+/// One-point weighted-average crossover (eqs. 17-18) at the real-valued point y in [0, L).
+pub fn crossover(a: &[f64], b: &[f64], y: f64) -> (Vec<f64>, Vec<f64>) {
+    let k = (y.floor() as usize).min(a.len() - 1);
+    let w = y - k as f64;
+    let mut c = a.to_vec();
+    let mut d = b.to_vec();
+    c[k + 1..].copy_from_slice(&b[k + 1..]);
+    d[k + 1..].copy_from_slice(&a[k + 1..]);
+    c[k] = w * a[k] + (1.0 - w) * b[k];
+    d[k] = w * b[k] + (1.0 - w) * a[k];
+    (c, d)
+}
+
+impl Optimiser for Ga {
+    fn ask(&mut self) -> &[Vec<f64>] {
+        if self.initialised {
+            let i = self.select();
+            let j = self.select();
+            let (mut c, mut d) = if self.rng.gen::<f64>() < self.cfg.p_crossover {
+                let y = self.rng.gen_range(0.0..self.pop[i].len() as f64);
+                crossover(&self.pop[i], &self.pop[j], y)
+            } else {
+                (self.pop[i].clone(), self.pop[j].clone())
+            };
+            self.mutate(&mut c);
+            self.mutate(&mut d);
+            self.asked = vec![c, d];
+        }
+        &self.asked
+    }
+
+    fn candidates(&self) -> &[Vec<f64>] {
+        &self.asked
+    }
+
+    fn tell(&mut self, values: &[f64]) {
+        self.evaluations += values.len();
+        if !self.initialised {
+            self.values = values
+                .iter()
+                .map(|v| if v.is_finite() { *v } else { f64::INFINITY })
+                .collect();
+            self.initialised = true;
+            for (x, v) in self.pop.iter().zip(&self.values) {
+                if *v < self.best.1 || self.best.0.is_empty() {
+                    self.best = (x.clone(), *v);
+                }
+            }
+            return;
+        }
+        let mut children: Vec<(Vec<f64>, f64)> = Vec::with_capacity(2);
+        for (x, v) in self.asked.iter().zip(values) {
+            if v.is_finite() {
+                if *v < self.best.1 {
+                    self.best = (x.clone(), *v);
+                }
+                children.push((x.clone(), *v));
+            } else {
+                children.push(self.best.clone());
+            }
+        }
+        // The two worst of the old population make way.
+        let mut order: Vec<usize> = (0..self.pop.len()).collect();
+        order.sort_by(|a, b| self.values[*b].total_cmp(&self.values[*a]));
+        self.slots.clear();
+        for ((x, v), slot) in children.into_iter().zip(order) {
+            self.pop[slot] = x;
+            self.values[slot] = v;
+            self.slots.push(slot);
+        }
+        self.iteration += 1;
+    }
+
+    fn best(&self) -> (&[f64], f64) {
+        (&self.best.0, self.best.1)
+    }
+    fn generation(&self) -> usize {
+        self.iteration
+    }
+    fn evaluations(&self) -> usize {
+        self.evaluations
+    }
+    fn converged(&self) -> bool {
+        false
+    }
+}

@@ -1,0 +1,231 @@
+//! `evoloop tune FILE`: the fuzzy-network paper's optimisation experiments from a TOML file.
+//! `experiment = "arsinh"` (Section 5.1) or `"maglev"` (Section 5.2); results as JSON/CSV and PNG
+//! in the output directory, a summary on stdout (or JSON with --json), progress on a terminal.
+
+pub mod arsinh;
+pub mod maglev;
+
+use crate::optim::hybrid::HybridConfig;
+use crate::optim::GaConfig;
+use clap::Args;
+use serde::Deserialize;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+pub struct TuneArgs {
+    /// Experiment file (TOML): config/arsinh_tune.toml or config/maglev_tune.toml.
+    pub file: PathBuf,
+    /// Seed of the GA (and of the plant's noise) [default: the file's `seed`].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Print the result as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Output directory [default: the file's output.dir].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// No progress lines.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTune {
+    experiment: Experiment,
+    seed: Option<u64>,
+    ga: Option<RawGa>,
+    maglev: Option<maglev::RawMaglevTune>,
+    output: Option<RawOut>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum Experiment {
+    Arsinh,
+    Maglev,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGa {
+    population: Option<usize>,
+    p_crossover: Option<f64>,
+    p_mutation: Option<f64>,
+    phases: Option<[usize; 3]>,
+    threads: Option<usize>,
+    hj_step: Option<f64>,
+    hj_per_candidate: Option<usize>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawOut {
+    dir: Option<PathBuf>,
+    plots: Option<bool>,
+}
+
+/// What every experiment needs to know about the run.
+pub struct Run {
+    pub hybrid: HybridConfig,
+    pub out: PathBuf,
+    pub plots: bool,
+    pub json: bool,
+    pub progress: bool,
+    pub seed: u64,
+}
+
+fn bad(file: &Path, key: &str, reason: impl std::fmt::Display) -> String {
+    if key.is_empty() {
+        format!("{}: {reason}", file.display())
+    } else {
+        format!("{}: key `{key}`: {reason}", file.display())
+    }
+}
+
+fn hybrid_config(
+    file: &Path,
+    g: Option<RawGa>,
+    seed: u64,
+    default_phases: [usize; 3],
+) -> Result<HybridConfig, String> {
+    let g = g.unwrap_or(RawGa {
+        population: None,
+        p_crossover: None,
+        p_mutation: None,
+        phases: None,
+        threads: None,
+        hj_step: None,
+        hj_per_candidate: None,
+    });
+    let population = g.population.unwrap_or(10);
+    if !(2..=10_000).contains(&population) {
+        return Err(bad(
+            file,
+            "ga.population",
+            format!("must be 2..=10000 (got {population})"),
+        ));
+    }
+    let p_crossover = g.p_crossover.unwrap_or(0.9);
+    if !(0.0..=1.0).contains(&p_crossover) {
+        return Err(bad(
+            file,
+            "ga.p_crossover",
+            format!("must be within [0, 1] (got {p_crossover})"),
+        ));
+    }
+    if let Some(p) = g.p_mutation {
+        if !(0.0..=1.0).contains(&p) {
+            return Err(bad(
+                file,
+                "ga.p_mutation",
+                format!("must be within [0, 1] (got {p})"),
+            ));
+        }
+    }
+    let phases = g.phases.unwrap_or(default_phases);
+    let threads = g.threads.unwrap_or(2);
+    if !(1..=256).contains(&threads) {
+        return Err(bad(
+            file,
+            "ga.threads",
+            format!("must be 1..=256 (got {threads})"),
+        ));
+    }
+    let hj_step = g.hj_step.unwrap_or(0.05);
+    if !(hj_step > 0.0 && hj_step <= 1.0) {
+        return Err(bad(
+            file,
+            "ga.hj_step",
+            format!("must be within (0, 1] (got {hj_step})"),
+        ));
+    }
+    Ok(HybridConfig {
+        ga: GaConfig {
+            population,
+            p_crossover,
+            p_mutation: g.p_mutation,
+            // Mutation steps shrink to local over the GA's phases (1 and 2).
+            max_iterations: (phases[0] + phases[1]).max(1),
+            seed,
+        },
+        phases,
+        scaling: Vec::new(),
+        threads,
+        hj_step,
+        hj_per_candidate: g.hj_per_candidate.unwrap_or(0),
+    })
+}
+
+pub fn main(a: TuneArgs) -> i32 {
+    match tune(&a) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            2
+        }
+    }
+}
+
+fn tune(a: &TuneArgs) -> Result<(), String> {
+    let text = std::fs::read_to_string(&a.file)
+        .map_err(|e| bad(&a.file, "", format!("cannot read: {e}")))?;
+    let raw: RawTune =
+        serde_path_to_error::deserialize(toml::Deserializer::new(&text)).map_err(|e| {
+            let key = e.path().to_string();
+            bad(
+                &a.file,
+                if key == "." { "" } else { &key },
+                e.into_inner().message(),
+            )
+        })?;
+    let seed = a.seed.or(raw.seed).unwrap_or(1);
+    let (default_phases, default_dir) = match raw.experiment {
+        Experiment::Arsinh => ([95, 200, 30], "runs/arsinh_tune"),
+        Experiment::Maglev => ([150, 0, 0], "runs/maglev_tune"),
+    };
+    let out_raw = raw.output.unwrap_or(RawOut {
+        dir: None,
+        plots: None,
+    });
+    let run = Run {
+        hybrid: hybrid_config(&a.file, raw.ga, seed, default_phases)?,
+        out: a
+            .out
+            .clone()
+            .or(out_raw.dir)
+            .unwrap_or_else(|| PathBuf::from(default_dir)),
+        plots: out_raw.plots.unwrap_or(true),
+        json: a.json,
+        progress: !a.quiet && std::io::stderr().is_terminal(),
+        seed,
+    };
+    std::fs::create_dir_all(&run.out).map_err(|e| format!("{}: {e}", run.out.display()))?;
+    match raw.experiment {
+        Experiment::Arsinh => {
+            if raw.maglev.is_some() {
+                return Err(bad(
+                    &a.file,
+                    "maglev",
+                    "not used by the arsinh experiment; remove it",
+                ));
+            }
+            arsinh::run(run)
+        }
+        Experiment::Maglev => {
+            let spec = maglev::spec(&a.file, raw.maglev)?;
+            maglev::run(run, spec)
+        }
+    }
+}
+
+/// A progress line on stderr (overwritten in place), when progress is on.
+pub fn progress_line(on: bool, what: &str, evaluations: usize, total: usize, best: f64) {
+    if on {
+        eprint!("\r  {what}: {evaluations}/{total} evaluations, best G {best:.4}   ");
+        if evaluations >= total {
+            eprintln!();
+        }
+    }
+}
