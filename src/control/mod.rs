@@ -4,11 +4,13 @@
 
 pub mod computed_torque;
 pub mod pd_servo;
+pub mod pid;
 pub mod state_feedback;
 pub mod validate;
 
 pub use computed_torque::ComputedTorque;
 pub use pd_servo::PdServo;
+pub use pid::{AntiWindup, Pid};
 pub use state_feedback::StateFeedback;
 pub use validate::{validate_params, ParamBounds, Rejection};
 

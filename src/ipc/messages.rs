@@ -160,6 +160,10 @@ pub struct Telemetry {
 pub const KIND_STATE_FEEDBACK: u32 = 1;
 pub const KIND_PD_SERVO: u32 = 2;
 pub const KIND_COMPUTED_TORQUE: u32 = 3;
+pub const KIND_PID_FUZZY_AW: u32 = 4;
+pub const KIND_PID: u32 = 5;
+pub const KIND_PID_CLAMPING: u32 = 6;
+pub const KIND_PID_BACK_CALCULATION: u32 = 7;
 
 /// A parameter set from the optimiser to the controller.
 #[repr(C)]

@@ -7,6 +7,7 @@
 
 pub mod arm;
 pub mod integrator;
+pub mod maglev;
 pub mod two_mass;
 
 pub use arm::Arm;
@@ -39,6 +40,8 @@ pub trait Plant: Send {
     fn initial_state(&self, x: &mut [f64]);
     /// Hard constraints applied after every integration step (e.g. joint stops). Default: none.
     fn constrain(&self, _x: &mut [f64]) {}
+    /// The measuring chain after the sensor noise (e.g. an ADC's quantisation). Default: none.
+    fn measure(&self, _y: &mut [f64]) {}
 }
 
 /// A plant being simulated: the model plus all the buffers its integration needs, allocated once
@@ -114,6 +117,7 @@ impl PlantSim {
             };
             msg.y[i] = self.y_clean[i] + e;
         }
+        p.measure(&mut msg.y[..ny.min(MAX_JOINTS)]);
         let nu = u_applied.len().min(MAX_JOINTS);
         msg.u_applied[..nu].copy_from_slice(&u_applied[..nu]);
     }

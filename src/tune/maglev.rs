@@ -1,18 +1,515 @@
-//! The magnetic-levitation experiment of Section 5.2 (filled in below).
-use super::Run;
-use serde::Deserialize;
+//! The magnetic-levitation experiment of Section 5.2 as a command: the PID with fuzzy
+//! anti-windup tuned by the GA alone (150 iterations, 310 evaluations) for the index of eq. 31,
+//!   G = sum |e_n| / mm + sum |u_n| / 1000 mA,
+//! over a set-point trajectory whose steps drive the coil current into both limits, beside the
+//! same PID with no anti-windup, with clamping and with back-calculation, each tuned by the same
+//! GA budget. A candidate that loses the ball (leaves +-4.5 mm) is unstable: the GA replaces it
+//! by the current best, as the paper does.
+
+use super::{progress_line, Run};
+use crate::control::pid::{fuzzy_ki_normalised, AntiWindup, Pid};
+use crate::control::Controller;
+use crate::ipc::messages::PlantState;
+use crate::optim::hybrid::hybrid;
+use crate::plant::maglev::{Maglev, MaglevParams};
+use crate::plant::PlantSim;
+use crate::reference::{Reference, Setpoint};
+use crate::report::plot::{two_panel_png, xy_png, Panel, Series, Style, XySeries};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
 use std::path::Path;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RawMaglevTune {}
-
-pub struct Spec;
-
-pub fn spec(_file: &Path, _raw: Option<RawMaglevTune>) -> Result<Spec, String> {
-    Ok(Spec)
+pub struct RawMaglevTune {
+    mass: Option<f64>,
+    period: Option<f64>,
+    step: Option<f64>,
+    noise_mm: Option<f64>,
+    duration: Option<f64>,
+    times: Option<Vec<f64>>,
+    values: Option<Vec<f64>>,
 }
 
-pub fn run(_run: Run, _spec: Spec) -> Result<(), String> {
-    Err("maglev tuning: not yet".into())
+/// The experiment: plant, sampling, trajectory and noise.
+#[derive(Debug, Clone, Serialize)]
+pub struct Spec {
+    pub plant: MaglevParams,
+    pub period: f64,
+    pub step: f64,
+    pub noise_mm: f64,
+    pub duration: f64,
+    pub reference: Reference,
+}
+
+impl Default for Spec {
+    fn default() -> Self {
+        Self {
+            plant: MaglevParams::default(),
+            period: 0.001,
+            step: 0.00025,
+            noise_mm: 0.002,
+            duration: 2.5,
+            reference: default_reference(),
+        }
+    }
+}
+
+/// One repetition of the set-point trajectory (mm): up 2 mm, down 2 mm, back to the operating
+/// point; each step's derivative kick saturates the amplifier at 0 or i_max.
+pub fn default_reference() -> Reference {
+    Reference::Steps {
+        times: vec![0.2, 1.0, 1.8],
+        values: vec![2.0, -2.0, 0.0],
+    }
+}
+
+pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, String> {
+    let mut s = Spec::default();
+    let Some(r) = raw else { return Ok(s) };
+    let check = |key: &str, v: f64, lo: f64, hi: f64| -> Result<f64, String> {
+        if v.is_finite() && v >= lo && v <= hi {
+            Ok(v)
+        } else {
+            Err(super::bad(
+                file,
+                &format!("maglev.{key}"),
+                format!("must be within [{lo}, {hi}] (got {v})"),
+            ))
+        }
+    };
+    if let Some(m) = r.mass {
+        s.plant.mass = check("mass", m, 0.01, 2.0)?;
+    }
+    if let Some(p) = r.period {
+        s.period = check("period", p, 1e-4, 0.01)?;
+    }
+    if let Some(h) = r.step {
+        s.step = check("step", h, 1e-6, s.period)?;
+    }
+    if let Some(n) = r.noise_mm {
+        s.noise_mm = check("noise_mm", n, 0.0, 1.0)?;
+    }
+    if let Some(d) = r.duration {
+        s.duration = check("duration", d, 0.01, 600.0)?;
+    }
+    match (r.times, r.values) {
+        (None, None) => {}
+        (Some(t), Some(v)) if !t.is_empty() && t.len() == v.len() => {
+            for i in 0..t.len() {
+                check(&format!("values[{i}]"), v[i], -4.0, 4.0)?;
+                if i > 0 && t[i] <= t[i - 1] {
+                    return Err(super::bad(
+                        file,
+                        &format!("maglev.times[{i}]"),
+                        "times must be strictly increasing",
+                    ));
+                }
+            }
+            s.reference = Reference::Steps {
+                times: t,
+                values: v,
+            };
+        }
+        _ => {
+            return Err(super::bad(
+                file,
+                "maglev.values",
+                "`times` and `values` go together, same length, at least one step",
+            ))
+        }
+    }
+    Ok(s)
+}
+
+/// The index of eq. 31 and its two parts.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Cost {
+    pub g: f64,
+    pub g_error: f64,
+    pub g_current: f64,
+}
+
+/// A closed-loop response: time, reference, output (mm), command (mA).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Trace {
+    pub t: Vec<f64>,
+    pub r: Vec<f64>,
+    pub y: Vec<f64>,
+    pub u: Vec<f64>,
+}
+
+/// Run the PID with `aw` and `params` on the experiment; None when the ball is lost (|y| > 4.5
+/// mm, near the sensor's end). `seed` drives the sensor noise.
+pub fn simulate(
+    spec: &Spec,
+    aw: AntiWindup,
+    params: &[f64],
+    seed: u64,
+    mut trace: Option<&mut Trace>,
+) -> Option<Cost> {
+    let plant = Maglev::new(spec.plant.clone());
+    let hold = spec.plant.hold_current_ma(spec.plant.mass_at(0.0));
+    let mut sim = PlantSim::new(Box::new(plant), spec.step, spec.noise_mm, seed);
+    let mut pid = Pid::new(
+        aw,
+        params,
+        spec.period,
+        (0.0, 1000.0 * spec.plant.i_max),
+        hold,
+    );
+    let n = (spec.duration / spec.period).round() as usize;
+    let mut state = PlantState::default();
+    let mut sp = Setpoint::default();
+    let mut u = [hold];
+    let (mut ge, mut gu) = (0.0, 0.0);
+    let lost = 0.9 * spec.plant.sensor_range_mm;
+    for k in 0..n {
+        sim.sample(k as u64, 0, &u, &mut state);
+        if !state.y[0].is_finite() || state.y[0].abs() > lost {
+            return None;
+        }
+        spec.reference.sample(state.t, &mut sp);
+        pid.step(&state, &sp, &mut u);
+        ge += (sp.q[0] - state.y[0]).abs();
+        gu += u[0].abs() / 1000.0;
+        if let Some(tr) = trace.as_deref_mut() {
+            tr.t.push(state.t);
+            tr.r.push(sp.q[0]);
+            tr.y.push(state.y[0]);
+            tr.u.push(u[0]);
+        }
+        sim.advance(&u, spec.period);
+    }
+    Some(Cost {
+        g: ge + gu,
+        g_error: ge,
+        g_current: gu,
+    })
+}
+
+/// The paper's parameter ranges (Section 5.2) for the fuzzy anti-windup PID, and the same ranges
+/// for the baselines' common parameters (Ki like C_i; Kb in [0, 1]).
+pub fn ranges(aw: AntiWindup) -> (Vec<f64>, Vec<f64>) {
+    match aw {
+        AntiWindup::Fuzzy => (
+            vec![500.0, 0.01, 0.5, 0.5, 0.5, 0.0, 0.3],
+            vec![1500.0, 0.1, 1.2, 1.2, 1.5, 120.0, 1.2],
+        ),
+        AntiWindup::None | AntiWindup::Clamping => {
+            (vec![500.0, 0.01, 0.0], vec![1500.0, 0.1, 120.0])
+        }
+        AntiWindup::BackCalculation => (vec![500.0, 0.01, 0.0, 0.0], vec![1500.0, 0.1, 120.0, 1.0]),
+    }
+}
+
+/// The paper's tuned fuzzy anti-windup set.
+pub const PAPER_FUZZY: [f64; 7] = [
+    983.108, 0.0447895, 0.638417, 0.57288, 1.16908, 106.064, 1.05207,
+];
+
+/// The value the GA minimises: G, or infinity for a lost ball.
+pub struct Objective<'a> {
+    pub spec: &'a Spec,
+    pub aw: AntiWindup,
+    pub seed: u64,
+}
+
+impl crate::optim::Objective for Objective<'_> {
+    fn value(&self, x: &[f64]) -> f64 {
+        simulate(self.spec, self.aw, x, self.seed, None).map_or(f64::INFINITY, |c| c.g)
+    }
+}
+
+/// One variant tuned: its best parameters and the GA's record.
+#[derive(Debug, Clone, Serialize)]
+pub struct Tuned {
+    pub anti_windup: AntiWindup,
+    pub params: Vec<f64>,
+    pub names: Vec<&'static str>,
+    pub g_tuning: f64,
+    pub test: Option<Cost>,
+    pub evaluations: usize,
+    pub seconds: f64,
+    pub best_so_far: Vec<f64>,
+}
+
+/// Tune one variant with the GA alone and evaluate it on the test run (another noise seed).
+pub fn tune_variant(run: &Run, spec: &Spec, aw: AntiWindup) -> Tuned {
+    let (lo, hi) = ranges(aw);
+    let obj = Objective {
+        spec,
+        aw,
+        seed: run.seed,
+    };
+    let mut cfg = run.hybrid.clone();
+    cfg.scaling.clear();
+    let total = cfg.ga.population + 2 * cfg.phases.iter().sum::<usize>();
+    let r = hybrid(&cfg, &obj, &lo, &hi, &[], |n, best| {
+        progress_line(run.progress, aw.name(), n, total, best)
+    });
+    Tuned {
+        anti_windup: aw,
+        test: simulate(spec, aw, &r.best, run.seed + 1000, None),
+        params: r.best,
+        names: aw.param_names().to_vec(),
+        g_tuning: r.value,
+        evaluations: r.evaluations,
+        seconds: r.seconds,
+        best_so_far: r.best_so_far,
+    }
+}
+
+pub fn run(run: Run, spec: Spec) -> Result<(), String> {
+    let variants = [
+        AntiWindup::Fuzzy,
+        AntiWindup::Clamping,
+        AntiWindup::BackCalculation,
+        AntiWindup::None,
+    ];
+    let tuned: Vec<Tuned> = variants
+        .iter()
+        .map(|aw| tune_variant(&run, &spec, *aw))
+        .collect();
+    let fz = &tuned[0];
+    let g_of = |t: &Tuned| t.test.map_or(serde_json::Value::Null, |c| json!(c.g));
+    let params: serde_json::Map<String, serde_json::Value> = fz
+        .names
+        .iter()
+        .zip(&fz.params)
+        .map(|(n, v)| (n.to_string(), json!(v)))
+        .collect();
+    let paper: serde_json::Map<String, serde_json::Value> = fz
+        .names
+        .iter()
+        .zip(PAPER_FUZZY)
+        .map(|(n, v)| (n.to_string(), json!(v)))
+        .collect();
+    let paper_cost = simulate(
+        &spec,
+        AntiWindup::Fuzzy,
+        &PAPER_FUZZY,
+        run.seed + 1000,
+        None,
+    );
+    let result = json!({
+        "experiment": "maglev",
+        "seed": run.seed,
+        "params": params,
+        "paper_params": paper,
+        "paper_params_G": paper_cost.map(|c| c.g),
+        "G": {
+            "fuzzy_aw": g_of(&tuned[0]),
+            "clamping": g_of(&tuned[1]),
+            "back_calculation": g_of(&tuned[2]),
+            "none": g_of(&tuned[3]),
+        },
+        "variants": tuned.iter().map(|t| json!({
+            "anti_windup": t.anti_windup.name(),
+            "params": t.names.iter().zip(&t.params).map(|(n, v)| (n.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
+            "G_tuning": t.g_tuning,
+            "test": t.test,
+            "evaluations": t.evaluations,
+            "seconds": t.seconds,
+        })).collect::<Vec<_>>(),
+        "spec": spec,
+        "unstable_pole_rad_s": spec.plant.unstable_pole(),
+    });
+    crate::process::write_json(&run.out, "result.json", &result).map_err(|e| e.to_string())?;
+    let mut traces = Vec::new();
+    for t in &tuned {
+        let mut tr = Trace::default();
+        simulate(
+            &spec,
+            t.anti_windup,
+            &t.params,
+            run.seed + 1000,
+            Some(&mut tr),
+        );
+        traces.push(tr);
+    }
+    let mut csv = String::from("t,r");
+    for t in &tuned {
+        csv.push_str(&format!(",y_{0},u_{0}", t.anti_windup.name()));
+    }
+    csv.push('\n');
+    for k in 0..traces[0].t.len() {
+        csv.push_str(&format!("{},{}", traces[0].t[k], traces[0].r[k]));
+        for tr in &traces {
+            csv.push_str(&format!(
+                ",{},{}",
+                tr.y.get(k).copied().unwrap_or(f64::NAN),
+                tr.u.get(k).copied().unwrap_or(f64::NAN)
+            ));
+        }
+        csv.push('\n');
+    }
+    std::fs::write(run.out.join("response.csv"), csv).map_err(|e| e.to_string())?;
+    if run.plots {
+        plots(&run, &tuned, &traces)?;
+    }
+    if run.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&result).map_err(|e| e.to_string())?
+        );
+        return Ok(());
+    }
+    println!("maglev (Section 5.2): GA alone, {} evaluations per controller, open-loop pole +{:.1} rad/s", fz.evaluations, spec.plant.unstable_pole());
+    println!("  fuzzy anti-windup PID, tuned vs the paper's set:");
+    for (i, n) in fz.names.iter().enumerate() {
+        println!(
+            "    {n:>8} = {:>10.4}   (paper {:>10.4})",
+            fz.params[i], PAPER_FUZZY[i]
+        );
+    }
+    println!("  eq. 31 index on the test run (same trajectory, another noise seed):");
+    for t in &tuned {
+        match t.test {
+            Some(c) => println!(
+                "    {:>16}: G = {:>9.2} (error {:.2} + current {:.2}), tuned in {:.2} s",
+                t.anti_windup.name(),
+                c.g,
+                c.g_error,
+                c.g_current,
+                t.seconds
+            ),
+            None => println!(
+                "    {:>16}: lost the ball on the test run",
+                t.anti_windup.name()
+            ),
+        }
+    }
+    if let Some(c) = paper_cost {
+        println!("    the paper's set on this plant: G = {:.2}", c.g);
+    } else {
+        println!("    the paper's set loses the ball on this plant model");
+    }
+    println!(
+        "  wrote {}/result.json, response.csv{}",
+        run.out.display(),
+        if run.plots {
+            ", response.png, comparison.png, ki.png, evolution.png"
+        } else {
+            ""
+        }
+    );
+    Ok(())
+}
+
+fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
+    let f = &traces[0];
+    two_panel_png(
+        &run.out.join("response.png"),
+        "maglev, PID with fuzzy anti-windup (tuned): position and coil current (Fig. 8)",
+        &f.t,
+        Panel {
+            series: &[
+                Series {
+                    name: "reference (mm)",
+                    values: &f.r,
+                },
+                Series {
+                    name: "y (mm)",
+                    values: &f.y,
+                },
+            ],
+            label: "position (mm)",
+        },
+        Panel {
+            series: &[Series {
+                name: "u (mA)",
+                values: &f.u,
+            }],
+            label: "current (mA)",
+        },
+        &[],
+    )?;
+    let names: Vec<String> = tuned
+        .iter()
+        .map(|t| t.anti_windup.name().to_string())
+        .collect();
+    let mut top = vec![Series {
+        name: "reference",
+        values: &f.r,
+    }];
+    top.extend(traces.iter().zip(&names).map(|(tr, n)| Series {
+        name: n,
+        values: &tr.y,
+    }));
+    let bottom: Vec<Series> = traces
+        .iter()
+        .zip(&names)
+        .map(|(tr, n)| Series {
+            name: n,
+            values: &tr.u,
+        })
+        .collect();
+    let n = f.t.len();
+    let trim = |s: &[Series]| s.iter().all(|x| x.values.len() == n);
+    if trim(&top) && trim(&bottom) {
+        two_panel_png(
+            &run.out.join("comparison.png"),
+            "maglev: fuzzy anti-windup vs clamping, back-calculation and none (each GA-tuned)",
+            &f.t,
+            Panel {
+                series: &top,
+                label: "position (mm)",
+            },
+            Panel {
+                series: &bottom,
+                label: "current (mA)",
+            },
+            &[],
+        )?;
+    }
+    let p = &tuned[0].params;
+    let e: Vec<f64> = (0..=200).map(|i| 1.5 * p[6] * i as f64 / 200.0).collect();
+    let ki: Vec<f64> = e
+        .iter()
+        .map(|x| {
+            let xn = (x / p[6]).min(1.0);
+            p[5] * (fuzzy_ki_normalised(xn, p[2], p[3], p[4])
+                - fuzzy_ki_normalised(1.0, p[2], p[3], p[4]))
+        })
+        .collect();
+    xy_png(
+        &run.out.join("ki.png"),
+        "fuzzy integral gain K_i(|e|) of the tuned controller (eqs. 27-30)",
+        "|e| (mm)",
+        "K_i (mA/mm per sample)",
+        &[XySeries {
+            name: "K_i",
+            x: &e,
+            y: &ki,
+            style: Style::Line,
+        }],
+        None,
+        None,
+    )?;
+    let curves: Vec<(String, Vec<f64>, Vec<f64>)> = tuned
+        .iter()
+        .map(|t| {
+            (
+                t.anti_windup.name().to_string(),
+                (1..=t.best_so_far.len()).map(|i| i as f64).collect(),
+                t.best_so_far.clone(),
+            )
+        })
+        .collect();
+    xy_png(
+        &run.out.join("evolution.png"),
+        "best G so far per evaluation (GA alone)",
+        "evaluation",
+        "G (eq. 31)",
+        &XySeries::from_curves(&curves, Style::Line),
+        None,
+        None,
+    )
+}
+
+/// Unused-import guard for Controller (the Pid's trait methods are called through it).
+#[allow(dead_code)]
+fn _uses(c: &mut dyn Controller) -> usize {
+    c.n_params()
 }

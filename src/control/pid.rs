@@ -1,0 +1,181 @@
+//! The PID of the fuzzy-network paper's maglev experiment (eq. 26), in discrete time at the
+//! sampling interval T_A, with four ways of handling the integrator while the actuator saturates:
+//!   u_k = Kp { e_k + Tv / T_A (e_k - e_{k-1}) } + sum_{n<=k} K_i e_n,   clipped to [u_min, u_max].
+//! - `Fuzzy` (eqs. 27-30): K_i(|e|) = C_i (K_i'(|e|') - K_i'(1)), |e|' = min(|e| / C_e, 1), from the
+//!   two-rule base "IF |e| small THEN K_i large; IF |e| large THEN K_i small" with Gaussian MFs;
+//!   by the centre of gravity of Section 2.1,
+//!     K_i'(x) = 1 / (1 + (v0K/v1K) exp((x / v0e)^2 - ((x - 1) / v1e)^2)).
+//!   (The paper's printed eq. 30 has v0e and v1e the other way round; the form here is what its
+//!   own eqs. 28-29 and Section 2.1 give, and `fuzzy_gain_matches_the_two_rule_network` checks
+//!   it against the generic fuzzy network.) Parameters [Kp, Tv, v0e, v1e, v0K/v1K, C_i, C_e].
+//! - `None`: a constant K_i, no anti-windup. Parameters [Kp, Tv, Ki].
+//! - `Clamping`: conditional integration, the integrator holds while the output is saturated and
+//!   the error would drive it further. Parameters [Kp, Tv, Ki].
+//! - `BackCalculation`: the saturation excess is fed back into the integrator,
+//!   I += Ki e + Kb (u_sat - u_raw). Parameters [Kp, Tv, Ki, Kb].
+//! Units as the paper's: e in mm, u in mA, Kp and Ki (per sample) in mA/mm, Tv in s.
+//! The integrator starts at `initial_integral` (the holding current, as if the loop had been
+//! running: eq. 26 has no separate bias).
+
+use super::Controller;
+use crate::ipc::messages::{self as m, PlantState};
+use crate::reference::Setpoint;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AntiWindup {
+    Fuzzy,
+    None,
+    Clamping,
+    BackCalculation,
+}
+
+impl AntiWindup {
+    pub fn n_params(self) -> usize {
+        match self {
+            AntiWindup::Fuzzy => 7,
+            AntiWindup::None | AntiWindup::Clamping => 3,
+            AntiWindup::BackCalculation => 4,
+        }
+    }
+
+    pub fn kind(self) -> u32 {
+        match self {
+            AntiWindup::Fuzzy => m::KIND_PID_FUZZY_AW,
+            AntiWindup::None => m::KIND_PID,
+            AntiWindup::Clamping => m::KIND_PID_CLAMPING,
+            AntiWindup::BackCalculation => m::KIND_PID_BACK_CALCULATION,
+        }
+    }
+
+    pub fn param_names(self) -> &'static [&'static str] {
+        match self {
+            AntiWindup::Fuzzy => &["Kp", "Tv", "v0e", "v1e", "v0K/v1K", "C_i", "C_e"],
+            AntiWindup::None | AntiWindup::Clamping => &["Kp", "Tv", "Ki"],
+            AntiWindup::BackCalculation => &["Kp", "Tv", "Ki", "Kb"],
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AntiWindup::Fuzzy => "fuzzy_aw",
+            AntiWindup::None => "none",
+            AntiWindup::Clamping => "clamping",
+            AntiWindup::BackCalculation => "back_calculation",
+        }
+    }
+}
+
+/// K_i'(x) of the two-rule base (see the module text), x = |e|' in [0, 1].
+pub fn fuzzy_ki_normalised(x: f64, v0e: f64, v1e: f64, ratio_k: f64) -> f64 {
+    let a = x / v0e;
+    let b = (x - 1.0) / v1e;
+    1.0 / (1.0 + ratio_k * (a * a - b * b).exp())
+}
+
+#[derive(Debug, Clone)]
+pub struct Pid {
+    pub aw: AntiWindup,
+    params: Vec<f64>,
+    period: f64,
+    u_min: f64,
+    u_max: f64,
+    integral: f64,
+    e_prev: Option<f64>,
+}
+
+impl Pid {
+    pub fn new(
+        aw: AntiWindup,
+        params: &[f64],
+        period: f64,
+        limits: (f64, f64),
+        initial_integral: f64,
+    ) -> Self {
+        assert_eq!(params.len(), aw.n_params(), "parameter count for {aw:?}");
+        Self {
+            aw,
+            params: params.to_vec(),
+            period,
+            u_min: limits.0,
+            u_max: limits.1,
+            integral: initial_integral,
+            e_prev: None,
+        }
+    }
+
+    /// The integral gain at error e (per sample, mA/mm).
+    pub fn ki(&self, e: f64) -> f64 {
+        let p = &self.params;
+        match self.aw {
+            AntiWindup::Fuzzy => {
+                let (v0e, v1e, r, ci, ce) = (p[2], p[3], p[4], p[5], p[6]);
+                let x = (e.abs() / ce).min(1.0);
+                ci * (fuzzy_ki_normalised(x, v0e, v1e, r) - fuzzy_ki_normalised(1.0, v0e, v1e, r))
+            }
+            _ => p[2],
+        }
+    }
+
+    fn pd(&self, e: f64) -> f64 {
+        let de = e - self.e_prev.unwrap_or(e);
+        self.params[0] * (e + self.params[1] / self.period * de)
+    }
+
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+}
+
+impl Controller for Pid {
+    fn kind(&self) -> u32 {
+        self.aw.kind()
+    }
+    fn n_params(&self) -> usize {
+        self.params.len()
+    }
+    fn params(&self) -> &[f64] {
+        &self.params
+    }
+    fn n_outputs(&self) -> usize {
+        1
+    }
+
+    fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
+        let e = sp.q[0] - state.y[0];
+        let pd = self.pd(e);
+        let di = self.ki(e) * e;
+        let out = match self.aw {
+            AntiWindup::Fuzzy | AntiWindup::None => {
+                self.integral += di;
+                (pd + self.integral).clamp(self.u_min, self.u_max)
+            }
+            AntiWindup::Clamping => {
+                let raw = pd + self.integral + di;
+                let pushes_up = raw > self.u_max && di > 0.0;
+                let pushes_down = raw < self.u_min && di < 0.0;
+                if !(pushes_up || pushes_down) {
+                    self.integral += di;
+                }
+                (pd + self.integral).clamp(self.u_min, self.u_max)
+            }
+            AntiWindup::BackCalculation => {
+                let raw = pd + self.integral + di;
+                let sat = raw.clamp(self.u_min, self.u_max);
+                self.integral += di + self.params[3] * (sat - raw);
+                sat
+            }
+        };
+        self.e_prev = Some(e);
+        u[0] = out;
+    }
+
+    fn swap_params(&mut self, new: &[f64], state: &PlantState, sp: &Setpoint) {
+        // Keep u continuous: the new P-D part replaces the old one inside the integrator.
+        let e = sp.q[0] - state.y[0];
+        let old = self.pd(e);
+        self.params.copy_from_slice(new);
+        self.integral += old - self.pd(e);
+    }
+}
