@@ -4,7 +4,7 @@
 //! - `Fuzzy` (eqs. 27-30): K_i(|e|) = C_i (K_i'(|e|') - K_i'(1)), |e|' = min(|e| / C_e, 1), from the
 //!   two-rule base "IF |e| small THEN K_i large; IF |e| large THEN K_i small" with Gaussian MFs;
 //!   by the centre of gravity of Section 2.1,
-//!     K_i'(x) = 1 / (1 + (v0K/v1K) exp((x / v0e)^2 - ((x - 1) / v1e)^2)).
+//!   `K_i'(x) = 1 / (1 + (v0K/v1K) exp((x / v0e)^2 - ((x - 1) / v1e)^2))`.
 //!   (The paper's printed eq. 30 has v0e and v1e the other way round; the form here is what its
 //!   own eqs. 28-29 and Section 2.1 give, and `fuzzy_gain_matches_the_two_rule_network` checks
 //!   it against the generic fuzzy network.) Parameters [Kp, Tv, v0e, v1e, v0K/v1K, C_i, C_e].
@@ -13,6 +13,7 @@
 //!   the error would drive it further. Parameters [Kp, Tv, Ki].
 //! - `BackCalculation`: the saturation excess is fed back into the integrator,
 //!   I += Ki e + Kb (u_sat - u_raw). Parameters [Kp, Tv, Ki, Kb].
+//!
 //! Units as the paper's: e in mm, u in mA, Kp and Ki (per sample) in mA/mm, Tv in s.
 //! The integrator starts at `initial_integral` (the holding current, as if the loop had been
 //! running: eq. 26 has no separate bias).
