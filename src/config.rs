@@ -67,6 +67,20 @@ struct RawPlant {
     command_timeout_periods: Option<u32>,
     two_mass: Option<RawTwoMass>,
     arm: Option<RawArm>,
+    maglev: Option<RawMaglev>,
+}
+
+/// The magnetic-levitation plant (src/plant/maglev.rs documents the model and its numbers).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMaglev {
+    mass: Option<f64>,
+    hold_current: Option<f64>,
+    i_max: Option<f64>,
+    tau: Option<f64>,
+    sensor_range_mm: Option<f64>,
+    mass_times: Option<Vec<f64>>,
+    mass_values: Option<Vec<f64>>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -75,6 +89,8 @@ pub enum PlantKind {
     TwoMass,
     /// A rigid-body arm from a D-H table or URDF file.
     Arm,
+    /// The fuzzy-network paper's magnetic levitation (output mm, input mA).
+    Maglev,
 }
 
 #[derive(Debug, Deserialize)]
@@ -106,6 +122,18 @@ struct RawController {
     state_feedback: Option<RawStateFeedback>,
     pd_servo: Option<RawJointGains>,
     computed_torque: Option<RawJointGains>,
+    pid: Option<RawPid>,
+}
+
+/// The PID of eq. 26 with its anti-windup scheme.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPid {
+    anti_windup: crate::control::AntiWindup,
+    params: Vec<f64>,
+    initial_integral: Option<f64>,
+    lower: Option<Vec<f64>>,
+    upper: Option<Vec<f64>>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -116,6 +144,8 @@ pub enum ControllerKind {
     PdServo,
     /// Computed torque with a rigid-body model.
     ComputedTorque,
+    /// PID (eq. 26) with fuzzy, clamping, back-calculation or no anti-windup.
+    Pid,
 }
 
 impl ControllerKind {
@@ -126,6 +156,8 @@ impl ControllerKind {
             ControllerKind::StateFeedback => m::KIND_STATE_FEEDBACK,
             ControllerKind::PdServo => m::KIND_PD_SERVO,
             ControllerKind::ComputedTorque => m::KIND_COMPUTED_TORQUE,
+            // The scheme decides (see `ControllerSpec::param_kind`); this is the fuzzy one.
+            ControllerKind::Pid => m::KIND_PID_FUZZY_AW,
         }
     }
 }
@@ -292,6 +324,8 @@ pub struct PlantSpec {
     pub spring_schedule: Vec<(f64, f64)>,
     /// The arm, for `kind = "arm"`.
     pub arm: Option<ArmSpec>,
+    /// The maglev, for `kind = "maglev"`.
+    pub maglev: Option<crate::plant::maglev::MaglevParams>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -316,6 +350,10 @@ pub struct ControllerSpec {
     pub model: Option<Model>,
     /// Arms: torque limit per joint (from the robot description; infinite where none).
     pub torque_limits: Vec<f64>,
+    /// PID: the anti-windup scheme, the integrator's start value and the output range.
+    pub anti_windup: Option<crate::control::AntiWindup>,
+    pub initial_integral: f64,
+    pub output_range: (f64, f64),
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -364,6 +402,16 @@ pub struct Overrides {
     pub optimiser: Option<OptimiserMode>,
     /// Drop every real-time privilege request (SCHED_FIFO, mlockall, pinning).
     pub no_rt: bool,
+}
+
+impl ControllerSpec {
+    /// The `KIND_*` this controller's parameter sets carry (a PID's depends on its scheme).
+    pub fn param_kind(&self) -> u32 {
+        match self.anti_windup {
+            Some(aw) => aw.kind(),
+            None => self.kind.message_kind(),
+        }
+    }
 }
 
 impl Scenario {
@@ -417,6 +465,12 @@ impl Scenario {
     /// The plant model, with the configured parameters.
     pub fn build_plant(&self) -> Box<dyn Plant> {
         match self.plant.kind {
+            PlantKind::Maglev => Box::new(crate::plant::maglev::Maglev::new(
+                self.plant
+                    .maglev
+                    .clone()
+                    .expect("validated: maglev plants have parameters"),
+            )),
             PlantKind::Arm => {
                 let arm = self
                     .plant
@@ -449,6 +503,15 @@ impl Scenario {
             ControllerKind::PdServo => Box::new(PdServo::new(
                 &self.controller.gains,
                 &self.controller.torque_limits,
+            )),
+            ControllerKind::Pid => Box::new(crate::control::Pid::new(
+                self.controller
+                    .anti_windup
+                    .expect("validated: a PID has its scheme"),
+                &self.controller.gains,
+                self.timing.period,
+                self.controller.output_range,
+                self.controller.initial_integral,
             )),
             ControllerKind::ComputedTorque => Box::new(ComputedTorque::new(
                 self.controller
@@ -688,9 +751,82 @@ impl Validator {
         if command_timeout_periods == 0 {
             return self.fail("plant.command_timeout_periods", "must be >= 1");
         }
+        for (kind, name, present) in [
+            (PlantKind::TwoMass, "two_mass", p.two_mass.is_some()),
+            (PlantKind::Arm, "arm", p.arm.is_some()),
+            (PlantKind::Maglev, "maglev", p.maglev.is_some()),
+        ] {
+            if kind != p.kind {
+                self.unused(&format!("plant.{name}"), present, "by this plant kind")?;
+            }
+        }
         match p.kind {
+            PlantKind::Maglev => {
+                if reference.joints() != 1 {
+                    return self.fail(
+                        "reference",
+                        "the maglev follows a scalar height reference (mm)",
+                    );
+                }
+                let raw = p.maglev.unwrap_or(RawMaglev {
+                    mass: None,
+                    hold_current: None,
+                    i_max: None,
+                    tau: None,
+                    sensor_range_mm: None,
+                    mass_times: None,
+                    mass_values: None,
+                });
+                let d = crate::plant::maglev::MaglevParams::default();
+                let mg = crate::plant::maglev::MaglevParams {
+                    mass: self.range("plant.maglev.mass", raw.mass.unwrap_or(d.mass), 0.01, 2.0)?,
+                    hold_current: self.range(
+                        "plant.maglev.hold_current",
+                        raw.hold_current.unwrap_or(d.hold_current),
+                        0.01,
+                        100.0,
+                    )?,
+                    i_max: self.range(
+                        "plant.maglev.i_max",
+                        raw.i_max.unwrap_or(d.i_max),
+                        0.01,
+                        100.0,
+                    )?,
+                    tau: self.range("plant.maglev.tau", raw.tau.unwrap_or(d.tau), 1e-6, 1.0)?,
+                    sensor_range_mm: self.range(
+                        "plant.maglev.sensor_range_mm",
+                        raw.sensor_range_mm.unwrap_or(d.sensor_range_mm),
+                        0.1,
+                        50.0,
+                    )?,
+                    mass_steps: self.schedule(
+                        "plant.maglev.mass_times",
+                        "plant.maglev.mass_values",
+                        raw.mass_times,
+                        raw.mass_values,
+                    )?,
+                    ..d
+                };
+                if step > mg.tau {
+                    return self.fail("plant.step", format!("{step} s is longer than the coil lag tau = {} s; the RK4 step must resolve it", mg.tau));
+                }
+                Ok(PlantSpec {
+                    kind: p.kind,
+                    step,
+                    noise_std,
+                    safe_command,
+                    command_timeout_periods,
+                    m1: 0.0,
+                    m2: 0.0,
+                    spring: 0.0,
+                    sensor: Sensor::default(),
+                    initial_positions: [0.0; 2],
+                    spring_schedule: Vec::new(),
+                    arm: None,
+                    maglev: Some(mg),
+                })
+            }
             PlantKind::Arm => {
-                self.unused("plant.two_mass", p.two_mass.is_some(), "by an arm plant")?;
                 let Some(arm) = p.arm else {
                     return self.fail("plant.arm", "missing table [plant.arm] with `robot`");
                 };
@@ -744,10 +880,10 @@ impl Validator {
                         model,
                         initial_q,
                     }),
+                    maglev: None,
                 })
             }
             PlantKind::TwoMass => {
-                self.unused("plant.arm", p.arm.is_some(), "by a two-mass plant")?;
                 if reference.joints() != 1 {
                     return self.fail(
                         "reference",
@@ -791,6 +927,7 @@ impl Validator {
                     initial_positions: x0,
                     spring_schedule,
                     arm: None,
+                    maglev: None,
                 })
             }
         }
@@ -894,6 +1031,7 @@ impl Validator {
                 c.state_feedback.is_some(),
             ),
             (ControllerKind::PdServo, "pd_servo", c.pd_servo.is_some()),
+            (ControllerKind::Pid, "pid", c.pid.is_some()),
             (
                 ControllerKind::ComputedTorque,
                 "computed_torque",
@@ -919,8 +1057,55 @@ impl Validator {
             startup_rate: 0.0,
             model: None,
             torque_limits: Vec::new(),
+            anti_windup: None,
+            initial_integral: 0.0,
+            output_range: (f64::NEG_INFINITY, f64::INFINITY),
         };
         match c.kind {
+            ControllerKind::Pid => {
+                let Some(mg) = plant.maglev.as_ref() else {
+                    return self.fail(
+                        "controller.kind",
+                        "the PID of eq. 26 drives the maglev plant (plant.kind = \"maglev\")",
+                    );
+                };
+                let Some(pid) = c.pid else {
+                    return self.fail(
+                        "controller.pid",
+                        "missing table [controller.pid] with `anti_windup` and `params`",
+                    );
+                };
+                let aw = pid.anti_windup;
+                let n = aw.n_params();
+                if pid.params.len() != n {
+                    return self.fail(
+                        "controller.pid.params",
+                        format!(
+                            "{} anti-windup takes {n} values ({}), got {}",
+                            aw.name(),
+                            aw.param_names().join(", "),
+                            pid.params.len()
+                        ),
+                    );
+                }
+                let (lo, hi) = crate::tune::maglev::ranges(aw);
+                (spec.gains, spec.lower, spec.upper) = self.gains_in_bounds(
+                    "controller.pid",
+                    pid.params,
+                    Some(pid.lower.unwrap_or(lo)),
+                    Some(pid.upper.unwrap_or(hi)),
+                    0.0,
+                )?;
+                spec.anti_windup = Some(aw);
+                spec.output_range = (0.0, 1000.0 * mg.i_max);
+                spec.initial_integral = self.range(
+                    "controller.pid.initial_integral",
+                    pid.initial_integral
+                        .unwrap_or(mg.hold_current_ma(mg.mass_at(0.0))),
+                    0.0,
+                    1000.0 * mg.i_max,
+                )?;
+            }
             ControllerKind::StateFeedback => {
                 if plant.kind != PlantKind::TwoMass {
                     return self.fail("controller.kind", "state_feedback drives the two_mass plant; arms take pd_servo or computed_torque");

@@ -25,7 +25,7 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
     let mut set = ParamSet {
         version: 1,
         apply_at_seq: 500,
-        kind: scn.controller.kind.message_kind(),
+        kind: scn.controller.param_kind(),
         n: 12,
         ..Default::default()
     };

@@ -18,7 +18,7 @@ pub fn scheduled_set(scn: &Scenario, i: usize, apply_at_seq: u64) -> ParamSet {
     let mut p = ParamSet {
         version: i as u64 + 1,
         apply_at_seq,
-        kind: scn.controller.kind.message_kind(),
+        kind: scn.controller.param_kind(),
         n: s.values.len() as u32,
         ..ParamSet::default()
     };
