@@ -186,5 +186,75 @@ fn dynamics(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, control, robust, dynamics);
+/// The fuzzy-network paper's hot paths: one evaluation of the 2-input 3 x 3 network (goal
+/// < 100 ns), the whole 660-evaluation synthetic tuning (goal < 1 s) and one 310-evaluation GA
+/// tuning of the maglev PID on 2 threads (goal < 10 s).
+fn fuzzy(c: &mut Criterion) {
+    use evoloop::fuzzy::arsinh;
+    use evoloop::optim::hybrid::{hybrid, HybridConfig};
+    use evoloop::optim::GaConfig;
+    let net = arsinh::initial_network(4.0, 0.5, 0.3);
+    let mut y = [0.0];
+    let mut k = 0u32;
+    c.bench_function(
+        "fuzzy network 2 inputs 3x3, 5 output MFs: one evaluation",
+        |b| {
+            b.iter(|| {
+                k = k.wrapping_add(1);
+                let x = (k % 200) as f64 / 100.0 - 1.0;
+                net.eval(black_box(&[x, 0.3 - 0.5 * x]), &mut y);
+                black_box(y[0])
+            })
+        },
+    );
+    let codec = arsinh::codec();
+    let (lo, hi) = codec.bounds();
+    let seeds: Vec<Vec<f64>> = arsinh::prespecified()
+        .iter()
+        .map(|n| codec.encode(n).unwrap())
+        .collect();
+    let obj = arsinh::Objective {
+        codec: codec.clone(),
+        trajectory: arsinh::default_trajectory(),
+    };
+    let hybrid_cfg = |threads, phases: [usize; 3], scaling: Vec<usize>| HybridConfig {
+        ga: GaConfig {
+            seed: 1,
+            max_iterations: phases[0] + phases[1],
+            ..Default::default()
+        },
+        phases,
+        scaling,
+        threads,
+        hj_step: 0.05,
+        hj_per_candidate: 0,
+    };
+    let mut group = c.benchmark_group("fuzzy tuning");
+    group.sample_size(10);
+    for threads in [1, 2] {
+        let cfg = hybrid_cfg(threads, [95, 200, 30], codec.scaling_genes());
+        group.bench_function(
+            format!("arsinh: 660 evaluations, {threads} thread(s)"),
+            |b| b.iter(|| black_box(hybrid(&cfg, &obj, &lo, &hi, &seeds, |_, _| {}).value)),
+        );
+    }
+    let spec = evoloop::tune::maglev::Spec::default();
+    let aw = evoloop::control::AntiWindup::Fuzzy;
+    let (mlo, mhi) = evoloop::tune::maglev::ranges(aw);
+    let mobj = evoloop::tune::maglev::Objective {
+        spec: &spec,
+        aw,
+        seed: 1,
+    };
+    for threads in [1, 2] {
+        let cfg = hybrid_cfg(threads, [150, 0, 0], Vec::new());
+        group.bench_function(
+            format!("maglev fuzzy anti-windup PID: 310 evaluations of 2.5 s, {threads} thread(s)"),
+            |b| b.iter(|| black_box(hybrid(&cfg, &mobj, &mlo, &mhi, &[], |_, _| {}).value)),
+        );
+    }
+    group.finish();
+}
+
+criterion_group!(benches, control, robust, dynamics, fuzzy);
 criterion_main!(benches);
