@@ -244,7 +244,9 @@ fn rastrigin(x: &[f64]) -> f64 {
 #[test]
 fn ga_with_hooke_jeeves_solves_standard_test_functions() {
     type F = fn(&[f64]) -> f64;
-    let cases: [(&str, F, usize, f64, [usize; 3], f64); 3] = [
+    /// Name, function, dimension, box half-width, phases, tolerance.
+    type Case = (&'static str, F, usize, f64, [usize; 3], f64);
+    let cases: [Case; 3] = [
         ("sphere", sphere, 5, 5.0, [100, 100, 400], 1e-8),
         ("rosenbrock", rosenbrock, 2, 2.0, [200, 100, 2000], 1e-6),
         ("rastrigin", rastrigin, 2, 5.12, [300, 100, 300], 1e-8),
