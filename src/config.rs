@@ -751,6 +751,22 @@ impl Validator {
         if command_timeout_periods == 0 {
             return self.fail("plant.command_timeout_periods", "must be >= 1");
         }
+        // Fields every plant kind shares; each kind fills in its own part.
+        let base = PlantSpec {
+            kind: p.kind,
+            step,
+            noise_std,
+            safe_command,
+            command_timeout_periods,
+            m1: 0.0,
+            m2: 0.0,
+            spring: 0.0,
+            sensor: Sensor::default(),
+            initial_positions: [0.0; 2],
+            spring_schedule: Vec::new(),
+            arm: None,
+            maglev: None,
+        };
         for (kind, name, present) in [
             (PlantKind::TwoMass, "two_mass", p.two_mass.is_some()),
             (PlantKind::Arm, "arm", p.arm.is_some()),
@@ -811,19 +827,8 @@ impl Validator {
                     return self.fail("plant.step", format!("{step} s is longer than the coil lag tau = {} s; the RK4 step must resolve it", mg.tau));
                 }
                 Ok(PlantSpec {
-                    kind: p.kind,
-                    step,
-                    noise_std,
-                    safe_command,
-                    command_timeout_periods,
-                    m1: 0.0,
-                    m2: 0.0,
-                    spring: 0.0,
-                    sensor: Sensor::default(),
-                    initial_positions: [0.0; 2],
-                    spring_schedule: Vec::new(),
-                    arm: None,
                     maglev: Some(mg),
+                    ..base
                 })
             }
             PlantKind::Arm => {
@@ -864,23 +869,12 @@ impl Validator {
                     }
                 };
                 Ok(PlantSpec {
-                    kind: p.kind,
-                    step,
-                    noise_std,
-                    safe_command,
-                    command_timeout_periods,
-                    m1: 0.0,
-                    m2: 0.0,
-                    spring: 0.0,
-                    sensor: Sensor::default(),
-                    initial_positions: [0.0; 2],
-                    spring_schedule: Vec::new(),
                     arm: Some(ArmSpec {
                         robot,
                         model,
                         initial_q,
                     }),
-                    maglev: None,
+                    ..base
                 })
             }
             PlantKind::TwoMass => {
@@ -910,11 +904,6 @@ impl Validator {
                     self.finite(&format!("plant.two_mass.initial_positions[{i}]"), *v)?;
                 }
                 Ok(PlantSpec {
-                    kind: p.kind,
-                    step,
-                    noise_std,
-                    safe_command,
-                    command_timeout_periods,
                     m1: self.range("plant.two_mass.m1", tm.m1.unwrap_or(1.0), 1e-6, 1e6)?,
                     m2: self.range("plant.two_mass.m2", tm.m2.unwrap_or(1.0), 1e-6, 1e6)?,
                     spring: self.range(
@@ -926,8 +915,7 @@ impl Validator {
                     sensor: tm.sensor.unwrap_or_default(),
                     initial_positions: x0,
                     spring_schedule,
-                    arm: None,
-                    maglev: None,
+                    ..base
                 })
             }
         }

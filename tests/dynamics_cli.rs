@@ -1,21 +1,9 @@
 //! `evoloop dynamics` and the arm scenario files from the command line: the JSON keys, the
 //! URDF's chain order, agreement with the library, and clear errors (exit 2).
 
+mod common;
+use common::{cli, stdout_json};
 use std::path::Path;
-use std::process::Command;
-
-fn evoloop(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_evoloop"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn json(o: &std::process::Output) -> serde_json::Value {
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
-}
 
 fn floats(v: &serde_json::Value) -> Vec<f64> {
     v.as_array()
@@ -43,8 +31,8 @@ fn dynamics_prints_tau_m_g_v_and_forward_dynamics_for_dh_and_urdf_alike() {
             "--json",
         ]
     };
-    let a = json(&evoloop(&args("config/robots/arm3.toml")));
-    let b = json(&evoloop(&args("config/robots/arm3.urdf")));
+    let a = stdout_json(&cli(&args("config/robots/arm3.toml")));
+    let b = stdout_json(&cli(&args("config/robots/arm3.urdf")));
     for key in ["tau", "G", "V", "qdd"] {
         let (x, y) = (floats(&a[key]), floats(&b[key]));
         assert_eq!(x.len(), 3, "{key}");
@@ -93,7 +81,7 @@ fn dynamics_prints_tau_m_g_v_and_forward_dynamics_for_dh_and_urdf_alike() {
         assert!((back[i] - t).abs() < 1e-9);
     }
     // Without --tau there is no qdd; the text form prints the same sections.
-    let plain = evoloop(&["dynamics", "--robot", "config/robots/industrial6.toml"]);
+    let plain = cli(&["dynamics", "--robot", "config/robots/industrial6.toml"]);
     assert!(plain.status.success());
     let text = String::from_utf8_lossy(&plain.stdout);
     for part in ["tau = M qdd", "M(q):", "G(q):", "V(q, qd):"] {
@@ -104,7 +92,7 @@ fn dynamics_prints_tau_m_g_v_and_forward_dynamics_for_dh_and_urdf_alike() {
 
 #[test]
 fn dynamics_refuses_bad_input_with_exit_2() {
-    let o = evoloop(&[
+    let o = cli(&[
         "dynamics",
         "--robot",
         "config/robots/arm3.toml",
@@ -113,10 +101,10 @@ fn dynamics_refuses_bad_input_with_exit_2() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--q needs 3 values"));
-    let o = evoloop(&["dynamics", "--robot", "config/robots/nope.urdf"]);
+    let o = cli(&["dynamics", "--robot", "config/robots/nope.urdf"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("cannot read"));
-    let o = evoloop(&["dynamics", "--robot", "Cargo.toml"]);
+    let o = cli(&["dynamics", "--robot", "Cargo.toml"]);
     assert_eq!(o.status.code(), Some(2));
 }
 
@@ -129,7 +117,7 @@ fn arm_scenarios_check_and_bad_ones_name_the_key() {
         "arm3_train2",
         "industrial6_ct",
     ] {
-        let o = evoloop(&["check", &format!("config/{c}.toml")]);
+        let o = cli(&["check", &format!("config/{c}.toml")]);
         assert!(
             o.status.success(),
             "{c}: {}",
@@ -186,7 +174,7 @@ fn arm_scenarios_check_and_bad_ones_name_the_key() {
     for (i, (text, key, reason)) in cases.iter().enumerate() {
         let f = tmp.path().join(format!("bad{i}.toml"));
         std::fs::write(&f, text).unwrap();
-        let o = evoloop(&["check", f.to_str().unwrap()]);
+        let o = cli(&["check", f.to_str().unwrap()]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "case {i}: {err}");
         assert!(

@@ -4,26 +4,12 @@
 mod common;
 use common::*;
 use std::path::Path;
-use std::process::Command;
-
-fn evoloop(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_evoloop"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stdout_json(o: &std::process::Output) -> serde_json::Value {
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
-}
 
 #[test]
 fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("a");
-    let v = stdout_json(&evoloop(&[
+    let v = stdout_json(&cli(&[
         "tune",
         "config/arsinh_tune.toml",
         "--json",
@@ -56,7 +42,7 @@ fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
         assert!(out.join(f).is_file(), "{f} not written");
     }
     // Seeded: the same seed gives the same result, another seed another one.
-    let again = stdout_json(&evoloop(&[
+    let again = stdout_json(&cli(&[
         "tune",
         "config/arsinh_tune.toml",
         "--json",
@@ -64,7 +50,7 @@ fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
         out.to_str().unwrap(),
     ]));
     assert_eq!(v["G_final"], again["G_final"]);
-    let other = stdout_json(&evoloop(&[
+    let other = stdout_json(&cli(&[
         "tune",
         "config/arsinh_tune.toml",
         "--json",
@@ -80,7 +66,7 @@ fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
 fn tune_maglev_reports_the_tuned_set_and_g_of_every_variant() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("m");
-    let v = stdout_json(&evoloop(&[
+    let v = stdout_json(&cli(&[
         "tune",
         "config/maglev_tune.toml",
         "--json",
@@ -138,7 +124,7 @@ fn tune_refuses_bad_files_with_the_key() {
     for (i, (text, key)) in cases.iter().enumerate() {
         let f = tmp.path().join(format!("t{i}.toml"));
         std::fs::write(&f, text).unwrap();
-        let o = evoloop(&["tune", f.to_str().unwrap()]);
+        let o = cli(&["tune", f.to_str().unwrap()]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "case {i}: {err}");
         assert!(

@@ -168,18 +168,41 @@ pub fn main(a: TuneArgs) -> i32 {
     }
 }
 
+fn read(file: &Path) -> Result<RawTune, String> {
+    let text =
+        std::fs::read_to_string(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
+    serde_path_to_error::deserialize(toml::Deserializer::new(&text)).map_err(|e| {
+        let key = e.path().to_string();
+        bad(
+            file,
+            if key == "." { "" } else { &key },
+            e.into_inner().message(),
+        )
+    })
+}
+
+/// Read and validate an experiment file without running it.
+pub fn validate_file(file: &Path) -> Result<(), String> {
+    let raw = read(file)?;
+    let phases = match raw.experiment {
+        Experiment::Arsinh => [95, 200, 30],
+        Experiment::Maglev => [150, 0, 0],
+    };
+    hybrid_config(file, raw.ga, 1, phases)?;
+    if raw.experiment == Experiment::Maglev {
+        maglev::spec(file, raw.maglev)?;
+    } else if raw.maglev.is_some() {
+        return Err(bad(
+            file,
+            "maglev",
+            "not used by the arsinh experiment; remove it",
+        ));
+    }
+    Ok(())
+}
+
 fn tune(a: &TuneArgs) -> Result<(), String> {
-    let text = std::fs::read_to_string(&a.file)
-        .map_err(|e| bad(&a.file, "", format!("cannot read: {e}")))?;
-    let raw: RawTune =
-        serde_path_to_error::deserialize(toml::Deserializer::new(&text)).map_err(|e| {
-            let key = e.path().to_string();
-            bad(
-                &a.file,
-                if key == "." { "" } else { &key },
-                e.into_inner().message(),
-            )
-        })?;
+    let raw = read(&a.file)?;
     let seed = a.seed.or(raw.seed).unwrap_or(1);
     let (default_phases, default_dir) = match raw.experiment {
         Experiment::Arsinh => ([95, 200, 30], "runs/arsinh_tune"),

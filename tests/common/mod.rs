@@ -206,3 +206,18 @@ pub fn process_named(run_id: &str, binary: &str) -> u32 {
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
 }
+
+/// `evoloop ARGS...` run in the source tree (so `config/...` paths resolve), its output.
+pub fn cli(args: &[&str]) -> Output {
+    Command::new(evoloop())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// The JSON a successful command printed on stdout.
+pub fn stdout_json(o: &Output) -> serde_json::Value {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
+}
