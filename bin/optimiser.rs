@@ -95,6 +95,11 @@ fn run(
     let dt = scn.timing.period;
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
     let mut next_set = 0usize;
+    let mut indirect = if scn.optimiser.mode == OptimiserMode::Indirect {
+        Some(evoloop::indirect::MaglevIndirect::new(scn).map_err(|e| (EXIT_SETUP, e))?)
+    } else {
+        None
+    };
     let mut last_state = Instant::now();
     let io = |e: IpcError| (EXIT_SETUP, e.to_string());
     loop {
@@ -134,7 +139,14 @@ fn run(
         while ports.command.next().map_err(io)?.is_some() {
             report.commands_seen += 1;
         }
+        if let Some(ind) = indirect.as_mut() {
+            ind.observe(&state);
+        }
         if state.flags & STATE_FLAG_END != 0 {
+            if let Some(ind) = indirect {
+                report.estimates = ind.estimates;
+                report.epochs = ind.epochs;
+            }
             return Ok(());
         }
         let schedule = &scn.optimiser.schedule;
@@ -151,6 +163,13 @@ fn run(
                 publish(scn, ports, next_set, at.max(state.seq + 1), report).map_err(io)?;
                 next_set += 1;
             }
+            // Paced by simulated time: the plant waits for the acknowledgement, so the epochs
+            // run at the same samples in every run of a seed.
+            if let Some(ind) = indirect.as_mut() {
+                if let Some(set) = ind.paced(state.t, sync as f64 * dt, state.seq + 1) {
+                    send_set(ports, &set, state.t, report).map_err(io)?;
+                }
+            }
             ports
                 .ack
                 .send(&OptimiserAck {
@@ -162,8 +181,33 @@ fn run(
                 publish(scn, ports, next_set, 0, report).map_err(io)?;
                 next_set += 1;
             }
+            // Free-running: an epoch whenever the stream is caught up (samples that overflow
+            // the queue meanwhile only restart the estimator's difference window).
+            if let Some(ind) = indirect.as_mut() {
+                if !ports.state.has_pending().map_err(io)? {
+                    if let Some(set) = ind.run_epoch(state.t, 0) {
+                        send_set(ports, &set, state.t, report).map_err(io)?;
+                    }
+                }
+            }
         }
     }
+}
+
+fn send_set(
+    ports: &Ports,
+    set: &ParamSet,
+    t: f64,
+    report: &mut OptimiserReport,
+) -> Result<(), IpcError> {
+    ports.params.send(set)?;
+    report.published.push(PublishedSet {
+        version: set.version,
+        at: t,
+        apply_at_seq: set.apply_at_seq,
+        values: set.values().to_vec(),
+    });
+    Ok(())
 }
 
 fn publish(

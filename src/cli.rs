@@ -36,7 +36,8 @@ pub struct OverrideArgs {
     /// Seed of every random number generator in the run.
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Optimiser mode: off (listens only) or schedule (publishes the configured sets).
+    /// Optimiser mode: off (listens only), schedule (publishes the configured sets) or indirect
+    /// (estimates the model online, tunes on it, publishes better sets).
     #[arg(long)]
     pub optimiser: Option<OptimiserMode>,
     /// Realtime mode without SCHED_FIFO, mlockall or CPU pinning, whatever the scenario asks.
@@ -83,6 +84,7 @@ impl OverrideArgs {
             a.push(match o {
                 OptimiserMode::Off => "off".into(),
                 OptimiserMode::Schedule => "schedule".into(),
+                OptimiserMode::Indirect => "indirect".into(),
             });
         }
         if self.no_rt {

@@ -255,6 +255,11 @@ struct RawOptimiser {
     sync_period: Option<f64>,
     nice: Option<i32>,
     schedule: Option<Vec<RawScheduled>>,
+    margin: Option<f64>,
+    evaluations_per_second: Option<f64>,
+    epoch_evaluations: Option<usize>,
+    threads: Option<usize>,
+    cost_u_weight: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -264,6 +269,8 @@ pub enum OptimiserMode {
     Off,
     /// Publishes the configured parameter sets at their configured times.
     Schedule,
+    /// The indirect scheme: estimates the model online, tunes on it, publishes better sets.
+    Indirect,
 }
 
 impl std::str::FromStr for OptimiserMode {
@@ -272,8 +279,9 @@ impl std::str::FromStr for OptimiserMode {
         match s {
             "off" => Ok(OptimiserMode::Off),
             "schedule" => Ok(OptimiserMode::Schedule),
+            "indirect" => Ok(OptimiserMode::Indirect),
             _ => Err(format!(
-                "unknown optimiser mode {s:?} (expected off or schedule)"
+                "unknown optimiser mode {s:?} (expected off, schedule or indirect)"
             )),
         }
     }
@@ -384,6 +392,18 @@ pub struct OptimiserSpec {
     pub sync_period: f64,
     pub nice: i32,
     pub schedule: Vec<ScheduledSet>,
+    /// Indirect: publish when the candidate's model cost is below the in-service set's by this
+    /// fraction.
+    pub margin: f64,
+    /// Indirect, lockstep: model evaluations per simulated second (paces the optimiser so a seeded
+    /// run is reproducible).
+    pub evaluations_per_second: f64,
+    /// Indirect: evaluations per GA epoch on one model snapshot.
+    pub epoch_evaluations: usize,
+    /// Indirect: threads evaluating candidates.
+    pub threads: usize,
+    /// Weight of |u| in the per-repetition cost sum |e| + w sum |u| (eq. 31: 1/1000 per mA).
+    pub cost_u_weight: f64,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -1387,6 +1407,11 @@ impl Validator {
             sync_period: None,
             nice: None,
             schedule: None,
+            margin: None,
+            evaluations_per_second: None,
+            epoch_evaluations: None,
+            threads: None,
+            cost_u_weight: None,
         });
         // Default: an acknowledgement every 100 periods (a barrier costs two cross-process
         // wake-ups; rarer barriers let lockstep run at hundreds of thousands of samples/s).
@@ -1429,11 +1454,40 @@ impl Validator {
                 values: s.values,
             });
         }
+        let epoch_evaluations = o.epoch_evaluations.unwrap_or(150);
+        if !(12..=100_000).contains(&epoch_evaluations) {
+            return self.fail(
+                "optimiser.epoch_evaluations",
+                format!("must be 12..=100000 (got {epoch_evaluations})"),
+            );
+        }
+        let threads = o.threads.unwrap_or(2);
+        if !(1..=64).contains(&threads) {
+            return self.fail(
+                "optimiser.threads",
+                format!("must be 1..=64 (got {threads})"),
+            );
+        }
         Ok(OptimiserSpec {
             mode: ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off),
             sync_period,
             nice,
             schedule,
+            margin: self.range("optimiser.margin", o.margin.unwrap_or(0.01), 0.0, 0.9)?,
+            evaluations_per_second: self.range(
+                "optimiser.evaluations_per_second",
+                o.evaluations_per_second.unwrap_or(100.0),
+                1.0,
+                1e6,
+            )?,
+            epoch_evaluations,
+            threads,
+            cost_u_weight: self.range(
+                "optimiser.cost_u_weight",
+                o.cost_u_weight.unwrap_or(1e-3),
+                0.0,
+                1e6,
+            )?,
         })
     }
 }

@@ -13,6 +13,7 @@ pub mod config;
 pub mod control;
 pub mod dynamics;
 pub mod fuzzy;
+pub mod indirect;
 pub mod ipc;
 pub mod optim;
 pub mod plant;

@@ -398,6 +398,13 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
         }
     }
 
+    /// Whether unread samples are waiting.
+    pub fn has_pending(&self) -> Result<bool, IpcError> {
+        self.subscriber
+            .has_samples()
+            .map_err(|e| err(format!("poll {}", self.topic.name()), e))
+    }
+
     /// The oldest unread sample, if any (in-order consumption).
     pub fn next(&self) -> Result<Option<T>, IpcError> {
         match self.subscriber.receive() {

@@ -10,6 +10,44 @@ use super::Table;
 use crate::config::Scenario;
 use std::path::Path;
 
+/// Cost per repetition of a repeating (square-wave) reference: (start, end, sum |e| + w sum |u|)
+/// over each whole period; empty for other references.
+fn repetitions(
+    scn: &Scenario,
+    t: &[f64],
+    refs: &[Vec<f64>],
+    ys: &[(String, Vec<f64>)],
+    us: &[(String, Vec<f64>)],
+) -> Vec<(f64, f64, f64)> {
+    let crate::reference::Reference::Square { period, start, .. } = scn.reference else {
+        return Vec::new();
+    };
+    let w = scn.optimiser.cost_u_weight;
+    let mut out: Vec<(f64, f64, f64)> = Vec::new();
+    for (k, tk) in t.iter().enumerate() {
+        if *tk < start {
+            continue;
+        }
+        let j = ((tk - start) / period).floor();
+        let (a, b) = (start + j * period, start + (j + 1.0) * period);
+        if b > t.last().copied().unwrap_or(0.0) + scn.timing.period / 2.0 {
+            break; // an incomplete last repetition
+        }
+        if out.last().is_none_or(|r| r.0 != a) {
+            out.push((a, b, 0.0));
+        }
+        let mut c = 0.0;
+        for (r, (_, y)) in refs.iter().zip(ys) {
+            c += (r[k] - y[k]).abs();
+        }
+        for (_, u) in us {
+            c += w * u[k].abs();
+        }
+        out.last_mut().expect("pushed above").2 += c;
+    }
+    out
+}
+
 fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
     let p = dir.join(name);
     let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
@@ -63,6 +101,43 @@ pub fn build_report(
         f.ratio_p99_9 = ratio(ctrl.timing.lateness.p99_9_ns, f.lateness.p99_9_ns);
         f
     });
+    let n_rejected = rejected.len();
+    let reps = repetitions(scn, &t, &refs, &ys, &us);
+    let change = scn
+        .plant
+        .maglev
+        .as_ref()
+        .and_then(|m| m.mass_steps.first().map(|s| s.0))
+        .or(scn.plant.spring_schedule.first().map(|s| s.0));
+    let mean = |v: Vec<f64>| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
+    let cost_before_change = change.and_then(|tc| {
+        mean(
+            reps.iter()
+                .skip(1)
+                .filter(|r| r.1 <= tc)
+                .map(|r| r.2)
+                .collect(),
+        )
+    });
+    let quarter = 0.75 * scn.timing.duration;
+    let cost_after_change = (!reps.is_empty())
+        .then(|| {
+            mean(
+                reps.iter()
+                    .filter(|r| r.0 >= quarter)
+                    .map(|r| r.2)
+                    .collect(),
+            )
+        })
+        .flatten();
+    let truth = |tt: f64| -> Option<f64> { scn.plant.maglev.as_ref().map(|m| m.mass_at(tt)) };
+    let last_est = opt.estimates.last().copied();
+    let model_estimate_final = last_est.map(|e| e.value);
+    let model_true_final = last_est.and_then(|e| truth(e.t));
+    let model_estimate_error = match (model_estimate_final, model_true_final) {
+        (Some(e), Some(tv)) => Some((e - tv) / tv),
+        _ => None,
+    };
     let summary = Summary {
         scenario: scn.name.clone(),
         config: scn.source.display().to_string(),
@@ -98,7 +173,57 @@ pub fn build_report(
         optimiser_published: opt.published.len(),
         interrupted: ctrl.interrupted || plant.interrupted || opt.interrupted,
         stale_resources_cleaned: cleaned,
+        accepted_versions: accepted.len(),
+        rejected_versions: n_rejected,
+        cost_per_repetition: reps.iter().map(|r| r.2).collect(),
+        cost_before_change,
+        cost_after_change,
+        model_estimate_final,
+        model_true_final,
+        model_estimate_error,
     };
+    if !reps.is_empty() {
+        let mut csv = String::from("repetition,t_start,t_end,cost\n");
+        for (j, r) in reps.iter().enumerate() {
+            csv.push_str(&format!("{j},{},{},{}\n", r.0, r.1, r.2));
+        }
+        std::fs::write(dir.join("repetitions.csv"), csv).map_err(|e| e.to_string())?;
+    }
+    if !opt.estimates.is_empty() {
+        let mut csv = String::from("t,estimate,std,true\n");
+        for e in &opt.estimates {
+            csv.push_str(&format!(
+                "{},{},{},{}\n",
+                e.t,
+                e.value,
+                e.std,
+                truth(e.t).unwrap_or(f64::NAN)
+            ));
+        }
+        std::fs::write(dir.join("estimates.csv"), csv).map_err(|e| e.to_string())?;
+        if scn.output.plots {
+            let te: Vec<f64> = opt.estimates.iter().map(|e| e.t).collect();
+            let est: Vec<f64> = opt.estimates.iter().map(|e| e.value).collect();
+            let tru: Vec<f64> = te.iter().map(|x| truth(*x).unwrap_or(f64::NAN)).collect();
+            let cost: Vec<f64> = te
+                .iter()
+                .map(|x| {
+                    reps.iter()
+                        .find(|r| *x >= r.0 && *x < r.1)
+                        .map_or(f64::NAN, |r| r.2)
+                })
+                .collect();
+            let marks: Vec<f64> = accepted.iter().map(|p| p.t).collect();
+            two_panel_png(
+                &dir.join("indirect.png"),
+                &format!("{}: model estimate vs true value; cost per repetition (orange: sets swapped in)", scn.name),
+                &te,
+                Panel { series: &[Series { name: "estimate", values: &est }, Series { name: "true", values: &tru }], label: "model parameter" },
+                Panel { series: &[Series { name: "cost per repetition", values: &cost }], label: "cost" },
+                &marks,
+            )?;
+        }
+    }
     crate::process::write_json(dir, "summary.json", &summary).map_err(|e| e.to_string())?;
     if scn.output.plots {
         let ref_names: Vec<String> = (0..refs.len())

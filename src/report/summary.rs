@@ -62,6 +62,12 @@ pub struct OptimiserReport {
     pub published: Vec<PublishedSet>,
     pub nice: Option<i32>,
     pub interrupted: bool,
+    /// Indirect mode: the model estimate over time (every 0.1 s of plant time).
+    #[serde(default)]
+    pub estimates: Vec<crate::indirect::Estimate>,
+    /// Indirect mode: every tuning epoch.
+    #[serde(default)]
+    pub epochs: Vec<crate::indirect::EpochRecord>,
 }
 
 /// The bare absolute-deadline sleep loop measured in the same run: the machine's floor.
@@ -117,4 +123,17 @@ pub struct Summary {
     pub optimiser_published: usize,
     pub interrupted: bool,
     pub stale_resources_cleaned: usize,
+    /// Parameter sets the controller put in service / refused during the run.
+    pub accepted_versions: usize,
+    pub rejected_versions: usize,
+    /// Cost per repetition of a repeating reference (sum |e| + w sum |u|, `optimiser.cost_u_weight`).
+    pub cost_per_repetition: Vec<f64>,
+    /// Mean cost per repetition before the plant's parameter change (first repetition excluded:
+    /// it starts from rest), and over the last quarter of the run.
+    pub cost_before_change: Option<f64>,
+    pub cost_after_change: Option<f64>,
+    /// The optimiser's final model estimate, the true value then, and the relative error.
+    pub model_estimate_final: Option<f64>,
+    pub model_true_final: Option<f64>,
+    pub model_estimate_error: Option<f64>,
 }

@@ -1,0 +1,381 @@
+//! The indirect scheme (fuzzy-network paper, Section 3.1.2): while the plant runs, the optimiser
+//! keeps a model of it current from the streamed data and tunes the controller on that model;
+//! only a parameter set that beats the one in service (on the same model, by a margin) goes to
+//! the controller. The model is the same plant code the plant process runs, with the estimated
+//! parameter values: no second simulator.
+//!
+//! - `MaglevEstimator`: recursive least squares with forgetting on z'' = g - theta i^2/(z + d)^2,
+//!   theta = k_F / m, from the measured height and the commanded current (the coil current is
+//!   reconstructed through the amplifier model). Position and current determine only the ratio
+//!   theta; with the magnet's k_F taken as nominal the estimate is the ball's mass, and a change of
+//!   k_F shows up as the equivalent mass change (the dynamics cannot tell them apart).
+//! - `MaglevTuner`: epochs of the paper's GA on the model with the current estimate, seeded with
+//!   the set in service and the previous best; at the end of an epoch the best set is published
+//!   when its cost is below the in-service set's cost on the same model by the margin.
+
+use crate::control::AntiWindup;
+use crate::optim::hybrid::{hybrid, HybridConfig};
+use crate::optim::GaConfig;
+use crate::plant::maglev::{Maglev, MaglevParams, G};
+use crate::reference::Reference;
+use crate::tune::maglev::{self as mg, Spec};
+
+/// Online estimate of the maglev's mass (kg) with its standard deviation.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Estimate {
+    pub t: f64,
+    pub value: f64,
+    pub std: f64,
+}
+
+pub struct MaglevEstimator {
+    p: MaglevParams,
+    plant: Maglev,
+    period: f64,
+    /// Samples between the three positions of one second difference.
+    stride: usize,
+    /// Forgetting factor per update.
+    lambda: f64,
+    /// Ring of the last 2 * stride + 1 (gap z, reconstructed current i).
+    ring: Vec<(f64, f64)>,
+    filled: usize,
+    last_seq: Option<u64>,
+    current: f64,
+    theta: f64,
+    p_cov: f64,
+    /// Running variance of the residual.
+    sigma2: f64,
+    updates: u64,
+}
+
+impl MaglevEstimator {
+    /// `stride` samples per difference step (10 at 1 ms: differences over 10 ms, where the
+    /// sensor's noise no longer swamps the acceleration), forgetting `lambda` per update.
+    pub fn new(p: MaglevParams, period: f64, stride: usize, lambda: f64) -> Self {
+        let theta = p.k_force() / p.mass_at(0.0);
+        Self {
+            current: p.hold_current_ma(p.mass_at(0.0)) / 1000.0,
+            plant: Maglev::new(p.clone()),
+            p,
+            period,
+            stride,
+            lambda,
+            ring: vec![(0.0, 0.0); 2 * stride + 1],
+            filled: 0,
+            last_seq: None,
+            theta,
+            p_cov: 1e3,
+            sigma2: 1.0,
+            updates: 0,
+        }
+    }
+
+    /// Feed one sample: its sequence number, measured height y (mm) and the command u (mA)
+    /// applied over the following period. A gap in `seq` restarts the difference window.
+    pub fn push(&mut self, seq: u64, y_mm: f64, u_ma: f64) {
+        if self.last_seq.is_some_and(|s| seq != s + 1) {
+            self.filled = 0;
+        }
+        self.last_seq = Some(seq);
+        let z = self.p.gap_op - y_mm / 1000.0;
+        let n = self.ring.len();
+        self.ring[seq as usize % n] = (z, self.current);
+        self.filled += 1;
+        // The amplifier's lag over the next period (exact for a held command).
+        let a = 1.0 - (-self.period / self.p.tau).exp();
+        self.current += a * (self.plant.applied_current(u_ma) - self.current);
+        if self.filled >= n && seq % self.stride as u64 == 0 {
+            let s = self.stride as u64;
+            let (z0, _) = self.ring[(seq - 2 * s) as usize % n];
+            let (z1, i1) = self.ring[(seq - s) as usize % n];
+            let (z2, _) = self.ring[seq as usize % n];
+            let h = self.stride as f64 * self.period;
+            let zdd = (z2 - 2.0 * z1 + z0) / (h * h);
+            let phi = i1 * i1 / (z1 + self.p.pole_offset).powi(2);
+            self.update(G - zdd, phi);
+        }
+    }
+
+    fn update(&mut self, y: f64, x: f64) {
+        // Scalar RLS with exponential forgetting.
+        let e = y - self.theta * x;
+        let k = self.p_cov * x / (self.lambda + x * self.p_cov * x);
+        self.theta += k * e;
+        self.p_cov = (self.p_cov - k * x * self.p_cov) / self.lambda;
+        self.sigma2 = self.lambda * self.sigma2 + (1.0 - self.lambda) * e * e;
+        self.updates += 1;
+    }
+
+    /// The mass estimate (nominal k_F) and its standard deviation (delta method).
+    pub fn estimate(&self, t: f64) -> Estimate {
+        let kf = self.p.k_force();
+        let theta = self.theta.max(1e-9);
+        let std_theta = (self.p_cov * self.sigma2).max(0.0).sqrt();
+        Estimate {
+            t,
+            value: kf / theta,
+            std: kf * std_theta / (theta * theta),
+        }
+    }
+
+    pub fn updates(&self) -> u64 {
+        self.updates
+    }
+}
+
+/// One published candidate.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Candidate {
+    pub params: Vec<f64>,
+    /// Its cost on the model it was tuned on.
+    pub expected_cost: f64,
+    /// The in-service set's cost on the same model.
+    pub in_service_cost: f64,
+    /// The model parameter (mass, kg) it was tuned for.
+    pub model_mass: f64,
+}
+
+pub struct MaglevTuner {
+    pub spec: Spec,
+    pub aw: AntiWindup,
+    pub ga: GaConfig,
+    pub threads: usize,
+    /// Evaluations per epoch.
+    pub epoch_evaluations: usize,
+    /// Publish when best < in_service * (1 - margin).
+    pub margin: f64,
+    pub seed: u64,
+    epoch: u64,
+    previous_best: Option<Vec<f64>>,
+}
+
+impl MaglevTuner {
+    /// `spec`: the nominal model with the scenario's repeated trajectory over one repetition.
+    pub fn new(spec: Spec, aw: AntiWindup, seed: u64) -> Self {
+        Self {
+            spec,
+            aw,
+            ga: GaConfig {
+                population: 10,
+                p_crossover: 0.9,
+                p_mutation: None,
+                max_iterations: 70,
+                seed,
+            },
+            threads: 2,
+            epoch_evaluations: 150,
+            margin: 0.01,
+            seed,
+            epoch: 0,
+            previous_best: None,
+        }
+    }
+
+    /// The model: the nominal plant with the estimated mass (k_F stays nominal).
+    pub fn model(&self, mass: f64) -> Spec {
+        let mut s = self.spec.clone();
+        s.plant.mass_steps = vec![(0.0, mass)];
+        s
+    }
+
+    /// Cost of a parameter set on the model with mass `mass` (infinite when it loses the ball).
+    pub fn cost(&self, mass: f64, params: &[f64]) -> f64 {
+        mg::simulate(&self.model(mass), self.aw, params, self.seed, None)
+            .map_or(f64::INFINITY, |c| c.g)
+    }
+
+    /// One epoch of the GA on the model with mass `mass`: its best set, with the in-service set's
+    /// cost on the same model. Deterministic for a given seed, epoch number and inputs.
+    pub fn epoch(&mut self, mass: f64, in_service: &[f64]) -> Candidate {
+        let spec = self.model(mass);
+        let (lo, hi) = mg::ranges(self.aw);
+        let obj = mg::Objective {
+            spec: &spec,
+            aw: self.aw,
+            seed: self.seed,
+        };
+        let iterations = (self.epoch_evaluations.saturating_sub(self.ga.population)) / 2;
+        let cfg = HybridConfig {
+            ga: GaConfig {
+                seed: self.seed.wrapping_add(self.epoch.wrapping_mul(0x9E37_79B9)),
+                max_iterations: iterations.max(1),
+                ..self.ga.clone()
+            },
+            phases: [iterations, 0, 0],
+            scaling: Vec::new(),
+            threads: self.threads,
+            hj_step: 0.05,
+            hj_per_candidate: 0,
+        };
+        let mut seeds = vec![in_service.to_vec()];
+        if let Some(b) = &self.previous_best {
+            seeds.push(b.clone());
+        }
+        self.epoch += 1;
+        let r = hybrid(&cfg, &obj, &lo, &hi, &seeds, |_, _| {});
+        self.previous_best = Some(r.best.clone());
+        let current = self.cost(mass, in_service);
+        Candidate {
+            params: r.best,
+            expected_cost: r.value,
+            in_service_cost: current,
+            model_mass: mass,
+        }
+    }
+
+    /// Whether a candidate beats the set in service by the margin.
+    pub fn better(&self, c: &Candidate) -> bool {
+        c.expected_cost < c.in_service_cost * (1.0 - self.margin)
+    }
+}
+
+/// What happened in one tuning epoch.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize, PartialEq)]
+pub struct EpochRecord {
+    /// Plant time when the epoch ran.
+    pub t: f64,
+    /// The model's mass.
+    pub model_mass: f64,
+    pub best_cost: f64,
+    pub in_service_cost: f64,
+    /// The version published from this epoch, if any.
+    pub published: Option<u64>,
+}
+
+/// The optimiser process's indirect-scheme logic for the maglev, independent of IPC: fed the
+/// state stream, it estimates, tunes in epochs and hands out parameter sets to publish.
+pub struct MaglevIndirect {
+    est: MaglevEstimator,
+    pub tuner: MaglevTuner,
+    prev: Option<(u64, f64)>,
+    pub in_service: Vec<f64>,
+    version: u64,
+    kind: u32,
+    budget: f64,
+    evaluations_per_second: f64,
+    next_record_t: f64,
+    pub estimates: Vec<Estimate>,
+    pub epochs: Vec<EpochRecord>,
+}
+
+impl MaglevIndirect {
+    pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
+        let (Some(plant), Some(aw)) = (scn.plant.maglev.clone(), scn.controller.anti_windup) else {
+            return Err("the indirect optimiser drives the maglev plant under the PID".into());
+        };
+        // The model starts from the nominal plant: it does not know the true mass schedule.
+        let nominal = MaglevParams {
+            mass_steps: Vec::new(),
+            ..plant
+        };
+        let repetition = match &scn.reference {
+            Reference::Square { period, start, .. } => start + period,
+            _ => scn.timing.duration.min(5.0),
+        };
+        let mut tuner = MaglevTuner::new(
+            Spec {
+                plant: nominal.clone(),
+                period: scn.timing.period,
+                step: scn.plant.step,
+                noise_mm: scn.plant.noise_std,
+                duration: repetition,
+                reference: scn.reference.clone(),
+            },
+            aw,
+            scn.seed,
+        );
+        tuner.threads = scn.optimiser.threads;
+        tuner.epoch_evaluations = scn.optimiser.epoch_evaluations;
+        tuner.margin = scn.optimiser.margin;
+        Ok(Self {
+            est: MaglevEstimator::new(nominal, scn.timing.period, 10, 0.995),
+            tuner,
+            prev: None,
+            in_service: scn.controller.gains.clone(),
+            version: 0,
+            kind: scn.controller.param_kind(),
+            budget: 0.0,
+            evaluations_per_second: scn.optimiser.evaluations_per_second,
+            next_record_t: 0.0,
+            estimates: Vec::new(),
+            epochs: Vec::new(),
+        })
+    }
+
+    /// Feed one state sample (in order). The command applied after sample k arrives with
+    /// sample k + 1 (`u_applied`), so the estimator runs one sample behind.
+    pub fn observe(&mut self, s: &crate::ipc::messages::PlantState) {
+        if let Some((seq, y)) = self.prev {
+            if s.seq == seq + 1 {
+                self.est.push(seq, y, s.u_applied[0]);
+            }
+        }
+        self.prev = Some((s.seq, s.y[0]));
+        if s.t >= self.next_record_t {
+            self.estimates.push(self.est.estimate(s.t));
+            self.next_record_t = s.t + 0.1;
+        }
+    }
+
+    pub fn estimate(&self, t: f64) -> Estimate {
+        self.est.estimate(t)
+    }
+
+    /// Lockstep pacing: `dt` simulated seconds passed; run the epochs the budget allows.
+    pub fn paced(
+        &mut self,
+        t: f64,
+        dt: f64,
+        apply_at_seq: u64,
+    ) -> Option<crate::ipc::messages::ParamSet> {
+        self.budget += dt * self.evaluations_per_second;
+        let mut out = None;
+        while self.budget >= self.tuner.epoch_evaluations as f64 {
+            self.budget -= self.tuner.epoch_evaluations as f64;
+            if let Some(p) = self.run_epoch(t, apply_at_seq) {
+                out = Some(p);
+            }
+        }
+        out
+    }
+
+    /// One epoch on the current estimate; a parameter set when it found a better one.
+    pub fn run_epoch(
+        &mut self,
+        t: f64,
+        apply_at_seq: u64,
+    ) -> Option<crate::ipc::messages::ParamSet> {
+        // Until the estimator has data, the model is the nominal plant.
+        let mass = if self.est.updates() > 20 {
+            self.est.estimate(t).value
+        } else {
+            self.tuner.spec.plant.mass
+        };
+        let in_service = self.in_service.clone();
+        let c = self.tuner.epoch(mass, &in_service);
+        let mut rec = EpochRecord {
+            t,
+            model_mass: mass,
+            best_cost: c.expected_cost,
+            in_service_cost: c.in_service_cost,
+            published: None,
+        };
+        let out = self.tuner.better(&c).then(|| {
+            self.version += 1;
+            rec.published = Some(self.version);
+            self.in_service = c.params.clone();
+            let mut set = crate::ipc::messages::ParamSet {
+                version: self.version,
+                apply_at_seq,
+                expected_cost: c.expected_cost,
+                kind: self.kind,
+                n: c.params.len() as u32,
+                ..Default::default()
+            };
+            set.values[..c.params.len()].copy_from_slice(&c.params);
+            set
+        });
+        self.epochs.push(rec);
+        out
+    }
+}
