@@ -78,7 +78,8 @@ impl Loop {
         header.push("param_version".into());
         let rows = scn.cycles() as usize + 2;
         Self {
-            cycle: ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds()),
+            cycle: ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())
+                .with_stability_check(scn.linear_model()),
             row: vec![0.0; header.len()],
             log: RunLog::new(header, rows),
             timing: TimingLog::with_capacity(rows),

@@ -544,6 +544,23 @@ impl Scenario {
         }
     }
 
+    /// The linear model new state-feedback gains are checked against (the configured two-mass
+    /// plant at its nominal spring constant); None for other plants and controllers.
+    pub fn linear_model(&self) -> Option<crate::control::LinearModel> {
+        (self.plant.kind == PlantKind::TwoMass
+            && self.controller.kind == ControllerKind::StateFeedback)
+            .then(|| {
+                let (a, b, c) = TwoMass::new(
+                    self.plant.m1,
+                    self.plant.m2,
+                    self.plant.spring,
+                    self.plant.sensor,
+                )
+                .matrices();
+                crate::control::LinearModel { a, b, c }
+            })
+    }
+
     pub fn bounds(&self) -> ParamBounds {
         ParamBounds {
             lower: self.controller.lower.clone(),

@@ -347,3 +347,33 @@ fn references_take_their_documented_values() {
     assert_eq!(st.value(9.0), -1.0);
     assert_eq!(st.last_change(9.0), 3.0);
 }
+
+#[test]
+fn the_stability_check_agrees_with_the_closed_loop_poles() {
+    use evoloop::control::LinearModel;
+    use evoloop::robust::RobustProblem;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+    for sensor in [Sensor::Far, Sensor::Actuated] {
+        for k in [0.5, 1.0, 2.0] {
+            let (a, b, c) = TwoMass::new(1.0, 1.0, k, sensor).matrices();
+            let model = LinearModel { a, b, c };
+            let prob = RobustProblem::new(
+                k,
+                sensor,
+                evoloop::robust::problem::Perturbation::Spring,
+                evoloop::robust::Wedge::new(0.7, 1.0).unwrap(),
+                1e9,
+            );
+            for _ in 0..200 {
+                let g: Vec<f64> = (0..5).map(|_| rng.gen_range(-30.0..60.0)).collect();
+                let stable = prob.poles(&g).iter().all(|p| p.re < 0.0);
+                assert_eq!(model.stabilised_by(&g), stable, "k {k}, gains {g:?}");
+            }
+        }
+    }
+    // The paper's DEFC gains pass, a sign-flipped position gain fails.
+    let (a, b, c) = TwoMass::new(1.0, 1.0, 1.0, Sensor::Far).matrices();
+    let m = LinearModel { a, b, c };
+    assert!(m.stabilised_by(&[18.49, 19.04, 47.27, 7.30, -10.54]));
+    assert!(!m.stabilised_by(&[-20.0, 19.04, 47.27, 7.30, -10.54]));
+}

@@ -26,6 +26,9 @@ values = [1.0, 1.0, 1.0, 500.0, -1.0]
 [[optimiser.schedule]]
 at = 18.0
 values = [1.0, 1.0, 1.0]
+[[optimiser.schedule]]
+at = 19.0
+values = [-20.0, 19.04, 47.27, 7.30, -10.54]
 ";
     let cfg = write(
         tmp.path(),
@@ -37,7 +40,7 @@ values = [1.0, 1.0, 1.0]
 
     let c = json(&out.join("controller.json"));
     let p = c["params"].as_array().unwrap();
-    assert_eq!(p.len(), 4, "{p:?}");
+    assert_eq!(p.len(), 5, "{p:?}");
     assert_eq!(p[0]["version"], 1);
     assert_eq!(p[0]["outcome"], "accepted");
     assert_eq!(p[0]["cycle"], 15_000, "applied at the cycle of its sample");
@@ -64,6 +67,13 @@ values = [1.0, 1.0, 1.0]
         "{}",
         p[3]
     );
+    // In bounds and finite, but it would destabilise the loop on the controller's model.
+    assert_eq!(p[4]["version"], 5);
+    assert!(
+        p[4]["outcome"].as_str().unwrap().contains("unstable"),
+        "{}",
+        p[4]
+    );
     assert_eq!(c["final_version"], 1);
     let fp: Vec<f64> = c["final_params"]
         .as_array()
@@ -86,8 +96,10 @@ values = [1.0, 1.0, 1.0]
             .as_array()
             .unwrap()
             .len(),
-        3
+        4
     );
+    assert_eq!(s["accepted_versions"], 1);
+    assert_eq!(s["rejected_versions"], 4);
 
     // The loop ran every cycle; the version column switches exactly once, at t = 15 s.
     let csv = Csv::read(&out.join("run.csv"));

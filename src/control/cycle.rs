@@ -2,7 +2,7 @@
 //! so both compute the same numbers: take due parameter sets, validate and swap them in at the
 //! cycle boundary, evaluate the reference and the control law, fill the telemetry.
 
-use super::{validate_params, Controller, ParamBounds};
+use super::{validate_params, Controller, LinearModel, ParamBounds};
 use crate::ipc::messages::{ParamCode, ParamSet, PlantState, Telemetry};
 use crate::reference::{Reference, Setpoint};
 use crate::MAX_JOINTS;
@@ -32,6 +32,8 @@ pub struct ControlCycle {
     pub u: [f64; MAX_JOINTS],
     /// The set-point of the last cycle (all joints).
     pub setpoint: Setpoint,
+    /// Linear plants: new gains must stabilise this model to be accepted.
+    stability: Option<LinearModel>,
     cycle: u64,
 }
 
@@ -46,8 +48,15 @@ impl ControlCycle {
             pending_dropped: 0,
             u: [0.0; MAX_JOINTS],
             setpoint: Setpoint::default(),
+            stability: None,
             cycle: 0,
         }
+    }
+
+    /// Check every new set for closed-loop stability on `model` before it is used.
+    pub fn with_stability_check(mut self, model: Option<LinearModel>) -> Self {
+        self.stability = model;
+        self
     }
 
     /// Parameter version in service (0 = the configured initial set).
@@ -80,6 +89,13 @@ impl ControlCycle {
             let c = self.controller.as_ref();
             let (code, index) =
                 match validate_params(&set, c.kind(), c.n_params(), self.version, &self.bounds) {
+                    Ok(())
+                        if self
+                            .stability
+                            .is_some_and(|m| !m.stabilised_by(set.values())) =>
+                    {
+                        (ParamCode::RejectedUnstable, 0)
+                    }
                     Ok(()) => {
                         self.controller.swap_params(set.values(), state, &sp);
                         self.version = set.version;

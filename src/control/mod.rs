@@ -12,7 +12,7 @@ pub use computed_torque::ComputedTorque;
 pub use pd_servo::PdServo;
 pub use pid::{AntiWindup, Pid};
 pub use state_feedback::StateFeedback;
-pub use validate::{validate_params, ParamBounds, Rejection};
+pub use validate::{validate_params, LinearModel, ParamBounds, Rejection};
 
 use crate::ipc::messages::PlantState;
 use crate::reference::Setpoint;

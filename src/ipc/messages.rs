@@ -88,6 +88,7 @@ pub enum ParamCode {
     RejectedWrongLength = 4,
     RejectedOutOfBounds = 5,
     RejectedStale = 6,
+    RejectedUnstable = 7,
 }
 
 impl ParamCode {
@@ -99,6 +100,7 @@ impl ParamCode {
             4 => Self::RejectedWrongLength,
             5 => Self::RejectedOutOfBounds,
             6 => Self::RejectedStale,
+            7 => Self::RejectedUnstable,
             _ => Self::None,
         }
     }
@@ -112,6 +114,9 @@ impl ParamCode {
             Self::RejectedWrongLength => "rejected: wrong number of values",
             Self::RejectedOutOfBounds => "rejected: a value is outside the configured bounds",
             Self::RejectedStale => "rejected: version is not newer than the one in service",
+            Self::RejectedUnstable => {
+                "rejected: the closed loop would be unstable on the controller's plant model"
+            }
         }
     }
 }

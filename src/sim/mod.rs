@@ -48,7 +48,8 @@ pub fn simulate(scn: &Scenario) -> SimResult {
         scn.plant.noise_std,
         scn.seed,
     );
-    let mut cycle = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());
+    let mut cycle = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())
+        .with_stability_check(scn.linear_model());
     let schedule_on = scn.optimiser.mode == crate::config::OptimiserMode::Schedule;
     let n = scn.cycles();
     let dt = scn.timing.period;
