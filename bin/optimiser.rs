@@ -96,7 +96,7 @@ fn run(
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
     let mut next_set = 0usize;
     let mut indirect = if scn.optimiser.mode == OptimiserMode::Indirect {
-        Some(evoloop::indirect::MaglevIndirect::new(scn).map_err(|e| (EXIT_SETUP, e))?)
+        Some(evoloop::indirect::Indirect::new(scn).map_err(|e| (EXIT_SETUP, e))?)
     } else {
         None
     };

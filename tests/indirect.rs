@@ -60,3 +60,39 @@ fn the_optimiser_tracks_the_mass_change_and_beats_the_frozen_controller() {
         std::fs::read(again.join("run.csv")).unwrap()
     );
 }
+
+#[test]
+fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    let (tuned, frozen) = (tmp.path().join("tuned"), tmp.path().join("frozen"));
+    assert_ok(&run(&cfg, &tuned, "tmind", &[]));
+    assert_ok(&run(&cfg, &frozen, "tmfro", &["--optimiser", "off"]));
+    let s = json(&tuned.join("summary.json"));
+    let f = json(&frozen.join("summary.json"));
+    assert!(s["model_estimate_error"].as_f64().unwrap().abs() < 0.05);
+    assert!(s["accepted_versions"].as_u64().unwrap() >= 1);
+    assert_eq!(
+        s["rejected_versions"], 0,
+        "the optimiser only sends sets the controller accepts"
+    );
+    let (a, b) = (
+        s["cost_after_change"].as_f64().unwrap(),
+        f["cost_after_change"].as_f64().unwrap(),
+    );
+    assert!(a < b, "after the drift: tuned {a} vs frozen {b}");
+    // The estimate follows the ramp of k from 0.5 (20 s) to 2 (40 s) within 5 % once settled.
+    let est = Csv::read(&tuned.join("estimates.csv"));
+    let (t, e, tr) = (est.col("t"), est.col("estimate"), est.col("true"));
+    for i in 0..t.len() {
+        if (5.0..20.0).contains(&t[i]) || t[i] >= 45.0 {
+            assert!(
+                ((e[i] - tr[i]) / tr[i]).abs() < 0.05,
+                "t = {}: {} vs {}",
+                t[i],
+                e[i],
+                tr[i]
+            );
+        }
+    }
+}

@@ -234,7 +234,7 @@ impl MaglevTuner {
 pub struct EpochRecord {
     /// Plant time when the epoch ran.
     pub t: f64,
-    /// The model's mass.
+    /// The model parameter the epoch tuned for (maglev: mass, kg; two-mass: spring constant).
     pub model_mass: f64,
     pub best_cost: f64,
     pub in_service_cost: f64,
@@ -242,12 +242,63 @@ pub struct EpochRecord {
     pub published: Option<u64>,
 }
 
-/// The optimiser process's indirect-scheme logic for the maglev, independent of IPC: fed the
-/// state stream, it estimates, tunes in epochs and hands out parameter sets to publish.
-pub struct MaglevIndirect {
-    est: MaglevEstimator,
-    pub tuner: MaglevTuner,
-    prev: Option<(u64, f64)>,
+/// What a plant needs for the indirect scheme: an online estimate of the parameter that changes
+/// in operation, and epochs of an optimiser on the model carrying that estimate.
+pub trait Scheme: Send {
+    /// Feed sample `s`; `prev` is the previous sample when `s` directly follows it.
+    fn observe(
+        &mut self,
+        prev: Option<&crate::ipc::messages::PlantState>,
+        s: &crate::ipc::messages::PlantState,
+    );
+    fn estimate(&self, t: f64) -> Estimate;
+    /// Enough data for the estimate to replace the nominal value.
+    fn ready(&self) -> bool;
+    /// The model parameter's nominal (configured) value.
+    fn nominal(&self) -> f64;
+    /// One optimiser epoch on the model with parameter `p`, seeded with the in-service set.
+    fn epoch(&mut self, p: f64, in_service: &[f64]) -> Candidate;
+    /// Publish when the candidate beats the in-service set by this fraction.
+    fn margin(&self) -> f64;
+    /// Evaluations one epoch spends.
+    fn epoch_evaluations(&self) -> usize;
+}
+
+impl Scheme for (MaglevEstimator, MaglevTuner) {
+    fn observe(
+        &mut self,
+        prev: Option<&crate::ipc::messages::PlantState>,
+        s: &crate::ipc::messages::PlantState,
+    ) {
+        if let Some(p) = prev {
+            self.0.push(p.seq, p.y[0], s.u_applied[0]);
+        }
+    }
+    fn estimate(&self, t: f64) -> Estimate {
+        self.0.estimate(t)
+    }
+    fn ready(&self) -> bool {
+        self.0.updates() > 20
+    }
+    fn nominal(&self) -> f64 {
+        self.1.spec.plant.mass
+    }
+    fn epoch(&mut self, p: f64, in_service: &[f64]) -> Candidate {
+        self.1.epoch(p, in_service)
+    }
+    fn margin(&self) -> f64 {
+        self.1.margin
+    }
+    fn epoch_evaluations(&self) -> usize {
+        self.1.epoch_evaluations
+    }
+}
+
+/// The optimiser process's indirect-scheme logic, independent of IPC: fed the state stream, it
+/// estimates, tunes in epochs and hands out parameter sets to publish.
+pub struct Indirect {
+    scheme: Box<dyn Scheme>,
+    prev: Option<crate::ipc::messages::PlantState>,
     pub in_service: Vec<f64>,
     version: u64,
     kind: u32,
@@ -256,69 +307,71 @@ pub struct MaglevIndirect {
     next_record_t: f64,
     pub estimates: Vec<Estimate>,
     pub epochs: Vec<EpochRecord>,
+    /// The controller's acceptance check for linear plants, applied before publishing.
+    check: Option<crate::control::LinearModel>,
 }
 
-impl MaglevIndirect {
+impl Indirect {
+    /// The scheme for the scenario's plant and controller: the maglev under a PID (GA on the
+    /// fuzzy anti-windup PID's parameters) or the two-mass under state feedback (DE on K).
     pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
-        let (Some(plant), Some(aw)) = (scn.plant.maglev.clone(), scn.controller.anti_windup) else {
-            return Err("the indirect optimiser drives the maglev plant under the PID".into());
+        let o = &scn.optimiser;
+        let scheme: Box<dyn Scheme> = match (scn.plant.maglev.clone(), scn.controller.anti_windup) {
+            (Some(plant), Some(aw)) => {
+                // The model starts from the nominal plant: it does not know the true schedule.
+                let nominal = MaglevParams { mass_steps: Vec::new(), ..plant };
+                let repetition = match &scn.reference {
+                    Reference::Square { period, start, .. } => start + period,
+                    _ => scn.timing.duration.min(5.0),
+                };
+                let mut tuner = MaglevTuner::new(
+                    Spec {
+                        plant: nominal.clone(),
+                        period: scn.timing.period,
+                        step: scn.plant.step,
+                        noise_mm: scn.plant.noise_std,
+                        duration: repetition,
+                        reference: scn.reference.clone(),
+                    },
+                    aw,
+                    scn.seed,
+                );
+                tuner.threads = o.threads;
+                tuner.epoch_evaluations = o.epoch_evaluations;
+                tuner.margin = o.margin;
+                Box::new((MaglevEstimator::new(nominal, scn.timing.period, 10, 0.995), tuner))
+            }
+            _ if scn.linear_model().is_some() => Box::new(two_mass::TwoMassScheme::new(scn)),
+            _ => return Err("the indirect optimiser drives the maglev under a PID or the two-mass plant under state feedback".into()),
         };
-        // The model starts from the nominal plant: it does not know the true mass schedule.
-        let nominal = MaglevParams {
-            mass_steps: Vec::new(),
-            ..plant
-        };
-        let repetition = match &scn.reference {
-            Reference::Square { period, start, .. } => start + period,
-            _ => scn.timing.duration.min(5.0),
-        };
-        let mut tuner = MaglevTuner::new(
-            Spec {
-                plant: nominal.clone(),
-                period: scn.timing.period,
-                step: scn.plant.step,
-                noise_mm: scn.plant.noise_std,
-                duration: repetition,
-                reference: scn.reference.clone(),
-            },
-            aw,
-            scn.seed,
-        );
-        tuner.threads = scn.optimiser.threads;
-        tuner.epoch_evaluations = scn.optimiser.epoch_evaluations;
-        tuner.margin = scn.optimiser.margin;
         Ok(Self {
-            est: MaglevEstimator::new(nominal, scn.timing.period, 10, 0.995),
-            tuner,
+            scheme,
             prev: None,
             in_service: scn.controller.gains.clone(),
             version: 0,
             kind: scn.controller.param_kind(),
             budget: 0.0,
-            evaluations_per_second: scn.optimiser.evaluations_per_second,
+            evaluations_per_second: o.evaluations_per_second,
             next_record_t: 0.0,
             estimates: Vec::new(),
             epochs: Vec::new(),
+            check: scn.linear_model(),
         })
     }
 
-    /// Feed one state sample (in order). The command applied after sample k arrives with
-    /// sample k + 1 (`u_applied`), so the estimator runs one sample behind.
+    /// Feed one state sample (in order; a gap restarts the estimator's differences).
     pub fn observe(&mut self, s: &crate::ipc::messages::PlantState) {
-        if let Some((seq, y)) = self.prev {
-            if s.seq == seq + 1 {
-                self.est.push(seq, y, s.u_applied[0]);
-            }
-        }
-        self.prev = Some((s.seq, s.y[0]));
+        let prev = self.prev.filter(|p| s.seq == p.seq + 1);
+        self.scheme.observe(prev.as_ref(), s);
+        self.prev = Some(*s);
         if s.t >= self.next_record_t {
-            self.estimates.push(self.est.estimate(s.t));
+            self.estimates.push(self.scheme.estimate(s.t));
             self.next_record_t = s.t + 0.1;
         }
     }
 
     pub fn estimate(&self, t: f64) -> Estimate {
-        self.est.estimate(t)
+        self.scheme.estimate(t)
     }
 
     /// Lockstep pacing: `dt` simulated seconds passed; run the epochs the budget allows.
@@ -329,9 +382,10 @@ impl MaglevIndirect {
         apply_at_seq: u64,
     ) -> Option<crate::ipc::messages::ParamSet> {
         self.budget += dt * self.evaluations_per_second;
+        let per_epoch = self.scheme.epoch_evaluations() as f64;
         let mut out = None;
-        while self.budget >= self.tuner.epoch_evaluations as f64 {
-            self.budget -= self.tuner.epoch_evaluations as f64;
+        while self.budget >= per_epoch {
+            self.budget -= per_epoch;
             if let Some(p) = self.run_epoch(t, apply_at_seq) {
                 out = Some(p);
             }
@@ -346,21 +400,25 @@ impl MaglevIndirect {
         apply_at_seq: u64,
     ) -> Option<crate::ipc::messages::ParamSet> {
         // Until the estimator has data, the model is the nominal plant.
-        let mass = if self.est.updates() > 20 {
-            self.est.estimate(t).value
+        let p = if self.scheme.ready() {
+            self.scheme.estimate(t).value
         } else {
-            self.tuner.spec.plant.mass
+            self.scheme.nominal()
         };
         let in_service = self.in_service.clone();
-        let c = self.tuner.epoch(mass, &in_service);
+        let c = self.scheme.epoch(p, &in_service);
+        // Only sets the controller will accept: linear plants must be stable on its model.
+        let accepted_there = self.check.is_none_or(|m| m.stabilised_by(&c.params));
+        let better =
+            accepted_there && c.expected_cost < c.in_service_cost * (1.0 - self.scheme.margin());
         let mut rec = EpochRecord {
             t,
-            model_mass: mass,
+            model_mass: p,
             best_cost: c.expected_cost,
             in_service_cost: c.in_service_cost,
             published: None,
         };
-        let out = self.tuner.better(&c).then(|| {
+        let out = better.then(|| {
             self.version += 1;
             rec.published = Some(self.version);
             self.in_service = c.params.clone();
@@ -379,3 +437,5 @@ impl MaglevIndirect {
         out
     }
 }
+
+pub mod two_mass;

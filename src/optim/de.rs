@@ -122,6 +122,20 @@ impl DifferentialEvolution {
         &self.pop
     }
 
+    /// Put known sets (clamped into the box) in the first places of the initial population,
+    /// e.g. the set in service. Only before the first `tell`.
+    pub fn seed_population(&mut self, seeds: &[Vec<f64>]) {
+        if self.initialised {
+            return;
+        }
+        for (member, s) in self.pop.iter_mut().zip(seeds) {
+            for (j, v) in member.iter_mut().enumerate() {
+                *v = s[j].clamp(self.cfg.lower[j], self.cfg.upper[j]);
+            }
+        }
+        self.trials = self.pop.clone();
+    }
+
     fn breed(&mut self) {
         let (np, d) = (self.cfg.np, self.cfg.lower.len());
         for i in 0..np {

@@ -30,7 +30,7 @@ fn repetitions(
         }
         let j = ((tk - start) / period).floor();
         let (a, b) = (start + j * period, start + (j + 1.0) * period);
-        if b > t.last().copied().unwrap_or(0.0) + scn.timing.period / 2.0 {
+        if b > t.last().copied().unwrap_or(0.0) + 1.5 * scn.timing.period {
             break; // an incomplete last repetition
         }
         if out.last().is_none_or(|r| r.0 != a) {
@@ -130,7 +130,23 @@ pub fn build_report(
             )
         })
         .flatten();
-    let truth = |tt: f64| -> Option<f64> { scn.plant.maglev.as_ref().map(|m| m.mass_at(tt)) };
+    // The true value of the parameter the optimiser estimates (maglev mass, two-mass spring).
+    let two_mass = (scn.plant.kind == crate::config::PlantKind::TwoMass).then(|| {
+        crate::plant::two_mass::TwoMass::new(
+            scn.plant.m1,
+            scn.plant.m2,
+            scn.plant.spring,
+            scn.plant.sensor,
+        )
+        .with_spring_schedule(&scn.plant.spring_schedule)
+    });
+    let truth = |tt: f64| -> Option<f64> {
+        scn.plant
+            .maglev
+            .as_ref()
+            .map(|m| m.mass_at(tt))
+            .or(two_mass.as_ref().map(|p| p.spring_at(tt)))
+    };
     let last_est = opt.estimates.last().copied();
     let model_estimate_final = last_est.map(|e| e.value);
     let model_true_final = last_est.and_then(|e| truth(e.t));
