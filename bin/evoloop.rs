@@ -259,6 +259,10 @@ fn run(a: RunArgs) -> ExitCode {
         "summary.json",
         "response.png",
         "tracking.png",
+        "published.jsonl",
+        "estimates.csv",
+        "repetitions.csv",
+        "indirect.png",
         "controller.json",
         "plant.json",
         "optimiser.json",
@@ -335,12 +339,38 @@ fn run(a: RunArgs) -> ExitCode {
     let mut exited = vec![false; children.len()];
     let mut interrupted = false;
     let mut stop_sent: Option<Instant> = None;
+    // The optimiser is not on the control path: when it dies the loop goes on with the set in
+    // service, and it is started again to rejoin the run (a few times at most).
+    let mut optimiser_restarts = 0usize;
     while exited.iter().any(|e| !e) {
         for (i, (name, c)) in children.iter_mut().enumerate() {
             if exited[i] {
                 continue;
             }
             if let Ok(Some(status)) = c.try_wait() {
+                let restartable = *name == "evoloop-optimiser"
+                    && !status.success()
+                    && !interrupted
+                    && stop_sent.is_none()
+                    && optimiser_restarts < 3;
+                if restartable {
+                    err!("evoloop: {name} exited with {status}; the loop goes on with the set in service; starting it again");
+                    // Its ports must go before the plant can tell it is absent.
+                    ipc.cleanup_dead_nodes();
+                    let mut again = args.clone();
+                    again.push("--rejoin".into());
+                    match std::process::Command::new(sibling(name))
+                        .args(&again)
+                        .spawn()
+                    {
+                        Ok(nc) => {
+                            *c = nc;
+                            optimiser_restarts += 1;
+                            continue;
+                        }
+                        Err(e) => failed.push(format!("cannot restart {name}: {e}")),
+                    }
+                }
                 exited[i] = true;
                 // After a stop request a child's clean exit code is expected; death by a
                 // signal (no code) is still a failure.
@@ -409,7 +439,7 @@ fn run(a: RunArgs) -> ExitCode {
             }
             measure_floor(scn.timing.period, secs, scn.timing.fifo_priority)
         });
-    match build_report(&scn, &run_id, wall, floor, cleaned) {
+    match build_report(&scn, &run_id, wall, floor, cleaned, optimiser_restarts) {
         Ok(s) => print_summary(&s, &dir, scn.output.plots),
         Err(e) => {
             err!("error: report: {e}");

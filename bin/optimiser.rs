@@ -30,6 +30,10 @@ const WHO: &str = "evoloop-optimiser";
 struct Cli {
     #[command(flatten)]
     args: ProcessArgs,
+    /// Rejoin a running run (started again after a crash): continue the version numbering and the
+    /// set in service from `published.jsonl`, and release the plant's pending lockstep wait.
+    #[arg(long)]
+    rejoin: bool,
 }
 
 struct Ports {
@@ -54,12 +58,14 @@ fn main() {
         Ok(Ports {
             sync: ipc.doorbell(Topic::Sync)?,
             params: ipc.publisher(Topic::Params, false)?,
-            ack: ipc.publisher(Topic::OptimiserAck, true)?,
             command: ipc.subscriber(Topic::Command, buffer, false)?,
-            // Last: the plant starts the run once it sees this subscriber.
+            // The plant starts the run once it sees this subscriber and the ready event.
             // In lockstep the optimiser sleeps on the sync bell and catches up on the queue,
             // instead of being woken (or spinning) for every sample.
             state: ipc.subscriber(Topic::State, buffer, !lockstep)?,
+            // After the state subscriber: a plant that sees this publisher may count on the
+            // optimiser receiving every sample from then on (it waits for its acknowledgements).
+            ack: ipc.publisher(Topic::OptimiserAck, true)?,
         })
     });
     if let Err(e) = ipc.announce(Topic::Ready) {
@@ -73,7 +79,15 @@ fn main() {
     if set_nice(scn.optimiser.nice) {
         report.nice = Some(scn.optimiser.nice);
     }
-    let result = run(&scn, &ports, &stop, &mut report);
+    if cli.rejoin && lockstep {
+        // The plant may be waiting at a sample this process never saw: release it once.
+        if let Err(e) = ports.ack.send(&OptimiserAck {
+            through_seq: u64::MAX,
+        }) {
+            fail(WHO, EXIT_SETUP, &e.to_string());
+        }
+    }
+    let result = run(&scn, &ports, &stop, &mut report, cli.rejoin);
     report.interrupted = stop.load(Ordering::SeqCst);
     if let Err(e) = write_json(&scn.output.dir, "optimiser.json", &report) {
         eprintln!("{WHO}: cannot write optimiser.json: {e}");
@@ -88,6 +102,7 @@ fn run(
     ports: &Ports,
     stop: &AtomicBool,
     report: &mut OptimiserReport,
+    rejoin: bool,
 ) -> Result<(), (i32, String)> {
     let lockstep = scn.timing.mode == Mode::Lockstep;
     let schedule_on = scn.optimiser.mode == OptimiserMode::Schedule;
@@ -96,7 +111,13 @@ fn run(
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
     let mut next_set = 0usize;
     let mut indirect = if scn.optimiser.mode == OptimiserMode::Indirect {
-        Some(evoloop::indirect::Indirect::new(scn).map_err(|e| (EXIT_SETUP, e))?)
+        let mut ind = evoloop::indirect::Indirect::new(scn).map_err(|e| (EXIT_SETUP, e))?;
+        if rejoin {
+            if let Some((version, params)) = last_published(&scn.output.dir) {
+                ind.resume(version, params);
+            }
+        }
+        Some(ind)
     } else {
         None
     };
@@ -167,7 +188,7 @@ fn run(
             // run at the same samples in every run of a seed.
             if let Some(ind) = indirect.as_mut() {
                 if let Some(set) = ind.paced(state.t, sync as f64 * dt, state.seq + 1) {
-                    send_set(ports, &set, state.t, report).map_err(io)?;
+                    send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
                 }
             }
             ports
@@ -186,7 +207,7 @@ fn run(
             if let Some(ind) = indirect.as_mut() {
                 if !ports.state.has_pending().map_err(io)? {
                     if let Some(set) = ind.run_epoch(state.t, 0) {
-                        send_set(ports, &set, state.t, report).map_err(io)?;
+                        send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
                     }
                 }
             }
@@ -194,13 +215,43 @@ fn run(
     }
 }
 
+/// Every published set is appended to this journal at once (a killed optimiser writes no
+/// report), so a restarted one continues the versions and knows the set in service.
+const JOURNAL: &str = "published.jsonl";
+
+fn journal(dir: &std::path::Path, set: &ParamSet, t: f64) {
+    use std::io::Write;
+    let line = serde_json::json!({"version": set.version, "t": t, "values": set.values()});
+    let f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(dir.join(JOURNAL));
+    if let Ok(mut f) = f {
+        let _ = writeln!(f, "{line}");
+    }
+}
+
+/// The last set in the journal: its version and values.
+fn last_published(dir: &std::path::Path) -> Option<(u64, Vec<f64>)> {
+    let text = std::fs::read_to_string(dir.join(JOURNAL)).ok()?;
+    let v: serde_json::Value = serde_json::from_str(text.lines().last()?).ok()?;
+    let values = v["values"]
+        .as_array()?
+        .iter()
+        .filter_map(|x| x.as_f64())
+        .collect();
+    Some((v["version"].as_u64()?, values))
+}
+
 fn send_set(
     ports: &Ports,
     set: &ParamSet,
     t: f64,
     report: &mut OptimiserReport,
+    dir: &std::path::Path,
 ) -> Result<(), IpcError> {
     ports.params.send(set)?;
+    journal(dir, set, t);
     report.published.push(PublishedSet {
         version: set.version,
         at: t,
@@ -219,6 +270,7 @@ fn publish(
 ) -> Result<(), IpcError> {
     let set = scheduled_set(scn, i, apply_at_seq);
     ports.params.send(&set)?;
+    journal(&scn.output.dir, &set, scn.optimiser.schedule[i].at);
     report.published.push(PublishedSet {
         version: set.version,
         at: scn.optimiser.schedule[i].at,

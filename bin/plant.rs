@@ -146,18 +146,29 @@ fn run_lockstep(
         if k % sync == 0 {
             // The optimiser sleeps between these samples and catches up on the queue here.
             ring(ports)?;
-            let ack = ports
-                .ack
-                .wait_for(spin, timeout, stop, |a: &OptimiserAck| a.through_seq >= k)
-                .map_err(|e| (EXIT_SETUP, e.to_string()))?;
-            match ack {
-                Waited::Got(_) => {}
-                Waited::Stopped => return Ok(()),
-                Waited::TimedOut => {
-                    return Err((
-                        EXIT_PEER_TIMEOUT,
-                        format!("optimiser did not acknowledge sample {k} within {timeout:?}"),
-                    ))
+            // The optimiser is not on the control path: while none is connected (it died and
+            // its resources were cleaned up, until a restarted one rejoins) the loop goes on.
+            let t_wait = std::time::Instant::now();
+            loop {
+                if ports.ack.publishers() == 0 {
+                    report.syncs_without_optimiser += 1;
+                    break;
+                }
+                let slice = Duration::from_millis(200).min(timeout);
+                let ack = ports
+                    .ack
+                    .wait_for(spin, slice, stop, |a: &OptimiserAck| a.through_seq >= k)
+                    .map_err(|e| (EXIT_SETUP, e.to_string()))?;
+                match ack {
+                    Waited::Got(_) => break,
+                    Waited::Stopped => return Ok(()),
+                    Waited::TimedOut if t_wait.elapsed() >= timeout => {
+                        return Err((
+                            EXIT_PEER_TIMEOUT,
+                            format!("optimiser did not acknowledge sample {k} within {timeout:?}"),
+                        ))
+                    }
+                    Waited::TimedOut => {}
                 }
             }
         }

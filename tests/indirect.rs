@@ -96,3 +96,55 @@ fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
         }
     }
 }
+
+#[test]
+fn a_killed_optimiser_leaves_the_loop_running_and_a_restarted_one_rejoins_and_tunes_on() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_indirect.toml"),
+    )
+    .unwrap()
+    .replace("duration = 30.0", "duration = 60.0");
+    let cfg = write(tmp.path(), "kill.toml", &text);
+    let out = tmp.path().join("out");
+    let (prefix, run_id) = unique("optkill");
+    let mut child = spawn_run(&cfg, &out, &prefix, &run_id);
+    let pid = process_named(&run_id, "evoloop-optimiser");
+    std::thread::sleep(std::time::Duration::from_millis(600));
+    // SAFETY: plain syscall on a process this test started (through the launcher).
+    unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+    let status = child.wait().unwrap();
+    assert!(
+        status.success(),
+        "the run must survive its optimiser: {status}"
+    );
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["optimiser_restarts"], 1);
+    assert_eq!(s["samples"], 60_000, "the loop ran every sample");
+    assert_eq!(
+        s["rejected_versions"], 0,
+        "the rejoined optimiser continued the versions"
+    );
+    // The restarted optimiser tuned on: its own report has epochs, its sets were accepted.
+    let o = json(&out.join("optimiser.json"));
+    let epochs = o["epochs"].as_array().unwrap();
+    assert!(!epochs.is_empty(), "no tuning after the restart");
+    let journal = std::fs::read_to_string(out.join("published.jsonl")).unwrap();
+    let versions: Vec<u64> = journal
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).unwrap()["version"]
+                .as_u64()
+                .unwrap()
+        })
+        .collect();
+    assert!(
+        versions.windows(2).all(|w| w[1] == w[0] + 1),
+        "{versions:?}"
+    );
+    assert_eq!(
+        s["accepted_versions"].as_u64().unwrap() as usize,
+        versions.len()
+    );
+    forget_prefix(&prefix);
+}

@@ -359,6 +359,12 @@ impl Indirect {
         })
     }
 
+    /// Continue after a restart: the sets up to `version` were published, `params` is the last.
+    pub fn resume(&mut self, version: u64, params: Vec<f64>) {
+        self.version = version;
+        self.in_service = params;
+    }
+
     /// Feed one state sample (in order; a gap restarts the estimator's differences).
     pub fn observe(&mut self, s: &crate::ipc::messages::PlantState) {
         let prev = self.prev.filter(|p| s.seq == p.seq + 1);

@@ -398,6 +398,12 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
         }
     }
 
+    /// Publishers currently connected to this topic (a killed process's stay counted until its
+    /// resources are cleaned up).
+    pub fn publishers(&self) -> usize {
+        self.service.dynamic_config().number_of_publishers()
+    }
+
     /// Whether unread samples are waiting.
     pub fn has_pending(&self) -> Result<bool, IpcError> {
         self.subscriber

@@ -61,6 +61,7 @@ pub fn build_report(
     wall_s: f64,
     floor: Option<FloorReport>,
     cleaned: usize,
+    optimiser_restarts: usize,
 ) -> Result<Summary, String> {
     let dir = &scn.output.dir;
     let ctrl: ControllerReport = read_json(dir, "controller.json")?;
@@ -189,6 +190,7 @@ pub fn build_report(
         optimiser_published: opt.published.len(),
         interrupted: ctrl.interrupted || plant.interrupted || opt.interrupted,
         stale_resources_cleaned: cleaned,
+        optimiser_restarts,
         accepted_versions: accepted.len(),
         rejected_versions: n_rejected,
         cost_per_repetition: reps.iter().map(|r| r.2).collect(),

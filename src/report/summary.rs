@@ -42,6 +42,9 @@ pub struct PlantReport {
     pub rt: RtGranted,
     /// Samples during which the safe command was applied because commands had stopped.
     pub safe_samples: u64,
+    /// Lockstep: synchronisation points passed without an optimiser (none connected).
+    #[serde(default)]
+    pub syncs_without_optimiser: u64,
     pub commands_received: u64,
     pub interrupted: bool,
 }
@@ -123,6 +126,8 @@ pub struct Summary {
     pub optimiser_published: usize,
     pub interrupted: bool,
     pub stale_resources_cleaned: usize,
+    /// Times the optimiser died and was started again to rejoin the run.
+    pub optimiser_restarts: usize,
     /// Parameter sets the controller put in service / refused during the run.
     pub accepted_versions: usize,
     pub rejected_versions: usize,
