@@ -9,7 +9,7 @@ use crate::report::Table;
 use clap::{Args, ValueEnum};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -18,8 +18,8 @@ use std::sync::Arc;
 pub enum Load {
     /// Nothing else running.
     Off,
-    /// The optimiser's workload: DE/rand/1/bin on the two-mass design problem on 2 threads at
-    /// nice 10 (`evoloop robust tune`), running for the whole measurement.
+    /// The live optimiser busy in the run: the indirect scheme's DE epochs on the model, back to
+    /// back on 2 threads at nice 10 (`optimiser.mode = "indirect"`), for the whole measurement.
     Optimiser,
     /// One busy-looping thread per CPU at normal priority.
     Hog,
@@ -53,7 +53,12 @@ pub struct LoopResult {
     pub summary: Summary,
 }
 
-fn scenario(rate: f64, duration: f64) -> String {
+fn scenario(rate: f64, duration: f64, optimiser_busy: bool) -> String {
+    let optimiser = if optimiser_busy {
+        "[optimiser]\nmode = \"indirect\"\nnice = 10\nthreads = 2\n"
+    } else {
+        "[optimiser]\nmode = \"off\"\n"
+    };
     format!(
         r#"name = "bench_loop"
 [plant]
@@ -76,7 +81,7 @@ fifo_priority = 80
 plant_fifo_priority = 70
 lock_memory = true
 measure_floor = true
-"#,
+{optimiser}"#,
         period = 1.0 / rate,
         step = (1.0 / rate).min(5e-4),
     )
@@ -126,24 +131,8 @@ fn start_load(load: Load) -> std::io::Result<LoadGuard> {
                 }));
             }
         }
-        Load::Optimiser => {
-            let exe = std::env::current_exe()?;
-            let mut cmd = Command::new("nice");
-            cmd.args(["-n", "10"])
-                .arg(exe)
-                .args([
-                    "robust",
-                    "tune",
-                    "--max-iter",
-                    "100000000",
-                    "--threads",
-                    "2",
-                    "--json",
-                ])
-                .stdout(Stdio::null())
-                .stderr(Stdio::null());
-            g.child = Some(cmd.spawn()?);
-        }
+        // The load is the run's own optimiser process (see `scenario`).
+        Load::Optimiser => {}
     }
     Ok(g)
 }
@@ -183,7 +172,10 @@ pub fn main(a: LoopArgs) -> i32 {
         return 1;
     }
     let cfg = a.out.join("bench_loop.toml");
-    if let Err(e) = std::fs::write(&cfg, scenario(a.rate, a.duration)) {
+    if let Err(e) = std::fs::write(
+        &cfg,
+        scenario(a.rate, a.duration, a.load == Load::Optimiser),
+    ) {
         eprintln!("error: {e}");
         return 1;
     }
