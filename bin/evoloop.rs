@@ -288,6 +288,9 @@ fn run(a: RunArgs) -> ExitCode {
     };
     let cleaned = ipc.cleanup_dead_nodes();
     let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 1, false).ok();
+    let estimate = ipc
+        .subscriber::<evoloop::ipc::messages::ModelEstimate>(Topic::Estimate, 1, false)
+        .ok();
 
     // The absolute config path and the output dir are passed on so children agree exactly.
     let config = std::fs::canonicalize(&file).unwrap_or(file.clone());
@@ -403,8 +406,12 @@ fn run(a: RunArgs) -> ExitCode {
         if !a.quiet && last_progress.elapsed() >= Duration::from_secs(1) {
             last_progress = Instant::now();
             if let Some(Ok(Some(tel))) = telemetry.as_ref().map(|s| s.latest()) {
+                let model = match estimate.as_ref().map(|s| s.latest()) {
+                    Some(Ok(Some(m))) => format!("   model {:.4} +- {:.4}", m.value, m.std),
+                    _ => String::new(),
+                };
                 err!(
-                    "  t = {:8.2} / {} s   e = {:+.4}   u = {:+.4}   params v{}   overruns {}   misses {}",
+                    "  t = {:8.2} / {} s   e = {:+.4}   u = {:+.4}   params v{}   overruns {}   misses {}{model}",
                     tel.t, scn.timing.duration, tel.tracking_error, tel.u[0], tel.param_version,
                     tel.overruns, tel.missed
                 );
@@ -417,6 +424,7 @@ fn run(a: RunArgs) -> ExitCode {
         let _ = c.wait();
     }
     drop(telemetry);
+    drop(estimate);
     // A child that died without dropping its ports (killed) left its resources behind: remove
     // them now rather than leave them for the next run.
     let cleaned_after = ipc.cleanup_dead_nodes();

@@ -11,7 +11,9 @@
 use clap::Parser;
 use evoloop::cli::ProcessArgs;
 use evoloop::config::{Mode, OptimiserMode, Scenario};
-use evoloop::ipc::messages::{Command, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END};
+use evoloop::ipc::messages::{
+    Command, ModelEstimate, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END,
+};
 use evoloop::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
 use evoloop::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use evoloop::report::summary::{OptimiserReport, PublishedSet};
@@ -40,6 +42,7 @@ struct Ports {
     /// Lockstep: the plant rings at every sample the optimiser must acknowledge.
     sync: Doorbell,
     params: Pub<ParamSet>,
+    estimate: Pub<ModelEstimate>,
     ack: Pub<OptimiserAck>,
     command: Sub<Command>,
     state: Sub<PlantState>,
@@ -58,6 +61,7 @@ fn main() {
         Ok(Ports {
             sync: ipc.doorbell(Topic::Sync)?,
             params: ipc.publisher(Topic::Params, false)?,
+            estimate: ipc.publisher(Topic::Estimate, false)?,
             command: ipc.subscriber(Topic::Command, buffer, false)?,
             // The plant starts the run once it sees this subscriber and the ready event.
             // In lockstep the optimiser sleeps on the sync bell and catches up on the queue,
@@ -161,7 +165,18 @@ fn run(
             report.commands_seen += 1;
         }
         if let Some(ind) = indirect.as_mut() {
+            let recorded = ind.estimates.len();
             ind.observe(&state);
+            // Each new 10 Hz record goes out as telemetry too.
+            if let Some(e) = ind.estimates.get(recorded) {
+                let msg = ModelEstimate {
+                    t: e.t,
+                    value: e.value,
+                    std: e.std,
+                    last_version: ind.version(),
+                };
+                ports.estimate.send(&msg).map_err(io)?;
+            }
         }
         if state.flags & STATE_FLAG_END != 0 {
             if let Some(ind) = indirect {

@@ -380,6 +380,11 @@ impl Indirect {
         self.scheme.estimate(t)
     }
 
+    /// The last version this optimiser published (0: none yet).
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+
     /// Lockstep pacing: `dt` simulated seconds passed; run the epochs the budget allows.
     pub fn paced(
         &mut self,

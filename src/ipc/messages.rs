@@ -214,3 +214,16 @@ impl ParamSet {
 pub struct OptimiserAck {
     pub through_seq: u64,
 }
+
+/// The optimiser's model estimate (indirect scheme), published at 10 Hz of plant time: the
+/// parameter that changes in operation (maglev: ball mass, kg; two-mass: spring constant) with
+/// its standard deviation, and the version of the last set the optimiser published.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[type_name("evoloop::ModelEstimate.v1")]
+pub struct ModelEstimate {
+    pub t: f64,
+    pub value: f64,
+    pub std: f64,
+    pub last_version: u64,
+}

@@ -62,6 +62,8 @@ pub enum Topic {
     Telemetry,
     Params,
     OptimiserAck,
+    /// The optimiser's online model estimate (indirect scheme).
+    Estimate,
     /// Event only: a process has created all its ports.
     Ready,
     /// Event only (lockstep): the plant reached a sample the optimiser must acknowledge.
@@ -76,6 +78,7 @@ impl Topic {
             Topic::Telemetry => "telemetry",
             Topic::Params => "params",
             Topic::OptimiserAck => "optimiser_ack",
+            Topic::Estimate => "estimate",
             Topic::Ready => "ready",
             Topic::Sync => "sync",
         }
@@ -87,7 +90,7 @@ impl Topic {
             Topic::State | Topic::Command => MAX_SYNC_SAMPLES + 8,
             Topic::Telemetry => 64,
             Topic::Params => 16,
-            Topic::OptimiserAck | Topic::Ready | Topic::Sync => 4,
+            Topic::OptimiserAck | Topic::Ready | Topic::Sync | Topic::Estimate => 4,
         }
     }
 }
