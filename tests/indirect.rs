@@ -37,6 +37,13 @@ fn the_optimiser_tracks_the_mass_change_and_beats_the_frozen_controller() {
         after < frozen_after,
         "cost per repetition after adaptation {after} vs frozen {frozen_after}"
     );
+    // The report's own frozen comparison (in-process simulation with the optimiser off) is the
+    // frozen run of the processes exactly: lockstep is bit-identical to the simulation.
+    assert_eq!(
+        s["cost_after_change_frozen"].as_f64().unwrap(),
+        frozen_after
+    );
+    assert_eq!(s["cost_per_repetition_frozen"], f["cost_per_repetition"]);
     // The estimate converged after the change (t = 10 s): within 5 % from 15 s on.
     let est = Csv::read(&tuned.join("estimates.csv"));
     let (t, e, tr) = (est.col("t"), est.col("estimate"), est.col("true"));

@@ -104,6 +104,35 @@ pub fn build_report(
     });
     let n_rejected = rejected.len();
     let reps = repetitions(scn, &t, &refs, &ys, &us);
+    // The frozen comparison for the indirect scheme: the same scenario with the optimiser off,
+    // by the in-process simulation (the same plant and controller code, bit-identical to a
+    // lockstep run of the processes).
+    let frozen: Vec<(f64, f64, f64)> =
+        if scn.optimiser.mode == crate::config::OptimiserMode::Indirect {
+            let mut f = scn.clone();
+            f.optimiser.mode = crate::config::OptimiserMode::Off;
+            let sim = crate::sim::simulate(&f);
+            let ft: Vec<f64> = sim.rows.iter().map(|r| r.state.t).collect();
+            let fr = vec![sim
+                .rows
+                .iter()
+                .map(|r| r.telemetry.reference)
+                .collect::<Vec<f64>>()];
+            let fy = vec![(
+                "y0".to_string(),
+                sim.rows.iter().map(|r| r.state.y[0]).collect::<Vec<f64>>(),
+            )];
+            let fu = vec![(
+                "u0".to_string(),
+                sim.rows
+                    .iter()
+                    .map(|r| r.telemetry.u[0])
+                    .collect::<Vec<f64>>(),
+            )];
+            repetitions(&f, &ft, &fr, &fy, &fu)
+        } else {
+            Vec::new()
+        };
     let change = scn
         .plant
         .maglev
@@ -125,6 +154,17 @@ pub fn build_report(
         .then(|| {
             mean(
                 reps.iter()
+                    .filter(|r| r.0 >= quarter)
+                    .map(|r| r.2)
+                    .collect(),
+            )
+        })
+        .flatten();
+    let cost_after_change_frozen = (!frozen.is_empty())
+        .then(|| {
+            mean(
+                frozen
+                    .iter()
                     .filter(|r| r.0 >= quarter)
                     .map(|r| r.2)
                     .collect(),
@@ -196,14 +236,17 @@ pub fn build_report(
         cost_per_repetition: reps.iter().map(|r| r.2).collect(),
         cost_before_change,
         cost_after_change,
+        cost_after_change_frozen,
+        cost_per_repetition_frozen: frozen.iter().map(|r| r.2).collect(),
         model_estimate_final,
         model_true_final,
         model_estimate_error,
     };
     if !reps.is_empty() {
-        let mut csv = String::from("repetition,t_start,t_end,cost\n");
+        let mut csv = String::from("repetition,t_start,t_end,cost,cost_frozen\n");
         for (j, r) in reps.iter().enumerate() {
-            csv.push_str(&format!("{j},{},{},{}\n", r.0, r.1, r.2));
+            let f = frozen.get(j).map_or(f64::NAN, |x| x.2);
+            csv.push_str(&format!("{j},{},{},{},{f}\n", r.0, r.1, r.2));
         }
         std::fs::write(dir.join("repetitions.csv"), csv).map_err(|e| e.to_string())?;
     }
@@ -231,13 +274,28 @@ pub fn build_report(
                         .map_or(f64::NAN, |r| r.2)
                 })
                 .collect();
+            let cost_frozen: Vec<f64> = te
+                .iter()
+                .map(|x| {
+                    frozen
+                        .iter()
+                        .find(|r| *x >= r.0 && *x < r.1)
+                        .map_or(f64::NAN, |r| r.2)
+                })
+                .collect();
             let marks: Vec<f64> = accepted.iter().map(|p| p.t).collect();
             two_panel_png(
                 &dir.join("indirect.png"),
                 &format!("{}: model estimate vs true value; cost per repetition (orange: sets swapped in)", scn.name),
                 &te,
                 Panel { series: &[Series { name: "estimate", values: &est }, Series { name: "true", values: &tru }], label: "model parameter" },
-                Panel { series: &[Series { name: "cost per repetition", values: &cost }], label: "cost" },
+                Panel {
+                    series: &[
+                        Series { name: "cost per repetition (tuned)", values: &cost },
+                        Series { name: "frozen parameters", values: &cost_frozen },
+                    ],
+                    label: "cost",
+                },
                 &marks,
             )?;
         }

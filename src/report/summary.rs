@@ -137,6 +137,10 @@ pub struct Summary {
     /// it starts from rest), and over the last quarter of the run.
     pub cost_before_change: Option<f64>,
     pub cost_after_change: Option<f64>,
+    /// The same for the frozen comparison (the scenario with the optimiser off, simulated
+    /// in-process after an indirect run).
+    pub cost_after_change_frozen: Option<f64>,
+    pub cost_per_repetition_frozen: Vec<f64>,
     /// The optimiser's final model estimate, the true value then, and the relative error.
     pub model_estimate_final: Option<f64>,
     pub model_true_final: Option<f64>,
