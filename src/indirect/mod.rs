@@ -132,7 +132,7 @@ pub struct Candidate {
     /// The in-service set's cost on the same model.
     pub in_service_cost: f64,
     /// The model parameter (mass, kg) it was tuned for.
-    pub model_mass: f64,
+    pub model_value: f64,
 }
 
 pub struct MaglevTuner {
@@ -219,7 +219,7 @@ impl MaglevTuner {
             params: r.best,
             expected_cost: r.value,
             in_service_cost: current,
-            model_mass: mass,
+            model_value: mass,
         }
     }
 
@@ -235,7 +235,7 @@ pub struct EpochRecord {
     /// Plant time when the epoch ran.
     pub t: f64,
     /// The model parameter the epoch tuned for (maglev: mass, kg; two-mass: spring constant).
-    pub model_mass: f64,
+    pub model_value: f64,
     pub best_cost: f64,
     pub in_service_cost: f64,
     /// The version published from this epoch, if any.
@@ -424,7 +424,7 @@ impl Indirect {
             accepted_there && c.expected_cost < c.in_service_cost * (1.0 - self.scheme.margin());
         let mut rec = EpochRecord {
             t,
-            model_mass: p,
+            model_value: p,
             best_cost: c.expected_cost,
             in_service_cost: c.in_service_cost,
             published: None,

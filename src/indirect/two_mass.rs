@@ -174,7 +174,7 @@ impl Scheme for TwoMassScheme {
             params: best.to_vec(),
             expected_cost: value,
             in_service_cost: self.cost(k, in_service),
-            model_mass: k,
+            model_value: k,
         }
     }
 

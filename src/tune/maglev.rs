@@ -507,9 +507,3 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
         None,
     )
 }
-
-/// Unused-import guard for Controller (the Pid's trait methods are called through it).
-#[allow(dead_code)]
-fn _uses(c: &mut dyn Controller) -> usize {
-    c.n_params()
-}
