@@ -169,3 +169,44 @@ fn the_industrial_arm_runs_at_one_kilohertz_in_realtime_mode() {
     let rms = s["tracking_after_1s"]["rms_all"].as_f64().unwrap();
     assert!(rms < 0.05, "realtime tracking rms {rms}");
 }
+
+#[test]
+fn a_urdf_robot_runs_in_a_scenario_like_its_dh_twin() {
+    let dh = load(
+        "arm3_ct.toml",
+        &Overrides {
+            duration: Some(2.0),
+            ..Default::default()
+        },
+    );
+    let text = std::fs::read_to_string(config("arm3_ct.toml"))
+        .unwrap()
+        .replace("robots/arm3.toml", "robots/arm3.urdf");
+    let urdf = Scenario::parse(
+        &text,
+        &config("arm3_ct_urdf.toml"),
+        &Overrides {
+            duration: Some(2.0),
+            ..Default::default()
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert!(urdf
+        .plant
+        .arm
+        .as_ref()
+        .unwrap()
+        .robot
+        .ends_with("arm3.urdf"));
+    let (a, b) = (simulate(&dh), simulate(&urdf));
+    assert_eq!(a.rows.len(), b.rows.len());
+    for (ra, rb) in a.rows.iter().zip(&b.rows) {
+        for j in 0..3 {
+            assert!(
+                (ra.state.q[j] - rb.state.q[j]).abs() < 1e-9,
+                "joint {j} at t = {}",
+                ra.state.t
+            );
+        }
+    }
+}
