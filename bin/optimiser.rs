@@ -265,8 +265,9 @@ fn send_set(
     report: &mut OptimiserReport,
     dir: &std::path::Path,
 ) -> Result<(), IpcError> {
-    ports.params.send(set)?;
+    // Journal first: a set the controller may have received is always on record for a restart.
     journal(dir, set, t);
+    ports.params.send(set)?;
     report.published.push(PublishedSet {
         version: set.version,
         at: t,
@@ -284,8 +285,8 @@ fn publish(
     report: &mut OptimiserReport,
 ) -> Result<(), IpcError> {
     let set = scheduled_set(scn, i, apply_at_seq);
-    ports.params.send(&set)?;
     journal(&scn.output.dir, &set, scn.optimiser.schedule[i].at);
+    ports.params.send(&set)?;
     report.published.push(PublishedSet {
         version: set.version,
         at: scn.optimiser.schedule[i].at,

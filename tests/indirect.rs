@@ -149,9 +149,12 @@ fn a_killed_optimiser_leaves_the_loop_running_and_a_restarted_one_rejoins_and_tu
         versions.windows(2).all(|w| w[1] == w[0] + 1),
         "{versions:?}"
     );
-    assert_eq!(
-        s["accepted_versions"].as_u64().unwrap() as usize,
-        versions.len()
+    // Every journalled set reached the controller and was accepted, except possibly the last one
+    // when the kill fell between journalling it and sending it.
+    let accepted = s["accepted_versions"].as_u64().unwrap() as usize;
+    assert!(
+        accepted == versions.len() || accepted + 1 == versions.len(),
+        "{accepted} accepted of {versions:?}"
     );
     forget_prefix(&prefix);
 }
