@@ -505,3 +505,23 @@ fn bad_robot_files_name_the_link_or_joint() {
     let e = load_err("conv.toml", &format!("convention = \"sideways\"\n{row}"));
     assert!(e.contains("convention"), "{e}");
 }
+
+#[test]
+fn every_call_is_independent_of_what_ran_before_on_the_same_data() {
+    // The algorithms share scratch buffers in `Data`; no result may depend on an earlier call.
+    let m = robot("industrial6.toml");
+    let q = [0.3, -0.5, 0.8, 0.1, 0.2, 0.3];
+    let qd = [0.5, 1.0, -1.0, 1.0, 1.0, 1.0];
+    let mut fresh = m.data();
+    let mut g_ref = [0.0; 6];
+    m.gravity_torque(&mut fresh, &q, &mut g_ref);
+    let mut used = m.data();
+    let mut qdd = [0.0; 6];
+    m.forward_dynamics(&mut used, &q, &qd, &[10.0; 6], &mut qdd)
+        .unwrap();
+    let mut c = DMatrix::zeros(6, 6);
+    m.coriolis_matrix(&mut used, &q, &qd, &mut c);
+    let mut g = [0.0; 6];
+    m.gravity_torque(&mut used, &q, &mut g);
+    assert_eq!(g, g_ref, "G(q) after other calls on the same Data");
+}

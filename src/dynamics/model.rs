@@ -115,6 +115,8 @@ pub struct Data {
     rhs: DVector<f64>,
     tmp: Vec<f64>,
     tmp2: Vec<f64>,
+    /// Zero joint velocities for G(q); never written (the scratch buffers above are).
+    zero: Vec<f64>,
 }
 
 /// M(q) is not positive definite at this configuration (a body carries no inertia).
@@ -157,6 +159,7 @@ impl Model {
             rhs: DVector::zeros(n),
             tmp: vec![0.0; n],
             tmp2: vec![0.0; n],
+            zero: vec![0.0; n],
         }
     }
 
@@ -293,9 +296,9 @@ impl Model {
     /// The gravity vector G(q).
     pub fn gravity_torque(&self, d: &mut Data, q: &[f64], out: &mut [f64]) {
         self.update(d, q);
-        let zero = std::mem::take(&mut d.tmp);
+        let zero = std::mem::take(&mut d.zero);
         self.rnea_pass(d, &zero, None, true, out);
-        d.tmp = zero;
+        d.zero = zero;
     }
 
     /// The centrifugal and Coriolis vector V(q, qd).
