@@ -370,35 +370,32 @@ impl Model {
         0.5 * e
     }
 
-    /// Potential energy of gravity, -Σ m_i g·c_i (zero at the root's origin). For tests and
-    /// reports; allocates.
-    pub fn potential_energy(&self, d: &mut Data, q: &[f64]) -> f64 {
+    /// Root -> body transforms at q (forward kinematics); allocates, for tests and reports.
+    pub fn world_transforms(&self, d: &mut Data, q: &[f64]) -> Vec<Transform> {
         self.update(d, q);
         let mut world: Vec<Transform> = Vec::with_capacity(self.dof());
-        let mut pe = 0.0;
         for (i, b) in self.bodies.iter().enumerate() {
             let x0 = match b.parent {
                 Some(p) => world[p].then(&d.x[i]),
                 None => d.x[i],
             };
             world.push(x0);
-            pe -= b.inertia.m * self.gravity.dot(x0.point_to_parent(b.inertia.com()));
         }
-        pe
+        world
     }
 
-    /// Root-frame origins of the bodies (forward kinematics), for tests and plots; allocates.
+    /// Potential energy of gravity, -sum m_i g . c_i (zero at the root's origin).
+    pub fn potential_energy(&self, d: &mut Data, q: &[f64]) -> f64 {
+        self.world_transforms(d, q)
+            .iter()
+            .zip(&self.bodies)
+            .map(|(x, b)| -b.inertia.m * self.gravity.dot(x.point_to_parent(b.inertia.com())))
+            .sum()
+    }
+
+    /// Root-frame origins of the bodies.
     pub fn body_origins(&self, d: &mut Data, q: &[f64]) -> Vec<DVec3> {
-        self.update(d, q);
-        let mut world: Vec<Transform> = Vec::with_capacity(self.dof());
-        for (i, b) in self.bodies.iter().enumerate() {
-            let x0 = match b.parent {
-                Some(p) => world[p].then(&d.x[i]),
-                None => d.x[i],
-            };
-            world.push(x0);
-        }
-        world.iter().map(|x| x.r).collect()
+        self.world_transforms(d, q).iter().map(|x| x.r).collect()
     }
 }
 

@@ -35,17 +35,12 @@ pub struct MaglevEstimator {
     /// Samples between the three positions of one second difference.
     stride: usize,
     /// Forgetting factor per update.
-    lambda: f64,
     /// Ring of the last 2 * stride + 1 (gap z, reconstructed current i).
     ring: Vec<(f64, f64)>,
     filled: usize,
     last_seq: Option<u64>,
     current: f64,
-    theta: f64,
-    p_cov: f64,
-    /// Running variance of the residual.
-    sigma2: f64,
-    updates: u64,
+    rls: rls::Rls,
 }
 
 impl MaglevEstimator {
@@ -59,14 +54,10 @@ impl MaglevEstimator {
             p,
             period,
             stride,
-            lambda,
             ring: vec![(0.0, 0.0); 2 * stride + 1],
             filled: 0,
             last_seq: None,
-            theta,
-            p_cov: 1e3,
-            sigma2: 1.0,
-            updates: 0,
+            rls: rls::Rls::new(theta, lambda),
         }
     }
 
@@ -92,25 +83,15 @@ impl MaglevEstimator {
             let h = self.stride as f64 * self.period;
             let zdd = (z2 - 2.0 * z1 + z0) / (h * h);
             let phi = i1 * i1 / (z1 + self.p.pole_offset).powi(2);
-            self.update(G - zdd, phi);
+            self.rls.update(G - zdd, phi);
         }
-    }
-
-    fn update(&mut self, y: f64, x: f64) {
-        // Scalar RLS with exponential forgetting.
-        let e = y - self.theta * x;
-        let k = self.p_cov * x / (self.lambda + x * self.p_cov * x);
-        self.theta += k * e;
-        self.p_cov = (self.p_cov - k * x * self.p_cov) / self.lambda;
-        self.sigma2 = self.lambda * self.sigma2 + (1.0 - self.lambda) * e * e;
-        self.updates += 1;
     }
 
     /// The mass estimate (nominal k_F) and its standard deviation (delta method).
     pub fn estimate(&self, t: f64) -> Estimate {
         let kf = self.p.k_force();
-        let theta = self.theta.max(1e-9);
-        let std_theta = (self.p_cov * self.sigma2).max(0.0).sqrt();
+        let theta = self.rls.theta.max(1e-9);
+        let std_theta = self.rls.std();
         Estimate {
             t,
             value: kf / theta,
@@ -119,7 +100,7 @@ impl MaglevEstimator {
     }
 
     pub fn updates(&self) -> u64 {
-        self.updates
+        self.rls.updates
     }
 }
 
@@ -449,4 +430,5 @@ impl Indirect {
     }
 }
 
+pub mod rls;
 pub mod two_mass;

@@ -33,11 +33,7 @@ pub struct TwoMassScheme {
     stride: usize,
     ring: Vec<(f64, f64)>,
     filled: usize,
-    theta: f64,
-    p_cov: f64,
-    sigma2: f64,
-    lambda: f64,
-    updates: u64,
+    rls: super::rls::Rls,
 }
 
 impl TwoMassScheme {
@@ -68,11 +64,7 @@ impl TwoMassScheme {
             stride,
             ring: vec![(0.0, 0.0); 2 * stride + 1],
             filled: 0,
-            theta: scn.plant.spring / scn.plant.m2,
-            p_cov: 1e3,
-            sigma2: 1.0,
-            lambda: 0.99,
-            updates: 0,
+            rls: super::rls::Rls::new(scn.plant.spring / scn.plant.m2, 0.99),
         }
     }
 
@@ -120,25 +112,20 @@ impl Scheme for TwoMassScheme {
             let (_, v_b) = self.ring[s.seq as usize % n];
             let acc = (v_b - v_a) / (2.0 * st as f64 * self.period);
             // acc = (k / m2) d: RLS on theta = k / m2.
-            let e = acc - self.theta * d;
-            let g = self.p_cov * d / (self.lambda + d * self.p_cov * d);
-            self.theta += g * e;
-            self.p_cov = (self.p_cov - g * d * self.p_cov) / self.lambda;
-            self.sigma2 = self.lambda * self.sigma2 + (1.0 - self.lambda) * e * e;
-            self.updates += 1;
+            self.rls.update(acc, d);
         }
     }
 
     fn estimate(&self, t: f64) -> Estimate {
         Estimate {
             t,
-            value: self.theta * self.m2,
-            std: self.m2 * (self.p_cov * self.sigma2).max(0.0).sqrt(),
+            value: self.rls.theta * self.m2,
+            std: self.m2 * self.rls.std(),
         }
     }
 
     fn ready(&self) -> bool {
-        self.updates > 50
+        self.rls.updates > 50
     }
 
     fn nominal(&self) -> f64 {
