@@ -148,20 +148,6 @@ pub enum ControllerKind {
     Pid,
 }
 
-impl ControllerKind {
-    /// The `ipc::messages::KIND_*` its parameter sets carry.
-    pub fn message_kind(self) -> u32 {
-        use crate::ipc::messages as m;
-        match self {
-            ControllerKind::StateFeedback => m::KIND_STATE_FEEDBACK,
-            ControllerKind::PdServo => m::KIND_PD_SERVO,
-            ControllerKind::ComputedTorque => m::KIND_COMPUTED_TORQUE,
-            // The scheme decides (see `ControllerSpec::param_kind`); this is the fuzzy one.
-            ControllerKind::Pid => m::KIND_PID_FUZZY_AW,
-        }
-    }
-}
-
 /// Per-joint gains of the P-D servo (`kp`, `kd`) and of computed torque (`kp`, `kv`, plus the
 /// start-up damping rate and an optional model file other than the plant's robot).
 #[derive(Debug, Deserialize)]
@@ -427,9 +413,15 @@ pub struct Overrides {
 impl ControllerSpec {
     /// The `KIND_*` this controller's parameter sets carry (a PID's depends on its scheme).
     pub fn param_kind(&self) -> u32 {
-        match self.anti_windup {
-            Some(aw) => aw.kind(),
-            None => self.kind.message_kind(),
+        use crate::ipc::messages as m;
+        match self.kind {
+            ControllerKind::StateFeedback => m::KIND_STATE_FEEDBACK,
+            ControllerKind::PdServo => m::KIND_PD_SERVO,
+            ControllerKind::ComputedTorque => m::KIND_COMPUTED_TORQUE,
+            ControllerKind::Pid => self
+                .anti_windup
+                .expect("validated: a PID has its anti-windup scheme")
+                .kind(),
         }
     }
 }
