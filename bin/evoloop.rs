@@ -68,6 +68,13 @@ enum Cmd {
         #[command(subcommand)]
         cmd: BenchCmd,
     },
+    /// The plant simulator process of a run (`evoloop run` starts it; for starting processes by
+    /// hand or under your own supervisor).
+    Plant(evoloop::cli::ProcessArgs),
+    /// The fixed-rate controller process of a run (`evoloop run` starts it).
+    Controller(evoloop::cli::ProcessArgs),
+    /// The optimiser process of a run (`evoloop run` starts it).
+    Optimiser(evoloop::cli::OptimiserArgs),
     /// Measure the machine's timing floor: a bare absolute-deadline sleep loop.
     Floor {
         /// Loop rate in Hz.
@@ -125,6 +132,18 @@ fn main() -> ExitCode {
         }),
         Some(Cmd::Run(a)) => run(a),
         Some(Cmd::Check { file }) => check(&file),
+        Some(Cmd::Plant(a)) => {
+            evoloop::node::plant::main(&a);
+            ExitCode::SUCCESS
+        }
+        Some(Cmd::Controller(a)) => {
+            evoloop::node::controller::main(&a);
+            ExitCode::SUCCESS
+        }
+        Some(Cmd::Optimiser(a)) => {
+            evoloop::node::optimiser::main(&a);
+            ExitCode::SUCCESS
+        }
         Some(Cmd::Bench { cmd }) => ExitCode::from(match cmd {
             BenchCmd::Latency(a) => evoloop::bench::latency::main(a),
             BenchCmd::LatencyPeer(a) => evoloop::bench::latency::peer(a),
@@ -223,9 +242,18 @@ fn measure_floor(period: f64, duration: f64, fifo: Option<i32>) -> FloorReport {
     .unwrap_or_default()
 }
 
-fn sibling(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from(name));
-    exe.with_file_name(name)
+/// Start the process `name` (`evoloop-plant`, ...) of a run: this very executable with the role as
+/// its subcommand, so a run needs nothing but the `evoloop` binary (`cargo run` builds only the
+/// binary it runs). argv[0] is the process's name, so `ps`, `pgrep -f evoloop-plant` and the
+/// tests see `evoloop-plant ...` as they would the stand-alone binary.
+fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Child> {
+    use std::os::unix::process::CommandExt;
+    let role = name.trim_start_matches("evoloop-");
+    std::process::Command::new(std::env::current_exe()?)
+        .arg0(name)
+        .arg(role)
+        .args(args)
+        .spawn()
 }
 
 fn signal(child: &Child, sig: i32) {
@@ -308,16 +336,10 @@ fn run(a: RunArgs) -> ExitCode {
     let names = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
     let mut children: Vec<(&str, Child)> = Vec::new();
     for name in names {
-        match std::process::Command::new(sibling(name))
-            .args(&args)
-            .spawn()
-        {
+        match spawn_process(name, &args) {
             Ok(c) => children.push((name, c)),
             Err(e) => {
-                err!(
-                    "error: cannot start {name} ({}): {e}",
-                    sibling(name).display()
-                );
+                err!("error: cannot start {name}: {e}");
                 for (_, c) in &mut children {
                     signal(c, libc::SIGTERM);
                     let _ = c.wait();
@@ -362,10 +384,7 @@ fn run(a: RunArgs) -> ExitCode {
                     ipc.cleanup_dead_nodes();
                     let mut again = args.clone();
                     again.push("--rejoin".into());
-                    match std::process::Command::new(sibling(name))
-                        .args(&again)
-                        .spawn()
-                    {
+                    match spawn_process(name, &again) {
                         Ok(nc) => {
                             *c = nc;
                             optimiser_restarts += 1;

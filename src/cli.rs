@@ -21,6 +21,17 @@ pub struct ProcessArgs {
     pub overrides: OverrideArgs,
 }
 
+/// The optimiser process's options: those of every process, and `--rejoin`.
+#[derive(Debug, Clone, Args)]
+pub struct OptimiserArgs {
+    #[command(flatten)]
+    pub args: ProcessArgs,
+    /// Rejoin a running run (started again after a crash): continue the version numbering and the
+    /// set in service from `published.jsonl`, and release the plant's pending lockstep wait.
+    #[arg(long)]
+    pub rejoin: bool,
+}
+
 /// Overrides of the scenario file, accepted by `evoloop run` and passed on to the children.
 #[derive(Debug, Clone, Default, Args)]
 pub struct OverrideArgs {

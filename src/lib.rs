@@ -3,7 +3,7 @@
 //!
 //! The library holds everything the processes share. The algorithms (plants, control laws,
 //! references) know nothing of processes or iceoryx2; `ipc` and `rt` are the only modules that
-//! touch shared memory, clocks and scheduling, and the binaries in `bin/` wire the two together.
+//! touch shared memory, clocks and scheduling, and `node` wires the two together into the process loops (the binaries in `bin/` are thin).
 //! So a control law runs the same in the controller process, in an optimiser's model evaluation
 //! and in a unit test.
 
@@ -15,6 +15,7 @@ pub mod dynamics;
 pub mod fuzzy;
 pub mod indirect;
 pub mod ipc;
+pub mod node;
 pub mod optim;
 pub mod plant;
 pub mod process;

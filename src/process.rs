@@ -24,6 +24,7 @@ pub struct Started {
 
 /// Load the scenario, install the signal flag, join the run; exit with a message on failure.
 pub fn start(args: &ProcessArgs, who: &str) -> Started {
+    set_thread_name(who);
     let scenario = load_scenario(args, who);
     let stop = stop_flag();
     let ipc = Ipc::new(who, &args.run_id, &args.ipc_prefix)
@@ -59,4 +60,15 @@ pub fn write_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> std::io::R
     std::fs::create_dir_all(dir)?;
     let text = serde_json::to_string_pretty(value).map_err(std::io::Error::other)?;
     std::fs::write(dir.join(name), text + "\n")
+}
+
+/// Name the calling thread (the process's main thread: its `comm` in `ps`, `top` and
+/// `/proc/PID/comm`, cut to 15 bytes by the kernel), so a role started as `evoloop plant` shows
+/// as `evoloop-plant` like the stand-alone binary.
+fn set_thread_name(name: &str) {
+    let mut buf = [0u8; 16];
+    let n = name.len().min(15);
+    buf[..n].copy_from_slice(&name.as_bytes()[..n]);
+    // SAFETY: PR_SET_NAME reads a NUL-terminated string of at most 16 bytes from `buf`.
+    unsafe { libc::prctl(libc::PR_SET_NAME, buf.as_ptr() as libc::c_ulong, 0, 0, 0) };
 }

@@ -1,0 +1,383 @@
+//! evoloop-controller: the fixed-rate control loop.
+//!
+//! Each cycle: take the newest plant state, take any parameter set that is due (validated, then
+//! swapped in bumplessly at the cycle boundary), compute the control law, publish the command,
+//! publish telemetry. The loop allocates nothing: logs and queues are sized before it starts.
+//!
+//! lockstep: a cycle per state sample, woken by the plant's event.
+//! realtime: a cycle per period on absolute deadlines (clock_nanosleep TIMER_ABSTIME), aligned
+//!           to the plant's first sample plus a small phase; lateness, compute time and state age
+//!           are measured every cycle, overruns and missed deadlines counted.
+
+use crate::cli::ProcessArgs;
+use crate::config::{Mode, Scenario};
+use crate::control::cycle::{ControlCycle, ParamEvent};
+use crate::ipc::messages::{
+    Command, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END, TELEMETRY_FLAG_MISSED,
+    TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
+};
+use crate::ipc::{IpcError, Pub, Sub, Topic, Waited};
+use crate::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::report::summary::{ControllerReport, ParamRecord};
+use crate::report::RunLog;
+use crate::rt::timing::Percentiles;
+use crate::rt::{apply_privileges, now_ns, sleep_until_ns, CycleTiming, TimingLog, TimingSummary};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+const WHO: &str = "evoloop-controller";
+
+struct Ports {
+    params: Sub<ParamSet>,
+    command: Pub<Command>,
+    telemetry: Pub<Telemetry>,
+    state: Sub<PlantState>,
+}
+
+/// Everything the loop writes into, allocated before it starts.
+struct Loop {
+    cycle: ControlCycle,
+    log: RunLog,
+    timing: TimingLog,
+    events: Vec<ParamEvent>,
+    events_dropped: u64,
+    overruns: u64,
+    missed: u64,
+    stale: u64,
+    n_y: usize,
+    n_u: usize,
+    n_q: usize,
+    n_r: usize,
+    row: Vec<f64>,
+}
+
+impl Loop {
+    fn new(scn: &Scenario) -> Self {
+        let plant = scn.build_plant();
+        let (n_y, n_u, n_q) = (plant.n_outputs(), plant.n_inputs(), plant.n_joints());
+        // Joint 0's reference keeps the name `reference`; joint-space trajectories add r1, r2, ...
+        let n_r = scn.reference.joints();
+        let mut header = vec!["t".to_string(), "reference".to_string()];
+        header.extend((1..n_r).map(|i| format!("r{i}")));
+        header.extend((0..n_y).map(|i| format!("y{i}")));
+        header.extend((0..n_u).map(|i| format!("u{i}")));
+        header.extend((0..n_q).map(|i| format!("q{i}")));
+        header.push("param_version".into());
+        let rows = scn.cycles() as usize + 2;
+        Self {
+            cycle: ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())
+                .with_stability_check(scn.linear_model()),
+            row: vec![0.0; header.len()],
+            log: RunLog::new(header, rows),
+            timing: TimingLog::with_capacity(rows),
+            events: Vec::with_capacity(1024),
+            events_dropped: 0,
+            overruns: 0,
+            missed: 0,
+            stale: 0,
+            n_y,
+            n_u,
+            n_q,
+            n_r,
+        }
+    }
+
+    /// One cycle on `state`: parameters, law, command, telemetry, log. `woke_ns` is when the
+    /// cycle started, `lateness_ns` how late that was against its deadline.
+    fn cycle(
+        &mut self,
+        ports: &Ports,
+        state: &PlantState,
+        woke_ns: u64,
+        lateness_ns: i64,
+        flags_in: u32,
+        period_ns: u64,
+    ) -> Result<(), IpcError> {
+        while let Some(p) = ports.params.next()? {
+            self.cycle.offer(&p);
+        }
+        let mut tel = Telemetry::default();
+        if let Some(e) = self.cycle.step(state, &mut tel) {
+            if self.events.len() < self.events.capacity() {
+                self.events.push(e);
+            } else {
+                self.events_dropped += 1;
+            }
+        }
+        let cmd = Command {
+            cycle: tel.cycle,
+            state_seq: state.seq,
+            stamp_ns: now_ns(),
+            param_version: tel.param_version,
+            n_u: self.n_u as u32,
+            _pad: 0,
+            u: self.cycle.u,
+        };
+        ports.command.send(&cmd)?;
+        let done = now_ns();
+        let compute = done.saturating_sub(woke_ns);
+        let mut flags = flags_in;
+        if lateness_ns.max(0) as u64 + compute > period_ns && period_ns > 0 {
+            flags |= TELEMETRY_FLAG_OVERRUN;
+            self.overruns += 1;
+        }
+        tel.lateness_ns = lateness_ns;
+        tel.compute_ns = compute;
+        tel.state_age_ns = woke_ns.saturating_sub(state.stamp_ns);
+        tel.flags = flags;
+        tel.overruns = self.overruns;
+        tel.missed = self.missed;
+        ports.telemetry.send(&tel)?;
+        self.timing.push(CycleTiming {
+            cycle: tel.cycle,
+            lateness_ns,
+            compute_ns: compute,
+            state_age_ns: tel.state_age_ns,
+            flags,
+        });
+        let r = &mut self.row;
+        r[0] = state.t;
+        r[1] = tel.reference;
+        let mut j = 2;
+        for i in 1..self.n_r {
+            r[j] = self.cycle.setpoint.q[i];
+            j += 1;
+        }
+        for i in 0..self.n_y {
+            r[j] = state.y[i];
+            j += 1;
+        }
+        for i in 0..self.n_u {
+            r[j] = self.cycle.u[i];
+            j += 1;
+        }
+        for i in 0..self.n_q {
+            r[j] = state.q[i];
+            j += 1;
+        }
+        r[j] = tel.param_version as f64;
+        self.log.push(&self.row);
+        Ok(())
+    }
+}
+
+/// The controller process: `evoloop controller ...` or `evoloop-controller ...`.
+pub fn main(args: &ProcessArgs) {
+    let Started {
+        scenario: scn,
+        stop,
+        ipc,
+    } = start(args, WHO);
+    let ports = ports(WHO, || {
+        Ok(Ports {
+            params: ipc.subscriber(Topic::Params, 16, false)?,
+            command: ipc.publisher(Topic::Command, true)?,
+            telemetry: ipc.publisher(Topic::Telemetry, false)?,
+            // Last: the plant starts the run once it sees this subscriber.
+            state: ipc.subscriber(Topic::State, 8, true)?,
+        })
+    });
+    if let Err(e) = ipc.announce(Topic::Ready) {
+        fail(WHO, EXIT_SETUP, &e.to_string());
+    }
+
+    let mut lp = Loop::new(&scn);
+    let mut report = ControllerReport {
+        mode: format!("{:?}", scn.timing.mode).to_lowercase(),
+        ..Default::default()
+    };
+    if scn.timing.mode == Mode::Realtime {
+        report.rt = apply_privileges(&scn.controller_rt());
+    }
+    let t0 = Instant::now();
+    let result = match scn.timing.mode {
+        Mode::Lockstep => run_lockstep(&scn, &ports, &mut lp, &stop),
+        Mode::Realtime => run_realtime(&scn, &ports, &mut lp, &stop),
+    };
+    report.wall_s = t0.elapsed().as_secs_f64();
+    report.interrupted = stop.load(Ordering::SeqCst);
+    finish(&scn, &lp, &mut report);
+    if let Err((code, msg)) = result {
+        fail(WHO, code, &msg);
+    }
+}
+
+/// Wait for the next state, in slices so a signal is noticed. Ok(None): stopped.
+/// Wait for the next state sample. Ok(None): stopped by a signal.
+fn next_state(
+    ports: &Ports,
+    spin: Duration,
+    timeout: Duration,
+    stop: &AtomicBool,
+) -> Result<Option<PlantState>, (i32, String)> {
+    match ports.state.wait_for(spin, timeout, stop, |_| true) {
+        Ok(Waited::Got(s)) => Ok(Some(s)),
+        Ok(Waited::Stopped) => Ok(None),
+        Ok(Waited::TimedOut) => Err((
+            EXIT_PEER_TIMEOUT,
+            format!("no plant state within {timeout:?}"),
+        )),
+        Err(e) => Err((EXIT_SETUP, e.to_string())),
+    }
+}
+
+fn run_lockstep(
+    scn: &Scenario,
+    ports: &Ports,
+    lp: &mut Loop,
+    stop: &AtomicBool,
+) -> Result<(), (i32, String)> {
+    let spin = Duration::from_micros(scn.timing.spin_us);
+    let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout);
+    // The first sample may take as long as the start-up of all processes.
+    let mut first = true;
+    loop {
+        let wait = if first {
+            timeout.max(Duration::from_secs(10))
+        } else {
+            timeout
+        };
+        let Some(state) = next_state(ports, spin, wait, stop)? else {
+            return Ok(());
+        };
+        first = false;
+        if state.flags & STATE_FLAG_END != 0 {
+            return Ok(());
+        }
+        let woke = now_ns();
+        lp.cycle(ports, &state, woke, 0, 0, 0)
+            .map_err(|e| (EXIT_SETUP, e.to_string()))?;
+    }
+}
+
+fn run_realtime(
+    scn: &Scenario,
+    ports: &Ports,
+    lp: &mut Loop,
+    stop: &AtomicBool,
+) -> Result<(), (i32, String)> {
+    let period = scn.period_ns();
+    let stale_ns = scn.controller.stale_after_periods as u64 * period;
+    let Some(mut state) = next_state(ports, Duration::ZERO, Duration::from_secs(10), stop)? else {
+        return Ok(());
+    };
+    // Align to the plant's sample clock: cycle k runs `phase` of a period after sample k. A
+    // sample's stamp is its tick plus the plant's wake-up latency, so the earliest
+    // stamp - seq * period seen so far is the best estimate of the plant's epoch.
+    let mut epoch = state.stamp_ns - state.seq * period;
+    let phase = (scn.timing.phase * period as f64) as u64;
+    let n = scn.cycles();
+    let mut k = state.seq;
+    // Periods that passed before the controller had its first sample had no cycle: missed.
+    lp.missed += state.seq;
+    while k < n {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(());
+        }
+        let deadline = epoch + k * period + phase;
+        sleep_until_ns(deadline);
+        let woke = now_ns();
+        let lateness = woke as i64 - deadline as i64;
+        let mut flags = 0;
+        if lateness >= period as i64 {
+            // Whole periods passed without a cycle: count them as missed and skip them, so the
+            // loop keeps to its grid instead of running a burst of catch-up cycles.
+            let skipped = lateness as u64 / period;
+            lp.missed += skipped;
+            k += skipped;
+            flags |= TELEMETRY_FLAG_MISSED;
+        }
+        match ports.state.latest() {
+            Ok(Some(s)) => {
+                state = s;
+                epoch = epoch.min(s.stamp_ns.saturating_sub(s.seq * period));
+            }
+            Ok(None) => {}
+            Err(e) => return Err((EXIT_SETUP, e.to_string())),
+        }
+        if state.flags & STATE_FLAG_END != 0 {
+            return Ok(());
+        }
+        if woke.saturating_sub(state.stamp_ns) > stale_ns {
+            flags |= TELEMETRY_FLAG_STALE;
+            lp.stale += 1;
+        }
+        lp.cycle(ports, &state, woke, lateness, flags, period)
+            .map_err(|e| (EXIT_SETUP, e.to_string()))?;
+        k += 1;
+    }
+    Ok(())
+}
+
+fn finish(scn: &Scenario, lp: &Loop, report: &mut ControllerReport) {
+    let dir = &scn.output.dir;
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        eprintln!("{WHO}: cannot create {}: {e}", dir.display());
+        return;
+    }
+    let rows = lp.timing.rows();
+    report.cycles = rows.len() as u64;
+    report.timing = TimingSummary {
+        cycles: rows.len() as u64,
+        lateness: Percentiles::from_samples(rows.iter().map(|r| r.lateness_ns)),
+        compute: Percentiles::from_samples(rows.iter().map(|r| r.compute_ns as i64)),
+        state_age: Percentiles::from_samples(rows.iter().map(|r| r.state_age_ns as i64)),
+        overruns: lp.overruns,
+        missed_deadlines: lp.missed,
+        stale_states: lp.stale,
+    };
+    report.params = lp
+        .events
+        .iter()
+        .map(|e| ParamRecord {
+            version: e.version,
+            cycle: e.cycle,
+            t: e.t,
+            outcome: if e.code == ParamCode::Accepted {
+                "accepted".into()
+            } else {
+                e.code.reason().into()
+            },
+            index: matches!(
+                e.code,
+                ParamCode::RejectedOutOfBounds | ParamCode::RejectedNonFinite
+            )
+            .then_some(e.index),
+        })
+        .collect();
+    report.final_version = lp.cycle.version();
+    report.final_params = lp.cycle.controller.params().to_vec();
+    report.pending_dropped = lp.cycle.pending_dropped;
+    report.log_dropped = lp.log.dropped + lp.events_dropped;
+    if let Err(e) = lp.log.write_csv(&dir.join("run.csv")) {
+        eprintln!("{WHO}: cannot write run.csv: {e}");
+    }
+    let mut timing = RunLog::new(
+        [
+            "cycle",
+            "lateness_ns",
+            "compute_ns",
+            "state_age_ns",
+            "flags",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect(),
+        rows.len(),
+    );
+    for r in rows {
+        timing.push(&[
+            r.cycle as f64,
+            r.lateness_ns as f64,
+            r.compute_ns as f64,
+            r.state_age_ns as f64,
+            r.flags as f64,
+        ]);
+    }
+    if let Err(e) = timing.write_csv(&dir.join("timing.csv")) {
+        eprintln!("{WHO}: cannot write timing.csv: {e}");
+    }
+    if let Err(e) = write_json(dir, "controller.json", report) {
+        eprintln!("{WHO}: cannot write controller.json: {e}");
+    }
+}

@@ -1,0 +1,282 @@
+//! evoloop-optimiser: the tuner's process. This first cut subscribes to the state and command
+//! streams and publishes parameter sets on the path real tuning will use: in `schedule` mode it
+//! publishes the scenario's configured sets at their configured times.
+//!
+//! lockstep: it consumes every sample in order and acknowledges every `sync_samples`-th one; a set
+//!           due within the next interval is published before the acknowledgement with
+//!           `apply_at_seq`, so the controller applies it on the same sample in every run.
+//! realtime: it runs free at lower priority (nice) and publishes a set as soon as the plant's
+//!           time passes the set's time; the controller applies it at its next cycle.
+
+use crate::cli::OptimiserArgs;
+use crate::config::{Mode, OptimiserMode, Scenario};
+use crate::ipc::messages::{
+    Command, ModelEstimate, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END,
+};
+use crate::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
+use crate::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::report::summary::{OptimiserReport, PublishedSet};
+use crate::rt::privileges::set_nice;
+use crate::sim::{scheduled_seq, scheduled_set};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+const WHO: &str = "evoloop-optimiser";
+
+struct Ports {
+    /// Lockstep: the plant rings at every sample the optimiser must acknowledge.
+    sync: Doorbell,
+    params: Pub<ParamSet>,
+    estimate: Pub<ModelEstimate>,
+    ack: Pub<OptimiserAck>,
+    command: Sub<Command>,
+    state: Sub<PlantState>,
+}
+
+/// The optimiser process: `evoloop optimiser ...` or `evoloop-optimiser ...`.
+pub fn main(cli: &OptimiserArgs) {
+    let Started {
+        scenario: scn,
+        stop,
+        ipc,
+    } = start(&cli.args, WHO);
+    let buffer = crate::ipc::MAX_SYNC_SAMPLES + 8;
+    let lockstep = scn.timing.mode == Mode::Lockstep;
+    let ports = ports(WHO, || {
+        Ok(Ports {
+            sync: ipc.doorbell(Topic::Sync)?,
+            params: ipc.publisher(Topic::Params, false)?,
+            estimate: ipc.publisher(Topic::Estimate, false)?,
+            command: ipc.subscriber(Topic::Command, buffer, false)?,
+            // The plant starts the run once it sees this subscriber and the ready event.
+            // In lockstep the optimiser sleeps on the sync bell and catches up on the queue,
+            // instead of being woken (or spinning) for every sample.
+            state: ipc.subscriber(Topic::State, buffer, !lockstep)?,
+            // After the state subscriber: a plant that sees this publisher may count on the
+            // optimiser receiving every sample from then on (it waits for its acknowledgements).
+            ack: ipc.publisher(Topic::OptimiserAck, true)?,
+        })
+    });
+    if let Err(e) = ipc.announce(Topic::Ready) {
+        fail(WHO, EXIT_SETUP, &e.to_string());
+    }
+    let mut report = OptimiserReport {
+        mode: format!("{:?}", scn.optimiser.mode).to_lowercase(),
+        ..Default::default()
+    };
+    // The optimiser yields the CPU to the control loop.
+    if set_nice(scn.optimiser.nice) {
+        report.nice = Some(scn.optimiser.nice);
+    }
+    if cli.rejoin && lockstep {
+        // The plant may be waiting at a sample this process never saw: release it once.
+        if let Err(e) = ports.ack.send(&OptimiserAck {
+            through_seq: u64::MAX,
+        }) {
+            fail(WHO, EXIT_SETUP, &e.to_string());
+        }
+    }
+    let result = run(&scn, &ports, &stop, &mut report, cli.rejoin);
+    report.interrupted = stop.load(Ordering::SeqCst);
+    if let Err(e) = write_json(&scn.output.dir, "optimiser.json", &report) {
+        eprintln!("{WHO}: cannot write optimiser.json: {e}");
+    }
+    if let Err((code, msg)) = result {
+        fail(WHO, code, &msg);
+    }
+}
+
+fn run(
+    scn: &Scenario,
+    ports: &Ports,
+    stop: &AtomicBool,
+    report: &mut OptimiserReport,
+    rejoin: bool,
+) -> Result<(), (i32, String)> {
+    let lockstep = scn.timing.mode == Mode::Lockstep;
+    let schedule_on = scn.optimiser.mode == OptimiserMode::Schedule;
+    let sync = scn.sync_samples();
+    let dt = scn.timing.period;
+    let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
+    let mut next_set = 0usize;
+    let mut indirect = if scn.optimiser.mode == OptimiserMode::Indirect {
+        let mut ind = crate::indirect::Indirect::new(scn).map_err(|e| (EXIT_SETUP, e))?;
+        if rejoin {
+            if let Some((version, params)) = last_published(&scn.output.dir) {
+                ind.resume(version, params);
+            }
+        }
+        Some(ind)
+    } else {
+        None
+    };
+    let mut last_state = Instant::now();
+    let io = |e: IpcError| (EXIT_SETUP, e.to_string());
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(());
+        }
+        let slice = Duration::from_millis(100);
+        let got = if lockstep {
+            match ports.state.next().map_err(io)? {
+                Some(s) => Wait::Got(s),
+                None => {
+                    ports.sync.wait(slice).map_err(io)?;
+                    match ports.state.next().map_err(io)? {
+                        Some(s) => Wait::Got(s),
+                        None => Wait::TimedOut,
+                    }
+                }
+            }
+        } else {
+            ports.state.wait_next(Duration::ZERO, slice).map_err(io)?
+        };
+        let state = match got {
+            Wait::Got(s) => s,
+            Wait::TimedOut => {
+                // In realtime the plant keeps sampling; silence this long means it is gone.
+                if last_state.elapsed() > timeout {
+                    return Err((
+                        EXIT_PEER_TIMEOUT,
+                        format!("no plant state within {timeout:?}"),
+                    ));
+                }
+                continue;
+            }
+        };
+        last_state = Instant::now();
+        report.states_seen += 1;
+        while ports.command.next().map_err(io)?.is_some() {
+            report.commands_seen += 1;
+        }
+        if let Some(ind) = indirect.as_mut() {
+            let recorded = ind.estimates.len();
+            ind.observe(&state);
+            // Each new 10 Hz record goes out as telemetry too.
+            if let Some(e) = ind.estimates.get(recorded) {
+                let msg = ModelEstimate {
+                    t: e.t,
+                    value: e.value,
+                    std: e.std,
+                    last_version: ind.version(),
+                };
+                ports.estimate.send(&msg).map_err(io)?;
+            }
+        }
+        if state.flags & STATE_FLAG_END != 0 {
+            if let Some(ind) = indirect {
+                report.estimates = ind.estimates;
+                report.epochs = ind.epochs;
+            }
+            return Ok(());
+        }
+        let schedule = &scn.optimiser.schedule;
+        if lockstep {
+            if state.seq % sync != 0 {
+                continue;
+            }
+            // Publish every set due within the next interval, then let the plant go on.
+            while schedule_on && next_set < schedule.len() {
+                let at = scheduled_seq(schedule[next_set].at, dt);
+                if at > state.seq + sync {
+                    break;
+                }
+                publish(scn, ports, next_set, at.max(state.seq + 1), report).map_err(io)?;
+                next_set += 1;
+            }
+            // Paced by simulated time: the plant waits for the acknowledgement, so the epochs
+            // run at the same samples in every run of a seed.
+            if let Some(ind) = indirect.as_mut() {
+                if let Some(set) = ind.paced(state.t, sync as f64 * dt, state.seq + 1) {
+                    send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
+                }
+            }
+            ports
+                .ack
+                .send(&OptimiserAck {
+                    through_seq: state.seq,
+                })
+                .map_err(io)?;
+        } else {
+            while schedule_on && next_set < schedule.len() && state.t >= schedule[next_set].at {
+                publish(scn, ports, next_set, 0, report).map_err(io)?;
+                next_set += 1;
+            }
+            // Free-running: an epoch whenever the stream is caught up (samples that overflow
+            // the queue meanwhile only restart the estimator's difference window).
+            if let Some(ind) = indirect.as_mut() {
+                if !ports.state.has_pending().map_err(io)? {
+                    if let Some(set) = ind.run_epoch(state.t, 0) {
+                        send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Every published set is appended to this journal at once (a killed optimiser writes no
+/// report), so a restarted one continues the versions and knows the set in service.
+const JOURNAL: &str = "published.jsonl";
+
+fn journal(dir: &std::path::Path, set: &ParamSet, t: f64) {
+    use std::io::Write;
+    let line = serde_json::json!({"version": set.version, "t": t, "values": set.values()});
+    let f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(dir.join(JOURNAL));
+    if let Ok(mut f) = f {
+        let _ = writeln!(f, "{line}");
+    }
+}
+
+/// The last set in the journal: its version and values.
+fn last_published(dir: &std::path::Path) -> Option<(u64, Vec<f64>)> {
+    let text = std::fs::read_to_string(dir.join(JOURNAL)).ok()?;
+    let v: serde_json::Value = serde_json::from_str(text.lines().last()?).ok()?;
+    let values = v["values"]
+        .as_array()?
+        .iter()
+        .filter_map(|x| x.as_f64())
+        .collect();
+    Some((v["version"].as_u64()?, values))
+}
+
+fn send_set(
+    ports: &Ports,
+    set: &ParamSet,
+    t: f64,
+    report: &mut OptimiserReport,
+    dir: &std::path::Path,
+) -> Result<(), IpcError> {
+    // Journal first: a set the controller may have received is always on record for a restart.
+    journal(dir, set, t);
+    ports.params.send(set)?;
+    report.published.push(PublishedSet {
+        version: set.version,
+        at: t,
+        apply_at_seq: set.apply_at_seq,
+        values: set.values().to_vec(),
+    });
+    Ok(())
+}
+
+fn publish(
+    scn: &Scenario,
+    ports: &Ports,
+    i: usize,
+    apply_at_seq: u64,
+    report: &mut OptimiserReport,
+) -> Result<(), IpcError> {
+    let set = scheduled_set(scn, i, apply_at_seq);
+    journal(&scn.output.dir, &set, scn.optimiser.schedule[i].at);
+    ports.params.send(&set)?;
+    report.published.push(PublishedSet {
+        version: set.version,
+        at: scn.optimiser.schedule[i].at,
+        apply_at_seq,
+        values: set.values().to_vec(),
+    });
+    Ok(())
+}

@@ -1,0 +1,245 @@
+//! evoloop-plant: plays the hardware. Integrates the plant (RK4, fixed sub-steps), samples it
+//! every control period and applies the latest command as a zero-order hold.
+//!
+//! lockstep: publish sample k, wait for the command answering k, integrate one period, repeat;
+//!           every `sync_samples` samples also wait for the optimiser's acknowledgement, so the
+//!           optimiser's parameter sets land on the same sample in every run.
+//! realtime: tick on absolute deadlines of the wall clock; between ticks, integrate up to the
+//!           moment each command arrives and switch to it; fall back to the safe command when
+//!           commands stop for `command_timeout_periods`.
+
+use crate::cli::ProcessArgs;
+use crate::config::{Mode, Scenario};
+use crate::ipc::messages::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
+use crate::ipc::{Bell, Doorbell, Pub, Sub, Topic, Waited};
+use crate::plant::PlantSim;
+use crate::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::report::summary::PlantReport;
+use crate::rt::{apply_privileges, now_ns, sleep_until_ns};
+use crate::MAX_JOINTS;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+const WHO: &str = "evoloop-plant";
+
+struct Ports {
+    ready: Doorbell,
+    sync: Bell,
+    state: Pub<PlantState>,
+    command: Sub<Command>,
+    ack: Sub<OptimiserAck>,
+}
+
+/// The plant process: `evoloop plant ...` or `evoloop-plant ...`.
+pub fn main(args: &ProcessArgs) {
+    let Started {
+        scenario: scn,
+        stop,
+        ipc,
+    } = start(args, WHO);
+    let ports = ports(WHO, || {
+        Ok(Ports {
+            ready: ipc.doorbell(Topic::Ready)?,
+            sync: ipc.bell(Topic::Sync)?,
+            command: ipc.subscriber(Topic::Command, 8, true)?,
+            ack: ipc.subscriber(Topic::OptimiserAck, 4, true)?,
+            state: ipc.publisher(Topic::State, true)?,
+        })
+    });
+
+    let mut sim = PlantSim::new(
+        scn.build_plant(),
+        scn.plant.step,
+        scn.plant.noise_std,
+        scn.seed,
+    );
+    let mut report = PlantReport {
+        mode: format!("{:?}", scn.timing.mode).to_lowercase(),
+        ..Default::default()
+    };
+    if scn.timing.mode == Mode::Realtime {
+        report.rt = apply_privileges(&scn.plant_rt());
+    }
+    // Start only when the controller and the optimiser have subscribed to the state (each
+    // creates that subscriber last, after all its other ports).
+    wait_for_peers(&ports, &stop, scn.timing.lockstep_timeout.max(10.0));
+    let t0 = Instant::now();
+    let result = match scn.timing.mode {
+        Mode::Lockstep => run_lockstep(&scn, &ports, &mut sim, &stop, &mut report),
+        Mode::Realtime => run_realtime(&scn, &ports, &mut sim, &stop, &mut report),
+    };
+    report.wall_s = t0.elapsed().as_secs_f64();
+    report.interrupted = stop.load(Ordering::SeqCst);
+    if let Err(e) = write_json(&scn.output.dir, "plant.json", &report) {
+        eprintln!("{WHO}: cannot write plant.json: {e}");
+    }
+    if let Err((code, msg)) = result {
+        fail(WHO, code, &msg);
+    }
+}
+
+fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
+    let t0 = Instant::now();
+    while ports.command.peer_publishers() < 1 || ports.state.subscribers() < 2 {
+        if stop.load(Ordering::SeqCst) {
+            return;
+        }
+        if t0.elapsed().as_secs_f64() > timeout_s {
+            fail(
+                WHO,
+                EXIT_PEER_TIMEOUT,
+                "controller/optimiser did not connect in time",
+            );
+        }
+        // Each peer announces itself once its ports exist; re-check on every announcement (and
+        // every 100 ms, in case one came before this listener existed).
+        if let Err(e) = ports.ready.wait(Duration::from_millis(100)) {
+            fail(WHO, EXIT_SETUP, &e.to_string());
+        }
+    }
+}
+
+fn publish(ports: &Ports, msg: &PlantState) -> Result<(), (i32, String)> {
+    ports
+        .state
+        .send(msg)
+        .map_err(|e| (EXIT_SETUP, e.to_string()))
+}
+
+fn run_lockstep(
+    scn: &Scenario,
+    ports: &Ports,
+    sim: &mut PlantSim,
+    stop: &AtomicBool,
+    report: &mut PlantReport,
+) -> Result<(), (i32, String)> {
+    let n = scn.cycles();
+    let dt = scn.timing.period;
+    let sync = scn.sync_samples();
+    let spin = Duration::from_micros(scn.timing.spin_us);
+    let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout);
+    let n_u = sim.plant.n_inputs();
+    let mut u = [0.0; MAX_JOINTS];
+    let mut msg = PlantState::default();
+    for k in 0..=n {
+        sim.sample(k, now_ns(), &u[..n_u], &mut msg);
+        let ring = |ports: &Ports| ports.sync.ring().map_err(|e| (EXIT_SETUP, e.to_string()));
+        if k == n {
+            msg.flags = STATE_FLAG_END;
+            publish(ports, &msg)?;
+            ring(ports)?;
+            break;
+        }
+        publish(ports, &msg)?;
+        report.samples += 1;
+        if k % sync == 0 {
+            // The optimiser sleeps between these samples and catches up on the queue here.
+            ring(ports)?;
+            // The optimiser is not on the control path: while none is connected (it died and
+            // its resources were cleaned up, until a restarted one rejoins) the loop goes on.
+            let t_wait = std::time::Instant::now();
+            loop {
+                if ports.ack.publishers() == 0 {
+                    report.syncs_without_optimiser += 1;
+                    break;
+                }
+                let slice = Duration::from_millis(200).min(timeout);
+                let ack = ports
+                    .ack
+                    .wait_for(spin, slice, stop, |a: &OptimiserAck| a.through_seq >= k)
+                    .map_err(|e| (EXIT_SETUP, e.to_string()))?;
+                match ack {
+                    Waited::Got(_) => break,
+                    Waited::Stopped => return Ok(()),
+                    Waited::TimedOut if t_wait.elapsed() >= timeout => {
+                        return Err((
+                            EXIT_PEER_TIMEOUT,
+                            format!("optimiser did not acknowledge sample {k} within {timeout:?}"),
+                        ))
+                    }
+                    Waited::TimedOut => {}
+                }
+            }
+        }
+        let cmd = match ports
+            .command
+            .wait_for(spin, timeout, stop, |c: &Command| c.state_seq == k)
+            .map_err(|e| (EXIT_SETUP, e.to_string()))?
+        {
+            Waited::Got(c) => c,
+            Waited::Stopped => return Ok(()),
+            Waited::TimedOut => {
+                return Err((
+                    EXIT_PEER_TIMEOUT,
+                    format!("controller did not answer sample {k} within {timeout:?}"),
+                ))
+            }
+        };
+        report.commands_received += 1;
+        u[..n_u].copy_from_slice(&cmd.u[..n_u]);
+        sim.advance(&u[..n_u], dt);
+    }
+    Ok(())
+}
+
+fn run_realtime(
+    scn: &Scenario,
+    ports: &Ports,
+    sim: &mut PlantSim,
+    stop: &AtomicBool,
+    report: &mut PlantReport,
+) -> Result<(), (i32, String)> {
+    let n = scn.cycles();
+    let period = scn.period_ns();
+    let n_u = sim.plant.n_inputs();
+    let safe = [scn.plant.safe_command; MAX_JOINTS];
+    let timeout_ns = scn.plant.command_timeout_periods as u64 * period;
+    let mut u = [0.0; MAX_JOINTS];
+    let mut msg = PlantState::default();
+    let epoch = now_ns();
+    let secs = |ns: u64| (ns - epoch) as f64 * 1e-9;
+    let mut last_cmd = epoch;
+    let mut safe_mode = false;
+    for k in 0..=n {
+        let tick = epoch + k * period;
+        sleep_until_ns(tick);
+        // Each command that arrived since the last sample is applied from the moment it was
+        // sent (its stamp), as hardware would apply it on arrival: integrate up to that moment
+        // with the command in force, then switch (zero-order hold). Reconstructing the switch
+        // times from the stamps needs no sub-period wake-ups, whose timers are coarse.
+        loop {
+            let cmd = match ports.command.next() {
+                Ok(Some(c)) => c,
+                Ok(None) => break,
+                Err(e) => return Err((EXIT_SETUP, e.to_string())),
+            };
+            let at = cmd.stamp_ns.clamp(epoch + (sim.t * 1e9) as u64, tick);
+            // The controller is back (if the safe command had taken over).
+            safe_mode = false;
+            sim.advance(&u[..n_u], secs(at) - sim.t);
+            u[..n_u].copy_from_slice(&cmd.u[..n_u]);
+            last_cmd = at;
+            report.commands_received += 1;
+        }
+        // Commands stopped: the safe command from the moment the timeout ran out.
+        if !safe_mode && tick.saturating_sub(last_cmd) > timeout_ns {
+            sim.advance(&u[..n_u], secs(last_cmd + timeout_ns) - sim.t);
+            u[..n_u].copy_from_slice(&safe[..n_u]);
+            safe_mode = true;
+        }
+        sim.advance(&u[..n_u], k as f64 * scn.timing.period - sim.t);
+        sim.sample(k, now_ns(), &u[..n_u], &mut msg);
+        if safe_mode {
+            msg.flags |= STATE_FLAG_SAFE;
+            report.safe_samples += 1;
+        }
+        if k == n || stop.load(Ordering::Relaxed) {
+            msg.flags |= STATE_FLAG_END;
+            publish(ports, &msg)?;
+            break;
+        }
+        publish(ports, &msg)?;
+        report.samples += 1;
+    }
+    Ok(())
+}
