@@ -2,8 +2,8 @@
 //! one scenario file, supervises them, stops them all on Ctrl-C/SIGTERM or when the scenario
 //! ends, and writes the run report (run.csv, summary.json, response.png).
 
-use clap::{Parser, Subcommand};
-use evoloop::cli::{stop_flag, OverrideArgs};
+use clap::Parser;
+use evoloop::cli::{stop_flag, BenchCmd, Cli, Cmd, OverrideArgs, RunArgs};
 use evoloop::config::{Mode, Scenario};
 use evoloop::ipc::messages::Telemetry;
 use evoloop::ipc::{Ipc, Topic, DEFAULT_PREFIX};
@@ -28,100 +28,25 @@ macro_rules! err {
 
 const DEFAULT_SCENARIO: &str = "config/two_mass.toml";
 
-#[derive(Parser)]
-#[command(
-    name = "evoloop",
-    version,
-    about = "Real-time control loops tuned by evolutionary optimisers while the plant runs",
-    long_about = "evoloop starts a plant simulator, a fixed-rate controller and an optimiser as separate \
-processes that talk over iceoryx2 shared memory.\n\nWithout a subcommand it runs the default scenario \
-(config/two_mass.toml) and writes its report to runs/two_mass/."
-)]
-struct Cli {
-    #[command(subcommand)]
-    command: Option<Cmd>,
-}
-
-#[derive(Subcommand)]
-enum Cmd {
-    /// Run a scenario: start the three processes, supervise them, write the report.
-    Run(RunArgs),
-    /// Validate a scenario file and print what it resolves to.
-    Check {
-        /// Scenario file (TOML).
-        file: PathBuf,
-    },
-    /// Robust state feedback for the two-mass benchmark: stability radius, LQR, DE tuning, the
-    /// paper's reproduction.
-    Robust {
-        #[command(subcommand)]
-        cmd: evoloop::robust::cli::RobustCmd,
-    },
-    /// Rigid-body dynamics of a robot file (D-H TOML or URDF) at one state: tau, M, G, V, and,
-    /// given --tau, the forward dynamics.
-    Dynamics(evoloop::dynamics::cli::DynamicsArgs),
-    /// The fuzzy-network paper's GA experiments: `tune config/arsinh_tune.toml` (Section 5.1),
-    /// `tune config/maglev_tune.toml` (Section 5.2).
-    Tune(evoloop::tune::TuneArgs),
-    /// Benchmarks measured against the machine's own floor in the same run.
-    Bench {
-        #[command(subcommand)]
-        cmd: BenchCmd,
-    },
-    /// The plant simulator process of a run (`evoloop run` starts it; for starting processes by
-    /// hand or under your own supervisor).
-    Plant(evoloop::cli::ProcessArgs),
-    /// The fixed-rate controller process of a run (`evoloop run` starts it).
-    Controller(evoloop::cli::ProcessArgs),
-    /// The optimiser process of a run (`evoloop run` starts it).
-    Optimiser(evoloop::cli::OptimiserArgs),
-    /// Measure the machine's timing floor: a bare absolute-deadline sleep loop.
-    Floor {
-        /// Loop rate in Hz.
-        #[arg(long, default_value_t = 1000.0)]
-        rate: f64,
-        /// Seconds to run.
-        #[arg(long, default_value_t = 5.0)]
-        duration: f64,
-        /// Ask for SCHED_FIFO with this priority (falls back when not permitted).
-        #[arg(long)]
-        fifo: Option<i32>,
-        /// Print JSON instead of a table.
-        #[arg(long)]
-        json: bool,
-    },
-}
-
-#[derive(Subcommand)]
-enum BenchCmd {
-    /// Round trip plant -> controller -> plant against a bare iceoryx2 ping-pong.
-    Latency(evoloop::bench::latency::LatencyArgs),
-    /// The controller loop's timing at a rate, under load, against the bare sleep-loop floor.
-    Loop(evoloop::bench::loop_bench::LoopArgs),
-    /// The peer process of `bench latency` (started by it).
-    #[command(hide = true)]
-    LatencyPeer(evoloop::bench::latency::PeerArgs),
-}
-
-#[derive(clap::Args)]
-struct RunArgs {
-    /// Scenario file (TOML) [default: config/two_mass.toml, here or in the source tree]
-    file: Option<PathBuf>,
-    #[command(flatten)]
-    overrides: OverrideArgs,
-    /// Run id used in the service names (default: generated, unique on this machine).
-    #[arg(long)]
-    run_id: Option<String>,
-    /// Prefix of iceoryx2's files (separate namespace, e.g. for parallel tests).
-    #[arg(long, default_value = DEFAULT_PREFIX)]
-    ipc_prefix: String,
-    /// No progress lines.
-    #[arg(long, short)]
-    quiet: bool,
-}
-
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // One-shot commands that start no process end quietly when their reader goes away
+    // (`evoloop dynamics ... | head`), like any Unix filter. Commands that supervise processes
+    // (run, bench, the roles) keep Rust's ignored SIGPIPE: a closed pipe must not kill a
+    // supervisor and orphan its children.
+    if matches!(
+        cli.command,
+        Some(
+            Cmd::Check { .. }
+                | Cmd::Robust { .. }
+                | Cmd::Dynamics(_)
+                | Cmd::Tune(_)
+                | Cmd::Floor { .. }
+        )
+    ) {
+        // SAFETY: resetting a signal disposition before any thread is started.
+        unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
+    }
     match cli.command {
         None => run(RunArgs {
             file: None,
@@ -173,6 +98,9 @@ fn default_scenario() -> PathBuf {
 fn check(file: &Path) -> ExitCode {
     match Scenario::load(file, &Default::default()) {
         Ok(s) => {
+            for w in &s.warnings {
+                err!("warning: {w}");
+            }
             out!(
                 "{}: ok: scenario `{}`, plant {:?}, controller {:?}, reference {:?}, {} mode, period {} s, {} s ({} cycles), optimiser {:?} with {} scheduled set(s), output {}",
                 file.display(),
@@ -271,6 +199,11 @@ fn run(a: RunArgs) -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if !a.quiet {
+        for w in &scn.warnings {
+            err!("warning: {w}");
+        }
+    }
     let stop = stop_flag();
     let dir = scn.output.dir.clone();
     if let Err(e) = std::fs::create_dir_all(&dir) {

@@ -300,6 +300,10 @@ pub struct Scenario {
     pub timing: Timing,
     pub optimiser: OptimiserSpec,
     pub output: Output,
+    /// What the robot files' loader warned about (physically dubious but simulable), for
+    /// `evoloop check` and the launcher to print.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -456,6 +460,7 @@ impl Scenario {
         })?;
         let mut v = Validator {
             file: path.to_path_buf(),
+            warnings: Default::default(),
         };
         v.scenario(raw, path, ov)
     }
@@ -582,6 +587,8 @@ type GainsAndBounds = (Vec<f64>, Vec<f64>, Vec<f64>);
 
 struct Validator {
     file: PathBuf,
+    /// Robot-file warnings met while validating (interior mutability: the checks take `&self`).
+    warnings: std::cell::RefCell<Vec<String>>,
 }
 
 impl Validator {
@@ -671,6 +678,7 @@ impl Validator {
             timing,
             optimiser,
             output,
+            warnings: self.warnings.take(),
         })
     }
 
@@ -744,8 +752,17 @@ impl Validator {
         rel: &Path,
     ) -> Result<(PathBuf, Model), ConfigError> {
         let path = Self::resolve(scenario, rel);
-        match crate::dynamics::load(&path) {
-            Ok(m) => Ok((path, m)),
+        match crate::dynamics::load_with(&path, &Default::default()) {
+            Ok(l) => {
+                let mut w = self.warnings.borrow_mut();
+                for x in l.warnings {
+                    let line = format!("{}: {x}", path.display());
+                    if !w.contains(&line) {
+                        w.push(line);
+                    }
+                }
+                Ok((path, l.model))
+            }
             Err(e) => self.fail(key, format!("robot file does not load: {e}")),
         }
     }

@@ -20,13 +20,26 @@ fn random_state(rng: &mut ChaCha8Rng, n: usize, scale: f64) -> Vec<f64> {
     (0..n).map(|_| rng.gen_range(-scale..scale)).collect()
 }
 
-/// The arms under test: the two shipped D-H robots, the URDF arm, and a branched URDF tree.
+/// A robot file written in the style of a ROS description package (`tests/robots/`).
+fn ros_style(name: &str) -> Model {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/robots")
+        .join(name);
+    dynamics::load(&p).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The arms under test: the two shipped D-H robots, the URDF arm, a branched URDF tree, and three
+/// files as ROS packages ship them (UR-style with transmissions and gazebo tags, Panda-style with
+/// full inertia tensors and joint friction, iiwa-style with a massless base).
 fn arms() -> Vec<Model> {
     vec![
         robot("arm3.toml"),
         robot("industrial6.toml"),
         robot("arm3.urdf"),
         dynamics::urdf::parse(BRANCHED, Path::new("branched.urdf")).unwrap(),
+        ros_style("ur5_style.urdf"),
+        ros_style("panda_style.urdf"),
+        ros_style("iiwa_style.urdf"),
     ]
 }
 
@@ -175,7 +188,13 @@ fn conservative(mut m: Model) -> Model {
 
 #[test]
 fn energy_is_conserved_without_torque_and_friction() {
-    for m in [robot("arm3.toml"), robot("industrial6.toml")] {
+    for m in [
+        robot("arm3.toml"),
+        robot("industrial6.toml"),
+        ros_style("ur5_style.urdf"),
+        ros_style("panda_style.urdf"),
+        ros_style("iiwa_style.urdf"),
+    ] {
         let m = conservative(m);
         let coarse = energy_drift(&m, 2e-3);
         let fine = energy_drift(&m, 1e-3);
@@ -428,16 +447,28 @@ fn bad_robot_files_name_the_link_or_joint() {
         &two_links(GOOD_INERTIAL, &not_pd, "revolute", ""),
     );
     assert!(
-        e.contains("link `fore`") && e.contains("not positive definite"),
+        e.contains("link `fore`") && e.contains("not positive (semi-)definite"),
         "{e}"
     );
 
+    // Physically dubious but simulable: refused only in strict mode (tests/robot_files.rs checks
+    // the lenient warning).
     let triangle = GOOD_INERTIAL.replace(r#"ixx="0.001""#, r#"ixx="0.05""#);
-    let e = load_err(
-        "tri.urdf",
+    let strict = dynamics::LoadOptions {
+        strict: true,
+        ..Default::default()
+    };
+    let e = dynamics::urdf::parse_with(
         &two_links(GOOD_INERTIAL, &triangle, "revolute", ""),
+        Path::new("tri.urdf"),
+        &strict,
+    )
+    .expect_err("strict refuses")
+    .to_string();
+    assert!(
+        e.contains("link `fore`") && e.contains("triangle") && e.contains("--strict"),
+        "{e}"
     );
-    assert!(e.contains("link `fore`") && e.contains("triangle"), "{e}");
 
     let e = load_err(
         "type.urdf",
@@ -497,9 +528,10 @@ fn bad_robot_files_name_the_link_or_joint() {
         e.contains("joint `j1`") && e.contains("unknown joint type `ball`"),
         "{e}"
     );
-    let e = load_err("pd.toml", &format!("convention = \"standard\"\n{row}mass = 1.0\ncom = [0.0, 0.0, 0.0]\ninertia = [0.1, 0.1, 0.0, 0.0, 0.0, 0.0]\n"));
+    // A negative principal moment: no body has it (a zero one, a thin rod, is accepted).
+    let e = load_err("pd.toml", &format!("convention = \"standard\"\n{row}mass = 1.0\ncom = [0.0, 0.0, 0.0]\ninertia = [0.1, 0.1, -0.01, 0.0, 0.0, 0.0]\n"));
     assert!(
-        e.contains("joint `j1`") && e.contains("not positive definite"),
+        e.contains("joint `j1`") && e.contains("not positive (semi-)definite"),
         "{e}"
     );
     let e = load_err("conv.toml", &format!("convention = \"sideways\"\n{row}"));

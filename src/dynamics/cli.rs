@@ -24,7 +24,16 @@ pub struct DynamicsArgs {
     /// Joint torques/forces: also print the forward dynamics qdd = M^-1 (tau - V - G - F).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub tau: Option<Vec<f64>>,
-    /// Print JSON (keys joints, tau, M, G, V, F, C and, given --tau, qdd).
+    /// Rigid-body quantities only: drop joint friction and damping (URDF `<dynamics>`, D-H
+    /// `viscous`/`coulomb`), as Pinocchio, RBDL or KDL print them.
+    #[arg(long)]
+    pub no_friction: bool,
+    /// Refuse a file that is only physically dubious (zero-mass links with inertia, inertia
+    /// violating the triangle inequality, mimic joints) instead of warning about it.
+    #[arg(long)]
+    pub strict: bool,
+    /// Print JSON (keys joints, tau, M, G, V, F, C, friction_included, warnings and, given
+    /// --tau, qdd).
     #[arg(long)]
     pub json: bool,
 }
@@ -111,9 +120,22 @@ pub fn main(a: DynamicsArgs) -> i32 {
         eprintln!("evoloop dynamics: {msg}");
         2
     };
-    let model = match super::load(&a.robot) {
-        Ok(m) => m,
+    let options = super::LoadOptions {
+        strict: a.strict,
+        rigid_body_only: a.no_friction,
+    };
+    let (model, warnings) = match super::load_with(&a.robot, &options) {
+        Ok(l) => (l.model, l.warnings),
         Err(e) => return usage(&e.to_string()),
+    };
+    for w in &warnings {
+        eprintln!("evoloop dynamics: warning: {}: {w}", a.robot.display());
+    }
+    let friction_included = model.has_friction();
+    let friction_note = match (friction_included, a.no_friction) {
+        (true, _) => "F(qd) includes the file's joint friction and damping (--no-friction for rigid-body only)",
+        (false, true) => "rigid body only: joint friction and damping dropped (--no-friction)",
+        (false, false) => "rigid body only: the file gives no joint friction or damping",
     };
     let n = model.dof();
     let q = match vector("q", a.q, n) {
@@ -152,6 +174,8 @@ pub fn main(a: DynamicsArgs) -> i32 {
             "V": ev.v,
             "F": ev.f,
             "C": rows(&ev.c),
+            "friction_included": friction_included,
+            "warnings": warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>(),
         });
         if let Some(x) = &ev.qdd {
             out["qdd"] = json!(x);
@@ -176,6 +200,7 @@ pub fn main(a: DynamicsArgs) -> i32 {
         joints.join(", "),
         model.gravity.to_array()
     );
+    println!("{friction_note}");
     println!("tau = M qdd + V + G + F:\n  {}", fmt(&ev.tau));
     println!("M(q):");
     for i in 0..n {

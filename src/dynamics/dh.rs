@@ -31,7 +31,7 @@
 
 use super::model::{Body, Friction, JointKind, Limits, Model};
 use super::spatial::{Inertia, Transform};
-use super::{check_inertial, finish, inertia_tensor, RobotError};
+use super::{inertia_tensor, Checks, LoadOptions, Loaded, RobotError};
 use glam::{DMat3, DVec3};
 use serde::Deserialize;
 use std::path::Path;
@@ -85,7 +85,14 @@ fn trans(x: f64, y: f64, z: f64) -> Transform {
     Transform::from_placement(DMat3::IDENTITY, DVec3::new(x, y, z))
 }
 
+/// A D-H table, read leniently with its friction (see `parse_with`).
 pub fn parse(text: &str, file: &Path) -> Result<Model, RobotError> {
+    parse_with(text, file, &LoadOptions::default()).map(|l| l.model)
+}
+
+/// A D-H table read with `options`: the model and the loader's warnings.
+pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Loaded, RobotError> {
+    let mut checks = Checks::new(file, options);
     let fail = |item: String, reason: String| RobotError {
         file: file.to_path_buf(),
         item,
@@ -151,7 +158,7 @@ pub fn parse(text: &str, file: &Path) -> Result<Model, RobotError> {
         let [ixx, iyy, izz, ixy, ixz, iyz] = inertia;
         let i_dh = inertia_tensor(ixx, ixy, ixz, iyy, iyz, izz);
         let com_dh = DVec3::from(com);
-        check_inertial(mass, i_dh, com_dh).map_err(|r| fail(format!("link of {item}"), r))?;
+        checks.inertial(&format!("link of {item}"), mass, i_dh, com_dh)?;
         // Joint placement and the D-H frame of this link, both relative to the body frame.
         let (placement, link_frame) = match raw.convention {
             Convention::Standard => (
@@ -209,5 +216,5 @@ pub fn parse(text: &str, file: &Path) -> Result<Model, RobotError> {
         bodies,
         gravity: DVec3::from(gravity),
     };
-    finish(model, file)
+    checks.finish(model)
 }

@@ -44,8 +44,47 @@ impl fmt::Display for RobotError {
 
 impl std::error::Error for RobotError {}
 
-/// Load a robot from a D-H table (`.toml`) or a URDF file (`.urdf`, `.xml`).
+/// How a robot file is read.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Refuse what is only physically dubious (a zero-mass link with inertia, an inertia tensor
+    /// violating the triangle inequality, a `<mimic>` joint simulated as independent) instead of
+    /// loading it with a warning.
+    pub strict: bool,
+    /// Drop joint friction and damping (URDF `<dynamics damping friction>`, D-H `viscous`,
+    /// `coulomb`): the rigid-body quantities other libraries (Pinocchio, RBDL, KDL) print.
+    pub rigid_body_only: bool,
+}
+
+/// Something in a robot file that was loaded but deserves a look: the item and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotWarning {
+    /// "joint `name`" or "link `name`".
+    pub item: String,
+    pub reason: String,
+}
+
+impl fmt::Display for RobotWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.item, self.reason)
+    }
+}
+
+/// A robot file, loaded: the model and what the loader warned about.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    pub model: Model,
+    pub warnings: Vec<RobotWarning>,
+}
+
+/// Load a robot from a D-H table (`.toml`) or a URDF file (`.urdf`, `.xml`), leniently (warnings
+/// dropped) and with its friction. See `load_with` for the warnings and the options.
 pub fn load(path: &Path) -> Result<Model, RobotError> {
+    load_with(path, &LoadOptions::default()).map(|l| l.model)
+}
+
+/// Load a robot file with `options`, returning the model and the loader's warnings.
+pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Loaded, RobotError> {
     let err = |reason: String| RobotError {
         file: path.to_path_buf(),
         item: String::new(),
@@ -53,11 +92,71 @@ pub fn load(path: &Path) -> Result<Model, RobotError> {
     };
     let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
     match path.extension().and_then(|e| e.to_str()) {
-        Some("toml") => dh::parse(&text, path),
-        Some("urdf") | Some("xml") => urdf::parse(&text, path),
+        Some("toml") => dh::parse_with(&text, path, options),
+        Some("urdf") | Some("xml") => urdf::parse_with(&text, path, options),
         _ => Err(err(
             "unknown robot file type (expected a D-H table `.toml` or a URDF `.urdf`)".into(),
         )),
+    }
+}
+
+/// Warnings of one file as they are gathered: in strict mode the first one is an error instead.
+struct Checks<'a> {
+    file: &'a Path,
+    options: LoadOptions,
+    warnings: Vec<RobotWarning>,
+}
+
+impl<'a> Checks<'a> {
+    fn new(file: &'a Path, options: &LoadOptions) -> Self {
+        Checks {
+            file,
+            options: *options,
+            warnings: Vec::new(),
+        }
+    }
+
+    fn error(&self, item: String, reason: String) -> RobotError {
+        RobotError {
+            file: self.file.to_path_buf(),
+            item,
+            reason,
+        }
+    }
+
+    /// Something dubious but simulable: a warning, or in strict mode an error.
+    fn dubious(&mut self, item: String, reason: String) -> Result<(), RobotError> {
+        if self.options.strict {
+            return Err(self.error(item, format!("{reason} (refused: --strict)")));
+        }
+        self.warnings.push(RobotWarning { item, reason });
+        Ok(())
+    }
+
+    /// One link's mass properties (see `check_inertial`), as error or warning for `item`.
+    fn inertial(
+        &mut self,
+        item: &str,
+        mass: f64,
+        i_com: DMat3,
+        com: DVec3,
+    ) -> Result<(), RobotError> {
+        match check_inertial(mass, i_com, com) {
+            Ok(None) => Ok(()),
+            Ok(Some(doubt)) => self.dubious(item.to_string(), doubt),
+            Err(e) => Err(self.error(item.to_string(), e)),
+        }
+    }
+
+    /// The model's last checks (`finish`), friction dropped on request, and the warnings.
+    fn finish(self, mut model: Model) -> Result<Loaded, RobotError> {
+        if self.options.rigid_body_only {
+            model.clear_friction();
+        }
+        Ok(Loaded {
+            model: finish(model, self.file)?,
+            warnings: self.warnings,
+        })
     }
 }
 
@@ -70,11 +169,16 @@ pub fn inertia_tensor(ixx: f64, ixy: f64, ixz: f64, iyy: f64, iyz: f64, izz: f64
     )
 }
 
-/// Check one link's mass properties: finite, mass >= 0, and a positive-definite inertia tensor
-/// obeying the triangle inequality (a physical body) whenever the link has mass. A link with
-/// neither mass nor inertia is accepted as massless here; `finish` rejects the model if that
-/// leaves a joint moving nothing.
-fn check_inertial(mass: f64, i_com: DMat3, com: DVec3) -> Result<(), String> {
+/// Relative tolerance of the inertia checks (of the sum of the principal moments): tensors
+/// rotated into a link frame and printed with a few digits are off by rounding.
+const INERTIA_TOL: f64 = 1e-6;
+
+/// Check one moving link's mass properties. `Err` for what cannot be simulated (non-finite
+/// numbers, negative mass, a negative principal moment, an asymmetric tensor); `Ok(Some(doubt))`
+/// for what is physically dubious but simulable (zero mass with a non-zero tensor: kept as a pure
+/// rotational inertia; a triangle-inequality violation beyond the tolerance); `Ok(None)` otherwise.
+/// Zero principal moments with mass (point masses, thin rods) are common idealisations and pass.
+fn check_inertial(mass: f64, i_com: DMat3, com: DVec3) -> Result<Option<String>, String> {
     let cols = i_com.to_cols_array();
     if !mass.is_finite() || !com.is_finite() || cols.iter().any(|v| !v.is_finite()) {
         return Err("mass, centre of mass and inertia must be finite numbers".into());
@@ -82,12 +186,8 @@ fn check_inertial(mass: f64, i_com: DMat3, com: DVec3) -> Result<(), String> {
     if mass < 0.0 {
         return Err(format!("negative mass {mass}"));
     }
-    let zero_tensor = cols.iter().all(|v| *v == 0.0);
-    if mass == 0.0 {
-        if !zero_tensor {
-            return Err("zero mass with a non-zero inertia tensor".into());
-        }
-        return Ok(());
+    if cols.iter().all(|v| *v == 0.0) {
+        return Ok(None);
     }
     let m = nalgebra::Matrix3::from_fn(|r, c| i_com.col(c)[r]);
     if (m - m.transpose()).abs().max() > 1e-12 * m.abs().max().max(1e-300) {
@@ -95,18 +195,23 @@ fn check_inertial(mass: f64, i_com: DMat3, com: DVec3) -> Result<(), String> {
     }
     let ev = m.symmetric_eigenvalues();
     let (a, b, c) = (ev[0], ev[1], ev[2]);
-    if !(a > 0.0 && b > 0.0 && c > 0.0) {
+    let tol = INERTIA_TOL * (a.abs() + b.abs() + c.abs());
+    if a < -tol || b < -tol || c < -tol {
         return Err(format!(
-            "inertia tensor is not positive definite (principal moments {a:.6e}, {b:.6e}, {c:.6e})"
+            "inertia tensor is not positive (semi-)definite (principal moments {a:.6e}, {b:.6e}, {c:.6e}): no body has it"
         ));
     }
-    let tol = 1e-9 * (a + b + c);
+    if mass == 0.0 {
+        return Ok(Some(format!(
+            "zero mass with a non-zero inertia tensor (principal moments {a:.6e}, {b:.6e}, {c:.6e}): kept as a pure rotational inertia"
+        )));
+    }
     if a > b + c + tol || b > a + c + tol || c > a + b + tol {
-        return Err(format!(
-            "inertia tensor violates the triangle inequality (principal moments {a:.6e}, {b:.6e}, {c:.6e}): no rigid body has it"
-        ));
+        return Ok(Some(format!(
+            "inertia tensor violates the triangle inequality (principal moments {a:.6e}, {b:.6e}, {c:.6e}): no rigid body has it; loaded as given"
+        )));
     }
-    Ok(())
+    Ok(None)
 }
 
 /// Final checks shared by both loaders: finite placements, unit axes, limits in order, and M(q)

@@ -257,6 +257,22 @@ impl Model {
         // Entries between bodies on different branches stay zero.
     }
 
+    /// Whether any joint has friction or damping (F(qd) is not identically zero).
+    pub fn has_friction(&self) -> bool {
+        self.bodies
+            .iter()
+            .any(|b| b.friction.viscous != 0.0 || b.friction.coulomb != 0.0)
+    }
+
+    /// Drop every joint's friction and damping: the rigid-body model (armature stays, it is
+    /// inertia).
+    pub fn clear_friction(&mut self) {
+        for b in &mut self.bodies {
+            b.friction.viscous = 0.0;
+            b.friction.coulomb = 0.0;
+        }
+    }
+
     /// Joint friction F(qd).
     pub fn friction(&self, qd: &[f64], out: &mut [f64]) {
         for (i, b) in self.bodies.iter().enumerate() {

@@ -8,7 +8,7 @@
 
 use super::model::{Body, Friction, JointKind, Limits, Model};
 use super::spatial::{Inertia, Transform};
-use super::{check_inertial, finish, inertia_tensor, RobotError};
+use super::{inertia_tensor, Checks, LoadOptions, Loaded, RobotError};
 use glam::{DMat3, DVec3};
 use std::collections::HashMap;
 use std::path::Path;
@@ -22,63 +22,114 @@ fn pose(p: &urdf_rs::Pose) -> Transform {
     Transform::from_placement(rpy(p.rpy.0), DVec3::from(p.xyz.0))
 }
 
-/// `name="..."` or `type='...'` of one XML start tag.
-fn attribute<'t>(tag: &'t str, key: &str) -> Option<&'t str> {
-    let mut rest = tag;
-    while let Some(at) = rest.find(key) {
-        let before_ok = at == 0 || rest[..at].ends_with(|c: char| c.is_whitespace());
-        let after = rest[at + key.len()..].trim_start();
-        if before_ok && after.starts_with('=') {
-            let v = after[1..].trim_start();
-            let quote = v.chars().next()?;
-            if quote == '"' || quote == '\'' {
-                let end = v[1..].find(quote)?;
-                return Some(&v[1..1 + end]);
+/// What the loader needs to know of the raw XML before urdf-rs reads it: the kinematic joints are
+/// the `<joint>` elements directly under `<robot>`. `<joint name=..>` also appears inside
+/// `<transmission>` (ros_control), `<ros2_control>` and `<gazebo>` blocks, and in comments; those
+/// are not joints of the tree and are skipped.
+fn check_xml(text: &str) -> Result<(), (String, String)> {
+    use quick_xml::events::{BytesStart, Event};
+    let attr = |e: &BytesStart, key: &str| -> Option<String> {
+        e.try_get_attribute(key)
+            .ok()
+            .flatten()
+            .and_then(|a| a.unescape_value().ok().map(|v| v.into_owned()))
+    };
+    let mut reader = quick_xml::Reader::from_str(text);
+    // Names of the open elements, outermost first.
+    let mut open: Vec<Vec<u8>> = Vec::new();
+    loop {
+        let event = reader
+            .read_event()
+            .map_err(|e| (String::new(), format!("not well-formed XML: {e}")))?;
+        let (e, empty) = match &event {
+            Event::Start(e) => (e, false),
+            Event::Empty(e) => (e, true),
+            Event::End(_) => {
+                open.pop();
+                continue;
+            }
+            Event::Eof => return Ok(()),
+            _ => continue,
+        };
+        let name = e.name().as_ref().to_vec();
+        if name.starts_with(b"xacro:") {
+            return Err((
+                String::new(),
+                format!(
+                    "`<{}>` is a xacro macro: this is an unprocessed .xacro file; expand it first (`xacro robot.urdf.xacro > robot.urdf`)",
+                    String::from_utf8_lossy(&name)
+                ),
+            ));
+        }
+        // Substitutions left in the numbers of links and joints cannot be read.
+        let top = |n: &[u8]| matches!(n, b"link" | b"joint");
+        let in_tree = match open.len() {
+            1 => top(&name),
+            n => n >= 2 && top(&open[1]),
+        };
+        if in_tree {
+            for a in e.attributes().flatten() {
+                let v = String::from_utf8_lossy(&a.value);
+                if v.contains("${") || v.contains("$(") {
+                    return Err((
+                        String::new(),
+                        format!(
+                            "`{}=\"{v}\"` of `<{}>` is a xacro expression: this is an unprocessed .xacro file; expand it first (`xacro robot.urdf.xacro > robot.urdf`)",
+                            String::from_utf8_lossy(a.key.as_ref()),
+                            String::from_utf8_lossy(&name)
+                        ),
+                    ));
+                }
             }
         }
-        rest = &rest[at + key.len()..];
+        if open.len() == 1 && name == b"joint" {
+            let joint = attr(e, "name").unwrap_or_else(|| "?".into());
+            match attr(e, "type").as_deref() {
+                Some("revolute" | "continuous" | "prismatic" | "fixed") => {}
+                Some(t @ ("floating" | "planar" | "spherical")) => {
+                    return Err((
+                        joint,
+                        format!("joint type `{t}` is not supported (revolute, continuous, prismatic and fixed are)"),
+                    ))
+                }
+                Some(t) => {
+                    return Err((
+                        joint,
+                        format!("unknown joint type `{t}` (expected revolute, continuous, prismatic or fixed)"),
+                    ))
+                }
+                None => return Err((joint, "has no `type` attribute".into())),
+            }
+        }
+        if !empty {
+            open.push(name);
+        }
     }
-    None
 }
 
-/// Joint types checked on the raw text before parsing, so an unknown or unsupported type is
-/// reported with the joint's name rather than as a deserialiser error.
-fn check_joint_types(text: &str) -> Result<(), (String, String)> {
-    let mut rest = text;
-    while let Some(at) = rest.find("<joint") {
-        rest = &rest[at + 6..];
-        if !rest.starts_with(|c: char| c.is_whitespace()) {
-            continue;
-        }
-        let tag = &rest[..rest.find('>').unwrap_or(rest.len())];
-        let name = attribute(tag, "name").unwrap_or("?").to_string();
-        match attribute(tag, "type") {
-            Some("revolute" | "continuous" | "prismatic" | "fixed") => {}
-            Some(t @ ("floating" | "planar" | "spherical")) => {
-                return Err((
-                    name,
-                    format!("joint type `{t}` is not supported (revolute, continuous, prismatic and fixed are)"),
-                ))
-            }
-            Some(t) => {
-                return Err((
-                    name,
-                    format!("unknown joint type `{t}` (expected revolute, continuous, prismatic or fixed)"),
-                ))
-            }
-            None => return Err((name, "has no `type` attribute".into())),
-        }
-    }
-    Ok(())
-}
-
+/// A URDF file, read leniently with its friction (see `parse_with`).
 pub fn parse(text: &str, file: &Path) -> Result<Model, RobotError> {
+    parse_with(text, file, &LoadOptions::default()).map(|l| l.model)
+}
+
+/// A URDF file read with `options`: the model and the loader's warnings. Elements that do not
+/// matter to dynamics (visual, collision, gazebo, transmission, ros2_control, safety_controller,
+/// calibration, materials) are ignored.
+pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Loaded, RobotError> {
+    let mut checks = Checks::new(file, options);
     let fail = |item: String, reason: String| RobotError {
         file: file.to_path_buf(),
         item,
         reason,
     };
-    check_joint_types(text).map_err(|(j, r)| fail(format!("joint `{j}`"), r))?;
+    check_xml(text).map_err(|(j, r)| {
+        let item = if j.is_empty() {
+            j
+        } else {
+            format!("joint `{j}`")
+        };
+        fail(item, r)
+    })?;
     let robot = urdf_rs::read_from_string(text)
         .map_err(|e| fail(String::new(), format!("not a readable URDF: {e}")))?;
     let link_index: HashMap<&str, usize> = robot
@@ -151,6 +202,18 @@ pub fn parse(text: &str, file: &Path) -> Result<Model, RobotError> {
     while let Some((l, mut body, mut offset, via)) = stack.pop() {
         reached[l] = true;
         if let Some(j) = via {
+            let joint = &robot.joints[j];
+            if let Some(m) = &joint.mimic {
+                checks.dubious(
+                    format!("joint `{}`", joint.name),
+                    format!(
+                        "mimics joint `{}` (multiplier {}, offset {}): simulated as an independent joint, evoloop does not couple joints",
+                        m.joint,
+                        m.multiplier.unwrap_or(1.0),
+                        m.offset.unwrap_or(0.0)
+                    ),
+                )?;
+            }
             bodies.push(
                 moving_body(&robot.joints[j], body, offset)
                     .map_err(|r| fail(format!("joint `{}`", robot.joints[j].name), r))?,
@@ -165,9 +228,10 @@ pub fn parse(text: &str, file: &Path) -> Result<Model, RobotError> {
         let r = rpy(inl.origin.rpy.0);
         let i_com = r * i_frame * r.transpose();
         let com = DVec3::from(inl.origin.xyz.0);
-        check_inertial(inl.mass.value, i_com, com)
-            .map_err(|e| fail(format!("link `{}`", link.name), e))?;
+        // Links of the fixed base (the root and what is fixed to it) never move: their mass
+        // properties do not enter the dynamics, so they are not checked.
         if let Some(b) = body {
+            checks.inertial(&format!("link `{}`", link.name), inl.mass.value, i_com, com)?;
             let inertia = Inertia::from_com(inl.mass.value, com, i_com).to_parent(&offset);
             bodies[b].inertia = bodies[b].inertia + inertia;
         }
@@ -197,7 +261,7 @@ pub fn parse(text: &str, file: &Path) -> Result<Model, RobotError> {
         bodies,
         gravity: DVec3::new(0.0, 0.0, -9.81),
     };
-    finish(model, file)
+    checks.finish(model)
 }
 
 /// The body moved by a revolute, continuous or prismatic joint placed at `placement` in the

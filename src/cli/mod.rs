@@ -1,9 +1,102 @@
-//! Command-line arguments shared by the launcher and the three process binaries, so the launcher
-//! hands each child exactly the options the child parses.
+//! The command line: `evoloop`'s subcommands, and the arguments shared by the launcher and the
+//! three processes, so the launcher hands each child exactly the options the child parses. The
+//! parser lives in the library so a test can parse every command the README shows.
 
 use crate::config::{Mode, OptimiserMode, Overrides};
-use clap::Args;
+use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "evoloop",
+    version,
+    about = "Real-time control loops tuned by evolutionary optimisers while the plant runs",
+    long_about = "evoloop starts a plant simulator, a fixed-rate controller and an optimiser as separate \
+processes that talk over iceoryx2 shared memory.\n\nWithout a subcommand it runs the default scenario \
+(config/two_mass.toml) and writes its report to runs/two_mass/."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Cmd>,
+}
+
+#[derive(Subcommand)]
+pub enum Cmd {
+    /// Run a scenario: start the three processes, supervise them, write the report.
+    Run(RunArgs),
+    /// Validate a scenario file and print what it resolves to.
+    Check {
+        /// Scenario file (TOML).
+        file: PathBuf,
+    },
+    /// Robust state feedback for the two-mass benchmark: stability radius, LQR, DE tuning, the
+    /// paper's reproduction.
+    Robust {
+        #[command(subcommand)]
+        cmd: crate::robust::cli::RobustCmd,
+    },
+    /// Rigid-body dynamics of a robot file (D-H TOML or URDF) at one state: tau, M, G, V, and,
+    /// given --tau, the forward dynamics.
+    Dynamics(crate::dynamics::cli::DynamicsArgs),
+    /// The fuzzy-network paper's GA experiments: `tune config/arsinh_tune.toml` (Section 5.1),
+    /// `tune config/maglev_tune.toml` (Section 5.2).
+    Tune(crate::tune::TuneArgs),
+    /// Benchmarks measured against the machine's own floor in the same run.
+    Bench {
+        #[command(subcommand)]
+        cmd: BenchCmd,
+    },
+    /// The plant simulator process of a run (`evoloop run` starts it; for starting processes by
+    /// hand or under your own supervisor).
+    Plant(ProcessArgs),
+    /// The fixed-rate controller process of a run (`evoloop run` starts it).
+    Controller(ProcessArgs),
+    /// The optimiser process of a run (`evoloop run` starts it).
+    Optimiser(OptimiserArgs),
+    /// Measure the machine's timing floor: a bare absolute-deadline sleep loop.
+    Floor {
+        /// Loop rate in Hz.
+        #[arg(long, default_value_t = 1000.0)]
+        rate: f64,
+        /// Seconds to run.
+        #[arg(long, default_value_t = 5.0)]
+        duration: f64,
+        /// Ask for SCHED_FIFO with this priority (falls back when not permitted).
+        #[arg(long)]
+        fifo: Option<i32>,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Subcommand)]
+pub enum BenchCmd {
+    /// Round trip plant -> controller -> plant against a bare iceoryx2 ping-pong.
+    Latency(crate::bench::latency::LatencyArgs),
+    /// The controller loop's timing at a rate, under load, against the bare sleep-loop floor.
+    Loop(crate::bench::loop_bench::LoopArgs),
+    /// The peer process of `bench latency` (started by it).
+    #[command(hide = true)]
+    LatencyPeer(crate::bench::latency::PeerArgs),
+}
+
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// Scenario file (TOML) [default: config/two_mass.toml, here or in the source tree]
+    pub file: Option<PathBuf>,
+    #[command(flatten)]
+    pub overrides: OverrideArgs,
+    /// Run id used in the service names (default: generated, unique on this machine).
+    #[arg(long)]
+    pub run_id: Option<String>,
+    /// Prefix of iceoryx2's files (separate namespace, e.g. for parallel tests).
+    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX)]
+    pub ipc_prefix: String,
+    /// No progress lines.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
 
 /// Options every process of a run receives from the launcher.
 #[derive(Debug, Clone, Args)]
