@@ -1,0 +1,168 @@
+//! The README cannot drift from the CLI: every command in its `sh` code blocks parses with the
+//! real parser, and the files it names (scenarios, tune files, robots) exist and load. The first
+//! two lines of "The two commands" are what `.ci/run` executes on a clean clone.
+
+use clap::Parser;
+use evoloop::cli::{Cli, Cmd};
+use std::path::{Path, PathBuf};
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The commands of every ```sh block: continuation lines joined, comments dropped.
+fn readme_commands() -> Vec<(usize, String)> {
+    let text = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let mut out = Vec::new();
+    let mut in_sh = false;
+    let mut pending: Option<(usize, String)> = None;
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if t.starts_with("```") {
+            in_sh = !in_sh && t == "```sh";
+            continue;
+        }
+        if !in_sh {
+            continue;
+        }
+        // A comment starts at " #" (a `#` inside a word, e.g. a URL fragment, is not one).
+        let code = match t.find(" #") {
+            Some(at) => &t[..at],
+            None if t.starts_with('#') => "",
+            None => t,
+        };
+        let (code, more) = match code.trim_end().strip_suffix('\\') {
+            Some(c) => (c.trim_end(), true),
+            None => (code.trim_end(), false),
+        };
+        let entry = pending.get_or_insert((i + 1, String::new()));
+        if !entry.1.is_empty() && !code.is_empty() {
+            entry.1.push(' ');
+        }
+        entry.1.push_str(code.trim_start());
+        if !more {
+            let (l, c) = pending.take().unwrap();
+            if !c.is_empty() {
+                out.push((l, c));
+            }
+        }
+    }
+    out
+}
+
+/// The arguments given to `evoloop` by a README command, or None for the cargo commands that do
+/// not run it (their own check is done by the caller).
+fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
+    let words: Vec<String> = cmd.split_whitespace().map(String::from).collect();
+    let w: Vec<&str> = words.iter().map(|s| s.as_str()).collect();
+    match w.as_slice() {
+        ["evoloop", rest @ ..] => Ok(Some(rest.iter().map(|s| s.to_string()).collect())),
+        ["cargo", "run", "--release"] => Ok(Some(Vec::new())),
+        ["cargo", "run", "--release", "--", rest @ ..] => {
+            Ok(Some(rest.iter().map(|s| s.to_string()).collect()))
+        }
+        ["cargo", "test", "--release"] => Ok(None),
+        ["cargo", "bench", "--bench", name] => {
+            if root().join("benches").join(format!("{name}.rs")).exists() {
+                Ok(None)
+            } else {
+                Err(format!("no benchmark `{name}` in benches/"))
+            }
+        }
+        _ => Err("not an `evoloop` or known cargo command".into()),
+    }
+}
+
+/// The files a parsed command names must exist, and scenarios and robots must load.
+fn check_files(cmd: &Cmd) -> Result<(), String> {
+    let path = |p: &Path| -> PathBuf { root().join(p) };
+    let scenario = |p: &Path| {
+        evoloop::config::Scenario::load(&path(p), &Default::default())
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    };
+    match cmd {
+        Cmd::Run(a) => match &a.file {
+            Some(f) => scenario(f),
+            None => scenario(Path::new("config/two_mass.toml")),
+        },
+        Cmd::Check { file } => scenario(file),
+        Cmd::Tune(a) if !path(&a.file).exists() => {
+            Err(format!("{} does not exist", a.file.display()))
+        }
+        Cmd::Dynamics(a) => evoloop::dynamics::load(&path(&a.robot))
+            .map(|_| ())
+            .map_err(|e| e.to_string()),
+        _ => Ok(()),
+    }
+}
+
+#[test]
+fn every_command_in_the_readme_parses_and_its_files_load() {
+    let commands = readme_commands();
+    assert!(
+        commands.len() > 20,
+        "found only {} commands",
+        commands.len()
+    );
+    let mut bad = Vec::new();
+    for (line, cmd) in &commands {
+        let args = match evoloop_args(cmd) {
+            Ok(Some(a)) => a,
+            Ok(None) => continue,
+            Err(e) => {
+                bad.push(format!("README.md:{line}: `{cmd}`: {e}"));
+                continue;
+            }
+        };
+        let argv = std::iter::once("evoloop".to_string()).chain(args);
+        match Cli::try_parse_from(argv) {
+            Ok(cli) => {
+                if let Some(c) = &cli.command {
+                    if let Err(e) = check_files(c) {
+                        bad.push(format!("README.md:{line}: `{cmd}`: {e}"));
+                    }
+                }
+            }
+            // `--help` parses by printing help: the command exists.
+            Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelp => {}
+            Err(e) => bad.push(format!(
+                "README.md:{line}: `{cmd}`: {}",
+                e.to_string().lines().next().unwrap_or("")
+            )),
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "README commands that do not parse:\n{}",
+        bad.join("\n")
+    );
+}
+
+#[test]
+fn the_two_commands_come_first_and_are_what_ci_runs() {
+    let commands = readme_commands();
+    assert_eq!(commands[0].1, "cargo run --release");
+    assert_eq!(commands[1].1, "cargo test --release");
+    let ci = std::fs::read_to_string(root().join(".ci/run")).unwrap();
+    assert!(
+        ci.contains("readme_command 1") && ci.contains("readme_command 2"),
+        ".ci/run runs the README's two commands, read from the README"
+    );
+}
+
+#[test]
+fn the_checker_itself_rejects_what_does_not_parse() {
+    // A test that cannot fail proves nothing: feed the checker commands that must fail.
+    assert!(evoloop_args("make run").is_err());
+    assert!(evoloop_args("cargo bench --bench nonexistent").is_err());
+    let parse = |c: &str| {
+        let a = evoloop_args(c).unwrap().unwrap();
+        Cli::try_parse_from(std::iter::once("evoloop".to_string()).chain(a))
+    };
+    assert!(parse("evoloop run config/two_mass.toml --mode sideways").is_err());
+    assert!(parse("evoloop dynamics --robot x.urdf --frobnicate").is_err());
+    assert!(parse("evoloop tune config/arsinh_tune.toml --seed N").is_err());
+    let missing = parse("evoloop run config/no_such.toml").unwrap();
+    assert!(check_files(missing.command.as_ref().unwrap()).is_err());
+}
