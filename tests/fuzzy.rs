@@ -490,3 +490,42 @@ fn fuzzy_anti_windup_beats_every_baseline_each_tuned_with_the_same_budget() {
         );
     }
 }
+
+#[test]
+fn ga_survives_a_population_with_no_finite_cost_and_keeps_searching() {
+    // Every point outside a small corner of the box "loses the ball" (infinite cost), so the
+    // initial population of 10 random members is all infinite: selection cannot be proportional
+    // to anything. Before the fix this panicked ("cannot sample empty range").
+    let cost = |x: &[f64]| {
+        if x.iter().all(|v| *v > 0.95) {
+            x.iter().map(|v| (v - 0.97).powi(2)).sum::<f64>()
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut ga = Ga::new(
+        GaConfig {
+            population: 10,
+            max_iterations: 2000,
+            seed: 3,
+            ..Default::default()
+        },
+        &[0.0, 0.0],
+        &[1.0, 1.0],
+        &[],
+    );
+    let first: Vec<f64> = ga.ask().iter().map(|x| cost(x)).collect();
+    assert!(
+        first.iter().all(|v| v.is_infinite()),
+        "the test needs an all-infinite start"
+    );
+    ga.tell(&first);
+    for _ in 0..2000 {
+        let v: Vec<f64> = ga.ask().iter().map(|x| cost(x)).collect();
+        ga.tell(&v);
+    }
+    assert!(ga.uniform_selections() > 0, "uniform selection was used");
+    let (x, v) = ga.best();
+    assert!(v.is_finite(), "the search found the feasible corner");
+    assert!(x.iter().all(|xi| *xi > 0.95));
+}

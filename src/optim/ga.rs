@@ -10,7 +10,9 @@
 //! - the two children replace the two worst members of the old population.
 //!
 //! A child whose value is not finite (e.g. a controller that destabilises the loop) is replaced
-//! by a copy of the current best, as the paper does for the maglev experiments.
+//! by a copy of the current best, as the paper does for the maglev experiments. While no member
+//! has a finite value (every random set lost the ball), parents are chosen uniformly and failed
+//! children are kept, so the search explores instead of panicking or collapsing to one point.
 //! Each iteration asks for two evaluations; the first `ask` returns the initial population.
 
 use super::Optimiser;
@@ -54,6 +56,7 @@ pub struct Ga {
     best: (Vec<f64>, f64),
     /// Population slots the last two children went to.
     slots: Vec<usize>,
+    uniform_selections: usize,
 }
 
 impl Ga {
@@ -94,6 +97,7 @@ impl Ga {
             evaluations: 0,
             best: (Vec::new(), f64::INFINITY),
             slots: Vec::new(),
+            uniform_selections: 0,
             cfg,
         }
     }
@@ -117,19 +121,32 @@ impl Ga {
         self.values[i] = value;
     }
 
+    /// Fitness-proportional choice of one member. Members with an infinite cost (a lost ball)
+    /// get no share; when no member has a finite cost there is nothing to be proportional to, so
+    /// the choice is uniform (counted in `uniform_selections`).
     fn select(&mut self) -> usize {
-        let worst = self
-            .values
-            .iter()
-            .cloned()
-            .fold(f64::NEG_INFINITY, f64::max);
-        let best = self.values.iter().cloned().fold(f64::INFINITY, f64::min);
+        let finite = || self.values.iter().cloned().filter(|v| v.is_finite());
+        let worst = finite().fold(f64::NEG_INFINITY, f64::max);
+        let best = finite().fold(f64::INFINITY, f64::min);
+        if !best.is_finite() {
+            self.uniform_selections += 1;
+            return self.rng.gen_range(0..self.values.len());
+        }
         let fit: Vec<f64> = if best > 0.0 {
             // Costs are positive (performance indices): fitness 1/G, invariant to G's scale.
             self.values.iter().map(|v| 1.0 / v).collect()
         } else {
             let window = 0.1 * (worst - best) + 1e-12 * worst.abs().max(1e-300);
-            self.values.iter().map(|v| worst - v + window).collect()
+            self.values
+                .iter()
+                .map(|v| {
+                    if v.is_finite() {
+                        worst - v + window
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
         };
         let total: f64 = fit.iter().sum();
         let mut r = self.rng.gen_range(0.0..total);
@@ -140,6 +157,11 @@ impl Ga {
             r -= f;
         }
         fit.len() - 1
+    }
+
+    /// Parent choices made uniformly because no member had a finite cost.
+    pub fn uniform_selections(&self) -> usize {
+        self.uniform_selections
     }
 
     fn mutate(&mut self, x: &mut [f64]) {
@@ -220,8 +242,12 @@ impl Optimiser for Ga {
                     self.best = (x.clone(), *v);
                 }
                 children.push((x.clone(), *v));
-            } else {
+            } else if self.best.1.is_finite() {
                 children.push(self.best.clone());
+            } else {
+                // No finite member yet: a copy of an equally failed "best" would only clone the
+                // population into one point; keep the child so the search goes on exploring.
+                children.push((x.clone(), f64::INFINITY));
             }
         }
         // The two worst of the old population make way.
