@@ -450,45 +450,73 @@ fn maglev_is_unstable_open_loop_and_stabilised_by_the_tuned_controller() {
 }
 
 #[test]
-fn fuzzy_anti_windup_beats_every_baseline_each_tuned_with_the_same_budget() {
+fn fuzzy_anti_windup_against_the_baselines_over_seeds_as_the_study_reports() {
+    // The claims README.md makes from `evoloop tune config/maglev_tune.toml --seeds 1..20`,
+    // checked on seeds 1-6 (each controller tuned with the same 310-evaluation budget per seed):
+    // fuzzy anti-windup has a lower eq. 31 index than no anti-windup and than conditional
+    // integration on every seed, and a lower mean than back-calculation; it tracks better than the
+    // plain integrator clamp on every seed, but the clamp has the lower G on every seed (it spends
+    // less current beyond the holding current): fuzzy anti-windup does not beat every baseline.
     let spec = mg::Spec::default();
-    let run = evoloop::tune::Run {
-        hybrid: HybridConfig {
-            ga: GaConfig {
-                seed: 1,
-                max_iterations: 150,
-                ..Default::default()
+    let cost = |aw, seed| {
+        let run = evoloop::tune::Run {
+            hybrid: HybridConfig {
+                ga: GaConfig {
+                    seed,
+                    max_iterations: 150,
+                    ..Default::default()
+                },
+                phases: [150, 0, 0],
+                scaling: Vec::new(),
+                threads: 2,
+                hj_step: 0.05,
+                hj_per_candidate: 0,
             },
-            phases: [150, 0, 0],
-            scaling: Vec::new(),
-            threads: 2,
-            hj_step: 0.05,
-            hj_per_candidate: 0,
-        },
-        out: std::env::temp_dir(),
-        plots: false,
-        json: true,
-        progress: false,
-        seed: 1,
-    };
-    let g = |aw| {
+            out: std::env::temp_dir(),
+            plots: false,
+            json: true,
+            progress: false,
+            seed,
+        };
         let t = mg::tune_variant(&run, &spec, aw);
         assert_eq!(t.evaluations, 310);
-        t.test.map_or(f64::INFINITY, |c| c.g)
+        t.test
     };
-    let fuzzy = g(AntiWindup::Fuzzy);
-    for aw in [
-        AntiWindup::None,
-        AntiWindup::Clamping,
-        AntiWindup::BackCalculation,
-    ] {
-        let other = g(aw);
+    let g = |c: Option<mg::Cost>| c.map_or(f64::INFINITY, |c| c.g);
+    let (mut fuzzy_sum, mut back_sum) = (0.0, 0.0);
+    for seed in 1..=6 {
+        let fuzzy = cost(AntiWindup::Fuzzy, seed).expect("fuzzy anti-windup keeps the ball");
+        for aw in [AntiWindup::None, AntiWindup::Clamping] {
+            let other = g(cost(aw, seed));
+            assert!(
+                fuzzy.g < other,
+                "seed {seed}: fuzzy G {} vs {} {other}",
+                fuzzy.g,
+                aw.name()
+            );
+        }
+        let clamp = cost(AntiWindup::IntegratorClamp, seed).expect("the clamp keeps the ball");
         assert!(
-            fuzzy < other,
-            "fuzzy anti-windup G {fuzzy} vs {} G {other}",
-            aw.name()
+            fuzzy.g_error < clamp.g_error,
+            "seed {seed}: error {} vs clamp {}",
+            fuzzy.g_error,
+            clamp.g_error
         );
+        assert!(
+            clamp.g < fuzzy.g,
+            "seed {seed}: the clamp's G {} vs fuzzy {}",
+            clamp.g,
+            fuzzy.g
+        );
+        fuzzy_sum += fuzzy.g;
+        back_sum += g(cost(AntiWindup::BackCalculation, seed));
     }
+    assert!(
+        fuzzy_sum < back_sum,
+        "mean G fuzzy {} vs back-calculation {}",
+        fuzzy_sum / 6.0,
+        back_sum / 6.0
+    );
 }
 
 #[test]

@@ -178,3 +178,93 @@ fn the_maglev_scenario_runs_in_lockstep_like_the_in_process_simulation_and_in_re
     // A sanity check of the rate, not a timing figure (the other tests here load the CPUs).
     assert!(s["samples"].as_u64().unwrap() >= 1300);
 }
+
+#[test]
+fn tune_maglev_over_seeds_writes_the_statistics_and_sentences_that_follow_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("s");
+    let v = stdout_json(&cli(&[
+        "tune",
+        "config/maglev_tune.toml",
+        "--seeds",
+        "1..3",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert_eq!(v["seeds"], serde_json::json!([1, 2, 3]));
+    for variant in [
+        "fuzzy_aw",
+        "none",
+        "integrator_clamp",
+        "clamping",
+        "back_calculation",
+    ] {
+        for part in ["G", "error", "control"] {
+            let m = &v["variants"][variant][part];
+            assert!(
+                m["mean"].is_number() && m["ci95"].is_array(),
+                "{variant} {part}: {m}"
+            );
+        }
+    }
+    let comparisons = v["comparisons"].as_array().unwrap();
+    assert_eq!(comparisons.len(), 4 * 3, "four baselines, three parts");
+    for c in comparisons {
+        // Every sentence says what its own numbers support.
+        let w = &c["wilcoxon"];
+        let p = w["p_two_sided"].as_f64().unwrap();
+        let lower = w["w_plus"].as_f64().unwrap() < w["w_minus"].as_f64().unwrap();
+        let s = c["sentence"].as_str().unwrap();
+        let expect = match (p < 0.05, lower) {
+            (true, true) => "has a lower",
+            (true, false) => "has a HIGHER",
+            (false, _) => "No difference",
+        };
+        assert!(s.contains(expect), "{s} with p = {p}");
+        assert!(s.contains(&format!("of {} seeds", w["n"])), "{s}");
+    }
+    let csv = std::fs::read_to_string(out.join("seeds.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 3 * 5);
+    for f in ["study.json", "study.md", "study_g.png", "study_error.png"] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    let bad = cli(&["tune", "config/arsinh_tune.toml", "--seeds", "1..3"]);
+    assert_eq!(bad.status.code(), Some(2));
+    let bad = cli(&["tune", "config/maglev_tune.toml", "--seeds", "5"]);
+    assert!(!bad.status.success());
+}
+
+#[test]
+fn study_sentences_follow_the_sign_and_significance_of_the_test() {
+    use evoloop::report::stats::{mean_ci, wilcoxon};
+    use evoloop::tune::maglev::comparison_sentence;
+    // Fuzzy clearly worse on 12 seeds: the sentence must say HIGHER, never "lower".
+    let fuzzy: Vec<f64> = (0..12).map(|i| 110.0 + i as f64).collect();
+    let base: Vec<f64> = (0..12).map(|i| 100.0 + 0.5 * i as f64).collect();
+    let d: Vec<f64> = fuzzy.iter().zip(&base).map(|(a, b)| a - b).collect();
+    let s = comparison_sentence(
+        "back_calculation",
+        "error",
+        &wilcoxon(&fuzzy, &base),
+        &mean_ci(&d),
+    );
+    assert!(s.contains("HIGHER") && s.contains("error term"), "{s}");
+    let s = comparison_sentence(
+        "back_calculation",
+        "G",
+        &wilcoxon(&base, &fuzzy),
+        &mean_ci(&d),
+    );
+    assert!(
+        s.contains("has a lower") && s.contains("eq. 31 index"),
+        "{s}"
+    );
+    // Mixed signs: no claim.
+    let mixed: Vec<f64> = (0..12)
+        .map(|i| 100.0 + if i % 2 == 0 { 1.0 } else { -1.0 } * i as f64)
+        .collect();
+    let flat = vec![100.0; 12];
+    let s = comparison_sentence("none", "G", &wilcoxon(&mixed, &flat), &mean_ci(&d));
+    assert!(s.starts_with("No difference"), "{s}");
+}

@@ -10,7 +10,10 @@
 //!   it against the generic fuzzy network.) Parameters [Kp, Tv, v0e, v1e, v0K/v1K, C_i, C_e].
 //! - `None`: a constant K_i, no anti-windup. Parameters [Kp, Tv, Ki].
 //! - `Clamping`: conditional integration, the integrator holds while the output is saturated and
-//!   the error would drive it further. Parameters [Kp, Tv, Ki].
+//!   the error would drive it further. Parameters [Kp, Tv, Ki]. (The key stays `clamping` for the
+//!   files and JSON that use it; the plain clamp is the next one.)
+//! - `IntegratorClamp`: the plain integrator clamp, the integral state is kept within the output
+//!   limits [u_min, u_max]. Parameters [Kp, Tv, Ki].
 //! - `BackCalculation`: the saturation excess is fed back into the integrator,
 //!   I += Ki e + Kb (u_sat - u_raw). Parameters [Kp, Tv, Ki, Kb].
 //!
@@ -30,13 +33,14 @@ pub enum AntiWindup {
     None,
     Clamping,
     BackCalculation,
+    IntegratorClamp,
 }
 
 impl AntiWindup {
     pub fn n_params(self) -> usize {
         match self {
             AntiWindup::Fuzzy => 7,
-            AntiWindup::None | AntiWindup::Clamping => 3,
+            AntiWindup::None | AntiWindup::Clamping | AntiWindup::IntegratorClamp => 3,
             AntiWindup::BackCalculation => 4,
         }
     }
@@ -47,13 +51,16 @@ impl AntiWindup {
             AntiWindup::None => m::KIND_PID,
             AntiWindup::Clamping => m::KIND_PID_CLAMPING,
             AntiWindup::BackCalculation => m::KIND_PID_BACK_CALCULATION,
+            AntiWindup::IntegratorClamp => m::KIND_PID_INTEGRATOR_CLAMP,
         }
     }
 
     pub fn param_names(self) -> &'static [&'static str] {
         match self {
             AntiWindup::Fuzzy => &["Kp", "Tv", "v0e", "v1e", "v0K/v1K", "C_i", "C_e"],
-            AntiWindup::None | AntiWindup::Clamping => &["Kp", "Tv", "Ki"],
+            AntiWindup::None | AntiWindup::Clamping | AntiWindup::IntegratorClamp => {
+                &["Kp", "Tv", "Ki"]
+            }
             AntiWindup::BackCalculation => &["Kp", "Tv", "Ki", "Kb"],
         }
     }
@@ -64,6 +71,7 @@ impl AntiWindup {
             AntiWindup::None => "none",
             AntiWindup::Clamping => "clamping",
             AntiWindup::BackCalculation => "back_calculation",
+            AntiWindup::IntegratorClamp => "integrator_clamp",
         }
     }
 }
@@ -159,6 +167,10 @@ impl Controller for Pid {
                 if !(pushes_up || pushes_down) {
                     self.integral += di;
                 }
+                (pd + self.integral).clamp(self.u_min, self.u_max)
+            }
+            AntiWindup::IntegratorClamp => {
+                self.integral = (self.integral + di).clamp(self.u_min, self.u_max);
                 (pd + self.integral).clamp(self.u_min, self.u_max)
             }
             AntiWindup::BackCalculation => {

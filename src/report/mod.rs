@@ -4,6 +4,7 @@
 pub mod build;
 pub mod metrics;
 pub mod plot;
+pub mod stats;
 pub mod summary;
 
 use std::io::{BufRead, BufWriter, Write};

@@ -122,12 +122,16 @@ pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, String> {
     Ok(s)
 }
 
-/// The index of eq. 31 and its two parts.
+/// The index of eq. 31 and its parts: G = g_error + g_current, and g_current = g_holding (the
+/// constant holding current over the run, the same for every controller) + g_control (the
+/// current spent beyond it, which can be negative).
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct Cost {
     pub g: f64,
     pub g_error: f64,
     pub g_current: f64,
+    pub g_holding: f64,
+    pub g_control: f64,
 }
 
 /// A closed-loop response: time, reference, output (mm), command (mA).
@@ -181,10 +185,13 @@ pub fn simulate(
         }
         sim.advance(&u, spec.period);
     }
+    let g_holding = n as f64 * hold / 1000.0;
     Some(Cost {
         g: ge + gu,
         g_error: ge,
         g_current: gu,
+        g_holding,
+        g_control: gu - g_holding,
     })
 }
 
@@ -196,7 +203,7 @@ pub fn ranges(aw: AntiWindup) -> (Vec<f64>, Vec<f64>) {
             vec![500.0, 0.01, 0.5, 0.5, 0.5, 0.0, 0.3],
             vec![1500.0, 0.1, 1.2, 1.2, 1.5, 120.0, 1.2],
         ),
-        AntiWindup::None | AntiWindup::Clamping => {
+        AntiWindup::None | AntiWindup::Clamping | AntiWindup::IntegratorClamp => {
             (vec![500.0, 0.01, 0.0], vec![1500.0, 0.1, 120.0])
         }
         AntiWindup::BackCalculation => (vec![500.0, 0.01, 0.0, 0.0], vec![1500.0, 0.1, 120.0, 1.0]),
@@ -266,6 +273,7 @@ pub fn run(run: Run, spec: Spec) -> Result<(), String> {
         AntiWindup::Clamping,
         AntiWindup::BackCalculation,
         AntiWindup::None,
+        AntiWindup::IntegratorClamp,
     ];
     let tuned: Vec<Tuned> = variants
         .iter()
@@ -303,6 +311,7 @@ pub fn run(run: Run, spec: Spec) -> Result<(), String> {
             "clamping": g_of(&tuned[1]),
             "back_calculation": g_of(&tuned[2]),
             "none": g_of(&tuned[3]),
+            "integrator_clamp": g_of(&tuned[4]),
         },
         "variants": tuned.iter().map(|t| json!({
             "anti_windup": t.anti_windup.name(),
@@ -506,4 +515,250 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
         None,
         None,
     )
+}
+
+/// The variants of the multi-seed study: fuzzy anti-windup and the four baselines.
+pub const STUDY_VARIANTS: [AntiWindup; 5] = [
+    AntiWindup::Fuzzy,
+    AntiWindup::None,
+    AntiWindup::IntegratorClamp,
+    AntiWindup::Clamping,
+    AntiWindup::BackCalculation,
+];
+
+/// One comparison of fuzzy anti-windup against a baseline on one part of eq. 31, over seeds.
+#[derive(Debug, Clone, Serialize)]
+pub struct Comparison {
+    pub baseline: &'static str,
+    /// "G", "error", "control".
+    pub part: &'static str,
+    /// Paired test of fuzzy against the baseline (a = fuzzy).
+    pub wilcoxon: crate::report::stats::Wilcoxon,
+    /// Mean of (fuzzy - baseline) over the seeds where both kept the ball, with its 95 % interval.
+    pub difference: crate::report::stats::MeanCi,
+    pub sentence: String,
+}
+
+/// The sentence a comparison supports, from its own numbers: lower/higher only when the paired
+/// test says so at the 5 % level, otherwise no difference shown.
+pub fn comparison_sentence(
+    baseline: &str,
+    part: &str,
+    w: &crate::report::stats::Wilcoxon,
+    d: &crate::report::stats::MeanCi,
+) -> String {
+    let what = match part {
+        "G" => "eq. 31 index G".to_string(),
+        p => format!("{p} term of eq. 31"),
+    };
+    let p = if w.p_two_sided >= 0.001 {
+        format!("{:.3}", w.p_two_sided)
+    } else {
+        format!("{:.1e}", w.p_two_sided)
+    };
+    let numbers = format!(
+        "fuzzy lower in {} of {} seeds, mean difference {:+.2} (95 % CI {:+.2} .. {:+.2}), Wilcoxon p = {p}",
+        w.a_lower, w.n, d.mean, d.ci95[0], d.ci95[1]
+    );
+    if w.p_two_sided < 0.05 && w.w_plus < w.w_minus {
+        format!("Fuzzy anti-windup has a lower {what} than {baseline} ({numbers}).")
+    } else if w.p_two_sided < 0.05 {
+        format!("Fuzzy anti-windup has a HIGHER {what} than {baseline} ({numbers}).")
+    } else {
+        format!("No difference in the {what} between fuzzy anti-windup and {baseline} is shown at the 5 % level ({numbers}).")
+    }
+}
+
+/// `evoloop tune config/maglev_tune.toml --seeds 1..20`: for every seed, each variant tuned with
+/// the same GA budget (tuning noise = the seed) and scored on the test run (noise seed + 1000);
+/// per variant the mean and 95 % interval of G and its parts; fuzzy against each baseline by a
+/// paired Wilcoxon test on G, the error term and the control term. Writes `seeds.csv`,
+/// `study.json`, `study.md`, `study_g.png`, `study_error.png`.
+pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
+    use crate::report::stats::{mean_ci, wilcoxon};
+    let n_v = STUDY_VARIANTS.len();
+    // costs[v][s]: None = lost the ball on the test run.
+    let mut costs: Vec<Vec<Option<Cost>>> = vec![Vec::new(); n_v];
+    let mut csv = String::from("seed,variant,G,error,current,holding,control,lost\n");
+    let t0 = std::time::Instant::now();
+    for (k, &seed) in seeds.iter().enumerate() {
+        let mut hybrid = base.hybrid.clone();
+        hybrid.ga.seed = seed;
+        let run = Run {
+            hybrid,
+            out: base.out.clone(),
+            plots: false,
+            json: false,
+            progress: false,
+            seed,
+        };
+        for (v, aw) in STUDY_VARIANTS.iter().enumerate() {
+            let t = tune_variant(&run, &spec, *aw);
+            match t.test {
+                Some(c) => csv.push_str(&format!(
+                    "{seed},{},{},{},{},{},{},0\n",
+                    aw.name(),
+                    c.g,
+                    c.g_error,
+                    c.g_current,
+                    c.g_holding,
+                    c.g_control
+                )),
+                None => csv.push_str(&format!("{seed},{},,,,,,1\n", aw.name())),
+            }
+            costs[v].push(t.test);
+        }
+        if !base.json {
+            eprintln!(
+                "  seed {seed}: {} of {} seeds done ({:.0} s)",
+                k + 1,
+                seeds.len(),
+                t0.elapsed().as_secs_f64()
+            );
+        }
+    }
+    std::fs::write(base.out.join("seeds.csv"), &csv).map_err(|e| e.to_string())?;
+    let part = |c: &Option<Cost>, p: &str| match (c, p) {
+        (None, _) => f64::INFINITY,
+        (Some(c), "G") => c.g,
+        (Some(c), "error") => c.g_error,
+        (Some(c), _) => c.g_control,
+    };
+    let parts = ["G", "error", "control"];
+    // stats[v][p]: mean and interval of part p over the seeds where variant v kept the ball.
+    let stats: Vec<Vec<crate::report::stats::MeanCi>> = (0..n_v)
+        .map(|v| {
+            parts
+                .iter()
+                .map(|p| {
+                    let x: Vec<f64> = costs[v]
+                        .iter()
+                        .map(|c| part(c, p))
+                        .filter(|x| x.is_finite())
+                        .collect();
+                    mean_ci(&x)
+                })
+                .collect()
+        })
+        .collect();
+    let lost: Vec<usize> = costs
+        .iter()
+        .map(|c| c.iter().filter(|c| c.is_none()).count())
+        .collect();
+    let mut variants = serde_json::Map::new();
+    for (v, aw) in STUDY_VARIANTS.iter().enumerate() {
+        let mut m = serde_json::Map::new();
+        for (i, p) in parts.iter().enumerate() {
+            m.insert(p.to_string(), json!(stats[v][i]));
+        }
+        m.insert("lost".into(), json!(lost[v]));
+        variants.insert(aw.name().to_string(), serde_json::Value::Object(m));
+    }
+    let mut comparisons = Vec::new();
+    for (v, aw) in STUDY_VARIANTS.iter().enumerate().skip(1) {
+        for p in parts {
+            let a: Vec<f64> = costs[0].iter().map(|c| part(c, p)).collect();
+            let b: Vec<f64> = costs[v].iter().map(|c| part(c, p)).collect();
+            let w = wilcoxon(&a, &b);
+            let d: Vec<f64> = a
+                .iter()
+                .zip(&b)
+                .map(|(x, y)| x - y)
+                .filter(|x| x.is_finite())
+                .collect();
+            let d = mean_ci(&d);
+            comparisons.push(Comparison {
+                baseline: aw.name(),
+                part: p,
+                sentence: comparison_sentence(aw.name(), p, &w, &d),
+                wilcoxon: w,
+                difference: d,
+            });
+        }
+    }
+    let budget = base.hybrid.ga.population + 2 * base.hybrid.phases.iter().sum::<usize>();
+    let result = json!({
+        "experiment": "maglev",
+        "seeds": seeds,
+        "evaluations_per_variant": budget,
+        "variants": variants,
+        "comparisons": comparisons,
+    });
+    crate::process::write_json(&base.out, "study.json", &result).map_err(|e| e.to_string())?;
+    let mut md = format!(
+        "# Maglev: fuzzy anti-windup against four baselines over {} seeds\n\n\
+         Each controller tuned by the GA with the same budget ({budget} evaluations) on each seed's \
+         noise, scored on a test run (another noise realisation). G = error + current (eq. 31); \
+         current = holding (the constant holding current, the same for every controller) + control.\n\n\
+         | variant | G mean [95 % CI] | error mean [95 % CI] | control mean [95 % CI] | lost the ball |\n|---|---|---|---|---|\n",
+        seeds.len()
+    );
+    for (v, aw) in STUDY_VARIANTS.iter().enumerate() {
+        let f = |m: &crate::report::stats::MeanCi| {
+            format!("{:.2} [{:.2} .. {:.2}]", m.mean, m.ci95[0], m.ci95[1])
+        };
+        md.push_str(&format!(
+            "| {} | {} | {} | {} | {} |\n",
+            aw.name(),
+            f(&stats[v][0]),
+            f(&stats[v][1]),
+            f(&stats[v][2]),
+            lost[v]
+        ));
+    }
+    md.push_str("\nWhat the data show (each sentence computed from the paired test above it):\n\n");
+    for c in &comparisons {
+        md.push_str(&format!("- {}\n", c.sentence));
+    }
+    std::fs::write(base.out.join("study.md"), &md).map_err(|e| e.to_string())?;
+    if base.plots {
+        let xs: Vec<f64> = seeds.iter().map(|s| *s as f64).collect();
+        for (p, file, label) in [
+            ("G", "study_g.png", "G on the test run (eq. 31)"),
+            ("error", "study_error.png", "error term of eq. 31 (mm)"),
+        ] {
+            let curves: Vec<crate::report::plot::Curve> = STUDY_VARIANTS
+                .iter()
+                .enumerate()
+                .map(|(v, aw)| {
+                    let y = costs[v]
+                        .iter()
+                        .map(|c| part(c, p))
+                        .map(|x| if x.is_finite() { x } else { f64::NAN })
+                        .collect();
+                    (aw.name().to_string(), xs.clone(), y)
+                })
+                .collect();
+            crate::report::plot::xy_png(
+                &base.out.join(file),
+                &format!("maglev: {label} per seed, each controller tuned with the same budget"),
+                "seed",
+                label,
+                &crate::report::plot::XySeries::from_curves(
+                    &curves,
+                    crate::report::plot::Style::Points,
+                ),
+                None,
+                None,
+            )?;
+        }
+    }
+    if base.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&result).map_err(|e| e.to_string())?
+        );
+    } else {
+        print!("{md}");
+        println!(
+            "\n  wrote {}/seeds.csv, study.json, study.md{}",
+            base.out.display(),
+            if base.plots {
+                ", study_g.png, study_error.png"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(())
 }

@@ -19,6 +19,10 @@ pub struct TuneArgs {
     /// Seed of the GA (and of the plant's noise) [default: the file's `seed`].
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Several seeds, e.g. `1..20` (inclusive) or `1,4,9`: the multi-seed study (maglev): every
+    /// controller tuned per seed with the same budget, statistics and paired tests over seeds.
+    #[arg(long, value_parser = parse_seeds, conflicts_with = "seed")]
+    pub seeds: Option<Seeds>,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -74,6 +78,30 @@ pub struct Run {
     pub json: bool,
     pub progress: bool,
     pub seed: u64,
+}
+
+/// The seeds of a multi-seed study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Seeds(pub Vec<u64>);
+
+/// `A..B` (inclusive) or a comma-separated list of seeds.
+fn parse_seeds(s: &str) -> Result<Seeds, String> {
+    let seeds: Vec<u64> = if let Some((a, b)) = s.split_once("..") {
+        let a: u64 = a.trim().parse().map_err(|e| format!("`{a}`: {e}"))?;
+        let b: u64 = b.trim().parse().map_err(|e| format!("`{b}`: {e}"))?;
+        (a..=b).collect()
+    } else {
+        s.split(',')
+            .map(|x| x.trim().parse().map_err(|e| format!("`{x}`: {e}")))
+            .collect::<Result<_, _>>()?
+    };
+    if seeds.len() < 2 || seeds.len() > 1000 {
+        return Err(format!(
+            "give 2 to 1000 seeds, e.g. 1..20 (got {})",
+            seeds.len()
+        ));
+    }
+    Ok(Seeds(seeds))
 }
 
 fn bad(file: &Path, key: &str, reason: impl std::fmt::Display) -> String {
@@ -234,11 +262,17 @@ fn tune(a: &TuneArgs) -> Result<(), String> {
                     "not used by the arsinh experiment; remove it",
                 ));
             }
+            if a.seeds.is_some() {
+                return Err("--seeds: the multi-seed study is for the maglev experiment".into());
+            }
             arsinh::run(run)
         }
         Experiment::Maglev => {
             let spec = maglev::spec(&a.file, raw.maglev)?;
-            maglev::run(run, spec)
+            match &a.seeds {
+                Some(seeds) => maglev::study(run, spec, &seeds.0),
+                None => maglev::run(run, spec),
+            }
         }
     }
 }

@@ -1,0 +1,240 @@
+//! Statistics for claims over many seeds: mean with a 95 % t interval, and the paired Wilcoxon
+//! signed-rank test (exact null distribution for up to 30 untied pairs, normal approximation with
+//! tie and continuity corrections beyond that or with ties).
+
+use serde::Serialize;
+
+/// Mean, sample standard deviation and 95 % confidence interval of the mean (Student t).
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct MeanCi {
+    pub n: usize,
+    pub mean: f64,
+    pub std: f64,
+    pub ci95: [f64; 2],
+}
+
+/// t_{0.975, df} for df = 1..=30; beyond, the normal quantile with a 1/df correction.
+fn t975(df: usize) -> f64 {
+    const T: [f64; 30] = [
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
+        2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
+        2.052, 2.048, 2.045, 2.042,
+    ];
+    match df {
+        0 => f64::NAN,
+        1..=30 => T[df - 1],
+        _ => 1.959964 + 2.37 / df as f64,
+    }
+}
+
+pub fn mean_ci(x: &[f64]) -> MeanCi {
+    let n = x.len();
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let var = if n > 1 {
+        x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64
+    } else {
+        f64::NAN
+    };
+    let std = var.sqrt();
+    let half = t975(n.saturating_sub(1)) * std / (n as f64).sqrt();
+    MeanCi {
+        n,
+        mean,
+        std,
+        ci95: [mean - half, mean + half],
+    }
+}
+
+/// A paired Wilcoxon signed-rank test of a against b (differences d = a - b; zero differences
+/// dropped, as Wilcoxon does). `p` is two-sided; `w_minus` small means a is mostly below b.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Wilcoxon {
+    /// Pairs with a non-zero difference.
+    pub n: usize,
+    /// Rank sums of the positive and negative differences.
+    pub w_plus: f64,
+    pub w_minus: f64,
+    pub p_two_sided: f64,
+    /// "exact" or "normal".
+    pub method: &'static str,
+    /// Pairs where a < b, and where a > b.
+    pub a_lower: usize,
+    pub a_higher: usize,
+}
+
+/// Average ranks (1-based) of `v` sorted ascending; ties share their mean rank. Also returns
+/// the tie correction sum of (t^3 - t).
+fn ranks(v: &[f64]) -> (Vec<f64>, f64) {
+    let mut idx: Vec<usize> = (0..v.len()).collect();
+    idx.sort_by(|a, b| v[*a].total_cmp(&v[*b]));
+    let mut r = vec![0.0; v.len()];
+    let mut ties = 0.0;
+    let mut i = 0;
+    while i < idx.len() {
+        let mut j = i;
+        while j + 1 < idx.len() && v[idx[j + 1]] == v[idx[i]] {
+            j += 1;
+        }
+        let avg = (i + j) as f64 / 2.0 + 1.0;
+        for k in &idx[i..=j] {
+            r[*k] = avg;
+        }
+        let t = (j - i + 1) as f64;
+        ties += t * t * t - t;
+        i = j + 1;
+    }
+    (r, ties)
+}
+
+/// Number of subsets of {1..n} with each rank sum (the exact null distribution of W+).
+fn signed_rank_counts(n: usize) -> Vec<f64> {
+    let max = n * (n + 1) / 2;
+    let mut c = vec![0.0; max + 1];
+    c[0] = 1.0;
+    for k in 1..=n {
+        for s in (k..=max).rev() {
+            c[s] += c[s - k];
+        }
+    }
+    c
+}
+
+/// Standard normal upper tail.
+fn normal_sf(z: f64) -> f64 {
+    0.5 * erfc(z / std::f64::consts::SQRT_2)
+}
+
+/// erfc by the Numerical Recipes Chebyshev fit (relative error < 1.2e-7).
+fn erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let r = t
+        * (-z * z - 1.26551223
+            + t * (1.00002368
+                + t * (0.37409196
+                    + t * (0.09678418
+                        + t * (-0.18628806
+                            + t * (0.27886807
+                                + t * (-1.13520398
+                                    + t * (1.48851587 + t * (-0.82215223 + t * 0.17087277)))))))))
+            .exp();
+    if x >= 0.0 {
+        r
+    } else {
+        2.0 - r
+    }
+}
+
+/// Paired Wilcoxon signed-rank test. Infinite values (a failed run) are allowed: a pair where
+/// only one side failed has an infinite difference (the largest rank); both failed is a tie.
+pub fn wilcoxon(a: &[f64], b: &[f64]) -> Wilcoxon {
+    assert_eq!(a.len(), b.len());
+    let d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .filter_map(|(x, y)| {
+            let d = if x == y { 0.0 } else { x - y };
+            (d != 0.0 && !d.is_nan()).then_some(d)
+        })
+        .collect();
+    let n = d.len();
+    let (r, ties) = ranks(&d.iter().map(|v| v.abs()).collect::<Vec<_>>());
+    let w_plus: f64 = d
+        .iter()
+        .zip(&r)
+        .filter(|(v, _)| **v > 0.0)
+        .map(|(_, r)| r)
+        .sum();
+    let total = (n * (n + 1)) as f64 / 2.0;
+    let w_minus = total - w_plus;
+    let a_lower = d.iter().filter(|v| **v < 0.0).count();
+    let (p, method) = if n == 0 {
+        (1.0, "exact")
+    } else if n <= 30 && ties == 0.0 {
+        let c = signed_rank_counts(n);
+        let all = 2f64.powi(n as i32);
+        let w = w_plus.min(w_minus).round() as usize;
+        let tail: f64 = c[..=w].iter().sum::<f64>() / all;
+        ((2.0 * tail).min(1.0), "exact")
+    } else {
+        let mean = total / 2.0;
+        let var = (n * (n + 1) * (2 * n + 1)) as f64 / 24.0 - ties / 48.0;
+        let z = ((w_plus - mean).abs() - 0.5).max(0.0) / var.sqrt();
+        ((2.0 * normal_sf(z)).min(1.0), "normal")
+    };
+    Wilcoxon {
+        n,
+        w_plus,
+        w_minus,
+        p_two_sided: p,
+        method,
+        a_lower,
+        a_higher: n - a_lower,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_differences_one_sign_give_the_smallest_exact_p() {
+        // n = 10, every a below b: W+ = 0, P(W+ <= 0) = 1/2^10, two-sided 2/1024.
+        let a: Vec<f64> = (0..10).map(|i| i as f64).collect();
+        let b: Vec<f64> = (0..10).map(|i| i as f64 + 1.0 + 0.1 * i as f64).collect();
+        let w = wilcoxon(&a, &b);
+        assert_eq!((w.n, w.w_plus, w.w_minus), (10, 0.0, 55.0));
+        assert!((w.p_two_sided - 2.0 / 1024.0).abs() < 1e-15);
+        assert_eq!((w.a_lower, w.a_higher), (10, 0));
+    }
+
+    #[test]
+    fn exact_distribution_matches_enumeration_and_table_values() {
+        // Counts of rank sums for n = 4 by enumerating all 16 sign patterns.
+        let c = signed_rank_counts(4);
+        let mut e = [0.0; 11];
+        for mask in 0..16u32 {
+            let s: usize = (1..=4).filter(|k| mask & (1 << (k - 1)) != 0).sum();
+            e[s] += 1.0;
+        }
+        assert_eq!(c, e.to_vec());
+        // Published critical value: n = 20, two-sided alpha 0.05 -> W = 52 (p just below 0.05),
+        // W = 53 just above.
+        let c = signed_rank_counts(20);
+        let p = |w: usize| 2.0 * c[..=w].iter().sum::<f64>() / 2f64.powi(20);
+        assert!(p(52) < 0.05 && p(53) > 0.05, "{} {}", p(52), p(53));
+    }
+
+    #[test]
+    fn normal_approximation_agrees_with_exact_for_moderate_n_and_handles_failures() {
+        // 30 untied pairs (exact), then the same with two more pairs that tie (normal): p close.
+        let d: Vec<f64> = (0..30)
+            .map(|i| (i + 1) as f64 * if i % 3 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let zero = vec![0.0; 30];
+        let exact = wilcoxon(&d, &zero);
+        assert_eq!(exact.method, "exact");
+        let (mut d2, mut z2) = (d.clone(), zero.clone());
+        d2.extend([-0.5, 0.5]);
+        z2.extend([0.0, 0.0]);
+        let approx = wilcoxon(&d2, &z2);
+        assert_eq!(approx.method, "normal");
+        let ratio = exact.p_two_sided / approx.p_two_sided;
+        assert!((0.67..1.5).contains(&ratio), "{exact:?} {approx:?}");
+        // Failures: a lost run on one side is the largest difference; on both sides a tie.
+        let w = wilcoxon(
+            &[1.0, 2.0, f64::INFINITY],
+            &[f64::INFINITY, 3.0, f64::INFINITY],
+        );
+        assert_eq!((w.n, w.a_lower, w.w_plus), (2, 2, 0.0));
+    }
+
+    #[test]
+    fn mean_ci_uses_the_t_quantile() {
+        let m = mean_ci(&[1.0, 2.0, 3.0, 4.0, 5.0]);
+        assert_eq!(m.mean, 3.0);
+        let half = 2.776 * (2.5f64).sqrt() / 5f64.sqrt();
+        assert!((m.ci95[1] - 3.0 - half).abs() < 1e-12);
+        assert!((erfc(0.0) - 1.0).abs() < 1e-7 && (normal_sf(1.959964) - 0.025).abs() < 1e-6);
+    }
+}
