@@ -109,6 +109,48 @@ fn startup_damping_fades_the_torque_in() {
 }
 
 #[test]
+fn startup_damping_scales_the_law_by_one_minus_exp_of_minus_0_03_k() {
+    // The same controller with and without psi, fed the same state at every sample: the damped
+    // torque is exactly (1 - exp(-0.03 k)) times the undamped one (the paper's Section 5.1).
+    use evoloop::control::computed_torque::ComputedTorque;
+    use evoloop::control::Controller;
+    let model = evoloop::dynamics::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("config/robots/arm3.toml"),
+    )
+    .unwrap();
+    let gains = [400.0, 400.0, 400.0, 40.0, 40.0, 40.0];
+    let mut damped = ComputedTorque::new(model.clone(), &gains, 0.03);
+    let mut plain = ComputedTorque::new(model, &gains, 0.0);
+    let mut state = evoloop::ipc::messages::PlantState::default();
+    let mut sp = evoloop::reference::Setpoint::default();
+    for k in 0..300u64 {
+        let t = k as f64 * 1e-3;
+        for i in 0..3 {
+            state.y[i] = 0.1 * (t + i as f64).sin();
+            state.qd[i] = 0.1 * (t + i as f64).cos();
+            sp.q[i] = 0.12 * (t + i as f64).sin();
+            sp.qd[i] = 0.12 * (t + i as f64).cos();
+        }
+        let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
+        damped.step(&state, &sp, &mut a);
+        plain.step(&state, &sp, &mut b);
+        let psi = 1.0 - (-0.03 * k as f64).exp();
+        for i in 0..3 {
+            assert!(
+                (a[i] - psi * b[i]).abs() <= 1e-12 * b[i].abs().max(1.0),
+                "k {k} joint {i}: {} vs psi {psi} x {}",
+                a[i],
+                b[i]
+            );
+        }
+        if k == 100 {
+            // 1 - e^-3 = 0.950: 95 % of the torque after 100 samples.
+            assert!((psi - 0.950_212_9).abs() < 1e-6);
+        }
+    }
+}
+
+#[test]
 fn the_arm_scenario_through_the_processes_equals_the_in_process_simulation() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");

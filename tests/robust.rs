@@ -110,7 +110,7 @@ fn hinf_norm_of_a_first_and_second_order_system_is_analytic() {
 #[test]
 fn the_table_9_defc_gains_are_stable_and_in_the_wedge_at_k_half() {
     let prob = RobustProblem::paper();
-    let ev = prob.evaluate(&[18.49, 19.04, 47.27, 7.30, -10.54]);
+    let ev = prob.evaluate(&[18.49, 19.04, 47.27, 7.30, -10.54]).unwrap();
     assert!(ev.in_wedge, "{ev:?}");
     assert!(
         ev.stability_radius > 0.3 && ev.stability_radius < 0.34,
@@ -120,6 +120,7 @@ fn the_table_9_defc_gains_are_stable_and_in_the_wedge_at_k_half() {
     // An unstable gain set has r_c = 0.
     assert_eq!(
         prob.evaluate(&[8.96, 20.89, 5.95, 6.54, -31.62])
+            .unwrap()
             .stability_radius,
         0.0
     );
@@ -153,7 +154,7 @@ fn de_finds_the_box_constrained_optimum_in_at_least_14_of_15_seeded_runs() {
         cfg.diversity_stop = false;
         let mut de = DifferentialEvolution::new(cfg).unwrap();
         let r = run(&mut de, &prob, 2, 1000, Some(-0.3489), |_| {});
-        let ev = prob.evaluate(&r.best);
+        let ev = prob.evaluate(&r.best).unwrap();
         if ev.in_wedge && ev.stability_radius >= 0.3489 {
             assert!(
                 r.best[2] > 49.5,
@@ -178,7 +179,7 @@ fn the_diversity_rule_stops_de_before_the_iteration_limit() {
     let r = run(&mut de, &f, 2, 1000, None, |_| {});
     assert_eq!(r.stopped_by, "converged");
     assert!(r.generations >= 100 && r.generations < 1000);
-    assert!(prob.evaluate(&r.best).in_wedge);
+    assert!(prob.evaluate(&r.best).unwrap().in_wedge);
 }
 
 #[test]
@@ -237,7 +238,13 @@ fn the_tuned_and_paper_gains_stabilise_the_plant_over_the_whole_spring_range() {
             );
         }
     }
-    assert!(RobustProblem::paper().evaluate(&tuned).stability_radius >= 0.3489);
+    assert!(
+        RobustProblem::paper()
+            .evaluate(&tuned)
+            .unwrap()
+            .stability_radius
+            >= 0.3489
+    );
 }
 
 #[test]
@@ -283,4 +290,23 @@ fn the_hqr_eigenvalues_match_the_schur_decomposition() {
             theirs.remove(i);
         }
     }
+}
+
+#[test]
+fn a_radius_that_cannot_be_computed_is_an_error_not_zero() {
+    use evoloop::robust::stability_radius::{stability_radius, HinfError};
+    use nalgebra::DMatrix;
+    let stable = DMatrix::from_row_slice(2, 2, &[-1.0, 0.0, 0.0, -2.0]);
+    let eye = DMatrix::<f64>::identity(2, 2);
+    // r_c of a stable loop is 1 / ||(sI - A)^-1|| = 1 here (peak at w = 0, gain 1).
+    assert!((stability_radius(&stable, &eye, &eye).unwrap() - 1.0).abs() < 1e-9);
+    // Not Hurwitz: r_c = 0 by definition, not an error.
+    let unstable = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, -2.0]);
+    assert_eq!(stability_radius(&unstable, &eye, &eye), Ok(0.0));
+    // Not computable (inconsistent perturbation structure): an error, never a silent 0.
+    let bad = DMatrix::<f64>::identity(3, 3);
+    assert!(matches!(
+        stability_radius(&stable, &bad, &eye),
+        Err(HinfError::Dimensions(_))
+    ));
 }

@@ -193,7 +193,13 @@ fn radius(a: RadiusArgs) -> i32 {
         Ok(p) => p,
         Err(e) => return usage(&e),
     };
-    let ev = prob.evaluate(&a.gains);
+    let ev = match prob.evaluate(&a.gains) {
+        Ok(ev) => ev,
+        Err(e) => {
+            eprintln!("evoloop robust radius: {e}");
+            return 1;
+        }
+    };
     if a.json {
         println!(
             "{}",
@@ -248,8 +254,10 @@ fn lqr_cmd(a: LqrArgs) -> i32 {
         },
         1e9,
     )
-    .evaluate(&k)
-    .poles;
+    .poles(&k)
+    .iter()
+    .map(|p| (p.re, p.im))
+    .collect::<Vec<_>>();
     if a.json {
         println!(
             "{}",
@@ -308,7 +316,13 @@ fn tune(a: TuneArgs) -> i32 {
     if bar {
         eprintln!();
     }
-    let ev = prob.evaluate(&r.best);
+    let ev = match prob.evaluate(&r.best) {
+        Ok(ev) => ev,
+        Err(e) => {
+            eprintln!("evoloop robust tune: the best set's {e}");
+            return 1;
+        }
+    };
     if a.json {
         println!(
             "{}",

@@ -15,7 +15,7 @@
 
 use super::eigen::eig;
 use super::pole_region::Wedge;
-use super::stability_radius::{hinf_from_poles, stability_radius, Bounded};
+use super::stability_radius::{hinf_from_poles, stability_radius, Bounded, HinfError};
 use crate::optim::Objective;
 use crate::plant::two_mass::{Sensor, TwoMass};
 use nalgebra::{Complex, DMatrix};
@@ -158,22 +158,24 @@ impl RobustProblem {
             Ok(Bounded::Exact(n, _)) if n > 0.0 => -1.0 / n,
             Ok(Bounded::Exact(..)) => f64::NEG_INFINITY,
             Ok(Bounded::Above(lb)) => -1.0 / lb,
-            Err(_) => 0.0,
+            // Not computable: the candidate is refused (+inf never wins a DE selection) rather
+            // than scored as r_c = 0, which would rank it above every infeasible candidate.
+            Err(_) => f64::INFINITY,
         }
     }
 
-    /// Full evaluation for reports.
-    pub fn evaluate(&self, gains: &[f64]) -> Evaluation {
+    /// Full evaluation for reports; an error when r_c cannot be computed.
+    pub fn evaluate(&self, gains: &[f64]) -> Result<Evaluation, HinfError> {
         let acl = self.closed_loop(gains);
         let poles = eig(&acl);
         let f = self.wedge.total_distance(&poles);
-        let rc = stability_radius(&acl, &self.e, &self.h);
-        Evaluation {
+        let rc = stability_radius(&acl, &self.e, &self.h)?;
+        Ok(Evaluation {
             poles: poles.iter().map(|p| (p.re, p.im)).collect(),
             wedge_distance: f,
             in_wedge: f == 0.0,
             stability_radius: rc,
             objective: if f > 0.0 { f } else { -rc },
-        }
+        })
     }
 }

@@ -266,12 +266,17 @@ fn refine_peak(g: &Transfer, start: (f64, f64)) -> (f64, f64) {
 }
 
 /// Complex stability radius of the closed loop A under perturbations E Delta H; 0 if A is not
-/// Hurwitz.
-pub fn stability_radius(a: &DMatrix<f64>, e: &DMatrix<f64>, h: &DMatrix<f64>) -> f64 {
+/// Hurwitz (by definition), an error if the norm cannot be computed (never a silent 0).
+pub fn stability_radius(
+    a: &DMatrix<f64>,
+    e: &DMatrix<f64>,
+    h: &DMatrix<f64>,
+) -> Result<f64, HinfError> {
     match hinf_norm(a, e, h) {
-        Ok((n, _)) if n > 0.0 => 1.0 / n,
-        Ok(_) => f64::INFINITY,
-        Err(_) => 0.0,
+        Ok((n, _)) if n > 0.0 => Ok(1.0 / n),
+        Ok(_) => Ok(f64::INFINITY),
+        Err(HinfError::NotStable) => Ok(0.0),
+        Err(e) => Err(e),
     }
 }
 
