@@ -133,6 +133,87 @@ fn study_writes_the_report_data_and_figures() {
     }
     let runs = std::fs::read_to_string(out.join("runs.csv")).unwrap();
     assert_eq!(runs.lines().count(), 1 + 4 * 2, "one row per run");
+    // Counts come from the run, not from the paper's set-up.
+    assert!(
+        report.contains("over 2 seeded runs per setting"),
+        "{report}"
+    );
+    assert!(!report.contains("15 runs") && !report.contains("15 DE runs"));
+    // The conclusion names the setting this run's own data rank best.
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("study.json")).unwrap()).unwrap();
+    let best = v["settings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .min_by(|a, b| {
+            a["mean"]
+                .as_f64()
+                .unwrap()
+                .total_cmp(&b["mean"].as_f64().unwrap())
+        })
+        .unwrap();
+    let named = format!(
+        "lowest mean f(X) came from F = {}, CR = {}",
+        best["f"], best["cr"]
+    );
+    assert!(report.contains(&named), "{named} not in the report");
+}
+
+#[test]
+fn the_study_conclusion_follows_the_numbers_not_the_paper() {
+    use evoloop::robust::study::{conclusions, SettingStats};
+    // Synthetic settings in which F = 0.9, CR = 0.9 is best on the mean and the steadiest, and no
+    // run reaches the optimum: the text must say so, and that the paper's finding is not repeated.
+    let setting = |f: f64, cr: f64, values: Vec<f64>| {
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let std = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        SettingStats {
+            f,
+            cr,
+            mean,
+            median: mean,
+            std,
+            min: values.iter().copied().fold(f64::INFINITY, f64::min),
+            max: values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            mean_iterations: 300.0,
+            mean_seconds: 0.25,
+            runs: Vec::new(),
+            values,
+        }
+    };
+    let settings = vec![
+        setting(0.5, 0.5, vec![-0.30, -0.32, -0.28]),
+        setting(0.9, 0.5, vec![-0.29, -0.31, 0.05]),
+        setting(0.5, 0.9, vec![-0.31, -0.33, -0.27]),
+        setting(0.9, 0.9, vec![-0.340, -0.341, -0.339]),
+    ];
+    let text = conclusions(&settings);
+    assert!(
+        text.contains("lowest mean f(X) came from F = 0.9, CR = 0.9"),
+        "{text}"
+    );
+    assert!(
+        text.contains("smallest spread from F = 0.9, CR = 0.9"),
+        "{text}"
+    );
+    assert!(text.contains("agrees on neither"), "{text}");
+    assert!(text.contains("12 of 12 runs stopped short"), "{text}");
+    assert!(
+        text.contains("1 run(s) ended infeasible") && text.contains("F = 0.9, CR = 0.5: 1"),
+        "{text}"
+    );
+    assert!(text.contains("0.25 s on average"), "{text}");
+    assert!(!text.contains("As in the paper"), "{text}");
+    // And when the paper's setting wins both, the text agrees.
+    let mut paper_like = settings.clone();
+    paper_like[2] = setting(0.5, 0.9, vec![-0.3489, -0.3488, -0.3489]);
+    let text = conclusions(&paper_like);
+    assert!(
+        text.contains("came from F = 0.5, CR = 0.9") && text.contains("agrees on both counts"),
+        "{text}"
+    );
 }
 
 #[test]
