@@ -159,9 +159,14 @@ fn measure_floor(period: f64, duration: f64, fifo: Option<i32>) -> FloorReport {
             cpu: None,
         });
         let late = sleep_loop_lateness(period_ns, cycles);
+        let lost_periods = late
+            .iter()
+            .map(|l| (l.max(&0) / period_ns as i64) as u64)
+            .sum();
         FloorReport {
             period_s: period,
             rt,
+            lost_periods,
             lateness: Percentiles::from_samples(late),
             ..Default::default()
         }

@@ -204,10 +204,12 @@ fn the_industrial_arm_runs_at_one_kilohertz_in_realtime_mode() {
     ));
     let s = json(&out.join("summary.json"));
     assert_eq!(s["mode"], "realtime");
-    let samples = s["samples"].as_u64().unwrap();
-    // It ran at the rate (a sanity check, not a timing figure: the other tests of this binary
-    // load the 2 vCPUs meanwhile, and missed periods are skipped, not caught up).
-    assert!(samples >= 2000, "{samples} cycles in 3 s at 1 kHz");
+    // It kept its rate, judged by the same run's floor (the other tests of this binary load the
+    // 2 vCPUs meanwhile; the floor measures what that costs any loop). This replaces the fixed
+    // 2000-of-3000-cycles bound an earlier session had loosened from 2900.
+    if let Err(line) = rate_kept(&s, 3.0) {
+        panic!("the 6-DOF controller did not keep its rate: {line}");
+    }
     // Tracking is judged loosely here (a noisy shared VM can miss deadlines); the lockstep test
     // above pins the numbers.
     let rms = s["tracking_after_1s"]["rms_all"].as_f64().unwrap();

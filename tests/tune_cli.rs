@@ -175,8 +175,11 @@ fn the_maglev_scenario_runs_in_lockstep_like_the_in_process_simulation_and_in_re
     ));
     let s = json(&out.join("summary.json"));
     assert_eq!(s["mode"], "realtime");
-    // A sanity check of the rate, not a timing figure (the other tests here load the CPUs).
-    assert!(s["samples"].as_u64().unwrap() >= 1300);
+    // It kept its rate, judged by the same run's floor (replaces the fixed 1300-of-2000 bound
+    // an earlier session had loosened from 1900).
+    if let Err(line) = rate_kept(&s, 2.0) {
+        panic!("the maglev controller did not keep its rate: {line}");
+    }
 }
 
 #[test]

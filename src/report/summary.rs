@@ -79,6 +79,11 @@ pub struct FloorReport {
     pub period_s: f64,
     pub rt: RtGranted,
     pub lateness: Percentiles,
+    /// Whole periods the bare loop lost (sum over its cycles of floor(lateness / period)): what
+    /// the machine alone costs a loop at this rate and priority, the yardstick for judging
+    /// whether the controller kept its rate.
+    #[serde(default)]
+    pub lost_periods: u64,
     /// Controller lateness percentile over the floor's, same run.
     pub ratio_p50: f64,
     pub ratio_p99: f64,

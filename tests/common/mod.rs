@@ -221,3 +221,70 @@ pub fn stdout_json(o: &Output) -> serde_json::Value {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     serde_json::from_slice(&o.stdout).expect("JSON on stdout")
 }
+
+/// Whether a realtime run kept its rate: the controller cycles it executed against the periods
+/// of `duration_s`, allowing the periods a bare sleep loop at the same rate and priority lost in
+/// the same run (`floor.lost_periods`, scaled to the run's length, tripled) plus 1 %. A loaded
+/// machine widens the allowance only as far as it measurably slows any loop; a controller that
+/// runs at half its rate fails it on any machine where a bare loop keeps its rate.
+pub fn rate_kept(s: &serde_json::Value, duration_s: f64) -> Result<String, String> {
+    let period = s["floor"]["period_s"]
+        .as_f64()
+        .ok_or("no floor in the summary: set timing.measure_floor = true")?;
+    let floor_cycles = s["floor"]["lateness"]["count"]
+        .as_f64()
+        .unwrap_or(0.0)
+        .max(1.0);
+    let floor_lost = s["floor"]["lost_periods"].as_f64().unwrap_or(0.0) / floor_cycles;
+    let periods = duration_s / period;
+    let executed = s["samples"].as_f64().unwrap_or(0.0);
+    let allowed = 0.01 + 3.0 * floor_lost;
+    let fraction = executed / periods;
+    let line = format!(
+        "{executed} cycles of {periods} periods ({:.1} %), allowed loss {:.1} % (floor lost {:.2} % of its periods)",
+        100.0 * fraction,
+        100.0 * allowed,
+        100.0 * floor_lost
+    );
+    if fraction >= 1.0 - allowed {
+        Ok(line)
+    } else {
+        Err(line)
+    }
+}
+
+/// Start a run whose launcher prints progress, and wait until the controller's loop is running
+/// (the first progress line, which needs telemetry from a cycle). Returns the launcher.
+pub fn spawn_run_and_wait_for_the_loop(
+    config: &Path,
+    out: &Path,
+    prefix: &str,
+    run_id: &str,
+) -> std::process::Child {
+    use std::io::BufRead;
+    let mut child = Command::new(evoloop())
+        .arg("run")
+        .arg(config)
+        .arg("--out")
+        .arg(out)
+        .args(["--ipc-prefix", prefix, "--run-id", run_id])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start evoloop");
+    let stderr = child.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
+            if line.trim_start().starts_with("t =") {
+                let _ = tx.send(());
+            }
+        }
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(20))
+        .expect("the controller loop did not report running within 20 s");
+    child
+}
