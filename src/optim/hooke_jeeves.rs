@@ -3,6 +3,7 @@
 //! pattern moves along the last improvement, step halved when nothing improves. Bounded by
 //! clamping to the box.
 
+use super::Optimiser;
 use serde::Serialize;
 
 #[derive(Debug, Clone, Serialize)]
@@ -42,7 +43,8 @@ impl HookeJeeves {
     }
 
     /// As `minimise`, with the value at x0 already known (`f0`, not re-evaluated when x0 is
-    /// inside the box). At most `max_evaluations` calls of `f`.
+    /// inside the box). At most `max_evaluations` calls of `f`. Drives `HjSearch`, the ask/tell
+    /// form.
     pub fn minimise_from(
         &self,
         f: impl Fn(&[f64]) -> f64,
@@ -51,94 +53,282 @@ impl HookeJeeves {
         lower: &[f64],
         upper: &[f64],
     ) -> LocalResult {
+        let mut s = HjSearch::new(self, x0, f0, lower, upper);
+        while !s.converged() {
+            let v: Vec<f64> = s.ask().iter().map(|x| f(x)).collect();
+            s.tell(&v);
+        }
+        LocalResult {
+            x: s.base.clone(),
+            value: s.fbase,
+            evaluations: s.evaluations,
+        }
+    }
+}
+
+/// Where an exploratory sweep is going, and what happens when it ends.
+#[derive(Debug, Clone)]
+enum Context {
+    /// Around the base point: on success a pattern move follows, otherwise the steps halve.
+    Base,
+    /// Around a pattern point: on success another pattern move, otherwise a new iteration.
+    Pattern,
+}
+
+#[derive(Debug, Clone)]
+enum Phase {
+    /// The value of the (clamped) starting point is wanted.
+    Start,
+    /// An exploratory sweep: point `p` with value `fp`, probing coordinate `i` in direction
+    /// `dir` (0: +step, 1: -step); `old` is p[i] before the probe.
+    Explore {
+        ctx: Context,
+        p: Vec<f64>,
+        fp: f64,
+        i: usize,
+        dir: usize,
+        old: f64,
+    },
+    /// The pattern point q = 2 base - prev is being evaluated.
+    Pattern {
+        q: Vec<f64>,
+    },
+    Done,
+}
+
+/// Hooke-Jeeves as an ask/tell optimiser (one candidate per `ask`), making exactly the
+/// evaluations of the loop form: exploratory moves of +-step per coordinate, pattern moves while
+/// they pay, steps halved when nothing improves; the budget is strict.
+pub struct HjSearch {
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    width: Vec<f64>,
+    step: Vec<f64>,
+    min_step: f64,
+    max_evaluations: usize,
+    base: Vec<f64>,
+    fbase: f64,
+    evaluations: usize,
+    phase: Phase,
+    asked: Vec<Vec<f64>>,
+}
+
+impl HjSearch {
+    pub fn new(
+        cfg: &HookeJeeves,
+        x0: &[f64],
+        f0: Option<f64>,
+        lower: &[f64],
+        upper: &[f64],
+    ) -> Self {
         let d = x0.len();
         let width: Vec<f64> = (0..d).map(|i| upper[i] - lower[i]).collect();
-        let mut step: Vec<f64> = width.iter().map(|w| w * self.initial_step).collect();
-        let clamp = |x: &mut [f64]| {
-            for i in 0..d {
-                x[i] = x[i].clamp(lower[i], upper[i]);
-            }
+        let base: Vec<f64> = (0..d).map(|i| x0[i].clamp(lower[i], upper[i])).collect();
+        let known = f0.filter(|_| base == x0);
+        let mut s = Self {
+            step: width.iter().map(|w| w * cfg.initial_step).collect(),
+            width,
+            lower: lower.to_vec(),
+            upper: upper.to_vec(),
+            min_step: cfg.min_step,
+            max_evaluations: cfg.max_evaluations,
+            fbase: known.unwrap_or(f64::INFINITY),
+            base,
+            evaluations: 0,
+            phase: Phase::Start,
+            asked: Vec::new(),
         };
-        let evals = std::cell::Cell::new(0usize);
-        // The budget is strict: past it every probe counts as "no better" without evaluating.
-        let eval = |x: &[f64]| {
-            if evals.get() >= self.max_evaluations {
-                return f64::INFINITY;
+        if known.is_some() {
+            s.phase = s.explore(Context::Base, s.base.clone(), s.fbase);
+        }
+        s.advance();
+        s
+    }
+
+    /// A new sweep around `x` (value fx), positioned before its first probe.
+    fn explore(&self, ctx: Context, x: Vec<f64>, fx: f64) -> Phase {
+        let old = x.first().copied().unwrap_or(0.0);
+        Phase::Explore {
+            ctx,
+            p: x,
+            fp: fx,
+            i: 0,
+            dir: 0,
+            old,
+        }
+    }
+
+    /// After an outer iteration: stop on the budget, else sweep around the base again.
+    fn next_iteration(&self) -> Phase {
+        if self.evaluations >= self.max_evaluations {
+            Phase::Done
+        } else {
+            self.explore(Context::Base, self.base.clone(), self.fbase)
+        }
+    }
+
+    /// A sweep has ended at (p, fp): the loop form's continuation.
+    fn swept(&mut self, ctx: Context, p: Vec<f64>, fp: f64) -> Phase {
+        match ctx {
+            Context::Base if fp < self.fbase => {
+                let prev = std::mem::replace(&mut self.base, p);
+                self.fbase = fp;
+                self.pattern(prev)
             }
-            evals.set(evals.get() + 1);
-            let v = f(x);
-            if v.is_nan() {
-                f64::INFINITY
-            } else {
-                v
-            }
-        };
-        let mut base = x0.to_vec();
-        clamp(&mut base);
-        let mut fbase = match f0 {
-            Some(v) if base == x0 => v,
-            _ => eval(&base),
-        };
-        // Exploratory moves around `x` (value fx); returns the improved point and value.
-        let explore = |x: &[f64], fx: f64, step: &[f64], eval: &dyn Fn(&[f64]) -> f64| {
-            let mut p = x.to_vec();
-            let mut fp = fx;
-            for i in 0..d {
-                for dir in [1.0, -1.0] {
-                    let old = p[i];
-                    p[i] = (old + dir * step[i]).clamp(lower[i], upper[i]);
-                    if p[i] == old {
-                        continue;
-                    }
-                    let v = eval(&p);
-                    if v < fp {
-                        fp = v;
-                        break;
-                    }
-                    p[i] = old;
-                }
-            }
-            (p, fp)
-        };
-        loop {
-            let (p, fp) = explore(&base, fbase, &step, &eval);
-            if fp < fbase {
-                // Pattern moves while they keep paying off.
-                let mut prev = base.clone();
-                base = p;
-                fbase = fp;
-                loop {
-                    let mut q: Vec<f64> = (0..d).map(|i| 2.0 * base[i] - prev[i]).collect();
-                    clamp(&mut q);
-                    let fq = eval(&q);
-                    let (r, fr) = explore(&q, fq, &step, &eval);
-                    if fr < fbase {
-                        prev = std::mem::replace(&mut base, r);
-                        fbase = fr;
-                    } else {
-                        break;
-                    }
-                }
-            } else {
+            Context::Base => {
                 let mut all_small = true;
-                for i in 0..d {
-                    step[i] *= 0.5;
-                    if step[i] > self.min_step * width[i] {
+                for i in 0..self.step.len() {
+                    self.step[i] *= 0.5;
+                    if self.step[i] > self.min_step * self.width[i] {
                         all_small = false;
                     }
                 }
                 if all_small {
-                    break;
+                    Phase::Done
+                } else {
+                    self.next_iteration()
                 }
             }
-            if evals.get() >= self.max_evaluations {
-                break;
+            Context::Pattern if fp < self.fbase => {
+                let prev = std::mem::replace(&mut self.base, p);
+                self.fbase = fp;
+                self.pattern(prev)
+            }
+            Context::Pattern => self.next_iteration(),
+        }
+    }
+
+    fn pattern(&self, prev: Vec<f64>) -> Phase {
+        let q: Vec<f64> = (0..self.base.len())
+            .map(|i| (2.0 * self.base[i] - prev[i]).clamp(self.lower[i], self.upper[i]))
+            .collect();
+        Phase::Pattern { q }
+    }
+
+    /// The point the current phase wants evaluated, moving past sweeps' probes that clamping
+    /// makes empty and past sweeps that end; None when done.
+    fn probe(&mut self) -> Option<Vec<f64>> {
+        loop {
+            match &mut self.phase {
+                Phase::Done => return None,
+                Phase::Start => return Some(self.base.clone()),
+                Phase::Pattern { q, .. } => return Some(q.clone()),
+                Phase::Explore { p, i, dir, old, .. } => {
+                    if *i < p.len() {
+                        let step = if *dir == 0 {
+                            self.step[*i]
+                        } else {
+                            -self.step[*i]
+                        };
+                        *old = p[*i];
+                        let x = (*old + step).clamp(self.lower[*i], self.upper[*i]);
+                        if x == *old {
+                            Self::next_direction(i, dir);
+                            continue;
+                        }
+                        let mut c = p.clone();
+                        c[*i] = x;
+                        return Some(c);
+                    }
+                    let Phase::Explore { ctx, p, fp, .. } =
+                        std::mem::replace(&mut self.phase, Phase::Done)
+                    else {
+                        unreachable!()
+                    };
+                    self.phase = self.swept(ctx, p, fp);
+                }
             }
         }
-        LocalResult {
-            x: base,
-            value: fbase,
-            evaluations: evals.get(),
+    }
+
+    fn next_direction(i: &mut usize, dir: &mut usize) {
+        if *dir == 0 {
+            *dir = 1;
+        } else {
+            *dir = 0;
+            *i += 1;
         }
+    }
+
+    /// Take the value `v` of the probe `x` (NaN counts as infinite).
+    fn take(&mut self, x: Vec<f64>, v: f64) {
+        let v = if v.is_nan() { f64::INFINITY } else { v };
+        match std::mem::replace(&mut self.phase, Phase::Done) {
+            Phase::Start => {
+                self.fbase = v;
+                self.phase = self.explore(Context::Base, self.base.clone(), v);
+            }
+            Phase::Pattern { q } => {
+                self.phase = self.explore(Context::Pattern, q, v);
+            }
+            Phase::Explore {
+                ctx,
+                mut p,
+                mut fp,
+                mut i,
+                mut dir,
+                old,
+            } => {
+                if v < fp {
+                    fp = v;
+                    p[i] = x[i];
+                    i += 1;
+                    dir = 0;
+                } else {
+                    p[i] = old;
+                    Self::next_direction(&mut i, &mut dir);
+                }
+                self.phase = Phase::Explore {
+                    ctx,
+                    p,
+                    fp,
+                    i,
+                    dir,
+                    old,
+                };
+            }
+            Phase::Done => {}
+        }
+    }
+
+    /// Find the next probe; past the budget a probe counts as "no better" without evaluating,
+    /// exactly as in the loop form, until the outer iteration ends.
+    fn advance(&mut self) {
+        self.asked.clear();
+        while let Some(x) = self.probe() {
+            if self.evaluations < self.max_evaluations {
+                self.asked.push(x);
+                return;
+            }
+            self.take(x, f64::INFINITY);
+        }
+    }
+}
+
+impl Optimiser for HjSearch {
+    fn ask(&mut self) -> &[Vec<f64>] {
+        &self.asked
+    }
+    fn candidates(&self) -> &[Vec<f64>] {
+        &self.asked
+    }
+    fn tell(&mut self, values: &[f64]) {
+        if let (Some(x), Some(v)) = (self.asked.first().cloned(), values.first()) {
+            self.evaluations += 1;
+            self.take(x, *v);
+        }
+        self.advance();
+    }
+    fn best(&self) -> (&[f64], f64) {
+        (&self.base, self.fbase)
+    }
+    fn generation(&self) -> usize {
+        self.evaluations
+    }
+    fn evaluations(&self) -> usize {
+        self.evaluations
+    }
+    fn converged(&self) -> bool {
+        matches!(self.phase, Phase::Done) && self.asked.is_empty()
     }
 }

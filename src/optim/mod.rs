@@ -9,7 +9,7 @@ pub mod hybrid;
 
 pub use de::{DeConfig, DifferentialEvolution};
 pub use ga::{Ga, GaConfig};
-pub use hooke_jeeves::{HookeJeeves, LocalResult};
+pub use hooke_jeeves::{HjSearch, HookeJeeves, LocalResult};
 
 use std::time::Instant;
 
