@@ -311,7 +311,10 @@ fn run(a: RunArgs) -> ExitCode {
                 continue;
             }
             if let Ok(Some(status)) = c.try_wait() {
+                // Not once the plant has ended: there is no run left to rejoin.
+                let plant_running = !exited[0];
                 let restartable = *name == "evoloop-optimiser"
+                    && plant_running
                     && !status.success()
                     && !interrupted
                     && stop_sent.is_none()

@@ -316,7 +316,7 @@ fn ping_evoloop(
     let busy = v.busy();
     let cmd = ipc.subscriber::<Command>(Topic::Command, 4, !busy)?;
     let state = ipc.publisher::<PlantState>(Topic::State, !busy)?;
-    wait_connected(|| state.subscribers() >= 1 && cmd.peer_publishers() >= 1)?;
+    wait_connected(|| state.subscribers() >= 1 && cmd.publishers() >= 1)?;
     let mut msg = PlantState {
         n_x: 4,
         n_y: 1,

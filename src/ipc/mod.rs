@@ -457,9 +457,4 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
             }
         }
     }
-
-    /// Number of publishers currently connected to this topic.
-    pub fn peer_publishers(&self) -> usize {
-        self.service.dynamic_config().number_of_publishers()
-    }
 }

@@ -60,8 +60,11 @@ pub fn main(args: &ProcessArgs) {
     if scn.timing.mode == Mode::Realtime {
         report.rt = apply_privileges(&scn.plant_rt());
     }
-    // Start only when the controller and the optimiser have subscribed to the state (each
-    // creates that subscriber last, after all its other ports).
+    // Start only when the controller and the optimiser have subscribed to the state and the
+    // optimiser's acknowledgement publisher exists (it creates that last). Without the latter a
+    // lockstep plant would not wait for the optimiser and could finish a short run before a
+    // starved optimiser ever received: samples of a publisher that is gone before the
+    // subscriber's first receive are lost, the end sample with them.
     wait_for_peers(&ports, &stop, scn.timing.lockstep_timeout.max(10.0));
     let t0 = Instant::now();
     let result = match scn.timing.mode {
@@ -80,7 +83,10 @@ pub fn main(args: &ProcessArgs) {
 
 fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
     let t0 = Instant::now();
-    while ports.command.peer_publishers() < 1 || ports.state.subscribers() < 2 {
+    while ports.command.publishers() < 1
+        || ports.state.subscribers() < 2
+        || ports.ack.publishers() < 1
+    {
         if stop.load(Ordering::SeqCst) {
             return;
         }
