@@ -111,6 +111,7 @@ struct RawTwoMass {
     initial_positions: Option<[f64; 2]>,
     spring_times: Option<Vec<f64>>,
     spring_values: Option<Vec<f64>>,
+    resolution: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -320,6 +321,8 @@ pub struct PlantSpec {
     pub initial_positions: [f64; 2],
     /// Spring-constant schedule (time, k), linearly interpolated; empty = constant `spring`.
     pub spring_schedule: Vec<(f64, f64)>,
+    /// Two-mass position encoder resolution (0: ideal).
+    pub resolution: f64,
     /// The arm, for `kind = "arm"`.
     pub arm: Option<ArmSpec>,
     /// The maglev, for `kind = "maglev"`.
@@ -504,6 +507,7 @@ impl Scenario {
                     self.plant.sensor,
                 );
                 p.x0 = self.plant.initial_positions;
+                p.resolution = self.plant.resolution;
                 Box::new(p.with_spring_schedule(&self.plant.spring_schedule))
             }
         }
@@ -810,6 +814,7 @@ impl Validator {
             sensor: Sensor::default(),
             initial_positions: [0.0; 2],
             spring_schedule: Vec::new(),
+            resolution: 0.0,
             arm: None,
             maglev: None,
         };
@@ -938,6 +943,7 @@ impl Validator {
                     initial_positions: None,
                     spring_times: None,
                     spring_values: None,
+                    resolution: None,
                 });
                 let spring_schedule = self.schedule(
                     "plant.two_mass.spring_times",
@@ -959,6 +965,12 @@ impl Validator {
                         1e6,
                     )?,
                     sensor: tm.sensor.unwrap_or_default(),
+                    resolution: self.range(
+                        "plant.two_mass.resolution",
+                        tm.resolution.unwrap_or(0.0),
+                        0.0,
+                        1.0,
+                    )?,
                     initial_positions: x0,
                     spring_schedule,
                     ..base

@@ -88,20 +88,32 @@ fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
         f["cost_after_change"].as_f64().unwrap(),
     );
     assert!(a < b, "after the drift: tuned {a} vs frozen {b}");
-    // The estimate follows the ramp of k from 0.5 (20 s) to 2 (40 s) within 5 % once settled.
+    // The estimator reads the noisy, quantised position (noise 5e-4, 1e-4 per count) and the
+    // command. Once settled, before the ramp of k (0.5 at 20 s to 2 at 40 s) and after it, the
+    // estimate is within three of its own standard deviations (from the measured noise level and
+    // the data it keeps), and those are at most 1.5 % of k (the design precision is 1 %).
     let est = Csv::read(&tuned.join("estimates.csv"));
-    let (t, e, tr) = (est.col("t"), est.col("estimate"), est.col("true"));
+    let (t, e, sd, tr) = (
+        est.col("t"),
+        est.col("estimate"),
+        est.col("std"),
+        est.col("true"),
+    );
+    let mut checked = 0;
     for i in 0..t.len() {
         if (5.0..20.0).contains(&t[i]) || t[i] >= 45.0 {
             assert!(
-                ((e[i] - tr[i]) / tr[i]).abs() < 0.05,
-                "t = {}: {} vs {}",
+                (e[i] - tr[i]).abs() <= 3.0 * sd[i] && sd[i] <= 0.015 * tr[i],
+                "t = {}: {} vs {} (std {})",
                 t[i],
                 e[i],
-                tr[i]
+                tr[i],
+                sd[i]
             );
+            checked += 1;
         }
     }
+    assert!(checked > 400, "{checked} estimates checked");
 }
 
 #[test]

@@ -431,4 +431,5 @@ impl Indirect {
 }
 
 pub mod rls;
+pub mod svf;
 pub mod two_mass;

@@ -38,9 +38,60 @@ impl Rls {
     }
 }
 
+/// Scalar least squares that forgets old data only as fast as new data replaces them: the
+/// information sum S = sum(lambda-weighted x^2) is held near the amount that gives a relative
+/// standard deviation `rel_std` at the given noise level (S* = sigma^2 / (rel_std theta)^2), by
+/// discounting with lambda = exp(-x^2 / S*) at each update. Without excitation (x ~ 0) nothing is
+/// forgotten, so the gain cannot wind up between transients (exponential forgetting's failure on
+/// a plant that rests between set-point changes); with rich excitation old data go as soon as
+/// new data carry the same information, so a drifting parameter is followed.
+///
+/// The noise variance sigma^2 of y is the caller's, measured independently of the fit: taken
+/// from the prediction errors it would include the parameter error itself and slow the
+/// forgetting exactly when the parameter changes.
+#[derive(Debug, Clone)]
+pub struct InformationRls {
+    pub theta: f64,
+    /// Discounted information sum, 1 / P.
+    info: f64,
+    rel_std: f64,
+    sigma2: f64,
+    pub updates: u64,
+}
+
+impl InformationRls {
+    /// Start at `theta0` with the information of one unit regressor; `rel_std` is the target
+    /// relative standard deviation.
+    pub fn new(theta0: f64, rel_std: f64) -> Self {
+        Self {
+            theta: theta0,
+            info: 1.0,
+            rel_std,
+            sigma2: 0.0,
+            updates: 0,
+        }
+    }
+
+    /// One observation y = theta x + e with var(e) = `noise_var`.
+    pub fn update(&mut self, y: f64, x: f64, noise_var: f64) {
+        self.sigma2 = noise_var.max(0.0);
+        let e = y - self.theta * x;
+        let scale = (self.rel_std * self.theta).abs().max(f64::MIN_POSITIVE);
+        let wanted = (self.sigma2 / (scale * scale)).max(f64::MIN_POSITIVE);
+        self.info = self.info * (-x * x / wanted).exp() + x * x;
+        self.theta += x * e / self.info;
+        self.updates += 1;
+    }
+
+    /// Standard deviation of theta: sigma / sqrt(S).
+    pub fn std(&self) -> f64 {
+        (self.sigma2 / self.info).sqrt()
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::Rls;
+    use super::{InformationRls, Rls};
 
     #[test]
     fn converges_to_the_true_slope_and_follows_a_change() {
@@ -56,5 +107,36 @@ mod tests {
         }
         assert!((r.theta - 3.0).abs() < 1e-3, "{}", r.theta);
         assert_eq!(r.updates, 2000);
+    }
+
+    /// Noisy data with pauses in the excitation: the information forgetting neither winds up
+    /// in the pauses nor stays on the old value after a change, and its reported deviation
+    /// covers the error.
+    #[test]
+    fn information_forgetting_follows_a_change_across_pauses() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut r = InformationRls::new(1.0, 0.005);
+        // Uniform noise of standard deviation 0.1.
+        let mut noise = || 0.1 * (rng.gen::<f64>() - 0.5) * 12f64.sqrt();
+        // Excitation for 500 samples, rest (x = 1e-4) for 5000, three times; the slope 2 -> 3.
+        for (slope, phase) in [(2.0, 0), (2.0, 1), (3.0, 2), (3.0, 3)] {
+            for k in 0..5500 {
+                let x = if k < 500 {
+                    1.0 + (k as f64 * 0.37).sin()
+                } else {
+                    1e-4
+                };
+                r.update(slope * x + noise(), x, 0.01);
+            }
+            let err = (r.theta - slope).abs();
+            assert!(
+                err <= 3.0 * r.std(),
+                "phase {phase}: theta {} std {}",
+                r.theta,
+                r.std()
+            );
+            assert!(r.std() / slope < 0.01, "phase {phase}: std {}", r.std());
+        }
     }
 }

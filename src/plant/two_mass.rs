@@ -36,6 +36,9 @@ pub struct TwoMass {
     /// `Copy` and its derivative allocation-free.
     pub k_schedule: [(f64, f64); MAX_SCHEDULE],
     pub k_points: usize,
+    /// Position encoder resolution (length per count); the measurement is rounded to it after
+    /// the sensor noise. 0: an ideal sensor.
+    pub resolution: f64,
 }
 
 /// Most points in a spring-constant schedule.
@@ -51,6 +54,7 @@ impl TwoMass {
             x0: [0.0; 2],
             k_schedule: [(0.0, 0.0); MAX_SCHEDULE],
             k_points: 0,
+            resolution: 0.0,
         }
     }
 
@@ -127,6 +131,11 @@ impl Plant for TwoMass {
             Sensor::Far => x[0],
             Sensor::Actuated => x[1],
         };
+    }
+    fn measure(&self, y: &mut [f64]) {
+        if self.resolution > 0.0 {
+            y[0] = (y[0] / self.resolution).round() * self.resolution;
+        }
     }
     fn joints(&self, x: &[f64], q: &mut [f64], qd: &mut [f64]) {
         q[0] = x[1];
