@@ -54,7 +54,9 @@ fn main() -> ExitCode {
             run_id: None,
             ipc_prefix: DEFAULT_PREFIX.into(),
             quiet: false,
+            seeds: None,
         }),
+        Some(Cmd::Run(a)) if a.seeds.is_some() => run_seeds(a),
         Some(Cmd::Run(a)) => run(a),
         Some(Cmd::Check { file }) => check(&file),
         Some(Cmd::Plant(a)) => {
@@ -192,6 +194,129 @@ fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Child> {
 fn signal(child: &Child, sig: i32) {
     // SAFETY: plain syscall on our own child's pid.
     unsafe { libc::kill(child.id() as i32, sig) };
+}
+
+/// `evoloop run FILE --seeds 1..20`: one launcher run per seed (a child `evoloop run`, so each
+/// has its own signal handling and report), then the indirect-vs-frozen study over the seeds.
+fn run_seeds(a: RunArgs) -> ExitCode {
+    use evoloop::indirect::study::{SeedRun, Study};
+    let seeds = a.seeds.clone().map(|s| s.0).unwrap_or_default();
+    let file = a.file.clone().unwrap_or_else(default_scenario);
+    let scn = match Scenario::load(&file, &a.overrides.to_overrides()) {
+        Ok(s) => s,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if scn.optimiser.mode != evoloop::config::OptimiserMode::Indirect {
+        err!(
+            "error: {}: --seeds compares the indirect scheme with the frozen controller over seeds; \
+             this scenario has optimiser.mode = \"{}\" (use --seed N for one run)",
+            file.display(),
+            format!("{:?}", scn.optimiser.mode).to_lowercase()
+        );
+        return ExitCode::from(2);
+    }
+    let out = scn.output.dir.clone();
+    if let Err(e) = std::fs::create_dir_all(&out) {
+        err!(
+            "error: cannot create output directory {}: {e}",
+            out.display()
+        );
+        return ExitCode::from(2);
+    }
+    for f in ["seeds.csv", "study.json", "study.md", "study_cost.png"] {
+        let _ = std::fs::remove_file(out.join(f));
+    }
+    let stop = stop_flag();
+    let exe = match std::env::current_exe() {
+        Ok(e) => e,
+        Err(e) => {
+            err!("error: cannot find the evoloop executable: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    let (mut runs, mut failed) = (Vec::new(), Vec::new());
+    let t0 = Instant::now();
+    for (i, &seed) in seeds.iter().enumerate() {
+        if stop.load(Ordering::SeqCst) {
+            break;
+        }
+        let dir = out.join(format!("seed-{seed}"));
+        let mut ov = a.overrides.clone();
+        ov.seed = Some(seed);
+        ov.out = Some(dir.clone());
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.arg("run")
+            .arg(&file)
+            .args(ov.to_args())
+            .args(["--ipc-prefix", &a.ipc_prefix, "--quiet"])
+            .stdin(std::process::Stdio::null());
+        if let Some(id) = &a.run_id {
+            cmd.args(["--run-id", &format!("{id}-seed{seed}")]);
+        }
+        let o = cmd.output();
+        let result = match o {
+            Err(e) => Err(format!("cannot start: {e}")),
+            Ok(o) if !o.status.success() => {
+                let why = String::from_utf8_lossy(&o.stderr);
+                let last = why
+                    .lines()
+                    .rev()
+                    .find(|l| !l.trim().is_empty())
+                    .unwrap_or("");
+                Err(format!("{}: {last}", o.status))
+            }
+            Ok(_) => std::fs::read_to_string(dir.join("summary.json"))
+                .map_err(|e| format!("summary.json: {e}"))
+                .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
+                .and_then(|v| SeedRun::from_summary(seed, &v)),
+        };
+        match result {
+            Ok(r) => {
+                if !a.quiet {
+                    err!(
+                        "  seed {seed}: after the change tuned {:.1} vs frozen {:.1}, before {:.1} vs {:.1} ({} of {}, {:.0} s)",
+                        r.after, r.after_frozen, r.before, r.before_frozen, i + 1, seeds.len(),
+                        t0.elapsed().as_secs_f64()
+                    );
+                }
+                runs.push(r);
+            }
+            Err(why) => {
+                err!("  seed {seed}: failed: {why}");
+                failed.push((seed, why));
+            }
+        }
+    }
+    let interrupted = stop.load(Ordering::SeqCst);
+    if runs.len() < 2 {
+        err!("error: fewer than two seeds completed; no study written");
+        return ExitCode::from(if interrupted { 130 } else { 1 });
+    }
+    let study = Study::new(&scn.name, &runs, failed);
+    if let Err(e) = study.write(&out, &runs, scn.output.plots) {
+        err!("error: writing the study: {e}");
+        return ExitCode::from(1);
+    }
+    out!("{}", study.markdown());
+    out!(
+        "  wrote {}/seeds.csv, study.json, study.md{}",
+        out.display(),
+        if scn.output.plots {
+            ", study_cost.png"
+        } else {
+            ""
+        }
+    );
+    if interrupted {
+        ExitCode::from(130)
+    } else if study.failed.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
 }
 
 fn run(a: RunArgs) -> ExitCode {

@@ -91,7 +91,9 @@ fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
     // The estimator reads the noisy, quantised position (noise 5e-4, 1e-4 per count) and the
     // command. Once settled, before the ramp of k (0.5 at 20 s to 2 at 40 s) and after it, the
     // estimate is within three of its own standard deviations (from the measured noise level and
-    // the data it keeps), and those are at most 1.5 % of k (the design precision is 1 %).
+    // the data it keeps), and those are at most 1.8 % of k (the design precision is 1 %; while
+    // the plant rests 5 s between set-point changes the information fades with a 5 s time
+    // constant, so the deviation grows by up to e^0.5 = 1.65 before the next transient).
     let est = Csv::read(&tuned.join("estimates.csv"));
     let (t, e, sd, tr) = (
         est.col("t"),
@@ -103,7 +105,7 @@ fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
     for i in 0..t.len() {
         if (5.0..20.0).contains(&t[i]) || t[i] >= 45.0 {
             assert!(
-                (e[i] - tr[i]).abs() <= 3.0 * sd[i] && sd[i] <= 0.015 * tr[i],
+                (e[i] - tr[i]).abs() <= 3.0 * sd[i] && sd[i] <= 0.018 * tr[i],
                 "t = {}: {} vs {} (std {})",
                 t[i],
                 e[i],
@@ -169,4 +171,59 @@ fn a_killed_optimiser_leaves_the_loop_running_and_a_restarted_one_rejoins_and_tu
         "{accepted} accepted of {versions:?}"
     );
     forget_prefix(&prefix);
+}
+
+/// `evoloop run <indirect scenario> --seeds`: one run per seed, the study's per-seed numbers are
+/// those runs' own summaries, and its sentences follow its paired tests.
+#[test]
+fn a_multi_seed_run_compares_the_indirect_scheme_with_the_frozen_controller() {
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("study");
+    assert_ok(&run(
+        &cfg,
+        &out,
+        "seeds",
+        &["--seeds", "3,5", "--duration", "50"],
+    ));
+    let rows = Csv::read(&out.join("seeds.csv"));
+    assert_eq!(rows.col("seed"), vec![3.0, 5.0]);
+    for (i, seed) in [3, 5].iter().enumerate() {
+        let s = json(&out.join(format!("seed-{seed}/summary.json")));
+        assert_eq!(s["seed"], *seed);
+        assert_eq!(
+            rows.col("cost_after")[i],
+            s["cost_after_change"].as_f64().unwrap()
+        );
+        assert_eq!(
+            rows.col("cost_after_frozen")[i],
+            s["cost_after_change_frozen"].as_f64().unwrap()
+        );
+        assert_eq!(
+            rows.col("cost_before_frozen")[i],
+            s["cost_before_change_frozen"].as_f64().unwrap()
+        );
+    }
+    let st = json(&out.join("study.json"));
+    for c in st["comparisons"].as_array().unwrap() {
+        let p = c["wilcoxon"]["p_two_sided"].as_f64().unwrap();
+        let sentence = c["sentence"].as_str().unwrap();
+        // Two seeds cannot show a difference at 5 % (the smallest exact p is 0.5).
+        assert!(
+            p >= 0.5 && sentence.starts_with("No difference"),
+            "{p}: {sentence}"
+        );
+    }
+    assert!(out.join("study.md").is_file() && out.join("study_cost.png").is_file());
+
+    // Only an indirect scenario has a frozen comparison to make.
+    let plain = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass.toml");
+    let o = run(
+        &plain,
+        &tmp.path().join("plain"),
+        "seedsx",
+        &["--seeds", "1..3"],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("optimiser.mode"));
 }

@@ -96,6 +96,12 @@ pub struct RunArgs {
     /// No progress lines.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Several seeds, e.g. `1..20` (inclusive) or `1,4,9`, for a scenario with
+    /// `optimiser.mode = "indirect"`: one run per seed (in `<out>/seed-<n>/`), each against the
+    /// frozen controller on the same seed; statistics and paired tests in `<out>/study.md`,
+    /// `study.json`, `seeds.csv`, `study_cost.png`.
+    #[arg(long, value_parser = parse_seeds, conflicts_with = "seed")]
+    pub seeds: Option<Seeds>,
 }
 
 /// Options every process of a run receives from the launcher.
@@ -196,6 +202,30 @@ impl OverrideArgs {
         }
         a
     }
+}
+
+/// The seeds of a multi-seed study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Seeds(pub Vec<u64>);
+
+/// `A..B` (inclusive) or a comma-separated list of seeds.
+pub fn parse_seeds(s: &str) -> Result<Seeds, String> {
+    let seeds: Vec<u64> = if let Some((a, b)) = s.split_once("..") {
+        let a: u64 = a.trim().parse().map_err(|e| format!("`{a}`: {e}"))?;
+        let b: u64 = b.trim().parse().map_err(|e| format!("`{b}`: {e}"))?;
+        (a..=b).collect()
+    } else {
+        s.split(',')
+            .map(|x| x.trim().parse().map_err(|e| format!("`{x}`: {e}")))
+            .collect::<Result<_, _>>()?
+    };
+    if seeds.len() < 2 || seeds.len() > 1000 {
+        return Err(format!(
+            "give 2 to 1000 seeds, e.g. 1..20 (got {})",
+            seeds.len()
+        ));
+    }
+    Ok(Seeds(seeds))
 }
 
 /// Install SIGINT/SIGTERM handling that only raises a flag; loops check it once per cycle and

@@ -217,10 +217,31 @@ pub struct EpochRecord {
     pub t: f64,
     /// The model parameter the epoch tuned for (maglev: mass, kg; two-mass: spring constant).
     pub model_value: f64,
+    /// Costs on the model; infinite (JSON null) when the set loses the plant or destabilises it.
+    #[serde(with = "infinite_as_null")]
     pub best_cost: f64,
+    #[serde(with = "infinite_as_null")]
     pub in_service_cost: f64,
     /// The version published from this epoch, if any.
     pub published: Option<u64>,
+}
+
+/// A cost that may be infinite, as JSON: a number, or null for infinity (JSON has no infinity,
+/// and serde_json writes null for it, which would otherwise not read back as an f64).
+mod infinite_as_null {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_finite() {
+            s.serialize_f64(*v)
+        } else {
+            s.serialize_none()
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+    }
 }
 
 /// What a plant needs for the indirect scheme: an online estimate of the parameter that changes
@@ -431,5 +452,28 @@ impl Indirect {
 }
 
 pub mod rls;
+pub mod study;
 pub mod svf;
 pub mod two_mass;
+
+#[cfg(test)]
+mod tests {
+    use super::EpochRecord;
+
+    /// An epoch whose in-service set destabilises the model (infinite cost) survives the trip
+    /// through optimiser.json: it was lost with the whole report before (JSON null is no f64).
+    #[test]
+    fn an_infinite_cost_reads_back_from_json() {
+        let r = EpochRecord {
+            t: 1.0,
+            model_value: 2.0,
+            best_cost: 5.0,
+            in_service_cost: f64::INFINITY,
+            published: Some(3),
+        };
+        let text = serde_json::to_string(&r).unwrap();
+        assert!(text.contains("\"in_service_cost\":null"), "{text}");
+        let back: EpochRecord = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, r);
+    }
+}

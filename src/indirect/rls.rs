@@ -46,6 +46,11 @@ impl Rls {
 /// a plant that rests between set-point changes); with rich excitation old data go as soon as
 /// new data carry the same information, so a drifting parameter is followed.
 ///
+/// Information also fades with a long time constant (`memory` updates) whatever the excitation:
+/// otherwise a parameter that drifts while the loop is barely excited (a sluggish controller in
+/// service) would stay on the value the last strong transient left. The gain's growth at rest is
+/// then bounded by e^(rest / memory) instead of the lambda^-n of exponential forgetting.
+///
 /// The noise variance sigma^2 of y is the caller's, measured independently of the fit: taken
 /// from the prediction errors it would include the parameter error itself and slow the
 /// forgetting exactly when the parameter changes.
@@ -55,18 +60,21 @@ pub struct InformationRls {
     /// Discounted information sum, 1 / P.
     info: f64,
     rel_std: f64,
+    /// Discount per update from the time constant alone.
+    fade: f64,
     sigma2: f64,
     pub updates: u64,
 }
 
 impl InformationRls {
     /// Start at `theta0` with the information of one unit regressor; `rel_std` is the target
-    /// relative standard deviation.
-    pub fn new(theta0: f64, rel_std: f64) -> Self {
+    /// relative standard deviation, `memory` the time constant of fading in updates.
+    pub fn new(theta0: f64, rel_std: f64, memory: f64) -> Self {
         Self {
             theta: theta0,
             info: 1.0,
             rel_std,
+            fade: (-1.0 / memory.max(1.0)).exp(),
             sigma2: 0.0,
             updates: 0,
         }
@@ -78,7 +86,7 @@ impl InformationRls {
         let e = y - self.theta * x;
         let scale = (self.rel_std * self.theta).abs().max(f64::MIN_POSITIVE);
         let wanted = (self.sigma2 / (scale * scale)).max(f64::MIN_POSITIVE);
-        self.info = self.info * (-x * x / wanted).exp() + x * x;
+        self.info = self.info * self.fade * (-x * x / wanted).exp() + x * x;
         self.theta += x * e / self.info;
         self.updates += 1;
     }
@@ -116,7 +124,7 @@ mod tests {
     fn information_forgetting_follows_a_change_across_pauses() {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let mut r = InformationRls::new(1.0, 0.005);
+        let mut r = InformationRls::new(1.0, 0.005, 1e5);
         // Uniform noise of standard deviation 0.1.
         let mut noise = || 0.1 * (rng.gen::<f64>() - 0.5) * 12f64.sqrt();
         // Excitation for 500 samples, rest (x = 1e-4) for 5000, three times; the slope 2 -> 3.

@@ -66,7 +66,17 @@ pub fn build_report(
     let dir = &scn.output.dir;
     let ctrl: ControllerReport = read_json(dir, "controller.json")?;
     let plant: PlantReport = read_json(dir, "plant.json").unwrap_or_default();
-    let opt: OptimiserReport = read_json(dir, "optimiser.json").unwrap_or_default();
+    // A missing optimiser.json is normal (it was killed); an unreadable one loses the estimates
+    // and epochs from the report, so say so.
+    let opt: OptimiserReport = match read_json(dir, "optimiser.json") {
+        Ok(o) => o,
+        Err(e) => {
+            if dir.join("optimiser.json").is_file() {
+                eprintln!("evoloop: warning: {e}; the optimiser's estimates and epochs are left out of the report");
+            }
+            OptimiserReport::default()
+        }
+    };
     let run = Table::read(&dir.join("run.csv")).map_err(|e| e.to_string())?;
     let t = run.col("t").unwrap_or_default();
     let r = run.col("reference").unwrap_or_default();
@@ -140,37 +150,32 @@ pub fn build_report(
         .and_then(|m| m.mass_steps.first().map(|s| s.0))
         .or(scn.plant.spring_schedule.first().map(|s| s.0));
     let mean = |v: Vec<f64>| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
-    let cost_before_change = change.and_then(|tc| {
+    // Before: the repetitions after the first (start-up) that end by the change; after: those
+    // starting in the last quarter of the run.
+    let before = |reps: &[(f64, f64, f64)]| {
+        change.and_then(|tc| {
+            mean(
+                reps.iter()
+                    .skip(1)
+                    .filter(|r| r.1 <= tc)
+                    .map(|r| r.2)
+                    .collect(),
+            )
+        })
+    };
+    let quarter = 0.75 * scn.timing.duration;
+    let after = |reps: &[(f64, f64, f64)]| {
         mean(
             reps.iter()
-                .skip(1)
-                .filter(|r| r.1 <= tc)
+                .filter(|r| r.0 >= quarter)
                 .map(|r| r.2)
                 .collect(),
         )
-    });
-    let quarter = 0.75 * scn.timing.duration;
-    let cost_after_change = (!reps.is_empty())
-        .then(|| {
-            mean(
-                reps.iter()
-                    .filter(|r| r.0 >= quarter)
-                    .map(|r| r.2)
-                    .collect(),
-            )
-        })
-        .flatten();
-    let cost_after_change_frozen = (!frozen.is_empty())
-        .then(|| {
-            mean(
-                frozen
-                    .iter()
-                    .filter(|r| r.0 >= quarter)
-                    .map(|r| r.2)
-                    .collect(),
-            )
-        })
-        .flatten();
+    };
+    let cost_before_change = before(&reps);
+    let cost_after_change = after(&reps);
+    let cost_before_change_frozen = before(&frozen);
+    let cost_after_change_frozen = after(&frozen);
     // The true value of the parameter the optimiser estimates (maglev mass, two-mass spring).
     let two_mass = (scn.plant.kind == crate::config::PlantKind::TwoMass).then(|| {
         crate::plant::two_mass::TwoMass::new(
@@ -236,6 +241,7 @@ pub fn build_report(
         cost_per_repetition: reps.iter().map(|r| r.2).collect(),
         cost_before_change,
         cost_after_change,
+        cost_before_change_frozen,
         cost_after_change_frozen,
         cost_per_repetition_frozen: frozen.iter().map(|r| r.2).collect(),
         model_estimate_final,

@@ -173,6 +173,40 @@ pub fn wilcoxon(a: &[f64], b: &[f64]) -> Wilcoxon {
     }
 }
 
+/// The sentence a paired comparison supports, from its own numbers: "lower"/"HIGHER" only when
+/// the two-sided Wilcoxon test says so at the 5 % level, otherwise "no difference shown". `a` is
+/// the subject ("Fuzzy anti-windup"), `a_short` its name in the counts ("fuzzy"), `what` the
+/// measure ("eq. 31 index G"), `d` the mean of a - b with its interval.
+pub fn paired_sentence(
+    a: &str,
+    a_short: &str,
+    b: &str,
+    what: &str,
+    w: &Wilcoxon,
+    d: &MeanCi,
+) -> String {
+    let p = if w.p_two_sided >= 0.001 {
+        format!("{:.3}", w.p_two_sided)
+    } else {
+        format!("{:.1e}", w.p_two_sided)
+    };
+    let numbers = format!(
+        "{a_short} lower in {} of {} seeds, mean difference {:+.2} (95 % CI {:+.2} .. {:+.2}), Wilcoxon p = {p}",
+        w.a_lower, w.n, d.mean, d.ci95[0], d.ci95[1]
+    );
+    let mut lower_a = a.to_string();
+    if let Some(c) = lower_a.get_mut(0..1) {
+        c.make_ascii_lowercase();
+    }
+    if w.p_two_sided < 0.05 && w.w_plus < w.w_minus {
+        format!("{a} has a lower {what} than {b} ({numbers}).")
+    } else if w.p_two_sided < 0.05 {
+        format!("{a} has a HIGHER {what} than {b} ({numbers}).")
+    } else {
+        format!("No difference in the {what} between {lower_a} and {b} is shown at the 5 % level ({numbers}).")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -145,6 +145,9 @@ pub struct Summary {
     /// The same for the frozen comparison (the scenario with the optimiser off, simulated
     /// in-process after an indirect run).
     pub cost_after_change_frozen: Option<f64>,
+    /// `cost_before_change` of the frozen comparison.
+    #[serde(default)]
+    pub cost_before_change_frozen: Option<f64>,
     pub cost_per_repetition_frozen: Vec<f64>,
     /// The optimiser's final model estimate, the true value then, and the relative error.
     pub model_estimate_final: Option<f64>,

@@ -551,22 +551,7 @@ pub fn comparison_sentence(
         "G" => "eq. 31 index G".to_string(),
         p => format!("{p} term of eq. 31"),
     };
-    let p = if w.p_two_sided >= 0.001 {
-        format!("{:.3}", w.p_two_sided)
-    } else {
-        format!("{:.1e}", w.p_two_sided)
-    };
-    let numbers = format!(
-        "fuzzy lower in {} of {} seeds, mean difference {:+.2} (95 % CI {:+.2} .. {:+.2}), Wilcoxon p = {p}",
-        w.a_lower, w.n, d.mean, d.ci95[0], d.ci95[1]
-    );
-    if w.p_two_sided < 0.05 && w.w_plus < w.w_minus {
-        format!("Fuzzy anti-windup has a lower {what} than {baseline} ({numbers}).")
-    } else if w.p_two_sided < 0.05 {
-        format!("Fuzzy anti-windup has a HIGHER {what} than {baseline} ({numbers}).")
-    } else {
-        format!("No difference in the {what} between fuzzy anti-windup and {baseline} is shown at the 5 % level ({numbers}).")
-    }
+    crate::report::stats::paired_sentence("Fuzzy anti-windup", "fuzzy", baseline, &what, w, d)
 }
 
 /// `evoloop tune config/maglev_tune.toml --seeds 1..20`: for every seed, each variant tuned with

@@ -5,6 +5,7 @@
 pub mod arsinh;
 pub mod maglev;
 
+use crate::cli::{parse_seeds, Seeds};
 use crate::optim::hybrid::HybridConfig;
 use crate::optim::GaConfig;
 use clap::Args;
@@ -78,30 +79,6 @@ pub struct Run {
     pub json: bool,
     pub progress: bool,
     pub seed: u64,
-}
-
-/// The seeds of a multi-seed study.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Seeds(pub Vec<u64>);
-
-/// `A..B` (inclusive) or a comma-separated list of seeds.
-fn parse_seeds(s: &str) -> Result<Seeds, String> {
-    let seeds: Vec<u64> = if let Some((a, b)) = s.split_once("..") {
-        let a: u64 = a.trim().parse().map_err(|e| format!("`{a}`: {e}"))?;
-        let b: u64 = b.trim().parse().map_err(|e| format!("`{b}`: {e}"))?;
-        (a..=b).collect()
-    } else {
-        s.split(',')
-            .map(|x| x.trim().parse().map_err(|e| format!("`{x}`: {e}")))
-            .collect::<Result<_, _>>()?
-    };
-    if seeds.len() < 2 || seeds.len() > 1000 {
-        return Err(format!(
-            "give 2 to 1000 seeds, e.g. 1..20 (got {})",
-            seeds.len()
-        ));
-    }
-    Ok(Seeds(seeds))
 }
 
 fn bad(file: &Path, key: &str, reason: impl std::fmt::Display) -> String {

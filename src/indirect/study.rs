@@ -1,0 +1,313 @@
+//! `evoloop run <indirect scenario> --seeds 1..20`: the indirect scheme against the frozen
+//! controller over many seeds. Each seed is a whole run of the processes (plant noise and the
+//! optimiser's random streams from the seed); its frozen comparison is the same scenario and seed
+//! with the optimiser off (the in-process simulation, bit-identical to a lockstep run of the
+//! processes). Per seed: the mean cost per repetition before the plant's change and over the
+//! last quarter of the run, tuned and frozen. Across seeds: mean with a 95 % interval of each,
+//! the paired differences, and a paired Wilcoxon test; every sentence of the report follows
+//! from those numbers.
+
+use crate::report::stats::{mean_ci, paired_sentence, wilcoxon, MeanCi, Wilcoxon};
+use serde::Serialize;
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// One seed's run, from its summary.json.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct SeedRun {
+    pub seed: u64,
+    pub before: f64,
+    pub before_frozen: f64,
+    pub after: f64,
+    pub after_frozen: f64,
+    pub estimate_error: f64,
+    pub accepted: u64,
+    pub rejected: u64,
+}
+
+impl SeedRun {
+    /// Read the keys an indirect run's summary.json carries; an error names the missing one.
+    pub fn from_summary(seed: u64, s: &Value) -> Result<Self, String> {
+        let f = |k: &str| {
+            s[k].as_f64()
+                .ok_or_else(|| format!("summary.json of seed {seed} has no number `{k}`"))
+        };
+        let n = |k: &str| {
+            s[k].as_u64()
+                .ok_or_else(|| format!("summary.json of seed {seed} has no count `{k}`"))
+        };
+        Ok(Self {
+            seed,
+            before: f("cost_before_change")?,
+            before_frozen: f("cost_before_change_frozen")?,
+            after: f("cost_after_change")?,
+            after_frozen: f("cost_after_change_frozen")?,
+            estimate_error: f("model_estimate_error")?,
+            accepted: n("accepted_versions")?,
+            rejected: n("rejected_versions")?,
+        })
+    }
+}
+
+/// Tuned against frozen over the seeds, for one phase of the run.
+#[derive(Debug, Clone, Serialize)]
+pub struct PhaseComparison {
+    /// "before the change" or "after the change".
+    pub phase: &'static str,
+    pub tuned: MeanCi,
+    pub frozen: MeanCi,
+    /// tuned - frozen per seed.
+    pub difference: MeanCi,
+    /// (tuned - frozen) / frozen per seed, in %.
+    pub relative_pct: MeanCi,
+    pub wilcoxon: Wilcoxon,
+    pub sentence: String,
+}
+
+fn compare(phase: &'static str, tuned: &[f64], frozen: &[f64]) -> PhaseComparison {
+    let d: Vec<f64> = tuned.iter().zip(frozen).map(|(a, b)| a - b).collect();
+    let rel: Vec<f64> = tuned
+        .iter()
+        .zip(frozen)
+        .map(|(a, b)| 100.0 * (a - b) / b)
+        .collect();
+    let w = wilcoxon(tuned, frozen);
+    let difference = mean_ci(&d);
+    PhaseComparison {
+        phase,
+        tuned: mean_ci(tuned),
+        frozen: mean_ci(frozen),
+        relative_pct: mean_ci(&rel),
+        sentence: paired_sentence(
+            "The indirect scheme",
+            "tuned",
+            "the frozen controller",
+            &format!("cost per repetition {phase}"),
+            &w,
+            &difference,
+        ),
+        difference,
+        wilcoxon: w,
+    }
+}
+
+/// The study over `runs`; `failed` lists seeds whose run did not complete, with the reason.
+#[derive(Debug, Clone, Serialize)]
+pub struct Study {
+    pub scenario: String,
+    pub seeds: Vec<u64>,
+    pub failed: Vec<(u64, String)>,
+    pub comparisons: Vec<PhaseComparison>,
+    pub estimate_error_pct: MeanCi,
+    pub accepted: MeanCi,
+    pub rejected_total: u64,
+}
+
+impl Study {
+    pub fn new(scenario: &str, runs: &[SeedRun], failed: Vec<(u64, String)>) -> Self {
+        let col = |f: fn(&SeedRun) -> f64| runs.iter().map(f).collect::<Vec<f64>>();
+        Self {
+            scenario: scenario.to_string(),
+            seeds: runs.iter().map(|r| r.seed).collect(),
+            failed,
+            comparisons: vec![
+                compare(
+                    "before the change",
+                    &col(|r| r.before),
+                    &col(|r| r.before_frozen),
+                ),
+                compare(
+                    "after the change",
+                    &col(|r| r.after),
+                    &col(|r| r.after_frozen),
+                ),
+            ],
+            estimate_error_pct: mean_ci(&col(|r| 100.0 * r.estimate_error)),
+            accepted: mean_ci(&col(|r| r.accepted as f64)),
+            rejected_total: runs.iter().map(|r| r.rejected).sum(),
+        }
+    }
+
+    /// The report as Markdown: the table, then one computed sentence per comparison.
+    pub fn markdown(&self) -> String {
+        let f = |m: &MeanCi| format!("{:.1} [{:.1} .. {:.1}]", m.mean, m.ci95[0], m.ci95[1]);
+        let mut md = format!(
+            "# {}: the indirect scheme against the frozen controller over {} seeds\n\n\
+             Each seed is a lockstep run of the processes (plant noise and the optimiser's random \
+             streams from the seed); its frozen comparison is the same scenario and seed with the \
+             optimiser off. Cost per repetition of the reference: mean over the repetitions before \
+             the plant's change (the first, from rest, left out) and over the last quarter of the \
+             run.\n\n\
+             | phase | tuned mean [95 % CI] | frozen mean [95 % CI] | tuned - frozen [95 % CI] | relative, % [95 % CI] |\n|---|---|---|---|---|\n",
+            self.scenario,
+            self.seeds.len()
+        );
+        for c in &self.comparisons {
+            md.push_str(&format!(
+                "| {} | {} | {} | {} | {:+.2} [{:+.2} .. {:+.2}] |\n",
+                c.phase,
+                f(&c.tuned),
+                f(&c.frozen),
+                f(&c.difference),
+                c.relative_pct.mean,
+                c.relative_pct.ci95[0],
+                c.relative_pct.ci95[1]
+            ));
+        }
+        md.push_str("\nWhat the data show (each sentence computed from its paired test):\n\n");
+        for c in &self.comparisons {
+            md.push_str(&format!("- {}\n", c.sentence));
+        }
+        md.push_str(&format!(
+            "- Final model estimate error: mean {:+.2} % (95 % CI {:+.2} .. {:+.2}); sets accepted per run: mean {:.1}; sets the controller rejected: {} in all runs.\n",
+            self.estimate_error_pct.mean,
+            self.estimate_error_pct.ci95[0],
+            self.estimate_error_pct.ci95[1],
+            self.accepted.mean,
+            self.rejected_total
+        ));
+        if !self.failed.is_empty() {
+            md.push_str(&format!(
+                "- {} seed(s) did not complete and are not in the statistics: {}.\n",
+                self.failed.len(),
+                self.failed
+                    .iter()
+                    .map(|(s, why)| format!("{s} ({why})"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        md
+    }
+
+    /// Write `seeds.csv`, `study.json`, `study.md` and (with `plots`) `study_cost.png` to `out`.
+    pub fn write(&self, out: &Path, runs: &[SeedRun], plots: bool) -> Result<(), String> {
+        let mut csv = String::from(
+            "seed,cost_before,cost_before_frozen,cost_after,cost_after_frozen,estimate_error,accepted,rejected\n",
+        );
+        for r in runs {
+            csv.push_str(&format!(
+                "{},{},{},{},{},{},{},{}\n",
+                r.seed,
+                r.before,
+                r.before_frozen,
+                r.after,
+                r.after_frozen,
+                r.estimate_error,
+                r.accepted,
+                r.rejected
+            ));
+        }
+        std::fs::write(out.join("seeds.csv"), csv).map_err(|e| e.to_string())?;
+        crate::process::write_json(out, "study.json", &json!(self)).map_err(|e| e.to_string())?;
+        std::fs::write(out.join("study.md"), self.markdown()).map_err(|e| e.to_string())?;
+        if plots && !runs.is_empty() {
+            use crate::report::plot::{xy_png, Curve, Style, XySeries};
+            let xs: Vec<f64> = runs.iter().map(|r| r.seed as f64).collect();
+            let rel = |a: fn(&SeedRun) -> f64, b: fn(&SeedRun) -> f64| {
+                runs.iter()
+                    .map(|r| 100.0 * (a(r) - b(r)) / b(r))
+                    .collect::<Vec<f64>>()
+            };
+            let n = xs.len();
+            let curves: Vec<Curve> = vec![
+                (
+                    "after the change".into(),
+                    xs.clone(),
+                    rel(|r| r.after, |r| r.after_frozen),
+                ),
+                (
+                    "before the change".into(),
+                    xs.clone(),
+                    rel(|r| r.before, |r| r.before_frozen),
+                ),
+            ];
+            let mut series = XySeries::from_curves(&curves, Style::Points);
+            let zero = vec![0.0; n];
+            series.push(XySeries {
+                name: "",
+                x: &xs,
+                y: &zero,
+                style: Style::Line,
+            });
+            xy_png(
+                &out.join("study_cost.png"),
+                &format!(
+                    "{}: tuned vs frozen cost per repetition per seed (below 0: the indirect scheme is cheaper)",
+                    self.scenario
+                ),
+                "seed",
+                "(tuned - frozen) / frozen, %",
+                &series,
+                None,
+                None,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(seed: u64, after: f64, after_frozen: f64) -> SeedRun {
+        SeedRun {
+            seed,
+            before: 100.0 + seed as f64,
+            before_frozen: 100.0 + seed as f64,
+            after,
+            after_frozen,
+            estimate_error: 0.01,
+            accepted: 3,
+            rejected: 0,
+        }
+    }
+
+    /// The sentences follow the numbers: tuned cheaper on every seed is "lower"; dearer on every
+    /// seed is "HIGHER"; identical before the change is "no difference".
+    #[test]
+    fn the_report_says_what_its_numbers_say() {
+        let better: Vec<SeedRun> = (1..=8)
+            .map(|s| run(s, 50.0 + s as f64, 80.0 + 2.0 * s as f64))
+            .collect();
+        let st = Study::new("x", &better, Vec::new());
+        assert!(
+            st.comparisons[1].sentence.starts_with(
+                "The indirect scheme has a lower cost per repetition after the change"
+            ),
+            "{}",
+            st.comparisons[1].sentence
+        );
+        assert!(
+            st.comparisons[0].sentence.starts_with("No difference"),
+            "{}",
+            st.comparisons[0].sentence
+        );
+        assert_eq!(st.comparisons[1].wilcoxon.a_lower, 8);
+        let worse: Vec<SeedRun> = (1..=8)
+            .map(|s| run(s, 90.0 + s as f64, 80.0 + s as f64))
+            .collect();
+        let st = Study::new("x", &worse, vec![(9, "timed out".into())]);
+        assert!(
+            st.comparisons[1].sentence.contains("HIGHER"),
+            "{}",
+            st.comparisons[1].sentence
+        );
+        let md = st.markdown();
+        assert!(
+            md.contains("over 8 seeds") && md.contains("9 (timed out)"),
+            "{md}"
+        );
+        assert!((st.comparisons[1].relative_pct.mean - 100.0 * (10.0 / 84.5f64)).abs() < 1.0);
+    }
+
+    #[test]
+    fn a_summary_without_the_frozen_comparison_is_refused_by_name() {
+        let e = SeedRun::from_summary(3, &json!({"cost_before_change": 1.0})).unwrap_err();
+        assert!(
+            e.contains("seed 3") && e.contains("cost_before_change_frozen"),
+            "{e}"
+        );
+    }
+}
