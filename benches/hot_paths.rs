@@ -4,7 +4,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use evoloop::control::cycle::ControlCycle;
 use evoloop::control::{ParamBounds, StateFeedback};
-use evoloop::ipc::messages::{PlantState, Telemetry};
+use evoloop::msg::{PlantState, Telemetry};
 use evoloop::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::PlantSim;
@@ -240,7 +240,7 @@ fn fuzzy(c: &mut Criterion) {
     }
     let spec = evoloop::tune::maglev::Spec::default();
     let aw = evoloop::control::AntiWindup::Fuzzy;
-    let (mlo, mhi) = evoloop::tune::maglev::ranges(aw);
+    let (mlo, mhi) = aw.paper_ranges();
     let mobj = evoloop::tune::maglev::Objective {
         spec: &spec,
         aw,

@@ -5,8 +5,8 @@
 use clap::Parser;
 use evoloop::cli::{stop_flag, BenchCmd, Cli, Cmd, OverrideArgs, RunArgs};
 use evoloop::config::{Mode, Scenario};
-use evoloop::ipc::messages::Telemetry;
 use evoloop::ipc::{Ipc, Topic, DEFAULT_PREFIX};
+use evoloop::msg::Telemetry;
 use evoloop::report::build::build_report;
 use evoloop::report::summary::{FloorReport, Summary};
 use evoloop::rt::apply_privileges;
@@ -76,9 +76,9 @@ fn main() -> ExitCode {
             BenchCmd::LatencyPeer(a) => evoloop::bench::latency::peer(a),
             BenchCmd::Loop(a) => evoloop::bench::loop_bench::main(a),
         } as u8),
-        Some(Cmd::Robust { cmd }) => ExitCode::from(evoloop::robust::cli::main(cmd) as u8),
-        Some(Cmd::Tune(a)) => ExitCode::from(evoloop::tune::main(a) as u8),
-        Some(Cmd::Dynamics(a)) => ExitCode::from(evoloop::dynamics::cli::main(a) as u8),
+        Some(Cmd::Robust { cmd }) => ExitCode::from(evoloop::cli::robust::main(cmd) as u8),
+        Some(Cmd::Tune(a)) => ExitCode::from(evoloop::cli::tune::main(a) as u8),
+        Some(Cmd::Dynamics(a)) => ExitCode::from(evoloop::cli::dynamics::main(a) as u8),
         Some(Cmd::Floor {
             rate,
             duration,
@@ -199,7 +199,7 @@ fn signal(child: &Child, sig: i32) {
 /// `evoloop run FILE --seeds 1..20`: one launcher run per seed (a child `evoloop run`, so each
 /// has its own signal handling and report), then the indirect-vs-frozen study over the seeds.
 fn run_seeds(a: RunArgs) -> ExitCode {
-    use evoloop::indirect::study::{SeedRun, Study};
+    use evoloop::report::seeds_study::{SeedRun, Study};
     let seeds = a.seeds.clone().map(|s| s.0).unwrap_or_default();
     let file = a.file.clone().unwrap_or_else(default_scenario);
     let scn = match Scenario::load(&file, &a.overrides.to_overrides()) {
@@ -360,7 +360,7 @@ fn run(a: RunArgs) -> ExitCode {
     ] {
         let _ = std::fs::remove_file(dir.join(f));
     }
-    let _ = evoloop::process::write_json(&dir, "scenario.json", &scn);
+    let _ = evoloop::report::write_json(&dir, "scenario.json", &scn);
     let run_id = a.run_id.clone().unwrap_or_else(|| {
         format!(
             "{}-{:x}",
@@ -380,7 +380,7 @@ fn run(a: RunArgs) -> ExitCode {
     let cleaned = ipc.cleanup_dead_nodes();
     let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 1, false).ok();
     let estimate = ipc
-        .subscriber::<evoloop::ipc::messages::ModelEstimate>(Topic::Estimate, 1, false)
+        .subscriber::<evoloop::msg::ModelEstimate>(Topic::Estimate, 1, false)
         .ok();
 
     // The absolute config path and the output dir are passed on so children agree exactly.

@@ -420,7 +420,7 @@ pub struct Overrides {
 impl ControllerSpec {
     /// The `KIND_*` this controller's parameter sets carry (a PID's depends on its scheme).
     pub fn param_kind(&self) -> u32 {
-        use crate::ipc::messages as m;
+        use crate::msg as m;
         match self.kind {
             ControllerKind::StateFeedback => m::KIND_STATE_FEEDBACK,
             ControllerKind::PdServo => m::KIND_PD_SERVO,
@@ -1134,7 +1134,7 @@ impl Validator {
                         ),
                     );
                 }
-                let (lo, hi) = crate::tune::maglev::ranges(aw);
+                let (lo, hi) = aw.paper_ranges();
                 (spec.gains, spec.lower, spec.upper) = self.gains_in_bounds(
                     "controller.pid",
                     pid.params,

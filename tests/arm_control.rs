@@ -121,7 +121,7 @@ fn startup_damping_scales_the_law_by_one_minus_exp_of_minus_0_03_k() {
     let gains = [400.0, 400.0, 400.0, 40.0, 40.0, 40.0];
     let mut damped = ComputedTorque::new(model.clone(), &gains, 0.03);
     let mut plain = ComputedTorque::new(model, &gains, 0.0);
-    let mut state = evoloop::ipc::messages::PlantState::default();
+    let mut state = evoloop::msg::PlantState::default();
     let mut sp = evoloop::reference::Setpoint::default();
     for k in 0..300u64 {
         let t = k as f64 * 1e-3;

@@ -8,8 +8,8 @@
 
 use evoloop::control::cycle::ControlCycle;
 use evoloop::control::{ParamBounds, StateFeedback};
-use evoloop::ipc::messages::{Command, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
 use evoloop::ipc::{Ipc, Topic};
+use evoloop::msg::{Command, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::PlantSim;
 use evoloop::reference::Reference;

@@ -4,7 +4,7 @@
 
 use evoloop::config::{Overrides, Scenario};
 use evoloop::control::cycle::ControlCycle;
-use evoloop::ipc::messages::{ParamSet, PlantState, Telemetry};
+use evoloop::msg::{ParamSet, PlantState, Telemetry};
 use evoloop::plant::PlantSim;
 use std::sync::atomic::Ordering;
 

@@ -3,7 +3,7 @@
 
 use evoloop::control::cycle::ControlCycle;
 use evoloop::control::{validate_params, Controller, ParamBounds, StateFeedback};
-use evoloop::ipc::messages::{ParamCode, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
+use evoloop::msg::{ParamCode, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::{Plant, PlantSim};
 use evoloop::reference::{Reference, Setpoint};

@@ -6,8 +6,8 @@
 
 use crate::control::cycle::ControlCycle;
 use crate::control::{ParamBounds, StateFeedback};
-use crate::ipc::messages::{Command, PlantState, Telemetry, STATE_FLAG_END};
 use crate::ipc::{ipc_config, Ipc, IpcError, Topic, Wait};
+use crate::msg::{Command, PlantState, Telemetry, STATE_FLAG_END};
 use crate::reference::Reference;
 use crate::report::plot::{xy_png, Style, XySeries};
 use crate::rt::now_ns;

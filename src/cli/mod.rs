@@ -2,6 +2,10 @@
 //! three processes, so the launcher hands each child exactly the options the child parses. The
 //! parser lives in the library so a test can parse every command the README shows.
 
+pub mod dynamics;
+pub mod robust;
+pub mod tune;
+
 use crate::config::{Mode, OptimiserMode, Overrides};
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -33,14 +37,14 @@ pub enum Cmd {
     /// paper's reproduction.
     Robust {
         #[command(subcommand)]
-        cmd: crate::robust::cli::RobustCmd,
+        cmd: robust::RobustCmd,
     },
     /// Rigid-body dynamics of a robot file (D-H TOML or URDF) at one state: tau, M, G, V, and,
     /// given --tau, the forward dynamics.
-    Dynamics(crate::dynamics::cli::DynamicsArgs),
+    Dynamics(dynamics::DynamicsArgs),
     /// The fuzzy-network paper's GA experiments: `tune config/arsinh_tune.toml` (Section 5.1),
     /// `tune config/maglev_tune.toml` (Section 5.2).
-    Tune(crate::tune::TuneArgs),
+    Tune(tune::TuneArgs),
     /// Benchmarks measured against the machine's own floor in the same run.
     Bench {
         #[command(subcommand)]

@@ -10,7 +10,7 @@
 
 use super::Controller;
 use crate::dynamics::{Data, Model};
-use crate::ipc::messages::{PlantState, KIND_COMPUTED_TORQUE};
+use crate::msg::{PlantState, KIND_COMPUTED_TORQUE};
 use crate::reference::Setpoint;
 
 pub struct ComputedTorque {

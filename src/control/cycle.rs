@@ -3,7 +3,7 @@
 //! cycle boundary, evaluate the reference and the control law, fill the telemetry.
 
 use super::{validate_params, Controller, LinearModel, ParamBounds};
-use crate::ipc::messages::{ParamCode, ParamSet, PlantState, Telemetry};
+use crate::msg::{ParamCode, ParamSet, PlantState, Telemetry};
 use crate::reference::{Reference, Setpoint};
 use crate::MAX_JOINTS;
 

@@ -14,11 +14,11 @@ pub use pid::{AntiWindup, Pid};
 pub use state_feedback::StateFeedback;
 pub use validate::{validate_params, LinearModel, ParamBounds, Rejection};
 
-use crate::ipc::messages::PlantState;
+use crate::msg::PlantState;
 use crate::reference::Setpoint;
 
 pub trait Controller: Send {
-    /// `ipc::messages::KIND_*` this controller accepts parameter sets for.
+    /// `msg::KIND_*` this controller accepts parameter sets for.
     fn kind(&self) -> u32;
     /// Number of tunable parameters.
     fn n_params(&self) -> usize;

@@ -7,7 +7,7 @@
 //! sensor noise), velocities the joint velocities of the state message.
 
 use super::Controller;
-use crate::ipc::messages::{PlantState, KIND_PD_SERVO};
+use crate::msg::{PlantState, KIND_PD_SERVO};
 use crate::reference::Setpoint;
 
 pub struct PdServo {

@@ -22,7 +22,7 @@
 //! running: eq. 26 has no separate bias).
 
 use super::Controller;
-use crate::ipc::messages::{self as m, PlantState};
+use crate::msg::{self as m, PlantState};
 use crate::reference::Setpoint;
 use serde::{Deserialize, Serialize};
 
@@ -37,6 +37,23 @@ pub enum AntiWindup {
 }
 
 impl AntiWindup {
+    /// The paper's parameter ranges (Section 5.2) for the fuzzy anti-windup PID, and the same ranges
+    /// for the baselines' common parameters (Ki like C_i; Kb in [0, 1]).
+    pub fn paper_ranges(self) -> (Vec<f64>, Vec<f64>) {
+        match self {
+            AntiWindup::Fuzzy => (
+                vec![500.0, 0.01, 0.5, 0.5, 0.5, 0.0, 0.3],
+                vec![1500.0, 0.1, 1.2, 1.2, 1.5, 120.0, 1.2],
+            ),
+            AntiWindup::None | AntiWindup::Clamping | AntiWindup::IntegratorClamp => {
+                (vec![500.0, 0.01, 0.0], vec![1500.0, 0.1, 120.0])
+            }
+            AntiWindup::BackCalculation => {
+                (vec![500.0, 0.01, 0.0, 0.0], vec![1500.0, 0.1, 120.0, 1.0])
+            }
+        }
+    }
+
     pub fn n_params(self) -> usize {
         match self {
             AntiWindup::Fuzzy => 7,

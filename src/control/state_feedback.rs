@@ -9,7 +9,7 @@
 //! saturated and the error would drive it further into saturation).
 
 use super::Controller;
-use crate::ipc::messages::{PlantState, KIND_STATE_FEEDBACK};
+use crate::msg::{PlantState, KIND_STATE_FEEDBACK};
 use crate::reference::Setpoint;
 
 pub struct StateFeedback {

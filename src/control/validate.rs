@@ -1,6 +1,6 @@
 //! Validation of an incoming parameter set, before it can touch the running loop.
 
-use crate::ipc::messages::{ParamCode, ParamSet};
+use crate::msg::{ParamCode, ParamSet};
 
 /// Per-parameter inclusive bounds from the config.
 #[derive(Debug, Clone, PartialEq)]

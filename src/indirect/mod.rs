@@ -18,7 +18,7 @@ use crate::optim::hybrid::{hybrid, HybridConfig};
 use crate::optim::GaConfig;
 use crate::plant::maglev::{Maglev, MaglevParams, G};
 use crate::reference::Reference;
-use crate::tune::maglev::{self as mg, Spec};
+use crate::sim::maglev::{self as mg, Spec};
 
 /// Online estimate of the maglev's mass (kg) with its standard deviation.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -169,7 +169,7 @@ impl MaglevTuner {
     /// cost on the same model. Deterministic for a given seed, epoch number and inputs.
     pub fn epoch(&mut self, mass: f64, in_service: &[f64]) -> Candidate {
         let spec = self.model(mass);
-        let (lo, hi) = mg::ranges(self.aw);
+        let (lo, hi) = self.aw.paper_ranges();
         let obj = mg::Objective {
             spec: &spec,
             aw: self.aw,
@@ -248,11 +248,7 @@ mod infinite_as_null {
 /// in operation, and epochs of an optimiser on the model carrying that estimate.
 pub trait Scheme: Send {
     /// Feed sample `s`; `prev` is the previous sample when `s` directly follows it.
-    fn observe(
-        &mut self,
-        prev: Option<&crate::ipc::messages::PlantState>,
-        s: &crate::ipc::messages::PlantState,
-    );
+    fn observe(&mut self, prev: Option<&crate::msg::PlantState>, s: &crate::msg::PlantState);
     fn estimate(&self, t: f64) -> Estimate;
     /// Enough data for the estimate to replace the nominal value.
     fn ready(&self) -> bool;
@@ -267,11 +263,7 @@ pub trait Scheme: Send {
 }
 
 impl Scheme for (MaglevEstimator, MaglevTuner) {
-    fn observe(
-        &mut self,
-        prev: Option<&crate::ipc::messages::PlantState>,
-        s: &crate::ipc::messages::PlantState,
-    ) {
+    fn observe(&mut self, prev: Option<&crate::msg::PlantState>, s: &crate::msg::PlantState) {
         if let Some(p) = prev {
             self.0.push(p.seq, p.y[0], s.u_applied[0]);
         }
@@ -300,7 +292,7 @@ impl Scheme for (MaglevEstimator, MaglevTuner) {
 /// estimates, tunes in epochs and hands out parameter sets to publish.
 pub struct Indirect {
     scheme: Box<dyn Scheme>,
-    prev: Option<crate::ipc::messages::PlantState>,
+    prev: Option<crate::msg::PlantState>,
     pub in_service: Vec<f64>,
     version: u64,
     kind: u32,
@@ -368,7 +360,7 @@ impl Indirect {
     }
 
     /// Feed one state sample (in order; a gap restarts the estimator's differences).
-    pub fn observe(&mut self, s: &crate::ipc::messages::PlantState) {
+    pub fn observe(&mut self, s: &crate::msg::PlantState) {
         let prev = self.prev.filter(|p| s.seq == p.seq + 1);
         self.scheme.observe(prev.as_ref(), s);
         self.prev = Some(*s);
@@ -388,12 +380,7 @@ impl Indirect {
     }
 
     /// Lockstep pacing: `dt` simulated seconds passed; run the epochs the budget allows.
-    pub fn paced(
-        &mut self,
-        t: f64,
-        dt: f64,
-        apply_at_seq: u64,
-    ) -> Option<crate::ipc::messages::ParamSet> {
+    pub fn paced(&mut self, t: f64, dt: f64, apply_at_seq: u64) -> Option<crate::msg::ParamSet> {
         self.budget += dt * self.evaluations_per_second;
         let per_epoch = self.scheme.epoch_evaluations() as f64;
         let mut out = None;
@@ -407,11 +394,7 @@ impl Indirect {
     }
 
     /// One epoch on the current estimate; a parameter set when it found a better one.
-    pub fn run_epoch(
-        &mut self,
-        t: f64,
-        apply_at_seq: u64,
-    ) -> Option<crate::ipc::messages::ParamSet> {
+    pub fn run_epoch(&mut self, t: f64, apply_at_seq: u64) -> Option<crate::msg::ParamSet> {
         // Until the estimator has data, the model is the nominal plant.
         let p = if self.scheme.ready() {
             self.scheme.estimate(t).value
@@ -435,7 +418,7 @@ impl Indirect {
             self.version += 1;
             rec.published = Some(self.version);
             self.in_service = c.params.clone();
-            let mut set = crate::ipc::messages::ParamSet {
+            let mut set = crate::msg::ParamSet {
                 version: self.version,
                 apply_at_seq,
                 expected_cost: c.expected_cost,
@@ -452,7 +435,7 @@ impl Indirect {
 }
 
 pub mod rls;
-pub mod study;
+
 pub mod svf;
 pub mod two_mass;
 

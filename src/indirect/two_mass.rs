@@ -19,7 +19,7 @@ use super::svf::{Svf, SvfDesign};
 use super::{Candidate, Estimate, Scheme};
 use crate::config::Scenario;
 use crate::control::{LinearModel, StateFeedback};
-use crate::ipc::messages::PlantState;
+use crate::msg::PlantState;
 use crate::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
 use crate::plant::two_mass::{Sensor, TwoMass};
 use crate::reference::Reference;

@@ -5,8 +5,6 @@
 //! never cross-talk, and every file iceoryx2 creates carries the run's prefix (`--ipc-prefix`,
 //! default `evoloop_`) so a run's resources can be told apart from other iceoryx2 users.
 
-pub mod messages;
-
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -14,6 +12,29 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use std::fmt::{self, Debug};
 use std::time::{Duration, Instant};
+
+/// The message types go into shared memory as they are. Their iceoryx2 names carry a version
+/// suffix because iceoryx2 checks only name, size and alignment when a service opens: change a
+/// layout, bump the version.
+macro_rules! zero_copy {
+    ($($t:ident => $name:literal),* $(,)?) => {$(
+        // SAFETY: `#[repr(C)]`, `Copy`, fields only f64/u64/u32 and fixed arrays of them: no
+        // pointers or references, the same layout in every process of one build.
+        unsafe impl ZeroCopySend for crate::msg::$t {
+            unsafe fn type_name() -> &'static str {
+                $name
+            }
+        }
+    )*};
+}
+zero_copy!(
+    PlantState => "evoloop::PlantState.v1",
+    Command => "evoloop::Command.v1",
+    Telemetry => "evoloop::Telemetry.v1",
+    ParamSet => "evoloop::ParamSet.v1",
+    OptimiserAck => "evoloop::OptimiserAck.v1",
+    ModelEstimate => "evoloop::ModelEstimate.v1",
+);
 
 /// An IPC failure with what was being done when it happened.
 #[derive(Debug)]

@@ -12,13 +12,14 @@
 use crate::cli::ProcessArgs;
 use crate::config::{Mode, Scenario};
 use crate::control::cycle::{ControlCycle, ParamEvent};
-use crate::ipc::messages::{
+use crate::ipc::{IpcError, Pub, Sub, Topic, Waited};
+use crate::msg::{
     Command, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END, TELEMETRY_FLAG_MISSED,
     TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
 };
-use crate::ipc::{IpcError, Pub, Sub, Topic, Waited};
-use crate::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use crate::report::summary::{ControllerReport, ParamRecord};
+use crate::report::write_json;
 use crate::report::RunLog;
 use crate::rt::timing::Percentiles;
 use crate::rt::{apply_privileges, now_ns, sleep_until_ns, CycleTiming, TimingLog, TimingSummary};

@@ -7,3 +7,4 @@
 pub mod controller;
 pub mod optimiser;
 pub mod plant;
+pub mod start;

@@ -10,12 +10,11 @@
 
 use crate::cli::OptimiserArgs;
 use crate::config::{Mode, OptimiserMode, Scenario};
-use crate::ipc::messages::{
-    Command, ModelEstimate, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END,
-};
 use crate::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
-use crate::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::msg::{Command, ModelEstimate, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END};
+use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use crate::report::summary::{OptimiserReport, PublishedSet};
+use crate::report::write_json;
 use crate::rt::privileges::set_nice;
 use crate::sim::{scheduled_seq, scheduled_set};
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -10,11 +10,12 @@
 
 use crate::cli::ProcessArgs;
 use crate::config::{Mode, Scenario};
-use crate::ipc::messages::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
 use crate::ipc::{Bell, Doorbell, Pub, Sub, Topic, Waited};
+use crate::msg::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
+use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use crate::plant::PlantSim;
-use crate::process::{fail, ports, start, write_json, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use crate::report::summary::PlantReport;
+use crate::report::write_json;
 use crate::rt::{apply_privileges, now_ns, sleep_until_ns};
 use crate::MAX_JOINTS;
 use std::sync::atomic::{AtomicBool, Ordering};

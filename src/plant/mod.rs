@@ -14,7 +14,7 @@ pub use arm::Arm;
 pub use integrator::Rk4;
 pub use two_mass::TwoMass;
 
-use crate::ipc::messages::PlantState;
+use crate::msg::PlantState;
 use crate::{MAX_JOINTS, MAX_STATES};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -306,7 +306,7 @@ pub fn build_report(
             )?;
         }
     }
-    crate::process::write_json(dir, "summary.json", &summary).map_err(|e| e.to_string())?;
+    crate::report::write_json(dir, "summary.json", &summary).map_err(|e| e.to_string())?;
     if scn.output.plots {
         let ref_names: Vec<String> = (0..refs.len())
             .map(|i| {

@@ -4,11 +4,19 @@
 pub mod build;
 pub mod metrics;
 pub mod plot;
+pub mod seeds_study;
 pub mod stats;
 pub mod summary;
 
 use std::io::{BufRead, BufWriter, Write};
 use std::path::Path;
+
+/// Write `value` as pretty JSON to `dir/name`.
+pub fn write_json<T: serde::Serialize>(dir: &Path, name: &str, value: &T) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let text = serde_json::to_string_pretty(value).map_err(std::io::Error::other)?;
+    std::fs::write(dir.join(name), text + "\n")
+}
 
 /// A table of f64 rows with fixed width, allocated for the whole run up front so recording a
 /// row in the control cycle never allocates. Rows beyond the capacity are counted, not stored.

@@ -2,9 +2,11 @@
 //! processes run, stepped in lockstep. Tests compare the multi-process lockstep run against it
 //! bit for bit, and later optimisers evaluate candidates with it.
 
+pub mod maglev;
+
 use crate::config::Scenario;
 use crate::control::cycle::{ControlCycle, ParamEvent};
-use crate::ipc::messages::{ParamSet, PlantState, Telemetry};
+use crate::msg::{ParamSet, PlantState, Telemetry};
 use crate::plant::PlantSim;
 
 /// Sequence number of the sample at which a set scheduled for time `at` is applied in lockstep.

@@ -78,7 +78,7 @@ pub fn run(run: Run) -> Result<(), String> {
         "network": net,
         "rule_base": net.rule_table(),
     });
-    crate::process::write_json(&run.out, "result.json", &result).map_err(|e| e.to_string())?;
+    crate::report::write_json(&run.out, "result.json", &result).map_err(|e| e.to_string())?;
     let mut csv = String::from("evaluation,G,best_G\n");
     for (i, (v, b)) in r.values.iter().zip(&r.best_so_far).enumerate() {
         csv.push_str(&format!("{},{v},{b}\n", i + 1));

@@ -7,14 +7,13 @@
 //! by the current best, as the paper does.
 
 use super::{progress_line, Run};
-use crate::control::pid::{fuzzy_ki_normalised, AntiWindup, Pid};
-use crate::control::Controller;
-use crate::ipc::messages::PlantState;
+use crate::control::pid::{fuzzy_ki_normalised, AntiWindup};
 use crate::optim::hybrid::hybrid;
-use crate::plant::maglev::{Maglev, MaglevParams};
-use crate::plant::PlantSim;
-use crate::reference::{Reference, Setpoint};
+use crate::reference::Reference;
 use crate::report::plot::{two_panel_png, xy_png, Panel, Series, Style, XySeries};
+pub use crate::sim::maglev::{
+    default_reference, simulate, Cost, Objective, Spec, Trace, PAPER_FUZZY,
+};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::path::Path;
@@ -29,39 +28,6 @@ pub struct RawMaglevTune {
     duration: Option<f64>,
     times: Option<Vec<f64>>,
     values: Option<Vec<f64>>,
-}
-
-/// The experiment: plant, sampling, trajectory and noise.
-#[derive(Debug, Clone, Serialize)]
-pub struct Spec {
-    pub plant: MaglevParams,
-    pub period: f64,
-    pub step: f64,
-    pub noise_mm: f64,
-    pub duration: f64,
-    pub reference: Reference,
-}
-
-impl Default for Spec {
-    fn default() -> Self {
-        Self {
-            plant: MaglevParams::default(),
-            period: 0.001,
-            step: 0.00025,
-            noise_mm: 0.002,
-            duration: 2.5,
-            reference: default_reference(),
-        }
-    }
-}
-
-/// One repetition of the set-point trajectory (mm): up 2 mm, down 2 mm, back to the operating
-/// point; each step's derivative kick saturates the amplifier at 0 or i_max.
-pub fn default_reference() -> Reference {
-    Reference::Steps {
-        times: vec![0.2, 1.0, 1.8],
-        values: vec![2.0, -2.0, 0.0],
-    }
 }
 
 pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, String> {
@@ -122,112 +88,6 @@ pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, String> {
     Ok(s)
 }
 
-/// The index of eq. 31 and its parts: G = g_error + g_current, and g_current = g_holding (the
-/// constant holding current over the run, the same for every controller) + g_control (the
-/// current spent beyond it, which can be negative).
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct Cost {
-    pub g: f64,
-    pub g_error: f64,
-    pub g_current: f64,
-    pub g_holding: f64,
-    pub g_control: f64,
-}
-
-/// A closed-loop response: time, reference, output (mm), command (mA).
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct Trace {
-    pub t: Vec<f64>,
-    pub r: Vec<f64>,
-    pub y: Vec<f64>,
-    pub u: Vec<f64>,
-}
-
-/// Run the PID with `aw` and `params` on the experiment; None when the ball is lost (|y| > 4.5
-/// mm, near the sensor's end). `seed` drives the sensor noise.
-pub fn simulate(
-    spec: &Spec,
-    aw: AntiWindup,
-    params: &[f64],
-    seed: u64,
-    mut trace: Option<&mut Trace>,
-) -> Option<Cost> {
-    let plant = Maglev::new(spec.plant.clone());
-    let hold = spec.plant.hold_current_ma(spec.plant.mass_at(0.0));
-    let mut sim = PlantSim::new(Box::new(plant), spec.step, spec.noise_mm, seed);
-    let mut pid = Pid::new(
-        aw,
-        params,
-        spec.period,
-        (0.0, 1000.0 * spec.plant.i_max),
-        hold,
-    );
-    let n = (spec.duration / spec.period).round() as usize;
-    let mut state = PlantState::default();
-    let mut sp = Setpoint::default();
-    let mut u = [hold];
-    let (mut ge, mut gu) = (0.0, 0.0);
-    let lost = 0.9 * spec.plant.sensor_range_mm;
-    for k in 0..n {
-        sim.sample(k as u64, 0, &u, &mut state);
-        if !state.y[0].is_finite() || state.y[0].abs() > lost {
-            return None;
-        }
-        spec.reference.sample(state.t, &mut sp);
-        pid.step(&state, &sp, &mut u);
-        ge += (sp.q[0] - state.y[0]).abs();
-        gu += u[0].abs() / 1000.0;
-        if let Some(tr) = trace.as_deref_mut() {
-            tr.t.push(state.t);
-            tr.r.push(sp.q[0]);
-            tr.y.push(state.y[0]);
-            tr.u.push(u[0]);
-        }
-        sim.advance(&u, spec.period);
-    }
-    let g_holding = n as f64 * hold / 1000.0;
-    Some(Cost {
-        g: ge + gu,
-        g_error: ge,
-        g_current: gu,
-        g_holding,
-        g_control: gu - g_holding,
-    })
-}
-
-/// The paper's parameter ranges (Section 5.2) for the fuzzy anti-windup PID, and the same ranges
-/// for the baselines' common parameters (Ki like C_i; Kb in [0, 1]).
-pub fn ranges(aw: AntiWindup) -> (Vec<f64>, Vec<f64>) {
-    match aw {
-        AntiWindup::Fuzzy => (
-            vec![500.0, 0.01, 0.5, 0.5, 0.5, 0.0, 0.3],
-            vec![1500.0, 0.1, 1.2, 1.2, 1.5, 120.0, 1.2],
-        ),
-        AntiWindup::None | AntiWindup::Clamping | AntiWindup::IntegratorClamp => {
-            (vec![500.0, 0.01, 0.0], vec![1500.0, 0.1, 120.0])
-        }
-        AntiWindup::BackCalculation => (vec![500.0, 0.01, 0.0, 0.0], vec![1500.0, 0.1, 120.0, 1.0]),
-    }
-}
-
-/// The paper's tuned fuzzy anti-windup set.
-pub const PAPER_FUZZY: [f64; 7] = [
-    983.108, 0.0447895, 0.638417, 0.57288, 1.16908, 106.064, 1.05207,
-];
-
-/// The value the GA minimises: G, or infinity for a lost ball.
-pub struct Objective<'a> {
-    pub spec: &'a Spec,
-    pub aw: AntiWindup,
-    pub seed: u64,
-}
-
-impl crate::optim::Objective for Objective<'_> {
-    fn value(&self, x: &[f64]) -> f64 {
-        simulate(self.spec, self.aw, x, self.seed, None).map_or(f64::INFINITY, |c| c.g)
-    }
-}
-
 /// One variant tuned: its best parameters and the GA's record.
 #[derive(Debug, Clone, Serialize)]
 pub struct Tuned {
@@ -243,7 +103,7 @@ pub struct Tuned {
 
 /// Tune one variant with the GA alone and evaluate it on the test run (another noise seed).
 pub fn tune_variant(run: &Run, spec: &Spec, aw: AntiWindup) -> Tuned {
-    let (lo, hi) = ranges(aw);
+    let (lo, hi) = aw.paper_ranges();
     let obj = Objective {
         spec,
         aw,
@@ -324,7 +184,7 @@ pub fn run(run: Run, spec: Spec) -> Result<(), String> {
         "spec": spec,
         "unstable_pole_rad_s": spec.plant.unstable_pole(),
     });
-    crate::process::write_json(&run.out, "result.json", &result).map_err(|e| e.to_string())?;
+    crate::report::write_json(&run.out, "result.json", &result).map_err(|e| e.to_string())?;
     let mut traces = Vec::new();
     for t in &tuned {
         let mut tr = Trace::default();
@@ -669,7 +529,7 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
         "variants": variants,
         "comparisons": comparisons,
     });
-    crate::process::write_json(&base.out, "study.json", &result).map_err(|e| e.to_string())?;
+    crate::report::write_json(&base.out, "study.json", &result).map_err(|e| e.to_string())?;
     let mut md = format!(
         "# Maglev: fuzzy anti-windup against four baselines over {} seeds\n\n\
          Each controller tuned by the GA with the same budget ({budget} evaluations) on each seed's \

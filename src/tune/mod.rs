@@ -5,33 +5,21 @@
 pub mod arsinh;
 pub mod maglev;
 
-use crate::cli::{parse_seeds, Seeds};
 use crate::optim::hybrid::HybridConfig;
 use crate::optim::GaConfig;
-use clap::Args;
 use serde::Deserialize;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
-#[derive(Args)]
-pub struct TuneArgs {
-    /// Experiment file (TOML): config/arsinh_tune.toml or config/maglev_tune.toml.
+/// What to run: the experiment file and the command line's choices.
+#[derive(Debug, Clone)]
+pub struct TuneRequest {
     pub file: PathBuf,
-    /// Seed of the GA (and of the plant's noise) [default: the file's `seed`].
-    #[arg(long)]
     pub seed: Option<u64>,
-    /// Several seeds, e.g. `1..20` (inclusive) or `1,4,9`: the multi-seed study (maglev): every
-    /// controller tuned per seed with the same budget, statistics and paired tests over seeds.
-    #[arg(long, value_parser = parse_seeds, conflicts_with = "seed")]
-    pub seeds: Option<Seeds>,
-    /// Print the result as JSON on stdout.
-    #[arg(long)]
+    /// Several seeds: the multi-seed study (maglev).
+    pub seeds: Option<Vec<u64>>,
     pub json: bool,
-    /// Output directory [default: the file's output.dir].
-    #[arg(long)]
     pub out: Option<PathBuf>,
-    /// No progress lines.
-    #[arg(long, short)]
     pub quiet: bool,
 }
 
@@ -163,16 +151,6 @@ fn hybrid_config(
     })
 }
 
-pub fn main(a: TuneArgs) -> i32 {
-    match tune(&a) {
-        Ok(()) => 0,
-        Err(e) => {
-            eprintln!("error: {e}");
-            2
-        }
-    }
-}
-
 fn read(file: &Path) -> Result<RawTune, String> {
     let text =
         std::fs::read_to_string(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
@@ -206,7 +184,8 @@ pub fn validate_file(file: &Path) -> Result<(), String> {
     Ok(())
 }
 
-fn tune(a: &TuneArgs) -> Result<(), String> {
+/// Run the experiment the request names.
+pub fn tune(a: &TuneRequest) -> Result<(), String> {
     let raw = read(&a.file)?;
     let seed = a.seed.or(raw.seed).unwrap_or(1);
     let (default_phases, default_dir) = match raw.experiment {
@@ -247,7 +226,7 @@ fn tune(a: &TuneArgs) -> Result<(), String> {
         Experiment::Maglev => {
             let spec = maglev::spec(&a.file, raw.maglev)?;
             match &a.seeds {
-                Some(seeds) => maglev::study(run, spec, &seeds.0),
+                Some(seeds) => maglev::study(run, spec, seeds),
                 None => maglev::run(run, spec),
             }
         }

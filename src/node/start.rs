@@ -4,8 +4,6 @@
 use crate::cli::{stop_flag, ProcessArgs};
 use crate::config::Scenario;
 use crate::ipc::{Ipc, IpcError};
-use serde::Serialize;
-use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
@@ -53,13 +51,6 @@ pub fn load_scenario(args: &ProcessArgs, who: &str) -> Scenario {
 pub fn fail(who: &str, code: i32, message: &str) -> ! {
     eprintln!("{who}: error: {message}");
     std::process::exit(code)
-}
-
-/// Write `value` as pretty JSON to `dir/name`.
-pub fn write_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> std::io::Result<()> {
-    std::fs::create_dir_all(dir)?;
-    let text = serde_json::to_string_pretty(value).map_err(std::io::Error::other)?;
-    std::fs::write(dir.join(name), text + "\n")
 }
 
 /// Name the calling thread (the process's main thread: its `comm` in `ps`, `top` and

@@ -199,7 +199,7 @@ impl Study {
             ));
         }
         std::fs::write(out.join("seeds.csv"), csv).map_err(|e| e.to_string())?;
-        crate::process::write_json(out, "study.json", &json!(self)).map_err(|e| e.to_string())?;
+        crate::report::write_json(out, "study.json", &json!(self)).map_err(|e| e.to_string())?;
         std::fs::write(out.join("study.md"), self.markdown()).map_err(|e| e.to_string())?;
         if plots && !runs.is_empty() {
             use crate::report::plot::{xy_png, Curve, Style, XySeries};

@@ -1,6 +1,6 @@
 //! `evoloop dynamics`: inverse and forward dynamics of a robot file at one state.
 
-use super::Model;
+use crate::dynamics::Model;
 use clap::Args;
 use nalgebra::DMatrix;
 use serde_json::json;
@@ -120,11 +120,11 @@ pub fn main(a: DynamicsArgs) -> i32 {
         eprintln!("evoloop dynamics: {msg}");
         2
     };
-    let options = super::LoadOptions {
+    let options = crate::dynamics::LoadOptions {
         strict: a.strict,
         rigid_body_only: a.no_friction,
     };
-    let (model, warnings) = match super::load_with(&a.robot, &options) {
+    let (model, warnings) = match crate::dynamics::load_with(&a.robot, &options) {
         Ok(l) => (l.model, l.warnings),
         Err(e) => return usage(&e.to_string()),
     };

@@ -1,10 +1,10 @@
-//! Fixed-size `#[repr(C)]` message types that iceoryx2 sends zero-copy between the processes.
-//!
-//! They live in one place so every binary agrees on the type name and layout; the type names carry
-//! a version suffix because iceoryx2 checks only name, size and alignment when a service opens.
+//! The messages every layer speaks: plant samples, commands, telemetry, parameter sets, the
+//! optimiser's acknowledgements and model estimates. Plain fixed-size `#[repr(C)]` data with no
+//! pointers, so the transport (`crate::ipc`, which marks them zero-copy sendable and names them
+//! for iceoryx2) can put them in shared memory as they are; control laws, plants and the
+//! simulation use them without linking the transport.
 
 use crate::{MAX_JOINTS, MAX_PARAMS, MAX_STATES};
-use iceoryx2::prelude::*;
 
 /// `PlantState::flags`: the plant applied its safe command because commands stopped arriving.
 pub const STATE_FLAG_SAFE: u32 = 1;
@@ -13,8 +13,7 @@ pub const STATE_FLAG_END: u32 = 2;
 
 /// One sample of the plant, published by the plant process every control period.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("evoloop::PlantState.v1")]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlantState {
     /// Sample index, 0, 1, 2, ...
     pub seq: u64,
@@ -60,8 +59,7 @@ impl Default for PlantState {
 
 /// The controller's answer to one state sample.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("evoloop::Command.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Command {
     /// Controller cycle index.
     pub cycle: u64,
@@ -130,8 +128,7 @@ pub const TELEMETRY_FLAG_MISSED: u32 = 4;
 
 /// One controller cycle as the controller saw it.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("evoloop::Telemetry.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Telemetry {
     pub cycle: u64,
     pub state_seq: u64,
@@ -173,8 +170,7 @@ pub const KIND_PID_INTEGRATOR_CLAMP: u32 = 8;
 
 /// A parameter set from the optimiser to the controller.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("evoloop::ParamSet.v1")]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParamSet {
     /// Strictly increasing; the controller refuses a version not newer than the one in service.
     pub version: u64,
@@ -210,8 +206,7 @@ impl ParamSet {
 /// Lockstep pacing: the optimiser has consumed every sample up to `through_seq` and published
 /// whatever it meant to publish before it; the plant may go past that sample.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("evoloop::OptimiserAck.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct OptimiserAck {
     pub through_seq: u64,
 }
@@ -220,8 +215,7 @@ pub struct OptimiserAck {
 /// parameter that changes in operation (maglev: ball mass, kg; two-mass: spring constant) with
 /// its standard deviation, and the version of the last set the optimiser published.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("evoloop::ModelEstimate.v1")]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ModelEstimate {
     pub t: f64,
     pub value: f64,

@@ -1,10 +1,10 @@
 //! `evoloop robust ...`: the robust-control tools from the command line.
 
-use super::problem::{Perturbation, RobustProblem};
-use super::study::{lqr_gains, study};
-use super::Wedge;
 use crate::optim::{run, DeConfig, DifferentialEvolution, Optimiser};
 use crate::plant::two_mass::Sensor;
+use crate::robust::problem::{Perturbation, RobustProblem};
+use crate::robust::study::{lqr_gains, study};
+use crate::robust::Wedge;
 use clap::{Args, Subcommand, ValueEnum};
 use serde_json::json;
 use std::io::IsTerminal;
