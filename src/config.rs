@@ -551,14 +551,13 @@ impl Scenario {
         (self.plant.kind == PlantKind::TwoMass
             && self.controller.kind == ControllerKind::StateFeedback)
             .then(|| {
-                let (a, b, c) = TwoMass::new(
+                TwoMass::new(
                     self.plant.m1,
                     self.plant.m2,
                     self.plant.spring,
                     self.plant.sensor,
                 )
-                .matrices();
-                crate::control::LinearModel { a, b, c }
+                .linear_model()
             })
     }
 

@@ -23,6 +23,10 @@ type Vec4 = SVector<f64, N>;
 #[derive(Debug, Clone)]
 pub struct SvfDesign {
     a: f64,
+    period: f64,
+    /// Denominator (s + a)^4 = s^4 + c[3] s^3 + c[2] s^2 + c[1] s + c[0]; c[0] = a^4 is also
+    /// the input gain (unit DC gain).
+    c: [f64; N],
     /// State transition over one period.
     phi: Mat,
     /// Response to an input held at 1 over the period.
@@ -48,26 +52,29 @@ impl SvfDesign {
         for j in 0..N {
             m[(N - 1, j)] = -c[j];
         }
-        m[(N - 1, N)] = a.powi(4);
+        m[(N - 1, N)] = c[0];
         m[(N, N + 1)] = 1.0;
         let e = (m * period).exp();
         let phi = e.fixed_view::<N, N>(0, 0).into_owned();
         let held = e.fixed_view::<N, 1>(0, N).into_owned();
         // The ramp input v = tau / period has r = 1 / period.
         let ramp = e.fixed_view::<N, 1>(0, N + 1).into_owned() / period;
-        Self { a, phi, held, ramp }
-    }
-
-    pub fn pole(&self) -> f64 {
-        self.a
+        Self {
+            a,
+            period,
+            c,
+            phi,
+            held,
+            ramp,
+        }
     }
 
     /// Root-mean-square gain from white noise on a sampled input to s^j F of it: the square
     /// root of the energy of the response to a unit sample (first-order hold), summed until the
     /// filter has forgotten it (40 time constants).
-    pub fn noise_gain(&self, j: usize, period: f64) -> f64 {
+    pub fn noise_gain(&self, j: usize) -> f64 {
         let mut f = Svf::at_rest(0.0);
-        let n = (40.0 / (self.a * period)).ceil() as usize;
+        let n = (40.0 / (self.a * self.period)).ceil() as usize;
         let mut energy = 0.0;
         for k in 0..n {
             f.sampled(self, if k == 0 { 1.0 } else { 0.0 });
@@ -111,11 +118,8 @@ impl Svf {
         if j < N {
             return self.w[j];
         }
-        let a = d.a;
-        a.powi(4) * (self.last - self.w[0])
-            - 4.0 * a.powi(3) * self.w[1]
-            - 6.0 * a * a * self.w[2]
-            - 4.0 * a * self.w[3]
+        let c = &d.c;
+        c[0] * (self.last - self.w[0]) - c[1] * self.w[1] - c[2] * self.w[2] - c[3] * self.w[3]
     }
 }
 

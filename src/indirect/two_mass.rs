@@ -18,7 +18,7 @@ use super::rls::InformationRls;
 use super::svf::{Svf, SvfDesign};
 use super::{Candidate, Estimate, Scheme};
 use crate::config::Scenario;
-use crate::control::{LinearModel, StateFeedback};
+use crate::control::StateFeedback;
 use crate::msg::PlantState;
 use crate::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
 use crate::plant::two_mass::{Sensor, TwoMass};
@@ -42,7 +42,17 @@ pub struct TwoMassScheme {
     epoch_evaluations: usize,
     margin: f64,
     epoch_no: u64,
-    // Estimator: the measured output and the applied command through the same filter.
+    estimator: SpringEstimator,
+}
+
+/// Online estimate of the spring constant from the measured position and the applied command
+/// (see the module's documentation).
+pub struct SpringEstimator {
+    m1: f64,
+    m2: f64,
+    sensor: Sensor,
+    period: f64,
+    /// The measured output and the applied command through the same filter.
     svf: SvfDesign,
     y_f: Svf,
     u_f: Svf,
@@ -65,7 +75,7 @@ pub struct TwoMassScheme {
 /// rad/s for k = 0.5 to 2), so the filtered signals keep the dynamics that carry k.
 const SVF_POLE: f64 = 2.0;
 /// After joining a moving plant, the filter's start error decays as (a t)^3 e^(-a t) / 6:
-/// below 3e-6 after 20 time constants 1/a (5 s at a = 4).
+/// below 3e-6 after 20 time constants 1/a (10 s at a = 2).
 const SVF_SETTLE_S: f64 = 20.0 / SVF_POLE;
 /// The estimator keeps the data for this relative standard deviation of k at the measured noise
 /// level, and forgets older data as fast as new excitation replaces them (`InformationRls`).
@@ -108,17 +118,7 @@ impl TwoMassScheme {
             epoch_evaluations: scn.optimiser.epoch_evaluations,
             margin: scn.optimiser.margin,
             epoch_no: 0,
-            svf: SvfDesign::new(SVF_POLE, scn.timing.period),
-            y_f: Svf::default(),
-            u_f: Svf::default(),
-            settling: 0,
-            starts_at_rest: scn.plant.initial_positions[0] == scn.plant.initial_positions[1],
-            rls: InformationRls::new(scn.plant.spring, K_REL_STD, FADE_S / scn.timing.period),
-            y_last: [0.0; 2],
-            noise_var: 0.0,
-            target_noise_gain: scn.plant.m1
-                * scn.plant.m2
-                * SvfDesign::new(SVF_POLE, scn.timing.period).noise_gain(4, scn.timing.period),
+            estimator: SpringEstimator::new(scn),
         }
     }
 
@@ -130,8 +130,9 @@ impl TwoMassScheme {
         // plant), and k keeps drifting after the epoch: a set must make the loop asymptotically
         // stable on the model over the drift it may meet before the next epoch.
         let stable = DRIFT_CHECKED.iter().all(|f| {
-            let (a, b, c) = TwoMass::new(self.m1, self.m2, k * f, self.sensor).matrices();
-            LinearModel { a, b, c }.stabilised_by(gains)
+            TwoMass::new(self.m1, self.m2, k * f, self.sensor)
+                .linear_model()
+                .stabilised_by(gains)
         });
         if !stable {
             return f64::INFINITY;
@@ -161,10 +162,31 @@ impl TwoMassScheme {
     }
 }
 
-impl Scheme for TwoMassScheme {
-    fn observe(&mut self, prev: Option<&PlantState>, s: &PlantState) {
+impl SpringEstimator {
+    pub fn new(scn: &Scenario) -> Self {
+        let svf = SvfDesign::new(SVF_POLE, scn.timing.period);
+        Self {
+            m1: scn.plant.m1,
+            m2: scn.plant.m2,
+            sensor: scn.plant.sensor,
+            period: scn.timing.period,
+            target_noise_gain: scn.plant.m1 * scn.plant.m2 * svf.noise_gain(4),
+            svf,
+            y_f: Svf::default(),
+            u_f: Svf::default(),
+            settling: 0,
+            starts_at_rest: scn.plant.initial_positions[0] == scn.plant.initial_positions[1],
+            rls: InformationRls::new(scn.plant.spring, K_REL_STD, FADE_S / scn.timing.period),
+            y_last: [0.0; 2],
+            noise_var: 0.0,
+        }
+    }
+
+    /// Feed sample `s`; `follows` when it directly follows the previous one (otherwise the
+    /// filters restart on it).
+    pub fn push(&mut self, follows: bool, s: &PlantState) {
         // The command in `s` is the one held over the period that ended at `s`.
-        let Some(_) = prev else {
+        if !follows {
             // First sample, or a gap in the stream: restart the filters at rest on it. That is
             // exact at the run's first sample when the plant starts at rest; otherwise the
             // filter's start transient must die out first.
@@ -177,7 +199,7 @@ impl Scheme for TwoMassScheme {
                 (SVF_SETTLE_S / self.period).ceil() as usize
             };
             return;
-        };
+        }
         let d = &self.svf;
         self.u_f.held(d, s.u_applied[0]);
         self.y_f.sampled(d, s.y[0]);
@@ -203,7 +225,8 @@ impl Scheme for TwoMassScheme {
         self.rls.update(target, regressor, target_var);
     }
 
-    fn estimate(&self, t: f64) -> Estimate {
+    /// The estimate of k and its standard deviation at plant time `t`.
+    pub fn estimate(&self, t: f64) -> Estimate {
         Estimate {
             t,
             value: self.rls.theta,
@@ -211,9 +234,24 @@ impl Scheme for TwoMassScheme {
         }
     }
 
-    fn ready(&self) -> bool {
+    /// Enough data for the estimate to replace the nominal value.
+    pub fn ready(&self) -> bool {
         // Two seconds of data.
         self.rls.updates as f64 * self.period > 2.0
+    }
+}
+
+impl Scheme for TwoMassScheme {
+    fn observe(&mut self, prev: Option<&PlantState>, s: &PlantState) {
+        self.estimator.push(prev.is_some(), s);
+    }
+
+    fn estimate(&self, t: f64) -> Estimate {
+        self.estimator.estimate(t)
+    }
+
+    fn ready(&self) -> bool {
+        self.estimator.ready()
     }
 
     fn nominal(&self) -> f64 {

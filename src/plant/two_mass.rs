@@ -99,6 +99,12 @@ impl TwoMass {
         (a, b, c)
     }
 
+    /// The (A, B, C) model a state-feedback controller checks its gains against.
+    pub fn linear_model(&self) -> crate::control::LinearModel {
+        let (a, b, c) = self.matrices();
+        crate::control::LinearModel { a, b, c }
+    }
+
     /// Total mechanical energy (kinetic + spring); conserved when u = 0.
     pub fn energy(&self, x: &[f64]) -> f64 {
         let d = x[0] - x[1];
