@@ -270,8 +270,8 @@ fn run_seeds(a: RunArgs) -> ExitCode {
             }
             Ok(_) => std::fs::read_to_string(dir.join("summary.json"))
                 .map_err(|e| format!("summary.json: {e}"))
-                .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
-                .and_then(|v| SeedRun::from_summary(seed, &v)),
+                .and_then(|t| serde_json::from_str::<Summary>(&t).map_err(|e| e.to_string()))
+                .and_then(|s| SeedRun::from_summary(seed, &s)),
         };
         match result {
             Ok(r) => {
@@ -397,6 +397,10 @@ fn run(a: RunArgs) -> ExitCode {
     ];
     args.extend(child_ov.to_args());
     let names = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
+    let plant = names
+        .iter()
+        .position(|n| *n == "evoloop-plant")
+        .expect("the plant is one of the roles");
     let mut children: Vec<(&str, Child)> = Vec::new();
     for name in names {
         match spawn_process(name, &args) {
@@ -437,7 +441,7 @@ fn run(a: RunArgs) -> ExitCode {
             }
             if let Ok(Some(status)) = c.try_wait() {
                 // Not once the plant has ended: there is no run left to rejoin.
-                let plant_running = !exited[0];
+                let plant_running = !exited[plant];
                 let restartable = *name == "evoloop-optimiser"
                     && plant_running
                     && !status.success()

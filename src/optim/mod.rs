@@ -84,10 +84,10 @@ fn pool(threads: usize) -> std::sync::Arc<rayon::ThreadPool> {
 
 /// The measured cost of one evaluation per objective type (ns, last call's mean), so that even a
 /// GA asking for two candidates at a time can decide before evaluating whether to go parallel.
-fn cost_estimates() -> &'static std::sync::Mutex<std::collections::HashMap<&'static str, u64>> {
-    static COST: std::sync::OnceLock<
-        std::sync::Mutex<std::collections::HashMap<&'static str, u64>>,
-    > = std::sync::OnceLock::new();
+type CostTable = std::sync::Mutex<std::collections::HashMap<&'static str, u64>>;
+
+fn cost_estimates() -> &'static CostTable {
+    static COST: std::sync::OnceLock<CostTable> = std::sync::OnceLock::new();
     COST.get_or_init(Default::default)
 }
 
@@ -95,8 +95,8 @@ fn cost_estimates() -> &'static std::sync::Mutex<std::collections::HashMap<&'sta
 /// given. Serial or parallel is decided by the measured cost of one evaluation of this objective
 /// type (the first ever is evaluated here and timed) times the batch: when the work other threads
 /// would take over is below `PARALLEL_MIN_SAVING_NS` everything runs in this thread (the hand-off
-/// would cost more than it saves), otherwise on a persistent pool. The result does not depend on the thread count or on the timing: each value is computed
-/// independently.
+/// would cost more than it saves), otherwise on a persistent pool. The result does not depend on
+/// the thread count or on the timing: each value is computed independently.
 pub fn evaluate<F: Objective + ?Sized>(
     candidates: &[Vec<f64>],
     thresholds: Option<&[f64]>,
@@ -118,10 +118,10 @@ pub fn evaluate<F: Objective + ?Sized>(
         };
         (v, t0.elapsed().as_nanos() as u64)
     };
-    let mut timed: Vec<(f64, u64)> = Vec::with_capacity(n);
     if n == 0 {
         return Vec::new();
     }
+    let mut timed: Vec<(f64, u64)> = Vec::with_capacity(n);
     let known = cost_estimates()
         .lock()
         .map(|m| m.get(key).copied())

@@ -8,8 +8,8 @@
 //! from those numbers.
 
 use crate::report::stats::{mean_ci, paired_sentence, wilcoxon, MeanCi, Wilcoxon};
+use crate::report::summary::Summary;
 use serde::Serialize;
-use serde_json::{json, Value};
 use std::path::Path;
 
 /// One seed's run, from its summary.json.
@@ -26,25 +26,20 @@ pub struct SeedRun {
 }
 
 impl SeedRun {
-    /// Read the keys an indirect run's summary.json carries; an error names the missing one.
-    pub fn from_summary(seed: u64, s: &Value) -> Result<Self, String> {
-        let f = |k: &str| {
-            s[k].as_f64()
-                .ok_or_else(|| format!("summary.json of seed {seed} has no number `{k}`"))
-        };
-        let n = |k: &str| {
-            s[k].as_u64()
-                .ok_or_else(|| format!("summary.json of seed {seed} has no count `{k}`"))
+    /// Take what the study needs from an indirect run's summary; an error names what is missing.
+    pub fn from_summary(seed: u64, s: &Summary) -> Result<Self, String> {
+        let f = |v: Option<f64>, k: &str| {
+            v.ok_or_else(|| format!("summary.json of seed {seed} has no number `{k}`"))
         };
         Ok(Self {
             seed,
-            before: f("cost_before_change")?,
-            before_frozen: f("cost_before_change_frozen")?,
-            after: f("cost_after_change")?,
-            after_frozen: f("cost_after_change_frozen")?,
-            estimate_error: f("model_estimate_error")?,
-            accepted: n("accepted_versions")?,
-            rejected: n("rejected_versions")?,
+            before: f(s.cost_before_change, "cost_before_change")?,
+            before_frozen: f(s.cost_before_change_frozen, "cost_before_change_frozen")?,
+            after: f(s.cost_after_change, "cost_after_change")?,
+            after_frozen: f(s.cost_after_change_frozen, "cost_after_change_frozen")?,
+            estimate_error: f(s.model_estimate_error, "model_estimate_error")?,
+            accepted: s.accepted_versions as u64,
+            rejected: s.rejected_versions as u64,
         })
     }
 }
@@ -199,7 +194,7 @@ impl Study {
             ));
         }
         std::fs::write(out.join("seeds.csv"), csv).map_err(|e| e.to_string())?;
-        crate::report::write_json(out, "study.json", &json!(self)).map_err(|e| e.to_string())?;
+        crate::report::write_json(out, "study.json", self).map_err(|e| e.to_string())?;
         std::fs::write(out.join("study.md"), self.markdown()).map_err(|e| e.to_string())?;
         if plots && !runs.is_empty() {
             use crate::report::plot::{xy_png, Curve, Style, XySeries};
@@ -304,7 +299,11 @@ mod tests {
 
     #[test]
     fn a_summary_without_the_frozen_comparison_is_refused_by_name() {
-        let e = SeedRun::from_summary(3, &json!({"cost_before_change": 1.0})).unwrap_err();
+        let s = Summary {
+            cost_before_change: Some(1.0),
+            ..Default::default()
+        };
+        let e = SeedRun::from_summary(3, &s).unwrap_err();
         assert!(
             e.contains("seed 3") && e.contains("cost_before_change_frozen"),
             "{e}"
