@@ -91,6 +91,14 @@ fn cost_estimates() -> &'static CostTable {
     COST.get_or_init(Default::default)
 }
 
+/// Whether `rest` evaluations of about `estimate_ns` each are worth handing to `threads`
+/// threads: the work the other threads would take off this one (the estimate times their share)
+/// must exceed `PARALLEL_MIN_SAVING_NS`.
+fn parallel_pays(estimate_ns: u64, rest: usize, threads: usize) -> bool {
+    let saving = estimate_ns as f64 * rest as f64 * (1.0 - 1.0 / threads.max(1) as f64);
+    threads > 1 && saving >= PARALLEL_MIN_SAVING_NS as f64
+}
+
 /// Evaluate `candidates` with `f` on up to `threads` threads, each against its threshold when
 /// given. Serial or parallel is decided by the measured cost of one evaluation of this objective
 /// type (the first ever is evaluated here and timed) times the batch: when the work other threads
@@ -135,9 +143,7 @@ pub fn evaluate<F: Objective + ?Sized>(
     };
     let rest = timed.len()..n;
     let threads = threads.max(1).min(rest.len());
-    // What the other threads would take off this one: the estimate times their share of the rest.
-    let saving = estimate as f64 * rest.len() as f64 * (1.0 - 1.0 / threads as f64);
-    if threads <= 1 || saving < PARALLEL_MIN_SAVING_NS as f64 {
+    if !parallel_pays(estimate, rest.len(), threads) {
         timed.extend(rest.map(one));
     } else {
         let par: Vec<(f64, u64)> =
@@ -235,6 +241,17 @@ mod evaluate_tests {
         }
     }
 
+    /// The decision itself, without timing: the arsinh GA's two 13 us evaluations stay serial;
+    /// a DE generation of 100 r_c evaluations (25 us) and two 1 ms maglev runs go parallel.
+    #[test]
+    fn parallel_pays_only_beyond_the_hand_off_cost() {
+        assert!(!parallel_pays(13_000, 1, 2));
+        assert!(!parallel_pays(13_000, 2, 2));
+        assert!(parallel_pays(25_000, 99, 2));
+        assert!(parallel_pays(1_000_000, 2, 2));
+        assert!(!parallel_pays(1_000_000, 2, 1));
+    }
+
     #[test]
     fn cheap_objectives_stay_in_this_thread_costly_ones_use_the_pool_and_values_agree() {
         let candidates: Vec<Vec<f64>> = (0..16).map(|i| vec![i as f64, 1.0]).collect();
@@ -243,8 +260,11 @@ mod evaluate_tests {
             spin_ns: 0,
             threads: Default::default(),
         };
+        // Two at a time, as the arsinh GA asks: a cheap evaluation would have to cost 50 us to
+        // go parallel, so a cold first call (slow in a debug build) cannot tip it; a batch of 16
+        // would go parallel at 7 us per evaluation, which a debug build can reach.
         for _ in 0..3 {
-            assert_eq!(evaluate(&candidates, None, &cheap, 2), expect);
+            assert_eq!(evaluate(&candidates[..2], None, &cheap, 2), expect[..2]);
         }
         assert_eq!(cheap.threads.lock().unwrap().len(), 1, "cheap: one thread");
         let costly = Costly(Probe {
