@@ -4,15 +4,6 @@
 mod common;
 use common::*;
 
-/// One realtime run at a time: these tests measure a loop at SCHED_FIFO on a 2-vCPU machine, and
-/// run side by side (the stall tests freeze processes, the throttle test spins) they disturb the
-/// very rate they judge, while the floor it is judged against is measured afterwards, alone.
-static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-fn alone() -> std::sync::MutexGuard<'static, ()> {
-    ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
-}
-
 fn ordered(p: &serde_json::Value) {
     let g = |k: &str| p[k].as_i64().unwrap_or_else(|| panic!("{k} in {p}"));
     let seq = [

@@ -288,3 +288,14 @@ pub fn spawn_run_and_wait_for_the_loop(
         .expect("the controller loop did not report running within 20 s");
     child
 }
+
+/// One realtime run at a time within a test binary: a loop measured at SCHED_FIFO on a 2-vCPU
+/// machine beside the binary's other tests (stall tests freezing processes, lockstep runs
+/// computing flat out, a throttled controller spinning) is disturbed in the very rate it is
+/// judged on, while the floor it is judged against is measured afterwards, alone. Every test of
+/// a binary with a realtime run takes this first.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+pub fn alone() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
+}
