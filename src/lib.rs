@@ -8,6 +8,7 @@
 //! and in a unit test.
 
 pub mod bench;
+pub mod check;
 pub mod cli;
 pub mod config;
 pub mod control;

@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use evoloop::config::{Overrides, Scenario};
+use evoloop::config::{ControllerModel, Overrides, PlantModel, Scenario};
 use evoloop::report::metrics::{tracking, Tracking};
 use evoloop::sim::{simulate, SimResult};
 use std::path::{Path, PathBuf};
@@ -101,7 +101,10 @@ fn startup_damping_fades_the_torque_in() {
     // psi(0) = 0: no torque on the first sample; then 1 - exp(-0.03 k).
     assert_eq!(u0[0], 0.0);
     let mut undamped = scn.clone();
-    undamped.controller.startup_rate = 0.0;
+    let ControllerModel::ComputedTorque(ct) = &mut undamped.controller.model else {
+        unreachable!("arm3_ct runs computed torque")
+    };
+    ct.startup_rate = 0.0;
     let raw = simulate(&undamped);
     assert!(
         raw.rows[0].telemetry.u[1].abs() > 1.0,
@@ -244,13 +247,10 @@ fn a_urdf_robot_runs_in_a_scenario_like_its_dh_twin() {
         },
     )
     .unwrap_or_else(|e| panic!("{e}"));
-    assert!(urdf
-        .plant
-        .arm
-        .as_ref()
-        .unwrap()
-        .robot
-        .ends_with("arm3.urdf"));
+    let PlantModel::Arm(arm) = &urdf.plant.model else {
+        unreachable!("an arm scenario")
+    };
+    assert!(arm.robot.ends_with("arm3.urdf"));
     let (a, b) = (simulate(&dh), simulate(&urdf));
     assert_eq!(a.rows.len(), b.rows.len());
     for (ra, rb) in a.rows.iter().zip(&b.rows) {

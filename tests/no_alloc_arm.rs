@@ -19,7 +19,7 @@ static A: counting_alloc::Counting = counting_alloc::Counting;
 fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
     let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/industrial6_ct.toml");
     let scn = Scenario::load(&cfg, &Overrides::default()).unwrap();
-    let model = scn.plant.arm.as_ref().unwrap().model.clone();
+    let model = scn.plant.model.config().rigid_body().unwrap().clone();
     let mut plant = PlantSim::new(scn.build_plant(), scn.plant.step, 1e-4, 3);
     let mut cyc = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());
     let mut set = ParamSet {

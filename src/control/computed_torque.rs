@@ -8,7 +8,10 @@
 //! (tau = ID(q, qd, a)), a few hundred nanoseconds for six joints and allocation-free.
 //! Parameters: [Kp_1..Kp_n, Kv_1..Kv_n].
 
-use super::Controller;
+use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
+use crate::check::{Check, ConfigError, Tunable};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
 use crate::dynamics::{Data, Model};
 use crate::msg::{PlantState, KIND_COMPUTED_TORQUE};
 use crate::reference::Setpoint;
@@ -87,5 +90,94 @@ impl Controller for ComputedTorque {
 
     fn swap_params(&mut self, new: &[f64], _state: &PlantState, _sp: &Setpoint) {
         self.gains.copy_from_slice(new);
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// The `[controller.computed_torque]` keys.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    kp: Vec<f64>,
+    kv: Vec<f64>,
+    /// psi's rate per sample (default 0.03, the paper's).
+    startup_rate: Option<f64>,
+    /// A robot file for the controller's model other than the plant's (relative to the scenario).
+    model: Option<PathBuf>,
+    lower: Option<Vec<f64>>,
+    upper: Option<Vec<f64>>,
+}
+
+/// Validated computed-torque gains [Kp; Kv] with their bounds, the start-up rate and the model.
+#[derive(Debug, Clone, Serialize)]
+pub struct ComputedTorqueSpec {
+    #[serde(flatten)]
+    pub tunable: Tunable,
+    /// psi's rate per sample (0 = off).
+    pub startup_rate: f64,
+    /// The controller's model (the plant's robot unless `model` is given).
+    pub model: Model,
+}
+
+pub fn validate(
+    t: Option<Table>,
+    check: &Check,
+    cx: &ControllerContext,
+) -> Result<ComputedTorqueSpec, ConfigError> {
+    let arm = driven_arm(check, cx, "computed_torque")?;
+    let Some(t) = t else {
+        return check.fail(
+            "controller.computed_torque",
+            "missing table [controller.computed_torque] with `kp` and `kv`",
+        );
+    };
+    let n = arm.dof();
+    let tunable = joint_gains(
+        check,
+        "computed_torque",
+        n,
+        ["kp", "kv"],
+        [t.kp, t.kv],
+        t.lower,
+        t.upper,
+    )?;
+    let startup_rate = check.range(
+        "controller.computed_torque.startup_rate",
+        t.startup_rate.unwrap_or(0.03),
+        0.0,
+        10.0,
+    )?;
+    let model = match t.model {
+        Some(rel) => {
+            let key = "controller.computed_torque.model";
+            let (_, m) = check.robot(key, &rel)?;
+            if m.dof() != n {
+                return check.fail(key, format!("has {} joints, the plant {n}", m.dof()));
+            }
+            m
+        }
+        None => arm.clone(),
+    };
+    Ok(ComputedTorqueSpec {
+        tunable,
+        startup_rate,
+        model,
+    })
+}
+
+impl ControllerConfig for ComputedTorqueSpec {
+    fn build(&self, _period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
+        Box::new(ComputedTorque::new(
+            self.model.clone(),
+            &self.tunable.gains,
+            self.startup_rate,
+        ))
+    }
+    fn tunable(&self) -> &Tunable {
+        &self.tunable
+    }
+    fn param_kind(&self) -> u32 {
+        KIND_COMPUTED_TORQUE
     }
 }

@@ -2,20 +2,115 @@
 //! cycle without allocating. Parameter sets arrive from the optimiser; `validate` checks them at
 //! the boundary and `swap_params` puts an accepted set in service without a bump in u.
 
-pub mod computed_torque;
-pub mod pd_servo;
-pub mod pid;
-pub mod state_feedback;
 pub mod validate;
 
+pub use crate::plant::LinearModel;
 pub use computed_torque::ComputedTorque;
 pub use pd_servo::PdServo;
 pub use pid::{AntiWindup, Pid};
 pub use state_feedback::StateFeedback;
-pub use validate::{validate_params, LinearModel, ParamBounds, Rejection};
+pub use validate::{validate_params, ParamBounds, Rejection};
 
+use crate::check::{Check, ConfigError, Tunable};
 use crate::msg::PlantState;
+use crate::plant::PlantModel;
 use crate::reference::Setpoint;
+
+// The controller registry: adding a control law is its module (the law, `Table`, `validate`
+// and `impl ControllerConfig`) plus one line here.
+crate::kinds! {
+    family "controller", trait ControllerConfig, context ControllerContext<'_>;
+    /// `controller.kind`: which control law runs.
+    pub enum ControllerKind;
+    /// A validated controller: the chosen law's settings.
+    pub enum ControllerModel;
+    /// The `[controller]` table as read: the keys every law shares and one table per law.
+    pub struct RawController {
+        pub kind: ControllerKind,
+        pub u_limit: Option<f64>,
+        pub stale_after_periods: Option<u32>,
+    };
+    state_feedback => StateFeedback(StateFeedbackSpec),
+    pd_servo => PdServo(PdServoSpec),
+    computed_torque => ComputedTorque(ComputedTorqueSpec),
+    pid => Pid(PidSpec),
+}
+
+/// What a control law's configuration offers the rest of the system. Besides this, a law's
+/// module has `pub struct Table` (its `[controller.<kind>]` keys) and `pub fn validate`.
+pub trait ControllerConfig {
+    /// The law with its configured initial parameters, for control period `period` (s) and the
+    /// shared output limit `u_limit`.
+    fn build(&self, period: f64, u_limit: Option<f64>) -> Box<dyn Controller>;
+    /// The initial parameter set and the bounds every later set must respect.
+    fn tunable(&self) -> &Tunable;
+    /// The `msg::KIND_*` its parameter sets carry.
+    fn param_kind(&self) -> u32;
+    /// Whether a new set must also stabilise the plant's linear model before use.
+    fn checks_stability(&self) -> bool {
+        false
+    }
+}
+
+/// What a law's validation may look at besides its own table.
+pub struct ControllerContext<'a> {
+    pub plant: &'a PlantModel,
+    /// The control period, s.
+    pub period: f64,
+}
+
+/// A validated controller: the keys every law shares, and its own settings.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ControllerSpec {
+    /// Output limit (state feedback: symmetric saturation with conditional integration).
+    pub u_limit: Option<f64>,
+    /// Periods a state sample may be old before the controller holds its output.
+    pub stale_after_periods: u32,
+    #[serde(flatten)]
+    pub model: ControllerModel,
+}
+
+impl ControllerSpec {
+    /// Validate the `[controller]` table against the plant it drives.
+    pub fn validate(
+        mut raw: RawController,
+        check: &Check,
+        plant: &PlantModel,
+        period: f64,
+    ) -> Result<ControllerSpec, ConfigError> {
+        let u_limit = match raw.u_limit {
+            Some(l) => Some(check.positive("controller.u_limit", l)?),
+            None => None,
+        };
+        let stale_after_periods = raw.stale_after_periods.unwrap_or(3);
+        if stale_after_periods == 0 {
+            return check.fail("controller.stale_after_periods", "must be >= 1");
+        }
+        let cx = ControllerContext { plant, period };
+        let kind = raw.kind;
+        Ok(ControllerSpec {
+            u_limit,
+            stale_after_periods,
+            model: raw.validate_kind(kind, check, &cx)?,
+        })
+    }
+
+    pub fn kind(&self) -> ControllerKind {
+        self.model.kind()
+    }
+
+    pub fn build(&self, period: f64) -> Box<dyn Controller> {
+        self.model.config().build(period, self.u_limit)
+    }
+
+    pub fn tunable(&self) -> &Tunable {
+        self.model.config().tunable()
+    }
+
+    pub fn param_kind(&self) -> u32 {
+        self.model.config().param_kind()
+    }
+}
 
 pub trait Controller: Send {
     /// `msg::KIND_*` this controller accepts parameter sets for.
@@ -38,3 +133,50 @@ pub trait Controller: Send {
 
 pub mod cycle;
 pub use cycle::ControlCycle;
+
+/// The arm a joint-space law (`law`) drives; an error on `controller.kind` for other plants.
+pub(crate) fn driven_arm<'a>(
+    check: &Check,
+    cx: &ControllerContext<'a>,
+    law: &str,
+) -> Result<&'a crate::dynamics::Model, ConfigError> {
+    match cx.plant.config().rigid_body() {
+        Some(m) => Ok(m),
+        None => check.fail(
+            "controller.kind",
+            format!("{law} drives an arm plant (plant.kind = \"arm\")"),
+        ),
+    }
+}
+
+/// A joint-space law's gains [K_a; K_b] under `controller.<law>` (one of each per joint of an
+/// `n`-joint arm, finite and >= 0) with their bounds; `names` are the two gain keys.
+pub(crate) fn joint_gains(
+    check: &Check,
+    law: &str,
+    n: usize,
+    names: [&str; 2],
+    gains: [Vec<f64>; 2],
+    lower: Option<Vec<f64>>,
+    upper: Option<Vec<f64>>,
+) -> Result<Tunable, ConfigError> {
+    let key = format!("controller.{law}");
+    for (k, v) in names.iter().zip(&gains) {
+        if v.len() != n {
+            return check.fail(
+                &format!("{key}.{k}"),
+                format!("needs {n} values (one per joint), got {}", v.len()),
+            );
+        }
+        for (i, x) in v.iter().enumerate() {
+            if !x.is_finite() || *x < 0.0 {
+                return check.fail(
+                    &format!("{key}.{k}[{i}]"),
+                    format!("must be a finite gain >= 0 (got {x})"),
+                );
+            }
+        }
+    }
+    let [a, b] = gains;
+    check.tunable(&key, a.into_iter().chain(b).collect(), lower, upper, 1e6)
+}

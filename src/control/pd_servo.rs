@@ -6,7 +6,9 @@
 //! Parameters: [Kp_1..Kp_n, Kd_1..Kd_n]. Positions are the measured outputs y (with the plant's
 //! sensor noise), velocities the joint velocities of the state message.
 
-use super::Controller;
+use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
+use crate::check::{Check, ConfigError, Tunable};
+use serde::{Deserialize, Serialize};
 use crate::msg::{PlantState, KIND_PD_SERVO};
 use crate::reference::Setpoint;
 
@@ -55,5 +57,65 @@ impl Controller for PdServo {
 
     fn swap_params(&mut self, new: &[f64], _state: &PlantState, _sp: &Setpoint) {
         self.gains.copy_from_slice(new);
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// The `[controller.pd_servo]` keys.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    kp: Vec<f64>,
+    kd: Vec<f64>,
+    lower: Option<Vec<f64>>,
+    upper: Option<Vec<f64>>,
+}
+
+/// Validated P-D gains [Kp; Kd] with their bounds, and the arm's torque limits.
+#[derive(Debug, Clone, Serialize)]
+pub struct PdServoSpec {
+    #[serde(flatten)]
+    pub tunable: Tunable,
+    /// Torque limit per joint (from the robot description; infinite where none).
+    pub torque_limits: Vec<f64>,
+}
+
+pub fn validate(
+    t: Option<Table>,
+    check: &Check,
+    cx: &ControllerContext,
+) -> Result<PdServoSpec, ConfigError> {
+    let model = driven_arm(check, cx, "pd_servo")?;
+    let Some(t) = t else {
+        return check.fail(
+            "controller.pd_servo",
+            "missing table [controller.pd_servo] with `kp` and `kd`",
+        );
+    };
+    let tunable = joint_gains(
+        check,
+        "pd_servo",
+        model.dof(),
+        ["kp", "kd"],
+        [t.kp, t.kd],
+        t.lower,
+        t.upper,
+    )?;
+    Ok(PdServoSpec {
+        tunable,
+        torque_limits: model.bodies.iter().map(|b| b.limits.effort).collect(),
+    })
+}
+
+impl ControllerConfig for PdServoSpec {
+    fn build(&self, _period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
+        Box::new(PdServo::new(&self.tunable.gains, &self.torque_limits))
+    }
+    fn tunable(&self) -> &Tunable {
+        &self.tunable
+    }
+    fn param_kind(&self) -> u32 {
+        KIND_PD_SERVO
     }
 }

@@ -21,7 +21,8 @@
 //! The integrator starts at `initial_integral` (the holding current, as if the loop had been
 //! running: eq. 26 has no separate bias).
 
-use super::Controller;
+use super::{Controller, ControllerConfig, ControllerContext};
+use crate::check::{Check, ConfigError, Tunable};
 use crate::msg::{self as m, PlantState};
 use crate::reference::Setpoint;
 use serde::{Deserialize, Serialize};
@@ -207,5 +208,97 @@ impl Controller for Pid {
         let old = self.pd(e);
         self.params.copy_from_slice(new);
         self.integral += old - self.pd(e);
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// The `[controller.pid]` keys.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    anti_windup: AntiWindup,
+    params: Vec<f64>,
+    initial_integral: Option<f64>,
+    lower: Option<Vec<f64>>,
+    upper: Option<Vec<f64>>,
+}
+
+/// A validated PID: its anti-windup scheme, parameters with bounds (the paper's ranges unless
+/// given), the integrator's start and the actuator's range it clips to.
+#[derive(Debug, Clone, Serialize)]
+pub struct PidSpec {
+    pub anti_windup: AntiWindup,
+    #[serde(flatten)]
+    pub tunable: Tunable,
+    pub initial_integral: f64,
+    pub output_range: (f64, f64),
+}
+
+pub fn validate(
+    t: Option<Table>,
+    check: &Check,
+    cx: &ControllerContext,
+) -> Result<PidSpec, ConfigError> {
+    let Some(input) = cx.plant.config().scalar_input() else {
+        return check.fail(
+            "controller.kind",
+            "the PID of eq. 26 drives a single-input plant (maglev, two_mass), not an arm",
+        );
+    };
+    let Some(t) = t else {
+        return check.fail(
+            "controller.pid",
+            "missing table [controller.pid] with `anti_windup` and `params`",
+        );
+    };
+    let aw = t.anti_windup;
+    let n = aw.n_params();
+    if t.params.len() != n {
+        return check.fail(
+            "controller.pid.params",
+            format!(
+                "{} anti-windup takes {n} values ({}), got {}",
+                aw.name(),
+                aw.param_names().join(", "),
+                t.params.len()
+            ),
+        );
+    }
+    let (lo, hi) = aw.paper_ranges();
+    let tunable = check.tunable(
+        "controller.pid",
+        t.params,
+        Some(t.lower.unwrap_or(lo)),
+        Some(t.upper.unwrap_or(hi)),
+        0.0,
+    )?;
+    let (u_min, u_max) = input.range;
+    let key = "controller.pid.initial_integral";
+    let initial_integral = check.finite(key, t.initial_integral.unwrap_or(input.hold))?;
+    Ok(PidSpec {
+        anti_windup: aw,
+        tunable,
+        initial_integral: check.range(key, initial_integral, u_min, u_max)?,
+        output_range: input.range,
+    })
+}
+
+impl ControllerConfig for PidSpec {
+    fn build(&self, period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
+        Box::new(Pid::new(
+            self.anti_windup,
+            &self.tunable.gains,
+            period,
+            self.output_range,
+            self.initial_integral,
+        ))
+    }
+    fn tunable(&self) -> &Tunable {
+        &self.tunable
+    }
+    /// A PID's sets are tagged with its scheme (a fuzzy set is no use to a clamping PID).
+    fn param_kind(&self) -> u32 {
+        self.anti_windup.kind()
     }
 }

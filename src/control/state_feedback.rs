@@ -8,7 +8,9 @@
 //! Optional output limit with conditional integration (the integrator holds while the output is
 //! saturated and the error would drive it further into saturation).
 
-use super::Controller;
+use super::{Controller, ControllerConfig, ControllerContext};
+use crate::check::{Check, ConfigError, Tunable};
+use serde::{Deserialize, Serialize};
 use crate::msg::{PlantState, KIND_STATE_FEEDBACK};
 use crate::reference::Setpoint;
 
@@ -90,5 +92,72 @@ impl Controller for StateFeedback {
         self.gains.copy_from_slice(new);
         // Choose I so that -K_new x + I = u_old on this sample: no step in u.
         self.integral = u_old + self.state_term(x);
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// The `[controller.state_feedback]` keys.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    gains: Vec<f64>,
+    lower: Option<Vec<f64>>,
+    upper: Option<Vec<f64>>,
+}
+
+/// Validated state-feedback gains [K_x, k_{n+1}] and their bounds.
+#[derive(Debug, Clone, Serialize)]
+pub struct StateFeedbackSpec {
+    #[serde(flatten)]
+    pub tunable: Tunable,
+}
+
+pub fn validate(
+    t: Option<Table>,
+    check: &Check,
+    cx: &ControllerContext,
+) -> Result<StateFeedbackSpec, ConfigError> {
+    // The law needs the full state of a plant with a linear model to check new gains against.
+    let Some(model) = cx.plant.config().linear_model() else {
+        return check.fail(
+            "controller.kind",
+            "state_feedback drives the two_mass plant; arms take pd_servo or computed_torque",
+        );
+    };
+    let Some(t) = t else {
+        return check.fail(
+            "controller.state_feedback",
+            "missing table [controller.state_feedback] with `gains`",
+        );
+    };
+    let n_x = model.a.len();
+    let n = n_x + 1;
+    if t.gains.len() != n {
+        return check.fail(
+            "controller.state_feedback.gains",
+            format!(
+                "needs {n} values (the plant's {n_x} states and the integrator), got {}",
+                t.gains.len()
+            ),
+        );
+    }
+    Ok(StateFeedbackSpec {
+        tunable: check.tunable("controller.state_feedback", t.gains, t.lower, t.upper, 1e3)?,
+    })
+}
+
+impl ControllerConfig for StateFeedbackSpec {
+    fn build(&self, period: f64, u_limit: Option<f64>) -> Box<dyn Controller> {
+        Box::new(StateFeedback::new(&self.tunable.gains, period, u_limit))
+    }
+    fn tunable(&self) -> &Tunable {
+        &self.tunable
+    }
+    fn param_kind(&self) -> u32 {
+        KIND_STATE_FEEDBACK
+    }
+    fn checks_stability(&self) -> bool {
+        true
     }
 }

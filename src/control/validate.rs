@@ -46,32 +46,3 @@ pub fn validate_params(
     }
     Ok(())
 }
-
-/// The linear plant model a controller checks state-feedback gains against before use:
-/// x' = A x + B u, y = C x, with the integral state xi' = r - y and u = -K [x; xi].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LinearModel {
-    pub a: [[f64; 4]; 4],
-    pub b: [f64; 4],
-    pub c: [f64; 4],
-}
-
-impl LinearModel {
-    /// Whether u = -K [x; xi] makes the augmented closed loop asymptotically stable (every
-    /// eigenvalue of [[A - B K_x, -B k_5], [-C, 0]] in the open left half-plane). Stack-only
-    /// (a fixed 5 x 5 Schur decomposition), so it can run inside the control cycle.
-    pub fn stabilised_by(&self, gains: &[f64]) -> bool {
-        if gains.len() != 5 {
-            return false;
-        }
-        let mut m = nalgebra::Matrix5::<f64>::zeros();
-        for i in 0..4 {
-            for j in 0..4 {
-                m[(i, j)] = self.a[i][j] - self.b[i] * gains[j];
-            }
-            m[(i, 4)] = -self.b[i] * gains[4];
-            m[(4, i)] = -self.c[i];
-        }
-        m.complex_eigenvalues().iter().all(|l| l.re < 0.0)
-    }
-}

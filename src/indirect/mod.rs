@@ -13,10 +13,11 @@
 //!   the set in service and the previous best; at the end of an epoch the best set is published
 //!   when its cost is below the in-service set's cost on the same model by the margin.
 
-use crate::control::AntiWindup;
+use crate::control::{AntiWindup, ControllerModel};
 use crate::optim::hybrid::{hybrid, HybridConfig};
 use crate::optim::GaConfig;
 use crate::plant::maglev::{Maglev, MaglevParams, G};
+use crate::plant::PlantModel;
 use crate::reference::Reference;
 use crate::sim::maglev::{self as mg, Spec};
 
@@ -310,10 +311,11 @@ impl Indirect {
     /// fuzzy anti-windup PID's parameters) or the two-mass under state feedback (DE on K).
     pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
         let o = &scn.optimiser;
-        let scheme: Box<dyn Scheme> = match (scn.plant.maglev.clone(), scn.controller.anti_windup) {
-            (Some(plant), Some(aw)) => {
+        let scheme: Box<dyn Scheme> = match (&scn.plant.model, &scn.controller.model) {
+            (PlantModel::Maglev(plant), ControllerModel::Pid(pid)) => {
+                let aw = pid.anti_windup;
                 // The model starts from the nominal plant: it does not know the true schedule.
-                let nominal = MaglevParams { mass_steps: Vec::new(), ..plant };
+                let nominal = MaglevParams { mass_steps: Vec::new(), ..plant.clone() };
                 let repetition = match &scn.reference {
                     Reference::Square { period, start, .. } => start + period,
                     _ => scn.timing.duration.min(5.0),
@@ -335,13 +337,15 @@ impl Indirect {
                 tuner.margin = o.margin;
                 Box::new((MaglevEstimator::new(nominal, scn.timing.period, 10, 0.995), tuner))
             }
-            _ if scn.linear_model().is_some() => Box::new(two_mass::TwoMassScheme::new(scn)),
+            (PlantModel::TwoMass(plant), ControllerModel::StateFeedback(sf)) => {
+                Box::new(two_mass::TwoMassScheme::new(scn, plant, &sf.tunable))
+            }
             _ => return Err("the indirect optimiser drives the maglev under a PID or the two-mass plant under state feedback".into()),
         };
         Ok(Self {
             scheme,
             prev: None,
-            in_service: scn.controller.gains.clone(),
+            in_service: scn.controller.tunable().gains.clone(),
             version: 0,
             kind: scn.controller.param_kind(),
             budget: 0.0,

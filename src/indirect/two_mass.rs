@@ -17,11 +17,12 @@
 use super::rls::InformationRls;
 use super::svf::{Svf, SvfDesign};
 use super::{Candidate, Estimate, Scheme};
+use crate::check::Tunable;
 use crate::config::Scenario;
 use crate::control::StateFeedback;
 use crate::msg::PlantState;
 use crate::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
-use crate::plant::two_mass::{Sensor, TwoMass};
+use crate::plant::two_mass::{Sensor, TwoMass, TwoMassSpec};
 use crate::reference::Reference;
 
 pub struct TwoMassScheme {
@@ -95,22 +96,22 @@ const FADE_S: f64 = 5.0;
 const NOISE_MEMORY_S: f64 = 1.0;
 
 impl TwoMassScheme {
-    pub fn new(scn: &Scenario) -> Self {
+    pub fn new(scn: &Scenario, plant: &TwoMassSpec, tunable: &Tunable) -> Self {
         let repetition = match &scn.reference {
             Reference::Square { period, start, .. } => start + period,
             _ => scn.timing.duration.min(20.0),
         };
         Self {
-            m1: scn.plant.m1,
-            m2: scn.plant.m2,
-            k_nominal: scn.plant.spring,
-            sensor: scn.plant.sensor,
+            m1: plant.m1,
+            m2: plant.m2,
+            k_nominal: plant.spring,
+            sensor: plant.sensor,
             period: scn.timing.period,
             step: scn.plant.step,
             reference: scn.reference.clone(),
             duration: repetition,
-            lower: scn.controller.lower.clone(),
-            upper: scn.controller.upper.clone(),
+            lower: tunable.lower.clone(),
+            upper: tunable.upper.clone(),
             u_limit: scn.controller.u_limit,
             w: scn.optimiser.cost_u_weight,
             seed: scn.seed,
@@ -118,7 +119,7 @@ impl TwoMassScheme {
             epoch_evaluations: scn.optimiser.epoch_evaluations,
             margin: scn.optimiser.margin,
             epoch_no: 0,
-            estimator: SpringEstimator::new(scn),
+            estimator: SpringEstimator::new(scn, plant),
         }
     }
 
@@ -163,20 +164,20 @@ impl TwoMassScheme {
 }
 
 impl SpringEstimator {
-    pub fn new(scn: &Scenario) -> Self {
+    pub fn new(scn: &Scenario, plant: &TwoMassSpec) -> Self {
         let svf = SvfDesign::new(SVF_POLE, scn.timing.period);
         Self {
-            m1: scn.plant.m1,
-            m2: scn.plant.m2,
-            sensor: scn.plant.sensor,
+            m1: plant.m1,
+            m2: plant.m2,
+            sensor: plant.sensor,
             period: scn.timing.period,
-            target_noise_gain: scn.plant.m1 * scn.plant.m2 * svf.noise_gain(4),
+            target_noise_gain: plant.m1 * plant.m2 * svf.noise_gain(4),
             svf,
             y_f: Svf::default(),
             u_f: Svf::default(),
             settling: 0,
-            starts_at_rest: scn.plant.initial_positions[0] == scn.plant.initial_positions[1],
-            rls: InformationRls::new(scn.plant.spring, K_REL_STD, FADE_S / scn.timing.period),
+            starts_at_rest: plant.initial_positions[0] == plant.initial_positions[1],
+            rls: InformationRls::new(plant.spring, K_REL_STD, FADE_S / scn.timing.period),
             y_last: [0.0; 2],
             noise_var: 0.0,
         }
@@ -312,11 +313,14 @@ mod tests {
         let path =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml");
         let mut scn = Scenario::load(&path, &Overrides::default()).unwrap();
-        scn.plant.sensor = sensor;
-        scn.plant.resolution = resolution;
-        let truth =
-            TwoMass::new(1.0, 1.0, 1.0, sensor).with_spring_schedule(&scn.plant.spring_schedule);
-        let mut scheme = TwoMassScheme::new(&scn);
+        let crate::plant::PlantModel::TwoMass(tm) = &mut scn.plant.model else {
+            unreachable!("a two-mass scenario")
+        };
+        tm.sensor = sensor;
+        tm.resolution = resolution;
+        let tm = tm.clone();
+        let truth = TwoMass::new(1.0, 1.0, 1.0, sensor).with_spring_schedule(&tm.spring_schedule);
+        let mut scheme = TwoMassScheme::new(&scn, &tm, scn.controller.tunable());
         let mut sim = PlantSim::new(scn.build_plant(), scn.plant.step, noise, 7);
         let mut ctrl = scn.build_controller();
         let (mut u, mut sp) = ([0.0; 1], crate::reference::Setpoint::default());

@@ -3,8 +3,11 @@
 //! joint's effort limit, and joint position limits act as inelastic stops (after each integration
 //! step a joint past its limit is put back on it and its velocity into the limit removed).
 
-use super::Plant;
+use super::{Plant, PlantConfig, PlantContext};
+use crate::check::{Check, ConfigError};
 use crate::dynamics::{Data, Model};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
 use std::cell::RefCell;
 
 pub struct Arm {
@@ -92,5 +95,79 @@ impl Plant for Arm {
                 x[n + i] = x[n + i].min(0.0);
             }
         }
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// The `[plant.arm]` keys.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    /// D-H TOML or URDF, relative to the scenario file.
+    robot: PathBuf,
+    initial_q: Option<Vec<f64>>,
+}
+
+/// A validated arm.
+#[derive(Debug, Clone, Serialize)]
+pub struct ArmSpec {
+    /// The robot file as resolved (relative to the scenario file).
+    pub robot: PathBuf,
+    pub model: Model,
+    pub initial_q: Vec<f64>,
+}
+
+pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<ArmSpec, ConfigError> {
+    let Some(t) = t else {
+        return check.fail("plant.arm", "missing table [plant.arm] with `robot`");
+    };
+    let (robot, model) = check.robot("plant.arm.robot", &t.robot)?;
+    let n = model.dof();
+    let reference = cx.reference;
+    if reference.joints() != n {
+        return check.fail(
+            "reference",
+            format!(
+                "drives {} joint(s) but the robot `{}` has {n}; use a joint-space reference (quintic or sines) with {n} values per point",
+                reference.joints(),
+                model.name
+            ),
+        );
+    }
+    let initial_q = match t.initial_q {
+        Some(q) => {
+            if q.len() != n {
+                return check.fail(
+                    "plant.arm.initial_q",
+                    format!("needs {n} values (one per joint), got {}", q.len()),
+                );
+            }
+            for (i, v) in q.iter().enumerate() {
+                let b = &model.bodies[i].limits;
+                check.range(&format!("plant.arm.initial_q[{i}]"), *v, b.q_min, b.q_max)?;
+            }
+            q
+        }
+        // Start where the trajectory starts.
+        None => {
+            let mut sp = crate::reference::Setpoint::default();
+            reference.sample(0.0, &mut sp);
+            sp.q[..n].to_vec()
+        }
+    };
+    Ok(ArmSpec {
+        robot,
+        model,
+        initial_q,
+    })
+}
+
+impl PlantConfig for ArmSpec {
+    fn build(&self) -> Box<dyn Plant> {
+        Box::new(Arm::new(self.model.clone(), &self.initial_q))
+    }
+    fn rigid_body(&self) -> Option<&Model> {
+        Some(&self.model)
     }
 }

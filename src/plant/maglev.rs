@@ -17,8 +17,9 @@
 //! a 0..2 A amplifier with a 0.5 ms current lag, a +-5 mm sensor with 2 um noise. The mass may
 //! follow a schedule (a load added in operation).
 
-use super::Plant;
-use serde::Serialize;
+use super::{Plant, PlantConfig, PlantContext, ScalarInput};
+use crate::check::{Check, ConfigError};
+use serde::{Deserialize, Serialize};
 
 pub const G: f64 = 9.80665;
 
@@ -166,5 +167,90 @@ impl Plant for Maglev {
     fn measure(&self, y: &mut [f64]) {
         let r = self.p.sensor_range_mm;
         y[0] = ((y[0].clamp(-r, r) + r) / self.adc_step_mm).round() * self.adc_step_mm - r;
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// The `[plant.maglev]` keys (the rest of `MaglevParams` keeps its documented defaults).
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    mass: Option<f64>,
+    hold_current: Option<f64>,
+    i_max: Option<f64>,
+    tau: Option<f64>,
+    sensor_range_mm: Option<f64>,
+    mass_times: Option<Vec<f64>>,
+    mass_values: Option<Vec<f64>>,
+}
+
+pub fn validate(
+    t: Option<Table>,
+    check: &Check,
+    cx: &PlantContext,
+) -> Result<MaglevParams, ConfigError> {
+    if cx.reference.joints() != 1 {
+        return check.fail(
+            "reference",
+            "the maglev follows a scalar height reference (mm)",
+        );
+    }
+    let t = t.unwrap_or_default();
+    let d = MaglevParams::default();
+    let mg = MaglevParams {
+        mass: check.range("plant.maglev.mass", t.mass.unwrap_or(d.mass), 0.01, 2.0)?,
+        hold_current: check.range(
+            "plant.maglev.hold_current",
+            t.hold_current.unwrap_or(d.hold_current),
+            0.01,
+            100.0,
+        )?,
+        i_max: check.range("plant.maglev.i_max", t.i_max.unwrap_or(d.i_max), 0.01, 100.0)?,
+        tau: check.range("plant.maglev.tau", t.tau.unwrap_or(d.tau), 1e-6, 1.0)?,
+        sensor_range_mm: check.range(
+            "plant.maglev.sensor_range_mm",
+            t.sensor_range_mm.unwrap_or(d.sensor_range_mm),
+            0.1,
+            50.0,
+        )?,
+        mass_steps: check.schedule(
+            "plant.maglev.mass_times",
+            "plant.maglev.mass_values",
+            t.mass_times,
+            t.mass_values,
+            super::two_mass::MAX_SCHEDULE,
+        )?,
+        ..d
+    };
+    if cx.step > mg.tau {
+        return check.fail(
+            "plant.step",
+            format!(
+                "{} s is longer than the coil lag tau = {} s; the RK4 step must resolve it",
+                cx.step, mg.tau
+            ),
+        );
+    }
+    Ok(mg)
+}
+
+impl PlantConfig for MaglevParams {
+    fn build(&self) -> Box<dyn Plant> {
+        Box::new(Maglev::new(self.clone()))
+    }
+    /// The amplifier's 0..i_max (in mA) and the current holding the ball at t = 0.
+    fn scalar_input(&self) -> Option<ScalarInput> {
+        Some(ScalarInput {
+            range: (0.0, 1000.0 * self.i_max),
+            hold: self.hold_current_ma(self.mass_at(0.0)),
+        })
+    }
+    /// The ball's mass.
+    fn varying_parameter(&self, t: f64) -> Option<f64> {
+        Some(self.mass_at(t))
+    }
+    fn first_change(&self) -> Option<f64> {
+        self.mass_steps.first().map(|s| s.0)
     }
 }

@@ -5,20 +5,156 @@
 //! The same `PlantSim` runs in the plant process, in the in-process simulation used by tests and
 //! (in later issues) in the optimiser's model evaluations.
 
-pub mod arm;
 pub mod integrator;
-pub mod maglev;
-pub mod two_mass;
+pub mod linear;
 
 pub use arm::Arm;
 pub use integrator::Rk4;
+pub use linear::LinearModel;
 pub use two_mass::TwoMass;
 
+use crate::check::{Check, ConfigError};
+use crate::dynamics::Model;
 use crate::msg::PlantState;
+use crate::reference::Reference;
 use crate::{MAX_JOINTS, MAX_STATES};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+
+// The plant registry: adding a plant is its module (the model, `Table`, `validate` and
+// `impl PlantConfig`; see the README's "Extending evoloop") plus one line here.
+crate::kinds! {
+    family "plant", trait PlantConfig, context PlantContext<'_>;
+    /// `plant.kind`: which plant a scenario simulates.
+    pub enum PlantKind;
+    /// A validated plant: the chosen kind's parameters.
+    pub enum PlantModel;
+    /// The `[plant]` table as read: the keys every plant shares and one table per kind.
+    pub struct RawPlant {
+        pub kind: PlantKind,
+        pub step: Option<f64>,
+        pub noise_std: Option<f64>,
+        pub safe_command: Option<f64>,
+        pub command_timeout_periods: Option<u32>,
+    };
+    two_mass => TwoMass(TwoMassSpec),
+    arm => Arm(ArmSpec),
+    maglev => Maglev(MaglevParams),
+}
+
+/// What a plant kind's configuration offers the rest of the system. Besides this, a kind's
+/// module has `pub struct Table` (its `[plant.<kind>]` keys) and `pub fn validate`.
+pub trait PlantConfig {
+    /// The model to simulate, with these parameters.
+    fn build(&self) -> Box<dyn Plant>;
+    /// The rigid-body model, for arms (joint-space controllers need it).
+    fn rigid_body(&self) -> Option<&Model> {
+        None
+    }
+    /// The linearisation state feedback is checked against, where the plant has one.
+    fn linear_model(&self) -> Option<LinearModel> {
+        None
+    }
+    /// For single-input plants: the actuator's range and the input that holds the plant at its
+    /// operating point at t = 0 (where an integrator starts).
+    fn scalar_input(&self) -> Option<ScalarInput> {
+        None
+    }
+    /// The true value at time t of the parameter that may change in operation (the one an
+    /// indirect scheme estimates), for reports; None if the plant has none.
+    fn varying_parameter(&self, _t: f64) -> Option<f64> {
+        None
+    }
+    /// When that parameter's schedule starts.
+    fn first_change(&self) -> Option<f64> {
+        None
+    }
+}
+
+/// A single input as a controller must respect it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScalarInput {
+    pub range: (f64, f64),
+    pub hold: f64,
+}
+
+/// What a plant kind's validation may look at besides its own table.
+pub struct PlantContext<'a> {
+    /// The control period, s.
+    pub period: f64,
+    /// The integration step, s (validated: 0 < step <= period).
+    pub step: f64,
+    pub reference: &'a Reference,
+}
+
+/// A validated plant: the simulation settings every plant shares, and its kind's parameters.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PlantSpec {
+    /// Integration step, s.
+    pub step: f64,
+    /// Standard deviation of the additive output noise.
+    pub noise_std: f64,
+    /// The command applied when the controller falls silent.
+    pub safe_command: f64,
+    /// Periods without a command before the plant applies `safe_command`.
+    pub command_timeout_periods: u32,
+    #[serde(flatten)]
+    pub model: PlantModel,
+}
+
+impl PlantSpec {
+    /// Validate the `[plant]` table against the control period and the reference.
+    pub fn validate(
+        mut raw: RawPlant,
+        check: &Check,
+        period: f64,
+        reference: &Reference,
+    ) -> Result<PlantSpec, ConfigError> {
+        let step = raw.step.unwrap_or(period.min(1e-3));
+        check.positive("plant.step", step)?;
+        if step > period {
+            return check.fail(
+                "plant.step",
+                format!("integration step {step} s is longer than the control period {period} s"),
+            );
+        }
+        if period / step > 1e5 {
+            return check.fail("plant.step", "more than 1e5 sub-steps per period");
+        }
+        let noise_std = raw.noise_std.unwrap_or(0.0);
+        if !noise_std.is_finite() || noise_std < 0.0 {
+            return check.fail("plant.noise_std", format!("must be >= 0 (got {noise_std})"));
+        }
+        let safe_command = check.finite("plant.safe_command", raw.safe_command.unwrap_or(0.0))?;
+        let command_timeout_periods = raw.command_timeout_periods.unwrap_or(10);
+        if command_timeout_periods == 0 {
+            return check.fail("plant.command_timeout_periods", "must be >= 1");
+        }
+        let kind = raw.kind;
+        let cx = PlantContext {
+            period,
+            step,
+            reference,
+        };
+        Ok(PlantSpec {
+            step,
+            noise_std,
+            safe_command,
+            command_timeout_periods,
+            model: raw.validate_kind(kind, check, &cx)?,
+        })
+    }
+
+    pub fn kind(&self) -> PlantKind {
+        self.model.kind()
+    }
+
+    /// The plant model, with the configured parameters.
+    pub fn build(&self) -> Box<dyn Plant> {
+        self.model.config().build()
+    }
+}
 
 /// A continuous-time plant model.
 pub trait Plant: Send {

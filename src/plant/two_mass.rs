@@ -10,7 +10,8 @@
 //! (`Sensor::Actuated`, the collocated variant that reproduces the LQR rows of Table 9).
 //! Joint order in messages is physical: q = [x1, x2] (body 1, body 2).
 
-use super::Plant;
+use super::{LinearModel, Plant, PlantConfig, PlantContext, ScalarInput};
+use crate::check::{Check, ConfigError};
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -100,9 +101,9 @@ impl TwoMass {
     }
 
     /// The (A, B, C) model a state-feedback controller checks its gains against.
-    pub fn linear_model(&self) -> crate::control::LinearModel {
+    pub fn linear_model(&self) -> LinearModel {
         let (a, b, c) = self.matrices();
-        crate::control::LinearModel { a, b, c }
+        LinearModel { a, b, c }
     }
 
     /// Total mechanical energy (kinetic + spring); conserved when u = 0.
@@ -151,5 +152,112 @@ impl Plant for TwoMass {
     }
     fn initial_state(&self, x: &mut [f64]) {
         x.copy_from_slice(&[self.x0[1], self.x0[0], 0.0, 0.0]);
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// The `[plant.two_mass]` keys.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    m1: Option<f64>,
+    m2: Option<f64>,
+    spring: Option<f64>,
+    sensor: Option<Sensor>,
+    initial_positions: Option<[f64; 2]>,
+    spring_times: Option<Vec<f64>>,
+    spring_values: Option<Vec<f64>>,
+    resolution: Option<f64>,
+}
+
+/// A validated two-mass plant.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TwoMassSpec {
+    pub m1: f64,
+    pub m2: f64,
+    /// The nominal spring constant (the one gains are checked against).
+    pub spring: f64,
+    pub sensor: Sensor,
+    pub initial_positions: [f64; 2],
+    /// Spring-constant schedule (time, k), linearly interpolated; empty = constant `spring`.
+    pub spring_schedule: Vec<(f64, f64)>,
+    /// Position encoder resolution (0: ideal).
+    pub resolution: f64,
+}
+
+pub fn validate(
+    t: Option<Table>,
+    check: &Check,
+    cx: &PlantContext,
+) -> Result<TwoMassSpec, ConfigError> {
+    if cx.reference.joints() != 1 {
+        return check.fail(
+            "reference",
+            "the two-mass plant follows a scalar reference (step, square or steps)",
+        );
+    }
+    let t = t.unwrap_or_default();
+    let spring_schedule = check.schedule(
+        "plant.two_mass.spring_times",
+        "plant.two_mass.spring_values",
+        t.spring_times,
+        t.spring_values,
+        MAX_SCHEDULE,
+    )?;
+    let x0 = t.initial_positions.unwrap_or([0.0; 2]);
+    for (i, v) in x0.iter().enumerate() {
+        check.finite(&format!("plant.two_mass.initial_positions[{i}]"), *v)?;
+    }
+    Ok(TwoMassSpec {
+        m1: check.range("plant.two_mass.m1", t.m1.unwrap_or(1.0), 1e-6, 1e6)?,
+        m2: check.range("plant.two_mass.m2", t.m2.unwrap_or(1.0), 1e-6, 1e6)?,
+        spring: check.range("plant.two_mass.spring", t.spring.unwrap_or(1.0), 1e-6, 1e6)?,
+        sensor: t.sensor.unwrap_or_default(),
+        resolution: check.range(
+            "plant.two_mass.resolution",
+            t.resolution.unwrap_or(0.0),
+            0.0,
+            1.0,
+        )?,
+        initial_positions: x0,
+        spring_schedule,
+    })
+}
+
+impl TwoMassSpec {
+    /// The plant at its nominal spring constant, without schedule, start or encoder.
+    pub fn nominal(&self) -> TwoMass {
+        TwoMass::new(self.m1, self.m2, self.spring, self.sensor)
+    }
+
+    /// The plant as configured.
+    pub fn plant(&self) -> TwoMass {
+        let mut p = self.nominal();
+        p.x0 = self.initial_positions;
+        p.resolution = self.resolution;
+        p.with_spring_schedule(&self.spring_schedule)
+    }
+}
+
+impl PlantConfig for TwoMassSpec {
+    fn build(&self) -> Box<dyn Plant> {
+        Box::new(self.plant())
+    }
+    fn linear_model(&self) -> Option<LinearModel> {
+        Some(self.nominal().linear_model())
+    }
+    fn scalar_input(&self) -> Option<ScalarInput> {
+        Some(ScalarInput {
+            range: (f64::NEG_INFINITY, f64::INFINITY),
+            hold: 0.0,
+        })
+    }
+    /// The spring constant.
+    fn varying_parameter(&self, t: f64) -> Option<f64> {
+        Some(self.nominal().with_spring_schedule(&self.spring_schedule).spring_at(t))
+    }
+    fn first_change(&self) -> Option<f64> {
+        self.spring_schedule.first().map(|s| s.0)
     }
 }

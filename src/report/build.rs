@@ -143,12 +143,8 @@ pub fn build_report(
         } else {
             Vec::new()
         };
-    let change = scn
-        .plant
-        .maglev
-        .as_ref()
-        .and_then(|m| m.mass_steps.first().map(|s| s.0))
-        .or(scn.plant.spring_schedule.first().map(|s| s.0));
+    let plant_model = scn.plant.model.config();
+    let change = plant_model.first_change();
     let mean = |v: Vec<f64>| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
     // Before: the repetitions after the first (start-up) that end by the change; after: those
     // starting in the last quarter of the run.
@@ -177,22 +173,7 @@ pub fn build_report(
     let cost_before_change_frozen = before(&frozen);
     let cost_after_change_frozen = after(&frozen);
     // The true value of the parameter the optimiser estimates (maglev mass, two-mass spring).
-    let two_mass = (scn.plant.kind == crate::config::PlantKind::TwoMass).then(|| {
-        crate::plant::two_mass::TwoMass::new(
-            scn.plant.m1,
-            scn.plant.m2,
-            scn.plant.spring,
-            scn.plant.sensor,
-        )
-        .with_spring_schedule(&scn.plant.spring_schedule)
-    });
-    let truth = |tt: f64| -> Option<f64> {
-        scn.plant
-            .maglev
-            .as_ref()
-            .map(|m| m.mass_at(tt))
-            .or(two_mass.as_ref().map(|p| p.spring_at(tt)))
-    };
+    let truth = |tt: f64| plant_model.varying_parameter(tt);
     let last_est = opt.estimates.last().copied();
     let model_estimate_final = last_est.map(|e| e.value);
     let model_true_final = last_est.and_then(|e| truth(e.t));

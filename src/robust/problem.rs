@@ -31,18 +31,14 @@ pub enum Perturbation {
     Literal,
 }
 
-/// The augmented open loop (Â, B̂) of the two-mass plant with spring `k` (m1 = m2 = 1).
+/// The augmented open loop (Â, B̂) of the two-mass plant with spring `k` (m1 = m2 = 1), as the
+/// plant's linear model builds it.
 pub fn augmented(k: f64, sensor: Sensor) -> (DMatrix<f64>, DMatrix<f64>) {
-    let (a, b, c) = TwoMass::new(1.0, 1.0, k, sensor).matrices();
-    let mut ah = DMatrix::zeros(5, 5);
-    for i in 0..4 {
-        for j in 0..4 {
-            ah[(i, j)] = a[i][j];
-        }
-        ah[(4, i)] = -c[i];
-    }
-    let bh = DMatrix::from_column_slice(5, 1, &[b[0], b[1], b[2], b[3], 0.0]);
-    (ah, bh)
+    let (a, b) = TwoMass::new(1.0, 1.0, k, sensor).linear_model().augmented();
+    (
+        DMatrix::from_column_slice(5, 5, a.as_slice()),
+        DMatrix::from_column_slice(5, 1, b.as_slice()),
+    )
 }
 
 impl Objective for RobustProblem {

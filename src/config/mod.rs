@@ -1,0 +1,216 @@
+//! Scenario configuration: one TOML file per scenario in `config/`.
+//!
+//! Loading is two-stage. Serde reads the file into raw structs that refuse unknown keys and wrong
+//! types; validation then checks ranges and cross-field rules and builds a `Scenario`. Every error
+//! names the file, the key (as a dotted path) and the reason, like
+//! `config/two_mass.toml: key `timing.period`: must be > 0 (got -0.01)`.
+//!
+//! The loader keeps the shared tables (`[timing]`, `[reference]`, `[optimiser]`, `[output]`) and
+//! composes the rest: each plant kind owns its `[plant.<kind>]` table in its module under
+//! `plant/`, each control law its `[controller.<kind>]` table under `control/`, registered by
+//! one line in `plant::kinds!` / `control::kinds!`.
+
+mod optimiser;
+mod reference;
+mod timing;
+
+pub use crate::check::ConfigError;
+pub use crate::control::{ControllerKind, ControllerModel, ControllerSpec};
+pub use crate::plant::{PlantKind, PlantModel, PlantSpec};
+pub use optimiser::{OptimiserMode, OptimiserSpec, ScheduledSet};
+pub use timing::{Mode, Timing};
+
+use crate::check::Check;
+use crate::control::{Controller, ParamBounds, RawController};
+use crate::plant::{Plant, RawPlant};
+use crate::reference::Reference;
+use crate::rt::RtRequest;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+// ---------------------------------------------------------------- raw file structure
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScenario {
+    name: Option<String>,
+    seed: Option<u64>,
+    plant: RawPlant,
+    controller: RawController,
+    reference: reference::RawReference,
+    timing: timing::RawTiming,
+    optimiser: Option<optimiser::RawOptimiser>,
+    output: Option<RawOutput>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawOutput {
+    dir: Option<PathBuf>,
+    plots: Option<bool>,
+}
+
+// ---------------------------------------------------------------- validated scenario
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Scenario {
+    pub source: PathBuf,
+    pub name: String,
+    pub seed: u64,
+    pub plant: PlantSpec,
+    pub controller: ControllerSpec,
+    pub reference: Reference,
+    pub timing: Timing,
+    pub optimiser: OptimiserSpec,
+    pub output: Output,
+    /// What the robot files' loader warned about (physically dubious but simulable), for
+    /// `evoloop check` and the launcher to print.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Output {
+    pub dir: PathBuf,
+    pub plots: bool,
+}
+
+/// Command-line overrides applied before validation.
+#[derive(Debug, Clone, Default)]
+pub struct Overrides {
+    pub mode: Option<Mode>,
+    pub duration: Option<f64>,
+    pub seed: Option<u64>,
+    pub out: Option<PathBuf>,
+    pub optimiser: Option<OptimiserMode>,
+    /// Drop every real-time privilege request (SCHED_FIFO, mlockall, pinning).
+    pub no_rt: bool,
+}
+
+impl Scenario {
+    /// Read, parse and validate a scenario file.
+    pub fn load(path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+            file: path.to_path_buf(),
+            key: String::new(),
+            reason: format!("cannot read: {e}"),
+            line: None,
+        })?;
+        Self::parse(&text, path, ov)
+    }
+
+    /// Parse and validate scenario text; `path` is used in messages and to name the run.
+    pub fn parse(text: &str, path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
+        let de = toml::Deserializer::new(text);
+        let raw: RawScenario = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.into_inner();
+            let line = inner
+                .span()
+                .map(|s| text[..s.start.min(text.len())].lines().count().max(1));
+            ConfigError {
+                file: path.to_path_buf(),
+                key: if key == "." { String::new() } else { key },
+                reason: inner.message().to_string(),
+                line,
+            }
+        })?;
+        compose(raw, &Check::new(path), ov)
+    }
+
+    /// Number of control cycles in the run.
+    pub fn cycles(&self) -> u64 {
+        (self.timing.duration / self.timing.period).round() as u64
+    }
+
+    /// Samples between two optimiser acknowledgements in lockstep.
+    pub fn sync_samples(&self) -> u64 {
+        ((self.optimiser.sync_period / self.timing.period).round() as u64).max(1)
+    }
+
+    pub fn period_ns(&self) -> u64 {
+        (self.timing.period * 1e9).round() as u64
+    }
+
+    /// The plant model, with the configured parameters.
+    pub fn build_plant(&self) -> Box<dyn Plant> {
+        self.plant.build()
+    }
+
+    /// The controller with the configured initial parameters.
+    pub fn build_controller(&self) -> Box<dyn Controller> {
+        self.controller.build(self.timing.period)
+    }
+
+    /// The linear model new parameter sets must stabilise before use (state feedback on a plant
+    /// with a linear model, at its nominal parameters); None otherwise.
+    pub fn linear_model(&self) -> Option<crate::control::LinearModel> {
+        if self.controller.model.config().checks_stability() {
+            self.plant.model.config().linear_model()
+        } else {
+            None
+        }
+    }
+
+    pub fn bounds(&self) -> ParamBounds {
+        let t = self.controller.tunable();
+        ParamBounds {
+            lower: t.lower.clone(),
+            upper: t.upper.clone(),
+        }
+    }
+
+    pub fn controller_rt(&self) -> RtRequest {
+        RtRequest {
+            fifo_priority: self.timing.fifo_priority,
+            lock_memory: self.timing.lock_memory,
+            cpu: self.timing.controller_cpu,
+        }
+    }
+
+    pub fn plant_rt(&self) -> RtRequest {
+        RtRequest {
+            fifo_priority: self.timing.plant_fifo_priority,
+            lock_memory: self.timing.lock_memory,
+            cpu: self.timing.plant_cpu,
+        }
+    }
+}
+
+fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, ConfigError> {
+    let path = &check.file;
+    let name = raw.name.unwrap_or_else(|| {
+        path.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scenario".into())
+    });
+    let timing = timing::validate(raw.timing, check, ov)?;
+    let reference = reference::validate(raw.reference, check)?;
+    let plant = PlantSpec::validate(raw.plant, check, timing.period, &reference)?;
+    let controller = ControllerSpec::validate(raw.controller, check, &plant.model, timing.period)?;
+    let optimiser = optimiser::validate(raw.optimiser, check, &timing, ov)?;
+    let out_raw = raw.output.unwrap_or(RawOutput {
+        dir: None,
+        plots: None,
+    });
+    let output = Output {
+        dir: ov
+            .out
+            .clone()
+            .or(out_raw.dir)
+            .unwrap_or_else(|| PathBuf::from("runs").join(&name)),
+        plots: out_raw.plots.unwrap_or(true),
+    };
+    Ok(Scenario {
+        source: path.to_path_buf(),
+        name,
+        seed: ov.seed.or(raw.seed).unwrap_or(1),
+        plant,
+        controller,
+        reference,
+        timing,
+        optimiser,
+        output,
+        warnings: check.take_warnings(),
+    })
+}

@@ -1,0 +1,173 @@
+//! The `[optimiser]` table. The modes' keys sit flat in it (files and scripts use them as they
+//! are), and the modes' code (`node::optimiser`, `indirect`) builds on the scenario, so their
+//! settings are validated here rather than next to that code.
+
+use super::{Overrides, Timing};
+use crate::check::{Check, ConfigError};
+use crate::ipc::MAX_SYNC_SAMPLES;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawOptimiser {
+    pub mode: Option<OptimiserMode>,
+    pub sync_period: Option<f64>,
+    pub nice: Option<i32>,
+    pub schedule: Option<Vec<RawScheduled>>,
+    pub margin: Option<f64>,
+    pub evaluations_per_second: Option<f64>,
+    pub epoch_evaluations: Option<usize>,
+    pub threads: Option<usize>,
+    pub cost_u_weight: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OptimiserMode {
+    /// Starts, listens to the streams, publishes nothing.
+    Off,
+    /// Publishes the configured parameter sets at their configured times.
+    Schedule,
+    /// The indirect scheme: estimates the model online, tunes on it, publishes better sets.
+    Indirect,
+}
+
+impl std::str::FromStr for OptimiserMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "off" => Ok(OptimiserMode::Off),
+            "schedule" => Ok(OptimiserMode::Schedule),
+            "indirect" => Ok(OptimiserMode::Indirect),
+            _ => Err(format!(
+                "unknown optimiser mode {s:?} (expected off, schedule or indirect)"
+            )),
+        }
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawScheduled {
+    pub at: f64,
+    pub values: Vec<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ScheduledSet {
+    pub at: f64,
+    pub values: Vec<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct OptimiserSpec {
+    pub mode: OptimiserMode,
+    pub sync_period: f64,
+    pub nice: i32,
+    pub schedule: Vec<ScheduledSet>,
+    /// Indirect: publish when the candidate's model cost is below the in-service set's by this
+    /// fraction.
+    pub margin: f64,
+    /// Indirect, lockstep: model evaluations per simulated second (paces the optimiser so a seeded
+    /// run is reproducible).
+    pub evaluations_per_second: f64,
+    /// Indirect: evaluations per GA epoch on one model snapshot.
+    pub epoch_evaluations: usize,
+    /// Indirect: threads evaluating candidates.
+    pub threads: usize,
+    /// Weight of |u| in the per-repetition cost sum |e| + w sum |u| (eq. 31: 1/1000 per mA).
+    pub cost_u_weight: f64,
+}
+
+pub fn validate(
+    o: Option<RawOptimiser>,
+    check: &Check,
+    timing: &Timing,
+    ov: &Overrides,
+) -> Result<OptimiserSpec, ConfigError> {
+    let o = o.unwrap_or(RawOptimiser {
+        mode: None,
+        sync_period: None,
+        nice: None,
+        schedule: None,
+        margin: None,
+        evaluations_per_second: None,
+        epoch_evaluations: None,
+        threads: None,
+        cost_u_weight: None,
+    });
+    // Default: an acknowledgement every 100 periods (a barrier costs two cross-process
+    // wake-ups; rarer barriers let lockstep run at hundreds of thousands of samples/s).
+    let sync_period = o.sync_period.unwrap_or(timing.period * 100.0);
+    check.positive("optimiser.sync_period", sync_period)?;
+    let samples = sync_period / timing.period;
+    if samples < 1.0 - 1e-9 || samples > MAX_SYNC_SAMPLES as f64 {
+        return check.fail(
+            "optimiser.sync_period",
+            format!("must be between 1 and {MAX_SYNC_SAMPLES} control periods (got {samples:.1})"),
+        );
+    }
+    let nice = o.nice.unwrap_or(10);
+    if !(-20..=19).contains(&nice) {
+        return check.fail(
+            "optimiser.nice",
+            format!("must be within -20..=19 (got {nice})"),
+        );
+    }
+    let mut schedule = Vec::new();
+    for (i, s) in o.schedule.unwrap_or_default().into_iter().enumerate() {
+        let key = format!("optimiser.schedule[{i}]");
+        // A set scheduled past the end of a (shortened) run is simply never published.
+        check.range(&format!("{key}.at"), s.at, 0.0, 1e9)?;
+        if i > 0 && s.at < schedule.last().map(|p: &ScheduledSet| p.at).unwrap_or(0.0) {
+            return check.fail(&format!("{key}.at"), "schedule times must not decrease");
+        }
+        // The values are deliberately not range-checked here: the controller validates every
+        // set it receives, and a scheduled bad set is how that path is exercised end to end.
+        if s.values.is_empty() || s.values.len() > crate::MAX_PARAMS {
+            return check.fail(
+                &format!("{key}.values"),
+                format!("needs 1..={} values", crate::MAX_PARAMS),
+            );
+        }
+        schedule.push(ScheduledSet {
+            at: s.at,
+            values: s.values,
+        });
+    }
+    let epoch_evaluations = o.epoch_evaluations.unwrap_or(150);
+    if !(12..=100_000).contains(&epoch_evaluations) {
+        return check.fail(
+            "optimiser.epoch_evaluations",
+            format!("must be 12..=100000 (got {epoch_evaluations})"),
+        );
+    }
+    let threads = o.threads.unwrap_or(2);
+    if !(1..=64).contains(&threads) {
+        return check.fail(
+            "optimiser.threads",
+            format!("must be 1..=64 (got {threads})"),
+        );
+    }
+    Ok(OptimiserSpec {
+        mode: ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off),
+        sync_period,
+        nice,
+        schedule,
+        margin: check.range("optimiser.margin", o.margin.unwrap_or(0.01), 0.0, 0.9)?,
+        evaluations_per_second: check.range(
+            "optimiser.evaluations_per_second",
+            o.evaluations_per_second.unwrap_or(100.0),
+            1.0,
+            1e6,
+        )?,
+        epoch_evaluations,
+        threads,
+        cost_u_weight: check.range(
+            "optimiser.cost_u_weight",
+            o.cost_u_weight.unwrap_or(1e-3),
+            0.0,
+            1e6,
+        )?,
+    })
+}

@@ -1,0 +1,111 @@
+//! The `[timing]` table: mode, period, duration and the real-time requests.
+
+use super::Overrides;
+use crate::check::{Check, ConfigError};
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawTiming {
+    pub mode: Option<Mode>,
+    pub period: f64,
+    pub duration: f64,
+    pub spin_us: Option<u64>,
+    pub lockstep_timeout: Option<f64>,
+    pub phase: Option<f64>,
+    pub fifo_priority: Option<i32>,
+    pub plant_fifo_priority: Option<i32>,
+    pub lock_memory: Option<bool>,
+    pub controller_cpu: Option<usize>,
+    pub plant_cpu: Option<usize>,
+    pub measure_floor: Option<bool>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    Lockstep,
+    Realtime,
+}
+
+impl std::str::FromStr for Mode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "lockstep" => Ok(Mode::Lockstep),
+            "realtime" => Ok(Mode::Realtime),
+            _ => Err(format!(
+                "unknown mode {s:?} (expected lockstep or realtime)"
+            )),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Timing {
+    pub mode: Mode,
+    pub period: f64,
+    pub duration: f64,
+    pub spin_us: u64,
+    pub lockstep_timeout: f64,
+    pub phase: f64,
+    pub fifo_priority: Option<i32>,
+    pub plant_fifo_priority: Option<i32>,
+    pub lock_memory: bool,
+    pub controller_cpu: Option<usize>,
+    pub plant_cpu: Option<usize>,
+    pub measure_floor: bool,
+}
+
+pub fn validate(t: RawTiming, check: &Check, ov: &Overrides) -> Result<Timing, ConfigError> {
+    let period = check.range("timing.period", t.period, 1e-5, 10.0)?;
+    let duration = ov.duration.unwrap_or(t.duration);
+    let key_d = if ov.duration.is_some() {
+        "--duration"
+    } else {
+        "timing.duration"
+    };
+    check.positive(key_d, duration)?;
+    if duration / period > 1e8 {
+        return check.fail(
+            key_d,
+            format!("{duration} s at a {period} s period is over 1e8 cycles"),
+        );
+    }
+    if duration < period {
+        return check.fail(key_d, format!("shorter than one period ({period} s)"));
+    }
+    let prio = |key: &str, p: Option<i32>| -> Result<Option<i32>, ConfigError> {
+        match p {
+            Some(v) if !(1..=99).contains(&v) => {
+                check.fail(key, format!("SCHED_FIFO priority must be 1..=99 (got {v})"))
+            }
+            _ => Ok(p),
+        }
+    };
+    let spin_us = t.spin_us.unwrap_or(50);
+    if spin_us > 1_000_000 {
+        return check.fail("timing.spin_us", format!("at most 1000000 (got {spin_us})"));
+    }
+    let rt = !ov.no_rt;
+    Ok(Timing {
+        mode: ov.mode.or(t.mode).unwrap_or(Mode::Lockstep),
+        period,
+        duration,
+        spin_us,
+        lockstep_timeout: check.range(
+            "timing.lockstep_timeout",
+            t.lockstep_timeout.unwrap_or(10.0),
+            0.01,
+            3600.0,
+        )?,
+        phase: check.range("timing.phase", t.phase.unwrap_or(0.1), 0.0, 0.95)?,
+        fifo_priority: prio("timing.fifo_priority", t.fifo_priority)?.filter(|_| rt),
+        plant_fifo_priority: prio("timing.plant_fifo_priority", t.plant_fifo_priority)?
+            .filter(|_| rt),
+        lock_memory: t.lock_memory.unwrap_or(false) && rt,
+        controller_cpu: t.controller_cpu.filter(|_| rt),
+        plant_cpu: t.plant_cpu.filter(|_| rt),
+        measure_floor: t.measure_floor.unwrap_or(true),
+    })
+}
