@@ -41,6 +41,7 @@ crate::kinds! {
     two_mass => TwoMass(TwoMassSpec),
     arm => Arm(ArmSpec),
     maglev => Maglev(MaglevParams),
+    heater => Heater(HeaterSpec),
 }
 
 /// What a plant kind's configuration offers the rest of the system. Besides this, a kind's
