@@ -166,3 +166,43 @@ fn the_checker_itself_rejects_what_does_not_parse() {
     let missing = parse("evoloop run config/no_such.toml").unwrap();
     assert!(check_files(missing.command.as_ref().unwrap()).is_err());
 }
+
+/// The README's "Extending evoloop" example quotes `src/plant/heater.rs` and the registry in
+/// `src/plant/mod.rs`: every stretch of its ```rust blocks between `// ...` elisions appears in
+/// those files (compared without whitespace, so line breaks may differ).
+#[test]
+fn the_extending_example_quotes_the_real_files() {
+    let text = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let squash = |s: &str| s.chars().filter(|c| !c.is_whitespace()).collect::<String>();
+    let files = squash(
+        &["src/plant/heater.rs", "src/plant/mod.rs"]
+            .map(|f| std::fs::read_to_string(root().join(f)).unwrap())
+            .join("\n"),
+    );
+    let section = text
+        .split("## Extending evoloop")
+        .nth(1)
+        .expect("README has the extending section");
+    let section = section.split("\n## ").next().unwrap();
+    let mut stretches = 0;
+    for block in section.split("```rust").skip(1) {
+        let code = block.split("```").next().unwrap();
+        let mut stretch = String::new();
+        for line in code.lines().chain(["// ..."]) {
+            if line.trim_start().starts_with("// ...") {
+                if !stretch.trim().is_empty() {
+                    assert!(
+                        files.contains(&squash(&stretch)),
+                        "README quotes what the files do not say:\n{stretch}"
+                    );
+                    stretches += 1;
+                }
+                stretch.clear();
+            } else {
+                stretch.push_str(line);
+                stretch.push('\n');
+            }
+        }
+    }
+    assert!(stretches >= 5, "only {stretches} quoted stretches found");
+}
