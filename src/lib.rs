@@ -7,6 +7,16 @@
 //! So a control law runs the same in the controller process, in an optimiser's model evaluation
 //! and in a unit test.
 
+/// Print a line to stdout, ignoring errors: a closed pipe (`evoloop run | head`) must not kill
+/// the launcher while it supervises the processes.
+macro_rules! out {
+    ($($a:tt)*) => {{ use std::io::Write; let _ = writeln!(std::io::stdout(), $($a)*); }};
+}
+/// Print a line to stderr, ignoring errors (see `out!`).
+macro_rules! err {
+    ($($a:tt)*) => {{ use std::io::Write; let _ = writeln!(std::io::stderr(), $($a)*); }};
+}
+
 pub mod bench;
 pub mod check;
 pub mod cli;

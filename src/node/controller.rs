@@ -9,7 +9,7 @@
 //!           to the plant's first sample plus a small phase; lateness, compute time and state age
 //!           are measured every cycle, overruns and missed deadlines counted.
 
-use crate::cli::ProcessArgs;
+use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
 use crate::control::cycle::{ControlCycle, ParamEvent};
 use crate::ipc::{IpcError, Pub, Sub, Topic, Waited};

@@ -4,7 +4,9 @@
 //! `evoloop-controller` and `evoloop-optimiser` binaries call the same functions for users who
 //! start the processes by hand or under their own supervisor.
 
+pub mod args;
 pub mod controller;
+pub mod launcher;
 pub mod optimiser;
 pub mod plant;
 pub mod start;

@@ -8,7 +8,7 @@
 //! realtime: it runs free at lower priority (nice) and publishes a set as soon as the plant's
 //!           time passes the set's time; the controller applies it at its next cycle.
 
-use crate::cli::OptimiserArgs;
+use super::args::OptimiserArgs;
 use crate::config::{Mode, OptimiserMode, Scenario};
 use crate::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
 use crate::msg::{Command, ModelEstimate, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END};

@@ -8,7 +8,7 @@
 //!           moment each command arrives and switch to it; fall back to the safe command when
 //!           commands stop for `command_timeout_periods`.
 
-use crate::cli::ProcessArgs;
+use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
 use crate::ipc::{Bell, Doorbell, Pub, Sub, Topic, Waited};
 use crate::msg::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};

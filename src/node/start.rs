@@ -1,7 +1,7 @@
 //! Pieces every process binary shares: loading the scenario the launcher handed over, the exit
 //! convention, and writing a JSON report into the run directory.
 
-use crate::cli::{stop_flag, ProcessArgs};
+use super::args::ProcessArgs;
 use crate::config::Scenario;
 use crate::ipc::{Ipc, IpcError};
 use std::sync::atomic::AtomicBool;
@@ -62,4 +62,14 @@ fn set_thread_name(name: &str) {
     buf[..n].copy_from_slice(&name.as_bytes()[..n]);
     // SAFETY: PR_SET_NAME reads a NUL-terminated string of at most 16 bytes from `buf`.
     unsafe { libc::prctl(libc::PR_SET_NAME, buf.as_ptr() as libc::c_ulong, 0, 0, 0) };
+}
+
+/// Install SIGINT/SIGTERM handling that only raises a flag; loops check it once per cycle and
+/// exit cleanly, dropping their iceoryx2 ports so nothing is left in shared memory.
+pub fn stop_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let f = flag.clone();
+    // Only fails if a handler is already installed, which the binaries never do twice.
+    let _ = ctrlc::set_handler(move || f.store(true, std::sync::atomic::Ordering::SeqCst));
+    flag
 }

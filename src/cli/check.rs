@@ -1,0 +1,35 @@
+//! `evoloop check FILE`: validate a scenario without starting anything.
+
+use crate::config::Scenario;
+use std::path::Path;
+use std::process::ExitCode;
+
+pub fn check(file: &Path) -> ExitCode {
+    match Scenario::load(file, &Default::default()) {
+        Ok(s) => {
+            for w in &s.warnings {
+                err!("warning: {w}");
+            }
+            out!(
+                "{}: ok: scenario `{}`, plant {:?}, controller {:?}, reference {:?}, {} mode, period {} s, {} s ({} cycles), optimiser {:?} with {} scheduled set(s), output {}",
+                file.display(),
+                s.name,
+                s.plant.kind(),
+                s.controller.kind(),
+                s.reference,
+                format!("{:?}", s.timing.mode).to_lowercase(),
+                s.timing.period,
+                s.timing.duration,
+                s.cycles(),
+                s.optimiser.mode,
+                s.optimiser.schedule.len(),
+                s.output.dir.display()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            err!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}

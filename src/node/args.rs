@@ -1,0 +1,153 @@
+//! The options of a run and of its processes: what `evoloop run` takes and what the launcher
+//! hands each child (which parses exactly these), so both sides share one definition.
+
+use crate::config::{Mode, OptimiserMode, Overrides};
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// Scenario file (TOML) [default: config/two_mass.toml, here or in the source tree]
+    pub file: Option<PathBuf>,
+    #[command(flatten)]
+    pub overrides: OverrideArgs,
+    /// Run id used in the service names (default: generated, unique on this machine).
+    #[arg(long)]
+    pub run_id: Option<String>,
+    /// Prefix of iceoryx2's files (separate namespace, e.g. for parallel tests).
+    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX)]
+    pub ipc_prefix: String,
+    /// No progress lines.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Several seeds, e.g. `1..20` (inclusive) or `1,4,9`, for a scenario with
+    /// `optimiser.mode = "indirect"`: one run per seed (in `<out>/seed-<n>/`), each against the
+    /// frozen controller on the same seed; statistics and paired tests in `<out>/study.md`,
+    /// `study.json`, `seeds.csv`, `study_cost.png`.
+    #[arg(long, value_parser = parse_seeds, conflicts_with = "seed")]
+    pub seeds: Option<Seeds>,
+}
+
+/// Options every process of a run receives from the launcher.
+#[derive(Debug, Clone, Args)]
+pub struct ProcessArgs {
+    /// Scenario file (TOML).
+    #[arg(long)]
+    pub config: PathBuf,
+    /// Run id: part of every service name, so runs never cross-talk.
+    #[arg(long)]
+    pub run_id: String,
+    /// Prefix of iceoryx2's files for this run.
+    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX)]
+    pub ipc_prefix: String,
+    #[command(flatten)]
+    pub overrides: OverrideArgs,
+}
+
+/// The optimiser process's options: those of every process, and `--rejoin`.
+#[derive(Debug, Clone, Args)]
+pub struct OptimiserArgs {
+    #[command(flatten)]
+    pub args: ProcessArgs,
+    /// Rejoin a running run (started again after a crash): continue the version numbering and the
+    /// set in service from `published.jsonl`, and release the plant's pending lockstep wait.
+    #[arg(long)]
+    pub rejoin: bool,
+}
+
+/// Overrides of the scenario file, accepted by `evoloop run` and passed on to the children.
+#[derive(Debug, Clone, Default, Args)]
+pub struct OverrideArgs {
+    /// Timing mode: lockstep (reproducible, as fast as possible) or realtime (wall clock).
+    #[arg(long)]
+    pub mode: Option<Mode>,
+    /// Run length in simulated seconds.
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Output directory for run.csv, summary.json and the plots.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Seed of every random number generator in the run.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Optimiser mode: off (listens only), schedule (publishes the configured sets) or indirect
+    /// (estimates the model online, tunes on it, publishes better sets).
+    #[arg(long)]
+    pub optimiser: Option<OptimiserMode>,
+    /// Realtime mode without SCHED_FIFO, mlockall or CPU pinning, whatever the scenario asks.
+    #[arg(long)]
+    pub no_rt: bool,
+}
+
+impl OverrideArgs {
+    pub fn to_overrides(&self) -> Overrides {
+        Overrides {
+            mode: self.mode,
+            duration: self.duration,
+            seed: self.seed,
+            out: self.out.clone(),
+            optimiser: self.optimiser,
+            no_rt: self.no_rt,
+        }
+    }
+
+    /// The same options as command-line arguments for a child process.
+    pub fn to_args(&self) -> Vec<String> {
+        let mut a = Vec::new();
+        if let Some(m) = self.mode {
+            a.push("--mode".into());
+            a.push(match m {
+                Mode::Lockstep => "lockstep".into(),
+                Mode::Realtime => "realtime".into(),
+            });
+        }
+        if let Some(d) = self.duration {
+            a.push("--duration".into());
+            a.push(d.to_string());
+        }
+        if let Some(o) = &self.out {
+            a.push("--out".into());
+            a.push(o.display().to_string());
+        }
+        if let Some(s) = self.seed {
+            a.push("--seed".into());
+            a.push(s.to_string());
+        }
+        if let Some(o) = self.optimiser {
+            a.push("--optimiser".into());
+            a.push(match o {
+                OptimiserMode::Off => "off".into(),
+                OptimiserMode::Schedule => "schedule".into(),
+                OptimiserMode::Indirect => "indirect".into(),
+            });
+        }
+        if self.no_rt {
+            a.push("--no-rt".into());
+        }
+        a
+    }
+}
+
+/// The seeds of a multi-seed study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Seeds(pub Vec<u64>);
+
+/// `A..B` (inclusive) or a comma-separated list of seeds.
+pub fn parse_seeds(s: &str) -> Result<Seeds, String> {
+    let seeds: Vec<u64> = if let Some((a, b)) = s.split_once("..") {
+        let a: u64 = a.trim().parse().map_err(|e| format!("`{a}`: {e}"))?;
+        let b: u64 = b.trim().parse().map_err(|e| format!("`{b}`: {e}"))?;
+        (a..=b).collect()
+    } else {
+        s.split(',')
+            .map(|x| x.trim().parse().map_err(|e| format!("`{x}`: {e}")))
+            .collect::<Result<_, _>>()?
+    };
+    if seeds.len() < 2 || seeds.len() > 1000 {
+        return Err(format!(
+            "give 2 to 1000 seeds, e.g. 1..20 (got {})",
+            seeds.len()
+        ));
+    }
+    Ok(Seeds(seeds))
+}

@@ -1,0 +1,511 @@
+//! The launcher: `evoloop run` starts the plant, controller and optimiser processes with one
+//! scenario file, supervises them, stops them all on Ctrl-C/SIGTERM or when the scenario ends,
+//! and writes the run report (run.csv, summary.json, response.png); `--seeds` repeats that per
+//! seed and writes the study.
+
+use super::args::RunArgs;
+use super::start::stop_flag;
+use crate::config::{Mode, Scenario};
+use crate::ipc::{Ipc, Topic};
+use crate::msg::Telemetry;
+use crate::report::build::build_report;
+use crate::report::summary::{FloorReport, Summary};
+use crate::rt::apply_privileges;
+use crate::rt::clock::sleep_loop_lateness;
+use crate::rt::timing::Percentiles;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ExitCode};
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+const DEFAULT_SCENARIO: &str = "config/two_mass.toml";
+
+/// The default scenario, relative to the working directory or to the source tree.
+pub fn default_scenario() -> PathBuf {
+    let p = PathBuf::from(DEFAULT_SCENARIO);
+    if p.exists() {
+        return p;
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENARIO)
+}
+
+/// The bare absolute-deadline sleep loop, in its own thread with the given priority.
+pub fn measure_floor(period: f64, duration: f64, fifo: Option<i32>) -> FloorReport {
+    let period_ns = (period * 1e9).round() as u64;
+    let cycles = (duration / period).round().max(1.0) as usize;
+    std::thread::spawn(move || {
+        let rt = apply_privileges(&crate::rt::RtRequest {
+            fifo_priority: fifo,
+            lock_memory: false,
+            cpu: None,
+        });
+        let late = sleep_loop_lateness(period_ns, cycles);
+        let lost_periods = late
+            .iter()
+            .map(|l| (l.max(&0) / period_ns as i64) as u64)
+            .sum();
+        FloorReport {
+            period_s: period,
+            rt,
+            lost_periods,
+            lateness: Percentiles::from_samples(late),
+            ..Default::default()
+        }
+    })
+    .join()
+    .unwrap_or_default()
+}
+
+/// Start the process `name` (`evoloop-plant`, ...) of a run: this very executable with the role as
+/// its subcommand, so a run needs nothing but the `evoloop` binary (`cargo run` builds only the
+/// binary it runs). argv[0] is the process's name, so `ps`, `pgrep -f evoloop-plant` and the
+/// tests see `evoloop-plant ...` as they would the stand-alone binary.
+fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Child> {
+    use std::os::unix::process::CommandExt;
+    let role = name.trim_start_matches("evoloop-");
+    std::process::Command::new(std::env::current_exe()?)
+        .arg0(name)
+        .arg(role)
+        .args(args)
+        .spawn()
+}
+
+fn signal(child: &Child, sig: i32) {
+    // SAFETY: plain syscall on our own child's pid.
+    unsafe { libc::kill(child.id() as i32, sig) };
+}
+
+/// `evoloop run FILE --seeds 1..20`: one launcher run per seed (a child `evoloop run`, so each
+/// has its own signal handling and report), then the indirect-vs-frozen study over the seeds.
+pub fn run_seeds(a: RunArgs) -> ExitCode {
+    use crate::report::seeds_study::{SeedRun, Study};
+    let seeds = a.seeds.clone().map(|s| s.0).unwrap_or_default();
+    let file = a.file.clone().unwrap_or_else(default_scenario);
+    let scn = match Scenario::load(&file, &a.overrides.to_overrides()) {
+        Ok(s) => s,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if scn.optimiser.mode != crate::config::OptimiserMode::Indirect {
+        err!(
+            "error: {}: --seeds compares the indirect scheme with the frozen controller over seeds; \
+             this scenario has optimiser.mode = \"{}\" (use --seed N for one run)",
+            file.display(),
+            format!("{:?}", scn.optimiser.mode).to_lowercase()
+        );
+        return ExitCode::from(2);
+    }
+    let out = scn.output.dir.clone();
+    if let Err(e) = std::fs::create_dir_all(&out) {
+        err!(
+            "error: cannot create output directory {}: {e}",
+            out.display()
+        );
+        return ExitCode::from(2);
+    }
+    for f in ["seeds.csv", "study.json", "study.md", "study_cost.png"] {
+        let _ = std::fs::remove_file(out.join(f));
+    }
+    let stop = stop_flag();
+    let exe = match std::env::current_exe() {
+        Ok(e) => e,
+        Err(e) => {
+            err!("error: cannot find the evoloop executable: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    let (mut runs, mut failed) = (Vec::new(), Vec::new());
+    let t0 = Instant::now();
+    for (i, &seed) in seeds.iter().enumerate() {
+        if stop.load(Ordering::SeqCst) {
+            break;
+        }
+        let dir = out.join(format!("seed-{seed}"));
+        let mut ov = a.overrides.clone();
+        ov.seed = Some(seed);
+        ov.out = Some(dir.clone());
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.arg("run")
+            .arg(&file)
+            .args(ov.to_args())
+            .args(["--ipc-prefix", &a.ipc_prefix, "--quiet"])
+            .stdin(std::process::Stdio::null());
+        if let Some(id) = &a.run_id {
+            cmd.args(["--run-id", &format!("{id}-seed{seed}")]);
+        }
+        let o = cmd.output();
+        let result = match o {
+            Err(e) => Err(format!("cannot start: {e}")),
+            Ok(o) if !o.status.success() => {
+                let why = String::from_utf8_lossy(&o.stderr);
+                let last = why
+                    .lines()
+                    .rev()
+                    .find(|l| !l.trim().is_empty())
+                    .unwrap_or("");
+                Err(format!("{}: {last}", o.status))
+            }
+            Ok(_) => std::fs::read_to_string(dir.join("summary.json"))
+                .map_err(|e| format!("summary.json: {e}"))
+                .and_then(|t| serde_json::from_str::<Summary>(&t).map_err(|e| e.to_string()))
+                .and_then(|s| SeedRun::from_summary(seed, &s)),
+        };
+        match result {
+            Ok(r) => {
+                if !a.quiet {
+                    err!(
+                        "  seed {seed}: after the change tuned {:.1} vs frozen {:.1}, before {:.1} vs {:.1} ({} of {}, {:.0} s)",
+                        r.after, r.after_frozen, r.before, r.before_frozen, i + 1, seeds.len(),
+                        t0.elapsed().as_secs_f64()
+                    );
+                }
+                runs.push(r);
+            }
+            Err(why) => {
+                err!("  seed {seed}: failed: {why}");
+                failed.push((seed, why));
+            }
+        }
+    }
+    let interrupted = stop.load(Ordering::SeqCst);
+    if runs.len() < 2 {
+        err!("error: fewer than two seeds completed; no study written");
+        return ExitCode::from(if interrupted { 130 } else { 1 });
+    }
+    let study = Study::new(&scn.name, &runs, failed);
+    if let Err(e) = study.write(&out, &runs, scn.output.plots) {
+        err!("error: writing the study: {e}");
+        return ExitCode::from(1);
+    }
+    out!("{}", study.markdown());
+    out!(
+        "  wrote {}/seeds.csv, study.json, study.md{}",
+        out.display(),
+        if scn.output.plots {
+            ", study_cost.png"
+        } else {
+            ""
+        }
+    );
+    if interrupted {
+        ExitCode::from(130)
+    } else if study.failed.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
+}
+
+pub fn run(a: RunArgs) -> ExitCode {
+    let file = a.file.clone().unwrap_or_else(default_scenario);
+    let ov = a.overrides.to_overrides();
+    let scn = match Scenario::load(&file, &ov) {
+        Ok(s) => s,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if !a.quiet {
+        for w in &scn.warnings {
+            err!("warning: {w}");
+        }
+    }
+    let stop = stop_flag();
+    let dir = scn.output.dir.clone();
+    if let Err(e) = std::fs::create_dir_all(&dir) {
+        err!(
+            "error: cannot create output directory {}: {e}",
+            dir.display()
+        );
+        return ExitCode::from(2);
+    }
+    // Remove the previous run's files so a failed run never leaves a stale report looking fresh.
+    for f in [
+        "run.csv",
+        "timing.csv",
+        "summary.json",
+        "response.png",
+        "tracking.png",
+        "published.jsonl",
+        "estimates.csv",
+        "repetitions.csv",
+        "indirect.png",
+        "controller.json",
+        "plant.json",
+        "optimiser.json",
+    ] {
+        let _ = std::fs::remove_file(dir.join(f));
+    }
+    let _ = crate::report::write_json(&dir, "scenario.json", &scn);
+    let run_id = a.run_id.clone().unwrap_or_else(|| {
+        format!(
+            "{}-{:x}",
+            std::process::id(),
+            crate::rt::now_ns() & 0xffff_ffff
+        )
+    });
+    // The launcher's own node: creating it cleans up what killed runs left behind, and it
+    // watches the telemetry for progress lines.
+    let ipc = match Ipc::with_cleanup("evoloop", &run_id, &a.ipc_prefix, false) {
+        Ok(i) => i,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let cleaned = ipc.cleanup_dead_nodes();
+    let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 1, false).ok();
+    let estimate = ipc
+        .subscriber::<crate::msg::ModelEstimate>(Topic::Estimate, 1, false)
+        .ok();
+
+    // The absolute config path and the output dir are passed on so children agree exactly.
+    let config = std::fs::canonicalize(&file).unwrap_or(file.clone());
+    let mut child_ov = a.overrides.clone();
+    child_ov.out = Some(dir.clone());
+    let mut args = vec![
+        "--config".to_string(),
+        config.display().to_string(),
+        "--run-id".into(),
+        run_id.clone(),
+        "--ipc-prefix".into(),
+        a.ipc_prefix.clone(),
+    ];
+    args.extend(child_ov.to_args());
+    let names = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
+    let plant = names
+        .iter()
+        .position(|n| *n == "evoloop-plant")
+        .expect("the plant is one of the roles");
+    let mut children: Vec<(&str, Child)> = Vec::new();
+    for name in names {
+        match spawn_process(name, &args) {
+            Ok(c) => children.push((name, c)),
+            Err(e) => {
+                err!("error: cannot start {name}: {e}");
+                for (_, c) in &mut children {
+                    signal(c, libc::SIGTERM);
+                    let _ = c.wait();
+                }
+                return ExitCode::from(1);
+            }
+        }
+    }
+    if !a.quiet {
+        err!(
+            "evoloop: run {run_id}: scenario `{}` ({} mode, {} s at {} s period), output {}",
+            scn.name,
+            format!("{:?}", scn.timing.mode).to_lowercase(),
+            scn.timing.duration,
+            scn.timing.period,
+            dir.display()
+        );
+    }
+    let t0 = Instant::now();
+    let mut last_progress = Instant::now();
+    let mut failed: Vec<String> = Vec::new();
+    let mut exited = vec![false; children.len()];
+    let mut interrupted = false;
+    let mut stop_sent: Option<Instant> = None;
+    // The optimiser is not on the control path: when it dies the loop goes on with the set in
+    // service, and it is started again to rejoin the run (a few times at most).
+    let mut optimiser_restarts = 0usize;
+    while exited.iter().any(|e| !e) {
+        for (i, (name, c)) in children.iter_mut().enumerate() {
+            if exited[i] {
+                continue;
+            }
+            if let Ok(Some(status)) = c.try_wait() {
+                // Not once the plant has ended: there is no run left to rejoin.
+                let plant_running = !exited[plant];
+                let restartable = *name == "evoloop-optimiser"
+                    && plant_running
+                    && !status.success()
+                    && !interrupted
+                    && stop_sent.is_none()
+                    && optimiser_restarts < 3;
+                if restartable {
+                    err!("evoloop: {name} exited with {status}; the loop goes on with the set in service; starting it again");
+                    // Its ports must go before the plant can tell it is absent.
+                    ipc.cleanup_dead_nodes();
+                    let mut again = args.clone();
+                    again.push("--rejoin".into());
+                    match spawn_process(name, &again) {
+                        Ok(nc) => {
+                            *c = nc;
+                            optimiser_restarts += 1;
+                            continue;
+                        }
+                        Err(e) => failed.push(format!("cannot restart {name}: {e}")),
+                    }
+                }
+                exited[i] = true;
+                // After a stop request a child's clean exit code is expected; death by a
+                // signal (no code) is still a failure.
+                let expected = status.success() || (interrupted && status.code().is_some());
+                if !expected {
+                    failed.push(format!("{name} exited with {status}"));
+                }
+            }
+        }
+        if stop.load(Ordering::SeqCst) && !interrupted {
+            interrupted = true;
+            err!("evoloop: stopping all processes");
+        }
+        if (interrupted || !failed.is_empty()) && stop_sent.is_none() {
+            for (i, (_, c)) in children.iter().enumerate() {
+                if !exited[i] {
+                    signal(c, libc::SIGTERM);
+                }
+            }
+            stop_sent = Some(Instant::now());
+        }
+        if stop_sent.is_some_and(|s| s.elapsed() > Duration::from_secs(5)) {
+            for (i, (name, c)) in children.iter_mut().enumerate() {
+                if !exited[i] {
+                    err!("evoloop: {name} did not stop within 5 s; killing it");
+                    let _ = c.kill();
+                }
+            }
+        }
+        if !a.quiet && last_progress.elapsed() >= Duration::from_secs(1) {
+            last_progress = Instant::now();
+            if let Some(Ok(Some(tel))) = telemetry.as_ref().map(|s| s.latest()) {
+                let model = match estimate.as_ref().map(|s| s.latest()) {
+                    Some(Ok(Some(m))) => format!("   model {:.4} +- {:.4}", m.value, m.std),
+                    _ => String::new(),
+                };
+                err!(
+                    "  t = {:8.2} / {} s   e = {:+.4}   u = {:+.4}   params v{}   overruns {}   misses {}{model}",
+                    tel.t, scn.timing.duration, tel.tracking_error, tel.u[0], tel.param_version,
+                    tel.overruns, tel.missed
+                );
+            }
+        }
+        // Supervision, not the control path: a 5 ms poll of child status costs nothing here.
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    for (_, c) in &mut children {
+        let _ = c.wait();
+    }
+    drop(telemetry);
+    drop(estimate);
+    // A child that died without dropping its ports (killed) left its resources behind: remove
+    // them now rather than leave them for the next run.
+    let cleaned_after = ipc.cleanup_dead_nodes();
+    if cleaned_after > 0 && !a.quiet {
+        err!("evoloop: removed the resources of {cleaned_after} dead process(es)");
+    }
+    drop(ipc);
+    let wall = t0.elapsed().as_secs_f64();
+    if !failed.is_empty() {
+        for f in &failed {
+            err!("error: {f}");
+        }
+        return ExitCode::from(1);
+    }
+    let floor = (scn.timing.mode == Mode::Realtime && scn.timing.measure_floor && !interrupted)
+        .then(|| {
+            let secs = scn.timing.duration.min(5.0);
+            if !a.quiet {
+                err!("evoloop: measuring the bare sleep-loop floor for {secs} s");
+            }
+            measure_floor(scn.timing.period, secs, scn.timing.fifo_priority)
+        });
+    match build_report(&scn, &run_id, wall, floor, cleaned, optimiser_restarts) {
+        Ok(s) => print_summary(&s, &dir, scn.output.plots),
+        Err(e) => {
+            err!("error: report: {e}");
+            return ExitCode::from(1);
+        }
+    }
+    if interrupted {
+        ExitCode::from(130)
+    } else {
+        ExitCode::SUCCESS
+    }
+}
+
+fn print_summary(s: &Summary, dir: &Path, plots: bool) {
+    let r = &s.response;
+    out!(
+        "evoloop: {} samples in {:.2} s ({:.0} samples/s), {} mode",
+        s.samples,
+        s.wall_s,
+        s.throughput_samples_per_s,
+        s.mode
+    );
+    if s.tracking.rms.len() > 1 {
+        // Joint-space trajectories: step-response figures mean nothing, tracking errors do.
+        let fmt = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:.2e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let t = &s.tracking_after_1s;
+        out!(
+            "  tracking after 1 s (rad or m, per joint): rms [{}], max |e| [{}]; whole run rms {:.2e}",
+            fmt(&t.rms),
+            fmt(&t.max_abs),
+            s.tracking.rms_all
+        );
+    } else {
+        out!(
+            "  response: settling time {} (2 % band), overshoot {:.2} %, IAE {:.4}, ISE {:.4}, final error {:+.2e}",
+            r.settling_time_s
+                .map(|v| format!("{v:.2} s"))
+                .unwrap_or_else(|| "not settled".into()),
+            r.overshoot_pct,
+            r.iae,
+            r.ise,
+            r.final_error
+        );
+    }
+    let l = &s.timing.lateness;
+    if s.mode == "realtime" {
+        out!(
+            "  timing: lateness p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns; overruns {}, missed deadlines {}, stale states {}",
+            l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.overruns, s.deadline_misses, s.timing.stale_states
+        );
+        if let Some(f) = &s.floor {
+            out!(
+                "  floor (bare sleep loop, same run): lateness p50 {} ns, p99 {} ns, p99.9 {} ns; controller/floor p99 = {:.2}",
+                f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99
+            );
+        }
+        let c = &s.realtime_privileges.controller;
+        out!(
+            "  controller privileges: SCHED_FIFO {} (prio {}), mlockall {}, cpu {:?}",
+            c.sched_fifo,
+            c.priority,
+            c.mlockall,
+            c.cpu
+        );
+        for n in &c.notes {
+            out!("    note: {n}");
+        }
+    }
+    let pv = &s.parameter_versions;
+    out!(
+        "  parameters: version {} in service; {} accepted, {} rejected",
+        pv.final_version,
+        pv.accepted.len(),
+        pv.rejected.len()
+    );
+    for p in &pv.rejected {
+        out!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
+    }
+    out!(
+        "  wrote {}/run.csv, summary.json{}",
+        dir.display(),
+        match (plots, s.tracking.rms.len() > 1) {
+            (true, true) => ", response.png, tracking.png",
+            (true, false) => ", response.png",
+            _ => "",
+        }
+    );
+}
