@@ -24,6 +24,7 @@ use crate::msg::PlantState;
 use crate::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
 use crate::plant::two_mass::{Sensor, TwoMass, TwoMassSpec};
 use crate::reference::Reference;
+use crate::sim::cost::TrackingCost;
 
 pub struct TwoMassScheme {
     m1: f64,
@@ -154,12 +155,16 @@ impl TwoMassScheme {
             return f64::INFINITY;
         }
         let mut sp = crate::reference::Setpoint::default();
-        let mut c = 0.0;
+        let mut cost = TrackingCost::new(self.w);
         for (k, (yk, uk)) in y.iter().zip(&u).enumerate() {
             self.reference.sample(k as f64 * self.period, &mut sp);
-            c += (sp.q[0] - yk).abs() + self.w * uk.abs();
+            cost.add(
+                &sp.q[..1],
+                std::slice::from_ref(yk),
+                std::slice::from_ref(uk),
+            );
         }
-        c
+        cost.total
     }
 }
 

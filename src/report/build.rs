@@ -8,6 +8,8 @@ use super::summary::{
 };
 use super::Table;
 use crate::config::Scenario;
+use crate::sim::cost::TrackingCost;
+use crate::MAX_JOINTS;
 use std::path::Path;
 
 /// Cost per repetition of a repeating (square-wave) reference: (start, end, sum |e| + w sum |u|)
@@ -23,7 +25,9 @@ fn repetitions(
         return Vec::new();
     };
     let w = scn.optimiser.cost_u_weight;
-    let mut out: Vec<(f64, f64, f64)> = Vec::new();
+    let mut out: Vec<(f64, f64, TrackingCost)> = Vec::new();
+    let (mut rk, mut yk, mut uk) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+    let (ny, nu) = (ys.len().min(MAX_JOINTS), us.len().min(MAX_JOINTS));
     for (k, tk) in t.iter().enumerate() {
         if *tk < start {
             continue;
@@ -34,18 +38,18 @@ fn repetitions(
             break; // an incomplete last repetition
         }
         if out.last().is_none_or(|r| r.0 != a) {
-            out.push((a, b, 0.0));
+            out.push((a, b, TrackingCost::new(w)));
         }
-        let mut c = 0.0;
-        for (r, (_, y)) in refs.iter().zip(ys) {
-            c += (r[k] - y[k]).abs();
+        for (i, (r, (_, y))) in refs.iter().zip(ys).take(ny).enumerate() {
+            (rk[i], yk[i]) = (r[k], y[k]);
         }
-        for (_, u) in us {
-            c += w * u[k].abs();
+        for (i, (_, u)) in us.iter().take(nu).enumerate() {
+            uk[i] = u[k];
         }
-        out.last_mut().expect("pushed above").2 += c;
+        let rep = &mut out.last_mut().expect("pushed above").2;
+        rep.add(&rk[..ny.min(refs.len())], &yk[..ny], &uk[..nu]);
     }
-    out
+    out.into_iter().map(|(a, b, c)| (a, b, c.total)).collect()
 }
 
 fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {

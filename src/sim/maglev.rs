@@ -88,7 +88,8 @@ pub fn simulate(
     let mut state = PlantState::default();
     let mut sp = Setpoint::default();
     let mut u = [hold];
-    let (mut ge, mut gu) = (0.0, 0.0);
+    // Eq. 31: 1/1000 per mA of coil current.
+    let mut cost = super::cost::TrackingCost::new(1e-3);
     let lost = 0.9 * spec.plant.sensor_range_mm;
     for k in 0..n {
         sim.sample(k as u64, 0, &u, &mut state);
@@ -97,8 +98,7 @@ pub fn simulate(
         }
         spec.reference.sample(state.t, &mut sp);
         pid.step(&state, &sp, &mut u);
-        ge += (sp.q[0] - state.y[0]).abs();
-        gu += u[0].abs() / 1000.0;
+        cost.add(&sp.q[..1], &state.y[..1], &u);
         if let Some(tr) = trace.as_deref_mut() {
             tr.t.push(state.t);
             tr.r.push(sp.q[0]);
@@ -108,12 +108,13 @@ pub fn simulate(
         sim.advance(&u, spec.period);
     }
     let g_holding = n as f64 * hold / 1000.0;
+    // G as eq. 31 writes it: the error sum plus the current sum.
     Some(Cost {
-        g: ge + gu,
-        g_error: ge,
-        g_current: gu,
+        g: cost.error + cost.control,
+        g_error: cost.error,
+        g_current: cost.control,
         g_holding,
-        g_control: gu - g_holding,
+        g_control: cost.control - g_holding,
     })
 }
 

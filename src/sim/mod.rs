@@ -2,6 +2,7 @@
 //! processes run, stepped in lockstep. Tests compare the multi-process lockstep run against it
 //! bit for bit, and later optimisers evaluate candidates with it.
 
+pub mod cost;
 pub mod maglev;
 
 use crate::config::Scenario;
