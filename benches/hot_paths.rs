@@ -33,7 +33,7 @@ fn control(c: &mut Criterion) {
         n_y: 1,
         ..Default::default()
     };
-    state.x[..4].copy_from_slice(&[0.3, 0.2, 0.01, -0.02]);
+    state.x_true[..4].copy_from_slice(&[0.3, 0.2, 0.01, -0.02]);
     state.y[0] = 0.3;
     let mut tel = Telemetry::default();
     c.bench_function("control cycle: state feedback + telemetry", |b| {
@@ -172,7 +172,7 @@ fn dynamics(c: &mut Criterion) {
         ..Default::default()
     };
     state.y[..6].copy_from_slice(&q);
-    state.qd[..6].copy_from_slice(&qd);
+    state.qd_true[..6].copy_from_slice(&qd);
     let mut sp = evoloop::reference::Setpoint {
         n: 6,
         ..Default::default()

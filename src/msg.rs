@@ -27,12 +27,13 @@ pub struct PlantState {
     pub n_y: u32,
     /// `STATE_FLAG_*` bits.
     pub flags: u32,
-    /// Full state vector in the plant's documented order.
-    pub x: [f64; MAX_STATES],
-    /// Joint (body) positions and velocities.
-    pub q: [f64; MAX_JOINTS],
-    pub qd: [f64; MAX_JOINTS],
-    /// Measured outputs (with sensor noise and quantisation where the plant has them).
+    /// The simulator's true full state vector in the plant's documented order: what no sensor
+    /// gives. A control law that reads it (full-state feedback) says so in its docs.
+    pub x_true: [f64; MAX_STATES],
+    /// True joint (body) positions and velocities (exact, noise-free).
+    pub q_true: [f64; MAX_JOINTS],
+    pub qd_true: [f64; MAX_JOINTS],
+    /// Measured outputs: what the plant's sensors report, with their noise and quantisation.
     pub y: [f64; MAX_JOINTS],
     /// The command that was applied over the interval that ended at this sample.
     pub u_applied: [f64; MAX_JOINTS],
@@ -48,9 +49,9 @@ impl Default for PlantState {
             n_q: 0,
             n_y: 0,
             flags: 0,
-            x: [0.0; MAX_STATES],
-            q: [0.0; MAX_JOINTS],
-            qd: [0.0; MAX_JOINTS],
+            x_true: [0.0; MAX_STATES],
+            q_true: [0.0; MAX_JOINTS],
+            qd_true: [0.0; MAX_JOINTS],
             y: [0.0; MAX_JOINTS],
             u_applied: [0.0; MAX_JOINTS],
         }

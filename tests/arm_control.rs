@@ -134,7 +134,7 @@ fn startup_damping_scales_the_law_by_one_minus_exp_of_minus_0_03_k() {
         let t = k as f64 * 1e-3;
         for i in 0..3 {
             state.y[i] = 0.1 * (t + i as f64).sin();
-            state.qd[i] = 0.1 * (t + i as f64).cos();
+            state.qd_true[i] = 0.1 * (t + i as f64).cos();
             sp.q[i] = 0.12 * (t + i as f64).sin();
             sp.qd[i] = 0.12 * (t + i as f64).cos();
         }
@@ -256,7 +256,7 @@ fn a_urdf_robot_runs_in_a_scenario_like_its_dh_twin() {
     for (ra, rb) in a.rows.iter().zip(&b.rows) {
         for j in 0..3 {
             assert!(
-                (ra.state.q[j] - rb.state.q[j]).abs() < 1e-9,
+                (ra.state.q_true[j] - rb.state.q_true[j]).abs() < 1e-9,
                 "joint {j} at t = {}",
                 ra.state.t
             );

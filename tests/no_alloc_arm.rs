@@ -43,7 +43,7 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
         let u = cyc.u;
         plant.advance(&u[..6], dt);
         if k % 100 == 0 {
-            model.coriolis_matrix(&mut d, &msg.q[..6], &msg.qd[..6], &mut c);
+            model.coriolis_matrix(&mut d, &msg.q_true[..6], &msg.qd_true[..6], &mut c);
         }
     }
     ARMED.store(false, Ordering::SeqCst);

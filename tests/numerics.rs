@@ -139,7 +139,7 @@ fn state(x: [f64; 4], y: f64, seq: u64) -> PlantState {
         n_y: 1,
         ..Default::default()
     };
-    s.x[..4].copy_from_slice(&x);
+    s.x_true[..4].copy_from_slice(&x);
     s.y[0] = y;
     s
 }
@@ -222,7 +222,9 @@ fn a_swap_is_bumpless_and_then_follows_the_new_gains_exactly() {
         } else {
             // After it, each change in u is exactly what the new gains imply.
             let (xp, xn) = (&xs[k - 1], s);
-            let implied = -(0..4).map(|i| new[i] * (xn.x[i] - xp.x[i])).sum::<f64>()
+            let implied = -(0..4)
+                .map(|i| new[i] * (xn.x_true[i] - xp.x_true[i]))
+                .sum::<f64>()
                 - new[4] * dt * (1.0 - xp.y[0]);
             assert!(((u - u_prev) - implied).abs() < 1e-9, "cycle {k}");
         }

@@ -326,8 +326,8 @@ fn ping_evoloop(
     let timeout = Duration::from_secs(5);
     for k in 0..(WARMUP + samples) as u64 {
         msg.seq = k;
-        msg.x[0] = (k % 100) as f64 * 1e-3;
-        msg.y[0] = msg.x[0];
+        msg.x_true[0] = (k % 100) as f64 * 1e-3;
+        msg.y[0] = msg.x_true[0];
         let t0 = now_ns();
         msg.stamp_ns = t0;
         state.send(&msg)?;

@@ -6,7 +6,8 @@
 //!
 //! The whole bracket is one recursive Newton-Euler pass with the commanded acceleration
 //! (tau = ID(q, qd, a)), a few hundred nanoseconds for six joints and allocation-free.
-//! Parameters: [Kp_1..Kp_n, Kv_1..Kv_n].
+//! Parameters: [Kp_1..Kp_n, Kv_1..Kv_n]. Positions are the measured outputs y; velocities the
+//! simulator's true joint velocities `qd_true` (as the paper's simulation has them).
 
 use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
@@ -74,7 +75,7 @@ impl Controller for ComputedTorque {
         let (kp, kv) = self.gains.split_at(n);
         for i in 0..n {
             self.q[i] = state.y[i];
-            self.qd[i] = state.qd[i];
+            self.qd[i] = state.qd_true[i];
             let e = sp.q[i] - self.q[i];
             let ed = sp.qd[i] - self.qd[i];
             self.acc[i] = sp.qdd[i] + kv[i] * ed + kp[i] * e;

@@ -4,7 +4,8 @@
 //! with no model and no gravity compensation, clipped to the joint's torque limit. It is the
 //! "actual controller" whose gains a later identification does not know.
 //! Parameters: [Kp_1..Kp_n, Kd_1..Kd_n]. Positions are the measured outputs y (with the plant's
-//! sensor noise), velocities the joint velocities of the state message.
+//! sensor noise); velocities are the simulator's true joint velocities `qd_true` (hardware would
+//! give a differentiated, filtered encoder signal instead).
 
 use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
@@ -50,7 +51,7 @@ impl Controller for PdServo {
         let n = self.limits.len();
         let (kp, kd) = self.gains.split_at(n);
         for i in 0..n {
-            let tau = kp[i] * (sp.q[i] - state.y[i]) + kd[i] * (sp.qd[i] - state.qd[i]);
+            let tau = kp[i] * (sp.q[i] - state.y[i]) + kd[i] * (sp.qd[i] - state.qd_true[i]);
             u[i] = tau.clamp(-self.limits[i], self.limits[i]);
         }
     }

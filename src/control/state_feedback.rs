@@ -1,7 +1,9 @@
 //! State feedback with integral action (two-mass paper, eq. 2 and Fig. 1):
 //!   u = -K x̂,  x̂ = [x; ξ],  ξ' = r - y,
 //! with K = [k1, ..., kn, k_{n+1}] in the column order of the paper's Table 9 (so the paper's
-//! integral gain k_i equals -k_{n+1}). x is the plant's full state in its documented order.
+//! integral gain k_i equals -k_{n+1}). x is the plant's full state in its documented order, read
+//! from the simulator's true state `x_true` as the paper's full-state feedback assumes (on
+//! hardware an observer would supply it); the integrator acts on the measured output y.
 //!
 //! The integrator is stored as its contribution to u, I = -k_{n+1} ξ (as ros2_control stores
 //! Ki·∫e), which makes the bumpless swap a one-line re-initialisation of I.
@@ -72,7 +74,7 @@ impl Controller for StateFeedback {
 
     fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
         let reference = sp.q[0];
-        let raw = self.law(&state.x[..self.n_x]);
+        let raw = self.law(&state.x_true[..self.n_x]);
         let out = match self.u_limit {
             Some(l) => raw.clamp(-l, l),
             None => raw,
@@ -87,7 +89,7 @@ impl Controller for StateFeedback {
     }
 
     fn swap_params(&mut self, new: &[f64], state: &PlantState, _sp: &Setpoint) {
-        let x = &state.x[..self.n_x];
+        let x = &state.x_true[..self.n_x];
         let u_old = self.law(x);
         self.gains.copy_from_slice(new);
         // Choose I so that -K_new x + I = u_old on this sample: no step in u.

@@ -153,7 +153,7 @@ impl Loop {
             j += 1;
         }
         for i in 0..self.n_q {
-            r[j] = state.q[i];
+            r[j] = state.q_true[i];
             j += 1;
         }
         r[j] = tel.param_version as f64;

@@ -244,8 +244,8 @@ impl PlantSim {
         msg.n_x = nx as u32;
         msg.n_q = nq as u32;
         msg.n_y = ny as u32;
-        msg.x[..nx.min(MAX_STATES)].copy_from_slice(&self.x[..nx.min(MAX_STATES)]);
-        p.joints(&self.x, &mut msg.q[..nq], &mut msg.qd[..nq]);
+        msg.x_true[..nx.min(MAX_STATES)].copy_from_slice(&self.x[..nx.min(MAX_STATES)]);
+        p.joints(&self.x, &mut msg.q_true[..nq], &mut msg.qd_true[..nq]);
         p.output(&self.x, &mut self.y_clean);
         for i in 0..ny.min(MAX_JOINTS) {
             let e = match &mut self.noise {
