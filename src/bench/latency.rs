@@ -12,10 +12,9 @@ use crate::reference::Reference;
 use crate::report::plot::{xy_png, Style, XySeries};
 use crate::rt::now_ns;
 use crate::rt::timing::Percentiles;
-use clap::{Args, ValueEnum};
+use clap::ValueEnum;
 use iceoryx2::prelude::*;
 use serde::Serialize;
-use std::path::PathBuf;
 use std::process::{Child, Command as Proc, Stdio};
 use std::time::Duration;
 
@@ -33,7 +32,7 @@ pub enum Variant {
 }
 
 impl Variant {
-    fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             Variant::EvoloopBusy => "evoloop_busy",
             Variant::EvoloopEvent => "evoloop_event",
@@ -44,33 +43,6 @@ impl Variant {
     fn busy(self) -> bool {
         matches!(self, Variant::EvoloopBusy | Variant::BareBusy)
     }
-}
-
-#[derive(Args)]
-pub struct LatencyArgs {
-    /// Timed round trips per variant.
-    #[arg(long, default_value_t = 20_000)]
-    pub samples: usize,
-    /// Payload of the bare ping-pong in bytes (default: the size of the evoloop state message).
-    #[arg(long)]
-    pub payload: Option<usize>,
-    #[arg(long)]
-    pub json: bool,
-    /// Write latency.json, latency.csv and latency_cdf.png here.
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-}
-
-#[derive(Args)]
-pub struct PeerArgs {
-    #[arg(long, value_enum)]
-    pub variant: Variant,
-    #[arg(long)]
-    pub prefix: String,
-    #[arg(long)]
-    pub run_id: String,
-    #[arg(long)]
-    pub payload: usize,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -113,17 +85,20 @@ fn spawn_peer(v: Variant, prefix: &str, run_id: &str, payload: usize) -> std::io
         .spawn()
 }
 
-/// Run every variant and report.
-pub fn main(a: LatencyArgs) -> i32 {
-    if a.samples < 100 || a.samples > 10_000_000 {
-        eprintln!("error: --samples must be in 100..=10000000");
-        return 2;
-    }
-    let payload = a.payload.unwrap_or(std::mem::size_of::<PlantState>());
-    if payload == 0 || payload > 1 << 20 {
-        eprintln!("error: --payload must be in 1..=1048576 bytes");
-        return 2;
-    }
+/// What `measure` found: the JSON report, one result per variant and the raw round trips.
+pub struct Measured {
+    pub report: serde_json::Value,
+    pub results: Vec<VariantResult>,
+    pub raw: Vec<(Variant, Vec<i64>)>,
+}
+
+/// Measure every variant, `samples` round trips each with a `payload`-byte bare message;
+/// `progress` is told each variant as it starts.
+pub fn measure(
+    samples: usize,
+    payload: usize,
+    progress: &dyn Fn(Variant),
+) -> Result<Measured, String> {
     let prefix = crate::ipc::DEFAULT_PREFIX.to_string();
     let mut raw: Vec<(Variant, Vec<i64>)> = Vec::new();
     for v in [
@@ -133,28 +108,20 @@ pub fn main(a: LatencyArgs) -> i32 {
         Variant::EvoloopEvent,
     ] {
         let run_id = format!("{}-{}", std::process::id(), v.name());
-        if !a.json {
-            eprintln!("measuring {} ({} round trips)...", v.name(), a.samples);
-        }
-        let mut child = match spawn_peer(v, &prefix, &run_id, payload) {
-            Ok(c) => c,
-            Err(e) => {
-                eprintln!("error: cannot start the peer process: {e}");
-                return 1;
-            }
-        };
+        progress(v);
+        let mut child = spawn_peer(v, &prefix, &run_id, payload)
+            .map_err(|e| format!("cannot start the peer process: {e}"))?;
         let r = if matches!(v, Variant::BareBusy | Variant::BareEvent) {
-            ping_bare(v, &prefix, &run_id, payload, a.samples)
+            ping_bare(v, &prefix, &run_id, payload, samples)
         } else {
-            ping_evoloop(v, &prefix, &run_id, a.samples)
+            ping_evoloop(v, &prefix, &run_id, samples)
         };
         let _ = child.wait();
         match r {
             Ok(s) => raw.push((v, s)),
             Err(e) => {
                 let _ = child.kill();
-                eprintln!("error: {e}");
-                return 1;
+                return Err(e.to_string());
             }
         }
     }
@@ -195,51 +162,18 @@ pub fn main(a: LatencyArgs) -> i32 {
     }
     let report = serde_json::json!({
         "payload_bytes": payload,
-        "samples": a.samples,
+        "samples": samples,
         "variants": results.iter().map(|r| (r.variant.name().to_string(), serde_json::to_value(r).unwrap_or_default())).collect::<serde_json::Map<_, _>>(),
     });
-    if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).unwrap_or_default()
-        );
-    } else {
-        println!(
-            "round trip, {payload}-byte payload, {} samples per variant (ns):",
-            a.samples
-        );
-        println!(
-            "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  ratio p50 / p99.9 to bare",
-            "variant", "min", "p50", "p90", "p99", "p99.9", "p99.99", "max"
-        );
-        for r in &results {
-            let ratio = match (r.ratio_p50, r.ratio_p99_9) {
-                (Some(a), Some(b)) => format!("{a:.2} / {b:.2}"),
-                _ => "(reference)".into(),
-            };
-            println!(
-                "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  {ratio}",
-                r.variant.name(),
-                r.min_ns,
-                r.p50_ns,
-                r.p90_ns,
-                r.p99_ns,
-                r.p99_9_ns,
-                r.p99_99_ns,
-                r.max_ns
-            );
-        }
-    }
-    if let Some(dir) = &a.out {
-        if let Err(e) = write_out(dir, &report, &results, &raw) {
-            eprintln!("error: {e}");
-            return 1;
-        }
-    }
-    0
+    Ok(Measured {
+        report,
+        results,
+        raw,
+    })
 }
 
-fn write_out(
+/// latency.json, latency.csv and latency_cdf.png in `dir`.
+pub fn write_out(
     dir: &std::path::Path,
     report: &serde_json::Value,
     results: &[VariantResult],
@@ -353,22 +287,11 @@ fn ping_evoloop(
     Ok(out)
 }
 
-/// The peer side of a variant (child process).
-pub fn peer(a: PeerArgs) -> i32 {
-    let r = match a.variant {
-        Variant::EvoloopBusy | Variant::EvoloopEvent => {
-            pong_evoloop(a.variant, &a.prefix, &a.run_id)
-        }
-        Variant::BareBusy | Variant::BareEvent => {
-            pong_bare(a.variant, &a.prefix, &a.run_id, a.payload)
-        }
-    };
-    match r {
-        Ok(()) => 0,
-        Err(e) => {
-            eprintln!("latency-peer: error: {e}");
-            1
-        }
+/// The peer side of a variant (the child process of `measure`).
+pub fn peer(variant: Variant, prefix: &str, run_id: &str, payload: usize) -> Result<(), IpcError> {
+    match variant {
+        Variant::EvoloopBusy | Variant::EvoloopEvent => pong_evoloop(variant, prefix, run_id),
+        Variant::BareBusy | Variant::BareEvent => pong_bare(variant, prefix, run_id, payload),
     }
 }
 

@@ -6,9 +6,9 @@
 use crate::report::plot::{xy_png, Style, XySeries};
 use crate::report::summary::Summary;
 use crate::report::Table;
-use clap::{Args, ValueEnum};
+use clap::ValueEnum;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -23,26 +23,6 @@ pub enum Load {
     Optimiser,
     /// One busy-looping thread per CPU at normal priority.
     Hog,
-}
-
-#[derive(Args)]
-pub struct LoopArgs {
-    /// Loop rate in Hz (1000 and 10000 are the usual ones).
-    #[arg(long, default_value_t = 1000.0)]
-    pub rate: f64,
-    /// Seconds per measurement.
-    #[arg(long, default_value_t = 5.0)]
-    pub duration: f64,
-    #[arg(long, value_enum, default_value_t = Load::Off)]
-    pub load: Load,
-    /// Only with SCHED_FIFO/mlockall (default: with and without).
-    #[arg(long)]
-    pub rt_only: bool,
-    #[arg(long)]
-    pub json: bool,
-    /// Output directory (runs, loop.json, loop_lateness.png).
-    #[arg(long, default_value = "runs/bench_loop")]
-    pub out: PathBuf,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -155,62 +135,53 @@ fn run_once(out: &Path, cfg: &Path, no_rt: bool) -> Result<Summary, String> {
     serde_json::from_str(&text).map_err(|e| e.to_string())
 }
 
-pub fn main(a: LoopArgs) -> i32 {
-    if !(a.rate >= 10.0 && a.rate <= 20_000.0) {
-        eprintln!("error: --rate must be in [10, 20000] Hz (got {})", a.rate);
-        return 2;
+/// What one `evoloop bench loop` measured, and its JSON report (also written as loop.json).
+pub struct Measured {
+    pub report: serde_json::Value,
+    pub results: Vec<LoopResult>,
+}
+
+/// Measure the loop at `rate` Hz for `duration` s under `load`, with SCHED_FIFO/mlockall and
+/// (unless `rt_only`) without; runs, loop.json and loop_lateness.png go to `out`. `progress`
+/// is told each setting as it starts. Errors carry the exit code: 2 for bad arguments.
+pub fn measure(
+    rate: f64,
+    duration: f64,
+    load: Load,
+    rt_only: bool,
+    out: &Path,
+    progress: &dyn Fn(&str),
+) -> Result<Measured, (i32, String)> {
+    if !(10.0..=20_000.0).contains(&rate) {
+        return Err((2, format!("--rate must be in [10, 20000] Hz (got {rate})")));
     }
-    if !(a.duration >= 0.5 && a.duration <= 3600.0) {
-        eprintln!(
-            "error: --duration must be in [0.5, 3600] s (got {})",
-            a.duration
-        );
-        return 2;
+    if !(0.5..=3600.0).contains(&duration) {
+        return Err((
+            2,
+            format!("--duration must be in [0.5, 3600] s (got {duration})"),
+        ));
     }
-    if let Err(e) = std::fs::create_dir_all(&a.out) {
-        eprintln!("error: {}: {e}", a.out.display());
-        return 1;
-    }
-    let cfg = a.out.join("bench_loop.toml");
-    if let Err(e) = std::fs::write(
-        &cfg,
-        scenario(a.rate, a.duration, a.load == Load::Optimiser),
-    ) {
-        eprintln!("error: {e}");
-        return 1;
-    }
-    let _load = match start_load(a.load) {
-        Ok(g) => g,
-        Err(e) => {
-            eprintln!("error: cannot start the {:?} load: {e}", a.load);
-            return 1;
-        }
-    };
-    let settings: &[(&str, bool)] = if a.rt_only {
+    std::fs::create_dir_all(out).map_err(|e| (1, format!("{}: {e}", out.display())))?;
+    let cfg = out.join("bench_loop.toml");
+    std::fs::write(&cfg, scenario(rate, duration, load == Load::Optimiser))
+        .map_err(|e| (1, e.to_string()))?;
+    let _load =
+        start_load(load).map_err(|e| (1, format!("cannot start the {load:?} load: {e}")))?;
+    let settings: &[(&str, bool)] = if rt_only {
         &[("fifo", false)]
     } else {
         &[("fifo", false), ("no_rt", true)]
     };
     let mut results = Vec::new();
     for (name, no_rt) in settings {
-        if !a.json {
-            eprintln!(
-                "measuring {} Hz, {name}, load {:?}, {} s...",
-                a.rate, a.load, a.duration
-            );
-        }
-        match run_once(&a.out.join(name), &cfg, *no_rt) {
-            Ok(summary) => results.push(LoopResult {
-                privileges: name.to_string(),
-                load: a.load,
-                rate_hz: a.rate,
-                summary,
-            }),
-            Err(e) => {
-                eprintln!("error: {e}");
-                return 1;
-            }
-        }
+        progress(name);
+        let summary = run_once(&out.join(name), &cfg, *no_rt).map_err(|e| (1, e))?;
+        results.push(LoopResult {
+            privileges: name.to_string(),
+            load,
+            rate_hz: rate,
+            summary,
+        });
     }
     let table: Vec<serde_json::Value> = results
         .iter()
@@ -229,43 +200,13 @@ pub fn main(a: LoopArgs) -> i32 {
             })
         })
         .collect();
-    let report = serde_json::json!({ "rate_hz": a.rate, "duration_s": a.duration, "load": a.load, "results": table });
+    let report = serde_json::json!({ "rate_hz": rate, "duration_s": duration, "load": load, "results": table });
     let _ = std::fs::write(
-        a.out.join("loop.json"),
+        out.join("loop.json"),
         serde_json::to_string_pretty(&report).unwrap_or_default(),
     );
-    if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).unwrap_or_default()
-        );
-    } else {
-        println!(
-            "controller loop at {} Hz for {} s, load {:?} (ns):",
-            a.rate, a.duration, a.load
-        );
-        println!("{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  floor p50/p99/p99.9      ratio p99 (p99.9)", "privs", "what", "p50", "p99", "p99.9", "max", "compute50", "age p50", "overrun", "missed");
-        for r in &results {
-            let s = &r.summary;
-            let l = &s.timing.lateness;
-            let f = s.floor.clone().unwrap_or_default();
-            println!(
-                "{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  {}/{}/{}  {:.2} ({:.2})",
-                r.privileges, "lateness", l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.timing.compute.p50_ns,
-                s.timing.state_age.p50_ns, s.overruns, s.deadline_misses,
-                f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99, f.ratio_p99_9
-            );
-        }
-        println!(
-            "wrote {}/loop.json, loop_lateness.png and the runs",
-            a.out.display()
-        );
-    }
-    if let Err(e) = plot(&a.out, &results) {
-        eprintln!("error: plot: {e}");
-        return 1;
-    }
-    0
+    plot(out, &results).map_err(|e| (1, format!("plot: {e}")))?;
+    Ok(Measured { report, results })
 }
 
 /// Lateness over time of each measured run.

@@ -2,6 +2,7 @@
 //! three processes, so the launcher hands each child exactly the options the child parses. The
 //! parser lives in the library so a test can parse every command the README shows.
 
+pub mod bench;
 pub mod check;
 pub mod dynamics;
 pub mod floor;
@@ -84,12 +85,12 @@ pub enum Cmd {
 #[derive(Subcommand)]
 pub enum BenchCmd {
     /// Round trip plant -> controller -> plant against a bare iceoryx2 ping-pong.
-    Latency(crate::bench::latency::LatencyArgs),
+    Latency(bench::LatencyArgs),
     /// The controller loop's timing at a rate, under load, against the bare sleep-loop floor.
-    Loop(crate::bench::loop_bench::LoopArgs),
+    Loop(bench::LoopArgs),
     /// The peer process of `bench latency` (started by it).
     #[command(hide = true)]
-    LatencyPeer(crate::bench::latency::PeerArgs),
+    LatencyPeer(bench::PeerArgs),
 }
 
 /// `evoloop [COMMAND]`: parse the command line and run the command.
@@ -137,9 +138,9 @@ pub fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Some(Cmd::Bench { cmd }) => ExitCode::from(match cmd {
-            BenchCmd::Latency(a) => crate::bench::latency::main(a),
-            BenchCmd::LatencyPeer(a) => crate::bench::latency::peer(a),
-            BenchCmd::Loop(a) => crate::bench::loop_bench::main(a),
+            BenchCmd::Latency(a) => bench::latency(a),
+            BenchCmd::LatencyPeer(a) => bench::latency_peer(a),
+            BenchCmd::Loop(a) => bench::loop_(a),
         } as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(crate::cli::robust::main(cmd) as u8),
         Some(Cmd::Tune(a)) => ExitCode::from(crate::cli::tune::main(a) as u8),

@@ -1,0 +1,183 @@
+//! `evoloop bench latency | latency-peer | loop`: the options, and the tables they print. The
+//! measurements live in `crate::bench`.
+
+use crate::bench::latency::{self, Variant};
+use crate::bench::loop_bench::{self, Load};
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct LatencyArgs {
+    /// Timed round trips per variant.
+    #[arg(long, default_value_t = 20_000)]
+    pub samples: usize,
+    /// Payload of the bare ping-pong in bytes (default: the size of the evoloop state message).
+    #[arg(long)]
+    pub payload: Option<usize>,
+    #[arg(long)]
+    pub json: bool,
+    /// Write latency.json, latency.csv and latency_cdf.png here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct PeerArgs {
+    #[arg(long, value_enum)]
+    pub variant: Variant,
+    #[arg(long)]
+    pub prefix: String,
+    #[arg(long)]
+    pub run_id: String,
+    #[arg(long)]
+    pub payload: usize,
+}
+
+/// `evoloop bench latency`: every variant, then the table (or JSON) and the files.
+pub fn latency(a: LatencyArgs) -> i32 {
+    if a.samples < 100 || a.samples > 10_000_000 {
+        eprintln!("error: --samples must be in 100..=10000000");
+        return 2;
+    }
+    let payload = a
+        .payload
+        .unwrap_or(std::mem::size_of::<crate::msg::PlantState>());
+    if payload == 0 || payload > 1 << 20 {
+        eprintln!("error: --payload must be in 1..=1048576 bytes");
+        return 2;
+    }
+    let progress = |v: Variant| {
+        if !a.json {
+            eprintln!("measuring {} ({} round trips)...", v.name(), a.samples);
+        }
+    };
+    let latency::Measured {
+        report,
+        results,
+        raw,
+    } = match latency::measure(a.samples, payload, &progress) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 1;
+        }
+    };
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).unwrap_or_default()
+        );
+    } else {
+        println!(
+            "round trip, {payload}-byte payload, {} samples per variant (ns):",
+            a.samples
+        );
+        println!(
+            "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  ratio p50 / p99.9 to bare",
+            "variant", "min", "p50", "p90", "p99", "p99.9", "p99.99", "max"
+        );
+        for r in &results {
+            let ratio = match (r.ratio_p50, r.ratio_p99_9) {
+                (Some(a), Some(b)) => format!("{a:.2} / {b:.2}"),
+                _ => "(reference)".into(),
+            };
+            println!(
+                "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  {ratio}",
+                r.variant.name(),
+                r.min_ns,
+                r.p50_ns,
+                r.p90_ns,
+                r.p99_ns,
+                r.p99_9_ns,
+                r.p99_99_ns,
+                r.max_ns
+            );
+        }
+    }
+    if let Some(dir) = &a.out {
+        if let Err(e) = latency::write_out(dir, &report, &results, &raw) {
+            eprintln!("error: {e}");
+            return 1;
+        }
+    }
+    0
+}
+
+/// `evoloop bench latency-peer` (started by `bench latency`).
+pub fn latency_peer(a: PeerArgs) -> i32 {
+    match latency::peer(a.variant, &a.prefix, &a.run_id, a.payload) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("latency-peer: error: {e}");
+            1
+        }
+    }
+}
+
+#[derive(Args)]
+pub struct LoopArgs {
+    /// Loop rate in Hz (1000 and 10000 are the usual ones).
+    #[arg(long, default_value_t = 1000.0)]
+    pub rate: f64,
+    /// Seconds per measurement.
+    #[arg(long, default_value_t = 5.0)]
+    pub duration: f64,
+    #[arg(long, value_enum, default_value_t = Load::Off)]
+    pub load: Load,
+    /// Only with SCHED_FIFO/mlockall (default: with and without).
+    #[arg(long)]
+    pub rt_only: bool,
+    #[arg(long)]
+    pub json: bool,
+    /// Output directory (runs, loop.json, loop_lateness.png).
+    #[arg(long, default_value = "runs/bench_loop")]
+    pub out: PathBuf,
+}
+
+/// `evoloop bench loop`: the measurements, then the table (or JSON).
+pub fn loop_(a: LoopArgs) -> i32 {
+    let progress = |name: &str| {
+        if !a.json {
+            eprintln!(
+                "measuring {} Hz, {name}, load {:?}, {} s...",
+                a.rate, a.load, a.duration
+            );
+        }
+    };
+    let loop_bench::Measured { report, results } =
+        match loop_bench::measure(a.rate, a.duration, a.load, a.rt_only, &a.out, &progress) {
+            Ok(m) => m,
+            Err((code, e)) => {
+                eprintln!("error: {e}");
+                return code;
+            }
+        };
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).unwrap_or_default()
+        );
+    } else {
+        println!(
+            "controller loop at {} Hz for {} s, load {:?} (ns):",
+            a.rate, a.duration, a.load
+        );
+        println!("{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  floor p50/p99/p99.9      ratio p99 (p99.9)", "privs", "what", "p50", "p99", "p99.9", "max", "compute50", "age p50", "overrun", "missed");
+        for r in &results {
+            let s = &r.summary;
+            let l = &s.timing.lateness;
+            let f = s.floor.clone().unwrap_or_default();
+            println!(
+                "{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  {}/{}/{}  {:.2} ({:.2})",
+                r.privileges, "lateness", l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.timing.compute.p50_ns,
+                s.timing.state_age.p50_ns, s.overruns, s.deadline_misses,
+                f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99, f.ratio_p99_9
+            );
+        }
+        println!(
+            "wrote {}/loop.json, loop_lateness.png and the runs",
+            a.out.display()
+        );
+    }
+    0
+}
