@@ -74,7 +74,7 @@ impl MaglevEstimator {
         self.ring[seq as usize % n] = (z, self.current);
         self.filled += 1;
         // The amplifier's lag over the next period (exact for a held command).
-        let a = 1.0 - (-self.period / self.p.tau).exp();
+        let a = self.p.lag_fraction(self.period);
         self.current += a * (self.plant.applied_current(u_ma) - self.current);
         if self.filled >= n && seq % self.stride as u64 == 0 {
             let s = self.stride as u64;
@@ -83,7 +83,7 @@ impl MaglevEstimator {
             let (z2, _) = self.ring[seq as usize % n];
             let h = self.stride as f64 * self.period;
             let zdd = (z2 - 2.0 * z1 + z0) / (h * h);
-            let phi = i1 * i1 / (z1 + self.p.pole_offset).powi(2);
+            let phi = self.p.force(1.0, z1, i1);
             self.rls.update(G - zdd, phi);
         }
     }

@@ -84,6 +84,18 @@ impl MaglevParams {
         1000.0 * self.hold_current * (m / self.mass).sqrt()
     }
 
+    /// The magnet's pull k_F i^2 / (z + d)^2 (N) at gap z (m) and coil current i (A); with
+    /// k_f = 1 it is the regressor an estimator of m / k_F uses. One law for plant and estimator.
+    pub fn force(&self, k_f: f64, z: f64, i: f64) -> f64 {
+        k_f * i * i / (z + self.pole_offset).powi(2)
+    }
+
+    /// The fraction of a step in the current command the amplifier has followed after dt under
+    /// its first-order lag i' = (i_cmd - i) / tau (the exact solution for a held command).
+    pub fn lag_fraction(&self, dt: f64) -> f64 {
+        1.0 - (-dt / self.tau).exp()
+    }
+
     /// The open-loop unstable pole at the operating point, rad/s.
     pub fn unstable_pole(&self) -> f64 {
         (2.0 * G / (self.gap_op + self.pole_offset)).sqrt()
@@ -132,7 +144,7 @@ impl Plant for Maglev {
     /// x = [gap z (m), gap rate (m/s), coil current (A)].
     fn derivative(&self, t: f64, x: &[f64], u: &[f64], dx: &mut [f64]) {
         let m = self.p.mass_at(t);
-        let force = self.k_force * x[2] * x[2] / (x[0] + self.p.pole_offset).powi(2);
+        let force = self.p.force(self.k_force, x[0], x[2]);
         dx[0] = x[1];
         dx[1] = G - force / m;
         dx[2] = (self.applied_current(u[0]) - x[2]) / self.p.tau;
