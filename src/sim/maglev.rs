@@ -4,11 +4,8 @@
 //! the indirect scheme's model, the tests and the benchmarks.
 
 use crate::control::pid::{AntiWindup, Pid};
-use crate::control::Controller;
-use crate::msg::PlantState;
 use crate::plant::maglev::{Maglev, MaglevParams};
-use crate::plant::PlantSim;
-use crate::reference::{Reference, Setpoint};
+use crate::reference::Reference;
 use serde::Serialize;
 
 /// The experiment: plant, sampling, trajectory and noise.
@@ -57,13 +54,7 @@ pub struct Cost {
 }
 
 /// A closed-loop response: time, reference, output (mm), command (mA).
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct Trace {
-    pub t: Vec<f64>,
-    pub r: Vec<f64>,
-    pub y: Vec<f64>,
-    pub u: Vec<f64>,
-}
+pub use super::Response as Trace;
 
 /// Run the PID with `aw` and `params` on the experiment; None when the ball is lost (|y| > 4.5
 /// mm, near the sensor's end). `seed` drives the sensor noise.
@@ -72,42 +63,44 @@ pub fn simulate(
     aw: AntiWindup,
     params: &[f64],
     seed: u64,
-    mut trace: Option<&mut Trace>,
+    trace: Option<&mut Trace>,
 ) -> Option<Cost> {
-    let plant = Maglev::new(spec.plant.clone());
     let hold = spec.plant.hold_current_ma(spec.plant.mass_at(0.0));
-    let mut sim = PlantSim::new(Box::new(plant), spec.step, spec.noise_mm, seed);
-    let mut pid = Pid::new(
+    let pid = Pid::new(
         aw,
         params,
         spec.period,
         (0.0, 1000.0 * spec.plant.i_max),
         hold,
     );
+    let lost = 0.9 * spec.plant.sensor_range_mm;
+    let run = super::Run {
+        reference: &spec.reference,
+        period: spec.period,
+        step: spec.step,
+        duration: spec.duration,
+        diverged: lost,
+        noise_std: spec.noise_mm,
+        seed,
+        u0: hold,
+    };
+    let r = run.response(Box::new(Maglev::new(spec.plant.clone())), Box::new(pid));
     let n = (spec.duration / spec.period).round() as usize;
-    let mut state = PlantState::default();
-    let mut sp = Setpoint::default();
-    let mut u = [hold];
+    if r.y.len() < n || r.y.iter().any(|y| !y.is_finite() || y.abs() > lost) {
+        if let Some(tr) = trace {
+            *tr = r;
+        }
+        return None;
+    }
     // Eq. 31: 1/1000 per mA of coil current.
     let mut cost = super::cost::TrackingCost::new(1e-3);
-    let lost = 0.9 * spec.plant.sensor_range_mm;
     for k in 0..n {
-        sim.sample(k as u64, 0, &u, &mut state);
-        if !state.y[0].is_finite() || state.y[0].abs() > lost {
-            return None;
-        }
-        spec.reference.sample(state.t, &mut sp);
-        pid.step(&state, &sp, &mut u);
-        cost.add(&sp.q[..1], &state.y[..1], &u);
-        if let Some(tr) = trace.as_deref_mut() {
-            tr.t.push(state.t);
-            tr.r.push(sp.q[0]);
-            tr.y.push(state.y[0]);
-            tr.u.push(u[0]);
-        }
-        sim.advance(&u, spec.period);
+        cost.add(&r.r[k..k + 1], &r.y[k..k + 1], &r.u[k..k + 1]);
     }
     let g_holding = n as f64 * hold / 1000.0;
+    if let Some(tr) = trace {
+        *tr = r;
+    }
     // G as eq. 31 writes it: the error sum plus the current sum.
     Some(Cost {
         g: cost.error + cost.control,

@@ -87,38 +87,90 @@ pub fn simulate(scn: &Scenario) -> SimResult {
 
 /// A closed-loop response of `plant` under `controller` to `reference`, sampled every `period`
 /// for `duration` s (integration step `step`): times, first outputs and first controls. Stops
-/// early (returning what it has) when the output leaves +-`diverged`.
+/// early (returning what it has, the offending sample last) when the output leaves
+/// +-`diverged`. Noise-free, from u = 0; `Run` has the other settings.
 pub fn response(
     plant: Box<dyn crate::plant::Plant>,
-    mut controller: Box<dyn crate::control::Controller>,
+    controller: Box<dyn crate::control::Controller>,
     reference: &crate::reference::Reference,
     period: f64,
     step: f64,
     duration: f64,
     diverged: f64,
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let n_u = plant.n_inputs();
-    let mut sim = PlantSim::new(plant, step, 0.0, 0);
-    let n = (duration / period).round() as usize;
-    let (mut t, mut y, mut us) = (
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-    );
-    let mut state = PlantState::default();
-    let mut u = [0.0; crate::MAX_JOINTS];
-    for k in 0..n {
-        sim.sample(k as u64, 0, &u[..n_u], &mut state);
-        let mut sp = crate::reference::Setpoint::default();
-        reference.sample(state.t, &mut sp);
-        controller.step(&state, &sp, &mut u[..n_u]);
-        t.push(state.t);
-        y.push(state.y[0]);
-        us.push(u[0]);
-        if !state.y[0].is_finite() || state.y[0].abs() > diverged {
-            break;
-        }
-        sim.advance(&u[..n_u], period);
+    let r = Run {
+        reference,
+        period,
+        step,
+        duration,
+        diverged,
+        noise_std: 0.0,
+        seed: 0,
+        u0: 0.0,
     }
-    (t, y, us)
+    .response(plant, controller);
+    (r.t, r.y, r.u)
+}
+
+/// A single-input, single-output closed-loop run without the scenario's machinery: the loop the
+/// tuners and the indirect scheme's models evaluate candidates with.
+pub struct Run<'a> {
+    pub reference: &'a crate::reference::Reference,
+    /// Control period, s.
+    pub period: f64,
+    /// Integration step, s.
+    pub step: f64,
+    /// Run length, s.
+    pub duration: f64,
+    /// The output bound past which the run stops (the loop is lost).
+    pub diverged: f64,
+    /// Output noise (std) and its seed.
+    pub noise_std: f64,
+    pub seed: u64,
+    /// The command held before the first control step.
+    pub u0: f64,
+}
+
+/// What a `Run` produced: per sample its time, reference, output and control.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Response {
+    pub t: Vec<f64>,
+    pub r: Vec<f64>,
+    pub y: Vec<f64>,
+    pub u: Vec<f64>,
+}
+
+impl Run<'_> {
+    pub fn response(
+        &self,
+        plant: Box<dyn crate::plant::Plant>,
+        mut controller: Box<dyn crate::control::Controller>,
+    ) -> Response {
+        let n_u = plant.n_inputs();
+        let mut sim = PlantSim::new(plant, self.step, self.noise_std, self.seed);
+        let n = (self.duration / self.period).round() as usize;
+        let mut out = Response {
+            t: Vec::with_capacity(n),
+            r: Vec::with_capacity(n),
+            y: Vec::with_capacity(n),
+            u: Vec::with_capacity(n),
+        };
+        let mut state = PlantState::default();
+        let mut u = [self.u0; crate::MAX_JOINTS];
+        for k in 0..n {
+            sim.sample(k as u64, 0, &u[..n_u], &mut state);
+            let mut sp = crate::reference::Setpoint::default();
+            self.reference.sample(state.t, &mut sp);
+            controller.step(&state, &sp, &mut u[..n_u]);
+            out.t.push(state.t);
+            out.r.push(sp.q[0]);
+            out.y.push(state.y[0]);
+            out.u.push(u[0]);
+            if !state.y[0].is_finite() || state.y[0].abs() > self.diverged {
+                break;
+            }
+            sim.advance(&u[..n_u], self.period);
+        }
+        out
+    }
 }
