@@ -5,6 +5,7 @@
 //! The same `PlantSim` runs in the plant process, in the in-process simulation used by tests and
 //! (in later issues) in the optimiser's model evaluations.
 
+pub mod gill;
 pub mod integrator;
 pub mod linear;
 
