@@ -45,11 +45,11 @@ impl RungeKuttaGill {
         let (k, q) = (&mut self.k, &mut self.q);
         // Step 1.
         f(x, k);
-        for i in 0..x.len() {
-            k[i] *= h;
-            x[i] += 0.5 * k[i];
-            q[i] = k[i];
+        for (xi, ki) in x.iter_mut().zip(k.iter_mut()) {
+            *ki *= h;
+            *xi += 0.5 * *ki;
         }
+        q.copy_from_slice(k);
         // Steps 2 and 3 share their shape: x += a (k - q), q = b q + c k.
         for (a, b, c) in [(ALPHA, BETA, E), (D, GAMMA, G)] {
             f(x, k);
