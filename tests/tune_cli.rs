@@ -7,6 +7,7 @@ use std::path::Path;
 
 #[test]
 fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
+    let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("a");
     let v = stdout_json(&cli(&[
@@ -64,6 +65,7 @@ fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
 
 #[test]
 fn tune_maglev_reports_the_tuned_set_and_g_of_every_variant() {
+    let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("m");
     let v = stdout_json(&cli(&[
@@ -100,6 +102,7 @@ fn tune_maglev_reports_the_tuned_set_and_g_of_every_variant() {
 
 #[test]
 fn tune_refuses_bad_files_with_the_key() {
+    let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let cases = [
         (
@@ -136,6 +139,7 @@ fn tune_refuses_bad_files_with_the_key() {
 
 #[test]
 fn the_maglev_scenario_runs_in_lockstep_like_the_in_process_simulation_and_in_realtime() {
+    let _alone = alone();
     let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev.toml");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("lock");
@@ -184,6 +188,7 @@ fn the_maglev_scenario_runs_in_lockstep_like_the_in_process_simulation_and_in_re
 
 #[test]
 fn tune_maglev_over_seeds_writes_the_statistics_and_sentences_that_follow_them() {
+    let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("s");
     let v = stdout_json(&cli(&[
@@ -240,6 +245,7 @@ fn tune_maglev_over_seeds_writes_the_statistics_and_sentences_that_follow_them()
 
 #[test]
 fn study_sentences_follow_the_sign_and_significance_of_the_test() {
+    let _alone = alone();
     use evoloop::report::stats::{mean_ci, wilcoxon};
     use evoloop::tune::maglev::comparison_sentence;
     // Fuzzy clearly worse on 12 seeds: the sentence must say HIGHER, never "lower".
