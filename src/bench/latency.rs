@@ -61,6 +61,30 @@ pub struct VariantResult {
     pub ratio_p99_9: Option<f64>,
 }
 
+impl VariantResult {
+    /// The round-trip figures in table and CSV order, with their CSV names.
+    pub const FIGURES: [&'static str; 7] = [
+        "min_ns",
+        "p50_ns",
+        "p90_ns",
+        "p99_ns",
+        "p99_9_ns",
+        "p99_99_ns",
+        "max_ns",
+    ];
+    pub fn figures(&self) -> [i64; 7] {
+        [
+            self.min_ns,
+            self.p50_ns,
+            self.p90_ns,
+            self.p99_ns,
+            self.p99_9_ns,
+            self.p99_99_ns,
+            self.max_ns,
+        ]
+    }
+}
+
 const WARMUP: usize = 2_000;
 
 fn err(context: &str, e: impl std::fmt::Debug) -> IpcError {
@@ -179,25 +203,11 @@ pub fn write_out(
     results: &[VariantResult],
     raw: &[(Variant, Vec<i64>)],
 ) -> Result<(), String> {
-    std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
-    std::fs::write(
-        dir.join("latency.json"),
-        serde_json::to_string_pretty(report).unwrap_or_default(),
-    )
-    .map_err(|e| e.to_string())?;
-    let mut csv = String::from("variant,min_ns,p50_ns,p90_ns,p99_ns,p99_9_ns,p99_99_ns,max_ns\n");
+    crate::report::write_json(dir, "latency.json", report).map_err(|e| e.to_string())?;
+    let mut csv = format!("variant,{}\n", VariantResult::FIGURES.join(","));
     for r in results {
-        csv += &format!(
-            "{},{},{},{},{},{},{},{}\n",
-            r.variant.name(),
-            r.min_ns,
-            r.p50_ns,
-            r.p90_ns,
-            r.p99_ns,
-            r.p99_9_ns,
-            r.p99_99_ns,
-            r.max_ns
-        );
+        let f = r.figures().map(|v| v.to_string());
+        csv += &format!("{},{}\n", r.variant.name(), f.join(","));
     }
     std::fs::write(dir.join("latency.csv"), csv).map_err(|e| e.to_string())?;
     // CDF on a log time axis: x = log10(RTT / ns), y = fraction of round trips at or below.

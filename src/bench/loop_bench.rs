@@ -201,10 +201,8 @@ pub fn measure(
         })
         .collect();
     let report = serde_json::json!({ "rate_hz": rate, "duration_s": duration, "load": load, "results": table });
-    let _ = std::fs::write(
-        out.join("loop.json"),
-        serde_json::to_string_pretty(&report).unwrap_or_default(),
-    );
+    crate::report::write_json(out, "loop.json", &report)
+        .map_err(|e| (1, format!("loop.json: {e}")))?;
     plot(out, &results).map_err(|e| (1, format!("plot: {e}")))?;
     Ok(Measured { report, results })
 }

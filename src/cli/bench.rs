@@ -63,10 +63,7 @@ pub fn latency(a: LatencyArgs) -> i32 {
         }
     };
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).unwrap_or_default()
-        );
+        super::print_json(&report);
     } else {
         println!(
             "round trip, {payload}-byte payload, {} samples per variant (ns):",
@@ -81,16 +78,10 @@ pub fn latency(a: LatencyArgs) -> i32 {
                 (Some(a), Some(b)) => format!("{a:.2} / {b:.2}"),
                 _ => "(reference)".into(),
             };
+            let [min, p50, p90, p99, p99_9, p99_99, max] = r.figures();
             println!(
-                "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  {ratio}",
+                "{:<14} {min:>8} {p50:>8} {p90:>8} {p99:>8} {p99_9:>9} {p99_99:>9} {max:>10}  {ratio}",
                 r.variant.name(),
-                r.min_ns,
-                r.p50_ns,
-                r.p90_ns,
-                r.p99_ns,
-                r.p99_9_ns,
-                r.p99_99_ns,
-                r.max_ns
             );
         }
     }
@@ -153,10 +144,7 @@ pub fn loop_(a: LoopArgs) -> i32 {
             }
         };
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).unwrap_or_default()
-        );
+        super::print_json(&report);
     } else {
         println!(
             "controller loop at {} Hz for {} s, load {:?} (ns):",

@@ -13,7 +13,7 @@ pub fn main(rate: f64, duration: f64, fifo: Option<i32>, json: bool) -> ExitCode
     }
     let f = measure_floor(1.0 / rate, duration, fifo);
     if json {
-        out!("{}", serde_json::to_string_pretty(&f).unwrap_or_default());
+        super::print_json(&f);
     } else {
         let l = &f.lateness;
         out!(

@@ -153,3 +153,11 @@ pub fn main() -> ExitCode {
         }) => floor::main(rate, duration, fifo, json),
     }
 }
+
+/// Print `value` as pretty JSON on stdout (for `--json`), ignoring a closed pipe.
+pub fn print_json(value: &impl serde::Serialize) {
+    out!(
+        "{}",
+        serde_json::to_string_pretty(value).unwrap_or_default()
+    );
+}
