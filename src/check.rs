@@ -34,13 +34,19 @@ impl fmt::Display for ConfigError {
 
 impl std::error::Error for ConfigError {}
 
-/// A tunable parameter vector as configured: its initial values and the bounds every later set
-/// must stay within.
+/// Per-parameter inclusive bounds from the config, which every received set must respect.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ParamBounds {
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+}
+
+/// A tunable parameter vector as configured: its initial values and their bounds.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Tunable {
     pub gains: Vec<f64>,
-    pub lower: Vec<f64>,
-    pub upper: Vec<f64>,
+    #[serde(flatten)]
+    pub bounds: ParamBounds,
 }
 
 /// The checks, bound to the file being validated. Each returns the value it accepted or the
@@ -197,8 +203,7 @@ impl Check {
         }
         Ok(Tunable {
             gains,
-            lower,
-            upper,
+            bounds: ParamBounds { lower, upper },
         })
     }
 

@@ -153,11 +153,7 @@ impl Scenario {
     }
 
     pub fn bounds(&self) -> ParamBounds {
-        let t = self.controller.tunable();
-        ParamBounds {
-            lower: t.lower.clone(),
-            upper: t.upper.clone(),
-        }
+        self.controller.tunable().bounds.clone()
     }
 
     pub fn controller_rt(&self) -> RtRequest {
@@ -187,7 +183,7 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let timing = timing::validate(raw.timing, check, ov)?;
     let reference = reference::validate(raw.reference, check)?;
     let plant = PlantSpec::validate(raw.plant, check, timing.period, &reference)?;
-    let controller = ControllerSpec::validate(raw.controller, check, &plant.model, timing.period)?;
+    let controller = ControllerSpec::validate(raw.controller, check, &plant.model)?;
     let optimiser = optimiser::validate(raw.optimiser, check, &timing, ov)?;
     let out_raw = raw.output.unwrap_or(RawOutput {
         dir: None,

@@ -56,8 +56,6 @@ pub trait ControllerConfig {
 /// What a law's validation may look at besides its own table.
 pub struct ControllerContext<'a> {
     pub plant: &'a PlantModel,
-    /// The control period, s.
-    pub period: f64,
 }
 
 /// A validated controller: the keys every law shares, and its own settings.
@@ -77,7 +75,6 @@ impl ControllerSpec {
         mut raw: RawController,
         check: &Check,
         plant: &PlantModel,
-        period: f64,
     ) -> Result<ControllerSpec, ConfigError> {
         let u_limit = match raw.u_limit {
             Some(l) => Some(check.positive("controller.u_limit", l)?),
@@ -87,7 +84,7 @@ impl ControllerSpec {
         if stale_after_periods == 0 {
             return check.fail("controller.stale_after_periods", "must be >= 1");
         }
-        let cx = ControllerContext { plant, period };
+        let cx = ControllerContext { plant };
         let kind = raw.kind;
         Ok(ControllerSpec {
             u_limit,

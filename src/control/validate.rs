@@ -2,12 +2,7 @@
 
 use crate::msg::{ParamCode, ParamSet};
 
-/// Per-parameter inclusive bounds from the config.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ParamBounds {
-    pub lower: Vec<f64>,
-    pub upper: Vec<f64>,
-}
+pub use crate::check::ParamBounds;
 
 /// Why a set was refused, and which value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

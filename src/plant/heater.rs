@@ -120,7 +120,6 @@ mod tests {
 
     fn spec() -> HeaterSpec {
         let cx = PlantContext {
-            period: 0.1,
             step: 0.01,
             reference: &crate::reference::Reference::Step {
                 amplitude: 60.0,

@@ -231,7 +231,7 @@ pub fn validate(
             "plant.maglev.mass_values",
             t.mass_times,
             t.mass_values,
-            super::two_mass::MAX_SCHEDULE,
+            super::MAX_SCHEDULE,
         )?,
         ..d
     };

@@ -81,10 +81,11 @@ pub struct ScalarInput {
     pub hold: f64,
 }
 
+/// Most points in a parameter schedule (a spring constant, a mass) over a run.
+pub const MAX_SCHEDULE: usize = 8;
+
 /// What a plant kind's validation may look at besides its own table.
 pub struct PlantContext<'a> {
-    /// The control period, s.
-    pub period: f64,
     /// The integration step, s (validated: 0 < step <= period).
     pub step: f64,
     pub reference: &'a Reference,
@@ -134,11 +135,7 @@ impl PlantSpec {
             return check.fail("plant.command_timeout_periods", "must be >= 1");
         }
         let kind = raw.kind;
-        let cx = PlantContext {
-            period,
-            step,
-            reference,
-        };
+        let cx = PlantContext { step, reference };
         Ok(PlantSpec {
             step,
             noise_std,

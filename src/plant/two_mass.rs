@@ -42,8 +42,7 @@ pub struct TwoMass {
     pub resolution: f64,
 }
 
-/// Most points in a spring-constant schedule.
-pub const MAX_SCHEDULE: usize = 8;
+pub use super::MAX_SCHEDULE;
 
 impl TwoMass {
     pub fn new(m1: f64, m2: f64, k: f64, sensor: Sensor) -> Self {

@@ -27,7 +27,11 @@ fn repetitions(
     let w = scn.optimiser.cost_u_weight;
     let mut out: Vec<(f64, f64, TrackingCost)> = Vec::new();
     let (mut rk, mut yk, mut uk) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
-    let (ny, nu) = (ys.len().min(MAX_JOINTS), us.len().min(MAX_JOINTS));
+    // Outputs are paired with their references; at most MAX_JOINTS of each.
+    let (ny, nu) = (
+        refs.len().min(ys.len()).min(MAX_JOINTS),
+        us.len().min(MAX_JOINTS),
+    );
     for (k, tk) in t.iter().enumerate() {
         if *tk < start {
             continue;
@@ -47,7 +51,7 @@ fn repetitions(
             uk[i] = u[k];
         }
         let rep = &mut out.last_mut().expect("pushed above").2;
-        rep.add(&rk[..ny.min(refs.len())], &yk[..ny], &uk[..nu]);
+        rep.add(&rk[..ny], &yk[..ny], &uk[..nu]);
     }
     out.into_iter().map(|(a, b, c)| (a, b, c.total)).collect()
 }
