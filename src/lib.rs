@@ -32,6 +32,7 @@ pub mod optim;
 pub mod plant;
 pub mod reference;
 pub mod report;
+pub mod rkgnn;
 pub mod robust;
 pub mod rt;
 pub mod sim;

@@ -6,6 +6,7 @@ pub mod bench;
 pub mod check;
 pub mod dynamics;
 pub mod floor;
+pub mod rkgnn;
 pub mod robust;
 pub mod tune;
 
@@ -53,6 +54,16 @@ pub enum Cmd {
     /// The fuzzy-network paper's GA experiments: `tune config/arsinh_tune.toml` (Section 5.1),
     /// `tune config/maglev_tune.toml` (Section 5.2).
     Tune(tune::TuneArgs),
+    /// System identification from run data: `identify rkgnn` (the RKGNN paper, no torques).
+    Identify {
+        #[command(subcommand)]
+        cmd: rkgnn::IdentifyCmd,
+    },
+    /// Identified RKGNN models: `rkgnn eval` (M_hat, V_hat, G_hat at a state).
+    Rkgnn {
+        #[command(subcommand)]
+        cmd: rkgnn::RkgnnCmd,
+    },
     /// Benchmarks measured against the machine's own floor in the same run.
     Bench {
         #[command(subcommand)]
@@ -107,6 +118,8 @@ pub fn main() -> ExitCode {
                 | Cmd::Robust { .. }
                 | Cmd::Dynamics(_)
                 | Cmd::Tune(_)
+                | Cmd::Identify { .. }
+                | Cmd::Rkgnn { .. }
                 | Cmd::Floor { .. }
         )
     ) {
@@ -144,6 +157,8 @@ pub fn main() -> ExitCode {
         } as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(crate::cli::robust::main(cmd) as u8),
         Some(Cmd::Tune(a)) => ExitCode::from(crate::cli::tune::main(a) as u8),
+        Some(Cmd::Identify { cmd }) => ExitCode::from(rkgnn::identify(cmd) as u8),
+        Some(Cmd::Rkgnn { cmd }) => ExitCode::from(rkgnn::main(cmd) as u8),
         Some(Cmd::Dynamics(a)) => ExitCode::from(crate::cli::dynamics::main(a) as u8),
         Some(Cmd::Floor {
             rate,

@@ -127,6 +127,15 @@ pub trait Controller: Send {
     /// have (bumpless transfer). Laws without internal state cannot absorb the difference; they
     /// switch outright (the jump is proportional to the gain change times the tracking error).
     fn swap_params(&mut self, new: &[f64], state: &PlantState, sp: &Setpoint);
+    /// Names of the law's own run.csv columns (diagnostics such as an active model), asked once
+    /// before the run.
+    fn log_columns(&self) -> Vec<String> {
+        Vec::new()
+    }
+    /// Their values after the last `step`, one per column. Must not allocate.
+    fn log_values(&self, out: &mut [f64]) {
+        debug_assert!(out.is_empty());
+    }
 }
 
 pub mod cycle;

@@ -49,6 +49,11 @@ struct Loop {
     n_u: usize,
     n_q: usize,
     n_r: usize,
+    /// Arms: reference and joint velocities are logged too (rd*, qd*), for identification
+    /// from the reference and output alone (the RKGNN paper's data).
+    n_vel: usize,
+    /// Columns the control law adds (e.g. the fuzzy selector's active model and memberships).
+    n_law: usize,
     row: Vec<f64>,
 }
 
@@ -64,9 +69,20 @@ impl Loop {
         header.extend((0..n_u).map(|i| format!("u{i}")));
         header.extend((0..n_q).map(|i| format!("q{i}")));
         header.push("param_version".into());
+        let n_vel = if scn.plant.model.config().rigid_body().is_some() {
+            n_q
+        } else {
+            0
+        };
+        header.extend((0..n_vel).map(|i| format!("rd{i}")));
+        header.extend((0..n_vel).map(|i| format!("qd{i}")));
+        let controller = scn.build_controller();
+        let law = controller.log_columns();
+        let n_law = law.len();
+        header.extend(law);
         let rows = scn.cycles() as usize + 2;
         Self {
-            cycle: ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())
+            cycle: ControlCycle::new(controller, scn.reference.clone(), scn.bounds())
                 .with_stability_check(scn.linear_model()),
             row: vec![0.0; header.len()],
             log: RunLog::new(header, rows),
@@ -80,6 +96,8 @@ impl Loop {
             n_u,
             n_q,
             n_r,
+            n_vel,
+            n_law,
         }
     }
 
@@ -157,6 +175,16 @@ impl Loop {
             j += 1;
         }
         r[j] = tel.param_version as f64;
+        j += 1;
+        for i in 0..self.n_vel {
+            r[j] = self.cycle.setpoint.qd[i];
+            r[j + self.n_vel] = state.qd_true[i];
+            j += 1;
+        }
+        j += self.n_vel;
+        self.cycle
+            .controller
+            .log_values(&mut r[j..j + self.n_law]);
         self.log.push(&self.row);
         Ok(())
     }

@@ -1,0 +1,228 @@
+//! `evoloop identify rkgnn` and `evoloop rkgnn eval|study`: the RKGNN paper from the command line.
+
+use crate::rkgnn::identify::{self, Settings};
+use crate::rkgnn::{RkgnnModel, Trajectory};
+use clap::{Args, Subcommand};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+#[derive(Subcommand)]
+pub enum IdentifyCmd {
+    /// Identify an arm's dynamics and its servo as an RKGNN from a run's reference and output
+    /// (run.csv: reference, r*, rd*, y*, qd*; the torques u* are not read), by the RKGNN paper's
+    /// evolutionary algorithm; writes MODEL.json.
+    Rkgnn(IdentifyArgs),
+}
+
+#[derive(Args)]
+pub struct IdentifyArgs {
+    /// Run directory holding run.csv (an arm under its servo, e.g. runs/arm3_train1).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Model file to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Seed of the evolutionary algorithm.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Objective evaluations (the budget).
+    #[arg(long, default_value_t = DEFAULT_EVALUATIONS)]
+    pub evaluations: usize,
+    /// Use every STRIDE-th sample: the RKGNN's step is STRIDE times the run's period.
+    #[arg(long, default_value_t = 10)]
+    pub stride: usize,
+    /// Robot file whose true M(q) gives the inertia bounds m1, m2 of eq. 2 [default: the run's
+    /// scenario.json plant.robot].
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Evaluation threads [default: all cores].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Print the report as JSON (keys train_rms, holdout_rms, min_eig_m_hat, evaluations,
+    /// seconds, ...).
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// The default identification budget.
+pub const DEFAULT_EVALUATIONS: usize = 20_000;
+
+#[derive(Subcommand)]
+pub enum RkgnnCmd {
+    /// Evaluate an identified model at one state: M_hat, V_hat, G_hat.
+    Eval(EvalArgs),
+}
+
+#[derive(Args)]
+#[command(allow_negative_numbers = true)]
+pub struct EvalArgs {
+    /// Model file (from `evoloop identify rkgnn`).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Joint positions, comma separated (rad).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub q: Vec<f64>,
+    /// Joint velocities [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub qd: Option<Vec<f64>>,
+    /// Print JSON (keys M_hat, V_hat, G_hat, min_eig_m_hat).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The robot named by a run's scenario.json (plant.robot), for the inertia bounds.
+fn run_robot(dir: &Path) -> Result<PathBuf, String> {
+    let p = dir.join("scenario.json");
+    let text = std::fs::read_to_string(&p).map_err(|e| {
+        format!(
+            "{}: {e} (give --robot to say which arm the data is from)",
+            p.display()
+        )
+    })?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
+    let robot = v["plant"]["robot"]
+        .as_str()
+        .ok_or_else(|| format!("{}: no plant.robot (give --robot)", p.display()))?;
+    Ok(PathBuf::from(robot))
+}
+
+pub fn identify(cmd: IdentifyCmd) -> i32 {
+    let IdentifyCmd::Rkgnn(a) = cmd;
+    match identify_rkgnn(&a) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("evoloop identify rkgnn: {e}");
+            2
+        }
+    }
+}
+
+fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
+    if a.evaluations == 0 || a.stride == 0 {
+        return Err("--evaluations and --stride must be >= 1".into());
+    }
+    let data = Trajectory::from_run(&a.data)?;
+    let robot = match &a.robot {
+        Some(r) => r.clone(),
+        None => run_robot(&a.data)?,
+    };
+    let arm = crate::dynamics::load(&robot).map_err(|e| format!("{}: {e}", robot.display()))?;
+    if arm.dof() != data.n {
+        return Err(format!(
+            "{} has {} joints, the data {}",
+            robot.display(),
+            arm.dof(),
+            data.n
+        ));
+    }
+    let mut s = Settings::paper(data.n, a.seed, a.evaluations);
+    s.stride = a.stride;
+    if let Some(t) = a.threads {
+        s.threads = t.max(1);
+    }
+    let (m1, m2) = identify::inertia_bounds(&arm, data.x.chunks(2 * data.n).map(|x| &x[..data.n]));
+    let bar = progress_bar(a.evaluations as u64, a.quiet || a.json);
+    let (params, report) = identify::identify(&data, m1, m2, &s, |evals, best| {
+        bar.set_position(evals as u64);
+        bar.set_message(format!("best J {best:.4}"));
+    })?;
+    bar.finish_and_clear();
+    let model = RkgnnModel::new(&data, s.stride, params, a.data.display().to_string(), report);
+    model.save(&a.out)?;
+    let r = &model.report;
+    if a.json {
+        crate::cli::print_json(r);
+    } else {
+        out!(
+            "identified {} joints from {} in {:.1} s ({} evaluations, {} generations)",
+            data.n,
+            a.data.display(),
+            r.seconds,
+            r.evaluations,
+            r.generations
+        );
+        let fmt = |v: &[f64]| v.iter().map(|x| format!("{x:.2e}")).collect::<Vec<_>>().join(", ");
+        out!(
+            "  free-run prediction rms per joint (rad): train [{}], holdout [{}]",
+            fmt(&r.train_rms),
+            fmt(&r.holdout_rms)
+        );
+        out!(
+            "  M-hat: smallest eigenvalue over the training samples {:.4} (bounds m1 {:.4}, m2 {:.4})",
+            r.min_eig_m_hat,
+            r.m1,
+            r.m2
+        );
+        out!("  wrote {}", a.out.display());
+    }
+    Ok(())
+}
+
+/// A progress bar on stderr with elapsed time, ETA and the message; hidden when `hidden` or when
+/// stderr is not a terminal (indicatif draws nothing there).
+pub fn progress_bar(len: u64, hidden: bool) -> indicatif::ProgressBar {
+    if hidden {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} evaluations, ETA {eta} {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+pub fn main(cmd: RkgnnCmd) -> i32 {
+    let r = match cmd {
+        RkgnnCmd::Eval(a) => eval(&a),
+    };
+    match r {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("evoloop rkgnn: {e}");
+            2
+        }
+    }
+}
+
+fn eval(a: &EvalArgs) -> Result<(), String> {
+    let m = RkgnnModel::load(&a.model)?;
+    let n = m.dof();
+    let qd = a.qd.clone().unwrap_or_else(|| vec![0.0; n]);
+    for (name, v) in [("q", &a.q), ("qd", &qd)] {
+        if v.len() != n {
+            return Err(format!("--{name} needs {n} values, got {}", v.len()));
+        }
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(format!("--{name} has a non-finite value"));
+        }
+    }
+    let mut mm = [0.0; crate::MAX_JOINTS * crate::MAX_JOINTS];
+    m.net.inertia(&a.q, &mut mm);
+    let (mut v, mut g) = (vec![0.0; n], vec![0.0; n]);
+    m.net.velocity(&a.q, &qd, &mut v);
+    m.net.gravity(&a.q, &mut g);
+    let rows: Vec<Vec<f64>> = (0..n).map(|i| mm[i * n..(i + 1) * n].to_vec()).collect();
+    let min_eig = crate::rkgnn::network::sym_eig_range(n, &mm).0;
+    if a.json {
+        crate::cli::print_json(&json!({
+            "M_hat": rows, "V_hat": v, "G_hat": g, "min_eig_m_hat": min_eig,
+        }));
+    } else {
+        out!("M_hat =");
+        for r in &rows {
+            out!("  {}", r.iter().map(|x| format!("{x:>12.6}")).collect::<String>());
+        }
+        out!("V_hat = {v:.6?}");
+        out!("G_hat = {g:.6?}");
+        out!("smallest eigenvalue of M_hat: {min_eig:.6}");
+    }
+    Ok(())
+}

@@ -1,0 +1,22 @@
+//! Identification of an arm's dynamics without torque measurements and control by fuzzy
+//! selection among the identified models: the RKGNN paper
+//! (`../shared/papers/rkgnn-computed-torque-fuzzy-model-selection.md`).
+//!
+//! - `network`: the function network N_f of shape-adaptive RBF sub-networks (eqs. 6-10).
+//! - `ea`: the evolutionary algorithm of Section 4 (chaotic mutation, strategic moves).
+//! - `data`: reference and output data from a run's `run.csv`, never the torques.
+//! - `identify`: the RKGNN (Runge-Kutta-Gill around N_f, `plant::gill`) fitted by eq. 13.
+//! - `model`: the identified model's file (`MODEL.json`).
+//!
+//! The controller that uses the models is `control::fuzzy_computed_torque`, the selection rule
+//! `control::fuzzy_select`.
+
+pub mod data;
+pub mod ea;
+pub mod identify;
+pub mod model;
+pub mod network;
+
+pub use data::Trajectory;
+pub use model::RkgnnModel;
+pub use network::{Layout, Network, RbfCounts};

@@ -1,0 +1,520 @@
+//! The function network N_f of the RKGNN paper (Section 3, eqs. 5-10, Figs. 2-5): shape-adaptive
+//! Gaussian RBF sub-networks, one per component of the arm's dynamics and of its unknown servo,
+//! so that
+//!   x' = N_f(x; r) = [theta'; M^-1(theta) (tau(r - x) - V(theta, theta') - G(theta))],
+//! x = [theta; theta'], r = [theta_d; theta_d'] the servo's reference.
+//!
+//! Every sub-network is eq. 7, sum_l W_kl phi_l(y) with phi_l = exp(-|y - c_l|^2 / s_l^2)
+//! (eq. 6); the parameters of one RBF sit together as [centre (inputs), width s, weights
+//! (outputs)]. The sub-networks, for n joints:
+//! - Torque network (Fig. 3): per joint j a proportional sub-network on theta_d,j - theta_j and a
+//!   derivative one on theta_d,j' - theta_j', 3 RBFs each, one output; tau_j is their sum. We
+//!   read Fig. 3's "proportional and derivative networks" per joint, as a decentralised P-D servo
+//!   (one axis amplifier per joint, as industrial arms have); a coupled servo would take the
+//!   whole error vector.
+//! - Inertia network (Fig. 4): one sub-network on theta per entry of the diagonal and upper
+//!   triangle (n(n+1)/2 of them), 10 RBFs each; M-hat is filled symmetrically from them, so it is
+//!   symmetric by construction. Positive definiteness is not built in: the identification's
+//!   constraints (eqs. 14-16) enforce it and a model is checked before use.
+//! - Velocity network (Fig. 5, eqs. 8-10): per joint i a sub-network on theta, 3 RBFs, with the
+//!   n(n-1)/2 + n outputs B_i(theta) and C_i(theta), V_i = B_i [theta' theta'] + C_i [theta'^2].
+//! - Gravity network: one sub-network on theta with n RBFs and n outputs.
+//!
+//! `Network` evaluates N_f and the model parts without allocating (stack arrays of
+//! `MAX_JOINTS`); the parameters are one flat vector, the EA's object variables.
+
+use crate::MAX_JOINTS;
+use serde::{Deserialize, Serialize};
+
+/// RBF counts per sub-network (the paper's: 3, 10, 3 and n).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RbfCounts {
+    pub torque: usize,
+    pub inertia: usize,
+    pub velocity: usize,
+    pub gravity: usize,
+}
+
+impl RbfCounts {
+    /// Section 5.1: 3 per torque sub-network, 10 per inertia sub-network, 3 per velocity
+    /// sub-network, and n for the gravity network.
+    pub fn paper(n: usize) -> Self {
+        Self {
+            torque: 3,
+            inertia: 10,
+            velocity: 3,
+            gravity: n,
+        }
+    }
+}
+
+/// Shape of one sub-network: inputs, outputs, RBFs; its parameters start at `offset`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SubNet {
+    pub inputs: usize,
+    pub outputs: usize,
+    pub rbfs: usize,
+    pub offset: usize,
+}
+
+impl SubNet {
+    /// Parameters of one RBF: centre, width, output weights.
+    pub fn per_rbf(&self) -> usize {
+        self.inputs + 1 + self.outputs
+    }
+
+    pub fn len(&self) -> usize {
+        self.rbfs * self.per_rbf()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.rbfs == 0
+    }
+
+    /// Eq. 7: out_k = sum_l W_kl exp(-|y - c_l|^2 / s_l^2), out overwritten.
+    #[inline]
+    pub fn eval(&self, p: &[f64], y: &[f64], out: &mut [f64]) {
+        out[..self.outputs].fill(0.0);
+        let block = self.per_rbf();
+        for l in 0..self.rbfs {
+            let b = &p[self.offset + l * block..self.offset + (l + 1) * block];
+            let (centre, rest) = b.split_at(self.inputs);
+            let mut d2 = 0.0;
+            for (yi, ci) in y[..self.inputs].iter().zip(centre) {
+                let d = yi - ci;
+                d2 += d * d;
+            }
+            let s = rest[0];
+            let phi = (-d2 / (s * s + WIDTH_FLOOR)).exp();
+            for (o, w) in out[..self.outputs].iter_mut().zip(&rest[1..]) {
+                *o += w * phi;
+            }
+        }
+    }
+}
+
+/// Added to s^2 so that a width the search drives to zero gives a narrow bump, never 0/0.
+const WIDTH_FLOOR: f64 = 1e-12;
+
+/// Where each sub-network's parameters sit in the flat vector.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Layout {
+    pub n: usize,
+    pub counts: RbfCounts,
+    /// Per joint: proportional, then derivative sub-network (inputs 1, output 1).
+    pub torque: Vec<[SubNet; 2]>,
+    /// Upper-triangle entries (a, b), a <= b, row by row, and their sub-networks (inputs n).
+    pub inertia: Vec<((usize, usize), SubNet)>,
+    /// Per joint i: outputs [B_i (pairs a < b); C_i (n)].
+    pub velocity: Vec<SubNet>,
+    pub gravity: SubNet,
+    pub len: usize,
+}
+
+impl Layout {
+    pub fn new(n: usize, counts: RbfCounts) -> Self {
+        assert!(
+            (1..=MAX_JOINTS).contains(&n),
+            "1..={MAX_JOINTS} joints, got {n}"
+        );
+        let mut offset = 0;
+        let mut net = |inputs, outputs, rbfs| {
+            let s = SubNet {
+                inputs,
+                outputs,
+                rbfs,
+                offset,
+            };
+            offset += s.len();
+            s
+        };
+        let torque = (0..n)
+            .map(|_| [net(1, 1, counts.torque), net(1, 1, counts.torque)])
+            .collect();
+        let mut inertia = Vec::new();
+        for a in 0..n {
+            for b in a..n {
+                inertia.push(((a, b), net(n, 1, counts.inertia)));
+            }
+        }
+        let pairs = n * (n - 1) / 2;
+        let velocity = (0..n).map(|_| net(n, pairs + n, counts.velocity)).collect();
+        let gravity = net(n, n, counts.gravity);
+        Self {
+            n,
+            counts,
+            torque,
+            inertia,
+            velocity,
+            gravity,
+            len: offset,
+        }
+    }
+
+    /// Every sub-network with its role, for initialisation and bounds.
+    pub fn subnets(&self) -> impl Iterator<Item = (Part, &SubNet)> {
+        let torque = self.torque.iter().enumerate().flat_map(|(j, pd)| {
+            [(Part::Proportional(j), &pd[0]), (Part::Derivative(j), &pd[1])]
+        });
+        let inertia = self
+            .inertia
+            .iter()
+            .map(|((a, b), s)| (Part::Inertia(*a, *b), s));
+        let velocity = self
+            .velocity
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (Part::Velocity(i), s));
+        torque
+            .chain(inertia)
+            .chain(velocity)
+            .chain(std::iter::once((Part::Gravity, &self.gravity)))
+    }
+}
+
+/// What a sub-network stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Part {
+    Proportional(usize),
+    Derivative(usize),
+    Inertia(usize, usize),
+    Velocity(usize),
+    Gravity,
+}
+
+/// N_f with its parameters: the identified model.
+#[derive(Debug, Clone)]
+pub struct Network {
+    pub layout: Layout,
+    pub params: Vec<f64>,
+}
+
+/// A small n x n matrix on the stack, row-major.
+pub type Mat = [f64; MAX_JOINTS * MAX_JOINTS];
+
+impl Network {
+    pub fn new(layout: Layout, params: Vec<f64>) -> Self {
+        assert_eq!(params.len(), layout.len, "parameter count");
+        Self { layout, params }
+    }
+
+    pub fn dof(&self) -> usize {
+        self.layout.n
+    }
+
+    /// M-hat(theta) into `m` (row-major, stride n), symmetric by construction.
+    pub fn inertia(&self, theta: &[f64], m: &mut Mat) {
+        inertia(&self.layout, &self.params, theta, m)
+    }
+
+    /// V-hat(theta, theta') (eqs. 8-10).
+    pub fn velocity(&self, theta: &[f64], theta_d: &[f64], v: &mut [f64]) {
+        velocity(&self.layout, &self.params, theta, theta_d, v)
+    }
+
+    /// G-hat(theta).
+    pub fn gravity(&self, theta: &[f64], g: &mut [f64]) {
+        self.layout.gravity.eval(&self.params, theta, g);
+    }
+
+    /// The identified servo's torque for error e = theta_d - theta and e' = theta_d' - theta'.
+    pub fn torque(&self, e: &[f64], ed: &[f64], tau: &mut [f64]) {
+        torque(&self.layout, &self.params, e, ed, tau)
+    }
+
+    /// x' = N_f(x; r): x = [theta; theta'], r = [theta_d; theta_d'] (2n each). Returns false
+    /// (and leaves dx undefined) if M-hat is singular at theta.
+    pub fn rate(&self, x: &[f64], r: &[f64], dx: &mut [f64]) -> bool {
+        rate(&self.layout, &self.params, x, r, dx)
+    }
+}
+
+pub(crate) fn inertia(layout: &Layout, p: &[f64], theta: &[f64], m: &mut Mat) {
+    let n = layout.n;
+    let mut out = [0.0; 1];
+    for ((a, b), net) in &layout.inertia {
+        net.eval(p, theta, &mut out);
+        m[a * n + b] = out[0];
+        m[b * n + a] = out[0];
+    }
+}
+
+pub(crate) fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v: &mut [f64]) {
+    let n = layout.n;
+    let mut coef = [0.0; MAX_JOINTS * (MAX_JOINTS + 1) / 2 + MAX_JOINTS];
+    for (i, net) in layout.velocity.iter().enumerate() {
+        net.eval(p, theta, &mut coef);
+        let mut k = 0;
+        let mut vi = 0.0;
+        for a in 0..n {
+            for b in a + 1..n {
+                vi += coef[k] * qd[a] * qd[b];
+                k += 1;
+            }
+        }
+        for a in 0..n {
+            vi += coef[k + a] * qd[a] * qd[a];
+        }
+        v[i] = vi;
+    }
+}
+
+pub(crate) fn torque(layout: &Layout, p: &[f64], e: &[f64], ed: &[f64], tau: &mut [f64]) {
+    let mut out = [0.0; 1];
+    for (j, [pn, dn]) in layout.torque.iter().enumerate() {
+        pn.eval(p, &e[j..j + 1], &mut out);
+        let mut t = out[0];
+        dn.eval(p, &ed[j..j + 1], &mut out);
+        t += out[0];
+        tau[j] = t;
+    }
+}
+
+pub(crate) fn rate(layout: &Layout, p: &[f64], x: &[f64], r: &[f64], dx: &mut [f64]) -> bool {
+    let n = layout.n;
+    let (theta, qd) = x.split_at(n);
+    let mut e = [0.0; MAX_JOINTS];
+    let mut ed = [0.0; MAX_JOINTS];
+    for j in 0..n {
+        e[j] = r[j] - theta[j];
+        ed[j] = r[n + j] - qd[j];
+    }
+    let mut rhs = [0.0; MAX_JOINTS];
+    torque(layout, p, &e, &ed, &mut rhs);
+    let mut v = [0.0; MAX_JOINTS];
+    velocity(layout, p, theta, qd, &mut v);
+    let mut g = [0.0; MAX_JOINTS];
+    layout.gravity.eval(p, theta, &mut g);
+    for j in 0..n {
+        rhs[j] -= v[j] + g[j];
+    }
+    let mut m = [0.0; MAX_JOINTS * MAX_JOINTS];
+    inertia(layout, p, theta, &mut m);
+    dx[..n].copy_from_slice(qd);
+    solve(n, &mut m, &mut rhs) && {
+        dx[n..2 * n].copy_from_slice(&rhs[..n]);
+        true
+    }
+}
+
+/// Solve m z = b in place (b <- z) by Gaussian elimination with partial pivoting: M-hat may be
+/// indefinite while the search explores, so Cholesky would not do. False when a pivot is below
+/// 1e-12 of the largest entry (numerically singular).
+pub fn solve(n: usize, m: &mut Mat, b: &mut [f64]) -> bool {
+    let scale = m[..n * n].iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    if !(scale > 0.0 && scale.is_finite()) {
+        return false;
+    }
+    for c in 0..n {
+        let piv = (c..n)
+            .max_by(|&i, &j| m[i * n + c].abs().total_cmp(&m[j * n + c].abs()))
+            .unwrap_or(c);
+        if m[piv * n + c].abs() < 1e-12 * scale {
+            return false;
+        }
+        if piv != c {
+            for k in 0..n {
+                m.swap(c * n + k, piv * n + k);
+            }
+            b.swap(c, piv);
+        }
+        let d = m[c * n + c];
+        for i in c + 1..n {
+            let f = m[i * n + c] / d;
+            if f != 0.0 {
+                for k in c..n {
+                    m[i * n + k] -= f * m[c * n + k];
+                }
+                b[i] -= f * b[c];
+            }
+        }
+    }
+    for c in (0..n).rev() {
+        let mut s = b[c];
+        for k in c + 1..n {
+            s -= m[c * n + k] * b[k];
+        }
+        b[c] = s / m[c * n + c];
+    }
+    true
+}
+
+/// The leading principal minors of the n x n matrix m (Sylvester: all > 0 iff positive
+/// definite); their minimum is eq. 14's Gamma. By elimination without pivoting: minor k is the
+/// product of the first k pivots; a zero pivot ends the sequence with 0.
+pub fn min_leading_minor(n: usize, m: &Mat) -> f64 {
+    let mut a = *m;
+    let mut det = 1.0;
+    let mut min = f64::INFINITY;
+    for c in 0..n {
+        let d = a[c * n + c];
+        det *= d;
+        min = min.min(det);
+        if d == 0.0 {
+            return min.min(0.0);
+        }
+        for i in c + 1..n {
+            let f = a[i * n + c] / d;
+            for k in c..n {
+                a[i * n + k] -= f * a[c * n + k];
+            }
+        }
+    }
+    min
+}
+
+/// Smallest and largest eigenvalue of a symmetric n x n matrix (cyclic Jacobi; n <= 8, so a few
+/// sweeps). Allocation-free.
+pub fn sym_eig_range(n: usize, m: &Mat) -> (f64, f64) {
+    let mut a = *m;
+    for _sweep in 0..50 {
+        let mut off = 0.0;
+        for i in 0..n {
+            for j in i + 1..n {
+                off += a[i * n + j] * a[i * n + j];
+            }
+        }
+        if off < 1e-30 {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                let apq = a[p * n + q];
+                if apq.abs() < 1e-300 {
+                    continue;
+                }
+                let theta = (a[q * n + q] - a[p * n + p]) / (2.0 * apq);
+                let t = theta.signum().max(0.0).mul_add(2.0, -1.0)
+                    / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..n {
+                    let (akp, akq) = (a[k * n + p], a[k * n + q]);
+                    a[k * n + p] = c * akp - s * akq;
+                    a[k * n + q] = s * akp + c * akq;
+                }
+                for k in 0..n {
+                    let (apk, aqk) = (a[p * n + k], a[q * n + k]);
+                    a[p * n + k] = c * apk - s * aqk;
+                    a[q * n + k] = s * apk + c * aqk;
+                }
+            }
+        }
+    }
+    (0..n).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), i| {
+        let d = a[i * n + i];
+        (lo.min(d), hi.max(d))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    fn random_net(n: usize, seed: u64) -> Network {
+        let layout = Layout::new(n, RbfCounts::paper(n));
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let params = (0..layout.len).map(|_| rng.gen_range(-1.0..1.0)).collect();
+        Network::new(layout, params)
+    }
+
+    #[test]
+    fn layout_counts_for_three_joints() {
+        let l = Layout::new(3, RbfCounts::paper(3));
+        // Torque 6 x 3 x (1+1+1); inertia 6 x 10 x (3+1+1); velocity 3 x 3 x (3+1+6);
+        // gravity 3 x (3+1+3).
+        assert_eq!(l.len, 54 + 300 + 90 + 21);
+        assert_eq!(l.subnets().count(), 6 + 6 + 3 + 1);
+        let last = l.subnets().last().unwrap().1;
+        assert_eq!(last.offset + last.len(), l.len);
+    }
+
+    #[test]
+    fn m_hat_is_symmetric_for_any_parameters() {
+        for seed in 0..20 {
+            let net = random_net(3, seed);
+            let mut m = [0.0; MAX_JOINTS * MAX_JOINTS];
+            net.inertia(&[0.3, -0.7, 1.1], &mut m);
+            for a in 0..3 {
+                for b in 0..3 {
+                    assert_eq!(m[a * 3 + b], m[b * 3 + a]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn one_rbf_by_hand() {
+        // c = [1, 2], s = 0.5, W = [3, -1]: at y = [1.5, 2], phi = exp(-0.25 / 0.25) = e^-1.
+        let s = SubNet {
+            inputs: 2,
+            outputs: 2,
+            rbfs: 1,
+            offset: 1,
+        };
+        let p = [9.0, 1.0, 2.0, 0.5, 3.0, -1.0];
+        let mut out = [0.0; 2];
+        s.eval(&p, &[1.5, 2.0], &mut out);
+        let e = (-1.0f64).exp();
+        assert!((out[0] - 3.0 * e).abs() < 1e-12 && (out[1] + e).abs() < 1e-12);
+    }
+
+    #[test]
+    fn velocity_network_is_eqs_8_to_10() {
+        // V_i = B_i [qd_a qd_b] + C_i [qd^2] with the coefficient outputs read back by hand.
+        let net = random_net(3, 7);
+        let theta = [0.2, 0.4, -0.3];
+        let qd = [0.5, -1.5, 2.0];
+        let mut v = [0.0; 3];
+        net.velocity(&theta, &qd, &mut v);
+        for (i, sub) in net.layout.velocity.iter().enumerate() {
+            let mut c = [0.0; 6];
+            sub.eval(&net.params, &theta, &mut c);
+            let want = c[0] * qd[0] * qd[1]
+                + c[1] * qd[0] * qd[2]
+                + c[2] * qd[1] * qd[2]
+                + c[3] * qd[0] * qd[0]
+                + c[4] * qd[1] * qd[1]
+                + c[5] * qd[2] * qd[2];
+            assert!((v[i] - want).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn rate_solves_the_arm_equation() {
+        // M-hat theta'' = tau - V - G, checked by multiplying back.
+        let net = random_net(3, 3);
+        let x = [0.1, 0.5, -1.0, 0.3, -0.2, 0.4];
+        let r = [0.2, 0.4, -0.9, 0.0, 0.1, 0.3];
+        let mut dx = [0.0; 6];
+        assert!(net.rate(&x, &r, &mut dx));
+        assert_eq!(&dx[..3], &x[3..]);
+        let (mut m, mut tau, mut v, mut g) = ([0.0; 64], [0.0; 3], [0.0; 3], [0.0; 3]);
+        net.inertia(&x[..3], &mut m);
+        let e: Vec<f64> = (0..3).map(|j| r[j] - x[j]).collect();
+        let ed: Vec<f64> = (0..3).map(|j| r[3 + j] - x[3 + j]).collect();
+        net.torque(&e, &ed, &mut tau);
+        net.velocity(&x[..3], &x[3..], &mut v);
+        net.gravity(&x[..3], &mut g);
+        for i in 0..3 {
+            let mq: f64 = (0..3).map(|k| m[i * 3 + k] * dx[3 + k]).sum();
+            assert!((mq - (tau[i] - v[i] - g[i])).abs() < 1e-9 * (1.0 + mq.abs()));
+        }
+    }
+
+    #[test]
+    fn minors_and_eigenvalues_by_hand() {
+        let mut m = [0.0; 64];
+        // [[2, 1, 0], [1, 2, 0], [0, 0, 0.5]]: minors 2, 3, 1.5; eigenvalues 1, 3, 0.5.
+        m[..9].copy_from_slice(&[2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.5]);
+        assert!((min_leading_minor(3, &m) - 1.5).abs() < 1e-12);
+        let (lo, hi) = sym_eig_range(3, &m);
+        assert!((lo - 0.5).abs() < 1e-12 && (hi - 3.0).abs() < 1e-12, "{lo} {hi}");
+        // Indefinite: [[1, 2], [2, 1]]: minors 1, -3; eigenvalues -1, 3.
+        m[..4].copy_from_slice(&[1.0, 2.0, 2.0, 1.0]);
+        assert!((min_leading_minor(2, &m) + 3.0).abs() < 1e-12);
+        let (lo, hi) = sym_eig_range(2, &m);
+        assert!((lo + 1.0).abs() < 1e-12 && (hi - 3.0).abs() < 1e-12);
+    }
+}
