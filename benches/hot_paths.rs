@@ -256,5 +256,38 @@ fn fuzzy(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, control, robust, dynamics, fuzzy);
+/// The RKGNN paper's hot paths: one N_f evaluation of the shipped 3-joint model (the paper's RBF
+/// counts; goal < 2 us) and one fuzzy computed-torque step with two models (goal < 10 us).
+fn rkgnn(c: &mut Criterion) {
+    use evoloop::config::{ControllerModel, Overrides, Scenario};
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
+    let m = evoloop::rkgnn::RkgnnModel::load(&root.join("models/arm3_train1.json")).unwrap();
+    let x = [0.1, 0.7, -1.3, 0.5, -0.2, 0.3];
+    let r = [0.12, 0.72, -1.28, 0.45, -0.25, 0.35];
+    let mut dx = [0.0; 6];
+    c.bench_function(
+        "RKGNN: one N_f evaluation, 3 joints (465 parameters)",
+        |b| b.iter(|| m.net.rate(black_box(&x), black_box(&r), &mut dx)),
+    );
+    let scn = Scenario::load(&root.join("arm3_fuzzy_ct.toml"), &Overrides::default()).unwrap();
+    assert!(matches!(
+        scn.controller.model,
+        ControllerModel::FuzzyComputedTorque(_)
+    ));
+    let mut ctl = scn.build_controller();
+    let mut state = PlantState {
+        t: 2.5,
+        ..Default::default()
+    };
+    state.y[..3].copy_from_slice(&x[..3]);
+    state.qd_true[..3].copy_from_slice(&x[3..]);
+    let mut sp = evoloop::reference::Setpoint::default();
+    scn.reference.sample(2.5, &mut sp);
+    let mut u = [0.0; 3];
+    c.bench_function("fuzzy computed torque: one step, two models (max)", |b| {
+        b.iter(|| ctl.step(black_box(&state), black_box(&sp), &mut u))
+    });
+}
+
+criterion_group!(benches, control, robust, dynamics, fuzzy, rkgnn);
 criterion_main!(benches);

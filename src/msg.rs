@@ -168,6 +168,7 @@ pub const KIND_PID: u32 = 5;
 pub const KIND_PID_CLAMPING: u32 = 6;
 pub const KIND_PID_BACK_CALCULATION: u32 = 7;
 pub const KIND_PID_INTEGRATOR_CLAMP: u32 = 8;
+pub const KIND_FUZZY_COMPUTED_TORQUE: u32 = 9;
 
 /// A parameter set from the optimiser to the controller.
 #[repr(C)]

@@ -131,7 +131,13 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
         bar.set_message(format!("best J {best:.4}"));
     })?;
     bar.finish_and_clear();
-    let model = RkgnnModel::new(&data, s.stride, params, a.data.display().to_string(), report);
+    let model = RkgnnModel::new(
+        &data,
+        s.stride,
+        params,
+        a.data.display().to_string(),
+        report,
+    );
     model.save(&a.out)?;
     let r = &model.report;
     if a.json {
@@ -145,7 +151,12 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
             r.evaluations,
             r.generations
         );
-        let fmt = |v: &[f64]| v.iter().map(|x| format!("{x:.2e}")).collect::<Vec<_>>().join(", ");
+        let fmt = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:.2e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
         out!(
             "  free-run prediction rms per joint (rad): train [{}], holdout [{}]",
             fmt(&r.train_rms),
@@ -218,7 +229,10 @@ fn eval(a: &EvalArgs) -> Result<(), String> {
     } else {
         out!("M_hat =");
         for r in &rows {
-            out!("  {}", r.iter().map(|x| format!("{x:>12.6}")).collect::<String>());
+            out!(
+                "  {}",
+                r.iter().map(|x| format!("{x:>12.6}")).collect::<String>()
+            );
         }
         out!("V_hat = {v:.6?}");
         out!("G_hat = {g:.6?}");

@@ -35,6 +35,7 @@ crate::kinds! {
     pd_servo => PdServo(PdServoSpec),
     computed_torque => ComputedTorque(ComputedTorqueSpec),
     pid => Pid(PidSpec),
+    fuzzy_computed_torque => FuzzyComputedTorque(FuzzyComputedTorqueSpec),
 }
 
 /// What a control law's configuration offers the rest of the system. Besides this, a law's

@@ -109,9 +109,10 @@ impl Trajectory {
         let rows = time.len();
         let mut r = Vec::with_capacity(2 * n * rows);
         let mut x = Vec::with_capacity(2 * n * rows);
+        let (rc, xc) = cols.split_at(2 * n);
         for i in 0..rows {
-            r.extend((0..2 * n).map(|c| cols[c][i]));
-            x.extend((2 * n..4 * n).map(|c| cols[c][i]));
+            r.extend(rc.iter().map(|c| c[i]));
+            x.extend(xc.iter().map(|c| c[i]));
         }
         if r.iter().chain(&x).any(|v| !v.is_finite()) {
             return Err(format!("{}: non-finite values", path.display()));

@@ -18,7 +18,7 @@
 //!   survive.
 //! - Strategic moves (Section 4.4, eq. 12): a memory of the n_p previous generations' bests; each
 //!   generation mu_p extra candidates
-//!     x^s_ij = U_ij(B_L, B_U) x*_j(k) - sum_{r=1..n_p} x*_j(k - r),   B_U = B_L + 1,
+//!   x^s_ij = U_ij(B_L, B_U) x*_j(k) - sum_{r=1..n_p} x*_j(k - r),   B_U = B_L + 1,
 //!   replace the mu_p worst survivors. We take B_L = n_p + 1/2: then U = n_p + 1 gives the
 //!   extrapolation x* + sum_r (x* - x*(k-r)) along the recent improvements, and the range
 //!   [n_p + 1/2, n_p + 3/2] scatters each variable around it by +-x*/2 (the paper fixes only
@@ -340,7 +340,11 @@ mod tests {
                     .sum()
             }
         }
-        let mut ea = ChaoticEa::new(ChaoticEaConfig::default(), &[-1.2, 1.0, -1.2, 1.0], &[0.5; 4]);
+        let mut ea = ChaoticEa::new(
+            ChaoticEaConfig::default(),
+            &[-1.2, 1.0, -1.2, 1.0],
+            &[0.5; 4],
+        );
         let start = Rosen.value(&[-1.2, 1.0, -1.2, 1.0]);
         let r = run(&mut ea, &Rosen, 1, 1000, None, |_| {});
         assert!(r.value < start / 100.0, "{} from {start}", r.value);

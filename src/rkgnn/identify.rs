@@ -122,7 +122,12 @@ pub fn inertia_bounds<'a>(
 
 /// Free-run prediction of `traj` from its first state: the predicted states (sample-major, 2n
 /// each) into `out` if given, and eq. 13's error term. Allocation-free apart from `out`.
-pub fn predict(layout: &Layout, p: &[f64], traj: &Trajectory, mut out: Option<&mut Vec<f64>>) -> f64 {
+pub fn predict(
+    layout: &Layout,
+    p: &[f64],
+    traj: &Trajectory,
+    mut out: Option<&mut Vec<f64>>,
+) -> f64 {
     let n = traj.n;
     let w = 2 * n;
     let steps = traj.len();
@@ -153,7 +158,7 @@ pub fn predict(layout: &Layout, p: &[f64], traj: &Trajectory, mut out: Option<&m
             stage += 1;
             ok &= network::rate(layout, p, xs, r, dx);
         });
-        let bad = !ok || x[..w].iter().any(|v| !(v.abs() <= STATE_LIMIT));
+        let bad = !ok || x[..w].iter().any(|v| v.is_nan() || v.abs() > STATE_LIMIT);
         if bad {
             return sum / steps as f64 + DIVERGED * (steps - i) as f64 / steps as f64;
         }

@@ -117,8 +117,8 @@ impl RkgnnModel {
         let at = |e: String| format!("{}: {e}", path.display());
         let text = std::fs::read_to_string(path).map_err(|e| at(e.to_string()))?;
         let de = &mut serde_json::Deserializer::from_str(&text);
-        let f: ModelFile =
-            serde_path_to_error::deserialize(de).map_err(|e| at(format!("{} ({})", e.inner(), e.path())))?;
+        let f: ModelFile = serde_path_to_error::deserialize(de)
+            .map_err(|e| at(format!("{} ({})", e.inner(), e.path())))?;
         Self::from_file(f).map_err(at)
     }
 
@@ -127,7 +127,10 @@ impl RkgnnModel {
             return Err(format!("format is {:?}, expected {FORMAT:?}", f.format));
         }
         if f.version != VERSION {
-            return Err(format!("version {} (this build reads {VERSION})", f.version));
+            return Err(format!(
+                "version {} (this build reads {VERSION})",
+                f.version
+            ));
         }
         let n = f.joints;
         if !(1..=MAX_JOINTS).contains(&n) {
@@ -166,7 +169,7 @@ impl RkgnnModel {
         };
         let w = 2 * n;
         let lo = m.min_eig(m.premise.chunks(w).map(|r| &r[..n]));
-        if !(lo > 0.0) {
+        if lo.is_nan() || lo <= 0.0 {
             return Err(format!(
                 "M-hat is not positive definite on its own trajectory (smallest eigenvalue {lo:.3e})"
             ));

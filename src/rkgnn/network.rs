@@ -8,10 +8,15 @@
 //! (eq. 6); the parameters of one RBF sit together as [centre (inputs), width s, weights
 //! (outputs)]. The sub-networks, for n joints:
 //! - Torque network (Fig. 3): per joint j a proportional sub-network on theta_d,j - theta_j and a
-//!   derivative one on theta_d,j' - theta_j', 3 RBFs each, one output; tau_j is their sum. We
-//!   read Fig. 3's "proportional and derivative networks" per joint, as a decentralised P-D servo
-//!   (one axis amplifier per joint, as industrial arms have); a coupled servo would take the
-//!   whole error vector.
+//!   derivative one on theta_d,j' - theta_j', 3 RBFs each, one output; tau_j is their sum less
+//!   its value at zero error. We read Fig. 3's "proportional and derivative networks" per joint,
+//!   as a decentralised P-D servo (one axis amplifier per joint, as industrial arms have); a
+//!   coupled servo would take the whole error vector. The zero-error offset is removed because a
+//!   P-D servo gives no torque at zero error (the paper: "if detailed information of the
+//!   controller is known, the structure of the network can be altered accordingly"). It removes
+//!   one ambiguity, a constant torque the data cannot tell from gravity, not all: along one
+//!   trajectory the error and the joint positions move together, so a servo characteristic and
+//!   a gravity network can still trade torque (see the issue notes on the identified G-hat).
 //! - Inertia network (Fig. 4): one sub-network on theta per entry of the diagonal and upper
 //!   triangle (n(n+1)/2 of them), 10 RBFs each; M-hat is filled symmetrically from them, so it is
 //!   symmetric by construction. Positive definiteness is not built in: the identification's
@@ -154,7 +159,10 @@ impl Layout {
     /// Every sub-network with its role, for initialisation and bounds.
     pub fn subnets(&self) -> impl Iterator<Item = (Part, &SubNet)> {
         let torque = self.torque.iter().enumerate().flat_map(|(j, pd)| {
-            [(Part::Proportional(j), &pd[0]), (Part::Derivative(j), &pd[1])]
+            [
+                (Part::Proportional(j), &pd[0]),
+                (Part::Derivative(j), &pd[1]),
+            ]
         });
         let inertia = self
             .inertia
@@ -261,12 +269,14 @@ pub(crate) fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v:
 
 pub(crate) fn torque(layout: &Layout, p: &[f64], e: &[f64], ed: &[f64], tau: &mut [f64]) {
     let mut out = [0.0; 1];
+    let mut at = |net: &SubNet, y: f64| {
+        net.eval(p, &[y], &mut out);
+        let v = out[0];
+        net.eval(p, &[0.0], &mut out);
+        v - out[0]
+    };
     for (j, [pn, dn]) in layout.torque.iter().enumerate() {
-        pn.eval(p, &e[j..j + 1], &mut out);
-        let mut t = out[0];
-        dn.eval(p, &ed[j..j + 1], &mut out);
-        t += out[0];
-        tau[j] = t;
+        tau[j] = at(pn, e[j]) + at(dn, ed[j]);
     }
 }
 
@@ -510,7 +520,10 @@ mod tests {
         m[..9].copy_from_slice(&[2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.5]);
         assert!((min_leading_minor(3, &m) - 1.5).abs() < 1e-12);
         let (lo, hi) = sym_eig_range(3, &m);
-        assert!((lo - 0.5).abs() < 1e-12 && (hi - 3.0).abs() < 1e-12, "{lo} {hi}");
+        assert!(
+            (lo - 0.5).abs() < 1e-12 && (hi - 3.0).abs() < 1e-12,
+            "{lo} {hi}"
+        );
         // Indefinite: [[1, 2], [2, 1]]: minors 1, -3; eigenvalues -1, 3.
         m[..4].copy_from_slice(&[1.0, 2.0, 2.0, 1.0]);
         assert!((min_leading_minor(2, &m) + 3.0).abs() < 1e-12);

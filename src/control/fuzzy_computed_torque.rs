@@ -1,0 +1,311 @@
+//! Computed torque on RKGNN-identified models with fuzzy model selection (RKGNN paper, Fig. 6
+//! and Section 5.2):
+//!   tau_i = M-hat_i(q) (qdd_d + K_v e_dot + K_p e) + V-hat_i(q, qd) + G-hat_i(q)   per model i,
+//!   tau   = psi(k) sum_i s_i tau_i,
+//! with s the selection of eqs. 19-20 (`fuzzy_select`) on the premises z = [theta; theta']:
+//! model i's premise z_i(k) is the reference it was identified on at the same time, the new
+//! reference's z_r(k) the set-point. `Selection::Max` (the paper) puts s = 1 on the model of
+//! largest weight, `Selection::Blend` weights them all by their normalised memberships.
+//!
+//! L_j, "the distance between the j-th premise variables of two adjacent trajectories", varies
+//! along the trajectories and vanishes where they cross; we take its RMS over the identification
+//! window, averaged over adjacent pairs in the order the models are listed (floored at 1e-6).
+//!
+//! Positions are the measured outputs y, velocities the joint velocities (as computed torque).
+//! The per-cycle cost is one N_f inertia, velocity and gravity evaluation per model in use, with
+//! no allocation. Logged per cycle: the model of largest weight and the normalised memberships.
+
+use super::fuzzy_select::{self, Selection};
+use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
+use crate::check::{Check, ConfigError, Tunable};
+use crate::msg::{PlantState, KIND_FUZZY_COMPUTED_TORQUE};
+use crate::reference::Setpoint;
+use crate::rkgnn::network::Mat;
+use crate::rkgnn::RkgnnModel;
+use crate::MAX_JOINTS;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// Most models a selector chooses among.
+pub const MAX_MODELS: usize = 8;
+
+pub struct FuzzyComputedTorque {
+    models: Vec<RkgnnModel>,
+    /// L_j per premise (2n).
+    l: Vec<f64>,
+    gamma: f64,
+    selection: Selection,
+    gains: Vec<f64>,
+    startup_rate: f64,
+    effort: Vec<f64>,
+    k: u64,
+    /// Raw weights w_i (eq. 20) and the selection s_i of the last cycle.
+    w: [f64; MAX_MODELS],
+    s: [f64; MAX_MODELS],
+}
+
+/// L_j of the models' premises (see the module docs).
+pub fn premise_distances(models: &[RkgnnModel]) -> Vec<f64> {
+    let n = models.first().map_or(0, RkgnnModel::dof);
+    let mut l = vec![0.0; 2 * n];
+    let pairs = models.len().saturating_sub(1);
+    for pair in models.windows(2) {
+        let (a, b) = (&pair[0], &pair[1]);
+        let samples = a.premise_len().min(b.premise_len());
+        for (j, lj) in l.iter_mut().enumerate() {
+            let ms: f64 = (0..samples)
+                .map(|i| {
+                    let t = i as f64 * a.premise_period;
+                    (a.premise_at(t)[j] - b.premise_at(t)[j]).powi(2)
+                })
+                .sum::<f64>()
+                / samples.max(1) as f64;
+            *lj += ms.sqrt() / pairs as f64;
+        }
+    }
+    l.iter_mut().for_each(|v| *v = v.max(1e-6));
+    l
+}
+
+impl FuzzyComputedTorque {
+    /// `gains` = [Kp; Kv]; `effort` the joints' torque limits.
+    pub fn new(
+        models: Vec<RkgnnModel>,
+        selection: Selection,
+        gamma: f64,
+        gains: &[f64],
+        startup_rate: f64,
+        effort: Vec<f64>,
+    ) -> Self {
+        assert!((1..=MAX_MODELS).contains(&models.len()));
+        let n = models[0].dof();
+        assert_eq!(gains.len(), 2 * n);
+        Self {
+            l: premise_distances(&models),
+            models,
+            gamma,
+            selection,
+            gains: gains.to_vec(),
+            startup_rate,
+            effort,
+            k: 0,
+            w: [0.0; MAX_MODELS],
+            s: [0.0; MAX_MODELS],
+        }
+    }
+
+    /// The selection of the last cycle (one per model).
+    pub fn selection(&self) -> &[f64] {
+        &self.s[..self.models.len()]
+    }
+
+    /// The model of largest weight in the last cycle.
+    pub fn active(&self) -> usize {
+        let w = &self.w[..self.models.len()];
+        w.iter()
+            .enumerate()
+            .fold(0, |b, (i, v)| if *v > w[b] { i } else { b })
+    }
+}
+
+impl Controller for FuzzyComputedTorque {
+    fn kind(&self) -> u32 {
+        KIND_FUZZY_COMPUTED_TORQUE
+    }
+    fn n_params(&self) -> usize {
+        self.gains.len()
+    }
+    fn params(&self) -> &[f64] {
+        &self.gains
+    }
+    fn n_outputs(&self) -> usize {
+        self.models[0].dof()
+    }
+
+    fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
+        let n = self.models[0].dof();
+        let q_count = self.models.len();
+        // Premises: the set-point against each model's identification reference at this time.
+        let mut z_r = [0.0; 2 * MAX_JOINTS];
+        z_r[..n].copy_from_slice(&sp.q[..n]);
+        z_r[n..2 * n].copy_from_slice(&sp.qd[..n]);
+        let mut centres: [&[f64]; MAX_MODELS] = [&[]; MAX_MODELS];
+        for (c, m) in centres.iter_mut().zip(&self.models) {
+            *c = m.premise_at(state.t);
+        }
+        fuzzy_select::weights(
+            &centres[..q_count],
+            &z_r[..2 * n],
+            &self.l,
+            self.gamma,
+            &mut self.w[..q_count],
+        );
+        self.s[..q_count].copy_from_slice(&self.w[..q_count]);
+        fuzzy_select::select(self.selection, &mut self.s[..q_count]);
+        let (kp, kv) = self.gains.split_at(n);
+        let (q, qd) = (&state.y[..n], &state.qd_true[..n]);
+        let mut acc = [0.0; MAX_JOINTS];
+        for i in 0..n {
+            acc[i] = sp.qdd[i] + kv[i] * (sp.qd[i] - qd[i]) + kp[i] * (sp.q[i] - q[i]);
+        }
+        u[..n].fill(0.0);
+        let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+        let (mut v, mut g) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+        for (model, &s) in self.models.iter().zip(&self.s[..q_count]) {
+            if s == 0.0 {
+                continue;
+            }
+            model.net.inertia(q, &mut m);
+            model.net.velocity(q, qd, &mut v[..n]);
+            model.net.gravity(q, &mut g[..n]);
+            for i in 0..n {
+                let ma: f64 = (0..n).map(|k| m[i * n + k] * acc[k]).sum();
+                u[i] += s * (ma + v[i] + g[i]);
+            }
+        }
+        let psi = if self.startup_rate > 0.0 {
+            1.0 - (-self.startup_rate * self.k as f64).exp()
+        } else {
+            1.0
+        };
+        for (ui, limit) in u[..n].iter_mut().zip(&self.effort) {
+            *ui = (psi * *ui).clamp(-limit, *limit);
+        }
+        self.k += 1;
+    }
+
+    fn swap_params(&mut self, new: &[f64], _state: &PlantState, _sp: &Setpoint) {
+        self.gains.copy_from_slice(new);
+    }
+
+    fn log_columns(&self) -> Vec<String> {
+        let mut c = vec!["fuzzy_model".to_string()];
+        c.extend((0..self.models.len()).map(|i| format!("fuzzy_w{i}")));
+        c
+    }
+
+    fn log_values(&self, out: &mut [f64]) {
+        let q_count = self.models.len();
+        out[0] = self.active() as f64;
+        let sum: f64 = self.w[..q_count].iter().sum();
+        for i in 0..q_count {
+            out[1 + i] = if sum > 0.0 {
+                self.w[i] / sum
+            } else {
+                1.0 / q_count as f64
+            };
+        }
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// The `[controller.fuzzy_computed_torque]` keys.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    kp: Vec<f64>,
+    kv: Vec<f64>,
+    /// psi's rate per sample (default 0.03, the paper's).
+    startup_rate: Option<f64>,
+    /// Identified model files (`evoloop identify rkgnn`), relative to the scenario, in the order
+    /// of their trajectories (adjacent models give L_j).
+    models: Vec<PathBuf>,
+    /// "max" (the paper's rule, default) or "blend".
+    selection: Option<Selection>,
+    /// Width of the fuzzy sets (default 0.66, the paper's).
+    gamma: Option<f64>,
+    lower: Option<Vec<f64>>,
+    upper: Option<Vec<f64>>,
+}
+
+/// Validated settings with the models loaded and checked.
+#[derive(Debug, Clone, Serialize)]
+pub struct FuzzyComputedTorqueSpec {
+    #[serde(flatten)]
+    pub tunable: Tunable,
+    pub startup_rate: f64,
+    pub models: Vec<PathBuf>,
+    pub selection: Selection,
+    pub gamma: f64,
+    #[serde(skip)]
+    pub loaded: Vec<RkgnnModel>,
+    #[serde(skip)]
+    pub effort: Vec<f64>,
+}
+
+pub fn validate(
+    t: Option<Table>,
+    check: &Check,
+    cx: &ControllerContext,
+) -> Result<FuzzyComputedTorqueSpec, ConfigError> {
+    let law = "fuzzy_computed_torque";
+    let arm = driven_arm(check, cx, law)?;
+    let Some(t) = t else {
+        return check.fail(
+            "controller.fuzzy_computed_torque",
+            "missing table [controller.fuzzy_computed_torque] with `kp`, `kv` and `models`",
+        );
+    };
+    let n = arm.dof();
+    let tunable = joint_gains(check, law, n, ["kp", "kv"], [t.kp, t.kv], t.lower, t.upper)?;
+    let startup_rate = check.range(
+        "controller.fuzzy_computed_torque.startup_rate",
+        t.startup_rate.unwrap_or(0.03),
+        0.0,
+        10.0,
+    )?;
+    let gamma = check.positive(
+        "controller.fuzzy_computed_torque.gamma",
+        t.gamma.unwrap_or(fuzzy_select::GAMMA),
+    )?;
+    let key = "controller.fuzzy_computed_torque.models";
+    if !(1..=MAX_MODELS).contains(&t.models.len()) {
+        return check.fail(key, format!("needs 1 to {MAX_MODELS} model files"));
+    }
+    let mut loaded = Vec::with_capacity(t.models.len());
+    let mut models = Vec::with_capacity(t.models.len());
+    for (i, rel) in t.models.iter().enumerate() {
+        let path = check.resolve(rel);
+        let m = match RkgnnModel::load(&path) {
+            Ok(m) => m,
+            Err(e) => return check.fail(&format!("{key}[{i}]"), e),
+        };
+        if m.dof() != n {
+            return check.fail(
+                &format!("{key}[{i}]"),
+                format!("the model has {} joints, the arm {n}", m.dof()),
+            );
+        }
+        loaded.push(m);
+        models.push(path);
+    }
+    Ok(FuzzyComputedTorqueSpec {
+        tunable,
+        startup_rate,
+        models,
+        selection: t.selection.unwrap_or(Selection::Max),
+        gamma,
+        loaded,
+        effort: arm.bodies.iter().map(|b| b.limits.effort).collect(),
+    })
+}
+
+impl ControllerConfig for FuzzyComputedTorqueSpec {
+    fn build(&self, _period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
+        Box::new(FuzzyComputedTorque::new(
+            self.loaded.clone(),
+            self.selection,
+            self.gamma,
+            &self.tunable.gains,
+            self.startup_rate,
+            self.effort.clone(),
+        ))
+    }
+    fn tunable(&self) -> &Tunable {
+        &self.tunable
+    }
+    fn param_kind(&self) -> u32 {
+        KIND_FUZZY_COMPUTED_TORQUE
+    }
+}

@@ -1,0 +1,265 @@
+//! The RKGNN paper in the loop: identification from a run's reference and output (never its
+//! torques), the identified models' M-hat, and computed torque with fuzzy model selection run
+//! by the real processes (lockstep equal to the in-process simulation; realtime at 1 kHz).
+
+mod common;
+use common::*;
+use evoloop::config::{Overrides, Scenario};
+use evoloop::rkgnn::{RkgnnModel, Trajectory};
+use evoloop::sim::simulate;
+use std::path::{Path, PathBuf};
+
+fn config(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("config")
+        .join(name)
+}
+
+/// A 2-s lockstep run of the first training trajectory through the processes.
+fn training_run(dir: &Path, tag: &str) -> PathBuf {
+    let out = dir.join("train1");
+    assert_ok(&run(
+        &config("arm3_train1.toml"),
+        &out,
+        tag,
+        &["--duration", "2"],
+    ));
+    out
+}
+
+fn min_eig_on(model: &RkgnnModel, data: &Trajectory) -> f64 {
+    model.min_eig(data.x.chunks(2 * data.n).map(|x| &x[..data.n]))
+}
+
+#[test]
+fn the_identifier_reads_reference_and_output_never_the_torques() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = training_run(tmp.path(), "rk_notau");
+    let before = Trajectory::from_run(&out).unwrap();
+    assert_eq!(before.n, 3);
+    assert_eq!(before.len(), 2000);
+    // Overwrite every torque column with NaN: the data read is unchanged.
+    let path = out.join("run.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let u_cols: Vec<usize> = (0..header.len())
+        .filter(|&i| header[i].starts_with('u'))
+        .collect();
+    assert_eq!(u_cols.len(), 3);
+    let mut rewritten = header.join(",") + "\n";
+    for l in lines {
+        let mut f: Vec<&str> = l.split(',').collect();
+        for &i in &u_cols {
+            f[i] = "NaN";
+        }
+        rewritten += &(f.join(",") + "\n");
+    }
+    std::fs::write(&path, rewritten).unwrap();
+    assert_eq!(Trajectory::from_run(&out).unwrap(), before);
+    // A run without the velocity columns is refused with the reason.
+    let two_mass = tmp.path().join("tm");
+    std::fs::create_dir_all(&two_mass).unwrap();
+    std::fs::write(two_mass.join("run.csv"), "t,reference,y0,u0\n0,0,0,0\n").unwrap();
+    let e = Trajectory::from_run(&two_mass).unwrap_err();
+    assert!(e.contains("no joint velocity columns qd0"), "{e}");
+}
+
+#[test]
+fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_sample() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = training_run(tmp.path(), "rk_ident");
+    let model_path = tmp.path().join("model.json");
+    let o = cli(&[
+        "identify",
+        "rkgnn",
+        "--data",
+        out.to_str().unwrap(),
+        "--out",
+        model_path.to_str().unwrap(),
+        "--evaluations",
+        "600",
+        "--seed",
+        "3",
+        "--json",
+    ]);
+    let r = stdout_json(&o);
+    for key in ["train_rms", "holdout_rms"] {
+        let v = r[key].as_array().unwrap_or_else(|| panic!("{key}: {r}"));
+        assert_eq!(v.len(), 3, "{key} per joint");
+        assert!(v.iter().all(|x| x.as_f64().unwrap().is_finite()));
+    }
+    assert!(r["evaluations"].as_u64().unwrap() >= 600);
+    assert!(r["seconds"].as_f64().unwrap() > 0.0);
+    let min_eig = r["min_eig_m_hat"].as_f64().unwrap();
+    assert!(min_eig > 0.0, "M-hat not positive definite: {min_eig}");
+    // The file loads (its own checks) and M-hat is positive definite on every sample, 1 kHz.
+    let model = RkgnnModel::load(&model_path).unwrap();
+    let data = Trajectory::from_run(&out).unwrap();
+    assert!(min_eig_on(&model, &data.window(0, 1600)) > 0.0);
+    // Seeded: the same command gives the same parameters.
+    let again = tmp.path().join("again.json");
+    let o2 = cli(&[
+        "identify",
+        "rkgnn",
+        "--data",
+        out.to_str().unwrap(),
+        "--out",
+        again.to_str().unwrap(),
+        "--evaluations",
+        "600",
+        "--seed",
+        "3",
+        "--threads",
+        "1",
+        "--quiet",
+    ]);
+    assert!(o2.status.success());
+    assert_eq!(
+        RkgnnModel::load(&again).unwrap().net.params,
+        model.net.params
+    );
+}
+
+#[test]
+fn the_shipped_models_are_positive_definite_on_every_training_sample() {
+    for name in ["arm3_train1", "arm3_train2"] {
+        let m = RkgnnModel::load(&config(&format!("models/{name}.json"))).unwrap();
+        let scn = Scenario::load(&config(&format!("{name}.toml")), &Overrides::default()).unwrap();
+        let sim = simulate(&scn);
+        let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period);
+        let lo = min_eig_on(&m, &data);
+        assert!(lo > 0.0, "{name}: smallest eigenvalue {lo}");
+        assert!(m.report.min_eig_m_hat > 0.0);
+    }
+}
+
+#[test]
+fn rkgnn_eval_prints_a_symmetric_m_hat_v_hat_and_g_hat() {
+    let o = cli(&[
+        "rkgnn",
+        "eval",
+        "--model",
+        config("models/arm3_train1.json").to_str().unwrap(),
+        "--q",
+        "0,0.7,-1.3",
+        "--qd",
+        "0.5,-0.2,0.1",
+        "--json",
+    ]);
+    let v = stdout_json(&o);
+    let m = v["M_hat"].as_array().unwrap();
+    assert_eq!(m.len(), 3);
+    for (a, row) in m.iter().enumerate() {
+        for (b, v) in row.as_array().unwrap().iter().enumerate() {
+            assert_eq!(*v, m[b][a]);
+        }
+    }
+    assert_eq!(v["V_hat"].as_array().unwrap().len(), 3);
+    assert_eq!(v["G_hat"].as_array().unwrap().len(), 3);
+    assert!(v["min_eig_m_hat"].as_f64().unwrap() > 0.0);
+    let bad = cli(&[
+        "rkgnn",
+        "eval",
+        "--model",
+        config("models/arm3_train1.json").to_str().unwrap(),
+        "--q",
+        "0,0.7",
+    ]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--q needs 3 values"));
+}
+
+#[test]
+fn the_fuzzy_scenario_through_the_processes_equals_the_in_process_simulation() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    assert_ok(&run(
+        &config("arm3_fuzzy_ct.toml"),
+        &out,
+        "rk_fuzzy",
+        &["--duration", "2"],
+    ));
+    let scn = Scenario::load(
+        &config("arm3_fuzzy_ct.toml"),
+        &Overrides {
+            duration: Some(2.0),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let sim = simulate(&scn);
+    let csv = Csv::read(&out.join("run.csv"));
+    assert_eq!(csv.rows.len(), sim.rows.len());
+    for j in 0..3 {
+        let (y, u) = (csv.col(&format!("y{j}")), csv.col(&format!("u{j}")));
+        for (i, row) in sim.rows.iter().enumerate() {
+            assert_eq!(y[i].to_bits(), row.state.y[j].to_bits(), "y{j} at {i}");
+            assert_eq!(u[i].to_bits(), row.telemetry.u[j].to_bits(), "u{j} at {i}");
+        }
+    }
+    // The selector's record: the active model and memberships summing to 1, both models used.
+    let active = csv.col("fuzzy_model");
+    let (w0, w1) = (csv.col("fuzzy_w0"), csv.col("fuzzy_w1"));
+    for i in 0..active.len() {
+        assert!((w0[i] + w1[i] - 1.0).abs() < 1e-12);
+        assert_eq!(active[i], if w1[i] > w0[i] { 1.0 } else { 0.0 }, "at {i}");
+    }
+    assert!(active.contains(&0.0) && active.contains(&1.0));
+}
+
+#[test]
+fn the_fuzzy_scenario_runs_at_one_kilohertz_in_realtime() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    assert_ok(&run(
+        &config("arm3_fuzzy_ct.toml"),
+        &out,
+        "rk_fuzzy_rt",
+        &["--mode", "realtime", "--duration", "3"],
+    ));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["mode"], "realtime");
+    if let Err(line) = rate_kept(&s, 3.0) {
+        panic!("the fuzzy computed-torque controller did not keep its rate: {line}");
+    }
+}
+
+#[test]
+fn a_model_file_for_another_arm_is_refused_with_file_key_and_reason() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A 3-joint model file with one parameter too few.
+    let text = std::fs::read_to_string(config("models/arm3_train1.json")).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["params"].as_array_mut().unwrap().pop();
+    let models = tmp.path().join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    std::fs::write(models.join("short.json"), v.to_string()).unwrap();
+    let robots = tmp.path().join("robots");
+    std::fs::create_dir_all(&robots).unwrap();
+    std::fs::copy(config("robots/arm3.toml"), robots.join("arm3.toml")).unwrap();
+    let scn = std::fs::read_to_string(config("arm3_fuzzy_ct.toml"))
+        .unwrap()
+        .replace("models/arm3_train2.json", "models/short.json")
+        .replace(
+            "models/arm3_train1.json",
+            config("models/arm3_train1.json").to_str().unwrap(),
+        );
+    let file = write(tmp.path(), "bad.toml", &scn);
+    let o = cli(&["check", file.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("bad.toml"), "{e}");
+    assert!(
+        e.contains("controller.fuzzy_computed_torque.models[1]"),
+        "{e}"
+    );
+    assert!(
+        e.contains("params: 464 values, the network needs 465"),
+        "{e}"
+    );
+}
