@@ -27,6 +27,24 @@ fn training_run(dir: &Path, tag: &str) -> PathBuf {
     out
 }
 
+/// `evoloop identify rkgnn` on `data` into `model`, 600 evaluations, seed 3, plus `extra`.
+fn identify(data: &Path, model: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "identify",
+        "rkgnn",
+        "--data",
+        data.to_str().unwrap(),
+        "--out",
+        model.to_str().unwrap(),
+        "--evaluations",
+        "600",
+        "--seed",
+        "3",
+    ];
+    args.extend_from_slice(extra);
+    cli(&args)
+}
+
 fn min_eig_on(model: &RkgnnModel, data: &Trajectory) -> f64 {
     model.min_eig(data.x.chunks(2 * data.n).map(|x| &x[..data.n]))
 }
@@ -72,19 +90,7 @@ fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_s
     let tmp = tempfile::tempdir().unwrap();
     let out = training_run(tmp.path(), "rk_ident");
     let model_path = tmp.path().join("model.json");
-    let o = cli(&[
-        "identify",
-        "rkgnn",
-        "--data",
-        out.to_str().unwrap(),
-        "--out",
-        model_path.to_str().unwrap(),
-        "--evaluations",
-        "600",
-        "--seed",
-        "3",
-        "--json",
-    ]);
+    let o = identify(&out, &model_path, &["--json"]);
     let r = stdout_json(&o);
     for key in ["train_rms", "holdout_rms"] {
         let v = r[key].as_array().unwrap_or_else(|| panic!("{key}: {r}"));
@@ -101,25 +107,11 @@ fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_s
     assert!(min_eig_on(&model, &data.window(0, 1600)) > 0.0);
     // Seeded: the same command gives the same parameters.
     let again = tmp.path().join("again.json");
-    let o2 = cli(&[
-        "identify",
-        "rkgnn",
-        "--data",
-        out.to_str().unwrap(),
-        "--out",
-        again.to_str().unwrap(),
-        "--evaluations",
-        "600",
-        "--seed",
-        "3",
-        "--threads",
-        "1",
-        "--quiet",
-    ]);
+    let o2 = identify(&out, &again, &["--threads", "1", "--quiet"]);
     assert!(o2.status.success());
     assert_eq!(
-        RkgnnModel::load(&again).unwrap().net.params,
-        model.net.params
+        RkgnnModel::load(&again).unwrap().net.params(),
+        model.net.params()
     );
 }
 

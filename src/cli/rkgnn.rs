@@ -126,18 +126,12 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     }
     let (m1, m2) = identify::inertia_bounds(&arm, data.x.chunks(2 * data.n).map(|x| &x[..data.n]));
     let bar = progress_bar(a.evaluations as u64, a.quiet || a.json);
-    let (params, report) = identify::identify(&data, m1, m2, &s, |evals, best| {
+    let (net, report) = identify::identify(&data, m1, m2, &s, |evals, best| {
         bar.set_position(evals as u64);
         bar.set_message(format!("best J {best:.4}"));
     })?;
     bar.finish_and_clear();
-    let model = RkgnnModel::new(
-        &data,
-        s.stride,
-        params,
-        a.data.display().to_string(),
-        report,
-    );
+    let model = RkgnnModel::new(&data, s.stride, net, a.data.display().to_string(), report);
     model.save(&a.out)?;
     let r = &model.report;
     if a.json {

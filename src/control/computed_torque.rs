@@ -48,11 +48,23 @@ impl ComputedTorque {
 
     /// psi(k) = 1 - exp(-c k).
     pub fn psi(&self, k: u64) -> f64 {
-        if self.startup_rate > 0.0 {
-            1.0 - (-self.startup_rate * k as f64).exp()
-        } else {
-            1.0
-        }
+        startup_damping(self.startup_rate, k)
+    }
+}
+
+/// The start-up damping psi(k) = 1 - exp(-c k) at sample k for rate c per sample (1 when c = 0).
+pub fn startup_damping(rate: f64, k: u64) -> f64 {
+    if rate > 0.0 {
+        1.0 - (-rate * k as f64).exp()
+    } else {
+        1.0
+    }
+}
+
+/// The last step of a computed-torque law: u <- psi u, clamped to each joint's effort limit.
+pub(crate) fn damp_and_limit(u: &mut [f64], psi: f64, effort: impl Iterator<Item = f64>) {
+    for (ui, limit) in u.iter_mut().zip(effort) {
+        *ui = (psi * *ui).clamp(-limit, limit);
     }
 }
 
@@ -83,9 +95,11 @@ impl Controller for ComputedTorque {
         self.model
             .inverse_dynamics(&mut self.data, &self.q, &self.qd, &self.acc, &mut u[..n]);
         let psi = self.psi(self.k);
-        for (i, b) in self.model.bodies.iter().enumerate() {
-            u[i] = (psi * u[i]).clamp(-b.limits.effort, b.limits.effort);
-        }
+        damp_and_limit(
+            &mut u[..n],
+            psi,
+            self.model.bodies.iter().map(|b| b.limits.effort),
+        );
         self.k += 1;
     }
 
@@ -134,20 +148,14 @@ pub fn validate(
         );
     };
     let n = arm.dof();
-    let tunable = joint_gains(
+    let (tunable, startup_rate) = gains_and_startup(
         check,
         "computed_torque",
         n,
-        ["kp", "kv"],
         [t.kp, t.kv],
+        t.startup_rate,
         t.lower,
         t.upper,
-    )?;
-    let startup_rate = check.range(
-        "controller.computed_torque.startup_rate",
-        t.startup_rate.unwrap_or(0.03),
-        0.0,
-        10.0,
     )?;
     let model = match t.model {
         Some(rel) => {
@@ -165,6 +173,27 @@ pub fn validate(
         startup_rate,
         model,
     })
+}
+
+/// The keys every computed-torque law (`law`) shares: the gains [Kp; Kv] for `n` joints with
+/// their bounds, and psi's rate (default 0.03, the paper's).
+pub(crate) fn gains_and_startup(
+    check: &Check,
+    law: &str,
+    n: usize,
+    gains: [Vec<f64>; 2],
+    startup_rate: Option<f64>,
+    lower: Option<Vec<f64>>,
+    upper: Option<Vec<f64>>,
+) -> Result<(Tunable, f64), ConfigError> {
+    let tunable = joint_gains(check, law, n, ["kp", "kv"], gains, lower, upper)?;
+    let rate = check.range(
+        &format!("controller.{law}.startup_rate"),
+        startup_rate.unwrap_or(0.03),
+        0.0,
+        10.0,
+    )?;
+    Ok((tunable, rate))
 }
 
 impl ControllerConfig for ComputedTorqueSpec {

@@ -16,7 +16,8 @@
 //! no allocation. Logged per cycle: the model of largest weight and the normalised memberships.
 
 use super::fuzzy_select::{self, Selection};
-use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
+use super::computed_torque::{damp_and_limit, gains_and_startup, startup_damping};
+use super::{driven_arm, Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
 use crate::msg::{PlantState, KIND_FUZZY_COMPUTED_TORQUE};
 use crate::reference::Setpoint;
@@ -163,14 +164,8 @@ impl Controller for FuzzyComputedTorque {
                 u[i] += s * (ma + v[i] + g[i]);
             }
         }
-        let psi = if self.startup_rate > 0.0 {
-            1.0 - (-self.startup_rate * self.k as f64).exp()
-        } else {
-            1.0
-        };
-        for (ui, limit) in u[..n].iter_mut().zip(&self.effort) {
-            *ui = (psi * *ui).clamp(-limit, *limit);
-        }
+        let psi = startup_damping(self.startup_rate, self.k);
+        damp_and_limit(&mut u[..n], psi, self.effort.iter().copied());
         self.k += 1;
     }
 
@@ -248,13 +243,8 @@ pub fn validate(
         );
     };
     let n = arm.dof();
-    let tunable = joint_gains(check, law, n, ["kp", "kv"], [t.kp, t.kv], t.lower, t.upper)?;
-    let startup_rate = check.range(
-        "controller.fuzzy_computed_torque.startup_rate",
-        t.startup_rate.unwrap_or(0.03),
-        0.0,
-        10.0,
-    )?;
+    let (tunable, startup_rate) =
+        gains_and_startup(check, law, n, [t.kp, t.kv], t.startup_rate, t.lower, t.upper)?;
     let gamma = check.positive(
         "controller.fuzzy_computed_torque.gamma",
         t.gamma.unwrap_or(fuzzy_select::GAMMA),

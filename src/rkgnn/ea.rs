@@ -109,11 +109,6 @@ impl ChaoticEa {
                 zs[mu + i][j] = fresh_z(&mut rng);
             }
         }
-        let mut memory = VecDeque::with_capacity(cfg.memory + 1);
-        for _ in 0..cfg.memory {
-            memory.push_back(vec![0.0; n]);
-        }
-        memory.clear();
         Self {
             tau: 1.0 / (2.0 * (n as f64).sqrt()).sqrt(),
             sigma0: sigma0.to_vec(),
@@ -122,7 +117,7 @@ impl ChaoticEa {
             zs,
             f: vec![f64::INFINITY; slots],
             n_strategic: 0,
-            memory,
+            memory: VecDeque::with_capacity(cfg.memory + 1),
             best_x: x0.to_vec(),
             best_f: f64::INFINITY,
             generation: 0,

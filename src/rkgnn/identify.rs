@@ -27,7 +27,7 @@
 
 use super::data::Trajectory;
 use super::ea::{ChaoticEa, ChaoticEaConfig};
-use super::network::{self, Layout, Mat, Part, RbfCounts};
+use super::network::{self, Layout, Mat, Network, Part, RbfCounts};
 use crate::optim::{evaluate, Objective, Optimiser};
 use crate::plant::gill::RungeKuttaGill;
 use crate::MAX_JOINTS;
@@ -121,7 +121,8 @@ pub fn inertia_bounds<'a>(
 }
 
 /// Free-run prediction of `traj` from its first state: the predicted states (sample-major, 2n
-/// each) into `out` if given, and eq. 13's error term. Allocation-free apart from `out`.
+/// each) into `out` if given, and eq. 13's error term. Allocates only the integrator's two
+/// state-sized buffers (and `out`).
 pub fn predict(
     layout: &Layout,
     p: &[f64],
@@ -133,7 +134,8 @@ pub fn predict(
     let steps = traj.len();
     let mut x = [0.0; 2 * MAX_JOINTS];
     x[..w].copy_from_slice(traj.x_at(0));
-    let mut rkg = Gill::default();
+    let mut rkg = RungeKuttaGill::new(w);
+    let zero = network::servo_zero(layout, p);
     let mut sum = 0.0;
     if let Some(o) = out.as_deref_mut() {
         o.clear();
@@ -156,7 +158,7 @@ pub fn predict(
                 _ => &mid[..w],
             };
             stage += 1;
-            ok &= network::rate(layout, p, xs, r, dx);
+            ok &= network::rate(layout, p, &zero, xs, r, dx);
         });
         let bad = !ok || x[..w].iter().any(|v| v.is_nan() || v.abs() > STATE_LIMIT);
         if bad {
@@ -174,18 +176,6 @@ pub fn predict(
         }
     }
     sum / steps as f64
-}
-
-/// The RKG integrator with fixed-size buffers (the prediction runs in the evaluation threads).
-#[derive(Default)]
-struct Gill(Option<RungeKuttaGill>);
-
-impl Gill {
-    fn step(&mut self, x: &mut [f64], h: f64, f: impl FnMut(&[f64], &mut [f64])) {
-        self.0
-            .get_or_insert_with(|| RungeKuttaGill::new(x.len()))
-            .step(x, h, f)
-    }
 }
 
 /// Eqs. 14-16 at their worst over the probe positions: [g_1, g_2, g_3].
@@ -353,15 +343,15 @@ pub fn initial(layout: &Layout, train: &Trajectory, m1: f64, m2: f64) -> (Vec<f6
 }
 
 /// Identify an RKGNN on `data` (the first 1 - holdout of it) with eq. 2's bounds `m1`, `m2`.
-/// `progress(evaluations, best)` is called after each generation. Returns the parameters and
-/// the report.
+/// `progress(evaluations, best)` is called after each generation. Returns the network (with the
+/// settings' RBF counts) and the report.
 pub fn identify(
     data: &Trajectory,
     m1: f64,
     m2: f64,
     s: &Settings,
     mut progress: impl FnMut(usize, f64),
-) -> Result<(Vec<f64>, Report), String> {
+) -> Result<(Network, Report), String> {
     let t0 = std::time::Instant::now();
     let d = data.every(s.stride.max(1));
     let n_hold = ((d.len() as f64) * s.holdout).round() as usize;
@@ -382,9 +372,8 @@ pub fn identify(
     let (x0, s0) = initial(&layout, &train, m1, m2);
     let mut ea = ChaoticEa::new(s.ea, &x0, &s0);
     let mut history = Vec::new();
-    let mut s_t = 10.0;
     while ea.evaluations() < s.evaluations {
-        s_t = 10.0 + (ea.generation() as f64 + 1.0).ln();
+        let s_t = 10.0 + (ea.generation() as f64 + 1.0).ln();
         let fit = Fit {
             layout: &layout,
             train: &train,
@@ -401,29 +390,20 @@ pub fn identify(
         progress(ea.evaluations(), ea.best().1);
     }
     let (best, objective) = ea.best();
-    let best = best.to_vec();
-    let mut min_eig = f64::INFINITY;
-    let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-    for i in 0..train.len() {
-        network::inertia(&layout, &best, &train.x_at(i)[..d.n], &mut m);
-        min_eig = min_eig.min(network::sym_eig_range(d.n, &m).0);
-    }
-    let _ = s_t;
-    Ok((
-        best.clone(),
-        Report {
-            train_rms: rms_per_joint(&layout, &best, &train),
-            holdout_rms: rms_per_joint(&layout, &best, &hold),
-            min_eig_m_hat: min_eig,
-            evaluations: ea.evaluations(),
-            seconds: t0.elapsed().as_secs_f64(),
-            generations: ea.generation(),
-            objective,
-            h: d.h,
-            m1,
-            m2,
-            seed: s.ea.seed,
-            history,
-        },
-    ))
+    let net = Network::new(layout, best.to_vec());
+    let report = Report {
+        train_rms: rms_per_joint(&net.layout, net.params(), &train),
+        holdout_rms: rms_per_joint(&net.layout, net.params(), &hold),
+        min_eig_m_hat: net.min_eig(train.x.chunks(2 * d.n).map(|x| &x[..d.n])),
+        evaluations: ea.evaluations(),
+        seconds: t0.elapsed().as_secs_f64(),
+        generations: ea.generation(),
+        objective,
+        h: d.h,
+        m1,
+        m2,
+        seed: s.ea.seed,
+        history,
+    };
+    Ok((net, report))
 }

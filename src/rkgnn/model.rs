@@ -3,7 +3,7 @@
 //! eq. 17) and the identification's report. Loading checks everything a controller relies on.
 
 use super::identify::Report;
-use super::network::{self, Layout, Mat, Network, RbfCounts};
+use super::network::{Layout, Network, RbfCounts};
 use crate::MAX_JOINTS;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -43,19 +43,18 @@ pub struct RkgnnModel {
 }
 
 impl RkgnnModel {
-    /// The model identified on `data` (at `stride`) with parameters `params`: its premise is
-    /// the data's reference at the RKGNN's step.
+    /// The model `net` identified on `data` at `stride`: its premise is the data's reference at
+    /// the RKGNN's step.
     pub fn new(
         data: &super::Trajectory,
         stride: usize,
-        params: Vec<f64>,
+        net: Network,
         source: String,
         report: Report,
     ) -> Self {
         let d = data.every(stride.max(1));
-        let counts = network::RbfCounts::paper(data.n);
         Self {
-            net: Network::new(Layout::new(data.n, counts), params),
+            net,
             premise_period: d.h,
             premise: d.r,
             source,
@@ -82,13 +81,7 @@ impl RkgnnModel {
 
     /// Smallest eigenvalue of M-hat over `qs`: > 0 means positive definite there.
     pub fn min_eig<'a>(&self, qs: impl Iterator<Item = &'a [f64]>) -> f64 {
-        let n = self.dof();
-        let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-        qs.map(|q| {
-            self.net.inertia(q, &mut m);
-            network::sym_eig_range(n, &m).0
-        })
-        .fold(f64::INFINITY, f64::min)
+        self.net.min_eig(qs)
     }
 
     pub fn to_file(&self) -> ModelFile {
@@ -98,7 +91,7 @@ impl RkgnnModel {
             version: VERSION,
             joints: self.dof(),
             rbf: self.net.layout.counts,
-            params: self.net.params.clone(),
+            params: self.net.params().to_vec(),
             premise_period: self.premise_period,
             premise: self.premise.chunks(w).map(<[f64]>::to_vec).collect(),
             source: self.source.clone(),

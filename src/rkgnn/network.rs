@@ -194,7 +194,27 @@ pub enum Part {
 #[derive(Debug, Clone)]
 pub struct Network {
     pub layout: Layout,
-    pub params: Vec<f64>,
+    params: Vec<f64>,
+    /// The servo sub-networks' values at zero error, fixed by the parameters.
+    zero: ServoZero,
+}
+
+/// Per joint, the proportional and derivative sub-networks' values at zero error (P_j(0) at
+/// 2j, D_j(0) at 2j + 1): the offsets the torque network subtracts. They depend on the
+/// parameters only, so they are computed once per parameter set, not per evaluation.
+pub type ServoZero = [f64; 2 * MAX_JOINTS];
+
+/// `ServoZero` for parameters `p`.
+pub fn servo_zero(layout: &Layout, p: &[f64]) -> ServoZero {
+    let mut z = [0.0; 2 * MAX_JOINTS];
+    let mut out = [0.0; 1];
+    for (j, nets) in layout.torque.iter().enumerate() {
+        for (k, net) in nets.iter().enumerate() {
+            net.eval(p, &[0.0], &mut out);
+            z[2 * j + k] = out[0];
+        }
+    }
+    z
 }
 
 /// A small n x n matrix on the stack, row-major.
@@ -203,7 +223,17 @@ pub type Mat = [f64; MAX_JOINTS * MAX_JOINTS];
 impl Network {
     pub fn new(layout: Layout, params: Vec<f64>) -> Self {
         assert_eq!(params.len(), layout.len, "parameter count");
-        Self { layout, params }
+        let zero = servo_zero(&layout, &params);
+        Self {
+            layout,
+            params,
+            zero,
+        }
+    }
+
+    /// The parameters in `Layout` order.
+    pub fn params(&self) -> &[f64] {
+        &self.params
     }
 
     pub fn dof(&self) -> usize {
@@ -225,15 +255,25 @@ impl Network {
         self.layout.gravity.eval(&self.params, theta, g);
     }
 
+    /// Smallest eigenvalue of M-hat over the positions `qs` (> 0: positive definite there).
+    pub fn min_eig<'a>(&self, qs: impl Iterator<Item = &'a [f64]>) -> f64 {
+        let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+        qs.map(|q| {
+            self.inertia(q, &mut m);
+            sym_eig_range(self.dof(), &m).0
+        })
+        .fold(f64::INFINITY, f64::min)
+    }
+
     /// The identified servo's torque for error e = theta_d - theta and e' = theta_d' - theta'.
     pub fn torque(&self, e: &[f64], ed: &[f64], tau: &mut [f64]) {
-        torque(&self.layout, &self.params, e, ed, tau)
+        torque(&self.layout, &self.params, &self.zero, e, ed, tau)
     }
 
     /// x' = N_f(x; r): x = [theta; theta'], r = [theta_d; theta_d'] (2n each). Returns false
     /// (and leaves dx undefined) if M-hat is singular at theta.
     pub fn rate(&self, x: &[f64], r: &[f64], dx: &mut [f64]) -> bool {
-        rate(&self.layout, &self.params, x, r, dx)
+        rate(&self.layout, &self.params, &self.zero, x, r, dx)
     }
 }
 
@@ -267,20 +307,34 @@ pub(crate) fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v:
     }
 }
 
-pub(crate) fn torque(layout: &Layout, p: &[f64], e: &[f64], ed: &[f64], tau: &mut [f64]) {
+/// The servo's torque; `zero` = `servo_zero(layout, p)`.
+pub(crate) fn torque(
+    layout: &Layout,
+    p: &[f64],
+    zero: &ServoZero,
+    e: &[f64],
+    ed: &[f64],
+    tau: &mut [f64],
+) {
     let mut out = [0.0; 1];
     let mut at = |net: &SubNet, y: f64| {
         net.eval(p, &[y], &mut out);
-        let v = out[0];
-        net.eval(p, &[0.0], &mut out);
-        v - out[0]
+        out[0]
     };
     for (j, [pn, dn]) in layout.torque.iter().enumerate() {
-        tau[j] = at(pn, e[j]) + at(dn, ed[j]);
+        tau[j] = (at(pn, e[j]) - zero[2 * j]) + (at(dn, ed[j]) - zero[2 * j + 1]);
     }
 }
 
-pub(crate) fn rate(layout: &Layout, p: &[f64], x: &[f64], r: &[f64], dx: &mut [f64]) -> bool {
+/// N_f; `zero` = `servo_zero(layout, p)`.
+pub(crate) fn rate(
+    layout: &Layout,
+    p: &[f64],
+    zero: &ServoZero,
+    x: &[f64],
+    r: &[f64],
+    dx: &mut [f64],
+) -> bool {
     let n = layout.n;
     let (theta, qd) = x.split_at(n);
     let mut e = [0.0; MAX_JOINTS];
@@ -290,7 +344,7 @@ pub(crate) fn rate(layout: &Layout, p: &[f64], x: &[f64], r: &[f64], dx: &mut [f
         ed[j] = r[n + j] - qd[j];
     }
     let mut rhs = [0.0; MAX_JOINTS];
-    torque(layout, p, &e, &ed, &mut rhs);
+    torque(layout, p, zero, &e, &ed, &mut rhs);
     let mut v = [0.0; MAX_JOINTS];
     velocity(layout, p, theta, qd, &mut v);
     let mut g = [0.0; MAX_JOINTS];
@@ -480,7 +534,7 @@ mod tests {
         net.velocity(&theta, &qd, &mut v);
         for (i, sub) in net.layout.velocity.iter().enumerate() {
             let mut c = [0.0; 6];
-            sub.eval(&net.params, &theta, &mut c);
+            sub.eval(net.params(), &theta, &mut c);
             let want = c[0] * qd[0] * qd[1]
                 + c[1] * qd[0] * qd[2]
                 + c[2] * qd[1] * qd[2]
