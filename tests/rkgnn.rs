@@ -116,6 +116,71 @@ fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_s
 }
 
 #[test]
+fn the_shipped_models_are_what_their_command_makes_of_the_training_runs() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    for name in ["arm3_train1", "arm3_train2"] {
+        let out = tmp.path().join(name);
+        assert_ok(&run(&config(&format!("{name}.toml")), &out, "rk_ship", &[]));
+        let model = tmp.path().join(format!("{name}.json"));
+        let o = cli(&[
+            "identify",
+            "rkgnn",
+            "--data",
+            out.to_str().unwrap(),
+            "--out",
+            model.to_str().unwrap(),
+            "--servo",
+            "linear",
+            "--start",
+            "least-squares",
+            "--evaluations",
+            "0",
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let shipped = RkgnnModel::load(&config(&format!("models/{name}.json"))).unwrap();
+        assert_eq!(
+            RkgnnModel::load(&model).unwrap().net.params(),
+            shipped.net.params(),
+            "{name}"
+        );
+    }
+    // The start needs the linear servo, and no search needs that start.
+    let data = tmp.path().join("arm3_train1");
+    let model = tmp.path().join("x.json");
+    let refused = identify(&data, &model, &["--start", "least-squares"]);
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("needs --servo linear"));
+    let refused = identify(&data, &model, &["--evaluations", "0"]);
+    assert!(!refused.status.success());
+}
+
+#[test]
+fn the_least_squares_start_finds_the_servo_and_gravity_of_the_training_run() {
+    // The first training run's servo has k_p = (150, 200, 100), k_d = (15, 20, 8); the arm's
+    // G at q = (0, 0.5, -1) is (0, 9.38, 1.81) N m. Data without torques fix each joint's scale
+    // only through the inertia bounds, so these are checked to 25 %, G_2 to 15 %.
+    let m = RkgnnModel::load(&config("models/arm3_train1.json")).unwrap();
+    let mut tau = [0.0; 3];
+    m.net.torque(&[1.0, 1.0, 1.0], &[0.0; 3], &mut tau);
+    for (j, (got, want)) in tau.iter().zip([150.0, 200.0, 100.0]).enumerate() {
+        assert!((got / want - 1.0).abs() < 0.25, "k_p,{j}: {got} vs {want}");
+    }
+    m.net.torque(&[0.0; 3], &[1.0, 1.0, 1.0], &mut tau);
+    for (j, (got, want)) in tau.iter().zip([15.0, 20.0, 8.0]).enumerate() {
+        assert!((got / want - 1.0).abs() < 0.25, "k_d,{j}: {got} vs {want}");
+    }
+    let mut g = [0.0; 3];
+    m.net.gravity(&[0.0, 0.5, -1.0], &mut g);
+    assert!((g[1] / 9.38 - 1.0).abs() < 0.15, "G_2 {}", g[1]);
+    assert!(
+        g[0].abs() < 0.5 && (g[2] / 1.81 - 1.0).abs() < 0.25,
+        "G {g:?}"
+    );
+}
+
+#[test]
 fn the_shipped_models_are_positive_definite_on_every_training_sample() {
     for name in ["arm3_train1", "arm3_train2"] {
         let m = RkgnnModel::load(&config(&format!("models/{name}.json"))).unwrap();
@@ -251,7 +316,86 @@ fn a_model_file_for_another_arm_is_refused_with_file_key_and_reason() {
         "{e}"
     );
     assert!(
-        e.contains("params: 464 values, the network needs 465"),
+        e.contains("params: 416 values, the network needs 417"),
         "{e}"
     );
+}
+
+/// The shipped fuzzy scenario's text with its relative paths made absolute and `edit` applied,
+/// simulated in process: the RMS tracking error per joint over the whole run (rad).
+fn tracking_rms(edit: impl Fn(String) -> String) -> [f64; 3] {
+    let dir = config("");
+    let text = std::fs::read_to_string(config("arm3_fuzzy_ct.toml"))
+        .unwrap()
+        .replace("\"robots/", &format!("\"{}robots/", dir.display()))
+        .replace("\"models/", &format!("\"{}models/", dir.display()));
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("variant.toml");
+    std::fs::write(&path, edit(text)).unwrap();
+    let scn = Scenario::load(&path, &Overrides::default()).unwrap();
+    let sim = simulate(&scn);
+    let mut sp = evoloop::reference::Setpoint::default();
+    let mut sum = [0.0; 3];
+    for row in &sim.rows {
+        scn.reference.sample(row.state.t, &mut sp);
+        for (j, s) in sum.iter_mut().enumerate() {
+            *s += (sp.q[j] - row.state.y[j]).powi(2);
+        }
+    }
+    sum.map(|s| (s / sim.rows.len() as f64).sqrt())
+}
+
+fn overall(rms: [f64; 3]) -> f64 {
+    (rms.iter().map(|v| v * v).sum::<f64>() / 3.0).sqrt()
+}
+
+#[test]
+fn fuzzy_computed_torque_tracks_the_new_trajectory_better_than_the_servo_and_the_worse_single_model(
+) {
+    // Over five measurement-noise seeds (the shipped scenario's is 1), every variant on the
+    // same seed: a paired comparison.
+    for seed in 1..=5 {
+        let seeded = move |t: String| t.replacen("seed = 1\n", &format!("seed = {seed}\n"), 1);
+        let models = "models = [\"";
+        let fuzzy = tracking_rms(seeded);
+        let only = |k: usize| {
+            tracking_rms(move |t| {
+                let t = seeded(t);
+                let start = t.find(models).unwrap();
+                let end = start + t[start..].find(']').unwrap() + 1;
+                let list: Vec<&str> = t[start + models.len() - 1..end - 1].split(", ").collect();
+                format!("{}models = [{}]{}", &t[..start], list[k], &t[end..])
+            })
+        };
+        let (one, two) = (only(0), only(1));
+        // The P-D servo alone: the training runs' controller on the new trajectory.
+        let pd = tracking_rms(move |t| {
+            let t = seeded(t);
+            let c = t.find("[controller]").unwrap();
+            let r = t.find("[reference]").unwrap();
+            let servo = std::fs::read_to_string(config("arm3_train1.toml")).unwrap();
+            let (sc, sr) = (
+                servo.find("[controller]").unwrap(),
+                servo.find("[reference]").unwrap(),
+            );
+            format!("{}{}{}", &t[..c], &servo[sc..sr], &t[r..])
+        });
+        let worse = overall(one).max(overall(two));
+        eprintln!(
+            "seed {seed}: rms fuzzy {:.5}, model 1 {:.5}, model 2 {:.5}, servo {:.5} \
+             (per joint: fuzzy {fuzzy:.5?}, servo {pd:.5?})",
+            overall(fuzzy),
+            overall(one),
+            overall(two),
+            overall(pd)
+        );
+        assert!(
+            overall(fuzzy) < overall(pd),
+            "seed {seed}: fuzzy CT vs the P-D servo"
+        );
+        assert!(
+            overall(fuzzy) < worse,
+            "seed {seed}: fuzzy CT vs the worse single model"
+        );
+    }
 }

@@ -1,6 +1,7 @@
 //! `evoloop identify rkgnn` and `evoloop rkgnn eval|study`: the RKGNN paper from the command line.
 
-use crate::rkgnn::identify::{self, Settings};
+use crate::rkgnn::identify::{self, Settings, Start};
+use crate::rkgnn::network::RbfCounts;
 use crate::rkgnn::{RkgnnModel, Trajectory};
 use clap::{Args, Subcommand};
 use serde_json::json;
@@ -28,13 +29,31 @@ pub struct IdentifyArgs {
     /// Objective evaluations (the budget).
     #[arg(long, default_value_t = DEFAULT_EVALUATIONS)]
     pub evaluations: usize,
-    /// Use every STRIDE-th sample: the RKGNN's step is STRIDE times the run's period.
-    #[arg(long, default_value_t = 10)]
+    /// Use every STRIDE-th sample: the RKGNN's step is STRIDE times the run's period. Keep
+    /// h x (servo's k_d / inertia) under 2.78, the Gill step's stability limit: at stride 10
+    /// (h = 10 ms) arm3's forearm servo sits at 2.77, at the edge.
+    #[arg(long, default_value_t = 5)]
     pub stride: usize,
     /// Robot file whose true M(q) gives the inertia bounds m1, m2 of eq. 2 [default: the run's
     /// scenario.json plant.robot].
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// What the search's constraints hold M-hat to: `paper` (eqs. 14-16: positive definite,
+    /// eigenvalues within eq. 2's m1, m2) or `diagonal` (also each M-hat_jj near its joint's
+    /// range of M_jj over the data). The least-squares start takes each joint's scale from that
+    /// range either way.
+    #[arg(long, value_enum, default_value_t = BoundsKind::Paper)]
+    pub bounds: BoundsKind,
+    /// The servo network: `rbf` (the paper's Fig. 3, 3 RBFs per P and D sub-network) or
+    /// `linear` (tau_j = k_p e_j + k_d e_j', the P-D servo of the paper's premise; with it
+    /// gravity and the servo's gains are identifiable).
+    #[arg(long, value_enum, default_value_t = ServoKind::Rbf)]
+    pub servo: ServoKind,
+    /// Where the EA starts: `random` (the paper's) or `least-squares` (the inverse-dynamics
+    /// equation solved for the output weights; needs --servo linear). With `least-squares`,
+    /// --evaluations 0 returns the start itself.
+    #[arg(long, value_enum, default_value_t = Start::Random)]
+    pub start: Start,
     /// Evaluation threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -45,6 +64,18 @@ pub struct IdentifyArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ServoKind {
+    Rbf,
+    Linear,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BoundsKind {
+    Paper,
+    Diagonal,
 }
 
 /// The default identification budget.
@@ -102,8 +133,14 @@ pub fn identify(cmd: IdentifyCmd) -> i32 {
 }
 
 fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
-    if a.evaluations == 0 || a.stride == 0 {
-        return Err("--evaluations and --stride must be >= 1".into());
+    if a.stride == 0 {
+        return Err("--stride must be >= 1".into());
+    }
+    if a.start == Start::LeastSquares && a.servo != ServoKind::Linear {
+        return Err("--start least-squares needs --servo linear".into());
+    }
+    if a.evaluations == 0 && a.start != Start::LeastSquares {
+        return Err("--evaluations must be >= 1 (0 only with --start least-squares)".into());
     }
     let data = Trajectory::from_run(&a.data)?;
     let robot = match &a.robot {
@@ -121,12 +158,19 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     }
     let mut s = Settings::paper(data.n, a.seed, a.evaluations);
     s.stride = a.stride;
+    s.start = a.start;
+    if a.servo == ServoKind::Linear {
+        s.counts = RbfCounts::linear_servo(data.n);
+    }
     if let Some(t) = a.threads {
         s.threads = t.max(1);
     }
-    let (m1, m2) = identify::inertia_bounds(&arm, data.x.chunks(2 * data.n).map(|x| &x[..data.n]));
+    let bounds = identify::InertiaBounds::of(&arm, data.x.chunks(2 * data.n).map(|x| &x[..data.n]));
+    if a.bounds == BoundsKind::Paper {
+        s.lambda[3] = 0.0;
+    }
     let bar = progress_bar(a.evaluations as u64, a.quiet || a.json);
-    let (net, report) = identify::identify(&data, m1, m2, &s, |evals, best| {
+    let (net, report) = identify::identify(&data, &bounds, &s, |evals, best| {
         bar.set_position(evals as u64);
         bar.set_message(format!("best J {best:.4}"));
     })?;

@@ -25,6 +25,20 @@
 //! shaping M-hat, they fix the model's scale, which data without torques cannot: multiplying
 //! M-hat, V-hat, G-hat and the torque network by one constant predicts the same motion.
 
+//!
+//! Beyond the paper (each opt-in on the command line, see README "RKGNN"):
+//! - `--servo linear`: the servo network as k_p e + k_d e' per joint (`RbfCounts::linear_servo`
+//!   says why it makes gravity identifiable).
+//! - `--start least-squares`: the EA starts from `least_squares_start`, the inverse-dynamics
+//!   equation solved for the output weights with each joint's scale from its diagonal inertia
+//!   bounds (`InertiaBounds::diag`); `--evaluations 0` keeps the start as the model.
+//! - `--bounds diagonal`: a fourth constraint g_4 keeps each M-hat_jj near its joint's range.
+//! - The default step is h = 5 ms (stride 5 at 1 kHz): the Gill step, like RK4, is stable for
+//!   h |lambda| < 2.78 on the real axis, and arm3's forearm under its servo has a mode at
+//!   k_d / M_33,eff = 8 / 0.029 = 277 /s, so h = 10 ms sits at 2.77: a model as stiff as the
+//!   true arm barely survives a free-run prediction there, and the search prefers softer,
+//!   wrong ones (M-hat_33 three times the truth, G-hat_2 at 40 % of it, seen at stride 10).
+
 use super::data::Trajectory;
 use super::ea::{ChaoticEa, ChaoticEaConfig};
 use super::network::{self, Layout, Mat, Network, Part, RbfCounts};
@@ -32,6 +46,11 @@ use crate::optim::{evaluate, Objective, Optimiser};
 use crate::plant::gill::RungeKuttaGill;
 use crate::MAX_JOINTS;
 use serde::{Deserialize, Serialize};
+
+/// How far beyond the true range of M_jj the diagonal bound lets M-hat_jj go (factors on the
+/// low and high end): the scale is the least-squares start's; in the search the bound only
+/// keeps it from drifting, and an RBF approximation of M_jj(q) needs some room.
+const DIAG_MARGIN: (f64, f64) = (0.8, 1.25);
 
 /// Error charged per sample left when a prediction diverges.
 pub const DIVERGED: f64 = 10.0;
@@ -49,27 +68,47 @@ pub struct Settings {
     /// Objective evaluations.
     pub evaluations: usize,
     pub ea: ChaoticEaConfig,
-    /// Eq. 13's lambda_1..3.
-    pub lambda: [f64; 3],
+    /// Eq. 13's lambda_1..3 and our lambda_4 on the diagonal bound (0 = the paper's eqs. 14-16
+    /// only).
+    pub lambda: [f64; 4],
     /// Probe states for the constraints.
     pub probes: usize,
     pub threads: usize,
+    /// Where the EA starts.
+    pub start: Start,
 }
+
+/// The EA's starting point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Start {
+    /// The paper's: `initial` (a stiff critically damped servo, every other weight 0) and a
+    /// population scattered about it.
+    Random,
+    /// `least_squares_start` (linear servo only), the population close about it.
+    LeastSquares,
+}
+
+/// The EA's mutation scales after a least-squares start, as a fraction of `initial`'s: the
+/// start is near a fit already, and `initial`'s steps, sized for a search from nothing, scatter
+/// the population far from it.
+const LS_SIGMA: f64 = 0.1;
 
 impl Settings {
     pub fn paper(n: usize, seed: u64, evaluations: usize) -> Self {
         Self {
             counts: RbfCounts::paper(n),
-            stride: 10,
+            stride: 5,
             holdout: 0.2,
             evaluations,
             ea: ChaoticEaConfig {
                 seed,
                 ..Default::default()
             },
-            lambda: [1000.0, 1.0, 1.0],
+            lambda: [1000.0, 1.0, 1.0, 1000.0],
             probes: 40,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            start: Start::Random,
         }
     }
 }
@@ -92,32 +131,63 @@ pub struct Report {
     pub h: f64,
     pub m1: f64,
     pub m2: f64,
+    /// The per-joint bounds on M-hat_jj used (see `InertiaBounds`).
+    #[serde(default)]
+    pub inertia_diag: Vec<[f64; 2]>,
+    /// Where the search started.
+    #[serde(default = "Report::random")]
+    pub start: Start,
     pub seed: u64,
     /// Best objective after each generation.
     pub history: Vec<f64>,
 }
 
-/// Eq. 2's bounds from a rigid-body model's M(q) over joint positions `qs`.
-pub fn inertia_bounds<'a>(
-    model: &crate::dynamics::Model,
-    qs: impl Iterator<Item = &'a [f64]>,
-) -> (f64, f64) {
-    let n = model.dof();
-    let mut data = model.data();
-    let mut flat: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
-    for q in qs {
-        let m = model.mass_matrix(&mut data, q);
-        for a in 0..n {
-            for b in 0..n {
-                flat[a * n + b] = m[(a, b)];
-            }
-        }
-        let (l, h) = network::sym_eig_range(n, &flat);
-        lo = lo.min(l);
-        hi = hi.max(h);
+impl Report {
+    /// Reports written before `start` existed came from the paper's start.
+    fn random() -> Start {
+        Start::Random
     }
-    (lo, hi)
+}
+
+/// What the identification assumes known of the arm's inertia (Property 1, eq. 2, and its
+/// per-joint form): bounds derived from a rigid-body model's M(q) over the training positions.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct InertiaBounds {
+    /// Smallest eigenvalue of M(q) seen (eq. 2's m_1).
+    pub m1: f64,
+    /// Largest eigenvalue seen (eq. 2's m_2).
+    pub m2: f64,
+    /// Per joint, the smallest and largest M_jj(q) seen.
+    pub diag: Vec<[f64; 2]>,
+}
+
+impl InertiaBounds {
+    /// The bounds of `model`'s M(q) over joint positions `qs`.
+    pub fn of<'a>(model: &crate::dynamics::Model, qs: impl Iterator<Item = &'a [f64]>) -> Self {
+        let n = model.dof();
+        let mut data = model.data();
+        let mut flat: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+        let mut b = Self {
+            m1: f64::INFINITY,
+            m2: 0.0,
+            diag: vec![[f64::INFINITY, 0.0]; n],
+        };
+        for q in qs {
+            let m = model.mass_matrix(&mut data, q);
+            for a in 0..n {
+                for c in 0..n {
+                    flat[a * n + c] = m[(a, c)];
+                }
+                let d = &mut b.diag[a];
+                d[0] = d[0].min(m[(a, a)]);
+                d[1] = d[1].max(m[(a, a)]);
+            }
+            let (l, h) = network::sym_eig_range(n, &flat);
+            b.m1 = b.m1.min(l);
+            b.m2 = b.m2.max(h);
+        }
+        b
+    }
 }
 
 /// Free-run prediction of `traj` from its first state: the predicted states (sample-major, 2n
@@ -178,18 +248,26 @@ pub fn predict(
     sum / steps as f64
 }
 
-/// Eqs. 14-16 at their worst over the probe positions: [g_1, g_2, g_3].
-pub fn constraints(layout: &Layout, p: &[f64], probes: &[Vec<f64>], m1: f64, m2: f64) -> [f64; 3] {
+/// Eqs. 14-16 at their worst over the probe positions, and the diagonal bound (ours): [g_1,
+/// g_2, g_3, g_4]. g_4 is the largest relative excursion of an M-hat_jj outside its joint's
+/// [lo, hi].
+pub fn constraints(layout: &Layout, p: &[f64], probes: &[Vec<f64>], b: &InertiaBounds) -> [f64; 4] {
     let n = layout.n;
-    let mut g = [f64::NEG_INFINITY; 3];
+    let mut g = [f64::NEG_INFINITY; 4];
     let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
     for q in probes {
         network::inertia(layout, p, q, &mut m);
         let gamma = network::min_leading_minor(n, &m);
         let (lo, hi) = network::sym_eig_range(n, &m);
         g[0] = g[0].max(-gamma);
-        g[1] = g[1].max(m1 - lo);
-        g[2] = g[2].max(hi - m2);
+        g[1] = g[1].max(b.m1 - lo);
+        g[2] = g[2].max(hi - b.m2);
+        for (j, [dl, dh]) in b.diag.iter().enumerate() {
+            let d = m[j * n + j];
+            g[3] = g[3]
+                .max((DIAG_MARGIN.0 * dl - d) / dl)
+                .max((d - DIAG_MARGIN.1 * dh) / dh);
+        }
     }
     g
 }
@@ -199,15 +277,14 @@ struct Fit<'a> {
     layout: &'a Layout,
     train: &'a Trajectory,
     probes: &'a [Vec<f64>],
-    m1: f64,
-    m2: f64,
-    lambda: [f64; 3],
+    bounds: &'a InertiaBounds,
+    lambda: [f64; 4],
     s_t: f64,
 }
 
 impl Objective for Fit<'_> {
     fn value(&self, p: &[f64]) -> f64 {
-        let g = constraints(self.layout, p, self.probes, self.m1, self.m2);
+        let g = constraints(self.layout, p, self.probes, self.bounds);
         let pen: f64 = g
             .iter()
             .zip(self.lambda)
@@ -250,7 +327,12 @@ pub fn rms_per_joint(layout: &Layout, p: &[f64], traj: &Trajectory) -> Vec<f64> 
 /// of [m1, m2], the servo network as a critically damped P-D servo, every other output weight
 /// at 0. The torque scale m2 (rms theta_d'' + 9.81) only
 /// sets how far the search steps at first, divided like every scale by sqrt(parameters).
-pub fn initial(layout: &Layout, train: &Trajectory, m1: f64, m2: f64) -> (Vec<f64>, Vec<f64>) {
+pub fn initial(
+    layout: &Layout,
+    train: &Trajectory,
+    bounds: &InertiaBounds,
+) -> (Vec<f64>, Vec<f64>) {
+    let (m1, m2) = (bounds.m1, bounds.m2);
     let n = train.n;
     let len = train.len();
     let mut x0 = vec![0.0; layout.len];
@@ -286,10 +368,16 @@ pub fn initial(layout: &Layout, train: &Trajectory, m1: f64, m2: f64) -> (Vec<f6
             (hi - lo).max(0.1)
         })
         .fold(0.0f64, |a, b| a.max(b));
-    let m_mid = 0.5 * (m1 + m2);
+    // A joint's inertia to start from: the middle of its diagonal bounds (of [m1, m2] without).
+    let m_mid = |j: usize| {
+        bounds
+            .diag
+            .get(j)
+            .map_or(0.5 * (m1 + m2), |[lo, hi]| 0.5 * (lo + hi))
+    };
     // The starting servo: critically damped at 20 rad/s on the middle inertia (a stiff
     // industrial axis). Only a start: the search moves every weight.
-    let (k_p, k_d) = (m_mid * 400.0, m_mid * 40.0);
+    let (k_p, k_d) = (400.0, 40.0);
     for (part, net) in layout.subnets() {
         let per = net.per_rbf();
         for l in 0..net.rbfs {
@@ -302,7 +390,7 @@ pub fn initial(layout: &Layout, train: &Trajectory, m1: f64, m2: f64) -> (Vec<f6
                     // one way, loses the arm beyond its bumps and every prediction diverges.
                     let p = matches!(part, Part::Proportional(_));
                     let a = 4.0 * if p { e_rms[j] } else { ed_rms[j] };
-                    let k = if p { k_p } else { k_d };
+                    let k = m_mid(j) * if p { k_p } else { k_d };
                     let c = a * (l as f64 - (net.rbfs as f64 - 1.0) / 2.0);
                     x0[b] = c;
                     s0[b] = 0.5 * a;
@@ -322,10 +410,10 @@ pub fn initial(layout: &Layout, train: &Trajectory, m1: f64, m2: f64) -> (Vec<f6
                     let w = &mut s0[b + n + 1..b + per];
                     match part {
                         Part::Inertia(a, c) => {
-                            w.fill(0.1 * m_mid);
+                            w.fill(0.1 * m_mid(a));
                             if a == c {
                                 // Broad bumps are near 1 over the data: split m_mid among them.
-                                x0[b + n + 1] = m_mid / net.rbfs as f64;
+                                x0[b + n + 1] = m_mid(a) / net.rbfs as f64;
                             }
                         }
                         Part::Velocity(_) => w.fill(m2),
@@ -333,6 +421,14 @@ pub fn initial(layout: &Layout, train: &Trajectory, m1: f64, m2: f64) -> (Vec<f6
                     }
                 }
             }
+        }
+    }
+    if let Some(g) = layout.gains {
+        for j in 0..n {
+            x0[g + 2 * j] = m_mid(j) * k_p;
+            x0[g + 2 * j + 1] = m_mid(j) * k_d;
+            s0[g + 2 * j] = 0.5 * m_mid(j) * k_p;
+            s0[g + 2 * j + 1] = 0.5 * m_mid(j) * k_d;
         }
     }
     // Every variable moves at once: steps of sigma per coordinate move the whole vector by
@@ -347,8 +443,7 @@ pub fn initial(layout: &Layout, train: &Trajectory, m1: f64, m2: f64) -> (Vec<f6
 /// settings' RBF counts) and the report.
 pub fn identify(
     data: &Trajectory,
-    m1: f64,
-    m2: f64,
+    bounds: &InertiaBounds,
     s: &Settings,
     mut progress: impl FnMut(usize, f64),
 ) -> Result<(Network, Report), String> {
@@ -369,7 +464,18 @@ pub fn identify(
     let probes: Vec<Vec<f64>> = (0..s.probes)
         .map(|k| train.x_at(k * train.len() / s.probes)[..d.n].to_vec())
         .collect();
-    let (x0, s0) = initial(&layout, &train, m1, m2);
+    let (x0, s0) = initial(&layout, &train, bounds);
+    let (x0, s0) = match s.start {
+        Start::Random => (x0, s0),
+        Start::LeastSquares => {
+            let full = data.window(0, ((split - 1) * s.stride.max(1) + 1).min(data.len()));
+            let x = least_squares_start(&layout, &x0, &full, s.stride, &probes, bounds).ok_or(
+                "the least-squares start found no model with a positive definite M-hat \
+                 (give --start random)",
+            )?;
+            (x, s0.iter().map(|v| v * LS_SIGMA).collect())
+        }
+    };
     let mut ea = ChaoticEa::new(s.ea, &x0, &s0);
     let mut history = Vec::new();
     while ea.evaluations() < s.evaluations {
@@ -378,8 +484,7 @@ pub fn identify(
             layout: &layout,
             train: &train,
             probes: &probes,
-            m1,
-            m2,
+            bounds,
             lambda: s.lambda,
             s_t,
         };
@@ -389,7 +494,20 @@ pub fn identify(
         history.push(ea.best().1);
         progress(ea.evaluations(), ea.best().1);
     }
-    let (best, objective) = ea.best();
+    let (best, objective) = if ea.evaluations() == 0 {
+        // No search (--evaluations 0): the start is the model; eq. 13 at generation 0.
+        let fit = Fit {
+            layout: &layout,
+            train: &train,
+            probes: &probes,
+            bounds,
+            lambda: s.lambda,
+            s_t: 10.0,
+        };
+        (x0.as_slice(), fit.value(&x0))
+    } else {
+        ea.best()
+    };
     let net = Network::new(layout, best.to_vec());
     let report = Report {
         train_rms: rms_per_joint(&net.layout, net.params(), &train),
@@ -400,10 +518,252 @@ pub fn identify(
         generations: ea.generation(),
         objective,
         h: d.h,
-        m1,
-        m2,
+        m1: bounds.m1,
+        m2: bounds.m2,
+        inertia_diag: if s.lambda[3] > 0.0 {
+            bounds.diag.clone()
+        } else {
+            Vec::new()
+        },
+        start: s.start,
         seed: s.ea.seed,
         history,
     };
     Ok((net, report))
+}
+
+/// Indices of every output weight in the flat parameter vector (centres and widths excluded).
+fn weight_indices(layout: &Layout) -> Vec<usize> {
+    let mut w = Vec::new();
+    for (_, net) in layout.subnets() {
+        let per = net.per_rbf();
+        for l in 0..net.rbfs {
+            let b = net.offset + l * per + net.inputs + 1;
+            w.extend(b..b + net.outputs);
+        }
+    }
+    if let Some(g) = layout.gains {
+        w.extend(g..g + 2 * layout.n);
+    }
+    w
+}
+
+/// The inverse-dynamics residual M-hat(q) q'' + V-hat(q, q') + G-hat(q) - tau-hat(e, e') into
+/// `out`. For fixed centres and widths it is linear in the output weights (zero when they all
+/// are), which is what `least_squares_start` uses.
+fn residual(layout: &Layout, p: &[f64], x: &[f64], xdd: &[f64], r: &[f64], out: &mut [f64]) {
+    let n = layout.n;
+    let (q, qd) = x.split_at(n);
+    let zero = network::servo_zero(layout, p);
+    let (mut e, mut ed) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+    for j in 0..n {
+        e[j] = r[j] - q[j];
+        ed[j] = r[n + j] - qd[j];
+    }
+    let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+    network::inertia(layout, p, q, &mut m);
+    let (mut v, mut g, mut tau) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+    network::velocity(layout, p, q, qd, &mut v);
+    layout.gravity.eval(p, q, &mut g);
+    network::torque(layout, p, &zero, &e, &ed, &mut tau);
+    for a in 0..n {
+        let mq: f64 = (0..n).map(|b| m[a * n + b] * xdd[b]).sum();
+        out[a] = mq + v[a] + g[a] - tau[a];
+    }
+}
+
+/// The EA's starting point with a linear servo, beyond the paper. With the RBF centres and
+/// widths of `initial` fixed, the inverse-dynamics equation
+///   M-hat(q) q'' + V-hat(q, q') + G-hat(q) = k_p e + k_d e',  e = theta_d - q,
+/// which holds at every sample (q'' from central differences of the measured q'), is linear in
+/// every other parameter. It is homogeneous (scale all and the motion is the same), so each
+/// joint's equation is first solved in units of its own k_p (k_p,j = 1, a linear least-squares
+/// problem, solved by SVD on unit-norm columns), then each joint is given the torque scale
+/// c_j that puts the mean of M-hat_jj over the probes at the middle of its diagonal bounds:
+/// row j of the model times c_j (an off-diagonal M-hat_jk times sqrt(c_j c_k), to stay
+/// symmetric). Fixing the scale on M-hat instead, inside the least squares, does not work: the
+/// data's accelerations are small, so "no servo, no gravity, M-hat q'' ~ 0" fits the equation
+/// better than the truth with its unmodelled friction. The EA then refines everything on the
+/// free-run prediction error it is judged by.
+pub fn least_squares_start(
+    layout: &Layout,
+    p0: &[f64],
+    data: &Trajectory,
+    stride: usize,
+    probes: &[Vec<f64>],
+    bounds: &InertiaBounds,
+) -> Option<Vec<f64>> {
+    let n = layout.n;
+    let g = layout.gains?;
+    let kp = |j: usize| g + 2 * j;
+    let cols: Vec<usize> = weight_indices(layout)
+        .into_iter()
+        .filter(|k| !(0..n).any(|j| *k == kp(j)))
+        .collect();
+    let samples: Vec<usize> = (1..data.len().saturating_sub(1))
+        .step_by(stride.max(1))
+        .collect();
+    let rows = samples.len() * n;
+    // Joint friction is not in N_f but is in every real arm's data (and our plant's): viscous
+    // and Coulomb columns per joint absorb it here and are dropped after, so that it does not
+    // bend the inertia and gravity estimates.
+    let nuis = 2 * n;
+    let mut a = nalgebra::DMatrix::<f64>::zeros(rows, cols.len() + nuis);
+    for (s, &i) in samples.iter().enumerate() {
+        for j in 0..n {
+            let v = data.x_at(i)[n + j];
+            a[(s * n + j, cols.len() + 2 * j)] = v;
+            a[(s * n + j, cols.len() + 2 * j + 1)] = (v / 1e-2).tanh();
+        }
+    }
+    let mut rhs = nalgebra::DVector::<f64>::zeros(rows);
+    let mut p = p0.to_vec();
+    weight_indices(layout).iter().for_each(|&k| p[k] = 0.0);
+    let mut out = [0.0; MAX_JOINTS];
+    // Column of one parameter: the residual with that parameter at 1 and every weight at 0.
+    let mut column = |p: &mut Vec<f64>, k: usize, mut put: Box<dyn FnMut(usize, f64) + '_>| {
+        p[k] = 1.0;
+        for (s, &i) in samples.iter().enumerate() {
+            let mut xdd = [0.0; MAX_JOINTS];
+            let (next, prev) = (&data.x_at(i + 1)[n..], &data.x_at(i - 1)[n..]);
+            for (a, (v1, v0)) in xdd[..n].iter_mut().zip(next.iter().zip(prev)) {
+                *a = (v1 - v0) / (2.0 * data.h);
+            }
+            residual(layout, p, data.x_at(i), &xdd, data.r_at(i), &mut out);
+            for (j, v) in out[..n].iter().enumerate() {
+                put(s * n + j, *v);
+            }
+        }
+        p[k] = 0.0;
+    };
+    for (c, &k) in cols.iter().enumerate() {
+        column(&mut p, k, Box::new(|r, v| a[(r, c)] = v));
+    }
+    for j in 0..n {
+        // k_p,j = 1 moves to the right-hand side.
+        column(&mut p, kp(j), Box::new(|r, v| rhs[r] -= v));
+    }
+    let norms: Vec<f64> = (0..cols.len() + nuis)
+        .map(|c| a.column(c).norm().max(1e-300))
+        .collect();
+    for (c, nrm) in norms.iter().enumerate() {
+        a.column_mut(c).scale_mut(1.0 / nrm);
+    }
+    // Ridges (unit-norm column space). The velocity network's products of joint velocities
+    // are small and nearly collinear with the other columns along one trajectory:
+    // unregularised, its weights grow large and cancelling, harmless in the fit, wild at the
+    // velocities a controller meets off it (V-hat 5 N m where the arm's V is 0.07), so its
+    // columns always carry VELOCITY_RIDGE. The inertia network gets the smallest ridge of
+    // INERTIA_RIDGES that leaves M-hat positive definite over the probes (at least m1 / 2).
+    let sub_cols = |nets: Vec<&network::SubNet>| -> Vec<usize> {
+        nets.into_iter()
+            .flat_map(|net| {
+                (0..net.rbfs).flat_map(move |l| {
+                    let b = net.offset + l * net.per_rbf() + net.inputs + 1;
+                    b..b + net.outputs
+                })
+            })
+            .filter_map(|k| cols.iter().position(|&c| c == k))
+            .collect()
+    };
+    let vel = sub_cols(layout.velocity.iter().collect());
+    let iner = sub_cols(layout.inertia.iter().map(|(_, n)| n).collect());
+    let base = a.nrows();
+    for &r_m in INERTIA_RIDGES {
+        let extra = vel.len() + if r_m > 0.0 { iner.len() } else { 0 };
+        let mut ar = a.clone().resize_vertically(base + extra, 0.0);
+        let br = rhs.clone().resize_vertically(base + extra, 0.0);
+        for (r, &c) in vel.iter().enumerate() {
+            ar[(base + r, c)] = VELOCITY_RIDGE;
+        }
+        if r_m > 0.0 {
+            for (r, &c) in iner.iter().enumerate() {
+                ar[(base + vel.len() + r, c)] = r_m;
+            }
+        }
+        let svd = ar.svd(true, true);
+        let Ok(w) = svd.solve(&br, LS_TOLERANCE * svd.singular_values.max()) else {
+            continue;
+        };
+        let mut p = p.clone();
+        for (c, &k) in cols.iter().enumerate() {
+            p[k] = w[c] / norms[c];
+        }
+        for j in 0..n {
+            p[kp(j)] = 1.0;
+        }
+        let Some(p) = scale_joints(layout, p, probes, bounds) else {
+            continue;
+        };
+        let net = Network::new(layout.clone(), p);
+        if net.min_eig(probes.iter().map(|q| q.as_slice())) >= 0.5 * bounds.m1 {
+            return Some(net.params().to_vec());
+        }
+    }
+    None
+}
+
+/// Relative SVD cut-off of the least-squares start.
+const LS_TOLERANCE: f64 = 1e-6;
+/// Ridge on the velocity network's columns in the least-squares start.
+const VELOCITY_RIDGE: f64 = 0.1;
+/// Ridges tried on the inertia network's columns, smallest first.
+const INERTIA_RIDGES: &[f64] = &[0.0, 0.01, 0.03, 0.1];
+
+/// Give each joint of a model in k_p units (k_p,j = 1) the torque scale c_j that puts the mean
+/// of M-hat_jj over the probes at the middle of its diagonal bounds: row j times c_j, an
+/// off-diagonal M-hat_jk times sqrt(c_j c_k) to stay symmetric.
+fn scale_joints(
+    layout: &Layout,
+    mut p: Vec<f64>,
+    probes: &[Vec<f64>],
+    bounds: &InertiaBounds,
+) -> Option<Vec<f64>> {
+    let n = layout.n;
+    let g = layout.gains?;
+    let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+    let mut mean = [0.0; MAX_JOINTS];
+    for q in probes {
+        network::inertia(layout, &p, q, &mut m);
+        for j in 0..n {
+            mean[j] += m[j * n + j] / probes.len() as f64;
+        }
+    }
+    let mut c = [1.0; MAX_JOINTS];
+    for j in 0..n {
+        let target = bounds
+            .diag
+            .get(j)
+            .map_or(0.5 * (bounds.m1 + bounds.m2), |[lo, hi]| 0.5 * (lo + hi));
+        if mean[j].is_nan() || mean[j] <= 0.0 {
+            return None;
+        }
+        c[j] = target / mean[j];
+    }
+    for ((a_, b_), net) in &layout.inertia {
+        scale_weights(&mut p, net, (c[*a_] * c[*b_]).sqrt());
+    }
+    for (i, net) in layout.velocity.iter().enumerate() {
+        scale_weights(&mut p, net, c[i]);
+    }
+    let gn = &layout.gravity;
+    for l in 0..gn.rbfs {
+        let b = gn.offset + l * gn.per_rbf() + gn.inputs + 1;
+        for j in 0..n {
+            p[b + j] *= c[j];
+        }
+    }
+    for j in 0..n {
+        p[g + 2 * j] *= c[j];
+        p[g + 2 * j + 1] *= c[j];
+    }
+    p.iter().all(|v| v.is_finite()).then_some(p)
+}
+
+/// Multiply a sub-network's output weights by `c`.
+fn scale_weights(p: &mut [f64], net: &network::SubNet, c: f64) {
+    for l in 0..net.rbfs {
+        let b = net.offset + l * net.per_rbf() + net.inputs + 1;
+        p[b..b + net.outputs].iter_mut().for_each(|w| *w *= c);
+    }
 }

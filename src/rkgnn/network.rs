@@ -34,6 +34,8 @@ use serde::{Deserialize, Serialize};
 /// RBF counts per sub-network (the paper's: 3, 10, 3 and n).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RbfCounts {
+    /// RBFs per servo sub-network; 0 = a linear servo, tau_j = k_p,j e_j + k_d,j e_j' (see
+    /// `Layout::gains`).
     pub torque: usize,
     pub inertia: usize,
     pub velocity: usize,
@@ -50,6 +52,25 @@ impl RbfCounts {
             velocity: 3,
             gravity: n,
         }
+    }
+
+    /// The paper's counts with a linear servo (torque = 0): the P-D servo of the paper's
+    /// premise with its two gains per joint as the only servo parameters. The paper allows it
+    /// ("if detailed information of the controller is known, the structure of the network can
+    /// be altered accordingly"), and it is what makes gravity identifiable: under a P-D servo
+    /// the error sits near e = G / k_p, and an RBF characteristic can take any value there, so
+    /// that value and a constant part of G-hat trade one for the other with identical motion.
+    /// A line through zero ties the servo's torque at the operating error to its slope, which
+    /// the motion around it does determine.
+    pub fn linear_servo(n: usize) -> Self {
+        Self {
+            torque: 0,
+            ..Self::paper(n)
+        }
+    }
+
+    pub fn is_linear_servo(&self) -> bool {
+        self.torque == 0
     }
 }
 
@@ -113,6 +134,9 @@ pub struct Layout {
     /// Per joint i: outputs [B_i (pairs a < b); C_i (n)].
     pub velocity: Vec<SubNet>,
     pub gravity: SubNet,
+    /// With a linear servo: where its gains sit, [k_p,j, k_d,j] per joint (2n parameters at
+    /// the end); None with RBF servo sub-networks.
+    pub gains: Option<usize>,
     pub len: usize,
 }
 
@@ -145,6 +169,10 @@ impl Layout {
         let pairs = n * (n - 1) / 2;
         let velocity = (0..n).map(|_| net(n, pairs + n, counts.velocity)).collect();
         let gravity = net(n, n, counts.gravity);
+        let gains = counts.is_linear_servo().then_some(offset);
+        if gains.is_some() {
+            offset += 2 * n;
+        }
         Self {
             n,
             counts,
@@ -152,6 +180,7 @@ impl Layout {
             inertia,
             velocity,
             gravity,
+            gains,
             len: offset,
         }
     }
@@ -321,6 +350,12 @@ pub(crate) fn torque(
         net.eval(p, &[y], &mut out);
         out[0]
     };
+    if let Some(g) = layout.gains {
+        for j in 0..layout.n {
+            tau[j] = p[g + 2 * j] * e[j] + p[g + 2 * j + 1] * ed[j];
+        }
+        return;
+    }
     for (j, [pn, dn]) in layout.torque.iter().enumerate() {
         tau[j] = (at(pn, e[j]) - zero[2 * j]) + (at(dn, ed[j]) - zero[2 * j + 1]);
     }
