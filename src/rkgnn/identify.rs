@@ -478,16 +478,17 @@ pub fn identify(
     };
     let mut ea = ChaoticEa::new(s.ea, &x0, &s0);
     let mut history = Vec::new();
+    // Eq. 13 at generation k: s_t = 10 + ln(k + 1).
+    let fit_at = |k: usize| Fit {
+        layout: &layout,
+        train: &train,
+        probes: &probes,
+        bounds,
+        lambda: s.lambda,
+        s_t: 10.0 + (k as f64 + 1.0).ln(),
+    };
     while ea.evaluations() < s.evaluations {
-        let s_t = 10.0 + (ea.generation() as f64 + 1.0).ln();
-        let fit = Fit {
-            layout: &layout,
-            train: &train,
-            probes: &probes,
-            bounds,
-            lambda: s.lambda,
-            s_t,
-        };
+        let fit = fit_at(ea.generation());
         ea.ask();
         let values = evaluate(ea.candidates(), None, &fit, s.threads);
         ea.tell(&values);
@@ -496,15 +497,7 @@ pub fn identify(
     }
     let (best, objective) = if ea.evaluations() == 0 {
         // No search (--evaluations 0): the start is the model; eq. 13 at generation 0.
-        let fit = Fit {
-            layout: &layout,
-            train: &train,
-            probes: &probes,
-            bounds,
-            lambda: s.lambda,
-            s_t: 10.0,
-        };
-        (x0.as_slice(), fit.value(&x0))
+        (x0.as_slice(), fit_at(0).value(&x0))
     } else {
         ea.best()
     };
