@@ -27,8 +27,8 @@ fn training_run(dir: &Path, tag: &str) -> PathBuf {
     out
 }
 
-/// `evoloop identify rkgnn` on `data` into `model`, 600 evaluations, seed 3, plus `extra`.
-fn identify(data: &Path, model: &Path, extra: &[&str]) -> std::process::Output {
+/// `evoloop identify rkgnn` on `data` into `model`, seed 3, with `evaluations`, plus `extra`.
+fn identify(data: &Path, model: &Path, evaluations: &str, extra: &[&str]) -> std::process::Output {
     let mut args = vec![
         "identify",
         "rkgnn",
@@ -37,7 +37,7 @@ fn identify(data: &Path, model: &Path, extra: &[&str]) -> std::process::Output {
         "--out",
         model.to_str().unwrap(),
         "--evaluations",
-        "600",
+        evaluations,
         "--seed",
         "3",
     ];
@@ -90,7 +90,7 @@ fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_s
     let tmp = tempfile::tempdir().unwrap();
     let out = training_run(tmp.path(), "rk_ident");
     let model_path = tmp.path().join("model.json");
-    let o = identify(&out, &model_path, &["--json"]);
+    let o = identify(&out, &model_path, "600", &["--json"]);
     let r = stdout_json(&o);
     for key in ["train_rms", "holdout_rms"] {
         let v = r[key].as_array().unwrap_or_else(|| panic!("{key}: {r}"));
@@ -107,7 +107,7 @@ fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_s
     assert!(min_eig_on(&model, &data.window(0, 1600)) > 0.0);
     // Seeded: the same command gives the same parameters.
     let again = tmp.path().join("again.json");
-    let o2 = identify(&out, &again, &["--threads", "1", "--quiet"]);
+    let o2 = identify(&out, &again, "600", &["--threads", "1", "--quiet"]);
     assert!(o2.status.success());
     assert_eq!(
         RkgnnModel::load(&again).unwrap().net.params(),
@@ -123,21 +123,12 @@ fn the_shipped_models_are_what_their_command_makes_of_the_training_runs() {
         let out = tmp.path().join(name);
         assert_ok(&run(&config(&format!("{name}.toml")), &out, "rk_ship", &[]));
         let model = tmp.path().join(format!("{name}.json"));
-        let o = cli(&[
-            "identify",
-            "rkgnn",
-            "--data",
-            out.to_str().unwrap(),
-            "--out",
-            model.to_str().unwrap(),
-            "--servo",
-            "linear",
-            "--start",
-            "least-squares",
-            "--evaluations",
+        let o = identify(
+            &out,
+            &model,
             "0",
-            "--quiet",
-        ]);
+            &["--servo", "linear", "--start", "least-squares", "--quiet"],
+        );
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let shipped = RkgnnModel::load(&config(&format!("models/{name}.json"))).unwrap();
         assert_eq!(
@@ -149,11 +140,12 @@ fn the_shipped_models_are_what_their_command_makes_of_the_training_runs() {
     // The start needs the linear servo, and no search needs that start.
     let data = tmp.path().join("arm3_train1");
     let model = tmp.path().join("x.json");
-    let refused = identify(&data, &model, &["--start", "least-squares"]);
+    let refused = identify(&data, &model, "600", &["--start", "least-squares"]);
     assert!(!refused.status.success());
     assert!(String::from_utf8_lossy(&refused.stderr).contains("needs --servo linear"));
-    let refused = identify(&data, &model, &["--evaluations", "0"]);
+    let refused = identify(&data, &model, "0", &["--servo", "linear"]);
     assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("0 only with --start least-squares"));
 }
 
 #[test]

@@ -102,10 +102,7 @@ impl FuzzyComputedTorque {
 
     /// The model of largest weight in the last cycle.
     pub fn active(&self) -> usize {
-        let w = &self.w[..self.models.len()];
-        w.iter()
-            .enumerate()
-            .fold(0, |b, (i, v)| if *v > w[b] { i } else { b })
+        fuzzy_select::largest(&self.w[..self.models.len()])
     }
 }
 
@@ -182,14 +179,10 @@ impl Controller for FuzzyComputedTorque {
     fn log_values(&self, out: &mut [f64]) {
         let q_count = self.models.len();
         out[0] = self.active() as f64;
-        let sum: f64 = self.w[..q_count].iter().sum();
-        for i in 0..q_count {
-            out[1 + i] = if sum > 0.0 {
-                self.w[i] / sum
-            } else {
-                1.0 / q_count as f64
-            };
-        }
+        // The normalised memberships: the blend rule's weights.
+        let m = &mut out[1..1 + q_count];
+        m.copy_from_slice(&self.w[..q_count]);
+        fuzzy_select::select(Selection::Blend, m);
     }
 }
 

@@ -50,15 +50,19 @@ pub fn weights(centres: &[&[f64]], z_r: &[f64], l: &[f64], gamma: f64, w: &mut [
     }
 }
 
+/// The index of the largest weight (the first of equals).
+pub fn largest(w: &[f64]) -> usize {
+    w.iter()
+        .enumerate()
+        .fold(0, |b, (i, v)| if *v > w[b] { i } else { b })
+}
+
 /// The rule: with `Max`, 1 for the first model of largest weight and 0 for the others; with
 /// `Blend`, the weights normalised to sum 1 (uniform if every weight underflows to 0). In place.
 pub fn select(selection: Selection, w: &mut [f64]) {
     match selection {
         Selection::Max => {
-            let best = w
-                .iter()
-                .enumerate()
-                .fold(0, |b, (i, v)| if *v > w[b] { i } else { b });
+            let best = largest(w);
             for (i, v) in w.iter_mut().enumerate() {
                 *v = if i == best { 1.0 } else { 0.0 };
             }

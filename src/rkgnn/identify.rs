@@ -162,6 +162,14 @@ pub struct InertiaBounds {
 }
 
 impl InertiaBounds {
+    /// The inertia a joint's scale is set to: the middle of its M_jj range (of [m1, m2] for a
+    /// joint without one).
+    pub fn mid(&self, j: usize) -> f64 {
+        self.diag
+            .get(j)
+            .map_or(0.5 * (self.m1 + self.m2), |[lo, hi]| 0.5 * (lo + hi))
+    }
+
     /// The bounds of `model`'s M(q) over joint positions `qs`.
     pub fn of<'a>(model: &crate::dynamics::Model, qs: impl Iterator<Item = &'a [f64]>) -> Self {
         let n = model.dof();
@@ -332,7 +340,7 @@ pub fn initial(
     train: &Trajectory,
     bounds: &InertiaBounds,
 ) -> (Vec<f64>, Vec<f64>) {
-    let (m1, m2) = (bounds.m1, bounds.m2);
+    let m2 = bounds.m2;
     let n = train.n;
     let len = train.len();
     let mut x0 = vec![0.0; layout.len];
@@ -368,13 +376,7 @@ pub fn initial(
             (hi - lo).max(0.1)
         })
         .fold(0.0f64, |a, b| a.max(b));
-    // A joint's inertia to start from: the middle of its diagonal bounds (of [m1, m2] without).
-    let m_mid = |j: usize| {
-        bounds
-            .diag
-            .get(j)
-            .map_or(0.5 * (m1 + m2), |[lo, hi]| 0.5 * (lo + hi))
-    };
+    let m_mid = |j: usize| bounds.mid(j);
     // The starting servo: critically damped at 20 rad/s on the middle inertia (a stiff
     // industrial axis). Only a start: the search moves every weight.
     let (k_p, k_d) = (400.0, 40.0);
@@ -527,14 +529,10 @@ pub fn identify(
 
 /// Indices of every output weight in the flat parameter vector (centres and widths excluded).
 fn weight_indices(layout: &Layout) -> Vec<usize> {
-    let mut w = Vec::new();
-    for (_, net) in layout.subnets() {
-        let per = net.per_rbf();
-        for l in 0..net.rbfs {
-            let b = net.offset + l * per + net.inputs + 1;
-            w.extend(b..b + net.outputs);
-        }
-    }
+    let mut w: Vec<usize> = layout
+        .subnets()
+        .flat_map(|(_, net)| net.all_weights())
+        .collect();
     if let Some(g) = layout.gains {
         w.extend(g..g + 2 * layout.n);
     }
@@ -546,22 +544,14 @@ fn weight_indices(layout: &Layout) -> Vec<usize> {
 /// are), which is what `least_squares_start` uses.
 fn residual(layout: &Layout, p: &[f64], x: &[f64], xdd: &[f64], r: &[f64], out: &mut [f64]) {
     let n = layout.n;
-    let (q, qd) = x.split_at(n);
     let zero = network::servo_zero(layout, p);
-    let (mut e, mut ed) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
-    for j in 0..n {
-        e[j] = r[j] - q[j];
-        ed[j] = r[n + j] - qd[j];
-    }
+    let mut f = [0.0; MAX_JOINTS];
+    network::net_force(layout, p, &zero, x, r, &mut f);
     let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-    network::inertia(layout, p, q, &mut m);
-    let (mut v, mut g, mut tau) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
-    network::velocity(layout, p, q, qd, &mut v);
-    layout.gravity.eval(p, q, &mut g);
-    network::torque(layout, p, &zero, &e, &ed, &mut tau);
+    network::inertia(layout, p, &x[..n], &mut m);
     for a in 0..n {
         let mq: f64 = (0..n).map(|b| m[a * n + b] * xdd[b]).sum();
-        out[a] = mq + v[a] + g[a] - tau[a];
+        out[a] = mq - f[a];
     }
 }
 
@@ -612,29 +602,37 @@ pub fn least_squares_start(
     let mut rhs = nalgebra::DVector::<f64>::zeros(rows);
     let mut p = p0.to_vec();
     weight_indices(layout).iter().for_each(|&k| p[k] = 0.0);
-    let mut out = [0.0; MAX_JOINTS];
-    // Column of one parameter: the residual with that parameter at 1 and every weight at 0.
-    let mut column = |p: &mut Vec<f64>, k: usize, mut put: Box<dyn FnMut(usize, f64) + '_>| {
-        p[k] = 1.0;
-        for (s, &i) in samples.iter().enumerate() {
-            let mut xdd = [0.0; MAX_JOINTS];
+    // q'' at each sample, by central differences of the measured q'.
+    let xdd: Vec<[f64; MAX_JOINTS]> = samples
+        .iter()
+        .map(|&i| {
+            let mut a = [0.0; MAX_JOINTS];
             let (next, prev) = (&data.x_at(i + 1)[n..], &data.x_at(i - 1)[n..]);
-            for (a, (v1, v0)) in xdd[..n].iter_mut().zip(next.iter().zip(prev)) {
+            for (a, (v1, v0)) in a[..n].iter_mut().zip(next.iter().zip(prev)) {
                 *a = (v1 - v0) / (2.0 * data.h);
             }
-            residual(layout, p, data.x_at(i), &xdd, data.r_at(i), &mut out);
-            for (j, v) in out[..n].iter().enumerate() {
-                put(s * n + j, *v);
-            }
+            a
+        })
+        .collect();
+    // The column of parameter k: the residual with k at 1 and every weight at 0.
+    let mut column = nalgebra::DVector::<f64>::zeros(rows);
+    let fill = |p: &mut Vec<f64>, k: usize, col: &mut nalgebra::DVector<f64>| {
+        p[k] = 1.0;
+        let mut out = [0.0; MAX_JOINTS];
+        for (s, &i) in samples.iter().enumerate() {
+            residual(layout, p, data.x_at(i), &xdd[s], data.r_at(i), &mut out);
+            col.rows_mut(s * n, n).copy_from_slice(&out[..n]);
         }
         p[k] = 0.0;
     };
     for (c, &k) in cols.iter().enumerate() {
-        column(&mut p, k, Box::new(|r, v| a[(r, c)] = v));
+        fill(&mut p, k, &mut column);
+        a.set_column(c, &column);
     }
     for j in 0..n {
         // k_p,j = 1 moves to the right-hand side.
-        column(&mut p, kp(j), Box::new(|r, v| rhs[r] -= v));
+        fill(&mut p, kp(j), &mut column);
+        rhs -= &column;
     }
     let norms: Vec<f64> = (0..cols.len() + nuis)
         .map(|c| a.column(c).norm().max(1e-300))
@@ -650,12 +648,7 @@ pub fn least_squares_start(
     // INERTIA_RIDGES that leaves M-hat positive definite over the probes (at least m1 / 2).
     let sub_cols = |nets: Vec<&network::SubNet>| -> Vec<usize> {
         nets.into_iter()
-            .flat_map(|net| {
-                (0..net.rbfs).flat_map(move |l| {
-                    let b = net.offset + l * net.per_rbf() + net.inputs + 1;
-                    b..b + net.outputs
-                })
-            })
+            .flat_map(|net| net.all_weights())
             .filter_map(|k| cols.iter().position(|&c| c == k))
             .collect()
     };
@@ -724,14 +717,10 @@ fn scale_joints(
     }
     let mut c = [1.0; MAX_JOINTS];
     for j in 0..n {
-        let target = bounds
-            .diag
-            .get(j)
-            .map_or(0.5 * (bounds.m1 + bounds.m2), |[lo, hi]| 0.5 * (lo + hi));
         if mean[j].is_nan() || mean[j] <= 0.0 {
             return None;
         }
-        c[j] = target / mean[j];
+        c[j] = bounds.mid(j) / mean[j];
     }
     for ((a_, b_), net) in &layout.inertia {
         scale_weights(&mut p, net, (c[*a_] * c[*b_]).sqrt());
@@ -741,9 +730,8 @@ fn scale_joints(
     }
     let gn = &layout.gravity;
     for l in 0..gn.rbfs {
-        let b = gn.offset + l * gn.per_rbf() + gn.inputs + 1;
-        for j in 0..n {
-            p[b + j] *= c[j];
+        for (w, cj) in gn.weights(l).zip(c) {
+            p[w] *= cj;
         }
     }
     for j in 0..n {
@@ -755,8 +743,5 @@ fn scale_joints(
 
 /// Multiply a sub-network's output weights by `c`.
 fn scale_weights(p: &mut [f64], net: &network::SubNet, c: f64) {
-    for l in 0..net.rbfs {
-        let b = net.offset + l * net.per_rbf() + net.inputs + 1;
-        p[b..b + net.outputs].iter_mut().for_each(|w| *w *= c);
-    }
+    net.all_weights().for_each(|w| p[w] *= c);
 }

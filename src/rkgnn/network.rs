@@ -97,6 +97,17 @@ impl SubNet {
         self.rbfs == 0
     }
 
+    /// Where RBF l's output weights sit in the flat parameter vector.
+    pub fn weights(&self, l: usize) -> std::ops::Range<usize> {
+        let b = self.offset + l * self.per_rbf() + self.inputs + 1;
+        b..b + self.outputs
+    }
+
+    /// Every output weight of the sub-network, RBF by RBF.
+    pub fn all_weights(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.rbfs).flat_map(|l| self.weights(l))
+    }
+
     /// Eq. 7: out_k = sum_l W_kl exp(-|y - c_l|^2 / s_l^2), out overwritten.
     #[inline]
     pub fn eval(&self, p: &[f64], y: &[f64], out: &mut [f64]) {
@@ -361,6 +372,34 @@ pub(crate) fn torque(
     }
 }
 
+/// The right-hand side of M-hat theta'' = tau-hat(r - x) - V-hat - G-hat at x = [theta;
+/// theta'] under reference r, into `f`; `zero` = `servo_zero(layout, p)`.
+pub(crate) fn net_force(
+    layout: &Layout,
+    p: &[f64],
+    zero: &ServoZero,
+    x: &[f64],
+    r: &[f64],
+    f: &mut [f64],
+) {
+    let n = layout.n;
+    let (theta, qd) = x.split_at(n);
+    let mut e = [0.0; MAX_JOINTS];
+    let mut ed = [0.0; MAX_JOINTS];
+    for j in 0..n {
+        e[j] = r[j] - theta[j];
+        ed[j] = r[n + j] - qd[j];
+    }
+    torque(layout, p, zero, &e, &ed, f);
+    let mut v = [0.0; MAX_JOINTS];
+    velocity(layout, p, theta, qd, &mut v);
+    let mut g = [0.0; MAX_JOINTS];
+    layout.gravity.eval(p, theta, &mut g);
+    for j in 0..n {
+        f[j] -= v[j] + g[j];
+    }
+}
+
 /// N_f; `zero` = `servo_zero(layout, p)`.
 pub(crate) fn rate(
     layout: &Layout,
@@ -372,21 +411,8 @@ pub(crate) fn rate(
 ) -> bool {
     let n = layout.n;
     let (theta, qd) = x.split_at(n);
-    let mut e = [0.0; MAX_JOINTS];
-    let mut ed = [0.0; MAX_JOINTS];
-    for j in 0..n {
-        e[j] = r[j] - theta[j];
-        ed[j] = r[n + j] - qd[j];
-    }
     let mut rhs = [0.0; MAX_JOINTS];
-    torque(layout, p, zero, &e, &ed, &mut rhs);
-    let mut v = [0.0; MAX_JOINTS];
-    velocity(layout, p, theta, qd, &mut v);
-    let mut g = [0.0; MAX_JOINTS];
-    layout.gravity.eval(p, theta, &mut g);
-    for j in 0..n {
-        rhs[j] -= v[j] + g[j];
-    }
+    net_force(layout, p, zero, x, r, &mut rhs);
     let mut m = [0.0; MAX_JOINTS * MAX_JOINTS];
     inertia(layout, p, theta, &mut m);
     dx[..n].copy_from_slice(qd);
