@@ -391,3 +391,173 @@ fn fuzzy_computed_torque_tracks_the_new_trajectory_better_than_the_servo_and_the
         );
     }
 }
+
+/// `evoloop rkgnn study --json` on `robot` into a fresh directory: the JSON and the directory.
+fn study(robot: &str) -> (serde_json::Value, tempfile::TempDir) {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("study");
+    let o = cli(&[
+        "rkgnn",
+        "study",
+        "--out",
+        out.to_str().unwrap(),
+        "--robot",
+        robot,
+        "--json",
+    ]);
+    (stdout_json(&o), tmp)
+}
+
+const STUDY_KEYS: [&str; 6] = [
+    "pd",
+    "ct_true",
+    "ct_model_1",
+    "ct_model_2",
+    "ct_fuzzy_max",
+    "ct_fuzzy_blend",
+];
+
+/// The six per-joint tracking errors of a study, by key.
+fn study_rms(v: &serde_json::Value) -> Vec<[f64; 3]> {
+    let t = v["tracking_rms"].as_object().expect("tracking_rms");
+    assert_eq!(t.len(), 6, "{t:?}");
+    STUDY_KEYS
+        .iter()
+        .map(|k| {
+            let row: Vec<f64> = t[*k]
+                .as_array()
+                .unwrap_or_else(|| panic!("tracking_rms.{k}"))
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect();
+            assert_eq!(row.len(), 3, "{k}");
+            assert!(
+                row.iter().all(|x| x.is_finite() && *x > 0.0),
+                "{k}: {row:?}"
+            );
+            [row[0], row[1], row[2]]
+        })
+        .collect()
+}
+
+/// The paper's ordering: fuzzy CT below the P-D servo and the worse single model, the true model
+/// below them all.
+fn assert_paper_ordering(rms: &[[f64; 3]]) {
+    let o: Vec<f64> = rms.iter().map(|r| overall(*r)).collect();
+    let (pd, ct_true, m1, m2, max, blend) = (o[0], o[1], o[2], o[3], o[4], o[5]);
+    assert!(max < pd && max < m1.max(m2), "{o:?}");
+    assert!(blend < pd && blend < m1.max(m2), "{o:?}");
+    assert!(ct_true < max && ct_true < blend, "{o:?}");
+}
+
+#[test]
+fn rkgnn_study_on_arm3_is_the_shipped_scenarios_and_writes_figures_7_to_10() {
+    let (v, tmp) = study("config/robots/arm3.toml");
+    let dir = tmp.path().join("study");
+    let rms = study_rms(&v);
+    assert_paper_ordering(&rms);
+    // On arm3 the servo is the training scenarios' own (ratio exactly 1), the models are the
+    // shipped ones and the fuzzy case is config/arm3_fuzzy_ct.toml.
+    assert!(v["inertia_ratio"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|r| r.as_f64() == Some(1.0)));
+    for k in 1..=2 {
+        let made = RkgnnModel::load(&dir.join(format!("model_{k}.json"))).unwrap();
+        let shipped = RkgnnModel::load(&config(&format!("models/arm3_train{k}.json"))).unwrap();
+        assert_eq!(made.net.params(), shipped.net.params(), "model {k}");
+    }
+    assert_eq!(
+        rms[4],
+        tracking_rms(|t| t),
+        "ct_fuzzy_max vs the shipped scenario"
+    );
+    for f in [
+        "study.json",
+        "tracking_rms.csv",
+        "report.md",
+        "fig7_trajectories.png",
+        "fig8_model_1_on_train1.png",
+        "fig9_model_2_on_train2.png",
+        "fig10_fuzzy_on_new.png",
+        "tracking_new.png",
+        "runs/ct_fuzzy_max.csv",
+    ] {
+        let len = std::fs::metadata(dir.join(f)).map_or(0, |m| m.len());
+        assert!(len > 0, "{f} missing or empty");
+    }
+    // Every case's scenario is a valid scenario file a user can rerun.
+    for k in STUDY_KEYS {
+        let path = dir.join("scenarios").join(format!("{k}.toml"));
+        Scenario::load(&path, &Overrides::default()).unwrap_or_else(|e| panic!("{e}"));
+    }
+    let csv = std::fs::read_to_string(dir.join("tracking_rms.csv")).unwrap();
+    assert!(csv.starts_with("controller,joint1,joint2,joint3,overall\npd,"));
+}
+
+#[test]
+fn rkgnn_study_works_on_a_ros_style_urdf_arm_it_was_not_tuned_on() {
+    // Heavier, longer links, other torque limits, a massless root, transmissions and
+    // ros2_control blocks (tests/robots/rrr_style.urdf).
+    let (v, _tmp) = study("tests/robots/rrr_style.urdf");
+    assert_paper_ordering(&study_rms(&v));
+    let ratio: Vec<f64> = v["inertia_ratio"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r.as_f64().unwrap())
+        .collect();
+    assert!(
+        ratio.iter().all(|r| *r > 1.5),
+        "the servo scales with the arm's inertia: {ratio:?}"
+    );
+    for m in v["models"].as_array().unwrap() {
+        assert!(m["min_eig_m_hat"].as_f64().unwrap() > 0.0, "{m}");
+    }
+}
+
+#[test]
+fn rkgnn_study_refuses_an_arm_that_is_not_three_joints() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = cli(&[
+        "rkgnn",
+        "study",
+        "--out",
+        tmp.path().to_str().unwrap(),
+        "--robot",
+        "config/robots/industrial6.toml",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("industrial6.toml") && e.contains("3-joint"),
+        "{e}"
+    );
+}
+
+#[test]
+fn rkgnn_study_refuses_an_arm_whose_joint_limits_the_trajectories_leave() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/robots/rrr_style.urdf"),
+    )
+    .unwrap()
+    .replace(r#"lower="-2.9" upper="2.9""#, r#"lower="-1.5" upper="1.5""#);
+    let robot = tmp.path().join("narrow.urdf");
+    std::fs::write(&robot, text).unwrap();
+    let o = cli(&[
+        "rkgnn",
+        "study",
+        "--out",
+        tmp.path().join("out").to_str().unwrap(),
+        "--robot",
+        robot.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("narrow.urdf") && e.contains("forearm_joint"),
+        "{e}"
+    );
+}

@@ -67,16 +67,35 @@ pub fn two_panel_png(
     bottom: Panel,
     marks: &[f64],
 ) -> Result<(), String> {
+    stacked_png(path, title, t, &[top, bottom], marks)
+}
+
+/// Panels stacked over a shared time axis `t` (1200 px wide; two panels share 800 px, 460 to the
+/// first, more panels get 250 px each), with vertical lines at `marks` in every panel.
+pub fn stacked_png(
+    path: &Path,
+    title: &str,
+    t: &[f64],
+    panels: &[Panel],
+    marks: &[f64],
+) -> Result<(), String> {
     ensure_font();
-    let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
+    let (height, breaks): (u32, Vec<u32>) = match panels.len() {
+        2 => (800, vec![460]),
+        k => (
+            40 + 250 * k as u32,
+            (1..k as u32).map(|i| 250 * i).collect(),
+        ),
+    };
+    let root = BitMapBackend::new(path, (1200, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let root = root
         .titled(title, ("sans-serif", 24))
         .map_err(|e| e.to_string())?;
-    let (upper, lower) = root.split_vertically(460);
+    let areas = root.split_by_breakpoints(Vec::<u32>::new(), breaks);
     let t0 = t.first().copied().unwrap_or(0.0);
     let t1 = t.last().copied().unwrap_or(1.0).max(t0 + 1e-9);
-    for (area, Panel { series, label }) in [(&upper, top), (&lower, bottom)] {
+    for (area, Panel { series, label }) in areas.iter().zip(panels) {
         let (lo, hi) = bounds(series);
         let mut chart = ChartBuilder::on(area)
             .margin(12)
@@ -87,7 +106,7 @@ pub fn two_panel_png(
         chart
             .configure_mesh()
             .x_desc("t [s]")
-            .y_desc(label)
+            .y_desc(*label)
             .label_style(("sans-serif", 16))
             .draw()
             .map_err(|e| e.to_string())?;

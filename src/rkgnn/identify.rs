@@ -111,6 +111,17 @@ impl Settings {
             start: Start::Random,
         }
     }
+
+    /// The recipe of the shipped models (README "RKGNN"): a linear P-D servo network, the
+    /// least-squares start, the paper's bounds (eqs. 14-16 only); `evaluations` = 0 keeps the
+    /// start, more continue with the EA.
+    pub fn least_squares(n: usize, seed: u64, evaluations: usize) -> Self {
+        let mut s = Self::paper(n, seed, evaluations);
+        s.counts = RbfCounts::linear_servo(n);
+        s.start = Start::LeastSquares;
+        s.lambda[3] = 0.0;
+        s
+    }
 }
 
 /// What an identification reports (`evoloop identify rkgnn --json`).
@@ -438,6 +449,28 @@ pub fn initial(
     let shrink = 1.0 / (layout.len as f64).sqrt();
     s0.iter_mut().for_each(|v| *v *= shrink);
     (x0, s0)
+}
+
+/// Identify a model of the arm `arm` (whose true M(q) gives the inertia bounds over the data's
+/// positions) from `data`, an RKGNN on the data's reference at the settings' step; `source` names
+/// the data in the model file.
+pub fn identify_model(
+    data: &Trajectory,
+    arm: &crate::dynamics::Model,
+    s: &Settings,
+    source: String,
+    progress: impl FnMut(usize, f64),
+) -> Result<super::RkgnnModel, String> {
+    if arm.dof() != data.n {
+        return Err(format!(
+            "the arm has {} joints, the data {}",
+            arm.dof(),
+            data.n
+        ));
+    }
+    let bounds = InertiaBounds::of(arm, data.x.chunks(2 * data.n).map(|x| &x[..data.n]));
+    let (net, report) = identify(data, &bounds, s, progress)?;
+    Ok(super::RkgnnModel::new(data, s.stride, net, source, report))
 }
 
 /// Identify an RKGNN on `data` (the first 1 - holdout of it) with eq. 2's bounds `m1`, `m2`.

@@ -7,6 +7,7 @@
 //! - `data`: reference and output data from a run's `run.csv`, never the torques.
 //! - `identify`: the RKGNN (Runge-Kutta-Gill around N_f, `plant::gill`) fitted by eq. 13.
 //! - `model`: the identified model's file (`MODEL.json`).
+//! - `study`: Section 5 on any 3-joint arm (`evoloop rkgnn study`, Figs. 7-10).
 //!
 //! The controller that uses the models is `control::fuzzy_computed_torque`, the selection rule
 //! `control::fuzzy_select`.
@@ -16,6 +17,7 @@ pub mod ea;
 pub mod identify;
 pub mod model;
 pub mod network;
+pub mod study;
 
 pub use data::Trajectory;
 pub use model::RkgnnModel;

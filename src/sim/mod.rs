@@ -40,6 +40,10 @@ pub struct SimRow {
 pub struct SimResult {
     pub rows: Vec<SimRow>,
     pub events: Vec<ParamEvent>,
+    /// The law's own run.csv columns (`Controller::log_columns`, e.g. a fuzzy selector's active
+    /// model) and their values per row, row-major (`law_columns.len()` per row).
+    pub law_columns: Vec<String>,
+    pub law: Vec<f64>,
 }
 
 /// Simulate the scenario in lockstep in this process, scheduled parameter sets included when
@@ -58,6 +62,9 @@ pub fn simulate(scn: &Scenario) -> SimResult {
     let dt = scn.timing.period;
     let mut rows = Vec::with_capacity(n as usize);
     let mut events = Vec::new();
+    let law_columns = cycle.controller.log_columns();
+    let w = law_columns.len();
+    let mut law = vec![0.0; w * n as usize];
     let mut state = PlantState::default();
     let mut u = [0.0; crate::MAX_JOINTS];
     let n_u = plant.plant.n_inputs();
@@ -76,13 +83,21 @@ pub fn simulate(scn: &Scenario) -> SimResult {
             events.push(e);
         }
         u = cycle.u;
+        cycle
+            .controller
+            .log_values(&mut law[w * k as usize..w * (k as usize + 1)]);
         rows.push(SimRow {
             state,
             telemetry: tel,
         });
         plant.advance(&u[..n_u], dt);
     }
-    SimResult { rows, events }
+    SimResult {
+        rows,
+        events,
+        law_columns,
+        law,
+    }
 }
 
 /// A closed-loop response of `plant` under `controller` to `reference`, sampled every `period`

@@ -1,0 +1,860 @@
+//! The RKGNN paper's Section 5 on any 3-joint arm (`evoloop rkgnn study`): identify a model on
+//! each training trajectory from the arm under its P-D servo (reference and output only), then
+//! track the new trajectory with the P-D servo alone, computed torque on the true model, on
+//! either identified model alone, and on both by fuzzy selection (the paper's "max" rule and our
+//! "blend"), and draw Figs. 7-10.
+//!
+//! The trajectories, servo, computed-torque gains and plant settings are the shipped scenarios'
+//! (`config/arm3_train1.toml`, `config/arm3_train2.toml` and the new trajectory of
+//! `config/arm3_fuzzy_ct.toml`), compiled in, so the study on `config/robots/arm3.toml` is those
+//! scenarios and its models are the shipped models' recipe (`identify::Settings::least_squares`).
+//! On another arm only the robot changes, and the servo, which a vendor tunes to its arm: each
+//! joint's k_p, k_d scale with the arm's mean M_jj over the trajectories relative to arm3's (the
+//! same closed-loop bandwidth and damping; a factor of exactly 1 on arm3). The computed-torque
+//! gains are accelerations per error and carry over unchanged.
+//!
+//! Every case is a scenario run by `sim::simulate`, the loop the processes run in lockstep; each
+//! is written to `scenarios/` so one can be rerun through the processes with `evoloop run`.
+
+use crate::config::{Overrides, Scenario};
+use crate::dynamics::Model;
+use crate::report::metrics::tracking;
+use crate::report::plot::{stacked_png, Panel, Series};
+use crate::report::RunLog;
+use crate::rkgnn::identify::{self, InertiaBounds, Report, Settings};
+use crate::rkgnn::Trajectory;
+use crate::sim::{simulate, SimResult};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+const TRAIN1: &str = include_str!("../../config/arm3_train1.toml");
+const TRAIN2: &str = include_str!("../../config/arm3_train2.toml");
+const NEW: &str = include_str!("../../config/arm3_fuzzy_ct.toml");
+/// The arm the shipped servo gains are for (its inertia is the gains' unit).
+const ARM3: &str = include_str!("../../config/robots/arm3.toml");
+
+/// Joints the study's trajectories are written for.
+pub const JOINTS: usize = 3;
+
+/// What `evoloop rkgnn study` is asked for.
+#[derive(Debug, Clone)]
+pub struct StudySettings {
+    pub robot: PathBuf,
+    /// Measurement-noise seed of every run and the EA's seed.
+    pub seed: u64,
+    /// EA evaluations after the least-squares start (0 = the start itself).
+    pub evaluations: usize,
+    pub threads: usize,
+}
+
+/// RMS tracking error per joint (rad) on the new trajectory, one entry per controller.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrackingRms {
+    pub pd: Vec<f64>,
+    pub ct_true: Vec<f64>,
+    pub ct_model_1: Vec<f64>,
+    pub ct_model_2: Vec<f64>,
+    pub ct_fuzzy_max: Vec<f64>,
+    pub ct_fuzzy_blend: Vec<f64>,
+}
+
+impl TrackingRms {
+    /// (key, label, per joint) in the table's order.
+    pub fn entries(&self) -> [(&'static str, &'static str, &[f64]); 6] {
+        [
+            ("pd", "P-D servo alone", &self.pd),
+            ("ct_true", "CT, true model", &self.ct_true),
+            ("ct_model_1", "CT, model 1 only", &self.ct_model_1),
+            ("ct_model_2", "CT, model 2 only", &self.ct_model_2),
+            ("ct_fuzzy_max", "fuzzy CT (max)", &self.ct_fuzzy_max),
+            ("ct_fuzzy_blend", "fuzzy CT (blend)", &self.ct_fuzzy_blend),
+        ]
+    }
+}
+
+/// One identified model as the study reports it.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelSummary {
+    pub file: PathBuf,
+    pub trajectory: &'static str,
+    pub train_rms: Vec<f64>,
+    pub holdout_rms: Vec<f64>,
+    pub min_eig_m_hat: f64,
+    pub evaluations: usize,
+}
+
+impl ModelSummary {
+    fn of(file: PathBuf, trajectory: &'static str, r: &Report) -> Self {
+        Self {
+            file,
+            trajectory,
+            train_rms: r.train_rms.clone(),
+            holdout_rms: r.holdout_rms.clone(),
+            min_eig_m_hat: r.min_eig_m_hat,
+            evaluations: r.evaluations,
+        }
+    }
+}
+
+/// `study.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct StudyResult {
+    pub robot: PathBuf,
+    pub seed: u64,
+    pub evaluations: usize,
+    /// The P-D servo's gains on this arm (arm3's scaled by the inertia ratio).
+    pub servo_kp: Vec<f64>,
+    pub servo_kd: Vec<f64>,
+    pub inertia_ratio: Vec<f64>,
+    /// Computed torque's gains.
+    pub ct_kp: Vec<f64>,
+    pub ct_kv: Vec<f64>,
+    pub models: Vec<ModelSummary>,
+    /// The new trajectory.
+    pub tracking_rms: TrackingRms,
+    /// Figs. 8 and 9: CT with model 1 on trajectory 1 and model 2 on trajectory 2.
+    pub own_trajectory_rms: [Vec<f64>; 2],
+    /// Fraction of the new trajectory's samples on which each model had the largest weight.
+    pub fuzzy_share: Vec<f64>,
+    /// Smallest and largest normalised membership of model 1 over the new trajectory.
+    pub membership_range: [f64; 2],
+    pub seconds: f64,
+}
+
+/// A scenario text edited as TOML and validated like a user's file.
+struct Case {
+    name: &'static str,
+    text: String,
+    scenario: Scenario,
+}
+
+fn table<'a>(t: &'a mut toml::Table, key: &str) -> Result<&'a mut toml::Table, String> {
+    t.get_mut(key)
+        .and_then(toml::Value::as_table_mut)
+        .ok_or_else(|| format!("built-in scenario: no table [{key}]"))
+}
+
+fn floats(v: &toml::Value) -> Result<Vec<f64>, String> {
+    v.as_array()
+        .and_then(|a| {
+            a.iter()
+                .map(toml::Value::as_float)
+                .collect::<Option<Vec<_>>>()
+        })
+        .ok_or_else(|| format!("built-in scenario: `{v}` is not a list of numbers"))
+}
+
+fn float_list(v: &[f64]) -> toml::Value {
+    toml::Value::Array(v.iter().map(|x| toml::Value::Float(*x)).collect())
+}
+
+/// `base` (a built-in scenario) for `robot` with the controller table `controller`, validated
+/// as `dir/scenarios/NAME.toml` (`write_scenarios` writes it there).
+fn case(
+    name: &'static str,
+    base: &str,
+    robot: &Path,
+    seed: u64,
+    controller: toml::Table,
+    dir: &Path,
+) -> Result<Case, String> {
+    let mut t: toml::Table = base
+        .parse()
+        .map_err(|e| format!("built-in scenario: {e}"))?;
+    t.insert("name".into(), format!("rkgnn_study_{name}").into());
+    t.insert("seed".into(), toml::Value::Integer(seed as i64));
+    let plant = table(&mut t, "plant")?;
+    table(plant, "arm")?.insert("robot".into(), robot.display().to_string().into());
+    t.insert("controller".into(), controller.into());
+    table(&mut t, "output")?.insert(
+        "dir".into(),
+        dir.join("runs").join(name).display().to_string().into(),
+    );
+    let text = toml::to_string(&t).map_err(|e| e.to_string())?;
+    let path = dir.join("scenarios").join(format!("{name}.toml"));
+    let scenario =
+        Scenario::parse(&text, &path, &Overrides::default()).map_err(|e| e.to_string())?;
+    Ok(Case {
+        name,
+        text,
+        scenario,
+    })
+}
+
+/// Write each case's scenario file, so that it can be rerun through the processes.
+fn write_scenarios(cases: &[Case]) -> Result<(), String> {
+    for c in cases {
+        let path = &c.scenario.source;
+        std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")))
+            .and_then(|_| std::fs::write(path, &c.text))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// `[controller]` of kind `kind` with its table `body`.
+fn controller(kind: &str, body: toml::Table) -> toml::Table {
+    let mut c = toml::Table::new();
+    c.insert("kind".into(), kind.into());
+    c.insert("stale_after_periods".into(), toml::Value::Integer(3));
+    c.insert(kind.into(), body.into());
+    c
+}
+
+/// The built-in scenarios' gains: the servo's [kp, kd] and computed torque's [kp, kv, rate].
+struct Gains {
+    servo: [Vec<f64>; 2],
+    ct: [Vec<f64>; 2],
+    startup_rate: f64,
+}
+
+fn gains() -> Result<Gains, String> {
+    let train: toml::Table = TRAIN1.parse().map_err(|e| format!("{e}"))?;
+    let new: toml::Table = NEW.parse().map_err(|e| format!("{e}"))?;
+    let get = |t: &toml::Table, law: &str, key: &str| -> Result<toml::Value, String> {
+        t.get("controller")
+            .and_then(|c| c.get(law))
+            .and_then(|l| l.get(key))
+            .cloned()
+            .ok_or_else(|| format!("built-in scenario: no controller.{law}.{key}"))
+    };
+    let fct = "fuzzy_computed_torque";
+    Ok(Gains {
+        servo: [
+            floats(&get(&train, "pd_servo", "kp")?)?,
+            floats(&get(&train, "pd_servo", "kd")?)?,
+        ],
+        ct: [
+            floats(&get(&new, fct, "kp")?)?,
+            floats(&get(&new, fct, "kv")?)?,
+        ],
+        startup_rate: get(&new, fct, "startup_rate")?
+            .as_float()
+            .ok_or("built-in scenario: startup_rate is not a number")?,
+    })
+}
+
+/// The positions of the three trajectories every 10 ms.
+fn trajectory_positions(cases: &[&Scenario]) -> Vec<Vec<f64>> {
+    let mut sp = crate::reference::Setpoint::default();
+    let mut qs = Vec::new();
+    for scn in cases {
+        let steps = (scn.timing.duration / 0.01).round() as usize;
+        for k in 0..=steps {
+            scn.reference.sample(k as f64 * 0.01, &mut sp);
+            qs.push(sp.q[..JOINTS].to_vec());
+        }
+    }
+    qs
+}
+
+/// Refuse an arm whose joint limits the trajectories leave.
+fn within_limits(arm: &Model, qs: &[Vec<f64>], robot: &Path) -> Result<(), String> {
+    for (j, b) in arm.bodies.iter().enumerate() {
+        let (lo, hi) = qs
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), q| {
+                (l.min(q[j]), h.max(q[j]))
+            });
+        if lo < b.limits.q_min || hi > b.limits.q_max {
+            return Err(format!(
+                "{}: the study's trajectories take joint {} (`{}`) over [{lo:.3}, {hi:.3}] rad, \
+                 outside its limits [{:.3}, {:.3}]",
+                robot.display(),
+                j + 1,
+                b.joint,
+                b.limits.q_min,
+                b.limits.q_max
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Simulate the cases on up to `threads` threads, in order; `done` after each.
+fn simulate_all(cases: &[Case], threads: usize, done: &(dyn Fn() + Sync)) -> Vec<SimResult> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let slots: Vec<std::sync::Mutex<Option<SimResult>>> =
+        cases.iter().map(|_| std::sync::Mutex::new(None)).collect();
+    std::thread::scope(|s| {
+        for _ in 0..threads.clamp(1, cases.len().max(1)) {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(c) = cases.get(i) else { break };
+                let r = simulate(&c.scenario);
+                *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
+                done();
+            });
+        }
+    });
+    slots
+        .into_iter()
+        .map(|m| {
+            m.into_inner()
+                .unwrap_or_else(|e| e.into_inner())
+                .expect("every case simulated")
+        })
+        .collect()
+}
+
+/// Set-points and outputs of a simulated case: (t, q_d per joint, y per joint, u per joint).
+struct Traces {
+    t: Vec<f64>,
+    r: Vec<Vec<f64>>,
+    y: Vec<Vec<f64>>,
+    u: Vec<Vec<f64>>,
+}
+
+impl Traces {
+    fn of(scn: &Scenario, sim: &SimResult) -> Self {
+        let mut sp = crate::reference::Setpoint::default();
+        let rows = sim.rows.len();
+        let mut tr = Traces {
+            t: Vec::with_capacity(rows),
+            r: (0..JOINTS).map(|_| Vec::with_capacity(rows)).collect(),
+            y: (0..JOINTS).map(|_| Vec::with_capacity(rows)).collect(),
+            u: (0..JOINTS).map(|_| Vec::with_capacity(rows)).collect(),
+        };
+        for row in &sim.rows {
+            scn.reference.sample(row.state.t, &mut sp);
+            tr.t.push(row.state.t);
+            for j in 0..JOINTS {
+                tr.r[j].push(sp.q[j]);
+                tr.y[j].push(row.state.y[j]);
+                tr.u[j].push(row.telemetry.u[j]);
+            }
+        }
+        tr
+    }
+
+    fn rms(&self) -> Vec<f64> {
+        let r: Vec<&[f64]> = self.r.iter().map(Vec::as_slice).collect();
+        let y: Vec<&[f64]> = self.y.iter().map(Vec::as_slice).collect();
+        tracking(&r, &y, 0).rms
+    }
+
+    fn error(&self, j: usize) -> Vec<f64> {
+        self.r[j]
+            .iter()
+            .zip(&self.y[j])
+            .map(|(r, y)| r - y)
+            .collect()
+    }
+
+    /// run CSV: t, r*, y*, u*, then the law's own columns.
+    fn write_csv(&self, sim: &SimResult, path: &Path) -> Result<(), String> {
+        let mut header = vec!["t".to_string()];
+        for p in ["r", "y", "u"] {
+            header.extend((0..JOINTS).map(|j| format!("{p}{j}")));
+        }
+        header.extend(sim.law_columns.iter().cloned());
+        let w = sim.law_columns.len();
+        let mut log = RunLog::new(header, self.t.len());
+        let mut row = Vec::with_capacity(1 + 3 * JOINTS + w);
+        for (i, t) in self.t.iter().enumerate() {
+            row.clear();
+            row.push(*t);
+            for c in [&self.r, &self.y, &self.u] {
+                row.extend(c.iter().map(|v| v[i]));
+            }
+            row.extend_from_slice(&sim.law[w * i..w * (i + 1)]);
+            log.push(&row);
+        }
+        log.write_csv(path)
+            .map_err(|e| format!("{}: {e}", path.display()))
+    }
+}
+
+/// Run the study into `dir`; `progress(done, total, stage)` after each stage.
+pub fn run(
+    s: &StudySettings,
+    dir: &Path,
+    progress: &(dyn Fn(u64, u64, &str) + Sync),
+) -> Result<StudyResult, String> {
+    let t0 = std::time::Instant::now();
+    let robot = std::path::absolute(&s.robot).map_err(|e| format!("{}: {e}", s.robot.display()))?;
+    let arm = crate::dynamics::load(&robot).map_err(|e| e.to_string())?;
+    if arm.dof() != JOINTS {
+        return Err(format!(
+            "{}: the study's trajectories are for {JOINTS}-joint arms, this one has {}",
+            robot.display(),
+            arm.dof()
+        ));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let g = gains()?;
+    let total = 12u64;
+    let step = std::sync::atomic::AtomicU64::new(0);
+    let tick = |stage: &str| {
+        let k = step.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress(k, total, stage);
+    };
+
+    // The servo on this arm: arm3's gains times the inertia ratio over the trajectories.
+    let pd_table = |kp: &[f64], kd: &[f64]| {
+        let mut t = toml::Table::new();
+        t.insert("kp".into(), float_list(kp));
+        t.insert("kd".into(), float_list(kd));
+        controller("pd_servo", t)
+    };
+    let probe = |base: &'static str| {
+        case(
+            "probe",
+            base,
+            &robot,
+            s.seed,
+            pd_table(&g.servo[0], &g.servo[1]),
+            dir,
+        )
+    };
+    let probes = [probe(TRAIN1)?, probe(TRAIN2)?, probe(NEW)?];
+    let qs = trajectory_positions(&probes.iter().map(|c| &c.scenario).collect::<Vec<_>>());
+    within_limits(&arm, &qs, &robot)?;
+    let arm3 = crate::dynamics::dh::parse_with(ARM3, Path::new("arm3.toml"), &Default::default())
+        .map_err(|e| e.to_string())?
+        .model;
+    let mean = |m: &Model| {
+        let b = InertiaBounds::of(m, qs.iter().map(Vec::as_slice));
+        (0..JOINTS).map(|j| b.mid(j)).collect::<Vec<_>>()
+    };
+    let ratio: Vec<f64> = mean(&arm)
+        .iter()
+        .zip(mean(&arm3))
+        .map(|(a, b)| a / b)
+        .collect();
+    let scale = |v: &[f64]| v.iter().zip(&ratio).map(|(g, r)| g * r).collect::<Vec<_>>();
+    let (servo_kp, servo_kd) = (scale(&g.servo[0]), scale(&g.servo[1]));
+    let pd = pd_table(&servo_kp, &servo_kd);
+
+    // Training runs and identification.
+    let training = [
+        case("train1", TRAIN1, &robot, s.seed, pd.clone(), dir)?,
+        case("train2", TRAIN2, &robot, s.seed, pd.clone(), dir)?,
+    ];
+    write_scenarios(&training)?;
+    let train_sims = simulate_all(&training, s.threads, &|| tick("training run"));
+    let mut models = Vec::new();
+    let mut summaries = Vec::new();
+    for (k, (c, sim)) in training.iter().zip(&train_sims).enumerate() {
+        let data = Trajectory::from_sim(&sim.rows, &c.scenario.reference, c.scenario.timing.period);
+        let mut settings = Settings::least_squares(JOINTS, s.seed, s.evaluations);
+        settings.threads = s.threads.max(1);
+        let model = identify::identify_model(
+            &data,
+            &arm,
+            &settings,
+            format!("rkgnn study: {} on {}", c.name, robot.display()),
+            |_, _| {},
+        )?;
+        let file = dir.join(format!("model_{}.json", k + 1));
+        model.save(&file)?;
+        summaries.push(ModelSummary::of(file.clone(), c.name, &model.report));
+        models.push(file);
+        tick("identification");
+    }
+
+    // The controllers on the new trajectory, and each model on its own trajectory.
+    let fuzzy = |files: &[&PathBuf], selection: &str| {
+        let mut t = toml::Table::new();
+        t.insert("kp".into(), float_list(&g.ct[0]));
+        t.insert("kv".into(), float_list(&g.ct[1]));
+        t.insert("startup_rate".into(), toml::Value::Float(g.startup_rate));
+        let list = files
+            .iter()
+            .map(|f| f.display().to_string().into())
+            .collect();
+        t.insert("models".into(), toml::Value::Array(list));
+        t.insert("selection".into(), selection.into());
+        controller("fuzzy_computed_torque", t)
+    };
+    let ct_true = {
+        let mut t = toml::Table::new();
+        t.insert("kp".into(), float_list(&g.ct[0]));
+        t.insert("kv".into(), float_list(&g.ct[1]));
+        t.insert("startup_rate".into(), toml::Value::Float(g.startup_rate));
+        controller("computed_torque", t)
+    };
+    let (m1, m2) = (&models[0], &models[1]);
+    let cases = [
+        case("pd", NEW, &robot, s.seed, pd, dir)?,
+        case("ct_true", NEW, &robot, s.seed, ct_true, dir)?,
+        case("ct_model_1", NEW, &robot, s.seed, fuzzy(&[m1], "max"), dir)?,
+        case("ct_model_2", NEW, &robot, s.seed, fuzzy(&[m2], "max"), dir)?,
+        case(
+            "ct_fuzzy_max",
+            NEW,
+            &robot,
+            s.seed,
+            fuzzy(&[m1, m2], "max"),
+            dir,
+        )?,
+        case(
+            "ct_fuzzy_blend",
+            NEW,
+            &robot,
+            s.seed,
+            fuzzy(&[m1, m2], "blend"),
+            dir,
+        )?,
+        case(
+            "fig8_model_1_on_train1",
+            TRAIN1,
+            &robot,
+            s.seed,
+            fuzzy(&[m1], "max"),
+            dir,
+        )?,
+        case(
+            "fig9_model_2_on_train2",
+            TRAIN2,
+            &robot,
+            s.seed,
+            fuzzy(&[m2], "max"),
+            dir,
+        )?,
+    ];
+    write_scenarios(&cases)?;
+    let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"));
+    let traces: Vec<Traces> = cases
+        .iter()
+        .zip(&sims)
+        .map(|(c, sim)| Traces::of(&c.scenario, sim))
+        .collect();
+    let runs = dir.join("runs");
+    std::fs::create_dir_all(&runs).map_err(|e| format!("{}: {e}", runs.display()))?;
+    for ((c, sim), tr) in cases.iter().zip(&sims).zip(&traces) {
+        tr.write_csv(sim, &runs.join(format!("{}.csv", c.name)))?;
+    }
+    let rms: Vec<Vec<f64>> = traces.iter().map(Traces::rms).collect();
+    let tracking_rms = TrackingRms {
+        pd: rms[0].clone(),
+        ct_true: rms[1].clone(),
+        ct_model_1: rms[2].clone(),
+        ct_model_2: rms[3].clone(),
+        ct_fuzzy_max: rms[4].clone(),
+        ct_fuzzy_blend: rms[5].clone(),
+    };
+    let fuzzy_sim = &sims[4];
+    let active = fuzzy_sim
+        .law_columns
+        .iter()
+        .position(|c| c == "fuzzy_model")
+        .ok_or("fuzzy run logged no active model")?;
+    let w = fuzzy_sim.law_columns.len();
+    let w1 = fuzzy_sim
+        .law_columns
+        .iter()
+        .position(|c| c == "fuzzy_w0")
+        .ok_or("fuzzy run logged no memberships")?;
+    let membership_range = fuzzy_sim
+        .law
+        .chunks(w)
+        .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], r| {
+            [lo.min(r[w1]), hi.max(r[w1])]
+        });
+    let active: Vec<f64> = fuzzy_sim.law.chunks(w).map(|r| r[active]).collect();
+    let fuzzy_share = (0..2)
+        .map(|i| {
+            active.iter().filter(|&&a| a == i as f64).count() as f64 / active.len().max(1) as f64
+        })
+        .collect();
+    let result = StudyResult {
+        robot: robot.clone(),
+        seed: s.seed,
+        evaluations: s.evaluations,
+        servo_kp,
+        servo_kd,
+        inertia_ratio: ratio,
+        ct_kp: g.ct[0].clone(),
+        ct_kv: g.ct[1].clone(),
+        models: summaries,
+        tracking_rms,
+        own_trajectory_rms: [rms[6].clone(), rms[7].clone()],
+        fuzzy_share,
+        membership_range,
+        seconds: t0.elapsed().as_secs_f64(),
+    };
+    write_outputs(&result, dir, &cases, &traces, fuzzy_sim)?;
+    Ok(result)
+}
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
+    move |e| format!("{}: {e}", path.display())
+}
+
+fn overall(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+/// study.json, tracking_rms.csv, report.md and the figures.
+fn write_outputs(
+    r: &StudyResult,
+    dir: &Path,
+    cases: &[Case],
+    traces: &[Traces],
+    fuzzy: &SimResult,
+) -> Result<(), String> {
+    crate::report::write_json(dir, "study.json", r).map_err(io(&dir.join("study.json")))?;
+    let mut csv = String::from("controller,joint1,joint2,joint3,overall\n");
+    for (key, _, v) in r.tracking_rms.entries() {
+        csv += &format!("{key},{},{},{},{}\n", v[0], v[1], v[2], overall(v));
+    }
+    let p = dir.join("tracking_rms.csv");
+    std::fs::write(&p, csv).map_err(io(&p))?;
+    let p = dir.join("report.md");
+    std::fs::write(&p, report_markdown(r)).map_err(io(&p))?;
+    figures(dir, cases, traces, fuzzy)
+}
+
+/// The report's sentences, each from this run's numbers.
+pub fn report_markdown(r: &StudyResult) -> String {
+    let t = &r.tracking_rms;
+    let mut s = format!(
+        "# RKGNN study: computed torque with fuzzy model selection\n\n\
+         Robot `{}`, seed {}, {} EA evaluations after the least-squares start \
+         (0 = the start itself). P-D servo k_p {:?}, k_d {:?} (arm3's times the inertia ratio \
+         {:?}); computed torque K_p {:?}, K_v {:?}.\n\n\
+         ## Identified models (free-run prediction, rad rms per joint)\n\n\
+         | model | trajectory | train | holdout | min eig M-hat |\n|---|---|---|---|---|\n",
+        r.robot.display(),
+        r.seed,
+        r.evaluations,
+        r.servo_kp.iter().map(|v| round(*v)).collect::<Vec<_>>(),
+        r.servo_kd.iter().map(|v| round(*v)).collect::<Vec<_>>(),
+        r.inertia_ratio
+            .iter()
+            .map(|v| round(*v))
+            .collect::<Vec<_>>(),
+        r.ct_kp,
+        r.ct_kv,
+    );
+    for (i, m) in r.models.iter().enumerate() {
+        s += &format!(
+            "| {} | {} | {} | {} | {:.4} |\n",
+            i + 1,
+            m.trajectory,
+            sci(&m.train_rms),
+            sci(&m.holdout_rms),
+            m.min_eig_m_hat
+        );
+    }
+    s += "\n## Tracking the new trajectory (rad rms)\n\n\
+          | controller | joint 1 | joint 2 | joint 3 | overall |\n|---|---|---|---|---|\n";
+    for (_, label, v) in t.entries() {
+        s += &format!(
+            "| {label} | {:.4} | {:.4} | {:.4} | {:.4} |\n",
+            v[0],
+            v[1],
+            v[2],
+            overall(v)
+        );
+    }
+    let (fz, pd) = (overall(&t.ct_fuzzy_max), overall(&t.pd));
+    let worse = overall(&t.ct_model_1).max(overall(&t.ct_model_2));
+    let cmp = |a: f64, b: f64| if a < b { "below" } else { "not below" };
+    s += &format!(
+        "\nOn this run fuzzy CT (max) tracks at {fz:.4} rad rms: {:.2} times the P-D servo's \
+         {pd:.4} ({} it) and {:.2} times the worse single model's {worse:.4} ({} it); CT on the \
+         true model reaches {:.4}. Model 1 had the largest weight on {:.0} % of the samples, \
+         model 2 on {:.0} %; model 1's normalised membership ranged over [{:.3}, {:.3}]{}. One seed: `cargo test --release --test rkgnn` checks the ordering on \
+         the shipped arm over seeds 1-5.\n\n\
+         Figs. 8 and 9 (each model on its own trajectory): {} and {} rad rms overall.\n",
+        fz / pd,
+        cmp(fz, pd),
+        fz / worse,
+        cmp(fz, worse),
+        overall(&t.ct_true),
+        100.0 * r.fuzzy_share[0],
+        100.0 * r.fuzzy_share[1],
+        r.membership_range[0],
+        r.membership_range[1],
+        if r.membership_range[0] > 0.4 && r.membership_range[1] < 0.6 {
+            " (within 0.1 of 0.5 throughout: the new trajectory is about as far from either \
+             training one, and the max rule switches between near-equal models)"
+        } else {
+            ""
+        },
+        round4(overall(&r.own_trajectory_rms[0])),
+        round4(overall(&r.own_trajectory_rms[1])),
+    );
+    s
+}
+
+fn round(v: f64) -> f64 {
+    (v * 1000.0).round() / 1000.0
+}
+
+fn round4(v: f64) -> String {
+    format!("{v:.4}")
+}
+
+fn sci(v: &[f64]) -> String {
+    v.iter()
+        .map(|x| format!("{x:.2e}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Figs. 7-10 and the six controllers' error norms on the new trajectory.
+fn figures(dir: &Path, cases: &[Case], traces: &[Traces], fuzzy: &SimResult) -> Result<(), String> {
+    let names = ["joint 1 [rad]", "joint 2 [rad]", "joint 3 [rad]"];
+    // Fig. 7: the trajectories (training 1 and 2 from Figs. 8, 9's runs, the new one from pd).
+    let (tr1, tr2, new) = (&traces[6], &traces[7], &traces[0]);
+    let series: Vec<[Series; 3]> = (0..JOINTS)
+        .map(|j| {
+            [
+                Series {
+                    name: "training 1",
+                    values: &tr1.r[j],
+                },
+                Series {
+                    name: "training 2",
+                    values: &tr2.r[j],
+                },
+                Series {
+                    name: "new",
+                    values: &new.r[j],
+                },
+            ]
+        })
+        .collect();
+    let panels: Vec<Panel> = series
+        .iter()
+        .zip(names)
+        .map(|(s, label)| Panel { series: s, label })
+        .collect();
+    stacked_png(
+        &dir.join("fig7_trajectories.png"),
+        "Fig. 7: training trajectories 1, 2 and the new trajectory (theta_d)",
+        &new.t,
+        &panels,
+        &[],
+    )?;
+    tracking_figure(
+        &dir.join("fig8_model_1_on_train1.png"),
+        "Fig. 8: computed torque with model 1 on training trajectory 1",
+        &traces[6],
+        None,
+    )?;
+    tracking_figure(
+        &dir.join("fig9_model_2_on_train2.png"),
+        "Fig. 9: computed torque with model 2 on training trajectory 2",
+        &traces[7],
+        None,
+    )?;
+    tracking_figure(
+        &dir.join("fig10_fuzzy_on_new.png"),
+        "Fig. 10: computed torque with fuzzy model selection (max) on the new trajectory",
+        &traces[4],
+        Some(fuzzy),
+    )?;
+    // Error norm |e|(t) of the six controllers on the new trajectory.
+    let norms: Vec<Vec<f64>> = traces[..6]
+        .iter()
+        .map(|tr| {
+            (0..tr.t.len())
+                .map(|i| {
+                    (0..JOINTS)
+                        .map(|j| (tr.r[j][i] - tr.y[j][i]).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                })
+                .collect()
+        })
+        .collect();
+    let series: Vec<Series> = cases[..6]
+        .iter()
+        .zip(&norms)
+        .map(|(c, v)| Series {
+            name: c.name,
+            values: v,
+        })
+        .collect();
+    stacked_png(
+        &dir.join("tracking_new.png"),
+        "Tracking error |e| on the new trajectory",
+        &new.t,
+        &[
+            Panel {
+                series: &series[..3],
+                label: "|e| [rad]",
+            },
+            Panel {
+                series: &series[3..],
+                label: "|e| [rad]",
+            },
+        ],
+        &[],
+    )
+}
+
+/// Reference and output per joint, the errors, and for a fuzzy run its memberships.
+fn tracking_figure(
+    path: &Path,
+    title: &str,
+    tr: &Traces,
+    fuzzy: Option<&SimResult>,
+) -> Result<(), String> {
+    let names = ["joint 1 [rad]", "joint 2 [rad]", "joint 3 [rad]"];
+    let joints: Vec<[Series; 2]> = (0..JOINTS)
+        .map(|j| {
+            [
+                Series {
+                    name: "theta_d",
+                    values: &tr.r[j],
+                },
+                Series {
+                    name: "theta",
+                    values: &tr.y[j],
+                },
+            ]
+        })
+        .collect();
+    let errors: Vec<Vec<f64>> = (0..JOINTS).map(|j| tr.error(j)).collect();
+    let error_series: Vec<Series> = errors
+        .iter()
+        .zip(["e1", "e2", "e3"])
+        .map(|(v, name)| Series { name, values: v })
+        .collect();
+    let mut panels: Vec<Panel> = joints
+        .iter()
+        .zip(names)
+        .map(|(s, label)| Panel { series: s, label })
+        .collect();
+    panels.push(Panel {
+        series: &error_series,
+        label: "error [rad]",
+    });
+    let memberships: Vec<(String, Vec<f64>)> = fuzzy
+        .map(|sim| {
+            let w = sim.law_columns.len();
+            sim.law_columns
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.starts_with("fuzzy_w"))
+                .map(|(k, c)| {
+                    let model = c
+                        .trim_start_matches("fuzzy_w")
+                        .parse::<usize>()
+                        .unwrap_or(0)
+                        + 1;
+                    (
+                        format!("membership, model {model}"),
+                        sim.law.chunks(w).map(|r| r[k]).collect(),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let m_series: Vec<Series> = memberships
+        .iter()
+        .map(|(n, v)| Series { name: n, values: v })
+        .collect();
+    if !m_series.is_empty() {
+        panels.push(Panel {
+            series: &m_series,
+            label: "normalised weight",
+        });
+    }
+    stacked_png(path, title, &tr.t, &panels, &[])
+}
