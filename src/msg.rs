@@ -88,6 +88,9 @@ pub enum ParamCode {
     RejectedOutOfBounds = 5,
     RejectedStale = 6,
     RejectedUnstable = 7,
+    /// A model set whose M-hat is not positive definite (or far less so than the model it
+    /// would replace) on the model's probe positions.
+    RejectedNotPositiveDefinite = 8,
 }
 
 impl ParamCode {
@@ -100,6 +103,7 @@ impl ParamCode {
             5 => Self::RejectedOutOfBounds,
             6 => Self::RejectedStale,
             7 => Self::RejectedUnstable,
+            8 => Self::RejectedNotPositiveDefinite,
             _ => Self::None,
         }
     }
@@ -115,6 +119,9 @@ impl ParamCode {
             Self::RejectedStale => "rejected: version is not newer than the one in service",
             Self::RejectedUnstable => {
                 "rejected: the closed loop would be unstable on the controller's plant model"
+            }
+            Self::RejectedNotPositiveDefinite => {
+                "rejected: the model's M-hat is not safely positive definite on its probes"
             }
         }
     }
@@ -157,7 +164,15 @@ pub struct Telemetry {
     /// Running counts since the start of the run.
     pub overruns: u64,
     pub missed: u64,
+    /// The law's own values of this cycle (`Controller::log_values`, its run.csv columns; a
+    /// fuzzy selector's active model and memberships), the first `n_law` of them.
+    pub n_law: u32,
+    pub _pad: u32,
+    pub law: [f64; MAX_LAW_VALUES],
 }
+
+/// Most law values telemetry carries: a fuzzy selector's active model and up to 8 memberships.
+pub const MAX_LAW_VALUES: usize = 9;
 
 /// Controller kinds a parameter set can be meant for (`ParamSet::kind`).
 pub const KIND_STATE_FEEDBACK: u32 = 1;
@@ -169,6 +184,9 @@ pub const KIND_PID_CLAMPING: u32 = 6;
 pub const KIND_PID_BACK_CALCULATION: u32 = 7;
 pub const KIND_PID_INTEGRATOR_CLAMP: u32 = 8;
 pub const KIND_FUZZY_COMPUTED_TORQUE: u32 = 9;
+/// An identified RKGNN model for one slot of a fuzzy computed-torque controller: values =
+/// [slot, the network's parameters in `rkgnn::Layout` order].
+pub const KIND_RKGNN_MODEL: u32 = 10;
 
 /// A parameter set from the optimiser to the controller.
 #[repr(C)]

@@ -561,3 +561,61 @@ fn rkgnn_study_refuses_an_arm_whose_joint_limits_the_trajectories_leave() {
         "{e}"
     );
 }
+
+#[test]
+fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_loop_takes_them() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    for (out, tag) in [(&a, "rk_ident_a"), (&b, "rk_ident_b")] {
+        assert_ok(&run(&config("arm3_identify.toml"), out, tag, &[]));
+    }
+    // Lockstep: the attempts are at fixed simulated times, so the run is reproducible.
+    let csv = |d: &Path| std::fs::read_to_string(d.join("run.csv")).unwrap();
+    assert_eq!(csv(&a), csv(&b), "two lockstep runs of one seed differ");
+    let opt: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(a.join("optimiser.json")).unwrap()).unwrap();
+    let epochs = opt["epochs"].as_array().unwrap();
+    // 20 s, a first attempt once 5 s of data are in, then every 2 s.
+    assert!(epochs.len() >= 7, "{} attempts", epochs.len());
+    let mut published = 0;
+    for e in epochs {
+        if e["published"].is_u64() {
+            published += 1;
+            let (cand, held) = (
+                e["best_cost"].as_f64().unwrap(),
+                e["in_service_cost"].as_f64().unwrap(),
+            );
+            assert!(
+                cand < 0.95 * held,
+                "published without beating the model in service: {e}"
+            );
+        }
+    }
+    assert!(published >= 1, "no model published: {epochs:?}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(a.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["accepted_versions"].as_u64(), Some(published));
+    assert_eq!(summary["rejected_versions"].as_u64(), Some(0));
+}
+
+#[test]
+fn identify_mode_on_a_controller_without_models_is_refused_with_the_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().to_str().unwrap();
+    let args = [
+        "run",
+        "config/arm3_pd.toml",
+        "--optimiser",
+        "identify",
+        "--out",
+        out,
+    ];
+    let o = cli(&args);
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("arm3_pd.toml") && e.contains("optimiser.mode"),
+        "{e}"
+    );
+}

@@ -185,6 +185,18 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let plant = PlantSpec::validate(raw.plant, check, timing.period, &reference)?;
     let controller = ControllerSpec::validate(raw.controller, check, &plant.model)?;
     let optimiser = optimiser::validate(raw.optimiser, check, &timing, ov)?;
+    if optimiser.mode == OptimiserMode::Identify
+        && !matches!(
+            controller.model,
+            crate::control::ControllerModel::FuzzyComputedTorque(_)
+        )
+    {
+        return check.fail(
+            "optimiser.mode",
+            "\"identify\" identifies models for a fuzzy_computed_torque controller \
+             (controller.kind = \"fuzzy_computed_torque\")",
+        );
+    }
     let out_raw = raw.output.unwrap_or(RawOutput {
         dir: None,
         plots: None,

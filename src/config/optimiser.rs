@@ -19,6 +19,9 @@ pub struct RawOptimiser {
     pub epoch_evaluations: Option<usize>,
     pub threads: Option<usize>,
     pub cost_u_weight: Option<f64>,
+    pub identify_window: Option<f64>,
+    pub identify_fresh: Option<f64>,
+    pub identify_every: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -30,6 +33,9 @@ pub enum OptimiserMode {
     Schedule,
     /// The indirect scheme: estimates the model online, tunes on it, publishes better sets.
     Indirect,
+    /// The indirect scheme for arms (`rkgnn::live`): identifies a model on the latest window
+    /// and publishes it when it predicts fresh data better than the model in service.
+    Identify,
 }
 
 impl std::str::FromStr for OptimiserMode {
@@ -39,8 +45,9 @@ impl std::str::FromStr for OptimiserMode {
             "off" => Ok(OptimiserMode::Off),
             "schedule" => Ok(OptimiserMode::Schedule),
             "indirect" => Ok(OptimiserMode::Indirect),
+            "identify" => Ok(OptimiserMode::Identify),
             _ => Err(format!(
-                "unknown optimiser mode {s:?} (expected off, schedule or indirect)"
+                "unknown optimiser mode {s:?} (expected off, schedule, indirect or identify)"
             )),
         }
     }
@@ -77,6 +84,11 @@ pub struct OptimiserSpec {
     pub threads: usize,
     /// Weight of |u| in the per-repetition cost sum |e| + w sum |u| (eq. 31: 1/1000 per mA).
     pub cost_u_weight: f64,
+    /// Identify: seconds of data each identification fits, the fresh seconds after them it is
+    /// judged on, and the seconds between attempts.
+    pub identify_window: f64,
+    pub identify_fresh: f64,
+    pub identify_every: f64,
 }
 
 pub fn validate(
@@ -95,6 +107,9 @@ pub fn validate(
         epoch_evaluations: None,
         threads: None,
         cost_u_weight: None,
+        identify_window: None,
+        identify_fresh: None,
+        identify_every: None,
     });
     // Default: an acknowledgement every 100 periods (a barrier costs two cross-process
     // wake-ups; rarer barriers let lockstep run at hundreds of thousands of samples/s).
@@ -167,6 +182,24 @@ pub fn validate(
             "optimiser.cost_u_weight",
             o.cost_u_weight.unwrap_or(1e-3),
             0.0,
+            1e6,
+        )?,
+        identify_window: check.range(
+            "optimiser.identify_window",
+            o.identify_window.unwrap_or(4.0),
+            50.0 * timing.period,
+            600.0,
+        )?,
+        identify_fresh: check.range(
+            "optimiser.identify_fresh",
+            o.identify_fresh.unwrap_or(1.0),
+            20.0 * timing.period,
+            600.0,
+        )?,
+        identify_every: check.range(
+            "optimiser.identify_every",
+            o.identify_every.unwrap_or(2.0),
+            timing.period,
             1e6,
         )?,
     })

@@ -2,6 +2,7 @@
 //! so both compute the same numbers: take due parameter sets, validate and swap them in at the
 //! cycle boundary, evaluate the reference and the control law, fill the telemetry.
 
+use super::validate::validate_model;
 use super::{validate_params, Controller, LinearModel, ParamBounds};
 use crate::msg::{ParamCode, ParamSet, PlantState, Telemetry};
 use crate::reference::{Reference, Setpoint};
@@ -35,12 +36,14 @@ pub struct ControlCycle {
     /// Linear plants: new gains must stabilise this model to be accepted.
     stability: Option<LinearModel>,
     cycle: u64,
+    /// How many of the law's own values telemetry carries (all of them, or 0 when they do not
+    /// fit).
+    n_law: usize,
 }
 
 impl ControlCycle {
     pub fn new(controller: Box<dyn Controller>, reference: Reference, bounds: ParamBounds) -> Self {
         Self {
-            controller,
             reference,
             bounds,
             version: 0,
@@ -50,6 +53,10 @@ impl ControlCycle {
             setpoint: Setpoint::default(),
             stability: None,
             cycle: 0,
+            n_law: Some(controller.log_columns().len())
+                .filter(|&n| n <= crate::msg::MAX_LAW_VALUES)
+                .unwrap_or(0),
+            controller,
         }
     }
 
@@ -87,7 +94,18 @@ impl ControlCycle {
         {
             let set = self.pending.remove(i);
             let c = self.controller.as_ref();
-            let (code, index) =
+            let (code, index) = if c.model_kind() == Some(set.kind) {
+                match validate_model(&set, self.version) {
+                    Ok(()) => match self.controller.swap_model(set.values()) {
+                        Ok(()) => {
+                            self.version = set.version;
+                            (ParamCode::Accepted, 0)
+                        }
+                        Err(refusal) => refusal,
+                    },
+                    Err(rej) => (rej.code, rej.index),
+                }
+            } else {
                 match validate_params(&set, c.kind(), c.n_params(), self.version, &self.bounds) {
                     Ok(())
                         if self
@@ -102,7 +120,8 @@ impl ControlCycle {
                         (ParamCode::Accepted, 0)
                     }
                     Err(rej) => (rej.code, rej.index),
-                };
+                }
+            };
             event = Some(ParamEvent {
                 cycle: self.cycle,
                 t: state.t,
@@ -121,6 +140,9 @@ impl ControlCycle {
         tel.n_u = n_u as u32;
         tel.u = self.u;
         tel.param_version = self.version;
+        tel.n_law = self.n_law as u32;
+        // Laws with more columns than telemetry has room for send none.
+        self.controller.log_values(&mut tel.law[..self.n_law]);
         match event {
             Some(e) => {
                 tel.param_code = e.code as u32;

@@ -19,7 +19,7 @@ use super::fuzzy_select::{self, Selection};
 use super::computed_torque::{damp_and_limit, gains_and_startup, startup_damping};
 use super::{driven_arm, Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
-use crate::msg::{PlantState, KIND_FUZZY_COMPUTED_TORQUE};
+use crate::msg::{ParamCode, PlantState, KIND_FUZZY_COMPUTED_TORQUE, KIND_RKGNN_MODEL};
 use crate::reference::Setpoint;
 use crate::rkgnn::network::Mat;
 use crate::rkgnn::RkgnnModel;
@@ -43,6 +43,30 @@ pub struct FuzzyComputedTorque {
     /// Raw weights w_i (eq. 20) and the selection s_i of the last cycle.
     w: [f64; MAX_MODELS],
     s: [f64; MAX_MODELS],
+    /// Per model, positions of its identification reference (PROBES of them, flat) on which a
+    /// replacement model's M-hat is checked, and the in-service model's smallest eigenvalue
+    /// there.
+    probes: Vec<Vec<f64>>,
+    min_eig: [f64; MAX_MODELS],
+}
+
+/// Probe positions per model for checking a replacement.
+const PROBES: usize = 24;
+/// A replacement model's smallest eigenvalue of M-hat over the probes must reach this fraction
+/// of the model in service's: positive definite is not enough, a nearly singular M-hat (which
+/// an unconstrained fit can produce off its data) makes computed torque blow up.
+pub const MIN_EIG_RATIO: f64 = 0.1;
+
+/// Smallest eigenvalue of M-hat with parameters `p` over the flat probe positions.
+fn probe_min_eig(layout: &crate::rkgnn::Layout, p: &[f64], probes: &[f64]) -> f64 {
+    let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+    probes
+        .chunks(layout.n)
+        .map(|q| {
+            crate::rkgnn::network::inertia(layout, p, q, &mut m);
+            crate::rkgnn::network::sym_eig_range(layout.n, &m).0
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// L_j of the models' premises (see the module docs).
@@ -81,8 +105,26 @@ impl FuzzyComputedTorque {
         assert!((1..=MAX_MODELS).contains(&models.len()));
         let n = models[0].dof();
         assert_eq!(gains.len(), 2 * n);
+        let probes: Vec<Vec<f64>> = models
+            .iter()
+            .map(|m| {
+                let rows = m.premise_len().max(1);
+                (0..PROBES)
+                    .flat_map(|k| {
+                        let r = &m.premise[2 * n * (k * rows / PROBES)..];
+                        r[..n].to_vec()
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut min_eig = [0.0; MAX_MODELS];
+        for ((e, m), p) in min_eig.iter_mut().zip(&models).zip(&probes) {
+            *e = probe_min_eig(&m.net.layout, m.net.params(), p);
+        }
         Self {
             l: premise_distances(&models),
+            probes,
+            min_eig,
             models,
             gamma,
             selection,
@@ -168,6 +210,33 @@ impl Controller for FuzzyComputedTorque {
 
     fn swap_params(&mut self, new: &[f64], _state: &PlantState, _sp: &Setpoint) {
         self.gains.copy_from_slice(new);
+    }
+
+    fn model_kind(&self) -> Option<u32> {
+        Some(KIND_RKGNN_MODEL)
+    }
+
+    /// values = [slot, parameters]: the slot must exist, the parameters fit its layout, and
+    /// M-hat be positive definite on the slot's probes, at least MIN_EIG_RATIO of the model in
+    /// service there. The premise (the slot's identification reference) stays.
+    fn swap_model(&mut self, values: &[f64]) -> Result<(), (ParamCode, u32)> {
+        let slot = values.first().copied().unwrap_or(-1.0);
+        if slot < 0.0 || slot.fract() != 0.0 || slot as usize >= self.models.len() {
+            return Err((ParamCode::RejectedOutOfBounds, 0));
+        }
+        let slot = slot as usize;
+        let p = &values[1..];
+        let layout = &self.models[slot].net.layout;
+        if p.len() != layout.len {
+            return Err((ParamCode::RejectedWrongLength, values.len() as u32));
+        }
+        let e = probe_min_eig(layout, p, &self.probes[slot]);
+        if !(e > 0.0 && e >= MIN_EIG_RATIO * self.min_eig[slot]) {
+            return Err((ParamCode::RejectedNotPositiveDefinite, 0));
+        }
+        self.models[slot].net.set_params(p);
+        self.min_eig[slot] = e;
+        Ok(())
     }
 
     fn log_columns(&self) -> Vec<String> {
@@ -290,5 +359,107 @@ impl ControllerConfig for FuzzyComputedTorqueSpec {
     }
     fn param_kind(&self) -> u32 {
         KIND_FUZZY_COMPUTED_TORQUE
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::cycle::ControlCycle;
+    use crate::msg::{ParamSet, Telemetry};
+
+    fn shipped(k: usize) -> RkgnnModel {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("config/models/arm3_train{k}.json"));
+        RkgnnModel::load(&p).unwrap()
+    }
+
+    fn cycle() -> ControlCycle {
+        let law = FuzzyComputedTorque::new(
+            vec![shipped(1), shipped(2)],
+            Selection::Max,
+            fuzzy_select::GAMMA,
+            &[900.0, 900.0, 900.0, 60.0, 60.0, 60.0],
+            0.0,
+            vec![40.0, 60.0, 30.0],
+        );
+        let reference = crate::reference::Reference::Quintic {
+            times: vec![0.0],
+            waypoints: vec![vec![0.2, 0.7, -1.3]],
+        };
+        let bounds = crate::check::ParamBounds {
+            lower: vec![0.0; 6],
+            upper: vec![2500.0; 6],
+        };
+        ControlCycle::new(Box::new(law), reference, bounds)
+    }
+
+    /// A model set for `slot` with `params`, version `version`.
+    fn model_set(version: u64, slot: f64, params: &[f64]) -> ParamSet {
+        let mut s = ParamSet {
+            version,
+            kind: KIND_RKGNN_MODEL,
+            n: 1 + params.len() as u32,
+            ..Default::default()
+        };
+        s.values[0] = slot;
+        s.values[1..=params.len()].copy_from_slice(params);
+        s
+    }
+
+    /// Offer `set` and run one cycle: its code and the command.
+    fn offer(c: &mut ControlCycle, set: &ParamSet) -> (ParamCode, [f64; 3]) {
+        let mut state = PlantState::default();
+        state.y[..3].copy_from_slice(&[0.1, 0.6, -1.2]);
+        c.offer(set);
+        let mut tel = Telemetry::default();
+        let e = c.step(&state, &mut tel).expect("a parameter event");
+        (e.code, [c.u[0], c.u[1], c.u[2]])
+    }
+
+    #[test]
+    fn a_model_set_is_checked_and_replaces_its_slot_only_when_sound() {
+        let mut c = cycle();
+        let (m1, m2) = (shipped(1), shipped(2));
+        let p2 = m2.net.params();
+        let mut nan = p2.to_vec();
+        nan[7] = f64::NAN;
+        assert_eq!(offer(&mut c, &model_set(1, 0.0, &nan)).0, ParamCode::RejectedNonFinite);
+        assert_eq!(offer(&mut c, &model_set(1, 2.0, p2)).0, ParamCode::RejectedOutOfBounds);
+        assert_eq!(offer(&mut c, &model_set(1, 0.5, p2)).0, ParamCode::RejectedOutOfBounds);
+        assert_eq!(
+            offer(&mut c, &model_set(1, 0.0, &p2[1..])).0,
+            ParamCode::RejectedWrongLength
+        );
+        // M-hat scaled towards zero: positive definite, but far below the model in service.
+        let mut weak = m1.net.params().to_vec();
+        for (_, net) in &m1.net.layout.inertia {
+            net.all_weights().for_each(|w| weak[w] *= 0.01);
+        }
+        assert_eq!(
+            offer(&mut c, &model_set(1, 0.0, &weak)).0,
+            ParamCode::RejectedNotPositiveDefinite
+        );
+        assert_eq!(c.version(), 0, "nothing refused is in service");
+        // Model 2's weights into slot 0: accepted, and the law then computes with them.
+        let (_, before) = offer(&mut c, &model_set(1, 0.0, m1.net.params()));
+        let (code, after) = offer(&mut c, &model_set(2, 0.0, p2));
+        assert_eq!(code, ParamCode::Accepted);
+        assert_eq!(c.version(), 2);
+        assert_ne!(before, after);
+        // A stale version is refused.
+        assert_eq!(offer(&mut c, &model_set(2, 0.0, p2)).0, ParamCode::RejectedStale);
+    }
+
+    #[test]
+    fn telemetry_carries_the_active_model_and_the_memberships() {
+        let mut c = cycle();
+        let mut tel = Telemetry::default();
+        c.step(&PlantState::default(), &mut tel);
+        assert_eq!(tel.n_law, 3);
+        let w = &tel.law[1..3];
+        assert!((w[0] + w[1] - 1.0).abs() < 1e-12, "{w:?}");
+        let active = if w[0] >= w[1] { 0.0 } else { 1.0 };
+        assert_eq!(tel.law[0], active);
     }
 }

@@ -128,6 +128,16 @@ pub trait Controller: Send {
     /// have (bumpless transfer). Laws without internal state cannot absorb the difference; they
     /// switch outright (the jump is proportional to the gain change times the tracking error).
     fn swap_params(&mut self, new: &[f64], state: &PlantState, sp: &Setpoint);
+    /// The kind of a second sort of set the law takes besides its gains (an identified model),
+    /// checked and put in service by `swap_model`; `None` for laws that take gains only.
+    fn model_kind(&self) -> Option<u32> {
+        None
+    }
+    /// Check a model set's values (finite already) and put it in service at this cycle
+    /// boundary, or refuse it with a code and the offending value's index. Must not allocate.
+    fn swap_model(&mut self, _values: &[f64]) -> Result<(), (crate::msg::ParamCode, u32)> {
+        Err((crate::msg::ParamCode::RejectedWrongKind, 0))
+    }
     /// Names of the law's own run.csv columns (diagnostics such as an active model), asked once
     /// before the run.
     fn log_columns(&self) -> Vec<String> {

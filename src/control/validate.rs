@@ -23,21 +23,43 @@ pub fn validate_params(
     if set.kind != kind {
         return reject(ParamCode::RejectedWrongKind, 0);
     }
-    if set.version <= version_in_service {
-        return reject(ParamCode::RejectedStale, 0);
-    }
+    newer(set, version_in_service)?;
     if set.n as usize != n_params {
         return reject(ParamCode::RejectedWrongLength, set.n);
     }
-    for (i, v) in set.values().iter().enumerate() {
-        if !v.is_finite() {
-            return reject(ParamCode::RejectedNonFinite, i as u32);
-        }
-    }
+    finite(set)?;
     for (i, v) in set.values().iter().enumerate() {
         if *v < bounds.lower[i] || *v > bounds.upper[i] {
             return reject(ParamCode::RejectedOutOfBounds, i as u32);
         }
     }
     Ok(())
+}
+
+/// The checks every set passes whatever its kind: newer than the one in service, every value
+/// finite. A model set (`Controller::model_kind`) gets these, then the law's own
+/// (`Controller::swap_model`: slot, length, M-hat positive definite). Allocation-free.
+pub fn validate_model(set: &ParamSet, version_in_service: u64) -> Result<(), Rejection> {
+    newer(set, version_in_service)?;
+    finite(set)
+}
+
+fn newer(set: &ParamSet, version_in_service: u64) -> Result<(), Rejection> {
+    if set.version <= version_in_service {
+        return Err(Rejection {
+            code: ParamCode::RejectedStale,
+            index: 0,
+        });
+    }
+    Ok(())
+}
+
+fn finite(set: &ParamSet) -> Result<(), Rejection> {
+    match set.values().iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(Rejection {
+            code: ParamCode::RejectedNonFinite,
+            index: i as u32,
+        }),
+        None => Ok(()),
+    }
 }

@@ -119,6 +119,7 @@ impl OverrideArgs {
                 OptimiserMode::Off => "off".into(),
                 OptimiserMode::Schedule => "schedule".into(),
                 OptimiserMode::Indirect => "indirect".into(),
+                OptimiserMode::Identify => "identify".into(),
             });
         }
         if self.no_rt {

@@ -109,6 +109,17 @@ fn run(
     } else {
         None
     };
+    let mut live = if scn.optimiser.mode == OptimiserMode::Identify {
+        let mut l = crate::rkgnn::live::LiveIdentify::new(scn).map_err(|e| (EXIT_SETUP, e))?;
+        if rejoin {
+            if let Some((version, values)) = last_published(&scn.output.dir) {
+                l.resume(version, &values);
+            }
+        }
+        Some(l)
+    } else {
+        None
+    };
     let mut last_state = Instant::now();
     let io = |e: IpcError| (EXIT_SETUP, e.to_string());
     loop {
@@ -162,10 +173,16 @@ fn run(
                 ports.estimate.send(&msg).map_err(io)?;
             }
         }
+        if let Some(l) = live.as_mut() {
+            l.observe(&state);
+        }
         if state.flags & STATE_FLAG_END != 0 {
             if let Some(ind) = indirect {
                 report.estimates = ind.estimates;
                 report.epochs = ind.epochs;
+            }
+            if let Some(l) = live {
+                report.epochs = l.epochs;
             }
             return Ok(());
         }
@@ -190,6 +207,12 @@ fn run(
                     send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
                 }
             }
+            // At fixed simulated times, the plant waiting: reproducible per seed.
+            if let Some(l) = live.as_mut() {
+                if let Some(set) = l.attempt(state.t, state.seq + 1) {
+                    send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
+                }
+            }
             ports
                 .ack
                 .send(&OptimiserAck {
@@ -206,6 +229,13 @@ fn run(
             if let Some(ind) = indirect.as_mut() {
                 if !ports.state.has_pending().map_err(io)? {
                     if let Some(set) = ind.run_epoch(state.t, 0) {
+                        send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
+                    }
+                }
+            }
+            if let Some(l) = live.as_mut() {
+                if !ports.state.has_pending().map_err(io)? {
+                    if let Some(set) = l.attempt(state.t, 0) {
                         send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
                     }
                 }

@@ -609,12 +609,61 @@ pub fn least_squares_start(
     probes: &[Vec<f64>],
     bounds: &InertiaBounds,
 ) -> Option<Vec<f64>> {
+    least_squares(layout, p0, data, None, stride, probes, bounds.m1, |p| {
+        scale_joints(layout, p, probes, bounds)
+    })
+}
+
+/// The same fit when the loop's joint torques are known (`torques`, n per sample of `data`):
+/// a loop whose law is the controller's own, e.g. computed torque, where the command is known
+/// without measuring a torque. Then M-hat q'' + V-hat + G-hat = tau is solved directly (no
+/// homogeneity, no scale to fix); the servo network keeps `p0`'s values (it plays no part in
+/// computed torque). `min_eig` is the smallest eigenvalue M-hat must keep over the probes.
+pub fn least_squares_with_torques(
+    layout: &Layout,
+    p0: &[f64],
+    data: &Trajectory,
+    torques: &[f64],
+    stride: usize,
+    probes: &[Vec<f64>],
+    min_eig: f64,
+) -> Option<Vec<f64>> {
+    assert_eq!(torques.len(), data.len() * data.n);
+    least_squares(
+        layout,
+        p0,
+        data,
+        Some(torques),
+        stride,
+        probes,
+        2.0 * min_eig,
+        Some,
+    )
+}
+
+/// The least-squares fits' common part: in k_p units (`torques` None; `finish` then scales the
+/// joints) or on known torques. `m1`: M-hat's smallest eigenvalue over the probes must reach
+/// m1 / 2.
+#[allow(clippy::too_many_arguments)]
+fn least_squares(
+    layout: &Layout,
+    p0: &[f64],
+    data: &Trajectory,
+    torques: Option<&[f64]>,
+    stride: usize,
+    probes: &[Vec<f64>],
+    m1: f64,
+    finish: impl Fn(Vec<f64>) -> Option<Vec<f64>>,
+) -> Option<Vec<f64>> {
     let n = layout.n;
     let g = layout.gains?;
     let kp = |j: usize| g + 2 * j;
+    // In k_p units the k_p columns are the right-hand side; with torques every servo weight
+    // stays out of the fit.
+    let servo = |k: usize| (0..n).any(|j| k == kp(j) || (torques.is_some() && k == kp(j) + 1));
     let cols: Vec<usize> = weight_indices(layout)
         .into_iter()
-        .filter(|k| !(0..n).any(|j| *k == kp(j)))
+        .filter(|k| !servo(*k))
         .collect();
     let samples: Vec<usize> = (1..data.len().saturating_sub(1))
         .step_by(stride.max(1))
@@ -635,6 +684,13 @@ pub fn least_squares_start(
     let mut rhs = nalgebra::DVector::<f64>::zeros(rows);
     let mut p = p0.to_vec();
     weight_indices(layout).iter().for_each(|&k| p[k] = 0.0);
+    if let Some(tau) = torques {
+        for (s, &i) in samples.iter().enumerate() {
+            for j in 0..n {
+                rhs[s * n + j] = tau[i * n + j];
+            }
+        }
+    }
     // q'' at each sample, by central differences of the measured q'.
     let xdd: Vec<[f64; MAX_JOINTS]> = samples
         .iter()
@@ -662,10 +718,12 @@ pub fn least_squares_start(
         fill(&mut p, k, &mut column);
         a.set_column(c, &column);
     }
-    for j in 0..n {
-        // k_p,j = 1 moves to the right-hand side.
-        fill(&mut p, kp(j), &mut column);
-        rhs -= &column;
+    if torques.is_none() {
+        for j in 0..n {
+            // k_p,j = 1 moves to the right-hand side.
+            fill(&mut p, kp(j), &mut column);
+            rhs -= &column;
+        }
     }
     let norms: Vec<f64> = (0..cols.len() + nuis)
         .map(|c| a.column(c).norm().max(1e-300))
@@ -708,14 +766,18 @@ pub fn least_squares_start(
         for (c, &k) in cols.iter().enumerate() {
             p[k] = w[c] / norms[c];
         }
-        for j in 0..n {
-            p[kp(j)] = 1.0;
+        if torques.is_none() {
+            for j in 0..n {
+                p[kp(j)] = 1.0;
+            }
+        } else {
+            p[g..g + 2 * n].copy_from_slice(&p0[g..g + 2 * n]);
         }
-        let Some(p) = scale_joints(layout, p, probes, bounds) else {
+        let Some(p) = finish(p) else {
             continue;
         };
         let net = Network::new(layout.clone(), p);
-        if net.min_eig(probes.iter().map(|q| q.as_slice())) >= 0.5 * bounds.m1 {
+        if net.min_eig(probes.iter().map(|q| q.as_slice())) >= 0.5 * m1 {
             return Some(net.params().to_vec());
         }
     }

@@ -7,6 +7,7 @@
 //! - `data`: reference and output data from a run's `run.csv`, never the torques.
 //! - `identify`: the RKGNN (Runge-Kutta-Gill around N_f, `plant::gill`) fitted by eq. 13.
 //! - `model`: the identified model's file (`MODEL.json`).
+//! - `live`: identification alongside operation (`optimiser.mode = "identify"`).
 //! - `study`: Section 5 on any 3-joint arm (`evoloop rkgnn study`, Figs. 7-10).
 //!
 //! The controller that uses the models is `control::fuzzy_computed_torque`, the selection rule
@@ -15,6 +16,7 @@
 pub mod data;
 pub mod ea;
 pub mod identify;
+pub mod live;
 pub mod model;
 pub mod network;
 pub mod study;

@@ -276,6 +276,12 @@ impl Network {
         &self.params
     }
 
+    /// Replace the parameters (same layout, `p.len() == layout.len`) without allocating.
+    pub fn set_params(&mut self, p: &[f64]) {
+        self.params.copy_from_slice(p);
+        self.zero = servo_zero(&self.layout, &self.params);
+    }
+
     pub fn dof(&self) -> usize {
         self.layout.n
     }

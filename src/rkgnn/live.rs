@@ -1,0 +1,263 @@
+//! `optimiser.mode = "identify"`: the indirect scheme for arms. While a fuzzy computed-torque
+//! controller runs the arm, the optimiser process records the reference, the output and the
+//! torque the loop applied (the controller's own command: known, not measured at the joints),
+//! and every `identify_every` seconds identifies a model on the latest `identify_window`
+//! seconds:
+//!
+//! - the slot it may replace is the model the selector chose most often over the window;
+//! - under computed torque the "servo" is the controller's law, so the fit is the least
+//!   squares of M-hat q'' + V-hat + G-hat = tau on the window
+//!   (`identify::least_squares_with_torques`), started from the slot's model;
+//! - both models, the candidate and the slot's model in service, predict q'' = M-hat^-1 (tau -
+//!   V-hat - G-hat) (N_f's output) on the `identify_fresh` seconds after the window, data the
+//!   fit has not seen; the candidate is published (kind `KIND_RKGNN_MODEL`, values [slot,
+//!   parameters]) only if its RMS error there is below the in-service model's by `margin`.
+//!
+//! The controller checks it again (finite, M-hat positive definite on the slot's probes and at
+//! least `MIN_EIG_RATIO` of the model it replaces) before it uses it. In lockstep the attempts
+//! are at fixed simulated times, so a seeded run is reproducible.
+
+use crate::control::fuzzy_computed_torque::{premise_distances, MIN_EIG_RATIO};
+use crate::control::fuzzy_select;
+use crate::indirect::EpochRecord;
+use crate::msg::{ParamSet, PlantState, KIND_RKGNN_MODEL};
+use crate::reference::{Reference, Setpoint};
+use crate::rkgnn::identify::least_squares_with_torques;
+use crate::rkgnn::network::{self, Mat};
+use crate::rkgnn::{RkgnnModel, Trajectory};
+use crate::MAX_JOINTS;
+use std::collections::VecDeque;
+
+/// Samples between the rows the fit and the comparison use (the identification's step).
+const STRIDE: usize = 5;
+/// Probe positions over the window for the candidate's M-hat.
+const PROBES: usize = 24;
+
+/// One recorded sample: time, reference [theta_d; theta_d'], output [theta; theta'] and the
+/// torque applied from this sample to the next.
+#[derive(Clone, Copy)]
+struct Sample {
+    t: f64,
+    r: [f64; 2 * MAX_JOINTS],
+    x: [f64; 2 * MAX_JOINTS],
+    u: [f64; MAX_JOINTS],
+}
+
+pub struct LiveIdentify {
+    n: usize,
+    /// The models in service, as this optimiser last published them.
+    models: Vec<RkgnnModel>,
+    l: Vec<f64>,
+    gamma: f64,
+    reference: Reference,
+    window: usize,
+    fresh: usize,
+    every: f64,
+    margin: f64,
+    next_t: f64,
+    buf: VecDeque<Sample>,
+    prev: Option<PlantState>,
+    version: u64,
+    pub epochs: Vec<EpochRecord>,
+}
+
+impl LiveIdentify {
+    pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
+        let crate::control::ControllerModel::FuzzyComputedTorque(f) = &scn.controller.model else {
+            return Err(
+                "optimiser.mode = \"identify\" identifies models for a fuzzy_computed_torque \
+                 controller (controller.kind)"
+                    .into(),
+            );
+        };
+        let o = &scn.optimiser;
+        let samples = |s: f64| (s / scn.timing.period).round() as usize;
+        Ok(Self {
+            n: f.loaded[0].dof(),
+            l: premise_distances(&f.loaded),
+            models: f.loaded.clone(),
+            gamma: f.gamma,
+            reference: scn.reference.clone(),
+            window: samples(o.identify_window),
+            fresh: samples(o.identify_fresh),
+            every: o.identify_every,
+            margin: o.margin,
+            next_t: 0.0,
+            buf: VecDeque::new(),
+            prev: None,
+            version: 0,
+            epochs: Vec::new(),
+        })
+    }
+
+    /// Continue after a restart: `version` was the last set published, `values` its values
+    /// ([slot, parameters]), which the slot then holds.
+    pub fn resume(&mut self, version: u64, values: &[f64]) {
+        self.version = version;
+        if let Some((&slot, p)) = values.split_first() {
+            let slot = slot as usize;
+            if slot < self.models.len() && p.len() == self.models[slot].net.layout.len {
+                self.models[slot].net.set_params(p);
+            }
+        }
+    }
+
+    /// Feed one state sample. A gap in the sequence restarts the record (differences across it
+    /// would be wrong).
+    pub fn observe(&mut self, s: &PlantState) {
+        let n = self.n;
+        match self.prev.filter(|p| s.seq == p.seq + 1) {
+            Some(p) => {
+                let mut sp = Setpoint::default();
+                self.reference.sample(p.t, &mut sp);
+                let mut rec = Sample {
+                    t: p.t,
+                    r: [0.0; 2 * MAX_JOINTS],
+                    x: [0.0; 2 * MAX_JOINTS],
+                    u: [0.0; MAX_JOINTS],
+                };
+                rec.r[..n].copy_from_slice(&sp.q[..n]);
+                rec.r[n..2 * n].copy_from_slice(&sp.qd[..n]);
+                rec.x[..n].copy_from_slice(&p.y[..n]);
+                rec.x[n..2 * n].copy_from_slice(&p.qd_true[..n]);
+                rec.u[..n].copy_from_slice(&s.u_applied[..n]);
+                self.buf.push_back(rec);
+                while self.buf.len() > self.window + self.fresh {
+                    self.buf.pop_front();
+                }
+            }
+            None => self.buf.clear(),
+        }
+        self.prev = Some(*s);
+    }
+
+    /// `samples` as identification data and their torques.
+    fn data(&self, samples: impl Iterator<Item = Sample>) -> (Trajectory, Vec<f64>) {
+        let n = self.n;
+        let mut d = Trajectory {
+            n,
+            h: 0.0,
+            r: Vec::new(),
+            x: Vec::new(),
+        };
+        let mut tau = Vec::new();
+        let mut times = Vec::new();
+        for s in samples {
+            d.r.extend_from_slice(&s.r[..2 * n]);
+            d.x.extend_from_slice(&s.x[..2 * n]);
+            tau.extend_from_slice(&s.u[..n]);
+            times.push(s.t);
+        }
+        d.h = times.get(1).zip(times.first()).map_or(0.0, |(b, a)| b - a);
+        (d, tau)
+    }
+
+    /// The model the selector chose most often over `d`, whose first sample is at `t0`.
+    fn busiest_slot(&self, d: &Trajectory, t0: f64) -> usize {
+        let q = self.models.len();
+        let mut count = vec![0usize; q];
+        let mut w = vec![0.0; q];
+        for i in (0..d.len()).step_by(STRIDE) {
+            let t = t0 + i as f64 * d.h;
+            let centres: Vec<&[f64]> = self.models.iter().map(|m| m.premise_at(t)).collect();
+            fuzzy_select::weights(&centres, d.r_at(i), &self.l, self.gamma, &mut w);
+            count[fuzzy_select::largest(&w)] += 1;
+        }
+        fuzzy_select::largest(&count.iter().map(|&c| c as f64).collect::<Vec<_>>())
+    }
+
+    /// One attempt if one is due at `t`: a model set to publish when the candidate predicts the
+    /// fresh data better than the model in service.
+    pub fn attempt(&mut self, t: f64, apply_at_seq: u64) -> Option<ParamSet> {
+        if t < self.next_t || self.buf.len() < self.window + self.fresh {
+            return None;
+        }
+        self.next_t = t + self.every;
+        let n = self.n;
+        let (train, tau) = self.data(self.buf.iter().take(self.window).copied());
+        let (fresh, fresh_tau) = self.data(self.buf.iter().skip(self.window).copied());
+        let t0 = self.buf.front().map_or(0.0, |s| s.t);
+        let slot = self.busiest_slot(&train, t0);
+        let probes: Vec<Vec<f64>> = (0..PROBES)
+            .map(|k| train.x_at(k * train.len() / PROBES)[..n].to_vec())
+            .collect();
+        let in_service = &self.models[slot].net;
+        let floor = MIN_EIG_RATIO * in_service.min_eig(probes.iter().map(Vec::as_slice));
+        let layout = &in_service.layout;
+        let candidate = least_squares_with_torques(
+            layout,
+            in_service.params(),
+            &train,
+            &tau,
+            STRIDE,
+            &probes,
+            floor,
+        );
+        let in_err = prediction_rms(layout, in_service.params(), &fresh, &fresh_tau);
+        let cand_err = candidate.as_deref().map_or(f64::INFINITY, |p| {
+            prediction_rms(layout, p, &fresh, &fresh_tau)
+        });
+        let better = cand_err < in_err * (1.0 - self.margin);
+        let mut rec = EpochRecord {
+            t,
+            model_value: slot as f64,
+            best_cost: cand_err,
+            in_service_cost: in_err,
+            published: None,
+        };
+        let out = match candidate {
+            Some(p) if better && p.len() < crate::MAX_PARAMS => {
+                self.version += 1;
+                rec.published = Some(self.version);
+                self.models[slot].net.set_params(&p);
+                let mut set = ParamSet {
+                    version: self.version,
+                    apply_at_seq,
+                    expected_cost: cand_err,
+                    kind: KIND_RKGNN_MODEL,
+                    n: 1 + p.len() as u32,
+                    ..Default::default()
+                };
+                set.values[0] = slot as f64;
+                set.values[1..=p.len()].copy_from_slice(&p);
+                Some(set)
+            }
+            _ => None,
+        };
+        self.epochs.push(rec);
+        out
+    }
+}
+
+/// RMS over joints and samples (every STRIDE-th) of q'' (central differences of the measured
+/// q') minus N_f's M-hat^-1 (tau - V-hat - G-hat): how well a model predicts the arm's motion
+/// from the torque applied. Infinite where M-hat is singular.
+pub fn prediction_rms(layout: &network::Layout, p: &[f64], d: &Trajectory, tau: &[f64]) -> f64 {
+    let n = d.n;
+    let (mut sum, mut count) = (0.0, 0usize);
+    let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+    let (mut v, mut g) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+    for i in (1..d.len().saturating_sub(1)).step_by(STRIDE) {
+        let x = d.x_at(i);
+        let (q, qd) = (&x[..n], &x[n..2 * n]);
+        network::inertia(layout, p, q, &mut m);
+        network::velocity(layout, p, q, qd, &mut v[..n]);
+        layout.gravity.eval(p, q, &mut g[..n]);
+        let mut a = [0.0; MAX_JOINTS];
+        for j in 0..n {
+            a[j] = tau[i * n + j] - v[j] - g[j];
+        }
+        if !network::solve(n, &mut m, &mut a[..n]) {
+            return f64::INFINITY;
+        }
+        for (j, aj) in a[..n].iter().enumerate() {
+            let qdd = (d.x_at(i + 1)[n + j] - d.x_at(i - 1)[n + j]) / (2.0 * d.h);
+            sum += (qdd - aj).powi(2);
+            count += 1;
+        }
+    }
+    if count == 0 {
+        return f64::INFINITY;
+    }
+    (sum / count as f64).sqrt()
+}
