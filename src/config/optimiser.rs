@@ -164,8 +164,18 @@ pub fn validate(
             format!("must be 1..=64 (got {threads})"),
         );
     }
+    let mode = ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off);
+    // The identification needs enough samples per window for its differences and fit; the
+    // lower limits are in control periods and apply only when it runs.
+    let periods = |k: f64| {
+        if mode == OptimiserMode::Identify {
+            k * timing.period
+        } else {
+            0.0
+        }
+    };
     Ok(OptimiserSpec {
-        mode: ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off),
+        mode,
         sync_period,
         nice,
         schedule,
@@ -187,19 +197,19 @@ pub fn validate(
         identify_window: check.range(
             "optimiser.identify_window",
             o.identify_window.unwrap_or(4.0),
-            50.0 * timing.period,
+            periods(50.0),
             600.0,
         )?,
         identify_fresh: check.range(
             "optimiser.identify_fresh",
             o.identify_fresh.unwrap_or(1.0),
-            20.0 * timing.period,
+            periods(20.0),
             600.0,
         )?,
         identify_every: check.range(
             "optimiser.identify_every",
             o.identify_every.unwrap_or(2.0),
-            timing.period,
+            periods(1.0),
             1e6,
         )?,
     })
