@@ -517,19 +517,25 @@ fn rkgnn_study_works_on_a_ros_style_urdf_arm_it_was_not_tuned_on() {
     }
 }
 
-#[test]
-fn rkgnn_study_refuses_an_arm_that_is_not_three_joints() {
+/// `evoloop rkgnn study` on `robot`, which must refuse it with exit code 2: its stderr.
+fn study_refused(robot: &str) -> String {
     let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
     let o = cli(&[
         "rkgnn",
         "study",
         "--out",
-        tmp.path().to_str().unwrap(),
+        out.to_str().unwrap(),
         "--robot",
-        "config/robots/industrial6.toml",
+        robot,
     ]);
     assert_eq!(o.status.code(), Some(2));
-    let e = String::from_utf8_lossy(&o.stderr);
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn rkgnn_study_refuses_an_arm_that_is_not_three_joints() {
+    let e = study_refused("config/robots/industrial6.toml");
     assert!(
         e.contains("industrial6.toml") && e.contains("3-joint"),
         "{e}"
@@ -546,16 +552,7 @@ fn rkgnn_study_refuses_an_arm_whose_joint_limits_the_trajectories_leave() {
     .replace(r#"lower="-2.9" upper="2.9""#, r#"lower="-1.5" upper="1.5""#);
     let robot = tmp.path().join("narrow.urdf");
     std::fs::write(&robot, text).unwrap();
-    let o = cli(&[
-        "rkgnn",
-        "study",
-        "--out",
-        tmp.path().join("out").to_str().unwrap(),
-        "--robot",
-        robot.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(2));
-    let e = String::from_utf8_lossy(&o.stderr);
+    let e = study_refused(robot.to_str().unwrap());
     assert!(
         e.contains("narrow.urdf") && e.contains("forearm_joint"),
         "{e}"

@@ -199,7 +199,7 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     if a.bounds == BoundsKind::Paper {
         s.lambda[3] = 0.0;
     }
-    let bar = progress_bar(a.evaluations as u64, a.quiet || a.json);
+    let bar = progress_bar(a.evaluations as u64, "evaluations", a.quiet || a.json);
     let model = identify::identify_model(
         &data,
         &arm,
@@ -246,17 +246,17 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// A progress bar on stderr with elapsed time, ETA and the message; hidden when `hidden` or when
-/// stderr is not a terminal (indicatif draws nothing there).
-pub fn progress_bar(len: u64, hidden: bool) -> indicatif::ProgressBar {
+/// A progress bar on stderr counting `unit`s with elapsed time, ETA and the message; hidden when
+/// `hidden` or when stderr is not a terminal (indicatif draws nothing there).
+pub fn progress_bar(len: u64, unit: &str, hidden: bool) -> indicatif::ProgressBar {
     if hidden {
         return indicatif::ProgressBar::hidden();
     }
     let bar = indicatif::ProgressBar::new(len);
     bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {pos}/{len} evaluations, ETA {eta} {msg}",
-        )
+        indicatif::ProgressStyle::with_template(&format!(
+            "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {unit}, ETA {{eta}} {{msg}}"
+        ))
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
         .progress_chars("=> "),
     );
@@ -325,19 +325,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
             .threads
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
     };
-    let bar = if a.quiet || a.json {
-        indicatif::ProgressBar::hidden()
-    } else {
-        let bar = indicatif::ProgressBar::new(0);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:30}] {pos}/{len} stages, ETA {eta} {msg}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-        );
-        bar
-    };
+    let bar = progress_bar(0, "stages", a.quiet || a.json);
     let r = study::run(&settings, &a.out, &|done, total, stage| {
         bar.set_length(total);
         bar.set_position(done);

@@ -185,17 +185,8 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let plant = PlantSpec::validate(raw.plant, check, timing.period, &reference)?;
     let controller = ControllerSpec::validate(raw.controller, check, &plant.model)?;
     let optimiser = optimiser::validate(raw.optimiser, check, &timing, ov)?;
-    if optimiser.mode == OptimiserMode::Identify
-        && !matches!(
-            controller.model,
-            crate::control::ControllerModel::FuzzyComputedTorque(_)
-        )
-    {
-        return check.fail(
-            "optimiser.mode",
-            "\"identify\" identifies models for a fuzzy_computed_torque controller \
-             (controller.kind = \"fuzzy_computed_torque\")",
-        );
+    if optimiser.mode == OptimiserMode::Identify {
+        identify_mode_fits(check, &controller)?;
     }
     let out_raw = raw.output.unwrap_or(RawOutput {
         dir: None,
@@ -221,4 +212,30 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
         output,
         warnings: check.take_warnings(),
     })
+}
+
+/// `optimiser.mode = "identify"` replaces models of a fuzzy computed-torque controller, each sent
+/// as one parameter set [slot, parameters].
+fn identify_mode_fits(check: &Check, controller: &ControllerSpec) -> Result<(), ConfigError> {
+    let crate::control::ControllerModel::FuzzyComputedTorque(f) = &controller.model else {
+        return check.fail(
+            "optimiser.mode",
+            "\"identify\" identifies models for a fuzzy_computed_torque controller \
+             (controller.kind = \"fuzzy_computed_torque\")",
+        );
+    };
+    for (i, m) in f.loaded.iter().enumerate() {
+        if 1 + m.net.layout.len > crate::MAX_PARAMS {
+            return check.fail(
+                &format!("controller.fuzzy_computed_torque.models[{i}]"),
+                format!(
+                    "a model of {} parameters does not fit a parameter set of {} values, which \
+                     optimiser.mode = \"identify\" sends it in",
+                    m.net.layout.len,
+                    crate::MAX_PARAMS
+                ),
+            );
+        }
+    }
+    Ok(())
 }

@@ -36,9 +36,20 @@ pub struct ControlCycle {
     /// Linear plants: new gains must stabilise this model to be accepted.
     stability: Option<LinearModel>,
     cycle: u64,
-    /// How many of the law's own values telemetry carries (all of them, or 0 when they do not
-    /// fit).
+    /// How many values the law logs (`Controller::log_columns`); telemetry carries them all.
     n_law: usize,
+}
+
+/// The number of the law's own values, which telemetry carries (at most `MAX_LAW_VALUES`: a
+/// law's contract, checked once here).
+fn law_columns(c: &dyn Controller) -> usize {
+    let n = c.log_columns().len();
+    assert!(
+        n <= crate::msg::MAX_LAW_VALUES,
+        "a control law logs {n} values, telemetry carries {}",
+        crate::msg::MAX_LAW_VALUES
+    );
+    n
 }
 
 impl ControlCycle {
@@ -53,9 +64,7 @@ impl ControlCycle {
             setpoint: Setpoint::default(),
             stability: None,
             cycle: 0,
-            n_law: Some(controller.log_columns().len())
-                .filter(|&n| n <= crate::msg::MAX_LAW_VALUES)
-                .unwrap_or(0),
+            n_law: law_columns(controller.as_ref()),
             controller,
         }
     }
@@ -93,34 +102,12 @@ impl ControlCycle {
             .position(|p| p.apply_at_seq <= state.seq)
         {
             let set = self.pending.remove(i);
-            let c = self.controller.as_ref();
-            let (code, index) = if c.model_kind() == Some(set.kind) {
-                match validate_model(&set, self.version) {
-                    Ok(()) => match self.controller.swap_model(set.values()) {
-                        Ok(()) => {
-                            self.version = set.version;
-                            (ParamCode::Accepted, 0)
-                        }
-                        Err(refusal) => refusal,
-                    },
-                    Err(rej) => (rej.code, rej.index),
+            let (code, index) = match self.apply(&set, state, &sp) {
+                Ok(()) => {
+                    self.version = set.version;
+                    (ParamCode::Accepted, 0)
                 }
-            } else {
-                match validate_params(&set, c.kind(), c.n_params(), self.version, &self.bounds) {
-                    Ok(())
-                        if self
-                            .stability
-                            .is_some_and(|m| !m.stabilised_by(set.values())) =>
-                    {
-                        (ParamCode::RejectedUnstable, 0)
-                    }
-                    Ok(()) => {
-                        self.controller.swap_params(set.values(), state, &sp);
-                        self.version = set.version;
-                        (ParamCode::Accepted, 0)
-                    }
-                    Err(rej) => (rej.code, rej.index),
-                }
+                Err(refusal) => refusal,
             };
             event = Some(ParamEvent {
                 cycle: self.cycle,
@@ -141,7 +128,6 @@ impl ControlCycle {
         tel.u = self.u;
         tel.param_version = self.version;
         tel.n_law = self.n_law as u32;
-        // Laws with more columns than telemetry has room for send none.
         self.controller.log_values(&mut tel.law[..self.n_law]);
         match event {
             Some(e) => {
@@ -157,5 +143,32 @@ impl ControlCycle {
         }
         self.cycle += 1;
         event
+    }
+
+    /// Check a due set and put it in service: a model set (the law's `model_kind`) through the
+    /// common checks and the law's own, a gain set through kind, length, bounds and, for linear
+    /// plants, stability. The refusal's code and offending index otherwise.
+    fn apply(
+        &mut self,
+        set: &ParamSet,
+        state: &PlantState,
+        sp: &Setpoint,
+    ) -> Result<(), (ParamCode, u32)> {
+        let c = self.controller.as_ref();
+        let refused = |r: super::Rejection| (r.code, r.index);
+        if c.model_kind() == Some(set.kind) {
+            validate_model(set, self.version).map_err(refused)?;
+            return self.controller.swap_model(set.values());
+        }
+        validate_params(set, c.kind(), c.n_params(), self.version, &self.bounds)
+            .map_err(refused)?;
+        if self
+            .stability
+            .is_some_and(|m| !m.stabilised_by(set.values()))
+        {
+            return Err((ParamCode::RejectedUnstable, 0));
+        }
+        self.controller.swap_params(set.values(), state, sp);
+        Ok(())
     }
 }

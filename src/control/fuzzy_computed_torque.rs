@@ -57,16 +57,21 @@ const PROBES: usize = 24;
 /// an unconstrained fit can produce off its data) makes computed torque blow up.
 pub const MIN_EIG_RATIO: f64 = 0.1;
 
-/// Smallest eigenvalue of M-hat with parameters `p` over the flat probe positions.
-fn probe_min_eig(layout: &crate::rkgnn::Layout, p: &[f64], probes: &[f64]) -> f64 {
-    let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-    probes
-        .chunks(layout.n)
-        .map(|q| {
-            crate::rkgnn::network::inertia(layout, p, q, &mut m);
-            crate::rkgnn::network::sym_eig_range(layout.n, &m).0
-        })
-        .fold(f64::INFINITY, f64::min)
+/// Eq. 20's weight of each model (into `w`) for the premise z_r = [theta_d; theta_d'] at time
+/// `t`: each model's premise centre is its identification reference at `t`. Allocation-free.
+pub fn model_weights(
+    models: &[RkgnnModel],
+    t: f64,
+    z_r: &[f64],
+    l: &[f64],
+    gamma: f64,
+    w: &mut [f64],
+) {
+    let mut centres: [&[f64]; MAX_MODELS] = [&[]; MAX_MODELS];
+    for (c, m) in centres.iter_mut().zip(models) {
+        *c = m.premise_at(t);
+    }
+    fuzzy_select::weights(&centres[..models.len()], z_r, l, gamma, w);
 }
 
 /// L_j of the models' premises (see the module docs).
@@ -109,17 +114,16 @@ impl FuzzyComputedTorque {
             .iter()
             .map(|m| {
                 let rows = m.premise_len().max(1);
-                (0..PROBES)
-                    .flat_map(|k| {
-                        let r = &m.premise[2 * n * (k * rows / PROBES)..];
-                        r[..n].to_vec()
-                    })
-                    .collect()
+                let mut p = Vec::with_capacity(PROBES * n);
+                for k in 0..PROBES {
+                    p.extend_from_slice(&m.premise[2 * n * (k * rows / PROBES)..][..n]);
+                }
+                p
             })
             .collect();
         let mut min_eig = [0.0; MAX_MODELS];
         for ((e, m), p) in min_eig.iter_mut().zip(&models).zip(&probes) {
-            *e = probe_min_eig(&m.net.layout, m.net.params(), p);
+            *e = m.net.min_eig(p.chunks(n));
         }
         Self {
             l: premise_distances(&models),
@@ -169,12 +173,9 @@ impl Controller for FuzzyComputedTorque {
         let mut z_r = [0.0; 2 * MAX_JOINTS];
         z_r[..n].copy_from_slice(&sp.q[..n]);
         z_r[n..2 * n].copy_from_slice(&sp.qd[..n]);
-        let mut centres: [&[f64]; MAX_MODELS] = [&[]; MAX_MODELS];
-        for (c, m) in centres.iter_mut().zip(&self.models) {
-            *c = m.premise_at(state.t);
-        }
-        fuzzy_select::weights(
-            &centres[..q_count],
+        model_weights(
+            &self.models,
+            state.t,
             &z_r[..2 * n],
             &self.l,
             self.gamma,
@@ -230,7 +231,7 @@ impl Controller for FuzzyComputedTorque {
         if p.len() != layout.len {
             return Err((ParamCode::RejectedWrongLength, values.len() as u32));
         }
-        let e = probe_min_eig(layout, p, &self.probes[slot]);
+        let e = crate::rkgnn::network::min_eig(layout, p, self.probes[slot].chunks(layout.n));
         if !(e > 0.0 && e >= MIN_EIG_RATIO * self.min_eig[slot]) {
             return Err((ParamCode::RejectedNotPositiveDefinite, 0));
         }

@@ -51,7 +51,7 @@ pub fn weights(centres: &[&[f64]], z_r: &[f64], l: &[f64], gamma: f64, w: &mut [
 }
 
 /// The index of the largest weight (the first of equals).
-pub fn largest(w: &[f64]) -> usize {
+pub fn largest<T: PartialOrd>(w: &[T]) -> usize {
     w.iter()
         .enumerate()
         .fold(0, |b, (i, v)| if *v > w[b] { i } else { b })

@@ -139,7 +139,7 @@ pub trait Controller: Send {
         Err((crate::msg::ParamCode::RejectedWrongKind, 0))
     }
     /// Names of the law's own run.csv columns (diagnostics such as an active model), asked once
-    /// before the run.
+    /// before the run; at most `msg::MAX_LAW_VALUES`, since telemetry carries their values.
     fn log_columns(&self) -> Vec<String> {
         Vec::new()
     }

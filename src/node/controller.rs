@@ -182,7 +182,7 @@ impl Loop {
             j += 1;
         }
         j += self.n_vel;
-        self.cycle.controller.log_values(&mut r[j..j + self.n_law]);
+        r[j..j + self.n_law].copy_from_slice(&tel.law[..self.n_law]);
         self.log.push(&self.row);
         Ok(())
     }

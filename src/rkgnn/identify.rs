@@ -609,9 +609,8 @@ pub fn least_squares_start(
     probes: &[Vec<f64>],
     bounds: &InertiaBounds,
 ) -> Option<Vec<f64>> {
-    least_squares(layout, p0, data, None, stride, probes, bounds.m1, |p| {
-        scale_joints(layout, p, probes, bounds)
-    })
+    let target = Target::ServoUnits(bounds);
+    least_squares(layout, p0, data, target, stride, probes, 0.5 * bounds.m1)
 }
 
 /// The same fit when the loop's joint torques are known (`torques`, n per sample of `data`):
@@ -629,35 +628,39 @@ pub fn least_squares_with_torques(
     min_eig: f64,
 ) -> Option<Vec<f64>> {
     assert_eq!(torques.len(), data.len() * data.n);
-    least_squares(
-        layout,
-        p0,
-        data,
-        Some(torques),
-        stride,
-        probes,
-        2.0 * min_eig,
-        Some,
-    )
+    let target = Target::Torques(torques);
+    least_squares(layout, p0, data, target, stride, probes, min_eig)
 }
 
-/// The least-squares fits' common part: in k_p units (`torques` None; `finish` then scales the
-/// joints) or on known torques. `m1`: M-hat's smallest eigenvalue over the probes must reach
-/// m1 / 2.
-#[allow(clippy::too_many_arguments)]
+/// What the least squares fit the dynamics to.
+#[derive(Clone, Copy)]
+enum Target<'a> {
+    /// The servo's torque in each joint's k_p units (torque-free data is homogeneous): k_p = 1
+    /// moves to the right-hand side, and the solution is then scaled to the joints' M_jj
+    /// bounds (`scale_joints`).
+    ServoUnits(&'a InertiaBounds),
+    /// Known joint torques, n per sample of the data; the servo stays out of the fit.
+    Torques(&'a [f64]),
+}
+
+/// The least-squares fits' common part. M-hat's smallest eigenvalue over the probes must reach
+/// `floor`.
 fn least_squares(
     layout: &Layout,
     p0: &[f64],
     data: &Trajectory,
-    torques: Option<&[f64]>,
+    target: Target,
     stride: usize,
     probes: &[Vec<f64>],
-    m1: f64,
-    finish: impl Fn(Vec<f64>) -> Option<Vec<f64>>,
+    floor: f64,
 ) -> Option<Vec<f64>> {
     let n = layout.n;
     let g = layout.gains?;
     let kp = |j: usize| g + 2 * j;
+    let torques = match target {
+        Target::Torques(t) => Some(t),
+        Target::ServoUnits(_) => None,
+    };
     // In k_p units the k_p columns are the right-hand side; with torques every servo weight
     // stays out of the fit.
     let servo = |k: usize| (0..n).any(|j| k == kp(j) || (torques.is_some() && k == kp(j) + 1));
@@ -766,19 +769,23 @@ fn least_squares(
         for (c, &k) in cols.iter().enumerate() {
             p[k] = w[c] / norms[c];
         }
-        if torques.is_none() {
-            for j in 0..n {
-                p[kp(j)] = 1.0;
+        let p = match target {
+            Target::ServoUnits(bounds) => {
+                for j in 0..n {
+                    p[kp(j)] = 1.0;
+                }
+                let Some(p) = scale_joints(layout, p, probes, bounds) else {
+                    continue;
+                };
+                p
             }
-        } else {
-            p[g..g + 2 * n].copy_from_slice(&p0[g..g + 2 * n]);
-        }
-        let Some(p) = finish(p) else {
-            continue;
+            Target::Torques(_) => {
+                p[g..g + 2 * n].copy_from_slice(&p0[g..g + 2 * n]);
+                p
+            }
         };
-        let net = Network::new(layout.clone(), p);
-        if net.min_eig(probes.iter().map(|q| q.as_slice())) >= 0.5 * m1 {
-            return Some(net.params().to_vec());
+        if network::min_eig(layout, &p, probes.iter().map(Vec::as_slice)) >= floor {
+            return Some(p);
         }
     }
     None

@@ -17,13 +17,13 @@
 //! least `MIN_EIG_RATIO` of the model it replaces) before it uses it. In lockstep the attempts
 //! are at fixed simulated times, so a seeded run is reproducible.
 
-use crate::control::fuzzy_computed_torque::{premise_distances, MIN_EIG_RATIO};
+use crate::control::fuzzy_computed_torque::{model_weights, premise_distances, MIN_EIG_RATIO};
 use crate::control::fuzzy_select;
 use crate::indirect::EpochRecord;
 use crate::msg::{ParamSet, PlantState, KIND_RKGNN_MODEL};
 use crate::reference::{Reference, Setpoint};
 use crate::rkgnn::identify::least_squares_with_torques;
-use crate::rkgnn::network::{self, Mat};
+use crate::rkgnn::network;
 use crate::rkgnn::{RkgnnModel, Trajectory};
 use crate::MAX_JOINTS;
 use std::collections::VecDeque;
@@ -50,6 +50,8 @@ pub struct LiveIdentify {
     l: Vec<f64>,
     gamma: f64,
     reference: Reference,
+    /// The control period: the samples' spacing.
+    dt: f64,
     window: usize,
     fresh: usize,
     every: f64,
@@ -63,11 +65,11 @@ pub struct LiveIdentify {
 
 impl LiveIdentify {
     pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
+        // The scenario's validation refuses identify mode for other controllers and for models
+        // too large for one parameter set.
         let crate::control::ControllerModel::FuzzyComputedTorque(f) = &scn.controller.model else {
             return Err(
-                "optimiser.mode = \"identify\" identifies models for a fuzzy_computed_torque \
-                 controller (controller.kind)"
-                    .into(),
+                "optimiser.mode = \"identify\" needs a fuzzy_computed_torque controller".into(),
             );
         };
         let o = &scn.optimiser;
@@ -78,6 +80,7 @@ impl LiveIdentify {
             models: f.loaded.clone(),
             gamma: f.gamma,
             reference: scn.reference.clone(),
+            dt: scn.timing.period,
             window: samples(o.identify_window),
             fresh: samples(o.identify_fresh),
             every: o.identify_every,
@@ -136,19 +139,16 @@ impl LiveIdentify {
         let n = self.n;
         let mut d = Trajectory {
             n,
-            h: 0.0,
+            h: self.dt,
             r: Vec::new(),
             x: Vec::new(),
         };
         let mut tau = Vec::new();
-        let mut times = Vec::new();
         for s in samples {
             d.r.extend_from_slice(&s.r[..2 * n]);
             d.x.extend_from_slice(&s.x[..2 * n]);
             tau.extend_from_slice(&s.u[..n]);
-            times.push(s.t);
         }
-        d.h = times.get(1).zip(times.first()).map_or(0.0, |(b, a)| b - a);
         (d, tau)
     }
 
@@ -159,11 +159,10 @@ impl LiveIdentify {
         let mut w = vec![0.0; q];
         for i in (0..d.len()).step_by(STRIDE) {
             let t = t0 + i as f64 * d.h;
-            let centres: Vec<&[f64]> = self.models.iter().map(|m| m.premise_at(t)).collect();
-            fuzzy_select::weights(&centres, d.r_at(i), &self.l, self.gamma, &mut w);
+            model_weights(&self.models, t, d.r_at(i), &self.l, self.gamma, &mut w);
             count[fuzzy_select::largest(&w)] += 1;
         }
-        fuzzy_select::largest(&count.iter().map(|&c| c as f64).collect::<Vec<_>>())
+        fuzzy_select::largest(&count)
     }
 
     /// One attempt if one is due at `t`: a model set to publish when the candidate predicts the
@@ -206,7 +205,7 @@ impl LiveIdentify {
             published: None,
         };
         let out = match candidate {
-            Some(p) if better && p.len() < crate::MAX_PARAMS => {
+            Some(p) if better => {
                 self.version += 1;
                 rec.published = Some(self.version);
                 self.models[slot].net.set_params(&p);
@@ -235,19 +234,10 @@ impl LiveIdentify {
 pub fn prediction_rms(layout: &network::Layout, p: &[f64], d: &Trajectory, tau: &[f64]) -> f64 {
     let n = d.n;
     let (mut sum, mut count) = (0.0, 0usize);
-    let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-    let (mut v, mut g) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
     for i in (1..d.len().saturating_sub(1)).step_by(STRIDE) {
-        let x = d.x_at(i);
-        let (q, qd) = (&x[..n], &x[n..2 * n]);
-        network::inertia(layout, p, q, &mut m);
-        network::velocity(layout, p, q, qd, &mut v[..n]);
-        layout.gravity.eval(p, q, &mut g[..n]);
         let mut a = [0.0; MAX_JOINTS];
-        for j in 0..n {
-            a[j] = tau[i * n + j] - v[j] - g[j];
-        }
-        if !network::solve(n, &mut m, &mut a[..n]) {
+        a[..n].copy_from_slice(&tau[i * n..(i + 1) * n]);
+        if !network::acceleration(layout, p, d.x_at(i), &mut a[..n]) {
             return f64::INFINITY;
         }
         for (j, aj) in a[..n].iter().enumerate() {

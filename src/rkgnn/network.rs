@@ -303,12 +303,7 @@ impl Network {
 
     /// Smallest eigenvalue of M-hat over the positions `qs` (> 0: positive definite there).
     pub fn min_eig<'a>(&self, qs: impl Iterator<Item = &'a [f64]>) -> f64 {
-        let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-        qs.map(|q| {
-            self.inertia(q, &mut m);
-            sym_eig_range(self.dof(), &m).0
-        })
-        .fold(f64::INFINITY, f64::min)
+        min_eig(&self.layout, &self.params, qs)
     }
 
     /// The identified servo's torque for error e = theta_d - theta and e' = theta_d' - theta'.
@@ -321,6 +316,16 @@ impl Network {
     pub fn rate(&self, x: &[f64], r: &[f64], dx: &mut [f64]) -> bool {
         rate(&self.layout, &self.params, &self.zero, x, r, dx)
     }
+}
+
+/// Smallest eigenvalue of M-hat with parameters `p` over the positions `qs`. Allocation-free.
+pub fn min_eig<'a>(layout: &Layout, p: &[f64], qs: impl Iterator<Item = &'a [f64]>) -> f64 {
+    let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+    qs.map(|q| {
+        inertia(layout, p, q, &mut m);
+        sym_eig_range(layout.n, &m).0
+    })
+    .fold(f64::INFINITY, f64::min)
 }
 
 pub(crate) fn inertia(layout: &Layout, p: &[f64], theta: &[f64], m: &mut Mat) {
@@ -388,15 +393,26 @@ pub(crate) fn net_force(
     r: &[f64],
     f: &mut [f64],
 ) {
+    servo_torque(layout, p, zero, x, r, f);
+    subtract_velocity_and_gravity(layout, p, x, f);
+}
+
+/// The servo's torque at x = [theta; theta'] under reference r into `f`.
+fn servo_torque(layout: &Layout, p: &[f64], zero: &ServoZero, x: &[f64], r: &[f64], f: &mut [f64]) {
     let n = layout.n;
-    let (theta, qd) = x.split_at(n);
     let mut e = [0.0; MAX_JOINTS];
     let mut ed = [0.0; MAX_JOINTS];
     for j in 0..n {
-        e[j] = r[j] - theta[j];
-        ed[j] = r[n + j] - qd[j];
+        e[j] = r[j] - x[j];
+        ed[j] = r[n + j] - x[n + j];
     }
     torque(layout, p, zero, &e, &ed, f);
+}
+
+/// f <- f - V-hat(theta, theta') - G-hat(theta) at x = [theta; theta'].
+fn subtract_velocity_and_gravity(layout: &Layout, p: &[f64], x: &[f64], f: &mut [f64]) {
+    let n = layout.n;
+    let (theta, qd) = x.split_at(n);
     let mut v = [0.0; MAX_JOINTS];
     velocity(layout, p, theta, qd, &mut v);
     let mut g = [0.0; MAX_JOINTS];
@@ -404,6 +420,15 @@ pub(crate) fn net_force(
     for j in 0..n {
         f[j] -= v[j] + g[j];
     }
+}
+
+/// N_f's theta'' for a given joint torque: tau <- M-hat^-1 (tau - V-hat - G-hat) at x = [theta;
+/// theta'], in place. False (tau undefined) if M-hat is singular at theta.
+pub fn acceleration(layout: &Layout, p: &[f64], x: &[f64], tau: &mut [f64]) -> bool {
+    subtract_velocity_and_gravity(layout, p, x, tau);
+    let mut m = [0.0; MAX_JOINTS * MAX_JOINTS];
+    inertia(layout, p, &x[..layout.n], &mut m);
+    solve(layout.n, &mut m, tau)
 }
 
 /// N_f; `zero` = `servo_zero(layout, p)`.
@@ -416,13 +441,10 @@ pub(crate) fn rate(
     dx: &mut [f64],
 ) -> bool {
     let n = layout.n;
-    let (theta, qd) = x.split_at(n);
     let mut rhs = [0.0; MAX_JOINTS];
-    net_force(layout, p, zero, x, r, &mut rhs);
-    let mut m = [0.0; MAX_JOINTS * MAX_JOINTS];
-    inertia(layout, p, theta, &mut m);
-    dx[..n].copy_from_slice(qd);
-    solve(n, &mut m, &mut rhs) && {
+    servo_torque(layout, p, zero, x, r, &mut rhs);
+    dx[..n].copy_from_slice(&x[n..2 * n]);
+    acceleration(layout, p, x, &mut rhs[..n]) && {
         dx[n..2 * n].copy_from_slice(&rhs[..n]);
         true
     }

@@ -9,7 +9,7 @@
 //! `config/arm3_fuzzy_ct.toml`), compiled in, so the study on `config/robots/arm3.toml` is those
 //! scenarios and its models are the shipped models' recipe (`identify::Settings::least_squares`).
 //! On another arm only the robot changes, and the servo, which a vendor tunes to its arm: each
-//! joint's k_p, k_d scale with the arm's mean M_jj over the trajectories relative to arm3's (the
+//! joint's k_p, k_d scale with the mid-range of the arm's M_jj over the trajectories relative to arm3's (the
 //! same closed-loop bandwidth and damping; a factor of exactly 1 on arm3). The computed-torque
 //! gains are accelerations per error and carry over unchanged.
 //!
@@ -271,30 +271,30 @@ fn within_limits(arm: &Model, qs: &[Vec<f64>], robot: &Path) -> Result<(), Strin
     Ok(())
 }
 
-/// Simulate the cases on up to `threads` threads, in order; `done` after each.
+/// Simulate the cases on up to `threads` threads (contiguous shares: the cases cost about the
+/// same), in order; `done` after each.
 fn simulate_all(cases: &[Case], threads: usize, done: &(dyn Fn() + Sync)) -> Vec<SimResult> {
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let slots: Vec<std::sync::Mutex<Option<SimResult>>> =
-        cases.iter().map(|_| std::sync::Mutex::new(None)).collect();
+    let share = cases.len().div_ceil(threads.max(1)).max(1);
     std::thread::scope(|s| {
-        for _ in 0..threads.clamp(1, cases.len().max(1)) {
-            s.spawn(|| loop {
-                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(c) = cases.get(i) else { break };
-                let r = simulate(&c.scenario);
-                *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
-                done();
-            });
-        }
-    });
-    slots
-        .into_iter()
-        .map(|m| {
-            m.into_inner()
-                .unwrap_or_else(|e| e.into_inner())
-                .expect("every case simulated")
-        })
-        .collect()
+        let workers: Vec<_> = cases
+            .chunks(share)
+            .map(|part| {
+                s.spawn(move || {
+                    part.iter()
+                        .map(|c| {
+                            let r = simulate(&c.scenario);
+                            done();
+                            r
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().expect("a simulation thread panicked"))
+            .collect()
+    })
 }
 
 /// Set-points and outputs of a simulated case: (t, q_d per joint, y per joint, u per joint).
@@ -348,16 +348,15 @@ impl Traces {
             header.extend((0..JOINTS).map(|j| format!("{p}{j}")));
         }
         header.extend(sim.law_columns.iter().cloned());
-        let w = sim.law_columns.len();
         let mut log = RunLog::new(header, self.t.len());
-        let mut row = Vec::with_capacity(1 + 3 * JOINTS + w);
+        let mut row = Vec::with_capacity(log.width());
         for (i, t) in self.t.iter().enumerate() {
             row.clear();
             row.push(*t);
             for c in [&self.r, &self.y, &self.u] {
                 row.extend(c.iter().map(|v| v[i]));
             }
-            row.extend_from_slice(&sim.law[w * i..w * (i + 1)]);
+            row.extend_from_slice(sim.law_values(i));
             log.push(&row);
         }
         log.write_csv(path)
@@ -413,13 +412,13 @@ pub fn run(
     let arm3 = crate::dynamics::dh::parse_with(ARM3, Path::new("arm3.toml"), &Default::default())
         .map_err(|e| e.to_string())?
         .model;
-    let mean = |m: &Model| {
+    let mid = |m: &Model| {
         let b = InertiaBounds::of(m, qs.iter().map(Vec::as_slice));
         (0..JOINTS).map(|j| b.mid(j)).collect::<Vec<_>>()
     };
-    let ratio: Vec<f64> = mean(&arm)
+    let ratio: Vec<f64> = mid(&arm)
         .iter()
-        .zip(mean(&arm3))
+        .zip(mid(&arm3))
         .map(|(a, b)| a / b)
         .collect();
     let scale = |v: &[f64]| v.iter().zip(&ratio).map(|(g, r)| g * r).collect::<Vec<_>>();
@@ -454,11 +453,16 @@ pub fn run(
     }
 
     // The controllers on the new trajectory, and each model on its own trajectory.
-    let fuzzy = |files: &[&PathBuf], selection: &str| {
+    // Both computed-torque laws take the same gains and psi rate.
+    let ct_gains = || {
         let mut t = toml::Table::new();
         t.insert("kp".into(), float_list(&g.ct[0]));
         t.insert("kv".into(), float_list(&g.ct[1]));
         t.insert("startup_rate".into(), toml::Value::Float(g.startup_rate));
+        t
+    };
+    let fuzzy = |files: &[&PathBuf], selection: &str| {
+        let mut t = ct_gains();
         let list = files
             .iter()
             .map(|f| f.display().to_string().into())
@@ -467,13 +471,7 @@ pub fn run(
         t.insert("selection".into(), selection.into());
         controller("fuzzy_computed_torque", t)
     };
-    let ct_true = {
-        let mut t = toml::Table::new();
-        t.insert("kp".into(), float_list(&g.ct[0]));
-        t.insert("kv".into(), float_list(&g.ct[1]));
-        t.insert("startup_rate".into(), toml::Value::Float(g.startup_rate));
-        controller("computed_torque", t)
-    };
+    let ct_true = controller("computed_torque", ct_gains());
     let (m1, m2) = (&models[0], &models[1]);
     let cases = [
         case("pd", NEW, &robot, s.seed, pd, dir)?,
@@ -536,23 +534,15 @@ pub fn run(
     };
     let fuzzy_sim = &sims[4];
     let active = fuzzy_sim
-        .law_columns
-        .iter()
-        .position(|c| c == "fuzzy_model")
+        .law_column("fuzzy_model")
         .ok_or("fuzzy run logged no active model")?;
-    let w = fuzzy_sim.law_columns.len();
-    let w1 = fuzzy_sim
-        .law_columns
-        .iter()
-        .position(|c| c == "fuzzy_w0")
-        .ok_or("fuzzy run logged no memberships")?;
     let membership_range = fuzzy_sim
-        .law
-        .chunks(w)
-        .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], r| {
-            [lo.min(r[w1]), hi.max(r[w1])]
+        .law_column("fuzzy_w0")
+        .ok_or("fuzzy run logged no memberships")?
+        .iter()
+        .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], w| {
+            [lo.min(*w), hi.max(*w)]
         });
-    let active: Vec<f64> = fuzzy_sim.law.chunks(w).map(|r| r[active]).collect();
     let fuzzy_share = (0..2)
         .map(|i| {
             active.iter().filter(|&&a| a == i as f64).count() as f64 / active.len().max(1) as f64
@@ -697,37 +687,18 @@ fn sci(v: &[f64]) -> String {
 
 /// Figs. 7-10 and the six controllers' error norms on the new trajectory.
 fn figures(dir: &Path, cases: &[Case], traces: &[Traces], fuzzy: &SimResult) -> Result<(), String> {
-    let names = ["joint 1 [rad]", "joint 2 [rad]", "joint 3 [rad]"];
     // Fig. 7: the trajectories (training 1 and 2 from Figs. 8, 9's runs, the new one from pd).
     let (tr1, tr2, new) = (&traces[6], &traces[7], &traces[0]);
-    let series: Vec<[Series; 3]> = (0..JOINTS)
-        .map(|j| {
-            [
-                Series {
-                    name: "training 1",
-                    values: &tr1.r[j],
-                },
-                Series {
-                    name: "training 2",
-                    values: &tr2.r[j],
-                },
-                Series {
-                    name: "new",
-                    values: &new.r[j],
-                },
-            ]
-        })
-        .collect();
-    let panels: Vec<Panel> = series
-        .iter()
-        .zip(names)
-        .map(|(s, label)| Panel { series: s, label })
-        .collect();
+    let series = per_joint(&[
+        ("training 1", &tr1.r),
+        ("training 2", &tr2.r),
+        ("new", &new.r),
+    ]);
     stacked_png(
         &dir.join("fig7_trajectories.png"),
         "Fig. 7: training trajectories 1, 2 and the new trajectory (theta_d)",
         &new.t,
-        &panels,
+        &joint_panels(&series),
         &[],
     )?;
     tracking_figure(
@@ -752,13 +723,9 @@ fn figures(dir: &Path, cases: &[Case], traces: &[Traces], fuzzy: &SimResult) -> 
     let norms: Vec<Vec<f64>> = traces[..6]
         .iter()
         .map(|tr| {
+            let e: Vec<Vec<f64>> = (0..JOINTS).map(|j| tr.error(j)).collect();
             (0..tr.t.len())
-                .map(|i| {
-                    (0..JOINTS)
-                        .map(|j| (tr.r[j][i] - tr.y[j][i]).powi(2))
-                        .sum::<f64>()
-                        .sqrt()
-                })
+                .map(|i| e.iter().map(|ej| ej[i] * ej[i]).sum::<f64>().sqrt())
                 .collect()
         })
         .collect();
@@ -788,6 +755,31 @@ fn figures(dir: &Path, cases: &[Case], traces: &[Traces], fuzzy: &SimResult) -> 
     )
 }
 
+/// Per joint, one series per (name, columns per joint).
+fn per_joint<'a>(columns: &[(&'a str, &'a Vec<Vec<f64>>)]) -> Vec<Vec<Series<'a>>> {
+    (0..JOINTS)
+        .map(|j| {
+            columns
+                .iter()
+                .map(|(name, c)| Series {
+                    name,
+                    values: &c[j],
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// One panel per joint.
+fn joint_panels<'a>(series: &'a [Vec<Series<'a>>]) -> Vec<Panel<'a>> {
+    let names = ["joint 1 [rad]", "joint 2 [rad]", "joint 3 [rad]"];
+    series
+        .iter()
+        .zip(names)
+        .map(|(s, label)| Panel { series: s, label })
+        .collect()
+}
+
 /// Reference and output per joint, the errors, and for a fuzzy run its memberships.
 fn tracking_figure(
     path: &Path,
@@ -795,53 +787,25 @@ fn tracking_figure(
     tr: &Traces,
     fuzzy: Option<&SimResult>,
 ) -> Result<(), String> {
-    let names = ["joint 1 [rad]", "joint 2 [rad]", "joint 3 [rad]"];
-    let joints: Vec<[Series; 2]> = (0..JOINTS)
-        .map(|j| {
-            [
-                Series {
-                    name: "theta_d",
-                    values: &tr.r[j],
-                },
-                Series {
-                    name: "theta",
-                    values: &tr.y[j],
-                },
-            ]
-        })
-        .collect();
+    let joints = per_joint(&[("theta_d", &tr.r), ("theta", &tr.y)]);
     let errors: Vec<Vec<f64>> = (0..JOINTS).map(|j| tr.error(j)).collect();
     let error_series: Vec<Series> = errors
         .iter()
         .zip(["e1", "e2", "e3"])
         .map(|(v, name)| Series { name, values: v })
         .collect();
-    let mut panels: Vec<Panel> = joints
-        .iter()
-        .zip(names)
-        .map(|(s, label)| Panel { series: s, label })
-        .collect();
+    let mut panels = joint_panels(&joints);
     panels.push(Panel {
         series: &error_series,
         label: "error [rad]",
     });
+    // The fuzzy_w<i> columns: model i + 1's normalised membership.
     let memberships: Vec<(String, Vec<f64>)> = fuzzy
         .map(|sim| {
-            let w = sim.law_columns.len();
-            sim.law_columns
-                .iter()
-                .enumerate()
-                .filter(|(_, c)| c.starts_with("fuzzy_w"))
-                .map(|(k, c)| {
-                    let model = c
-                        .trim_start_matches("fuzzy_w")
-                        .parse::<usize>()
-                        .unwrap_or(0)
-                        + 1;
-                    (
-                        format!("membership, model {model}"),
-                        sim.law.chunks(w).map(|r| r[k]).collect(),
-                    )
+            (0..)
+                .map_while(|i| {
+                    let w = sim.law_column(&format!("fuzzy_w{i}"))?;
+                    Some((format!("membership, model {}", i + 1), w))
                 })
                 .collect()
         })

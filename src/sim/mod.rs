@@ -41,9 +41,22 @@ pub struct SimResult {
     pub rows: Vec<SimRow>,
     pub events: Vec<ParamEvent>,
     /// The law's own run.csv columns (`Controller::log_columns`, e.g. a fuzzy selector's active
-    /// model) and their values per row, row-major (`law_columns.len()` per row).
+    /// model); each row's telemetry holds their values (`law_values`).
     pub law_columns: Vec<String>,
-    pub law: Vec<f64>,
+}
+
+impl SimResult {
+    /// The law's own values at row `i`, one per `law_columns` entry.
+    pub fn law_values(&self, i: usize) -> &[f64] {
+        let tel = &self.rows[i].telemetry;
+        &tel.law[..tel.n_law as usize]
+    }
+
+    /// The law's column `name` over the run (None if the law logs no such column).
+    pub fn law_column(&self, name: &str) -> Option<Vec<f64>> {
+        let k = self.law_columns.iter().position(|c| c == name)?;
+        Some(self.rows.iter().map(|r| r.telemetry.law[k]).collect())
+    }
 }
 
 /// Simulate the scenario in lockstep in this process, scheduled parameter sets included when
@@ -63,8 +76,6 @@ pub fn simulate(scn: &Scenario) -> SimResult {
     let mut rows = Vec::with_capacity(n as usize);
     let mut events = Vec::new();
     let law_columns = cycle.controller.log_columns();
-    let w = law_columns.len();
-    let mut law = vec![0.0; w * n as usize];
     let mut state = PlantState::default();
     let mut u = [0.0; crate::MAX_JOINTS];
     let n_u = plant.plant.n_inputs();
@@ -83,9 +94,6 @@ pub fn simulate(scn: &Scenario) -> SimResult {
             events.push(e);
         }
         u = cycle.u;
-        cycle
-            .controller
-            .log_values(&mut law[w * k as usize..w * (k as usize + 1)]);
         rows.push(SimRow {
             state,
             telemetry: tel,
@@ -96,7 +104,6 @@ pub fn simulate(scn: &Scenario) -> SimResult {
         rows,
         events,
         law_columns,
-        law,
     }
 }
 
