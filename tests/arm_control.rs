@@ -263,3 +263,82 @@ fn a_urdf_robot_runs_in_a_scenario_like_its_dh_twin() {
         }
     }
 }
+
+/// `plant.arm.payload_*`: from its time on the arm carries a point mass at `payload_com` on its
+/// last link, checked against the point mass's potential energy m g z (independent of the
+/// dynamics code) and by holding the arm still with the loaded gravity torque, which the plant
+/// obeys after the payload's time and not before.
+#[test]
+fn a_payload_loads_the_last_link_from_its_time_on() {
+    let scn = load("arm3_payload.toml", &Overrides::default());
+    let PlantModel::Arm(arm) = &scn.plant.model else {
+        panic!("arm3_payload is an arm scenario")
+    };
+    assert_eq!(arm.payload, vec![(6.0, 1.0)]);
+    let cfg = scn.plant.model.config();
+    assert_eq!(cfg.first_change(), Some(6.0));
+    assert_eq!(cfg.varying_parameter(5.9), Some(0.0));
+    assert_eq!(cfg.varying_parameter(6.0), Some(1.0));
+    let (bare, loaded) = (&arm.model, arm.loaded_model(1.0));
+    let q = [0.3, 0.5, -0.9];
+    let (mut d0, mut d1) = (bare.data(), loaded.data());
+    // The payload sits at the last link's D-H frame origin (payload_com = 0): the tip.
+    let tip = bare.body_origins(&mut d0, &q).last().copied().unwrap();
+    let de = loaded.potential_energy(&mut d1, &q) - bare.potential_energy(&mut d0, &q);
+    assert!(
+        (de - 1.0 * 9.81 * tip.z).abs() < 1e-12,
+        "potential energy grew by {de}, m g z = {}",
+        9.81 * tip.z
+    );
+    let mut hold = [0.0; 3];
+    loaded.gravity_torque(&mut d1, &q, &mut hold);
+    let plant = scn.build_plant();
+    let x = [q[0], q[1], q[2], 0.0, 0.0, 0.0];
+    let qdd = |t: f64| {
+        let mut dx = [0.0; 6];
+        plant.derivative(t, &x, &hold, &mut dx);
+        dx[3..].iter().map(|a| a.abs()).fold(0.0, f64::max)
+    };
+    assert!(qdd(7.0) < 1e-9, "loaded arm accelerates by {}", qdd(7.0));
+    assert!(
+        qdd(5.0) > 0.1,
+        "unloaded arm held by the loaded torque: {}",
+        qdd(5.0)
+    );
+}
+
+#[test]
+fn payload_keys_are_checked_with_their_names() {
+    let path = config("arm3_payload.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let err = |from: &str, to: &str| {
+        assert!(text.contains(from), "{from}");
+        Scenario::parse(&text.replace(from, to), &path, &Overrides::default())
+            .expect_err("must be refused")
+            .to_string()
+    };
+    let e = err("payload_values = [1.0]", "payload_values = [1.0, 2.0]");
+    assert!(e.contains("plant.arm.payload_values"), "{e}");
+    let e = err("payload_values = [1.0]", "");
+    assert!(
+        e.contains("plant.arm.payload_values") && e.contains("missing"),
+        "{e}"
+    );
+    let e = err("payload_values = [1.0]", "payload_values = [-1.0]");
+    assert!(e.contains("plant.arm.payload_values[0]"), "{e}");
+    let e = err(
+        "payload_com = [0.0, 0.0, 0.0]",
+        "payload_com = [0.0, 0.0, 1e6]",
+    );
+    assert!(e.contains("plant.arm.payload_com[2]"), "{e}");
+    let no_payload = text
+        .replace("payload_times = [6.0]", "")
+        .replace("payload_values = [1.0]", "");
+    let e = Scenario::parse(&no_payload, &path, &Overrides::default())
+        .expect_err("payload_com alone must be refused")
+        .to_string();
+    assert!(
+        e.contains("plant.arm.payload_com") && e.contains("no payload"),
+        "{e}"
+    );
+}

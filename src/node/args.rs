@@ -21,8 +21,9 @@ pub struct RunArgs {
     #[arg(long, short)]
     pub quiet: bool,
     /// Several seeds, e.g. `1..20` (inclusive) or `1,4,9`, for a scenario with
-    /// `optimiser.mode = "indirect"`: one run per seed (in `<out>/seed-<n>/`), each against the
-    /// frozen controller on the same seed; statistics and paired tests in `<out>/study.md`,
+    /// `optimiser.mode = "indirect"` or `"identify"`: one run per seed (in `<out>/seed-<n>/`),
+    /// each against the frozen controller on the same seed (cost per repetition, or tracking RMS
+    /// for identify); statistics and paired tests in `<out>/study.md`,
     /// `study.json`, `seeds.csv`, `study_cost.png`.
     #[arg(long, value_parser = parse_seeds, conflicts_with = "seed")]
     pub seeds: Option<Seeds>,

@@ -76,9 +76,10 @@ fn signal(child: &Child, sig: i32) {
 }
 
 /// `evoloop run FILE --seeds 1..20`: one launcher run per seed (a child `evoloop run`, so each
-/// has its own signal handling and report), then the indirect-vs-frozen study over the seeds.
+/// has its own signal handling and report), then the study of tuning alongside operation
+/// (indirect or identify) against the frozen controller over the seeds.
 pub fn run_seeds(a: RunArgs) -> ExitCode {
-    use crate::report::seeds_study::{SeedRun, Study};
+    use crate::report::seeds_study::{Measure, SeedRun, Study};
     let seeds = a.seeds.clone().map(|s| s.0).unwrap_or_default();
     let file = a.file.clone().unwrap_or_else(default_scenario);
     let scn = match Scenario::load(&file, &a.overrides.to_overrides()) {
@@ -88,15 +89,16 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    if scn.optimiser.mode != crate::config::OptimiserMode::Indirect {
+    let Some(measure) = Measure::of(scn.optimiser.mode) else {
         err!(
-            "error: {}: --seeds compares the indirect scheme with the frozen controller over seeds; \
-             this scenario has optimiser.mode = \"{}\" (use --seed N for one run)",
+            "error: {}: --seeds compares tuning alongside operation (optimiser.mode = \"indirect\" \
+             or \"identify\") with the frozen controller over seeds; this scenario has \
+             optimiser.mode = \"{}\" (use --seed N for one run)",
             file.display(),
             format!("{:?}", scn.optimiser.mode).to_lowercase()
         );
         return ExitCode::from(2);
-    }
+    };
     let out = scn.output.dir.clone();
     if let Err(e) = std::fs::create_dir_all(&out) {
         err!(
@@ -150,14 +152,14 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
             Ok(_) => std::fs::read_to_string(dir.join("summary.json"))
                 .map_err(|e| format!("summary.json: {e}"))
                 .and_then(|t| serde_json::from_str::<Summary>(&t).map_err(|e| e.to_string()))
-                .and_then(|s| SeedRun::from_summary(seed, &s)),
+                .and_then(|s| SeedRun::from_summary(seed, &s, &measure)),
         };
         match result {
             Ok(r) => {
                 if !a.quiet {
                     err!(
-                        "  seed {seed}: after the change tuned {:.1} vs frozen {:.1}, before {:.1} vs {:.1} ({} of {}, {:.0} s)",
-                        r.after, r.after_frozen, r.before, r.before_frozen, i + 1, seeds.len(),
+                        "  seed {seed}: {} after the change {} {:.1} vs frozen {:.1}, before {:.1} vs {:.1} ({} of {}, {:.0} s)",
+                        measure.what, measure.short, r.after, r.after_frozen, r.before, r.before_frozen, i + 1, seeds.len(),
                         t0.elapsed().as_secs_f64()
                     );
                 }
@@ -174,7 +176,7 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
         err!("error: fewer than two seeds completed; no study written");
         return ExitCode::from(if interrupted { 130 } else { 1 });
     }
-    let study = Study::new(&scn.name, &runs, failed);
+    let study = Study::new(&scn.name, measure, &runs, failed);
     if let Err(e) = study.write(&out, &runs, scn.output.plots) {
         err!("error: writing the study: {e}");
         return ExitCode::from(1);
@@ -498,6 +500,17 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
     );
     for p in &pv.rejected {
         out!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
+    }
+    if let (Some(a), Some(af)) = (s.tracking_after_change, s.tracking_after_change_frozen) {
+        let before = match (s.tracking_before_change, s.tracking_before_change_frozen) {
+            (Some(b), Some(bf)) => format!("; before the change {:.2} vs {:.2}", 1e3 * b, 1e3 * bf),
+            _ => String::new(),
+        };
+        out!(
+            "  identified alongside operation: tracking RMS over the last quarter {:.2} mrad vs {:.2} with the starting models frozen{before} (identify.png)",
+            1e3 * a,
+            1e3 * af
+        );
     }
     out!(
         "  wrote {}/run.csv, summary.json{}",

@@ -2,9 +2,15 @@
 //! joints), y = q. The forward dynamics come from `dynamics::Model`; torques are clipped to each
 //! joint's effort limit, and joint position limits act as inelastic stops (after each integration
 //! step a joint past its limit is put back on it and its velocity into the limit removed).
+//!
+//! A payload schedule (`payload_times`, `payload_values`) puts a point mass on the last body
+//! from each time on, the load an arm picks up in operation: the plant switches between models
+//! built once at validation, so the derivative stays allocation-free, while controllers keep
+//! the file's model (what an indirect scheme has to catch up with).
 
 use super::{Plant, PlantConfig, PlantContext};
 use crate::check::{Check, ConfigError};
+use crate::dynamics::spatial::Inertia;
 use crate::dynamics::{Data, Model};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -12,6 +18,8 @@ use std::cell::RefCell;
 
 pub struct Arm {
     pub model: Model,
+    /// The model from each payload time on (strictly increasing times), after `model`.
+    loaded: Vec<(f64, Model)>,
     /// `derivative` takes &self (the integrator's contract), the algorithms need buffers: the
     /// plant is owned by one simulator thread, so a RefCell is enough and never contended.
     data: RefCell<Data>,
@@ -22,6 +30,11 @@ pub struct Arm {
 impl Arm {
     /// The arm at rest at joint positions `q0`.
     pub fn new(model: Model, q0: &[f64]) -> Self {
+        Self::with_payloads(model, Vec::new(), q0)
+    }
+
+    /// The arm at rest at `q0`, becoming `loaded[i].1` from time `loaded[i].0` on.
+    pub fn with_payloads(model: Model, loaded: Vec<(f64, Model)>, q0: &[f64]) -> Self {
         let n = model.dof();
         assert_eq!(q0.len(), n, "one initial position per joint");
         let mut x0 = vec![0.0; 2 * n];
@@ -30,6 +43,7 @@ impl Arm {
             data: RefCell::new(model.data()),
             tau: RefCell::new(vec![0.0; n]),
             model,
+            loaded,
             x0,
         }
     }
@@ -49,19 +63,24 @@ impl Plant for Arm {
         self.model.dof()
     }
 
-    fn derivative(&self, _t: f64, x: &[f64], u: &[f64], dx: &mut [f64]) {
+    fn derivative(&self, t: f64, x: &[f64], u: &[f64], dx: &mut [f64]) {
         let n = self.model.dof();
         let (q, qd) = x.split_at(n);
+        let model = self
+            .loaded
+            .iter()
+            .rev()
+            .find(|(t0, _)| t >= *t0)
+            .map_or(&self.model, |(_, m)| m);
         let mut tau = self.tau.borrow_mut();
-        for (i, b) in self.model.bodies.iter().enumerate() {
+        for (i, b) in model.bodies.iter().enumerate() {
             tau[i] = u[i].clamp(-b.limits.effort, b.limits.effort);
         }
         dx[..n].copy_from_slice(qd);
         let mut d = self.data.borrow_mut();
         // M(q) was checked positive definite when the robot loaded; should a configuration make
         // it singular the joints are frozen for this stage rather than poisoned with NaN.
-        if self
-            .model
+        if model
             .forward_dynamics(&mut d, q, qd, &tau, &mut dx[n..])
             .is_err()
         {
@@ -107,6 +126,12 @@ pub struct Table {
     /// D-H TOML or URDF, relative to the scenario file.
     robot: PathBuf,
     initial_q: Option<Vec<f64>>,
+    /// Payload schedule: from payload_times[i] (s) on, a point mass of payload_values[i] (kg)
+    /// on the last body (replacing the previous payload, not adding to it).
+    payload_times: Option<Vec<f64>>,
+    payload_values: Option<Vec<f64>>,
+    /// Where the payload sits in the last body's frame, m (default: that body's centre of mass).
+    payload_com: Option<[f64; 3]>,
 }
 
 /// A validated arm.
@@ -116,6 +141,22 @@ pub struct ArmSpec {
     pub robot: PathBuf,
     pub model: Model,
     pub initial_q: Vec<f64>,
+    /// (time s, payload kg) steps; no payload before the first.
+    pub payload: Vec<(f64, f64)>,
+    /// The payload's position in the last body's frame, m.
+    pub payload_com: [f64; 3],
+}
+
+impl ArmSpec {
+    /// The file's model with `mass` kg at `payload_com` on its last body.
+    pub fn loaded_model(&self, mass: f64) -> Model {
+        let mut m = self.model.clone();
+        if let Some(b) = m.bodies.last_mut() {
+            let c = glam::DVec3::from_array(self.payload_com);
+            b.inertia = b.inertia + Inertia::from_com(mass, c, glam::DMat3::ZERO);
+        }
+        m
+    }
 }
 
 pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<ArmSpec, ConfigError> {
@@ -156,16 +197,62 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Ar
             sp.q[..n].to_vec()
         }
     };
+    let payload = check.schedule(
+        "plant.arm.payload_times",
+        "plant.arm.payload_values",
+        t.payload_times,
+        t.payload_values,
+        super::MAX_SCHEDULE,
+    )?;
+    let last = model.bodies.last().map(|b| b.inertia.com()).unwrap_or_default();
+    let payload_com = match t.payload_com {
+        Some(c) => {
+            for (i, v) in c.iter().enumerate() {
+                check.range(&format!("plant.arm.payload_com[{i}]"), *v, -10.0, 10.0)?;
+            }
+            c
+        }
+        None => last.to_array(),
+    };
+    check.unused(
+        "plant.arm.payload_com",
+        t.payload_com.is_some() && payload.is_empty(),
+        "when there is no payload (payload_times/payload_values)",
+    )?;
     Ok(ArmSpec {
         robot,
         model,
         initial_q,
+        payload,
+        payload_com,
     })
 }
 
 impl PlantConfig for ArmSpec {
     fn build(&self) -> Box<dyn Plant> {
-        Box::new(Arm::new(self.model.clone(), &self.initial_q))
+        let loaded = self
+            .payload
+            .iter()
+            .map(|&(t, m)| (t, self.loaded_model(m)))
+            .collect();
+        Box::new(Arm::with_payloads(
+            self.model.clone(),
+            loaded,
+            &self.initial_q,
+        ))
+    }
+    /// The payload's mass.
+    fn varying_parameter(&self, t: f64) -> Option<f64> {
+        (!self.payload.is_empty()).then(|| {
+            self.payload
+                .iter()
+                .rev()
+                .find(|s| t >= s.0)
+                .map_or(0.0, |s| s.1)
+        })
+    }
+    fn first_change(&self) -> Option<f64> {
+        self.payload.first().map(|s| s.0)
     }
     fn rigid_body(&self) -> Option<&Model> {
         Some(&self.model)

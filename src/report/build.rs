@@ -56,6 +56,65 @@ fn repetitions(
     out.into_iter().map(|(a, b, c)| (a, b, c.total)).collect()
 }
 
+/// The width of the windows of `identify.png`'s tracking RMS, s.
+const IDENTIFY_PLOT_WINDOW: f64 = 0.5;
+
+/// Tracking RMS over all joints (rad) from 1 s (past start-up) to the plant's first change
+/// (None without one), and over the samples from `quarter` on.
+fn tracking_phases(
+    t: &[f64],
+    refs: &[&[f64]],
+    ys: &[&[f64]],
+    change: Option<f64>,
+    quarter: f64,
+) -> (Option<f64>, Option<f64>) {
+    let at = |x: f64| t.partition_point(|s| *s < x);
+    let rms =
+        |a: usize, b: usize| (b > a).then(|| super::metrics::tracking_in(refs, ys, a..b).rms_all);
+    (
+        change.and_then(|tc| rms(at(1.0), at(tc))),
+        rms(at(quarter), t.len()),
+    )
+}
+
+/// Tracking RMS over all joints per window of `width` s, in mrad: (window centres, values).
+fn windowed_rms(t: &[f64], refs: &[&[f64]], ys: &[&[f64]], width: f64) -> (Vec<f64>, Vec<f64>) {
+    let (mut centres, mut values) = (Vec::new(), Vec::new());
+    let mut a = 0;
+    while a < t.len() {
+        let end = t[a] + width;
+        let b = a + t[a..].partition_point(|s| *s < end - 1e-9);
+        centres.push(0.5 * (t[a] + t[b - 1]));
+        values.push(1e3 * super::metrics::tracking_in(refs, ys, a..b).rms_all);
+        a = b;
+    }
+    (centres, values)
+}
+
+/// The scenario with the optimiser off, simulated in-process (the same plant and controller
+/// code, bit-identical to a lockstep run of the processes): times, each joint's reference and
+/// output, as run.csv has them.
+fn frozen_tracking_columns(scn: &Scenario) -> (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let mut f = scn.clone();
+    f.optimiser.mode = crate::config::OptimiserMode::Off;
+    let sim = crate::sim::simulate(&f);
+    let n = scn.reference.joints();
+    let mut sp = crate::reference::Setpoint::default();
+    let (mut refs, mut ys) = (vec![Vec::new(); n], vec![Vec::new(); n]);
+    for row in &sim.rows {
+        scn.reference.sample(row.state.t, &mut sp);
+        for j in 0..n {
+            refs[j].push(sp.q[j]);
+            ys[j].push(row.state.y[j]);
+        }
+    }
+    (sim.rows.iter().map(|r| r.state.t).collect(), refs, ys)
+}
+
+fn cols(v: &[Vec<f64>]) -> Vec<&[f64]> {
+    v.iter().map(Vec::as_slice).collect()
+}
+
 fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
     let p = dir.join(name);
     let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
@@ -176,6 +235,16 @@ pub fn build_report(
                 .collect(),
         )
     };
+    // Identification alongside operation against the models it started with, kept all run long
+    // (the frozen comparison again): tracking RMS before the plant's change and at the end.
+    let identify = scn.optimiser.mode == crate::config::OptimiserMode::Identify;
+    let frozen_columns = identify.then(|| frozen_tracking_columns(scn));
+    let (tracking_before_change, tracking_after_change) =
+        tracking_phases(&t, &ref_cols, &y_cols, change, quarter);
+    let (tracking_before_change_frozen, tracking_after_change_frozen) = match &frozen_columns {
+        Some((ft, fr, fy)) => tracking_phases(ft, &cols(fr), &cols(fy), change, quarter),
+        None => (None, None),
+    };
     let cost_before_change = before(&reps);
     let cost_after_change = after(&reps);
     let cost_before_change_frozen = before(&frozen);
@@ -236,7 +305,40 @@ pub fn build_report(
         model_estimate_final,
         model_true_final,
         model_estimate_error,
+        tracking_before_change: identify.then_some(tracking_before_change).flatten(),
+        tracking_after_change: identify.then_some(tracking_after_change).flatten(),
+        tracking_before_change_frozen,
+        tracking_after_change_frozen,
     };
+    if let (Some((ft, fr, fy)), true) = (&frozen_columns, scn.output.plots) {
+        let (tw, run_rms) = windowed_rms(&t, &ref_cols, &y_cols, IDENTIFY_PLOT_WINDOW);
+        let (_, frozen_rms) = windowed_rms(ft, &cols(fr), &cols(fy), IDENTIFY_PLOT_WINDOW);
+        let frozen_rms: Vec<f64> = (0..tw.len())
+            .map(|k| frozen_rms.get(k).copied().unwrap_or(f64::NAN))
+            .collect();
+        let payload: Vec<f64> = tw.iter().map(|x| truth(*x).unwrap_or(0.0)).collect();
+        let marks: Vec<f64> = accepted.iter().map(|p| p.t).collect();
+        two_panel_png(
+            &dir.join("identify.png"),
+            &format!(
+                "{}: tracking RMS per {} s, identified vs frozen models (orange: models swapped in)",
+                scn.name, IDENTIFY_PLOT_WINDOW
+            ),
+            &tw,
+            Panel {
+                series: &[
+                    Series { name: "identified alongside operation", values: &run_rms },
+                    Series { name: "frozen models", values: &frozen_rms },
+                ],
+                label: "tracking RMS, mrad",
+            },
+            Panel {
+                series: &[Series { name: "payload on the last link", values: &payload }],
+                label: "payload, kg",
+            },
+            &marks,
+        )?;
+    }
     if !reps.is_empty() {
         let mut csv = String::from("repetition,t_start,t_end,cost,cost_frozen\n");
         for (j, r) in reps.iter().enumerate() {

@@ -86,11 +86,17 @@ pub struct Tracking {
 /// Tracking metrics from reference and output columns (one per joint), skipping the samples
 /// before `from` (e.g. a start-up transient).
 pub fn tracking(refs: &[&[f64]], ys: &[&[f64]], from: usize) -> Tracking {
+    tracking_in(refs, ys, from..usize::MAX)
+}
+
+/// Tracking metrics over the samples in `range` (clipped to the columns).
+pub fn tracking_in(refs: &[&[f64]], ys: &[&[f64]], range: std::ops::Range<usize>) -> Tracking {
+    let (from, len) = (range.start, range.end.saturating_sub(range.start));
     let mut out = Tracking::default();
     let (mut sum_all, mut n_all) = (0.0, 0usize);
     for (r, y) in refs.iter().zip(ys) {
         let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0usize);
-        for (ri, yi) in r.iter().zip(y.iter()).skip(from) {
+        for (ri, yi) in r.iter().zip(y.iter()).skip(from).take(len) {
             let e = ri - yi;
             sum += e * e;
             max = max.max(e.abs());

@@ -1,16 +1,56 @@
-//! `evoloop run <indirect scenario> --seeds 1..20`: the indirect scheme against the frozen
-//! controller over many seeds. Each seed is a whole run of the processes (plant noise and the
-//! optimiser's random streams from the seed); its frozen comparison is the same scenario and seed
-//! with the optimiser off (the in-process simulation, bit-identical to a lockstep run of the
-//! processes). Per seed: the mean cost per repetition before the plant's change and over the
-//! last quarter of the run, tuned and frozen. Across seeds: mean with a 95 % interval of each,
-//! the paired differences, and a paired Wilcoxon test; every sentence of the report follows
-//! from those numbers.
+//! `evoloop run <scenario> --seeds 1..20`: tuning alongside operation against the frozen
+//! controller over many seeds, for the indirect scheme (`optimiser.mode = "indirect"`) and for
+//! identification alongside operation (`"identify"`). Each seed is a whole run of the processes
+//! (plant noise and the optimiser's random streams from the seed); its frozen comparison is the
+//! same scenario and seed with the optimiser off (the in-process simulation, bit-identical to a
+//! lockstep run of the processes). Per seed, tuned and frozen, the `Measure` of the mode before
+//! the plant's change and over the last quarter of the run: the mean cost per repetition
+//! (indirect) or the tracking RMS over all joints (identify). Across seeds: mean with a 95 %
+//! interval of each, the paired differences, and a paired Wilcoxon test; every sentence of the
+//! report follows from those numbers.
 
-use crate::report::stats::{mean_ci, paired_sentence, wilcoxon, MeanCi, Wilcoxon};
+use crate::config::OptimiserMode;
+use crate::report::stats::{lower_first, mean_ci, paired_sentence, wilcoxon, MeanCi, Wilcoxon};
 use crate::report::summary::Summary;
 use serde::Serialize;
 use std::path::Path;
+
+/// What a study compares: the scheme and the number it is judged by.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Measure {
+    /// The scheme, as a sentence's subject.
+    pub scheme: &'static str,
+    /// The scheme's runs in one word ("tuned" against "frozen").
+    pub short: &'static str,
+    /// What is compared, lower is better.
+    pub what: &'static str,
+    /// The prefix of seeds.csv's columns.
+    pub column: &'static str,
+}
+
+impl Measure {
+    pub const INDIRECT: Measure = Measure {
+        scheme: "The indirect scheme",
+        short: "tuned",
+        what: "cost per repetition",
+        column: "cost",
+    };
+    pub const IDENTIFY: Measure = Measure {
+        scheme: "Identification alongside operation",
+        short: "identified",
+        what: "tracking RMS over all joints (mrad)",
+        column: "tracking_mrad",
+    };
+
+    /// The measure of a mode that tunes alongside operation; None for the others.
+    pub fn of(mode: OptimiserMode) -> Option<Measure> {
+        match mode {
+            OptimiserMode::Indirect => Some(Self::INDIRECT),
+            OptimiserMode::Identify => Some(Self::IDENTIFY),
+            _ => None,
+        }
+    }
+}
 
 /// One seed's run, from its summary.json.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -20,24 +60,50 @@ pub struct SeedRun {
     pub before_frozen: f64,
     pub after: f64,
     pub after_frozen: f64,
-    pub estimate_error: f64,
+    /// The final model estimate's relative error (the indirect scheme's estimator).
+    pub estimate_error: Option<f64>,
     pub accepted: u64,
     pub rejected: u64,
 }
 
 impl SeedRun {
-    /// Take what the study needs from an indirect run's summary; an error names what is missing.
-    pub fn from_summary(seed: u64, s: &Summary) -> Result<Self, String> {
+    /// Take what the study needs from a run's summary; an error names what is missing.
+    pub fn from_summary(seed: u64, s: &Summary, m: &Measure) -> Result<Self, String> {
         let f = |v: Option<f64>, k: &str| {
             v.ok_or_else(|| format!("summary.json of seed {seed} has no number `{k}`"))
         };
+        let (before, before_frozen, after, after_frozen, estimate_error) =
+            if *m == Measure::IDENTIFY {
+                let mrad = |v: Option<f64>, k: &str| f(v, k).map(|x| 1e3 * x);
+                (
+                    mrad(s.tracking_before_change, "tracking_before_change")?,
+                    mrad(
+                        s.tracking_before_change_frozen,
+                        "tracking_before_change_frozen",
+                    )?,
+                    mrad(s.tracking_after_change, "tracking_after_change")?,
+                    mrad(
+                        s.tracking_after_change_frozen,
+                        "tracking_after_change_frozen",
+                    )?,
+                    None,
+                )
+            } else {
+                (
+                    f(s.cost_before_change, "cost_before_change")?,
+                    f(s.cost_before_change_frozen, "cost_before_change_frozen")?,
+                    f(s.cost_after_change, "cost_after_change")?,
+                    f(s.cost_after_change_frozen, "cost_after_change_frozen")?,
+                    Some(f(s.model_estimate_error, "model_estimate_error")?),
+                )
+            };
         Ok(Self {
             seed,
-            before: f(s.cost_before_change, "cost_before_change")?,
-            before_frozen: f(s.cost_before_change_frozen, "cost_before_change_frozen")?,
-            after: f(s.cost_after_change, "cost_after_change")?,
-            after_frozen: f(s.cost_after_change_frozen, "cost_after_change_frozen")?,
-            estimate_error: f(s.model_estimate_error, "model_estimate_error")?,
+            before,
+            before_frozen,
+            after,
+            after_frozen,
+            estimate_error,
             accepted: s.accepted_versions as u64,
             rejected: s.rejected_versions as u64,
         })
@@ -59,7 +125,7 @@ pub struct PhaseComparison {
     pub sentence: String,
 }
 
-fn compare(phase: &'static str, tuned: &[f64], frozen: &[f64]) -> PhaseComparison {
+fn compare(m: &Measure, phase: &'static str, tuned: &[f64], frozen: &[f64]) -> PhaseComparison {
     let d: Vec<f64> = tuned.iter().zip(frozen).map(|(a, b)| a - b).collect();
     let rel: Vec<f64> = tuned
         .iter()
@@ -74,10 +140,10 @@ fn compare(phase: &'static str, tuned: &[f64], frozen: &[f64]) -> PhaseCompariso
         frozen: mean_ci(frozen),
         relative_pct: mean_ci(&rel),
         sentence: paired_sentence(
-            "The indirect scheme",
-            "tuned",
+            m.scheme,
+            m.short,
             "the frozen controller",
-            &format!("cost per repetition {phase}"),
+            &format!("{} {phase}", m.what),
             &w,
             &difference,
         ),
@@ -90,34 +156,47 @@ fn compare(phase: &'static str, tuned: &[f64], frozen: &[f64]) -> PhaseCompariso
 #[derive(Debug, Clone, Serialize)]
 pub struct Study {
     pub scenario: String,
+    pub measure: Measure,
     pub seeds: Vec<u64>,
     pub failed: Vec<(u64, String)>,
     pub comparisons: Vec<PhaseComparison>,
-    pub estimate_error_pct: MeanCi,
+    /// Over the seeds that report one (the indirect scheme's estimator).
+    pub estimate_error_pct: Option<MeanCi>,
     pub accepted: MeanCi,
     pub rejected_total: u64,
 }
 
 impl Study {
-    pub fn new(scenario: &str, runs: &[SeedRun], failed: Vec<(u64, String)>) -> Self {
+    pub fn new(
+        scenario: &str,
+        measure: Measure,
+        runs: &[SeedRun],
+        failed: Vec<(u64, String)>,
+    ) -> Self {
         let col = |f: fn(&SeedRun) -> f64| runs.iter().map(f).collect::<Vec<f64>>();
+        let m = &measure;
+        let errors: Vec<f64> = runs.iter().filter_map(|r| r.estimate_error).collect();
         Self {
             scenario: scenario.to_string(),
+            measure,
             seeds: runs.iter().map(|r| r.seed).collect(),
             failed,
             comparisons: vec![
                 compare(
+                    m,
                     "before the change",
                     &col(|r| r.before),
                     &col(|r| r.before_frozen),
                 ),
                 compare(
+                    m,
                     "after the change",
                     &col(|r| r.after),
                     &col(|r| r.after_frozen),
                 ),
             ],
-            estimate_error_pct: mean_ci(&col(|r| 100.0 * r.estimate_error)),
+            estimate_error_pct: (errors.len() == runs.len() && !errors.is_empty())
+                .then(|| mean_ci(&errors.iter().map(|e| 100.0 * e).collect::<Vec<f64>>())),
             accepted: mean_ci(&col(|r| r.accepted as f64)),
             rejected_total: runs.iter().map(|r| r.rejected).sum(),
         }
@@ -126,16 +205,25 @@ impl Study {
     /// The report as Markdown: the table, then one computed sentence per comparison.
     pub fn markdown(&self) -> String {
         let f = |m: &MeanCi| format!("{:.1} [{:.1} .. {:.1}]", m.mean, m.ci95[0], m.ci95[1]);
+        let m = &self.measure;
+        let how = if *m == Measure::IDENTIFY {
+            "Tracking RMS over all joints, mrad: from 1 s (past start-up) to the plant's change, \
+             and over the last quarter of the run; the frozen controller keeps the models it \
+             started with."
+        } else {
+            "Cost per repetition of the reference: mean over the repetitions before the plant's \
+             change (the first, from rest, left out) and over the last quarter of the run."
+        };
         let mut md = format!(
-            "# {}: the indirect scheme against the frozen controller over {} seeds\n\n\
+            "# {}: {} against the frozen controller over {} seeds\n\n\
              Each seed is a lockstep run of the processes (plant noise and the optimiser's random \
              streams from the seed); its frozen comparison is the same scenario and seed with the \
-             optimiser off. Cost per repetition of the reference: mean over the repetitions before \
-             the plant's change (the first, from rest, left out) and over the last quarter of the \
-             run.\n\n\
-             | phase | tuned mean [95 % CI] | frozen mean [95 % CI] | tuned - frozen [95 % CI] | relative, % [95 % CI] |\n|---|---|---|---|---|\n",
+             optimiser off. {how}\n\n\
+             | phase | {s} mean [95 % CI] | frozen mean [95 % CI] | {s} - frozen [95 % CI] | relative, % [95 % CI] |\n|---|---|---|---|---|\n",
             self.scenario,
-            self.seeds.len()
+            lower_first(m.scheme),
+            self.seeds.len(),
+            s = m.short,
         );
         for c in &self.comparisons {
             md.push_str(&format!(
@@ -153,13 +241,15 @@ impl Study {
         for c in &self.comparisons {
             md.push_str(&format!("- {}\n", c.sentence));
         }
+        if let Some(e) = &self.estimate_error_pct {
+            md.push_str(&format!(
+                "- Final model estimate error: mean {:+.2} % (95 % CI {:+.2} .. {:+.2}).\n",
+                e.mean, e.ci95[0], e.ci95[1],
+            ));
+        }
         md.push_str(&format!(
-            "- Final model estimate error: mean {:+.2} % (95 % CI {:+.2} .. {:+.2}); sets accepted per run: mean {:.1}; sets the controller rejected: {} in all runs.\n",
-            self.estimate_error_pct.mean,
-            self.estimate_error_pct.ci95[0],
-            self.estimate_error_pct.ci95[1],
-            self.accepted.mean,
-            self.rejected_total
+            "- Sets accepted per run: mean {:.1}; sets the controller rejected: {} in all runs.\n",
+            self.accepted.mean, self.rejected_total
         ));
         if !self.failed.is_empty() {
             md.push_str(&format!(
@@ -177,8 +267,9 @@ impl Study {
 
     /// Write `seeds.csv`, `study.json`, `study.md` and (with `plots`) `study_cost.png` to `out`.
     pub fn write(&self, out: &Path, runs: &[SeedRun], plots: bool) -> Result<(), String> {
-        let mut csv = String::from(
-            "seed,cost_before,cost_before_frozen,cost_after,cost_after_frozen,estimate_error,accepted,rejected\n",
+        let c = self.measure.column;
+        let mut csv = format!(
+            "seed,{c}_before,{c}_before_frozen,{c}_after,{c}_after_frozen,estimate_error,accepted,rejected\n",
         );
         for r in runs {
             csv.push_str(&format!(
@@ -188,7 +279,7 @@ impl Study {
                 r.before_frozen,
                 r.after,
                 r.after_frozen,
-                r.estimate_error,
+                r.estimate_error.unwrap_or(f64::NAN),
                 r.accepted,
                 r.rejected
             ));
@@ -228,11 +319,14 @@ impl Study {
             xy_png(
                 &out.join("study_cost.png"),
                 &format!(
-                    "{}: tuned vs frozen cost per repetition per seed (below 0: the indirect scheme is cheaper)",
-                    self.scenario
+                    "{}: {} vs frozen {} per seed (below 0: {} is lower)",
+                    self.scenario,
+                    self.measure.short,
+                    self.measure.what,
+                    lower_first(self.measure.scheme)
                 ),
                 "seed",
-                "(tuned - frozen) / frozen, %",
+                &format!("({} - frozen) / frozen, %", self.measure.short),
                 &series,
                 None,
                 None,
@@ -253,7 +347,7 @@ mod tests {
             before_frozen: 100.0 + seed as f64,
             after,
             after_frozen,
-            estimate_error: 0.01,
+            estimate_error: Some(0.01),
             accepted: 3,
             rejected: 0,
         }
@@ -266,7 +360,7 @@ mod tests {
         let better: Vec<SeedRun> = (1..=8)
             .map(|s| run(s, 50.0 + s as f64, 80.0 + 2.0 * s as f64))
             .collect();
-        let st = Study::new("x", &better, Vec::new());
+        let st = Study::new("x", Measure::INDIRECT, &better, Vec::new());
         assert!(
             st.comparisons[1].sentence.starts_with(
                 "The indirect scheme has a lower cost per repetition after the change"
@@ -283,7 +377,12 @@ mod tests {
         let worse: Vec<SeedRun> = (1..=8)
             .map(|s| run(s, 90.0 + s as f64, 80.0 + s as f64))
             .collect();
-        let st = Study::new("x", &worse, vec![(9, "timed out".into())]);
+        let st = Study::new(
+            "x",
+            Measure::INDIRECT,
+            &worse,
+            vec![(9, "timed out".into())],
+        );
         assert!(
             st.comparisons[1].sentence.contains("HIGHER"),
             "{}",
@@ -303,7 +402,7 @@ mod tests {
             cost_before_change: Some(1.0),
             ..Default::default()
         };
-        let e = SeedRun::from_summary(3, &s).unwrap_err();
+        let e = SeedRun::from_summary(3, &s, &Measure::INDIRECT).unwrap_err();
         assert!(
             e.contains("seed 3") && e.contains("cost_before_change_frozen"),
             "{e}"

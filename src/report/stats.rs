@@ -177,6 +177,15 @@ pub fn wilcoxon(a: &[f64], b: &[f64]) -> Wilcoxon {
 /// the two-sided Wilcoxon test says so at the 5 % level, otherwise "no difference shown". `a` is
 /// the subject ("Fuzzy anti-windup"), `a_short` its name in the counts ("fuzzy"), `what` the
 /// measure ("eq. 31 index G"), `d` the mean of a - b with its interval.
+/// `s` with its first letter in lower case (a sentence's subject inside a sentence).
+pub fn lower_first(s: &str) -> String {
+    let mut s = s.to_string();
+    if let Some(c) = s.get_mut(0..1) {
+        c.make_ascii_lowercase();
+    }
+    s
+}
+
 pub fn paired_sentence(
     a: &str,
     a_short: &str,
@@ -194,10 +203,7 @@ pub fn paired_sentence(
         "{a_short} lower in {} of {} seeds, mean difference {:+.2} (95 % CI {:+.2} .. {:+.2}), Wilcoxon p = {p}",
         w.a_lower, w.n, d.mean, d.ci95[0], d.ci95[1]
     );
-    let mut lower_a = a.to_string();
-    if let Some(c) = lower_a.get_mut(0..1) {
-        c.make_ascii_lowercase();
-    }
+    let lower_a = lower_first(a);
     if w.p_two_sided < 0.05 && w.w_plus < w.w_minus {
         format!("{a} has a lower {what} than {b} ({numbers}).")
     } else if w.p_two_sided < 0.05 {

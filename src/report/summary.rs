@@ -153,4 +153,16 @@ pub struct Summary {
     pub model_estimate_final: Option<f64>,
     pub model_true_final: Option<f64>,
     pub model_estimate_error: Option<f64>,
+    /// Identification alongside operation (`optimiser.mode = "identify"`): tracking RMS over all
+    /// joints (rad) from 1 s to the plant's first change and over the last quarter of the run,
+    /// and the same for the frozen comparison (the starting models all run long, simulated
+    /// in-process).
+    #[serde(default)]
+    pub tracking_before_change: Option<f64>,
+    #[serde(default)]
+    pub tracking_after_change: Option<f64>,
+    #[serde(default)]
+    pub tracking_before_change_frozen: Option<f64>,
+    #[serde(default)]
+    pub tracking_after_change_frozen: Option<f64>,
 }
