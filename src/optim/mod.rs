@@ -3,9 +3,14 @@
 //! tells it the objective values (minimised). Seeded for reproducibility.
 
 pub mod de;
+pub mod emupso;
 pub mod ga;
 pub mod hooke_jeeves;
 pub mod hybrid;
+pub mod pso;
+pub mod suite;
+pub mod swarm;
+pub mod wolves;
 
 pub use de::{DeConfig, DifferentialEvolution};
 pub use ga::{Ga, GaConfig};

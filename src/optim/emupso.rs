@@ -1,0 +1,349 @@
+//! eMuPSO: mutating PSO with Gaussian mutation and archived elite learning (the eMuPSO paper,
+//! Section 3).
+//!
+//! - **Schedules (eqs. 3-4).** w_t = w_0 n^t falls from 2.1 to 0.6 and c2_t = c2_0 / m^t rises
+//!   from 1.8 to 3.9 over the iteration budget T. "n and m can be determined by setting iter to
+//!   the maximum value": n = (0.6 / 2.1)^(1/T), m = (1.8 / 3.9)^(1/T), so both reach their end
+//!   values exactly at t = T.
+//! - **Swarm radius and stagnation (eqs. 5-6).** rad_t = (best cost of the current swarm) -
+//!   mean(personal best costs); the counter g grows by one when rad_t equals rad_(t-1) and is
+//!   reset otherwise. The mean of the personal bests changes exactly when one of them improves,
+//!   so g counts the iterations in which no particle improved.
+//! - **Mutation (eqs. 7-8).** When g reaches G the swarm is rebuilt around k elites: the swarm
+//!   is split into k + 1 parts, part i (< k) made of offspring x = elite_i + N(0, sigma_j) per
+//!   dimension (clamped to the box), the last part uniformly random. Velocities restart at zero
+//!   and personal bests at the new positions, so the new swarm is not pulled straight back to
+//!   the old best (the paper's reason for the archive).
+//! - **Elite archive (Section 3.3).** Global elites are the elites of earlier segments (between
+//!   mutations); local elites are the k best personal bests of the current one. At a mutation
+//!   the k best distinct positions of both are the elites, and they become the global elites.
+//! - **Stopping (eq. 7's "end if 1e-8").** Optional `target`: converged once the best value is
+//!   at or below it. The study runs the whole budget (no target) so that every algorithm spends
+//!   the same evaluations.
+//!
+//! Where the text is silent, our choices (tested in this module):
+//! - c1 is not given a schedule; it stays at 1.8, the start of the range the text quotes.
+//!   (The text calls the rising coefficient "cognitive" but eq. 4 updates c2, the social one;
+//!   we follow the equation.)
+//! - Velocities are clamped to 20 % of each dimension's range, as in canonical PSO: with w_0 =
+//!   2.1 > 1 the update is expanding at first, and without a clamp the swarm leaves any box.
+//! - sigma: "a variable between [0-1] multiplied by size of the search space". A fixed sigma
+//!   would scatter every refined elite again; sigma starts at 0.1 of each range and halves at
+//!   every mutation (to 1e-12 of the range at least), so repeated stagnation turns into an
+//!   ever finer search around the archive.
+//! - k = 5 elites (the paper's robot experiments stop at five elite particles), G = 10 (its
+//!   value for the excitation-trajectory search).
+
+use super::pso::Particles;
+use super::swarm::{Rule, Swarm, SwarmConfig, SwarmOptimiser};
+use rand::Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// eMuPSO's settings beyond the swarm's.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EmuPsoSettings {
+    pub w: [f64; 2],
+    pub c2: [f64; 2],
+    pub c1: f64,
+    /// Stagnant iterations before a mutation (G).
+    pub stagnation: usize,
+    /// Elites (k).
+    pub elites: usize,
+    /// Initial sigma as a fraction of each range, and its factor per mutation.
+    pub sigma: f64,
+    pub sigma_decay: f64,
+    pub vmax_fraction: f64,
+    /// Stop once the best value is at or below this.
+    pub target: Option<f64>,
+}
+
+impl Default for EmuPsoSettings {
+    fn default() -> Self {
+        Self {
+            w: [2.1, 0.6],
+            c2: [1.8, 3.9],
+            c1: 1.8,
+            stagnation: 10,
+            elites: 5,
+            sigma: 0.1,
+            sigma_decay: 0.5,
+            vmax_fraction: 0.2,
+            target: None,
+        }
+    }
+}
+
+pub struct EmuPsoRule {
+    set: EmuPsoSettings,
+    p: Particles,
+    /// n and m of eqs. 3-4.
+    n: f64,
+    m: f64,
+    rad: f64,
+    /// The stagnation counter g.
+    g: usize,
+    /// Global elites (positions, values), at most k.
+    global: Vec<(Vec<f64>, f64)>,
+    /// Scratch for the merge at a mutation and the k best personal bests.
+    merged: Vec<(Vec<f64>, f64)>,
+    order: Vec<usize>,
+    sigma: f64,
+    pub mutations: usize,
+}
+
+pub type EmuPso = SwarmOptimiser<EmuPsoRule>;
+
+impl EmuPso {
+    pub fn new(cfg: SwarmConfig, set: EmuPsoSettings) -> Result<Self, String> {
+        if set.elites == 0 || set.elites >= cfg.population {
+            return Err(format!(
+                "{} elites for a population of {}: need 1 <= k < population",
+                set.elites, cfg.population
+            ));
+        }
+        if !(set.sigma > 0.0 && set.sigma <= 1.0 && set.sigma_decay > 0.0 && set.sigma_decay <= 1.0)
+        {
+            return Err("sigma and its decay must be in (0, 1]".into());
+        }
+        let swarm = Swarm::new(cfg)?;
+        let t = swarm.cfg.iterations as f64;
+        let k = set.elites;
+        let d = swarm.cfg.dim();
+        let rule = EmuPsoRule {
+            n: (set.w[1] / set.w[0]).powf(1.0 / t),
+            m: (set.c2[0] / set.c2[1]).powf(1.0 / t),
+            p: Particles::new(&swarm, set.vmax_fraction),
+            rad: f64::NAN,
+            g: 0,
+            global: Vec::with_capacity(k),
+            merged: (0..2 * k).map(|_| (vec![0.0; d], f64::INFINITY)).collect(),
+            order: Vec::with_capacity(2 * k),
+            sigma: set.sigma,
+            mutations: 0,
+            set,
+        };
+        Ok(SwarmOptimiser::from_parts(swarm, rule))
+    }
+}
+
+impl EmuPsoRule {
+    /// w and c2 at iteration t (eqs. 3-4).
+    pub fn schedules(&self, t: usize) -> (f64, f64) {
+        (
+            self.set.w[0] * self.n.powi(t as i32),
+            self.set.c2[0] / self.m.powi(t as i32),
+        )
+    }
+
+    /// The k best distinct positions of the global elites and the current personal bests
+    /// become the global elites.
+    fn update_archive(&mut self) {
+        let k = self.set.elites;
+        let mut best = Vec::with_capacity(k);
+        Swarm::smallest(&self.p.pbest_f, k, &mut best);
+        let mut used = 0;
+        for (x, f) in &self.global {
+            self.merged[used].0.copy_from_slice(x);
+            self.merged[used].1 = *f;
+            used += 1;
+        }
+        for &i in &best {
+            self.merged[used].0.copy_from_slice(&self.p.pbest_x[i]);
+            self.merged[used].1 = self.p.pbest_f[i];
+            used += 1;
+        }
+        self.order.clear();
+        self.order.extend(0..used);
+        let merged = &self.merged;
+        self.order
+            .sort_by(|&a, &b| merged[a].1.total_cmp(&merged[b].1));
+        let mut keep: Vec<usize> = Vec::with_capacity(k);
+        for &i in &self.order {
+            if keep.len() == k {
+                break;
+            }
+            if keep.iter().all(|&j| merged[j].0 != merged[i].0) {
+                keep.push(i);
+            }
+        }
+        self.global.clear();
+        for &i in &keep {
+            self.global.push((merged[i].0.clone(), merged[i].1));
+        }
+    }
+
+    /// Eq. 8: the swarm rebuilt around the elites, the last part random.
+    fn mutate(&mut self, s: &mut Swarm) {
+        self.update_archive();
+        let n = s.x.len();
+        let parts = self.global.len() + 1;
+        for i in 0..n {
+            // Particle i belongs to part i * parts / n: parts of (nearly) equal size.
+            let part = i * parts / n;
+            for j in 0..s.cfg.dim() {
+                s.x[i][j] = match self.global.get(part) {
+                    Some((e, _)) => {
+                        let z: f64 = StandardNormal.sample(&mut s.rng);
+                        s.clamp(j, e[j] + z * self.sigma * s.cfg.range(j))
+                    }
+                    None => s.rng.gen_range(s.cfg.lower[j]..s.cfg.upper[j]),
+                };
+                self.p.v[i][j] = 0.0;
+            }
+            self.p.pbest_f[i] = f64::INFINITY;
+        }
+        self.p.reset_swarm_best();
+        self.sigma = (self.sigma * self.set.sigma_decay).max(1e-12);
+        self.g = 0;
+        self.rad = f64::NAN;
+        self.mutations += 1;
+    }
+}
+
+impl Rule for EmuPsoRule {
+    const NAME: &'static str = "emupso";
+
+    fn advance(&mut self, s: &mut Swarm) {
+        self.p.update_bests(s);
+        // Eq. 5 on the current segment's swarm; eq. 6's counter.
+        let mean = self.p.pbest_f.iter().sum::<f64>() / self.p.pbest_f.len() as f64;
+        let rad = self.p.swarm_best_f() - mean;
+        let same = rad == self.rad || (rad.is_nan() && self.rad.is_nan());
+        self.g = if same { self.g + 1 } else { 0 };
+        self.rad = rad;
+        if self.g >= self.set.stagnation {
+            self.mutate(s);
+            return;
+        }
+        let (w, c2) = self.schedules(s.generation + 1);
+        self.p.fly(s, w, self.set.c1, c2);
+    }
+
+    fn converged(&self, s: &Swarm) -> bool {
+        self.set.target.is_some_and(|t| s.best_f <= t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::optim::Optimiser;
+
+    fn sphere(x: &[f64]) -> f64 {
+        x.iter().map(|v| v * v).sum()
+    }
+
+    fn run(opt: &mut EmuPso, f: impl Fn(&[f64]) -> f64) {
+        for _ in 0..=opt.swarm.cfg.iterations {
+            let v: Vec<f64> = opt.ask().iter().map(|x| f(x)).collect();
+            opt.tell(&v);
+            if opt.converged() {
+                break;
+            }
+        }
+    }
+
+    #[test]
+    fn the_schedules_run_from_their_start_to_their_end_value_over_the_budget() {
+        let cfg = SwarmConfig::for_budget(vec![-1.0; 3], vec![1.0; 3], 30, 30_000, 0);
+        let o = EmuPso::new(cfg, EmuPsoSettings::default()).unwrap();
+        let (w0, c0) = o.rule.schedules(0);
+        let (w1, c1) = o.rule.schedules(999);
+        assert!((w0 - 2.1).abs() < 1e-12 && (c0 - 1.8).abs() < 1e-12);
+        assert!(
+            (w1 - 0.6).abs() < 1e-9 && (c1 - 3.9).abs() < 1e-9,
+            "{w1} {c1}"
+        );
+        // Non-linear: geometric, so the midpoint is the geometric mean.
+        let (wm, _) = o.rule.schedules(500);
+        assert!((wm - (2.1f64 * 0.6).sqrt()).abs() < 2e-3, "{wm}");
+    }
+
+    /// A flat objective never improves a personal best: the counter reaches G after G
+    /// iterations and the swarm is rebuilt around the elites (k parts near them, one random).
+    #[test]
+    fn a_stagnant_swarm_mutates_after_g_iterations_around_its_elites() {
+        let cfg = SwarmConfig::for_budget(vec![-10.0; 2], vec![10.0; 2], 12, 12_000, 7);
+        let set = EmuPsoSettings {
+            elites: 2,
+            ..Default::default()
+        };
+        let mut o = EmuPso::new(cfg, set).unwrap();
+        // Two distinct values then flat: the first tell sets the bests, then nothing improves.
+        let mut calls = 0;
+        while o.rule.mutations == 0 {
+            let v: Vec<f64> = o
+                .ask()
+                .iter()
+                .map(|x| if calls == 0 { x[0].abs() } else { 1e9 })
+                .collect();
+            o.tell(&v);
+            calls += 1;
+            assert!(calls < 100, "never mutated");
+        }
+        // First tell sets the radius, then G = 10 unchanged ones.
+        assert_eq!(calls, 11);
+        assert_eq!(o.rule.global.len(), 2);
+        let elites: Vec<Vec<f64>> = o.rule.global.iter().map(|e| e.0.clone()).collect();
+        // Parts: particles 0-3 near elite 0, 4-7 near elite 1 (sigma = 0.1 * 20 = 2), 8-11 random.
+        for (i, x) in o.swarm.x.iter().enumerate() {
+            let d = |e: &Vec<f64>| ((x[0] - e[0]).powi(2) + (x[1] - e[1]).powi(2)).sqrt();
+            match i {
+                0..=3 => assert!(d(&elites[0]) < 10.0, "particle {i}"),
+                4..=7 => assert!(d(&elites[1]) < 10.0, "particle {i}"),
+                _ => {}
+            }
+        }
+        assert!(o.rule.p.v.iter().all(|v| v.iter().all(|c| *c == 0.0)));
+        assert!((o.rule.sigma - 0.05).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_archive_keeps_the_k_best_distinct_positions() {
+        let cfg = SwarmConfig::for_budget(vec![-1.0; 1], vec![1.0; 1], 6, 600, 1);
+        let set = EmuPsoSettings {
+            elites: 2,
+            ..Default::default()
+        };
+        let mut o = EmuPso::new(cfg, set).unwrap();
+        o.rule.global = vec![(vec![0.5], 0.25), (vec![0.1], 0.01)];
+        o.rule.p.pbest_x = vec![
+            vec![0.1],
+            vec![0.2],
+            vec![0.3],
+            vec![0.4],
+            vec![0.6],
+            vec![0.7],
+        ];
+        o.rule.p.pbest_f = vec![0.01, 0.04, 0.09, 0.16, 0.36, 0.49];
+        o.rule.update_archive();
+        let kept: Vec<f64> = o.rule.global.iter().map(|e| e.0[0]).collect();
+        assert_eq!(kept, vec![0.1, 0.2], "0.1 once (in both), then 0.2");
+    }
+
+    /// Reproducibility only: with the paper's parameters as read here the swarm does not yet
+    /// converge on the 30-D sphere at 30 000 evaluations (2.9e3, against the paper's 9.5e-8;
+    /// w >= 0.6 with c2 up to 3.9 is outside PSO's stability region), see the issue's notes.
+    #[test]
+    fn seeded_runs_are_reproducible() {
+        let cfg = SwarmConfig::for_budget(vec![-100.0; 30], vec![100.0; 30], 30, 30_000, 3);
+        let mut a = EmuPso::new(cfg.clone(), EmuPsoSettings::default()).unwrap();
+        let mut b = EmuPso::new(cfg, EmuPsoSettings::default()).unwrap();
+        run(&mut a, sphere);
+        run(&mut b, sphere);
+        assert_eq!(a.best().1.to_bits(), b.best().1.to_bits());
+        assert_eq!(a.evaluations(), 30_000);
+    }
+
+    #[test]
+    fn a_target_stops_the_run() {
+        let cfg = SwarmConfig::for_budget(vec![-5.0; 2], vec![5.0; 2], 20, 20_000, 2);
+        let set = EmuPsoSettings {
+            target: Some(1e-8),
+            ..Default::default()
+        };
+        let mut o = EmuPso::new(cfg, set).unwrap();
+        run(&mut o, sphere);
+        assert!(o.best().1 <= 1e-8 && o.evaluations() < 20_000);
+    }
+}
