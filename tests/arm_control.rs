@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use evoloop::config::{ControllerModel, Overrides, PlantModel, Scenario};
 use evoloop::report::metrics::{tracking, Tracking};
-use evoloop::sim::{simulate, SimResult};
+use evoloop::sim::{simulate, JointTraces, SimResult};
 use std::path::{Path, PathBuf};
 
 fn config(name: &str) -> PathBuf {
@@ -21,19 +21,8 @@ fn load(name: &str, ov: &Overrides) -> Scenario {
 
 /// Tracking of every joint from sample `from` on.
 fn joint_tracking(scn: &Scenario, sim: &SimResult, from: usize) -> Tracking {
-    let n = scn.reference.joints();
-    let mut sp = evoloop::reference::Setpoint::default();
-    let mut refs = vec![Vec::new(); n];
-    let mut ys = vec![Vec::new(); n];
-    for row in &sim.rows {
-        scn.reference.sample(row.state.t, &mut sp);
-        for j in 0..n {
-            refs[j].push(sp.q[j]);
-            ys[j].push(row.state.y[j]);
-        }
-    }
-    let r: Vec<&[f64]> = refs.iter().map(|v| v.as_slice()).collect();
-    let y: Vec<&[f64]> = ys.iter().map(|v| v.as_slice()).collect();
+    let traces = JointTraces::of(sim, &scn.reference, scn.reference.joints());
+    let (r, y) = traces.columns();
     tracking(&r, &y, from)
 }
 

@@ -570,8 +570,7 @@ fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_lo
     // Lockstep: the attempts are at fixed simulated times, so the run is reproducible.
     let csv = |d: &Path| std::fs::read_to_string(d.join("run.csv")).unwrap();
     assert_eq!(csv(&a), csv(&b), "two lockstep runs of one seed differ");
-    let opt: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(a.join("optimiser.json")).unwrap()).unwrap();
+    let opt = json(&a.join("optimiser.json"));
     let epochs = opt["epochs"].as_array().unwrap();
     // 20 s, a first attempt once 5 s of data are in, then every 2 s.
     assert!(epochs.len() >= 7, "{} attempts", epochs.len());
@@ -590,8 +589,7 @@ fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_lo
         }
     }
     assert!(published >= 1, "no model published: {epochs:?}");
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(a.join("summary.json")).unwrap()).unwrap();
+    let summary = json(&a.join("summary.json"));
     assert_eq!(summary["accepted_versions"].as_u64(), Some(published));
     assert_eq!(summary["rejected_versions"].as_u64(), Some(0));
 }

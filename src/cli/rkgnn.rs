@@ -321,9 +321,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         robot: a.robot.clone(),
         seed: a.seed,
         evaluations: a.evaluations,
-        threads: a
-            .threads
-            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
+        threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
     let bar = progress_bar(0, "stages", a.quiet || a.json);
     let r = study::run(&settings, &a.out, &|done, total, stage| {

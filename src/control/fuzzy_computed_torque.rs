@@ -43,15 +43,25 @@ pub struct FuzzyComputedTorque {
     /// Raw weights w_i (eq. 20) and the selection s_i of the last cycle.
     w: [f64; MAX_MODELS],
     s: [f64; MAX_MODELS],
-    /// Per model, positions of its identification reference (PROBES of them, flat) on which a
+    /// Per model, positions of its identification reference (`probe_positions`) on which a
     /// replacement model's M-hat is checked, and the in-service model's smallest eigenvalue
     /// there.
-    probes: Vec<Vec<f64>>,
+    probes: Vec<Vec<Vec<f64>>>,
     min_eig: [f64; MAX_MODELS],
 }
 
 /// Probe positions per model for checking a replacement.
 const PROBES: usize = 24;
+
+/// `PROBES` joint positions spread evenly over recorded states (`states`: rows of [q; qd], n
+/// joints each): where a candidate model's M-hat is checked, by the controller on a model's
+/// identification reference and by the live identifier on its window.
+pub fn probe_positions(states: &[f64], n: usize) -> Vec<Vec<f64>> {
+    let rows = (states.len() / (2 * n)).max(1);
+    (0..PROBES)
+        .map(|k| states[2 * n * (k * rows / PROBES)..][..n].to_vec())
+        .collect()
+}
 /// A replacement model's smallest eigenvalue of M-hat over the probes must reach this fraction
 /// of the model in service's: positive definite is not enough, a nearly singular M-hat (which
 /// an unconstrained fit can produce off its data) makes computed torque blow up.
@@ -110,20 +120,13 @@ impl FuzzyComputedTorque {
         assert!((1..=MAX_MODELS).contains(&models.len()));
         let n = models[0].dof();
         assert_eq!(gains.len(), 2 * n);
-        let probes: Vec<Vec<f64>> = models
+        let probes: Vec<Vec<Vec<f64>>> = models
             .iter()
-            .map(|m| {
-                let rows = m.premise_len().max(1);
-                let mut p = Vec::with_capacity(PROBES * n);
-                for k in 0..PROBES {
-                    p.extend_from_slice(&m.premise[2 * n * (k * rows / PROBES)..][..n]);
-                }
-                p
-            })
+            .map(|m| probe_positions(&m.premise, n))
             .collect();
         let mut min_eig = [0.0; MAX_MODELS];
         for ((e, m), p) in min_eig.iter_mut().zip(&models).zip(&probes) {
-            *e = m.net.min_eig(p.chunks(n));
+            *e = m.net.min_eig(p.iter().map(Vec::as_slice));
         }
         Self {
             l: premise_distances(&models),
@@ -231,7 +234,8 @@ impl Controller for FuzzyComputedTorque {
         if p.len() != layout.len {
             return Err((ParamCode::RejectedWrongLength, values.len() as u32));
         }
-        let e = crate::rkgnn::network::min_eig(layout, p, self.probes[slot].chunks(layout.n));
+        let probes = self.probes[slot].iter().map(Vec::as_slice);
+        let e = crate::rkgnn::network::min_eig(layout, p, probes);
         if !(e > 0.0 && e >= MIN_EIG_RATIO * self.min_eig[slot]) {
             return Err((ParamCode::RejectedNotPositiveDefinite, 0));
         }

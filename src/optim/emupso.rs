@@ -82,11 +82,15 @@ pub struct EmuPsoRule {
     rad: f64,
     /// The stagnation counter g.
     g: usize,
-    /// Global elites (positions, values), at most k.
+    /// Global elites (positions, values): k slots, the first `n_global` in use.
     global: Vec<(Vec<f64>, f64)>,
-    /// Scratch for the merge at a mutation and the k best personal bests.
+    n_global: usize,
+    /// Scratch for the merge at a mutation (2k slots), its order, the k best personal bests
+    /// and the merged slots kept: all allocated here, so a mutation allocates nothing.
     merged: Vec<(Vec<f64>, f64)>,
     order: Vec<usize>,
+    best: Vec<usize>,
+    keep: Vec<usize>,
     sigma: f64,
     pub mutations: usize,
 }
@@ -115,9 +119,12 @@ impl EmuPso {
             p: Particles::new(&swarm, set.vmax_fraction),
             rad: f64::NAN,
             g: 0,
-            global: Vec::with_capacity(k),
+            global: (0..k).map(|_| (vec![0.0; d], f64::INFINITY)).collect(),
+            n_global: 0,
             merged: (0..2 * k).map(|_| (vec![0.0; d], f64::INFINITY)).collect(),
             order: Vec::with_capacity(2 * k),
+            best: Vec::with_capacity(k),
+            keep: Vec::with_capacity(k),
             sigma: set.sigma,
             mutations: 0,
             set,
@@ -135,53 +142,62 @@ impl EmuPsoRule {
         )
     }
 
+    /// The global elites (positions, values), best first.
+    pub fn elites(&self) -> &[(Vec<f64>, f64)] {
+        &self.global[..self.n_global]
+    }
+
     /// The k best distinct positions of the global elites and the current personal bests
     /// become the global elites.
     fn update_archive(&mut self) {
         let k = self.set.elites;
-        let mut best = Vec::with_capacity(k);
-        Swarm::smallest(&self.p.pbest_f, k, &mut best);
+        Swarm::smallest(&self.p.pbest_f, k, &mut self.best);
+        let sources = self.global[..self.n_global]
+            .iter()
+            .map(|(x, f)| (x.as_slice(), *f))
+            .chain(
+                self.best
+                    .iter()
+                    .map(|&i| (self.p.pbest_x[i].as_slice(), self.p.pbest_f[i])),
+            );
         let mut used = 0;
-        for (x, f) in &self.global {
-            self.merged[used].0.copy_from_slice(x);
-            self.merged[used].1 = *f;
-            used += 1;
-        }
-        for &i in &best {
-            self.merged[used].0.copy_from_slice(&self.p.pbest_x[i]);
-            self.merged[used].1 = self.p.pbest_f[i];
+        for ((slot, value), (x, f)) in self.merged.iter_mut().zip(sources) {
+            slot.copy_from_slice(x);
+            *value = f;
             used += 1;
         }
         self.order.clear();
         self.order.extend(0..used);
         let merged = &self.merged;
+        // Unstable: no buffer; equal values are equally good elites.
         self.order
-            .sort_by(|&a, &b| merged[a].1.total_cmp(&merged[b].1));
-        let mut keep: Vec<usize> = Vec::with_capacity(k);
+            .sort_unstable_by(|&a, &b| merged[a].1.total_cmp(&merged[b].1));
+        self.keep.clear();
         for &i in &self.order {
-            if keep.len() == k {
+            if self.keep.len() == k {
                 break;
             }
-            if keep.iter().all(|&j| merged[j].0 != merged[i].0) {
-                keep.push(i);
+            if self.keep.iter().all(|&j| merged[j].0 != merged[i].0) {
+                self.keep.push(i);
             }
         }
-        self.global.clear();
-        for &i in &keep {
-            self.global.push((merged[i].0.clone(), merged[i].1));
+        for (g, &i) in self.global.iter_mut().zip(&self.keep) {
+            g.0.copy_from_slice(&merged[i].0);
+            g.1 = merged[i].1;
         }
+        self.n_global = self.keep.len();
     }
 
     /// Eq. 8: the swarm rebuilt around the elites, the last part random.
     fn mutate(&mut self, s: &mut Swarm) {
         self.update_archive();
         let n = s.x.len();
-        let parts = self.global.len() + 1;
+        let parts = self.n_global + 1;
         for i in 0..n {
             // Particle i belongs to part i * parts / n: parts of (nearly) equal size.
             let part = i * parts / n;
             for j in 0..s.cfg.dim() {
-                s.x[i][j] = match self.global.get(part) {
+                s.x[i][j] = match self.global[..self.n_global].get(part) {
                     Some((e, _)) => {
                         let z: f64 = StandardNormal.sample(&mut s.rng);
                         s.clamp(j, e[j] + z * self.sigma * s.cfg.range(j))
@@ -283,8 +299,8 @@ mod tests {
         }
         // First tell sets the radius, then G = 10 unchanged ones.
         assert_eq!(calls, 11);
-        assert_eq!(o.rule.global.len(), 2);
-        let elites: Vec<Vec<f64>> = o.rule.global.iter().map(|e| e.0.clone()).collect();
+        assert_eq!(o.rule.elites().len(), 2);
+        let elites: Vec<Vec<f64>> = o.rule.elites().iter().map(|e| e.0.clone()).collect();
         // Parts: particles 0-3 near elite 0, 4-7 near elite 1 (sigma = 0.1 * 20 = 2), 8-11 random.
         for (i, x) in o.swarm.x.iter().enumerate() {
             let d = |e: &Vec<f64>| ((x[0] - e[0]).powi(2) + (x[1] - e[1]).powi(2)).sqrt();
@@ -307,6 +323,7 @@ mod tests {
         };
         let mut o = EmuPso::new(cfg, set).unwrap();
         o.rule.global = vec![(vec![0.5], 0.25), (vec![0.1], 0.01)];
+        o.rule.n_global = 2;
         o.rule.p.pbest_x = vec![
             vec![0.1],
             vec![0.2],
@@ -317,7 +334,7 @@ mod tests {
         ];
         o.rule.p.pbest_f = vec![0.01, 0.04, 0.09, 0.16, 0.36, 0.49];
         o.rule.update_archive();
-        let kept: Vec<f64> = o.rule.global.iter().map(|e| e.0[0]).collect();
+        let kept: Vec<f64> = o.rule.elites().iter().map(|e| e.0[0]).collect();
         assert_eq!(kept, vec![0.1, 0.2], "0.1 once (in both), then 0.2");
     }
 

@@ -57,6 +57,11 @@ impl<F: Fn(&[f64]) -> f64 + Sync> Objective for F {
     }
 }
 
+/// The default thread count of population evaluations: every core this process may use.
+pub fn all_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 /// Going parallel pays when the work other threads take over exceeds this: waking a pool worker
 /// on another vCPU costs about 20 us one way on the development VM (and the results come back the
 /// same way). So the arsinh GA's two 13 us evaluations per iteration stay in one thread, while a

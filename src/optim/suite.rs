@@ -48,11 +48,8 @@ pub struct Function {
     /// The paper's group: "unimodal", "multimodal", "constant" (dimension), or "extra".
     pub group: &'static str,
     pub dim: usize,
-    /// The box, the same for every dimension unless `box_of` says otherwise.
-    pub lower: f64,
-    pub upper: f64,
-    /// Per-dimension box (Bukin's and Branin's); None = [lower, upper] everywhere.
-    pub box_of: Option<fn(usize) -> (f64, f64)>,
+    /// Dimension j's interval (the same for every j except Bukin's and Branin's).
+    pub domain: fn(usize) -> (f64, f64),
     pub f_min: f64,
     /// A minimiser (dimension `dim`).
     pub argmin: fn(usize) -> Vec<f64>,
@@ -62,14 +59,7 @@ pub struct Function {
 impl Function {
     /// The box as lower and upper bound vectors.
     pub fn bounds(&self) -> (Vec<f64>, Vec<f64>) {
-        (0..self.dim)
-            .map(|j| self.box_of.map_or((self.lower, self.upper), |b| b(j)))
-            .unzip()
-    }
-
-    /// Whether the minimiser is the origin (such functions also run shifted and rotated).
-    pub fn origin_centred(&self) -> bool {
-        (self.argmin)(self.dim).iter().all(|v| *v == 0.0)
+        (0..self.dim).map(self.domain).unzip()
     }
 }
 
@@ -91,14 +81,23 @@ pub fn get(key: &str) -> Option<&'static Function> {
 }
 
 macro_rules! func {
-    ($key:expr, $group:expr, $dim:expr, $lo:expr, $hi:expr, $fmin:expr, $argmin:expr, $f:expr) => {
+    ($key:expr, $group:expr, $dim:expr, [$lo:expr, $hi:expr], $fmin:expr, $argmin:expr, $f:expr) => {
+        func!(
+            $key,
+            $group,
+            $dim,
+            domain | _ | ($lo, $hi),
+            $fmin,
+            $argmin,
+            $f
+        )
+    };
+    ($key:expr, $group:expr, $dim:expr, domain $domain:expr, $fmin:expr, $argmin:expr, $f:expr) => {
         Function {
             key: $key,
             group: $group,
             dim: $dim,
-            lower: $lo,
-            upper: $hi,
-            box_of: None,
+            domain: $domain,
             f_min: $fmin,
             argmin: $argmin,
             f: $f,
@@ -108,15 +107,14 @@ macro_rules! func {
 
 static FUNCTIONS: [Function; 37] = [
     // ---------------------------------------------------------------- unimodal
-    func!("sphere", "unimodal", 30, -100.0, 100.0, 0.0, zeros, |x| {
+    func!("sphere", "unimodal", 30, [-100.0, 100.0], 0.0, zeros, |x| {
         x.iter().map(|v| v * v).sum()
     }),
     func!(
         "beale",
         "unimodal",
         2,
-        -4.5,
-        4.5,
+        [-4.5, 4.5],
         0.0,
         |_| vec![3.0, 0.5],
         |x| {
@@ -126,27 +124,42 @@ static FUNCTIONS: [Function; 37] = [
                 + (2.625 - a + a * b.powi(3)).powi(2)
         }
     ),
-    func!("matyas", "unimodal", 2, -10.0, 10.0, 0.0, zeros, |x| {
+    func!("matyas", "unimodal", 2, [-10.0, 10.0], 0.0, zeros, |x| {
         0.26 * (x[0] * x[0] + x[1] * x[1]) - 0.48 * x[0] * x[1]
     }),
-    func!("rosenbrock", "unimodal", 30, -30.0, 30.0, 0.0, ones, |x| {
-        x.windows(2)
-            .map(|w| 100.0 * (w[1] - w[0] * w[0]).powi(2) + (w[0] - 1.0).powi(2))
-            .sum()
-    }),
-    func!("step2", "unimodal", 30, -100.0, 100.0, 0.0, zeros, |x| {
+    func!(
+        "rosenbrock",
+        "unimodal",
+        30,
+        [-30.0, 30.0],
+        0.0,
+        ones,
+        |x| {
+            x.windows(2)
+                .map(|w| 100.0 * (w[1] - w[0] * w[0]).powi(2) + (w[0] - 1.0).powi(2))
+                .sum()
+        }
+    ),
+    func!("step2", "unimodal", 30, [-100.0, 100.0], 0.0, zeros, |x| {
         x.iter().map(|v| (v + 0.5).floor().powi(2)).sum()
     }),
-    func!("schaffer2", "unimodal", 2, -100.0, 100.0, 0.0, zeros, |x| {
-        let (s, d) = (x[0] * x[0] + x[1] * x[1], x[0] * x[0] - x[1] * x[1]);
-        0.5 + (d.sin().powi(2) - 0.5) / (1.0 + 0.001 * s).powi(2)
-    }),
+    func!(
+        "schaffer2",
+        "unimodal",
+        2,
+        [-100.0, 100.0],
+        0.0,
+        zeros,
+        |x| {
+            let (s, d) = (x[0] * x[0] + x[1] * x[1], x[0] * x[0] - x[1] * x[1]);
+            0.5 + (d.sin().powi(2) - 0.5) / (1.0 + 0.001 * s).powi(2)
+        }
+    ),
     func!(
         "schaffer3",
         "unimodal",
         2,
-        -100.0,
-        100.0,
+        [-100.0, 100.0],
         0.001_566_854_526_004,
         |_| vec![0.0, 1.253_114_960_909_422_3],
         |x| {
@@ -158,8 +171,7 @@ static FUNCTIONS: [Function; 37] = [
         "schwefel_1_2",
         "unimodal",
         30,
-        -100.0,
-        100.0,
+        [-100.0, 100.0],
         0.0,
         zeros,
         |x| {
@@ -176,8 +188,7 @@ static FUNCTIONS: [Function; 37] = [
         "schwefel_2_21",
         "unimodal",
         30,
-        -100.0,
-        100.0,
+        [-100.0, 100.0],
         0.0,
         zeros,
         |x| { x.iter().fold(0.0, |m, v| m.max(v.abs())) }
@@ -186,13 +197,12 @@ static FUNCTIONS: [Function; 37] = [
         "schwefel_2_22",
         "unimodal",
         30,
-        -10.0,
-        10.0,
+        [-10.0, 10.0],
         0.0,
         zeros,
         |x| { x.iter().map(|v| v.abs()).sum::<f64>() + x.iter().map(|v| v.abs()).product::<f64>() }
     ),
-    func!("de_jong4", "unimodal", 30, -5.12, 5.12, 0.0, zeros, |x| {
+    func!("de_jong4", "unimodal", 30, [-5.12, 5.12], 0.0, zeros, |x| {
         x.iter()
             .enumerate()
             .map(|(i, v)| (i + 1) as f64 * v.powi(4))
@@ -202,8 +212,7 @@ static FUNCTIONS: [Function; 37] = [
         "axis_parallel",
         "unimodal",
         30,
-        -5.12,
-        5.12,
+        [-5.12, 5.12],
         0.0,
         zeros,
         |x| {
@@ -218,8 +227,7 @@ static FUNCTIONS: [Function; 37] = [
         "easom",
         "multimodal",
         2,
-        -100.0,
-        100.0,
+        [-100.0, 100.0],
         -1.0,
         |_| vec![PI, PI],
         |x| { -x[0].cos() * x[1].cos() * (-(x[0] - PI).powi(2) - (x[1] - PI).powi(2)).exp() }
@@ -228,8 +236,7 @@ static FUNCTIONS: [Function; 37] = [
         "griewank",
         "multimodal",
         30,
-        -600.0,
-        600.0,
+        [-600.0, 600.0],
         0.0,
         zeros,
         |x| {
@@ -246,8 +253,7 @@ static FUNCTIONS: [Function; 37] = [
         "rastrigin",
         "multimodal",
         30,
-        -5.12,
-        5.12,
+        [-5.12, 5.12],
         0.0,
         zeros,
         |x| {
@@ -260,8 +266,7 @@ static FUNCTIONS: [Function; 37] = [
         "pen_holder",
         "multimodal",
         2,
-        -11.0,
-        11.0,
+        [-11.0, 11.0],
         -0.963_534_832_726_505_8,
         |_| vec![9.646_167_671_043_4; 2],
         |x| {
@@ -274,8 +279,7 @@ static FUNCTIONS: [Function; 37] = [
         "test_tube_holder",
         "multimodal",
         2,
-        -10.0,
-        10.0,
+        [-10.0, 10.0],
         -10.872_300_105_622_747,
         |_| vec![-1.570_602_611_885_641, 0.0],
         |x| {
@@ -289,8 +293,7 @@ static FUNCTIONS: [Function; 37] = [
         "egg_holder",
         "multimodal",
         2,
-        -512.0,
-        512.0,
+        [-512.0, 512.0],
         -959.640_662_720_851,
         |_| vec![512.0, 404.231_805_123_817],
         |x| {
@@ -303,8 +306,7 @@ static FUNCTIONS: [Function; 37] = [
         "damavandi",
         "multimodal",
         2,
-        0.0,
-        14.0,
+        [0.0, 14.0],
         0.0,
         |_| vec![2.0, 2.0],
         |x| {
@@ -323,8 +325,7 @@ static FUNCTIONS: [Function; 37] = [
         "cross_leg_table",
         "multimodal",
         2,
-        -10.0,
-        10.0,
+        [-10.0, 10.0],
         -1.0,
         zeros,
         |x| {
@@ -333,38 +334,21 @@ static FUNCTIONS: [Function; 37] = [
             -1.0 / (g + 1.0).powf(0.1)
         }
     ),
-    Function {
-        box_of: Some(bukin_box),
-        ..func!(
-            "bukin4",
-            "multimodal",
-            2,
-            -15.0,
-            3.0,
+    func!("bukin4", "multimodal", 2, domain bukin_box,
             0.0,
             |_| vec![-10.0, 0.0],
             |x| { 100.0 * x[1] * x[1] + 0.01 * (x[0] + 10.0).abs() }
-        )
-    },
-    Function {
-        box_of: Some(bukin_box),
-        ..func!(
-            "bukin6",
-            "multimodal",
-            2,
-            -15.0,
-            3.0,
+    ),
+    func!("bukin6", "multimodal", 2, domain bukin_box,
             0.0,
             |_| vec![-10.0, 1.0],
             |x| { 100.0 * (x[1] - 0.01 * x[0] * x[0]).abs().sqrt() + 0.01 * (x[0] + 10.0).abs() }
-        )
-    },
+    ),
     func!(
         "cosine_mixture",
         "multimodal",
         4,
-        -1.0,
-        1.0,
+        [-1.0, 1.0],
         -0.4,
         zeros,
         |x| { x.iter().map(|v| v * v - 0.1 * (5.0 * PI * v).cos()).sum() }
@@ -373,8 +357,7 @@ static FUNCTIONS: [Function; 37] = [
         "modified_rosenbrock",
         "multimodal",
         2,
-        -2.0,
-        2.0,
+        [-2.0, 2.0],
         34.040_243_106_640_5,
         |_| vec![-0.909_553_735_435_696_7, -0.950_571_713_457_649_6],
         |x| {
@@ -387,8 +370,7 @@ static FUNCTIONS: [Function; 37] = [
         "paviani",
         "constant",
         10,
-        2.001,
-        9.999,
+        [2.001, 9.999],
         -45.778_469_707_446_3,
         |n| vec![9.350_265_833_069_3; n],
         |x| {
@@ -403,8 +385,7 @@ static FUNCTIONS: [Function; 37] = [
         "modified_ackley",
         "constant",
         2,
-        -35.0,
-        35.0,
+        [-35.0, 35.0],
         -4.590_101_634_158_668,
         |_| vec![-1.509_620_110_184_758_4, -0.754_865_108_922_525_7],
         |x| {
@@ -420,8 +401,7 @@ static FUNCTIONS: [Function; 37] = [
         "six_hump_camel",
         "constant",
         2,
-        -5.0,
-        5.0,
+        [-5.0, 5.0],
         -1.031_628_453_489_877,
         |_| vec![0.089_842_008_658_8, -0.712_656_402_275_442],
         |x| {
@@ -429,29 +409,24 @@ static FUNCTIONS: [Function; 37] = [
             (4.0 - 2.1 * a * a + a.powi(4) / 3.0) * a * a + a * b + (4.0 * b * b - 4.0) * b * b
         }
     ),
-    Function {
-        box_of: Some(|j| if j == 0 { (-5.0, 10.0) } else { (0.0, 15.0) }),
-        ..func!(
-            "branin",
-            "constant",
-            2,
-            -5.0,
-            15.0,
-            0.397_887_357_729_738,
-            |_| vec![PI, 2.275],
-            |x| {
-                (x[1] - 5.1 * x[0] * x[0] / (4.0 * PI * PI) + 5.0 * x[0] / PI - 6.0).powi(2)
-                    + 10.0 * (1.0 - 1.0 / (8.0 * PI)) * x[0].cos()
-                    + 10.0
-            }
-        )
-    },
+    func!(
+        "branin",
+        "constant",
+        2,
+        domain | j | if j == 0 { (-5.0, 10.0) } else { (0.0, 15.0) },
+        0.397_887_357_729_738,
+        |_| vec![PI, 2.275],
+        |x| {
+            (x[1] - 5.1 * x[0] * x[0] / (4.0 * PI * PI) + 5.0 * x[0] / PI - 6.0).powi(2)
+                + 10.0 * (1.0 - 1.0 / (8.0 * PI)) * x[0].cos()
+                + 10.0
+        }
+    ),
     func!(
         "hartmann3",
         "constant",
         3,
-        0.0,
-        1.0,
+        [0.0, 1.0],
         -3.862_782_147_820_755,
         |_| vec![
             0.114_614_341_483_785_8,
@@ -464,8 +439,7 @@ static FUNCTIONS: [Function; 37] = [
         "hartmann6",
         "constant",
         6,
-        0.0,
-        1.0,
+        [0.0, 1.0],
         -3.322_368_011_415_515_6,
         |_| vec![
             0.201_689_510_886_513_7,
@@ -481,8 +455,7 @@ static FUNCTIONS: [Function; 37] = [
         "shekel5",
         "constant",
         4,
-        0.0,
-        10.0,
+        [0.0, 10.0],
         -10.153_199_679_058_227,
         |_| vec![
             4.000_037_151_097_678,
@@ -496,8 +469,7 @@ static FUNCTIONS: [Function; 37] = [
         "shekel7",
         "constant",
         4,
-        0.0,
-        10.0,
+        [0.0, 10.0],
         -10.402_940_566_818_664,
         |_| vec![
             4.000_572_915_421_001,
@@ -511,8 +483,7 @@ static FUNCTIONS: [Function; 37] = [
         "shekel10",
         "constant",
         4,
-        0.0,
-        10.0,
+        [0.0, 10.0],
         -10.536_409_816_692_043,
         |_| vec![
             4.000_746_537_460_464,
@@ -526,8 +497,7 @@ static FUNCTIONS: [Function; 37] = [
         "perm",
         "constant",
         4,
-        -4.0,
-        4.0,
+        [-4.0, 4.0],
         0.0,
         |n| (1..=n).map(|j| j as f64).collect(),
         |x| {
@@ -549,8 +519,7 @@ static FUNCTIONS: [Function; 37] = [
         "goldstein_price",
         "constant",
         2,
-        -2.0,
-        2.0,
+        [-2.0, 2.0],
         3.0,
         |_| vec![0.0, -1.0],
         |x| {
@@ -566,8 +535,7 @@ static FUNCTIONS: [Function; 37] = [
         "langerman5",
         "constant",
         2,
-        0.0,
-        10.0,
+        [0.0, 10.0],
         -5.162_126_159_963_983,
         |_| vec![2.002_992_119_0, 1.006_095_942_739_590_6],
         |x| {
@@ -583,7 +551,7 @@ static FUNCTIONS: [Function; 37] = [
         }
     ),
     // ---------------------------------------------------------------- beyond the paper
-    func!("ackley", "extra", 30, -32.768, 32.768, 0.0, zeros, |x| {
+    func!("ackley", "extra", 30, [-32.768, 32.768], 0.0, zeros, |x| {
         let n = x.len() as f64;
         let s: f64 = x.iter().map(|v| v * v).sum::<f64>() / n;
         let c: f64 = x.iter().map(|v| (2.0 * PI * v).cos()).sum::<f64>() / n;

@@ -108,9 +108,11 @@ impl Rule for WoaRule {
     }
 }
 
-/// GOA keeps the previous positions: every grasshopper moves from the same swarm state.
+/// GOA keeps the previous positions (every grasshopper moves from the same swarm state) and
+/// one grasshopper's social sum per dimension.
 pub struct GoaRule {
     prev: Vec<Vec<f64>>,
+    sum: Vec<f64>,
 }
 
 pub type Goa = SwarmOptimiser<GoaRule>;
@@ -119,7 +121,8 @@ impl Goa {
     pub fn new(cfg: SwarmConfig) -> Result<Self, String> {
         let swarm = Swarm::new(cfg)?;
         let prev = swarm.x.clone();
-        Ok(SwarmOptimiser::from_parts(swarm, GoaRule { prev }))
+        let sum = vec![0.0; swarm.cfg.dim()];
+        Ok(SwarmOptimiser::from_parts(swarm, GoaRule { prev, sum }))
     }
 }
 
@@ -141,19 +144,23 @@ impl Rule for GoaRule {
             p.copy_from_slice(x);
         }
         for i in 0..n {
-            for j in 0..s.cfg.dim() {
-                let mut sum = 0.0;
-                for k in (0..n).filter(|&k| k != i) {
-                    let dist = self.prev[i]
-                        .iter()
-                        .zip(&self.prev[k])
-                        .map(|(a, b)| (a - b).powi(2))
-                        .sum::<f64>()
-                        .sqrt();
-                    let unit = (self.prev[k][j] - self.prev[i][j]) / (dist + f64::EPSILON);
-                    sum += c * 0.5 * s.cfg.range(j) * social(2.0 + dist % 2.0) * unit;
+            self.sum.fill(0.0);
+            for k in (0..n).filter(|&k| k != i) {
+                // One distance per pair (not per dimension), mapped into [2, 4).
+                let (xi, xk) = (&self.prev[i], &self.prev[k]);
+                let dist = xi
+                    .iter()
+                    .zip(xk)
+                    .map(|(a, b)| (a - b).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                let force = c * social(2.0 + dist % 2.0) / (dist + f64::EPSILON);
+                for (j, sj) in self.sum.iter_mut().enumerate() {
+                    *sj += 0.5 * s.cfg.range(j) * force * (xk[j] - xi[j]);
                 }
-                s.x[i][j] = s.clamp(j, c * sum + s.best_x[j]);
+            }
+            for j in 0..s.cfg.dim() {
+                s.x[i][j] = s.clamp(j, c * self.sum[j] + s.best_x[j]);
             }
         }
     }

@@ -66,12 +66,7 @@ impl Plant for Arm {
     fn derivative(&self, t: f64, x: &[f64], u: &[f64], dx: &mut [f64]) {
         let n = self.model.dof();
         let (q, qd) = x.split_at(n);
-        let model = self
-            .loaded
-            .iter()
-            .rev()
-            .find(|(t0, _)| t >= *t0)
-            .map_or(&self.model, |(_, m)| m);
+        let model = super::step_at(&self.loaded, t).unwrap_or(&self.model);
         let mut tau = self.tau.borrow_mut();
         for (i, b) in model.bodies.iter().enumerate() {
             tau[i] = u[i].clamp(-b.limits.effort, b.limits.effort);
@@ -243,13 +238,7 @@ impl PlantConfig for ArmSpec {
     }
     /// The payload's mass.
     fn varying_parameter(&self, t: f64) -> Option<f64> {
-        (!self.payload.is_empty()).then(|| {
-            self.payload
-                .iter()
-                .rev()
-                .find(|s| t >= s.0)
-                .map_or(0.0, |s| s.1)
-        })
+        (!self.payload.is_empty()).then(|| super::step_at(&self.payload, t).map_or(0.0, |m| *m))
     }
     fn first_change(&self) -> Option<f64> {
         self.payload.first().map(|s| s.0)

@@ -72,11 +72,7 @@ impl MaglevParams {
 
     /// The mass at time t.
     pub fn mass_at(&self, t: f64) -> f64 {
-        self.mass_steps
-            .iter()
-            .take_while(|(ts, _)| t >= *ts)
-            .last()
-            .map_or(self.mass, |s| s.1)
+        super::step_at(&self.mass_steps, t).map_or(self.mass, |m| *m)
     }
 
     /// Holding current for mass m at the operating gap, mA.

@@ -84,6 +84,16 @@ pub struct ScalarInput {
 /// Most points in a parameter schedule (a spring constant, a mass) over a run.
 pub const MAX_SCHEDULE: usize = 8;
 
+/// The step of a step schedule (times strictly increasing, `Check::schedule`) in force at `t`:
+/// the last one at or before it; None before the first.
+pub fn step_at<T>(steps: &[(f64, T)], t: f64) -> Option<&T> {
+    steps
+        .iter()
+        .take_while(|(ts, _)| t >= *ts)
+        .last()
+        .map(|s| &s.1)
+}
+
 /// What a plant kind's validation may look at besides its own table.
 pub struct PlantContext<'a> {
     /// The integration step, s (validated: 0 < step <= period).

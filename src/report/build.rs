@@ -9,6 +9,7 @@ use super::summary::{
 use super::Table;
 use crate::config::Scenario;
 use crate::sim::cost::TrackingCost;
+use crate::sim::JointTraces;
 use crate::MAX_JOINTS;
 use std::path::Path;
 
@@ -92,27 +93,15 @@ fn windowed_rms(t: &[f64], refs: &[&[f64]], ys: &[&[f64]], width: f64) -> (Vec<f
 }
 
 /// The scenario with the optimiser off, simulated in-process (the same plant and controller
-/// code, bit-identical to a lockstep run of the processes): times, each joint's reference and
-/// output, as run.csv has them.
-fn frozen_tracking_columns(scn: &Scenario) -> (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+/// code, bit-identical to a lockstep run of the processes), per joint.
+fn frozen_traces(scn: &Scenario) -> JointTraces {
     let mut f = scn.clone();
     f.optimiser.mode = crate::config::OptimiserMode::Off;
-    let sim = crate::sim::simulate(&f);
-    let n = scn.reference.joints();
-    let mut sp = crate::reference::Setpoint::default();
-    let (mut refs, mut ys) = (vec![Vec::new(); n], vec![Vec::new(); n]);
-    for row in &sim.rows {
-        scn.reference.sample(row.state.t, &mut sp);
-        for j in 0..n {
-            refs[j].push(sp.q[j]);
-            ys[j].push(row.state.y[j]);
-        }
-    }
-    (sim.rows.iter().map(|r| r.state.t).collect(), refs, ys)
-}
-
-fn cols(v: &[Vec<f64>]) -> Vec<&[f64]> {
-    v.iter().map(Vec::as_slice).collect()
+    JointTraces::of(
+        &crate::sim::simulate(&f),
+        &scn.reference,
+        scn.reference.joints(),
+    )
 }
 
 fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
@@ -181,35 +170,22 @@ pub fn build_report(
     });
     let n_rejected = rejected.len();
     let reps = repetitions(scn, &t, &refs, &ys, &us);
-    // The frozen comparison for the indirect scheme: the same scenario with the optimiser off,
-    // by the in-process simulation (the same plant and controller code, bit-identical to a
-    // lockstep run of the processes).
-    let frozen: Vec<(f64, f64, f64)> =
-        if scn.optimiser.mode == crate::config::OptimiserMode::Indirect {
-            let mut f = scn.clone();
-            f.optimiser.mode = crate::config::OptimiserMode::Off;
-            let sim = crate::sim::simulate(&f);
-            let ft: Vec<f64> = sim.rows.iter().map(|r| r.state.t).collect();
-            let fr = vec![sim
-                .rows
-                .iter()
-                .map(|r| r.telemetry.reference)
-                .collect::<Vec<f64>>()];
-            let fy = vec![(
-                "y0".to_string(),
-                sim.rows.iter().map(|r| r.state.y[0]).collect::<Vec<f64>>(),
-            )];
-            let fu = vec![(
-                "u0".to_string(),
-                sim.rows
-                    .iter()
-                    .map(|r| r.telemetry.u[0])
-                    .collect::<Vec<f64>>(),
-            )];
-            repetitions(&f, &ft, &fr, &fy, &fu)
-        } else {
-            Vec::new()
-        };
+    // The frozen comparison of a scheme that tunes alongside operation: the same scenario and
+    // seed with the optimiser off. The indirect scheme is judged on its cost per repetition,
+    // identification (below) on tracking.
+    use crate::config::OptimiserMode;
+    let frozen_traces = matches!(
+        scn.optimiser.mode,
+        OptimiserMode::Indirect | OptimiserMode::Identify
+    )
+    .then(|| frozen_traces(scn));
+    let frozen: Vec<(f64, f64, f64)> = match &frozen_traces {
+        Some(f) if scn.optimiser.mode == OptimiserMode::Indirect => {
+            let named = |p: &str, c: &[Vec<f64>]| vec![(format!("{p}0"), c[0].clone())];
+            repetitions(scn, &f.t, &f.r[..1], &named("y", &f.y), &named("u", &f.u))
+        }
+        _ => Vec::new(),
+    };
     let plant_model = scn.plant.model.config();
     let change = plant_model.first_change();
     let mean = |v: Vec<f64>| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
@@ -237,13 +213,15 @@ pub fn build_report(
     };
     // Identification alongside operation against the models it started with, kept all run long
     // (the frozen comparison again): tracking RMS before the plant's change and at the end.
-    let identify = scn.optimiser.mode == crate::config::OptimiserMode::Identify;
-    let frozen_columns = identify.then(|| frozen_tracking_columns(scn));
+    let identify = scn.optimiser.mode == OptimiserMode::Identify;
     let (tracking_before_change, tracking_after_change) =
         tracking_phases(&t, &ref_cols, &y_cols, change, quarter);
-    let (tracking_before_change_frozen, tracking_after_change_frozen) = match &frozen_columns {
-        Some((ft, fr, fy)) => tracking_phases(ft, &cols(fr), &cols(fy), change, quarter),
-        None => (None, None),
+    let (tracking_before_change_frozen, tracking_after_change_frozen) = match &frozen_traces {
+        Some(f) if identify => {
+            let (fr, fy) = f.columns();
+            tracking_phases(&f.t, &fr, &fy, change, quarter)
+        }
+        _ => (None, None),
     };
     let cost_before_change = before(&reps);
     let cost_after_change = after(&reps);
@@ -310,9 +288,13 @@ pub fn build_report(
         tracking_before_change_frozen,
         tracking_after_change_frozen,
     };
-    if let (Some((ft, fr, fy)), true) = (&frozen_columns, scn.output.plots) {
+    if let (Some(f), true) = (
+        frozen_traces.as_ref().filter(|_| identify),
+        scn.output.plots,
+    ) {
         let (tw, run_rms) = windowed_rms(&t, &ref_cols, &y_cols, IDENTIFY_PLOT_WINDOW);
-        let (_, frozen_rms) = windowed_rms(ft, &cols(fr), &cols(fy), IDENTIFY_PLOT_WINDOW);
+        let (fr, fy) = f.columns();
+        let (_, frozen_rms) = windowed_rms(&f.t, &fr, &fy, IDENTIFY_PLOT_WINDOW);
         let frozen_rms: Vec<f64> = (0..tw.len())
             .map(|k| frozen_rms.get(k).copied().unwrap_or(f64::NAN))
             .collect();

@@ -16,7 +16,7 @@ use serde::Serialize;
 use std::path::Path;
 
 /// What a study compares: the scheme and the number it is judged by.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+#[derive(Debug, Clone, Copy, Serialize)]
 pub struct Measure {
     /// The scheme, as a sentence's subject.
     pub scheme: &'static str,
@@ -26,6 +26,20 @@ pub struct Measure {
     pub what: &'static str,
     /// The prefix of seeds.csv's columns.
     pub column: &'static str,
+    /// How the number is taken, for the report.
+    #[serde(skip)]
+    how: &'static str,
+    /// The summary's keys of the number before the change, its frozen twin, after, and its
+    /// frozen twin; their values; the factor into the study's unit.
+    #[serde(skip)]
+    keys: [&'static str; 4],
+    #[serde(skip)]
+    read: fn(&Summary) -> [Option<f64>; 4],
+    #[serde(skip)]
+    scale: f64,
+    /// Whether the scheme estimates a model parameter (`model_estimate_error`).
+    #[serde(skip)]
+    estimates: bool,
 }
 
 impl Measure {
@@ -34,12 +48,49 @@ impl Measure {
         short: "tuned",
         what: "cost per repetition",
         column: "cost",
+        how: "Cost per repetition of the reference: mean over the repetitions before the plant's \
+              change (the first, from rest, left out) and over the last quarter of the run.",
+        keys: [
+            "cost_before_change",
+            "cost_before_change_frozen",
+            "cost_after_change",
+            "cost_after_change_frozen",
+        ],
+        read: |s| {
+            [
+                s.cost_before_change,
+                s.cost_before_change_frozen,
+                s.cost_after_change,
+                s.cost_after_change_frozen,
+            ]
+        },
+        scale: 1.0,
+        estimates: true,
     };
     pub const IDENTIFY: Measure = Measure {
         scheme: "Identification alongside operation",
         short: "identified",
         what: "tracking RMS over all joints (mrad)",
         column: "tracking_mrad",
+        how: "Tracking RMS over all joints, mrad: from 1 s (past start-up) to the plant's change, \
+              and over the last quarter of the run; the frozen controller keeps the models it \
+              started with.",
+        keys: [
+            "tracking_before_change",
+            "tracking_before_change_frozen",
+            "tracking_after_change",
+            "tracking_after_change_frozen",
+        ],
+        read: |s| {
+            [
+                s.tracking_before_change,
+                s.tracking_before_change_frozen,
+                s.tracking_after_change,
+                s.tracking_after_change_frozen,
+            ]
+        },
+        scale: 1e3,
+        estimates: false,
     };
 
     /// The measure of a mode that tunes alongside operation; None for the others.
@@ -72,31 +123,16 @@ impl SeedRun {
         let f = |v: Option<f64>, k: &str| {
             v.ok_or_else(|| format!("summary.json of seed {seed} has no number `{k}`"))
         };
-        let (before, before_frozen, after, after_frozen, estimate_error) =
-            if *m == Measure::IDENTIFY {
-                let mrad = |v: Option<f64>, k: &str| f(v, k).map(|x| 1e3 * x);
-                (
-                    mrad(s.tracking_before_change, "tracking_before_change")?,
-                    mrad(
-                        s.tracking_before_change_frozen,
-                        "tracking_before_change_frozen",
-                    )?,
-                    mrad(s.tracking_after_change, "tracking_after_change")?,
-                    mrad(
-                        s.tracking_after_change_frozen,
-                        "tracking_after_change_frozen",
-                    )?,
-                    None,
-                )
-            } else {
-                (
-                    f(s.cost_before_change, "cost_before_change")?,
-                    f(s.cost_before_change_frozen, "cost_before_change_frozen")?,
-                    f(s.cost_after_change, "cost_after_change")?,
-                    f(s.cost_after_change_frozen, "cost_after_change_frozen")?,
-                    Some(f(s.model_estimate_error, "model_estimate_error")?),
-                )
-            };
+        let mut v = [0.0; 4];
+        for ((v, x), k) in v.iter_mut().zip((m.read)(s)).zip(m.keys) {
+            *v = m.scale * f(x, k)?;
+        }
+        let [before, before_frozen, after, after_frozen] = v;
+        let estimate_error = if m.estimates {
+            Some(f(s.model_estimate_error, "model_estimate_error")?)
+        } else {
+            None
+        };
         Ok(Self {
             seed,
             before,
@@ -206,14 +242,7 @@ impl Study {
     pub fn markdown(&self) -> String {
         let f = |m: &MeanCi| format!("{:.1} [{:.1} .. {:.1}]", m.mean, m.ci95[0], m.ci95[1]);
         let m = &self.measure;
-        let how = if *m == Measure::IDENTIFY {
-            "Tracking RMS over all joints, mrad: from 1 s (past start-up) to the plant's change, \
-             and over the last quarter of the run; the frozen controller keeps the models it \
-             started with."
-        } else {
-            "Cost per repetition of the reference: mean over the repetitions before the plant's \
-             change (the first, from rest, left out) and over the last quarter of the run."
-        };
+        let how = m.how;
         let mut md = format!(
             "# {}: {} against the frozen controller over {} seeds\n\n\
              Each seed is a lockstep run of the processes (plant noise and the optimiser's random \

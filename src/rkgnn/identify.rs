@@ -107,7 +107,7 @@ impl Settings {
             },
             lambda: [1000.0, 1.0, 1.0, 1000.0],
             probes: 40,
-            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            threads: crate::optim::all_cores(),
             start: Start::Random,
         }
     }

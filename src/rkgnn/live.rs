@@ -17,7 +17,9 @@
 //! least `MIN_EIG_RATIO` of the model it replaces) before it uses it. In lockstep the attempts
 //! are at fixed simulated times, so a seeded run is reproducible.
 
-use crate::control::fuzzy_computed_torque::{model_weights, premise_distances, MIN_EIG_RATIO};
+use crate::control::fuzzy_computed_torque::{
+    model_weights, premise_distances, probe_positions, MIN_EIG_RATIO,
+};
 use crate::control::fuzzy_select;
 use crate::indirect::EpochRecord;
 use crate::msg::{ParamSet, PlantState, KIND_RKGNN_MODEL};
@@ -30,8 +32,6 @@ use std::collections::VecDeque;
 
 /// Samples between the rows the fit and the comparison use (the identification's step).
 const STRIDE: usize = 5;
-/// Probe positions over the window for the candidate's M-hat.
-const PROBES: usize = 24;
 
 /// One recorded sample: time, reference [theta_d; theta_d'], output [theta; theta'] and the
 /// torque applied from this sample to the next.
@@ -177,9 +177,7 @@ impl LiveIdentify {
         let (fresh, fresh_tau) = self.data(self.buf.iter().skip(self.window).copied());
         let t0 = self.buf.front().map_or(0.0, |s| s.t);
         let slot = self.busiest_slot(&train, t0);
-        let probes: Vec<Vec<f64>> = (0..PROBES)
-            .map(|k| train.x_at(k * train.len() / PROBES)[..n].to_vec())
-            .collect();
+        let probes = probe_positions(&train.x, n);
         let in_service = &self.models[slot].net;
         let floor = MIN_EIG_RATIO * in_service.min_eig(probes.iter().map(Vec::as_slice));
         let layout = &in_service.layout;

@@ -23,7 +23,7 @@ use crate::report::plot::{stacked_png, Panel, Series};
 use crate::report::RunLog;
 use crate::rkgnn::identify::{self, InertiaBounds, Report, Settings};
 use crate::rkgnn::Trajectory;
-use crate::sim::{simulate, SimResult};
+use crate::sim::{simulate, JointTraces, SimResult};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -297,39 +297,12 @@ fn simulate_all(cases: &[Case], threads: usize, done: &(dyn Fn() + Sync)) -> Vec
     })
 }
 
-/// Set-points and outputs of a simulated case: (t, q_d per joint, y per joint, u per joint).
-struct Traces {
-    t: Vec<f64>,
-    r: Vec<Vec<f64>>,
-    y: Vec<Vec<f64>>,
-    u: Vec<Vec<f64>>,
-}
+/// A simulated case per joint (`sim::JointTraces`), with what the study reads off it.
+type Traces = JointTraces;
 
-impl Traces {
-    fn of(scn: &Scenario, sim: &SimResult) -> Self {
-        let mut sp = crate::reference::Setpoint::default();
-        let rows = sim.rows.len();
-        let mut tr = Traces {
-            t: Vec::with_capacity(rows),
-            r: (0..JOINTS).map(|_| Vec::with_capacity(rows)).collect(),
-            y: (0..JOINTS).map(|_| Vec::with_capacity(rows)).collect(),
-            u: (0..JOINTS).map(|_| Vec::with_capacity(rows)).collect(),
-        };
-        for row in &sim.rows {
-            scn.reference.sample(row.state.t, &mut sp);
-            tr.t.push(row.state.t);
-            for j in 0..JOINTS {
-                tr.r[j].push(sp.q[j]);
-                tr.y[j].push(row.state.y[j]);
-                tr.u[j].push(row.telemetry.u[j]);
-            }
-        }
-        tr
-    }
-
+impl JointTraces {
     fn rms(&self) -> Vec<f64> {
-        let r: Vec<&[f64]> = self.r.iter().map(Vec::as_slice).collect();
-        let y: Vec<&[f64]> = self.y.iter().map(Vec::as_slice).collect();
+        let (r, y) = self.columns();
         tracking(&r, &y, 0).rms
     }
 
@@ -516,7 +489,7 @@ pub fn run(
     let traces: Vec<Traces> = cases
         .iter()
         .zip(&sims)
-        .map(|(c, sim)| Traces::of(&c.scenario, sim))
+        .map(|(c, sim)| Traces::of(sim, &c.scenario.reference, JOINTS))
         .collect();
     let runs = dir.join("runs");
     std::fs::create_dir_all(&runs).map_err(|e| format!("{}: {e}", runs.display()))?;

@@ -59,6 +59,48 @@ impl SimResult {
     }
 }
 
+/// A simulated run per joint, as run.csv has it: times, each joint's set-point (the reference at
+/// the sample's time), output and command.
+pub struct JointTraces {
+    pub t: Vec<f64>,
+    pub r: Vec<Vec<f64>>,
+    pub y: Vec<Vec<f64>>,
+    pub u: Vec<Vec<f64>>,
+}
+
+impl JointTraces {
+    /// The first `joints` joints of `sim`, whose scenario followed `reference`.
+    pub fn of(sim: &SimResult, reference: &crate::reference::Reference, joints: usize) -> Self {
+        let rows = sim.rows.len();
+        let column = || (0..joints).map(|_| Vec::with_capacity(rows)).collect();
+        let mut tr = Self {
+            t: Vec::with_capacity(rows),
+            r: column(),
+            y: column(),
+            u: column(),
+        };
+        let mut sp = crate::reference::Setpoint::default();
+        for row in &sim.rows {
+            reference.sample(row.state.t, &mut sp);
+            tr.t.push(row.state.t);
+            for j in 0..joints {
+                tr.r[j].push(sp.q[j]);
+                tr.y[j].push(row.state.y[j]);
+                tr.u[j].push(row.telemetry.u[j]);
+            }
+        }
+        tr
+    }
+
+    /// Set-point and output columns as slices (what `report::metrics::tracking` takes).
+    pub fn columns(&self) -> (Vec<&[f64]>, Vec<&[f64]>) {
+        fn slices(c: &[Vec<f64>]) -> Vec<&[f64]> {
+            c.iter().map(Vec::as_slice).collect()
+        }
+        (slices(&self.r), slices(&self.y))
+    }
+}
+
 /// Simulate the scenario in lockstep in this process, scheduled parameter sets included when
 /// the scenario's optimiser mode is `schedule`.
 pub fn simulate(scn: &Scenario) -> SimResult {
