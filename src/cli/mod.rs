@@ -6,6 +6,7 @@ pub mod bench;
 pub mod check;
 pub mod dynamics;
 pub mod floor;
+pub mod optim;
 pub mod rkgnn;
 pub mod robust;
 pub mod tune;
@@ -41,6 +42,12 @@ pub enum Cmd {
     Check {
         /// Scenario file (TOML).
         file: PathBuf,
+    },
+    /// The eMuPSO paper's optimiser benchmark: `optim study` (Tables 4-9 on the 36-function
+    /// suite and shifted copies), `optim bench` (each optimiser's own overhead).
+    Optim {
+        #[command(subcommand)]
+        cmd: optim::OptimCmd,
     },
     /// Robust state feedback for the two-mass benchmark: stability radius, LQR, DE tuning, the
     /// paper's reproduction.
@@ -116,6 +123,7 @@ pub fn main() -> ExitCode {
         Some(
             Cmd::Check { .. }
                 | Cmd::Robust { .. }
+                | Cmd::Optim { .. }
                 | Cmd::Dynamics(_)
                 | Cmd::Tune(_)
                 | Cmd::Identify { .. }
@@ -155,6 +163,7 @@ pub fn main() -> ExitCode {
             BenchCmd::LatencyPeer(a) => bench::latency_peer(a),
             BenchCmd::Loop(a) => bench::loop_(a),
         } as u8),
+        Some(Cmd::Optim { cmd }) => ExitCode::from(crate::cli::optim::main(cmd) as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(crate::cli::robust::main(cmd) as u8),
         Some(Cmd::Tune(a)) => ExitCode::from(crate::cli::tune::main(a) as u8),
         Some(Cmd::Identify { cmd }) => ExitCode::from(rkgnn::identify(cmd) as u8),

@@ -6,9 +6,9 @@
 //!   the maximum value": n = (0.6 / 2.1)^(1/T), m = (1.8 / 3.9)^(1/T), so both reach their end
 //!   values exactly at t = T.
 //! - **Swarm radius and stagnation (eqs. 5-6).** rad_t = (best cost of the current swarm) -
-//!   mean(personal best costs); the counter g grows by one when rad_t equals rad_(t-1) and is
-//!   reset otherwise. The mean of the personal bests changes exactly when one of them improves,
-//!   so g counts the iterations in which no particle improved.
+//!   mean(personal best costs); the counter g grows by one when the change of rad is
+//!   "negligible", |rad_t - rad_(t-1)| <= 1e-2 |rad_t| (the text: "no change ... or negligible"),
+//!   and is reset otherwise.
 //! - **Mutation (eqs. 7-8).** When g reaches G the swarm is rebuilt around k elites: the swarm
 //!   is split into k + 1 parts, part i (< k) made of offspring x = elite_i + N(0, sigma_j) per
 //!   dimension (clamped to the box), the last part uniformly random. Velocities restart at zero
@@ -25,12 +25,20 @@
 //! - c1 is not given a schedule; it stays at 1.8, the start of the range the text quotes.
 //!   (The text calls the rising coefficient "cognitive" but eq. 4 updates c2, the social one;
 //!   we follow the equation.)
-//! - Velocities are clamped to 20 % of each dimension's range, as in canonical PSO: with w_0 =
-//!   2.1 > 1 the update is expanding at first, and without a clamp the swarm leaves any box.
+//! - **The velocity clamp is the step size.** With w >= 0.6 and c1 + c2 up to 5.7 the update
+//!   lies outside PSO's second-order stability region (c1 + c2 < 24 (1 - w^2) / (7 - 5 w) =
+//!   3.84 at w = 0.6, Poli 2009) for the whole budget: read literally, the swarm is a random
+//!   walk as wide as its clamp and never converges (measured: 30-D sphere 2.9e3 after 30 000
+//!   evaluations, where the paper reports 9.5e-8). The text does not say how its runs converged;
+//!   we take the known remedy for an expanding swarm, dynamic delimitation of the maximum
+//!   velocity (Schutte and Groenwold 2005): the clamp starts at 20 % of each range and halves
+//!   whenever the run's best has not improved for 3 iterations. The schedules of eqs. 3-4 are
+//!   kept as written; they set how the swarm moves within the clamp.
 //! - sigma: "a variable between [0-1] multiplied by size of the search space". A fixed sigma
 //!   would scatter every refined elite again; sigma starts at 0.1 of each range and halves at
 //!   every mutation (to 1e-12 of the range at least), so repeated stagnation turns into an
-//!   ever finer search around the archive.
+//!   ever finer search around the archive. The rebuilt swarm's clamp restarts at that sigma:
+//!   it searches at the scale it was seeded with.
 //! - k = 5 elites (the paper's robot experiments stop at five elite particles), G = 10 (its
 //!   value for the excitation-trajectory search).
 
@@ -53,6 +61,11 @@ pub struct EmuPsoSettings {
     pub sigma: f64,
     pub sigma_decay: f64,
     pub vmax_fraction: f64,
+    /// The clamp's factor after `vmax_patience` iterations without a better best.
+    pub vmax_shrink: f64,
+    pub vmax_patience: usize,
+    /// A change of the swarm radius at most this fraction of it counts as none (eq. 6).
+    pub stagnation_tolerance: f64,
     /// Stop once the best value is at or below this.
     pub target: Option<f64>,
 }
@@ -68,6 +81,9 @@ impl Default for EmuPsoSettings {
             sigma: 0.1,
             sigma_decay: 0.5,
             vmax_fraction: 0.2,
+            vmax_shrink: 0.5,
+            vmax_patience: 3,
+            stagnation_tolerance: 1e-2,
             target: None,
         }
     }
@@ -93,6 +109,9 @@ pub struct EmuPsoRule {
     keep: Vec<usize>,
     sigma: f64,
     pub mutations: usize,
+    /// The run's best when it last improved, and the iterations since.
+    last_best: f64,
+    idle: usize,
 }
 
 pub type EmuPso = SwarmOptimiser<EmuPsoRule>;
@@ -105,9 +124,19 @@ impl EmuPso {
                 set.elites, cfg.population
             ));
         }
-        if !(set.sigma > 0.0 && set.sigma <= 1.0 && set.sigma_decay > 0.0 && set.sigma_decay <= 1.0)
+        let fraction = |v: f64| v > 0.0 && v <= 1.0;
+        if !(fraction(set.sigma)
+            && fraction(set.sigma_decay)
+            && fraction(set.vmax_fraction)
+            && fraction(set.vmax_shrink))
         {
-            return Err("sigma and its decay must be in (0, 1]".into());
+            return Err("sigma, vmax_fraction and their factors must be in (0, 1]".into());
+        }
+        if set.vmax_patience == 0
+            || set.stagnation_tolerance.is_nan()
+            || set.stagnation_tolerance < 0.0
+        {
+            return Err("vmax_patience must be >= 1 and stagnation_tolerance >= 0".into());
         }
         let swarm = Swarm::new(cfg)?;
         let t = swarm.cfg.iterations as f64;
@@ -127,6 +156,8 @@ impl EmuPso {
             keep: Vec::with_capacity(k),
             sigma: set.sigma,
             mutations: 0,
+            last_best: f64::INFINITY,
+            idle: 0,
             set,
         };
         Ok(SwarmOptimiser::from_parts(swarm, rule))
@@ -209,7 +240,9 @@ impl EmuPsoRule {
             self.p.pbest_f[i] = f64::INFINITY;
         }
         self.p.reset_swarm_best();
+        self.p.vmax_fraction = self.sigma;
         self.sigma = (self.sigma * self.set.sigma_decay).max(1e-12);
+        self.idle = 0;
         self.g = 0;
         self.rad = f64::NAN;
         self.mutations += 1;
@@ -224,12 +257,24 @@ impl Rule for EmuPsoRule {
         // Eq. 5 on the current segment's swarm; eq. 6's counter.
         let mean = self.p.pbest_f.iter().sum::<f64>() / self.p.pbest_f.len() as f64;
         let rad = self.p.swarm_best_f() - mean;
-        let same = rad == self.rad || (rad.is_nan() && self.rad.is_nan());
+        let same = (rad - self.rad).abs() <= self.set.stagnation_tolerance * rad.abs()
+            || (rad.is_nan() && self.rad.is_nan());
         self.g = if same { self.g + 1 } else { 0 };
         self.rad = rad;
         if self.g >= self.set.stagnation {
             self.mutate(s);
             return;
+        }
+        // Dynamic delimitation of the clamp (module docs).
+        if s.best_f < self.last_best {
+            self.last_best = s.best_f;
+            self.idle = 0;
+        } else {
+            self.idle += 1;
+            if self.idle >= self.set.vmax_patience {
+                self.p.vmax_fraction = (self.p.vmax_fraction * self.set.vmax_shrink).max(1e-15);
+                self.idle = 0;
+            }
         }
         let (w, c2) = self.schedules(s.generation + 1);
         self.p.fly(s, w, self.set.c1, c2);
@@ -338,9 +383,6 @@ mod tests {
         assert_eq!(kept, vec![0.1, 0.2], "0.1 once (in both), then 0.2");
     }
 
-    /// Reproducibility only: with the paper's parameters as read here the swarm does not yet
-    /// converge on the 30-D sphere at 30 000 evaluations (2.9e3, against the paper's 9.5e-8;
-    /// w >= 0.6 with c2 up to 3.9 is outside PSO's stability region), see the issue's notes.
     #[test]
     fn seeded_runs_are_reproducible() {
         let cfg = SwarmConfig::for_budget(vec![-100.0; 30], vec![100.0; 30], 30, 30_000, 3);
@@ -350,6 +392,49 @@ mod tests {
         run(&mut b, sphere);
         assert_eq!(a.best().1.to_bits(), b.best().1.to_bits());
         assert_eq!(a.evaluations(), 30_000);
+    }
+
+    /// The paper's Table 4-5 means for eMuPSO (30-D, 30 000 evaluations, population 30):
+    /// sphere 9.46e-8, Griewank 0.0343. Ten seeds' mean must be at least as good.
+    #[test]
+    fn reaches_the_published_sphere_and_griewank_values_at_30000_evaluations() {
+        for (key, published) in [("sphere", 9.46e-8), ("griewank", 0.0343134)] {
+            let f = crate::optim::suite::get(key).unwrap();
+            let mut errors = Vec::new();
+            for seed in 0..10 {
+                let (lower, upper) = f.bounds();
+                let cfg = SwarmConfig::for_budget(lower, upper, 30, 30_000, seed);
+                let mut o = EmuPso::new(cfg, EmuPsoSettings::default()).unwrap();
+                run(&mut o, f.f);
+                errors.push(o.best().1 - f.f_min);
+            }
+            let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+            assert!(
+                mean <= published,
+                "{key}: mean error {mean:e} > {published:e}: {errors:?}"
+            );
+        }
+    }
+
+    /// Without the clamp's delimitation the paper's coefficients do not converge (module docs):
+    /// the mechanism, not luck, brings the sphere down.
+    #[test]
+    fn without_the_shrinking_clamp_the_literal_swarm_does_not_converge() {
+        let cfg = SwarmConfig::for_budget(vec![-100.0; 30], vec![100.0; 30], 30, 30_000, 3);
+        let literal = EmuPsoSettings {
+            vmax_shrink: 1.0,
+            ..Default::default()
+        };
+        let mut a = EmuPso::new(cfg.clone(), literal).unwrap();
+        let mut b = EmuPso::new(cfg, EmuPsoSettings::default()).unwrap();
+        run(&mut a, sphere);
+        run(&mut b, sphere);
+        assert!(
+            a.best().1 > 1.0 && b.best().1 < 1e-20,
+            "{} {}",
+            a.best().1,
+            b.best().1
+        );
     }
 
     #[test]

@@ -8,6 +8,8 @@ pub mod ga;
 pub mod hooke_jeeves;
 pub mod hybrid;
 pub mod pso;
+pub mod rng;
+pub mod study;
 pub mod suite;
 pub mod swarm;
 pub mod wolves;

@@ -7,7 +7,6 @@
 //! - eMuPSO's particles (`super::emupso`) use the same update with their own schedules.
 
 use super::swarm::{Rule, Swarm, SwarmConfig, SwarmOptimiser};
-use rand::Rng;
 
 /// Velocities and personal bests: the particle part of a swarm.
 pub struct Particles {
@@ -20,6 +19,8 @@ pub struct Particles {
     gbest_f: f64,
     /// Largest |v_j| as a fraction of dimension j's range.
     pub vmax_fraction: f64,
+    /// The clamp per dimension (scratch of `fly`).
+    vmax: Vec<f64>,
 }
 
 impl Particles {
@@ -32,6 +33,7 @@ impl Particles {
             gbest_x: s.x[0].clone(),
             gbest_f: f64::INFINITY,
             vmax_fraction,
+            vmax: vec![0.0; d],
         }
     }
 
@@ -60,21 +62,29 @@ impl Particles {
     }
 
     /// Eqs. 1-2 with inertia w and coefficients c1 (towards the personal best) and c2 (towards
-    /// the swarm's best), r1, r2 uniform per dimension.
+    /// the swarm's best), r1, r2 uniform per dimension (one 64-bit draw gives both, 32 bits
+    /// each: the optimiser's own cost per evaluation is mostly drawing numbers).
     pub fn fly(&mut self, s: &mut Swarm, w: f64, c1: f64, c2: f64) {
-        for i in 0..s.x.len() {
-            for j in 0..s.cfg.dim() {
-                let vmax = self.vmax_fraction * s.cfg.range(j);
-                let (r1, r2): (f64, f64) = (s.rng.gen(), s.rng.gen());
-                let x = s.x[i][j];
-                let v = (w * self.v[i][j]
-                    + c1 * r1 * (self.pbest_x[i][j] - x)
-                    + c2 * r2 * (self.gbest_x[j] - x))
-                    .clamp(-vmax, vmax);
-                let nx = x + v;
-                let cx = s.clamp(j, nx);
-                self.v[i][j] = if cx == nx { v } else { 0.0 };
-                s.x[i][j] = cx;
+        let (lower, upper) = (&s.cfg.lower, &s.cfg.upper);
+        for (m, (l, u)) in self.vmax.iter_mut().zip(lower.iter().zip(upper)) {
+            *m = self.vmax_fraction * (u - l);
+        }
+        let rng = &mut s.rng;
+        for ((x, v), p) in s.x.iter_mut().zip(&mut self.v).zip(&self.pbest_x) {
+            let dims = x
+                .iter_mut()
+                .zip(v.iter_mut())
+                .zip(p.iter().zip(&self.gbest_x));
+            for (((xj, vj), (pj, gj)), (vmax, (l, u))) in
+                dims.zip(self.vmax.iter().zip(lower.iter().zip(upper)))
+            {
+                let (r1, r2) = rng.pair();
+                let nv =
+                    (w * *vj + c1 * r1 * (pj - *xj) + c2 * r2 * (gj - *xj)).clamp(-vmax, *vmax);
+                let nx = *xj + nv;
+                let cx = nx.clamp(*l, *u);
+                *vj = if cx == nx { nv } else { 0.0 };
+                *xj = cx;
             }
         }
     }

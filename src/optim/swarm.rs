@@ -3,9 +3,9 @@
 //! and the counters, behind the `Optimiser` ask/tell interface. Each algorithm is a `Rule` that
 //! moves the population after each `tell`; everything is allocated once, at construction.
 
+use super::rng::Xoshiro256pp;
 use super::Optimiser;
 use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 
 /// The settings every swarm method takes.
 #[derive(Debug, Clone, PartialEq)]
@@ -77,7 +77,7 @@ impl SwarmConfig {
 /// The population and its bookkeeping.
 pub struct Swarm {
     pub cfg: SwarmConfig,
-    pub rng: ChaCha8Rng,
+    pub rng: Xoshiro256pp,
     /// The positions asked for (and, after `tell`, evaluated).
     pub x: Vec<Vec<f64>>,
     /// Their values (NaN counted as +inf).
@@ -92,7 +92,7 @@ impl Swarm {
     /// A uniformly random population in the box.
     pub fn new(cfg: SwarmConfig) -> Result<Self, String> {
         cfg.validate()?;
-        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        let mut rng = Xoshiro256pp::seed_from_u64(cfg.seed);
         let x = (0..cfg.population)
             .map(|_| {
                 (0..cfg.dim())
