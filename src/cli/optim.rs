@@ -376,6 +376,23 @@ fn paper_tables() -> PaperTable {
         .collect()
 }
 
+/// The paper's value of `row` for `algorithm` on the function `key`, where it has one.
+fn paper_value(paper: &PaperTable, key: &str, row: &str, algorithm: &str) -> Option<f64> {
+    let j = PAPER_ALGORITHMS.iter().position(|n| *n == algorithm)?;
+    paper.get(&(key.to_string(), row.to_string()))?[j]
+}
+
+/// A markdown table's header: the leading columns, then one per name.
+fn header(md: &mut String, leading: &[&str], names: &[&str]) {
+    let _ = writeln!(md, "| {} | {} |", leading.join(" | "), names.join(" | "));
+    let _ = writeln!(
+        md,
+        "|{}{}",
+        "---|".repeat(leading.len()),
+        "---|".repeat(names.len())
+    );
+}
+
 fn sci(v: f64) -> String {
     if v == 0.0 {
         "0".into()
@@ -465,8 +482,8 @@ fn table(md: &mut String, s: &StudyRuns, rows: &[usize], title: &str, paper: &Pa
         md,
         "Ours (the paper's value for the same row and algorithm in brackets).\n"
     );
-    let _ = writeln!(md, "| function | | {} |", s.algorithms.join(" | "));
-    let _ = writeln!(md, "|---|---|{}", "---|".repeat(s.algorithms.len()));
+    let names: Vec<&str> = s.algorithms.iter().map(String::as_str).collect();
+    header(md, &["function", ""], &names);
     for &p in rows {
         let cs = cells(s, p);
         let best = best_algorithms(&cs);
@@ -485,14 +502,7 @@ fn table(md: &mut String, s: &StudyRuns, rows: &[usize], title: &str, paper: &Pa
                 if row == "mean" && best.contains(&i) {
                     v = format!("**{v}**");
                 }
-                let published = PAPER_ALGORITHMS
-                    .iter()
-                    .position(|n| n == name)
-                    .and_then(|j| {
-                        paper
-                            .get(&(key.clone(), row.to_string()))
-                            .and_then(|r| r[j])
-                    });
+                let published = paper_value(paper, key, row, name);
                 if let Some(pv) = published {
                     v = format!("{v} ({})", sci(pv));
                 }
@@ -505,7 +515,12 @@ fn table(md: &mut String, s: &StudyRuns, rows: &[usize], title: &str, paper: &Pa
 }
 
 fn wilcoxon_md(md: &mut String, s: &StudyRuns, results: &Value, paper: &PaperTable) {
-    let peers: Vec<&String> = s.algorithms.iter().filter(|n| *n != SUBJECT).collect();
+    let peers: Vec<&str> = s
+        .algorithms
+        .iter()
+        .map(String::as_str)
+        .filter(|n| *n != SUBJECT)
+        .collect();
     let _ = writeln!(
         md,
         "## Table 8: Wilcoxon signed-rank, eMuPSO against each peer\n"
@@ -515,35 +530,18 @@ fn wilcoxon_md(md: &mut String, s: &StudyRuns, results: &Value, paper: &PaperTab
         "Two-sided p on the paired final errors (same seeds); W / L = eMuPSO significantly lower / \
          higher at 5 %, = no difference shown. The paper's p for that peer in brackets.\n"
     );
-    let _ = writeln!(
-        md,
-        "| function | {} |",
-        peers
-            .iter()
-            .map(|s| s.as_str())
-            .collect::<Vec<_>>()
-            .join(" | ")
-    );
-    let _ = writeln!(md, "|---|{}", "---|".repeat(peers.len()));
+    header(md, &["function"], &peers);
     for problem in &s.problems {
         let mut line = format!("| {} |", problem.key);
         for peer in &peers {
-            let t = &results["wilcoxon"][&problem.key][peer.as_str()];
+            let t = &results["wilcoxon"][&problem.key][*peer];
             let mark = match t["outcome"].as_str() {
                 Some("win") => "W",
                 Some("loss") => "L",
                 _ => "=",
             };
             let mut v = format!("{} {mark}", sci(t["p"].as_f64().unwrap_or(f64::NAN)));
-            if let Some(pv) = PAPER_ALGORITHMS
-                .iter()
-                .position(|n| n == *peer)
-                .and_then(|j| {
-                    paper
-                        .get(&(problem.key.clone(), "wilcoxon_p".into()))
-                        .and_then(|r| r[j])
-                })
-            {
+            if let Some(pv) = paper_value(paper, &problem.key, "wilcoxon_p", peer) {
                 v = format!("{v} ({})", sci(pv));
             }
             let _ = write!(line, " {v} |");
@@ -554,21 +552,12 @@ fn wilcoxon_md(md: &mut String, s: &StudyRuns, results: &Value, paper: &PaperTab
         md,
         "\n## Table 9: eMuPSO's wins / ties / losses against each peer\n"
     );
-    let _ = writeln!(
-        md,
-        "| group | {} |",
-        peers
-            .iter()
-            .map(|s| s.as_str())
-            .collect::<Vec<_>>()
-            .join(" | ")
-    );
-    let _ = writeln!(md, "|---|{}", "---|".repeat(peers.len()));
+    header(md, &["group"], &peers);
     if let Some(groups) = results["win_tie_loss"].as_object() {
         for (g, m) in groups {
             let mut line = format!("| {g} |");
             for peer in &peers {
-                let e = &m[peer.as_str()];
+                let e = &m[*peer];
                 let _ = write!(line, " {}/{}/{} |", e["win"], e["tie"], e["loss"]);
             }
             let _ = writeln!(md, "{line}");
@@ -645,7 +634,7 @@ fn bench(a: &BenchArgs) -> Result<(), String> {
                 rep as u64,
             )?;
             let t = Instant::now();
-            study::drive(opt.as_mut(), a.evaluations, |x| x[0], |_| {});
+            crate::optim::drive(opt.as_mut(), a.evaluations, |x| x[0], |_| {});
             samples.push(opt.evaluations() as f64 / t.elapsed().as_secs_f64());
         }
         samples.sort_by(f64::total_cmp);

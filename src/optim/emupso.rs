@@ -294,14 +294,10 @@ mod tests {
         x.iter().map(|v| v * v).sum()
     }
 
+    /// The whole budget (initial population and every iteration), or up to the target.
     fn run(opt: &mut EmuPso, f: impl Fn(&[f64]) -> f64) {
-        for _ in 0..=opt.swarm.cfg.iterations {
-            let v: Vec<f64> = opt.ask().iter().map(|x| f(x)).collect();
-            opt.tell(&v);
-            if opt.converged() {
-                break;
-            }
-        }
+        let budget = opt.swarm.cfg.population * (opt.swarm.cfg.iterations + 1);
+        crate::optim::drive(opt, budget, f, |_| {});
     }
 
     #[test]

@@ -223,6 +223,32 @@ pub fn run<O: Optimiser, F: Objective + ?Sized>(
     }
 }
 
+/// Ask, evaluate in this thread, tell, until the optimiser stops or the next batch would
+/// exceed `evaluations`; `after` sees the optimiser after each tell. The loop for objectives
+/// that cost nanoseconds (benchmark functions, `optim bench`), where `run`'s timing and
+/// hand-off decision per generation would cost more than the evaluations; and a budget in
+/// evaluations, not generations, because the methods count generations differently (a GA
+/// generation is two evaluations, a swarm's a population).
+pub fn drive(
+    opt: &mut dyn Optimiser,
+    evaluations: usize,
+    f: impl Fn(&[f64]) -> f64,
+    mut after: impl FnMut(&dyn Optimiser),
+) {
+    let mut values = Vec::new();
+    while !opt.converged() {
+        let done = opt.evaluations();
+        let asked = opt.ask();
+        if done + asked.len() > evaluations {
+            break;
+        }
+        values.clear();
+        values.extend(asked.iter().map(|x| f(x)));
+        opt.tell(&values);
+        after(&*opt);
+    }
+}
+
 #[cfg(test)]
 mod evaluate_tests {
     use super::*;

@@ -113,12 +113,6 @@ pub struct Problem {
     pub shift: Option<Shift>,
 }
 
-impl std::fmt::Debug for Function {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.key)
-    }
-}
-
 thread_local! {
     /// R (x - o) of a shifted problem: one buffer per thread, so evaluating allocates nothing.
     static ROTATED: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
@@ -276,28 +270,6 @@ pub struct RunResult {
     pub curve: Vec<f64>,
 }
 
-/// Ask, evaluate serially, tell, until the optimiser stops or the next batch would exceed
-/// `evaluations`; `after` sees the optimiser after each tell.
-pub fn drive(
-    opt: &mut dyn Optimiser,
-    evaluations: usize,
-    f: impl Fn(&[f64]) -> f64,
-    mut after: impl FnMut(&dyn Optimiser),
-) {
-    let mut values = Vec::new();
-    while !opt.converged() {
-        let done = opt.evaluations();
-        let asked = opt.ask();
-        if done + asked.len() > evaluations {
-            break;
-        }
-        values.clear();
-        values.extend(asked.iter().map(|x| f(x)));
-        opt.tell(&values);
-        after(&*opt);
-    }
-}
-
 /// One seeded run of `algorithm` on `problem`, never more than `evaluations` evaluations.
 pub fn run_one(
     problem: &Problem,
@@ -310,7 +282,7 @@ pub fn run_one(
     let mut opt = build(algorithm, &lower, &upper, population, evaluations, seed)?;
     let mut curve = Vec::with_capacity(CHECKPOINTS);
     let f_min = problem.f_min();
-    drive(
+    super::drive(
         opt.as_mut(),
         evaluations,
         |x| problem.value(x),

@@ -63,6 +63,12 @@ impl Function {
     }
 }
 
+impl std::fmt::Debug for Function {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.key)
+    }
+}
+
 fn zeros(n: usize) -> Vec<f64> {
     vec![0.0; n]
 }

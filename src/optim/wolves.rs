@@ -172,10 +172,8 @@ mod tests {
     use crate::optim::Optimiser;
 
     fn run<O: Optimiser>(o: &mut O, iterations: usize, f: impl Fn(&[f64]) -> f64) -> f64 {
-        for _ in 0..=iterations {
-            let v: Vec<f64> = o.ask().iter().map(|x| f(x)).collect();
-            o.tell(&v);
-        }
+        let budget = o.candidates().len() * (iterations + 1);
+        crate::optim::drive(o, budget, f, |_| {});
         o.best().1
     }
 
