@@ -72,6 +72,9 @@ pub struct BenchArgs {
     /// Measurements per algorithm (the median is reported).
     #[arg(long, default_value_t = 5)]
     pub repeats: usize,
+    /// Algorithms, comma-separated (default: all of them).
+    #[arg(long, value_delimiter = ',')]
+    pub algorithms: Option<Vec<String>>,
     /// Print JSON (key evals_per_s[algorithm]).
     #[arg(long)]
     pub json: bool,
@@ -622,7 +625,11 @@ fn bench(a: &BenchArgs) -> Result<(), String> {
     let lower = vec![-1.0; a.dim];
     let upper = vec![1.0; a.dim];
     let mut rates = BTreeMap::new();
-    for name in ALGORITHMS {
+    let names: Vec<String> = match &a.algorithms {
+        Some(v) => v.clone(),
+        None => ALGORITHMS.iter().map(|s| s.to_string()).collect(),
+    };
+    for name in &names {
         let mut samples = Vec::with_capacity(a.repeats);
         for rep in 0..a.repeats {
             let mut opt = study::build(

@@ -224,19 +224,25 @@ impl EmuPsoRule {
         self.update_archive();
         let n = s.x.len();
         let parts = self.n_global + 1;
-        for i in 0..n {
+        let (lower, upper) = (&s.cfg.lower[..], &s.cfg.upper[..]);
+        let rng = &mut s.rng;
+        for (i, (x, v)) in s.x.iter_mut().zip(&mut self.p.v).enumerate() {
             // Particle i belongs to part i * parts / n: parts of (nearly) equal size.
-            let part = i * parts / n;
-            for j in 0..s.cfg.dim() {
-                s.x[i][j] = match self.global[..self.n_global].get(part) {
-                    Some((e, _)) => {
-                        let z: f64 = StandardNormal.sample(&mut s.rng);
-                        s.clamp(j, e[j] + z * self.sigma * s.cfg.range(j))
+            match self.global[..self.n_global].get(i * parts / n) {
+                Some((e, _)) => {
+                    for (j, xj) in x.iter_mut().enumerate() {
+                        let z: f64 = StandardNormal.sample(rng);
+                        let range = upper[j] - lower[j];
+                        *xj = (e[j] + z * self.sigma * range).clamp(lower[j], upper[j]);
                     }
-                    None => s.rng.gen_range(s.cfg.lower[j]..s.cfg.upper[j]),
-                };
-                self.p.v[i][j] = 0.0;
+                }
+                None => {
+                    for (j, xj) in x.iter_mut().enumerate() {
+                        *xj = rng.gen_range(lower[j]..upper[j]);
+                    }
+                }
             }
+            v.fill(0.0);
             self.p.pbest_f[i] = f64::INFINITY;
         }
         self.p.reset_swarm_best();

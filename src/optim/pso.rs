@@ -6,7 +6,9 @@
 //!   dimension's range, positions to the box (the velocity component that left it is zeroed).
 //! - eMuPSO's particles (`super::emupso`) use the same update with their own schedules.
 
+use super::rng::Xoshiro256pp;
 use super::swarm::{Rule, Swarm, SwarmConfig, SwarmOptimiser};
+use rand::RngCore;
 
 /// Velocities and personal bests: the particle part of a swarm.
 pub struct Particles {
@@ -21,6 +23,8 @@ pub struct Particles {
     pub vmax_fraction: f64,
     /// The clamp per dimension (scratch of `fly`).
     vmax: Vec<f64>,
+    /// One particle's random draws, one per dimension (scratch of `fly`).
+    draws: Vec<u64>,
 }
 
 impl Particles {
@@ -34,6 +38,7 @@ impl Particles {
             gbest_f: f64::INFINITY,
             vmax_fraction,
             vmax: vec![0.0; d],
+            draws: vec![0; d],
         }
     }
 
@@ -63,30 +68,104 @@ impl Particles {
 
     /// Eqs. 1-2 with inertia w and coefficients c1 (towards the personal best) and c2 (towards
     /// the swarm's best), r1, r2 uniform per dimension (one 64-bit draw gives both, 32 bits
-    /// each: the optimiser's own cost per evaluation is mostly drawing numbers).
+    /// each). The optimiser's own cost per evaluation is what `optim bench` measures: a
+    /// particle's draws are taken first, in one tight loop, then `Flight::particle` updates its
+    /// dimensions in a branch-free pass the compiler vectorises (same stream, same results as
+    /// one interleaved loop; 125 -> 96 ns per evaluation at D = 30).
     pub fn fly(&mut self, s: &mut Swarm, w: f64, c1: f64, c2: f64) {
-        let (lower, upper) = (&s.cfg.lower, &s.cfg.upper);
+        let (lower, upper) = (&s.cfg.lower[..], &s.cfg.upper[..]);
         for (m, (l, u)) in self.vmax.iter_mut().zip(lower.iter().zip(upper)) {
             *m = self.vmax_fraction * (u - l);
         }
+        let flight = Flight {
+            w,
+            c1,
+            c2,
+            vmax: &self.vmax,
+            lower,
+            upper,
+        };
         let rng = &mut s.rng;
         for ((x, v), p) in s.x.iter_mut().zip(&mut self.v).zip(&self.pbest_x) {
-            let dims = x
-                .iter_mut()
-                .zip(v.iter_mut())
-                .zip(p.iter().zip(&self.gbest_x));
-            for (((xj, vj), (pj, gj)), (vmax, (l, u))) in
-                dims.zip(self.vmax.iter().zip(lower.iter().zip(upper)))
-            {
-                let (r1, r2) = rng.pair();
-                let nv =
-                    (w * *vj + c1 * r1 * (pj - *xj) + c2 * r2 * (gj - *xj)).clamp(-vmax, *vmax);
-                let nx = *xj + nv;
-                let cx = nx.clamp(*l, *u);
-                *vj = if cx == nx { nv } else { 0.0 };
-                *xj = cx;
+            for r in self.draws.iter_mut() {
+                *r = rng.next_u64();
             }
+            flight.particle(x, v, p, &self.gbest_x, &self.draws);
         }
+    }
+}
+
+/// One iteration's coefficients and limits.
+struct Flight<'a> {
+    w: f64,
+    c1: f64,
+    c2: f64,
+    vmax: &'a [f64],
+    lower: &'a [f64],
+    upper: &'a [f64],
+}
+
+impl Flight<'_> {
+    /// Moves one particle (position x, velocity v, personal best p) towards p and the swarm's
+    /// best g with one draw per dimension.
+    ///
+    /// The release build targets baseline x86-64 (SSE2, two lanes) so that it runs anywhere;
+    /// where the CPU has AVX2 the same body is compiled four lanes wide (71 against 96 ns per
+    /// evaluation at D = 30). FMA is deliberately not enabled: the compiler could then fuse a
+    /// multiply and an add into one rounding and seeded results would depend on the machine.
+    /// Without it the operations, and so the results, are the same on every x86-64.
+    fn particle(&self, x: &mut [f64], v: &mut [f64], p: &[f64], g: &[f64], draws: &[u64]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has just been checked for AVX2.
+            return unsafe { self.particle_avx2(x, v, p, g, draws) };
+        }
+        self.particle_body(x, v, p, g, draws)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn particle_avx2(
+        &self,
+        x: &mut [f64],
+        v: &mut [f64],
+        p: &[f64],
+        g: &[f64],
+        draws: &[u64],
+    ) {
+        self.particle_body(x, v, p, g, draws)
+    }
+
+    #[inline(always)]
+    fn particle_body(&self, x: &mut [f64], v: &mut [f64], p: &[f64], g: &[f64], draws: &[u64]) {
+        let (w, c1, c2) = (self.w, self.c1, self.c2);
+        let d = x.len();
+        let (v, p, g, draws) = (&mut v[..d], &p[..d], &g[..d], &draws[..d]);
+        let (vmax, lo, hi) = (&self.vmax[..d], &self.lower[..d], &self.upper[..d]);
+        for j in 0..d {
+            let (r1, r2) = Xoshiro256pp::halves(draws[j]);
+            let nv = within(
+                w * v[j] + c1 * r1 * (p[j] - x[j]) + c2 * r2 * (g[j] - x[j]),
+                -vmax[j],
+                vmax[j],
+            );
+            let nx = x[j] + nv;
+            let cx = within(nx, lo[j], hi[j]);
+            v[j] = if cx == nx { nv } else { 0.0 };
+            x[j] = cx;
+        }
+    }
+}
+
+/// `f64::clamp` without its `lo <= hi` assertion, whose panic path keeps the loop from
+/// vectorising (the bounds are checked when the swarm is built). Same results.
+#[inline(always)]
+fn within(x: f64, lo: f64, hi: f64) -> f64 {
+    let x = if x < lo { lo } else { x };
+    if x > hi {
+        hi
+    } else {
+        x
     }
 }
 
@@ -118,5 +197,46 @@ impl Rule for PsoRule {
         self.p.update_bests(s);
         let w = W_START + (W_END - W_START) * s.progress();
         self.p.fly(s, w, C, C);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The AVX2 build of a particle's update (where the CPU has it) and the baseline build give
+    /// the same bits, including velocities clamped and positions stopped on the box.
+    #[test]
+    fn the_wide_and_the_baseline_update_agree_bit_for_bit() {
+        let mut rng = Xoshiro256pp::seed_from_u64(3);
+        let d = 37; // not a multiple of the lane count: the remainder loop is checked too
+        let mut v =
+            |scale: f64| -> Vec<f64> { (0..d).map(|_| scale * (rng.gen::<f64>() - 0.5)).collect() };
+        let (x0, v0, p, g) = (v(2.0), v(4.0), v(2.0), v(2.0));
+        let (vmax, lower, upper) = (vec![0.3; d], vec![-1.0; d], vec![1.0; d]);
+        let mut r = Xoshiro256pp::seed_from_u64(4);
+        let draws: Vec<u64> = (0..d).map(|_| r.next_u64()).collect();
+        let flight = Flight {
+            w: 0.7,
+            c1: 2.0,
+            c2: 2.0,
+            vmax: &vmax,
+            lower: &lower,
+            upper: &upper,
+        };
+        let (mut xa, mut va) = (x0.clone(), v0.clone());
+        flight.particle(&mut xa, &mut va, &p, &g, &draws);
+        let (mut xb, mut vb) = (x0.clone(), v0.clone());
+        flight.particle_body(&mut xb, &mut vb, &p, &g, &draws);
+        let bits = |a: &[f64]| a.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&xa), bits(&xb));
+        assert_eq!(bits(&va), bits(&vb));
+        assert!(
+            xa.iter().any(|x| x.abs() == 1.0),
+            "some positions hit the box"
+        );
+        assert!(va.iter().all(|v| v.abs() <= 0.3));
+        assert_ne!(xa, x0);
     }
 }
