@@ -1,4 +1,4 @@
-//! `evoloop optim study` and `evoloop optim bench` from the command line: files, JSON keys,
+//! `evoloop optim study`, `bench`, `functions` and `serve` from the command line: files, JSON keys,
 //! statistics consistent with the runs, errors naming their flag.
 
 mod common;
@@ -148,4 +148,99 @@ fn bad_arguments_are_refused_with_their_flag() {
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(e.contains(needle), "{args:?}: {e}");
     }
+}
+
+#[test]
+fn functions_lists_the_suite_and_serve_evaluates_it_over_a_pipe() {
+    use std::io::{Read, Write};
+    let list = stdout_json(&cli(&["optim", "functions", "--json"]));
+    let list = list.as_array().unwrap();
+    assert_eq!(list.len(), 51, "37 functions and 14 shifted copies");
+    let sphere = list.iter().find(|f| f["key"] == "sphere").unwrap();
+    assert_eq!(sphere["dim"], 30);
+    assert_eq!(sphere["lower"][0], -100.0);
+    assert_eq!(sphere["f_min"], 0.0);
+
+    // Two points of the 30-D sphere in one request, then one of Beale's at its minimum (3, 0.5).
+    let serve = |key: &str, points: &[Vec<f64>], tail: &[u8]| {
+        let mut child = std::process::Command::new(evoloop())
+            .args(["optim", "serve", "--function", key])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut req = (points.len() as u32).to_le_bytes().to_vec();
+        for p in points {
+            for x in p {
+                req.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        req.extend_from_slice(tail);
+        child.stdin.take().unwrap().write_all(&req).unwrap();
+        let mut out = Vec::new();
+        child.stdout.take().unwrap().read_to_end(&mut out).unwrap();
+        let mut err = String::new();
+        child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut err)
+            .unwrap();
+        let status = child.wait().unwrap();
+        let values: Vec<f64> = out
+            .chunks_exact(8)
+            .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+            .collect();
+        (status.success(), values, err)
+    };
+    let (ok, v, _) = serve("sphere", &[vec![0.0; 30], vec![2.0; 30]], &[]);
+    assert!(ok);
+    assert_eq!(v, [0.0, 120.0]);
+    let (ok, v, _) = serve("beale", &[vec![3.0, 0.5]], &[]);
+    assert!(ok && v[0].abs() < 1e-15, "{v:?}");
+    // A request cut short is an error that says what it was reading.
+    let (ok, v, err) = serve("beale", &[vec![1.0, 1.0]], &[2, 0, 0, 0, 1]);
+    assert!(
+        !ok && v.len() == 1 && err.contains("reading 2 points"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_peers_file_is_compared_per_function_and_a_bad_one_refused_before_the_study() {
+    let tmp = tempfile::tempdir().unwrap();
+    let peers = tmp.path().join("peers.csv");
+    // A peer far worse than eMuPSO on the sphere, and nothing on the other functions.
+    let mut text = String::from("function,algorithm,seed,best_value,error,evaluations\n");
+    for seed in 0..5 {
+        text += &format!("sphere,lib_worse,{seed},1.5,1.5,3000\n");
+    }
+    std::fs::write(&peers, &text).unwrap();
+    let out = tmp.path().join("study");
+    let v = stdout_json(&small_study(
+        &out,
+        &["--json", "--peers", peers.to_str().unwrap()],
+    ));
+    let c = &v["peers"]["comparison"]["sphere"];
+    assert_eq!(c["theirs"]["algorithm"], "lib_worse");
+    assert_eq!(c["theirs"]["runs"], 5);
+    assert_eq!(c["verdict"], "beats", "{c}");
+    assert!(c["test"]["p_two_sided"].as_f64().unwrap() < 0.05);
+    assert_eq!(v["peers"]["beats"], serde_json::json!(["sphere"]));
+    assert!(v["peers"]["comparison"].get("beale").is_none());
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("## Against other implementations"));
+    assert!(report.contains("| sphere |"));
+
+    // More evaluations than the study's budget: refused at once, with file and line.
+    std::fs::write(&peers, text.replace(",3000\n", ",3001\n")).unwrap();
+    let o = small_study(
+        &tmp.path().join("bad"),
+        &["--peers", peers.to_str().unwrap()],
+    );
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("peers.csv:2:") && e.contains("budget"), "{e}");
+    assert!(!tmp.path().join("bad").join("runs.csv").exists());
 }

@@ -1,6 +1,7 @@
 //! `evoloop optim study` (the eMuPSO paper's benchmark study, Tables 4-9 and Figs. 5-7) and
 //! `evoloop optim bench` (each optimiser's own overhead).
 
+use crate::optim::peers::{self, Comparison, PeerRuns, Verdict};
 use crate::optim::study::{self, Cell, Outcome, Problem, RunResult, ALGORITHMS, SUBJECT};
 use crate::report::plot::{xy_png, Style, XySeries};
 use clap::{Args, Subcommand};
@@ -21,6 +22,31 @@ pub enum OptimCmd {
     /// Evaluations per second of each algorithm on a trivial objective: the optimiser's own
     /// overhead per evaluation, one thread.
     Bench(BenchArgs),
+    /// The suite: every function's key, group, dimension, box and f_min, with the shifted
+    /// copies (what another program needs to run its own optimisers on the same problems).
+    Functions(FunctionsArgs),
+    /// Evaluate one function of the suite for another program, over stdin and stdout in
+    /// little-endian binary: each request is a u32 count n followed by n x dim f64 (points,
+    /// row by row), each answer n f64. Ends at end of input. scripts/python_peers.py uses it
+    /// so that the Python libraries minimise exactly the study's functions.
+    Serve(ServeArgs),
+}
+
+#[derive(Args)]
+pub struct FunctionsArgs {
+    /// Leave out the shifted copies.
+    #[arg(long)]
+    pub no_shifted: bool,
+    /// Print JSON (a list of {key, group, dim, lower, upper, f_min, shifted}).
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args)]
+pub struct ServeArgs {
+    /// The function's key (`<key>_shifted` for a shifted copy).
+    #[arg(long)]
+    pub function: String,
 }
 
 #[derive(Args)]
@@ -47,6 +73,11 @@ pub struct StudyArgs {
     /// Leave out the shifted copies (with the default function list).
     #[arg(long)]
     pub no_shifted: bool,
+    /// Other implementations' runs in runs.csv format (e.g. from scripts/python_peers.py):
+    /// per function, the study's best algorithm against theirs (Mann-Whitney), in report.md
+    /// and results.json (`peers`).
+    #[arg(long)]
+    pub peers: Option<PathBuf>,
     /// Threads (default: every core).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -84,6 +115,8 @@ pub fn main(cmd: OptimCmd) -> i32 {
     let r = match cmd {
         OptimCmd::Study(a) => run_study(&a),
         OptimCmd::Bench(a) => bench(&a),
+        OptimCmd::Functions(a) => functions(&a),
+        OptimCmd::Serve(a) => serve(&a),
     };
     match r {
         Ok(()) => 0,
@@ -170,6 +203,11 @@ pub fn execute(
 fn run_study(a: &StudyArgs) -> Result<(), String> {
     let algorithms = check_args(a)?;
     let problems = study::problems(a.functions.as_deref(), !a.no_shifted)?;
+    // Read before the study runs: a bad file is refused at once, not after minutes.
+    let peers = match &a.peers {
+        Some(f) => Some(peers::load(f, a.evaluations, &algorithms)?),
+        None => None,
+    };
     std::fs::create_dir_all(a.out.join("convergence"))
         .map_err(|e| format!("creating {}: {e}", a.out.display()))?;
     let total = problems.len() * algorithms.len() * a.runs as usize;
@@ -187,13 +225,21 @@ fn run_study(a: &StudyArgs) -> Result<(), String> {
     )?;
     bar.finish_and_clear();
     let elapsed = started.elapsed().as_secs_f64();
-    let results = results_json(&s, a, threads, elapsed);
+    let mut results = results_json(&s, a, threads, elapsed);
+    let comparisons = peers.as_ref().map(|p| against_peers(&s, p));
+    if let (Some(p), Some(c)) = (&peers, &comparisons) {
+        results["peers"] = peers_json(p, c);
+    }
     write(
         &a.out.join("results.json"),
         &serde_json::to_string_pretty(&results).unwrap_or_default(),
     )?;
     write(&a.out.join("runs.csv"), &runs_csv(&s))?;
-    write(&a.out.join("report.md"), &report_md(&s, &results, a))?;
+    let mut md = report_md(&s, &results, a);
+    if let (Some(p), Some(c)) = (&peers, &comparisons) {
+        peers_md(&mut md, p, c);
+    }
+    write(&a.out.join("report.md"), &md)?;
     for (p, problem) in s.problems.iter().enumerate() {
         convergence_png(&a.out, problem, &s.algorithms, &s.runs[p], a.evaluations)?;
     }
@@ -208,6 +254,9 @@ fn run_study(a: &StudyArgs) -> Result<(), String> {
             a.evaluations
         );
         println!("{}", best_per_function_sentence(&s));
+        if let Some(c) = &comparisons {
+            println!("{}", peers_sentence(c));
+        }
         println!(
             "wrote {}/report.md, results.json, runs.csv, convergence/",
             a.out.display()
@@ -666,4 +715,186 @@ fn bench(a: &BenchArgs) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+fn functions(a: &FunctionsArgs) -> Result<(), String> {
+    let problems = study::problems(None, !a.no_shifted)?;
+    if a.json {
+        let list: Vec<Value> = problems
+            .iter()
+            .map(|p| {
+                let (lower, upper) = p.bounds();
+                json!({
+                    "key": p.key, "group": p.group(), "dim": p.function.dim,
+                    "lower": lower, "upper": upper, "f_min": p.f_min(),
+                    "shifted": p.shift.is_some(),
+                })
+            })
+            .collect();
+        super::print_json(&list);
+        return Ok(());
+    }
+    println!(
+        "{:24} {:12} {:>4}  {:>24}  f_min",
+        "key", "group", "dim", "box"
+    );
+    for p in &problems {
+        let (lower, upper) = p.bounds();
+        let uniform = lower.iter().all(|l| *l == lower[0]) && upper.iter().all(|u| *u == upper[0]);
+        let bx = if uniform {
+            format!("[{}, {}]", lower[0], upper[0])
+        } else {
+            "per dimension".into()
+        };
+        println!(
+            "{:24} {:12} {:>4}  {:>24}  {}",
+            p.key,
+            p.group(),
+            p.function.dim,
+            bx,
+            p.f_min()
+        );
+    }
+    Ok(())
+}
+
+/// The evaluation server of `evoloop optim serve` (protocol in its help).
+fn serve(a: &ServeArgs) -> Result<(), String> {
+    use std::io::{Read, Write};
+    let problem = study::problems(Some(std::slice::from_ref(&a.function)), false)?
+        .pop()
+        .ok_or("no function")?;
+    let d = problem.function.dim;
+    let (mut input, mut output) = (std::io::stdin().lock(), std::io::stdout().lock());
+    let (mut bytes, mut point, mut answer) = (Vec::new(), vec![0.0; d], Vec::new());
+    loop {
+        let mut count = [0u8; 4];
+        match input.read_exact(&mut count) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(()),
+            Err(e) => return Err(format!("reading a request: {e}")),
+        }
+        let n = u32::from_le_bytes(count) as usize;
+        bytes.resize(n * d * 8, 0);
+        input
+            .read_exact(&mut bytes)
+            .map_err(|e| format!("reading {n} points of dimension {d}: {e}"))?;
+        answer.clear();
+        for row in bytes.chunks_exact(d * 8) {
+            for (x, b) in point.iter_mut().zip(row.chunks_exact(8)) {
+                *x = f64::from_le_bytes(b.try_into().unwrap_or([0; 8]));
+            }
+            answer.extend_from_slice(&problem.value(&point).to_le_bytes());
+        }
+        output
+            .write_all(&answer)
+            .and_then(|()| output.flush())
+            .map_err(|e| format!("writing {n} values: {e}"))?;
+    }
+}
+
+/// Per function of the study that the peers ran too: our best against theirs.
+fn against_peers(s: &StudyRuns, p: &PeerRuns) -> Vec<(String, Comparison)> {
+    let errors: Vec<Vec<Vec<f64>>> = s
+        .runs
+        .iter()
+        .map(|by_alg| {
+            by_alg
+                .iter()
+                .map(|runs| runs.iter().map(|r| r.error).collect())
+                .collect()
+        })
+        .collect();
+    s.problems
+        .iter()
+        .enumerate()
+        .filter_map(|(i, problem)| {
+            let theirs = p.errors.get(&problem.key)?;
+            let ours = s
+                .algorithms
+                .iter()
+                .zip(&errors[i])
+                .map(|(n, e)| (n.as_str(), &e[..]));
+            let c = peers::compare(ours, theirs.iter().map(|(n, e)| (n.as_str(), &e[..])))?;
+            Some((problem.key.clone(), c))
+        })
+        .collect()
+}
+
+fn verdict_count(c: &[(String, Comparison)], v: Verdict) -> Vec<&str> {
+    c.iter()
+        .filter(|(_, c)| c.verdict == v)
+        .map(|(k, _)| k.as_str())
+        .collect()
+}
+
+fn peers_json(p: &PeerRuns, c: &[(String, Comparison)]) -> Value {
+    let by_function: Map<String, Value> = c
+        .iter()
+        .map(|(k, c)| (k.clone(), serde_json::to_value(c).unwrap_or_default()))
+        .collect();
+    json!({
+        "file": p.file,
+        "algorithms": p.algorithms,
+        "comparison": by_function,
+        "beats": verdict_count(c, Verdict::Beats),
+        "matches": verdict_count(c, Verdict::Matches),
+        "loses": verdict_count(c, Verdict::Loses),
+    })
+}
+
+fn peers_sentence(c: &[(String, Comparison)]) -> String {
+    let loses = verdict_count(c, Verdict::Loses);
+    format!(
+        "against the peers file on {} functions: lower {}, no difference shown {}, higher {}{}",
+        c.len(),
+        verdict_count(c, Verdict::Beats).len(),
+        verdict_count(c, Verdict::Matches).len(),
+        loses.len(),
+        if loses.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", loses.join(", "))
+        }
+    )
+}
+
+fn peers_md(md: &mut String, p: &PeerRuns, c: &[(String, Comparison)]) {
+    let _ = writeln!(
+        md,
+        "## Against other implementations ({})
+",
+        p.file
+    );
+    let _ = writeln!(
+        md,
+        "Algorithms: {}. Per function, each side is represented by its algorithm with the lowest \
+         mean error; their runs share no seeds with ours, so the test is Mann-Whitney's rank sum \
+         (two-sided, 5 %). Result: {}.\n",
+        p.algorithms.join(", "),
+        peers_sentence(c)
+    );
+    let (leading, names) = (
+        ["function", "ours", "mean error"],
+        ["theirs", "mean error", "p", "ours is"],
+    );
+    header(md, &leading, &names);
+    for (key, c) in c {
+        let verdict = match c.verdict {
+            Verdict::Beats => "lower",
+            Verdict::Matches => "no difference shown",
+            Verdict::Loses => "**higher**",
+        };
+        let _ = writeln!(
+            md,
+            "| {key} | {} | {} | {} ({} runs) | {} | {:.2e} | {verdict} |",
+            c.ours.algorithm,
+            sci(c.ours.mean_error),
+            c.theirs.algorithm,
+            c.theirs.runs,
+            sci(c.theirs.mean_error),
+            c.test.p_two_sided
+        );
+    }
+    let _ = writeln!(md);
 }
