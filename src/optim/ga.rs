@@ -57,6 +57,8 @@ pub struct Ga {
     /// Population slots the last two children went to.
     slots: Vec<usize>,
     uniform_selections: usize,
+    /// Selection's fitness values (scratch: an iteration allocates nothing).
+    fit: Vec<f64>,
 }
 
 impl Ga {
@@ -96,8 +98,9 @@ impl Ga {
             iteration: 0,
             evaluations: 0,
             best: (Vec::new(), f64::INFINITY),
-            slots: Vec::new(),
+            slots: Vec::with_capacity(2),
             uniform_selections: 0,
+            fit: Vec::with_capacity(cfg.population),
             cfg,
         }
     }
@@ -132,31 +135,33 @@ impl Ga {
             self.uniform_selections += 1;
             return self.rng.gen_range(0..self.values.len());
         }
-        let fit: Vec<f64> = if best > 0.0 {
+        let mut fit = std::mem::take(&mut self.fit);
+        fit.clear();
+        if best > 0.0 {
             // Costs are positive (performance indices): fitness 1/G, invariant to G's scale.
-            self.values.iter().map(|v| 1.0 / v).collect()
+            fit.extend(self.values.iter().map(|v| 1.0 / v));
         } else {
             let window = 0.1 * (worst - best) + 1e-12 * worst.abs().max(1e-300);
-            self.values
-                .iter()
-                .map(|v| {
-                    if v.is_finite() {
-                        worst - v + window
-                    } else {
-                        0.0
-                    }
-                })
-                .collect()
-        };
+            fit.extend(self.values.iter().map(|v| {
+                if v.is_finite() {
+                    worst - v + window
+                } else {
+                    0.0
+                }
+            }));
+        }
         let total: f64 = fit.iter().sum();
         let mut r = self.rng.gen_range(0.0..total);
+        let mut chosen = fit.len() - 1;
         for (i, f) in fit.iter().enumerate() {
             if r < *f {
-                return i;
+                chosen = i;
+                break;
             }
             r -= f;
         }
-        fit.len() - 1
+        self.fit = fit;
+        chosen
     }
 
     /// Parent choices made uniformly because no member had a finite cost.
@@ -187,31 +192,53 @@ impl Ga {
 
 /// One-point weighted-average crossover (eqs. 17-18) at the real-valued point y in [0, L).
 pub fn crossover(a: &[f64], b: &[f64], y: f64) -> (Vec<f64>, Vec<f64>) {
-    let k = (y.floor() as usize).min(a.len() - 1);
-    let w = y - k as f64;
-    let mut c = a.to_vec();
-    let mut d = b.to_vec();
-    c[k + 1..].copy_from_slice(&b[k + 1..]);
-    d[k + 1..].copy_from_slice(&a[k + 1..]);
-    c[k] = w * a[k] + (1.0 - w) * b[k];
-    d[k] = w * b[k] + (1.0 - w) * a[k];
+    let (mut c, mut d) = (Vec::new(), Vec::new());
+    crossover_into(a, b, y, &mut c, &mut d);
     (c, d)
 }
 
+/// `crossover` into the children's existing buffers.
+fn crossover_into(a: &[f64], b: &[f64], y: f64, c: &mut Vec<f64>, d: &mut Vec<f64>) {
+    let k = (y.floor() as usize).min(a.len() - 1);
+    let w = y - k as f64;
+    c.clear();
+    c.extend_from_slice(&a[..=k]);
+    c.extend_from_slice(&b[k + 1..]);
+    d.clear();
+    d.extend_from_slice(&b[..=k]);
+    d.extend_from_slice(&a[k + 1..]);
+    c[k] = w * a[k] + (1.0 - w) * b[k];
+    d[k] = w * b[k] + (1.0 - w) * a[k];
+}
+
+/// `to` = `from`, reusing `to`'s buffer.
+fn copy_into(to: &mut Vec<f64>, from: &[f64]) {
+    to.clear();
+    to.extend_from_slice(from);
+}
+
 impl Optimiser for Ga {
+    /// Two children per iteration, written into the buffers of the last two (nothing allocated
+    /// once the first iteration has run).
     fn ask(&mut self) -> &[Vec<f64>] {
         if self.initialised {
             let i = self.select();
             let j = self.select();
-            let (mut c, mut d) = if self.rng.gen::<f64>() < self.cfg.p_crossover {
-                let y = self.rng.gen_range(0.0..self.pop[i].len() as f64);
-                crossover(&self.pop[i], &self.pop[j], y)
-            } else {
-                (self.pop[i].clone(), self.pop[j].clone())
+            let mut asked = std::mem::take(&mut self.asked);
+            asked.resize_with(2, Vec::new);
+            let [c, d] = &mut asked[..] else {
+                unreachable!("two children")
             };
-            self.mutate(&mut c);
-            self.mutate(&mut d);
-            self.asked = vec![c, d];
+            if self.rng.gen::<f64>() < self.cfg.p_crossover {
+                let y = self.rng.gen_range(0.0..self.pop[i].len() as f64);
+                crossover_into(&self.pop[i], &self.pop[j], y, c, d);
+            } else {
+                copy_into(c, &self.pop[i]);
+                copy_into(d, &self.pop[j]);
+            }
+            self.mutate(c);
+            self.mutate(d);
+            self.asked = asked;
         }
         &self.asked
     }
@@ -235,29 +262,41 @@ impl Optimiser for Ga {
             }
             return;
         }
-        let mut children: Vec<(Vec<f64>, f64)> = Vec::with_capacity(2);
-        for (x, v) in self.asked.iter().zip(values) {
+        // The two worst of the old population make way: the first index of the largest value,
+        // then the first of the largest among the rest (what a stable descending sort puts
+        // first), chosen before any child is placed.
+        let worst = |skip: Option<usize>| {
+            let mut w: Option<usize> = None;
+            for (i, v) in self.values.iter().enumerate() {
+                if Some(i) != skip && w.is_none_or(|k| v.total_cmp(&self.values[k]).is_gt()) {
+                    w = Some(i);
+                }
+            }
+            w
+        };
+        let first = worst(None);
+        let second = worst(first);
+        self.slots.clear();
+        self.slots.extend(first.into_iter().chain(second));
+        for (k, v) in values.iter().enumerate().take(self.slots.len()) {
+            let slot = self.slots[k];
+            let x = &self.asked[k];
             if v.is_finite() {
                 if *v < self.best.1 {
-                    self.best = (x.clone(), *v);
+                    copy_into(&mut self.best.0, x);
+                    self.best.1 = *v;
                 }
-                children.push((x.clone(), *v));
+                copy_into(&mut self.pop[slot], x);
+                self.values[slot] = *v;
             } else if self.best.1.is_finite() {
-                children.push(self.best.clone());
+                copy_into(&mut self.pop[slot], &self.best.0);
+                self.values[slot] = self.best.1;
             } else {
                 // No finite member yet: a copy of an equally failed "best" would only clone the
                 // population into one point; keep the child so the search goes on exploring.
-                children.push((x.clone(), f64::INFINITY));
+                copy_into(&mut self.pop[slot], x);
+                self.values[slot] = f64::INFINITY;
             }
-        }
-        // The two worst of the old population make way.
-        let mut order: Vec<usize> = (0..self.pop.len()).collect();
-        order.sort_by(|a, b| self.values[*b].total_cmp(&self.values[*a]));
-        self.slots.clear();
-        for ((x, v), slot) in children.into_iter().zip(order) {
-            self.pop[slot] = x;
-            self.values[slot] = v;
-            self.slots.push(slot);
         }
         self.iteration += 1;
     }
