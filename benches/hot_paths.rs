@@ -136,6 +136,19 @@ fn dynamics(c: &mut Criterion) {
             })
         },
     );
+    let mut y = nalgebra::DMatrix::zeros(6, model.regressor_columns(false));
+    c.bench_function("dynamics 6-DOF: joint-torque regressor Y (6 x 60)", |b| {
+        b.iter(|| {
+            model.regressor(
+                &mut d,
+                black_box(&q),
+                black_box(&qd),
+                black_box(&qdd),
+                &mut y,
+            );
+            black_box(&y);
+        })
+    });
     c.bench_function("dynamics 6-DOF: mass matrix M(q) (CRBA)", |b| {
         b.iter(|| {
             black_box(model.mass_matrix(&mut d, black_box(&q)));

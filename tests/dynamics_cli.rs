@@ -183,3 +183,73 @@ fn arm_scenarios_check_and_bad_ones_name_the_key() {
         );
     }
 }
+
+/// `dynamics regressor`: keys Y (rows = joints), parameters, pi; Y pi (+ armature qdd) is the
+/// rigid-body tau of `dynamics --no-friction`, and with --friction the full tau of `dynamics`.
+#[test]
+fn regressor_prints_y_parameters_and_pi_that_reproduce_the_dynamics() {
+    let state = [
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--q",
+        "0.3,-0.5,0.8,0.1,0.2,0.3",
+        "--qd",
+        "0.5,1,-1,1,1,1",
+        "--qdd",
+        "1,-0.5,0.3,2,-1,0.5",
+        "--json",
+    ];
+    for (friction, dyn_flag) in [(false, Some("--no-friction")), (true, None)] {
+        let mut args = vec!["dynamics", "regressor"];
+        args.extend_from_slice(&state);
+        if friction {
+            args.push("--friction");
+        }
+        let v = stdout_json(&cli(&args));
+        let names: Vec<&str> = v["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s.as_str().unwrap())
+            .collect();
+        assert_eq!(names.len(), if friction { 72 } else { 60 });
+        assert_eq!(&names[..5], ["m1", "mx1", "my1", "mz1", "Ixx1"]);
+        assert_eq!(names[59], "Izz6");
+        let pi = floats(&v["pi"]);
+        let y: Vec<Vec<f64>> = v["Y"].as_array().unwrap().iter().map(floats).collect();
+        assert_eq!((y.len(), y[0].len()), (6, names.len()));
+        let qdd = floats(&v["qdd"]);
+        let armature = floats(&v["armature"]);
+        let mut dyn_args = vec!["dynamics"];
+        dyn_args.extend_from_slice(&state);
+        dyn_args.extend(dyn_flag);
+        let tau = floats(&stdout_json(&cli(&dyn_args))["tau"]);
+        for j in 0..6 {
+            let ypi: f64 = y[j].iter().zip(&pi).map(|(a, b)| a * b).sum();
+            let expected = tau[j] - armature[j] * qdd[j];
+            assert!(
+                (ypi - expected).abs() < 1e-9 * (1.0 + expected.abs()),
+                "friction {friction}, joint {j}: {ypi} vs {expected}"
+            );
+        }
+    }
+    // The text form and a wrong-length state (exit 2, naming the flag).
+    let o = cli(&[
+        "dynamics",
+        "regressor",
+        "--robot",
+        "config/robots/arm3.urdf",
+    ]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("Izz3"));
+    let o = cli(&[
+        "dynamics",
+        "regressor",
+        "--robot",
+        "config/robots/arm3.urdf",
+        "--q",
+        "1",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--q needs 3 values"));
+}

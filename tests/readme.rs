@@ -50,8 +50,8 @@ fn readme_commands() -> Vec<(usize, String)> {
     out
 }
 
-/// The arguments given to `evoloop` by a README command, or None for the cargo commands that do
-/// not run it (their own check is done by the caller).
+/// The arguments given to `evoloop` by a README command, or None for the cargo and script
+/// commands that do not run it (their own check is done by the caller).
 fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
     let words: Vec<String> = cmd.split_whitespace().map(String::from).collect();
     let w: Vec<&str> = words.iter().map(|s| s.as_str()).collect();
@@ -69,7 +69,15 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
                 Err(format!("no benchmark `{name}` in benches/"))
             }
         }
-        _ => Err("not an `evoloop` or known cargo command".into()),
+        // The Python comparison's script and its requirements (run outside the test suite).
+        ["python3", script, ..] | ["pip", "install", "-r", script] => {
+            if root().join(script).exists() {
+                Ok(None)
+            } else {
+                Err(format!("no file {script}"))
+            }
+        }
+        _ => Err("not an `evoloop`, known cargo or scripts/ command".into()),
     }
 }
 
@@ -90,9 +98,16 @@ fn check_files(cmd: &Cmd) -> Result<(), String> {
         Cmd::Tune(a) if !path(&a.file).exists() => {
             Err(format!("{} does not exist", a.file.display()))
         }
-        Cmd::Dynamics(a) => evoloop::dynamics::load(&path(&a.robot))
-            .map(|_| ())
-            .map_err(|e| e.to_string()),
+        Cmd::Dynamics(a) => {
+            let robot = match &a.cmd {
+                Some(evoloop::cli::dynamics::DynamicsCmd::Regressor(r)) => Some(&r.robot),
+                None => a.robot.as_ref(),
+            };
+            let robot = robot.ok_or("no --robot")?;
+            evoloop::dynamics::load(&path(robot))
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        }
         _ => Ok(()),
     }
 }

@@ -7,11 +7,17 @@ use serde_json::json;
 use std::path::PathBuf;
 
 #[derive(Args)]
-#[command(allow_negative_numbers = true)]
+#[command(
+    allow_negative_numbers = true,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
 pub struct DynamicsArgs {
+    #[command(subcommand)]
+    pub cmd: Option<DynamicsCmd>,
     /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
-    #[arg(long)]
-    pub robot: PathBuf,
+    #[arg(long, required = true)]
+    pub robot: Option<PathBuf>,
     /// Joint positions, comma separated (rad or m), in the file's joint order [default: zeros].
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub q: Option<Vec<f64>>,
@@ -34,6 +40,40 @@ pub struct DynamicsArgs {
     pub strict: bool,
     /// Print JSON (keys joints, tau, M, G, V, F, C, friction_included, warnings and, given
     /// --tau, qdd).
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Subcommand)]
+pub enum DynamicsCmd {
+    /// The joint-torque regressor Y(q, qd, qdd), tau = Y pi: 10 inertial parameters per body,
+    /// bodies base to tip, each m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (inertia about the
+    /// joint frame: Pinocchio's order), then with --friction fv, fc per joint.
+    Regressor(RegressorArgs),
+}
+
+#[derive(Args)]
+#[command(allow_negative_numbers = true)]
+pub struct RegressorArgs {
+    /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Joint positions, comma separated [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub q: Option<Vec<f64>>,
+    /// Joint velocities [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub qd: Option<Vec<f64>>,
+    /// Joint accelerations [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub qdd: Option<Vec<f64>>,
+    /// Add the friction columns (viscous, Coulomb) after the rigid-body ones.
+    #[arg(long)]
+    pub friction: bool,
+    /// Refuse a physically dubious file instead of warning about it.
+    #[arg(long)]
+    pub strict: bool,
+    /// Print JSON (keys Y (rows = joints), parameters, pi, tau, joints, armature).
     #[arg(long)]
     pub json: bool,
 }
@@ -120,16 +160,25 @@ pub fn main(a: DynamicsArgs) -> i32 {
         eprintln!("evoloop dynamics: {msg}");
         2
     };
+    if let Some(DynamicsCmd::Regressor(r)) = a.cmd {
+        return match regressor(r) {
+            Ok(()) => 0,
+            Err(e) => usage(&e),
+        };
+    }
+    let Some(robot) = a.robot else {
+        return usage("--robot FILE is required");
+    };
     let options = crate::dynamics::LoadOptions {
         strict: a.strict,
         rigid_body_only: a.no_friction,
     };
-    let (model, warnings) = match crate::dynamics::load_with(&a.robot, &options) {
+    let (model, warnings) = match crate::dynamics::load_with(&robot, &options) {
         Ok(l) => (l.model, l.warnings),
         Err(e) => return usage(&e.to_string()),
     };
     for w in &warnings {
-        eprintln!("evoloop dynamics: warning: {}: {w}", a.robot.display());
+        eprintln!("evoloop dynamics: warning: {}: {w}", robot.display());
     }
     let friction_included = model.has_friction();
     let friction_note = match (friction_included, a.no_friction) {
@@ -216,4 +265,59 @@ pub fn main(a: DynamicsArgs) -> i32 {
         );
     }
     0
+}
+
+/// `evoloop dynamics regressor`.
+fn regressor(a: RegressorArgs) -> Result<(), String> {
+    let options = crate::dynamics::LoadOptions {
+        strict: a.strict,
+        rigid_body_only: false,
+    };
+    let loaded = crate::dynamics::load_with(&a.robot, &options).map_err(|e| e.to_string())?;
+    for w in &loaded.warnings {
+        eprintln!("evoloop dynamics: warning: {}: {w}", a.robot.display());
+    }
+    let model = loaded.model;
+    let n = model.dof();
+    let q = vector("q", a.q, n)?;
+    let qd = vector("qd", a.qd, n)?;
+    let qdd = vector("qdd", a.qdd, n)?;
+    let mut d = model.data();
+    let mut y = DMatrix::zeros(n, model.regressor_columns(a.friction));
+    model.regressor(&mut d, &q, &qd, &qdd, &mut y);
+    let names = model.parameter_names(a.friction);
+    let pi = model.parameters(a.friction);
+    let armature: Vec<f64> = model.bodies.iter().map(|b| b.armature).collect();
+    // tau = Y pi + armature qdd: the model's inverse dynamics (rigid body, or with friction).
+    let tau: Vec<f64> = (0..n)
+        .map(|j| (0..pi.len()).map(|c| y[(j, c)] * pi[c]).sum::<f64>() + armature[j] * qdd[j])
+        .collect();
+    let joints: Vec<&str> = model.bodies.iter().map(|b| b.joint.as_str()).collect();
+    if a.json {
+        super::print_json(&json!({
+            "robot": model.name, "joints": joints, "q": q, "qd": qd, "qdd": qdd,
+            "parameters": names, "pi": pi, "Y": rows(&y), "tau": tau, "armature": armature,
+            "friction_columns": a.friction,
+        }));
+        return Ok(());
+    }
+    println!(
+        "robot {} ({n} joints: {}): Y is {n} x {}, tau = Y pi{}",
+        model.name,
+        joints.join(", "),
+        y.ncols(),
+        if armature.iter().any(|x| *x != 0.0) {
+            " + armature qdd"
+        } else {
+            ""
+        }
+    );
+    println!("one line per parameter: name, the file's value, then its column of Y (one entry per joint)");
+    for (c, name) in names.iter().enumerate() {
+        let column: Vec<String> = (0..n).map(|j| format!("{:>11.5}", y[(j, c)])).collect();
+        println!("  {name:>6} {:>11.5} | {}", pi[c], column.join(" "));
+    }
+    let tau: Vec<String> = tau.iter().map(|t| format!("{t:>11.5}")).collect();
+    println!("  {:>6} {:>11} | {}", "tau", "", tau.join(" "));
+    Ok(())
 }

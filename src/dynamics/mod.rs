@@ -4,6 +4,7 @@
 //! - `model`: `Model` (the robot) and `Data` (the buffers), with recursive Newton-Euler inverse
 //!   dynamics, the composite-rigid-body inertia matrix M(q), G(q), V(q, qd), the Christoffel
 //!   Coriolis matrix C(q, qd), friction F(qd) and forward dynamics by Cholesky;
+//! - `regressor`: the joint-torque regressor Y(q, qd, qdd), tau = Y pi (Pinocchio's order);
 //! - `dh`: robots from D-H tables in TOML (standard or modified convention);
 //! - `urdf`: robots from URDF files (through the `urdf-rs` crate);
 //! - `cli`: `evoloop dynamics`.
@@ -13,6 +14,7 @@
 
 pub mod dh;
 pub mod model;
+pub mod regressor;
 pub mod spatial;
 pub mod urdf;
 

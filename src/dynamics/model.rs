@@ -103,9 +103,10 @@ pub struct Data {
     /// Parent → body transforms at the last `update` configuration.
     pub x: Vec<Transform>,
     /// Joint motion subspaces (axis) per body, in body coordinates.
-    s: Vec<Motion>,
-    v: Vec<Motion>,
-    a: Vec<Motion>,
+    pub(super) s: Vec<Motion>,
+    /// Body velocities and accelerations (gravity included as the root's) of the last pass.
+    pub(super) v: Vec<Motion>,
+    pub(super) a: Vec<Motion>,
     f: Vec<Force>,
     ic: Vec<Inertia>,
     /// The joint-space inertia matrix from the last `mass_matrix` call.
@@ -117,6 +118,9 @@ pub struct Data {
     tmp2: Vec<f64>,
     /// Zero joint velocities for G(q); never written (the scratch buffers above are).
     zero: Vec<f64>,
+    /// The regressor's n x n workspace: entry i n + j is joint j's motion subspace in body i's
+    /// coordinates, for j an ancestor of i (or i itself).
+    pub(super) sub: Vec<Motion>,
 }
 
 /// M(q) is not positive definite at this configuration (a body carries no inertia).
@@ -160,6 +164,7 @@ impl Model {
             tmp: vec![0.0; n],
             tmp2: vec![0.0; n],
             zero: vec![0.0; n],
+            sub: vec![Motion::ZERO; n * n],
         }
     }
 
@@ -186,17 +191,11 @@ impl Model {
         }
     }
 
-    /// Recursive Newton-Euler on the transforms of the last `update`: tau = M qdd + V + G
-    /// (qdd = None means zero acceleration; `gravity` false drops G). Friction not included.
-    fn rnea_pass(
-        &self,
-        d: &mut Data,
-        qd: &[f64],
-        qdd: Option<&[f64]>,
-        gravity: bool,
-        tau: &mut [f64],
-    ) {
-        // Gravity enters as a fictitious upward acceleration of the root (Featherstone 5.3).
+    /// The forward pass of Newton-Euler on the transforms of the last `update`: body velocities
+    /// and accelerations into `d.v`, `d.a` (qdd = None means zero acceleration; gravity enters
+    /// as a fictitious upward acceleration of the root, Featherstone 5.3, unless `gravity` is
+    /// false). Shared by RNEA and the regressor.
+    pub(super) fn motion_pass(&self, d: &mut Data, qd: &[f64], qdd: Option<&[f64]>, gravity: bool) {
         let a_root = Motion {
             w: DVec3::ZERO,
             v: if gravity { -self.gravity } else { DVec3::ZERO },
@@ -215,6 +214,22 @@ impl Model {
             }
             d.v[i] = v;
             d.a[i] = a;
+        }
+    }
+
+    /// Recursive Newton-Euler on the transforms of the last `update`: tau = M qdd + V + G
+    /// (qdd = None means zero acceleration; `gravity` false drops G). Friction not included.
+    fn rnea_pass(
+        &self,
+        d: &mut Data,
+        qd: &[f64],
+        qdd: Option<&[f64]>,
+        gravity: bool,
+        tau: &mut [f64],
+    ) {
+        self.motion_pass(d, qd, qdd, gravity);
+        for (i, b) in self.bodies.iter().enumerate() {
+            let (v, a) = (d.v[i], d.a[i]);
             d.f[i] = b.inertia.apply(a) + v.cross_force(b.inertia.apply(v));
         }
         for i in (0..self.dof()).rev() {
