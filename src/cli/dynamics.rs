@@ -18,15 +18,8 @@ pub struct DynamicsArgs {
     /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
     #[arg(long, required = true)]
     pub robot: Option<PathBuf>,
-    /// Joint positions, comma separated (rad or m), in the file's joint order [default: zeros].
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub q: Option<Vec<f64>>,
-    /// Joint velocities [default: zeros].
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub qd: Option<Vec<f64>>,
-    /// Joint accelerations [default: zeros].
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub qdd: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub state: State,
     /// Joint torques/forces: also print the forward dynamics qdd = M^-1 (tau - V - G - F).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub tau: Option<Vec<f64>>,
@@ -44,6 +37,20 @@ pub struct DynamicsArgs {
     pub json: bool,
 }
 
+/// The state a dynamics quantity is evaluated at.
+#[derive(Args)]
+pub struct State {
+    /// Joint positions, comma separated (rad or m), in the file's joint order [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub q: Option<Vec<f64>>,
+    /// Joint velocities [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub qd: Option<Vec<f64>>,
+    /// Joint accelerations [default: zeros].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub qdd: Option<Vec<f64>>,
+}
+
 #[derive(clap::Subcommand)]
 pub enum DynamicsCmd {
     /// The joint-torque regressor Y(q, qd, qdd), tau = Y pi: 10 inertial parameters per body,
@@ -58,15 +65,8 @@ pub struct RegressorArgs {
     /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
     #[arg(long)]
     pub robot: PathBuf,
-    /// Joint positions, comma separated [default: zeros].
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub q: Option<Vec<f64>>,
-    /// Joint velocities [default: zeros].
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub qd: Option<Vec<f64>>,
-    /// Joint accelerations [default: zeros].
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub qdd: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub state: State,
     /// Add the friction columns (viscous, Coulomb) after the rigid-body ones.
     #[arg(long)]
     pub friction: bool,
@@ -187,15 +187,15 @@ pub fn main(a: DynamicsArgs) -> i32 {
         (false, false) => "rigid body only: the file gives no joint friction or damping",
     };
     let n = model.dof();
-    let q = match vector("q", a.q, n) {
+    let q = match vector("q", a.state.q, n) {
         Ok(v) => v,
         Err(e) => return usage(&e),
     };
-    let qd = match vector("qd", a.qd, n) {
+    let qd = match vector("qd", a.state.qd, n) {
         Ok(v) => v,
         Err(e) => return usage(&e),
     };
-    let qdd = match vector("qdd", a.qdd, n) {
+    let qdd = match vector("qdd", a.state.qdd, n) {
         Ok(v) => v,
         Err(e) => return usage(&e),
     };
@@ -279,9 +279,9 @@ fn regressor(a: RegressorArgs) -> Result<(), String> {
     }
     let model = loaded.model;
     let n = model.dof();
-    let q = vector("q", a.q, n)?;
-    let qd = vector("qd", a.qd, n)?;
-    let qdd = vector("qdd", a.qdd, n)?;
+    let q = vector("q", a.state.q, n)?;
+    let qd = vector("qd", a.state.qd, n)?;
+    let qdd = vector("qdd", a.state.qdd, n)?;
     let mut d = model.data();
     let mut y = DMatrix::zeros(n, model.regressor_columns(a.friction));
     model.regressor(&mut d, &q, &qd, &qdd, &mut y);
