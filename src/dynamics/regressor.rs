@@ -116,7 +116,7 @@ impl Model {
         );
         self.update(d, q);
         self.motion_pass(d, qd, Some(qdd), true);
-        y.fill(0.0);
+        y.as_mut_slice().fill(0.0); // a memset (DMatrix::fill walks entry by entry)
         for (i, b) in self.bodies.iter().enumerate() {
             // Carry the ancestors' subspaces into body i's coordinates.
             d.sub[i * n + i] = d.s[i];
@@ -127,13 +127,15 @@ impl Model {
                 j = self.bodies[k].parent;
             }
             let (v, a) = (d.v[i], d.a[i]);
+            // Body i's ten columns, column-major: entry (k, c) at c n + k.
+            let block = &mut y.as_mut_slice()[PER_BODY * i * n..PER_BODY * (i + 1) * n];
             let mut j = Some(i);
             while let Some(k) = j {
                 let s = d.sub[i * n + k];
                 let plus = columns(s, a);
                 let minus = columns(v.cross_motion(s), v);
-                for c in 0..PER_BODY {
-                    y[(k, PER_BODY * i + c)] = plus[c] - minus[c];
+                for (c, (p, m)) in plus.iter().zip(&minus).enumerate() {
+                    block[c * n + k] = p - m;
                 }
                 j = self.bodies[k].parent;
             }
