@@ -1,6 +1,6 @@
 //! The arm's hot paths do not allocate: the 6-DOF plant's integration (forward dynamics in every
 //! RK4 stage), the computed-torque cycle with a quintic reference and a parameter swap, and the
-//! Coriolis matrix. (A separate test binary: the counting allocator is process-global.)
+//! Coriolis matrix and the joint-torque regressor (with friction columns). (A separate test binary: the counting allocator is process-global.)
 
 use evoloop::config::{Overrides, Scenario};
 use evoloop::control::cycle::ControlCycle;
@@ -35,6 +35,7 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
     let mut tel = Telemetry::default();
     let mut d = model.data();
     let mut c = nalgebra::DMatrix::zeros(6, 6);
+    let mut y = nalgebra::DMatrix::zeros(6, model.regressor_columns(true));
     let dt = scn.timing.period;
     ARMED.store(true, Ordering::SeqCst);
     for k in 0..2000u64 {
@@ -44,6 +45,8 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
         plant.advance(&u[..6], dt);
         if k % 100 == 0 {
             model.coriolis_matrix(&mut d, &msg.q_true[..6], &msg.qd_true[..6], &mut c);
+            let (q, qd) = (&msg.q_true[..6], &msg.qd_true[..6]);
+            model.regressor(&mut d, q, qd, qd, &mut y);
         }
     }
     ARMED.store(false, Ordering::SeqCst);
