@@ -253,3 +253,47 @@ fn regressor_prints_y_parameters_and_pi_that_reproduce_the_dynamics() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--q needs 3 values"));
 }
+
+/// `identify base`: keys base_count, base, unidentifiable, combined; every parameter is in
+/// exactly one list, and the first link of the 6-DOF arm regroups into Izz1.
+#[test]
+fn identify_base_lists_base_unidentifiable_and_combined_parameters() {
+    let v = stdout_json(&cli(&[
+        "identify",
+        "base",
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--json",
+    ]));
+    let list = |k: &str| -> Vec<String> {
+        v[k].as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s.as_str().unwrap().to_string())
+            .collect()
+    };
+    let (base, zero, combined) = (list("base"), list("unidentifiable"), list("combined"));
+    assert_eq!(v["base_count"].as_u64().unwrap() as usize, base.len());
+    assert_eq!(base.len() + zero.len() + combined.len(), 60);
+    assert!(base.contains(&"Izz1".to_string()) && zero.contains(&"m1".to_string()));
+    assert!(v["regrouping"][0].as_str().unwrap().starts_with("Izz1 +"));
+    let f = stdout_json(&cli(&[
+        "identify",
+        "base",
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--friction",
+        "--json",
+    ]));
+    assert_eq!(f["parameters"], 72);
+    let o = cli(&[
+        "identify",
+        "base",
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--states",
+        "2",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--states 2"));
+}

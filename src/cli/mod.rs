@@ -6,6 +6,7 @@ pub mod bench;
 pub mod check;
 pub mod dynamics;
 pub mod floor;
+pub mod identify_base;
 pub mod optim;
 pub mod rkgnn;
 pub mod robust;

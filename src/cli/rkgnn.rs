@@ -13,6 +13,10 @@ pub enum IdentifyCmd {
     /// (run.csv: reference, r*, rd*, y*, qd*; the torques u* are not read), by the RKGNN paper's
     /// evolutionary algorithm; writes MODEL.json.
     Rkgnn(IdentifyArgs),
+    /// The base (identifiable) inertial parameters of a robot file: the regressor stacked over
+    /// random states, zero columns (unidentifiable), QR with column pivoting for the rank, and
+    /// the regrouping of the dependent parameters into the base ones (printed).
+    Base(super::identify_base::BaseArgs),
 }
 
 #[derive(Args)]
@@ -153,7 +157,10 @@ fn run_robot(dir: &Path) -> Result<PathBuf, String> {
 }
 
 pub fn identify(cmd: IdentifyCmd) -> i32 {
-    let IdentifyCmd::Rkgnn(a) = cmd;
+    let a = match cmd {
+        IdentifyCmd::Rkgnn(a) => a,
+        IdentifyCmd::Base(b) => return super::identify_base::main(&b),
+    };
     match identify_rkgnn(&a) {
         Ok(()) => 0,
         Err(e) => {

@@ -12,6 +12,7 @@
 //! Every algorithm runs in place on a `Data`, so the plant's integrator and the computed-torque
 //! controller call them every cycle without allocating.
 
+pub mod base;
 pub mod dh;
 pub mod model;
 pub mod regressor;

@@ -1,0 +1,81 @@
+//! `evoloop identify base`: the base parameters of a robot file.
+
+use crate::dynamics::base::{base_parameters, TOLERANCE};
+use clap::Args;
+use serde_json::json;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct BaseArgs {
+    /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Include the friction columns (viscous, Coulomb per joint).
+    #[arg(long)]
+    pub friction: bool,
+    /// Random states stacked into the regressor.
+    #[arg(long, default_value_t = 100)]
+    pub states: usize,
+    /// Seed of the random states.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print JSON (keys base_count, base, unidentifiable, combined, regrouping).
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn main(a: &BaseArgs) -> i32 {
+    let model = match crate::dynamics::load(&a.robot) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("evoloop identify base: {e}");
+            return 2;
+        }
+    };
+    let need = model.regressor_columns(a.friction).div_ceil(model.dof()) + 1;
+    if a.states < need {
+        eprintln!(
+            "evoloop identify base: --states {}: at least {need} for this robot",
+            a.states
+        );
+        return 2;
+    }
+    let b = base_parameters(&model, a.friction, a.states, a.seed);
+    let relation = |base: &crate::dynamics::base::Base| {
+        let mut s = base.name.clone();
+        for (n, k) in &base.plus {
+            s += &format!(" {} {:.6} {n}", if *k < 0.0 { "-" } else { "+" }, k.abs());
+        }
+        s
+    };
+    if a.json {
+        super::print_json(&json!({
+            "robot": model.name,
+            "base_count": b.base_count(),
+            "base": b.base.iter().map(|x| x.name.clone()).collect::<Vec<_>>(),
+            "unidentifiable": b.unidentifiable,
+            "combined": b.combined,
+            "regrouping": b.base.iter().map(relation).collect::<Vec<_>>(),
+            "base_values": b.base.iter().map(|x| x.value).collect::<Vec<_>>(),
+            "parameters": b.names.len(),
+            "rows": b.rows,
+            "tolerance": TOLERANCE,
+        }));
+        return 0;
+    }
+    println!(
+        "robot {}: {} base parameters of {} ({} unidentifiable, {} only in combination), from {} regressor rows",
+        model.name,
+        b.base_count(),
+        b.names.len(),
+        b.unidentifiable.len(),
+        b.combined.len(),
+        b.rows
+    );
+    println!("unidentifiable: {}", b.unidentifiable.join(", "));
+    println!("base parameters (regrouping; value for the file's parameters):");
+    for base in &b.base {
+        println!("  {:<60} = {:.6}", relation(base), base.value);
+    }
+    0
+}
