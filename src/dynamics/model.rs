@@ -193,11 +193,12 @@ impl Model {
 
     /// The forward pass of Newton-Euler on the transforms of the last `update`: body velocities
     /// and accelerations into `d.v`, `d.a` (qdd = None means zero acceleration; `gravity` false
-    /// drops it). The regressor's first pass; RNEA runs the same step fused with its forces.
+    /// drops it). The regressor's first pass; RNEA takes the same `body_motion` step in its own
+    /// loop, fused with the forces.
     pub(super) fn motion_pass(&self, d: &mut Data, qd: &[f64], qdd: Option<&[f64]>, gravity: bool) {
         let a_root = self.root_acceleration(gravity);
-        for i in 0..self.dof() {
-            self.body_motion(d, i, qd, qdd, a_root);
+        for (i, b) in self.bodies.iter().enumerate() {
+            (d.v[i], d.a[i]) = body_motion(d, i, b.parent, qd, qdd, a_root);
         }
     }
 
@@ -207,24 +208,6 @@ impl Model {
             w: DVec3::ZERO,
             v: if gravity { -self.gravity } else { DVec3::ZERO },
         }
-    }
-
-    /// Body i's velocity and acceleration from its parent's, into `d.v[i]`, `d.a[i]`.
-    #[inline(always)]
-    fn body_motion(&self, d: &mut Data, i: usize, qd: &[f64], qdd: Option<&[f64]>, a_root: Motion) {
-        let x = d.x[i];
-        let (v_p, a_p) = match self.bodies[i].parent {
-            Some(p) => (d.v[p], d.a[p]),
-            None => (Motion::ZERO, a_root),
-        };
-        let vj = d.s[i].scaled(qd[i]);
-        let v = x.apply_motion(v_p) + vj;
-        let mut a = x.apply_motion(a_p) + v.cross_motion(vj);
-        if let Some(qdd) = qdd {
-            a = a + d.s[i].scaled(qdd[i]);
-        }
-        d.v[i] = v;
-        d.a[i] = a;
     }
 
     /// Recursive Newton-Euler on the transforms of the last `update`: tau = M qdd + V + G
@@ -237,23 +220,10 @@ impl Model {
         gravity: bool,
         tau: &mut [f64],
     ) {
-        // The same step as `body_motion`, written out and fused with the forces: calling the
-        // helper here measured 8 % slower (437 -> 511 ns for the 6-DOF arm's RNEA).
         let a_root = self.root_acceleration(gravity);
         for (i, b) in self.bodies.iter().enumerate() {
-            let x = d.x[i];
-            let (v_p, a_p) = match b.parent {
-                Some(p) => (d.v[p], d.a[p]),
-                None => (Motion::ZERO, a_root),
-            };
-            let vj = d.s[i].scaled(qd[i]);
-            let v = x.apply_motion(v_p) + vj;
-            let mut a = x.apply_motion(a_p) + v.cross_motion(vj);
-            if let Some(qdd) = qdd {
-                a = a + d.s[i].scaled(qdd[i]);
-            }
-            d.v[i] = v;
-            d.a[i] = a;
+            let (v, a) = body_motion(d, i, b.parent, qd, qdd, a_root);
+            (d.v[i], d.a[i]) = (v, a);
             d.f[i] = b.inertia.apply(a) + v.cross_force(b.inertia.apply(v));
         }
         for i in (0..self.dof()).rev() {
@@ -452,6 +422,31 @@ impl Model {
     pub fn body_origins(&self, d: &mut Data, q: &[f64]) -> Vec<DVec3> {
         self.world_transforms(d, q).iter().map(|x| x.r).collect()
     }
+}
+
+/// Body i's velocity and acceleration from its parent's (already in `d.v`, `d.a`): the step of
+/// the forward pass that RNEA and the regressor share.
+#[inline(always)]
+fn body_motion(
+    d: &Data,
+    i: usize,
+    parent: Option<usize>,
+    qd: &[f64],
+    qdd: Option<&[f64]>,
+    a_root: Motion,
+) -> (Motion, Motion) {
+    let (v_p, a_p) = match parent {
+        Some(p) => (d.v[p], d.a[p]),
+        None => (Motion::ZERO, a_root),
+    };
+    let (x, s) = (d.x[i], d.s[i]);
+    let vj = s.scaled(qd[i]);
+    let v = x.apply_motion(v_p) + vj;
+    let mut a = x.apply_motion(a_p) + v.cross_motion(vj);
+    if let Some(qdd) = qdd {
+        a = a + s.scaled(qdd[i]);
+    }
+    (v, a)
 }
 
 /// In-place Cholesky M = L Lᵀ (lower triangle of `a` overwritten by L) and solve of M x = b into
