@@ -232,6 +232,18 @@ fn a_peers_file_is_compared_per_function_and_a_bad_one_refused_before_the_study(
     let report = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(report.contains("## Against other implementations"));
     assert!(report.contains("| sphere |"));
+    // The comparison table's header has as many columns as its rows.
+    let section = &report[report.find("## Against other implementations").unwrap()..];
+    let cells = |l: &str| l.matches('|').count();
+    let header = section
+        .lines()
+        .find(|l| l.starts_with("| function"))
+        .unwrap();
+    let row = section
+        .lines()
+        .find(|l| l.starts_with("| sphere |"))
+        .unwrap();
+    assert_eq!(cells(header), cells(row), "{header}\n{row}");
 
     // More evaluations than the study's budget: refused at once, with file and line.
     std::fs::write(&peers, text.replace(",3000\n", ",3001\n")).unwrap();

@@ -860,24 +860,20 @@ fn peers_sentence(c: &[(String, Comparison)]) -> String {
 }
 
 fn peers_md(md: &mut String, p: &PeerRuns, c: &[(String, Comparison)]) {
-    let _ = writeln!(
-        md,
-        "## Against other implementations ({})
-",
-        p.file
-    );
+    let _ = writeln!(md, "## Against other implementations ({})\n", p.file);
     let _ = writeln!(
         md,
         "Algorithms: {}. Per function, each side is represented by its algorithm with the lowest \
          mean error; their runs share no seeds with ours, so the test is Mann-Whitney's rank sum \
          (two-sided, 5 %), on the whole distribution (a lower median can win against a lower \
-         mean). Errors below 1e-8 count as 0 (minimum reached; CEC's convention). Result: {}.\n",
+         mean). Errors below {:e} count as 0 (minimum reached; CEC's convention). Result: {}.\n",
         p.algorithms.join(", "),
+        peers::SOLVED,
         peers_sentence(c)
     );
     let (leading, names) = (
-        ["function", "ours", "mean error"],
-        ["theirs", "mean error", "p", "ours is"],
+        ["function", "ours", "mean error", "median"],
+        ["theirs", "mean error", "median", "p", "ours is"],
     );
     header(md, &leading, &names);
     for (key, c) in c {

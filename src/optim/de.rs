@@ -139,10 +139,6 @@ impl DifferentialEvolution {
         self.trials = self.pop.clone();
     }
 
-    /// One trial per target. The fields are borrowed apart so that the compiler keeps the rows
-    /// and settings in registers (through `self` every write to a trial could alias them, and
-    /// each access reloaded them: 2.9 -> see `optim bench`). The draws and their order are the
-    /// stream of the published runs; do not reorder them.
     /// One trial per target. Each component takes one 64-bit draw: its high half decides the
     /// crossover, its low half is the uniform redraw should the mutant leave the box (drawn
     /// whether needed or not, so that the update is a branch-free pass the compiler can

@@ -13,13 +13,8 @@ pub struct Xoshiro256pp {
 }
 
 impl Xoshiro256pp {
-    /// Two uniform numbers in [0, 1) with 32-bit resolution from one draw (PSO's r1 and r2).
-    #[inline]
-    pub fn pair(&mut self) -> (f64, f64) {
-        Self::halves(self.next_u64())
-    }
-
-    /// A draw split into two uniform numbers in [0, 1), high half first.
+    /// A draw split into two uniform numbers in [0, 1) with 32-bit resolution, high half first
+    /// (PSO's r1 and r2; DE's crossover number and redraw).
     #[inline]
     pub fn halves(x: u64) -> (f64, f64) {
         // Each half as the mantissa's top 32 bits of a number in [1, 2), minus 1: exactly
@@ -113,7 +108,7 @@ mod tests {
         let n = 200_000;
         let (mut m1, mut m2) = (0.0, 0.0);
         for _ in 0..n {
-            let (a, b) = r.pair();
+            let (a, b) = Xoshiro256pp::halves(r.next_u64());
             let c: f64 = r.gen();
             assert!((0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) && (0.0..1.0).contains(&c));
             m1 += a + b + c;
