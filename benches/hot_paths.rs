@@ -302,5 +302,36 @@ fn rkgnn(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, control, robust, dynamics, fuzzy, rkgnn);
+/// One fitness evaluation of an excitation trajectory (eq. 15): the 6-DOF arm's base regressor
+/// stacked over 100 instants of a 10 s trajectory (600 x 52, every joint moving, friction and
+/// armature columns) and its singular values, as the eMuPSO search evaluates it.
+fn identify(c: &mut Criterion) {
+    use evoloop::identify::excitation::{Problem, Settings};
+    use evoloop::identify::{Stage, StageKind};
+    use evoloop::optim::Objective;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model = evoloop::dynamics::load(&root.join("config/robots/industrial6.toml")).unwrap();
+    let stage = Stage::new(StageKind::All, &model).unwrap();
+    let p = Problem::new(model, stage, Settings::default()).unwrap();
+    // The shipped optimised trajectory (feasible, so the objective does the whole SVD).
+    let text =
+        std::fs::read_to_string(root.join("config/excitation/industrial6_all.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let s = serde_json::from_value(v["series"].clone()).unwrap();
+    let x = p.design.encode(&s);
+    c.bench_function(
+        "excitation fitness: base regressor of 100 instants (600 x 52)",
+        |b| b.iter(|| black_box(p.base_regressor(black_box(&s)))),
+    );
+    c.bench_function(
+        "excitation fitness: eq. 15 with the SVD and the limit check",
+        |b| b.iter(|| black_box(p.criteria(black_box(&s)))),
+    );
+    c.bench_function(
+        "excitation fitness: objective value (as the search calls it)",
+        |b| b.iter(|| black_box(p.value(black_box(&x)))),
+    );
+}
+
+criterion_group!(benches, control, robust, dynamics, fuzzy, rkgnn, identify);
 criterion_main!(benches);

@@ -24,6 +24,7 @@ pub mod config;
 pub mod control;
 pub mod dynamics;
 pub mod fuzzy;
+pub mod identify;
 pub mod indirect;
 pub mod ipc;
 pub mod msg;

@@ -3,7 +3,7 @@
 //! segments through waypoints; sums of sinusoids), all sampled into a `Setpoint`.
 
 use crate::MAX_JOINTS;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
 
 /// What the controller tracks at one instant: per joint (or output) a desired position,
@@ -47,7 +47,7 @@ fn quintic(x: f64) -> (f64, f64, f64) {
     )
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Reference {
     /// 0 before `start`, `amplitude` from `start` on.
     Step { amplitude: f64, start: f64 },

@@ -116,6 +116,9 @@ fn arm_scenarios_check_and_bad_ones_name_the_key() {
         "arm3_train1",
         "arm3_train2",
         "industrial6_ct",
+        "industrial6_identify",
+        "industrial6_identify_wrist",
+        "industrial6_identify_arm",
     ] {
         let o = cli(&["check", &format!("config/{c}.toml")]);
         assert!(

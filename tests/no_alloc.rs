@@ -30,7 +30,7 @@ fn send<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
 
 #[path = "common/counting_alloc.rs"]
 mod counting_alloc;
-use counting_alloc::{ARMED, COUNT};
+use counting_alloc::COUNT;
 
 #[global_allocator]
 static A: counting_alloc::Counting = counting_alloc::Counting;
@@ -116,11 +116,11 @@ fn the_control_cycle_allocates_nothing() {
     cycle(0, &mut cyc, &mut plant);
     cyc.offer(&set);
     SENDS.store(0, Ordering::SeqCst);
-    ARMED.store(true, Ordering::SeqCst);
+    counting_alloc::arm();
     for k in 1..n as u64 {
         cycle(k, &mut cyc, &mut plant);
     }
-    ARMED.store(false, Ordering::SeqCst);
+    counting_alloc::disarm();
     let allocations = COUNT.load(Ordering::SeqCst);
     let sends = SENDS.load(Ordering::SeqCst);
     assert_eq!(

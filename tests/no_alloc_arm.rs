@@ -10,7 +10,7 @@ use std::sync::atomic::Ordering;
 
 #[path = "common/counting_alloc.rs"]
 mod counting_alloc;
-use counting_alloc::{ARMED, COUNT};
+use counting_alloc::COUNT;
 
 #[global_allocator]
 static A: counting_alloc::Counting = counting_alloc::Counting;
@@ -37,7 +37,7 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
     let mut c = nalgebra::DMatrix::zeros(6, 6);
     let mut y = nalgebra::DMatrix::zeros(6, model.regressor_columns(true));
     let dt = scn.timing.period;
-    ARMED.store(true, Ordering::SeqCst);
+    counting_alloc::arm();
     for k in 0..2000u64 {
         plant.sample(k, 0, &cyc.u[..6], &mut msg);
         cyc.step(&msg, &mut tel);
@@ -49,7 +49,7 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
             model.regressor(&mut d, q, qd, qd, &mut y);
         }
     }
-    ARMED.store(false, Ordering::SeqCst);
+    counting_alloc::disarm();
     assert_eq!(
         cyc.version(),
         1,

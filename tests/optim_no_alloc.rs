@@ -8,7 +8,7 @@ use std::sync::atomic::Ordering;
 
 #[path = "common/counting_alloc.rs"]
 mod counting_alloc;
-use counting_alloc::{ARMED, COUNT};
+use counting_alloc::COUNT;
 
 #[global_allocator]
 static A: counting_alloc::Counting = counting_alloc::Counting;
@@ -55,9 +55,9 @@ fn no_population_method_allocates_per_generation() {
         // Warm-up: the first generations fill scratch buffers, DE's window and the GA's children.
         generations(opt.as_mut(), 10, &mut values);
         COUNT.store(0, Ordering::SeqCst);
-        ARMED.store(true, Ordering::SeqCst);
+        counting_alloc::arm();
         generations(opt.as_mut(), 200, &mut values);
-        ARMED.store(false, Ordering::SeqCst);
+        counting_alloc::disarm();
         let n = COUNT.load(Ordering::SeqCst);
         assert_eq!(n, 0, "{name}: {n} allocations in 200 generations");
         assert!(opt.best().1.is_finite());

@@ -41,13 +41,6 @@ pub fn main(a: &BaseArgs) -> i32 {
         return 2;
     }
     let b = base_parameters(&model, a.friction, a.states, a.seed);
-    let relation = |base: &crate::dynamics::base::Base| {
-        let mut s = base.name.clone();
-        for (n, k) in &base.plus {
-            s += &format!(" {} {:.6} {n}", if *k < 0.0 { "-" } else { "+" }, k.abs());
-        }
-        s
-    };
     if a.json {
         super::print_json(&json!({
             "robot": model.name,
@@ -55,7 +48,7 @@ pub fn main(a: &BaseArgs) -> i32 {
             "base": b.base.iter().map(|x| x.name.clone()).collect::<Vec<_>>(),
             "unidentifiable": b.unidentifiable,
             "combined": b.combined,
-            "regrouping": b.base.iter().map(relation).collect::<Vec<_>>(),
+            "regrouping": b.base.iter().map(|x| x.relation()).collect::<Vec<_>>(),
             "base_values": b.base.iter().map(|x| x.value).collect::<Vec<_>>(),
             "parameters": b.names.len(),
             "rows": b.rows,
@@ -75,7 +68,7 @@ pub fn main(a: &BaseArgs) -> i32 {
     println!("unidentifiable: {}", b.unidentifiable.join(", "));
     println!("base parameters (regrouping; value for the file's parameters):");
     for base in &b.base {
-        println!("  {:<60} = {:.6}", relation(base), base.value);
+        println!("  {:<60} = {:.6}", base.relation(), base.value);
     }
     0
 }

@@ -7,6 +7,8 @@ pub mod check;
 pub mod dynamics;
 pub mod floor;
 pub mod identify_base;
+pub mod identify_excitation;
+pub mod identify_lls;
 pub mod optim;
 pub mod rkgnn;
 pub mod robust;

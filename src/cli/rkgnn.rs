@@ -17,6 +17,15 @@ pub enum IdentifyCmd {
     /// random states, zero columns (unidentifiable), QR with column pivoting for the rank, and
     /// the regrouping of the dependent parameters into the base ones (printed).
     Base(super::identify_base::BaseArgs),
+    /// An optimal excitation trajectory for one identification stage (the eMuPSO paper's
+    /// eq. 15 on the stage's base regressor, by its two-phase eMuPSO search): a periodic
+    /// joint-space Fourier series inside the joint limits, starting at rest; writes TRAJ.json
+    /// (usable as `[reference] kind = "excitation"`) and a plot.
+    Excitation(super::identify_excitation::ExcitationArgs),
+    /// Least-squares estimate of the base parameters from excitation runs (positions and
+    /// torques of run.csv, averaged over periods, differentiated in the frequency domain),
+    /// against the robot file's own values, with a held-out period's torque prediction.
+    Lls(super::identify_lls::LlsArgs),
 }
 
 #[derive(Args)]
@@ -160,6 +169,8 @@ pub fn identify(cmd: IdentifyCmd) -> i32 {
     let a = match cmd {
         IdentifyCmd::Rkgnn(a) => a,
         IdentifyCmd::Base(b) => return super::identify_base::main(&b),
+        IdentifyCmd::Excitation(e) => return super::identify_excitation::main(&e),
+        IdentifyCmd::Lls(l) => return super::identify_lls::main(&l),
     };
     match identify_rkgnn(&a) {
         Ok(()) => 0,

@@ -19,6 +19,9 @@ pub struct RawReference {
     pub amplitudes: Option<Vec<Vec<f64>>>,
     pub frequencies: Option<Vec<f64>>,
     pub phases: Option<Vec<Vec<f64>>>,
+    /// An excitation trajectory file (`evoloop identify excitation --out`), relative to the
+    /// scenario file.
+    pub file: Option<std::path::PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -29,6 +32,7 @@ pub enum ReferenceKind {
     Steps,
     Quintic,
     Sines,
+    Excitation,
 }
 
 pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError> {
@@ -53,6 +57,7 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
         ("amplitudes", r.amplitudes.is_some()),
         ("frequencies", r.frequencies.is_some()),
         ("phases", r.phases.is_some()),
+        ("file", r.file.is_some()),
     ];
     let (kind_name, allowed): (&str, &[&str]) = match r.kind {
         ReferenceKind::Step => ("step", &["amplitude", "start"]),
@@ -60,6 +65,7 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
         ReferenceKind::Steps => ("steps", &["times", "values"]),
         ReferenceKind::Quintic => ("quintic", &["times", "waypoints"]),
         ReferenceKind::Sines => ("sines", &["offsets", "amplitudes", "frequencies", "phases"]),
+        ReferenceKind::Excitation => ("excitation", &["file"]),
     };
     for (k, p) in present {
         if p && !allowed.contains(&k) {
@@ -79,6 +85,18 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
         check.finite_values(key, v, n, " (one per joint)")
     };
     match r.kind {
+        ReferenceKind::Excitation => {
+            let Some(file) = r.file else {
+                return check.fail(
+                    "reference.file",
+                    "an excitation reference needs `file` (from `evoloop identify excitation --out`)",
+                );
+            };
+            let path = check.resolve(&file);
+            let series = excitation_file(&path)
+                .or_else(|e| check.fail("reference.file", format!("{}: {e}", path.display())))?;
+            Ok(series.to_reference())
+        }
         ReferenceKind::Quintic => {
             let (Some(times), Some(waypoints)) = (r.times, r.waypoints) else {
                 return check.fail("reference.waypoints", "a quintic trajectory needs `times` and `waypoints` (one array of joint values per time)");
@@ -191,4 +209,35 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
             Ok(Reference::Steps { times, values })
         }
     }
+}
+
+/// The joint-space Fourier series of an excitation file (its `series`), checked.
+fn excitation_file(
+    path: &std::path::Path,
+) -> Result<crate::identify::series::FourierSeries, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read: {e}"))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+    let s: crate::identify::series::FourierSeries = serde_json::from_value(v["series"].clone())
+        .map_err(|e| format!("`series`: {e} (not an `evoloop identify excitation` file?)"))?;
+    let n = s.offsets.len();
+    let h = s.harmonics();
+    if n == 0 || n > crate::MAX_JOINTS {
+        return Err(format!(
+            "`series`: 1..={} joints, got {n}",
+            crate::MAX_JOINTS
+        ));
+    }
+    if h == 0 || s.a.len() != n || s.b.len() != n || s.a.iter().chain(&s.b).any(|r| r.len() != h) {
+        return Err("`series`: `a` and `b` need one row per joint, one entry per harmonic".into());
+    }
+    if !(s.period.is_finite() && s.period > 0.0)
+        || s.offsets
+            .iter()
+            .chain(s.a.iter().flatten())
+            .chain(s.b.iter().flatten())
+            .any(|x| !x.is_finite())
+    {
+        return Err("`series`: period must be > 0 and every value finite".into());
+    }
+    Ok(s)
 }

@@ -31,6 +31,17 @@ pub struct Base {
     pub value: f64,
 }
 
+impl Base {
+    /// "Izz1 + 0.090000 m2 + 1.000000 Iyy2": the parameter and what is regrouped into it.
+    pub fn relation(&self) -> String {
+        let mut s = self.name.clone();
+        for (n, k) in &self.plus {
+            s += &format!(" {} {:.6} {n}", if *k < 0.0 { "-" } else { "+" }, k.abs());
+        }
+        s
+    }
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct BaseParameters {
     /// Every column's name (regressor order).
@@ -87,20 +98,32 @@ pub fn stacked_regressor(model: &Model, friction: bool, states: usize, seed: u64
 
 /// The base parameters of `model` from its regressor stacked over `states` random states.
 pub fn base_parameters(model: &Model, friction: bool, states: usize, seed: u64) -> BaseParameters {
-    let names = model.parameter_names(friction);
-    let pi = model.parameters(friction);
     let w = stacked_regressor(model, friction, states, seed);
+    reduce(
+        &w,
+        model.parameter_names(friction),
+        &model.parameters(friction),
+    )
+}
+
+/// The base parameters of any stacked regressor `w` whose columns are `names` with the values
+/// `pi` (an identification experiment's rows and columns: `identify::Stage`).
+pub fn reduce(w: &DMatrix<f64>, names: Vec<String>, pi: &[f64]) -> BaseParameters {
+    assert_eq!(w.ncols(), names.len(), "one name per column");
+    assert_eq!(pi.len(), names.len(), "one value per column");
     let norms: Vec<f64> = w.column_iter().map(|c| c.norm()).collect();
     let largest = norms.iter().cloned().fold(0.0, f64::max);
     let (zero, acting): (Vec<usize>, Vec<usize>) =
         (0..names.len()).partition(|&c| norms[c] <= TOLERANCE * largest);
-    let wa = w.select_columns(&acting);
-    let qr = wa.col_piv_qr();
-    let r = qr.r();
-    let r00 = r[(0, 0)].abs();
-    let rank = (0..r.nrows().min(r.ncols()))
-        .take_while(|&i| r[(i, i)].abs() > TOLERANCE * r00)
-        .count();
+    let rank = if acting.is_empty() {
+        0
+    } else {
+        let r = w.select_columns(&acting).col_piv_qr().r();
+        let r00 = r[(0, 0)].abs();
+        (0..r.nrows().min(r.ncols()))
+            .take_while(|&i| r[(i, i)].abs() > TOLERANCE * r00)
+            .count()
+    };
     // Greedy choice in regressor order: keep a column whose residual against the kept ones'
     // orthonormal basis is not negligible (projected twice, for a clean residual).
     let mut basis: Vec<DVector<f64>> = Vec::with_capacity(rank);

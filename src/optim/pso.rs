@@ -189,6 +189,15 @@ impl Pso {
         let p = Particles::new(&swarm, VMAX);
         Ok(SwarmOptimiser::from_parts(swarm, PsoRule { p }))
     }
+
+    /// Replace particle `i` by a new one at `x`: at rest, with no memory of where it was (the
+    /// eMuPSO paper's elite generation replaces each particle that became an elite).
+    pub fn restart_particle(&mut self, i: usize, x: &[f64]) {
+        self.swarm.x[i].copy_from_slice(x);
+        self.rule.p.v[i].fill(0.0);
+        self.rule.p.pbest_x[i].copy_from_slice(x);
+        self.rule.p.pbest_f[i] = f64::INFINITY;
+    }
 }
 
 impl Rule for PsoRule {

@@ -112,6 +112,20 @@ impl Swarm {
         })
     }
 
+    /// Start from `positions` instead of the random population (before the first `tell`): a
+    /// swarm seeded from earlier elites. Missing members stay random; extra ones are ignored.
+    pub fn start_from(&mut self, positions: &[Vec<f64>]) {
+        assert_eq!(
+            self.generation, 0,
+            "only the initial population can be seeded"
+        );
+        for (x, p) in self.x.iter_mut().zip(positions) {
+            for (j, (xj, pj)) in x.iter_mut().zip(p).enumerate() {
+                *xj = pj.clamp(self.cfg.lower[j], self.cfg.upper[j]);
+            }
+        }
+    }
+
     /// Record the values of the positions asked for; update the best.
     pub fn record(&mut self, values: &[f64]) {
         assert_eq!(values.len(), self.x.len(), "one value per candidate");

@@ -1,0 +1,451 @@
+//! Linear least squares on a periodic excitation run (the eMuPSO paper, eqs. 11-13).
+//!
+//! What a real robot gives: joint positions from the encoders (the run's measured `y*`, with the
+//! plant's `noise_std`) and torques from the motor currents (the commands `u*`, optionally with
+//! added measurement noise). The velocities and accelerations are not measured; as in Swevers
+//! et al. the run is periodic, so
+//! 1. the first `skip` periods are dropped (the controller's start-up), the last full period is
+//!    held out for validation and the others are averaged sample by sample (noise falls as
+//!    1 / sqrt(periods));
+//! 2. the averaged positions are expanded in their first `harmonics` Fourier harmonics (a
+//!    band-limited, phase-free filter) and differentiated analytically, evaluated half a sample
+//!    after each instant, where the zero-order-held torque of that instant acts;
+//! 3. the stage's base regressor W_b at those states and the averaged torques give
+//!    beta = argmin |W_b beta - tau| (SVD), compared with the base values of the robot file's
+//!    own parameters (the simulated arm's truth).
+//!
+//! The held-out period is processed the same way on its own (no averaging) and its torques
+//! predicted with the estimate: the validation RMS per joint.
+
+use super::series::FourierSeries;
+use super::{stage_base, states_needed, Columns, Stacker, Stage};
+use crate::dynamics::Model;
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+use std::f64::consts::TAU;
+use std::path::Path;
+
+/// A periodic run: its sampling, period, which joints moved and the records.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    /// Sample interval, s.
+    pub h: f64,
+    /// The excitation's period, s.
+    pub period: f64,
+    pub moving: Vec<bool>,
+    /// Held joints' positions (the reference offsets).
+    pub hold: Vec<f64>,
+    /// Measured positions and torques, one vector per joint.
+    pub y: Vec<Vec<f64>>,
+    pub u: Vec<Vec<f64>>,
+}
+
+impl Recording {
+    /// A run directory's run.csv (`t`, `y*`, `u*`) and scenario.json (the reference: a
+    /// harmonic `sines` reference, e.g. from `evoloop identify excitation`).
+    pub fn from_run(dir: &Path) -> Result<Recording, String> {
+        let sj = dir.join("scenario.json");
+        let text = std::fs::read_to_string(&sj)
+            .map_err(|e| format!("{}: cannot read: {e}", sj.display()))?;
+        let v: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", sj.display()))?;
+        let reference: crate::reference::Reference = serde_json::from_value(v["reference"].clone())
+            .map_err(|e| format!("{}: reference: {e}", sj.display()))?;
+        let series = FourierSeries::from_reference(&reference).ok_or_else(|| {
+            format!(
+                "{}: the run's reference is not a periodic excitation (a `sines` reference \
+                 with frequencies 1/T, 2/T, ...; see `evoloop identify excitation`)",
+                sj.display()
+            )
+        })?;
+        let csv = dir.join("run.csv");
+        let t = crate::report::Table::read(&csv).map_err(|e| format!("{}: {e}", csv.display()))?;
+        let n = series.joints();
+        let col = |name: String| {
+            t.col(&name)
+                .ok_or_else(|| format!("{}: no column `{name}`", csv.display()))
+        };
+        let time = col("t".into())?;
+        if time.len() < 3 {
+            return Err(format!("{}: fewer than 3 samples", csv.display()));
+        }
+        let y = (0..n)
+            .map(|j| col(format!("y{j}")))
+            .collect::<Result<_, _>>()?;
+        let u = (0..n)
+            .map(|j| col(format!("u{j}")))
+            .collect::<Result<_, _>>()?;
+        Ok(Recording {
+            h: time[1] - time[0],
+            period: series.period,
+            moving: (0..n).map(|j| series.moves(j)).collect(),
+            hold: series.offsets.clone(),
+            y,
+            u,
+        })
+    }
+
+    /// An in-process simulation of `scn` (`sim::simulate`): the same columns a run logs.
+    pub fn from_sim(
+        scn: &crate::config::Scenario,
+        sim: &crate::sim::SimResult,
+    ) -> Result<Recording, String> {
+        let series = FourierSeries::from_reference(&scn.reference)
+            .ok_or("the scenario's reference is not a periodic excitation")?;
+        let n = series.joints();
+        Ok(Recording {
+            h: scn.timing.period,
+            period: series.period,
+            moving: (0..n).map(|j| series.moves(j)).collect(),
+            hold: series.offsets.clone(),
+            y: (0..n)
+                .map(|j| sim.rows.iter().map(|r| r.state.y[j]).collect())
+                .collect(),
+            u: (0..n)
+                .map(|j| sim.rows.iter().map(|r| r.telemetry.u[j]).collect())
+                .collect(),
+        })
+    }
+
+    /// The first `periods` periods only.
+    pub fn truncated(&self, periods: usize) -> Result<Recording, String> {
+        let keep = periods * self.per_period()?;
+        let cut = |c: &Vec<Vec<f64>>| c.iter().map(|x| x[..keep.min(x.len())].to_vec()).collect();
+        Ok(Recording {
+            y: cut(&self.y),
+            u: cut(&self.u),
+            ..self.clone()
+        })
+    }
+
+    /// Samples per period (the period must be a whole number of samples).
+    pub fn per_period(&self) -> Result<usize, String> {
+        let m = (self.period / self.h).round();
+        if m < 4.0 || (m * self.h - self.period).abs() > 1e-6 * self.period {
+            return Err(format!(
+                "the period {} s is not a whole number of {} s samples",
+                self.period, self.h
+            ));
+        }
+        Ok(m as usize)
+    }
+
+    /// Add Gaussian noise of `std` to the torques (seeded).
+    pub fn add_torque_noise(&mut self, std: f64, seed: u64) {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let Ok(normal) = Normal::new(0.0, std) else {
+            return;
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        for c in &mut self.u {
+            for v in c.iter_mut() {
+                *v += normal.sample(&mut rng);
+            }
+        }
+    }
+}
+
+/// How the estimate is made.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Options {
+    /// Periods dropped at the start.
+    pub skip: usize,
+    /// Fourier harmonics kept of the positions.
+    pub harmonics: usize,
+    /// Instants per period in the regression (the samples are thinned to about this many).
+    pub instants: usize,
+    pub columns: Columns,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            skip: 1,
+            harmonics: 20,
+            instants: 1000,
+            columns: Columns::PLANT,
+        }
+    }
+}
+
+/// One stage's estimate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Estimate {
+    pub stage: String,
+    /// Base parameter names and the relations regrouped into them.
+    pub base: Vec<String>,
+    pub regrouping: Vec<String>,
+    pub base_true: Vec<f64>,
+    pub base_estimate: Vec<f64>,
+    /// |estimate - true| / |true| per base parameter; None where the true value is zero (below
+    /// 1e-9 of the largest: a parameter that is zero in the model, e.g. a product of inertia of
+    /// a symmetric link), whose error is in `absolute_error`.
+    pub relative_error: Vec<Option<f64>>,
+    pub absolute_error: Vec<f64>,
+    /// |estimate - true| / |true| over the whole vector (2-norms).
+    pub relative_error_norm: f64,
+    /// Condition number of the (averaged) base regressor.
+    pub cond: f64,
+    /// Periods averaged.
+    pub periods: usize,
+    /// Per joint: RMS of measured - predicted torque on the held-out period (None: joint held).
+    pub torque_rms_validation: Vec<Option<f64>>,
+    /// Per joint: RMS of the measured torque on that period (the scale of the above).
+    pub torque_rms_measured: Vec<Option<f64>>,
+    /// The held-out period: time, measured and predicted torque per moving joint (for plots).
+    #[serde(skip)]
+    pub validation: Validation,
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct Validation {
+    pub t: Vec<f64>,
+    pub joints: Vec<usize>,
+    pub measured: Vec<Vec<f64>>,
+    pub predicted: Vec<Vec<f64>>,
+}
+
+/// Positions, velocities and accelerations of one period of samples `x` (uniform, `m` of them)
+/// from its first `harmonics` Fourier harmonics, at the instants (k + 1/2) / m of the period.
+fn differentiate(x: &[f64], harmonics: usize) -> [Vec<f64>; 3] {
+    let m = x.len();
+    let h = harmonics.min((m - 1) / 2);
+    let mean = x.iter().sum::<f64>() / m as f64;
+    // c_l = (2/m) sum_k x_k e^{-i 2 pi l k / m} as (re, im).
+    let coef: Vec<(f64, f64)> = (1..=h)
+        .map(|l| {
+            let (mut re, mut im) = (0.0, 0.0);
+            for (k, v) in x.iter().enumerate() {
+                let (s, c) = (TAU * (l * k % m) as f64 / m as f64).sin_cos();
+                re += v * c;
+                im -= v * s;
+            }
+            (2.0 * re / m as f64, 2.0 * im / m as f64)
+        })
+        .collect();
+    // Derivatives with respect to the phase (the fraction of the period): the caller divides
+    // by the period (once, twice) for time derivatives.
+    let [mut x0, mut x1, mut x2] = [vec![mean; m], vec![0.0; m], vec![0.0; m]];
+    for k in 0..m {
+        let phase = (k as f64 + 0.5) / m as f64;
+        for (l, (re, im)) in coef.iter().enumerate() {
+            let wl = TAU * (l + 1) as f64;
+            let (s, c) = (wl * phase).sin_cos();
+            // x(phase) = re cos - im sin, and its first two derivatives.
+            x0[k] += re * c - im * s;
+            x1[k] += wl * (-re * s - im * c);
+            x2[k] += -wl * wl * (re * c - im * s);
+        }
+    }
+    [x0, x1, x2]
+}
+
+/// One period's states (per joint, at the middle of each sample interval) and torques.
+struct Period {
+    q: Vec<Vec<f64>>,
+    qd: Vec<Vec<f64>>,
+    qdd: Vec<Vec<f64>>,
+    u: Vec<Vec<f64>>,
+}
+
+fn period_states(
+    y: &[Vec<f64>],
+    u: &[Vec<f64>],
+    moving: &[bool],
+    hold: &[f64],
+    period: f64,
+    harmonics: usize,
+) -> Period {
+    let n = y.len();
+    let m = y[0].len();
+    let mut p = Period {
+        q: vec![vec![0.0; m]; n],
+        qd: vec![vec![0.0; m]; n],
+        qdd: vec![vec![0.0; m]; n],
+        u: u.to_vec(),
+    };
+    for j in 0..n {
+        if !moving[j] {
+            // A held joint: its position is the hold value (its noise carries no information).
+            p.q[j].fill(hold[j]);
+            continue;
+        }
+        let [q, dq, ddq] = differentiate(&y[j], harmonics);
+        p.q[j] = q;
+        p.qd[j] = dq.iter().map(|v| v / period).collect();
+        p.qdd[j] = ddq.iter().map(|v| v / (period * period)).collect();
+    }
+    p
+}
+
+/// The stage's base regressor (rows: instants x moving joints) and torques of a period.
+fn regression(
+    model: &Model,
+    columns: Columns,
+    stage: &Stage,
+    cols: &[usize],
+    p: &Period,
+    stride: usize,
+) -> (DMatrix<f64>, DVector<f64>) {
+    let n = model.dof();
+    let m = p.q[0].len();
+    let instants: Vec<usize> = (0..m).step_by(stride).collect();
+    let rows = stage.rows();
+    let mut stacker = Stacker::new(model, columns, stage);
+    let mut w = DMatrix::zeros(instants.len() * rows.len(), columns.count(model));
+    let mut tau = DVector::zeros(instants.len() * rows.len());
+    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    for (i, &k) in instants.iter().enumerate() {
+        for j in 0..n {
+            (q[j], qd[j], qdd[j]) = (p.q[j][k], p.qd[j][k], p.qdd[j][k]);
+        }
+        stacker.put([&q, &qd, &qdd], &mut w, i * rows.len());
+        for (r, &j) in rows.iter().enumerate() {
+            tau[i * rows.len() + r] = p.u[j][k];
+        }
+    }
+    (w.select_columns(cols), tau)
+}
+
+/// Estimate the base parameters of `model`'s stage that `rec` excited.
+pub fn estimate(model: &Model, rec: &Recording, o: &Options) -> Result<Estimate, String> {
+    let n = model.dof();
+    if rec.y.len() != n || rec.u.len() != n {
+        return Err(format!(
+            "the run has {} joints, the robot {} has {n}",
+            rec.y.len(),
+            model.name
+        ));
+    }
+    let m = rec.per_period()?;
+    let total = rec.y[0].len() / m;
+    if total < o.skip + 2 {
+        return Err(format!(
+            "{} full period(s) of {} s recorded: need {} (skip {}, at least one to average and \
+             one to validate on)",
+            total,
+            rec.period,
+            o.skip + 2,
+            o.skip
+        ));
+    }
+    let stage = Stage::from_moving(rec.moving.clone(), rec.hold.clone());
+    if stage.rows().is_empty() {
+        return Err("no joint moves in the run".into());
+    }
+    let base = stage_base(
+        model,
+        o.columns,
+        &stage,
+        states_needed(model, o.columns, &stage),
+        1,
+    );
+    let cols: Vec<usize> = base.base.iter().map(|b| b.column).collect();
+    let fit = total - o.skip - 1;
+    let slice = |x: &Vec<f64>, p: usize| x[p * m..(p + 1) * m].to_vec();
+    let average = |x: &Vec<f64>| {
+        let mut a = vec![0.0; m];
+        for p in o.skip..o.skip + fit {
+            for (k, v) in x[p * m..(p + 1) * m].iter().enumerate() {
+                a[k] += v / fit as f64;
+            }
+        }
+        a
+    };
+    let y_avg: Vec<Vec<f64>> = rec.y.iter().map(average).collect();
+    let u_avg: Vec<Vec<f64>> = rec.u.iter().map(average).collect();
+    let stride = (m / o.instants.max(1)).max(1);
+    let fit_p = period_states(
+        &y_avg,
+        &u_avg,
+        &rec.moving,
+        &rec.hold,
+        rec.period,
+        o.harmonics,
+    );
+    let (wb, tau) = regression(model, o.columns, &stage, &cols, &fit_p, stride);
+    let svd = wb.clone().svd(true, true);
+    let cond = svd.singular_values.max() / svd.singular_values.min();
+    let beta = svd.solve(&tau, 1e-12)?;
+    // Validation on the held-out (last) period.
+    let last = o.skip + fit;
+    let y_last: Vec<Vec<f64>> = rec.y.iter().map(|c| slice(c, last)).collect();
+    let u_last: Vec<Vec<f64>> = rec.u.iter().map(|c| slice(c, last)).collect();
+    let val_p = period_states(
+        &y_last,
+        &u_last,
+        &rec.moving,
+        &rec.hold,
+        rec.period,
+        o.harmonics,
+    );
+    let (wv, tv) = regression(model, o.columns, &stage, &cols, &val_p, 1);
+    let pred = &wv * &beta;
+    let rows = stage.rows();
+    let nr = rows.len();
+    let mut rms_v = vec![None; n];
+    let mut rms_m = vec![None; n];
+    let mut val = Validation {
+        t: (0..m).map(|k| (last * m + k) as f64 * rec.h).collect(),
+        joints: rows.clone(),
+        ..Default::default()
+    };
+    for (r, &j) in rows.iter().enumerate() {
+        let meas: Vec<f64> = (0..m).map(|k| tv[k * nr + r]).collect();
+        let pr: Vec<f64> = (0..m).map(|k| pred[k * nr + r]).collect();
+        let rms = |v: &mut dyn Iterator<Item = f64>| {
+            let (s, c) = v.fold((0.0, 0usize), |(s, c), x| (s + x * x, c + 1));
+            (s / c.max(1) as f64).sqrt()
+        };
+        rms_v[j] = Some(rms(&mut meas.iter().zip(&pr).map(|(a, b)| a - b)));
+        rms_m[j] = Some(rms(&mut meas.iter().copied()));
+        val.measured.push(meas);
+        val.predicted.push(pr);
+    }
+    let truth: Vec<f64> = base.base.iter().map(|b| b.value).collect();
+    let est: Vec<f64> = beta.iter().copied().collect();
+    let largest = truth.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+    let abs: Vec<f64> = truth.iter().zip(&est).map(|(t, e)| (e - t).abs()).collect();
+    let rel: Vec<Option<f64>> = truth
+        .iter()
+        .zip(&abs)
+        .map(|(t, a)| (t.abs() > 1e-9 * largest).then(|| a / t.abs()))
+        .collect();
+    let diff: f64 = truth.iter().zip(&est).map(|(t, e)| (e - t).powi(2)).sum();
+    let norm: f64 = truth.iter().map(|t| t * t).sum();
+    Ok(Estimate {
+        stage: stage.name().into(),
+        regrouping: base.base.iter().map(|b| b.relation()).collect(),
+        base: base.base.iter().map(|b| b.name.clone()).collect(),
+        base_true: truth,
+        base_estimate: est,
+        relative_error: rel,
+        absolute_error: abs,
+        relative_error_norm: (diff / norm).sqrt(),
+        cond,
+        periods: fit,
+        torque_rms_validation: rms_v,
+        torque_rms_measured: rms_m,
+        validation: val,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fourier_differentiation_is_exact_for_band_limited_signals() {
+        let m = 200;
+        let f = |p: f64| 0.3 + 0.5 * (TAU * p).sin() - 0.2 * (3.0 * TAU * p + 0.4).cos();
+        let df = |p: f64| 0.5 * TAU * (TAU * p).cos() + 0.6 * TAU * (3.0 * TAU * p + 0.4).sin();
+        let x: Vec<f64> = (0..m).map(|k| f(k as f64 / m as f64)).collect();
+        let [q, dq, _] = differentiate(&x, 5);
+        for k in [0, 17, 123, 199] {
+            let p = (k as f64 + 0.5) / m as f64;
+            assert!((q[k] - f(p)).abs() < 1e-12, "value at {k}");
+            assert!((dq[k] - df(p)).abs() < 1e-10, "derivative at {k}");
+        }
+    }
+}

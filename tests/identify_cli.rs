@@ -1,0 +1,143 @@
+//! `evoloop identify excitation` and `evoloop identify lls` from the command line, with the
+//! trajectory run through the real processes (lockstep) in between: the JSON keys, the
+//! `excitation` reference kind, and clear errors (exit 2).
+
+mod common;
+use common::{assert_ok, cli, run, stdout_json, write};
+use std::path::Path;
+
+fn tmp(tag: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("evoloop-identify-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn excitation_then_processes_then_lls_identify_the_wrist() {
+    let dir = tmp("wrist");
+    let traj = dir.join("wrist.json");
+    let j = stdout_json(&cli(&[
+        "identify",
+        "excitation",
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--out",
+        traj.to_str().unwrap(),
+        "--stage",
+        "wrist",
+        "--iterations",
+        "5",
+        "--seed",
+        "3",
+        "--json",
+    ]));
+    assert_eq!(j["stage"], "wrist");
+    assert_eq!(j["feasible"], true);
+    assert_eq!(j["base_count"], 22);
+    let cond = j["cond"].as_f64().unwrap();
+    assert!(cond > 1.0 && cond <= j["initial_cond_best"].as_f64().unwrap());
+    assert!(dir.join("wrist.png").exists(), "the plot beside the file");
+    // The file as a scenario's reference, through the plant and controller processes.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("config/industrial6_identify_wrist.toml"))
+        .unwrap()
+        .replace("excitation/industrial6_wrist.json", traj.to_str().unwrap())
+        .replace(
+            "robots/industrial6.toml",
+            root.join("config/robots/industrial6.toml")
+                .to_str()
+                .unwrap(),
+        );
+    let cfg = write(&dir, "wrist.toml", &text);
+    let out = dir.join("run");
+    assert_ok(&run(
+        &cfg,
+        &out,
+        "idw",
+        &["--duration", "30", "--mode", "lockstep"],
+    ));
+    let l = stdout_json(&cli(&[
+        "identify",
+        "lls",
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--data",
+        out.to_str().unwrap(),
+        "--json",
+    ]));
+    let n = l["base"].as_array().unwrap().len();
+    assert_eq!(n, 22);
+    for key in ["base_true", "base_estimate", "relative_error"] {
+        assert_eq!(l[key].as_array().unwrap().len(), n, "{key}");
+    }
+    let rms = l["torque_rms_validation"].as_array().unwrap();
+    assert!(
+        rms[..3].iter().all(|v| v.is_null()),
+        "the held arm joints: {rms:?}"
+    );
+    for v in &rms[3..] {
+        assert!(
+            v.as_f64().unwrap() < 0.2,
+            "wrist torque predicted within 0.2 N m: {rms:?}"
+        );
+    }
+    let err = l["stages"][0]["relative_error_norm"].as_f64().unwrap();
+    assert!(err < 0.05, "relative error (2-norm) {err}");
+    assert!(out.join("lls.json").exists() && out.join("lls_validation_wrist.png").exists());
+}
+
+#[test]
+fn bad_excitation_input_is_refused_with_the_key_and_reason() {
+    let dir = tmp("bad");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("config/industrial6_identify.toml"))
+        .unwrap()
+        .replace("excitation/industrial6_all.json", "/nonexistent/traj.json")
+        .replace(
+            "robots/industrial6.toml",
+            root.join("config/robots/industrial6.toml")
+                .to_str()
+                .unwrap(),
+        );
+    let cfg = write(&dir, "bad.toml", &text);
+    let o = cli(&["check", cfg.to_str().unwrap()]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("reference.file") && e.contains("cannot read"),
+        "{e}"
+    );
+    // lls on a run whose reference is not a periodic excitation.
+    let out = dir.join("ct");
+    assert_ok(&run(
+        &root.join("config/industrial6_ct.toml"),
+        &out,
+        "idct",
+        &["--duration", "1", "--mode", "lockstep"],
+    ));
+    let o = cli(&[
+        "identify",
+        "lls",
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--data",
+        out.to_str().unwrap(),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("not a periodic excitation"), "{e}");
+    // A wrist stage on a three-joint arm.
+    let o = cli(&[
+        "identify",
+        "excitation",
+        "--robot",
+        "config/robots/arm3.toml",
+        "--out",
+        dir.join("x.json").to_str().unwrap(),
+        "--stage",
+        "wrist",
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("--stage all"), "{e}");
+}
