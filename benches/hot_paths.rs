@@ -197,6 +197,13 @@ fn dynamics(c: &mut Criterion) {
             evoloop::control::Controller::step(&mut ct, black_box(&state), black_box(&sp), &mut u)
         })
     });
+    // A model set checked (M(q) on 24 probes) and swapped in: what one identified model costs
+    // the control cycle it arrives in.
+    let pi = evoloop::identify::Columns::PLANT.values(&model);
+    c.bench_function(
+        "computed-torque law, 6-DOF: model set check and swap",
+        |b| b.iter(|| evoloop::control::Controller::swap_model(&mut ct, black_box(&pi))),
+    );
 }
 
 /// The fuzzy-network paper's hot paths: one evaluation of the 2-input 3 x 3 network (goal

@@ -187,6 +187,10 @@ pub const KIND_FUZZY_COMPUTED_TORQUE: u32 = 9;
 /// An identified RKGNN model for one slot of a fuzzy computed-torque controller: values =
 /// [slot, the network's parameters in `rkgnn::Layout` order].
 pub const KIND_RKGNN_MODEL: u32 = 10;
+/// A rigid-body model for a computed-torque controller: values = the parameters in the
+/// regressor's order, ten per body, then viscous and Coulomb friction per joint, then the
+/// armature per joint (`identify::Columns::PLANT`).
+pub const KIND_RIGID_BODY_MODEL: u32 = 11;
 
 /// A parameter set from the optimiser to the controller.
 #[repr(C)]

@@ -188,3 +188,144 @@ fn identification_errors_shrink_as_the_trajectory_grows() {
     );
     assert!(errors[2] < 0.02, "seven periods: {errors:?}");
 }
+
+#[test]
+fn set_parameters_inverts_parameters_and_keeps_the_torques() {
+    let model = industrial6();
+    let pi = Columns::PLANT.values(&model);
+    let mut other = dynamics::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("config/robots/industrial6_nominal.toml"),
+    )
+    .unwrap();
+    assert_ne!(Columns::PLANT.values(&other), pi);
+    other.set_parameters(&pi, true, true);
+    assert_eq!(Columns::PLANT.values(&other), pi);
+    let (mut d1, mut d2) = (model.data(), other.data());
+    let (q, qd, qdd) = (
+        [0.3, -0.5, 0.8, 0.1, 0.2, 0.3],
+        [0.5, 1.0, -1.0, 1.0, 1.0, 1.0],
+        [1.0, -0.5, 0.3, 2.0, -1.0, 0.5],
+    );
+    let (mut t1, mut t2) = ([0.0; 6], [0.0; 6]);
+    model.inverse_dynamics(&mut d1, &q, &qd, &qdd, &mut t1);
+    other.inverse_dynamics(&mut d2, &q, &qd, &qdd, &mut t2);
+    for j in 0..6 {
+        assert!(
+            (t1[j] - t2[j]).abs() < 1e-12 * t1[j].abs().max(1.0),
+            "joint {j}"
+        );
+    }
+}
+
+/// Tracking error RMS over all joints of the rows with t in [from, to).
+fn rms(sim: &evoloop::sim::SimResult, scn: &Scenario, from: f64, to: f64) -> f64 {
+    let mut sp = evoloop::reference::Setpoint::default();
+    let (mut s, mut c) = (0.0, 0);
+    for r in &sim.rows {
+        let t = r.state.t;
+        if t >= from && t < to {
+            scn.reference.sample(t, &mut sp);
+            for j in 0..6 {
+                s += (sp.q[j] - r.state.q_true[j]).powi(2);
+                c += 1;
+            }
+        }
+    }
+    (s / c as f64).sqrt()
+}
+
+fn scenario_text(name: &str) -> String {
+    std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config")
+            .join(name),
+    )
+    .unwrap()
+}
+
+fn parse(text: &str) -> Scenario {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/inline.toml");
+    Scenario::parse(text, &path, &Overrides::default()).unwrap()
+}
+
+#[test]
+fn the_identified_model_set_brings_tracking_from_the_nominal_models_to_the_noise_floor() {
+    use evoloop::msg::ParamCode;
+    // The shipped scenario: the nominal model for the first pass, the identified one (a model
+    // set from config/identified/industrial6/lls.json) from 8.25 s on.
+    let text = scenario_text("industrial6_identified.toml");
+    let scn = parse(&text);
+    let sim = evoloop::sim::simulate(&scn);
+    assert_eq!(sim.events.len(), 1);
+    assert_eq!(
+        sim.events[0].code,
+        ParamCode::Accepted,
+        "{:?}",
+        sim.events[0]
+    );
+    // The same moves on the true model and on the nominal model throughout.
+    let truth = parse(
+        &text
+            .replace("model = \"robots/industrial6_nominal.toml\"\n", "")
+            .replace("mode = \"schedule\"", "mode = \"off\""),
+    );
+    let nominal = parse(&text.replace("mode = \"schedule\"", "mode = \"off\""));
+    let sim_true = evoloop::sim::simulate(&truth);
+    let sim_nominal = evoloop::sim::simulate(&nominal);
+    let second = |s: &evoloop::sim::SimResult| rms(s, &scn, 9.0, 16.5);
+    let (identified, true_model, nominal_model) =
+        (second(&sim), second(&sim_true), second(&sim_nominal));
+    // Measured (seed 1): nominal 1.9e-2, identified 1.2e-4, true 2.6e-5 rad. The identified
+    // model's residual error sits on the wrist joints, whose tiny inertial parameters are the
+    // worst identified (the paper's own finding); it is at the encoder noise (1e-4 rad), not at
+    // the true model's level, so that is what is asserted.
+    let msg = format!(
+        "second pass rms: identified {identified:.3e}, true {true_model:.3e}, nominal {nominal_model:.3e}"
+    );
+    assert!(identified < 2.0 * scn.plant.noise_std, "{msg}");
+    assert!(nominal_model > 20.0 * identified, "{msg}");
+    assert!(true_model <= identified, "{msg}");
+}
+
+#[test]
+fn a_model_set_that_is_not_positive_definite_or_of_the_wrong_length_is_refused() {
+    use evoloop::msg::ParamCode;
+    let model = industrial6();
+    let bad: Vec<String> = Columns::PLANT
+        .values(&model)
+        .iter()
+        .map(|v| format!("{}", -v))
+        .collect();
+    let text = scenario_text("industrial6_identified.toml").replace(
+        "{ at = 8.25, kind = \"model\", file = \"identified/industrial6/lls.json\" },",
+        &format!(
+            "{{ at = 2.0, kind = \"model\", values = [{}] }}, {{ at = 3.0, kind = \"model\", values = [1.0, 2.0] }},",
+            bad.join(", ")
+        ),
+    );
+    let scn = parse(&text.replace("duration = 16.5", "duration = 4.0"));
+    let sim = evoloop::sim::simulate(&scn);
+    let codes: Vec<ParamCode> = sim.events.iter().map(|e| e.code).collect();
+    assert_eq!(
+        codes,
+        [
+            ParamCode::RejectedNotPositiveDefinite,
+            ParamCode::RejectedWrongLength
+        ]
+    );
+    // The loop ran on: the arm still tracks on the model it had.
+    assert!(rms(&sim, &scn, 3.5, 4.0) < 0.05);
+    // A model set for a law that takes none is refused when the file is checked.
+    let pd = scenario_text("arm3_pd.toml").replace(
+        "mode = \"off\"",
+        "mode = \"schedule\"\nschedule = [{ at = 1.0, kind = \"model\", values = [1.0] }]",
+    );
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/inline.toml");
+    let e = Scenario::parse(&pd, &path, &Overrides::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("optimiser.schedule[0].kind") && e.contains("no model sets"),
+        "{e}"
+    );
+}

@@ -1,6 +1,7 @@
 //! The arm's hot paths do not allocate: the 6-DOF plant's integration (forward dynamics in every
 //! RK4 stage), the computed-torque cycle with a quintic reference and a parameter swap, and the
-//! Coriolis matrix and the joint-torque regressor (with friction columns). (A separate test binary: the counting allocator is process-global.)
+//! Coriolis matrix and the joint-torque regressor (with friction columns), and a model swap
+//! (a computed-torque model set checked on its probes). (A separate test binary: the counting allocator is process-global.)
 
 use evoloop::config::{Overrides, Scenario};
 use evoloop::control::cycle::ControlCycle;
@@ -31,6 +32,17 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
     };
     set.values[..12].copy_from_slice(&[300.0; 12]);
     cyc.offer(&set);
+    // A model set (the controller's rigid-body parameters, checked on its probes) later on.
+    let pi = evoloop::identify::Columns::PLANT.values(&model);
+    let mut model_set = ParamSet {
+        version: 2,
+        apply_at_seq: 1000,
+        kind: evoloop::msg::KIND_RIGID_BODY_MODEL,
+        n: pi.len() as u32,
+        ..Default::default()
+    };
+    model_set.values[..pi.len()].copy_from_slice(&pi);
+    cyc.offer(&model_set);
     let mut msg = PlantState::default();
     let mut tel = Telemetry::default();
     let mut d = model.data();
@@ -52,8 +64,8 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
     counting_alloc::disarm();
     assert_eq!(
         cyc.version(),
-        1,
-        "the swap happened inside the measured cycles"
+        2,
+        "both swaps (gains, model) happened inside the measured cycles"
     );
     assert_eq!(
         COUNT.load(Ordering::SeqCst),

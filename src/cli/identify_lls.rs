@@ -98,6 +98,8 @@ fn run(a: &LlsArgs) -> Result<(), String> {
         "relative_error": stages.iter().flat_map(|e| e.relative_error.clone()).collect::<Vec<_>>(),
         "absolute_error": flat(&|e| e.absolute_error.clone()),
         "torque_rms_validation": rms,
+        "model_parameters": stages.iter().find_map(|e| e.model_parameters.clone()),
+        "model_parameter_names": o.columns.names(&model),
         "stages": stages,
         "torque_noise": a.torque_noise,
         "options": o,

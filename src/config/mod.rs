@@ -17,7 +17,7 @@ mod timing;
 pub use crate::check::ConfigError;
 pub use crate::control::{ControllerKind, ControllerModel, ControllerSpec};
 pub use crate::plant::{PlantKind, PlantModel, PlantSpec};
-pub use optimiser::{OptimiserMode, OptimiserSpec, ScheduledSet};
+pub use optimiser::{OptimiserMode, OptimiserSpec, ScheduledSet, SetKind};
 pub use timing::{Mode, Timing};
 
 use crate::check::Check;
@@ -187,6 +187,15 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let optimiser = optimiser::validate(raw.optimiser, check, &timing, ov)?;
     if optimiser.mode == OptimiserMode::Identify {
         identify_mode_fits(check, &controller)?;
+    }
+    for (i, s) in optimiser.schedule.iter().enumerate() {
+        if s.kind == SetKind::Model && controller.model_param_kind().is_none() {
+            return check.fail(
+                &format!("optimiser.schedule[{i}].kind"),
+                "\"model\": this controller takes no model sets (computed_torque and \
+                 fuzzy_computed_torque do)",
+            );
+        }
     }
     let out_raw = raw.output.unwrap_or(RawOutput {
         dir: None,

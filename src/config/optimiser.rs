@@ -57,13 +57,29 @@ impl std::str::FromStr for OptimiserMode {
 #[serde(deny_unknown_fields)]
 pub struct RawScheduled {
     pub at: f64,
-    pub values: Vec<f64>,
+    pub values: Option<Vec<f64>>,
+    /// "gains" (default: the law's tunable parameters) or "model" (the law's model, e.g. a
+    /// computed-torque controller's rigid-body parameters).
+    pub kind: Option<SetKind>,
+    /// Instead of `values`, a JSON file whose `model_parameters` are the values (a model set
+    /// from `evoloop identify lls`), relative to the scenario file.
+    pub file: Option<std::path::PathBuf>,
+}
+
+/// What a scheduled set replaces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum SetKind {
+    #[default]
+    Gains,
+    Model,
 }
 
 #[derive(Debug, Clone, Serialize)]
 pub struct ScheduledSet {
     pub at: f64,
     pub values: Vec<f64>,
+    pub kind: SetKind,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -139,7 +155,18 @@ pub fn validate(
         }
         // The values are deliberately not range-checked here: the controller validates every
         // set it receives, and a scheduled bad set is how that path is exercised end to end.
-        if s.values.is_empty() || s.values.len() > crate::MAX_PARAMS {
+        let values = match (s.values, s.file) {
+            (Some(v), None) => v,
+            (None, Some(file)) => model_file(&check.resolve(&file))
+                .or_else(|e| check.fail(&format!("{key}.file"), e))?,
+            _ => {
+                return check.fail(
+                    &format!("{key}.values"),
+                    "give either `values` or `file` (a JSON file with `model_parameters`)",
+                )
+            }
+        };
+        if values.is_empty() || values.len() > crate::MAX_PARAMS {
             return check.fail(
                 &format!("{key}.values"),
                 format!("needs 1..={} values", crate::MAX_PARAMS),
@@ -147,7 +174,8 @@ pub fn validate(
         }
         schedule.push(ScheduledSet {
             at: s.at,
-            values: s.values,
+            values,
+            kind: s.kind.unwrap_or_default(),
         });
     }
     let epoch_evaluations = o.epoch_evaluations.unwrap_or(150);
@@ -212,5 +240,20 @@ pub fn validate(
             periods(1.0),
             1e6,
         )?,
+    })
+}
+
+/// The `model_parameters` of a JSON file (`evoloop identify lls`'s lls.json).
+fn model_file(path: &std::path::Path) -> Result<Vec<f64>, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    serde_json::from_value(v["model_parameters"].clone()).map_err(|_| {
+        format!(
+            "{}: no `model_parameters` array of numbers (write one with `evoloop identify lls` \
+             on a run where every joint moves)",
+            path.display()
+        )
     })
 }

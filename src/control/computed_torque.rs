@@ -8,18 +8,37 @@
 //! (tau = ID(q, qd, a)), a few hundred nanoseconds for six joints and allocation-free.
 //! Parameters: [Kp_1..Kp_n, Kv_1..Kv_n]. Positions are the measured outputs y; velocities the
 //! simulator's true joint velocities `qd_true` (as the paper's simulation has them).
+//!
+//! The model itself can be replaced while the loop runs (an identified model, the eMuPSO
+//! paper's Section 4.1 put to use): a set of kind `KIND_RIGID_BODY_MODEL` carries the
+//! parameters in the regressor's order with friction and armature (13 per joint,
+//! `identify::Columns::PLANT`; e.g. `identify lls`'s `model_parameters`). It is checked on a
+//! second model kept for the purpose: on `PROBES` fixed positions inside the joint limits,
+//! M(q) - floor I must be positive definite (an in-place Cholesky), the floor being
+//! `MIN_EIG_RATIO` of the configured model's smallest eigenvalue there; then the two models
+//! swap. The floor stays the configured model's, so a series of sets cannot ratchet it down.
+//! Nothing is allocated.
 
 use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
+use crate::dynamics::model::cholesky_solve_in_place;
 use crate::dynamics::{Data, Model};
-use crate::msg::{PlantState, KIND_COMPUTED_TORQUE};
+use crate::msg::{ParamCode, PlantState, KIND_COMPUTED_TORQUE, KIND_RIGID_BODY_MODEL};
 use crate::reference::Setpoint;
 
 pub struct ComputedTorque {
     model: Model,
     data: Data,
+    /// Where a replacement model is checked before it swaps with `model`.
+    candidate: Model,
+    /// Fixed positions inside the joint limits on which a replacement's M(q) is checked, the
+    /// floor its eigenvalues must stay above there, and the Cholesky's buffers.
+    probes: Vec<Vec<f64>>,
+    floor: f64,
+    m: nalgebra::DMatrix<f64>,
+    rhs: nalgebra::DVector<f64>,
     gains: Vec<f64>,
     /// psi's rate c per sample; 0 = no start-up damping.
     startup_rate: f64,
@@ -34,8 +53,16 @@ impl ComputedTorque {
     pub fn new(model: Model, gains: &[f64], startup_rate: f64) -> Self {
         let n = model.dof();
         assert_eq!(gains.len(), 2 * n, "computed-torque gains are [Kp; Kv]");
+        let probes = probe_positions(&model);
+        let mut data = model.data();
+        let floor = MIN_EIG_RATIO * smallest_eigenvalue(&model, &mut data, &probes);
         Self {
-            data: model.data(),
+            data,
+            candidate: model.clone(),
+            probes,
+            floor,
+            m: nalgebra::DMatrix::zeros(n, n),
+            rhs: nalgebra::DVector::zeros(n),
             model,
             gains: gains.to_vec(),
             startup_rate,
@@ -50,6 +77,57 @@ impl ComputedTorque {
     pub fn psi(&self, k: u64) -> f64 {
         startup_damping(self.startup_rate, k)
     }
+}
+
+/// Positions a replacement model's M(q) is checked on.
+pub const PROBES: usize = 24;
+pub use crate::control::fuzzy_computed_torque::MIN_EIG_RATIO;
+
+/// `PROBES` positions spread over the joint limits (+-pi where there are none) by a fixed
+/// low-discrepancy sequence (the golden-ratio additive recurrence per joint): the same probes on
+/// every run.
+fn probe_positions(model: &Model) -> Vec<Vec<f64>> {
+    (0..PROBES)
+        .map(|k| {
+            model
+                .bodies
+                .iter()
+                .enumerate()
+                .map(|(j, b)| {
+                    let (lo, hi) = (b.limits.q_min, b.limits.q_max);
+                    let (lo, hi) = if lo.is_finite() && hi.is_finite() && lo < hi {
+                        (lo, hi)
+                    } else {
+                        (-std::f64::consts::PI, std::f64::consts::PI)
+                    };
+                    let alpha = (0.618_033_988_749_895 * (j + 1) as f64).fract();
+                    let x = (0.5 + alpha * (k + 1) as f64).fract();
+                    lo + (hi - lo) * x
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Smallest eigenvalue of M(q) over `probes` (NaN for a NaN matrix).
+fn smallest_eigenvalue(model: &Model, d: &mut Data, probes: &[Vec<f64>]) -> f64 {
+    let n = model.dof();
+    let mut m: crate::rkgnn::network::Mat = [0.0; crate::MAX_JOINTS * crate::MAX_JOINTS];
+    let mut worst = f64::INFINITY;
+    for q in probes {
+        let mm = model.mass_matrix(d, q);
+        for a in 0..n {
+            for b in 0..n {
+                m[a * n + b] = mm[(a, b)];
+            }
+        }
+        let e = crate::rkgnn::network::sym_eig_range(n, &m).0;
+        if e.is_nan() {
+            return f64::NAN;
+        }
+        worst = worst.min(e);
+    }
+    worst
 }
 
 /// The start-up damping psi(k) = 1 - exp(-c k) at sample k for rate c per sample (1 when c = 0).
@@ -106,7 +184,36 @@ impl Controller for ComputedTorque {
     fn swap_params(&mut self, new: &[f64], _state: &PlantState, _sp: &Setpoint) {
         self.gains.copy_from_slice(new);
     }
+
+    fn model_kind(&self) -> Option<u32> {
+        Some(KIND_RIGID_BODY_MODEL)
+    }
+
+    fn swap_model(&mut self, values: &[f64]) -> Result<(), (ParamCode, u32)> {
+        let n = self.model.dof();
+        if values.len() != MODEL_COLUMNS_PER_JOINT * n {
+            return Err((ParamCode::RejectedWrongLength, values.len() as u32));
+        }
+        self.candidate.set_parameters(values, true, true);
+        for q in &self.probes {
+            // The candidate's M(q) is computed in the in-service Data: step() refills it.
+            self.m
+                .copy_from(self.candidate.mass_matrix(&mut self.data, q));
+            for j in 0..n {
+                self.m[(j, j)] -= self.floor;
+            }
+            if cholesky_solve_in_place(&mut self.m, &mut self.rhs).is_err() {
+                return Err((ParamCode::RejectedNotPositiveDefinite, 0));
+            }
+        }
+        std::mem::swap(&mut self.model, &mut self.candidate);
+        Ok(())
+    }
 }
+
+/// Values per joint of a model set: ten rigid-body parameters, viscous and Coulomb friction and
+/// the armature (`identify::Columns::PLANT`'s layout).
+pub const MODEL_COLUMNS_PER_JOINT: usize = 13;
 
 // ---------------------------------------------------------------- configuration
 
@@ -209,5 +316,8 @@ impl ControllerConfig for ComputedTorqueSpec {
     }
     fn param_kind(&self) -> u32 {
         KIND_COMPUTED_TORQUE
+    }
+    fn model_param_kind(&self) -> Option<u32> {
+        Some(KIND_RIGID_BODY_MODEL)
     }
 }

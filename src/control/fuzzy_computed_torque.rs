@@ -365,6 +365,9 @@ impl ControllerConfig for FuzzyComputedTorqueSpec {
     fn param_kind(&self) -> u32 {
         KIND_FUZZY_COMPUTED_TORQUE
     }
+    fn model_param_kind(&self) -> Option<u32> {
+        Some(KIND_RKGNN_MODEL)
+    }
 }
 
 #[cfg(test)]

@@ -48,6 +48,10 @@ pub trait ControllerConfig {
     fn tunable(&self) -> &Tunable;
     /// The `msg::KIND_*` its parameter sets carry.
     fn param_kind(&self) -> u32;
+    /// The `msg::KIND_*` of its model sets, if it takes any (`Controller::model_kind`).
+    fn model_param_kind(&self) -> Option<u32> {
+        None
+    }
     /// Whether a new set must also stabilise the plant's linear model before use.
     fn checks_stability(&self) -> bool {
         false
@@ -108,6 +112,10 @@ impl ControllerSpec {
 
     pub fn param_kind(&self) -> u32 {
         self.model.config().param_kind()
+    }
+
+    pub fn model_param_kind(&self) -> Option<u32> {
+        self.model.config().model_param_kind()
     }
 }
 

@@ -94,6 +94,39 @@ impl Model {
         out
     }
 
+    /// Put `pi` (in `parameters` order: ten per body, then with `friction` fv, fc per joint,
+    /// then with `armature` one per joint) into the model's bodies: the inverse of
+    /// `parameters`. Any real vector is accepted, physically consistent or not (a base-parameter
+    /// estimate puts whole regrouped sums on one column): every algorithm here is linear in the
+    /// parameters and never divides by a mass. Allocation-free.
+    pub fn set_parameters(&mut self, pi: &[f64], friction: bool, armature: bool) {
+        let n = self.dof();
+        let expected = self.regressor_columns(friction) + if armature { n } else { 0 };
+        assert_eq!(pi.len(), expected, "one value per regressor column");
+        for (b, p) in self.bodies.iter_mut().zip(pi.chunks_exact(PER_BODY)) {
+            b.inertia.m = p[0];
+            b.inertia.h = glam::DVec3::new(p[1], p[2], p[3]);
+            b.inertia.i = glam::DMat3::from_cols_array(&[
+                p[4], p[5], p[7], //
+                p[5], p[6], p[8], //
+                p[7], p[8], p[9],
+            ]);
+        }
+        let mut rest = &pi[n * PER_BODY..];
+        if friction {
+            for (b, f) in self.bodies.iter_mut().zip(rest.chunks_exact(2)) {
+                b.friction.viscous = f[0];
+                b.friction.coulomb = f[1];
+            }
+            rest = &rest[2 * n..];
+        }
+        if armature {
+            for (b, a) in self.bodies.iter_mut().zip(rest) {
+                b.armature = *a;
+            }
+        }
+    }
+
     /// Y(q, qd, qdd) into `y` (dof rows, `regressor_columns(friction)` columns; the friction
     /// columns are written when `y` has them). Allocation-free.
     pub fn regressor(

@@ -193,6 +193,12 @@ pub struct Estimate {
     pub torque_rms_validation: Vec<Option<f64>>,
     /// Per joint: RMS of the measured torque on that period (the scale of the above).
     pub torque_rms_measured: Vec<Option<f64>>,
+    /// With every joint moving: a full parameter vector (`Columns` order) with the same torques
+    /// as the estimate everywhere — each base estimate on its own column, zero on the columns
+    /// regrouped into it or unidentifiable. A computed-torque controller's model set
+    /// (`KIND_RIGID_BODY_MODEL`).
+    #[serde(skip)]
+    pub model_parameters: Option<Vec<f64>>,
     /// The held-out period: time, measured and predicted torque per moving joint (for plots).
     #[serde(skip)]
     pub validation: Validation,
@@ -414,7 +420,15 @@ pub fn estimate(model: &Model, rec: &Recording, o: &Options) -> Result<Estimate,
         .collect();
     let diff: f64 = truth.iter().zip(&est).map(|(t, e)| (e - t).powi(2)).sum();
     let norm: f64 = truth.iter().map(|t| t * t).sum();
+    let model_parameters = (stage.kind == super::StageKind::All).then(|| {
+        let mut p = vec![0.0; o.columns.count(model)];
+        for (b, v) in base.base.iter().zip(&est) {
+            p[b.column] = *v;
+        }
+        p
+    });
     Ok(Estimate {
+        model_parameters,
         stage: stage.name().into(),
         regrouping: base.base.iter().map(|b| b.relation()).collect(),
         base: base.base.iter().map(|b| b.name.clone()).collect(),

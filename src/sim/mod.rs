@@ -18,10 +18,18 @@ pub fn scheduled_seq(at: f64, period: f64) -> u64 {
 /// Build the parameter-set message of the `i`-th scheduled set (version i + 1).
 pub fn scheduled_set(scn: &Scenario, i: usize, apply_at_seq: u64) -> ParamSet {
     let s = &scn.optimiser.schedule[i];
+    let kind = match s.kind {
+        crate::config::SetKind::Gains => scn.controller.param_kind(),
+        // Validation made sure the controller takes model sets.
+        crate::config::SetKind::Model => scn
+            .controller
+            .model_param_kind()
+            .unwrap_or_else(|| scn.controller.param_kind()),
+    };
     let mut p = ParamSet {
         version: i as u64 + 1,
         apply_at_seq,
-        kind: scn.controller.param_kind(),
+        kind,
         n: s.values.len() as u32,
         ..ParamSet::default()
     };
