@@ -94,12 +94,7 @@ fn probe_positions(model: &Model) -> Vec<Vec<f64>> {
                 .iter()
                 .enumerate()
                 .map(|(j, b)| {
-                    let (lo, hi) = (b.limits.q_min, b.limits.q_max);
-                    let (lo, hi) = if lo.is_finite() && hi.is_finite() && lo < hi {
-                        (lo, hi)
-                    } else {
-                        (-std::f64::consts::PI, std::f64::consts::PI)
-                    };
+                    let (lo, hi) = b.limits.position_span();
                     let alpha = (0.618_033_988_749_895 * (j + 1) as f64).fract();
                     let x = (0.5 + alpha * (k + 1) as f64).fract();
                     lo + (hi - lo) * x

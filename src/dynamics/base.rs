@@ -80,12 +80,8 @@ pub fn stacked_regressor(model: &Model, friction: bool, states: usize, seed: u64
             .bodies
             .iter()
             .map(|b| {
-                let (lo, hi) = (b.limits.q_min, b.limits.q_max);
-                if lo.is_finite() && hi.is_finite() && lo < hi {
-                    rng.gen_range(lo..hi)
-                } else {
-                    rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI)
-                }
+                let (lo, hi) = b.limits.position_span();
+                rng.gen_range(lo..hi)
             })
             .collect();
         let qd: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();

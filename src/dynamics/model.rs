@@ -51,6 +51,18 @@ pub struct Limits {
     pub effort: f64,
 }
 
+impl Limits {
+    /// The position range, or -pi..pi for a joint without (finite, non-empty) limits: where
+    /// random and probe states are drawn.
+    pub fn position_span(&self) -> (f64, f64) {
+        if self.q_min.is_finite() && self.q_max.is_finite() && self.q_min < self.q_max {
+            (self.q_min, self.q_max)
+        } else {
+            (-std::f64::consts::PI, std::f64::consts::PI)
+        }
+    }
+}
+
 impl Default for Limits {
     fn default() -> Self {
         Self {

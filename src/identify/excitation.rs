@@ -50,14 +50,14 @@ pub struct JointLimits {
 
 impl JointLimits {
     /// The robot file's limits: positions shrunk by `margin` (rad or m) at each end (+-pi where
-    /// the file has none), the file's velocity limit or `qd_max`, and `qdd_max`.
+    /// the file has none; unshrunk where the range is narrower than two margins), the file's velocity limit or `qd_max`, and `qdd_max`.
     pub fn of(model: &Model, margin: f64, qd_max: f64, qdd_max: f64) -> JointLimits {
         let pos = |b: &crate::dynamics::Body| {
-            let (lo, hi) = (b.limits.q_min, b.limits.q_max);
-            if lo.is_finite() && hi.is_finite() && hi - lo > 2.0 * margin {
+            let (lo, hi) = b.limits.position_span();
+            if hi - lo > 2.0 * margin {
                 (lo + margin, hi - margin)
             } else {
-                (-std::f64::consts::PI, std::f64::consts::PI)
+                (lo, hi)
             }
         };
         JointLimits {

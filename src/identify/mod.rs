@@ -234,12 +234,8 @@ pub fn stage_base(
     for s in 0..states {
         for j in 0..n {
             if stage.moving[j] {
-                let (lo, hi) = (model.bodies[j].limits.q_min, model.bodies[j].limits.q_max);
-                q[j] = if lo.is_finite() && hi.is_finite() && lo < hi {
-                    rng.gen_range(lo..hi)
-                } else {
-                    rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI)
-                };
+                let (lo, hi) = model.bodies[j].limits.position_span();
+                q[j] = rng.gen_range(lo..hi);
                 qd[j] = rng.gen_range(-1.0..1.0);
                 qdd[j] = rng.gen_range(-1.0..1.0);
             } else {
