@@ -140,4 +140,20 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(e.contains("--stage all"), "{e}");
+    // The paper's Cartesian path moves the wrist centre, which the wrist stage holds.
+    let o = cli(&[
+        "identify",
+        "excitation",
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--out",
+        dir.join("y.json").to_str().unwrap(),
+        "--stage",
+        "wrist",
+        "--trajectory",
+        "mfs",
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("--trajectory fourier"), "{e}");
 }

@@ -1,6 +1,6 @@
 //! `evoloop identify excitation`: an optimal excitation trajectory for one identification stage.
 
-use crate::identify::excitation::{search, Problem, Search, Settings};
+use crate::identify::excitation::{search, Problem, Search, Settings, TrajectoryKind};
 use crate::identify::{Stage, StageKind};
 use crate::report::plot::{xy_png, Curve, Style, XySeries};
 use clap::Args;
@@ -24,9 +24,14 @@ pub struct ExcitationArgs {
     /// Period T of the trajectory, s (the paper: 10 s, fundamental 0.6283 rad/s).
     #[arg(long, default_value_t = 10.0)]
     pub period: f64,
-    /// Harmonics of the Fourier series (the last one brings the start to rest).
-    #[arg(long, default_value_t = 5)]
-    pub harmonics: usize,
+    /// The trajectory: a joint-space Fourier series, or the paper's modified Fourier series (a
+    /// Cartesian path of the wrist centre through inverse kinematics; arm and all stages).
+    #[arg(long, value_enum, default_value = "fourier")]
+    pub trajectory: TrajectoryKind,
+    /// Harmonics (the last one brings the start to rest); default 5 for fourier, 3 (the
+    /// paper's) for mfs.
+    #[arg(long)]
+    pub harmonics: Option<usize>,
     /// Instants of one period in the regressor whose condition number is minimised.
     #[arg(long, default_value_t = 100)]
     pub samples: usize,
@@ -84,9 +89,14 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
         return Err("--population must be >= 2 and --iterations >= 1".into());
     }
     let stage = Stage::new(a.stage, &model)?;
+    let harmonics = a.harmonics.unwrap_or(match a.trajectory {
+        TrajectoryKind::Fourier => 5,
+        TrajectoryKind::Mfs => 3,
+    });
     let settings = Settings {
         period: a.period,
-        harmonics: a.harmonics,
+        trajectory: a.trajectory,
+        harmonics,
         samples: a.samples,
         margin: a.margin,
         qd_max: a.qd_max,
@@ -121,13 +131,13 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
         .iter()
         .map(|i| i.cond)
         .fold(f64::INFINITY, f64::min);
-    let doc = json!({
+    let mut doc = json!({
         "robot": model.name,
         "robot_file": a.robot,
         "stage": problem.stage.name(),
-        "kind": "fourier",
+        "kind": a.trajectory,
         "period": a.period,
-        "harmonics": a.harmonics,
+        "harmonics": harmonics,
         "moving": problem.stage.moving,
         "hold": problem.stage.hold,
         "series": o.series,
@@ -152,6 +162,14 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
         "mutations": o.mutations,
         "seconds": t0.elapsed().as_secs_f64(),
     });
+    if let Some(m) = &problem.mfs {
+        let p = m.path(&o.x);
+        doc["path"] = json!({
+            "a": p.a, "b": p.b, "c": p.c, "centre": p.centre,
+            "wrist_centre_body": m.wrist.body,
+        });
+        doc["fit_error"] = json!(m.decode(&problem.model, &o.x).map(|d| d.1));
+    }
     let text = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;
     std::fs::write(&a.out, text + "\n").map_err(|e| format!("{}: {e}", a.out.display()))?;
     let png = a.out.with_extension("png");

@@ -23,6 +23,7 @@
 //!    of them (sigma = 10 % of each range), fitness eq. 15, mutation after G = 10 stagnant
 //!    iterations, 30 iterations (the paper's settings; all are options).
 
+use super::mfs::MfsDesign;
 use super::series::{Design, FourierSeries};
 use super::{stage_base, states_needed, Columns, Stacker, Stage};
 use crate::dynamics::base::BaseParameters;
@@ -38,6 +39,20 @@ use serde::Serialize;
 
 /// Value of an infeasible trajectory: PENALTY (1 + excess).
 pub const PENALTY: f64 = 1e6;
+/// The excess of a Cartesian path the arm cannot reach (worse than any limit violation of
+/// a reachable one would normally be).
+pub const UNREACHABLE: f64 = 100.0;
+
+/// What the trajectory is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum TrajectoryKind {
+    /// A joint-space finite Fourier series per moving joint (Swevers).
+    Fourier,
+    /// The paper's modified Fourier series: a Cartesian path of the wrist centre through
+    /// inverse kinematics (arm joints); moving wrist joints follow a joint-space series.
+    Mfs,
+}
 
 /// The limits a trajectory must respect, per joint.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -78,6 +93,7 @@ impl JointLimits {
 pub struct Settings {
     /// Period T, s (the paper: 10 s, fundamental 0.6283 rad/s).
     pub period: f64,
+    pub trajectory: TrajectoryKind,
     /// Harmonics N (the paper's MFS: 3; Swevers: 5).
     pub harmonics: usize,
     /// Instants of one period in the fitness' regressor.
@@ -94,6 +110,7 @@ impl Default for Settings {
     fn default() -> Self {
         Self {
             period: 10.0,
+            trajectory: TrajectoryKind::Fourier,
             harmonics: 5,
             samples: 100,
             margin: 0.05,
@@ -134,6 +151,8 @@ pub struct Problem {
     pub settings: Settings,
     pub limits: JointLimits,
     pub design: Design,
+    /// With `TrajectoryKind::Mfs`: the Cartesian path (and `design` unused).
+    pub mfs: Option<MfsDesign>,
     /// The stage's base parameters (from random states).
     pub base: BaseParameters,
 }
@@ -168,12 +187,39 @@ impl Problem {
             moving: stage.moving.clone(),
             hold: stage.hold.clone(),
         };
+        let mfs = match settings.trajectory {
+            TrajectoryKind::Fourier => None,
+            TrajectoryKind::Mfs => {
+                let n = model.dof();
+                if stage.kind == super::StageKind::Wrist {
+                    return Err(
+                        "the modified Fourier series moves the wrist centre, which the \
+                                wrist stage holds: use --trajectory fourier for the wrist"
+                            .into(),
+                    );
+                }
+                // The wrist joints that move follow a joint-space series.
+                let wrist_moves = (n.saturating_sub(3)..n).any(|j| stage.moving[j]);
+                let joints = wrist_moves.then(|| Design {
+                    moving: (0..n).map(|j| j + 3 >= n && stage.moving[j]).collect(),
+                    ..design.clone()
+                });
+                Some(MfsDesign::new(
+                    &model,
+                    settings.period,
+                    settings.harmonics,
+                    stage.hold.clone(),
+                    joints,
+                )?)
+            }
+        };
         Ok(Problem {
             model,
             stage,
             settings,
             limits,
             design,
+            mfs,
             base,
         })
     }
@@ -187,8 +233,38 @@ impl Problem {
             .iter()
             .map(|v| v.min(1e3) / self.settings.harmonics as f64)
             .collect();
-        self.design
-            .bounds(&self.limits.q_lo, &self.limits.q_hi, &coef)
+        match &self.mfs {
+            None => self
+                .design
+                .bounds(&self.limits.q_lo, &self.limits.q_hi, &coef),
+            Some(m) => m.bounds(
+                m.joints
+                    .as_ref()
+                    .map(|d| d.bounds(&self.limits.q_lo, &self.limits.q_hi, &coef)),
+            ),
+        }
+    }
+
+    /// The trajectory of a decision vector; None for a Cartesian path out of reach.
+    pub fn decode(&self, x: &[f64]) -> Option<FourierSeries> {
+        match &self.mfs {
+            None => Some(self.design.decode(x)),
+            Some(m) => m.decode(&self.model, x).map(|(s, _)| s),
+        }
+    }
+
+    /// The scores of a decision vector (an unreachable path: excess `UNREACHABLE`).
+    pub fn criteria_of(&self, x: &[f64]) -> Criteria {
+        match self.decode(x) {
+            Some(s) => self.criteria(&s),
+            None => Criteria {
+                cond: f64::NAN,
+                sigma_min: f64::NAN,
+                sigma_max: f64::NAN,
+                fitness: f64::NAN,
+                excess: UNREACHABLE,
+            },
+        }
     }
 
     /// Summed normalised excess of `s` over the limits (0 when it keeps inside every one).
@@ -253,7 +329,9 @@ impl Problem {
 
 impl Objective for Problem {
     fn value(&self, x: &[f64]) -> f64 {
-        let s = self.design.decode(x);
+        let Some(s) = self.decode(x) else {
+            return PENALTY * (1.0 + UNREACHABLE);
+        };
         // Infeasible trajectories are not worth an SVD.
         let excess = self.excess(&s);
         if excess > 0.0 {
@@ -273,7 +351,7 @@ struct Excess<'a>(&'a Problem);
 
 impl Objective for Excess<'_> {
     fn value(&self, x: &[f64]) -> f64 {
-        self.0.excess(&self.0.design.decode(x))
+        self.0.decode(x).map_or(UNREACHABLE, |s| self.0.excess(&s))
     }
 }
 
@@ -310,6 +388,8 @@ impl Default for Search {
 /// What the search found.
 #[derive(Debug, Clone, Serialize)]
 pub struct Outcome {
+    /// The best decision vector.
+    pub x: Vec<f64>,
     pub series: FourierSeries,
     pub criteria: Criteria,
     /// The initial elites' scores (the random feasible trajectories the search started from).
@@ -379,10 +459,7 @@ pub fn search(problem: &Problem, s: &Search, progress: Progress) -> Result<Outco
             .map(|n| n.1)
             .take(s.elites - feasible_elites),
     );
-    let initial: Vec<Criteria> = elites
-        .iter()
-        .map(|x| problem.criteria(&problem.design.decode(x)))
-        .collect();
+    let initial: Vec<Criteria> = elites.iter().map(|x| problem.criteria_of(x)).collect();
     // Phase 2: eMuPSO from the elites and Gaussian offspring of them.
     let mut start = elites.clone();
     while start.len() < s.population {
@@ -419,8 +496,12 @@ pub fn search(problem: &Problem, s: &Search, progress: Progress) -> Result<Outco
         history.push(opt.best().1);
         progress("emupso", opt.generation(), opt.best().1);
     }
-    let series = problem.design.decode(opt.best().0);
+    let best = opt.best().0;
+    let series = problem
+        .decode(best)
+        .ok_or("no reachable Cartesian path found (widen the search or move the centre)")?;
     Ok(Outcome {
+        x: best.to_vec(),
         criteria: problem.criteria(&series),
         series,
         initial,

@@ -22,7 +22,6 @@ use super::{stage_base, states_needed, Columns, Stacker, Stage};
 use crate::dynamics::Model;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
-use std::f64::consts::TAU;
 use std::path::Path;
 
 /// A periodic run: its sampling, period, which joints moved and the records.
@@ -213,36 +212,14 @@ pub struct Validation {
 }
 
 /// Positions, velocities and accelerations of one period of samples `x` (uniform, `m` of them)
-/// from its first `harmonics` Fourier harmonics, at the instants (k + 1/2) / m of the period.
+/// from its first `harmonics` Fourier harmonics, at the instants (k + 1/2) / m of the period,
+/// as derivatives with respect to that phase (the caller divides by the period).
 fn differentiate(x: &[f64], harmonics: usize) -> [Vec<f64>; 3] {
     let m = x.len();
-    let h = harmonics.min((m - 1) / 2);
-    let mean = x.iter().sum::<f64>() / m as f64;
-    // c_l = (2/m) sum_k x_k e^{-i 2 pi l k / m} as (re, im).
-    let coef: Vec<(f64, f64)> = (1..=h)
-        .map(|l| {
-            let (mut re, mut im) = (0.0, 0.0);
-            for (k, v) in x.iter().enumerate() {
-                let (s, c) = (TAU * (l * k % m) as f64 / m as f64).sin_cos();
-                re += v * c;
-                im -= v * s;
-            }
-            (2.0 * re / m as f64, 2.0 * im / m as f64)
-        })
-        .collect();
-    // Derivatives with respect to the phase (the fraction of the period): the caller divides
-    // by the period (once, twice) for time derivatives.
-    let [mut x0, mut x1, mut x2] = [vec![mean; m], vec![0.0; m], vec![0.0; m]];
+    let s = FourierSeries::fit(1.0, &[x.to_vec()], harmonics);
+    let [mut x0, mut x1, mut x2] = [vec![0.0; m], vec![0.0; m], vec![0.0; m]];
     for k in 0..m {
-        let phase = (k as f64 + 0.5) / m as f64;
-        for (l, (re, im)) in coef.iter().enumerate() {
-            let wl = TAU * (l + 1) as f64;
-            let (s, c) = (wl * phase).sin_cos();
-            // x(phase) = re cos - im sin, and its first two derivatives.
-            x0[k] += re * c - im * s;
-            x1[k] += wl * (-re * s - im * c);
-            x2[k] += -wl * wl * (re * c - im * s);
-        }
+        (x0[k], x1[k], x2[k]) = s.joint(0, (k as f64 + 0.5) / m as f64);
     }
     [x0, x1, x2]
 }
@@ -448,6 +425,7 @@ pub fn estimate(model: &Model, rec: &Recording, o: &Options) -> Result<Estimate,
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::TAU;
 
     #[test]
     fn fourier_differentiation_is_exact_for_band_limited_signals() {

@@ -9,11 +9,14 @@
 //!   wrist (joints 4-6, arm held) and then the arm (joints 1-3, wrist held); `all` moves every
 //!   joint;
 //! - `series`: the joint-space finite Fourier series (Swevers) the trajectories are;
+//! - `mfs`: the paper's modified Fourier series, a Cartesian path of the wrist centre through
+//!   inverse kinematics;
 //! - `excitation`: eq. 15's fitness and the two-stage eMuPSO search of Section 4.1;
 //! - `lls`: least squares on a run's recorded positions and torques.
 
 pub mod excitation;
 pub mod lls;
+pub mod mfs;
 pub mod series;
 
 use crate::dynamics::base::{reduce, BaseParameters};

@@ -63,6 +63,39 @@ impl FourierSeries {
         }
     }
 
+    /// The series of `harmonics` harmonics closest (least squares) to uniform samples of one
+    /// period: `samples[j][k]` is joint j at time k T / m. A discrete Fourier transform; exact
+    /// for band-limited signals with fewer than m / 2 harmonics.
+    pub fn fit(period: f64, samples: &[Vec<f64>], harmonics: usize) -> FourierSeries {
+        let w = TAU / period;
+        let n = samples.len();
+        let mut s = FourierSeries {
+            period,
+            offsets: vec![0.0; n],
+            a: vec![vec![0.0; harmonics]; n],
+            b: vec![vec![0.0; harmonics]; n],
+        };
+        for (j, x) in samples.iter().enumerate() {
+            let m = x.len();
+            s.offsets[j] = x.iter().sum::<f64>() / m as f64;
+            for l in 1..=harmonics.min((m - 1) / 2) {
+                // x ~ alpha cos(w l t) + beta sin(w l t).
+                let (mut alpha, mut beta) = (0.0, 0.0);
+                for (k, v) in x.iter().enumerate() {
+                    let (sn, cs) = (TAU * (l * k % m) as f64 / m as f64).sin_cos();
+                    alpha += v * cs;
+                    beta += v * sn;
+                }
+                let (alpha, beta) = (2.0 * alpha / m as f64, 2.0 * beta / m as f64);
+                // a / (w l) sin - b / (w l) cos = beta sin + alpha cos.
+                let wl = w * l as f64;
+                s.a[j][l - 1] = beta * wl;
+                s.b[j][l - 1] = -alpha * wl;
+            }
+        }
+        s
+    }
+
     /// Whether joint `j` moves (any non-zero coefficient).
     pub fn moves(&self, j: usize) -> bool {
         self.a[j].iter().chain(&self.b[j]).any(|v| *v != 0.0)
