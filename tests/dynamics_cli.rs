@@ -280,6 +280,14 @@ fn identify_base_lists_base_unidentifiable_and_combined_parameters() {
     assert_eq!(base.len() + zero.len() + combined.len(), 60);
     assert!(base.contains(&"Izz1".to_string()) && zero.contains(&"m1".to_string()));
     assert!(v["regrouping"][0].as_str().unwrap().starts_with("Izz1 +"));
+    // The column norms: zero exactly for the unidentifiable columns, 1 for the largest.
+    let norms = v["column_norms"].as_object().unwrap();
+    assert_eq!(norms.len(), 60);
+    for (name, n) in norms {
+        let n = n.as_f64().unwrap();
+        assert_eq!(n < 1e-10, zero.contains(name), "{name}: {n}");
+    }
+    assert!(norms.values().any(|n| n.as_f64() == Some(1.0)));
     let f = stdout_json(&cli(&[
         "identify",
         "base",

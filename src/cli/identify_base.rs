@@ -52,6 +52,8 @@ pub fn main(a: &BaseArgs) -> i32 {
             "base_values": b.base.iter().map(|x| x.value).collect::<Vec<_>>(),
             "parameters": b.names.len(),
             "rows": b.rows,
+            "column_norms": b.names.iter().cloned().zip(b.column_norms.iter().map(|v| json!(v)))
+                .collect::<serde_json::Map<String, serde_json::Value>>(),
             "tolerance": TOLERANCE,
         }));
         return 0;
@@ -65,6 +67,28 @@ pub fn main(a: &BaseArgs) -> i32 {
         b.combined.len(),
         b.rows
     );
+    // The paper's procedure as a table: each column's norm (0: unidentifiable) and whether it
+    // raised the rank of the columns kept before it (base) or not (combined).
+    println!("column norms (over the largest) and class, per body:");
+    for (row, chunk) in b.names.chunks(10).enumerate() {
+        let cells: Vec<String> = chunk
+            .iter()
+            .enumerate()
+            .map(|(k, name)| {
+                let c = row * 10 + k;
+                let class = if b.unidentifiable.contains(name) {
+                    "u"
+                } else if b.combined.contains(name) {
+                    "c"
+                } else {
+                    "B"
+                };
+                format!("{name}={:.3}{class}", b.column_norms[c])
+            })
+            .collect();
+        println!("  {}", cells.join(" "));
+    }
+    println!("  (B base, c identifiable only in combination, u unidentifiable)");
     println!("unidentifiable: {}", b.unidentifiable.join(", "));
     println!("base parameters (regrouping; value for the file's parameters):");
     for base in &b.base {

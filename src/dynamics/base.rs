@@ -53,6 +53,9 @@ pub struct BaseParameters {
     pub combined: Vec<String>,
     /// Rows of the stacked regressor (states x joints).
     pub rows: usize,
+    /// Every column's norm in the stacked regressor over the largest (the paper's first test:
+    /// zero means unidentifiable), in `names` order.
+    pub column_norms: Vec<f64>,
 }
 
 impl BaseParameters {
@@ -179,6 +182,10 @@ pub fn reduce(w: &DMatrix<f64>, names: Vec<String>, pi: &[f64]) -> BaseParameter
         unidentifiable: zero.iter().map(|&c| names[c].clone()).collect(),
         combined: dep_cols.iter().map(|&c| names[c].clone()).collect(),
         rows: w.nrows(),
+        column_norms: norms
+            .iter()
+            .map(|v| if largest > 0.0 { v / largest } else { 0.0 })
+            .collect(),
         names,
         base,
     }
