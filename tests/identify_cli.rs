@@ -1,5 +1,5 @@
 //! `evoloop identify excitation` and `evoloop identify lls` from the command line, with the
-//! trajectory run through the real processes (lockstep) in between: the JSON keys, the
+//! trajectory run through the real processes (lockstep and realtime) in between: the JSON keys, the
 //! `excitation` reference kind, and clear errors (exit 2).
 
 mod common;
@@ -85,6 +85,26 @@ fn excitation_then_processes_then_lls_identify_the_wrist() {
     let err = l["stages"][0]["relative_error_norm"].as_f64().unwrap();
     assert!(err < 0.05, "relative error (2-norm) {err}");
     assert!(out.join("lls.json").exists() && out.join("lls_validation_wrist.png").exists());
+    // The same in realtime: the log is stamped by the states' times (late cycles leave gaps,
+    // repeated states share a stamp) and put back on the regular grid.
+    let rt = dir.join("run_rt");
+    assert_ok(&run(
+        &cfg,
+        &rt,
+        "idwrt",
+        &["--duration", "30", "--mode", "realtime"],
+    ));
+    let l = stdout_json(&cli(&[
+        "identify",
+        "lls",
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--data",
+        rt.to_str().unwrap(),
+        "--json",
+    ]));
+    let err = l["stages"][0]["relative_error_norm"].as_f64().unwrap();
+    assert!(err < 0.05, "realtime: relative error (2-norm) {err}");
 }
 
 #[test]

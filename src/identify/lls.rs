@@ -68,14 +68,19 @@ impl Recording {
         if time.len() < 3 {
             return Err(format!("{}: fewer than 3 samples", csv.display()));
         }
-        let y = (0..n)
+        let y: Vec<Vec<f64>> = (0..n)
             .map(|j| col(format!("y{j}")))
             .collect::<Result<_, _>>()?;
-        let u = (0..n)
+        let u: Vec<Vec<f64>> = (0..n)
             .map(|j| col(format!("u{j}")))
             .collect::<Result<_, _>>()?;
+        let h = v["timing"]["period"]
+            .as_f64()
+            .filter(|h| *h > 0.0)
+            .unwrap_or(time[1] - time[0]);
+        let (y, u) = regular(&time, h, &y, &u);
         Ok(Recording {
-            h: time[1] - time[0],
+            h,
             period: series.period,
             moving: (0..n).map(|j| series.moves(j)).collect(),
             hold: series.offsets.clone(),
@@ -143,6 +148,55 @@ impl Recording {
             }
         }
     }
+}
+
+/// Rows stamped `time` put on the regular grid k h, k = 0, 1, ...: a realtime run's log has a
+/// row per control cycle, stamped with the time of the state it used, so a cycle that ran late
+/// leaves a gap and two cycles on the same state share a stamp. A shared stamp keeps the later
+/// row (its command is the one the plant went on with); a gap takes the positions linearly
+/// interpolated and the command held (the plant held it). Lockstep logs pass through unchanged.
+fn regular(time: &[f64], h: f64, y: &[Vec<f64>], u: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let last = time.iter().fold(0.0f64, |m, t| m.max(*t));
+    let m = (last / h).round() as usize + 1;
+    let mut at: Vec<Option<usize>> = vec![None; m];
+    for (i, t) in time.iter().enumerate() {
+        let k = (t / h).round();
+        if k >= 0.0 && (k as usize) < m {
+            at[k as usize] = Some(i);
+        }
+    }
+    let n = y.len();
+    let (mut yr, mut ur) = (vec![vec![0.0; m]; n], vec![vec![0.0; m]; n]);
+    let first = at.iter().flatten().next().copied().unwrap_or(0);
+    let mut prev: Option<usize> = None;
+    for k in 0..m {
+        if let Some(i) = at[k] {
+            for j in 0..n {
+                yr[j][k] = y[j][i];
+                ur[j][k] = u[j][i];
+            }
+            prev = Some(k);
+            continue;
+        }
+        // Between the last grid point filled and the next stamped row.
+        let next = at[k..].iter().flatten().next().copied();
+        for j in 0..n {
+            let (a, ua) = match prev {
+                Some(p) => (yr[j][p], ur[j][p]),
+                None => (y[j][first], u[j][first]),
+            };
+            let w = match (prev, next) {
+                (Some(p), Some(i)) => {
+                    ((k - p) as f64 / (time[i] / h - p as f64).max(1.0)).clamp(0.0, 1.0)
+                }
+                _ => 0.0,
+            };
+            let b = next.map_or(a, |i| y[j][i]);
+            yr[j][k] = a + (b - a) * w;
+            ur[j][k] = ua;
+        }
+    }
+    (yr, ur)
 }
 
 /// How the estimate is made.
@@ -426,6 +480,21 @@ pub fn estimate(model: &Model, rec: &Recording, o: &Options) -> Result<Estimate,
 mod tests {
     use super::*;
     use std::f64::consts::TAU;
+
+    #[test]
+    fn a_realtime_log_is_put_on_the_regular_grid() {
+        // Stamps 0, 1, 1 (a second cycle on the same state), 4 (two late cycles): the later
+        // of a shared stamp is kept, gaps interpolate the positions and hold the command.
+        let time = [0.0, 0.001, 0.001, 0.004];
+        let y = vec![vec![0.0, 1.0, 1.5, 4.5]];
+        let u = vec![vec![10.0, 11.0, 12.0, 14.0]];
+        let (yr, ur) = regular(&time, 0.001, &y, &u);
+        assert_eq!(ur[0], vec![10.0, 12.0, 12.0, 12.0, 14.0]);
+        let want = [0.0, 1.5, 2.5, 3.5, 4.5];
+        for k in 0..5 {
+            assert!((yr[0][k] - want[k]).abs() < 1e-12, "{k}: {:?}", yr[0]);
+        }
+    }
 
     #[test]
     fn fourier_differentiation_is_exact_for_band_limited_signals() {
