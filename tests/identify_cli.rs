@@ -177,3 +177,43 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(e.contains("--trajectory fourier"), "{e}");
 }
+
+#[test]
+fn the_study_pairs_optimised_and_random_trajectories_and_reports_its_own_numbers() {
+    let dir = tmp("study");
+    let out = dir.join("s");
+    let j = stdout_json(&cli(&[
+        "identify",
+        "study",
+        "--seeds",
+        "3",
+        "--iterations",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]));
+    let seeds = j["seeds"].as_array().unwrap();
+    assert_eq!(seeds.len(), 3);
+    let lower = seeds
+        .iter()
+        .filter(|s| s["error_optimised"].as_f64() < s["error_initial"].as_f64())
+        .count();
+    assert_eq!(j["wilcoxon"]["a_lower"].as_u64().unwrap() as usize, lower);
+    let sentence = j["sentence"].as_str().unwrap();
+    assert!(
+        sentence.contains(&format!("lower in {lower} of 3 seeds")),
+        "{sentence}"
+    );
+    for s in seeds {
+        // The optimised trajectory's regressor is better conditioned than the random one's.
+        assert!(
+            s["cond_optimised"].as_f64() <= s["cond_initial"].as_f64(),
+            "{s}"
+        );
+        assert!(s["error_optimised"].as_f64().unwrap() < 10.0, "{s}");
+    }
+    for f in ["results.json", "report.md", "errors.png"] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+}

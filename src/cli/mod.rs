@@ -9,6 +9,7 @@ pub mod floor;
 pub mod identify_base;
 pub mod identify_excitation;
 pub mod identify_lls;
+pub mod identify_study;
 pub mod optim;
 pub mod rkgnn;
 pub mod robust;

@@ -26,6 +26,10 @@ pub enum IdentifyCmd {
     /// torques of run.csv, averaged over periods, differentiated in the frequency domain),
     /// against the robot file's own values, with a held-out period's torque prediction.
     Lls(super::identify_lls::LlsArgs),
+    /// Does optimising the excitation pay? Over seeds, the identification experiment on the
+    /// first feasible random trajectory of each search and on the optimised one, compared by
+    /// Wilcoxon's signed-rank test (results.json, report.md, errors.png).
+    Study(super::identify_study::StudyArgs),
 }
 
 #[derive(Args)]
@@ -171,6 +175,7 @@ pub fn identify(cmd: IdentifyCmd) -> i32 {
         IdentifyCmd::Base(b) => return super::identify_base::main(&b),
         IdentifyCmd::Excitation(e) => return super::identify_excitation::main(&e),
         IdentifyCmd::Lls(l) => return super::identify_lls::main(&l),
+        IdentifyCmd::Study(s) => return super::identify_study::main(&s),
     };
     match identify_rkgnn(&a) {
         Ok(()) => 0,

@@ -392,8 +392,11 @@ pub struct Outcome {
     pub x: Vec<f64>,
     pub series: FourierSeries,
     pub criteria: Criteria,
-    /// The initial elites' scores (the random feasible trajectories the search started from).
+    /// The initial elites' scores (the random feasible trajectories the search started from)
+    /// and their decision vectors.
     pub initial: Vec<Criteria>,
+    #[serde(skip)]
+    pub initial_x: Vec<Vec<f64>>,
     /// How many initial elites were feasible (the rest filled in from the least violating).
     pub feasible_elites: usize,
     /// Best value after each eMuPSO iteration.
@@ -502,6 +505,7 @@ pub fn search(problem: &Problem, s: &Search, progress: Progress) -> Result<Outco
         .ok_or("no reachable Cartesian path found (widen the search or move the centre)")?;
     Ok(Outcome {
         x: best.to_vec(),
+        initial_x: elites,
         criteria: problem.criteria(&series),
         series,
         initial,

@@ -12,12 +12,14 @@
 //! - `mfs`: the paper's modified Fourier series, a Cartesian path of the wrist centre through
 //!   inverse kinematics;
 //! - `excitation`: eq. 15's fitness and the two-stage eMuPSO search of Section 4.1;
-//! - `lls`: least squares on a run's recorded positions and torques.
+//! - `lls`: least squares on a run's recorded positions and torques;
+//! - `study`: optimised against random feasible excitation, paired over seeds.
 
 pub mod excitation;
 pub mod lls;
 pub mod mfs;
 pub mod series;
+pub mod study;
 
 use crate::dynamics::base::{reduce, BaseParameters};
 use crate::dynamics::{Data, Model};
