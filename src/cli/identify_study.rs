@@ -5,7 +5,7 @@ use crate::identify::excitation::{Problem, Search, Settings, TrajectoryKind};
 use crate::identify::study::{run, SeedResult};
 use crate::identify::{Stage, StageKind};
 use crate::report::plot::{xy_png, Curve, Style, XySeries};
-use crate::report::stats::{mean_ci, paired_sentence, wilcoxon};
+use crate::report::stats::{mean_ci, median, paired_sentence, wilcoxon};
 use clap::Args;
 use serde_json::json;
 use std::path::PathBuf;
@@ -121,16 +121,6 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         &w,
         &d,
     );
-    let median = |v: &[f64]| {
-        let mut s = v.to_vec();
-        s.sort_by(f64::total_cmp);
-        let n = s.len();
-        if n % 2 == 1 {
-            s[n / 2]
-        } else {
-            0.5 * (s[n / 2 - 1] + s[n / 2])
-        }
-    };
     let cond_o: Vec<f64> = rows.iter().map(|r| r.cond_optimised).collect();
     let cond_i: Vec<f64> = rows.iter().map(|r| r.cond_initial).collect();
     let doc = json!({

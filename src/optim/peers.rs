@@ -11,7 +11,7 @@
 //! floating-point operations (1e-161 against 1e-28 on the sphere, -1.5e-15 against -3.6e-16 on
 //! Shekel 7), and a rank test would call that difference significant.
 
-use crate::report::stats::{mann_whitney, MannWhitney};
+use crate::report::stats::{mann_whitney, median, MannWhitney};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -116,17 +116,6 @@ pub struct Comparison {
     pub theirs: Best,
     pub test: MannWhitney,
     pub verdict: Verdict,
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
 }
 
 /// The algorithm with the lowest mean error (then median), with its errors (below `SOLVED`

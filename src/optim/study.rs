@@ -326,11 +326,7 @@ impl Cell {
         let mean = e.iter().sum::<f64>() / n;
         let var = e.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
         let m = e.len();
-        let median = if m % 2 == 1 {
-            e[m / 2]
-        } else {
-            0.5 * (e[m / 2 - 1] + e[m / 2])
-        };
+        let median = crate::report::stats::median(&e);
         Self {
             mean_value: runs.iter().map(|r| r.best_value).sum::<f64>() / n,
             mean_error: mean,
