@@ -49,6 +49,30 @@ pub struct Tunable {
     pub bounds: ParamBounds,
 }
 
+/// The largest configuration, robot or trajectory file read (16 MiB): a bound, so that
+/// `evoloop check /dev/zero` or a wrong path to a huge file fails at once instead of reading
+/// without end.
+pub const MAX_FILE_BYTES: u64 = 16 << 20;
+
+/// A text file, read up to `MAX_FILE_BYTES`.
+pub fn read_text(path: &Path) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut text = String::new();
+    std::fs::File::open(path)?
+        .take(MAX_FILE_BYTES + 1)
+        .read_to_string(&mut text)?;
+    if text.len() as u64 > MAX_FILE_BYTES {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "larger than {} MiB: not a configuration, robot or trajectory file",
+                MAX_FILE_BYTES >> 20
+            ),
+        ));
+    }
+    Ok(text)
+}
+
 /// The checks, bound to the file being validated. Each returns the value it accepted or the
 /// error naming `key`.
 pub struct Check {

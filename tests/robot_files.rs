@@ -216,6 +216,16 @@ fn what_cannot_be_simulated_is_refused_naming_the_item() {
             "",
             "not a readable URDF",
         ),
+        (
+            two_links(FORE, "", "").replace(
+                r#"<limit lower="-3" upper="3" effort="50" velocity="5"/></joint>
+  <joint name="elbow""#,
+                r#"<limit lower="3" upper="-3" effort="50" velocity="5"/></joint>
+  <joint name="elbow""#,
+            ),
+            "joint `shoulder`",
+            "limit lower 3 is above upper -3",
+        ),
     ];
     for (text, item, reason) in cases {
         let e = parse(&text, LoadOptions::default()).expect_err(reason);
@@ -334,4 +344,23 @@ duration = 2.0
     // lags: 1.3e-3 rad rms here, 2e-5 with the damping removed (measured).
     assert!(rms[..6].iter().all(|&e| e < 2e-4), "{rms:?}");
     assert!(rms[6] < 2e-3, "{rms:?}");
+}
+
+#[test]
+fn a_dh_table_with_a_repeated_joint_name_is_refused() {
+    let text = std::fs::read_to_string(path("../../config/robots/arm3.toml")).unwrap();
+    let names: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("name = ") && !l.contains("arm3"))
+        .collect();
+    assert!(names.len() >= 2, "{names:?}");
+    let dup = text.replacen(names[1], names[0], 1);
+    let e = dynamics::dh::parse_with(&dup, Path::new("d.toml"), &LoadOptions::default())
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("(row 2)") && e.contains("used by an earlier joint"),
+        "{e}"
+    );
 }

@@ -1,5 +1,6 @@
 //! Stopping: SIGINT to the launcher stops all three processes and leaves nothing of the run in
-//! shared memory; after a killed run, the next start cleans the dead run's resources.
+//! shared memory; SIGKILL to the launcher stops them too (no orphans); after a killed run, the
+//! next start cleans the dead run's resources.
 
 mod common;
 use common::*;
@@ -153,4 +154,24 @@ fn a_child_that_dies_fails_the_run_and_the_others_are_stopped() {
         "the dead plant's resources were not cleaned"
     );
     forget_prefix(&prefix);
+}
+
+#[test]
+fn killing_the_launcher_outright_leaves_no_orphaned_process() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = realtime_config(tmp.path());
+    let out = tmp.path().join("out");
+    let (prefix, run_id) = unique("kill9");
+    let mut child = start(&cfg, &out, &prefix, &run_id);
+    let t0 = Instant::now();
+    // SAFETY: signalling our own child.
+    unsafe { libc::kill(child.id() as i32, libc::SIGKILL) };
+    let _ = child.wait();
+    // Plant, controller and optimiser get SIGTERM from the kernel and stop (within 5 s, not at
+    // the end of the 60 s scenario).
+    wait_gone(&run_id);
+    eprintln!(
+        "children gone {:?} after the launcher's SIGKILL",
+        t0.elapsed()
+    );
 }

@@ -65,13 +65,20 @@ pub fn latency(a: LatencyArgs) -> i32 {
     if a.json {
         super::print_json(&report);
     } else {
-        println!(
+        out!(
             "round trip, {payload}-byte payload, {} samples per variant (ns):",
             a.samples
         );
-        println!(
+        out!(
             "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  ratio p50 / p99.9 to bare",
-            "variant", "min", "p50", "p90", "p99", "p99.9", "p99.99", "max"
+            "variant",
+            "min",
+            "p50",
+            "p90",
+            "p99",
+            "p99.9",
+            "p99.99",
+            "max"
         );
         for r in &results {
             let ratio = match (r.ratio_p50, r.ratio_p99_9) {
@@ -79,7 +86,7 @@ pub fn latency(a: LatencyArgs) -> i32 {
                 _ => "(reference)".into(),
             };
             let [min, p50, p90, p99, p99_9, p99_99, max] = r.figures();
-            println!(
+            out!(
                 "{:<14} {min:>8} {p50:>8} {p90:>8} {p99:>8} {p99_9:>9} {p99_99:>9} {max:>10}  {ratio}",
                 r.variant.name(),
             );
@@ -146,23 +153,25 @@ pub fn loop_(a: LoopArgs) -> i32 {
     if a.json {
         super::print_json(&report);
     } else {
-        println!(
+        out!(
             "controller loop at {} Hz for {} s, load {:?} (ns):",
-            a.rate, a.duration, a.load
+            a.rate,
+            a.duration,
+            a.load
         );
-        println!("{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  floor p50/p99/p99.9      ratio p99 (p99.9)", "privs", "what", "p50", "p99", "p99.9", "max", "compute50", "age p50", "overrun", "missed");
+        out!("{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  floor p50/p99/p99.9      ratio p99 (p99.9)", "privs", "what", "p50", "p99", "p99.9", "max", "compute50", "age p50", "overrun", "missed");
         for r in &results {
             let s = &r.summary;
             let l = &s.timing.lateness;
             let f = s.floor.clone().unwrap_or_default();
-            println!(
+            out!(
                 "{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  {}/{}/{}  {:.2} ({:.2})",
                 r.privileges, "lateness", l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.timing.compute.p50_ns,
                 s.timing.state_age.p50_ns, s.overruns, s.deadline_misses,
                 f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99, f.ratio_p99_9
             );
         }
-        println!(
+        out!(
             "wrote {}/loop.json, loop_lateness.png and the runs",
             a.out.display()
         );

@@ -144,6 +144,21 @@ pub fn evaluate(
         }
         None => None,
     };
+    let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+    if !(finite(&tau)
+        && finite(m.as_slice())
+        && finite(&g)
+        && finite(&v)
+        && finite(&f)
+        && finite(c.as_slice())
+        && qdd_out.as_deref().is_none_or(finite))
+    {
+        return Err(
+            "the result is not finite: an input or one of the robot's parameters is so \
+                    large that the dynamics overflow (f64)"
+                .into(),
+        );
+    }
     Ok(Evaluation {
         tau,
         m,
@@ -230,7 +245,7 @@ pub fn main(a: DynamicsArgs) -> i32 {
             out["qdd"] = json!(x);
             out["tau_in"] = json!(tau_in);
         }
-        println!(
+        out!(
             "{}",
             serde_json::to_string_pretty(&out).expect("plain numbers serialise")
         );
@@ -242,24 +257,24 @@ pub fn main(a: DynamicsArgs) -> i32 {
             .collect::<Vec<_>>()
             .join(" ")
     };
-    println!(
+    out!(
         "robot {} ({} joints: {}), gravity {:?} m/s^2, SI units",
         model.name,
         n,
         joints.join(", "),
         model.gravity.to_array()
     );
-    println!("{friction_note}");
-    println!("tau = M qdd + V + G + F:\n  {}", fmt(&ev.tau));
-    println!("M(q):");
+    out!("{friction_note}");
+    out!("tau = M qdd + V + G + F:\n  {}", fmt(&ev.tau));
+    out!("M(q):");
     for i in 0..n {
-        println!("  {}", fmt(&rows(&ev.m)[i]));
+        out!("  {}", fmt(&rows(&ev.m)[i]));
     }
-    println!("G(q):\n  {}", fmt(&ev.g));
-    println!("V(q, qd):\n  {}", fmt(&ev.v));
-    println!("F(qd):\n  {}", fmt(&ev.f));
+    out!("G(q):\n  {}", fmt(&ev.g));
+    out!("V(q, qd):\n  {}", fmt(&ev.v));
+    out!("F(qd):\n  {}", fmt(&ev.f));
     if let Some(x) = &ev.qdd {
-        println!(
+        out!(
             "forward dynamics qdd = M^-1 (tau - V - G - F) for the given tau:\n  {}",
             fmt(x)
         );
@@ -301,7 +316,7 @@ fn regressor(a: RegressorArgs) -> Result<(), String> {
         }));
         return Ok(());
     }
-    println!(
+    out!(
         "robot {} ({n} joints: {}): Y is {n} x {}, tau = Y pi{}",
         model.name,
         joints.join(", "),
@@ -312,12 +327,12 @@ fn regressor(a: RegressorArgs) -> Result<(), String> {
             ""
         }
     );
-    println!("one line per parameter: name, the file's value, then its column of Y (one entry per joint)");
+    out!("one line per parameter: name, the file's value, then its column of Y (one entry per joint)");
     for (c, name) in names.iter().enumerate() {
         let column: Vec<String> = (0..n).map(|j| format!("{:>11.5}", y[(j, c)])).collect();
-        println!("  {name:>6} {:>11.5} | {}", pi[c], column.join(" "));
+        out!("  {name:>6} {:>11.5} | {}", pi[c], column.join(" "));
     }
     let tau: Vec<String> = tau.iter().map(|t| format!("{t:>11.5}")).collect();
-    println!("  {:>6} {:>11} | {}", "tau", "", tau.join(" "));
+    out!("  {:>6} {:>11} | {}", "tau", "", tau.join(" "));
     Ok(())
 }

@@ -58,7 +58,7 @@ pub fn main(a: &BaseArgs) -> i32 {
         }));
         return 0;
     }
-    println!(
+    out!(
         "robot {}: {} base parameters of {} ({} unidentifiable, {} only in combination), from {} regressor rows",
         model.name,
         b.base_count(),
@@ -69,7 +69,7 @@ pub fn main(a: &BaseArgs) -> i32 {
     );
     // The paper's procedure as a table: each column's norm (0: unidentifiable) and whether it
     // raised the rank of the columns kept before it (base) or not (combined).
-    println!("column norms (over the largest) and class, per body:");
+    out!("column norms (over the largest) and class, per body:");
     for (row, chunk) in b.names.chunks(10).enumerate() {
         let cells: Vec<String> = chunk
             .iter()
@@ -86,13 +86,13 @@ pub fn main(a: &BaseArgs) -> i32 {
                 format!("{name}={:.3}{class}", b.column_norms[c])
             })
             .collect();
-        println!("  {}", cells.join(" "));
+        out!("  {}", cells.join(" "));
     }
-    println!("  (B base, c identifiable only in combination, u unidentifiable)");
-    println!("unidentifiable: {}", b.unidentifiable.join(", "));
-    println!("base parameters (regrouping; value for the file's parameters):");
+    out!("  (B base, c identifiable only in combination, u unidentifiable)");
+    out!("unidentifiable: {}", b.unidentifiable.join(", "));
+    out!("base parameters (regrouping; value for the file's parameters):");
     for base in &b.base {
-        println!("  {:<60} = {:.6}", base.relation(), base.value);
+        out!("  {:<60} = {:.6}", base.relation(), base.value);
     }
     0
 }

@@ -246,18 +246,18 @@ fn run_study(a: &StudyArgs) -> Result<(), String> {
     if a.json {
         super::print_json(&results);
     } else {
-        println!(
+        out!(
             "{} functions x {} algorithms x {} runs ({} evaluations each) in {elapsed:.1} s on {threads} threads",
             s.problems.len(),
             s.algorithms.len(),
             a.runs,
             a.evaluations
         );
-        println!("{}", best_per_function_sentence(&s));
+        out!("{}", best_per_function_sentence(&s));
         if let Some(c) = &comparisons {
-            println!("{}", peers_sentence(c));
+            out!("{}", peers_sentence(c));
         }
-        println!(
+        out!(
             "wrote {}/report.md, results.json, runs.csv, convergence/",
             a.out.display()
         );
@@ -702,12 +702,14 @@ fn bench(a: &BenchArgs) -> Result<(), String> {
             "repeats": a.repeats, "threads": 1, "evals_per_s": rates,
         }));
     } else {
-        println!(
+        out!(
             "optimiser overhead, D = {}, population {}, one thread (median of {}):",
-            a.dim, a.population, a.repeats
+            a.dim,
+            a.population,
+            a.repeats
         );
         for (n, r) in &rates {
-            println!(
+            out!(
                 "  {n:8} {:8.2} M evaluations/s  ({:.0} ns per evaluation)",
                 r / 1e6,
                 1e9 / r
@@ -734,9 +736,12 @@ fn functions(a: &FunctionsArgs) -> Result<(), String> {
         super::print_json(&list);
         return Ok(());
     }
-    println!(
+    out!(
         "{:24} {:12} {:>4}  {:>24}  f_min",
-        "key", "group", "dim", "box"
+        "key",
+        "group",
+        "dim",
+        "box"
     );
     for p in &problems {
         let (lower, upper) = p.bounds();
@@ -746,7 +751,7 @@ fn functions(a: &FunctionsArgs) -> Result<(), String> {
         } else {
             "per dimension".into()
         };
-        println!(
+        out!(
             "{:24} {:12} {:>4}  {:>24}  {}",
             p.key,
             p.group(),

@@ -166,7 +166,7 @@ fn poles_json(p: &[(f64, f64)]) -> serde_json::Value {
 
 fn print_poles(p: &[(f64, f64)]) {
     for (re, im) in p {
-        println!("    {re:+.6} {im:+.6}j");
+        out!("    {re:+.6} {im:+.6}j");
     }
 }
 
@@ -201,7 +201,7 @@ fn radius(a: RadiusArgs) -> i32 {
         }
     };
     if a.json {
-        println!(
+        out!(
             "{}",
             json!({
                 "gains": a.gains, "k": a.plant.k, "collocated": a.plant.collocated,
@@ -211,12 +211,13 @@ fn radius(a: RadiusArgs) -> i32 {
             })
         );
     } else {
-        println!("stability radius r_c = {:.6}", ev.stability_radius);
-        println!(
+        out!("stability radius r_c = {:.6}", ev.stability_radius);
+        out!(
             "poles in wedge: {} (summed distance {:.6})",
-            ev.in_wedge, ev.wedge_distance
+            ev.in_wedge,
+            ev.wedge_distance
         );
-        println!("closed-loop poles:");
+        out!("closed-loop poles:");
         print_poles(&ev.poles);
     }
     0
@@ -259,19 +260,19 @@ fn lqr_cmd(a: LqrArgs) -> i32 {
     .map(|p| (p.re, p.im))
     .collect::<Vec<_>>();
     if a.json {
-        println!(
+        out!(
             "{}",
             json!({"gains": k, "q": a.q, "r": a.r, "k": a.plant.k, "collocated": a.plant.collocated, "poles": poles_json(&poles)})
         );
     } else {
-        println!(
+        out!(
             "K = [{}]   (u = -K x̂)",
             k.iter()
                 .map(|v| format!("{v:.4}"))
                 .collect::<Vec<_>>()
                 .join(", ")
         );
-        println!("closed-loop poles:");
+        out!("closed-loop poles:");
         print_poles(&poles);
     }
     0
@@ -324,7 +325,7 @@ fn tune(a: TuneArgs) -> i32 {
         }
     };
     if a.json {
-        println!(
+        out!(
             "{}",
             json!({
                 "gains": r.best, "stability_radius": ev.stability_radius, "f_x": r.value,
@@ -334,7 +335,7 @@ fn tune(a: TuneArgs) -> i32 {
             })
         );
     } else {
-        println!(
+        out!(
             "K = [{}]",
             r.best
                 .iter()
@@ -342,15 +343,19 @@ fn tune(a: TuneArgs) -> i32 {
                 .collect::<Vec<_>>()
                 .join(", ")
         );
-        println!(
+        out!(
             "stability radius r_c = {:.6}, poles in wedge: {}",
-            ev.stability_radius, ev.in_wedge
+            ev.stability_radius,
+            ev.in_wedge
         );
-        println!(
+        out!(
             "{} iterations, {} evaluations, {:.3} s, stopped by {}",
-            r.generations, r.evaluations, r.seconds, r.stopped_by
+            r.generations,
+            r.evaluations,
+            r.seconds,
+            r.stopped_by
         );
-        println!("closed-loop poles:");
+        out!("closed-loop poles:");
         print_poles(&ev.poles);
     }
     0
@@ -374,7 +379,7 @@ fn study_cmd(a: StudyArgs) -> i32 {
             if tty {
                 eprintln!();
             }
-            println!(
+            out!(
                 "study done in {:.1} s: {}/report.md, study.json, runs.csv, responses.csv, poles.png, step_*.png",
                 t0.elapsed().as_secs_f64(),
                 a.out.display()

@@ -90,7 +90,7 @@ pub struct Overrides {
 impl Scenario {
     /// Read, parse and validate a scenario file.
     pub fn load(path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+        let text = crate::check::read_text(path).map_err(|e| ConfigError {
             file: path.to_path_buf(),
             key: String::new(),
             reason: format!("cannot read: {e}"),

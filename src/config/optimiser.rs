@@ -245,7 +245,7 @@ pub fn validate(
 
 /// The `model_parameters` of a JSON file (`evoloop identify lls`'s lls.json).
 fn model_file(path: &std::path::Path) -> Result<Vec<f64>, String> {
-    let text = std::fs::read_to_string(path)
+    let text = crate::check::read_text(path)
         .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;

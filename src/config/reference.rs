@@ -35,10 +35,15 @@ pub enum ReferenceKind {
     Excitation,
 }
 
+/// Largest |value| of a scalar reference (amplitude, offset, step value): far beyond any plant's
+/// range, small enough that squared errors and their integrals stay finite.
+pub const MAX_VALUE: f64 = 1e6;
+
 pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError> {
     let need = |key: &str, v: Option<f64>| -> Result<f64, ConfigError> {
         match v {
-            Some(x) => check.finite(&format!("reference.{key}"), x),
+            // Bounded so that errors and their integrals (IAE, ISE) stay finite.
+            Some(x) => check.range(&format!("reference.{key}"), x, -MAX_VALUE, MAX_VALUE),
             None => check.fail(
                 &format!("reference.{key}"),
                 "missing (required for this reference kind)",
@@ -175,7 +180,12 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
             Ok(Reference::Square {
                 amplitude: need("amplitude", r.amplitude)?,
                 period,
-                offset: check.finite("reference.offset", r.offset.unwrap_or(0.0))?,
+                offset: check.range(
+                    "reference.offset",
+                    r.offset.unwrap_or(0.0),
+                    -MAX_VALUE,
+                    MAX_VALUE,
+                )?,
                 start: check.range("reference.start", r.start.unwrap_or(0.0), 0.0, 1e9)?,
             })
         }
@@ -198,7 +208,12 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
             }
             for i in 0..times.len() {
                 check.finite(&format!("reference.times[{i}]"), times[i])?;
-                check.finite(&format!("reference.values[{i}]"), values[i])?;
+                check.range(
+                    &format!("reference.values[{i}]"),
+                    values[i],
+                    -MAX_VALUE,
+                    MAX_VALUE,
+                )?;
                 if i > 0 && times[i] <= times[i - 1] {
                     return check.fail(
                         &format!("reference.times[{i}]"),
@@ -215,7 +230,7 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
 fn excitation_file(
     path: &std::path::Path,
 ) -> Result<crate::identify::series::FourierSeries, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read: {e}"))?;
+    let text = crate::check::read_text(path).map_err(|e| format!("cannot read: {e}"))?;
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
     let s: crate::identify::series::FourierSeries = serde_json::from_value(v["series"].clone())
         .map_err(|e| format!("`series`: {e} (not an `evoloop identify excitation` file?)"))?;

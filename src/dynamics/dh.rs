@@ -122,12 +122,21 @@ pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Load
     let mut bodies = Vec::with_capacity(raw.joint.len());
     // The fixed part of the previous standard row (placement of the next joint).
     let mut carried = Transform::IDENTITY;
+    let mut seen = std::collections::HashSet::new();
     for (i, row) in raw.joint.into_iter().enumerate() {
         let name = row
             .name
             .clone()
             .unwrap_or_else(|| format!("joint{}", i + 1));
         let item = format!("joint `{name}` (row {})", i + 1);
+        if !seen.insert(name.clone()) {
+            return Err(fail(
+                item,
+                "the name is used by an earlier joint (names must be unique: run.csv columns, \
+                 parameter names and messages refer to joints by them)"
+                    .into(),
+            ));
+        }
         let kind = match row.kind.as_deref().unwrap_or("revolute") {
             "revolute" => JointKind::Revolute,
             "prismatic" => JointKind::Prismatic,

@@ -280,6 +280,14 @@ fn moving_body(
         return Err("axis must be a non-zero vector".into());
     }
     let lim = &joint.limit;
+    if joint.joint_type != urdf_rs::JointType::Continuous && lim.lower > lim.upper {
+        // lower = upper (both 0 when <limit> gives none) reads as unlimited; an inverted range
+        // is a mistake in the file, refused as the D-H loader refuses it.
+        return Err(format!(
+            "limit lower {} is above upper {}",
+            lim.lower, lim.upper
+        ));
+    }
     let positional = joint.joint_type != urdf_rs::JointType::Continuous && lim.lower < lim.upper;
     let dynamics = joint.dynamics.clone().unwrap_or_default();
     Ok(Body {

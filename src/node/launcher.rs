@@ -63,11 +63,40 @@ pub fn measure_floor(period: f64, duration: f64, fifo: Option<i32>) -> FloorRepo
 fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Child> {
     use std::os::unix::process::CommandExt;
     let role = name.trim_start_matches("evoloop-");
-    std::process::Command::new(std::env::current_exe()?)
-        .arg0(name)
-        .arg(role)
-        .args(args)
-        .spawn()
+    let mut cmd = std::process::Command::new(std::env::current_exe()?);
+    cmd.arg0(name).arg(role).args(args);
+    die_with_parent(&mut cmd);
+    cmd.spawn()
+}
+
+/// The child gets SIGTERM when this process dies, however it dies (`kill -9` included), and
+/// stops as on Ctrl-C (safe command, its shared memory removed): a launcher killed outright
+/// leaves no run behind (Linux's PR_SET_PDEATHSIG). The signal follows the *thread* that
+/// spawned the child, so children are spawned from the launcher's main thread only. If the
+/// launcher died between the fork and the prctl, the child exits at once.
+fn die_with_parent(cmd: &mut std::process::Command) {
+    use std::os::unix::process::CommandExt;
+    // SAFETY: getpid before the fork; in the child only async-signal-safe calls (prctl,
+    // getppid, _exit).
+    let parent = unsafe { libc::getpid() };
+    unsafe {
+        cmd.pre_exec(move || {
+            if libc::prctl(
+                libc::PR_SET_PDEATHSIG,
+                libc::SIGTERM as libc::c_ulong,
+                0,
+                0,
+                0,
+            ) != 0
+            {
+                return Err(std::io::Error::last_os_error());
+            }
+            if libc::getppid() != parent {
+                libc::_exit(1);
+            }
+            Ok(())
+        });
+    }
 }
 
 fn signal(child: &Child, sig: i32) {
@@ -129,6 +158,7 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
         ov.seed = Some(seed);
         ov.out = Some(dir.clone());
         let mut cmd = std::process::Command::new(&exe);
+        die_with_parent(&mut cmd);
         cmd.arg("run")
             .arg(&file)
             .args(ov.to_args())

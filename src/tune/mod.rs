@@ -153,7 +153,7 @@ fn hybrid_config(
 
 fn read(file: &Path) -> Result<RawTune, String> {
     let text =
-        std::fs::read_to_string(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
+        crate::check::read_text(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
     serde_path_to_error::deserialize(toml::Deserializer::new(&text)).map_err(|e| {
         let key = e.path().to_string();
         bad(
