@@ -153,6 +153,52 @@ fn a_child_that_dies_fails_the_run_and_the_others_are_stopped() {
         Vec::<String>::new(),
         "the dead plant's resources were not cleaned"
     );
+    // The failed run's report says so, and why.
+    let s = json(&tmp.path().join("out/summary.json"));
+    assert_eq!(s["outcome"], "failed");
+    let why = s["failures"].to_string();
+    assert!(why.contains("evoloop-plant") && why.contains("signal"), "{why}");
+    assert_eq!(s["run_id"], run_id.as_str());
+    forget_prefix(&prefix);
+}
+
+#[test]
+fn two_runs_cannot_share_a_run_id_or_an_output_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = realtime_config(tmp.path());
+    let out = tmp.path().join("a");
+    let (prefix, run_id) = unique("dup");
+    let mut first = start(&cfg, &out, &prefix, &run_id);
+    let second = |out: &std::path::Path, id: &str| {
+        Command::new(evoloop())
+            .arg("run")
+            .arg(&cfg)
+            .arg("--out")
+            .arg(out)
+            .args(["--ipc-prefix", &prefix, "--run-id", id, "--quiet"])
+            .output()
+            .unwrap()
+    };
+    let t0 = Instant::now();
+    let o = second(&tmp.path().join("b"), &run_id);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains(&format!("run id `{run_id}` is in use")), "{e}");
+    let o = second(&out, &format!("{run_id}-other"));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("output directory") && e.contains("in use"), "{e}");
+    assert!(t0.elapsed() < Duration::from_secs(10), "refused at once");
+    assert!(!tmp.path().join("b/summary.json").exists());
+    // SAFETY: signalling our own child.
+    unsafe { libc::kill(first.id() as i32, libc::SIGINT) };
+    let status = wait_exit(&mut first, Duration::from_secs(15));
+    assert_eq!(status.code(), Some(130));
+    wait_gone(&run_id);
+    // The first run's report is its own, untouched by the refused ones.
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["run_id"], run_id.as_str());
+    assert_eq!(s["outcome"], "interrupted");
     forget_prefix(&prefix);
 }
 

@@ -99,6 +99,68 @@ fn die_with_parent(cmd: &mut std::process::Command) {
     }
 }
 
+/// An exclusive lock held for a run's lifetime (flock on a file holding the holder's pid).
+struct RunLock {
+    _file: std::fs::File,
+}
+
+impl RunLock {
+    /// Take the lock on `path` or say who holds it; `what` names the resource in the message.
+    fn take(path: &Path, what: &str) -> Result<RunLock, String> {
+        use std::io::{Read, Seek, Write};
+        use std::os::unix::fs::OpenOptionsExt;
+        use std::os::unix::io::AsRawFd;
+        let mut f = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .mode(0o600)
+            .open(path)
+            .map_err(|e| format!("{what}: cannot write {}: {e}", path.display()))?;
+        // SAFETY: flock on a descriptor we own.
+        if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+            let mut holder = String::new();
+            let _ = f.read_to_string(&mut holder);
+            return Err(format!(
+                "{what} is in use by another run (pid {}); wait for it to end or choose another",
+                holder.trim()
+            ));
+        }
+        let _ = f.set_len(0);
+        let _ = f.rewind();
+        let _ = write!(f, "{}", std::process::id());
+        Ok(RunLock { _file: f })
+    }
+
+    /// The lock of run id `run_id` under IPC prefix `prefix`, in a directory of this user's
+    /// (mode 0700) under the temporary directory.
+    fn for_run_id(prefix: &str, run_id: &str) -> Result<RunLock, String> {
+        use std::os::unix::fs::DirBuilderExt;
+        // SAFETY: getuid has no preconditions.
+        let uid = unsafe { libc::getuid() };
+        let dir = std::env::temp_dir().join(format!("evoloop-locks-{uid}"));
+        let _ = std::fs::DirBuilder::new()
+            .recursive(true)
+            .mode(0o700)
+            .create(&dir);
+        let safe: String = format!("{prefix}-{run_id}")
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        Self::take(
+            &dir.join(format!("{safe}.lock")),
+            &format!("run id `{run_id}`"),
+        )
+    }
+}
+
 fn signal(child: &Child, sig: i32) {
     // SAFETY: plain syscall on our own child's pid.
     unsafe { libc::kill(child.id() as i32, sig) };
@@ -254,6 +316,34 @@ pub fn run(a: RunArgs) -> ExitCode {
         );
         return ExitCode::from(2);
     }
+    // One run per output directory and per run id at a time: two runs sharing either would mix
+    // their reports or each other's shared memory. The locks are flock()s, released by the
+    // kernel however this process ends, so a killed run never leaves a stale one; taking the
+    // directory's also proves it is writable before anything starts.
+    let _dir_lock = match RunLock::take(
+        &dir.join(".evoloop.lock"),
+        &format!("output directory {}", dir.display()),
+    ) {
+        Ok(l) => l,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let run_id = a.run_id.clone().unwrap_or_else(|| {
+        format!(
+            "{}-{:x}",
+            std::process::id(),
+            crate::rt::now_ns() & 0xffff_ffff
+        )
+    });
+    let _id_lock = match RunLock::for_run_id(&a.ipc_prefix, &run_id) {
+        Ok(l) => l,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
     // Remove the previous run's files so a failed run never leaves a stale report looking fresh.
     for f in [
         "run.csv",
@@ -272,13 +362,6 @@ pub fn run(a: RunArgs) -> ExitCode {
         let _ = std::fs::remove_file(dir.join(f));
     }
     let _ = crate::report::write_json(&dir, "scenario.json", &scn);
-    let run_id = a.run_id.clone().unwrap_or_else(|| {
-        format!(
-            "{}-{:x}",
-            std::process::id(),
-            crate::rt::now_ns() & 0xffff_ffff
-        )
-    });
     // The launcher's own node: creating it cleans up what killed runs left behind, and it
     // watches the telemetry for progress lines.
     let ipc = match Ipc::with_cleanup("evoloop", &run_id, &a.ipc_prefix, false) {
@@ -436,6 +519,35 @@ pub fn run(a: RunArgs) -> ExitCode {
     if !failed.is_empty() {
         for f in &failed {
             err!("error: {f}");
+        }
+        // The report of a failed run says so and why, and which files the run left.
+        let files: Vec<String> = std::fs::read_dir(&dir)
+            .map(|rd| {
+                let mut v: Vec<String> = rd
+                    .flatten()
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| !n.starts_with('.'))
+                    .collect();
+                v.sort();
+                v
+            })
+            .unwrap_or_default();
+        let report = serde_json::json!({
+            "outcome": "failed",
+            "failures": failed,
+            "scenario": scn.name,
+            "config": scn.source.display().to_string(),
+            "run_id": run_id,
+            "mode": format!("{:?}", scn.timing.mode).to_lowercase(),
+            "seed": scn.seed,
+            "duration_s": scn.timing.duration,
+            "wall_s": wall,
+            "interrupted": interrupted,
+            "optimiser_restarts": optimiser_restarts,
+            "files": files,
+        });
+        if let Err(e) = crate::report::write_json(&dir, "summary.json", &report) {
+            err!("error: summary.json: {e}");
         }
         return ExitCode::from(1);
     }

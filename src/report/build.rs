@@ -236,7 +236,9 @@ pub fn build_report(
         (Some(e), Some(tv)) => Some((e - tv) / tv),
         _ => None,
     };
+    let interrupted = ctrl.interrupted || plant.interrupted || opt.interrupted;
     let summary = Summary {
+        outcome: if interrupted { "interrupted" } else { "ok" }.into(),
         scenario: scn.name.clone(),
         config: scn.source.display().to_string(),
         run_id: run_id.to_string(),
@@ -269,7 +271,7 @@ pub fn build_report(
         floor,
         plant_safe_samples: plant.safe_samples,
         optimiser_published: opt.published.len(),
-        interrupted: ctrl.interrupted || plant.interrupted || opt.interrupted,
+        interrupted,
         stale_resources_cleaned: cleaned,
         optimiser_restarts,
         accepted_versions: accepted.len(),

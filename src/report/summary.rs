@@ -105,6 +105,10 @@ pub struct RealtimePrivileges {
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct Summary {
+    /// "ok", "interrupted" (Ctrl-C: what ran so far) or "failed" (a process failed; the
+    /// launcher then writes a short summary.json with the reasons instead of this one).
+    #[serde(default)]
+    pub outcome: String,
     pub scenario: String,
     pub config: String,
     pub run_id: String,
