@@ -157,7 +157,10 @@ fn a_child_that_dies_fails_the_run_and_the_others_are_stopped() {
     let s = json(&tmp.path().join("out/summary.json"));
     assert_eq!(s["outcome"], "failed");
     let why = s["failures"].to_string();
-    assert!(why.contains("evoloop-plant") && why.contains("signal"), "{why}");
+    assert!(
+        why.contains("evoloop-plant") && why.contains("signal"),
+        "{why}"
+    );
     assert_eq!(s["run_id"], run_id.as_str());
     forget_prefix(&prefix);
 }
@@ -187,7 +190,10 @@ fn two_runs_cannot_share_a_run_id_or_an_output_directory() {
     let o = second(&out, &format!("{run_id}-other"));
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{e}");
-    assert!(e.contains("output directory") && e.contains("in use"), "{e}");
+    assert!(
+        e.contains("output directory") && e.contains("in use"),
+        "{e}"
+    );
     assert!(t0.elapsed() < Duration::from_secs(10), "refused at once");
     assert!(!tmp.path().join("b/summary.json").exists());
     // SAFETY: signalling our own child.
@@ -220,4 +226,36 @@ fn killing_the_launcher_outright_leaves_no_orphaned_process() {
         "children gone {:?} after the launcher's SIGKILL",
         t0.elapsed()
     );
+}
+
+#[test]
+fn a_paused_optimiser_resumes_instead_of_failing_the_run() {
+    // SIGSTOP / SIGCONT interrupts the optimiser's blocking waits; that is a wake-up, not an
+    // error (it used to exit with "wait on state: InterruptSignal", be restarted, and the fourth
+    // time fail the run).
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = realtime_config(tmp.path());
+    let (prefix, run_id) = unique("stop");
+    let mut child = start(&cfg, &tmp.path().join("out"), &prefix, &run_id);
+    let opt = process_named(&run_id, "evoloop-optimiser");
+    for _ in 0..4 {
+        // SAFETY: this test's own optimiser process.
+        unsafe { libc::kill(opt as i32, libc::SIGSTOP) };
+        std::thread::sleep(Duration::from_millis(300));
+        unsafe { libc::kill(opt as i32, libc::SIGCONT) };
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    assert_eq!(
+        process_named(&run_id, "evoloop-optimiser"),
+        opt,
+        "the same optimiser runs on (not restarted)"
+    );
+    // SAFETY: signalling our own child.
+    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    let status = wait_exit(&mut child, Duration::from_secs(15));
+    assert_eq!(status.code(), Some(130), "stopped by Ctrl-C, not failed");
+    let s = json(&tmp.path().join("out/summary.json"));
+    assert_eq!(s["optimiser_restarts"], 0);
+    wait_gone(&run_id);
+    forget_prefix(&prefix);
 }

@@ -5,7 +5,7 @@
 //! never cross-talk, and every file iceoryx2 creates carries the run's prefix (`--ipc-prefix`,
 //! default `evoloop_`) so a run's resources can be told apart from other iceoryx2 users.
 
-use iceoryx2::port::listener::Listener;
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -359,11 +359,13 @@ pub struct Doorbell {
 
 impl Doorbell {
     /// Block until an announcement arrives or `timeout` passes.
+    /// A signal that interrupts the wait (SIGCONT after a SIGSTOP, a profiler's) is a spurious
+    /// wake-up, not an error: the callers loop and check their stop flag.
     pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
-        self.listener
-            .timed_wait(|_| {}, timeout)
-            .map(|_| ())
-            .map_err(|e| err(format!("wait on {}", self.topic.name()), e))
+        match self.listener.timed_wait(|_| {}, timeout) {
+            Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
+            Err(e) => Err(err(format!("wait on {}", self.topic.name()), e)),
+        }
     }
 }
 
@@ -470,10 +472,12 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
                 continue;
             }
             match &self.listener {
-                Some(l) => {
-                    l.timed_wait(|_| {}, timeout - waited)
-                        .map_err(|e| err(format!("wait on {}", self.topic.name()), e))?;
-                }
+                Some(l) => match l.timed_wait(|_| {}, timeout - waited) {
+                    // Interrupted by a signal (e.g. SIGCONT after the process was stopped): look
+                    // again; the stop flag is the callers' business.
+                    Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                    Err(e) => return Err(err(format!("wait on {}", self.topic.name()), e)),
+                },
                 None => std::hint::spin_loop(),
             }
         }
