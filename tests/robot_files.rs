@@ -226,6 +226,21 @@ fn what_cannot_be_simulated_is_refused_naming_the_item() {
             "joint `shoulder`",
             "limit lower 3 is above upper -3",
         ),
+        (
+            two_links(&FORE.replace(r#"value="1""#, r#"value="1e308""#), "", ""),
+            "link `fore`",
+            "beyond 1e9",
+        ),
+        (
+            // A fixed joint with a NaN origin before the moving elbow: blamed on itself.
+            two_links(FORE, "", "").replace(
+                r#"<joint name="elbow" type="revolute"><parent link="upper"/>"#,
+                r#"<link name="mid"/><joint name="spacer" type="fixed"><parent link="upper"/><child link="mid"/><origin xyz="NaN 0 0"/></joint>
+  <joint name="elbow" type="revolute"><parent link="mid"/>"#,
+            ),
+            "joint `spacer`",
+            "origin xyz and rpy must be finite",
+        ),
     ];
     for (text, item, reason) in cases {
         let e = parse(&text, LoadOptions::default()).expect_err(reason);

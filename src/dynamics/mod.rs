@@ -175,6 +175,9 @@ pub fn inertia_tensor(ixx: f64, ixy: f64, ixz: f64, iyy: f64, iyz: f64, izz: f64
 /// rotated into a link frame and printed with a few digits are off by rounding.
 const INERTIA_TOL: f64 = 1e-6;
 
+/// Largest |mass| (kg), |com| (m) or inertia component (kg m^2) a robot file may give.
+pub const MAX_INERTIAL: f64 = 1e9;
+
 /// Check one moving link's mass properties. `Err` for what cannot be simulated (non-finite
 /// numbers, negative mass, a negative principal moment, an asymmetric tensor); `Ok(Some(doubt))`
 /// for what is physically dubious but simulable (zero mass with a non-zero tensor: kept as a pure
@@ -187,6 +190,14 @@ fn check_inertial(mass: f64, i_com: DMat3, com: DVec3) -> Result<Option<String>,
     }
     if mass < 0.0 {
         return Err(format!("negative mass {mass}"));
+    }
+    // Finite but absurd values (a mass of 1e308 kg) overflow the dynamics into NaN.
+    let big = |v: f64| v.abs() > MAX_INERTIAL;
+    if big(mass) || com.to_array().into_iter().any(big) || cols.iter().any(|v| big(*v)) {
+        return Err(format!(
+            "mass, centre of mass or inertia beyond {MAX_INERTIAL:e} (SI units): no robot has it, \
+             and the dynamics would overflow"
+        ));
     }
     if cols.iter().all(|v| *v == 0.0) {
         return Ok(None);

@@ -142,6 +142,15 @@ pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Load
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
     for (j, joint) in robot.joints.iter().enumerate() {
         let item = format!("joint `{}`", joint.name);
+        // Checked here, where the joint is known: a non-finite origin would otherwise surface
+        // in the placement of whichever moving joint comes after it.
+        let o = &joint.origin;
+        if o.xyz.0.iter().chain(o.rpy.0.iter()).any(|v| !v.is_finite()) {
+            return Err(fail(
+                item,
+                "origin xyz and rpy must be finite numbers".into(),
+            ));
+        }
         let Some(&p) = link_index.get(joint.parent.link.as_str()) else {
             return Err(fail(
                 item,
