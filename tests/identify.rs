@@ -394,9 +394,8 @@ fn the_papers_cartesian_path_keeps_the_wrist_centre_on_it_and_identifies_the_arm
         );
     }
     // Run it (as the `excitation` reference would) and identify the arm stage.
-    let dir = std::env::temp_dir().join(format!("evoloop-mfs-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let traj = dir.join("mfs.json");
+    let dir = tempfile::tempdir().unwrap();
+    let traj = dir.path().join("mfs.json");
     std::fs::write(&traj, serde_json::json!({ "series": o.series }).to_string()).unwrap();
     let text = scenario_text("industrial6_identify_arm.toml")
         .replace("excitation/industrial6_arm.json", traj.to_str().unwrap())

@@ -6,16 +6,18 @@ mod common;
 use common::{assert_ok, cli, run, stdout_json, write};
 use std::path::Path;
 
-fn tmp(tag: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("evoloop-identify-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A scratch directory removed when the test ends (tagged for whoever reads a failure).
+fn tmp(tag: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("evoloop-identify-{tag}-"))
+        .tempdir()
+        .unwrap()
 }
 
 #[test]
 fn excitation_then_processes_then_lls_identify_the_wrist() {
-    let dir = tmp("wrist");
+    let scratch = tmp("wrist");
+    let dir = scratch.path();
     let traj = dir.join("wrist.json");
     let j = stdout_json(&cli(&[
         "identify",
@@ -49,7 +51,7 @@ fn excitation_then_processes_then_lls_identify_the_wrist() {
                 .to_str()
                 .unwrap(),
         );
-    let cfg = write(&dir, "wrist.toml", &text);
+    let cfg = write(dir, "wrist.toml", &text);
     let out = dir.join("run");
     assert_ok(&run(
         &cfg,
@@ -109,7 +111,8 @@ fn excitation_then_processes_then_lls_identify_the_wrist() {
 
 #[test]
 fn bad_excitation_input_is_refused_with_the_key_and_reason() {
-    let dir = tmp("bad");
+    let scratch = tmp("bad");
+    let dir = scratch.path();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(root.join("config/industrial6_identify.toml"))
         .unwrap()
@@ -120,7 +123,7 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
                 .to_str()
                 .unwrap(),
         );
-    let cfg = write(&dir, "bad.toml", &text);
+    let cfg = write(dir, "bad.toml", &text);
     let o = cli(&["check", cfg.to_str().unwrap()]);
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(
@@ -180,7 +183,8 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
 
 #[test]
 fn the_study_pairs_optimised_and_random_trajectories_and_reports_its_own_numbers() {
-    let dir = tmp("study");
+    let scratch = tmp("study");
+    let dir = scratch.path();
     let out = dir.join("s");
     let j = stdout_json(&cli(&[
         "identify",

@@ -1,6 +1,7 @@
 //! The control cycle does not allocate: a counting global allocator watches the plant step, the
-//! controller cycle (with a parameter swap in it), the run logs and the iceoryx2 send/receive of
-//! state, command and telemetry, after the set-up allocated everything once.
+//! controller cycle (with a parameter swap in it), the run log streamed to disk, the timing
+//! statistics and the iceoryx2 send/receive of state, command and telemetry, after the set-up
+//! allocated everything once.
 //!
 //! One exception is iceoryx2's own and is pinned here so it cannot grow unnoticed: in 0.10 each
 //! `Publisher::loan_uninit` allocates one small reference-count block for the loaned sample
@@ -13,8 +14,8 @@ use evoloop::msg::{Command, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::PlantSim;
 use evoloop::reference::Reference;
-use evoloop::report::RunLog;
-use evoloop::rt::{CycleTiming, TimingLog};
+use evoloop::report::stream::{CsvPart, LogStream, Overflow};
+use evoloop::rt::{CycleTiming, TimingStats};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 static SENDS: AtomicU64 = AtomicU64::new(0);
@@ -67,8 +68,16 @@ fn the_control_cycle_allocates_nothing() {
         bounds,
     );
     let n = 3000;
-    let mut log = RunLog::new((0..7).map(|i| format!("c{i}")).collect(), n);
-    let mut timing = TimingLog::with_capacity(n);
+    // The log streamed to disk as the controller does it (its writer thread allocates as it
+    // formats; the counter watches this thread only, the control thread).
+    let dir = tempfile::tempdir().unwrap();
+    let part = CsvPart {
+        path: dir.path().join("run.csv"),
+        header: (0..7).map(|i| format!("c{i}")).collect(),
+        columns: 0..7,
+    };
+    let mut log = LogStream::start(vec![part], 256, Overflow::Wait).unwrap();
+    let mut timing = TimingStats::default();
     let mut row = [0.0; 7];
     let mut set = ParamSet {
         version: 1,
@@ -108,8 +117,9 @@ fn the_control_cycle_allocates_nothing() {
         row[2] = s.y[0];
         row[3] = u[0];
         log.push(&row);
-        timing.push(CycleTiming {
+        timing.record(&CycleTiming {
             cycle: k,
+            lateness_ns: 1000 + k as i64,
             ..Default::default()
         });
     };
@@ -129,6 +139,8 @@ fn the_control_cycle_allocates_nothing() {
         "the swap happened inside the measured cycles"
     );
     assert_eq!(sends, 3 * (n as u64 - 1));
+    assert_eq!(timing.cycles, n as u64);
+    assert_eq!(log.finish().rows, n as u64, "every row reached the file");
     assert_eq!(
         allocations - sends,
         0,

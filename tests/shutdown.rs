@@ -52,20 +52,6 @@ fn wait_gone(run_id: &str) {
     }
 }
 
-fn wait_exit(child: &mut std::process::Child, limit: Duration) -> std::process::ExitStatus {
-    let t0 = Instant::now();
-    loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            return s;
-        }
-        assert!(
-            t0.elapsed() < limit,
-            "launcher did not stop within {limit:?}"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 #[test]
 fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
     let tmp = tempfile::tempdir().unwrap();

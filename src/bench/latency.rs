@@ -381,11 +381,7 @@ fn bare(
 ) -> Result<Bare, IpcError> {
     set_log_level(LogLevel::Error);
     let cfg = ipc_config(prefix)?;
-    let node = NodeBuilder::new()
-        .config(&cfg)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
-        .map_err(|e| err("node", e))?;
+    let node = crate::ipc::create_node(NodeBuilder::new().config(&cfg), prefix, "node")?;
     let name =
         |t: &str| ServiceName::new(&format!("bench/{run_id}/{t}")).map_err(|e| err("name", e));
     let svc = |t: &str| {

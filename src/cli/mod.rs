@@ -13,6 +13,7 @@ pub mod identify_study;
 pub mod optim;
 pub mod rkgnn;
 pub mod robust;
+pub mod soak;
 pub mod tune;
 
 pub use crate::node::args::{
@@ -87,6 +88,9 @@ pub enum Cmd {
     Controller(ProcessArgs),
     /// The optimiser process of a run (`evoloop run` starts it).
     Optimiser(OptimiserArgs),
+    /// A long realtime run with the optimiser tuning: memory of every process, missed deadlines
+    /// and lateness per minute, shared-memory files before and after (soak.json, soak.csv, plots).
+    Soak(soak::SoakArgs),
     /// Measure the machine's timing floor: a bare absolute-deadline sleep loop.
     Floor {
         /// Loop rate in Hz.
@@ -179,6 +183,7 @@ pub fn main() -> ExitCode {
             fifo,
             json,
         }) => floor::main(rate, duration, fifo, json),
+        Some(Cmd::Soak(a)) => soak::main(a),
     }
 }
 

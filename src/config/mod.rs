@@ -101,19 +101,11 @@ impl Scenario {
 
     /// Parse and validate scenario text; `path` is used in messages and to name the run.
     pub fn parse(text: &str, path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
-        let de = toml::Deserializer::new(text);
-        let raw: RawScenario = serde_path_to_error::deserialize(de).map_err(|e| {
-            let key = e.path().to_string();
-            let inner = e.into_inner();
-            let line = inner
-                .span()
-                .map(|s| text[..s.start.min(text.len())].lines().count().max(1));
-            ConfigError {
-                file: path.to_path_buf(),
-                key: if key == "." { String::new() } else { key },
-                reason: inner.message().to_string(),
-                line,
-            }
+        let raw: RawScenario = crate::check::from_toml(text).map_err(|p| ConfigError {
+            file: path.to_path_buf(),
+            key: p.key,
+            reason: p.reason,
+            line: p.line,
         })?;
         compose(raw, &Check::new(path), ov)
     }

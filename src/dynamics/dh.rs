@@ -98,23 +98,17 @@ pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Load
         item,
         reason,
     };
-    let raw: RawTable =
-        serde_path_to_error::deserialize(toml::Deserializer::new(text)).map_err(|e| {
-            let key = e.path().to_string();
-            let inner = e.into_inner();
-            let line = inner
-                .span()
-                .map(|s| text[..s.start.min(text.len())].lines().count().max(1));
-            let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
-            fail(
-                if key == "." {
-                    String::new()
-                } else {
-                    format!("key `{key}`")
-                },
-                format!("{at}{}", inner.message()),
-            )
-        })?;
+    let raw: RawTable = crate::check::from_toml(text).map_err(|p| {
+        let at = p.line.map(|l| format!("line {l}: ")).unwrap_or_default();
+        fail(
+            if p.key.is_empty() {
+                String::new()
+            } else {
+                format!("key `{}`", p.key)
+            },
+            format!("{at}{}", p.reason),
+        )
+    })?;
     let gravity = raw.gravity.unwrap_or([0.0, 0.0, -9.81]);
     if gravity.iter().any(|g| !g.is_finite()) {
         return Err(fail("key `gravity`".into(), "must be finite".into()));

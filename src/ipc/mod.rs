@@ -13,6 +13,8 @@ use iceoryx2::prelude::*;
 use std::fmt::{self, Debug};
 use std::time::{Duration, Instant};
 
+pub mod namespace;
+
 /// The message types go into shared memory as they are. Their iceoryx2 names carry a version
 /// suffix because iceoryx2 checks only name, size and alignment when a service opens: change a
 /// layout, bump the version.
@@ -122,12 +124,32 @@ pub const MAX_SYNC_SAMPLES: usize = 256;
 /// Default prefix of every file iceoryx2 creates for evoloop.
 pub const DEFAULT_PREFIX: &str = "evoloop_";
 
-/// iceoryx2 configuration for a prefix (separate namespace per prefix).
+/// iceoryx2 configuration for a prefix: this user's namespace (see `namespace`), with a
+/// separate one per prefix.
 pub fn ipc_config(prefix: &str) -> Result<Config, IpcError> {
     let mut cfg = Config::global_config().clone();
+    let full = namespace::user_prefix(prefix);
     cfg.global.prefix =
-        FileName::new(prefix.as_bytes()).map_err(|e| err(format!("ipc prefix {prefix:?}"), e))?;
+        FileName::new(full.as_bytes()).map_err(|e| err(format!("ipc prefix {full:?}"), e))?;
+    let root = namespace::user_subdir("iceoryx2")?;
+    let root = format!("{}/", root.display());
+    let root = Path::new(root.as_bytes()).map_err(|e| err(format!("ipc root {root:?}"), e))?;
+    cfg.global.set_root_path(&root);
     Ok(cfg)
+}
+
+/// A node of `prefix` in this user's namespace, with the shared-memory files checked.
+pub fn create_node(
+    builder: NodeBuilder,
+    prefix: &str,
+    what: &str,
+) -> Result<Node<ipc::Service>, IpcError> {
+    let node = builder
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| err(what, e))?;
+    namespace::claim_shm(prefix)?;
+    Ok(node)
 }
 
 /// One process's membership in a run: its iceoryx2 node and the run id.
@@ -156,12 +178,11 @@ impl Ipc {
         let mut cfg = ipc_config(prefix)?;
         cfg.global.node.cleanup_dead_nodes_on_creation = cleanup_on_create;
         let name = NodeName::new(process).map_err(|e| err("node name", e))?;
-        let node = NodeBuilder::new()
-            .name(&name)
-            .config(&cfg)
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<ipc::Service>()
-            .map_err(|e| err(format!("creating node {process}"), e))?;
+        let node = create_node(
+            NodeBuilder::new().name(&name).config(&cfg),
+            prefix,
+            &format!("creating node {process}"),
+        )?;
         Ok(Self {
             node,
             run_id: run_id.to_string(),

@@ -18,15 +18,25 @@ use crate::msg::{
     TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
 };
 use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::report::stream::{CsvPart, LogStream, Overflow};
 use crate::report::summary::{ControllerReport, ParamRecord};
 use crate::report::write_json;
-use crate::report::RunLog;
-use crate::rt::timing::Percentiles;
-use crate::rt::{apply_privileges, now_ns, sleep_until_ns, CycleTiming, TimingLog, TimingSummary};
+use crate::rt::{
+    apply_privileges, now_ns, sleep_until_ns, CycleTiming, TimingStats, TimingSummary,
+};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 const WHO: &str = "evoloop-controller";
+
+/// timing.csv's columns, logged after run.csv's in each row of the stream.
+const TIMING_COLUMNS: [&str; 5] = [
+    "cycle",
+    "lateness_ns",
+    "compute_ns",
+    "state_age_ns",
+    "flags",
+];
 
 struct Ports {
     params: Sub<ParamSet>,
@@ -38,8 +48,9 @@ struct Ports {
 /// Everything the loop writes into, allocated before it starts.
 struct Loop {
     cycle: ControlCycle,
-    log: RunLog,
-    timing: TimingLog,
+    /// run.csv's columns, then timing.csv's: streamed to disk by a writer thread.
+    log: LogStream,
+    timing: TimingStats,
     events: Vec<ParamEvent>,
     events_dropped: u64,
     overruns: u64,
@@ -58,7 +69,9 @@ struct Loop {
 }
 
 impl Loop {
-    fn new(scn: &Scenario) -> Self {
+    /// The loop, with run.csv and timing.csv created (an unwritable output directory is an
+    /// error here, before the run starts).
+    fn new(scn: &Scenario) -> Result<Self, String> {
         let plant = scn.build_plant();
         let (n_y, n_u, n_q) = (plant.n_outputs(), plant.n_inputs(), plant.n_joints());
         // Joint 0's reference keeps the name `reference`; joint-space trajectories add r1, r2, ...
@@ -80,13 +93,40 @@ impl Loop {
         let law = controller.log_columns();
         let n_law = law.len();
         header.extend(law);
-        let rows = scn.cycles() as usize + 2;
-        Self {
+        let dir = &scn.output.dir;
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        let w = header.len();
+        let timing_header: Vec<String> = TIMING_COLUMNS.iter().map(|s| s.to_string()).collect();
+        let width = w + timing_header.len();
+        let parts = vec![
+            CsvPart {
+                path: dir.join("run.csv"),
+                header,
+                columns: 0..w,
+            },
+            CsvPart {
+                path: dir.join("timing.csv"),
+                header: timing_header,
+                columns: w..width,
+            },
+        ];
+        // A second of cycles (at least 4096 rows), at most 16 MiB: the writer drains it every
+        // few milliseconds, so only a disk stalled for about a second costs rows. Lockstep
+        // waits for room instead, so its logs never depend on the writer's speed.
+        let rows = ((1.0 / scn.timing.period) as usize)
+            .max(4096)
+            .min((16 << 20) / (8 * width));
+        let overflow = match scn.timing.mode {
+            Mode::Lockstep => Overflow::Wait,
+            Mode::Realtime => Overflow::Drop,
+        };
+        let log = LogStream::start(parts, rows, overflow).map_err(|e| e.to_string())?;
+        Ok(Self {
             cycle: ControlCycle::new(controller, scn.reference.clone(), scn.bounds())
                 .with_stability_check(scn.linear_model()),
-            row: vec![0.0; header.len()],
-            log: RunLog::new(header, rows),
-            timing: TimingLog::with_capacity(rows),
+            row: vec![0.0; width],
+            log,
+            timing: TimingStats::default(),
             events: Vec::with_capacity(1024),
             events_dropped: 0,
             overruns: 0,
@@ -98,7 +138,7 @@ impl Loop {
             n_r,
             n_vel,
             n_law,
-        }
+        })
     }
 
     /// One cycle on `state`: parameters, law, command, telemetry, log. `woke_ns` is when the
@@ -147,13 +187,14 @@ impl Loop {
         tel.overruns = self.overruns;
         tel.missed = self.missed;
         ports.telemetry.send(&tel)?;
-        self.timing.push(CycleTiming {
+        let timing = CycleTiming {
             cycle: tel.cycle,
             lateness_ns,
             compute_ns: compute,
             state_age_ns: tel.state_age_ns,
             flags,
-        });
+        };
+        self.timing.record(&timing);
         let r = &mut self.row;
         r[0] = state.t;
         r[1] = tel.reference;
@@ -183,6 +224,12 @@ impl Loop {
         }
         j += self.n_vel;
         r[j..j + self.n_law].copy_from_slice(&tel.law[..self.n_law]);
+        j += self.n_law;
+        r[j] = timing.cycle as f64;
+        r[j + 1] = timing.lateness_ns as f64;
+        r[j + 2] = timing.compute_ns as f64;
+        r[j + 3] = timing.state_age_ns as f64;
+        r[j + 4] = timing.flags as f64;
         self.log.push(&self.row);
         Ok(())
     }
@@ -208,7 +255,10 @@ pub fn main(args: &ProcessArgs) {
         fail(WHO, EXIT_SETUP, &e.to_string());
     }
 
-    let mut lp = Loop::new(&scn);
+    let mut lp = match Loop::new(&scn) {
+        Ok(lp) => lp,
+        Err(e) => fail(WHO, EXIT_SETUP, &format!("cannot log the run: {e}")),
+    };
     let mut report = ControllerReport {
         mode: format!("{:?}", scn.timing.mode).to_lowercase(),
         ..Default::default()
@@ -223,7 +273,7 @@ pub fn main(args: &ProcessArgs) {
     };
     report.wall_s = t0.elapsed().as_secs_f64();
     report.interrupted = stop.load(Ordering::SeqCst);
-    finish(&scn, &lp, &mut report);
+    finish(&scn, lp, &mut report);
     if let Err((code, msg)) = result {
         fail(WHO, code, &msg);
     }
@@ -256,13 +306,15 @@ fn run_lockstep(
 ) -> Result<(), (i32, String)> {
     let spin = Duration::from_micros(scn.timing.spin_us);
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout);
-    // The first sample may take as long as the start-up of all processes.
+    // The first sample may take as long as the start-up of all processes. After that the plant
+    // may itself wait up to `timeout` for a stalled optimiser before it goes on without it, so
+    // the controller gives it twice that before calling it gone.
     let mut first = true;
     loop {
         let wait = if first {
             timeout.max(Duration::from_secs(10))
         } else {
-            timeout
+            2 * timeout
         };
         let Some(state) = next_state(ports, spin, wait, stop)? else {
             return Ok(());
@@ -336,19 +388,15 @@ fn run_realtime(
     Ok(())
 }
 
-fn finish(scn: &Scenario, lp: &Loop, report: &mut ControllerReport) {
+fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
     let dir = &scn.output.dir;
-    if let Err(e) = std::fs::create_dir_all(dir) {
-        eprintln!("{WHO}: cannot create {}: {e}", dir.display());
-        return;
-    }
-    let rows = lp.timing.rows();
-    report.cycles = rows.len() as u64;
+    let t = &lp.timing;
+    report.cycles = t.cycles;
     report.timing = TimingSummary {
-        cycles: rows.len() as u64,
-        lateness: Percentiles::from_samples(rows.iter().map(|r| r.lateness_ns)),
-        compute: Percentiles::from_samples(rows.iter().map(|r| r.compute_ns as i64)),
-        state_age: Percentiles::from_samples(rows.iter().map(|r| r.state_age_ns as i64)),
+        cycles: t.cycles,
+        lateness: t.lateness.percentiles(),
+        compute: t.compute.percentiles(),
+        state_age: t.state_age.percentiles(),
         overruns: lp.overruns,
         missed_deadlines: lp.missed,
         stale_states: lp.stale,
@@ -375,35 +423,12 @@ fn finish(scn: &Scenario, lp: &Loop, report: &mut ControllerReport) {
     report.final_version = lp.cycle.version();
     report.final_params = lp.cycle.controller.params().to_vec();
     report.pending_dropped = lp.cycle.pending_dropped;
-    report.log_dropped = lp.log.dropped + lp.events_dropped;
-    if let Err(e) = lp.log.write_csv(&dir.join("run.csv")) {
-        eprintln!("{WHO}: cannot write run.csv: {e}");
+    let dropped = lp.log.dropped;
+    let written = lp.log.finish();
+    if let Some(e) = &written.error {
+        eprintln!("{WHO}: writing run.csv / timing.csv failed: {e}; rows after the error are lost");
     }
-    let mut timing = RunLog::new(
-        [
-            "cycle",
-            "lateness_ns",
-            "compute_ns",
-            "state_age_ns",
-            "flags",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect(),
-        rows.len(),
-    );
-    for r in rows {
-        timing.push(&[
-            r.cycle as f64,
-            r.lateness_ns as f64,
-            r.compute_ns as f64,
-            r.state_age_ns as f64,
-            r.flags as f64,
-        ]);
-    }
-    if let Err(e) = timing.write_csv(&dir.join("timing.csv")) {
-        eprintln!("{WHO}: cannot write timing.csv: {e}");
-    }
+    report.log_dropped = dropped + lp.events_dropped;
     if let Err(e) = write_json(dir, "controller.json", report) {
         eprintln!("{WHO}: cannot write controller.json: {e}");
     }

@@ -74,7 +74,7 @@ fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Child> {
 /// leaves no run behind (Linux's PR_SET_PDEATHSIG). The signal follows the *thread* that
 /// spawned the child, so children are spawned from the launcher's main thread only. If the
 /// launcher died between the fork and the prctl, the child exits at once.
-fn die_with_parent(cmd: &mut std::process::Command) {
+pub(crate) fn die_with_parent(cmd: &mut std::process::Command) {
     use std::os::unix::process::CommandExt;
     // SAFETY: getpid before the fork; in the child only async-signal-safe calls (prctl,
     // getppid, _exit).
@@ -133,17 +133,10 @@ impl RunLock {
         Ok(RunLock { _file: f })
     }
 
-    /// The lock of run id `run_id` under IPC prefix `prefix`, in a directory of this user's
-    /// (mode 0700) under the temporary directory.
+    /// The lock of run id `run_id` under IPC prefix `prefix`, in this user's private directory
+    /// (`<tmp>/evoloop-<uid>/locks`, see `ipc::namespace`).
     fn for_run_id(prefix: &str, run_id: &str) -> Result<RunLock, String> {
-        use std::os::unix::fs::DirBuilderExt;
-        // SAFETY: getuid has no preconditions.
-        let uid = unsafe { libc::getuid() };
-        let dir = std::env::temp_dir().join(format!("evoloop-locks-{uid}"));
-        let _ = std::fs::DirBuilder::new()
-            .recursive(true)
-            .mode(0o700)
-            .create(&dir);
+        let dir = crate::ipc::namespace::user_subdir("locks").map_err(|e| e.to_string())?;
         let safe: String = format!("{prefix}-{run_id}")
             .chars()
             .map(|c| {
@@ -642,6 +635,13 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
     );
     for p in &pv.rejected {
         out!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
+    }
+    if let Some(first) = s.optimiser_stalls.first() {
+        out!(
+            "  optimiser: stalled {} time(s), the loop going on without it (first at sample {first}: reproducible up to there); paced again {} time(s)",
+            s.optimiser_stalls.len(),
+            s.optimiser_resumed
+        );
     }
     if let (Some(a), Some(af)) = (s.tracking_after_change, s.tracking_after_change_frozen) {
         let before = match (s.tracking_before_change, s.tracking_before_change_frozen) {

@@ -128,6 +128,9 @@ fn run_lockstep(
     let n_u = sim.plant.n_inputs();
     let mut u = [0.0; MAX_JOINTS];
     let mut msg = PlantState::default();
+    // Whether the optimiser paces the loop: it stops after one missed acknowledgement and comes
+    // back with the next one the optimiser sends.
+    let mut paced = true;
     for k in 0..=n {
         sim.sample(k, now_ns(), &u[..n_u], &mut msg);
         let ring = |ports: &Ports| ports.sync.ring().map_err(|e| (EXIT_SETUP, e.to_string()));
@@ -142,30 +145,9 @@ fn run_lockstep(
         if k % sync == 0 {
             // The optimiser sleeps between these samples and catches up on the queue here.
             ring(ports)?;
-            // The optimiser is not on the control path: while none is connected (it died and
-            // its resources were cleaned up, until a restarted one rejoins) the loop goes on.
-            let t_wait = std::time::Instant::now();
-            loop {
-                if ports.ack.publishers() == 0 {
-                    report.syncs_without_optimiser += 1;
-                    break;
-                }
-                let slice = Duration::from_millis(200).min(timeout);
-                let ack = ports
-                    .ack
-                    .wait_for(spin, slice, stop, |a: &OptimiserAck| a.through_seq >= k)
-                    .map_err(|e| (EXIT_SETUP, e.to_string()))?;
-                match ack {
-                    Waited::Got(_) => break,
-                    Waited::Stopped => return Ok(()),
-                    Waited::TimedOut if t_wait.elapsed() >= timeout => {
-                        return Err((
-                            EXIT_PEER_TIMEOUT,
-                            format!("optimiser did not acknowledge sample {k} within {timeout:?}"),
-                        ))
-                    }
-                    Waited::TimedOut => {}
-                }
+            wait_for_optimiser(ports, k, spin, timeout, stop, &mut paced, report)?;
+            if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                return Ok(());
             }
         }
         let cmd = match ports
@@ -187,6 +169,68 @@ fn run_lockstep(
         sim.advance(&u[..n_u], dt);
     }
     Ok(())
+}
+
+/// Lockstep: at synchronisation point `k`, wait until the optimiser has seen sample `k`, so its
+/// sets land at the same samples in every run of a seed.
+///
+/// The optimiser is not on the control path. While none is connected (it died and its resources
+/// were cleaned up, until a restarted one rejoins) the loop goes on. One that is connected but
+/// silent for `timeout` (stopped, swapped out, stuck) is no longer waited for: the loop goes on,
+/// the sample is recorded in `optimiser_stalls` (the run is reproducible only up to there), and
+/// pacing resumes with the next acknowledgement it sends, which, since its queue holds a whole
+/// interval, it will send for the sample the plant is at.
+fn wait_for_optimiser(
+    ports: &Ports,
+    k: u64,
+    spin: Duration,
+    timeout: Duration,
+    stop: &AtomicBool,
+    paced: &mut bool,
+    report: &mut PlantReport,
+) -> Result<(), (i32, String)> {
+    let io = |e: crate::ipc::IpcError| (EXIT_SETUP, e.to_string());
+    if ports.ack.publishers() == 0 {
+        report.syncs_without_optimiser += 1;
+        return Ok(());
+    }
+    if !*paced {
+        let mut heard = false;
+        while ports.ack.next().map_err(io)?.is_some() {
+            heard = true;
+        }
+        if !heard {
+            return Ok(());
+        }
+        *paced = true;
+        report.optimiser_resumed += 1;
+        eprintln!("plant: the optimiser acknowledges again; pacing it from sample {k}");
+    }
+    let t_wait = std::time::Instant::now();
+    loop {
+        let slice = Duration::from_millis(200).min(timeout);
+        match ports
+            .ack
+            .wait_for(spin, slice, stop, |a: &OptimiserAck| a.through_seq >= k)
+            .map_err(io)?
+        {
+            Waited::Got(_) | Waited::Stopped => return Ok(()),
+            Waited::TimedOut if t_wait.elapsed() >= timeout => {
+                *paced = false;
+                report.optimiser_stalls.push(k);
+                eprintln!(
+                    "plant: the optimiser did not acknowledge sample {k} within {timeout:?}; going \
+                     on without waiting for it (this lockstep run is reproducible up to here)"
+                );
+                return Ok(());
+            }
+            Waited::TimedOut if ports.ack.publishers() == 0 => {
+                report.syncs_without_optimiser += 1;
+                return Ok(());
+            }
+            Waited::TimedOut => {}
+        }
+    }
 }
 
 fn run_realtime(

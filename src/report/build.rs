@@ -274,6 +274,8 @@ pub fn build_report(
         interrupted,
         stale_resources_cleaned: cleaned,
         optimiser_restarts,
+        optimiser_stalls: plant.optimiser_stalls.clone(),
+        optimiser_resumed: plant.optimiser_resumed,
         accepted_versions: accepted.len(),
         rejected_versions: n_rejected,
         cost_per_repetition: reps.iter().map(|r| r.2).collect(),

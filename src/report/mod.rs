@@ -6,6 +6,7 @@ pub mod metrics;
 pub mod plot;
 pub mod seeds_study;
 pub mod stats;
+pub mod stream;
 pub mod summary;
 
 use std::io::{BufRead, BufWriter, Write};
@@ -18,8 +19,9 @@ pub fn write_json<T: serde::Serialize>(dir: &Path, name: &str, value: &T) -> std
     std::fs::write(dir.join(name), text + "\n")
 }
 
-/// A table of f64 rows with fixed width, allocated for the whole run up front so recording a
-/// row in the control cycle never allocates. Rows beyond the capacity are counted, not stored.
+/// A table of f64 rows with fixed width and capacity, allocated up front so recording a row
+/// never allocates; rows beyond the capacity are counted, not stored. (The control loop streams
+/// its log instead: `stream`.)
 pub struct RunLog {
     header: Vec<String>,
     data: Vec<f64>,
@@ -71,17 +73,22 @@ impl RunLog {
         let mut w = BufWriter::new(std::fs::File::create(path)?);
         writeln!(w, "{}", self.header.join(","))?;
         for i in 0..self.len() {
-            let row = self.row(i);
-            for (j, v) in row.iter().enumerate() {
-                if j > 0 {
-                    w.write_all(b",")?;
-                }
-                write!(w, "{v}")?;
-            }
-            w.write_all(b"\n")?;
+            write_row(&mut w, self.row(i))?;
         }
         w.flush()
     }
+}
+
+/// One CSV line: each number in its shortest exact decimal form (Rust's `Display` for f64), so
+/// equal runs give byte-identical files.
+pub fn write_row(w: &mut impl Write, row: &[f64]) -> std::io::Result<()> {
+    for (j, v) in row.iter().enumerate() {
+        if j > 0 {
+            w.write_all(b",")?;
+        }
+        write!(w, "{v}")?;
+    }
+    w.write_all(b"\n")
 }
 
 /// A CSV table read back: header and columns.

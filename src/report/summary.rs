@@ -45,6 +45,14 @@ pub struct PlantReport {
     /// Lockstep: synchronisation points passed without an optimiser (none connected).
     #[serde(default)]
     pub syncs_without_optimiser: u64,
+    /// Lockstep: samples at which a connected optimiser did not acknowledge within
+    /// `timing.lockstep_timeout`, so the loop went on without waiting for it. The run is
+    /// reproducible up to the first.
+    #[serde(default)]
+    pub optimiser_stalls: Vec<u64>,
+    /// Lockstep: times a stalled optimiser acknowledged again and paced the loop once more.
+    #[serde(default)]
+    pub optimiser_resumed: u64,
     pub commands_received: u64,
     pub interrupted: bool,
 }
@@ -137,6 +145,12 @@ pub struct Summary {
     pub stale_resources_cleaned: usize,
     /// Times the optimiser died and was started again to rejoin the run.
     pub optimiser_restarts: usize,
+    /// Lockstep: samples at which the optimiser stalled and the loop went on without it (the
+    /// run is reproducible up to the first), and how often it came back to pace the loop.
+    #[serde(default)]
+    pub optimiser_stalls: Vec<u64>,
+    #[serde(default)]
+    pub optimiser_resumed: u64,
     /// Parameter sets the controller put in service / refused during the run.
     pub accepted_versions: usize,
     pub rejected_versions: usize,

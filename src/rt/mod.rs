@@ -7,4 +7,4 @@ pub mod timing;
 
 pub use clock::{now_ns, sleep_until_ns};
 pub use privileges::{apply_privileges, RtGranted, RtRequest};
-pub use timing::{CycleTiming, TimingLog, TimingSummary};
+pub use timing::{CycleTiming, TimingStats, TimingSummary};

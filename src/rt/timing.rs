@@ -14,30 +14,81 @@ pub struct CycleTiming {
     pub flags: u32,
 }
 
-/// A fixed-capacity record: `push` never allocates; cycles beyond the capacity are counted, not
-/// stored.
-pub struct TimingLog {
-    rows: Vec<CycleTiming>,
-    pub dropped: u64,
+/// The loop's timing, accumulated cycle by cycle in fixed memory (three histograms), so a run
+/// of any length summarises exactly what it ran. `record` never allocates.
+#[derive(Default)]
+pub struct TimingStats {
+    pub cycles: u64,
+    pub lateness: Accumulator,
+    pub compute: Accumulator,
+    pub state_age: Accumulator,
 }
 
-impl TimingLog {
-    pub fn with_capacity(n: usize) -> Self {
-        Self {
-            rows: Vec::with_capacity(n),
-            dropped: 0,
-        }
-    }
+impl TimingStats {
     #[inline]
-    pub fn push(&mut self, row: CycleTiming) {
-        if self.rows.len() < self.rows.capacity() {
-            self.rows.push(row);
-        } else {
-            self.dropped += 1;
+    pub fn record(&mut self, c: &CycleTiming) {
+        self.cycles += 1;
+        self.lateness.record(c.lateness_ns);
+        self.compute.record(c.compute_ns as i64);
+        self.state_age.record(c.state_age_ns as i64);
+    }
+}
+
+/// Percentiles of a stream of nanosecond values, in fixed memory: a histogram of 3 significant
+/// digits from 1 ns to 60 s, with exact min, max and mean beside it.
+pub struct Accumulator {
+    h: Histogram<u64>,
+    min: i64,
+    max: i64,
+    sum: f64,
+    n: u64,
+}
+
+impl Default for Accumulator {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Accumulator {
+    pub fn new() -> Self {
+        Self {
+            h: Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3)
+                .expect("constant histogram bounds are valid"),
+            min: i64::MAX,
+            max: i64::MIN,
+            sum: 0.0,
+            n: 0,
         }
     }
-    pub fn rows(&self) -> &[CycleTiming] {
-        &self.rows
+
+    /// Negative values (early wake-ups) are clamped at 1 ns in the histogram but kept in the
+    /// minimum and the mean. No allocation: the histogram's size is fixed.
+    #[inline]
+    pub fn record(&mut self, s: i64) {
+        self.min = self.min.min(s);
+        self.max = self.max.max(s);
+        self.sum += s as f64;
+        self.n += 1;
+        self.h.saturating_record(s.max(1) as u64);
+    }
+
+    pub fn percentiles(&self) -> Percentiles {
+        if self.n == 0 {
+            return Percentiles::default();
+        }
+        let (min, max) = (self.min, self.max);
+        let q = |p: f64| self.h.value_at_quantile(p) as i64;
+        Percentiles {
+            count: self.n,
+            min_ns: min,
+            p50_ns: q(0.5).clamp(min, max),
+            p90_ns: q(0.9).clamp(min, max),
+            p99_ns: q(0.99).clamp(min, max),
+            p99_9_ns: q(0.999).clamp(min, max),
+            max_ns: max,
+            mean_ns: self.sum / self.n as f64,
+        }
     }
 }
 
@@ -58,33 +109,11 @@ impl Percentiles {
     /// From raw samples (negative lateness, i.e. early wake-ups, is clamped at 0 in the
     /// histogram but kept in `min_ns`).
     pub fn from_samples(samples: impl IntoIterator<Item = i64>) -> Self {
-        let mut h = Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3)
-            .expect("constant histogram bounds are valid");
-        let mut min = i64::MAX;
-        let mut max = i64::MIN;
-        let mut sum = 0.0;
-        let mut n = 0u64;
+        let mut a = Accumulator::new();
         for s in samples {
-            min = min.min(s);
-            max = max.max(s);
-            sum += s as f64;
-            n += 1;
-            h.saturating_record(s.max(1) as u64);
+            a.record(s);
         }
-        if n == 0 {
-            return Self::default();
-        }
-        let q = |p: f64| h.value_at_quantile(p) as i64;
-        Self {
-            count: n,
-            min_ns: min,
-            p50_ns: q(0.5).clamp(min, max),
-            p90_ns: q(0.9).clamp(min, max),
-            p99_ns: q(0.99).clamp(min, max),
-            p99_9_ns: q(0.999).clamp(min, max),
-            max_ns: max,
-            mean_ns: sum / n as f64,
-        }
+        a.percentiles()
     }
 }
 

@@ -154,14 +154,7 @@ fn hybrid_config(
 fn read(file: &Path) -> Result<RawTune, String> {
     let text =
         crate::check::read_text(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
-    serde_path_to_error::deserialize(toml::Deserializer::new(&text)).map_err(|e| {
-        let key = e.path().to_string();
-        bad(
-            file,
-            if key == "." { "" } else { &key },
-            e.into_inner().message(),
-        )
-    })
+    crate::check::from_toml(&text).map_err(|p| bad(file, &p.key, p.reason))
 }
 
 /// Read and validate an experiment file without running it.

@@ -89,26 +89,14 @@ pub fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&text).expect("valid JSON")
 }
 
-/// Files iceoryx2 left in shared memory and its directories under `prefix`, apart from the
-/// one global management segment per prefix that iceoryx2 keeps on purpose (shared by every run
-/// of that prefix, not owned by any one run).
+/// Files iceoryx2 left in shared memory and its directories under `prefix` (in this user's
+/// namespace), apart from the one global management segment per prefix that iceoryx2 keeps on
+/// purpose (shared by every run of that prefix, not owned by any one run).
 pub fn leftovers(prefix: &str) -> Vec<String> {
-    let mut found = Vec::new();
-    let mut scan = |dir: &Path| {
-        if let Ok(rd) = std::fs::read_dir(dir) {
-            for e in rd.flatten() {
-                let name = e.file_name().to_string_lossy().into_owned();
-                if name.starts_with(prefix) && !name.ends_with(".global_mgmt") {
-                    found.push(e.path().display().to_string());
-                }
-            }
-        }
-    };
-    scan(Path::new("/dev/shm"));
-    scan(Path::new("/tmp/iceoryx2"));
-    scan(Path::new("/tmp/iceoryx2/services"));
-    scan(Path::new("/tmp/iceoryx2/nodes"));
-    found
+    evoloop::ipc::namespace::files(prefix)
+        .into_iter()
+        .filter(|f| !f.ends_with(".global_mgmt"))
+        .collect()
 }
 
 /// Pids of live processes whose command line mentions `needle` (e.g. a run id).
@@ -165,7 +153,9 @@ pub fn forget_prefix(prefix: &str) {
     if let Ok(rd) = std::fs::read_dir("/dev/shm") {
         for e in rd.flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
-            if name.starts_with(prefix) && name.ends_with(".global_mgmt") {
+            if name.starts_with(&evoloop::ipc::namespace::user_prefix(prefix))
+                && name.ends_with(".global_mgmt")
+            {
                 let _ = std::fs::remove_file(e.path());
             }
         }
@@ -298,4 +288,22 @@ static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 pub fn alone() -> std::sync::MutexGuard<'static, ()> {
     ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Wait for `child` to exit, failing the test (and killing it) after `limit`.
+pub fn wait_exit(
+    child: &mut std::process::Child,
+    limit: std::time::Duration,
+) -> std::process::ExitStatus {
+    let t0 = std::time::Instant::now();
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return s;
+        }
+        if t0.elapsed() > limit {
+            let _ = child.kill();
+            panic!("the run did not end within {limit:?}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
 }

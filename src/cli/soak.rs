@@ -1,0 +1,266 @@
+//! `evoloop soak`: run a scenario in realtime for a long time with the optimiser tuning, and
+//! report per interval the memory of every process, missed deadlines and lateness (see
+//! `crate::soak`).
+
+use crate::config::{Overrides, Scenario};
+use crate::soak::{
+    drift, rss_kib, run_processes, shm_files, write, Interval, IntervalTiming, SoakReport, Tail,
+};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args)]
+pub struct SoakArgs {
+    /// Seconds to run (the README's figure: 3600).
+    #[arg(long)]
+    pub duration: f64,
+    /// Scenario to run in realtime [default: config/two_mass_indirect.toml, the indirect scheme
+    /// tuning all run long].
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Seconds between two records.
+    #[arg(long, default_value_t = 60.0)]
+    pub interval: f64,
+    /// Output directory: soak.json, soak.csv, soak_rss.png, soak_timing.png, and the run's own
+    /// report in `run/`.
+    #[arg(long, default_value = "runs/soak")]
+    pub out: PathBuf,
+    /// Without SCHED_FIFO, mlockall and CPU pinning (as an unprivileged user gets).
+    #[arg(long)]
+    pub no_rt: bool,
+    /// Print the report as JSON at the end instead of the summary lines.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn default_scenario() -> PathBuf {
+    let here = PathBuf::from("config/two_mass_indirect.toml");
+    if here.is_file() {
+        return here;
+    }
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml")
+}
+
+pub fn main(a: SoakArgs) -> ExitCode {
+    if !(a.duration.is_finite() && a.duration > 0.0) {
+        err!("error: --duration: must be a positive number of seconds");
+        return ExitCode::from(2);
+    }
+    if !(a.interval.is_finite() && a.interval >= 1.0) {
+        err!("error: --interval: must be at least 1 s");
+        return ExitCode::from(2);
+    }
+    let file = a.scenario.clone().unwrap_or_else(default_scenario);
+    let ov = Overrides {
+        duration: Some(a.duration),
+        ..Default::default()
+    };
+    let scn = match Scenario::load(&file, &ov) {
+        Ok(s) => s,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if let Err(e) = std::fs::create_dir_all(&a.out) {
+        err!("error: cannot create {}: {e}", a.out.display());
+        return ExitCode::from(2);
+    }
+    let run_dir = a.out.join("run");
+    let run_id = format!("soak-{}", std::process::id());
+    let prefix = crate::ipc::DEFAULT_PREFIX;
+    let shm_before = shm_files(prefix);
+    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("evoloop"));
+    let mut cmd = std::process::Command::new(exe);
+    cmd.arg("run")
+        .arg(&file)
+        .args(["--mode", "realtime", "--duration"])
+        .arg(a.duration.to_string())
+        .arg("--out")
+        .arg(&run_dir)
+        .args(["--run-id", &run_id, "--ipc-prefix", prefix, "--quiet"]);
+    if a.no_rt {
+        cmd.arg("--no-rt");
+    }
+    crate::node::launcher::die_with_parent(&mut cmd);
+    let stop = crate::cli::stop_flag();
+    let mut launcher = match cmd.spawn() {
+        Ok(c) => c,
+        Err(e) => {
+            err!("error: cannot start the run: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    out!(
+        "soak: {} for {} s in realtime, a record every {} s; run id {run_id}, output {}",
+        file.display(),
+        a.duration,
+        a.interval,
+        a.out.display()
+    );
+    let period_ns = scn.period_ns();
+    let mut tail = Tail::new(run_dir.join("timing.csv"));
+    let mut intervals: Vec<Interval> = Vec::new();
+    let t0 = Instant::now();
+    let mut next = a.interval;
+    let mut timing = IntervalTiming::new(period_ns);
+    let status = loop {
+        std::thread::sleep(Duration::from_millis(200));
+        tail.new_lines(|l| timing.line(l));
+        let ended = match launcher.try_wait() {
+            Ok(Some(s)) => Some(s),
+            Ok(None) => None,
+            Err(e) => {
+                err!("error: waiting for the run: {e}");
+                None
+            }
+        };
+        let t = t0.elapsed().as_secs_f64();
+        // A record every interval while the run goes on (not at its end: the processes are
+        // gone or going, and the last partial interval would look like a drop in memory).
+        if ended.is_none() && t >= next {
+            let rss_kib: BTreeMap<String, u64> = run_processes(&run_id, launcher.id())
+                .into_iter()
+                .filter_map(|(name, pid)| rss_kib(pid).map(|r| (name, r)))
+                .collect();
+            // Past the loop's end (the launcher measures the floor and writes its report) the
+            // processes are leaving: no more records.
+            if !rss_kib.contains_key("evoloop-controller") {
+                next = f64::INFINITY;
+                continue;
+            }
+            let done = std::mem::replace(&mut timing, IntervalTiming::new(period_ns));
+            let iv = Interval {
+                index: intervals.len(),
+                t_s: t,
+                rss_kib,
+                cycles: done.cycles,
+                missed_deadlines: done.missed,
+                overruns: done.overruns,
+                lateness: done.lateness.percentiles(),
+            };
+            let mib = |n: &str| {
+                iv.rss_kib
+                    .get(n)
+                    .map(|v| format!("{:.1}", *v as f64 / 1024.0))
+                    .unwrap_or_else(|| "-".into())
+            };
+            out!(
+                "  {:>6.1} / {:.1} min  RSS MiB: launcher {} plant {} controller {} optimiser {}  cycles {} missed {} lateness p99 {:.1} us",
+                t / 60.0,
+                a.duration / 60.0,
+                mib("evoloop"),
+                mib("evoloop-plant"),
+                mib("evoloop-controller"),
+                mib("evoloop-optimiser"),
+                iv.cycles,
+                iv.missed_deadlines,
+                iv.lateness.p99_ns as f64 / 1e3
+            );
+            intervals.push(iv);
+            next += a.interval;
+        }
+        if let Some(s) = ended {
+            break s;
+        }
+        if stop.load(Ordering::Relaxed) {
+            // Ctrl-C reached the launcher too (same process group); wait for its report.
+            if let Ok(s) = launcher.wait() {
+                break s;
+            }
+        }
+    };
+    // What the controller wrote after the last look (it flushes before it exits).
+    tail.new_lines(|l| timing.line(l));
+    // Deadlines missed over the whole run, including the last partial interval.
+    let all_missed: u64 = intervals.iter().map(|i| i.missed_deadlines).sum::<u64>() + timing.missed;
+    let all_cycles: u64 = intervals.iter().map(|i| i.cycles).sum::<u64>() + timing.cycles;
+    let per: Vec<f64> = intervals
+        .iter()
+        .map(|i| i.missed_deadlines as f64)
+        .collect();
+    let shm_after = shm_files(prefix);
+    let shm_left: Vec<String> = shm_after
+        .iter()
+        .filter(|f| !shm_before.contains(f))
+        .cloned()
+        .collect();
+    let report = SoakReport {
+        scenario: file.display().to_string(),
+        duration_s: a.duration,
+        interval_s: a.interval,
+        run_dir: run_dir.clone(),
+        run_id,
+        exit_code: status.code(),
+        rss: drift(&intervals),
+        misses_per_interval_median: if per.is_empty() {
+            0.0
+        } else {
+            crate::report::stats::median(&per)
+        },
+        misses_per_interval_max: intervals
+            .iter()
+            .map(|i| i.missed_deadlines)
+            .max()
+            .unwrap_or(0),
+        missed_deadlines: all_missed,
+        cycles: all_cycles,
+        intervals,
+        shm_before,
+        shm_after,
+        shm_left,
+    };
+    if let Err(e) = write(&a.out, &report) {
+        err!("error: writing the soak report: {e}");
+        return ExitCode::from(1);
+    }
+    if a.json {
+        out!(
+            "{}",
+            serde_json::to_string_pretty(&report).unwrap_or_default()
+        );
+    } else {
+        out!(
+            "soak: {} cycles, {} missed deadlines (per interval: median {}, max {}); run exit {:?}",
+            report.cycles,
+            report.missed_deadlines,
+            report.misses_per_interval_median,
+            report.misses_per_interval_max,
+            report.exit_code
+        );
+        for (name, d) in &report.rss {
+            out!(
+                "  {name:<19} RSS {:.1} MiB after the first interval, {:.1} MiB at the end ({:+} KiB, {:+.2} %), max {:.1} MiB",
+                d.first_kib as f64 / 1024.0,
+                d.last_kib as f64 / 1024.0,
+                d.drift_kib,
+                d.drift_pct,
+                d.max_kib as f64 / 1024.0
+            );
+        }
+        out!(
+            "  shared memory: {} file(s) before, {} after, {} left by the run{}",
+            report.shm_before.len(),
+            report.shm_after.len(),
+            report.shm_left.len(),
+            if report.shm_left.is_empty() {
+                String::new()
+            } else {
+                format!(": {}", report.shm_left.join(", "))
+            }
+        );
+        out!(
+            "  wrote {}/soak.json, soak.csv, soak_rss.png, soak_timing.png; the run's report in {}",
+            a.out.display(),
+            run_dir.display()
+        );
+    }
+    if status.success() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
+}

@@ -1,0 +1,406 @@
+//! `evoloop soak`: a long realtime run with the optimiser tuning, watched from outside.
+//!
+//! Every interval (a minute by default) it records the resident memory of every process of the
+//! run (launcher, plant, controller, optimiser: from /proc, found by the run id on their command
+//! lines, so a restarted optimiser is followed), and from the lines the controller has streamed
+//! to `timing.csv` since the last look: cycles, missed deadlines (whole periods a late wake-up
+//! skipped), overruns and lateness percentiles. It lists the run's shared-memory files before
+//! the start and after the end. The result: `soak.json`, `soak.csv` (one row per interval),
+//! `soak_rss.png` and `soak_timing.png`, beside the run's own report in `<out>/run/`.
+//!
+//! It watches without touching the run: no iceoryx2 port, only /proc and the streamed file.
+
+use crate::ipc::namespace;
+use crate::msg::TELEMETRY_FLAG_OVERRUN;
+use crate::rt::timing::{Accumulator, Percentiles};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+
+/// The processes of a run, by the name their command line starts with.
+pub const PROCESSES: [&str; 4] = [
+    "evoloop",
+    "evoloop-plant",
+    "evoloop-controller",
+    "evoloop-optimiser",
+];
+
+/// One interval of the soak.
+#[derive(Debug, Clone, Serialize)]
+pub struct Interval {
+    pub index: usize,
+    /// Wall time since the start at the end of the interval, s.
+    pub t_s: f64,
+    /// Resident memory per process (KiB); a process not running at that moment is absent.
+    pub rss_kib: BTreeMap<String, u64>,
+    pub cycles: u64,
+    pub missed_deadlines: u64,
+    pub overruns: u64,
+    pub lateness: Percentiles,
+}
+
+/// Resident memory of one process over the soak.
+#[derive(Debug, Clone, Serialize)]
+pub struct Drift {
+    /// At the end of the first interval (after start-up), KiB.
+    pub first_kib: u64,
+    pub last_kib: u64,
+    pub max_kib: u64,
+    /// last - first, KiB and per cent of first.
+    pub drift_kib: i64,
+    pub drift_pct: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SoakReport {
+    pub scenario: String,
+    pub duration_s: f64,
+    pub interval_s: f64,
+    pub run_dir: PathBuf,
+    pub run_id: String,
+    /// The launcher's exit code (0: the run ended normally).
+    pub exit_code: Option<i32>,
+    pub intervals: Vec<Interval>,
+    pub rss: BTreeMap<String, Drift>,
+    /// Missed deadlines per interval: median and largest.
+    pub misses_per_interval_median: f64,
+    pub misses_per_interval_max: u64,
+    pub missed_deadlines: u64,
+    pub cycles: u64,
+    /// This user's evoloop files in /dev/shm and iceoryx2's root before the start and after the
+    /// end, and those the run left (after but not before).
+    pub shm_before: Vec<String>,
+    pub shm_after: Vec<String>,
+    pub shm_left: Vec<String>,
+}
+
+/// Resident set size of `pid` in KiB (VmRSS), if it still runs.
+pub fn rss_kib(pid: u32) -> Option<u64> {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmRSS:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// The processes whose command line mentions `run_id` (and `launcher`, which may not), by the
+/// base name of their program.
+pub fn run_processes(run_id: &str, launcher: u32) -> Vec<(String, u32)> {
+    let mut out = Vec::new();
+    let Ok(rd) = std::fs::read_dir("/proc") else {
+        return out;
+    };
+    for e in rd.flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(cmd) = std::fs::read(e.path().join("cmdline")) else {
+            continue;
+        };
+        let args: Vec<String> = cmd
+            .split(|b| *b == 0)
+            .map(|a| String::from_utf8_lossy(a).into_owned())
+            .collect();
+        if pid != launcher && !args.iter().any(|a| a == run_id) {
+            continue;
+        }
+        let Some(prog) = args.first() else { continue };
+        let base = Path::new(prog)
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        // `evoloop plant ...` (a role of the one binary) counts as evoloop-plant.
+        let name = match (base.as_str(), args.get(1).map(String::as_str)) {
+            ("evoloop", Some(role @ ("plant" | "controller" | "optimiser"))) => {
+                format!("evoloop-{role}")
+            }
+            _ => base,
+        };
+        if PROCESSES.contains(&name.as_str()) {
+            out.push((name, pid));
+        }
+    }
+    out
+}
+
+/// Follows a CSV file another process appends to: each call returns the complete lines added
+/// since the last (a line still being written is kept for the next call).
+pub struct Tail {
+    path: PathBuf,
+    reader: Option<BufReader<std::fs::File>>,
+    partial: String,
+}
+
+impl Tail {
+    pub fn new(path: PathBuf) -> Self {
+        Self {
+            path,
+            reader: None,
+            partial: String::new(),
+        }
+    }
+
+    pub fn new_lines(&mut self, mut f: impl FnMut(&str)) {
+        if self.reader.is_none() {
+            let Ok(file) = std::fs::File::open(&self.path) else {
+                return; // not created yet
+            };
+            self.reader = Some(BufReader::new(file));
+        }
+        let r = self.reader.as_mut().expect("opened above");
+        loop {
+            let mut line = String::new();
+            match r.read_line(&mut line) {
+                Ok(0) | Err(_) => return,
+                Ok(_) => {}
+            }
+            self.partial.push_str(&line);
+            if !self.partial.ends_with('\n') {
+                return;
+            }
+            f(self.partial.trim_end());
+            self.partial.clear();
+        }
+    }
+}
+
+/// Timing of the cycles in one interval, from timing.csv's lines.
+pub struct IntervalTiming {
+    period_ns: u64,
+    pub cycles: u64,
+    pub missed: u64,
+    pub overruns: u64,
+    pub lateness: Accumulator,
+}
+
+impl IntervalTiming {
+    pub fn new(period_ns: u64) -> Self {
+        Self {
+            period_ns,
+            cycles: 0,
+            missed: 0,
+            overruns: 0,
+            lateness: Accumulator::new(),
+        }
+    }
+
+    /// One line of timing.csv (`cycle,lateness_ns,compute_ns,state_age_ns,flags`); the header
+    /// and anything unreadable are skipped.
+    pub fn line(&mut self, line: &str) {
+        let mut it = line.split(',');
+        let (Some(_), Some(late), Some(_), Some(_), Some(flags)) =
+            (it.next(), it.next(), it.next(), it.next(), it.next())
+        else {
+            return;
+        };
+        let (Ok(late), Ok(flags)) = (late.parse::<f64>(), flags.parse::<f64>()) else {
+            return;
+        };
+        let late = late as i64;
+        self.cycles += 1;
+        self.lateness.record(late);
+        // The loop skips the whole periods a late wake-up passed (controller.rs): those are the
+        // missed deadlines.
+        if late >= self.period_ns as i64 {
+            self.missed += late as u64 / self.period_ns;
+        }
+        if flags as u32 & TELEMETRY_FLAG_OVERRUN != 0 {
+            self.overruns += 1;
+        }
+    }
+}
+
+/// Summarise the intervals: resident memory drift per process and misses per interval.
+pub fn drift(intervals: &[Interval]) -> BTreeMap<String, Drift> {
+    let mut out = BTreeMap::new();
+    for name in PROCESSES {
+        let series: Vec<u64> = intervals
+            .iter()
+            .filter_map(|i| i.rss_kib.get(name).copied())
+            .collect();
+        let (Some(&first), Some(&last)) = (series.first(), series.last()) else {
+            continue;
+        };
+        out.insert(
+            name.to_string(),
+            Drift {
+                first_kib: first,
+                last_kib: last,
+                max_kib: series.iter().copied().max().unwrap_or(0),
+                drift_kib: last as i64 - first as i64,
+                drift_pct: if first > 0 {
+                    100.0 * (last as f64 - first as f64) / first as f64
+                } else {
+                    0.0
+                },
+            },
+        );
+    }
+    out
+}
+
+/// Write soak.json, soak.csv and the two plots into `dir`.
+pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
+    use crate::report::plot::{xy_png, Style, XySeries};
+    crate::report::write_json(dir, "soak.json", r).map_err(|e| e.to_string())?;
+    let mut csv = String::from("interval,t_s");
+    for p in PROCESSES {
+        csv.push_str(&format!(",rss_kib_{p}"));
+    }
+    csv.push_str(",cycles,missed_deadlines,overruns,lateness_p50_ns,lateness_p99_ns,lateness_p99_9_ns,lateness_max_ns\n");
+    for i in &r.intervals {
+        csv.push_str(&format!("{},{}", i.index, i.t_s));
+        for p in PROCESSES {
+            match i.rss_kib.get(p) {
+                Some(v) => csv.push_str(&format!(",{v}")),
+                None => csv.push(','),
+            }
+        }
+        let l = &i.lateness;
+        csv.push_str(&format!(
+            ",{},{},{},{},{},{},{}\n",
+            i.cycles, i.missed_deadlines, i.overruns, l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns
+        ));
+    }
+    std::fs::write(dir.join("soak.csv"), csv).map_err(|e| e.to_string())?;
+    let minutes: Vec<f64> = r.intervals.iter().map(|i| i.t_s / 60.0).collect();
+    let rss: Vec<(String, Vec<f64>, Vec<f64>)> = PROCESSES
+        .iter()
+        .map(|p| {
+            let (x, y): (Vec<f64>, Vec<f64>) = r
+                .intervals
+                .iter()
+                .zip(&minutes)
+                .filter_map(|(i, m)| i.rss_kib.get(*p).map(|v| (*m, *v as f64 / 1024.0)))
+                .unzip();
+            (p.to_string(), x, y)
+        })
+        .filter(|c| !c.1.is_empty())
+        .collect();
+    let series: Vec<XySeries> = rss
+        .iter()
+        .map(|(n, x, y)| XySeries {
+            name: n,
+            x,
+            y,
+            style: Style::Line,
+        })
+        .collect();
+    xy_png(
+        &dir.join("soak_rss.png"),
+        "Resident memory of each process",
+        "time (min)",
+        "RSS (MiB)",
+        &series,
+        None,
+        None,
+    )?;
+    let misses: Vec<f64> = r
+        .intervals
+        .iter()
+        .map(|i| i.missed_deadlines as f64)
+        .collect();
+    let p99: Vec<f64> = r
+        .intervals
+        .iter()
+        .map(|i| i.lateness.p99_ns as f64 / 1e3)
+        .collect();
+    let p999: Vec<f64> = r
+        .intervals
+        .iter()
+        .map(|i| i.lateness.p99_9_ns as f64 / 1e3)
+        .collect();
+    xy_png(
+        &dir.join("soak_timing.png"),
+        "Per interval: missed deadlines and wake-up lateness (us)",
+        "time (min)",
+        "count / us",
+        &[
+            XySeries {
+                name: "missed deadlines",
+                x: &minutes,
+                y: &misses,
+                style: Style::Points,
+            },
+            XySeries {
+                name: "lateness p99 (us)",
+                x: &minutes,
+                y: &p99,
+                style: Style::Line,
+            },
+            XySeries {
+                name: "lateness p99.9 (us)",
+                x: &minutes,
+                y: &p999,
+                style: Style::Line,
+            },
+        ],
+        None,
+        None,
+    )
+}
+
+/// This user's evoloop files under `prefix`: in /dev/shm and in iceoryx2's root.
+pub fn shm_files(prefix: &str) -> Vec<String> {
+    let mut v = namespace::files(prefix);
+    v.sort();
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_tail_returns_whole_lines_only() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.csv");
+        std::fs::write(&p, "a\nb\nc").unwrap();
+        let mut t = Tail::new(p.clone());
+        let mut got = Vec::new();
+        t.new_lines(|l| got.push(l.to_string()));
+        assert_eq!(got, ["a", "b"]);
+        use std::io::Write;
+        let mut f = std::fs::OpenOptions::new().append(true).open(&p).unwrap();
+        write!(f, "d\ne\n").unwrap();
+        got.clear();
+        t.new_lines(|l| got.push(l.to_string()));
+        assert_eq!(got, ["cd", "e"]);
+    }
+
+    #[test]
+    fn missed_deadlines_are_the_whole_periods_a_late_wake_up_skipped() {
+        let mut t = IntervalTiming::new(1_000_000);
+        t.line("cycle,lateness_ns,compute_ns,state_age_ns,flags");
+        t.line("1,5000,800,700,0");
+        t.line("2,2500000,800,700,6"); // 2.5 periods late: 2 skipped, overrun
+        t.line("3,999999,800,700,2");
+        assert_eq!((t.cycles, t.missed, t.overruns), (3, 2, 2));
+        assert_eq!(t.lateness.percentiles().max_ns, 2_500_000);
+    }
+
+    #[test]
+    fn drift_is_last_minus_first_per_process() {
+        let iv = |i: usize, rss: &[(&str, u64)]| Interval {
+            index: i,
+            t_s: 60.0 * (i + 1) as f64,
+            rss_kib: rss.iter().map(|(n, v)| (n.to_string(), *v)).collect(),
+            cycles: 0,
+            missed_deadlines: 0,
+            overruns: 0,
+            lateness: Percentiles::default(),
+        };
+        let d = drift(&[
+            iv(0, &[("evoloop-plant", 1000), ("evoloop-controller", 2000)]),
+            iv(1, &[("evoloop-plant", 1100)]),
+            iv(2, &[("evoloop-plant", 1050), ("evoloop-controller", 2000)]),
+        ]);
+        let p = &d["evoloop-plant"];
+        assert_eq!(
+            (p.first_kib, p.last_kib, p.max_kib, p.drift_kib),
+            (1000, 1050, 1100, 50)
+        );
+        assert!((p.drift_pct - 5.0).abs() < 1e-12);
+        assert_eq!(d["evoloop-controller"].drift_kib, 0);
+        assert!(!d.contains_key("evoloop-optimiser"));
+    }
+}
