@@ -18,40 +18,6 @@ fn realtime_config(dir: &std::path::Path) -> std::path::PathBuf {
     )
 }
 
-/// Start `evoloop run` in realtime mode and wait until all four processes are up.
-fn start(
-    cfg: &std::path::Path,
-    out: &std::path::Path,
-    prefix: &str,
-    run_id: &str,
-) -> std::process::Child {
-    let child = spawn_run(cfg, out, prefix, run_id);
-    let t0 = Instant::now();
-    while processes_with(run_id).len() < 4 {
-        assert!(
-            t0.elapsed() < Duration::from_secs(20),
-            "processes did not start"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    // Let the loop run a little.
-    std::thread::sleep(Duration::from_millis(1500));
-    child
-}
-
-/// Wait (up to 5 s) until no process of the run is left.
-fn wait_gone(run_id: &str) {
-    let t0 = Instant::now();
-    while !processes_with(run_id).is_empty() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(5),
-            "processes left: {:?}",
-            processes_with(run_id)
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 #[test]
 fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
     let tmp = tempfile::tempdir().unwrap();

@@ -167,7 +167,10 @@ pub fn main(a: SoakArgs) -> ExitCode {
             break s;
         }
         if stop.load(Ordering::Relaxed) {
-            // Ctrl-C reached the launcher too (same process group); wait for its report.
+            // A Ctrl-C at a terminal reaches the launcher too (same process group), a SIGINT or
+            // SIGTERM sent to this process alone does not: pass it on, then wait for its report.
+            // SAFETY: signalling our own child.
+            unsafe { libc::kill(launcher.id() as i32, libc::SIGINT) };
             if let Ok(s) = launcher.wait() {
                 break s;
             }

@@ -19,7 +19,12 @@ use crate::optim::GaConfig;
 use crate::plant::maglev::{Maglev, MaglevParams, G};
 use crate::plant::PlantModel;
 use crate::reference::Reference;
+use crate::report::history::History;
 use crate::sim::maglev::{self as mg, Spec};
+
+/// Estimates and epochs an optimiser keeps (an hour of 10 Hz estimates); beyond it the history
+/// thins evenly, so memory does not grow with the run.
+pub const HISTORY: usize = 36_000;
 
 /// Online estimate of the maglev's mass (kg) with its standard deviation.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -300,8 +305,9 @@ pub struct Indirect {
     budget: f64,
     evaluations_per_second: f64,
     next_record_t: f64,
-    pub estimates: Vec<Estimate>,
-    pub epochs: Vec<EpochRecord>,
+    /// Bounded: thinned evenly past `HISTORY` items (see `report::history`).
+    pub estimates: History<Estimate>,
+    pub epochs: History<EpochRecord>,
     /// The controller's acceptance check for linear plants, applied before publishing.
     check: Option<crate::control::LinearModel>,
 }
@@ -351,8 +357,8 @@ impl Indirect {
             budget: 0.0,
             evaluations_per_second: o.evaluations_per_second,
             next_record_t: 0.0,
-            estimates: Vec::new(),
-            epochs: Vec::new(),
+            estimates: History::new(HISTORY),
+            epochs: History::new(HISTORY),
             check: scn.linear_model(),
         })
     }
@@ -363,15 +369,19 @@ impl Indirect {
         self.in_service = params;
     }
 
-    /// Feed one state sample (in order; a gap restarts the estimator's differences).
-    pub fn observe(&mut self, s: &crate::msg::PlantState) {
+    /// Feed one state sample (in order; a gap restarts the estimator's differences). Returns
+    /// the estimate when one is due (every 0.1 s of plant time), which is also recorded.
+    pub fn observe(&mut self, s: &crate::msg::PlantState) -> Option<Estimate> {
         let prev = self.prev.filter(|p| s.seq == p.seq + 1);
         self.scheme.observe(prev.as_ref(), s);
         self.prev = Some(*s);
         if s.t >= self.next_record_t {
-            self.estimates.push(self.scheme.estimate(s.t));
+            let e = self.scheme.estimate(s.t);
+            self.estimates.push(e);
             self.next_record_t = s.t + 0.1;
+            return Some(e);
         }
+        None
     }
 
     pub fn estimate(&self, t: f64) -> Estimate {

@@ -160,10 +160,8 @@ fn run(
             report.commands_seen += 1;
         }
         if let Some(ind) = indirect.as_mut() {
-            let recorded = ind.estimates.len();
-            ind.observe(&state);
             // Each new 10 Hz record goes out as telemetry too.
-            if let Some(e) = ind.estimates.get(recorded) {
+            if let Some(e) = ind.observe(&state) {
                 let msg = ModelEstimate {
                     t: e.t,
                     value: e.value,
@@ -178,11 +176,11 @@ fn run(
         }
         if state.flags & STATE_FLAG_END != 0 {
             if let Some(ind) = indirect {
-                report.estimates = ind.estimates;
-                report.epochs = ind.epochs;
+                report.estimates = ind.estimates.into_vec();
+                report.epochs = ind.epochs.into_vec();
             }
             if let Some(l) = live {
-                report.epochs = l.epochs;
+                report.epochs = l.epochs.into_vec();
             }
             return Ok(());
         }

@@ -271,12 +271,17 @@ fn run_realtime(
             u[..n_u].copy_from_slice(&cmd.u[..n_u]);
             last_cmd = at;
             report.commands_received += 1;
+            report.samples_after_last_command = 0;
         }
         // Commands stopped: the safe command from the moment the timeout ran out.
         if !safe_mode && tick.saturating_sub(last_cmd) > timeout_ns {
             sim.advance(&u[..n_u], secs(last_cmd + timeout_ns) - sim.t);
             u[..n_u].copy_from_slice(&safe[..n_u]);
             safe_mode = true;
+            if report.first_safe_sample.is_none() {
+                report.first_safe_sample = Some(k);
+                report.first_safe_periods = Some((tick - last_cmd) as f64 / period as f64);
+            }
         }
         sim.advance(&u[..n_u], k as f64 * scn.timing.period - sim.t);
         sim.sample(k, now_ns(), &u[..n_u], &mut msg);
@@ -291,6 +296,7 @@ fn run_realtime(
         }
         publish(ports, &msg)?;
         report.samples += 1;
+        report.samples_after_last_command += 1;
     }
     Ok(())
 }

@@ -2,6 +2,7 @@
 //! writing/reading, response metrics (settling time, overshoot, IAE, ISE) and plots.
 
 pub mod build;
+pub mod history;
 pub mod metrics;
 pub mod plot;
 pub mod seeds_study;

@@ -42,6 +42,16 @@ pub struct PlantReport {
     pub rt: RtGranted,
     /// Samples during which the safe command was applied because commands had stopped.
     pub safe_samples: u64,
+    /// Realtime: the first sample at which the safe command was in force, and how many periods
+    /// after the last command it took over (the timeout plus the wait for the next sample).
+    #[serde(default)]
+    pub first_safe_sample: Option<u64>,
+    #[serde(default)]
+    pub first_safe_periods: Option<f64>,
+    /// Realtime: samples published since the last command arrived, at the end of the run (how
+    /// long the plant ran open-loop when its controller died before it was stopped).
+    #[serde(default)]
+    pub samples_after_last_command: u64,
     /// Lockstep: synchronisation points passed without an optimiser (none connected).
     #[serde(default)]
     pub syncs_without_optimiser: u64,

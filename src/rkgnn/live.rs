@@ -60,7 +60,8 @@ pub struct LiveIdentify {
     buf: VecDeque<Sample>,
     prev: Option<PlantState>,
     version: u64,
-    pub epochs: Vec<EpochRecord>,
+    /// Bounded like the indirect scheme's (`indirect::HISTORY`).
+    pub epochs: crate::report::history::History<EpochRecord>,
 }
 
 impl LiveIdentify {
@@ -89,7 +90,7 @@ impl LiveIdentify {
             buf: VecDeque::new(),
             prev: None,
             version: 0,
-            epochs: Vec::new(),
+            epochs: crate::report::history::History::new(crate::indirect::HISTORY),
         })
     }
 

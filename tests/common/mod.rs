@@ -307,3 +307,37 @@ pub fn wait_exit(
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
 }
+
+/// Start `evoloop run` in realtime mode and wait until all four processes are up.
+pub fn start(
+    cfg: &std::path::Path,
+    out: &std::path::Path,
+    prefix: &str,
+    run_id: &str,
+) -> std::process::Child {
+    let child = spawn_run(cfg, out, prefix, run_id);
+    let t0 = std::time::Instant::now();
+    while processes_with(run_id).len() < 4 {
+        assert!(
+            t0.elapsed() < std::time::Duration::from_secs(20),
+            "processes did not start"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    // Let the loop run a little.
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    child
+}
+
+/// Wait (up to 5 s) until no process of the run is left.
+pub fn wait_gone(run_id: &str) {
+    let t0 = std::time::Instant::now();
+    while !processes_with(run_id).is_empty() {
+        assert!(
+            t0.elapsed() < std::time::Duration::from_secs(5),
+            "processes left: {:?}",
+            processes_with(run_id)
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
