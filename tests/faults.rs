@@ -55,17 +55,6 @@ fn a_lockstep_optimiser_paused_past_the_timeout_does_not_fail_the_run() {
     forget_prefix(&prefix);
 }
 
-fn realtime_config(dir: &std::path::Path) -> std::path::PathBuf {
-    write(
-        dir,
-        "rt.toml",
-        &scenario(
-            "kind = \"step\"\namplitude = 1.0",
-            "mode = \"realtime\"\nduration = 60.0\nmeasure_floor = false",
-        ),
-    )
-}
-
 fn lockstep_config(dir: &std::path::Path) -> std::path::PathBuf {
     write(
         dir,

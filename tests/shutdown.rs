@@ -7,17 +7,6 @@ use common::*;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-fn realtime_config(dir: &std::path::Path) -> std::path::PathBuf {
-    write(
-        dir,
-        "rt.toml",
-        &scenario(
-            "kind = \"step\"\namplitude = 1.0",
-            "mode = \"realtime\"\nduration = 60.0\nmeasure_floor = false",
-        ),
-    )
-}
-
 #[test]
 fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
     let tmp = tempfile::tempdir().unwrap();

@@ -341,3 +341,16 @@ pub fn wait_gone(run_id: &str) {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
 }
+
+/// A 60 s realtime step run of the base scenario (no floor measurement), long enough for a test
+/// to disturb it and stop it.
+pub fn realtime_config(dir: &std::path::Path) -> std::path::PathBuf {
+    write(
+        dir,
+        "rt.toml",
+        &scenario(
+            "kind = \"step\"\namplitude = 1.0",
+            "mode = \"realtime\"\nduration = 60.0\nmeasure_floor = false",
+        ),
+    )
+}
