@@ -10,7 +10,6 @@
 //!
 //! It watches without touching the run: no iceoryx2 port, only /proc and the streamed file.
 
-use crate::ipc::namespace;
 use crate::msg::TELEMETRY_FLAG_OVERRUN;
 use crate::rt::timing::{Accumulator, Percentiles};
 use serde::Serialize;
@@ -82,9 +81,9 @@ pub fn rss_kib(pid: u32) -> Option<u64> {
     line.split_whitespace().nth(1)?.parse().ok()
 }
 
-/// The processes whose command line mentions `run_id` (and `launcher`, which may not), by the
-/// base name of their program.
-pub fn run_processes(run_id: &str, launcher: u32) -> Vec<(String, u32)> {
+/// The processes of run `run_id` (every one, the launcher included, has it as an argument:
+/// `--run-id`), by the name of their program. A zombie has no command line and is not listed.
+pub fn run_processes(run_id: &str) -> Vec<(String, u32)> {
     let mut out = Vec::new();
     let Ok(rd) = std::fs::read_dir("/proc") else {
         return out;
@@ -100,7 +99,7 @@ pub fn run_processes(run_id: &str, launcher: u32) -> Vec<(String, u32)> {
             .split(|b| *b == 0)
             .map(|a| String::from_utf8_lossy(a).into_owned())
             .collect();
-        if pid != launcher && !args.iter().any(|a| a == run_id) {
+        if !args.iter().any(|a| a == run_id) {
             continue;
         }
         let Some(prog) = args.first() else { continue };
@@ -337,13 +336,6 @@ pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
         None,
         None,
     )
-}
-
-/// This user's evoloop files under `prefix`: in /dev/shm and in iceoryx2's root.
-pub fn shm_files(prefix: &str) -> Vec<String> {
-    let mut v = namespace::files(prefix);
-    v.sort();
-    v
 }
 
 #[cfg(test)]

@@ -7,11 +7,6 @@ mod common;
 use common::*;
 use std::time::{Duration, Instant};
 
-fn signal(pid: u32, sig: i32) {
-    // SAFETY: signalling a process of this test's own run.
-    unsafe { libc::kill(pid as i32, sig) };
-}
-
 #[test]
 fn a_lockstep_optimiser_paused_past_the_timeout_does_not_fail_the_run() {
     // In lockstep the plant waits at each synchronisation point for the optimiser to have seen

@@ -14,6 +14,20 @@ fn tmp(tag: &str) -> tempfile::TempDir {
         .unwrap()
 }
 
+/// 30 s of the scenario through the processes in `mode`, then `identify lls --json` on its log.
+fn run_then_lls(cfg: &Path, out: &Path, tag: &str, mode: &str) -> serde_json::Value {
+    assert_ok(&run(cfg, out, tag, &["--duration", "30", "--mode", mode]));
+    stdout_json(&cli(&[
+        "identify",
+        "lls",
+        "--robot",
+        "config/robots/industrial6.toml",
+        "--data",
+        out.to_str().unwrap(),
+        "--json",
+    ]))
+}
+
 #[test]
 fn excitation_then_processes_then_lls_identify_the_wrist() {
     let scratch = tmp("wrist");
@@ -53,21 +67,7 @@ fn excitation_then_processes_then_lls_identify_the_wrist() {
         );
     let cfg = write(dir, "wrist.toml", &text);
     let out = dir.join("run");
-    assert_ok(&run(
-        &cfg,
-        &out,
-        "idw",
-        &["--duration", "30", "--mode", "lockstep"],
-    ));
-    let l = stdout_json(&cli(&[
-        "identify",
-        "lls",
-        "--robot",
-        "config/robots/industrial6.toml",
-        "--data",
-        out.to_str().unwrap(),
-        "--json",
-    ]));
+    let l = run_then_lls(&cfg, &out, "idw", "lockstep");
     let n = l["base"].as_array().unwrap().len();
     assert_eq!(n, 22);
     for key in ["base_true", "base_estimate", "relative_error"] {
@@ -89,22 +89,7 @@ fn excitation_then_processes_then_lls_identify_the_wrist() {
     assert!(out.join("lls.json").exists() && out.join("lls_validation_wrist.png").exists());
     // The same in realtime: the log is stamped by the states' times (late cycles leave gaps,
     // repeated states share a stamp) and put back on the regular grid.
-    let rt = dir.join("run_rt");
-    assert_ok(&run(
-        &cfg,
-        &rt,
-        "idwrt",
-        &["--duration", "30", "--mode", "realtime"],
-    ));
-    let l = stdout_json(&cli(&[
-        "identify",
-        "lls",
-        "--robot",
-        "config/robots/industrial6.toml",
-        "--data",
-        rt.to_str().unwrap(),
-        "--json",
-    ]));
+    let l = run_then_lls(&cfg, &dir.join("run_rt"), "idwrt", "realtime");
     let err = l["stages"][0]["relative_error_norm"].as_f64().unwrap();
     assert!(err < 0.05, "realtime: relative error (2-norm) {err}");
 }

@@ -139,7 +139,7 @@ fn the_control_cycle_allocates_nothing() {
         "the swap happened inside the measured cycles"
     );
     assert_eq!(sends, 3 * (n as u64 - 1));
-    assert_eq!(timing.cycles, n as u64);
+    assert_eq!(timing.cycles(), n as u64);
     assert_eq!(log.finish().rows, n as u64, "every row reached the file");
     assert_eq!(
         allocations - sends,

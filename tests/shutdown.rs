@@ -18,8 +18,7 @@ fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
         !leftovers(&prefix).is_empty(),
         "the running run has its shared memory"
     );
-    // SAFETY: signalling our own child.
-    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    signal(child.id(), libc::SIGINT);
     let status = wait_exit(&mut child, Duration::from_secs(15));
     assert_eq!(status.code(), Some(130), "interrupted runs exit with 130");
     wait_gone(&run_id);
@@ -42,8 +41,7 @@ fn a_killed_run_is_cleaned_up_by_the_next_start() {
     let (prefix, run_id) = unique("kill");
     let mut child = start(&cfg, &tmp.path().join("dead"), &prefix, &run_id);
     for pid in processes_with(&run_id) {
-        // SAFETY: these are this test's processes (their command line carries its run id).
-        unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+        signal(pid, libc::SIGKILL);
     }
     let _ = child.wait();
     wait_gone(&run_id);
@@ -84,8 +82,7 @@ fn a_child_that_dies_fails_the_run_and_the_others_are_stopped() {
     let (prefix, run_id) = unique("die");
     let mut child = start(&cfg, &tmp.path().join("out"), &prefix, &run_id);
     let plant = process_named(&run_id, "evoloop-plant");
-    // SAFETY: this test's own plant process.
-    unsafe { libc::kill(plant as i32, libc::SIGKILL) };
+    signal(plant, libc::SIGKILL);
     let status = wait_exit(&mut child, Duration::from_secs(15));
     assert_eq!(status.code(), Some(1), "a failed child fails the run");
     wait_gone(&run_id);
@@ -137,8 +134,7 @@ fn two_runs_cannot_share_a_run_id_or_an_output_directory() {
     );
     assert!(t0.elapsed() < Duration::from_secs(10), "refused at once");
     assert!(!tmp.path().join("b/summary.json").exists());
-    // SAFETY: signalling our own child.
-    unsafe { libc::kill(first.id() as i32, libc::SIGINT) };
+    signal(first.id(), libc::SIGINT);
     let status = wait_exit(&mut first, Duration::from_secs(15));
     assert_eq!(status.code(), Some(130));
     wait_gone(&run_id);
@@ -157,8 +153,7 @@ fn killing_the_launcher_outright_leaves_no_orphaned_process() {
     let (prefix, run_id) = unique("kill9");
     let mut child = start(&cfg, &out, &prefix, &run_id);
     let t0 = Instant::now();
-    // SAFETY: signalling our own child.
-    unsafe { libc::kill(child.id() as i32, libc::SIGKILL) };
+    signal(child.id(), libc::SIGKILL);
     let _ = child.wait();
     // Plant, controller and optimiser get SIGTERM from the kernel and stop (within 5 s, not at
     // the end of the 60 s scenario).
@@ -180,10 +175,9 @@ fn a_paused_optimiser_resumes_instead_of_failing_the_run() {
     let mut child = start(&cfg, &tmp.path().join("out"), &prefix, &run_id);
     let opt = process_named(&run_id, "evoloop-optimiser");
     for _ in 0..4 {
-        // SAFETY: this test's own optimiser process.
-        unsafe { libc::kill(opt as i32, libc::SIGSTOP) };
+        signal(opt, libc::SIGSTOP);
         std::thread::sleep(Duration::from_millis(300));
-        unsafe { libc::kill(opt as i32, libc::SIGCONT) };
+        signal(opt, libc::SIGCONT);
         std::thread::sleep(Duration::from_millis(300));
     }
     assert_eq!(
@@ -191,8 +185,7 @@ fn a_paused_optimiser_resumes_instead_of_failing_the_run() {
         opt,
         "the same optimiser runs on (not restarted)"
     );
-    // SAFETY: signalling our own child.
-    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    signal(child.id(), libc::SIGINT);
     let status = wait_exit(&mut child, Duration::from_secs(15));
     assert_eq!(status.code(), Some(130), "stopped by Ctrl-C, not failed");
     let s = json(&tmp.path().join("out/summary.json"));

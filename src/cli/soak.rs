@@ -4,7 +4,7 @@
 
 use crate::config::{Overrides, Scenario};
 use crate::soak::{
-    drift, rss_kib, run_processes, shm_files, write, Interval, IntervalTiming, SoakReport, Tail,
+    drift, rss_kib, run_processes, write, Interval, IntervalTiming, SoakReport, Tail,
 };
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -36,14 +36,6 @@ pub struct SoakArgs {
     pub json: bool,
 }
 
-fn default_scenario() -> PathBuf {
-    let here = PathBuf::from("config/two_mass_indirect.toml");
-    if here.is_file() {
-        return here;
-    }
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml")
-}
-
 pub fn main(a: SoakArgs) -> ExitCode {
     if !(a.duration.is_finite() && a.duration > 0.0) {
         err!("error: --duration: must be a positive number of seconds");
@@ -53,7 +45,10 @@ pub fn main(a: SoakArgs) -> ExitCode {
         err!("error: --interval: must be at least 1 s");
         return ExitCode::from(2);
     }
-    let file = a.scenario.clone().unwrap_or_else(default_scenario);
+    let file = a
+        .scenario
+        .clone()
+        .unwrap_or_else(|| crate::node::launcher::shipped("config/two_mass_indirect.toml"));
     let ov = Overrides {
         duration: Some(a.duration),
         ..Default::default()
@@ -72,7 +67,7 @@ pub fn main(a: SoakArgs) -> ExitCode {
     let run_dir = a.out.join("run");
     let run_id = format!("soak-{}", std::process::id());
     let prefix = crate::ipc::DEFAULT_PREFIX;
-    let shm_before = shm_files(prefix);
+    let shm_before = crate::ipc::namespace::files(prefix);
     let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("evoloop"));
     let mut cmd = std::process::Command::new(exe);
     cmd.arg("run")
@@ -122,7 +117,7 @@ pub fn main(a: SoakArgs) -> ExitCode {
         // A record every interval while the run goes on (not at its end: the processes are
         // gone or going, and the last partial interval would look like a drop in memory).
         if ended.is_none() && t >= next {
-            let rss_kib: BTreeMap<String, u64> = run_processes(&run_id, launcher.id())
+            let rss_kib: BTreeMap<String, u64> = run_processes(&run_id)
                 .into_iter()
                 .filter_map(|(name, pid)| rss_kib(pid).map(|r| (name, r)))
                 .collect();
@@ -185,7 +180,7 @@ pub fn main(a: SoakArgs) -> ExitCode {
         .iter()
         .map(|i| i.missed_deadlines as f64)
         .collect();
-    let shm_after = shm_files(prefix);
+    let shm_after = crate::ipc::namespace::files(prefix);
     let shm_left: Vec<String> = shm_after
         .iter()
         .filter(|f| !shm_before.contains(f))

@@ -40,10 +40,11 @@ pub enum ReferenceKind {
 pub const MAX_VALUE: f64 = 1e6;
 
 pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError> {
+    // A scalar value, bounded so that errors and their integrals (IAE, ISE) stay finite.
+    let value = |key: &str, x: f64| check.range(key, x, -MAX_VALUE, MAX_VALUE);
     let need = |key: &str, v: Option<f64>| -> Result<f64, ConfigError> {
         match v {
-            // Bounded so that errors and their integrals (IAE, ISE) stay finite.
-            Some(x) => check.range(&format!("reference.{key}"), x, -MAX_VALUE, MAX_VALUE),
+            Some(x) => value(&format!("reference.{key}"), x),
             None => check.fail(
                 &format!("reference.{key}"),
                 "missing (required for this reference kind)",
@@ -180,12 +181,7 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
             Ok(Reference::Square {
                 amplitude: need("amplitude", r.amplitude)?,
                 period,
-                offset: check.range(
-                    "reference.offset",
-                    r.offset.unwrap_or(0.0),
-                    -MAX_VALUE,
-                    MAX_VALUE,
-                )?,
+                offset: value("reference.offset", r.offset.unwrap_or(0.0))?,
                 start: check.range("reference.start", r.start.unwrap_or(0.0), 0.0, 1e9)?,
             })
         }
@@ -208,12 +204,7 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
             }
             for i in 0..times.len() {
                 check.finite(&format!("reference.times[{i}]"), times[i])?;
-                check.range(
-                    &format!("reference.values[{i}]"),
-                    values[i],
-                    -MAX_VALUE,
-                    MAX_VALUE,
-                )?;
+                value(&format!("reference.values[{i}]"), values[i])?;
                 if i > 0 && times[i] <= times[i - 1] {
                     return check.fail(
                         &format!("reference.times[{i}]"),

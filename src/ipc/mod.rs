@@ -379,14 +379,23 @@ pub struct Doorbell {
 }
 
 impl Doorbell {
-    /// Block until an announcement arrives or `timeout` passes.
-    /// A signal that interrupts the wait (SIGCONT after a SIGSTOP, a profiler's) is a spurious
-    /// wake-up, not an error: the callers loop and check their stop flag.
+    /// Block until an announcement arrives or `timeout` passes (a signal only wakes it early).
     pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
-        match self.listener.timed_wait(|_| {}, timeout) {
-            Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
-            Err(e) => Err(err(format!("wait on {}", self.topic.name()), e)),
-        }
+        listen(&self.listener, timeout, self.topic)
+    }
+}
+
+/// Block on `listener` until a notification arrives or `timeout` passes. Every blocking wait of
+/// the project goes through here: a signal that interrupts it (SIGCONT after a SIGSTOP, a
+/// profiler's) is a spurious wake-up, not an error; the callers loop and check their stop flag.
+fn listen(
+    listener: &Listener<ipc::Service>,
+    timeout: Duration,
+    topic: Topic,
+) -> Result<(), IpcError> {
+    match listener.timed_wait(|_| {}, timeout) {
+        Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
+        Err(e) => Err(err(format!("wait on {}", topic.name()), e)),
     }
 }
 
@@ -493,12 +502,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
                 continue;
             }
             match &self.listener {
-                Some(l) => match l.timed_wait(|_| {}, timeout - waited) {
-                    // Interrupted by a signal (e.g. SIGCONT after the process was stopped): look
-                    // again; the stop flag is the callers' business.
-                    Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-                    Err(e) => return Err(err(format!("wait on {}", self.topic.name()), e)),
-                },
+                Some(l) => listen(l, timeout - waited, self.topic)?,
                 None => std::hint::spin_loop(),
             }
         }

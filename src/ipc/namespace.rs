@@ -93,15 +93,8 @@ pub fn user_prefix(prefix: &str) -> String {
 /// After a node of `prefix` exists: refuse when a file in `/dev/shm` under this user's prefix
 /// belongs to someone else, and make ours owner-only.
 pub fn claim_shm(prefix: &str) -> Result<(), IpcError> {
-    let full = user_prefix(prefix);
-    let Ok(rd) = std::fs::read_dir(SHM_DIR) else {
-        return Ok(()); // no /dev/shm: nothing shared through files to guard
-    };
-    for e in rd.flatten() {
-        if !e.file_name().to_string_lossy().starts_with(&full) {
-            continue;
-        }
-        let path = e.path();
+    // Without /dev/shm there are no entries: nothing shared through files to guard.
+    for path in entries(Path::new(SHM_DIR), &user_prefix(prefix)) {
         // Gone between listing and looking: a run of ours ended meanwhile.
         let Ok(m) = std::fs::symlink_metadata(&path) else {
             continue;
@@ -136,24 +129,30 @@ pub fn claim_shm(prefix: &str) -> Result<(), IpcError> {
 }
 
 /// This user's files under `prefix`: in `/dev/shm` and in iceoryx2's root (its `services` and
-/// `nodes` directories), as paths.
+/// `nodes` directories), as sorted paths.
 pub fn files(prefix: &str) -> Vec<String> {
     let full = user_prefix(prefix);
-    let mut found = Vec::new();
-    let mut scan = |dir: &Path| {
-        if let Ok(rd) = std::fs::read_dir(dir) {
-            for e in rd.flatten() {
-                if e.file_name().to_string_lossy().starts_with(&full) {
-                    found.push(e.path().display().to_string());
-                }
-            }
-        }
-    };
-    scan(Path::new(SHM_DIR));
+    let mut dirs = vec![PathBuf::from(SHM_DIR)];
     if let Ok(root) = user_subdir("iceoryx2") {
-        scan(&root);
-        scan(&root.join("services"));
-        scan(&root.join("nodes"));
+        dirs.extend([root.join("services"), root.join("nodes"), root]);
     }
-    found
+    let mut v: Vec<String> = dirs
+        .iter()
+        .flat_map(|d| entries(d, &full))
+        .map(|p| p.display().to_string())
+        .collect();
+    v.sort();
+    v
+}
+
+/// The entries of `dir` whose names start with `start` (none when `dir` cannot be read).
+fn entries(dir: &Path, start: &str) -> Vec<PathBuf> {
+    std::fs::read_dir(dir)
+        .map(|rd| {
+            rd.flatten()
+                .filter(|e| e.file_name().to_string_lossy().starts_with(start))
+                .map(|e| e.path())
+                .collect()
+        })
+        .unwrap_or_default()
 }

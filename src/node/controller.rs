@@ -391,9 +391,9 @@ fn run_realtime(
 fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
     let dir = &scn.output.dir;
     let t = &lp.timing;
-    report.cycles = t.cycles;
+    report.cycles = t.cycles();
     report.timing = TimingSummary {
-        cycles: t.cycles,
+        cycles: t.cycles(),
         lateness: t.lateness.percentiles(),
         compute: t.compute.percentiles(),
         state_age: t.state_age.percentiles(),

@@ -22,11 +22,17 @@ const DEFAULT_SCENARIO: &str = "config/two_mass.toml";
 
 /// The default scenario, relative to the working directory or to the source tree.
 pub fn default_scenario() -> PathBuf {
-    let p = PathBuf::from(DEFAULT_SCENARIO);
+    shipped(DEFAULT_SCENARIO)
+}
+
+/// A file shipped with evoloop (`config/...`), relative to the working directory when it is
+/// there, else in the source tree.
+pub fn shipped(relative: &str) -> PathBuf {
+    let p = PathBuf::from(relative);
     if p.exists() {
         return p;
     }
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENARIO)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
 }
 
 /// The bare absolute-deadline sleep loop, in its own thread with the given priority.
@@ -313,16 +319,6 @@ pub fn run(a: RunArgs) -> ExitCode {
     // their reports or each other's shared memory. The locks are flock()s, released by the
     // kernel however this process ends, so a killed run never leaves a stale one; taking the
     // directory's also proves it is writable before anything starts.
-    let _dir_lock = match RunLock::take(
-        &dir.join(".evoloop.lock"),
-        &format!("output directory {}", dir.display()),
-    ) {
-        Ok(l) => l,
-        Err(e) => {
-            err!("error: {e}");
-            return ExitCode::from(2);
-        }
-    };
     let run_id = a.run_id.clone().unwrap_or_else(|| {
         format!(
             "{}-{:x}",
@@ -330,7 +326,12 @@ pub fn run(a: RunArgs) -> ExitCode {
             crate::rt::now_ns() & 0xffff_ffff
         )
     });
-    let _id_lock = match RunLock::for_run_id(&a.ipc_prefix, &run_id) {
+    let locks = RunLock::take(
+        &dir.join(".evoloop.lock"),
+        &format!("output directory {}", dir.display()),
+    )
+    .and_then(|d| Ok((d, RunLock::for_run_id(&a.ipc_prefix, &run_id)?)));
+    let _locks = match locks {
         Ok(l) => l,
         Err(e) => {
             err!("error: {e}");

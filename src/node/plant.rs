@@ -190,24 +190,25 @@ fn wait_for_optimiser(
     report: &mut PlantReport,
 ) -> Result<(), (i32, String)> {
     let io = |e: crate::ipc::IpcError| (EXIT_SETUP, e.to_string());
-    if ports.ack.publishers() == 0 {
-        report.syncs_without_optimiser += 1;
-        return Ok(());
-    }
-    if !*paced {
-        let mut heard = false;
-        while ports.ack.next().map_err(io)?.is_some() {
-            heard = true;
-        }
-        if !heard {
-            return Ok(());
-        }
-        *paced = true;
-        report.optimiser_resumed += 1;
-        eprintln!("plant: the optimiser acknowledges again; pacing it from sample {k}");
-    }
     let t_wait = std::time::Instant::now();
     loop {
+        if ports.ack.publishers() == 0 {
+            report.syncs_without_optimiser += 1;
+            return Ok(());
+        }
+        if !*paced {
+            // Not waited for since it stalled: take it back once it acknowledges anything.
+            let mut heard = false;
+            while ports.ack.next().map_err(io)?.is_some() {
+                heard = true;
+            }
+            if !heard {
+                return Ok(());
+            }
+            *paced = true;
+            report.optimiser_resumed += 1;
+            eprintln!("plant: the optimiser acknowledges again; pacing it from sample {k}");
+        }
         let slice = Duration::from_millis(200).min(timeout);
         match ports
             .ack
@@ -222,10 +223,6 @@ fn wait_for_optimiser(
                     "plant: the optimiser did not acknowledge sample {k} within {timeout:?}; going \
                      on without waiting for it (this lockstep run is reproducible up to here)"
                 );
-                return Ok(());
-            }
-            Waited::TimedOut if ports.ack.publishers() == 0 => {
-                report.syncs_without_optimiser += 1;
                 return Ok(());
             }
             Waited::TimedOut => {}

@@ -48,10 +48,6 @@ impl Ring {
         self.width
     }
 
-    pub fn capacity(&self) -> usize {
-        self.capacity as usize
-    }
-
     /// Append a row (`row.len()` is the width); false when the ring is full. Producer only.
     #[inline]
     pub fn try_push(&self, row: &[f64]) -> bool {
@@ -154,10 +150,6 @@ impl LogStream {
             overflow,
             dropped: 0,
         })
-    }
-
-    pub fn capacity(&self) -> usize {
-        self.ring.capacity()
     }
 
     /// Log one row. No allocation, no lock; with `Overflow::Wait` it may yield while full.

@@ -18,16 +18,19 @@ pub struct CycleTiming {
 /// of any length summarises exactly what it ran. `record` never allocates.
 #[derive(Default)]
 pub struct TimingStats {
-    pub cycles: u64,
     pub lateness: Accumulator,
     pub compute: Accumulator,
     pub state_age: Accumulator,
 }
 
 impl TimingStats {
+    /// Cycles recorded (each records one value of every quantity).
+    pub fn cycles(&self) -> u64 {
+        self.lateness.n
+    }
+
     #[inline]
     pub fn record(&mut self, c: &CycleTiming) {
-        self.cycles += 1;
         self.lateness.record(c.lateness_ns);
         self.compute.record(c.compute_ns as i64);
         self.state_age.record(c.state_age_ns as i64);

@@ -99,29 +99,12 @@ pub fn leftovers(prefix: &str) -> Vec<String> {
         .collect()
 }
 
-/// Pids of live processes whose command line mentions `needle` (e.g. a run id).
-pub fn processes_with(needle: &str) -> Vec<u32> {
-    let mut pids = Vec::new();
-    let me = std::process::id();
-    if let Ok(rd) = std::fs::read_dir("/proc") {
-        for e in rd.flatten() {
-            let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
-                continue;
-            };
-            if pid == me {
-                continue;
-            }
-            let Ok(cmd) = std::fs::read(e.path().join("cmdline")) else {
-                continue;
-            };
-            let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
-            // Zombies have an empty cmdline; they are gone as far as the run is concerned.
-            if cmd.contains(needle) {
-                pids.push(pid);
-            }
-        }
-    }
-    pids
+/// Pids of the live processes of run `run_id` (launcher and children).
+pub fn processes_with(run_id: &str) -> Vec<u32> {
+    evoloop::soak::run_processes(run_id)
+        .into_iter()
+        .map(|(_, pid)| pid)
+        .collect()
 }
 
 pub struct Csv {
@@ -181,12 +164,10 @@ pub fn spawn_run(config: &Path, out: &Path, prefix: &str, run_id: &str) -> std::
 pub fn process_named(run_id: &str, binary: &str) -> u32 {
     let t0 = std::time::Instant::now();
     loop {
-        let found = processes_with(run_id).into_iter().find(|p| {
-            std::fs::read(format!("/proc/{p}/cmdline"))
-                .map(|c| String::from_utf8_lossy(&c).contains(binary))
-                .unwrap_or(false)
-        });
-        if let Some(p) = found {
+        let found = evoloop::soak::run_processes(run_id)
+            .into_iter()
+            .find(|(name, _)| name == binary);
+        if let Some((_, p)) = found {
             return p;
         }
         assert!(
@@ -353,4 +334,10 @@ pub fn realtime_config(dir: &std::path::Path) -> std::path::PathBuf {
             "mode = \"realtime\"\nduration = 60.0\nmeasure_floor = false",
         ),
     )
+}
+
+/// Send `sig` to `pid`, a process of the calling test's own run.
+pub fn signal(pid: u32, sig: i32) {
+    // SAFETY: plain syscall; the tests signal only processes they started (found by run id).
+    unsafe { libc::kill(pid as i32, sig) };
 }
