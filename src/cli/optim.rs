@@ -67,9 +67,9 @@ pub struct StudyArgs {
     /// Default: all 37 and the shifted copies of the origin-centred ones.
     #[arg(long, value_delimiter = ',')]
     pub functions: Option<Vec<String>>,
-    /// Algorithms, comma-separated (default: emupso,pso,woa,gwo,goa,de,ga).
-    #[arg(long, value_delimiter = ',')]
-    pub algorithms: Option<Vec<String>>,
+    /// Algorithms, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = ALGORITHMS.map(String::from))]
+    pub algorithms: Vec<String>,
     /// Leave out the shifted copies (with the default function list).
     #[arg(long)]
     pub no_shifted: bool,
@@ -148,10 +148,7 @@ fn check_args(a: &StudyArgs) -> Result<Vec<String>, String> {
             a.population, a.evaluations
         ));
     }
-    let algorithms: Vec<String> = match &a.algorithms {
-        Some(v) => v.clone(),
-        None => ALGORITHMS.iter().map(|s| s.to_string()).collect(),
-    };
+    let algorithms = a.algorithms.clone();
     for name in &algorithms {
         if !ALGORITHMS.contains(&name.as_str()) {
             return Err(format!(

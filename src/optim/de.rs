@@ -190,28 +190,13 @@ struct Crossover<'a> {
 }
 
 impl Crossover<'_> {
-    /// `out` = the trial of `target` from the parents r1, r2, r3, one draw per component.
-    /// Compiled four lanes wide where the CPU has AVX2, without FMA, as `pso::Flight::particle`
-    /// (same results on every x86-64).
-    fn trial(&self, out: &mut [f64], parents: [&[f64]; 3], target: &[f64], draws: &[u64]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has just been checked for AVX2.
-            return unsafe { self.trial_avx2(out, parents, target, draws) };
-        }
-        self.trial_body(out, parents, target, draws)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn trial_avx2(
-        &self,
-        out: &mut [f64],
-        parents: [&[f64]; 3],
-        target: &[f64],
-        draws: &[u64],
-    ) {
-        self.trial_body(out, parents, target, draws)
+    super::wide_method! {
+        /// `out` = the trial of `target` from the parents r1, r2, r3, one draw per component;
+        /// four lanes wide where the CPU has AVX2 (`super::wide_method`), with the same
+        /// results on every x86-64.
+        fn trial, trial_avx2 => trial_body(
+            out: &mut [f64], parents: [&[f64]; 3], target: &[f64], draws: &[u64]
+        )
     }
 
     #[inline(always)]

@@ -297,9 +297,7 @@ fn simulate_all(cases: &[Case], threads: usize, done: &(dyn Fn() + Sync)) -> Vec
     })
 }
 
-/// A simulated case per joint (`sim::JointTraces`), with what the study reads off it.
-type Traces = JointTraces;
-
+/// What the study reads off a simulated case per joint.
 impl JointTraces {
     fn rms(&self) -> Vec<f64> {
         let (r, y) = self.columns();
@@ -486,17 +484,17 @@ pub fn run(
     ];
     write_scenarios(&cases)?;
     let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"));
-    let traces: Vec<Traces> = cases
+    let traces: Vec<JointTraces> = cases
         .iter()
         .zip(&sims)
-        .map(|(c, sim)| Traces::of(sim, &c.scenario.reference, JOINTS))
+        .map(|(c, sim)| JointTraces::of(sim, &c.scenario.reference, JOINTS))
         .collect();
     let runs = dir.join("runs");
     std::fs::create_dir_all(&runs).map_err(|e| format!("{}: {e}", runs.display()))?;
     for ((c, sim), tr) in cases.iter().zip(&sims).zip(&traces) {
         tr.write_csv(sim, &runs.join(format!("{}.csv", c.name)))?;
     }
-    let rms: Vec<Vec<f64>> = traces.iter().map(Traces::rms).collect();
+    let rms: Vec<Vec<f64>> = traces.iter().map(JointTraces::rms).collect();
     let tracking_rms = TrackingRms {
         pd: rms[0].clone(),
         ct_true: rms[1].clone(),
@@ -554,7 +552,7 @@ fn write_outputs(
     r: &StudyResult,
     dir: &Path,
     cases: &[Case],
-    traces: &[Traces],
+    traces: &[JointTraces],
     fuzzy: &SimResult,
 ) -> Result<(), String> {
     crate::report::write_json(dir, "study.json", r).map_err(io(&dir.join("study.json")))?;
@@ -659,7 +657,12 @@ fn sci(v: &[f64]) -> String {
 }
 
 /// Figs. 7-10 and the six controllers' error norms on the new trajectory.
-fn figures(dir: &Path, cases: &[Case], traces: &[Traces], fuzzy: &SimResult) -> Result<(), String> {
+fn figures(
+    dir: &Path,
+    cases: &[Case],
+    traces: &[JointTraces],
+    fuzzy: &SimResult,
+) -> Result<(), String> {
     // Fig. 7: the trajectories (training 1 and 2 from Figs. 8, 9's runs, the new one from pd).
     let (tr1, tr2, new) = (&traces[6], &traces[7], &traces[0]);
     let series = per_joint(&[
@@ -757,7 +760,7 @@ fn joint_panels<'a>(series: &'a [Vec<Series<'a>>]) -> Vec<Panel<'a>> {
 fn tracking_figure(
     path: &Path,
     title: &str,
-    tr: &Traces,
+    tr: &JointTraces,
     fuzzy: Option<&SimResult>,
 ) -> Result<(), String> {
     let joints = per_joint(&[("theta_d", &tr.r), ("theta", &tr.y)]);
