@@ -11,7 +11,7 @@ pub fn check(file: &Path) -> ExitCode {
                 err!("warning: {w}");
             }
             out!(
-                "{}: ok: scenario `{}`, plant {:?}, controller {:?}, reference {:?}, {} mode, period {} s, {} s ({} cycles), optimiser {:?} with {} scheduled set(s), output {}",
+                "{}: ok: scenario `{}`, plant {:?}, controller {:?}, reference {:?}, {} mode, period {} s, {}, optimiser {:?} with {} scheduled set(s), output {}",
                 file.display(),
                 s.name,
                 s.plant.kind(),
@@ -19,8 +19,11 @@ pub fn check(file: &Path) -> ExitCode {
                 s.reference,
                 format!("{:?}", s.timing.mode).to_lowercase(),
                 s.timing.period,
-                s.timing.duration,
-                s.cycles(),
+                if s.timing.until_stopped() {
+                    "until stopped (Ctrl-C)".to_string()
+                } else {
+                    format!("{} s ({} cycles)", s.timing.duration, s.cycles())
+                },
                 s.optimiser.mode,
                 s.optimiser.schedule.len(),
                 s.output.dir.display()

@@ -18,7 +18,7 @@ pub use crate::check::ConfigError;
 pub use crate::control::{ControllerKind, ControllerModel, ControllerSpec};
 pub use crate::plant::{PlantKind, PlantModel, PlantSpec};
 pub use optimiser::{OptimiserMode, OptimiserSpec, ScheduledSet, SetKind};
-pub use timing::{Mode, Timing};
+pub use timing::{parse_duration, Mode, Timing};
 
 use crate::check::Check;
 use crate::control::{Controller, ParamBounds, RawController};

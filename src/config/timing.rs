@@ -9,7 +9,8 @@ use serde::{Deserialize, Serialize};
 pub struct RawTiming {
     pub mode: Option<Mode>,
     pub period: f64,
-    pub duration: f64,
+    /// Omitted: the run goes on until it is stopped (Ctrl-C, SIGTERM).
+    pub duration: Option<f64>,
     pub spin_us: Option<u64>,
     pub lockstep_timeout: Option<f64>,
     pub phase: Option<f64>,
@@ -45,6 +46,8 @@ impl std::str::FromStr for Mode {
 pub struct Timing {
     pub mode: Mode,
     pub period: f64,
+    /// Simulated seconds; infinite for a run that goes on until it is stopped
+    /// (`until_stopped`), serialised as null.
     pub duration: f64,
     pub spin_us: u64,
     pub lockstep_timeout: f64,
@@ -57,16 +60,43 @@ pub struct Timing {
     pub measure_floor: bool,
 }
 
+impl Timing {
+    /// Whether the run goes on until it is stopped (no duration).
+    pub fn until_stopped(&self) -> bool {
+        self.duration == f64::INFINITY
+    }
+
+    /// The duration as JSON: null for a run until stopped.
+    pub fn duration_s(&self) -> Option<f64> {
+        (!self.until_stopped()).then_some(self.duration)
+    }
+}
+
+/// `--duration`: seconds, or `forever` (also `inf`) for a run until it is stopped.
+pub fn parse_duration(s: &str) -> Result<f64, String> {
+    match s {
+        "forever" | "inf" => Ok(f64::INFINITY),
+        _ => match s.parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+            _ => Err(format!(
+                "{s:?}: a number of seconds > 0, or `forever` (until Ctrl-C)"
+            )),
+        },
+    }
+}
+
 pub fn validate(t: RawTiming, check: &Check, ov: &Overrides) -> Result<Timing, ConfigError> {
     let period = check.range("timing.period", t.period, 1e-5, 10.0)?;
-    let duration = ov.duration.unwrap_or(t.duration);
+    let duration = ov.duration.or(t.duration).unwrap_or(f64::INFINITY);
     let key_d = if ov.duration.is_some() {
         "--duration"
     } else {
         "timing.duration"
     };
-    check.positive(key_d, duration)?;
-    if duration / period > 1e8 {
+    if duration != f64::INFINITY {
+        check.positive(key_d, duration)?;
+    }
+    if duration.is_finite() && duration / period > 1e8 {
         return check.fail(
             key_d,
             format!("{duration} s at a {period} s period is over 1e8 cycles"),

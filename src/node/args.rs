@@ -62,8 +62,9 @@ pub struct OverrideArgs {
     /// Timing mode: lockstep (reproducible, as fast as possible) or realtime (wall clock).
     #[arg(long)]
     pub mode: Option<Mode>,
-    /// Run length in simulated seconds.
-    #[arg(long)]
+    /// Run length in simulated seconds, or `forever` to run until Ctrl-C (as a scenario
+    /// without `timing.duration` does). Default: the scenario's.
+    #[arg(long, value_parser = crate::config::parse_duration)]
     pub duration: Option<f64>,
     /// Output directory for run.csv, summary.json and the plots.
     #[arg(long)]

@@ -403,12 +403,17 @@ pub fn run(a: RunArgs) -> ExitCode {
             }
         }
     }
+    let span = if scn.timing.until_stopped() {
+        "until stopped (Ctrl-C)".to_string()
+    } else {
+        format!("{} s", scn.timing.duration)
+    };
     if !a.quiet {
         err!(
-            "evoloop: run {run_id}: scenario `{}` ({} mode, {} s at {} s period), output {}",
+            "evoloop: run {run_id}: scenario `{}` ({} mode, {} at {} s period), output {}",
             scn.name,
             format!("{:?}", scn.timing.mode).to_lowercase(),
-            scn.timing.duration,
+            span,
             scn.timing.period,
             dir.display()
         );
@@ -488,8 +493,8 @@ pub fn run(a: RunArgs) -> ExitCode {
                     _ => String::new(),
                 };
                 err!(
-                    "  t = {:8.2} / {} s   e = {:+.4}   u = {:+.4}   params v{}   overruns {}   misses {}{model}",
-                    tel.t, scn.timing.duration, tel.tracking_error, tel.u[0], tel.param_version,
+                    "  t = {:8.2} s of {span}   e = {:+.4}   u = {:+.4}   params v{}   overruns {}   misses {}{model}",
+                    tel.t, tel.tracking_error, tel.u[0], tel.param_version,
                     tel.overruns, tel.missed
                 );
             }
@@ -534,7 +539,7 @@ pub fn run(a: RunArgs) -> ExitCode {
             "run_id": run_id,
             "mode": format!("{:?}", scn.timing.mode).to_lowercase(),
             "seed": scn.seed,
-            "duration_s": scn.timing.duration,
+            "duration_s": scn.timing.duration_s(),
             "wall_s": wall,
             "interrupted": interrupted,
             "optimiser_restarts": optimiser_restarts,
@@ -545,8 +550,10 @@ pub fn run(a: RunArgs) -> ExitCode {
         }
         return ExitCode::from(1);
     }
-    let floor = (scn.timing.mode == Mode::Realtime && scn.timing.measure_floor && !interrupted)
-        .then(|| {
+    // A run until stopped ends by being stopped: its floor is measured as any finished run's.
+    let ended = !interrupted || scn.timing.until_stopped();
+    let floor =
+        (scn.timing.mode == Mode::Realtime && scn.timing.measure_floor && ended).then(|| {
             let secs = scn.timing.duration.min(5.0);
             if !a.quiet {
                 err!("evoloop: measuring the bare sleep-loop floor for {secs} s");
@@ -560,10 +567,10 @@ pub fn run(a: RunArgs) -> ExitCode {
             return ExitCode::from(1);
         }
     }
-    if interrupted {
-        ExitCode::from(130)
-    } else {
+    if ended {
         ExitCode::SUCCESS
+    } else {
+        ExitCode::from(130)
     }
 }
 

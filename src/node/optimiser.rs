@@ -13,6 +13,7 @@ use crate::config::{Mode, OptimiserMode, Scenario};
 use crate::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
 use crate::msg::{Command, ModelEstimate, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END};
 use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::report::history::History;
 use crate::report::summary::{OptimiserReport, PublishedSet};
 use crate::report::write_json;
 use crate::rt::privileges::set_nice;
@@ -120,11 +121,14 @@ fn run(
     } else {
         None
     };
+    let mut published = History::new(crate::indirect::HISTORY);
     let mut last_state = Instant::now();
     let io = |e: IpcError| (EXIT_SETUP, e.to_string());
-    loop {
+    // Ends at the plant's last sample, at a stop request (a run until stopped ends so) or when
+    // the plant has gone; the histories go into the report in every case.
+    let result = loop {
         if stop.load(Ordering::Relaxed) {
-            return Ok(());
+            break Ok(());
         }
         let slice = Duration::from_millis(100);
         let got = if lockstep {
@@ -146,7 +150,7 @@ fn run(
             Wait::TimedOut => {
                 // In realtime the plant keeps sampling; silence this long means it is gone.
                 if last_state.elapsed() > timeout {
-                    return Err((
+                    break Err((
                         EXIT_PEER_TIMEOUT,
                         format!("no plant state within {timeout:?}"),
                     ));
@@ -175,14 +179,7 @@ fn run(
             l.observe(&state);
         }
         if state.flags & STATE_FLAG_END != 0 {
-            if let Some(ind) = indirect {
-                report.estimates = ind.estimates.into_vec();
-                report.epochs = ind.epochs.into_vec();
-            }
-            if let Some(l) = live {
-                report.epochs = l.epochs.into_vec();
-            }
-            return Ok(());
+            break Ok(());
         }
         let schedule = &scn.optimiser.schedule;
         if lockstep {
@@ -195,20 +192,20 @@ fn run(
                 if at > state.seq + sync {
                     break;
                 }
-                publish(scn, ports, next_set, at.max(state.seq + 1), report).map_err(io)?;
+                publish(scn, ports, next_set, at.max(state.seq + 1), &mut published).map_err(io)?;
                 next_set += 1;
             }
             // Paced by simulated time: the plant waits for the acknowledgement, so the epochs
             // run at the same samples in every run of a seed.
             if let Some(ind) = indirect.as_mut() {
                 if let Some(set) = ind.paced(state.t, sync as f64 * dt, state.seq + 1) {
-                    send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
+                    send_set(ports, &set, state.t, &mut published, &scn.output.dir).map_err(io)?;
                 }
             }
             // At fixed simulated times, the plant waiting: reproducible per seed.
             if let Some(l) = live.as_mut() {
                 if let Some(set) = l.attempt(state.t, state.seq + 1) {
-                    send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
+                    send_set(ports, &set, state.t, &mut published, &scn.output.dir).map_err(io)?;
                 }
             }
             ports
@@ -219,7 +216,7 @@ fn run(
                 .map_err(io)?;
         } else {
             while schedule_on && next_set < schedule.len() && state.t >= schedule[next_set].at {
-                publish(scn, ports, next_set, 0, report).map_err(io)?;
+                publish(scn, ports, next_set, 0, &mut published).map_err(io)?;
                 next_set += 1;
             }
             // Free-running: an epoch whenever the stream is caught up (samples that overflow
@@ -227,19 +224,31 @@ fn run(
             if let Some(ind) = indirect.as_mut() {
                 if !ports.state.has_pending().map_err(io)? {
                     if let Some(set) = ind.run_epoch(state.t, 0) {
-                        send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
+                        send_set(ports, &set, state.t, &mut published, &scn.output.dir)
+                            .map_err(io)?;
                     }
                 }
             }
             if let Some(l) = live.as_mut() {
                 if !ports.state.has_pending().map_err(io)? {
                     if let Some(set) = l.attempt(state.t, 0) {
-                        send_set(ports, &set, state.t, report, &scn.output.dir).map_err(io)?;
+                        send_set(ports, &set, state.t, &mut published, &scn.output.dir)
+                            .map_err(io)?;
                     }
                 }
             }
         }
+    };
+    if let Some(ind) = indirect {
+        report.estimates = ind.estimates.into_vec();
+        report.epochs = ind.epochs.into_vec();
     }
+    if let Some(l) = live {
+        report.epochs = l.epochs.into_vec();
+    }
+    report.published_count = published.offered();
+    report.published = published.into_vec();
+    result
 }
 
 /// Every published set is appended to this journal at once (a killed optimiser writes no
@@ -259,8 +268,16 @@ fn journal(dir: &std::path::Path, set: &ParamSet, t: f64) {
 }
 
 /// The last set in the journal: its version and values.
+/// Only the journal's tail is read: it grows with the run, which may have no end.
 fn last_published(dir: &std::path::Path) -> Option<(u64, Vec<f64>)> {
-    let text = std::fs::read_to_string(dir.join(JOURNAL)).ok()?;
+    use std::io::{Read, Seek, SeekFrom};
+    const TAIL: u64 = 64 * 1024;
+    let mut f = std::fs::File::open(dir.join(JOURNAL)).ok()?;
+    let len = f.metadata().ok()?.len();
+    f.seek(SeekFrom::Start(len.saturating_sub(TAIL))).ok()?;
+    let mut tail = Vec::new();
+    f.take(TAIL).read_to_end(&mut tail).ok()?;
+    let text = String::from_utf8_lossy(&tail);
     let v: serde_json::Value = serde_json::from_str(text.lines().last()?).ok()?;
     let values = v["values"]
         .as_array()?
@@ -274,13 +291,13 @@ fn send_set(
     ports: &Ports,
     set: &ParamSet,
     t: f64,
-    report: &mut OptimiserReport,
+    published: &mut History<PublishedSet>,
     dir: &std::path::Path,
 ) -> Result<(), IpcError> {
     // Journal first: a set the controller may have received is always on record for a restart.
     journal(dir, set, t);
     ports.params.send(set)?;
-    report.published.push(PublishedSet {
+    published.push(PublishedSet {
         version: set.version,
         at: t,
         apply_at_seq: set.apply_at_seq,
@@ -294,12 +311,12 @@ fn publish(
     ports: &Ports,
     i: usize,
     apply_at_seq: u64,
-    report: &mut OptimiserReport,
+    published: &mut History<PublishedSet>,
 ) -> Result<(), IpcError> {
     let set = scheduled_set(scn, i, apply_at_seq);
     journal(&scn.output.dir, &set, scn.optimiser.schedule[i].at);
     ports.params.send(&set)?;
-    report.published.push(PublishedSet {
+    published.push(PublishedSet {
         version: set.version,
         at: scn.optimiser.schedule[i].at,
         apply_at_seq,

@@ -92,11 +92,16 @@ fn windowed_rms(t: &[f64], refs: &[&[f64]], ys: &[&[f64]], width: f64) -> (Vec<f
     (centres, values)
 }
 
+/// The longest run the frozen comparison is simulated for, s: the simulation keeps its whole
+/// log in memory (about 0.2 KB per sample), so a long run until stopped is reported without it.
+pub const FROZEN_LIMIT_S: f64 = 600.0;
+
 /// The scenario with the optimiser off, simulated in-process (the same plant and controller
-/// code, bit-identical to a lockstep run of the processes), per joint.
-fn frozen_traces(scn: &Scenario) -> JointTraces {
+/// code, bit-identical to a lockstep run of the processes) for `span` s, per joint.
+fn frozen_traces(scn: &Scenario, span: f64) -> JointTraces {
     let mut f = scn.clone();
     f.optimiser.mode = crate::config::OptimiserMode::Off;
+    f.timing.duration = span;
     JointTraces::of(
         &crate::sim::simulate(&f),
         &scn.reference,
@@ -174,11 +179,20 @@ pub fn build_report(
     // seed with the optimiser off. The indirect scheme is judged on its cost per repetition,
     // identification (below) on tracking.
     use crate::config::OptimiserMode;
-    let frozen_traces = matches!(
+    let until_stopped = scn.timing.until_stopped();
+    let span = if until_stopped {
+        horizon
+    } else {
+        scn.timing.duration
+    };
+    let compare = matches!(
         scn.optimiser.mode,
         OptimiserMode::Indirect | OptimiserMode::Identify
-    )
-    .then(|| frozen_traces(scn));
+    );
+    if compare && span > FROZEN_LIMIT_S {
+        eprintln!("evoloop: note: the run is longer than {FROZEN_LIMIT_S} s; the frozen comparison is left out of the report");
+    }
+    let frozen_traces = (compare && span <= FROZEN_LIMIT_S).then(|| frozen_traces(scn, span));
     let frozen: Vec<(f64, f64, f64)> = match &frozen_traces {
         Some(f) if scn.optimiser.mode == OptimiserMode::Indirect => {
             let named = |p: &str, c: &[Vec<f64>]| vec![(format!("{p}0"), c[0].clone())];
@@ -202,7 +216,8 @@ pub fn build_report(
             )
         })
     };
-    let quarter = 0.75 * scn.timing.duration;
+    // The last quarter of the scenario, or of what ran of a run until stopped.
+    let quarter = 0.75 * span;
     let after = |reps: &[(f64, f64, f64)]| {
         mean(
             reps.iter()
@@ -238,13 +253,20 @@ pub fn build_report(
     };
     let interrupted = ctrl.interrupted || plant.interrupted || opt.interrupted;
     let summary = Summary {
-        outcome: if interrupted { "interrupted" } else { "ok" }.into(),
+        outcome: if interrupted && !until_stopped {
+            "interrupted"
+        } else {
+            "ok"
+        }
+        .into(),
         scenario: scn.name.clone(),
         config: scn.source.display().to_string(),
         run_id: run_id.to_string(),
         mode: ctrl.mode.clone(),
         seed: scn.seed,
-        duration_s: scn.timing.duration,
+        duration_s: scn.timing.duration_s(),
+        ran_s: horizon,
+        until_stopped,
         period_s: scn.timing.period,
         samples: ctrl.cycles,
         wall_s,
@@ -270,7 +292,7 @@ pub fn build_report(
         },
         floor,
         plant_safe_samples: plant.safe_samples,
-        optimiser_published: opt.published.len(),
+        optimiser_published: opt.published_count as usize,
         interrupted,
         stale_resources_cleaned: cleaned,
         optimiser_restarts,

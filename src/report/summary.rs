@@ -80,7 +80,12 @@ pub struct OptimiserReport {
     pub mode: String,
     pub states_seen: u64,
     pub commands_seen: u64,
+    /// The sets published, thinned evenly past `indirect::HISTORY` like the estimates
+    /// (`published.jsonl` has every one).
     pub published: Vec<PublishedSet>,
+    /// How many sets were published.
+    #[serde(default)]
+    pub published_count: u64,
     pub nice: Option<i32>,
     pub interrupted: bool,
     /// Indirect mode: the model estimate over time (every 0.1 s of plant time).
@@ -123,8 +128,9 @@ pub struct RealtimePrivileges {
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct Summary {
-    /// "ok", "interrupted" (Ctrl-C: what ran so far) or "failed" (a process failed; the
-    /// launcher then writes a short summary.json with the reasons instead of this one).
+    /// "ok", "interrupted" (Ctrl-C before the scenario's duration: what ran so far) or "failed"
+    /// (a process failed; the launcher then writes a short summary.json with the reasons
+    /// instead of this one). A run until stopped that is stopped is "ok": that is its end.
     #[serde(default)]
     pub outcome: String,
     pub scenario: String,
@@ -132,7 +138,14 @@ pub struct Summary {
     pub run_id: String,
     pub mode: String,
     pub seed: u64,
-    pub duration_s: f64,
+    /// The scenario's duration; null for a run until stopped.
+    pub duration_s: Option<f64>,
+    /// Simulated seconds that ran: the last sample's time.
+    #[serde(default)]
+    pub ran_s: f64,
+    /// The run had no duration and went on until it was stopped.
+    #[serde(default)]
+    pub until_stopped: bool,
     pub period_s: f64,
     pub samples: u64,
     pub wall_s: f64,

@@ -110,8 +110,14 @@ impl JointTraces {
 }
 
 /// Simulate the scenario in lockstep in this process, scheduled parameter sets included when
-/// the scenario's optimiser mode is `schedule`.
+/// the scenario's optimiser mode is `schedule`. The result holds every sample, so the scenario
+/// needs a duration: callers refuse a run until stopped first.
 pub fn simulate(scn: &Scenario) -> SimResult {
+    assert!(
+        !scn.timing.until_stopped(),
+        "sim::simulate: scenario `{}` has no duration",
+        scn.name
+    );
     let mut plant = PlantSim::new(
         scn.build_plant(),
         scn.plant.step,
