@@ -1,95 +1,198 @@
 //! Assemble the run report from what the processes wrote: `summary.json` and `response.png`.
 
-use super::metrics::response_metrics;
+use super::metrics::{ResponseAcc, TrackingAcc};
 use super::plot::{two_panel_png, Panel, Series};
+use super::scan::{Extent, PlotColumns, Rows};
 use super::summary::{
     ControllerReport, FloorReport, OptimiserReport, ParamVersions, PlantReport, RealtimePrivileges,
     Summary,
 };
-use super::Table;
 use crate::config::Scenario;
 use crate::sim::cost::TrackingCost;
 use crate::sim::JointTraces;
 use crate::MAX_JOINTS;
 use std::path::Path;
 
-/// Cost per repetition of a repeating (square-wave) reference: (start, end, sum |e| + w sum |u|)
-/// over each whole period; empty for other references.
-fn repetitions(
-    scn: &Scenario,
-    t: &[f64],
-    refs: &[Vec<f64>],
-    ys: &[(String, Vec<f64>)],
-    us: &[(String, Vec<f64>)],
-) -> Vec<(f64, f64, f64)> {
-    let crate::reference::Reference::Square { period, start, .. } = scn.reference else {
-        return Vec::new();
-    };
-    let w = scn.optimiser.cost_u_weight;
-    let mut out: Vec<(f64, f64, TrackingCost)> = Vec::new();
-    let (mut rk, mut yk, mut uk) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
-    // Outputs are paired with their references; at most MAX_JOINTS of each.
-    let (ny, nu) = (
-        refs.len().min(ys.len()).min(MAX_JOINTS),
-        us.len().min(MAX_JOINTS),
-    );
-    for (k, tk) in t.iter().enumerate() {
-        if *tk < start {
-            continue;
-        }
-        let j = ((tk - start) / period).floor();
-        let (a, b) = (start + j * period, start + (j + 1.0) * period);
-        if b > t.last().copied().unwrap_or(0.0) + 1.5 * scn.timing.period {
-            break; // an incomplete last repetition
-        }
-        if out.last().is_none_or(|r| r.0 != a) {
-            out.push((a, b, TrackingCost::new(w)));
-        }
-        for (i, (r, (_, y))) in refs.iter().zip(ys).take(ny).enumerate() {
-            (rk[i], yk[i]) = (r[k], y[k]);
-        }
-        for (i, (_, u)) in us.iter().take(nu).enumerate() {
-            uk[i] = u[k];
-        }
-        let rep = &mut out.last_mut().expect("pushed above").2;
-        rep.add(&rk[..ny], &yk[..ny], &uk[..nu]);
+/// Cost per repetition of a repeating (square-wave) reference, one sample at a time:
+/// (start, end, sum |e| + w sum |u|) over each whole period.
+struct Repetitions {
+    period: f64,
+    start: f64,
+    /// Repetitions ending after this are incomplete (the run ended within them).
+    limit: f64,
+    w: f64,
+    done: bool,
+    out: Vec<(f64, f64, TrackingCost)>,
+}
+
+impl Repetitions {
+    /// None for a reference that does not repeat.
+    fn new(scn: &Scenario, t_last: f64) -> Option<Self> {
+        let crate::reference::Reference::Square { period, start, .. } = scn.reference else {
+            return None;
+        };
+        Some(Self {
+            period,
+            start,
+            limit: t_last + 1.5 * scn.timing.period,
+            w: scn.optimiser.cost_u_weight,
+            done: false,
+            out: Vec::new(),
+        })
     }
-    out.into_iter().map(|(a, b, c)| (a, b, c.total)).collect()
+
+    /// One sample: references and outputs pairwise (at most MAX_JOINTS), inputs `u`.
+    fn add(&mut self, t: f64, r: &[f64], y: &[f64], u: &[f64]) {
+        if self.done || t < self.start {
+            return;
+        }
+        let j = ((t - self.start) / self.period).floor();
+        let (a, b) = (
+            self.start + j * self.period,
+            self.start + (j + 1.0) * self.period,
+        );
+        if b > self.limit {
+            self.done = true; // an incomplete last repetition
+            return;
+        }
+        if self.out.last().is_none_or(|r| r.0 != a) {
+            self.out.push((a, b, TrackingCost::new(self.w)));
+        }
+        let ny = r.len().min(y.len()).min(MAX_JOINTS);
+        let nu = u.len().min(MAX_JOINTS);
+        let rep = &mut self.out.last_mut().expect("pushed above").2;
+        rep.add(&r[..ny], &y[..ny], &u[..nu]);
+    }
+
+    fn finish(self) -> Vec<(f64, f64, f64)> {
+        self.out
+            .into_iter()
+            .map(|(a, b, c)| (a, b, c.total))
+            .collect()
+    }
 }
 
 /// The width of the windows of `identify.png`'s tracking RMS, s.
 const IDENTIFY_PLOT_WINDOW: f64 = 0.5;
 
 /// Tracking RMS over all joints (rad) from 1 s (past start-up) to the plant's first change
-/// (None without one), and over the samples from `quarter` on.
-fn tracking_phases(
-    t: &[f64],
-    refs: &[&[f64]],
-    ys: &[&[f64]],
+/// (None without one), and over the samples from `quarter` on, one sample at a time.
+struct Phases {
     change: Option<f64>,
     quarter: f64,
-) -> (Option<f64>, Option<f64>) {
-    let at = |x: f64| t.partition_point(|s| *s < x);
-    let rms =
-        |a: usize, b: usize| (b > a).then(|| super::metrics::tracking_in(refs, ys, a..b).rms_all);
-    (
-        change.and_then(|tc| rms(at(1.0), at(tc))),
-        rms(at(quarter), t.len()),
-    )
+    before: TrackingAcc,
+    after: TrackingAcc,
 }
 
-/// Tracking RMS over all joints per window of `width` s, in mrad: (window centres, values).
-fn windowed_rms(t: &[f64], refs: &[&[f64]], ys: &[&[f64]], width: f64) -> (Vec<f64>, Vec<f64>) {
-    let (mut centres, mut values) = (Vec::new(), Vec::new());
-    let mut a = 0;
-    while a < t.len() {
-        let end = t[a] + width;
-        let b = a + t[a..].partition_point(|s| *s < end - 1e-9);
-        centres.push(0.5 * (t[a] + t[b - 1]));
-        values.push(1e3 * super::metrics::tracking_in(refs, ys, a..b).rms_all);
-        a = b;
+impl Phases {
+    fn new(joints: usize, change: Option<f64>, quarter: f64) -> Self {
+        Self {
+            change,
+            quarter,
+            before: TrackingAcc::new(joints),
+            after: TrackingAcc::new(joints),
+        }
     }
-    (centres, values)
+
+    fn add(&mut self, t: f64, e: &[f64]) {
+        if self.change.is_some_and(|tc| t >= 1.0 && t < tc) {
+            self.before.add(e);
+        }
+        if t >= self.quarter {
+            self.after.add(e);
+        }
+    }
+
+    fn finish(&self) -> (Option<f64>, Option<f64>) {
+        let rms = |a: &TrackingAcc| (a.samples() > 0).then(|| a.finish().rms_all);
+        (self.change.and(rms(&self.before)), rms(&self.after))
+    }
+}
+
+/// Tracking RMS over all joints per window of `width` s, in mrad, one sample at a time: a
+/// window starts at a sample and holds the samples before its start + width.
+struct WindowedRms {
+    width: f64,
+    window: TrackingAcc,
+    first: f64,
+    last: f64,
+    centres: Vec<f64>,
+    values: Vec<f64>,
+}
+
+impl WindowedRms {
+    fn new(joints: usize, width: f64) -> Self {
+        Self {
+            width,
+            window: TrackingAcc::new(joints),
+            first: 0.0,
+            last: 0.0,
+            centres: Vec::new(),
+            values: Vec::new(),
+        }
+    }
+
+    fn add(&mut self, t: f64, e: &[f64]) {
+        if self.window.samples() > 0 && t >= self.first + self.width - 1e-9 {
+            self.close();
+        }
+        if self.window.samples() == 0 {
+            self.first = t;
+        }
+        self.last = t;
+        self.window.add(e);
+    }
+
+    fn close(&mut self) {
+        self.centres.push(0.5 * (self.first + self.last));
+        self.values.push(1e3 * self.window.finish().rms_all);
+        self.window = TrackingAcc::new(self.window.finish().rms.len());
+    }
+
+    /// (window centres, values)
+    fn finish(mut self) -> (Vec<f64>, Vec<f64>) {
+        if self.window.samples() > 0 {
+            self.close();
+        }
+        (self.centres, self.values)
+    }
+}
+
+/// What the report reads off the frozen comparison's traces, as off the run's rows.
+struct FrozenReadings {
+    reps: Vec<(f64, f64, f64)>,
+    phases: (Option<f64>, Option<f64>),
+    windowed: (Vec<f64>, Vec<f64>),
+}
+
+fn frozen_readings(
+    scn: &Scenario,
+    f: &JointTraces,
+    change: Option<f64>,
+    quarter: f64,
+) -> FrozenReadings {
+    let joints = f.r.len().min(f.y.len());
+    let t_last = f.t.last().copied().unwrap_or(0.0);
+    let mut reps = Repetitions::new(scn, t_last);
+    let mut phases = Phases::new(joints, change, quarter);
+    let mut windowed = WindowedRms::new(joints, IDENTIFY_PLOT_WINDOW);
+    let mut e = vec![0.0; joints];
+    for (k, t) in f.t.iter().enumerate() {
+        for (j, ej) in e.iter_mut().enumerate() {
+            *ej = f.r[j][k] - f.y[j][k];
+        }
+        phases.add(*t, &e);
+        windowed.add(*t, &e);
+        if let Some(reps) = reps.as_mut() {
+            // The indirect scheme's comparison: joint 0 only, as the run's cost criterion.
+            reps.add(*t, &[f.r[0][k]], &[f.y[0][k]], &[f.u[0][k]]);
+        }
+    }
+    FrozenReadings {
+        reps: reps.map(Repetitions::finish).unwrap_or_default(),
+        phases: phases.finish(),
+        windowed: windowed.finish(),
+    }
 }
 
 /// The longest run the frozen comparison is simulated for, s: the simulation keeps its whole
@@ -107,6 +210,165 @@ fn frozen_traces(scn: &Scenario, span: f64) -> JointTraces {
         &scn.reference,
         scn.reference.joints(),
     )
+}
+
+/// A plot's series from named columns.
+fn series(c: &[(String, Vec<f64>)]) -> Vec<Series<'_>> {
+    c.iter()
+        .map(|(name, v)| Series { name, values: v })
+        .collect()
+}
+
+/// What the report reads off run.csv.
+struct Scan {
+    /// The last sample's time.
+    horizon: f64,
+    /// The scenario's duration, or what ran of a run until stopped.
+    span: f64,
+    /// The start of the run's last quarter.
+    quarter: f64,
+    /// The plant's first change of parameters.
+    change: Option<f64>,
+    response: super::metrics::ResponseMetrics,
+    tracking: super::metrics::Tracking,
+    tracking_after_1s: super::metrics::Tracking,
+    reps: Vec<(f64, f64, f64)>,
+    /// Tracking RMS before the plant's change and in the last quarter (identification only).
+    phases: (Option<f64>, Option<f64>),
+    /// Tracking RMS per `IDENTIFY_PLOT_WINDOW` (identification with plots only).
+    windowed: Option<(Vec<f64>, Vec<f64>)>,
+    plot: Option<RunPlot>,
+}
+
+/// The columns of response.png and tracking.png, of bounded length (`scan::PlotColumns`).
+struct RunPlot {
+    exact: bool,
+    t: Vec<f64>,
+    /// References and outputs; inputs; tracking errors per joint.
+    top: Vec<(String, Vec<f64>)>,
+    bottom: Vec<(String, Vec<f64>)>,
+    errors: Vec<(String, Vec<f64>)>,
+}
+
+/// Read run.csv twice, a row at a time: its extent, then every metric and the plot columns.
+/// Memory is bounded whatever the run's length (the repetitions and windows aside, a few
+/// numbers per second of the run).
+fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
+    let err = |e: std::io::Error| e.to_string();
+    let extent = Extent::of(path).map_err(err)?;
+    let mut rows = Rows::open(path).map_err(err)?;
+    let column = |name: &str| {
+        rows.index(name)
+            .ok_or_else(|| format!("{}: no column {name:?}", path.display()))
+    };
+    let (ti, ri) = (column("t")?, column("reference")?);
+    // Joint i's reference: `reference` for joint 0, then r1, r2, ... for trajectories.
+    let mut refs = vec![("reference".to_string(), ri)];
+    refs.extend(rows.indices_with_prefix("r"));
+    let ys = rows.indices_with_prefix("y");
+    let us = rows.indices_with_prefix("u");
+    let n_track = refs.len().min(ys.len());
+
+    let horizon = extent.last.get(ti).copied().unwrap_or(0.0);
+    let span = if scn.timing.until_stopped() {
+        horizon
+    } else {
+        scn.timing.duration
+    };
+    let quarter = 0.75 * span;
+    let change = scn.plant.model.config().first_change();
+    let identify = scn.optimiser.mode == crate::config::OptimiserMode::Identify;
+    let mut response = ys.first().map(|_| {
+        ResponseAcc::new(
+            extent.rows,
+            horizon,
+            extent.last[ri],
+            scn.timing.period,
+            scn.reference.last_change(horizon),
+        )
+    });
+    let mut tracking = TrackingAcc::new(n_track);
+    let mut after_1s = TrackingAcc::new(n_track);
+    let mut phases = Phases::new(n_track, change, quarter);
+    let mut windowed =
+        (identify && scn.output.plots).then(|| WindowedRms::new(n_track, IDENTIFY_PLOT_WINDOW));
+    let mut reps = Repetitions::new(scn, horizon);
+    let errors = if n_track > 1 { n_track } else { 0 };
+    let width = refs.len() + ys.len() + us.len() + errors;
+    let mut plot = scn
+        .output
+        .plots
+        .then(|| PlotColumns::new(extent.rows, width));
+    let (mut e, mut r, mut y, mut u) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut values = Vec::with_capacity(width);
+    while let Some(row) = rows.next().map_err(err)? {
+        let t = row[ti];
+        let pick = |out: &mut Vec<f64>, cols: &[(String, usize)]| {
+            out.clear();
+            out.extend(cols.iter().map(|c| row[c.1]));
+        };
+        pick(&mut r, &refs);
+        pick(&mut y, &ys);
+        pick(&mut u, &us);
+        e.clear();
+        e.extend((0..n_track).map(|j| r[j] - y[j]));
+        if let Some(acc) = response.as_mut() {
+            acc.add(t, r[0], y[0]);
+        }
+        tracking.add(&e);
+        if t >= 1.0 {
+            after_1s.add(&e);
+        }
+        if identify {
+            phases.add(t, &e);
+        }
+        if let Some(w) = windowed.as_mut() {
+            w.add(t, &e);
+        }
+        if let Some(reps) = reps.as_mut() {
+            reps.add(t, &r, &y, &u);
+        }
+        if let Some(p) = plot.as_mut() {
+            values.clear();
+            values.extend_from_slice(&r);
+            values.extend_from_slice(&y);
+            values.extend_from_slice(&u);
+            values.extend_from_slice(&e[..errors]);
+            p.push(t, &values);
+        }
+    }
+    let plot = plot.map(|p| {
+        let exact = p.exact();
+        let (t, columns) = p.finish();
+        let mut columns = columns.into_iter();
+        let mut named = |names: Vec<String>| -> Vec<(String, Vec<f64>)> {
+            names.into_iter().zip(columns.by_ref()).collect()
+        };
+        let name = |c: &[(String, usize)]| c.iter().map(|c| c.0.clone()).collect::<Vec<_>>();
+        let top = named([name(&refs), name(&ys)].concat());
+        let bottom = named(name(&us));
+        let errors = named((0..errors).map(|j| format!("e{j}")).collect());
+        RunPlot {
+            exact,
+            t,
+            top,
+            bottom,
+            errors,
+        }
+    });
+    Ok(Scan {
+        horizon,
+        span,
+        quarter,
+        change,
+        response: response.map(ResponseAcc::finish).unwrap_or_default(),
+        tracking: tracking.finish(),
+        tracking_after_1s: after_1s.finish(),
+        reps: reps.map(Repetitions::finish).unwrap_or_default(),
+        phases: phases.finish(),
+        windowed: windowed.map(WindowedRms::finish),
+        plot,
+    })
 }
 
 fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
@@ -138,29 +400,20 @@ pub fn build_report(
             OptimiserReport::default()
         }
     };
-    let run = Table::read(&dir.join("run.csv")).map_err(|e| e.to_string())?;
-    let t = run.col("t").unwrap_or_default();
-    let r = run.col("reference").unwrap_or_default();
-    let ys = run.cols_with_prefix("y");
-    let us = run.cols_with_prefix("u");
-    let y0 = ys.first().map(|c| c.1.clone()).unwrap_or_default();
-    let horizon = t.last().copied().unwrap_or(0.0);
-    let response = response_metrics(
-        &t,
-        &r,
-        &y0,
-        scn.timing.period,
-        scn.reference.last_change(horizon),
-    );
-    // Joint i's reference: `reference` for joint 0, then r1, r2, ... for trajectories.
-    let mut refs = vec![r.clone()];
-    refs.extend(run.cols_with_prefix("r").into_iter().map(|c| c.1));
-    let n_track = refs.len().min(ys.len());
-    let ref_cols: Vec<&[f64]> = refs[..n_track].iter().map(|v| v.as_slice()).collect();
-    let y_cols: Vec<&[f64]> = ys[..n_track].iter().map(|c| c.1.as_slice()).collect();
-    let tracking = super::metrics::tracking(&ref_cols, &y_cols, 0);
-    let after_1s = t.iter().position(|x| *x >= 1.0).unwrap_or(t.len());
-    let tracking_after_1s = super::metrics::tracking(&ref_cols, &y_cols, after_1s);
+    let scan = scan_run(scn, &dir.join("run.csv"))?;
+    let Scan {
+        horizon,
+        span,
+        quarter,
+        change,
+        response,
+        tracking,
+        tracking_after_1s,
+        reps,
+        phases: (tracking_before_change, tracking_after_change),
+        windowed,
+        plot,
+    } = scan;
     let (accepted, rejected): (Vec<_>, Vec<_>) = ctrl
         .params
         .iter()
@@ -174,17 +427,10 @@ pub fn build_report(
         f
     });
     let n_rejected = rejected.len();
-    let reps = repetitions(scn, &t, &refs, &ys, &us);
     // The frozen comparison of a scheme that tunes alongside operation: the same scenario and
     // seed with the optimiser off. The indirect scheme is judged on its cost per repetition,
     // identification (below) on tracking.
     use crate::config::OptimiserMode;
-    let until_stopped = scn.timing.until_stopped();
-    let span = if until_stopped {
-        horizon
-    } else {
-        scn.timing.duration
-    };
     let compare = matches!(
         scn.optimiser.mode,
         OptimiserMode::Indirect | OptimiserMode::Identify
@@ -192,16 +438,13 @@ pub fn build_report(
     if compare && span > FROZEN_LIMIT_S {
         eprintln!("evoloop: note: the run is longer than {FROZEN_LIMIT_S} s; the frozen comparison is left out of the report");
     }
-    let frozen_traces = (compare && span <= FROZEN_LIMIT_S).then(|| frozen_traces(scn, span));
-    let frozen: Vec<(f64, f64, f64)> = match &frozen_traces {
-        Some(f) if scn.optimiser.mode == OptimiserMode::Indirect => {
-            let named = |p: &str, c: &[Vec<f64>]| vec![(format!("{p}0"), c[0].clone())];
-            repetitions(scn, &f.t, &f.r[..1], &named("y", &f.y), &named("u", &f.u))
-        }
+    let frozen_readings = (compare && span <= FROZEN_LIMIT_S)
+        .then(|| frozen_readings(scn, &frozen_traces(scn, span), change, quarter));
+    let frozen: Vec<(f64, f64, f64)> = match &frozen_readings {
+        Some(f) if scn.optimiser.mode == OptimiserMode::Indirect => f.reps.clone(),
         _ => Vec::new(),
     };
     let plant_model = scn.plant.model.config();
-    let change = plant_model.first_change();
     let mean = |v: Vec<f64>| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
     // Before: the repetitions after the first (start-up) that end by the change; after: those
     // starting in the last quarter of the run.
@@ -216,8 +459,6 @@ pub fn build_report(
             )
         })
     };
-    // The last quarter of the scenario, or of what ran of a run until stopped.
-    let quarter = 0.75 * span;
     let after = |reps: &[(f64, f64, f64)]| {
         mean(
             reps.iter()
@@ -229,13 +470,8 @@ pub fn build_report(
     // Identification alongside operation against the models it started with, kept all run long
     // (the frozen comparison again): tracking RMS before the plant's change and at the end.
     let identify = scn.optimiser.mode == OptimiserMode::Identify;
-    let (tracking_before_change, tracking_after_change) =
-        tracking_phases(&t, &ref_cols, &y_cols, change, quarter);
-    let (tracking_before_change_frozen, tracking_after_change_frozen) = match &frozen_traces {
-        Some(f) if identify => {
-            let (fr, fy) = f.columns();
-            tracking_phases(&f.t, &fr, &fy, change, quarter)
-        }
+    let (tracking_before_change_frozen, tracking_after_change_frozen) = match &frozen_readings {
+        Some(f) if identify => f.phases,
         _ => (None, None),
     };
     let cost_before_change = before(&reps);
@@ -252,6 +488,7 @@ pub fn build_report(
         _ => None,
     };
     let interrupted = ctrl.interrupted || plant.interrupted || opt.interrupted;
+    let until_stopped = scn.timing.until_stopped();
     let summary = Summary {
         outcome: if interrupted && !until_stopped {
             "interrupted"
@@ -314,13 +551,12 @@ pub fn build_report(
         tracking_before_change_frozen,
         tracking_after_change_frozen,
     };
-    if let (Some(f), true) = (
-        frozen_traces.as_ref().filter(|_| identify),
+    if let (Some(f), Some((tw, run_rms)), true) = (
+        frozen_readings.as_ref().filter(|_| identify),
+        windowed.as_ref(),
         scn.output.plots,
     ) {
-        let (tw, run_rms) = windowed_rms(&t, &ref_cols, &y_cols, IDENTIFY_PLOT_WINDOW);
-        let (fr, fy) = f.columns();
-        let (_, frozen_rms) = windowed_rms(&f.t, &fr, &fy, IDENTIFY_PLOT_WINDOW);
+        let frozen_rms = &f.windowed.1;
         let frozen_rms: Vec<f64> = (0..tw.len())
             .map(|k| frozen_rms.get(k).copied().unwrap_or(f64::NAN))
             .collect();
@@ -332,10 +568,10 @@ pub fn build_report(
                 "{}: tracking RMS per {} s, identified vs frozen models (orange: models swapped in)",
                 scn.name, IDENTIFY_PLOT_WINDOW
             ),
-            &tw,
+            tw,
             Panel {
                 series: &[
-                    Series { name: "identified alongside operation", values: &run_rms },
+                    Series { name: "identified alongside operation", values: run_rms },
                     Series { name: "frozen models", values: &frozen_rms },
                 ],
                 label: "tracking RMS, mrad",
@@ -406,36 +642,17 @@ pub fn build_report(
         }
     }
     crate::report::write_json(dir, "summary.json", &summary).map_err(|e| e.to_string())?;
-    if scn.output.plots {
-        let ref_names: Vec<String> = (0..refs.len())
-            .map(|i| {
-                if i == 0 {
-                    "reference".into()
-                } else {
-                    format!("r{i}")
-                }
-            })
-            .collect();
-        let mut top: Vec<Series> = refs
-            .iter()
-            .zip(&ref_names)
-            .map(|(v, name)| Series { name, values: v })
-            .collect();
-        for (name, v) in &ys {
-            top.push(Series { name, values: v });
-        }
-        let bottom: Vec<Series> = us
-            .iter()
-            .map(|(name, v)| Series { name, values: v })
-            .collect();
+    if let Some(p) = plot {
+        let (top, bottom) = (series(&p.top), series(&p.bottom));
         let marks: Vec<f64> = accepted.iter().map(|p| p.t).collect();
+        let envelope = if p.exact { "" } else { " (min-max envelope)" };
         two_panel_png(
             &dir.join("response.png"),
             &format!(
-                "{} ({} mode): output vs reference, control; orange lines = parameter swaps",
+                "{} ({} mode): output vs reference, control{envelope}; orange lines = parameter swaps",
                 scn.name, ctrl.mode
             ),
-            &t,
+            &p.t,
             Panel {
                 series: &top,
                 label: "position",
@@ -446,32 +663,17 @@ pub fn build_report(
             },
             &marks,
         )?;
-        if n_track > 1 {
+        if p.errors.len() > 1 {
             // Joint-space tracking: the errors are far below what the overlaid curves resolve.
-            let errors: Vec<Vec<f64>> = (0..n_track)
-                .map(|j| {
-                    ref_cols[j]
-                        .iter()
-                        .zip(y_cols[j])
-                        .map(|(r, y)| r - y)
-                        .collect()
-                })
-                .collect();
-            let names: Vec<String> = (0..n_track).map(|j| format!("e{j}")).collect();
-            let top: Vec<Series> = errors
-                .iter()
-                .zip(&names)
-                .map(|(v, name)| Series { name, values: v })
-                .collect();
             two_panel_png(
                 &dir.join("tracking.png"),
                 &format!(
-                    "{} ({} mode): tracking error r - y per joint, and joint torques",
+                    "{} ({} mode): tracking error r - y per joint, and joint torques{envelope}",
                     scn.name, ctrl.mode
                 ),
-                &t,
+                &p.t,
                 Panel {
-                    series: &top,
+                    series: &series(&p.errors),
                     label: "error (rad or m)",
                 },
                 Panel {

@@ -33,43 +33,113 @@ pub fn response_metrics(
     if n == 0 {
         return ResponseMetrics::default();
     }
-    let band = 0.02;
-    let mut m = ResponseMetrics {
-        settling_band: band,
-        ..Default::default()
-    };
+    let mut acc = ResponseAcc::new(n, t[n - 1], r[n - 1], dt, t_change);
     for i in 0..n {
-        let e = r[i] - y[i];
-        m.iae += e.abs() * dt;
-        m.ise += e * e * dt;
+        acc.add(t[i], r[i], y[i]);
     }
-    m.final_error = r[n - 1] - y[n - 1];
-    let tail = n - (n / 10).max(1);
-    m.max_error_tail = (tail..n).map(|i| (r[i] - y[i]).abs()).fold(0.0, f64::max);
+    acc.finish()
+}
 
-    let i0 = t.iter().position(|&ti| ti >= t_change - 1e-12).unwrap_or(0);
-    let r_final = r[n - 1];
-    let r_before = if i0 > 0 { r[i0 - 1] } else { 0.0 };
-    let step = (r_final - r_before).abs();
-    let scale = if step > 0.0 {
-        step
-    } else {
-        r_final.abs().max(1e-12)
-    };
-    let tol = band * scale;
-    // Last sample outside the band: settled from the next one on.
-    let last_out = (i0..n).rev().find(|&i| (r[i] - y[i]).abs() > tol);
-    m.settling_time_s = match last_out {
-        None => Some(0.0),
-        Some(i) if i + 1 < n => Some(t[i + 1] - t_change),
-        Some(_) => None,
-    };
-    let dir = (r_final - r_before).signum();
-    if dir != 0.0 {
-        let over = (i0..n).map(|i| (y[i] - r_final) * dir).fold(0.0, f64::max);
-        m.overshoot_pct = 100.0 * over / step;
+/// `response_metrics` one sample at a time, for a run read row by row: what it needs of the
+/// whole run up front is its extent (samples, last time, last reference value).
+pub struct ResponseAcc {
+    m: ResponseMetrics,
+    dt: f64,
+    t_change: f64,
+    n: usize,
+    /// The first sample of the last 10 %, and of the response to the last change.
+    tail: usize,
+    from_start: bool,
+    r_final: f64,
+    i: usize,
+    i0: Option<usize>,
+    r_prev: f64,
+    tol: f64,
+    dir: f64,
+    step: f64,
+    over: f64,
+    /// Whether a sample since the change left the band, and the time of the first sample after
+    /// the last one that did.
+    out: bool,
+    t_after_out: Option<f64>,
+}
+
+impl ResponseAcc {
+    pub fn new(n: usize, t_last: f64, r_final: f64, dt: f64, t_change: f64) -> Self {
+        Self {
+            m: ResponseMetrics {
+                settling_band: 0.02,
+                ..Default::default()
+            },
+            dt,
+            t_change,
+            n,
+            tail: n - (n / 10).max(1),
+            // No sample at or after the change: measure from the first.
+            from_start: t_last < t_change - 1e-12,
+            r_final,
+            i: 0,
+            i0: None,
+            r_prev: 0.0,
+            tol: 0.0,
+            dir: 0.0,
+            step: 0.0,
+            over: 0.0,
+            out: false,
+            t_after_out: None,
+        }
     }
-    m
+
+    pub fn add(&mut self, t: f64, r: f64, y: f64) {
+        let e = r - y;
+        let m = &mut self.m;
+        m.iae += e.abs() * self.dt;
+        m.ise += e * e * self.dt;
+        m.final_error = e;
+        if self.i >= self.tail {
+            m.max_error_tail = m.max_error_tail.max(e.abs());
+        }
+        if self.i0.is_none() && (self.from_start || t >= self.t_change - 1e-12) {
+            self.i0 = Some(self.i);
+            let r_before = if self.i > 0 { self.r_prev } else { 0.0 };
+            self.step = (self.r_final - r_before).abs();
+            let scale = if self.step > 0.0 {
+                self.step
+            } else {
+                self.r_final.abs().max(1e-12)
+            };
+            self.tol = m.settling_band * scale;
+            self.dir = (self.r_final - r_before).signum();
+        }
+        if self.i0.is_some() {
+            if e.abs() > self.tol {
+                self.out = true;
+                self.t_after_out = None;
+            } else if self.out && self.t_after_out.is_none() {
+                self.t_after_out = Some(t);
+            }
+            self.over = self.over.max((y - self.r_final) * self.dir);
+        }
+        self.r_prev = r;
+        self.i += 1;
+    }
+
+    pub fn finish(self) -> ResponseMetrics {
+        let mut m = self.m;
+        if self.n == 0 {
+            return ResponseMetrics::default();
+        }
+        // Settled from the first sample after the last one outside the band.
+        m.settling_time_s = match (self.out, self.t_after_out) {
+            (false, _) => Some(0.0),
+            (true, Some(t)) => Some(t - self.t_change),
+            (true, None) => None,
+        };
+        if self.dir != 0.0 {
+            m.overshoot_pct = 100.0 * self.over / self.step;
+        }
+        m
+    }
 }
 
 /// Tracking error per joint over a run: e_i = r_i - y_i.
@@ -91,27 +161,63 @@ pub fn tracking(refs: &[&[f64]], ys: &[&[f64]], from: usize) -> Tracking {
 
 /// Tracking metrics over the samples in `range` (clipped to the columns).
 pub fn tracking_in(refs: &[&[f64]], ys: &[&[f64]], range: std::ops::Range<usize>) -> Tracking {
-    let (from, len) = (range.start, range.end.saturating_sub(range.start));
-    let mut out = Tracking::default();
-    let (mut sum_all, mut n_all) = (0.0, 0usize);
-    for (r, y) in refs.iter().zip(ys) {
-        let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0usize);
-        for (ri, yi) in r.iter().zip(y.iter()).skip(from).take(len) {
-            let e = ri - yi;
-            sum += e * e;
-            max = max.max(e.abs());
-            n += 1;
+    let joints = refs.len().min(ys.len());
+    let len = (0..joints)
+        .map(|j| refs[j].len().min(ys[j].len()))
+        .min()
+        .unwrap_or(0);
+    let mut acc = TrackingAcc::new(joints);
+    let mut e = vec![0.0; joints];
+    for k in range.start.min(len)..range.end.min(len) {
+        for j in 0..joints {
+            e[j] = refs[j][k] - ys[j][k];
         }
-        out.rms
-            .push(if n > 0 { (sum / n as f64).sqrt() } else { 0.0 });
-        out.max_abs.push(max);
-        sum_all += sum;
-        n_all += n;
+        acc.add(&e);
     }
-    out.rms_all = if n_all > 0 {
-        (sum_all / n_all as f64).sqrt()
-    } else {
-        0.0
-    };
-    out
+    acc.finish()
+}
+
+/// `tracking_in` one sample at a time (the errors e_i = r_i - y_i of all joints).
+#[derive(Debug, Clone)]
+pub struct TrackingAcc {
+    sum: Vec<f64>,
+    max: Vec<f64>,
+    n: usize,
+}
+
+impl TrackingAcc {
+    pub fn new(joints: usize) -> Self {
+        Self {
+            sum: vec![0.0; joints],
+            max: vec![0.0; joints],
+            n: 0,
+        }
+    }
+
+    pub fn add(&mut self, e: &[f64]) {
+        for ((s, m), e) in self.sum.iter_mut().zip(&mut self.max).zip(e) {
+            *s += e * e;
+            *m = m.max(e.abs());
+        }
+        self.n += 1;
+    }
+
+    pub fn samples(&self) -> usize {
+        self.n
+    }
+
+    pub fn finish(&self) -> Tracking {
+        let n = self.n;
+        let rms = |s: f64| if n > 0 { (s / n as f64).sqrt() } else { 0.0 };
+        let n_all = n * self.sum.len();
+        Tracking {
+            rms: self.sum.iter().map(|s| rms(*s)).collect(),
+            max_abs: self.max.clone(),
+            rms_all: if n_all > 0 {
+                (self.sum.iter().sum::<f64>() / n_all as f64).sqrt()
+            } else {
+                0.0
+            },
+        }
+    }
 }

@@ -5,6 +5,7 @@ pub mod build;
 pub mod history;
 pub mod metrics;
 pub mod plot;
+pub mod scan;
 pub mod seeds_study;
 pub mod stats;
 pub mod stream;
@@ -133,12 +134,14 @@ impl Table {
     pub fn cols_with_prefix(&self, prefix: &str) -> Vec<(String, Vec<f64>)> {
         self.header
             .iter()
-            .filter(|h| {
-                h.strip_prefix(prefix).is_some_and(|rest| {
-                    rest.chars().all(|c| c.is_ascii_digit()) && !rest.is_empty()
-                })
-            })
+            .filter(|h| numbered(h, prefix))
             .map(|h| (h.clone(), self.col(h).unwrap_or_default()))
             .collect()
     }
+}
+
+/// Whether column `name` is `prefix` followed by digits (y0, y1, ...).
+fn numbered(name: &str, prefix: &str) -> bool {
+    name.strip_prefix(prefix)
+        .is_some_and(|rest| !rest.is_empty() && rest.chars().all(|c| c.is_ascii_digit()))
 }
