@@ -99,7 +99,7 @@ pub fn validate(t: RawTiming, check: &Check, ov: &Overrides) -> Result<Timing, C
     if duration.is_finite() && duration / period > 1e8 {
         return check.fail(
             key_d,
-            format!("{duration} s at a {period} s period is over 1e8 cycles"),
+            format!("{duration} s at a {period} s period is over 1e8 cycles (for longer, omit the duration or pass `--duration forever`: the run goes on until Ctrl-C)"),
         );
     }
     if duration < period {
