@@ -308,6 +308,9 @@ pub struct Indirect {
     /// Bounded: thinned evenly past `HISTORY` items (see `report::history`).
     pub estimates: History<Estimate>,
     pub epochs: History<EpochRecord>,
+    /// Samples the estimator never saw (gaps in the sequence numbers after its first): in
+    /// realtime, those that overflowed the state queue while an epoch ran.
+    pub samples_missed: u64,
     /// The controller's acceptance check for linear plants, applied before publishing.
     check: Option<crate::control::LinearModel>,
 }
@@ -359,6 +362,7 @@ impl Indirect {
             next_record_t: 0.0,
             estimates: History::new(HISTORY),
             epochs: History::new(HISTORY),
+            samples_missed: 0,
             check: scn.linear_model(),
         })
     }
@@ -372,6 +376,9 @@ impl Indirect {
     /// Feed one state sample (in order; a gap restarts the estimator's differences). Returns
     /// the estimate when one is due (every 0.1 s of plant time), which is also recorded.
     pub fn observe(&mut self, s: &crate::msg::PlantState) -> Option<Estimate> {
+        if let Some(p) = &self.prev {
+            self.samples_missed += s.seq.saturating_sub(p.seq + 1);
+        }
         let prev = self.prev.filter(|p| s.seq == p.seq + 1);
         self.scheme.observe(prev.as_ref(), s);
         self.prev = Some(*s);
@@ -459,6 +466,25 @@ mod tests {
 
     /// An epoch whose in-service set destabilises the model (infinite cost) survives the trip
     /// through optimiser.json: it was lost with the whole report before (JSON null is no f64).
+    #[test]
+    fn samples_the_estimator_never_saw_are_counted() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_indirect.toml");
+        let scn =
+            crate::config::Scenario::load(&path, &crate::config::Overrides::default()).unwrap();
+        let mut ind = super::Indirect::new(&scn).unwrap();
+        // It starts wherever it joins the stream (a restarted optimiser), then counts the gaps.
+        for seq in [40u64, 41, 42, 45, 46, 50] {
+            let s = crate::msg::PlantState {
+                seq,
+                t: seq as f64 * 1e-3,
+                ..Default::default()
+            };
+            ind.observe(&s);
+        }
+        assert_eq!(ind.samples_missed, 2 + 3);
+    }
+
     #[test]
     fn an_infinite_cost_reads_back_from_json() {
         let r = EpochRecord {

@@ -240,6 +240,7 @@ fn run(
         }
     };
     if let Some(ind) = indirect {
+        report.samples_missed = ind.samples_missed;
         report.estimates = ind.estimates.into_vec();
         report.epochs = ind.epochs.into_vec();
     }

@@ -530,6 +530,7 @@ pub fn build_report(
         floor,
         plant_safe_samples: plant.safe_samples,
         optimiser_published: opt.published_count as usize,
+        optimiser_samples_missed: opt.samples_missed,
         interrupted,
         stale_resources_cleaned: cleaned,
         optimiser_restarts,

@@ -86,6 +86,9 @@ pub struct OptimiserReport {
     /// How many sets were published.
     #[serde(default)]
     pub published_count: u64,
+    /// Indirect mode: plant samples the estimator never saw (gaps in the sequence numbers).
+    #[serde(default)]
+    pub samples_missed: u64,
     pub nice: Option<i32>,
     pub interrupted: bool,
     /// Indirect mode: the model estimate over time (every 0.1 s of plant time).
@@ -164,6 +167,9 @@ pub struct Summary {
     pub floor: Option<FloorReport>,
     pub plant_safe_samples: u64,
     pub optimiser_published: usize,
+    /// Indirect mode: plant samples the optimiser's estimator missed (its queue overflowed).
+    #[serde(default)]
+    pub optimiser_samples_missed: u64,
     pub interrupted: bool,
     pub stale_resources_cleaned: usize,
     /// Times the optimiser died and was started again to rejoin the run.
