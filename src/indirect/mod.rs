@@ -325,9 +325,17 @@ impl Indirect {
                 let aw = pid.anti_windup;
                 // The model starts from the nominal plant: it does not know the true schedule.
                 let nominal = MaglevParams { mass_steps: Vec::new(), ..plant.clone() };
-                let repetition = match &scn.reference {
-                    Reference::Square { period, start, .. } => start + period,
-                    _ => scn.timing.duration.min(5.0),
+                // Candidates are scored on the second repetition of the reference, which starts
+                // where the first left the loop, as every repetition after the first does on the
+                // plant. Scored from rest instead (the start-up transient included), the sets it
+                // publishes cost more on the plant than the frozen one before its change: +0.40 %
+                // [+0.34, +0.47] over seeds 1-10 in lockstep, against -0.99 % [-1.02, -0.96]
+                // scored this way (and -0.73 % against -0.57 % after the change).
+                let (duration, score_from) = match &scn.reference {
+                    Reference::Square { period, start, .. } => {
+                        (start + 2.0 * period, start + period)
+                    }
+                    _ => (scn.timing.duration.min(5.0), 0.0),
                 };
                 let mut tuner = MaglevTuner::new(
                     Spec {
@@ -335,8 +343,9 @@ impl Indirect {
                         period: scn.timing.period,
                         step: scn.plant.step,
                         noise_mm: scn.plant.noise_std,
-                        duration: repetition,
+                        duration,
                         reference: scn.reference.clone(),
+                        score_from,
                     },
                     aw,
                     scn.seed,

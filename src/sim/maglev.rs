@@ -17,6 +17,9 @@ pub struct Spec {
     pub noise_mm: f64,
     pub duration: f64,
     pub reference: Reference,
+    /// G counts the samples from this time on (s): 0 scores the whole run from rest; the
+    /// indirect scheme scores a repetition that starts where the previous one left the plant.
+    pub score_from: f64,
 }
 
 impl Default for Spec {
@@ -28,6 +31,7 @@ impl Default for Spec {
             noise_mm: 0.002,
             duration: 2.5,
             reference: default_reference(),
+            score_from: 0.0,
         }
     }
 }
@@ -94,10 +98,11 @@ pub fn simulate(
     }
     // Eq. 31: 1/1000 per mA of coil current.
     let mut cost = super::cost::TrackingCost::new(1e-3);
-    for k in 0..n {
+    let from = ((spec.score_from / spec.period).round() as usize).min(n);
+    for k in from..n {
         cost.add(&r.r[k..k + 1], &r.y[k..k + 1], &r.u[k..k + 1]);
     }
-    let g_holding = n as f64 * hold / 1000.0;
+    let g_holding = (n - from) as f64 * hold / 1000.0;
     if let Some(tr) = trace {
         *tr = r;
     }
