@@ -17,15 +17,21 @@ fn tmp(tag: &str) -> tempfile::TempDir {
 /// 30 s of the scenario through the processes in `mode`, then `identify lls --json` on its log.
 fn run_then_lls(cfg: &Path, out: &Path, tag: &str, mode: &str) -> serde_json::Value {
     assert_ok(&run(cfg, out, tag, &["--duration", "30", "--mode", mode]));
-    stdout_json(&cli(&[
+    stdout_json(&lls(out, &["--json"]))
+}
+
+/// `identify lls` of the industrial6 robot on the run in `data`.
+fn lls(data: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
         "identify",
         "lls",
         "--robot",
         "config/robots/industrial6.toml",
         "--data",
-        out.to_str().unwrap(),
-        "--json",
-    ]))
+        data.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    cli(&args)
 }
 
 #[test]
@@ -123,14 +129,7 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
         "idct",
         &["--duration", "1", "--mode", "lockstep"],
     ));
-    let o = cli(&[
-        "identify",
-        "lls",
-        "--robot",
-        "config/robots/industrial6.toml",
-        "--data",
-        out.to_str().unwrap(),
-    ]);
+    let o = lls(&out, &[]);
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(e.contains("not a periodic excitation"), "{e}");

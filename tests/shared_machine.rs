@@ -49,14 +49,7 @@ fn stderr(o: &Output) -> String {
 
 /// Files in /dev/shm whose names start with `start`.
 fn shm_files(start: &str) -> Vec<std::path::PathBuf> {
-    std::fs::read_dir("/dev/shm")
-        .map(|rd| {
-            rd.flatten()
-                .filter(|e| e.file_name().to_string_lossy().starts_with(start))
-                .map(|e| e.path())
-                .collect()
-        })
-        .unwrap_or_default()
+    evoloop::ipc::namespace::entries(std::path::Path::new("/dev/shm"), start)
 }
 
 #[test]

@@ -20,9 +20,9 @@ pub fn check(file: &Path) -> ExitCode {
                 format!("{:?}", s.timing.mode).to_lowercase(),
                 s.timing.period,
                 if s.timing.until_stopped() {
-                    "until stopped (Ctrl-C)".to_string()
+                    s.timing.span()
                 } else {
-                    format!("{} s ({} cycles)", s.timing.duration, s.cycles())
+                    format!("{} ({} cycles)", s.timing.span(), s.cycles())
                 },
                 s.optimiser.mode,
                 s.optimiser.schedule.len(),

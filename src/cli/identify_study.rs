@@ -75,12 +75,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         },
         ..Settings::default()
     };
-    if scn.timing.until_stopped() {
-        return Err(format!(
-            "{}: timing.duration: the study simulates in-process and needs a duration",
-            a.scenario.display()
-        ));
-    }
+    scn.require_duration()?;
     if scn.timing.duration < 3.0 * settings.period {
         return Err(format!(
             "{}: timing.duration {} s holds fewer than three {} s periods (one dropped, one \

@@ -164,8 +164,7 @@ pub fn main(a: SoakArgs) -> ExitCode {
         if stop.load(Ordering::Relaxed) {
             // A Ctrl-C at a terminal reaches the launcher too (same process group), a SIGINT or
             // SIGTERM sent to this process alone does not: pass it on, then wait for its report.
-            // SAFETY: signalling our own child.
-            unsafe { libc::kill(launcher.id() as i32, libc::SIGINT) };
+            crate::node::launcher::signal(&launcher, libc::SIGINT);
             if let Ok(s) = launcher.wait() {
                 break s;
             }

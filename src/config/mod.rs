@@ -110,6 +110,17 @@ impl Scenario {
         compose(raw, &Check::new(path), ov)
     }
 
+    /// An in-process simulation keeps every sample, so it refuses a run until stopped.
+    pub fn require_duration(&self) -> Result<(), String> {
+        if self.timing.until_stopped() {
+            return Err(format!(
+                "{}: timing.duration: simulated in-process, the scenario needs a duration",
+                self.source.display()
+            ));
+        }
+        Ok(())
+    }
+
     /// Number of control cycles in the run.
     pub fn cycles(&self) -> u64 {
         (self.timing.duration / self.timing.period).round() as u64

@@ -66,6 +66,15 @@ impl Timing {
         self.duration == f64::INFINITY
     }
 
+    /// How long the run goes, for people: "10 s" or "until stopped (Ctrl-C)".
+    pub fn span(&self) -> String {
+        if self.until_stopped() {
+            "until stopped (Ctrl-C)".into()
+        } else {
+            format!("{} s", self.duration)
+        }
+    }
+
     /// The duration as JSON: null for a run until stopped.
     pub fn duration_s(&self) -> Option<f64> {
         (!self.until_stopped()).then_some(self.duration)
@@ -93,14 +102,15 @@ pub fn validate(t: RawTiming, check: &Check, ov: &Overrides) -> Result<Timing, C
     } else {
         "timing.duration"
     };
+    // Infinity is the one non-finite value allowed: no duration, a run until stopped.
     if duration != f64::INFINITY {
         check.positive(key_d, duration)?;
-    }
-    if duration.is_finite() && duration / period > 1e8 {
-        return check.fail(
-            key_d,
-            format!("{duration} s at a {period} s period is over 1e8 cycles (for longer, omit the duration or pass `--duration forever`: the run goes on until Ctrl-C)"),
-        );
+        if duration / period > 1e8 {
+            return check.fail(
+                key_d,
+                format!("{duration} s at a {period} s period is over 1e8 cycles (for longer, omit the duration or pass `--duration forever`: the run goes on until Ctrl-C)"),
+            );
+        }
     }
     if duration < period {
         return check.fail(key_d, format!("shorter than one period ({period} s)"));

@@ -473,8 +473,6 @@ pub mod two_mass;
 mod tests {
     use super::EpochRecord;
 
-    /// An epoch whose in-service set destabilises the model (infinite cost) survives the trip
-    /// through optimiser.json: it was lost with the whole report before (JSON null is no f64).
     #[test]
     fn samples_the_estimator_never_saw_are_counted() {
         let path =
@@ -494,6 +492,8 @@ mod tests {
         assert_eq!(ind.samples_missed, 2 + 3);
     }
 
+    /// An epoch whose in-service set destabilises the model (infinite cost) survives the trip
+    /// through optimiser.json: it was lost with the whole report before (JSON null is no f64).
     #[test]
     fn an_infinite_cost_reads_back_from_json() {
         let r = EpochRecord {

@@ -146,7 +146,7 @@ pub fn files(prefix: &str) -> Vec<String> {
 }
 
 /// The entries of `dir` whose names start with `start` (none when `dir` cannot be read).
-fn entries(dir: &Path, start: &str) -> Vec<PathBuf> {
+pub fn entries(dir: &Path, start: &str) -> Vec<PathBuf> {
     std::fs::read_dir(dir)
         .map(|rd| {
             rd.flatten()

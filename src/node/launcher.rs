@@ -160,7 +160,7 @@ impl RunLock {
     }
 }
 
-fn signal(child: &Child, sig: i32) {
+pub(crate) fn signal(child: &Child, sig: i32) {
     // SAFETY: plain syscall on our own child's pid.
     unsafe { libc::kill(child.id() as i32, sig) };
 }
@@ -403,11 +403,7 @@ pub fn run(a: RunArgs) -> ExitCode {
             }
         }
     }
-    let span = if scn.timing.until_stopped() {
-        "until stopped (Ctrl-C)".to_string()
-    } else {
-        format!("{} s", scn.timing.duration)
-    };
+    let span = scn.timing.span();
     if !a.quiet {
         err!(
             "evoloop: run {run_id}: scenario `{}` ({} mode, {} at {} s period), output {}",

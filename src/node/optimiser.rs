@@ -124,11 +124,11 @@ fn run(
     let mut published = History::new(crate::indirect::HISTORY);
     let mut last_state = Instant::now();
     let io = |e: IpcError| (EXIT_SETUP, e.to_string());
-    // Ends at the plant's last sample, at a stop request (a run until stopped ends so) or when
-    // the plant has gone; the histories go into the report in every case.
-    let result = loop {
+    // Ends at the plant's last sample, at a stop request (a run until stopped ends so), when
+    // the plant has gone or at an IPC failure; the histories go into the report in every case.
+    let mut serve = || loop {
         if stop.load(Ordering::Relaxed) {
-            break Ok(());
+            return Ok(());
         }
         let slice = Duration::from_millis(100);
         let got = if lockstep {
@@ -150,7 +150,7 @@ fn run(
             Wait::TimedOut => {
                 // In realtime the plant keeps sampling; silence this long means it is gone.
                 if last_state.elapsed() > timeout {
-                    break Err((
+                    return Err((
                         EXIT_PEER_TIMEOUT,
                         format!("no plant state within {timeout:?}"),
                     ));
@@ -179,7 +179,7 @@ fn run(
             l.observe(&state);
         }
         if state.flags & STATE_FLAG_END != 0 {
-            break Ok(());
+            return Ok(());
         }
         let schedule = &scn.optimiser.schedule;
         if lockstep {
@@ -239,6 +239,7 @@ fn run(
             }
         }
     };
+    let result = serve();
     if let Some(ind) = indirect {
         report.samples_missed = ind.samples_missed;
         report.estimates = ind.estimates.into_vec();
@@ -315,13 +316,11 @@ fn publish(
     published: &mut History<PublishedSet>,
 ) -> Result<(), IpcError> {
     let set = scheduled_set(scn, i, apply_at_seq);
-    journal(&scn.output.dir, &set, scn.optimiser.schedule[i].at);
-    ports.params.send(&set)?;
-    published.push(PublishedSet {
-        version: set.version,
-        at: scn.optimiser.schedule[i].at,
-        apply_at_seq,
-        values: set.values().to_vec(),
-    });
-    Ok(())
+    send_set(
+        ports,
+        &set,
+        scn.optimiser.schedule[i].at,
+        published,
+        &scn.output.dir,
+    )
 }

@@ -146,7 +146,7 @@ impl WindowedRms {
     fn close(&mut self) {
         self.centres.push(0.5 * (self.first + self.last));
         self.values.push(1e3 * self.window.finish().rms_all);
-        self.window = TrackingAcc::new(self.window.finish().rms.len());
+        self.window.clear();
     }
 
     /// (window centres, values)

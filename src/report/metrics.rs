@@ -47,12 +47,14 @@ pub struct ResponseAcc {
     dt: f64,
     t_change: f64,
     n: usize,
-    /// The first sample of the last 10 %, and of the response to the last change.
+    /// The first sample of the last 10 %.
     tail: usize,
+    /// No sample at or after the change: the response is measured from the first.
     from_start: bool,
     r_final: f64,
     i: usize,
-    i0: Option<usize>,
+    /// Whether the response to the last change has begun (its step, band and sign are set).
+    changed: bool,
     r_prev: f64,
     tol: f64,
     dir: f64,
@@ -75,11 +77,10 @@ impl ResponseAcc {
             t_change,
             n,
             tail: n - (n / 10).max(1),
-            // No sample at or after the change: measure from the first.
             from_start: t_last < t_change - 1e-12,
             r_final,
             i: 0,
-            i0: None,
+            changed: false,
             r_prev: 0.0,
             tol: 0.0,
             dir: 0.0,
@@ -99,8 +100,8 @@ impl ResponseAcc {
         if self.i >= self.tail {
             m.max_error_tail = m.max_error_tail.max(e.abs());
         }
-        if self.i0.is_none() && (self.from_start || t >= self.t_change - 1e-12) {
-            self.i0 = Some(self.i);
+        if !self.changed && (self.from_start || t >= self.t_change - 1e-12) {
+            self.changed = true;
             let r_before = if self.i > 0 { self.r_prev } else { 0.0 };
             self.step = (self.r_final - r_before).abs();
             let scale = if self.step > 0.0 {
@@ -111,7 +112,7 @@ impl ResponseAcc {
             self.tol = m.settling_band * scale;
             self.dir = (self.r_final - r_before).signum();
         }
-        if self.i0.is_some() {
+        if self.changed {
             if e.abs() > self.tol {
                 self.out = true;
                 self.t_after_out = None;
@@ -204,6 +205,13 @@ impl TrackingAcc {
 
     pub fn samples(&self) -> usize {
         self.n
+    }
+
+    /// Start again with no samples.
+    pub fn clear(&mut self) {
+        self.sum.fill(0.0);
+        self.max.fill(0.0);
+        self.n = 0;
     }
 
     pub fn finish(&self) -> Tracking {

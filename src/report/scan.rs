@@ -41,37 +41,48 @@ impl Rows {
     /// The next row (blank lines skipped), or None at the end.
     #[allow(clippy::should_implement_trait)] // lends its buffer: not an Iterator
     pub fn next(&mut self) -> std::io::Result<Option<&[f64]>> {
+        match self.next_line()? {
+            Some(line) => {
+                self.parse(&line)?;
+                Ok(Some(&self.row))
+            }
+            None => Ok(None),
+        }
+    }
+
+    /// The next non-blank line, unparsed.
+    fn next_line(&mut self) -> std::io::Result<Option<String>> {
         for line in self.lines.by_ref() {
             let line = line?;
             self.line += 1;
-            if line.is_empty() {
-                continue;
+            if !line.is_empty() {
+                return Ok(Some(line));
             }
-            self.row.clear();
-            for field in line.split(',') {
-                let v = field.parse::<f64>().map_err(|e| {
-                    std::io::Error::new(
-                        std::io::ErrorKind::InvalidData,
-                        format!("{}: line {}: {e}", self.path.display(), self.line),
-                    )
-                })?;
-                self.row.push(v);
-            }
-            if self.row.len() != self.header.len() {
-                return Err(std::io::Error::new(
-                    std::io::ErrorKind::InvalidData,
-                    format!(
-                        "{}: line {}: {} fields under a header of {}",
-                        self.path.display(),
-                        self.line,
-                        self.row.len(),
-                        self.header.len()
-                    ),
-                ));
-            }
-            return Ok(Some(&self.row));
         }
         Ok(None)
+    }
+
+    /// `line` (number `self.line`) into `self.row`.
+    fn parse(&mut self, line: &str) -> std::io::Result<()> {
+        let bad = |why: String| {
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("{}: line {}: {why}", self.path.display(), self.line),
+            )
+        };
+        self.row.clear();
+        for field in line.split(',') {
+            self.row
+                .push(field.parse::<f64>().map_err(|e| bad(e.to_string()))?);
+        }
+        if self.row.len() != self.header.len() {
+            return Err(bad(format!(
+                "{} fields under a header of {}",
+                self.row.len(),
+                self.header.len()
+            )));
+        }
+        Ok(())
     }
 
     pub fn index(&self, name: &str) -> Option<usize> {
@@ -97,15 +108,22 @@ pub struct Extent {
 }
 
 impl Extent {
+    /// Counts the lines and parses only the last (the second pass parses every row).
     pub fn of(path: &Path) -> std::io::Result<Self> {
         let mut rows = Rows::open(path)?;
-        let mut e = Extent::default();
-        while let Some(r) = rows.next()? {
-            e.rows += 1;
-            e.last.clear();
-            e.last.extend_from_slice(r);
+        let (mut count, mut last) = (0, None);
+        while let Some(line) = rows.next_line()? {
+            count += 1;
+            last = Some((rows.line, line));
         }
-        Ok(e)
+        if let Some((number, line)) = last {
+            rows.line = number;
+            rows.parse(&line)?;
+        }
+        Ok(Extent {
+            rows: count,
+            last: rows.row,
+        })
     }
 }
 

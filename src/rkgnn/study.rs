@@ -174,12 +174,7 @@ fn case(
     let path = dir.join("scenarios").join(format!("{name}.toml"));
     let scenario =
         Scenario::parse(&text, &path, &Overrides::default()).map_err(|e| e.to_string())?;
-    if scenario.timing.until_stopped() {
-        return Err(format!(
-            "{}: timing.duration: the study simulates in-process and needs a duration",
-            path.display()
-        ));
-    }
+    scenario.require_duration()?;
     Ok(Case {
         name,
         text,

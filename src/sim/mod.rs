@@ -111,13 +111,11 @@ impl JointTraces {
 
 /// Simulate the scenario in lockstep in this process, scheduled parameter sets included when
 /// the scenario's optimiser mode is `schedule`. The result holds every sample, so the scenario
-/// needs a duration: callers refuse a run until stopped first.
+/// needs a duration: callers refuse a run until stopped first (`Scenario::require_duration`).
 pub fn simulate(scn: &Scenario) -> SimResult {
-    assert!(
-        !scn.timing.until_stopped(),
-        "sim::simulate: scenario `{}` has no duration",
-        scn.name
-    );
+    if let Err(e) = scn.require_duration() {
+        panic!("sim::simulate: {e}");
+    }
     let mut plant = PlantSim::new(
         scn.build_plant(),
         scn.plant.step,
