@@ -197,7 +197,7 @@ pub fn stdout_json(o: &Output) -> serde_json::Value {
 /// of `duration_s`, allowing the periods a bare sleep loop at the same rate and priority lost in
 /// the same run (`floor.lost_periods`, scaled to the run's length, tripled) plus 1 %. A loaded
 /// machine widens the allowance only as far as it measurably slows any loop; a controller that
-/// runs at half its rate fails it on any machine where a bare loop keeps its rate.
+/// runs at a fifth of its rate fails it unless a bare loop loses over a fifth of its periods.
 pub fn rate_kept(s: &serde_json::Value, duration_s: f64) -> Result<String, String> {
     let period = s["floor"]["period_s"]
         .as_f64()
