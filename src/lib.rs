@@ -22,6 +22,7 @@ pub mod check;
 pub mod cli;
 pub mod config;
 pub mod control;
+pub mod direct;
 pub mod dynamics;
 pub mod fuzzy;
 pub mod identify;

@@ -91,6 +91,12 @@ pub enum ParamCode {
     /// A model set whose M-hat is not positive definite (or far less so than the model it
     /// would replace) on the model's probe positions.
     RejectedNotPositiveDefinite = 8,
+    /// A trial set's repetition ended: its fallback is back in service.
+    TrialEnded = 9,
+    /// A trial set left the safety envelope: its fallback was restored in the same cycle.
+    TrialAborted = 10,
+    /// A trial set named a fallback the controller does not hold.
+    RejectedUnknownFallback = 11,
 }
 
 impl ParamCode {
@@ -104,6 +110,9 @@ impl ParamCode {
             6 => Self::RejectedStale,
             7 => Self::RejectedUnstable,
             8 => Self::RejectedNotPositiveDefinite,
+            9 => Self::TrialEnded,
+            10 => Self::TrialAborted,
+            11 => Self::RejectedUnknownFallback,
             _ => Self::None,
         }
     }
@@ -122,6 +131,11 @@ impl ParamCode {
             }
             Self::RejectedNotPositiveDefinite => {
                 "rejected: the model's M-hat is not safely positive definite on its probes"
+            }
+            Self::TrialEnded => "trial ended: its fallback is back in service",
+            Self::TrialAborted => "trial aborted: it left the safety envelope; fallback restored",
+            Self::RejectedUnknownFallback => {
+                "rejected: a trial naming a fallback the controller does not hold"
             }
         }
     }
@@ -203,6 +217,13 @@ pub struct ParamSet {
     pub apply_at_seq: u64,
     /// The optimiser's expected cost of this set on its model (NaN when unknown).
     pub expected_cost: f64,
+    /// 0: a set that stays in service. Otherwise a trial (the direct scheme): it serves the cycles
+    /// of states `apply_at_seq..until_seq` under the safety envelope, then the controller returns
+    /// to its fallback; it returns at once when the envelope is left (`ParamCode::TrialAborted`).
+    pub until_seq: u64,
+    /// A trial's fallback: the version of the set restored after it, which must be the
+    /// controller's current fallback or its last trial (that trial becoming the fallback).
+    pub fallback_version: u64,
     pub kind: u32,
     pub n: u32,
     pub values: [f64; MAX_PARAMS],
@@ -214,6 +235,8 @@ impl Default for ParamSet {
             version: 0,
             apply_at_seq: 0,
             expected_cost: f64::NAN,
+            until_seq: 0,
+            fallback_version: 0,
             kind: 0,
             n: 0,
             values: [0.0; MAX_PARAMS],

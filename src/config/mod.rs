@@ -131,6 +131,19 @@ impl Scenario {
         ((self.optimiser.sync_period / self.timing.period).round() as u64).max(1)
     }
 
+    /// Lockstep: whether the plant waits for the optimiser's acknowledgement at sample `k`
+    /// (every `sync_samples`; the direct scheme shifts them onto the samples before its
+    /// repetition boundaries, where it decides the next trial).
+    pub fn is_sync_point(&self, k: u64) -> bool {
+        let sync = self.sync_samples();
+        let offset = if self.optimiser.mode == OptimiserMode::Direct {
+            ((self.optimiser.first_repetition / self.timing.period).round() as u64 - 1) % sync
+        } else {
+            0
+        };
+        k % sync == offset
+    }
+
     pub fn period_ns(&self) -> u64 {
         (self.timing.period * 1e9).round() as u64
     }
@@ -190,6 +203,21 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let optimiser = optimiser::validate(raw.optimiser, check, &timing, ov)?;
     if optimiser.mode == OptimiserMode::Identify {
         identify_mode_fits(check, &controller)?;
+    }
+    if optimiser.mode == OptimiserMode::Direct {
+        let b = &controller.tunable().bounds;
+        if let Some(i) = (0..b.lower.len()).find(|i| {
+            !(b.lower[*i].is_finite() && b.upper[*i].is_finite() && b.lower[*i] < b.upper[*i])
+        }) {
+            return check.fail(
+                "optimiser.mode",
+                format!(
+                    "\"direct\" searches the controller's parameter bounds, which must be finite \
+                     and non-empty: parameter {i} has [{}, {}] (set the controller's lower/upper)",
+                    b.lower[i], b.upper[i]
+                ),
+            );
+        }
     }
     for (i, s) in optimiser.schedule.iter().enumerate() {
         if s.kind == SetKind::Model && controller.model_param_kind().is_none() {

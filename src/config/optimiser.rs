@@ -22,6 +22,14 @@ pub struct RawOptimiser {
     pub identify_window: Option<f64>,
     pub identify_fresh: Option<f64>,
     pub identify_every: Option<f64>,
+    pub algorithm: Option<String>,
+    pub population: Option<usize>,
+    pub evaluations: Option<usize>,
+    pub repetition: Option<f64>,
+    pub first_repetition: Option<f64>,
+    pub envelope_error: Option<f64>,
+    pub envelope_output: Option<f64>,
+    pub envelope_control: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -36,6 +44,9 @@ pub enum OptimiserMode {
     /// The indirect scheme for arms (`rkgnn::live`): identifies a model on the latest window
     /// and publishes it when it predicts fresh data better than the model in service.
     Identify,
+    /// The direct scheme (`direct`): every candidate tried on the plant for one repetition of
+    /// the reference, under the safety envelope.
+    Direct,
 }
 
 impl std::str::FromStr for OptimiserMode {
@@ -46,8 +57,9 @@ impl std::str::FromStr for OptimiserMode {
             "schedule" => Ok(OptimiserMode::Schedule),
             "indirect" => Ok(OptimiserMode::Indirect),
             "identify" => Ok(OptimiserMode::Identify),
+            "direct" => Ok(OptimiserMode::Direct),
             _ => Err(format!(
-                "unknown optimiser mode {s:?} (expected off, schedule, indirect or identify)"
+                "unknown optimiser mode {s:?} (expected off, schedule, indirect, identify or direct)"
             )),
         }
     }
@@ -105,6 +117,16 @@ pub struct OptimiserSpec {
     pub identify_window: f64,
     pub identify_fresh: f64,
     pub identify_every: f64,
+    /// Direct: the optimiser (`optim::study::ALGORITHMS`), its population and the candidates it
+    /// tries, one per repetition of `repetition` s, the first starting at `first_repetition` s
+    /// (the repetition before it runs the configured set: the baseline).
+    pub algorithm: String,
+    pub population: usize,
+    pub evaluations: usize,
+    pub repetition: f64,
+    pub first_repetition: f64,
+    /// Direct: the envelope a candidate is aborted outside of.
+    pub envelope: crate::control::cycle::Envelope,
 }
 
 pub fn validate(
@@ -113,7 +135,7 @@ pub fn validate(
     timing: &Timing,
     ov: &Overrides,
 ) -> Result<OptimiserSpec, ConfigError> {
-    let o = o.unwrap_or(RawOptimiser {
+    let mut o = o.unwrap_or(RawOptimiser {
         mode: None,
         sync_period: None,
         nice: None,
@@ -126,10 +148,33 @@ pub fn validate(
         identify_window: None,
         identify_fresh: None,
         identify_every: None,
+        algorithm: None,
+        population: None,
+        evaluations: None,
+        repetition: None,
+        first_repetition: None,
+        envelope_error: None,
+        envelope_output: None,
+        envelope_control: None,
     });
+    let mode = ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off);
+    let direct = mode == OptimiserMode::Direct;
     // Default: an acknowledgement every 100 periods (a barrier costs two cross-process
-    // wake-ups; rarer barriers let lockstep run at hundreds of thousands of samples/s).
-    let sync_period = o.sync_period.unwrap_or(timing.period * 100.0);
+    // wake-ups; rarer barriers let lockstep run at hundreds of thousands of samples/s). The
+    // direct scheme decides at the sample before each repetition: its acknowledgements are
+    // shifted there (`Scenario::is_sync_point`), every largest divisor of the repetition up to
+    // 100 periods.
+    let sync_period = o.sync_period.unwrap_or_else(|| {
+        let rep = o
+            .repetition
+            .map_or(0, |r| (r / timing.period).round() as u64);
+        let every = if direct && rep > 0 {
+            (1..=100).rev().find(|d| rep % d == 0).unwrap_or(1)
+        } else {
+            100
+        };
+        timing.period * every as f64
+    });
     check.positive("optimiser.sync_period", sync_period)?;
     let samples = sync_period / timing.period;
     if samples < 1.0 - 1e-9 || samples > MAX_SYNC_SAMPLES as f64 {
@@ -146,7 +191,13 @@ pub fn validate(
         );
     }
     let mut schedule = Vec::new();
-    for (i, s) in o.schedule.unwrap_or_default().into_iter().enumerate() {
+    for (i, s) in o
+        .schedule
+        .take()
+        .unwrap_or_default()
+        .into_iter()
+        .enumerate()
+    {
         let key = format!("optimiser.schedule[{i}]");
         // A set scheduled past the end of a (shortened) run is simply never published.
         check.range(&format!("{key}.at"), s.at, 0.0, 1e9)?;
@@ -192,7 +243,6 @@ pub fn validate(
             format!("must be 1..=64 (got {threads})"),
         );
     }
-    let mode = ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off);
     // The identification needs enough samples per window for its differences and fit; the
     // lower limits are in control periods and apply only when it runs.
     let periods = |k: f64| {
@@ -202,7 +252,14 @@ pub fn validate(
             0.0
         }
     };
+    let direct_spec = direct_settings(&o, check, timing, sync_period, mode)?;
     Ok(OptimiserSpec {
+        algorithm: direct_spec.0,
+        population: direct_spec.1,
+        evaluations: direct_spec.2,
+        repetition: direct_spec.3,
+        first_repetition: direct_spec.4,
+        envelope: direct_spec.5,
         mode,
         sync_period,
         nice,
@@ -241,6 +298,99 @@ pub fn validate(
             1e6,
         )?,
     })
+}
+
+type DirectSettings = (
+    String,
+    usize,
+    usize,
+    f64,
+    f64,
+    crate::control::cycle::Envelope,
+);
+
+/// The direct scheme's keys: algorithm, population, evaluations, repetition, first repetition
+/// and envelope. Checked whatever the mode (a typo should not wait for `mode = "direct"`);
+/// the repetition's alignment with the samples and acknowledgements only when it runs.
+fn direct_settings(
+    o: &RawOptimiser,
+    check: &Check,
+    timing: &Timing,
+    sync_period: f64,
+    mode: OptimiserMode,
+) -> Result<DirectSettings, ConfigError> {
+    let algorithm = o.algorithm.clone().unwrap_or_else(|| "ga".into());
+    if !crate::optim::study::ALGORITHMS.contains(&algorithm.as_str()) {
+        return check.fail(
+            "optimiser.algorithm",
+            format!(
+                "unknown algorithm {algorithm:?} (known: {})",
+                crate::optim::study::ALGORITHMS.join(", ")
+            ),
+        );
+    }
+    let population = o.population.unwrap_or(10);
+    if !(4..=10_000).contains(&population) {
+        return check.fail(
+            "optimiser.population",
+            format!("must be 4..=10000 (got {population})"),
+        );
+    }
+    let evaluations = o.evaluations.unwrap_or(310);
+    if !(population..=1_000_000).contains(&evaluations) {
+        return check.fail(
+            "optimiser.evaluations",
+            format!("must be at least the population ({population}) and at most 1000000 (got {evaluations})"),
+        );
+    }
+    let bound = |key: &str, v: Option<f64>| -> Result<f64, ConfigError> {
+        match v {
+            None => Ok(f64::INFINITY),
+            Some(x) => check.range(key, x, 1e-12, 1e12),
+        }
+    };
+    let envelope = crate::control::cycle::Envelope {
+        error: bound("optimiser.envelope_error", o.envelope_error)?,
+        output: bound("optimiser.envelope_output", o.envelope_output)?,
+        control: bound("optimiser.envelope_control", o.envelope_control)?,
+    };
+    let repetition = o.repetition.unwrap_or(1.0);
+    check.range("optimiser.repetition", repetition, timing.period, 1e6)?;
+    let first = o.first_repetition.unwrap_or(repetition);
+    check.range("optimiser.first_repetition", first, repetition, 1e9)?;
+    if mode == OptimiserMode::Direct {
+        let samples = |s: f64| s / timing.period;
+        let whole = |s: f64| (samples(s) - samples(s).round()).abs() < 1e-6;
+        if !whole(repetition) || !whole(first) {
+            return check.fail(
+                "optimiser.repetition",
+                format!(
+                    "repetition ({repetition} s) and first_repetition ({first} s) must be whole numbers of control periods ({} s)",
+                    timing.period
+                ),
+            );
+        }
+        // Lockstep: the optimiser decides at the sample before each boundary, which must be an
+        // acknowledgement: they come every sync_period, shifted onto the first boundary.
+        let sync = samples(sync_period).round() as u64;
+        let rep = samples(repetition).round() as u64;
+        if rep % sync != 0 {
+            return check.fail(
+                "optimiser.sync_period",
+                format!(
+                    "the direct scheme decides at the sample before each repetition starts: sync_period ({sync} periods) must divide the repetition ({rep} periods); leave it out for the largest divisor up to 100"
+                ),
+            );
+        }
+    }
+    Ok((
+        algorithm,
+        population,
+        evaluations,
+        repetition,
+        first,
+        envelope,
+    ))
 }
 
 /// The `model_parameters` of a JSON file (`evoloop identify lls`'s lls.json).

@@ -11,6 +11,41 @@ use crate::MAX_JOINTS;
 /// Capacity of the queue of parameter sets waiting for their cycle.
 pub const PENDING_CAPACITY: usize = 16;
 
+/// The safety envelope trial sets (the direct scheme's candidates) run under: a trial is aborted,
+/// its fallback restored in the same cycle, when any joint's tracking error |r - y| exceeds
+/// `error`, any measured output |y| exceeds `output` (e.g. the ball nearing the magnet or its
+/// catcher) or any command |u| exceeds `control`. Infinite bounds: no envelope.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Envelope {
+    pub error: f64,
+    pub output: f64,
+    pub control: f64,
+}
+
+impl Default for Envelope {
+    fn default() -> Self {
+        Self {
+            error: f64::INFINITY,
+            output: f64::INFINITY,
+            control: f64::INFINITY,
+        }
+    }
+}
+
+impl Envelope {
+    /// NaN counts as outside.
+    fn left_by_error(&self, sp: &Setpoint, state: &PlantState, n: usize) -> bool {
+        (0..n).any(|j| {
+            let inside =
+                (sp.q[j] - state.y[j]).abs() <= self.error && state.y[j].abs() <= self.output;
+            !inside
+        })
+    }
+    fn left_by_control(&self, u: &[f64]) -> bool {
+        u.iter().any(|v| v.is_nan() || v.abs() > self.control)
+    }
+}
+
 /// A parameter-set event, for the run's record.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParamEvent {
@@ -38,6 +73,16 @@ pub struct ControlCycle {
     cycle: u64,
     /// How many values the law logs (`Controller::log_columns`); telemetry carries them all.
     n_law: usize,
+    envelope: Envelope,
+    /// The set a trial falls back to: the last set put in service for good (at first the
+    /// configured parameters, version 0), or a trial a later trial named. Boxed: allocated once.
+    fallback: Box<ParamSet>,
+    /// The last trial put in service, which the next trial may name as its fallback.
+    last_trial: Option<Box<ParamSet>>,
+    /// While a trial is in service: the state sequence number at which it ends.
+    trial_until: Option<u64>,
+    /// Trials aborted for leaving the envelope.
+    pub trials_aborted: u64,
 }
 
 /// The number of the law's own values, which telemetry carries (at most `MAX_LAW_VALUES`: a
@@ -50,6 +95,19 @@ fn law_columns(c: &dyn Controller) -> usize {
         crate::msg::MAX_LAW_VALUES
     );
     n
+}
+
+/// The parameters `c` runs now as a set of `version` (the fallback before any set arrives).
+fn current_set(c: &dyn Controller, version: u64) -> ParamSet {
+    let p = c.params();
+    let mut set = ParamSet {
+        version,
+        kind: c.kind(),
+        n: p.len().min(crate::MAX_PARAMS) as u32,
+        ..ParamSet::default()
+    };
+    set.values[..set.n as usize].copy_from_slice(&p[..set.n as usize]);
+    set
 }
 
 impl ControlCycle {
@@ -65,8 +123,24 @@ impl ControlCycle {
             stability: None,
             cycle: 0,
             n_law: law_columns(controller.as_ref()),
+            envelope: Envelope::default(),
+            fallback: Box::new(current_set(controller.as_ref(), 0)),
+            last_trial: None,
+            trial_until: None,
+            trials_aborted: 0,
             controller,
         }
+    }
+
+    /// Run trial sets under `envelope`.
+    pub fn with_envelope(mut self, envelope: Envelope) -> Self {
+        self.envelope = envelope;
+        self
+    }
+
+    /// Whether a trial set is in service.
+    pub fn in_trial(&self) -> bool {
+        self.trial_until.is_some()
     }
 
     /// Check every new set for closed-loop stability on `model` before it is used.
@@ -91,11 +165,20 @@ impl ControlCycle {
 
     /// Run one cycle on `state`; returns u and fills `tel` (all but the timing fields), and the
     /// parameter event of this cycle if one happened. At most one set is handled per cycle, so
-    /// each accept/reject gets its own telemetry record.
+    /// each accept/reject gets its own telemetry record; a trial's end or abort in the same cycle
+    /// shows in the version in service (an abort is recorded in place of the acceptance).
     pub fn step(&mut self, state: &PlantState, tel: &mut Telemetry) -> Option<ParamEvent> {
         self.reference.sample(state.t, &mut self.setpoint);
         let sp = self.setpoint;
         let mut event = None;
+        let cycle = self.cycle;
+        let event_of = |code: ParamCode, version: u64, index: u32| ParamEvent {
+            cycle,
+            t: state.t,
+            version,
+            code,
+            index,
+        };
         if let Some(i) = self
             .pending
             .iter()
@@ -109,16 +192,26 @@ impl ControlCycle {
                 }
                 Err(refusal) => refusal,
             };
-            event = Some(ParamEvent {
-                cycle: self.cycle,
-                t: state.t,
-                version: set.version,
-                code,
-                index,
-            });
+            event = Some(event_of(code, set.version, index));
+        }
+        // A trial that has served its repetition (and was not replaced by the next just now).
+        if self.trial_until.is_some_and(|end| state.seq >= end) {
+            let ended = self.version;
+            self.restore(state, &sp);
+            event = event.or(Some(event_of(ParamCode::TrialEnded, ended, 0)));
         }
         let n_u = self.controller.n_outputs();
+        if self.trial_until.is_some() && self.envelope.left_by_error(&sp, state, n_u) {
+            event = Some(event_of(ParamCode::TrialAborted, self.version, 0));
+            self.abort(state, &sp);
+        }
         self.controller.step(state, &sp, &mut self.u[..n_u]);
+        if self.trial_until.is_some() && self.envelope.left_by_control(&self.u[..n_u]) {
+            // The candidate's command is never sent: the fallback's replaces it.
+            event = Some(event_of(ParamCode::TrialAborted, self.version, 0));
+            self.abort(state, &sp);
+            self.controller.step(state, &sp, &mut self.u[..n_u]);
+        }
         tel.cycle = self.cycle;
         tel.state_seq = state.seq;
         tel.t = state.t;
@@ -147,7 +240,8 @@ impl ControlCycle {
 
     /// Check a due set and put it in service: a model set (the law's `model_kind`) through the
     /// common checks and the law's own, a gain set through kind, length, bounds and, for linear
-    /// plants, stability. The refusal's code and offending index otherwise.
+    /// plants, stability, and a trial also through its fallback. The refusal's code and
+    /// offending index otherwise.
     fn apply(
         &mut self,
         set: &ParamSet,
@@ -156,7 +250,12 @@ impl ControlCycle {
     ) -> Result<(), (ParamCode, u32)> {
         let c = self.controller.as_ref();
         let refused = |r: super::Rejection| (r.code, r.index);
+        let trial = set.until_seq > 0;
         if c.model_kind() == Some(set.kind) {
+            if trial {
+                // Trials are gain sets: a model has no fallback to return to.
+                return Err((ParamCode::RejectedWrongKind, 0));
+            }
             validate_model(set, self.version).map_err(refused)?;
             return self.controller.swap_model(set.values());
         }
@@ -168,7 +267,48 @@ impl ControlCycle {
         {
             return Err((ParamCode::RejectedUnstable, 0));
         }
+        if trial {
+            // The named fallback: the current one, or the last trial (which then becomes it).
+            if set.fallback_version != self.fallback.version {
+                match self.last_trial.as_mut() {
+                    Some(last) if last.version == set.fallback_version => {
+                        std::mem::swap(&mut self.fallback, last);
+                    }
+                    _ => return Err((ParamCode::RejectedUnknownFallback, 0)),
+                }
+            }
+            match self.last_trial.as_mut() {
+                Some(last) => **last = *set,
+                None => self.last_trial = Some(Box::new(*set)),
+            }
+            self.trial_until = Some(set.until_seq);
+            self.controller.save_state();
+        } else {
+            *self.fallback = *set;
+            self.last_trial = None;
+            self.trial_until = None;
+        }
         self.controller.swap_params(set.values(), state, sp);
         Ok(())
+    }
+
+    /// Put the fallback back in service (the trial is over).
+    fn restore(&mut self, state: &PlantState, sp: &Setpoint) {
+        self.controller
+            .swap_params(self.fallback.values(), state, sp);
+        self.version = self.fallback.version;
+        self.trial_until = None;
+    }
+
+    /// A trial left the envelope: back to the fallback with the law's state of the trial's
+    /// start (`Controller::abort_to`), and the trial may not be named again.
+    fn abort(&mut self, state: &PlantState, sp: &Setpoint) {
+        self.controller.abort_to(self.fallback.values(), state, sp);
+        self.version = self.fallback.version;
+        self.trial_until = None;
+        if let Some(last) = self.last_trial.as_mut() {
+            last.version = u64::MAX;
+        }
+        self.trials_aborted += 1;
     }
 }

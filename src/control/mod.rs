@@ -136,6 +136,16 @@ pub trait Controller: Send {
     /// have (bumpless transfer). Laws without internal state cannot absorb the difference; they
     /// switch outright (the jump is proportional to the gain change times the tracking error).
     fn swap_params(&mut self, new: &[f64], state: &PlantState, sp: &Setpoint);
+    /// A trial set (the direct scheme) is about to go in service: remember the law's internal
+    /// state (integrators) as it is, for `abort_to`. Must not allocate.
+    fn save_state(&mut self) {}
+    /// A trial left the safety envelope: put `fallback` back in service with the internal state
+    /// saved when the trial began. Not bumpless on purpose: a bumpless transfer would keep the
+    /// failing trial's command and move the difference into the integrator, leaving the fallback
+    /// the failing trial's windup to undo. Laws without internal state just switch.
+    fn abort_to(&mut self, fallback: &[f64], state: &PlantState, sp: &Setpoint) {
+        self.swap_params(fallback, state, sp);
+    }
     /// The kind of a second sort of set the law takes besides its gains (an identified model),
     /// checked and put in service by `swap_model`; `None` for laws that take gains only.
     fn model_kind(&self) -> Option<u32> {

@@ -110,6 +110,8 @@ pub struct Pid {
     u_max: f64,
     integral: f64,
     e_prev: Option<f64>,
+    /// The integral when the last trial set went in service (`save_state`).
+    saved_integral: f64,
 }
 
 impl Pid {
@@ -129,6 +131,7 @@ impl Pid {
             u_max: limits.1,
             integral: initial_integral,
             e_prev: None,
+            saved_integral: initial_integral,
         }
     }
 
@@ -208,6 +211,15 @@ impl Controller for Pid {
         let old = self.pd(e);
         self.params.copy_from_slice(new);
         self.integral += old - self.pd(e);
+    }
+
+    fn save_state(&mut self) {
+        self.saved_integral = self.integral;
+    }
+
+    fn abort_to(&mut self, fallback: &[f64], _state: &PlantState, _sp: &Setpoint) {
+        self.params.copy_from_slice(fallback);
+        self.integral = self.saved_integral;
     }
 }
 

@@ -234,7 +234,7 @@ pub struct EpochRecord {
 
 /// A cost that may be infinite, as JSON: a number, or null for infinity (JSON has no infinity,
 /// and serde_json writes null for it, which would otherwise not read back as an f64).
-mod infinite_as_null {
+pub(crate) mod infinite_as_null {
     use serde::{Deserialize, Deserializer, Serializer};
 
     pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {

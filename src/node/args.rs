@@ -122,6 +122,7 @@ impl OverrideArgs {
                 OptimiserMode::Schedule => "schedule".into(),
                 OptimiserMode::Indirect => "indirect".into(),
                 OptimiserMode::Identify => "identify".into(),
+                OptimiserMode::Direct => "direct".into(),
             });
         }
         if self.no_rt {

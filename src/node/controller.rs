@@ -123,7 +123,8 @@ impl Loop {
         let log = LogStream::start(parts, rows, overflow).map_err(|e| e.to_string())?;
         Ok(Self {
             cycle: ControlCycle::new(controller, scn.reference.clone(), scn.bounds())
-                .with_stability_check(scn.linear_model()),
+                .with_stability_check(scn.linear_model())
+                .with_envelope(scn.optimiser.envelope),
             row: vec![0.0; width],
             log,
             timing: TimingStats::default(),

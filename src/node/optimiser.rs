@@ -47,7 +47,12 @@ pub fn main(cli: &OptimiserArgs) {
             sync: ipc.doorbell(Topic::Sync)?,
             params: ipc.publisher(Topic::Params, false)?,
             estimate: ipc.publisher(Topic::Estimate, false)?,
-            command: ipc.subscriber(Topic::Command, buffer, false)?,
+            // The direct scheme waits for the command answering a boundary's last sample.
+            command: ipc.subscriber(
+                Topic::Command,
+                buffer,
+                scn.optimiser.mode == OptimiserMode::Direct,
+            )?,
             // The plant starts the run once it sees this subscriber and the ready event.
             // In lockstep the optimiser sleeps on the sync bell and catches up on the queue,
             // instead of being woken (or spinning) for every sample.
@@ -121,6 +126,20 @@ fn run(
     } else {
         None
     };
+    let mut direct = if scn.optimiser.mode == OptimiserMode::Direct {
+        let mut tuner = crate::direct::DirectTuner::new(scn).map_err(|e| (EXIT_SETUP, e))?;
+        if rejoin {
+            if let Some((version, _)) = last_published(&scn.output.dir) {
+                tuner.resume(version);
+            }
+        }
+        Some(DirectLive::new(tuner, scn))
+    } else {
+        None
+    };
+    // Realtime: a trial is sent this far ahead of its first sample (20 ms), so it reaches the
+    // controller before that cycle.
+    let lead = (0.02 / dt).ceil() as u64;
     let mut published = History::new(crate::indirect::HISTORY);
     let mut last_state = Instant::now();
     let io = |e: IpcError| (EXIT_SETUP, e.to_string());
@@ -160,8 +179,14 @@ fn run(
         };
         last_state = Instant::now();
         report.states_seen += 1;
-        while ports.command.next().map_err(io)?.is_some() {
+        if let Some(d) = direct.as_mut() {
+            d.push_state(&state);
+        }
+        while let Some(c) = ports.command.next().map_err(io)? {
             report.commands_seen += 1;
+            if let Some(d) = direct.as_mut() {
+                d.push_command(&c);
+            }
         }
         if let Some(ind) = indirect.as_mut() {
             // Each new 10 Hz record goes out as telemetry too.
@@ -183,7 +208,7 @@ fn run(
         }
         let schedule = &scn.optimiser.schedule;
         if lockstep {
-            if state.seq % sync != 0 {
+            if !scn.is_sync_point(state.seq) {
                 continue;
             }
             // Publish every set due within the next interval, then let the plant go on.
@@ -208,6 +233,19 @@ fn run(
                     send_set(ports, &set, state.t, &mut published, &scn.output.dir).map_err(io)?;
                 }
             }
+            // Every sample up to this one seen with its command, the next trial (if one starts
+            // at the next sample) goes out before the plant may take that sample.
+            if let Some(d) = direct.as_mut() {
+                d.wait_through(
+                    state.seq,
+                    &ports.command,
+                    &mut report.commands_seen,
+                    timeout,
+                )?;
+                if let Some(set) = d.tuner.at(state.seq + 1, None) {
+                    send_set(ports, &set, state.t, &mut published, &scn.output.dir).map_err(io)?;
+                }
+            }
             ports
                 .ack
                 .send(&OptimiserAck {
@@ -224,6 +262,15 @@ fn run(
             if let Some(ind) = indirect.as_mut() {
                 if !ports.state.has_pending().map_err(io)? {
                     if let Some(set) = ind.run_epoch(state.t, 0) {
+                        send_set(ports, &set, state.t, &mut published, &scn.output.dir)
+                            .map_err(io)?;
+                    }
+                }
+            }
+            if let Some(d) = direct.as_mut() {
+                d.join();
+                if let Some(next) = d.through.map(|s| s + 1) {
+                    if let Some(set) = d.tuner.at(next, Some(next + lead)) {
                         send_set(ports, &set, state.t, &mut published, &scn.output.dir)
                             .map_err(io)?;
                     }
@@ -248,9 +295,122 @@ fn run(
     if let Some(l) = live {
         report.epochs = l.epochs.into_vec();
     }
+    if let Some(d) = direct {
+        report.direct = Some(d.tuner.report());
+    }
     report.published_count = published.offered();
     report.published = published.into_vec();
     result
+}
+
+/// The direct scheme in this process: each state paired with the command that answered it, in
+/// sequence order, for the tuner. Fixed-size queues (the plant runs at most a queue ahead).
+struct DirectLive {
+    tuner: crate::direct::DirectTuner,
+    reference: crate::reference::Reference,
+    n: usize,
+    states: std::collections::VecDeque<(u64, f64, [f64; crate::MAX_JOINTS])>,
+    commands: std::collections::VecDeque<Command>,
+    /// The last sample observed (paired with its command).
+    through: Option<u64>,
+    /// The last command joined: realtime, a state the controller skipped (it ran its cycle on
+    /// an older one) had this command applied over its interval.
+    last: Option<Command>,
+}
+
+impl DirectLive {
+    fn new(tuner: crate::direct::DirectTuner, scn: &Scenario) -> Self {
+        let cap = 2 * (crate::ipc::MAX_SYNC_SAMPLES + 8);
+        Self {
+            tuner,
+            reference: scn.reference.clone(),
+            n: scn.build_controller().n_outputs(),
+            states: std::collections::VecDeque::with_capacity(cap),
+            commands: std::collections::VecDeque::with_capacity(cap),
+            through: None,
+            last: None,
+        }
+    }
+
+    fn push_state(&mut self, s: &PlantState) {
+        if self.states.len() == self.states.capacity() {
+            self.states.pop_front();
+        }
+        self.states.push_back((s.seq, s.t, s.y));
+        self.join();
+    }
+
+    fn push_command(&mut self, c: &Command) {
+        if self.commands.len() == self.commands.capacity() {
+            self.commands.pop_front();
+        }
+        self.commands.push_back(*c);
+        self.join();
+    }
+
+    /// Pair the queued states and commands by sequence number. Realtime only (lockstep answers
+    /// every state once): a command for a state already paired (the controller ran a cycle on a
+    /// stale state) is dropped; a state no command answered (the controller skipped it) is
+    /// paired with the command before it, which the plant kept applying.
+    fn join(&mut self) {
+        let mut sp = crate::reference::Setpoint::default();
+        while let (Some(s), Some(c)) = (self.states.front(), self.commands.front()) {
+            let c = if c.state_seq < s.0 {
+                self.last = self.commands.pop_front();
+                continue;
+            } else if s.0 < c.state_seq {
+                match self.last {
+                    Some(last) => last,
+                    None => {
+                        self.states.pop_front();
+                        continue;
+                    }
+                }
+            } else {
+                let c = *c;
+                self.commands.pop_front();
+                self.last = Some(c);
+                c
+            };
+            let s = self.states.pop_front().expect("a front state");
+            self.reference.sample(s.1, &mut sp);
+            let n = self.n;
+            self.tuner
+                .observe(s.0, s.1, &sp.q[..n], &s.2[..n], &c.u[..n], c.param_version);
+            self.through = Some(s.0);
+        }
+    }
+
+    /// Lockstep: wait for the controller's answer to sample `seq` (it comes without the
+    /// optimiser's acknowledgement, which the plant waits for).
+    fn wait_through(
+        &mut self,
+        seq: u64,
+        commands: &Sub<Command>,
+        seen: &mut u64,
+        timeout: Duration,
+    ) -> Result<(), (i32, String)> {
+        let t0 = Instant::now();
+        while self.through.is_none_or(|s| s < seq) {
+            match commands
+                .wait_next(Duration::from_micros(50), Duration::from_millis(100))
+                .map_err(|e| (EXIT_SETUP, e.to_string()))?
+            {
+                Wait::Got(c) => {
+                    *seen += 1;
+                    self.push_command(&c);
+                }
+                Wait::TimedOut if t0.elapsed() > timeout => {
+                    return Err((
+                        EXIT_PEER_TIMEOUT,
+                        format!("no command for sample {seq} within {timeout:?}"),
+                    ))
+                }
+                Wait::TimedOut => {}
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Every published set is appended to this journal at once (a killed optimiser writes no

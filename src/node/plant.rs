@@ -122,7 +122,6 @@ fn run_lockstep(
 ) -> Result<(), (i32, String)> {
     let n = scn.cycles();
     let dt = scn.timing.period;
-    let sync = scn.sync_samples();
     let spin = Duration::from_micros(scn.timing.spin_us);
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout);
     let n_u = sim.plant.n_inputs();
@@ -142,7 +141,7 @@ fn run_lockstep(
         }
         publish(ports, &msg)?;
         report.samples += 1;
-        if k % sync == 0 {
+        if scn.is_sync_point(k) {
             // The optimiser sleeps between these samples and catches up on the queue here.
             ring(ports)?;
             wait_for_optimiser(ports, k, spin, timeout, stop, &mut paced, report)?;

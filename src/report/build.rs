@@ -531,6 +531,23 @@ pub fn build_report(
         plant_safe_samples: plant.safe_samples,
         optimiser_published: opt.published_count as usize,
         optimiser_samples_missed: opt.samples_missed,
+        direct: opt
+            .direct
+            .as_ref()
+            .map(|d| crate::report::summary::DirectSummary {
+                algorithm: d.algorithm.clone(),
+                trials: d.repetitions.iter().filter(|r| r.trial > 0).count(),
+                aborted: d.aborted,
+                incomplete: d.incomplete,
+                baseline_cost: d
+                    .repetitions
+                    .iter()
+                    .find(|r| r.trial == 0)
+                    .map(|b| b.cost)
+                    .filter(|c| c.is_finite()),
+                best_cost: Some(d.best_cost).filter(|c| c.is_finite()),
+                best_version: d.best_version,
+            }),
         interrupted,
         stale_resources_cleaned: cleaned,
         optimiser_restarts,
@@ -583,6 +600,9 @@ pub fn build_report(
             },
             &marks,
         )?;
+    }
+    if let Some(d) = &opt.direct {
+        crate::direct::write_files(dir, d, scn.output.plots)?;
     }
     if !reps.is_empty() {
         let mut csv = String::from("repetition,t_start,t_end,cost,cost_frozen\n");

@@ -97,6 +97,24 @@ pub struct OptimiserReport {
     /// Indirect mode: every tuning epoch.
     #[serde(default)]
     pub epochs: Vec<crate::indirect::EpochRecord>,
+    /// Direct mode: every repetition, the best set.
+    #[serde(default)]
+    pub direct: Option<crate::direct::DirectReport>,
+}
+
+/// The direct scheme's outcome in summary.json.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct DirectSummary {
+    pub algorithm: String,
+    /// Candidates tried on the plant and scored, and how many of them the envelope aborted.
+    pub trials: usize,
+    pub aborted: u64,
+    /// Trials whose samples did not all reach the optimiser (tried again).
+    pub incomplete: u64,
+    /// The configured set's cost on the baseline repetition, and the best cost found.
+    pub baseline_cost: Option<f64>,
+    pub best_cost: Option<f64>,
+    pub best_version: u64,
 }
 
 /// The bare absolute-deadline sleep loop measured in the same run: the machine's floor.
@@ -170,6 +188,9 @@ pub struct Summary {
     /// Indirect mode: plant samples the optimiser's estimator missed (its queue overflowed).
     #[serde(default)]
     pub optimiser_samples_missed: u64,
+    /// Direct mode: the trials and what they found (every repetition: direct.csv).
+    #[serde(default)]
+    pub direct: Option<DirectSummary>,
     pub interrupted: bool,
     pub stale_resources_cleaned: usize,
     /// Times the optimiser died and was started again to rejoin the run.

@@ -109,6 +109,90 @@ impl JointTraces {
     }
 }
 
+/// What the closed loop of `run_loop` tells its user, sample by sample.
+pub trait LoopHook {
+    /// Before the cycle of sample `seq`: offer the sets due (now or later) to `cycle`.
+    fn before(&mut self, _seq: u64, _cycle: &mut ControlCycle) {}
+    /// After it: the sample, the cycle's telemetry and parameter event, and the cycle (its
+    /// set-point of this sample, the law).
+    fn after(
+        &mut self,
+        _state: &PlantState,
+        _tel: &Telemetry,
+        _event: Option<ParamEvent>,
+        _cycle: &ControlCycle,
+    ) {
+    }
+}
+
+/// The scenario's closed loop in this process, in lockstep: the same `PlantSim` and
+/// `ControlCycle` the plant and controller processes run, for `scn.cycles()` samples, each shown
+/// to `hook` and none kept. Returns the control cycle as it ends (the set in service, counts).
+pub fn run_loop(scn: &Scenario, hook: &mut impl LoopHook) -> ControlCycle {
+    let mut plant = PlantSim::new(
+        scn.build_plant(),
+        scn.plant.step,
+        scn.plant.noise_std,
+        scn.seed,
+    );
+    let mut cycle = control_cycle(scn);
+    let dt = scn.timing.period;
+    let mut state = PlantState::default();
+    let mut u = [0.0; crate::MAX_JOINTS];
+    let n_u = plant.plant.n_inputs();
+    for k in 0..scn.cycles() {
+        plant.sample(k, 0, &u[..n_u], &mut state);
+        hook.before(k, &mut cycle);
+        let mut tel = Telemetry::default();
+        let event = cycle.step(&state, &mut tel);
+        hook.after(&state, &tel, event, &cycle);
+        u = cycle.u;
+        plant.advance(&u[..n_u], dt);
+    }
+    cycle
+}
+
+/// The scenario's control cycle as the controller process builds it: its law, reference,
+/// parameter bounds, stability check (linear plants) and trial envelope (direct scheme).
+pub fn control_cycle(scn: &Scenario) -> ControlCycle {
+    ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())
+        .with_stability_check(scn.linear_model())
+        .with_envelope(scn.optimiser.envelope)
+}
+
+/// `simulate`'s hook: offers the scheduled sets at their samples and keeps every sample.
+struct Keep<'a> {
+    scn: &'a Scenario,
+    schedule_on: bool,
+    rows: Vec<SimRow>,
+    events: Vec<ParamEvent>,
+}
+
+impl LoopHook for Keep<'_> {
+    fn before(&mut self, seq: u64, cycle: &mut ControlCycle) {
+        if self.schedule_on {
+            for (i, s) in self.scn.optimiser.schedule.iter().enumerate() {
+                if scheduled_seq(s.at, self.scn.timing.period) == seq {
+                    cycle.offer(&scheduled_set(self.scn, i, seq));
+                }
+            }
+        }
+    }
+    fn after(
+        &mut self,
+        state: &PlantState,
+        tel: &Telemetry,
+        event: Option<ParamEvent>,
+        _cycle: &ControlCycle,
+    ) {
+        self.events.extend(event);
+        self.rows.push(SimRow {
+            state: *state,
+            telemetry: *tel,
+        });
+    }
+}
+
 /// Simulate the scenario in lockstep in this process, scheduled parameter sets included when
 /// the scenario's optimiser mode is `schedule`. The result holds every sample, so the scenario
 /// needs a duration: callers refuse a run until stopped first (`Scenario::require_duration`).
@@ -116,48 +200,17 @@ pub fn simulate(scn: &Scenario) -> SimResult {
     if let Err(e) = scn.require_duration() {
         panic!("sim::simulate: {e}");
     }
-    let mut plant = PlantSim::new(
-        scn.build_plant(),
-        scn.plant.step,
-        scn.plant.noise_std,
-        scn.seed,
-    );
-    let mut cycle = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())
-        .with_stability_check(scn.linear_model());
-    let schedule_on = scn.optimiser.mode == crate::config::OptimiserMode::Schedule;
-    let n = scn.cycles();
-    let dt = scn.timing.period;
-    let mut rows = Vec::with_capacity(n as usize);
-    let mut events = Vec::new();
-    let law_columns = cycle.controller.log_columns();
-    let mut state = PlantState::default();
-    let mut u = [0.0; crate::MAX_JOINTS];
-    let n_u = plant.plant.n_inputs();
-    for k in 0..n {
-        plant.sample(k, 0, &u[..n_u], &mut state);
-        if schedule_on {
-            for (i, s) in scn.optimiser.schedule.iter().enumerate() {
-                let at = scheduled_seq(s.at, dt);
-                if at == k {
-                    cycle.offer(&scheduled_set(scn, i, at));
-                }
-            }
-        }
-        let mut tel = Telemetry::default();
-        if let Some(e) = cycle.step(&state, &mut tel) {
-            events.push(e);
-        }
-        u = cycle.u;
-        rows.push(SimRow {
-            state,
-            telemetry: tel,
-        });
-        plant.advance(&u[..n_u], dt);
-    }
+    let mut keep = Keep {
+        scn,
+        schedule_on: scn.optimiser.mode == crate::config::OptimiserMode::Schedule,
+        rows: Vec::with_capacity(scn.cycles() as usize),
+        events: Vec::new(),
+    };
+    let cycle = run_loop(scn, &mut keep);
     SimResult {
-        rows,
-        events,
-        law_columns,
+        rows: keep.rows,
+        events: keep.events,
+        law_columns: cycle.controller.log_columns(),
     }
 }
 

@@ -3,6 +3,7 @@
 //! in the output directory, a summary on stdout (or JSON with --json), progress on a terminal.
 
 pub mod arsinh;
+pub mod direct;
 pub mod maglev;
 
 use crate::optim::hybrid::HybridConfig;
@@ -177,8 +178,11 @@ pub fn validate_file(file: &Path) -> Result<(), String> {
     Ok(())
 }
 
-/// Run the experiment the request names.
+/// Run the experiment the request names (or a direct-scheme scenario, in this process).
 pub fn tune(a: &TuneRequest) -> Result<(), String> {
+    if crate::check::read_text(&a.file).is_ok_and(|t| direct::is_scenario(&t)) {
+        return direct::run(&a.file, a);
+    }
     let raw = read(&a.file)?;
     let seed = a.seed.or(raw.seed).unwrap_or(1);
     let (default_phases, default_dir) = match raw.experiment {

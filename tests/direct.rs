@@ -1,0 +1,290 @@
+//! The direct scheme (issue 19, parts 1-3): candidates tried on the plant through the processes,
+//! one repetition each, under the safety envelope; the live run equals the in-process tuner.
+
+mod common;
+use common::*;
+use evoloop::config::{Overrides, Scenario};
+use evoloop::control::cycle::{ControlCycle, ParamEvent};
+use evoloop::msg::{ParamCode, ParamSet, PlantState, Telemetry};
+use evoloop::sim::LoopHook;
+use std::path::Path;
+
+/// config/maglev_direct.toml shortened to `trials` candidates (a population of 10, then GA
+/// iterations of two), with `edit` (from, to) applied to its text.
+fn short_direct(dir: &Path, trials: usize, edit: (&str, &str)) -> std::path::PathBuf {
+    let shipped = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_direct.toml"),
+    )
+    .unwrap();
+    // The first trial at 3.0 s, then 1.6 s each, and half a second of the final set.
+    let duration = 3.0 + 1.6 * trials as f64 + 0.5;
+    let text = shipped
+        .replace("duration = 500.0", &format!("duration = {duration}"))
+        .replace("evaluations = 310", &format!("evaluations = {trials}"))
+        .replace("measure_floor = true", "measure_floor = false")
+        .replace(edit.0, edit.1);
+    write(dir, "direct.toml", &text)
+}
+
+fn f64s(v: &serde_json::Value) -> Vec<u64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().map_or(u64::MAX, f64::to_bits))
+        .collect()
+}
+
+#[test]
+fn a_direct_run_through_the_processes_equals_the_in_process_tuner_bit_for_bit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = short_direct(tmp.path(), 14, ("", ""));
+    let live = tmp.path().join("live");
+    assert_ok(&run(&cfg, &live, "direct", &["--mode", "lockstep"]));
+    let fast = tmp.path().join("fast");
+    let o = cli(&[
+        "tune",
+        cfg.to_str().unwrap(),
+        "--out",
+        fast.to_str().unwrap(),
+        "--json",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let tuned = stdout_json(&o);
+
+    let opt = json(&live.join("optimiser.json"));
+    let live_reps = opt["direct"]["repetitions"].as_array().unwrap().clone();
+    let fast_reps = tuned["direct"]["repetitions"].as_array().unwrap().clone();
+    // The baseline and 14 trials, each scored on one repetition.
+    assert_eq!(live_reps.len(), 15, "{}", opt["direct"]);
+    assert_eq!(live_reps.len(), fast_reps.len());
+    for (a, b) in live_reps.iter().zip(&fast_reps) {
+        assert_eq!(a["version"], b["version"]);
+        assert_eq!(a["start_seq"], b["start_seq"]);
+        assert_eq!(a["aborted"], b["aborted"]);
+        let bits = |r: &serde_json::Value| r["cost"].as_f64().map(f64::to_bits);
+        assert_eq!(bits(a), bits(b), "cost of trial {}: {a} vs {b}", a["trial"]);
+        assert_eq!(f64s(&a["values"]), f64s(&b["values"]));
+    }
+    // The baseline repetition, then trials back to back from 3.0 s, 1600 samples each.
+    for (i, r) in live_reps.iter().enumerate() {
+        assert_eq!(r["start_seq"].as_u64().unwrap(), 1400 + 1600 * i as u64);
+    }
+    // The same final set in service, bit for bit.
+    let ctrl = json(&live.join("controller.json"));
+    assert_eq!(f64s(&ctrl["final_params"]), f64s(&tuned["final_params"]));
+    assert_eq!(ctrl["final_version"], tuned["final_version"]);
+    // Which is the best found, and it beats or equals the configured set's baseline.
+    assert_eq!(
+        f64s(&ctrl["final_params"]),
+        f64s(&opt["direct"]["best_values"])
+    );
+    let s = json(&live.join("summary.json"));
+    let d = &s["direct"];
+    assert_eq!(d["trials"], 14);
+    assert!(d["best_cost"].as_f64().unwrap() <= d["baseline_cost"].as_f64().unwrap());
+    // The report: one CSV row per repetition and the Fig. 7b plot.
+    let csv = std::fs::read_to_string(live.join("direct.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 16);
+    assert!(live.join("direct.png").is_file());
+    assert!(fast.join("direct.png").is_file() && fast.join("direct.json").is_file());
+}
+
+/// Offers one trial set at a given sample and records what the cycle did with it.
+struct OneTrial {
+    set: ParamSet,
+    events: Vec<ParamEvent>,
+    y: Vec<f64>,
+    version: Vec<u64>,
+}
+
+impl LoopHook for OneTrial {
+    fn before(&mut self, seq: u64, cycle: &mut ControlCycle) {
+        if seq == self.set.apply_at_seq {
+            cycle.offer(&self.set);
+        }
+    }
+    fn after(&mut self, s: &PlantState, tel: &Telemetry, e: Option<ParamEvent>, _: &ControlCycle) {
+        self.events.extend(e);
+        self.y.push(s.y[0]);
+        self.version.push(tel.param_version);
+    }
+}
+
+fn maglev_direct(duration: f64) -> Scenario {
+    let ov = Overrides {
+        duration: Some(duration),
+        ..Overrides::default()
+    };
+    Scenario::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_direct.toml"),
+        &ov,
+    )
+    .unwrap()
+}
+
+fn trial(version: u64, values: &[f64], at: u64, until: u64, fallback: u64) -> ParamSet {
+    let mut set = ParamSet {
+        version,
+        apply_at_seq: at,
+        until_seq: until,
+        fallback_version: fallback,
+        kind: evoloop::msg::KIND_PID_FUZZY_AW,
+        n: values.len() as u32,
+        ..ParamSet::default()
+    };
+    set.values[..values.len()].copy_from_slice(values);
+    set
+}
+
+#[test]
+fn an_aborted_candidate_does_not_lose_the_ball() {
+    // A deliberately bad candidate: the paper's set with its proportional gain at the bottom
+    // of its range and the derivative time at the top, which lets the ball fall.
+    let scn = maglev_direct(6.0);
+    let good = scn.controller.tunable().gains.clone();
+    let lower = scn.bounds().lower;
+    let mut bad = good.clone();
+    bad[0] = lower[0];
+    bad[1] = scn.bounds().upper[1];
+    // Without the envelope the candidate loses the ball within its repetition.
+    let mut unguarded = scn.clone();
+    unguarded.optimiser.envelope = Default::default();
+    let mut free = OneTrial {
+        set: trial(1, &bad, 1800, 3400, 0),
+        events: vec![],
+        y: vec![],
+        version: vec![],
+    };
+    evoloop::sim::run_loop(&unguarded, &mut free);
+    let worst_free = free.y[1800..3400]
+        .iter()
+        .fold(0.0f64, |m, y| m.max(y.abs()));
+    assert!(
+        worst_free > 4.5,
+        "the bad candidate should lose the ball unguarded (|y| max {worst_free} mm)"
+    );
+    // With it, the trial is aborted in the cycle the ball leaves the envelope (+-4 mm) ...
+    let mut guarded = OneTrial {
+        set: trial(1, &bad, 1800, 3400, 0),
+        events: vec![],
+        y: vec![],
+        version: vec![],
+    };
+    evoloop::sim::run_loop(&scn, &mut guarded);
+    let abort = guarded
+        .events
+        .iter()
+        .find(|e| e.code == ParamCode::TrialAborted)
+        .expect("the trial was aborted");
+    let k = abort.cycle as usize;
+    let envelope = scn.optimiser.envelope.output;
+    let left = (1800..).find(|i| guarded.y[*i].abs() > envelope).unwrap();
+    assert_eq!(
+        k, left,
+        "left the envelope at sample {left}, aborted at {k}"
+    );
+    // ... the configured set is back in service at once ...
+    assert_eq!(guarded.version[k], 0);
+    assert!(guarded.version[k..].iter().all(|v| *v == 0));
+    // ... and the ball is caught: never beyond 4.5 mm, back on the set-point by the end.
+    // Falling at the abort, the ball may touch the catcher (5 mm) before the restored set's
+    // full current stops it, but it is lifted off at once and never stays there: unguarded it
+    // lies on the catcher for the rest of the trial.
+    let on_catcher = |y: &[f64]| y.iter().filter(|v| v.abs() >= 4.99).count();
+    let lying = on_catcher(&free.y[1800..3400]);
+    assert!(
+        lying > 1400,
+        "unguarded: {lying} of 1600 samples on the catcher"
+    );
+    let touched = on_catcher(&guarded.y[1800..3400]);
+    assert!(touched <= 20, "guarded: {touched} samples on the catcher");
+    let back = (k..).find(|i| guarded.y[*i].abs() <= envelope).unwrap();
+    assert!(
+        back - k <= 50,
+        "back inside the envelope {} periods after the abort",
+        back - k
+    );
+    eprintln!(
+        "aborted {} periods after the trial began; {touched} samples on the catcher (unguarded: \
+         {lying}); back inside +-{envelope} mm {} periods after the abort",
+        k - 1800,
+        back - k
+    );
+    let tail = &guarded.y[5400..5790]; // the +2 mm plateau of 5.0-5.8 s, settled
+    let mean: f64 = tail.iter().sum::<f64>() / tail.len() as f64;
+    assert!((mean - 2.0).abs() < 0.1, "settled at {mean} mm, not +2 mm");
+}
+
+#[test]
+fn a_trial_serves_its_repetition_then_its_fallback_returns() {
+    let scn = maglev_direct(4.0);
+    let mut other = scn.controller.tunable().gains.clone();
+    other[0] *= 1.05;
+    let mut h = OneTrial {
+        set: trial(1, &other, 1800, 2600, 0),
+        events: vec![],
+        y: vec![],
+        version: vec![],
+    };
+    let end = evoloop::sim::run_loop(&scn, &mut h);
+    assert_eq!(h.version[1799], 0);
+    assert!(h.version[1800..2600].iter().all(|v| *v == 1));
+    assert!(h.version[2600..].iter().all(|v| *v == 0));
+    let codes: Vec<ParamCode> = h.events.iter().map(|e| e.code).collect();
+    assert_eq!(codes, [ParamCode::Accepted, ParamCode::TrialEnded]);
+    assert_eq!(end.controller.params(), &scn.controller.tunable().gains[..]);
+}
+
+#[test]
+fn a_trial_naming_a_fallback_the_controller_does_not_hold_is_refused() {
+    let scn = maglev_direct(3.0);
+    let gains = scn.controller.tunable().gains.clone();
+    let mut h = OneTrial {
+        set: trial(5, &gains, 1800, 2600, 4),
+        events: vec![],
+        y: vec![],
+        version: vec![],
+    };
+    evoloop::sim::run_loop(&scn, &mut h);
+    assert_eq!(h.events.len(), 1);
+    assert_eq!(h.events[0].code, ParamCode::RejectedUnknownFallback);
+    assert!(h.version.iter().all(|v| *v == 0));
+}
+
+#[test]
+fn direct_settings_are_checked_with_file_key_and_reason() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (edit, key, reason) in [
+        (
+            ("\"ga\"", "\"annealing\""),
+            "optimiser.algorithm",
+            "unknown algorithm",
+        ),
+        (
+            ("nice = 10", "sync_period = 0.15"),
+            "optimiser.sync_period",
+            "must divide",
+        ),
+        (
+            ("nice = 10", "envelope_error = -1.0"),
+            "optimiser.envelope_error",
+            "",
+        ),
+        (
+            ("population = 10", "population = 2"),
+            "optimiser.population",
+            "must be 4..=10000",
+        ),
+    ] {
+        let cfg = short_direct(tmp.path(), 14, edit);
+        let extra = edit.1;
+        let o = cli(&["check", cfg.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{extra} accepted");
+        assert!(
+            err.contains("direct.toml") && err.contains(key) && err.contains(reason),
+            "{extra}: {err}"
+        );
+    }
+}
