@@ -205,6 +205,9 @@ pub const KIND_RKGNN_MODEL: u32 = 10;
 /// regressor's order, ten per body, then viscous and Coulomb friction per joint, then the
 /// armature per joint (`identify::Columns::PLANT`).
 pub const KIND_RIGID_BODY_MODEL: u32 = 11;
+/// The genes of a fuzzy network controller (`fuzzy::codec::Codec` order: per variable the
+/// centre genes then the widths, then the scaling factors).
+pub const KIND_FUZZY_NETWORK: u32 = 12;
 
 /// A parameter set from the optimiser to the controller.
 #[repr(C)]

@@ -61,6 +61,9 @@ pub enum Reference {
     },
     /// Piecewise constant: `values[i]` from `times[i]` on (0 before `times[0]`); times increasing.
     Steps { times: Vec<f64>, values: Vec<f64> },
+    /// A sampled sequence repeated for ever: `values[k mod N]` at t = k `period` (the value of the
+    /// nearest sample instant, so accumulated float time lands on its sample).
+    Samples { values: Vec<f64>, period: f64 },
     /// Joint space, rest-to-rest quintic segments: `waypoints[k]` (one value per joint) at
     /// `times[k]`, held before the first and after the last; zero velocity and acceleration at
     /// every waypoint.
@@ -138,6 +141,35 @@ impl Reference {
         }
     }
 
+    /// One line for a person: the kind and its key figures, not every value.
+    pub fn describe(&self) -> String {
+        match self {
+            Reference::Step { amplitude, start } => format!("step to {amplitude} at {start} s"),
+            Reference::Square {
+                amplitude,
+                period,
+                offset,
+                start,
+            } => format!("square {offset} +- {amplitude}, period {period} s from {start} s"),
+            Reference::Steps { times, .. } => format!("{} steps", times.len()),
+            Reference::Samples { values, period } => {
+                format!("{} samples every {period} s, repeating", values.len())
+            }
+            Reference::Quintic { times, .. } => {
+                format!(
+                    "quintic through {} waypoints, {} joints",
+                    times.len(),
+                    self.joints()
+                )
+            }
+            Reference::Sines { frequencies, .. } => format!(
+                "sums of {} sinusoids, {} joints",
+                frequencies.len(),
+                self.joints()
+            ),
+        }
+    }
+
     /// Scalar value r(t) (joint 0 of a joint-space trajectory).
     pub fn value(&self, t: f64) -> f64 {
         match self {
@@ -176,6 +208,10 @@ impl Reference {
                 }
                 r
             }
+            Reference::Samples { values, period } => {
+                let k = (t / period).round().max(0.0) as usize;
+                values[k % values.len()]
+            }
             Reference::Quintic { .. } | Reference::Sines { .. } => {
                 let mut sp = Setpoint::default();
                 self.sample(t, &mut sp);
@@ -206,7 +242,7 @@ impl Reference {
                 .filter(|t| *t <= horizon)
                 .fold(0.0, f64::max),
             // A trajectory that never rests: there is no settling to measure.
-            Reference::Sines { .. } => horizon,
+            Reference::Sines { .. } | Reference::Samples { .. } => horizon,
         }
     }
 }

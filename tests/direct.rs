@@ -26,6 +26,28 @@ fn short_direct(dir: &Path, trials: usize, edit: (&str, &str)) -> std::path::Pat
     write(dir, "direct.toml", &text)
 }
 
+/// Run `cfg` through the processes in lockstep (into `dir/live`) and in one process with
+/// `evoloop tune` (into `dir/fast`); the live output directory, the tuner's and its JSON.
+fn live_and_in_process(
+    dir: &Path,
+    cfg: &Path,
+    tag: &str,
+) -> (std::path::PathBuf, std::path::PathBuf, serde_json::Value) {
+    let live = dir.join("live");
+    assert_ok(&run(cfg, &live, tag, &["--mode", "lockstep"]));
+    let fast = dir.join("fast");
+    let o = cli(&[
+        "tune",
+        cfg.to_str().unwrap(),
+        "--out",
+        fast.to_str().unwrap(),
+        "--json",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (live, fast, stdout_json(&o))
+}
+
 fn f64s(v: &serde_json::Value) -> Vec<u64> {
     v.as_array()
         .unwrap()
@@ -38,20 +60,7 @@ fn f64s(v: &serde_json::Value) -> Vec<u64> {
 fn a_direct_run_through_the_processes_equals_the_in_process_tuner_bit_for_bit() {
     let tmp = tempfile::tempdir().unwrap();
     let cfg = short_direct(tmp.path(), 14, ("", ""));
-    let live = tmp.path().join("live");
-    assert_ok(&run(&cfg, &live, "direct", &["--mode", "lockstep"]));
-    let fast = tmp.path().join("fast");
-    let o = cli(&[
-        "tune",
-        cfg.to_str().unwrap(),
-        "--out",
-        fast.to_str().unwrap(),
-        "--json",
-        "--quiet",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let tuned = stdout_json(&o);
-
+    let (live, fast, tuned) = live_and_in_process(tmp.path(), &cfg, "direct");
     let opt = json(&live.join("optimiser.json"));
     let live_reps = opt["direct"]["repetitions"].as_array().unwrap().clone();
     let fast_reps = tuned["direct"]["repetitions"].as_array().unwrap().clone();
@@ -287,4 +296,36 @@ fn direct_settings_are_checked_with_file_key_and_reason() {
             "{extra}: {err}"
         );
     }
+}
+
+#[test]
+fn the_arsinh_direct_run_halves_g_through_the_processes_as_the_in_process_tuner_does() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arsinh_direct.toml");
+    let (live, _, tuned) = live_and_in_process(tmp.path(), &cfg, "arsinh");
+    let opt = json(&live.join("optimiser.json"));
+    let (a, b) = (
+        &opt["direct"]["repetitions"],
+        &tuned["direct"]["repetitions"],
+    );
+    assert_eq!(a.as_array().unwrap().len(), 661);
+    assert_eq!(
+        a, b,
+        "the live cost sequence differs from the in-process one"
+    );
+    let ctrl = json(&live.join("controller.json"));
+    assert_eq!(f64s(&ctrl["final_params"]), f64s(&tuned["final_params"]));
+    // G of eq. 25 per repetition: the best set costs at most half the configured one.
+    let reps = a.as_array().unwrap();
+    let baseline = reps[0]["cost"].as_f64().unwrap();
+    let best = opt["direct"]["best_cost"].as_f64().unwrap();
+    assert!(best <= baseline / 2.0, "G {baseline} -> {best}");
+    let halved = reps
+        .iter()
+        .find(|r| r["best"].as_f64().unwrap() <= baseline / 2.0)
+        .unwrap();
+    eprintln!(
+        "G {baseline:.4} (configured set) -> {best:.4} in 660 repetitions; halved after {}",
+        halved["trial"]
+    );
 }

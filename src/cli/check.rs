@@ -11,12 +11,12 @@ pub fn check(file: &Path) -> ExitCode {
                 err!("warning: {w}");
             }
             out!(
-                "{}: ok: scenario `{}`, plant {:?}, controller {:?}, reference {:?}, {} mode, period {} s, {}, optimiser {:?} with {} scheduled set(s), output {}",
+                "{}: ok: scenario `{}`, plant {:?}, controller {:?}, reference {}, {} mode, period {} s, {}, optimiser {:?} with {} scheduled set(s), output {}",
                 file.display(),
                 s.name,
                 s.plant.kind(),
                 s.controller.kind(),
-                s.reference,
+                s.reference.describe(),
                 format!("{:?}", s.timing.mode).to_lowercase(),
                 s.timing.period,
                 if s.timing.until_stopped() {

@@ -30,6 +30,8 @@ pub struct RawOptimiser {
     pub envelope_error: Option<f64>,
     pub envelope_output: Option<f64>,
     pub envelope_control: Option<f64>,
+    pub cost_lag: Option<u32>,
+    pub seed_configured: Option<bool>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -127,6 +129,12 @@ pub struct OptimiserSpec {
     pub first_repetition: f64,
     /// Direct: the envelope a candidate is aborted outside of.
     pub envelope: crate::control::cycle::Envelope,
+    /// Direct: the output at sample k is judged against the reference `cost_lag` samples
+    /// earlier (1 for the arsinh plant: eq. 25 compares x_{i+1} with w_i).
+    pub cost_lag: u32,
+    /// Direct: the configured set is a member of the GA's initial population (it is tried
+    /// again as a candidate, beside the baseline).
+    pub seed_configured: bool,
 }
 
 pub fn validate(
@@ -156,6 +164,8 @@ pub fn validate(
         envelope_error: None,
         envelope_output: None,
         envelope_control: None,
+        cost_lag: None,
+        seed_configured: None,
     });
     let mode = ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off);
     let direct = mode == OptimiserMode::Direct;
@@ -260,6 +270,16 @@ pub fn validate(
         repetition: direct_spec.3,
         first_repetition: direct_spec.4,
         envelope: direct_spec.5,
+        seed_configured: o.seed_configured.unwrap_or(false),
+        cost_lag: match o.cost_lag.unwrap_or(0) {
+            l @ 0..=16 => l,
+            l => {
+                return check.fail(
+                    "optimiser.cost_lag",
+                    format!("must be 0..=16 samples (got {l})"),
+                )
+            }
+        },
         mode,
         sync_period,
         nice,

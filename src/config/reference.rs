@@ -33,6 +33,7 @@ pub enum ReferenceKind {
     Quintic,
     Sines,
     Excitation,
+    Samples,
 }
 
 /// Largest |value| of a scalar reference (amplitude, offset, step value): far beyond any plant's
@@ -72,6 +73,7 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
         ReferenceKind::Quintic => ("quintic", &["times", "waypoints"]),
         ReferenceKind::Sines => ("sines", &["offsets", "amplitudes", "frequencies", "phases"]),
         ReferenceKind::Excitation => ("excitation", &["file"]),
+        ReferenceKind::Samples => ("samples", &["values", "period"]),
     };
     for (k, p) in present {
         if p && !allowed.contains(&k) {
@@ -170,6 +172,22 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
                 frequencies,
                 phases,
             })
+        }
+        ReferenceKind::Samples => {
+            let (Some(values), Some(period)) = (r.values, r.period) else {
+                return check.fail(
+                    "reference.values",
+                    "a sampled sequence needs `values` and `period` (s between them); it repeats",
+                );
+            };
+            if values.is_empty() || values.len() > 1_000_000 {
+                return check.fail("reference.values", "needs 1..=1000000 values");
+            }
+            for (i, v) in values.iter().enumerate() {
+                value(&format!("reference.values[{i}]"), *v)?;
+            }
+            check.positive("reference.period", period)?;
+            Ok(Reference::Samples { values, period })
         }
         ReferenceKind::Step => Ok(Reference::Step {
             amplitude: need("amplitude", r.amplitude)?,

@@ -36,6 +36,7 @@ crate::kinds! {
     computed_torque => ComputedTorque(ComputedTorqueSpec),
     pid => Pid(PidSpec),
     fuzzy_computed_torque => FuzzyComputedTorque(FuzzyComputedTorqueSpec),
+    fuzzy_network => FuzzyNetwork(FuzzyNetworkSpec),
 }
 
 /// What a control law's configuration offers the rest of the system. Besides this, a law's

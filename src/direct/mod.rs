@@ -17,6 +17,11 @@
 //! - A candidate aborted by the envelope, or whose cost is not finite, scores +infinity (the GA
 //!   then replaces it by a copy of its best member, as the paper does for a lost ball).
 //! - After the budget the best set (trial or baseline) stays in service for good.
+//! - `optimiser.cost_lag`: the output at sample k is judged against the reference `lag` samples
+//!   before. Eq. 25 charges |w_i - x_{i+1}|, the output one sample after the set-point it
+//!   answers; with lag 1 a repetition's cost runs over its own outputs x_B .. x_{B+N-1}, so its
+//!   first term is the predecessor's last answer and its own last answer falls to the successor
+//!   (one of N samples; the decision is due before x_{B+N} exists).
 //! - Realtime: a candidate starts at the first boundary after its predecessor's cost is known, so
 //!   the fallback may serve a repetition between two trials; a trial whose samples did not all
 //!   reach the optimiser (queue overflow) is not scored but tried again.
@@ -41,6 +46,8 @@ pub struct DirectSpec {
     /// Sample at which the first trial starts (the baseline repetition ends there).
     pub first: u64,
     pub u_weight: f64,
+    /// Samples between a reference value and the output judged against it.
+    pub lag: usize,
     pub envelope: Envelope,
     pub seed: u64,
 }
@@ -56,6 +63,7 @@ impl DirectSpec {
             repetition: (o.repetition / dt).round() as u64,
             first: (o.first_repetition / dt).round() as u64,
             u_weight: o.cost_u_weight,
+            lag: o.cost_lag as usize,
             envelope: o.envelope,
             seed: scn.seed,
         }
@@ -124,7 +132,12 @@ pub struct DirectTuner {
     pub records: Vec<Repetition>,
     /// Trials not scored because the optimiser missed some of their samples (tried again).
     pub incomplete: u64,
+    /// The references of the last samples, by sequence number (`DirectSpec::lag`).
+    refs: [[f64; crate::MAX_JOINTS]; LAGS],
 }
+
+/// Room for `cost_lag` up to 16 samples.
+const LAGS: usize = 17;
 
 impl DirectTuner {
     /// A tuner for the scenario: its optimiser over the controller's bounds, seeded with the
@@ -132,15 +145,21 @@ impl DirectTuner {
     pub fn new(scn: &Scenario) -> Result<Self, String> {
         let spec = DirectSpec::of(scn);
         let b = scn.bounds();
-        let opt = crate::optim::study::build(
+        let configured = scn.controller.tunable().gains.clone();
+        let seeds = if scn.optimiser.seed_configured {
+            vec![configured.clone()]
+        } else {
+            Vec::new()
+        };
+        let opt = crate::optim::study::build_seeded(
             &spec.algorithm,
             &b.lower,
             &b.upper,
             spec.population,
             spec.evaluations,
             spec.seed,
+            &seeds,
         )?;
-        let configured = scn.controller.tunable().gains.clone();
         let baseline = Running {
             trial: 0,
             version: 0,
@@ -166,6 +185,7 @@ impl DirectTuner {
             reset: false,
             records: Vec::with_capacity(spec.evaluations + 1),
             incomplete: 0,
+            refs: [[0.0; crate::MAX_JOINTS]; LAGS],
             spec,
         })
     }
@@ -197,6 +217,11 @@ impl DirectTuner {
     /// joints, the command the controller answered it with and the parameter version that
     /// command was computed under. In sequence order.
     pub fn observe(&mut self, seq: u64, t: f64, r: &[f64], y: &[f64], u: &[f64], version: u64) {
+        let n = r.len();
+        self.refs[seq as usize % LAGS][..n].copy_from_slice(r);
+        // The reference `lag` samples back (the first samples of a run: the first reference).
+        let back = seq.saturating_sub(self.spec.lag as u64) as usize % LAGS;
+        let r = &self.refs[back][..n];
         let Some(run) = self.running.as_mut() else {
             return;
         };

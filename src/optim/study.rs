@@ -50,6 +50,20 @@ pub fn build(
     evaluations: usize,
     seed: u64,
 ) -> Result<Box<dyn Optimiser + Send>, String> {
+    build_seeded(name, lower, upper, population, evaluations, seed, &[])
+}
+
+/// `build`, with user-specified sets placed in the GA's initial population (the fuzzy-network
+/// paper's GA starts from prespecified sets; the swarms and DE start at random and ignore them).
+pub fn build_seeded(
+    name: &str,
+    lower: &[f64],
+    upper: &[f64],
+    population: usize,
+    evaluations: usize,
+    seed: u64,
+    seeds: &[Vec<f64>],
+) -> Result<Box<dyn Optimiser + Send>, String> {
     let swarm = || {
         SwarmConfig::for_budget(
             lower.to_vec(),
@@ -86,7 +100,7 @@ pub fn build(
             },
             lower,
             upper,
-            &[],
+            seeds,
         )),
         other => {
             return Err(format!(

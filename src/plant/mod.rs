@@ -43,6 +43,7 @@ crate::kinds! {
     arm => Arm(ArmSpec),
     maglev => Maglev(MaglevParams),
     heater => Heater(HeaterSpec),
+    arsinh => Arsinh(ArsinhSpec),
 }
 
 /// What a plant kind's configuration offers the rest of the system. Besides this, a kind's
@@ -187,6 +188,12 @@ pub trait Plant: Send {
     fn constrain(&self, _x: &mut [f64]) {}
     /// The measuring chain after the sensor noise (e.g. an ADC's quantisation). Default: none.
     fn measure(&self, _y: &mut [f64]) {}
+    /// A discrete-time plant, x_{k+1} = f(x_k, u_k) once per control period: advance the state
+    /// in place and return true; `PlantSim::advance` then integrates nothing. Default: false (a
+    /// continuous plant, integrated with RK4 from `derivative`).
+    fn map(&self, _x: &mut [f64], _u: &[f64]) -> bool {
+        false
+    }
 }
 
 /// A plant being simulated: the model plus all the buffers its integration needs, allocated once
@@ -230,6 +237,10 @@ impl PlantSim {
     /// result is bit-for-bit reproducible.
     pub fn advance(&mut self, u: &[f64], dt: f64) {
         if dt <= 0.0 {
+            return;
+        }
+        if self.plant.map(&mut self.x, u) {
+            self.t += dt;
             return;
         }
         let n = (dt / self.step - 1e-9).ceil().max(1.0) as usize;
