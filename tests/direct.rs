@@ -329,3 +329,47 @@ fn the_arsinh_direct_run_halves_g_through_the_processes_as_the_in_process_tuner_
         halved["trial"]
     );
 }
+
+#[test]
+fn a_hybrid_direct_run_through_the_processes_equals_the_in_process_tuner() {
+    // The GA/Hooke-Jeeves hybrid calls its objective; pulled one candidate at a time
+    // (optim::pull) it drives the direct scheme like the ask/tell optimisers.
+    let tmp = tempfile::tempdir().unwrap();
+    let shipped = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arsinh_direct.toml"),
+    )
+    .unwrap();
+    let text = shipped
+        .replace(
+            "algorithm = \"ga\"",
+            "algorithm = \"hybrid\"\nphases = [20, 20, 10]",
+        )
+        .replace("evaluations = 660", "evaluations = 110")
+        .replace("duration = 662.0", "duration = 112.0");
+    let cfg = write(tmp.path(), "hybrid.toml", &text);
+    let (live, _, tuned) = live_and_in_process(tmp.path(), &cfg, "hybrid");
+    let opt = json(&live.join("optimiser.json"));
+    let reps = opt["direct"]["repetitions"].as_array().unwrap();
+    assert_eq!(reps.len(), 111);
+    assert_eq!(opt["direct"]["repetitions"], tuned["direct"]["repetitions"]);
+    let ctrl = json(&live.join("controller.json"));
+    assert_eq!(f64s(&ctrl["final_params"]), f64s(&tuned["final_params"]));
+    assert_eq!(opt["direct"]["algorithm"], "hybrid");
+    // Phase 2 searched the scaling genes (C_x0, C_x1, C_y0: the last three): some candidates
+    // differ from an earlier one in those alone.
+    let values: Vec<Vec<f64>> = reps
+        .iter()
+        .map(|r| {
+            r["values"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect()
+        })
+        .collect();
+    let scaling_only = (1..values.len()).any(|i| {
+        (1..i).any(|j| values[i][..22] == values[j][..22] && values[i][22..] != values[j][22..])
+    });
+    assert!(scaling_only, "no Hooke-Jeeves step on the scaling genes");
+}

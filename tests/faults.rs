@@ -148,11 +148,22 @@ fn realtime_optimiser_killed_the_loop_goes_on_and_a_new_one_rejoins() {
     let s = json(&out.join("summary.json"));
     assert_eq!(s["outcome"], "interrupted");
     assert_eq!(s["optimiser_restarts"], 1);
-    assert_eq!(
-        s["plant_safe_samples"], 0,
-        "the loop never lost its commands"
+    // The loop never lost its commands to the optimiser's death: the plant falls back to its
+    // safe command only after 10 periods (10 ms) without one, which only a stall of the
+    // controller itself can cause. On the shared VM such a stall happens now and then whatever
+    // the optimiser does (seen once in a local run: safe samples with the optimiser killed), so
+    // safe samples are accepted only together with a controller cycle that woke 9 or more
+    // periods late.
+    let safe = s["plant_safe_samples"].as_u64().unwrap();
+    let late_ms = s["timing"]["lateness"]["max_ns"].as_f64().unwrap() / 1e6;
+    assert!(
+        safe == 0 || late_ms >= 9.0,
+        "{safe} safe samples without a controller stall (max lateness {late_ms:.2} ms)"
     );
-    eprintln!("optimiser SIGKILL (realtime): a new optimiser ran {rejoined:?} after the kill");
+    eprintln!(
+        "optimiser SIGKILL (realtime): a new optimiser ran {rejoined:?} after the kill; {safe} \
+         safe samples (controller max lateness {late_ms:.2} ms)"
+    );
     next_run_starts_clean(tmp.path(), &prefix, &run_id);
 }
 

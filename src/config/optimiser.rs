@@ -32,6 +32,7 @@ pub struct RawOptimiser {
     pub envelope_control: Option<f64>,
     pub cost_lag: Option<u32>,
     pub seed_configured: Option<bool>,
+    pub phases: Option<[usize; 3]>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -135,6 +136,9 @@ pub struct OptimiserSpec {
     /// Direct: the configured set is a member of the GA's initial population (it is tried
     /// again as a candidate, beside the baseline).
     pub seed_configured: bool,
+    /// Direct, `algorithm = "hybrid"`: iterations of its three phases (GA; GA with Hooke-Jeeves on
+    /// the scaling genes; Hooke-Jeeves on all), two evaluations each.
+    pub phases: [usize; 3],
 }
 
 pub fn validate(
@@ -166,6 +170,7 @@ pub fn validate(
         envelope_control: None,
         cost_lag: None,
         seed_configured: None,
+        phases: None,
     });
     let mode = ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off);
     let direct = mode == OptimiserMode::Direct;
@@ -271,6 +276,7 @@ pub fn validate(
         first_repetition: direct_spec.4,
         envelope: direct_spec.5,
         seed_configured: o.seed_configured.unwrap_or(false),
+        phases: direct_spec.6,
         cost_lag: match o.cost_lag.unwrap_or(0) {
             l @ 0..=16 => l,
             l => {
@@ -327,7 +333,15 @@ type DirectSettings = (
     f64,
     f64,
     crate::control::cycle::Envelope,
+    [usize; 3],
 );
+
+/// The direct scheme's optimisers: the study's ask/tell ones and the GA/Hooke-Jeeves hybrid.
+pub fn direct_algorithms() -> Vec<&'static str> {
+    let mut a = crate::optim::study::ALGORITHMS.to_vec();
+    a.push("hybrid");
+    a
+}
 
 /// The direct scheme's keys: algorithm, population, evaluations, repetition, first repetition
 /// and envelope. Checked whatever the mode (a typo should not wait for `mode = "direct"`);
@@ -340,12 +354,12 @@ fn direct_settings(
     mode: OptimiserMode,
 ) -> Result<DirectSettings, ConfigError> {
     let algorithm = o.algorithm.clone().unwrap_or_else(|| "ga".into());
-    if !crate::optim::study::ALGORITHMS.contains(&algorithm.as_str()) {
+    if !direct_algorithms().contains(&algorithm.as_str()) {
         return check.fail(
             "optimiser.algorithm",
             format!(
                 "unknown algorithm {algorithm:?} (known: {})",
-                crate::optim::study::ALGORITHMS.join(", ")
+                direct_algorithms().join(", ")
             ),
         );
     }
@@ -403,6 +417,25 @@ fn direct_settings(
             );
         }
     }
+    // The hybrid spends two evaluations per iteration of each phase after its population.
+    let phases = o
+        .phases
+        .unwrap_or([evaluations.saturating_sub(population) / 2, 0, 0]);
+    if o.phases.is_some() && algorithm != "hybrid" {
+        return check.fail(
+            "optimiser.phases",
+            "only the hybrid has phases (algorithm = \"hybrid\")",
+        );
+    }
+    let spent = population + 2 * phases.iter().sum::<usize>();
+    if algorithm == "hybrid" && spent != evaluations {
+        return check.fail(
+            "optimiser.evaluations",
+            format!(
+                "the hybrid with population {population} and phases {phases:?} tries {spent} candidates (population + 2 per iteration); set evaluations = {spent}"
+            ),
+        );
+    }
     Ok((
         algorithm,
         population,
@@ -410,6 +443,7 @@ fn direct_settings(
         repetition,
         first,
         envelope,
+        phases,
     ))
 }
 

@@ -130,4 +130,8 @@ impl ControllerConfig for FuzzyNetworkSpec {
     fn param_kind(&self) -> u32 {
         KIND_FUZZY_NETWORK
     }
+    /// C_x0, C_x1, C_y0.
+    fn scaling_genes(&self) -> Vec<usize> {
+        crate::fuzzy::arsinh::codec().scaling_genes()
+    }
 }

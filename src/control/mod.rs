@@ -49,6 +49,11 @@ pub trait ControllerConfig {
     fn tunable(&self) -> &Tunable;
     /// The `msg::KIND_*` its parameter sets carry.
     fn param_kind(&self) -> u32;
+    /// Indices of the parameters that are scaling factors (the GA/Hooke-Jeeves hybrid's phase 2
+    /// searches them); none by default.
+    fn scaling_genes(&self) -> Vec<usize> {
+        Vec::new()
+    }
     /// The `msg::KIND_*` of its model sets, if it takes any (`Controller::model_kind`).
     fn model_param_kind(&self) -> Option<u32> {
         None
@@ -117,6 +122,10 @@ impl ControllerSpec {
 
     pub fn model_param_kind(&self) -> Option<u32> {
         self.model.config().model_param_kind()
+    }
+
+    pub fn scaling_genes(&self) -> Vec<usize> {
+        self.model.config().scaling_genes()
     }
 }
 

@@ -151,15 +151,36 @@ impl DirectTuner {
         } else {
             Vec::new()
         };
-        let opt = crate::optim::study::build_seeded(
-            &spec.algorithm,
-            &b.lower,
-            &b.upper,
-            spec.population,
-            spec.evaluations,
-            spec.seed,
-            &seeds,
-        )?;
+        let opt: Box<dyn Optimiser + Send> = if spec.algorithm == "hybrid" {
+            let o = &scn.optimiser;
+            let cfg = crate::optim::hybrid::HybridConfig {
+                ga: crate::optim::GaConfig {
+                    population: spec.population,
+                    p_crossover: 0.9,
+                    p_mutation: None,
+                    max_iterations: (o.phases[0] + o.phases[1]).max(1),
+                    seed: spec.seed,
+                },
+                phases: o.phases,
+                scaling: scn.controller.scaling_genes(),
+                threads: 1,
+                hj_step: 0.05,
+                hj_per_candidate: 0,
+            };
+            Box::new(crate::optim::pull::Pulled::hybrid(
+                cfg, &b.lower, &b.upper, &seeds,
+            ))
+        } else {
+            crate::optim::study::build_seeded(
+                &spec.algorithm,
+                &b.lower,
+                &b.upper,
+                spec.population,
+                spec.evaluations,
+                spec.seed,
+                &seeds,
+            )?
+        };
         let baseline = Running {
             trial: 0,
             version: 0,
@@ -270,7 +291,11 @@ impl DirectTuner {
         if self.tried >= self.spec.evaluations {
             return self.finish(start);
         }
-        let index = self.next_candidate()?;
+        // None: the optimiser has nothing more to try (a hybrid whose last local search
+        // converged before its budget): the best set goes in service as after the budget.
+        let Some(index) = self.next_candidate() else {
+            return self.finish(start);
+        };
         let version = self.next_version;
         self.next_version += 1;
         let until = start + self.spec.repetition;

@@ -9,6 +9,7 @@ pub mod hooke_jeeves;
 pub mod hybrid;
 pub mod peers;
 pub mod pso;
+pub mod pull;
 pub mod rng;
 pub mod study;
 pub mod suite;
