@@ -128,7 +128,14 @@ impl Loop {
             row: vec![0.0; width],
             log,
             timing: TimingStats::default(),
-            events: Vec::with_capacity(1024),
+            // A direct run has up to three events per trial (accepted, ended or aborted).
+            events: Vec::with_capacity(
+                if scn.optimiser.mode == crate::config::OptimiserMode::Direct {
+                    1024 + 3 * scn.optimiser.evaluations
+                } else {
+                    1024
+                },
+            ),
             events_dropped: 0,
             overruns: 0,
             missed: 0,

@@ -640,6 +640,18 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
     for p in &pv.rejected {
         out!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
     }
+    if let Some(d) = &s.direct {
+        out!(
+            "  direct scheme: {} trials of {} on the plant, {} aborted by the envelope; cost {} (configured set) -> {} (best, version {}) (direct.csv{})",
+            d.trials,
+            d.algorithm,
+            d.aborted,
+            d.baseline_cost.map_or("-".into(), |c| format!("{c:.4}")),
+            d.best_cost.map_or("-".into(), |c| format!("{c:.4}")),
+            d.best_version,
+            if plots { ", direct.png" } else { "" }
+        );
+    }
     if let Some(first) = s.optimiser_stalls.first() {
         out!(
             "  optimiser: stalled {} time(s), the loop going on without it (first at sample {first}: reproducible up to there); paced again {} time(s)",

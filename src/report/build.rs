@@ -8,6 +8,7 @@ use super::summary::{
     Summary,
 };
 use crate::config::Scenario;
+use crate::msg::ParamCode;
 use crate::sim::cost::TrackingCost;
 use crate::sim::JointTraces;
 use crate::MAX_JOINTS;
@@ -414,11 +415,17 @@ pub fn build_report(
         windowed,
         plot,
     } = scan;
-    let (accepted, rejected): (Vec<_>, Vec<_>) = ctrl
+    let (accepted, refused): (Vec<_>, Vec<_>) = ctrl
         .params
         .iter()
         .cloned()
         .partition(|p| p.outcome == "accepted");
+    let trial_end = |p: &crate::report::summary::ParamRecord| {
+        [ParamCode::TrialEnded, ParamCode::TrialAborted]
+            .iter()
+            .any(|c| p.outcome == c.reason())
+    };
+    let (trials_ended, rejected): (Vec<_>, Vec<_>) = refused.into_iter().partition(trial_end);
     let floor = floor.map(|mut f| {
         let ratio = |a: i64, b: i64| if b > 0 { a as f64 / b as f64 } else { f64::NAN };
         f.ratio_p50 = ratio(ctrl.timing.lateness.p50_ns, f.lateness.p50_ns);
@@ -522,6 +529,7 @@ pub fn build_report(
             final_version: ctrl.final_version,
             accepted: accepted.clone(),
             rejected,
+            trials_ended,
         },
         realtime_privileges: RealtimePrivileges {
             controller: ctrl.rt.clone(),

@@ -139,6 +139,10 @@ pub struct ParamVersions {
     pub final_version: u64,
     pub accepted: Vec<ParamRecord>,
     pub rejected: Vec<ParamRecord>,
+    /// Direct scheme: trial sets that ended (their fallback back in service) or were aborted by
+    /// the safety envelope after they had been accepted. Not rejections.
+    #[serde(default)]
+    pub trials_ended: Vec<ParamRecord>,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
