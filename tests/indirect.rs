@@ -1,13 +1,16 @@
-//! The indirect scheme live on the maglev (lockstep, seeded): after the ball's mass changes the
-//! optimiser's model estimate converges to the true mass, better sets are accepted, and the cost
-//! per repetition after adaptation is below the frozen run's; the run is reproducible.
+//! The indirect scheme live on the maglev (lockstep, seeded): while a load is added to the ball
+//! the optimiser's model estimate follows the true mass, better sets are accepted, and the cost
+//! per repetition is at least 10 % below the frozen run's after the change and no higher before
+//! it; the run is reproducible. In realtime an epoch longer than the state queue loses no sample.
 
 mod common;
 use common::*;
 use std::path::Path;
 
 #[test]
-fn the_optimiser_tracks_the_mass_change_and_beats_the_frozen_controller() {
+fn the_optimiser_tracks_the_load_and_is_ten_percent_cheaper_than_frozen_after_it_and_no_worse_before(
+) {
+    let _alone = alone();
     let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_indirect.toml");
     let tmp = tempfile::tempdir().unwrap();
     let tuned = tmp.path().join("tuned");
@@ -22,21 +25,39 @@ fn the_optimiser_tracks_the_mass_change_and_beats_the_frozen_controller() {
         "final mass estimate off by {:.1} %",
         100.0 * err
     );
-    assert!((s["model_true_final"].as_f64().unwrap() - 0.220).abs() < 1e-12);
+    assert!((s["model_true_final"].as_f64().unwrap() - 0.255).abs() < 1e-12);
     assert!(
         s["accepted_versions"].as_u64().unwrap() >= 1,
         "no better set accepted"
     );
     assert_eq!(s["rejected_versions"], 0);
     assert_eq!(f["accepted_versions"], 0);
+    let (before, frozen_before) = (
+        s["cost_before_change"].as_f64().unwrap(),
+        f["cost_before_change"].as_f64().unwrap(),
+    );
+    assert!(
+        before <= frozen_before,
+        "before the change: tuned {before} vs frozen {frozen_before}"
+    );
     let (after, frozen_after) = (
         s["cost_after_change"].as_f64().unwrap(),
         f["cost_after_change"].as_f64().unwrap(),
     );
     assert!(
-        after < frozen_after,
+        after <= 0.9 * frozen_after,
         "cost per repetition after adaptation {after} vs frozen {frozen_after}"
     );
+    // Why: the frozen gains lose the ball onto its catcher (-5 mm) once the load passes about
+    // 250 g; the re-tuned controller keeps it within 1.5 mm of the square wave's -2 mm low.
+    let lowest = |dir: &Path| {
+        Csv::read(&dir.join("run.csv"))
+            .col("y0")
+            .into_iter()
+            .fold(f64::INFINITY, f64::min)
+    };
+    assert!(lowest(&frozen) < -4.9, "the frozen run kept the ball");
+    assert!(lowest(&tuned) > -3.5, "the tuned run: {}", lowest(&tuned));
     // The report's own frozen comparison (in-process simulation with the optimiser off) is the
     // frozen run of the processes exactly: lockstep is bit-identical to the simulation.
     assert_eq!(
@@ -44,11 +65,12 @@ fn the_optimiser_tracks_the_mass_change_and_beats_the_frozen_controller() {
         frozen_after
     );
     assert_eq!(s["cost_per_repetition_frozen"], f["cost_per_repetition"]);
-    // The estimate converged after the change (t = 10 s): within 5 % from 15 s on.
+    // The estimate follows the load (portions at 10, 13 and 16 s; the least squares forget with
+    // 0.995 per 10 ms update, a 2 s time constant): within 5 % from 4 s after the last on.
     let est = Csv::read(&tuned.join("estimates.csv"));
     let (t, e, tr) = (est.col("t"), est.col("estimate"), est.col("true"));
     for i in 0..t.len() {
-        if t[i] >= 15.0 {
+        if t[i] >= 20.0 {
             assert!(
                 ((e[i] - tr[i]) / tr[i]).abs() < 0.05,
                 "t = {}: {} vs {}",
@@ -70,6 +92,7 @@ fn the_optimiser_tracks_the_mass_change_and_beats_the_frozen_controller() {
 
 #[test]
 fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
+    let _alone = alone();
     let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml");
     let tmp = tempfile::tempdir().unwrap();
     let (tuned, frozen) = (tmp.path().join("tuned"), tmp.path().join("frozen"));
@@ -120,6 +143,7 @@ fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
 
 #[test]
 fn a_killed_optimiser_leaves_the_loop_running_and_a_restarted_one_rejoins_and_tunes_on() {
+    let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(
         Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_indirect.toml"),
@@ -177,6 +201,7 @@ fn a_killed_optimiser_leaves_the_loop_running_and_a_restarted_one_rejoins_and_tu
 /// those runs' own summaries, and its sentences follow its paired tests.
 #[test]
 fn a_multi_seed_run_compares_the_indirect_scheme_with_the_frozen_controller() {
+    let _alone = alone();
     let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("study");
@@ -226,4 +251,51 @@ fn a_multi_seed_run_compares_the_indirect_scheme_with_the_frozen_controller() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("optimiser.mode"));
+}
+
+/// Realtime: epochs run on a worker thread of the optimiser process while its receiving thread
+/// goes on feeding the estimator, so an epoch lasting several times the state queue (264
+/// samples, 0.264 s at 1 kHz; before, epochs ran on the receiving thread and what overflowed the
+/// queue was lost) loses no sample. 1500 evaluations an epoch take about 1.4 s here.
+#[test]
+fn in_realtime_an_epoch_longer_than_the_state_queue_loses_no_sample() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_indirect.toml"),
+    )
+    .unwrap();
+    let long = text.replace("epoch_evaluations = 150 ", "epoch_evaluations = 1500 ");
+    assert_ne!(long, text);
+    let cfg = write(tmp.path(), "long.toml", &long);
+    let out = tmp.path().join("out");
+    assert_ok(&run(
+        &cfg,
+        &out,
+        "indrt",
+        &["--mode", "realtime", "--duration", "5"],
+    ));
+    let o = json(&out.join("optimiser.json"));
+    let epochs = o["epochs"].as_array().unwrap();
+    let longest = epochs
+        .iter()
+        .map(|e| e["wall_s"].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    let queue = evoloop::ipc::Topic::State.max_buffer() as f64 * 1e-3;
+    assert!(
+        longest > queue,
+        "the premise: an epoch ({longest} s) longer than the state queue ({queue} s)"
+    );
+    let s = json(&out.join("summary.json"));
+    assert_eq!(
+        s["optimiser_samples_missed"], 0,
+        "{}",
+        s["optimiser_samples_missed"]
+    );
+    // It saw the run's samples (the first after it joined and every one after).
+    assert!(
+        o["states_seen"].as_u64().unwrap() >= 4_900,
+        "{}",
+        o["states_seen"]
+    );
 }

@@ -230,6 +230,10 @@ pub struct EpochRecord {
     pub in_service_cost: f64,
     /// The version published from this epoch, if any.
     pub published: Option<u64>,
+    /// Wall time the epoch took (s): in realtime, longer than the state queue's depth is fine,
+    /// as the epoch runs on its own thread.
+    #[serde(default)]
+    pub wall_s: f64,
 }
 
 /// A cost that may be infinite, as JSON: a number, or null for infinity (JSON has no infinity,
@@ -250,9 +254,9 @@ pub(crate) mod infinite_as_null {
     }
 }
 
-/// What a plant needs for the indirect scheme: an online estimate of the parameter that changes
-/// in operation, and epochs of an optimiser on the model carrying that estimate.
-pub trait Scheme: Send {
+/// The online half of the indirect scheme: an estimate of the plant parameter that changes in
+/// operation, fed every sample. It stays on the optimiser's receiving thread.
+pub trait Estimator: Send {
     /// Feed sample `s`; `prev` is the previous sample when `s` directly follows it.
     fn observe(&mut self, prev: Option<&crate::msg::PlantState>, s: &crate::msg::PlantState);
     fn estimate(&self, t: f64) -> Estimate;
@@ -260,6 +264,11 @@ pub trait Scheme: Send {
     fn ready(&self) -> bool;
     /// The model parameter's nominal (configured) value.
     fn nominal(&self) -> f64;
+}
+
+/// The tuning half: epochs of an optimiser on the model carrying an estimate. An epoch may take
+/// longer than the state queue holds, so in realtime it runs on a worker thread (`Indirect`).
+pub trait Tuner: Send {
     /// One optimiser epoch on the model with parameter `p`, seeded with the in-service set.
     fn epoch(&mut self, p: f64, in_service: &[f64]) -> Candidate;
     /// Publish when the candidate beats the in-service set by this fraction.
@@ -268,36 +277,53 @@ pub trait Scheme: Send {
     fn epoch_evaluations(&self) -> usize;
 }
 
-impl Scheme for (MaglevEstimator, MaglevTuner) {
+impl Estimator for MaglevEstimator {
     fn observe(&mut self, prev: Option<&crate::msg::PlantState>, s: &crate::msg::PlantState) {
         if let Some(p) = prev {
-            self.0.push(p.seq, p.y[0], s.u_applied[0]);
+            self.push(p.seq, p.y[0], s.u_applied[0]);
         }
     }
     fn estimate(&self, t: f64) -> Estimate {
-        self.0.estimate(t)
+        MaglevEstimator::estimate(self, t)
     }
     fn ready(&self) -> bool {
-        self.0.updates() > 20
+        self.updates() > 20
     }
     fn nominal(&self) -> f64 {
-        self.1.spec.plant.mass
+        self.p.mass_at(0.0)
     }
+}
+
+impl Tuner for MaglevTuner {
     fn epoch(&mut self, p: f64, in_service: &[f64]) -> Candidate {
-        self.1.epoch(p, in_service)
+        MaglevTuner::epoch(self, p, in_service)
     }
     fn margin(&self) -> f64 {
-        self.1.margin
+        self.margin
     }
     fn epoch_evaluations(&self) -> usize {
-        self.1.epoch_evaluations
+        self.epoch_evaluations
     }
+}
+
+/// An epoch on the worker thread: the tuner goes with it and comes back with the candidate.
+struct Running {
+    handle: std::thread::JoinHandle<(Box<dyn Tuner>, Candidate)>,
+    /// Plant time and model parameter of the snapshot it tunes on.
+    t: f64,
+    p: f64,
+    started: std::time::Instant,
 }
 
 /// The optimiser process's indirect-scheme logic, independent of IPC: fed the state stream, it
 /// estimates, tunes in epochs and hands out parameter sets to publish.
 pub struct Indirect {
-    scheme: Box<dyn Scheme>,
+    estimator: Box<dyn Estimator>,
+    /// Idle between epochs; taken by the worker thread while one runs.
+    tuner: Option<Box<dyn Tuner>>,
+    running: Option<Running>,
+    margin: f64,
+    epoch_evaluations: usize,
     prev: Option<crate::msg::PlantState>,
     pub in_service: Vec<f64>,
     version: u64,
@@ -320,7 +346,7 @@ impl Indirect {
     /// fuzzy anti-windup PID's parameters) or the two-mass under state feedback (DE on K).
     pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
         let o = &scn.optimiser;
-        let scheme: Box<dyn Scheme> = match (&scn.plant.model, &scn.controller.model) {
+        let (estimator, tuner): (Box<dyn Estimator>, Box<dyn Tuner>) = match (&scn.plant.model, &scn.controller.model) {
             (PlantModel::Maglev(plant), ControllerModel::Pid(pid)) => {
                 let aw = pid.anti_windup;
                 // The model starts from the nominal plant: it does not know the true schedule.
@@ -353,15 +379,23 @@ impl Indirect {
                 tuner.threads = o.threads;
                 tuner.epoch_evaluations = o.epoch_evaluations;
                 tuner.margin = o.margin;
-                Box::new((MaglevEstimator::new(nominal, scn.timing.period, 10, 0.995), tuner))
+                (
+                    Box::new(MaglevEstimator::new(nominal, scn.timing.period, 10, 0.995)),
+                    Box::new(tuner),
+                )
             }
             (PlantModel::TwoMass(plant), ControllerModel::StateFeedback(sf)) => {
-                Box::new(two_mass::TwoMassScheme::new(scn, plant, &sf.tunable))
+                let (estimator, tuner) = two_mass::scheme(scn, plant, &sf.tunable);
+                (Box::new(estimator), Box::new(tuner))
             }
             _ => return Err("the indirect optimiser drives the maglev under a PID or the two-mass plant under state feedback".into()),
         };
         Ok(Self {
-            scheme,
+            margin: tuner.margin(),
+            epoch_evaluations: tuner.epoch_evaluations(),
+            estimator,
+            tuner: Some(tuner),
+            running: None,
             prev: None,
             in_service: scn.controller.tunable().gains.clone(),
             version: 0,
@@ -389,10 +423,10 @@ impl Indirect {
             self.samples_missed += s.seq.saturating_sub(p.seq + 1);
         }
         let prev = self.prev.filter(|p| s.seq == p.seq + 1);
-        self.scheme.observe(prev.as_ref(), s);
+        self.estimator.observe(prev.as_ref(), s);
         self.prev = Some(*s);
         if s.t >= self.next_record_t {
-            let e = self.scheme.estimate(s.t);
+            let e = self.estimator.estimate(s.t);
             self.estimates.push(e);
             self.next_record_t = s.t + 0.1;
             return Some(e);
@@ -401,7 +435,7 @@ impl Indirect {
     }
 
     pub fn estimate(&self, t: f64) -> Estimate {
-        self.scheme.estimate(t)
+        self.estimator.estimate(t)
     }
 
     /// The last version this optimiser published (0: none yet).
@@ -409,40 +443,74 @@ impl Indirect {
         self.version
     }
 
-    /// Lockstep pacing: `dt` simulated seconds passed; run the epochs the budget allows.
+    /// Lockstep pacing: `dt` simulated seconds passed; run the epochs the budget allows, each
+    /// to its end before the plant goes on (reproducible per seed).
     pub fn paced(&mut self, t: f64, dt: f64, apply_at_seq: u64) -> Option<crate::msg::ParamSet> {
         self.budget += dt * self.evaluations_per_second;
-        let per_epoch = self.scheme.epoch_evaluations() as f64;
+        let per_epoch = self.epoch_evaluations as f64;
         let mut out = None;
         while self.budget >= per_epoch {
             self.budget -= per_epoch;
-            if let Some(p) = self.run_epoch(t, apply_at_seq) {
+            self.start_epoch(t);
+            if let Some(p) = self.finish_epoch(apply_at_seq, true) {
                 out = Some(p);
             }
         }
         out
     }
 
-    /// One epoch on the current estimate; a parameter set when it found a better one.
-    pub fn run_epoch(&mut self, t: f64, apply_at_seq: u64) -> Option<crate::msg::ParamSet> {
+    /// Realtime: start an epoch on the worker thread with the model as estimated at plant time
+    /// `t`, unless one is running. The receiving thread goes on feeding the estimator, so no
+    /// sample waits for an epoch (`samples_missed` counts any that were lost all the same).
+    pub fn start_epoch(&mut self, t: f64) {
+        let Some(mut tuner) = self.tuner.take() else {
+            return;
+        };
         // Until the estimator has data, the model is the nominal plant.
-        let p = if self.scheme.ready() {
-            self.scheme.estimate(t).value
+        let p = if self.estimator.ready() {
+            self.estimator.estimate(t).value
         } else {
-            self.scheme.nominal()
+            self.estimator.nominal()
         };
         let in_service = self.in_service.clone();
-        let c = self.scheme.epoch(p, &in_service);
+        let handle = std::thread::Builder::new()
+            .name("epoch".into())
+            .spawn(move || {
+                let c = tuner.epoch(p, &in_service);
+                (tuner, c)
+            })
+            .expect("spawning the epoch thread");
+        self.running = Some(Running {
+            handle,
+            t,
+            p,
+            started: std::time::Instant::now(),
+        });
+    }
+
+    /// The running epoch's outcome once it has ended (at once with `wait`): a parameter set to
+    /// publish when it found a better one. None while it runs or when none runs.
+    pub fn finish_epoch(&mut self, apply_at_seq: u64, wait: bool) -> Option<crate::msg::ParamSet> {
+        if !wait && !self.running.as_ref()?.handle.is_finished() {
+            return None;
+        }
+        let run = self.running.take()?;
+        let (tuner, c) = match run.handle.join() {
+            Ok(done) => done,
+            // An epoch that panicked is a bug: let the process fail as it would have inline.
+            Err(panic) => std::panic::resume_unwind(panic),
+        };
+        self.tuner = Some(tuner);
         // Only sets the controller will accept: linear plants must be stable on its model.
         let accepted_there = self.check.is_none_or(|m| m.stabilised_by(&c.params));
-        let better =
-            accepted_there && c.expected_cost < c.in_service_cost * (1.0 - self.scheme.margin());
+        let better = accepted_there && c.expected_cost < c.in_service_cost * (1.0 - self.margin);
         let mut rec = EpochRecord {
-            t,
-            model_value: p,
+            t: run.t,
+            model_value: run.p,
             best_cost: c.expected_cost,
             in_service_cost: c.in_service_cost,
             published: None,
+            wall_s: run.started.elapsed().as_secs_f64(),
         };
         let out = better.then(|| {
             self.version += 1;
@@ -502,6 +570,7 @@ mod tests {
             best_cost: 5.0,
             in_service_cost: f64::INFINITY,
             published: Some(3),
+            wall_s: 0.5,
         };
         let text = serde_json::to_string(&r).unwrap();
         assert!(text.contains("\"in_service_cost\":null"), "{text}");

@@ -16,7 +16,7 @@
 
 use super::rls::InformationRls;
 use super::svf::{Svf, SvfDesign};
-use super::{Candidate, Estimate, Scheme};
+use super::{Candidate, Estimate, Estimator, Tuner};
 use crate::check::Tunable;
 use crate::config::Scenario;
 use crate::control::StateFeedback;
@@ -26,10 +26,22 @@ use crate::plant::two_mass::{Sensor, TwoMass, TwoMassSpec};
 use crate::reference::Reference;
 use crate::sim::cost::TrackingCost;
 
-pub struct TwoMassScheme {
+/// The two-mass indirect scheme: the spring's estimator and the tuner of the gains.
+pub fn scheme(
+    scn: &Scenario,
+    plant: &TwoMassSpec,
+    tunable: &Tunable,
+) -> (SpringEstimator, TwoMassTuner) {
+    (
+        SpringEstimator::new(scn, plant),
+        TwoMassTuner::new(scn, plant, tunable),
+    )
+}
+
+/// DE on the state-feedback gains, over one repetition on the model with the estimated spring.
+pub struct TwoMassTuner {
     m1: f64,
     m2: f64,
-    k_nominal: f64,
     sensor: Sensor,
     period: f64,
     step: f64,
@@ -44,12 +56,13 @@ pub struct TwoMassScheme {
     epoch_evaluations: usize,
     margin: f64,
     epoch_no: u64,
-    estimator: SpringEstimator,
 }
 
 /// Online estimate of the spring constant from the measured position and the applied command
 /// (see the module's documentation).
 pub struct SpringEstimator {
+    /// The configured spring constant, the model's until the estimate is ready.
+    k_nominal: f64,
     m1: f64,
     m2: f64,
     sensor: Sensor,
@@ -96,7 +109,7 @@ const FADE_S: f64 = 5.0;
 /// Seconds over which the measurement noise's variance is averaged.
 const NOISE_MEMORY_S: f64 = 1.0;
 
-impl TwoMassScheme {
+impl TwoMassTuner {
     pub fn new(scn: &Scenario, plant: &TwoMassSpec, tunable: &Tunable) -> Self {
         let repetition = match &scn.reference {
             Reference::Square { period, start, .. } => start + period,
@@ -105,7 +118,6 @@ impl TwoMassScheme {
         Self {
             m1: plant.m1,
             m2: plant.m2,
-            k_nominal: plant.spring,
             sensor: plant.sensor,
             period: scn.timing.period,
             step: scn.plant.step,
@@ -120,7 +132,6 @@ impl TwoMassScheme {
             epoch_evaluations: scn.optimiser.epoch_evaluations,
             margin: scn.optimiser.margin,
             epoch_no: 0,
-            estimator: SpringEstimator::new(scn, plant),
         }
     }
 
@@ -172,6 +183,7 @@ impl SpringEstimator {
     pub fn new(scn: &Scenario, plant: &TwoMassSpec) -> Self {
         let svf = SvfDesign::new(SVF_POLE, scn.timing.period);
         Self {
+            k_nominal: plant.spring,
             m1: plant.m1,
             m2: plant.m2,
             sensor: plant.sensor,
@@ -247,23 +259,25 @@ impl SpringEstimator {
     }
 }
 
-impl Scheme for TwoMassScheme {
+impl Estimator for SpringEstimator {
     fn observe(&mut self, prev: Option<&PlantState>, s: &PlantState) {
-        self.estimator.push(prev.is_some(), s);
+        self.push(prev.is_some(), s);
     }
 
     fn estimate(&self, t: f64) -> Estimate {
-        self.estimator.estimate(t)
+        SpringEstimator::estimate(self, t)
     }
 
     fn ready(&self) -> bool {
-        self.estimator.ready()
+        SpringEstimator::ready(self)
     }
 
     fn nominal(&self) -> f64 {
         self.k_nominal
     }
+}
 
+impl Tuner for TwoMassTuner {
     fn epoch(&mut self, k: f64, in_service: &[f64]) -> Candidate {
         let k = k.max(1e-3);
         let np = 15;
@@ -325,7 +339,7 @@ mod tests {
         tm.resolution = resolution;
         let tm = tm.clone();
         let truth = TwoMass::new(1.0, 1.0, 1.0, sensor).with_spring_schedule(&tm.spring_schedule);
-        let mut scheme = TwoMassScheme::new(&scn, &tm, scn.controller.tunable());
+        let (mut scheme, _) = scheme(&scn, &tm, scn.controller.tunable());
         let mut sim = PlantSim::new(scn.build_plant(), scn.plant.step, noise, 7);
         let mut ctrl = scn.build_controller();
         let (mut u, mut sp) = ([0.0; 1], crate::reference::Setpoint::default());
@@ -333,7 +347,7 @@ mod tests {
         let mut out = Vec::new();
         for k in 0..60_000u64 {
             sim.sample(k, 0, &u, &mut s);
-            scheme.observe(prev.as_ref(), &s);
+            Estimator::observe(&mut scheme, prev.as_ref(), &s);
             if k % 100 == 0 {
                 let e = scheme.estimate(s.t);
                 out.push((s.t, e.value, e.std, truth.spring_at(s.t)));

@@ -257,15 +257,13 @@ fn run(
                 publish(scn, ports, next_set, 0, &mut published).map_err(io)?;
                 next_set += 1;
             }
-            // Free-running: an epoch whenever the stream is caught up (samples that overflow
-            // the queue meanwhile only restart the estimator's difference window).
+            // Free-running: epochs back to back on the worker thread while this one goes on
+            // reading the stream, so an epoch longer than the state queue loses no sample.
             if let Some(ind) = indirect.as_mut() {
-                if !ports.state.has_pending().map_err(io)? {
-                    if let Some(set) = ind.run_epoch(state.t, 0) {
-                        send_set(ports, &set, state.t, &mut published, &scn.output.dir)
-                            .map_err(io)?;
-                    }
+                if let Some(set) = ind.finish_epoch(0, false) {
+                    send_set(ports, &set, state.t, &mut published, &scn.output.dir).map_err(io)?;
                 }
+                ind.start_epoch(state.t);
             }
             if let Some(d) = direct.as_mut() {
                 d.join();

@@ -173,6 +173,7 @@ impl LiveIdentify {
             return None;
         }
         self.next_t = t + self.every;
+        let started = std::time::Instant::now();
         let n = self.n;
         let (train, tau) = self.data(self.buf.iter().take(self.window).copied());
         let (fresh, fresh_tau) = self.data(self.buf.iter().skip(self.window).copied());
@@ -202,6 +203,7 @@ impl LiveIdentify {
             best_cost: cand_err,
             in_service_cost: in_err,
             published: None,
+            wall_s: started.elapsed().as_secs_f64(),
         };
         let out = match candidate {
             Some(p) if better => {
