@@ -97,6 +97,8 @@ pub enum ParamCode {
     TrialAborted = 10,
     /// A trial set named a fallback the controller does not hold.
     RejectedUnknownFallback = 11,
+    /// Stable on the configured model but not on the latest estimate of the plant.
+    RejectedUnstableOnEstimate = 12,
 }
 
 impl ParamCode {
@@ -113,6 +115,7 @@ impl ParamCode {
             9 => Self::TrialEnded,
             10 => Self::TrialAborted,
             11 => Self::RejectedUnknownFallback,
+            12 => Self::RejectedUnstableOnEstimate,
             _ => Self::None,
         }
     }
@@ -136,6 +139,9 @@ impl ParamCode {
             Self::TrialAborted => "trial aborted: it left the safety envelope; fallback restored",
             Self::RejectedUnknownFallback => {
                 "rejected: a trial naming a fallback the controller does not hold"
+            }
+            Self::RejectedUnstableOnEstimate => {
+                "rejected: the closed loop would be unstable on the latest estimate of the plant"
             }
         }
     }
@@ -271,4 +277,9 @@ pub struct ModelEstimate {
     pub value: f64,
     pub std: f64,
     pub last_version: u64,
+    /// The controller adopts the estimate (as the model it checks new sets on) at the cycle of
+    /// this sample, or at once when 0. Lockstep: the sample after the next synchronisation point,
+    /// which the plant cannot pass before the estimate has been delivered, so every run of a
+    /// seed checks each set on the same estimate.
+    pub apply_at_seq: u64,
 }

@@ -111,6 +111,13 @@ fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
         f["cost_after_change"].as_f64().unwrap(),
     );
     assert!(a < b, "after the drift: tuned {a} vs frozen {b}");
+    // The controller checked the sets on the streamed estimate too (adopted at 10 Hz), and
+    // ended on the drifted spring's model, not only the configured one.
+    let cm = &s["check_model"];
+    assert!(cm["adopted"].as_u64().unwrap() > 700, "{cm}");
+    assert_eq!(cm["refused"], 0);
+    let last = cm["last_adopted"].as_f64().unwrap();
+    assert!((last - 2.0).abs() < 0.05 * 2.0, "{cm}");
     // The estimator reads the noisy, quantised position (noise 5e-4, 1e-4 per count) and the
     // command. Once settled, before the ramp of k (0.5 at 20 s to 2 at 40 s) and after it, the
     // estimate is within three of its own standard deviations (from the measured noise level and

@@ -1,16 +1,19 @@
 //! The control cycle does not allocate: a counting global allocator watches the plant step, the
 //! controller cycle (with a parameter swap in it), the run log streamed to disk, the timing
 //! statistics and the iceoryx2 send/receive of state, command and telemetry, after the set-up
-//! allocated everything once.
+//! allocated everything once; and, as for a linear plant under the indirect scheme, the
+//! optimiser's model estimates received and adopted, and every set checked for stability on the
+//! configured model and on the adopted estimate.
 //!
 //! One exception is iceoryx2's own and is pinned here so it cannot grow unnoticed: in 0.10 each
 //! `Publisher::loan_uninit` allocates one small reference-count block for the loaned sample
 //! (`ChunkMutSharedState::new`), freed when the sample is sent. evoloop's code allocates nothing.
 
 use evoloop::control::cycle::ControlCycle;
+use evoloop::control::model_check::ModelCheck;
 use evoloop::control::{ParamBounds, StateFeedback};
 use evoloop::ipc::{Ipc, Topic};
-use evoloop::msg::{Command, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
+use evoloop::msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::PlantSim;
 use evoloop::reference::Reference;
@@ -46,6 +49,18 @@ fn the_control_cycle_allocates_nothing() {
     let cmd_sub = ipc.subscriber::<Command>(Topic::Command, 4, true).unwrap();
     let tel_pub = ipc.publisher::<Telemetry>(Topic::Telemetry, false).unwrap();
     let par_sub = ipc.subscriber::<ParamSet>(Topic::Params, 4, false).unwrap();
+    let est_pub = ipc
+        .publisher::<ModelEstimate>(Topic::Estimate, false)
+        .unwrap();
+    let est_sub = ipc
+        .subscriber::<ModelEstimate>(Topic::Estimate, 4, false)
+        .unwrap();
+    let scn = evoloop::config::Scenario::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml"),
+        &evoloop::config::Overrides::default(),
+    )
+    .unwrap();
+    let mut model_check = ModelCheck::new(&scn.plant.model).unwrap();
 
     let dt = 0.001;
     let gains = [18.49, 19.04, 47.27, 7.30, -10.54];
@@ -66,7 +81,10 @@ fn the_control_cycle_allocates_nothing() {
             values: vec![1.0, 0.5],
         },
         bounds,
-    );
+    )
+    .with_stability_check(Some(
+        TwoMass::new(1.0, 1.0, 1.0, Sensor::Far).linear_model(),
+    ));
     let n = 3000;
     // The log streamed to disk as the controller does it (its writer thread allocates as it
     // formats; the counter watches this thread only, the control thread).
@@ -98,6 +116,21 @@ fn the_control_cycle_allocates_nothing() {
         let s = st_sub.next().unwrap().unwrap();
         while let Some(p) = par_sub.next().unwrap() {
             cyc.offer(&p);
+        }
+        // The optimiser's 10 Hz estimate (sent here, outside what the controller does).
+        if k % 100 == 0 {
+            let e = ModelEstimate {
+                value: 1.0 + k as f64 * 1e-4,
+                apply_at_seq: k + 1,
+                ..Default::default()
+            };
+            send(&est_pub, &e);
+        }
+        while let Some(e) = est_sub.next().unwrap() {
+            model_check.offer(&e);
+        }
+        if let Some(m) = model_check.due(s.seq) {
+            cyc.check_on(m);
         }
         cyc.step(&s, &mut tel);
         let c = Command {
@@ -138,7 +171,9 @@ fn the_control_cycle_allocates_nothing() {
         1,
         "the swap happened inside the measured cycles"
     );
-    assert_eq!(sends, 3 * (n as u64 - 1));
+    assert_eq!(sends, 3 * (n as u64 - 1) + (n as u64 - 1) / 100);
+    // 29 in the measured cycles, one in the warm-up.
+    assert_eq!(model_check.report.adopted, 30);
     assert_eq!(timing.cycles(), n as u64);
     assert_eq!(log.finish().rows, n as u64, "every row reached the file");
     assert_eq!(

@@ -144,6 +144,13 @@ impl Scenario {
         k % sync == offset
     }
 
+    /// Lockstep: the first synchronisation point at or after sample `k`.
+    pub fn next_sync_point(&self, k: u64) -> u64 {
+        (k..k + self.sync_samples())
+            .find(|&j| self.is_sync_point(j))
+            .unwrap_or(k)
+    }
+
     pub fn period_ns(&self) -> u64 {
         (self.timing.period * 1e9).round() as u64
     }
@@ -163,6 +170,15 @@ impl Scenario {
     pub fn linear_model(&self) -> Option<crate::control::LinearModel> {
         if self.controller.model.config().checks_stability() {
             self.plant.model.config().linear_model()
+        } else {
+            None
+        }
+    }
+
+    /// `linear_model` with the plant's varying parameter at `p` (an estimate of it).
+    pub fn linear_model_at(&self, p: f64) -> Option<crate::control::LinearModel> {
+        if self.controller.model.config().checks_stability() {
+            self.plant.model.config().linear_model_at(p)
         } else {
             None
         }

@@ -68,8 +68,11 @@ pub struct ControlCycle {
     pub u: [f64; MAX_JOINTS],
     /// The set-point of the last cycle (all joints).
     pub setpoint: Setpoint,
-    /// Linear plants: new gains must stabilise this model to be accepted.
+    /// Linear plants: new gains must stabilise this model (the configured plant's) to be
+    /// accepted ...
     stability: Option<LinearModel>,
+    /// ... and, once the optimiser's estimate of the plant has been adopted, this one too.
+    estimated: Option<LinearModel>,
     cycle: u64,
     /// How many values the law logs (`Controller::log_columns`); telemetry carries them all.
     n_law: usize,
@@ -121,6 +124,7 @@ impl ControlCycle {
             u: [0.0; MAX_JOINTS],
             setpoint: Setpoint::default(),
             stability: None,
+            estimated: None,
             cycle: 0,
             n_law: law_columns(controller.as_ref()),
             envelope: Envelope::default(),
@@ -147,6 +151,16 @@ impl ControlCycle {
     pub fn with_stability_check(mut self, model: Option<LinearModel>) -> Self {
         self.stability = model;
         self
+    }
+
+    /// Check new sets on `model` too from now on (the latest estimate of the plant adopted),
+    /// when sets are checked for stability at all. The configured model stays in the check: an
+    /// estimate may be wrong, and the tuner's own robustness margin is narrow (two-mass: stable
+    /// at 0.8 to 1.25 times its estimate).
+    pub fn check_on(&mut self, model: LinearModel) {
+        if self.stability.is_some() {
+            self.estimated = Some(model);
+        }
     }
 
     /// Parameter version in service (0 = the configured initial set).
@@ -266,6 +280,12 @@ impl ControlCycle {
             .is_some_and(|m| !m.stabilised_by(set.values()))
         {
             return Err((ParamCode::RejectedUnstable, 0));
+        }
+        if self
+            .estimated
+            .is_some_and(|m| !m.stabilised_by(set.values()))
+        {
+            return Err((ParamCode::RejectedUnstableOnEstimate, 0));
         }
         if trial {
             // The named fallback: the current one, or the last trial (which then becomes it).

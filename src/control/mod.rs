@@ -3,6 +3,7 @@
 //! the boundary and `swap_params` puts an accepted set in service without a bump in u.
 
 pub mod fuzzy_select;
+pub mod model_check;
 pub mod validate;
 
 pub use crate::plant::LinearModel;

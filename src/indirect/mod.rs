@@ -337,8 +337,10 @@ pub struct Indirect {
     /// Samples the estimator never saw (gaps in the sequence numbers after its first): in
     /// realtime, those that overflowed the state queue while an epoch ran.
     pub samples_missed: u64,
-    /// The controller's acceptance check for linear plants, applied before publishing.
-    check: Option<crate::control::LinearModel>,
+    /// Linear plants: the controller checks sets for stability on the configured linear model
+    /// and on the one at the latest estimate it adopted; the optimiser applies the same checks,
+    /// the second on the model the epoch tuned on, before publishing.
+    check: Option<(crate::control::LinearModel, PlantModel)>,
 }
 
 impl Indirect {
@@ -406,7 +408,7 @@ impl Indirect {
             estimates: History::new(HISTORY),
             epochs: History::new(HISTORY),
             samples_missed: 0,
-            check: scn.linear_model(),
+            check: scn.linear_model().map(|m| (m, scn.plant.model.clone())),
         })
     }
 
@@ -502,7 +504,13 @@ impl Indirect {
         };
         self.tuner = Some(tuner);
         // Only sets the controller will accept: linear plants must be stable on its model.
-        let accepted_there = self.check.is_none_or(|m| m.stabilised_by(&c.params));
+        let accepted_there = self.check.as_ref().is_none_or(|(nominal, plant)| {
+            nominal.stabilised_by(&c.params)
+                && plant
+                    .config()
+                    .linear_model_at(run.p)
+                    .is_some_and(|m| m.stabilised_by(&c.params))
+        });
         let better = accepted_there && c.expected_cost < c.in_service_cost * (1.0 - self.margin);
         let mut rec = EpochRecord {
             t: run.t,

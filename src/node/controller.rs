@@ -12,10 +12,11 @@
 use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
 use crate::control::cycle::{ControlCycle, ParamEvent};
+use crate::control::model_check::ModelCheck;
 use crate::ipc::{IpcError, Pub, Sub, Topic, Waited};
 use crate::msg::{
-    Command, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END, TELEMETRY_FLAG_MISSED,
-    TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
+    Command, ModelEstimate, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
+    TELEMETRY_FLAG_MISSED, TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
 };
 use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use crate::report::stream::{CsvPart, LogStream, Overflow};
@@ -40,6 +41,8 @@ const TIMING_COLUMNS: [&str; 5] = [
 
 struct Ports {
     params: Sub<ParamSet>,
+    /// The optimiser's model estimate, when new sets are checked on a model of the plant.
+    estimate: Option<Sub<ModelEstimate>>,
     command: Pub<Command>,
     telemetry: Pub<Telemetry>,
     state: Sub<PlantState>,
@@ -48,6 +51,7 @@ struct Ports {
 /// Everything the loop writes into, allocated before it starts.
 struct Loop {
     cycle: ControlCycle,
+    model_check: Option<ModelCheck>,
     /// run.csv's columns, then timing.csv's: streamed to disk by a writer thread.
     log: LogStream,
     timing: TimingStats,
@@ -125,6 +129,9 @@ impl Loop {
             cycle: ControlCycle::new(controller, scn.reference.clone(), scn.bounds())
                 .with_stability_check(scn.linear_model())
                 .with_envelope(scn.optimiser.envelope),
+            model_check: scn
+                .linear_model()
+                .and_then(|_| ModelCheck::new(&scn.plant.model)),
             row: vec![0.0; width],
             log,
             timing: TimingStats::default(),
@@ -162,6 +169,14 @@ impl Loop {
     ) -> Result<(), IpcError> {
         while let Some(p) = ports.params.next()? {
             self.cycle.offer(&p);
+        }
+        if let (Some(mc), Some(sub)) = (self.model_check.as_mut(), ports.estimate.as_ref()) {
+            while let Some(e) = sub.next()? {
+                mc.offer(&e);
+            }
+            if let Some(m) = mc.due(state.seq) {
+                self.cycle.check_on(m);
+            }
         }
         let mut tel = Telemetry::default();
         if let Some(e) = self.cycle.step(state, &mut tel) {
@@ -253,6 +268,10 @@ pub fn main(args: &ProcessArgs) {
     let ports = ports(WHO, || {
         Ok(Ports {
             params: ipc.subscriber(Topic::Params, 16, false)?,
+            estimate: match scn.linear_model() {
+                Some(_) => Some(ipc.subscriber(Topic::Estimate, 4, false)?),
+                None => None,
+            },
             command: ipc.publisher(Topic::Command, true)?,
             telemetry: ipc.publisher(Topic::Telemetry, false)?,
             // Last: the plant starts the run once it sees this subscriber.
@@ -431,6 +450,7 @@ fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
     report.final_version = lp.cycle.version();
     report.final_params = lp.cycle.controller.params().to_vec();
     report.pending_dropped = lp.cycle.pending_dropped;
+    report.check_model = lp.model_check.as_ref().map(|m| m.report.clone());
     let dropped = lp.log.dropped;
     let written = lp.log.finish();
     if let Some(e) = &written.error {

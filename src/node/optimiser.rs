@@ -196,6 +196,13 @@ fn run(
                     value: e.value,
                     std: e.std,
                     last_version: ind.version(),
+                    // Lockstep: delivered before the plant passes the next synchronisation
+                    // point, so the controller adopts it at the sample after that one.
+                    apply_at_seq: if lockstep {
+                        scn.next_sync_point(state.seq) + 1
+                    } else {
+                        0
+                    },
                 };
                 ports.estimate.send(&msg).map_err(io)?;
             }

@@ -59,6 +59,12 @@ pub trait PlantConfig {
     fn linear_model(&self) -> Option<LinearModel> {
         None
     }
+    /// The linear model with the varying parameter (`varying_parameter`) at `p` instead of its
+    /// nominal value: what a controller checks new sets on once it has an estimate of `p`.
+    /// Allocation-free (called in the control cycle).
+    fn linear_model_at(&self, _p: f64) -> Option<LinearModel> {
+        None
+    }
     /// For single-input plants: the actuator's range and the input that holds the plant at its
     /// operating point at t = 0 (where an integrator starts).
     fn scalar_input(&self) -> Option<ScalarInput> {

@@ -246,6 +246,10 @@ impl PlantConfig for TwoMassSpec {
     fn linear_model(&self) -> Option<LinearModel> {
         Some(self.nominal().linear_model())
     }
+    /// At spring constant `p`.
+    fn linear_model_at(&self, p: f64) -> Option<LinearModel> {
+        Some(TwoMass::new(self.m1, self.m2, p, self.sensor).linear_model())
+    }
     fn scalar_input(&self) -> Option<ScalarInput> {
         Some(ScalarInput {
             range: (f64::NEG_INFINITY, f64::INFINITY),

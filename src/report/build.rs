@@ -572,6 +572,7 @@ pub fn build_report(
         model_estimate_final,
         model_true_final,
         model_estimate_error,
+        check_model: ctrl.check_model.clone(),
         tracking_before_change: identify.then_some(tracking_before_change).flatten(),
         tracking_after_change: identify.then_some(tracking_after_change).flatten(),
         tracking_before_change_frozen,

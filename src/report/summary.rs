@@ -30,6 +30,9 @@ pub struct ControllerReport {
     pub final_params: Vec<f64>,
     pub pending_dropped: u64,
     pub log_dropped: u64,
+    /// The model new sets were checked on (linear plants with a varying parameter).
+    #[serde(default)]
+    pub check_model: Option<crate::control::model_check::ModelCheckReport>,
     /// Set when the run was stopped by a signal before its end.
     pub interrupted: bool,
 }
@@ -225,6 +228,10 @@ pub struct Summary {
     pub model_estimate_final: Option<f64>,
     pub model_true_final: Option<f64>,
     pub model_estimate_error: Option<f64>,
+    /// Linear plants under the indirect scheme: the model the controller checked new sets on
+    /// (nominal until the first estimate it adopted, then the latest).
+    #[serde(default)]
+    pub check_model: Option<crate::control::model_check::ModelCheckReport>,
     /// Identification alongside operation (`optimiser.mode = "identify"`): tracking RMS over all
     /// joints (rad) from 1 s to the plant's first change and over the last quarter of the run,
     /// and the same for the frozen comparison (the starting models all run long, simulated

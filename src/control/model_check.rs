@@ -1,0 +1,171 @@
+//! The model a controller checks new gain sets on (indirect scheme, Section 3.1.2 of the
+//! fuzzy-network paper): the plant's linear model at its configured parameters until the
+//! optimiser's estimate of the parameter that changes in operation arrives, then at the latest
+//! estimate. A set the optimiser tuned on a drifted plant is judged on that plant, not on one the
+//! plant no longer is; and a set that is stable only on the nominal model is refused.
+//!
+//! Estimates are adopted at the sample they name (`ModelEstimate::apply_at_seq`), so every
+//! lockstep run of a seed checks each set on the same estimate. An estimate that is not finite
+//! or not positive is refused and the last good model stays.
+
+use super::LinearModel;
+use crate::msg::ModelEstimate;
+use crate::plant::PlantModel;
+
+/// Estimates waiting for their sample: at 10 Hz and applied within a synchronisation interval,
+/// a few at most.
+const PENDING: usize = 8;
+
+/// What became of the estimates, for the run's report.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ModelCheckReport {
+    /// The last estimate adopted; None: sets were checked on the configured model only.
+    pub last_adopted: Option<f64>,
+    pub adopted: u64,
+    /// Not finite or not positive: the model in use was kept.
+    pub refused: u64,
+    /// More estimates waiting than the queue holds (the oldest go).
+    pub dropped: u64,
+}
+
+pub struct ModelCheck {
+    plant: PlantModel,
+    /// Received, not yet due; capacity `PENDING`, never grown.
+    pending: Vec<ModelEstimate>,
+    pub report: ModelCheckReport,
+}
+
+impl ModelCheck {
+    /// For a plant with a varying parameter and a linear model at any value of it; None
+    /// otherwise (nothing to re-check on).
+    pub fn new(plant: &PlantModel) -> Option<Self> {
+        let cfg = plant.config();
+        cfg.linear_model_at(cfg.varying_parameter(0.0)?)?;
+        Some(Self {
+            plant: plant.clone(),
+            pending: Vec::with_capacity(PENDING),
+            report: ModelCheckReport::default(),
+        })
+    }
+
+    /// Queue a received estimate. Never allocates.
+    pub fn offer(&mut self, e: &ModelEstimate) {
+        if self.pending.len() == PENDING {
+            self.pending.remove(0);
+            self.report.dropped += 1;
+        }
+        self.pending.push(*e);
+    }
+
+    /// Adopt every estimate due at sample `seq`, in order; the model at the last good one when
+    /// any was adopted. Allocation-free.
+    pub fn due(&mut self, seq: u64) -> Option<LinearModel> {
+        let mut model = None;
+        while let Some(i) = self.pending.iter().position(|e| e.apply_at_seq <= seq) {
+            let e = self.pending.remove(i);
+            let m = (e.value.is_finite() && e.value > 0.0)
+                .then(|| self.plant.config().linear_model_at(e.value))
+                .flatten();
+            match m {
+                Some(m) => {
+                    model = Some(m);
+                    self.report.adopted += 1;
+                    self.report.last_adopted = Some(e.value);
+                }
+                None => self.report.refused += 1,
+            }
+        }
+        model
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{Overrides, Scenario};
+
+    fn two_mass() -> Scenario {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml");
+        Scenario::load(&path, &Overrides::default()).unwrap()
+    }
+
+    fn estimate_at(value: f64, apply_at_seq: u64) -> ModelEstimate {
+        ModelEstimate {
+            value,
+            apply_at_seq,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn estimates_are_adopted_at_their_sample_and_bad_ones_keep_the_model() {
+        let scn = two_mass();
+        let mut mc = ModelCheck::new(&scn.plant.model).expect("the two-mass has a spring");
+        mc.offer(&estimate_at(1.5, 101));
+        mc.offer(&estimate_at(f64::NAN, 101));
+        mc.offer(&estimate_at(1.8, 201));
+        assert!(mc.due(100).is_none(), "not due yet");
+        let m = mc.due(101).expect("1.5 adopted, the NaN refused");
+        assert_eq!(Some(m), scn.linear_model_at(1.5));
+        assert_eq!((mc.report.adopted, mc.report.refused), (1, 1));
+        assert_eq!(mc.report.last_adopted, Some(1.5));
+        mc.offer(&estimate_at(-1.0, 150));
+        assert!(mc.due(150).is_none(), "a negative spring is refused");
+        assert_eq!(mc.due(201), scn.linear_model_at(1.8));
+        assert_eq!(mc.report.last_adopted, Some(1.8));
+        assert_eq!(mc.report.refused, 2);
+    }
+
+    /// A gain set that stabilises the configured model (two_mass_indirect leaves
+    /// `plant.two_mass.spring` at 1) but not the plant at the estimated spring is refused once
+    /// that estimate is adopted, with its own reason, and the loop keeps its set; before, the
+    /// same set is accepted.
+    #[test]
+    fn a_set_unstable_on_the_adopted_estimate_is_refused_and_the_loop_keeps_its_set() {
+        use crate::control::ControlCycle;
+        use crate::msg::{ParamCode, ParamSet, PlantState, Telemetry};
+        let scn = two_mass();
+        let configured = scn.linear_model().unwrap();
+        let stiff = scn.linear_model_at(2.0).unwrap();
+        // A set from the configured bounds on which the two models disagree.
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let b = scn.bounds();
+        let gains = (0..100_000)
+            .map(|_| {
+                (0..5)
+                    .map(|i| rng.gen_range(b.lower[i]..=b.upper[i]))
+                    .collect::<Vec<f64>>()
+            })
+            .find(|k| configured.stabilised_by(k) && !stiff.stabilised_by(k))
+            .expect("a set stable at k = 1 but not at k = 2");
+        let mut set = ParamSet {
+            version: 1,
+            kind: scn.controller.param_kind(),
+            n: 5,
+            ..Default::default()
+        };
+        set.values[..5].copy_from_slice(&gains);
+        let outcome = |estimate: Option<f64>| {
+            let mut cycle =
+                ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())
+                    .with_stability_check(scn.linear_model());
+            let mut mc = ModelCheck::new(&scn.plant.model).unwrap();
+            if let Some(k) = estimate {
+                mc.offer(&estimate_at(k, 0));
+            }
+            if let Some(m) = mc.due(0) {
+                cycle.check_on(m);
+            }
+            cycle.offer(&set);
+            let e = cycle.step(&PlantState::default(), &mut Telemetry::default());
+            (e.map(|e| e.code), cycle.version())
+        };
+        assert_eq!(outcome(None), (Some(ParamCode::Accepted), 1));
+        assert_eq!(
+            outcome(Some(2.0)),
+            (Some(ParamCode::RejectedUnstableOnEstimate), 0)
+        );
+    }
+}
