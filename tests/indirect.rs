@@ -32,6 +32,8 @@ fn the_optimiser_tracks_the_load_and_is_ten_percent_cheaper_than_frozen_after_it
     );
     assert_eq!(s["rejected_versions"], 0);
     assert_eq!(f["accepted_versions"], 0);
+    // Lockstep: the plant waits for the optimiser's epochs, so the estimator sees every sample.
+    assert_eq!(s["optimiser_samples_missed"], 0);
     let (before, frozen_before) = (
         s["cost_before_change"].as_f64().unwrap(),
         f["cost_before_change"].as_f64().unwrap(),
