@@ -168,6 +168,52 @@ fn dynamics(c: &mut Criterion) {
             })
         },
     );
+    c.bench_function("dynamics 6-DOF: forward dynamics (ABA)", |b| {
+        b.iter(|| {
+            model.forward_dynamics_aba(
+                &mut d,
+                black_box(&q),
+                black_box(&qd),
+                black_box(&tau),
+                &mut out,
+            )
+        })
+    });
+    // 7 DOF: the Panda-style test arm (full inertia tensors, joint friction).
+    let panda = evoloop::dynamics::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/robots/panda_style.urdf"),
+    )
+    .expect("robot loads");
+    let mut d7 = panda.data();
+    let q7 = [0.3, -0.5, 0.8, -1.5, 0.2, 1.3, 0.3];
+    let qd7 = [0.5, 1.0, -1.0, 1.0, 1.0, 1.0, -0.5];
+    let tau7 = [5.0, -20.0, 5.0, 10.0, 1.0, 1.0, 0.5];
+    let mut out7 = [0.0; 7];
+    c.bench_function(
+        "dynamics 7-DOF: forward dynamics (RNEA + CRBA + Cholesky)",
+        |b| {
+            b.iter(|| {
+                panda.forward_dynamics(
+                    &mut d7,
+                    black_box(&q7),
+                    black_box(&qd7),
+                    black_box(&tau7),
+                    &mut out7,
+                )
+            })
+        },
+    );
+    c.bench_function("dynamics 7-DOF: forward dynamics (ABA)", |b| {
+        b.iter(|| {
+            panda.forward_dynamics_aba(
+                &mut d7,
+                black_box(&q7),
+                black_box(&qd7),
+                black_box(&tau7),
+                &mut out7,
+            )
+        })
+    });
     let mut sim = PlantSim::new(
         Box::new(evoloop::plant::Arm::new(model.clone(), &q)),
         5e-4,

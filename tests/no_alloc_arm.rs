@@ -1,6 +1,6 @@
 //! The arm's hot paths do not allocate: the 6-DOF plant's integration (forward dynamics in every
 //! RK4 stage), the computed-torque cycle with a quintic reference and a parameter swap, and the
-//! Coriolis matrix and the joint-torque regressor (with friction columns), and a model swap
+//! Coriolis matrix, the joint-torque regressor (with friction columns) and ABA, and a model swap
 //! (a computed-torque model set checked on its probes). (A separate test binary: the counting allocator is process-global.)
 
 use evoloop::config::{Overrides, Scenario};
@@ -59,6 +59,10 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
             model.coriolis_matrix(&mut d, &msg.q_true[..6], &msg.qd_true[..6], &mut c);
             let (q, qd) = (&msg.q_true[..6], &msg.qd_true[..6]);
             model.regressor(&mut d, q, qd, qd, &mut y);
+            let mut qdd = [0.0; 6];
+            model
+                .forward_dynamics_aba(&mut d, q, qd, &u[..6], &mut qdd)
+                .unwrap();
         }
     }
     counting_alloc::disarm();

@@ -5,7 +5,7 @@
 //!
 //! Equation of motion (RKGNN paper, eq. 1): tau = M(q) qdd + V(q, qd) + G(q) + F(qd).
 
-use super::spatial::{Force, Inertia, Motion, Transform};
+use super::spatial::{Articulated, Force, Inertia, Motion, Transform};
 use glam::{DMat3, DVec3};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -133,6 +133,13 @@ pub struct Data {
     /// The regressor's n x n workspace: entry i n + j is joint j's motion subspace in body i's
     /// coordinates, for j an ancestor of i (or i itself).
     pub(super) sub: Vec<Motion>,
+    /// ABA's buffers (its bias forces go in `f`): articulated inertias, velocity-product
+    /// accelerations c, U = I^A S, 1/D and u.
+    ia: Vec<Articulated>,
+    c: Vec<Motion>,
+    ua: Vec<Force>,
+    d_inv: Vec<f64>,
+    u: Vec<f64>,
 }
 
 /// M(q) is not positive definite at this configuration (a body carries no inertia).
@@ -177,6 +184,11 @@ impl Model {
             tmp2: vec![0.0; n],
             zero: vec![0.0; n],
             sub: vec![Motion::ZERO; n * n],
+            ia: vec![Articulated::ZERO; n],
+            c: vec![Motion::ZERO; n],
+            ua: vec![Force::ZERO; n],
+            d_inv: vec![0.0; n],
+            u: vec![0.0; n],
         }
     }
 
@@ -391,6 +403,56 @@ impl Model {
         d.chol.copy_from(&d.m);
         cholesky_solve_in_place(&mut d.chol, &mut d.rhs)?;
         qdd.copy_from_slice(&d.rhs.as_slice()[..n]);
+        Ok(())
+    }
+
+    /// Forward dynamics qdd = M^-1 (tau - V - G - F) by Featherstone's articulated-body
+    /// algorithm (RBDA, Table 7.1): O(n), three passes, no joint-space matrix. Armature enters
+    /// D_i = S_iᵀ U_i + armature_i, as it enters M's diagonal. Err when a D_i is not positive
+    /// (a subtree that carries no inertia about its joint), as the Cholesky route fails then.
+    pub fn forward_dynamics_aba(
+        &self,
+        d: &mut Data,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        qdd: &mut [f64],
+    ) -> Result<(), NotPositiveDefinite> {
+        let n = self.dof();
+        self.update(d, q);
+        for (i, b) in self.bodies.iter().enumerate() {
+            let v_p = b.parent.map_or(Motion::ZERO, |p| d.v[p]);
+            let vj = d.s[i].scaled(qd[i]);
+            let v = d.x[i].apply_motion(v_p) + vj;
+            d.v[i] = v;
+            d.c[i] = v.cross_motion(vj);
+            d.ia[i] = Articulated::rigid(&b.inertia);
+            d.f[i] = v.cross_force(b.inertia.apply(v));
+        }
+        for i in (0..n).rev() {
+            let b = &self.bodies[i];
+            let s = d.s[i];
+            let ua = d.ia[i].apply(s);
+            let di = s.dot(ua) + b.armature;
+            if di.is_nan() || di <= 0.0 {
+                return Err(NotPositiveDefinite { joint: i });
+            }
+            let u = tau[i] - s.dot(d.f[i]) - b.friction.torque(qd[i]);
+            (d.ua[i], d.d_inv[i], d.u[i]) = (ua, 1.0 / di, u);
+            if let Some(p) = b.parent {
+                let ia = d.ia[i].minus_outer(ua, d.d_inv[i]);
+                let pa = d.f[i] + ia.apply(d.c[i]) + ua.scaled(u * d.d_inv[i]);
+                d.ia[p] = d.ia[p] + ia.to_parent(&d.x[i]);
+                d.f[p] = d.f[p] + d.x[i].apply_transpose_force(pa);
+            }
+        }
+        let a_root = self.root_acceleration(true);
+        for (i, b) in self.bodies.iter().enumerate() {
+            let a_p = b.parent.map_or(a_root, |p| d.a[p]);
+            let a = d.x[i].apply_motion(a_p) + d.c[i];
+            qdd[i] = (d.u[i] - a.dot(d.ua[i])) * d.d_inv[i];
+            d.a[i] = a + d.s[i].scaled(qdd[i]);
+        }
         Ok(())
     }
 
