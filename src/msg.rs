@@ -254,6 +254,21 @@ impl Default for ParamSet {
 }
 
 impl ParamSet {
+    /// A set of `kind` carrying `values` (at most `MAX_PARAMS` of them), applied at sample
+    /// `apply_at_seq` (0: at once). Allocation-free.
+    pub fn new(version: u64, apply_at_seq: u64, kind: u32, values: &[f64]) -> Self {
+        let n = values.len().min(MAX_PARAMS);
+        let mut set = ParamSet {
+            version,
+            apply_at_seq,
+            kind,
+            n: n as u32,
+            ..ParamSet::default()
+        };
+        set.values[..n].copy_from_slice(&values[..n]);
+        set
+    }
+
     pub fn values(&self) -> &[f64] {
         &self.values[..(self.n as usize).min(MAX_PARAMS)]
     }

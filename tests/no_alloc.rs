@@ -13,7 +13,9 @@ use evoloop::control::cycle::ControlCycle;
 use evoloop::control::model_check::ModelCheck;
 use evoloop::control::{ParamBounds, StateFeedback};
 use evoloop::ipc::{Ipc, Topic};
-use evoloop::msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
+use evoloop::msg::{
+    Command, ModelEstimate, ParamCode, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK,
+};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::PlantSim;
 use evoloop::reference::Reference;
@@ -108,6 +110,7 @@ fn the_control_cycle_allocates_nothing() {
     let mut msg = PlantState::default();
     let mut tel = Telemetry::default();
     let mut u = [0.0];
+    let mut trials_ended = 0;
 
     // One warm-up cycle lets iceoryx2 set up its connections (lazily, on first send/receive).
     let mut cycle = |k: u64, cyc: &mut ControlCycle, plant: &mut PlantSim| {
@@ -132,7 +135,9 @@ fn the_control_cycle_allocates_nothing() {
         if let Some(m) = model_check.due(s.seq) {
             cyc.check_on(m);
         }
-        cyc.step(&s, &mut tel);
+        if cyc.step(&s, &mut tel).map(|e| e.code) == Some(ParamCode::TrialEnded) {
+            trials_ended += 1;
+        }
         let c = Command {
             cycle: k,
             state_seq: s.seq,
@@ -158,6 +163,19 @@ fn the_control_cycle_allocates_nothing() {
     };
     cycle(0, &mut cyc, &mut plant);
     cyc.offer(&set);
+    // A trial (the direct scheme's) of one 500-sample repetition falling back to it: taking the
+    // trial in, saving the law's state and restoring the fallback allocate nothing either.
+    let trial = ParamSet {
+        until_seq: 2500,
+        fallback_version: 1,
+        ..ParamSet::new(
+            2,
+            2000,
+            KIND_STATE_FEEDBACK,
+            &[15.0, 15.0, 30.0, 6.0, -10.0],
+        )
+    };
+    cyc.offer(&trial);
     SENDS.store(0, Ordering::SeqCst);
     counting_alloc::arm();
     for k in 1..n as u64 {
@@ -169,8 +187,9 @@ fn the_control_cycle_allocates_nothing() {
     assert_eq!(
         cyc.version(),
         1,
-        "the swap happened inside the measured cycles"
+        "the swap happened inside the measured cycles, and the trial ended back on it"
     );
+    assert_eq!(trials_ended, 1);
     assert_eq!(sends, 3 * (n as u64 - 1) + (n as u64 - 1) / 100);
     // 29 in the measured cycles, one in the warm-up.
     assert_eq!(model_check.report.adopted, 30);

@@ -80,8 +80,11 @@ pub struct ControlCycle {
     /// The set a trial falls back to: the last set put in service for good (at first the
     /// configured parameters, version 0), or a trial a later trial named. Boxed: allocated once.
     fallback: Box<ParamSet>,
-    /// The last trial put in service, which the next trial may name as its fallback.
-    last_trial: Option<Box<ParamSet>>,
+    /// The last trial put in service, which the next trial may name as its fallback while
+    /// `last_trial_live` (not after a set for good or an abort). Boxed and allocated here, so a
+    /// trial never allocates in the cycle.
+    last_trial: Box<ParamSet>,
+    last_trial_live: bool,
     /// While a trial is in service: the state sequence number at which it ends.
     trial_until: Option<u64>,
     /// Trials aborted for leaving the envelope.
@@ -102,15 +105,7 @@ fn law_columns(c: &dyn Controller) -> usize {
 
 /// The parameters `c` runs now as a set of `version` (the fallback before any set arrives).
 fn current_set(c: &dyn Controller, version: u64) -> ParamSet {
-    let p = c.params();
-    let mut set = ParamSet {
-        version,
-        kind: c.kind(),
-        n: p.len().min(crate::MAX_PARAMS) as u32,
-        ..ParamSet::default()
-    };
-    set.values[..set.n as usize].copy_from_slice(&p[..set.n as usize]);
-    set
+    ParamSet::new(version, 0, c.kind(), c.params())
 }
 
 impl ControlCycle {
@@ -129,7 +124,8 @@ impl ControlCycle {
             n_law: law_columns(controller.as_ref()),
             envelope: Envelope::default(),
             fallback: Box::new(current_set(controller.as_ref(), 0)),
-            last_trial: None,
+            last_trial: Box::default(),
+            last_trial_live: false,
             trial_until: None,
             trials_aborted: 0,
             controller,
@@ -290,22 +286,18 @@ impl ControlCycle {
         if trial {
             // The named fallback: the current one, or the last trial (which then becomes it).
             if set.fallback_version != self.fallback.version {
-                match self.last_trial.as_mut() {
-                    Some(last) if last.version == set.fallback_version => {
-                        std::mem::swap(&mut self.fallback, last);
-                    }
-                    _ => return Err((ParamCode::RejectedUnknownFallback, 0)),
+                if !(self.last_trial_live && self.last_trial.version == set.fallback_version) {
+                    return Err((ParamCode::RejectedUnknownFallback, 0));
                 }
+                std::mem::swap(&mut self.fallback, &mut self.last_trial);
             }
-            match self.last_trial.as_mut() {
-                Some(last) => **last = *set,
-                None => self.last_trial = Some(Box::new(*set)),
-            }
+            *self.last_trial = *set;
+            self.last_trial_live = true;
             self.trial_until = Some(set.until_seq);
             self.controller.save_state();
         } else {
             *self.fallback = *set;
-            self.last_trial = None;
+            self.last_trial_live = false;
             self.trial_until = None;
         }
         self.controller.swap_params(set.values(), state, sp);
@@ -326,9 +318,7 @@ impl ControlCycle {
         self.controller.abort_to(self.fallback.values(), state, sp);
         self.version = self.fallback.version;
         self.trial_until = None;
-        if let Some(last) = self.last_trial.as_mut() {
-            last.version = u64::MAX;
-        }
+        self.last_trial_live = false;
         self.trials_aborted += 1;
     }
 }

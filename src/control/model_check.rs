@@ -140,13 +140,7 @@ mod tests {
             })
             .find(|k| configured.stabilised_by(k) && !stiff.stabilised_by(k))
             .expect("a set stable at k = 1 but not at k = 2");
-        let mut set = ParamSet {
-            version: 1,
-            kind: scn.controller.param_kind(),
-            n: 5,
-            ..Default::default()
-        };
-        set.values[..5].copy_from_slice(&gains);
+        let set = ParamSet::new(1, 0, scn.controller.param_kind(), &gains);
         let outcome = |estimate: Option<f64>| {
             let mut cycle =
                 ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())

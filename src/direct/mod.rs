@@ -417,15 +417,7 @@ impl DirectTuner {
     }
 
     fn set(&self, version: u64, apply_at_seq: u64, values: &[f64]) -> ParamSet {
-        let mut set = ParamSet {
-            version,
-            apply_at_seq,
-            kind: self.kind,
-            n: values.len() as u32,
-            ..ParamSet::default()
-        };
-        set.values[..values.len()].copy_from_slice(values);
-        set
+        ParamSet::new(version, apply_at_seq, self.kind, values)
     }
 
     /// The records as CSV: one row per repetition.

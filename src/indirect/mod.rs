@@ -537,16 +537,10 @@ impl Indirect {
             self.version += 1;
             rec.published = Some(self.version);
             self.in_service = c.params.clone();
-            let mut set = crate::msg::ParamSet {
-                version: self.version,
-                apply_at_seq,
+            crate::msg::ParamSet {
                 expected_cost: c.expected_cost,
-                kind: self.kind,
-                n: c.params.len() as u32,
-                ..Default::default()
-            };
-            set.values[..c.params.len()].copy_from_slice(&c.params);
-            set
+                ..crate::msg::ParamSet::new(self.version, apply_at_seq, self.kind, &c.params)
+            }
         });
         self.epochs.push(rec);
         out

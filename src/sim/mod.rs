@@ -26,15 +26,7 @@ pub fn scheduled_set(scn: &Scenario, i: usize, apply_at_seq: u64) -> ParamSet {
             .model_param_kind()
             .unwrap_or_else(|| scn.controller.param_kind()),
     };
-    let mut p = ParamSet {
-        version: i as u64 + 1,
-        apply_at_seq,
-        kind,
-        n: s.values.len() as u32,
-        ..ParamSet::default()
-    };
-    p.values[..s.values.len()].copy_from_slice(&s.values);
-    p
+    ParamSet::new(i as u64 + 1, apply_at_seq, kind, &s.values)
 }
 
 /// One sample of the simulated loop, as the controller logs it.
