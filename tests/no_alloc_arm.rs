@@ -1,11 +1,14 @@
 //! The arm's hot paths do not allocate: the 6-DOF plant's integration (forward dynamics in every
 //! RK4 stage), the computed-torque cycle with a quintic reference and a parameter swap, and the
 //! Coriolis matrix, the joint-torque regressor (with friction columns) and ABA, and a model swap
-//! (a computed-torque model set checked on its probes). (A separate test binary: the counting allocator is process-global.)
+//! (a computed-torque model set checked on its probes); state, command and telemetry go through
+//! iceoryx2 every cycle as in a run. The same for the computed torque with fuzzy model selection.
+//! (A separate test binary: the counting allocator is process-global.)
 
 use evoloop::config::{Overrides, Scenario};
 use evoloop::control::cycle::ControlCycle;
-use evoloop::msg::{ParamSet, PlantState, Telemetry};
+use evoloop::ipc::{Ipc, Pub, Sub, Topic};
+use evoloop::msg::{Command, ParamSet, PlantState, Telemetry};
 use evoloop::plant::PlantSim;
 use std::sync::atomic::Ordering;
 
@@ -16,10 +19,70 @@ use counting_alloc::COUNT;
 #[global_allocator]
 static A: counting_alloc::Counting = counting_alloc::Counting;
 
+/// The three streams of a run's control cycle, both ends in this process.
+struct Wires {
+    state: (Pub<PlantState>, Sub<PlantState>),
+    command: (Pub<Command>, Sub<Command>),
+    telemetry: (Pub<Telemetry>, Sub<Telemetry>),
+    _ipc: Ipc,
+}
+
+impl Wires {
+    fn new(tag: &str) -> Wires {
+        let run_id = format!("noallocarm{tag}{}", std::process::id());
+        let ipc = Ipc::new("noallocarm", &run_id, evoloop::ipc::DEFAULT_PREFIX).unwrap();
+        Wires {
+            state: (
+                ipc.publisher(Topic::State, true).unwrap(),
+                ipc.subscriber(Topic::State, 4, true).unwrap(),
+            ),
+            command: (
+                ipc.publisher(Topic::Command, true).unwrap(),
+                ipc.subscriber(Topic::Command, 4, true).unwrap(),
+            ),
+            telemetry: (
+                ipc.publisher(Topic::Telemetry, false).unwrap(),
+                ipc.subscriber(Topic::Telemetry, 4, false).unwrap(),
+            ),
+            _ipc: ipc,
+        }
+    }
+
+    /// The plant's sample to the controller, its command back, its telemetry out.
+    fn cycle(&self, msg: &PlantState, cyc: &mut ControlCycle, tel: &mut Telemetry, u: &mut [f64]) {
+        self.state.0.send(msg).unwrap();
+        let s = self.state.1.next().unwrap().unwrap();
+        cyc.step(&s, tel);
+        let c = Command {
+            cycle: s.seq,
+            state_seq: s.seq,
+            u: cyc.u,
+            n_u: u.len() as u32,
+            ..Default::default()
+        };
+        self.command.0.send(&c).unwrap();
+        self.telemetry.0.send(tel).unwrap();
+        let got = self.command.1.next().unwrap().unwrap();
+        u.copy_from_slice(&got.u[..u.len()]);
+        while self.telemetry.1.next().unwrap().is_some() {}
+    }
+}
+
+fn scenario(name: &str) -> Scenario {
+    let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("config/{name}.toml"));
+    Scenario::load(&cfg, &Overrides::default()).unwrap()
+}
+
+/// One test: the allocator count is process-global, so the two laws are measured one after the
+/// other, never in parallel.
 #[test]
-fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
-    let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/industrial6_ct.toml");
-    let scn = Scenario::load(&cfg, &Overrides::default()).unwrap();
+fn arm_plant_and_computed_torque_cycles_allocate_nothing() {
+    computed_torque();
+    fuzzy_computed_torque();
+}
+
+fn computed_torque() {
+    let scn = scenario("industrial6_ct");
     let model = scn.plant.model.config().rigid_body().unwrap().clone();
     let mut plant = PlantSim::new(scn.build_plant(), scn.plant.step, 1e-4, 3);
     let mut cyc = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());
@@ -49,12 +112,16 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
     let mut c = nalgebra::DMatrix::zeros(6, 6);
     let mut y = nalgebra::DMatrix::zeros(6, model.regressor_columns(true));
     let dt = scn.timing.period;
+    let wires = Wires::new("ct");
+    let mut u = [0.0; 6];
+    // One warm-up cycle: iceoryx2 connects lazily and the loan pool takes its blocks.
+    plant.sample(0, 0, &u, &mut msg);
+    wires.cycle(&msg, &mut cyc, &mut tel, &mut u);
     counting_alloc::arm();
-    for k in 0..2000u64 {
-        plant.sample(k, 0, &cyc.u[..6], &mut msg);
-        cyc.step(&msg, &mut tel);
-        let u = cyc.u;
-        plant.advance(&u[..6], dt);
+    for k in 1..2000u64 {
+        plant.sample(k, 0, &u, &mut msg);
+        wires.cycle(&msg, &mut cyc, &mut tel, &mut u);
+        plant.advance(&u, dt);
         if k % 100 == 0 {
             model.coriolis_matrix(&mut d, &msg.q_true[..6], &msg.qd_true[..6], &mut c);
             let (q, qd) = (&msg.q_true[..6], &msg.qd_true[..6]);
@@ -75,5 +142,30 @@ fn arm_plant_and_computed_torque_cycle_allocate_nothing() {
         COUNT.load(Ordering::SeqCst),
         0,
         "allocations in 2000 arm cycles"
+    );
+}
+
+fn fuzzy_computed_torque() {
+    let scn = scenario("arm3_fuzzy_ct");
+    let n = scn.plant.model.config().rigid_body().unwrap().dof();
+    let mut plant = PlantSim::new(scn.build_plant(), scn.plant.step, 1e-4, 3);
+    let mut cyc = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());
+    let (mut msg, mut tel) = (PlantState::default(), Telemetry::default());
+    let wires = Wires::new("fuzzy");
+    let mut u = vec![0.0; n];
+    plant.sample(0, 0, &u, &mut msg);
+    wires.cycle(&msg, &mut cyc, &mut tel, &mut u);
+    counting_alloc::arm();
+    for k in 1..3000u64 {
+        plant.sample(k, 0, &u, &mut msg);
+        wires.cycle(&msg, &mut cyc, &mut tel, &mut u);
+        plant.advance(&u, scn.timing.period);
+    }
+    counting_alloc::disarm();
+    assert!(msg.t > 2.9 * scn.timing.period * 1000.0, "the run advanced");
+    assert_eq!(
+        COUNT.load(Ordering::SeqCst),
+        0,
+        "allocations in 3000 fuzzy computed-torque cycles"
     );
 }

@@ -381,7 +381,8 @@ fn bare(
 ) -> Result<Bare, IpcError> {
     set_log_level(LogLevel::Error);
     let cfg = ipc_config(prefix)?;
-    let node = crate::ipc::create_node(NodeBuilder::new().config(&cfg), prefix, "node")?;
+    let node =
+        crate::ipc::create_node::<ipc::Service>(NodeBuilder::new().config(&cfg), prefix, "node")?;
     let name =
         |t: &str| ServiceName::new(&format!("bench/{run_id}/{t}")).map_err(|e| err("name", e));
     let svc = |t: &str| {

@@ -14,6 +14,11 @@ use std::fmt::{self, Debug};
 use std::time::{Duration, Instant};
 
 pub mod namespace;
+pub mod pooled;
+pub mod service;
+
+/// The iceoryx2 service type of every evoloop port (iceoryx2's ipc service, pooled loans).
+pub type Svc = service::Service;
 
 /// The message types go into shared memory as they are. Their iceoryx2 names carry a version
 /// suffix because iceoryx2 checks only name, size and alignment when a service opens: change a
@@ -139,14 +144,14 @@ pub fn ipc_config(prefix: &str) -> Result<Config, IpcError> {
 }
 
 /// A node of `prefix` in this user's namespace, with the shared-memory files checked.
-pub fn create_node(
+pub fn create_node<S: iceoryx2::service::Service>(
     builder: NodeBuilder,
     prefix: &str,
     what: &str,
-) -> Result<Node<ipc::Service>, IpcError> {
+) -> Result<Node<S>, IpcError> {
     let node = builder
         .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
+        .create::<S>()
         .map_err(|e| err(what, e))?;
     namespace::claim_shm(prefix)?;
     Ok(node)
@@ -154,7 +159,7 @@ pub fn create_node(
 
 /// One process's membership in a run: its iceoryx2 node and the run id.
 pub struct Ipc {
-    pub node: Node<ipc::Service>,
+    pub node: Node<Svc>,
     pub run_id: String,
 }
 
@@ -222,7 +227,7 @@ impl Ipc {
     fn event(
         &self,
         topic: Topic,
-    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, IpcError> {
+    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, IpcError> {
         let name = self.service_name(topic)?;
         retry(&format!("opening event {}", name.as_str()), || {
             self.node
@@ -324,14 +329,13 @@ impl Ipc {
 
 /// A typed publisher, optionally paired with an event notifier.
 pub struct Pub<T: Debug + ZeroCopySend + 'static> {
-    publisher: Publisher<ipc::Service, T, ()>,
-    notifier: Option<Notifier<ipc::Service>>,
+    publisher: Publisher<Svc, T, ()>,
+    notifier: Option<Notifier<Svc>>,
     topic: Topic,
     service: PubSubFactory<T>,
 }
 
-type PubSubFactory<T> =
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>;
+type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Pub<T> {
     /// Copy `value` into a shared-memory slot, send it and wake the listeners. No allocation.
@@ -359,7 +363,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Pub<T> {
 
 /// The ringing end of an event-only topic.
 pub struct Bell {
-    notifier: Notifier<ipc::Service>,
+    notifier: Notifier<Svc>,
     topic: Topic,
 }
 
@@ -374,7 +378,7 @@ impl Bell {
 
 /// The listening end of an event-only topic.
 pub struct Doorbell {
-    listener: Listener<ipc::Service>,
+    listener: Listener<Svc>,
     topic: Topic,
 }
 
@@ -388,11 +392,7 @@ impl Doorbell {
 /// Block on `listener` until a notification arrives or `timeout` passes. Every blocking wait of
 /// the project goes through here: a signal that interrupts it (SIGCONT after a SIGSTOP, a
 /// profiler's) is a spurious wake-up, not an error; the callers loop and check their stop flag.
-fn listen(
-    listener: &Listener<ipc::Service>,
-    timeout: Duration,
-    topic: Topic,
-) -> Result<(), IpcError> {
+fn listen(listener: &Listener<Svc>, timeout: Duration, topic: Topic) -> Result<(), IpcError> {
     match listener.timed_wait(|_| {}, timeout) {
         Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
         Err(e) => Err(err(format!("wait on {}", topic.name()), e)),
@@ -401,8 +401,8 @@ fn listen(
 
 /// A typed subscriber, optionally paired with an event listener for blocking waits.
 pub struct Sub<T: Debug + ZeroCopySend + 'static> {
-    subscriber: Subscriber<ipc::Service, T, ()>,
-    listener: Option<Listener<ipc::Service>>,
+    subscriber: Subscriber<Svc, T, ()>,
+    listener: Option<Listener<Svc>>,
     topic: Topic,
     service: PubSubFactory<T>,
 }
