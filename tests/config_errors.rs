@@ -144,3 +144,48 @@ fn the_shipped_scenarios_are_valid() {
     }
     assert!(n >= 2);
 }
+
+#[test]
+fn the_wait_strategy_is_read_checked_and_overridable() {
+    use evoloop::rt::WaitKind;
+    let parse = |text: &str, ov: &Overrides| {
+        Scenario::parse(text, Path::new("config/ok.toml"), ov)
+            .unwrap()
+            .timing
+            .wait
+    };
+    let ov = Overrides::default();
+    // Default: sleep, no margin.
+    let w = parse(&base(), &ov);
+    assert_eq!((w.kind, w.margin_ns), (WaitKind::Sleep, 0));
+    // Hybrid at 1 kHz: the default margin is 100 us; a given one is taken.
+    let hybrid = base().replace("period = 0.001", "period = 0.001\nwait = \"hybrid\"");
+    assert_eq!(parse(&hybrid, &ov).margin_ns, 100_000);
+    let with_margin = hybrid.replace(
+        "wait = \"hybrid\"",
+        "wait = \"hybrid\"\nwait_margin_us = 40",
+    );
+    assert_eq!(parse(&with_margin, &ov).margin_ns, 40_000);
+    // --wait overrides the file.
+    let spin = Overrides {
+        wait: Some(WaitKind::Spin),
+        ..Default::default()
+    };
+    assert_eq!(parse(&hybrid, &spin).kind, WaitKind::Spin);
+    // Refused: an unknown strategy, a margin without hybrid, a margin longer than the period.
+    let e = err_of(&base().replace("period = 0.001", "period = 0.001\nwait = \"nap\""));
+    assert!(e.contains("timing") && e.contains("nap"), "{e}");
+    let e = err_of(&base().replace("period = 0.001", "period = 0.001\nwait_margin_us = 40"));
+    assert!(
+        e.contains("`timing.wait_margin_us`") && e.contains("hybrid"),
+        "{e}"
+    );
+    let e = err_of(&hybrid.replace(
+        "wait = \"hybrid\"",
+        "wait = \"hybrid\"\nwait_margin_us = 2000",
+    ));
+    assert!(
+        e.contains("`timing.wait_margin_us`") && e.contains("2000"),
+        "{e}"
+    );
+}

@@ -1,24 +1,82 @@
-//! `evoloop floor`: the bare sleep loop's lateness on this machine (what realtime runs are
-//! judged against).
+//! `evoloop floor`: the bare loop's lateness on this machine (what realtime runs are judged
+//! against), for each wait strategy.
 
 use crate::node::launcher::measure_floor;
+use crate::rt::{WaitKind, WaitStrategy};
+use clap::Args;
 use std::process::ExitCode;
 
-pub fn main(rate: f64, duration: f64, fifo: Option<i32>, json: bool) -> ExitCode {
-    let rate_ok = rate > 0.0 && rate <= 100_000.0;
-    let duration_ok = duration > 0.0 && duration <= 3600.0;
+#[derive(Debug, Clone, Args)]
+pub struct FloorArgs {
+    /// Loop rate in Hz.
+    #[arg(long, default_value_t = 1000.0)]
+    pub rate: f64,
+    /// Seconds to run.
+    #[arg(long, default_value_t = 5.0)]
+    pub duration: f64,
+    /// Ask for SCHED_FIFO with this priority (falls back when not permitted).
+    #[arg(long)]
+    pub fifo: Option<i32>,
+    /// Pin the loop to this CPU.
+    #[arg(long)]
+    pub cpu: Option<usize>,
+    /// How the loop waits: sleep, spin or hybrid (as `timing.wait`).
+    #[arg(long, value_enum, default_value_t = WaitKind::Sleep)]
+    pub wait: WaitKind,
+    /// Hybrid: stop sleeping this many microseconds before the deadline, then spin (default as
+    /// `timing.wait_margin_us`: 100, at most 80 % of the period).
+    #[arg(long)]
+    pub margin_us: Option<f64>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn main(a: &FloorArgs) -> ExitCode {
+    let rate_ok = a.rate > 0.0 && a.rate <= 100_000.0;
+    let duration_ok = a.duration > 0.0 && a.duration <= 3600.0;
     if !rate_ok || !duration_ok {
         err!("error: --rate must be in (0, 100000] Hz and --duration in (0, 3600] s");
         return ExitCode::from(2);
     }
-    let f = measure_floor(1.0 / rate, duration, fifo);
-    if json {
+    let period = 1.0 / a.rate;
+    let margin_us = a
+        .margin_us
+        .unwrap_or_else(|| crate::config::default_margin_us(period));
+    if !(margin_us >= 0.0 && margin_us <= period * 1e6) {
+        err!(
+            "error: --margin-us must be within [0, {}] (the period)",
+            period * 1e6
+        );
+        return ExitCode::from(2);
+    }
+    let wait = WaitStrategy {
+        kind: a.wait,
+        margin_ns: if a.wait == WaitKind::Hybrid {
+            (margin_us * 1e3).round() as u64
+        } else {
+            0
+        },
+    };
+    let f = measure_floor(period, a.duration, a.fifo, a.cpu, wait);
+    if a.json {
         super::print_json(&f);
     } else {
         let l = &f.lateness;
         out!(
-            "bare sleep loop at {rate} Hz for {duration} s (SCHED_FIFO: {}): lateness p50 {} ns, p90 {} ns, p99 {} ns, p99.9 {} ns, max {} ns over {} cycles",
-            f.rt.sched_fifo, l.p50_ns, l.p90_ns, l.p99_ns, l.p99_9_ns, l.max_ns, l.count
+            "bare {} loop at {} Hz for {} s (SCHED_FIFO: {}, cpu {}): lateness p50 {} ns, p90 {} ns, p99 {} ns, p99.9 {} ns, max {} ns over {} cycles, {} periods lost",
+            wait.describe(),
+            a.rate,
+            a.duration,
+            f.rt.sched_fifo,
+            f.rt.cpu.map_or("any".into(), |c| c.to_string()),
+            l.p50_ns,
+            l.p90_ns,
+            l.p99_ns,
+            l.p99_9_ns,
+            l.max_ns,
+            l.count,
+            f.lost_periods
         );
         for n in &f.rt.notes {
             out!("note: {n}");

@@ -91,21 +91,8 @@ pub enum Cmd {
     /// A long realtime run with the optimiser tuning: memory of every process, missed deadlines
     /// and lateness per minute, shared-memory files before and after (soak.json, soak.csv, plots).
     Soak(soak::SoakArgs),
-    /// Measure the machine's timing floor: a bare absolute-deadline sleep loop.
-    Floor {
-        /// Loop rate in Hz.
-        #[arg(long, default_value_t = 1000.0)]
-        rate: f64,
-        /// Seconds to run.
-        #[arg(long, default_value_t = 5.0)]
-        duration: f64,
-        /// Ask for SCHED_FIFO with this priority (falls back when not permitted).
-        #[arg(long)]
-        fifo: Option<i32>,
-        /// Print JSON instead of a table.
-        #[arg(long)]
-        json: bool,
-    },
+    /// Measure the machine's timing floor: a bare absolute-deadline loop (sleep, spin or hybrid).
+    Floor(floor::FloorArgs),
 }
 
 #[derive(Subcommand)]
@@ -136,7 +123,7 @@ pub fn main() -> ExitCode {
                 | Cmd::Tune(_)
                 | Cmd::Identify { .. }
                 | Cmd::Rkgnn { .. }
-                | Cmd::Floor { .. }
+                | Cmd::Floor(_)
         )
     ) {
         // SAFETY: resetting a signal disposition before any thread is started.
@@ -177,12 +164,7 @@ pub fn main() -> ExitCode {
         Some(Cmd::Identify { cmd }) => ExitCode::from(rkgnn::identify(cmd) as u8),
         Some(Cmd::Rkgnn { cmd }) => ExitCode::from(rkgnn::main(cmd) as u8),
         Some(Cmd::Dynamics(a)) => ExitCode::from(crate::cli::dynamics::main(a) as u8),
-        Some(Cmd::Floor {
-            rate,
-            duration,
-            fifo,
-            json,
-        }) => floor::main(rate, duration, fifo, json),
+        Some(Cmd::Floor(a)) => floor::main(&a),
         Some(Cmd::Soak(a)) => soak::main(a),
     }
 }

@@ -18,7 +18,7 @@ pub use crate::check::ConfigError;
 pub use crate::control::{ControllerKind, ControllerModel, ControllerSpec};
 pub use crate::plant::{PlantKind, PlantModel, PlantSpec};
 pub use optimiser::{OptimiserMode, OptimiserSpec, ScheduledSet, SetKind};
-pub use timing::{parse_duration, Mode, Timing};
+pub use timing::{default_margin_us, parse_duration, Mode, Timing};
 
 use crate::check::Check;
 use crate::control::{Controller, ParamBounds, RawController};
@@ -85,6 +85,8 @@ pub struct Overrides {
     pub optimiser: Option<OptimiserMode>,
     /// Drop every real-time privilege request (SCHED_FIFO, mlockall, pinning).
     pub no_rt: bool,
+    /// `--wait`: how the realtime loops wait for their deadlines.
+    pub wait: Option<crate::rt::WaitKind>,
 }
 
 impl Scenario {
@@ -193,6 +195,7 @@ impl Scenario {
             fifo_priority: self.timing.fifo_priority,
             lock_memory: self.timing.lock_memory,
             cpu: self.timing.controller_cpu,
+            wait: self.timing.wait.kind,
         }
     }
 
@@ -201,6 +204,7 @@ impl Scenario {
             fifo_priority: self.timing.plant_fifo_priority,
             lock_memory: self.timing.lock_memory,
             cpu: self.timing.plant_cpu,
+            wait: self.timing.wait.kind,
         }
     }
 }

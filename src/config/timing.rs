@@ -2,6 +2,7 @@
 
 use super::Overrides;
 use crate::check::{Check, ConfigError};
+use crate::rt::{WaitKind, WaitStrategy};
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Deserialize)]
@@ -20,6 +21,8 @@ pub struct RawTiming {
     pub controller_cpu: Option<usize>,
     pub plant_cpu: Option<usize>,
     pub measure_floor: Option<bool>,
+    pub wait: Option<WaitKind>,
+    pub wait_margin_us: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -58,6 +61,9 @@ pub struct Timing {
     pub controller_cpu: Option<usize>,
     pub plant_cpu: Option<usize>,
     pub measure_floor: bool,
+    /// How the realtime controller and plant wait for their deadlines (`timing.wait`,
+    /// `timing.wait_margin_us`); the floor is measured with the same strategy.
+    pub wait: WaitStrategy,
 }
 
 impl Timing {
@@ -128,6 +134,7 @@ pub fn validate(t: RawTiming, check: &Check, ov: &Overrides) -> Result<Timing, C
         return check.fail("timing.spin_us", format!("at most 1000000 (got {spin_us})"));
     }
     let rt = !ov.no_rt;
+    let wait = wait_strategy(&t, check, ov, period)?;
     Ok(Timing {
         mode: ov.mode.or(t.mode).unwrap_or(Mode::Lockstep),
         period,
@@ -147,5 +154,45 @@ pub fn validate(t: RawTiming, check: &Check, ov: &Overrides) -> Result<Timing, C
         controller_cpu: t.controller_cpu.filter(|_| rt),
         plant_cpu: t.plant_cpu.filter(|_| rt),
         measure_floor: t.measure_floor.unwrap_or(true),
+        wait,
+    })
+}
+
+/// Default hybrid margin: 100 us, which covers this VM's sleep wake-up p99.9 under SCHED_FIFO
+/// (`evoloop floor --fifo 80`), and at most 80 % of the period so a fast loop still sleeps a
+/// little each cycle.
+pub fn default_margin_us(period: f64) -> f64 {
+    100.0f64.min(0.8 * period * 1e6)
+}
+
+fn wait_strategy(
+    t: &RawTiming,
+    check: &Check,
+    ov: &Overrides,
+    period: f64,
+) -> Result<WaitStrategy, ConfigError> {
+    let kind = ov.wait.or(t.wait).unwrap_or_default();
+    let margin_us = match t.wait_margin_us {
+        Some(m) => {
+            if kind != WaitKind::Hybrid {
+                return check.fail(
+                    "timing.wait_margin_us",
+                    format!(
+                        "only for timing.wait = \"hybrid\" (the wait is {:?})",
+                        kind.name()
+                    ),
+                );
+            }
+            check.range("timing.wait_margin_us", m, 1.0, period * 1e6)?
+        }
+        None => default_margin_us(period),
+    };
+    Ok(WaitStrategy {
+        kind,
+        margin_ns: if kind == WaitKind::Hybrid {
+            (margin_us * 1e3).round() as u64
+        } else {
+            0
+        },
     })
 }

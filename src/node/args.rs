@@ -79,6 +79,11 @@ pub struct OverrideArgs {
     /// Realtime mode without SCHED_FIFO, mlockall or CPU pinning, whatever the scenario asks.
     #[arg(long)]
     pub no_rt: bool,
+    /// How the realtime controller and plant wait for each deadline: sleep (no CPU, the kernel's
+    /// wake-up lateness), spin (a core held, clock-read lateness) or hybrid (sleep until
+    /// `timing.wait_margin_us` before it, then spin). Default: the scenario's `timing.wait`.
+    #[arg(long)]
+    pub wait: Option<crate::rt::WaitKind>,
 }
 
 impl OverrideArgs {
@@ -90,6 +95,7 @@ impl OverrideArgs {
             out: self.out.clone(),
             optimiser: self.optimiser,
             no_rt: self.no_rt,
+            wait: self.wait,
         }
     }
 
@@ -127,6 +133,10 @@ impl OverrideArgs {
         }
         if self.no_rt {
             a.push("--no-rt".into());
+        }
+        if let Some(w) = self.wait {
+            a.push("--wait".into());
+            a.push(w.name().into());
         }
         a
     }

@@ -22,9 +22,7 @@ use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SE
 use crate::report::stream::{CsvPart, LogStream, Overflow};
 use crate::report::summary::{ControllerReport, ParamRecord};
 use crate::report::write_json;
-use crate::rt::{
-    apply_privileges, now_ns, sleep_until_ns, CycleTiming, TimingStats, TimingSummary,
-};
+use crate::rt::{apply_privileges, now_ns, CycleTiming, TimingStats, TimingSummary};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -381,7 +379,7 @@ fn run_realtime(
             return Ok(());
         }
         let deadline = epoch + k * period + phase;
-        sleep_until_ns(deadline);
+        scn.timing.wait.wait_until(deadline);
         let woke = now_ns();
         let lateness = woke as i64 - deadline as i64;
         let mut flags = 0;

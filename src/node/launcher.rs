@@ -11,8 +11,9 @@ use crate::msg::Telemetry;
 use crate::report::build::build_report;
 use crate::report::summary::{FloorReport, Summary};
 use crate::rt::apply_privileges;
-use crate::rt::clock::sleep_loop_lateness;
+use crate::rt::clock::wait_loop_lateness;
 use crate::rt::timing::Percentiles;
+use crate::rt::WaitStrategy;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ExitCode};
 use std::sync::atomic::Ordering;
@@ -35,17 +36,26 @@ pub fn shipped(relative: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
 }
 
-/// The bare absolute-deadline sleep loop, in its own thread with the given priority.
-pub fn measure_floor(period: f64, duration: f64, fifo: Option<i32>) -> FloorReport {
+/// The bare absolute-deadline loop, in its own thread with the given priority and CPU, waiting
+/// as the controller does (`wait`), so the controller's lateness is judged against the same
+/// strategy's floor.
+pub fn measure_floor(
+    period: f64,
+    duration: f64,
+    fifo: Option<i32>,
+    cpu: Option<usize>,
+    wait: WaitStrategy,
+) -> FloorReport {
     let period_ns = (period * 1e9).round() as u64;
     let cycles = (duration / period).round().max(1.0) as usize;
     std::thread::spawn(move || {
         let rt = apply_privileges(&crate::rt::RtRequest {
             fifo_priority: fifo,
             lock_memory: false,
-            cpu: None,
+            cpu,
+            wait: wait.kind,
         });
-        let late = sleep_loop_lateness(period_ns, cycles);
+        let late = wait_loop_lateness(period_ns, cycles, wait);
         let lost_periods = late
             .iter()
             .map(|l| (l.max(&0) / period_ns as i64) as u64)
@@ -53,6 +63,7 @@ pub fn measure_floor(period: f64, duration: f64, fifo: Option<i32>) -> FloorRepo
         FloorReport {
             period_s: period,
             rt,
+            wait,
             lost_periods,
             lateness: Percentiles::from_samples(late),
             ..Default::default()
@@ -552,9 +563,18 @@ pub fn run(a: RunArgs) -> ExitCode {
         (scn.timing.mode == Mode::Realtime && scn.timing.measure_floor && ended).then(|| {
             let secs = scn.timing.duration.min(5.0);
             if !a.quiet {
-                err!("evoloop: measuring the bare sleep-loop floor for {secs} s");
+                err!(
+                    "evoloop: measuring the bare loop's floor ({} wait) for {secs} s",
+                    scn.timing.wait.describe()
+                );
             }
-            measure_floor(scn.timing.period, secs, scn.timing.fifo_priority)
+            measure_floor(
+                scn.timing.period,
+                secs,
+                scn.timing.fifo_priority,
+                scn.timing.controller_cpu,
+                scn.timing.wait,
+            )
         });
     match build_report(&scn, &run_id, wall, floor, cleaned, optimiser_restarts) {
         Ok(s) => print_summary(&s, &dir, scn.output.plots),
@@ -614,8 +634,8 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
         );
         if let Some(f) = &s.floor {
             out!(
-                "  floor (bare sleep loop, same run): lateness p50 {} ns, p99 {} ns, p99.9 {} ns; controller/floor p99 = {:.2}",
-                f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99
+                "  floor (bare {} loop, same run): lateness p50 {} ns, p99 {} ns, p99.9 {} ns; controller/floor p99 = {:.2}",
+                f.wait.describe(), f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99
             );
         }
         let c = &s.realtime_privileges.controller;

@@ -16,7 +16,7 @@ use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SE
 use crate::plant::PlantSim;
 use crate::report::summary::PlantReport;
 use crate::report::write_json;
-use crate::rt::{apply_privileges, now_ns, sleep_until_ns};
+use crate::rt::{apply_privileges, now_ns};
 use crate::MAX_JOINTS;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -249,7 +249,7 @@ fn run_realtime(
     let mut safe_mode = false;
     for k in 0..=n {
         let tick = epoch + k * period;
-        sleep_until_ns(tick);
+        scn.timing.wait.wait_until(tick);
         // Each command that arrived since the last sample is applied from the moment it was
         // sent (its stamp), as hardware would apply it on arrival: integrate up to that moment
         // with the command in force, then switch (zero-order hold). Reconstructing the switch

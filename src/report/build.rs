@@ -535,6 +535,7 @@ pub fn build_report(
             controller: ctrl.rt.clone(),
             plant: plant.rt.clone(),
         },
+        wait: (scn.timing.mode == crate::config::Mode::Realtime).then_some(scn.timing.wait),
         floor,
         plant_safe_samples: plant.safe_samples,
         optimiser_published: opt.published_count as usize,

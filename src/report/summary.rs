@@ -125,6 +125,9 @@ pub struct DirectSummary {
 pub struct FloorReport {
     pub period_s: f64,
     pub rt: RtGranted,
+    /// The wait strategy of the bare loop: the controller's, so the ratios compare like with like.
+    #[serde(default)]
+    pub wait: crate::rt::WaitStrategy,
     pub lateness: Percentiles,
     /// Whole periods the bare loop lost (sum over its cycles of floor(lateness / period)): what
     /// the machine alone costs a loop at this rate and priority, the yardstick for judging
@@ -189,6 +192,9 @@ pub struct Summary {
     pub deadline_misses: u64,
     pub parameter_versions: ParamVersions,
     pub realtime_privileges: RealtimePrivileges,
+    /// Realtime: how the controller and the plant waited for their deadlines (`timing.wait`).
+    #[serde(default)]
+    pub wait: Option<crate::rt::WaitStrategy>,
     pub floor: Option<FloorReport>,
     pub plant_safe_samples: u64,
     pub optimiser_published: usize,
