@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """Reference values from Pinocchio for evoloop's regressor test (tests/dynamics.rs).
 
-For each robot file and a few seeded states, Pinocchio's computeJointTorqueRegressor and rnea;
-written to tests/data/pinocchio_regressor.json. Needs the `pin` package (pip install pin).
+For each robot file and a few seeded states, Pinocchio's computeJointTorqueRegressor, rnea,
+crba (the joint-space inertia, made symmetric) and aba at the torque tau / 2 + 1 (so the forward
+dynamics is not just the inverse of the case's own rnea); written to
+tests/data/pinocchio_regressor.json. Needs the `pin` package (pip install pin).
 
     python3 scripts/pinocchio_regressor.py
 """
@@ -14,7 +16,12 @@ import numpy as np
 import pinocchio as pin
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ROBOTS = ["tests/robots/ur5_style.urdf", "tests/robots/panda_style.urdf", "config/robots/arm3.urdf"]
+ROBOTS = [
+    "tests/robots/ur5_style.urdf",
+    "tests/robots/panda_style.urdf",
+    "config/robots/arm3.urdf",
+    "config/robots/arm7.urdf",
+]
 
 
 def main():
@@ -29,6 +36,10 @@ def main():
             a = rng.uniform(-5, 5, model.nv)
             y = pin.computeJointTorqueRegressor(model, data, q, v, a)
             tau = pin.rnea(model, data, q, v, a)
+            m = pin.crba(model, data, q)
+            m = np.triu(m) + np.triu(m, 1).T
+            tau_fd = np.asarray(tau) / 2 + 1
+            qdd_aba = pin.aba(model, data, q, v, tau_fd)
             out["cases"].append(
                 {
                     "robot": rel,
@@ -38,6 +49,9 @@ def main():
                     "qdd": a.tolist(),
                     "Y": np.asarray(y).tolist(),
                     "tau": np.asarray(tau).tolist(),
+                    "M": np.asarray(m).tolist(),
+                    "tau_fd": tau_fd.tolist(),
+                    "qdd_aba": np.asarray(qdd_aba).tolist(),
                 }
             )
     path = os.path.join(ROOT, "tests/data/pinocchio_regressor.json")

@@ -1,6 +1,7 @@
 //! Arms in the loop: computed torque with the true model against the P-D servo on the RKGNN
 //! "new" trajectory, the start-up damping psi(k), and the arm scenarios run by the real
-//! processes in lockstep (bit-identical to the in-process simulation) and at 1 kHz realtime.
+//! processes in lockstep (bit-identical to the in-process simulation) and at 1 kHz realtime, and
+//! the 7-DOF arm at 10 kHz in both modes.
 
 mod common;
 use common::*;
@@ -330,4 +331,69 @@ fn payload_keys_are_checked_with_their_names() {
         e.contains("plant.arm.payload_com") && e.contains("no payload"),
         "{e}"
     );
+}
+
+/// The 7-DOF arm at 10 kHz through the three processes in lockstep: two runs give the same
+/// run.csv byte for byte, and it equals the in-process simulation bit for bit.
+#[test]
+fn the_seven_dof_arm_at_ten_kilohertz_is_bit_reproducible_in_lockstep() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let outs = [tmp.path().join("a"), tmp.path().join("b")];
+    for (i, out) in outs.iter().enumerate() {
+        assert_ok(&run(
+            &config("arm7_ct.toml"),
+            out,
+            &format!("arm7ls{i}"),
+            &["--duration", "2"],
+        ));
+    }
+    let read = |o: &PathBuf| std::fs::read(o.join("run.csv")).unwrap();
+    assert!(read(&outs[0]) == read(&outs[1]), "two lockstep runs differ");
+    let scn = load(
+        "arm7_ct.toml",
+        &Overrides {
+            duration: Some(2.0),
+            ..Default::default()
+        },
+    );
+    assert_eq!(scn.timing.period, 1e-4);
+    let sim = simulate(&scn);
+    let csv = Csv::read(&outs[0].join("run.csv"));
+    assert_eq!(csv.rows.len(), 20_000);
+    assert_eq!(csv.rows.len(), sim.rows.len());
+    for j in 0..7 {
+        let (y, u) = (csv.col(&format!("y{j}")), csv.col(&format!("u{j}")));
+        for (i, row) in sim.rows.iter().enumerate() {
+            assert_eq!(y[i].to_bits(), row.state.y[j].to_bits(), "y{j} at {i}");
+            assert_eq!(u[i].to_bits(), row.telemetry.u[j].to_bits(), "u{j} at {i}");
+        }
+    }
+    // Computed torque with the true model: after the start-up, the error is the sensor noise
+    // (noise_std = 1e-4 rad).
+    let s = json(&outs[0].join("summary.json"));
+    let rms = s["tracking_after_1s"]["rms"].as_array().unwrap();
+    assert_eq!(rms.len(), 7);
+    assert!(rms.iter().all(|v| v.as_f64().unwrap() < 2e-4), "{rms:?}");
+}
+
+#[test]
+fn the_seven_dof_arm_runs_at_ten_kilohertz_in_realtime_mode() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    assert_ok(&run(
+        &config("arm7_ct.toml"),
+        &out,
+        "arm7rt",
+        &["--mode", "realtime", "--duration", "4"],
+    ));
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["mode"], "realtime");
+    assert_eq!(s["wait"]["kind"], "hybrid", "the scenario's wait strategy");
+    if let Err(line) = rate_kept(&s, 4.0) {
+        panic!("the 7-DOF controller did not keep its 10 kHz rate: {line}");
+    }
+    let rms = s["tracking_after_1s"]["rms_all"].as_f64().unwrap();
+    assert!(rms < 0.05, "realtime tracking rms {rms}");
 }

@@ -86,3 +86,44 @@ fn bench_loop_measures_the_loop_and_its_floor_in_the_same_run() {
     assert!(dir.path().join("loop_lateness.png").is_file());
     assert!(dir.path().join("loop.json").is_file());
 }
+
+/// `--scenario` runs a shipped scenario (here the 7-DOF arm at 10 kHz) with the chosen wait
+/// strategy, and the floor waits the same way; a rate the scenario does not run at is refused.
+#[test]
+fn bench_loop_runs_a_given_scenario_with_its_wait_strategy() {
+    let dir = tempfile::tempdir().unwrap();
+    let arm7 = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm7_ct.toml");
+    let bench = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+            .args(["bench", "loop", "--duration", "1", "--rt-only", "--json"])
+            .arg("--scenario")
+            .arg(&arm7)
+            .arg("--out")
+            .arg(dir.path())
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let bad = bench(&["--rate", "1000"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("10000 Hz"),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
+    let o = bench(&["--rate", "10000", "--wait", "hybrid"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["rate_hz"], 10000.0);
+    let r = &v["results"].as_array().unwrap()[0];
+    assert_eq!(r["wait"]["kind"], "hybrid");
+    let s: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("fifo/summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(s["floor"]["wait"]["kind"], "hybrid");
+    assert_eq!(s["scenario"], "arm7_ct");
+    let cycles = r["cycles"].as_u64().unwrap() + r["deadline_misses"].as_u64().unwrap();
+    assert!((9_900..=10_000).contains(&cycles), "{cycles}");
+    assert!(r["misses_per_million"].as_f64().unwrap() >= 0.0);
+}

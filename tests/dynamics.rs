@@ -665,11 +665,12 @@ fn a_joint_row_of_the_regressor_sees_only_the_bodies_it_carries() {
 }
 
 /// The regressor equals Pinocchio's `computeJointTorqueRegressor` column by column (same
-/// parameter order, inertia about the joint frame) on files as ROS packages ship them, and RNEA
-/// equals Pinocchio's `rnea`. Reference values from Pinocchio 4.1.0 via
-/// scripts/pinocchio_regressor.py (tests/data/pinocchio_regressor.json).
+/// parameter order, inertia about the joint frame) on files as ROS packages ship them, RNEA
+/// equals Pinocchio's `rnea`, the mass matrix its `crba`, and forward dynamics (ABA and the
+/// CRBA + Cholesky route) its `aba`, on the shipped 7-DOF arm too. Reference values from
+/// Pinocchio 4.1.0 via scripts/pinocchio_regressor.py (tests/data/pinocchio_regressor.json).
 #[test]
-fn regressor_and_rnea_equal_pinocchio_on_urdf_arms() {
+fn regressor_rnea_crba_and_aba_equal_pinocchio_on_urdf_arms() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(root.join("tests/data/pinocchio_regressor.json")).unwrap();
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -681,10 +682,16 @@ fn regressor_and_rnea_equal_pinocchio_on_urdf_arms() {
             .collect()
     };
     let cases = v["cases"].as_array().unwrap();
-    assert!(cases.len() >= 9);
+    assert!(cases.len() >= 12);
+    assert!(cases
+        .iter()
+        .any(|c| c["robot"] == "config/robots/arm7.urdf"));
     for case in cases {
         let file = case["robot"].as_str().unwrap();
-        let m = dynamics::load(&root.join(file)).unwrap();
+        let mut m = dynamics::load(&root.join(file)).unwrap();
+        // Pinocchio's algorithms are rigid-body only (its model keeps URDF damping and friction
+        // aside).
+        m.clear_friction();
         let names: Vec<&str> = m.bodies.iter().map(|b| b.joint.as_str()).collect();
         let theirs: Vec<&str> = case["joints"]
             .as_array()
@@ -718,6 +725,34 @@ fn regressor_and_rnea_equal_pinocchio_on_urdf_arms() {
                 "{file}: tau[{j}] {} vs Pinocchio {expected}",
                 tau[j]
             );
+        }
+        let big: Vec<Vec<f64>> = case["M"].as_array().unwrap().iter().map(vec).collect();
+        let mm = m.mass_matrix(&mut d, &q).clone();
+        for (i, row) in big.iter().enumerate() {
+            for (j, expected) in row.iter().enumerate() {
+                assert!(
+                    (mm[(i, j)] - expected).abs() <= 1e-10 * (1.0 + expected.abs()),
+                    "{file}: M[{i}, {j}] {} vs Pinocchio {expected}",
+                    mm[(i, j)]
+                );
+            }
+        }
+        let tau_fd = vec(&case["tau_fd"]);
+        let theirs = vec(&case["qdd_aba"]);
+        let scale = theirs.iter().fold(1.0f64, |a, x| a.max(x.abs()));
+        let (mut aba, mut crba) = (vec![0.0; n], vec![0.0; n]);
+        m.forward_dynamics_aba(&mut d, &q, &qd, &tau_fd, &mut aba)
+            .unwrap();
+        m.forward_dynamics(&mut d, &q, &qd, &tau_fd, &mut crba)
+            .unwrap();
+        for j in 0..n {
+            for (route, ours) in [("ABA", aba[j]), ("CRBA", crba[j])] {
+                assert!(
+                    (ours - theirs[j]).abs() <= 1e-9 * scale,
+                    "{file}: {route} qdd[{j}] {ours} vs Pinocchio aba {}",
+                    theirs[j]
+                );
+            }
         }
     }
 }

@@ -1,7 +1,8 @@
 //! `evoloop bench loop`: the real controller loop (plant, controller and optimiser processes in
-//! realtime mode on the two-mass scenario) at a given rate, under a chosen background load, with
-//! and without real-time privileges; each run also measures the bare absolute-deadline sleep loop
-//! at the same period under the same load, as the machine's floor.
+//! realtime mode, on the two-mass scenario or a given one) at a given rate, under a chosen
+//! background load, with and without real-time privileges, with a chosen wait strategy; each
+//! run also measures the bare absolute-deadline loop at the same period, priority, CPU and wait
+//! strategy under the same load, as the machine's floor.
 
 use crate::report::plot::{xy_png, Style, XySeries};
 use crate::report::summary::Summary;
@@ -18,8 +19,9 @@ use std::sync::Arc;
 pub enum Load {
     /// Nothing else running.
     Off,
-    /// The live optimiser busy in the run: the indirect scheme's DE epochs on the model, back to
-    /// back on 2 threads at nice 10 (`optimiser.mode = "indirect"`), for the whole measurement.
+    /// The live optimiser busy in the run: on the built-in scenario the indirect scheme's DE
+    /// epochs on the model, back to back on 2 threads at nice 10 (`optimiser.mode = "indirect"`),
+    /// for the whole measurement; with `--scenario`, that scenario's own optimiser.
     Optimiser,
     /// One busy-looping thread per CPU at normal priority.
     Hog,
@@ -117,12 +119,25 @@ fn start_load(load: Load) -> std::io::Result<LoadGuard> {
     Ok(g)
 }
 
-fn run_once(out: &Path, cfg: &Path, no_rt: bool) -> Result<Summary, String> {
+fn run_once(out: &Path, cfg: &Path, no_rt: bool, spec: &LoopSpec) -> Result<Summary, String> {
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let mut cmd = Command::new(exe);
     cmd.arg("run").arg(cfg).arg("--out").arg(out).arg("--quiet");
+    cmd.args([
+        "--mode",
+        "realtime",
+        "--duration",
+        &spec.duration.to_string(),
+    ]);
     if no_rt {
         cmd.arg("--no-rt");
+    }
+    if let Some(w) = spec.wait {
+        cmd.args(["--wait", w.name()]);
+    }
+    // A given scenario's optimiser runs only as the `optimiser` load.
+    if spec.scenario.is_some() && spec.load != Load::Optimiser {
+        cmd.args(["--optimiser", "off"]);
     }
     let o = cmd.output().map_err(|e| e.to_string())?;
     if !o.status.success() {
@@ -141,19 +156,74 @@ pub struct Measured {
     pub results: Vec<LoopResult>,
 }
 
-/// Measure the loop at `rate` Hz for `duration` s under `load`, with SCHED_FIFO/mlockall and
-/// (unless `rt_only`) without; runs, loop.json and loop_lateness.png go to `out`. `progress`
-/// is told each setting as it starts. Errors carry the exit code: 2 for bad arguments.
+/// What to measure.
+#[derive(Debug, Clone)]
+pub struct LoopSpec {
+    /// Hz; None: 1000 on the built-in scenario, a given scenario's own rate.
+    pub rate: Option<f64>,
+    pub duration: f64,
+    pub load: Load,
+    /// Only with SCHED_FIFO/mlockall.
+    pub rt_only: bool,
+    /// The wait strategy; None: the scenario's (`timing.wait`; sleep on the built-in one).
+    pub wait: Option<crate::rt::WaitKind>,
+    /// A scenario file to run instead of the built-in two-mass loop.
+    pub scenario: Option<std::path::PathBuf>,
+}
+
+/// The scenario file to run and its rate: the built-in one written to `out`, or the given one
+/// (checked: it loads, and runs at `rate` if one is asked for).
+fn scenario_file(spec: &LoopSpec, out: &Path) -> Result<(std::path::PathBuf, f64), (i32, String)> {
+    let Some(path) = &spec.scenario else {
+        let rate = spec.rate.unwrap_or(1000.0);
+        let cfg = out.join("bench_loop.toml");
+        std::fs::write(
+            &cfg,
+            scenario(rate, spec.duration, spec.load == Load::Optimiser),
+        )
+        .map_err(|e| (1, e.to_string()))?;
+        return Ok((cfg, rate));
+    };
+    let scn = crate::config::Scenario::load(path, &crate::config::Overrides::default())
+        .map_err(|e| (2, e.to_string()))?;
+    let own = 1.0 / scn.timing.period;
+    if let Some(r) = spec.rate {
+        if (r - own).abs() > 1e-6 * own {
+            return Err((
+                2,
+                format!(
+                    "--rate {r} Hz, but {} runs at {own} Hz (timing.period = {} s)",
+                    path.display(),
+                    scn.timing.period
+                ),
+            ));
+        }
+    }
+    if spec.load == Load::Optimiser && scn.optimiser.mode == crate::config::OptimiserMode::Off {
+        return Err((
+            2,
+            format!(
+                "--load optimiser, but {} has no optimiser (optimiser.mode = \"off\")",
+                path.display()
+            ),
+        ));
+    }
+    Ok((path.clone(), own))
+}
+
+/// Measure the loop as `spec` says, with SCHED_FIFO/mlockall and (unless `rt_only`) without;
+/// runs, loop.json and loop_lateness.png go to `out`. `progress` is told each setting as it
+/// starts. Errors carry the exit code: 2 for bad arguments.
 pub fn measure(
-    rate: f64,
-    duration: f64,
-    load: Load,
-    rt_only: bool,
+    spec: &LoopSpec,
     out: &Path,
     progress: &dyn Fn(&str),
 ) -> Result<Measured, (i32, String)> {
-    if !(10.0..=20_000.0).contains(&rate) {
-        return Err((2, format!("--rate must be in [10, 20000] Hz (got {rate})")));
+    let (duration, load, rt_only) = (spec.duration, spec.load, spec.rt_only);
+    if let Some(rate) = spec.rate {
+        if !(10.0..=20_000.0).contains(&rate) {
+            return Err((2, format!("--rate must be in [10, 20000] Hz (got {rate})")));
+        }
     }
     if !(0.5..=3600.0).contains(&duration) {
         return Err((
@@ -162,9 +232,7 @@ pub fn measure(
         ));
     }
     std::fs::create_dir_all(out).map_err(|e| (1, format!("{}: {e}", out.display())))?;
-    let cfg = out.join("bench_loop.toml");
-    std::fs::write(&cfg, scenario(rate, duration, load == Load::Optimiser))
-        .map_err(|e| (1, e.to_string()))?;
+    let (cfg, rate) = scenario_file(spec, out)?;
     let _load =
         start_load(load).map_err(|e| (1, format!("cannot start the {load:?} load: {e}")))?;
     let settings: &[(&str, bool)] = if rt_only {
@@ -175,7 +243,7 @@ pub fn measure(
     let mut results = Vec::new();
     for (name, no_rt) in settings {
         progress(name);
-        let summary = run_once(&out.join(name), &cfg, *no_rt).map_err(|e| (1, e))?;
+        let summary = run_once(&out.join(name), &cfg, *no_rt, spec).map_err(|e| (1, e))?;
         results.push(LoopResult {
             privileges: name.to_string(),
             load,
@@ -192,7 +260,10 @@ pub fn measure(
             serde_json::json!({
                 "privileges": r.privileges, "load": r.load, "rate_hz": r.rate_hz,
                 "sched_fifo": s.realtime_privileges.controller.sched_fifo,
+                "wait": s.wait,
                 "cycles": s.samples, "overruns": s.overruns, "deadline_misses": s.deadline_misses,
+                "misses_per_million": per_million(s.deadline_misses, s.samples),
+                "floor_lost_per_million": per_million(f.lost_periods, f.lateness.count),
                 "stale_states": s.timing.stale_states,
                 "lateness": l, "compute": s.timing.compute, "state_age": s.timing.state_age,
                 "floor_lateness": f.lateness,
@@ -200,11 +271,24 @@ pub fn measure(
             })
         })
         .collect();
-    let report = serde_json::json!({ "rate_hz": rate, "duration_s": duration, "load": load, "results": table });
+    let report = serde_json::json!({
+        "rate_hz": rate, "duration_s": duration, "load": load,
+        "scenario": spec.scenario.as_ref().map(|p| p.display().to_string()),
+        "results": table,
+    });
     crate::report::write_json(out, "loop.json", &report)
         .map_err(|e| (1, format!("loop.json: {e}")))?;
     plot(out, &results).map_err(|e| (1, format!("plot: {e}")))?;
     Ok(Measured { report, results })
+}
+
+/// Events per million cycles.
+fn per_million(events: u64, cycles: u64) -> f64 {
+    if cycles == 0 {
+        0.0
+    } else {
+        events as f64 * 1e6 / cycles as f64
+    }
 }
 
 /// Lateness over time of each measured run.

@@ -114,9 +114,18 @@ pub fn latency_peer(a: PeerArgs) -> i32 {
 
 #[derive(Args)]
 pub struct LoopArgs {
-    /// Loop rate in Hz (1000 and 10000 are the usual ones).
-    #[arg(long, default_value_t = 1000.0)]
-    pub rate: f64,
+    /// Loop rate in Hz (1000 and 10000 are the usual ones). Default: 1000 on the built-in
+    /// two-mass loop, a `--scenario`'s own rate (which it must match if given).
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Run this scenario (realtime, for `--duration`) instead of the built-in two-mass loop,
+    /// e.g. config/arm7_ct.toml for the 7-DOF computed-torque loop at 10 kHz.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// How the controller and the plant wait: sleep, spin or hybrid (default: the scenario's
+    /// `timing.wait`; sleep on the built-in loop). The floor waits the same way.
+    #[arg(long, value_enum)]
+    pub wait: Option<crate::rt::WaitKind>,
     /// Seconds per measurement.
     #[arg(long, default_value_t = 5.0)]
     pub duration: f64,
@@ -134,16 +143,28 @@ pub struct LoopArgs {
 
 /// `evoloop bench loop`: the measurements, then the table (or JSON).
 pub fn loop_(a: LoopArgs) -> i32 {
+    let what = a
+        .scenario
+        .as_ref()
+        .map_or("the two-mass loop".to_string(), |p| p.display().to_string());
     let progress = |name: &str| {
         if !a.json {
             eprintln!(
-                "measuring {} Hz, {name}, load {:?}, {} s...",
-                a.rate, a.load, a.duration
+                "measuring {what}, {name}, load {:?}, {} s (and the floor after it)...",
+                a.load, a.duration
             );
         }
     };
+    let spec = loop_bench::LoopSpec {
+        rate: a.rate,
+        duration: a.duration,
+        load: a.load,
+        rt_only: a.rt_only,
+        wait: a.wait,
+        scenario: a.scenario.clone(),
+    };
     let loop_bench::Measured { report, results } =
-        match loop_bench::measure(a.rate, a.duration, a.load, a.rt_only, &a.out, &progress) {
+        match loop_bench::measure(&spec, &a.out, &progress) {
             Ok(m) => m,
             Err((code, e)) => {
                 eprintln!("error: {e}");
@@ -154,8 +175,8 @@ pub fn loop_(a: LoopArgs) -> i32 {
         super::print_json(&report);
     } else {
         out!(
-            "controller loop at {} Hz for {} s, load {:?} (ns):",
-            a.rate,
+            "controller loop of {what} at {} Hz for {} s, load {:?} (ns):",
+            report["rate_hz"],
             a.duration,
             a.load
         );
@@ -169,6 +190,21 @@ pub fn loop_(a: LoopArgs) -> i32 {
                 r.privileges, "lateness", l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.timing.compute.p50_ns,
                 s.timing.state_age.p50_ns, s.overruns, s.deadline_misses,
                 f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99, f.ratio_p99_9
+            );
+        }
+        for (r, row) in results
+            .iter()
+            .zip(report["results"].as_array().into_iter().flatten())
+        {
+            let s = &r.summary;
+            out!(
+                "{:<7} wait {}: misses per 10^6 cycles {:.1} (floor: {:.1} periods lost per 10^6), compute p99 {} ns, controller/floor lateness p99 {:.2}",
+                r.privileges,
+                s.wait.map_or("-".into(), |w| w.describe()),
+                row["misses_per_million"].as_f64().unwrap_or(0.0),
+                row["floor_lost_per_million"].as_f64().unwrap_or(0.0),
+                s.timing.compute.p99_ns,
+                row["ratio_p99"].as_f64().unwrap_or(0.0),
             );
         }
         out!(
