@@ -172,6 +172,13 @@ fn the_wait_strategy_is_read_checked_and_overridable() {
         ..Default::default()
     };
     assert_eq!(parse(&hybrid, &spin).kind, WaitKind::Spin);
+    // ... also where the file gives a hybrid margin, which another strategy leaves unused.
+    let sleep = Overrides {
+        wait: Some(WaitKind::Sleep),
+        ..Default::default()
+    };
+    let w = parse(&with_margin, &sleep);
+    assert_eq!((w.kind, w.margin_ns), (WaitKind::Sleep, 0));
     // Refused: an unknown strategy, a margin without hybrid, a margin longer than the period.
     let e = err_of(&base().replace("period = 0.001", "period = 0.001\nwait = \"nap\""));
     assert!(e.contains("timing") && e.contains("nap"), "{e}");

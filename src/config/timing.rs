@@ -171,15 +171,18 @@ fn wait_strategy(
     ov: &Overrides,
     period: f64,
 ) -> Result<WaitStrategy, ConfigError> {
-    let kind = ov.wait.or(t.wait).unwrap_or_default();
+    // The file is checked as written; `--wait` may then choose another strategy, which leaves
+    // the file's hybrid margin unused rather than wrong.
+    let file_kind = t.wait.unwrap_or_default();
+    let kind = ov.wait.unwrap_or(file_kind);
     let margin_us = match t.wait_margin_us {
         Some(m) => {
-            if kind != WaitKind::Hybrid {
+            if file_kind != WaitKind::Hybrid {
                 return check.fail(
                     "timing.wait_margin_us",
                     format!(
                         "only for timing.wait = \"hybrid\" (the wait is {:?})",
-                        kind.name()
+                        file_kind.name()
                     ),
                 );
             }

@@ -638,6 +638,13 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
                 f.wait.describe(), f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99
             );
         }
+        if s.log_dropped > 0 {
+            out!(
+                "  log: {} of {} rows not written to run.csv/timing.csv (the log writer, an ordinary-priority thread, fell behind the loop; the timing figures above count every cycle)",
+                s.log_dropped,
+                s.samples
+            );
+        }
         let c = &s.realtime_privileges.controller;
         out!(
             "  controller privileges: SCHED_FIFO {} (prio {}), mlockall {}, cpu {:?}",

@@ -536,6 +536,7 @@ pub fn build_report(
             plant: plant.rt.clone(),
         },
         wait: (scn.timing.mode == crate::config::Mode::Realtime).then_some(scn.timing.wait),
+        log_dropped: ctrl.log_dropped,
         floor,
         plant_safe_samples: plant.safe_samples,
         optimiser_published: opt.published_count as usize,

@@ -192,6 +192,10 @@ pub struct Summary {
     pub deadline_misses: u64,
     pub parameter_versions: ParamVersions,
     pub realtime_privileges: RealtimePrivileges,
+    /// Rows of run.csv/timing.csv the controller dropped because its log writer fell behind
+    /// (realtime only; the timing statistics still count every cycle).
+    #[serde(default)]
+    pub log_dropped: u64,
     /// Realtime: how the controller and the plant waited for their deadlines (`timing.wait`).
     #[serde(default)]
     pub wait: Option<crate::rt::WaitStrategy>,
