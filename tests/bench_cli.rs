@@ -1,8 +1,13 @@
 //! `evoloop bench latency`: every variant measured, percentiles ordered, ratios against the bare
-//! iceoryx2 reference present, files written. No timing thresholds.
+//! iceoryx2 reference present, files written; `bench loop` on the built-in loop and on a given
+//! scenario. No timing thresholds. Every test takes `alone()`: each starts realtime processes.
+
+mod common;
+use common::alone;
 
 #[test]
 fn bench_latency_reports_every_variant_against_the_bare_reference() {
+    let _alone = alone();
     let dir = tempfile::tempdir().unwrap();
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
         .args(["bench", "latency", "--samples", "500", "--json", "--out"])
@@ -45,6 +50,8 @@ fn bench_latency_reports_every_variant_against_the_bare_reference() {
 
 #[test]
 fn bench_loop_measures_the_loop_and_its_floor_in_the_same_run() {
+    // Realtime runs: none of this binary's loops may share the machine with another.
+    let _alone = alone();
     let dir = tempfile::tempdir().unwrap();
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
         .args([
@@ -91,6 +98,7 @@ fn bench_loop_measures_the_loop_and_its_floor_in_the_same_run() {
 /// strategy, and the floor waits the same way; a rate the scenario does not run at is refused.
 #[test]
 fn bench_loop_runs_a_given_scenario_with_its_wait_strategy() {
+    let _alone = alone();
     let dir = tempfile::tempdir().unwrap();
     let arm7 = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm7_ct.toml");
     let bench = |extra: &[&str]| {

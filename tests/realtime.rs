@@ -220,7 +220,7 @@ fn a_hybrid_wait_keeps_the_rate_and_its_floor_waits_the_same_way() {
         ),
     );
     let out = tmp.path().join("out");
-    assert_ok(&run(&cfg, &out, "rthybrid", &[]));
+    assert_ok(&run(&cfg, &out, "rthybrid", &["--floor-duration", "2"]));
     let s = json(&out.join("summary.json"));
     match rate_kept(&s, 4.0) {
         Ok(line) => eprintln!("rate kept: {line}"),
@@ -231,6 +231,10 @@ fn a_hybrid_wait_keeps_the_rate_and_its_floor_waits_the_same_way() {
     assert_eq!(
         s["floor"]["wait"], wait,
         "the floor waited as the controller did"
+    );
+    assert_eq!(
+        s["floor"]["lateness"]["count"], 2000,
+        "--floor-duration 2 at 1 kHz"
     );
     // The spin phase exists: a sleep alone wakes tens of us late at the median on this kind of
     // machine; the hybrid's median wake-up is the clock read after the spin, far under the

@@ -123,11 +123,16 @@ fn run_once(out: &Path, cfg: &Path, no_rt: bool, spec: &LoopSpec) -> Result<Summ
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let mut cmd = Command::new(exe);
     cmd.arg("run").arg(cfg).arg("--out").arg(out).arg("--quiet");
+    // The floor as long as the run: a stall that comes once a minute must have the same
+    // chance to show in both.
+    let secs = spec.duration.to_string();
     cmd.args([
         "--mode",
         "realtime",
         "--duration",
-        &spec.duration.to_string(),
+        &secs,
+        "--floor-duration",
+        &secs,
     ]);
     if no_rt {
         cmd.arg("--no-rt");

@@ -137,6 +137,7 @@ pub fn main() -> ExitCode {
             ipc_prefix: crate::ipc::DEFAULT_PREFIX.into(),
             quiet: false,
             seeds: None,
+            floor_duration: None,
         }),
         Some(Cmd::Run(a)) if a.seeds.is_some() => launcher::run_seeds(a),
         Some(Cmd::Run(a)) => launcher::run(a),

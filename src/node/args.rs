@@ -27,6 +27,18 @@ pub struct RunArgs {
     /// `study.json`, `seeds.csv`, `study_cost.png`.
     #[arg(long, value_parser = parse_seeds, conflicts_with = "seed")]
     pub seeds: Option<Seeds>,
+    /// Realtime: seconds of the bare loop measured after the run as its floor (default: the
+    /// run's duration, at most 5 s). As long as the run, rare stalls of the machine have the
+    /// same chance to show in the floor as in the run (`bench loop` does this).
+    #[arg(long, value_parser = parse_floor_duration)]
+    pub floor_duration: Option<f64>,
+}
+
+fn parse_floor_duration(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v <= 3600.0 => Ok(v),
+        _ => Err(format!("{s:?}: seconds in (0, 3600]")),
+    }
 }
 
 /// Options every process of a run receives from the launcher.

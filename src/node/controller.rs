@@ -386,10 +386,14 @@ fn run_realtime(
         if lateness >= period as i64 {
             // Whole periods passed without a cycle: count them as missed and skip them, so the
             // loop keeps to its grid instead of running a burst of catch-up cycles.
-            let skipped = lateness as u64 / period;
+            // Periods past the run's end are not missed: they were never due.
+            let skipped = (lateness as u64 / period).min(n - k);
             lp.missed += skipped;
             k += skipped;
             flags |= TELEMETRY_FLAG_MISSED;
+            if k >= n {
+                break;
+            }
         }
         match ports.state.latest() {
             Ok(Some(s)) => {

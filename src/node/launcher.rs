@@ -561,7 +561,9 @@ pub fn run(a: RunArgs) -> ExitCode {
     let ended = !interrupted || scn.timing.until_stopped();
     let floor =
         (scn.timing.mode == Mode::Realtime && scn.timing.measure_floor && ended).then(|| {
-            let secs = scn.timing.duration.min(5.0);
+            let secs = a
+                .floor_duration
+                .unwrap_or_else(|| scn.timing.duration.min(5.0));
             if !a.quiet {
                 err!(
                     "evoloop: measuring the bare loop's floor ({} wait) for {secs} s",
