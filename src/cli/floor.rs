@@ -50,14 +50,7 @@ pub fn main(a: &FloorArgs) -> ExitCode {
         );
         return ExitCode::from(2);
     }
-    let wait = WaitStrategy {
-        kind: a.wait,
-        margin_ns: if a.wait == WaitKind::Hybrid {
-            (margin_us * 1e3).round() as u64
-        } else {
-            0
-        },
-    };
+    let wait = WaitStrategy::new(a.wait, margin_us);
     let f = measure_floor(period, a.duration, a.fifo, a.cpu, wait);
     if a.json {
         super::print_json(&f);

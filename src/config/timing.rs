@@ -190,12 +190,5 @@ fn wait_strategy(
         }
         None => default_margin_us(period),
     };
-    Ok(WaitStrategy {
-        kind,
-        margin_ns: if kind == WaitKind::Hybrid {
-            (margin_us * 1e3).round() as u64
-        } else {
-            0
-        },
-    })
+    Ok(WaitStrategy::new(kind, margin_us))
 }

@@ -85,10 +85,17 @@ pub struct WaitStrategy {
 }
 
 impl WaitStrategy {
-    pub const SLEEP: WaitStrategy = WaitStrategy {
-        kind: WaitKind::Sleep,
-        margin_ns: 0,
-    };
+    /// `kind`, with `margin_us` as the hybrid margin (other strategies have none).
+    pub fn new(kind: WaitKind, margin_us: f64) -> WaitStrategy {
+        WaitStrategy {
+            kind,
+            margin_ns: if kind == WaitKind::Hybrid {
+                (margin_us * 1e3).round() as u64
+            } else {
+                0
+            },
+        }
+    }
 
     /// Wait until the absolute CLOCK_MONOTONIC time `deadline_ns`; at once if it has passed.
     pub fn wait_until(&self, deadline_ns: u64) {

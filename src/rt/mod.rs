@@ -5,6 +5,6 @@ pub mod clock;
 pub mod privileges;
 pub mod timing;
 
-pub use clock::{now_ns, sleep_until_ns, WaitKind, WaitStrategy};
+pub use clock::{now_ns, WaitKind, WaitStrategy};
 pub use privileges::{apply_privileges, RtGranted, RtRequest};
 pub use timing::{CycleTiming, TimingStats, TimingSummary};
