@@ -133,17 +133,11 @@ fn maglev_direct(duration: f64) -> Scenario {
 }
 
 fn trial(version: u64, values: &[f64], at: u64, until: u64, fallback: u64) -> ParamSet {
-    let mut set = ParamSet {
-        version,
-        apply_at_seq: at,
+    ParamSet {
         until_seq: until,
         fallback_version: fallback,
-        kind: evoloop::msg::KIND_PID_FUZZY_AW,
-        n: values.len() as u32,
-        ..ParamSet::default()
-    };
-    set.values[..values.len()].copy_from_slice(values);
-    set
+        ..ParamSet::new(version, at, evoloop::msg::KIND_PID_FUZZY_AW, values)
+    }
 }
 
 #[test]

@@ -100,14 +100,12 @@ fn the_control_cycle_allocates_nothing() {
     let mut log = LogStream::start(vec![part], 256, Overflow::Wait).unwrap();
     let mut timing = TimingStats::default();
     let mut row = [0.0; 7];
-    let mut set = ParamSet {
-        version: 1,
-        apply_at_seq: 1500,
-        kind: KIND_STATE_FEEDBACK,
-        n: 5,
-        ..Default::default()
-    };
-    set.values[..5].copy_from_slice(&[12.1946, 11.7906, 18.7567, 4.958, -10.0]);
+    let set = ParamSet::new(
+        1,
+        1500,
+        KIND_STATE_FEEDBACK,
+        &[12.1946, 11.7906, 18.7567, 4.958, -10.0],
+    );
     let mut msg = PlantState::default();
     let mut tel = Telemetry::default();
     let mut u = [0.0];

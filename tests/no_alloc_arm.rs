@@ -86,26 +86,20 @@ fn computed_torque() {
     let model = scn.plant.model.config().rigid_body().unwrap().clone();
     let mut plant = PlantSim::new(scn.build_plant(), scn.plant.step, 1e-4, 3);
     let mut cyc = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());
-    let mut set = ParamSet {
-        version: 1,
-        apply_at_seq: 500,
-        kind: scn.controller.param_kind(),
-        n: 12,
-        ..Default::default()
-    };
-    set.values[..12].copy_from_slice(&[300.0; 12]);
-    cyc.offer(&set);
+    cyc.offer(&ParamSet::new(
+        1,
+        500,
+        scn.controller.param_kind(),
+        &[300.0; 12],
+    ));
     // A model set (the controller's rigid-body parameters, checked on its probes) later on.
     let pi = evoloop::identify::Columns::PLANT.values(&model);
-    let mut model_set = ParamSet {
-        version: 2,
-        apply_at_seq: 1000,
-        kind: evoloop::msg::KIND_RIGID_BODY_MODEL,
-        n: pi.len() as u32,
-        ..Default::default()
-    };
-    model_set.values[..pi.len()].copy_from_slice(&pi);
-    cyc.offer(&model_set);
+    cyc.offer(&ParamSet::new(
+        2,
+        1000,
+        evoloop::msg::KIND_RIGID_BODY_MODEL,
+        &pi,
+    ));
     let mut msg = PlantState::default();
     let mut tel = Telemetry::default();
     let mut d = model.data();

@@ -145,15 +145,7 @@ fn state(x: [f64; 4], y: f64, seq: u64) -> PlantState {
 }
 
 fn set(version: u64, values: &[f64], apply_at_seq: u64) -> ParamSet {
-    let mut p = ParamSet {
-        version,
-        apply_at_seq,
-        kind: KIND_STATE_FEEDBACK,
-        n: values.len() as u32,
-        ..Default::default()
-    };
-    p.values[..values.len()].copy_from_slice(values);
-    p
+    ParamSet::new(version, apply_at_seq, KIND_STATE_FEEDBACK, values)
 }
 
 #[test]
