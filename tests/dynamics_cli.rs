@@ -308,3 +308,39 @@ fn identify_base_lists_base_unidentifiable_and_combined_parameters() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--states 2"));
 }
+
+#[test]
+fn bench_dynamics_times_every_algorithm_in_pinocchio_s_json_shape() {
+    let out = cli(&[
+        "bench",
+        "dynamics",
+        "--robot",
+        "config/robots/arm7.urdf",
+        "--calls",
+        "2000",
+        "--json",
+    ]);
+    let j = stdout_json(&out);
+    assert_eq!(j["library"], "evoloop");
+    assert_eq!(j["joints"], 7);
+    assert_eq!(j["calls"], 2000);
+    // The keys scripts/pinocchio_bench.py pairs with Pinocchio's (rnea, crba, aba), and the
+    // plant's route.
+    for key in ["rnea", "crba", "aba", "forward_crba"] {
+        let ns = j["ns_per_call"][key].as_f64().unwrap();
+        assert!(ns.is_finite() && ns > 0.0, "{key}: {ns}");
+    }
+    let bad = cli(&["bench", "dynamics", "--robot", "no/such.urdf"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("no/such.urdf"));
+    let few = cli(&[
+        "bench",
+        "dynamics",
+        "--robot",
+        "config/robots/arm7.urdf",
+        "--calls",
+        "10",
+    ]);
+    assert_eq!(few.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&few.stderr).contains("--calls"));
+}

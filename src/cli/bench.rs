@@ -214,3 +214,50 @@ pub fn loop_(a: LoopArgs) -> i32 {
     }
     0
 }
+
+#[derive(Args)]
+pub struct DynamicsArgs {
+    /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Timed calls per algorithm (64 random states in [-1, 1], cycled).
+    #[arg(long, default_value_t = 200_000)]
+    pub calls: u64,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `evoloop bench dynamics`: ns per call of each algorithm on one robot.
+pub fn dynamics(a: DynamicsArgs) -> i32 {
+    if !(1000..=1_000_000_000).contains(&a.calls) {
+        eprintln!("error: --calls must be in 1000..=1000000000");
+        return 2;
+    }
+    let model = match crate::dynamics::load(&a.robot) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 2;
+        }
+    };
+    let b = crate::bench::dynamics::measure(&model, a.calls);
+    if a.json {
+        super::print_json(&b);
+    } else {
+        let p = &b.ns_per_call;
+        out!(
+            "{} ({} joints), {} calls each, rigid body (no friction), ns per call:",
+            a.robot.display(),
+            b.joints,
+            b.calls
+        );
+        out!("  inverse dynamics (RNEA)              {:>8.1}", p.rnea);
+        out!("  M(q) (CRBA)                          {:>8.1}", p.crba);
+        out!("  forward dynamics (ABA)               {:>8.1}", p.aba);
+        out!(
+            "  forward dynamics (RNEA+CRBA+Cholesky){:>8.1}",
+            p.forward_crba
+        );
+    }
+    0
+}

@@ -101,6 +101,9 @@ pub enum BenchCmd {
     Latency(bench::LatencyArgs),
     /// The controller loop's timing at a rate, under load, against the bare sleep-loop floor.
     Loop(bench::LoopArgs),
+    /// Nanoseconds per call of RNEA, CRBA, ABA and the CRBA forward dynamics on a robot file
+    /// (the JSON scripts/pinocchio_bench.py sets beside Pinocchio's).
+    Dynamics(bench::DynamicsArgs),
     /// The peer process of `bench latency` (started by it).
     #[command(hide = true)]
     LatencyPeer(bench::PeerArgs),
@@ -158,6 +161,7 @@ pub fn main() -> ExitCode {
             BenchCmd::Latency(a) => bench::latency(a),
             BenchCmd::LatencyPeer(a) => bench::latency_peer(a),
             BenchCmd::Loop(a) => bench::loop_(a),
+            BenchCmd::Dynamics(a) => bench::dynamics(a),
         } as u8),
         Some(Cmd::Optim { cmd }) => ExitCode::from(crate::cli::optim::main(cmd) as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(crate::cli::robust::main(cmd) as u8),
