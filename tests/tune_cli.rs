@@ -278,3 +278,47 @@ fn study_sentences_follow_the_sign_and_significance_of_the_test() {
     let s = comparison_sentence("none", "G", &wilcoxon(&mixed, &flat), &mean_ci(&d));
     assert!(s.starts_with("No difference"), "{s}");
 }
+
+/// The progress bar (indicatif) is drawn on a terminal, with the best cost so far, and not at all
+/// with --quiet, --json or when stderr is not a terminal, so scripts see clean output. The
+/// terminal is a pseudo-terminal from util-linux `script`; without it the terminal half is
+/// skipped (said on stderr).
+#[test]
+fn the_progress_bar_shows_on_a_terminal_only() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("a");
+    let out = out.to_str().unwrap();
+    let exe = evoloop();
+    let exe = exe.to_str().unwrap();
+    let piped = cli(&["tune", "config/arsinh_tune.toml", "--out", out]);
+    assert!(piped.status.success());
+    assert!(!String::from_utf8_lossy(&piped.stderr).contains("ETA"));
+    let on_tty = |extra: &str| -> Option<String> {
+        let o = std::process::Command::new("script")
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args([
+                "-qec",
+                &format!("{exe} tune config/arsinh_tune.toml --out {out} {extra}"),
+                "/dev/null",
+            ])
+            .output()
+            .ok()?;
+        // `script` fails where no pseudo-terminal can be opened (some containers).
+        if !o.status.success() {
+            eprintln!("`script` failed: {}", String::from_utf8_lossy(&o.stderr));
+            return None;
+        }
+        Some(String::from_utf8_lossy(&o.stdout).into_owned())
+    };
+    let Some(shown) = on_tty("") else {
+        eprintln!("no terminal from `script` (util-linux): the terminal half is skipped");
+        return;
+    };
+    assert!(shown.contains("evaluations, ETA"), "{shown}");
+    assert!(shown.contains("best G"), "{shown}");
+    for flag in ["--quiet", "--json"] {
+        let quiet = on_tty(flag).unwrap();
+        assert!(!quiet.contains("ETA"), "{flag}: {quiet}");
+    }
+}

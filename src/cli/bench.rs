@@ -46,10 +46,9 @@ pub fn latency(a: LatencyArgs) -> i32 {
         eprintln!("error: --payload must be in 1..=1048576 bytes");
         return 2;
     }
+    let bar = crate::report::progress::stages(4, "variants", a.json);
     let progress = |v: Variant| {
-        if !a.json {
-            eprintln!("measuring {} ({} round trips)...", v.name(), a.samples);
-        }
+        bar.inc_stage(&format!("{} ({} round trips)", v.name(), a.samples));
     };
     let latency::Measured {
         report,
@@ -147,13 +146,12 @@ pub fn loop_(a: LoopArgs) -> i32 {
         .scenario
         .as_ref()
         .map_or("the two-mass loop".to_string(), |p| p.display().to_string());
+    let bar = crate::report::progress::stages(if a.rt_only { 1 } else { 2 }, "settings", a.json);
     let progress = |name: &str| {
-        if !a.json {
-            eprintln!(
-                "measuring {what}, {name}, load {:?}, {} s (and the floor after it)...",
-                a.load, a.duration
-            );
-        }
+        bar.inc_stage(&format!(
+            "{what}, {name}, load {:?}: {} s and the floor after it",
+            a.load, a.duration
+        ));
     };
     let spec = loop_bench::LoopSpec {
         rate: a.rate,

@@ -112,7 +112,7 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
         ..Search::default()
     };
     let hidden = a.quiet || a.json;
-    let bar = super::rkgnn::progress_bar(s.iterations as u64 + 1, "iterations", hidden);
+    let bar = crate::report::progress::bar(s.iterations as u64 + 1, "iterations", hidden);
     let mut progress = |phase: &str, it: usize, best: f64| {
         if phase == "elites" {
             bar.set_message(format!("elite phase: iteration {it}, {best} elites"));

@@ -92,7 +92,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         ..Search::default()
     };
     let seeds: Vec<u64> = (0..a.seeds).collect();
-    let bar = super::rkgnn::progress_bar(a.seeds, "seeds", a.quiet || a.json);
+    let bar = crate::report::progress::bar(a.seeds, "seeds", a.quiet || a.json);
     let rows = run(
         &problem,
         &text,

@@ -208,7 +208,7 @@ fn run_study(a: &StudyArgs) -> Result<(), String> {
     std::fs::create_dir_all(a.out.join("convergence"))
         .map_err(|e| format!("creating {}: {e}", a.out.display()))?;
     let total = problems.len() * algorithms.len() * a.runs as usize;
-    let bar = super::rkgnn::progress_bar(total as u64, "runs", a.quiet || a.json);
+    let bar = crate::report::progress::bar(total as u64, "runs", a.quiet || a.json);
     let started = Instant::now();
     let threads = a.threads.unwrap_or_else(crate::optim::all_cores);
     let s = execute(

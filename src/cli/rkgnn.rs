@@ -222,7 +222,7 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     if a.bounds == BoundsKind::Paper {
         s.lambda[3] = 0.0;
     }
-    let bar = progress_bar(a.evaluations as u64, "evaluations", a.quiet || a.json);
+    let bar = crate::report::progress::bar(a.evaluations as u64, "evaluations", a.quiet || a.json);
     let model = identify::identify_model(
         &data,
         &arm,
@@ -267,23 +267,6 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
         out!("  wrote {}", a.out.display());
     }
     Ok(())
-}
-
-/// A progress bar on stderr counting `unit`s with elapsed time, ETA and the message; hidden when
-/// `hidden` or when stderr is not a terminal (indicatif draws nothing there).
-pub fn progress_bar(len: u64, unit: &str, hidden: bool) -> indicatif::ProgressBar {
-    if hidden {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(len);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(&format!(
-            "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {unit}, ETA {{eta}} {{msg}}"
-        ))
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
-    bar
 }
 
 pub fn main(cmd: RkgnnCmd) -> i32 {
@@ -346,7 +329,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         evaluations: a.evaluations,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
-    let bar = progress_bar(0, "stages", a.quiet || a.json);
+    let bar = crate::report::progress::bar(0, "stages", a.quiet || a.json);
     let r = study::run(&settings, &a.out, &|done, total, stage| {
         bar.set_length(total);
         bar.set_position(done);

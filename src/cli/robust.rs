@@ -7,7 +7,6 @@ use crate::robust::study::{lqr_gains, study};
 use crate::robust::Wedge;
 use clap::{Args, Subcommand, ValueEnum};
 use serde_json::json;
-use std::io::IsTerminal;
 use std::path::PathBuf;
 
 #[derive(Subcommand)]
@@ -132,6 +131,9 @@ pub struct StudyArgs {
     pub runs: usize,
     #[arg(long, default_value_t = 2)]
     pub threads: usize,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 fn usage(msg: &str) -> i32 {
@@ -293,7 +295,7 @@ fn tune(a: TuneArgs) -> i32 {
     if a.max_iter == 0 || a.threads == 0 {
         return usage("--max-iter and --threads must be >= 1");
     }
-    let bar = std::io::stderr().is_terminal() && !a.json;
+    let bar = crate::report::progress::bar(a.max_iter as u64, "iterations", a.json);
     let r = run(
         &mut de,
         &prob,
@@ -301,22 +303,11 @@ fn tune(a: TuneArgs) -> i32 {
         a.max_iter,
         a.target.map(|t| -t),
         |o| {
-            if bar && o.generation() % 10 == 0 {
-                let done = o.generation() * 40 / a.max_iter;
-                eprint!(
-                    "\r[{}{}] iteration {:4}/{}  best f(X) = {:+.6}",
-                    "#".repeat(done),
-                    " ".repeat(40 - done.min(40)),
-                    o.generation(),
-                    a.max_iter,
-                    o.best().1
-                );
-            }
+            bar.set_position(o.generation() as u64);
+            bar.set_message(format!("best f(X) = {:+.6}", o.best().1));
         },
     );
-    if bar {
-        eprintln!();
-    }
+    bar.abandon();
     let ev = match prob.evaluate(&r.best) {
         Ok(ev) => ev,
         Err(e) => {
@@ -366,19 +357,16 @@ fn study_cmd(a: StudyArgs) -> i32 {
         return usage("--runs must be >= 2 and --threads >= 1");
     }
     let t0 = std::time::Instant::now();
-    let tty = std::io::stderr().is_terminal();
-    let mut progress = |m: &str| {
-        if tty {
-            eprint!("\r{m:60}");
-        } else {
-            eprintln!("{m}");
-        }
+    let bar = crate::report::progress::bar(0, "runs", a.quiet);
+    let mut progress = |done: usize, total: usize, setting: &str| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        bar.set_message(setting.to_string());
     };
-    match study(&a.out, a.runs, a.threads, &mut progress) {
+    let result = study(&a.out, a.runs, a.threads, &mut progress);
+    bar.finish_and_clear();
+    match result {
         Ok(_) => {
-            if tty {
-                eprintln!();
-            }
             out!(
                 "study done in {:.1} s: {}/report.md, study.json, runs.csv, responses.csv, poles.png, step_*.png",
                 t0.elapsed().as_secs_f64(),

@@ -22,7 +22,7 @@ pub struct TuneArgs {
     /// Output directory [default: the file's output.dir].
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// No progress lines.
+    /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
 }

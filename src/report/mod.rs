@@ -5,6 +5,7 @@ pub mod build;
 pub mod history;
 pub mod metrics;
 pub mod plot;
+pub mod progress;
 pub mod scan;
 pub mod seeds_study;
 pub mod stats;

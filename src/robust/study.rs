@@ -248,19 +248,21 @@ struct StudyJson<'a> {
     responses: &'a [ResponseStats],
 }
 
-/// Run the whole study into `dir`; returns the report text.
+/// Run the whole study into `dir`; returns the report text. `progress` is told (runs done, runs
+/// in all, the setting running) after each run.
 pub fn study(
     dir: &Path,
     runs: usize,
     threads: usize,
-    progress: &mut dyn FnMut(&str),
+    progress: &mut dyn FnMut(usize, usize, &str),
 ) -> Result<String, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let prob = RobustProblem::paper();
     let mut settings = Vec::new();
-    for p in &PAPER_TABLES {
+    let total = PAPER_TABLES.len() * runs;
+    for (k, p) in PAPER_TABLES.iter().enumerate() {
         let s = setting(&prob, p.f, p.cr, runs, threads, |i| {
-            progress(&format!("F = {}, CR = {}: run {i}/{runs}", p.f, p.cr))
+            progress(k * runs + i, total, &format!("F = {}, CR = {}", p.f, p.cr))
         });
         settings.push(s);
     }

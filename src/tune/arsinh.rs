@@ -1,10 +1,11 @@
 //! The synthetic experiment of Section 5.1 as a command: tune, report, plot.
 
-use super::{progress_line, Run};
+use super::Run;
 use crate::fuzzy::arsinh as exp;
 use crate::fuzzy::FuzzyNetwork;
 use crate::optim::hybrid::hybrid;
 use crate::report::plot::{heatmap_png, two_panel_png, xy_png, Panel, Series, Style, XySeries};
+use crate::report::progress::Optimisation;
 use serde_json::json;
 
 /// The paper's scaling factors after its optimisation.
@@ -41,9 +42,11 @@ pub fn run(run: Run) -> Result<(), String> {
     let mut cfg = run.hybrid.clone();
     cfg.scaling = codec.scaling_genes();
     let total = cfg.ga.population + 2 * cfg.phases.iter().sum::<usize>();
+    let bar = Optimisation::new("arsinh", total, "G", !run.progress);
     let r = hybrid(&cfg, &objective, &lo, &hi, &seeds, |n, best| {
-        progress_line(run.progress, "arsinh", n, total, best)
+        bar.tell(n, best)
     });
+    drop(bar);
     // The best initial set (prespecified or random) and the optimum.
     let (pop0_best, _) = r.values.iter().take(cfg.ga.population).enumerate().fold(
         (0, f64::INFINITY),

@@ -31,17 +31,16 @@ pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), String> {
     }
     let dir = scn.output.dir.clone();
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let progress = !a.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
     let total = scn.optimiser.evaluations + 1;
     let t0 = std::time::Instant::now();
+    let bar = crate::report::progress::bar(total as u64, "repetitions", a.quiet || a.json);
+    bar.set_prefix("direct: ");
     let r = crate::direct::run_in_process(&scn, |n, best| {
-        if progress {
-            eprint!("\r  direct: {n}/{total} repetitions, best {best:.4}   ");
-            if n >= total {
-                eprintln!();
-            }
-        }
-    })?;
+        bar.set_position(n as u64);
+        bar.set_message(format!("best {best:.4}"));
+    });
+    bar.abandon();
+    let r = r?;
     let seconds = t0.elapsed().as_secs_f64();
     let report = &r.report;
     let baseline = report

@@ -6,11 +6,12 @@
 //! GA budget. A candidate that loses the ball (leaves +-4.5 mm) is unstable: the GA replaces it
 //! by the current best, as the paper does.
 
-use super::{progress_line, Run};
+use super::Run;
 use crate::control::pid::{fuzzy_ki_normalised, AntiWindup};
 use crate::optim::hybrid::hybrid;
 use crate::reference::Reference;
 use crate::report::plot::{two_panel_png, xy_png, Panel, Series, Style, XySeries};
+use crate::report::progress::Optimisation;
 pub use crate::sim::maglev::{
     default_reference, simulate, Cost, Objective, Spec, Trace, PAPER_FUZZY,
 };
@@ -112,9 +113,9 @@ pub fn tune_variant(run: &Run, spec: &Spec, aw: AntiWindup) -> Tuned {
     let mut cfg = run.hybrid.clone();
     cfg.scaling.clear();
     let total = cfg.ga.population + 2 * cfg.phases.iter().sum::<usize>();
-    let r = hybrid(&cfg, &obj, &lo, &hi, &[], |n, best| {
-        progress_line(run.progress, aw.name(), n, total, best)
-    });
+    let bar = Optimisation::new(aw.name(), total, "G", !run.progress);
+    let r = hybrid(&cfg, &obj, &lo, &hi, &[], |n, best| bar.tell(n, best));
+    drop(bar);
     Tuned {
         anti_windup: aw,
         test: simulate(spec, aw, &r.best, run.seed + 1000, None),

@@ -9,7 +9,6 @@ pub mod maglev;
 use crate::optim::hybrid::HybridConfig;
 use crate::optim::GaConfig;
 use serde::Deserialize;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 /// What to run: the experiment file and the command line's choices.
@@ -202,7 +201,7 @@ pub fn tune(a: &TuneRequest) -> Result<(), String> {
             .unwrap_or_else(|| PathBuf::from(default_dir)),
         plots: out_raw.plots.unwrap_or(true),
         json: a.json,
-        progress: !a.quiet && std::io::stderr().is_terminal(),
+        progress: !a.quiet && !a.json,
         seed,
     };
     std::fs::create_dir_all(&run.out).map_err(|e| format!("{}: {e}", run.out.display()))?;
@@ -226,16 +225,6 @@ pub fn tune(a: &TuneRequest) -> Result<(), String> {
                 Some(seeds) => maglev::study(run, spec, seeds),
                 None => maglev::run(run, spec),
             }
-        }
-    }
-}
-
-/// A progress line on stderr (overwritten in place), when progress is on.
-pub fn progress_line(on: bool, what: &str, evaluations: usize, total: usize, best: f64) {
-    if on {
-        eprint!("\r  {what}: {evaluations}/{total} evaluations, best G {best:.4}   ");
-        if evaluations >= total {
-            eprintln!();
         }
     }
 }
