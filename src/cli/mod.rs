@@ -93,6 +93,15 @@ pub enum Cmd {
     Soak(soak::SoakArgs),
     /// Measure the machine's timing floor: a bare absolute-deadline loop (sleep, spin or hybrid).
     Floor(floor::FloorArgs),
+    /// (Re)build report.html, the one-page report of a finished run, from its directory
+    /// (summary.json, scenario.json, the plots, the data files).
+    Report(ReportArgs),
+}
+
+#[derive(clap::Args)]
+pub struct ReportArgs {
+    /// The run's output directory (where summary.json is), e.g. runs/two_mass.
+    pub dir: std::path::PathBuf,
 }
 
 #[derive(Subcommand)]
@@ -170,6 +179,19 @@ pub fn main() -> ExitCode {
         Some(Cmd::Rkgnn { cmd }) => ExitCode::from(rkgnn::main(cmd) as u8),
         Some(Cmd::Dynamics(a)) => ExitCode::from(crate::cli::dynamics::main(a) as u8),
         Some(Cmd::Floor(a)) => floor::main(&a),
+        Some(Cmd::Report(a)) => match crate::report::html::write(&a.dir) {
+            Ok(p) => {
+                out!("wrote {}", p.display());
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!(
+                    "error: {e} (is {} a finished run's directory?)",
+                    a.dir.display()
+                );
+                ExitCode::from(2)
+            }
+        },
         Some(Cmd::Soak(a)) => soak::main(a),
     }
 }

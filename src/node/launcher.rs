@@ -579,7 +579,14 @@ pub fn run(a: RunArgs) -> ExitCode {
             )
         });
     match build_report(&scn, &run_id, wall, floor, cleaned, optimiser_restarts) {
-        Ok(s) => print_summary(&s, &dir, scn.output.plots),
+        Ok(s) => {
+            print_summary(&s, &dir, scn.output.plots);
+            // The page is a view of the files above: a failure loses no data, so it warns.
+            match crate::report::html::write(&dir) {
+                Ok(p) => out!("  open {} (the whole report in one page)", p.display()),
+                Err(e) => err!("evoloop: warning: report.html: {e}"),
+            }
+        }
         Err(e) => {
             err!("error: report: {e}");
             return ExitCode::from(1);

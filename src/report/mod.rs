@@ -3,6 +3,7 @@
 
 pub mod build;
 pub mod history;
+pub mod html;
 pub mod metrics;
 pub mod plot;
 pub mod progress;

@@ -1,0 +1,203 @@
+//! `report.html`: one self-contained page per run (the summary's figures, every plot, the
+//! resolved configuration and the data files), so a user opens one file after a run instead of
+//! several PNGs and a JSON. Built from what the run wrote, by `evoloop run` at the end and by
+//! `evoloop report DIR` for any finished run; nothing in it is computed anew, and it carries no
+//! time stamp of its own, so rebuilding it gives the same bytes.
+
+use base64::Engine;
+use serde_json::Value;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Escape text for HTML element content and attribute values.
+fn esc(s: &str) -> String {
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '"' => o.push_str("&quot;"),
+            _ => o.push(c),
+        }
+    }
+    o
+}
+
+/// A scalar for the table: numbers as the JSON has them (4 significant digits beyond 1e4 or
+/// below 1e-3), strings, booleans; None for null, objects and arrays.
+fn scalar(v: &Value) -> Option<String> {
+    match v {
+        Value::Bool(b) => Some(b.to_string()),
+        Value::String(s) => Some(s.clone()),
+        Value::Number(n) => Some(match (n.as_i64(), n.as_f64()) {
+            (Some(i), _) => i.to_string(),
+            (None, Some(x)) if x != 0.0 && !(1e-3..1e4).contains(&x.abs()) => format!("{x:.4e}"),
+            (None, Some(x)) => format!("{}", (x * 1e6).round() / 1e6),
+            _ => n.to_string(),
+        }),
+        _ => None,
+    }
+}
+
+/// The summary's scalars as (key path, value) rows: top level and one or two levels into its
+/// objects (e.g. `timing.lateness.p99_ns`); short numeric arrays (per joint) joined.
+fn rows(summary: &Value) -> Vec<(String, String)> {
+    fn walk(prefix: &str, v: &Value, depth: usize, out: &mut Vec<(String, String)>) {
+        match v {
+            Value::Object(m) if depth < 3 => {
+                for (k, x) in m {
+                    let key = if prefix.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{prefix}.{k}")
+                    };
+                    walk(&key, x, depth + 1, out);
+                }
+            }
+            Value::Array(a) if !a.is_empty() && a.len() <= 8 && a.iter().all(Value::is_number) => {
+                let items: Vec<String> = a.iter().filter_map(scalar).collect();
+                out.push((prefix.to_string(), items.join(", ")));
+            }
+            _ => {
+                if let Some(s) = scalar(v) {
+                    out.push((prefix.to_string(), s));
+                }
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk("", summary, 0, &mut out);
+    out
+}
+
+/// Files of `dir` with extension `ext`, sorted by name.
+fn files(dir: &Path, ext: &str) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == ext))
+        .collect();
+    v.sort();
+    v
+}
+
+fn name(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// Write `dir/report.html` from the run's `summary.json`, `scenario.json` and plots; returns
+/// its path. Err names the file that is missing or unreadable.
+pub fn write(dir: &Path) -> Result<PathBuf, String> {
+    let read = |n: &str| -> Result<Value, String> {
+        let p = dir.join(n);
+        let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))
+    };
+    let summary = read("summary.json")?;
+    let scenario = read("scenario.json").ok();
+    let get = |k: &str| summary.get(k).and_then(scalar).unwrap_or_default();
+    let title = format!("evoloop run: {}", get("scenario"));
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{}</title>\n\
+         <style>\nbody {{ font-family: system-ui, sans-serif; margin: 2em auto; max-width: 70em; \
+         color: #222; }}\ntable {{ border-collapse: collapse; }}\ntd, th {{ border-bottom: 1px solid \
+         #ddd; padding: 0.2em 0.8em; text-align: left; font-variant-numeric: tabular-nums; }}\n\
+         figure {{ margin: 1em 0; }}\nimg {{ max-width: 100%; border: 1px solid #eee; }}\n\
+         pre {{ background: #f6f6f6; padding: 1em; overflow-x: auto; }}\n</style>\n</head>\n<body>\n",
+        esc(&title)
+    );
+    let _ = writeln!(h, "<h1>{}</h1>", esc(&title));
+    let _ = writeln!(
+        h,
+        "<p>Configuration <code>{}</code>, {} mode, seed {}, run id <code>{}</code>: outcome <b>{}</b>; \
+         {} samples in {} s of wall time.</p>",
+        esc(&get("config")),
+        esc(&get("mode")),
+        esc(&get("seed")),
+        esc(&get("run_id")),
+        esc(&get("outcome")),
+        esc(&get("samples")),
+        esc(&get("wall_s")),
+    );
+    let pngs = files(dir, "png");
+    h.push_str("<h2>Figures</h2>\n");
+    if pngs.is_empty() {
+        h.push_str("<p>No plots (the run had <code>output.plots = false</code>).</p>\n");
+    }
+    for p in &pngs {
+        let bytes = std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?;
+        let b64 = base64::engine::general_purpose::STANDARD.encode(bytes);
+        let n = esc(&name(p));
+        let _ = writeln!(
+            h,
+            "<figure><img src=\"data:image/png;base64,{b64}\" alt=\"{n}\"><figcaption>{n}</figcaption></figure>"
+        );
+    }
+    h.push_str("<h2>Summary</h2>\n<table>\n<tr><th>key (summary.json)</th><th>value</th></tr>\n");
+    for (k, v) in rows(&summary) {
+        let _ = writeln!(
+            h,
+            "<tr><td><code>{}</code></td><td>{}</td></tr>",
+            esc(&k),
+            esc(&v)
+        );
+    }
+    h.push_str("</table>\n<h2>Data files</h2>\n<ul>\n");
+    for ext in ["csv", "json", "jsonl"] {
+        for p in files(dir, ext) {
+            let size = std::fs::metadata(&p).map(|m| m.len()).unwrap_or(0);
+            let n = esc(&name(&p));
+            let _ = writeln!(h, "<li><a href=\"{n}\">{n}</a> ({size} bytes)</li>");
+        }
+    }
+    h.push_str("</ul>\n");
+    if let Some(s) = scenario {
+        let text = serde_json::to_string_pretty(&s).unwrap_or_default();
+        let _ = writeln!(
+            h,
+            "<h2>Configuration (as resolved: scenario.json)</h2>\n<pre>{}</pre>",
+            esc(&text)
+        );
+    }
+    let text = serde_json::to_string_pretty(&summary).unwrap_or_default();
+    let _ = writeln!(
+        h,
+        "<details><summary>summary.json</summary>\n<pre>{}</pre>\n</details>\n</body>\n</html>",
+        esc(&text)
+    );
+    let path = dir.join("report.html");
+    std::fs::write(&path, h).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn escapes_markup_and_flattens_the_summary() {
+        assert_eq!(
+            esc("<a href=\"x\">&</a>"),
+            "&lt;a href=&quot;x&quot;&gt;&amp;&lt;/a&gt;"
+        );
+        let v = serde_json::json!({
+            "samples": 1000, "mode": "lockstep", "wall_s": 0.123456789, "tiny": 1.5e-7,
+            "timing": {"lateness": {"p99_ns": 42}}, "rms": [0.1, 0.2], "long": vec![1.0; 20],
+            "none": null
+        });
+        let r: std::collections::BTreeMap<_, _> = rows(&v).into_iter().collect();
+        assert_eq!(r["samples"], "1000");
+        assert_eq!(r["wall_s"], "0.123457");
+        assert_eq!(r["tiny"], "1.5000e-7");
+        assert_eq!(r["timing.lateness.p99_ns"], "42");
+        assert_eq!(r["rms"], "0.1, 0.2");
+        assert!(!r.contains_key("long") && !r.contains_key("none"));
+    }
+}
