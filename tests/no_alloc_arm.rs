@@ -2,7 +2,8 @@
 //! RK4 stage), the computed-torque cycle with a quintic reference and a parameter swap, and the
 //! Coriolis matrix, the joint-torque regressor (with friction columns) and ABA, and a model swap
 //! (a computed-torque model set checked on its probes); state, command and telemetry go through
-//! iceoryx2 every cycle as in a run. The same for the computed torque with fuzzy model selection.
+//! iceoryx2 every cycle as in a run, and into run.mcap's recorder. The same for the computed
+//! torque with fuzzy model selection.
 //! (A separate test binary: the counting allocator is process-global.)
 
 use evoloop::config::{Overrides, Scenario};
@@ -10,6 +11,7 @@ use evoloop::control::cycle::ControlCycle;
 use evoloop::ipc::{Ipc, Pub, Sub, Topic};
 use evoloop::msg::{Command, ParamSet, PlantState, Telemetry};
 use evoloop::plant::PlantSim;
+use evoloop::report::record::Recorder;
 use std::sync::atomic::Ordering;
 
 #[path = "common/counting_alloc.rs"]
@@ -24,6 +26,9 @@ struct Wires {
     state: (Pub<PlantState>, Sub<PlantState>),
     command: (Pub<Command>, Sub<Command>),
     telemetry: (Pub<Telemetry>, Sub<Telemetry>),
+    /// run.mcap's recorder, as the controller process feeds it every cycle.
+    record: std::cell::RefCell<Recorder>,
+    _dir: tempfile::TempDir,
     _ipc: Ipc,
 }
 
@@ -31,6 +36,7 @@ impl Wires {
     fn new(tag: &str) -> Wires {
         let run_id = format!("noallocarm{tag}{}", std::process::id());
         let ipc = Ipc::new("noallocarm", &run_id, evoloop::ipc::DEFAULT_PREFIX).unwrap();
+        let dir = tempfile::tempdir().unwrap();
         Wires {
             state: (
                 ipc.publisher(Topic::State, true).unwrap(),
@@ -44,14 +50,27 @@ impl Wires {
                 ipc.publisher(Topic::Telemetry, false).unwrap(),
                 ipc.subscriber(Topic::Telemetry, 4, false).unwrap(),
             ),
+            record: std::cell::RefCell::new(
+                Recorder::start(&dir.path().join("run.mcap"), true, Default::default()).unwrap(),
+            ),
+            _dir: dir,
             _ipc: ipc,
         }
+    }
+
+    /// Close the recording: messages per topic.
+    fn finish(self) -> [u64; 5] {
+        let r = self.record.into_inner().finish();
+        assert_eq!((r.dropped, r.error), (0, None));
+        r.messages
     }
 
     /// The plant's sample to the controller, its command back, its telemetry out.
     fn cycle(&self, msg: &PlantState, cyc: &mut ControlCycle, tel: &mut Telemetry, u: &mut [f64]) {
         self.state.0.send(msg).unwrap();
         let s = self.state.1.next().unwrap().unwrap();
+        let mut record = self.record.borrow_mut();
+        record.at_state(&s);
         cyc.step(&s, tel);
         let c = Command {
             cycle: s.seq,
@@ -62,6 +81,7 @@ impl Wires {
         };
         self.command.0.send(&c).unwrap();
         self.telemetry.0.send(tel).unwrap();
+        record.cycle(&s, &c, tel);
         let got = self.command.1.next().unwrap().unwrap();
         u.copy_from_slice(&got.u[..u.len()]);
         while self.telemetry.1.next().unwrap().is_some() {}
@@ -137,6 +157,8 @@ fn computed_torque() {
         0,
         "allocations in 2000 arm cycles"
     );
+    // The recorder had every cycle's state, command and telemetry (the warm-up's too).
+    assert_eq!(wires.finish()[..3], [2000; 3]);
 }
 
 fn fuzzy_computed_torque() {
@@ -162,4 +184,5 @@ fn fuzzy_computed_torque() {
         0,
         "allocations in 3000 fuzzy computed-torque cycles"
     );
+    assert_eq!(wires.finish()[..3], [3000; 3]);
 }

@@ -48,6 +48,7 @@ struct RawScenario {
 struct RawOutput {
     dir: Option<PathBuf>,
     plots: Option<bool>,
+    mcap: Option<bool>,
 }
 
 // ---------------------------------------------------------------- validated scenario
@@ -73,6 +74,8 @@ pub struct Scenario {
 pub struct Output {
     pub dir: PathBuf,
     pub plots: bool,
+    /// Record the run's messages into `run.mcap` (`report::record`).
+    pub mcap: bool,
 }
 
 /// Command-line overrides applied before validation.
@@ -251,6 +254,7 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let out_raw = raw.output.unwrap_or(RawOutput {
         dir: None,
         plots: None,
+        mcap: None,
     });
     let output = Output {
         dir: ov
@@ -259,6 +263,7 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
             .or(out_raw.dir)
             .unwrap_or_else(|| PathBuf::from("runs").join(&name)),
         plots: out_raw.plots.unwrap_or(true),
+        mcap: out_raw.mcap.unwrap_or(true),
     };
     Ok(Scenario {
         source: path.to_path_buf(),

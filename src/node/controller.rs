@@ -19,6 +19,7 @@ use crate::msg::{
     TELEMETRY_FLAG_MISSED, TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
 };
 use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::report::record::Recorder;
 use crate::report::stream::{CsvPart, LogStream, Overflow};
 use crate::report::summary::{ControllerReport, ParamRecord};
 use crate::report::write_json;
@@ -52,6 +53,8 @@ struct Loop {
     model_check: Option<ModelCheck>,
     /// run.csv's columns, then timing.csv's: streamed to disk by a writer thread.
     log: LogStream,
+    /// run.mcap's recorder (`output.mcap`).
+    record: Option<Recorder>,
     timing: TimingStats,
     events: Vec<ParamEvent>,
     events_dropped: u64,
@@ -123,7 +126,29 @@ impl Loop {
             Mode::Realtime => Overflow::Drop,
         };
         let log = LogStream::start(parts, rows, overflow).map_err(|e| e.to_string())?;
+        let record = if scn.output.mcap {
+            let meta = [
+                ("scenario", scn.name.clone()),
+                ("config", scn.source.display().to_string()),
+                ("mode", format!("{:?}", scn.timing.mode).to_lowercase()),
+                ("seed", scn.seed.to_string()),
+                ("period_s", scn.timing.period.to_string()),
+                (
+                    "log_time",
+                    "CLOCK_MONOTONIC ns of the sample's stamp".to_string(),
+                ),
+            ];
+            let meta = meta.into_iter().map(|(k, v)| (k.to_string(), v)).collect();
+            Some(Recorder::start(
+                &dir.join("run.mcap"),
+                scn.timing.mode == Mode::Lockstep,
+                meta,
+            )?)
+        } else {
+            None
+        };
         Ok(Self {
+            record,
             cycle: ControlCycle::new(controller, scn.reference.clone(), scn.bounds())
                 .with_stability_check(scn.linear_model())
                 .with_envelope(scn.optimiser.envelope),
@@ -165,12 +190,21 @@ impl Loop {
         flags_in: u32,
         period_ns: u64,
     ) -> Result<(), IpcError> {
+        if let Some(r) = self.record.as_mut() {
+            r.at_state(state);
+        }
         while let Some(p) = ports.params.next()? {
             self.cycle.offer(&p);
+            if let Some(r) = self.record.as_mut() {
+                r.params(&p);
+            }
         }
         if let (Some(mc), Some(sub)) = (self.model_check.as_mut(), ports.estimate.as_ref()) {
             while let Some(e) = sub.next()? {
                 mc.offer(&e);
+                if let Some(r) = self.record.as_mut() {
+                    r.estimate(&e);
+                }
             }
             if let Some(m) = mc.due(state.seq) {
                 self.cycle.check_on(m);
@@ -208,6 +242,9 @@ impl Loop {
         tel.overruns = self.overruns;
         tel.missed = self.missed;
         ports.telemetry.send(&tel)?;
+        if let Some(r) = self.record.as_mut() {
+            r.cycle(state, &cmd, &tel);
+        }
         let timing = CycleTiming {
             cycle: tel.cycle,
             lateness_ns,
@@ -459,6 +496,13 @@ fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
         eprintln!("{WHO}: writing run.csv / timing.csv failed: {e}; rows after the error are lost");
     }
     report.log_dropped = dropped + lp.events_dropped;
+    if let Some(r) = lp.record {
+        let recorded = r.finish();
+        if let Some(e) = &recorded.error {
+            eprintln!("{WHO}: writing run.mcap failed: {e}");
+        }
+        report.mcap = Some(recorded);
+    }
     if let Err(e) = write_json(dir, "controller.json", report) {
         eprintln!("{WHO}: cannot write controller.json: {e}");
     }

@@ -707,12 +707,17 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
         );
     }
     out!(
-        "  wrote {}/run.csv, summary.json{}",
+        "  wrote {}/run.csv, summary.json{}{}",
         dir.display(),
         match (plots, s.tracking.rms.len() > 1) {
             (true, true) => ", response.png, tracking.png",
             (true, false) => ", response.png",
             _ => "",
+        },
+        if dir.join("run.mcap").is_file() {
+            ", run.mcap"
+        } else {
+            ""
         }
     );
 }

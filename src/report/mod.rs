@@ -7,6 +7,7 @@ pub mod html;
 pub mod metrics;
 pub mod plot;
 pub mod progress;
+pub mod record;
 pub mod scan;
 pub mod seeds_study;
 pub mod stats;

@@ -35,6 +35,9 @@ pub struct ControllerReport {
     pub check_model: Option<crate::control::model_check::ModelCheckReport>,
     /// Set when the run was stopped by a signal before its end.
     pub interrupted: bool,
+    /// run.mcap: messages per topic, dropped (realtime, queue full) and the first write error.
+    #[serde(default)]
+    pub mcap: Option<crate::report::record::Recorded>,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]

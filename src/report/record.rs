@@ -1,0 +1,508 @@
+//! `run.mcap`: the run's messages as Foxglove and PlotJuggler open them (MCAP, one channel per
+//! topic, JSON messages with a JSON Schema each, LZ4 chunks).
+//!
+//! The controller is the recorder: every topic passes through it. It sees each state it
+//! controls on, the command and telemetry it sends, each parameter set it receives and each
+//! model estimate it takes. The control cycle only copies the messages into bounded queues
+//! allocated at the start (`std::sync::mpsc::sync_channel`: a lock-free `try_send` while the
+//! receiver never blocks, and it never does: it polls and sleeps); a writer thread formats and
+//! writes them. In lockstep a full queue makes the cycle wait (nothing is lost, the run is only
+//! slower); in realtime the message is dropped and counted (`mcap_dropped`), as the CSV log
+//! does.
+//!
+//! Log time is the sample's stamp (CLOCK_MONOTONIC ns, `stamp_ns` of the state, the command's
+//! own for commands and telemetry); parameter sets and estimates carry no stamp of their own and
+//! are logged at the stamp of the state of the cycle that received them. In realtime the states
+//! are those the controller used (the latest at each cycle), which is what a replay into a
+//! controller needs.
+
+use crate::msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// The channels, in the order of their ids (1..).
+pub const TOPICS: [&str; 5] = ["state", "command", "telemetry", "params", "estimate"];
+
+/// One control cycle's messages.
+#[derive(Clone, Copy)]
+struct Cycle {
+    state: PlantState,
+    command: Command,
+    telemetry: Telemetry,
+}
+
+/// Messages written per topic (in `TOPICS` order) and dropped, and the first write error.
+#[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize, PartialEq)]
+pub struct Recorded {
+    pub messages: [u64; 5],
+    pub dropped: u64,
+    pub error: Option<String>,
+}
+
+/// The recorder's end in the control cycle.
+pub struct Recorder {
+    cycles: SyncSender<Cycle>,
+    params: SyncSender<(u64, ParamSet)>,
+    estimates: SyncSender<(u64, ModelEstimate)>,
+    /// The stamp params and estimates are logged at: the current cycle's state's.
+    stamp_ns: u64,
+    wait_when_full: bool,
+    dropped: u64,
+    done: Arc<AtomicBool>,
+    writer: Option<JoinHandle<Recorded>>,
+}
+
+/// Cycles the queue holds (about 1 KB each): 0.8 s at 10 kHz.
+const CYCLES: usize = 8192;
+/// Parameter sets (8 KB each) and estimates the queues hold.
+const SETS: usize = 32;
+const ESTIMATES: usize = 256;
+/// How long the writer sleeps when it finds every queue empty.
+const IDLE: Duration = Duration::from_millis(2);
+
+impl Recorder {
+    /// Create `path` and start the writer. `lockstep`: wait when a queue is full instead of
+    /// dropping. `metadata` goes into the file's `evoloop` metadata record.
+    pub fn start(
+        path: &Path,
+        lockstep: bool,
+        metadata: BTreeMap<String, String>,
+    ) -> Result<Self, String> {
+        let file = File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut w = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Lz4))
+            .profile("")
+            .library(concat!("evoloop ", env!("CARGO_PKG_VERSION")))
+            .create(BufWriter::with_capacity(1 << 20, file))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        for (i, topic) in TOPICS.iter().enumerate() {
+            let schema = w
+                .add_schema(
+                    &format!("evoloop.{topic}"),
+                    "jsonschema",
+                    schema(topic).as_bytes(),
+                )
+                .map_err(|e| e.to_string())?;
+            let id = w
+                .add_channel(schema, topic, "json", &BTreeMap::new())
+                .map_err(|e| e.to_string())?;
+            debug_assert_eq!(id as usize, i + 1, "channel ids are 1.. in TOPICS order");
+        }
+        w.write_metadata(&mcap::records::Metadata {
+            name: "evoloop".into(),
+            metadata,
+        })
+        .map_err(|e| e.to_string())?;
+        let (cycles, rc) = sync_channel(CYCLES);
+        let (params, rp) = sync_channel(SETS);
+        let (estimates, re) = sync_channel(ESTIMATES);
+        let done = Arc::new(AtomicBool::new(false));
+        let d = done.clone();
+        let path: PathBuf = path.to_path_buf();
+        let writer = std::thread::Builder::new()
+            .name("mcap-writer".into())
+            .spawn(move || write_all(w, &path, rc, rp, re, &d))
+            .map_err(|e| format!("cannot start the MCAP writer: {e}"))?;
+        Ok(Self {
+            cycles,
+            params,
+            estimates,
+            stamp_ns: 0,
+            wait_when_full: lockstep,
+            dropped: 0,
+            done,
+            writer: Some(writer),
+        })
+    }
+
+    /// Queue `v` on `tx`: wait while full in lockstep, drop and count in realtime. No allocation.
+    fn put<T>(tx: &SyncSender<T>, mut v: T, wait: bool, dropped: &mut u64) {
+        loop {
+            match tx.try_send(v) {
+                Ok(()) => return,
+                Err(TrySendError::Full(back)) if wait => {
+                    v = back;
+                    std::thread::yield_now();
+                }
+                // Full in realtime, or the writer is gone (its error is in its report).
+                Err(_) => {
+                    *dropped += 1;
+                    return;
+                }
+            }
+        }
+    }
+
+    /// The state a cycle starts from: later sets and estimates of the cycle are logged at its
+    /// stamp.
+    pub fn at_state(&mut self, state: &PlantState) {
+        self.stamp_ns = state.stamp_ns;
+    }
+
+    pub fn params(&mut self, set: &ParamSet) {
+        Self::put(
+            &self.params,
+            (self.stamp_ns, *set),
+            self.wait_when_full,
+            &mut self.dropped,
+        );
+    }
+
+    pub fn estimate(&mut self, e: &ModelEstimate) {
+        Self::put(
+            &self.estimates,
+            (self.stamp_ns, *e),
+            self.wait_when_full,
+            &mut self.dropped,
+        );
+    }
+
+    /// The cycle's state, command and telemetry.
+    pub fn cycle(&mut self, state: &PlantState, command: &Command, telemetry: &Telemetry) {
+        let c = Cycle {
+            state: *state,
+            command: *command,
+            telemetry: *telemetry,
+        };
+        Self::put(&self.cycles, c, self.wait_when_full, &mut self.dropped);
+    }
+
+    /// Write what is queued, close the file and report.
+    pub fn finish(mut self) -> Recorded {
+        self.done.store(true, Ordering::Release);
+        let mut r = match self.writer.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r,
+            _ => Recorded {
+                error: Some("the MCAP writer panicked".into()),
+                ..Recorded::default()
+            },
+        };
+        r.dropped += self.dropped;
+        r
+    }
+}
+
+impl Drop for Recorder {
+    /// Dropped without `finish` (an error ended the loop): still close the file properly.
+    fn drop(&mut self) {
+        self.done.store(true, Ordering::Release);
+        if let Some(w) = self.writer.take() {
+            let _ = w.join();
+        }
+    }
+}
+
+/// The writer thread: drain the queues, format and write each message, sleep when idle, and
+/// after `done` drain the rest and finish the file (summary, indexes).
+fn write_all<W: std::io::Write + std::io::Seek>(
+    mut w: mcap::Writer<W>,
+    path: &Path,
+    cycles: Receiver<Cycle>,
+    params: Receiver<(u64, ParamSet)>,
+    estimates: Receiver<(u64, ModelEstimate)>,
+    done: &AtomicBool,
+) -> Recorded {
+    let mut r = Recorded::default();
+    let mut buf = Vec::with_capacity(16 << 10);
+    let put = |w: &mut mcap::Writer<W>, r: &mut Recorded, ch: usize, stamp: u64, buf: &[u8]| {
+        if r.error.is_some() {
+            r.dropped += 1;
+            return;
+        }
+        let header = mcap::records::MessageHeader {
+            channel_id: ch as u16 + 1,
+            sequence: r.messages[ch] as u32,
+            log_time: stamp,
+            publish_time: stamp,
+        };
+        match w.write_to_known_channel(&header, buf) {
+            Ok(()) => r.messages[ch] += 1,
+            Err(e) => r.error = Some(format!("{}: {e}", path.display())),
+        }
+    };
+    loop {
+        let finishing = done.load(Ordering::Acquire);
+        let mut any = false;
+        while let Ok(c) = cycles.try_recv() {
+            any = true;
+            json_state(&mut buf, &c.state);
+            put(&mut w, &mut r, 0, c.state.stamp_ns, &buf);
+            json_command(&mut buf, &c.command);
+            put(&mut w, &mut r, 1, c.command.stamp_ns, &buf);
+            json_telemetry(&mut buf, &c.telemetry);
+            put(&mut w, &mut r, 2, c.command.stamp_ns, &buf);
+        }
+        while let Ok((stamp, p)) = params.try_recv() {
+            any = true;
+            json_params(&mut buf, &p);
+            put(&mut w, &mut r, 3, stamp, &buf);
+        }
+        while let Ok((stamp, e)) = estimates.try_recv() {
+            any = true;
+            json_estimate(&mut buf, &e);
+            put(&mut w, &mut r, 4, stamp, &buf);
+        }
+        if finishing && !any {
+            break;
+        }
+        if !any {
+            std::thread::sleep(IDLE);
+        }
+    }
+    if r.error.is_none() {
+        if let Err(e) = w.finish() {
+            r.error = Some(format!("{}: {e}", path.display()));
+        }
+    }
+    r
+}
+
+/// A JSON number (the shortest text that reads back to the same f64, by ryu, as serde_json
+/// writes it); NaN and infinities (not JSON) as null.
+fn num(buf: &mut Vec<u8>, x: f64) {
+    if x.is_finite() {
+        buf.extend_from_slice(ryu::Buffer::new().format_finite(x).as_bytes());
+    } else {
+        buf.extend_from_slice(b"null");
+    }
+}
+
+fn key(buf: &mut Vec<u8>, name: &str) {
+    buf.push(b'"');
+    buf.extend_from_slice(name.as_bytes());
+    buf.extend_from_slice(b"\":");
+}
+
+fn field(buf: &mut Vec<u8>, name: &str, x: f64) {
+    key(buf, name);
+    num(buf, x);
+    buf.push(b',');
+}
+
+fn int(buf: &mut Vec<u8>, name: &str, x: impl itoa::Integer) {
+    key(buf, name);
+    buf.extend_from_slice(itoa::Buffer::new().format(x).as_bytes());
+    buf.push(b',');
+}
+
+fn array(buf: &mut Vec<u8>, name: &str, xs: &[f64]) {
+    key(buf, name);
+    buf.push(b'[');
+    for (i, x) in xs.iter().enumerate() {
+        if i > 0 {
+            buf.push(b',');
+        }
+        num(buf, *x);
+    }
+    buf.extend_from_slice(b"],");
+}
+
+/// Start an object; `end` replaces the last field's comma by the closing brace.
+fn end(buf: &mut Vec<u8>) {
+    if buf.last() == Some(&b',') {
+        buf.pop();
+    }
+    buf.push(b'}');
+}
+
+fn json_state(buf: &mut Vec<u8>, s: &PlantState) {
+    buf.clear();
+    buf.push(b'{');
+    int(buf, "seq", s.seq);
+    int(buf, "stamp_ns", s.stamp_ns);
+    field(buf, "t", s.t);
+    int(buf, "flags", s.flags);
+    array(buf, "y", &s.y[..s.n_y as usize]);
+    array(buf, "q_true", &s.q_true[..s.n_q as usize]);
+    array(buf, "qd_true", &s.qd_true[..s.n_q as usize]);
+    array(buf, "x_true", &s.x_true[..s.n_x as usize]);
+    array(buf, "u_applied", &s.u_applied[..s.n_y.max(s.n_q) as usize]);
+    end(buf);
+}
+
+fn json_command(buf: &mut Vec<u8>, c: &Command) {
+    buf.clear();
+    buf.push(b'{');
+    int(buf, "cycle", c.cycle);
+    int(buf, "state_seq", c.state_seq);
+    int(buf, "stamp_ns", c.stamp_ns);
+    int(buf, "param_version", c.param_version);
+    array(buf, "u", &c.u[..c.n_u as usize]);
+    end(buf);
+}
+
+fn json_telemetry(buf: &mut Vec<u8>, t: &Telemetry) {
+    buf.clear();
+    buf.push(b'{');
+    int(buf, "cycle", t.cycle);
+    int(buf, "state_seq", t.state_seq);
+    field(buf, "t", t.t);
+    int(buf, "lateness_ns", t.lateness_ns);
+    int(buf, "compute_ns", t.compute_ns);
+    int(buf, "state_age_ns", t.state_age_ns);
+    field(buf, "reference", t.reference);
+    field(buf, "tracking_error", t.tracking_error);
+    int(buf, "flags", t.flags);
+    array(buf, "u", &t.u[..t.n_u as usize]);
+    int(buf, "param_version", t.param_version);
+    int(buf, "param_event_version", t.param_event_version);
+    int(buf, "param_code", t.param_code);
+    int(buf, "param_index", t.param_index);
+    int(buf, "overruns", t.overruns);
+    int(buf, "missed", t.missed);
+    array(buf, "law", &t.law[..t.n_law as usize]);
+    end(buf);
+}
+
+fn json_params(buf: &mut Vec<u8>, p: &ParamSet) {
+    buf.clear();
+    buf.push(b'{');
+    int(buf, "version", p.version);
+    int(buf, "apply_at_seq", p.apply_at_seq);
+    field(buf, "expected_cost", p.expected_cost);
+    int(buf, "until_seq", p.until_seq);
+    int(buf, "fallback_version", p.fallback_version);
+    int(buf, "kind", p.kind);
+    array(
+        buf,
+        "values",
+        &p.values[..(p.n as usize).min(p.values.len())],
+    );
+    end(buf);
+}
+
+fn json_estimate(buf: &mut Vec<u8>, e: &ModelEstimate) {
+    buf.clear();
+    buf.push(b'{');
+    field(buf, "t", e.t);
+    field(buf, "value", e.value);
+    field(buf, "std", e.std);
+    int(buf, "last_version", e.last_version);
+    int(buf, "apply_at_seq", e.apply_at_seq);
+    end(buf);
+}
+
+/// The JSON Schema of a topic's messages (what Foxglove uses to list the fields).
+fn schema(topic: &str) -> String {
+    let (title, fields): (&str, &[(&str, &str)]) = match topic {
+        "state" => (
+            "Plant state sample (noisy outputs y, true positions, velocities and states)",
+            &[
+                ("seq", "integer"),
+                ("stamp_ns", "integer"),
+                ("t", "number"),
+                ("flags", "integer"),
+                ("y", "array"),
+                ("q_true", "array"),
+                ("qd_true", "array"),
+                ("x_true", "array"),
+                ("u_applied", "array"),
+            ],
+        ),
+        "command" => (
+            "Controller command",
+            &[
+                ("cycle", "integer"),
+                ("state_seq", "integer"),
+                ("stamp_ns", "integer"),
+                ("param_version", "integer"),
+                ("u", "array"),
+            ],
+        ),
+        "telemetry" => (
+            "Controller telemetry (timing, tracking, parameter events)",
+            &[
+                ("cycle", "integer"),
+                ("state_seq", "integer"),
+                ("t", "number"),
+                ("lateness_ns", "integer"),
+                ("compute_ns", "integer"),
+                ("state_age_ns", "integer"),
+                ("reference", "number"),
+                ("tracking_error", "number"),
+                ("flags", "integer"),
+                ("u", "array"),
+                ("param_version", "integer"),
+                ("param_event_version", "integer"),
+                ("param_code", "integer"),
+                ("param_index", "integer"),
+                ("overruns", "integer"),
+                ("missed", "integer"),
+                ("law", "array"),
+            ],
+        ),
+        "params" => (
+            "Parameter set received by the controller",
+            &[
+                ("version", "integer"),
+                ("apply_at_seq", "integer"),
+                ("expected_cost", "number"),
+                ("until_seq", "integer"),
+                ("fallback_version", "integer"),
+                ("kind", "integer"),
+                ("values", "array"),
+            ],
+        ),
+        _ => (
+            "Model estimate taken by the controller",
+            &[
+                ("t", "number"),
+                ("value", "number"),
+                ("std", "number"),
+                ("last_version", "integer"),
+                ("apply_at_seq", "integer"),
+            ],
+        ),
+    };
+    let props: Vec<String> = fields
+        .iter()
+        .map(|(n, ty)| match *ty {
+            "array" => format!(
+                "\"{n}\":{{\"type\":\"array\",\"items\":{{\"type\":[\"number\",\"null\"]}}}}"
+            ),
+            "number" => format!("\"{n}\":{{\"type\":[\"number\",\"null\"]}}"),
+            _ => format!("\"{n}\":{{\"type\":\"{ty}\"}}"),
+        })
+        .collect();
+    format!(
+        "{{\"$schema\":\"https://json-schema.org/draft/2020-12/schema\",\"title\":\"{title}\",\"type\":\"object\",\"properties\":{{{}}}}}",
+        props.join(",")
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_are_json_with_only_the_valid_entries_and_schemas_parse() {
+        let mut s = PlantState {
+            seq: 7,
+            stamp_ns: 123,
+            t: 0.007,
+            n_y: 2,
+            n_q: 2,
+            n_x: 4,
+            ..Default::default()
+        };
+        s.y[0] = f64::NAN;
+        s.y[1] = 1.5;
+        let mut buf = Vec::new();
+        json_state(&mut buf, &s);
+        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+        assert_eq!(v["seq"], 7);
+        assert_eq!(v["y"], serde_json::json!([null, 1.5]));
+        assert_eq!(v["x_true"].as_array().unwrap().len(), 4);
+        for topic in TOPICS {
+            let sch: serde_json::Value = serde_json::from_str(&schema(topic)).unwrap();
+            assert_eq!(sch["type"], "object", "{topic}");
+        }
+    }
+}
