@@ -108,7 +108,15 @@ impl Recorder {
         let path: PathBuf = path.to_path_buf();
         let writer = std::thread::Builder::new()
             .name("mcap-writer".into())
-            .spawn(move || write_all(w, &path, rc, rp, re, &d))
+            .spawn(move || {
+                // Background work: nice 10, below the loop's other threads (as the optimiser),
+                // so formatting and disk writes yield to them even without SCHED_FIFO.
+                // SAFETY: plain syscalls on this thread's own id.
+                unsafe {
+                    libc::setpriority(libc::PRIO_PROCESS, libc::gettid() as libc::id_t, 10);
+                }
+                write_all(w, &path, rc, rp, re, &d)
+            })
             .map_err(|e| format!("cannot start the MCAP writer: {e}"))?;
         Ok(Self {
             cycles,
