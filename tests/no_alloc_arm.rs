@@ -51,7 +51,8 @@ impl Wires {
                 ipc.subscriber(Topic::Telemetry, 4, false).unwrap(),
             ),
             record: std::cell::RefCell::new(
-                Recorder::start(&dir.path().join("run.mcap"), true, Default::default()).unwrap(),
+                Recorder::start(&dir.path().join("run.mcap"), true, Default::default(), None)
+                    .unwrap(),
             ),
             _dir: dir,
             _ipc: ipc,

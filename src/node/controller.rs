@@ -143,6 +143,10 @@ impl Loop {
                 &dir.join("run.mcap"),
                 scn.timing.mode == Mode::Lockstep,
                 meta,
+                match scn.timing.mode {
+                    Mode::Realtime => scn.timing.controller_cpu,
+                    Mode::Lockstep => None,
+                },
             )?)
         } else {
             None
