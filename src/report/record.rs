@@ -7,8 +7,8 @@
 //! allocated at the start (`std::sync::mpsc::sync_channel`: a lock-free `try_send` while the
 //! receiver never blocks, and it never does: it polls and sleeps); a writer thread formats and
 //! writes them. In lockstep a full queue makes the cycle wait (nothing is lost, the run is only
-//! slower); in realtime the message is dropped and counted (`mcap_dropped`), as the CSV log
-//! does.
+//! slower); in realtime the message is dropped and counted (`mcap.dropped` in controller.json), as
+//! the CSV log does.
 //!
 //! Log time is the sample's stamp (CLOCK_MONOTONIC ns, `stamp_ns` of the state, the command's
 //! own for commands and telemetry); parameter sets and estimates carry no stamp of their own and
@@ -341,7 +341,7 @@ fn array(buf: &mut Vec<u8>, name: &str, xs: &[f64]) {
     buf.extend_from_slice(b"],");
 }
 
-/// Start an object; `end` replaces the last field's comma by the closing brace.
+/// Close an object: the last field's comma becomes the closing brace.
 fn end(buf: &mut Vec<u8>) {
     if buf.last() == Some(&b',') {
         buf.pop();
@@ -426,92 +426,57 @@ fn json_estimate(buf: &mut Vec<u8>, e: &ModelEstimate) {
     end(buf);
 }
 
-/// The JSON Schema of a topic's messages (what Foxglove uses to list the fields).
+/// The JSON Schema of a topic's messages (what Foxglove uses to list the fields), read off the
+/// topic's own writer: one default message is written and each field's value typed, so the
+/// schema cannot drift from what is written.
 fn schema(topic: &str) -> String {
-    let (title, fields): (&str, &[(&str, &str)]) = match topic {
-        "state" => (
-            "Plant state sample (noisy outputs y, true positions, velocities and states)",
-            &[
-                ("seq", "integer"),
-                ("stamp_ns", "integer"),
-                ("t", "number"),
-                ("flags", "integer"),
-                ("y", "array"),
-                ("q_true", "array"),
-                ("qd_true", "array"),
-                ("x_true", "array"),
-                ("u_applied", "array"),
-            ],
-        ),
-        "command" => (
-            "Controller command",
-            &[
-                ("cycle", "integer"),
-                ("state_seq", "integer"),
-                ("stamp_ns", "integer"),
-                ("param_version", "integer"),
-                ("u", "array"),
-            ],
-        ),
-        "telemetry" => (
-            "Controller telemetry (timing, tracking, parameter events)",
-            &[
-                ("cycle", "integer"),
-                ("state_seq", "integer"),
-                ("t", "number"),
-                ("lateness_ns", "integer"),
-                ("compute_ns", "integer"),
-                ("state_age_ns", "integer"),
-                ("reference", "number"),
-                ("tracking_error", "number"),
-                ("flags", "integer"),
-                ("u", "array"),
-                ("param_version", "integer"),
-                ("param_event_version", "integer"),
-                ("param_code", "integer"),
-                ("param_index", "integer"),
-                ("overruns", "integer"),
-                ("missed", "integer"),
-                ("law", "array"),
-            ],
-        ),
-        "params" => (
-            "Parameter set received by the controller",
-            &[
-                ("version", "integer"),
-                ("apply_at_seq", "integer"),
-                ("expected_cost", "number"),
-                ("until_seq", "integer"),
-                ("fallback_version", "integer"),
-                ("kind", "integer"),
-                ("values", "array"),
-            ],
-        ),
-        _ => (
-            "Model estimate taken by the controller",
-            &[
-                ("t", "number"),
-                ("value", "number"),
-                ("std", "number"),
-                ("last_version", "integer"),
-                ("apply_at_seq", "integer"),
-            ],
-        ),
+    let mut buf = Vec::new();
+    let title = match topic {
+        "state" => {
+            json_state(&mut buf, &PlantState::default());
+            "Plant state sample (noisy outputs y, true positions, velocities and states)"
+        }
+        "command" => {
+            json_command(&mut buf, &Command::default());
+            "Controller command"
+        }
+        "telemetry" => {
+            json_telemetry(&mut buf, &Telemetry::default());
+            "Controller telemetry (timing, tracking, parameter events)"
+        }
+        "params" => {
+            json_params(&mut buf, &ParamSet::default());
+            "Parameter set received by the controller"
+        }
+        _ => {
+            json_estimate(&mut buf, &ModelEstimate::default());
+            "Model estimate taken by the controller"
+        }
     };
-    let props: Vec<String> = fields
+    let sample: serde_json::Map<String, serde_json::Value> =
+        serde_json::from_slice(&buf).expect("the writers write JSON objects");
+    // Floats may be written as null (NaN, infinities); integers never are.
+    let number = serde_json::json!({"type": ["number", "null"]});
+    let properties: serde_json::Map<String, serde_json::Value> = sample
         .iter()
-        .map(|(n, ty)| match *ty {
-            "array" => format!(
-                "\"{n}\":{{\"type\":\"array\",\"items\":{{\"type\":[\"number\",\"null\"]}}}}"
-            ),
-            "number" => format!("\"{n}\":{{\"type\":[\"number\",\"null\"]}}"),
-            _ => format!("\"{n}\":{{\"type\":\"{ty}\"}}"),
+        .map(|(k, v)| {
+            let ty = match v {
+                serde_json::Value::Array(_) => {
+                    serde_json::json!({"type": "array", "items": number})
+                }
+                serde_json::Value::Number(n) if n.is_f64() => number.clone(),
+                _ => serde_json::json!({"type": "integer"}),
+            };
+            (k.clone(), ty)
         })
         .collect();
-    format!(
-        "{{\"$schema\":\"https://json-schema.org/draft/2020-12/schema\",\"title\":\"{title}\",\"type\":\"object\",\"properties\":{{{}}}}}",
-        props.join(",")
-    )
+    serde_json::json!({
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": title,
+        "type": "object",
+        "properties": properties,
+    })
+    .to_string()
 }
 
 #[cfg(test)]
@@ -541,5 +506,13 @@ mod tests {
             let sch: serde_json::Value = serde_json::from_str(&schema(topic)).unwrap();
             assert_eq!(sch["type"], "object", "{topic}");
         }
+        let sch: serde_json::Value = serde_json::from_str(&schema("state")).unwrap();
+        let p = &sch["properties"];
+        assert_eq!(
+            (&p["seq"]["type"], &p["y"]["type"]),
+            (&"integer".into(), &"array".into())
+        );
+        assert_eq!(p["t"]["type"], serde_json::json!(["number", "null"]));
+        assert_eq!(p.as_object().unwrap().len(), v.as_object().unwrap().len());
     }
 }
