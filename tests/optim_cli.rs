@@ -120,7 +120,7 @@ fn bench_reports_evaluations_per_second_for_every_algorithm() {
         "--repeats",
         "1",
     ]));
-    for a in ["emupso", "pso", "de", "gwo", "woa", "goa", "ga"] {
+    for a in ["emupso", "pso", "de", "gwo", "woa", "goa", "ga", "jade"] {
         assert!(
             v["evals_per_s"][a].as_f64().unwrap() > 0.0,
             "{a} missing: {v}"

@@ -223,7 +223,7 @@ impl Crossover<'_> {
 /// `if take { a } else { b }` by bit masks: the compiler turns a plain `if` with loads on
 /// both sides into a branch, mispredicted whenever crossover or the box decides at random.
 #[inline(always)]
-fn select(take: bool, a: f64, b: f64) -> f64 {
+pub(super) fn select(take: bool, a: f64, b: f64) -> f64 {
     let mask = (take as u64).wrapping_neg();
     f64::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
 }

@@ -7,6 +7,7 @@ pub mod emupso;
 pub mod ga;
 pub mod hooke_jeeves;
 pub mod hybrid;
+pub mod jade;
 pub mod peers;
 pub mod pso;
 pub mod pull;

@@ -15,6 +15,7 @@
 //! costs, see `super::PARALLEL_MIN_SAVING_NS`), and the runs share the cores.
 
 use super::emupso::{EmuPso, EmuPsoSettings};
+use super::jade::{Jade, JadeConfig};
 use super::pso::Pso;
 use super::suite::{self, Function};
 use super::swarm::SwarmConfig;
@@ -27,9 +28,10 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
 use std::cell::RefCell;
 
-/// The study's algorithms: the paper's six, then the real-coded GA of the fuzzy-network paper.
-/// (Hooke-Jeeves is a local search from one point, not a population method; it is left out.)
-pub const ALGORITHMS: [&str; 7] = ["emupso", "pso", "woa", "gwo", "goa", "de", "ga"];
+/// The study's algorithms: the paper's six, then the real-coded GA of the fuzzy-network paper
+/// and JADE, the adaptive DE the Python libraries offer (`super::jade`). (Hooke-Jeeves is a
+/// local search from one point, not a population method; it is left out.)
+pub const ALGORITHMS: [&str; 8] = ["emupso", "pso", "woa", "gwo", "goa", "de", "ga", "jade"];
 
 /// The algorithm every peer is compared with.
 pub const SUBJECT: &str = "emupso";
@@ -90,6 +92,12 @@ pub fn build_seeded(
             eta: 1,
             epsilon: 0.0,
         })?),
+        "jade" => Box::new(Jade::new(JadeConfig::new(
+            population,
+            lower.to_vec(),
+            upper.to_vec(),
+            seed,
+        ))?),
         "ga" => Box::new(Ga::new(
             GaConfig {
                 population,
