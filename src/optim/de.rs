@@ -79,18 +79,96 @@ impl DeConfig {
     }
 }
 
+/// What DE and JADE (`super::jade`) keep alike: the targets and their values, the trials of
+/// the generation under way and the counters. The first `ask` hands out the random initial
+/// population, each later one the trials the method bred; a trial replaces its target when the
+/// method's rule says so.
+pub(super) struct Generations {
+    pub pop: Vec<Vec<f64>>,
+    pub values: Vec<f64>,
+    pub trials: Vec<Vec<f64>>,
+    pub initialised: bool,
+    pub generation: usize,
+    pub evaluations: usize,
+    pub best: usize,
+}
+
+impl Generations {
+    /// `np` members drawn uniformly in the box.
+    pub fn random(np: usize, lower: &[f64], upper: &[f64], rng: &mut Xoshiro256pp) -> Self {
+        let pop: Vec<Vec<f64>> = (0..np)
+            .map(|_| {
+                lower
+                    .iter()
+                    .zip(upper)
+                    .map(|(l, u)| rng.gen_range(*l..*u))
+                    .collect()
+            })
+            .collect();
+        Self {
+            trials: pop.clone(),
+            values: vec![f64::INFINITY; np],
+            pop,
+            initialised: false,
+            generation: 0,
+            evaluations: 0,
+            best: 0,
+        }
+    }
+
+    pub fn candidates(&self) -> &[Vec<f64>] {
+        if self.initialised {
+            &self.trials
+        } else {
+            &self.pop
+        }
+    }
+
+    /// Trial i only matters if it can replace target i.
+    pub fn thresholds(&self) -> Option<&[f64]> {
+        self.initialised.then_some(&self.values[..])
+    }
+
+    /// The values of the candidates handed out. The initial population takes them (NaN ranks
+    /// last); afterwards `replaces(i, trial's value, target's value, target)` decides whether
+    /// trial i takes target i's place (the target is passed before it is overwritten).
+    pub fn tell(
+        &mut self,
+        values: &[f64],
+        mut replaces: impl FnMut(usize, f64, f64, &[f64]) -> bool,
+    ) {
+        assert_eq!(values.len(), self.pop.len(), "one value per candidate");
+        self.evaluations += values.len();
+        if !self.initialised {
+            for (slot, v) in self.values.iter_mut().zip(values) {
+                *slot = if v.is_nan() { f64::INFINITY } else { *v };
+            }
+            self.initialised = true;
+        } else {
+            for (i, &v) in values.iter().enumerate() {
+                if replaces(i, v, self.values[i], &self.pop[i]) {
+                    self.values[i] = v;
+                    self.pop[i].copy_from_slice(&self.trials[i]);
+                }
+            }
+            self.generation += 1;
+        }
+        self.best = (0..self.pop.len())
+            .min_by(|&a, &b| self.values[a].total_cmp(&self.values[b]))
+            .unwrap_or(0);
+    }
+
+    pub fn best(&self) -> (&[f64], f64) {
+        (&self.pop[self.best], self.values[self.best])
+    }
+}
+
 pub struct DifferentialEvolution {
     cfg: DeConfig,
     rng: Xoshiro256pp,
     /// One trial's random draws, one per component (scratch of `breed`).
     draws: Vec<u64>,
-    pop: Vec<Vec<f64>>,
-    values: Vec<f64>,
-    trials: Vec<Vec<f64>>,
-    initialised: bool,
-    generation: usize,
-    evaluations: usize,
-    best: usize,
+    g: Generations,
     window: VecDeque<Vec<f64>>,
 }
 
@@ -98,45 +176,32 @@ impl DifferentialEvolution {
     pub fn new(cfg: DeConfig) -> Result<Self, String> {
         cfg.validate()?;
         let mut rng = Xoshiro256pp::seed_from_u64(cfg.seed);
-        let d = cfg.lower.len();
-        let pop: Vec<Vec<f64>> = (0..cfg.np)
-            .map(|_| {
-                (0..d)
-                    .map(|j| rng.gen_range(cfg.lower[j]..cfg.upper[j]))
-                    .collect()
-            })
-            .collect();
+        let g = Generations::random(cfg.np, &cfg.lower, &cfg.upper, &mut rng);
         Ok(Self {
-            trials: pop.clone(),
-            values: vec![f64::INFINITY; cfg.np],
-            pop,
+            g,
             rng,
-            draws: vec![0; d],
-            initialised: false,
-            generation: 0,
-            evaluations: 0,
-            best: 0,
+            draws: vec![0; cfg.lower.len()],
             window: VecDeque::with_capacity(cfg.eta + 1),
             cfg,
         })
     }
 
     pub fn population(&self) -> &[Vec<f64>] {
-        &self.pop
+        &self.g.pop
     }
 
     /// Put known sets (clamped into the box) in the first places of the initial population,
     /// e.g. the set in service. Only before the first `tell`.
     pub fn seed_population(&mut self, seeds: &[Vec<f64>]) {
-        if self.initialised {
+        if self.g.initialised {
             return;
         }
-        for (member, s) in self.pop.iter_mut().zip(seeds) {
+        for (member, s) in self.g.pop.iter_mut().zip(seeds) {
             for (j, v) in member.iter_mut().enumerate() {
                 *v = s[j].clamp(self.cfg.lower[j], self.cfg.upper[j]);
             }
         }
-        self.trials = self.pop.clone();
+        self.g.trials = self.g.pop.clone();
     }
 
     /// One trial per target. Each component takes one 64-bit draw: its high half decides the
@@ -145,13 +210,9 @@ impl DifferentialEvolution {
     /// vectorise; the optimiser's own cost per evaluation is what `optim bench` measures).
     fn breed(&mut self) {
         let Self {
-            cfg,
-            rng,
-            pop,
-            trials,
-            draws,
-            ..
+            cfg, rng, g, draws, ..
         } = self;
+        let (pop, trials) = (&g.pop, &mut g.trials);
         let (np, d, f, cr) = (cfg.np, cfg.lower.len(), cfg.f, cfg.cr);
         let (lower, upper, draws) = (&cfg.lower[..d], &cfg.upper[..d], &mut draws[..d]);
         let pick = |exclude: &[usize], rng: &mut Xoshiro256pp| loop {
@@ -230,72 +291,48 @@ pub(super) fn select(take: bool, a: f64, b: f64) -> f64 {
 
 impl Optimiser for DifferentialEvolution {
     fn ask(&mut self) -> &[Vec<f64>] {
-        if self.initialised {
+        if self.g.initialised {
             self.breed();
-            &self.trials
-        } else {
-            &self.pop
         }
+        self.g.candidates()
     }
 
     fn candidates(&self) -> &[Vec<f64>] {
-        if self.initialised {
-            &self.trials
-        } else {
-            &self.pop
-        }
+        self.g.candidates()
     }
 
     fn thresholds(&self) -> Option<&[f64]> {
-        // Trial i only matters if it is not worse than target i.
-        self.initialised.then_some(&self.values[..])
+        self.g.thresholds()
     }
 
     fn tell(&mut self, values: &[f64]) {
-        assert_eq!(values.len(), self.cfg.np, "one value per candidate");
-        self.evaluations += values.len();
-        if !self.initialised {
-            // NaN objectives rank last.
-            self.values = values
-                .iter()
-                .map(|v| if v.is_nan() { f64::INFINITY } else { *v })
-                .collect();
-            self.initialised = true;
-        } else {
-            for (i, v) in values.iter().enumerate() {
-                if !v.is_nan() && *v <= self.values[i] {
-                    self.values[i] = *v;
-                    self.pop[i].copy_from_slice(&self.trials[i]);
-                }
-            }
-            self.generation += 1;
-        }
-        self.best = (0..self.cfg.np)
-            .min_by(|&a, &b| self.values[a].total_cmp(&self.values[b]))
-            .unwrap_or(0);
+        // The trial replaces its target when it is not worse.
+        self.g
+            .tell(values, |_, v, target, _| !v.is_nan() && v <= target);
         if self.cfg.diversity_stop {
+            let best = &self.g.pop[self.g.best];
             // The oldest row is reused once the window is full: no allocation per generation.
             let mut row = if self.window.len() == self.cfg.eta {
                 self.window.pop_front().unwrap_or_default()
             } else {
-                Vec::with_capacity(self.pop[self.best].len())
+                Vec::with_capacity(best.len())
             };
             row.clear();
-            row.extend_from_slice(&self.pop[self.best]);
+            row.extend_from_slice(best);
             self.window.push_back(row);
         }
     }
 
     fn best(&self) -> (&[f64], f64) {
-        (&self.pop[self.best], self.values[self.best])
+        self.g.best()
     }
 
     fn generation(&self) -> usize {
-        self.generation
+        self.g.generation
     }
 
     fn evaluations(&self) -> usize {
-        self.evaluations
+        self.g.evaluations
     }
 
     fn converged(&self) -> bool {

@@ -28,7 +28,7 @@
 //!
 //! Everything is allocated at construction: a generation allocates nothing.
 
-use super::de::select;
+use super::de::{select, Generations};
 use super::rng::Xoshiro256pp;
 use super::Optimiser;
 use rand::{Rng, RngCore, SeedableRng};
@@ -93,9 +93,7 @@ impl JadeConfig {
 pub struct Jade {
     cfg: JadeConfig,
     rng: Xoshiro256pp,
-    pop: Vec<Vec<f64>>,
-    values: Vec<f64>,
-    trials: Vec<Vec<f64>>,
+    g: Generations,
     /// Each trial's F and CR, for the success sets.
     f_i: Vec<f64>,
     cr_i: Vec<f64>,
@@ -108,10 +106,6 @@ pub struct Jade {
     order: Vec<usize>,
     pub mu_f: f64,
     pub mu_cr: f64,
-    initialised: bool,
-    generation: usize,
-    evaluations: usize,
-    best: usize,
 }
 
 impl Jade {
@@ -119,17 +113,8 @@ impl Jade {
         cfg.validate()?;
         let mut rng = Xoshiro256pp::seed_from_u64(cfg.seed);
         let (np, d) = (cfg.np, cfg.lower.len());
-        let pop: Vec<Vec<f64>> = (0..np)
-            .map(|_| {
-                (0..d)
-                    .map(|j| rng.gen_range(cfg.lower[j]..cfg.upper[j]))
-                    .collect()
-            })
-            .collect();
         Ok(Self {
-            trials: pop.clone(),
-            values: vec![f64::INFINITY; np],
-            pop,
+            g: Generations::random(np, &cfg.lower, &cfg.upper, &mut rng),
             f_i: vec![0.5; np],
             cr_i: vec![0.5; np],
             archive: vec![vec![0.0; d]; np],
@@ -138,10 +123,6 @@ impl Jade {
             order: (0..np).collect(),
             mu_f: 0.5,
             mu_cr: 0.5,
-            initialised: false,
-            generation: 0,
-            evaluations: 0,
-            best: 0,
             rng,
             cfg,
         })
@@ -171,7 +152,7 @@ impl Jade {
 
     fn breed(&mut self) {
         let (np, d) = (self.cfg.np, self.cfg.lower.len());
-        let values = &self.values;
+        let values = &self.g.values;
         self.order
             .sort_unstable_by(|&a, &b| values[a].total_cmp(&values[b]));
         let top = self.cfg.top();
@@ -198,7 +179,7 @@ impl Jade {
             for r in self.draws.iter_mut() {
                 *r = self.rng.next_u64();
             }
-            let (pop, archive) = (&self.pop, &self.archive);
+            let (pop, archive) = (&self.g.pop, &self.archive);
             let x2 = if r2 < np { &pop[r2] } else { &archive[r2 - np] };
             let rule = Trial {
                 f,
@@ -208,26 +189,11 @@ impl Jade {
                 upper: &self.cfg.upper,
             };
             rule.trial(
-                &mut self.trials[i],
+                &mut self.g.trials[i],
                 [&pop[i], &pop[pbest], &pop[r1], x2],
                 &self.draws,
             );
         }
-    }
-
-    /// Parent i, about to be replaced, goes to the archive (a random slot once it is full).
-    fn archive_parent(&mut self, i: usize) {
-        if !self.cfg.archive {
-            return;
-        }
-        let slot = if self.archive_len < self.cfg.np {
-            self.archive_len += 1;
-            self.archive_len - 1
-        } else {
-            self.rng.gen_range(0..self.cfg.np)
-        };
-        let (pop, archive) = (&self.pop, &mut self.archive);
-        archive[slot].copy_from_slice(&pop[i]);
     }
 }
 
@@ -266,72 +232,70 @@ impl Trial<'_> {
 
 impl Optimiser for Jade {
     fn ask(&mut self) -> &[Vec<f64>] {
-        if self.initialised {
+        if self.g.initialised {
             self.breed();
-            &self.trials
-        } else {
-            &self.pop
         }
+        self.g.candidates()
     }
 
     fn candidates(&self) -> &[Vec<f64>] {
-        if self.initialised {
-            &self.trials
-        } else {
-            &self.pop
-        }
+        self.g.candidates()
     }
 
     fn thresholds(&self) -> Option<&[f64]> {
-        // Trial i only matters if it beats target i.
-        self.initialised.then_some(&self.values[..])
+        self.g.thresholds()
     }
 
     fn tell(&mut self, values: &[f64]) {
-        assert_eq!(values.len(), self.cfg.np, "one value per candidate");
-        self.evaluations += values.len();
-        if !self.initialised {
-            // NaN objectives rank last.
-            for (slot, v) in self.values.iter_mut().zip(values) {
-                *slot = if v.is_nan() { f64::INFINITY } else { *v };
+        let (mut n, mut sum_cr, mut sum_f, mut sum_f2) = (0usize, 0.0, 0.0, 0.0);
+        let Self {
+            cfg,
+            rng,
+            g,
+            f_i,
+            cr_i,
+            archive,
+            archive_len,
+            ..
+        } = self;
+        // A trial replaces its target when strictly better; the target goes to the archive (a
+        // random slot once it is full) and the trial's F and CR to the successful sets.
+        g.tell(values, |i, v, target, parent| {
+            if v.is_nan() || v >= target {
+                return false;
             }
-            self.initialised = true;
-        } else {
-            let (mut n, mut sum_cr, mut sum_f, mut sum_f2) = (0usize, 0.0, 0.0, 0.0);
-            for (i, &v) in values.iter().enumerate() {
-                if v < self.values[i] {
-                    self.archive_parent(i);
-                    self.values[i] = v;
-                    let (pop, trials) = (&mut self.pop, &self.trials);
-                    pop[i].copy_from_slice(&trials[i]);
-                    n += 1;
-                    sum_cr += self.cr_i[i];
-                    sum_f += self.f_i[i];
-                    sum_f2 += self.f_i[i] * self.f_i[i];
-                }
+            if cfg.archive {
+                let slot = if *archive_len < cfg.np {
+                    *archive_len += 1;
+                    *archive_len - 1
+                } else {
+                    rng.gen_range(0..cfg.np)
+                };
+                archive[slot].copy_from_slice(parent);
             }
-            if n > 0 {
-                let c = self.cfg.c;
-                self.mu_cr = (1.0 - c) * self.mu_cr + c * sum_cr / n as f64;
-                self.mu_f = (1.0 - c) * self.mu_f + c * sum_f2 / sum_f;
-            }
-            self.generation += 1;
+            n += 1;
+            sum_cr += cr_i[i];
+            sum_f += f_i[i];
+            sum_f2 += f_i[i] * f_i[i];
+            true
+        });
+        if n > 0 {
+            let c = self.cfg.c;
+            self.mu_cr = (1.0 - c) * self.mu_cr + c * sum_cr / n as f64;
+            self.mu_f = (1.0 - c) * self.mu_f + c * sum_f2 / sum_f;
         }
-        self.best = (0..self.cfg.np)
-            .min_by(|&a, &b| self.values[a].total_cmp(&self.values[b]))
-            .unwrap_or(0);
     }
 
     fn best(&self) -> (&[f64], f64) {
-        (&self.pop[self.best], self.values[self.best])
+        self.g.best()
     }
 
     fn generation(&self) -> usize {
-        self.generation
+        self.g.generation
     }
 
     fn evaluations(&self) -> usize {
-        self.evaluations
+        self.g.evaluations
     }
 
     fn converged(&self) -> bool {
@@ -407,7 +371,7 @@ mod tests {
         o.ask();
         o.tell(&[10.0; 6]);
         o.ask();
-        let parents = o.pop.clone();
+        let parents = o.g.pop.clone();
         let (f, cr) = (o.f_i.clone(), o.cr_i.clone());
         o.tell(&[1.0; 6]);
         let lehmer = f.iter().map(|v| v * v).sum::<f64>() / f.iter().sum::<f64>();
