@@ -71,7 +71,7 @@ impl Wires {
         self.state.0.send(msg).unwrap();
         let s = self.state.1.next().unwrap().unwrap();
         let mut record = self.record.borrow_mut();
-        record.at_state(&s);
+        record.at_state(&s, s.seq);
         cyc.step(&s, tel);
         let c = Command {
             cycle: s.seq,

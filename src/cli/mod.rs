@@ -96,6 +96,10 @@ pub enum Cmd {
     /// (Re)build report.html, the one-page report of a finished run, from its directory
     /// (summary.json, scenario.json, the plots, the data files).
     Report(ReportArgs),
+    /// Play a recorded run (its run.mcap) into a controller over the run's iceoryx2 topics, in
+    /// the plant's place, and compare its commands with the recorded ones (replay.json,
+    /// replay.csv, replay.png); `--scenario FILE` tries another controller on the recorded data.
+    Replay(crate::node::replay::ReplayArgs),
 }
 
 #[derive(clap::Args)]
@@ -193,6 +197,7 @@ pub fn main() -> ExitCode {
             }
         },
         Some(Cmd::Soak(a)) => soak::main(a),
+        Some(Cmd::Replay(a)) => ExitCode::from(crate::node::replay::main(&a) as u8),
     }
 }
 

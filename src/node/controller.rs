@@ -195,7 +195,7 @@ impl Loop {
         period_ns: u64,
     ) -> Result<(), IpcError> {
         if let Some(r) = self.record.as_mut() {
-            r.at_state(state);
+            r.at_state(state, self.cycle.next_cycle());
         }
         while let Some(p) = ports.params.next()? {
             self.cycle.offer(&p);

@@ -73,11 +73,23 @@ pub fn measure_floor(
     .unwrap_or_default()
 }
 
+/// The options every process of a run takes (`ProcessArgs`), before the overrides.
+pub(crate) fn process_args(config: &Path, run_id: &str, ipc_prefix: &str) -> Vec<String> {
+    vec![
+        "--config".to_string(),
+        config.display().to_string(),
+        "--run-id".into(),
+        run_id.into(),
+        "--ipc-prefix".into(),
+        ipc_prefix.into(),
+    ]
+}
+
 /// Start the process `name` (`evoloop-plant`, ...) of a run: this very executable with the role as
 /// its subcommand, so a run needs nothing but the `evoloop` binary (`cargo run` builds only the
 /// binary it runs). argv[0] is the process's name, so `ps`, `pgrep -f evoloop-plant` and the
 /// tests see `evoloop-plant ...` as they would the stand-alone binary.
-fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Child> {
+pub(crate) fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Child> {
     use std::os::unix::process::CommandExt;
     let role = name.trim_start_matches("evoloop-");
     let mut cmd = std::process::Command::new(std::env::current_exe()?);
@@ -386,14 +398,7 @@ pub fn run(a: RunArgs) -> ExitCode {
     let config = std::fs::canonicalize(&file).unwrap_or(file.clone());
     let mut child_ov = a.overrides.clone();
     child_ov.out = Some(dir.clone());
-    let mut args = vec![
-        "--config".to_string(),
-        config.display().to_string(),
-        "--run-id".into(),
-        run_id.clone(),
-        "--ipc-prefix".into(),
-        a.ipc_prefix.clone(),
-    ];
+    let mut args = process_args(&config, &run_id, &a.ipc_prefix);
     args.extend(child_ov.to_args());
     let names = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
     let plant = names

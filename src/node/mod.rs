@@ -9,4 +9,5 @@ pub mod controller;
 pub mod launcher;
 pub mod optimiser;
 pub mod plant;
+pub mod replay;
 pub mod start;

@@ -8,6 +8,7 @@ pub mod metrics;
 pub mod plot;
 pub mod progress;
 pub mod record;
+pub mod recording;
 pub mod scan;
 pub mod seeds_study;
 pub mod stats;

@@ -12,7 +12,8 @@
 //!
 //! Log time is the sample's stamp (CLOCK_MONOTONIC ns, `stamp_ns` of the state, the command's
 //! own for commands and telemetry); parameter sets and estimates carry no stamp of their own and
-//! are logged at the stamp of the state of the cycle that received them. In realtime the states
+//! are logged at the stamp of the state of the cycle that received them, with that cycle's
+//! number (`cycle`, as in its command) in the message. In realtime the states
 //! are those the controller used (the latest at each cycle), which is what a replay into a
 //! controller needs.
 
@@ -49,10 +50,13 @@ pub struct Recorded {
 /// The recorder's end in the control cycle.
 pub struct Recorder {
     cycles: SyncSender<Cycle>,
-    params: SyncSender<(u64, ParamSet)>,
-    estimates: SyncSender<(u64, ModelEstimate)>,
-    /// The stamp params and estimates are logged at: the current cycle's state's.
+    params: SyncSender<(u64, u64, ParamSet)>,
+    estimates: SyncSender<(u64, u64, ModelEstimate)>,
+    /// The stamp params and estimates are logged at (the current cycle's state's) and the
+    /// cycle's number, which they carry: a state used by two cycles (realtime, the plant late)
+    /// has one stamp, and a replay needs to know which of the two took the set.
     stamp_ns: u64,
+    cycle: u64,
     wait_when_full: bool,
     dropped: u64,
     done: Arc<AtomicBool>,
@@ -136,6 +140,7 @@ impl Recorder {
             params,
             estimates,
             stamp_ns: 0,
+            cycle: 0,
             wait_when_full: lockstep,
             dropped: 0,
             done,
@@ -161,16 +166,17 @@ impl Recorder {
         }
     }
 
-    /// The state a cycle starts from: later sets and estimates of the cycle are logged at its
-    /// stamp.
-    pub fn at_state(&mut self, state: &PlantState) {
+    /// The state cycle `cycle` starts from: later sets and estimates of the cycle are logged at
+    /// its stamp, with the cycle's number.
+    pub fn at_state(&mut self, state: &PlantState, cycle: u64) {
         self.stamp_ns = state.stamp_ns;
+        self.cycle = cycle;
     }
 
     pub fn params(&mut self, set: &ParamSet) {
         Self::put(
             &self.params,
-            (self.stamp_ns, *set),
+            (self.stamp_ns, self.cycle, *set),
             self.wait_when_full,
             &mut self.dropped,
         );
@@ -179,7 +185,7 @@ impl Recorder {
     pub fn estimate(&mut self, e: &ModelEstimate) {
         Self::put(
             &self.estimates,
-            (self.stamp_ns, *e),
+            (self.stamp_ns, self.cycle, *e),
             self.wait_when_full,
             &mut self.dropped,
         );
@@ -242,8 +248,8 @@ fn write_all<W: std::io::Write + std::io::Seek>(
     mut w: mcap::Writer<W>,
     path: &Path,
     cycles: Receiver<Cycle>,
-    params: Receiver<(u64, ParamSet)>,
-    estimates: Receiver<(u64, ModelEstimate)>,
+    params: Receiver<(u64, u64, ParamSet)>,
+    estimates: Receiver<(u64, u64, ModelEstimate)>,
     done: &AtomicBool,
 ) -> Recorded {
     let mut r = Recorded::default();
@@ -276,14 +282,14 @@ fn write_all<W: std::io::Write + std::io::Seek>(
             json_telemetry(&mut buf, &c.telemetry);
             put(&mut w, &mut r, 2, c.command.stamp_ns, &buf);
         }
-        while let Ok((stamp, p)) = params.try_recv() {
+        while let Ok((stamp, cycle, p)) = params.try_recv() {
             any = true;
-            json_params(&mut buf, &p);
+            json_params(&mut buf, &p, cycle);
             put(&mut w, &mut r, 3, stamp, &buf);
         }
-        while let Ok((stamp, e)) = estimates.try_recv() {
+        while let Ok((stamp, cycle, e)) = estimates.try_recv() {
             any = true;
-            json_estimate(&mut buf, &e);
+            json_estimate(&mut buf, &e, cycle);
             put(&mut w, &mut r, 4, stamp, &buf);
         }
         if finishing && !any {
@@ -398,9 +404,11 @@ fn json_telemetry(buf: &mut Vec<u8>, t: &Telemetry) {
     end(buf);
 }
 
-fn json_params(buf: &mut Vec<u8>, p: &ParamSet) {
+/// A set and the controller cycle that received it.
+fn json_params(buf: &mut Vec<u8>, p: &ParamSet, cycle: u64) {
     buf.clear();
     buf.push(b'{');
+    int(buf, "cycle", cycle);
     int(buf, "version", p.version);
     int(buf, "apply_at_seq", p.apply_at_seq);
     field(buf, "expected_cost", p.expected_cost);
@@ -415,9 +423,11 @@ fn json_params(buf: &mut Vec<u8>, p: &ParamSet) {
     end(buf);
 }
 
-fn json_estimate(buf: &mut Vec<u8>, e: &ModelEstimate) {
+/// An estimate and the controller cycle that took it.
+fn json_estimate(buf: &mut Vec<u8>, e: &ModelEstimate, cycle: u64) {
     buf.clear();
     buf.push(b'{');
+    int(buf, "cycle", cycle);
     field(buf, "t", e.t);
     field(buf, "value", e.value);
     field(buf, "std", e.std);
@@ -445,11 +455,11 @@ fn schema(topic: &str) -> String {
             "Controller telemetry (timing, tracking, parameter events)"
         }
         "params" => {
-            json_params(&mut buf, &ParamSet::default());
+            json_params(&mut buf, &ParamSet::default(), 0);
             "Parameter set received by the controller"
         }
         _ => {
-            json_estimate(&mut buf, &ModelEstimate::default());
+            json_estimate(&mut buf, &ModelEstimate::default(), 0);
             "Model estimate taken by the controller"
         }
     };

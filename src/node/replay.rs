@@ -1,0 +1,439 @@
+//! `evoloop replay RUN.mcap`: a recorded run played into a controller over the run's iceoryx2
+//! topics, in the plant's place.
+//!
+//! The replay starts a controller process of the recording's scenario (or of `--scenario FILE`,
+//! to try another controller on the recorded plant data) in lockstep, then, for each recorded
+//! cycle in order: the parameter sets and model estimates the live controller received in that
+//! cycle (published just before, so the controller takes them in the same cycle), then the
+//! recorded state; it waits for the controller's command on that state and compares it with the
+//! recorded one. At the end an end-of-run state stops the controller, which writes its own
+//! run.csv, controller.json and run.mcap in the output directory.
+//!
+//! A recording of a lockstep run replayed into its own scenario gives the live commands bit for
+//! bit (tests/replay.rs). A realtime recording holds the states each cycle used (the latest
+//! one, the same one twice when the plant was late); its commands match too unless a set or
+//! estimate reached the live controller between samples in a way the recording does not pin.
+//!
+//! `--speed S` paces the states at S times real time by their own time t (1: as the plant ran,
+//! also for a lockstep recording, whose stamps only say how fast the machine was), so a viewer
+//! on the topics sees the run at its pace; without it the replay runs as fast as the controller
+//! answers.
+
+use crate::config::{Mode, Overrides, Scenario};
+use crate::ipc::{Doorbell, Ipc, Pub, Sub, Topic, Waited};
+use crate::msg::{Command, ModelEstimate, ParamSet, PlantState, STATE_FLAG_END};
+use crate::node::launcher::{process_args, signal, spawn_process};
+use crate::node::start::stop_flag;
+use crate::report::plot::{stacked_png, Panel, Series};
+use crate::report::recording::{Received, Recording};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::process::Child;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args)]
+pub struct ReplayArgs {
+    /// The recording: a run's run.mcap.
+    pub file: PathBuf,
+    /// The controller's scenario [default: the recording's own, named in its metadata]. Another
+    /// file tries another controller (gains, law) on the recorded plant data.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Play at this multiple of real time, by the states' own time t (1: a 10 s run takes 10 s,
+    /// lockstep recordings too) [default: as fast as the controller answers].
+    #[arg(long, value_parser = parse_speed)]
+    pub speed: Option<f64>,
+    /// Output directory: replay.json, replay.csv, replay.png and the controller's own files
+    /// [default: replay/ beside the recording].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Run id of the replay's services (default: generated, unique on this machine).
+    #[arg(long)]
+    pub run_id: Option<String>,
+    /// Prefix of iceoryx2's files.
+    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX)]
+    pub ipc_prefix: String,
+    /// Print replay.json on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress lines.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+fn parse_speed(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v <= 1e6 => Ok(v),
+        _ => Err(format!("{s:?}: a speed in (0, 1e6], e.g. 1 (as recorded)")),
+    }
+}
+
+/// The first cycle whose replayed command differs from the recorded one.
+#[derive(Debug, Serialize)]
+pub struct Mismatch {
+    pub cycle: usize,
+    pub state_seq: u64,
+    pub t: f64,
+    pub recorded: Vec<f64>,
+    pub replayed: Vec<f64>,
+}
+
+/// replay.json.
+#[derive(Debug, Serialize)]
+pub struct ReplayReport {
+    pub recording: String,
+    pub scenario: String,
+    pub speed: Option<f64>,
+    pub states: usize,
+    pub params_sent: usize,
+    pub estimates_sent: usize,
+    /// Cycles whose recorded command exists to compare with.
+    pub commands_compared: usize,
+    /// Of those, replayed commands equal to the recorded ones bit for bit.
+    pub commands_equal: usize,
+    pub max_abs_diff: f64,
+    pub first_mismatch: Option<Mismatch>,
+    pub wall_s: f64,
+}
+
+struct Ports {
+    ready: Doorbell,
+    state: Pub<PlantState>,
+    params: Pub<ParamSet>,
+    estimate: Pub<ModelEstimate>,
+    command: Sub<Command>,
+}
+
+/// `evoloop replay`: exit code 0 when the recording was played through (whether or not the
+/// commands agree: replay.json says), 2 for a bad recording or scenario, 1 when the controller
+/// failed.
+pub fn main(a: &ReplayArgs) -> i32 {
+    match replay(a) {
+        Ok(r) => {
+            if a.json {
+                crate::cli::print_json(&r);
+            } else if !a.quiet {
+                err!(
+                    "replayed {} states of {} into the controller of {}: commands equal on {} of {} \
+                     (max |du| {:e}), {:.2} s",
+                    r.states,
+                    r.recording,
+                    r.scenario,
+                    r.commands_equal,
+                    r.commands_compared,
+                    r.max_abs_diff,
+                    r.wall_s
+                );
+            }
+            0
+        }
+        Err((code, e)) => {
+            err!("error: {e}");
+            code
+        }
+    }
+}
+
+fn replay(a: &ReplayArgs) -> Result<ReplayReport, (i32, String)> {
+    let bad = |e: String| (2, e);
+    let rec = Recording::read(&a.file).map_err(bad)?;
+    if rec.states.is_empty() {
+        return Err(bad(format!("{}: no states recorded", a.file.display())));
+    }
+    let config = match &a.scenario {
+        Some(f) => f.clone(),
+        None => PathBuf::from(rec.meta("config").unwrap_or_default()),
+    };
+    if !config.is_file() {
+        return Err(bad(format!(
+            "{}: the recording's scenario {} is not here; name one with --scenario FILE",
+            a.file.display(),
+            config.display()
+        )));
+    }
+    let seed = match rec.meta("seed").map(str::parse::<u64>) {
+        Some(Ok(s)) => Some(s),
+        _ => None,
+    };
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| a.file.parent().unwrap_or(Path::new(".")).join("replay"));
+    let ov = Overrides {
+        mode: Some(Mode::Lockstep),
+        seed,
+        out: Some(out.clone()),
+        ..Default::default()
+    };
+    let scn = Scenario::load(&config, &ov).map_err(|e| bad(e.to_string()))?;
+    let n_u = scn.build_plant().n_inputs();
+    if let Some(c) = rec.commands.first() {
+        if c.n_u as usize != n_u {
+            return Err(bad(format!(
+                "{} has {n_u} inputs, the recording's commands {}: not the same plant",
+                config.display(),
+                c.n_u
+            )));
+        }
+    }
+    std::fs::create_dir_all(&out).map_err(|e| bad(format!("{}: {e}", out.display())))?;
+    for f in ["replay.json", "replay.csv", "replay.png"] {
+        let _ = std::fs::remove_file(out.join(f));
+    }
+
+    let run_id = a.run_id.clone().unwrap_or_else(|| {
+        format!(
+            "replay-{}-{:x}",
+            std::process::id(),
+            crate::rt::now_ns() & 0xffff_ffff
+        )
+    });
+    let stop = stop_flag();
+    let io = |e: crate::ipc::IpcError| (1, e.to_string());
+    let ipc = Ipc::new("evoloop-replay", &run_id, &a.ipc_prefix).map_err(io)?;
+    let ports = Ports {
+        ready: ipc.doorbell(Topic::Ready).map_err(io)?,
+        command: ipc.subscriber(Topic::Command, 8, true).map_err(io)?,
+        params: ipc.publisher(Topic::Params, false).map_err(io)?,
+        estimate: ipc.publisher(Topic::Estimate, false).map_err(io)?,
+        state: ipc.publisher(Topic::State, true).map_err(io)?,
+    };
+    let config_abs = std::fs::canonicalize(&config).unwrap_or(config.clone());
+    let mut args = process_args(&config_abs, &run_id, &a.ipc_prefix);
+    args.extend([
+        "--mode".into(),
+        "lockstep".into(),
+        "--out".into(),
+        out.display().to_string(),
+    ]);
+    if let Some(s) = seed {
+        args.extend(["--seed".into(), s.to_string()]);
+    }
+    let mut child = spawn_process("evoloop-controller", &args)
+        .map_err(|e| (1, format!("cannot start the controller: {e}")))?;
+    let result = play(a, &scn, &rec, &ports, &mut child, &stop);
+    // However the play ended, the controller is told the run is over and waited for.
+    let end = PlantState {
+        seq: rec.states.last().map_or(0, |s| s.seq + 1),
+        flags: STATE_FLAG_END,
+        ..Default::default()
+    };
+    let _ = ports.state.send(&end);
+    let t0 = Instant::now();
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(s)) => break Some(s),
+            Ok(None) if t0.elapsed() < Duration::from_secs(30) => {
+                std::thread::sleep(Duration::from_millis(5))
+            }
+            _ => {
+                signal(&child, libc::SIGTERM);
+                break child.wait().ok();
+            }
+        }
+    };
+    let (report, rows) = result?;
+    if !status.is_some_and(|s| s.success()) {
+        return Err((1, format!("the controller exited with {status:?}")));
+    }
+    write_outputs(&out, &report, &rows, n_u).map_err(|e| (1, e))?;
+    Ok(report)
+}
+
+/// The comparison's rows: t, state seq, recorded u, replayed u.
+type Rows = Vec<(f64, u64, Vec<f64>, Vec<f64>)>;
+
+fn play(
+    a: &ReplayArgs,
+    scn: &Scenario,
+    rec: &Recording,
+    ports: &Ports,
+    child: &mut Child,
+    stop: &AtomicBool,
+) -> Result<(ReplayReport, Rows), (i32, String)> {
+    let io = |e: crate::ipc::IpcError| (1, e.to_string());
+    // The controller is there once it has subscribed to the states and publishes commands.
+    let t0 = Instant::now();
+    while ports.state.subscribers() < 1 || ports.command.publishers() < 1 {
+        if let Ok(Some(s)) = child.try_wait() {
+            return Err((
+                1,
+                format!("the controller exited with {s} before the replay"),
+            ));
+        }
+        if stop.load(Ordering::SeqCst) || t0.elapsed() > Duration::from_secs(20) {
+            return Err((1, "the controller did not connect within 20 s".into()));
+        }
+        ports.ready.wait(Duration::from_millis(100)).map_err(io)?;
+    }
+    let spin = Duration::from_micros(scn.timing.spin_us);
+    let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
+    let t_first = rec.states[0].t;
+    let n_u = scn.build_plant().n_inputs();
+    let progress =
+        crate::report::progress::bar(rec.states.len() as u64, "replay", a.quiet || a.json);
+    let (mut pi, mut ei) = (0, 0);
+    let mut rows: Rows = Vec::with_capacity(rec.states.len());
+    let mut report = ReplayReport {
+        recording: a.file.display().to_string(),
+        scenario: a.scenario.as_ref().map_or_else(
+            || scn.source.display().to_string(),
+            |p| p.display().to_string(),
+        ),
+        speed: a.speed,
+        states: 0,
+        params_sent: 0,
+        estimates_sent: 0,
+        commands_compared: 0,
+        commands_equal: 0,
+        max_abs_diff: 0.0,
+        first_mismatch: None,
+        wall_s: 0.0,
+    };
+    let start = Instant::now();
+    for (i, state) in rec.states.iter().enumerate() {
+        if stop.load(Ordering::SeqCst) {
+            break;
+        }
+        if let Some(speed) = a.speed {
+            let due = Duration::from_secs_f64(((state.t - t_first) / speed).max(0.0));
+            if let Some(wait) = due.checked_sub(start.elapsed()) {
+                std::thread::sleep(wait);
+            }
+        }
+        // What the live controller received in this cycle, before the state that starts it: by
+        // the cycle's number where the recording has it (a state two cycles used has one stamp),
+        // else by the state's stamp.
+        let cycle = rec.commands.get(i).map(|c| c.cycle);
+        let due = |r: &Received| match (r.cycle, cycle) {
+            (Some(c), Some(now)) => c <= now,
+            _ => r.stamp_ns <= state.stamp_ns,
+        };
+        while let Some((_, p)) = rec.params.get(pi).filter(|(r, _)| due(r)) {
+            ports.params.send(p).map_err(io)?;
+            pi += 1;
+        }
+        while let Some((_, e)) = rec.estimates.get(ei).filter(|(r, _)| due(r)) {
+            ports.estimate.send(e).map_err(io)?;
+            ei += 1;
+        }
+        ports.state.send(state).map_err(io)?;
+        let cmd = match ports
+            .command
+            .wait_for(spin, timeout, stop, |c: &Command| c.state_seq == state.seq)
+            .map_err(io)?
+        {
+            Waited::Got(c) => c,
+            Waited::Stopped => break,
+            Waited::TimedOut => {
+                return Err((
+                    1,
+                    format!(
+                        "the controller did not answer state {} within {timeout:?}",
+                        state.seq
+                    ),
+                ))
+            }
+        };
+        report.states += 1;
+        let replayed = cmd.u[..n_u].to_vec();
+        let recorded = rec.commands.get(i).map(|c| c.u[..n_u].to_vec());
+        if let Some(recorded) = &recorded {
+            report.commands_compared += 1;
+            let equal = recorded
+                .iter()
+                .zip(&replayed)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            if equal {
+                report.commands_equal += 1;
+            } else if report.first_mismatch.is_none() {
+                report.first_mismatch = Some(Mismatch {
+                    cycle: i,
+                    state_seq: state.seq,
+                    t: state.t,
+                    recorded: recorded.clone(),
+                    replayed: replayed.clone(),
+                });
+            }
+            for (a, b) in recorded.iter().zip(&replayed) {
+                let d = (a - b).abs();
+                if d > report.max_abs_diff || d.is_nan() {
+                    report.max_abs_diff = d;
+                }
+            }
+        }
+        rows.push((
+            state.t,
+            state.seq,
+            recorded.unwrap_or_else(|| vec![f64::NAN; n_u]),
+            replayed,
+        ));
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+    report.params_sent = pi;
+    report.estimates_sent = ei;
+    report.wall_s = start.elapsed().as_secs_f64();
+    Ok((report, rows))
+}
+
+/// replay.json, replay.csv (t, seq, recorded and replayed command) and replay.png (both
+/// commands over time, and their difference).
+fn write_outputs(out: &Path, r: &ReplayReport, rows: &Rows, n_u: usize) -> Result<(), String> {
+    crate::report::write_json(out, "replay.json", r).map_err(|e| e.to_string())?;
+    let mut csv = String::from("t,state_seq");
+    for i in 0..n_u {
+        csv.push_str(&format!(",u{i}_recorded"));
+    }
+    for i in 0..n_u {
+        csv.push_str(&format!(",u{i}_replayed"));
+    }
+    csv.push('\n');
+    for (t, seq, rec, rep) in rows {
+        csv.push_str(&format!("{t},{seq}"));
+        for v in rec.iter().chain(rep) {
+            csv.push(',');
+            csv.push_str(&v.to_string());
+        }
+        csv.push('\n');
+    }
+    let path = out.join("replay.csv");
+    std::fs::write(&path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
+    let t: Vec<f64> = rows.iter().map(|r| r.0).collect();
+    let recorded: Vec<f64> = rows.iter().map(|r| r.2[0]).collect();
+    let replayed: Vec<f64> = rows.iter().map(|r| r.3[0]).collect();
+    let diff: Vec<f64> = rows.iter().map(|r| r.3[0] - r.2[0]).collect();
+    let title = format!(
+        "replay: commands equal on {} of {} cycles (max |du| {:e})",
+        r.commands_equal, r.commands_compared, r.max_abs_diff
+    );
+    stacked_png(
+        &out.join("replay.png"),
+        &title,
+        &t,
+        &[
+            Panel {
+                series: &[
+                    Series {
+                        name: "u0 recorded",
+                        values: &recorded,
+                    },
+                    Series {
+                        name: "u0 replayed",
+                        values: &replayed,
+                    },
+                ],
+                label: "command u0",
+            },
+            Panel {
+                series: &[Series {
+                    name: "replayed - recorded",
+                    values: &diff,
+                }],
+                label: "difference",
+            },
+        ],
+        &[],
+    )
+}

@@ -1,0 +1,263 @@
+//! Reading `run.mcap` back (the writer is `super::record`): the run's metadata and its messages
+//! as the typed messages the processes exchanged, for `evoloop replay`.
+//!
+//! The messages are the flat JSON objects `record` writes (integers, numbers or null, arrays of
+//! numbers). They are read here by a small reader of exactly that form rather than serde_json:
+//! numbers go through Rust's `str::parse`, which is correctly rounded, so every recorded f64
+//! comes back bit for bit (serde_json without `float_roundtrip` can be an ulp off, and that
+//! feature would change how the whole crate reads JSON). null reads as NaN.
+
+use crate::msg::{Command, ModelEstimate, ParamSet, PlantState};
+use crate::{MAX_JOINTS, MAX_PARAMS, MAX_STATES};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A recorded run: the `evoloop` metadata record and the messages of each topic in the order
+/// they were written. Parameter sets and estimates carry when the controller took them.
+#[derive(Debug, Default)]
+pub struct Recording {
+    pub metadata: BTreeMap<String, String>,
+    pub states: Vec<PlantState>,
+    pub commands: Vec<Command>,
+    pub params: Vec<(Received, ParamSet)>,
+    pub estimates: Vec<(Received, ModelEstimate)>,
+}
+
+/// When the controller took a set or an estimate: the stamp of the state of that cycle, and
+/// the cycle's number (recordings before the number was written have none).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Received {
+    pub stamp_ns: u64,
+    pub cycle: Option<u64>,
+}
+
+impl Recording {
+    /// Read `path`; the error names the file and what is wrong.
+    pub fn read(path: &Path) -> Result<Self, String> {
+        let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+        let bytes = std::fs::read(path).map_err(|e| at(&e))?;
+        let mut r = Recording::default();
+        let summary = mcap::read::Summary::read(&bytes)
+            .map_err(|e| at(&e))?
+            .ok_or_else(|| at(&"no summary section (was the recording cut short?)"))?;
+        for index in &summary.metadata_indexes {
+            if index.name == "evoloop" {
+                let m = mcap::read::metadata(&bytes, index).map_err(|e| at(&e))?;
+                r.metadata = m.metadata;
+            }
+        }
+        if r.metadata.is_empty() {
+            return Err(at(
+                &"no `evoloop` metadata record: not a run.mcap of evoloop",
+            ));
+        }
+        for msg in mcap::MessageStream::new(&bytes).map_err(|e| at(&e))? {
+            let msg = msg.map_err(|e| at(&e))?;
+            let text = std::str::from_utf8(&msg.data).map_err(|e| at(&e))?;
+            let fields = Fields::parse(text).map_err(|e| {
+                at(&format!(
+                    "{} message {}: {e}",
+                    msg.channel.topic, msg.sequence
+                ))
+            })?;
+            let bad = |e: String| {
+                at(&format!(
+                    "{} message {}: {e}",
+                    msg.channel.topic, msg.sequence
+                ))
+            };
+            match msg.channel.topic.as_str() {
+                "state" => r.states.push(fields.state().map_err(bad)?),
+                "command" => r.commands.push(fields.command().map_err(bad)?),
+                "params" => r
+                    .params
+                    .push((fields.received(msg.log_time), fields.params().map_err(bad)?)),
+                "estimate" => r.estimates.push((
+                    fields.received(msg.log_time),
+                    fields.estimate().map_err(bad)?,
+                )),
+                _ => {}
+            }
+        }
+        Ok(r)
+    }
+
+    pub fn meta(&self, key: &str) -> Option<&str> {
+        self.metadata.get(key).map(String::as_str)
+    }
+}
+
+/// One flat JSON object: each key's number(s).
+struct Fields(BTreeMap<String, Vec<f64>>, BTreeMap<String, u64>);
+
+impl Fields {
+    fn parse(text: &str) -> Result<Self, String> {
+        let s = text.trim();
+        let body = s
+            .strip_prefix('{')
+            .and_then(|s| s.strip_suffix('}'))
+            .ok_or("not a JSON object")?;
+        let (mut nums, mut ints) = (BTreeMap::new(), BTreeMap::new());
+        let mut rest = body.trim_start();
+        while !rest.is_empty() {
+            let after = rest.strip_prefix('"').ok_or("expected a key")?;
+            let close = after.find('"').ok_or("unterminated key")?;
+            let key = after[..close].to_string();
+            let after = after[close + 1..]
+                .trim_start()
+                .strip_prefix(':')
+                .ok_or("expected ':'")?
+                .trim_start();
+            let (values, tail) = if let Some(a) = after.strip_prefix('[') {
+                let end = a.find(']').ok_or("unterminated array")?;
+                let items = &a[..end];
+                let values = if items.trim().is_empty() {
+                    Vec::new()
+                } else {
+                    items.split(',').map(number).collect::<Result<_, _>>()?
+                };
+                (values, &a[end + 1..])
+            } else {
+                let end = after.find(',').unwrap_or(after.len());
+                let token = after[..end].trim();
+                if let Ok(i) = token.parse::<u64>() {
+                    ints.insert(key.clone(), i);
+                }
+                (vec![number(token)?], &after[end..])
+            };
+            nums.insert(key, values);
+            let tail = tail.trim_start();
+            rest = match tail.strip_prefix(',') {
+                Some(t) => t.trim_start(),
+                None if tail.is_empty() => tail,
+                None => return Err(format!("unexpected {tail:.20}")),
+            };
+        }
+        Ok(Self(nums, ints))
+    }
+
+    fn int(&self, key: &str) -> Result<u64, String> {
+        self.1
+            .get(key)
+            .copied()
+            .ok_or_else(|| format!("no integer `{key}`"))
+    }
+
+    fn num(&self, key: &str) -> Result<f64, String> {
+        match self.0.get(key).map(Vec::as_slice) {
+            Some([x]) => Ok(*x),
+            _ => Err(format!("no number `{key}`")),
+        }
+    }
+
+    /// Array `key` into `out`; its length.
+    fn array(&self, key: &str, out: &mut [f64]) -> Result<usize, String> {
+        let v = self.0.get(key).ok_or_else(|| format!("no array `{key}`"))?;
+        if v.len() > out.len() {
+            return Err(format!(
+                "`{key}` has {} values, at most {}",
+                v.len(),
+                out.len()
+            ));
+        }
+        out[..v.len()].copy_from_slice(v);
+        Ok(v.len())
+    }
+
+    fn received(&self, log_time: u64) -> Received {
+        Received {
+            stamp_ns: log_time,
+            cycle: self.int("cycle").ok(),
+        }
+    }
+
+    fn state(&self) -> Result<PlantState, String> {
+        let mut s = PlantState {
+            seq: self.int("seq")?,
+            stamp_ns: self.int("stamp_ns")?,
+            t: self.num("t")?,
+            flags: self.int("flags")? as u32,
+            ..Default::default()
+        };
+        s.n_y = self.array("y", &mut s.y)? as u32;
+        s.n_q = self.array("q_true", &mut s.q_true)? as u32;
+        self.array("qd_true", &mut s.qd_true)?;
+        s.n_x = self.array("x_true", &mut s.x_true)? as u32;
+        self.array("u_applied", &mut s.u_applied)?;
+        debug_assert!(MAX_STATES >= s.n_x as usize && MAX_JOINTS >= s.n_q as usize);
+        Ok(s)
+    }
+
+    fn command(&self) -> Result<Command, String> {
+        let mut c = Command {
+            cycle: self.int("cycle")?,
+            state_seq: self.int("state_seq")?,
+            stamp_ns: self.int("stamp_ns")?,
+            param_version: self.int("param_version")?,
+            ..Default::default()
+        };
+        c.n_u = self.array("u", &mut c.u)? as u32;
+        Ok(c)
+    }
+
+    fn params(&self) -> Result<ParamSet, String> {
+        let mut p = ParamSet {
+            version: self.int("version")?,
+            apply_at_seq: self.int("apply_at_seq")?,
+            expected_cost: self.num("expected_cost")?,
+            until_seq: self.int("until_seq")?,
+            fallback_version: self.int("fallback_version")?,
+            kind: self.int("kind")? as u32,
+            ..Default::default()
+        };
+        p.n = self.array("values", &mut p.values)? as u32;
+        debug_assert!(p.n as usize <= MAX_PARAMS);
+        Ok(p)
+    }
+
+    fn estimate(&self) -> Result<ModelEstimate, String> {
+        Ok(ModelEstimate {
+            t: self.num("t")?,
+            value: self.num("value")?,
+            std: self.num("std")?,
+            last_version: self.int("last_version")?,
+            apply_at_seq: self.int("apply_at_seq")?,
+        })
+    }
+}
+
+/// A JSON number (exactly, by `str::parse`) or null (NaN).
+fn number(token: &str) -> Result<f64, String> {
+    let t = token.trim();
+    if t == "null" {
+        return Ok(f64::NAN);
+    }
+    t.parse::<f64>()
+        .map_err(|_| format!("`{t:.24}` is not a number"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flat_objects_read_back_exactly() {
+        let x = 0.1f64 + 0.2; // 0.30000000000000004: the shortest text must round-trip
+        let text = format!(
+            r#"{{"seq":7,"stamp_ns":18446744073709551615,"t":{x},"flags":0,"y":[{x},-1e-300],"q_true":[],"qd_true":[],"x_true":[1,2.5],"u_applied":[null]}}"#
+        );
+        let s = Fields::parse(&text).unwrap().state().unwrap();
+        assert_eq!((s.seq, s.stamp_ns), (7, u64::MAX));
+        assert_eq!(s.t.to_bits(), x.to_bits());
+        assert_eq!(s.n_y, 2);
+        assert_eq!(s.y[1], -1e-300);
+        assert_eq!((s.n_q, s.n_x), (0, 2));
+        assert!(s.u_applied[0].is_nan());
+        for bad in ["", "{", r#"{"seq":}"#, r#"{"y":[1,}"#, r#"{"seq":1 "t":2}"#] {
+            assert!(
+                Fields::parse(bad).and_then(|f| f.state()).is_err(),
+                "{bad:?}"
+            );
+        }
+    }
+}
