@@ -39,6 +39,7 @@ pub mod robust;
 pub mod rt;
 pub mod sim;
 pub mod soak;
+pub mod top;
 pub mod tune;
 
 /// Largest number of joints/inputs/outputs a message carries (8-joint arms fit).

@@ -81,9 +81,25 @@ pub fn rss_kib(pid: u32) -> Option<u64> {
     line.split_whitespace().nth(1)?.parse().ok()
 }
 
-/// The processes of run `run_id` (every one, the launcher included, has it as an argument:
-/// `--run-id`), by the name of their program. A zombie has no command line and is not listed.
-pub fn run_processes(run_id: &str) -> Vec<(String, u32)> {
+/// A process of evoloop's on this machine: its name (a role of the one binary, `evoloop plant
+/// ...`, counts as `evoloop-plant`), pid and arguments.
+pub struct EvoloopProcess {
+    pub name: String,
+    pub pid: u32,
+    pub args: Vec<String>,
+}
+
+impl EvoloopProcess {
+    /// The value after `flag` on its command line.
+    pub fn arg(&self, flag: &str) -> Option<&str> {
+        let i = self.args.iter().position(|a| a == flag)?;
+        self.args.get(i + 1).map(String::as_str)
+    }
+}
+
+/// Every process named in `PROCESSES`, from /proc. A zombie has no command line and is not
+/// listed.
+pub fn evoloop_processes() -> Vec<EvoloopProcess> {
     let mut out = Vec::new();
     let Ok(rd) = std::fs::read_dir("/proc") else {
         return out;
@@ -99,15 +115,11 @@ pub fn run_processes(run_id: &str) -> Vec<(String, u32)> {
             .split(|b| *b == 0)
             .map(|a| String::from_utf8_lossy(a).into_owned())
             .collect();
-        if !args.iter().any(|a| a == run_id) {
-            continue;
-        }
         let Some(prog) = args.first() else { continue };
         let base = Path::new(prog)
             .file_name()
             .map(|f| f.to_string_lossy().into_owned())
             .unwrap_or_default();
-        // `evoloop plant ...` (a role of the one binary) counts as evoloop-plant.
         let name = match (base.as_str(), args.get(1).map(String::as_str)) {
             ("evoloop", Some(role @ ("plant" | "controller" | "optimiser"))) => {
                 format!("evoloop-{role}")
@@ -115,10 +127,20 @@ pub fn run_processes(run_id: &str) -> Vec<(String, u32)> {
             _ => base,
         };
         if PROCESSES.contains(&name.as_str()) {
-            out.push((name, pid));
+            out.push(EvoloopProcess { name, pid, args });
         }
     }
     out
+}
+
+/// The processes of run `run_id` (every one, the launcher included, has it as an argument:
+/// `--run-id`), by name.
+pub fn run_processes(run_id: &str) -> Vec<(String, u32)> {
+    evoloop_processes()
+        .into_iter()
+        .filter(|p| p.args.iter().any(|a| a == run_id))
+        .map(|p| (p.name, p.pid))
+        .collect()
 }
 
 /// Follows a CSV file another process appends to: each call returns the complete lines added

@@ -14,6 +14,7 @@ pub mod optim;
 pub mod rkgnn;
 pub mod robust;
 pub mod soak;
+pub mod top;
 pub mod tune;
 
 pub use crate::node::args::{
@@ -100,6 +101,10 @@ pub enum Cmd {
     /// the plant's place, and compare its commands with the recorded ones (replay.json,
     /// replay.csv, replay.png); `--scenario FILE` tries another controller on the recorded data.
     Replay(crate::node::replay::ReplayArgs),
+    /// A live terminal view of a running run: processes, the controller's rate, lateness and
+    /// misses (last second and since start), parameter sets and model estimate, a sparkline of
+    /// the tracking error; read-only (`--json`: one snapshot for scripts).
+    Top(top::TopArgs),
 }
 
 #[derive(clap::Args)]
@@ -198,6 +203,7 @@ pub fn main() -> ExitCode {
         },
         Some(Cmd::Soak(a)) => soak::main(a),
         Some(Cmd::Replay(a)) => ExitCode::from(crate::node::replay::main(&a) as u8),
+        Some(Cmd::Top(a)) => ExitCode::from(top::main(&a)),
     }
 }
 

@@ -1,0 +1,360 @@
+//! `evoloop top [--run RUN_ID]`: a live terminal view of a running run (ratatui), or one
+//! snapshot as JSON (`--json`). Read-only: subscribers on the run's telemetry, parameter-set
+//! and estimate topics (whose publishers never wait for them) and /proc; see `crate::top`.
+
+use crate::ipc::{Ipc, Sub, Topic};
+use crate::msg::{ModelEstimate, ParamSet, Telemetry};
+use crate::top::{running_runs, RunningRun, Snapshot, Watch, SPARK_SECONDS};
+use ratatui::crossterm::event::{self, Event, KeyCode, KeyModifiers};
+use ratatui::prelude::*;
+use ratatui::widgets::{Block, Borders, Paragraph, Row, Sparkline, Table};
+use std::io::IsTerminal;
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args)]
+pub struct TopArgs {
+    /// The run to watch: its run id, as `evoloop run` prints it [default: the only running run].
+    #[arg(long)]
+    pub run: Option<String>,
+    /// Print one snapshot as JSON after --duration seconds (default 2) instead of the screen.
+    #[arg(long)]
+    pub json: bool,
+    /// Seconds to watch, then quit [default: until q, Esc or Ctrl-C, or the run ends].
+    #[arg(long, value_parser = parse_duration)]
+    pub duration: Option<f64>,
+}
+
+fn parse_duration(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v <= 1e6 => Ok(v),
+        _ => Err(format!("{s:?}: seconds in (0, 1e6]")),
+    }
+}
+
+struct Ports {
+    telemetry: Sub<Telemetry>,
+    params: Sub<ParamSet>,
+    estimate: Sub<ModelEstimate>,
+}
+
+/// How often top drains its queues (64 telemetry samples: 32 kHz of cycles keep up) and how
+/// often it redraws.
+const DRAIN: Duration = Duration::from_millis(2);
+const REDRAW: Duration = Duration::from_millis(250);
+
+pub fn main(a: &TopArgs) -> u8 {
+    if !a.json && !std::io::stdout().is_terminal() {
+        err!("error: top draws on a terminal; use --json for a snapshot on a pipe");
+        return 2;
+    }
+    let run = match pick(a) {
+        Ok(r) => r,
+        Err(e) => {
+            err!("error: {e}");
+            return 2;
+        }
+    };
+    let io = |e: crate::ipc::IpcError| e.to_string();
+    // No clean-up of dead nodes from here: top changes nothing of the run's.
+    let ports = Ipc::with_cleanup("evoloop-top", &run.run_id, &run.ipc_prefix, false)
+        .and_then(|ipc| {
+            Ok(Ports {
+                telemetry: ipc.subscriber(Topic::Telemetry, 64, false)?,
+                params: ipc.subscriber(Topic::Params, 16, false)?,
+                estimate: ipc.subscriber(Topic::Estimate, 4, false)?,
+            })
+        })
+        .map_err(io);
+    let ports = match ports {
+        Ok(p) => p,
+        Err(e) => {
+            err!("error: attaching to run {}: {e}", run.run_id);
+            return 1;
+        }
+    };
+    let stop = crate::node::start::stop_flag();
+    let mut watch = Watch::new(&run.run_id);
+    let start = Instant::now();
+    // A first look at the processes, so the first snapshot's CPU % has a baseline.
+    watch.snapshot(0.0, &crate::soak::run_processes(&run.run_id));
+    if a.json {
+        let until = Duration::from_secs_f64(a.duration.unwrap_or(2.0));
+        while start.elapsed() < until && !stop.load(std::sync::atomic::Ordering::Relaxed) {
+            drain(&ports, &mut watch, start);
+            std::thread::sleep(DRAIN);
+        }
+        let procs = crate::soak::run_processes(&run.run_id);
+        crate::cli::print_json(&watch.snapshot(start.elapsed().as_secs_f64(), &procs));
+        return 0;
+    }
+    let mut terminal = ratatui::init();
+    let mut last_draw: Option<Instant> = None;
+    let mut ended_at: Option<Instant> = None;
+    let result = loop {
+        drain(&ports, &mut watch, start);
+        if last_draw.is_none_or(|t| t.elapsed() >= REDRAW) {
+            last_draw = Some(Instant::now());
+            let procs = crate::soak::run_processes(&run.run_id);
+            let running = procs.iter().any(|(n, _)| n == "evoloop-controller");
+            if !running && ended_at.is_none() {
+                ended_at = Some(Instant::now());
+            }
+            let snap = watch.snapshot(start.elapsed().as_secs_f64(), &procs);
+            if let Err(e) = terminal.draw(|f| render(f, &snap, ended_at.is_some())) {
+                break Err(e.to_string());
+            }
+        }
+        // The run has ended: its last figures stay on screen for two seconds.
+        if ended_at.is_some_and(|t| t.elapsed() > Duration::from_secs(2))
+            || a.duration
+                .is_some_and(|d| start.elapsed().as_secs_f64() >= d)
+            || stop.load(std::sync::atomic::Ordering::Relaxed)
+        {
+            break Ok(());
+        }
+        match event::poll(DRAIN) {
+            Ok(true) => {
+                if let Ok(Event::Key(k)) = event::read() {
+                    let ctrl_c =
+                        k.modifiers.contains(KeyModifiers::CONTROL) && k.code == KeyCode::Char('c');
+                    if ctrl_c || matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) {
+                        break Ok(());
+                    }
+                }
+            }
+            Ok(false) => {}
+            Err(e) => break Err(e.to_string()),
+        }
+    };
+    ratatui::restore();
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            err!("error: {e}");
+            1
+        }
+    }
+}
+
+/// The run to watch: `--run`, or the only one running.
+fn pick(a: &TopArgs) -> Result<RunningRun, String> {
+    let runs = running_runs();
+    let ids = || {
+        runs.iter()
+            .map(|r| r.run_id.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match &a.run {
+        Some(id) => runs
+            .iter()
+            .find(|r| &r.run_id == id)
+            .cloned()
+            .ok_or_else(|| {
+                if runs.is_empty() {
+                    format!("no run `{id}` is running (no evoloop run is)")
+                } else {
+                    format!("no run `{id}` is running (running: {})", ids())
+                }
+            }),
+        None => match runs.len() {
+            0 => Err("no evoloop run is running (start one with `evoloop run`)".into()),
+            1 => Ok(runs[0].clone()),
+            _ => Err(format!(
+                "several runs are running, name one with --run: {}",
+                ids()
+            )),
+        },
+    }
+}
+
+fn drain(p: &Ports, w: &mut Watch, start: Instant) {
+    let at = start.elapsed().as_secs_f64();
+    while let Ok(Some(t)) = p.telemetry.next() {
+        w.telemetry(&t, at);
+    }
+    while let Ok(Some(s)) = p.params.next() {
+        w.params(&s);
+    }
+    while let Ok(Some(e)) = p.estimate.next() {
+        w.estimate(&e);
+    }
+}
+
+fn us(ns: i64) -> String {
+    format!("{:.1} us", ns as f64 / 1e3)
+}
+
+/// The screen: a title line, the processes, the controller and parameter panels, the tracking
+/// error's sparkline.
+pub fn render(f: &mut Frame, s: &Snapshot, ended: bool) {
+    let rows = s.processes.len().max(1) as u16 + 3;
+    let [title, procs, panels, spark] = Layout::vertical([
+        Constraint::Length(1),
+        Constraint::Length(rows),
+        Constraint::Length(9),
+        Constraint::Min(4),
+    ])
+    .areas(f.area());
+    let status = if ended { "  RUN ENDED" } else { "" };
+    f.render_widget(
+        Paragraph::new(format!(
+            "evoloop top  run {}  t = {:.2} s  attached {:.0} s  (q quits){status}",
+            s.run_id, s.controller.t, s.attached_s
+        ))
+        .style(Style::default().add_modifier(Modifier::BOLD)),
+        title,
+    );
+    let table = Table::new(
+        s.processes.iter().map(|p| {
+            Row::new(vec![
+                p.name.clone(),
+                p.pid.to_string(),
+                p.state.clone(),
+                format!("{:.0} %", p.cpu_pct),
+                format!("{:.1} MiB", p.rss_kib as f64 / 1024.0),
+            ])
+        }),
+        [
+            Constraint::Length(20),
+            Constraint::Length(8),
+            Constraint::Length(6),
+            Constraint::Length(8),
+            Constraint::Length(10),
+        ],
+    )
+    .header(
+        Row::new(vec!["process", "pid", "state", "CPU", "RSS"])
+            .style(Style::default().add_modifier(Modifier::BOLD)),
+    )
+    .block(Block::default().borders(Borders::ALL).title(" processes "));
+    f.render_widget(table, procs);
+
+    let [left, right] =
+        Layout::horizontal([Constraint::Percentage(55), Constraint::Percentage(45)]).areas(panels);
+    let c = &s.controller;
+    let l = &c.lateness_last_s;
+    let controller = format!(
+        "cycles {}  ({:.0} Hz; plant {:.0} Hz)\n\
+         lateness last s: p50 {}  p99 {}  p99.9 {}  max {}\n\
+         compute last s: p50 {}  p99 {}\n\
+         missed  last s {}  total {}\n\
+         overruns last s {}  total {}\n\
+         cycles seen last s {}  (telemetry received {})",
+        c.cycles,
+        c.cycle_rate_hz,
+        s.plant_sample_rate_hz,
+        us(l.p50_ns),
+        us(l.p99_ns),
+        us(l.p99_9_ns),
+        us(l.max_ns),
+        us(c.compute_last_s.p50_ns),
+        us(c.compute_last_s.p99_ns),
+        c.missed_last_s,
+        c.missed_total,
+        c.overruns_last_s,
+        c.overruns_total,
+        c.seen_last_s,
+        s.telemetry_received,
+    );
+    f.render_widget(
+        Paragraph::new(controller)
+            .block(Block::default().borders(Borders::ALL).title(" controller ")),
+        left,
+    );
+    let p = &s.params;
+    let mut text = format!(
+        "version in service {}\naccepted {}  rejected {}  (seen)\nsets published {}",
+        p.version_in_service, p.accepted_seen, p.rejected_seen, p.sets_seen
+    );
+    if let Some(v) = p.last_set_version {
+        text.push_str(&format!("  last v{v}"));
+        if let Some(cost) = p.last_set_expected_cost {
+            text.push_str(&format!(", expected cost {cost:.4}"));
+        }
+    }
+    match &s.estimate {
+        Some(e) => text.push_str(&format!(
+            "\nmodel estimate {:.4} +- {:.4} (t {:.1} s, {} seen)",
+            e.value, e.std, e.t, e.seen
+        )),
+        None => text.push_str("\nmodel estimate: none published"),
+    }
+    f.render_widget(
+        Paragraph::new(text).block(Block::default().borders(Borders::ALL).title(" parameters ")),
+        right,
+    );
+    let max = s
+        .tracking_sparkline
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max);
+    let data: Vec<u64> = s
+        .tracking_sparkline
+        .iter()
+        .map(|v| {
+            if v.is_finite() && max > 0.0 {
+                (v / max * 1000.0) as u64
+            } else {
+                0
+            }
+        })
+        .collect();
+    f.render_widget(
+        Sparkline::default()
+            .block(Block::default().borders(Borders::ALL).title(format!(
+                " |tracking error|, last {SPARK_SECONDS:.0} s of run time (max {max:.3e}) "
+            )))
+            .data(&data),
+        spark,
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ratatui::backend::TestBackend;
+
+    #[test]
+    fn the_screen_shows_the_snapshot_s_figures() {
+        let mut w = Watch::new("run42");
+        for k in 0..500u64 {
+            let t = Telemetry {
+                cycle: k,
+                state_seq: k,
+                t: k as f64 * 1e-3,
+                lateness_ns: 12_300,
+                missed: 7,
+                param_version: 3,
+                tracking_error: (k as f64 * 0.01).sin(),
+                ..Default::default()
+            };
+            w.telemetry(&t, k as f64 * 1e-3);
+        }
+        let snap = w.snapshot(0.5, &[("evoloop-top-test".into(), std::process::id())]);
+        let mut terminal = Terminal::new(TestBackend::new(110, 30)).unwrap();
+        terminal.draw(|f| render(f, &snap, false)).unwrap();
+        let text: String = terminal
+            .backend()
+            .buffer()
+            .content()
+            .iter()
+            .map(|c| c.symbol())
+            .collect();
+        for needle in [
+            "run run42",
+            "cycles 500",
+            "p50 12.3 us",
+            "total 7",
+            "version in service 3",
+            "evoloop-top-test",
+            "tracking error",
+        ] {
+            assert!(
+                text.contains(needle),
+                "{needle:?} not on the screen:\n{text}"
+            );
+        }
+    }
+}

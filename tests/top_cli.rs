@@ -1,0 +1,88 @@
+//! `evoloop top`: attaches read-only to a running realtime run and reports what the run's own
+//! report then confirms; refuses a run that is not there, and a screen without a terminal.
+
+mod common;
+use common::{alone, cli, evoloop, unique, wait_exit};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+#[test]
+fn top_attaches_to_a_running_run_and_its_snapshot_is_the_run_s() {
+    let _g = alone();
+    let (prefix, id) = unique("top");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    let mut run = Command::new(evoloop())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "run",
+            "config/two_mass_indirect.toml",
+            "--mode",
+            "realtime",
+            "--no-rt",
+            "--duration",
+            "6",
+            "--run-id",
+            &id,
+            "--ipc-prefix",
+            &prefix,
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(2));
+    let o = cli(&["top", "--run", &id, "--json", "--duration", "1.5"]);
+    let status = wait_exit(&mut run, Duration::from_secs(60));
+    assert!(status.success(), "the run failed with top attached");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(s["run_id"], id.as_str());
+    let names: Vec<&str> = s["processes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    for p in ["evoloop-controller", "evoloop-plant", "evoloop-optimiser"] {
+        assert!(names.contains(&p), "{p} not in {names:?}");
+    }
+    let c = &s["controller"];
+    // Attached from about 2 s to 3.5 s of a 1 kHz run.
+    let cycles = c["cycles"].as_u64().unwrap();
+    assert!((1500..=6000).contains(&cycles), "{c}");
+    let rate = c["cycle_rate_hz"].as_f64().unwrap();
+    assert!((500.0..=1500.0).contains(&rate), "{c}");
+    assert!(c["seen_last_s"].as_u64().unwrap() > 100, "{c}");
+    assert!(c["lateness_last_s"]["count"].as_u64().unwrap() > 100);
+    assert!(c["missed_total"].as_u64().unwrap() >= c["missed_last_s"].as_u64().unwrap());
+    // What top saw agrees with the run's own report: misses and the version in service only
+    // grow, so the snapshot's are at most the final ones.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!(
+        c["missed_total"].as_u64().unwrap() <= summary["deadline_misses"].as_u64().unwrap(),
+        "{c} vs {summary}"
+    );
+    assert!(
+        s["params"]["version_in_service"].as_u64().unwrap()
+            <= summary["parameter_versions"]["final_version"]
+                .as_u64()
+                .unwrap()
+    );
+    assert!(s["estimate"]["seen"].as_u64().unwrap() >= 1, "{s}");
+}
+
+#[test]
+fn a_run_that_is_not_running_and_a_screen_without_a_terminal_are_refused() {
+    let o = cli(&["top", "--run", "no-such-run-xyz", "--json"]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("no-such-run-xyz"), "{e}");
+    let o = cli(&["top"]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("terminal") && e.contains("--json"), "{e}");
+}
