@@ -282,6 +282,22 @@ pub struct OptimiserAck {
     pub through_seq: u64,
 }
 
+/// The optimiser's progress (indirect and identify schemes), published after each tuning
+/// epoch, for watchers (`evoloop top`); nothing on the control path reads it.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct OptimiserStatus {
+    /// Plant time of the last epoch.
+    pub t: f64,
+    pub epochs: u64,
+    /// Sets published so far.
+    pub published: u64,
+    /// The last epoch's best cost on the model, and the cost of the set in service there
+    /// (infinite: it loses the plant).
+    pub best_cost: f64,
+    pub in_service_cost: f64,
+}
+
 /// The optimiser's model estimate (indirect scheme), published at 10 Hz of plant time: the
 /// parameter that changes in operation (maglev: ball mass, kg; two-mass: spring constant) with
 /// its standard deviation, and the version of the last set the optimiser published.

@@ -9,7 +9,7 @@
 //! top keeps up (its queue holds 64 samples and it drains every 2 ms), a sample otherwise, and
 //! the snapshot says how many cycles it saw (`seen_last_s`).
 
-use crate::msg::{ModelEstimate, ParamCode, ParamSet, Telemetry};
+use crate::msg::{ModelEstimate, OptimiserStatus, ParamCode, ParamSet, Telemetry};
 use crate::rt::timing::Percentiles;
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -113,6 +113,17 @@ pub struct EstimateView {
     pub seen: u64,
 }
 
+/// The optimiser's last epoch (indirect and identify schemes). Costs are null when infinite
+/// (the set loses the plant).
+#[derive(Debug, Clone, Serialize)]
+pub struct OptimiserView {
+    pub epochs: u64,
+    pub published: u64,
+    pub t: f64,
+    pub best_cost: f64,
+    pub in_service_cost: f64,
+}
+
 /// Everything top shows at one moment.
 #[derive(Debug, Clone, Serialize)]
 pub struct Snapshot {
@@ -124,6 +135,7 @@ pub struct Snapshot {
     pub controller: ControllerView,
     pub params: ParamsView,
     pub estimate: Option<EstimateView>,
+    pub optimiser: Option<OptimiserView>,
     /// Mean |tracking error| per bucket over the last `SPARK_SECONDS` of run time, oldest
     /// first (NaN: no sample in the bucket).
     pub tracking_sparkline: Vec<f64>,
@@ -152,6 +164,7 @@ pub struct Watch {
     received: u64,
     params: ParamsView,
     estimate: Option<EstimateView>,
+    optimiser: Option<OptimiserView>,
     cpu: Vec<(u32, u64, f64)>,
 }
 
@@ -165,6 +178,7 @@ impl Watch {
             received: 0,
             params: ParamsView::default(),
             estimate: None,
+            optimiser: None,
             cpu: Vec::new(),
         }
     }
@@ -216,6 +230,16 @@ impl Watch {
             std: e.std,
             t: e.t,
             seen,
+        });
+    }
+
+    pub fn optimiser(&mut self, st: &OptimiserStatus) {
+        self.optimiser = Some(OptimiserView {
+            epochs: st.epochs,
+            published: st.published,
+            t: st.t,
+            best_cost: st.best_cost,
+            in_service_cost: st.in_service_cost,
         });
     }
 
@@ -284,6 +308,7 @@ impl Watch {
             controller: c,
             params: self.params.clone(),
             estimate: self.estimate.clone(),
+            optimiser: self.optimiser.clone(),
             tracking_sparkline: self.sparkline(),
         }
     }

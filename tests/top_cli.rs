@@ -73,6 +73,13 @@ fn top_attaches_to_a_running_run_and_its_snapshot_is_the_run_s() {
                 .unwrap()
     );
     assert!(s["estimate"]["seen"].as_u64().unwrap() >= 1, "{s}");
+    // Realtime epochs run back to back: several by 3.5 s, none after the run's last.
+    let epochs = s["optimiser"]["epochs"].as_u64().unwrap();
+    let optimiser: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("optimiser.json")).unwrap())
+            .unwrap();
+    assert!(epochs >= 1, "{s}");
+    assert!(epochs <= optimiser["epochs"].as_array().unwrap().len() as u64);
 }
 
 #[test]

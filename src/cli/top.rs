@@ -3,7 +3,7 @@
 //! and estimate topics (whose publishers never wait for them) and /proc; see `crate::top`.
 
 use crate::ipc::{Ipc, Sub, Topic};
-use crate::msg::{ModelEstimate, ParamSet, Telemetry};
+use crate::msg::{ModelEstimate, OptimiserStatus, ParamSet, Telemetry};
 use crate::top::{running_runs, RunningRun, Snapshot, Watch, SPARK_SECONDS};
 use ratatui::crossterm::event::{self, Event, KeyCode, KeyModifiers};
 use ratatui::prelude::*;
@@ -35,6 +35,7 @@ struct Ports {
     telemetry: Sub<Telemetry>,
     params: Sub<ParamSet>,
     estimate: Sub<ModelEstimate>,
+    status: Sub<OptimiserStatus>,
 }
 
 /// How often top drains its queues (64 telemetry samples: 32 kHz of cycles keep up) and how
@@ -62,6 +63,7 @@ pub fn main(a: &TopArgs) -> u8 {
                 telemetry: ipc.subscriber(Topic::Telemetry, 64, false)?,
                 params: ipc.subscriber(Topic::Params, 16, false)?,
                 estimate: ipc.subscriber(Topic::Estimate, 4, false)?,
+                status: ipc.subscriber(Topic::OptimiserStatus, 4, false)?,
             })
         })
         .map_err(io);
@@ -179,10 +181,36 @@ fn drain(p: &Ports, w: &mut Watch, start: Instant) {
     while let Ok(Some(e)) = p.estimate.next() {
         w.estimate(&e);
     }
+    while let Ok(Some(st)) = p.status.next() {
+        w.optimiser(&st);
+    }
 }
 
+/// Nanoseconds as microseconds, one decimal below 100 us, none above.
 fn us(ns: i64) -> String {
-    format!("{:.1} us", ns as f64 / 1e3)
+    let v = ns as f64 / 1e3;
+    if v.abs() < 100.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.0}")
+    }
+}
+
+/// About six significant digits, in scientific notation far from 1.
+fn g6(x: f64) -> String {
+    if !x.is_finite() {
+        return "lost".into();
+    }
+    let a = x.abs();
+    if a != 0.0 && !(1e-2..1e5).contains(&a) {
+        return format!("{x:.4e}");
+    }
+    let int_digits = if a < 1.0 {
+        1
+    } else {
+        a.log10().floor() as usize + 1
+    };
+    format!("{x:.*}", 6usize.saturating_sub(int_digits))
 }
 
 /// The screen: a title line, the processes, the controller and parameter panels, the tracking
@@ -231,16 +259,16 @@ pub fn render(f: &mut Frame, s: &Snapshot, ended: bool) {
     f.render_widget(table, procs);
 
     let [left, right] =
-        Layout::horizontal([Constraint::Percentage(55), Constraint::Percentage(45)]).areas(panels);
+        Layout::horizontal([Constraint::Percentage(58), Constraint::Percentage(42)]).areas(panels);
     let c = &s.controller;
     let l = &c.lateness_last_s;
     let controller = format!(
-        "cycles {}  ({:.0} Hz; plant {:.0} Hz)\n\
-         lateness last s: p50 {}  p99 {}  p99.9 {}  max {}\n\
-         compute last s: p50 {}  p99 {}\n\
-         missed  last s {}  total {}\n\
-         overruns last s {}  total {}\n\
-         cycles seen last s {}  (telemetry received {})",
+        "cycles {}  {:.0} Hz  (plant {:.0} Hz)\n\
+         lateness us  p50 {}  p99 {}  p99.9 {}  max {}\n\
+         compute us   p50 {}  p99 {}\n\
+         missed    last s {}  total {}\n\
+         overruns  last s {}  total {}\n\
+         seen {} cycles of the last s ({} in all)",
         c.cycles,
         c.cycle_rate_hz,
         s.plant_sample_rate_hz,
@@ -258,27 +286,37 @@ pub fn render(f: &mut Frame, s: &Snapshot, ended: bool) {
         s.telemetry_received,
     );
     f.render_widget(
-        Paragraph::new(controller)
-            .block(Block::default().borders(Borders::ALL).title(" controller ")),
+        Paragraph::new(controller).block(
+            Block::default()
+                .borders(Borders::ALL)
+                .title(" controller (last second) "),
+        ),
         left,
     );
     let p = &s.params;
     let mut text = format!(
-        "version in service {}\naccepted {}  rejected {}  (seen)\nsets published {}",
+        "version {} in service\naccepted {}  rejected {}  (seen)\nsets {}",
         p.version_in_service, p.accepted_seen, p.rejected_seen, p.sets_seen
     );
     if let Some(v) = p.last_set_version {
-        text.push_str(&format!("  last v{v}"));
+        text.push_str(&format!(", last v{v}"));
         if let Some(cost) = p.last_set_expected_cost {
-            text.push_str(&format!(", expected cost {cost:.4}"));
+            text.push_str(&format!(" cost {}", g6(cost)));
         }
     }
     match &s.estimate {
-        Some(e) => text.push_str(&format!(
-            "\nmodel estimate {:.4} +- {:.4} (t {:.1} s, {} seen)",
-            e.value, e.std, e.t, e.seen
+        Some(e) => text.push_str(&format!("\nestimate {} +- {}", g6(e.value), g6(e.std))),
+        None => text.push_str("\nestimate: none published"),
+    }
+    match &s.optimiser {
+        Some(o) => text.push_str(&format!(
+            "\nepoch {} at t {:.1} s\nbest {}  in service {}",
+            o.epochs,
+            o.t,
+            g6(o.best_cost),
+            g6(o.in_service_cost)
         )),
-        None => text.push_str("\nmodel estimate: none published"),
+        None => text.push_str("\noptimiser: no epoch reported"),
     }
     f.render_widget(
         Paragraph::new(text).block(Block::default().borders(Borders::ALL).title(" parameters ")),
@@ -317,6 +355,17 @@ mod tests {
     use ratatui::backend::TestBackend;
 
     #[test]
+    fn numbers_keep_about_six_digits() {
+        assert_eq!(g6(3807.1909683070953), "3807.19");
+        assert_eq!(g6(0.5011543845679101), "0.50115");
+        assert_eq!(g6(0.0045), "4.5000e-3");
+        assert_eq!(g6(2.5e7), "2.5000e7");
+        assert_eq!(g6(0.0), "0.00000");
+        assert_eq!(g6(f64::INFINITY), "lost");
+        assert_eq!((us(12_345), us(984_063)), ("12.3".into(), "984".into()));
+    }
+
+    #[test]
     fn the_screen_shows_the_snapshot_s_figures() {
         let mut w = Watch::new("run42");
         for k in 0..500u64 {
@@ -332,8 +381,15 @@ mod tests {
             };
             w.telemetry(&t, k as f64 * 1e-3);
         }
+        w.optimiser(&OptimiserStatus {
+            t: 0.4,
+            epochs: 17,
+            published: 2,
+            best_cost: 1.25,
+            in_service_cost: f64::INFINITY,
+        });
         let snap = w.snapshot(0.5, &[("evoloop-top-test".into(), std::process::id())]);
-        let mut terminal = Terminal::new(TestBackend::new(110, 30)).unwrap();
+        let mut terminal = Terminal::new(TestBackend::new(100, 28)).unwrap();
         terminal.draw(|f| render(f, &snap, false)).unwrap();
         let text: String = terminal
             .backend()
@@ -344,10 +400,13 @@ mod tests {
             .collect();
         for needle in [
             "run run42",
+            "┌ processes ─",
             "cycles 500",
-            "p50 12.3 us",
+            "p50 12.3",
             "total 7",
-            "version in service 3",
+            "version 3 in service",
+            "epoch 17 at t 0.4 s",
+            "best 1.25000  in service lost",
             "evoloop-top-test",
             "tracking error",
         ] {

@@ -41,6 +41,7 @@ zero_copy!(
     ParamSet => "evoloop::ParamSet.v1",
     OptimiserAck => "evoloop::OptimiserAck.v1",
     ModelEstimate => "evoloop::ModelEstimate.v1",
+    OptimiserStatus => "evoloop::OptimiserStatus.v1",
 );
 
 /// An IPC failure with what was being done when it happened.
@@ -92,6 +93,8 @@ pub enum Topic {
     OptimiserAck,
     /// The optimiser's online model estimate (indirect scheme).
     Estimate,
+    /// The optimiser's progress after each epoch (for watchers).
+    OptimiserStatus,
     /// Event only: a process has created all its ports.
     Ready,
     /// Event only (lockstep): the plant reached a sample the optimiser must acknowledge.
@@ -107,6 +110,7 @@ impl Topic {
             Topic::Params => "params",
             Topic::OptimiserAck => "optimiser_ack",
             Topic::Estimate => "estimate",
+            Topic::OptimiserStatus => "optimiser_status",
             Topic::Ready => "ready",
             Topic::Sync => "sync",
         }
@@ -118,7 +122,11 @@ impl Topic {
             Topic::State | Topic::Command => MAX_SYNC_SAMPLES + 8,
             Topic::Telemetry => 64,
             Topic::Params => 16,
-            Topic::OptimiserAck | Topic::Ready | Topic::Sync | Topic::Estimate => 4,
+            Topic::OptimiserAck
+            | Topic::Ready
+            | Topic::Sync
+            | Topic::Estimate
+            | Topic::OptimiserStatus => 4,
         }
     }
 }

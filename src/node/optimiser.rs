@@ -11,7 +11,9 @@
 use super::args::OptimiserArgs;
 use crate::config::{Mode, OptimiserMode, Scenario};
 use crate::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
-use crate::msg::{Command, ModelEstimate, OptimiserAck, ParamSet, PlantState, STATE_FLAG_END};
+use crate::msg::{
+    Command, ModelEstimate, OptimiserAck, OptimiserStatus, ParamSet, PlantState, STATE_FLAG_END,
+};
 use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use crate::report::history::History;
 use crate::report::summary::{OptimiserReport, PublishedSet};
@@ -28,6 +30,7 @@ struct Ports {
     sync: Doorbell,
     params: Pub<ParamSet>,
     estimate: Pub<ModelEstimate>,
+    status: Pub<OptimiserStatus>,
     ack: Pub<OptimiserAck>,
     command: Sub<Command>,
     state: Sub<PlantState>,
@@ -47,6 +50,7 @@ pub fn main(cli: &OptimiserArgs) {
             sync: ipc.doorbell(Topic::Sync)?,
             params: ipc.publisher(Topic::Params, false)?,
             estimate: ipc.publisher(Topic::Estimate, false)?,
+            status: ipc.publisher(Topic::OptimiserStatus, false)?,
             // The direct scheme waits for the command answering a boundary's last sample.
             command: ipc.subscriber(
                 Topic::Command,
@@ -142,6 +146,7 @@ fn run(
     let lead = (0.02 / dt).ceil() as u64;
     let mut published = History::new(crate::indirect::HISTORY);
     let mut last_state = Instant::now();
+    let mut status_epochs = 0;
     let io = |e: IpcError| (EXIT_SETUP, e.to_string());
     // Ends at the plant's last sample, at a stop request (a run until stopped ends so), when
     // the plant has gone or at an IPC failure; the histories go into the report in every case.
@@ -179,6 +184,24 @@ fn run(
         };
         last_state = Instant::now();
         report.states_seen += 1;
+        // Epochs that ended since the last sample, for watchers.
+        let epochs = indirect
+            .as_ref()
+            .map(|i| &i.epochs)
+            .or(live.as_ref().map(|l| &l.epochs));
+        if let Some(e) = epochs.filter(|e| e.offered() != status_epochs) {
+            status_epochs = e.offered();
+            if let Some(last) = e.last() {
+                let status = OptimiserStatus {
+                    t: last.t,
+                    epochs: status_epochs,
+                    published: published.offered(),
+                    best_cost: last.best_cost,
+                    in_service_cost: last.in_service_cost,
+                };
+                ports.status.send(&status).map_err(io)?;
+            }
+        }
         if let Some(d) = direct.as_mut() {
             d.push_state(&state);
         }
