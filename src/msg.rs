@@ -119,6 +119,14 @@ impl ParamCode {
             _ => Self::None,
         }
     }
+    /// Whether the set was refused (a trial's end or abort is not a refusal).
+    pub fn is_rejection(self) -> bool {
+        !matches!(
+            self,
+            Self::None | Self::Accepted | Self::TrialEnded | Self::TrialAborted
+        )
+    }
+
     /// Short reason for logs and reports.
     pub fn reason(self) -> &'static str {
         match self {
@@ -285,7 +293,7 @@ pub struct OptimiserAck {
 /// The optimiser's progress (indirect and identify schemes), published after each tuning
 /// epoch, for watchers (`evoloop top`); nothing on the control path reads it.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct OptimiserStatus {
     /// Plant time of the last epoch.
     pub t: f64,

@@ -19,11 +19,10 @@ pub const SPARK_SECONDS: f64 = 10.0;
 pub const SPARK_BUCKETS: usize = 100;
 
 /// A running run, as found in /proc: its controller's `--run-id` and `--ipc-prefix`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct RunningRun {
     pub run_id: String,
     pub ipc_prefix: String,
-    pub controller_pid: u32,
 }
 
 /// The runs with a live controller process of this user's.
@@ -38,7 +37,6 @@ pub fn running_runs() -> Vec<RunningRun> {
                     .arg("--ipc-prefix")
                     .unwrap_or(crate::ipc::DEFAULT_PREFIX)
                     .to_string(),
-                controller_pid: p.pid,
             })
         })
         .collect();
@@ -113,17 +111,6 @@ pub struct EstimateView {
     pub seen: u64,
 }
 
-/// The optimiser's last epoch (indirect and identify schemes). Costs are null when infinite
-/// (the set loses the plant).
-#[derive(Debug, Clone, Serialize)]
-pub struct OptimiserView {
-    pub epochs: u64,
-    pub published: u64,
-    pub t: f64,
-    pub best_cost: f64,
-    pub in_service_cost: f64,
-}
-
 /// Everything top shows at one moment.
 #[derive(Debug, Clone, Serialize)]
 pub struct Snapshot {
@@ -135,7 +122,9 @@ pub struct Snapshot {
     pub controller: ControllerView,
     pub params: ParamsView,
     pub estimate: Option<EstimateView>,
-    pub optimiser: Option<OptimiserView>,
+    /// The optimiser's last epoch (indirect and identify schemes); costs are null when
+    /// infinite (the set loses the plant).
+    pub optimiser: Option<OptimiserStatus>,
     /// Mean |tracking error| per bucket over the last `SPARK_SECONDS` of run time, oldest
     /// first (NaN: no sample in the bucket).
     pub tracking_sparkline: Vec<f64>,
@@ -164,7 +153,7 @@ pub struct Watch {
     received: u64,
     params: ParamsView,
     estimate: Option<EstimateView>,
-    optimiser: Option<OptimiserView>,
+    optimiser: Option<OptimiserStatus>,
     cpu: Vec<(u32, u64, f64)>,
 }
 
@@ -186,10 +175,11 @@ impl Watch {
     pub fn telemetry(&mut self, tel: &Telemetry, at_s: f64) {
         self.received += 1;
         if tel.param_event_version != 0 {
-            match ParamCode::from_u32(tel.param_code) {
-                ParamCode::Accepted => self.params.accepted_seen += 1,
-                ParamCode::None | ParamCode::TrialEnded | ParamCode::TrialAborted => {}
-                _ => self.params.rejected_seen += 1,
+            let code = ParamCode::from_u32(tel.param_code);
+            if code == ParamCode::Accepted {
+                self.params.accepted_seen += 1;
+            } else if code.is_rejection() {
+                self.params.rejected_seen += 1;
             }
         }
         self.params.version_in_service = tel.param_version;
@@ -234,13 +224,7 @@ impl Watch {
     }
 
     pub fn optimiser(&mut self, st: &OptimiserStatus) {
-        self.optimiser = Some(OptimiserView {
-            epochs: st.epochs,
-            published: st.published,
-            t: st.t,
-            best_cost: st.best_cost,
-            in_service_cost: st.in_service_cost,
-        });
+        self.optimiser = Some(*st);
     }
 
     /// The snapshot at `at_s`, with the run's processes (`name`, pid) read from /proc: CPU %
@@ -308,7 +292,7 @@ impl Watch {
             controller: c,
             params: self.params.clone(),
             estimate: self.estimate.clone(),
-            optimiser: self.optimiser.clone(),
+            optimiser: self.optimiser,
             tracking_sparkline: self.sparkline(),
         }
     }

@@ -159,12 +159,12 @@ impl ControlCycle {
         }
     }
 
-    /// Parameter version in service (0 = the configured initial set).
     /// The number of the next cycle `step` runs (its telemetry's and command's `cycle`).
     pub fn next_cycle(&self) -> u64 {
         self.cycle
     }
 
+    /// Parameter version in service (0 = the configured initial set).
     pub fn version(&self) -> u64 {
         self.version
     }

@@ -26,6 +26,7 @@ use crate::node::launcher::{process_args, signal, spawn_process};
 use crate::node::start::stop_flag;
 use crate::report::plot::{stacked_png, Panel, Series};
 use crate::report::recording::{Received, Recording};
+use crate::report::RunLog;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::Child;
@@ -212,7 +213,7 @@ fn replay(a: &ReplayArgs) -> Result<ReplayReport, (i32, String)> {
     }
     let mut child = spawn_process("evoloop-controller", &args)
         .map_err(|e| (1, format!("cannot start the controller: {e}")))?;
-    let result = play(a, &scn, &rec, &ports, &mut child, &stop);
+    let result = play(a, &scn, n_u, &rec, &ports, &mut child, &stop);
     // However the play ended, the controller is told the run is over and waited for.
     let end = PlantState {
         seq: rec.states.last().map_or(0, |s| s.seq + 1),
@@ -241,17 +242,17 @@ fn replay(a: &ReplayArgs) -> Result<ReplayReport, (i32, String)> {
     Ok(report)
 }
 
-/// The comparison's rows: t, state seq, recorded u, replayed u.
-type Rows = Vec<(f64, u64, Vec<f64>, Vec<f64>)>;
-
+/// Plays the recording's `n_u`-input commands through; the comparison's rows are t, state seq,
+/// the recorded u (NaN where the recording has no command), the replayed u.
 fn play(
     a: &ReplayArgs,
     scn: &Scenario,
+    n_u: usize,
     rec: &Recording,
     ports: &Ports,
     child: &mut Child,
     stop: &AtomicBool,
-) -> Result<(ReplayReport, Rows), (i32, String)> {
+) -> Result<(ReplayReport, RunLog), (i32, String)> {
     let io = |e: crate::ipc::IpcError| (1, e.to_string());
     // The controller is there once it has subscribed to the states and publishes commands.
     let t0 = Instant::now();
@@ -270,11 +271,14 @@ fn play(
     let spin = Duration::from_micros(scn.timing.spin_us);
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
     let t_first = rec.states[0].t;
-    let n_u = scn.build_plant().n_inputs();
     let progress =
         crate::report::progress::bar(rec.states.len() as u64, "replay", a.quiet || a.json);
     let (mut pi, mut ei) = (0, 0);
-    let mut rows: Rows = Vec::with_capacity(rec.states.len());
+    let mut header = vec!["t".to_string(), "state_seq".to_string()];
+    header.extend((0..n_u).map(|i| format!("u{i}_recorded")));
+    header.extend((0..n_u).map(|i| format!("u{i}_replayed")));
+    let mut rows = RunLog::new(header, rec.states.len());
+    let mut row = vec![0.0; 2 + 2 * n_u];
     let mut report = ReplayReport {
         recording: a.file.display().to_string(),
         scenario: a.scenario.as_ref().map_or_else(
@@ -297,8 +301,8 @@ fn play(
             break;
         }
         if let Some(speed) = a.speed {
-            let due = Duration::from_secs_f64(((state.t - t_first) / speed).max(0.0));
-            if let Some(wait) = due.checked_sub(start.elapsed()) {
+            let at = Duration::from_secs_f64(((state.t - t_first) / speed).max(0.0));
+            if let Some(wait) = at.checked_sub(start.elapsed()) {
                 std::thread::sleep(wait);
             }
         }
@@ -363,12 +367,15 @@ fn play(
                 }
             }
         }
-        rows.push((
-            state.t,
-            state.seq,
-            recorded.unwrap_or_else(|| vec![f64::NAN; n_u]),
-            replayed,
-        ));
+        row[0] = state.t;
+        row[1] = state.seq as f64;
+        let (rec_u, rep_u) = row[2..].split_at_mut(n_u);
+        match &recorded {
+            Some(u) => rec_u.copy_from_slice(u),
+            None => rec_u.fill(f64::NAN),
+        }
+        rep_u.copy_from_slice(&replayed);
+        rows.push(&row);
         progress.inc(1);
     }
     progress.finish_and_clear();
@@ -380,30 +387,18 @@ fn play(
 
 /// replay.json, replay.csv (t, seq, recorded and replayed command) and replay.png (both
 /// commands over time, and their difference).
-fn write_outputs(out: &Path, r: &ReplayReport, rows: &Rows, n_u: usize) -> Result<(), String> {
+fn write_outputs(out: &Path, r: &ReplayReport, rows: &RunLog, n_u: usize) -> Result<(), String> {
     crate::report::write_json(out, "replay.json", r).map_err(|e| e.to_string())?;
-    let mut csv = String::from("t,state_seq");
-    for i in 0..n_u {
-        csv.push_str(&format!(",u{i}_recorded"));
-    }
-    for i in 0..n_u {
-        csv.push_str(&format!(",u{i}_replayed"));
-    }
-    csv.push('\n');
-    for (t, seq, rec, rep) in rows {
-        csv.push_str(&format!("{t},{seq}"));
-        for v in rec.iter().chain(rep) {
-            csv.push(',');
-            csv.push_str(&v.to_string());
-        }
-        csv.push('\n');
-    }
     let path = out.join("replay.csv");
-    std::fs::write(&path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
-    let t: Vec<f64> = rows.iter().map(|r| r.0).collect();
-    let recorded: Vec<f64> = rows.iter().map(|r| r.2[0]).collect();
-    let replayed: Vec<f64> = rows.iter().map(|r| r.3[0]).collect();
-    let diff: Vec<f64> = rows.iter().map(|r| r.3[0] - r.2[0]).collect();
+    rows.write_csv(&path)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let col = |j: usize| {
+        (0..rows.len())
+            .map(|i| rows.row(i)[j])
+            .collect::<Vec<f64>>()
+    };
+    let (t, recorded, replayed) = (col(0), col(2), col(2 + n_u));
+    let diff: Vec<f64> = replayed.iter().zip(&recorded).map(|(a, b)| a - b).collect();
     let title = format!(
         "replay: commands equal on {} of {} cycles (max |du| {:e})",
         r.commands_equal, r.commands_compared, r.max_abs_diff

@@ -215,16 +215,10 @@ impl DifferentialEvolution {
         let (pop, trials) = (&g.pop, &mut g.trials);
         let (np, d, f, cr) = (cfg.np, cfg.lower.len(), cfg.f, cfg.cr);
         let (lower, upper, draws) = (&cfg.lower[..d], &cfg.upper[..d], &mut draws[..d]);
-        let pick = |exclude: &[usize], rng: &mut Xoshiro256pp| loop {
-            let r = rng.gen_range(0..np);
-            if !exclude.contains(&r) {
-                return r;
-            }
-        };
         for (i, trial) in trials.iter_mut().enumerate() {
-            let r1 = pick(&[i], rng);
-            let r2 = pick(&[i, r1], rng);
-            let r3 = pick(&[i, r1, r2], rng);
+            let r1 = pick(rng, np, &[i]);
+            let r2 = pick(rng, np, &[i, r1]);
+            let r3 = pick(rng, np, &[i, r1, r2]);
             let jrand = rng.gen_range(0..d);
             for r in draws.iter_mut() {
                 *r = rng.next_u64();
@@ -277,6 +271,16 @@ impl Crossover<'_> {
             let inside = lower[j] + redraw * (upper[j] - lower[j]);
             let m = select((m < lower[j]) | (m > upper[j]), inside, m);
             out[j] = select((u < cr) | (j == jrand), m, target[j]);
+        }
+    }
+}
+
+/// A member index uniform in 0..n other than those in `exclude` (drawn again until it is).
+pub(super) fn pick(rng: &mut Xoshiro256pp, n: usize, exclude: &[usize]) -> usize {
+    loop {
+        let r = rng.gen_range(0..n);
+        if !exclude.contains(&r) {
+            return r;
         }
     }
 }

@@ -28,7 +28,7 @@
 //!
 //! Everything is allocated at construction: a generation allocates nothing.
 
-use super::de::{select, Generations};
+use super::de::{pick, select, Generations};
 use super::rng::Xoshiro256pp;
 use super::Optimiser;
 use rand::{Rng, RngCore, SeedableRng};
@@ -73,15 +73,7 @@ impl JadeConfig {
                 self.p, self.c
             ));
         }
-        if self.lower.is_empty() || self.lower.len() != self.upper.len() {
-            return Err("bounds must have the same, non-zero length".into());
-        }
-        for (j, (l, u)) in self.lower.iter().zip(&self.upper).enumerate() {
-            if !(l.is_finite() && u.is_finite() && l < u) {
-                return Err(format!("dimension {j}: bounds [{l}, {u}] are not a box"));
-            }
-        }
-        Ok(())
+        super::swarm::check_box(&self.lower, &self.upper)
     }
 
     /// How many of the best members the p-best is drawn from.
@@ -162,19 +154,9 @@ impl Jade {
             self.f_i[i] = f;
             self.cr_i[i] = cr;
             let pbest = self.order[self.rng.gen_range(0..top)];
-            let r1 = loop {
-                let r = self.rng.gen_range(0..np);
-                if r != i {
-                    break r;
-                }
-            };
+            let r1 = pick(&mut self.rng, np, &[i]);
             // r2 indexes the population (< np) or the archive (np..np + archive_len).
-            let r2 = loop {
-                let r = self.rng.gen_range(0..np + self.archive_len);
-                if r != i && r != r1 {
-                    break r;
-                }
-            };
+            let r2 = pick(&mut self.rng, np + self.archive_len, &[i, r1]);
             let jrand = self.rng.gen_range(0..d);
             for r in self.draws.iter_mut() {
                 *r = self.rng.next_u64();

@@ -7,6 +7,23 @@ use super::rng::Xoshiro256pp;
 use super::Optimiser;
 use rand::{Rng, SeedableRng};
 
+/// A search box: as many lower as upper bounds, at least one, each pair finite and ordered.
+pub fn check_box(lower: &[f64], upper: &[f64]) -> Result<(), String> {
+    if lower.is_empty() || lower.len() != upper.len() {
+        return Err(format!(
+            "the box needs as many lower as upper bounds, at least one ({} and {})",
+            lower.len(),
+            upper.len()
+        ));
+    }
+    for (j, (l, u)) in lower.iter().zip(upper).enumerate() {
+        if !(l.is_finite() && u.is_finite() && l < u) {
+            return Err(format!("dimension {j}: bounds [{l}, {u}] are not a box"));
+        }
+    }
+    Ok(())
+}
+
 /// The settings every swarm method takes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SwarmConfig {
@@ -40,18 +57,7 @@ impl SwarmConfig {
     }
 
     pub fn validate(&self) -> Result<(), String> {
-        if self.lower.is_empty() || self.lower.len() != self.upper.len() {
-            return Err(format!(
-                "the box needs as many lower as upper bounds, at least one ({} and {})",
-                self.lower.len(),
-                self.upper.len()
-            ));
-        }
-        for (j, (l, u)) in self.lower.iter().zip(&self.upper).enumerate() {
-            if !(l.is_finite() && u.is_finite() && l < u) {
-                return Err(format!("dimension {j}: bounds [{l}, {u}] are not a box"));
-            }
-        }
+        check_box(&self.lower, &self.upper)?;
         if self.population < 4 {
             return Err(format!(
                 "population {} is too small (at least 4)",

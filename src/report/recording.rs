@@ -8,7 +8,6 @@
 //! feature would change how the whole crate reads JSON). null reads as NaN.
 
 use crate::msg::{Command, ModelEstimate, ParamSet, PlantState};
-use crate::{MAX_JOINTS, MAX_PARAMS, MAX_STATES};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -54,28 +53,27 @@ impl Recording {
         for msg in mcap::MessageStream::new(&bytes).map_err(|e| at(&e))? {
             let msg = msg.map_err(|e| at(&e))?;
             let text = std::str::from_utf8(&msg.data).map_err(|e| at(&e))?;
-            let fields = Fields::parse(text).map_err(|e| {
-                at(&format!(
-                    "{} message {}: {e}",
-                    msg.channel.topic, msg.sequence
-                ))
-            })?;
             let bad = |e: String| {
                 at(&format!(
                     "{} message {}: {e}",
                     msg.channel.topic, msg.sequence
                 ))
             };
+            // Telemetry is the controller's own output: a replay makes it again, so it is not read.
+            let fields = || Fields::parse(text).map_err(bad);
             match msg.channel.topic.as_str() {
-                "state" => r.states.push(fields.state().map_err(bad)?),
-                "command" => r.commands.push(fields.command().map_err(bad)?),
-                "params" => r
-                    .params
-                    .push((fields.received(msg.log_time), fields.params().map_err(bad)?)),
-                "estimate" => r.estimates.push((
-                    fields.received(msg.log_time),
-                    fields.estimate().map_err(bad)?,
-                )),
+                "state" => r.states.push(fields()?.state().map_err(bad)?),
+                "command" => r.commands.push(fields()?.command().map_err(bad)?),
+                "params" => {
+                    let f = fields()?;
+                    r.params
+                        .push((f.received(msg.log_time), f.params().map_err(bad)?));
+                }
+                "estimate" => {
+                    let f = fields()?;
+                    r.estimates
+                        .push((f.received(msg.log_time), f.estimate().map_err(bad)?));
+                }
                 _ => {}
             }
         }
@@ -87,45 +85,42 @@ impl Recording {
     }
 }
 
-/// One flat JSON object: each key's number(s).
-struct Fields(BTreeMap<String, Vec<f64>>, BTreeMap<String, u64>);
+/// One flat JSON object: each key's value as text (one token, or an array's tokens), read as
+/// an integer or a number when asked for.
+struct Fields<'a>(BTreeMap<&'a str, Vec<&'a str>>);
 
-impl Fields {
-    fn parse(text: &str) -> Result<Self, String> {
-        let s = text.trim();
-        let body = s
+impl<'a> Fields<'a> {
+    fn parse(text: &'a str) -> Result<Self, String> {
+        let body = text
+            .trim()
             .strip_prefix('{')
             .and_then(|s| s.strip_suffix('}'))
             .ok_or("not a JSON object")?;
-        let (mut nums, mut ints) = (BTreeMap::new(), BTreeMap::new());
+        let mut fields = BTreeMap::new();
         let mut rest = body.trim_start();
         while !rest.is_empty() {
             let after = rest.strip_prefix('"').ok_or("expected a key")?;
             let close = after.find('"').ok_or("unterminated key")?;
-            let key = after[..close].to_string();
+            let key = &after[..close];
             let after = after[close + 1..]
                 .trim_start()
                 .strip_prefix(':')
                 .ok_or("expected ':'")?
                 .trim_start();
-            let (values, tail) = if let Some(a) = after.strip_prefix('[') {
+            let (tokens, tail) = if let Some(a) = after.strip_prefix('[') {
                 let end = a.find(']').ok_or("unterminated array")?;
-                let items = &a[..end];
-                let values = if items.trim().is_empty() {
+                let items = a[..end].trim();
+                let tokens = if items.is_empty() {
                     Vec::new()
                 } else {
-                    items.split(',').map(number).collect::<Result<_, _>>()?
+                    items.split(',').map(str::trim).collect()
                 };
-                (values, &a[end + 1..])
+                (tokens, &a[end + 1..])
             } else {
                 let end = after.find(',').unwrap_or(after.len());
-                let token = after[..end].trim();
-                if let Ok(i) = token.parse::<u64>() {
-                    ints.insert(key.clone(), i);
-                }
-                (vec![number(token)?], &after[end..])
+                (vec![after[..end].trim()], &after[end..])
             };
-            nums.insert(key, values);
+            fields.insert(key, tokens);
             let tail = tail.trim_start();
             rest = match tail.strip_prefix(',') {
                 Some(t) => t.trim_start(),
@@ -133,21 +128,25 @@ impl Fields {
                 None => return Err(format!("unexpected {tail:.20}")),
             };
         }
-        Ok(Self(nums, ints))
+        Ok(Self(fields))
+    }
+
+    /// The single token of `key`.
+    fn token(&self, key: &str) -> Result<&'a str, String> {
+        match self.0.get(key).map(Vec::as_slice) {
+            Some([t]) => Ok(t),
+            _ => Err(format!("no single value `{key}`")),
+        }
     }
 
     fn int(&self, key: &str) -> Result<u64, String> {
-        self.1
-            .get(key)
-            .copied()
-            .ok_or_else(|| format!("no integer `{key}`"))
+        let t = self.token(key)?;
+        t.parse()
+            .map_err(|_| format!("`{key}`: `{t:.24}` is not an integer"))
     }
 
     fn num(&self, key: &str) -> Result<f64, String> {
-        match self.0.get(key).map(Vec::as_slice) {
-            Some([x]) => Ok(*x),
-            _ => Err(format!("no number `{key}`")),
-        }
+        number(self.token(key)?)
     }
 
     /// Array `key` into `out`; its length.
@@ -160,7 +159,9 @@ impl Fields {
                 out.len()
             ));
         }
-        out[..v.len()].copy_from_slice(v);
+        for (slot, t) in out.iter_mut().zip(v) {
+            *slot = number(t)?;
+        }
         Ok(v.len())
     }
 
@@ -184,7 +185,6 @@ impl Fields {
         self.array("qd_true", &mut s.qd_true)?;
         s.n_x = self.array("x_true", &mut s.x_true)? as u32;
         self.array("u_applied", &mut s.u_applied)?;
-        debug_assert!(MAX_STATES >= s.n_x as usize && MAX_JOINTS >= s.n_q as usize);
         Ok(s)
     }
 
@@ -211,7 +211,6 @@ impl Fields {
             ..Default::default()
         };
         p.n = self.array("values", &mut p.values)? as u32;
-        debug_assert!(p.n as usize <= MAX_PARAMS);
         Ok(p)
     }
 
@@ -228,12 +227,12 @@ impl Fields {
 
 /// A JSON number (exactly, by `str::parse`) or null (NaN).
 fn number(token: &str) -> Result<f64, String> {
-    let t = token.trim();
-    if t == "null" {
+    if token == "null" {
         return Ok(f64::NAN);
     }
-    t.parse::<f64>()
-        .map_err(|_| format!("`{t:.24}` is not a number"))
+    token
+        .parse::<f64>()
+        .map_err(|_| format!("`{token:.24}` is not a number"))
 }
 
 #[cfg(test)]
