@@ -29,6 +29,8 @@ pub mod identify;
 pub mod indirect;
 pub mod ipc;
 pub mod msg;
+#[cfg(feature = "zenoh")]
+pub mod net;
 pub mod node;
 pub mod optim;
 pub mod plant;

@@ -44,6 +44,38 @@ pub fn running_runs() -> Vec<RunningRun> {
     out
 }
 
+/// The run `run` names, or the only one running.
+pub fn pick_run(run: Option<&str>) -> Result<RunningRun, String> {
+    let runs = running_runs();
+    let ids = || {
+        runs.iter()
+            .map(|r| r.run_id.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match run {
+        Some(id) => runs
+            .iter()
+            .find(|r| r.run_id == id)
+            .cloned()
+            .ok_or_else(|| {
+                if runs.is_empty() {
+                    format!("no run `{id}` is running (no evoloop run is)")
+                } else {
+                    format!("no run `{id}` is running (running: {})", ids())
+                }
+            }),
+        None => match runs.len() {
+            0 => Err("no evoloop run is running (start one with `evoloop run`)".into()),
+            1 => Ok(runs[0].clone()),
+            _ => Err(format!(
+                "several runs are running, name one with --run: {}",
+                ids()
+            )),
+        },
+    }
+}
+
 /// Whether process `pid` is this user's (another user's runs live in their own namespace).
 fn ours(pid: u32) -> bool {
     use std::os::unix::fs::MetadataExt;

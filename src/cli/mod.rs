@@ -3,6 +3,7 @@
 //! parser lives in the library so a test can parse every command the README shows.
 
 pub mod bench;
+pub mod bridge;
 pub mod check;
 pub mod dynamics;
 pub mod floor;
@@ -105,6 +106,10 @@ pub enum Cmd {
     /// misses (last second and since start), parameter sets and model estimate, a sparkline of
     /// the tracking error; read-only (`--json`: one snapshot for scripts).
     Top(top::TopArgs),
+    /// A running run's topics on a Zenoh network (states, commands, telemetry, estimates out;
+    /// parameter sets in, validated by the controller as any other), for an optimiser on another
+    /// host (`evoloop optimiser --connect`) or a remote monitor. Needs the `zenoh` feature.
+    Bridge(bridge::BridgeArgs),
 }
 
 #[derive(clap::Args)]
@@ -122,6 +127,9 @@ pub enum BenchCmd {
     /// Nanoseconds per call of RNEA, CRBA, ABA and the CRBA forward dynamics on a robot file
     /// (the JSON scripts/pinocchio_bench.py sets beside Pinocchio's).
     Dynamics(bench::DynamicsArgs),
+    /// A parameter set's round trip (sent -> in service, seen by the sender) on the local path
+    /// and through `evoloop bridge` on loopback, on one realtime run (feature `zenoh`).
+    Bridge(bridge::BridgeBenchArgs),
     /// The peer process of `bench latency` (started by it).
     #[command(hide = true)]
     LatencyPeer(bench::PeerArgs),
@@ -180,6 +188,7 @@ pub fn main() -> ExitCode {
             BenchCmd::LatencyPeer(a) => bench::latency_peer(a),
             BenchCmd::Loop(a) => bench::loop_(a),
             BenchCmd::Dynamics(a) => bench::dynamics(a),
+            BenchCmd::Bridge(a) => bridge::bench(&a) as i32,
         } as u8),
         Some(Cmd::Optim { cmd }) => ExitCode::from(crate::cli::optim::main(cmd) as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(crate::cli::robust::main(cmd) as u8),
@@ -204,6 +213,7 @@ pub fn main() -> ExitCode {
         Some(Cmd::Soak(a)) => soak::main(a),
         Some(Cmd::Replay(a)) => ExitCode::from(crate::node::replay::main(&a) as u8),
         Some(Cmd::Top(a)) => ExitCode::from(top::main(&a)),
+        Some(Cmd::Bridge(a)) => ExitCode::from(bridge::main(&a)),
     }
 }
 

@@ -4,7 +4,7 @@
 
 use crate::ipc::{Ipc, Sub, Topic};
 use crate::msg::{ModelEstimate, OptimiserStatus, ParamSet, Telemetry};
-use crate::top::{running_runs, RunningRun, Snapshot, Watch, SPARK_SECONDS};
+use crate::top::{pick_run, Snapshot, Watch, SPARK_SECONDS};
 use ratatui::crossterm::event::{self, Event, KeyCode, KeyModifiers};
 use ratatui::prelude::*;
 use ratatui::widgets::{Block, Borders, Paragraph, Row, Sparkline, Table};
@@ -48,7 +48,7 @@ pub fn main(a: &TopArgs) -> u8 {
         err!("error: top draws on a terminal; use --json for a snapshot on a pipe");
         return 2;
     }
-    let run = match pick(a) {
+    let run = match pick_run(a.run.as_deref()) {
         Ok(r) => r,
         Err(e) => {
             err!("error: {e}");
@@ -135,38 +135,6 @@ pub fn main(a: &TopArgs) -> u8 {
             err!("error: {e}");
             1
         }
-    }
-}
-
-/// The run to watch: `--run`, or the only one running.
-fn pick(a: &TopArgs) -> Result<RunningRun, String> {
-    let runs = running_runs();
-    let ids = || {
-        runs.iter()
-            .map(|r| r.run_id.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    match &a.run {
-        Some(id) => runs
-            .iter()
-            .find(|r| &r.run_id == id)
-            .cloned()
-            .ok_or_else(|| {
-                if runs.is_empty() {
-                    format!("no run `{id}` is running (no evoloop run is)")
-                } else {
-                    format!("no run `{id}` is running (running: {})", ids())
-                }
-            }),
-        None => match runs.len() {
-            0 => Err("no evoloop run is running (start one with `evoloop run`)".into()),
-            1 => Ok(runs[0].clone()),
-            _ => Err(format!(
-                "several runs are running, name one with --run: {}",
-                ids()
-            )),
-        },
     }
 }
 

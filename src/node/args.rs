@@ -66,6 +66,16 @@ pub struct OptimiserArgs {
     /// set in service from `published.jsonl`, and release the plant's pending lockstep wait.
     #[arg(long)]
     pub rejoin: bool,
+    /// Join the run from another host through its bridge (`evoloop bridge --run RUN_ID
+    /// --listen ENDPOINT` there), e.g. `tcp/192.0.2.10:7447`: realtime runs only; needs the
+    /// `zenoh` feature. The run's states, commands and telemetry come in over Zenoh, the sets go
+    /// out to its controller, which validates them as any other.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub connect: Option<String>,
+    /// A Zenoh configuration file (JSON5) for `--connect`: TLS, access control (see
+    /// config/zenoh/).
+    #[arg(long, value_name = "FILE", requires = "connect")]
+    pub zenoh_config: Option<PathBuf>,
 }
 
 /// Overrides of the scenario file, accepted by `evoloop run` and passed on to the children.

@@ -38,6 +38,8 @@ struct Ports {
 
 /// The optimiser process: `evoloop optimiser ...` or `evoloop-optimiser ...`.
 pub fn main(cli: &OptimiserArgs) {
+    let mut cli = cli.clone();
+    let mirror = cli.connect.take().map(|ep| remote::join(&mut cli, ep));
     let Started {
         scenario: scn,
         stop,
@@ -89,6 +91,9 @@ pub fn main(cli: &OptimiserArgs) {
     report.interrupted = stop.load(Ordering::SeqCst);
     if let Err(e) = write_json(&scn.output.dir, "optimiser.json", &report) {
         eprintln!("{WHO}: cannot write optimiser.json: {e}");
+    }
+    if let Some(m) = mirror {
+        remote::finish(m, &scn.output.dir);
     }
     if let Err((code, msg)) = result {
         fail(WHO, code, &msg);
@@ -511,4 +516,77 @@ fn publish(
         published,
         &scn.output.dir,
     )
+}
+
+/// The optimiser on another host (`--connect`): the run mirrored into a private namespace.
+mod remote {
+    use super::{fail, EXIT_SETUP, WHO};
+    use crate::node::args::OptimiserArgs;
+
+    #[cfg(feature = "zenoh")]
+    pub type Mirror = crate::net::mirror::Mirror;
+    #[cfg(not(feature = "zenoh"))]
+    pub type Mirror = ();
+
+    /// Start mirroring the run (realtime runs only) and point the process at the mirror's
+    /// private iceoryx2 namespace.
+    #[cfg(feature = "zenoh")]
+    pub fn join(cli: &mut OptimiserArgs, ep: String) -> Mirror {
+        let scn = crate::node::start::load_scenario(&cli.args, WHO);
+        if scn.timing.mode != crate::config::Mode::Realtime {
+            fail(
+                WHO,
+                EXIT_SETUP,
+                "--connect joins realtime runs only (give --mode realtime): in lockstep the \
+                 plant waits for the optimiser's acknowledgements, which do not cross the network",
+            );
+        }
+        if cli.rejoin {
+            fail(
+                WHO,
+                EXIT_SETUP,
+                "--rejoin is for a run's own optimiser, not with --connect",
+            );
+        }
+        // This process's own namespace: the run's id may also be running on this host.
+        cli.args.ipc_prefix = format!("evoloop_net{}_", std::process::id());
+        let ep = crate::net::Endpoint::Connect(ep);
+        crate::net::mirror::Mirror::start(
+            &cli.args.run_id,
+            &cli.args.ipc_prefix,
+            ep,
+            cli.zenoh_config.clone(),
+        )
+        .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e))
+    }
+
+    #[cfg(not(feature = "zenoh"))]
+    pub fn join(_: &mut OptimiserArgs, _: String) -> Mirror {
+        fail(
+            WHO,
+            EXIT_SETUP,
+            "--connect needs evoloop built with the zenoh feature \
+             (cargo build --release --features zenoh)",
+        )
+    }
+
+    /// Stop the mirror and write what crossed the network (network.json).
+    #[cfg(feature = "zenoh")]
+    pub fn finish(m: Mirror, dir: &std::path::Path) {
+        match m.join() {
+            Ok(r) => {
+                eprintln!(
+                    "{WHO}: over the network: {} states, {} commands in; {} sets, {} estimates out",
+                    r.states_in, r.commands_in, r.params_out, r.estimates_out
+                );
+                if let Err(e) = crate::report::write_json(dir, "network.json", &r) {
+                    eprintln!("{WHO}: cannot write network.json: {e}");
+                }
+            }
+            Err(e) => eprintln!("{WHO}: network mirror: {e}"),
+        }
+    }
+
+    #[cfg(not(feature = "zenoh"))]
+    pub fn finish(_: Mirror, _: &std::path::Path) {}
 }

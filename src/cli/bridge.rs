@@ -1,0 +1,198 @@
+//! `evoloop bridge --run RUN_ID --listen|--connect ENDPOINT`: a running run's topics on a Zenoh
+//! network, parameter sets from it into the run (`crate::net`; feature `zenoh`).
+
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct BridgeArgs {
+    /// The run to bridge: its run id, as `evoloop run` prints it (waited for up to 10 s when it is
+    /// not running yet) [default: the only running run].
+    #[arg(long)]
+    pub run: Option<String>,
+    /// Listen for peers on this Zenoh endpoint, e.g. `tcp/0.0.0.0:7447` (a remote optimiser then
+    /// gives `--connect tcp/THIS_HOST:7447`).
+    #[arg(
+        long,
+        value_name = "ENDPOINT",
+        conflicts_with = "connect",
+        required_unless_present = "connect"
+    )]
+    pub listen: Option<String>,
+    /// Connect to a peer or router on this endpoint instead.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub connect: Option<String>,
+    /// A Zenoh configuration file (JSON5): TLS, access control (e.g. config/zenoh/tls_acl.json5).
+    #[arg(long, value_name = "FILE")]
+    pub zenoh_config: Option<PathBuf>,
+    /// Seconds to relay, then stop [default: until the run ends or Ctrl-C].
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Print what was relayed as JSON at the end.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// How long `--run RUN_ID` waits for that run to start.
+#[cfg(feature = "zenoh")]
+const RUN_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
+
+#[cfg(feature = "zenoh")]
+pub fn main(a: &BridgeArgs) -> u8 {
+    use crate::net::{bridge, Endpoint};
+    // A named run may be starting with the bridge (a script starts both): wait for it a while.
+    let t0 = std::time::Instant::now();
+    let run = loop {
+        match crate::top::pick_run(a.run.as_deref()) {
+            Ok(r) => break r,
+            Err(_) if a.run.is_some() && t0.elapsed() < RUN_WAIT => {
+                std::thread::sleep(std::time::Duration::from_millis(50))
+            }
+            Err(e) => {
+                err!("error: {e}");
+                return 2;
+            }
+        }
+    };
+    let ep = match Endpoint::of(a.listen.as_deref(), a.connect.as_deref()) {
+        Ok(ep) => ep,
+        Err(e) => {
+            err!("error: {e}");
+            return 2;
+        }
+    };
+    if let Some(p) = &a.zenoh_config {
+        if !p.is_file() {
+            err!("error: --zenoh-config {}: no such file", p.display());
+            return 2;
+        }
+    }
+    let duration = match a.duration {
+        Some(d) if !(d > 0.0 && d.is_finite()) => {
+            err!("error: --duration {d}: seconds > 0");
+            return 2;
+        }
+        d => d.map(std::time::Duration::from_secs_f64),
+    };
+    let stop = crate::node::start::stop_flag();
+    err!(
+        "evoloop bridge: run {} on Zenoh ({ep:?}), keys evoloop/{}/...",
+        run.run_id,
+        run.run_id
+    );
+    match bridge::run(
+        &run.run_id,
+        &run.ipc_prefix,
+        &ep,
+        a.zenoh_config.as_deref(),
+        duration,
+        &stop,
+    ) {
+        Ok(r) => {
+            if a.json {
+                crate::cli::print_json(&r);
+            } else {
+                err!(
+                    "evoloop bridge: {} ({:.1} s): out {} states, {} commands, {} telemetry, {} estimates; in {} parameter sets, {} estimates{}",
+                    r.ended,
+                    r.seconds,
+                    r.states,
+                    r.commands,
+                    r.telemetry,
+                    r.estimates_out,
+                    r.params_in,
+                    r.estimates_in,
+                    if r.refused > 0 {
+                        format!("; {} messages of another layout refused", r.refused)
+                    } else {
+                        String::new()
+                    }
+                );
+            }
+            0
+        }
+        Err(e) => {
+            err!("error: {e}");
+            1
+        }
+    }
+}
+
+#[cfg(not(feature = "zenoh"))]
+pub fn main(_: &BridgeArgs) -> u8 {
+    err!("error: evoloop bridge needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+    2
+}
+
+#[derive(clap::Args)]
+pub struct BridgeBenchArgs {
+    /// Scenario run in realtime for the measurement [default: config/two_mass.toml].
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Parameter sets per phase (local, through the bridge, local again).
+    #[arg(long, default_value_t = 200)]
+    pub sets: usize,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `evoloop bench bridge`: a parameter set's round trip, local path against the bridge.
+#[cfg(feature = "zenoh")]
+pub fn bench(a: &BridgeBenchArgs) -> u8 {
+    use crate::net::bench;
+    if a.sets == 0 {
+        err!("error: --sets must be at least 1");
+        return 2;
+    }
+    let scenario = a.scenario.clone().unwrap_or_else(bench::default_scenario);
+    let port = match bench::free_port() {
+        Ok(p) => p,
+        Err(e) => {
+            err!("error: {e}");
+            return 1;
+        }
+    };
+    match bench::run(&scenario, a.sets, port) {
+        Ok(r) => {
+            if a.json {
+                crate::cli::print_json(&r);
+            } else {
+                let row = |name: &str, p: &crate::rt::timing::Percentiles| {
+                    let us = |ns: i64| ns as f64 / 1e3;
+                    out!(
+                        "  {name:38} p50 {:8.1} us  p90 {:8.1} us  p99 {:8.1} us  max {:8.1} us",
+                        us(p.p50_ns),
+                        us(p.p90_ns),
+                        us(p.p99_ns),
+                        us(p.max_ns)
+                    );
+                };
+                out!(
+                    "parameter set sent -> in service, seen by the sender ({} sets each, period {} ms):",
+                    r.sets_per_phase,
+                    r.period_s * 1e3
+                );
+                row("local (iceoryx2)", &r.local);
+                row("through the bridge (Zenoh, loopback)", &r.bridge);
+                row("local again", &r.local_again);
+                out!(
+                    "  the network adds {:.1} us at the median (set in and telemetry out)",
+                    r.added_p50_ns / 1e3
+                );
+                out!("a state's age on arrival (plant stamp -> receipt):");
+                row("iceoryx2", &r.state_local);
+                row("through the bridge", &r.state_bridge);
+            }
+            0
+        }
+        Err(e) => {
+            err!("error: {e}");
+            1
+        }
+    }
+}
+
+#[cfg(not(feature = "zenoh"))]
+pub fn bench(_: &BridgeBenchArgs) -> u8 {
+    err!("error: evoloop bench bridge needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+    2
+}

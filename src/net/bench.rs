@@ -1,0 +1,289 @@
+//! `evoloop bench bridge`: how long a parameter set takes to be in service, seen by its sender,
+//! over the local path (iceoryx2 in, the controller's telemetry back on iceoryx2) and through a
+//! bridge on loopback (Zenoh in through the bridge, the telemetry back through it), on one
+//! realtime run.
+//!
+//! A round trip is the time from the send to the first telemetry whose version in service is
+//! the set's. Each set is sent at a random phase of the period, so both paths wait for the
+//! controller's next cycle alike (uniform over one period) and the difference of their medians
+//! is what the network adds, twice (set in, telemetry out). Besides, one way: a state's age
+//! when it reaches the sender, from the plant's stamp (the same clock, one host), on each path. The phases
+//! run local, network, local on the same run: the second local phase shows whether the run
+//! drifted. They cannot interleave sample by sample: the run's params topic takes two
+//! publishers (its optimiser's and one more).
+
+use super::bridge::{ipc_err, BridgeReport};
+use super::{key, open, wire, Endpoint};
+use crate::ipc::{Ipc, Topic};
+use crate::msg::{ParamSet, Telemetry};
+use crate::rt::timing::Percentiles;
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+
+/// Give up on one set after this long (the controller refused it, or the run is gone).
+const SET_TIMEOUT: Duration = Duration::from_secs(2);
+
+#[derive(Debug, serde::Serialize)]
+pub struct BridgeBench {
+    pub scenario: String,
+    pub period_s: f64,
+    pub sets_per_phase: usize,
+    /// Round trips in ns: local, through the bridge, local again.
+    pub local: Percentiles,
+    pub bridge: Percentiles,
+    pub local_again: Percentiles,
+    /// bridge p50 - local p50 (both local phases' median), ns: what the network adds, twice.
+    pub added_p50_ns: f64,
+    /// A state's age on arrival (plant stamp to receipt), ns: iceoryx2 and through the bridge.
+    pub state_local: Percentiles,
+    pub state_bridge: Percentiles,
+    pub bridge_report: Option<BridgeReport>,
+}
+
+/// Send `sets` sets each way on a realtime run of `scenario` and time them.
+pub fn run(scenario: &std::path::Path, sets: usize, port: u16) -> Result<BridgeBench, String> {
+    let scn = crate::config::Scenario::load(scenario, &crate::config::Overrides::default())
+        .map_err(|e| e.to_string())?;
+    let kind = scn.controller.param_kind();
+    let gains = scn.controller.tunable().gains.clone();
+    let pid = std::process::id();
+    let (run_id, prefix) = (format!("bb{pid}"), format!("evoloop_bb{pid}_"));
+    let out = std::env::temp_dir().join(format!("evoloop-bench-bridge-{pid}"));
+    let mut child = start_run(scenario, &run_id, &prefix, &out)?;
+    let result = measure(&run_id, &prefix, kind, &gains, sets, port, scn.period_ns());
+    crate::node::launcher::signal(&child, libc::SIGTERM);
+    let _ = child.wait();
+    let _ = std::fs::remove_dir_all(&out);
+    let m = result?;
+    let p = |v: &[f64]| Percentiles::from_samples(v.iter().map(|x| *x as i64));
+    let (l, b, l2) = (p(&m.local), p(&m.bridge), p(&m.local_again));
+    Ok(BridgeBench {
+        scenario: scenario.display().to_string(),
+        period_s: scn.timing.period,
+        sets_per_phase: sets,
+        added_p50_ns: b.p50_ns as f64 - 0.5 * (l.p50_ns + l2.p50_ns) as f64,
+        local: l,
+        bridge: b,
+        local_again: l2,
+        state_local: p(&m.state_local),
+        state_bridge: p(&m.state_bridge),
+        bridge_report: Some(m.report),
+    })
+}
+
+fn start_run(
+    scenario: &std::path::Path,
+    run_id: &str,
+    prefix: &str,
+    out: &std::path::Path,
+) -> Result<Child, String> {
+    let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+    Command::new(exe)
+        .arg("run")
+        .arg(scenario)
+        .args([
+            "--mode",
+            "realtime",
+            "--duration",
+            "forever",
+            "--optimiser",
+            "off",
+        ])
+        .args([
+            "--run-id",
+            run_id,
+            "--ipc-prefix",
+            prefix,
+            "--quiet",
+            "--out",
+        ])
+        .arg(out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .map_err(|e| format!("cannot start the run: {e}"))
+}
+
+struct Phases {
+    local: Vec<f64>,
+    bridge: Vec<f64>,
+    local_again: Vec<f64>,
+    state_local: Vec<f64>,
+    state_bridge: Vec<f64>,
+    report: BridgeReport,
+}
+
+/// States timed per path for the one-way figure.
+const STATES: usize = 2000;
+
+/// Sleep a random part of `period_ns`, so a send falls at any phase of the control period.
+fn random_phase(rng: &mut impl rand::Rng, period_ns: u64) {
+    std::thread::sleep(Duration::from_nanos(rng.gen_range(0..period_ns.max(1))));
+}
+
+fn measure(
+    run_id: &str,
+    prefix: &str,
+    kind: u32,
+    gains: &[f64],
+    sets: usize,
+    port: u16,
+    period_ns: u64,
+) -> Result<Phases, String> {
+    use rand::SeedableRng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let ipc = Ipc::with_cleanup("evoloop-bench-bridge", run_id, prefix, false).map_err(ipc_err)?;
+    let telemetry = ipc
+        .subscriber::<Telemetry>(Topic::Telemetry, 64, false)
+        .map_err(ipc_err)?;
+    // The run is up once its controller's telemetry flows.
+    let t0 = Instant::now();
+    while telemetry.next().map_err(ipc_err)?.is_none() {
+        if t0.elapsed() > Duration::from_secs(20) {
+            return Err("the run's controller sent no telemetry within 20 s".into());
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    // Two sets in turn: the scenario's gains and the same scaled by 1.001 (in bounds: a tuner's
+    // step), so every version is a real change.
+    let values = |v: u64| -> Vec<f64> {
+        let f = if v % 2 == 0 { 1.0 } else { 1.001 };
+        gains.iter().map(|g| g * f).collect()
+    };
+    let mut version = 1_000_000u64;
+    let local = |n: usize,
+                 version: &mut u64,
+                 rng: &mut rand_chacha::ChaCha8Rng|
+     -> Result<Vec<f64>, String> {
+        let params = ipc
+            .publisher::<ParamSet>(Topic::Params, false)
+            .map_err(ipc_err)?;
+        let mut out = Vec::with_capacity(n);
+        for _ in 0..n {
+            *version += 1;
+            let set = ParamSet::new(*version, 0, kind, &values(*version));
+            random_phase(rng, period_ns);
+            while telemetry.next().map_err(ipc_err)?.is_some() {}
+            let sent = Instant::now();
+            params.send(&set).map_err(ipc_err)?;
+            loop {
+                if let Some(t) = telemetry.next().map_err(ipc_err)? {
+                    if t.param_version >= *version {
+                        out.push(sent.elapsed().as_nanos() as f64);
+                        break;
+                    }
+                }
+                if sent.elapsed() > SET_TIMEOUT {
+                    return Err(format!("set {} not in service after 2 s", *version));
+                }
+                std::hint::spin_loop();
+            }
+        }
+        Ok(out)
+    };
+    let first = local(sets, &mut version, &mut rng)?;
+    let state_local = {
+        let states = ipc
+            .subscriber::<crate::msg::PlantState>(Topic::State, 8, false)
+            .map_err(ipc_err)?;
+        let mut ages = Vec::with_capacity(STATES);
+        while ages.len() < STATES {
+            if let Some(s) = states.next().map_err(ipc_err)? {
+                ages.push(crate::rt::clock::now_ns().saturating_sub(s.stamp_ns) as f64);
+            }
+        }
+        ages
+    };
+    // Through a bridge of this process (its own thread, as `evoloop bridge` would run).
+    let ep = format!("tcp/127.0.0.1:{port}");
+    let stop = Arc::new(AtomicBool::new(false));
+    let bridge = {
+        let (run_id, prefix, ep, stop) = (
+            run_id.to_string(),
+            prefix.to_string(),
+            Endpoint::Listen(ep.clone()),
+            stop.clone(),
+        );
+        std::thread::spawn(move || super::bridge::run(&run_id, &prefix, &ep, None, None, &stop))
+    };
+    let z = open(&Endpoint::Connect(ep), None)?;
+    let zt = super::bridge::subscriber(&z, key(run_id, Topic::Telemetry, false))?;
+    let zp = super::bridge::publisher(
+        &z,
+        key(run_id, Topic::Params, false),
+        zenoh::qos::CongestionControl::Block,
+    )?;
+    let t0 = Instant::now();
+    while zt.try_recv().map_err(|e| e.to_string())?.is_none() {
+        if t0.elapsed() > Duration::from_secs(20) {
+            return Err("no telemetry through the bridge within 20 s".into());
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let mut through = Vec::with_capacity(sets);
+    for _ in 0..sets {
+        version += 1;
+        let set = ParamSet::new(version, 0, kind, &values(version));
+        random_phase(&mut rng, period_ns);
+        while zt.try_recv().map_err(|e| e.to_string())?.is_some() {}
+        let sent = Instant::now();
+        zp.put(wire::encode(&set))
+            .wait()
+            .map_err(|e| e.to_string())?;
+        loop {
+            if let Some(s) = zt.try_recv().map_err(|e| e.to_string())? {
+                let t: Telemetry = wire::decode(&s.payload().to_bytes())?;
+                if t.param_version >= version {
+                    through.push(sent.elapsed().as_nanos() as f64);
+                    break;
+                }
+            }
+            if sent.elapsed() > SET_TIMEOUT {
+                return Err(format!("set {version} not in service after 2 s"));
+            }
+            std::hint::spin_loop();
+        }
+    }
+    let state_bridge = {
+        let zs = super::bridge::subscriber(&z, key(run_id, Topic::State, false))?;
+        let mut ages = Vec::with_capacity(STATES);
+        while ages.len() < STATES {
+            if let Some(s) = zs.try_recv().map_err(|e| e.to_string())? {
+                let st: crate::msg::PlantState = wire::decode(&s.payload().to_bytes())?;
+                ages.push(crate::rt::clock::now_ns().saturating_sub(st.stamp_ns) as f64);
+            }
+        }
+        ages
+    };
+    stop.store(true, Ordering::SeqCst);
+    let report = bridge
+        .join()
+        .map_err(|_| "the bridge thread panicked".to_string())??;
+    drop((zt, zp, z));
+    let again = local(sets, &mut version, &mut rng)?;
+    Ok(Phases {
+        local: first,
+        bridge: through,
+        local_again: again,
+        state_local,
+        state_bridge,
+        report,
+    })
+}
+
+/// A free TCP port on loopback.
+pub fn free_port() -> Result<u16, String> {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .map_err(|e| format!("no free port on 127.0.0.1: {e}"))
+}
+
+/// The scenario `bench bridge` runs by default.
+pub fn default_scenario() -> PathBuf {
+    crate::node::launcher::shipped("config/two_mass.toml")
+}

@@ -1,0 +1,153 @@
+//! The remote optimiser's side of a bridge: the run's states, commands and telemetry from Zenoh
+//! into a private iceoryx2 namespace of this process, and the optimiser's parameter sets,
+//! estimates and status from there back to the network. The optimiser's own code runs against
+//! that namespace as it would inside the run, so nothing of it changes for the network.
+//!
+//! Losing the link is losing the data: the optimiser sees no state, and ends as it does when
+//! the plant goes silent (`no plant state within ...`); the run goes on with the set in service.
+
+use super::bridge::{ipc_err, In, Out};
+use super::{key, open, Endpoint, Relayed, POLL};
+use crate::ipc::{Ipc, Topic};
+use crate::msg::{Command, ModelEstimate, OptimiserStatus, ParamSet, PlantState, Telemetry};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::sync_channel;
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+/// A running mirror: stop it with `stop` and `join`.
+pub struct Mirror {
+    pub stop: Arc<AtomicBool>,
+    handle: Option<JoinHandle<Result<MirrorReport, String>>>,
+}
+
+#[derive(Debug, Default, Clone, Copy, serde::Serialize)]
+pub struct MirrorReport {
+    pub states_in: u64,
+    pub commands_in: u64,
+    pub telemetry_in: u64,
+    pub params_out: u64,
+    pub estimates_out: u64,
+    pub refused: u64,
+}
+
+impl Mirror {
+    /// Start mirroring run `run_id` over `ep` into iceoryx2 prefix `prefix`; returns once the
+    /// ports exist (so the optimiser's ports find them), or with the error that prevented it.
+    pub fn start(
+        run_id: &str,
+        prefix: &str,
+        ep: Endpoint,
+        config: Option<PathBuf>,
+    ) -> Result<Self, String> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let (ready_tx, ready_rx) = sync_channel::<Result<(), String>>(1);
+        let (run_id, prefix, s) = (run_id.to_string(), prefix.to_string(), stop.clone());
+        let handle = std::thread::Builder::new()
+            .name("net-mirror".into())
+            .spawn(move || {
+                let ports = Ports::new(&run_id, &prefix, &ep, config.as_deref());
+                match ports {
+                    Ok(p) => {
+                        let _ = ready_tx.send(Ok(()));
+                        p.serve(&s)
+                    }
+                    Err(e) => {
+                        let _ = ready_tx.send(Err(e.clone()));
+                        Err(e)
+                    }
+                }
+            })
+            .map_err(|e| format!("cannot start the network mirror: {e}"))?;
+        match ready_rx.recv() {
+            Ok(Ok(())) => Ok(Self {
+                stop,
+                handle: Some(handle),
+            }),
+            Ok(Err(e)) => Err(e),
+            Err(_) => Err("the network mirror ended before it was ready".into()),
+        }
+    }
+
+    pub fn join(mut self) -> Result<MirrorReport, String> {
+        self.stop.store(true, Ordering::SeqCst);
+        match self.handle.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r,
+            _ => Err("the network mirror panicked".into()),
+        }
+    }
+}
+
+struct Ports {
+    _z: zenoh::Session,
+    state: In<PlantState>,
+    command: In<Command>,
+    telemetry: In<Telemetry>,
+    params: Out<ParamSet>,
+    estimate: Out<ModelEstimate>,
+    status: Out<OptimiserStatus>,
+}
+
+impl Ports {
+    fn new(
+        run_id: &str,
+        prefix: &str,
+        ep: &Endpoint,
+        config: Option<&std::path::Path>,
+    ) -> Result<Self, String> {
+        let z = open(ep, config)?;
+        let ipc = Ipc::new("evoloop-mirror", run_id, prefix).map_err(ipc_err)?;
+        let k = |t: Topic| key(run_id, t, false);
+        let kr = |t: Topic| key(run_id, t, true);
+        Ok(Self {
+            // The optimiser blocks on the state's event: wake it with each state.
+            state: In::new(&ipc, &z, k(Topic::State), Topic::State, true)?,
+            // The direct scheme blocks on the command's event.
+            command: In::new(&ipc, &z, k(Topic::Command), Topic::Command, true)?,
+            telemetry: In::new(&ipc, &z, k(Topic::Telemetry), Topic::Telemetry, false)?,
+            params: Out::new(&ipc, &z, Topic::Params, k(Topic::Params), false)?,
+            estimate: Out::new(&ipc, &z, Topic::Estimate, kr(Topic::Estimate), false)?,
+            status: Out::new(
+                &ipc,
+                &z,
+                Topic::OptimiserStatus,
+                kr(Topic::OptimiserStatus),
+                false,
+            )?,
+            _z: z,
+        })
+    }
+
+    fn serve(&self, stop: &AtomicBool) -> Result<MirrorReport, String> {
+        let mut rep = MirrorReport::default();
+        let mut r = Relayed::default();
+        // Sets must not be lost: the optimiser's in-service version follows them.
+        while !stop.load(Ordering::Relaxed) {
+            // Commands before the state they answer follows: the optimiser reads commands up to
+            // each state it takes.
+            self.command.drain(&mut r, |_| rep.commands_in += 1)?;
+            match self.state.net.recv_timeout(POLL) {
+                Ok(Some(s)) => match super::wire::decode::<PlantState>(&s.payload().to_bytes()) {
+                    Ok(v) => {
+                        self.state.publ.send(&v).map_err(ipc_err)?;
+                        rep.states_in += 1;
+                    }
+                    Err(_) => r.refused += 1,
+                },
+                Ok(None) => {}
+                Err(e) => return Err(format!("network state: {e}")),
+            }
+            self.state.drain(&mut r, |_| rep.states_in += 1)?;
+            self.telemetry.drain(&mut r, |_| rep.telemetry_in += 1)?;
+            rep.params_out += self.params.drain(|_| {})?;
+            rep.estimates_out += self.estimate.drain(|_| {})?;
+            self.status.drain(|_| {})?;
+        }
+        // What the optimiser published last.
+        rep.params_out += self.params.drain(|_| {})?;
+        rep.estimates_out += self.estimate.drain(|_| {})?;
+        rep.refused = r.refused;
+        Ok(rep)
+    }
+}

@@ -1,0 +1,258 @@
+//! Runs across hosts over Zenoh (feature `zenoh`), on loopback: a bridge, a remote optimiser and
+//! the run as separate processes. Without the feature the commands say what they need.
+
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+#[cfg(feature = "zenoh")]
+use std::process::{Child, Stdio};
+#[cfg(feature = "zenoh")]
+use std::time::{Duration, Instant};
+
+fn config(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("config")
+        .join(name)
+}
+
+/// A free TCP port on 127.0.0.1 (bound, read and released).
+#[cfg(feature = "zenoh")]
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+#[cfg(feature = "zenoh")]
+fn spawn(args: &[&str]) -> Child {
+    Command::new(evoloop())
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start evoloop")
+}
+
+/// Wait for `c` (at most `limit`), then its exit status and outputs.
+#[cfg(feature = "zenoh")]
+fn finish(c: Child, limit: Duration, what: &str) -> std::process::Output {
+    let t0 = Instant::now();
+    let mut c = c;
+    while c.try_wait().unwrap().is_none() {
+        if t0.elapsed() > limit {
+            let _ = c.kill();
+            panic!("{what} still running after {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    c.wait_with_output().unwrap()
+}
+
+/// A realtime run of the maglev's indirect scenario with its own optimiser off; the bridge
+/// listens on loopback and an optimiser process joins over Zenoh with the indirect scheme. The
+/// sets it publishes cross the network and the controller accepts them: the scheme runs with
+/// its tuner on "another host".
+#[cfg(feature = "zenoh")]
+#[test]
+fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (prefix, run_id) = unique("znet");
+    let ep = format!("tcp/127.0.0.1:{}", free_port());
+    let (host, remote) = (tmp.path().join("host"), tmp.path().join("remote"));
+    let file = config("maglev_indirect.toml");
+    let file = file.to_str().unwrap();
+    let secs = "12";
+    let run = spawn(&[
+        "run",
+        file,
+        "--mode",
+        "realtime",
+        "--no-rt",
+        "--duration",
+        secs,
+        "--optimiser",
+        "off",
+        "--run-id",
+        &run_id,
+        "--ipc-prefix",
+        &prefix,
+        "--out",
+        host.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let bridge = spawn(&["bridge", "--run", &run_id, "--listen", &ep, "--json"]);
+    let optimiser = spawn(&[
+        "optimiser",
+        "--config",
+        file,
+        "--run-id",
+        &run_id,
+        "--mode",
+        "realtime",
+        "--no-rt",
+        "--duration",
+        secs,
+        "--out",
+        remote.to_str().unwrap(),
+        "--connect",
+        &ep,
+    ]);
+    let run = finish(run, Duration::from_secs(60), "the run");
+    assert_ok(&run);
+    let bridge = finish(bridge, Duration::from_secs(10), "the bridge");
+    assert_ok(&bridge);
+    let opt = finish(optimiser, Duration::from_secs(10), "the remote optimiser");
+    assert_ok(&opt);
+
+    let b: serde_json::Value = serde_json::from_slice(&bridge.stdout).expect("bridge JSON");
+    assert_eq!(b["ended"], "run ended");
+    assert!(b["states"].as_u64().unwrap() >= 11_000, "{b}");
+    assert!(b["params_in"].as_u64().unwrap() >= 1, "{b}");
+    assert_eq!(b["refused"], 0);
+
+    let net = json(&remote.join("network.json"));
+    let o = json(&remote.join("optimiser.json"));
+    assert!(net["states_in"].as_u64().unwrap() >= 11_000, "{net}");
+    assert_eq!(o["mode"], "indirect");
+    let published = o["published_count"].as_u64().unwrap();
+    assert!(published >= 1, "the remote optimiser published nothing");
+    assert_eq!(net["params_out"].as_u64().unwrap(), published);
+
+    // Every set the remote optimiser published reached the controller and passed its checks.
+    let s = json(&host.join("summary.json"));
+    let accepted = s["parameter_versions"]["accepted"]
+        .as_array()
+        .unwrap()
+        .len() as u64;
+    assert_eq!(accepted, published, "{}", s["parameter_versions"]);
+    assert!(s["parameter_versions"]["rejected"]
+        .as_array()
+        .unwrap()
+        .is_empty());
+}
+
+/// A set from the network goes through the controller's validation: a NaN gain is refused with
+/// its index, a good set after it is taken.
+#[cfg(feature = "zenoh")]
+#[test]
+fn a_parameter_set_from_the_network_is_validated_by_the_controller() {
+    use evoloop::config::{Overrides, Scenario};
+    use evoloop::ipc::Topic;
+    use evoloop::msg::ParamSet;
+    use evoloop::net::{key, open, wire, Endpoint};
+    use zenoh::Wait;
+
+    let tmp = tempfile::tempdir().unwrap();
+    let (prefix, run_id) = unique("zval");
+    let ep = format!("tcp/127.0.0.1:{}", free_port());
+    let file = config("maglev.toml");
+    let scn = Scenario::load(&file, &Overrides::default()).unwrap();
+    let out = tmp.path().join("host");
+    let run = spawn(&[
+        "run",
+        file.to_str().unwrap(),
+        "--mode",
+        "realtime",
+        "--no-rt",
+        "--duration",
+        "4",
+        "--run-id",
+        &run_id,
+        "--ipc-prefix",
+        &prefix,
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let bridge = spawn(&["bridge", "--run", &run_id, "--listen", &ep]);
+    let z = open(&Endpoint::Connect(ep.clone()), None).unwrap();
+    // Wait for the run's states on the network: the bridge is up and relaying.
+    let states = z
+        .declare_subscriber(key(&run_id, Topic::State, false))
+        .wait()
+        .unwrap();
+    let t0 = Instant::now();
+    while states
+        .recv_timeout(Duration::from_millis(100))
+        .unwrap()
+        .is_none()
+    {
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "no state on the network"
+        );
+    }
+    let params = z
+        .declare_publisher(key(&run_id, Topic::Params, false))
+        .wait()
+        .unwrap();
+    let good = scn.controller.tunable().gains.clone();
+    let mut bad = good.clone();
+    bad[1] = f64::NAN;
+    let kind = scn.controller.param_kind();
+    for (version, values) in [(1, &bad), (2, &good)] {
+        let set = ParamSet::new(version, 0, kind, values);
+        params.put(wire::encode(&set)).wait().unwrap();
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    assert_ok(&finish(run, Duration::from_secs(60), "the run"));
+    assert_ok(&finish(bridge, Duration::from_secs(10), "the bridge"));
+    let s = json(&out.join("summary.json"));
+    let v = &s["parameter_versions"];
+    let rejected = v["rejected"].as_array().unwrap();
+    assert_eq!(rejected.len(), 1, "{v}");
+    assert_eq!(rejected[0]["version"], 1);
+    assert!(
+        rejected[0]["outcome"].as_str().unwrap().contains("NaN"),
+        "{v}"
+    );
+    assert_eq!(rejected[0]["index"], 1);
+    let accepted = v["accepted"].as_array().unwrap();
+    assert_eq!(accepted.len(), 1, "{v}");
+    assert_eq!(accepted[0]["version"], 2);
+}
+
+/// A remote optimiser cannot pace a lockstep run: refused before it touches the network.
+#[test]
+fn a_remote_optimiser_refuses_a_lockstep_run() {
+    let out = Command::new(evoloop())
+        .args(["optimiser", "--config"])
+        .arg(config("maglev_indirect.toml"))
+        .args(["--run-id", "nolockstep", "--connect", "tcp/127.0.0.1:9"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    if cfg!(feature = "zenoh") {
+        assert!(err.contains("realtime runs only"), "{err}");
+    } else {
+        assert!(err.contains("zenoh feature"), "{err}");
+    }
+}
+
+/// Without the feature, the bridge says how to get it.
+#[cfg(not(feature = "zenoh"))]
+#[test]
+fn without_the_zenoh_feature_the_bridge_says_how_to_build_it() {
+    let out = Command::new(evoloop())
+        .args(["bridge", "--listen", "tcp/127.0.0.1:7447"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--features zenoh"));
+}
+
+/// The shipped TLS and access-control examples are valid Zenoh configurations.
+#[cfg(feature = "zenoh")]
+#[test]
+fn the_example_zenoh_configurations_load() {
+    for f in ["tls_acl.json5", "tls_optimiser.json5"] {
+        let p = config("zenoh").join(f);
+        if let Err(e) = zenoh::Config::from_file(&p) {
+            panic!("{}: {e}", p.display());
+        }
+    }
+}
