@@ -62,6 +62,19 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
             Ok(Some(rest.iter().map(|s| s.to_string()).collect()))
         }
         ["cargo", "test", "--release"] => Ok(None),
+        // A build with an optional feature: the feature must be one Cargo.toml declares.
+        ["cargo", "build" | "test", "--release", "--features", feature, ..] => {
+            let manifest = std::fs::read_to_string(root().join("Cargo.toml")).unwrap();
+            let declared = manifest
+                .split("[features]")
+                .nth(1)
+                .is_some_and(|f| f.lines().any(|l| l.starts_with(&format!("{feature} ="))));
+            if declared {
+                Ok(None)
+            } else {
+                Err(format!("no feature `{feature}` in Cargo.toml"))
+            }
+        }
         ["cargo", "bench", "--bench", name] => {
             if root().join("benches").join(format!("{name}.rs")).exists() {
                 Ok(None)
@@ -180,6 +193,8 @@ fn the_checker_itself_rejects_what_does_not_parse() {
     // A test that cannot fail proves nothing: feed the checker commands that must fail.
     assert!(evoloop_args("make run").is_err());
     assert!(evoloop_args("cargo bench --bench nonexistent").is_err());
+    assert!(evoloop_args("cargo build --release --features no_such_feature").is_err());
+    assert!(evoloop_args("cargo build --release --features zenoh").is_ok());
     let parse = |c: &str| {
         let a = evoloop_args(c).unwrap().unwrap();
         Cli::try_parse_from(std::iter::once("evoloop".to_string()).chain(a))

@@ -58,6 +58,8 @@ fn finish(c: Child, limit: Duration, what: &str) -> std::process::Output {
 #[cfg(feature = "zenoh")]
 #[test]
 fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
+    // One realtime run at a time on a 2-core machine.
+    let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let (prefix, run_id) = unique("znet");
     let ep = format!("tcp/127.0.0.1:{}", free_port());
@@ -134,11 +136,84 @@ fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
         .is_empty());
 }
 
+/// Losing the link is losing the remote optimiser, never the loop: the bridge is killed mid-run;
+/// the remote optimiser, seeing no state, ends as it does when the plant goes silent (exit 3,
+/// "no plant state"), and the run finishes normally on the sets it had accepted.
+#[cfg(feature = "zenoh")]
+#[test]
+fn losing_the_link_ends_the_remote_optimiser_and_the_run_goes_on() {
+    // One realtime run at a time on a 2-core machine.
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let (prefix, run_id) = unique("zlost");
+    let ep = format!("tcp/127.0.0.1:{}", free_port());
+    let (host, remote) = (tmp.path().join("host"), tmp.path().join("remote"));
+    let file = config("maglev_indirect.toml");
+    let file = file.to_str().unwrap();
+    let run = spawn(&[
+        "run",
+        file,
+        "--mode",
+        "realtime",
+        "--no-rt",
+        "--duration",
+        "20",
+        "--optimiser",
+        "off",
+        "--run-id",
+        &run_id,
+        "--ipc-prefix",
+        &prefix,
+        "--out",
+        host.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let mut bridge = spawn(&["bridge", "--run", &run_id, "--listen", &ep]);
+    let optimiser = spawn(&[
+        "optimiser",
+        "--config",
+        file,
+        "--run-id",
+        &run_id,
+        "--mode",
+        "realtime",
+        "--no-rt",
+        "--duration",
+        "20",
+        "--out",
+        remote.to_str().unwrap(),
+        "--connect",
+        &ep,
+    ]);
+    std::thread::sleep(Duration::from_secs(5));
+    bridge.kill().unwrap();
+    let _ = bridge.wait();
+    let killed = Instant::now();
+    let opt = finish(optimiser, Duration::from_secs(30), "the remote optimiser");
+    let gone_after = killed.elapsed();
+    assert_eq!(
+        opt.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&opt.stderr)
+    );
+    assert!(String::from_utf8_lossy(&opt.stderr).contains("no plant state"));
+    assert!(gone_after < Duration::from_secs(15), "{gone_after:?}");
+    let run = finish(run, Duration::from_secs(60), "the run");
+    assert_ok(&run);
+    let s = json(&host.join("summary.json"));
+    assert_eq!(s["outcome"], "ok");
+    // The loop ran to its end after the link went.
+    assert!(s["ran_s"].as_f64().unwrap() >= 19.9, "{}", s["ran_s"]);
+}
+
 /// A set from the network goes through the controller's validation: a NaN gain is refused with
 /// its index, a good set after it is taken.
 #[cfg(feature = "zenoh")]
 #[test]
 fn a_parameter_set_from_the_network_is_validated_by_the_controller() {
+    // One realtime run at a time on a 2-core machine.
+    let _alone = alone();
     use evoloop::config::{Overrides, Scenario};
     use evoloop::ipc::Topic;
     use evoloop::msg::ParamSet;
