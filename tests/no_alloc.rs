@@ -120,7 +120,7 @@ fn the_control_cycle_allocates_nothing() {
             cyc.offer(&p);
         }
         // The optimiser's 10 Hz estimate (sent here, outside what the controller does).
-        if k % 100 == 0 {
+        if k.is_multiple_of(100) {
             let e = ModelEstimate {
                 value: 1.0 + k as f64 * 1e-4,
                 apply_at_seq: k + 1,

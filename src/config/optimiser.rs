@@ -184,7 +184,10 @@ pub fn validate(
             .repetition
             .map_or(0, |r| (r / timing.period).round() as u64);
         let every = if direct && rep > 0 {
-            (1..=100).rev().find(|d| rep % d == 0).unwrap_or(1)
+            (1..=100)
+                .rev()
+                .find(|d| rep.is_multiple_of(*d))
+                .unwrap_or(1)
         } else {
             100
         };
@@ -408,7 +411,7 @@ fn direct_settings(
         // acknowledgement: they come every sync_period, shifted onto the first boundary.
         let sync = samples(sync_period).round() as u64;
         let rep = samples(repetition).round() as u64;
-        if rep % sync != 0 {
+        if !rep.is_multiple_of(sync) {
             return check.fail(
                 "optimiser.sync_period",
                 format!(

@@ -318,7 +318,7 @@ impl DirectTuner {
     }
 
     fn is_boundary(&self, seq: u64) -> bool {
-        seq >= self.spec.first && (seq - self.spec.first) % self.spec.repetition == 0
+        seq >= self.spec.first && (seq - self.spec.first).is_multiple_of(self.spec.repetition)
     }
 
     fn boundary_at_or_after(&self, seq: u64) -> u64 {

@@ -85,7 +85,7 @@ impl MaglevEstimator {
         // The amplifier's lag over the next period (exact for a held command).
         let a = self.p.lag_fraction(self.period);
         self.current += a * (self.plant.applied_current(u_ma) - self.current);
-        if self.filled >= n && seq % self.stride as u64 == 0 {
+        if self.filled >= n && seq.is_multiple_of(self.stride as u64) {
             let s = self.stride as u64;
             let (z0, _) = self.ring[(seq - 2 * s) as usize % n];
             let (z1, i1) = self.ring[(seq - s) as usize % n];

@@ -151,7 +151,7 @@ fn measure(
     // Two sets in turn: the scenario's gains and the same scaled by 1.001 (in bounds: a tuner's
     // step), so every version is a real change.
     let values = |v: u64| -> Vec<f64> {
-        let f = if v % 2 == 0 { 1.0 } else { 1.001 };
+        let f = if v.is_multiple_of(2) { 1.0 } else { 1.001 };
         gains.iter().map(|g| g * f).collect()
     };
     let mut version = 1_000_000u64;

@@ -29,7 +29,7 @@ impl<T: Clone> History<T> {
     }
 
     pub fn push(&mut self, x: T) {
-        if self.offered % self.stride == 0 {
+        if self.offered.is_multiple_of(self.stride) {
             if self.items.len() == self.cap {
                 let mut i = 0;
                 self.items.retain(|_| {
@@ -38,7 +38,7 @@ impl<T: Clone> History<T> {
                 });
                 self.stride *= 2;
             }
-            if self.offered % self.stride == 0 {
+            if self.offered.is_multiple_of(self.stride) {
                 self.items.push(x.clone());
             }
         }
@@ -58,7 +58,7 @@ impl<T: Clone> History<T> {
     /// The kept items, the latest one appended when thinning had left it out.
     pub fn into_vec(mut self) -> Vec<T> {
         if let Some(l) = self.last.take() {
-            if (self.offered - 1) % self.stride != 0 {
+            if !(self.offered - 1).is_multiple_of(self.stride) {
                 self.items.push(l);
             }
         }
