@@ -123,6 +123,10 @@ fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
     assert!(published >= 1, "the remote optimiser published nothing");
     assert_eq!(net["params_out"].as_u64().unwrap(), published);
 
+    // The remote optimiser's namespace is clean after it.
+    let left = leftovers(evoloop::net::mirror::PREFIX);
+    assert!(left.is_empty(), "{left:?}");
+
     // Every set the remote optimiser published reached the controller and passed its checks.
     let s = json(&host.join("summary.json"));
     let accepted = s["parameter_versions"]["accepted"]
@@ -199,6 +203,9 @@ fn losing_the_link_ends_the_remote_optimiser_and_the_run_goes_on() {
     );
     assert!(String::from_utf8_lossy(&opt.stderr).contains("no plant state"));
     assert!(gone_after < Duration::from_secs(15), "{gone_after:?}");
+    // It left iceoryx2 cleanly on its way out (no launcher cleans up after a remote optimiser).
+    let left = leftovers(evoloop::net::mirror::PREFIX);
+    assert!(left.is_empty(), "{left:?}");
     let run = finish(run, Duration::from_secs(60), "the run");
     assert_ok(&run);
     let s = json(&host.join("summary.json"));

@@ -51,7 +51,9 @@ pub fn run(scenario: &std::path::Path, sets: usize, port: u16) -> Result<BridgeB
     let kind = scn.controller.param_kind();
     let gains = scn.controller.tunable().gains.clone();
     let pid = std::process::id();
-    let (run_id, prefix) = (format!("bb{pid}"), format!("evoloop_bb{pid}_"));
+    // One prefix for every run of this bench (iceoryx2 keeps a management file per prefix),
+    // a run id of its own per process.
+    let (run_id, prefix) = (format!("bb{pid}"), "evoloop_bb_".to_string());
     let out = std::env::temp_dir().join(format!("evoloop-bench-bridge-{pid}"));
     let mut child = start_run(scenario, &run_id, &prefix, &out)?;
     let result = measure(&run_id, &prefix, kind, &gains, sets, port, scn.period_ns());

@@ -16,6 +16,9 @@ use std::sync::mpsc::sync_channel;
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
+/// The iceoryx2 prefix of the mirrored runs on a remote optimiser's host.
+pub const PREFIX: &str = "evoloop_net_";
+
 /// A running mirror: stop it with `stop` and `join`.
 pub struct Mirror {
     pub stop: Arc<AtomicBool>,

@@ -96,6 +96,10 @@ pub fn main(cli: &OptimiserArgs) {
         remote::finish(m, &scn.output.dir);
     }
     if let Err((code, msg)) = result {
+        // Leave iceoryx2 cleanly before exiting with the error: exit skips destructors, and a
+        // remote optimiser has no launcher to clean up after it.
+        drop(ports);
+        drop(ipc);
         fail(WHO, code, &msg);
     }
 }
@@ -548,8 +552,10 @@ mod remote {
                 "--rejoin is for a run's own optimiser, not with --connect",
             );
         }
-        // This process's own namespace: the run's id may also be running on this host.
-        cli.args.ipc_prefix = format!("evoloop_net{}_", std::process::id());
+        // A namespace of its own (the run's id may also be running on this host), one for
+        // every remote optimiser of this user: iceoryx2 keeps a small management file per
+        // prefix, and a node created here cleans up what a killed predecessor left.
+        cli.args.ipc_prefix = crate::net::mirror::PREFIX.to_string();
         let ep = crate::net::Endpoint::Connect(ep);
         crate::net::mirror::Mirror::start(
             &cli.args.run_id,
