@@ -1,5 +1,5 @@
 //! The remote optimiser's side of a bridge: the run's states, commands and telemetry from Zenoh
-//! into a private iceoryx2 namespace of this process, and the optimiser's parameter sets,
+//! into the iceoryx2 namespace of this host's remote optimisers (`PREFIX`), and the optimiser's parameter sets,
 //! estimates and status from there back to the network. The optimiser's own code runs against
 //! that namespace as it would inside the run, so nothing of it changes for the network.
 //!

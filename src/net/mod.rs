@@ -4,8 +4,8 @@
 //! - `evoloop bridge --run RUN_ID --listen|--connect ENDPOINT` (`bridge`) relays a running
 //!   run's topics between iceoryx2 and Zenoh key expressions `evoloop/<run id>/<topic>`.
 //! - `evoloop optimiser ... --connect ENDPOINT` (`mirror`) runs the optimiser on another host:
-//!   the run's topics are mirrored into a private iceoryx2 namespace of that process, and the
-//!   optimiser's own code runs against it unchanged.
+//!   the run's topics are mirrored into that host's iceoryx2 namespace for remote optimisers
+//!   (`mirror::PREFIX`), and the optimiser's own code runs against it unchanged.
 //!
 //! What crosses and which way (`ROUTES`):
 //!

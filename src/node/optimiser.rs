@@ -522,7 +522,8 @@ fn publish(
     )
 }
 
-/// The optimiser on another host (`--connect`): the run mirrored into a private namespace.
+/// The optimiser on another host (`--connect`): the run mirrored into the namespace of remote
+/// optimisers (`net::mirror::PREFIX`).
 mod remote {
     use super::{fail, EXIT_SETUP, WHO};
     use crate::node::args::OptimiserArgs;
@@ -533,7 +534,7 @@ mod remote {
     pub type Mirror = ();
 
     /// Start mirroring the run (realtime runs only) and point the process at the mirror's
-    /// private iceoryx2 namespace.
+    /// iceoryx2 namespace.
     #[cfg(feature = "zenoh")]
     pub fn join(cli: &mut OptimiserArgs, ep: String) -> Mirror {
         let scn = crate::node::start::load_scenario(&cli.args, WHO);
