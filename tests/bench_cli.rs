@@ -94,6 +94,36 @@ fn bench_loop_measures_the_loop_and_its_floor_in_the_same_run() {
     assert!(dir.path().join("loop.json").is_file());
 }
 
+/// The optimiser's load during the run is reported: with `--load optimiser` its DE epochs keep
+/// it busy (on 2 threads, back to back), far above the idle listener of `--load off`.
+#[test]
+fn bench_loop_reports_the_optimisers_load_during_the_run() {
+    let _alone = alone();
+    let load = |kind: &str| {
+        let dir = tempfile::tempdir().unwrap();
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+            .args(["bench", "loop", "--duration", "2", "--rt-only", "--json"])
+            .args(["--load", kind, "--out"])
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let r = &v["results"][0];
+        (
+            r["optimiser_load_cores"].as_f64().unwrap(),
+            r["optimiser_cpu_s"].as_f64().unwrap(),
+        )
+    };
+    let (busy, busy_cpu) = load("optimiser");
+    let (idle, _) = load("off");
+    assert!(busy_cpu > 0.5, "{busy_cpu} s of CPU in a 2 s run");
+    assert!(
+        busy > 0.25 && busy > 5.0 * idle,
+        "busy {busy} cores, idle {idle}"
+    );
+}
+
 /// `--scenario` runs a shipped scenario (here the 7-DOF arm at 10 kHz) with the chosen wait
 /// strategy, and the floor waits the same way; a rate the scenario does not run at is refused.
 #[test]

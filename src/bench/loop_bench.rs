@@ -273,6 +273,7 @@ pub fn measure(
                 "lateness": l, "compute": s.timing.compute, "state_age": s.timing.state_age,
                 "floor_lateness": f.lateness,
                 "ratio_p50": f.ratio_p50, "ratio_p99": f.ratio_p99, "ratio_p99_9": f.ratio_p99_9,
+                "optimiser_cpu_s": s.optimiser_cpu_s, "optimiser_load_cores": s.optimiser_load_cores,
             })
         })
         .collect();

@@ -196,13 +196,15 @@ pub fn loop_(a: LoopArgs) -> i32 {
         {
             let s = &r.summary;
             out!(
-                "{:<7} wait {}: misses per 10^6 cycles {:.1} (floor: {:.1} periods lost per 10^6), compute p99 {} ns, controller/floor lateness p99 {:.2}",
+                "{:<7} wait {}: misses per 10^6 cycles {:.1} (floor: {:.1} periods lost per 10^6), compute p99 {} ns, controller/floor lateness p99 {:.2}, optimiser {:.2} cores ({:.1} s CPU)",
                 r.privileges,
                 s.wait.map_or("-".into(), |w| w.describe()),
                 row["misses_per_million"].as_f64().unwrap_or(0.0),
                 row["floor_lost_per_million"].as_f64().unwrap_or(0.0),
                 s.timing.compute.p99_ns,
                 row["ratio_p99"].as_f64().unwrap_or(0.0),
+                s.optimiser_load_cores,
+                s.optimiser_cpu_s,
             );
         }
         out!(

@@ -87,8 +87,11 @@ pub fn main(cli: &OptimiserArgs) {
             fail(WHO, EXIT_SETUP, &e.to_string());
         }
     }
+    let t0 = Instant::now();
     let result = run(&scn, &ports, &stop, &mut report, cli.rejoin);
     report.interrupted = stop.load(Ordering::SeqCst);
+    report.wall_s = t0.elapsed().as_secs_f64();
+    report.cpu_s = process_cpu_seconds();
     if let Err(e) = write_json(&scn.output.dir, "optimiser.json", &report) {
         eprintln!("{WHO}: cannot write optimiser.json: {e}");
     }
@@ -520,6 +523,17 @@ fn publish(
         published,
         &scn.output.dir,
     )
+}
+
+/// User and system CPU time of this process, all threads, s (0 when unknown).
+fn process_cpu_seconds() -> f64 {
+    // SAFETY: getrusage fills the zeroed struct it is given.
+    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } != 0 {
+        return 0.0;
+    }
+    let s = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    s(u.ru_utime) + s(u.ru_stime)
 }
 
 /// The optimiser on another host (`--connect`): the run mirrored into the namespace of remote

@@ -541,6 +541,12 @@ pub fn build_report(
         plant_safe_samples: plant.safe_samples,
         optimiser_published: opt.published_count as usize,
         optimiser_samples_missed: opt.samples_missed,
+        optimiser_cpu_s: opt.cpu_s,
+        optimiser_load_cores: if opt.wall_s > 0.0 {
+            opt.cpu_s / opt.wall_s
+        } else {
+            0.0
+        },
         direct: opt
             .direct
             .as_ref()

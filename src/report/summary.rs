@@ -106,6 +106,12 @@ pub struct OptimiserReport {
     /// Direct mode: every repetition, the best set.
     #[serde(default)]
     pub direct: Option<crate::direct::DirectReport>,
+    /// CPU time of the whole process (every thread: epochs, evaluation pool), s, and its wall
+    /// time: the load the optimiser put on the machine beside the loop.
+    #[serde(default)]
+    pub cpu_s: f64,
+    #[serde(default)]
+    pub wall_s: f64,
 }
 
 /// The direct scheme's outcome in summary.json.
@@ -208,6 +214,11 @@ pub struct Summary {
     /// Indirect mode: plant samples the optimiser's estimator missed (its queue overflowed).
     #[serde(default)]
     pub optimiser_samples_missed: u64,
+    /// The optimiser process's CPU time over its wall time: cores it kept busy on average.
+    #[serde(default)]
+    pub optimiser_cpu_s: f64,
+    #[serde(default)]
+    pub optimiser_load_cores: f64,
     /// Direct mode: the trials and what they found (every repetition: direct.csv).
     #[serde(default)]
     pub direct: Option<DirectSummary>,
