@@ -15,13 +15,16 @@
 use super::bridge::{ipc_err, BridgeReport};
 use super::{key, open, wire, Endpoint};
 use crate::ipc::{Ipc, Topic};
-use crate::msg::{ParamSet, Telemetry};
+use crate::msg::{ParamSet, PlantState, Telemetry};
 use crate::rt::timing::Percentiles;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::pubsub::Subscriber;
+use zenoh::sample::Sample;
 use zenoh::Wait;
 
 /// Give up on one set after this long (the controller refused it, or the run is gone).
@@ -127,6 +130,88 @@ fn random_phase(rng: &mut impl rand::Rng, period_ns: u64) {
     std::thread::sleep(Duration::from_nanos(rng.gen_range(0..period_ns.max(1))));
 }
 
+/// Poll `next` until it gives something, for at most 20 s (`what` names it in the error).
+fn first<T>(mut next: impl FnMut() -> Result<Option<T>, String>, what: &str) -> Result<T, String> {
+    let t0 = Instant::now();
+    loop {
+        if let Some(v) = next()? {
+            return Ok(v);
+        }
+        if t0.elapsed() > Duration::from_secs(20) {
+            return Err(format!("{what} within 20 s"));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// One path's round trips: `sets` sets, versions after `version`, each sent by `send` at a
+/// random phase of the period and timed until `next` (the path's telemetry) shows it in service.
+struct RoundTrips<'a, R> {
+    rng: &'a mut R,
+    period_ns: u64,
+    kind: u32,
+    gains: &'a [f64],
+    version: u64,
+}
+
+impl<R: rand::Rng> RoundTrips<'_, R> {
+    fn run(
+        &mut self,
+        sets: usize,
+        mut send: impl FnMut(&ParamSet) -> Result<(), String>,
+        mut next: impl FnMut() -> Result<Option<Telemetry>, String>,
+    ) -> Result<Vec<f64>, String> {
+        let mut out = Vec::with_capacity(sets);
+        for _ in 0..sets {
+            self.version += 1;
+            let v = self.version;
+            // Two sets in turn: the scenario's gains and the same scaled by 1.001 (in bounds: a
+            // tuner's step), so every version is a real change.
+            let f = if v.is_multiple_of(2) { 1.0 } else { 1.001 };
+            let values: Vec<f64> = self.gains.iter().map(|g| g * f).collect();
+            let set = ParamSet::new(v, 0, self.kind, &values);
+            random_phase(self.rng, self.period_ns);
+            while next()?.is_some() {}
+            let sent = Instant::now();
+            send(&set)?;
+            loop {
+                if next()?.is_some_and(|t| t.param_version >= v) {
+                    out.push(sent.elapsed().as_nanos() as f64);
+                    break;
+                }
+                if sent.elapsed() > SET_TIMEOUT {
+                    return Err(format!("set {v} not in service after 2 s"));
+                }
+                std::hint::spin_loop();
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Ages on arrival of `STATES` states from `next` (the plant's stamp to now, one clock).
+fn state_ages(
+    mut next: impl FnMut() -> Result<Option<PlantState>, String>,
+) -> Result<Vec<f64>, String> {
+    let mut ages = Vec::with_capacity(STATES);
+    while ages.len() < STATES {
+        if let Some(s) = next()? {
+            ages.push(crate::rt::clock::now_ns().saturating_sub(s.stamp_ns) as f64);
+        }
+    }
+    Ok(ages)
+}
+
+/// The next message of `sub` as a `T`, if one has arrived.
+fn recv<T: iceoryx2::prelude::ZeroCopySend + Copy>(
+    sub: &Subscriber<FifoChannelHandler<Sample>>,
+) -> Result<Option<T>, String> {
+    match sub.try_recv().map_err(|e| e.to_string())? {
+        Some(s) => wire::decode(&s.payload().to_bytes()).map(Some),
+        None => Ok(None),
+    }
+}
+
 fn measure(
     run_id: &str,
     prefix: &str,
@@ -138,67 +223,34 @@ fn measure(
 ) -> Result<Phases, String> {
     use rand::SeedableRng;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let mut trips = RoundTrips {
+        rng: &mut rng,
+        period_ns,
+        kind,
+        gains,
+        version: 1_000_000,
+    };
     let ipc = Ipc::with_cleanup("evoloop-bench-bridge", run_id, prefix, false).map_err(ipc_err)?;
     let telemetry = ipc
         .subscriber::<Telemetry>(Topic::Telemetry, 64, false)
         .map_err(ipc_err)?;
+    let local_tel = || telemetry.next().map_err(ipc_err);
     // The run is up once its controller's telemetry flows.
-    let t0 = Instant::now();
-    while telemetry.next().map_err(ipc_err)?.is_none() {
-        if t0.elapsed() > Duration::from_secs(20) {
-            return Err("the run's controller sent no telemetry within 20 s".into());
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    // Two sets in turn: the scenario's gains and the same scaled by 1.001 (in bounds: a tuner's
-    // step), so every version is a real change.
-    let values = |v: u64| -> Vec<f64> {
-        let f = if v.is_multiple_of(2) { 1.0 } else { 1.001 };
-        gains.iter().map(|g| g * f).collect()
-    };
-    let mut version = 1_000_000u64;
-    let local = |n: usize,
-                 version: &mut u64,
-                 rng: &mut rand_chacha::ChaCha8Rng|
-     -> Result<Vec<f64>, String> {
+    first(local_tel, "no telemetry from the run's controller")?;
+    // The local publisher lives for one phase: the params topic takes two publishers, the
+    // run's optimiser's and one more (the bridge's in the middle phase).
+    let local = |trips: &mut RoundTrips<_>| {
         let params = ipc
             .publisher::<ParamSet>(Topic::Params, false)
             .map_err(ipc_err)?;
-        let mut out = Vec::with_capacity(n);
-        for _ in 0..n {
-            *version += 1;
-            let set = ParamSet::new(*version, 0, kind, &values(*version));
-            random_phase(rng, period_ns);
-            while telemetry.next().map_err(ipc_err)?.is_some() {}
-            let sent = Instant::now();
-            params.send(&set).map_err(ipc_err)?;
-            loop {
-                if let Some(t) = telemetry.next().map_err(ipc_err)? {
-                    if t.param_version >= *version {
-                        out.push(sent.elapsed().as_nanos() as f64);
-                        break;
-                    }
-                }
-                if sent.elapsed() > SET_TIMEOUT {
-                    return Err(format!("set {} not in service after 2 s", *version));
-                }
-                std::hint::spin_loop();
-            }
-        }
-        Ok(out)
+        trips.run(sets, |s| params.send(s).map_err(ipc_err), local_tel)
     };
-    let first = local(sets, &mut version, &mut rng)?;
+    let local_first = local(&mut trips)?;
     let state_local = {
         let states = ipc
-            .subscriber::<crate::msg::PlantState>(Topic::State, 8, false)
+            .subscriber::<PlantState>(Topic::State, 8, false)
             .map_err(ipc_err)?;
-        let mut ages = Vec::with_capacity(STATES);
-        while ages.len() < STATES {
-            if let Some(s) = states.next().map_err(ipc_err)? {
-                ages.push(crate::rt::clock::now_ns().saturating_sub(s.stamp_ns) as f64);
-            }
-        }
-        ages
+        state_ages(|| states.next().map_err(ipc_err))?
     };
     // Through a bridge of this process (its own thread, as `evoloop bridge` would run).
     let ep = format!("tcp/127.0.0.1:{port}");
@@ -219,58 +271,26 @@ fn measure(
         key(run_id, Topic::Params, false),
         zenoh::qos::CongestionControl::Block,
     )?;
-    let t0 = Instant::now();
-    while zt.try_recv().map_err(|e| e.to_string())?.is_none() {
-        if t0.elapsed() > Duration::from_secs(20) {
-            return Err("no telemetry through the bridge within 20 s".into());
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    let mut through = Vec::with_capacity(sets);
-    for _ in 0..sets {
-        version += 1;
-        let set = ParamSet::new(version, 0, kind, &values(version));
-        random_phase(&mut rng, period_ns);
-        while zt.try_recv().map_err(|e| e.to_string())?.is_some() {}
-        let sent = Instant::now();
-        zp.put(wire::encode(&set))
-            .wait()
-            .map_err(|e| e.to_string())?;
-        loop {
-            if let Some(s) = zt.try_recv().map_err(|e| e.to_string())? {
-                let t: Telemetry = wire::decode(&s.payload().to_bytes())?;
-                if t.param_version >= version {
-                    through.push(sent.elapsed().as_nanos() as f64);
-                    break;
-                }
-            }
-            if sent.elapsed() > SET_TIMEOUT {
-                return Err(format!("set {version} not in service after 2 s"));
-            }
-            std::hint::spin_loop();
-        }
-    }
+    first(|| recv::<Telemetry>(&zt), "no telemetry through the bridge")?;
+    let through = trips.run(
+        sets,
+        |s| zp.put(wire::encode(s)).wait().map_err(|e| e.to_string()),
+        || recv(&zt),
+    )?;
     let state_bridge = {
         let zs = super::bridge::subscriber(&z, key(run_id, Topic::State, false))?;
-        let mut ages = Vec::with_capacity(STATES);
-        while ages.len() < STATES {
-            if let Some(s) = zs.try_recv().map_err(|e| e.to_string())? {
-                let st: crate::msg::PlantState = wire::decode(&s.payload().to_bytes())?;
-                ages.push(crate::rt::clock::now_ns().saturating_sub(st.stamp_ns) as f64);
-            }
-        }
-        ages
+        state_ages(|| recv(&zs))?
     };
     stop.store(true, Ordering::SeqCst);
     let report = bridge
         .join()
         .map_err(|_| "the bridge thread panicked".to_string())??;
     drop((zt, zp, z));
-    let again = local(sets, &mut version, &mut rng)?;
+    let local_again = local(&mut trips)?;
     Ok(Phases {
-        local: first,
+        local: local_first,
         bridge: through,
-        local_again: again,
+        local_again,
         state_local,
         state_bridge,
         report,

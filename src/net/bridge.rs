@@ -7,7 +7,7 @@
 //! states and commands are relayed in order, every one (a remote optimiser's estimator counts
 //! gaps), telemetry as it comes.
 
-use super::{key, open, wire, Endpoint, Relayed, POLL};
+use super::{key, open, wire, Endpoint, POLL};
 use crate::ipc::{Ipc, IpcError, Pub, Sub, Topic};
 use crate::msg::{
     Command, ModelEstimate, OptimiserStatus, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
@@ -33,17 +33,11 @@ pub(crate) struct Out<T: Debug + ZeroCopySend + Copy + 'static> {
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Out<T> {
-    pub fn new(
-        ipc: &Ipc,
-        z: &zenoh::Session,
-        topic: Topic,
-        key: String,
-        wake: bool,
-    ) -> Result<Self, String> {
+    pub fn new(ipc: &Ipc, z: &zenoh::Session, topic: Topic, key: String) -> Result<Self, String> {
         Ok(Self {
             sub: ipc
-                .subscriber(topic, topic.max_buffer(), wake)
-                .map_err(|e| e.to_string())?,
+                .subscriber(topic, topic.max_buffer(), false)
+                .map_err(ipc_err)?,
             // A parameter set must not be dropped (the sender's version numbering goes on
             // from it); the streams may be, rather than hold up the relay.
             net: publisher(
@@ -62,18 +56,14 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Out<T> {
     pub fn drain(&self, mut seen: impl FnMut(&T)) -> Result<u64, String> {
         let mut n = 0;
         while let Some(v) = self.sub.next().map_err(ipc_err)? {
-            self.put(&v)?;
+            self.net
+                .put(wire::encode(&v))
+                .wait()
+                .map_err(|e| format!("Zenoh put on {}: {e}", self.net.key_expr()))?;
             seen(&v);
             n += 1;
         }
         Ok(n)
-    }
-
-    pub fn put(&self, v: &T) -> Result<(), String> {
-        self.net
-            .put(wire::encode(v))
-            .wait()
-            .map_err(|e| format!("Zenoh put on {}: {e}", self.net.key_expr()))
     }
 }
 
@@ -93,28 +83,36 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> In<T> {
     ) -> Result<Self, String> {
         Ok(Self {
             net: subscriber(z, key)?,
-            publ: ipc.publisher(topic, wake).map_err(|e| e.to_string())?,
+            publ: ipc.publisher(topic, wake).map_err(ipc_err)?,
         })
     }
 
-    /// Publish what has arrived; a message of another layout is counted and dropped.
-    pub fn drain(&self, r: &mut Relayed, mut seen: impl FnMut(&T)) -> Result<(), String> {
-        while let Some(s) = self.net.try_recv().map_err(|e| e.to_string())? {
+    /// Publish what has arrived, after waiting up to `wait` for the first message. A message
+    /// of another layout is dropped and counted in `refused`. Returns how many went in.
+    pub fn drain(&self, wait: Duration, refused: &mut u64) -> Result<u64, String> {
+        let err = |e: zenoh::Error| format!("Zenoh receive on {}: {e}", self.net.key_expr());
+        let mut next = if wait.is_zero() {
+            self.net.try_recv().map_err(err)?
+        } else {
+            self.net.recv_timeout(wait).map_err(err)?
+        };
+        let mut n = 0;
+        while let Some(s) = next {
             match wire::decode::<T>(&s.payload().to_bytes()) {
                 Ok(v) => {
                     self.publ.send(&v).map_err(ipc_err)?;
-                    seen(&v);
-                    r.r#in += 1;
+                    n += 1;
                 }
                 Err(e) => {
-                    if r.refused == 0 {
+                    if *refused == 0 {
                         eprintln!("evoloop: {}: {e}; dropped", s.key_expr());
                     }
-                    r.refused += 1;
+                    *refused += 1;
                 }
             }
+            next = self.net.try_recv().map_err(err)?;
         }
-        Ok(())
+        Ok(n)
     }
 }
 
@@ -175,17 +173,12 @@ pub fn run(
     let ipc = Ipc::with_cleanup("evoloop-bridge", run_id, prefix, false).map_err(ipc_err)?;
     let k = |t: Topic| key(run_id, t, false);
     let kr = |t: Topic| key(run_id, t, true);
-    let state = Out::<PlantState>::new(&ipc, &z, Topic::State, k(Topic::State), false)?;
-    let command = Out::<Command>::new(&ipc, &z, Topic::Command, k(Topic::Command), false)?;
-    let telemetry = Out::<Telemetry>::new(&ipc, &z, Topic::Telemetry, k(Topic::Telemetry), false)?;
-    let estimate = Out::<ModelEstimate>::new(&ipc, &z, Topic::Estimate, k(Topic::Estimate), false)?;
-    let status = Out::<OptimiserStatus>::new(
-        &ipc,
-        &z,
-        Topic::OptimiserStatus,
-        k(Topic::OptimiserStatus),
-        false,
-    )?;
+    let state = Out::<PlantState>::new(&ipc, &z, Topic::State, k(Topic::State))?;
+    let command = Out::<Command>::new(&ipc, &z, Topic::Command, k(Topic::Command))?;
+    let telemetry = Out::<Telemetry>::new(&ipc, &z, Topic::Telemetry, k(Topic::Telemetry))?;
+    let estimate = Out::<ModelEstimate>::new(&ipc, &z, Topic::Estimate, k(Topic::Estimate))?;
+    let status =
+        Out::<OptimiserStatus>::new(&ipc, &z, Topic::OptimiserStatus, k(Topic::OptimiserStatus))?;
     let params = In::<ParamSet>::new(&ipc, &z, k(Topic::Params), Topic::Params, false)?;
     let estimate_in =
         In::<ModelEstimate>::new(&ipc, &z, kr(Topic::Estimate), Topic::Estimate, false)?;
@@ -200,7 +193,6 @@ pub fn run(
         run_id: run_id.to_string(),
         ..Default::default()
     };
-    let mut r = Relayed::default();
     let t0 = Instant::now();
     let mut ended = false;
     rep.ended = loop {
@@ -218,9 +210,9 @@ pub fn run(
         rep.telemetry += telemetry.drain(|_| {})?;
         rep.estimates_out += estimate.drain(|_| {})?;
         rep.status_out += status.drain(|_| {})?;
-        params.drain(&mut r, |_| rep.params_in += 1)?;
-        estimate_in.drain(&mut r, |_| rep.estimates_in += 1)?;
-        status_in.drain(&mut r, |_| {})?;
+        rep.params_in += params.drain(Duration::ZERO, &mut rep.refused)?;
+        rep.estimates_in += estimate_in.drain(Duration::ZERO, &mut rep.refused)?;
+        status_in.drain(Duration::ZERO, &mut rep.refused)?;
         if ended {
             // The controller's last command and telemetry follow the plant's last state.
             std::thread::sleep(Duration::from_millis(50));
@@ -230,7 +222,6 @@ pub fn run(
         }
     }
     .to_string();
-    rep.refused = r.refused;
     rep.seconds = t0.elapsed().as_secs_f64();
     Ok(rep)
 }

@@ -7,7 +7,7 @@
 //! the plant goes silent (`no plant state within ...`); the run goes on with the set in service.
 
 use super::bridge::{ipc_err, In, Out};
-use super::{key, open, Endpoint, Relayed, POLL};
+use super::{key, open, Endpoint, POLL};
 use crate::ipc::{Ipc, Topic};
 use crate::msg::{Command, ModelEstimate, OptimiserStatus, ParamSet, PlantState, Telemetry};
 use std::path::PathBuf;
@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::sync_channel;
 use std::sync::Arc;
 use std::thread::JoinHandle;
+use std::time::Duration;
 
 /// The iceoryx2 prefix of the mirrored runs on a remote optimiser's host.
 pub const PREFIX: &str = "evoloop_net_";
@@ -109,40 +110,22 @@ impl Ports {
             // The direct scheme blocks on the command's event.
             command: In::new(&ipc, &z, k(Topic::Command), Topic::Command, true)?,
             telemetry: In::new(&ipc, &z, k(Topic::Telemetry), Topic::Telemetry, false)?,
-            params: Out::new(&ipc, &z, Topic::Params, k(Topic::Params), false)?,
-            estimate: Out::new(&ipc, &z, Topic::Estimate, kr(Topic::Estimate), false)?,
-            status: Out::new(
-                &ipc,
-                &z,
-                Topic::OptimiserStatus,
-                kr(Topic::OptimiserStatus),
-                false,
-            )?,
+            params: Out::new(&ipc, &z, Topic::Params, k(Topic::Params))?,
+            estimate: Out::new(&ipc, &z, Topic::Estimate, kr(Topic::Estimate))?,
+            status: Out::new(&ipc, &z, Topic::OptimiserStatus, kr(Topic::OptimiserStatus))?,
             _z: z,
         })
     }
 
     fn serve(&self, stop: &AtomicBool) -> Result<MirrorReport, String> {
         let mut rep = MirrorReport::default();
-        let mut r = Relayed::default();
-        // Sets must not be lost: the optimiser's in-service version follows them.
+        let none = Duration::ZERO;
         while !stop.load(Ordering::Relaxed) {
             // Commands before the state they answer follows: the optimiser reads commands up to
-            // each state it takes.
-            self.command.drain(&mut r, |_| rep.commands_in += 1)?;
-            match self.state.net.recv_timeout(POLL) {
-                Ok(Some(s)) => match super::wire::decode::<PlantState>(&s.payload().to_bytes()) {
-                    Ok(v) => {
-                        self.state.publ.send(&v).map_err(ipc_err)?;
-                        rep.states_in += 1;
-                    }
-                    Err(_) => r.refused += 1,
-                },
-                Ok(None) => {}
-                Err(e) => return Err(format!("network state: {e}")),
-            }
-            self.state.drain(&mut r, |_| rep.states_in += 1)?;
-            self.telemetry.drain(&mut r, |_| rep.telemetry_in += 1)?;
+            // each state it takes. Waiting for the next state paces the loop.
+            rep.commands_in += self.command.drain(none, &mut rep.refused)?;
+            rep.states_in += self.state.drain(POLL, &mut rep.refused)?;
+            rep.telemetry_in += self.telemetry.drain(none, &mut rep.refused)?;
             rep.params_out += self.params.drain(|_| {})?;
             rep.estimates_out += self.estimate.drain(|_| {})?;
             self.status.drain(|_| {})?;
@@ -150,7 +133,6 @@ impl Ports {
         // What the optimiser published last.
         rep.params_out += self.params.drain(|_| {})?;
         rep.estimates_out += self.estimate.drain(|_| {})?;
-        rep.refused = r.refused;
         Ok(rep)
     }
 }

@@ -104,12 +104,3 @@ pub fn key(run_id: &str, topic: Topic, remote: bool) -> String {
 /// The relays poll their ports this often (a sleep of 100 us is ~0.1-0.15 ms on this VM; the
 /// CPU it costs is a wake-up per poll, ~1 % of a core).
 pub const POLL: Duration = Duration::from_micros(100);
-
-/// Counts of one relay direction, for the closing report.
-#[derive(Debug, Default, Clone, Copy, serde::Serialize)]
-pub struct Relayed {
-    pub out: u64,
-    pub r#in: u64,
-    /// Network messages that were not of the expected layout (another build's), dropped.
-    pub refused: u64,
-}
