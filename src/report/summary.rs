@@ -106,8 +106,8 @@ pub struct OptimiserReport {
     /// Direct mode: every repetition, the best set.
     #[serde(default)]
     pub direct: Option<crate::direct::DirectReport>,
-    /// CPU time of the whole process (every thread: epochs, evaluation pool), s, and its wall
-    /// time: the load the optimiser put on the machine beside the loop.
+    /// CPU time of the whole process over its run (every thread: epochs, evaluation pool), s,
+    /// and the run's wall time: the load the optimiser put on the machine beside the loop.
     #[serde(default)]
     pub cpu_s: f64,
     #[serde(default)]
