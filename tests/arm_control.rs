@@ -339,25 +339,24 @@ fn payload_keys_are_checked_with_their_names() {
     );
 }
 
-/// The 7-DOF arm at 10 kHz through the three processes in lockstep: two runs give the same
-/// run.csv byte for byte, and it equals the in-process simulation bit for bit.
-#[test]
-fn the_seven_dof_arm_at_ten_kilohertz_is_bit_reproducible_in_lockstep() {
-    let _alone = alone();
+/// Run the 7-DOF scenario `file` for 2 s in lockstep through the processes twice: the two
+/// run.csv are the same byte for byte, and y and u equal the in-process simulation bit for bit.
+/// Returns the first run's run.csv and summary.json.
+fn seven_dof_lockstep_twice_equals_simulation(file: &str, tag: &str) -> (Csv, serde_json::Value) {
     let tmp = tempfile::tempdir().unwrap();
     let outs = [tmp.path().join("a"), tmp.path().join("b")];
     for (i, out) in outs.iter().enumerate() {
         assert_ok(&run(
-            &config("arm7_ct.toml"),
+            &config(file),
             out,
-            &format!("arm7ls{i}"),
+            &format!("{tag}{i}"),
             &["--duration", "2"],
         ));
     }
     let read = |o: &PathBuf| std::fs::read(o.join("run.csv")).unwrap();
     assert!(read(&outs[0]) == read(&outs[1]), "two lockstep runs differ");
     let scn = load(
-        "arm7_ct.toml",
+        file,
         &Overrides {
             duration: Some(2.0),
             ..Default::default()
@@ -375,9 +374,17 @@ fn the_seven_dof_arm_at_ten_kilohertz_is_bit_reproducible_in_lockstep() {
             assert_eq!(u[i].to_bits(), row.telemetry.u[j].to_bits(), "u{j} at {i}");
         }
     }
+    (csv, json(&outs[0].join("summary.json")))
+}
+
+/// The 7-DOF arm at 10 kHz through the three processes in lockstep: two runs give the same
+/// run.csv byte for byte, and it equals the in-process simulation bit for bit.
+#[test]
+fn the_seven_dof_arm_at_ten_kilohertz_is_bit_reproducible_in_lockstep() {
+    let _alone = alone();
+    let (_, s) = seven_dof_lockstep_twice_equals_simulation("arm7_ct.toml", "arm7ls");
     // Computed torque with the true model: after the start-up, the error is the sensor noise
     // (noise_std = 1e-4 rad).
-    let s = json(&outs[0].join("summary.json"));
     let rms = s["tracking_after_1s"]["rms"].as_array().unwrap();
     assert_eq!(rms.len(), 7);
     assert!(rms.iter().all(|v| v.as_f64().unwrap() < 2e-4), "{rms:?}");
@@ -396,40 +403,11 @@ fn the_seven_dof_arm_runs_at_ten_kilohertz_in_realtime_mode() {
 #[test]
 fn the_fuzzy_selection_controller_runs_the_seven_dof_arm_at_ten_kilohertz() {
     let _alone = alone();
-    let tmp = tempfile::tempdir().unwrap();
-    let outs = [tmp.path().join("a"), tmp.path().join("b")];
-    for (i, out) in outs.iter().enumerate() {
-        assert_ok(&run(
-            &config("arm7_fuzzy_ct.toml"),
-            out,
-            &format!("arm7fz{i}"),
-            &["--duration", "2"],
-        ));
-    }
-    let read = |o: &PathBuf| std::fs::read(o.join("run.csv")).unwrap();
-    assert!(read(&outs[0]) == read(&outs[1]), "two lockstep runs differ");
-    let scn = load(
-        "arm7_fuzzy_ct.toml",
-        &Overrides {
-            duration: Some(2.0),
-            ..Default::default()
-        },
-    );
-    assert_eq!(scn.timing.period, 1e-4);
-    let sim = simulate(&scn);
-    let csv = Csv::read(&outs[0].join("run.csv"));
-    assert_eq!(csv.rows.len(), 20_000);
-    for j in 0..7 {
-        let u = csv.col(&format!("u{j}"));
-        for (i, row) in sim.rows.iter().enumerate() {
-            assert_eq!(u[i].to_bits(), row.telemetry.u[j].to_bits(), "u{j} at {i}");
-        }
-    }
+    let (csv, s) = seven_dof_lockstep_twice_equals_simulation("arm7_fuzzy_ct.toml", "arm7fz");
     let chosen = csv.col("fuzzy_model");
     for m in [0.0, 1.0] {
         assert!(chosen.contains(&m), "model {m} never selected");
     }
-    let s = json(&outs[0].join("summary.json"));
     let rms = s["tracking_after_1s"]["rms_all"].as_f64().unwrap();
     assert!(rms < 0.2, "tracking rms {rms}");
 }

@@ -16,14 +16,13 @@ fn config(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// A free TCP port on 127.0.0.1 (bound, read and released).
+/// A loopback endpoint on a free port.
 #[cfg(feature = "zenoh")]
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
+fn loopback() -> String {
+    format!(
+        "tcp/127.0.0.1:{}",
+        evoloop::net::bench::free_port().unwrap()
+    )
 }
 
 #[cfg(feature = "zenoh")]
@@ -36,18 +35,54 @@ fn spawn(args: &[&str]) -> Child {
         .expect("start evoloop")
 }
 
-/// Wait for `c` (at most `limit`), then its exit status and outputs.
+/// The run on the robot's host: `file` in realtime for `secs`, its own optimiser off.
 #[cfg(feature = "zenoh")]
-fn finish(c: Child, limit: Duration, what: &str) -> std::process::Output {
-    let t0 = Instant::now();
-    let mut c = c;
-    while c.try_wait().unwrap().is_none() {
-        if t0.elapsed() > limit {
-            let _ = c.kill();
-            panic!("{what} still running after {limit:?}");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
+fn spawn_host_run(file: &str, secs: &str, run_id: &str, prefix: &str, out: &Path) -> Child {
+    spawn(&[
+        "run",
+        file,
+        "--mode",
+        "realtime",
+        "--no-rt",
+        "--duration",
+        secs,
+        "--optimiser",
+        "off",
+        "--run-id",
+        run_id,
+        "--ipc-prefix",
+        prefix,
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ])
+}
+
+/// The optimiser of `file` joining run `run_id` over `ep`, as from another host.
+#[cfg(feature = "zenoh")]
+fn spawn_remote_optimiser(file: &str, secs: &str, run_id: &str, out: &Path, ep: &str) -> Child {
+    spawn(&[
+        "optimiser",
+        "--config",
+        file,
+        "--run-id",
+        run_id,
+        "--mode",
+        "realtime",
+        "--no-rt",
+        "--duration",
+        secs,
+        "--out",
+        out.to_str().unwrap(),
+        "--connect",
+        ep,
+    ])
+}
+
+/// Wait for `c` (at most `limit`, else it is killed and the test fails), then its outputs.
+#[cfg(feature = "zenoh")]
+fn finish(mut c: Child, limit: Duration) -> std::process::Output {
+    wait_exit(&mut c, limit);
     c.wait_with_output().unwrap()
 }
 
@@ -62,51 +97,19 @@ fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let (prefix, run_id) = unique("znet");
-    let ep = format!("tcp/127.0.0.1:{}", free_port());
+    let ep = loopback();
     let (host, remote) = (tmp.path().join("host"), tmp.path().join("remote"));
     let file = config("maglev_indirect.toml");
     let file = file.to_str().unwrap();
     let secs = "12";
-    let run = spawn(&[
-        "run",
-        file,
-        "--mode",
-        "realtime",
-        "--no-rt",
-        "--duration",
-        secs,
-        "--optimiser",
-        "off",
-        "--run-id",
-        &run_id,
-        "--ipc-prefix",
-        &prefix,
-        "--out",
-        host.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let run = spawn_host_run(file, secs, &run_id, &prefix, &host);
     let bridge = spawn(&["bridge", "--run", &run_id, "--listen", &ep, "--json"]);
-    let optimiser = spawn(&[
-        "optimiser",
-        "--config",
-        file,
-        "--run-id",
-        &run_id,
-        "--mode",
-        "realtime",
-        "--no-rt",
-        "--duration",
-        secs,
-        "--out",
-        remote.to_str().unwrap(),
-        "--connect",
-        &ep,
-    ]);
-    let run = finish(run, Duration::from_secs(60), "the run");
+    let optimiser = spawn_remote_optimiser(file, secs, &run_id, &remote, &ep);
+    let run = finish(run, Duration::from_secs(60));
     assert_ok(&run);
-    let bridge = finish(bridge, Duration::from_secs(10), "the bridge");
+    let bridge = finish(bridge, Duration::from_secs(10));
     assert_ok(&bridge);
-    let opt = finish(optimiser, Duration::from_secs(10), "the remote optimiser");
+    let opt = finish(optimiser, Duration::from_secs(10));
     assert_ok(&opt);
 
     let b: serde_json::Value = serde_json::from_slice(&bridge.stdout).expect("bridge JSON");
@@ -150,50 +153,18 @@ fn losing_the_link_ends_the_remote_optimiser_and_the_run_goes_on() {
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let (prefix, run_id) = unique("zlost");
-    let ep = format!("tcp/127.0.0.1:{}", free_port());
+    let ep = loopback();
     let (host, remote) = (tmp.path().join("host"), tmp.path().join("remote"));
     let file = config("maglev_indirect.toml");
     let file = file.to_str().unwrap();
-    let run = spawn(&[
-        "run",
-        file,
-        "--mode",
-        "realtime",
-        "--no-rt",
-        "--duration",
-        "20",
-        "--optimiser",
-        "off",
-        "--run-id",
-        &run_id,
-        "--ipc-prefix",
-        &prefix,
-        "--out",
-        host.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let run = spawn_host_run(file, "20", &run_id, &prefix, &host);
     let mut bridge = spawn(&["bridge", "--run", &run_id, "--listen", &ep]);
-    let optimiser = spawn(&[
-        "optimiser",
-        "--config",
-        file,
-        "--run-id",
-        &run_id,
-        "--mode",
-        "realtime",
-        "--no-rt",
-        "--duration",
-        "20",
-        "--out",
-        remote.to_str().unwrap(),
-        "--connect",
-        &ep,
-    ]);
+    let optimiser = spawn_remote_optimiser(file, "20", &run_id, &remote, &ep);
     std::thread::sleep(Duration::from_secs(5));
     bridge.kill().unwrap();
     let _ = bridge.wait();
     let killed = Instant::now();
-    let opt = finish(optimiser, Duration::from_secs(30), "the remote optimiser");
+    let opt = finish(optimiser, Duration::from_secs(30));
     let gone_after = killed.elapsed();
     assert_eq!(
         opt.status.code(),
@@ -206,7 +177,7 @@ fn losing_the_link_ends_the_remote_optimiser_and_the_run_goes_on() {
     // It left iceoryx2 cleanly on its way out (no launcher cleans up after a remote optimiser).
     let left = leftovers(evoloop::net::mirror::PREFIX);
     assert!(left.is_empty(), "{left:?}");
-    let run = finish(run, Duration::from_secs(60), "the run");
+    let run = finish(run, Duration::from_secs(60));
     assert_ok(&run);
     let s = json(&host.join("summary.json"));
     assert_eq!(s["outcome"], "ok");
@@ -229,26 +200,11 @@ fn a_parameter_set_from_the_network_is_validated_by_the_controller() {
 
     let tmp = tempfile::tempdir().unwrap();
     let (prefix, run_id) = unique("zval");
-    let ep = format!("tcp/127.0.0.1:{}", free_port());
+    let ep = loopback();
     let file = config("maglev.toml");
     let scn = Scenario::load(&file, &Overrides::default()).unwrap();
     let out = tmp.path().join("host");
-    let run = spawn(&[
-        "run",
-        file.to_str().unwrap(),
-        "--mode",
-        "realtime",
-        "--no-rt",
-        "--duration",
-        "4",
-        "--run-id",
-        &run_id,
-        "--ipc-prefix",
-        &prefix,
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let run = spawn_host_run(file.to_str().unwrap(), "4", &run_id, &prefix, &out);
     let bridge = spawn(&["bridge", "--run", &run_id, "--listen", &ep]);
     let z = open(&Endpoint::Connect(ep.clone()), None).unwrap();
     // Wait for the run's states on the network: the bridge is up and relaying.
@@ -280,8 +236,8 @@ fn a_parameter_set_from_the_network_is_validated_by_the_controller() {
         params.put(wire::encode(&set)).wait().unwrap();
         std::thread::sleep(Duration::from_millis(300));
     }
-    assert_ok(&finish(run, Duration::from_secs(60), "the run"));
-    assert_ok(&finish(bridge, Duration::from_secs(10), "the bridge"));
+    assert_ok(&finish(run, Duration::from_secs(60)));
+    assert_ok(&finish(bridge, Duration::from_secs(10)));
     let s = json(&out.join("summary.json"));
     let v = &s["parameter_versions"];
     let rejected = v["rejected"].as_array().unwrap();
