@@ -25,7 +25,7 @@ pub struct BridgeArgs {
     #[arg(long, value_name = "FILE")]
     pub zenoh_config: Option<PathBuf>,
     /// Seconds to relay, then stop [default: until the run ends or Ctrl-C].
-    #[arg(long)]
+    #[arg(long, value_parser = |s: &str| crate::node::args::seconds_in(s, 1e6))]
     pub duration: Option<f64>,
     /// Print what was relayed as JSON at the end.
     #[arg(long)]
@@ -53,12 +53,10 @@ pub fn main(a: &BridgeArgs) -> u8 {
             }
         }
     };
-    let ep = match Endpoint::of(a.listen.as_deref(), a.connect.as_deref()) {
-        Ok(ep) => ep,
-        Err(e) => {
-            err!("error: {e}");
-            return 2;
-        }
+    // clap takes exactly one of the two.
+    let ep = match (&a.listen, &a.connect) {
+        (Some(l), _) => Endpoint::Listen(l.clone()),
+        (None, c) => Endpoint::Connect(c.clone().unwrap_or_default()),
     };
     if let Some(p) = &a.zenoh_config {
         if !p.is_file() {
@@ -66,13 +64,7 @@ pub fn main(a: &BridgeArgs) -> u8 {
             return 2;
         }
     }
-    let duration = match a.duration {
-        Some(d) if !(d > 0.0 && d.is_finite()) => {
-            err!("error: --duration {d}: seconds > 0");
-            return 2;
-        }
-        d => d.map(std::time::Duration::from_secs_f64),
-    };
+    let duration = a.duration.map(std::time::Duration::from_secs_f64);
     let stop = crate::node::start::stop_flag();
     err!(
         "evoloop bridge: run {} on Zenoh ({ep:?}), keys evoloop/{}/...",

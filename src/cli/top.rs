@@ -20,15 +20,8 @@ pub struct TopArgs {
     #[arg(long)]
     pub json: bool,
     /// Seconds to watch, then quit [default: until q, Esc or Ctrl-C, or the run ends].
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_parser = |s: &str| crate::node::args::seconds_in(s, 1e6))]
     pub duration: Option<f64>,
-}
-
-fn parse_duration(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v > 0.0 && v <= 1e6 => Ok(v),
-        _ => Err(format!("{s:?}: seconds in (0, 1e6]")),
-    }
 }
 
 struct Ports {

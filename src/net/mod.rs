@@ -48,18 +48,6 @@ pub enum Endpoint {
     Connect(String),
 }
 
-impl Endpoint {
-    /// From the `--listen` / `--connect` pair of a command line (clap makes them exclusive).
-    pub fn of(listen: Option<&str>, connect: Option<&str>) -> Result<Self, String> {
-        match (listen, connect) {
-            (Some(l), None) => Ok(Endpoint::Listen(l.to_string())),
-            (None, Some(c)) => Ok(Endpoint::Connect(c.to_string())),
-            (None, None) => Err("give --listen ENDPOINT or --connect ENDPOINT".into()),
-            (Some(_), Some(_)) => Err("give --listen or --connect, not both".into()),
-        }
-    }
-}
-
 /// Open a Zenoh session in peer mode on `ep` alone: scouting off (nothing discovered, nothing
 /// announced), the configuration file's settings (TLS, access control) first when given.
 pub fn open(ep: &Endpoint, config_file: Option<&Path>) -> Result<zenoh::Session, String> {

@@ -35,9 +35,14 @@ pub struct RunArgs {
 }
 
 fn parse_floor_duration(s: &str) -> Result<f64, String> {
+    seconds_in(s, 3600.0)
+}
+
+/// A time option's value: seconds in (0, `max`].
+pub fn seconds_in(s: &str, max: f64) -> Result<f64, String> {
     match s.parse::<f64>() {
-        Ok(v) if v > 0.0 && v <= 3600.0 => Ok(v),
-        _ => Err(format!("{s:?}: seconds in (0, 3600]")),
+        Ok(v) if v > 0.0 && v <= max => Ok(v),
+        _ => Err(format!("{s:?}: seconds in (0, {max}]")),
     }
 }
 
