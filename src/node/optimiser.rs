@@ -552,6 +552,8 @@ mod remote {
     /// iceoryx2 namespace.
     #[cfg(feature = "zenoh")]
     pub fn join(cli: &mut OptimiserArgs, ep: String) -> Mirror {
+        // Checked before `start` creates this process's iceoryx2 node: a refused optimiser
+        // leaves nothing in the namespace (the scenario is loaded again there, as always).
         let scn = crate::node::start::load_scenario(&cli.args, WHO);
         if scn.timing.mode != crate::config::Mode::Realtime {
             fail(
