@@ -308,7 +308,7 @@ fn fuzzy(c: &mut Criterion) {
     let aw = evoloop::control::AntiWindup::Fuzzy;
     let (mlo, mhi) = aw.paper_ranges();
     let mobj = evoloop::tune::maglev::Objective {
-        spec: &spec,
+        spec: spec.clone(),
         aw,
         seed: 1,
     };

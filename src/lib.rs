@@ -28,6 +28,7 @@ pub mod fuzzy;
 pub mod identify;
 pub mod indirect;
 pub mod ipc;
+pub mod jobs;
 pub mod msg;
 #[cfg(feature = "zenoh")]
 pub mod net;

@@ -17,6 +17,7 @@ pub mod robust;
 pub mod soak;
 pub mod top;
 pub mod tune;
+pub mod worker;
 
 pub use crate::node::args::{
     parse_seeds, OptimiserArgs, OverrideArgs, ProcessArgs, RunArgs, Seeds,
@@ -110,6 +111,10 @@ pub enum Cmd {
     /// parameter sets in, validated by the controller as any other), for an optimiser on another
     /// host (`evoloop optimiser --connect`) or a remote monitor. Needs the `zenoh` feature.
     Bridge(bridge::BridgeArgs),
+    /// Serve candidate evaluations to an optimiser with `optimiser.workers = "zenoh"` over
+    /// Zenoh: model and candidates in, costs out, computed exactly as the optimiser would.
+    /// Needs the `zenoh` feature.
+    Worker(worker::WorkerArgs),
 }
 
 #[derive(clap::Args)]
@@ -167,6 +172,7 @@ pub fn main() -> ExitCode {
             quiet: false,
             seeds: None,
             floor_duration: None,
+            workers: None,
         }),
         Some(Cmd::Run(a)) if a.seeds.is_some() => launcher::run_seeds(a),
         Some(Cmd::Run(a)) => launcher::run(a),
@@ -214,6 +220,7 @@ pub fn main() -> ExitCode {
         Some(Cmd::Replay(a)) => ExitCode::from(crate::node::replay::main(&a) as u8),
         Some(Cmd::Top(a)) => ExitCode::from(top::main(&a)),
         Some(Cmd::Bridge(a)) => ExitCode::from(bridge::main(&a)),
+        Some(Cmd::Worker(a)) => ExitCode::from(worker::main(&a)),
     }
 }
 

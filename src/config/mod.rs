@@ -17,7 +17,9 @@ mod timing;
 pub use crate::check::ConfigError;
 pub use crate::control::{ControllerKind, ControllerModel, ControllerSpec};
 pub use crate::plant::{PlantKind, PlantModel, PlantSpec};
-pub use optimiser::{OptimiserMode, OptimiserSpec, ScheduledSet, SetKind};
+pub use optimiser::{
+    OptimiserMode, OptimiserSpec, ScheduledSet, SetKind, WorkersKind, WorkersSpec, WORKERS_WAIT_S,
+};
 pub use timing::{default_margin_us, parse_duration, Mode, Timing};
 
 use crate::check::Check;
@@ -90,6 +92,11 @@ pub struct Overrides {
     pub no_rt: bool,
     /// `--wait`: how the realtime loops wait for their deadlines.
     pub wait: Option<crate::rt::WaitKind>,
+    /// `--workers-listen`: the optimiser takes evaluation workers on this Zenoh endpoint
+    /// (`optimiser.workers = "zenoh"`).
+    pub workers_listen: Option<String>,
+    /// `--workers-expect`: the workers it waits for before its first epoch.
+    pub workers_expect: Option<usize>,
 }
 
 impl Scenario {

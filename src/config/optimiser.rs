@@ -33,7 +33,40 @@ pub struct RawOptimiser {
     pub cost_lag: Option<u32>,
     pub seed_configured: Option<bool>,
     pub phases: Option<[usize; 3]>,
+    pub workers: Option<WorkersKind>,
+    pub workers_listen: Option<String>,
+    pub workers_zenoh_config: Option<std::path::PathBuf>,
+    pub workers_expect: Option<usize>,
 }
+
+/// Where the optimiser's population evaluations run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum WorkersKind {
+    /// On this process's threads (`optimiser.threads`).
+    #[default]
+    Local,
+    /// Also on evaluation workers (`evoloop worker --connect ENDPOINT`) over Zenoh.
+    Zenoh,
+}
+
+/// `optimiser.workers = "zenoh"`: where the optimiser meets its evaluation workers.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WorkersSpec {
+    /// The Zenoh endpoint the optimiser listens on; workers give it to `--connect`.
+    pub listen: String,
+    /// A Zenoh configuration file (TLS, access control), resolved against the scenario file.
+    pub zenoh_config: Option<std::path::PathBuf>,
+    /// Workers to wait for (up to `WORKERS_WAIT_S`) before the first epoch; 0 starts at once
+    /// and takes on workers as they come.
+    pub expect: usize,
+}
+
+/// The longest the optimiser waits for `workers_expect` workers before going on without them:
+/// it waits before its ports exist, within the plant's 10 s wait for its peers.
+pub const WORKERS_WAIT_S: f64 = 8.0;
+/// The default endpoint of `optimiser.workers_listen`: this host only.
+pub const WORKERS_LISTEN: &str = "tcp/127.0.0.1:7448";
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -139,6 +172,8 @@ pub struct OptimiserSpec {
     /// Direct, `algorithm = "hybrid"`: iterations of its three phases (GA; GA with Hooke-Jeeves on
     /// the scaling genes; Hooke-Jeeves on all), two evaluations each.
     pub phases: [usize; 3],
+    /// Evaluation workers over Zenoh (`optimiser.workers = "zenoh"`); None: local threads only.
+    pub workers: Option<WorkersSpec>,
 }
 
 pub fn validate(
@@ -171,6 +206,10 @@ pub fn validate(
         cost_lag: None,
         seed_configured: None,
         phases: None,
+        workers: None,
+        workers_listen: None,
+        workers_zenoh_config: None,
+        workers_expect: None,
     });
     let mode = ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off);
     let direct = mode == OptimiserMode::Direct;
@@ -271,7 +310,9 @@ pub fn validate(
         }
     };
     let direct_spec = direct_settings(&o, check, timing, sync_period, mode)?;
+    let workers = workers_settings(&o, check, ov, mode)?;
     Ok(OptimiserSpec {
+        workers,
         algorithm: direct_spec.0,
         population: direct_spec.1,
         evaluations: direct_spec.2,
@@ -327,6 +368,91 @@ pub fn validate(
             1e6,
         )?,
     })
+}
+
+/// The evaluation workers' keys (and `--workers-listen`, `--workers-expect`).
+fn workers_settings(
+    o: &RawOptimiser,
+    check: &Check,
+    ov: &Overrides,
+    mode: OptimiserMode,
+) -> Result<Option<WorkersSpec>, ConfigError> {
+    let kind = if ov.workers_listen.is_some() {
+        WorkersKind::Zenoh
+    } else {
+        o.workers.unwrap_or_default()
+    };
+    let given = o.workers_listen.is_some()
+        || o.workers_zenoh_config.is_some()
+        || o.workers_expect.is_some();
+    if kind == WorkersKind::Local {
+        if given {
+            return check.fail(
+                "optimiser.workers",
+                "workers_listen, workers_zenoh_config and workers_expect need workers = \"zenoh\"",
+            );
+        }
+        return Ok(None);
+    }
+    if !cfg!(feature = "zenoh") {
+        return check.fail(
+            "optimiser.workers",
+            "\"zenoh\" needs evoloop built with the zenoh feature (cargo build --release --features zenoh)",
+        );
+    }
+    // Off and schedule evaluate nothing: the key is harmless there (`--optimiser off` on a
+    // scenario with workers). Direct evaluates on the plant itself and identify on the recorded
+    // window, neither of which a worker has.
+    if matches!(mode, OptimiserMode::Direct | OptimiserMode::Identify) {
+        return check.fail(
+            "optimiser.workers",
+            format!(
+                "\"zenoh\" serves the indirect scheme's model evaluations; mode \"{}\" evaluates {}",
+                format!("{mode:?}").to_lowercase(),
+                if mode == OptimiserMode::Direct {
+                    "on the plant itself"
+                } else {
+                    "on the recorded window, which does not travel"
+                }
+            ),
+        );
+    }
+    let listen = ov
+        .workers_listen
+        .clone()
+        .or_else(|| o.workers_listen.clone())
+        .unwrap_or_else(|| WORKERS_LISTEN.to_string());
+    if !listen.contains('/') {
+        return check.fail(
+            "optimiser.workers_listen",
+            format!("{listen:?} is not a Zenoh endpoint (e.g. tcp/0.0.0.0:7448)"),
+        );
+    }
+    let zenoh_config = match &o.workers_zenoh_config {
+        Some(f) => {
+            let p = check.resolve(f);
+            if !p.is_file() {
+                return check.fail(
+                    "optimiser.workers_zenoh_config",
+                    format!("{}: no such file", p.display()),
+                );
+            }
+            Some(p)
+        }
+        None => None,
+    };
+    let expect = ov.workers_expect.or(o.workers_expect).unwrap_or(0);
+    if expect > 256 {
+        return check.fail(
+            "optimiser.workers_expect",
+            format!("must be 0..=256 (got {expect})"),
+        );
+    }
+    Ok(Some(WorkersSpec {
+        listen,
+        zenoh_config,
+        expect,
+    }))
 }
 
 type DirectSettings = (

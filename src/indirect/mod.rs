@@ -181,7 +181,7 @@ impl MaglevTuner {
         let spec = self.model(mass);
         let (lo, hi) = self.aw.paper_ranges();
         let obj = mg::Objective {
-            spec: &spec,
+            spec,
             aw: self.aw,
             seed: self.seed,
         };

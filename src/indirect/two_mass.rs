@@ -40,6 +40,20 @@ pub fn scheme(
 
 /// DE on the state-feedback gains, over one repetition on the model with the estimated spring.
 pub struct TwoMassTuner {
+    model: SpringModel,
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    seed: u64,
+    threads: usize,
+    epoch_evaluations: usize,
+    margin: f64,
+    epoch_no: u64,
+}
+
+/// The model a candidate is scored on, all but its spring constant: one repetition of the
+/// scenario's reference from rest, sum |r - y| + w sum |u| per sample.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct SpringModel {
     m1: f64,
     m2: f64,
     sensor: Sensor,
@@ -47,15 +61,30 @@ pub struct TwoMassTuner {
     step: f64,
     reference: Reference,
     duration: f64,
-    lower: Vec<f64>,
-    upper: Vec<f64>,
     u_limit: Option<f64>,
     w: f64,
-    seed: u64,
-    threads: usize,
-    epoch_evaluations: usize,
-    margin: f64,
-    epoch_no: u64,
+}
+
+/// The DE's objective: the gains' cost on the model with spring constant `k`. It owns the model,
+/// so an evaluation worker can rebuild it from its description (`optim::Job`).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct SpringCost {
+    pub model: SpringModel,
+    pub k: f64,
+}
+
+impl SpringCost {
+    /// The `optim::Job` kind of this objective.
+    pub const KIND: &'static str = "two_mass";
+}
+
+impl crate::optim::Objective for SpringCost {
+    fn value(&self, gains: &[f64]) -> f64 {
+        self.model.cost(self.k, gains)
+    }
+    fn describe(&self) -> Option<crate::optim::Job> {
+        crate::optim::Job::of(Self::KIND, self)
+    }
 }
 
 /// Online estimate of the spring constant from the measured position and the applied command
@@ -116,17 +145,19 @@ impl TwoMassTuner {
             _ => scn.timing.duration.min(20.0),
         };
         Self {
-            m1: plant.m1,
-            m2: plant.m2,
-            sensor: plant.sensor,
-            period: scn.timing.period,
-            step: scn.plant.step,
-            reference: scn.reference.clone(),
-            duration: repetition,
+            model: SpringModel {
+                m1: plant.m1,
+                m2: plant.m2,
+                sensor: plant.sensor,
+                period: scn.timing.period,
+                step: scn.plant.step,
+                reference: scn.reference.clone(),
+                duration: repetition,
+                u_limit: scn.controller.u_limit,
+                w: scn.optimiser.cost_u_weight,
+            },
             lower: tunable.bounds.lower.clone(),
             upper: tunable.bounds.upper.clone(),
-            u_limit: scn.controller.u_limit,
-            w: scn.optimiser.cost_u_weight,
             seed: scn.seed,
             threads: scn.optimiser.threads,
             epoch_evaluations: scn.optimiser.epoch_evaluations,
@@ -137,6 +168,22 @@ impl TwoMassTuner {
 
     /// Cost of `gains` over one repetition on the model with spring constant k (infinite when
     /// the loop diverges).
+    pub fn cost(&self, k: f64, gains: &[f64]) -> f64 {
+        self.model.cost(k, gains)
+    }
+
+    /// The DE's objective on the model with spring constant k.
+    pub fn objective(&self, k: f64) -> SpringCost {
+        SpringCost {
+            model: self.model.clone(),
+            k,
+        }
+    }
+}
+
+impl SpringModel {
+    /// Cost of `gains` over one repetition on the model with spring constant k (infinite when
+    /// the loop diverges or is not stable over the drift checked).
     pub fn cost(&self, k: f64, gains: &[f64]) -> f64 {
         // A finite horizon cannot see a slowly growing oscillation (a set with closed-loop poles
         // at +0.08 +- 4.7j costs little over one 10 s repetition from rest, then diverges on the
@@ -297,7 +344,7 @@ impl Tuner for TwoMassTuner {
         .expect("valid DE settings");
         self.epoch_no += 1;
         de.seed_population(&[in_service.to_vec()]);
-        let f = |g: &[f64]| self.cost(k, g);
+        let f = self.objective(k);
         while de.evaluations() + np <= self.epoch_evaluations {
             let v = evaluate(de.ask(), None, &f, self.threads);
             de.tell(&v);

@@ -298,12 +298,7 @@ fn measure(
 }
 
 /// A free TCP port on loopback.
-pub fn free_port() -> Result<u16, String> {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .map_err(|e| format!("no free port on 127.0.0.1: {e}"))
-}
+pub use crate::node::launcher::free_port;
 
 /// The scenario `bench bridge` runs by default.
 pub fn default_scenario() -> PathBuf {

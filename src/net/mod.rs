@@ -33,6 +33,7 @@ pub mod bench;
 pub mod bridge;
 pub mod mirror;
 pub mod wire;
+pub mod workers;
 
 use std::path::Path;
 use std::time::Duration;

@@ -32,6 +32,12 @@ pub struct RunArgs {
     /// same chance to show in the floor as in the run (`bench loop` does this).
     #[arg(long, value_parser = parse_floor_duration)]
     pub floor_duration: Option<f64>,
+    /// Start N evaluation workers on this host (`evoloop worker`, one thread each) connected to
+    /// the optimiser over Zenoh on loopback, for trying `optimiser.workers = "zenoh"` on one
+    /// machine; summary.json reports `evaluations_remote` and `evaluations_local` (feature
+    /// `zenoh`, indirect scenarios).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64), conflicts_with = "workers_listen")]
+    pub workers: Option<u16>,
 }
 
 fn parse_floor_duration(s: &str) -> Result<f64, String> {
@@ -111,6 +117,14 @@ pub struct OverrideArgs {
     /// `timing.wait_margin_us` before it, then spin). Default: the scenario's `timing.wait`.
     #[arg(long)]
     pub wait: Option<crate::rt::WaitKind>,
+    /// The optimiser takes evaluation workers (`evoloop worker --connect ENDPOINT`) on this
+    /// Zenoh endpoint, e.g. `tcp/0.0.0.0:7448`: `optimiser.workers = "zenoh"` with
+    /// `workers_listen` set (feature `zenoh`).
+    #[arg(long, value_name = "ENDPOINT")]
+    pub workers_listen: Option<String>,
+    /// Evaluation workers the optimiser waits for (up to 8 s, before the run starts).
+    #[arg(long, value_name = "N")]
+    pub workers_expect: Option<usize>,
 }
 
 impl OverrideArgs {
@@ -123,6 +137,8 @@ impl OverrideArgs {
             optimiser: self.optimiser,
             no_rt: self.no_rt,
             wait: self.wait,
+            workers_listen: self.workers_listen.clone(),
+            workers_expect: self.workers_expect,
         }
     }
 
@@ -164,6 +180,14 @@ impl OverrideArgs {
         if let Some(w) = self.wait {
             a.push("--wait".into());
             a.push(w.name().into());
+        }
+        if let Some(e) = &self.workers_listen {
+            a.push("--workers-listen".into());
+            a.push(e.clone());
+        }
+        if let Some(n) = self.workers_expect {
+            a.push("--workers-expect".into());
+            a.push(n.to_string());
         }
         a
     }

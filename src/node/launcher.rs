@@ -73,6 +73,19 @@ pub fn measure_floor(
     .unwrap_or_default()
 }
 
+/// A Zenoh endpoint on a free loopback port, for `--workers N`.
+fn local_workers_endpoint() -> Result<String, String> {
+    Ok(format!("tcp/127.0.0.1:{}", free_port()?))
+}
+
+/// A TCP port free on 127.0.0.1 now (the kernel's pick; free until someone else binds it).
+pub fn free_port() -> Result<u16, String> {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .map_err(|e| format!("no free port on 127.0.0.1: {e}"))
+}
+
 /// The options every process of a run takes (`ProcessArgs`), before the overrides.
 pub(crate) fn process_args(config: &Path, run_id: &str, ipc_prefix: &str) -> Vec<String> {
     vec![
@@ -314,8 +327,20 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
     }
 }
 
-pub fn run(a: RunArgs) -> ExitCode {
+pub fn run(mut a: RunArgs) -> ExitCode {
     let file = a.file.clone().unwrap_or_else(default_scenario);
+    // `--workers N`: the optimiser listens on a free loopback port and waits for N workers.
+    let workers_ep = match a.workers.map(|_| local_workers_endpoint()).transpose() {
+        Ok(ep) => ep,
+        Err(e) => {
+            err!("error: --workers: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if let (Some(n), Some(ep)) = (a.workers, &workers_ep) {
+        a.overrides.workers_listen = Some(ep.clone());
+        a.overrides.workers_expect = Some(n as usize);
+    }
     let ov = a.overrides.to_overrides();
     let scn = match Scenario::load(&file, &ov) {
         Ok(s) => s,
@@ -405,6 +430,29 @@ pub fn run(a: RunArgs) -> ExitCode {
         .iter()
         .position(|n| *n == "evoloop-plant")
         .expect("the plant is one of the roles");
+    // The evaluation workers first: the optimiser waits for them before the run starts.
+    let mut workers: Vec<Child> = Vec::new();
+    if let (Some(n), Some(ep)) = (a.workers, &workers_ep) {
+        for i in 0..n {
+            let args: Vec<String> = [
+                "--connect",
+                ep,
+                "--threads",
+                "1",
+                "--id",
+                &format!("{run_id}-w{i}"),
+            ]
+            .map(String::from)
+            .to_vec();
+            match spawn_process("evoloop-worker", &args) {
+                Ok(c) => workers.push(c),
+                Err(e) => {
+                    err!("error: cannot start evoloop-worker: {e}");
+                    return ExitCode::from(1);
+                }
+            }
+        }
+    }
     let mut children: Vec<(&str, Child)> = Vec::new();
     for name in names {
         match spawn_process(name, &args) {
@@ -515,6 +563,11 @@ pub fn run(a: RunArgs) -> ExitCode {
         std::thread::sleep(Duration::from_millis(5));
     }
     for (_, c) in &mut children {
+        let _ = c.wait();
+    }
+    // The workers serve until told to stop.
+    for c in &mut workers {
+        signal(c, libc::SIGTERM);
         let _ = c.wait();
     }
     drop(telemetry);

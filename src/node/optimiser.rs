@@ -45,6 +45,8 @@ pub fn main(cli: &OptimiserArgs) {
         stop,
         ipc,
     } = start(&cli.args, WHO);
+    // Before the ports: the plant starts once they exist, and the workers are waited for first.
+    let pool = workers::start(&scn, &stop).unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e));
     let buffer = crate::ipc::MAX_SYNC_SAMPLES + 8;
     let lockstep = scn.timing.mode == Mode::Lockstep;
     let ports = ports(WHO, || {
@@ -93,6 +95,7 @@ pub fn main(cli: &OptimiserArgs) {
     report.interrupted = stop.load(Ordering::SeqCst);
     report.wall_s = t0.elapsed().as_secs_f64();
     report.cpu_s = process_cpu_seconds() - cpu0;
+    workers::finish(pool, &mut report);
     if let Err(e) = write_json(&scn.output.dir, "optimiser.json", &report) {
         eprintln!("{WHO}: cannot write optimiser.json: {e}");
     }
@@ -535,6 +538,74 @@ fn process_cpu_seconds() -> f64 {
     }
     let s = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
     s(u.ru_utime) + s(u.ru_stime)
+}
+
+/// Evaluation workers (`optimiser.workers = "zenoh"`): the optimiser listens for them and
+/// `optim::evaluate` spreads its costly populations over them.
+mod workers {
+    use crate::config::Scenario;
+    use crate::report::summary::OptimiserReport;
+    use std::sync::atomic::AtomicBool;
+
+    #[cfg(feature = "zenoh")]
+    pub type Pool = Option<&'static crate::net::workers::ZenohWorkers>;
+    #[cfg(not(feature = "zenoh"))]
+    pub type Pool = ();
+
+    /// Listen for workers and install them; wait for `workers_expect` of them.
+    #[cfg(feature = "zenoh")]
+    pub fn start(scn: &Scenario, stop: &AtomicBool) -> Result<Pool, String> {
+        use crate::net::{workers::ZenohWorkers, Endpoint};
+        let Some(w) = &scn.optimiser.workers else {
+            return Ok(None);
+        };
+        let z = ZenohWorkers::start(
+            &Endpoint::Listen(w.listen.clone()),
+            w.zenoh_config.as_deref(),
+        )?;
+        // For the rest of the process: `optim::evaluate` may run on any thread at any time.
+        let z: &'static ZenohWorkers = Box::leak(Box::new(z));
+        crate::optim::remote::install(z)?;
+        if w.expect > 0 {
+            let limit = std::time::Duration::from_secs_f64(crate::config::WORKERS_WAIT_S);
+            let up = z.wait_for(w.expect, limit, stop);
+            if up < w.expect {
+                eprintln!(
+                    "{}: {up} of {} evaluation workers up after {} s; going on, the rest join when they come",
+                    super::WHO,
+                    w.expect,
+                    crate::config::WORKERS_WAIT_S
+                );
+            }
+        }
+        Ok(Some(z))
+    }
+
+    #[cfg(not(feature = "zenoh"))]
+    pub fn start(scn: &Scenario, _: &AtomicBool) -> Result<Pool, String> {
+        match scn.optimiser.workers {
+            // The configuration refuses workers in this build; this is a second line.
+            Some(_) => Err("evaluation workers need evoloop built with the zenoh feature (cargo build --release --features zenoh)".into()),
+            None => Ok(()),
+        }
+    }
+
+    /// The evaluations by where they ran, and every worker seen, into the report.
+    pub fn finish(pool: Pool, report: &mut OptimiserReport) {
+        let t = crate::optim::remote::totals();
+        report.evaluations_local = t.local;
+        report.evaluations_remote = t.remote;
+        report.evaluations_reissued = t.reissued;
+        #[cfg(feature = "zenoh")]
+        if let Some(z) = pool {
+            report.workers = z
+                .stats()
+                .into_iter()
+                .map(|(id, s)| (id, serde_json::to_value(s).unwrap_or_default()))
+                .collect();
+        }
+        let _ = pool;
+    }
 }
 
 /// The optimiser on another host (`--connect`): the run mirrored into the namespace of remote

@@ -11,6 +11,7 @@ pub mod jade;
 pub mod peers;
 pub mod pso;
 pub mod pull;
+pub mod remote;
 pub mod rng;
 pub mod study;
 pub mod suite;
@@ -53,6 +54,42 @@ pub trait Objective: Sync {
     fn value_below(&self, x: &[f64], threshold: f64) -> f64 {
         let _ = threshold;
         self.value(x)
+    }
+    /// The objective described exactly, for an evaluation worker of the same build to rebuild
+    /// (`crate::jobs::rebuild`); None for one that stays in this process (closures, objectives
+    /// over data too large to ship).
+    fn describe(&self) -> Option<Job> {
+        None
+    }
+}
+
+/// An objective as it crosses to an evaluation worker: its kind (`crate::jobs` knows them all)
+/// and its fields in postcard, where every f64 is its 8 bytes, so the rebuilt objective holds
+/// the same bits and computes the same values.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Job {
+    pub kind: String,
+    pub bytes: Vec<u8>,
+}
+
+impl Job {
+    /// `value` encoded as job `kind` (None when it cannot be encoded).
+    pub fn of<T: serde::Serialize>(kind: &str, value: &T) -> Option<Job> {
+        postcard::to_allocvec(value).ok().map(|bytes| Job {
+            kind: kind.to_string(),
+            bytes,
+        })
+    }
+
+    /// The objective back from its bytes.
+    pub fn decode<T: serde::de::DeserializeOwned>(&self) -> Result<T, String> {
+        postcard::from_bytes(&self.bytes).map_err(|e| {
+            format!(
+                "job `{}`: cannot decode its {} bytes: {e}",
+                self.kind,
+                self.bytes.len()
+            )
+        })
     }
 }
 
@@ -156,20 +193,56 @@ pub fn evaluate<F: Objective + ?Sized>(
             timed[0].1
         }
     };
-    let rest = timed.len()..n;
-    let threads = threads.max(1).min(rest.len());
-    if !parallel_pays(estimate, rest.len(), threads) {
-        timed.extend(rest.map(one));
-    } else {
-        let par: Vec<(f64, u64)> =
-            pool(threads).install(|| rest.into_par_iter().map(one).collect());
-        timed.extend(par);
+    // This process's evaluator over a run of the batch: serial or on the pool, by the rule
+    // above; it keeps the durations for the cost estimate.
+    let spent = std::cell::Cell::new((0u64, 0usize));
+    let local = |r: std::ops::Range<usize>| -> Vec<f64> {
+        let threads = threads.max(1).min(r.len());
+        let done: Vec<(f64, u64)> = if !parallel_pays(estimate, r.len(), threads) {
+            r.map(one).collect()
+        } else {
+            pool(threads).install(|| r.into_par_iter().map(one).collect())
+        };
+        let (ns, k) = spent.get();
+        spent.set((ns + done.iter().map(|d| d.1).sum::<u64>(), k + done.len()));
+        done.into_iter().map(|d| d.0).collect()
+    };
+    let first = timed.len();
+    spent.set((timed.iter().map(|t| t.1).sum(), first));
+    let mut values: Vec<f64> = timed.iter().map(|t| t.0).collect();
+    // Evaluation workers take part when there are any, and the objective can travel.
+    let workers = remote::installed()
+        .filter(|_| n > first)
+        .and_then(|w| Some((w, f.describe()?, w.live())))
+        .filter(|(_, _, live)| !live.is_empty());
+    match workers {
+        Some((w, job, live)) => {
+            let shifted = |r: std::ops::Range<usize>| local(r.start + first..r.end + first);
+            let (v, _) = remote::spread(
+                w,
+                &live,
+                &job,
+                &candidates[first..],
+                thresholds.map(|t| &t[first..]),
+                threads,
+                estimate,
+                &shifted,
+            );
+            remote::count_local(first);
+            values.extend(v);
+        }
+        None => {
+            values.extend(local(first..n));
+            remote::count_local(n);
+        }
     }
-    let mean = timed.iter().map(|t| t.1).sum::<u64>() / n as u64;
-    if let Ok(mut m) = cost_estimates().lock() {
-        m.insert(key, mean);
+    let (ns, k) = spent.get();
+    if k > 0 {
+        if let Ok(mut m) = cost_estimates().lock() {
+            m.insert(key, ns / k as u64);
+        }
     }
-    timed.into_iter().map(|t| t.0).collect()
+    values
 }
 
 /// Result of running an optimiser to its end.

@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 pub const G: f64 = 9.80665;
 
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MaglevParams {
     /// Ball mass, kg.
     pub mass: f64,

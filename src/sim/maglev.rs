@@ -6,10 +6,10 @@
 use crate::control::pid::{AntiWindup, Pid};
 use crate::plant::maglev::{Maglev, MaglevParams};
 use crate::reference::Reference;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The experiment: plant, sampling, trajectory and noise.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Spec {
     pub plant: MaglevParams,
     pub period: f64,
@@ -121,15 +121,25 @@ pub const PAPER_FUZZY: [f64; 7] = [
     983.108, 0.0447895, 0.638417, 0.57288, 1.16908, 106.064, 1.05207,
 ];
 
-/// The value the GA minimises: G, or infinity for a lost ball.
-pub struct Objective<'a> {
-    pub spec: &'a Spec,
+/// The value the GA minimises: G, or infinity for a lost ball. It owns its experiment, so an
+/// evaluation worker can rebuild it from its description (`optim::Job`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Objective {
+    pub spec: Spec,
     pub aw: AntiWindup,
     pub seed: u64,
 }
 
-impl crate::optim::Objective for Objective<'_> {
+impl Objective {
+    /// The `optim::Job` kind of this objective.
+    pub const KIND: &'static str = "maglev";
+}
+
+impl crate::optim::Objective for Objective {
     fn value(&self, x: &[f64]) -> f64 {
-        simulate(self.spec, self.aw, x, self.seed, None).map_or(f64::INFINITY, |c| c.g)
+        simulate(&self.spec, self.aw, x, self.seed, None).map_or(f64::INFINITY, |c| c.g)
+    }
+    fn describe(&self) -> Option<crate::optim::Job> {
+        crate::optim::Job::of(Self::KIND, self)
     }
 }

@@ -106,7 +106,7 @@ pub struct Tuned {
 pub fn tune_variant(run: &Run, spec: &Spec, aw: AntiWindup) -> Tuned {
     let (lo, hi) = aw.paper_ranges();
     let obj = Objective {
-        spec,
+        spec: spec.clone(),
         aw,
         seed: run.seed,
     };

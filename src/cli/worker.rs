@@ -1,0 +1,86 @@
+//! `evoloop worker --connect ENDPOINT`: serve candidate evaluations to an optimiser with
+//! `optimiser.workers = "zenoh"` (`crate::net::workers`; feature `zenoh`).
+
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct WorkerArgs {
+    /// The optimiser's endpoint (its `optimiser.workers_listen`), e.g. `tcp/192.0.2.10:7448`;
+    /// the worker keeps trying until it is up.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub connect: String,
+    /// Evaluations at once [default: every core this process may use].
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub threads: Option<u16>,
+    /// The worker's name on the network [default: host name and process id].
+    #[arg(long)]
+    pub id: Option<String>,
+    /// A Zenoh configuration file (JSON5): TLS, access control (see config/zenoh/).
+    #[arg(long, value_name = "FILE")]
+    pub zenoh_config: Option<PathBuf>,
+    /// Seconds to serve, then stop [default: until Ctrl-C].
+    #[arg(long, value_parser = |s: &str| crate::node::args::seconds_in(s, 1e7))]
+    pub duration: Option<f64>,
+    /// Print what was served as JSON at the end.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[cfg(feature = "zenoh")]
+pub fn main(a: &WorkerArgs) -> u8 {
+    use crate::net::{workers, Endpoint};
+    if let Some(p) = &a.zenoh_config {
+        if !p.is_file() {
+            err!("error: --zenoh-config {}: no such file", p.display());
+            return 2;
+        }
+    }
+    let threads = a
+        .threads
+        .map_or_else(crate::optim::all_cores, |t| t as usize);
+    let id = workers::key_safe(&a.id.clone().unwrap_or_else(workers::default_id));
+    let stop = crate::node::start::stop_flag();
+    err!(
+        "evoloop worker {id}: {threads} thread(s), build {}, serving on {}",
+        workers::build(),
+        a.connect
+    );
+    match workers::serve(
+        &Endpoint::Connect(a.connect.clone()),
+        a.zenoh_config.as_deref(),
+        &id,
+        threads,
+        a.duration.map(std::time::Duration::from_secs_f64),
+        &stop,
+    ) {
+        Ok(r) => {
+            if a.json {
+                crate::cli::print_json(&r);
+            } else {
+                err!(
+                    "evoloop worker {id}: {} runs, {} evaluations, busy {:.2} s of {:.1} s{}",
+                    r.batches,
+                    r.evaluations,
+                    r.busy_s,
+                    r.wall_s,
+                    if r.refused > 0 {
+                        format!("; {} runs refused", r.refused)
+                    } else {
+                        String::new()
+                    }
+                );
+            }
+            0
+        }
+        Err(e) => {
+            err!("error: {e}");
+            1
+        }
+    }
+}
+
+#[cfg(not(feature = "zenoh"))]
+pub fn main(_: &WorkerArgs) -> u8 {
+    err!("error: evoloop worker needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+    2
+}

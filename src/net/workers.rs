@@ -1,0 +1,518 @@
+//! Evaluation workers over Zenoh: `evoloop worker --connect ENDPOINT` serves candidate
+//! evaluations; an optimiser with `optimiser.workers = "zenoh"` listens on its endpoint and
+//! spreads each costly population over the workers up (`optim::remote`).
+//!
+//! - A worker announces itself with a liveliness token `evoloop/workers/<id>/<threads>/<build>`:
+//!   the optimiser's view of who is up follows the tokens (a worker that dies or loses the link
+//!   drops out of it at once).
+//! - It serves a queryable `evoloop/eval/<id>`: a query carries the job (`optim::Job`: the
+//!   objective, exactly) and a run of candidates with their thresholds; the reply carries one
+//!   value per candidate and the time the worker spent on them. A refused job gets an error
+//!   reply with the reason.
+//! - `<build>` is the version and the CPU architecture: the same code on the same instruction
+//!   set computes the same bits. The optimiser uses no worker of another build (it says so once).
+//!
+//! Payloads are postcard (every f64 its 8 bytes), so nothing is lost in transit.
+
+use super::Endpoint;
+use crate::optim::remote::{Pending, Reply, Slot, Workers};
+use crate::optim::Job;
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use zenoh::query::{ConsolidationMode, Reply as ZReply};
+use zenoh::Wait as _;
+
+/// Liveliness tokens of the workers up.
+pub const TOKENS: &str = "evoloop/workers";
+/// A worker's queryable: `evoloop/eval/<id>`.
+pub const EVAL: &str = "evoloop/eval";
+/// Zenoh gives up on a query after this (the optimiser reissues a run long before, at its
+/// deadline: `optim::remote::REMOTE_SLACK`).
+const QUERY_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// What a worker and an optimiser must share: the version and the CPU architecture.
+pub fn build() -> String {
+    format!("{}-{}", env!("CARGO_PKG_VERSION"), std::env::consts::ARCH)
+}
+
+/// A run of candidates of one job, as it crosses.
+#[derive(Debug, Serialize, Deserialize)]
+struct Request {
+    build: String,
+    kind: String,
+    job: Vec<u8>,
+    candidates: Vec<Vec<f64>>,
+    thresholds: Vec<f64>,
+}
+
+/// A worker's values for a run, and the time it spent computing them.
+#[derive(Debug, Serialize, Deserialize)]
+struct Answer {
+    values: Vec<f64>,
+    compute_ns: u64,
+}
+
+/// One worker as the optimiser saw it.
+#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+pub struct WorkerStats {
+    pub threads: usize,
+    /// Runs sent, and those answered.
+    pub batches: u64,
+    pub answered: u64,
+    /// Candidates it evaluated (answered runs).
+    pub evaluations: u64,
+    /// Runs it refused or did not answer (the optimiser evaluated them itself).
+    pub failed: u64,
+    /// Its own compute time, and the round trips of its answered runs, s.
+    pub compute_s: f64,
+    pub round_trip_s: f64,
+}
+
+type Shared<T> = Arc<Mutex<T>>;
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// The optimiser's side: the workers up, and the queries to them (`optim::remote::Workers`).
+pub struct ZenohWorkers {
+    session: zenoh::Session,
+    live: Shared<BTreeMap<String, Slot>>,
+    stats: Shared<BTreeMap<String, WorkerStats>>,
+    _tokens: zenoh::pubsub::Subscriber<()>,
+}
+
+/// `id` from a token's key `evoloop/workers/<id>/<threads>/<build>`.
+fn parse_token(key: &str) -> Option<(String, usize, String)> {
+    let rest = key.strip_prefix(TOKENS)?.strip_prefix('/')?;
+    let mut parts = rest.split('/');
+    let (id, threads, build) = (parts.next()?, parts.next()?, parts.next()?);
+    if parts.next().is_some() || id.is_empty() {
+        return None;
+    }
+    Some((id.to_string(), threads.parse().ok()?, build.to_string()))
+}
+
+impl ZenohWorkers {
+    /// Open the optimiser's session on `ep` and follow the workers' tokens.
+    pub fn start(ep: &Endpoint, zenoh_config: Option<&Path>) -> Result<Self, String> {
+        let session = super::open(ep, zenoh_config)?;
+        let live: Shared<BTreeMap<String, Slot>> = Default::default();
+        let stats: Shared<BTreeMap<String, WorkerStats>> = Default::default();
+        let other_builds: Shared<BTreeSet<String>> = Default::default();
+        let (l, s) = (live.clone(), stats.clone());
+        let mine = build();
+        let tokens = session
+            .liveliness()
+            .declare_subscriber(format!("{TOKENS}/**"))
+            .history(true)
+            .callback(move |sample| {
+                let key = sample.key_expr().as_str();
+                let Some((id, threads, b)) = parse_token(key) else {
+                    return;
+                };
+                match sample.kind() {
+                    zenoh::sample::SampleKind::Put if b == mine => {
+                        lock(&s).entry(id.clone()).or_default().threads = threads;
+                        lock(&l).insert(id.clone(), Slot { id, threads });
+                    }
+                    zenoh::sample::SampleKind::Put => {
+                        if lock(&other_builds).insert(id.clone()) {
+                            eprintln!(
+                                "evoloop-optimiser: worker {id} is build {b}, this is {mine}: not used"
+                            );
+                        }
+                    }
+                    zenoh::sample::SampleKind::Delete => {
+                        lock(&l).remove(&id);
+                    }
+                }
+            })
+            .wait()
+            .map_err(|e| format!("Zenoh: following the workers' tokens: {e}"))?;
+        Ok(Self {
+            session,
+            live,
+            stats,
+            _tokens: tokens,
+        })
+    }
+
+    /// Wait up to `limit` for `n` workers to be up; how many are.
+    pub fn wait_for(&self, n: usize, limit: Duration, stop: &AtomicBool) -> usize {
+        let t0 = Instant::now();
+        loop {
+            let up = lock(&self.live).len();
+            if up >= n || t0.elapsed() >= limit || stop.load(Ordering::SeqCst) {
+                return up;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Every worker seen, by id.
+    pub fn stats(&self) -> BTreeMap<String, WorkerStats> {
+        lock(&self.stats).clone()
+    }
+}
+
+impl Workers for ZenohWorkers {
+    fn live(&self) -> Vec<Slot> {
+        lock(&self.live).values().cloned().collect()
+    }
+
+    fn send(
+        &self,
+        id: &str,
+        job: &Job,
+        candidates: &[&[f64]],
+        thresholds: &[f64],
+    ) -> Box<dyn Pending> {
+        let req = Request {
+            build: build(),
+            kind: job.kind.clone(),
+            job: job.bytes.clone(),
+            candidates: candidates.iter().map(|c| c.to_vec()).collect(),
+            thresholds: thresholds.to_vec(),
+        };
+        lock(&self.stats).entry(id.to_string()).or_default().batches += 1;
+        let sent = Instant::now();
+        // The reply is stamped as it arrives (the optimiser may be busy with its own share
+        // then); the channel closes when Zenoh ends the query, answered or not.
+        let (tx, rx) = std::sync::mpsc::channel();
+        let rx = postcard::to_allocvec(&req)
+            .map_err(|e| format!("encoding the run: {e}"))
+            .and_then(|bytes| {
+                self.session
+                    .get(format!("{EVAL}/{id}"))
+                    .payload(bytes)
+                    .consolidation(ConsolidationMode::None)
+                    .timeout(QUERY_TIMEOUT)
+                    .callback(move |reply| {
+                        let _ = tx.send((Instant::now(), reply));
+                    })
+                    .wait()
+                    .map_err(|e| format!("Zenoh query to worker {id}: {e}"))
+            })
+            .map(|()| rx);
+        Box::new(ZenohPending {
+            rx,
+            id: id.to_string(),
+            n: candidates.len(),
+            sent,
+            stats: self.stats.clone(),
+        })
+    }
+}
+
+/// A run out at a worker: the query's reply channel.
+struct ZenohPending {
+    rx: Result<std::sync::mpsc::Receiver<(Instant, ZReply)>, String>,
+    id: String,
+    n: usize,
+    sent: Instant,
+    stats: Shared<BTreeMap<String, WorkerStats>>,
+}
+
+impl ZenohPending {
+    fn answer(&self, reply: ZReply) -> Result<Answer, String> {
+        match reply.into_result() {
+            Ok(sample) => postcard::from_bytes::<Answer>(&sample.payload().to_bytes())
+                .map_err(|e| format!("worker {}: an answer that does not decode: {e}", self.id)),
+            Err(e) => Err(format!(
+                "worker {} refused the run: {}",
+                self.id,
+                String::from_utf8_lossy(&e.payload().to_bytes())
+            )),
+        }
+    }
+}
+
+impl Pending for ZenohPending {
+    fn poll(&mut self, wait: Duration) -> Reply {
+        let rx = match &self.rx {
+            Ok(rx) => rx,
+            Err(e) => return self.failed(e.clone()),
+        };
+        use std::sync::mpsc::RecvTimeoutError;
+        let (arrived, got) = match rx.recv_timeout(wait) {
+            Ok((at, reply)) => (at, self.answer(reply)),
+            Err(RecvTimeoutError::Timeout) => return Reply::Waiting,
+            // The query ended without an answer: the worker went away mid-run.
+            Err(RecvTimeoutError::Disconnected) => (
+                Instant::now(),
+                Err(format!("worker {} went away without answering", self.id)),
+            ),
+        };
+        match got {
+            Ok(a) if a.values.len() == self.n => {
+                let mut st = lock(&self.stats);
+                let s = st.entry(self.id.clone()).or_default();
+                s.answered += 1;
+                s.evaluations += self.n as u64;
+                s.compute_s += a.compute_ns as f64 * 1e-9;
+                s.round_trip_s += arrived.duration_since(self.sent).as_secs_f64();
+                Reply::Values(a.values)
+            }
+            Ok(a) => self.failed(format!(
+                "worker {}: {} values for {} candidates",
+                self.id,
+                a.values.len(),
+                self.n
+            )),
+            Err(e) => self.failed(e),
+        }
+    }
+}
+
+impl ZenohPending {
+    fn failed(&self, why: String) -> Reply {
+        lock(&self.stats).entry(self.id.clone()).or_default().failed += 1;
+        Reply::Failed(why)
+    }
+}
+
+/// What a worker did (printed at its end; `--json`).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct WorkerReport {
+    pub id: String,
+    pub threads: usize,
+    pub build: String,
+    /// Runs answered, and the candidates in them.
+    pub batches: u64,
+    pub evaluations: u64,
+    /// Runs refused (another build, a job it cannot rebuild, a payload that does not decode).
+    pub refused: u64,
+    /// Time spent evaluating, s, and the time it was up.
+    pub busy_s: f64,
+    pub wall_s: f64,
+}
+
+/// A name for this worker that is a valid key chunk: host and process id.
+pub fn default_id() -> String {
+    let mut buf = [0u8; 256];
+    // SAFETY: gethostname writes at most buf.len() bytes into buf.
+    let host = if unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) } == 0 {
+        let end = buf.iter().position(|b| *b == 0).unwrap_or(buf.len());
+        String::from_utf8_lossy(&buf[..end]).into_owned()
+    } else {
+        "host".into()
+    };
+    key_safe(&format!("{host}-{}", std::process::id()))
+}
+
+/// `s` with every character a key chunk may not hold replaced by `_`.
+pub fn key_safe(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// Serve evaluations on `ep` with `threads` threads until `stop` (or `duration`).
+pub fn serve(
+    ep: &Endpoint,
+    zenoh_config: Option<&Path>,
+    id: &str,
+    threads: usize,
+    duration: Option<Duration>,
+    stop: &AtomicBool,
+) -> Result<WorkerReport, String> {
+    let session = super::open(ep, zenoh_config)?;
+    let queryable = session
+        .declare_queryable(format!("{EVAL}/{id}"))
+        .wait()
+        .map_err(|e| format!("Zenoh: declaring {EVAL}/{id}: {e}"))?;
+    // The token after the queryable: an optimiser that sees the worker can query it.
+    let _token = session
+        .liveliness()
+        .declare_token(format!("{TOKENS}/{id}/{threads}/{}", build()))
+        .wait()
+        .map_err(|e| format!("Zenoh: declaring the worker's token: {e}"))?;
+    let mut report = WorkerReport {
+        id: id.to_string(),
+        threads,
+        build: build(),
+        ..Default::default()
+    };
+    let t0 = Instant::now();
+    // The last job's objective, kept while the optimiser sends runs of the same job.
+    let mut cached: Option<(Job, Box<dyn crate::optim::Objective + Send>)> = None;
+    while !stop.load(Ordering::SeqCst) && duration.is_none_or(|d| t0.elapsed() < d) {
+        let query = match queryable.recv_timeout(Duration::from_millis(100)) {
+            Ok(Some(q)) => q,
+            Ok(None) => continue,
+            Err(e) => return Err(format!("Zenoh: the queryable closed: {e}")),
+        };
+        let started = Instant::now();
+        let answer = evaluate(&query, &mut cached, threads);
+        let sent = match answer {
+            Ok(a) => {
+                report.batches += 1;
+                report.evaluations += a.values.len() as u64;
+                let bytes = postcard::to_allocvec(&Answer {
+                    compute_ns: started.elapsed().as_nanos() as u64,
+                    values: a.values,
+                })
+                .map_err(|e| e.to_string())?;
+                query.reply(query.key_expr().clone(), bytes).wait()
+            }
+            Err(why) => {
+                report.refused += 1;
+                eprintln!("evoloop worker {id}: refused a run: {why}");
+                query.reply_err(why).wait()
+            }
+        };
+        report.busy_s += started.elapsed().as_secs_f64();
+        if let Err(e) = sent {
+            eprintln!("evoloop worker {id}: cannot reply: {e}");
+        }
+    }
+    report.wall_s = t0.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// Values of a query's run.
+fn evaluate(
+    query: &zenoh::query::Query,
+    cached: &mut Option<(Job, Box<dyn crate::optim::Objective + Send>)>,
+    threads: usize,
+) -> Result<Answer, String> {
+    let bytes = query
+        .payload()
+        .map(|p| p.to_bytes().into_owned())
+        .ok_or("a query without a run")?;
+    let req: Request =
+        postcard::from_bytes(&bytes).map_err(|e| format!("a run that does not decode: {e}"))?;
+    if req.build != build() {
+        return Err(format!(
+            "the optimiser is build {}, this worker {}: their values could differ",
+            req.build,
+            build()
+        ));
+    }
+    if req.thresholds.len() != req.candidates.len() {
+        return Err("thresholds and candidates differ in number".into());
+    }
+    let job = Job {
+        kind: req.kind,
+        bytes: req.job,
+    };
+    if cached.as_ref().is_none_or(|(j, _)| *j != job) {
+        let f = crate::jobs::rebuild(&job)?;
+        *cached = Some((job, f));
+    }
+    let f = &cached.as_ref().expect("just set").1;
+    let values = crate::optim::evaluate(&req.candidates, Some(&req.thresholds), &**f, threads);
+    Ok(Answer {
+        values,
+        compute_ns: 0,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_token_names_the_worker_its_threads_and_build() {
+        assert_eq!(
+            parse_token("evoloop/workers/host-12/3/0.1.0-x86_64"),
+            Some(("host-12".into(), 3, "0.1.0-x86_64".into()))
+        );
+        assert_eq!(parse_token("evoloop/workers/host-12/x/b"), None);
+        assert_eq!(parse_token("evoloop/workers/host-12/3"), None);
+        assert_eq!(parse_token("evoloop/other/h/3/b"), None);
+        assert_eq!(key_safe("my host/1*"), "my_host_1_");
+    }
+
+    /// An optimiser's pool with a real worker and one that takes its run and vanishes (its
+    /// session closes with the query unanswered): the vanished worker's run is reissued here,
+    /// on the closed query rather than at its deadline, and every value equals the local one.
+    #[test]
+    fn a_worker_that_vanishes_mid_run_has_its_run_reissued_and_the_values_stay_exact() {
+        use crate::optim::remote::spread;
+        use crate::optim::Objective;
+        let port = crate::node::launcher::free_port().unwrap();
+        let listen = Endpoint::Listen(format!("tcp/127.0.0.1:{port}"));
+        let connect = Endpoint::Connect(format!("tcp/127.0.0.1:{port}"));
+        let pool = ZenohWorkers::start(&listen, None).unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let good = {
+            let (ep, stop) = (connect.clone(), stop.clone());
+            std::thread::spawn(move || serve(&ep, None, "good", 1, None, &stop).unwrap())
+        };
+        let vanishing = {
+            let ep = connect.clone();
+            std::thread::spawn(move || {
+                let s = super::super::open(&ep, None).unwrap();
+                let q = s.declare_queryable(format!("{EVAL}/gone")).wait().unwrap();
+                let _t = s
+                    .liveliness()
+                    .declare_token(format!("{TOKENS}/gone/1/{}", build()))
+                    .wait()
+                    .unwrap();
+                let query = q.recv().unwrap();
+                // Gone with the run in hand: the link closes before any answer.
+                s.close().wait().unwrap();
+                drop(query);
+            })
+        };
+        let up = pool.wait_for(2, Duration::from_secs(20), &AtomicBool::new(false));
+        assert_eq!(up, 2, "both workers up");
+        let mut spec = crate::sim::maglev::Spec::default();
+        spec.duration = 0.3;
+        let f = crate::sim::maglev::Objective {
+            spec,
+            aw: crate::control::AntiWindup::Fuzzy,
+            seed: 5,
+        };
+        let base = crate::sim::maglev::PAPER_FUZZY;
+        let xs: Vec<Vec<f64>> = (0..6)
+            .map(|i| base.iter().map(|v| v * (1.0 - 0.02 * i as f64)).collect())
+            .collect();
+        let local = |r: std::ops::Range<usize>| xs[r].iter().map(|x| f.value(x)).collect();
+        // A long expected time per evaluation: the deadline alone would take > 10 s.
+        let (v, tally) = spread(
+            &pool,
+            &pool.live(),
+            &f.describe().unwrap(),
+            &xs,
+            None,
+            1,
+            3_000_000_000,
+            &local,
+        );
+        let exact: Vec<u64> = xs.iter().map(|x| f.value(x).to_bits()).collect();
+        assert_eq!(v.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), exact);
+        assert_eq!((tally.remote, tally.reissued, tally.local), (2, 2, 4));
+        let stats = pool.stats();
+        assert_eq!((stats["good"].answered, stats["good"].evaluations), (1, 2));
+        assert_eq!((stats["gone"].failed, stats["gone"].answered), (1, 0));
+        vanishing.join().unwrap();
+        // The vanished worker drops out of the pool.
+        let t0 = Instant::now();
+        while pool.live().len() > 1 && t0.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        assert_eq!(
+            pool.live()
+                .iter()
+                .map(|s| s.id.as_str())
+                .collect::<Vec<_>>(),
+            ["good"]
+        );
+        stop.store(true, Ordering::SeqCst);
+        let r = good.join().unwrap();
+        assert_eq!((r.batches, r.evaluations, r.refused), (1, 2, 0));
+    }
+}
