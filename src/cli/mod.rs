@@ -135,6 +135,9 @@ pub enum BenchCmd {
     /// A parameter set's round trip (sent -> in service, seen by the sender) on the local path
     /// and through `evoloop bridge` on loopback, on one realtime run (feature `zenoh`).
     Bridge(bridge::BridgeBenchArgs),
+    /// Evaluations per second of the maglev model with 0, 1, 2, ... evaluation workers on
+    /// loopback, and the remote path's cost per run and per evaluation (feature `zenoh`).
+    Workers(worker::BenchWorkersArgs),
     /// The peer process of `bench latency` (started by it).
     #[command(hide = true)]
     LatencyPeer(bench::PeerArgs),
@@ -195,6 +198,7 @@ pub fn main() -> ExitCode {
             BenchCmd::Loop(a) => bench::loop_(a),
             BenchCmd::Dynamics(a) => bench::dynamics(a),
             BenchCmd::Bridge(a) => bridge::bench(&a) as i32,
+            BenchCmd::Workers(a) => worker::bench(&a) as i32,
         } as u8),
         Some(Cmd::Optim { cmd }) => ExitCode::from(crate::cli::optim::main(cmd) as u8),
         Some(Cmd::Robust { cmd }) => ExitCode::from(crate::cli::robust::main(cmd) as u8),

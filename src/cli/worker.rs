@@ -24,6 +24,66 @@ pub struct WorkerArgs {
     /// Print what was served as JSON at the end.
     #[arg(long)]
     pub json: bool,
+    /// No start and end lines (a refused run is still reported).
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+#[derive(clap::Args)]
+pub struct BenchWorkersArgs {
+    /// Worker counts to measure, one phase each (separate `evoloop worker` processes on
+    /// loopback).
+    #[arg(long, value_delimiter = ',', default_value = "0,1,2")]
+    pub workers: Vec<usize>,
+    /// Candidates per population.
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u16).range(1..=10000))]
+    pub population: u16,
+    /// Populations measured per phase.
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u16).range(1..=10000))]
+    pub populations: u16,
+    /// This process's evaluation threads (an optimiser's `optimiser.threads`).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub threads: u16,
+    /// Threads of each worker.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub worker_threads: u16,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `evoloop bench workers`.
+#[cfg(feature = "zenoh")]
+pub fn bench(a: &BenchWorkersArgs) -> u8 {
+    use crate::net::workers_bench::{run, Settings};
+    if a.workers.is_empty() || a.workers.iter().any(|n| *n > 64) {
+        err!("error: --workers: give 0 to 64 workers per phase, e.g. 0,1,2");
+        return 2;
+    }
+    let s = Settings {
+        workers: a.workers.clone(),
+        population: a.population as usize,
+        populations: a.populations as usize,
+        threads: a.threads as usize,
+        worker_threads: a.worker_threads as usize,
+    };
+    match run(&s, |line| err!("  {line}")) {
+        Ok(r) => {
+            if a.json {
+                crate::cli::print_json(&r);
+            }
+            0
+        }
+        Err(e) => {
+            err!("error: {e}");
+            1
+        }
+    }
+}
+
+#[cfg(not(feature = "zenoh"))]
+pub fn bench(_: &BenchWorkersArgs) -> u8 {
+    err!("error: evoloop bench workers needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+    2
 }
 
 #[cfg(feature = "zenoh")]
@@ -40,11 +100,13 @@ pub fn main(a: &WorkerArgs) -> u8 {
         .map_or_else(crate::optim::all_cores, |t| t as usize);
     let id = workers::key_safe(&a.id.clone().unwrap_or_else(workers::default_id));
     let stop = crate::node::start::stop_flag();
-    err!(
-        "evoloop worker {id}: {threads} thread(s), build {}, serving on {}",
-        workers::build(),
-        a.connect
-    );
+    if !a.quiet {
+        err!(
+            "evoloop worker {id}: {threads} thread(s), build {}, serving on {}",
+            workers::build(),
+            a.connect
+        );
+    }
     match workers::serve(
         &Endpoint::Connect(a.connect.clone()),
         a.zenoh_config.as_deref(),
@@ -56,7 +118,7 @@ pub fn main(a: &WorkerArgs) -> u8 {
         Ok(r) => {
             if a.json {
                 crate::cli::print_json(&r);
-            } else {
+            } else if !a.quiet {
                 err!(
                     "evoloop worker {id}: {} runs, {} evaluations, busy {:.2} s of {:.1} s{}",
                     r.batches,

@@ -34,6 +34,7 @@ pub mod bridge;
 pub mod mirror;
 pub mod wire;
 pub mod workers;
+pub mod workers_bench;
 
 use std::path::Path;
 use std::time::Duration;

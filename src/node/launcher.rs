@@ -441,6 +441,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 "1",
                 "--id",
                 &format!("{run_id}-w{i}"),
+                "--quiet",
             ]
             .map(String::from)
             .to_vec();

@@ -1,0 +1,268 @@
+//! `evoloop bench workers`: evaluations per second of the maglev model with 0, 1, 2, ...
+//! evaluation workers (separate `evoloop worker` processes on loopback), the same populations in
+//! every phase, and what the remote path costs per run and per evaluation (a run's round trip
+//! minus the worker's own compute time), for the scaling model in the README.
+
+use super::workers::ZenohWorkers;
+use super::Endpoint;
+use crate::optim::remote::{totals, Tally, Workers as _};
+use crate::optim::{evaluate, Objective};
+use serde::Serialize;
+use std::process::Child;
+use std::time::{Duration, Instant};
+
+/// What to measure.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    /// Worker counts, one phase each.
+    pub workers: Vec<usize>,
+    pub population: usize,
+    /// Populations per phase (after one unmeasured warm-up population).
+    pub populations: usize,
+    /// This process's threads (the optimiser's `optimiser.threads`).
+    pub threads: usize,
+    /// Each worker's threads.
+    pub worker_threads: usize,
+}
+
+/// One phase's figures.
+#[derive(Debug, Clone, Serialize)]
+pub struct Phase {
+    pub workers: usize,
+    pub evaluations: u64,
+    pub seconds: f64,
+    pub evaluations_per_s: f64,
+    pub evaluations_remote: u64,
+    pub evaluations_local: u64,
+    pub evaluations_reissued: u64,
+    /// Runs the workers answered, their mean length, and what the remote path added per run
+    /// (round trip minus the worker's compute time) and per evaluation in them, us.
+    pub runs: u64,
+    pub run_length: f64,
+    pub overhead_per_run_us: f64,
+    pub overhead_per_evaluation_us: f64,
+    /// The workers' own compute time per evaluation, us.
+    pub worker_us_per_evaluation: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    pub machine_cores: usize,
+    /// One evaluation in this process, alone, us (median of `population`).
+    pub local_us_per_evaluation: f64,
+    pub population: usize,
+    pub populations: usize,
+    pub threads: usize,
+    pub worker_threads: usize,
+    pub phases: Vec<Phase>,
+    /// The remote path alone: runs of one candidate of a near-empty job to one worker, nothing
+    /// else running here: round trip minus the worker's compute time, us.
+    pub probe: crate::rt::timing::Percentiles,
+    pub probe_runs: usize,
+}
+
+/// The maglev model every phase evaluates: the fuzzy-network paper's 2.5 s experiment with the
+/// fuzzy anti-windup PID, and `n` sets about the paper's tuned one (+-10 %, seeded).
+fn problem(n: usize, seed: u64) -> (crate::sim::maglev::Objective, Vec<Vec<f64>>) {
+    use rand::{Rng, SeedableRng};
+    let f = crate::sim::maglev::Objective {
+        spec: crate::sim::maglev::Spec::default(),
+        aw: crate::control::AntiWindup::Fuzzy,
+        seed: 1,
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let xs = (0..n)
+        .map(|_| {
+            crate::sim::maglev::PAPER_FUZZY
+                .iter()
+                .map(|v| v * rng.gen_range(0.9..1.1))
+                .collect()
+        })
+        .collect();
+    (f, xs)
+}
+
+/// Runs of the transport probe.
+const PROBE_RUNS: usize = 300;
+
+/// `runs` round trips of one candidate of a one-sample maglev job to the one worker up, one at
+/// a time: round trip minus the worker's compute time, us each.
+fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
+    use crate::optim::remote::Reply;
+    let (mut f, xs) = problem(1, 7);
+    f.spec.duration = f.spec.period;
+    let job = f
+        .describe()
+        .ok_or("the maglev objective describes itself")?;
+    let id = pool.live().first().ok_or("no worker up")?.id.clone();
+    let mut out = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let (stats0, t0) = (pool.stats(), Instant::now());
+        let mut pending = pool.send(&id, &job, &[&xs[0]], &[f64::INFINITY]);
+        loop {
+            match pending.poll(Duration::from_secs(5)) {
+                Reply::Waiting if t0.elapsed() < Duration::from_secs(5) => continue,
+                Reply::Values(_) => break,
+                r => return Err(format!("probe run: {r:?}")),
+            }
+        }
+        let (w, w0) = (&pool.stats()[&id], &stats0[&id]);
+        out.push(((w.round_trip_s - w0.round_trip_s) - (w.compute_s - w0.compute_s)) * 1e6);
+    }
+    Ok(out)
+}
+
+/// Stops the worker processes however the bench ends.
+struct Workers(Vec<Child>);
+
+impl Drop for Workers {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            // SAFETY: kill on a child's pid.
+            unsafe { libc::kill(c.id() as i32, libc::SIGTERM) };
+            let _ = c.wait();
+        }
+    }
+}
+
+pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
+    let port = crate::node::launcher::free_port()?;
+    let ep = format!("tcp/127.0.0.1:{port}");
+    let pool = ZenohWorkers::start(&Endpoint::Listen(ep.clone()), None)?;
+    let pool: &'static ZenohWorkers = Box::leak(Box::new(pool));
+    crate::optim::remote::install(pool)?;
+    let (f, _) = problem(0, 0);
+    let local_us = {
+        let (_, xs) = problem(s.population, 99);
+        let mut t: Vec<f64> = xs
+            .iter()
+            .map(|x| {
+                let t0 = Instant::now();
+                std::hint::black_box(f.value(x));
+                t0.elapsed().as_secs_f64() * 1e6
+            })
+            .collect();
+        t.sort_by(f64::total_cmp);
+        t[t.len() / 2]
+    };
+    progress(&format!(
+        "one maglev evaluation here: {local_us:.0} us (median of {})",
+        s.population
+    ));
+    let mut phases = Vec::new();
+    let mut probe = Vec::new();
+    for (k, &n) in s.workers.iter().enumerate() {
+        let mut procs = Workers(Vec::new());
+        for i in 0..n {
+            let args = [
+                "--connect".to_string(),
+                ep.clone(),
+                "--threads".into(),
+                s.worker_threads.to_string(),
+                "--id".into(),
+                format!("bench-{k}-{i}"),
+                "--quiet".into(),
+            ];
+            let c = crate::node::launcher::spawn_process("evoloop-worker", &args)
+                .map_err(|e| format!("cannot start evoloop-worker: {e}"))?;
+            procs.0.push(c);
+        }
+        let stop = std::sync::atomic::AtomicBool::new(false);
+        let t0 = Instant::now();
+        while pool.live().len() != n {
+            if t0.elapsed() > Duration::from_secs(20) {
+                return Err(format!(
+                    "{} of {n} workers up after 20 s",
+                    pool.live().len()
+                ));
+            }
+            pool.wait_for(n, Duration::from_millis(50), &stop);
+        }
+        // A warm-up population: the workers' first job, the pool's threads.
+        let (_, warm) = problem(s.population, 1000);
+        evaluate(&warm, None, &f, s.threads);
+        if n == 1 && probe.is_empty() {
+            probe = transport(pool, PROBE_RUNS)?;
+        }
+        let (before, stats0) = (totals(), pool.stats());
+        let t0 = Instant::now();
+        for p in 0..s.populations {
+            let (_, xs) = problem(s.population, p as u64);
+            std::hint::black_box(evaluate(&xs, None, &f, s.threads));
+        }
+        let seconds = t0.elapsed().as_secs_f64();
+        let t = totals();
+        let d = Tally {
+            local: t.local - before.local,
+            remote: t.remote - before.remote,
+            reissued: t.reissued - before.reissued,
+        };
+        let (mut runs, mut evals, mut rt, mut cs) = (0u64, 0u64, 0.0, 0.0);
+        for (id, w) in pool.stats() {
+            let w0 = stats0.get(&id).cloned().unwrap_or_default();
+            runs += w.answered - w0.answered;
+            evals += w.evaluations - w0.evaluations;
+            rt += w.round_trip_s - w0.round_trip_s;
+            cs += w.compute_s - w0.compute_s;
+        }
+        let per = |x: f64, k: u64| if k > 0 { x * 1e6 / k as f64 } else { 0.0 };
+        let evaluations = d.local + d.remote;
+        let phase = Phase {
+            workers: n,
+            evaluations,
+            seconds,
+            evaluations_per_s: evaluations as f64 / seconds,
+            evaluations_remote: d.remote,
+            evaluations_local: d.local,
+            evaluations_reissued: d.reissued,
+            runs,
+            run_length: if runs > 0 {
+                evals as f64 / runs as f64
+            } else {
+                0.0
+            },
+            overhead_per_run_us: per(rt - cs, runs),
+            overhead_per_evaluation_us: per(rt - cs, evals),
+            worker_us_per_evaluation: per(cs, evals),
+        };
+        progress(&format!(
+            "{n} worker(s): {:.0} evaluations/s ({} remote, {} reissued); remote path {:.0} us per run of {:.1}, {:.0} us per evaluation",
+            phase.evaluations_per_s,
+            phase.evaluations_remote,
+            phase.evaluations_reissued,
+            phase.overhead_per_run_us,
+            phase.run_length,
+            phase.overhead_per_evaluation_us
+        ));
+        phases.push(phase);
+        drop(procs);
+        // The next phase starts from no workers.
+        let t0 = Instant::now();
+        while !pool.live().is_empty() && t0.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+    if !probe.is_empty() {
+        let p =
+            crate::rt::timing::Percentiles::from_samples(probe.iter().map(|us| (us * 1e3) as i64));
+        progress(&format!(
+            "remote path alone (1 worker, {} runs of 1 near-empty evaluation): {:.0} us median, {:.0} us p90",
+            probe.len(),
+            p.p50_ns as f64 * 1e-3,
+            p.p90_ns as f64 * 1e-3
+        ));
+    }
+    Ok(Report {
+        probe_runs: probe.len(),
+        probe: crate::rt::timing::Percentiles::from_samples(
+            probe.iter().map(|us| (us * 1e3) as i64),
+        ),
+        machine_cores: crate::optim::all_cores(),
+        local_us_per_evaluation: local_us,
+        population: s.population,
+        populations: s.populations,
+        threads: s.threads,
+        worker_threads: s.worker_threads,
+        phases,
+    })
+}

@@ -1,0 +1,226 @@
+//! Evaluation workers over Zenoh (feature `zenoh`), on loopback, each a separate `evoloop worker`
+//! process: the indirect scheme's populations spread over them give the same run, bit for bit,
+//! as the optimiser alone, also when a worker is killed mid-run. Without the feature the
+//! commands say what they need.
+
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+#[cfg(feature = "zenoh")]
+use std::process::{Command, Stdio};
+#[cfg(feature = "zenoh")]
+use std::time::{Duration, Instant};
+
+fn config(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("config")
+        .join(name)
+}
+
+#[cfg(feature = "zenoh")]
+fn bytes(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// The optimiser's population evaluations in summary.json: (local, remote, reissued).
+#[cfg(feature = "zenoh")]
+fn evaluations(dir: &Path) -> (u64, u64, u64) {
+    let s = json(&dir.join("summary.json"));
+    let n = |k: &str| {
+        s[k].as_u64()
+            .unwrap_or_else(|| panic!("summary.json has no {k}"))
+    };
+    (
+        n("evaluations_local"),
+        n("evaluations_remote"),
+        n("evaluations_reissued"),
+    )
+}
+
+/// `evoloop run FILE --workers 2` (two worker processes on loopback) in lockstep gives the
+/// run.csv of the same run without workers, byte for byte, for both indirect schemes (the
+/// maglev's GA and the two-mass DE), with part of the evaluations done by the workers.
+#[cfg(feature = "zenoh")]
+#[test]
+fn a_seeded_lockstep_run_with_two_workers_equals_the_local_run_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    for scenario in ["maglev_indirect.toml", "two_mass_indirect.toml"] {
+        let (alone, spread) = (dir.path().join("alone"), dir.path().join("spread"));
+        assert_ok(&run(&config(scenario), &alone, "wk-alone", &[]));
+        assert_ok(&run(
+            &config(scenario),
+            &spread,
+            "wk-two",
+            &["--workers", "2"],
+        ));
+        assert!(
+            bytes(&alone.join("run.csv")) == bytes(&spread.join("run.csv")),
+            "{scenario}: run.csv differs with workers"
+        );
+        let (local0, remote0, _) = evaluations(&alone);
+        let (local, remote, _) = evaluations(&spread);
+        assert_eq!(remote0, 0, "{scenario}: no workers, nothing remote");
+        assert!(remote > 0, "{scenario}: the workers evaluated nothing");
+        assert_eq!(
+            local + remote,
+            local0,
+            "{scenario}: the same evaluations in all"
+        );
+        let workers = json(&spread.join("optimiser.json"))["workers"].clone();
+        let workers = workers.as_object().expect("the workers seen");
+        assert_eq!(workers.len(), 2, "{scenario}: {workers:?}");
+        let answered: u64 = workers
+            .values()
+            .map(|w| w["evaluations"].as_u64().unwrap())
+            .sum();
+        assert_eq!(
+            answered, remote,
+            "{scenario}: the workers' own counts add up"
+        );
+    }
+}
+
+/// Two workers started by hand; one is killed (SIGKILL) while the run uses it. The run ends
+/// ok, and its run.csv equals the local run's: the optimiser evaluates a vanished worker's
+/// candidates itself (a run caught mid-population is reissued).
+#[cfg(feature = "zenoh")]
+#[test]
+fn killing_a_worker_mid_run_changes_nothing_in_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let ep = format!(
+        "tcp/127.0.0.1:{}",
+        evoloop::node::launcher::free_port().unwrap()
+    );
+    let worker = |id: &str| {
+        Command::new(evoloop())
+            .args(["worker", "--connect", &ep, "--threads", "1", "--id", id])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let (mut doomed, mut kept) = (worker("doomed"), worker("kept"));
+    let alone = dir.path().join("alone");
+    assert_ok(&run(&config("maglev_indirect.toml"), &alone, "wk-ref", &[]));
+    let spread = dir.path().join("spread");
+    let (_, run_id) = unique("wk-kill");
+    let mut r = Command::new(evoloop())
+        .args(["run", config("maglev_indirect.toml").to_str().unwrap()])
+        .args([
+            "--out",
+            spread.to_str().unwrap(),
+            "--run-id",
+            &run_id,
+            "--quiet",
+        ])
+        .args(["--workers-listen", &ep, "--workers-expect", "2"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Kill it once the optimiser has begun using it: the second epoch.
+    let t0 = Instant::now();
+    while !spread.join("published.jsonl").exists() && t0.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    doomed.kill().unwrap();
+    let _ = doomed.wait();
+    wait_exit(&mut r, Duration::from_secs(120));
+    let out = r.wait_with_output().unwrap();
+    assert_ok(&out);
+    assert!(
+        bytes(&alone.join("run.csv")) == bytes(&spread.join("run.csv")),
+        "run.csv differs after a worker was killed"
+    );
+    let (_, remote, _) = evaluations(&spread);
+    assert!(remote > 0, "the kept worker evaluated nothing");
+    let _ = kept.kill();
+    let _ = kept.wait();
+}
+
+/// `bench workers` measures 0 and 1 workers and the remote path alone.
+#[cfg(feature = "zenoh")]
+#[test]
+fn bench_workers_reports_each_phase_and_the_remote_path() {
+    let out = Command::new(evoloop())
+        .args(["bench", "workers", "--workers", "0,1", "--population", "6"])
+        .args(["--populations", "3", "--json"])
+        .output()
+        .unwrap();
+    assert_ok(&out);
+    let r = stdout_json(&out);
+    let phases = r["phases"].as_array().unwrap();
+    assert_eq!(phases.len(), 2);
+    assert_eq!(phases[0]["evaluations_remote"], 0);
+    assert_eq!(phases[0]["evaluations"], 18);
+    assert_eq!(phases[1]["evaluations"], 18);
+    assert!(phases[1]["evaluations_remote"].as_u64().unwrap() > 0);
+    assert!(r["probe"]["p50_ns"].as_i64().unwrap() > 0);
+    assert_eq!(r["probe_runs"], 300);
+}
+
+/// Without the feature, a worker, `--workers` and `optimiser.workers = "zenoh"` say how to get it.
+#[cfg(not(feature = "zenoh"))]
+#[test]
+fn without_the_zenoh_feature_workers_say_how_to_build_them() {
+    let o = cli(&["worker", "--connect", "tcp/127.0.0.1:7448"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--features zenoh"));
+    let dir = tempfile::tempdir().unwrap();
+    let o = run(
+        &config("maglev_indirect.toml"),
+        dir.path(),
+        "wk-nofeat",
+        &["--workers", "2"],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("optimiser.workers") && err.contains("--features zenoh"),
+        "{err}"
+    );
+}
+
+/// The workers' keys are checked with the file, the key and the reason.
+#[test]
+fn workers_keys_are_validated() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = std::fs::read_to_string(config("maglev_indirect.toml")).unwrap();
+    let with = |extra: &str| {
+        let text = base.replacen("[optimiser]", &format!("[optimiser]\n{extra}"), 1);
+        write(dir.path(), "w.toml", &text)
+    };
+    let o = cli(&["check", with("workers_expect = 2").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("w.toml") && err.contains("optimiser.workers"),
+        "{err}"
+    );
+    let o = cli(&["check", with("workers = \"cluster\"").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("workers"));
+    #[cfg(feature = "zenoh")]
+    {
+        let o = cli(&[
+            "check",
+            with("workers = \"zenoh\"\nworkers_listen = \"7448\"")
+                .to_str()
+                .unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2));
+        assert!(String::from_utf8_lossy(&o.stderr).contains("optimiser.workers_listen"));
+        let direct = base.replacen(
+            "mode = \"indirect\"",
+            "mode = \"direct\"\nworkers = \"zenoh\"",
+            1,
+        );
+        let o = cli(&[
+            "check",
+            write(dir.path(), "d.toml", &direct).to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("on the plant itself"), "{err}");
+    }
+}
