@@ -54,12 +54,9 @@ mod tests {
 
     #[test]
     fn maglev_objective_rebuilds_to_the_same_bits() {
-        let mut spec = crate::sim::maglev::Spec::default();
-        spec.duration = 0.5;
+        let mut f = crate::sim::maglev::Objective::fuzzy(0.5, 7);
         // A mass that is not a short decimal: the description must carry all its bits.
-        spec.plant.mass_steps = vec![(0.0, 0.160 * (1.0 + 1.0 / 3.0) + f64::EPSILON)];
-        let aw = crate::control::AntiWindup::Fuzzy;
-        let f = crate::sim::maglev::Objective { spec, aw, seed: 7 };
+        f.spec.plant.mass_steps = vec![(0.0, 0.160 * (1.0 + 1.0 / 3.0) + f64::EPSILON)];
         let p = crate::sim::maglev::PAPER_FUZZY.to_vec();
         let mut next = p.clone();
         next[0] = f64::from_bits(p[0].to_bits() + 1);

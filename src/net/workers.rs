@@ -469,13 +469,7 @@ mod tests {
         };
         let up = pool.wait_for(2, Duration::from_secs(20), &AtomicBool::new(false));
         assert_eq!(up, 2, "both workers up");
-        let mut spec = crate::sim::maglev::Spec::default();
-        spec.duration = 0.3;
-        let f = crate::sim::maglev::Objective {
-            spec,
-            aw: crate::control::AntiWindup::Fuzzy,
-            seed: 5,
-        };
+        let f = crate::sim::maglev::Objective::fuzzy(0.3, 5);
         let base = crate::sim::maglev::PAPER_FUZZY;
         let xs: Vec<Vec<f64>> = (0..6)
             .map(|i| base.iter().map(|v| v * (1.0 - 0.02 * i as f64)).collect())
@@ -485,9 +479,11 @@ mod tests {
         let (v, tally) = spread(
             &pool,
             &pool.live(),
-            &f.describe().unwrap(),
-            &xs,
-            None,
+            crate::optim::remote::Batch {
+                job: &f.describe().unwrap(),
+                candidates: &xs,
+                thresholds: None,
+            },
             1,
             3_000_000_000,
             &local,

@@ -65,11 +65,7 @@ pub struct Report {
 /// fuzzy anti-windup PID, and `n` sets about the paper's tuned one (+-10 %, seeded).
 fn problem(n: usize, seed: u64) -> (crate::sim::maglev::Objective, Vec<Vec<f64>>) {
     use rand::{Rng, SeedableRng};
-    let f = crate::sim::maglev::Objective {
-        spec: crate::sim::maglev::Spec::default(),
-        aw: crate::control::AntiWindup::Fuzzy,
-        seed: 1,
-    };
+    let f = crate::sim::maglev::Objective::fuzzy(crate::sim::maglev::Spec::default().duration, 1);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let xs = (0..n)
         .map(|_| {

@@ -547,17 +547,19 @@ mod workers {
     use crate::report::summary::OptimiserReport;
     use std::sync::atomic::AtomicBool;
 
-    #[cfg(feature = "zenoh")]
-    pub type Pool = Option<&'static crate::net::workers::ZenohWorkers>;
-    #[cfg(not(feature = "zenoh"))]
-    pub type Pool = ();
+    /// The workers this optimiser listens for, if any.
+    #[derive(Default)]
+    pub struct Pool {
+        #[cfg(feature = "zenoh")]
+        zenoh: Option<&'static crate::net::workers::ZenohWorkers>,
+    }
 
     /// Listen for workers and install them; wait for `workers_expect` of them.
     #[cfg(feature = "zenoh")]
     pub fn start(scn: &Scenario, stop: &AtomicBool) -> Result<Pool, String> {
         use crate::net::{workers::ZenohWorkers, Endpoint};
         let Some(w) = &scn.optimiser.workers else {
-            return Ok(None);
+            return Ok(Pool::default());
         };
         let z = ZenohWorkers::start(
             &Endpoint::Listen(w.listen.clone()),
@@ -578,7 +580,7 @@ mod workers {
                 );
             }
         }
-        Ok(Some(z))
+        Ok(Pool { zenoh: Some(z) })
     }
 
     #[cfg(not(feature = "zenoh"))]
@@ -586,7 +588,7 @@ mod workers {
         match scn.optimiser.workers {
             // The configuration refuses workers in this build; this is a second line.
             Some(_) => Err("evaluation workers need evoloop built with the zenoh feature (cargo build --release --features zenoh)".into()),
-            None => Ok(()),
+            None => Ok(Pool::default()),
         }
     }
 
@@ -597,14 +599,15 @@ mod workers {
         report.evaluations_remote = t.remote;
         report.evaluations_reissued = t.reissued;
         #[cfg(feature = "zenoh")]
-        if let Some(z) = pool {
+        if let Some(z) = pool.zenoh {
             report.workers = z
                 .stats()
                 .into_iter()
                 .map(|(id, s)| (id, serde_json::to_value(s).unwrap_or_default()))
                 .collect();
         }
-        let _ = pool;
+        #[cfg(not(feature = "zenoh"))]
+        let Pool {} = pool;
     }
 }
 

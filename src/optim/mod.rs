@@ -218,16 +218,12 @@ pub fn evaluate<F: Objective + ?Sized>(
     match workers {
         Some((w, job, live)) => {
             let shifted = |r: std::ops::Range<usize>| local(r.start + first..r.end + first);
-            let (v, _) = remote::spread(
-                w,
-                &live,
-                &job,
-                &candidates[first..],
-                thresholds.map(|t| &t[first..]),
-                threads,
-                estimate,
-                &shifted,
-            );
+            let batch = remote::Batch {
+                job: &job,
+                candidates: &candidates[first..],
+                thresholds: thresholds.map(|t| &t[first..]),
+            };
+            let (v, _) = remote::spread(w, &live, batch, threads, estimate, &shifted);
             remote::count_local(first);
             values.extend(v);
         }

@@ -175,17 +175,29 @@ pub fn plan(
 /// evaluator (serial or its thread pool, `optim::evaluate`'s rule).
 pub type Local<'a> = dyn Fn(Range<usize>) -> Vec<f64> + 'a;
 
-/// Evaluate a batch over `workers` and this process (`local`), values in candidate order.
+/// A population of one objective: its description, the candidates, their thresholds.
+#[derive(Clone, Copy)]
+pub struct Batch<'a> {
+    pub job: &'a Job,
+    pub candidates: &'a [Vec<f64>],
+    pub thresholds: Option<&'a [f64]>,
+}
+
+/// Evaluate `batch` over `workers` (those in `slots`) and this process (`local`, on
+/// `local_threads`; `estimate_ns` per evaluation), values in candidate order.
 pub fn spread(
     workers: &dyn Workers,
     slots: &[Slot],
-    job: &Job,
-    candidates: &[Vec<f64>],
-    thresholds: Option<&[f64]>,
+    batch: Batch<'_>,
     local_threads: usize,
     estimate_ns: u64,
     local: &Local<'_>,
 ) -> (Vec<f64>, Tally) {
+    let Batch {
+        job,
+        candidates,
+        thresholds,
+    } = batch;
     let n = candidates.len();
     let (mine, runs) = plan(n, local_threads, slots, estimate_ns);
     let limit = |i: usize| thresholds.map_or(f64::INFINITY, |t| t[i]);
@@ -336,20 +348,10 @@ mod tests {
         }
     }
 
-    fn maglev() -> crate::sim::maglev::Objective {
-        let mut spec = crate::sim::maglev::Spec::default();
-        spec.duration = 0.2;
-        crate::sim::maglev::Objective {
-            spec,
-            aw: crate::control::AntiWindup::Fuzzy,
-            seed: 3,
-        }
-    }
-
     #[test]
     fn values_do_not_depend_on_which_worker_answered_or_whether_any_did() {
         use crate::optim::Objective;
-        let f = maglev();
+        let f = crate::sim::maglev::Objective::fuzzy(0.2, 3);
         let job = f.describe().unwrap();
         let base = crate::sim::maglev::PAPER_FUZZY;
         let candidates: Vec<Vec<f64>> = (0..9)
@@ -370,7 +372,18 @@ mod tests {
             };
             let t0 = Instant::now();
             // 1 ms per evaluation: every worker's run of 3 is worth the trip.
-            let (v, tally) = spread(&w, &w.live(), &job, &candidates, None, 1, 1_000_000, &local);
+            let (v, tally) = spread(
+                &w,
+                &w.live(),
+                Batch {
+                    job: &job,
+                    candidates: &candidates,
+                    thresholds: None,
+                },
+                1,
+                1_000_000,
+                &local,
+            );
             let bits: Vec<u64> = v.iter().map(|x| x.to_bits()).collect();
             assert_eq!(bits, here);
             assert_eq!(w.sent.lock().unwrap().len(), 2, "both workers got a run");

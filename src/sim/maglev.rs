@@ -133,6 +133,19 @@ pub struct Objective {
 impl Objective {
     /// The `optim::Job` kind of this objective.
     pub const KIND: &'static str = "maglev";
+
+    /// The paper's experiment (`Spec::default`) over its first `duration` s, with the fuzzy
+    /// anti-windup PID and noise seed `seed`.
+    pub fn fuzzy(duration: f64, seed: u64) -> Self {
+        Self {
+            spec: Spec {
+                duration,
+                ..Spec::default()
+            },
+            aw: AntiWindup::Fuzzy,
+            seed,
+        }
+    }
 }
 
 impl crate::optim::Objective for Objective {
