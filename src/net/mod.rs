@@ -6,6 +6,9 @@
 //! - `evoloop optimiser ... --connect ENDPOINT` (`mirror`) runs the optimiser on another host:
 //!   the run's topics are mirrored into that host's iceoryx2 namespace for remote optimisers
 //!   (`mirror::PREFIX`), and the optimiser's own code runs against it unchanged.
+//! - `evoloop worker --connect ENDPOINT` (`workers`) serves candidate evaluations to an optimiser
+//!   with `optimiser.workers = "zenoh"`, which spreads its costly populations over the workers up
+//!   (`optim::remote`); `evoloop bench workers` (`workers_bench`) measures it.
 //!
 //! What crosses and which way (`ROUTES`):
 //!

@@ -53,10 +53,11 @@ pub trait Workers: Send + Sync {
     ) -> Box<dyn Pending>;
 }
 
-/// Sending a run of candidates pays when the work it takes off this process exceeds this: a
-/// batch's round trip to a worker on loopback (query out, answer back, both encoded) is about
-/// 0.3 ms on the development VM (`evoloop bench workers`), so a worker gets no run shorter
-/// than a millisecond of work.
+/// Sending a run of candidates pays when the work it takes off this process exceeds this. The
+/// remote path alone (query out, answer back, both encoded) costs 0.08-0.2 ms at the median on
+/// loopback on the development VM, and 1-3 ms per run when both its cores compute (replies wait
+/// for a core; `evoloop bench workers`, README): a worker gets no run shorter than a
+/// millisecond of work.
 pub const REMOTE_MIN_SAVING_NS: u64 = 1_000_000;
 
 /// A worker's run is overdue, and reissued here, after this many times its expected time (its
