@@ -24,6 +24,10 @@ pub struct WorkerArgs {
     /// Print what was served as JSON at the end.
     #[arg(long)]
     pub json: bool,
+    /// Niceness of the worker (-20..=19): `evoloop run --workers N` gives its workers the
+    /// optimiser's `optimiser.nice`, so they yield the CPU to the control loop as it does.
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(i32).range(-20..=19))]
+    pub nice: Option<i32>,
     /// No start and end lines (a refused run is still reported).
     #[arg(long, short)]
     pub quiet: bool,
@@ -100,6 +104,11 @@ pub fn main(a: &WorkerArgs) -> u8 {
         .map_or_else(crate::optim::all_cores, |t| t as usize);
     let id = workers::key_safe(&a.id.clone().unwrap_or_else(workers::default_id));
     let stop = crate::node::start::stop_flag();
+    if let Some(n) = a.nice {
+        if !crate::rt::privileges::set_nice(n) {
+            err!("warning: evoloop worker: cannot set niceness {n}");
+        }
+    }
     if !a.quiet {
         err!(
             "evoloop worker {id}: {threads} thread(s), build {}, serving on {}",

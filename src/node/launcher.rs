@@ -441,6 +441,8 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 "1",
                 "--id",
                 &format!("{run_id}-w{i}"),
+                "--nice",
+                &scn.optimiser.nice.to_string(),
                 "--quiet",
             ]
             .map(String::from)
