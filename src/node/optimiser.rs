@@ -594,10 +594,7 @@ mod workers {
 
     /// The evaluations by where they ran, and every worker seen, into the report.
     pub fn finish(pool: Pool, report: &mut OptimiserReport) {
-        let t = crate::optim::remote::totals();
-        report.evaluations_local = t.local;
-        report.evaluations_remote = t.remote;
-        report.evaluations_reissued = t.reissued;
+        report.evaluations = crate::optim::remote::totals();
         #[cfg(feature = "zenoh")]
         if let Some(z) = pool.zenoh {
             report.workers = z

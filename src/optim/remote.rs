@@ -66,14 +66,18 @@ pub const REMOTE_MIN_SAVING_NS: u64 = 1_000_000;
 pub const REMOTE_SLACK: u32 = 4;
 pub const REMOTE_GRACE: Duration = Duration::from_millis(200);
 
-/// Evaluations by where they were computed.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+/// Evaluations by where they were computed (in optimiser.json and summary.json under these
+/// keys).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Tally {
     /// In this process (the reissued ones included).
+    #[serde(rename = "evaluations_local", default)]
     pub local: u64,
     /// Answered by a worker.
+    #[serde(rename = "evaluations_remote", default)]
     pub remote: u64,
-    /// Sent to a worker that did not answer in time (or failed), then evaluated here.
+    /// Sent to a worker that failed, vanished or did not answer in time, then evaluated here.
+    #[serde(rename = "evaluations_reissued", default)]
     pub reissued: u64,
 }
 

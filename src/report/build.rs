@@ -547,9 +547,7 @@ pub fn build_report(
         } else {
             0.0
         },
-        evaluations_local: opt.evaluations_local,
-        evaluations_remote: opt.evaluations_remote,
-        evaluations_reissued: opt.evaluations_reissued,
+        evaluations: opt.evaluations,
         direct: opt
             .direct
             .as_ref()

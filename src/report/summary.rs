@@ -112,15 +112,10 @@ pub struct OptimiserReport {
     pub cpu_s: f64,
     #[serde(default)]
     pub wall_s: f64,
-    /// Population evaluations (`optim::evaluate`) by where they were computed: here, by an
-    /// evaluation worker, and those sent to a worker that did not answer in time and then
-    /// computed here (counted in `evaluations_local` too).
-    #[serde(default)]
-    pub evaluations_local: u64,
-    #[serde(default)]
-    pub evaluations_remote: u64,
-    #[serde(default)]
-    pub evaluations_reissued: u64,
+    /// Population evaluations (`optim::evaluate`) by where they were computed:
+    /// `evaluations_local`, `evaluations_remote`, `evaluations_reissued`.
+    #[serde(flatten)]
+    pub evaluations: crate::optim::remote::Tally,
     /// `optimiser.workers = "zenoh"`: every worker seen, by id (`net::workers::WorkerStats`).
     #[serde(default)]
     pub workers: std::collections::BTreeMap<String, serde_json::Value>,
@@ -231,15 +226,10 @@ pub struct Summary {
     pub optimiser_cpu_s: f64,
     #[serde(default)]
     pub optimiser_load_cores: f64,
-    /// The optimiser's population evaluations by where they ran (`optimiser.workers`): in its
-    /// own process, on evaluation workers, and how many of those sent to a worker came back
-    /// unanswered and were computed locally after all (included in `evaluations_local`).
-    #[serde(default)]
-    pub evaluations_local: u64,
-    #[serde(default)]
-    pub evaluations_remote: u64,
-    #[serde(default)]
-    pub evaluations_reissued: u64,
+    /// The optimiser's population evaluations by where they ran (`optimiser.workers`):
+    /// `evaluations_local`, `evaluations_remote`, `evaluations_reissued`.
+    #[serde(flatten)]
+    pub evaluations: crate::optim::remote::Tally,
     /// Direct mode: the trials and what they found (every repetition: direct.csv).
     #[serde(default)]
     pub direct: Option<DirectSummary>,
