@@ -176,6 +176,19 @@ fn without_the_zenoh_feature_workers_say_how_to_build_them() {
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
+        err.contains("--workers") && err.contains("--features zenoh"),
+        "{err}"
+    );
+    // The same from the scenario's key.
+    let base = std::fs::read_to_string(config("maglev_indirect.toml")).unwrap();
+    let text = base.replacen("[optimiser]", "[optimiser]\nworkers = \"zenoh\"", 1);
+    let o = cli(&[
+        "check",
+        write(dir.path(), "w.toml", &text).to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
         err.contains("optimiser.workers") && err.contains("--features zenoh"),
         "{err}"
     );

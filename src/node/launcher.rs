@@ -330,6 +330,10 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
 pub fn run(mut a: RunArgs) -> ExitCode {
     let file = a.file.clone().unwrap_or_else(default_scenario);
     // `--workers N`: the optimiser listens on a free loopback port and waits for N workers.
+    if a.workers.is_some() && !cfg!(feature = "zenoh") {
+        err!("error: --workers needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+        return ExitCode::from(2);
+    }
     let workers_ep = match a.workers.map(|_| local_workers_endpoint()).transpose() {
         Ok(ep) => ep,
         Err(e) => {
@@ -736,6 +740,15 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
     );
     for p in &pv.rejected {
         out!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
+    }
+    let e = &s.evaluations;
+    if e.remote + e.reissued > 0 {
+        out!(
+            "  evaluations: {} on workers, {} here ({} of them reissued from a worker that did not answer)",
+            e.remote,
+            e.local,
+            e.reissued
+        );
     }
     if let Some(d) = &s.direct {
         out!(
