@@ -10,12 +10,6 @@ use evoloop::report::metrics::{tracking, Tracking};
 use evoloop::sim::{simulate, JointTraces, SimResult};
 use std::path::{Path, PathBuf};
 
-fn config(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("config")
-        .join(name)
-}
-
 fn load(name: &str, ov: &Overrides) -> Scenario {
     Scenario::load(&config(name), ov).unwrap_or_else(|e| panic!("{e}"))
 }

@@ -9,12 +9,6 @@ use evoloop::rkgnn::{RkgnnModel, Trajectory};
 use evoloop::sim::simulate;
 use std::path::{Path, PathBuf};
 
-fn config(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("config")
-        .join(name)
-}
-
 /// A 2-s lockstep run of the first training trajectory through the processes.
 fn training_run(dir: &Path, tag: &str) -> PathBuf {
     let out = dir.join("train1");

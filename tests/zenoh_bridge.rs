@@ -3,18 +3,13 @@
 
 mod common;
 use common::*;
-use std::path::{Path, PathBuf};
+#[cfg(feature = "zenoh")]
+use std::path::Path;
 use std::process::Command;
 #[cfg(feature = "zenoh")]
 use std::process::{Child, Stdio};
 #[cfg(feature = "zenoh")]
 use std::time::{Duration, Instant};
-
-fn config(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("config")
-        .join(name)
-}
 
 /// A loopback endpoint on a free port.
 #[cfg(feature = "zenoh")]

@@ -5,17 +5,12 @@
 
 mod common;
 use common::*;
-use std::path::{Path, PathBuf};
+#[cfg(feature = "zenoh")]
+use std::path::Path;
 #[cfg(feature = "zenoh")]
 use std::process::{Command, Stdio};
 #[cfg(feature = "zenoh")]
 use std::time::{Duration, Instant};
-
-fn config(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("config")
-        .join(name)
-}
 
 #[cfg(feature = "zenoh")]
 fn bytes(p: &Path) -> Vec<u8> {
@@ -136,6 +131,48 @@ fn killing_a_worker_mid_run_changes_nothing_in_the_run() {
     assert!(remote > 0, "the kept worker evaluated nothing");
     let _ = kept.kill();
     let _ = kept.wait();
+}
+
+/// `evoloop tune config/maglev_tune.toml --workers 2`: the GA experiment with its populations
+/// spread over two local workers writes the same response.csv, and the same results apart from
+/// the timings, as without them.
+#[cfg(feature = "zenoh")]
+#[test]
+fn the_maglev_ga_experiment_with_two_workers_equals_the_local_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (alone, spread) = (dir.path().join("alone"), dir.path().join("spread"));
+    let tune = |out: &Path, extra: &[&str]| {
+        let o = cli(&[
+            &["tune", config("maglev_tune.toml").to_str().unwrap()][..],
+            &["--out", out.to_str().unwrap(), "--quiet"],
+            extra,
+        ]
+        .concat());
+        assert_ok(&o);
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    tune(&alone, &[]);
+    let err = tune(&spread, &["--workers", "2"]);
+    assert!(
+        err.contains("on workers"),
+        "no evaluation on workers: {err}"
+    );
+    assert!(bytes(&alone.join("response.csv")) == bytes(&spread.join("response.csv")));
+    fn untimed(v: &serde_json::Value) -> serde_json::Value {
+        match v {
+            serde_json::Value::Object(m) => m
+                .iter()
+                .filter(|(k, _)| !k.contains("second"))
+                .map(|(k, v)| (k.clone(), untimed(v)))
+                .collect(),
+            serde_json::Value::Array(a) => a.iter().map(untimed).collect(),
+            x => x.clone(),
+        }
+    }
+    assert_eq!(
+        untimed(&json(&alone.join("result.json"))),
+        untimed(&json(&spread.join("result.json")))
+    );
 }
 
 /// `bench workers` measures 0 and 1 workers and the remote path alone.

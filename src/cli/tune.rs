@@ -25,10 +25,56 @@ pub struct TuneArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Start N evaluation workers on this host (`evoloop worker`, one thread each) over Zenoh on
+    /// loopback and spread the maglev experiment's GA populations over them (the results are the
+    /// same bits; the other experiments' evaluations stay here). Feature `zenoh`.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64), conflicts_with = "workers_listen")]
+    pub workers: Option<u16>,
+    /// Take evaluation workers (`evoloop worker --connect ENDPOINT` on any host) on this Zenoh
+    /// endpoint, e.g. `tcp/0.0.0.0:7448`. Feature `zenoh`.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub workers_listen: Option<String>,
+    /// Workers to wait for (up to 8 s) before starting, with `--workers-listen`.
+    #[arg(long, value_name = "N", requires = "workers_listen")]
+    pub workers_expect: Option<usize>,
+}
+
+/// Evaluation workers for the experiment, when asked for: those started here (kept until the
+/// experiment ends) and the pool installed for `optim::evaluate`.
+fn workers(a: &TuneArgs) -> Result<crate::node::launcher::LocalWorkers, String> {
+    use crate::node::launcher::{local_workers_endpoint, LocalWorkers};
+    let listen = match (a.workers, &a.workers_listen) {
+        (None, None) => return Ok(LocalWorkers::default()),
+        (Some(_), _) => local_workers_endpoint()?,
+        (None, Some(ep)) => ep.clone(),
+    };
+    if !cfg!(feature = "zenoh") {
+        return Err("--workers and --workers-listen need evoloop built with the zenoh feature (cargo build --release --features zenoh)".into());
+    }
+    // Niceness 10, the optimiser's default: they yield to whatever else runs here.
+    let local = LocalWorkers::start(&listen, a.workers.unwrap_or(0) as usize, 1, 10, "tune")?;
+    #[cfg(feature = "zenoh")]
+    {
+        let expect = a.workers.map(usize::from).or(a.workers_expect).unwrap_or(0);
+        let limit = std::time::Duration::from_secs_f64(crate::config::WORKERS_WAIT_S);
+        let stop = std::sync::atomic::AtomicBool::new(false);
+        let (_, up) = crate::net::workers::install(&listen, None, expect, limit, &stop)?;
+        if up < expect {
+            eprintln!("warning: {up} of {expect} evaluation workers up after {limit:?}; going on");
+        }
+    }
+    Ok(local)
 }
 
 /// Run it; the exit code (2 with the reason on stderr when the file or a run fails).
 pub fn main(a: TuneArgs) -> i32 {
+    let _workers = match workers(&a) {
+        Ok(w) => w,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 2;
+        }
+    };
     let r = crate::tune::TuneRequest {
         file: a.file,
         seed: a.seed,
@@ -38,7 +84,16 @@ pub fn main(a: TuneArgs) -> i32 {
         quiet: a.quiet,
     };
     match crate::tune::tune(&r) {
-        Ok(()) => 0,
+        Ok(()) => {
+            let e = crate::optim::remote::totals();
+            if e.remote + e.reissued > 0 {
+                eprintln!(
+                    "  evaluations: {} on workers, {} here ({} of them reissued)",
+                    e.remote, e.local, e.reissued
+                );
+            }
+            0
+        }
         Err(e) => {
             eprintln!("error: {e}");
             2

@@ -97,6 +97,28 @@ fn parse_token(key: &str) -> Option<(String, usize, String)> {
     Some((id.to_string(), threads.parse().ok()?, build.to_string()))
 }
 
+/// Listen for evaluation workers on `listen` and use them for every costly population of this
+/// process from now on (`optim::remote::install`); wait up to `limit` for `expect` of them.
+/// The workers up then, and the pool (for its statistics).
+pub fn install(
+    listen: &str,
+    zenoh_config: Option<&Path>,
+    expect: usize,
+    limit: Duration,
+    stop: &AtomicBool,
+) -> Result<(&'static ZenohWorkers, usize), String> {
+    let z = ZenohWorkers::start(&Endpoint::Listen(listen.to_string()), zenoh_config)?;
+    // For the rest of the process: `optim::evaluate` may run on any thread at any time.
+    let z: &'static ZenohWorkers = Box::leak(Box::new(z));
+    crate::optim::remote::install(z)?;
+    let up = if expect > 0 {
+        z.wait_for(expect, limit, stop)
+    } else {
+        0
+    };
+    Ok((z, up))
+}
+
 impl ZenohWorkers {
     /// Open the optimiser's session on `ep` and follow the workers' tokens.
     pub fn start(ep: &Endpoint, zenoh_config: Option<&Path>) -> Result<Self, String> {

@@ -4,11 +4,9 @@
 //! minus the worker's own compute time), for the scaling model in the README.
 
 use super::workers::ZenohWorkers;
-use super::Endpoint;
 use crate::optim::remote::{totals, Tally, Workers as _};
 use crate::optim::{evaluate, Objective};
 use serde::Serialize;
-use std::process::Child;
 use std::time::{Duration, Instant};
 
 /// What to measure.
@@ -108,25 +106,10 @@ fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
     Ok(out)
 }
 
-/// Stops the worker processes however the bench ends.
-struct Workers(Vec<Child>);
-
-impl Drop for Workers {
-    fn drop(&mut self) {
-        for c in &mut self.0 {
-            // SAFETY: kill on a child's pid.
-            unsafe { libc::kill(c.id() as i32, libc::SIGTERM) };
-            let _ = c.wait();
-        }
-    }
-}
-
 pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
-    let port = crate::node::launcher::free_port()?;
-    let ep = format!("tcp/127.0.0.1:{port}");
-    let pool = ZenohWorkers::start(&Endpoint::Listen(ep.clone()), None)?;
-    let pool: &'static ZenohWorkers = Box::leak(Box::new(pool));
-    crate::optim::remote::install(pool)?;
+    let ep = crate::node::launcher::local_workers_endpoint()?;
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let (pool, _) = super::workers::install(&ep, None, 0, Duration::ZERO, &stop)?;
     let (f, _) = problem(0, 0);
     let local_us = {
         let (_, xs) = problem(s.population, 99);
@@ -148,22 +131,13 @@ pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
     let mut phases = Vec::new();
     let mut probe = Vec::new();
     for (k, &n) in s.workers.iter().enumerate() {
-        let mut procs = Workers(Vec::new());
-        for i in 0..n {
-            let args = [
-                "--connect".to_string(),
-                ep.clone(),
-                "--threads".into(),
-                s.worker_threads.to_string(),
-                "--id".into(),
-                format!("bench-{k}-{i}"),
-                "--quiet".into(),
-            ];
-            let c = crate::node::launcher::spawn_process("evoloop-worker", &args)
-                .map_err(|e| format!("cannot start evoloop-worker: {e}"))?;
-            procs.0.push(c);
-        }
-        let stop = std::sync::atomic::AtomicBool::new(false);
+        let procs = crate::node::launcher::LocalWorkers::start(
+            &ep,
+            n,
+            s.worker_threads,
+            0,
+            &format!("bench-{k}"),
+        )?;
         let t0 = Instant::now();
         while pool.live().len() != n {
             if t0.elapsed() > Duration::from_secs(20) {

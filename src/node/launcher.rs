@@ -73,8 +73,56 @@ pub fn measure_floor(
     .unwrap_or_default()
 }
 
+/// Evaluation workers on this host (`evoloop worker` processes): `--workers N` of `run` and
+/// `tune`, and `bench workers`. They serve until this is dropped (SIGTERM, then waited for), and
+/// die with the process that started them.
+#[derive(Default)]
+pub struct LocalWorkers(Vec<Child>);
+
+impl LocalWorkers {
+    /// `n` workers of `threads` threads at niceness `nice`, connecting to `ep`, named
+    /// `<name>-w<i>`.
+    pub fn start(
+        ep: &str,
+        n: usize,
+        threads: usize,
+        nice: i32,
+        name: &str,
+    ) -> Result<Self, String> {
+        let mut w = LocalWorkers::default();
+        for i in 0..n {
+            let args: Vec<String> = [
+                "--connect",
+                ep,
+                "--threads",
+                &threads.to_string(),
+                "--id",
+                &format!("{name}-w{i}"),
+                "--nice",
+                &nice.to_string(),
+                "--quiet",
+            ]
+            .map(String::from)
+            .to_vec();
+            let c = spawn_process("evoloop-worker", &args)
+                .map_err(|e| format!("cannot start evoloop-worker: {e}"))?;
+            w.0.push(c);
+        }
+        Ok(w)
+    }
+}
+
+impl Drop for LocalWorkers {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            signal(c, libc::SIGTERM);
+            let _ = c.wait();
+        }
+    }
+}
+
 /// A Zenoh endpoint on a free loopback port, for `--workers N`.
-fn local_workers_endpoint() -> Result<String, String> {
+pub fn local_workers_endpoint() -> Result<String, String> {
     Ok(format!("tcp/127.0.0.1:{}", free_port()?))
 }
 
@@ -435,30 +483,16 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         .position(|n| *n == "evoloop-plant")
         .expect("the plant is one of the roles");
     // The evaluation workers first: the optimiser waits for them before the run starts.
-    let mut workers: Vec<Child> = Vec::new();
+    let mut workers = LocalWorkers::default();
     if let (Some(n), Some(ep)) = (a.workers, &workers_ep) {
-        for i in 0..n {
-            let args: Vec<String> = [
-                "--connect",
-                ep,
-                "--threads",
-                "1",
-                "--id",
-                &format!("{run_id}-w{i}"),
-                "--nice",
-                &scn.optimiser.nice.to_string(),
-                "--quiet",
-            ]
-            .map(String::from)
-            .to_vec();
-            match spawn_process("evoloop-worker", &args) {
-                Ok(c) => workers.push(c),
-                Err(e) => {
-                    err!("error: cannot start evoloop-worker: {e}");
-                    return ExitCode::from(1);
-                }
+        let started = LocalWorkers::start(ep, n as usize, 1, scn.optimiser.nice, &run_id);
+        workers = match started {
+            Ok(w) => w,
+            Err(e) => {
+                err!("error: {e}");
+                return ExitCode::from(1);
             }
-        }
+        };
     }
     let mut children: Vec<(&str, Child)> = Vec::new();
     for name in names {
@@ -573,10 +607,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         let _ = c.wait();
     }
     // The workers serve until told to stop.
-    for c in &mut workers {
-        signal(c, libc::SIGTERM);
-        let _ = c.wait();
-    }
+    drop(workers);
     drop(telemetry);
     drop(estimate);
     // A child that died without dropping its ports (killed) left its resources behind: remove

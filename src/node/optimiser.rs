@@ -557,28 +557,24 @@ mod workers {
     /// Listen for workers and install them; wait for `workers_expect` of them.
     #[cfg(feature = "zenoh")]
     pub fn start(scn: &Scenario, stop: &AtomicBool) -> Result<Pool, String> {
-        use crate::net::{workers::ZenohWorkers, Endpoint};
         let Some(w) = &scn.optimiser.workers else {
             return Ok(Pool::default());
         };
-        let z = ZenohWorkers::start(
-            &Endpoint::Listen(w.listen.clone()),
+        let limit = std::time::Duration::from_secs_f64(crate::config::WORKERS_WAIT_S);
+        let (z, up) = crate::net::workers::install(
+            &w.listen,
             w.zenoh_config.as_deref(),
+            w.expect,
+            limit,
+            stop,
         )?;
-        // For the rest of the process: `optim::evaluate` may run on any thread at any time.
-        let z: &'static ZenohWorkers = Box::leak(Box::new(z));
-        crate::optim::remote::install(z)?;
-        if w.expect > 0 {
-            let limit = std::time::Duration::from_secs_f64(crate::config::WORKERS_WAIT_S);
-            let up = z.wait_for(w.expect, limit, stop);
-            if up < w.expect {
-                eprintln!(
-                    "{}: {up} of {} evaluation workers up after {} s; going on, the rest join when they come",
-                    super::WHO,
-                    w.expect,
-                    crate::config::WORKERS_WAIT_S
-                );
-            }
+        if up < w.expect {
+            eprintln!(
+                "{}: {up} of {} evaluation workers up after {} s; going on, the rest join when they come",
+                super::WHO,
+                w.expect,
+                crate::config::WORKERS_WAIT_S
+            );
         }
         Ok(Pool { zenoh: Some(z) })
     }

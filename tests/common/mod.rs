@@ -15,6 +15,13 @@ pub fn unique(tag: &str) -> (String, String) {
     (format!("{id}_"), id)
 }
 
+/// The shipped file `config/<name>`.
+pub fn config(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("config")
+        .join(name)
+}
+
 pub fn evoloop() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_evoloop"))
 }
