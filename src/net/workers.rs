@@ -9,8 +9,10 @@
 //!   objective, exactly) and a run of candidates with their thresholds; the reply carries one
 //!   value per candidate and the time the worker spent on them. A refused job gets an error
 //!   reply with the reason.
-//! - `<build>` is the version and the CPU architecture: the same code on the same instruction
-//!   set computes the same bits. The optimiser uses no worker of another build (it says so once).
+//! - `<build>` is the version, the CPU architecture and a hash of the sources, the compiler and
+//!   the target (`build.rs`): the same code compiled the same way computes the same bits. The
+//!   optimiser uses no worker of another build (it says so once), and a worker refuses a run
+//!   from another build.
 //!
 //! Payloads are postcard (every f64 its 8 bytes), so nothing is lost in transit.
 
@@ -34,9 +36,15 @@ pub const EVAL: &str = "evoloop/eval";
 /// deadline: `optim::remote::REMOTE_SLACK`).
 const QUERY_TIMEOUT: Duration = Duration::from_secs(120);
 
-/// What a worker and an optimiser must share: the version and the CPU architecture.
+/// What a worker and an optimiser must share: the version, the CPU architecture, and the build's
+/// identity (a hash of the sources, the lock file, the compiler and the target: `build.rs`).
 pub fn build() -> String {
-    format!("{}-{}", env!("CARGO_PKG_VERSION"), std::env::consts::ARCH)
+    format!(
+        "{}-{}-{}",
+        env!("CARGO_PKG_VERSION"),
+        std::env::consts::ARCH,
+        env!("EVOLOOP_BUILD_ID")
+    )
 }
 
 /// A run of candidates of one job, as it crosses.
@@ -455,6 +463,52 @@ mod tests {
         assert_eq!(parse_token("evoloop/workers/host-12/3"), None);
         assert_eq!(parse_token("evoloop/other/h/3/b"), None);
         assert_eq!(key_safe("my host/1*"), "my_host_1_");
+    }
+
+    /// A run from another build is refused with the reason, and the worker goes on serving.
+    #[test]
+    fn a_worker_refuses_a_run_of_another_build() {
+        let port = crate::node::launcher::free_port().unwrap();
+        let listen = Endpoint::Listen(format!("tcp/127.0.0.1:{port}"));
+        let connect = Endpoint::Connect(format!("tcp/127.0.0.1:{port}"));
+        let pool = ZenohWorkers::start(&listen, None).unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let worker = {
+            let stop = stop.clone();
+            std::thread::spawn(move || serve(&connect, None, "w", 1, None, &stop).unwrap())
+        };
+        assert_eq!(
+            pool.wait_for(1, Duration::from_secs(20), &AtomicBool::new(false)),
+            1
+        );
+        let f = crate::sim::maglev::Objective::fuzzy(0.1, 1);
+        let job = crate::optim::Objective::describe(&f).unwrap();
+        let request = |build: String| Request {
+            build,
+            kind: job.kind.clone(),
+            job: job.bytes.clone(),
+            candidates: vec![crate::sim::maglev::PAPER_FUZZY.to_vec()],
+            thresholds: vec![f64::INFINITY],
+        };
+        let ask = |r: &Request| {
+            let replies = pool
+                .session
+                .get(format!("{EVAL}/w"))
+                .payload(postcard::to_allocvec(r).unwrap())
+                .wait()
+                .unwrap();
+            replies.recv().unwrap().into_result()
+        };
+        let e = ask(&request("0.0.0-other".into())).expect_err("refused");
+        let why = String::from_utf8_lossy(&e.payload().to_bytes()).into_owned();
+        assert!(
+            why.contains("0.0.0-other") && why.contains(&build()),
+            "{why}"
+        );
+        assert!(ask(&request(build())).is_ok(), "the same build is served");
+        stop.store(true, Ordering::SeqCst);
+        let r = worker.join().unwrap();
+        assert_eq!((r.refused, r.batches), (1, 1));
     }
 
     /// An optimiser's pool with a real worker and one that takes its run and vanishes (its
