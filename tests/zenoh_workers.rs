@@ -82,21 +82,14 @@ fn a_seeded_lockstep_run_with_two_workers_equals_the_local_run_bit_for_bit() {
 #[test]
 fn killing_a_worker_mid_run_changes_nothing_in_the_run() {
     let dir = tempfile::tempdir().unwrap();
+    let alone = dir.path().join("alone");
+    assert_ok(&run(&config("maglev_indirect.toml"), &alone, "wk-ref", &[]));
+    // The run first, so that its optimiser binds the port at once: a port left free while
+    // other tests open connections can become one's source port, and the bind then fails.
     let ep = format!(
         "tcp/127.0.0.1:{}",
         evoloop::node::launcher::free_port().unwrap()
     );
-    let worker = |id: &str| {
-        Command::new(evoloop())
-            .args(["worker", "--connect", &ep, "--threads", "1", "--id", id])
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap()
-    };
-    let (mut doomed, mut kept) = (worker("doomed"), worker("kept"));
-    let alone = dir.path().join("alone");
-    assert_ok(&run(&config("maglev_indirect.toml"), &alone, "wk-ref", &[]));
     let spread = dir.path().join("spread");
     let (_, run_id) = unique("wk-kill");
     let mut r = Command::new(evoloop())
@@ -113,9 +106,22 @@ fn killing_a_worker_mid_run_changes_nothing_in_the_run() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    // Its optimiser waits for both before the run starts.
+    let worker = |id: &str| {
+        Command::new(evoloop())
+            .args(["worker", "--connect", &ep, "--threads", "1", "--id", id])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let (mut doomed, mut kept) = (worker("doomed"), worker("kept"));
     // Kill it once the optimiser has begun using it: the second epoch.
     let t0 = Instant::now();
     while !spread.join("published.jsonl").exists() && t0.elapsed() < Duration::from_secs(60) {
+        if r.try_wait().unwrap().is_some() {
+            break;
+        }
         std::thread::sleep(Duration::from_millis(5));
     }
     doomed.kill().unwrap();
