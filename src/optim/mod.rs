@@ -155,8 +155,10 @@ fn parallel_pays(estimate_ns: u64, rest: usize, threads: usize) -> bool {
 /// given. Serial or parallel is decided by the measured cost of one evaluation of this objective
 /// type (the first ever is evaluated here and timed) times the batch: when the work other threads
 /// would take over is below `PARALLEL_MIN_SAVING_NS` everything runs in this thread (the hand-off
-/// would cost more than it saves), otherwise on a persistent pool. The result does not depend on
-/// the thread count or on the timing: each value is computed independently.
+/// would cost more than it saves), otherwise on a persistent pool. With evaluation workers
+/// installed (`remote::install`) and an objective that describes itself, the batch is shared
+/// with the workers up (`remote::spread`). The result does not depend on the thread count, the
+/// workers or the timing: each value is computed independently, from the same bits.
 pub fn evaluate<F: Objective + ?Sized>(
     candidates: &[Vec<f64>],
     thresholds: Option<&[f64]>,
