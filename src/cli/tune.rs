@@ -85,12 +85,8 @@ pub fn main(a: TuneArgs) -> i32 {
     };
     match crate::tune::tune(&r) {
         Ok(()) => {
-            let e = crate::optim::remote::totals();
-            if e.remote + e.reissued > 0 {
-                eprintln!(
-                    "  evaluations: {} on workers, {} here ({} of them reissued)",
-                    e.remote, e.local, e.reissued
-                );
+            if let Some(line) = crate::optim::remote::totals().summary_line() {
+                eprintln!("  {line}");
             }
             0
         }

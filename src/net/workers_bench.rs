@@ -4,7 +4,7 @@
 //! minus the worker's own compute time), for the scaling model in the README.
 
 use super::workers::ZenohWorkers;
-use crate::optim::remote::{totals, Tally, Workers as _};
+use crate::optim::remote::{totals, Workers as _};
 use crate::optim::{evaluate, Objective};
 use serde::Serialize;
 use std::time::{Duration, Instant};
@@ -161,12 +161,7 @@ pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
             std::hint::black_box(evaluate(&xs, None, &f, s.threads));
         }
         let seconds = t0.elapsed().as_secs_f64();
-        let t = totals();
-        let d = Tally {
-            local: t.local - before.local,
-            remote: t.remote - before.remote,
-            reissued: t.reissued - before.reissued,
-        };
+        let d = totals().since(before);
         let (mut runs, mut evals, mut rt, mut cs) = (0u64, 0u64, 0.0, 0.0);
         for (id, w) in pool.stats() {
             let w0 = stats0.get(&id).cloned().unwrap_or_default();

@@ -772,14 +772,8 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
     for p in &pv.rejected {
         out!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
     }
-    let e = &s.evaluations;
-    if e.remote + e.reissued > 0 {
-        out!(
-            "  evaluations: {} on workers, {} here ({} of them reissued from a worker that did not answer)",
-            e.remote,
-            e.local,
-            e.reissued
-        );
+    if let Some(line) = s.evaluations.summary_line() {
+        out!("  {line}");
     }
     if let Some(d) = &s.direct {
         out!(

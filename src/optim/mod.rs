@@ -183,21 +183,18 @@ pub fn evaluate<F: Objective + ?Sized>(
     if n == 0 {
         return Vec::new();
     }
-    let mut timed: Vec<(f64, u64)> = Vec::with_capacity(n);
     let known = cost_estimates()
         .lock()
         .map(|m| m.get(key).copied())
         .unwrap_or(None);
-    let estimate = match known {
-        Some(ns) => ns,
-        None => {
-            timed.push(one(0));
-            timed[0].1
-        }
-    };
+    // The first evaluation ever of this objective type is made here, timed: the estimate.
+    let timed_first = known.is_none().then(|| one(0));
+    let estimate = known.or(timed_first.map(|t| t.1)).unwrap_or(0);
+    let first = timed_first.is_some() as usize;
+    // Time spent and evaluations made here, for the cost estimate.
+    let spent = std::cell::Cell::new(timed_first.map_or((0, 0), |t| (t.1, 1)));
     // This process's evaluator over a run of the batch: serial or on the pool, by the rule
-    // above; it keeps the durations for the cost estimate.
-    let spent = std::cell::Cell::new((0u64, 0usize));
+    // above.
     let local = |r: std::ops::Range<usize>| -> Vec<f64> {
         let threads = threads.max(1).min(r.len());
         let done: Vec<(f64, u64)> = if !parallel_pays(estimate, r.len(), threads) {
@@ -209,31 +206,37 @@ pub fn evaluate<F: Objective + ?Sized>(
         spent.set((ns + done.iter().map(|d| d.1).sum::<u64>(), k + done.len()));
         done.into_iter().map(|d| d.0).collect()
     };
-    let first = timed.len();
-    spent.set((timed.iter().map(|t| t.1).sum(), first));
-    let mut values: Vec<f64> = timed.iter().map(|t| t.0).collect();
-    // Evaluation workers take part when there are any, and the objective can travel.
+    let mut values: Vec<f64> = timed_first.map(|t| t.0).into_iter().collect();
+    // Evaluation workers take part when there are any up, and the objective can travel.
     let workers = remote::installed()
         .filter(|_| n > first)
-        .and_then(|w| Some((w, f.describe()?, w.live())))
-        .filter(|(_, _, live)| !live.is_empty());
-    match workers {
-        Some((w, job, live)) => {
+        .map(|w| (w, w.live()))
+        .filter(|(_, live)| !live.is_empty())
+        .and_then(|(w, live)| Some((w, live, f.describe()?)));
+    let tally = match workers {
+        Some((w, live, job)) => {
             let shifted = |r: std::ops::Range<usize>| local(r.start + first..r.end + first);
             let batch = remote::Batch {
                 job: &job,
                 candidates: &candidates[first..],
                 thresholds: thresholds.map(|t| &t[first..]),
             };
-            let (v, _) = remote::spread(w, &live, batch, threads, estimate, &shifted);
-            remote::count_local(first);
+            let (v, t) = remote::spread(w, &live, batch, threads, estimate, &shifted);
             values.extend(v);
+            remote::Tally {
+                local: t.local + first as u64,
+                ..t
+            }
         }
         None => {
             values.extend(local(first..n));
-            remote::count_local(n);
+            remote::Tally {
+                local: n as u64,
+                ..Default::default()
+            }
         }
-    }
+    };
+    remote::record(tally);
     let (ns, k) = spent.get();
     if k > 0 {
         if let Ok(mut m) = cost_estimates().lock() {

@@ -11,8 +11,7 @@
 
 use super::Job;
 use std::ops::Range;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 /// A worker that is up now: its name and how many evaluations it runs at once.
@@ -82,24 +81,31 @@ pub struct Tally {
 }
 
 impl Tally {
-    fn add(&self, into: &Totals) {
-        into.local.fetch_add(self.local, Ordering::Relaxed);
-        into.remote.fetch_add(self.remote, Ordering::Relaxed);
-        into.reissued.fetch_add(self.reissued, Ordering::Relaxed);
+    /// The evaluations made since `before` was taken.
+    pub fn since(self, before: Tally) -> Tally {
+        Tally {
+            local: self.local - before.local,
+            remote: self.remote - before.remote,
+            reissued: self.reissued - before.reissued,
+        }
+    }
+
+    /// The run's summary line for them, when workers took part.
+    pub fn summary_line(&self) -> Option<String> {
+        (self.remote + self.reissued > 0).then(|| {
+            format!(
+                "evaluations: {} on workers, {} here ({} of them reissued from a worker that did not answer)",
+                self.remote, self.local, self.reissued
+            )
+        })
     }
 }
 
-struct Totals {
-    local: AtomicU64,
-    remote: AtomicU64,
-    reissued: AtomicU64,
-}
-
-static TOTALS: Totals = Totals {
-    local: AtomicU64::new(0),
-    remote: AtomicU64::new(0),
-    reissued: AtomicU64::new(0),
-};
+static TOTALS: Mutex<Tally> = Mutex::new(Tally {
+    local: 0,
+    remote: 0,
+    reissued: 0,
+});
 
 static WORKERS: OnceLock<&'static dyn Workers> = OnceLock::new();
 
@@ -118,20 +124,15 @@ pub fn installed() -> Option<&'static dyn Workers> {
 
 /// Every evaluation `optim::evaluate` made in this process so far, by where it was computed.
 pub fn totals() -> Tally {
-    Tally {
-        local: TOTALS.local.load(Ordering::Relaxed),
-        remote: TOTALS.remote.load(Ordering::Relaxed),
-        reissued: TOTALS.reissued.load(Ordering::Relaxed),
-    }
+    *TOTALS.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Count `n` evaluations made here without workers.
-pub(super) fn count_local(n: usize) {
-    Tally {
-        local: n as u64,
-        ..Tally::default()
-    }
-    .add(&TOTALS);
+/// Add one batch's evaluations to the process's totals (`optim::evaluate`, once per batch).
+pub(super) fn record(t: Tally) {
+    let mut all = TOTALS.lock().unwrap_or_else(|e| e.into_inner());
+    all.local += t.local;
+    all.remote += t.remote;
+    all.reissued += t.reissued;
 }
 
 /// The runs of `n` candidates: this process's first, then one per worker, in proportion to
@@ -245,7 +246,6 @@ pub fn spread(
             }
         }
     }
-    tally.add(&TOTALS);
     (values, tally)
 }
 
