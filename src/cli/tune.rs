@@ -56,12 +56,8 @@ fn workers(a: &TuneArgs) -> Result<crate::node::launcher::LocalWorkers, String> 
     #[cfg(feature = "zenoh")]
     {
         let expect = a.workers.map(usize::from).or(a.workers_expect).unwrap_or(0);
-        let limit = std::time::Duration::from_secs_f64(crate::config::WORKERS_WAIT_S);
         let stop = std::sync::atomic::AtomicBool::new(false);
-        let (_, up) = crate::net::workers::install(&listen, None, expect, limit, &stop)?;
-        if up < expect {
-            eprintln!("warning: {up} of {expect} evaluation workers up after {limit:?}; going on");
-        }
+        crate::net::workers::install(&listen, None, expect, &stop)?;
     }
     Ok(local)
 }

@@ -51,8 +51,7 @@ pub fn build() -> String {
 #[derive(Debug, Serialize, Deserialize)]
 struct Request {
     build: String,
-    kind: String,
-    job: Vec<u8>,
+    job: Job,
     candidates: Vec<Vec<f64>>,
     thresholds: Vec<f64>,
 }
@@ -106,25 +105,29 @@ fn parse_token(key: &str) -> Option<(String, usize, String)> {
 }
 
 /// Listen for evaluation workers on `listen` and use them for every costly population of this
-/// process from now on (`optim::remote::install`); wait up to `limit` for `expect` of them.
-/// The workers up then, and the pool (for its statistics).
+/// process from now on (`optim::remote::install`); wait up to `config::WORKERS_WAIT_S` for
+/// `expect` of them (saying so when fewer came; the others join as they come). The pool, for
+/// its statistics.
 pub fn install(
     listen: &str,
     zenoh_config: Option<&Path>,
     expect: usize,
-    limit: Duration,
     stop: &AtomicBool,
-) -> Result<(&'static ZenohWorkers, usize), String> {
+) -> Result<&'static ZenohWorkers, String> {
     let z = ZenohWorkers::start(&Endpoint::Listen(listen.to_string()), zenoh_config)?;
     // For the rest of the process: `optim::evaluate` may run on any thread at any time.
     let z: &'static ZenohWorkers = Box::leak(Box::new(z));
     crate::optim::remote::install(z)?;
-    let up = if expect > 0 {
-        z.wait_for(expect, limit, stop)
-    } else {
-        0
-    };
-    Ok((z, up))
+    if expect > 0 {
+        let limit = crate::config::WORKERS_WAIT_S;
+        let up = z.wait_for(expect, Duration::from_secs_f64(limit), stop);
+        if up < expect {
+            eprintln!(
+                "evoloop: {up} of {expect} evaluation workers up after {limit} s; going on, the rest join as they come"
+            );
+        }
+    }
+    Ok(z)
 }
 
 impl ZenohWorkers {
@@ -204,8 +207,7 @@ impl Workers for ZenohWorkers {
     ) -> Box<dyn Pending> {
         let req = Request {
             build: build(),
-            kind: job.kind.clone(),
-            job: job.bytes.clone(),
+            job: job.clone(),
             candidates: candidates.iter().map(|c| c.to_vec()).collect(),
             thresholds: thresholds.to_vec(),
         };
@@ -249,6 +251,12 @@ struct ZenohPending {
 }
 
 impl ZenohPending {
+    /// The run failed: counted against the worker.
+    fn failed(&self, why: String) -> Reply {
+        lock(&self.stats).entry(self.id.clone()).or_default().failed += 1;
+        Reply::Failed(why)
+    }
+
     fn answer(&self, reply: ZReply) -> Result<Answer, String> {
         match reply.into_result() {
             Ok(sample) => postcard::from_bytes::<Answer>(&sample.payload().to_bytes())
@@ -296,13 +304,6 @@ impl Pending for ZenohPending {
             )),
             Err(e) => self.failed(e),
         }
-    }
-}
-
-impl ZenohPending {
-    fn failed(&self, why: String) -> Reply {
-        lock(&self.stats).entry(self.id.clone()).or_default().failed += 1;
-        Reply::Failed(why)
     }
 }
 
@@ -384,14 +385,13 @@ pub fn serve(
             Err(e) => return Err(format!("Zenoh: the queryable closed: {e}")),
         };
         let started = Instant::now();
-        let answer = evaluate(&query, &mut cached, threads);
-        let sent = match answer {
-            Ok(a) => {
+        let sent = match evaluate(&query, &mut cached, threads) {
+            Ok(values) => {
                 report.batches += 1;
-                report.evaluations += a.values.len() as u64;
+                report.evaluations += values.len() as u64;
                 let bytes = postcard::to_allocvec(&Answer {
                     compute_ns: started.elapsed().as_nanos() as u64,
-                    values: a.values,
+                    values,
                 })
                 .map_err(|e| e.to_string())?;
                 query.reply(query.key_expr().clone(), bytes).wait()
@@ -416,7 +416,7 @@ fn evaluate(
     query: &zenoh::query::Query,
     cached: &mut Option<(Job, Box<dyn crate::optim::Objective + Send>)>,
     threads: usize,
-) -> Result<Answer, String> {
+) -> Result<Vec<f64>, String> {
     let bytes = query
         .payload()
         .map(|p| p.to_bytes().into_owned())
@@ -433,20 +433,17 @@ fn evaluate(
     if req.thresholds.len() != req.candidates.len() {
         return Err("thresholds and candidates differ in number".into());
     }
-    let job = Job {
-        kind: req.kind,
-        bytes: req.job,
-    };
-    if cached.as_ref().is_none_or(|(j, _)| *j != job) {
-        let f = crate::jobs::rebuild(&job)?;
-        *cached = Some((job, f));
+    if cached.as_ref().is_none_or(|(j, _)| *j != req.job) {
+        let f = crate::jobs::rebuild(&req.job)?;
+        *cached = Some((req.job, f));
     }
     let f = &cached.as_ref().expect("just set").1;
-    let values = crate::optim::evaluate(&req.candidates, Some(&req.thresholds), &**f, threads);
-    Ok(Answer {
-        values,
-        compute_ns: 0,
-    })
+    Ok(crate::optim::evaluate(
+        &req.candidates,
+        Some(&req.thresholds),
+        &**f,
+        threads,
+    ))
 }
 
 #[cfg(test)]
@@ -465,33 +462,66 @@ mod tests {
         assert_eq!(key_safe("my host/1*"), "my_host_1_");
     }
 
+    /// On loopback: an optimiser's pool, the endpoint its workers connect to, and a real worker
+    /// `id` serving it on a thread until the flag is set.
+    struct Loopback {
+        pool: ZenohWorkers,
+        connect: Endpoint,
+        stop: Arc<AtomicBool>,
+        worker: std::thread::JoinHandle<WorkerReport>,
+    }
+
+    impl Loopback {
+        fn with_worker(id: &'static str) -> Self {
+            let port = crate::node::launcher::free_port().unwrap();
+            let pool =
+                ZenohWorkers::start(&Endpoint::Listen(format!("tcp/127.0.0.1:{port}")), None)
+                    .unwrap();
+            let connect = Endpoint::Connect(format!("tcp/127.0.0.1:{port}"));
+            let stop = Arc::new(AtomicBool::new(false));
+            let worker = {
+                let (ep, stop) = (connect.clone(), stop.clone());
+                std::thread::spawn(move || serve(&ep, None, id, 1, None, &stop).unwrap())
+            };
+            Self {
+                pool,
+                connect,
+                stop,
+                worker,
+            }
+        }
+
+        /// Wait for `n` workers up (they must come).
+        fn up(&self, n: usize) {
+            let up = self
+                .pool
+                .wait_for(n, Duration::from_secs(20), &AtomicBool::new(false));
+            assert_eq!(up, n, "workers up");
+        }
+
+        /// Stop the real worker: what it served.
+        fn finish(self) -> WorkerReport {
+            self.stop.store(true, Ordering::SeqCst);
+            self.worker.join().unwrap()
+        }
+    }
+
     /// A run from another build is refused with the reason, and the worker goes on serving.
     #[test]
     fn a_worker_refuses_a_run_of_another_build() {
-        let port = crate::node::launcher::free_port().unwrap();
-        let listen = Endpoint::Listen(format!("tcp/127.0.0.1:{port}"));
-        let connect = Endpoint::Connect(format!("tcp/127.0.0.1:{port}"));
-        let pool = ZenohWorkers::start(&listen, None).unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let worker = {
-            let stop = stop.clone();
-            std::thread::spawn(move || serve(&connect, None, "w", 1, None, &stop).unwrap())
-        };
-        assert_eq!(
-            pool.wait_for(1, Duration::from_secs(20), &AtomicBool::new(false)),
-            1
-        );
+        let lo = Loopback::with_worker("w");
+        lo.up(1);
         let f = crate::sim::maglev::Objective::fuzzy(0.1, 1);
         let job = crate::optim::Objective::describe(&f).unwrap();
         let request = |build: String| Request {
             build,
-            kind: job.kind.clone(),
-            job: job.bytes.clone(),
+            job: job.clone(),
             candidates: vec![crate::sim::maglev::PAPER_FUZZY.to_vec()],
             thresholds: vec![f64::INFINITY],
         };
         let ask = |r: &Request| {
-            let replies = pool
+            let replies = lo
+                .pool
                 .session
                 .get(format!("{EVAL}/w"))
                 .payload(postcard::to_allocvec(r).unwrap())
@@ -506,8 +536,7 @@ mod tests {
             "{why}"
         );
         assert!(ask(&request(build())).is_ok(), "the same build is served");
-        stop.store(true, Ordering::SeqCst);
-        let r = worker.join().unwrap();
+        let r = lo.finish();
         assert_eq!((r.refused, r.batches), (1, 1));
     }
 
@@ -518,17 +547,10 @@ mod tests {
     fn a_worker_that_vanishes_mid_run_has_its_run_reissued_and_the_values_stay_exact() {
         use crate::optim::remote::spread;
         use crate::optim::Objective;
-        let port = crate::node::launcher::free_port().unwrap();
-        let listen = Endpoint::Listen(format!("tcp/127.0.0.1:{port}"));
-        let connect = Endpoint::Connect(format!("tcp/127.0.0.1:{port}"));
-        let pool = ZenohWorkers::start(&listen, None).unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let good = {
-            let (ep, stop) = (connect.clone(), stop.clone());
-            std::thread::spawn(move || serve(&ep, None, "good", 1, None, &stop).unwrap())
-        };
+        let lo = Loopback::with_worker("good");
+        let pool = &lo.pool;
         let vanishing = {
-            let ep = connect.clone();
+            let ep = lo.connect.clone();
             std::thread::spawn(move || {
                 let s = super::super::open(&ep, None).unwrap();
                 let q = s.declare_queryable(format!("{EVAL}/gone")).wait().unwrap();
@@ -543,8 +565,7 @@ mod tests {
                 drop(query);
             })
         };
-        let up = pool.wait_for(2, Duration::from_secs(20), &AtomicBool::new(false));
-        assert_eq!(up, 2, "both workers up");
+        lo.up(2);
         let f = crate::sim::maglev::Objective::fuzzy(0.3, 5);
         let base = crate::sim::maglev::PAPER_FUZZY;
         let xs: Vec<Vec<f64>> = (0..6)
@@ -553,7 +574,7 @@ mod tests {
         let local = |r: std::ops::Range<usize>| xs[r].iter().map(|x| f.value(x)).collect();
         // A long expected time per evaluation: the deadline alone would take > 10 s.
         let (v, tally) = spread(
-            &pool,
+            pool,
             &pool.live(),
             crate::optim::remote::Batch {
                 job: &f.describe().unwrap(),
@@ -583,8 +604,7 @@ mod tests {
                 .collect::<Vec<_>>(),
             ["good"]
         );
-        stop.store(true, Ordering::SeqCst);
-        let r = good.join().unwrap();
+        let r = lo.finish();
         assert_eq!((r.batches, r.evaluations, r.refused), (1, 2, 0));
     }
 }

@@ -60,20 +60,23 @@ pub struct Report {
 }
 
 /// The maglev model every phase evaluates: the fuzzy-network paper's 2.5 s experiment with the
-/// fuzzy anti-windup PID, and `n` sets about the paper's tuned one (+-10 %, seeded).
-fn problem(n: usize, seed: u64) -> (crate::sim::maglev::Objective, Vec<Vec<f64>>) {
+/// fuzzy anti-windup PID.
+fn objective() -> crate::sim::maglev::Objective {
+    crate::sim::maglev::Objective::fuzzy(crate::sim::maglev::Spec::default().duration, 1)
+}
+
+/// `n` sets about the paper's tuned one (+-10 %, seeded).
+fn candidates(n: usize, seed: u64) -> Vec<Vec<f64>> {
     use rand::{Rng, SeedableRng};
-    let f = crate::sim::maglev::Objective::fuzzy(crate::sim::maglev::Spec::default().duration, 1);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let xs = (0..n)
+    (0..n)
         .map(|_| {
             crate::sim::maglev::PAPER_FUZZY
                 .iter()
                 .map(|v| v * rng.gen_range(0.9..1.1))
                 .collect()
         })
-        .collect();
-    (f, xs)
+        .collect()
 }
 
 /// Runs of the transport probe.
@@ -83,8 +86,9 @@ const PROBE_RUNS: usize = 300;
 /// a time: round trip minus the worker's compute time, us each.
 fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
     use crate::optim::remote::Reply;
-    let (mut f, xs) = problem(1, 7);
+    let mut f = objective();
     f.spec.duration = f.spec.period;
+    let xs = candidates(1, 7);
     let job = f
         .describe()
         .ok_or("the maglev objective describes itself")?;
@@ -109,11 +113,10 @@ fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
 pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
     let ep = crate::node::launcher::local_workers_endpoint()?;
     let stop = std::sync::atomic::AtomicBool::new(false);
-    let (pool, _) = super::workers::install(&ep, None, 0, Duration::ZERO, &stop)?;
-    let (f, _) = problem(0, 0);
+    let pool = super::workers::install(&ep, None, 0, &stop)?;
+    let f = objective();
     let local_us = {
-        let (_, xs) = problem(s.population, 99);
-        let mut t: Vec<f64> = xs
+        let mut t: Vec<f64> = candidates(s.population, 99)
             .iter()
             .map(|x| {
                 let t0 = Instant::now();
@@ -149,15 +152,14 @@ pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
             pool.wait_for(n, Duration::from_millis(50), &stop);
         }
         // A warm-up population: the workers' first job, the pool's threads.
-        let (_, warm) = problem(s.population, 1000);
-        evaluate(&warm, None, &f, s.threads);
+        evaluate(&candidates(s.population, 1000), None, &f, s.threads);
         if n == 1 && probe.is_empty() {
             probe = transport(pool, PROBE_RUNS)?;
         }
         let (before, stats0) = (totals(), pool.stats());
         let t0 = Instant::now();
         for p in 0..s.populations {
-            let (_, xs) = problem(s.population, p as u64);
+            let xs = candidates(s.population, p as u64);
             std::hint::black_box(evaluate(&xs, None, &f, s.threads));
         }
         let seconds = t0.elapsed().as_secs_f64();
@@ -207,9 +209,8 @@ pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
             std::thread::sleep(Duration::from_millis(20));
         }
     }
+    let p = crate::rt::timing::Percentiles::from_samples(probe.iter().map(|us| (us * 1e3) as i64));
     if !probe.is_empty() {
-        let p =
-            crate::rt::timing::Percentiles::from_samples(probe.iter().map(|us| (us * 1e3) as i64));
         progress(&format!(
             "remote path alone (1 worker, {} runs of 1 near-empty evaluation): {:.0} us median, {:.0} us p90",
             probe.len(),
@@ -219,9 +220,7 @@ pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
     }
     Ok(Report {
         probe_runs: probe.len(),
-        probe: crate::rt::timing::Percentiles::from_samples(
-            probe.iter().map(|us| (us * 1e3) as i64),
-        ),
+        probe: p,
         machine_cores: crate::optim::all_cores(),
         local_us_per_evaluation: local_us,
         population: s.population,

@@ -560,22 +560,7 @@ mod workers {
         let Some(w) = &scn.optimiser.workers else {
             return Ok(Pool::default());
         };
-        let limit = std::time::Duration::from_secs_f64(crate::config::WORKERS_WAIT_S);
-        let (z, up) = crate::net::workers::install(
-            &w.listen,
-            w.zenoh_config.as_deref(),
-            w.expect,
-            limit,
-            stop,
-        )?;
-        if up < w.expect {
-            eprintln!(
-                "{}: {up} of {} evaluation workers up after {} s; going on, the rest join when they come",
-                super::WHO,
-                w.expect,
-                crate::config::WORKERS_WAIT_S
-            );
-        }
+        let z = crate::net::workers::install(&w.listen, w.zenoh_config.as_deref(), w.expect, stop)?;
         Ok(Pool { zenoh: Some(z) })
     }
 

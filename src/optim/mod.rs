@@ -66,7 +66,7 @@ pub trait Objective: Sync {
 /// An objective as it crosses to an evaluation worker: its kind (`crate::jobs` knows them all)
 /// and its fields in postcard, where every f64 is its 8 bytes, so the rebuilt objective holds
 /// the same bits and computes the same values.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Job {
     pub kind: String,
     pub bytes: Vec<u8>,
