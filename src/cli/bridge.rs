@@ -111,7 +111,7 @@ pub fn main(a: &BridgeArgs) -> u8 {
 
 #[cfg(not(feature = "zenoh"))]
 pub fn main(_: &BridgeArgs) -> u8 {
-    err!("error: evoloop bridge needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+    err!("error: {}", crate::needs_zenoh("evoloop bridge"));
     2
 }
 
@@ -185,6 +185,6 @@ pub fn bench(a: &BridgeBenchArgs) -> u8 {
 
 #[cfg(not(feature = "zenoh"))]
 pub fn bench(_: &BridgeBenchArgs) -> u8 {
-    err!("error: evoloop bench bridge needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+    err!("error: {}", crate::needs_zenoh("evoloop bench bridge"));
     2
 }

@@ -30,32 +30,34 @@ pub struct TuneArgs {
     /// same bits; the other experiments' evaluations stay here). Feature `zenoh`.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64), conflicts_with = "workers_listen")]
     pub workers: Option<u16>,
-    /// Take evaluation workers (`evoloop worker --connect ENDPOINT` on any host) on this Zenoh
-    /// endpoint, e.g. `tcp/0.0.0.0:7448`. Feature `zenoh`.
-    #[arg(long, value_name = "ENDPOINT")]
-    pub workers_listen: Option<String>,
-    /// Workers to wait for (up to 8 s) before starting, with `--workers-listen`.
-    #[arg(long, value_name = "N", requires = "workers_listen")]
-    pub workers_expect: Option<usize>,
+    #[command(flatten)]
+    pub remote: crate::node::args::WorkersArgs,
 }
 
 /// Evaluation workers for the experiment, when asked for: those started here (kept until the
 /// experiment ends) and the pool installed for `optim::evaluate`.
 fn workers(a: &TuneArgs) -> Result<crate::node::launcher::LocalWorkers, String> {
     use crate::node::launcher::{local_workers_endpoint, LocalWorkers};
-    let listen = match (a.workers, &a.workers_listen) {
+    let listen = match (a.workers, &a.remote.workers_listen) {
+        (None, None) if a.remote.workers_expect.is_some() => {
+            return Err("--workers-expect goes with --workers-listen".into())
+        }
         (None, None) => return Ok(LocalWorkers::default()),
         (Some(_), _) => local_workers_endpoint()?,
         (None, Some(ep)) => ep.clone(),
     };
     if !cfg!(feature = "zenoh") {
-        return Err("--workers and --workers-listen need evoloop built with the zenoh feature (cargo build --release --features zenoh)".into());
+        return Err(crate::needs_zenoh("--workers (or --workers-listen)"));
     }
     // Niceness 10, the optimiser's default: they yield to whatever else runs here.
     let local = LocalWorkers::start(&listen, a.workers.unwrap_or(0) as usize, 1, 10, "tune")?;
     #[cfg(feature = "zenoh")]
     {
-        let expect = a.workers.map(usize::from).or(a.workers_expect).unwrap_or(0);
+        let expect = a
+            .workers
+            .map(usize::from)
+            .or(a.remote.workers_expect)
+            .unwrap_or(0);
         let stop = std::sync::atomic::AtomicBool::new(false);
         crate::net::workers::install(&listen, None, expect, &stop)?;
     }

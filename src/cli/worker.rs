@@ -86,7 +86,7 @@ pub fn bench(a: &BenchWorkersArgs) -> u8 {
 
 #[cfg(not(feature = "zenoh"))]
 pub fn bench(_: &BenchWorkersArgs) -> u8 {
-    err!("error: evoloop bench workers needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+    err!("error: {}", crate::needs_zenoh("evoloop bench workers"));
     2
 }
 
@@ -152,6 +152,6 @@ pub fn main(a: &WorkerArgs) -> u8 {
 
 #[cfg(not(feature = "zenoh"))]
 pub fn main(_: &WorkerArgs) -> u8 {
-    err!("error: evoloop worker needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+    err!("error: {}", crate::needs_zenoh("evoloop worker"));
     2
 }

@@ -395,10 +395,7 @@ fn workers_settings(
         return Ok(None);
     }
     if !cfg!(feature = "zenoh") {
-        return check.fail(
-            "optimiser.workers",
-            "\"zenoh\" needs evoloop built with the zenoh feature (cargo build --release --features zenoh)",
-        );
+        return check.fail("optimiser.workers", crate::needs_zenoh("\"zenoh\""));
     }
     // Off and schedule evaluate nothing: the key is harmless there (`--optimiser off` on a
     // scenario with workers). Direct evaluates on the plant itself and identify on the recorded

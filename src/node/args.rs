@@ -117,12 +117,19 @@ pub struct OverrideArgs {
     /// `timing.wait_margin_us` before it, then spin). Default: the scenario's `timing.wait`.
     #[arg(long)]
     pub wait: Option<crate::rt::WaitKind>,
-    /// The optimiser takes evaluation workers (`evoloop worker --connect ENDPOINT`) on this
-    /// Zenoh endpoint, e.g. `tcp/0.0.0.0:7448`: `optimiser.workers = "zenoh"` with
+    #[command(flatten)]
+    pub remote: WorkersArgs,
+}
+
+/// Evaluation workers on other hosts, for `run` (the optimiser) and `tune`.
+#[derive(Debug, Clone, Default, Args)]
+pub struct WorkersArgs {
+    /// Take evaluation workers (`evoloop worker --connect ENDPOINT` on any host) on this Zenoh
+    /// endpoint, e.g. `tcp/0.0.0.0:7448`; for a run, `optimiser.workers = "zenoh"` with
     /// `workers_listen` set (feature `zenoh`).
     #[arg(long, value_name = "ENDPOINT")]
     pub workers_listen: Option<String>,
-    /// Evaluation workers the optimiser waits for (up to 8 s, before the run starts).
+    /// Evaluation workers to wait for (up to 8 s) before starting.
     #[arg(long, value_name = "N")]
     pub workers_expect: Option<usize>,
 }
@@ -137,8 +144,8 @@ impl OverrideArgs {
             optimiser: self.optimiser,
             no_rt: self.no_rt,
             wait: self.wait,
-            workers_listen: self.workers_listen.clone(),
-            workers_expect: self.workers_expect,
+            workers_listen: self.remote.workers_listen.clone(),
+            workers_expect: self.remote.workers_expect,
         }
     }
 
@@ -181,11 +188,11 @@ impl OverrideArgs {
             a.push("--wait".into());
             a.push(w.name().into());
         }
-        if let Some(e) = &self.workers_listen {
+        if let Some(e) = &self.remote.workers_listen {
             a.push("--workers-listen".into());
             a.push(e.clone());
         }
-        if let Some(n) = self.workers_expect {
+        if let Some(n) = self.remote.workers_expect {
             a.push("--workers-expect".into());
             a.push(n.to_string());
         }

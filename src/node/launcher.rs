@@ -379,19 +379,23 @@ pub fn run(mut a: RunArgs) -> ExitCode {
     let file = a.file.clone().unwrap_or_else(default_scenario);
     // `--workers N`: the optimiser listens on a free loopback port and waits for N workers.
     if a.workers.is_some() && !cfg!(feature = "zenoh") {
-        err!("error: --workers needs evoloop built with the zenoh feature (cargo build --release --features zenoh)");
+        err!("error: {}", crate::needs_zenoh("--workers"));
         return ExitCode::from(2);
     }
-    let workers_ep = match a.workers.map(|_| local_workers_endpoint()).transpose() {
-        Ok(ep) => ep,
+    // The workers to start and where: set as the optimiser's overrides.
+    let local = a
+        .workers
+        .map(|n| local_workers_endpoint().map(|ep| (n as usize, ep)));
+    let local = match local.transpose() {
+        Ok(l) => l,
         Err(e) => {
             err!("error: --workers: {e}");
             return ExitCode::from(2);
         }
     };
-    if let (Some(n), Some(ep)) = (a.workers, &workers_ep) {
-        a.overrides.workers_listen = Some(ep.clone());
-        a.overrides.workers_expect = Some(n as usize);
+    if let Some((n, ep)) = &local {
+        a.overrides.remote.workers_listen = Some(ep.clone());
+        a.overrides.remote.workers_expect = Some(*n);
     }
     let ov = a.overrides.to_overrides();
     let scn = match Scenario::load(&file, &ov) {
@@ -483,17 +487,17 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         .position(|n| *n == "evoloop-plant")
         .expect("the plant is one of the roles");
     // The evaluation workers first: the optimiser waits for them before the run starts.
-    let mut workers = LocalWorkers::default();
-    if let (Some(n), Some(ep)) = (a.workers, &workers_ep) {
-        let started = LocalWorkers::start(ep, n as usize, 1, scn.optimiser.nice, &run_id);
-        workers = match started {
-            Ok(w) => w,
-            Err(e) => {
-                err!("error: {e}");
-                return ExitCode::from(1);
-            }
-        };
-    }
+    let workers = match &local {
+        Some((n, ep)) => LocalWorkers::start(ep, *n, 1, scn.optimiser.nice, &run_id),
+        None => Ok(LocalWorkers::default()),
+    };
+    let workers = match workers {
+        Ok(w) => w,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(1);
+        }
+    };
     let mut children: Vec<(&str, Child)> = Vec::new();
     for name in names {
         match spawn_process(name, &args) {

@@ -564,13 +564,10 @@ mod workers {
         Ok(Pool { zenoh: Some(z) })
     }
 
+    /// None in this build: the configuration refuses `workers = "zenoh"` without the feature.
     #[cfg(not(feature = "zenoh"))]
-    pub fn start(scn: &Scenario, _: &AtomicBool) -> Result<Pool, String> {
-        match scn.optimiser.workers {
-            // The configuration refuses workers in this build; this is a second line.
-            Some(_) => Err("evaluation workers need evoloop built with the zenoh feature (cargo build --release --features zenoh)".into()),
-            None => Ok(Pool::default()),
-        }
+    pub fn start(_: &Scenario, _: &AtomicBool) -> Result<Pool, String> {
+        Ok(Pool::default())
     }
 
     /// The evaluations by where they ran, and every worker seen, into the report.
@@ -638,12 +635,7 @@ mod remote {
 
     #[cfg(not(feature = "zenoh"))]
     pub fn join(_: &mut OptimiserArgs, _: String) -> Mirror {
-        fail(
-            WHO,
-            EXIT_SETUP,
-            "--connect needs evoloop built with the zenoh feature \
-             (cargo build --release --features zenoh)",
-        )
+        fail(WHO, EXIT_SETUP, &crate::needs_zenoh("--connect"))
     }
 
     /// Stop the mirror and write what crossed the network (network.json).
