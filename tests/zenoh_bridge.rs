@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 #[cfg(feature = "zenoh")]
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 #[cfg(feature = "zenoh")]
 use std::process::{Child, Stdio};
@@ -81,6 +81,46 @@ fn finish(mut c: Child, limit: Duration) -> std::process::Output {
     c.wait_with_output().unwrap()
 }
 
+/// Three processes on loopback: a realtime run of maglev_indirect for `secs` with its own
+/// optimiser off, its bridge listening (with `bridge_args`), and a remote optimiser joining
+/// through it with the indirect scheme. One realtime run at a time on a 2-core machine. A test
+/// binds `_alone` and `_tmp` by name: left to `..`, they would go with the temporary at once,
+/// the lock and the directory with them.
+#[cfg(feature = "zenoh")]
+struct RemoteTuning {
+    _alone: std::sync::MutexGuard<'static, ()>,
+    _tmp: tempfile::TempDir,
+    /// The run's output directory, and the remote optimiser's.
+    host: PathBuf,
+    remote: PathBuf,
+    run: Child,
+    bridge: Child,
+    optimiser: Child,
+}
+
+#[cfg(feature = "zenoh")]
+fn remote_tuning(tag: &str, secs: &str, bridge_args: &[&str]) -> RemoteTuning {
+    let alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let (prefix, run_id) = unique(tag);
+    let ep = loopback();
+    let (host, remote) = (tmp.path().join("host"), tmp.path().join("remote"));
+    let file = config("maglev_indirect.toml");
+    let file = file.to_str().unwrap();
+    let run = spawn_host_run(file, secs, &run_id, &prefix, &host);
+    let bridge = spawn(&[&["bridge", "--run", &run_id, "--listen", &ep], bridge_args].concat());
+    let optimiser = spawn_remote_optimiser(file, secs, &run_id, &remote, &ep);
+    RemoteTuning {
+        _alone: alone,
+        _tmp: tmp,
+        host,
+        remote,
+        run,
+        bridge,
+        optimiser,
+    }
+}
+
 /// A realtime run of the maglev's indirect scenario with its own optimiser off; the bridge
 /// listens on loopback and an optimiser process joins over Zenoh with the indirect scheme. The
 /// sets it publishes cross the network and the controller accepts them: the scheme runs with
@@ -88,18 +128,15 @@ fn finish(mut c: Child, limit: Duration) -> std::process::Output {
 #[cfg(feature = "zenoh")]
 #[test]
 fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
-    // One realtime run at a time on a 2-core machine.
-    let _alone = alone();
-    let tmp = tempfile::tempdir().unwrap();
-    let (prefix, run_id) = unique("znet");
-    let ep = loopback();
-    let (host, remote) = (tmp.path().join("host"), tmp.path().join("remote"));
-    let file = config("maglev_indirect.toml");
-    let file = file.to_str().unwrap();
-    let secs = "12";
-    let run = spawn_host_run(file, secs, &run_id, &prefix, &host);
-    let bridge = spawn(&["bridge", "--run", &run_id, "--listen", &ep, "--json"]);
-    let optimiser = spawn_remote_optimiser(file, secs, &run_id, &remote, &ep);
+    let RemoteTuning {
+        _alone,
+        _tmp,
+        host,
+        remote,
+        run,
+        bridge,
+        optimiser,
+    } = remote_tuning("znet", "12", &["--json"]);
     let run = finish(run, Duration::from_secs(60));
     assert_ok(&run);
     let bridge = finish(bridge, Duration::from_secs(10));
@@ -144,17 +181,15 @@ fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
 #[cfg(feature = "zenoh")]
 #[test]
 fn losing_the_link_ends_the_remote_optimiser_and_the_run_goes_on() {
-    // One realtime run at a time on a 2-core machine.
-    let _alone = alone();
-    let tmp = tempfile::tempdir().unwrap();
-    let (prefix, run_id) = unique("zlost");
-    let ep = loopback();
-    let (host, remote) = (tmp.path().join("host"), tmp.path().join("remote"));
-    let file = config("maglev_indirect.toml");
-    let file = file.to_str().unwrap();
-    let run = spawn_host_run(file, "20", &run_id, &prefix, &host);
-    let mut bridge = spawn(&["bridge", "--run", &run_id, "--listen", &ep]);
-    let optimiser = spawn_remote_optimiser(file, "20", &run_id, &remote, &ep);
+    let RemoteTuning {
+        _alone,
+        _tmp,
+        host,
+        run,
+        mut bridge,
+        optimiser,
+        ..
+    } = remote_tuning("zlost", "20", &[]);
     std::thread::sleep(Duration::from_secs(5));
     bridge.kill().unwrap();
     let _ = bridge.wait();

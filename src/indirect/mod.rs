@@ -169,22 +169,25 @@ impl MaglevTuner {
         s
     }
 
+    /// The GA's objective on the model with mass `mass`.
+    pub fn objective(&self, mass: f64) -> mg::Objective {
+        mg::Objective {
+            spec: self.model(mass),
+            aw: self.aw,
+            seed: self.seed,
+        }
+    }
+
     /// Cost of a parameter set on the model with mass `mass` (infinite when it loses the ball).
     pub fn cost(&self, mass: f64, params: &[f64]) -> f64 {
-        mg::simulate(&self.model(mass), self.aw, params, self.seed, None)
-            .map_or(f64::INFINITY, |c| c.g)
+        crate::optim::Objective::value(&self.objective(mass), params)
     }
 
     /// One epoch of the GA on the model with mass `mass`: its best set, with the in-service set's
     /// cost on the same model. Deterministic for a given seed, epoch number and inputs.
     pub fn epoch(&mut self, mass: f64, in_service: &[f64]) -> Candidate {
-        let spec = self.model(mass);
         let (lo, hi) = self.aw.paper_ranges();
-        let obj = mg::Objective {
-            spec,
-            aw: self.aw,
-            seed: self.seed,
-        };
+        let obj = self.objective(mass);
         let iterations = (self.epoch_evaluations.saturating_sub(self.ga.population)) / 2;
         let cfg = HybridConfig {
             ga: GaConfig {
