@@ -382,16 +382,12 @@ fn workers_settings(
     } else {
         o.workers.unwrap_or_default()
     };
-    let given = o.workers_listen.is_some()
-        || o.workers_zenoh_config.is_some()
-        || o.workers_expect.is_some();
     if kind == WorkersKind::Local {
-        if given {
-            return check.fail(
-                "optimiser.workers",
-                "workers_listen, workers_zenoh_config and workers_expect need workers = \"zenoh\"",
-            );
-        }
+        let why = "without workers = \"zenoh\"";
+        check.unused("optimiser.workers_listen", o.workers_listen.is_some(), why)?;
+        let zenoh_config = o.workers_zenoh_config.is_some();
+        check.unused("optimiser.workers_zenoh_config", zenoh_config, why)?;
+        check.unused("optimiser.workers_expect", o.workers_expect.is_some(), why)?;
         return Ok(None);
     }
     if !cfg!(feature = "zenoh") {
