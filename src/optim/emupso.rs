@@ -10,10 +10,11 @@
 //!   "negligible", |rad_t - rad_(t-1)| <= 1e-2 |rad_t| (the text: "no change ... or negligible"),
 //!   and is reset otherwise.
 //! - **Mutation (eqs. 7-8).** When g reaches G the swarm is rebuilt around k elites: the swarm
-//!   is split into k + 1 parts, part i (< k) made of offspring x = elite_i + N(0, sigma_j) per
-//!   dimension (clamped to the box), the last part uniformly random. Velocities restart at zero
-//!   and personal bests at the new positions, so the new swarm is not pulled straight back to
-//!   the old best (the paper's reason for the archive).
+//!   is split into k + 1 parts; part i (< k) is elite i itself followed by its offspring, the
+//!   last part uniformly random. An offspring is its elite with one dimension j, drawn per
+//!   offspring, moved by N(0, sigma * range_j) and clamped to the box (module notes below).
+//!   Velocities restart at zero and personal bests at the new positions, so the new swarm is
+//!   not pulled straight back to the old best (the paper's reason for the archive).
 //! - **Elite archive (Section 3.3).** Global elites are the elites of earlier segments (between
 //!   mutations); local elites are the k best personal bests of the current one. At a mutation
 //!   the k best distinct positions of both are the elites, and they become the global elites.
@@ -34,11 +35,25 @@
 //!   velocity (Schutte and Groenwold 2005): the clamp starts at 20 % of each range and halves
 //!   whenever the run's best has not improved for 3 iterations. The schedules of eqs. 3-4 are
 //!   kept as written; they set how the swarm moves within the clamp.
-//! - sigma: "a variable between [0-1] multiplied by size of the search space". A fixed sigma
-//!   would scatter every refined elite again; sigma starts at 0.1 of each range and halves at
-//!   every mutation (to 1e-12 of the range at least), so repeated stagnation turns into an
-//!   ever finer search around the archive. The rebuilt swarm's clamp restarts at that sigma:
-//!   it searches at the scale it was seeded with.
+//! - **An offspring mutates one dimension.** Eq. 8 is written per dimension ("if x^dim is the
+//!   dim-th dimension of the swarm, then all the elements in the dim-th dimension shall
+//!   mutate"); we read it as: an offspring takes its elite and mutates one dimension, drawn
+//!   for each offspring. Its other coordinates keep the elite's refined values, so its value
+//!   says at once whether that one move found a better basin. Mutating every dimension (our
+//!   first reading) scatters all the refined coordinates at once: on the 30-D Rastrigin the
+//!   mean error was 65-68 with sigma halving per mutation, against 16.7 for this reading and
+//!   the paper's 17.4 (30 runs; module test). Alternatives measured on the whole study (51
+//!   functions, 30 paired seeds, README): one dimension shared by all offspring of a mutation
+//!   (Rastrigin 32.6), each dimension with probability 1/D (22.2).
+//! - **The elites stay in the swarm.** "Elite solutions are recalled from the archive and
+//!   merged with the best solutions of the current run": each elite is the first member of its
+//!   part, unchanged. The swarm keeps refining the best point while its offspring explore; with
+//!   every member mutated, 2-D functions solved to 1e-8 before (Easom, modified Ackley) lost
+//!   that precision.
+//! - **sigma is a constant fraction of each range**, 0.1 by default: "a variable between
+//!   [0-1] multiplied by size of the search space". The rebuilt swarm's clamp restarts at
+//!   sigma, so it searches at the scale it was seeded with, and shrinks again as it stagnates.
+//!   On Rastrigin sigma = 0.05 gives 37, 0.2 gives 11 (30 runs); the default is not tuned to it.
 //! - k = 5 elites (the paper's robot experiments stop at five elite particles), G = 10 (its
 //!   value for the excitation-trajectory search).
 
@@ -57,9 +72,8 @@ pub struct EmuPsoSettings {
     pub stagnation: usize,
     /// Elites (k).
     pub elites: usize,
-    /// Initial sigma as a fraction of each range, and its factor per mutation.
+    /// The mutation's sigma as a fraction of each range (eq. 8).
     pub sigma: f64,
-    pub sigma_decay: f64,
     pub vmax_fraction: f64,
     /// The clamp's factor after `vmax_patience` iterations without a better best.
     pub vmax_shrink: f64,
@@ -79,7 +93,6 @@ impl Default for EmuPsoSettings {
             stagnation: 10,
             elites: 5,
             sigma: 0.1,
-            sigma_decay: 0.5,
             vmax_fraction: 0.2,
             vmax_shrink: 0.5,
             vmax_patience: 3,
@@ -107,7 +120,6 @@ pub struct EmuPsoRule {
     order: Vec<usize>,
     best: Vec<usize>,
     keep: Vec<usize>,
-    sigma: f64,
     pub mutations: usize,
     /// The run's best when it last improved, and the iterations since.
     last_best: f64,
@@ -125,12 +137,8 @@ impl EmuPso {
             ));
         }
         let fraction = |v: f64| v > 0.0 && v <= 1.0;
-        if !(fraction(set.sigma)
-            && fraction(set.sigma_decay)
-            && fraction(set.vmax_fraction)
-            && fraction(set.vmax_shrink))
-        {
-            return Err("sigma, vmax_fraction and their factors must be in (0, 1]".into());
+        if !(fraction(set.sigma) && fraction(set.vmax_fraction) && fraction(set.vmax_shrink)) {
+            return Err("sigma, vmax_fraction and vmax_shrink must be in (0, 1]".into());
         }
         if set.vmax_patience == 0
             || set.stagnation_tolerance.is_nan()
@@ -154,7 +162,6 @@ impl EmuPso {
             order: Vec::with_capacity(2 * k),
             best: Vec::with_capacity(k),
             keep: Vec::with_capacity(k),
-            sigma: set.sigma,
             mutations: 0,
             last_best: f64::INFINITY,
             idle: 0,
@@ -225,16 +232,19 @@ impl EmuPsoRule {
         let n = s.x.len();
         let parts = self.n_global + 1;
         let (lower, upper) = (&s.cfg.lower[..], &s.cfg.upper[..]);
+        let sigma = self.set.sigma;
         let rng = &mut s.rng;
         for (i, (x, v)) in s.x.iter_mut().zip(&mut self.p.v).enumerate() {
             // Particle i belongs to part i * parts / n: parts of (nearly) equal size.
-            match self.global[..self.n_global].get(i * parts / n) {
+            let part = i * parts / n;
+            let first = i == 0 || (i - 1) * parts / n != part;
+            match self.global[..self.n_global].get(part) {
+                Some((e, _)) if first => x.copy_from_slice(e),
                 Some((e, _)) => {
-                    for (j, xj) in x.iter_mut().enumerate() {
-                        let z: f64 = StandardNormal.sample(rng);
-                        let range = upper[j] - lower[j];
-                        *xj = (e[j] + z * self.sigma * range).clamp(lower[j], upper[j]);
-                    }
+                    x.copy_from_slice(e);
+                    let j = rng.gen_range(0..x.len());
+                    let z: f64 = StandardNormal.sample(rng);
+                    x[j] = (e[j] + z * sigma * (upper[j] - lower[j])).clamp(lower[j], upper[j]);
                 }
                 None => {
                     for (j, xj) in x.iter_mut().enumerate() {
@@ -246,8 +256,7 @@ impl EmuPsoRule {
             self.p.pbest_f[i] = f64::INFINITY;
         }
         self.p.reset_swarm_best();
-        self.p.vmax_fraction = self.sigma;
-        self.sigma = (self.sigma * self.set.sigma_decay).max(1e-12);
+        self.p.vmax_fraction = sigma;
         self.idle = 0;
         self.g = 0;
         self.rad = f64::NAN;
@@ -348,17 +357,62 @@ mod tests {
         assert_eq!(calls, 11);
         assert_eq!(o.rule.elites().len(), 2);
         let elites: Vec<Vec<f64>> = o.rule.elites().iter().map(|e| e.0.clone()).collect();
-        // Parts: particles 0-3 near elite 0, 4-7 near elite 1 (sigma = 0.1 * 20 = 2), 8-11 random.
+        // Parts: particles 0-3 of elite 0, 4-7 of elite 1, 8-11 random. The first of a part is
+        // its elite; the others differ from it in exactly one dimension.
         for (i, x) in o.swarm.x.iter().enumerate() {
-            let d = |e: &Vec<f64>| ((x[0] - e[0]).powi(2) + (x[1] - e[1]).powi(2)).sqrt();
-            match i {
-                0..=3 => assert!(d(&elites[0]) < 10.0, "particle {i}"),
-                4..=7 => assert!(d(&elites[1]) < 10.0, "particle {i}"),
-                _ => {}
-            }
+            let e = match i {
+                0..=3 => &elites[0],
+                4..=7 => &elites[1],
+                _ => continue,
+            };
+            let moved = x.iter().zip(e).filter(|(a, b)| a != b).count();
+            let expected = if i % 4 == 0 { 0 } else { 1 };
+            assert_eq!(moved, expected, "particle {i}: {x:?} against {e:?}");
         }
         assert!(o.rule.p.v.iter().all(|v| v.iter().all(|c| *c == 0.0)));
-        assert!((o.rule.sigma - 0.05).abs() < 1e-15);
+        assert_eq!(o.rule.p.vmax_fraction, 0.1, "the clamp restarts at sigma");
+    }
+
+    /// An offspring's one moved coordinate is N(elite, sigma * range): over many mutations its
+    /// offsets have mean ~0 and standard deviation ~sigma * range (here 0.1 * 2000 = 200, far
+    /// from the box's edges), and each dimension is drawn about equally often.
+    #[test]
+    fn an_offspring_moves_one_dimension_by_sigma_times_the_range() {
+        let cfg = SwarmConfig::for_budget(vec![-1000.0; 3], vec![1000.0; 3], 40, 40_000, 5);
+        let set = EmuPsoSettings {
+            elites: 1,
+            ..Default::default()
+        };
+        let mut o = EmuPso::new(cfg, set).unwrap();
+        let mut offsets = Vec::new();
+        let mut per_dim = [0usize; 3];
+        for _ in 0..200 {
+            o.rule.global[0] = (vec![0.0; 3], 0.0);
+            o.rule.n_global = 1;
+            o.rule.p.pbest_f.fill(f64::INFINITY);
+            o.rule.mutate(&mut o.swarm);
+            // One elite: part 0 is particles 0-19 (the elite, then 19 offspring).
+            for x in &o.swarm.x[1..20] {
+                for (j, v) in x.iter().enumerate() {
+                    if *v != 0.0 {
+                        offsets.push(*v);
+                        per_dim[j] += 1;
+                    }
+                }
+            }
+        }
+        let n = offsets.len() as f64;
+        let mean = offsets.iter().sum::<f64>() / n;
+        let sd = (offsets.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+        assert_eq!(offsets.len(), 200 * 19, "one coordinate per offspring");
+        assert!(
+            mean.abs() < 10.0 && (sd - 200.0).abs() < 10.0,
+            "{mean} {sd}"
+        );
+        assert!(
+            per_dim.iter().all(|&c| (1150..1380).contains(&c)),
+            "{per_dim:?}"
+        );
     }
 
     #[test]
@@ -397,19 +451,25 @@ mod tests {
     }
 
     /// The paper's Table 4-5 means for eMuPSO (30-D, 30 000 evaluations, population 30):
-    /// sphere 9.46e-8, Griewank 0.0343. Ten seeds' mean must be at least as good.
+    /// sphere 9.46e-8, Griewank 0.0343, Rastrigin 17.38. The mean over the study's 30 seeds must
+    /// be at least as good.
     #[test]
-    fn reaches_the_published_sphere_and_griewank_values_at_30000_evaluations() {
-        for (key, published) in [("sphere", 9.46e-8), ("griewank", 0.0343134)] {
+    fn reaches_the_published_sphere_griewank_and_rastrigin_values_at_30000_evaluations() {
+        for (key, published) in [
+            ("sphere", 9.46e-8),
+            ("griewank", 0.0343134),
+            ("rastrigin", 17.378784),
+        ] {
             let f = crate::optim::suite::get(key).unwrap();
-            let mut errors = Vec::new();
-            for seed in 0..10 {
-                let (lower, upper) = f.bounds();
-                let cfg = SwarmConfig::for_budget(lower, upper, 30, 30_000, seed);
-                let mut o = EmuPso::new(cfg, EmuPsoSettings::default()).unwrap();
-                run(&mut o, f.f);
-                errors.push(o.best().1 - f.f_min);
-            }
+            let errors: Vec<f64> = (0..30)
+                .map(|seed| {
+                    let (lower, upper) = f.bounds();
+                    let cfg = SwarmConfig::for_budget(lower, upper, 30, 30_000, seed);
+                    let mut o = EmuPso::new(cfg, EmuPsoSettings::default()).unwrap();
+                    run(&mut o, f.f);
+                    o.best().1 - f.f_min
+                })
+                .collect();
             let mean = errors.iter().sum::<f64>() / errors.len() as f64;
             assert!(
                 mean <= published,
