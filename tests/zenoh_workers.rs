@@ -124,19 +124,30 @@ fn killing_a_worker_mid_run_changes_nothing_in_the_run() {
         }
         std::thread::sleep(Duration::from_millis(5));
     }
+    let killed_at = t0.elapsed();
     doomed.kill().unwrap();
-    let _ = doomed.wait();
     wait_exit(&mut r, Duration::from_secs(120));
     let out = r.wait_with_output().unwrap();
-    assert_ok(&out);
+    let _ = kept.kill();
+    // Everything a failure needs to be understood: it happened once in about 15 runs, with
+    // nothing kept but the symptom (a run that ended after 66 s without publishing).
+    let stderr = |c: std::process::Child| {
+        String::from_utf8_lossy(&c.wait_with_output().unwrap().stderr).into_owned()
+    };
+    let why = format!(
+        "killed at {killed_at:?}, run ended at {:?}; run stderr:\n{}\ndoomed worker:\n{}\nkept worker:\n{}",
+        t0.elapsed(),
+        String::from_utf8_lossy(&out.stderr),
+        stderr(doomed),
+        stderr(kept),
+    );
+    assert!(out.status.success(), "the run failed: {why}");
     assert!(
         bytes(&alone.join("run.csv")) == bytes(&spread.join("run.csv")),
-        "run.csv differs after a worker was killed"
+        "run.csv differs after a worker was killed: {why}"
     );
     let (_, remote, _) = evaluations(&spread);
-    assert!(remote > 0, "the kept worker evaluated nothing");
-    let _ = kept.kill();
-    let _ = kept.wait();
+    assert!(remote > 0, "the kept worker evaluated nothing: {why}");
 }
 
 /// `evoloop tune config/maglev_tune.toml --workers 2`: the GA experiment with its populations
