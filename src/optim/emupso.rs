@@ -41,7 +41,7 @@
 //!   for each offspring. Its other coordinates keep the elite's refined values, so its value
 //!   says at once whether that one move found a better basin. Mutating every dimension (our
 //!   first reading) scatters all the refined coordinates at once: on the 30-D Rastrigin the
-//!   mean error was 65-68 with sigma halving per mutation, against 16.7 for this reading and
+//!   mean error was 65-68 with sigma halving per mutation, against 16.2 for this reading and
 //!   the paper's 17.4 (30 runs; module test). Alternatives measured on the whole study (51
 //!   functions, 30 paired seeds, README): one dimension shared by all offspring of a mutation
 //!   (Rastrigin 32.6), each dimension with probability 1/D (22.2).
