@@ -231,24 +231,25 @@ impl EmuPsoRule {
         self.update_archive();
         let n = s.x.len();
         let parts = self.n_global + 1;
-        let (lower, upper) = (&s.cfg.lower[..], &s.cfg.upper[..]);
+        let cfg = &s.cfg;
         let sigma = self.set.sigma;
         let rng = &mut s.rng;
         for (i, (x, v)) in s.x.iter_mut().zip(&mut self.p.v).enumerate() {
             // Particle i belongs to part i * parts / n: parts of (nearly) equal size.
             let part = i * parts / n;
-            let first = i == 0 || (i - 1) * parts / n != part;
             match self.global[..self.n_global].get(part) {
-                Some((e, _)) if first => x.copy_from_slice(e),
                 Some((e, _)) => {
                     x.copy_from_slice(e);
-                    let j = rng.gen_range(0..x.len());
-                    let z: f64 = StandardNormal.sample(rng);
-                    x[j] = (e[j] + z * sigma * (upper[j] - lower[j])).clamp(lower[j], upper[j]);
+                    // The part's first member is its elite; the others are its offspring.
+                    if i > 0 && (i - 1) * parts / n == part {
+                        let j = rng.gen_range(0..x.len());
+                        let z: f64 = StandardNormal.sample(rng);
+                        x[j] = (e[j] + z * sigma * cfg.range(j)).clamp(cfg.lower[j], cfg.upper[j]);
+                    }
                 }
                 None => {
                     for (j, xj) in x.iter_mut().enumerate() {
-                        *xj = rng.gen_range(lower[j]..upper[j]);
+                        *xj = rng.gen_range(cfg.lower[j]..cfg.upper[j]);
                     }
                 }
             }
