@@ -49,10 +49,10 @@ pub mod tune;
 pub const MAX_JOINTS: usize = 8;
 /// Largest plant state vector a message carries (positions, velocities and extra states).
 pub const MAX_STATES: usize = 32;
+/// Largest parameter set (identified models of later issues fit: RBF networks, fuzzy rule bases).
+pub const MAX_PARAMS: usize = 1024;
+
 /// The message for `what` (a command, an option, a key) in a build without the `zenoh` feature.
 pub fn needs_zenoh(what: &str) -> String {
     format!("{what} needs evoloop built with the zenoh feature (cargo build --release --features zenoh)")
 }
-
-/// Largest parameter set (identified models of later issues fit: RBF networks, fuzzy rule bases).
-pub const MAX_PARAMS: usize = 1024;

@@ -383,12 +383,10 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         return ExitCode::from(2);
     }
     // The workers to start and where: set as the optimiser's overrides.
-    let local = a
-        .workers
-        .map(|n| local_workers_endpoint().map(|ep| (n as usize, ep)));
-    let local = match local.transpose() {
-        Ok(l) => l,
-        Err(e) => {
+    let local = match a.workers.map(|n| (n as usize, local_workers_endpoint())) {
+        None => None,
+        Some((n, Ok(ep))) => Some((n, ep)),
+        Some((_, Err(e))) => {
             err!("error: --workers: {e}");
             return ExitCode::from(2);
         }

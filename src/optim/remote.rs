@@ -101,6 +101,14 @@ impl Tally {
     }
 }
 
+impl std::ops::AddAssign for Tally {
+    fn add_assign(&mut self, t: Tally) {
+        self.local += t.local;
+        self.remote += t.remote;
+        self.reissued += t.reissued;
+    }
+}
+
 static TOTALS: Mutex<Tally> = Mutex::new(Tally {
     local: 0,
     remote: 0,
@@ -129,10 +137,7 @@ pub fn totals() -> Tally {
 
 /// Add one batch's evaluations to the process's totals (`optim::evaluate`, once per batch).
 pub(super) fn record(t: Tally) {
-    let mut all = TOTALS.lock().unwrap_or_else(|e| e.into_inner());
-    all.local += t.local;
-    all.remote += t.remote;
-    all.reissued += t.reissued;
+    *TOTALS.lock().unwrap_or_else(|e| e.into_inner()) += t;
 }
 
 /// The runs of `n` candidates: this process's first, then one per worker, in proportion to
