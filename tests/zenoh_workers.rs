@@ -84,8 +84,8 @@ fn killing_a_worker_mid_run_changes_nothing_in_the_run() {
     let dir = tempfile::tempdir().unwrap();
     let alone = dir.path().join("alone");
     assert_ok(&run(&config("maglev_indirect.toml"), &alone, "wk-ref", &[]));
-    // The run first, so that its optimiser binds the port at once: a port left free while
-    // other tests open connections can become one's source port, and the bind then fails.
+    // The run first, so that its optimiser binds the port at once, before another process on
+    // this host (another test's connection, say) can take it.
     let ep = format!(
         "tcp/127.0.0.1:{}",
         evoloop::node::launcher::free_port().unwrap()
