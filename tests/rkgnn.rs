@@ -682,3 +682,86 @@ fn identification_alongside_operation_beats_the_frozen_models_after_a_payload_on
         assert!((got - want).abs() <= 1e-12 * want, "{key}: {got} vs {want}");
     }
 }
+
+#[test]
+fn a_christoffel_model_has_no_velocity_network_and_its_v_hat_keeps_eq_3() {
+    // --velocity christoffel: the model file's velocity network is empty (90 parameters fewer
+    // for 3 joints) and V-hat comes from M-hat, so that qd^T V-hat = 1/2 qd^T M-hat' qd (eq. 3),
+    // checked here on the written model by central differences of its own M-hat.
+    let dir = tempfile::tempdir().unwrap();
+    let data = training_run(dir.path(), "rk_chr");
+    let (net_file, chr_file) = (dir.path().join("net.json"), dir.path().join("chr.json"));
+    let ls = ["--servo", "linear", "--start", "least-squares"];
+    assert_ok(&identify(&data, &net_file, "0", &ls));
+    let mut extra = ls.to_vec();
+    extra.extend_from_slice(&["--velocity", "christoffel"]);
+    assert_ok(&identify(&data, &chr_file, "0", &extra));
+    let (net, chr) = (
+        RkgnnModel::load(&net_file).unwrap(),
+        RkgnnModel::load(&chr_file).unwrap(),
+    );
+    assert_eq!(chr.net.layout.counts.velocity, 0);
+    assert_eq!(net.net.layout.len - chr.net.layout.len, 90);
+    let q = [0.2, 0.6, -1.1];
+    let qd = [0.8, -0.5, 0.9];
+    let mut v = [0.0; 3];
+    chr.net.velocity(&q, &qd, &mut v);
+    let h = 1e-6;
+    let m_at = |s: f64| {
+        let mut m = [0.0; evoloop::MAX_JOINTS * evoloop::MAX_JOINTS];
+        let qs: Vec<f64> = (0..3).map(|j| q[j] + s * qd[j]).collect();
+        chr.net.inertia(&qs, &mut m);
+        m
+    };
+    let (fwd, back) = (m_at(h), m_at(-h));
+    let half_mdot: f64 = (0..3)
+        .flat_map(|a| (0..3).map(move |b| (a, b)))
+        .map(|(a, b)| 0.5 * qd[a] * (fwd[a * 3 + b] - back[a * 3 + b]) / (2.0 * h) * qd[b])
+        .sum();
+    let power: f64 = (0..3).map(|i| qd[i] * v[i]).sum();
+    assert!(
+        (power - half_mdot).abs() < 1e-6 * (1.0 + power.abs()),
+        "{power} vs {half_mdot}"
+    );
+}
+
+#[test]
+fn rkgnn_prior_is_the_eigenvalue_range_of_the_robots_mass_matrix() {
+    // Judged against the dynamics crate's M(q) directly: over a run's measured positions the
+    // command's m1, m2 are the smallest and largest eigenvalue seen (nalgebra's, not ours).
+    let dir = tempfile::tempdir().unwrap();
+    let data = training_run(dir.path(), "rk_prior");
+    let robot = config("robots/arm3.toml");
+    let o = cli(&[
+        "rkgnn",
+        "prior",
+        "--robot",
+        robot.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_ok(&o);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let arm = evoloop::dynamics::load(&robot).unwrap();
+    let mut d = arm.data();
+    let t = Trajectory::from_run(&data).unwrap();
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for x in t.x.chunks(6) {
+        let m = arm.mass_matrix(&mut d, &x[..3]);
+        let e = nalgebra::SymmetricEigen::new(nalgebra::DMatrix::from_fn(3, 3, |a, b| m[(a, b)]));
+        lo = lo.min(e.eigenvalues.min());
+        hi = hi.max(e.eigenvalues.max());
+    }
+    assert_eq!(v["positions"].as_u64().unwrap() as usize, t.len());
+    assert!(
+        (v["m1"].as_f64().unwrap() / lo - 1.0).abs() < 1e-9,
+        "{v} vs {lo}"
+    );
+    assert!(
+        (v["m2"].as_f64().unwrap() / hi - 1.0).abs() < 1e-9,
+        "{v} vs {hi}"
+    );
+    let bad = cli(&["rkgnn", "prior", "--robot", "/nonexistent.toml"]);
+    assert!(!bad.status.success());
+}

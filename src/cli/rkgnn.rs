@@ -5,6 +5,7 @@ use crate::rkgnn::network::RbfCounts;
 use crate::rkgnn::{RkgnnModel, Trajectory};
 use clap::{Args, Subcommand};
 use serde_json::json;
+use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
@@ -61,6 +62,11 @@ pub struct IdentifyArgs {
     /// range either way.
     #[arg(long, value_enum, default_value_t = BoundsKind::Paper)]
     pub bounds: BoundsKind,
+    /// V-hat: `network` (the paper's velocity network, eqs. 8-10) or `christoffel` (from
+    /// M-hat's Christoffel symbols, so that eq. 3's skew symmetry holds by construction; no
+    /// velocity parameters).
+    #[arg(long, value_enum, default_value_t = VelocityKind::Network)]
+    pub velocity: VelocityKind,
     /// The servo network: `rbf` (the paper's Fig. 3, 3 RBFs per P and D sub-network) or
     /// `linear` (tau_j = k_p e_j + k_d e_j', the P-D servo of the paper's premise; with it
     /// gravity and the servo's gains are identifiable).
@@ -90,6 +96,12 @@ pub enum ServoKind {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum VelocityKind {
+    Network,
+    Christoffel,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum BoundsKind {
     Paper,
     Diagonal,
@@ -107,6 +119,27 @@ pub enum RkgnnCmd {
     /// on the true model, on each model alone and by fuzzy selection (max, blend); writes
     /// study.json, tracking_rms.csv, report.md, Figs. 7-10 (PNG), each case's scenario and run.
     Study(StudyArgs),
+    /// Eq. 2's bounds m1, m2 from a robot file (a CAD model's inertias): the smallest and
+    /// largest eigenvalue of M(q) over a run's measured positions (--data) or over random
+    /// positions within the joint limits (clamped to +-pi).
+    Prior(PriorArgs),
+}
+
+#[derive(Args)]
+pub struct PriorArgs {
+    /// Robot file (D-H TOML or URDF).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Run directory whose measured positions (run.csv y*) are the workspace [default: random
+    /// positions within the joint limits].
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Random positions when no --data.
+    #[arg(long, default_value_t = 2000)]
+    pub samples: usize,
+    /// Print JSON (keys m1, m2, positions).
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Args)]
@@ -216,6 +249,9 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     if a.servo == ServoKind::Linear {
         s.counts = RbfCounts::linear_servo(data.n);
     }
+    if a.velocity == VelocityKind::Christoffel {
+        s.counts.velocity = 0;
+    }
     if let Some(t) = a.threads {
         s.threads = t.max(1);
     }
@@ -273,6 +309,7 @@ pub fn main(cmd: RkgnnCmd) -> i32 {
     let r = match cmd {
         RkgnnCmd::Eval(a) => eval(&a),
         RkgnnCmd::Study(a) => study(&a),
+        RkgnnCmd::Prior(a) => prior(&a),
     };
     match r {
         Ok(()) => 0,
@@ -317,6 +354,52 @@ fn eval(a: &EvalArgs) -> Result<(), String> {
         out!("V_hat = {v:.6?}");
         out!("G_hat = {g:.6?}");
         out!("smallest eigenvalue of M_hat: {min_eig:.6}");
+    }
+    Ok(())
+}
+
+fn prior(a: &PriorArgs) -> Result<(), String> {
+    use rand::{Rng, SeedableRng};
+    let arm = crate::dynamics::load(&a.robot).map_err(|e| format!("{}: {e}", a.robot.display()))?;
+    let n = arm.dof();
+    let qs: Vec<Vec<f64>> = match &a.data {
+        Some(dir) => {
+            let d = Trajectory::from_run(dir)?;
+            if d.n != n {
+                return Err(format!(
+                    "{} has {n} joints, the data {}",
+                    a.robot.display(),
+                    d.n
+                ));
+            }
+            d.x.chunks(2 * n).map(|x| x[..n].to_vec()).collect()
+        }
+        None => {
+            if a.samples == 0 {
+                return Err("--samples must be >= 1".into());
+            }
+            let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+            (0..a.samples)
+                .map(|_| {
+                    arm.bodies
+                        .iter()
+                        .map(|b| rng.gen_range(b.limits.q_min.max(-PI)..=b.limits.q_max.min(PI)))
+                        .collect()
+                })
+                .collect()
+        }
+    };
+    let b = identify::InertiaBounds::of(&arm, qs.iter().map(Vec::as_slice));
+    if a.json {
+        crate::cli::print_json(&json!({"m1": b.m1, "m2": b.m2, "positions": qs.len()}));
+    } else {
+        out!(
+            "eq. 2's bounds of {} over {} positions: m1 {:.6}, m2 {:.6} (kg m^2)",
+            a.robot.display(),
+            qs.len(),
+            b.m1,
+            b.m2
+        );
     }
     Ok(())
 }

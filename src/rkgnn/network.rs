@@ -23,6 +23,8 @@
 //!   constraints (eqs. 14-16) enforce it and a model is checked before use.
 //! - Velocity network (Fig. 5, eqs. 8-10): per joint i a sub-network on theta, 3 RBFs, with the
 //!   n(n-1)/2 + n outputs B_i(theta) and C_i(theta), V_i = B_i [theta' theta'] + C_i [theta'^2].
+//!   With `RbfCounts::velocity` = 0 there is no velocity network: V-hat comes from M-hat's
+//!   Christoffel symbols (`christoffel`), so that eq. 3 holds by construction.
 //! - Gravity network: one sub-network on theta with n RBFs and n outputs.
 //!
 //! `Network` evaluates N_f and the model parts without allocating (stack arrays of
@@ -38,6 +40,8 @@ pub struct RbfCounts {
     /// `Layout::gains`).
     pub torque: usize,
     pub inertia: usize,
+    /// RBFs per velocity sub-network; 0 = no velocity network, V-hat from M-hat's Christoffel
+    /// symbols (eq. 3 by construction).
     pub velocity: usize,
     pub gravity: usize,
 }
@@ -106,6 +110,28 @@ impl SubNet {
     /// Every output weight of the sub-network, RBF by RBF.
     pub fn all_weights(&self) -> impl Iterator<Item = usize> + '_ {
         (0..self.rbfs).flat_map(|l| self.weights(l))
+    }
+
+    /// A one-output sub-network's gradient in its inputs, d out / d y, into `grad`:
+    /// sum_l W_l phi_l(y) (-2 (y - c_l) / s_l^2).
+    #[inline]
+    pub fn gradient(&self, p: &[f64], y: &[f64], grad: &mut [f64]) {
+        grad[..self.inputs].fill(0.0);
+        let block = self.per_rbf();
+        for l in 0..self.rbfs {
+            let b = &p[self.offset + l * block..self.offset + (l + 1) * block];
+            let (centre, rest) = b.split_at(self.inputs);
+            let s2 = rest[0] * rest[0] + WIDTH_FLOOR;
+            let d2: f64 = y[..self.inputs]
+                .iter()
+                .zip(centre)
+                .map(|(yi, ci)| (yi - ci) * (yi - ci))
+                .sum();
+            let f = rest[1] * (-d2 / s2).exp() * (-2.0 / s2);
+            for (g, (yi, ci)) in grad[..self.inputs].iter_mut().zip(y.iter().zip(centre)) {
+                *g += f * (yi - ci);
+            }
+        }
     }
 
     /// Eq. 7: out_k = sum_l W_kl exp(-|y - c_l|^2 / s_l^2), out overwritten.
@@ -339,6 +365,9 @@ pub(crate) fn inertia(layout: &Layout, p: &[f64], theta: &[f64], m: &mut Mat) {
 }
 
 pub(crate) fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v: &mut [f64]) {
+    if layout.counts.velocity == 0 {
+        return christoffel(layout, p, theta, qd, v);
+    }
     let n = layout.n;
     let mut coef = [0.0; MAX_JOINTS * (MAX_JOINTS + 1) / 2 + MAX_JOINTS];
     for (i, net) in layout.velocity.iter().enumerate() {
@@ -355,6 +384,34 @@ pub(crate) fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v:
             vi += coef[k + a] * qd[a] * qd[a];
         }
         v[i] = vi;
+    }
+}
+
+/// V-hat from M-hat's Christoffel symbols (no velocity network, `RbfCounts::velocity` = 0):
+///   V_i = sum_jk (d_k M_ij - 1/2 d_i M_jk) qd_j qd_k = (M-hat' qd)_i - 1/2 qd^T (d_i M-hat) qd,
+/// so that the skew symmetry of eq. 3 holds by construction: qd^T V = 1/2 qd^T M-hat' qd. It
+/// ties V-hat to M-hat, which the data then see through both; with the velocity network free,
+/// a joint whose inertia does not couple to the others' could be scaled on its own, and no
+/// torque-free data would tell.
+fn christoffel(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v: &mut [f64]) {
+    let n = layout.n;
+    let mut mdot: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+    let mut half = [0.0; MAX_JOINTS];
+    let mut grad = [0.0; MAX_JOINTS];
+    for ((a, b), net) in &layout.inertia {
+        net.gradient(p, theta, &mut grad);
+        let d: f64 = grad[..n].iter().zip(qd).map(|(g, v)| g * v).sum();
+        mdot[a * n + b] = d;
+        mdot[b * n + a] = d;
+        // qd^T (d_i M) qd counts an off-diagonal entry twice.
+        let w = (if a == b { 0.5 } else { 1.0 }) * qd[*a] * qd[*b];
+        for (h, g) in half[..n].iter_mut().zip(&grad) {
+            *h += g * w;
+        }
+    }
+    for i in 0..n {
+        let md: f64 = (0..n).map(|b| mdot[i * n + b] * qd[b]).sum();
+        v[i] = md - half[i];
     }
 }
 
@@ -632,6 +689,63 @@ mod tests {
                 + c[5] * qd[2] * qd[2];
             assert!((v[i] - want).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn christoffel_v_hat_is_skew_symmetric_and_matches_finite_differences() {
+        // No velocity network: V-hat = M-hat' qd - 1/2 d/dq (qd^T M-hat qd), checked by central
+        // differences of M-hat itself, and eq. 3's consequence qd^T V = 1/2 qd^T M-hat' qd.
+        let counts = RbfCounts {
+            velocity: 0,
+            ..RbfCounts::paper(3)
+        };
+        let layout = Layout::new(3, counts);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let params: Vec<f64> = (0..layout.len).map(|_| rng.gen_range(-1.0..1.0)).collect();
+        let net = Network::new(layout, params);
+        let q = [0.3, -0.4, 0.9];
+        let qd = [0.7, -1.1, 0.4];
+        let mut v = [0.0; 3];
+        net.velocity(&q, &qd, &mut v);
+        let h = 1e-6;
+        let at = |dq: &[f64; 3]| {
+            let mut m = [0.0; MAX_JOINTS * MAX_JOINTS];
+            net.inertia(&[q[0] + dq[0], q[1] + dq[1], q[2] + dq[2]], &mut m);
+            m
+        };
+        let quad = |m: &Mat| -> f64 {
+            (0..3)
+                .flat_map(|a| (0..3).map(move |b| (a, b)))
+                .map(|(a, b)| qd[a] * m[a * 3 + b] * qd[b])
+                .sum()
+        };
+        // M-hat' = (M(q + h qd) - M(q - h qd)) / 2h.
+        let (fwd, back) = (
+            at(&[h * qd[0], h * qd[1], h * qd[2]]),
+            at(&[-h * qd[0], -h * qd[1], -h * qd[2]]),
+        );
+        let mdot: Vec<f64> = (0..9).map(|k| (fwd[k] - back[k]) / (2.0 * h)).collect();
+        for i in 0..3 {
+            let mut e = [0.0; 3];
+            e[i] = h;
+            let grad_i = (quad(&at(&e)) - quad(&at(&[-e[0], -e[1], -e[2]]))) / (2.0 * h);
+            let want: f64 = (0..3).map(|b| mdot[i * 3 + b] * qd[b]).sum::<f64>() - 0.5 * grad_i;
+            assert!(
+                (v[i] - want).abs() < 1e-6 * (1.0 + want.abs()),
+                "V_{i}: {} vs {want}",
+                v[i]
+            );
+        }
+        let power: f64 = (0..3).map(|i| qd[i] * v[i]).sum();
+        let half_mdot: f64 = 0.5
+            * (0..3)
+                .flat_map(|a| (0..3).map(move |b| (a, b)))
+                .map(|(a, b)| qd[a] * mdot[a * 3 + b] * qd[b])
+                .sum::<f64>();
+        assert!(
+            (power - half_mdot).abs() < 1e-6 * (1.0 + power.abs()),
+            "{power} vs {half_mdot}"
+        );
     }
 
     #[test]
