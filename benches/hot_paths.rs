@@ -335,6 +335,30 @@ fn rkgnn(c: &mut Criterion) {
         "RKGNN: one N_f evaluation, 3 joints (465 parameters)",
         |b| b.iter(|| m.net.rate(black_box(&x), black_box(&r), &mut dx)),
     );
+    // V-hat from M-hat's Christoffel symbols (`--velocity christoffel`): M-hat and V-hat as two
+    // calls evaluate the inertia network twice; `inertia_and_velocity` once.
+    let layout = evoloop::rkgnn::Layout::new(
+        3,
+        evoloop::rkgnn::RbfCounts {
+            velocity: 0,
+            ..m.net.layout.counts
+        },
+    );
+    let params = (0..layout.len)
+        .map(|k| 0.5 + 0.1 * (k as f64).sin())
+        .collect();
+    let chr = evoloop::rkgnn::Network::new(layout, params);
+    let mut mm = [0.0; evoloop::MAX_JOINTS * evoloop::MAX_JOINTS];
+    let mut v = [0.0; 3];
+    c.bench_function("RKGNN Christoffel: M-hat, then V-hat (two passes)", |b| {
+        b.iter(|| {
+            chr.inertia(black_box(&x[..3]), &mut mm);
+            chr.velocity(black_box(&x[..3]), black_box(&x[3..]), &mut v)
+        })
+    });
+    c.bench_function("RKGNN Christoffel: M-hat and V-hat in one pass", |b| {
+        b.iter(|| chr.inertia_and_velocity(black_box(&x[..3]), black_box(&x[3..]), &mut mm, &mut v))
+    });
     let scn = Scenario::load(&root.join("arm3_fuzzy_ct.toml"), &Overrides::default()).unwrap();
     assert!(matches!(
         scn.controller.model,

@@ -5,7 +5,6 @@ use crate::rkgnn::network::RbfCounts;
 use crate::rkgnn::{RkgnnModel, Trajectory};
 use clap::{Args, Subcommand};
 use serde_json::json;
-use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
@@ -121,7 +120,7 @@ pub enum RkgnnCmd {
     Study(StudyArgs),
     /// Eq. 2's bounds m1, m2 from a robot file (a CAD model's inertias): the smallest and
     /// largest eigenvalue of M(q) over a run's measured positions (--data) or over random
-    /// positions within the joint limits (clamped to +-pi).
+    /// positions within the joint limits (-pi..pi for a joint without).
     Prior(PriorArgs),
 }
 
@@ -333,9 +332,8 @@ fn eval(a: &EvalArgs) -> Result<(), String> {
         }
     }
     let mut mm = [0.0; crate::MAX_JOINTS * crate::MAX_JOINTS];
-    m.net.inertia(&a.q, &mut mm);
     let (mut v, mut g) = (vec![0.0; n], vec![0.0; n]);
-    m.net.velocity(&a.q, &qd, &mut v);
+    m.net.inertia_and_velocity(&a.q, &qd, &mut mm, &mut v);
     m.net.gravity(&a.q, &mut g);
     let rows: Vec<Vec<f64>> = (0..n).map(|i| mm[i * n..(i + 1) * n].to_vec()).collect();
     let min_eig = crate::rkgnn::network::sym_eig_range(n, &mm).0;
@@ -359,10 +357,11 @@ fn eval(a: &EvalArgs) -> Result<(), String> {
 }
 
 fn prior(a: &PriorArgs) -> Result<(), String> {
+    use identify::InertiaBounds;
     use rand::{Rng, SeedableRng};
     let arm = crate::dynamics::load(&a.robot).map_err(|e| format!("{}: {e}", a.robot.display()))?;
     let n = arm.dof();
-    let qs: Vec<Vec<f64>> = match &a.data {
+    let (b, positions) = match &a.data {
         Some(dir) => {
             let d = Trajectory::from_run(dir)?;
             if d.n != n {
@@ -372,31 +371,37 @@ fn prior(a: &PriorArgs) -> Result<(), String> {
                     d.n
                 ));
             }
-            d.x.chunks(2 * n).map(|x| x[..n].to_vec()).collect()
+            let qs = d.x.chunks(2 * n).map(|x| &x[..n]);
+            (InertiaBounds::of(&arm, qs), d.len())
         }
         None => {
             if a.samples == 0 {
                 return Err("--samples must be >= 1".into());
             }
             let mut rng = rand::rngs::StdRng::seed_from_u64(1);
-            (0..a.samples)
+            let qs: Vec<Vec<f64>> = (0..a.samples)
                 .map(|_| {
                     arm.bodies
                         .iter()
-                        .map(|b| rng.gen_range(b.limits.q_min.max(-PI)..=b.limits.q_max.min(PI)))
+                        .map(|b| {
+                            let (lo, hi) = b.limits.position_span();
+                            rng.gen_range(lo..=hi)
+                        })
                         .collect()
                 })
-                .collect()
+                .collect();
+            (
+                InertiaBounds::of(&arm, qs.iter().map(Vec::as_slice)),
+                qs.len(),
+            )
         }
     };
-    let b = identify::InertiaBounds::of(&arm, qs.iter().map(Vec::as_slice));
     if a.json {
-        crate::cli::print_json(&json!({"m1": b.m1, "m2": b.m2, "positions": qs.len()}));
+        crate::cli::print_json(&json!({"m1": b.m1, "m2": b.m2, "positions": positions}));
     } else {
         out!(
-            "eq. 2's bounds of {} over {} positions: m1 {:.6}, m2 {:.6} (kg m^2)",
+            "eq. 2's bounds of {} over {positions} positions: m1 {:.6}, m2 {:.6} (kg m^2)",
             a.robot.display(),
-            qs.len(),
             b.m1,
             b.m2
         );

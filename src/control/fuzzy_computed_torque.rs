@@ -199,8 +199,7 @@ impl Controller for FuzzyComputedTorque {
             if s == 0.0 {
                 continue;
             }
-            model.net.inertia(q, &mut m);
-            model.net.velocity(q, qd, &mut v[..n]);
+            model.net.inertia_and_velocity(q, qd, &mut m, &mut v[..n]);
             model.net.gravity(q, &mut g[..n]);
             for i in 0..n {
                 let ma: f64 = (0..n).map(|k| m[i * n + k] * acc[k]).sum();

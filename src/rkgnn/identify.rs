@@ -579,9 +579,8 @@ fn residual(layout: &Layout, p: &[f64], x: &[f64], xdd: &[f64], r: &[f64], out: 
     let n = layout.n;
     let zero = network::servo_zero(layout, p);
     let mut f = [0.0; MAX_JOINTS];
-    network::net_force(layout, p, &zero, x, r, &mut f);
     let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-    network::inertia(layout, p, &x[..n], &mut m);
+    network::net_force(layout, p, &zero, x, r, &mut m, &mut f);
     for a in 0..n {
         let mq: f64 = (0..n).map(|b| m[a * n + b] * xdd[b]).sum();
         out[a] = mq - f[a];

@@ -112,48 +112,59 @@ impl SubNet {
         (0..self.rbfs).flat_map(|l| self.weights(l))
     }
 
-    /// A one-output sub-network's gradient in its inputs, d out / d y, into `grad`:
-    /// sum_l W_l phi_l(y) (-2 (y - c_l) / s_l^2).
+    /// RBF l's centre, width s and output weights.
     #[inline]
-    pub fn gradient(&self, p: &[f64], y: &[f64], grad: &mut [f64]) {
-        grad[..self.inputs].fill(0.0);
+    fn rbf<'p>(&self, p: &'p [f64], l: usize) -> (&'p [f64], f64, &'p [f64]) {
         let block = self.per_rbf();
-        for l in 0..self.rbfs {
-            let b = &p[self.offset + l * block..self.offset + (l + 1) * block];
-            let (centre, rest) = b.split_at(self.inputs);
-            let s2 = rest[0] * rest[0] + WIDTH_FLOOR;
-            let d2: f64 = y[..self.inputs]
-                .iter()
-                .zip(centre)
-                .map(|(yi, ci)| (yi - ci) * (yi - ci))
-                .sum();
-            let f = rest[1] * (-d2 / s2).exp() * (-2.0 / s2);
-            for (g, (yi, ci)) in grad[..self.inputs].iter_mut().zip(y.iter().zip(centre)) {
-                *g += f * (yi - ci);
-            }
-        }
+        let b = &p[self.offset + l * block..self.offset + (l + 1) * block];
+        let (centre, rest) = b.split_at(self.inputs);
+        (centre, rest[0], &rest[1..])
     }
 
     /// Eq. 7: out_k = sum_l W_kl exp(-|y - c_l|^2 / s_l^2), out overwritten.
     #[inline]
     pub fn eval(&self, p: &[f64], y: &[f64], out: &mut [f64]) {
         out[..self.outputs].fill(0.0);
-        let block = self.per_rbf();
         for l in 0..self.rbfs {
-            let b = &p[self.offset + l * block..self.offset + (l + 1) * block];
-            let (centre, rest) = b.split_at(self.inputs);
-            let mut d2 = 0.0;
-            for (yi, ci) in y[..self.inputs].iter().zip(centre) {
-                let d = yi - ci;
-                d2 += d * d;
-            }
-            let s = rest[0];
-            let phi = (-d2 / (s * s + WIDTH_FLOOR)).exp();
-            for (o, w) in out[..self.outputs].iter_mut().zip(&rest[1..]) {
+            let (centre, s, w) = self.rbf(p, l);
+            let (phi, _) = phi(centre, s, &y[..self.inputs]);
+            for (o, w) in out[..self.outputs].iter_mut().zip(w) {
                 *o += w * phi;
             }
         }
     }
+
+    /// A one-output sub-network's value (eq. 7) and its gradient in the inputs into `grad`,
+    /// in one pass: d out / d y = sum_l W_l phi_l(y) (-2 (y - c_l) / s_l^2).
+    #[inline]
+    pub fn value_and_gradient(&self, p: &[f64], y: &[f64], grad: &mut [f64]) -> f64 {
+        let y = &y[..self.inputs];
+        grad[..self.inputs].fill(0.0);
+        let mut value = 0.0;
+        for l in 0..self.rbfs {
+            let (centre, s, w) = self.rbf(p, l);
+            let (phi, s2) = phi(centre, s, y);
+            let wphi = w[0] * phi;
+            value += wphi;
+            let f = -2.0 * wphi / s2;
+            for (g, (yi, ci)) in grad.iter_mut().zip(y.iter().zip(centre)) {
+                *g += f * (yi - ci);
+            }
+        }
+        value
+    }
+}
+
+/// Eq. 6 for one RBF: phi = exp(-|y - c|^2 / s^2), and the s^2 it divided by.
+#[inline]
+fn phi(centre: &[f64], s: f64, y: &[f64]) -> (f64, f64) {
+    let mut d2 = 0.0;
+    for (yi, ci) in y.iter().zip(centre) {
+        let d = yi - ci;
+        d2 += d * d;
+    }
+    let s2 = s * s + WIDTH_FLOOR;
+    ((-d2 / s2).exp(), s2)
 }
 
 /// Added to s^2 so that a width the search drives to zero gives a narrow bump, never 0/0.
@@ -317,9 +328,15 @@ impl Network {
         inertia(&self.layout, &self.params, theta, m)
     }
 
-    /// V-hat(theta, theta') (eqs. 8-10).
+    /// V-hat(theta, theta') (eqs. 8-10, or M-hat's Christoffel symbols).
     pub fn velocity(&self, theta: &[f64], theta_d: &[f64], v: &mut [f64]) {
         velocity(&self.layout, &self.params, theta, theta_d, v)
+    }
+
+    /// M-hat(theta) and V-hat(theta, theta') together: one pass over the inertia network when
+    /// V-hat comes from M-hat (`inertia` then `velocity` would evaluate its RBFs twice).
+    pub fn inertia_and_velocity(&self, theta: &[f64], theta_d: &[f64], m: &mut Mat, v: &mut [f64]) {
+        inertia_and_velocity(&self.layout, &self.params, theta, theta_d, m, v)
     }
 
     /// G-hat(theta).
@@ -364,9 +381,27 @@ pub(crate) fn inertia(layout: &Layout, p: &[f64], theta: &[f64], m: &mut Mat) {
     }
 }
 
+/// M-hat into `m` and V-hat into `v` (see `Network::inertia_and_velocity`).
+fn inertia_and_velocity(
+    layout: &Layout,
+    p: &[f64],
+    theta: &[f64],
+    qd: &[f64],
+    m: &mut Mat,
+    v: &mut [f64],
+) {
+    if layout.counts.velocity == 0 {
+        christoffel(layout, p, theta, qd, m, v);
+    } else {
+        inertia(layout, p, theta, m);
+        velocity(layout, p, theta, qd, v);
+    }
+}
+
 pub(crate) fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v: &mut [f64]) {
     if layout.counts.velocity == 0 {
-        return christoffel(layout, p, theta, qd, v);
+        let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
+        return christoffel(layout, p, theta, qd, &mut m, v);
     }
     let n = layout.n;
     let mut coef = [0.0; MAX_JOINTS * (MAX_JOINTS + 1) / 2 + MAX_JOINTS];
@@ -392,14 +427,16 @@ pub(crate) fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v:
 /// so that the skew symmetry of eq. 3 holds by construction: qd^T V = 1/2 qd^T M-hat' qd. It
 /// ties V-hat to M-hat, which the data then see through both; with the velocity network free,
 /// a joint whose inertia does not couple to the others' could be scaled on its own, and no
-/// torque-free data would tell.
-fn christoffel(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v: &mut [f64]) {
+/// torque-free data would tell. M-hat, computed on the way, goes into `m`.
+fn christoffel(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], m: &mut Mat, v: &mut [f64]) {
     let n = layout.n;
     let mut mdot: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
     let mut half = [0.0; MAX_JOINTS];
     let mut grad = [0.0; MAX_JOINTS];
     for ((a, b), net) in &layout.inertia {
-        net.gradient(p, theta, &mut grad);
+        let value = net.value_and_gradient(p, theta, &mut grad);
+        m[a * n + b] = value;
+        m[b * n + a] = value;
         let d: f64 = grad[..n].iter().zip(qd).map(|(g, v)| g * v).sum();
         mdot[a * n + b] = d;
         mdot[b * n + a] = d;
@@ -441,17 +478,18 @@ pub(crate) fn torque(
 }
 
 /// The right-hand side of M-hat theta'' = tau-hat(r - x) - V-hat - G-hat at x = [theta;
-/// theta'] under reference r, into `f`; `zero` = `servo_zero(layout, p)`.
+/// theta'] under reference r, into `f`, and M-hat into `m`; `zero` = `servo_zero(layout, p)`.
 pub(crate) fn net_force(
     layout: &Layout,
     p: &[f64],
     zero: &ServoZero,
     x: &[f64],
     r: &[f64],
+    m: &mut Mat,
     f: &mut [f64],
 ) {
     servo_torque(layout, p, zero, x, r, f);
-    subtract_velocity_and_gravity(layout, p, x, f);
+    arm_terms(layout, p, x, m, f);
 }
 
 /// The servo's torque at x = [theta; theta'] under reference r into `f`.
@@ -466,12 +504,13 @@ fn servo_torque(layout: &Layout, p: &[f64], zero: &ServoZero, x: &[f64], r: &[f6
     torque(layout, p, zero, &e, &ed, f);
 }
 
-/// f <- f - V-hat(theta, theta') - G-hat(theta) at x = [theta; theta'].
-fn subtract_velocity_and_gravity(layout: &Layout, p: &[f64], x: &[f64], f: &mut [f64]) {
+/// At x = [theta; theta']: M-hat(theta) into `m`, and f <- f - V-hat(theta, theta') -
+/// G-hat(theta).
+fn arm_terms(layout: &Layout, p: &[f64], x: &[f64], m: &mut Mat, f: &mut [f64]) {
     let n = layout.n;
     let (theta, qd) = x.split_at(n);
     let mut v = [0.0; MAX_JOINTS];
-    velocity(layout, p, theta, qd, &mut v);
+    inertia_and_velocity(layout, p, &theta[..n], qd, m, &mut v);
     let mut g = [0.0; MAX_JOINTS];
     layout.gravity.eval(p, theta, &mut g);
     for j in 0..n {
@@ -482,9 +521,8 @@ fn subtract_velocity_and_gravity(layout: &Layout, p: &[f64], x: &[f64], f: &mut 
 /// N_f's theta'' for a given joint torque: tau <- M-hat^-1 (tau - V-hat - G-hat) at x = [theta;
 /// theta'], in place. False (tau undefined) if M-hat is singular at theta.
 pub fn acceleration(layout: &Layout, p: &[f64], x: &[f64], tau: &mut [f64]) -> bool {
-    subtract_velocity_and_gravity(layout, p, x, tau);
     let mut m = [0.0; MAX_JOINTS * MAX_JOINTS];
-    inertia(layout, p, &x[..layout.n], &mut m);
+    arm_terms(layout, p, x, &mut m, tau);
     solve(layout.n, &mut m, tau)
 }
 
