@@ -787,6 +787,43 @@ mod tests {
     }
 
     #[test]
+    fn one_pass_m_hat_and_v_hat_equal_the_separate_calls_bit_for_bit() {
+        // The controller's cycle and N_f take M-hat and V-hat from `inertia_and_velocity`; with
+        // and without a velocity network it must be `inertia` and `velocity` exactly.
+        for velocity in [0, 3] {
+            let layout = Layout::new(
+                3,
+                RbfCounts {
+                    velocity,
+                    ..RbfCounts::paper(3)
+                },
+            );
+            let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+            let params = (0..layout.len).map(|_| rng.gen_range(-1.0..1.0)).collect();
+            let net = Network::new(layout, params);
+            let (q, qd) = ([0.4, -0.2, 1.0], [-0.6, 0.9, 0.3]);
+            let (mut m1, mut m2) = (
+                [0.0; MAX_JOINTS * MAX_JOINTS],
+                [0.0; MAX_JOINTS * MAX_JOINTS],
+            );
+            let (mut v1, mut v2) = ([0.0; 3], [0.0; 3]);
+            net.inertia(&q, &mut m1);
+            net.velocity(&q, &qd, &mut v1);
+            net.inertia_and_velocity(&q, &qd, &mut m2, &mut v2);
+            assert_eq!(
+                m1.map(f64::to_bits),
+                m2.map(f64::to_bits),
+                "velocity RBFs {velocity}"
+            );
+            assert_eq!(
+                v1.map(f64::to_bits),
+                v2.map(f64::to_bits),
+                "velocity RBFs {velocity}"
+            );
+        }
+    }
+
+    #[test]
     fn rate_solves_the_arm_equation() {
         // M-hat theta'' = tau - V - G, checked by multiplying back.
         let net = random_net(3, 3);
