@@ -21,7 +21,15 @@ fn training_run(dir: &Path, tag: &str) -> PathBuf {
     out
 }
 
-/// `evoloop identify rkgnn` on `data` into `model`, seed 3, with `evaluations`, plus `extra`.
+/// Eq. 2's bounds the shipped models were identified with: arm3's M(q) over its joint limits
+/// (`evoloop rkgnn prior --robot config/robots/arm3.toml`: 0.0060, 0.552), rounded outward.
+const PRIOR: [&str; 4] = ["--m1", "0.005", "--m2", "0.6"];
+
+/// The shipped models' recipe: the training run's own P-D servo, least squares, no search.
+const SHIPPED: [&str; 4] = ["--servo", "known", "--start", "least-squares"];
+
+/// `evoloop identify rkgnn` on `data` into `model`, seed 3, with `evaluations`, eq. 2's `PRIOR`,
+/// plus `extra`.
 fn identify(data: &Path, model: &Path, evaluations: &str, extra: &[&str]) -> std::process::Output {
     let mut args = vec![
         "identify",
@@ -35,6 +43,7 @@ fn identify(data: &Path, model: &Path, evaluations: &str, extra: &[&str]) -> std
         "--seed",
         "3",
     ];
+    args.extend_from_slice(&PRIOR);
     args.extend_from_slice(extra);
     cli(&args)
 }
@@ -117,12 +126,7 @@ fn the_shipped_models_are_what_their_command_makes_of_the_training_runs() {
         let out = tmp.path().join(name);
         assert_ok(&run(&config(&format!("{name}.toml")), &out, "rk_ship", &[]));
         let model = tmp.path().join(format!("{name}.json"));
-        let o = identify(
-            &out,
-            &model,
-            "0",
-            &["--servo", "linear", "--start", "least-squares", "--quiet"],
-        );
+        let o = identify(&out, &model, "0", &[&SHIPPED[..], &["--quiet"]].concat());
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let shipped = RkgnnModel::load(&config(&format!("models/{name}.json"))).unwrap();
         assert_eq!(
@@ -136,34 +140,112 @@ fn the_shipped_models_are_what_their_command_makes_of_the_training_runs() {
     let model = tmp.path().join("x.json");
     let refused = identify(&data, &model, "600", &["--start", "least-squares"]);
     assert!(!refused.status.success());
-    assert!(String::from_utf8_lossy(&refused.stderr).contains("needs --servo linear"));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("needs --servo linear or known"));
+    let refused = identify(&data, &model, "600", &["--servo", "known"]);
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("needs --start least-squares"));
+    // Eq. 2's bounds are required and checked.
+    let mut args = vec!["identify", "rkgnn", "--data", data.to_str().unwrap()];
+    args.extend_from_slice(&[
+        "--out",
+        model.to_str().unwrap(),
+        "--m1",
+        "0.5",
+        "--m2",
+        "0.1",
+    ]);
+    let refused = cli(&args);
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("0 < m1 <= m2"));
     let refused = identify(&data, &model, "0", &["--servo", "linear"]);
     assert!(!refused.status.success());
     assert!(String::from_utf8_lossy(&refused.stderr).contains("0 only with --start least-squares"));
 }
 
 #[test]
-fn the_least_squares_start_finds_the_servo_and_gravity_of_the_training_run() {
-    // The first training run's servo has k_p = (150, 200, 100), k_d = (15, 20, 8); the arm's
-    // G at q = (0, 0.5, -1) is (0, 9.38, 1.81) N m. Data without torques fix each joint's scale
-    // only through the inertia bounds, so these are checked to 25 %, G_2 to 15 %.
+fn a_model_identified_under_the_known_servo_has_the_arms_gravity_and_inertia() {
+    // Judged (never fitted) against the true arm: G-hat and M-hat of the shipped model 1 at the
+    // training run's positions against the dynamics crate's G and M. The identification saw
+    // the reference, the output, the servo's gains and eq. 2's two numbers.
     let m = RkgnnModel::load(&config("models/arm3_train1.json")).unwrap();
-    let mut tau = [0.0; 3];
-    m.net.torque(&[1.0, 1.0, 1.0], &[0.0; 3], &mut tau);
-    for (j, (got, want)) in tau.iter().zip([150.0, 200.0, 100.0]).enumerate() {
-        assert!((got / want - 1.0).abs() < 0.25, "k_p,{j}: {got} vs {want}");
+    let arm = evoloop::dynamics::load(&config("robots/arm3.toml")).unwrap();
+    let scn = Scenario::load(&config("arm3_train1.toml"), &Overrides::default()).unwrap();
+    let sim = simulate(&scn);
+    let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period);
+    let mut d = arm.data();
+    let positions: Vec<&[f64]> = data.x.chunks(6).step_by(50).map(|x| &x[..3]).collect();
+    // The baseline M-hat must beat: the best constant matrix in hindsight (the true M's mean
+    // over the same positions), which knows the truth but not how it varies.
+    let mut mean = nalgebra::Matrix3::<f64>::zeros();
+    for q in &positions {
+        let mt = arm.mass_matrix(&mut d, q);
+        mean += nalgebra::Matrix3::from_fn(|a, b| mt[(a, b)]) / positions.len() as f64;
     }
-    m.net.torque(&[0.0; 3], &[1.0, 1.0, 1.0], &mut tau);
-    for (j, (got, want)) in tau.iter().zip([15.0, 20.0, 8.0]).enumerate() {
-        assert!((got / want - 1.0).abs() < 0.25, "k_d,{j}: {got} vs {want}");
+    let (mut g_err, mut g_norm, mut m_err, mut m_norm, mut c_err) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for x in &positions {
+        let q = &x[..3];
+        let mut g = [0.0; 3];
+        m.net.gravity(q, &mut g);
+        let mut truth = [0.0; 3];
+        arm.gravity_torque(&mut d, q, &mut truth);
+        let mut mh = [0.0; evoloop::MAX_JOINTS * evoloop::MAX_JOINTS];
+        m.net.inertia(q, &mut mh);
+        let mt = arm.mass_matrix(&mut d, q);
+        for a in 0..3 {
+            g_err += (g[a] - truth[a]).powi(2);
+            g_norm += truth[a].powi(2);
+            for b in 0..3 {
+                m_err += (mh[a * 3 + b] - mt[(a, b)]).powi(2);
+                c_err += (mean[(a, b)] - mt[(a, b)]).powi(2);
+                m_norm += mt[(a, b)].powi(2);
+            }
+        }
     }
-    let mut g = [0.0; 3];
-    m.net.gravity(&[0.0, 0.5, -1.0], &mut g);
-    assert!((g[1] / 9.38 - 1.0).abs() < 0.15, "G_2 {}", g[1]);
-    assert!(
-        g[0].abs() < 0.5 && (g[2] / 1.81 - 1.0).abs() < 0.25,
-        "G {g:?}"
+    let (g_rel, m_rel) = ((g_err / g_norm).sqrt(), (m_err / m_norm).sqrt());
+    let c_rel = (c_err / m_norm).sqrt();
+    eprintln!(
+        "relative error on train1: G-hat {g_rel:.4}, M-hat {m_rel:.4}, constant M {c_rel:.4}"
     );
+    assert!(g_rel < 0.05, "G-hat off by {g_rel}");
+    // Measured: G-hat 1.5 %, M-hat 20 % (README "RKGNN"), where the best constant matrix in
+    // hindsight, which knows the truth, is 12 % off: the fit's M-hat does not yet follow M(q)'s
+    // variation better than a constant would (issue 41, open). Bounds a little above the
+    // measurement, so that a regression shows.
+    assert!(
+        m_rel < 0.25,
+        "M-hat off by {m_rel}, the best constant by {c_rel}"
+    );
+    assert_eq!(
+        m.report.servo,
+        evoloop::rkgnn::identify::ServoPrior::Known {
+            kp: vec![150.0, 200.0, 100.0],
+            kd: vec![15.0, 20.0, 8.0],
+            limits: Some(vec![40.0, 60.0, 30.0]),
+        }
+    );
+}
+
+#[test]
+fn identification_never_opens_the_robot_file() {
+    // The run's scenario.json names its robot; point it at a file that does not exist, and
+    // the identification (either servo prior) gives the same model bit for bit.
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = training_run(tmp.path(), "rk_norobot");
+    let blind = tmp.path().join("blind");
+    std::fs::create_dir_all(&blind).unwrap();
+    std::fs::copy(out.join("run.csv"), blind.join("run.csv")).unwrap();
+    let mut scn = json(&out.join("scenario.json"));
+    assert!(scn["plant"]["robot"].is_string(), "{}", scn["plant"]);
+    scn["plant"]["robot"] = "/nonexistent/robot.urdf".into();
+    std::fs::write(blind.join("scenario.json"), scn.to_string()).unwrap();
+    // The shipped recipe, and the paper's search from its own start (a short one).
+    for (evaluations, extra) in [("0", &SHIPPED[..]), ("200", &["--threads", "1"][..])] {
+        let (a, b) = (tmp.path().join("a.json"), tmp.path().join("b.json"));
+        assert_ok(&identify(&out, &a, evaluations, extra));
+        assert_ok(&identify(&blind, &b, evaluations, extra));
+        let (a, b) = (RkgnnModel::load(&a).unwrap(), RkgnnModel::load(&b).unwrap());
+        assert_eq!(a.net.params(), b.net.params(), "{extra:?}");
+    }
 }
 
 #[test]
@@ -278,6 +360,7 @@ fn a_model_file_for_another_arm_is_refused_with_file_key_and_reason() {
     // A 3-joint model file with one parameter too few.
     let text = std::fs::read_to_string(config("models/arm3_train1.json")).unwrap();
     let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let needs = v["params"].as_array().unwrap().len();
     v["params"].as_array_mut().unwrap().pop();
     let models = tmp.path().join("models");
     std::fs::create_dir_all(&models).unwrap();
@@ -302,7 +385,10 @@ fn a_model_file_for_another_arm_is_refused_with_file_key_and_reason() {
         "{e}"
     );
     assert!(
-        e.contains("params: 416 values, the network needs 417"),
+        e.contains(&format!(
+            "params: {} values, the network needs {needs}",
+            needs - 1
+        )),
         "{e}"
     );
 }
@@ -336,8 +422,7 @@ fn overall(rms: [f64; 3]) -> f64 {
 }
 
 #[test]
-fn fuzzy_computed_torque_tracks_the_new_trajectory_better_than_the_servo_and_the_worse_single_model(
-) {
+fn fuzzy_computed_torque_tracks_the_new_trajectory_better_than_the_servo_and_each_single_model() {
     // Over five measurement-noise seeds (the shipped scenario's is 1), every variant on the
     // same seed: a paired comparison.
     for seed in 1..=5 {
@@ -366,7 +451,7 @@ fn fuzzy_computed_torque_tracks_the_new_trajectory_better_than_the_servo_and_the
             );
             format!("{}{}{}", &t[..c], &servo[sc..sr], &t[r..])
         });
-        let worse = overall(one).max(overall(two));
+        let best = overall(one).min(overall(two));
         eprintln!(
             "seed {seed}: rms fuzzy {:.5}, model 1 {:.5}, model 2 {:.5}, servo {:.5} \
              (per joint: fuzzy {fuzzy:.5?}, servo {pd:.5?})",
@@ -379,9 +464,12 @@ fn fuzzy_computed_torque_tracks_the_new_trajectory_better_than_the_servo_and_the
             overall(fuzzy) < overall(pd),
             "seed {seed}: fuzzy CT vs the P-D servo"
         );
+        // The new trajectory is the midpoint of the two training ones (issue 41: a selection
+        // study on trajectories that are not is still to come), so this is the paper's claim on
+        // the paper's case only.
         assert!(
-            overall(fuzzy) < worse,
-            "seed {seed}: fuzzy CT vs the worse single model"
+            overall(fuzzy) < best,
+            "seed {seed}: fuzzy CT vs the better single model"
         );
     }
 }
@@ -691,11 +779,9 @@ fn a_christoffel_model_has_no_velocity_network_and_its_v_hat_keeps_eq_3() {
     let dir = tempfile::tempdir().unwrap();
     let data = training_run(dir.path(), "rk_chr");
     let (net_file, chr_file) = (dir.path().join("net.json"), dir.path().join("chr.json"));
-    let ls = ["--servo", "linear", "--start", "least-squares"];
-    assert_ok(&identify(&data, &net_file, "0", &ls));
-    let mut extra = ls.to_vec();
-    extra.extend_from_slice(&["--velocity", "christoffel"]);
-    assert_ok(&identify(&data, &chr_file, "0", &extra));
+    assert_ok(&identify(&data, &net_file, "0", &SHIPPED));
+    let christoffel = [&SHIPPED[..], &["--velocity", "christoffel"]].concat();
+    assert_ok(&identify(&data, &chr_file, "0", &christoffel));
     let (net, chr) = (
         RkgnnModel::load(&net_file).unwrap(),
         RkgnnModel::load(&chr_file).unwrap(),

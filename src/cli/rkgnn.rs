@@ -1,11 +1,11 @@
 //! `evoloop identify rkgnn` and `evoloop rkgnn eval|study`: the RKGNN paper from the command line.
 
-use crate::rkgnn::identify::{self, Settings, Start};
+use crate::rkgnn::identify::{self, Prior, ServoPrior, Settings, Start};
 use crate::rkgnn::network::RbfCounts;
 use crate::rkgnn::{RkgnnModel, Trajectory};
 use clap::{Args, Subcommand};
 use serde_json::json;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Subcommand)]
 pub enum IdentifyCmd {
@@ -46,29 +46,33 @@ pub struct IdentifyArgs {
     /// Objective evaluations (the budget).
     #[arg(long, default_value_t = DEFAULT_EVALUATIONS)]
     pub evaluations: usize,
+    /// Levenberg-Marquardt steps on the free-run output error after the least-squares start
+    /// (with --start least-squares; 0 = none).
+    #[arg(long, default_value_t = 0)]
+    pub refine: usize,
     /// Use every STRIDE-th sample: the RKGNN's step is STRIDE times the run's period. Keep
     /// h x (servo's k_d / inertia) under 2.78, the Gill step's stability limit: at stride 10
     /// (h = 10 ms) arm3's forearm servo sits at 2.77, at the edge.
     #[arg(long, default_value_t = 5)]
     pub stride: usize,
-    /// Robot file whose true M(q) gives the inertia bounds m1, m2 of eq. 2 [default: the run's
-    /// scenario.json plant.robot].
+    /// Eq. 2's lower bound m1 on the arm's inertia matrix (y^T M(q) y >= m1 |y|^2, kg m^2): the
+    /// smallest eigenvalue of M(q) over the workspace, from a datasheet, a CAD model
+    /// (`evoloop rkgnn prior --robot FILE`) or a conservative bound. With m2 it is all the
+    /// identification knows of the arm besides the data; it fixes the model's scale.
     #[arg(long)]
-    pub robot: Option<PathBuf>,
-    /// What the search's constraints hold M-hat to: `paper` (eqs. 14-16: positive definite,
-    /// eigenvalues within eq. 2's m1, m2) or `diagonal` (also each M-hat_jj near its joint's
-    /// range of M_jj over the data). The least-squares start takes each joint's scale from that
-    /// range either way.
-    #[arg(long, value_enum, default_value_t = BoundsKind::Paper)]
-    pub bounds: BoundsKind,
+    pub m1: f64,
+    /// Eq. 2's upper bound m2 (y^T M(q) y <= m2 |y|^2, kg m^2): the largest eigenvalue of M(q).
+    #[arg(long)]
+    pub m2: f64,
     /// V-hat: `network` (the paper's velocity network, eqs. 8-10) or `christoffel` (from
-    /// M-hat's Christoffel symbols, so that eq. 3's skew symmetry holds by construction; no
-    /// velocity parameters).
+    /// M-hat's Christoffel symbols, so that eq. 3 holds; no velocity parameters).
     #[arg(long, value_enum, default_value_t = VelocityKind::Network)]
     pub velocity: VelocityKind,
-    /// The servo network: `rbf` (the paper's Fig. 3, 3 RBFs per P and D sub-network) or
-    /// `linear` (tau_j = k_p e_j + k_d e_j', the P-D servo of the paper's premise; with it
-    /// gravity and the servo's gains are identifiable).
+    /// The servo network: `rbf` (the paper's Fig. 3, 3 RBFs per P and D sub-network),
+    /// `linear` (tau_j = k_p e_j + k_d e_j', the P-D servo of the paper's premise, gains
+    /// identified; with it gravity is identifiable) or `known` (the P-D servo whose gains the
+    /// user set: --kp, --kd, or the run's own scenario.json controller when it is a pd_servo;
+    /// then the servo's torque is known and the model's scale with it).
     #[arg(long, value_enum, default_value_t = ServoKind::Rbf)]
     pub servo: ServoKind,
     /// Where the EA starts: `random` (the paper's) or `least-squares` (the inverse-dynamics
@@ -76,6 +80,13 @@ pub struct IdentifyArgs {
     /// --evaluations 0 returns the start itself.
     #[arg(long, value_enum, default_value_t = Start::Random)]
     pub start: Start,
+    /// With --servo known: the servo's proportional gains, one per joint [default: the run's
+    /// scenario.json controller.gains].
+    #[arg(long, value_delimiter = ',')]
+    pub kp: Option<Vec<f64>>,
+    /// With --servo known: the servo's derivative gains, one per joint.
+    #[arg(long, value_delimiter = ',')]
+    pub kd: Option<Vec<f64>>,
     /// Evaluation threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -92,6 +103,7 @@ pub struct IdentifyArgs {
 pub enum ServoKind {
     Rbf,
     Linear,
+    Known,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -101,9 +113,9 @@ pub enum VelocityKind {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum BoundsKind {
-    Paper,
-    Diagonal,
+pub enum StudyServo {
+    Known,
+    Unknown,
 }
 
 /// The default identification budget.
@@ -120,7 +132,7 @@ pub enum RkgnnCmd {
     Study(StudyArgs),
     /// Eq. 2's bounds m1, m2 from a robot file (a CAD model's inertias): the smallest and
     /// largest eigenvalue of M(q) over a run's measured positions (--data) or over random
-    /// positions within the joint limits (-pi..pi for a joint without).
+    /// positions within the joint limits; what `identify rkgnn --m1 --m2` takes.
     Prior(PriorArgs),
 }
 
@@ -134,7 +146,7 @@ pub struct PriorArgs {
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Random positions when no --data.
-    #[arg(long, default_value_t = 2000)]
+    #[arg(long, default_value_t = identify::LIMIT_SAMPLES)]
     pub samples: usize,
     /// Print JSON (keys m1, m2, positions).
     #[arg(long)]
@@ -156,6 +168,15 @@ pub struct StudyArgs {
     /// recipe).
     #[arg(long, default_value_t = 0)]
     pub evaluations: usize,
+    /// Levenberg-Marquardt steps on the free-run output error after the least-squares start
+    /// (with --start least-squares; 0 = none).
+    #[arg(long, default_value_t = 0)]
+    pub refine: usize,
+    /// What the identification knows of the training runs' P-D servo: `known` (its gains,
+    /// the study's own servo; the shipped models' recipe) or `unknown` (the paper's premise:
+    /// gains identified, scale from eq. 2).
+    #[arg(long, value_enum, default_value_t = StudyServo::Known)]
+    pub servo: StudyServo,
     /// Threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -184,21 +205,45 @@ pub struct EvalArgs {
     pub json: bool,
 }
 
-/// The robot named by a run's scenario.json (plant.robot), for the inertia bounds.
-fn run_robot(dir: &Path) -> Result<PathBuf, String> {
-    let p = dir.join("scenario.json");
-    let text = std::fs::read_to_string(&p).map_err(|e| {
-        format!(
-            "{}: {e} (give --robot to say which arm the data is from)",
-            p.display()
-        )
-    })?;
+/// The known servo: --kp and --kd if given, else the run's scenario.json controller (a
+/// pd_servo's gains = [kp..., kd...] and its torque limits).
+fn known_servo(a: &IdentifyArgs) -> Result<ServoPrior, String> {
+    if let (Some(kp), Some(kd)) = (&a.kp, &a.kd) {
+        return Ok(ServoPrior::Known {
+            kp: kp.clone(),
+            kd: kd.clone(),
+            limits: None,
+        });
+    }
+    if a.kp.is_some() || a.kd.is_some() {
+        return Err("--servo known: give both --kp and --kd, or neither".into());
+    }
+    let p = a.data.join("scenario.json");
+    let text = crate::check::read_text(&p).map_err(|e| format!("{}: {e}", p.display()))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
-    let robot = v["plant"]["robot"]
-        .as_str()
-        .ok_or_else(|| format!("{}: no plant.robot (give --robot)", p.display()))?;
-    Ok(PathBuf::from(robot))
+    let c = &v["controller"];
+    if c["kind"] != "pd_servo" {
+        return Err(format!(
+            "{}: the run's controller is {}, not a pd_servo (give --kp and --kd)",
+            p.display(),
+            c["kind"]
+        ));
+    }
+    let list =
+        |key: &str| -> Option<Vec<f64>> { c[key].as_array()?.iter().map(|x| x.as_f64()).collect() };
+    let (Some(gains), limits) = (list("gains"), list("torque_limits")) else {
+        return Err(format!(
+            "{}: controller.gains is not a list of numbers",
+            p.display()
+        ));
+    };
+    let n = gains.len() / 2;
+    Ok(ServoPrior::Known {
+        kp: gains[..n].to_vec(),
+        kd: gains[n..].to_vec(),
+        limits,
+    })
 }
 
 pub fn identify(cmd: IdentifyCmd) -> i32 {
@@ -222,31 +267,32 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     if a.stride == 0 {
         return Err("--stride must be >= 1".into());
     }
-    if a.start == Start::LeastSquares && a.servo != ServoKind::Linear {
-        return Err("--start least-squares needs --servo linear".into());
+    if a.start == Start::LeastSquares && a.servo == ServoKind::Rbf {
+        return Err("--start least-squares needs --servo linear or known".into());
+    }
+    if a.servo == ServoKind::Known && a.start != Start::LeastSquares {
+        return Err("--servo known needs --start least-squares".into());
+    }
+    if a.servo != ServoKind::Known && (a.kp.is_some() || a.kd.is_some()) {
+        return Err("--kp and --kd go with --servo known".into());
     }
     if a.evaluations == 0 && a.start != Start::LeastSquares {
         return Err("--evaluations must be >= 1 (0 only with --start least-squares)".into());
     }
+    let prior = Prior::new(a.m1, a.m2).map_err(|e| format!("--m1, --m2: {e}"))?;
     let data = Trajectory::from_run(&a.data)?;
-    let robot = match &a.robot {
-        Some(r) => r.clone(),
-        None => run_robot(&a.data)?,
-    };
-    let arm = crate::dynamics::load(&robot).map_err(|e| format!("{}: {e}", robot.display()))?;
-    if arm.dof() != data.n {
-        return Err(format!(
-            "{} has {} joints, the data {}",
-            robot.display(),
-            arm.dof(),
-            data.n
-        ));
-    }
     let mut s = Settings::paper(data.n, a.seed, a.evaluations);
     s.stride = a.stride;
     s.start = a.start;
-    if a.servo == ServoKind::Linear {
+    s.refine = a.refine;
+    if a.servo != ServoKind::Rbf {
         s.counts = RbfCounts::linear_servo(data.n);
+    }
+    if a.servo == ServoKind::Known {
+        s.servo = known_servo(a)?;
+        s.servo
+            .check(data.n)
+            .map_err(|e| format!("--servo known: {e}"))?;
     }
     if a.velocity == VelocityKind::Christoffel {
         s.counts.velocity = 0;
@@ -254,13 +300,10 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     if let Some(t) = a.threads {
         s.threads = t.max(1);
     }
-    if a.bounds == BoundsKind::Paper {
-        s.lambda[3] = 0.0;
-    }
     let bar = crate::report::progress::bar(a.evaluations as u64, "evaluations", a.quiet || a.json);
     let model = identify::identify_model(
         &data,
-        &arm,
+        &prior,
         &s,
         a.data.display().to_string(),
         |evals, best| {
@@ -294,7 +337,7 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
             fmt(&r.holdout_rms)
         );
         out!(
-            "  M-hat: smallest eigenvalue over the training samples {:.4} (bounds m1 {:.4}, m2 {:.4})",
+            "  M-hat: smallest eigenvalue over the training samples {:.4} (eq. 2's m1 {:.4}, m2 {:.4})",
             r.min_eig_m_hat,
             r.m1,
             r.m2
@@ -357,11 +400,9 @@ fn eval(a: &EvalArgs) -> Result<(), String> {
 }
 
 fn prior(a: &PriorArgs) -> Result<(), String> {
-    use identify::InertiaBounds;
-    use rand::{Rng, SeedableRng};
     let arm = crate::dynamics::load(&a.robot).map_err(|e| format!("{}: {e}", a.robot.display()))?;
     let n = arm.dof();
-    let (b, positions) = match &a.data {
+    let (p, positions) = match &a.data {
         Some(dir) => {
             let d = Trajectory::from_run(dir)?;
             if d.n != n {
@@ -372,38 +413,27 @@ fn prior(a: &PriorArgs) -> Result<(), String> {
                 ));
             }
             let qs = d.x.chunks(2 * n).map(|x| &x[..n]);
-            (InertiaBounds::of(&arm, qs), d.len())
+            (Prior::of_model(&arm, qs), d.len())
         }
         None => {
             if a.samples == 0 {
                 return Err("--samples must be >= 1".into());
             }
-            let mut rng = rand::rngs::StdRng::seed_from_u64(1);
-            let qs: Vec<Vec<f64>> = (0..a.samples)
-                .map(|_| {
-                    arm.bodies
-                        .iter()
-                        .map(|b| {
-                            let (lo, hi) = b.limits.position_span();
-                            rng.gen_range(lo..=hi)
-                        })
-                        .collect()
-                })
-                .collect();
+            let qs = identify::limit_positions(&arm, a.samples);
             (
-                InertiaBounds::of(&arm, qs.iter().map(Vec::as_slice)),
+                Prior::of_model(&arm, qs.iter().map(Vec::as_slice)),
                 qs.len(),
             )
         }
     };
     if a.json {
-        crate::cli::print_json(&json!({"m1": b.m1, "m2": b.m2, "positions": positions}));
+        crate::cli::print_json(&json!({"m1": p.m1, "m2": p.m2, "positions": positions}));
     } else {
         out!(
-            "eq. 2's bounds of {} over {positions} positions: m1 {:.6}, m2 {:.6} (kg m^2)",
+            "eq. 2's bounds of {} over {positions} positions: --m1 {:.6} --m2 {:.6}",
             a.robot.display(),
-            b.m1,
-            b.m2
+            p.m1,
+            p.m2
         );
     }
     Ok(())
@@ -415,6 +445,8 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         robot: a.robot.clone(),
         seed: a.seed,
         evaluations: a.evaluations,
+        refine: a.refine,
+        servo_known: a.servo == StudyServo::Known,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
     let bar = crate::report::progress::bar(0, "stages", a.quiet || a.json);

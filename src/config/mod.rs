@@ -229,7 +229,13 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let timing = timing::validate(raw.timing, check, ov)?;
     let reference = reference::validate(raw.reference, check)?;
     let plant = PlantSpec::validate(raw.plant, check, timing.period, &reference)?;
-    let controller = ControllerSpec::validate(raw.controller, check, &plant.model)?;
+    let controller = ControllerSpec::validate(
+        raw.controller,
+        check,
+        &plant.model,
+        &reference,
+        timing.duration,
+    )?;
     let optimiser = optimiser::validate(raw.optimiser, check, &timing, ov)?;
     if optimiser.mode == OptimiserMode::Identify {
         identify_mode_fits(check, &controller)?;

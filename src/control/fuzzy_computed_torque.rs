@@ -43,7 +43,8 @@ pub struct FuzzyComputedTorque {
     /// Raw weights w_i (eq. 20) and the selection s_i of the last cycle.
     w: [f64; MAX_MODELS],
     s: [f64; MAX_MODELS],
-    /// Per model, positions of its identification reference (`probe_positions`) on which a
+    /// Per model, positions of its identification reference (`probe_positions`) and of the
+    /// reference this run tracks (`reference_positions`, thinned to `PROBES`) on which a
     /// replacement model's M-hat is checked, and the in-service model's smallest eigenvalue
     /// there.
     probes: Vec<Vec<Vec<f64>>>,
@@ -62,6 +63,62 @@ pub fn probe_positions(states: &[f64], n: usize) -> Vec<Vec<f64>> {
         .map(|k| states[2 * n * (k * rows / PROBES)..][..n].to_vec())
         .collect()
 }
+/// Spacing of the reference positions a model is checked on, s, and how far ahead a run until
+/// stopped is checked.
+const REFERENCE_PROBE_DT: f64 = 0.01;
+const REFERENCE_HORIZON: f64 = 120.0;
+
+/// The joint positions of `reference` every `REFERENCE_PROBE_DT` over the run's `duration`
+/// (at most `REFERENCE_HORIZON`): where the controller will evaluate its models' M-hat.
+pub fn reference_positions(reference: &crate::reference::Reference, duration: f64) -> Vec<Vec<f64>> {
+    let mut sp = Setpoint::default();
+    let n = reference.joints();
+    let steps = (duration.min(REFERENCE_HORIZON) / REFERENCE_PROBE_DT).ceil() as usize;
+    (0..=steps)
+        .map(|k| {
+            reference.sample(k as f64 * REFERENCE_PROBE_DT, &mut sp);
+            sp.q[..n].to_vec()
+        })
+        .collect()
+}
+
+/// `model` must have a positive definite M-hat at every position of `along`: otherwise the
+/// reason, with the first position where it fails and its time.
+pub fn check_along_reference(model: &RkgnnModel, along: &[Vec<f64>]) -> Result<f64, String> {
+    let mut lowest = f64::INFINITY;
+    for (k, q) in along.iter().enumerate() {
+        let e = model.min_eig(std::iter::once(q.as_slice()));
+        if e.is_nan() || e <= 0.0 {
+            return Err(format!(
+                "M-hat is not positive definite along the reference this scenario tracks: \
+                 smallest eigenvalue {e:.3e} at t = {:.2} s, q = {q:.3?} (computed torque on \
+                 it would not be stable there)",
+                k as f64 * REFERENCE_PROBE_DT
+            ));
+        }
+        lowest = lowest.min(e);
+    }
+    Ok(lowest)
+}
+
+/// Per model, the positions where its M-hat is checked when it is loaded and before a
+/// replacement takes its slot: its identification reference (`probe_positions`) and the
+/// reference this run tracks (`along`, thinned to `PROBES`). The live identifier checks its
+/// candidates on the same positions, so that what it publishes is what the controller takes.
+pub fn model_probes(models: &[RkgnnModel], along: &[Vec<f64>]) -> Vec<Vec<Vec<f64>>> {
+    let k = PROBES.min(along.len());
+    let ahead = (0..k).map(|i| along[i * along.len() / k].clone());
+    let ahead: Vec<Vec<f64>> = ahead.collect();
+    models
+        .iter()
+        .map(|m| {
+            let mut p = probe_positions(&m.premise, m.dof());
+            p.extend(ahead.iter().cloned());
+            p
+        })
+        .collect()
+}
+
 /// A replacement model's smallest eigenvalue of M-hat over the probes must reach this fraction
 /// of the model in service's: positive definite is not enough, a nearly singular M-hat (which
 /// an unconstrained fit can produce off its data) makes computed torque blow up.
@@ -109,6 +166,7 @@ pub fn premise_distances(models: &[RkgnnModel]) -> Vec<f64> {
 
 impl FuzzyComputedTorque {
     /// `gains` = [Kp; Kv]; `effort` the joints' torque limits.
+    /// `along`: positions of the reference the run tracks (`reference_positions`).
     pub fn new(
         models: Vec<RkgnnModel>,
         selection: Selection,
@@ -116,14 +174,12 @@ impl FuzzyComputedTorque {
         gains: &[f64],
         startup_rate: f64,
         effort: Vec<f64>,
+        along: &[Vec<f64>],
     ) -> Self {
         assert!((1..=MAX_MODELS).contains(&models.len()));
         let n = models[0].dof();
         assert_eq!(gains.len(), 2 * n);
-        let probes: Vec<Vec<Vec<f64>>> = models
-            .iter()
-            .map(|m| probe_positions(&m.premise, n))
-            .collect();
+        let probes = model_probes(&models, along);
         let mut min_eig = [0.0; MAX_MODELS];
         for ((e, m), p) in min_eig.iter_mut().zip(&models).zip(&probes) {
             *e = m.net.min_eig(p.iter().map(Vec::as_slice));
@@ -293,6 +349,9 @@ pub struct FuzzyComputedTorqueSpec {
     pub loaded: Vec<RkgnnModel>,
     #[serde(skip)]
     pub effort: Vec<f64>,
+    /// Positions of the run's reference (`reference_positions`).
+    #[serde(skip)]
+    pub along: Vec<Vec<f64>>,
 }
 
 pub fn validate(
@@ -321,6 +380,7 @@ pub fn validate(
     }
     let mut loaded = Vec::with_capacity(t.models.len());
     let mut models = Vec::with_capacity(t.models.len());
+    let along = reference_positions(cx.reference, cx.duration);
     for (i, rel) in t.models.iter().enumerate() {
         let path = check.resolve(rel);
         let m = match RkgnnModel::load(&path) {
@@ -333,6 +393,9 @@ pub fn validate(
                 format!("the model has {} joints, the arm {n}", m.dof()),
             );
         }
+        if let Err(e) = check_along_reference(&m, &along) {
+            return check.fail(&format!("{key}[{i}]"), format!("{}: {e}", path.display()));
+        }
         loaded.push(m);
         models.push(path);
     }
@@ -344,6 +407,7 @@ pub fn validate(
         gamma,
         loaded,
         effort: arm.bodies.iter().map(|b| b.limits.effort).collect(),
+        along,
     })
 }
 
@@ -356,6 +420,7 @@ impl ControllerConfig for FuzzyComputedTorqueSpec {
             &self.tunable.gains,
             self.startup_rate,
             self.effort.clone(),
+            &self.along,
         ))
     }
     fn tunable(&self) -> &Tunable {
@@ -389,6 +454,7 @@ mod tests {
             &[900.0, 900.0, 900.0, 60.0, 60.0, 60.0],
             0.0,
             vec![40.0, 60.0, 30.0],
+            &[vec![0.2, 0.7, -1.3]],
         );
         let reference = crate::reference::Reference::Quintic {
             times: vec![0.0],

@@ -68,6 +68,10 @@ pub trait ControllerConfig {
 /// What a law's validation may look at besides its own table.
 pub struct ControllerContext<'a> {
     pub plant: &'a PlantModel,
+    /// The reference the controller will track, and for how long (s; infinite for a run until
+    /// stopped): a model-based law checks its models where the run will take them.
+    pub reference: &'a crate::reference::Reference,
+    pub duration: f64,
 }
 
 /// A validated controller: the keys every law shares, and its own settings.
@@ -87,6 +91,8 @@ impl ControllerSpec {
         mut raw: RawController,
         check: &Check,
         plant: &PlantModel,
+        reference: &crate::reference::Reference,
+        duration: f64,
     ) -> Result<ControllerSpec, ConfigError> {
         let u_limit = match raw.u_limit {
             Some(l) => Some(check.positive("controller.u_limit", l)?),
@@ -96,7 +102,11 @@ impl ControllerSpec {
         if stale_after_periods == 0 {
             return check.fail("controller.stale_after_periods", "must be >= 1");
         }
-        let cx = ControllerContext { plant };
+        let cx = ControllerContext {
+            plant,
+            reference,
+            duration,
+        };
         let kind = raw.kind;
         Ok(ControllerSpec {
             u_limit,

@@ -7,7 +7,8 @@
 //!       + s_t/2 sum_j lambda_j [g_j^+]^2,   s_t = 10 + ln(k + 1) at generation k,
 //! with lambda = (1000, 1, 1), g_1 = -Gamma (the smallest leading principal minor of M-hat),
 //! g_2 = m_1 - lambda_min(M-hat), g_3 = lambda_max(M-hat) - m_2, each at its worst over probe
-//! states drawn from the training data.
+//! positions of the operating region (`region_probes`: the training positions and points of the
+//! box around them, widened, since the controller runs near the data, not on it).
 //!
 //! Our reading of eq. 13. As printed it compares the reference theta_d with the output theta,
 //! which does not depend on the network at all. The identification error is between the
@@ -19,20 +20,28 @@
 //! survives longer ranks better. The log in s_t is natural; the survivors' values were computed
 //! with the s_t of their generation.
 //!
-//! The bounds m_1, m_2 of Property 1 (eq. 2) are constants the method assumes known. We derive
-//! them from the arm's true M(q) over the training data's joint positions: m_1 is the smallest
-//! eigenvalue and m_2 the largest seen (the paper's 1.23 and 1.45 belong to its own arm). Besides
-//! shaping M-hat, they fix the model's scale, which data without torques cannot: multiplying
-//! M-hat, V-hat, G-hat and the torque network by one constant predicts the same motion.
-
+//! What the identification knows of the arm is the data (reference and output) and the two
+//! constants m_1, m_2 of Property 1 (eq. 2), which the paper assumes known (`Prior`; a user
+//! takes them from a datasheet, a CAD model or a bound); it never reads a robot file. Besides
+//! shaping M-hat, they fix the model's one free scale, which data without torques cannot:
+//! multiplying M-hat, V-hat, G-hat and the torque network by one constant predicts the same
+//! motion.
 //!
 //! Beyond the paper (each opt-in on the command line, see README "RKGNN"):
 //! - `--servo linear`: the servo network as k_p e + k_d e' per joint (`RbfCounts::linear_servo`
 //!   says why it makes gravity identifiable).
+//! - `--velocity christoffel`: no velocity network, V-hat from M-hat's Christoffel symbols
+//!   (`network::christoffel`; eq. 3 by construction).
 //! - `--start least-squares`: the EA starts from `least_squares_start`, the inverse-dynamics
-//!   equation solved for the output weights with each joint's scale from its diagonal inertia
-//!   bounds (`InertiaBounds::diag`); `--evaluations 0` keeps the start as the model.
-//! - `--bounds diagonal`: a fourth constraint g_4 keeps each M-hat_jj near its joint's range.
+//!   equation solved for the output weights in units of joint 1's k_p, then given the one scale
+//!   that centres M-hat's eigenvalues in eq. 2's [m_1, m_2]; `--evaluations 0` keeps the start
+//!   as the model.
+//! - `--servo known`: the training run's servo is the user's own P-D law with known gains (the
+//!   paper allows it: "if detailed information of the controller is known, the structure of the
+//!   network can be altered accordingly"); its torque is then known at every sample, the fit is
+//!   M-hat q'' + V-hat + G-hat = tau, and the scale comes with it (`ServoPrior::Known`).
+//! - `--refine N`: Levenberg-Marquardt on the free-run output error after the least-squares
+//!   start (`refine`).
 //! - The default step is h = 5 ms (stride 5 at 1 kHz): the Gill step, like RK4, is stable for
 //!   h |lambda| < 2.78 on the real axis, and arm3's forearm under its servo has a mode at
 //!   k_d / M_33,eff = 8 / 0.029 = 277 /s, so h = 10 ms sits at 2.77: a model as stiff as the
@@ -46,11 +55,6 @@ use crate::optim::{evaluate, Objective, Optimiser};
 use crate::plant::gill::RungeKuttaGill;
 use crate::MAX_JOINTS;
 use serde::{Deserialize, Serialize};
-
-/// How far beyond the true range of M_jj the diagonal bound lets M-hat_jj go (factors on the
-/// low and high end): the scale is the least-squares start's; in the search the bound only
-/// keeps it from drifting, and an RBF approximation of M_jj(q) needs some room.
-const DIAG_MARGIN: (f64, f64) = (0.8, 1.25);
 
 /// Error charged per sample left when a prediction diverges.
 pub const DIVERGED: f64 = 10.0;
@@ -68,14 +72,77 @@ pub struct Settings {
     /// Objective evaluations.
     pub evaluations: usize,
     pub ea: ChaoticEaConfig,
-    /// Eq. 13's lambda_1..3 and our lambda_4 on the diagonal bound (0 = the paper's eqs. 14-16
-    /// only).
-    pub lambda: [f64; 4],
-    /// Probe states for the constraints.
+    /// Eq. 13's lambda_1..3.
+    pub lambda: [f64; 3],
+    /// Probe positions for the constraints (`region_probes`).
     pub probes: usize,
     pub threads: usize,
     /// Where the EA starts.
     pub start: Start,
+    /// Levenberg-Marquardt steps on the output error after the least-squares start
+    /// (`refine::refine`; 0 = none).
+    pub refine: usize,
+    /// What the identification knows of the servo the data were taken under.
+    pub servo: ServoPrior,
+}
+
+/// What the identification knows of the servo that ran the training experiment.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case", tag = "kind")]
+pub enum ServoPrior {
+    /// Nothing (the paper's premise: an industrial arm's servo is the vendor's): a linear
+    /// servo's gains are identified in units of joint 1's k_p and the model is given eq. 2's
+    /// scale. Torque-free data cannot fix the relative scale of joints whose inertia does not
+    /// couple (README "RKGNN").
+    #[default]
+    Unknown,
+    /// The P-D law tau_j = clamp(k_p,j e_j + k_d,j e_j', +-limit_j) with these gains and
+    /// limits: the controller's own configuration when the experiment ran under the user's
+    /// servo (the paper allows it: "if detailed information of the controller is known, the
+    /// structure of the network can be altered accordingly"). Then the servo's torque is known
+    /// at every sample and the arm's M-hat, V-hat, G-hat are fitted to it, scale included.
+    Known {
+        kp: Vec<f64>,
+        kd: Vec<f64>,
+        /// Torque limits, N m (none = unclamped).
+        #[serde(default)]
+        limits: Option<Vec<f64>>,
+    },
+}
+
+impl ServoPrior {
+    /// The known servo's torque at reference `r` and state `x` (n each of position and
+    /// velocity), or None if unknown.
+    pub fn torque(&self, r: &[f64], x: &[f64], tau: &mut [f64]) -> Option<()> {
+        let ServoPrior::Known { kp, kd, limits } = self else {
+            return None;
+        };
+        let n = kp.len();
+        for j in 0..n {
+            let t = kp[j] * (r[j] - x[j]) + kd[j] * (r[n + j] - x[n + j]);
+            tau[j] = limits.as_ref().map_or(t, |l| t.clamp(-l[j], l[j]));
+        }
+        Some(())
+    }
+
+    /// Checked against the data's joint count: finite, k_p > 0, k_d >= 0, limits > 0.
+    pub fn check(&self, n: usize) -> Result<(), String> {
+        let ServoPrior::Known { kp, kd, limits } = self else {
+            return Ok(());
+        };
+        if kp.len() != n || kd.len() != n || limits.as_ref().is_some_and(|l| l.len() != n) {
+            return Err(format!(
+                "the servo's gains and limits need {n} values each (one per joint)"
+            ));
+        }
+        let ok = kp.iter().all(|v| v.is_finite() && *v > 0.0)
+            && kd.iter().all(|v| v.is_finite() && *v >= 0.0)
+            && limits.iter().flatten().all(|v| *v > 0.0);
+        if !ok {
+            return Err("the servo needs k_p > 0, k_d >= 0 and limits > 0, all finite".into());
+        }
+        Ok(())
+    }
 }
 
 /// The EA's starting point.
@@ -105,21 +172,22 @@ impl Settings {
                 seed,
                 ..Default::default()
             },
-            lambda: [1000.0, 1.0, 1.0, 1000.0],
+            lambda: [1000.0, 1.0, 1.0],
             probes: 40,
             threads: crate::optim::all_cores(),
             start: Start::Random,
+            refine: 0,
+            servo: ServoPrior::Unknown,
         }
     }
 
     /// The recipe of the shipped models (README "RKGNN"): a linear P-D servo network, the
-    /// least-squares start, the paper's bounds (eqs. 14-16 only); `evaluations` = 0 keeps the
+    /// least-squares start; `evaluations` = 0 keeps the
     /// start, more continue with the EA.
     pub fn least_squares(n: usize, seed: u64, evaluations: usize) -> Self {
         let mut s = Self::paper(n, seed, evaluations);
         s.counts = RbfCounts::linear_servo(n);
         s.start = Start::LeastSquares;
-        s.lambda[3] = 0.0;
         s
     }
 }
@@ -140,14 +208,15 @@ pub struct Report {
     pub objective: f64,
     /// The RKGNN's step, s.
     pub h: f64,
+    /// Eq. 2's bounds, the identification's only knowledge of the arm besides the data.
     pub m1: f64,
     pub m2: f64,
-    /// The per-joint bounds on M-hat_jj used (see `InertiaBounds`).
-    #[serde(default)]
-    pub inertia_diag: Vec<[f64; 2]>,
     /// Where the search started.
     #[serde(default = "Report::random")]
     pub start: Start,
+    /// What the identification knew of the servo (files before it: unknown).
+    #[serde(default)]
+    pub servo: ServoPrior,
     pub seed: u64,
     /// Best objective after each generation.
     pub history: Vec<f64>,
@@ -160,54 +229,116 @@ impl Report {
     }
 }
 
-/// What the identification assumes known of the arm's inertia (Property 1, eq. 2, and its
-/// per-joint form): bounds derived from a rigid-body model's M(q) over the training positions.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct InertiaBounds {
-    /// Smallest eigenvalue of M(q) seen (eq. 2's m_1).
+/// What the identification assumes known of the arm (Property 1, eq. 2): m_1 ||y||^2 <= y^T
+/// M(q) y <= m_2 ||y||^2. Nothing else of the robot reaches the fit.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+pub struct Prior {
     pub m1: f64,
-    /// Largest eigenvalue seen (eq. 2's m_2).
     pub m2: f64,
-    /// Per joint, the smallest and largest M_jj(q) seen.
-    pub diag: Vec<[f64; 2]>,
 }
 
-impl InertiaBounds {
-    /// The inertia a joint's scale is set to: the middle of its M_jj range (of [m1, m2] for a
-    /// joint without one).
-    pub fn mid(&self, j: usize) -> f64 {
-        self.diag
-            .get(j)
-            .map_or(0.5 * (self.m1 + self.m2), |[lo, hi]| 0.5 * (lo + hi))
+impl Prior {
+    /// Checked: 0 < m1 <= m2, both finite.
+    pub fn new(m1: f64, m2: f64) -> Result<Self, String> {
+        if !(m1 > 0.0 && m1.is_finite() && m2.is_finite() && m1 <= m2) {
+            return Err(format!(
+                "eq. 2's bounds need 0 < m1 <= m2 (finite), got m1 = {m1}, m2 = {m2}"
+            ));
+        }
+        Ok(Self { m1, m2 })
     }
 
-    /// The bounds of `model`'s M(q) over joint positions `qs`.
-    pub fn of<'a>(model: &crate::dynamics::Model, qs: impl Iterator<Item = &'a [f64]>) -> Self {
+    /// The middle of [m1, m2]: where a joint's inertia starts when nothing else is known.
+    pub fn mid(&self) -> f64 {
+        0.5 * (self.m1 + self.m2)
+    }
+
+    /// The bounds a rigid-body model gives over joint positions `qs`: the smallest and largest
+    /// eigenvalue of its M(q) there (what a user reads off a CAD model over the workspace). For
+    /// the study and for users with a model; the identifier itself never calls it.
+    pub fn of_model<'a>(
+        model: &crate::dynamics::Model,
+        qs: impl Iterator<Item = &'a [f64]>,
+    ) -> Self {
         let n = model.dof();
         let mut data = model.data();
         let mut flat: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-        let mut b = Self {
-            m1: f64::INFINITY,
-            m2: 0.0,
-            diag: vec![[f64::INFINITY, 0.0]; n],
-        };
+        let (mut m1, mut m2) = (f64::INFINITY, 0.0f64);
         for q in qs {
             let m = model.mass_matrix(&mut data, q);
             for a in 0..n {
                 for c in 0..n {
                     flat[a * n + c] = m[(a, c)];
                 }
-                let d = &mut b.diag[a];
-                d[0] = d[0].min(m[(a, a)]);
-                d[1] = d[1].max(m[(a, a)]);
             }
             let (l, h) = network::sym_eig_range(n, &flat);
-            b.m1 = b.m1.min(l);
-            b.m2 = b.m2.max(h);
+            m1 = m1.min(l);
+            m2 = m2.max(h);
         }
-        b
+        Self { m1, m2 }
     }
 }
+
+/// `count` joint positions drawn uniformly (fixed seed) within `model`'s joint limits
+/// (`Limits::position_span`): the workspace over which a CAD model gives eq. 2's bounds
+/// (`evoloop rkgnn prior` without --data, and the study's user).
+pub fn limit_positions(model: &crate::dynamics::Model, count: usize) -> Vec<Vec<f64>> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+    (0..count)
+        .map(|_| {
+            model
+                .bodies
+                .iter()
+                .map(|b| {
+                    let (lo, hi) = b.limits.position_span();
+                    rng.gen_range(lo..=hi)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// How many positions `limit_positions` draws by default.
+pub const LIMIT_SAMPLES: usize = 2000;
+
+/// Where M-hat must be positive definite and within eq. 2's bounds: `count` positions, half of
+/// them training positions spread over the run, half drawn (fixed seed) from the box around
+/// them widened by `REGION_MARGIN` of each joint's span (at least `REGION_MIN` rad) on each
+/// side. The controller runs near the data, not on it: a model checked on its own samples only
+/// was indefinite a little way off them (issue 41).
+pub fn region_probes(train: &Trajectory, count: usize) -> Vec<Vec<f64>> {
+    use rand::{Rng, SeedableRng};
+    let n = train.n;
+    let len = train.len();
+    let on_data = count.div_ceil(2);
+    let mut probes: Vec<Vec<f64>> = (0..on_data)
+        .map(|k| train.x_at(k * len / on_data)[..n].to_vec())
+        .collect();
+    let range: Vec<(f64, f64)> = (0..n)
+        .map(|j| {
+            let (lo, hi) = (0..len).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), i| {
+                let v = train.x_at(i)[j];
+                (a.min(v), b.max(v))
+            });
+            let m = (REGION_MARGIN * (hi - lo)).max(REGION_MIN);
+            (lo - m, hi + m)
+        })
+        .collect();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(0x005e_ed41);
+    probes.extend((on_data..count).map(|_| {
+        range
+            .iter()
+            .map(|&(lo, hi)| rng.gen_range(lo..=hi))
+            .collect()
+    }));
+    probes
+}
+
+/// How far `region_probes` reaches beyond the data, as a fraction of each joint's span.
+pub const REGION_MARGIN: f64 = 0.5;
+/// ... and at least this far, rad.
+const REGION_MIN: f64 = 0.1;
 
 /// Free-run prediction of `traj` from its first state: the predicted states (sample-major, 2n
 /// each) into `out` if given, and eq. 13's error term. Allocates only the integrator's two
@@ -267,12 +398,10 @@ pub fn predict(
     sum / steps as f64
 }
 
-/// Eqs. 14-16 at their worst over the probe positions, and the diagonal bound (ours): [g_1,
-/// g_2, g_3, g_4]. g_4 is the largest relative excursion of an M-hat_jj outside its joint's
-/// [lo, hi].
-pub fn constraints(layout: &Layout, p: &[f64], probes: &[Vec<f64>], b: &InertiaBounds) -> [f64; 4] {
+/// Eqs. 14-16 at their worst over the probe positions: [g_1, g_2, g_3].
+pub fn constraints(layout: &Layout, p: &[f64], probes: &[Vec<f64>], b: &Prior) -> [f64; 3] {
     let n = layout.n;
-    let mut g = [f64::NEG_INFINITY; 4];
+    let mut g = [f64::NEG_INFINITY; 3];
     let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
     for q in probes {
         network::inertia(layout, p, q, &mut m);
@@ -281,12 +410,6 @@ pub fn constraints(layout: &Layout, p: &[f64], probes: &[Vec<f64>], b: &InertiaB
         g[0] = g[0].max(-gamma);
         g[1] = g[1].max(b.m1 - lo);
         g[2] = g[2].max(hi - b.m2);
-        for (j, [dl, dh]) in b.diag.iter().enumerate() {
-            let d = m[j * n + j];
-            g[3] = g[3]
-                .max((DIAG_MARGIN.0 * dl - d) / dl)
-                .max((d - DIAG_MARGIN.1 * dh) / dh);
-        }
     }
     g
 }
@@ -296,14 +419,14 @@ struct Fit<'a> {
     layout: &'a Layout,
     train: &'a Trajectory,
     probes: &'a [Vec<f64>],
-    bounds: &'a InertiaBounds,
-    lambda: [f64; 4],
+    prior: &'a Prior,
+    lambda: [f64; 3],
     s_t: f64,
 }
 
 impl Objective for Fit<'_> {
     fn value(&self, p: &[f64]) -> f64 {
-        let g = constraints(self.layout, p, self.probes, self.bounds);
+        let g = constraints(self.layout, p, self.probes, self.prior);
         let pen: f64 = g
             .iter()
             .zip(self.lambda)
@@ -344,14 +467,13 @@ pub fn rms_per_joint(layout: &Layout, p: &[f64], traj: &Trajectory) -> Vec<f64> 
 /// Initial network and per-parameter mutation scales from the data (the EA's x0 and sigma0).
 /// Centres sit on data samples, widths span the data, the inertia diagonal starts at the middle
 /// of [m1, m2], the servo network as a critically damped P-D servo, every other output weight
-/// at 0. The torque scale m2 (rms theta_d'' + 9.81) only
-/// sets how far the search steps at first, divided like every scale by sqrt(parameters).
-pub fn initial(
-    layout: &Layout,
-    train: &Trajectory,
-    bounds: &InertiaBounds,
-) -> (Vec<f64>, Vec<f64>) {
-    let m2 = bounds.m2;
+/// at 0. The last RBF of each inertia sub-network is the entry's constant part (`is_constant`):
+/// centred on the data's mean position, `CONSTANT_WIDTH` wide, so that M-hat tends to a
+/// constant matrix away from the data instead of decaying to 0. The torque scale m2 (rms
+/// theta_d'' + 9.81) only sets how far the search steps at first, divided like every scale by
+/// sqrt(parameters).
+pub fn initial(layout: &Layout, train: &Trajectory, prior: &Prior) -> (Vec<f64>, Vec<f64>) {
+    let m2 = prior.m2;
     let n = train.n;
     let len = train.len();
     let mut x0 = vec![0.0; layout.len];
@@ -387,7 +509,10 @@ pub fn initial(
             (hi - lo).max(0.1)
         })
         .fold(0.0f64, |a, b| a.max(b));
-    let m_mid = |j: usize| bounds.mid(j);
+    let m_mid = |_: usize| prior.mid();
+    let mean: Vec<f64> = (0..n)
+        .map(|j| (0..len).map(|i| train.x_at(i)[j]).sum::<f64>() / len as f64)
+        .collect();
     // The starting servo: critically damped at 20 rad/s on the middle inertia (a stiff
     // industrial axis). Only a start: the search moves every weight.
     let (k_p, k_d) = (400.0, 40.0);
@@ -412,6 +537,14 @@ pub fn initial(
                     x0[b + 2] = k * c / (4.0 / std::f64::consts::E);
                     s0[b + 2] = torque_scale;
                 }
+                Part::Inertia(a, c) if is_constant(net, l) => {
+                    x0[b..b + n].copy_from_slice(&mean);
+                    x0[b + n] = CONSTANT_WIDTH;
+                    s0[b + n + 1] = 0.1 * m_mid(a);
+                    if a == c {
+                        x0[b + n + 1] = m_mid(a);
+                    }
+                }
                 _ => {
                     // Centres on training positions spread over the run.
                     let i = (l * len) / net.rbfs + len / (2 * net.rbfs);
@@ -422,13 +555,7 @@ pub fn initial(
                     s0[b + n] = 0.5 * span;
                     let w = &mut s0[b + n + 1..b + per];
                     match part {
-                        Part::Inertia(a, c) => {
-                            w.fill(0.1 * m_mid(a));
-                            if a == c {
-                                // Broad bumps are near 1 over the data: split m_mid among them.
-                                x0[b + n + 1] = m_mid(a) / net.rbfs as f64;
-                            }
-                        }
+                        Part::Inertia(a, _) => w.fill(0.1 * m_mid(a)),
                         Part::Velocity(_) => w.fill(m2),
                         _ => w.fill(torque_scale),
                     }
@@ -451,34 +578,35 @@ pub fn initial(
     (x0, s0)
 }
 
-/// Identify a model of the arm `arm` (whose true M(q) gives the inertia bounds over the data's
-/// positions) from `data`, an RKGNN on the data's reference at the settings' step; `source` names
-/// the data in the model file.
+/// Width of an inertia entry's constant RBF, rad: exp(-d^2 / 1e6) stays within 1e-5 of 1 over
+/// any joint range.
+const CONSTANT_WIDTH: f64 = 1e3;
+
+/// Whether RBF `l` of an inertia sub-network is its constant part (the last one; a sub-network
+/// of one RBF has none, so that it can still vary).
+fn is_constant(net: &network::SubNet, l: usize) -> bool {
+    net.rbfs > 1 && l == net.rbfs - 1
+}
+
+/// Identify a model from `data` knowing only eq. 2's `prior` of the arm, an RKGNN on the data's
+/// reference at the settings' step; `source` names the data in the model file.
 pub fn identify_model(
     data: &Trajectory,
-    arm: &crate::dynamics::Model,
+    prior: &Prior,
     s: &Settings,
     source: String,
     progress: impl FnMut(usize, f64),
 ) -> Result<super::RkgnnModel, String> {
-    if arm.dof() != data.n {
-        return Err(format!(
-            "the arm has {} joints, the data {}",
-            arm.dof(),
-            data.n
-        ));
-    }
-    let bounds = InertiaBounds::of(arm, data.x.chunks(2 * data.n).map(|x| &x[..data.n]));
-    let (net, report) = identify(data, &bounds, s, progress)?;
+    let (net, report) = identify(data, prior, s, progress)?;
     Ok(super::RkgnnModel::new(data, s.stride, net, source, report))
 }
 
-/// Identify an RKGNN on `data` (the first 1 - holdout of it) with eq. 2's bounds `m1`, `m2`.
+/// Identify an RKGNN on `data` (the first 1 - holdout of it) with eq. 2's bounds `prior`.
 /// `progress(evaluations, best)` is called after each generation. Returns the network (with the
 /// settings' RBF counts) and the report.
 pub fn identify(
     data: &Trajectory,
-    bounds: &InertiaBounds,
+    prior: &Prior,
     s: &Settings,
     mut progress: impl FnMut(usize, f64),
 ) -> Result<(Network, Report), String> {
@@ -496,19 +624,24 @@ pub fn identify(
     let train = d.window(0, split);
     let hold = d.window(split - 1, d.len());
     let layout = Layout::new(d.n, s.counts);
-    let probes: Vec<Vec<f64>> = (0..s.probes)
-        .map(|k| train.x_at(k * train.len() / s.probes)[..d.n].to_vec())
-        .collect();
-    let (x0, s0) = initial(&layout, &train, bounds);
+    let probes = region_probes(&train, s.probes);
+    let (x0, s0) = initial(&layout, &train, prior);
     let (x0, s0) = match s.start {
         Start::Random => (x0, s0),
         Start::LeastSquares => {
             let full = data.window(0, ((split - 1) * s.stride.max(1) + 1).min(data.len()));
-            let x = least_squares_start(&layout, &x0, &full, s.stride, &probes, bounds).ok_or(
-                "the least-squares start found no model with a positive definite M-hat \
-                 (give --start random)",
-            )?;
-            (x, s0.iter().map(|v| v * LS_SIGMA).collect())
+            let x = least_squares_start(&layout, &x0, &full, s.stride, &probes, prior, &s.servo)
+                .ok_or(
+                    "the least-squares start found no model with a positive definite M-hat \
+                     (give --start random)",
+                )?;
+            let x = refine_start(&layout, x, &train, &probes, prior, s);
+            let mut s0: Vec<f64> = s0.iter().map(|v| v * LS_SIGMA).collect();
+            if let (Some(g), ServoPrior::Known { .. }) = (layout.gains, &s.servo) {
+                // A known servo is not searched.
+                s0[g..g + 2 * d.n].fill(0.0);
+            }
+            (x, s0)
         }
     };
     let mut ea = ChaoticEa::new(s.ea, &x0, &s0);
@@ -518,7 +651,7 @@ pub fn identify(
         layout: &layout,
         train: &train,
         probes: &probes,
-        bounds,
+        prior,
         lambda: s.lambda,
         s_t: 10.0 + (k as f64 + 1.0).ln(),
     };
@@ -546,18 +679,49 @@ pub fn identify(
         generations: ea.generation(),
         objective,
         h: d.h,
-        m1: bounds.m1,
-        m2: bounds.m2,
-        inertia_diag: if s.lambda[3] > 0.0 {
-            bounds.diag.clone()
-        } else {
-            Vec::new()
-        },
+        m1: prior.m1,
+        m2: prior.m2,
         start: s.start,
+        servo: s.servo.clone(),
         seed: s.ea.seed,
         history,
     };
     Ok((net, report))
+}
+
+/// The least-squares start refined by `s.refine` Levenberg-Marquardt steps on the output error:
+/// with an unknown servo k_p,1 holds the scale and eq. 2 gives it again after; a known servo's
+/// gains stay as they are.
+fn refine_start(
+    layout: &Layout,
+    mut x: Vec<f64>,
+    train: &Trajectory,
+    probes: &[Vec<f64>],
+    prior: &Prior,
+    s: &Settings,
+) -> Vec<f64> {
+    let Some(g) = layout.gains else { return x };
+    if s.refine == 0 {
+        return x;
+    }
+    let known = matches!(s.servo, ServoPrior::Known { .. });
+    let free: Vec<usize> = weight_indices(layout)
+        .into_iter()
+        .filter(|&k| {
+            if known {
+                !(g..g + 2 * layout.n).contains(&k)
+            } else {
+                k != g
+            }
+        })
+        .collect();
+    let keep =
+        |p: &[f64]| network::min_eig(layout, p, probes.iter().map(Vec::as_slice)) >= 0.5 * prior.m1;
+    super::refine::refine(layout, &mut x, &free, train, keep, s.refine, s.threads);
+    if known {
+        return x;
+    }
+    scale_to_prior(layout, x.clone(), probes, prior).unwrap_or(x)
 }
 
 /// Indices of every output weight in the flat parameter vector (centres and widths excluded).
@@ -591,25 +755,74 @@ fn residual(layout: &Layout, p: &[f64], x: &[f64], xdd: &[f64], r: &[f64], out: 
 /// widths of `initial` fixed, the inverse-dynamics equation
 ///   M-hat(q) q'' + V-hat(q, q') + G-hat(q) = k_p e + k_d e',  e = theta_d - q,
 /// which holds at every sample (q'' from central differences of the measured q'), is linear in
-/// every other parameter. It is homogeneous (scale all and the motion is the same), so each
-/// joint's equation is first solved in units of its own k_p (k_p,j = 1, a linear least-squares
-/// problem, solved by SVD on unit-norm columns), then each joint is given the torque scale
-/// c_j that puts the mean of M-hat_jj over the probes at the middle of its diagonal bounds:
-/// row j of the model times c_j (an off-diagonal M-hat_jk times sqrt(c_j c_k), to stay
-/// symmetric). Fixing the scale on M-hat instead, inside the least squares, does not work: the
-/// data's accelerations are small, so "no servo, no gravity, M-hat q'' ~ 0" fits the equation
-/// better than the truth with its unmodelled friction. The EA then refines everything on the
-/// free-run prediction error it is judged by.
+/// every other parameter, the per-joint gains included. It is homogeneous (scale all and the
+/// motion is the same), so it is solved in units of joint 1's k_p (k_p,1 = 1 moves to the
+/// right-hand side; every other k_p,j and every k_d,j stays unknown: one scale for the whole
+/// model, since M-hat is one symmetric matrix shared by all joints' equations), a linear
+/// least-squares problem solved by SVD on unit-norm columns. The model is then given the one
+/// scale c that centres its eigenvalue range over the operating region in eq. 2's [m_1, m_2]
+/// (geometrically: c^2 lo hi = m_1 m_2). Fixing the scale on M-hat instead, inside the least
+/// squares, does not work: the data's accelerations are small, so "no servo, no gravity,
+/// M-hat q'' ~ 0" fits the equation better than the truth with its unmodelled friction. The EA
+/// then refines everything on the free-run prediction error it is judged by.
 pub fn least_squares_start(
     layout: &Layout,
     p0: &[f64],
     data: &Trajectory,
     stride: usize,
     probes: &[Vec<f64>],
-    bounds: &InertiaBounds,
+    prior: &Prior,
+    servo: &ServoPrior,
 ) -> Option<Vec<f64>> {
-    let target = Target::ServoUnits(bounds);
-    least_squares(layout, p0, data, target, stride, probes, 0.5 * bounds.m1)
+    let n = layout.n;
+    let g = layout.gains?;
+    let floor = |p: Vec<f64>| {
+        (network::min_eig(layout, &p, probes.iter().map(Vec::as_slice)) >= 0.5 * prior.m1)
+            .then_some(p)
+    };
+    if let ServoPrior::Known { kp, kd, .. } = servo {
+        // The servo's torque, as the controller computed it from the same measurements.
+        let mut tau = vec![0.0; data.len() * n];
+        for i in 0..data.len() {
+            servo.torque(data.r_at(i), data.x_at(i), &mut tau[i * n..(i + 1) * n]);
+        }
+        let mut p = p0.to_vec();
+        for j in 0..n {
+            p[g + 2 * j] = kp[j];
+            p[g + 2 * j + 1] = kd[j];
+        }
+        let target = Target::Torques(&tau);
+        return least_squares(layout, &p, data, target, stride, INERTIA_RIDGES, floor);
+    }
+    let data = &smooth_positions(data, SMOOTH_HALF_WINDOW);
+    // Stage 1, the servo: every weight free (no ridge on the inertia, which would shrink the
+    // joints that are tied to joint 1's scale only weakly), for the gains alone.
+    let positive = |p: Vec<f64>| {
+        (0..n)
+            .all(|j| p[g + 2 * j] > 0.0 && p[g + 2 * j + 1] >= 0.0)
+            .then_some(p)
+    };
+    let servo = least_squares(layout, p0, data, Target::ServoUnits, stride, &[0.0], |p| {
+        positive(p)
+    })?;
+    // Stage 2, the arm: with the gains fixed the servo's torque is known at every sample, and
+    // M-hat, V-hat, G-hat are fitted to it with the smallest inertia ridge that leaves M-hat
+    // positive definite over the region once scaled to eq. 2 (at least m_1 / 2 there).
+    let mut tau = vec![0.0; data.len() * n];
+    for i in 0..data.len() {
+        let (r, x) = (data.r_at(i), data.x_at(i));
+        for j in 0..n {
+            tau[i * n + j] =
+                servo[g + 2 * j] * (r[j] - x[j]) + servo[g + 2 * j + 1] * (r[n + j] - x[n + j]);
+        }
+    }
+    let scaled = |p: Vec<f64>| {
+        scale_to_prior(layout, p, probes, prior).filter(|p| {
+            network::min_eig(layout, p, probes.iter().map(Vec::as_slice)) >= 0.5 * prior.m1
+        })
+    };
+    let target = Target::Torques(&tau);
+    least_squares(layout, &servo, data, target, stride, INERTIA_RIDGES, scaled)
 }
 
 /// The same fit when the loop's joint torques are known (`torques`, n per sample of `data`):
@@ -628,41 +841,44 @@ pub fn least_squares_with_torques(
 ) -> Option<Vec<f64>> {
     assert_eq!(torques.len(), data.len() * data.n);
     let target = Target::Torques(torques);
-    least_squares(layout, p0, data, target, stride, probes, min_eig)
+    let floor = |p: Vec<f64>| {
+        (network::min_eig(layout, &p, probes.iter().map(Vec::as_slice)) >= min_eig).then_some(p)
+    };
+    least_squares(layout, p0, data, target, stride, INERTIA_RIDGES, floor)
 }
 
 /// What the least squares fit the dynamics to.
 #[derive(Clone, Copy)]
 enum Target<'a> {
-    /// The servo's torque in each joint's k_p units (torque-free data is homogeneous): k_p = 1
-    /// moves to the right-hand side, and the solution is then scaled to the joints' M_jj
-    /// bounds (`scale_joints`).
-    ServoUnits(&'a InertiaBounds),
+    /// The servo's torque in units of joint 1's k_p (torque-free data is homogeneous): k_p,1 =
+    /// 1 moves to the right-hand side.
+    ServoUnits,
     /// Known joint torques, n per sample of the data; the servo stays out of the fit.
     Torques(&'a [f64]),
 }
 
-/// The least-squares fits' common part. M-hat's smallest eigenvalue over the probes must reach
-/// `floor`.
+/// The least-squares fits' common part: the solution with the smallest of `ridges` (on the
+/// inertia network's bumps) that `accept` takes, as `accept` returns it.
+#[allow(clippy::too_many_arguments)]
 fn least_squares(
     layout: &Layout,
     p0: &[f64],
     data: &Trajectory,
     target: Target,
     stride: usize,
-    probes: &[Vec<f64>],
-    floor: f64,
+    ridges: &[f64],
+    accept: impl Fn(Vec<f64>) -> Option<Vec<f64>>,
 ) -> Option<Vec<f64>> {
     let n = layout.n;
     let g = layout.gains?;
     let kp = |j: usize| g + 2 * j;
     let torques = match target {
         Target::Torques(t) => Some(t),
-        Target::ServoUnits(_) => None,
+        Target::ServoUnits => None,
     };
-    // In k_p units the k_p columns are the right-hand side; with torques every servo weight
-    // stays out of the fit.
-    let servo = |k: usize| (0..n).any(|j| k == kp(j) || (torques.is_some() && k == kp(j) + 1));
+    // In k_p,1 units joint 1's k_p column is the right-hand side; with torques every servo
+    // weight stays out of the fit.
+    let servo = |k: usize| k == kp(0) || (torques.is_some() && (g..g + 2 * n).contains(&k));
     let cols: Vec<usize> = weight_indices(layout)
         .into_iter()
         .filter(|k| !servo(*k))
@@ -721,11 +937,9 @@ fn least_squares(
         a.set_column(c, &column);
     }
     if torques.is_none() {
-        for j in 0..n {
-            // k_p,j = 1 moves to the right-hand side.
-            fill(&mut p, kp(j), &mut column);
-            rhs -= &column;
-        }
+        // k_p,1 = 1 moves to the right-hand side.
+        fill(&mut p, kp(0), &mut column);
+        rhs -= &column;
     }
     let norms: Vec<f64> = (0..cols.len() + nuis)
         .map(|c| a.column(c).norm().max(1e-300))
@@ -737,18 +951,35 @@ fn least_squares(
     // are small and nearly collinear with the other columns along one trajectory:
     // unregularised, its weights grow large and cancelling, harmless in the fit, wild at the
     // velocities a controller meets off it (V-hat 5 N m where the arm's V is 0.07), so its
-    // columns always carry VELOCITY_RIDGE. The inertia network gets the smallest ridge of
-    // INERTIA_RIDGES that leaves M-hat positive definite over the probes (at least m1 / 2).
-    let sub_cols = |nets: Vec<&network::SubNet>| -> Vec<usize> {
-        nets.into_iter()
-            .flat_map(|net| net.all_weights())
+    // columns always carry VELOCITY_RIDGE. The inertia network's bumps (not its constant
+    // parts) get the smallest ridge of INERTIA_RIDGES that leaves M-hat positive definite over
+    // the operating region's probes (at least `floor`): the larger the ridge, the nearer M-hat
+    // is to its constant part.
+    let sub_cols = |ks: Vec<usize>| -> Vec<usize> {
+        ks.into_iter()
             .filter_map(|k| cols.iter().position(|&c| c == k))
             .collect()
     };
-    let vel = sub_cols(layout.velocity.iter().collect());
-    let iner = sub_cols(layout.inertia.iter().map(|(_, n)| n).collect());
+    let vel = sub_cols(
+        layout
+            .velocity
+            .iter()
+            .flat_map(|net| net.all_weights())
+            .collect(),
+    );
+    let iner = sub_cols(
+        layout
+            .inertia
+            .iter()
+            .flat_map(|(_, net)| {
+                (0..net.rbfs)
+                    .filter(|&l| !is_constant(net, l))
+                    .flat_map(|l| net.weights(l))
+            })
+            .collect(),
+    );
     let base = a.nrows();
-    for &r_m in INERTIA_RIDGES {
+    for &r_m in ridges {
         let extra = vel.len() + if r_m > 0.0 { iner.len() } else { 0 };
         let mut ar = a.clone().resize_vertically(base + extra, 0.0);
         let br = rhs.clone().resize_vertically(base + extra, 0.0);
@@ -768,81 +999,82 @@ fn least_squares(
         for (c, &k) in cols.iter().enumerate() {
             p[k] = w[c] / norms[c];
         }
-        let p = match target {
-            Target::ServoUnits(bounds) => {
-                for j in 0..n {
-                    p[kp(j)] = 1.0;
-                }
-                let Some(p) = scale_joints(layout, p, probes, bounds) else {
-                    continue;
-                };
-                p
-            }
-            Target::Torques(_) => {
-                p[g..g + 2 * n].copy_from_slice(&p0[g..g + 2 * n]);
-                p
-            }
-        };
-        if network::min_eig(layout, &p, probes.iter().map(Vec::as_slice)) >= floor {
+        match target {
+            Target::ServoUnits => p[kp(0)] = 1.0,
+            Target::Torques(_) => p[g..g + 2 * n].copy_from_slice(&p0[g..g + 2 * n]),
+        }
+        if let Some(p) = accept(p) {
             return Some(p);
         }
     }
     None
 }
 
+/// `data` with its measured positions smoothed by a centred quadratic Savitzky-Golay window of
+/// 2 `half` + 1 samples (ends kept as measured). The servo's torque k_p e is read off the
+/// position error, and with torque-free data the scale of joints that couple only weakly to
+/// joint 1 hangs on small terms: encoder-class noise of 1e-4 rad on e, unfiltered, halved the
+/// shoulder and forearm gains of arm3's fit (1.29 and 0.77 of k_p,1 on clean data, 0.64 and 0.28
+/// with noise; truth 1.33 and 0.67). A quadratic window passes the arm's motion (Hz) and cuts
+/// white noise by about sqrt(window).
+fn smooth_positions(data: &Trajectory, half: usize) -> Trajectory {
+    let n = data.n;
+    let len = data.len();
+    let mut out = data.clone();
+    if half == 0 || len < 2 * half + 1 {
+        return out;
+    }
+    let m = half as f64;
+    let norm = (2.0 * m + 1.0) * (4.0 * m * m + 4.0 * m - 3.0);
+    let coef: Vec<f64> = (-(half as i64)..=half as i64)
+        .map(|i| (3.0 * (3.0 * m * m + 3.0 * m - 1.0) - 15.0 * (i * i) as f64) / norm)
+        .collect();
+    for i in half..len - half {
+        for j in 0..n {
+            out.x[2 * n * i + j] = coef
+                .iter()
+                .enumerate()
+                .map(|(k, c)| c * data.x_at(i + k - half)[j])
+                .sum();
+        }
+    }
+    out
+}
+
+/// Half width of `smooth_positions`' window, samples.
+const SMOOTH_HALF_WINDOW: usize = 10;
+
 /// Relative SVD cut-off of the least-squares start.
 const LS_TOLERANCE: f64 = 1e-6;
 /// Ridge on the velocity network's columns in the least-squares start.
 const VELOCITY_RIDGE: f64 = 0.1;
-/// Ridges tried on the inertia network's columns, smallest first.
-const INERTIA_RIDGES: &[f64] = &[0.0, 0.01, 0.03, 0.1];
+/// Ridges tried on the inertia network's bumps, smallest first.
+const INERTIA_RIDGES: &[f64] = &[0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0];
 
-/// Give each joint of a model in k_p units (k_p,j = 1) the torque scale c_j that puts the mean
-/// of M-hat_jj over the probes at the middle of its diagonal bounds: row j times c_j, an
-/// off-diagonal M-hat_jk times sqrt(c_j c_k) to stay symmetric.
-fn scale_joints(
+/// Give a model in k_p,1 units the one scale c that centres its eigenvalue range [lo, hi] over
+/// the probes in eq. 2's [m_1, m_2] geometrically (c^2 lo hi = m_1 m_2): every output weight
+/// and gain times c. None if M-hat is not positive definite there.
+fn scale_to_prior(
     layout: &Layout,
     mut p: Vec<f64>,
     probes: &[Vec<f64>],
-    bounds: &InertiaBounds,
+    prior: &Prior,
 ) -> Option<Vec<f64>> {
     let n = layout.n;
-    let g = layout.gains?;
     let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
-    let mut mean = [0.0; MAX_JOINTS];
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
     for q in probes {
         network::inertia(layout, &p, q, &mut m);
-        for j in 0..n {
-            mean[j] += m[j * n + j] / probes.len() as f64;
-        }
+        let (l, h) = network::sym_eig_range(n, &m);
+        lo = lo.min(l);
+        hi = hi.max(h);
     }
-    let mut c = [1.0; MAX_JOINTS];
-    for j in 0..n {
-        if mean[j].is_nan() || mean[j] <= 0.0 {
-            return None;
-        }
-        c[j] = bounds.mid(j) / mean[j];
+    if !(lo > 0.0 && hi.is_finite()) {
+        return None;
     }
-    for ((a_, b_), net) in &layout.inertia {
-        scale_weights(&mut p, net, (c[*a_] * c[*b_]).sqrt());
-    }
-    for (i, net) in layout.velocity.iter().enumerate() {
-        scale_weights(&mut p, net, c[i]);
-    }
-    let gn = &layout.gravity;
-    for l in 0..gn.rbfs {
-        for (w, cj) in gn.weights(l).zip(c) {
-            p[w] *= cj;
-        }
-    }
-    for j in 0..n {
-        p[g + 2 * j] *= c[j];
-        p[g + 2 * j + 1] *= c[j];
+    let c = (prior.m1 * prior.m2 / (lo * hi)).sqrt();
+    for k in weight_indices(layout) {
+        p[k] *= c;
     }
     p.iter().all(|v| v.is_finite()).then_some(p)
-}
-
-/// Multiply a sub-network's output weights by `c`.
-fn scale_weights(p: &mut [f64], net: &network::SubNet, c: f64) {
-    net.all_weights().for_each(|w| p[w] *= c);
 }

@@ -18,7 +18,7 @@
 //! are at fixed simulated times, so a seeded run is reproducible.
 
 use crate::control::fuzzy_computed_torque::{
-    model_weights, premise_distances, probe_positions, MIN_EIG_RATIO,
+    model_probes, model_weights, premise_distances, probe_positions, MIN_EIG_RATIO,
 };
 use crate::control::fuzzy_select;
 use crate::indirect::EpochRecord;
@@ -60,6 +60,8 @@ pub struct LiveIdentify {
     buf: VecDeque<Sample>,
     prev: Option<PlantState>,
     version: u64,
+    /// Per slot, the positions the controller checks a replacement on (`model_probes`).
+    checks: Vec<Vec<Vec<f64>>>,
     /// Bounded like the indirect scheme's (`indirect::HISTORY`).
     pub epochs: crate::report::history::History<EpochRecord>,
 }
@@ -79,6 +81,7 @@ impl LiveIdentify {
             n: f.loaded[0].dof(),
             l: premise_distances(&f.loaded),
             models: f.loaded.clone(),
+            checks: model_probes(&f.loaded, &f.along),
             gamma: f.gamma,
             reference: scn.reference.clone(),
             dt: scn.timing.period,
@@ -179,9 +182,13 @@ impl LiveIdentify {
         let (fresh, fresh_tau) = self.data(self.buf.iter().skip(self.window).copied());
         let t0 = self.buf.front().map_or(0.0, |s| s.t);
         let slot = self.busiest_slot(&train, t0);
-        let probes = probe_positions(&train.x, n);
+        // Positive definite over the window's positions, and on the controller's own checks at
+        // least MIN_EIG_RATIO of the model in service (what the controller will demand).
+        let check = &self.checks[slot];
+        let mut probes = probe_positions(&train.x, n);
+        probes.extend(check.iter().cloned());
         let in_service = &self.models[slot].net;
-        let floor = MIN_EIG_RATIO * in_service.min_eig(probes.iter().map(Vec::as_slice));
+        let floor = MIN_EIG_RATIO * in_service.min_eig(check.iter().map(Vec::as_slice));
         let layout = &in_service.layout;
         let candidate = least_squares_with_torques(
             layout,

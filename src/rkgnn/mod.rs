@@ -6,6 +6,7 @@
 //! - `ea`: the evolutionary algorithm of Section 4 (chaotic mutation, strategic moves).
 //! - `data`: reference and output data from a run's `run.csv`, never the torques.
 //! - `identify`: the RKGNN (Runge-Kutta-Gill around N_f, `plant::gill`) fitted by eq. 13.
+//! - `refine`: Levenberg-Marquardt on the free-run output error (after the least squares).
 //! - `model`: the identified model's file (`MODEL.json`).
 //! - `live`: identification alongside operation (`optimiser.mode = "identify"`).
 //! - `study`: Section 5 on any 3-joint arm (`evoloop rkgnn study`, Figs. 7-10).
@@ -19,6 +20,7 @@ pub mod identify;
 pub mod live;
 pub mod model;
 pub mod network;
+pub mod refine;
 pub mod study;
 
 pub use data::Trajectory;

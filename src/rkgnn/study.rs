@@ -21,7 +21,7 @@ use crate::dynamics::Model;
 use crate::report::metrics::tracking;
 use crate::report::plot::{stacked_png, Panel, Series};
 use crate::report::RunLog;
-use crate::rkgnn::identify::{self, InertiaBounds, Report, Settings};
+use crate::rkgnn::identify::{self, Prior, Report, Settings};
 use crate::rkgnn::Trajectory;
 use crate::sim::{simulate, JointTraces, SimResult};
 use serde::Serialize;
@@ -44,6 +44,11 @@ pub struct StudySettings {
     pub seed: u64,
     /// EA evaluations after the least-squares start (0 = the start itself).
     pub evaluations: usize,
+    /// Levenberg-Marquardt steps on the output error after the start (0 = none).
+    pub refine: usize,
+    /// Whether the identification knows the training servo's gains (the study's own P-D
+    /// servo) or, as in the paper's premise, not.
+    pub servo_known: bool,
     pub threads: usize,
 }
 
@@ -249,6 +254,20 @@ fn trajectory_positions(cases: &[&Scenario]) -> Vec<Vec<f64>> {
     qs
 }
 
+/// Per joint, the middle of M_jj(q)'s range over `qs`: the simulated vendor tunes its servo to
+/// it (the study's plant side; the identification never sees it).
+fn diagonal_mid(arm: &Model, qs: &[Vec<f64>]) -> Vec<f64> {
+    let mut data = arm.data();
+    let mut range = vec![[f64::INFINITY, f64::NEG_INFINITY]; arm.dof()];
+    for q in qs {
+        let m = arm.mass_matrix(&mut data, q);
+        for (j, r) in range.iter_mut().enumerate() {
+            *r = [r[0].min(m[(j, j)]), r[1].max(m[(j, j)])];
+        }
+    }
+    range.iter().map(|[lo, hi]| 0.5 * (lo + hi)).collect()
+}
+
 /// Refuse an arm whose joint limits the trajectories leave.
 fn within_limits(arm: &Model, qs: &[Vec<f64>], robot: &Path) -> Result<(), String> {
     for (j, b) in arm.bodies.iter().enumerate() {
@@ -384,15 +403,15 @@ pub fn run(
     let arm3 = crate::dynamics::dh::parse_with(ARM3, Path::new("arm3.toml"), &Default::default())
         .map_err(|e| e.to_string())?
         .model;
-    let mid = |m: &Model| {
-        let b = InertiaBounds::of(m, qs.iter().map(Vec::as_slice));
-        (0..JOINTS).map(|j| b.mid(j)).collect::<Vec<_>>()
-    };
-    let ratio: Vec<f64> = mid(&arm)
+    let ratio: Vec<f64> = diagonal_mid(&arm, &qs)
         .iter()
-        .zip(mid(&arm3))
+        .zip(diagonal_mid(&arm3, &qs))
         .map(|(a, b)| a / b)
         .collect();
+    // What the identification may know of the arm: eq. 2's m1, m2 over its joint limits, as a
+    // CAD model gives them (`evoloop rkgnn prior`). Nothing else of the robot reaches it.
+    let workspace = identify::limit_positions(&arm, identify::LIMIT_SAMPLES);
+    let prior = Prior::of_model(&arm, workspace.iter().map(Vec::as_slice));
     let scale = |v: &[f64]| v.iter().zip(&ratio).map(|(g, r)| g * r).collect::<Vec<_>>();
     let (servo_kp, servo_kd) = (scale(&g.servo[0]), scale(&g.servo[1]));
     let pd = pd_table(&servo_kp, &servo_kd);
@@ -410,9 +429,17 @@ pub fn run(
         let data = Trajectory::from_sim(&sim.rows, &c.scenario.reference, c.scenario.timing.period);
         let mut settings = Settings::least_squares(JOINTS, s.seed, s.evaluations);
         settings.threads = s.threads.max(1);
+        settings.refine = s.refine;
+        if s.servo_known {
+            settings.servo = identify::ServoPrior::Known {
+                kp: servo_kp.clone(),
+                kd: servo_kd.clone(),
+                limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
+            };
+        }
         let model = identify::identify_model(
             &data,
-            &arm,
+            &prior,
             &settings,
             format!("rkgnn study: {} on {}", c.name, robot.display()),
             |_, _| {},
