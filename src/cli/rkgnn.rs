@@ -134,6 +134,33 @@ pub enum RkgnnCmd {
     /// largest eigenvalue of M(q) over a run's measured positions (--data) or over random
     /// positions within the joint limits; what `identify rkgnn --m1 --m2` takes.
     Prior(PriorArgs),
+    /// Fuzzy selection against every baseline on four trajectories that are not midpoints:
+    /// three models per seed, the training and a gain-matched P-D servo, CT on the true model
+    /// and on each model, max, blend and uniform blend, best single model in hindsight;
+    /// paired Wilcoxon tests; writes selection.json and report.md.
+    Selection(SelectionArgs),
+}
+
+#[derive(Args)]
+pub struct SelectionArgs {
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// A 3-joint arm (D-H TOML or URDF).
+    #[arg(long, default_value = "config/robots/arm3.toml")]
+    pub robot: PathBuf,
+    /// Seeds (each: new measurement noise, models re-identified).
+    #[arg(long, default_value_t = 10)]
+    pub seeds: u64,
+    /// Threads [default: all cores].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Print selection.json to stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 #[derive(Args)]
@@ -352,6 +379,7 @@ pub fn main(cmd: RkgnnCmd) -> i32 {
         RkgnnCmd::Eval(a) => eval(&a),
         RkgnnCmd::Study(a) => study(&a),
         RkgnnCmd::Prior(a) => prior(&a),
+        RkgnnCmd::Selection(a) => selection(&a),
     };
     match r {
         Ok(()) => 0,
@@ -435,6 +463,29 @@ fn prior(a: &PriorArgs) -> Result<(), String> {
             p.m1,
             p.m2
         );
+    }
+    Ok(())
+}
+
+fn selection(a: &SelectionArgs) -> Result<(), String> {
+    use crate::rkgnn::selection;
+    let settings = selection::SelectionSettings {
+        robot: a.robot.clone(),
+        seeds: a.seeds,
+        threads: a.threads.unwrap_or_else(crate::optim::all_cores),
+    };
+    let bar = crate::report::progress::bar(0, "runs", a.quiet || a.json);
+    let r = selection::run(&settings, &a.out, &|done, total, stage| {
+        bar.set_length(total);
+        bar.set_position(done);
+        bar.set_message(stage.to_string());
+    })?;
+    bar.finish_and_clear();
+    if a.json {
+        crate::cli::print_json(&r);
+    } else {
+        out!("{}", selection::report_markdown(&r));
+        out!("wrote {}/{{selection.json, report.md}}", a.out.display());
     }
     Ok(())
 }

@@ -10,6 +10,8 @@
 //! - `model`: the identified model's file (`MODEL.json`).
 //! - `live`: identification alongside operation (`optimiser.mode = "identify"`).
 //! - `study`: Section 5 on any 3-joint arm (`evoloop rkgnn study`, Figs. 7-10).
+//! - `selection`: fuzzy selection against every baseline on trajectories that are not
+//!   midpoints (`evoloop rkgnn selection`).
 //!
 //! The controller that uses the models is `control::fuzzy_computed_torque`, the selection rule
 //! `control::fuzzy_select`.
@@ -21,6 +23,7 @@ pub mod live;
 pub mod model;
 pub mod network;
 pub mod refine;
+pub mod selection;
 pub mod study;
 
 pub use data::Trajectory;

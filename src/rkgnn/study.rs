@@ -81,7 +81,7 @@ impl TrackingRms {
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelSummary {
     pub file: PathBuf,
-    pub trajectory: &'static str,
+    pub trajectory: String,
     pub train_rms: Vec<f64>,
     pub holdout_rms: Vec<f64>,
     pub min_eig_m_hat: f64,
@@ -89,10 +89,10 @@ pub struct ModelSummary {
 }
 
 impl ModelSummary {
-    fn of(file: PathBuf, trajectory: &'static str, r: &Report) -> Self {
+    pub(super) fn of(file: PathBuf, trajectory: &str, r: &Report) -> Self {
         Self {
             file,
-            trajectory,
+            trajectory: trajectory.to_string(),
             train_rms: r.train_rms.clone(),
             holdout_rms: r.holdout_rms.clone(),
             min_eig_m_hat: r.min_eig_m_hat,
@@ -127,19 +127,19 @@ pub struct StudyResult {
 }
 
 /// A scenario text edited as TOML and validated like a user's file.
-struct Case {
-    name: &'static str,
+pub(super) struct Case {
+    pub(super) name: String,
     text: String,
-    scenario: Scenario,
+    pub(super) scenario: Scenario,
 }
 
-fn table<'a>(t: &'a mut toml::Table, key: &str) -> Result<&'a mut toml::Table, String> {
+pub(super) fn table<'a>(t: &'a mut toml::Table, key: &str) -> Result<&'a mut toml::Table, String> {
     t.get_mut(key)
         .and_then(toml::Value::as_table_mut)
         .ok_or_else(|| format!("built-in scenario: no table [{key}]"))
 }
 
-fn floats(v: &toml::Value) -> Result<Vec<f64>, String> {
+pub(super) fn floats(v: &toml::Value) -> Result<Vec<f64>, String> {
     v.as_array()
         .and_then(|a| {
             a.iter()
@@ -149,14 +149,14 @@ fn floats(v: &toml::Value) -> Result<Vec<f64>, String> {
         .ok_or_else(|| format!("built-in scenario: `{v}` is not a list of numbers"))
 }
 
-fn float_list(v: &[f64]) -> toml::Value {
+pub(super) fn float_list(v: &[f64]) -> toml::Value {
     toml::Value::Array(v.iter().map(|x| toml::Value::Float(*x)).collect())
 }
 
 /// `base` (a built-in scenario) for `robot` with the controller table `controller`, validated
 /// as `dir/scenarios/NAME.toml` (`write_scenarios` writes it there).
-fn case(
-    name: &'static str,
+pub(super) fn case(
+    name: &str,
     base: &str,
     robot: &Path,
     seed: u64,
@@ -181,14 +181,14 @@ fn case(
         Scenario::parse(&text, &path, &Overrides::default()).map_err(|e| e.to_string())?;
     scenario.require_duration()?;
     Ok(Case {
-        name,
+        name: name.to_string(),
         text,
         scenario,
     })
 }
 
 /// Write each case's scenario file, so that it can be rerun through the processes.
-fn write_scenarios(cases: &[Case]) -> Result<(), String> {
+pub(super) fn write_scenarios(cases: &[Case]) -> Result<(), String> {
     for c in cases {
         let path = &c.scenario.source;
         std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")))
@@ -199,7 +199,7 @@ fn write_scenarios(cases: &[Case]) -> Result<(), String> {
 }
 
 /// `[controller]` of kind `kind` with its table `body`.
-fn controller(kind: &str, body: toml::Table) -> toml::Table {
+pub(super) fn controller(kind: &str, body: toml::Table) -> toml::Table {
     let mut c = toml::Table::new();
     c.insert("kind".into(), kind.into());
     c.insert("stale_after_periods".into(), toml::Value::Integer(3));
@@ -208,13 +208,13 @@ fn controller(kind: &str, body: toml::Table) -> toml::Table {
 }
 
 /// The built-in scenarios' gains: the servo's [kp, kd] and computed torque's [kp, kv, rate].
-struct Gains {
-    servo: [Vec<f64>; 2],
-    ct: [Vec<f64>; 2],
-    startup_rate: f64,
+pub(super) struct Gains {
+    pub(super) servo: [Vec<f64>; 2],
+    pub(super) ct: [Vec<f64>; 2],
+    pub(super) startup_rate: f64,
 }
 
-fn gains() -> Result<Gains, String> {
+pub(super) fn gains() -> Result<Gains, String> {
     let train: toml::Table = TRAIN1.parse().map_err(|e| format!("{e}"))?;
     let new: toml::Table = NEW.parse().map_err(|e| format!("{e}"))?;
     let get = |t: &toml::Table, law: &str, key: &str| -> Result<toml::Value, String> {
@@ -241,7 +241,7 @@ fn gains() -> Result<Gains, String> {
 }
 
 /// The positions of the three trajectories every 10 ms.
-fn trajectory_positions(cases: &[&Scenario]) -> Vec<Vec<f64>> {
+pub(super) fn trajectory_positions(cases: &[&Scenario]) -> Vec<Vec<f64>> {
     let mut sp = crate::reference::Setpoint::default();
     let mut qs = Vec::new();
     for scn in cases {
@@ -256,7 +256,7 @@ fn trajectory_positions(cases: &[&Scenario]) -> Vec<Vec<f64>> {
 
 /// Per joint, the middle of M_jj(q)'s range over `qs`: the simulated vendor tunes its servo to
 /// it (the study's plant side; the identification never sees it).
-fn diagonal_mid(arm: &Model, qs: &[Vec<f64>]) -> Vec<f64> {
+pub(super) fn diagonal_mid(arm: &Model, qs: &[Vec<f64>]) -> Vec<f64> {
     let mut data = arm.data();
     let mut range = vec![[f64::INFINITY, f64::NEG_INFINITY]; arm.dof()];
     for q in qs {
@@ -269,7 +269,7 @@ fn diagonal_mid(arm: &Model, qs: &[Vec<f64>]) -> Vec<f64> {
 }
 
 /// Refuse an arm whose joint limits the trajectories leave.
-fn within_limits(arm: &Model, qs: &[Vec<f64>], robot: &Path) -> Result<(), String> {
+pub(super) fn within_limits(arm: &Model, qs: &[Vec<f64>], robot: &Path) -> Result<(), String> {
     for (j, b) in arm.bodies.iter().enumerate() {
         let (lo, hi) = qs
             .iter()
@@ -293,7 +293,11 @@ fn within_limits(arm: &Model, qs: &[Vec<f64>], robot: &Path) -> Result<(), Strin
 
 /// Simulate the cases on up to `threads` threads (contiguous shares: the cases cost about the
 /// same), in order; `done` after each.
-fn simulate_all(cases: &[Case], threads: usize, done: &(dyn Fn() + Sync)) -> Vec<SimResult> {
+pub(super) fn simulate_all(
+    cases: &[Case],
+    threads: usize,
+    done: &(dyn Fn() + Sync),
+) -> Vec<SimResult> {
     let share = cases.len().div_ceil(threads.max(1)).max(1);
     std::thread::scope(|s| {
         let workers: Vec<_> = cases
@@ -319,7 +323,7 @@ fn simulate_all(cases: &[Case], threads: usize, done: &(dyn Fn() + Sync)) -> Vec
 
 /// What the study reads off a simulated case per joint.
 impl JointTraces {
-    fn rms(&self) -> Vec<f64> {
+    pub(super) fn rms(&self) -> Vec<f64> {
         let (r, y) = self.columns();
         tracking(&r, &y, 0).rms
     }
@@ -446,7 +450,7 @@ pub fn run(
         )?;
         let file = dir.join(format!("model_{}.json", k + 1));
         model.save(&file)?;
-        summaries.push(ModelSummary::of(file.clone(), c.name, &model.report));
+        summaries.push(ModelSummary::of(file.clone(), &c.name, &model.report));
         models.push(file);
         tick("identification");
     }
@@ -737,7 +741,7 @@ fn figures(
         .iter()
         .zip(&norms)
         .map(|(c, v)| Series {
-            name: c.name,
+            name: &c.name,
             values: v,
         })
         .collect();
