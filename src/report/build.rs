@@ -283,7 +283,9 @@ fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
         ResponseAcc::new(
             extent.rows,
             horizon,
-            extent.last[ri],
+            // A run stopped before its first sample has no last row (the launcher's Ctrl-C
+            // in the first milliseconds).
+            extent.last.get(ri).copied().unwrap_or(0.0),
             scn.timing.period,
             scn.reference.last_change(horizon),
         )
@@ -724,4 +726,23 @@ pub fn build_report(
         }
     }
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_run_stopped_before_its_first_sample_scans_without_a_panic() {
+        // Ctrl-C in the launcher's first milliseconds leaves run.csv with its header only.
+        let scn = crate::config::Scenario::load(
+            std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/config/two_mass.toml")),
+            &crate::config::Overrides::default(),
+        )
+        .unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.csv");
+        std::fs::write(&path, "t,reference,y0,u0\n").unwrap();
+        let scan = super::scan_run(&scn, &path).expect("a header-only run.csv scans");
+        assert_eq!(scan.horizon, 0.0);
+        assert!(!scan.tracking.rms.iter().any(|v| v.is_finite() && *v != 0.0));
+    }
 }

@@ -117,13 +117,26 @@ impl Table {
             if line.is_empty() {
                 continue;
             }
-            let row: Result<Vec<f64>, _> = line.split(',').map(str::parse::<f64>).collect();
-            rows.push(row.map_err(|e| {
+            let bad = |why: String| {
                 std::io::Error::new(
                     std::io::ErrorKind::InvalidData,
-                    format!("{}: line {}: {e}", path.display(), i + 2),
+                    format!("{}: line {}: {why}", path.display(), i + 2),
                 )
-            })?);
+            };
+            let row: Vec<f64> = line
+                .split(',')
+                .map(str::parse::<f64>)
+                .collect::<Result<_, _>>()
+                .map_err(|e| bad(e.to_string()))?;
+            // A row cut short (a full disk, a killed writer) would index past its end later.
+            if row.len() != header.len() {
+                return Err(bad(format!(
+                    "{} values, the header has {} (the file is cut short or damaged)",
+                    row.len(),
+                    header.len()
+                )));
+            }
+            rows.push(row);
         }
         Ok(Table { header, rows })
     }
@@ -148,4 +161,26 @@ impl Table {
 fn numbered(name: &str, prefix: &str) -> bool {
     name.strip_prefix(prefix)
         .is_some_and(|rest| !rest.is_empty() && rest.chars().all(|c| c.is_ascii_digit()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Table;
+
+    #[test]
+    fn a_table_with_a_row_cut_short_is_an_error_naming_the_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.csv");
+        std::fs::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5,2.5\n").unwrap();
+        let t = Table::read(&path).unwrap();
+        assert_eq!(t.rows.len(), 2);
+        assert_eq!(t.col("u0"), Some(vec![2.0, 2.5]));
+        // What a full disk leaves: the last row cut inside a field's boundary.
+        std::fs::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5\n").unwrap();
+        let e = Table::read(&path)
+            .err()
+            .expect("a cut row must be refused")
+            .to_string();
+        assert!(e.contains("line 3") && e.contains("cut short"), "{e}");
+    }
 }
