@@ -196,3 +196,30 @@ fn the_wait_strategy_is_read_checked_and_overridable() {
         "{e}"
     );
 }
+
+#[test]
+fn an_ipc_prefix_too_long_or_with_a_slash_is_refused_before_iceoryx2_sees_it() {
+    // 150 characters panicked inside iceoryx2 (a socket path beyond the kernel's 108 bytes);
+    // 48 failed to create the run's listeners.
+    for bad in [
+        "a".repeat(150),
+        "a".repeat(48),
+        "a/b".to_string(),
+        String::new(),
+    ] {
+        let o = cli(&[
+            "run",
+            "config/two_mass.toml",
+            "--duration",
+            "0.01",
+            "--ipc-prefix",
+            &bad,
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            e.contains("--ipc-prefix") && !e.contains("panicked"),
+            "{bad:?}: {e}"
+        );
+    }
+}

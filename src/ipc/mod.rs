@@ -137,6 +137,33 @@ pub const MAX_SYNC_SAMPLES: usize = 256;
 /// Default prefix of every file iceoryx2 creates for evoloop.
 pub const DEFAULT_PREFIX: &str = "evoloop_";
 
+/// The longest `--ipc-prefix`: iceoryx2 puts the prefix (with this user's uid) into the paths
+/// of its Unix sockets, which the kernel caps at 108 bytes; on this project's VM a prefix of 44
+/// characters (uid 0) worked and 48 failed to create its listeners, and 150 panicked inside
+/// iceoryx2. 32 leaves room for a uid of ten digits.
+pub const MAX_PREFIX: usize = 32;
+
+/// `--ipc-prefix` checked: 1 to `MAX_PREFIX` characters of ASCII letters, digits, `_`, `-`
+/// and `.` (it becomes part of file names).
+pub fn parse_prefix(s: &str) -> Result<String, String> {
+    if s.is_empty() || s.len() > MAX_PREFIX {
+        return Err(format!(
+            "{} characters; an ipc prefix has 1 to {MAX_PREFIX} (it goes into socket paths, \
+             which the kernel caps at 108 bytes)",
+            s.len()
+        ));
+    }
+    if let Some(c) = s
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || "_-.".contains(*c)))
+    {
+        return Err(format!(
+            "{c:?} is not allowed; an ipc prefix takes ASCII letters, digits, '_', '-' and '.'"
+        ));
+    }
+    Ok(s.to_string())
+}
+
 /// iceoryx2 configuration for a prefix: this user's namespace (see `namespace`), with a
 /// separate one per prefix.
 pub fn ipc_config(prefix: &str) -> Result<Config, IpcError> {

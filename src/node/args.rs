@@ -15,7 +15,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub run_id: Option<String>,
     /// Prefix of iceoryx2's files (separate namespace, e.g. for parallel tests).
-    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX)]
+    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX, value_parser = crate::ipc::parse_prefix)]
     pub ipc_prefix: String,
     /// No progress lines.
     #[arg(long, short)]
@@ -62,7 +62,7 @@ pub struct ProcessArgs {
     #[arg(long)]
     pub run_id: String,
     /// Prefix of iceoryx2's files for this run.
-    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX)]
+    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX, value_parser = crate::ipc::parse_prefix)]
     pub ipc_prefix: String,
     #[command(flatten)]
     pub overrides: OverrideArgs,

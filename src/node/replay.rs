@@ -53,7 +53,7 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub run_id: Option<String>,
     /// Prefix of iceoryx2's files.
-    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX)]
+    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX, value_parser = crate::ipc::parse_prefix)]
     pub ipc_prefix: String,
     /// Print replay.json on stdout.
     #[arg(long)]
