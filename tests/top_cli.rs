@@ -93,3 +93,117 @@ fn a_run_that_is_not_running_and_a_screen_without_a_terminal_are_refused() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("terminal") && e.contains("--json"), "{e}");
 }
+
+/// `evoloop top --run ID` on a fresh pseudo-terminal (its controlling terminal, as a login
+/// shell's would be): the child and the master side of the pty.
+fn top_on_a_pty(id: &str) -> (std::process::Child, std::fs::File) {
+    use std::os::fd::FromRawFd;
+    use std::os::unix::process::CommandExt;
+    let (mut master, mut slave) = (0, 0);
+    // SAFETY: openpty writes two new descriptors into the two ints; no name, termios or size.
+    let r = unsafe {
+        libc::openpty(
+            &mut master,
+            &mut slave,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+            std::ptr::null(),
+        )
+    };
+    assert_eq!(r, 0, "openpty");
+    // The child must not inherit the master, or closing ours would not hang the terminal up.
+    // SAFETY: fcntl on a descriptor we own.
+    unsafe { libc::fcntl(master, libc::F_SETFD, libc::FD_CLOEXEC) };
+    // SAFETY: both descriptors were just opened and are owned here alone.
+    let (master, slave) = unsafe {
+        (
+            std::fs::File::from_raw_fd(master),
+            std::fs::File::from_raw_fd(slave),
+        )
+    };
+    let mut cmd = Command::new(evoloop());
+    cmd.args(["top", "--run", id])
+        .stdin(slave.try_clone().unwrap())
+        .stdout(slave.try_clone().unwrap())
+        .stderr(slave);
+    // SAFETY: only async-signal-safe calls between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            if libc::setsid() < 0 || libc::ioctl(0, libc::TIOCSCTTY, 0) < 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    (cmd.spawn().unwrap(), master)
+}
+
+/// The child's exit within `limit`, or None (then it is killed).
+fn exits_within(
+    child: &mut std::process::Child,
+    limit: Duration,
+) -> Option<std::process::ExitStatus> {
+    let t0 = std::time::Instant::now();
+    while t0.elapsed() < limit {
+        if let Some(s) = child.try_wait().unwrap() {
+            return Some(s);
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    None
+}
+
+#[test]
+fn top_exits_when_its_terminal_goes_away_and_on_sigterm() {
+    // Issue 42: with its terminal gone (an SSH drop, a closed tmux window) top kept running at
+    // up to a full core, deaf to SIGTERM, until SIGKILL.
+    use std::os::unix::process::ExitStatusExt;
+    let _g = alone();
+    let (prefix, id) = unique("tophup");
+    let tmp = tempfile::tempdir().unwrap();
+    let mut run = Command::new(evoloop())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "run",
+            "config/two_mass.toml",
+            "--mode",
+            "realtime",
+            "--no-rt",
+        ])
+        .args([
+            "--duration",
+            "20",
+            "--run-id",
+            &id,
+            "--ipc-prefix",
+            &prefix,
+            "--quiet",
+        ])
+        .arg("--out")
+        .arg(tmp.path().join("run"))
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_secs(2));
+    // The terminal goes away: the master side closes.
+    let (mut top, master) = top_on_a_pty(&id);
+    std::thread::sleep(Duration::from_millis(1500));
+    assert!(
+        top.try_wait().unwrap().is_none(),
+        "top ended while its terminal was there"
+    );
+    drop(master);
+    let status = exits_within(&mut top, Duration::from_secs(5)).expect("top outlived its terminal");
+    assert_eq!(status.signal(), None, "top died of a signal: {status:?}");
+    // SIGTERM with the terminal still there: top ends, restoring it.
+    let (mut top, _master) = top_on_a_pty(&id);
+    std::thread::sleep(Duration::from_millis(1500));
+    // SAFETY: the pid is our child's, still running (checked above for the first one).
+    unsafe { libc::kill(top.id() as i32, libc::SIGTERM) };
+    let status = exits_within(&mut top, Duration::from_secs(5)).expect("top ignored SIGTERM");
+    assert_eq!(status.code(), Some(0), "{status:?}");
+    unsafe { libc::kill(run.id() as i32, libc::SIGINT) };
+    let _ = wait_exit(&mut run, Duration::from_secs(30));
+}

@@ -9,6 +9,7 @@ use ratatui::crossterm::event::{self, Event, KeyCode, KeyModifiers};
 use ratatui::prelude::*;
 use ratatui::widgets::{Block, Borders, Paragraph, Row, Sparkline, Table};
 use std::io::IsTerminal;
+use std::os::unix::fs::OpenOptionsExt;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
@@ -82,7 +83,20 @@ pub fn main(a: &TopArgs) -> u8 {
         crate::cli::print_json(&watch.snapshot(start.elapsed().as_secs_f64(), &procs));
         return 0;
     }
+    // The terminal top draws on, watched for input and for going away.
+    let tty = match std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NOCTTY | libc::O_CLOEXEC)
+        .open("/dev/tty")
+    {
+        Ok(t) => t,
+        Err(e) => {
+            err!("error: /dev/tty: {e} (top draws on a terminal; use --json)");
+            return 2;
+        }
+    };
     let mut terminal = ratatui::init();
+    let mut lost = false;
     let mut last_draw: Option<Instant> = None;
     let mut ended_at: Option<Instant> = None;
     let result = loop {
@@ -107,21 +121,40 @@ pub fn main(a: &TopArgs) -> u8 {
         {
             break Ok(());
         }
-        match event::poll(DRAIN) {
-            Ok(true) => {
-                if let Ok(Event::Key(k)) = event::read() {
-                    let ctrl_c =
-                        k.modifiers.contains(KeyModifiers::CONTROL) && k.code == KeyCode::Char('c');
-                    if ctrl_c || matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) {
-                        break Ok(());
+        // Our own poll of the terminal first: once it is gone (an SSH drop, a closed tmux
+        // window) crossterm's poll spun inside itself and never returned, so neither the stop
+        // flag nor anything else was looked at again (issue 42: 92-100 % of a core, deaf to
+        // SIGTERM).
+        match terminal_input(&tty, DRAIN) {
+            Ok(true) => match event::poll(Duration::ZERO) {
+                Ok(true) => {
+                    if let Ok(Event::Key(k)) = event::read() {
+                        let ctrl_c = k.modifiers.contains(KeyModifiers::CONTROL)
+                            && k.code == KeyCode::Char('c');
+                        if ctrl_c || matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) {
+                            break Ok(());
+                        }
                     }
                 }
-            }
+                Ok(false) => {}
+                Err(e) => break Err(e.to_string()),
+            },
             Ok(false) => {}
-            Err(e) => break Err(e.to_string()),
+            Err(e) => {
+                lost = true;
+                break Err(e);
+            }
         }
     };
-    ratatui::restore();
+    if lost {
+        // ratatui's Drop and restore() print their failures with eprintln!, which panics when
+        // stderr is the vanished terminal too, and a panic in its panic hook aborts.
+        std::mem::forget(terminal);
+        let _ = ratatui::try_restore();
+    } else {
+        drop(terminal);
+        ratatui::restore();
+    }
     match result {
         Ok(()) => 0,
         Err(e) => {
@@ -129,6 +162,30 @@ pub fn main(a: &TopArgs) -> u8 {
             1
         }
     }
+}
+
+/// Whether the terminal has input within `timeout`; an error once it has hung up or closed.
+fn terminal_input(tty: &std::fs::File, timeout: Duration) -> Result<bool, String> {
+    use std::os::fd::AsRawFd;
+    let mut p = libc::pollfd {
+        fd: tty.as_raw_fd(),
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    let ms = timeout.as_millis().min(i32::MAX as u128) as i32;
+    // SAFETY: one valid pollfd, for the duration of the call.
+    let r = unsafe { libc::poll(&mut p, 1, ms) };
+    if r < 0 {
+        let e = std::io::Error::last_os_error();
+        return match e.kind() {
+            std::io::ErrorKind::Interrupted => Ok(false),
+            _ => Err(format!("the terminal: {e}")),
+        };
+    }
+    if p.revents & (libc::POLLHUP | libc::POLLERR | libc::POLLNVAL) != 0 {
+        return Err("the terminal went away".into());
+    }
+    Ok(p.revents & libc::POLLIN != 0)
 }
 
 fn drain(p: &Ports, w: &mut Watch, start: Instant) {
