@@ -379,3 +379,25 @@ fn a_dh_table_with_a_repeated_joint_name_is_refused() {
         "{e}"
     );
 }
+
+#[test]
+fn a_urdf_nested_thousands_deep_or_with_a_name_twice_is_refused_not_a_crash() {
+    // Issue 42: 30 000 levels overflowed the stack (exit 134); a duplicate joint name was
+    // accepted (the D-H reader refuses one).
+    let ok = |text: &str| parse(text, LoadOptions::default()).map(|_| ());
+    assert!(ok(&two_links(FORE, "", "")).is_ok());
+    let deep = format!("{}{}", "<a>".repeat(30_000), "</a>".repeat(30_000));
+    let e = ok(&two_links(&format!("{FORE}{deep}"), "", "")).unwrap_err();
+    assert!(e.contains("nested more than"), "{e}");
+    let again = r#"<link name="hand"/><joint name="elbow" type="fixed"><parent link="fore"/><child link="hand"/></joint>"#;
+    let e = ok(&two_links(FORE, "", again)).unwrap_err();
+    assert!(
+        e.contains("joint `elbow`") && e.contains("defined twice"),
+        "{e}"
+    );
+    let e = ok(&two_links(FORE, "", r#"<link name="upper"/>"#)).unwrap_err();
+    assert!(
+        e.contains("link `upper`") && e.contains("defined twice"),
+        "{e}"
+    );
+}

@@ -103,9 +103,20 @@ fn check_xml(text: &str) -> Result<(), (String, String)> {
         }
         if !empty {
             open.push(name);
+            // The URDF reader below recurses per level: 30 000 levels overflowed the stack
+            // (an abort, not an error). A URDF is a few levels deep.
+            if open.len() > MAX_DEPTH {
+                return Err((
+                    String::new(),
+                    format!("elements nested more than {MAX_DEPTH} deep; a URDF is a few levels deep (robot, link, inertial, origin)"),
+                ));
+            }
         }
     }
 }
+
+/// How deep `check_xml` lets elements nest.
+const MAX_DEPTH: usize = 64;
 
 /// A URDF file, read leniently with its friction (see `parse_with`).
 pub fn parse(text: &str, file: &Path) -> Result<Model, RobotError> {
@@ -132,6 +143,22 @@ pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Load
     })?;
     let robot = urdf_rs::read_from_string(text)
         .map_err(|e| fail(String::new(), format!("not a readable URDF: {e}")))?;
+    // Names are how joints and links are found (limits, mimic, parent and child): two of one
+    // name would silently make one of them unreachable.
+    let mut seen = std::collections::HashSet::new();
+    if let Some(j) = robot.joints.iter().find(|j| !seen.insert(j.name.as_str())) {
+        return Err(fail(
+            format!("joint `{}`", j.name),
+            "is defined twice".into(),
+        ));
+    }
+    let mut seen = std::collections::HashSet::new();
+    if let Some(l) = robot.links.iter().find(|l| !seen.insert(l.name.as_str())) {
+        return Err(fail(
+            format!("link `{}`", l.name),
+            "is defined twice".into(),
+        ));
+    }
     let link_index: HashMap<&str, usize> = robot
         .links
         .iter()
