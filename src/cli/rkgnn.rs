@@ -467,6 +467,22 @@ fn prior(a: &PriorArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// `run` with a progress bar of `unit` (hidden when `quiet`) fed by its progress callback.
+fn with_bar<T>(
+    unit: &'static str,
+    quiet: bool,
+    run: impl FnOnce(&(dyn Fn(u64, u64, &str) + Sync)) -> Result<T, String>,
+) -> Result<T, String> {
+    let bar = crate::report::progress::bar(0, unit, quiet);
+    let r = run(&|done, total, stage| {
+        bar.set_length(total);
+        bar.set_position(done);
+        bar.set_message(stage.to_string());
+    });
+    bar.finish_and_clear();
+    r
+}
+
 fn selection(a: &SelectionArgs) -> Result<(), String> {
     use crate::rkgnn::selection;
     let settings = selection::SelectionSettings {
@@ -474,13 +490,9 @@ fn selection(a: &SelectionArgs) -> Result<(), String> {
         seeds: a.seeds,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
-    let bar = crate::report::progress::bar(0, "runs", a.quiet || a.json);
-    let r = selection::run(&settings, &a.out, &|done, total, stage| {
-        bar.set_length(total);
-        bar.set_position(done);
-        bar.set_message(stage.to_string());
+    let r = with_bar("runs", a.quiet || a.json, |p| {
+        selection::run(&settings, &a.out, p)
     })?;
-    bar.finish_and_clear();
     if a.json {
         crate::cli::print_json(&r);
     } else {
@@ -500,13 +512,9 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         servo_known: a.servo == StudyServo::Known,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
-    let bar = crate::report::progress::bar(0, "stages", a.quiet || a.json);
-    let r = study::run(&settings, &a.out, &|done, total, stage| {
-        bar.set_length(total);
-        bar.set_position(done);
-        bar.set_message(stage.to_string());
+    let r = with_bar("stages", a.quiet || a.json, |p| {
+        study::run(&settings, &a.out, p)
     })?;
-    bar.finish_and_clear();
     if a.json {
         crate::cli::print_json(&r);
         return Ok(());

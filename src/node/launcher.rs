@@ -676,6 +676,13 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 scn.timing.wait,
             )
         });
+    // A controller killed between its writer's flushes leaves a row cut short at the end of the
+    // logs; every reader refuses such a file, so what was written in full is kept readable.
+    for name in ["run.csv", "timing.csv"] {
+        if let Err(e) = crate::report::cut_partial_row(&dir.join(name)) {
+            err!("evoloop: warning: {name}: {e}");
+        }
+    }
     match build_report(&scn, &run_id, wall, floor, cleaned, optimiser_restarts) {
         Ok(s) => {
             print_summary(&s, &dir, scn.output.plots);

@@ -16,6 +16,7 @@ pub mod stream;
 pub mod summary;
 
 use std::io::{BufRead, BufWriter, Write};
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::Path;
 
 /// Write `value` as pretty JSON to `dir/name`.
@@ -97,6 +98,34 @@ pub fn write_row(w: &mut impl Write, row: &[f64]) -> std::io::Result<()> {
     w.write_all(b"\n")
 }
 
+/// Drop a last line that does not end in a newline (a row cut short by a kill or a full disk):
+/// the file then holds only whole rows. A missing file is left alone. Returns whether it cut.
+pub fn cut_partial_row(path: &Path) -> std::io::Result<bool> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = match std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .custom_flags(libc::O_NOFOLLOW)
+        .open(path)
+    {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(false),
+        Err(e) => return Err(e),
+    };
+    let len = f.metadata()?.len();
+    // Rows are a few hundred bytes at most; look back far enough for the longest.
+    let back = len.min(1 << 16);
+    f.seek(SeekFrom::Start(len - back))?;
+    let mut tail = Vec::with_capacity(back as usize);
+    f.read_to_end(&mut tail)?;
+    if tail.last().is_none_or(|&b| b == b'\n') {
+        return Ok(false);
+    }
+    let keep = tail.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+    f.set_len(len - back + keep as u64)?;
+    Ok(true)
+}
+
 /// A CSV table read back: header and columns.
 pub struct Table {
     pub header: Vec<String>,
@@ -165,7 +194,7 @@ fn numbered(name: &str, prefix: &str) -> bool {
 
 #[cfg(test)]
 mod tests {
-    use super::Table;
+    use super::{cut_partial_row, Table};
 
     #[test]
     fn a_table_with_a_row_cut_short_is_an_error_naming_the_line() {
@@ -182,5 +211,17 @@ mod tests {
             .expect("a cut row must be refused")
             .to_string();
         assert!(e.contains("line 3") && e.contains("cut short"), "{e}");
+        // What a kill between flushes leaves, and what the launcher does with it after the
+        // run: the cut row goes, the whole ones stay readable.
+        std::fs::write(&path, "t,y0,u0\n0,1,2\n0.001,1.").unwrap();
+        assert!(Table::read(&path).is_err());
+        assert!(cut_partial_row(&path).unwrap());
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "t,y0,u0\n0,1,2\n");
+        assert_eq!(Table::read(&path).unwrap().rows.len(), 1);
+        assert!(
+            !cut_partial_row(&path).unwrap(),
+            "a whole file is left as it is"
+        );
+        assert!(!cut_partial_row(&dir.path().join("none.csv")).unwrap());
     }
 }

@@ -17,8 +17,8 @@
 
 use super::identify::{self, Prior, Settings};
 use super::study::{
-    case, controller, diagonal_mid, float_list, gains, simulate_all, trajectory_positions,
-    within_limits, Case, JOINTS,
+    case, controller, diagonal_mid, float_list, gains, simulate_all, three_joint_arm,
+    trajectory_positions, within_limits, Case, JOINTS,
 };
 use crate::report::stats::{median, wilcoxon, Wilcoxon};
 use crate::rkgnn::Trajectory;
@@ -198,16 +198,7 @@ pub fn run(
     if s.seeds == 0 {
         return Err("--seeds must be >= 1".into());
     }
-    let robot = std::path::absolute(&s.robot).map_err(|e| format!("{}: {e}", s.robot.display()))?;
-    let arm = crate::dynamics::load(&robot).map_err(|e| e.to_string())?;
-    if arm.dof() != JOINTS {
-        return Err(format!(
-            "{}: the selection study's trajectories are for {JOINTS}-joint arms, this one has {}",
-            robot.display(),
-            arm.dof()
-        ));
-    }
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let (robot, arm) = three_joint_arm(&s.robot, dir)?;
     let g = gains()?;
     let texts: Vec<String> = TRAINING
         .iter()

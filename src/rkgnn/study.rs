@@ -268,6 +268,22 @@ pub(super) fn diagonal_mid(arm: &Model, qs: &[Vec<f64>]) -> Vec<f64> {
     range.iter().map(|[lo, hi]| 0.5 * (lo + hi)).collect()
 }
 
+/// The study's arm (its absolute path and model), refused unless it has `JOINTS` joints, and
+/// the output directory created.
+pub(super) fn three_joint_arm(robot: &Path, dir: &Path) -> Result<(PathBuf, Model), String> {
+    let robot = std::path::absolute(robot).map_err(|e| format!("{}: {e}", robot.display()))?;
+    let arm = crate::dynamics::load(&robot).map_err(|e| e.to_string())?;
+    if arm.dof() != JOINTS {
+        return Err(format!(
+            "{}: the study's trajectories are for {JOINTS}-joint arms, this one has {}",
+            robot.display(),
+            arm.dof()
+        ));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    Ok((robot, arm))
+}
+
 /// Refuse an arm whose joint limits the trajectories leave.
 pub(super) fn within_limits(arm: &Model, qs: &[Vec<f64>], robot: &Path) -> Result<(), String> {
     for (j, b) in arm.bodies.iter().enumerate() {
@@ -366,16 +382,7 @@ pub fn run(
     progress: &(dyn Fn(u64, u64, &str) + Sync),
 ) -> Result<StudyResult, String> {
     let t0 = std::time::Instant::now();
-    let robot = std::path::absolute(&s.robot).map_err(|e| format!("{}: {e}", s.robot.display()))?;
-    let arm = crate::dynamics::load(&robot).map_err(|e| e.to_string())?;
-    if arm.dof() != JOINTS {
-        return Err(format!(
-            "{}: the study's trajectories are for {JOINTS}-joint arms, this one has {}",
-            robot.display(),
-            arm.dof()
-        ));
-    }
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let (robot, arm) = three_joint_arm(&s.robot, dir)?;
     let g = gains()?;
     let total = 12u64;
     let step = std::sync::atomic::AtomicU64::new(0);
