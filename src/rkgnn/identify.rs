@@ -776,10 +776,7 @@ pub fn least_squares_start(
 ) -> Option<Vec<f64>> {
     let n = layout.n;
     let g = layout.gains?;
-    let floor = |p: Vec<f64>| {
-        (network::min_eig(layout, &p, probes.iter().map(Vec::as_slice)) >= 0.5 * prior.m1)
-            .then_some(p)
-    };
+    let floor = at_least(layout, probes, 0.5 * prior.m1);
     if let ServoPrior::Known { kp, kd, .. } = servo {
         // The servo's torque, as the controller computed it from the same measurements.
         let mut tau = vec![0.0; data.len() * n];
@@ -816,11 +813,7 @@ pub fn least_squares_start(
                 servo[g + 2 * j] * (r[j] - x[j]) + servo[g + 2 * j + 1] * (r[n + j] - x[n + j]);
         }
     }
-    let scaled = |p: Vec<f64>| {
-        scale_to_prior(layout, p, probes, prior).filter(|p| {
-            network::min_eig(layout, p, probes.iter().map(Vec::as_slice)) >= 0.5 * prior.m1
-        })
-    };
+    let scaled = |p: Vec<f64>| scale_to_prior(layout, p, probes, prior).and_then(&floor);
     let target = Target::Torques(&tau);
     least_squares(layout, &servo, data, target, stride, INERTIA_RIDGES, scaled)
 }
@@ -841,10 +834,18 @@ pub fn least_squares_with_torques(
 ) -> Option<Vec<f64>> {
     assert_eq!(torques.len(), data.len() * data.n);
     let target = Target::Torques(torques);
-    let floor = |p: Vec<f64>| {
-        (network::min_eig(layout, &p, probes.iter().map(Vec::as_slice)) >= min_eig).then_some(p)
-    };
+    let floor = at_least(layout, probes, min_eig);
     least_squares(layout, p0, data, target, stride, INERTIA_RIDGES, floor)
+}
+
+/// A least-squares acceptance: the parameters if M-hat's smallest eigenvalue over `probes`
+/// reaches `floor`.
+fn at_least<'a>(
+    layout: &'a Layout,
+    probes: &'a [Vec<f64>],
+    floor: f64,
+) -> impl Fn(Vec<f64>) -> Option<Vec<f64>> + 'a {
+    move |p| (network::min_eig(layout, &p, probes.iter().map(Vec::as_slice)) >= floor).then_some(p)
 }
 
 /// What the least squares fit the dynamics to.

@@ -17,7 +17,7 @@
 
 use super::identify::{self, Prior, Settings};
 use super::study::{
-    case, controller, diagonal_mid, float_list, gains, simulate_all, three_joint_arm,
+    case, controller, diagonal_mid, float_list, gains, pd_servo, simulate_all, three_joint_arm,
     trajectory_positions, within_limits, Case, JOINTS,
 };
 use crate::report::stats::{median, wilcoxon, Wilcoxon};
@@ -205,12 +205,7 @@ pub fn run(
         .chain(&NEW)
         .map(with_reference)
         .collect::<Result<_, _>>()?;
-    let pd = |kp: &[f64], kd: &[f64]| {
-        let mut t = toml::Table::new();
-        t.insert("kp".into(), float_list(kp));
-        t.insert("kd".into(), float_list(kd));
-        controller("pd_servo", t)
-    };
+    let pd = pd_servo;
     // Every trajectory must stay within the arm's limits.
     let probe: Vec<Case> = texts
         .iter()
@@ -271,29 +266,8 @@ pub fn run(
             models.push((file, model));
         }
         let files: Vec<&PathBuf> = models.iter().map(|(f, _)| f).collect();
-        let fuzzy = |list: &[&PathBuf], selection: &str, gamma: Option<f64>| {
-            let mut t = toml::Table::new();
-            t.insert("kp".into(), float_list(&g.ct[0]));
-            t.insert("kv".into(), float_list(&g.ct[1]));
-            t.insert("startup_rate".into(), toml::Value::Float(g.startup_rate));
-            let l = list
-                .iter()
-                .map(|f| f.display().to_string().into())
-                .collect();
-            t.insert("models".into(), toml::Value::Array(l));
-            t.insert("selection".into(), selection.into());
-            if let Some(g) = gamma {
-                t.insert("gamma".into(), toml::Value::Float(g));
-            }
-            controller("fuzzy_computed_torque", t)
-        };
-        let ct_true = {
-            let mut t = toml::Table::new();
-            t.insert("kp".into(), float_list(&g.ct[0]));
-            t.insert("kv".into(), float_list(&g.ct[1]));
-            t.insert("startup_rate".into(), toml::Value::Float(g.startup_rate));
-            controller("computed_torque", t)
-        };
+        let fuzzy = |list: &[&PathBuf], selection: &str, gamma| g.fuzzy(list, selection, gamma);
+        let ct_true = controller("computed_torque", g.ct_table());
         for (tr, text) in NEW.iter().zip(&texts[TRAINING.len()..]) {
             let laws = [
                 pd(servo_kp, servo_kd),

@@ -207,6 +207,45 @@ pub(super) fn controller(kind: &str, body: toml::Table) -> toml::Table {
     c
 }
 
+/// `[controller]` of the P-D servo with these gains.
+pub(super) fn pd_servo(kp: &[f64], kd: &[f64]) -> toml::Table {
+    let mut t = toml::Table::new();
+    t.insert("kp".into(), float_list(kp));
+    t.insert("kd".into(), float_list(kd));
+    controller("pd_servo", t)
+}
+
+impl Gains {
+    /// Computed torque's table: its gains and psi rate (both computed-torque laws take them).
+    pub(super) fn ct_table(&self) -> toml::Table {
+        let mut t = toml::Table::new();
+        t.insert("kp".into(), float_list(&self.ct[0]));
+        t.insert("kv".into(), float_list(&self.ct[1]));
+        t.insert("startup_rate".into(), toml::Value::Float(self.startup_rate));
+        t
+    }
+
+    /// `[controller]` of fuzzy computed torque on `models` with `selection` (and `gamma`).
+    pub(super) fn fuzzy(
+        &self,
+        models: &[&PathBuf],
+        selection: &str,
+        gamma: Option<f64>,
+    ) -> toml::Table {
+        let mut t = self.ct_table();
+        let list = models
+            .iter()
+            .map(|f| f.display().to_string().into())
+            .collect();
+        t.insert("models".into(), toml::Value::Array(list));
+        t.insert("selection".into(), selection.into());
+        if let Some(g) = gamma {
+            t.insert("gamma".into(), toml::Value::Float(g));
+        }
+        controller("fuzzy_computed_torque", t)
+    }
+}
+
 /// The built-in scenarios' gains: the servo's [kp, kd] and computed torque's [kp, kv, rate].
 pub(super) struct Gains {
     pub(super) servo: [Vec<f64>; 2],
@@ -392,12 +431,7 @@ pub fn run(
     };
 
     // The servo on this arm: arm3's gains times the inertia ratio over the trajectories.
-    let pd_table = |kp: &[f64], kd: &[f64]| {
-        let mut t = toml::Table::new();
-        t.insert("kp".into(), float_list(kp));
-        t.insert("kd".into(), float_list(kd));
-        controller("pd_servo", t)
-    };
+    let pd_table = pd_servo;
     let probe = |base: &'static str| {
         case(
             "probe",
@@ -464,24 +498,8 @@ pub fn run(
 
     // The controllers on the new trajectory, and each model on its own trajectory.
     // Both computed-torque laws take the same gains and psi rate.
-    let ct_gains = || {
-        let mut t = toml::Table::new();
-        t.insert("kp".into(), float_list(&g.ct[0]));
-        t.insert("kv".into(), float_list(&g.ct[1]));
-        t.insert("startup_rate".into(), toml::Value::Float(g.startup_rate));
-        t
-    };
-    let fuzzy = |files: &[&PathBuf], selection: &str| {
-        let mut t = ct_gains();
-        let list = files
-            .iter()
-            .map(|f| f.display().to_string().into())
-            .collect();
-        t.insert("models".into(), toml::Value::Array(list));
-        t.insert("selection".into(), selection.into());
-        controller("fuzzy_computed_torque", t)
-    };
-    let ct_true = controller("computed_torque", ct_gains());
+    let fuzzy = |files: &[&PathBuf], selection: &str| g.fuzzy(files, selection, None);
+    let ct_true = controller("computed_torque", g.ct_table());
     let (m1, m2) = (&models[0], &models[1]);
     let cases = [
         case("pd", NEW, &robot, s.seed, pd, dir)?,
