@@ -121,8 +121,14 @@ fn output_mcap_false_records_nothing() {
         ),
     );
     let out = tmp.path().join("run");
+    // A recording left by an earlier run into the same folder must not pass for this run's.
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("run.mcap"), "an earlier run's recording").unwrap();
     assert_ok(&run(&cfg, &out, "nomcap", &[]));
     assert!(out.join("run.csv").is_file());
-    assert!(!out.join("run.mcap").exists());
+    assert!(
+        !out.join("run.mcap").exists(),
+        "the stale run.mcap was kept"
+    );
     assert!(json(&out.join("controller.json"))["mcap"].is_null());
 }

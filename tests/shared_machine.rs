@@ -183,3 +183,79 @@ fn files_of_another_user_in_the_namespace_are_refused() {
     assert!(e.contains("evoloop-0"), "{e}");
     assert!(e.contains("belongs to uid 65534, not to you"), "{e}");
 }
+
+/// As `uid`, plant `DIR/name -> target` with ln(1).
+fn plant_link(dir: &Path, name: &str, target: &Path, uid: u32) {
+    let o = Command::new("ln")
+        .arg("-s")
+        .arg(target)
+        .arg(dir.join(name))
+        .uid(uid)
+        .gid(uid)
+        .output()
+        .expect("ln");
+    assert!(o.status.success(), "ln as {uid}: {}", stderr(&o));
+}
+
+#[test]
+fn root_never_writes_through_links_another_user_planted_in_the_output_directory() {
+    if !is_root() {
+        eprintln!("skipped: needs root to plant links as a second user");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = short_run(tmp.path());
+    // The other user's output folder (not sticky: the kernel's protected_symlinks does not
+    // apply) and root's own files the links point at.
+    let out = tmp.path().join("shared");
+    std::fs::create_dir(&out).unwrap();
+    std::os::unix::fs::chown(&out, Some(NOBODY), Some(NOBODY)).unwrap();
+    let victims = tmp.path().join("victims");
+    std::fs::create_dir(&victims).unwrap();
+    let names = [
+        "scenario.json",
+        "run.mcap",
+        "report.html",
+        "run.csv",
+        "timing.csv",
+        "summary.json",
+        "controller.json",
+        "response.png",
+        "tracking.png",
+    ];
+    let victim = |name: &str| victims.join(format!("{name}.precious"));
+    for name in names.iter().chain([&".evoloop.lock"]) {
+        std::fs::write(victim(name), "precious").unwrap();
+        plant_link(&out, name, &victim(name), NOBODY);
+    }
+    let (prefix, _) = unique("lnk");
+    // The lock cannot be replaced (another run may hold it): refused, with the reason.
+    let o = run_as(&cfg, &out, &prefix, tmp.path(), None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("symbolic link"), "{}", stderr(&o));
+    // Without it the run goes ahead and every planted link is replaced by the run's file.
+    std::fs::remove_file(out.join(".evoloop.lock")).unwrap();
+    let o = run_as(&cfg, &out, &prefix, tmp.path(), None);
+    assert_ok(&o);
+    for name in names.iter().chain([&".evoloop.lock"]) {
+        assert_eq!(
+            std::fs::read_to_string(victim(name)).unwrap(),
+            "precious",
+            "root wrote through the planted {name}"
+        );
+    }
+    // What the run wrote is its own file; a link to a file it does not write is gone.
+    let mut written = 0;
+    for name in names {
+        match std::fs::symlink_metadata(out.join(name)) {
+            Ok(m) => {
+                assert!(m.is_file(), "{name} is not the run's own file");
+                assert_eq!(m.uid(), 0, "{name}");
+                written += 1;
+            }
+            Err(e) => assert_eq!(e.kind(), std::io::ErrorKind::NotFound, "{name}"),
+        }
+    }
+    assert!(written >= 6, "the run wrote only {written} of {names:?}");
+    forget_prefix(&prefix);
+}

@@ -263,7 +263,7 @@ fn run_study(a: &StudyArgs) -> Result<(), String> {
 }
 
 fn write(path: &Path, text: &str) -> Result<(), String> {
-    std::fs::write(path, text).map_err(|e| format!("writing {}: {e}", path.display()))
+    crate::report::files::write(path, text).map_err(|e| format!("writing {}: {e}", path.display()))
 }
 
 fn cells(s: &StudyRuns, p: usize) -> Vec<Cell> {

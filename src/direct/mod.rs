@@ -565,7 +565,7 @@ pub fn write_files(
     report: &DirectReport,
     plots: bool,
 ) -> Result<Vec<&'static str>, String> {
-    std::fs::write(dir.join("direct.csv"), records_csv(&report.repetitions))
+    crate::report::files::write(dir.join("direct.csv"), records_csv(&report.repetitions))
         .map_err(|e| format!("{}: {e}", dir.join("direct.csv").display()))?;
     let mut names = vec!["direct.csv"];
     if plots && !report.repetitions.is_empty() {

@@ -198,16 +198,9 @@ impl RunLock {
     /// Take the lock on `path` or say who holds it; `what` names the resource in the message.
     fn take(path: &Path, what: &str) -> Result<RunLock, String> {
         use std::io::{Read, Seek, Write};
-        use std::os::unix::fs::OpenOptionsExt;
         use std::os::unix::io::AsRawFd;
-        let mut f = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .mode(0o600)
-            .open(path)
-            .map_err(|e| format!("{what}: cannot write {}: {e}", path.display()))?;
+        let mut f =
+            crate::report::files::open_in_place(path).map_err(|e| format!("{what}: {e}"))?;
         // SAFETY: flock on a descriptor we own.
         if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
             let mut holder = String::new();
@@ -454,6 +447,8 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         "controller.json",
         "plant.json",
         "optimiser.json",
+        "run.mcap",
+        "report.html",
     ] {
         let _ = std::fs::remove_file(dir.join(f));
     }

@@ -2,6 +2,7 @@
 //! writing/reading, response metrics (settling time, overshoot, IAE, ISE) and plots.
 
 pub mod build;
+pub mod files;
 pub mod history;
 pub mod html;
 pub mod metrics;
@@ -23,7 +24,7 @@ use std::path::Path;
 pub fn write_json<T: serde::Serialize>(dir: &Path, name: &str, value: &T) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let text = serde_json::to_string_pretty(value).map_err(std::io::Error::other)?;
-    std::fs::write(dir.join(name), text + "\n")
+    crate::report::files::write(dir.join(name), text + "\n")
 }
 
 /// A table of f64 rows with fixed width and capacity, allocated up front so recording a row
@@ -77,7 +78,7 @@ impl RunLog {
     /// Write as CSV with the shortest exact decimal form of each number, so equal runs give
     /// byte-identical files.
     pub fn write_csv(&self, path: &Path) -> std::io::Result<()> {
-        let mut w = BufWriter::new(std::fs::File::create(path)?);
+        let mut w = BufWriter::new(files::create(path)?);
         writeln!(w, "{}", self.header.join(","))?;
         for i in 0..self.len() {
             write_row(&mut w, self.row(i))?;
@@ -200,12 +201,12 @@ mod tests {
     fn a_table_with_a_row_cut_short_is_an_error_naming_the_line() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("run.csv");
-        std::fs::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5,2.5\n").unwrap();
+        crate::report::files::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5,2.5\n").unwrap();
         let t = Table::read(&path).unwrap();
         assert_eq!(t.rows.len(), 2);
         assert_eq!(t.col("u0"), Some(vec![2.0, 2.5]));
         // What a full disk leaves: the last row cut inside a field's boundary.
-        std::fs::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5\n").unwrap();
+        crate::report::files::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5\n").unwrap();
         let e = Table::read(&path)
             .err()
             .expect("a cut row must be refused")
@@ -213,7 +214,7 @@ mod tests {
         assert!(e.contains("line 3") && e.contains("cut short"), "{e}");
         // What a kill between flushes leaves, and what the launcher does with it after the
         // run: the cut row goes, the whole ones stay readable.
-        std::fs::write(&path, "t,y0,u0\n0,1,2\n0.001,1.").unwrap();
+        crate::report::files::write(&path, "t,y0,u0\n0,1,2\n0.001,1.").unwrap();
         assert!(Table::read(&path).is_err());
         assert!(cut_partial_row(&path).unwrap());
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "t,y0,u0\n0,1,2\n");

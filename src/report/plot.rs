@@ -2,10 +2,27 @@
 //! with the parameter swaps marked. PNG via plotters with an embedded DejaVu font, so no system
 //! fonts are needed.
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 use std::path::Path;
 use std::sync::Once;
+
+/// Draw a `size` PNG with `draw` (which presents its root) and write it to `path` through
+/// `files::create` (plotters' own file output follows a planted symbolic link).
+fn png(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl for<'a> FnOnce(DrawingArea<BitMapBackend<'a>, Shift>) -> Result<(), String>,
+) -> Result<(), String> {
+    use image::ImageEncoder;
+    let mut buf = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area())?;
+    let file = super::files::create(path).map_err(|e| e.to_string())?;
+    image::codecs::png::PngEncoder::new(std::io::BufWriter::new(file))
+        .write_image(&buf, size.0, size.1, image::ColorType::Rgb8)
+        .map_err(|e| format!("{}: {e}", path.display()))
+}
 
 static FONT: Once = Once::new();
 
@@ -87,62 +104,65 @@ pub fn stacked_png(
             (1..k as u32).map(|i| 250 * i).collect(),
         ),
     };
-    let root = BitMapBackend::new(path, (1200, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let root = root
-        .titled(title, ("sans-serif", 24))
-        .map_err(|e| e.to_string())?;
-    let areas = root.split_by_breakpoints(Vec::<u32>::new(), breaks);
-    let t0 = t.first().copied().unwrap_or(0.0);
-    let t1 = t.last().copied().unwrap_or(1.0).max(t0 + 1e-9);
-    for (area, Panel { series, label }) in areas.iter().zip(panels) {
-        let (lo, hi) = bounds(series);
-        let mut chart = ChartBuilder::on(area)
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
-            .build_cartesian_2d(t0..t1, lo..hi)
+    png(path, (1200, height), |root| {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let root = root
+            .titled(title, ("sans-serif", 24))
             .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc("t [s]")
-            .y_desc(*label)
-            .label_style(("sans-serif", 16))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        for m in marks {
+        let areas = root.split_by_breakpoints(Vec::<u32>::new(), breaks);
+        let t0 = t.first().copied().unwrap_or(0.0);
+        let t1 = t.last().copied().unwrap_or(1.0).max(t0 + 1e-9);
+        for (area, Panel { series, label }) in areas.iter().zip(panels) {
+            let (lo, hi) = bounds(series);
+            let mut chart = ChartBuilder::on(area)
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(70)
+                .build_cartesian_2d(t0..t1, lo..hi)
+                .map_err(|e| e.to_string())?;
             chart
-                .draw_series(LineSeries::new(
-                    [(*m, lo), (*m, hi)],
-                    ShapeStyle::from(&RGBColor(255, 127, 14)).stroke_width(2),
-                ))
+                .configure_mesh()
+                .x_desc("t [s]")
+                .y_desc(*label)
+                .label_style(("sans-serif", 16))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            for m in marks {
+                chart
+                    .draw_series(LineSeries::new(
+                        [(*m, lo), (*m, hi)],
+                        ShapeStyle::from(&RGBColor(255, 127, 14)).stroke_width(2),
+                    ))
+                    .map_err(|e| e.to_string())?;
+            }
+            for (i, s) in series.iter().enumerate() {
+                let c = COLOURS[i % COLOURS.len()];
+                // Thin out very long runs: a PNG 1200 px wide cannot show more than a few thousand points.
+                let stride = (t.len() / 6000).max(1);
+                chart
+                    .draw_series(LineSeries::new(
+                        t.iter()
+                            .zip(s.values)
+                            .step_by(stride)
+                            .map(|(a, b)| (*a, *b)),
+                        ShapeStyle::from(&c).stroke_width(2),
+                    ))
+                    .map_err(|e| e.to_string())?
+                    .label(s.name)
+                    .legend(move |(x, y)| {
+                        PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2))
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 16))
+                .draw()
                 .map_err(|e| e.to_string())?;
         }
-        for (i, s) in series.iter().enumerate() {
-            let c = COLOURS[i % COLOURS.len()];
-            // Thin out very long runs: a PNG 1200 px wide cannot show more than a few thousand points.
-            let stride = (t.len() / 6000).max(1);
-            chart
-                .draw_series(LineSeries::new(
-                    t.iter()
-                        .zip(s.values)
-                        .step_by(stride)
-                        .map(|(a, b)| (*a, *b)),
-                    ShapeStyle::from(&c).stroke_width(2),
-                ))
-                .map_err(|e| e.to_string())?
-                .label(s.name)
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 16))
-            .draw()
-            .map_err(|e| e.to_string())?;
-    }
-    root.present().map_err(|e| e.to_string())
+        root.present().map_err(|e| e.to_string())
+    })
 }
 
 /// How an x-y series is drawn.
@@ -184,70 +204,72 @@ pub fn xy_png(
     y_range: Option<(f64, f64)>,
 ) -> Result<(), String> {
     ensure_font();
-    let root = BitMapBackend::new(path, (1000, 700)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let xs: Vec<Series> = series
-        .iter()
-        .map(|s| Series {
-            name: s.name,
-            values: s.x,
-        })
-        .collect();
-    let ys: Vec<Series> = series
-        .iter()
-        .map(|s| Series {
-            name: s.name,
-            values: s.y,
-        })
-        .collect();
-    let (x0, x1) = x_range.unwrap_or_else(|| bounds(&xs));
-    let (y0, y1) = y_range.unwrap_or_else(|| bounds(&ys));
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(14)
-        .x_label_area_size(45)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc(x_label)
-        .y_desc(y_label)
-        .label_style(("sans-serif", 16))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    let mut legend = false;
-    for (i, s) in series.iter().enumerate() {
-        let c = COLOURS[i % COLOURS.len()];
-        let pts =
-            s.x.iter()
-                .zip(s.y)
-                .filter(|(a, b)| a.is_finite() && b.is_finite())
-                .map(|(a, b)| (*a, *b));
-        let anno = match s.style {
-            Style::Line => chart
-                .draw_series(LineSeries::new(pts, ShapeStyle::from(&c).stroke_width(2)))
-                .map_err(|e| e.to_string())?,
-            Style::Points => chart
-                .draw_series(pts.map(|p| Circle::new(p, 3, c.filled())))
-                .map_err(|e| e.to_string())?,
-        };
-        if !s.name.is_empty() {
-            legend = true;
-            anno.label(s.name)
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(3)));
-        }
-    }
-    if legend {
+    png(path, (1000, 700), |root| {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let xs: Vec<Series> = series
+            .iter()
+            .map(|s| Series {
+                name: s.name,
+                values: s.x,
+            })
+            .collect();
+        let ys: Vec<Series> = series
+            .iter()
+            .map(|s| Series {
+                name: s.name,
+                values: s.y,
+            })
+            .collect();
+        let (x0, x1) = x_range.unwrap_or_else(|| bounds(&xs));
+        let (y0, y1) = y_range.unwrap_or_else(|| bounds(&ys));
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(14)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
         chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 16))
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .label_style(("sans-serif", 16))
             .draw()
             .map_err(|e| e.to_string())?;
-    }
-    root.present().map_err(|e| e.to_string())
+        let mut legend = false;
+        for (i, s) in series.iter().enumerate() {
+            let c = COLOURS[i % COLOURS.len()];
+            let pts =
+                s.x.iter()
+                    .zip(s.y)
+                    .filter(|(a, b)| a.is_finite() && b.is_finite())
+                    .map(|(a, b)| (*a, *b));
+            let anno = match s.style {
+                Style::Line => chart
+                    .draw_series(LineSeries::new(pts, ShapeStyle::from(&c).stroke_width(2)))
+                    .map_err(|e| e.to_string())?,
+                Style::Points => chart
+                    .draw_series(pts.map(|p| Circle::new(p, 3, c.filled())))
+                    .map_err(|e| e.to_string())?,
+            };
+            if !s.name.is_empty() {
+                legend = true;
+                anno.label(s.name).legend(move |(x, y)| {
+                    PathElement::new([(x, y), (x + 20, y)], c.stroke_width(3))
+                });
+            }
+        }
+        if legend {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 16))
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }
+        root.present().map_err(|e| e.to_string())
+    })
 }
 
 /// A colour map of z over a grid (`z[j][i]` at x = xs[i], y = ys[j]), blue (low) to red (high),
@@ -270,52 +292,53 @@ pub fn heatmap_png(
     if !lo.is_finite() || xs.len() < 2 || ys.len() < 2 {
         return Err("heatmap needs a grid of at least 2 x 2 finite values".into());
     }
-    let root = BitMapBackend::new(path, (900, 760)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let (dx, dy) = (xs[1] - xs[0], ys[1] - ys[0]);
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("{title} (blue {lo:.3} .. red {hi:.3})"),
-            ("sans-serif", 20),
-        )
-        .margin(14)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d(
-            xs[0] - dx / 2.0..xs[xs.len() - 1] + dx / 2.0,
-            ys[0] - dy / 2.0..ys[ys.len() - 1] + dy / 2.0,
-        )
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc(x_label)
-        .y_desc(y_label)
-        .label_style(("sans-serif", 16))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    let colour = |v: f64| {
-        let s = if hi > lo { (v - lo) / (hi - lo) } else { 0.5 };
-        // Blue -> white -> red.
-        let (r, g, b) = if s < 0.5 {
-            let t = s * 2.0;
-            (t, t, 1.0)
-        } else {
-            let t = (1.0 - s) * 2.0;
-            (1.0, t, t)
+    png(path, (900, 760), |root| {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let (dx, dy) = (xs[1] - xs[0], ys[1] - ys[0]);
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                format!("{title} (blue {lo:.3} .. red {hi:.3})"),
+                ("sans-serif", 20),
+            )
+            .margin(14)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(
+                xs[0] - dx / 2.0..xs[xs.len() - 1] + dx / 2.0,
+                ys[0] - dy / 2.0..ys[ys.len() - 1] + dy / 2.0,
+            )
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .label_style(("sans-serif", 16))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let colour = |v: f64| {
+            let s = if hi > lo { (v - lo) / (hi - lo) } else { 0.5 };
+            // Blue -> white -> red.
+            let (r, g, b) = if s < 0.5 {
+                let t = s * 2.0;
+                (t, t, 1.0)
+            } else {
+                let t = (1.0 - s) * 2.0;
+                (1.0, t, t)
+            };
+            RGBColor((r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8)
         };
-        RGBColor((r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8)
-    };
-    for (j, y) in ys.iter().enumerate() {
-        for (i, x) in xs.iter().enumerate() {
-            let c = colour(z[j][i]);
-            chart
-                .draw_series(std::iter::once(Rectangle::new(
-                    [(x - dx / 2.0, y - dy / 2.0), (x + dx / 2.0, y + dy / 2.0)],
-                    c.filled(),
-                )))
-                .map_err(|e| e.to_string())?;
+        for (j, y) in ys.iter().enumerate() {
+            for (i, x) in xs.iter().enumerate() {
+                let c = colour(z[j][i]);
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(x - dx / 2.0, y - dy / 2.0), (x + dx / 2.0, y + dy / 2.0)],
+                        c.filled(),
+                    )))
+                    .map_err(|e| e.to_string())?;
+            }
         }
-    }
-    root.present().map_err(|e| e.to_string())
+        root.present().map_err(|e| e.to_string())
+    })
 }

@@ -19,7 +19,6 @@
 
 use crate::msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
 use std::collections::BTreeMap;
-use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -82,7 +81,7 @@ impl Recorder {
         metadata: BTreeMap<String, String>,
         avoid_cpu: Option<usize>,
     ) -> Result<Self, String> {
-        let file = File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let file = super::files::create(path).map_err(|e| e.to_string())?;
         let mut w = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Lz4))
             // Small chunks and buffer: each write(2) copies at most ~64 KiB into the page cache.

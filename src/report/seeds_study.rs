@@ -313,9 +313,10 @@ impl Study {
                 r.rejected
             ));
         }
-        std::fs::write(out.join("seeds.csv"), csv).map_err(|e| e.to_string())?;
+        crate::report::files::write(out.join("seeds.csv"), csv).map_err(|e| e.to_string())?;
         crate::report::write_json(out, "study.json", self).map_err(|e| e.to_string())?;
-        std::fs::write(out.join("study.md"), self.markdown()).map_err(|e| e.to_string())?;
+        crate::report::files::write(out.join("study.md"), self.markdown())
+            .map_err(|e| e.to_string())?;
         if plots && !runs.is_empty() {
             use crate::report::plot::{xy_png, Curve, Style, XySeries};
             let xs: Vec<f64> = runs.iter().map(|r| r.seed as f64).collect();

@@ -130,8 +130,7 @@ impl LogStream {
         let width = parts.iter().map(|p| p.columns.end).max().unwrap_or(0);
         let mut files = Vec::with_capacity(parts.len());
         for p in &parts {
-            let f = std::fs::File::create(&p.path)
-                .map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", p.path.display())))?;
+            let f = super::files::create(&p.path)?;
             let mut w = BufWriter::with_capacity(1 << 16, f);
             writeln!(w, "{}", p.header.join(","))?;
             w.flush()?;

@@ -341,7 +341,8 @@ pub fn run(
     crate::report::write_json(dir, "selection.json", &result)
         .map_err(|e| format!("{}: {e}", dir.join("selection.json").display()))?;
     let p = dir.join("report.md");
-    std::fs::write(&p, report_markdown(&result)).map_err(|e| format!("{}: {e}", p.display()))?;
+    crate::report::files::write(&p, report_markdown(&result))
+        .map_err(|e| format!("{}: {e}", p.display()))?;
     Ok(result)
 }
 

@@ -1,0 +1,119 @@
+//! The one way evoloop creates an output file: never through a link another user planted.
+//!
+//! An output directory may be writable by someone else (a shared lab folder, /tmp), and evoloop
+//! often runs as root (SCHED_FIFO, mlockall). `File::create` follows a symbolic link at the
+//! path, so a link `DIR/scenario.json -> /etc/...` planted by another user made root overwrite
+//! the link's target (issue 42). Here the old name is removed first (unlinking a link removes
+//! the link, never its target) and the file is created afresh with `O_EXCL | O_NOFOLLOW`: if
+//! anything reappears at the name in between, the create fails instead of writing through it.
+//! A fresh inode also means no planted hard link, FIFO or device is written either.
+
+use std::fs::File;
+use std::io::{self, Write};
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::Path;
+
+/// Create `path` for writing, new and empty, owned by this process's user (mode 0644 less the
+/// umask). Whatever was at the name is removed first, a symbolic link as itself. The error
+/// names the path.
+pub fn create(path: impl AsRef<Path>) -> io::Result<File> {
+    let path = path.as_ref();
+    match std::fs::remove_file(path) {
+        Ok(()) => {}
+        Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+        Err(e) => return Err(named(path, "cannot replace", e)),
+    }
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o644)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC)
+        .open(path)
+        .map_err(|e| named(path, "cannot create", e))
+}
+
+/// `bytes` into a new file at `path` (see `create`).
+pub fn write(path: impl AsRef<Path>, bytes: impl AsRef<[u8]>) -> io::Result<()> {
+    let path = path.as_ref();
+    let mut f = create(path)?;
+    f.write_all(bytes.as_ref())
+        .and_then(|()| f.flush())
+        .map_err(|e| named(path, "cannot write", e))
+}
+
+/// Open an existing file that must stay where it is (a lock file: removing it would break the
+/// lock another run holds) for reading and writing, creating it if missing, but never through
+/// a symbolic link and never anything but a regular file (a FIFO would block, a device would be
+/// written). `O_NONBLOCK` only for the open itself.
+pub fn open_in_place(path: &Path) -> io::Result<File> {
+    let f = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .mode(0o600)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC | libc::O_NONBLOCK)
+        .open(path)
+        .map_err(|e| named(path, "cannot open", e))?;
+    if !f.metadata()?.is_file() {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("{}: not a regular file", path.display()),
+        ));
+    }
+    // SAFETY: fcntl on a descriptor we own; clears O_NONBLOCK for the file's later use.
+    unsafe {
+        let fd = std::os::unix::io::AsRawFd::as_raw_fd(&f);
+        let flags = libc::fcntl(fd, libc::F_GETFL);
+        libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK);
+    }
+    Ok(f)
+}
+
+/// `e` with the path and what was being done, and the reason in words where the OS's is
+/// cryptic: ELOOP from O_NOFOLLOW means a symbolic link, ENOSPC a full disk.
+pub fn named(path: &Path, doing: &str, e: io::Error) -> io::Error {
+    let why = match e.raw_os_error() {
+        Some(libc::ELOOP) => "it is a symbolic link (refusing to write through it)".to_string(),
+        Some(libc::ENOSPC) => "no space left on the device".to_string(),
+        Some(libc::EEXIST) => "a file appeared at the name while it was being replaced".into(),
+        _ => e.to_string(),
+    };
+    io::Error::new(e.kind(), format!("{doing} {}: {why}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_planted_symlink_is_replaced_not_followed() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("target.txt");
+        std::fs::write(&target, "keep me").unwrap();
+        let link = dir.path().join("scenario.json");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        write(&link, "report").unwrap();
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep me");
+        assert!(!std::fs::symlink_metadata(&link).unwrap().is_symlink());
+        assert_eq!(std::fs::read_to_string(&link).unwrap(), "report");
+    }
+
+    #[test]
+    fn a_lock_opened_in_place_refuses_a_symlink_and_a_fifo() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("target.txt");
+        std::fs::write(&target, "keep me").unwrap();
+        let link = dir.path().join(".evoloop.lock");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        let e = open_in_place(&link).unwrap_err().to_string();
+        assert!(e.contains("symbolic link"), "{e}");
+        let fifo = dir.path().join("fifo");
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: a valid C string.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let e = open_in_place(&fifo).unwrap_err().to_string();
+        assert!(e.contains("not a regular file"), "{e}");
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep me");
+    }
+}
