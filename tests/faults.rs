@@ -263,3 +263,42 @@ fn a_lockstep_controller_paused_within_the_timeout_changes_nothing() {
     );
     forget_prefix(&prefix);
 }
+
+#[test]
+fn a_crash_looping_optimiser_costs_the_tuner_not_the_loop() {
+    // Every optimiser the launcher starts is killed at once: it is restarted with growing
+    // pauses, then given up, and the realtime loop runs to its end with the set in service.
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write(
+        tmp.path(),
+        "rt.toml",
+        &scenario(
+            "kind = \"step\"\namplitude = 1.0",
+            "mode = \"realtime\"\nduration = 8.0\nmeasure_floor = false",
+        ),
+    );
+    let out = tmp.path().join("out");
+    let (prefix, run_id) = unique("crashloop");
+    let mut child = start(&cfg, &out, &prefix, &run_id);
+    let t0 = Instant::now();
+    let mut killed = std::collections::BTreeSet::new();
+    while child.try_wait().unwrap().is_none() && t0.elapsed() < Duration::from_secs(30) {
+        for (name, pid) in evoloop::soak::run_processes(&run_id) {
+            if name == "evoloop-optimiser" && killed.insert(pid) {
+                signal(pid, libc::SIGKILL);
+            }
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let status = wait_exit(&mut child, Duration::from_secs(30));
+    assert!(status.success(), "the run failed: {status}");
+    assert_eq!(killed.len(), 6, "the first optimiser and five restarts");
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["outcome"], "tuner_lost");
+    assert_eq!(s["optimiser_lost"], true);
+    assert_eq!(s["optimiser_restarts"], 5);
+    // The loop ran to its end (realtime: a missed deadline costs its sample).
+    let ran = s["ran_s"].as_f64().unwrap();
+    assert!(ran >= 7.99, "the loop stopped at {ran} s of 8");
+    next_run_starts_clean(tmp.path(), &prefix, &run_id);
+}

@@ -9,7 +9,7 @@ use crate::config::{Mode, Scenario};
 use crate::ipc::{Ipc, Topic};
 use crate::msg::Telemetry;
 use crate::report::build::build_report;
-use crate::report::summary::{FloorReport, Summary};
+use crate::report::summary::{FloorReport, OptimiserLife, Summary};
 use crate::rt::apply_privileges;
 use crate::rt::clock::wait_loop_lateness;
 use crate::rt::timing::Percentiles;
@@ -522,37 +522,47 @@ pub fn run(mut a: RunArgs) -> ExitCode {
     let mut exited = vec![false; children.len()];
     let mut interrupted = false;
     let mut stop_sent: Option<Instant> = None;
-    // The optimiser is not on the control path: when it dies the loop goes on with the set in
-    // service, and it is started again to rejoin the run (a few times at most).
-    let mut optimiser_restarts = 0usize;
+    let mut tuner = OptimiserLife::default();
+    let mut restart_due: Option<Instant> = None;
     while exited.iter().any(|e| !e) {
         for (i, (name, c)) in children.iter_mut().enumerate() {
             if exited[i] {
                 continue;
             }
-            if let Ok(Some(status)) = c.try_wait() {
-                // Not once the plant has ended: there is no run left to rejoin.
-                let plant_running = !exited[plant];
-                let restartable = *name == "evoloop-optimiser"
-                    && plant_running
-                    && !status.success()
-                    && !interrupted
-                    && stop_sent.is_none()
-                    && optimiser_restarts < 3;
-                if restartable {
-                    err!("evoloop: {name} exited with {status}; the loop goes on with the set in service; starting it again");
-                    // Its ports must go before the plant can tell it is absent.
-                    ipc.cleanup_dead_nodes();
+            // Not once the plant has ended: there is no run left to rejoin.
+            let rejoinable = !exited[plant] && !interrupted && stop_sent.is_none();
+            if let Some(due) = restart_due.filter(|_| *name == OPTIMISER) {
+                if !rejoinable {
+                    (exited[i], restart_due) = (true, None);
+                } else if Instant::now() >= due {
+                    restart_due = None;
                     let mut again = args.clone();
                     again.push("--rejoin".into());
                     match spawn_process(name, &again) {
-                        Ok(nc) => {
-                            *c = nc;
-                            optimiser_restarts += 1;
-                            continue;
+                        Ok(nc) => (*c, tuner.restarts) = (nc, tuner.restarts + 1),
+                        Err(e) => {
+                            failed.push(format!("cannot restart {name}: {e}"));
+                            exited[i] = true;
                         }
-                        Err(e) => failed.push(format!("cannot restart {name}: {e}")),
                     }
+                }
+                continue;
+            }
+            if let Ok(Some(status)) = c.try_wait() {
+                if *name == OPTIMISER && rejoinable && !status.success() {
+                    // Its ports must go before the plant can tell it is absent.
+                    ipc.cleanup_dead_nodes();
+                    match restart_pause(tuner.restarts) {
+                        Some(pause) => {
+                            err!("evoloop: {name} exited with {status}; the loop goes on with the set in service; starting it again in {:.1} s", pause.as_secs_f64());
+                            restart_due = Some(Instant::now() + pause);
+                        }
+                        None => {
+                            err!("evoloop: {name} exited with {status} after {} restarts: the tuner is lost; the loop runs on with the set in service", tuner.restarts);
+                            (tuner.lost, exited[i]) = (true, true);
+                        }
+                    }
+                    continue;
                 }
                 exited[i] = true;
                 // After a stop request a child's clean exit code is expected; death by a
@@ -642,7 +652,8 @@ pub fn run(mut a: RunArgs) -> ExitCode {
             "duration_s": scn.timing.duration_s(),
             "wall_s": wall,
             "interrupted": interrupted,
-            "optimiser_restarts": optimiser_restarts,
+            "optimiser_restarts": tuner.restarts,
+            "optimiser_lost": tuner.lost,
             "files": files,
         });
         if let Err(e) = crate::report::write_json(&dir, "summary.json", &report) {
@@ -678,7 +689,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
             err!("evoloop: warning: {name}: {e}");
         }
     }
-    match build_report(&scn, &run_id, wall, floor, cleaned, optimiser_restarts) {
+    match build_report(&scn, &run_id, wall, floor, cleaned, tuner) {
         Ok(s) => {
             print_summary(&s, &dir, scn.output.plots);
             // The page is a view of the files above: a failure loses no data, so it warns.
@@ -697,6 +708,21 @@ pub fn run(mut a: RunArgs) -> ExitCode {
     } else {
         ExitCode::from(130)
     }
+}
+
+/// The optimiser's binary: the one process the launcher restarts.
+const OPTIMISER: &str = "evoloop-optimiser";
+/// Restarts of a dead optimiser before the tuner is given up.
+const OPTIMISER_RESTARTS: usize = 5;
+
+/// How long to wait before restart number `done + 1` of a dead optimiser, or None when it has
+/// had its `OPTIMISER_RESTARTS`. The optimiser is not on the control path: when it dies the
+/// loop goes on with the set in service and it is started again to rejoin the run, after a
+/// pause that doubles each time (0.1, 0.2, ... 1.6 s) so that one crashing at start does not
+/// spin the machine the loop runs on; once the restarts are spent the run goes on without a
+/// tuner and says so (outcome "tuner_lost").
+fn restart_pause(done: usize) -> Option<Duration> {
+    (done < OPTIMISER_RESTARTS).then(|| Duration::from_millis(100 << done))
 }
 
 fn print_summary(s: &Summary, dir: &Path, plots: bool) {
@@ -773,6 +799,14 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
         pv.accepted.len(),
         pv.rejected.len()
     );
+    if s.optimiser_lost {
+        out!(
+            "  tuner lost: the optimiser died after {} restarts; the loop ran on with the set in service",
+            s.optimiser_restarts
+        );
+    } else if s.optimiser_restarts > 0 {
+        out!("  optimiser restarted {} time(s)", s.optimiser_restarts);
+    }
     for p in &pv.rejected {
         out!("    v{} at t = {:.3} s: {}", p.version, p.t, p.outcome);
     }

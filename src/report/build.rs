@@ -4,8 +4,8 @@ use super::metrics::{ResponseAcc, TrackingAcc};
 use super::plot::{two_panel_png, Panel, Series};
 use super::scan::{Extent, PlotColumns, Rows};
 use super::summary::{
-    ControllerReport, FloorReport, OptimiserReport, ParamVersions, PlantReport, RealtimePrivileges,
-    Summary,
+    ControllerReport, FloorReport, OptimiserLife, OptimiserReport, ParamVersions, PlantReport,
+    RealtimePrivileges, Summary,
 };
 use crate::config::Scenario;
 use crate::msg::ParamCode;
@@ -387,7 +387,7 @@ pub fn build_report(
     wall_s: f64,
     floor: Option<FloorReport>,
     cleaned: usize,
-    optimiser_restarts: usize,
+    optimiser: OptimiserLife,
 ) -> Result<Summary, String> {
     let dir = &scn.output.dir;
     let ctrl: ControllerReport = read_json(dir, "controller.json")?;
@@ -501,6 +501,8 @@ pub fn build_report(
     let summary = Summary {
         outcome: if interrupted && !until_stopped {
             "interrupted"
+        } else if optimiser.lost {
+            "tuner_lost"
         } else {
             "ok"
         }
@@ -569,7 +571,8 @@ pub fn build_report(
             }),
         interrupted,
         stale_resources_cleaned: cleaned,
-        optimiser_restarts,
+        optimiser_restarts: optimiser.restarts,
+        optimiser_lost: optimiser.lost,
         optimiser_stalls: plant.optimiser_stalls.clone(),
         optimiser_resumed: plant.optimiser_resumed,
         accepted_versions: accepted.len(),

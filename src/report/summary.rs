@@ -121,6 +121,15 @@ pub struct OptimiserReport {
     pub workers: std::collections::BTreeMap<String, serde_json::Value>,
 }
 
+/// What became of a run's optimiser process (the launcher's count).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct OptimiserLife {
+    /// Times it died and was started again.
+    pub restarts: usize,
+    /// It died after its last restart and the run went on without it.
+    pub lost: bool,
+}
+
 /// The direct scheme's outcome in summary.json.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct DirectSummary {
@@ -237,6 +246,10 @@ pub struct Summary {
     pub stale_resources_cleaned: usize,
     /// Times the optimiser died and was started again to rejoin the run.
     pub optimiser_restarts: usize,
+    /// The optimiser died once more after its last restart: the loop ran on with the set in
+    /// service, untuned (outcome "tuner_lost").
+    #[serde(default)]
+    pub optimiser_lost: bool,
     /// Lockstep: samples at which the optimiser stalled and the loop went on without it (the
     /// run is reproducible up to the first), and how often it came back to pace the loop.
     #[serde(default)]
