@@ -4,6 +4,7 @@
 
 mod common;
 use common::*;
+use std::os::unix::process::CommandExt;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -192,4 +193,41 @@ fn a_paused_optimiser_resumes_instead_of_failing_the_run() {
     assert_eq!(s["optimiser_restarts"], 0);
     wait_gone(&run_id);
     forget_prefix(&prefix);
+}
+
+#[test]
+fn ctrl_c_in_the_first_milliseconds_is_an_interrupted_run_not_a_failure() {
+    // The terminal's Ctrl-C reaches the launcher and its processes at once. Within the first
+    // tens of milliseconds it used to panic the report (index out of bounds, exit 101) or call
+    // the run failed because a process died of the SIGINT before its handler was installed.
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write(
+        tmp.path(),
+        "s.toml",
+        &scenario("kind = \"step\"\namplitude = 1.0", "duration = 60.0"),
+    );
+    for (k, ms) in [2u64, 5, 8, 12, 20, 30, 40].into_iter().enumerate() {
+        let out = tmp.path().join(format!("out{k}"));
+        let (prefix, run_id) = unique("early");
+        let mut c = Command::new(evoloop());
+        c.arg("run")
+            .arg(&cfg)
+            .arg("--out")
+            .arg(&out)
+            .args(["--ipc-prefix", &prefix, "--run-id", &run_id, "--quiet"])
+            .process_group(0);
+        let mut child = c.spawn().unwrap();
+        std::thread::sleep(Duration::from_millis(ms));
+        // SAFETY: the group of the child just started.
+        unsafe { libc::kill(-(child.id() as i32), libc::SIGINT) };
+        let status = wait_exit(&mut child, Duration::from_secs(20));
+        assert_eq!(status.code(), Some(130), "Ctrl-C at {ms} ms: {status}");
+        let s = json(&out.join("summary.json"));
+        assert_eq!(s["outcome"], "interrupted", "Ctrl-C at {ms} ms: {s}");
+        if let Some(o) = s.pointer("/response/overshoot_pct") {
+            assert!(o.as_f64().is_some_and(f64::is_finite), "overshoot {o}");
+        }
+        wait_gone(&run_id);
+        forget_prefix(&prefix);
+    }
 }

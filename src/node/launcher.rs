@@ -14,6 +14,7 @@ use crate::rt::apply_privileges;
 use crate::rt::clock::wait_loop_lateness;
 use crate::rt::timing::Percentiles;
 use crate::rt::WaitStrategy;
+use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ExitCode};
 use std::sync::atomic::Ordering;
@@ -565,9 +566,15 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                     continue;
                 }
                 exited[i] = true;
-                // After a stop request a child's clean exit code is expected; death by a
-                // signal (no code) is still a failure.
-                let expected = status.success() || (interrupted && status.code().is_some());
+                // After a stop request (the user's Ctrl-C reaches every process of the
+                // terminal's group; ours follows) a child's exit code is expected, and so is
+                // death by that very SIGINT or SIGTERM: a child stopped in its first
+                // milliseconds, before its handler was installed, dies of it. Death by any
+                // other signal is still a failure.
+                let stopping = interrupted || stop_sent.is_some() || stop.load(Ordering::SeqCst);
+                let by_stop = matches!(status.signal(), Some(libc::SIGINT | libc::SIGTERM));
+                let expected =
+                    status.success() || (stopping && (status.code().is_some() || by_stop));
                 if !expected {
                     failed.push(format!("{name} exited with {status}"));
                 }
@@ -629,36 +636,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         for f in &failed {
             err!("error: {f}");
         }
-        // The report of a failed run says so and why, and which files the run left.
-        let files: Vec<String> = std::fs::read_dir(&dir)
-            .map(|rd| {
-                let mut v: Vec<String> = rd
-                    .flatten()
-                    .map(|e| e.file_name().to_string_lossy().into_owned())
-                    .filter(|n| !n.starts_with('.'))
-                    .collect();
-                v.sort();
-                v
-            })
-            .unwrap_or_default();
-        let report = serde_json::json!({
-            "outcome": "failed",
-            "failures": failed,
-            "scenario": scn.name,
-            "config": scn.source.display().to_string(),
-            "run_id": run_id,
-            "mode": format!("{:?}", scn.timing.mode).to_lowercase(),
-            "seed": scn.seed,
-            "duration_s": scn.timing.duration_s(),
-            "wall_s": wall,
-            "interrupted": interrupted,
-            "optimiser_restarts": tuner.restarts,
-            "optimiser_lost": tuner.lost,
-            "files": files,
-        });
-        if let Err(e) = crate::report::write_json(&dir, "summary.json", &report) {
-            err!("error: summary.json: {e}");
-        }
+        short_summary(&scn, &run_id, "failed", &failed, wall, interrupted, tuner);
         return ExitCode::from(1);
     }
     // A run until stopped ends by being stopped: its floor is measured as any finished run's.
@@ -698,6 +676,12 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 Err(e) => err!("evoloop: warning: report.html: {e}"),
             }
         }
+        // Stopped before the processes had written their reports: no loop ran to report on.
+        Err(e) if interrupted => {
+            err!("evoloop: interrupted before the loop ran ({e})");
+            short_summary(&scn, &run_id, "interrupted", &[], wall, true, tuner);
+            return ExitCode::from(130);
+        }
         Err(e) => {
             err!("error: report: {e}");
             return ExitCode::from(1);
@@ -707,6 +691,49 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(130)
+    }
+}
+
+/// The summary.json of a run that has no full report (failed, or stopped before its loop ran):
+/// what ended it and which files it left.
+fn short_summary(
+    scn: &Scenario,
+    run_id: &str,
+    outcome: &str,
+    failures: &[String],
+    wall: f64,
+    interrupted: bool,
+    tuner: OptimiserLife,
+) {
+    let dir = &scn.output.dir;
+    let files: Vec<String> = std::fs::read_dir(dir)
+        .map(|rd| {
+            let mut v: Vec<String> = rd
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| !n.starts_with('.'))
+                .collect();
+            v.sort();
+            v
+        })
+        .unwrap_or_default();
+    let report = serde_json::json!({
+        "outcome": outcome,
+        "failures": failures,
+        "scenario": scn.name,
+        "config": scn.source.display().to_string(),
+        "run_id": run_id,
+        "mode": format!("{:?}", scn.timing.mode).to_lowercase(),
+        "seed": scn.seed,
+        "duration_s": scn.timing.duration_s(),
+        "wall_s": wall,
+        "interrupted": interrupted,
+        "optimiser_restarts": tuner.restarts,
+        "optimiser_lost": tuner.lost,
+        "files": files,
+    });
+    if let Err(e) = crate::report::write_json(dir, "summary.json", &report) {
+        err!("error: summary.json: {e}");
     }
 }
 

@@ -110,7 +110,9 @@ impl ResponseAcc {
                 self.r_final.abs().max(1e-12)
             };
             self.tol = m.settling_band * scale;
-            self.dir = (self.r_final - r_before).signum();
+            // signum(0.0) is 1: no step has no direction (and no overshoot; it was 0/0).
+            let d = self.r_final - r_before;
+            self.dir = if d == 0.0 { 0.0 } else { d.signum() };
         }
         if self.changed {
             if e.abs() > self.tol {
@@ -227,5 +229,23 @@ impl TrackingAcc {
                 0.0
             },
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_that_ends_before_its_step_has_no_overshoot_not_nan() {
+        // Stopped 3 ms into a run whose step comes at 0.5 s: no step, so no overshoot (it was
+        // printed as "overshoot NaN %").
+        let (t, r, y) = ([0.0, 0.001, 0.002], [0.0; 3], [0.0, 1e-4, -1e-4]);
+        let m = response_metrics(&t, &r, &y, 0.001, 0.5);
+        assert_eq!(m.overshoot_pct, 0.0);
+        // A real step still has its overshoot.
+        let (t, r, y) = ([0.0, 0.001, 0.002], [1.0; 3], [0.5, 1.1, 1.0]);
+        let m = response_metrics(&t, &r, &y, 0.001, 0.0);
+        assert!((m.overshoot_pct - 10.0).abs() < 1e-9, "{}", m.overshoot_pct);
     }
 }
