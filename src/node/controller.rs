@@ -498,6 +498,7 @@ fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
     let written = lp.log.finish();
     if let Some(e) = &written.error {
         eprintln!("{WHO}: writing run.csv / timing.csv failed: {e}; rows after the error are lost");
+        report.log_error = Some(format!("run.csv / timing.csv: {e}; rows after it are lost"));
     }
     report.log_dropped = dropped + lp.events_dropped;
     if let Some(r) = lp.record {

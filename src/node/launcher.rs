@@ -454,6 +454,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         let _ = std::fs::remove_file(dir.join(f));
     }
     let _ = crate::report::write_json(&dir, "scenario.json", &scn);
+    let _reserved = Reserved::take(&dir);
     // The launcher's own node: creating it cleans up what killed runs left behind, and it
     // watches the telemetry for progress lines.
     let ipc = match Ipc::with_cleanup("evoloop", &run_id, &a.ipc_prefix, false) {
@@ -632,9 +633,19 @@ pub fn run(mut a: RunArgs) -> ExitCode {
     }
     drop(ipc);
     let wall = t0.elapsed().as_secs_f64();
+    // A controller killed between its writer's flushes leaves a row cut short at the end of the
+    // logs; every reader refuses such a file, so what was written in full is kept readable.
+    for name in ["run.csv", "timing.csv"] {
+        if let Err(e) = crate::report::cut_partial_row(&dir.join(name)) {
+            err!("evoloop: warning: {name}: {e}");
+        }
+    }
     if !failed.is_empty() {
         for f in &failed {
             err!("error: {f}");
+        }
+        if let Some(note) = disk_full(&dir) {
+            err!("error: {note}");
         }
         short_summary(&scn, &run_id, "failed", &failed, wall, interrupted, tuner);
         return ExitCode::from(1);
@@ -660,13 +671,6 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 scn.timing.wait,
             )
         });
-    // A controller killed between its writer's flushes leaves a row cut short at the end of the
-    // logs; every reader refuses such a file, so what was written in full is kept readable.
-    for name in ["run.csv", "timing.csv"] {
-        if let Err(e) = crate::report::cut_partial_row(&dir.join(name)) {
-            err!("evoloop: warning: {name}: {e}");
-        }
-    }
     match build_report(&scn, &run_id, wall, floor, cleaned, tuner) {
         Ok(s) => {
             print_summary(&s, &dir, scn.output.plots);
@@ -674,6 +678,16 @@ pub fn run(mut a: RunArgs) -> ExitCode {
             match crate::report::html::write(&dir) {
                 Ok(p) => out!("  open {} (the whole report in one page)", p.display()),
                 Err(e) => err!("evoloop: warning: report.html: {e}"),
+            }
+            if !s.write_errors.is_empty() {
+                // The report covers what was written; the run is not whole.
+                for e in &s.write_errors {
+                    err!("error: {e}");
+                }
+                if let Some(note) = disk_full(&dir) {
+                    err!("error: {note}");
+                }
+                return ExitCode::from(1);
             }
         }
         // Stopped before the processes had written their reports: no loop ran to report on.
@@ -684,6 +698,9 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         }
         Err(e) => {
             err!("error: report: {e}");
+            if let Some(note) = disk_full(&dir) {
+                err!("error: {note}");
+            }
             return ExitCode::from(1);
         }
     }
@@ -735,6 +752,53 @@ fn short_summary(
     if let Err(e) = crate::report::write_json(dir, "summary.json", &report) {
         err!("error: summary.json: {e}");
     }
+}
+
+/// The run's JSON reports, which every reader starts from, and the disk set aside for each so
+/// that logs filling the disk do not cost them (`report::files::reserve`); released when the
+/// launcher ends, however it ends.
+struct Reserved(Vec<PathBuf>);
+
+const REPORTS: [&str; 4] = [
+    "summary.json",
+    "controller.json",
+    "plant.json",
+    "optimiser.json",
+];
+/// Disk set aside per report, bytes (a long tuning run's controller.json lists every set).
+const REPORT_RESERVE: u64 = 256 << 10;
+
+impl Reserved {
+    fn take(dir: &Path) -> Self {
+        let paths: Vec<PathBuf> = REPORTS.iter().map(|n| dir.join(n)).collect();
+        for p in &paths {
+            if let Err(e) = crate::report::files::reserve(p, REPORT_RESERVE) {
+                err!(
+                    "evoloop: warning: cannot set disk aside for {}: {e}",
+                    p.display()
+                );
+            }
+        }
+        Self(paths)
+    }
+}
+
+impl Drop for Reserved {
+    fn drop(&mut self) {
+        self.0.iter().for_each(|p| crate::report::files::release(p));
+    }
+}
+
+/// "the disk is full" with the folder and what is left, when less than 1 MiB is: the words a
+/// user needs after a run whose writes failed for want of space.
+fn disk_full(dir: &Path) -> Option<String> {
+    let free = crate::report::files::free_bytes(dir)?;
+    (free < 1 << 20).then(|| {
+        format!(
+            "no space left on the device of {} ({free} bytes free): what was written in full is kept",
+            dir.display()
+        )
+    })
 }
 
 /// The optimiser's binary: the one process the launcher restarts.

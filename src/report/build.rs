@@ -498,8 +498,21 @@ pub fn build_report(
     };
     let interrupted = ctrl.interrupted || plant.interrupted || opt.interrupted;
     let until_stopped = scn.timing.until_stopped();
+    let write_errors: Vec<String> = ctrl
+        .log_error
+        .iter()
+        .cloned()
+        .chain(
+            ctrl.mcap
+                .as_ref()
+                .and_then(|m| m.error.as_ref())
+                .map(|e| format!("run.mcap: {e}; messages after it are lost")),
+        )
+        .collect();
     let summary = Summary {
-        outcome: if interrupted && !until_stopped {
+        outcome: if !write_errors.is_empty() {
+            "incomplete"
+        } else if interrupted && !until_stopped {
             "interrupted"
         } else if optimiser.lost {
             "tuner_lost"
@@ -573,6 +586,7 @@ pub fn build_report(
         stale_resources_cleaned: cleaned,
         optimiser_restarts: optimiser.restarts,
         optimiser_lost: optimiser.lost,
+        write_errors,
         optimiser_stalls: plant.optimiser_stalls.clone(),
         optimiser_resumed: plant.optimiser_resumed,
         accepted_versions: accepted.len(),

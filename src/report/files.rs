@@ -11,7 +11,7 @@
 use std::fs::File;
 use std::io::{self, Write};
 use std::os::unix::fs::OpenOptionsExt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Create `path` for writing, new and empty, owned by this process's user (mode 0644 less the
 /// umask). Whatever was at the name is removed first, a symbolic link as itself. The error
@@ -32,13 +32,66 @@ pub fn create(path: impl AsRef<Path>) -> io::Result<File> {
         .map_err(|e| named(path, "cannot create", e))
 }
 
-/// `bytes` into a new file at `path` (see `create`).
+/// `bytes` into the file at `path`, whole or not at all: written to a hidden sibling (made as
+/// `create` makes files) and renamed over the name, so a reader never finds a cut file and a
+/// link at the name is replaced, not followed. On a full disk the space `reserve` set aside
+/// for this name is given back and the write tried once more: a run's small reports still land
+/// after its logs filled the disk. The error names the path ("no space left on the device").
 pub fn write(path: impl AsRef<Path>, bytes: impl AsRef<[u8]>) -> io::Result<()> {
     let path = path.as_ref();
-    let mut f = create(path)?;
-    f.write_all(bytes.as_ref())
-        .and_then(|()| f.flush())
-        .map_err(|e| named(path, "cannot write", e))
+    let reserved = sibling(path, "reserved");
+    let mut done = write_whole(path, bytes.as_ref());
+    if matches!(&done, Err(e) if e.raw_os_error() == Some(libc::ENOSPC))
+        && std::fs::remove_file(&reserved).is_ok()
+    {
+        done = write_whole(path, bytes.as_ref());
+    }
+    let _ = std::fs::remove_file(&reserved);
+    done.map_err(|e| named(path, "cannot write", e))
+}
+
+fn write_whole(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let tmp = sibling(path, &format!("{}.tmp", std::process::id()));
+    let done = create(&tmp)
+        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.flush()))
+        .and_then(|()| std::fs::rename(&tmp, path));
+    if done.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    done
+}
+
+/// `.NAME.what` beside `path`: hidden, so listings of a run's files skip it.
+fn sibling(path: &Path, what: &str) -> PathBuf {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    path.with_file_name(format!(".{name}.{what}"))
+}
+
+/// Set aside `bytes` of disk for a later `write` of `path` (a hidden file of that size, its
+/// blocks allocated). Without it a run whose logs fill the disk loses its JSON reports, the
+/// small files every reader starts from; `write` frees it when it needs it.
+pub fn reserve(path: &Path, bytes: u64) -> io::Result<()> {
+    let f = create(sibling(path, "reserved"))?;
+    let fd = std::os::unix::io::AsRawFd::as_raw_fd(&f);
+    // SAFETY: posix_fallocate on a descriptor we own.
+    match unsafe { libc::posix_fallocate(fd, 0, bytes as libc::off_t) } {
+        0 => Ok(()),
+        e => Err(io::Error::from_raw_os_error(e)),
+    }
+}
+
+/// Give back what `reserve` set aside for `path` and was not used.
+pub fn release(path: &Path) {
+    let _ = std::fs::remove_file(sibling(path, "reserved"));
+}
+
+/// Bytes an unprivileged writer can still put on the file system of `dir`.
+pub fn free_bytes(dir: &Path) -> Option<u64> {
+    let c = std::ffi::CString::new(dir.as_os_str().as_encoded_bytes()).ok()?;
+    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
+    // SAFETY: a valid C string and a statvfs to fill.
+    (unsafe { libc::statvfs(c.as_ptr(), &mut st) } == 0)
+        .then(|| st.f_bavail as u64 * st.f_frsize as u64)
 }
 
 /// Open an existing file that must stay where it is (a lock file: removing it would break the
@@ -97,6 +150,23 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep me");
         assert!(!std::fs::symlink_metadata(&link).unwrap().is_symlink());
         assert_eq!(std::fs::read_to_string(&link).unwrap(), "report");
+    }
+
+    #[test]
+    fn a_write_is_whole_and_uses_its_reservation_and_leaves_nothing_hidden() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("controller.json");
+        reserve(&p, 4096).unwrap();
+        assert_eq!(
+            std::fs::metadata(dir.path().join(".controller.json.reserved"))
+                .unwrap()
+                .len(),
+            4096
+        );
+        write(&p, "{}").unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "{}");
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().collect();
+        assert_eq!(left.len(), 1, "{left:?}");
     }
 
     #[test]

@@ -30,6 +30,9 @@ pub struct ControllerReport {
     pub final_params: Vec<f64>,
     pub pending_dropped: u64,
     pub log_dropped: u64,
+    /// The first error writing run.csv / timing.csv (a full disk): rows after it are lost.
+    #[serde(default)]
+    pub log_error: Option<String>,
     /// The model new sets were checked on (linear plants with a varying parameter).
     #[serde(default)]
     pub check_model: Option<crate::control::model_check::ModelCheckReport>,
@@ -246,6 +249,10 @@ pub struct Summary {
     pub stale_resources_cleaned: usize,
     /// Times the optimiser died and was started again to rejoin the run.
     pub optimiser_restarts: usize,
+    /// What the run could not write (a full disk): logged rows or recorded messages after the
+    /// error are lost, and the outcome is "incomplete".
+    #[serde(default)]
+    pub write_errors: Vec<String>,
     /// The optimiser died once more after its last restart: the loop ran on with the set in
     /// service, untuned (outcome "tuner_lost").
     #[serde(default)]
