@@ -223,3 +223,97 @@ fn an_ipc_prefix_too_long_or_with_a_slash_is_refused_before_iceoryx2_sees_it() {
         );
     }
 }
+
+/// Nonsense `check` used to accept (issue 42, item 7), each refused with its key.
+#[test]
+fn nonsense_values_are_refused_by_check_with_their_key() {
+    let step = "step = 0.0005";
+    for (text, key) in [
+        (base().replace(step, &format!("{step}\nnoise_std = 1e300")), "plant.noise_std"),
+        (base().replace(step, &format!("{step}\nsafe_command = 1e300")), "plant.safe_command"),
+        (
+            scenario("kind = \"square\"\namplitude = 1.0\nperiod = 1e-12", "duration = 5.0"),
+            "reference.period",
+        ),
+        (
+            base().replace(
+                "[timing]",
+                "[optimiser]\nmode = \"schedule\"\n[[optimiser.schedule]]\nat = 12.0\nvalues = [1.0, nan, 1.0, 1.0, -1.0]\n[timing]",
+            ),
+            "optimiser.schedule[0].values[1]",
+        ),
+        (
+            base().replace(
+                "[timing]",
+                "[optimiser]\nmode = \"schedule\"\n[[optimiser.schedule]]\nat = 12.0\nvalues = [1.0, 1.0, 1.0, 500.0, -1.0]\n[timing]",
+            ),
+            "optimiser.schedule[0].values[3]",
+        ),
+        (
+            base().replace(
+                "[timing]",
+                "[optimiser]\nmode = \"schedule\"\n[[optimiser.schedule]]\nat = 12.0\nvalues = [1.0, 1.0]\n[timing]",
+            ),
+            "optimiser.schedule[0].values",
+        ),
+    ] {
+        let e = err_of(&text);
+        assert!(e.contains(&format!("`{key}`")), "{key}: {e}");
+    }
+    // A set meant to be refused says so, and then passes check.
+    let meant = base().replace(
+        "[timing]",
+        "[optimiser]\nmode = \"schedule\"\n[[optimiser.schedule]]\nat = 12.0\nvalues = [1.0, nan]\nexpect = \"rejected\"\n[timing]",
+    );
+    Scenario::parse(&meant, Path::new("config/ok.toml"), &Overrides::default()).unwrap();
+}
+
+#[test]
+fn an_arm_reference_beyond_a_joint_limit_is_refused_with_the_joint_and_time() {
+    let text = std::fs::read_to_string(config("arm3_ct.toml")).unwrap();
+    // Joint 3's limits are +-2.8 rad: an offset of -2.5 with 0.775 rad of amplitude passes them.
+    let bad = text.replace("offsets = [0.0, 0.7, -1.3]", "offsets = [0.0, 0.7, -2.5]");
+    assert_ne!(bad, text);
+    let e = err_of(&bad);
+    assert!(e.contains("`reference`") && e.contains("joint 3"), "{e}");
+    assert!(e.contains("outside its limits [-2.8, 2.8]"), "{e}");
+}
+
+#[test]
+fn a_diverging_plant_fails_the_run_instead_of_ending_ok() {
+    // Positive state feedback, no input limit: the two-mass state passes 1e9 in a fraction of
+    // a second; the run used to go on and end "ok".
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write(
+        tmp.path(),
+        "diverge.toml",
+        &base().replace("u_limit = 100.0\n", "").replace(
+            "gains = [18.49, 19.04, 47.27, 7.30, -10.54]",
+            "gains = [-100.0, -100.0, -100.0, -100.0, -100.0]",
+        ),
+    );
+    let out = tmp.path().join("out");
+    let o = run(&cfg, &out, "diverge", &[]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("state diverged"), "{e}");
+    assert_eq!(json(&out.join("summary.json"))["outcome"], "failed");
+}
+
+#[test]
+fn run_ids_are_checked_so_that_two_never_share_a_lock() {
+    // `a.b` and `a_b` mapped to one lock file, so the second was refused as "in use".
+    for bad in ["a.b", "a/b", "", &"x".repeat(65)] {
+        let o = cli(&[
+            "run",
+            "config/two_mass.toml",
+            "--run-id",
+            bad,
+            "--out",
+            "/nonexistent",
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains("--run-id"), "{bad:?}: {e}");
+    }
+}

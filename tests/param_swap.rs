@@ -20,12 +20,15 @@ values = [12.1946, 11.7906, 18.7567, 4.958, -10.0]
 [[optimiser.schedule]]
 at = 16.0
 values = [1.0, nan, 1.0, 1.0, -1.0]
+expect = \"rejected\"
 [[optimiser.schedule]]
 at = 17.0
 values = [1.0, 1.0, 1.0, 500.0, -1.0]
+expect = \"rejected\"
 [[optimiser.schedule]]
 at = 18.0
 values = [1.0, 1.0, 1.0]
+expect = \"rejected\"
 [[optimiser.schedule]]
 at = 19.0
 values = [-20.0, 19.04, 47.27, 7.30, -10.54]

@@ -18,8 +18,10 @@ pub use crate::check::ConfigError;
 pub use crate::control::{ControllerKind, ControllerModel, ControllerSpec};
 pub use crate::plant::{PlantKind, PlantModel, PlantSpec};
 pub use optimiser::{
-    OptimiserMode, OptimiserSpec, ScheduledSet, SetKind, WorkersKind, WorkersSpec, WORKERS_WAIT_S,
+    Expect, OptimiserMode, OptimiserSpec, ScheduledSet, SetKind, WorkersKind, WorkersSpec,
+    WORKERS_WAIT_S,
 };
+pub use reference::MAX_VALUE as MAX_REFERENCE_VALUE;
 pub use timing::{default_margin_us, parse_duration, Mode, Timing};
 
 use crate::check::Check;
@@ -227,8 +229,8 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
             .unwrap_or_else(|| "scenario".into())
     });
     let timing = timing::validate(raw.timing, check, ov)?;
-    let reference = reference::validate(raw.reference, check)?;
-    let plant = PlantSpec::validate(raw.plant, check, timing.period, &reference)?;
+    let reference = reference::validate(raw.reference, check, timing.period)?;
+    let plant = PlantSpec::validate(raw.plant, check, timing.period, &reference, timing.duration)?;
     let controller = ControllerSpec::validate(
         raw.controller,
         check,
@@ -263,6 +265,9 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
                  fuzzy_computed_torque do)",
             );
         }
+        if s.expect == Expect::Accepted {
+            scheduled_set_fits(check, &format!("optimiser.schedule[{i}]"), s, &controller)?;
+        }
     }
     let out_raw = raw.output.unwrap_or(RawOutput {
         dir: None,
@@ -290,6 +295,42 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
         output,
         warnings: check.take_warnings(),
     })
+}
+
+/// A scheduled set the controller is to take: every value finite and, for gains, as many as the
+/// controller has, each within its bounds. Refused here, before the run, rather than 12 s into
+/// it (`expect = "rejected"` marks a set meant to be refused).
+fn scheduled_set_fits(
+    check: &Check,
+    key: &str,
+    s: &ScheduledSet,
+    controller: &ControllerSpec,
+) -> Result<(), ConfigError> {
+    check.finite_values(&format!("{key}.values"), &s.values, s.values.len(), "")?;
+    if s.kind == SetKind::Model {
+        return Ok(());
+    }
+    let t = controller.tunable();
+    let n = t.gains.len();
+    if s.values.len() != n {
+        return check.fail(
+            &format!("{key}.values"),
+            format!(
+                "{} values; the controller has {n} parameters (expect = \"rejected\" for a set meant to be refused)",
+                s.values.len()
+            ),
+        );
+    }
+    for (j, v) in s.values.iter().enumerate() {
+        let (lo, hi) = (t.bounds.lower[j], t.bounds.upper[j]);
+        if *v < lo || *v > hi {
+            return check.fail(
+                &format!("{key}.values[{j}]"),
+                format!("{v} is outside the controller's bounds [{lo}, {hi}] (expect = \"rejected\" for a set meant to be refused)"),
+            );
+        }
+    }
+    Ok(())
 }
 
 /// `optimiser.mode = "identify"` replaces models of a fuzzy computed-torque controller, each sent

@@ -112,6 +112,18 @@ pub struct RawScheduled {
     /// Instead of `values`, a JSON file whose `model_parameters` are the values (a model set
     /// from `evoloop identify lls`), relative to the scenario file.
     pub file: Option<std::path::PathBuf>,
+    /// "rejected": a set meant to exercise the controller's refusal (NaN, out of bounds, wrong
+    /// length), not checked before the run; every other set is (default "accepted").
+    pub expect: Option<Expect>,
+}
+
+/// What a scheduled set is meant to meet at the controller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Expect {
+    #[default]
+    Accepted,
+    Rejected,
 }
 
 /// What a scheduled set replaces.
@@ -128,6 +140,7 @@ pub struct ScheduledSet {
     pub at: f64,
     pub values: Vec<f64>,
     pub kind: SetKind,
+    pub expect: Expect,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -261,8 +274,8 @@ pub fn validate(
         if i > 0 && s.at < schedule.last().map(|p: &ScheduledSet| p.at).unwrap_or(0.0) {
             return check.fail(&format!("{key}.at"), "schedule times must not decrease");
         }
-        // The values are deliberately not range-checked here: the controller validates every
-        // set it receives, and a scheduled bad set is how that path is exercised end to end.
+        // The values are checked against the controller (config::compose) unless the set is
+        // meant to be refused: a scheduled bad set is how that path is exercised end to end.
         let values = match (s.values, s.file) {
             (Some(v), None) => v,
             (None, Some(file)) => model_file(&check.resolve(&file))
@@ -284,6 +297,7 @@ pub fn validate(
             at: s.at,
             values,
             kind: s.kind.unwrap_or_default(),
+            expect: s.expect.unwrap_or_default(),
         });
     }
     let epoch_evaluations = o.epoch_evaluations.unwrap_or(150);

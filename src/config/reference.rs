@@ -40,7 +40,27 @@ pub enum ReferenceKind {
 /// range, small enough that squared errors and their integrals stay finite.
 pub const MAX_VALUE: f64 = 1e6;
 
-pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError> {
+/// The reference of a loop run every `control_period` seconds: its times are checked against it
+/// (a square wave of period 1e-12 s passed before, as did sines above the loop's Nyquist rate).
+pub fn validate(
+    r: RawReference,
+    check: &Check,
+    control_period: f64,
+) -> Result<Reference, ConfigError> {
+    // A duration the loop can resolve: at least `periods` control periods.
+    let resolvable = |key: &str, x: f64, periods: f64, what: &str| {
+        check.positive(key, x)?;
+        if x < periods * control_period * (1.0 - 1e-9) {
+            return check.fail(
+                key,
+                format!(
+                    "{x} s is shorter than {periods} control period(s) ({} s): {what}",
+                    periods * control_period
+                ),
+            );
+        }
+        Ok(x)
+    };
     // A scalar value, bounded so that errors and their integrals (IAE, ISE) stay finite.
     let value = |key: &str, x: f64| check.range(key, x, -MAX_VALUE, MAX_VALUE);
     let need = |key: &str, v: Option<f64>| -> Result<f64, ConfigError> {
@@ -145,8 +165,10 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
             if frequencies.is_empty() {
                 return check.fail("reference.frequencies", "needs at least one frequency");
             }
+            // Up to the loop's Nyquist rate, 1 / (2 period).
+            let nyquist = 0.5 / control_period;
             for (h, f) in frequencies.iter().enumerate() {
-                check.range(&format!("reference.frequencies[{h}]"), *f, 0.0, 1e4)?;
+                check.range(&format!("reference.frequencies[{h}]"), *f, 0.0, nyquist)?;
             }
             let nh = frequencies.len();
             let phases = r.phases.unwrap_or_else(|| vec![vec![0.0; nh]; n]);
@@ -186,7 +208,12 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
             for (i, v) in values.iter().enumerate() {
                 value(&format!("reference.values[{i}]"), *v)?;
             }
-            check.positive("reference.period", period)?;
+            resolvable(
+                "reference.period",
+                period,
+                1.0,
+                "the loop would skip samples",
+            )?;
             Ok(Reference::Samples { values, period })
         }
         ReferenceKind::Step => Ok(Reference::Step {
@@ -195,7 +222,12 @@ pub fn validate(r: RawReference, check: &Check) -> Result<Reference, ConfigError
         }),
         ReferenceKind::Square => {
             let period = need("period", r.period)?;
-            check.positive("reference.period", period)?;
+            resolvable(
+                "reference.period",
+                period,
+                2.0,
+                "the loop could not follow the wave",
+            )?;
             Ok(Reference::Square {
                 amplitude: need("amplitude", r.amplitude)?,
                 period,

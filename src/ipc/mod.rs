@@ -164,6 +164,29 @@ pub fn parse_prefix(s: &str) -> Result<String, String> {
     Ok(s.to_string())
 }
 
+/// The longest run id: it goes into every service name and the run's lock file name.
+pub const MAX_RUN_ID: usize = 64;
+
+/// `--run-id` checked: 1 to `MAX_RUN_ID` ASCII letters, digits, `_` and `-` (no `.`: a lock file
+/// and service names must tell every two run ids apart).
+pub fn parse_run_id(s: &str) -> Result<String, String> {
+    if s.is_empty() || s.len() > MAX_RUN_ID {
+        return Err(format!(
+            "{} characters; a run id has 1 to {MAX_RUN_ID}",
+            s.len()
+        ));
+    }
+    if let Some(c) = s
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || "_-".contains(*c)))
+    {
+        return Err(format!(
+            "{c:?} is not allowed; a run id takes ASCII letters, digits, '_' and '-'"
+        ));
+    }
+    Ok(s.to_string())
+}
+
 /// iceoryx2 configuration for a prefix: this user's namespace (see `namespace`), with a
 /// separate one per prefix.
 pub fn ipc_config(prefix: &str) -> Result<Config, IpcError> {

@@ -11,8 +11,9 @@ pub struct RunArgs {
     pub file: Option<PathBuf>,
     #[command(flatten)]
     pub overrides: OverrideArgs,
-    /// Run id used in the service names (default: generated, unique on this machine).
-    #[arg(long)]
+    /// Run id used in the service names: ASCII letters, digits, '_' and '-' (default:
+    /// generated, unique on this machine).
+    #[arg(long, value_parser = crate::ipc::parse_run_id)]
     pub run_id: Option<String>,
     /// Prefix of iceoryx2's files (separate namespace, e.g. for parallel tests).
     #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX, value_parser = crate::ipc::parse_prefix)]
@@ -59,7 +60,7 @@ pub struct ProcessArgs {
     #[arg(long)]
     pub config: PathBuf,
     /// Run id: part of every service name, so runs never cross-talk.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::ipc::parse_run_id)]
     pub run_id: String,
     /// Prefix of iceoryx2's files for this run.
     #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX, value_parser = crate::ipc::parse_prefix)]

@@ -190,51 +190,73 @@ pub(crate) fn die_with_parent(cmd: &mut std::process::Command) {
     }
 }
 
-/// An exclusive lock held for a run's lifetime (flock on a file holding the holder's pid).
+/// An exclusive lock held for a run's lifetime (flock on a file holding the holder's pid). A
+/// run id's lock file is removed when the run ends (they piled up in the per-user folder, one
+/// per run); the output directory's stays (one file, in the user's own folder).
 struct RunLock {
     _file: std::fs::File,
+    remove: Option<PathBuf>,
 }
 
 impl RunLock {
     /// Take the lock on `path` or say who holds it; `what` names the resource in the message.
     fn take(path: &Path, what: &str) -> Result<RunLock, String> {
         use std::io::{Read, Seek, Write};
+        use std::os::unix::fs::MetadataExt;
         use std::os::unix::io::AsRawFd;
-        let mut f =
-            crate::report::files::open_in_place(path).map_err(|e| format!("{what}: {e}"))?;
-        // SAFETY: flock on a descriptor we own.
-        if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
-            let mut holder = String::new();
-            let _ = f.read_to_string(&mut holder);
-            return Err(format!(
-                "{what} is in use by another run (pid {}); wait for it to end or choose another",
-                holder.trim()
-            ));
+        // A lock file is removed by its holder at the end, so the one opened here may be
+        // unlinked between the open and the flock: locked, it must still be the file at the
+        // path, or a second run could lock a new one beside it. Try again on a new file.
+        for _ in 0..8 {
+            let mut f =
+                crate::report::files::open_in_place(path).map_err(|e| format!("{what}: {e}"))?;
+            // SAFETY: flock on a descriptor we own.
+            if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+                let mut holder = String::new();
+                let _ = f.read_to_string(&mut holder);
+                return Err(format!(
+                    "{what} is in use by another run (pid {}); wait for it to end or choose another",
+                    holder.trim()
+                ));
+            }
+            let same = match (f.metadata(), std::fs::symlink_metadata(path)) {
+                (Ok(a), Ok(b)) => a.ino() == b.ino() && a.dev() == b.dev(),
+                _ => false,
+            };
+            if !same {
+                continue;
+            }
+            let _ = f.set_len(0);
+            let _ = f.rewind();
+            let _ = write!(f, "{}", std::process::id());
+            return Ok(RunLock {
+                _file: f,
+                remove: None,
+            });
         }
-        let _ = f.set_len(0);
-        let _ = f.rewind();
-        let _ = write!(f, "{}", std::process::id());
-        Ok(RunLock { _file: f })
+        Err(format!("{what}: its lock file keeps being replaced"))
     }
 
     /// The lock of run id `run_id` under IPC prefix `prefix`, in this user's private directory
-    /// (`<tmp>/evoloop-<uid>/locks`, see `ipc::namespace`).
+    /// (`<tmp>/evoloop-<uid>/locks`, see `ipc::namespace`). Its name is `PREFIX+RUN_ID.lock`:
+    /// neither may hold a '+' (`ipc::parse_prefix`, `ipc::parse_run_id`), so two pairs never
+    /// share a file (the old name mapped '.' to '_', and `a.b` locked out `a_b`).
     fn for_run_id(prefix: &str, run_id: &str) -> Result<RunLock, String> {
         let dir = crate::ipc::namespace::user_subdir("locks").map_err(|e| e.to_string())?;
-        let safe: String = format!("{prefix}-{run_id}")
-            .chars()
-            .map(|c| {
-                if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
-        Self::take(
-            &dir.join(format!("{safe}.lock")),
-            &format!("run id `{run_id}`"),
-        )
+        let path = dir.join(format!("{prefix}+{run_id}.lock"));
+        let mut lock = Self::take(&path, &format!("run id `{run_id}`"))?;
+        lock.remove = Some(path);
+        Ok(lock)
+    }
+}
+
+impl Drop for RunLock {
+    fn drop(&mut self) {
+        // Unlinked while still locked: a run opening it now finds it gone after its flock and
+        // tries again on a new file (`take`).
+        if let Some(p) = &self.remove {
+            let _ = std::fs::remove_file(p);
+        }
     }
 }
 
@@ -370,6 +392,8 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
 }
 
 pub fn run(mut a: RunArgs) -> ExitCode {
+    // First: a Ctrl-C from here on is an interrupted run, with its summary.
+    let stop = stop_flag();
     let file = a.file.clone().unwrap_or_else(default_scenario);
     // `--workers N`: the optimiser listens on a free loopback port and waits for N workers.
     if a.workers.is_some() && !cfg!(feature = "zenoh") {
@@ -402,7 +426,6 @@ pub fn run(mut a: RunArgs) -> ExitCode {
             err!("warning: {w}");
         }
     }
-    let stop = stop_flag();
     let dir = scn.output.dir.clone();
     if let Err(e) = std::fs::create_dir_all(&dir) {
         err!(

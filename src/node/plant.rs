@@ -132,6 +132,7 @@ fn run_lockstep(
     let mut paced = true;
     for k in 0..=n {
         sim.sample(k, now_ns(), &u[..n_u], &mut msg);
+        diverged(sim, k)?;
         let ring = |ports: &Ports| ports.sync.ring().map_err(|e| (EXIT_SETUP, e.to_string()));
         if k == n {
             msg.flags = STATE_FLAG_END;
@@ -168,6 +169,25 @@ fn run_lockstep(
         sim.advance(&u[..n_u], dt);
     }
     Ok(())
+}
+
+/// Beyond any plant's physical range, in the state's own units (m, rad, m/s, K...).
+pub const DIVERGED: f64 = 1e9;
+
+/// Err if the state at sample `k` is non-finite or beyond `DIVERGED`: the run must end there as
+/// failed, not run on and report "ok" (a stall on a safe command of 1e300 drove a state to
+/// 8e299 and the run ended "ok"). A loop over the state, once per sample.
+fn diverged(sim: &PlantSim, k: u64) -> Result<(), (i32, String)> {
+    match sim.x.iter().position(|v| !(v.abs() <= DIVERGED)) {
+        None => Ok(()),
+        Some(i) => Err((
+            super::start::EXIT_DIVERGED,
+            format!(
+                "the plant's state diverged at sample {k} (t = {:.4} s): x[{i}] = {:e}",
+                sim.t, sim.x[i]
+            ),
+        )),
+    }
 }
 
 /// Lockstep: at synchronisation point `k`, wait until the optimiser has seen sample `k`, so its
@@ -281,6 +301,7 @@ fn run_realtime(
         }
         sim.advance(&u[..n_u], k as f64 * scn.timing.period - sim.t);
         sim.sample(k, now_ns(), &u[..n_u], &mut msg);
+        diverged(sim, k)?;
         if safe_mode {
             msg.flags |= STATE_FLAG_SAFE;
             report.safe_samples += 1;

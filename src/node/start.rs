@@ -11,6 +11,8 @@ use std::sync::Arc;
 pub const EXIT_PEER_TIMEOUT: i32 = 3;
 /// Exit code of a process that could not set itself up (config, IPC).
 pub const EXIT_SETUP: i32 = 2;
+/// Exit code of a plant whose state left any physical range (non-finite or beyond `DIVERGED`).
+pub const EXIT_DIVERGED: i32 = 4;
 
 /// What every process starts with: its scenario, its stop flag (set by SIGINT/SIGTERM) and its
 /// iceoryx2 node in the run.

@@ -171,6 +171,7 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Ar
             ),
         );
     }
+    within_limits(check, &model, reference, cx.duration)?;
     let initial_q = match t.initial_q {
         Some(q) => {
             if q.len() != n {
@@ -221,6 +222,42 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Ar
         payload,
         payload_com,
     })
+}
+
+/// The reference must keep every joint within its limits (a waypoint beyond a joint stop
+/// passed before, and the arm ran into the stop): sampled every millisecond over the run (its
+/// first 600 s when longer or until stopped), the first excursion named with its time.
+fn within_limits(
+    check: &Check,
+    model: &crate::dynamics::Model,
+    reference: &crate::reference::Reference,
+    duration: f64,
+) -> Result<(), ConfigError> {
+    let n = model.dof();
+    let end = duration.min(600.0);
+    let samples = (end / 1e-3).ceil() as usize;
+    let mut sp = crate::reference::Setpoint::default();
+    for k in 0..=samples {
+        let t = (k as f64 * 1e-3).min(end);
+        reference.sample(t, &mut sp);
+        for (j, b) in model.bodies.iter().enumerate().take(n) {
+            let q = sp.q[j];
+            let l = &b.limits;
+            if q < l.q_min - 1e-9 || q > l.q_max + 1e-9 {
+                return check.fail(
+                    "reference",
+                    format!(
+                        "takes joint {} ({}) to {q:.4} at t = {t:.3} s, outside its limits [{}, {}]",
+                        j + 1,
+                        b.joint,
+                        l.q_min,
+                        l.q_max
+                    ),
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 impl PlantConfig for ArmSpec {

@@ -106,6 +106,8 @@ pub struct PlantContext<'a> {
     /// The integration step, s (validated: 0 < step <= period).
     pub step: f64,
     pub reference: &'a Reference,
+    /// The run's duration, s (infinite for a run until stopped).
+    pub duration: f64,
 }
 
 /// A validated plant: the simulation settings every plant shares, and its kind's parameters.
@@ -130,6 +132,7 @@ impl PlantSpec {
         check: &Check,
         period: f64,
         reference: &Reference,
+        duration: f64,
     ) -> Result<PlantSpec, ConfigError> {
         let step = raw.step.unwrap_or(period.min(1e-3));
         check.positive("plant.step", step)?;
@@ -142,17 +145,26 @@ impl PlantSpec {
         if period / step > 1e5 {
             return check.fail("plant.step", "more than 1e5 sub-steps per period");
         }
-        let noise_std = raw.noise_std.unwrap_or(0.0);
-        if !noise_std.is_finite() || noise_std < 0.0 {
-            return check.fail("plant.noise_std", format!("must be >= 0 (got {noise_std})"));
-        }
-        let safe_command = check.finite("plant.safe_command", raw.safe_command.unwrap_or(0.0))?;
+        // Bounded as a reference value is: 1e300 passed here and a stall on that safe command
+        // drove the state to 8e299.
+        let max = crate::config::MAX_REFERENCE_VALUE;
+        let noise_std = check.range("plant.noise_std", raw.noise_std.unwrap_or(0.0), 0.0, max)?;
+        let safe_command = check.range(
+            "plant.safe_command",
+            raw.safe_command.unwrap_or(0.0),
+            -max,
+            max,
+        )?;
         let command_timeout_periods = raw.command_timeout_periods.unwrap_or(10);
         if command_timeout_periods == 0 {
             return check.fail("plant.command_timeout_periods", "must be >= 1");
         }
         let kind = raw.kind;
-        let cx = PlantContext { step, reference };
+        let cx = PlantContext {
+            step,
+            reference,
+            duration,
+        };
         Ok(PlantSpec {
             step,
             noise_std,
