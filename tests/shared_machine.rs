@@ -172,6 +172,31 @@ fn files_of_another_user_in_the_namespace_are_refused() {
     assert!(e.contains("belongs to uid 65534, not to you"), "{e}");
     forget_prefix(&prefix);
 
+    // iceoryx2's own global management segment, squatted: iceoryx2 fails with a generic
+    // error (UnableToGenerateUniqueNodeId); the message names the file and its owner.
+    let (prefix, _) = unique("squat");
+    assert_ok(&run_as(
+        &cfg,
+        &tmp.path().join("g"),
+        &prefix,
+        tmp.path(),
+        None,
+    ));
+    let mgmt = shm_files(&format!("{prefix}0_"))
+        .into_iter()
+        .find(|p| p.to_string_lossy().ends_with(".global_mgmt"))
+        .expect("a global management segment");
+    std::fs::remove_file(&mgmt).unwrap();
+    std::fs::write(&mgmt, b"").unwrap();
+    std::os::unix::fs::chown(&mgmt, Some(NOBODY), Some(NOBODY)).unwrap();
+    let o = run_as(&cfg, &tmp.path().join("g"), &prefix, tmp.path(), None);
+    let _ = std::fs::remove_file(&mgmt);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains(&mgmt.display().to_string()), "{e}");
+    assert!(e.contains("belongs to uid 65534, not to you"), "{e}");
+    forget_prefix(&prefix);
+
     // A private directory somebody else created.
     let dir = tmp.path().join("evoloop-0");
     std::fs::create_dir_all(&dir).unwrap();

@@ -207,6 +207,11 @@ pub fn create_node<S: iceoryx2::service::Service>(
     prefix: &str,
     what: &str,
 ) -> Result<Node<S>, IpcError> {
+    // Before iceoryx2 opens anything: a file of another user in this namespace (its global
+    // management segment, say) failed it with a generic error (UnableToGenerateUniqueNodeId)
+    // or, as root, which may open anyone's file, had it wait forever for that file to be
+    // initialised. Name the file and its owner instead. After: make ours owner-only.
+    namespace::claim_shm(prefix)?;
     let node = builder
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<S>()

@@ -90,8 +90,8 @@ pub fn user_prefix(prefix: &str) -> String {
     format!("{prefix}{}_", uid())
 }
 
-/// After a node of `prefix` exists: refuse when a file in `/dev/shm` under this user's prefix
-/// belongs to someone else, and make ours owner-only.
+/// Before and after a node of `prefix` is created: refuse when a file in `/dev/shm` under this
+/// user's prefix belongs to someone else, and make ours owner-only.
 pub fn claim_shm(prefix: &str) -> Result<(), IpcError> {
     // Without /dev/shm there are no entries: nothing shared through files to guard.
     for path in entries(Path::new(SHM_DIR), &user_prefix(prefix)) {
