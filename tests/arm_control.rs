@@ -393,7 +393,10 @@ fn the_seven_dof_arm_runs_at_ten_kilohertz_in_realtime_mode() {
 /// The fuzzy-selection computed torque (two RKGNN models identified on the 7-DOF arm's own
 /// training runs) at 10 kHz through the processes: bit-reproducible in lockstep and equal to the
 /// in-process simulation, and the selector uses both models within the first 2 s. Its tracking
-/// is the models' (README: worse than the P-D servo on this arm), so only its bound is pinned.
+/// is the models', and the README says it is worse than the P-D servo on this arm (Known
+/// limits; issue 41): the test checks that claim against the servo of the training runs on the
+/// same trajectory, so the day the models beat the servo it fails and the README is corrected.
+/// (It pinned `rms < 0.2`, which passed a controller four times worse than the servo.)
 #[test]
 fn the_fuzzy_selection_controller_runs_the_seven_dof_arm_at_ten_kilohertz() {
     let _alone = alone();
@@ -402,6 +405,30 @@ fn the_fuzzy_selection_controller_runs_the_seven_dof_arm_at_ten_kilohertz() {
     for m in [0.0, 1.0] {
         assert!(chosen.contains(&m), "model {m} never selected");
     }
-    let rms = s["tracking_after_1s"]["rms_all"].as_f64().unwrap();
-    assert!(rms < 0.2, "tracking rms {rms}");
+    let fuzzy = s["tracking_after_1s"]["rms_all"].as_f64().unwrap();
+    // The P-D servo of config/arm7_train1.toml on the fuzzy scenario's trajectory and loop.
+    let text = std::fs::read_to_string(config("arm7_fuzzy_ct.toml")).unwrap();
+    let train = std::fs::read_to_string(config("arm7_train1.toml")).unwrap();
+    let section = |t: &str, from: &str, to: &str| {
+        let a = t.find(from).unwrap();
+        t[a..a + t[a..].find(to).unwrap()].to_string()
+    };
+    let servo_text = text.replace(
+        &section(&text, "[controller]", "[reference]"),
+        &section(&train, "[controller]", "[reference]"),
+    );
+    let ov = Overrides {
+        duration: Some(2.0),
+        ..Default::default()
+    };
+    let servo = Scenario::parse(&servo_text, &config("arm7_servo.toml"), &ov)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(servo.controller.kind().name(), "pd_servo");
+    let pd = joint_tracking(&servo, &simulate(&servo), 10_000).rms_all;
+    eprintln!("arm7 after 1 s: fuzzy CT rms {fuzzy:.4} rad, P-D servo {pd:.4} rad");
+    assert!(
+        fuzzy > pd,
+        "fuzzy CT ({fuzzy:.4} rad) now beats the P-D servo ({pd:.4} rad) on arm7: \
+         the README's Known limits say otherwise, correct them"
+    );
 }
