@@ -279,21 +279,35 @@ fn study_sentences_follow_the_sign_and_significance_of_the_test() {
     assert!(s.starts_with("No difference"), "{s}");
 }
 
-/// The progress bar (indicatif) is drawn on a terminal, with the best cost so far, and not at all
-/// with --quiet, --json or when stderr is not a terminal, so scripts see clean output. The
-/// terminal is a pseudo-terminal from util-linux `script`; without it the terminal half is
-/// skipped (said on stderr).
+/// No progress bar when stderr is not a terminal, so scripts see clean output.
 #[test]
-fn the_progress_bar_shows_on_a_terminal_only() {
+fn no_progress_bar_when_stderr_is_not_a_terminal() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("a");
+    let piped = cli(&[
+        "tune",
+        "config/arsinh_tune.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(piped.status.success());
+    assert!(!String::from_utf8_lossy(&piped.stderr).contains("ETA"));
+}
+
+/// The progress bar (indicatif) is drawn on a terminal, with the best cost so far, and not at all
+/// with --quiet or --json. The terminal is a pseudo-terminal from util-linux `script`: ignored
+/// by a plain `cargo test` (not every machine can open one), run by .ci/run where `script`
+/// works, and failing, not skipping, where it does not.
+#[test]
+#[ignore = "needs a pseudo-terminal from util-linux `script`: .ci/run runs it with --ignored"]
+fn the_progress_bar_shows_on_a_terminal() {
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("a");
     let out = out.to_str().unwrap();
     let exe = evoloop();
     let exe = exe.to_str().unwrap();
-    let piped = cli(&["tune", "config/arsinh_tune.toml", "--out", out]);
-    assert!(piped.status.success());
-    assert!(!String::from_utf8_lossy(&piped.stderr).contains("ETA"));
     let on_tty = |extra: &str| -> Option<String> {
         let o = std::process::Command::new("script")
             .current_dir(env!("CARGO_MANIFEST_DIR"))
@@ -311,10 +325,7 @@ fn the_progress_bar_shows_on_a_terminal_only() {
         }
         Some(String::from_utf8_lossy(&o.stdout).into_owned())
     };
-    let Some(shown) = on_tty("") else {
-        eprintln!("no terminal from `script` (util-linux): the terminal half is skipped");
-        return;
-    };
+    let shown = on_tty("").expect("a terminal from `script` (util-linux)");
     assert!(shown.contains("evaluations, ETA"), "{shown}");
     assert!(shown.contains("best G"), "{shown}");
     for flag in ["--quiet", "--json"] {
