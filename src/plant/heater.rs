@@ -125,6 +125,7 @@ mod tests {
                 amplitude: 60.0,
                 start: 0.0,
             },
+            duration: 10.0,
         };
         validate(None, &Check::new("heater.toml".as_ref()), &cx).unwrap()
     }
