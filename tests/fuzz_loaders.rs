@@ -1,4 +1,5 @@
-//! Mutation fuzzing of what users hand evoloop: scenario files, D-H tables, URDFs, and the
+//! Mutation fuzzing of what users hand evoloop: scenario files, D-H tables, URDFs, recordings
+//! (run.mcap, as `evoloop replay` reads them), and the
 //! parameter sets a controller is offered. Every shipped file is mutated the way hand edits and
 //! broken generators go wrong (numbers replaced by NaN, infinities, huge, negative or zero values,
 //! strings for numbers, lines lost or repeated, keys renamed, unknown keys, truncation, stray
@@ -463,4 +464,90 @@ fn a_controller_takes_a_set_whole_or_refuses_it_with_a_code_and_keeps_its_last_g
         }
     }
     verdict("parameter sets", n, failures);
+}
+
+/// `run.mcap` of a short lockstep run of the base scenario, made once by the real binary.
+fn recording() -> Vec<u8> {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+        .current_dir(root())
+        .args([
+            "run",
+            "config/two_mass.toml",
+            "--duration",
+            "0.3",
+            "--quiet",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::read(out.join("run.mcap")).unwrap()
+}
+
+/// One way a recording goes wrong: cut short (a kill, a full disk), bytes flipped, a stretch
+/// zeroed or repeated, random bytes in place of a record.
+fn mutated_bytes(b: &[u8], rng: &mut StdRng) -> Vec<u8> {
+    let mut v = b.to_vec();
+    let at = rng.gen_range(0..v.len());
+    match rng.gen_range(0..5) {
+        0 => v.truncate(at),
+        1 => {
+            for _ in 0..rng.gen_range(1..8) {
+                let i = rng.gen_range(0..v.len());
+                v[i] ^= 1 << rng.gen_range(0..8);
+            }
+        }
+        2 => {
+            let end = (at + rng.gen_range(1..64)).min(v.len());
+            v[at..end].fill(0);
+        }
+        3 => {
+            let end = (at + rng.gen_range(1..256)).min(v.len());
+            let piece = v[at..end].to_vec();
+            v.splice(at..at, piece);
+        }
+        _ => {
+            let end = (at + rng.gen_range(1..32)).min(v.len());
+            for x in &mut v[at..end] {
+                *x = rng.gen();
+            }
+        }
+    }
+    v
+}
+
+#[test]
+fn mutated_recordings_are_refused_with_file_and_reason_or_read_without_panic() {
+    quiet_panics();
+    let original = recording();
+    let mut rng = StdRng::seed_from_u64(seed() ^ 0x3ca9);
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("run.mcap");
+    let (mut accepted, mut failures) = (0, Vec::new());
+    let n = cases();
+    for _ in 0..n {
+        let bytes = mutated_bytes(&original, &mut rng);
+        std::fs::write(&path, &bytes).unwrap();
+        let read = catch_unwind(AssertUnwindSafe(|| {
+            evoloop::report::recording::Recording::read(&path)
+        }));
+        let why = match read {
+            Ok(Ok(_)) => {
+                accepted += 1;
+                continue;
+            }
+            Ok(Err(e)) if e.starts_with(&path.display().to_string()) => continue,
+            Ok(Err(e)) => format!("refused without naming the file: {e}"),
+            Err(p) => format!("panic: {}", panic_text(p)),
+        };
+        let shown = format!("{} bytes, first difference at {:?}", bytes.len(), {
+            bytes.iter().zip(&original).position(|(a, b)| a != b)
+        });
+        failures.push((path.clone(), shown, why));
+    }
+    eprintln!("recordings: {accepted} of {n} mutated files read whole");
+    verdict("recordings", n, failures);
 }

@@ -178,7 +178,11 @@ pub const DIVERGED: f64 = 1e9;
 /// failed, not run on and report "ok" (a stall on a safe command of 1e300 drove a state to
 /// 8e299 and the run ended "ok"). A loop over the state, once per sample.
 fn diverged(sim: &PlantSim, k: u64) -> Result<(), (i32, String)> {
-    match sim.x.iter().position(|v| !v.is_finite() || v.abs() > DIVERGED) {
+    match sim
+        .x
+        .iter()
+        .position(|v| !v.is_finite() || v.abs() > DIVERGED)
+    {
         None => Ok(()),
         Some(i) => Err((
             super::start::EXIT_DIVERGED,

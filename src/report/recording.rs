@@ -30,6 +30,77 @@ pub struct Received {
     pub cycle: Option<u64>,
 }
 
+/// Refuse a damaged chunk before mcap reads it: one declaring more uncompressed bytes than any
+/// compression of its size could give (LZ4 expands at most 255 to 1), or whose records do not
+/// match its CRC. mcap 0.26 reserves what a chunk or a record inside it declares before it
+/// checks anything, so a corrupt size (a flipped bit in a damaged file) aborted the process on
+/// an allocation of exabytes instead of returning an error; with the CRC checked here first,
+/// the sizes it reads inside a chunk are the ones written. Walks the file's top-level records
+/// (opcode u8, length u64 LE, body); one running past the end is left to the reader, which
+/// calls the file cut short.
+fn check_chunks(bytes: &[u8]) -> Result<(), String> {
+    const MAGIC: usize = 8;
+    const CHUNK: u8 = 0x06;
+    let mut at = MAGIC;
+    while let Some(len) = le_u64(bytes, at + 1) {
+        let body = at + 9;
+        let Some(end) = usize::try_from(len).ok().and_then(|l| body.checked_add(l)) else {
+            return Ok(());
+        };
+        if end > bytes.len() {
+            return Ok(());
+        }
+        if bytes[at] == CHUNK {
+            check_chunk(&bytes[body..end], len)
+                .map_err(|e| format!("the chunk at byte {at} {e}: the recording is damaged"))?;
+        }
+        at = end;
+    }
+    Ok(())
+}
+
+/// One chunk's body: start and end times (u64 each), uncompressed size (u64), CRC (u32, 0 =
+/// none), compression (u32 length + name), records length (u64), records.
+fn check_chunk(b: &[u8], len: u64) -> Result<(), String> {
+    use std::io::Read;
+    let short = || "is cut short".to_string();
+    let declared = le_u64(b, 16).ok_or_else(short)?;
+    if declared > 256 * len + 4096 {
+        return Err(format!("declares {declared} uncompressed bytes from {len}"));
+    }
+    let crc = u32::from_le_bytes(b.get(24..28).ok_or_else(short)?.try_into().unwrap());
+    let name_len = u32::from_le_bytes(b.get(28..32).ok_or_else(short)?.try_into().unwrap());
+    let name_end = 32 + name_len as usize;
+    let name = b.get(32..name_end).ok_or_else(short)?;
+    let n = le_u64(b, name_end).ok_or_else(short)?;
+    let records = usize::try_from(n)
+        .ok()
+        .and_then(|n| b.get(name_end + 8..name_end + 8 + n))
+        .ok_or_else(short)?;
+    if crc == 0 {
+        return Ok(());
+    }
+    let mut plain = Vec::with_capacity(declared as usize);
+    match name {
+        b"" => plain.extend_from_slice(records),
+        b"lz4" => {
+            lz4::Decoder::new(records)
+                .and_then(|d| d.take(declared).read_to_end(&mut plain))
+                .map_err(|e| format!("does not decompress ({e})"))?;
+        }
+        // Not one evoloop writes: mcap checks it as it reads.
+        _ => return Ok(()),
+    }
+    if plain.len() as u64 != declared || crc32fast::hash(&plain) != crc {
+        return Err("does not match its CRC".into());
+    }
+    Ok(())
+}
+
+fn le_u64(b: &[u8], at: usize) -> Option<u64> {
+    Some(u64::from_le_bytes(b.get(at..at + 8)?.try_into().ok()?))
+}
+
 impl Recording {
     /// Read `path`; the error names the file and what is wrong.
     pub fn read(path: &Path) -> Result<Self, String> {
@@ -50,7 +121,12 @@ impl Recording {
                 &"no `evoloop` metadata record: not a run.mcap of evoloop",
             ));
         }
-        for msg in mcap::MessageStream::new(&bytes).map_err(|e| at(&e))? {
+        check_chunks(&bytes).map_err(|e| at(&e))?;
+        let stream = mcap::MessageStream::new_with_options(
+            &bytes,
+            enumset::enum_set!(mcap::read::Options::ValidateChunkCrcs),
+        );
+        for msg in stream.map_err(|e| at(&e))? {
             let msg = msg.map_err(|e| at(&e))?;
             let text = std::str::from_utf8(&msg.data).map_err(|e| at(&e))?;
             let bad = |e: String| {
