@@ -171,7 +171,7 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Ar
             ),
         );
     }
-    within_limits(check, &model, reference, cx.duration)?;
+    within_limits(check, &robot, &model, reference, cx.duration)?;
     let initial_q = match t.initial_q {
         Some(q) => {
             if q.len() != n {
@@ -229,6 +229,7 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Ar
 /// first 600 s when longer or until stopped), the first excursion named with its time.
 fn within_limits(
     check: &Check,
+    robot: &std::path::Path,
     model: &crate::dynamics::Model,
     reference: &crate::reference::Reference,
     duration: f64,
@@ -247,9 +248,10 @@ fn within_limits(
                 return check.fail(
                     "reference",
                     format!(
-                        "takes joint {} ({}) to {q:.4} at t = {t:.3} s, outside its limits [{}, {}]",
+                        "takes joint {} ({} of {}) to {q:.4} at t = {t:.3} s, outside its limits [{}, {}]",
                         j + 1,
                         b.joint,
+                        robot.display(),
                         l.q_min,
                         l.q_max
                     ),
