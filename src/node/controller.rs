@@ -18,7 +18,7 @@ use crate::msg::{
     Command, ModelEstimate, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
     TELEMETRY_FLAG_MISSED, TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
 };
-use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::node::start::{leave_and_fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
 use crate::report::record::Recorder;
 use crate::report::stream::{CsvPart, LogStream, Overflow};
 use crate::report::summary::{ControllerReport, ParamRecord};
@@ -318,12 +318,18 @@ pub fn main(args: &ProcessArgs) {
         })
     });
     if let Err(e) = ipc.announce(Topic::Ready) {
-        fail(WHO, EXIT_SETUP, &e.to_string());
+        leave_and_fail(WHO, ports, ipc, EXIT_SETUP, &e.to_string());
     }
 
     let mut lp = match Loop::new(&scn) {
         Ok(lp) => lp,
-        Err(e) => fail(WHO, EXIT_SETUP, &format!("cannot log the run: {e}")),
+        Err(e) => leave_and_fail(
+            WHO,
+            ports,
+            ipc,
+            EXIT_SETUP,
+            &format!("cannot log the run: {e}"),
+        ),
     };
     let mut report = ControllerReport {
         mode: format!("{:?}", scn.timing.mode).to_lowercase(),
@@ -341,7 +347,7 @@ pub fn main(args: &ProcessArgs) {
     report.interrupted = stop.load(Ordering::SeqCst);
     finish(&scn, lp, &mut report);
     if let Err((code, msg)) = result {
-        fail(WHO, code, &msg);
+        leave_and_fail(WHO, ports, ipc, code, &msg);
     }
 }
 

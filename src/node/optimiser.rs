@@ -14,7 +14,9 @@ use crate::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
 use crate::msg::{
     Command, ModelEstimate, OptimiserAck, OptimiserStatus, ParamSet, PlantState, STATE_FLAG_END,
 };
-use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::node::start::{
+    fail, leave_and_fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP,
+};
 use crate::report::history::History;
 use crate::report::summary::{OptimiserReport, PublishedSet};
 use crate::report::write_json;
@@ -103,11 +105,7 @@ pub fn main(cli: &OptimiserArgs) {
         remote::finish(m, &scn.output.dir);
     }
     if let Err((code, msg)) = result {
-        // Leave iceoryx2 cleanly before exiting with the error: exit skips destructors, and a
-        // remote optimiser has no launcher to clean up after it.
-        drop(ports);
-        drop(ipc);
-        fail(WHO, code, &msg);
+        leave_and_fail(WHO, ports, ipc, code, &msg);
     }
 }
 

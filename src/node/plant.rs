@@ -12,7 +12,9 @@ use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
 use crate::ipc::{Bell, Doorbell, Pub, Sub, Topic, Waited};
 use crate::msg::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
-use crate::node::start::{fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::node::start::{
+    fail, leave_and_fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP,
+};
 use crate::plant::PlantSim;
 use crate::report::summary::PlantReport;
 use crate::report::write_json;
@@ -78,7 +80,7 @@ pub fn main(args: &ProcessArgs) {
         eprintln!("{WHO}: cannot write plant.json: {e}");
     }
     if let Err((code, msg)) = result {
-        fail(WHO, code, &msg);
+        leave_and_fail(WHO, ports, ipc, code, &msg);
     }
 }
 

@@ -55,6 +55,15 @@ pub fn fail(who: &str, code: i32, message: &str) -> ! {
     std::process::exit(code)
 }
 
+/// `fail`, after leaving iceoryx2 cleanly: `exit` skips destructors, so a process failing with its
+/// ports and node alive left them for the launcher's (or the next run's) dead-node cleanup, and
+/// a remote optimiser has no launcher to clean up after it.
+pub fn leave_and_fail<P>(who: &str, ports: P, ipc: Ipc, code: i32, message: &str) -> ! {
+    drop(ports);
+    drop(ipc);
+    fail(who, code, message)
+}
+
 /// Name the calling thread (the process's main thread: its `comm` in `ps`, `top` and
 /// `/proc/PID/comm`, cut to 15 bytes by the kernel), so a role started as `evoloop plant` shows
 /// as `evoloop-plant` like the stand-alone binary.
