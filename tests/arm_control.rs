@@ -181,7 +181,7 @@ fn the_arm_scenario_through_the_processes_equals_the_in_process_simulation() {
     let rms = s["tracking_after_1s"]["rms"].as_array().unwrap();
     assert_eq!(rms.len(), 3, "per-joint tracking in summary.json");
     assert!(rms.iter().all(|v| v.as_f64().unwrap() < 1e-3), "{rms:?}");
-    assert!(out.join("response.png").is_file());
+    assert_plotted(&out.join("response.png"));
 }
 
 /// Run a shipped arm scenario in realtime for `secs`: it ran in realtime mode, kept its rate

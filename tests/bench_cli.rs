@@ -3,7 +3,7 @@
 //! scenario. No timing thresholds. Every test takes `alone()`: each starts realtime processes.
 
 mod common;
-use common::alone;
+use common::{alone, assert_plotted};
 
 #[test]
 fn bench_latency_reports_every_variant_against_the_bare_reference() {
@@ -108,7 +108,7 @@ fn bench_loop_measures_the_loop_and_its_floor_in_the_same_run() {
             "ratio_p99 {ratio} != {want}"
         );
     }
-    assert!(dir.path().join("loop_lateness.png").is_file());
+    assert_plotted(&dir.path().join("loop_lateness.png"));
     assert!(dir.path().join("loop.json").is_file());
 }
 

@@ -95,8 +95,9 @@ fn a_direct_run_through_the_processes_equals_the_in_process_tuner_bit_for_bit() 
     // The report: one CSV row per repetition and the Fig. 7b plot.
     let csv = std::fs::read_to_string(live.join("direct.csv")).unwrap();
     assert_eq!(csv.lines().count(), 16);
-    assert!(live.join("direct.png").is_file());
-    assert!(fast.join("direct.png").is_file() && fast.join("direct.json").is_file());
+    assert_plotted(&live.join("direct.png"));
+    assert_plotted(&fast.join("direct.png"));
+    assert!(fast.join("direct.json").is_file());
 }
 
 /// Offers one trial set at a given sample and records what the cycle did with it.

@@ -3,7 +3,7 @@
 //! `excitation` reference kind, and clear errors (exit 2).
 
 mod common;
-use common::{assert_ok, cli, run, stdout_json, write};
+use common::{assert_ok, assert_plotted, cli, run, stdout_json, write};
 use std::path::Path;
 
 /// A scratch directory removed when the test ends (tagged for whoever reads a failure).
@@ -67,7 +67,7 @@ fn excitation_then_processes_then_lls_identify_the_wrist() {
     assert_eq!(j["base_count"], 22);
     let cond = j["cond"].as_f64().unwrap();
     assert!(cond > 1.0 && cond <= j["initial_cond_best"].as_f64().unwrap());
-    assert!(dir.join("wrist.png").exists(), "the plot beside the file");
+    assert_plotted(&dir.join("wrist.png"));
     // The file as a scenario's reference, through the plant and controller processes.
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(root.join("config/industrial6_identify_wrist.toml"))
@@ -100,7 +100,8 @@ fn excitation_then_processes_then_lls_identify_the_wrist() {
     }
     let err = l["stages"][0]["relative_error_norm"].as_f64().unwrap();
     assert!(err < 0.05, "relative error (2-norm) {err}");
-    assert!(out.join("lls.json").exists() && out.join("lls_validation_wrist.png").exists());
+    assert!(out.join("lls.json").exists());
+    assert_plotted(&out.join("lls_validation_wrist.png"));
     // The same in realtime: the log is stamped by the states' times (late cycles leave gaps,
     // repeated states share a stamp) and put back on the regular grid.
     let l = run_then_lls(&cfg, &dir.join("run_rt"), "idwrt", "realtime");

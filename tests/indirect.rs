@@ -82,7 +82,8 @@ fn the_optimiser_tracks_the_load_and_is_ten_percent_cheaper_than_frozen_after_it
             );
         }
     }
-    assert!(tuned.join("indirect.png").is_file() && tuned.join("repetitions.csv").is_file());
+    assert_plotted(&tuned.join("indirect.png"));
+    assert!(tuned.join("repetitions.csv").is_file());
     // Reproducible: paced by simulated time, the same seed gives the same run.
     let again = tmp.path().join("again");
     assert_ok(&run(&cfg, &again, "ind2", &[]));
@@ -248,7 +249,8 @@ fn a_multi_seed_run_compares_the_indirect_scheme_with_the_frozen_controller() {
             "{p}: {sentence}"
         );
     }
-    assert!(out.join("study.md").is_file() && out.join("study_cost.png").is_file());
+    assert!(out.join("study.md").is_file());
+    assert_plotted(&out.join("study_cost.png"));
 
     // Only an indirect scenario has a frozen comparison to make.
     let plain = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass.toml");

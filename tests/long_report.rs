@@ -39,5 +39,5 @@ fn a_long_runs_report_reads_run_csv_in_bounded_memory() {
     assert_eq!(s["samples"], 1_200_000);
     assert_eq!(s["outcome"], "ok");
     assert!(s["tracking"]["rms_all"].as_f64().unwrap() > 0.0, "{s}");
-    assert!(out.join("response.png").is_file());
+    assert_plotted(&out.join("response.png"));
 }

@@ -735,7 +735,7 @@ fn identification_alongside_operation_beats_the_frozen_models_after_a_payload_on
         }
     }
     let seed1 = out.join("seed-1");
-    assert!(seed1.join("identify.png").is_file());
+    assert_plotted(&seed1.join("identify.png"));
 
     // The frozen comparison against a lockstep run of the processes with the optimiser off.
     let off = tmp.path().join("off");

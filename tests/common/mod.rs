@@ -348,3 +348,31 @@ pub fn signal(pid: u32, sig: i32) {
     // SAFETY: plain syscall; the tests signal only processes they started (found by run id).
     unsafe { libc::kill(pid as i32, sig) };
 }
+
+/// A plot that shows data, not only that a file was written: `path` decodes as a PNG of at least
+/// 300 x 200 pixels with at least 500 coloured pixels (the plots draw their series in saturated
+/// colours; axes, grid and labels are grey or black, so an empty chart has none).
+pub fn assert_plotted(path: &Path) {
+    let img = image::open(path)
+        .unwrap_or_else(|e| panic!("{}: not a readable image: {e}", path.display()))
+        .to_rgb8();
+    assert!(
+        img.width() >= 300 && img.height() >= 200,
+        "{}: {} x {} pixels",
+        path.display(),
+        img.width(),
+        img.height()
+    );
+    let coloured = img
+        .pixels()
+        .filter(|p| {
+            let [r, g, b] = p.0;
+            r.max(g).max(b) - r.min(g).min(b) > 60
+        })
+        .count();
+    assert!(
+        coloured >= 500,
+        "{}: {coloured} coloured pixels: no series drawn",
+        path.display()
+    );
+}
