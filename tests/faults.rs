@@ -269,14 +269,7 @@ fn a_crash_looping_optimiser_costs_the_tuner_not_the_loop() {
     // Every optimiser the launcher starts is killed at once: it is restarted with growing
     // pauses, then given up, and the realtime loop runs to its end with the set in service.
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = write(
-        tmp.path(),
-        "rt.toml",
-        &scenario(
-            "kind = \"step\"\namplitude = 1.0",
-            "mode = \"realtime\"\nduration = 8.0\nmeasure_floor = false",
-        ),
-    );
+    let cfg = realtime_config_lasting(tmp.path(), 8.0);
     let out = tmp.path().join("out");
     let (prefix, run_id) = unique("crashloop");
     let mut child = start(&cfg, &out, &prefix, &run_id);

@@ -297,40 +297,50 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     })
 }
 
-/// A scheduled set the controller is to take: every value finite and, for gains, as many as the
-/// controller has, each within its bounds. Refused here, before the run, rather than 12 s into
-/// it (`expect = "rejected"` marks a set meant to be refused).
+/// A scheduled set the controller is to take, judged by the controller's own validation
+/// (`control::validate_params` for gains: kind, length, finiteness, bounds; `validate_model`'s
+/// finiteness for model sets, whose law-specific checks need the model): refused here, before
+/// the run, rather than 12 s into it. `expect = "rejected"` marks a set meant to be refused.
 fn scheduled_set_fits(
     check: &Check,
     key: &str,
     s: &ScheduledSet,
     controller: &ControllerSpec,
 ) -> Result<(), ConfigError> {
-    check.finite_values(&format!("{key}.values"), &s.values, s.values.len(), "")?;
-    if s.kind == SetKind::Model {
-        return Ok(());
-    }
-    let t = controller.tunable();
-    let n = t.gains.len();
-    if s.values.len() != n {
-        return check.fail(
-            &format!("{key}.values"),
-            format!(
-                "{} values; the controller has {n} parameters (expect = \"rejected\" for a set meant to be refused)",
-                s.values.len()
-            ),
-        );
-    }
-    for (j, v) in s.values.iter().enumerate() {
-        let (lo, hi) = (t.bounds.lower[j], t.bounds.upper[j]);
-        if *v < lo || *v > hi {
-            return check.fail(
-                &format!("{key}.values[{j}]"),
-                format!("{v} is outside the controller's bounds [{lo}, {hi}] (expect = \"rejected\" for a set meant to be refused)"),
-            );
+    use crate::control::{validate_model, validate_params};
+    let (kind, tunable) = (controller.param_kind(), controller.tunable());
+    let set = crate::msg::ParamSet::new(1, 0, kind, &s.values);
+    let judged = match s.kind {
+        SetKind::Gains => validate_params(&set, kind, tunable.gains.len(), 0, &tunable.bounds),
+        SetKind::Model => validate_model(&set, 0),
+    };
+    let Err(r) = judged else { return Ok(()) };
+    let at = match r.code {
+        crate::msg::ParamCode::RejectedOutOfBounds | crate::msg::ParamCode::RejectedNonFinite => {
+            format!("{key}.values[{}]", r.index)
         }
-    }
-    Ok(())
+        _ => format!("{key}.values"),
+    };
+    let i = r.index as usize;
+    let detail = match r.code {
+        crate::msg::ParamCode::RejectedOutOfBounds => format!(
+            " ({} is outside [{}, {}])",
+            s.values[i], tunable.bounds.lower[i], tunable.bounds.upper[i]
+        ),
+        crate::msg::ParamCode::RejectedWrongLength => format!(
+            " ({} values; the controller has {} parameters)",
+            s.values.len(),
+            tunable.gains.len()
+        ),
+        _ => String::new(),
+    };
+    check.fail(
+        &at,
+        format!(
+            "the controller would refuse this set: {}{detail} (expect = \"rejected\" for a set meant to be refused)",
+            r.code.reason()
+        ),
+    )
 }
 
 /// `optimiser.mode = "identify"` replaces models of a fuzzy computed-torque controller, each sent

@@ -11,7 +11,7 @@ pub use computed_torque::ComputedTorque;
 pub use pd_servo::PdServo;
 pub use pid::{AntiWindup, Pid};
 pub use state_feedback::StateFeedback;
-pub use validate::{validate_params, ParamBounds, Rejection};
+pub use validate::{validate_model, validate_params, ParamBounds, Rejection};
 
 use crate::check::{Check, ConfigError, Tunable};
 use crate::msg::PlantState;

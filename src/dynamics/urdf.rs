@@ -145,19 +145,16 @@ pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Load
         .map_err(|e| fail(String::new(), format!("not a readable URDF: {e}")))?;
     // Names are how joints and links are found (limits, mimic, parent and child): two of one
     // name would silently make one of them unreachable.
-    let mut seen = std::collections::HashSet::new();
-    if let Some(j) = robot.joints.iter().find(|j| !seen.insert(j.name.as_str())) {
-        return Err(fail(
-            format!("joint `{}`", j.name),
-            "is defined twice".into(),
-        ));
-    }
-    let mut seen = std::collections::HashSet::new();
-    if let Some(l) = robot.links.iter().find(|l| !seen.insert(l.name.as_str())) {
-        return Err(fail(
-            format!("link `{}`", l.name),
-            "is defined twice".into(),
-        ));
+    let joints = robot.joints.iter().map(|j| j.name.as_str());
+    let links = robot.links.iter().map(|l| l.name.as_str());
+    for (what, names) in [
+        ("joint", joints.collect::<Vec<_>>()),
+        ("link", links.collect()),
+    ] {
+        let mut seen = std::collections::HashSet::new();
+        if let Some(n) = names.into_iter().find(|n| !seen.insert(*n)) {
+            return Err(fail(format!("{what} `{n}`"), "is defined twice".into()));
+        }
     }
     let link_index: HashMap<&str, usize> = robot
         .links

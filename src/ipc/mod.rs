@@ -144,24 +144,10 @@ pub const DEFAULT_PREFIX: &str = "evoloop_";
 pub const MAX_PREFIX: usize = 32;
 
 /// `--ipc-prefix` checked: 1 to `MAX_PREFIX` characters of ASCII letters, digits, `_`, `-`
-/// and `.` (it becomes part of file names).
+/// and `.` (it becomes part of file names; the kernel caps socket paths at 108 bytes).
 pub fn parse_prefix(s: &str) -> Result<String, String> {
-    if s.is_empty() || s.len() > MAX_PREFIX {
-        return Err(format!(
-            "{} characters; an ipc prefix has 1 to {MAX_PREFIX} (it goes into socket paths, \
-             which the kernel caps at 108 bytes)",
-            s.len()
-        ));
-    }
-    if let Some(c) = s
-        .chars()
-        .find(|c| !(c.is_ascii_alphanumeric() || "_-.".contains(*c)))
-    {
-        return Err(format!(
-            "{c:?} is not allowed; an ipc prefix takes ASCII letters, digits, '_', '-' and '.'"
-        ));
-    }
-    Ok(s.to_string())
+    let why = " (it goes into socket paths, which the kernel caps at 108 bytes)";
+    checked_name(s, "an ipc prefix", MAX_PREFIX, why, "_-.")
 }
 
 /// The longest run id: it goes into every service name and the run's lock file name.
@@ -170,18 +156,32 @@ pub const MAX_RUN_ID: usize = 64;
 /// `--run-id` checked: 1 to `MAX_RUN_ID` ASCII letters, digits, `_` and `-` (no `.`: a lock file
 /// and service names must tell every two run ids apart).
 pub fn parse_run_id(s: &str) -> Result<String, String> {
-    if s.is_empty() || s.len() > MAX_RUN_ID {
+    checked_name(s, "a run id", MAX_RUN_ID, "", "_-")
+}
+
+/// `s` if it has 1 to `max` characters (`why_max` says why, if anything), each an ASCII letter,
+/// a digit or one of `extra`.
+fn checked_name(
+    s: &str,
+    what: &str,
+    max: usize,
+    why_max: &str,
+    extra: &str,
+) -> Result<String, String> {
+    if s.is_empty() || s.len() > max {
         return Err(format!(
-            "{} characters; a run id has 1 to {MAX_RUN_ID}",
+            "{} characters; {what} has 1 to {max}{why_max}",
             s.len()
         ));
     }
     if let Some(c) = s
         .chars()
-        .find(|c| !(c.is_ascii_alphanumeric() || "_-".contains(*c)))
+        .find(|c| !(c.is_ascii_alphanumeric() || extra.contains(*c)))
     {
+        let listed: Vec<String> = extra.chars().map(|c| format!("'{c}'")).collect();
         return Err(format!(
-            "{c:?} is not allowed; a run id takes ASCII letters, digits, '_' and '-'"
+            "{c:?} is not allowed; {what} takes ASCII letters, digits and {}",
+            listed.join(", ")
         ));
     }
     Ok(s.to_string())

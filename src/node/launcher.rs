@@ -667,9 +667,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         for f in &failed {
             err!("error: {f}");
         }
-        if let Some(note) = disk_full(&dir) {
-            err!("error: {note}");
-        }
+        say_if_disk_full(&dir);
         short_summary(&scn, &run_id, "failed", &failed, wall, interrupted, tuner);
         return ExitCode::from(1);
     }
@@ -707,9 +705,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 for e in &s.write_errors {
                     err!("error: {e}");
                 }
-                if let Some(note) = disk_full(&dir) {
-                    err!("error: {note}");
-                }
+                say_if_disk_full(&dir);
                 return ExitCode::from(1);
             }
         }
@@ -721,9 +717,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         }
         Err(e) => {
             err!("error: report: {e}");
-            if let Some(note) = disk_full(&dir) {
-                err!("error: {note}");
-            }
+            say_if_disk_full(&dir);
             return ExitCode::from(1);
         }
     }
@@ -812,16 +806,16 @@ impl Drop for Reserved {
     }
 }
 
-/// "the disk is full" with the folder and what is left, when less than 1 MiB is: the words a
-/// user needs after a run whose writes failed for want of space.
-fn disk_full(dir: &Path) -> Option<String> {
-    let free = crate::report::files::free_bytes(dir)?;
-    (free < 1 << 20).then(|| {
-        format!(
-            "no space left on the device of {} ({free} bytes free): what was written in full is kept",
+/// After a failed run: say "no space left" with the folder and what is left, when less than
+/// 1 MiB is, the words a user needs when writes failed for want of space.
+fn say_if_disk_full(dir: &Path) {
+    match crate::report::files::free_bytes(dir) {
+        Some(free) if free < 1 << 20 => err!(
+            "error: no space left on the device of {} ({free} bytes free): what was written in full is kept",
             dir.display()
-        )
-    })
+        ),
+        _ => {}
+    }
 }
 
 /// The optimiser's binary: the one process the launcher restarts.

@@ -18,10 +18,16 @@ use std::path::{Path, PathBuf};
 /// names the path.
 pub fn create(path: impl AsRef<Path>) -> io::Result<File> {
     let path = path.as_ref();
+    create_fresh(path).map_err(|e| named(path, "cannot create", e))
+}
+
+/// `create` with the OS's own error, so that `write` can still tell a full disk (ENOSPC) when
+/// even the inode cannot be made, and names the path once.
+fn create_fresh(path: &Path) -> io::Result<File> {
     match std::fs::remove_file(path) {
         Ok(()) => {}
         Err(e) if e.kind() == io::ErrorKind::NotFound => {}
-        Err(e) => return Err(named(path, "cannot replace", e)),
+        Err(e) => return Err(e),
     }
     std::fs::OpenOptions::new()
         .write(true)
@@ -29,7 +35,6 @@ pub fn create(path: impl AsRef<Path>) -> io::Result<File> {
         .mode(0o644)
         .custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC)
         .open(path)
-        .map_err(|e| named(path, "cannot create", e))
 }
 
 /// `bytes` into the file at `path`, whole or not at all: written to a hidden sibling (made as
@@ -52,7 +57,7 @@ pub fn write(path: impl AsRef<Path>, bytes: impl AsRef<[u8]>) -> io::Result<()> 
 
 fn write_whole(path: &Path, bytes: &[u8]) -> io::Result<()> {
     let tmp = sibling(path, &format!("{}.tmp", std::process::id()));
-    let done = create(&tmp)
+    let done = create_fresh(&tmp)
         .and_then(|mut f| f.write_all(bytes).and_then(|()| f.flush()))
         .and_then(|()| std::fs::rename(&tmp, path));
     if done.is_err() {
@@ -71,7 +76,7 @@ fn sibling(path: &Path, what: &str) -> PathBuf {
 /// blocks allocated). Without it a run whose logs fill the disk loses its JSON reports, the
 /// small files every reader starts from; `write` frees it when it needs it.
 pub fn reserve(path: &Path, bytes: u64) -> io::Result<()> {
-    let f = create(sibling(path, "reserved"))?;
+    let f = create_fresh(&sibling(path, "reserved"))?;
     let fd = std::os::unix::io::AsRawFd::as_raw_fd(&f);
     // SAFETY: posix_fallocate on a descriptor we own.
     match unsafe { libc::posix_fallocate(fd, 0, bytes as libc::off_t) } {
@@ -88,6 +93,7 @@ pub fn release(path: &Path) {
 /// Bytes an unprivileged writer can still put on the file system of `dir`.
 pub fn free_bytes(dir: &Path) -> Option<u64> {
     let c = std::ffi::CString::new(dir.as_os_str().as_encoded_bytes()).ok()?;
+    // SAFETY: statvfs is plain old data; all-zero is a valid value to be overwritten.
     let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
     // SAFETY: a valid C string and a statvfs to fill.
     (unsafe { libc::statvfs(c.as_ptr(), &mut st) } == 0)

@@ -333,12 +333,17 @@ pub fn wait_gone(run_id: &str) {
 /// A 60 s realtime step run of the base scenario (no floor measurement), long enough for a test
 /// to disturb it and stop it.
 pub fn realtime_config(dir: &std::path::Path) -> std::path::PathBuf {
+    realtime_config_lasting(dir, 60.0)
+}
+
+/// `realtime_config` lasting `seconds`.
+pub fn realtime_config_lasting(dir: &std::path::Path, seconds: f64) -> std::path::PathBuf {
     write(
         dir,
         "rt.toml",
         &scenario(
             "kind = \"step\"\namplitude = 1.0",
-            "mode = \"realtime\"\nduration = 60.0\nmeasure_floor = false",
+            &format!("mode = \"realtime\"\nduration = {seconds:?}\nmeasure_floor = false"),
         ),
     )
 }
