@@ -200,11 +200,14 @@ pub fn stdout_json(o: &Output) -> serde_json::Value {
     serde_json::from_slice(&o.stdout).expect("JSON on stdout")
 }
 
-/// Whether a realtime run kept its rate: the controller cycles it executed against the periods
-/// of `duration_s`, allowing the periods a bare sleep loop at the same rate and priority lost in
-/// the same run (`floor.lost_periods`, scaled to the run's length, tripled) plus 1 %. A loaded
-/// machine widens the allowance only as far as it measurably slows any loop; a controller that
-/// runs at a fifth of its rate fails it unless a bare loop loses over a fifth of its periods.
+/// Whether a realtime run kept its rate. Two parts: the controller can (its median compute time
+/// is under half a period, which a stall of the machine does not move), and it did, loosely:
+/// the cycles it executed against the periods of `duration_s`, allowing 10 % or, when the bare
+/// sleep loop measured after the run (`floor.lost_periods`, scaled to the run's length) lost
+/// more, three times that plus 1 %. The floor is measured after the run, so a stall of the shared
+/// machine during the run is not in it; 10 % is wide enough for the stalls CI has shown (2.1 %
+/// lost once, floor 0.00 %) and narrow enough that a controller at half its rate fails. The exact
+/// figures are the benchmarks' (`evoloop bench loop`), not a test's.
 pub fn rate_kept(s: &serde_json::Value, duration_s: f64) -> Result<String, String> {
     let period = s["floor"]["period_s"]
         .as_f64()
@@ -216,15 +219,21 @@ pub fn rate_kept(s: &serde_json::Value, duration_s: f64) -> Result<String, Strin
     let floor_lost = s["floor"]["lost_periods"].as_f64().unwrap_or(0.0) / floor_cycles;
     let periods = duration_s / period;
     let executed = s["samples"].as_f64().unwrap_or(0.0);
-    let allowed = 0.01 + 3.0 * floor_lost;
+    let allowed = (0.01 + 3.0 * floor_lost).max(0.10);
     let fraction = executed / periods;
+    let compute_p50 = s["timing"]["compute"]["p50_ns"]
+        .as_f64()
+        .unwrap_or(f64::INFINITY)
+        * 1e-9;
     let line = format!(
-        "{executed} cycles of {periods} periods ({:.1} %), allowed loss {:.1} % (floor lost {:.2} % of its periods)",
+        "{executed} cycles of {periods} periods ({:.1} %), allowed loss {:.1} % (floor lost {:.2} % of its periods); compute p50 {:.1} us of a {:.1} us period",
         100.0 * fraction,
         100.0 * allowed,
-        100.0 * floor_lost
+        100.0 * floor_lost,
+        compute_p50 * 1e6,
+        period * 1e6
     );
-    if fraction >= 1.0 - allowed {
+    if fraction >= 1.0 - allowed && compute_p50 < 0.5 * period {
         Ok(line)
     } else {
         Err(line)
