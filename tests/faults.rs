@@ -197,9 +197,10 @@ fn lockstep_kill(process: &str, tag: &str) {
     let cfg = lockstep_config(tmp.path());
     let out = tmp.path().join("out");
     let (prefix, run_id) = unique(tag);
-    let mut child = spawn_run(&cfg, &out, &prefix, &run_id);
+    // Killed once the loop runs (a fixed 500 ms after the start was before the controller's
+    // first row on a loaded CI machine, which left no run.csv to check).
+    let mut child = spawn_run_and_wait_for_the_loop(&cfg, &out, &prefix, &run_id);
     let pid = process_named(&run_id, process);
-    std::thread::sleep(Duration::from_millis(500));
     let t0 = Instant::now();
     signal(pid, libc::SIGKILL);
     let status = wait_exit(&mut child, Duration::from_secs(20));
