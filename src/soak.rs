@@ -33,6 +33,9 @@ pub struct Interval {
     pub t_s: f64,
     /// Resident memory per process (KiB); a process not running at that moment is absent.
     pub rss_kib: BTreeMap<String, u64>,
+    /// Anonymous resident memory per process (RssAnon, KiB): the heap and stacks, without the
+    /// binary's and libraries' pages, which mlockall makes resident at once; a leak shows here.
+    pub anon_kib: BTreeMap<String, u64>,
     pub cycles: u64,
     pub missed_deadlines: u64,
     pub overruns: u64,
@@ -62,6 +65,8 @@ pub struct SoakReport {
     pub exit_code: Option<i32>,
     pub intervals: Vec<Interval>,
     pub rss: BTreeMap<String, Drift>,
+    /// The same for anonymous memory (RssAnon).
+    pub anon: BTreeMap<String, Drift>,
     /// Missed deadlines per interval: median and largest.
     pub misses_per_interval_median: f64,
     pub misses_per_interval_max: u64,
@@ -74,11 +79,14 @@ pub struct SoakReport {
     pub shm_left: Vec<String>,
 }
 
-/// Resident set size of `pid` in KiB (VmRSS), if it still runs.
-pub fn rss_kib(pid: u32) -> Option<u64> {
+/// Resident set size of `pid` (VmRSS) and its anonymous part (RssAnon), KiB, if it still runs.
+pub fn rss_kib(pid: u32) -> Option<(u64, u64)> {
     let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmRSS:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
+    let kib = |key: &str| -> Option<u64> {
+        let line = s.lines().find(|l| l.starts_with(key))?;
+        line.split_whitespace().nth(1)?.parse().ok()
+    };
+    Some((kib("VmRSS:")?, kib("RssAnon:")?))
 }
 
 /// A process of evoloop's on this machine: its name (a role of the one binary, `evoloop plant
@@ -230,13 +238,17 @@ impl IntervalTiming {
     }
 }
 
-/// Summarise the intervals: resident memory drift per process and misses per interval.
-pub fn drift(intervals: &[Interval]) -> BTreeMap<String, Drift> {
+/// Summarise the intervals: the drift per process of the memory `pick` reads (resident or
+/// anonymous).
+pub fn drift(
+    intervals: &[Interval],
+    pick: fn(&Interval) -> &BTreeMap<String, u64>,
+) -> BTreeMap<String, Drift> {
     let mut out = BTreeMap::new();
     for name in PROCESSES {
         let series: Vec<u64> = intervals
             .iter()
-            .filter_map(|i| i.rss_kib.get(name).copied())
+            .filter_map(|i| pick(i).get(name).copied())
             .collect();
         let (Some(&first), Some(&last)) = (series.first(), series.last()) else {
             continue;
@@ -267,13 +279,18 @@ pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
     for p in PROCESSES {
         csv.push_str(&format!(",rss_kib_{p}"));
     }
+    for p in PROCESSES {
+        csv.push_str(&format!(",anon_kib_{p}"));
+    }
     csv.push_str(",cycles,missed_deadlines,overruns,lateness_p50_ns,lateness_p99_ns,lateness_p99_9_ns,lateness_max_ns\n");
     for i in &r.intervals {
         csv.push_str(&format!("{},{}", i.index, i.t_s));
-        for p in PROCESSES {
-            match i.rss_kib.get(p) {
-                Some(v) => csv.push_str(&format!(",{v}")),
-                None => csv.push(','),
+        for m in [&i.rss_kib, &i.anon_kib] {
+            for p in PROCESSES {
+                match m.get(p) {
+                    Some(v) => csv.push_str(&format!(",{v}")),
+                    None => csv.push(','),
+                }
             }
         }
         let l = &i.lateness;
@@ -398,16 +415,20 @@ mod tests {
             index: i,
             t_s: 60.0 * (i + 1) as f64,
             rss_kib: rss.iter().map(|(n, v)| (n.to_string(), *v)).collect(),
+            anon_kib: BTreeMap::new(),
             cycles: 0,
             missed_deadlines: 0,
             overruns: 0,
             lateness: Percentiles::default(),
         };
-        let d = drift(&[
-            iv(0, &[("evoloop-plant", 1000), ("evoloop-controller", 2000)]),
-            iv(1, &[("evoloop-plant", 1100)]),
-            iv(2, &[("evoloop-plant", 1050), ("evoloop-controller", 2000)]),
-        ]);
+        let d = drift(
+            &[
+                iv(0, &[("evoloop-plant", 1000), ("evoloop-controller", 2000)]),
+                iv(1, &[("evoloop-plant", 1100)]),
+                iv(2, &[("evoloop-plant", 1050), ("evoloop-controller", 2000)]),
+            ],
+            |i| &i.rss_kib,
+        );
         let p = &d["evoloop-plant"];
         assert_eq!(
             (p.first_kib, p.last_kib, p.max_kib, p.drift_kib),

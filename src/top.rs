@@ -287,7 +287,7 @@ impl Watch {
                 pid: *pid,
                 state,
                 cpu_pct,
-                rss_kib: crate::soak::rss_kib(*pid).unwrap_or(0),
+                rss_kib: crate::soak::rss_kib(*pid).map_or(0, |m| m.0),
             });
         }
         self.cpu = cpu;

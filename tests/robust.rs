@@ -142,31 +142,39 @@ fn the_wedge_distance_is_zero_inside_and_euclidean_outside() {
     assert!(Wedge::new(1.2, 1.0).is_err() && Wedge::new(0.7, 0.0).is_err());
 }
 
+/// The runs are deterministic (seeded, evaluated in parallel but reduced in order), so the
+/// outcome is exact: every one of seeds 1..=15 reaches the literature optimum (in 389-715
+/// generations when this was written); the earlier "at least 14 of 15" hid a run that moved.
 #[test]
-fn de_finds_the_box_constrained_optimum_in_at_least_14_of_15_seeded_runs() {
+fn de_finds_the_box_constrained_optimum_on_every_one_of_15_seeds() {
     // DE/rand/1/bin with the paper's F = 0.5, CR = 0.9, NP = 100, bounds +-50 and at most 1000
     // iterations, run until it reaches the literature optimum (r_c just under 0.349, k3 on its
     // bound) instead of stopping on the diversity rule.
     let prob = RobustProblem::paper();
-    let mut hits = 0;
+    let mut hits = Vec::new();
     for seed in 1..=15 {
         let mut cfg = DeConfig::paper(0.5, 0.9, prob.lower.clone(), prob.upper.clone(), seed);
         cfg.diversity_stop = false;
         let mut de = DifferentialEvolution::new(cfg).unwrap();
         let r = run(&mut de, &prob, 2, 1000, Some(-0.3489), |_| {});
         let ev = prob.evaluate(&r.best).unwrap();
+        eprintln!(
+            "seed {seed}: r_c {:.5}, in wedge {}, k3 {:.3}, {} generations",
+            ev.stability_radius, ev.in_wedge, r.best[2], r.generations
+        );
         if ev.in_wedge && ev.stability_radius >= 0.3489 {
             assert!(
                 r.best[2] > 49.5,
                 "k3 = {} should be at its bound",
                 r.best[2]
             );
-            hits += 1;
+            hits.push(seed);
         }
     }
-    assert!(
-        hits >= 14,
-        "{hits} of 15 runs reached r_c >= 0.3489 in the wedge"
+    assert_eq!(
+        hits,
+        (1..=15).collect::<Vec<u64>>(),
+        "seeds reaching r_c >= 0.3489 in the wedge"
     );
 }
 

@@ -117,10 +117,13 @@ pub fn main(a: SoakArgs) -> ExitCode {
         // A record every interval while the run goes on (not at its end: the processes are
         // gone or going, and the last partial interval would look like a drop in memory).
         if ended.is_none() && t >= next {
-            let rss_kib: BTreeMap<String, u64> = run_processes(&run_id)
+            let memory: BTreeMap<String, (u64, u64)> = run_processes(&run_id)
                 .into_iter()
                 .filter_map(|(name, pid)| rss_kib(pid).map(|r| (name, r)))
                 .collect();
+            let rss_kib: BTreeMap<String, u64> =
+                memory.iter().map(|(n, m)| (n.clone(), m.0)).collect();
+            let anon_kib = memory.into_iter().map(|(n, m)| (n, m.1)).collect();
             // Past the loop's end (the launcher measures the floor and writes its report) the
             // processes are leaving: no more records.
             if !rss_kib.contains_key("evoloop-controller") {
@@ -132,6 +135,7 @@ pub fn main(a: SoakArgs) -> ExitCode {
                 index: intervals.len(),
                 t_s: t,
                 rss_kib,
+                anon_kib,
                 cycles: done.cycles,
                 missed_deadlines: done.missed,
                 overruns: done.overruns,
@@ -192,7 +196,8 @@ pub fn main(a: SoakArgs) -> ExitCode {
         run_dir: run_dir.clone(),
         run_id,
         exit_code: status.code(),
-        rss: drift(&intervals),
+        rss: drift(&intervals, |i| &i.rss_kib),
+        anon: drift(&intervals, |i| &i.anon_kib),
         misses_per_interval_median: if per.is_empty() {
             0.0
         } else {
@@ -229,8 +234,16 @@ pub fn main(a: SoakArgs) -> ExitCode {
             report.exit_code
         );
         for (name, d) in &report.rss {
+            let anon = report.anon.get(name).map_or(String::new(), |a| {
+                format!(
+                    "; anonymous {:.1} -> {:.1} MiB ({:+} KiB)",
+                    a.first_kib as f64 / 1024.0,
+                    a.last_kib as f64 / 1024.0,
+                    a.drift_kib
+                )
+            });
             out!(
-                "  {name:<19} RSS {:.1} MiB after the first interval, {:.1} MiB at the end ({:+} KiB, {:+.2} %), max {:.1} MiB",
+                "  {name:<19} RSS {:.1} MiB after the first interval, {:.1} MiB at the end ({:+} KiB, {:+.2} %), max {:.1} MiB{anon}",
                 d.first_kib as f64 / 1024.0,
                 d.last_kib as f64 / 1024.0,
                 d.drift_kib,

@@ -5,6 +5,7 @@ pub mod build;
 pub mod files;
 pub mod history;
 pub mod html;
+pub mod mcap_file;
 pub mod metrics;
 pub mod plot;
 pub mod progress;

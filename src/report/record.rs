@@ -1,5 +1,6 @@
 //! `run.mcap`: the run's messages as Foxglove and PlotJuggler open them (MCAP, one channel per
-//! topic, JSON messages with a JSON Schema each, LZ4 chunks).
+//! topic, JSON messages with a JSON Schema each, LZ4 chunks), written by `report::mcap_file`,
+//! whose memory stays flat however long the run.
 //!
 //! The controller is the recorder: every topic passes through it. It sees each state it
 //! controls on, the command and telemetry it sends, each parameter set it receives and each
@@ -17,6 +18,7 @@
 //! are those the controller used (the latest at each cycle), which is what a replay into a
 //! controller needs.
 
+use super::mcap_file::McapWriter;
 use crate::msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -68,7 +70,7 @@ const CYCLES: usize = 8192;
 const SETS: usize = 32;
 const ESTIMATES: usize = 256;
 /// Bytes per MCAP chunk and per write to the file.
-const CHUNK: u64 = 64 << 10;
+const CHUNK: usize = 64 << 10;
 /// How long the writer sleeps when it finds every queue empty.
 const IDLE: Duration = Duration::from_millis(2);
 
@@ -82,17 +84,23 @@ impl Recorder {
         avoid_cpu: Option<usize>,
     ) -> Result<Self, String> {
         let file = super::files::create(path).map_err(|e| e.to_string())?;
-        let mut w = mcap::WriteOptions::new()
-            .compression(Some(mcap::Compression::Lz4))
-            // Small chunks and buffer: each write(2) copies at most ~64 KiB into the page cache.
-            // A non-preemptible copy of a whole default chunk (~768 KiB) on the controller's CPU
-            // delayed its wake-ups at 10 kHz (measured: misses 163-230 per 50 000 cycles against
-            // 18-36 without recording, 3 of 4 pairs).
-            .chunk_size(Some(CHUNK))
-            .profile("")
-            .library(concat!("evoloop ", env!("CARGO_PKG_VERSION")))
-            .create(BufWriter::with_capacity(CHUNK as usize, file))
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let at = |e: std::io::Error| format!("{}: {e}", path.display());
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        // Small chunks and buffer: each write(2) copies at most ~64 KiB into the page cache.
+        // A non-preemptible copy of a whole default chunk (~768 KiB) on the controller's CPU
+        // delayed its wake-ups at 10 kHz (measured: misses 163-230 per 50 000 cycles against
+        // 18-36 without recording, 3 of 4 pairs).
+        let mut w = McapWriter::new(
+            BufWriter::with_capacity(CHUNK, file),
+            "",
+            concat!("evoloop ", env!("CARGO_PKG_VERSION")),
+            CHUNK,
+            dir,
+        )
+        .map_err(at)?;
         for (i, topic) in TOPICS.iter().enumerate() {
             let schema = w
                 .add_schema(
@@ -100,17 +108,11 @@ impl Recorder {
                     "jsonschema",
                     schema(topic).as_bytes(),
                 )
-                .map_err(|e| e.to_string())?;
-            let id = w
-                .add_channel(schema, topic, "json", &BTreeMap::new())
-                .map_err(|e| e.to_string())?;
+                .map_err(at)?;
+            let id = w.add_channel(schema, topic, "json").map_err(at)?;
             debug_assert_eq!(id as usize, i + 1, "channel ids are 1.. in TOPICS order");
         }
-        w.write_metadata(&mcap::records::Metadata {
-            name: "evoloop".into(),
-            metadata,
-        })
-        .map_err(|e| e.to_string())?;
+        w.write_metadata("evoloop", &metadata).map_err(at)?;
         let (cycles, rc) = sync_channel(CYCLES);
         let (params, rp) = sync_channel(SETS);
         let (estimates, re) = sync_channel(ESTIMATES);
@@ -243,8 +245,8 @@ fn avoid(cpu: usize) {
 
 /// The writer thread: drain the queues, format and write each message, sleep when idle, and
 /// after `done` drain the rest and finish the file (summary, indexes).
-fn write_all<W: std::io::Write + std::io::Seek>(
-    mut w: mcap::Writer<W>,
+fn write_all<W: std::io::Write>(
+    mut w: McapWriter<W>,
     path: &Path,
     cycles: Receiver<Cycle>,
     params: Receiver<(u64, u64, ParamSet)>,
@@ -253,18 +255,12 @@ fn write_all<W: std::io::Write + std::io::Seek>(
 ) -> Recorded {
     let mut r = Recorded::default();
     let mut buf = Vec::with_capacity(16 << 10);
-    let put = |w: &mut mcap::Writer<W>, r: &mut Recorded, ch: usize, stamp: u64, buf: &[u8]| {
+    let put = |w: &mut McapWriter<W>, r: &mut Recorded, ch: usize, stamp: u64, buf: &[u8]| {
         if r.error.is_some() {
             r.dropped += 1;
             return;
         }
-        let header = mcap::records::MessageHeader {
-            channel_id: ch as u16 + 1,
-            sequence: r.messages[ch] as u32,
-            log_time: stamp,
-            publish_time: stamp,
-        };
-        match w.write_to_known_channel(&header, buf) {
+        match w.write_message(ch as u16 + 1, r.messages[ch] as u32, stamp, stamp, buf) {
             Ok(()) => r.messages[ch] += 1,
             Err(e) => r.error = Some(format!("{}: {e}", path.display())),
         }
