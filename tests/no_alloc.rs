@@ -35,9 +35,7 @@ fn send<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
     p.send(v).unwrap();
 }
 
-#[path = "common/counting_alloc.rs"]
-mod counting_alloc;
-use counting_alloc::COUNT;
+use evoloop::rt::alloc_count::{self as counting_alloc, COUNT};
 
 #[global_allocator]
 static A: counting_alloc::Counting = counting_alloc::Counting;

@@ -14,9 +14,7 @@ use evoloop::plant::PlantSim;
 use evoloop::report::record::Recorder;
 use std::sync::atomic::Ordering;
 
-#[path = "common/counting_alloc.rs"]
-mod counting_alloc;
-use counting_alloc::COUNT;
+use evoloop::rt::alloc_count::{self as counting_alloc, COUNT};
 
 #[global_allocator]
 static A: counting_alloc::Counting = counting_alloc::Counting;

@@ -6,9 +6,7 @@ use evoloop::optim::study::{build, ALGORITHMS};
 use evoloop::optim::{DeConfig, DifferentialEvolution, Optimiser};
 use std::sync::atomic::Ordering;
 
-#[path = "common/counting_alloc.rs"]
-mod counting_alloc;
-use counting_alloc::COUNT;
+use evoloop::rt::alloc_count::{self as counting_alloc, COUNT};
 
 #[global_allocator]
 static A: counting_alloc::Counting = counting_alloc::Counting;

@@ -38,6 +38,12 @@ fn a_short_soak_records_every_process_per_interval_and_leaves_nothing_behind() {
         ] {
             let kib = iv["rss_kib"][p].as_u64().unwrap_or(0);
             assert!(kib > 1000, "{p}: RSS {kib} KiB in {iv}");
+            // The anonymous part (heap, stacks) is read too, and is a part of the resident.
+            let anon = iv["anon_kib"][p].as_u64().unwrap_or(0);
+            assert!(
+                anon > 100 && anon < kib,
+                "{p}: anonymous {anon} KiB of {kib}"
+            );
         }
         // A second of a 1 kHz loop: about 1000 cycles read back from the streamed timing.csv.
         let c = iv["cycles"].as_u64().unwrap();
@@ -68,4 +74,9 @@ fn a_short_soak_records_every_process_per_interval_and_leaves_nothing_behind() {
     }
     let csv = Csv::read(&out.join("soak.csv"));
     assert_eq!(csv.rows.len(), intervals.len());
+    assert_eq!(
+        r["anon"]["evoloop-controller"]["first_kib"],
+        intervals[0]["anon_kib"]["evoloop-controller"],
+        "the anonymous drift starts at the first interval"
+    );
 }

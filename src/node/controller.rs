@@ -23,7 +23,7 @@ use crate::report::record::Recorder;
 use crate::report::stream::{CsvPart, LogStream, Overflow};
 use crate::report::summary::{ControllerReport, ParamRecord};
 use crate::report::write_json;
-use crate::rt::{apply_privileges, now_ns, CycleTiming, TimingStats, TimingSummary};
+use crate::rt::{alloc_count, apply_privileges, now_ns, CycleTiming, TimingStats, TimingSummary};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -71,6 +71,9 @@ struct Loop {
     /// Columns the control law adds (e.g. the fuzzy selector's active model and memberships).
     n_law: usize,
     row: Vec<f64>,
+    /// Count what the cycle allocates (when evoloop's allocator is the process's).
+    watch_allocations: bool,
+    watched_cycles: u64,
 }
 
 impl Loop {
@@ -180,12 +183,36 @@ impl Loop {
             n_r,
             n_vel,
             n_law,
+            watch_allocations: alloc_count::installed(),
+            watched_cycles: 0,
         })
+    }
+
+    /// One cycle (`step`), its allocations counted after the warm-up.
+    fn cycle(
+        &mut self,
+        ports: &Ports,
+        state: &PlantState,
+        woke_ns: u64,
+        lateness_ns: i64,
+        flags_in: u32,
+        period_ns: u64,
+    ) -> Result<(), IpcError> {
+        let watch = self.watch_allocations && self.cycle.next_cycle() > alloc_count::WARMUP_CYCLES;
+        if watch {
+            alloc_count::arm();
+        }
+        let r = self.step(ports, state, woke_ns, lateness_ns, flags_in, period_ns);
+        if watch {
+            alloc_count::disarm();
+            self.watched_cycles += 1;
+        }
+        r
     }
 
     /// One cycle on `state`: parameters, law, command, telemetry, log. `woke_ns` is when the
     /// cycle started, `lateness_ns` how late that was against its deadline.
-    fn cycle(
+    fn step(
         &mut self,
         ports: &Ports,
         state: &PlantState,
@@ -500,6 +527,10 @@ fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
     report.final_params = lp.cycle.controller.params().to_vec();
     report.pending_dropped = lp.cycle.pending_dropped;
     report.check_model = lp.model_check.as_ref().map(|m| m.report.clone());
+    report.cycle_allocations = lp.watch_allocations.then(|| alloc_count::CycleAllocations {
+        cycles: lp.watched_cycles,
+        allocations: alloc_count::COUNT.load(Ordering::Relaxed),
+    });
     let dropped = lp.log.dropped;
     let written = lp.log.finish();
     if let Some(e) = &written.error {

@@ -869,6 +869,13 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
             r.final_error
         );
     }
+    if let Some(a) = s.cycle_allocations.filter(|a| a.allocations > 0) {
+        out!(
+            "  warning: the control cycle allocated {} times in {} cycles (it is designed not to: please report it)",
+            a.allocations,
+            a.cycles
+        );
+    }
     let l = &s.timing.lateness;
     if s.mode == "realtime" {
         out!(

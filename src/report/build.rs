@@ -554,6 +554,7 @@ pub fn build_report(
         },
         wait: (scn.timing.mode == crate::config::Mode::Realtime).then_some(scn.timing.wait),
         log_dropped: ctrl.log_dropped,
+        cycle_allocations: ctrl.cycle_allocations,
         floor,
         plant_safe_samples: plant.safe_samples,
         optimiser_published: opt.published_count as usize,

@@ -41,6 +41,10 @@ pub struct ControllerReport {
     /// run.mcap: messages per topic, dropped (realtime, queue full) and the first write error.
     #[serde(default)]
     pub mcap: Option<crate::report::record::Recorded>,
+    /// What the control cycle allocated, counted on the loop itself (absent when evoloop's
+    /// counting allocator is not the process's).
+    #[serde(default)]
+    pub cycle_allocations: Option<crate::rt::alloc_count::CycleAllocations>,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
@@ -224,6 +228,10 @@ pub struct Summary {
     /// (realtime only; the timing statistics still count every cycle).
     #[serde(default)]
     pub log_dropped: u64,
+    /// What the control cycle allocated, counted on the controller's own loop (0 is the
+    /// design; absent when the counting allocator was not installed).
+    #[serde(default)]
+    pub cycle_allocations: Option<crate::rt::alloc_count::CycleAllocations>,
     /// Realtime: how the controller and the plant waited for their deadlines (`timing.wait`).
     #[serde(default)]
     pub wait: Option<crate::rt::WaitStrategy>,

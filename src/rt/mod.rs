@@ -1,6 +1,7 @@
 //! Timing and scheduling: the monotonic clock, absolute-deadline sleeping, the real-time
 //! privileges a process may get (SCHED_FIFO, mlockall, CPU affinity) and the cycle timing record.
 
+pub mod alloc_count;
 pub mod clock;
 pub mod privileges;
 pub mod timing;

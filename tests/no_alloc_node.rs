@@ -1,0 +1,86 @@
+//! The real controller process's cycle allocates nothing: every shipped scenario, run through
+//! the processes, reports what its loop allocated (`cycle_allocations`, counted by the
+//! binary's own allocator on the loop's thread, `evoloop::rt::alloc_count`), and it is zero.
+//! `tests/no_alloc*.rs` watch the pieces in-process; this watches `node::controller` itself.
+
+mod common;
+use common::*;
+
+/// A scenario's `cycle_allocations` from its summary: watched cycles and allocations.
+fn allocations(s: &serde_json::Value) -> (u64, u64) {
+    let a = &s["cycle_allocations"];
+    assert!(
+        a.is_object(),
+        "no cycle_allocations in summary.json: the counting allocator is not installed"
+    );
+    (
+        a["cycles"].as_u64().unwrap(),
+        a["allocations"].as_u64().unwrap(),
+    )
+}
+
+#[test]
+fn every_shipped_scenario_runs_its_control_cycle_without_allocating() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut files: Vec<_> = std::fs::read_dir(config(""))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        // `evoloop tune` experiments (arsinh_tune, maglev_tune) are not runs of the processes.
+        .filter(|p| {
+            !std::fs::read_to_string(p)
+                .unwrap()
+                .lines()
+                .any(|l| l.starts_with("experiment"))
+        })
+        .collect();
+    files.sort();
+    assert!(files.len() >= 23, "{} shipped scenarios", files.len());
+    let mut sets_after_warmup = 0;
+    for (i, f) in files.iter().enumerate() {
+        let out = tmp.path().join(format!("s{i}"));
+        // The tuning scenarios long enough to swap sets in while watched.
+        let name = f.file_name().unwrap().to_string_lossy();
+        let secs = if name.contains("direct") { "10" } else { "2" };
+        let o = run(f, &out, "noallocnode", &["--duration", secs]);
+        assert_ok(&o);
+        let s = json(&out.join("summary.json"));
+        let (cycles, n) = allocations(&s);
+        let samples = s["samples"].as_u64().unwrap();
+        eprintln!(
+            "{}: {n} allocations in {cycles} watched cycles of {samples}",
+            f.display()
+        );
+        assert_eq!(n, 0, "{}: the control cycle allocated", f.display());
+        assert!(
+            cycles + 11 >= samples && cycles > 0,
+            "{}: {cycles} of {samples} cycles watched",
+            f.display()
+        );
+        sets_after_warmup += s["parameter_versions"]["accepted"]
+            .as_array()
+            .map_or(0, |a| a.len());
+    }
+    // Sets were swapped in while watched (the direct and indirect scenarios, 10 s each).
+    assert!(sets_after_warmup > 10, "{sets_after_warmup} sets accepted");
+}
+
+#[test]
+fn a_realtime_run_reports_its_cycle_allocations_too() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("rt");
+    let o = run(
+        &config("two_mass_indirect.toml"),
+        &out,
+        "noallocrt",
+        &["--mode", "realtime", "--duration", "3"],
+    );
+    assert_ok(&o);
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["mode"], "realtime");
+    let (cycles, n) = allocations(&s);
+    assert_eq!(n, 0, "the realtime control cycle allocated");
+    assert!(cycles > 1000, "{cycles} cycles watched");
+}
