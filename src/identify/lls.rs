@@ -78,7 +78,14 @@ impl Recording {
             .as_f64()
             .filter(|h| *h > 0.0)
             .unwrap_or(time[1] - time[0]);
-        let (y, u) = regular(&time, h, &y, &u);
+        // A run that ended normally ran its plant to the scenario's duration: a cycle the
+        // controller missed at the very end (realtime, a loaded machine) is a gap at the tail.
+        let ended = std::fs::read_to_string(dir.join("summary.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .is_some_and(|s| s["outcome"] == "ok");
+        let until = v["timing"]["duration"].as_f64().filter(|_| ended);
+        let (y, u) = regular(&time, h, until, &y, &u);
         Ok(Recording {
             h,
             period: series.period,
@@ -154,10 +161,18 @@ impl Recording {
 /// row per control cycle, stamped with the time of the state it used, so a cycle that ran late
 /// leaves a gap and two cycles on the same state share a stamp. A shared stamp keeps the later
 /// row (its command is the one the plant went on with); a gap takes the positions linearly
-/// interpolated and the command held (the plant held it). Lockstep logs pass through unchanged.
-fn regular(time: &[f64], h: f64, y: &[Vec<f64>], u: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+/// interpolated and the command held (the plant held it). The grid ends at the last row, or at
+/// `until` (the run's duration, when it ran to its end) if that is later: the tail gap holds the
+/// last positions and command. Lockstep logs pass through unchanged.
+fn regular(
+    time: &[f64],
+    h: f64,
+    until: Option<f64>,
+    y: &[Vec<f64>],
+    u: &[Vec<f64>],
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let last = time.iter().fold(0.0f64, |m, t| m.max(*t));
-    let m = (last / h).round() as usize + 1;
+    let m = ((last / h).round() as usize + 1).max(until.map_or(0, |d| (d / h).round() as usize));
     let mut at: Vec<Option<usize>> = vec![None; m];
     for (i, t) in time.iter().enumerate() {
         let k = (t / h).round();
@@ -488,12 +503,19 @@ mod tests {
         let time = [0.0, 0.001, 0.001, 0.004];
         let y = vec![vec![0.0, 1.0, 1.5, 4.5]];
         let u = vec![vec![10.0, 11.0, 12.0, 14.0]];
-        let (yr, ur) = regular(&time, 0.001, &y, &u);
+        let (yr, ur) = regular(&time, 0.001, None, &y, &u);
         assert_eq!(ur[0], vec![10.0, 12.0, 12.0, 12.0, 14.0]);
         let want = [0.0, 1.5, 2.5, 3.5, 4.5];
         for k in 0..5 {
             assert!((yr[0][k] - want[k]).abs() < 1e-12, "{k}: {:?}", yr[0]);
         }
+        // A run of 7 ms that ran to its end but whose last two cycles were missed: the grid
+        // still has its 7 samples, the tail holding the last row.
+        let (yr, ur) = regular(&time, 0.001, Some(0.007), &y, &u);
+        assert_eq!(ur[0], vec![10.0, 12.0, 12.0, 12.0, 14.0, 14.0, 14.0]);
+        assert_eq!(yr[0][4..], [4.5, 4.5, 4.5]);
+        // A duration shorter than the log changes nothing.
+        assert_eq!(regular(&time, 0.001, Some(0.002), &y, &u).0[0].len(), 5);
     }
 
     #[test]
