@@ -105,7 +105,11 @@ fn excitation_then_processes_then_lls_identify_the_wrist() {
     }
     let csv = std::fs::read_to_string(out.join("run.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
-    std::fs::write(cut.join("run.csv"), rows[..rows.len() - 1].join("\n") + "\n").unwrap();
+    std::fs::write(
+        cut.join("run.csv"),
+        rows[..rows.len() - 1].join("\n") + "\n",
+    )
+    .unwrap();
     let c = stdout_json(&lls(&cut, &["--json"]));
     assert_eq!(c["base"].as_array().unwrap().len(), 22);
     // The same in realtime: the log is stamped by the states' times (late cycles leave gaps,

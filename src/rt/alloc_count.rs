@@ -10,11 +10,14 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 
 pub struct Counting;
 /// Allocations (and reallocations) made while armed, by any thread, since the start.
 pub static COUNT: AtomicU64 = AtomicU64::new(0);
+/// Bytes allocated minus bytes freed while armed: what armed code keeps (a memory test's
+/// figure; memory freed while armed but allocated before counts negative).
+pub static LIVE: AtomicI64 = AtomicI64::new(0);
 
 thread_local! {
     // A const-initialised Cell without a destructor: reading it never allocates.
@@ -39,15 +42,20 @@ unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
         if armed() {
             COUNT.fetch_add(1, Ordering::Relaxed);
+            LIVE.fetch_add(l.size() as i64, Ordering::Relaxed);
         }
         unsafe { System.alloc(l) }
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        if armed() {
+            LIVE.fetch_sub(l.size() as i64, Ordering::Relaxed);
+        }
         unsafe { System.dealloc(p, l) }
     }
     unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
         if armed() {
             COUNT.fetch_add(1, Ordering::Relaxed);
+            LIVE.fetch_add(n as i64 - l.size() as i64, Ordering::Relaxed);
         }
         unsafe { System.realloc(p, l, n) }
     }
@@ -58,9 +66,8 @@ unsafe impl GlobalAlloc for Counting {
 pub fn installed() -> bool {
     let before = COUNT.load(Ordering::Relaxed);
     arm();
-    let probe = std::hint::black_box(Box::new(0u64));
+    drop(std::hint::black_box(Box::new(0u64)));
     disarm();
-    drop(probe);
     let after = COUNT.load(Ordering::Relaxed);
     // Not the probe's: take it back out, so COUNT stays the watched code's.
     COUNT.fetch_sub(after - before, Ordering::Relaxed);
