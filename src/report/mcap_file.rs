@@ -291,7 +291,11 @@ impl<W: Write> McapWriter<W> {
         let Some((start, end)) = c.times else {
             return Ok(());
         };
-        let mut enc = lz4::EncoderBuilder::new().build(std::mem::take(&mut c.compressed))?;
+        // No LZ4 block checksums (the chunk's CRC covers the records), as mcap's own writer: the
+        // mcap command-line tool's LZ4 reader (Go, pierrec/lz4 #223) rejects frames with them.
+        let mut enc = lz4::EncoderBuilder::new()
+            .block_checksum(lz4::liblz4::BlockChecksum::NoBlockChecksum)
+            .build(std::mem::take(&mut c.compressed))?;
         enc.write_all(&c.records)?;
         let (compressed, done) = enc.finish();
         done?;
