@@ -11,15 +11,17 @@
 //! torque on the true model, on each model alone, fuzzy selection (max, blend) and a uniform blend
 //! (the blend with memberships flattened, gamma = 1e6). Computed from those: the best single model
 //! in hindsight (per trajectory and seed) and a random single model (the mean of the three, what
-//! choosing one blindly gives on average). Seeds change the measurement noise of every run, so
-//! the models are re-identified on each seed's training data (the fit is deterministic given the
-//! data). The comparisons are paired Wilcoxon signed-rank tests over (seed, trajectory) pairs.
+//! choosing one blindly gives on average). Seeds change the measurement noise of every run and
+//! the training trajectories themselves (seed 1: as written; others: offsets and amplitudes
+//! moved, `Sines::for_seed`), and the models are re-identified on each seed's training data.
+//! The comparisons are paired Wilcoxon signed-rank tests over (seed, trajectory) pairs.
 
 use super::identify::{self, Prior, Settings};
 use super::study::{
     case, controller, diagonal_mid, float_list, gains, pd_servo, simulate_all, three_joint_arm,
     trajectory_positions, Case, JOINTS,
 };
+use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::report::stats::{median, wilcoxon, Wilcoxon};
 use crate::rkgnn::Trajectory;
 use crate::sim::JointTraces;
@@ -29,6 +31,7 @@ use std::path::{Path, PathBuf};
 const BASE: &str = include_str!("../../config/arm3_train1.toml");
 
 /// A sines reference: offsets per joint, amplitudes per joint per frequency, frequencies (Hz).
+#[derive(Clone, Copy)]
 struct Sines {
     name: &'static str,
     offsets: [f64; 3],
@@ -132,6 +135,9 @@ pub struct Cell {
     pub share: Vec<f64>,
     /// M-hat's smallest eigenvalue along this trajectory, per model.
     pub min_eig_on_reference: Vec<f64>,
+    /// Models the controller refused on this trajectory (not positive definite along it):
+    /// left out alone (their rms is null) and from the fuzzy sets.
+    pub refused: usize,
 }
 
 /// A paired comparison of a fuzzy rule with one baseline over every (seed, trajectory).
@@ -174,6 +180,34 @@ fn overall(v: &[f64]) -> f64 {
 }
 
 /// `base` with its reference replaced by `s` and its duration `duration`.
+impl Sines {
+    /// The training trajectory of identification seed `seed`: seed 1 is the trajectory as
+    /// written (the shipped models' data); each other seed moves every offset by up to
+    /// +-OFFSET_SPREAD rad and scales every amplitude by 1 +- AMPLITUDE_SPREAD (uniform,
+    /// seeded by seed and trajectory), so that each seed identifies its models from other data,
+    /// not only other encoder noise.
+    fn for_seed(&self, seed: u64, index: usize) -> Sines {
+        use rand::{Rng, SeedableRng};
+        if seed == 1 {
+            return *self;
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1000 * seed + index as u64);
+        let mut s = *self;
+        for j in 0..JOINTS {
+            s.offsets[j] += rng.gen_range(-OFFSET_SPREAD..=OFFSET_SPREAD);
+            for a in &mut s.amplitudes[j] {
+                *a *= 1.0 + rng.gen_range(-AMPLITUDE_SPREAD..=AMPLITUDE_SPREAD);
+            }
+        }
+        s
+    }
+}
+
+/// How far an identification seed moves a training trajectory (`Sines::for_seed`): offsets,
+/// rad, and amplitudes, relative.
+const OFFSET_SPREAD: f64 = 0.1;
+const AMPLITUDE_SPREAD: f64 = 0.15;
+
 fn with_reference(s: &Sines) -> Result<String, String> {
     let mut t: toml::Table = BASE
         .parse()
@@ -241,11 +275,14 @@ pub fn run(
     for seed in 1..=s.seeds {
         let sd = dir.join(format!("seed{seed}"));
         std::fs::create_dir_all(&sd).map_err(|e| format!("{}: {e}", sd.display()))?;
-        // Training runs and the three models.
+        // Training runs (this seed's trajectories) and the three models.
         let training: Vec<Case> = TRAINING
             .iter()
-            .zip(&texts)
-            .map(|(tr, t)| case(tr.name, t, &robot, seed, pd(servo_kp, servo_kd), &sd))
+            .enumerate()
+            .map(|(k, tr)| {
+                let text = with_reference(&tr.for_seed(seed, k))?;
+                case(tr.name, &text, &robot, seed, pd(servo_kp, servo_kd), &sd)
+            })
             .collect::<Result<_, _>>()?;
         let sims = simulate_all(&training, s.threads, &|| tick("training run"));
         let mut models = Vec::new();
@@ -268,65 +305,113 @@ pub fn run(
         let files: Vec<&PathBuf> = models.iter().map(|(f, _)| f).collect();
         let fuzzy = |list: &[&PathBuf], selection: &str, gamma| g.fuzzy(list, selection, gamma);
         let ct_true = controller("computed_torque", g.ct_table());
-        for (tr, text) in NEW.iter().zip(&texts[TRAINING.len()..]) {
+        for (i, (tr, text)) in NEW.iter().zip(&texts[TRAINING.len()..]).enumerate() {
+            // The controller refuses a model whose M-hat is not positive definite along the
+            // reference (control::fuzzy_computed_torque): such a model is left out here as a
+            // user would leave it out, alone and in the fuzzy sets.
+            let reference = &probe[TRAINING.len() + i].scenario;
+            let duration = reference.timing.duration;
+            let along = crate::control::fuzzy_computed_torque::reference_positions(
+                &reference.reference,
+                duration,
+            );
+            let usable: Vec<bool> = models
+                .iter()
+                .map(|(_, m)| check_along_reference(m, &along).is_ok())
+                .collect();
+            let kept: Vec<&PathBuf> = files
+                .iter()
+                .zip(&usable)
+                .filter(|(_, ok)| **ok)
+                .map(|(f, _)| *f)
+                .collect();
+            let single = |k: usize| usable[k].then(|| fuzzy(&files[k..k + 1], "max", None));
+            let any = !kept.is_empty();
             let laws = [
-                pd(servo_kp, servo_kd),
-                pd(&matched.0, &matched.1),
-                ct_true.clone(),
-                fuzzy(&files[0..1], "max", None),
-                fuzzy(&files[1..2], "max", None),
-                fuzzy(&files[2..3], "max", None),
-                fuzzy(&files, "max", None),
-                fuzzy(&files, "blend", None),
-                fuzzy(&files, "blend", Some(UNIFORM_GAMMA)),
+                Some(pd(servo_kp, servo_kd)),
+                Some(pd(&matched.0, &matched.1)),
+                Some(ct_true.clone()),
+                single(0),
+                single(1),
+                single(2),
+                any.then(|| fuzzy(&kept, "max", None)),
+                any.then(|| fuzzy(&kept, "blend", None)),
+                any.then(|| fuzzy(&kept, "blend", Some(UNIFORM_GAMMA))),
             ];
-            let cases: Vec<Case> = RUN
+            let runnable: Vec<(&str, toml::Table)> = RUN
                 .iter()
                 .zip(laws)
-                .map(|(k, law)| case(&format!("{}_{k}", tr.name), text, &robot, seed, law, &sd))
+                .filter_map(|(k, law)| law.map(|l| (*k, l)))
+                .collect();
+            let cases: Vec<Case> = runnable
+                .iter()
+                .map(|(k, law)| {
+                    case(
+                        &format!("{}_{k}", tr.name),
+                        text,
+                        &robot,
+                        seed,
+                        law.clone(),
+                        &sd,
+                    )
+                })
                 .collect::<Result<_, _>>()?;
             let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"));
-            let traces: Vec<JointTraces> = cases
-                .iter()
-                .zip(&sims)
-                .map(|(c, sim)| JointTraces::of(sim, &c.scenario.reference, JOINTS))
-                .collect();
+            let ran = |key: &str| runnable.iter().position(|(k, _)| *k == key);
             let mut rms: Vec<(String, Vec<f64>)> = RUN
                 .iter()
-                .zip(&traces)
-                .map(|(k, t)| (k.to_string(), t.rms()))
+                .map(|k| {
+                    let v = ran(k).map_or(vec![f64::NAN; JOINTS], |c| {
+                        JointTraces::of(&sims[c], &cases[c].scenario.reference, JOINTS).rms()
+                    });
+                    (k.to_string(), v)
+                })
                 .collect();
-            let singles: Vec<&Vec<f64>> = rms[3..6].iter().map(|(_, v)| v).collect();
+            let singles: Vec<&Vec<f64>> = rms[3..6]
+                .iter()
+                .map(|(_, v)| v)
+                .filter(|v| overall(v).is_finite())
+                .collect();
             let best = singles
                 .iter()
                 .min_by(|a, b| overall(a).total_cmp(&overall(b)))
-                .map(|v| (*v).clone())
-                .unwrap_or_default();
+                .map_or(vec![f64::NAN; JOINTS], |v| (*v).clone());
             let random: Vec<f64> = (0..JOINTS)
                 .map(|j| singles.iter().map(|v| v[j]).sum::<f64>() / singles.len() as f64)
                 .collect();
             rms.push(("best_single".into(), best));
             rms.push(("random_single".into(), random));
-            let max = &sims[6];
-            let active = max
-                .law_column("fuzzy_model")
-                .ok_or("fuzzy run logged no active model")?;
-            let switches = active.windows(2).filter(|w| w[0] != w[1]).count();
-            let duration = cases[6].scenario.timing.duration;
-            let share = (0..models.len())
-                .map(|i| {
-                    active.iter().filter(|&&a| a == i as f64).count() as f64
-                        / active.len().max(1) as f64
-                })
-                .collect();
-            let along = crate::control::fuzzy_computed_torque::reference_positions(
-                &cases[6].scenario.reference,
-                duration,
-            );
+            // The max rule's switching, over the models it was given (the usable ones).
+            let (switches, share) = match ran("fuzzy_max") {
+                Some(c) => {
+                    let active = sims[c]
+                        .law_column("fuzzy_model")
+                        .ok_or("fuzzy run logged no active model")?;
+                    let mut slot = usable
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, ok)| **ok)
+                        .map(|(k, _)| k);
+                    let index: Vec<usize> =
+                        (0..kept.len()).map(|_| slot.next().unwrap_or(0)).collect();
+                    let share = (0..models.len())
+                        .map(|m| {
+                            active
+                                .iter()
+                                .filter(|&&a| index.get(a as usize) == Some(&m))
+                                .count() as f64
+                                / active.len().max(1) as f64
+                        })
+                        .collect();
+                    (active.windows(2).filter(|w| w[0] != w[1]).count(), share)
+                }
+                None => (0, vec![0.0; models.len()]),
+            };
             let min_eig_on_reference = models
                 .iter()
                 .map(|(_, m)| m.min_eig(along.iter().map(Vec::as_slice)))
                 .collect();
+            let refused = usable.iter().filter(|ok| !**ok).count();
             cells.push(Cell {
                 seed,
                 trajectory: tr.name,
@@ -334,6 +419,7 @@ pub fn run(
                 switches_per_s: switches as f64 / duration,
                 share,
                 min_eig_on_reference,
+                refused,
             });
         }
     }
@@ -370,7 +456,13 @@ fn summarise(
                 .map(|k| {
                     (
                         k.to_string(),
-                        median(&here.iter().map(|c| value(c, k)).collect::<Vec<_>>()),
+                        median(
+                            &here
+                                .iter()
+                                .map(|c| value(c, k))
+                                .filter(|v| v.is_finite())
+                                .collect::<Vec<_>>(),
+                        ),
                     )
                 })
                 .collect();
@@ -385,8 +477,12 @@ fn summarise(
                 .map(move |k| (rule, k))
         })
         .map(|(rule, k)| {
-            let fuzzy: Vec<f64> = cells.iter().map(|c| value(c, rule)).collect();
-            let b: Vec<f64> = cells.iter().map(|c| value(c, k)).collect();
+            // Pairs where both ran (a refused model's run is missing).
+            let (fuzzy, b): (Vec<f64>, Vec<f64>) = cells
+                .iter()
+                .map(|c| (value(c, rule), value(c, k)))
+                .filter(|(f, b)| f.is_finite() && b.is_finite())
+                .unzip();
             Comparison {
                 rule: rule.to_string(),
                 baseline: k.to_string(),
@@ -475,6 +571,13 @@ pub fn report_markdown(r: &SelectionResult) -> String {
         );
     }
     let sw = median(&r.cells.iter().map(|c| c.switches_per_s).collect::<Vec<_>>());
+    let refused: usize = r.cells.iter().map(|c| c.refused).sum();
+    md += &format!(
+        "\nThe controller refused {refused} of {} (model, trajectory, seed) cases, a model \
+         whose M-hat is not positive definite along the trajectory; those are left out alone \
+         and from the fuzzy sets, and the comparisons pair only runs that both ran.\n",
+        3 * r.cells.len()
+    );
     md += &format!(
         "\nThe max rule switched models {sw:.1} times a second (median over runs).\n\n\
          The paper's claim, fuzzy selection (its max rule) better than the best single model \
