@@ -38,6 +38,16 @@ const TIMING_COLUMNS: [&str; 5] = [
     "flags",
 ];
 
+/// How a cycle started: when it woke (`woke_ns`), how late that was against its deadline, the
+/// flags it starts with (missed, stale) and the period (0 in lockstep: no deadline).
+#[derive(Clone, Copy)]
+struct Wake {
+    woke_ns: u64,
+    lateness_ns: i64,
+    flags: u32,
+    period_ns: u64,
+}
+
 struct Ports {
     params: Sub<ParamSet>,
     /// The optimiser's model estimate, when new sets are checked on a model of the plant.
@@ -189,20 +199,12 @@ impl Loop {
     }
 
     /// One cycle (`step`), its allocations counted after the warm-up.
-    fn cycle(
-        &mut self,
-        ports: &Ports,
-        state: &PlantState,
-        woke_ns: u64,
-        lateness_ns: i64,
-        flags_in: u32,
-        period_ns: u64,
-    ) -> Result<(), IpcError> {
+    fn cycle(&mut self, ports: &Ports, state: &PlantState, wake: Wake) -> Result<(), IpcError> {
         let watch = self.watch_allocations && self.cycle.next_cycle() > alloc_count::WARMUP_CYCLES;
         if watch {
             alloc_count::arm();
         }
-        let r = self.step(ports, state, woke_ns, lateness_ns, flags_in, period_ns);
+        let r = self.step(ports, state, wake);
         if watch {
             alloc_count::disarm();
             self.watched_cycles += 1;
@@ -210,17 +212,14 @@ impl Loop {
         r
     }
 
-    /// One cycle on `state`: parameters, law, command, telemetry, log. `woke_ns` is when the
-    /// cycle started, `lateness_ns` how late that was against its deadline.
-    fn step(
-        &mut self,
-        ports: &Ports,
-        state: &PlantState,
-        woke_ns: u64,
-        lateness_ns: i64,
-        flags_in: u32,
-        period_ns: u64,
-    ) -> Result<(), IpcError> {
+    /// One cycle on `state`: parameters, law, command, telemetry, log.
+    fn step(&mut self, ports: &Ports, state: &PlantState, wake: Wake) -> Result<(), IpcError> {
+        let Wake {
+            woke_ns,
+            lateness_ns,
+            flags: flags_in,
+            period_ns,
+        } = wake;
         if let Some(r) = self.record.as_mut() {
             r.at_state(state, self.cycle.next_cycle());
         }
@@ -423,7 +422,13 @@ fn run_lockstep(
             return Ok(());
         }
         let woke = now_ns();
-        lp.cycle(ports, &state, woke, 0, 0, 0)
+        let wake = Wake {
+            woke_ns: woke,
+            lateness_ns: 0,
+            flags: 0,
+            period_ns: 0,
+        };
+        lp.cycle(ports, &state, wake)
             .map_err(|e| (EXIT_SETUP, e.to_string()))?;
     }
 }
@@ -484,7 +489,13 @@ fn run_realtime(
             flags |= TELEMETRY_FLAG_STALE;
             lp.stale += 1;
         }
-        lp.cycle(ports, &state, woke, lateness, flags, period)
+        let wake = Wake {
+            woke_ns: woke,
+            lateness_ns: lateness,
+            flags,
+            period_ns: period,
+        };
+        lp.cycle(ports, &state, wake)
             .map_err(|e| (EXIT_SETUP, e.to_string()))?;
         k += 1;
     }
