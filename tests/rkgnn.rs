@@ -970,3 +970,86 @@ fn identification_seeds_vary_the_training_data_and_a_refused_model_is_left_out()
         .count() as u64;
     assert_eq!(pairs, 12 - refused3, "pairs leave the refused runs out");
 }
+
+#[test]
+fn weighing_the_joints_gives_arm7_a_positive_definite_m_hat_that_unweighted_least_squares_misses() {
+    // arm7's training run 1 under its known P-D servo (lockstep, in-process), identified by
+    // the known-servo least squares with Christoffel V-hat, once with every joint's equations
+    // in N m and once each in units of its own torque rms (`--weigh-joints`). Unweighted, the
+    // shoulder's residuals (tens of N m) decide the fit and no M-hat is positive definite;
+    // weighted, it is, and it is judged (never fitted) against the true arm's M and G.
+    use evoloop::rkgnn::identify::{self, Prior, ServoPrior, Settings};
+    let scn = Scenario::load(&config("arm7_train1.toml"), &Overrides::default()).unwrap();
+    let sim = simulate(&scn);
+    let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period);
+    let prior = Prior::new(0.003532, 3.827894).unwrap(); // `evoloop rkgnn prior --robot arm7.urdf`
+    let settings = |weigh: bool| {
+        let mut s = Settings::least_squares(7, 1, 0);
+        s.counts.velocity = 0;
+        s.servo = ServoPrior::Known {
+            kp: vec![540.0, 1530.0, 900.0, 720.0, 23.0, 30.0, 4.5],
+            kd: vec![36.0, 102.0, 60.0, 48.0, 1.6, 2.0, 0.3],
+            limits: Some(vec![87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]),
+        };
+        s.weigh_joints = weigh;
+        s
+    };
+    let unweighted =
+        identify::identify_model(&data, &prior, &settings(false), "u".into(), |_, _| {});
+    let e = unweighted.expect_err("unweighted least squares found a positive definite M-hat");
+    assert!(e.contains("positive definite"), "{e}");
+    let m = identify::identify_model(&data, &prior, &settings(true), "w".into(), |_, _| {})
+        .unwrap_or_else(|e| panic!("weighted: {e}"));
+    assert!(m.report.weigh_joints);
+    assert!(m.report.min_eig_m_hat > 0.0, "{}", m.report.min_eig_m_hat);
+    // Judged against the true arm at the training positions.
+    let arm = evoloop::dynamics::load(&config("robots/arm7.urdf")).unwrap();
+    let mut d = arm.data();
+    let (mut g_err, mut g_norm, mut m_err, mut m_norm) = (0.0, 0.0, 0.0, 0.0);
+    for x in data.x.chunks(14).step_by(100) {
+        let q = &x[..7];
+        let (mut g, mut truth) = ([0.0; 7], [0.0; 7]);
+        m.net.gravity(q, &mut g);
+        arm.gravity_torque(&mut d, q, &mut truth);
+        let mut mh = [0.0; evoloop::MAX_JOINTS * evoloop::MAX_JOINTS];
+        m.net.inertia(q, &mut mh);
+        let mt = arm.mass_matrix(&mut d, q);
+        for a in 0..7 {
+            g_err += (g[a] - truth[a]).powi(2);
+            g_norm += truth[a].powi(2);
+            for b in 0..7 {
+                m_err += (mh[a * 7 + b] - mt[(a, b)]).powi(2);
+                m_norm += mt[(a, b)].powi(2);
+            }
+        }
+    }
+    let (g_rel, m_rel) = ((g_err / g_norm).sqrt(), (m_err / m_norm).sqrt());
+    eprintln!(
+        "arm7 train1, weighted: min eig {:.4}, G-hat {g_rel:.4}, M-hat {m_rel:.4} relative error",
+        m.report.min_eig_m_hat
+    );
+    // Measured: G-hat 4.5 %, M-hat 64 % off (positive definite, but far from M: README). The
+    // gravity bound is a little above the measurement, so that a regression shows; M-hat's
+    // accuracy is reported, not yet claimed.
+    assert!(g_rel < 0.05, "G-hat off by {g_rel}");
+    assert!(m_rel.is_finite());
+    // Without known torques there is nothing to weigh: refused before any data is read.
+    let o = cli(&[
+        "identify",
+        "rkgnn",
+        "--data",
+        "/nonexistent",
+        "--out",
+        "/nonexistent/m.json",
+        "--m1",
+        "0.0035",
+        "--m2",
+        "3.8",
+        "--servo",
+        "linear",
+        "--weigh-joints",
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("--weigh-joints needs --servo known"), "{e}");
+}

@@ -87,6 +87,11 @@ pub struct IdentifyArgs {
     /// With --servo known: the servo's derivative gains, one per joint.
     #[arg(long, value_delimiter = ',')]
     pub kd: Option<Vec<f64>>,
+    /// With --servo known: weigh each joint's equations by 1 / its torque rms, so that joints
+    /// carrying little torque (a 7-DOF arm's wrist) are fitted as closely, relatively, as the
+    /// shoulder (arm7: the only way the least squares finds a positive definite M-hat).
+    #[arg(long)]
+    pub weigh_joints: bool,
     /// Evaluation threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -303,6 +308,9 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     if a.servo != ServoKind::Known && (a.kp.is_some() || a.kd.is_some()) {
         return Err("--kp and --kd go with --servo known".into());
     }
+    if a.weigh_joints && a.servo != ServoKind::Known {
+        return Err("--weigh-joints needs --servo known (it weighs the known torques)".into());
+    }
     if a.evaluations == 0 && a.start != Start::LeastSquares {
         return Err("--evaluations must be >= 1 (0 only with --start least-squares)".into());
     }
@@ -312,6 +320,7 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     s.stride = a.stride;
     s.start = a.start;
     s.refine = a.refine;
+    s.weigh_joints = a.weigh_joints;
     if a.servo != ServoKind::Rbf {
         s.counts = RbfCounts::linear_servo(data.n);
     }

@@ -84,6 +84,10 @@ pub struct Settings {
     pub refine: usize,
     /// What the identification knows of the servo the data were taken under.
     pub servo: ServoPrior,
+    /// Known torques: weigh each joint's equations by 1 / that joint's torque rms, so that a
+    /// wrist carrying 100x less torque than the shoulder is fitted as closely, relatively
+    /// (`--weigh-joints`).
+    pub weigh_joints: bool,
 }
 
 /// What the identification knows of the servo that ran the training experiment.
@@ -178,6 +182,7 @@ impl Settings {
             start: Start::Random,
             refine: 0,
             servo: ServoPrior::Unknown,
+            weigh_joints: false,
         }
     }
 
@@ -217,6 +222,9 @@ pub struct Report {
     /// What the identification knew of the servo (files before it: unknown).
     #[serde(default)]
     pub servo: ServoPrior,
+    /// Each joint's equations weighed by its torque rms (`Settings::weigh_joints`).
+    #[serde(default)]
+    pub weigh_joints: bool,
     pub seed: u64,
     /// Best objective after each generation.
     pub history: Vec<f64>,
@@ -630,11 +638,20 @@ pub fn identify(
         Start::Random => (x0, s0),
         Start::LeastSquares => {
             let full = data.window(0, ((split - 1) * s.stride.max(1) + 1).min(data.len()));
-            let x = least_squares_start(&layout, &x0, &full, s.stride, &probes, prior, &s.servo)
-                .ok_or(
-                    "the least-squares start found no model with a positive definite M-hat \
+            let x = least_squares_start(
+                &layout,
+                &x0,
+                &full,
+                s.stride,
+                &probes,
+                prior,
+                &s.servo,
+                s.weigh_joints,
+            )
+            .ok_or(
+                "the least-squares start found no model with a positive definite M-hat \
                      (give --start random)",
-                )?;
+            )?;
             let x = refine_start(&layout, x, &train, &probes, prior, s);
             let mut s0: Vec<f64> = s0.iter().map(|v| v * LS_SIGMA).collect();
             if let (Some(g), ServoPrior::Known { .. }) = (layout.gains, &s.servo) {
@@ -683,6 +700,7 @@ pub fn identify(
         m2: prior.m2,
         start: s.start,
         servo: s.servo.clone(),
+        weigh_joints: s.weigh_joints,
         seed: s.ea.seed,
         history,
     };
@@ -765,6 +783,7 @@ fn residual(layout: &Layout, p: &[f64], x: &[f64], xdd: &[f64], r: &[f64], out: 
 /// squares, does not work: the data's accelerations are small, so "no servo, no gravity,
 /// M-hat q'' ~ 0" fits the equation better than the truth with its unmodelled friction. The EA
 /// then refines everything on the free-run prediction error it is judged by.
+#[allow(clippy::too_many_arguments)]
 pub fn least_squares_start(
     layout: &Layout,
     p0: &[f64],
@@ -773,6 +792,7 @@ pub fn least_squares_start(
     probes: &[Vec<f64>],
     prior: &Prior,
     servo: &ServoPrior,
+    weigh_joints: bool,
 ) -> Option<Vec<f64>> {
     let n = layout.n;
     let g = layout.gains?;
@@ -788,7 +808,7 @@ pub fn least_squares_start(
             p[g + 2 * j] = kp[j];
             p[g + 2 * j + 1] = kd[j];
         }
-        let target = Target::Torques(&tau);
+        let target = Target::Torques(&tau, weigh_joints);
         return least_squares(layout, &p, data, target, stride, INERTIA_RIDGES, floor);
     }
     let data = &smooth_positions(data, SMOOTH_HALF_WINDOW);
@@ -814,7 +834,7 @@ pub fn least_squares_start(
         }
     }
     let scaled = |p: Vec<f64>| scale_to_prior(layout, p, probes, prior).and_then(&floor);
-    let target = Target::Torques(&tau);
+    let target = Target::Torques(&tau, false);
     least_squares(layout, &servo, data, target, stride, INERTIA_RIDGES, scaled)
 }
 
@@ -833,7 +853,7 @@ pub fn least_squares_with_torques(
     min_eig: f64,
 ) -> Option<Vec<f64>> {
     assert_eq!(torques.len(), data.len() * data.n);
-    let target = Target::Torques(torques);
+    let target = Target::Torques(torques, false);
     let floor = at_least(layout, probes, min_eig);
     least_squares(layout, p0, data, target, stride, INERTIA_RIDGES, floor)
 }
@@ -854,8 +874,9 @@ enum Target<'a> {
     /// The servo's torque in units of joint 1's k_p (torque-free data is homogeneous): k_p,1 =
     /// 1 moves to the right-hand side.
     ServoUnits,
-    /// Known joint torques, n per sample of the data; the servo stays out of the fit.
-    Torques(&'a [f64]),
+    /// Known joint torques, n per sample of the data; the servo stays out of the fit. With
+    /// `true` each joint's rows are weighed by 1 / that joint's torque rms.
+    Torques(&'a [f64], bool),
 }
 
 /// The least-squares fits' common part: the solution with the smallest of `ridges` (on the
@@ -874,7 +895,7 @@ fn least_squares(
     let g = layout.gains?;
     let kp = |j: usize| g + 2 * j;
     let torques = match target {
-        Target::Torques(t) => Some(t),
+        Target::Torques(t, _) => Some(t),
         Target::ServoUnits => None,
     };
     // In k_p,1 units joint 1's k_p column is the right-hand side; with torques every servo
@@ -942,6 +963,12 @@ fn least_squares(
         fill(&mut p, kp(0), &mut column);
         rhs -= &column;
     }
+    if let Target::Torques(_, true) = target {
+        // Each joint's equations in units of its own torque: unweighted, the shoulder's
+        // residuals (tens of N m) decide the fit and the wrist's inertia, whose 0.0035 kg m^2 is
+        // arm7's smallest eigenvalue, is left to round-off (M-hat indefinite).
+        weigh_rows(&mut a, &mut rhs, n);
+    }
     let norms: Vec<f64> = (0..cols.len() + nuis)
         .map(|c| a.column(c).norm().max(1e-300))
         .collect();
@@ -1002,13 +1029,27 @@ fn least_squares(
         }
         match target {
             Target::ServoUnits => p[kp(0)] = 1.0,
-            Target::Torques(_) => p[g..g + 2 * n].copy_from_slice(&p0[g..g + 2 * n]),
+            Target::Torques(..) => p[g..g + 2 * n].copy_from_slice(&p0[g..g + 2 * n]),
         }
         if let Some(p) = accept(p) {
             return Some(p);
         }
     }
     None
+}
+
+/// Scale the rows of joint j (row s n + j of sample s) of `a` and `rhs` by 1 / the rms of
+/// joint j's right-hand side.
+fn weigh_rows(a: &mut nalgebra::DMatrix<f64>, rhs: &mut nalgebra::DVector<f64>, n: usize) {
+    let samples = rhs.len() / n;
+    for j in 0..n {
+        let ms = (0..samples).map(|s| rhs[s * n + j].powi(2)).sum::<f64>() / samples.max(1) as f64;
+        let w = 1.0 / ms.sqrt().max(1e-9);
+        for s in 0..samples {
+            a.row_mut(s * n + j).scale_mut(w);
+            rhs[s * n + j] *= w;
+        }
+    }
 }
 
 /// `data` with its measured positions smoothed by a centred quadratic Savitzky-Golay window of
