@@ -161,6 +161,35 @@ fn the_shipped_models_are_what_their_command_makes_of_the_training_runs() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("0 only with --start least-squares"));
 }
 
+/// A model judged (never fitted) against the true arm at `positions`: the relative errors
+/// (Frobenius over all positions) of G-hat and of M-hat.
+fn relative_errors(
+    m: &RkgnnModel,
+    arm: &evoloop::dynamics::Model,
+    positions: &[&[f64]],
+) -> (f64, f64) {
+    let n = arm.dof();
+    let mut d = arm.data();
+    let (mut g_err, mut g_norm, mut m_err, mut m_norm) = (0.0, 0.0, 0.0, 0.0);
+    for q in positions {
+        let (mut g, mut truth) = ([0.0; evoloop::MAX_JOINTS], [0.0; evoloop::MAX_JOINTS]);
+        m.net.gravity(q, &mut g[..n]);
+        arm.gravity_torque(&mut d, q, &mut truth[..n]);
+        let mut mh = [0.0; evoloop::MAX_JOINTS * evoloop::MAX_JOINTS];
+        m.net.inertia(q, &mut mh);
+        let mt = arm.mass_matrix(&mut d, q);
+        for a in 0..n {
+            g_err += (g[a] - truth[a]).powi(2);
+            g_norm += truth[a].powi(2);
+            for b in 0..n {
+                m_err += (mh[a * n + b] - mt[(a, b)]).powi(2);
+                m_norm += mt[(a, b)].powi(2);
+            }
+        }
+    }
+    ((g_err / g_norm).sqrt(), (m_err / m_norm).sqrt())
+}
+
 #[test]
 fn a_model_identified_under_the_known_servo_has_the_arms_gravity_and_inertia() {
     // Judged (never fitted) against the true arm: G-hat and M-hat of the shipped model 1 at the
@@ -180,27 +209,17 @@ fn a_model_identified_under_the_known_servo_has_the_arms_gravity_and_inertia() {
         let mt = arm.mass_matrix(&mut d, q);
         mean += nalgebra::Matrix3::from_fn(|a, b| mt[(a, b)]) / positions.len() as f64;
     }
-    let (mut g_err, mut g_norm, mut m_err, mut m_norm, mut c_err) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for x in &positions {
-        let q = &x[..3];
-        let mut g = [0.0; 3];
-        m.net.gravity(q, &mut g);
-        let mut truth = [0.0; 3];
-        arm.gravity_torque(&mut d, q, &mut truth);
-        let mut mh = [0.0; evoloop::MAX_JOINTS * evoloop::MAX_JOINTS];
-        m.net.inertia(q, &mut mh);
+    let (g_rel, m_rel) = relative_errors(&m, &arm, &positions);
+    let (mut c_err, mut m_norm) = (0.0, 0.0);
+    for q in &positions {
         let mt = arm.mass_matrix(&mut d, q);
         for a in 0..3 {
-            g_err += (g[a] - truth[a]).powi(2);
-            g_norm += truth[a].powi(2);
             for b in 0..3 {
-                m_err += (mh[a * 3 + b] - mt[(a, b)]).powi(2);
                 c_err += (mean[(a, b)] - mt[(a, b)]).powi(2);
                 m_norm += mt[(a, b)].powi(2);
             }
         }
     }
-    let (g_rel, m_rel) = ((g_err / g_norm).sqrt(), (m_err / m_norm).sqrt());
     let c_rel = (c_err / m_norm).sqrt();
     eprintln!(
         "relative error on train1: G-hat {g_rel:.4}, M-hat {m_rel:.4}, constant M {c_rel:.4}"
@@ -1004,26 +1023,8 @@ fn weighing_the_joints_gives_arm7_a_positive_definite_m_hat_that_unweighted_leas
     assert!(m.report.min_eig_m_hat > 0.0, "{}", m.report.min_eig_m_hat);
     // Judged against the true arm at the training positions.
     let arm = evoloop::dynamics::load(&config("robots/arm7.urdf")).unwrap();
-    let mut d = arm.data();
-    let (mut g_err, mut g_norm, mut m_err, mut m_norm) = (0.0, 0.0, 0.0, 0.0);
-    for x in data.x.chunks(14).step_by(100) {
-        let q = &x[..7];
-        let (mut g, mut truth) = ([0.0; 7], [0.0; 7]);
-        m.net.gravity(q, &mut g);
-        arm.gravity_torque(&mut d, q, &mut truth);
-        let mut mh = [0.0; evoloop::MAX_JOINTS * evoloop::MAX_JOINTS];
-        m.net.inertia(q, &mut mh);
-        let mt = arm.mass_matrix(&mut d, q);
-        for a in 0..7 {
-            g_err += (g[a] - truth[a]).powi(2);
-            g_norm += truth[a].powi(2);
-            for b in 0..7 {
-                m_err += (mh[a * 7 + b] - mt[(a, b)]).powi(2);
-                m_norm += mt[(a, b)].powi(2);
-            }
-        }
-    }
-    let (g_rel, m_rel) = ((g_err / g_norm).sqrt(), (m_err / m_norm).sqrt());
+    let positions: Vec<&[f64]> = data.x.chunks(14).step_by(100).map(|x| &x[..7]).collect();
+    let (g_rel, m_rel) = relative_errors(&m, &arm, &positions);
     eprintln!(
         "arm7 train1, weighted: min eig {:.4}, G-hat {g_rel:.4}, M-hat {m_rel:.4} relative error",
         m.report.min_eig_m_hat
