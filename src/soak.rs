@@ -79,14 +79,15 @@ pub struct SoakReport {
     pub shm_left: Vec<String>,
 }
 
-/// Resident set size of `pid` (VmRSS) and its anonymous part (RssAnon), KiB, if it still runs.
-pub fn rss_kib(pid: u32) -> Option<(u64, u64)> {
+/// Resident set size of `pid` (VmRSS) and its anonymous part (RssAnon, absent before Linux
+/// 4.5), KiB, if it still runs.
+pub fn rss_kib(pid: u32) -> Option<(u64, Option<u64>)> {
     let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
     let kib = |key: &str| -> Option<u64> {
         let line = s.lines().find(|l| l.starts_with(key))?;
         line.split_whitespace().nth(1)?.parse().ok()
     };
-    Some((kib("VmRSS:")?, kib("RssAnon:")?))
+    Some((kib("VmRSS:")?, kib("RssAnon:")))
 }
 
 /// A process of evoloop's on this machine: its name (a role of the one binary, `evoloop plant

@@ -117,13 +117,16 @@ pub fn main(a: SoakArgs) -> ExitCode {
         // A record every interval while the run goes on (not at its end: the processes are
         // gone or going, and the last partial interval would look like a drop in memory).
         if ended.is_none() && t >= next {
-            let memory: BTreeMap<String, (u64, u64)> = run_processes(&run_id)
+            let memory: BTreeMap<String, (u64, Option<u64>)> = run_processes(&run_id)
                 .into_iter()
                 .filter_map(|(name, pid)| rss_kib(pid).map(|r| (name, r)))
                 .collect();
             let rss_kib: BTreeMap<String, u64> =
                 memory.iter().map(|(n, m)| (n.clone(), m.0)).collect();
-            let anon_kib = memory.into_iter().map(|(n, m)| (n, m.1)).collect();
+            let anon_kib = memory
+                .into_iter()
+                .filter_map(|(n, m)| m.1.map(|a| (n, a)))
+                .collect();
             // Past the loop's end (the launcher measures the floor and writes its report) the
             // processes are leaving: no more records.
             if !rss_kib.contains_key("evoloop-controller") {

@@ -84,7 +84,11 @@ impl Recording {
             .ok()
             .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
             .is_some_and(|s| s["outcome"] == "ok");
-        let until = v["timing"]["duration"].as_f64().filter(|_| ended);
+        // Only a short tail (a few cycles): a longer one is rows the log lost, not to invent.
+        let last = time.iter().fold(0.0f64, |m, t| m.max(*t));
+        let until = v["timing"]["duration"]
+            .as_f64()
+            .filter(|d| ended && (d - last) / h <= MAX_TAIL_SAMPLES as f64 + 1.0);
         let (y, u) = regular(&time, h, until, &y, &u);
         Ok(Recording {
             h,
@@ -213,6 +217,10 @@ fn regular(
     }
     (yr, ur)
 }
+
+/// Missing samples at the end of a run that ended which `regular` fills by holding the last
+/// row (cycles a loaded machine missed at the very end).
+const MAX_TAIL_SAMPLES: usize = 10;
 
 /// How the estimate is made.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

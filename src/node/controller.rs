@@ -200,7 +200,7 @@ impl Loop {
 
     /// One cycle (`step`), its allocations counted after the warm-up.
     fn cycle(&mut self, ports: &Ports, state: &PlantState, wake: Wake) -> Result<(), IpcError> {
-        let watch = self.watch_allocations && self.cycle.next_cycle() > alloc_count::WARMUP_CYCLES;
+        let watch = self.watch_allocations && self.cycle.next_cycle() >= alloc_count::WARMUP_CYCLES;
         if watch {
             alloc_count::arm();
         }

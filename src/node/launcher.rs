@@ -574,7 +574,18 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 continue;
             }
             if let Ok(Some(status)) = c.try_wait() {
-                if *name == OPTIMISER && rejoinable && !status.success() {
+                // After a stop request (the user's Ctrl-C reaches every process of the
+                // terminal's group; ours follows) a child's exit code is expected, and so is
+                // death by that very SIGINT or SIGTERM: a child stopped in its first
+                // milliseconds, before its handler was installed, dies of it. ctrlc raises the
+                // flag from its own thread, which a loaded machine can run after the group's
+                // SIGINT has already killed a child: such a death waits a moment for the flag.
+                // Death by any other signal is still a failure (and an optimiser's, a crash to
+                // restart).
+                let stopping = interrupted || stop_sent.is_some() || stop.load(Ordering::SeqCst);
+                let by_stop = matches!(status.signal(), Some(libc::SIGINT | libc::SIGTERM))
+                    && (stopping || raised_within(&stop, STOP_FLAG_GRACE));
+                if *name == OPTIMISER && rejoinable && !by_stop && !status.success() {
                     // Its ports must go before the plant can tell it is absent.
                     ipc.cleanup_dead_nodes();
                     match restart_pause(tuner.restarts) {
@@ -590,21 +601,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                     continue;
                 }
                 exited[i] = true;
-                // After a stop request (the user's Ctrl-C reaches every process of the
-                // terminal's group; ours follows) a child's exit code is expected, and so is
-                // death by that very SIGINT or SIGTERM: a child stopped in its first
-                // milliseconds, before its handler was installed, dies of it. Death by any
-                // other signal is still a failure.
-                let by_stop = matches!(status.signal(), Some(libc::SIGINT | libc::SIGTERM));
-                // ctrlc raises the flag from its own thread, which a loaded machine can run
-                // after the group's SIGINT has already killed a child: a child killed by it
-                // waits a moment for the flag before it counts as a failure.
-                let stopping = interrupted
-                    || stop_sent.is_some()
-                    || stop.load(Ordering::SeqCst)
-                    || (by_stop && raised_within(&stop, STOP_FLAG_GRACE));
-                let expected =
-                    status.success() || (stopping && (status.code().is_some() || by_stop));
+                let expected = status.success() || by_stop || (stopping && status.code().is_some());
                 if !expected {
                     failed.push(format!("{name} exited with {status}"));
                 }

@@ -179,7 +179,6 @@ fn overall(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
 
-/// `base` with its reference replaced by `s` and its duration `duration`.
 impl Sines {
     /// The training trajectory of identification seed `seed`: seed 1 is the trajectory as
     /// written (the shipped models' data); each other seed moves every offset by up to
@@ -208,6 +207,7 @@ impl Sines {
 const OFFSET_SPREAD: f64 = 0.1;
 const AMPLITUDE_SPREAD: f64 = 0.15;
 
+/// `base` with its reference replaced by `s`.
 fn with_reference(s: &Sines) -> Result<String, String> {
     let mut t: toml::Table = BASE
         .parse()
@@ -319,12 +319,9 @@ pub fn run(
                 .iter()
                 .map(|(_, m)| check_along_reference(m, &along).is_ok())
                 .collect();
-            let kept: Vec<&PathBuf> = files
-                .iter()
-                .zip(&usable)
-                .filter(|(_, ok)| **ok)
-                .map(|(f, _)| *f)
-                .collect();
+            // The usable models' indices: slot k of the fuzzy sets is model kept_idx[k].
+            let kept_idx: Vec<usize> = (0..models.len()).filter(|&k| usable[k]).collect();
+            let kept: Vec<&PathBuf> = kept_idx.iter().map(|&k| files[k]).collect();
             let single = |k: usize| usable[k].then(|| fuzzy(&files[k..k + 1], "max", None));
             let any = !kept.is_empty();
             let laws = [
@@ -358,11 +355,19 @@ pub fn run(
                 .collect::<Result<_, _>>()?;
             let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"));
             let ran = |key: &str| runnable.iter().position(|(k, _)| *k == key);
+            // A run not made (a refused model) is NaN, left out of every comparison; a run made
+            // whose error is not finite (it diverged) is +inf, the worst of all.
             let mut rms: Vec<(String, Vec<f64>)> = RUN
                 .iter()
                 .map(|k| {
                     let v = ran(k).map_or(vec![f64::NAN; JOINTS], |c| {
-                        JointTraces::of(&sims[c], &cases[c].scenario.reference, JOINTS).rms()
+                        let v =
+                            JointTraces::of(&sims[c], &cases[c].scenario.reference, JOINTS).rms();
+                        if overall(&v).is_finite() {
+                            v
+                        } else {
+                            vec![f64::INFINITY; JOINTS]
+                        }
                     });
                     (k.to_string(), v)
                 })
@@ -370,7 +375,7 @@ pub fn run(
             let singles: Vec<&Vec<f64>> = rms[3..6]
                 .iter()
                 .map(|(_, v)| v)
-                .filter(|v| overall(v).is_finite())
+                .filter(|v| !overall(v).is_nan())
                 .collect();
             let best = singles
                 .iter()
@@ -387,18 +392,11 @@ pub fn run(
                     let active = sims[c]
                         .law_column("fuzzy_model")
                         .ok_or("fuzzy run logged no active model")?;
-                    let mut slot = usable
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, ok)| **ok)
-                        .map(|(k, _)| k);
-                    let index: Vec<usize> =
-                        (0..kept.len()).map(|_| slot.next().unwrap_or(0)).collect();
                     let share = (0..models.len())
                         .map(|m| {
                             active
                                 .iter()
-                                .filter(|&&a| index.get(a as usize) == Some(&m))
+                                .filter(|&&a| kept_idx.get(a as usize) == Some(&m))
                                 .count() as f64
                                 / active.len().max(1) as f64
                         })
@@ -460,7 +458,7 @@ fn summarise(
                             &here
                                 .iter()
                                 .map(|c| value(c, k))
-                                .filter(|v| v.is_finite())
+                                .filter(|v| !v.is_nan())
                                 .collect::<Vec<_>>(),
                         ),
                     )
@@ -477,11 +475,11 @@ fn summarise(
                 .map(move |k| (rule, k))
         })
         .map(|(rule, k)| {
-            // Pairs where both ran (a refused model's run is missing).
+            // Pairs where both ran (a refused model's run is missing, NaN).
             let (fuzzy, b): (Vec<f64>, Vec<f64>) = cells
                 .iter()
                 .map(|c| (value(c, rule), value(c, k)))
-                .filter(|(f, b)| f.is_finite() && b.is_finite())
+                .filter(|(f, b)| !f.is_nan() && !b.is_nan())
                 .unzip();
             Comparison {
                 rule: rule.to_string(),

@@ -69,9 +69,11 @@ pub fn installed() -> bool {
     drop(std::hint::black_box(Box::new(0u64)));
     disarm();
     let after = COUNT.load(Ordering::Relaxed);
-    // Not the probe's: take it back out, so COUNT stays the watched code's.
-    COUNT.fetch_sub(after - before, Ordering::Relaxed);
-    after > before
+    // Not the probe's: take it back out, so COUNT stays the watched code's. (Called once, by
+    // the controller's thread before its loop, when no other thread is armed.)
+    let probe = after.saturating_sub(before);
+    COUNT.fetch_sub(probe, Ordering::Relaxed);
+    probe > 0
 }
 
 /// What the controller's cycle allocated, counted on the real loop (controller.json,
