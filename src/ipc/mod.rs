@@ -227,7 +227,7 @@ pub struct Ipc {
 }
 
 impl Ipc {
-    /// Create the process's node. Signal handling is left to the process (ctrlc), so a SIGTERM
+    /// Create the process's node. Signal handling is left to the process (`node::start::stop_flag`), so a SIGTERM
     /// mid-wait ends the wait through our own flag and the ports are dropped cleanly.
     /// Node creation also removes the resources of dead nodes of earlier, killed runs.
     pub fn new(process: &str, run_id: &str, prefix: &str) -> Result<Self, IpcError> {

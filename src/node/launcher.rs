@@ -17,7 +17,7 @@ use crate::rt::WaitStrategy;
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ExitCode};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 const DEFAULT_SCENARIO: &str = "config/two_mass.toml";
@@ -577,14 +577,13 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 // After a stop request (the user's Ctrl-C reaches every process of the
                 // terminal's group; ours follows) a child's exit code is expected, and so is
                 // death by that very SIGINT or SIGTERM: a child stopped in its first
-                // milliseconds, before its handler was installed, dies of it. ctrlc raises the
-                // flag from its own thread, which a loaded machine can run after the group's
-                // SIGINT has already killed a child: such a death waits a moment for the flag.
-                // Death by any other signal is still a failure (and an optimiser's, a crash to
-                // restart).
+                // milliseconds, before its handler was installed, dies of it (the group's signal
+                // reached this process too, and its handler raised the flag before this thread
+                // ran on). Death by any other signal is still a failure (and an optimiser's, a
+                // crash to restart).
                 let stopping = interrupted || stop_sent.is_some() || stop.load(Ordering::SeqCst);
-                let by_stop = matches!(status.signal(), Some(libc::SIGINT | libc::SIGTERM))
-                    && (stopping || raised_within(&stop, STOP_FLAG_GRACE));
+                let by_stop =
+                    stopping && matches!(status.signal(), Some(libc::SIGINT | libc::SIGTERM));
                 if *name == OPTIMISER && rejoinable && !by_stop && !status.success() {
                     // Its ports must go before the plant can tell it is absent.
                     ipc.cleanup_dead_nodes();
@@ -834,21 +833,6 @@ const OPTIMISER_RESTARTS: usize = 5;
 /// tuner and says so (outcome "tuner_lost").
 fn restart_pause(done: usize) -> Option<Duration> {
     (done < OPTIMISER_RESTARTS).then(|| Duration::from_millis(100 << done))
-}
-
-/// How long a child killed by SIGINT or SIGTERM waits for the launcher's own stop flag.
-const STOP_FLAG_GRACE: Duration = Duration::from_millis(250);
-
-/// Whether `flag` is raised, or becomes so within `grace`.
-fn raised_within(flag: &AtomicBool, grace: Duration) -> bool {
-    let t0 = Instant::now();
-    while !flag.load(Ordering::SeqCst) {
-        if t0.elapsed() > grace {
-            return false;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    true
 }
 
 fn print_summary(s: &Summary, dir: &Path, plots: bool) {

@@ -4,8 +4,8 @@
 use super::args::ProcessArgs;
 use crate::config::Scenario;
 use crate::ipc::{Ipc, IpcError};
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Once, OnceLock};
 
 /// Exit code of a process whose peer stopped answering (lockstep timeout).
 pub const EXIT_PEER_TIMEOUT: i32 = 3;
@@ -75,12 +75,35 @@ fn set_thread_name(name: &str) {
     unsafe { libc::prctl(libc::PR_SET_NAME, buf.as_ptr() as libc::c_ulong, 0, 0, 0) };
 }
 
-/// Install SIGINT/SIGTERM handling that only raises a flag; loops check it once per cycle and
-/// exit cleanly, dropping their iceoryx2 ports so nothing is left in shared memory.
-pub fn stop_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
-    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let f = flag.clone();
-    // Only fails if a handler is already installed, which the binaries never do twice.
-    let _ = ctrlc::set_handler(move || f.store(true, std::sync::atomic::Ordering::SeqCst));
+/// The process's stop flag, raised by SIGINT, SIGTERM or SIGHUP; loops check it once per cycle
+/// and exit cleanly, dropping their iceoryx2 ports so nothing is left in shared memory. The
+/// signal handler raises it itself (an atomic store, async-signal-safe), so the flag is up by
+/// the time the interrupted thread runs again: a handler thread (ctrlc's, before) could run
+/// after the terminal's Ctrl-C had already killed a child, and the launcher called that death a
+/// failure. One flag per process, the handler installed once, however often this is called.
+pub fn stop_flag() -> Arc<AtomicBool> {
+    static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+    static INSTALL: Once = Once::new();
+    extern "C" fn raise(_: libc::c_int) {
+        if let Some(f) = FLAG.get() {
+            f.store(true, Ordering::SeqCst);
+        }
+    }
+    let flag = FLAG
+        .get_or_init(|| Arc::new(AtomicBool::new(false)))
+        .clone();
+    INSTALL.call_once(|| {
+        // SAFETY: a zeroed sigaction is valid; `raise` only loads an initialised OnceLock and
+        // stores to an atomic. SA_RESTART: interrupted system calls resume, as they did.
+        unsafe {
+            let mut sa: libc::sigaction = std::mem::zeroed();
+            sa.sa_sigaction = raise as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            sa.sa_flags = libc::SA_RESTART;
+            libc::sigemptyset(&mut sa.sa_mask);
+            for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+                libc::sigaction(sig, &sa, std::ptr::null_mut());
+            }
+        }
+    });
     flag
 }
