@@ -84,11 +84,7 @@ impl Recording {
             .ok()
             .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
             .is_some_and(|s| s["outcome"] == "ok");
-        // Only a short tail (a few cycles): a longer one is rows the log lost, not to invent.
-        let last = time.iter().fold(0.0f64, |m, t| m.max(*t));
-        let until = v["timing"]["duration"]
-            .as_f64()
-            .filter(|d| ended && (d - last) / h <= MAX_TAIL_SAMPLES as f64 + 1.0);
+        let until = v["timing"]["duration"].as_f64().filter(|_| ended);
         let (y, u) = regular(&time, h, until, &y, &u);
         Ok(Recording {
             h,
@@ -166,8 +162,9 @@ impl Recording {
 /// leaves a gap and two cycles on the same state share a stamp. A shared stamp keeps the later
 /// row (its command is the one the plant went on with); a gap takes the positions linearly
 /// interpolated and the command held (the plant held it). The grid ends at the last row, or at
-/// `until` (the run's duration, when it ran to its end) if that is later: the tail gap holds the
-/// last positions and command. Lockstep logs pass through unchanged.
+/// `until` (the run's duration, when it ran to its end) if that is later by at most
+/// `MAX_TAIL_SAMPLES`: the tail gap holds the last positions and command (a longer tail is rows
+/// the log lost, not to invent). Lockstep logs pass through unchanged.
 fn regular(
     time: &[f64],
     h: f64,
@@ -176,7 +173,11 @@ fn regular(
     u: &[Vec<f64>],
 ) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let last = time.iter().fold(0.0f64, |m, t| m.max(*t));
-    let m = ((last / h).round() as usize + 1).max(until.map_or(0, |d| (d / h).round() as usize));
+    let logged = (last / h).round() as usize + 1;
+    let m = match until.map(|d| (d / h).round() as usize) {
+        Some(end) if end > logged && end - logged <= MAX_TAIL_SAMPLES => end,
+        _ => logged,
+    };
     let mut at: Vec<Option<usize>> = vec![None; m];
     for (i, t) in time.iter().enumerate() {
         let k = (t / h).round();
