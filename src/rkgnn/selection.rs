@@ -315,9 +315,20 @@ pub fn run(
                 &reference.reference,
                 duration,
             );
-            let usable: Vec<bool> = models
+            // The controller's own check, once per model: it gives the smallest eigenvalue along
+            // the reference when the model passes; a refused one's is looked up in full.
+            let checked: Vec<Result<f64, String>> = models
                 .iter()
-                .map(|(_, m)| check_along_reference(m, &along).is_ok())
+                .map(|(_, m)| check_along_reference(m, &along))
+                .collect();
+            let usable: Vec<bool> = checked.iter().map(Result::is_ok).collect();
+            let min_eig_on_reference: Vec<f64> = models
+                .iter()
+                .zip(&checked)
+                .map(|((_, m), c)| match c {
+                    Ok(lowest) => *lowest,
+                    Err(_) => m.min_eig(along.iter().map(Vec::as_slice)),
+                })
                 .collect();
             // The usable models' indices: slot k of the fuzzy sets is model kept_idx[k].
             let kept_idx: Vec<usize> = (0..models.len()).filter(|&k| usable[k]).collect();
@@ -405,10 +416,6 @@ pub fn run(
                 }
                 None => (0, vec![0.0; models.len()]),
             };
-            let min_eig_on_reference = models
-                .iter()
-                .map(|(_, m)| m.min_eig(along.iter().map(Vec::as_slice)))
-                .collect();
             let refused = usable.iter().filter(|ok| !**ok).count();
             cells.push(Cell {
                 seed,
