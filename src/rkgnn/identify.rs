@@ -638,17 +638,7 @@ pub fn identify(
         Start::Random => (x0, s0),
         Start::LeastSquares => {
             let full = data.window(0, ((split - 1) * s.stride.max(1) + 1).min(data.len()));
-            let x = least_squares_start(
-                &layout,
-                &x0,
-                &full,
-                s.stride,
-                &probes,
-                prior,
-                &s.servo,
-                s.weigh_joints,
-            )
-            .ok_or(
+            let x = least_squares_start(&layout, &x0, &full, &probes, prior, s).ok_or(
                 "the least-squares start found no model with a positive definite M-hat \
                      (give --start random)",
             )?;
@@ -783,17 +773,15 @@ fn residual(layout: &Layout, p: &[f64], x: &[f64], xdd: &[f64], r: &[f64], out: 
 /// squares, does not work: the data's accelerations are small, so "no servo, no gravity,
 /// M-hat q'' ~ 0" fits the equation better than the truth with its unmodelled friction. The EA
 /// then refines everything on the free-run prediction error it is judged by.
-#[allow(clippy::too_many_arguments)]
 pub fn least_squares_start(
     layout: &Layout,
     p0: &[f64],
     data: &Trajectory,
-    stride: usize,
     probes: &[Vec<f64>],
     prior: &Prior,
-    servo: &ServoPrior,
-    weigh_joints: bool,
+    s: &Settings,
 ) -> Option<Vec<f64>> {
+    let (stride, servo) = (s.stride, &s.servo);
     let n = layout.n;
     let g = layout.gains?;
     let floor = at_least(layout, probes, 0.5 * prior.m1);
@@ -808,7 +796,7 @@ pub fn least_squares_start(
             p[g + 2 * j] = kp[j];
             p[g + 2 * j + 1] = kd[j];
         }
-        let target = Target::Torques(&tau, weigh_joints);
+        let target = Target::Torques(&tau, s.weigh_joints);
         return least_squares(layout, &p, data, target, stride, INERTIA_RIDGES, floor);
     }
     let data = &smooth_positions(data, SMOOTH_HALF_WINDOW);
