@@ -83,7 +83,6 @@ struct Loop {
     row: Vec<f64>,
     /// Count what the cycle allocates (when evoloop's allocator is the process's).
     watch_allocations: bool,
-    watched_cycles: u64,
 }
 
 impl Loop {
@@ -194,7 +193,6 @@ impl Loop {
             n_vel,
             n_law,
             watch_allocations: alloc_count::installed(),
-            watched_cycles: 0,
         })
     }
 
@@ -207,7 +205,6 @@ impl Loop {
         let r = self.step(ports, state, wake);
         if watch {
             alloc_count::disarm();
-            self.watched_cycles += 1;
         }
         r
     }
@@ -539,7 +536,10 @@ fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
     report.pending_dropped = lp.cycle.pending_dropped;
     report.check_model = lp.model_check.as_ref().map(|m| m.report.clone());
     report.cycle_allocations = lp.watch_allocations.then(|| alloc_count::CycleAllocations {
-        cycles: lp.watched_cycles,
+        cycles: lp
+            .cycle
+            .next_cycle()
+            .saturating_sub(alloc_count::WARMUP_CYCLES),
         allocations: alloc_count::COUNT.load(Ordering::Relaxed),
     });
     let dropped = lp.log.dropped;
