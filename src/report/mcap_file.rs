@@ -17,10 +17,13 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{self, BufWriter, Seek, SeekFrom, Write};
 
-const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
+/// The file's first and last bytes.
+pub(crate) const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
+/// The chunks' compression (LZ4 frames).
+const COMPRESSION: &str = "lz4";
 
-/// Record opcodes.
-mod op {
+/// Record opcodes (also the reader's, `report::recording`).
+pub(crate) mod op {
     pub const HEADER: u8 = 0x01;
     pub const FOOTER: u8 = 0x02;
     pub const SCHEMA: u8 = 0x03;
@@ -105,24 +108,24 @@ fn record(w: &mut impl Write, opcode: u8, body: &[u8]) -> io::Result<()> {
     w.write_all(body)
 }
 
+/// A schema; its id is its place in `McapWriter::schemas` plus one.
 struct Schema {
-    id: u16,
     name: String,
     encoding: String,
     data: Vec<u8>,
 }
 
+/// A channel; its id is its place in `McapWriter::channels` plus one.
 struct Channel {
-    id: u16,
     schema_id: u16,
     topic: String,
     encoding: String,
 }
 
 impl Schema {
-    fn body(&self) -> Vec<u8> {
+    fn body(&self, id: u16) -> Vec<u8> {
         let mut b = Vec::new();
-        b.u16(self.id);
+        b.u16(id);
         b.str(&self.name);
         b.str(&self.encoding);
         b.u32(self.data.len() as u32);
@@ -132,9 +135,9 @@ impl Schema {
 }
 
 impl Channel {
-    fn body(&self) -> Vec<u8> {
+    fn body(&self, id: u16) -> Vec<u8> {
         let mut b = Vec::new();
-        b.u16(self.id);
+        b.u16(id);
         b.u16(self.schema_id);
         b.str(&self.topic);
         b.str(&self.encoding);
@@ -214,30 +217,30 @@ impl<W: Write> McapWriter<W> {
 
     /// A schema (ids 1..); written at once, outside any chunk.
     pub fn add_schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> io::Result<u16> {
+        let id = self.schemas.len() as u16 + 1;
         let s = Schema {
-            id: self.schemas.len() as u16 + 1,
             name: name.into(),
             encoding: encoding.into(),
             data: data.into(),
         };
-        record(&mut self.out, op::SCHEMA, &s.body())?;
+        record(&mut self.out, op::SCHEMA, &s.body(id))?;
         self.schemas.push(s);
-        Ok(self.schemas.len() as u16)
+        Ok(id)
     }
 
     /// A channel (ids 1..) on `schema_id`; written at once, outside any chunk.
     pub fn add_channel(&mut self, schema_id: u16, topic: &str, encoding: &str) -> io::Result<u16> {
+        let id = self.channels.len() as u16 + 1;
         let c = Channel {
-            id: self.channels.len() as u16 + 1,
             schema_id,
             topic: topic.into(),
             encoding: encoding.into(),
         };
-        record(&mut self.out, op::CHANNEL, &c.body())?;
+        record(&mut self.out, op::CHANNEL, &c.body(id))?;
         self.channels.push(c);
         self.messages.push(0);
         self.chunk.index.push(Vec::new());
-        Ok(self.channels.len() as u16)
+        Ok(id)
     }
 
     /// A Metadata record, outside any chunk (the open one is finished first).
@@ -305,7 +308,7 @@ impl<W: Write> McapWriter<W> {
         b.u64(end);
         b.u64(c.records.len() as u64);
         b.u32(crc32fast::hash(&c.records));
-        b.str("lz4");
+        b.str(COMPRESSION);
         b.u64(compressed.len() as u64);
         let chunk_start = self.out.pos;
         self.out.write_all(&[op::CHUNK])?;
@@ -343,7 +346,7 @@ impl<W: Write> McapWriter<W> {
             b.u64(at);
         }
         b.u64(self.out.pos - index_start);
-        b.str("lz4");
+        b.str(COMPRESSION);
         b.u64(compressed.len() as u64);
         b.u64(c.records.len() as u64);
         record(&mut self.spool, op::CHUNK_INDEX, b)?;
@@ -364,14 +367,14 @@ impl<W: Write> McapWriter<W> {
         let _ = self.out.take_crc();
         let mut groups = Vec::new();
         self.group(&mut groups, op::SCHEMA, |w| {
-            for s in &w.schemas {
-                record(&mut w.out, op::SCHEMA, &s.body())?;
+            for (id, s) in (1..).zip(&w.schemas) {
+                record(&mut w.out, op::SCHEMA, &s.body(id))?;
             }
             Ok(())
         })?;
         self.group(&mut groups, op::CHANNEL, |w| {
-            for c in &w.channels {
-                record(&mut w.out, op::CHANNEL, &c.body())?;
+            for (id, c) in (1..).zip(&w.channels) {
+                record(&mut w.out, op::CHANNEL, &c.body(id))?;
             }
             Ok(())
         })?;

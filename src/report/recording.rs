@@ -39,9 +39,8 @@ pub struct Received {
 /// (opcode u8, length u64 LE, body); one running past the end is left to the reader, which
 /// calls the file cut short.
 fn check_chunks(bytes: &[u8]) -> Result<(), String> {
-    const MAGIC: usize = 8;
-    const CHUNK: u8 = 0x06;
-    let mut at = MAGIC;
+    use super::mcap_file::{op, MAGIC};
+    let mut at = MAGIC.len();
     while let Some(len) = le_u64(bytes, at + 1) {
         let body = at + 9;
         let Some(end) = usize::try_from(len).ok().and_then(|l| body.checked_add(l)) else {
@@ -50,7 +49,7 @@ fn check_chunks(bytes: &[u8]) -> Result<(), String> {
         if end > bytes.len() {
             return Ok(());
         }
-        if bytes[at] == CHUNK {
+        if bytes[at] == op::CHUNK {
             check_chunk(&bytes[body..end], len)
                 .map_err(|e| format!("the chunk at byte {at} {e}: the recording is damaged"))?;
         }
