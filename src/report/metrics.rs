@@ -76,7 +76,8 @@ impl ResponseAcc {
             dt,
             t_change,
             n,
-            tail: n - (n / 10).max(1),
+            // An empty run (stopped before its first sample) has no tail.
+            tail: n.saturating_sub((n / 10).max(1)),
             from_start: t_last < t_change - 1e-12,
             r_final,
             i: 0,
