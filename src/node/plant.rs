@@ -267,11 +267,14 @@ fn run_realtime(
     let n_u = sim.plant.n_inputs();
     let safe = [scn.plant.safe_command; MAX_JOINTS];
     let timeout_ns = scn.plant.command_timeout_periods as u64 * period;
-    let mut u = [0.0; MAX_JOINTS];
+    // Until the controller's first command the plant holds the safe command, as a drive does
+    // before its controller is up; the timeout guards a controller that stopped commanding,
+    // so it runs only once commands have started.
+    let mut u = safe;
     let mut msg = PlantState::default();
     let epoch = now_ns();
     let secs = |ns: u64| (ns - epoch) as f64 * 1e-9;
-    let mut last_cmd = epoch;
+    let mut last_cmd = None;
     let mut safe_mode = false;
     for k in 0..=n {
         let tick = epoch + k * period;
@@ -291,19 +294,23 @@ fn run_realtime(
             safe_mode = false;
             sim.advance(&u[..n_u], secs(at) - sim.t);
             u[..n_u].copy_from_slice(&cmd.u[..n_u]);
-            last_cmd = at;
+            last_cmd = Some(at);
             report.commands_received += 1;
             report.samples_after_last_command = 0;
         }
         // Commands stopped: the safe command from the moment the timeout ran out.
-        if !safe_mode && tick.saturating_sub(last_cmd) > timeout_ns {
-            sim.advance(&u[..n_u], secs(last_cmd + timeout_ns) - sim.t);
-            u[..n_u].copy_from_slice(&safe[..n_u]);
-            safe_mode = true;
-            if report.first_safe_sample.is_none() {
-                report.first_safe_sample = Some(k);
-                report.first_safe_periods = Some((tick - last_cmd) as f64 / period as f64);
+        match last_cmd {
+            None => report.samples_before_first_command += 1,
+            Some(last) if !safe_mode && tick.saturating_sub(last) > timeout_ns => {
+                sim.advance(&u[..n_u], secs(last + timeout_ns) - sim.t);
+                u[..n_u].copy_from_slice(&safe[..n_u]);
+                safe_mode = true;
+                if report.first_safe_sample.is_none() {
+                    report.first_safe_sample = Some(k);
+                    report.first_safe_periods = Some((tick - last) as f64 / period as f64);
+                }
             }
+            Some(_) => {}
         }
         sim.advance(&u[..n_u], k as f64 * scn.timing.period - sim.t);
         sim.sample(k, now_ns(), &u[..n_u], &mut msg);

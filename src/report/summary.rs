@@ -55,6 +55,10 @@ pub struct PlantReport {
     pub rt: RtGranted,
     /// Samples during which the safe command was applied because commands had stopped.
     pub safe_samples: u64,
+    /// Realtime: samples before the controller's first command, with the safe command held (a
+    /// controller slow to start; not counted in `safe_samples`, which are a lost controller's).
+    #[serde(default)]
+    pub samples_before_first_command: u64,
     /// Realtime: the first sample at which the safe command was in force, and how many periods
     /// after the last command it took over (the timeout plus the wait for the next sample).
     #[serde(default)]
