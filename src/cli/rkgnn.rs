@@ -151,12 +151,21 @@ pub struct SelectionArgs {
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
-    /// A 3-joint arm (D-H TOML or URDF).
+    /// An arm (D-H TOML or URDF): a 3-joint arm runs the trajectories written for the paper's
+    /// arm, any other its trajectories built from its joint limits.
     #[arg(long, default_value = "config/robots/arm3.toml")]
     pub robot: PathBuf,
     /// Seeds (each: new measurement noise, models re-identified).
     #[arg(long, default_value_t = 10)]
     pub seeds: u64,
+    /// Identify with each joint's equations in units of its own torque rms (what a 7-DOF
+    /// arm's least squares needs: its shoulder's torques are 100x its wrist's).
+    #[arg(long)]
+    pub weigh_joints: bool,
+    /// V-hat: `network` (the paper's velocity network; the shipped recipe) or `christoffel`
+    /// (from M-hat's Christoffel symbols; 8x faster to fit on a 7-DOF arm).
+    #[arg(long, value_enum, default_value_t = VelocityKind::Network)]
+    pub velocity: VelocityKind,
     /// Threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -497,6 +506,8 @@ fn selection(a: &SelectionArgs) -> Result<(), String> {
     let settings = selection::SelectionSettings {
         robot: a.robot.clone(),
         seeds: a.seeds,
+        weigh_joints: a.weigh_joints,
+        christoffel: a.velocity == VelocityKind::Christoffel,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
     let r = with_bar("runs", a.quiet || a.json, |p| {

@@ -5,7 +5,9 @@
 //! midpoint of the two training ones (the memberships tie and the max rule dithers). Here three
 //! training trajectories give three models (the shipped recipe: the training servo known, least
 //! squares), and four new trajectories are tracked that are not midpoints: two between training
-//! regions but nearer one, one partly beyond them, one at other frequencies. On each, per seed:
+//! regions but nearer one, one partly beyond them, one at other frequencies (written for the
+//! paper's 3-joint arm, built from the joint limits by the same pattern on any other arm,
+//! `generated`). On each, per seed:
 //! the training P-D servo, a P-D servo gain-matched to computed torque (k_p = M_jj,mid x 900,
 //! k_d = M_jj,mid x 60 with the arm's mid-range inertia: the same bandwidth and damping), computed
 //! torque on the true model, on each model alone, fuzzy selection (max, blend) and a uniform blend
@@ -18,10 +20,11 @@
 
 use super::identify::{self, Prior, Settings};
 use super::study::{
-    case, controller, diagonal_mid, float_list, gains, pd_servo, simulate_all, three_joint_arm,
-    trajectory_positions, Case, JOINTS,
+    arm_of, case, controller, diagonal_mid, float_list, gains, pd_servo, simulate_all,
+    trajectory_positions, write_scenarios, Case, JOINTS,
 };
 use crate::control::fuzzy_computed_torque::check_along_reference;
+use crate::dynamics::Model;
 use crate::report::stats::{median, wilcoxon, Wilcoxon};
 use crate::rkgnn::Trajectory;
 use crate::sim::JointTraces;
@@ -31,68 +34,85 @@ use std::path::{Path, PathBuf};
 const BASE: &str = include_str!("../../config/arm3_train1.toml");
 
 /// A sines reference: offsets per joint, amplitudes per joint per frequency, frequencies (Hz).
-#[derive(Clone, Copy)]
+#[derive(Clone, Debug)]
 struct Sines {
     name: &'static str,
-    offsets: [f64; 3],
-    amplitudes: [[f64; 2]; 3],
+    offsets: Vec<f64>,
+    amplitudes: Vec<[f64; 2]>,
     frequencies: [f64; 2],
 }
 
-/// The three training trajectories: the paper's two (the shipped `arm3_train1`, `arm3_train2`)
-/// and a third nearer the arm's upright pose.
-const TRAINING: [Sines; 3] = [
-    Sines {
-        name: "train1",
-        offsets: [0.0, 0.5, -1.0],
-        amplitudes: [[0.8, 0.2], [0.3, 0.1], [0.5, 0.15]],
-        frequencies: [0.2, 0.5],
-    },
-    Sines {
-        name: "train2",
-        offsets: [0.0, 0.9, -1.6],
-        amplitudes: [[1.2, 0.3], [0.5, 0.15], [0.7, 0.2]],
-        frequencies: [0.2, 0.5],
-    },
-    Sines {
-        name: "train3",
-        offsets: [0.4, 0.2, -0.5],
-        amplitudes: [[0.6, 0.15], [0.25, 0.1], [0.4, 0.1]],
-        frequencies: [0.2, 0.5],
-    },
-];
+const SLOW: [f64; 2] = [0.2, 0.5];
+const FAST: [f64; 2] = [0.3, 0.7];
 
-/// The new trajectories, none a midpoint of training ones.
-const NEW: [Sines; 4] = [
-    // Between train1 and train2, a third of the way from train1.
-    Sines {
-        name: "near1",
-        offsets: [0.1, 0.63, -1.2],
-        amplitudes: [[0.9, 0.2], [0.35, 0.1], [0.55, 0.2]],
-        frequencies: [0.2, 0.5],
-    },
-    // Between train3 and train1, nearer train3.
-    Sines {
-        name: "near3",
-        offsets: [0.3, 0.3, -0.65],
-        amplitudes: [[0.7, 0.2], [0.3, 0.12], [0.45, 0.12]],
-        frequencies: [0.2, 0.5],
-    },
-    // Partly beyond train2: the shoulder higher, the forearm further folded.
-    Sines {
-        name: "beyond2",
-        offsets: [-0.2, 1.1, -1.9],
-        amplitudes: [[1.0, 0.3], [0.4, 0.15], [0.5, 0.2]],
-        frequencies: [0.2, 0.5],
-    },
-    // Train1's region at other frequencies (the premises are compared at equal times).
-    Sines {
-        name: "faster1",
-        offsets: [0.0, 0.6, -1.1],
-        amplitudes: [[0.6, 0.2], [0.25, 0.1], [0.4, 0.15]],
-        frequencies: [0.3, 0.7],
-    },
-];
+/// The study's trajectories on a 3-joint arm, as written for the paper's arm: the paper's two
+/// (the shipped `arm3_train1`, `arm3_train2`) and a third nearer the upright pose; then the new
+/// ones, none a midpoint of training ones: near1 a third of the way from train1 to train2, near3
+/// between train3 and train1 nearer train3, beyond2 partly beyond train2 (the shoulder higher, the
+/// forearm further folded), faster1 train1's region at other frequencies.
+fn written() -> (Vec<Sines>, Vec<Sines>) {
+    let s = |name, offsets: [f64; 3], amplitudes: [[f64; 2]; 3], frequencies| Sines {
+        name,
+        offsets: offsets.to_vec(),
+        amplitudes: amplitudes.to_vec(),
+        frequencies,
+    };
+    let training = vec![
+        s("train1", [0.0, 0.5, -1.0], [[0.8, 0.2], [0.3, 0.1], [0.5, 0.15]], SLOW),
+        s("train2", [0.0, 0.9, -1.6], [[1.2, 0.3], [0.5, 0.15], [0.7, 0.2]], SLOW),
+        s("train3", [0.4, 0.2, -0.5], [[0.6, 0.15], [0.25, 0.1], [0.4, 0.1]], SLOW),
+    ];
+    let new = vec![
+        s("near1", [0.1, 0.63, -1.2], [[0.9, 0.2], [0.35, 0.1], [0.55, 0.2]], SLOW),
+        s("near3", [0.3, 0.3, -0.65], [[0.7, 0.2], [0.3, 0.12], [0.45, 0.12]], SLOW),
+        s("beyond2", [-0.2, 1.1, -1.9], [[1.0, 0.3], [0.4, 0.15], [0.5, 0.2]], SLOW),
+        s("faster1", [0.0, 0.6, -1.1], [[0.6, 0.2], [0.25, 0.1], [0.4, 0.15]], FAST),
+    ];
+    (training, new)
+}
+
+/// The study's trajectories on an arm of any other joint count, built from its joint limits by
+/// the written ones' pattern: about the middle c of each joint's range (half-range r, at most
+/// pi; a joint without limits: -pi..pi), train1 at c - d and train2 at c + d (d = 0.15 r, at most 0.5 rad) with train2 moving
+/// 1.4 times as far, train3 at c + d on even joints and c - d on odd ones moving 0.75 times as
+/// far; every joint's first harmonic 0.2 r (at most 0.6 rad), its second a quarter of that. The
+/// new ones are derived as the written ones are placed: near1 a third of the way from train1 to
+/// train2, near3 a third of the way from train3 to train1, beyond2 half train2's distance from
+/// train1 beyond train2 (train2's amplitudes), faster1 train1's offsets with 0.75 of its
+/// amplitudes at 0.3 and 0.7 Hz. The furthest any of them reaches from c is 0.65 r (beyond2).
+fn generated(arm: &Model) -> (Vec<Sines>, Vec<Sines>) {
+    let (mut c, mut d, mut a) = (Vec::new(), Vec::new(), Vec::new());
+    for b in &arm.bodies {
+        let (lo, hi) = b.limits.position_span();
+        let half = (0.5 * (hi - lo)).min(std::f64::consts::PI);
+        c.push(0.5 * (lo + hi));
+        d.push((0.15 * half).min(0.5));
+        a.push((0.2 * half).min(0.6));
+    }
+    let sines = |name, off: Vec<f64>, scale: f64, frequencies| Sines {
+        name,
+        offsets: off,
+        amplitudes: a.iter().map(|a| [scale * a, 0.25 * scale * a]).collect(),
+        frequencies,
+    };
+    let at = |f: &dyn Fn(usize) -> f64| (0..c.len()).map(f).collect::<Vec<f64>>();
+    let t1 = at(&|j| c[j] - d[j]);
+    let t2 = at(&|j| c[j] + d[j]);
+    let t3 = at(&|j| if j % 2 == 0 { c[j] + d[j] } else { c[j] - d[j] });
+    let between = |x: &[f64], y: &[f64], f: f64| at(&|j| x[j] + f * (y[j] - x[j]));
+    let training = vec![
+        sines("train1", t1.clone(), 1.0, SLOW),
+        sines("train2", t2.clone(), 1.4, SLOW),
+        sines("train3", t3.clone(), 0.75, SLOW),
+    ];
+    let new = vec![
+        sines("near1", between(&t1, &t2, 1.0 / 3.0), 1.0 + 0.4 / 3.0, SLOW),
+        sines("near3", between(&t3, &t1, 1.0 / 3.0), 0.75 + 0.25 / 3.0, SLOW),
+        sines("beyond2", between(&t1, &t2, 1.5), 1.4, SLOW),
+        sines("faster1", t1, 0.75, FAST),
+    ];
+    (training, new)
+}
 
 /// The controllers run on each new trajectory, in the table's order.
 pub const RUN: [&str; 9] = [
@@ -111,6 +131,9 @@ pub const DERIVED: [&str; 2] = ["best_single", "random_single"];
 
 /// Computed torque's error dynamics (rad/s^2 per rad and per rad/s) the matched servo copies.
 const MATCH: (f64, f64) = (900.0, 60.0);
+/// The training servo's error dynamics on an arm other than the paper's (k_p and k_d per unit
+/// of M_jj,mid): 20 rad/s, critically damped, slower than computed torque's 30 rad/s.
+const VENDOR: (f64, f64) = (400.0, 40.0);
 /// gamma of the uniform blend: memberships within 1e-12 of 1 over any trajectory here.
 const UNIFORM_GAMMA: f64 = 1e6;
 
@@ -119,6 +142,10 @@ const UNIFORM_GAMMA: f64 = 1e6;
 pub struct SelectionSettings {
     pub robot: PathBuf,
     pub seeds: u64,
+    /// Each joint's equations in units of its own torque rms (`identify::Settings::weigh_joints`).
+    pub weigh_joints: bool,
+    /// V-hat from M-hat's Christoffel symbols instead of the velocity network.
+    pub christoffel: bool,
     pub threads: usize,
 }
 
@@ -136,7 +163,7 @@ pub struct Cell {
     /// M-hat's smallest eigenvalue along this trajectory, per model.
     pub min_eig_on_reference: Vec<f64>,
     /// Models the controller refused on this trajectory (not positive definite along it):
-    /// left out alone (their rms is null) and from the fuzzy sets.
+    /// left out alone (their rms is null) and from the fuzzy sets, as models not identified are.
     pub refused: usize,
 }
 
@@ -158,11 +185,15 @@ pub struct Comparison {
 #[derive(Debug, Clone, Serialize)]
 pub struct SelectionResult {
     pub robot: PathBuf,
+    pub joints: usize,
     pub seeds: u64,
     pub training: Vec<&'static str>,
     pub trajectories: Vec<&'static str>,
     /// Eq. 2's bounds given to the identification (over the joint limits).
     pub prior: Prior,
+    /// Training runs that gave no model (least squares found no positive definite M-hat), with
+    /// the reason: left out alone and from the fuzzy sets.
+    pub unidentified: Vec<String>,
     pub cells: Vec<Cell>,
     /// Per trajectory, the median overall RMS of each controller.
     pub medians: Vec<(String, Vec<(String, f64)>)>,
@@ -187,12 +218,12 @@ impl Sines {
     /// not only other encoder noise.
     fn for_seed(&self, seed: u64, index: usize) -> Sines {
         use rand::{Rng, SeedableRng};
+        let mut s = self.clone();
         if seed == 1 {
-            return *self;
+            return s;
         }
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1000 * seed + index as u64);
-        let mut s = *self;
-        for j in 0..JOINTS {
+        for j in 0..s.offsets.len() {
             s.offsets[j] += rng.gen_range(-OFFSET_SPREAD..=OFFSET_SPREAD);
             for a in &mut s.amplitudes[j] {
                 *a *= 1.0 + rng.gen_range(-AMPLITUDE_SPREAD..=AMPLITUDE_SPREAD);
@@ -232,31 +263,32 @@ pub fn run(
     if s.seeds == 0 {
         return Err("--seeds must be >= 1".into());
     }
-    let (robot, arm) = three_joint_arm(&s.robot, dir)?;
-    let g = gains()?;
-    let texts: Vec<String> = TRAINING
+    let (robot, arm) = arm_of(&s.robot, dir)?;
+    let n = arm.dof();
+    let (training_set, new_set) = if n == JOINTS {
+        written()
+    } else {
+        generated(&arm)
+    };
+    let mut g = gains()?;
+    // Computed torque's gains are accelerations per error: the same on every arm.
+    g.ct = [vec![MATCH.0; n], vec![MATCH.1; n]];
+    let texts: Vec<String> = training_set
         .iter()
-        .chain(&NEW)
+        .chain(&new_set)
         .map(with_reference)
         .collect::<Result<_, _>>()?;
     let pd = pd_servo;
     // Every trajectory must stay within the arm's limits: `case` parses each probe's
-    // scenario, whose check refuses a reference that leaves one (plant::arm).
+    // scenario, whose check refuses a reference that leaves one (plant::arm). The probes are
+    // never run: their servo (unit gains) only makes them whole scenarios.
+    let unit = vec![1.0; n];
     let probe: Vec<Case> = texts
         .iter()
         .enumerate()
-        .map(|(k, t)| {
-            case(
-                &format!("probe{k}"),
-                t,
-                &robot,
-                1,
-                pd(&g.servo[0], &g.servo[1]),
-                dir,
-            )
-        })
+        .map(|(k, t)| case(&format!("probe{k}"), t, &robot, 1, pd(&unit, &unit), dir))
         .collect::<Result<_, _>>()?;
-    let qs = trajectory_positions(&probe.iter().map(|c| &c.scenario).collect::<Vec<_>>());
+    let qs = trajectory_positions(&probe.iter().map(|c| &c.scenario).collect::<Vec<_>>(), n);
     let mid = diagonal_mid(&arm, &qs);
     let matched = (
         mid.iter().map(|m| m * MATCH.0).collect::<Vec<_>>(),
@@ -264,19 +296,28 @@ pub fn run(
     );
     let workspace = identify::limit_positions(&arm, identify::LIMIT_SAMPLES);
     let prior = Prior::of_model(&arm, workspace.iter().map(Vec::as_slice));
+    // The training servo: the written one on the paper's 3-joint arm; on another arm a vendor's
+    // servo tuned as the matched one is but slower (VENDOR: 20 rad/s, critically damped).
+    if n != JOINTS {
+        g.servo = [
+            mid.iter().map(|m| m * VENDOR.0).collect(),
+            mid.iter().map(|m| m * VENDOR.1).collect(),
+        ];
+    }
     let (servo_kp, servo_kd) = (&g.servo[0], &g.servo[1]);
-    let total = s.seeds * (TRAINING.len() + NEW.len() * RUN.len()) as u64;
+    let total = s.seeds * (training_set.len() + new_set.len() * RUN.len()) as u64;
     let step = std::sync::atomic::AtomicU64::new(0);
     let tick = |stage: &str| {
         let k = step.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(k, total, stage);
     };
     let mut cells = Vec::new();
+    let mut unidentified = Vec::new();
     for seed in 1..=s.seeds {
         let sd = dir.join(format!("seed{seed}"));
         std::fs::create_dir_all(&sd).map_err(|e| format!("{}: {e}", sd.display()))?;
         // Training runs (this seed's trajectories) and the three models.
-        let training: Vec<Case> = TRAINING
+        let training: Vec<Case> = training_set
             .iter()
             .enumerate()
             .map(|(k, tr)| {
@@ -284,32 +325,45 @@ pub fn run(
                 case(tr.name, &text, &robot, seed, pd(servo_kp, servo_kd), &sd)
             })
             .collect::<Result<_, _>>()?;
+        write_scenarios(&training)?;
         let sims = simulate_all(&training, s.threads, &|| tick("training run"));
-        let mut models = Vec::new();
+        let mut models: Vec<Option<(PathBuf, crate::rkgnn::RkgnnModel)>> = Vec::new();
         for (c, sim) in training.iter().zip(&sims) {
             let data =
                 Trajectory::from_sim(&sim.rows, &c.scenario.reference, c.scenario.timing.period);
-            let mut settings = Settings::least_squares(JOINTS, seed, 0);
+            let mut settings = Settings::least_squares(n, seed, 0);
             settings.threads = s.threads.max(1);
+            settings.weigh_joints = s.weigh_joints;
+            if s.christoffel {
+                settings.counts.velocity = 0;
+            }
             settings.servo = identify::ServoPrior::Known {
                 kp: servo_kp.clone(),
                 kd: servo_kd.clone(),
                 limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
             };
-            let model =
-                identify::identify_model(&data, &prior, &settings, c.name.clone(), |_, _| {})?;
-            let file = sd.join(format!("model_{}.json", c.name));
-            model.save(&file)?;
-            models.push((file, model));
+            // A training run from which least squares finds no positive definite M-hat gives
+            // no model: it is left out as a refused one is (and counted), not the study ended.
+            match identify::identify_model(&data, &prior, &settings, c.name.clone(), |_, _| {}) {
+                Ok(model) => {
+                    let file = sd.join(format!("model_{}.json", c.name));
+                    model.save(&file)?;
+                    models.push(Some((file, model)));
+                }
+                Err(e) => {
+                    unidentified.push(format!("seed {seed}, {}: {e}", c.name));
+                    models.push(None);
+                }
+            }
         }
-        let files: Vec<&PathBuf> = models.iter().map(|(f, _)| f).collect();
         let fuzzy = |list: &[&PathBuf], selection: &str, gamma| g.fuzzy(list, selection, gamma);
         let ct_true = controller("computed_torque", g.ct_table());
-        for (i, (tr, text)) in NEW.iter().zip(&texts[TRAINING.len()..]).enumerate() {
+        let first_new = training_set.len();
+        for (i, (tr, text)) in new_set.iter().zip(&texts[first_new..]).enumerate() {
             // The controller refuses a model whose M-hat is not positive definite along the
             // reference (control::fuzzy_computed_torque): such a model is left out here as a
             // user would leave it out, alone and in the fuzzy sets.
-            let reference = &probe[TRAINING.len() + i].scenario;
+            let reference = &probe[first_new + i].scenario;
             let duration = reference.timing.duration;
             let along = crate::control::fuzzy_computed_torque::reference_positions(
                 &reference.reference,
@@ -317,23 +371,29 @@ pub fn run(
             );
             // The controller's own check, once per model: it gives the smallest eigenvalue along
             // the reference when the model passes; a refused one's is looked up in full.
-            let checked: Vec<Result<f64, String>> = models
+            let checked: Vec<Option<Result<f64, String>>> = models
                 .iter()
-                .map(|(_, m)| check_along_reference(m, &along))
+                .map(|m| m.as_ref().map(|(_, m)| check_along_reference(m, &along)))
                 .collect();
-            let usable: Vec<bool> = checked.iter().map(Result::is_ok).collect();
+            let usable: Vec<bool> = checked.iter().map(|c| matches!(c, Some(Ok(_)))).collect();
+            // NaN for a model not identified.
             let min_eig_on_reference: Vec<f64> = models
                 .iter()
                 .zip(&checked)
-                .map(|((_, m), c)| match c {
-                    Ok(lowest) => *lowest,
-                    Err(_) => m.min_eig(along.iter().map(Vec::as_slice)),
+                .map(|(m, c)| match (m, c) {
+                    (_, Some(Ok(lowest))) => *lowest,
+                    (Some((_, m)), _) => m.min_eig(along.iter().map(Vec::as_slice)),
+                    (None, _) => f64::NAN,
                 })
                 .collect();
             // The usable models' indices: slot k of the fuzzy sets is model kept_idx[k].
             let kept_idx: Vec<usize> = (0..models.len()).filter(|&k| usable[k]).collect();
-            let kept: Vec<&PathBuf> = kept_idx.iter().map(|&k| files[k]).collect();
-            let single = |k: usize| usable[k].then(|| fuzzy(&files[k..k + 1], "max", None));
+            let file = |k: usize| models[k].as_ref().map(|(f, _)| f);
+            let kept: Vec<&PathBuf> = kept_idx.iter().filter_map(|&k| file(k)).collect();
+            let single = |k: usize| {
+                let f = file(k).filter(|_| usable[k])?;
+                Some(fuzzy(&[f], "max", None))
+            };
             let any = !kept.is_empty();
             let laws = [
                 Some(pd(servo_kp, servo_kd)),
@@ -364,6 +424,7 @@ pub fn run(
                     )
                 })
                 .collect::<Result<_, _>>()?;
+            write_scenarios(&cases)?;
             let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"));
             let ran = |key: &str| runnable.iter().position(|(k, _)| *k == key);
             // A run not made (a refused model) is NaN, left out of every comparison; a run made
@@ -371,13 +432,12 @@ pub fn run(
             let mut rms: Vec<(String, Vec<f64>)> = RUN
                 .iter()
                 .map(|k| {
-                    let v = ran(k).map_or(vec![f64::NAN; JOINTS], |c| {
-                        let v =
-                            JointTraces::of(&sims[c], &cases[c].scenario.reference, JOINTS).rms();
+                    let v = ran(k).map_or(vec![f64::NAN; n], |c| {
+                        let v = JointTraces::of(&sims[c], &cases[c].scenario.reference, n).rms();
                         if overall(&v).is_finite() {
                             v
                         } else {
-                            vec![f64::INFINITY; JOINTS]
+                            vec![f64::INFINITY; n]
                         }
                     });
                     (k.to_string(), v)
@@ -391,8 +451,8 @@ pub fn run(
             let best = singles
                 .iter()
                 .min_by(|a, b| overall(a).total_cmp(&overall(b)))
-                .map_or(vec![f64::NAN; JOINTS], |v| (*v).clone());
-            let random: Vec<f64> = (0..JOINTS)
+                .map_or(vec![f64::NAN; n], |v| (*v).clone());
+            let random: Vec<f64> = (0..n)
                 .map(|j| singles.iter().map(|v| v[j]).sum::<f64>() / singles.len() as f64)
                 .collect();
             rms.push(("best_single".into(), best));
@@ -416,7 +476,9 @@ pub fn run(
                 }
                 None => (0, vec![0.0; models.len()]),
             };
-            let refused = usable.iter().filter(|ok| !**ok).count();
+            let refused = (0..models.len())
+                .filter(|&k| models[k].is_some() && !usable[k])
+                .count();
             cells.push(Cell {
                 seed,
                 trajectory: tr.name,
@@ -428,7 +490,16 @@ pub fn run(
             });
         }
     }
-    let result = summarise(s, robot, prior, cells, t0.elapsed().as_secs_f64());
+    let names = |v: &[Sines]| v.iter().map(|t| t.name).collect();
+    let result = summarise(
+        s,
+        robot,
+        prior,
+        (names(&training_set), names(&new_set)),
+        unidentified,
+        cells,
+        t0.elapsed().as_secs_f64(),
+    );
     crate::report::write_json(dir, "selection.json", &result)
         .map_err(|e| format!("{}: {e}", dir.join("selection.json").display()))?;
     let p = dir.join("report.md");
@@ -442,6 +513,8 @@ fn summarise(
     s: &SelectionSettings,
     robot: PathBuf,
     prior: Prior,
+    (training, trajectories): (Vec<&'static str>, Vec<&'static str>),
+    unidentified: Vec<String>,
     cells: Vec<Cell>,
     seconds: f64,
 ) -> SelectionResult {
@@ -452,10 +525,10 @@ fn summarise(
             .find(|(key, _)| key == k)
             .map_or(f64::NAN, |(_, v)| overall(v))
     };
-    let medians = NEW
+    let medians = trajectories
         .iter()
-        .map(|tr| {
-            let here: Vec<&Cell> = cells.iter().filter(|c| c.trajectory == tr.name).collect();
+        .map(|name| {
+            let here: Vec<&Cell> = cells.iter().filter(|c| c.trajectory == *name).collect();
             let m = keys
                 .iter()
                 .map(|k| {
@@ -471,7 +544,7 @@ fn summarise(
                     )
                 })
                 .collect();
-            (tr.name.to_string(), m)
+            (name.to_string(), m)
         })
         .collect();
     let comparisons: Vec<Comparison> = ["fuzzy_max", "fuzzy_blend"]
@@ -511,11 +584,13 @@ fn summarise(
     };
     let (claim_held, claim_held_blend) = (held("fuzzy_max"), held("fuzzy_blend"));
     SelectionResult {
+        joints: cells.first().map_or(0, |c| c.rms[0].1.len()),
         robot,
         seeds: s.seeds,
-        training: TRAINING.iter().map(|t| t.name).collect(),
-        trajectories: NEW.iter().map(|t| t.name).collect(),
+        training,
+        trajectories,
         prior,
+        unidentified,
         cells,
         medians,
         comparisons,
@@ -538,12 +613,13 @@ pub fn report_markdown(r: &SelectionResult) -> String {
     let mut md = format!(
         "# Fuzzy selection on trajectories that are not midpoints\n\n{} on {} new trajectories \
          ({}), three models identified on {} per seed, {} seeds. Median whole-run RMS tracking \
-         error over the three joints (rad):\n\n| controller | {} |\n|---|{}\n",
+         error over the {} joints (rad):\n\n| controller | {} |\n|---|{}\n",
         r.robot.display(),
         r.trajectories.len(),
         r.trajectories.join(", "),
         r.training.join(", "),
         r.seeds,
+        r.joints,
         r.trajectories.join(" | "),
         "---|".repeat(r.trajectories.len())
     );
@@ -583,6 +659,17 @@ pub fn report_markdown(r: &SelectionResult) -> String {
          and from the fuzzy sets, and the comparisons pair only runs that both ran.\n",
         3 * r.cells.len()
     );
+    if !r.unidentified.is_empty() {
+        md += &format!(
+            "\n{} of {} training runs gave no model (least squares found no positive definite \
+             M-hat); they are left out the same way:\n\n",
+            r.unidentified.len(),
+            3 * r.seeds
+        );
+        for u in &r.unidentified {
+            md += &format!("- {u}\n");
+        }
+    }
     md += &format!(
         "\nThe max rule switched models {sw:.1} times a second (median over runs).\n\n\
          The paper's claim, fuzzy selection (its max rule) better than the best single model \
@@ -591,4 +678,54 @@ pub fn report_markdown(r: &SelectionResult) -> String {
         verdict(r.claim_held_blend)
     );
     md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn arm(file: &str) -> Model {
+        crate::dynamics::load(Path::new(&format!(
+            "{}/config/robots/{file}",
+            env!("CARGO_MANIFEST_DIR")
+        )))
+        .unwrap()
+    }
+
+    /// Every position a trajectory reaches: offset +- the sum of its amplitudes, per joint.
+    fn reach(s: &Sines) -> Vec<(f64, f64)> {
+        s.offsets
+            .iter()
+            .zip(&s.amplitudes)
+            .map(|(o, a)| (o - a[0] - a[1], o + a[0] + a[1]))
+            .collect()
+    }
+
+    #[test]
+    fn generated_trajectories_stay_within_the_limits_and_no_new_one_is_a_midpoint() {
+        let panda = arm("arm7.urdf");
+        let (training, new) = generated(&panda);
+        assert_eq!((training.len(), new.len()), (3, 4));
+        for s in training.iter().chain(&new) {
+            assert_eq!(s.offsets.len(), 7);
+            // Seeds move offsets by up to 0.1 rad and amplitudes by 15 %: still inside.
+            for (b, (lo, hi)) in panda.bodies.iter().zip(reach(s)) {
+                let (q_min, q_max) = b.limits.position_span();
+                let margin = 0.1 + 0.15 * (hi - lo) / 2.0;
+                assert!(lo - margin > q_min && hi + margin < q_max, "{}: {s:?}", b.joint);
+            }
+        }
+        for n in &new {
+            for (i, a) in training.iter().enumerate() {
+                for b in &training[i + 1..] {
+                    let mid_off = a.offsets.iter().zip(&b.offsets).map(|(x, y)| 0.5 * (x + y));
+                    let off: f64 = mid_off.zip(&n.offsets).map(|(m, o)| (m - o).abs()).sum();
+                    assert!(off > 0.05, "{} is the midpoint of {} and {}", n.name, a.name, b.name);
+                }
+            }
+        }
+        // The paper's arm keeps the trajectories written for it.
+        let (written_training, _) = written();
+        assert_eq!(written_training[0].offsets, vec![0.0, 0.5, -1.0]);
+    }
 }

@@ -279,15 +279,15 @@ pub(super) fn gains() -> Result<Gains, String> {
     })
 }
 
-/// The positions of the three trajectories every 10 ms.
-pub(super) fn trajectory_positions(cases: &[&Scenario]) -> Vec<Vec<f64>> {
+/// The positions of the trajectories of `n` joints every 10 ms.
+pub(super) fn trajectory_positions(cases: &[&Scenario], n: usize) -> Vec<Vec<f64>> {
     let mut sp = crate::reference::Setpoint::default();
     let mut qs = Vec::new();
     for scn in cases {
         let steps = (scn.timing.duration / 0.01).round() as usize;
         for k in 0..=steps {
             scn.reference.sample(k as f64 * 0.01, &mut sp);
-            qs.push(sp.q[..JOINTS].to_vec());
+            qs.push(sp.q[..n].to_vec());
         }
     }
     qs
@@ -307,11 +307,17 @@ pub(super) fn diagonal_mid(arm: &Model, qs: &[Vec<f64>]) -> Vec<f64> {
     range.iter().map(|[lo, hi]| 0.5 * (lo + hi)).collect()
 }
 
-/// The study's arm (its absolute path and model), refused unless it has `JOINTS` joints, and
-/// the output directory created.
-pub(super) fn three_joint_arm(robot: &Path, dir: &Path) -> Result<(PathBuf, Model), String> {
+/// A study's arm (its absolute path and model), and the output directory created.
+pub(super) fn arm_of(robot: &Path, dir: &Path) -> Result<(PathBuf, Model), String> {
     let robot = std::path::absolute(robot).map_err(|e| format!("{}: {e}", robot.display()))?;
     let arm = crate::dynamics::load(&robot).map_err(|e| e.to_string())?;
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    Ok((robot, arm))
+}
+
+/// The study's arm as `arm_of`, refused unless it has `JOINTS` joints.
+pub(super) fn three_joint_arm(robot: &Path, dir: &Path) -> Result<(PathBuf, Model), String> {
+    let (robot, arm) = arm_of(robot, dir)?;
     if arm.dof() != JOINTS {
         return Err(format!(
             "{}: the study's trajectories are for {JOINTS}-joint arms, this one has {}",
@@ -319,7 +325,6 @@ pub(super) fn three_joint_arm(robot: &Path, dir: &Path) -> Result<(PathBuf, Mode
             arm.dof()
         ));
     }
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     Ok((robot, arm))
 }
 
@@ -420,7 +425,7 @@ pub fn run(
         )
     };
     let probes = [probe(TRAIN1)?, probe(TRAIN2)?, probe(NEW)?];
-    let qs = trajectory_positions(&probes.iter().map(|c| &c.scenario).collect::<Vec<_>>());
+    let qs = trajectory_positions(&probes.iter().map(|c| &c.scenario).collect::<Vec<_>>(), JOINTS);
     // Each probe's scenario was refused above (`case`) if its reference leaves a joint limit.
     let arm3 = crate::dynamics::dh::parse_with(ARM3, Path::new("arm3.toml"), &Default::default())
         .map_err(|e| e.to_string())?
