@@ -58,15 +58,50 @@ fn written() -> (Vec<Sines>, Vec<Sines>) {
         frequencies,
     };
     let training = vec![
-        s("train1", [0.0, 0.5, -1.0], [[0.8, 0.2], [0.3, 0.1], [0.5, 0.15]], SLOW),
-        s("train2", [0.0, 0.9, -1.6], [[1.2, 0.3], [0.5, 0.15], [0.7, 0.2]], SLOW),
-        s("train3", [0.4, 0.2, -0.5], [[0.6, 0.15], [0.25, 0.1], [0.4, 0.1]], SLOW),
+        s(
+            "train1",
+            [0.0, 0.5, -1.0],
+            [[0.8, 0.2], [0.3, 0.1], [0.5, 0.15]],
+            SLOW,
+        ),
+        s(
+            "train2",
+            [0.0, 0.9, -1.6],
+            [[1.2, 0.3], [0.5, 0.15], [0.7, 0.2]],
+            SLOW,
+        ),
+        s(
+            "train3",
+            [0.4, 0.2, -0.5],
+            [[0.6, 0.15], [0.25, 0.1], [0.4, 0.1]],
+            SLOW,
+        ),
     ];
     let new = vec![
-        s("near1", [0.1, 0.63, -1.2], [[0.9, 0.2], [0.35, 0.1], [0.55, 0.2]], SLOW),
-        s("near3", [0.3, 0.3, -0.65], [[0.7, 0.2], [0.3, 0.12], [0.45, 0.12]], SLOW),
-        s("beyond2", [-0.2, 1.1, -1.9], [[1.0, 0.3], [0.4, 0.15], [0.5, 0.2]], SLOW),
-        s("faster1", [0.0, 0.6, -1.1], [[0.6, 0.2], [0.25, 0.1], [0.4, 0.15]], FAST),
+        s(
+            "near1",
+            [0.1, 0.63, -1.2],
+            [[0.9, 0.2], [0.35, 0.1], [0.55, 0.2]],
+            SLOW,
+        ),
+        s(
+            "near3",
+            [0.3, 0.3, -0.65],
+            [[0.7, 0.2], [0.3, 0.12], [0.45, 0.12]],
+            SLOW,
+        ),
+        s(
+            "beyond2",
+            [-0.2, 1.1, -1.9],
+            [[1.0, 0.3], [0.4, 0.15], [0.5, 0.2]],
+            SLOW,
+        ),
+        s(
+            "faster1",
+            [0.0, 0.6, -1.1],
+            [[0.6, 0.2], [0.25, 0.1], [0.4, 0.15]],
+            FAST,
+        ),
     ];
     (training, new)
 }
@@ -107,7 +142,12 @@ fn generated(arm: &Model) -> (Vec<Sines>, Vec<Sines>) {
     ];
     let new = vec![
         sines("near1", between(&t1, &t2, 1.0 / 3.0), 1.0 + 0.4 / 3.0, SLOW),
-        sines("near3", between(&t3, &t1, 1.0 / 3.0), 0.75 + 0.25 / 3.0, SLOW),
+        sines(
+            "near3",
+            between(&t3, &t1, 1.0 / 3.0),
+            0.75 + 0.25 / 3.0,
+            SLOW,
+        ),
         sines("beyond2", between(&t1, &t2, 1.5), 1.4, SLOW),
         sines("faster1", t1, 0.75, FAST),
     ];
@@ -712,7 +752,11 @@ mod tests {
             for (b, (lo, hi)) in panda.bodies.iter().zip(reach(s)) {
                 let (q_min, q_max) = b.limits.position_span();
                 let margin = 0.1 + 0.15 * (hi - lo) / 2.0;
-                assert!(lo - margin > q_min && hi + margin < q_max, "{}: {s:?}", b.joint);
+                assert!(
+                    lo - margin > q_min && hi + margin < q_max,
+                    "{}: {s:?}",
+                    b.joint
+                );
             }
         }
         for n in &new {
@@ -720,7 +764,13 @@ mod tests {
                 for b in &training[i + 1..] {
                     let mid_off = a.offsets.iter().zip(&b.offsets).map(|(x, y)| 0.5 * (x + y));
                     let off: f64 = mid_off.zip(&n.offsets).map(|(m, o)| (m - o).abs()).sum();
-                    assert!(off > 0.05, "{} is the midpoint of {} and {}", n.name, a.name, b.name);
+                    assert!(
+                        off > 0.05,
+                        "{} is the midpoint of {} and {}",
+                        n.name,
+                        a.name,
+                        b.name
+                    );
                 }
             }
         }

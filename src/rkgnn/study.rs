@@ -425,7 +425,10 @@ pub fn run(
         )
     };
     let probes = [probe(TRAIN1)?, probe(TRAIN2)?, probe(NEW)?];
-    let qs = trajectory_positions(&probes.iter().map(|c| &c.scenario).collect::<Vec<_>>(), JOINTS);
+    let qs = trajectory_positions(
+        &probes.iter().map(|c| &c.scenario).collect::<Vec<_>>(),
+        JOINTS,
+    );
     // Each probe's scenario was refused above (`case`) if its reference leaves a joint limit.
     let arm3 = crate::dynamics::dh::parse_with(ARM3, Path::new("arm3.toml"), &Default::default())
         .map_err(|e| e.to_string())?
