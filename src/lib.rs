@@ -42,6 +42,7 @@ pub mod robust;
 pub mod rt;
 pub mod sim;
 pub mod soak;
+pub mod text;
 pub mod top;
 pub mod tune;
 

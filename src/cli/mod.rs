@@ -228,10 +228,4 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// Print `value` as pretty JSON on stdout (for `--json`), ignoring a closed pipe.
-pub fn print_json(value: &impl serde::Serialize) {
-    out!(
-        "{}",
-        serde_json::to_string_pretty(value).unwrap_or_default()
-    );
-}
+pub use crate::report::print_json;

@@ -92,7 +92,7 @@ pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Loaded, RobotErro
         item: String::new(),
         reason,
     };
-    let text = crate::check::read_text(path).map_err(|e| err(format!("cannot read: {e}")))?;
+    let text = crate::text::read_text(path).map_err(|e| err(format!("cannot read: {e}")))?;
     match path.extension().and_then(|e| e.to_str()) {
         Some("toml") => dh::parse_with(&text, path, options),
         Some("urdf") | Some("xml") => urdf::parse_with(&text, path, options),

@@ -113,7 +113,7 @@ pub fn main(a: &ReplayArgs) -> i32 {
     match replay(a) {
         Ok(r) => {
             if a.json {
-                crate::cli::print_json(&r);
+                crate::report::print_json(&r);
             } else if !a.quiet {
                 err!(
                     "replayed {} states of {} into the controller of {}: commands equal on {} of {} \

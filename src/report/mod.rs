@@ -21,6 +21,14 @@ use std::io::{BufRead, BufWriter, Write};
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::Path;
 
+/// Print `value` as pretty JSON on stdout (for `--json`), ignoring a closed pipe.
+pub fn print_json(value: &impl serde::Serialize) {
+    out!(
+        "{}",
+        serde_json::to_string_pretty(value).unwrap_or_default()
+    );
+}
+
 /// Write `value` as pretty JSON to `dir/name`.
 pub fn write_json<T: serde::Serialize>(dir: &Path, name: &str, value: &T) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
