@@ -10,9 +10,40 @@ fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// The commands of every ```sh block: continuation lines joined, comments dropped.
+/// The README and every chapter of the book (`docs/src`), in that order.
+fn documents() -> Vec<PathBuf> {
+    let mut chapters: Vec<PathBuf> = std::fs::read_dir(root().join("docs/src"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "md"))
+        .collect();
+    chapters.sort();
+    std::iter::once(root().join("README.md"))
+        .chain(chapters)
+        .collect()
+}
+
+/// The commands of every document's ```sh blocks as ("FILE:LINE", command).
+fn all_commands() -> Vec<(String, String)> {
+    documents()
+        .iter()
+        .flat_map(|d| {
+            let name = d.strip_prefix(root()).unwrap().display().to_string();
+            commands_of(d)
+                .into_iter()
+                .map(move |(line, c)| (format!("{name}:{line}"), c))
+        })
+        .collect()
+}
+
+/// The README's commands.
 fn readme_commands() -> Vec<(usize, String)> {
-    let text = std::fs::read_to_string(root().join("README.md")).unwrap();
+    commands_of(&root().join("README.md"))
+}
+
+/// The commands of every ```sh block of `file`: continuation lines joined, comments dropped.
+fn commands_of(file: &Path) -> Vec<(usize, String)> {
+    let text = std::fs::read_to_string(file).unwrap();
     let mut out = Vec::new();
     let mut in_sh = false;
     let mut pending: Option<(usize, String)> = None;
@@ -126,8 +157,8 @@ fn check_files(cmd: &Cmd) -> Result<(), String> {
 }
 
 #[test]
-fn every_command_in_the_readme_parses_and_its_files_load() {
-    let commands = readme_commands();
+fn every_command_in_the_readme_and_the_book_parses_and_its_files_load() {
+    let commands = all_commands();
     assert!(
         commands.len() > 20,
         "found only {} commands",
@@ -139,7 +170,7 @@ fn every_command_in_the_readme_parses_and_its_files_load() {
             Ok(Some(a)) => a,
             Ok(None) => continue,
             Err(e) => {
-                bad.push(format!("README.md:{line}: `{cmd}`: {e}"));
+                bad.push(format!("{line}: `{cmd}`: {e}"));
                 continue;
             }
         };
@@ -148,21 +179,21 @@ fn every_command_in_the_readme_parses_and_its_files_load() {
             Ok(cli) => {
                 if let Some(c) = &cli.command {
                     if let Err(e) = check_files(c) {
-                        bad.push(format!("README.md:{line}: `{cmd}`: {e}"));
+                        bad.push(format!("{line}: `{cmd}`: {e}"));
                     }
                 }
             }
             // `--help` parses by printing help: the command exists.
             Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelp => {}
             Err(e) => bad.push(format!(
-                "README.md:{line}: `{cmd}`: {}",
+                "{line}: `{cmd}`: {}",
                 e.to_string().lines().next().unwrap_or("")
             )),
         }
     }
     assert!(
         bad.is_empty(),
-        "README commands that do not parse:\n{}",
+        "README and book commands that do not parse:\n{}",
         bad.join("\n")
     );
 }
@@ -206,12 +237,12 @@ fn the_checker_itself_rejects_what_does_not_parse() {
     assert!(check_files(missing.command.as_ref().unwrap()).is_err());
 }
 
-/// The README's "Extending evoloop" example quotes `src/plant/heater.rs` and the registry in
+/// The book's "Extending evoloop" example quotes `src/plant/heater.rs` and the registry in
 /// `src/plant/mod.rs`: every stretch of its ```rust blocks between `// ...` elisions appears in
 /// those files (compared without whitespace, so line breaks may differ).
 #[test]
 fn the_extending_example_quotes_the_real_files() {
-    let text = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let text = std::fs::read_to_string(root().join("docs/src/extending.md")).unwrap();
     let squash = |s: &str| s.chars().filter(|c| !c.is_whitespace()).collect::<String>();
     let files = squash(
         &["src/plant/heater.rs", "src/plant/mod.rs"]
@@ -219,10 +250,9 @@ fn the_extending_example_quotes_the_real_files() {
             .join("\n"),
     );
     let section = text
-        .split("## Extending evoloop")
+        .split("# Extending evoloop")
         .nth(1)
-        .expect("README has the extending section");
-    let section = section.split("\n## ").next().unwrap();
+        .expect("the book has the extending chapter");
     let mut stretches = 0;
     for block in section.split("```rust").skip(1) {
         let code = block.split("```").next().unwrap();
@@ -244,4 +274,39 @@ fn the_extending_example_quotes_the_real_files() {
         }
     }
     assert!(stretches >= 5, "only {stretches} quoted stretches found");
+}
+
+/// The README is a screenful that points into the book: under 120 lines, every relative link it
+/// has exists, and the book's SUMMARY.md lists every chapter in docs/src and nothing else.
+#[test]
+fn the_readme_is_short_and_the_book_is_whole() {
+    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    assert!(
+        readme.lines().count() < 120,
+        "README.md has {} lines",
+        readme.lines().count()
+    );
+    let links = |text: &str| -> Vec<String> {
+        text.split("](")
+            .skip(1)
+            .map(|rest| rest.split(')').next().unwrap().to_string())
+            .filter(|l| !l.starts_with("http"))
+            .collect()
+    };
+    let readme_links = links(&readme);
+    assert!(readme_links.len() >= 10, "{readme_links:?}");
+    for l in &readme_links {
+        assert!(root().join(l).exists(), "README links to a missing {l}");
+    }
+    let summary = std::fs::read_to_string(root().join("docs/src/SUMMARY.md")).unwrap();
+    let mut listed: Vec<String> = links(&summary);
+    listed.sort();
+    let mut chapters: Vec<String> = documents()
+        .iter()
+        .skip(1)
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .filter(|n| n != "SUMMARY.md")
+        .collect();
+    chapters.sort();
+    assert_eq!(listed, chapters, "SUMMARY.md and docs/src disagree");
 }

@@ -1,6 +1,6 @@
 //! The command line: `evoloop`'s subcommands, and the arguments shared by the launcher and the
 //! three processes, so the launcher hands each child exactly the options the child parses. The
-//! parser lives in the library so a test can parse every command the README shows.
+//! parser lives in the library so a test can parse every command the README and the book show.
 
 pub mod bench;
 pub mod bridge;

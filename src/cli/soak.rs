@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
 pub struct SoakArgs {
-    /// Seconds to run (the README's figure: 3600).
+    /// Seconds to run (the book's figure: 3600).
     #[arg(long)]
     pub duration: f64,
     /// Scenario to run in realtime [default: config/two_mass_indirect.toml, the indirect scheme

@@ -26,7 +26,7 @@
 //! connects to the endpoint it is given. Multicast and gossip scouting are off: no peer is
 //! discovered, none is announced. For anything beyond a trusted network, give a Zenoh
 //! configuration file (`--zenoh-config`) with TLS and access control
-//! (`config/zenoh/tls_acl.json5` is an example); see the README.
+//! (`config/zenoh/tls_acl.json5` is an example); see the book (docs/).
 //!
 //! Wire format (`wire`): the message's fixed-size `#[repr(C)]` bytes as they are in shared
 //! memory, behind a header with the type's versioned iceoryx2 name and size, so a peer of

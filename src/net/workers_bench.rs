@@ -1,7 +1,7 @@
 //! `evoloop bench workers`: evaluations per second of the maglev model with 0, 1, 2, ...
 //! evaluation workers (separate `evoloop worker` processes on loopback), the same populations in
 //! every phase, and what the remote path costs per run and per evaluation (a run's round trip
-//! minus the worker's own compute time), for the scaling model in the README.
+//! minus the worker's own compute time), for the scaling model in the book.
 
 use super::workers::ZenohWorkers;
 use crate::optim::remote::{totals, Workers as _};

@@ -43,7 +43,7 @@
 //!   first reading) scatters all the refined coordinates at once: on the 30-D Rastrigin the
 //!   mean error was 65-68 with sigma halving per mutation, against 16.2 for this reading and
 //!   the paper's 17.4 (30 runs; module test). Alternatives measured on the whole study (51
-//!   functions, 30 paired seeds, README): one dimension shared by all offspring of a mutation
+//!   functions, 30 paired seeds, the book): one dimension shared by all offspring of a mutation
 //!   (Rastrigin 32.6), each dimension with probability 1/D (22.2).
 //! - **The elites stay in the swarm.** "Elite solutions are recalled from the archive and
 //!   merged with the best solutions of the current run": each elite is the first member of its

@@ -55,7 +55,7 @@ pub trait Workers: Send + Sync {
 /// Sending a run of candidates pays when the work it takes off this process exceeds this. The
 /// remote path alone (query out, answer back, both encoded) costs 0.08-0.2 ms at the median on
 /// loopback on the development VM, and 1-3 ms per run when both its cores compute (replies wait
-/// for a core; `evoloop bench workers`, README): a worker gets no run shorter than a
+/// for a core; `evoloop bench workers`, the book): a worker gets no run shorter than a
 /// millisecond of work.
 pub const REMOTE_MIN_SAVING_NS: u64 = 1_000_000;
 

@@ -3,7 +3,7 @@
 //! heat to the ambient T_a through R_ba; a sensor reads the block's temperature (°C):
 //!   C_e T_e' = P - (T_e - T_b) / R_eb,   C_b T_b' = (T_e - T_b) / R_eb - (T_b - T_a) / R_ba.
 //! The heater only heats, so a PID driving it up a large step winds up: a small plant to try
-//! anti-windup schemes on. It is also the README's worked example of adding a plant kind: this
+//! anti-windup schemes on. It is also the book's worked example of adding a plant kind: this
 //! file plus the line `heater => Heater(HeaterSpec),` in `plant/mod.rs`.
 
 use super::{Plant, PlantConfig, PlantContext, ScalarInput};

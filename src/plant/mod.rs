@@ -24,7 +24,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 // The plant registry: adding a plant is its module (the model, `Table`, `validate` and
-// `impl PlantConfig`; see the README's "Extending evoloop") plus one line here.
+// `impl PlantConfig`; see the book's "Extending evoloop") plus one line here.
 crate::kinds! {
     family "plant", trait PlantConfig, context PlantContext<'_>;
     /// `plant.kind`: which plant a scenario simulates.

@@ -27,7 +27,7 @@
 //! multiplying M-hat, V-hat, G-hat and the torque network by one constant predicts the same
 //! motion.
 //!
-//! Beyond the paper (each opt-in on the command line, see README "RKGNN"):
+//! Beyond the paper (each opt-in on the command line, see the book, "RKGNN"):
 //! - `--servo linear`: the servo network as k_p e + k_d e' per joint (`RbfCounts::linear_servo`
 //!   says why it makes gravity identifiable).
 //! - `--velocity christoffel`: no velocity network, V-hat from M-hat's Christoffel symbols
@@ -97,7 +97,7 @@ pub enum ServoPrior {
     /// Nothing (the paper's premise: an industrial arm's servo is the vendor's): a linear
     /// servo's gains are identified in units of joint 1's k_p and the model is given eq. 2's
     /// scale. Torque-free data cannot fix the relative scale of joints whose inertia does not
-    /// couple (README "RKGNN").
+    /// couple (the book, "RKGNN").
     #[default]
     Unknown,
     /// The P-D law tau_j = clamp(k_p,j e_j + k_d,j e_j', +-limit_j) with these gains and
@@ -186,7 +186,7 @@ impl Settings {
         }
     }
 
-    /// The recipe of the shipped models (README "RKGNN"): a linear P-D servo network, the
+    /// The recipe of the shipped models (the book, "RKGNN"): a linear P-D servo network, the
     /// least-squares start; `evaluations` = 0 keeps the
     /// start, more continue with the EA.
     pub fn least_squares(n: usize, seed: u64, evaluations: usize) -> Self {

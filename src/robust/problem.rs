@@ -1,6 +1,6 @@
 //! The robust design problem of the two-mass paper (Sections 2-4), as the paper's tables imply it.
 //!
-//! Reading (verified against Table 9; see README and `evoloop robust study`'s report):
+//! Reading (verified against Table 9; see the book and `evoloop robust study`'s report):
 //! - state order with the measured body first, x = [x_meas, x_act, v_meas, v_act], force on the
 //!   actuated body: A = [[0,0,1,0],[0,0,0,1],[-k,k,0,0],[k,-k,0,0]], B = [0,0,0,1]', C = [1,0,0,0]
 //!   (the collocated variant has C = [0,1,0,0]);
