@@ -106,6 +106,13 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
                 Err(format!("no feature `{feature}` in Cargo.toml"))
             }
         }
+        ["cargo", "run", "--release", "--example", name, ..] => {
+            if root().join("examples").join(format!("{name}.rs")).exists() {
+                Ok(None)
+            } else {
+                Err(format!("no example `{name}` in examples/"))
+            }
+        }
         ["cargo", "bench", "--bench", name] => {
             if root().join("benches").join(format!("{name}.rs")).exists() {
                 Ok(None)
@@ -224,6 +231,8 @@ fn the_checker_itself_rejects_what_does_not_parse() {
     // A test that cannot fail proves nothing: feed the checker commands that must fail.
     assert!(evoloop_args("make run").is_err());
     assert!(evoloop_args("cargo bench --bench nonexistent").is_err());
+    assert!(evoloop_args("cargo run --release --example nonexistent").is_err());
+    assert!(evoloop_args("cargo run --release --example custom_plant").is_ok());
     assert!(evoloop_args("cargo build --release --features no_such_feature").is_err());
     assert!(evoloop_args("cargo build --release --features zenoh").is_ok());
     let parse = |c: &str| {
