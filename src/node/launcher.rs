@@ -9,7 +9,7 @@ use crate::config::{Mode, Scenario};
 use crate::ipc::{Ipc, Topic};
 use crate::msg::Telemetry;
 use crate::report::build::build_report;
-use crate::report::summary::{FloorReport, OptimiserLife, Summary};
+use crate::report::summary::{FloorReport, OptimiserLife, Outcome, Summary};
 use crate::rt::apply_privileges;
 use crate::rt::clock::wait_loop_lateness;
 use crate::rt::timing::Percentiles;
@@ -670,7 +670,15 @@ pub fn run(mut a: RunArgs) -> ExitCode {
             err!("error: {f}");
         }
         say_if_disk_full(&dir);
-        short_summary(&scn, &run_id, "failed", &failed, wall, interrupted, tuner);
+        short_summary(
+            &scn,
+            &run_id,
+            Outcome::Failed,
+            &failed,
+            wall,
+            interrupted,
+            tuner,
+        );
         return ExitCode::from(1);
     }
     // A run until stopped ends by being stopped: its floor is measured as any finished run's.
@@ -714,7 +722,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         // Stopped before the processes had written their reports: no loop ran to report on.
         Err(e) if interrupted => {
             err!("evoloop: interrupted before the loop ran ({e})");
-            short_summary(&scn, &run_id, "interrupted", &[], wall, true, tuner);
+            short_summary(&scn, &run_id, Outcome::Interrupted, &[], wall, true, tuner);
             return ExitCode::from(130);
         }
         Err(e) => {
@@ -735,7 +743,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
 fn short_summary(
     scn: &Scenario,
     run_id: &str,
-    outcome: &str,
+    outcome: Outcome,
     failures: &[String],
     wall: f64,
     interrupted: bool,
@@ -754,7 +762,7 @@ fn short_summary(
         })
         .unwrap_or_default();
     let report = serde_json::json!({
-        "outcome": outcome,
+        "outcome": outcome.as_str(),
         "failures": failures,
         "scenario": scn.name,
         "config": scn.source.display().to_string(),

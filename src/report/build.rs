@@ -4,8 +4,8 @@ use super::metrics::{ResponseAcc, TrackingAcc};
 use super::plot::{two_panel_png, Panel, Series};
 use super::scan::{Extent, PlotColumns, Rows};
 use super::summary::{
-    ControllerReport, FloorReport, OptimiserLife, OptimiserReport, ParamVersions, PlantReport,
-    RealtimePrivileges, Summary,
+    ControllerReport, FloorReport, OptimiserLife, OptimiserReport, Outcome, ParamVersions,
+    PlantReport, RealtimePrivileges, Summary,
 };
 use crate::config::Scenario;
 use crate::msg::ParamCode;
@@ -511,15 +511,14 @@ pub fn build_report(
         .collect();
     let summary = Summary {
         outcome: if !write_errors.is_empty() {
-            "incomplete"
+            Outcome::Incomplete
         } else if interrupted && !until_stopped {
-            "interrupted"
+            Outcome::Interrupted
         } else if optimiser.lost {
-            "tuner_lost"
+            Outcome::TunerLost
         } else {
-            "ok"
-        }
-        .into(),
+            Outcome::Ok
+        },
         scenario: scn.name.clone(),
         config: scn.source.display().to_string(),
         run_id: run_id.to_string(),

@@ -193,13 +193,41 @@ pub struct RealtimePrivileges {
     pub plant: RtGranted,
 }
 
+/// How a run ended: summary.json's `outcome`, serialised as the strings scripts read.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// It ran to its end (a run until stopped that is stopped: that is its end).
+    #[default]
+    Ok,
+    /// Ctrl-C before the scenario's duration: what ran so far.
+    Interrupted,
+    /// A process failed; the launcher writes a short summary.json with the reasons.
+    Failed,
+    /// Something could not be written (a full disk): what was written is whole.
+    Incomplete,
+    /// The loop ran to its end with its set in service, the optimiser lost on the way.
+    TunerLost,
+}
+
+impl Outcome {
+    /// The string summary.json holds.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Outcome::Ok => "ok",
+            Outcome::Interrupted => "interrupted",
+            Outcome::Failed => "failed",
+            Outcome::Incomplete => "incomplete",
+            Outcome::TunerLost => "tuner_lost",
+        }
+    }
+}
+
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct Summary {
-    /// "ok", "interrupted" (Ctrl-C before the scenario's duration: what ran so far) or "failed"
-    /// (a process failed; the launcher then writes a short summary.json with the reasons
-    /// instead of this one). A run until stopped that is stopped is "ok": that is its end.
+    /// How the run ended (`Outcome`).
     #[serde(default)]
-    pub outcome: String,
+    pub outcome: Outcome,
     pub scenario: String,
     pub config: String,
     pub run_id: String,
@@ -311,4 +339,25 @@ pub struct Summary {
     pub tracking_before_change_frozen: Option<f64>,
     #[serde(default)]
     pub tracking_after_change_frozen: Option<f64>,
+}
+
+#[cfg(test)]
+mod outcome_tests {
+    use super::Outcome;
+
+    #[test]
+    fn outcomes_serialise_to_the_strings_scripts_read() {
+        for o in [
+            Outcome::Ok,
+            Outcome::Interrupted,
+            Outcome::Failed,
+            Outcome::Incomplete,
+            Outcome::TunerLost,
+        ] {
+            let json = serde_json::to_string(&o).unwrap();
+            assert_eq!(json, format!("\"{}\"", o.as_str()));
+            assert_eq!(serde_json::from_str::<Outcome>(&json).unwrap(), o);
+        }
+        assert!(serde_json::from_str::<Outcome>("\"exploded\"").is_err());
+    }
 }
