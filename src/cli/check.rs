@@ -17,7 +17,7 @@ pub fn check(file: &Path) -> ExitCode {
                 s.plant.kind(),
                 s.controller.kind(),
                 s.reference.describe(),
-                format!("{:?}", s.timing.mode).to_lowercase(),
+                s.timing.mode,
                 s.timing.period,
                 if s.timing.until_stopped() {
                     s.timing.span()

@@ -68,10 +68,11 @@ pub const WORKERS_WAIT_S: f64 = 8.0;
 /// The default endpoint of `optimiser.workers_listen`: this host only.
 pub const WORKERS_LISTEN: &str = "tcp/127.0.0.1:7448";
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum OptimiserMode {
     /// Starts, listens to the streams, publishes nothing.
+    #[default]
     Off,
     /// Publishes the configured parameter sets at their configured times.
     Schedule,

@@ -25,11 +25,23 @@ pub struct RawTiming {
     pub wait_margin_us: Option<f64>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Mode {
+    /// (The default of a report read without one; a scenario always names or defaults its own.)
+    #[default]
     Lockstep,
     Realtime,
+}
+
+/// The name a scenario, a report and the command line use: "lockstep" or "realtime".
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Mode::Lockstep => "lockstep",
+            Mode::Realtime => "realtime",
+        })
+    }
 }
 
 impl std::str::FromStr for Mode {

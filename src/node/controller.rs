@@ -142,7 +142,7 @@ impl Loop {
             let meta = [
                 ("scenario", scn.name.clone()),
                 ("config", scn.source.display().to_string()),
-                ("mode", format!("{:?}", scn.timing.mode).to_lowercase()),
+                ("mode", scn.timing.mode.to_string()),
                 ("seed", scn.seed.to_string()),
                 ("period_s", scn.timing.period.to_string()),
                 (
@@ -355,7 +355,7 @@ pub fn main(args: &ProcessArgs) {
         ),
     };
     let mut report = ControllerReport {
-        mode: format!("{:?}", scn.timing.mode).to_lowercase(),
+        mode: scn.timing.mode,
         ..Default::default()
     };
     if scn.timing.mode == Mode::Realtime {

@@ -535,7 +535,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         err!(
             "evoloop: run {run_id}: scenario `{}` ({} mode, {} at {} s period), output {}",
             scn.name,
-            format!("{:?}", scn.timing.mode).to_lowercase(),
+            scn.timing.mode,
             span,
             scn.timing.period,
             dir.display()
@@ -767,7 +767,7 @@ fn short_summary(
         "scenario": scn.name,
         "config": scn.source.display().to_string(),
         "run_id": run_id,
-        "mode": format!("{:?}", scn.timing.mode).to_lowercase(),
+        "mode": scn.timing.mode,
         "seed": scn.seed,
         "duration_s": scn.timing.duration_s(),
         "wall_s": wall,
@@ -887,7 +887,7 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
         );
     }
     let l = &s.timing.lateness;
-    if s.mode == "realtime" {
+    if s.mode == crate::config::Mode::Realtime {
         out!(
             "  timing: lateness p50 {} ns, p99 {} ns, p99.9 {} ns, max {} ns; overruns {}, missed deadlines {}, stale states {}",
             l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.overruns, s.deadline_misses, s.timing.stale_states

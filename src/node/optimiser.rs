@@ -76,7 +76,7 @@ pub fn main(cli: &OptimiserArgs) {
         fail(WHO, EXIT_SETUP, &e.to_string());
     }
     let mut report = OptimiserReport {
-        mode: format!("{:?}", scn.optimiser.mode).to_lowercase(),
+        mode: scn.optimiser.mode,
         ..Default::default()
     };
     // The optimiser yields the CPU to the control loop.

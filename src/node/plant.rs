@@ -57,7 +57,7 @@ pub fn main(args: &ProcessArgs) {
         scn.seed,
     );
     let mut report = PlantReport {
-        mode: format!("{:?}", scn.timing.mode).to_lowercase(),
+        mode: scn.timing.mode,
         ..Default::default()
     };
     if scn.timing.mode == Mode::Realtime {

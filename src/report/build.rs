@@ -522,7 +522,7 @@ pub fn build_report(
         scenario: scn.name.clone(),
         config: scn.source.display().to_string(),
         run_id: run_id.to_string(),
-        mode: ctrl.mode.clone(),
+        mode: ctrl.mode,
         seed: scn.seed,
         duration_s: scn.timing.duration_s(),
         ran_s: horizon,

@@ -20,7 +20,7 @@ pub struct ParamRecord {
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct ControllerReport {
-    pub mode: String,
+    pub mode: crate::config::Mode,
     pub cycles: u64,
     pub wall_s: f64,
     pub rt: RtGranted,
@@ -49,7 +49,7 @@ pub struct ControllerReport {
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct PlantReport {
-    pub mode: String,
+    pub mode: crate::config::Mode,
     pub samples: u64,
     pub wall_s: f64,
     pub rt: RtGranted,
@@ -94,7 +94,7 @@ pub struct PublishedSet {
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct OptimiserReport {
-    pub mode: String,
+    pub mode: crate::config::OptimiserMode,
     pub states_seen: u64,
     pub commands_seen: u64,
     /// The sets published, thinned evenly past `indirect::HISTORY` like the estimates
@@ -231,7 +231,7 @@ pub struct Summary {
     pub scenario: String,
     pub config: String,
     pub run_id: String,
-    pub mode: String,
+    pub mode: crate::config::Mode,
     pub seed: u64,
     /// The scenario's duration; null for a run until stopped.
     pub duration_s: Option<f64>,
