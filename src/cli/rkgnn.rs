@@ -260,7 +260,7 @@ fn known_servo(a: &IdentifyArgs) -> Result<ServoPrior, String> {
         return Err("--servo known: give both --kp and --kd, or neither".into());
     }
     let p = a.data.join("scenario.json");
-    let text = crate::check::read_text(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+    let text = crate::text::read_text(&p).map_err(|e| format!("{}: {e}", p.display()))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
     let c = &v["controller"];
@@ -340,7 +340,7 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
             .map_err(|e| format!("--servo known: {e}"))?;
     }
     if a.velocity == VelocityKind::Christoffel {
-        s.counts.velocity = 0;
+        s.christoffel_velocity();
     }
     if let Some(t) = a.threads {
         s.threads = t.max(1);

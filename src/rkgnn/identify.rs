@@ -186,6 +186,11 @@ impl Settings {
         }
     }
 
+    /// V-hat from M-hat's Christoffel symbols (`--velocity christoffel`): no velocity network.
+    pub fn christoffel_velocity(&mut self) {
+        self.counts.velocity = 0;
+    }
+
     /// The recipe of the shipped models (the book, "RKGNN"): a linear P-D servo network, the
     /// least-squares start; `evaluations` = 0 keeps the
     /// start, more continue with the EA.
@@ -796,7 +801,10 @@ pub fn least_squares_start(
             p[g + 2 * j] = kp[j];
             p[g + 2 * j + 1] = kd[j];
         }
-        let target = Target::Torques(&tau, s.weigh_joints);
+        let target = Target::Torques {
+            tau: &tau,
+            weigh: s.weigh_joints,
+        };
         return least_squares(layout, &p, data, target, stride, INERTIA_RIDGES, floor);
     }
     let data = &smooth_positions(data, SMOOTH_HALF_WINDOW);
@@ -822,7 +830,10 @@ pub fn least_squares_start(
         }
     }
     let scaled = |p: Vec<f64>| scale_to_prior(layout, p, probes, prior).and_then(&floor);
-    let target = Target::Torques(&tau, false);
+    let target = Target::Torques {
+        tau: &tau,
+        weigh: false,
+    };
     least_squares(layout, &servo, data, target, stride, INERTIA_RIDGES, scaled)
 }
 
@@ -841,7 +852,10 @@ pub fn least_squares_with_torques(
     min_eig: f64,
 ) -> Option<Vec<f64>> {
     assert_eq!(torques.len(), data.len() * data.n);
-    let target = Target::Torques(torques, false);
+    let target = Target::Torques {
+        tau: torques,
+        weigh: false,
+    };
     let floor = at_least(layout, probes, min_eig);
     least_squares(layout, p0, data, target, stride, INERTIA_RIDGES, floor)
 }
@@ -863,8 +877,8 @@ enum Target<'a> {
     /// 1 moves to the right-hand side.
     ServoUnits,
     /// Known joint torques, n per sample of the data; the servo stays out of the fit. With
-    /// `true` each joint's rows are weighed by 1 / that joint's torque rms.
-    Torques(&'a [f64], bool),
+    /// `weigh` each joint's rows are weighed by 1 / that joint's torque rms.
+    Torques { tau: &'a [f64], weigh: bool },
 }
 
 /// The least-squares fits' common part: the solution with the smallest of `ridges` (on the
@@ -883,7 +897,7 @@ fn least_squares(
     let g = layout.gains?;
     let kp = |j: usize| g + 2 * j;
     let torques = match target {
-        Target::Torques(t, _) => Some(t),
+        Target::Torques { tau, .. } => Some(tau),
         Target::ServoUnits => None,
     };
     // In k_p,1 units joint 1's k_p column is the right-hand side; with torques every servo
@@ -951,7 +965,7 @@ fn least_squares(
         fill(&mut p, kp(0), &mut column);
         rhs -= &column;
     }
-    if let Target::Torques(_, true) = target {
+    if let Target::Torques { weigh: true, .. } = target {
         // Each joint's equations in units of its own torque: unweighted, the shoulder's
         // residuals (tens of N m) decide the fit and the wrist's inertia, whose 0.0035 kg m^2 is
         // arm7's smallest eigenvalue, is left to round-off (M-hat indefinite).
@@ -1017,7 +1031,7 @@ fn least_squares(
         }
         match target {
             Target::ServoUnits => p[kp(0)] = 1.0,
-            Target::Torques(..) => p[g..g + 2 * n].copy_from_slice(&p0[g..g + 2 * n]),
+            Target::Torques { .. } => p[g..g + 2 * n].copy_from_slice(&p0[g..g + 2 * n]),
         }
         if let Some(p) = accept(p) {
             return Some(p);

@@ -108,13 +108,14 @@ fn written() -> (Vec<Sines>, Vec<Sines>) {
 
 /// The study's trajectories on an arm of any other joint count, built from its joint limits by
 /// the written ones' pattern: about the middle c of each joint's range (half-range r, at most
-/// pi; a joint without limits: -pi..pi), train1 at c - d and train2 at c + d (d = 0.15 r, at most 0.5 rad) with train2 moving
-/// 1.4 times as far, train3 at c + d on even joints and c - d on odd ones moving 0.75 times as
-/// far; every joint's first harmonic 0.2 r (at most 0.6 rad), its second a quarter of that. The
-/// new ones are derived as the written ones are placed: near1 a third of the way from train1 to
-/// train2, near3 a third of the way from train3 to train1, beyond2 half train2's distance from
-/// train1 beyond train2 (train2's amplitudes), faster1 train1's offsets with 0.75 of its
-/// amplitudes at 0.3 and 0.7 Hz. The furthest any of them reaches from c is 0.65 r (beyond2).
+/// pi; a joint without limits: -pi..pi), train1 at c - d and train2 at c + d (d = 0.15 r, at
+/// most 0.5 rad) with train2 moving 1.4 times as far, train3 at c + d on even joints and c - d on
+/// odd ones moving 0.75 times as far; every joint's first harmonic 0.2 r (at most 0.6 rad), its
+/// second a quarter of that. The new ones are placed as the written ones are: near1 a third of
+/// the way from train1 to train2, near3 a third of the way from train3 to train1, beyond2 half
+/// train2's distance from train1 beyond train2 (with train2's amplitudes), faster1 train1's
+/// offsets with 0.75 of its amplitudes at 0.3 and 0.7 Hz. The furthest any of them reaches from
+/// c is 0.65 r (beyond2).
 fn generated(arm: &Model) -> (Vec<Sines>, Vec<Sines>) {
     let (mut c, mut d, mut a) = (Vec::new(), Vec::new(), Vec::new());
     for b in &arm.bodies {
@@ -124,34 +125,36 @@ fn generated(arm: &Model) -> (Vec<Sines>, Vec<Sines>) {
         d.push((0.15 * half).min(0.5));
         a.push((0.2 * half).min(0.6));
     }
-    let sines = |name, off: Vec<f64>, scale: f64, frequencies| Sines {
+    let sines = |name, side: &dyn Fn(usize) -> f64, scale: f64| Sines {
         name,
-        offsets: off,
+        offsets: (0..c.len()).map(|j| c[j] + side(j) * d[j]).collect(),
         amplitudes: a.iter().map(|a| [scale * a, 0.25 * scale * a]).collect(),
-        frequencies,
+        frequencies: SLOW,
     };
-    let at = |f: &dyn Fn(usize) -> f64| (0..c.len()).map(f).collect::<Vec<f64>>();
-    let t1 = at(&|j| c[j] - d[j]);
-    let t2 = at(&|j| c[j] + d[j]);
-    let t3 = at(&|j| if j % 2 == 0 { c[j] + d[j] } else { c[j] - d[j] });
-    let between = |x: &[f64], y: &[f64], f: f64| at(&|j| x[j] + f * (y[j] - x[j]));
-    let training = vec![
-        sines("train1", t1.clone(), 1.0, SLOW),
-        sines("train2", t2.clone(), 1.4, SLOW),
-        sines("train3", t3.clone(), 0.75, SLOW),
-    ];
+    let t1 = sines("train1", &|_| -1.0, 1.0);
+    let t2 = sines("train2", &|_| 1.0, 1.4);
+    let t3 = sines("train3", &|j| if j % 2 == 0 { 1.0 } else { -1.0 }, 0.75);
+    let beyond2 = Sines {
+        amplitudes: t2.amplitudes.clone(),
+        ..t1.towards(&t2, 1.5, "beyond2")
+    };
+    let faster1 = Sines {
+        name: "faster1",
+        amplitudes: t1
+            .amplitudes
+            .iter()
+            .map(|[x, y]| [0.75 * x, 0.75 * y])
+            .collect(),
+        frequencies: FAST,
+        ..t1.clone()
+    };
     let new = vec![
-        sines("near1", between(&t1, &t2, 1.0 / 3.0), 1.0 + 0.4 / 3.0, SLOW),
-        sines(
-            "near3",
-            between(&t3, &t1, 1.0 / 3.0),
-            0.75 + 0.25 / 3.0,
-            SLOW,
-        ),
-        sines("beyond2", between(&t1, &t2, 1.5), 1.4, SLOW),
-        sines("faster1", t1, 0.75, FAST),
+        t1.towards(&t2, 1.0 / 3.0, "near1"),
+        t3.towards(&t1, 1.0 / 3.0, "near3"),
+        beyond2,
+        faster1,
     ];
-    (training, new)
+    (vec![t1, t2, t3], new)
 }
 
 /// The controllers run on each new trajectory, in the table's order.
@@ -251,6 +254,22 @@ fn overall(v: &[f64]) -> f64 {
 }
 
 impl Sines {
+    /// The trajectory `f` of the way from this one to `other` (offsets and amplitudes; beyond
+    /// it for f > 1), at this one's frequencies.
+    fn towards(&self, other: &Sines, f: f64, name: &'static str) -> Sines {
+        let lerp = |x: f64, y: f64| x + f * (y - x);
+        Sines {
+            name,
+            offsets: (self.offsets.iter().zip(&other.offsets))
+                .map(|(x, y)| lerp(*x, *y))
+                .collect(),
+            amplitudes: (self.amplitudes.iter().zip(&other.amplitudes))
+                .map(|(x, y)| [lerp(x[0], y[0]), lerp(x[1], y[1])])
+                .collect(),
+            frequencies: self.frequencies,
+        }
+    }
+
     /// The training trajectory of identification seed `seed`: seed 1 is the trajectory as
     /// written (the shipped models' data); each other seed moves every offset by up to
     /// +-OFFSET_SPREAD rad and scales every amplitude by 1 +- AMPLITUDE_SPREAD (uniform,
@@ -328,7 +347,7 @@ pub fn run(
         .enumerate()
         .map(|(k, t)| case(&format!("probe{k}"), t, &robot, 1, pd(&unit, &unit), dir))
         .collect::<Result<_, _>>()?;
-    let qs = trajectory_positions(&probe.iter().map(|c| &c.scenario).collect::<Vec<_>>(), n);
+    let qs = trajectory_positions(&probe.iter().map(|c| &c.scenario).collect::<Vec<_>>());
     let mid = diagonal_mid(&arm, &qs);
     let matched = (
         mid.iter().map(|m| m * MATCH.0).collect::<Vec<_>>(),
@@ -375,7 +394,7 @@ pub fn run(
             settings.threads = s.threads.max(1);
             settings.weigh_joints = s.weigh_joints;
             if s.christoffel {
-                settings.counts.velocity = 0;
+                settings.christoffel_velocity();
             }
             settings.servo = identify::ServoPrior::Known {
                 kp: servo_kp.clone(),
@@ -530,16 +549,24 @@ pub fn run(
             });
         }
     }
-    let names = |v: &[Sines]| v.iter().map(|t| t.name).collect();
-    let result = summarise(
-        s,
+    let names = |v: &[Sines]| v.iter().map(|t| t.name).collect::<Vec<_>>();
+    let trajectories = names(&new_set);
+    let (medians, comparisons) = summarise(&cells, &trajectories);
+    let result = SelectionResult {
         robot,
+        joints: n,
+        seeds: s.seeds,
+        training: names(&training_set),
+        trajectories,
         prior,
-        (names(&training_set), names(&new_set)),
         unidentified,
         cells,
-        t0.elapsed().as_secs_f64(),
-    );
+        medians,
+        claim_held: claim_held(&comparisons, "fuzzy_max"),
+        claim_held_blend: claim_held(&comparisons, "fuzzy_blend"),
+        comparisons,
+        seconds: t0.elapsed().as_secs_f64(),
+    };
     crate::report::write_json(dir, "selection.json", &result)
         .map_err(|e| format!("{}: {e}", dir.join("selection.json").display()))?;
     let p = dir.join("report.md");
@@ -548,16 +575,13 @@ pub fn run(
     Ok(result)
 }
 
-/// Medians per trajectory and the paired comparisons of fuzzy max with every other controller.
+/// Medians per trajectory and the paired comparisons of each fuzzy rule with every other
+/// controller.
+#[allow(clippy::type_complexity)]
 fn summarise(
-    s: &SelectionSettings,
-    robot: PathBuf,
-    prior: Prior,
-    (training, trajectories): (Vec<&'static str>, Vec<&'static str>),
-    unidentified: Vec<String>,
-    cells: Vec<Cell>,
-    seconds: f64,
-) -> SelectionResult {
+    cells: &[Cell],
+    trajectories: &[&str],
+) -> (Vec<(String, Vec<(String, f64)>)>, Vec<Comparison>) {
     let keys: Vec<&str> = RUN.iter().chain(&DERIVED).copied().collect();
     let value = |c: &Cell, k: &str| {
         c.rms
@@ -612,32 +636,20 @@ fn summarise(
             }
         })
         .collect();
-    let held = |rule: &str| {
-        comparisons
-            .iter()
-            .find(|c| c.rule == rule && c.baseline == "best_single")
-            .is_some_and(|c| {
-                c.median_fuzzy < c.median_baseline
-                    && c.wilcoxon.w_plus < c.wilcoxon.w_minus
-                    && c.wilcoxon.p_two_sided < 0.05
-            })
-    };
-    let (claim_held, claim_held_blend) = (held("fuzzy_max"), held("fuzzy_blend"));
-    SelectionResult {
-        joints: cells.first().map_or(0, |c| c.rms[0].1.len()),
-        robot,
-        seeds: s.seeds,
-        training,
-        trajectories,
-        prior,
-        unidentified,
-        cells,
-        medians,
-        comparisons,
-        claim_held,
-        claim_held_blend,
-        seconds,
-    }
+    (medians, comparisons)
+}
+
+/// Whether `rule` is below the best single model in hindsight: median lower and Wilcoxon
+/// p < 0.05 with the rule lower.
+fn claim_held(comparisons: &[Comparison], rule: &str) -> bool {
+    comparisons
+        .iter()
+        .find(|c| c.rule == rule && c.baseline == "best_single")
+        .is_some_and(|c| {
+            c.median_fuzzy < c.median_baseline
+                && c.wilcoxon.w_plus < c.wilcoxon.w_minus
+                && c.wilcoxon.p_two_sided < 0.05
+        })
 }
 
 fn verdict(held: bool) -> &'static str {
@@ -697,14 +709,14 @@ pub fn report_markdown(r: &SelectionResult) -> String {
         "\nThe controller refused {refused} of {} (model, trajectory, seed) cases, a model \
          whose M-hat is not positive definite along the trajectory; those are left out alone \
          and from the fuzzy sets, and the comparisons pair only runs that both ran.\n",
-        3 * r.cells.len()
+        r.training.len() * r.cells.len()
     );
     if !r.unidentified.is_empty() {
         md += &format!(
             "\n{} of {} training runs gave no model (least squares found no positive definite \
              M-hat); they are left out the same way:\n\n",
             r.unidentified.len(),
-            3 * r.seeds
+            r.training.len() as u64 * r.seeds
         );
         for u in &r.unidentified {
             md += &format!("- {u}\n");

@@ -279,15 +279,15 @@ pub(super) fn gains() -> Result<Gains, String> {
     })
 }
 
-/// The positions of the trajectories of `n` joints every 10 ms.
-pub(super) fn trajectory_positions(cases: &[&Scenario], n: usize) -> Vec<Vec<f64>> {
+/// The positions of the trajectories every 10 ms.
+pub(super) fn trajectory_positions(cases: &[&Scenario]) -> Vec<Vec<f64>> {
     let mut sp = crate::reference::Setpoint::default();
     let mut qs = Vec::new();
     for scn in cases {
         let steps = (scn.timing.duration / 0.01).round() as usize;
         for k in 0..=steps {
             scn.reference.sample(k as f64 * 0.01, &mut sp);
-            qs.push(sp.q[..n].to_vec());
+            qs.push(sp.q[..sp.n].to_vec());
         }
     }
     qs
@@ -425,10 +425,7 @@ pub fn run(
         )
     };
     let probes = [probe(TRAIN1)?, probe(TRAIN2)?, probe(NEW)?];
-    let qs = trajectory_positions(
-        &probes.iter().map(|c| &c.scenario).collect::<Vec<_>>(),
-        JOINTS,
-    );
+    let qs = trajectory_positions(&probes.iter().map(|c| &c.scenario).collect::<Vec<_>>());
     // Each probe's scenario was refused above (`case`) if its reference leaves a joint limit.
     let arm3 = crate::dynamics::dh::parse_with(ARM3, Path::new("arm3.toml"), &Default::default())
         .map_err(|e| e.to_string())?
