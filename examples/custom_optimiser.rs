@@ -3,13 +3,14 @@
 //!
 //! The optimiser is a (1+1) evolution strategy with the 1/5th success rule (Rechenberg): one
 //! candidate per ask, the step size grown after a success and shrunk after a failure. Anything
-//! that implements `Optimiser` can drive the same loops evoloop's own do.
+//! that implements `Optimiser` runs in the same loop as evoloop's own (`optim::run`).
 //!
 //!     cargo run --release --example custom_optimiser
 
-use evoloop::optim::{DeConfig, DifferentialEvolution, Optimiser};
+use evoloop::optim::{run as optimise, DeConfig, DifferentialEvolution, Optimiser};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
 
 pub struct OnePlusOne {
     parent: Vec<f64>,
@@ -47,18 +48,14 @@ impl OnePlusOne {
             evaluations: 0,
         }
     }
-
-    /// A standard normal draw (Box-Muller).
-    fn normal(&mut self) -> f64 {
-        let (u1, u2): (f64, f64) = (self.rng.gen_range(f64::EPSILON..1.0), self.rng.gen());
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
 }
 
 impl Optimiser for OnePlusOne {
     fn ask(&mut self) -> &[Vec<f64>] {
         if self.evaluations > 0 {
-            let steps: Vec<f64> = (0..self.parent.len()).map(|_| self.normal()).collect();
+            let steps: Vec<f64> = (0..self.parent.len())
+                .map(|_| self.rng.sample(StandardNormal))
+                .collect();
             self.candidate[0] = (self.parent.iter().zip(&steps))
                 .zip(self.lower.iter().zip(&self.upper))
                 .map(|((p, s), (l, u))| (p + self.sigma * s).clamp(*l, *u))
@@ -95,28 +92,21 @@ impl Optimiser for OnePlusOne {
     }
 }
 
-/// Ask, evaluate, tell until `budget` evaluations or the optimiser's own stop: the loop every
-/// evoloop optimiser runs in (there in parallel, over evaluation workers, or over a plant).
-pub fn minimise(opt: &mut dyn Optimiser, f: &dyn Fn(&[f64]) -> f64, budget: usize) -> f64 {
-    while opt.evaluations() < budget && !opt.converged() {
-        let values: Vec<f64> = opt.ask().iter().map(|x| f(x)).collect();
-        opt.tell(&values);
-    }
-    opt.best().1
-}
-
 /// A 10-D sphere centred off the middle of [-5, 5]^10 (at 1.234 on every axis), 20 000
 /// evaluations each: (ES best, DE best).
 pub fn run() -> (f64, f64) {
     let sphere = |x: &[f64]| x.iter().map(|v| (v - 1.234).powi(2)).sum::<f64>();
     let (lower, upper) = (vec![-5.0; 10], vec![5.0; 10]);
+    // evoloop's own loop (`optim::run`: ask, evaluate on every core, tell) drives either; the
+    // budget is 20 000 evaluations: 20 000 generations of one, 500 of 40.
+    let threads = evoloop::optim::all_cores();
     let mut es = OnePlusOne::new(lower.clone(), upper.clone(), 1);
-    let es_best = minimise(&mut es, &sphere, 20_000);
+    let es_best = optimise(&mut es, &sphere, threads, 20_000, None, |_| {}).value;
     let mut cfg = DeConfig::paper(0.5, 0.9, lower, upper, 1);
     cfg.np = 40;
     cfg.diversity_stop = false;
     let mut de = DifferentialEvolution::new(cfg).expect("valid DE settings");
-    let de_best = minimise(&mut de, &sphere, 20_000);
+    let de_best = optimise(&mut de, &sphere, threads, 500, None, |_| {}).value;
     (es_best, de_best)
 }
 

@@ -32,14 +32,11 @@ pub fn run(robot: &Path) -> Result<Checks, String> {
     let asymmetry = (&m - m.transpose()).amax();
     let positive_definite = m.clone().cholesky().is_some();
     let mut tau = vec![0.0; n];
-    model.rnea(&mut data, &q, &qd, &qdd, &mut tau);
-    // RNEA has no friction; forward dynamics subtracts the joints' friction: add it back.
-    let mut friction = vec![0.0; n];
-    model.friction(&qd, &mut friction);
-    let tau_total: Vec<f64> = tau.iter().zip(&friction).map(|(t, f)| t + f).collect();
+    // Inverse dynamics with the joints' friction (forward dynamics takes it off again).
+    model.inverse_dynamics(&mut data, &q, &qd, &qdd, &mut tau);
     let mut back = vec![0.0; n];
     model
-        .forward_dynamics(&mut data, &q, &qd, &tau_total, &mut back)
+        .forward_dynamics(&mut data, &q, &qd, &tau, &mut back)
         .map_err(|_| "M is not positive definite".to_string())?;
     let round_trip = back
         .iter()
