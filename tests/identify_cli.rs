@@ -3,7 +3,7 @@
 //! `excitation` reference kind, and clear errors (exit 2).
 
 mod common;
-use common::{assert_ok, assert_plotted, cli, run, stdout_json, write};
+use common::{assert_ok, assert_plotted, assert_refused, cli, run, stdout_json, write};
 use std::path::Path;
 
 /// A scratch directory removed when the test ends (tagged for whoever reads a failure).
@@ -149,9 +149,7 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
         &["--duration", "1", "--mode", "lockstep"],
     ));
     let o = lls(&out, &[]);
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{e}");
-    assert!(e.contains("not a periodic excitation"), "{e}");
+    assert_refused(&o, "not a periodic excitation");
     // A wrist stage on a three-joint arm.
     let o = cli(&[
         "identify",
@@ -163,9 +161,7 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
         "--stage",
         "wrist",
     ]);
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{e}");
-    assert!(e.contains("--stage all"), "{e}");
+    assert_refused(&o, "--stage all");
     // The paper's Cartesian path moves the wrist centre, which the wrist stage holds.
     let o = cli(&[
         "identify",
@@ -179,9 +175,7 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
         "--trajectory",
         "mfs",
     ]);
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{e}");
-    assert!(e.contains("--trajectory fourier"), "{e}");
+    assert_refused(&o, "--trajectory fourier");
 }
 
 #[test]

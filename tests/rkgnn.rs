@@ -1051,7 +1051,5 @@ fn weighing_the_joints_gives_arm7_a_positive_definite_m_hat_that_unweighted_leas
         "linear",
         "--weigh-joints",
     ]);
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{e}");
-    assert!(e.contains("--weigh-joints needs --servo known"), "{e}");
+    assert_refused(&o, "--weigh-joints needs --servo known");
 }

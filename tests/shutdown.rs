@@ -123,9 +123,7 @@ fn two_runs_cannot_share_a_run_id_or_an_output_directory() {
     };
     let t0 = Instant::now();
     let o = second(&tmp.path().join("b"), &run_id);
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{e}");
-    assert!(e.contains(&format!("run id `{run_id}` is in use")), "{e}");
+    assert_refused(&o, &format!("run id `{run_id}` is in use"));
     let o = second(&out, &format!("{run_id}-other"));
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{e}");

@@ -194,6 +194,13 @@ pub fn cli(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// The command was refused as bad input (exit 2) with `reason` in what it said.
+pub fn assert_refused(o: &Output, reason: &str) {
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains(reason), "{e}");
+}
+
 /// The JSON a successful command printed on stdout.
 pub fn stdout_json(o: &Output) -> serde_json::Value {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
