@@ -8,8 +8,6 @@ use std::cell::RefCell;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-pub use crate::text::{from_toml, read_text, TomlProblem, MAX_FILE_BYTES};
-
 /// A configuration error: file, key and reason.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConfigError {

@@ -86,6 +86,19 @@ pub enum OptimiserMode {
     Direct,
 }
 
+/// The name a scenario and a report use: `optimiser.mode`'s value.
+impl std::fmt::Display for OptimiserMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            OptimiserMode::Off => "off",
+            OptimiserMode::Schedule => "schedule",
+            OptimiserMode::Indirect => "indirect",
+            OptimiserMode::Identify => "identify",
+            OptimiserMode::Direct => "direct",
+        })
+    }
+}
+
 impl std::str::FromStr for OptimiserMode {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
@@ -416,7 +429,7 @@ fn workers_settings(
             "optimiser.workers",
             format!(
                 "\"zenoh\" serves the indirect scheme's model evaluations; mode \"{}\" evaluates {}",
-                format!("{mode:?}").to_lowercase(),
+                mode,
                 if mode == OptimiserMode::Direct {
                     "on the plant itself"
                 } else {
@@ -586,7 +599,7 @@ fn direct_settings(
 
 /// The `model_parameters` of a JSON file (`evoloop identify lls`'s lls.json).
 fn model_file(path: &std::path::Path) -> Result<Vec<f64>, String> {
-    let text = crate::check::read_text(path)
+    let text = crate::text::read_text(path)
         .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -597,4 +610,22 @@ fn model_file(path: &std::path::Path) -> Result<Vec<f64>, String> {
             path.display()
         )
     })
+}
+
+#[cfg(test)]
+mod display_tests {
+    use super::OptimiserMode;
+    use crate::config::Mode;
+
+    #[test]
+    fn modes_display_as_they_serialise() {
+        use OptimiserMode::*;
+        for m in [Off, Schedule, Indirect, Identify, Direct] {
+            assert_eq!(serde_json::to_string(&m).unwrap(), format!("\"{m}\""));
+        }
+        for m in [Mode::Lockstep, Mode::Realtime] {
+            assert_eq!(serde_json::to_string(&m).unwrap(), format!("\"{m}\""));
+            assert_eq!(m.to_string().parse::<Mode>().unwrap(), m);
+        }
+    }
 }

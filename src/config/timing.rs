@@ -28,7 +28,8 @@ pub struct RawTiming {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Mode {
-    /// (The default of a report read without one; a scenario always names or defaults its own.)
+    /// (The default only of a report built in code with `..Default::default()`; a scenario
+    /// always names or defaults its own, and a report read back must have one.)
     #[default]
     Lockstep,
     Realtime,

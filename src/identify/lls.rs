@@ -20,6 +20,7 @@
 use super::series::FourierSeries;
 use super::{stage_base, states_needed, Columns, Stacker, Stage};
 use crate::dynamics::Model;
+use crate::report::summary::Outcome;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 use std::path::Path;
@@ -83,7 +84,8 @@ impl Recording {
         let ended = std::fs::read_to_string(dir.join("summary.json"))
             .ok()
             .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-            .is_some_and(|s| s["outcome"] == "ok");
+            .and_then(|s| serde_json::from_value::<Outcome>(s["outcome"].clone()).ok())
+            == Some(Outcome::Ok);
         let until = v["timing"]["duration"].as_f64().filter(|_| ended);
         let (y, u) = regular(&time, h, until, &y, &u);
         Ok(Recording {

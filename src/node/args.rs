@@ -155,10 +155,7 @@ impl OverrideArgs {
         let mut a = Vec::new();
         if let Some(m) = self.mode {
             a.push("--mode".into());
-            a.push(match m {
-                Mode::Lockstep => "lockstep".into(),
-                Mode::Realtime => "realtime".into(),
-            });
+            a.push(m.to_string());
         }
         if let Some(d) = self.duration {
             a.push("--duration".into());

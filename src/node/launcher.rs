@@ -285,7 +285,7 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
              or \"identify\") with the frozen controller over seeds; this scenario has \
              optimiser.mode = \"{}\" (use --seed N for one run)",
             file.display(),
-            format!("{:?}", scn.optimiser.mode).to_lowercase()
+            scn.optimiser.mode
         );
         return ExitCode::from(2);
     };
@@ -582,8 +582,11 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 // ran on). Death by any other signal is still a failure (and an optimiser's, a
                 // crash to restart).
                 let stopping = interrupted || stop_sent.is_some() || stop.load(Ordering::SeqCst);
-                let by_stop =
-                    stopping && matches!(status.signal(), Some(libc::SIGINT | libc::SIGTERM));
+                let by_stop = stopping
+                    && matches!(
+                        status.signal(),
+                        Some(libc::SIGINT | libc::SIGTERM | libc::SIGHUP)
+                    );
                 if *name == OPTIMISER && rejoinable && !by_stop && !status.success() {
                     // Its ports must go before the plant can tell it is absent.
                     ipc.cleanup_dead_nodes();
@@ -762,7 +765,7 @@ fn short_summary(
         })
         .unwrap_or_default();
     let report = serde_json::json!({
-        "outcome": outcome.as_str(),
+        "outcome": outcome,
         "failures": failures,
         "scenario": scn.name,
         "config": scn.source.display().to_string(),

@@ -556,6 +556,7 @@ pub fn build_report(
         cycle_allocations: ctrl.cycle_allocations,
         floor,
         plant_safe_samples: plant.safe_samples,
+        plant_samples_before_first_command: plant.samples_before_first_command,
         optimiser_published: opt.published_count as usize,
         optimiser_samples_missed: opt.samples_missed,
         optimiser_cpu_s: opt.cpu_s,

@@ -20,7 +20,7 @@ use std::io::{self, BufWriter, Seek, SeekFrom, Write};
 /// The file's first and last bytes.
 pub(crate) const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
 /// The chunks' compression (LZ4 frames).
-const COMPRESSION: &str = "lz4";
+pub(crate) const COMPRESSION: &str = "lz4";
 
 /// Record opcodes (also the reader's, `report::recording`).
 pub(crate) mod op {

@@ -82,7 +82,7 @@ fn check_chunk(b: &[u8], len: u64) -> Result<(), String> {
     let mut plain = Vec::with_capacity(declared as usize);
     match name {
         b"" => plain.extend_from_slice(records),
-        b"lz4" => {
+        n if n == crate::report::mcap_file::COMPRESSION.as_bytes() => {
             lz4::Decoder::new(records)
                 .and_then(|d| d.take(declared).read_to_end(&mut plain))
                 .map_err(|e| format!("does not decompress ({e})"))?;

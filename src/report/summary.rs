@@ -197,7 +197,9 @@ pub struct RealtimePrivileges {
 #[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
-    /// It ran to its end (a run until stopped that is stopped: that is its end).
+    /// It ran to its end (a run until stopped that is stopped: that is its end). The default
+    /// only of a `Summary` built in code (`..Default::default()`): when read, `outcome` is
+    /// required.
     #[default]
     Ok,
     /// Ctrl-C before the scenario's duration: what ran so far.
@@ -210,23 +212,10 @@ pub enum Outcome {
     TunerLost,
 }
 
-impl Outcome {
-    /// The string summary.json holds.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Outcome::Ok => "ok",
-            Outcome::Interrupted => "interrupted",
-            Outcome::Failed => "failed",
-            Outcome::Incomplete => "incomplete",
-            Outcome::TunerLost => "tuner_lost",
-        }
-    }
-}
-
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct Summary {
-    /// How the run ended (`Outcome`).
-    #[serde(default)]
+    /// How the run ended (`Outcome`); required when read back (a file without it is not taken
+    /// for a run that ended well).
     pub outcome: Outcome,
     pub scenario: String,
     pub config: String,
@@ -269,6 +258,10 @@ pub struct Summary {
     pub wait: Option<crate::rt::WaitStrategy>,
     pub floor: Option<FloorReport>,
     pub plant_safe_samples: u64,
+    /// Realtime: samples the plant held its safe command before the controller's first command
+    /// (a controller slow to start, or one that never commanded).
+    #[serde(default)]
+    pub plant_samples_before_first_command: u64,
     pub optimiser_published: usize,
     /// Indirect mode: plant samples the optimiser's estimator missed (its queue overflowed).
     #[serde(default)]
@@ -347,15 +340,15 @@ mod outcome_tests {
 
     #[test]
     fn outcomes_serialise_to_the_strings_scripts_read() {
-        for o in [
-            Outcome::Ok,
-            Outcome::Interrupted,
-            Outcome::Failed,
-            Outcome::Incomplete,
-            Outcome::TunerLost,
+        for (o, text) in [
+            (Outcome::Ok, "ok"),
+            (Outcome::Interrupted, "interrupted"),
+            (Outcome::Failed, "failed"),
+            (Outcome::Incomplete, "incomplete"),
+            (Outcome::TunerLost, "tuner_lost"),
         ] {
             let json = serde_json::to_string(&o).unwrap();
-            assert_eq!(json, format!("\"{}\"", o.as_str()));
+            assert_eq!(json, format!("\"{text}\""));
             assert_eq!(serde_json::from_str::<Outcome>(&json).unwrap(), o);
         }
         assert!(serde_json::from_str::<Outcome>("\"exploded\"").is_err());
