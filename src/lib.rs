@@ -23,13 +23,14 @@ pub mod cli;
 pub mod config;
 pub mod control;
 pub mod direct;
-pub mod dynamics;
+pub use evoloop_dynamics as dynamics;
+pub use evoloop_files as files;
 pub mod fuzzy;
 pub mod identify;
 pub mod indirect;
 pub mod ipc;
 pub mod jobs;
-pub mod msg;
+pub use evoloop_msg as msg;
 #[cfg(feature = "zenoh")]
 pub mod net;
 pub mod node;
@@ -42,16 +43,10 @@ pub mod robust;
 pub mod rt;
 pub mod sim;
 pub mod soak;
-pub mod text;
 pub mod top;
 pub mod tune;
 
-/// Largest number of joints/inputs/outputs a message carries (8-joint arms fit).
-pub const MAX_JOINTS: usize = 8;
-/// Largest plant state vector a message carries (positions, velocities and extra states).
-pub const MAX_STATES: usize = 32;
-/// Largest parameter set (identified models of later issues fit: RBF networks, fuzzy rule bases).
-pub const MAX_PARAMS: usize = 1024;
+pub use evoloop_msg::{MAX_JOINTS, MAX_PARAMS, MAX_STATES};
 
 /// The message for `what` (a command, an option, a key) in a build without the `zenoh` feature.
 pub fn needs_zenoh(what: &str) -> String {

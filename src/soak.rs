@@ -300,7 +300,7 @@ pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
             i.cycles, i.missed_deadlines, i.overruns, l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns
         ));
     }
-    crate::report::files::write(dir.join("soak.csv"), csv).map_err(|e| e.to_string())?;
+    crate::files::write(dir.join("soak.csv"), csv).map_err(|e| e.to_string())?;
     let minutes: Vec<f64> = r.intervals.iter().map(|i| i.t_s / 60.0).collect();
     let rss: Vec<(String, Vec<f64>, Vec<f64>)> = PROCESSES
         .iter()
@@ -386,7 +386,7 @@ mod tests {
     fn a_tail_returns_whole_lines_only() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("t.csv");
-        crate::report::files::write(&p, "a\nb\nc").unwrap();
+        crate::files::write(&p, "a\nb\nc").unwrap();
         let mut t = Tail::new(p.clone());
         let mut got = Vec::new();
         t.new_lines(|l| got.push(l.to_string()));

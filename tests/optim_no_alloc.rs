@@ -2,7 +2,7 @@
 //! ask and tell of every algorithm of the study (and DE with its diversity window) once each has
 //! run a few generations. Its own test binary, so no other test allocates while it counts.
 
-use evoloop::optim::study::{build, ALGORITHMS};
+use evoloop::optim::by_name::{build, ALGORITHMS};
 use evoloop::optim::{DeConfig, DifferentialEvolution, Optimiser};
 use std::sync::atomic::Ordering;
 

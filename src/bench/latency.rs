@@ -209,7 +209,7 @@ pub fn write_out(
         let f = r.figures().map(|v| v.to_string());
         csv += &format!("{},{}\n", r.variant.name(), f.join(","));
     }
-    crate::report::files::write(dir.join("latency.csv"), csv).map_err(|e| e.to_string())?;
+    crate::files::write(dir.join("latency.csv"), csv).map_err(|e| e.to_string())?;
     // CDF on a log time axis: x = log10(RTT / ns), y = fraction of round trips at or below.
     let curves: Vec<(String, Vec<f64>, Vec<f64>)> = raw
         .iter()

@@ -182,7 +182,7 @@ fn scenario_file(spec: &LoopSpec, out: &Path) -> Result<(std::path::PathBuf, f64
     let Some(path) = &spec.scenario else {
         let rate = spec.rate.unwrap_or(1000.0);
         let cfg = out.join("bench_loop.toml");
-        crate::report::files::write(
+        crate::files::write(
             &cfg,
             scenario(rate, spec.duration, spec.load == Load::Optimiser),
         )

@@ -171,8 +171,7 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
         doc["fit_error"] = json!(m.decode(&problem.model, &o.x).map(|d| d.1));
     }
     let text = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;
-    crate::report::files::write(&a.out, text + "\n")
-        .map_err(|e| format!("{}: {e}", a.out.display()))?;
+    crate::files::write(&a.out, text + "\n").map_err(|e| format!("{}: {e}", a.out.display()))?;
     let png = a.out.with_extension("png");
     plot(&problem, &o.series, &png)?;
     if a.json {

@@ -106,8 +106,7 @@ fn run(a: &LlsArgs) -> Result<(), String> {
     });
     let path = out.join("lls.json");
     let text = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;
-    crate::report::files::write(&path, text + "\n")
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    crate::files::write(&path, text + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
     let mut plots = Vec::new();
     for e in &stages {
         let png = out.join(format!("lls_validation_{}.png", e.stage));

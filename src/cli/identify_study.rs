@@ -141,7 +141,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
     });
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let path = a.out.join("results.json");
-    crate::report::files::write(
+    crate::files::write(
         &path,
         serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())? + "\n",
     )
@@ -175,7 +175,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
             r.seed, r.cond_initial, r.cond_optimised, r.error_initial, r.error_optimised
         );
     }
-    crate::report::files::write(a.out.join("report.md"), md).map_err(|e| e.to_string())?;
+    crate::files::write(a.out.join("report.md"), md).map_err(|e| e.to_string())?;
     let x: Vec<f64> = rows.iter().map(|r| r.seed as f64).collect();
     let curves: Vec<Curve> = vec![
         ("first feasible random".into(), x.clone(), ini.clone()),

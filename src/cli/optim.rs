@@ -1,8 +1,10 @@
 //! `evoloop optim study` (the eMuPSO paper's benchmark study, Tables 4-9 and Figs. 5-7) and
 //! `evoloop optim bench` (each optimiser's own overhead).
 
+use crate::optim::by_name::{self, ALGORITHMS};
 use crate::optim::peers::{self, Comparison, PeerRuns, Verdict};
-use crate::optim::study::{self, Cell, Outcome, Problem, RunResult, ALGORITHMS, SUBJECT};
+use crate::optim::problem::{self, Problem};
+use crate::optim::study::{self, Cell, Outcome, RunResult, SUBJECT};
 use crate::report::plot::{xy_png, Style, XySeries};
 use clap::{Args, Subcommand};
 use rayon::prelude::*;
@@ -199,7 +201,7 @@ pub fn execute(
 
 fn run_study(a: &StudyArgs) -> Result<(), String> {
     let algorithms = check_args(a)?;
-    let problems = study::problems(a.functions.as_deref(), !a.no_shifted)?;
+    let problems = problem::problems(a.functions.as_deref(), !a.no_shifted)?;
     // Read before the study runs: a bad file is refused at once, not after minutes.
     let peers = match &a.peers {
         Some(f) => Some(peers::load(f, a.evaluations, &algorithms)?),
@@ -263,7 +265,7 @@ fn run_study(a: &StudyArgs) -> Result<(), String> {
 }
 
 fn write(path: &Path, text: &str) -> Result<(), String> {
-    crate::report::files::write(path, text).map_err(|e| format!("writing {}: {e}", path.display()))
+    crate::files::write(path, text).map_err(|e| format!("writing {}: {e}", path.display()))
 }
 
 fn cells(s: &StudyRuns, p: usize) -> Vec<Cell> {
@@ -678,7 +680,7 @@ fn bench(a: &BenchArgs) -> Result<(), String> {
     for name in &names {
         let mut samples = Vec::with_capacity(a.repeats);
         for rep in 0..a.repeats {
-            let mut opt = study::build(
+            let mut opt = by_name::build(
                 name,
                 &lower,
                 &upper,
@@ -717,7 +719,7 @@ fn bench(a: &BenchArgs) -> Result<(), String> {
 }
 
 fn functions(a: &FunctionsArgs) -> Result<(), String> {
-    let problems = study::problems(None, !a.no_shifted)?;
+    let problems = problem::problems(None, !a.no_shifted)?;
     if a.json {
         let list: Vec<Value> = problems
             .iter()
@@ -763,7 +765,7 @@ fn functions(a: &FunctionsArgs) -> Result<(), String> {
 /// The evaluation server of `evoloop optim serve` (protocol in its help).
 fn serve(a: &ServeArgs) -> Result<(), String> {
     use std::io::{Read, Write};
-    let problem = study::problems(Some(std::slice::from_ref(&a.function)), false)?
+    let problem = problem::problems(Some(std::slice::from_ref(&a.function)), false)?
         .pop()
         .ok_or("no function")?;
     let d = problem.function.dim;

@@ -260,7 +260,7 @@ fn known_servo(a: &IdentifyArgs) -> Result<ServoPrior, String> {
         return Err("--servo known: give both --kp and --kd, or neither".into());
     }
     let p = a.data.join("scenario.json");
-    let text = crate::text::read_text(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+    let text = crate::files::read_text(&p).map_err(|e| format!("{}: {e}", p.display()))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
     let c = &v["controller"];

@@ -104,7 +104,7 @@ pub struct Overrides {
 impl Scenario {
     /// Read, parse and validate a scenario file.
     pub fn load(path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
-        let text = crate::text::read_text(path).map_err(|e| ConfigError {
+        let text = crate::files::read_text(path).map_err(|e| ConfigError {
             file: path.to_path_buf(),
             key: String::new(),
             reason: format!("cannot read: {e}"),
@@ -115,7 +115,7 @@ impl Scenario {
 
     /// Parse and validate scenario text; `path` is used in messages and to name the run.
     pub fn parse(text: &str, path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
-        let raw: RawScenario = crate::text::from_toml(text).map_err(|p| ConfigError {
+        let raw: RawScenario = crate::files::from_toml(text).map_err(|p| ConfigError {
             file: path.to_path_buf(),
             key: p.key,
             reason: p.reason,

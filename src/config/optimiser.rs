@@ -180,7 +180,7 @@ pub struct OptimiserSpec {
     pub identify_window: f64,
     pub identify_fresh: f64,
     pub identify_every: f64,
-    /// Direct: the optimiser (`optim::study::ALGORITHMS`), its population and the candidates it
+    /// Direct: the optimiser (`optim::by_name::ALGORITHMS`), its population and the candidates it
     /// tries, one per repetition of `repetition` s, the first starting at `first_repetition` s
     /// (the repetition before it runs the configured set: the baseline).
     pub algorithm: String,
@@ -488,7 +488,7 @@ type DirectSettings = (
 
 /// The direct scheme's optimisers: the study's ask/tell ones and the GA/Hooke-Jeeves hybrid.
 pub fn direct_algorithms() -> Vec<&'static str> {
-    let mut a = crate::optim::study::ALGORITHMS.to_vec();
+    let mut a = crate::optim::by_name::ALGORITHMS.to_vec();
     a.push("hybrid");
     a
 }
@@ -599,7 +599,7 @@ fn direct_settings(
 
 /// The `model_parameters` of a JSON file (`evoloop identify lls`'s lls.json).
 fn model_file(path: &std::path::Path) -> Result<Vec<f64>, String> {
-    let text = crate::text::read_text(path)
+    let text = crate::files::read_text(path)
         .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;

@@ -271,7 +271,7 @@ pub fn validate(
 fn excitation_file(
     path: &std::path::Path,
 ) -> Result<crate::identify::series::FourierSeries, String> {
-    let text = crate::text::read_text(path).map_err(|e| format!("cannot read: {e}"))?;
+    let text = crate::files::read_text(path).map_err(|e| format!("cannot read: {e}"))?;
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
     let s: crate::identify::series::FourierSeries = serde_json::from_value(v["series"].clone())
         .map_err(|e| format!("`series`: {e} (not an `evoloop identify excitation` file?)"))?;

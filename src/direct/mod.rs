@@ -36,7 +36,7 @@ use serde::Serialize;
 /// The direct scheme's settings, from the scenario's `[optimiser]` table.
 #[derive(Debug, Clone, Serialize)]
 pub struct DirectSpec {
-    /// `optim::study::build`'s name: ga, de, pso, emupso, gwo, woa, goa.
+    /// `optim::by_name::build`'s name: ga, de, pso, emupso, gwo, woa, goa.
     pub algorithm: String,
     pub population: usize,
     /// Candidates tried (repetitions spent on trials).
@@ -171,7 +171,7 @@ impl DirectTuner {
                 cfg, &b.lower, &b.upper, &seeds,
             ))
         } else {
-            crate::optim::study::build_seeded(
+            crate::optim::by_name::build_seeded(
                 &spec.algorithm,
                 &b.lower,
                 &b.upper,
@@ -565,7 +565,7 @@ pub fn write_files(
     report: &DirectReport,
     plots: bool,
 ) -> Result<Vec<&'static str>, String> {
-    crate::report::files::write(dir.join("direct.csv"), records_csv(&report.repetitions))
+    crate::files::write(dir.join("direct.csv"), records_csv(&report.repetitions))
         .map_err(|e| format!("{}: {e}", dir.join("direct.csv").display()))?;
     let mut names = vec!["direct.csv"];
     if plots && !report.repetitions.is_empty() {

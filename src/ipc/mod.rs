@@ -20,30 +20,6 @@ pub mod service;
 /// The iceoryx2 service type of every evoloop port (iceoryx2's ipc service, pooled loans).
 pub type Svc = service::Service;
 
-/// The message types go into shared memory as they are. Their iceoryx2 names carry a version
-/// suffix because iceoryx2 checks only name, size and alignment when a service opens: change a
-/// layout, bump the version.
-macro_rules! zero_copy {
-    ($($t:ident => $name:literal),* $(,)?) => {$(
-        // SAFETY: `#[repr(C)]`, `Copy`, fields only f64/u64/u32 and fixed arrays of them: no
-        // pointers or references, the same layout in every process of one build.
-        unsafe impl ZeroCopySend for crate::msg::$t {
-            unsafe fn type_name() -> &'static str {
-                $name
-            }
-        }
-    )*};
-}
-zero_copy!(
-    PlantState => "evoloop::PlantState.v1",
-    Command => "evoloop::Command.v1",
-    Telemetry => "evoloop::Telemetry.v1",
-    ParamSet => "evoloop::ParamSet.v1",
-    OptimiserAck => "evoloop::OptimiserAck.v1",
-    ModelEstimate => "evoloop::ModelEstimate.v1",
-    OptimiserStatus => "evoloop::OptimiserStatus.v1",
-);
-
 /// An IPC failure with what was being done when it happened.
 #[derive(Debug)]
 pub struct IpcError {

@@ -208,8 +208,7 @@ impl RunLock {
         // unlinked between the open and the flock: locked, it must still be the file at the
         // path, or a second run could lock a new one beside it. Try again on a new file.
         for _ in 0..8 {
-            let mut f =
-                crate::report::files::open_in_place(path).map_err(|e| format!("{what}: {e}"))?;
+            let mut f = crate::files::open_in_place(path).map_err(|e| format!("{what}: {e}"))?;
             // SAFETY: flock on a descriptor we own.
             if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
                 let mut holder = String::new();
@@ -785,7 +784,7 @@ fn short_summary(
 }
 
 /// The run's JSON reports, which every reader starts from, and the disk set aside for each so
-/// that logs filling the disk do not cost them (`report::files::reserve`); released when the
+/// that logs filling the disk do not cost them (`files::reserve`); released when the
 /// launcher ends, however it ends.
 struct Reserved(Vec<PathBuf>);
 
@@ -802,7 +801,7 @@ impl Reserved {
     fn take(dir: &Path) -> Self {
         let paths: Vec<PathBuf> = REPORTS.iter().map(|n| dir.join(n)).collect();
         for p in &paths {
-            if let Err(e) = crate::report::files::reserve(p, REPORT_RESERVE) {
+            if let Err(e) = crate::files::reserve(p, REPORT_RESERVE) {
                 err!(
                     "evoloop: warning: cannot set disk aside for {}: {e}",
                     p.display()
@@ -815,14 +814,14 @@ impl Reserved {
 
 impl Drop for Reserved {
     fn drop(&mut self) {
-        self.0.iter().for_each(|p| crate::report::files::release(p));
+        self.0.iter().for_each(|p| crate::files::release(p));
     }
 }
 
 /// After a failed run: say "no space left" with the folder and what is left, when less than
 /// 1 MiB is, the words a user needs when writes failed for want of space.
 fn say_if_disk_full(dir: &Path) {
-    match crate::report::files::free_bytes(dir) {
+    match crate::files::free_bytes(dir) {
         Some(free) if free < 1 << 20 => err!(
             "error: no space left on the device of {} ({free} bytes free): what was written in full is kept",
             dir.display()

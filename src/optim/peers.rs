@@ -171,7 +171,7 @@ mod tests {
 
     fn file(text: &str) -> tempfile::NamedTempFile {
         let f = tempfile::NamedTempFile::new().unwrap();
-        crate::report::files::write(f.path(), text).unwrap();
+        crate::files::write(f.path(), text).unwrap();
         f
     }
 

@@ -648,7 +648,7 @@ pub fn build_report(
             let f = frozen.get(j).map_or(f64::NAN, |x| x.2);
             csv.push_str(&format!("{j},{},{},{},{f}\n", r.0, r.1, r.2));
         }
-        crate::report::files::write(dir.join("repetitions.csv"), csv).map_err(|e| e.to_string())?;
+        crate::files::write(dir.join("repetitions.csv"), csv).map_err(|e| e.to_string())?;
     }
     if !opt.estimates.is_empty() {
         let mut csv = String::from("t,estimate,std,true\n");
@@ -661,7 +661,7 @@ pub fn build_report(
                 truth(e.t).unwrap_or(f64::NAN)
             ));
         }
-        crate::report::files::write(dir.join("estimates.csv"), csv).map_err(|e| e.to_string())?;
+        crate::files::write(dir.join("estimates.csv"), csv).map_err(|e| e.to_string())?;
         if scn.output.plots {
             let te: Vec<f64> = opt.estimates.iter().map(|e| e.t).collect();
             let est: Vec<f64> = opt.estimates.iter().map(|e| e.value).collect();
@@ -758,7 +758,7 @@ mod tests {
         .unwrap();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("run.csv");
-        crate::report::files::write(&path, "t,reference,y0,u0\n").unwrap();
+        crate::files::write(&path, "t,reference,y0,u0\n").unwrap();
         let scan = super::scan_run(&scn, &path).expect("a header-only run.csv scans");
         assert_eq!(scan.horizon, 0.0);
         assert!(!scan.tracking.rms.iter().any(|v| v.is_finite() && *v != 0.0));

@@ -2,7 +2,6 @@
 //! writing/reading, response metrics (settling time, overshoot, IAE, ISE) and plots.
 
 pub mod build;
-pub mod files;
 pub mod history;
 pub mod html;
 pub mod mcap_file;
@@ -33,7 +32,7 @@ pub fn print_json(value: &impl serde::Serialize) {
 pub fn write_json<T: serde::Serialize>(dir: &Path, name: &str, value: &T) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let text = serde_json::to_string_pretty(value).map_err(std::io::Error::other)?;
-    crate::report::files::write(dir.join(name), text + "\n")
+    crate::files::write(dir.join(name), text + "\n")
 }
 
 /// A table of f64 rows with fixed width and capacity, allocated up front so recording a row
@@ -87,7 +86,7 @@ impl RunLog {
     /// Write as CSV with the shortest exact decimal form of each number, so equal runs give
     /// byte-identical files.
     pub fn write_csv(&self, path: &Path) -> std::io::Result<()> {
-        let mut w = BufWriter::new(files::create(path)?);
+        let mut w = BufWriter::new(crate::files::create(path)?);
         writeln!(w, "{}", self.header.join(","))?;
         for i in 0..self.len() {
             write_row(&mut w, self.row(i))?;
@@ -210,12 +209,12 @@ mod tests {
     fn a_table_with_a_row_cut_short_is_an_error_naming_the_line() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("run.csv");
-        crate::report::files::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5,2.5\n").unwrap();
+        crate::files::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5,2.5\n").unwrap();
         let t = Table::read(&path).unwrap();
         assert_eq!(t.rows.len(), 2);
         assert_eq!(t.col("u0"), Some(vec![2.0, 2.5]));
         // What a full disk leaves: the last row cut inside a field's boundary.
-        crate::report::files::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5\n").unwrap();
+        crate::files::write(&path, "t,y0,u0\n0,1,2\n0.001,1.5\n").unwrap();
         let e = Table::read(&path)
             .err()
             .expect("a cut row must be refused")
@@ -223,7 +222,7 @@ mod tests {
         assert!(e.contains("line 3") && e.contains("cut short"), "{e}");
         // What a kill between flushes leaves, and what the launcher does with it after the
         // run: the cut row goes, the whole ones stay readable.
-        crate::report::files::write(&path, "t,y0,u0\n0,1,2\n0.001,1.").unwrap();
+        crate::files::write(&path, "t,y0,u0\n0,1,2\n0.001,1.").unwrap();
         assert!(Table::read(&path).is_err());
         assert!(cut_partial_row(&path).unwrap());
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "t,y0,u0\n0,1,2\n");

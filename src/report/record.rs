@@ -83,7 +83,7 @@ impl Recorder {
         metadata: BTreeMap<String, String>,
         avoid_cpu: Option<usize>,
     ) -> Result<Self, String> {
-        let file = super::files::create(path).map_err(|e| e.to_string())?;
+        let file = crate::files::create(path).map_err(|e| e.to_string())?;
         let at = |e: std::io::Error| format!("{}: {e}", path.display());
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,

@@ -313,10 +313,9 @@ impl Study {
                 r.rejected
             ));
         }
-        crate::report::files::write(out.join("seeds.csv"), csv).map_err(|e| e.to_string())?;
+        crate::files::write(out.join("seeds.csv"), csv).map_err(|e| e.to_string())?;
         crate::report::write_json(out, "study.json", self).map_err(|e| e.to_string())?;
-        crate::report::files::write(out.join("study.md"), self.markdown())
-            .map_err(|e| e.to_string())?;
+        crate::files::write(out.join("study.md"), self.markdown()).map_err(|e| e.to_string())?;
         if plots && !runs.is_empty() {
             use crate::report::plot::{xy_png, Curve, Style, XySeries};
             let xs: Vec<f64> = runs.iter().map(|r| r.seed as f64).collect();

@@ -101,7 +101,7 @@ impl RkgnnModel {
 
     pub fn save(&self, path: &Path) -> Result<(), String> {
         let s = serde_json::to_string_pretty(&self.to_file()).map_err(|e| e.to_string())?;
-        crate::report::files::write(path, s + "\n").map_err(|e| format!("{}: {e}", path.display()))
+        crate::files::write(path, s + "\n").map_err(|e| format!("{}: {e}", path.display()))
     }
 
     /// Read and check a model file: format and version, joint count, parameter count, finite

@@ -570,7 +570,7 @@ pub fn run(
     crate::report::write_json(dir, "selection.json", &result)
         .map_err(|e| format!("{}: {e}", dir.join("selection.json").display()))?;
     let p = dir.join("report.md");
-    crate::report::files::write(&p, report_markdown(&result))
+    crate::files::write(&p, report_markdown(&result))
         .map_err(|e| format!("{}: {e}", p.display()))?;
     Ok(result)
 }

@@ -192,7 +192,7 @@ pub(super) fn write_scenarios(cases: &[Case]) -> Result<(), String> {
     for c in cases {
         let path = &c.scenario.source;
         std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")))
-            .and_then(|_| crate::report::files::write(path, &c.text))
+            .and_then(|_| crate::files::write(path, &c.text))
             .map_err(|e| format!("{}: {e}", path.display()))?;
     }
     Ok(())
@@ -600,9 +600,9 @@ fn write_outputs(
         csv += &format!("{key},{},{},{},{}\n", v[0], v[1], v[2], overall(v));
     }
     let p = dir.join("tracking_rms.csv");
-    crate::report::files::write(&p, csv).map_err(io(&p))?;
+    crate::files::write(&p, csv).map_err(io(&p))?;
     let p = dir.join("report.md");
-    crate::report::files::write(&p, report_markdown(r)).map_err(io(&p))?;
+    crate::files::write(&p, report_markdown(r)).map_err(io(&p))?;
     figures(dir, cases, traces, fuzzy)
 }
 

@@ -356,7 +356,7 @@ pub fn study(
         lqr2: &lqr2,
         responses: &responses,
     };
-    crate::report::files::write(
+    crate::files::write(
         dir.join("study.json"),
         serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?,
     )
@@ -383,7 +383,7 @@ pub fn study(
             );
         }
     }
-    crate::report::files::write(dir.join("runs.csv"), csv).map_err(|e| e.to_string())?;
+    crate::files::write(dir.join("runs.csv"), csv).map_err(|e| e.to_string())?;
     let mut rcsv = String::from("controller,plant,k,settling_time_s,overshoot_pct\n");
     for r in &responses {
         for i in 0..r.springs.len() {
@@ -400,10 +400,10 @@ pub fn study(
             );
         }
     }
-    crate::report::files::write(dir.join("responses.csv"), rcsv).map_err(|e| e.to_string())?;
+    crate::files::write(dir.join("responses.csv"), rcsv).map_err(|e| e.to_string())?;
 
     let report = report_md(&prob, &settings, &median_gains, &lqr1, &lqr2, &responses);
-    crate::report::files::write(dir.join("report.md"), &report).map_err(|e| e.to_string())?;
+    crate::files::write(dir.join("report.md"), &report).map_err(|e| e.to_string())?;
     Ok(report)
 }
 

@@ -86,7 +86,7 @@ pub fn run(run: Run) -> Result<(), String> {
     for (i, (v, b)) in r.values.iter().zip(&r.best_so_far).enumerate() {
         csv.push_str(&format!("{},{v},{b}\n", i + 1));
     }
-    crate::report::files::write(run.out.join("evolution.csv"), csv).map_err(|e| e.to_string())?;
+    crate::files::write(run.out.join("evolution.csv"), csv).map_err(|e| e.to_string())?;
     let mut tr = String::from("k,w,x_initial,x_optimised\n");
     for k in 0..trajectory.len() {
         tr.push_str(&format!(
@@ -96,7 +96,7 @@ pub fn run(run: Run) -> Result<(), String> {
             x1[k + 1]
         ));
     }
-    crate::report::files::write(run.out.join("tracking.csv"), tr).map_err(|e| e.to_string())?;
+    crate::files::write(run.out.join("tracking.csv"), tr).map_err(|e| e.to_string())?;
     if run.plots {
         plots(
             &run,

@@ -214,7 +214,7 @@ pub fn run(run: Run, spec: Spec) -> Result<(), String> {
         }
         csv.push('\n');
     }
-    crate::report::files::write(run.out.join("response.csv"), csv).map_err(|e| e.to_string())?;
+    crate::files::write(run.out.join("response.csv"), csv).map_err(|e| e.to_string())?;
     if run.plots {
         plots(&run, &tuned, &traces)?;
     }
@@ -463,7 +463,7 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
             );
         }
     }
-    crate::report::files::write(base.out.join("seeds.csv"), &csv).map_err(|e| e.to_string())?;
+    crate::files::write(base.out.join("seeds.csv"), &csv).map_err(|e| e.to_string())?;
     let part = |c: &Option<Cost>, p: &str| match (c, p) {
         (None, _) => f64::INFINITY,
         (Some(c), "G") => c.g,
@@ -556,7 +556,7 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
     for c in &comparisons {
         md.push_str(&format!("- {}\n", c.sentence));
     }
-    crate::report::files::write(base.out.join("study.md"), &md).map_err(|e| e.to_string())?;
+    crate::files::write(base.out.join("study.md"), &md).map_err(|e| e.to_string())?;
     if base.plots {
         let xs: Vec<f64> = seeds.iter().map(|s| *s as f64).collect();
         for (p, file, label) in [

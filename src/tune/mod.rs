@@ -153,8 +153,8 @@ fn hybrid_config(
 
 fn read(file: &Path) -> Result<RawTune, String> {
     let text =
-        crate::text::read_text(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
-    crate::text::from_toml(&text).map_err(|p| bad(file, &p.key, p.reason))
+        crate::files::read_text(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
+    crate::files::from_toml(&text).map_err(|p| bad(file, &p.key, p.reason))
 }
 
 /// Read and validate an experiment file without running it.
@@ -179,7 +179,7 @@ pub fn validate_file(file: &Path) -> Result<(), String> {
 
 /// Run the experiment the request names (or a direct-scheme scenario, in this process).
 pub fn tune(a: &TuneRequest) -> Result<(), String> {
-    if crate::text::read_text(&a.file).is_ok_and(|t| direct::is_scenario(&t)) {
+    if crate::files::read_text(&a.file).is_ok_and(|t| direct::is_scenario(&t)) {
         return direct::run(&a.file, a);
     }
     let raw = read(&a.file)?;

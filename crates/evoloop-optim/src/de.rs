@@ -433,7 +433,7 @@ mod tests {
                 epsilon: 1e-9,
             })
             .unwrap();
-            crate::optim::drive(&mut de, 60_000, |x| x.iter().map(|v| v * v).sum(), |_| {});
+            crate::drive(&mut de, 60_000, |x| x.iter().map(|v| v * v).sum(), |_| {});
             (de.best().0.to_vec(), de.best().1)
         };
         let (a, b) = (run(), run());

@@ -169,11 +169,11 @@ impl Rule for GoaRule {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optim::Optimiser;
+    use crate::Optimiser;
 
     fn run<O: Optimiser>(o: &mut O, iterations: usize, f: impl Fn(&[f64]) -> f64) -> f64 {
         let budget = o.candidates().len() * (iterations + 1);
-        crate::optim::drive(o, budget, f, |_| {});
+        crate::drive(o, budget, f, |_| {});
         o.best().1
     }
 

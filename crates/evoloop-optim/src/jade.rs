@@ -295,7 +295,7 @@ mod tests {
 
     fn run(cfg: JadeConfig, evaluations: usize, f: impl Fn(&[f64]) -> f64) -> Jade {
         let mut o = Jade::new(cfg).unwrap();
-        crate::optim::drive(&mut o, evaluations, f, |_| {});
+        crate::drive(&mut o, evaluations, f, |_| {});
         o
     }
 
@@ -426,15 +426,16 @@ mod tests {
     /// paired seeds: the reason the study carries it.
     #[test]
     fn beats_classic_de_on_rotated_problems() {
-        use crate::optim::study::{build, Problem};
+        use crate::by_name::build;
+        use crate::problem::Problem;
         for key in ["ackley", "schwefel_2_21"] {
-            let problem = Problem::shifted(crate::optim::suite::get(key).unwrap());
+            let problem = Problem::shifted(crate::suite::get(key).unwrap());
             let (lower, upper) = problem.bounds();
             let f = |x: &[f64]| problem.value(x) - problem.f_min();
             for seed in 0..5 {
                 let end = |name: &str| {
                     let mut o = build(name, &lower, &upper, 30, 30_000, seed).unwrap();
-                    crate::optim::drive(o.as_mut(), 30_000, f, |_| {});
+                    crate::drive(o.as_mut(), 30_000, f, |_| {});
                     o.best().1
                 };
                 let (jade, de) = (end("jade"), end("de"));

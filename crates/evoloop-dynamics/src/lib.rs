@@ -92,7 +92,7 @@ pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Loaded, RobotErro
         item: String::new(),
         reason,
     };
-    let text = crate::text::read_text(path).map_err(|e| err(format!("cannot read: {e}")))?;
+    let text = evoloop_files::read_text(path).map_err(|e| err(format!("cannot read: {e}")))?;
     match path.extension().and_then(|e| e.to_str()) {
         Some("toml") => dh::parse_with(&text, path, options),
         Some("urdf") | Some("xml") => urdf::parse_with(&text, path, options),
@@ -238,13 +238,13 @@ fn finish(model: Model, file: &Path) -> Result<Model, RobotError> {
     if model.bodies.is_empty() {
         return Err(fail(String::new(), "the robot has no moving joint".into()));
     }
-    if model.bodies.len() > crate::MAX_JOINTS {
+    if model.bodies.len() > evoloop_msg::MAX_JOINTS {
         return Err(fail(
             String::new(),
             format!(
                 "{} moving joints; at most {} are supported",
                 model.bodies.len(),
-                crate::MAX_JOINTS
+                evoloop_msg::MAX_JOINTS
             ),
         ));
     }

@@ -304,7 +304,7 @@ impl Rule for EmuPsoRule {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optim::Optimiser;
+    use crate::Optimiser;
 
     fn sphere(x: &[f64]) -> f64 {
         x.iter().map(|v| v * v).sum()
@@ -313,7 +313,7 @@ mod tests {
     /// The whole budget (initial population and every iteration), or up to the target.
     fn run(opt: &mut EmuPso, f: impl Fn(&[f64]) -> f64) {
         let budget = opt.swarm.cfg.population * (opt.swarm.cfg.iterations + 1);
-        crate::optim::drive(opt, budget, f, |_| {});
+        crate::drive(opt, budget, f, |_| {});
     }
 
     #[test]
@@ -461,7 +461,7 @@ mod tests {
             ("griewank", 0.0343134),
             ("rastrigin", 17.378784),
         ] {
-            let f = crate::optim::suite::get(key).unwrap();
+            let f = crate::suite::get(key).unwrap();
             let errors: Vec<f64> = (0..30)
                 .map(|seed| {
                     let (lower, upper) = f.bounds();

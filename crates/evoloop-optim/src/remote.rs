@@ -342,7 +342,8 @@ mod tests {
         fn send(&self, id: &str, job: &Job, xs: &[&[f64]], ts: &[f64]) -> Box<dyn Pending> {
             self.sent.lock().unwrap().push((id.to_string(), xs.len()));
             let i: usize = id[1..].parse().unwrap();
-            let f = crate::jobs::rebuild(job).unwrap();
+            let f: Bowl = job.decode().unwrap();
+            use crate::Objective;
             let v = xs
                 .iter()
                 .zip(ts)
@@ -358,12 +359,33 @@ mod tests {
         }
     }
 
+    /// An objective that describes itself, as evoloop's model objectives do (`evoloop::jobs`
+    /// rebuilds those): sum of w_i sin(x_i)^2, whose bits depend on every input bit.
+    #[derive(serde::Serialize, serde::Deserialize)]
+    struct Bowl {
+        weights: Vec<f64>,
+    }
+
+    impl crate::Objective for Bowl {
+        fn value(&self, x: &[f64]) -> f64 {
+            x.iter()
+                .zip(&self.weights)
+                .map(|(x, w)| w * x.sin().powi(2))
+                .sum()
+        }
+        fn describe(&self) -> Option<Job> {
+            Job::of("bowl", self)
+        }
+    }
+
     #[test]
     fn values_do_not_depend_on_which_worker_answered_or_whether_any_did() {
-        use crate::optim::Objective;
-        let f = crate::sim::maglev::Objective::fuzzy(0.2, 3);
+        use crate::Objective;
+        let f = Bowl {
+            weights: vec![1.0, 0.3, 2.5, 0.7],
+        };
         let job = f.describe().unwrap();
-        let base = crate::sim::maglev::PAPER_FUZZY;
+        let base = [0.4, -1.2, 2.0, 0.05];
         let candidates: Vec<Vec<f64>> = (0..9)
             .map(|i| base.iter().map(|v| v * (1.0 + 0.01 * i as f64)).collect())
             .collect();

@@ -98,7 +98,7 @@ pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Load
         item,
         reason,
     };
-    let raw: RawTable = crate::text::from_toml(text).map_err(|p| {
+    let raw: RawTable = evoloop_files::from_toml(text).map_err(|p| {
         let at = p.line.map(|l| format!("line {l}: ")).unwrap_or_default();
         fail(
             if p.key.is_empty() {

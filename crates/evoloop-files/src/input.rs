@@ -1,6 +1,6 @@
 //! Reading the project's text inputs: files bounded in size, and TOML decoded with the key and
-//! line of a problem. The bottom of the crate: the configuration checks (`check`) and the robot
-//! loaders (`dynamics`) both read through here, so neither needs the other for it.
+//! line of a problem. The configuration checks and the robot loaders (`evoloop-dynamics`) both
+//! read through here, so neither needs the other for it.
 
 use std::path::Path;
 

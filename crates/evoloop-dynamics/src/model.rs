@@ -403,8 +403,8 @@ impl Model {
             plus[j] += 1.0;
             minus.copy_from_slice(qd);
             minus[j] -= 1.0;
-            let mut vp = [0.0; crate::MAX_JOINTS];
-            let mut vm = [0.0; crate::MAX_JOINTS];
+            let mut vp = [0.0; evoloop_msg::MAX_JOINTS];
+            let mut vm = [0.0; evoloop_msg::MAX_JOINTS];
             self.rnea_pass(d, &plus, None, false, &mut vp[..n]);
             self.rnea_pass(d, &minus, None, false, &mut vm[..n]);
             for i in 0..n {
@@ -559,7 +559,7 @@ fn body_motion(
 /// In-place Cholesky M = L Lᵀ (lower triangle of `a` overwritten by L) and solve of M x = b into
 /// `b`. Written out rather than through nalgebra's `Cholesky`, which takes its matrix by value:
 /// this keeps the factor in a buffer that lives in `Data` and the call allocation-free.
-pub(crate) fn cholesky_solve_in_place(
+pub fn cholesky_solve_in_place(
     a: &mut DMatrix<f64>,
     b: &mut DVector<f64>,
 ) -> Result<(), NotPositiveDefinite> {
@@ -613,7 +613,11 @@ mod tests {
             "config/robots/industrial6.toml",
             "config/robots/arm3.toml",
         ] {
-            let model = crate::dynamics::load(std::path::Path::new(file)).unwrap();
+            // The workspace's robot files (config/robots at its root).
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../..")
+                .join(file);
+            let model = crate::load(&path).unwrap();
             for b in model.bodies.iter().filter(|b| b.axis == DVec3::Z) {
                 for k in -400..=400 {
                     let q = k as f64 * 0.0123 + 1e-3;

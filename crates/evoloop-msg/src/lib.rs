@@ -1,10 +1,17 @@
 //! The messages every layer speaks: plant samples, commands, telemetry, parameter sets, the
 //! optimiser's acknowledgements and model estimates. Plain fixed-size `#[repr(C)]` data with no
-//! pointers, so the transport (`crate::ipc`, which marks them zero-copy sendable and names them
-//! for iceoryx2) can put them in shared memory as they are; control laws, plants and the
-//! simulation use them without linking the transport.
+//! pointers, so the transport (evoloop's `ipc`, which marks them zero-copy sendable and names
+//! them for iceoryx2) can put them in shared memory as they are; control laws, plants and the
+//! simulation use them without linking the transport. The bottom of the workspace: it depends
+//! on nothing but serde, so every other crate (and a process in another language reading the
+//! same layouts) can take it.
 
-use crate::{MAX_JOINTS, MAX_PARAMS, MAX_STATES};
+/// Largest number of joints/inputs/outputs a message carries (8-joint arms fit).
+pub const MAX_JOINTS: usize = 8;
+/// Largest plant state vector a message carries (positions, velocities and extra states).
+pub const MAX_STATES: usize = 32;
+/// Largest parameter set (identified models of later issues fit: RBF networks, fuzzy rule bases).
+pub const MAX_PARAMS: usize = 1024;
 
 /// `PlantState::flags`: the plant applied its safe command because commands stopped arriving.
 pub const STATE_FLAG_SAFE: u32 = 1;
@@ -322,3 +329,30 @@ pub struct ModelEstimate {
     /// seed checks each set on the same estimate.
     pub apply_at_seq: u64,
 }
+
+use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+
+/// The message types go into iceoryx2's shared memory as they are (its `ZeroCopySend`, from the
+/// dependency-free trait crate, so this crate links no transport). Their iceoryx2 names carry a version
+/// suffix because iceoryx2 checks only name, size and alignment when a service opens: change a
+/// layout, bump the version.
+macro_rules! zero_copy {
+    ($($t:ident => $name:literal),* $(,)?) => {$(
+        // SAFETY: `#[repr(C)]`, `Copy`, fields only f64/u64/u32 and fixed arrays of them: no
+        // pointers or references, the same layout in every process of one build.
+        unsafe impl ZeroCopySend for $t {
+            unsafe fn type_name() -> &'static str {
+                $name
+            }
+        }
+    )*};
+}
+zero_copy!(
+    PlantState => "evoloop::PlantState.v1",
+    Command => "evoloop::Command.v1",
+    Telemetry => "evoloop::Telemetry.v1",
+    ParamSet => "evoloop::ParamSet.v1",
+    OptimiserAck => "evoloop::OptimiserAck.v1",
+    ModelEstimate => "evoloop::ModelEstimate.v1",
+    OptimiserStatus => "evoloop::OptimiserStatus.v1",
+);

@@ -123,7 +123,7 @@ impl Optimiser for Pulled {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optim::GaConfig;
+    use crate::GaConfig;
 
     fn cfg() -> HybridConfig {
         HybridConfig {

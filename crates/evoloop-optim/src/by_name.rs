@@ -1,0 +1,94 @@
+//! The optimisers by name, as a configuration or a command line names them: one constructor for
+//! a box, a population and an evaluation budget.
+
+use crate::emupso::{EmuPso, EmuPsoSettings};
+use crate::jade::{Jade, JadeConfig};
+use crate::pso::Pso;
+use crate::swarm::SwarmConfig;
+use crate::wolves::{Goa, Gwo, Woa};
+use crate::{DeConfig, DifferentialEvolution, Ga, GaConfig, Optimiser};
+
+/// The study's algorithms: the paper's six, then the real-coded GA of the fuzzy-network paper
+/// and JADE, the adaptive DE the Python libraries offer (`crate::jade`). (Hooke-Jeeves is a
+/// local search from one point, not a population method; it is left out.)
+pub const ALGORITHMS: [&str; 8] = ["emupso", "pso", "woa", "gwo", "goa", "de", "ga", "jade"];
+
+/// An optimiser of the study over a box, for a population and an evaluation budget.
+/// DE is DE/rand/1/bin with F = 0.5, CR = 0.9 (Storn and Price's standard; the paper gives no
+/// settings) and no stopping rule; the GA's mutation steps shrink to zero at the end of the
+/// budget (N_max of its eq. 19 = its iterations: two evaluations each after the first
+/// population).
+pub fn build(
+    name: &str,
+    lower: &[f64],
+    upper: &[f64],
+    population: usize,
+    evaluations: usize,
+    seed: u64,
+) -> Result<Box<dyn Optimiser + Send>, String> {
+    build_seeded(name, lower, upper, population, evaluations, seed, &[])
+}
+
+/// `build`, with user-specified sets placed in the GA's initial population (the fuzzy-network
+/// paper's GA starts from prespecified sets; the swarms and DE start at random and ignore them).
+pub fn build_seeded(
+    name: &str,
+    lower: &[f64],
+    upper: &[f64],
+    population: usize,
+    evaluations: usize,
+    seed: u64,
+    seeds: &[Vec<f64>],
+) -> Result<Box<dyn Optimiser + Send>, String> {
+    let swarm = || {
+        SwarmConfig::for_budget(
+            lower.to_vec(),
+            upper.to_vec(),
+            population,
+            evaluations,
+            seed,
+        )
+    };
+    Ok(match name {
+        "emupso" => Box::new(EmuPso::new(swarm(), EmuPsoSettings::default())?),
+        "pso" => Box::new(Pso::new(swarm())?),
+        "gwo" => Box::new(Gwo::new(swarm())?),
+        "woa" => Box::new(Woa::new(swarm())?),
+        "goa" => Box::new(Goa::new(swarm())?),
+        "de" => Box::new(DifferentialEvolution::new(DeConfig {
+            np: population,
+            f: 0.5,
+            cr: 0.9,
+            lower: lower.to_vec(),
+            upper: upper.to_vec(),
+            seed,
+            diversity_stop: false,
+            eta: 1,
+            epsilon: 0.0,
+        })?),
+        "jade" => Box::new(Jade::new(JadeConfig::new(
+            population,
+            lower.to_vec(),
+            upper.to_vec(),
+            seed,
+        ))?),
+        "ga" => Box::new(Ga::new(
+            GaConfig {
+                population,
+                p_crossover: 0.9,
+                p_mutation: None,
+                max_iterations: (evaluations.saturating_sub(population) / 2).max(1),
+                seed,
+            },
+            lower,
+            upper,
+            seeds,
+        )),
+        other => {
+            return Err(format!(
+                "unknown algorithm {other:?} (known: {})",
+                ALGORITHMS.join(", ")
+            ))
+        }
+    })
+}
