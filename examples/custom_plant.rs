@@ -66,8 +66,8 @@ impl SpeedPi {
 }
 
 impl Controller for SpeedPi {
-    fn kind(&self) -> u32 {
-        evoloop::msg::KIND_PID
+    fn kind(&self) -> evoloop::msg::ParamKind {
+        evoloop::msg::ParamKind::Pid
     }
     fn n_params(&self) -> usize {
         2

@@ -129,6 +129,8 @@ pub struct ParamsView {
     /// Parameter events in the telemetry top received since it attached.
     pub accepted_seen: u64,
     pub rejected_seen: u64,
+    /// Events whose code this build does not know (a controller of another version).
+    pub unknown_codes_seen: u64,
     /// Sets published on the run's topic since top attached, and the last one.
     pub sets_seen: u64,
     pub last_set_version: Option<u64>,
@@ -207,11 +209,11 @@ impl Watch {
     pub fn telemetry(&mut self, tel: &Telemetry, at_s: f64) {
         self.received += 1;
         if tel.param_event_version != 0 {
-            let code = ParamCode::from_u32(tel.param_code);
-            if code == ParamCode::Accepted {
-                self.params.accepted_seen += 1;
-            } else if code.is_rejection() {
-                self.params.rejected_seen += 1;
+            match ParamCode::try_from(tel.param_code) {
+                Ok(ParamCode::Accepted) => self.params.accepted_seen += 1,
+                Ok(code) if code.is_rejection() => self.params.rejected_seen += 1,
+                Ok(_) => {}
+                Err(_) => self.params.unknown_codes_seen += 1,
             }
         }
         self.params.version_in_service = tel.param_version;
@@ -439,6 +441,9 @@ mod tests {
         w.telemetry(&t, 0.0);
         t.param_code = ParamCode::RejectedUnstable as u32;
         w.telemetry(&t, 0.001);
+        // A code this build does not know is counted as such, not as "no event".
+        t.param_code = 99;
+        w.telemetry(&t, 0.002);
         w.params(&ParamSet {
             version: 5,
             expected_cost: 2.5,
@@ -453,6 +458,7 @@ mod tests {
         });
         let s = w.snapshot(0.01, &[]);
         assert_eq!((s.params.accepted_seen, s.params.rejected_seen), (1, 1));
+        assert_eq!(s.params.unknown_codes_seen, 1);
         assert_eq!(s.params.last_set_version, Some(5));
         assert_eq!(s.params.last_set_expected_cost, Some(2.5));
         assert_eq!(

@@ -137,7 +137,12 @@ fn trial(version: u64, values: &[f64], at: u64, until: u64, fallback: u64) -> Pa
     ParamSet {
         until_seq: until,
         fallback_version: fallback,
-        ..ParamSet::new(version, at, evoloop::msg::KIND_PID_FUZZY_AW, values)
+        ..ParamSet::new(
+            version,
+            at,
+            evoloop::msg::ParamKind::PidFuzzyAntiWindup,
+            values,
+        )
     }
 }
 

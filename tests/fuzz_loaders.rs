@@ -392,7 +392,10 @@ fn a_controller_takes_a_set_whole_or_refuses_it_with_a_code_and_keeps_its_last_g
             )
             .with_stability_check(scn.linear_model());
             let before = cycle.controller.params().to_vec();
-            let own_kind = cycle.controller.kind();
+            let own_kind = cycle.controller.kind().code();
+            // A model set (computed torque's rigid-body model) is accepted too, and leaves the
+            // gains in service as they were.
+            let model_kind = cycle.controller.model_kind().map(|k| k.code());
             let len = before.len();
             let mut set = ParamSet {
                 version: 1 + rng.gen_range(0..3),
@@ -431,11 +434,13 @@ fn a_controller_takes_a_set_whole_or_refuses_it_with_a_code_and_keeps_its_last_g
             match e.code {
                 ParamCode::Accepted => {
                     let n = set.n as usize;
-                    if set.kind != own_kind || n != len {
+                    if Some(set.kind) == model_kind {
+                        if after != before {
+                            return Err("a model set changed the gains in service".into());
+                        }
+                    } else if set.kind != own_kind || n != len {
                         return Err("a set of the wrong kind or length was accepted".into());
-                    }
-                    // Model sets are stored in the controller's own form; the others as sent.
-                    if own_kind != evoloop::msg::KIND_RIGID_BODY_MODEL && after != set.values[..n] {
+                    } else if after != set.values[..n] {
                         return Err("accepted but not in service".into());
                     }
                 }

@@ -14,9 +14,7 @@ use evoloop::control::cycle::ControlCycle;
 use evoloop::control::model_check::ModelCheck;
 use evoloop::control::{ParamBounds, StateFeedback};
 use evoloop::ipc::{Ipc, Topic};
-use evoloop::msg::{
-    Command, ModelEstimate, ParamCode, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK,
-};
+use evoloop::msg::{Command, ModelEstimate, ParamCode, ParamKind, ParamSet, PlantState, Telemetry};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::PlantSim;
 use evoloop::reference::Reference;
@@ -101,7 +99,7 @@ fn the_control_cycle_allocates_nothing() {
     let set = ParamSet::new(
         1,
         1500,
-        KIND_STATE_FEEDBACK,
+        ParamKind::StateFeedback,
         &[12.1946, 11.7906, 18.7567, 4.958, -10.0],
     );
     let mut msg = PlantState::default();
@@ -168,7 +166,7 @@ fn the_control_cycle_allocates_nothing() {
         ..ParamSet::new(
             2,
             2000,
-            KIND_STATE_FEEDBACK,
+            ParamKind::StateFeedback,
             &[15.0, 15.0, 30.0, 6.0, -10.0],
         )
     };

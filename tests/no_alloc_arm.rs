@@ -116,7 +116,7 @@ fn computed_torque() {
     cyc.offer(&ParamSet::new(
         2,
         1000,
-        evoloop::msg::KIND_RIGID_BODY_MODEL,
+        evoloop::msg::ParamKind::RigidBodyModel,
         &pi,
     ));
     let mut msg = PlantState::default();

@@ -3,7 +3,7 @@
 
 use evoloop::control::cycle::ControlCycle;
 use evoloop::control::{validate_params, Controller, ParamBounds, StateFeedback};
-use evoloop::msg::{ParamCode, ParamSet, PlantState, Telemetry, KIND_STATE_FEEDBACK};
+use evoloop::msg::{ParamCode, ParamKind, ParamSet, PlantState, Telemetry};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::{Plant, PlantSim};
 use evoloop::reference::{Reference, Setpoint};
@@ -145,7 +145,7 @@ fn state(x: [f64; 4], y: f64, seq: u64) -> PlantState {
 }
 
 fn set(version: u64, values: &[f64], apply_at_seq: u64) -> ParamSet {
-    ParamSet::new(version, apply_at_seq, KIND_STATE_FEEDBACK, values)
+    ParamSet::new(version, apply_at_seq, ParamKind::StateFeedback, values)
 }
 
 #[test]
@@ -231,9 +231,9 @@ fn validation_refuses_each_kind_of_bad_set_with_its_reason() {
         upper: vec![10.0; 3],
     };
     let ok = set(2, &[1.0, 2.0, 3.0], 0);
-    assert!(validate_params(&ok, KIND_STATE_FEEDBACK, 3, 1, &b).is_ok());
+    assert!(validate_params(&ok, ParamKind::StateFeedback, 3, 1, &b).is_ok());
     let code =
-        |s: &ParamSet, v: u64| validate_params(s, KIND_STATE_FEEDBACK, 3, v, &b).unwrap_err();
+        |s: &ParamSet, v: u64| validate_params(s, ParamKind::StateFeedback, 3, v, &b).unwrap_err();
     assert_eq!(
         code(&set(2, &[1.0, f64::NAN, 3.0], 0), 1).code,
         ParamCode::RejectedNonFinite

@@ -316,6 +316,12 @@ pub fn render(f: &mut Frame, s: &Snapshot, ended: bool) {
         "version {} in service\naccepted {}  rejected {}  (seen)\nsets {}",
         p.version_in_service, p.accepted_seen, p.rejected_seen, p.sets_seen
     );
+    if p.unknown_codes_seen > 0 {
+        text.push_str(&format!(
+            "\nunknown codes {} (another version?)",
+            p.unknown_codes_seen
+        ));
+    }
     if let Some(v) = p.last_set_version {
         text.push_str(&format!(", last v{v}"));
         if let Some(cost) = p.last_set_expected_cost {

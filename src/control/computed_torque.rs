@@ -10,7 +10,7 @@
 //! simulator's true joint velocities `qd_true` (as the paper's simulation has them).
 //!
 //! The model itself can be replaced while the loop runs (an identified model, the eMuPSO
-//! paper's Section 4.1 put to use): a set of kind `KIND_RIGID_BODY_MODEL` carries the
+//! paper's Section 4.1 put to use): a set of kind `ParamKind::RigidBodyModel` carries the
 //! parameters in the regressor's order with friction and armature (13 per joint,
 //! `identify::Columns::PLANT`; e.g. `identify lls`'s `model_parameters`). It is checked on a
 //! second model kept for the purpose: on `PROBES` fixed positions inside the joint limits,
@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use crate::dynamics::model::cholesky_solve_in_place;
 use crate::dynamics::{Data, Model};
-use crate::msg::{ParamCode, PlantState, KIND_COMPUTED_TORQUE, KIND_RIGID_BODY_MODEL};
+use crate::msg::{ParamCode, PlantState, ParamKind};
 use crate::reference::Setpoint;
 
 pub struct ComputedTorque {
@@ -142,8 +142,8 @@ pub(crate) fn damp_and_limit(u: &mut [f64], psi: f64, effort: impl Iterator<Item
 }
 
 impl Controller for ComputedTorque {
-    fn kind(&self) -> u32 {
-        KIND_COMPUTED_TORQUE
+    fn kind(&self) -> ParamKind {
+        ParamKind::ComputedTorque
     }
     fn n_params(&self) -> usize {
         self.gains.len()
@@ -180,8 +180,8 @@ impl Controller for ComputedTorque {
         self.gains.copy_from_slice(new);
     }
 
-    fn model_kind(&self) -> Option<u32> {
-        Some(KIND_RIGID_BODY_MODEL)
+    fn model_kind(&self) -> Option<ParamKind> {
+        Some(ParamKind::RigidBodyModel)
     }
 
     fn swap_model(&mut self, values: &[f64]) -> Result<(), (ParamCode, u32)> {
@@ -309,10 +309,10 @@ impl ControllerConfig for ComputedTorqueSpec {
     fn tunable(&self) -> &Tunable {
         &self.tunable
     }
-    fn param_kind(&self) -> u32 {
-        KIND_COMPUTED_TORQUE
+    fn param_kind(&self) -> ParamKind {
+        ParamKind::ComputedTorque
     }
-    fn model_param_kind(&self) -> Option<u32> {
-        Some(KIND_RIGID_BODY_MODEL)
+    fn model_param_kind(&self) -> Option<ParamKind> {
+        Some(ParamKind::RigidBodyModel)
     }
 }

@@ -19,7 +19,7 @@ use super::fuzzy_select::{self, Selection};
 use super::computed_torque::{damp_and_limit, gains_and_startup, startup_damping};
 use super::{driven_arm, Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
-use crate::msg::{ParamCode, PlantState, KIND_FUZZY_COMPUTED_TORQUE, KIND_RKGNN_MODEL};
+use crate::msg::{ParamCode, PlantState, ParamKind};
 use crate::reference::Setpoint;
 use crate::rkgnn::network::Mat;
 use crate::rkgnn::RkgnnModel;
@@ -212,8 +212,8 @@ impl FuzzyComputedTorque {
 }
 
 impl Controller for FuzzyComputedTorque {
-    fn kind(&self) -> u32 {
-        KIND_FUZZY_COMPUTED_TORQUE
+    fn kind(&self) -> ParamKind {
+        ParamKind::FuzzyComputedTorque
     }
     fn n_params(&self) -> usize {
         self.gains.len()
@@ -271,8 +271,8 @@ impl Controller for FuzzyComputedTorque {
         self.gains.copy_from_slice(new);
     }
 
-    fn model_kind(&self) -> Option<u32> {
-        Some(KIND_RKGNN_MODEL)
+    fn model_kind(&self) -> Option<ParamKind> {
+        Some(ParamKind::RkgnnModel)
     }
 
     /// values = [slot, parameters]: the slot must exist, the parameters fit its layout, and
@@ -426,11 +426,11 @@ impl ControllerConfig for FuzzyComputedTorqueSpec {
     fn tunable(&self) -> &Tunable {
         &self.tunable
     }
-    fn param_kind(&self) -> u32 {
-        KIND_FUZZY_COMPUTED_TORQUE
+    fn param_kind(&self) -> ParamKind {
+        ParamKind::FuzzyComputedTorque
     }
-    fn model_param_kind(&self) -> Option<u32> {
-        Some(KIND_RKGNN_MODEL)
+    fn model_param_kind(&self) -> Option<ParamKind> {
+        Some(ParamKind::RkgnnModel)
     }
 }
 
@@ -471,7 +471,7 @@ mod tests {
     fn model_set(version: u64, slot: f64, params: &[f64]) -> ParamSet {
         let mut s = ParamSet {
             version,
-            kind: KIND_RKGNN_MODEL,
+            kind: ParamKind::RkgnnModel.code(),
             n: 1 + params.len() as u32,
             ..Default::default()
         };

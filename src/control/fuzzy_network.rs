@@ -8,7 +8,7 @@ use super::{Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
 use crate::fuzzy::codec::Codec;
 use crate::fuzzy::FuzzyNetwork;
-use crate::msg::{PlantState, KIND_FUZZY_NETWORK};
+use crate::msg::{PlantState, ParamKind};
 use crate::reference::Setpoint;
 use serde::{Deserialize, Serialize};
 
@@ -30,8 +30,8 @@ impl FuzzyNetworkLaw {
 }
 
 impl Controller for FuzzyNetworkLaw {
-    fn kind(&self) -> u32 {
-        KIND_FUZZY_NETWORK
+    fn kind(&self) -> ParamKind {
+        ParamKind::FuzzyNetwork
     }
     fn n_params(&self) -> usize {
         self.params.len()
@@ -127,8 +127,8 @@ impl ControllerConfig for FuzzyNetworkSpec {
     fn tunable(&self) -> &Tunable {
         &self.tunable
     }
-    fn param_kind(&self) -> u32 {
-        KIND_FUZZY_NETWORK
+    fn param_kind(&self) -> ParamKind {
+        ParamKind::FuzzyNetwork
     }
     /// C_x0, C_x1, C_y0.
     fn scaling_genes(&self) -> Vec<usize> {

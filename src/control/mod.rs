@@ -14,7 +14,7 @@ pub use state_feedback::StateFeedback;
 pub use validate::{validate_model, validate_params, ParamBounds, Rejection};
 
 use crate::check::{Check, ConfigError, Tunable};
-use crate::msg::PlantState;
+use crate::msg::{ParamKind, PlantState};
 use crate::plant::PlantModel;
 use crate::reference::Setpoint;
 
@@ -49,14 +49,14 @@ pub trait ControllerConfig {
     /// The initial parameter set and the bounds every later set must respect.
     fn tunable(&self) -> &Tunable;
     /// The `msg::KIND_*` its parameter sets carry.
-    fn param_kind(&self) -> u32;
+    fn param_kind(&self) -> ParamKind;
     /// Indices of the parameters that are scaling factors (the GA/Hooke-Jeeves hybrid's phase 2
     /// searches them); none by default.
     fn scaling_genes(&self) -> Vec<usize> {
         Vec::new()
     }
     /// The `msg::KIND_*` of its model sets, if it takes any (`Controller::model_kind`).
-    fn model_param_kind(&self) -> Option<u32> {
+    fn model_param_kind(&self) -> Option<ParamKind> {
         None
     }
     /// Whether a new set must also stabilise the plant's linear model before use.
@@ -127,11 +127,11 @@ impl ControllerSpec {
         self.model.config().tunable()
     }
 
-    pub fn param_kind(&self) -> u32 {
+    pub fn param_kind(&self) -> ParamKind {
         self.model.config().param_kind()
     }
 
-    pub fn model_param_kind(&self) -> Option<u32> {
+    pub fn model_param_kind(&self) -> Option<ParamKind> {
         self.model.config().model_param_kind()
     }
 
@@ -142,7 +142,7 @@ impl ControllerSpec {
 
 pub trait Controller: Send {
     /// `msg::KIND_*` this controller accepts parameter sets for.
-    fn kind(&self) -> u32;
+    fn kind(&self) -> ParamKind;
     /// Number of tunable parameters.
     fn n_params(&self) -> usize;
     /// The parameters in service.
@@ -169,7 +169,7 @@ pub trait Controller: Send {
     }
     /// The kind of a second sort of set the law takes besides its gains (an identified model),
     /// checked and put in service by `swap_model`; `None` for laws that take gains only.
-    fn model_kind(&self) -> Option<u32> {
+    fn model_kind(&self) -> Option<ParamKind> {
         None
     }
     /// Check a model set's values (finite already) and put it in service at this cycle

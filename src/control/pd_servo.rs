@@ -10,7 +10,7 @@
 use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
 use serde::{Deserialize, Serialize};
-use crate::msg::{PlantState, KIND_PD_SERVO};
+use crate::msg::{PlantState, ParamKind};
 use crate::reference::Setpoint;
 
 pub struct PdServo {
@@ -34,8 +34,8 @@ impl PdServo {
 }
 
 impl Controller for PdServo {
-    fn kind(&self) -> u32 {
-        KIND_PD_SERVO
+    fn kind(&self) -> ParamKind {
+        ParamKind::PdServo
     }
     fn n_params(&self) -> usize {
         self.gains.len()
@@ -116,7 +116,7 @@ impl ControllerConfig for PdServoSpec {
     fn tunable(&self) -> &Tunable {
         &self.tunable
     }
-    fn param_kind(&self) -> u32 {
-        KIND_PD_SERVO
+    fn param_kind(&self) -> ParamKind {
+        ParamKind::PdServo
     }
 }

@@ -23,7 +23,7 @@
 
 use super::{Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
-use crate::msg::{self as m, PlantState};
+use crate::msg::{ParamKind, PlantState};
 use crate::reference::Setpoint;
 use serde::{Deserialize, Serialize};
 
@@ -63,13 +63,13 @@ impl AntiWindup {
         }
     }
 
-    pub fn kind(self) -> u32 {
+    pub fn kind(self) -> ParamKind {
         match self {
-            AntiWindup::Fuzzy => m::KIND_PID_FUZZY_AW,
-            AntiWindup::None => m::KIND_PID,
-            AntiWindup::Clamping => m::KIND_PID_CLAMPING,
-            AntiWindup::BackCalculation => m::KIND_PID_BACK_CALCULATION,
-            AntiWindup::IntegratorClamp => m::KIND_PID_INTEGRATOR_CLAMP,
+            AntiWindup::Fuzzy => ParamKind::PidFuzzyAntiWindup,
+            AntiWindup::None => ParamKind::Pid,
+            AntiWindup::Clamping => ParamKind::PidClamping,
+            AntiWindup::BackCalculation => ParamKind::PidBackCalculation,
+            AntiWindup::IntegratorClamp => ParamKind::PidIntegratorClamp,
         }
     }
 
@@ -159,7 +159,7 @@ impl Pid {
 }
 
 impl Controller for Pid {
-    fn kind(&self) -> u32 {
+    fn kind(&self) -> ParamKind {
         self.aw.kind()
     }
     fn n_params(&self) -> usize {
@@ -310,7 +310,7 @@ impl ControllerConfig for PidSpec {
         &self.tunable
     }
     /// A PID's sets are tagged with its scheme (a fuzzy set is no use to a clamping PID).
-    fn param_kind(&self) -> u32 {
+    fn param_kind(&self) -> ParamKind {
         self.anti_windup.kind()
     }
 }

@@ -13,7 +13,7 @@
 use super::{Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
 use serde::{Deserialize, Serialize};
-use crate::msg::{PlantState, KIND_STATE_FEEDBACK};
+use crate::msg::{PlantState, ParamKind};
 use crate::reference::Setpoint;
 
 pub struct StateFeedback {
@@ -59,8 +59,8 @@ impl StateFeedback {
 }
 
 impl Controller for StateFeedback {
-    fn kind(&self) -> u32 {
-        KIND_STATE_FEEDBACK
+    fn kind(&self) -> ParamKind {
+        ParamKind::StateFeedback
     }
     fn n_params(&self) -> usize {
         self.gains.len()
@@ -156,8 +156,8 @@ impl ControllerConfig for StateFeedbackSpec {
     fn tunable(&self) -> &Tunable {
         &self.tunable
     }
-    fn param_kind(&self) -> u32 {
-        KIND_STATE_FEEDBACK
+    fn param_kind(&self) -> ParamKind {
+        ParamKind::StateFeedback
     }
     fn checks_stability(&self) -> bool {
         true

@@ -1,6 +1,6 @@
 //! Validation of an incoming parameter set, before it can touch the running loop.
 
-use crate::msg::{ParamCode, ParamSet};
+use crate::msg::{ParamCode, ParamKind, ParamSet};
 
 pub use crate::check::ParamBounds;
 
@@ -14,13 +14,13 @@ pub struct Rejection {
 /// Check kind, version, length, finiteness and bounds, in that order. Allocation-free.
 pub fn validate_params(
     set: &ParamSet,
-    kind: u32,
+    kind: ParamKind,
     n_params: usize,
     version_in_service: u64,
     bounds: &ParamBounds,
 ) -> Result<(), Rejection> {
     let reject = |code, index| Err(Rejection { code, index });
-    if set.kind != kind {
+    if set.kind != kind.code() {
         return reject(ParamCode::RejectedWrongKind, 0);
     }
     newer(set, version_in_service)?;

@@ -28,7 +28,7 @@
 
 use crate::config::Scenario;
 use crate::control::cycle::Envelope;
-use crate::msg::ParamSet;
+use crate::msg::{ParamKind, ParamSet};
 use crate::optim::Optimiser;
 use crate::sim::cost::TrackingCost;
 use serde::Serialize;
@@ -114,7 +114,7 @@ struct Running {
 pub struct DirectTuner {
     spec: DirectSpec,
     opt: Box<dyn Optimiser + Send>,
-    kind: u32,
+    kind: ParamKind,
     /// The configured set (version 0).
     configured: Vec<f64>,
     /// Values of the last `ask`, a flag per candidate (tried and scored), their costs.

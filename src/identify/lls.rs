@@ -275,7 +275,7 @@ pub struct Estimate {
     /// With every joint moving: a full parameter vector (`Columns` order) with the same torques
     /// as the estimate everywhere — each base estimate on its own column, zero on the columns
     /// regrouped into it or unidentifiable. A computed-torque controller's model set
-    /// (`KIND_RIGID_BODY_MODEL`).
+    /// (`ParamKind::RigidBodyModel`).
     #[serde(skip)]
     pub model_parameters: Option<Vec<f64>>,
     /// The held-out period: time, measured and predicted torque per moving joint (for plots).

@@ -343,7 +343,7 @@ pub struct Indirect {
     prev: Option<crate::msg::PlantState>,
     pub in_service: Vec<f64>,
     version: u64,
-    kind: u32,
+    kind: crate::msg::ParamKind,
     budget: f64,
     evaluations_per_second: f64,
     next_record_t: f64,

@@ -15,7 +15,7 @@
 use super::bridge::{ipc_err, BridgeReport};
 use super::{key, open, wire, Endpoint};
 use crate::ipc::{Ipc, Topic};
-use crate::msg::{ParamSet, PlantState, Telemetry};
+use crate::msg::{ParamKind, ParamSet, PlantState, Telemetry};
 use crate::rt::timing::Percentiles;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -149,7 +149,7 @@ fn first<T>(mut next: impl FnMut() -> Result<Option<T>, String>, what: &str) -> 
 struct RoundTrips<'a, R> {
     rng: &'a mut R,
     period_ns: u64,
-    kind: u32,
+    kind: ParamKind,
     gains: &'a [f64],
     version: u64,
 }
@@ -215,7 +215,7 @@ fn recv<T: iceoryx2::prelude::ZeroCopySend + Copy>(
 fn measure(
     run_id: &str,
     prefix: &str,
-    kind: u32,
+    kind: ParamKind,
     gains: &[f64],
     sets: usize,
     port: u16,

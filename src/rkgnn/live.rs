@@ -10,7 +10,7 @@
 //!   (`identify::least_squares_with_torques`), started from the slot's model;
 //! - both models, the candidate and the slot's model in service, predict q'' = M-hat^-1 (tau -
 //!   V-hat - G-hat) (N_f's output) on the `identify_fresh` seconds after the window, data the
-//!   fit has not seen; the candidate is published (kind `KIND_RKGNN_MODEL`, values [slot,
+//!   fit has not seen; the candidate is published (kind `ParamKind::RkgnnModel`, values [slot,
 //!   parameters]) only if its RMS error there is below the in-service model's by `margin`.
 //!
 //! The controller checks it again (finite, M-hat positive definite on the slot's probes and at
@@ -22,7 +22,7 @@ use crate::control::fuzzy_computed_torque::{
 };
 use crate::control::fuzzy_select;
 use crate::indirect::EpochRecord;
-use crate::msg::{ParamSet, PlantState, KIND_RKGNN_MODEL};
+use crate::msg::{ParamKind, ParamSet, PlantState};
 use crate::reference::{Reference, Setpoint};
 use crate::rkgnn::identify::least_squares_with_torques;
 use crate::rkgnn::network;
@@ -221,7 +221,7 @@ impl LiveIdentify {
                     version: self.version,
                     apply_at_seq,
                     expected_cost: cand_err,
-                    kind: KIND_RKGNN_MODEL,
+                    kind: ParamKind::RkgnnModel.code(),
                     n: 1 + p.len() as u32,
                     ..Default::default()
                 };

@@ -13,6 +13,54 @@ pub const MAX_STATES: usize = 32;
 /// Largest parameter set (identified models of later issues fit: RBF networks, fuzzy rule bases).
 pub const MAX_PARAMS: usize = 1024;
 
+/// A `u32` code on the wire that is not one of the enum's: a message from another version of
+/// the contract, or a corrupt one. Reading it is an error, never a silent default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UnknownCode {
+    /// The enum the code was read as.
+    pub what: &'static str,
+    pub code: u32,
+}
+
+impl std::fmt::Display for UnknownCode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "unknown {} code {}", self.what, self.code)
+    }
+}
+
+impl std::error::Error for UnknownCode {}
+
+/// A `#[repr(u32)]` enum carried as its code in a message: `code()` writes it, `TryFrom<u32>`
+/// reads it back and refuses any other value, `ALL` lists the variants (for tests and
+/// documentation of the contract).
+macro_rules! wire_enum {
+    ($(#[$m:meta])* pub enum $name:ident { $($(#[$vm:meta])* $v:ident = $c:literal,)* }) => {
+        $(#[$m])*
+        #[repr(u32)]
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        pub enum $name { $($(#[$vm])* $v = $c,)* }
+
+        impl $name {
+            /// Every variant, in code order.
+            pub const ALL: &'static [$name] = &[$($name::$v),*];
+            /// The code the message carries.
+            pub const fn code(self) -> u32 {
+                self as u32
+            }
+        }
+
+        impl TryFrom<u32> for $name {
+            type Error = UnknownCode;
+            fn try_from(code: u32) -> Result<Self, UnknownCode> {
+                match code {
+                    $($c => Ok($name::$v),)*
+                    _ => Err(UnknownCode { what: stringify!($name), code }),
+                }
+            }
+        }
+    };
+}
+
 /// `PlantState::flags`: the plant applied its safe command because commands stopped arriving.
 pub const STATE_FLAG_SAFE: u32 = 1;
 /// `PlantState::flags`: the scenario is over; this is the last message of the run.
@@ -82,9 +130,8 @@ pub struct Command {
     pub u: [f64; MAX_JOINTS],
 }
 
+wire_enum! {
 /// Why a parameter set was refused (`Telemetry::param_code`).
-#[repr(u32)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ParamCode {
     /// Nothing happened to the parameters this cycle.
     None = 0,
@@ -107,25 +154,9 @@ pub enum ParamCode {
     /// Stable on the configured model but not on the latest estimate of the plant.
     RejectedUnstableOnEstimate = 12,
 }
+}
 
 impl ParamCode {
-    pub fn from_u32(v: u32) -> Self {
-        match v {
-            1 => Self::Accepted,
-            2 => Self::RejectedNonFinite,
-            3 => Self::RejectedWrongKind,
-            4 => Self::RejectedWrongLength,
-            5 => Self::RejectedOutOfBounds,
-            6 => Self::RejectedStale,
-            7 => Self::RejectedUnstable,
-            8 => Self::RejectedNotPositiveDefinite,
-            9 => Self::TrialEnded,
-            10 => Self::TrialAborted,
-            11 => Self::RejectedUnknownFallback,
-            12 => Self::RejectedUnstableOnEstimate,
-            _ => Self::None,
-        }
-    }
     /// Whether the set was refused (a trial's end or abort is not a refusal).
     pub fn is_rejection(self) -> bool {
         !matches!(
@@ -209,26 +240,31 @@ pub struct Telemetry {
 /// Most law values telemetry carries: a fuzzy selector's active model and up to 8 memberships.
 pub const MAX_LAW_VALUES: usize = 9;
 
-/// Controller kinds a parameter set can be meant for (`ParamSet::kind`).
-pub const KIND_STATE_FEEDBACK: u32 = 1;
-pub const KIND_PD_SERVO: u32 = 2;
-pub const KIND_COMPUTED_TORQUE: u32 = 3;
-pub const KIND_PID_FUZZY_AW: u32 = 4;
-pub const KIND_PID: u32 = 5;
-pub const KIND_PID_CLAMPING: u32 = 6;
-pub const KIND_PID_BACK_CALCULATION: u32 = 7;
-pub const KIND_PID_INTEGRATOR_CLAMP: u32 = 8;
-pub const KIND_FUZZY_COMPUTED_TORQUE: u32 = 9;
-/// An identified RKGNN model for one slot of a fuzzy computed-torque controller: values =
-/// [slot, the network's parameters in `rkgnn::Layout` order].
-pub const KIND_RKGNN_MODEL: u32 = 10;
-/// A rigid-body model for a computed-torque controller: values = the parameters in the
-/// regressor's order, ten per body, then viscous and Coulomb friction per joint, then the
-/// armature per joint (`identify::Columns::PLANT`).
-pub const KIND_RIGID_BODY_MODEL: u32 = 11;
-/// The genes of a fuzzy network controller (`fuzzy::codec::Codec` order: per variable the
-/// centre genes then the widths, then the scaling factors).
-pub const KIND_FUZZY_NETWORK: u32 = 12;
+wire_enum! {
+/// What a parameter set is for (`ParamSet::kind`, as its code): the gains of one controller
+/// kind, or a model for a controller that takes models besides its gains.
+pub enum ParamKind {
+    StateFeedback = 1,
+    PdServo = 2,
+    ComputedTorque = 3,
+    PidFuzzyAntiWindup = 4,
+    Pid = 5,
+    PidClamping = 6,
+    PidBackCalculation = 7,
+    PidIntegratorClamp = 8,
+    FuzzyComputedTorque = 9,
+    /// An identified RKGNN model for one slot of a fuzzy computed-torque controller: values =
+    /// [slot, the network's parameters in `rkgnn::Layout` order].
+    RkgnnModel = 10,
+    /// A rigid-body model for a computed-torque controller: values = the parameters in the
+    /// regressor's order, ten per body, then viscous and Coulomb friction per joint, then the
+    /// armature per joint (`identify::Columns::PLANT`).
+    RigidBodyModel = 11,
+    /// The genes of a fuzzy network controller (`fuzzy::codec::Codec` order: per variable the
+    /// centre genes then the widths, then the scaling factors).
+    FuzzyNetwork = 12,
+}
+}
 
 /// A parameter set from the optimiser to the controller.
 #[repr(C)]
@@ -248,6 +284,7 @@ pub struct ParamSet {
     /// A trial's fallback: the version of the set restored after it, which must be the
     /// controller's current fallback or its last trial (that trial becoming the fallback).
     pub fallback_version: u64,
+    /// A `ParamKind`'s code (`ParamSet::param_kind` reads it back, refusing an unknown one).
     pub kind: u32,
     pub n: u32,
     pub values: [f64; MAX_PARAMS],
@@ -271,12 +308,12 @@ impl Default for ParamSet {
 impl ParamSet {
     /// A set of `kind` carrying `values` (at most `MAX_PARAMS` of them), applied at sample
     /// `apply_at_seq` (0: at once). Allocation-free.
-    pub fn new(version: u64, apply_at_seq: u64, kind: u32, values: &[f64]) -> Self {
+    pub fn new(version: u64, apply_at_seq: u64, kind: ParamKind, values: &[f64]) -> Self {
         let n = values.len().min(MAX_PARAMS);
         let mut set = ParamSet {
             version,
             apply_at_seq,
-            kind,
+            kind: kind.code(),
             n: n as u32,
             ..ParamSet::default()
         };
@@ -286,6 +323,12 @@ impl ParamSet {
 
     pub fn values(&self) -> &[f64] {
         &self.values[..(self.n as usize).min(MAX_PARAMS)]
+    }
+
+    /// What the set is for; an unknown code (a sender of another version, a corrupt set) is an
+    /// error, never a kind.
+    pub fn param_kind(&self) -> Result<ParamKind, UnknownCode> {
+        ParamKind::try_from(self.kind)
     }
 }
 
@@ -356,3 +399,60 @@ zero_copy!(
     ModelEstimate => "evoloop::ModelEstimate.v1",
     OptimiserStatus => "evoloop::OptimiserStatus.v1",
 );
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::mem::{align_of, offset_of, size_of};
+
+    #[test]
+    fn every_code_reads_back_as_itself_and_no_other_value_reads_at_all() {
+        for k in ParamKind::ALL {
+            assert_eq!(ParamKind::try_from(k.code()), Ok(*k));
+        }
+        for c in ParamCode::ALL {
+            assert_eq!(ParamCode::try_from(c.code()), Ok(*c));
+        }
+        // Codes are 1..=12 and 0..=12, dense: anything else is unknown, named as what.
+        for bad in [0, 13, 99, u32::MAX] {
+            let e = ParamKind::try_from(bad).unwrap_err();
+            assert_eq!((e.what, e.code), ("ParamKind", bad));
+            assert_eq!(e.to_string(), format!("unknown ParamKind code {bad}"));
+        }
+        assert!(ParamCode::try_from(13).is_err());
+        assert_eq!(ParamKind::ALL.len(), 12);
+        assert_eq!(ParamCode::ALL.len(), 13);
+        let set = ParamSet::new(1, 0, ParamKind::RkgnnModel, &[1.0]);
+        assert_eq!(set.param_kind(), Ok(ParamKind::RkgnnModel));
+        let corrupt = ParamSet { kind: 77, ..set };
+        assert!(corrupt.param_kind().is_err());
+    }
+
+    /// The layouts other processes read (the type names end in `.v1`): sizes and the offsets of
+    /// the fields a reader needs first. A change here is a new contract version: bump the
+    /// `zero_copy!` name with it, or an old peer opens the service and misreads every sample.
+    #[test]
+    fn the_message_layouts_are_the_contract_v1() {
+        assert_eq!((MAX_JOINTS, MAX_STATES, MAX_PARAMS), (8, 32, 1024));
+        // 3 x 8 (seq, stamp, t) + 4 x 4 (counts, flags) + 32 + 4 x 8 f64 arrays.
+        assert_eq!(size_of::<PlantState>(), 24 + 16 + 8 * (32 + 4 * 8));
+        assert_eq!(offset_of!(PlantState, n_x), 24);
+        assert_eq!(offset_of!(PlantState, x_true), 40);
+        assert_eq!(offset_of!(PlantState, y), 40 + 8 * (32 + 16));
+        assert_eq!(offset_of!(Command, u), 40);
+        assert_eq!(offset_of!(ParamSet, kind), 40);
+        assert_eq!(offset_of!(ParamSet, values), 48);
+        assert_eq!(size_of::<ParamSet>(), 48 + 8 * MAX_PARAMS);
+        assert_eq!(size_of::<OptimiserAck>(), 8);
+        assert_eq!(size_of::<OptimiserStatus>(), 40);
+        assert_eq!(size_of::<ModelEstimate>(), 40);
+        for align in [
+            align_of::<PlantState>(),
+            align_of::<Command>(),
+            align_of::<Telemetry>(),
+            align_of::<ParamSet>(),
+        ] {
+            assert_eq!(align, 8);
+        }
+    }
+}
