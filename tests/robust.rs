@@ -273,7 +273,7 @@ fn the_spring_schedule_interpolates_and_drives_the_dynamics() {
 
 #[test]
 fn the_hqr_eigenvalues_match_the_schur_decomposition() {
-    use evoloop::robust::eigen::eigenvalues;
+    use evoloop::linalg::eigenvalues;
     let mut rng = rand::rngs::StdRng::seed_from_u64(17);
     let key = |z: &Complex<f64>| (z.re, z.im);
     for trial in 0..300 {

@@ -247,7 +247,7 @@ fn tune_maglev_over_seeds_writes_the_statistics_and_sentences_that_follow_them()
 #[test]
 fn study_sentences_follow_the_sign_and_significance_of_the_test() {
     let _alone = alone();
-    use evoloop::report::stats::{mean_ci, wilcoxon};
+    use evoloop::stats::{mean_ci, wilcoxon};
     use evoloop::tune::maglev::comparison_sentence;
     // Fuzzy clearly worse on 12 seeds: the sentence must say HIGHER, never "lower".
     let fuzzy: Vec<f64> = (0..12).map(|i| 110.0 + i as f64).collect();

@@ -84,7 +84,7 @@ pub fn measure(model: &Model, calls: u64) -> DynamicsBench {
             ns[batch] = t0.elapsed().as_nanos() as f64 / per_batch as f64;
         }
     }
-    let [rnea, crba, aba, forward_crba] = ns.map(|b| crate::report::stats::median(&b));
+    let [rnea, crba, aba, forward_crba] = ns.map(|b| crate::stats::median(&b));
     DynamicsBench {
         library: "evoloop",
         robot: model.name.clone(),

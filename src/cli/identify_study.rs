@@ -5,7 +5,7 @@ use crate::identify::excitation::{Problem, Search, Settings, TrajectoryKind};
 use crate::identify::study::{run, SeedResult};
 use crate::identify::{Stage, StageKind};
 use crate::report::plot::{xy_png, Curve, Style, XySeries};
-use crate::report::stats::{mean_ci, median, paired_sentence, wilcoxon};
+use crate::stats::{mean_ci, median, paired_sentence, wilcoxon};
 use clap::Args;
 use serde_json::json;
 use std::path::PathBuf;

@@ -494,7 +494,7 @@ fn report_md(s: &StudyRuns, results: &Value, a: &StudyArgs) -> String {
     let _ = writeln!(
         md,
         "- The paper's tables mix f and f - f_min and use some wrong f_min values (see the table in \
-         `src/optim/suite.rs`): an entry below zero cannot be an error. Entries below zero here: {}.",
+         `crates/evoloop-optim/src/suite.rs`): an entry below zero cannot be an error. Entries below zero here: {}.",
         negative_paper_entries(&paper)
     );
     let _ = writeln!(
@@ -503,7 +503,7 @@ fn report_md(s: &StudyRuns, results: &Value, a: &StudyArgs) -> String {
          for 30 pairs all on one side; the exact test used here gives 2/2^30 = 1.86e-9 for that case. \
          The paper compares the best algorithm per function with each other; Table 8 here compares \
          eMuPSO with each peer.\n- Our eMuPSO takes documented choices where the text is silent \
-         (`src/optim/emupso.rs`), so its numbers are not expected to equal the paper's.\n"
+         (`crates/evoloop-optim/src/emupso.rs`), so its numbers are not expected to equal the paper's.\n"
     );
     md
 }

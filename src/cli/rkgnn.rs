@@ -425,7 +425,7 @@ fn eval(a: &EvalArgs) -> Result<(), String> {
     m.net.inertia_and_velocity(&a.q, &qd, &mut mm, &mut v);
     m.net.gravity(&a.q, &mut g);
     let rows: Vec<Vec<f64>> = (0..n).map(|i| mm[i * n..(i + 1) * n].to_vec()).collect();
-    let min_eig = crate::rkgnn::network::sym_eig_range(n, &mm).0;
+    let min_eig = crate::linalg::sym_eig_range(n, &mm).0;
     if a.json {
         crate::cli::print_json(&json!({
             "M_hat": rows, "V_hat": v, "G_hat": g, "min_eig_m_hat": min_eig,

@@ -204,7 +204,7 @@ pub fn main(a: SoakArgs) -> ExitCode {
         misses_per_interval_median: if per.is_empty() {
             0.0
         } else {
-            crate::report::stats::median(&per)
+            crate::stats::median(&per)
         },
         misses_per_interval_max: intervals
             .iter()

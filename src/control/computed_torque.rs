@@ -23,7 +23,7 @@ use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerCon
 use crate::check::{Check, ConfigError, Tunable};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
-use crate::dynamics::model::cholesky_solve_in_place;
+use crate::linalg::cholesky_solve_in_place;
 use crate::dynamics::{Data, Model};
 use crate::msg::{ParamCode, PlantState, ParamKind};
 use crate::reference::Setpoint;
@@ -107,7 +107,7 @@ fn probe_positions(model: &Model) -> Vec<Vec<f64>> {
 /// Smallest eigenvalue of M(q) over `probes` (NaN for a NaN matrix).
 fn smallest_eigenvalue(model: &Model, d: &mut Data, probes: &[Vec<f64>]) -> f64 {
     let n = model.dof();
-    let mut m: crate::rkgnn::network::Mat = [0.0; crate::MAX_JOINTS * crate::MAX_JOINTS];
+    let mut m: crate::linalg::Mat = [0.0; crate::MAX_JOINTS * crate::MAX_JOINTS];
     let mut worst = f64::INFINITY;
     for q in probes {
         let mm = model.mass_matrix(d, q);
@@ -116,7 +116,7 @@ fn smallest_eigenvalue(model: &Model, d: &mut Data, probes: &[Vec<f64>]) -> f64 
                 m[a * n + b] = mm[(a, b)];
             }
         }
-        let e = crate::rkgnn::network::sym_eig_range(n, &m).0;
+        let e = crate::linalg::sym_eig_range(n, &m).0;
         if e.is_nan() {
             return f64::NAN;
         }

@@ -21,7 +21,7 @@ use super::{driven_arm, Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
 use crate::msg::{ParamCode, PlantState, ParamKind};
 use crate::reference::Setpoint;
-use crate::rkgnn::network::Mat;
+use crate::linalg::Mat;
 use crate::rkgnn::RkgnnModel;
 use crate::MAX_JOINTS;
 use serde::{Deserialize, Serialize};

@@ -11,7 +11,7 @@
 //! floating-point operations (1e-161 against 1e-28 on the sphere, -1.5e-15 against -3.6e-16 on
 //! Shekel 7), and a rank test would call that difference significant.
 
-use crate::report::stats::{mann_whitney, median, MannWhitney};
+use crate::stats::{mann_whitney, median, MannWhitney};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -9,7 +9,7 @@
 
 use super::by_name::build;
 use super::problem::Problem;
-use crate::report::stats::{wilcoxon, Wilcoxon};
+use crate::stats::{wilcoxon, Wilcoxon};
 use serde::Serialize;
 
 /// The algorithm every peer is compared with.
@@ -85,7 +85,7 @@ impl Cell {
         let mean = e.iter().sum::<f64>() / n;
         let var = e.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
         let m = e.len();
-        let median = crate::report::stats::median(&e);
+        let median = crate::stats::median(&e);
         Self {
             mean_value: runs.iter().map(|r| r.best_value).sum::<f64>() / n,
             mean_error: mean,

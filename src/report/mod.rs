@@ -12,7 +12,6 @@ pub mod record;
 pub mod recording;
 pub mod scan;
 pub mod seeds_study;
-pub mod stats;
 pub mod stream;
 pub mod summary;
 

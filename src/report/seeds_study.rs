@@ -10,8 +10,8 @@
 //! report follows from those numbers.
 
 use crate::config::OptimiserMode;
-use crate::report::stats::{lower_first, mean_ci, paired_sentence, wilcoxon, MeanCi, Wilcoxon};
 use crate::report::summary::Summary;
+use crate::stats::{lower_first, mean_ci, paired_sentence, wilcoxon, MeanCi, Wilcoxon};
 use serde::Serialize;
 use std::path::Path;
 

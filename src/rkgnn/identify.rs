@@ -50,7 +50,8 @@
 
 use super::data::Trajectory;
 use super::ea::{ChaoticEa, ChaoticEaConfig};
-use super::network::{self, Layout, Mat, Network, Part, RbfCounts};
+use super::network::{self, Layout, Network, Part, RbfCounts};
+use crate::linalg::{min_leading_minor, sym_eig_range, Mat};
 use crate::optim::{evaluate, Objective, Optimiser};
 use crate::plant::gill::RungeKuttaGill;
 use crate::MAX_JOINTS;
@@ -284,7 +285,7 @@ impl Prior {
                     flat[a * n + c] = m[(a, c)];
                 }
             }
-            let (l, h) = network::sym_eig_range(n, &flat);
+            let (l, h) = sym_eig_range(n, &flat);
             m1 = m1.min(l);
             m2 = m2.max(h);
         }
@@ -418,8 +419,8 @@ pub fn constraints(layout: &Layout, p: &[f64], probes: &[Vec<f64>], b: &Prior) -
     let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
     for q in probes {
         network::inertia(layout, p, q, &mut m);
-        let gamma = network::min_leading_minor(n, &m);
-        let (lo, hi) = network::sym_eig_range(n, &m);
+        let gamma = min_leading_minor(n, &m);
+        let (lo, hi) = sym_eig_range(n, &m);
         g[0] = g[0].max(-gamma);
         g[1] = g[1].max(b.m1 - lo);
         g[2] = g[2].max(hi - b.m2);
@@ -1109,7 +1110,7 @@ fn scale_to_prior(
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
     for q in probes {
         network::inertia(layout, &p, q, &mut m);
-        let (l, h) = network::sym_eig_range(n, &m);
+        let (l, h) = sym_eig_range(n, &m);
         lo = lo.min(l);
         hi = hi.max(h);
     }

@@ -30,6 +30,7 @@
 //! `Network` evaluates N_f and the model parts without allocating (stack arrays of
 //! `MAX_JOINTS`); the parameters are one flat vector, the EA's object variables.
 
+use crate::linalg::{solve, sym_eig_range, Mat};
 use crate::MAX_JOINTS;
 use serde::{Deserialize, Serialize};
 
@@ -294,9 +295,6 @@ pub fn servo_zero(layout: &Layout, p: &[f64]) -> ServoZero {
     z
 }
 
-/// A small n x n matrix on the stack, row-major.
-pub type Mat = [f64; MAX_JOINTS * MAX_JOINTS];
-
 impl Network {
     pub fn new(layout: Layout, params: Vec<f64>) -> Self {
         assert_eq!(params.len(), layout.len, "parameter count");
@@ -545,116 +543,6 @@ pub(crate) fn rate(
     }
 }
 
-/// Solve m z = b in place (b <- z) by Gaussian elimination with partial pivoting: M-hat may be
-/// indefinite while the search explores, so Cholesky would not do. False when a pivot is below
-/// 1e-12 of the largest entry (numerically singular).
-pub fn solve(n: usize, m: &mut Mat, b: &mut [f64]) -> bool {
-    let scale = m[..n * n].iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    if !(scale > 0.0 && scale.is_finite()) {
-        return false;
-    }
-    for c in 0..n {
-        let piv = (c..n)
-            .max_by(|&i, &j| m[i * n + c].abs().total_cmp(&m[j * n + c].abs()))
-            .unwrap_or(c);
-        if m[piv * n + c].abs() < 1e-12 * scale {
-            return false;
-        }
-        if piv != c {
-            for k in 0..n {
-                m.swap(c * n + k, piv * n + k);
-            }
-            b.swap(c, piv);
-        }
-        let d = m[c * n + c];
-        for i in c + 1..n {
-            let f = m[i * n + c] / d;
-            if f != 0.0 {
-                for k in c..n {
-                    m[i * n + k] -= f * m[c * n + k];
-                }
-                b[i] -= f * b[c];
-            }
-        }
-    }
-    for c in (0..n).rev() {
-        let mut s = b[c];
-        for k in c + 1..n {
-            s -= m[c * n + k] * b[k];
-        }
-        b[c] = s / m[c * n + c];
-    }
-    true
-}
-
-/// The leading principal minors of the n x n matrix m (Sylvester: all > 0 iff positive
-/// definite); their minimum is eq. 14's Gamma. By elimination without pivoting: minor k is the
-/// product of the first k pivots; a zero pivot ends the sequence with 0.
-pub fn min_leading_minor(n: usize, m: &Mat) -> f64 {
-    let mut a = *m;
-    let mut det = 1.0;
-    let mut min = f64::INFINITY;
-    for c in 0..n {
-        let d = a[c * n + c];
-        det *= d;
-        min = min.min(det);
-        if d == 0.0 {
-            return min.min(0.0);
-        }
-        for i in c + 1..n {
-            let f = a[i * n + c] / d;
-            for k in c..n {
-                a[i * n + k] -= f * a[c * n + k];
-            }
-        }
-    }
-    min
-}
-
-/// Smallest and largest eigenvalue of a symmetric n x n matrix (cyclic Jacobi; n <= 8, so a few
-/// sweeps). Allocation-free.
-pub fn sym_eig_range(n: usize, m: &Mat) -> (f64, f64) {
-    let mut a = *m;
-    for _sweep in 0..50 {
-        let mut off = 0.0;
-        for i in 0..n {
-            for j in i + 1..n {
-                off += a[i * n + j] * a[i * n + j];
-            }
-        }
-        if off < 1e-30 {
-            break;
-        }
-        for p in 0..n {
-            for q in p + 1..n {
-                let apq = a[p * n + q];
-                if apq.abs() < 1e-300 {
-                    continue;
-                }
-                let theta = (a[q * n + q] - a[p * n + p]) / (2.0 * apq);
-                let t = theta.signum().max(0.0).mul_add(2.0, -1.0)
-                    / (theta.abs() + (theta * theta + 1.0).sqrt());
-                let c = 1.0 / (t * t + 1.0).sqrt();
-                let s = t * c;
-                for k in 0..n {
-                    let (akp, akq) = (a[k * n + p], a[k * n + q]);
-                    a[k * n + p] = c * akp - s * akq;
-                    a[k * n + q] = s * akp + c * akq;
-                }
-                for k in 0..n {
-                    let (apk, aqk) = (a[p * n + k], a[q * n + k]);
-                    a[p * n + k] = c * apk - s * aqk;
-                    a[q * n + k] = s * apk + c * aqk;
-                }
-            }
-        }
-    }
-    (0..n).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), i| {
-        let d = a[i * n + i];
-        (lo.min(d), hi.max(d))
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -843,23 +731,5 @@ mod tests {
             let mq: f64 = (0..3).map(|k| m[i * 3 + k] * dx[3 + k]).sum();
             assert!((mq - (tau[i] - v[i] - g[i])).abs() < 1e-9 * (1.0 + mq.abs()));
         }
-    }
-
-    #[test]
-    fn minors_and_eigenvalues_by_hand() {
-        let mut m = [0.0; 64];
-        // [[2, 1, 0], [1, 2, 0], [0, 0, 0.5]]: minors 2, 3, 1.5; eigenvalues 1, 3, 0.5.
-        m[..9].copy_from_slice(&[2.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.5]);
-        assert!((min_leading_minor(3, &m) - 1.5).abs() < 1e-12);
-        let (lo, hi) = sym_eig_range(3, &m);
-        assert!(
-            (lo - 0.5).abs() < 1e-12 && (hi - 3.0).abs() < 1e-12,
-            "{lo} {hi}"
-        );
-        // Indefinite: [[1, 2], [2, 1]]: minors 1, -3; eigenvalues -1, 3.
-        m[..4].copy_from_slice(&[1.0, 2.0, 2.0, 1.0]);
-        assert!((min_leading_minor(2, &m) + 3.0).abs() < 1e-12);
-        let (lo, hi) = sym_eig_range(2, &m);
-        assert!((lo + 1.0).abs() < 1e-12 && (hi - 3.0).abs() < 1e-12);
     }
 }

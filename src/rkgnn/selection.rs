@@ -25,9 +25,9 @@ use super::study::{
 };
 use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::dynamics::Model;
-use crate::report::stats::{median, wilcoxon, Wilcoxon};
 use crate::rkgnn::Trajectory;
 use crate::sim::JointTraces;
+use crate::stats::{median, wilcoxon, Wilcoxon};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 

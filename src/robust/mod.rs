@@ -2,7 +2,6 @@
 //! continuous-time LQR, the complex stability radius by an H-infinity norm algorithm, the wedge
 //! pole region, and the two-mass design problem that DE solves.
 
-pub mod eigen;
 pub mod lqr;
 pub mod pole_region;
 pub mod problem;

@@ -13,9 +13,9 @@
 //! - the objective of Table 2 (DOCHM): F(X) = summed pole distance to the wedge when positive,
 //!   else f(X) = -r_c.
 
-use super::eigen::eig;
 use super::pole_region::Wedge;
 use super::stability_radius::{hinf_from_poles, stability_radius, Bounded, HinfError};
+use crate::linalg::eig;
 use crate::optim::Objective;
 use crate::plant::two_mass::{Sensor, TwoMass};
 use nalgebra::{Complex, DMatrix};

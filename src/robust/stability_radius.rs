@@ -7,7 +7,7 @@
 //! intervals where sigma_max(G(jw)) > gamma, whose midpoints give a better lower bound. The
 //! iteration converges quadratically to a relative accuracy `tol`. r_c = 0 when A is not Hurwitz.
 
-use super::eigen::eig;
+use crate::linalg::eig;
 use nalgebra::{Complex, DMatrix};
 use std::fmt;
 

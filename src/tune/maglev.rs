@@ -394,9 +394,9 @@ pub struct Comparison {
     /// "G", "error", "control".
     pub part: &'static str,
     /// Paired test of fuzzy against the baseline (a = fuzzy).
-    pub wilcoxon: crate::report::stats::Wilcoxon,
+    pub wilcoxon: crate::stats::Wilcoxon,
     /// Mean of (fuzzy - baseline) over the seeds where both kept the ball, with its 95 % interval.
-    pub difference: crate::report::stats::MeanCi,
+    pub difference: crate::stats::MeanCi,
     pub sentence: String,
 }
 
@@ -405,14 +405,14 @@ pub struct Comparison {
 pub fn comparison_sentence(
     baseline: &str,
     part: &str,
-    w: &crate::report::stats::Wilcoxon,
-    d: &crate::report::stats::MeanCi,
+    w: &crate::stats::Wilcoxon,
+    d: &crate::stats::MeanCi,
 ) -> String {
     let what = match part {
         "G" => "eq. 31 index G".to_string(),
         p => format!("{p} term of eq. 31"),
     };
-    crate::report::stats::paired_sentence("Fuzzy anti-windup", "fuzzy", baseline, &what, w, d)
+    crate::stats::paired_sentence("Fuzzy anti-windup", "fuzzy", baseline, &what, w, d)
 }
 
 /// `evoloop tune config/maglev_tune.toml --seeds 1..20`: for every seed, each variant tuned with
@@ -421,7 +421,7 @@ pub fn comparison_sentence(
 /// paired Wilcoxon test on G, the error term and the control term. Writes `seeds.csv`,
 /// `study.json`, `study.md`, `study_g.png`, `study_error.png`.
 pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
-    use crate::report::stats::{mean_ci, wilcoxon};
+    use crate::stats::{mean_ci, wilcoxon};
     let n_v = STUDY_VARIANTS.len();
     // costs[v][s]: None = lost the ball on the test run.
     let mut costs: Vec<Vec<Option<Cost>>> = vec![Vec::new(); n_v];
@@ -472,7 +472,7 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
     };
     let parts = ["G", "error", "control"];
     // stats[v][p]: mean and interval of part p over the seeds where variant v kept the ball.
-    let stats: Vec<Vec<crate::report::stats::MeanCi>> = (0..n_v)
+    let stats: Vec<Vec<crate::stats::MeanCi>> = (0..n_v)
         .map(|v| {
             parts
                 .iter()
@@ -540,7 +540,7 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
         seeds.len()
     );
     for (v, aw) in STUDY_VARIANTS.iter().enumerate() {
-        let f = |m: &crate::report::stats::MeanCi| {
+        let f = |m: &crate::stats::MeanCi| {
             format!("{:.2} [{:.2} .. {:.2}]", m.mean, m.ci95[0], m.ci95[1])
         };
         md.push_str(&format!(

@@ -19,7 +19,8 @@ pub mod regressor;
 pub mod spatial;
 pub mod urdf;
 
-pub use model::{Body, Data, Friction, JointKind, Limits, Model, NotPositiveDefinite};
+pub use evoloop_linalg::NotPositiveDefinite;
+pub use model::{Body, Data, Friction, JointKind, Limits, Model};
 
 use glam::{DMat3, DVec3};
 use std::fmt;
@@ -289,7 +290,7 @@ fn finish(model: Model, file: &Path) -> Result<Model, RobotError> {
     let m = model.mass_matrix(&mut d, &q).clone();
     let mut rhs = nalgebra::DVector::zeros(model.dof());
     let mut chol = m.clone();
-    if let Err(e) = model::cholesky_solve_in_place(&mut chol, &mut rhs) {
+    if let Err(e) = evoloop_linalg::cholesky_solve_in_place(&mut chol, &mut rhs) {
         let b = &model.bodies[e.joint];
         return Err(fail(
             format!("joint `{}`", b.joint),

@@ -6,6 +6,7 @@
 //! Equation of motion (RKGNN paper, eq. 1): tau = M(q) qdd + V(q, qd) + G(q) + F(qd).
 
 use super::spatial::{Articulated, Force, Inertia, Motion, Transform};
+use evoloop_linalg::{cholesky_solve_in_place, NotPositiveDefinite};
 use glam::{DMat3, DVec3};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -140,13 +141,6 @@ pub struct Data {
     ua: Vec<Force>,
     d_inv: Vec<f64>,
     u: Vec<f64>,
-}
-
-/// M(q) is not positive definite at this configuration (a body carries no inertia).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NotPositiveDefinite {
-    /// The first joint whose pivot failed.
-    pub joint: usize,
 }
 
 impl Body {
@@ -554,49 +548,6 @@ fn body_motion(
         a = a + s.scaled(qdd[i]);
     }
     (v, a)
-}
-
-/// In-place Cholesky M = L Lᵀ (lower triangle of `a` overwritten by L) and solve of M x = b into
-/// `b`. Written out rather than through nalgebra's `Cholesky`, which takes its matrix by value:
-/// this keeps the factor in a buffer that lives in `Data` and the call allocation-free.
-pub fn cholesky_solve_in_place(
-    a: &mut DMatrix<f64>,
-    b: &mut DVector<f64>,
-) -> Result<(), NotPositiveDefinite> {
-    let n = a.nrows();
-    for j in 0..n {
-        let mut s = a[(j, j)];
-        for k in 0..j {
-            s -= a[(j, k)] * a[(j, k)];
-        }
-        if s.is_nan() || s <= 0.0 {
-            return Err(NotPositiveDefinite { joint: j });
-        }
-        let l = s.sqrt();
-        a[(j, j)] = l;
-        for i in j + 1..n {
-            let mut s = a[(i, j)];
-            for k in 0..j {
-                s -= a[(i, k)] * a[(j, k)];
-            }
-            a[(i, j)] = s / l;
-        }
-    }
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= a[(i, k)] * b[k];
-        }
-        b[i] = s / a[(i, i)];
-    }
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= a[(k, i)] * b[k];
-        }
-        b[i] = s / a[(i, i)];
-    }
-    Ok(())
 }
 
 #[cfg(test)]

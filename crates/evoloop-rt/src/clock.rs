@@ -58,7 +58,9 @@ pub fn spin_until_ns(deadline_ns: u64) {
 /// - `hybrid`: sleep until `margin` before the deadline, then spin. The sleep's lateness is
 ///   absorbed when it is under the margin; the loop spins about margin - sleep lateness per
 ///   period. The margin should cover the sleep's p99.9 lateness (`evoloop floor` shows it).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+// The command line offers it as a flag's values (feature `clap`, which the evoloop package turns on).
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum WaitKind {
     #[default]

@@ -12,7 +12,7 @@ pub struct RtRequest {
     /// CPU to pin to; None = no pinning.
     pub cpu: Option<usize>,
     /// How the loop will wait (a spinning SCHED_FIFO loop meets RT throttling: noted).
-    pub wait: crate::rt::WaitKind,
+    pub wait: crate::WaitKind,
 }
 
 /// What the process got; goes into summary.json so timing figures can be read in context.
@@ -80,7 +80,7 @@ pub fn apply_privileges(req: &RtRequest) -> RtGranted {
             ));
         }
     }
-    if got.sched_fifo && req.wait == crate::rt::WaitKind::Spin {
+    if got.sched_fifo && req.wait == crate::WaitKind::Spin {
         if let Some(n) = rt_throttling_note() {
             got.notes.push(n);
         }

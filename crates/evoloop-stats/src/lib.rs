@@ -1,6 +1,7 @@
-//! Statistics for claims over many seeds: mean with a 95 % t interval, and the paired Wilcoxon
-//! signed-rank test (exact null distribution for up to 30 untied pairs, normal approximation with
-//! tie and continuity corrections beyond that or with ties).
+//! Statistics for claims over many seeds (the studies and reports of every crate above): mean with
+//! a 95 % t interval, the paired Wilcoxon signed-rank test (exact null distribution for up to 30
+//! untied pairs, normal approximation with tie and continuity corrections beyond that or with
+//! ties), and the Mann-Whitney U test for unpaired samples.
 
 use serde::Serialize;
 
