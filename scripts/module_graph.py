@@ -1,7 +1,12 @@
 #!/usr/bin/env python3
-"""Print the crate's top-level module graph (which module names which through `crate::`) and its
-cycles; exit 1 if there is one. A step towards the workspace of issue 43, whose crates the
-compiler keeps acyclic: a module cycle here is a crate split that would not compile yet.
+"""Print the root package's top-level module graph (which module names which through `crate::`)
+and its cycles; exit 1 if there is one. The workspace's crates (crates/) are acyclic by the
+compiler; a module cycle here is a further crate split that would not compile yet.
+
+A name the root re-exports from a crate (`pub use evoloop_dynamics as dynamics;`) is no module
+of the root: no edge. A module that re-exports a crate whole and adds its own (`report`, `optim`:
+`pub use evoloop_report::*;` plus `pub mod build;`) is an edge only where its own parts are
+named (`crate::report::build`), not the crate's (`crate::report::Table`).
 
     python3 scripts/module_graph.py          # the cycles only
     python3 scripts/module_graph.py --edges  # and every edge
@@ -21,8 +26,23 @@ def strip(text):
     return re.sub(r'"(?:\\.|[^"\\])*"', '""', text)
 
 
+def own_parts(module):
+    """The names a module adds to a crate it re-exports whole, or None if it re-exports none."""
+    mod_rs = os.path.join(SRC, module, "mod.rs")
+    if not os.path.exists(mod_rs):
+        return None
+    text = open(mod_rs, encoding="utf-8").read()
+    if not re.search(r"^pub use evoloop_\w+::\*;", text, re.M):
+        return None
+    return set(re.findall(r"^pub mod (\w+);", text, re.M))
+
+
 def graph():
     g = collections.defaultdict(set)
+    lib = open(os.path.join(SRC, "lib.rs"), encoding="utf-8").read()
+    crates = set(re.findall(r"^pub use evoloop_\w+ as (\w+);", lib, re.M))
+    crates |= set(re.findall(r"^pub use evoloop_\w+::\{([^}]*)\}", lib, re.M)[0].replace(" ", "").split(",")) if re.search(r"^pub use evoloop_\w+::\{", lib, re.M) else set()
+    extended = {m: p for m in os.listdir(SRC) if (p := own_parts(m)) is not None}
     for root, _, files in os.walk(SRC):
         for f in files:
             if not f.endswith(".rs"):
@@ -36,7 +56,14 @@ def graph():
             names = set(re.findall(r"crate::(\w+)", code))
             for group in re.findall(r"crate::\{([^}]*)\}", code, re.S):
                 names |= set(re.findall(r"(?:^|,)\s*(\w+)", group))
-            g[module] |= names - {module}
+            for m, parts in extended.items():
+                if m in names:
+                    used = set(re.findall(rf"crate::{m}::(\w+)", code))
+                    for group in re.findall(rf"crate::{m}::\{{([^}}]*)\}}", code, re.S):
+                        used |= set(re.findall(r"(?:^|,)\s*(\w+)", group))
+                    if not used & parts:
+                        names.discard(m)
+            g[module] |= names - {module} - crates
             g[module]  # a module naming nothing is still a node
     return g
 

@@ -235,7 +235,7 @@ fn a_model_identified_under_the_known_servo_has_the_arms_gravity_and_inertia() {
     );
     assert_eq!(
         m.report.servo,
-        evoloop::rkgnn::identify::ServoPrior::Known {
+        evoloop::rkgnn::model::ServoPrior::Known {
             kp: vec![150.0, 200.0, 100.0],
             kd: vec![15.0, 20.0, 8.0],
             limits: Some(vec![40.0, 60.0, 30.0]),
@@ -998,7 +998,8 @@ fn weighing_the_joints_gives_arm7_a_positive_definite_m_hat_that_unweighted_leas
     // in N m and once each in units of its own torque rms (`--weigh-joints`). Unweighted, the
     // shoulder's residuals (tens of N m) decide the fit and no M-hat is positive definite;
     // weighted, it is, and it is judged (never fitted) against the true arm's M and G.
-    use evoloop::rkgnn::identify::{self, Prior, ServoPrior, Settings};
+    use evoloop::rkgnn::identify::{self, Prior, Settings};
+    use evoloop::rkgnn::model::ServoPrior;
     let scn = Scenario::load(&config("arm7_train1.toml"), &Overrides::default()).unwrap();
     let sim = simulate(&scn);
     let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period);

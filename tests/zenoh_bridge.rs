@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 fn loopback() -> String {
     format!(
         "tcp/127.0.0.1:{}",
-        evoloop::net::bench::free_port().unwrap()
+        evoloop::node::launcher::free_port().unwrap()
     )
 }
 

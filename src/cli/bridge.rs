@@ -130,7 +130,7 @@ pub struct BridgeBenchArgs {
 /// `evoloop bench bridge`: a parameter set's round trip, local path against the bridge.
 #[cfg(feature = "zenoh")]
 pub fn bench(a: &BridgeBenchArgs) -> u8 {
-    use crate::net::bench;
+    use crate::bench::bridge as bench;
     if a.sets == 0 {
         err!("error: --sets must be at least 1");
         return 2;

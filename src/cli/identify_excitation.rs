@@ -217,7 +217,7 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
 /// The moving joints' positions over one period.
 fn plot(
     problem: &Problem,
-    s: &crate::identify::series::FourierSeries,
+    s: &crate::reference::series::FourierSeries,
     png: &std::path::Path,
 ) -> Result<(), String> {
     let k = 400;

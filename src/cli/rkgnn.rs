@@ -1,6 +1,7 @@
 //! `evoloop identify rkgnn` and `evoloop rkgnn eval|study`: the RKGNN paper from the command line.
 
-use crate::rkgnn::identify::{self, Prior, ServoPrior, Settings, Start};
+use crate::rkgnn::identify::{self, Prior, Settings};
+use crate::rkgnn::model::{ServoPrior, Start};
 use crate::rkgnn::network::RbfCounts;
 use crate::rkgnn::{RkgnnModel, Trajectory};
 use clap::{Args, Subcommand};

@@ -58,7 +58,7 @@ pub struct BenchWorkersArgs {
 /// `evoloop bench workers`.
 #[cfg(feature = "zenoh")]
 pub fn bench(a: &BenchWorkersArgs) -> u8 {
-    use crate::net::workers_bench::{run, Settings};
+    use crate::bench::workers::{run, Settings};
     if a.workers.is_empty() || a.workers.iter().any(|n| *n > 64) {
         err!("error: --workers: give 0 to 64 workers per phase, e.g. 0,1,2");
         return 2;

@@ -21,7 +21,6 @@ pub use optimiser::{
     Expect, OptimiserMode, OptimiserSpec, ScheduledSet, SetKind, WorkersKind, WorkersSpec,
     WORKERS_WAIT_S,
 };
-pub use reference::MAX_VALUE as MAX_REFERENCE_VALUE;
 pub use timing::{default_margin_us, parse_duration, Mode, Timing};
 
 use crate::check::Check;

@@ -1,7 +1,7 @@
 //! The `[reference]` table: the set-point trajectory every plant follows.
 
 use crate::check::{Check, ConfigError};
-use crate::reference::Reference;
+use crate::reference::{Reference, MAX_VALUE};
 use serde::Deserialize;
 
 #[derive(Debug, Deserialize)]
@@ -35,10 +35,6 @@ pub enum ReferenceKind {
     Excitation,
     Samples,
 }
-
-/// Largest |value| of a scalar reference (amplitude, offset, step value): far beyond any plant's
-/// range, small enough that squared errors and their integrals stay finite.
-pub const MAX_VALUE: f64 = 1e6;
 
 /// The reference of a loop run every `control_period` seconds: its times are checked against it
 /// (a square wave of period 1e-12 s passed before, as did sines above the loop's Nyquist rate).
@@ -270,10 +266,10 @@ pub fn validate(
 /// The joint-space Fourier series of an excitation file (its `series`), checked.
 fn excitation_file(
     path: &std::path::Path,
-) -> Result<crate::identify::series::FourierSeries, String> {
+) -> Result<crate::reference::series::FourierSeries, String> {
     let text = crate::files::read_text(path).map_err(|e| format!("cannot read: {e}"))?;
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
-    let s: crate::identify::series::FourierSeries = serde_json::from_value(v["series"].clone())
+    let s: crate::reference::series::FourierSeries = serde_json::from_value(v["series"].clone())
         .map_err(|e| format!("`series`: {e} (not an `evoloop identify excitation` file?)"))?;
     let n = s.offsets.len();
     let h = s.harmonics();

@@ -22,7 +22,7 @@ use crate::check::{Check, ConfigError, Tunable};
 use crate::msg::{ParamCode, PlantState, ParamKind};
 use crate::reference::Setpoint;
 use crate::linalg::Mat;
-use crate::rkgnn::RkgnnModel;
+use evoloop_rkgnn::RkgnnModel;
 use crate::MAX_JOINTS;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -290,7 +290,7 @@ impl Controller for FuzzyComputedTorque {
             return Err((ParamCode::RejectedWrongLength, values.len() as u32));
         }
         let probes = self.probes[slot].iter().map(Vec::as_slice);
-        let e = crate::rkgnn::network::min_eig(layout, p, probes);
+        let e = evoloop_rkgnn::network::min_eig(layout, p, probes);
         if !(e > 0.0 && e >= MIN_EIG_RATIO * self.min_eig[slot]) {
             return Err((ParamCode::RejectedNotPositiveDefinite, 0));
         }

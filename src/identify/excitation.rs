@@ -24,7 +24,6 @@
 //!    iterations, 30 iterations (the paper's settings; all are options).
 
 use super::mfs::MfsDesign;
-use super::series::{Design, FourierSeries};
 use super::{stage_base, states_needed, Columns, Stacker, Stage};
 use crate::dynamics::base::BaseParameters;
 use crate::dynamics::Model;
@@ -32,6 +31,7 @@ use crate::optim::emupso::{EmuPso, EmuPsoSettings};
 use crate::optim::pso::Pso;
 use crate::optim::swarm::SwarmConfig;
 use crate::optim::{evaluate, Objective, Optimiser};
+use crate::reference::series::{Design, FourierSeries};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};

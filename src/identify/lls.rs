@@ -17,10 +17,10 @@
 //! The held-out period is processed the same way on its own (no averaging) and its torques
 //! predicted with the estimate: the validation RMS per joint.
 
-use super::series::FourierSeries;
 use super::{stage_base, states_needed, Columns, Stacker, Stage};
 use crate::dynamics::Model;
-use crate::report::summary::Outcome;
+use crate::reference::series::FourierSeries;
+use crate::report::Outcome;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 use std::path::Path;

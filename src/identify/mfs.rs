@@ -29,8 +29,8 @@
 //! so the limits, the regressor and the scenario reference work on it alike. The fit's largest
 //! position error is reported.
 
-use super::series::{Design, FourierSeries};
 use crate::dynamics::Model;
+use crate::reference::series::{Design, FourierSeries};
 use glam::DVec3;
 use nalgebra::{Matrix3, Vector3};
 use std::f64::consts::TAU;

@@ -8,7 +8,8 @@
 //!   carry information (the moving joints'). The paper identifies a 6-DOF arm in two stages, the
 //!   wrist (joints 4-6, arm held) and then the arm (joints 1-3, wrist held); `all` moves every
 //!   joint;
-//! - `series`: the joint-space finite Fourier series (Swevers) the trajectories are;
+//! - `reference::series` (below the configuration, which loads it): the joint-space finite
+//!   Fourier series (Swevers) the trajectories are;
 //! - `mfs`: the paper's modified Fourier series, a Cartesian path of the wrist centre through
 //!   inverse kinematics;
 //! - `excitation`: eq. 15's fitness and the two-stage eMuPSO search of Section 4.1;
@@ -18,7 +19,6 @@
 pub mod excitation;
 pub mod lls;
 pub mod mfs;
-pub mod series;
 pub mod study;
 
 use crate::dynamics::base::{reduce, BaseParameters};

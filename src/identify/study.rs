@@ -6,8 +6,8 @@
 
 use super::excitation::{search, Problem, Search};
 use super::lls::{estimate, Options, Recording};
-use super::series::FourierSeries;
 use crate::config::{Overrides, Scenario};
+use crate::reference::series::FourierSeries;
 use serde::Serialize;
 use std::path::Path;
 

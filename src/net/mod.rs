@@ -8,7 +8,8 @@
 //!   (`mirror::PREFIX`), and the optimiser's own code runs against it unchanged.
 //! - `evoloop worker --connect ENDPOINT` (`workers`) serves candidate evaluations to an optimiser
 //!   with `optimiser.workers = "zenoh"`, which spreads its costly populations over the workers up
-//!   (`optim::remote`); `evoloop bench workers` (`workers_bench`) measures it.
+//!   (`optim::remote`); `evoloop bench workers` (`bench::workers`) measures it; `evoloop bench bridge`
+//!   (`bench::bridge`) the bridge.
 //!
 //! What crosses and which way (`ROUTES`):
 //!
@@ -32,12 +33,10 @@
 //! memory, behind a header with the type's versioned iceoryx2 name and size, so a peer of
 //! another build refuses a layout it does not share instead of misreading it.
 
-pub mod bench;
 pub mod bridge;
 pub mod mirror;
 pub mod wire;
 pub mod workers;
-pub mod workers_bench;
 
 use std::path::Path;
 use std::time::Duration;

@@ -147,7 +147,7 @@ impl PlantSpec {
         }
         // Bounded as a reference value is: 1e300 passed here and a stall on that safe command
         // drove the state to 8e299.
-        let max = crate::config::MAX_REFERENCE_VALUE;
+        let max = crate::reference::MAX_VALUE;
         let noise_std = check.range("plant.noise_std", raw.noise_std.unwrap_or(0.0), 0.0, max)?;
         let safe_command = check.range(
             "plant.safe_command",

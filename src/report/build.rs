@@ -4,9 +4,10 @@ use super::metrics::{ResponseAcc, TrackingAcc};
 use super::plot::{two_panel_png, Panel, Series};
 use super::scan::{Extent, PlotColumns, Rows};
 use super::summary::{
-    ControllerReport, FloorReport, OptimiserLife, OptimiserReport, Outcome, ParamVersions,
-    PlantReport, RealtimePrivileges, Summary,
+    ControllerReport, FloorReport, OptimiserLife, OptimiserReport, ParamVersions, PlantReport,
+    RealtimePrivileges, Summary,
 };
+use super::Outcome;
 use crate::config::Scenario;
 use crate::msg::ParamCode;
 use crate::sim::cost::TrackingCost;

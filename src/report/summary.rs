@@ -3,6 +3,7 @@
 //! (`summary.json`).
 
 use super::metrics::ResponseMetrics;
+use super::Outcome;
 use crate::rt::timing::Percentiles;
 use crate::rt::{RtGranted, TimingSummary};
 use serde::{Deserialize, Serialize};
@@ -191,25 +192,6 @@ pub struct ParamVersions {
 pub struct RealtimePrivileges {
     pub controller: RtGranted,
     pub plant: RtGranted,
-}
-
-/// How a run ended: summary.json's `outcome`, serialised as the strings scripts read.
-#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum Outcome {
-    /// It ran to its end (a run until stopped that is stopped: that is its end). The default
-    /// only of a `Summary` built in code (`..Default::default()`): when read, `outcome` is
-    /// required.
-    #[default]
-    Ok,
-    /// Ctrl-C before the scenario's duration: what ran so far.
-    Interrupted,
-    /// A process failed; the launcher writes a short summary.json with the reasons.
-    Failed,
-    /// Something could not be written (a full disk): what was written is whole.
-    Incomplete,
-    /// The loop ran to its end with its set in service, the optimiser lost on the way.
-    TunerLost,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]

@@ -50,6 +50,7 @@
 
 use super::data::Trajectory;
 use super::ea::{ChaoticEa, ChaoticEaConfig};
+use super::model::{Report, ServoPrior, Start};
 use super::network::{self, Layout, Network, Part, RbfCounts};
 use crate::linalg::{min_leading_minor, sym_eig_range, Mat};
 use crate::optim::{evaluate, Objective, Optimiser};
@@ -91,76 +92,6 @@ pub struct Settings {
     pub weigh_joints: bool,
 }
 
-/// What the identification knows of the servo that ran the training experiment.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case", tag = "kind")]
-pub enum ServoPrior {
-    /// Nothing (the paper's premise: an industrial arm's servo is the vendor's): a linear
-    /// servo's gains are identified in units of joint 1's k_p and the model is given eq. 2's
-    /// scale. Torque-free data cannot fix the relative scale of joints whose inertia does not
-    /// couple (the book, "RKGNN").
-    #[default]
-    Unknown,
-    /// The P-D law tau_j = clamp(k_p,j e_j + k_d,j e_j', +-limit_j) with these gains and
-    /// limits: the controller's own configuration when the experiment ran under the user's
-    /// servo (the paper allows it: "if detailed information of the controller is known, the
-    /// structure of the network can be altered accordingly"). Then the servo's torque is known
-    /// at every sample and the arm's M-hat, V-hat, G-hat are fitted to it, scale included.
-    Known {
-        kp: Vec<f64>,
-        kd: Vec<f64>,
-        /// Torque limits, N m (none = unclamped).
-        #[serde(default)]
-        limits: Option<Vec<f64>>,
-    },
-}
-
-impl ServoPrior {
-    /// The known servo's torque at reference `r` and state `x` (n each of position and
-    /// velocity), or None if unknown.
-    pub fn torque(&self, r: &[f64], x: &[f64], tau: &mut [f64]) -> Option<()> {
-        let ServoPrior::Known { kp, kd, limits } = self else {
-            return None;
-        };
-        let n = kp.len();
-        for j in 0..n {
-            let t = kp[j] * (r[j] - x[j]) + kd[j] * (r[n + j] - x[n + j]);
-            tau[j] = limits.as_ref().map_or(t, |l| t.clamp(-l[j], l[j]));
-        }
-        Some(())
-    }
-
-    /// Checked against the data's joint count: finite, k_p > 0, k_d >= 0, limits > 0.
-    pub fn check(&self, n: usize) -> Result<(), String> {
-        let ServoPrior::Known { kp, kd, limits } = self else {
-            return Ok(());
-        };
-        if kp.len() != n || kd.len() != n || limits.as_ref().is_some_and(|l| l.len() != n) {
-            return Err(format!(
-                "the servo's gains and limits need {n} values each (one per joint)"
-            ));
-        }
-        let ok = kp.iter().all(|v| v.is_finite() && *v > 0.0)
-            && kd.iter().all(|v| v.is_finite() && *v >= 0.0)
-            && limits.iter().flatten().all(|v| *v > 0.0);
-        if !ok {
-            return Err("the servo needs k_p > 0, k_d >= 0 and limits > 0, all finite".into());
-        }
-        Ok(())
-    }
-}
-
-/// The EA's starting point.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum Start {
-    /// The paper's: `initial` (a stiff critically damped servo, every other weight 0) and a
-    /// population scattered about it.
-    Random,
-    /// `least_squares_start` (linear servo only), the population close about it.
-    LeastSquares,
-}
-
 /// The EA's mutation scales after a least-squares start, as a fraction of `initial`'s: the
 /// start is near a fit already, and `initial`'s steps, sized for a search from nothing, scatter
 /// the population far from it.
@@ -200,46 +131,6 @@ impl Settings {
         s.counts = RbfCounts::linear_servo(n);
         s.start = Start::LeastSquares;
         s
-    }
-}
-
-/// What an identification reports (`evoloop identify rkgnn --json`).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Report {
-    /// Free-run prediction error over the training window, RMS per joint, rad.
-    pub train_rms: Vec<f64>,
-    /// The same over the held-out end of the data, predicted from its first measured state.
-    pub holdout_rms: Vec<f64>,
-    /// Smallest eigenvalue of M-hat over every training sample.
-    pub min_eig_m_hat: f64,
-    pub evaluations: usize,
-    pub seconds: f64,
-    pub generations: usize,
-    /// Eq. 13 at the end (with the last generation's s_t).
-    pub objective: f64,
-    /// The RKGNN's step, s.
-    pub h: f64,
-    /// Eq. 2's bounds, the identification's only knowledge of the arm besides the data.
-    pub m1: f64,
-    pub m2: f64,
-    /// Where the search started.
-    #[serde(default = "Report::random")]
-    pub start: Start,
-    /// What the identification knew of the servo (files before it: unknown).
-    #[serde(default)]
-    pub servo: ServoPrior,
-    /// Each joint's equations weighed by its torque rms (`Settings::weigh_joints`).
-    #[serde(default)]
-    pub weigh_joints: bool,
-    pub seed: u64,
-    /// Best objective after each generation.
-    pub history: Vec<f64>,
-}
-
-impl Report {
-    /// Reports written before `start` existed came from the paper's start.
-    fn random() -> Start {
-        Start::Random
     }
 }
 
@@ -612,7 +503,8 @@ pub fn identify_model(
     progress: impl FnMut(usize, f64),
 ) -> Result<super::RkgnnModel, String> {
     let (net, report) = identify(data, prior, s, progress)?;
-    Ok(super::RkgnnModel::new(data, s.stride, net, source, report))
+    let d = data.every(s.stride.max(1));
+    Ok(super::RkgnnModel::new(net, d.h, d.r, source, report))
 }
 
 /// Identify an RKGNN on `data` (the first 1 - holdout of it) with eq. 2's bounds `prior`.

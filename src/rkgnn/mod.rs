@@ -20,8 +20,8 @@ pub mod data;
 pub mod ea;
 pub mod identify;
 pub mod live;
-pub mod model;
-pub mod network;
+/// The model and its network live in crate `evoloop-rkgnn`, below the control laws.
+pub use evoloop_rkgnn::{model, network};
 pub mod refine;
 pub mod selection;
 pub mod study;

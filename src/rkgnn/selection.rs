@@ -396,7 +396,7 @@ pub fn run(
             if s.christoffel {
                 settings.christoffel_velocity();
             }
-            settings.servo = identify::ServoPrior::Known {
+            settings.servo = crate::rkgnn::model::ServoPrior::Known {
                 kp: servo_kp.clone(),
                 kd: servo_kd.clone(),
                 limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),

@@ -21,7 +21,8 @@ use crate::dynamics::Model;
 use crate::report::metrics::tracking;
 use crate::report::plot::{stacked_png, Panel, Series};
 use crate::report::RunLog;
-use crate::rkgnn::identify::{self, Prior, Report, Settings};
+use crate::rkgnn::identify::{self, Prior, Settings};
+use crate::rkgnn::model::Report;
 use crate::rkgnn::Trajectory;
 use crate::sim::{simulate, JointTraces, SimResult};
 use serde::Serialize;
@@ -458,7 +459,7 @@ pub fn run(
         settings.threads = s.threads.max(1);
         settings.refine = s.refine;
         if s.servo_known {
-            settings.servo = identify::ServoPrior::Known {
+            settings.servo = crate::rkgnn::model::ServoPrior::Known {
                 kp: servo_kp.clone(),
                 kd: servo_kd.clone(),
                 limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),

@@ -130,7 +130,7 @@ impl LogStream {
         let width = parts.iter().map(|p| p.columns.end).max().unwrap_or(0);
         let mut files = Vec::with_capacity(parts.len());
         for p in &parts {
-            let f = crate::files::create(&p.path)?;
+            let f = evoloop_files::create(&p.path)?;
             let mut w = BufWriter::with_capacity(1 << 16, f);
             writeln!(w, "{}", p.header.join(","))?;
             w.flush()?;

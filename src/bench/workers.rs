@@ -3,7 +3,7 @@
 //! every phase, and what the remote path costs per run and per evaluation (a run's round trip
 //! minus the worker's own compute time), for the scaling model in the book.
 
-use super::workers::ZenohWorkers;
+use crate::net::workers::ZenohWorkers;
 use crate::optim::remote::{totals, Workers as _};
 use crate::optim::{evaluate, Objective};
 use serde::Serialize;

@@ -1,10 +1,17 @@
 //! Reference signals: scalar set-points r(t) (a step, a square wave, a sequence of steps) and
 //! joint-space trajectories with position, velocity and acceleration (rest-to-rest quintic
-//! segments through waypoints; sums of sinusoids), all sampled into a `Setpoint`.
+//! segments through waypoints; sums of sinusoids; the finite Fourier series of excitation
+//! trajectories, `series`), all sampled into a `Setpoint`.
+
+pub mod series;
 
 use crate::MAX_JOINTS;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
+
+/// Largest |value| of a scalar reference (amplitude, offset, step value): far beyond any plant's
+/// range, small enough that squared errors and their integrals stay finite.
+pub const MAX_VALUE: f64 = 1e6;
 
 /// What the controller tracks at one instant: per joint (or output) a desired position,
 /// velocity and acceleration. Scalar references fill joint 0 with zero derivatives.

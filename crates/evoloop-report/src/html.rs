@@ -173,7 +173,7 @@ pub fn write(dir: &Path) -> Result<PathBuf, String> {
         esc(&text)
     );
     let path = dir.join("report.html");
-    crate::files::write(&path, h).map_err(|e| format!("{}: {e}", path.display()))?;
+    evoloop_files::write(&path, h).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(path)
 }
 

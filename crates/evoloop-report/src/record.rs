@@ -19,7 +19,7 @@
 //! controller needs.
 
 use super::mcap_file::McapWriter;
-use crate::msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
+use evoloop_msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
 use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -83,7 +83,7 @@ impl Recorder {
         metadata: BTreeMap<String, String>,
         avoid_cpu: Option<usize>,
     ) -> Result<Self, String> {
-        let file = crate::files::create(path).map_err(|e| e.to_string())?;
+        let file = evoloop_files::create(path).map_err(|e| e.to_string())?;
         let at = |e: std::io::Error| format!("{}: {e}", path.display());
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,

@@ -7,7 +7,7 @@
 //! comes back bit for bit (serde_json without `float_roundtrip` can be an ulp off, and that
 //! feature would change how the whole crate reads JSON). null reads as NaN.
 
-use crate::msg::{Command, ModelEstimate, ParamSet, PlantState};
+use evoloop_msg::{Command, ModelEstimate, ParamSet, PlantState};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -82,7 +82,7 @@ fn check_chunk(b: &[u8], len: u64) -> Result<(), String> {
     let mut plain = Vec::with_capacity(declared as usize);
     match name {
         b"" => plain.extend_from_slice(records),
-        n if n == crate::report::mcap_file::COMPRESSION.as_bytes() => {
+        n if n == crate::mcap_file::COMPRESSION.as_bytes() => {
             lz4::Decoder::new(records)
                 .and_then(|d| d.take(declared).read_to_end(&mut plain))
                 .map_err(|e| format!("does not decompress ({e})"))?;

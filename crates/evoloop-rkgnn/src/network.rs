@@ -30,8 +30,8 @@
 //! `Network` evaluates N_f and the model parts without allocating (stack arrays of
 //! `MAX_JOINTS`); the parameters are one flat vector, the EA's object variables.
 
-use crate::linalg::{solve, sym_eig_range, Mat};
-use crate::MAX_JOINTS;
+use evoloop_linalg::{solve, sym_eig_range, Mat};
+use evoloop_msg::MAX_JOINTS;
 use serde::{Deserialize, Serialize};
 
 /// RBF counts per sub-network (the paper's: 3, 10, 3 and n).
@@ -369,7 +369,7 @@ pub fn min_eig<'a>(layout: &Layout, p: &[f64], qs: impl Iterator<Item = &'a [f64
     .fold(f64::INFINITY, f64::min)
 }
 
-pub(crate) fn inertia(layout: &Layout, p: &[f64], theta: &[f64], m: &mut Mat) {
+pub fn inertia(layout: &Layout, p: &[f64], theta: &[f64], m: &mut Mat) {
     let n = layout.n;
     let mut out = [0.0; 1];
     for ((a, b), net) in &layout.inertia {
@@ -396,7 +396,7 @@ fn inertia_and_velocity(
     }
 }
 
-pub(crate) fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v: &mut [f64]) {
+pub fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v: &mut [f64]) {
     if layout.counts.velocity == 0 {
         let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
         return christoffel(layout, p, theta, qd, &mut m, v);
@@ -451,7 +451,7 @@ fn christoffel(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], m: &mut Ma
 }
 
 /// The servo's torque; `zero` = `servo_zero(layout, p)`.
-pub(crate) fn torque(
+pub fn torque(
     layout: &Layout,
     p: &[f64],
     zero: &ServoZero,
@@ -477,7 +477,7 @@ pub(crate) fn torque(
 
 /// The right-hand side of M-hat theta'' = tau-hat(r - x) - V-hat - G-hat at x = [theta;
 /// theta'] under reference r, into `f`, and M-hat into `m`; `zero` = `servo_zero(layout, p)`.
-pub(crate) fn net_force(
+pub fn net_force(
     layout: &Layout,
     p: &[f64],
     zero: &ServoZero,
@@ -525,7 +525,7 @@ pub fn acceleration(layout: &Layout, p: &[f64], x: &[f64], tau: &mut [f64]) -> b
 }
 
 /// N_f; `zero` = `servo_zero(layout, p)`.
-pub(crate) fn rate(
+pub fn rate(
     layout: &Layout,
     p: &[f64],
     zero: &ServoZero,

@@ -287,7 +287,7 @@ mod tests {
     fn rows_are_read_one_at_a_time_with_clear_errors() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("run.csv");
-        crate::files::write(&p, "t,y0,y1,u0\n0,1,2,3\n\n0.5,4,5,6\n1,x,2,3\n").unwrap();
+        evoloop_files::write(&p, "t,y0,y1,u0\n0,1,2,3\n\n0.5,4,5,6\n1,x,2,3\n").unwrap();
         let mut r = Rows::open(&p).unwrap();
         assert_eq!(
             r.indices_with_prefix("y"),
@@ -297,7 +297,7 @@ mod tests {
         assert_eq!(r.next().unwrap(), Some(&[0.5, 4.0, 5.0, 6.0][..]));
         let e = r.next().unwrap_err().to_string();
         assert!(e.contains("run.csv: line 5"), "{e}");
-        crate::files::write(&p, "t,y0\n0,1,2\n").unwrap();
+        evoloop_files::write(&p, "t,y0\n0,1,2\n").unwrap();
         let e = Extent::of(&p).unwrap_err().to_string();
         assert!(e.contains("3 fields under a header of 2"), "{e}");
     }

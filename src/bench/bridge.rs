@@ -12,10 +12,10 @@
 //! drifted. They cannot interleave sample by sample: the run's params topic takes two
 //! publishers (its optimiser's and one more).
 
-use super::bridge::{ipc_err, BridgeReport};
-use super::{key, open, wire, Endpoint};
 use crate::ipc::{Ipc, Topic};
 use crate::msg::{ParamKind, ParamSet, PlantState, Telemetry};
+use crate::net::bridge::{ipc_err, BridgeReport};
+use crate::net::{key, open, wire, Endpoint};
 use crate::rt::timing::Percentiles;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -262,11 +262,13 @@ fn measure(
             Endpoint::Listen(ep.clone()),
             stop.clone(),
         );
-        std::thread::spawn(move || super::bridge::run(&run_id, &prefix, &ep, None, None, &stop))
+        std::thread::spawn(move || {
+            crate::net::bridge::run(&run_id, &prefix, &ep, None, None, &stop)
+        })
     };
     let z = open(&Endpoint::Connect(ep), None)?;
-    let zt = super::bridge::subscriber(&z, key(run_id, Topic::Telemetry, false))?;
-    let zp = super::bridge::publisher(
+    let zt = crate::net::bridge::subscriber(&z, key(run_id, Topic::Telemetry, false))?;
+    let zp = crate::net::bridge::publisher(
         &z,
         key(run_id, Topic::Params, false),
         zenoh::qos::CongestionControl::Block,
@@ -278,7 +280,7 @@ fn measure(
         || recv(&zt),
     )?;
     let state_bridge = {
-        let zs = super::bridge::subscriber(&z, key(run_id, Topic::State, false))?;
+        let zs = crate::net::bridge::subscriber(&z, key(run_id, Topic::State, false))?;
         state_ages(|| recv(&zs))?
     };
     stop.store(true, Ordering::SeqCst);

@@ -18,7 +18,7 @@ fn png(
     use image::ImageEncoder;
     let mut buf = vec![0u8; size.0 as usize * size.1 as usize * 3];
     draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area())?;
-    let file = crate::files::create(path).map_err(|e| e.to_string())?;
+    let file = evoloop_files::create(path).map_err(|e| e.to_string())?;
     image::codecs::png::PngEncoder::new(std::io::BufWriter::new(file))
         .write_image(&buf, size.0, size.1, image::ColorType::Rgb8)
         .map_err(|e| format!("{}: {e}", path.display()))
