@@ -40,8 +40,10 @@ def own_parts(module):
 def graph():
     g = collections.defaultdict(set)
     lib = open(os.path.join(SRC, "lib.rs"), encoding="utf-8").read()
+    # `pub use evoloop_x as name;` and `pub use evoloop_x::{A, B};`: names from crates.
     crates = set(re.findall(r"^pub use evoloop_\w+ as (\w+);", lib, re.M))
-    crates |= set(re.findall(r"^pub use evoloop_\w+::\{([^}]*)\}", lib, re.M)[0].replace(" ", "").split(",")) if re.search(r"^pub use evoloop_\w+::\{", lib, re.M) else set()
+    for group in re.findall(r"^pub use evoloop_\w+::\{([^}]*)\}", lib, re.M):
+        crates |= {name.strip() for name in group.split(",")}
     extended = {m: p for m in os.listdir(SRC) if (p := own_parts(m)) is not None}
     for root, _, files in os.walk(SRC):
         for f in files:

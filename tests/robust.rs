@@ -185,7 +185,11 @@ fn the_diversity_rule_stops_de_before_the_iteration_limit() {
     let cfg = DeConfig::paper(0.5, 0.9, prob.lower.clone(), prob.upper.clone(), 3);
     let mut de = DifferentialEvolution::new(cfg).unwrap();
     let r = run(&mut de, &f, 2, 1000, None, |_| {});
-    assert_eq!(r.stopped_by, "converged");
+    assert_eq!(r.stopped_by, evoloop::optim::StopReason::Converged);
+    assert_eq!(
+        serde_json::to_value(r.stopped_by).unwrap(),
+        r.stopped_by.to_string()
+    );
     assert!(r.generations >= 100 && r.generations < 1000);
     assert!(prob.evaluate(&r.best).unwrap().in_wedge);
 }

@@ -4,6 +4,7 @@
 //! run also measures the bare absolute-deadline loop at the same period, priority, CPU and wait
 //! strategy under the same load, as the machine's floor.
 
+use crate::node::start::Failure;
 use crate::report::plot::{xy_png, Style, XySeries};
 use crate::report::summary::Summary;
 use crate::report::Table;
@@ -178,7 +179,7 @@ pub struct LoopSpec {
 
 /// The scenario file to run and its rate: the built-in one written to `out`, or the given one
 /// (checked: it loads, and runs at `rate` if one is asked for).
-fn scenario_file(spec: &LoopSpec, out: &Path) -> Result<(std::path::PathBuf, f64), (i32, String)> {
+fn scenario_file(spec: &LoopSpec, out: &Path) -> Result<(std::path::PathBuf, f64), Failure> {
     let Some(path) = &spec.scenario else {
         let rate = spec.rate.unwrap_or(1000.0);
         let cfg = out.join("bench_loop.toml");
@@ -186,32 +187,26 @@ fn scenario_file(spec: &LoopSpec, out: &Path) -> Result<(std::path::PathBuf, f64
             &cfg,
             scenario(rate, spec.duration, spec.load == Load::Optimiser),
         )
-        .map_err(|e| (1, e.to_string()))?;
+        .map_err(|e| Failure::Failed(e.to_string()))?;
         return Ok((cfg, rate));
     };
     let scn = crate::config::Scenario::load(path, &crate::config::Overrides::default())
-        .map_err(|e| (2, e.to_string()))?;
+        .map_err(|e| Failure::Setup(e.to_string()))?;
     let own = 1.0 / scn.timing.period;
     if let Some(r) = spec.rate {
         if (r - own).abs() > 1e-6 * own {
-            return Err((
-                2,
-                format!(
-                    "--rate {r} Hz, but {} runs at {own} Hz (timing.period = {} s)",
-                    path.display(),
-                    scn.timing.period
-                ),
-            ));
+            return Err(Failure::Setup(format!(
+                "--rate {r} Hz, but {} runs at {own} Hz (timing.period = {} s)",
+                path.display(),
+                scn.timing.period
+            )));
         }
     }
     if spec.load == Load::Optimiser && scn.optimiser.mode == crate::config::OptimiserMode::Off {
-        return Err((
-            2,
-            format!(
-                "--load optimiser, but {} has no optimiser (optimiser.mode = \"off\")",
-                path.display()
-            ),
-        ));
+        return Err(Failure::Setup(format!(
+            "--load optimiser, but {} has no optimiser (optimiser.mode = \"off\")",
+            path.display()
+        )));
     }
     Ok((path.clone(), own))
 }
@@ -219,27 +214,24 @@ fn scenario_file(spec: &LoopSpec, out: &Path) -> Result<(std::path::PathBuf, f64
 /// Measure the loop as `spec` says, with SCHED_FIFO/mlockall and (unless `rt_only`) without;
 /// runs, loop.json and loop_lateness.png go to `out`. `progress` is told each setting as it
 /// starts. Errors carry the exit code: 2 for bad arguments.
-pub fn measure(
-    spec: &LoopSpec,
-    out: &Path,
-    progress: &dyn Fn(&str),
-) -> Result<Measured, (i32, String)> {
+pub fn measure(spec: &LoopSpec, out: &Path, progress: &dyn Fn(&str)) -> Result<Measured, Failure> {
     let (duration, load, rt_only) = (spec.duration, spec.load, spec.rt_only);
     if let Some(rate) = spec.rate {
         if !(10.0..=20_000.0).contains(&rate) {
-            return Err((2, format!("--rate must be in [10, 20000] Hz (got {rate})")));
+            return Err(Failure::Setup(format!(
+                "--rate must be in [10, 20000] Hz (got {rate})"
+            )));
         }
     }
     if !(0.5..=3600.0).contains(&duration) {
-        return Err((
-            2,
-            format!("--duration must be in [0.5, 3600] s (got {duration})"),
-        ));
+        return Err(Failure::Setup(format!(
+            "--duration must be in [0.5, 3600] s (got {duration})"
+        )));
     }
-    std::fs::create_dir_all(out).map_err(|e| (1, format!("{}: {e}", out.display())))?;
+    std::fs::create_dir_all(out).map_err(|e| Failure::Failed(format!("{}: {e}", out.display())))?;
     let (cfg, rate) = scenario_file(spec, out)?;
-    let _load =
-        start_load(load).map_err(|e| (1, format!("cannot start the {load:?} load: {e}")))?;
+    let _load = start_load(load)
+        .map_err(|e| Failure::Failed(format!("cannot start the {load:?} load: {e}")))?;
     let settings: &[(&str, bool)] = if rt_only {
         &[("fifo", false)]
     } else {
@@ -248,7 +240,7 @@ pub fn measure(
     let mut results = Vec::new();
     for (name, no_rt) in settings {
         progress(name);
-        let summary = run_once(&out.join(name), &cfg, *no_rt, spec).map_err(|e| (1, e))?;
+        let summary = run_once(&out.join(name), &cfg, *no_rt, spec).map_err(Failure::Failed)?;
         results.push(LoopResult {
             privileges: name.to_string(),
             load,
@@ -283,8 +275,8 @@ pub fn measure(
         "results": table,
     });
     crate::report::write_json(out, "loop.json", &report)
-        .map_err(|e| (1, format!("loop.json: {e}")))?;
-    plot(out, &results).map_err(|e| (1, format!("plot: {e}")))?;
+        .map_err(|e| Failure::Failed(format!("loop.json: {e}")))?;
+    plot(out, &results).map_err(|e| Failure::Failed(format!("plot: {e}")))?;
     Ok(Measured { report, results })
 }
 

@@ -113,7 +113,7 @@ fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
 pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
     let ep = crate::node::launcher::local_workers_endpoint()?;
     let stop = std::sync::atomic::AtomicBool::new(false);
-    let pool = super::workers::install(&ep, None, 0, &stop)?;
+    let pool = crate::net::workers::install(&ep, None, 0, &stop)?;
     let f = objective();
     let local_us = {
         let mut t: Vec<f64> = candidates(s.population, 99)

@@ -164,9 +164,9 @@ pub fn loop_(a: LoopArgs) -> i32 {
     let loop_bench::Measured { report, results } =
         match loop_bench::measure(&spec, &a.out, &progress) {
             Ok(m) => m,
-            Err((code, e)) => {
+            Err(e) => {
                 eprintln!("error: {e}");
-                return code;
+                return e.code();
             }
         };
     if a.json {

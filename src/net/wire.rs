@@ -98,7 +98,12 @@ mod tests {
         assert_eq!(back.seq, 42);
         assert_eq!(back.x_true[2].to_bits(), s.x_true[2].to_bits());
         assert_eq!(back.y[7].to_bits(), s.y[7].to_bits());
-        let p = ParamSet::new(7, 0, 3, &[1.0, f64::INFINITY]);
+        let p = ParamSet::new(
+            7,
+            0,
+            crate::msg::ParamKind::ComputedTorque,
+            &[1.0, f64::INFINITY],
+        );
         let q: ParamSet = decode(&encode(&p)).unwrap();
         assert_eq!((q.version, q.n), (7, 2));
         assert_eq!(q.values()[1], f64::INFINITY);

@@ -18,7 +18,7 @@ use crate::msg::{
     Command, ModelEstimate, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
     TELEMETRY_FLAG_MISSED, TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
 };
-use crate::node::start::{leave_and_fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP};
+use crate::node::start::{leave_and_fail, ports, start, Failure, Started, EXIT_SETUP};
 use crate::report::record::Recorder;
 use crate::report::stream::{CsvPart, LogStream, Overflow};
 use crate::report::summary::{ControllerReport, ParamRecord};
@@ -369,8 +369,8 @@ pub fn main(args: &ProcessArgs) {
     report.wall_s = t0.elapsed().as_secs_f64();
     report.interrupted = stop.load(Ordering::SeqCst);
     finish(&scn, lp, &mut report);
-    if let Err((code, msg)) = result {
-        leave_and_fail(WHO, ports, ipc, code, &msg);
+    if let Err(e) = result {
+        leave_and_fail(WHO, ports, ipc, e.code(), &e.to_string());
     }
 }
 
@@ -381,15 +381,14 @@ fn next_state(
     spin: Duration,
     timeout: Duration,
     stop: &AtomicBool,
-) -> Result<Option<PlantState>, (i32, String)> {
+) -> Result<Option<PlantState>, Failure> {
     match ports.state.wait_for(spin, timeout, stop, |_| true) {
         Ok(Waited::Got(s)) => Ok(Some(s)),
         Ok(Waited::Stopped) => Ok(None),
-        Ok(Waited::TimedOut) => Err((
-            EXIT_PEER_TIMEOUT,
-            format!("no plant state within {timeout:?}"),
-        )),
-        Err(e) => Err((EXIT_SETUP, e.to_string())),
+        Ok(Waited::TimedOut) => Err(Failure::PeerTimeout(format!(
+            "no plant state within {timeout:?}"
+        ))),
+        Err(e) => Err(Failure::Setup(e.to_string())),
     }
 }
 
@@ -398,7 +397,7 @@ fn run_lockstep(
     ports: &Ports,
     lp: &mut Loop,
     stop: &AtomicBool,
-) -> Result<(), (i32, String)> {
+) -> Result<(), Failure> {
     let spin = Duration::from_micros(scn.timing.spin_us);
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout);
     // The first sample may take as long as the start-up of all processes. After that the plant
@@ -426,7 +425,7 @@ fn run_lockstep(
             period_ns: 0,
         };
         lp.cycle(ports, &state, wake)
-            .map_err(|e| (EXIT_SETUP, e.to_string()))?;
+            .map_err(|e| Failure::Setup(e.to_string()))?;
     }
 }
 
@@ -435,7 +434,7 @@ fn run_realtime(
     ports: &Ports,
     lp: &mut Loop,
     stop: &AtomicBool,
-) -> Result<(), (i32, String)> {
+) -> Result<(), Failure> {
     let period = scn.period_ns();
     let stale_ns = scn.controller.stale_after_periods as u64 * period;
     let Some(mut state) = next_state(ports, Duration::ZERO, Duration::from_secs(10), stop)? else {
@@ -477,7 +476,7 @@ fn run_realtime(
                 epoch = epoch.min(s.stamp_ns.saturating_sub(s.seq * period));
             }
             Ok(None) => {}
-            Err(e) => return Err((EXIT_SETUP, e.to_string())),
+            Err(e) => return Err(Failure::Setup(e.to_string())),
         }
         if state.flags & STATE_FLAG_END != 0 {
             return Ok(());
@@ -493,7 +492,7 @@ fn run_realtime(
             period_ns: period,
         };
         lp.cycle(ports, &state, wake)
-            .map_err(|e| (EXIT_SETUP, e.to_string()))?;
+            .map_err(|e| Failure::Setup(e.to_string()))?;
         k += 1;
     }
     Ok(())
@@ -519,11 +518,8 @@ fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
             version: e.version,
             cycle: e.cycle,
             t: e.t,
-            outcome: if e.code == ParamCode::Accepted {
-                "accepted".into()
-            } else {
-                e.code.reason().into()
-            },
+            code: e.code,
+            outcome: e.code.reason().into(),
             index: matches!(
                 e.code,
                 ParamCode::RejectedOutOfBounds | ParamCode::RejectedNonFinite

@@ -14,9 +14,7 @@ use crate::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
 use crate::msg::{
     Command, ModelEstimate, OptimiserAck, OptimiserStatus, ParamSet, PlantState, STATE_FLAG_END,
 };
-use crate::node::start::{
-    fail, leave_and_fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP,
-};
+use crate::node::start::{fail, leave_and_fail, ports, start, Failure, Started, EXIT_SETUP};
 use crate::report::history::History;
 use crate::report::summary::{OptimiserReport, PublishedSet};
 use crate::report::write_json;
@@ -104,8 +102,8 @@ pub fn main(cli: &OptimiserArgs) {
     if let Some(m) = mirror {
         remote::finish(m, &scn.output.dir);
     }
-    if let Err((code, msg)) = result {
-        leave_and_fail(WHO, ports, ipc, code, &msg);
+    if let Err(e) = result {
+        leave_and_fail(WHO, ports, ipc, e.code(), &e.to_string());
     }
 }
 
@@ -115,7 +113,7 @@ fn run(
     stop: &AtomicBool,
     report: &mut OptimiserReport,
     rejoin: bool,
-) -> Result<(), (i32, String)> {
+) -> Result<(), Failure> {
     let lockstep = scn.timing.mode == Mode::Lockstep;
     let schedule_on = scn.optimiser.mode == OptimiserMode::Schedule;
     let sync = scn.sync_samples();
@@ -123,7 +121,7 @@ fn run(
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
     let mut next_set = 0usize;
     let mut indirect = if scn.optimiser.mode == OptimiserMode::Indirect {
-        let mut ind = crate::indirect::Indirect::new(scn).map_err(|e| (EXIT_SETUP, e))?;
+        let mut ind = crate::indirect::Indirect::new(scn).map_err(Failure::Setup)?;
         if rejoin {
             if let Some((version, params)) = last_published(&scn.output.dir) {
                 ind.resume(version, params);
@@ -134,7 +132,7 @@ fn run(
         None
     };
     let mut live = if scn.optimiser.mode == OptimiserMode::Identify {
-        let mut l = crate::rkgnn::live::LiveIdentify::new(scn).map_err(|e| (EXIT_SETUP, e))?;
+        let mut l = crate::rkgnn::live::LiveIdentify::new(scn).map_err(Failure::Setup)?;
         if rejoin {
             if let Some((version, values)) = last_published(&scn.output.dir) {
                 l.resume(version, &values);
@@ -145,7 +143,7 @@ fn run(
         None
     };
     let mut direct = if scn.optimiser.mode == OptimiserMode::Direct {
-        let mut tuner = crate::direct::DirectTuner::new(scn).map_err(|e| (EXIT_SETUP, e))?;
+        let mut tuner = crate::direct::DirectTuner::new(scn).map_err(Failure::Setup)?;
         if rejoin {
             if let Some((version, _)) = last_published(&scn.output.dir) {
                 tuner.resume(version);
@@ -161,7 +159,7 @@ fn run(
     let mut published = History::new(crate::indirect::HISTORY);
     let mut last_state = Instant::now();
     let mut status_epochs = 0;
-    let io = |e: IpcError| (EXIT_SETUP, e.to_string());
+    let io = |e: IpcError| Failure::Setup(e.to_string());
     // Ends at the plant's last sample, at a stop request (a run until stopped ends so), when
     // the plant has gone or at an IPC failure; the histories go into the report in every case.
     let mut serve = || loop {
@@ -188,10 +186,9 @@ fn run(
             Wait::TimedOut => {
                 // In realtime the plant keeps sampling; silence this long means it is gone.
                 if last_state.elapsed() > timeout {
-                    return Err((
-                        EXIT_PEER_TIMEOUT,
-                        format!("no plant state within {timeout:?}"),
-                    ));
+                    return Err(Failure::PeerTimeout(format!(
+                        "no plant state within {timeout:?}"
+                    )));
                 }
                 continue;
             }
@@ -431,22 +428,21 @@ impl DirectLive {
         commands: &Sub<Command>,
         seen: &mut u64,
         timeout: Duration,
-    ) -> Result<(), (i32, String)> {
+    ) -> Result<(), Failure> {
         let t0 = Instant::now();
         while self.through.is_none_or(|s| s < seq) {
             match commands
                 .wait_next(Duration::from_micros(50), Duration::from_millis(100))
-                .map_err(|e| (EXIT_SETUP, e.to_string()))?
+                .map_err(|e| Failure::Setup(e.to_string()))?
             {
                 Wait::Got(c) => {
                     *seen += 1;
                     self.push_command(&c);
                 }
                 Wait::TimedOut if t0.elapsed() > timeout => {
-                    return Err((
-                        EXIT_PEER_TIMEOUT,
-                        format!("no command for sample {seq} within {timeout:?}"),
-                    ))
+                    return Err(Failure::PeerTimeout(format!(
+                        "no command for sample {seq} within {timeout:?}"
+                    )))
                 }
                 Wait::TimedOut => {}
             }

@@ -13,7 +13,7 @@ use crate::config::{Mode, Scenario};
 use crate::ipc::{Bell, Doorbell, Pub, Sub, Topic, Waited};
 use crate::msg::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
 use crate::node::start::{
-    fail, leave_and_fail, ports, start, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP,
+    fail, leave_and_fail, ports, start, Failure, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP,
 };
 use crate::plant::PlantSim;
 use crate::report::summary::PlantReport;
@@ -79,8 +79,8 @@ pub fn main(args: &ProcessArgs) {
     if let Err(e) = write_json(&scn.output.dir, "plant.json", &report) {
         eprintln!("{WHO}: cannot write plant.json: {e}");
     }
-    if let Err((code, msg)) = result {
-        leave_and_fail(WHO, ports, ipc, code, &msg);
+    if let Err(e) = result {
+        leave_and_fail(WHO, ports, ipc, e.code(), &e.to_string());
     }
 }
 
@@ -108,11 +108,11 @@ fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
     }
 }
 
-fn publish(ports: &Ports, msg: &PlantState) -> Result<(), (i32, String)> {
+fn publish(ports: &Ports, msg: &PlantState) -> Result<(), Failure> {
     ports
         .state
         .send(msg)
-        .map_err(|e| (EXIT_SETUP, e.to_string()))
+        .map_err(|e| Failure::Setup(e.to_string()))
 }
 
 fn run_lockstep(
@@ -121,7 +121,7 @@ fn run_lockstep(
     sim: &mut PlantSim,
     stop: &AtomicBool,
     report: &mut PlantReport,
-) -> Result<(), (i32, String)> {
+) -> Result<(), Failure> {
     let n = scn.cycles();
     let dt = scn.timing.period;
     let spin = Duration::from_micros(scn.timing.spin_us);
@@ -135,7 +135,7 @@ fn run_lockstep(
     for k in 0..=n {
         sim.sample(k, now_ns(), &u[..n_u], &mut msg);
         diverged(sim, k)?;
-        let ring = |ports: &Ports| ports.sync.ring().map_err(|e| (EXIT_SETUP, e.to_string()));
+        let ring = |ports: &Ports| ports.sync.ring().map_err(|e| Failure::Setup(e.to_string()));
         if k == n {
             msg.flags = STATE_FLAG_END;
             publish(ports, &msg)?;
@@ -155,15 +155,14 @@ fn run_lockstep(
         let cmd = match ports
             .command
             .wait_for(spin, timeout, stop, |c: &Command| c.state_seq == k)
-            .map_err(|e| (EXIT_SETUP, e.to_string()))?
+            .map_err(|e| Failure::Setup(e.to_string()))?
         {
             Waited::Got(c) => c,
             Waited::Stopped => return Ok(()),
             Waited::TimedOut => {
-                return Err((
-                    EXIT_PEER_TIMEOUT,
-                    format!("controller did not answer sample {k} within {timeout:?}"),
-                ))
+                return Err(Failure::PeerTimeout(format!(
+                    "controller did not answer sample {k} within {timeout:?}"
+                )))
             }
         };
         report.commands_received += 1;
@@ -179,20 +178,17 @@ pub const DIVERGED: f64 = 1e9;
 /// Err if the state at sample `k` is non-finite or beyond `DIVERGED`: the run must end there as
 /// failed, not run on and report "ok" (a stall on a safe command of 1e300 drove a state to
 /// 8e299 and the run ended "ok"). A loop over the state, once per sample.
-fn diverged(sim: &PlantSim, k: u64) -> Result<(), (i32, String)> {
+fn diverged(sim: &PlantSim, k: u64) -> Result<(), Failure> {
     match sim
         .x
         .iter()
         .position(|v| !v.is_finite() || v.abs() > DIVERGED)
     {
         None => Ok(()),
-        Some(i) => Err((
-            super::start::EXIT_DIVERGED,
-            format!(
-                "the plant's state diverged at sample {k} (t = {:.4} s): x[{i}] = {:e}",
-                sim.t, sim.x[i]
-            ),
-        )),
+        Some(i) => Err(Failure::Diverged(format!(
+            "the plant's state diverged at sample {k} (t = {:.4} s): x[{i}] = {:e}",
+            sim.t, sim.x[i]
+        ))),
     }
 }
 
@@ -213,8 +209,8 @@ fn wait_for_optimiser(
     stop: &AtomicBool,
     paced: &mut bool,
     report: &mut PlantReport,
-) -> Result<(), (i32, String)> {
-    let io = |e: crate::ipc::IpcError| (EXIT_SETUP, e.to_string());
+) -> Result<(), Failure> {
+    let io = |e: crate::ipc::IpcError| Failure::Setup(e.to_string());
     let t_wait = std::time::Instant::now();
     loop {
         if ports.ack.publishers() == 0 {
@@ -261,7 +257,7 @@ fn run_realtime(
     sim: &mut PlantSim,
     stop: &AtomicBool,
     report: &mut PlantReport,
-) -> Result<(), (i32, String)> {
+) -> Result<(), Failure> {
     let n = scn.cycles();
     let period = scn.period_ns();
     let n_u = sim.plant.n_inputs();
@@ -287,7 +283,7 @@ fn run_realtime(
             let cmd = match ports.command.next() {
                 Ok(Some(c)) => c,
                 Ok(None) => break,
-                Err(e) => return Err((EXIT_SETUP, e.to_string())),
+                Err(e) => return Err(Failure::Setup(e.to_string())),
             };
             let at = cmd.stamp_ns.clamp(epoch + (sim.t * 1e9) as u64, tick);
             // The controller is back (if the safe command had taken over).

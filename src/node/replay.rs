@@ -24,6 +24,7 @@ use crate::ipc::{Doorbell, Ipc, Pub, Sub, Topic, Waited};
 use crate::msg::{Command, ModelEstimate, ParamSet, PlantState, STATE_FLAG_END};
 use crate::node::launcher::{process_args, signal, spawn_process};
 use crate::node::start::stop_flag;
+use crate::node::start::Failure;
 use crate::report::plot::{stacked_png, Panel, Series};
 use crate::report::recording::{Received, Recording};
 use crate::report::RunLog;
@@ -129,15 +130,15 @@ pub fn main(a: &ReplayArgs) -> i32 {
             }
             0
         }
-        Err((code, e)) => {
+        Err(e) => {
             err!("error: {e}");
-            code
+            e.code()
         }
     }
 }
 
-fn replay(a: &ReplayArgs) -> Result<ReplayReport, (i32, String)> {
-    let bad = |e: String| (2, e);
+fn replay(a: &ReplayArgs) -> Result<ReplayReport, Failure> {
+    let bad = |e: String| Failure::Setup(e);
     let rec = Recording::read(&a.file).map_err(bad)?;
     if rec.states.is_empty() {
         return Err(bad(format!("{}: no states recorded", a.file.display())));
@@ -191,7 +192,7 @@ fn replay(a: &ReplayArgs) -> Result<ReplayReport, (i32, String)> {
         )
     });
     let stop = stop_flag();
-    let io = |e: crate::ipc::IpcError| (1, e.to_string());
+    let io = |e: crate::ipc::IpcError| Failure::Failed(e.to_string());
     let ipc = Ipc::new("evoloop-replay", &run_id, &a.ipc_prefix).map_err(io)?;
     let ports = Ports {
         ready: ipc.doorbell(Topic::Ready).map_err(io)?,
@@ -212,7 +213,7 @@ fn replay(a: &ReplayArgs) -> Result<ReplayReport, (i32, String)> {
         args.extend(["--seed".into(), s.to_string()]);
     }
     let mut child = spawn_process("evoloop-controller", &args)
-        .map_err(|e| (1, format!("cannot start the controller: {e}")))?;
+        .map_err(|e| Failure::Failed(format!("cannot start the controller: {e}")))?;
     let result = play(a, &scn, n_u, &rec, &ports, &mut child, &stop);
     // However the play ended, the controller is told the run is over and waited for.
     let end = PlantState {
@@ -236,9 +237,11 @@ fn replay(a: &ReplayArgs) -> Result<ReplayReport, (i32, String)> {
     };
     let (report, rows) = result?;
     if !status.is_some_and(|s| s.success()) {
-        return Err((1, format!("the controller exited with {status:?}")));
+        return Err(Failure::Failed(format!(
+            "the controller exited with {status:?}"
+        )));
     }
-    write_outputs(&out, &report, &rows, n_u).map_err(|e| (1, e))?;
+    write_outputs(&out, &report, &rows, n_u).map_err(Failure::Failed)?;
     Ok(report)
 }
 
@@ -252,19 +255,20 @@ fn play(
     ports: &Ports,
     child: &mut Child,
     stop: &AtomicBool,
-) -> Result<(ReplayReport, RunLog), (i32, String)> {
-    let io = |e: crate::ipc::IpcError| (1, e.to_string());
+) -> Result<(ReplayReport, RunLog), Failure> {
+    let io = |e: crate::ipc::IpcError| Failure::Failed(e.to_string());
     // The controller is there once it has subscribed to the states and publishes commands.
     let t0 = Instant::now();
     while ports.state.subscribers() < 1 || ports.command.publishers() < 1 {
         if let Ok(Some(s)) = child.try_wait() {
-            return Err((
-                1,
-                format!("the controller exited with {s} before the replay"),
-            ));
+            return Err(Failure::Failed(format!(
+                "the controller exited with {s} before the replay"
+            )));
         }
         if stop.load(Ordering::SeqCst) || t0.elapsed() > Duration::from_secs(20) {
-            return Err((1, "the controller did not connect within 20 s".into()));
+            return Err(Failure::Failed(
+                "the controller did not connect within 20 s".into(),
+            ));
         }
         ports.ready.wait(Duration::from_millis(100)).map_err(io)?;
     }
@@ -331,13 +335,10 @@ fn play(
             Waited::Got(c) => c,
             Waited::Stopped => break,
             Waited::TimedOut => {
-                return Err((
-                    1,
-                    format!(
-                        "the controller did not answer state {} within {timeout:?}",
-                        state.seq
-                    ),
-                ))
+                return Err(Failure::Failed(format!(
+                    "the controller did not answer state {} within {timeout:?}",
+                    state.seq
+                )))
             }
         };
         report.states += 1;

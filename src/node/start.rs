@@ -14,6 +14,42 @@ pub const EXIT_SETUP: i32 = 2;
 /// Exit code of a plant whose state left any physical range (non-finite or beyond `DIVERGED`).
 pub const EXIT_DIVERGED: i32 = 4;
 
+/// Why a process (or a tool that drives one) ends early, with the exit code the launcher reads
+/// for it. The message says what happened; `code` is the convention above.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Failure {
+    /// It could not set itself up or lost its transport (configuration, arguments, IPC).
+    Setup(String),
+    /// A peer stopped answering (a lockstep timeout).
+    PeerTimeout(String),
+    /// The plant's state left any physical range.
+    Diverged(String),
+    /// Anything else (the replay's controller under test failed): exit 1.
+    Failed(String),
+}
+
+impl Failure {
+    /// The process's exit code for it.
+    pub fn code(&self) -> i32 {
+        match self {
+            Failure::Setup(_) => EXIT_SETUP,
+            Failure::PeerTimeout(_) => EXIT_PEER_TIMEOUT,
+            Failure::Diverged(_) => EXIT_DIVERGED,
+            Failure::Failed(_) => 1,
+        }
+    }
+}
+
+impl std::fmt::Display for Failure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (Failure::Setup(m)
+        | Failure::PeerTimeout(m)
+        | Failure::Diverged(m)
+        | Failure::Failed(m)) = self;
+        f.write_str(m)
+    }
+}
+
 /// What every process starts with: its scenario, its stop flag (set by SIGINT/SIGTERM) and its
 /// iceoryx2 node in the run.
 pub struct Started {

@@ -422,11 +422,9 @@ pub fn build_report(
         .params
         .iter()
         .cloned()
-        .partition(|p| p.outcome == "accepted");
+        .partition(|p| p.code == ParamCode::Accepted);
     let trial_end = |p: &crate::report::summary::ParamRecord| {
-        [ParamCode::TrialEnded, ParamCode::TrialAborted]
-            .iter()
-            .any(|c| p.outcome == c.reason())
+        matches!(p.code, ParamCode::TrialEnded | ParamCode::TrialAborted)
     };
     let (trials_ended, rejected): (Vec<_>, Vec<_>) = refused.into_iter().partition(trial_end);
     let floor = floor.map(|mut f| {

@@ -13,7 +13,9 @@ pub struct ParamRecord {
     pub version: u64,
     pub cycle: u64,
     pub t: f64,
-    /// "accepted" or the rejection reason.
+    /// What happened to the set: the report classifies by this.
+    pub code: crate::msg::ParamCode,
+    /// The code's reason in words ("accepted", or why refused), for readers.
     pub outcome: String,
     /// Offending value index for bounds/non-finite rejections.
     pub index: Option<u32>,

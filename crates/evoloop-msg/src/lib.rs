@@ -32,12 +32,14 @@ impl std::error::Error for UnknownCode {}
 
 /// A `#[repr(u32)]` enum carried as its code in a message: `code()` writes it, `TryFrom<u32>`
 /// reads it back and refuses any other value, `ALL` lists the variants (for tests and
-/// documentation of the contract).
+/// documentation of the contract). In JSON files (controller.json, summary.json) it is its
+/// snake_case name.
 macro_rules! wire_enum {
     ($(#[$m:meta])* pub enum $name:ident { $($(#[$vm:meta])* $v:ident = $c:literal,)* }) => {
         $(#[$m])*
         #[repr(u32)]
-        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+        #[serde(rename_all = "snake_case")]
         pub enum $name { $($(#[$vm])* $v = $c,)* }
 
         impl $name {

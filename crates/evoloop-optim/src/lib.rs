@@ -246,6 +246,27 @@ pub fn evaluate<F: Objective + ?Sized>(
     values
 }
 
+/// Why `run` stopped; in JSON and CSV its snake_case name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    /// The optimiser's own stopping rule.
+    Converged,
+    MaxGenerations,
+    /// The best value reached the target.
+    Target,
+}
+
+impl std::fmt::Display for StopReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            StopReason::Converged => "converged",
+            StopReason::MaxGenerations => "max_generations",
+            StopReason::Target => "target",
+        })
+    }
+}
+
 /// Result of running an optimiser to its end.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct RunResult {
@@ -254,8 +275,8 @@ pub struct RunResult {
     pub generations: usize,
     pub evaluations: usize,
     pub seconds: f64,
-    /// Why it stopped: "converged" (the optimiser's rule), "max_generations" or "target".
-    pub stopped_by: String,
+    /// Why it stopped.
+    pub stopped_by: StopReason,
     /// Best value after each generation.
     pub history: Vec<f64>,
 }
@@ -279,13 +300,13 @@ pub fn run<O: Optimiser, F: Objective + ?Sized>(
         history.push(opt.best().1);
         progress(opt);
         if target.is_some_and(|t| opt.best().1 <= t) {
-            break "target";
+            break StopReason::Target;
         }
         if opt.converged() {
-            break "converged";
+            break StopReason::Converged;
         }
         if opt.generation() >= max_generations {
-            break "max_generations";
+            break StopReason::MaxGenerations;
         }
     };
     let (best, value) = opt.best();
@@ -295,7 +316,7 @@ pub fn run<O: Optimiser, F: Objective + ?Sized>(
         generations: opt.generation(),
         evaluations: opt.evaluations(),
         seconds: t0.elapsed().as_secs_f64(),
-        stopped_by: stopped_by.into(),
+        stopped_by,
         history,
     }
 }
