@@ -106,6 +106,14 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
                 Err(format!("no feature `{feature}` in Cargo.toml"))
             }
         }
+        // One crate of the workspace alone (the book's "Layout").
+        ["cargo", "test" | "build", "--release", "-p", name] | ["cargo", "tree", "-p", name, ..] => {
+            if root().join("crates").join(name).join("Cargo.toml").exists() {
+                Ok(None)
+            } else {
+                Err(format!("no crate `{name}` in crates/"))
+            }
+        }
         ["cargo", "run", "--release", "--example", name, ..] => {
             if root().join("examples").join(format!("{name}.rs")).exists() {
                 Ok(None)
