@@ -107,7 +107,8 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
             }
         }
         // One crate of the workspace alone (the book's "Layout").
-        ["cargo", "test" | "build", "--release", "-p", name] | ["cargo", "tree", "-p", name, ..] => {
+        ["cargo", "test" | "build", "--release", "-p", name]
+        | ["cargo", "tree", "-p", name, ..] => {
             if root().join("crates").join(name).join("Cargo.toml").exists() {
                 Ok(None)
             } else {

@@ -4,8 +4,8 @@ use super::metrics::{ResponseAcc, TrackingAcc};
 use super::plot::{two_panel_png, Panel, Series};
 use super::scan::{Extent, PlotColumns, Rows};
 use super::summary::{
-    ControllerReport, FloorReport, OptimiserLife, OptimiserReport, ParamVersions, PlantReport,
-    RealtimePrivileges, Summary,
+    ControllerReport, DirectSummary, FloorReport, OptimiserLife, OptimiserReport, ParamRecord,
+    ParamVersions, PlantReport, RealtimePrivileges, Summary,
 };
 use super::Outcome;
 use crate::config::Scenario;
@@ -381,16 +381,14 @@ fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T
     serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))
 }
 
-/// Build `summary.json` (and `response.png` when plots are on) in the scenario's output dir.
-pub fn build_report(
-    scn: &Scenario,
-    run_id: &str,
-    wall_s: f64,
-    floor: Option<FloorReport>,
-    cleaned: usize,
-    optimiser: OptimiserLife,
-) -> Result<Summary, String> {
-    let dir = &scn.output.dir;
+/// The processes' own reports in the run directory.
+struct Inputs {
+    ctrl: ControllerReport,
+    plant: PlantReport,
+    opt: OptimiserReport,
+}
+
+fn read_inputs(dir: &Path) -> Result<Inputs, String> {
     let ctrl: ControllerReport = read_json(dir, "controller.json")?;
     let plant: PlantReport = read_json(dir, "plant.json").unwrap_or_default();
     // A missing optimiser.json is normal (it was killed); an unreadable one loses the estimates
@@ -404,7 +402,138 @@ pub fn build_report(
             OptimiserReport::default()
         }
     };
-    let scan = scan_run(scn, &dir.join("run.csv"))?;
+    Ok(Inputs { ctrl, plant, opt })
+}
+
+/// The parameter events by what became of the set.
+struct SetOutcomes {
+    accepted: Vec<ParamRecord>,
+    rejected: Vec<ParamRecord>,
+    /// A trial's end or abort: its fallback back in service, not a refusal.
+    trials_ended: Vec<ParamRecord>,
+}
+
+impl SetOutcomes {
+    fn of(params: &[ParamRecord]) -> Self {
+        let (accepted, refused): (Vec<_>, Vec<_>) = params
+            .iter()
+            .cloned()
+            .partition(|p| p.code == ParamCode::Accepted);
+        let (trials_ended, rejected) = refused
+            .into_iter()
+            .partition(|p| matches!(p.code, ParamCode::TrialEnded | ParamCode::TrialAborted));
+        Self {
+            accepted,
+            rejected,
+            trials_ended,
+        }
+    }
+
+    /// When the accepted sets went in service: the plots' marks.
+    fn marks(&self) -> Vec<f64> {
+        self.accepted.iter().map(|p| p.t).collect()
+    }
+}
+
+/// The floor's figures with the controller's lateness over them, percentile by percentile.
+fn against_floor(mut f: FloorReport, lateness: &crate::rt::timing::Percentiles) -> FloorReport {
+    let ratio = |a: i64, b: i64| if b > 0 { a as f64 / b as f64 } else { f64::NAN };
+    f.ratio_p50 = ratio(lateness.p50_ns, f.lateness.p50_ns);
+    f.ratio_p99 = ratio(lateness.p99_ns, f.lateness.p99_ns);
+    f.ratio_p99_9 = ratio(lateness.p99_9_ns, f.lateness.p99_9_ns);
+    f
+}
+
+/// The frozen comparison of a scheme that tunes alongside operation: the same scenario and seed
+/// with the optimiser off, simulated for the run's `span`. The indirect scheme is judged on its
+/// cost per repetition, identification on tracking; other modes, and runs longer than
+/// `FROZEN_LIMIT_S`, have none.
+fn frozen_comparison(
+    scn: &Scenario,
+    span: f64,
+    change: Option<f64>,
+    quarter: f64,
+) -> Option<FrozenReadings> {
+    use crate::config::OptimiserMode;
+    let compare = matches!(
+        scn.optimiser.mode,
+        OptimiserMode::Indirect | OptimiserMode::Identify
+    );
+    if compare && span > FROZEN_LIMIT_S {
+        eprintln!("evoloop: note: the run is longer than {FROZEN_LIMIT_S} s; the frozen comparison is left out of the report");
+    }
+    (compare && span <= FROZEN_LIMIT_S)
+        .then(|| frozen_readings(scn, &frozen_traces(scn, span), change, quarter))
+}
+
+/// Mean cost of the repetitions before the plant's change (after the first, start-up one; those
+/// that end by the change) and after it (those starting in the last quarter of the run).
+fn before_and_after(
+    reps: &[(f64, f64, f64)],
+    change: Option<f64>,
+    quarter: f64,
+) -> (Option<f64>, Option<f64>) {
+    let mean = |v: Vec<f64>| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
+    let before = change.and_then(|tc| {
+        mean(
+            reps.iter()
+                .skip(1)
+                .filter(|r| r.1 <= tc)
+                .map(|r| r.2)
+                .collect(),
+        )
+    });
+    let after = mean(
+        reps.iter()
+            .filter(|r| r.0 >= quarter)
+            .map(|r| r.2)
+            .collect(),
+    );
+    (before, after)
+}
+
+fn direct_summary(d: &crate::direct::DirectReport) -> DirectSummary {
+    DirectSummary {
+        algorithm: d.algorithm.clone(),
+        trials: d.repetitions.iter().filter(|r| r.trial > 0).count(),
+        aborted: d.aborted,
+        incomplete: d.incomplete,
+        baseline_cost: d
+            .repetitions
+            .iter()
+            .find(|r| r.trial == 0)
+            .map(|b| b.cost)
+            .filter(|c| c.is_finite()),
+        best_cost: Some(d.best_cost).filter(|c| c.is_finite()),
+        best_version: d.best_version,
+    }
+}
+
+/// The messages of what could not be written (a full disk): the run is then incomplete.
+fn write_errors(ctrl: &ControllerReport) -> Vec<String> {
+    ctrl.log_error
+        .iter()
+        .cloned()
+        .chain(
+            ctrl.mcap
+                .as_ref()
+                .and_then(|m| m.error.as_ref())
+                .map(|e| format!("run.mcap: {e}; messages after it are lost")),
+        )
+        .collect()
+}
+
+/// Build `summary.json` (and `response.png` when plots are on) in the scenario's output dir.
+pub fn build_report(
+    scn: &Scenario,
+    run_id: &str,
+    wall_s: f64,
+    floor: Option<FloorReport>,
+    cleaned: usize,
+    optimiser: OptimiserLife,
+) -> Result<Summary, String> {
+    let dir = &scn.output.dir;
+    let Inputs { ctrl, plant, opt } = read_inputs(dir)?;
     let Scan {
         horizon,
         span,
@@ -417,76 +546,28 @@ pub fn build_report(
         phases: (tracking_before_change, tracking_after_change),
         windowed,
         plot,
-    } = scan;
-    let (accepted, refused): (Vec<_>, Vec<_>) = ctrl
-        .params
-        .iter()
-        .cloned()
-        .partition(|p| p.code == ParamCode::Accepted);
-    let trial_end = |p: &crate::report::summary::ParamRecord| {
-        matches!(p.code, ParamCode::TrialEnded | ParamCode::TrialAborted)
-    };
-    let (trials_ended, rejected): (Vec<_>, Vec<_>) = refused.into_iter().partition(trial_end);
-    let floor = floor.map(|mut f| {
-        let ratio = |a: i64, b: i64| if b > 0 { a as f64 / b as f64 } else { f64::NAN };
-        f.ratio_p50 = ratio(ctrl.timing.lateness.p50_ns, f.lateness.p50_ns);
-        f.ratio_p99 = ratio(ctrl.timing.lateness.p99_ns, f.lateness.p99_ns);
-        f.ratio_p99_9 = ratio(ctrl.timing.lateness.p99_9_ns, f.lateness.p99_9_ns);
-        f
-    });
-    let n_rejected = rejected.len();
-    // The frozen comparison of a scheme that tunes alongside operation: the same scenario and
-    // seed with the optimiser off. The indirect scheme is judged on its cost per repetition,
-    // identification (below) on tracking.
-    use crate::config::OptimiserMode;
-    let compare = matches!(
-        scn.optimiser.mode,
-        OptimiserMode::Indirect | OptimiserMode::Identify
-    );
-    if compare && span > FROZEN_LIMIT_S {
-        eprintln!("evoloop: note: the run is longer than {FROZEN_LIMIT_S} s; the frozen comparison is left out of the report");
-    }
-    let frozen_readings = (compare && span <= FROZEN_LIMIT_S)
-        .then(|| frozen_readings(scn, &frozen_traces(scn, span), change, quarter));
-    let frozen: Vec<(f64, f64, f64)> = match &frozen_readings {
-        Some(f) if scn.optimiser.mode == OptimiserMode::Indirect => f.reps.clone(),
+    } = scan_run(scn, &dir.join("run.csv"))?;
+    let sets = SetOutcomes::of(&ctrl.params);
+    let marks = sets.marks();
+    let n_rejected = sets.rejected.len();
+    let floor = floor.map(|f| against_floor(f, &ctrl.timing.lateness));
+    let frozen = frozen_comparison(scn, span, change, quarter);
+    let identify = scn.optimiser.mode == crate::config::OptimiserMode::Identify;
+    let frozen_reps: Vec<(f64, f64, f64)> = match &frozen {
+        Some(f) if scn.optimiser.mode == crate::config::OptimiserMode::Indirect => f.reps.clone(),
         _ => Vec::new(),
     };
-    let plant_model = scn.plant.model.config();
-    let mean = |v: Vec<f64>| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
-    // Before: the repetitions after the first (start-up) that end by the change; after: those
-    // starting in the last quarter of the run.
-    let before = |reps: &[(f64, f64, f64)]| {
-        change.and_then(|tc| {
-            mean(
-                reps.iter()
-                    .skip(1)
-                    .filter(|r| r.1 <= tc)
-                    .map(|r| r.2)
-                    .collect(),
-            )
-        })
-    };
-    let after = |reps: &[(f64, f64, f64)]| {
-        mean(
-            reps.iter()
-                .filter(|r| r.0 >= quarter)
-                .map(|r| r.2)
-                .collect(),
-        )
-    };
-    // Identification alongside operation against the models it started with, kept all run long
-    // (the frozen comparison again): tracking RMS before the plant's change and at the end.
-    let identify = scn.optimiser.mode == OptimiserMode::Identify;
-    let (tracking_before_change_frozen, tracking_after_change_frozen) = match &frozen_readings {
+    // Identification alongside operation against the models it started with, kept all run long:
+    // tracking RMS before the plant's change and at the end.
+    let (tracking_before_change_frozen, tracking_after_change_frozen) = match &frozen {
         Some(f) if identify => f.phases,
         _ => (None, None),
     };
-    let cost_before_change = before(&reps);
-    let cost_after_change = after(&reps);
-    let cost_before_change_frozen = before(&frozen);
-    let cost_after_change_frozen = after(&frozen);
+    let (cost_before_change, cost_after_change) = before_and_after(&reps, change, quarter);
+    let (cost_before_change_frozen, cost_after_change_frozen) =
+        before_and_after(&frozen_reps, change, quarter);
     // The true value of the parameter the optimiser estimates (maglev mass, two-mass spring).
+    let plant_model = scn.plant.model.config();
     let truth = |tt: f64| plant_model.varying_parameter(tt);
     let last_est = opt.estimates.last().copied();
     let model_estimate_final = last_est.map(|e| e.value);
@@ -497,17 +578,7 @@ pub fn build_report(
     };
     let interrupted = ctrl.interrupted || plant.interrupted || opt.interrupted;
     let until_stopped = scn.timing.until_stopped();
-    let write_errors: Vec<String> = ctrl
-        .log_error
-        .iter()
-        .cloned()
-        .chain(
-            ctrl.mcap
-                .as_ref()
-                .and_then(|m| m.error.as_ref())
-                .map(|e| format!("run.mcap: {e}; messages after it are lost")),
-        )
-        .collect();
+    let write_errors = write_errors(&ctrl);
     let summary = Summary {
         outcome: if !write_errors.is_empty() {
             Outcome::Incomplete
@@ -542,9 +613,9 @@ pub fn build_report(
         timing: ctrl.timing.clone(),
         parameter_versions: ParamVersions {
             final_version: ctrl.final_version,
-            accepted: accepted.clone(),
-            rejected,
-            trials_ended,
+            accepted: sets.accepted.clone(),
+            rejected: sets.rejected,
+            trials_ended: sets.trials_ended,
         },
         realtime_privileges: RealtimePrivileges {
             controller: ctrl.rt.clone(),
@@ -565,23 +636,7 @@ pub fn build_report(
             0.0
         },
         evaluations: opt.evaluations,
-        direct: opt
-            .direct
-            .as_ref()
-            .map(|d| crate::report::summary::DirectSummary {
-                algorithm: d.algorithm.clone(),
-                trials: d.repetitions.iter().filter(|r| r.trial > 0).count(),
-                aborted: d.aborted,
-                incomplete: d.incomplete,
-                baseline_cost: d
-                    .repetitions
-                    .iter()
-                    .find(|r| r.trial == 0)
-                    .map(|b| b.cost)
-                    .filter(|c| c.is_finite()),
-                best_cost: Some(d.best_cost).filter(|c| c.is_finite()),
-                best_version: d.best_version,
-            }),
+        direct: opt.direct.as_ref().map(direct_summary),
         interrupted,
         stale_resources_cleaned: cleaned,
         optimiser_restarts: optimiser.restarts,
@@ -589,14 +644,14 @@ pub fn build_report(
         write_errors,
         optimiser_stalls: plant.optimiser_stalls.clone(),
         optimiser_resumed: plant.optimiser_resumed,
-        accepted_versions: accepted.len(),
+        accepted_versions: sets.accepted.len(),
         rejected_versions: n_rejected,
         cost_per_repetition: reps.iter().map(|r| r.2).collect(),
         cost_before_change,
         cost_after_change,
         cost_before_change_frozen,
         cost_after_change_frozen,
-        cost_per_repetition_frozen: frozen.iter().map(|r| r.2).collect(),
+        cost_per_repetition_frozen: frozen_reps.iter().map(|r| r.2).collect(),
         model_estimate_final,
         model_true_final,
         model_estimate_error,
@@ -606,37 +661,12 @@ pub fn build_report(
         tracking_before_change_frozen,
         tracking_after_change_frozen,
     };
-    if let (Some(f), Some((tw, run_rms)), true) = (
-        frozen_readings.as_ref().filter(|_| identify),
+    if let (Some(f), Some(w), true) = (
+        frozen.as_ref().filter(|_| identify),
         windowed.as_ref(),
         scn.output.plots,
     ) {
-        let frozen_rms = &f.windowed.1;
-        let frozen_rms: Vec<f64> = (0..tw.len())
-            .map(|k| frozen_rms.get(k).copied().unwrap_or(f64::NAN))
-            .collect();
-        let payload: Vec<f64> = tw.iter().map(|x| truth(*x).unwrap_or(0.0)).collect();
-        let marks: Vec<f64> = accepted.iter().map(|p| p.t).collect();
-        two_panel_png(
-            &dir.join("identify.png"),
-            &format!(
-                "{}: tracking RMS per {} s, identified vs frozen models (orange: models swapped in)",
-                scn.name, IDENTIFY_PLOT_WINDOW
-            ),
-            tw,
-            Panel {
-                series: &[
-                    Series { name: "identified alongside operation", values: run_rms },
-                    Series { name: "frozen models", values: &frozen_rms },
-                ],
-                label: "tracking RMS, mrad",
-            },
-            Panel {
-                series: &[Series { name: "payload on the last link", values: &payload }],
-                label: "payload, kg",
-            },
-            &marks,
-        )?;
+        write_identify_plot(scn, f, w, &marks, truth)?;
     }
     if let Some(d) = &opt.direct {
         crate::direct::write_files(dir, d, scn.output.plots)?;
@@ -644,105 +674,196 @@ pub fn build_report(
     if !reps.is_empty() {
         let mut csv = String::from("repetition,t_start,t_end,cost,cost_frozen\n");
         for (j, r) in reps.iter().enumerate() {
-            let f = frozen.get(j).map_or(f64::NAN, |x| x.2);
+            let f = frozen_reps.get(j).map_or(f64::NAN, |x| x.2);
             csv.push_str(&format!("{j},{},{},{},{f}\n", r.0, r.1, r.2));
         }
         crate::files::write(dir.join("repetitions.csv"), csv).map_err(|e| e.to_string())?;
     }
     if !opt.estimates.is_empty() {
-        let mut csv = String::from("t,estimate,std,true\n");
-        for e in &opt.estimates {
-            csv.push_str(&format!(
-                "{},{},{},{}\n",
-                e.t,
-                e.value,
-                e.std,
-                truth(e.t).unwrap_or(f64::NAN)
-            ));
-        }
-        crate::files::write(dir.join("estimates.csv"), csv).map_err(|e| e.to_string())?;
-        if scn.output.plots {
-            let te: Vec<f64> = opt.estimates.iter().map(|e| e.t).collect();
-            let est: Vec<f64> = opt.estimates.iter().map(|e| e.value).collect();
-            let tru: Vec<f64> = te.iter().map(|x| truth(*x).unwrap_or(f64::NAN)).collect();
-            let cost: Vec<f64> = te
-                .iter()
-                .map(|x| {
-                    reps.iter()
-                        .find(|r| *x >= r.0 && *x < r.1)
-                        .map_or(f64::NAN, |r| r.2)
-                })
-                .collect();
-            let cost_frozen: Vec<f64> = te
-                .iter()
-                .map(|x| {
-                    frozen
-                        .iter()
-                        .find(|r| *x >= r.0 && *x < r.1)
-                        .map_or(f64::NAN, |r| r.2)
-                })
-                .collect();
-            let marks: Vec<f64> = accepted.iter().map(|p| p.t).collect();
-            two_panel_png(
-                &dir.join("indirect.png"),
-                &format!("{}: model estimate vs true value; cost per repetition (orange: sets swapped in)", scn.name),
-                &te,
-                Panel { series: &[Series { name: "estimate", values: &est }, Series { name: "true", values: &tru }], label: "model parameter" },
-                Panel {
-                    series: &[
-                        Series { name: "cost per repetition (tuned)", values: &cost },
-                        Series { name: "frozen parameters", values: &cost_frozen },
-                    ],
-                    label: "cost",
-                },
-                &marks,
-            )?;
-        }
+        write_estimates(scn, &opt.estimates, &reps, &frozen_reps, &marks, truth)?;
     }
     crate::report::write_json(dir, "summary.json", &summary).map_err(|e| e.to_string())?;
     if let Some(p) = plot {
-        let (top, bottom) = (series(&p.top), series(&p.bottom));
-        let marks: Vec<f64> = accepted.iter().map(|p| p.t).collect();
-        let envelope = if p.exact { "" } else { " (min-max envelope)" };
+        write_response_plots(scn, ctrl.mode, &p, &marks)?;
+    }
+    Ok(summary)
+}
+
+/// identify.png: tracking RMS per window, identified alongside operation against the frozen
+/// models, over the payload.
+fn write_identify_plot(
+    scn: &Scenario,
+    frozen: &FrozenReadings,
+    (tw, run_rms): &(Vec<f64>, Vec<f64>),
+    marks: &[f64],
+    truth: impl Fn(f64) -> Option<f64>,
+) -> Result<(), String> {
+    let frozen_rms = &frozen.windowed.1;
+    let frozen_rms: Vec<f64> = (0..tw.len())
+        .map(|k| frozen_rms.get(k).copied().unwrap_or(f64::NAN))
+        .collect();
+    let payload: Vec<f64> = tw.iter().map(|x| truth(*x).unwrap_or(0.0)).collect();
+    two_panel_png(
+        &scn.output.dir.join("identify.png"),
+        &format!(
+            "{}: tracking RMS per {} s, identified vs frozen models (orange: models swapped in)",
+            scn.name, IDENTIFY_PLOT_WINDOW
+        ),
+        tw,
+        Panel {
+            series: &[
+                Series {
+                    name: "identified alongside operation",
+                    values: run_rms,
+                },
+                Series {
+                    name: "frozen models",
+                    values: &frozen_rms,
+                },
+            ],
+            label: "tracking RMS, mrad",
+        },
+        Panel {
+            series: &[Series {
+                name: "payload on the last link",
+                values: &payload,
+            }],
+            label: "payload, kg",
+        },
+        marks,
+    )
+}
+
+/// estimates.csv and indirect.png: the model estimate against the true value, and the cost per
+/// repetition against the frozen parameters'.
+fn write_estimates(
+    scn: &Scenario,
+    estimates: &[crate::indirect::Estimate],
+    reps: &[(f64, f64, f64)],
+    frozen: &[(f64, f64, f64)],
+    marks: &[f64],
+    truth: impl Fn(f64) -> Option<f64>,
+) -> Result<(), String> {
+    let dir = &scn.output.dir;
+    let mut csv = String::from("t,estimate,std,true\n");
+    for e in estimates {
+        csv.push_str(&format!(
+            "{},{},{},{}\n",
+            e.t,
+            e.value,
+            e.std,
+            truth(e.t).unwrap_or(f64::NAN)
+        ));
+    }
+    crate::files::write(dir.join("estimates.csv"), csv).map_err(|e| e.to_string())?;
+    if scn.output.plots {
+        let te: Vec<f64> = estimates.iter().map(|e| e.t).collect();
+        let est: Vec<f64> = estimates.iter().map(|e| e.value).collect();
+        let tru: Vec<f64> = te.iter().map(|x| truth(*x).unwrap_or(f64::NAN)).collect();
+        let cost: Vec<f64> = te
+            .iter()
+            .map(|x| {
+                reps.iter()
+                    .find(|r| *x >= r.0 && *x < r.1)
+                    .map_or(f64::NAN, |r| r.2)
+            })
+            .collect();
+        let cost_frozen: Vec<f64> = te
+            .iter()
+            .map(|x| {
+                frozen
+                    .iter()
+                    .find(|r| *x >= r.0 && *x < r.1)
+                    .map_or(f64::NAN, |r| r.2)
+            })
+            .collect();
         two_panel_png(
-            &dir.join("response.png"),
+            &dir.join("indirect.png"),
             &format!(
-                "{} ({} mode): output vs reference, control{envelope}; orange lines = parameter swaps",
-                scn.name, ctrl.mode
+                "{}: model estimate vs true value; cost per repetition (orange: sets swapped in)",
+                scn.name
+            ),
+            &te,
+            Panel {
+                series: &[
+                    Series {
+                        name: "estimate",
+                        values: &est,
+                    },
+                    Series {
+                        name: "true",
+                        values: &tru,
+                    },
+                ],
+                label: "model parameter",
+            },
+            Panel {
+                series: &[
+                    Series {
+                        name: "cost per repetition (tuned)",
+                        values: &cost,
+                    },
+                    Series {
+                        name: "frozen parameters",
+                        values: &cost_frozen,
+                    },
+                ],
+                label: "cost",
+            },
+            marks,
+        )?;
+    }
+    Ok(())
+}
+
+/// response.png (and tracking.png for joint-space tracking).
+fn write_response_plots(
+    scn: &Scenario,
+    mode: crate::config::Mode,
+    p: &RunPlot,
+    marks: &[f64],
+) -> Result<(), String> {
+    let dir = &scn.output.dir;
+    let (top, bottom) = (series(&p.top), series(&p.bottom));
+    let envelope = if p.exact { "" } else { " (min-max envelope)" };
+    two_panel_png(
+        &dir.join("response.png"),
+        &format!(
+            "{} ({} mode): output vs reference, control{envelope}; orange lines = parameter swaps",
+            scn.name, mode
+        ),
+        &p.t,
+        Panel {
+            series: &top,
+            label: "position",
+        },
+        Panel {
+            series: &bottom,
+            label: "control u",
+        },
+        marks,
+    )?;
+    if p.errors.len() > 1 {
+        // Joint-space tracking: the errors are far below what the overlaid curves resolve.
+        two_panel_png(
+            &dir.join("tracking.png"),
+            &format!(
+                "{} ({} mode): tracking error r - y per joint, and joint torques{envelope}",
+                scn.name, mode
             ),
             &p.t,
             Panel {
-                series: &top,
-                label: "position",
+                series: &series(&p.errors),
+                label: "error (rad or m)",
             },
             Panel {
                 series: &bottom,
-                label: "control u",
+                label: "torque u",
             },
-            &marks,
+            marks,
         )?;
-        if p.errors.len() > 1 {
-            // Joint-space tracking: the errors are far below what the overlaid curves resolve.
-            two_panel_png(
-                &dir.join("tracking.png"),
-                &format!(
-                    "{} ({} mode): tracking error r - y per joint, and joint torques{envelope}",
-                    scn.name, ctrl.mode
-                ),
-                &p.t,
-                Panel {
-                    series: &series(&p.errors),
-                    label: "error (rad or m)",
-                },
-                Panel {
-                    series: &bottom,
-                    label: "torque u",
-                },
-                &marks,
-            )?;
-        }
     }
-    Ok(summary)
+    Ok(())
 }
 
 #[cfg(test)]
