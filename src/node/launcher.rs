@@ -391,14 +391,27 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
     }
 }
 
-pub fn run(mut a: RunArgs) -> ExitCode {
-    // First: a Ctrl-C from here on is an interrupted run, with its summary.
-    let stop = stop_flag();
+/// What a run starts from: its scenario loaded with the command line's overrides, its output
+/// directory made, locked and cleared of the previous run's files, its run id, and the local
+/// evaluation workers it asks for. The locks and the disk reserve are held while this lives.
+struct Prepared {
+    file: PathBuf,
+    scn: Scenario,
+    dir: PathBuf,
+    run_id: String,
+    /// `--workers N`: how many, and the loopback endpoint the optimiser listens on for them.
+    local: Option<(usize, String)>,
+    _locks: (RunLock, RunLock),
+    _reserved: Reserved,
+}
+
+/// `run`'s set-up, or the exit code of what stopped it (said on stderr).
+fn prepare(a: &mut RunArgs) -> Result<Prepared, ExitCode> {
     let file = a.file.clone().unwrap_or_else(default_scenario);
     // `--workers N`: the optimiser listens on a free loopback port and waits for N workers.
     if a.workers.is_some() && !cfg!(feature = "zenoh") {
         err!("error: {}", crate::needs_zenoh("--workers"));
-        return ExitCode::from(2);
+        return Err(ExitCode::from(2));
     }
     // The workers to start and where: set as the optimiser's overrides.
     let local = match a.workers.map(|n| (n as usize, local_workers_endpoint())) {
@@ -406,7 +419,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         Some((n, Ok(ep))) => Some((n, ep)),
         Some((_, Err(e))) => {
             err!("error: --workers: {e}");
-            return ExitCode::from(2);
+            return Err(ExitCode::from(2));
         }
     };
     if let Some((n, ep)) = &local {
@@ -418,7 +431,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         Ok(s) => s,
         Err(e) => {
             err!("error: {e}");
-            return ExitCode::from(2);
+            return Err(ExitCode::from(2));
         }
     };
     if !a.quiet {
@@ -432,7 +445,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
             "error: cannot create output directory {}: {e}",
             dir.display()
         );
-        return ExitCode::from(2);
+        return Err(ExitCode::from(2));
     }
     // One run per output directory and per run id at a time: two runs sharing either would mix
     // their reports or each other's shared memory. The locks are flock()s, released by the
@@ -450,11 +463,11 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         &format!("output directory {}", dir.display()),
     )
     .and_then(|d| Ok((d, RunLock::for_run_id(&a.ipc_prefix, &run_id)?)));
-    let _locks = match locks {
+    let locks = match locks {
         Ok(l) => l,
         Err(e) => {
             err!("error: {e}");
-            return ExitCode::from(2);
+            return Err(ExitCode::from(2));
         }
     };
     // Remove the previous run's files so a failed run never leaves a stale report looking fresh.
@@ -477,71 +490,45 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         let _ = std::fs::remove_file(dir.join(f));
     }
     let _ = crate::report::write_json(&dir, "scenario.json", &scn);
-    let _reserved = Reserved::take(&dir);
-    // The launcher's own node: creating it cleans up what killed runs left behind, and it
-    // watches the telemetry for progress lines.
-    let ipc = match Ipc::with_cleanup("evoloop", &run_id, &a.ipc_prefix, false) {
-        Ok(i) => i,
-        Err(e) => {
-            err!("error: {e}");
-            return ExitCode::from(2);
-        }
-    };
-    let cleaned = ipc.cleanup_dead_nodes();
-    let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 1, false).ok();
-    let estimate = ipc
-        .subscriber::<crate::msg::ModelEstimate>(Topic::Estimate, 1, false)
-        .ok();
+    let reserved = Reserved::take(&dir);
+    Ok(Prepared {
+        file,
+        scn,
+        dir,
+        run_id,
+        local,
+        _locks: locks,
+        _reserved: reserved,
+    })
+}
 
-    // The absolute config path and the output dir are passed on so children agree exactly.
-    let config = std::fs::canonicalize(&file).unwrap_or(file.clone());
-    let mut child_ov = a.overrides.clone();
-    child_ov.out = Some(dir.clone());
-    let mut args = process_args(&config, &run_id, &a.ipc_prefix);
-    args.extend(child_ov.to_args());
-    let names = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
-    let plant = names
-        .iter()
-        .position(|n| *n == "evoloop-plant")
-        .expect("the plant is one of the roles");
-    // The evaluation workers first: the optimiser waits for them before the run starts.
-    let workers = match &local {
-        Some((n, ep)) => LocalWorkers::start(ep, *n, 1, scn.optimiser.nice, &run_id),
-        None => Ok(LocalWorkers::default()),
-    };
-    let workers = match workers {
-        Ok(w) => w,
-        Err(e) => {
-            err!("error: {e}");
-            return ExitCode::from(1);
-        }
-    };
-    let mut children: Vec<(&str, Child)> = Vec::new();
-    for name in names {
-        match spawn_process(name, &args) {
-            Ok(c) => children.push((name, c)),
-            Err(e) => {
-                err!("error: cannot start {name}: {e}");
-                for (_, c) in &mut children {
-                    signal(c, libc::SIGTERM);
-                    let _ = c.wait();
-                }
-                return ExitCode::from(1);
-            }
-        }
-    }
-    let span = scn.timing.span();
-    if !a.quiet {
-        err!(
-            "evoloop: run {run_id}: scenario `{}` ({} mode, {} at {} s period), output {}",
-            scn.name,
-            scn.timing.mode,
-            span,
-            scn.timing.period,
-            dir.display()
-        );
-    }
-    let t0 = Instant::now();
+/// What the launcher watches while the processes run.
+struct Watch<'a> {
+    /// The processes' arguments (an optimiser restarted gets them again, with `--rejoin`).
+    args: &'a [String],
+    /// The plant's index in the children: once it has ended there is no run to rejoin.
+    plant: usize,
+    ipc: &'a Ipc,
+    stop: &'a std::sync::atomic::AtomicBool,
+    telemetry: &'a Option<crate::ipc::Sub<Telemetry>>,
+    estimate: &'a Option<crate::ipc::Sub<crate::msg::ModelEstimate>>,
+    quiet: bool,
+    span: &'a str,
+}
+
+/// How the processes ended.
+struct Supervised {
+    /// A process that failed (exited unexpectedly, could not be restarted), in words.
+    failed: Vec<String>,
+    /// The user stopped the run (Ctrl-C, SIGTERM).
+    interrupted: bool,
+    tuner: OptimiserLife,
+}
+
+/// Watch the children until every one has exited: restart a crashed optimiser while the run can
+/// take it back (`restart_pause`), pass a stop on to all, kill what does not stop within 5 s,
+/// and print a progress line a second unless quiet.
+fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
     let mut last_progress = Instant::now();
     let mut failed: Vec<String> = Vec::new();
     let mut exited = vec![false; children.len()];
@@ -549,6 +536,15 @@ pub fn run(mut a: RunArgs) -> ExitCode {
     let mut stop_sent: Option<Instant> = None;
     let mut tuner = OptimiserLife::default();
     let mut restart_due: Option<Instant> = None;
+    let Watch {
+        args,
+        plant,
+        ipc,
+        stop,
+        quiet,
+        span,
+        ..
+    } = *w;
     while exited.iter().any(|e| !e) {
         for (i, (name, c)) in children.iter_mut().enumerate() {
             if exited[i] {
@@ -561,7 +557,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                     (exited[i], restart_due) = (true, None);
                 } else if Instant::now() >= due {
                     restart_due = None;
-                    let mut again = args.clone();
+                    let mut again = args.to_vec();
                     again.push("--rejoin".into());
                     match spawn_process(name, &again) {
                         Ok(nc) => (*c, tuner.restarts) = (nc, tuner.restarts + 1),
@@ -629,23 +625,128 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 }
             }
         }
-        if !a.quiet && last_progress.elapsed() >= Duration::from_secs(1) {
+        if !quiet && last_progress.elapsed() >= Duration::from_secs(1) {
             last_progress = Instant::now();
-            if let Some(Ok(Some(tel))) = telemetry.as_ref().map(|s| s.latest()) {
-                let model = match estimate.as_ref().map(|s| s.latest()) {
-                    Some(Ok(Some(m))) => format!("   model {:.4} +- {:.4}", m.value, m.std),
-                    _ => String::new(),
-                };
-                err!(
-                    "  t = {:8.2} s of {span}   e = {:+.4}   u = {:+.4}   params v{}   overruns {}   misses {}{model}",
-                    tel.t, tel.tracking_error, tel.u[0], tel.param_version,
-                    tel.overruns, tel.missed
-                );
-            }
+            progress_line(w.telemetry, w.estimate, span);
         }
         // Supervision, not the control path: a 5 ms poll of child status costs nothing here.
         std::thread::sleep(Duration::from_millis(5));
     }
+    Supervised {
+        failed,
+        interrupted,
+        tuner,
+    }
+}
+
+/// One progress line from the latest telemetry (and model estimate), if any has come.
+fn progress_line(
+    telemetry: &Option<crate::ipc::Sub<Telemetry>>,
+    estimate: &Option<crate::ipc::Sub<crate::msg::ModelEstimate>>,
+    span: &str,
+) {
+    if let Some(Ok(Some(tel))) = telemetry.as_ref().map(|s| s.latest()) {
+        let model = match estimate.as_ref().map(|s| s.latest()) {
+            Some(Ok(Some(m))) => format!("   model {:.4} +- {:.4}", m.value, m.std),
+            _ => String::new(),
+        };
+        err!(
+            "  t = {:8.2} s of {span}   e = {:+.4}   u = {:+.4}   params v{}   overruns {}   misses {}{model}",
+            tel.t, tel.tracking_error, tel.u[0], tel.param_version,
+            tel.overruns, tel.missed
+        );
+    }
+}
+
+pub fn run(mut a: RunArgs) -> ExitCode {
+    // First: a Ctrl-C from here on is an interrupted run, with its summary.
+    let stop = stop_flag();
+    let p = match prepare(&mut a) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    let (scn, dir, run_id, file) = (&p.scn, &p.dir, &p.run_id, &p.file);
+    // The launcher's own node: creating it cleans up what killed runs left behind, and it
+    // watches the telemetry for progress lines.
+    let ipc = match Ipc::with_cleanup("evoloop", run_id, &a.ipc_prefix, false) {
+        Ok(i) => i,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let cleaned = ipc.cleanup_dead_nodes();
+    let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 1, false).ok();
+    let estimate = ipc
+        .subscriber::<crate::msg::ModelEstimate>(Topic::Estimate, 1, false)
+        .ok();
+
+    // The absolute config path and the output dir are passed on so children agree exactly.
+    let config = std::fs::canonicalize(file).unwrap_or(file.clone());
+    let mut child_ov = a.overrides.clone();
+    child_ov.out = Some(dir.clone());
+    let mut args = process_args(&config, run_id, &a.ipc_prefix);
+    args.extend(child_ov.to_args());
+    let names = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
+    let plant = names
+        .iter()
+        .position(|n| *n == "evoloop-plant")
+        .expect("the plant is one of the roles");
+    // The evaluation workers first: the optimiser waits for them before the run starts.
+    let workers = match &p.local {
+        Some((n, ep)) => LocalWorkers::start(ep, *n, 1, scn.optimiser.nice, run_id),
+        None => Ok(LocalWorkers::default()),
+    };
+    let workers = match workers {
+        Ok(w) => w,
+        Err(e) => {
+            err!("error: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    let mut children: Vec<(&str, Child)> = Vec::new();
+    for name in names {
+        match spawn_process(name, &args) {
+            Ok(c) => children.push((name, c)),
+            Err(e) => {
+                err!("error: cannot start {name}: {e}");
+                for (_, c) in &mut children {
+                    signal(c, libc::SIGTERM);
+                    let _ = c.wait();
+                }
+                return ExitCode::from(1);
+            }
+        }
+    }
+    let span = scn.timing.span();
+    if !a.quiet {
+        err!(
+            "evoloop: run {run_id}: scenario `{}` ({} mode, {} at {} s period), output {}",
+            scn.name,
+            scn.timing.mode,
+            span,
+            scn.timing.period,
+            dir.display()
+        );
+    }
+    let t0 = Instant::now();
+    let Supervised {
+        failed,
+        interrupted,
+        tuner,
+    } = supervise(
+        &mut children,
+        &Watch {
+            args: &args,
+            plant,
+            ipc: &ipc,
+            stop: &stop,
+            telemetry: &telemetry,
+            estimate: &estimate,
+            quiet: a.quiet,
+            span: &span,
+        },
+    );
     for (_, c) in &mut children {
         let _ = c.wait();
     }
@@ -672,10 +773,10 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         for f in &failed {
             err!("error: {f}");
         }
-        say_if_disk_full(&dir);
+        say_if_disk_full(dir);
         short_summary(
-            &scn,
-            &run_id,
+            scn,
+            run_id,
             Outcome::Failed,
             &failed,
             wall,
@@ -705,11 +806,11 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 scn.timing.wait,
             )
         });
-    match build_report(&scn, &run_id, wall, floor, cleaned, tuner) {
+    match build_report(scn, run_id, wall, floor, cleaned, tuner) {
         Ok(s) => {
-            print_summary(&s, &dir, scn.output.plots);
+            print_summary(&s, dir, scn.output.plots);
             // The page is a view of the files above: a failure loses no data, so it warns.
-            match crate::report::html::write(&dir) {
+            match crate::report::html::write(dir) {
                 Ok(p) => out!("  open {} (the whole report in one page)", p.display()),
                 Err(e) => err!("evoloop: warning: report.html: {e}"),
             }
@@ -718,19 +819,19 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 for e in &s.write_errors {
                     err!("error: {e}");
                 }
-                say_if_disk_full(&dir);
+                say_if_disk_full(dir);
                 return ExitCode::from(1);
             }
         }
         // Stopped before the processes had written their reports: no loop ran to report on.
         Err(e) if interrupted => {
             err!("evoloop: interrupted before the loop ran ({e})");
-            short_summary(&scn, &run_id, Outcome::Interrupted, &[], wall, true, tuner);
+            short_summary(scn, run_id, Outcome::Interrupted, &[], wall, true, tuner);
             return ExitCode::from(130);
         }
         Err(e) => {
             err!("error: report: {e}");
-            say_if_disk_full(&dir);
+            say_if_disk_full(dir);
             return ExitCode::from(1);
         }
     }
