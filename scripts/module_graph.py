@@ -27,14 +27,32 @@ def strip(text):
 
 
 def own_parts(module):
-    """The names a module adds to a crate it re-exports whole, or None if it re-exports none."""
+    """The names a module adds to a crate it re-exports whole, or None if it re-exports none:
+    every item its mod.rs declares or re-exports from elsewhere (counted generously: a name
+    counted as the module's own keeps an edge, never hides one)."""
     mod_rs = os.path.join(SRC, module, "mod.rs")
     if not os.path.exists(mod_rs):
         return None
-    text = open(mod_rs, encoding="utf-8").read()
+    text = strip(open(mod_rs, encoding="utf-8").read())
     if not re.search(r"^pub use evoloop_\w+::\*;", text, re.M):
         return None
-    return set(re.findall(r"^pub mod (\w+);", text, re.M))
+    item = r"^\s*pub(?:\([^)]*\))?\s+(?:mod|fn|struct|enum|const|static|type|trait|macro)\s+(\w+)"
+    names = set(re.findall(item, text, re.M))
+    for used in re.findall(r"^\s*pub(?:\([^)]*\))?\s+use\s+(?!evoloop_)([^;]*);", text, re.M):
+        names |= set(re.findall(r"\w+", used))
+    return names
+
+
+def keeps_edge(code, module, parts):
+    """Whether `code` names `module` (one that extends a crate) for its own parts. Only a path
+    `crate::module::name` whose name is the crate's is no edge; anything this cannot read (the
+    module named bare, through a glob or a `{...}` group, or as `super::super::module`) counts."""
+    named = re.findall(rf"\bcrate::{module}\b(?:::(\w+))?", code)
+    in_group = any(
+        re.search(rf"(?:^|[,{{\s]){module}\b", g) for g in re.findall(r"crate::\{([^}]*)\}", code, re.S)
+    )
+    unread = in_group or "" in named or re.search(rf"\bsuper::super::{module}\b", code)
+    return bool(unread) or any(n in parts for n in named)
 
 
 def graph():
@@ -58,13 +76,10 @@ def graph():
             names = set(re.findall(r"crate::(\w+)", code))
             for group in re.findall(r"crate::\{([^}]*)\}", code, re.S):
                 names |= set(re.findall(r"(?:^|,)\s*(\w+)", group))
+            names |= set(re.findall(r"\bsuper::super::(\w+)", code)) if len(rel) == 2 else set()
             for m, parts in extended.items():
-                if m in names:
-                    used = set(re.findall(rf"crate::{m}::(\w+)", code))
-                    for group in re.findall(rf"crate::{m}::\{{([^}}]*)\}}", code, re.S):
-                        used |= set(re.findall(r"(?:^|,)\s*(\w+)", group))
-                    if not used & parts:
-                        names.discard(m)
+                if m in names and not keeps_edge(code, m, parts):
+                    names.discard(m)
             g[module] |= names - {module} - crates
             g[module]  # a module naming nothing is still a node
     return g

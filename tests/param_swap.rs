@@ -77,6 +77,18 @@ values = [-20.0, 19.04, 47.27, 7.30, -10.54]
         "{}",
         p[4]
     );
+    // Each event carries its code by name, the report's classification of it.
+    let codes: Vec<&str> = p.iter().map(|e| e["code"].as_str().unwrap()).collect();
+    assert_eq!(
+        codes,
+        [
+            "accepted",
+            "rejected_non_finite",
+            "rejected_out_of_bounds",
+            "rejected_wrong_length",
+            "rejected_unstable"
+        ]
+    );
     assert_eq!(c["final_version"], 1);
     let fp: Vec<f64> = c["final_params"]
         .as_array()

@@ -7,7 +7,7 @@ use crate::soak::{
     drift, rss_kib, run_processes, write, Interval, IntervalTiming, SoakReport, Tail,
 };
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -117,53 +117,19 @@ pub fn main(a: SoakArgs) -> ExitCode {
         // A record every interval while the run goes on (not at its end: the processes are
         // gone or going, and the last partial interval would look like a drop in memory).
         if ended.is_none() && t >= next {
-            let memory: BTreeMap<String, (u64, Option<u64>)> = run_processes(&run_id)
-                .into_iter()
-                .filter_map(|(name, pid)| rss_kib(pid).map(|r| (name, r)))
-                .collect();
-            let rss_kib: BTreeMap<String, u64> =
-                memory.iter().map(|(n, m)| (n.clone(), m.0)).collect();
-            let anon_kib = memory
-                .into_iter()
-                .filter_map(|(n, m)| m.1.map(|a| (n, a)))
-                .collect();
-            // Past the loop's end (the launcher measures the floor and writes its report) the
-            // processes are leaving: no more records.
-            if !rss_kib.contains_key("evoloop-controller") {
-                next = f64::INFINITY;
-                continue;
+            match record(&run_id, intervals.len(), t, &timing) {
+                Some(iv) => {
+                    // The next interval's timing starts now; a run that is ending keeps counting
+                    // into this one, which the totals below include.
+                    timing = IntervalTiming::new(period_ns);
+                    print_interval(&iv, a.duration);
+                    intervals.push(iv);
+                    next += a.interval;
+                }
+                // Past the loop's end (the launcher measures the floor and writes its report)
+                // the processes are leaving: no more records.
+                None => next = f64::INFINITY,
             }
-            let done = std::mem::replace(&mut timing, IntervalTiming::new(period_ns));
-            let iv = Interval {
-                index: intervals.len(),
-                t_s: t,
-                rss_kib,
-                anon_kib,
-                cycles: done.cycles,
-                missed_deadlines: done.missed,
-                overruns: done.overruns,
-                lateness: done.lateness.percentiles(),
-            };
-            let mib = |n: &str| {
-                iv.rss_kib
-                    .get(n)
-                    .map(|v| format!("{:.1}", *v as f64 / 1024.0))
-                    .unwrap_or_else(|| "-".into())
-            };
-            out!(
-                "  {:>6.1} / {:.1} min  RSS MiB: launcher {} plant {} controller {} optimiser {}  cycles {} missed {} lateness p99 {:.1} us",
-                t / 60.0,
-                a.duration / 60.0,
-                mib("evoloop"),
-                mib("evoloop-plant"),
-                mib("evoloop-controller"),
-                mib("evoloop-optimiser"),
-                iv.cycles,
-                iv.missed_deadlines,
-                iv.lateness.p99_ns as f64 / 1e3
-            );
-            intervals.push(iv);
-            next += a.interval;
         }
         if let Some(s) = ended {
             break s;
@@ -228,52 +194,106 @@ pub fn main(a: SoakArgs) -> ExitCode {
             serde_json::to_string_pretty(&report).unwrap_or_default()
         );
     } else {
-        out!(
-            "soak: {} cycles, {} missed deadlines (per interval: median {}, max {}); run exit {:?}",
-            report.cycles,
-            report.missed_deadlines,
-            report.misses_per_interval_median,
-            report.misses_per_interval_max,
-            report.exit_code
-        );
-        for (name, d) in &report.rss {
-            let anon = report.anon.get(name).map_or(String::new(), |a| {
-                format!(
-                    "; anonymous {:.1} -> {:.1} MiB ({:+} KiB)",
-                    a.first_kib as f64 / 1024.0,
-                    a.last_kib as f64 / 1024.0,
-                    a.drift_kib
-                )
-            });
-            out!(
-                "  {name:<19} RSS {:.1} MiB after the first interval, {:.1} MiB at the end ({:+} KiB, {:+.2} %), max {:.1} MiB{anon}",
-                d.first_kib as f64 / 1024.0,
-                d.last_kib as f64 / 1024.0,
-                d.drift_kib,
-                d.drift_pct,
-                d.max_kib as f64 / 1024.0
-            );
-        }
-        out!(
-            "  shared memory: {} file(s) before, {} after, {} left by the run{}",
-            report.shm_before.len(),
-            report.shm_after.len(),
-            report.shm_left.len(),
-            if report.shm_left.is_empty() {
-                String::new()
-            } else {
-                format!(": {}", report.shm_left.join(", "))
-            }
-        );
-        out!(
-            "  wrote {}/soak.json, soak.csv, soak_rss.png, soak_timing.png; the run's report in {}",
-            a.out.display(),
-            run_dir.display()
-        );
+        print_report(&report, &a.out);
     }
     if status.success() {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
     }
+}
+
+/// One interval's record: each process's memory now and the loop's timing since the last record;
+/// None once the controller is gone (the run is ending).
+fn record(run_id: &str, index: usize, t: f64, done: &IntervalTiming) -> Option<Interval> {
+    let memory: BTreeMap<String, (u64, Option<u64>)> = run_processes(run_id)
+        .into_iter()
+        .filter_map(|(name, pid)| rss_kib(pid).map(|r| (name, r)))
+        .collect();
+    let rss_kib: BTreeMap<String, u64> = memory.iter().map(|(n, m)| (n.clone(), m.0)).collect();
+    if !rss_kib.contains_key("evoloop-controller") {
+        return None;
+    }
+    let anon_kib = memory
+        .into_iter()
+        .filter_map(|(n, m)| m.1.map(|a| (n, a)))
+        .collect();
+    Some(Interval {
+        index,
+        t_s: t,
+        rss_kib,
+        anon_kib,
+        cycles: done.cycles,
+        missed_deadlines: done.missed,
+        overruns: done.overruns,
+        lateness: done.lateness.percentiles(),
+    })
+}
+
+/// The progress line of one interval.
+fn print_interval(iv: &Interval, duration: f64) {
+    let mib = |n: &str| {
+        iv.rss_kib
+            .get(n)
+            .map(|v| format!("{:.1}", *v as f64 / 1024.0))
+            .unwrap_or_else(|| "-".into())
+    };
+    out!(
+        "  {:>6.1} / {:.1} min  RSS MiB: launcher {} plant {} controller {} optimiser {}  cycles {} missed {} lateness p99 {:.1} us",
+        iv.t_s / 60.0,
+        duration / 60.0,
+        mib("evoloop"),
+        mib("evoloop-plant"),
+        mib("evoloop-controller"),
+        mib("evoloop-optimiser"),
+        iv.cycles,
+        iv.missed_deadlines,
+        iv.lateness.p99_ns as f64 / 1e3
+    );
+}
+
+/// The soak's findings in words (`--json` prints the report instead).
+fn print_report(report: &SoakReport, out: &Path) {
+    out!(
+        "soak: {} cycles, {} missed deadlines (per interval: median {}, max {}); run exit {:?}",
+        report.cycles,
+        report.missed_deadlines,
+        report.misses_per_interval_median,
+        report.misses_per_interval_max,
+        report.exit_code
+    );
+    for (name, d) in &report.rss {
+        let anon = report.anon.get(name).map_or(String::new(), |a| {
+            format!(
+                "; anonymous {:.1} -> {:.1} MiB ({:+} KiB)",
+                a.first_kib as f64 / 1024.0,
+                a.last_kib as f64 / 1024.0,
+                a.drift_kib
+            )
+        });
+        out!(
+            "  {name:<19} RSS {:.1} MiB after the first interval, {:.1} MiB at the end ({:+} KiB, {:+.2} %), max {:.1} MiB{anon}",
+            d.first_kib as f64 / 1024.0,
+            d.last_kib as f64 / 1024.0,
+            d.drift_kib,
+            d.drift_pct,
+            d.max_kib as f64 / 1024.0
+        );
+    }
+    out!(
+        "  shared memory: {} file(s) before, {} after, {} left by the run{}",
+        report.shm_before.len(),
+        report.shm_after.len(),
+        report.shm_left.len(),
+        if report.shm_left.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", report.shm_left.join(", "))
+        }
+    );
+    out!(
+        "  wrote {}/soak.json, soak.csv, soak_rss.png, soak_timing.png; the run's report in {}",
+        out.display(),
+        report.run_dir.display()
+    );
 }

@@ -48,14 +48,14 @@ pub trait ControllerConfig {
     fn build(&self, period: f64, u_limit: Option<f64>) -> Box<dyn Controller>;
     /// The initial parameter set and the bounds every later set must respect.
     fn tunable(&self) -> &Tunable;
-    /// The `msg::KIND_*` its parameter sets carry.
+    /// The `msg::ParamKind` its parameter sets carry.
     fn param_kind(&self) -> ParamKind;
     /// Indices of the parameters that are scaling factors (the GA/Hooke-Jeeves hybrid's phase 2
     /// searches them); none by default.
     fn scaling_genes(&self) -> Vec<usize> {
         Vec::new()
     }
-    /// The `msg::KIND_*` of its model sets, if it takes any (`Controller::model_kind`).
+    /// The `msg::ParamKind` of its model sets, if it takes any (`Controller::model_kind`).
     fn model_param_kind(&self) -> Option<ParamKind> {
         None
     }
@@ -141,7 +141,7 @@ impl ControllerSpec {
 }
 
 pub trait Controller: Send {
-    /// `msg::KIND_*` this controller accepts parameter sets for.
+    /// The `msg::ParamKind` this controller accepts parameter sets for.
     fn kind(&self) -> ParamKind;
     /// Number of tunable parameters.
     fn n_params(&self) -> usize;

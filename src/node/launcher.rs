@@ -401,8 +401,10 @@ struct Prepared {
     run_id: String,
     /// `--workers N`: how many, and the loopback endpoint the optimiser listens on for them.
     local: Option<(usize, String)>,
-    _locks: (RunLock, RunLock),
+    // Fields drop in declaration order: the reserves go before the locks, so no run that takes
+    // the directory next can have its own reserves removed by this one.
     _reserved: Reserved,
+    _locks: (RunLock, RunLock),
 }
 
 /// `run`'s set-up, or the exit code of what stopped it (said on stderr).
@@ -497,8 +499,8 @@ fn prepare(a: &mut RunArgs) -> Result<Prepared, ExitCode> {
         dir,
         run_id,
         local,
-        _locks: locks,
         _reserved: reserved,
+        _locks: locks,
     })
 }
 

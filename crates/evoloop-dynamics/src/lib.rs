@@ -7,7 +7,7 @@
 //! - `regressor`: the joint-torque regressor Y(q, qd, qdd), tau = Y pi (Pinocchio's order);
 //! - `dh`: robots from D-H tables in TOML (standard or modified convention);
 //! - `urdf`: robots from URDF files (through the `urdf-rs` crate);
-//! - `cli`: `evoloop dynamics`.
+//! - (the command `evoloop dynamics` is the evoloop package's `cli::dynamics`).
 //!
 //! Every algorithm runs in place on a `Data`, so the plant's integrator and the computed-torque
 //! controller call them every cycle without allocating.

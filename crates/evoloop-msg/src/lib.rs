@@ -1,10 +1,11 @@
 //! The messages every layer speaks: plant samples, commands, telemetry, parameter sets, the
 //! optimiser's acknowledgements and model estimates. Plain fixed-size `#[repr(C)]` data with no
-//! pointers, so the transport (evoloop's `ipc`, which marks them zero-copy sendable and names
-//! them for iceoryx2) can put them in shared memory as they are; control laws, plants and the
-//! simulation use them without linking the transport. The bottom of the workspace: it depends
-//! on nothing but serde, so every other crate (and a process in another language reading the
-//! same layouts) can take it.
+//! pointers, so the transport can put them in shared memory as they are: with feature
+//! `iceoryx2` this crate marks them zero-copy sendable and gives them their versioned iceoryx2
+//! type names (through iceoryx2's dependency-free trait crate). Control laws, plants and the
+//! simulation use them without the feature, linking nothing of the transport. The bottom of the
+//! workspace: without the feature it depends on serde alone, so every other crate (and a
+//! process in another language reading the same layouts) can take it.
 
 /// Largest number of joints/inputs/outputs a message carries (8-joint arms fit).
 pub const MAX_JOINTS: usize = 8;
@@ -375,12 +376,14 @@ pub struct ModelEstimate {
     pub apply_at_seq: u64,
 }
 
+#[cfg(feature = "iceoryx2")]
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
 /// The message types go into iceoryx2's shared memory as they are (its `ZeroCopySend`, from the
 /// dependency-free trait crate, so this crate links no transport). Their iceoryx2 names carry a version
 /// suffix because iceoryx2 checks only name, size and alignment when a service opens: change a
 /// layout, bump the version.
+#[cfg(feature = "iceoryx2")]
 macro_rules! zero_copy {
     ($($t:ident => $name:literal),* $(,)?) => {$(
         // SAFETY: `#[repr(C)]`, `Copy`, fields only f64/u64/u32 and fixed arrays of them: no
@@ -392,6 +395,7 @@ macro_rules! zero_copy {
         }
     )*};
 }
+#[cfg(feature = "iceoryx2")]
 zero_copy!(
     PlantState => "evoloop::PlantState.v1",
     Command => "evoloop::Command.v1",

@@ -56,14 +56,14 @@ pub trait Objective: Sync {
         self.value(x)
     }
     /// The objective described exactly, for an evaluation worker of the same build to rebuild
-    /// (`crate::jobs::rebuild`); None for one that stays in this process (closures, objectives
+    /// (`evoloop::jobs::rebuild`); None for one that stays in this process (closures, objectives
     /// over data too large to ship).
     fn describe(&self) -> Option<Job> {
         None
     }
 }
 
-/// An objective as it crosses to an evaluation worker: its kind (`crate::jobs` knows them all)
+/// An objective as it crosses to an evaluation worker: its kind (`evoloop::jobs` knows them all)
 /// and its fields in postcard, where every f64 is its 8 bytes, so the rebuilt objective holds
 /// the same bits and computes the same values.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

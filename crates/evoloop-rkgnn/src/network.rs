@@ -396,7 +396,7 @@ fn inertia_and_velocity(
     }
 }
 
-pub fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v: &mut [f64]) {
+pub(crate) fn velocity(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], v: &mut [f64]) {
     if layout.counts.velocity == 0 {
         let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
         return christoffel(layout, p, theta, qd, &mut m, v);
@@ -451,7 +451,7 @@ fn christoffel(layout: &Layout, p: &[f64], theta: &[f64], qd: &[f64], m: &mut Ma
 }
 
 /// The servo's torque; `zero` = `servo_zero(layout, p)`.
-pub fn torque(
+pub(crate) fn torque(
     layout: &Layout,
     p: &[f64],
     zero: &ServoZero,
