@@ -18,16 +18,14 @@ macro_rules! err {
 }
 
 pub mod bench;
-pub mod check;
 pub mod cli;
 pub mod config;
-pub mod control;
 pub mod direct;
+pub use evoloop_control::{check, control, fuzzy, plant, reference};
 pub use evoloop_dynamics as dynamics;
 pub use evoloop_files as files;
 pub use evoloop_linalg as linalg;
 pub use evoloop_stats as stats;
-pub mod fuzzy;
 pub mod identify;
 pub mod indirect;
 pub use evoloop_ipc as ipc;
@@ -37,8 +35,6 @@ pub use evoloop_msg as msg;
 pub mod net;
 pub mod node;
 pub mod optim;
-pub mod plant;
-pub mod reference;
 pub mod report;
 pub mod rkgnn;
 pub mod robust;

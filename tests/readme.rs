@@ -255,17 +255,20 @@ fn the_checker_itself_rejects_what_does_not_parse() {
     assert!(check_files(missing.command.as_ref().unwrap()).is_err());
 }
 
-/// The book's "Extending evoloop" example quotes `src/plant/heater.rs` and the registry in
-/// `src/plant/mod.rs`: every stretch of its ```rust blocks between `// ...` elisions appears in
+/// The book's "Extending evoloop" example quotes `crates/evoloop-control/src/plant/heater.rs` and the registry in
+/// `crates/evoloop-control/src/plant/mod.rs`: every stretch of its ```rust blocks between `// ...` elisions appears in
 /// those files (compared without whitespace, so line breaks may differ).
 #[test]
 fn the_extending_example_quotes_the_real_files() {
     let text = std::fs::read_to_string(root().join("docs/src/extending.md")).unwrap();
     let squash = |s: &str| s.chars().filter(|c| !c.is_whitespace()).collect::<String>();
     let files = squash(
-        &["src/plant/heater.rs", "src/plant/mod.rs"]
-            .map(|f| std::fs::read_to_string(root().join(f)).unwrap())
-            .join("\n"),
+        &[
+            "crates/evoloop-control/src/plant/heater.rs",
+            "crates/evoloop-control/src/plant/mod.rs",
+        ]
+        .map(|f| std::fs::read_to_string(root().join(f)).unwrap())
+        .join("\n"),
     );
     let section = text
         .split("# Extending evoloop")

@@ -441,8 +441,9 @@ mod tests {
     use crate::msg::{ParamSet, Telemetry};
 
     fn shipped(k: usize) -> RkgnnModel {
+        // The workspace's shipped models (config/models at its root).
         let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join(format!("config/models/arm3_train{k}.json"));
+            .join(format!("../../config/models/arm3_train{k}.json"));
         RkgnnModel::load(&p).unwrap()
     }
 

@@ -1,0 +1,80 @@
+//! The model a controller checks new gain sets on (indirect scheme, Section 3.1.2 of the
+//! fuzzy-network paper): the plant's linear model at its configured parameters until the
+//! optimiser's estimate of the parameter that changes in operation arrives, then at the latest
+//! estimate. A set the optimiser tuned on a drifted plant is judged on that plant, not on one the
+//! plant no longer is; and a set that is stable only on the nominal model is refused.
+//!
+//! Estimates are adopted at the sample they name (`ModelEstimate::apply_at_seq`), so every
+//! lockstep run of a seed checks each set on the same estimate. An estimate that is not finite
+//! or not positive is refused and the last good model stays.
+
+use super::LinearModel;
+use crate::msg::ModelEstimate;
+use crate::plant::PlantModel;
+
+/// Estimates waiting for their sample: at 10 Hz and applied within a synchronisation interval,
+/// a few at most.
+const PENDING: usize = 8;
+
+/// What became of the estimates, for the run's report.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ModelCheckReport {
+    /// The last estimate adopted; None: sets were checked on the configured model only.
+    pub last_adopted: Option<f64>,
+    pub adopted: u64,
+    /// Not finite or not positive: the model in use was kept.
+    pub refused: u64,
+    /// More estimates waiting than the queue holds (the oldest go).
+    pub dropped: u64,
+}
+
+pub struct ModelCheck {
+    plant: PlantModel,
+    /// Received, not yet due; capacity `PENDING`, never grown.
+    pending: Vec<ModelEstimate>,
+    pub report: ModelCheckReport,
+}
+
+impl ModelCheck {
+    /// For a plant with a varying parameter and a linear model at any value of it; None
+    /// otherwise (nothing to re-check on).
+    pub fn new(plant: &PlantModel) -> Option<Self> {
+        let cfg = plant.config();
+        cfg.linear_model_at(cfg.varying_parameter(0.0)?)?;
+        Some(Self {
+            plant: plant.clone(),
+            pending: Vec::with_capacity(PENDING),
+            report: ModelCheckReport::default(),
+        })
+    }
+
+    /// Queue a received estimate. Never allocates.
+    pub fn offer(&mut self, e: &ModelEstimate) {
+        if self.pending.len() == PENDING {
+            self.pending.remove(0);
+            self.report.dropped += 1;
+        }
+        self.pending.push(*e);
+    }
+
+    /// Adopt every estimate due at sample `seq`, in order; the model at the last good one when
+    /// any was adopted. Allocation-free.
+    pub fn due(&mut self, seq: u64) -> Option<LinearModel> {
+        let mut model = None;
+        while let Some(i) = self.pending.iter().position(|e| e.apply_at_seq <= seq) {
+            let e = self.pending.remove(i);
+            let m = (e.value.is_finite() && e.value > 0.0)
+                .then(|| self.plant.config().linear_model_at(e.value))
+                .flatten();
+            match m {
+                Some(m) => {
+                    model = Some(m);
+                    self.report.adopted += 1;
+                    self.report.last_adopted = Some(e.value);
+                }
+                None => self.report.refused += 1,
+            }
+        }
+        model
+    }
+}
