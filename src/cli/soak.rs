@@ -189,10 +189,7 @@ pub fn main(a: SoakArgs) -> ExitCode {
         return ExitCode::from(1);
     }
     if a.json {
-        out!(
-            "{}",
-            serde_json::to_string_pretty(&report).unwrap_or_default()
-        );
+        crate::report::print_json(&report);
     } else {
         print_report(&report, &a.out);
     }

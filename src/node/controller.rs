@@ -18,7 +18,7 @@ use crate::msg::{
     Command, ModelEstimate, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
     TELEMETRY_FLAG_MISSED, TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
 };
-use crate::node::start::{leave_and_fail, ports, start, Failure, Started, EXIT_SETUP};
+use crate::node::start::{leave_and_fail, ports, start, Failure, Started};
 use crate::report::record::Recorder;
 use crate::report::stream::{CsvPart, LogStream, Overflow};
 use crate::report::summary::{ControllerReport, ParamRecord};
@@ -341,7 +341,7 @@ pub fn main(args: &ProcessArgs) {
         })
     });
     if let Err(e) = ipc.announce(Topic::Ready) {
-        leave_and_fail(WHO, ports, ipc, EXIT_SETUP, &e.to_string());
+        leave_and_fail(WHO, ports, ipc, Failure::Setup(e.to_string()));
     }
 
     let mut lp = match Loop::new(&scn) {
@@ -350,8 +350,7 @@ pub fn main(args: &ProcessArgs) {
             WHO,
             ports,
             ipc,
-            EXIT_SETUP,
-            &format!("cannot log the run: {e}"),
+            Failure::Setup(format!("cannot log the run: {e}")),
         ),
     };
     let mut report = ControllerReport {
@@ -370,7 +369,7 @@ pub fn main(args: &ProcessArgs) {
     report.interrupted = stop.load(Ordering::SeqCst);
     finish(&scn, lp, &mut report);
     if let Err(e) = result {
-        leave_and_fail(WHO, ports, ipc, e.code(), &e.to_string());
+        leave_and_fail(WHO, ports, ipc, e);
     }
 }
 

@@ -543,9 +543,10 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
         plant,
         ipc,
         stop,
+        telemetry,
+        estimate,
         quiet,
         span,
-        ..
     } = *w;
     while exited.iter().any(|e| !e) {
         for (i, (name, c)) in children.iter_mut().enumerate() {
@@ -629,7 +630,7 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
         }
         if !quiet && last_progress.elapsed() >= Duration::from_secs(1) {
             last_progress = Instant::now();
-            progress_line(w.telemetry, w.estimate, span);
+            progress_line(telemetry, estimate, span);
         }
         // Supervision, not the control path: a 5 ms poll of child status costs nothing here.
         std::thread::sleep(Duration::from_millis(5));

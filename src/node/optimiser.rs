@@ -14,7 +14,7 @@ use crate::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
 use crate::msg::{
     Command, ModelEstimate, OptimiserAck, OptimiserStatus, ParamSet, PlantState, STATE_FLAG_END,
 };
-use crate::node::start::{fail, leave_and_fail, ports, start, Failure, Started, EXIT_SETUP};
+use crate::node::start::{fail, leave_and_fail, ports, start, Failure, Started};
 use crate::report::history::History;
 use crate::report::summary::{OptimiserReport, PublishedSet};
 use crate::report::write_json;
@@ -46,7 +46,7 @@ pub fn main(cli: &OptimiserArgs) {
         ipc,
     } = start(&cli.args, WHO);
     // Before the ports: the plant starts once they exist, and the workers are waited for first.
-    let pool = workers::start(&scn, &stop).unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e));
+    let pool = workers::start(&scn, &stop).unwrap_or_else(|e| fail(WHO, Failure::Setup(e)));
     let buffer = crate::ipc::MAX_SYNC_SAMPLES + 8;
     let lockstep = scn.timing.mode == Mode::Lockstep;
     let ports = ports(WHO, || {
@@ -71,7 +71,7 @@ pub fn main(cli: &OptimiserArgs) {
         })
     });
     if let Err(e) = ipc.announce(Topic::Ready) {
-        fail(WHO, EXIT_SETUP, &e.to_string());
+        fail(WHO, Failure::Setup(e.to_string()));
     }
     let mut report = OptimiserReport {
         mode: scn.optimiser.mode,
@@ -86,7 +86,7 @@ pub fn main(cli: &OptimiserArgs) {
         if let Err(e) = ports.ack.send(&OptimiserAck {
             through_seq: u64::MAX,
         }) {
-            fail(WHO, EXIT_SETUP, &e.to_string());
+            fail(WHO, Failure::Setup(e.to_string()));
         }
     }
     // The load over the run itself: CPU and wall time from the same moment.
@@ -103,7 +103,7 @@ pub fn main(cli: &OptimiserArgs) {
         remote::finish(m, &scn.output.dir);
     }
     if let Err(e) = result {
-        leave_and_fail(WHO, ports, ipc, e.code(), &e.to_string());
+        leave_and_fail(WHO, ports, ipc, e);
     }
 }
 
@@ -583,7 +583,7 @@ mod workers {
 /// The optimiser on another host (`--connect`): the run mirrored into the namespace of remote
 /// optimisers (`net::mirror::PREFIX`).
 mod remote {
-    use super::{fail, EXIT_SETUP, WHO};
+    use super::{fail, Failure, WHO};
     use crate::node::args::OptimiserArgs;
 
     #[cfg(feature = "zenoh")]
@@ -601,16 +601,18 @@ mod remote {
         if scn.timing.mode != crate::config::Mode::Realtime {
             fail(
                 WHO,
-                EXIT_SETUP,
-                "--connect joins realtime runs only (give --mode realtime): in lockstep the \
-                 plant waits for the optimiser's acknowledgements, which do not cross the network",
+                Failure::Setup(
+                    "--connect joins realtime runs only (give --mode realtime): in lockstep the \
+                     plant waits for the optimiser's acknowledgements, which do not cross the \
+                     network"
+                        .into(),
+                ),
             );
         }
         if cli.rejoin {
             fail(
                 WHO,
-                EXIT_SETUP,
-                "--rejoin is for a run's own optimiser, not with --connect",
+                Failure::Setup("--rejoin is for a run's own optimiser, not with --connect".into()),
             );
         }
         // A namespace of its own (the run's id may also be running on this host), one for
@@ -624,12 +626,12 @@ mod remote {
             ep,
             cli.zenoh_config.clone(),
         )
-        .unwrap_or_else(|e| fail(WHO, EXIT_SETUP, &e))
+        .unwrap_or_else(|e| fail(WHO, Failure::Setup(e)))
     }
 
     #[cfg(not(feature = "zenoh"))]
     pub fn join(_: &mut OptimiserArgs, _: String) -> Mirror {
-        fail(WHO, EXIT_SETUP, &crate::needs_zenoh("--connect"))
+        fail(WHO, Failure::Setup(crate::needs_zenoh("--connect")))
     }
 
     /// Stop the mirror and write what crossed the network (network.json).

@@ -12,9 +12,7 @@ use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
 use crate::ipc::{Bell, Doorbell, Pub, Sub, Topic, Waited};
 use crate::msg::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
-use crate::node::start::{
-    fail, leave_and_fail, ports, start, Failure, Started, EXIT_PEER_TIMEOUT, EXIT_SETUP,
-};
+use crate::node::start::{fail, leave_and_fail, ports, start, Failure, Started};
 use crate::plant::PlantSim;
 use crate::report::summary::PlantReport;
 use crate::report::write_json;
@@ -80,7 +78,7 @@ pub fn main(args: &ProcessArgs) {
         eprintln!("{WHO}: cannot write plant.json: {e}");
     }
     if let Err(e) = result {
-        leave_and_fail(WHO, ports, ipc, e.code(), &e.to_string());
+        leave_and_fail(WHO, ports, ipc, e);
     }
 }
 
@@ -96,14 +94,13 @@ fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
         if t0.elapsed().as_secs_f64() > timeout_s {
             fail(
                 WHO,
-                EXIT_PEER_TIMEOUT,
-                "controller/optimiser did not connect in time",
+                Failure::PeerTimeout("controller/optimiser did not connect in time".into()),
             );
         }
         // Each peer announces itself once its ports exist; re-check on every announcement (and
         // every 100 ms, in case one came before this listener existed).
         if let Err(e) = ports.ready.wait(Duration::from_millis(100)) {
-            fail(WHO, EXIT_SETUP, &e.to_string());
+            fail(WHO, Failure::Setup(e.to_string()));
         }
     }
 }

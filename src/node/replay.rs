@@ -138,17 +138,19 @@ pub fn main(a: &ReplayArgs) -> i32 {
 }
 
 fn replay(a: &ReplayArgs) -> Result<ReplayReport, Failure> {
-    let bad = |e: String| Failure::Setup(e);
-    let rec = Recording::read(&a.file).map_err(bad)?;
+    let rec = Recording::read(&a.file).map_err(Failure::Setup)?;
     if rec.states.is_empty() {
-        return Err(bad(format!("{}: no states recorded", a.file.display())));
+        return Err(Failure::Setup(format!(
+            "{}: no states recorded",
+            a.file.display()
+        )));
     }
     let config = match &a.scenario {
         Some(f) => f.clone(),
         None => PathBuf::from(rec.meta("config").unwrap_or_default()),
     };
     if !config.is_file() {
-        return Err(bad(format!(
+        return Err(Failure::Setup(format!(
             "{}: the recording's scenario {} is not here; name one with --scenario FILE",
             a.file.display(),
             config.display()
@@ -168,18 +170,18 @@ fn replay(a: &ReplayArgs) -> Result<ReplayReport, Failure> {
         out: Some(out.clone()),
         ..Default::default()
     };
-    let scn = Scenario::load(&config, &ov).map_err(|e| bad(e.to_string()))?;
+    let scn = Scenario::load(&config, &ov).map_err(|e| Failure::Setup(e.to_string()))?;
     let n_u = scn.build_plant().n_inputs();
     if let Some(c) = rec.commands.first() {
         if c.n_u as usize != n_u {
-            return Err(bad(format!(
+            return Err(Failure::Setup(format!(
                 "{} has {n_u} inputs, the recording's commands {}: not the same plant",
                 config.display(),
                 c.n_u
             )));
         }
     }
-    std::fs::create_dir_all(&out).map_err(|e| bad(format!("{}: {e}", out.display())))?;
+    std::fs::create_dir_all(&out).map_err(|e| Failure::Setup(format!("{}: {e}", out.display())))?;
     for f in ["replay.json", "replay.csv", "replay.png"] {
         let _ = std::fs::remove_file(out.join(f));
     }

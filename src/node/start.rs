@@ -64,7 +64,7 @@ pub fn start(args: &ProcessArgs, who: &str) -> Started {
     let scenario = load_scenario(args, who);
     let stop = stop_flag();
     let ipc = Ipc::new(who, &args.run_id, &args.ipc_prefix)
-        .unwrap_or_else(|e| fail(who, EXIT_SETUP, &e.to_string()));
+        .unwrap_or_else(|e| fail(who, Failure::Setup(e.to_string())));
     Started {
         scenario,
         stop,
@@ -74,30 +74,30 @@ pub fn start(args: &ProcessArgs, who: &str) -> Started {
 
 /// Build the process's ports, or exit with the IPC error.
 pub fn ports<P>(who: &str, build: impl FnOnce() -> Result<P, IpcError>) -> P {
-    build().unwrap_or_else(|e| fail(who, EXIT_SETUP, &e.to_string()))
+    build().unwrap_or_else(|e| fail(who, Failure::Setup(e.to_string())))
 }
 
 /// Load the scenario with the launcher's overrides, or exit with the config error.
 pub fn load_scenario(args: &ProcessArgs, who: &str) -> Scenario {
     match Scenario::load(&args.config, &args.overrides.to_overrides()) {
         Ok(s) => s,
-        Err(e) => fail(who, EXIT_SETUP, &e.to_string()),
+        Err(e) => fail(who, Failure::Setup(e.to_string())),
     }
 }
 
-/// Print `who: message` to stderr and exit with `code`.
-pub fn fail(who: &str, code: i32, message: &str) -> ! {
-    eprintln!("{who}: error: {message}");
-    std::process::exit(code)
+/// Print `who: error: ...` to stderr and exit with the failure's code.
+pub fn fail(who: &str, failure: Failure) -> ! {
+    eprintln!("{who}: error: {failure}");
+    std::process::exit(failure.code())
 }
 
 /// `fail`, after leaving iceoryx2 cleanly: `exit` skips destructors, so a process failing with its
 /// ports and node alive left them for the launcher's (or the next run's) dead-node cleanup, and
 /// a remote optimiser has no launcher to clean up after it.
-pub fn leave_and_fail<P>(who: &str, ports: P, ipc: Ipc, code: i32, message: &str) -> ! {
+pub fn leave_and_fail<P>(who: &str, ports: P, ipc: Ipc, failure: Failure) -> ! {
     drop(ports);
     drop(ipc);
-    fail(who, code, message)
+    fail(who, failure)
 }
 
 /// Name the calling thread (the process's main thread: its `comm` in `ps`, `top` and

@@ -8,7 +8,7 @@ use super::summary::{
     ParamVersions, PlantReport, RealtimePrivileges, Summary,
 };
 use super::Outcome;
-use crate::config::Scenario;
+use crate::config::{OptimiserMode, Scenario};
 use crate::msg::ParamCode;
 use crate::sim::cost::TrackingCost;
 use crate::sim::JointTraces;
@@ -205,7 +205,7 @@ pub const FROZEN_LIMIT_S: f64 = 600.0;
 /// code, bit-identical to a lockstep run of the processes) for `span` s, per joint.
 fn frozen_traces(scn: &Scenario, span: f64) -> JointTraces {
     let mut f = scn.clone();
-    f.optimiser.mode = crate::config::OptimiserMode::Off;
+    f.optimiser.mode = OptimiserMode::Off;
     f.timing.duration = span;
     JointTraces::of(
         &crate::sim::simulate(&f),
@@ -279,7 +279,7 @@ fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
     };
     let quarter = 0.75 * span;
     let change = scn.plant.model.config().first_change();
-    let identify = scn.optimiser.mode == crate::config::OptimiserMode::Identify;
+    let identify = scn.optimiser.mode == OptimiserMode::Identify;
     let mut response = ys.first().map(|_| {
         ResponseAcc::new(
             extent.rows,
@@ -454,7 +454,6 @@ fn frozen_comparison(
     change: Option<f64>,
     quarter: f64,
 ) -> Option<FrozenReadings> {
-    use crate::config::OptimiserMode;
     let compare = matches!(
         scn.optimiser.mode,
         OptimiserMode::Indirect | OptimiserMode::Identify
@@ -552,9 +551,9 @@ pub fn build_report(
     let n_rejected = sets.rejected.len();
     let floor = floor.map(|f| against_floor(f, &ctrl.timing.lateness));
     let frozen = frozen_comparison(scn, span, change, quarter);
-    let identify = scn.optimiser.mode == crate::config::OptimiserMode::Identify;
+    let identify = scn.optimiser.mode == OptimiserMode::Identify;
     let frozen_reps: Vec<(f64, f64, f64)> = match &frozen {
-        Some(f) if scn.optimiser.mode == crate::config::OptimiserMode::Indirect => f.reps.clone(),
+        Some(f) if scn.optimiser.mode == OptimiserMode::Indirect => f.reps.clone(),
         _ => Vec::new(),
     };
     // Identification alongside operation against the models it started with, kept all run long:

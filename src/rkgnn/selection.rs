@@ -239,7 +239,7 @@ pub struct SelectionResult {
     pub unidentified: Vec<String>,
     pub cells: Vec<Cell>,
     /// Per trajectory, the median overall RMS of each controller.
-    pub medians: Vec<(String, Vec<(String, f64)>)>,
+    pub medians: Medians,
     pub comparisons: Vec<Comparison>,
     /// Whether fuzzy max (the paper's rule) is below the best single model in hindsight:
     /// median lower and Wilcoxon p < 0.05 with fuzzy lower.
@@ -575,13 +575,12 @@ pub fn run(
     Ok(result)
 }
 
+/// Per trajectory, each controller's median tracking RMS over the seeds.
+pub type Medians = Vec<(String, Vec<(String, f64)>)>;
+
 /// Medians per trajectory and the paired comparisons of each fuzzy rule with every other
 /// controller.
-#[allow(clippy::type_complexity)]
-fn summarise(
-    cells: &[Cell],
-    trajectories: &[&str],
-) -> (Vec<(String, Vec<(String, f64)>)>, Vec<Comparison>) {
+fn summarise(cells: &[Cell], trajectories: &[&str]) -> (Medians, Vec<Comparison>) {
     let keys: Vec<&str> = RUN.iter().chain(&DERIVED).copied().collect();
     let value = |c: &Cell, k: &str| {
         c.rms

@@ -2,13 +2,12 @@
 //! solves and eigenvalue bounds the control cycle and the RKGNN models need without allocating
 //! (`small`), and the eigenvalues of a general real matrix for the stability checks (`eigen`,
 //! Francis QR). General-purpose work (decompositions of larger, heap matrices) goes through
-//! nalgebra, which this crate re-exports so that every crate names the same version.
+//! nalgebra directly (one version for the workspace, `[workspace.dependencies]`).
 
 pub mod eigen;
 pub mod small;
 
 pub use eigen::{eig, eigenvalues};
-pub use nalgebra;
 pub use small::{
     cholesky_solve_in_place, min_leading_minor, solve, sym_eig_range, Mat, NotPositiveDefinite,
 };

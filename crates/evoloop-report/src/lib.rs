@@ -3,12 +3,6 @@
 //! overshoot, IAE, ISE), plots, the HTML page and progress bars. A sink: it takes data and never
 //! runs a simulation; the run's report (`evoloop::report::build`, which does) sits above.
 
-/// Print a line to stdout, ignoring errors: a closed pipe (`evoloop run | head`) must not kill
-/// the process printing.
-macro_rules! out {
-    ($($a:tt)*) => {{ use std::io::Write; let _ = writeln!(std::io::stdout(), $($a)*); }};
-}
-
 pub mod history;
 pub mod html;
 pub mod mcap_file;
@@ -45,10 +39,9 @@ pub enum Outcome {
 
 /// Print `value` as pretty JSON on stdout (for `--json`), ignoring a closed pipe.
 pub fn print_json(value: &impl serde::Serialize) {
-    out!(
-        "{}",
-        serde_json::to_string_pretty(value).unwrap_or_default()
-    );
+    use std::io::Write;
+    let text = serde_json::to_string_pretty(value).unwrap_or_default();
+    let _ = writeln!(std::io::stdout(), "{text}");
 }
 
 /// Write `value` as pretty JSON to `dir/name`.

@@ -266,7 +266,7 @@ impl ControlCycle {
         let c = self.controller.as_ref();
         let refused = |r: super::Rejection| (r.code, r.index);
         let trial = set.until_seq > 0;
-        if c.model_kind().is_some_and(|k| k.code() == set.kind) {
+        if c.model_kind().is_some_and(|k| set.param_kind() == Ok(k)) {
             if trial {
                 // Trials are gain sets: a model has no fallback to return to.
                 return Err((ParamCode::RejectedWrongKind, 0));

@@ -20,7 +20,8 @@ pub fn validate_params(
     bounds: &ParamBounds,
 ) -> Result<(), Rejection> {
     let reject = |code, index| Err(Rejection { code, index });
-    if set.kind != kind.code() {
+    // An unknown code reads as an error, never as this kind.
+    if set.param_kind() != Ok(kind) {
         return reject(ParamCode::RejectedWrongKind, 0);
     }
     newer(set, version_in_service)?;
