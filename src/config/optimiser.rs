@@ -7,7 +7,7 @@ use crate::check::{Check, ConfigError};
 use crate::ipc::MAX_SYNC_SAMPLES;
 use serde::{Deserialize, Serialize};
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawOptimiser {
     pub mode: Option<OptimiserMode>,
@@ -209,47 +209,92 @@ pub fn validate(
     timing: &Timing,
     ov: &Overrides,
 ) -> Result<OptimiserSpec, ConfigError> {
-    let mut o = o.unwrap_or(RawOptimiser {
-        mode: None,
-        sync_period: None,
-        nice: None,
-        schedule: None,
-        margin: None,
-        evaluations_per_second: None,
-        epoch_evaluations: None,
-        threads: None,
-        cost_u_weight: None,
-        identify_window: None,
-        identify_fresh: None,
-        identify_every: None,
-        algorithm: None,
-        population: None,
-        evaluations: None,
-        repetition: None,
-        first_repetition: None,
-        envelope_error: None,
-        envelope_output: None,
-        envelope_control: None,
-        cost_lag: None,
-        seed_configured: None,
-        phases: None,
-        workers: None,
-        workers_listen: None,
-        workers_zenoh_config: None,
-        workers_expect: None,
-    });
+    let mut o = o.unwrap_or_default();
     let mode = ov.optimiser.or(o.mode).unwrap_or(OptimiserMode::Off);
-    let direct = mode == OptimiserMode::Direct;
-    // Default: an acknowledgement every 100 periods (a barrier costs two cross-process
-    // wake-ups; rarer barriers let lockstep run at hundreds of thousands of samples/s). The
-    // direct scheme decides at the sample before each repetition: its acknowledgements are
-    // shifted there (`Scenario::is_sync_point`), every largest divisor of the repetition up to
-    // 100 periods.
+    let sync_period = sync_period(&o, check, timing, mode)?;
+    let nice = check.count("optimiser.nice", o.nice.unwrap_or(10), -20, 19)?;
+    let schedule = schedule(o.schedule.take().unwrap_or_default(), check)?;
+    let epoch_evaluations = o.epoch_evaluations.unwrap_or(150);
+    check.count(
+        "optimiser.epoch_evaluations",
+        epoch_evaluations,
+        12,
+        100_000,
+    )?;
+    let threads = check.count("optimiser.threads", o.threads.unwrap_or(2), 1, 64)?;
+    // The identification needs enough samples per window for its differences and fit; the
+    // lower limits are in control periods and apply only when it runs.
+    let periods = |k: f64| {
+        if mode == OptimiserMode::Identify {
+            k * timing.period
+        } else {
+            0.0
+        }
+    };
+    let d = direct_settings(&o, check, timing, sync_period, mode)?;
+    let workers = workers_settings(&o, check, ov, mode)?;
+    let range = |key: &str, v: Option<f64>, default: f64, lo: f64, hi: f64| {
+        check.range(&format!("optimiser.{key}"), v.unwrap_or(default), lo, hi)
+    };
+    Ok(OptimiserSpec {
+        workers,
+        algorithm: d.algorithm,
+        population: d.population,
+        evaluations: d.evaluations,
+        repetition: d.repetition,
+        first_repetition: d.first_repetition,
+        envelope: d.envelope,
+        seed_configured: o.seed_configured.unwrap_or(false),
+        phases: d.phases,
+        cost_lag: check.count("optimiser.cost_lag", o.cost_lag.unwrap_or(0), 0, 16)?,
+        mode,
+        sync_period,
+        nice,
+        schedule,
+        margin: range("margin", o.margin, 0.01, 0.0, 0.9)?,
+        evaluations_per_second: range(
+            "evaluations_per_second",
+            o.evaluations_per_second,
+            100.0,
+            1.0,
+            1e6,
+        )?,
+        epoch_evaluations,
+        threads,
+        cost_u_weight: range("cost_u_weight", o.cost_u_weight, 1e-3, 0.0, 1e6)?,
+        identify_window: range(
+            "identify_window",
+            o.identify_window,
+            4.0,
+            periods(50.0),
+            600.0,
+        )?,
+        identify_fresh: range(
+            "identify_fresh",
+            o.identify_fresh,
+            1.0,
+            periods(20.0),
+            600.0,
+        )?,
+        identify_every: range("identify_every", o.identify_every, 2.0, periods(1.0), 1e6)?,
+    })
+}
+
+/// Default: an acknowledgement every 100 periods (a barrier costs two cross-process wake-ups;
+/// rarer barriers let lockstep run at hundreds of thousands of samples/s). The direct scheme
+/// decides at the sample before each repetition: its acknowledgements are shifted there
+/// (`Scenario::is_sync_point`), every largest divisor of the repetition up to 100 periods.
+fn sync_period(
+    o: &RawOptimiser,
+    check: &Check,
+    timing: &Timing,
+    mode: OptimiserMode,
+) -> Result<f64, ConfigError> {
     let sync_period = o.sync_period.unwrap_or_else(|| {
         let rep = o
             .repetition
             .map_or(0, |r| (r / timing.period).round() as u64);
-        let every = if direct && rep > 0 {
+        let every = if mode == OptimiserMode::Direct && rep > 0 {
             (1..=100)
                 .rev()
                 .find(|d| rep.is_multiple_of(*d))
@@ -267,29 +312,21 @@ pub fn validate(
             format!("must be between 1 and {MAX_SYNC_SAMPLES} control periods (got {samples:.1})"),
         );
     }
-    let nice = o.nice.unwrap_or(10);
-    if !(-20..=19).contains(&nice) {
-        return check.fail(
-            "optimiser.nice",
-            format!("must be within -20..=19 (got {nice})"),
-        );
-    }
-    let mut schedule = Vec::new();
-    for (i, s) in o
-        .schedule
-        .take()
-        .unwrap_or_default()
-        .into_iter()
-        .enumerate()
-    {
+    Ok(sync_period)
+}
+
+/// The scheduled sets, in time order. Their values are checked against the controller
+/// (`config::compose`) unless the set is meant to be refused: a scheduled bad set is how that
+/// path is exercised end to end.
+fn schedule(raw: Vec<RawScheduled>, check: &Check) -> Result<Vec<ScheduledSet>, ConfigError> {
+    let mut schedule: Vec<ScheduledSet> = Vec::new();
+    for (i, s) in raw.into_iter().enumerate() {
         let key = format!("optimiser.schedule[{i}]");
         // A set scheduled past the end of a (shortened) run is simply never published.
         check.range(&format!("{key}.at"), s.at, 0.0, 1e9)?;
-        if i > 0 && s.at < schedule.last().map(|p: &ScheduledSet| p.at).unwrap_or(0.0) {
+        if schedule.last().is_some_and(|p| s.at < p.at) {
             return check.fail(&format!("{key}.at"), "schedule times must not decrease");
         }
-        // The values are checked against the controller (config::compose) unless the set is
-        // meant to be refused: a scheduled bad set is how that path is exercised end to end.
         let values = match (s.values, s.file) {
             (Some(v), None) => v,
             (None, Some(file)) => model_file(&check.resolve(&file))
@@ -314,88 +351,7 @@ pub fn validate(
             expect: s.expect.unwrap_or_default(),
         });
     }
-    let epoch_evaluations = o.epoch_evaluations.unwrap_or(150);
-    if !(12..=100_000).contains(&epoch_evaluations) {
-        return check.fail(
-            "optimiser.epoch_evaluations",
-            format!("must be 12..=100000 (got {epoch_evaluations})"),
-        );
-    }
-    let threads = o.threads.unwrap_or(2);
-    if !(1..=64).contains(&threads) {
-        return check.fail(
-            "optimiser.threads",
-            format!("must be 1..=64 (got {threads})"),
-        );
-    }
-    // The identification needs enough samples per window for its differences and fit; the
-    // lower limits are in control periods and apply only when it runs.
-    let periods = |k: f64| {
-        if mode == OptimiserMode::Identify {
-            k * timing.period
-        } else {
-            0.0
-        }
-    };
-    let direct_spec = direct_settings(&o, check, timing, sync_period, mode)?;
-    let workers = workers_settings(&o, check, ov, mode)?;
-    Ok(OptimiserSpec {
-        workers,
-        algorithm: direct_spec.0,
-        population: direct_spec.1,
-        evaluations: direct_spec.2,
-        repetition: direct_spec.3,
-        first_repetition: direct_spec.4,
-        envelope: direct_spec.5,
-        seed_configured: o.seed_configured.unwrap_or(false),
-        phases: direct_spec.6,
-        cost_lag: match o.cost_lag.unwrap_or(0) {
-            l @ 0..=16 => l,
-            l => {
-                return check.fail(
-                    "optimiser.cost_lag",
-                    format!("must be 0..=16 samples (got {l})"),
-                )
-            }
-        },
-        mode,
-        sync_period,
-        nice,
-        schedule,
-        margin: check.range("optimiser.margin", o.margin.unwrap_or(0.01), 0.0, 0.9)?,
-        evaluations_per_second: check.range(
-            "optimiser.evaluations_per_second",
-            o.evaluations_per_second.unwrap_or(100.0),
-            1.0,
-            1e6,
-        )?,
-        epoch_evaluations,
-        threads,
-        cost_u_weight: check.range(
-            "optimiser.cost_u_weight",
-            o.cost_u_weight.unwrap_or(1e-3),
-            0.0,
-            1e6,
-        )?,
-        identify_window: check.range(
-            "optimiser.identify_window",
-            o.identify_window.unwrap_or(4.0),
-            periods(50.0),
-            600.0,
-        )?,
-        identify_fresh: check.range(
-            "optimiser.identify_fresh",
-            o.identify_fresh.unwrap_or(1.0),
-            periods(20.0),
-            600.0,
-        )?,
-        identify_every: check.range(
-            "optimiser.identify_every",
-            o.identify_every.unwrap_or(2.0),
-            periods(1.0),
-            1e6,
-        )?,
-    })
+    Ok(schedule)
 }
 
 /// The evaluation workers' keys (and `--workers-listen`, `--workers-expect`).
@@ -463,12 +419,7 @@ fn workers_settings(
         None => None,
     };
     let expect = ov.workers_expect.or(o.workers_expect).unwrap_or(0);
-    if expect > 256 {
-        return check.fail(
-            "optimiser.workers_expect",
-            format!("must be 0..=256 (got {expect})"),
-        );
-    }
+    check.count("optimiser.workers_expect", expect, 0, 256)?;
     Ok(Some(WorkersSpec {
         listen,
         zenoh_config,
@@ -476,15 +427,16 @@ fn workers_settings(
     }))
 }
 
-type DirectSettings = (
-    String,
-    usize,
-    usize,
-    f64,
-    f64,
-    crate::control::cycle::Envelope,
-    [usize; 3],
-);
+/// The direct scheme's settings (`OptimiserSpec` has each under the same name).
+struct DirectSettings {
+    algorithm: String,
+    population: usize,
+    evaluations: usize,
+    repetition: f64,
+    first_repetition: f64,
+    envelope: crate::control::cycle::Envelope,
+    phases: [usize; 3],
+}
 
 /// The direct scheme's optimisers: the study's ask/tell ones and the GA/Hooke-Jeeves hybrid.
 pub fn direct_algorithms() -> Vec<&'static str> {
@@ -505,21 +457,18 @@ fn direct_settings(
 ) -> Result<DirectSettings, ConfigError> {
     let algorithm = o.algorithm.clone().unwrap_or_else(|| "ga".into());
     if !direct_algorithms().contains(&algorithm.as_str()) {
+        let known = direct_algorithms().join(", ");
         return check.fail(
             "optimiser.algorithm",
-            format!(
-                "unknown algorithm {algorithm:?} (known: {})",
-                direct_algorithms().join(", ")
-            ),
+            format!("unknown algorithm {algorithm:?} (known: {known})"),
         );
     }
-    let population = o.population.unwrap_or(10);
-    if !(4..=10_000).contains(&population) {
-        return check.fail(
-            "optimiser.population",
-            format!("must be 4..=10000 (got {population})"),
-        );
-    }
+    let population = check.count(
+        "optimiser.population",
+        o.population.unwrap_or(10),
+        4,
+        10_000,
+    )?;
     let evaluations = o.evaluations.unwrap_or(310);
     if !(population..=1_000_000).contains(&evaluations) {
         return check.fail(
@@ -543,31 +492,61 @@ fn direct_settings(
     let first = o.first_repetition.unwrap_or(repetition);
     check.range("optimiser.first_repetition", first, repetition, 1e9)?;
     if mode == OptimiserMode::Direct {
-        let samples = |s: f64| s / timing.period;
-        let whole = |s: f64| (samples(s) - samples(s).round()).abs() < 1e-6;
-        if !whole(repetition) || !whole(first) {
-            return check.fail(
-                "optimiser.repetition",
-                format!(
-                    "repetition ({repetition} s) and first_repetition ({first} s) must be whole numbers of control periods ({} s)",
-                    timing.period
-                ),
-            );
-        }
-        // Lockstep: the optimiser decides at the sample before each boundary, which must be an
-        // acknowledgement: they come every sync_period, shifted onto the first boundary.
-        let sync = samples(sync_period).round() as u64;
-        let rep = samples(repetition).round() as u64;
-        if !rep.is_multiple_of(sync) {
-            return check.fail(
-                "optimiser.sync_period",
-                format!(
-                    "the direct scheme decides at the sample before each repetition starts: sync_period ({sync} periods) must divide the repetition ({rep} periods); leave it out for the largest divisor up to 100"
-                ),
-            );
-        }
+        aligned_repetitions(check, timing.period, sync_period, repetition, first)?;
     }
-    // The hybrid spends two evaluations per iteration of each phase after its population.
+    let phases = hybrid_phases(o, check, &algorithm, population, evaluations)?;
+    Ok(DirectSettings {
+        algorithm,
+        population,
+        evaluations,
+        repetition,
+        first_repetition: first,
+        envelope,
+        phases,
+    })
+}
+
+/// The direct scheme's repetitions start on a sample, and (lockstep) the optimiser decides at
+/// the sample before each, which must be an acknowledgement: they come every sync_period,
+/// shifted onto the first boundary.
+fn aligned_repetitions(
+    check: &Check,
+    period: f64,
+    sync_period: f64,
+    repetition: f64,
+    first: f64,
+) -> Result<(), ConfigError> {
+    let samples = |s: f64| s / period;
+    let whole = |s: f64| (samples(s) - samples(s).round()).abs() < 1e-6;
+    if !whole(repetition) || !whole(first) {
+        return check.fail(
+            "optimiser.repetition",
+            format!(
+                "repetition ({repetition} s) and first_repetition ({first} s) must be whole numbers of control periods ({period} s)"
+            ),
+        );
+    }
+    let sync = samples(sync_period).round() as u64;
+    let rep = samples(repetition).round() as u64;
+    if !rep.is_multiple_of(sync) {
+        return check.fail(
+            "optimiser.sync_period",
+            format!(
+                "the direct scheme decides at the sample before each repetition starts: sync_period ({sync} periods) must divide the repetition ({rep} periods); leave it out for the largest divisor up to 100"
+            ),
+        );
+    }
+    Ok(())
+}
+
+/// The hybrid's three phases, which spend two evaluations per iteration after its population.
+fn hybrid_phases(
+    o: &RawOptimiser,
+    check: &Check,
+    algorithm: &str,
+    population: usize,
+    evaluations: usize,
+) -> Result<[usize; 3], ConfigError> {
     let phases = o
         .phases
         .unwrap_or([evaluations.saturating_sub(population) / 2, 0, 0]);
@@ -586,15 +565,7 @@ fn direct_settings(
             ),
         );
     }
-    Ok((
-        algorithm,
-        population,
-        evaluations,
-        repetition,
-        first,
-        envelope,
-        phases,
-    ))
+    Ok(phases)
 }
 
 /// The `model_parameters` of a JSON file (`evoloop identify lls`'s lls.json).

@@ -508,8 +508,6 @@ fn prepare(a: &mut RunArgs) -> Result<Prepared, ExitCode> {
 struct Watch<'a> {
     /// The processes' arguments (an optimiser restarted gets them again, with `--rejoin`).
     args: &'a [String],
-    /// The plant's index in the children: once it has ended there is no run to rejoin.
-    plant: usize,
     ipc: &'a Ipc,
     stop: &'a std::sync::atomic::AtomicBool,
     telemetry: &'a Option<crate::ipc::Sub<Telemetry>>,
@@ -540,7 +538,6 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
     let mut restart_due: Option<Instant> = None;
     let Watch {
         args,
-        plant,
         ipc,
         stop,
         telemetry,
@@ -554,7 +551,7 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
                 continue;
             }
             // Not once the plant has ended: there is no run left to rejoin.
-            let rejoinable = !exited[plant] && !interrupted && stop_sent.is_none();
+            let rejoinable = !exited[PLANT] && !interrupted && stop_sent.is_none();
             if let Some(due) = restart_due.filter(|_| *name == OPTIMISER) {
                 if !rejoinable {
                     (exited[i], restart_due) = (true, None);
@@ -668,59 +665,11 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         Ok(p) => p,
         Err(code) => return code,
     };
-    let (scn, dir, run_id, file) = (&p.scn, &p.dir, &p.run_id, &p.file);
-    // The launcher's own node: creating it cleans up what killed runs left behind, and it
-    // watches the telemetry for progress lines.
-    let ipc = match Ipc::with_cleanup("evoloop", run_id, &a.ipc_prefix, false) {
-        Ok(i) => i,
-        Err(e) => {
-            err!("error: {e}");
-            return ExitCode::from(2);
-        }
+    let (scn, dir, run_id) = (&p.scn, &p.dir, &p.run_id);
+    let mut r = match Running::start(&p, &a) {
+        Ok(r) => r,
+        Err(code) => return code,
     };
-    let cleaned = ipc.cleanup_dead_nodes();
-    let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 1, false).ok();
-    let estimate = ipc
-        .subscriber::<crate::msg::ModelEstimate>(Topic::Estimate, 1, false)
-        .ok();
-
-    // The absolute config path and the output dir are passed on so children agree exactly.
-    let config = std::fs::canonicalize(file).unwrap_or(file.clone());
-    let mut child_ov = a.overrides.clone();
-    child_ov.out = Some(dir.clone());
-    let mut args = process_args(&config, run_id, &a.ipc_prefix);
-    args.extend(child_ov.to_args());
-    let names = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
-    let plant = names
-        .iter()
-        .position(|n| *n == "evoloop-plant")
-        .expect("the plant is one of the roles");
-    // The evaluation workers first: the optimiser waits for them before the run starts.
-    let workers = match &p.local {
-        Some((n, ep)) => LocalWorkers::start(ep, *n, 1, scn.optimiser.nice, run_id),
-        None => Ok(LocalWorkers::default()),
-    };
-    let workers = match workers {
-        Ok(w) => w,
-        Err(e) => {
-            err!("error: {e}");
-            return ExitCode::from(1);
-        }
-    };
-    let mut children: Vec<(&str, Child)> = Vec::new();
-    for name in names {
-        match spawn_process(name, &args) {
-            Ok(c) => children.push((name, c)),
-            Err(e) => {
-                err!("error: cannot start {name}: {e}");
-                for (_, c) in &mut children {
-                    signal(c, libc::SIGTERM);
-                    let _ = c.wait();
-                }
-                return ExitCode::from(1);
-            }
-        }
-    }
     let span = scn.timing.span();
     if !a.quiet {
         err!(
@@ -733,37 +682,21 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         );
     }
     let t0 = Instant::now();
+    let watch = Watch {
+        args: &r.args,
+        ipc: &r.ipc,
+        stop: &stop,
+        telemetry: &r.telemetry,
+        estimate: &r.estimate,
+        quiet: a.quiet,
+        span: &span,
+    };
     let Supervised {
         failed,
         interrupted,
         tuner,
-    } = supervise(
-        &mut children,
-        &Watch {
-            args: &args,
-            plant,
-            ipc: &ipc,
-            stop: &stop,
-            telemetry: &telemetry,
-            estimate: &estimate,
-            quiet: a.quiet,
-            span: &span,
-        },
-    );
-    for (_, c) in &mut children {
-        let _ = c.wait();
-    }
-    // The workers serve until told to stop.
-    drop(workers);
-    drop(telemetry);
-    drop(estimate);
-    // A child that died without dropping its ports (killed) left its resources behind: remove
-    // them now rather than leave them for the next run.
-    let cleaned_after = ipc.cleanup_dead_nodes();
-    if cleaned_after > 0 && !a.quiet {
-        err!("evoloop: removed the resources of {cleaned_after} dead process(es)");
-    }
-    drop(ipc);
+    } = supervise(&mut r.children, &watch);
+    let cleaned = r.wind_down(a.quiet);
     let wall = t0.elapsed().as_secs_f64();
     // A controller killed between its writer's flushes leaves a row cut short at the end of the
     // logs; every reader refuses such a file, so what was written in full is kept readable.
@@ -790,25 +723,136 @@ pub fn run(mut a: RunArgs) -> ExitCode {
     }
     // A run until stopped ends by being stopped: its floor is measured as any finished run's.
     let ended = !interrupted || scn.timing.until_stopped();
-    let floor =
-        (scn.timing.mode == Mode::Realtime && scn.timing.measure_floor && ended).then(|| {
-            let secs = a
-                .floor_duration
-                .unwrap_or_else(|| scn.timing.duration.min(5.0));
-            if !a.quiet {
-                err!(
-                    "evoloop: measuring the bare loop's floor ({} wait) for {secs} s",
-                    scn.timing.wait.describe()
-                );
+    let floor = (scn.timing.mode == Mode::Realtime && scn.timing.measure_floor && ended)
+        .then(|| floor(scn, &a));
+    let code = report(&p, wall, floor, cleaned, tuner, interrupted);
+    match code {
+        Some(code) => code,
+        None if ended => ExitCode::SUCCESS,
+        None => ExitCode::from(130),
+    }
+}
+
+/// The processes of a run, started, and the launcher's own node that watches them.
+struct Running {
+    /// The processes, in `PROCESSES`' order.
+    children: Vec<(&'static str, Child)>,
+    /// Their arguments (an optimiser restarted gets them again).
+    args: Vec<String>,
+    workers: LocalWorkers,
+    telemetry: Option<crate::ipc::Sub<Telemetry>>,
+    estimate: Option<crate::ipc::Sub<crate::msg::ModelEstimate>>,
+    ipc: Ipc,
+    /// Processes of killed runs whose resources the launcher's node removed at its start.
+    cleaned: usize,
+}
+
+impl Running {
+    fn start(p: &Prepared, a: &RunArgs) -> Result<Self, ExitCode> {
+        // The launcher's own node: creating it cleans up what killed runs left behind, and it
+        // watches the telemetry for progress lines.
+        let ipc = Ipc::with_cleanup("evoloop", &p.run_id, &a.ipc_prefix, false).map_err(|e| {
+            err!("error: {e}");
+            ExitCode::from(2)
+        })?;
+        let cleaned = ipc.cleanup_dead_nodes();
+        let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 1, false).ok();
+        let estimate = ipc.subscriber(Topic::Estimate, 1, false).ok();
+        // The absolute config path and the output dir are passed on so children agree exactly.
+        let config = std::fs::canonicalize(&p.file).unwrap_or(p.file.clone());
+        let mut child_ov = a.overrides.clone();
+        child_ov.out = Some(p.dir.clone());
+        let mut args = process_args(&config, &p.run_id, &a.ipc_prefix);
+        args.extend(child_ov.to_args());
+        // The evaluation workers first: the optimiser waits for them before the run starts.
+        let nice = p.scn.optimiser.nice;
+        let workers = match &p.local {
+            Some((n, ep)) => LocalWorkers::start(ep, *n, 1, nice, &p.run_id),
+            None => Ok(LocalWorkers::default()),
+        }
+        .map_err(|e| {
+            err!("error: {e}");
+            ExitCode::from(1)
+        })?;
+        let children = spawn_all(&args)?;
+        Ok(Running {
+            children,
+            args,
+            workers,
+            telemetry,
+            estimate,
+            ipc,
+            cleaned,
+        })
+    }
+
+    /// Wait for every process, stop the workers and leave; the processes whose resources were
+    /// cleaned up, at the start and now.
+    fn wind_down(mut self, quiet: bool) -> usize {
+        for (_, c) in &mut self.children {
+            let _ = c.wait();
+        }
+        // The workers serve until told to stop.
+        drop(self.workers);
+        drop(self.telemetry);
+        drop(self.estimate);
+        // A child that died without dropping its ports (killed) left its resources behind:
+        // remove them now rather than leave them for the next run.
+        let cleaned_after = self.ipc.cleanup_dead_nodes();
+        if cleaned_after > 0 && !quiet {
+            err!("evoloop: removed the resources of {cleaned_after} dead process(es)");
+        }
+        self.cleaned
+    }
+}
+
+/// The processes of a run, in this order.
+const PROCESSES: [&str; 3] = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
+/// The plant's index in `PROCESSES`: once it has ended there is no run to rejoin.
+const PLANT: usize = 0;
+
+/// The plant, the controller and the optimiser, in that order; if one cannot start, those
+/// already started are stopped.
+fn spawn_all(args: &[String]) -> Result<Vec<(&'static str, Child)>, ExitCode> {
+    let mut children: Vec<(&'static str, Child)> = Vec::new();
+    for name in PROCESSES {
+        match spawn_process(name, args) {
+            Ok(c) => children.push((name, c)),
+            Err(e) => {
+                err!("error: cannot start {name}: {e}");
+                for (_, c) in &mut children {
+                    signal(c, libc::SIGTERM);
+                    let _ = c.wait();
+                }
+                return Err(ExitCode::from(1));
             }
-            measure_floor(
-                scn.timing.period,
-                secs,
-                scn.timing.fifo_priority,
-                scn.timing.controller_cpu,
-                scn.timing.wait,
-            )
-        });
+        }
+    }
+    Ok(children)
+}
+
+/// The bare loop's floor after a realtime run, as long as `--floor-duration` (default: the
+/// run's duration, at most 5 s).
+fn floor(scn: &Scenario, a: &RunArgs) -> FloorReport {
+    let t = &scn.timing;
+    let secs = a.floor_duration.unwrap_or_else(|| t.duration.min(5.0));
+    if !a.quiet {
+        let wait = t.wait.describe();
+        err!("evoloop: measuring the bare loop's floor ({wait} wait) for {secs} s");
+    }
+    measure_floor(t.period, secs, t.fifo_priority, t.controller_cpu, t.wait)
+}
+
+/// The report of a run whose processes ended well; an exit code if it is not whole.
+fn report(
+    p: &Prepared,
+    wall: f64,
+    floor: Option<FloorReport>,
+    cleaned: usize,
+    tuner: OptimiserLife,
+    interrupted: bool,
+) -> Option<ExitCode> {
+    let (scn, dir, run_id) = (&p.scn, &p.dir, &p.run_id);
     match build_report(scn, run_id, wall, floor, cleaned, tuner) {
         Ok(s) => {
             print_summary(&s, dir, scn.output.plots);
@@ -817,31 +861,27 @@ pub fn run(mut a: RunArgs) -> ExitCode {
                 Ok(p) => out!("  open {} (the whole report in one page)", p.display()),
                 Err(e) => err!("evoloop: warning: report.html: {e}"),
             }
-            if !s.write_errors.is_empty() {
-                // The report covers what was written; the run is not whole.
-                for e in &s.write_errors {
-                    err!("error: {e}");
-                }
-                say_if_disk_full(dir);
-                return ExitCode::from(1);
+            if s.write_errors.is_empty() {
+                return None;
             }
+            // The report covers what was written; the run is not whole.
+            for e in &s.write_errors {
+                err!("error: {e}");
+            }
+            say_if_disk_full(dir);
+            Some(ExitCode::from(1))
         }
         // Stopped before the processes had written their reports: no loop ran to report on.
         Err(e) if interrupted => {
             err!("evoloop: interrupted before the loop ran ({e})");
             short_summary(scn, run_id, Outcome::Interrupted, &[], wall, true, tuner);
-            return ExitCode::from(130);
+            Some(ExitCode::from(130))
         }
         Err(e) => {
             err!("error: report: {e}");
             say_if_disk_full(dir);
-            return ExitCode::from(1);
+            Some(ExitCode::from(1))
         }
-    }
-    if ended {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(130)
     }
 }
 

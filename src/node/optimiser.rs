@@ -114,117 +114,166 @@ fn run(
     report: &mut OptimiserReport,
     rejoin: bool,
 ) -> Result<(), Failure> {
-    let lockstep = scn.timing.mode == Mode::Lockstep;
-    let schedule_on = scn.optimiser.mode == OptimiserMode::Schedule;
-    let sync = scn.sync_samples();
-    let dt = scn.timing.period;
-    let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
-    let mut next_set = 0usize;
-    let mut indirect = if scn.optimiser.mode == OptimiserMode::Indirect {
-        let mut ind = crate::indirect::Indirect::new(scn).map_err(Failure::Setup)?;
-        if rejoin {
-            if let Some((version, params)) = last_published(&scn.output.dir) {
+    let mut serve = Serve::new(scn, ports, rejoin)?;
+    // The histories go into the report however serving ended.
+    let result = serve.serve(stop, report);
+    serve.finish(report);
+    result
+}
+
+/// What the optimiser serves: the scenario's schedule and at most one scheme (its mode's), and
+/// every set it has published.
+struct Serve<'a> {
+    scn: &'a Scenario,
+    ports: &'a Ports,
+    lockstep: bool,
+    /// Lockstep: samples between acknowledgements.
+    sync: u64,
+    /// Lockstep: the longest wait for the plant or the controller; realtime: the longest silence.
+    timeout: Duration,
+    /// The next scheduled set to publish (schedule mode).
+    next_set: usize,
+    indirect: Option<crate::indirect::Indirect>,
+    live: Option<crate::rkgnn::live::LiveIdentify>,
+    direct: Option<DirectLive>,
+    published: History<PublishedSet>,
+    /// Epochs told to watchers so far.
+    status_epochs: u64,
+}
+
+fn io(e: IpcError) -> Failure {
+    Failure::Setup(e.to_string())
+}
+
+impl<'a> Serve<'a> {
+    /// The scheme of the optimiser's mode; a rejoining process continues the published versions.
+    fn new(scn: &'a Scenario, ports: &'a Ports, rejoin: bool) -> Result<Self, Failure> {
+        let mode = scn.optimiser.mode;
+        let last = || rejoin.then(|| last_published(&scn.output.dir)).flatten();
+        let mut serve = Serve {
+            scn,
+            ports,
+            lockstep: scn.timing.mode == Mode::Lockstep,
+            sync: scn.sync_samples(),
+            timeout: Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0)),
+            next_set: 0,
+            indirect: None,
+            live: None,
+            direct: None,
+            published: History::new(crate::indirect::HISTORY),
+            status_epochs: 0,
+        };
+        if mode == OptimiserMode::Indirect {
+            let mut ind = crate::indirect::Indirect::new(scn).map_err(Failure::Setup)?;
+            if let Some((version, params)) = last() {
                 ind.resume(version, params);
             }
+            serve.indirect = Some(ind);
         }
-        Some(ind)
-    } else {
-        None
-    };
-    let mut live = if scn.optimiser.mode == OptimiserMode::Identify {
-        let mut l = crate::rkgnn::live::LiveIdentify::new(scn).map_err(Failure::Setup)?;
-        if rejoin {
-            if let Some((version, values)) = last_published(&scn.output.dir) {
+        if mode == OptimiserMode::Identify {
+            let mut l = crate::rkgnn::live::LiveIdentify::new(scn).map_err(Failure::Setup)?;
+            if let Some((version, values)) = last() {
                 l.resume(version, &values);
             }
+            serve.live = Some(l);
         }
-        Some(l)
-    } else {
-        None
-    };
-    let mut direct = if scn.optimiser.mode == OptimiserMode::Direct {
-        let mut tuner = crate::direct::DirectTuner::new(scn).map_err(Failure::Setup)?;
-        if rejoin {
-            if let Some((version, _)) = last_published(&scn.output.dir) {
+        if mode == OptimiserMode::Direct {
+            let mut tuner = crate::direct::DirectTuner::new(scn).map_err(Failure::Setup)?;
+            if let Some((version, _)) = last() {
                 tuner.resume(version);
             }
+            serve.direct = Some(DirectLive::new(tuner, scn));
         }
-        Some(DirectLive::new(tuner, scn))
-    } else {
-        None
-    };
-    // Realtime: a trial is sent this far ahead of its first sample (20 ms), so it reaches the
-    // controller before that cycle.
-    let lead = (0.02 / dt).ceil() as u64;
-    let mut published = History::new(crate::indirect::HISTORY);
-    let mut last_state = Instant::now();
-    let mut status_epochs = 0;
-    let io = |e: IpcError| Failure::Setup(e.to_string());
-    // Ends at the plant's last sample, at a stop request (a run until stopped ends so), when
-    // the plant has gone or at an IPC failure; the histories go into the report in every case.
-    let mut serve = || loop {
-        if stop.load(Ordering::Relaxed) {
-            return Ok(());
-        }
-        let slice = Duration::from_millis(100);
-        let got = if lockstep {
-            match ports.state.next().map_err(io)? {
-                Some(s) => Wait::Got(s),
-                None => {
-                    ports.sync.wait(slice).map_err(io)?;
-                    match ports.state.next().map_err(io)? {
-                        Some(s) => Wait::Got(s),
-                        None => Wait::TimedOut,
-                    }
-                }
-            }
-        } else {
-            ports.state.wait_next(Duration::ZERO, slice).map_err(io)?
-        };
-        let state = match got {
-            Wait::Got(s) => s,
-            Wait::TimedOut => {
+        Ok(serve)
+    }
+
+    /// Ends at the plant's last sample, at a stop request (a run until stopped ends so), when
+    /// the plant has gone or at an IPC failure.
+    fn serve(&mut self, stop: &AtomicBool, report: &mut OptimiserReport) -> Result<(), Failure> {
+        let mut last_state = Instant::now();
+        while !stop.load(Ordering::Relaxed) {
+            let Some(state) = self.receive()? else {
                 // In realtime the plant keeps sampling; silence this long means it is gone.
-                if last_state.elapsed() > timeout {
+                if last_state.elapsed() > self.timeout {
+                    let timeout = self.timeout;
                     return Err(Failure::PeerTimeout(format!(
                         "no plant state within {timeout:?}"
                     )));
                 }
                 continue;
+            };
+            last_state = Instant::now();
+            report.states_seen += 1;
+            self.tell_epochs()?;
+            self.observe(&state, report)?;
+            if state.flags & STATE_FLAG_END != 0 {
+                return Ok(());
             }
-        };
-        last_state = Instant::now();
-        report.states_seen += 1;
-        // Epochs that ended since the last sample, for watchers.
-        let epochs = indirect
+            if !self.lockstep {
+                self.free_running(&state)?;
+            } else if self.scn.is_sync_point(state.seq) {
+                self.at_sync_point(&state, report)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The next plant state, or None after a slice of silence.
+    fn receive(&self) -> Result<Option<PlantState>, Failure> {
+        let slice = Duration::from_millis(100);
+        let state = &self.ports.state;
+        if !self.lockstep {
+            return Ok(match state.wait_next(Duration::ZERO, slice).map_err(io)? {
+                Wait::Got(s) => Some(s),
+                Wait::TimedOut => None,
+            });
+        }
+        // Lockstep: sleep on the sync bell and catch up on the queue.
+        if let Some(s) = state.next().map_err(io)? {
+            return Ok(Some(s));
+        }
+        self.ports.sync.wait(slice).map_err(io)?;
+        state.next().map_err(io)
+    }
+
+    /// Epochs that ended since the last sample, for watchers.
+    fn tell_epochs(&mut self) -> Result<(), Failure> {
+        let epochs = self
+            .indirect
             .as_ref()
             .map(|i| &i.epochs)
-            .or(live.as_ref().map(|l| &l.epochs));
-        if let Some(e) = epochs.filter(|e| e.offered() != status_epochs) {
-            status_epochs = e.offered();
-            if let Some(last) = e.last() {
-                let status = OptimiserStatus {
-                    t: last.t,
-                    epochs: status_epochs,
-                    published: published.offered(),
-                    best_cost: last.best_cost,
-                    in_service_cost: last.in_service_cost,
-                };
-                ports.status.send(&status).map_err(io)?;
-            }
+            .or(self.live.as_ref().map(|l| &l.epochs));
+        let Some(e) = epochs.filter(|e| e.offered() != self.status_epochs) else {
+            return Ok(());
+        };
+        self.status_epochs = e.offered();
+        let Some(last) = e.last() else {
+            return Ok(());
+        };
+        let status = OptimiserStatus {
+            t: last.t,
+            epochs: self.status_epochs,
+            published: self.published.offered(),
+            best_cost: last.best_cost,
+            in_service_cost: last.in_service_cost,
+        };
+        self.ports.status.send(&status).map_err(io)
+    }
+
+    /// Every scheme sees the state (and the direct one the commands that arrived with it).
+    fn observe(&mut self, state: &PlantState, report: &mut OptimiserReport) -> Result<(), Failure> {
+        if let Some(d) = self.direct.as_mut() {
+            d.push_state(state);
         }
-        if let Some(d) = direct.as_mut() {
-            d.push_state(&state);
-        }
-        while let Some(c) = ports.command.next().map_err(io)? {
+        while let Some(c) = self.ports.command.next().map_err(io)? {
             report.commands_seen += 1;
-            if let Some(d) = direct.as_mut() {
+            if let Some(d) = self.direct.as_mut() {
                 d.push_command(&c);
             }
         }
-        if let Some(ind) = indirect.as_mut() {
+        if let Some(ind) = self.indirect.as_mut() {
             // Each new 10 Hz record goes out as telemetry too.
-            if let Some(e) = ind.observe(&state) {
+            if let Some(e) = ind.observe(state) {
                 let msg = ModelEstimate {
                     t: e.t,
                     value: e.value,
@@ -232,114 +281,139 @@ fn run(
                     last_version: ind.version(),
                     // Lockstep: delivered before the plant passes the next synchronisation
                     // point, so the controller adopts it at the sample after that one.
-                    apply_at_seq: if lockstep {
-                        scn.next_sync_point(state.seq) + 1
+                    apply_at_seq: if self.lockstep {
+                        self.scn.next_sync_point(state.seq) + 1
                     } else {
                         0
                     },
                 };
-                ports.estimate.send(&msg).map_err(io)?;
+                self.ports.estimate.send(&msg).map_err(io)?;
             }
         }
-        if let Some(l) = live.as_mut() {
-            l.observe(&state);
+        if let Some(l) = self.live.as_mut() {
+            l.observe(state);
         }
-        if state.flags & STATE_FLAG_END != 0 {
-            return Ok(());
-        }
+        Ok(())
+    }
+
+    /// Lockstep, at a synchronisation point: the sets due go out, then the plant may go on.
+    fn at_sync_point(
+        &mut self,
+        state: &PlantState,
+        report: &mut OptimiserReport,
+    ) -> Result<(), Failure> {
+        let (scn, t, next) = (self.scn, state.t, state.seq + 1);
         let schedule = &scn.optimiser.schedule;
-        if lockstep {
-            if !scn.is_sync_point(state.seq) {
-                continue;
+        // Every set due within the next interval.
+        while scn.optimiser.mode == OptimiserMode::Schedule && self.next_set < schedule.len() {
+            let at = scheduled_seq(schedule[self.next_set].at, scn.timing.period);
+            if at > state.seq + self.sync {
+                break;
             }
-            // Publish every set due within the next interval, then let the plant go on.
-            while schedule_on && next_set < schedule.len() {
-                let at = scheduled_seq(schedule[next_set].at, dt);
-                if at > state.seq + sync {
-                    break;
-                }
-                publish(scn, ports, next_set, at.max(state.seq + 1), &mut published).map_err(io)?;
-                next_set += 1;
-            }
-            // Paced by simulated time: the plant waits for the acknowledgement, so the epochs
-            // run at the same samples in every run of a seed.
-            if let Some(ind) = indirect.as_mut() {
-                if let Some(set) = ind.paced(state.t, sync as f64 * dt, state.seq + 1) {
-                    send_set(ports, &set, state.t, &mut published, &scn.output.dir).map_err(io)?;
-                }
-            }
-            // At fixed simulated times, the plant waiting: reproducible per seed.
-            if let Some(l) = live.as_mut() {
-                if let Some(set) = l.attempt(state.t, state.seq + 1) {
-                    send_set(ports, &set, state.t, &mut published, &scn.output.dir).map_err(io)?;
-                }
-            }
-            // Every sample up to this one seen with its command, the next trial (if one starts
-            // at the next sample) goes out before the plant may take that sample.
-            if let Some(d) = direct.as_mut() {
-                d.wait_through(
-                    state.seq,
-                    &ports.command,
-                    &mut report.commands_seen,
-                    timeout,
-                )?;
-                if let Some(set) = d.tuner.at(state.seq + 1, None) {
-                    send_set(ports, &set, state.t, &mut published, &scn.output.dir).map_err(io)?;
-                }
-            }
-            ports
-                .ack
-                .send(&OptimiserAck {
-                    through_seq: state.seq,
-                })
-                .map_err(io)?;
-        } else {
-            while schedule_on && next_set < schedule.len() && state.t >= schedule[next_set].at {
-                publish(scn, ports, next_set, 0, &mut published).map_err(io)?;
-                next_set += 1;
-            }
-            // Free-running: epochs back to back on the worker thread while this one goes on
-            // reading the stream, so an epoch longer than the state queue loses no sample.
-            if let Some(ind) = indirect.as_mut() {
-                if let Some(set) = ind.finish_epoch(0, false) {
-                    send_set(ports, &set, state.t, &mut published, &scn.output.dir).map_err(io)?;
-                }
-                ind.start_epoch(state.t);
-            }
-            if let Some(d) = direct.as_mut() {
-                d.join();
-                if let Some(next) = d.through.map(|s| s + 1) {
-                    if let Some(set) = d.tuner.at(next, Some(next + lead)) {
-                        send_set(ports, &set, state.t, &mut published, &scn.output.dir)
-                            .map_err(io)?;
-                    }
-                }
-            }
-            if let Some(l) = live.as_mut() {
-                if !ports.state.has_pending().map_err(io)? {
-                    if let Some(set) = l.attempt(state.t, 0) {
-                        send_set(ports, &set, state.t, &mut published, &scn.output.dir)
-                            .map_err(io)?;
-                    }
-                }
+            self.publish_scheduled(at.max(next))?;
+        }
+        // Paced by simulated time: the plant waits for the acknowledgement, so the epochs
+        // run at the same samples in every run of a seed.
+        let interval = self.sync as f64 * scn.timing.period;
+        if let Some(set) = self
+            .indirect
+            .as_mut()
+            .and_then(|i| i.paced(t, interval, next))
+        {
+            self.send(&set, t)?;
+        }
+        // At fixed simulated times, the plant waiting: reproducible per seed.
+        if let Some(set) = self.live.as_mut().and_then(|l| l.attempt(t, next)) {
+            self.send(&set, t)?;
+        }
+        // Every sample up to this one seen with its command, the next trial (if one starts
+        // at the next sample) goes out before the plant may take that sample.
+        if let Some(d) = self.direct.as_mut() {
+            let seen = &mut report.commands_seen;
+            d.wait_through(state.seq, &self.ports.command, seen, self.timeout)?;
+            if let Some(set) = d.tuner.at(next, None) {
+                self.send(&set, t)?;
             }
         }
-    };
-    let result = serve();
-    if let Some(ind) = indirect {
-        report.samples_missed = ind.samples_missed;
-        report.estimates = ind.estimates.into_vec();
-        report.epochs = ind.epochs.into_vec();
+        let ack = OptimiserAck {
+            through_seq: state.seq,
+        };
+        self.ports.ack.send(&ack).map_err(io)
     }
-    if let Some(l) = live {
-        report.epochs = l.epochs.into_vec();
+
+    /// Realtime: the sets due go out as soon as they are known; the controller applies each at
+    /// its next cycle.
+    fn free_running(&mut self, state: &PlantState) -> Result<(), Failure> {
+        let (scn, t) = (self.scn, state.t);
+        let schedule = &scn.optimiser.schedule;
+        while scn.optimiser.mode == OptimiserMode::Schedule
+            && self.next_set < schedule.len()
+            && t >= schedule[self.next_set].at
+        {
+            self.publish_scheduled(0)?;
+        }
+        // Epochs back to back on the worker thread while this one goes on reading the stream,
+        // so an epoch longer than the state queue loses no sample.
+        if let Some(set) = self
+            .indirect
+            .as_mut()
+            .and_then(|i| i.finish_epoch(0, false))
+        {
+            self.send(&set, t)?;
+        }
+        if let Some(ind) = self.indirect.as_mut() {
+            ind.start_epoch(t);
+        }
+        if let Some(d) = self.direct.as_mut() {
+            d.join();
+            // A trial is sent this far ahead of its first sample (20 ms), so it reaches the
+            // controller before that cycle.
+            let lead = (0.02 / scn.timing.period).ceil() as u64;
+            let set = d
+                .through
+                .and_then(|s| d.tuner.at(s + 1, Some(s + 1 + lead)));
+            if let Some(set) = set {
+                self.send(&set, t)?;
+            }
+        }
+        if self.live.is_some() && !self.ports.state.has_pending().map_err(io)? {
+            if let Some(set) = self.live.as_mut().and_then(|l| l.attempt(t, 0)) {
+                self.send(&set, t)?;
+            }
+        }
+        Ok(())
     }
-    if let Some(d) = direct {
-        report.direct = Some(d.tuner.report());
+
+    fn send(&mut self, set: &ParamSet, t: f64) -> Result<(), Failure> {
+        let dir = &self.scn.output.dir;
+        send_set(self.ports, set, t, &mut self.published, dir).map_err(io)
     }
-    report.published_count = published.offered();
-    report.published = published.into_vec();
-    result
+
+    /// The next set of the schedule, applied at `apply_at_seq` (0: at once).
+    fn publish_scheduled(&mut self, apply_at_seq: u64) -> Result<(), Failure> {
+        let (scn, i) = (self.scn, self.next_set);
+        let set = scheduled_set(scn, i, apply_at_seq);
+        self.send(&set, scn.optimiser.schedule[i].at)?;
+        self.next_set += 1;
+        Ok(())
+    }
+
+    /// The schemes' histories and the published sets into the report.
+    fn finish(self, report: &mut OptimiserReport) {
+        if let Some(ind) = self.indirect {
+            report.samples_missed = ind.samples_missed;
+            report.estimates = ind.estimates.into_vec();
+            report.epochs = ind.epochs.into_vec();
+        }
+        if let Some(l) = self.live {
+            report.epochs = l.epochs.into_vec();
+        }
+        if let Some(d) = self.direct {
+            report.direct = Some(d.tuner.report());
+        }
+        report.published_count = self.published.offered();
+        report.published = self.published.into_vec();
+    }
 }
 
 /// The direct scheme in this process: each state paired with the command that answered it, in
@@ -504,23 +578,6 @@ fn send_set(
         values: set.values().to_vec(),
     });
     Ok(())
-}
-
-fn publish(
-    scn: &Scenario,
-    ports: &Ports,
-    i: usize,
-    apply_at_seq: u64,
-    published: &mut History<PublishedSet>,
-) -> Result<(), IpcError> {
-    let set = scheduled_set(scn, i, apply_at_seq);
-    send_set(
-        ports,
-        &set,
-        scn.optimiser.schedule[i].at,
-        published,
-        &scn.output.dir,
-    )
 }
 
 /// User and system CPU time of this process, all threads, s (0 when unknown).

@@ -532,87 +532,89 @@ pub fn build_report(
     optimiser: OptimiserLife,
 ) -> Result<Summary, String> {
     let dir = &scn.output.dir;
-    let Inputs { ctrl, plant, opt } = read_inputs(dir)?;
-    let Scan {
-        horizon,
-        span,
-        quarter,
-        change,
-        response,
-        tracking,
-        tracking_after_1s,
-        reps,
-        phases: (tracking_before_change, tracking_after_change),
-        windowed,
-        plot,
-    } = scan_run(scn, &dir.join("run.csv"))?;
-    let sets = SetOutcomes::of(&ctrl.params);
+    let inputs = read_inputs(dir)?;
+    let scan = scan_run(scn, &dir.join("run.csv"))?;
+    let sets = SetOutcomes::of(&inputs.ctrl.params);
     let marks = sets.marks();
-    let n_rejected = sets.rejected.len();
-    let floor = floor.map(|f| against_floor(f, &ctrl.timing.lateness));
-    let frozen = frozen_comparison(scn, span, change, quarter);
+    let frozen = frozen_comparison(scn, scan.span, scan.change, scan.quarter);
+    let mut summary = loop_summary(scn, run_id, wall_s, &inputs, &scan, sets);
+    summary.floor = floor.map(|f| against_floor(f, &inputs.ctrl.timing.lateness));
+    processes_summary(&mut summary, &inputs, cleaned, optimiser);
+    let frozen_reps = scheme_summary(&mut summary, scn, &inputs.opt, &scan, frozen.as_ref());
     let identify = scn.optimiser.mode == OptimiserMode::Identify;
-    let frozen_reps: Vec<(f64, f64, f64)> = match &frozen {
-        Some(f) if scn.optimiser.mode == OptimiserMode::Indirect => f.reps.clone(),
-        _ => Vec::new(),
-    };
-    // Identification alongside operation against the models it started with, kept all run long:
-    // tracking RMS before the plant's change and at the end.
-    let (tracking_before_change_frozen, tracking_after_change_frozen) = match &frozen {
-        Some(f) if identify => f.phases,
-        _ => (None, None),
-    };
-    let (cost_before_change, cost_after_change) = before_and_after(&reps, change, quarter);
-    let (cost_before_change_frozen, cost_after_change_frozen) =
-        before_and_after(&frozen_reps, change, quarter);
-    // The true value of the parameter the optimiser estimates (maglev mass, two-mass spring).
+    if let (Some(f), Some(w), true) = (
+        frozen.as_ref().filter(|_| identify),
+        scan.windowed.as_ref(),
+        scn.output.plots,
+    ) {
+        write_identify_plot(scn, f, w, &marks, truth(scn))?;
+    }
+    let opt = &inputs.opt;
+    if let Some(d) = &opt.direct {
+        crate::direct::write_files(dir, d, scn.output.plots)?;
+    }
+    if !scan.reps.is_empty() {
+        write_repetitions(dir, &scan.reps, &frozen_reps)?;
+    }
+    if !opt.estimates.is_empty() {
+        write_estimates(
+            scn,
+            &opt.estimates,
+            &scan.reps,
+            &frozen_reps,
+            &marks,
+            truth(scn),
+        )?;
+    }
+    crate::report::write_json(dir, "summary.json", &summary).map_err(|e| e.to_string())?;
+    if let Some(p) = &scan.plot {
+        write_response_plots(scn, inputs.ctrl.mode, p, &marks)?;
+    }
+    Ok(summary)
+}
+
+/// The true value of the parameter the optimiser estimates (maglev mass, two-mass spring):
+/// the report judges the estimate with it; nothing in the run saw it.
+fn truth(scn: &Scenario) -> impl Fn(f64) -> Option<f64> + '_ {
     let plant_model = scn.plant.model.config();
-    let truth = |tt: f64| plant_model.varying_parameter(tt);
-    let last_est = opt.estimates.last().copied();
-    let model_estimate_final = last_est.map(|e| e.value);
-    let model_true_final = last_est.and_then(|e| truth(e.t));
-    let model_estimate_error = match (model_estimate_final, model_true_final) {
-        (Some(e), Some(tv)) => Some((e - tv) / tv),
-        _ => None,
-    };
-    let interrupted = ctrl.interrupted || plant.interrupted || opt.interrupted;
-    let until_stopped = scn.timing.until_stopped();
-    let write_errors = write_errors(&ctrl);
-    let summary = Summary {
-        outcome: if !write_errors.is_empty() {
-            Outcome::Incomplete
-        } else if interrupted && !until_stopped {
-            Outcome::Interrupted
-        } else if optimiser.lost {
-            Outcome::TunerLost
-        } else {
-            Outcome::Ok
-        },
+    move |t| plant_model.varying_parameter(t)
+}
+
+/// What the loop did: the run, its tracking, its timing and its parameter sets.
+fn loop_summary(
+    scn: &Scenario,
+    run_id: &str,
+    wall_s: f64,
+    inputs: &Inputs,
+    scan: &Scan,
+    sets: SetOutcomes,
+) -> Summary {
+    let Inputs { ctrl, plant, .. } = inputs;
+    let per_s = |n: f64, s: f64| if s > 0.0 { n / s } else { 0.0 };
+    Summary {
         scenario: scn.name.clone(),
         config: scn.source.display().to_string(),
         run_id: run_id.to_string(),
         mode: ctrl.mode,
         seed: scn.seed,
         duration_s: scn.timing.duration_s(),
-        ran_s: horizon,
-        until_stopped,
+        ran_s: scan.horizon,
+        until_stopped: scn.timing.until_stopped(),
         period_s: scn.timing.period,
         samples: ctrl.cycles,
         wall_s,
-        throughput_samples_per_s: if ctrl.wall_s > 0.0 {
-            ctrl.cycles as f64 / ctrl.wall_s
-        } else {
-            0.0
-        },
-        response,
-        tracking,
-        tracking_after_1s,
+        throughput_samples_per_s: per_s(ctrl.cycles as f64, ctrl.wall_s),
+        response: scan.response.clone(),
+        tracking: scan.tracking.clone(),
+        tracking_after_1s: scan.tracking_after_1s.clone(),
         overruns: ctrl.timing.overruns,
         deadline_misses: ctrl.timing.missed_deadlines,
         timing: ctrl.timing.clone(),
+        accepted_versions: sets.accepted.len(),
+        rejected_versions: sets.rejected.len(),
         parameter_versions: ParamVersions {
             final_version: ctrl.final_version,
-            accepted: sets.accepted.clone(),
+            accepted: sets.accepted,
             rejected: sets.rejected,
             trials_ended: sets.trials_ended,
         },
@@ -623,69 +625,98 @@ pub fn build_report(
         wait: (scn.timing.mode == crate::config::Mode::Realtime).then_some(scn.timing.wait),
         log_dropped: ctrl.log_dropped,
         cycle_allocations: ctrl.cycle_allocations,
-        floor,
         plant_safe_samples: plant.safe_samples,
         plant_samples_before_first_command: plant.samples_before_first_command,
-        optimiser_published: opt.published_count as usize,
-        optimiser_samples_missed: opt.samples_missed,
-        optimiser_cpu_s: opt.cpu_s,
-        optimiser_load_cores: if opt.wall_s > 0.0 {
-            opt.cpu_s / opt.wall_s
-        } else {
-            0.0
-        },
-        evaluations: opt.evaluations,
-        direct: opt.direct.as_ref().map(direct_summary),
-        interrupted,
-        stale_resources_cleaned: cleaned,
-        optimiser_restarts: optimiser.restarts,
-        optimiser_lost: optimiser.lost,
-        write_errors,
-        optimiser_stalls: plant.optimiser_stalls.clone(),
-        optimiser_resumed: plant.optimiser_resumed,
-        accepted_versions: sets.accepted.len(),
-        rejected_versions: n_rejected,
-        cost_per_repetition: reps.iter().map(|r| r.2).collect(),
-        cost_before_change,
-        cost_after_change,
-        cost_before_change_frozen,
-        cost_after_change_frozen,
-        cost_per_repetition_frozen: frozen_reps.iter().map(|r| r.2).collect(),
-        model_estimate_final,
-        model_true_final,
-        model_estimate_error,
         check_model: ctrl.check_model.clone(),
-        tracking_before_change: identify.then_some(tracking_before_change).flatten(),
-        tracking_after_change: identify.then_some(tracking_after_change).flatten(),
-        tracking_before_change_frozen,
-        tracking_after_change_frozen,
+        ..Summary::default()
+    }
+}
+
+/// How the processes fared: the optimiser's load and life, what was lost, and the outcome.
+fn processes_summary(s: &mut Summary, inputs: &Inputs, cleaned: usize, optimiser: OptimiserLife) {
+    let Inputs { ctrl, plant, opt } = inputs;
+    s.optimiser_published = opt.published_count as usize;
+    s.optimiser_samples_missed = opt.samples_missed;
+    s.optimiser_cpu_s = opt.cpu_s;
+    s.optimiser_load_cores = if opt.wall_s > 0.0 {
+        opt.cpu_s / opt.wall_s
+    } else {
+        0.0
     };
-    if let (Some(f), Some(w), true) = (
-        frozen.as_ref().filter(|_| identify),
-        windowed.as_ref(),
-        scn.output.plots,
-    ) {
-        write_identify_plot(scn, f, w, &marks, truth)?;
-    }
-    if let Some(d) = &opt.direct {
-        crate::direct::write_files(dir, d, scn.output.plots)?;
-    }
-    if !reps.is_empty() {
-        let mut csv = String::from("repetition,t_start,t_end,cost,cost_frozen\n");
-        for (j, r) in reps.iter().enumerate() {
-            let f = frozen_reps.get(j).map_or(f64::NAN, |x| x.2);
-            csv.push_str(&format!("{j},{},{},{},{f}\n", r.0, r.1, r.2));
+    s.evaluations = opt.evaluations;
+    s.direct = opt.direct.as_ref().map(direct_summary);
+    s.interrupted = ctrl.interrupted || plant.interrupted || opt.interrupted;
+    s.stale_resources_cleaned = cleaned;
+    s.optimiser_restarts = optimiser.restarts;
+    s.optimiser_lost = optimiser.lost;
+    s.write_errors = write_errors(ctrl);
+    s.optimiser_stalls = plant.optimiser_stalls.clone();
+    s.optimiser_resumed = plant.optimiser_resumed;
+    s.outcome = if !s.write_errors.is_empty() {
+        Outcome::Incomplete
+    } else if s.interrupted && !s.until_stopped {
+        Outcome::Interrupted
+    } else if optimiser.lost {
+        Outcome::TunerLost
+    } else {
+        Outcome::Ok
+    };
+}
+
+/// The scheme's figures: costs per repetition before and after the plant's change, against
+/// the frozen controller's on the same run; the final model estimate; identification's
+/// tracking before and after. Returns the frozen controller's repetitions.
+fn scheme_summary(
+    s: &mut Summary,
+    scn: &Scenario,
+    opt: &OptimiserReport,
+    scan: &Scan,
+    frozen: Option<&FrozenReadings>,
+) -> Vec<(f64, f64, f64)> {
+    let (change, quarter) = (scan.change, scan.quarter);
+    let identify = scn.optimiser.mode == OptimiserMode::Identify;
+    let frozen_reps = match frozen {
+        Some(f) if scn.optimiser.mode == OptimiserMode::Indirect => f.reps.clone(),
+        _ => Vec::new(),
+    };
+    (s.cost_before_change, s.cost_after_change) = before_and_after(&scan.reps, change, quarter);
+    (s.cost_before_change_frozen, s.cost_after_change_frozen) =
+        before_and_after(&frozen_reps, change, quarter);
+    s.cost_per_repetition = scan.reps.iter().map(|r| r.2).collect();
+    s.cost_per_repetition_frozen = frozen_reps.iter().map(|r| r.2).collect();
+    let last_est = opt.estimates.last().copied();
+    s.model_estimate_final = last_est.map(|e| e.value);
+    s.model_true_final = last_est.and_then(|e| truth(scn)(e.t));
+    s.model_estimate_error = match (s.model_estimate_final, s.model_true_final) {
+        (Some(e), Some(tv)) => Some((e - tv) / tv),
+        _ => None,
+    };
+    // Identification alongside operation against the models it started with, kept all run
+    // long: tracking RMS before the plant's change and at the end.
+    if identify {
+        (s.tracking_before_change, s.tracking_after_change) = scan.phases;
+        if let Some(f) = frozen {
+            (
+                s.tracking_before_change_frozen,
+                s.tracking_after_change_frozen,
+            ) = f.phases;
         }
-        crate::files::write(dir.join("repetitions.csv"), csv).map_err(|e| e.to_string())?;
     }
-    if !opt.estimates.is_empty() {
-        write_estimates(scn, &opt.estimates, &reps, &frozen_reps, &marks, truth)?;
+    frozen_reps
+}
+
+/// repetitions.csv: each repetition's cost, and the frozen controller's on the same run.
+fn write_repetitions(
+    dir: &Path,
+    reps: &[(f64, f64, f64)],
+    frozen_reps: &[(f64, f64, f64)],
+) -> Result<(), String> {
+    let mut csv = String::from("repetition,t_start,t_end,cost,cost_frozen\n");
+    for (j, r) in reps.iter().enumerate() {
+        let f = frozen_reps.get(j).map_or(f64::NAN, |x| x.2);
+        csv.push_str(&format!("{j},{},{},{},{f}\n", r.0, r.1, r.2));
     }
-    crate::report::write_json(dir, "summary.json", &summary).map_err(|e| e.to_string())?;
-    if let Some(p) = plot {
-        write_response_plots(scn, ctrl.mode, &p, &marks)?;
-    }
-    Ok(summary)
+    crate::files::write(dir.join("repetitions.csv"), csv).map_err(|e| e.to_string())
 }
 
 /// identify.png: tracking RMS per window, identified alongside operation against the frozen

@@ -100,6 +100,17 @@ impl Check {
         Ok(v)
     }
 
+    /// A whole number within `lo..=hi` (a count, a priority, a niceness).
+    pub fn count<T>(&self, key: &str, v: T, lo: T, hi: T) -> Result<T, ConfigError>
+    where
+        T: PartialOrd + std::fmt::Display + Copy,
+    {
+        if !(lo..=hi).contains(&v) {
+            return self.fail(key, format!("must be {lo}..={hi} (got {v})"));
+        }
+        Ok(v)
+    }
+
     /// `v` has exactly `n` finite values (`what` says what they are per, e.g. " (one per joint)").
     pub fn finite_values(
         &self,

@@ -1,0 +1,26 @@
+#!/bin/sh
+# The regression reference of every shipped scenario: each config/*.toml that is a run scenario
+# (not a `tune` experiment) runs in lockstep with its own seed, and the md5 of its run.csv is
+# printed as a table. Compare two checkouts by running this with each one's binary:
+#
+#   scripts/lockstep_md5.sh [BIN] [CONFIG_DIR] > md5.txt
+#
+# BIN defaults to target/release/evoloop, CONFIG_DIR to config. The runs go to a temporary
+# directory that is removed afterwards.
+set -eu
+bin=${1:-target/release/evoloop}
+configs=${2:-config}
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+printf '%-34s %s\n' scenario "run.csv md5"
+for f in "$configs"/*.toml; do
+    name=$(basename "$f" .toml)
+    if grep -q '^experiment *=' "$f"; then
+        continue # a `evoloop tune` experiment, not a run
+    fi
+    if "$bin" run "$f" --mode lockstep --quiet --out "$out/$name" >"$out/$name.log" 2>&1; then
+        printf '%-34s %s\n' "$name" "$(md5sum <"$out/$name/run.csv" | cut -d' ' -f1)"
+    else
+        printf '%-34s %s\n' "$name" "FAILED (exit $?): $(tail -n 1 "$out/$name.log")"
+    fi
+done
