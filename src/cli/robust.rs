@@ -290,7 +290,7 @@ fn tune(a: TuneArgs) -> i32 {
     cfg.diversity_stop = a.paper_stop;
     let mut de = match DifferentialEvolution::new(cfg) {
         Ok(d) => d,
-        Err(e) => return usage(&e),
+        Err(e) => return usage(&e.to_string()),
     };
     if a.max_iter == 0 || a.threads == 0 {
         return usage("--max-iter and --threads must be >= 1");

@@ -37,52 +37,16 @@ pub struct SoakArgs {
 }
 
 pub fn main(a: SoakArgs) -> ExitCode {
-    if !(a.duration.is_finite() && a.duration > 0.0) {
-        err!("error: --duration: must be a positive number of seconds");
-        return ExitCode::from(2);
-    }
-    if !(a.interval.is_finite() && a.interval >= 1.0) {
-        err!("error: --interval: must be at least 1 s");
-        return ExitCode::from(2);
-    }
-    let file = a
-        .scenario
-        .clone()
-        .unwrap_or_else(|| crate::node::launcher::shipped("config/two_mass_indirect.toml"));
-    let ov = Overrides {
-        duration: Some(a.duration),
-        ..Default::default()
+    let (file, scn) = match prepare(&a) {
+        Ok(p) => p,
+        Err(code) => return code,
     };
-    let scn = match Scenario::load(&file, &ov) {
-        Ok(s) => s,
-        Err(e) => {
-            err!("error: {e}");
-            return ExitCode::from(2);
-        }
-    };
-    if let Err(e) = std::fs::create_dir_all(&a.out) {
-        err!("error: cannot create {}: {e}", a.out.display());
-        return ExitCode::from(2);
-    }
     let run_dir = a.out.join("run");
     let run_id = format!("soak-{}", std::process::id());
     let prefix = crate::ipc::DEFAULT_PREFIX;
     let shm_before = crate::ipc::namespace::files(prefix);
-    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("evoloop"));
-    let mut cmd = std::process::Command::new(exe);
-    cmd.arg("run")
-        .arg(&file)
-        .args(["--mode", "realtime", "--duration"])
-        .arg(a.duration.to_string())
-        .arg("--out")
-        .arg(&run_dir)
-        .args(["--run-id", &run_id, "--ipc-prefix", prefix, "--quiet"]);
-    if a.no_rt {
-        cmd.arg("--no-rt");
-    }
-    crate::node::launcher::die_with_parent(&mut cmd);
     let stop = crate::cli::stop_flag();
-    let mut launcher = match cmd.spawn() {
+    let launcher = match start_run(&a, &file, &run_dir, &run_id) {
         Ok(c) => c,
         Err(e) => {
             err!("error: cannot start the run: {e}");
@@ -96,7 +60,98 @@ pub fn main(a: SoakArgs) -> ExitCode {
         a.interval,
         a.out.display()
     );
-    let period_ns = scn.period_ns();
+    let watched = watch(launcher, &a, &run_id, scn.period_ns(), &run_dir, &stop);
+    let shm_after = crate::ipc::namespace::files(prefix);
+    let report = soak_report(&a, &file, run_dir, run_id, watched, shm_before, shm_after);
+    if let Err(e) = write(&a.out, &report) {
+        err!("error: writing the soak report: {e}");
+        return ExitCode::from(1);
+    }
+    if a.json {
+        crate::report::print_json(&report);
+    } else {
+        print_report(&report, &a.out);
+    }
+    match report.exit_code {
+        Some(0) => ExitCode::SUCCESS,
+        _ => ExitCode::from(1),
+    }
+}
+
+/// The arguments checked, the scenario loaded and the output directory made.
+fn prepare(a: &SoakArgs) -> Result<(PathBuf, Scenario), ExitCode> {
+    let refuse = |what: String| {
+        err!("error: {what}");
+        ExitCode::from(2)
+    };
+    if !(a.duration.is_finite() && a.duration > 0.0) {
+        return Err(refuse(
+            "--duration: must be a positive number of seconds".into(),
+        ));
+    }
+    if !(a.interval.is_finite() && a.interval >= 1.0) {
+        return Err(refuse("--interval: must be at least 1 s".into()));
+    }
+    let file = a
+        .scenario
+        .clone()
+        .unwrap_or_else(|| crate::node::launcher::shipped("config/two_mass_indirect.toml"));
+    let ov = Overrides {
+        duration: Some(a.duration),
+        ..Default::default()
+    };
+    let scn = Scenario::load(&file, &ov).map_err(|e| refuse(e.to_string()))?;
+    std::fs::create_dir_all(&a.out)
+        .map_err(|e| refuse(format!("cannot create {}: {e}", a.out.display())))?;
+    Ok((file, scn))
+}
+
+/// `evoloop run` of the scenario in realtime, as a child that dies with this process.
+fn start_run(
+    a: &SoakArgs,
+    file: &Path,
+    run_dir: &Path,
+    run_id: &str,
+) -> std::io::Result<std::process::Child> {
+    let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("evoloop"));
+    let mut cmd = std::process::Command::new(exe);
+    cmd.arg("run")
+        .arg(file)
+        .args(["--mode", "realtime", "--duration"])
+        .arg(a.duration.to_string())
+        .arg("--out")
+        .arg(run_dir)
+        .args([
+            "--run-id",
+            run_id,
+            "--ipc-prefix",
+            crate::ipc::DEFAULT_PREFIX,
+        ])
+        .arg("--quiet");
+    if a.no_rt {
+        cmd.arg("--no-rt");
+    }
+    crate::node::launcher::die_with_parent(&mut cmd);
+    cmd.spawn()
+}
+
+/// What watching the run gave: how it ended, its intervals, and the timing of the last partial
+/// interval.
+struct Watched {
+    status: std::process::ExitStatus,
+    intervals: Vec<Interval>,
+    rest: IntervalTiming,
+}
+
+/// A record every interval until the run ends (or this process is stopped, which stops it).
+fn watch(
+    mut launcher: std::process::Child,
+    a: &SoakArgs,
+    run_id: &str,
+    period_ns: u64,
+    run_dir: &Path,
+    stop: &std::sync::atomic::AtomicBool,
+) -> Watched {
     let mut tail = Tail::new(run_dir.join("timing.csv"));
     let mut intervals: Vec<Interval> = Vec::new();
     let t0 = Instant::now();
@@ -105,22 +160,18 @@ pub fn main(a: SoakArgs) -> ExitCode {
     let status = loop {
         std::thread::sleep(Duration::from_millis(200));
         tail.new_lines(|l| timing.line(l));
-        let ended = match launcher.try_wait() {
-            Ok(Some(s)) => Some(s),
-            Ok(None) => None,
-            Err(e) => {
-                err!("error: waiting for the run: {e}");
-                None
-            }
-        };
+        let ended = launcher.try_wait().unwrap_or_else(|e| {
+            err!("error: waiting for the run: {e}");
+            None
+        });
         let t = t0.elapsed().as_secs_f64();
         // A record every interval while the run goes on (not at its end: the processes are
         // gone or going, and the last partial interval would look like a drop in memory).
         if ended.is_none() && t >= next {
-            match record(&run_id, intervals.len(), t, &timing) {
+            match record(run_id, intervals.len(), t, &timing) {
                 Some(iv) => {
                     // The next interval's timing starts now; a run that is ending keeps counting
-                    // into this one, which the totals below include.
+                    // into this one, which the totals include.
                     timing = IntervalTiming::new(period_ns);
                     print_interval(&iv, a.duration);
                     intervals.push(iv);
@@ -145,24 +196,41 @@ pub fn main(a: SoakArgs) -> ExitCode {
     };
     // What the controller wrote after the last look (it flushes before it exits).
     tail.new_lines(|l| timing.line(l));
-    // Deadlines missed over the whole run, including the last partial interval.
-    let all_missed: u64 = intervals.iter().map(|i| i.missed_deadlines).sum::<u64>() + timing.missed;
-    let all_cycles: u64 = intervals.iter().map(|i| i.cycles).sum::<u64>() + timing.cycles;
-    let per: Vec<f64> = intervals
-        .iter()
-        .map(|i| i.missed_deadlines as f64)
-        .collect();
-    let shm_after = crate::ipc::namespace::files(prefix);
-    let shm_left: Vec<String> = shm_after
+    Watched {
+        status,
+        intervals,
+        rest: timing,
+    }
+}
+
+/// The soak's report: memory drift, misses per interval and over the whole run (the last
+/// partial interval included), and the shared-memory files the run left behind.
+fn soak_report(
+    a: &SoakArgs,
+    file: &Path,
+    run_dir: PathBuf,
+    run_id: String,
+    w: Watched,
+    shm_before: Vec<String>,
+    shm_after: Vec<String>,
+) -> SoakReport {
+    let Watched {
+        status,
+        intervals,
+        rest,
+    } = w;
+    let missed: Vec<u64> = intervals.iter().map(|i| i.missed_deadlines).collect();
+    let per: Vec<f64> = missed.iter().map(|&m| m as f64).collect();
+    let shm_left = shm_after
         .iter()
         .filter(|f| !shm_before.contains(f))
         .cloned()
         .collect();
-    let report = SoakReport {
+    SoakReport {
         scenario: file.display().to_string(),
         duration_s: a.duration,
         interval_s: a.interval,
-        run_dir: run_dir.clone(),
+        run_dir,
         run_id,
         exit_code: status.code(),
         rss: drift(&intervals, |i| &i.rss_kib),
@@ -172,31 +240,13 @@ pub fn main(a: SoakArgs) -> ExitCode {
         } else {
             crate::stats::median(&per)
         },
-        misses_per_interval_max: intervals
-            .iter()
-            .map(|i| i.missed_deadlines)
-            .max()
-            .unwrap_or(0),
-        missed_deadlines: all_missed,
-        cycles: all_cycles,
+        misses_per_interval_max: missed.iter().copied().max().unwrap_or(0),
+        missed_deadlines: missed.iter().sum::<u64>() + rest.missed,
+        cycles: intervals.iter().map(|i| i.cycles).sum::<u64>() + rest.cycles,
         intervals,
         shm_before,
         shm_after,
         shm_left,
-    };
-    if let Err(e) = write(&a.out, &report) {
-        err!("error: writing the soak report: {e}");
-        return ExitCode::from(1);
-    }
-    if a.json {
-        crate::report::print_json(&report);
-    } else {
-        print_report(&report, &a.out);
-    }
-    if status.success() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
     }
 }
 

@@ -15,6 +15,7 @@
 
 use super::rng::Xoshiro256pp;
 use super::Optimiser;
+use crate::SettingsError;
 use rand::{Rng, RngCore, SeedableRng};
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -51,31 +52,28 @@ impl DeConfig {
         }
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SettingsError> {
         if self.eta == 0 || self.eta > 100_000 {
-            return Err(format!("eta must be in 1..=100000 (got {})", self.eta));
+            return Err(SettingsError::out_of_range(
+                "eta",
+                "in 1..=100000",
+                self.eta,
+            ));
         }
         if self.np < 4 {
-            return Err(format!("population size must be >= 4 (got {})", self.np));
+            return Err(SettingsError::out_of_range(
+                "population size",
+                ">= 4",
+                self.np,
+            ));
         }
         if !(self.f > 0.0 && self.f <= 2.0) {
-            return Err(format!("F must be in (0, 2] (got {})", self.f));
+            return Err(SettingsError::out_of_range("F", "in (0, 2]", self.f));
         }
         if !(0.0..=1.0).contains(&self.cr) {
-            return Err(format!("CR must be in [0, 1] (got {})", self.cr));
+            return Err(SettingsError::out_of_range("CR", "in [0, 1]", self.cr));
         }
-        if self.lower.len() != self.upper.len() || self.lower.is_empty() {
-            return Err("bounds must have the same, non-zero length".into());
-        }
-        if self
-            .lower
-            .iter()
-            .zip(&self.upper)
-            .any(|(l, u)| l.partial_cmp(u) != Some(std::cmp::Ordering::Less))
-        {
-            return Err("every lower bound must be below its upper bound".into());
-        }
-        Ok(())
+        crate::settings::check_box(&self.lower, &self.upper)
     }
 }
 
@@ -173,7 +171,7 @@ pub struct DifferentialEvolution {
 }
 
 impl DifferentialEvolution {
-    pub fn new(cfg: DeConfig) -> Result<Self, String> {
+    pub fn new(cfg: DeConfig) -> Result<Self, SettingsError> {
         cfg.validate()?;
         let mut rng = Xoshiro256pp::seed_from_u64(cfg.seed);
         let g = Generations::random(cfg.np, &cfg.lower, &cfg.upper, &mut rng);

@@ -59,6 +59,7 @@
 
 use super::pso::Particles;
 use super::swarm::{Rule, Swarm, SwarmConfig, SwarmOptimiser};
+use crate::SettingsError;
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
@@ -129,22 +130,33 @@ pub struct EmuPsoRule {
 pub type EmuPso = SwarmOptimiser<EmuPsoRule>;
 
 impl EmuPso {
-    pub fn new(cfg: SwarmConfig, set: EmuPsoSettings) -> Result<Self, String> {
+    pub fn new(cfg: SwarmConfig, set: EmuPsoSettings) -> Result<Self, SettingsError> {
         if set.elites == 0 || set.elites >= cfg.population {
-            return Err(format!(
-                "{} elites for a population of {}: need 1 <= k < population",
-                set.elites, cfg.population
+            return Err(SettingsError::out_of_range(
+                "elites",
+                "in 1..population",
+                set.elites,
             ));
         }
         let fraction = |v: f64| v > 0.0 && v <= 1.0;
-        if !(fraction(set.sigma) && fraction(set.vmax_fraction) && fraction(set.vmax_shrink)) {
-            return Err("sigma, vmax_fraction and vmax_shrink must be in (0, 1]".into());
+        for (name, v) in [
+            ("sigma", set.sigma),
+            ("vmax_fraction", set.vmax_fraction),
+            ("vmax_shrink", set.vmax_shrink),
+        ] {
+            if !fraction(v) {
+                return Err(SettingsError::out_of_range(name, "in (0, 1]", v));
+            }
         }
-        if set.vmax_patience == 0
-            || set.stagnation_tolerance.is_nan()
-            || set.stagnation_tolerance < 0.0
-        {
-            return Err("vmax_patience must be >= 1 and stagnation_tolerance >= 0".into());
+        if set.vmax_patience == 0 {
+            return Err(SettingsError::out_of_range("vmax_patience", ">= 1", 0));
+        }
+        if set.stagnation_tolerance.is_nan() || set.stagnation_tolerance < 0.0 {
+            return Err(SettingsError::out_of_range(
+                "stagnation_tolerance",
+                ">= 0",
+                set.stagnation_tolerance,
+            ));
         }
         let swarm = Swarm::new(cfg)?;
         let t = swarm.cfg.iterations as f64;

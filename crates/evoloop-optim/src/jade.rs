@@ -31,6 +31,7 @@
 use super::de::{pick, select, Generations};
 use super::rng::Xoshiro256pp;
 use super::Optimiser;
+use crate::SettingsError;
 use rand::{Rng, RngCore, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 
@@ -62,18 +63,22 @@ impl JadeConfig {
         }
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SettingsError> {
         if self.np < 4 {
-            return Err(format!("population size must be >= 4 (got {})", self.np));
-        }
-        let fraction = |v: f64| v > 0.0 && v <= 1.0;
-        if !(fraction(self.p) && fraction(self.c)) {
-            return Err(format!(
-                "p and c must be in (0, 1] (got {} and {})",
-                self.p, self.c
+            return Err(SettingsError::out_of_range(
+                "population size",
+                ">= 4",
+                self.np,
             ));
         }
-        super::swarm::check_box(&self.lower, &self.upper)
+        let fraction = |v: f64| v > 0.0 && v <= 1.0;
+        if !fraction(self.p) {
+            return Err(SettingsError::out_of_range("p", "in (0, 1]", self.p));
+        }
+        if !fraction(self.c) {
+            return Err(SettingsError::out_of_range("c", "in (0, 1]", self.c));
+        }
+        crate::settings::check_box(&self.lower, &self.upper)
     }
 
     /// How many of the best members the p-best is drawn from.
@@ -101,7 +106,7 @@ pub struct Jade {
 }
 
 impl Jade {
-    pub fn new(cfg: JadeConfig) -> Result<Self, String> {
+    pub fn new(cfg: JadeConfig) -> Result<Self, SettingsError> {
         cfg.validate()?;
         let mut rng = Xoshiro256pp::seed_from_u64(cfg.seed);
         let (np, d) = (cfg.np, cfg.lower.len());

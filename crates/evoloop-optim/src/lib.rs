@@ -14,6 +14,7 @@ pub mod pso;
 pub mod pull;
 pub mod remote;
 pub mod rng;
+pub mod settings;
 pub mod suite;
 pub mod swarm;
 pub mod wolves;
@@ -21,6 +22,7 @@ pub mod wolves;
 pub use de::{DeConfig, DifferentialEvolution};
 pub use ga::{Ga, GaConfig};
 pub use hooke_jeeves::{HjSearch, HookeJeeves, LocalResult};
+pub use settings::SettingsError;
 
 use std::time::Instant;
 

@@ -8,6 +8,7 @@
 
 use super::rng::Xoshiro256pp;
 use super::swarm::{Rule, Swarm, SwarmConfig, SwarmOptimiser};
+use crate::SettingsError;
 use rand::RngCore;
 
 /// Velocities and personal bests: the particle part of a swarm.
@@ -164,7 +165,7 @@ const C: f64 = 2.0;
 const VMAX: f64 = 0.2;
 
 impl Pso {
-    pub fn new(cfg: SwarmConfig) -> Result<Self, String> {
+    pub fn new(cfg: SwarmConfig) -> Result<Self, SettingsError> {
         let swarm = Swarm::new(cfg)?;
         let p = Particles::new(&swarm, VMAX);
         Ok(SwarmOptimiser::from_parts(swarm, PsoRule { p }))

@@ -7,22 +7,8 @@ use super::rng::Xoshiro256pp;
 use super::Optimiser;
 use rand::{Rng, SeedableRng};
 
-/// A search box: as many lower as upper bounds, at least one, each pair finite and ordered.
-pub fn check_box(lower: &[f64], upper: &[f64]) -> Result<(), String> {
-    if lower.is_empty() || lower.len() != upper.len() {
-        return Err(format!(
-            "the box needs as many lower as upper bounds, at least one ({} and {})",
-            lower.len(),
-            upper.len()
-        ));
-    }
-    for (j, (l, u)) in lower.iter().zip(upper).enumerate() {
-        if !(l.is_finite() && u.is_finite() && l < u) {
-            return Err(format!("dimension {j}: bounds [{l}, {u}] are not a box"));
-        }
-    }
-    Ok(())
-}
+pub use crate::settings::check_box;
+use crate::SettingsError;
 
 /// The settings every swarm method takes.
 #[derive(Debug, Clone, PartialEq)]
@@ -56,16 +42,17 @@ impl SwarmConfig {
         }
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SettingsError> {
         check_box(&self.lower, &self.upper)?;
         if self.population < 4 {
-            return Err(format!(
-                "population {} is too small (at least 4)",
-                self.population
+            return Err(SettingsError::out_of_range(
+                "population",
+                ">= 4",
+                self.population,
             ));
         }
         if self.iterations == 0 {
-            return Err("an iteration budget of 0".into());
+            return Err(SettingsError::out_of_range("iterations", ">= 1", 0));
         }
         Ok(())
     }
@@ -96,7 +83,7 @@ pub struct Swarm {
 
 impl Swarm {
     /// A uniformly random population in the box.
-    pub fn new(cfg: SwarmConfig) -> Result<Self, String> {
+    pub fn new(cfg: SwarmConfig) -> Result<Self, SettingsError> {
         cfg.validate()?;
         let mut rng = Xoshiro256pp::seed_from_u64(cfg.seed);
         let x = (0..cfg.population)
@@ -251,6 +238,7 @@ mod tests {
         }
         .validate()
         .unwrap_err()
+        .to_string()
         .contains("dimension 0"));
     }
 }

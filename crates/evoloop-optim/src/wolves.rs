@@ -18,6 +18,7 @@
 //! the study's shifted copies are there so that an optimum at the origin does not flatter them.
 
 use super::swarm::{Rule, Swarm, SwarmConfig, SwarmOptimiser};
+use crate::SettingsError;
 use rand::Rng;
 
 /// GWO's three leaders (positions and values).
@@ -28,7 +29,7 @@ pub struct GwoRule {
 pub type Gwo = SwarmOptimiser<GwoRule>;
 
 impl Gwo {
-    pub fn new(cfg: SwarmConfig) -> Result<Self, String> {
+    pub fn new(cfg: SwarmConfig) -> Result<Self, SettingsError> {
         let swarm = Swarm::new(cfg)?;
         let d = swarm.cfg.dim();
         let leader = || (vec![0.0; d], f64::INFINITY);
@@ -74,7 +75,7 @@ pub struct WoaRule;
 pub type Woa = SwarmOptimiser<WoaRule>;
 
 impl Woa {
-    pub fn new(cfg: SwarmConfig) -> Result<Self, String> {
+    pub fn new(cfg: SwarmConfig) -> Result<Self, SettingsError> {
         Ok(SwarmOptimiser::from_parts(Swarm::new(cfg)?, WoaRule))
     }
 }
@@ -118,7 +119,7 @@ pub struct GoaRule {
 pub type Goa = SwarmOptimiser<GoaRule>;
 
 impl Goa {
-    pub fn new(cfg: SwarmConfig) -> Result<Self, String> {
+    pub fn new(cfg: SwarmConfig) -> Result<Self, SettingsError> {
         let swarm = Swarm::new(cfg)?;
         let prev = swarm.x.clone();
         let sum = vec![0.0; swarm.cfg.dim()];

@@ -119,6 +119,52 @@ pub enum Start {
     LeastSquares,
 }
 
+/// Why a model file was not read, written or accepted.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModelError {
+    /// Reading or writing the file failed.
+    Io(String),
+    /// Not a model file this build reads: not its JSON layout (the key path in the reason),
+    /// another format or another version.
+    NotAModelFile(String),
+    /// Values that make no model: counts, non-finite values, premise rows.
+    Invalid(String),
+    /// M-hat is not positive definite on the model's own trajectory: its smallest eigenvalue.
+    Indefinite(f64),
+    /// The error of the file at this path.
+    In(std::path::PathBuf, Box<ModelError>),
+}
+
+impl ModelError {
+    fn at(self, path: &Path) -> Self {
+        ModelError::In(path.to_path_buf(), Box::new(self))
+    }
+}
+
+impl std::fmt::Display for ModelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ModelError::Io(e) | ModelError::NotAModelFile(e) | ModelError::Invalid(e) => {
+                f.write_str(e)
+            }
+            ModelError::Indefinite(lo) => write!(
+                f,
+                "M-hat is not positive definite on its own trajectory (smallest eigenvalue {lo:.3e})"
+            ),
+            ModelError::In(path, e) => write!(f, "{}: {e}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for ModelError {}
+
+/// The callers that report errors as text keep using `?`.
+impl From<ModelError> for String {
+    fn from(e: ModelError) -> String {
+        e.to_string()
+    }
+}
+
 /// The `format` value of a model file.
 pub const FORMAT: &str = "evoloop-rkgnn";
 /// The file layout version this build reads and writes.
@@ -209,57 +255,66 @@ impl RkgnnModel {
         }
     }
 
-    pub fn save(&self, path: &Path) -> Result<(), String> {
-        let s = serde_json::to_string_pretty(&self.to_file()).map_err(|e| e.to_string())?;
-        evoloop_files::write(path, s + "\n").map_err(|e| format!("{}: {e}", path.display()))
+    pub fn save(&self, path: &Path) -> Result<(), ModelError> {
+        let s = serde_json::to_string_pretty(&self.to_file())
+            .map_err(|e| ModelError::Io(e.to_string()).at(path))?;
+        evoloop_files::write(path, s + "\n").map_err(|e| ModelError::Io(e.to_string()).at(path))
     }
 
     /// Read and check a model file: format and version, joint count, parameter count, finite
     /// values, premise rows of 2n values, M-hat positive definite on the premise positions.
-    pub fn load(path: &Path) -> Result<RkgnnModel, String> {
-        let at = |e: String| format!("{}: {e}", path.display());
-        let text = std::fs::read_to_string(path).map_err(|e| at(e.to_string()))?;
+    pub fn load(path: &Path) -> Result<RkgnnModel, ModelError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|e| ModelError::Io(e.to_string()).at(path))?;
         let de = &mut serde_json::Deserializer::from_str(&text);
-        let f: ModelFile = serde_path_to_error::deserialize(de)
-            .map_err(|e| at(format!("{} ({})", e.inner(), e.path())))?;
-        Self::from_file(f).map_err(at)
+        let f: ModelFile = serde_path_to_error::deserialize(de).map_err(|e| {
+            ModelError::NotAModelFile(format!("{} ({})", e.inner(), e.path())).at(path)
+        })?;
+        Self::from_file(f).map_err(|e| e.at(path))
     }
 
-    pub fn from_file(f: ModelFile) -> Result<RkgnnModel, String> {
+    pub fn from_file(f: ModelFile) -> Result<RkgnnModel, ModelError> {
+        use ModelError::{Invalid, NotAModelFile};
         if f.format != FORMAT {
-            return Err(format!("format is {:?}, expected {FORMAT:?}", f.format));
+            let got = f.format;
+            return Err(NotAModelFile(format!(
+                "format is {got:?}, expected {FORMAT:?}"
+            )));
         }
         if f.version != VERSION {
-            return Err(format!(
-                "version {} (this build reads {VERSION})",
-                f.version
-            ));
+            let got = f.version;
+            return Err(NotAModelFile(format!(
+                "version {got} (this build reads {VERSION})"
+            )));
         }
         let n = f.joints;
         if !(1..=MAX_JOINTS).contains(&n) {
-            return Err(format!("joints: {n} (1..={MAX_JOINTS})"));
+            return Err(Invalid(format!("joints: {n} (1..={MAX_JOINTS})")));
         }
         let layout = Layout::new(n, f.rbf);
         if f.params.len() != layout.len {
-            return Err(format!(
+            return Err(Invalid(format!(
                 "params: {} values, the network needs {}",
                 f.params.len(),
                 layout.len
-            ));
+            )));
         }
         if let Some(i) = f.params.iter().position(|v| !v.is_finite()) {
-            return Err(format!("params[{i}] is not finite"));
+            return Err(Invalid(format!("params[{i}] is not finite")));
         }
         if !(f.premise_period > 0.0 && f.premise_period.is_finite()) {
-            return Err("premise_period must be > 0".into());
+            return Err(Invalid("premise_period must be > 0".into()));
         }
         if f.premise.is_empty() {
-            return Err("premise is empty".into());
+            return Err(Invalid("premise is empty".into()));
         }
         let mut premise = Vec::with_capacity(2 * n * f.premise.len());
         for (i, row) in f.premise.iter().enumerate() {
             if row.len() != 2 * n || row.iter().any(|v| !v.is_finite()) {
-                return Err(format!("premise[{i}]: needs {} finite values", 2 * n));
+                return Err(Invalid(format!(
+                    "premise[{i}]: needs {} finite values",
+                    2 * n
+                )));
             }
             premise.extend_from_slice(row);
         }
@@ -273,9 +328,7 @@ impl RkgnnModel {
         let w = 2 * n;
         let lo = m.min_eig(m.premise.chunks(w).map(|r| &r[..n]));
         if lo.is_nan() || lo <= 0.0 {
-            return Err(format!(
-                "M-hat is not positive definite on its own trajectory (smallest eigenvalue {lo:.3e})"
-            ));
+            return Err(ModelError::Indefinite(lo));
         }
         Ok(m)
     }
