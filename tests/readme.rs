@@ -10,16 +10,23 @@ fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// The README and every chapter of the book (`docs/src`), in that order.
-fn documents() -> Vec<PathBuf> {
-    let mut chapters: Vec<PathBuf> = std::fs::read_dir(root().join("docs/src"))
+/// The Markdown files of a directory of the repository, sorted.
+fn markdown_in(dir: &str) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(root().join(dir))
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|x| x == "md"))
         .collect();
-    chapters.sort();
+    files.sort();
+    files
+}
+
+/// The README, every chapter of the book (`docs/src`) and every measurement record
+/// (`docs/measurements`, which the book's Measurements chapter includes), in that order.
+fn documents() -> Vec<PathBuf> {
     std::iter::once(root().join("README.md"))
-        .chain(chapters)
+        .chain(markdown_in("docs/src"))
+        .chain(markdown_in("docs/measurements"))
         .collect()
 }
 
@@ -92,7 +99,15 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
         ["cargo", "run", "--release", "--", rest @ ..] => {
             Ok(Some(rest.iter().map(|s| s.to_string()).collect()))
         }
-        ["cargo", "test", "--release"] => Ok(None),
+        ["cargo", "test" | "build", "--release"] => Ok(None),
+        // A script of the repository (the measurements' regression table).
+        [script, ..] if script.starts_with("scripts/") => {
+            if root().join(script).exists() {
+                Ok(None)
+            } else {
+                Err(format!("no file {script}"))
+            }
+        }
         // A build with an optional feature: the feature must be one Cargo.toml declares.
         ["cargo", "build" | "test", "--release", "--features", feature, ..] => {
             let manifest = std::fs::read_to_string(root().join("Cargo.toml")).unwrap();
@@ -322,12 +337,38 @@ fn the_readme_is_short_and_the_book_is_whole() {
     let summary = std::fs::read_to_string(root().join("docs/src/SUMMARY.md")).unwrap();
     let mut listed: Vec<String> = links(&summary);
     listed.sort();
-    let mut chapters: Vec<String> = documents()
+    let mut chapters: Vec<String> = markdown_in("docs/src")
         .iter()
-        .skip(1)
         .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
         .filter(|n| n != "SUMMARY.md")
         .collect();
     chapters.sort();
     assert_eq!(listed, chapters, "SUMMARY.md and docs/src disagree");
+}
+
+/// Every measurement record says when, where, what was built and how (a command block), and the
+/// book's Measurements chapter links and includes each one, so none is left out of the book.
+#[test]
+fn every_measurement_is_dated_placed_and_in_the_book() {
+    let records = markdown_in("docs/measurements");
+    assert!(records.len() >= 5, "{records:?}");
+    let chapter = std::fs::read_to_string(root().join("docs/src/measurements.md")).unwrap();
+    for r in &records {
+        let name = r.file_name().unwrap().to_string_lossy().into_owned();
+        let text = std::fs::read_to_string(r).unwrap();
+        let date = &name[..10.min(name.len())];
+        assert!(
+            date.len() == 10 && date.chars().filter(|c| *c == '-').count() == 2,
+            "{name}: not named by its date (YYYY-MM-DD-topic.md)"
+        );
+        for field in ["**Date:**", "**Machine:**", "**Build:**", "**Command"] {
+            assert!(text.contains(field), "{name} has no {field}");
+        }
+        assert!(!commands_of(r).is_empty(), "{name} has no ```sh command");
+        assert!(
+            chapter.contains(&format!("](../measurements/{name})"))
+                && chapter.contains(&format!("{{{{#include ../measurements/{name}}}}}")),
+            "docs/src/measurements.md does not link and include {name}"
+        );
+    }
 }
