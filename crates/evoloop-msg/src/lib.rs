@@ -6,6 +6,12 @@
 //! simulation use them without the feature, linking nothing of the transport. The bottom of the
 //! workspace: without the feature it depends on serde alone, so every other crate (and a
 //! process in another language reading the same layouts) can take it.
+//!
+//! The crate is versioned on its own: its major version is the contract version ([`CONTRACT`]),
+//! the `.vN` at the end of every iceoryx2 type name. A layout change bumps both.
+
+/// The contract version: the `.vN` of the type names, the crate's major version.
+pub const CONTRACT: u32 = 1;
 
 /// Largest number of joints/inputs/outputs a message carries (8-joint arms fit).
 pub const MAX_JOINTS: usize = 8;
@@ -410,6 +416,36 @@ zero_copy!(
 mod tests {
     use super::*;
     use std::mem::{align_of, offset_of, size_of};
+
+    /// The contract version is the crate's major version, so a layout change cannot ship as
+    /// a minor release of the message crate.
+    #[test]
+    fn the_contract_version_is_the_major_version() {
+        let major: u32 = env!("CARGO_PKG_VERSION_MAJOR").parse().unwrap();
+        assert_eq!(CONTRACT, major);
+    }
+
+    /// Every iceoryx2 type name ends in the contract version.
+    #[cfg(feature = "iceoryx2")]
+    #[test]
+    fn every_type_name_carries_the_contract_version() {
+        use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
+        // SAFETY: type_name only returns the static name.
+        let names = unsafe {
+            [
+                PlantState::type_name(),
+                Command::type_name(),
+                Telemetry::type_name(),
+                ParamSet::type_name(),
+                OptimiserAck::type_name(),
+                ModelEstimate::type_name(),
+                OptimiserStatus::type_name(),
+            ]
+        };
+        for n in names {
+            assert!(n.ends_with(&format!(".v{CONTRACT}")), "{n}");
+        }
+    }
 
     #[test]
     fn every_code_reads_back_as_itself_and_no_other_value_reads_at_all() {
