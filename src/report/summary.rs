@@ -9,6 +9,7 @@ use crate::rt::{RtGranted, TimingSummary};
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(try_from = "RecordAsWritten")]
 pub struct ParamRecord {
     pub version: u64,
     pub cycle: u64,
@@ -19,6 +20,44 @@ pub struct ParamRecord {
     pub outcome: String,
     /// Offending value index for bounds/non-finite rejections.
     pub index: Option<u32>,
+}
+
+/// A parameter event as any build wrote it: reports from before the `code` field have the
+/// reason text alone, which names its code exactly (`ParamCode::reason`).
+#[derive(Deserialize)]
+struct RecordAsWritten {
+    version: u64,
+    cycle: u64,
+    t: f64,
+    code: Option<crate::msg::ParamCode>,
+    outcome: String,
+    index: Option<u32>,
+}
+
+impl TryFrom<RecordAsWritten> for ParamRecord {
+    type Error = String;
+    fn try_from(r: RecordAsWritten) -> Result<Self, String> {
+        let code = match r.code {
+            Some(c) => c,
+            None => *crate::msg::ParamCode::ALL
+                .iter()
+                .find(|c| c.reason() == r.outcome)
+                .ok_or_else(|| {
+                    format!(
+                        "a parameter event with no code and an unknown outcome {:?}",
+                        r.outcome
+                    )
+                })?,
+        };
+        Ok(ParamRecord {
+            version: r.version,
+            cycle: r.cycle,
+            t: r.t,
+            code,
+            outcome: r.outcome,
+            index: r.index,
+        })
+    }
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
@@ -336,5 +375,37 @@ mod outcome_tests {
             assert_eq!(serde_json::from_str::<Outcome>(&json).unwrap(), o);
         }
         assert!(serde_json::from_str::<Outcome>("\"exploded\"").is_err());
+    }
+}
+
+#[cfg(test)]
+mod record_tests {
+    use super::ParamRecord;
+    use crate::msg::ParamCode;
+
+    /// Reports written before the `code` field read back with the code their reason names; a
+    /// written code wins; a record with neither is refused, not guessed.
+    #[test]
+    fn a_record_without_its_code_reads_back_by_its_reason() {
+        for code in ParamCode::ALL {
+            let old = format!(
+                r#"{{"version":3,"cycle":10,"t":0.5,"outcome":"{}","index":null}}"#,
+                code.reason()
+            );
+            let r: ParamRecord = serde_json::from_str(&old).unwrap();
+            assert_eq!(r.code, *code);
+            let again: ParamRecord =
+                serde_json::from_str(&serde_json::to_string(&r).unwrap()).unwrap();
+            assert_eq!(again, r);
+        }
+        let coded = r#"{"version":1,"cycle":0,"t":0,"code":"rejected_stale","outcome":"anything","index":2}"#;
+        let r: ParamRecord = serde_json::from_str(coded).unwrap();
+        assert_eq!((r.code, r.index), (ParamCode::RejectedStale, Some(2)));
+        let unknown = r#"{"version":1,"cycle":0,"t":0,"outcome":"exploded","index":null}"#;
+        let e = serde_json::from_str::<ParamRecord>(unknown).unwrap_err();
+        assert!(
+            e.to_string().contains("unknown outcome \"exploded\""),
+            "{e}"
+        );
     }
 }
