@@ -356,19 +356,44 @@ fn every_measurement_is_dated_placed_and_in_the_book() {
     for r in &records {
         let name = r.file_name().unwrap().to_string_lossy().into_owned();
         let text = std::fs::read_to_string(r).unwrap();
-        let date = &name[..10.min(name.len())];
+        // Named by the date its **Date:** line starts with (YYYY-MM-DD-topic.md).
+        let date = name.get(..10).unwrap_or("");
+        let shape = date.bytes().enumerate().all(|(i, b)| match i {
+            4 | 7 => b == b'-',
+            _ => b.is_ascii_digit(),
+        });
         assert!(
-            date.len() == 10 && date.chars().filter(|c| *c == '-').count() == 2,
-            "{name}: not named by its date (YYYY-MM-DD-topic.md)"
+            shape && date.len() == 10,
+            "{name}: not named YYYY-MM-DD-topic.md"
         );
-        for field in ["**Date:**", "**Machine:**", "**Build:**", "**Command"] {
+        assert!(
+            text.contains(&format!("**Date:** {date}")),
+            "{name}: its **Date:** line does not start with {date}"
+        );
+        for field in ["**Machine:**", "**Build:**", "**Command"] {
             assert!(text.contains(field), "{name} has no {field}");
         }
         assert!(!commands_of(r).is_empty(), "{name} has no ```sh command");
+        // The chapter includes the record and its list links the record's heading, by the
+        // anchor mdbook (and GitHub) derive from it.
+        let heading = text
+            .lines()
+            .next()
+            .unwrap_or("")
+            .trim_start_matches('#')
+            .trim();
+        let anchor: String = heading
+            .chars()
+            .filter_map(|c| match c {
+                c if c.is_alphanumeric() || c == '_' || c == '-' => Some(c.to_ascii_lowercase()),
+                c if c.is_whitespace() => Some('-'),
+                _ => None,
+            })
+            .collect();
         assert!(
-            chapter.contains(&format!("](../measurements/{name})"))
+            chapter.contains(&format!("](#{anchor})"))
                 && chapter.contains(&format!("{{{{#include ../measurements/{name}}}}}")),
-            "docs/src/measurements.md does not link and include {name}"
+            "docs/src/measurements.md does not include {name} and link #{anchor}"
         );
     }
 }

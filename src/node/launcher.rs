@@ -810,6 +810,7 @@ impl Running {
 const PROCESSES: [&str; 3] = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
 /// The plant's index in `PROCESSES`: once it has ended there is no run to rejoin.
 const PLANT: usize = 0;
+const _: () = assert!(matches!(PROCESSES[PLANT].as_bytes(), b"evoloop-plant"));
 
 /// The plant, the controller and the optimiser, in that order; if one cannot start, those
 /// already started are stopped.
