@@ -595,6 +595,27 @@ fn rkgnn_study_on_arm3_is_the_shipped_scenarios_and_writes_figures_7_to_10() {
     }
     let csv = std::fs::read_to_string(dir.join("tracking_rms.csv")).unwrap();
     assert!(csv.starts_with("controller,joint1,joint2,joint3,overall\npd,"));
+    // What the identification was given: the runs and eq. 2's bounds, never the robot file.
+    let inputs = &v["identification_inputs"];
+    assert_eq!(inputs["runs"], serde_json::json!(["train1", "train2"]));
+    assert!(inputs["m1"].as_f64().unwrap() > 0.0 && inputs["m2"].as_f64().unwrap() > 0.0);
+    let listed = inputs.to_string();
+    for robot in ["arm3.toml", "robots", ".urdf"] {
+        assert!(!listed.contains(robot), "the inputs name the robot: {listed}");
+    }
+    // Each model's smallest eigenvalue along the new trajectory, where the controller runs it.
+    let scn = Scenario::load(&dir.join("scenarios/ct_fuzzy_max.toml"), &Overrides::default())
+        .unwrap();
+    let along = evoloop::control::fuzzy_computed_torque::reference_positions(
+        &scn.reference,
+        scn.timing.duration,
+    );
+    for (k, m) in v["models"].as_array().unwrap().iter().enumerate() {
+        let model = RkgnnModel::load(&dir.join(format!("model_{}.json", k + 1))).unwrap();
+        let on_reference = m["min_eig_on_reference"].as_f64().unwrap();
+        assert_eq!(on_reference, model.min_eig(along.iter().map(Vec::as_slice)));
+        assert!(on_reference > 0.0, "model {}: {on_reference}", k + 1);
+    }
 }
 
 #[test]

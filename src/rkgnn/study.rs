@@ -85,21 +85,44 @@ pub struct ModelSummary {
     pub trajectory: String,
     pub train_rms: Vec<f64>,
     pub holdout_rms: Vec<f64>,
+    /// Smallest eigenvalue of M-hat over the model's own training positions.
     pub min_eig_m_hat: f64,
+    /// Smallest eigenvalue of M-hat along the new trajectory, where the controller runs it
+    /// (the controller refuses a model at or below 0 there).
+    pub min_eig_on_reference: f64,
     pub evaluations: usize,
 }
 
 impl ModelSummary {
-    pub(super) fn of(file: PathBuf, trajectory: &str, r: &Report) -> Self {
+    pub(super) fn of(file: PathBuf, trajectory: &str, r: &Report, on_reference: f64) -> Self {
         Self {
             file,
             trajectory: trajectory.to_string(),
             train_rms: r.train_rms.clone(),
             holdout_rms: r.holdout_rms.clone(),
             min_eig_m_hat: r.min_eig_m_hat,
+            min_eig_on_reference: on_reference,
             evaluations: r.evaluations,
         }
     }
+}
+
+/// Everything the identification was given, per model: the run's signals and eq. 2's bounds;
+/// with `servo_known`, the training servo's gains. No robot file: the study reads the robot only
+/// to simulate the runs and, like a user's CAD model, to give m1 and m2.
+#[derive(Debug, Clone, Serialize)]
+pub struct IdentificationInputs {
+    /// The training runs fitted, one model each.
+    pub runs: Vec<String>,
+    /// What of each run the fit reads.
+    pub signals: &'static str,
+    pub m1: f64,
+    pub m2: f64,
+    pub servo: crate::rkgnn::model::ServoPrior,
+    pub start: crate::rkgnn::model::Start,
+    pub stride: usize,
+    pub evaluations: usize,
+    pub refine: usize,
 }
 
 /// `study.json`.
@@ -115,6 +138,7 @@ pub struct StudyResult {
     /// Computed torque's gains.
     pub ct_kp: Vec<f64>,
     pub ct_kv: Vec<f64>,
+    pub identification_inputs: IdentificationInputs,
     pub models: Vec<ModelSummary>,
     /// The new trajectory.
     pub tracking_rms: TrackingRms,
@@ -453,6 +477,13 @@ pub fn run(
     let train_sims = simulate_all(&training, s.threads, &|| tick("training run"));
     let mut models = Vec::new();
     let mut summaries = Vec::new();
+    let mut inputs = None;
+    // Where the controller will run the models: the new trajectory's positions.
+    let new = &probes[2].scenario;
+    let along = crate::control::fuzzy_computed_torque::reference_positions(
+        &new.reference,
+        new.timing.duration,
+    );
     for (k, (c, sim)) in training.iter().zip(&train_sims).enumerate() {
         let data = Trajectory::from_sim(&sim.rows, &c.scenario.reference, c.scenario.timing.period);
         let mut settings = Settings::least_squares(JOINTS, s.seed, s.evaluations);
@@ -474,7 +505,25 @@ pub fn run(
         )?;
         let file = dir.join(format!("model_{}.json", k + 1));
         model.save(&file)?;
-        summaries.push(ModelSummary::of(file.clone(), &c.name, &model.report));
+        let on_reference = model.min_eig(along.iter().map(Vec::as_slice));
+        summaries.push(ModelSummary::of(
+            file.clone(),
+            &c.name,
+            &model.report,
+            on_reference,
+        ));
+        inputs.get_or_insert_with(|| IdentificationInputs {
+            runs: training.iter().map(|c| c.name.clone()).collect(),
+            signals: "the reference (q_d, q_d'), the measured joint positions q (with the \
+                      run's encoder noise) and velocities q' at every sample",
+            m1: prior.m1,
+            m2: prior.m2,
+            servo: settings.servo.clone(),
+            start: settings.start,
+            stride: settings.stride,
+            evaluations: settings.evaluations,
+            refine: settings.refine,
+        });
         models.push(file);
         tick("identification");
     }
@@ -568,6 +617,7 @@ pub fn run(
         inertia_ratio: ratio,
         ct_kp: g.ct[0].clone(),
         ct_kv: g.ct[1].clone(),
+        identification_inputs: inputs.ok_or("no training run")?,
         models: summaries,
         tracking_rms,
         own_trajectory_rms: [rms[6].clone(), rms[7].clone()],
@@ -616,7 +666,7 @@ pub fn report_markdown(r: &StudyResult) -> String {
          (0 = the start itself). P-D servo k_p {:?}, k_d {:?} (arm3's times the inertia ratio \
          {:?}); computed torque K_p {:?}, K_v {:?}.\n\n\
          ## Identified models (free-run prediction, rad rms per joint)\n\n\
-         | model | trajectory | train | holdout | min eig M-hat |\n|---|---|---|---|---|\n",
+         | model | trajectory | train | holdout | min eig M-hat (own positions) | min eig M-hat (new trajectory) |\n|---|---|---|---|---|---|\n",
         r.robot.display(),
         r.seed,
         r.evaluations,
@@ -631,12 +681,13 @@ pub fn report_markdown(r: &StudyResult) -> String {
     );
     for (i, m) in r.models.iter().enumerate() {
         s += &format!(
-            "| {} | {} | {} | {} | {:.4} |\n",
+            "| {} | {} | {} | {} | {:.4} | {:.4} |\n",
             i + 1,
             m.trajectory,
             sci(&m.train_rms),
             sci(&m.holdout_rms),
-            m.min_eig_m_hat
+            m.min_eig_m_hat,
+            m.min_eig_on_reference
         );
     }
     s += "\n## Tracking the new trajectory (rad rms)\n\n\
