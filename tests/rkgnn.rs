@@ -601,11 +601,17 @@ fn rkgnn_study_on_arm3_is_the_shipped_scenarios_and_writes_figures_7_to_10() {
     assert!(inputs["m1"].as_f64().unwrap() > 0.0 && inputs["m2"].as_f64().unwrap() > 0.0);
     let listed = inputs.to_string();
     for robot in ["arm3.toml", "robots", ".urdf"] {
-        assert!(!listed.contains(robot), "the inputs name the robot: {listed}");
+        assert!(
+            !listed.contains(robot),
+            "the inputs name the robot: {listed}"
+        );
     }
     // Each model's smallest eigenvalue along the new trajectory, where the controller runs it.
-    let scn = Scenario::load(&dir.join("scenarios/ct_fuzzy_max.toml"), &Overrides::default())
-        .unwrap();
+    let scn = Scenario::load(
+        &dir.join("scenarios/ct_fuzzy_max.toml"),
+        &Overrides::default(),
+    )
+    .unwrap();
     let along = evoloop::control::fuzzy_computed_torque::reference_positions(
         &scn.reference,
         scn.timing.duration,
@@ -1074,4 +1080,41 @@ fn weighing_the_joints_gives_arm7_a_positive_definite_m_hat_that_unweighted_leas
         "--weigh-joints",
     ]);
     assert_refused(&o, "--weigh-joints needs --servo known");
+}
+
+/// A known servo is held from the paper's start as from least squares: the EA searches the arm,
+/// not the gains the identification was given (`--start random` used to search them too).
+#[test]
+fn a_known_servo_is_not_searched_from_the_papers_start() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("study");
+    let o = cli(&[
+        "rkgnn",
+        "study",
+        "--out",
+        out.to_str().unwrap(),
+        "--start",
+        "random",
+        "--evaluations",
+        "60",
+        "--json",
+        "-q",
+    ]);
+    let v = stdout_json(&o);
+    assert_eq!(v["identification_inputs"]["start"], "random");
+    let kp: Vec<f64> = serde_json::from_value(v["servo_kp"].clone()).unwrap();
+    let kd: Vec<f64> = serde_json::from_value(v["servo_kd"].clone()).unwrap();
+    for k in 1..=2 {
+        let model = RkgnnModel::load(&out.join(format!("model_{k}.json"))).unwrap();
+        let p = model.net.params();
+        let gains = &p[p.len() - 2 * kp.len()..];
+        for j in 0..kp.len() {
+            assert_eq!(
+                (gains[2 * j], gains[2 * j + 1]),
+                (kp[j], kd[j]),
+                "model {k}"
+            );
+        }
+        assert!(model.report.evaluations >= 60, "model {k}: the EA ran");
+    }
 }

@@ -200,7 +200,7 @@ pub struct StudyArgs {
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
-    /// A 3-joint arm (D-H TOML or URDF) [default: config/robots/arm3.toml].
+    /// A 3-joint arm (D-H TOML or URDF); any other arm: `evoloop rkgnn selection --robot FILE`.
     #[arg(long, default_value = "config/robots/arm3.toml")]
     pub robot: PathBuf,
     /// Measurement-noise seed of every run, and the EA's seed.
@@ -219,6 +219,11 @@ pub struct StudyArgs {
     /// gains identified, scale from eq. 2).
     #[arg(long, value_enum, default_value_t = StudyServo::Known)]
     pub servo: StudyServo,
+    /// Where the EA starts: `least-squares` (the shipped models' recipe) or `random` (the
+    /// paper's: a stiff critically damped servo, every other weight 0, the population about
+    /// it; give --evaluations).
+    #[arg(long, value_enum, default_value_t = crate::rkgnn::model::Start::LeastSquares)]
+    pub start: crate::rkgnn::model::Start,
     /// Threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -531,6 +536,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         evaluations: a.evaluations,
         refine: a.refine,
         servo_known: a.servo == StudyServo::Known,
+        start: a.start,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
     let r = with_bar("stages", a.quiet || a.json, |p| {

@@ -533,7 +533,18 @@ pub fn identify(
     let probes = region_probes(&train, s.probes);
     let (x0, s0) = initial(&layout, &train, prior);
     let (x0, s0) = match s.start {
-        Start::Random => (x0, s0),
+        // A known servo is not searched, from the paper's start too.
+        Start::Random => match (layout.gains, &s.servo) {
+            (Some(g), ServoPrior::Known { kp, kd, .. }) => {
+                let (mut x0, mut s0) = (x0, s0);
+                for j in 0..d.n {
+                    (x0[g + 2 * j], x0[g + 2 * j + 1]) = (kp[j], kd[j]);
+                }
+                s0[g..g + 2 * d.n].fill(0.0);
+                (x0, s0)
+            }
+            _ => (x0, s0),
+        },
         Start::LeastSquares => {
             let full = data.window(0, ((split - 1) * s.stride.max(1) + 1).min(data.len()));
             let x = least_squares_start(&layout, &x0, &full, &probes, prior, s).ok_or(

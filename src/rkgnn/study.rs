@@ -50,6 +50,8 @@ pub struct StudySettings {
     /// Whether the identification knows the training servo's gains (the study's own P-D
     /// servo) or, as in the paper's premise, not.
     pub servo_known: bool,
+    /// Where the EA starts (the shipped recipe: least squares).
+    pub start: crate::rkgnn::model::Start,
     pub threads: usize,
 }
 
@@ -345,7 +347,8 @@ pub(super) fn three_joint_arm(robot: &Path, dir: &Path) -> Result<(PathBuf, Mode
     let (robot, arm) = arm_of(robot, dir)?;
     if arm.dof() != JOINTS {
         return Err(format!(
-            "{}: the study's trajectories are for {JOINTS}-joint arms, this one has {}",
+            "{}: the study's trajectories are for {JOINTS}-joint arms, this one has {} \
+             (`evoloop rkgnn selection --robot FILE` builds trajectories for any arm)",
             robot.display(),
             arm.dof()
         ));
@@ -489,6 +492,7 @@ pub fn run(
         let mut settings = Settings::least_squares(JOINTS, s.seed, s.evaluations);
         settings.threads = s.threads.max(1);
         settings.refine = s.refine;
+        settings.start = s.start;
         if s.servo_known {
             settings.servo = crate::rkgnn::model::ServoPrior::Known {
                 kp: servo_kp.clone(),
@@ -662,7 +666,7 @@ pub fn report_markdown(r: &StudyResult) -> String {
     let t = &r.tracking_rms;
     let mut s = format!(
         "# RKGNN study: computed torque with fuzzy model selection\n\n\
-         Robot `{}`, seed {}, {} EA evaluations after the least-squares start \
+         Robot `{}`, seed {}, {} EA evaluations after the {} start \
          (0 = the start itself). P-D servo k_p {:?}, k_d {:?} (arm3's times the inertia ratio \
          {:?}); computed torque K_p {:?}, K_v {:?}.\n\n\
          ## Identified models (free-run prediction, rad rms per joint)\n\n\
@@ -670,6 +674,10 @@ pub fn report_markdown(r: &StudyResult) -> String {
         r.robot.display(),
         r.seed,
         r.evaluations,
+        match r.identification_inputs.start {
+            crate::rkgnn::model::Start::LeastSquares => "least-squares",
+            crate::rkgnn::model::Start::Random => "paper's (random)",
+        },
         r.servo_kp.iter().map(|v| round(*v)).collect::<Vec<_>>(),
         r.servo_kd.iter().map(|v| round(*v)).collect::<Vec<_>>(),
         r.inertia_ratio
