@@ -1,0 +1,112 @@
+//! The plant contract (docs/src/plant-contract.md) gives each message's layout byte by byte: a
+//! plant in another language is written from it. This test reads the chapter's tables and checks
+//! every field's name, order, offset and size, and each message's size and alignment, against the
+//! Rust layouts, so the document cannot drift from what the processes put in shared memory.
+
+use evoloop::msg::{Command, ModelEstimate, OptimiserAck, OptimiserStatus, ParamSet, PlantState};
+use evoloop::msg::{Telemetry, CONTRACT};
+use std::collections::BTreeMap;
+use std::mem::{align_of, offset_of, size_of};
+
+/// (field, offset, size) of one message, in declaration order.
+type Fields = Vec<(&'static str, usize, usize)>;
+
+/// The size of the field a projection points at.
+fn size_of_field<T, F>(_: fn(&T) -> &F) -> usize {
+    size_of::<F>()
+}
+
+macro_rules! layout {
+    ($t:ty { $($f:ident),* $(,)? }) => {
+        (
+            stringify!($t),
+            (
+                vec![$((stringify!($f), offset_of!($t, $f), size_of_field(|s: &$t| &s.$f))),*]
+                    as Fields,
+                size_of::<$t>(),
+                align_of::<$t>(),
+            ),
+        )
+    };
+}
+
+/// Every message type of the contract, as the compiler lays it out.
+fn rust_layouts() -> BTreeMap<&'static str, (Fields, usize, usize)> {
+    BTreeMap::from([
+        layout!(PlantState { seq, stamp_ns, t, n_x, n_q, n_y, flags, x_true, q_true, qd_true, y, u_applied }),
+        layout!(Command { cycle, state_seq, stamp_ns, param_version, n_u, _pad, u }),
+        layout!(OptimiserAck { through_seq }),
+        layout!(ParamSet { version, apply_at_seq, expected_cost, until_seq, fallback_version, kind, n, values }),
+        layout!(ModelEstimate { t, value, std, last_version, apply_at_seq }),
+        layout!(OptimiserStatus { t, epochs, published, best_cost, in_service_cost }),
+        layout!(Telemetry {
+            cycle, state_seq, t, lateness_ns, compute_ns, state_age_ns, reference, tracking_error,
+            n_u, flags, u, param_version, param_event_version, param_code, param_index, overruns,
+            missed, n_law, _pad, law,
+        }),
+    ])
+}
+
+/// The chapter's message sections: `### Type`, a `| field | type | offset | size | meaning |`
+/// table, then "Size: N bytes, alignment: A."
+fn documented() -> BTreeMap<String, (Vec<(String, usize, usize)>, Option<(usize, usize)>)> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/src/plant-contract.md");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut out = BTreeMap::new();
+    let mut current: Option<String> = None;
+    for line in text.lines() {
+        if let Some(name) = line.strip_prefix("### ") {
+            let name = name.trim().trim_matches('`').to_string();
+            current = Some(name.clone());
+            out.insert(name, (Vec::new(), None));
+            continue;
+        }
+        let Some(name) = &current else { continue };
+        let entry = out.get_mut(name).unwrap();
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        if cells.len() >= 6 && cells[0].is_empty() {
+            let (field, offset, size) = (cells[1].trim_matches('`'), cells[3], cells[4]);
+            if let (Ok(o), Ok(s)) = (offset.parse(), size.parse()) {
+                entry.0.push((field.to_string(), o, s));
+            }
+        }
+        if let Some(rest) = line.strip_prefix("Size: ") {
+            let nums: Vec<usize> = rest
+                .split(|c: char| !c.is_ascii_digit())
+                .filter_map(|w| w.parse().ok())
+                .collect();
+            assert_eq!(nums.len(), 2, "{name}: {line}");
+            entry.1 = Some((nums[0], nums[1]));
+        }
+    }
+    out
+}
+
+#[test]
+fn the_documented_layouts_are_the_rust_layouts() {
+    let rust = rust_layouts();
+    let doc = documented();
+    for must in ["PlantState", "Command"] {
+        assert!(doc.contains_key(must), "the plant contract documents no {must}");
+    }
+    for (name, (fields, size_align)) in &doc {
+        let Some((rfields, size, align)) = rust.get(name.as_str()) else {
+            // A section that is not a message (e.g. a heading of prose) has no table.
+            assert!(fields.is_empty(), "{name}: a table for a type the contract has not");
+            continue;
+        };
+        let written: Vec<(&str, usize, usize)> =
+            fields.iter().map(|(f, o, s)| (f.as_str(), *o, *s)).collect();
+        assert_eq!(&written, rfields, "{name}: (field, offset, size) as documented vs as built");
+        assert_eq!(*size_align, Some((*size, *align)), "{name}: size and alignment");
+    }
+}
+
+#[test]
+fn the_chapter_names_the_contract_version_it_documents() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/src/plant-contract.md");
+    let text = std::fs::read_to_string(path).unwrap();
+    assert!(text.contains(&format!("(v{CONTRACT})")), "the title names the contract version");
+    assert!(text.contains(&format!("evoloop::PlantState.v{CONTRACT}")));
+    assert!(text.contains(&format!("evoloop::Command.v{CONTRACT}")));
+}

@@ -1,0 +1,67 @@
+//! A plant written in Python from the plant contract alone (scripts/stock_plant_interop.py, PyPI's
+//! iceoryx2 0.10, nothing of evoloop) exchanges a state and a command with evoloop's own ports:
+//! the contract's services, names, settings and layouts are what another language needs.
+//! Ignored where Python's iceoryx2 is not installed (`pip install -r scripts/interop.txt`); CI
+//! installs it and runs this with `--ignored`.
+
+use evoloop::ipc::namespace::{user_prefix, user_subdir};
+use evoloop::ipc::{Ipc, Topic, Wait};
+use evoloop::msg::{Command, PlantState};
+use std::process::{Command as Process, Stdio};
+use std::time::Duration;
+
+#[test]
+#[ignore = "needs Python 3 with iceoryx2 0.10: pip install -r scripts/interop.txt"]
+fn a_python_plant_written_from_the_contract_joins_evoloops_services() {
+    let prefix = format!("py{}_", std::process::id());
+    let run = "pyinterop";
+    let ours = Ipc::new("evoloop-controller", run, &prefix).unwrap();
+    let state = ours.subscriber::<PlantState>(Topic::State, 8, true).unwrap();
+    let command = ours.publisher::<Command>(Topic::Command, true).unwrap();
+    let root = format!("{}/", user_subdir("iceoryx2").unwrap().display());
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/stock_plant_interop.py");
+    let child = Process::new("python3")
+        .args([script, "--prefix", &user_prefix(&prefix), "--root", &root, "--run", run])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("python3");
+    let s = match state.wait_next(Duration::ZERO, Duration::from_secs(20)).unwrap() {
+        Wait::Got(s) => s,
+        Wait::TimedOut => {
+            let out = child.wait_with_output().unwrap();
+            panic!(
+                "no state from the Python plant: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+    };
+    // Every field where the contract's table puts it, every f64 bit for bit.
+    assert_eq!((s.seq, s.stamp_ns, s.t), (7, 123_456_789, 0.007));
+    assert_eq!((s.n_x, s.n_q, s.n_y, s.flags), (4, 2, 2, 0));
+    let x = [0.1, -0.2, 1e-300, f64::MAX];
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&s.x_true[..4]), bits(&x));
+    assert_eq!(s.y[0].to_bits(), std::f64::consts::PI.to_bits());
+    assert_eq!(s.y[1].to_bits(), (-0.0f64).to_bits());
+    let mut c = Command {
+        cycle: 1,
+        state_seq: s.seq,
+        n_u: 2,
+        ..Default::default()
+    };
+    c.u[..2].copy_from_slice(&[0.5, -1.25]);
+    command.send(&c).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "the Python plant: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(got["state_seq"], 7);
+    assert_eq!(got["cycle"], 1);
+    assert_eq!(got["n_u"], 2);
+    assert_eq!(got["u"][0], 0.5);
+    assert_eq!(got["u"][1], -1.25);
+}

@@ -1,0 +1,155 @@
+//! The plant contract says a process that speaks stock iceoryx2 (`ipc::Service`, the service type
+//! the C, C++ and Python bindings 0.10 use) can join a run: evoloop's ports use its own pooled
+//! service type, which differs from the stock one only in process-local bookkeeping. This proves
+//! it on the contract's services: a stock node, configured as the plant contract says (the same
+//! prefix and root path, the same service settings), receives evoloop's states, sends commands
+//! evoloop receives, and wakes and is woken through the paired event services.
+
+use evoloop::ipc::{create_node, ipc_config, Ipc, Topic, Wait};
+use evoloop::msg::{Command, PlantState};
+use iceoryx2::prelude::*;
+use std::time::Duration;
+
+/// A prefix of this test's own, so that parallel tests do not meet.
+fn prefix() -> String {
+    format!("stock{}_", std::process::id())
+}
+
+/// The stock node, as a foreign plant would make it from the contract.
+fn stock_node(prefix: &str) -> Node<ipc::Service> {
+    let cfg = ipc_config(prefix).unwrap();
+    let name = NodeName::new("foreign-plant").unwrap();
+    create_node(
+        NodeBuilder::new().name(&name).config(&cfg),
+        prefix,
+        "stock node",
+    )
+    .unwrap()
+}
+
+/// A publish-subscribe service with the contract's settings, opened from the stock side.
+fn stock_pubsub<T: std::fmt::Debug + ZeroCopySend + 'static>(
+    node: &Node<ipc::Service>,
+    name: &str,
+    max_buffer: usize,
+) -> iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()> {
+    node.service_builder(&ServiceName::new(name).unwrap())
+        .publish_subscribe::<T>()
+        .subscriber_max_buffer_size(max_buffer)
+        .subscriber_max_borrowed_samples(2)
+        .history_size(0)
+        .max_publishers(2)
+        .max_subscribers(6)
+        .max_nodes(8)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .unwrap()
+}
+
+#[test]
+fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports() {
+    let prefix = prefix();
+    let run = "interop";
+    // evoloop's side, as the controller makes its ports: the state subscriber, the command
+    // publisher, each with its event.
+    let ours = Ipc::new("evoloop-controller", run, &prefix).unwrap();
+    let state_sub = ours
+        .subscriber::<PlantState>(Topic::State, 8, true)
+        .unwrap();
+    let command_pub = ours.publisher::<Command>(Topic::Command, true).unwrap();
+
+    // The foreign plant's side, stock iceoryx2.
+    let node = stock_node(&prefix);
+    let state = stock_pubsub::<PlantState>(
+        &node,
+        &format!("evoloop/{run}/state"),
+        Topic::State.max_buffer(),
+    );
+    let state_pub = state
+        .publisher_builder()
+        .max_loaned_samples(1)
+        .create()
+        .unwrap();
+    let state_event = node
+        .service_builder(&ServiceName::new(&format!("evoloop/{run}/state")).unwrap())
+        .event()
+        .max_notifiers(4)
+        .max_listeners(6)
+        .max_nodes(8)
+        .open_or_create()
+        .unwrap();
+    let state_notifier = state_event.notifier_builder().create().unwrap();
+    let command = stock_pubsub::<Command>(
+        &node,
+        &format!("evoloop/{run}/command"),
+        Topic::Command.max_buffer(),
+    );
+    let command_sub = command
+        .subscriber_builder()
+        .buffer_size(8)
+        .create()
+        .unwrap();
+    let command_event = node
+        .service_builder(&ServiceName::new(&format!("evoloop/{run}/command")).unwrap())
+        .event()
+        .max_notifiers(4)
+        .max_listeners(6)
+        .max_nodes(8)
+        .open_or_create()
+        .unwrap();
+    let command_listener = command_event.listener_builder().create().unwrap();
+
+    // Foreign plant -> evoloop: a state, every f64 bit for bit, and the wake-up.
+    let mut s = PlantState {
+        seq: 7,
+        stamp_ns: 123_456_789,
+        t: 0.007,
+        n_x: 4,
+        n_q: 2,
+        n_y: 2,
+        flags: 0,
+        ..Default::default()
+    };
+    s.x_true[..4].copy_from_slice(&[0.1, -0.2, 1e-300, f64::MAX]);
+    s.y[..2].copy_from_slice(&[std::f64::consts::PI, -0.0]);
+    state_pub.send_copy(s).unwrap();
+    state_notifier.notify().unwrap();
+    let got = match state_sub
+        .wait_next(Duration::ZERO, Duration::from_secs(5))
+        .unwrap()
+    {
+        Wait::Got(g) => g,
+        Wait::TimedOut => panic!("evoloop's subscriber saw no state from the stock publisher"),
+    };
+    assert_eq!(got.seq, 7);
+    assert_eq!(got.x_true.map(f64::to_bits), s.x_true.map(f64::to_bits));
+    assert_eq!(got.y.map(f64::to_bits), s.y.map(f64::to_bits));
+
+    // evoloop -> foreign plant: the answer, and the stock listener is woken by evoloop's ring.
+    let mut c = Command {
+        cycle: 1,
+        state_seq: 7,
+        n_u: 2,
+        ..Default::default()
+    };
+    c.u[..2].copy_from_slice(&[0.5, -1.25]);
+    command_pub.send(&c).unwrap();
+    let mut woke = 0;
+    command_listener
+        .timed_wait(|_| woke += 1, Duration::from_secs(5))
+        .unwrap();
+    assert!(
+        woke > 0,
+        "the stock listener was not woken by evoloop's notifier"
+    );
+    let sample = command_sub
+        .receive()
+        .unwrap()
+        .expect("a command from evoloop's publisher");
+    assert_eq!(*sample.payload(), c);
+    assert_eq!(
+        state_sub.publishers(),
+        1,
+        "evoloop counts the stock publisher"
+    );
+}
