@@ -33,16 +33,75 @@ macro_rules! layout {
 /// Every message type of the contract, as the compiler lays it out.
 fn rust_layouts() -> BTreeMap<&'static str, (Fields, usize, usize)> {
     BTreeMap::from([
-        layout!(PlantState { seq, stamp_ns, t, n_x, n_q, n_y, flags, x_true, q_true, qd_true, y, u_applied }),
-        layout!(Command { cycle, state_seq, stamp_ns, param_version, n_u, _pad, u }),
+        layout!(PlantState {
+            seq,
+            stamp_ns,
+            t,
+            n_x,
+            n_q,
+            n_y,
+            flags,
+            x_true,
+            q_true,
+            qd_true,
+            y,
+            u_applied
+        }),
+        layout!(Command {
+            cycle,
+            state_seq,
+            stamp_ns,
+            param_version,
+            n_u,
+            _pad,
+            u
+        }),
         layout!(OptimiserAck { through_seq }),
-        layout!(ParamSet { version, apply_at_seq, expected_cost, until_seq, fallback_version, kind, n, values }),
-        layout!(ModelEstimate { t, value, std, last_version, apply_at_seq }),
-        layout!(OptimiserStatus { t, epochs, published, best_cost, in_service_cost }),
+        layout!(ParamSet {
+            version,
+            apply_at_seq,
+            expected_cost,
+            until_seq,
+            fallback_version,
+            kind,
+            n,
+            values
+        }),
+        layout!(ModelEstimate {
+            t,
+            value,
+            std,
+            last_version,
+            apply_at_seq
+        }),
+        layout!(OptimiserStatus {
+            t,
+            epochs,
+            published,
+            best_cost,
+            in_service_cost
+        }),
         layout!(Telemetry {
-            cycle, state_seq, t, lateness_ns, compute_ns, state_age_ns, reference, tracking_error,
-            n_u, flags, u, param_version, param_event_version, param_code, param_index, overruns,
-            missed, n_law, _pad, law,
+            cycle,
+            state_seq,
+            t,
+            lateness_ns,
+            compute_ns,
+            state_age_ns,
+            reference,
+            tracking_error,
+            n_u,
+            flags,
+            u,
+            param_version,
+            param_event_version,
+            param_code,
+            param_index,
+            overruns,
+            missed,
+            n_law,
+            _pad,
+            law,
         }),
     ])
 }
@@ -87,18 +146,33 @@ fn the_documented_layouts_are_the_rust_layouts() {
     let rust = rust_layouts();
     let doc = documented();
     for must in ["PlantState", "Command"] {
-        assert!(doc.contains_key(must), "the plant contract documents no {must}");
+        assert!(
+            doc.contains_key(must),
+            "the plant contract documents no {must}"
+        );
     }
     for (name, (fields, size_align)) in &doc {
         let Some((rfields, size, align)) = rust.get(name.as_str()) else {
             // A section that is not a message (e.g. a heading of prose) has no table.
-            assert!(fields.is_empty(), "{name}: a table for a type the contract has not");
+            assert!(
+                fields.is_empty(),
+                "{name}: a table for a type the contract has not"
+            );
             continue;
         };
-        let written: Vec<(&str, usize, usize)> =
-            fields.iter().map(|(f, o, s)| (f.as_str(), *o, *s)).collect();
-        assert_eq!(&written, rfields, "{name}: (field, offset, size) as documented vs as built");
-        assert_eq!(*size_align, Some((*size, *align)), "{name}: size and alignment");
+        let written: Vec<(&str, usize, usize)> = fields
+            .iter()
+            .map(|(f, o, s)| (f.as_str(), *o, *s))
+            .collect();
+        assert_eq!(
+            &written, rfields,
+            "{name}: (field, offset, size) as documented vs as built"
+        );
+        assert_eq!(
+            *size_align,
+            Some((*size, *align)),
+            "{name}: size and alignment"
+        );
     }
 }
 
@@ -106,7 +180,10 @@ fn the_documented_layouts_are_the_rust_layouts() {
 fn the_chapter_names_the_contract_version_it_documents() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/src/plant-contract.md");
     let text = std::fs::read_to_string(path).unwrap();
-    assert!(text.contains(&format!("(v{CONTRACT})")), "the title names the contract version");
+    assert!(
+        text.contains(&format!("(v{CONTRACT})")),
+        "the title names the contract version"
+    );
     assert!(text.contains(&format!("evoloop::PlantState.v{CONTRACT}")));
     assert!(text.contains(&format!("evoloop::Command.v{CONTRACT}")));
 }

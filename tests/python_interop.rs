@@ -16,17 +16,33 @@ fn a_python_plant_written_from_the_contract_joins_evoloops_services() {
     let prefix = format!("py{}_", std::process::id());
     let run = "pyinterop";
     let ours = Ipc::new("evoloop-controller", run, &prefix).unwrap();
-    let state = ours.subscriber::<PlantState>(Topic::State, 8, true).unwrap();
+    let state = ours
+        .subscriber::<PlantState>(Topic::State, 8, true)
+        .unwrap();
     let command = ours.publisher::<Command>(Topic::Command, true).unwrap();
     let root = format!("{}/", user_subdir("iceoryx2").unwrap().display());
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/stock_plant_interop.py");
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scripts/stock_plant_interop.py"
+    );
     let child = Process::new("python3")
-        .args([script, "--prefix", &user_prefix(&prefix), "--root", &root, "--run", run])
+        .args([
+            script,
+            "--prefix",
+            &user_prefix(&prefix),
+            "--root",
+            &root,
+            "--run",
+            run,
+        ])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("python3");
-    let s = match state.wait_next(Duration::ZERO, Duration::from_secs(20)).unwrap() {
+    let s = match state
+        .wait_next(Duration::ZERO, Duration::from_secs(20))
+        .unwrap()
+    {
         Wait::Got(s) => s,
         Wait::TimedOut => {
             let out = child.wait_with_output().unwrap();

@@ -350,6 +350,12 @@ fn end(buf: &mut Vec<u8>) {
     buf.push(b'}');
 }
 
+/// The first `n` values of a message's array, at most all of them: the counts come from another
+/// process (a plant in any language), and a wrong one must not stop the recording.
+fn first(values: &[f64], n: u32) -> &[f64] {
+    &values[..(n as usize).min(values.len())]
+}
+
 fn json_state(buf: &mut Vec<u8>, s: &PlantState) {
     buf.clear();
     buf.push(b'{');
@@ -357,11 +363,11 @@ fn json_state(buf: &mut Vec<u8>, s: &PlantState) {
     int(buf, "stamp_ns", s.stamp_ns);
     field(buf, "t", s.t);
     int(buf, "flags", s.flags);
-    array(buf, "y", &s.y[..s.n_y as usize]);
-    array(buf, "q_true", &s.q_true[..s.n_q as usize]);
-    array(buf, "qd_true", &s.qd_true[..s.n_q as usize]);
-    array(buf, "x_true", &s.x_true[..s.n_x as usize]);
-    array(buf, "u_applied", &s.u_applied[..s.n_y.max(s.n_q) as usize]);
+    array(buf, "y", first(&s.y, s.n_y));
+    array(buf, "q_true", first(&s.q_true, s.n_q));
+    array(buf, "qd_true", first(&s.qd_true, s.n_q));
+    array(buf, "x_true", first(&s.x_true, s.n_x));
+    array(buf, "u_applied", first(&s.u_applied, s.n_y.max(s.n_q)));
     end(buf);
 }
 
@@ -372,7 +378,7 @@ fn json_command(buf: &mut Vec<u8>, c: &Command) {
     int(buf, "state_seq", c.state_seq);
     int(buf, "stamp_ns", c.stamp_ns);
     int(buf, "param_version", c.param_version);
-    array(buf, "u", &c.u[..c.n_u as usize]);
+    array(buf, "u", first(&c.u, c.n_u));
     end(buf);
 }
 
@@ -388,14 +394,14 @@ fn json_telemetry(buf: &mut Vec<u8>, t: &Telemetry) {
     field(buf, "reference", t.reference);
     field(buf, "tracking_error", t.tracking_error);
     int(buf, "flags", t.flags);
-    array(buf, "u", &t.u[..t.n_u as usize]);
+    array(buf, "u", first(&t.u, t.n_u));
     int(buf, "param_version", t.param_version);
     int(buf, "param_event_version", t.param_event_version);
     int(buf, "param_code", t.param_code);
     int(buf, "param_index", t.param_index);
     int(buf, "overruns", t.overruns);
     int(buf, "missed", t.missed);
-    array(buf, "law", &t.law[..t.n_law as usize]);
+    array(buf, "law", first(&t.law, t.n_law));
     end(buf);
 }
 
@@ -519,5 +525,33 @@ mod tests {
         );
         assert_eq!(p["t"]["type"], serde_json::json!(["number", "null"]));
         assert_eq!(p.as_object().unwrap().len(), v.as_object().unwrap().len());
+    }
+
+    /// A plant in another language may send any count: one past the array records the whole
+    /// array (it used to panic the writer thread and lose run.mcap while the loop ran on).
+    #[test]
+    fn a_count_beyond_the_array_records_the_array_not_a_panic() {
+        let s = PlantState {
+            n_y: 1000,
+            n_q: u32::MAX,
+            n_x: 33,
+            ..Default::default()
+        };
+        let mut buf = Vec::new();
+        json_state(&mut buf, &s);
+        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+        assert_eq!(v["y"].as_array().unwrap().len(), evoloop_msg::MAX_JOINTS);
+        assert_eq!(v["x_true"].as_array().unwrap().len(), 32);
+        assert_eq!(
+            v["u_applied"].as_array().unwrap().len(),
+            evoloop_msg::MAX_JOINTS
+        );
+        let c = Command {
+            n_u: 9,
+            ..Default::default()
+        };
+        json_command(&mut buf, &c);
+        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
+        assert_eq!(v["u"].as_array().unwrap().len(), evoloop_msg::MAX_JOINTS);
     }
 }
