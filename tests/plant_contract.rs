@@ -106,9 +106,12 @@ fn rust_layouts() -> BTreeMap<&'static str, (Fields, usize, usize)> {
     ])
 }
 
+/// One documented message: its rows (field, offset, size) and its stated (size, alignment).
+type Documented = (Vec<(String, usize, usize)>, Option<(usize, usize)>);
+
 /// The chapter's message sections: `### Type`, a `| field | type | offset | size | meaning |`
 /// table, then "Size: N bytes, alignment: A."
-fn documented() -> BTreeMap<String, (Vec<(String, usize, usize)>, Option<(usize, usize)>)> {
+fn documented() -> BTreeMap<String, Documented> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/src/plant-contract.md");
     let text = std::fs::read_to_string(&path).unwrap();
     let mut out = BTreeMap::new();
