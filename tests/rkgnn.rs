@@ -495,17 +495,16 @@ fn fuzzy_computed_torque_tracks_the_new_trajectory_better_than_the_servo_and_eac
 
 /// `evoloop rkgnn study --json` on `robot` into a fresh directory: the JSON and the directory.
 fn study(robot: &str) -> (serde_json::Value, tempfile::TempDir) {
+    study_with(&["--robot", robot])
+}
+
+/// `evoloop rkgnn study --json ARGS` into a fresh directory (`study/` in it).
+fn study_with(args: &[&str]) -> (serde_json::Value, tempfile::TempDir) {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("study");
-    let o = cli(&[
-        "rkgnn",
-        "study",
-        "--out",
-        out.to_str().unwrap(),
-        "--robot",
-        robot,
-        "--json",
-    ]);
+    let mut all = vec!["rkgnn", "study", "--out", out.to_str().unwrap(), "--json"];
+    all.extend_from_slice(args);
+    let o = cli(&all);
     (stdout_json(&o), tmp)
 }
 
@@ -1086,21 +1085,8 @@ fn weighing_the_joints_gives_arm7_a_positive_definite_m_hat_that_unweighted_leas
 /// not the gains the identification was given (`--start random` used to search them too).
 #[test]
 fn a_known_servo_is_not_searched_from_the_papers_start() {
-    let tmp = tempfile::tempdir().unwrap();
+    let (v, tmp) = study_with(&["--start", "random", "--evaluations", "60", "-q"]);
     let out = tmp.path().join("study");
-    let o = cli(&[
-        "rkgnn",
-        "study",
-        "--out",
-        out.to_str().unwrap(),
-        "--start",
-        "random",
-        "--evaluations",
-        "60",
-        "--json",
-        "-q",
-    ]);
-    let v = stdout_json(&o);
     assert_eq!(v["identification_inputs"]["start"], "random");
     let kp: Vec<f64> = serde_json::from_value(v["servo_kp"].clone()).unwrap();
     let kd: Vec<f64> = serde_json::from_value(v["servo_kd"].clone()).unwrap();

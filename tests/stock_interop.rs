@@ -46,6 +46,20 @@ fn stock_pubsub<T: std::fmt::Debug + ZeroCopySend + 'static>(
         .unwrap()
 }
 
+/// The event service paired with a topic, with the contract's settings, from the stock side.
+fn stock_event(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> iceoryx2::service::port_factory::event::PortFactory<ipc::Service> {
+    node.service_builder(&ServiceName::new(name).unwrap())
+        .event()
+        .max_notifiers(4)
+        .max_listeners(6)
+        .max_nodes(8)
+        .open_or_create()
+        .unwrap()
+}
+
 #[test]
 fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports() {
     let prefix = prefix();
@@ -70,14 +84,7 @@ fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports()
         .max_loaned_samples(1)
         .create()
         .unwrap();
-    let state_event = node
-        .service_builder(&ServiceName::new(&format!("evoloop/{run}/state")).unwrap())
-        .event()
-        .max_notifiers(4)
-        .max_listeners(6)
-        .max_nodes(8)
-        .open_or_create()
-        .unwrap();
+    let state_event = stock_event(&node, &format!("evoloop/{run}/state"));
     let state_notifier = state_event.notifier_builder().create().unwrap();
     let command = stock_pubsub::<Command>(
         &node,
@@ -89,14 +96,7 @@ fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports()
         .buffer_size(8)
         .create()
         .unwrap();
-    let command_event = node
-        .service_builder(&ServiceName::new(&format!("evoloop/{run}/command")).unwrap())
-        .event()
-        .max_notifiers(4)
-        .max_listeners(6)
-        .max_nodes(8)
-        .open_or_create()
-        .unwrap();
+    let command_event = stock_event(&node, &format!("evoloop/{run}/command"));
     let command_listener = command_event.listener_builder().create().unwrap();
 
     // Foreign plant -> evoloop: a state, every f64 bit for bit, and the wake-up.
