@@ -1,22 +1,59 @@
 #!/usr/bin/env python3
-"""Print the root package's top-level module graph (which module names which through `crate::`)
-and its cycles; exit 1 if there is one. The workspace's crates (crates/) are acyclic by the
-compiler; a module cycle here is a further crate split that would not compile yet.
+"""Print the workspace's crate graph by layer and the root package's top-level module graph
+(which module names which through `crate::`); exit 1 on a crate that depends on one of its own
+layer or above (an upward edge: the layering below is the design, the compiler only forbids
+cycles) or on a module cycle in the root (a further crate split that would not compile yet).
 
 A name the root re-exports from a crate (`pub use evoloop_dynamics as dynamics;`) is no module
 of the root: no edge. A module that re-exports a crate whole and adds its own (`report`, `optim`:
 `pub use evoloop_report::*;` plus `pub mod build;`) is an edge only where its own parts are
 named (`crate::report::build`), not the crate's (`crate::report::Table`).
 
-    python3 scripts/module_graph.py          # the cycles only
-    python3 scripts/module_graph.py --edges  # and every edge
+    python3 scripts/module_graph.py          # the crate graph, then the module cycles
+    python3 scripts/module_graph.py --edges  # and every module edge
 """
 import collections
 import os
 import re
 import sys
 
-SRC = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src")
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+SRC = os.path.join(ROOT, "src")
+
+# The workspace's layers, bottom first: a crate may depend only on crates of lower layers (the
+# root package `evoloop`, above them all, on any). A new crate must be placed here.
+LAYERS = [
+    ["evoloop-msg", "evoloop-files", "evoloop-stats", "evoloop-rt", "evoloop-optim"],
+    ["evoloop-linalg", "evoloop-ipc", "evoloop-report"],
+    ["evoloop-dynamics", "evoloop-rkgnn"],
+    ["evoloop-control"],
+]
+
+
+def crate_graph():
+    """Each crate of crates/ and the evoloop crates its [dependencies] name."""
+    g = {}
+    crates = os.path.join(ROOT, "crates")
+    for name in sorted(os.listdir(crates)):
+        manifest = os.path.join(crates, name, "Cargo.toml")
+        if not os.path.isfile(manifest):
+            continue
+        text = open(manifest, encoding="utf-8").read()
+        deps = re.search(r"^\[dependencies\]\n(.*?)(?=^\[|\Z)", text, re.S | re.M)
+        names = re.findall(r"^(evoloop-[a-z0-9-]+)", deps.group(1), re.M) if deps else []
+        g[name] = sorted(set(names))
+    return g
+
+
+def upward_edges(g):
+    """(crate, dependency, why) for every edge that does not go down a layer."""
+    layer = {c: i for i, names in enumerate(LAYERS) for c in names}
+    bad = [(c, "", "not placed in LAYERS") for c in g if c not in layer]
+    for c, deps in g.items():
+        for d in deps:
+            if c in layer and d in layer and layer[d] >= layer[c]:
+                bad.append((c, d, f"layer {layer[c]} -> layer {layer[d]}"))
+    return bad
 
 
 def strip(text):
@@ -120,6 +157,15 @@ def cycles(g):
 
 
 def main():
+    crates = crate_graph()
+    for i, names in enumerate(LAYERS):
+        for c in names:
+            if c in crates:
+                print(f"layer {i}  {c} -> {', '.join(crates[c]) or '(no evoloop crate)'}")
+    up = upward_edges(crates)
+    for c, d, why in up:
+        print(f"upward: {c} -> {d or '?'} ({why})")
+    print(f"{len(crates)} crates, {sum(len(v) for v in crates.values())} edges, {len(up)} upward")
     g = graph()
     if "--edges" in sys.argv:
         for m in sorted(g):
@@ -128,7 +174,7 @@ def main():
     for c in found:
         print("cycle: " + " <-> ".join(c))
     print(f"{len(g)} modules, {sum(len(v) for v in g.values())} edges, {len(found)} cycles")
-    return 1 if found else 0
+    return 1 if found or up else 0
 
 
 if __name__ == "__main__":
