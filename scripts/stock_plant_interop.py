@@ -92,7 +92,9 @@ def main():
     ap.add_argument("--run", required=True)
     a = ap.parse_args()
     iox2.set_log_level_from_env_or(iox2.LogLevel.Error)
-    cfg = iox2.config.default()
+    # As evoloop's processes do: the global config (an iceoryx2.toml where iceoryx2 looks for
+    # one), with the contract's prefix and root path.
+    cfg = iox2.config.global_config()
     cfg.global_cfg.prefix = iox2.FileName.new(a.prefix)
     cfg.global_cfg.root_path = iox2.Path.new(a.root)
     node = (

@@ -8,12 +8,12 @@ use evoloop::msg::{Telemetry, CONTRACT};
 use std::collections::BTreeMap;
 use std::mem::{align_of, offset_of, size_of};
 
-/// (field, offset, size) of one message, in declaration order.
-type Fields = Vec<(&'static str, usize, usize)>;
+/// (field, type, offset, size) of one message, in declaration order.
+type Fields = Vec<(&'static str, &'static str, usize, usize)>;
 
-/// The size of the field a projection points at.
-fn size_of_field<T, F>(_: fn(&T) -> &F) -> usize {
-    size_of::<F>()
+/// The type name (`f64`, `[f64; 32]`) and size of the field a projection points at.
+fn field<T, F>(_: fn(&T) -> &F) -> (&'static str, usize) {
+    (std::any::type_name::<F>(), size_of::<F>())
 }
 
 macro_rules! layout {
@@ -21,8 +21,10 @@ macro_rules! layout {
         (
             stringify!($t),
             (
-                vec![$((stringify!($f), offset_of!($t, $f), size_of_field(|s: &$t| &s.$f))),*]
-                    as Fields,
+                vec![$({
+                    let (ty, size) = field(|s: &$t| &s.$f);
+                    (stringify!($f), ty, offset_of!($t, $f), size)
+                }),*] as Fields,
                 size_of::<$t>(),
                 align_of::<$t>(),
             ),
@@ -106,8 +108,8 @@ fn rust_layouts() -> BTreeMap<&'static str, (Fields, usize, usize)> {
     ])
 }
 
-/// One documented message: its rows (field, offset, size) and its stated (size, alignment).
-type Documented = (Vec<(String, usize, usize)>, Option<(usize, usize)>);
+/// One documented message: its rows (field, type, offset, size) and its stated (size, alignment).
+type Documented = (Vec<(String, String, usize, usize)>, Option<(usize, usize)>);
 
 /// The chapter's message sections: `### Type`, a `| field | type | offset | size | meaning |`
 /// table, then "Size: N bytes, alignment: A."
@@ -117,6 +119,11 @@ fn documented() -> BTreeMap<String, Documented> {
     let mut out = BTreeMap::new();
     let mut current: Option<String> = None;
     for line in text.lines() {
+        if line.starts_with("## ") || line.starts_with("# ") {
+            // A section above the messages' level ends the message before it.
+            current = None;
+            continue;
+        }
         if let Some(name) = line.strip_prefix("### ") {
             let name = name.trim().trim_matches('`').to_string();
             current = Some(name.clone());
@@ -127,9 +134,9 @@ fn documented() -> BTreeMap<String, Documented> {
         let entry = out.get_mut(name).unwrap();
         let cells: Vec<&str> = line.split('|').map(str::trim).collect();
         if cells.len() >= 6 && cells[0].is_empty() {
-            let (field, offset, size) = (cells[1].trim_matches('`'), cells[3], cells[4]);
-            if let (Ok(o), Ok(s)) = (offset.parse(), size.parse()) {
-                entry.0.push((field.to_string(), o, s));
+            let (field, ty) = (cells[1].trim_matches('`'), cells[2].trim_matches('`'));
+            if let (Ok(o), Ok(s)) = (cells[3].parse(), cells[4].parse()) {
+                entry.0.push((field.to_string(), ty.to_string(), o, s));
             }
         }
         if let Some(rest) = line.strip_prefix("Size: ") {
@@ -163,13 +170,13 @@ fn the_documented_layouts_are_the_rust_layouts() {
             );
             continue;
         };
-        let written: Vec<(&str, usize, usize)> = fields
+        let written: Vec<(&str, &str, usize, usize)> = fields
             .iter()
-            .map(|(f, o, s)| (f.as_str(), *o, *s))
+            .map(|(f, t, o, s)| (f.as_str(), t.as_str(), *o, *s))
             .collect();
         assert_eq!(
             &written, rfields,
-            "{name}: (field, offset, size) as documented vs as built"
+            "{name}: (field, type, offset, size) as documented vs as built"
         );
         assert_eq!(
             *size_align,

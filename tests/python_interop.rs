@@ -7,8 +7,20 @@
 use evoloop::ipc::namespace::{user_prefix, user_subdir};
 use evoloop::ipc::{Ipc, Topic, Wait};
 use evoloop::msg::{Command, PlantState};
-use std::process::{Command as Process, Stdio};
-use std::time::Duration;
+use std::process::{Child, Command as Process, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// The Python plant's output once it has exited, killed if it has not within `limit`.
+fn finish(mut child: Child, limit: Duration) -> Output {
+    let end = Instant::now() + limit;
+    while child.try_wait().unwrap().is_none() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    if child.try_wait().unwrap().is_none() {
+        let _ = child.kill();
+    }
+    child.wait_with_output().unwrap()
+}
 
 #[test]
 #[ignore = "needs Python 3 with iceoryx2 0.10: pip install -r scripts/interop.txt"]
@@ -45,7 +57,7 @@ fn a_python_plant_written_from_the_contract_joins_evoloops_services() {
     {
         Wait::Got(s) => s,
         Wait::TimedOut => {
-            let out = child.wait_with_output().unwrap();
+            let out = finish(child, Duration::from_secs(1));
             panic!(
                 "no state from the Python plant: {}",
                 String::from_utf8_lossy(&out.stderr)
@@ -68,7 +80,7 @@ fn a_python_plant_written_from_the_contract_joins_evoloops_services() {
     };
     c.u[..2].copy_from_slice(&[0.5, -1.25]);
     command.send(&c).unwrap();
-    let out = child.wait_with_output().unwrap();
+    let out = finish(child, Duration::from_secs(20));
     assert!(
         out.status.success(),
         "the Python plant: {}",

@@ -1,5 +1,6 @@
-//! The plant contract says a process that speaks stock iceoryx2 (`ipc::Service`, the service type
-//! the C, C++ and Python bindings 0.10 use) can join a run: evoloop's ports use its own pooled
+//! The plant contract says a process that speaks stock iceoryx2 (`ipc::Service`; the bindings'
+//! `ipc_threadsafe::Service` differs from it as evoloop's does, in a process-local reference
+//! count) can join a run: evoloop's ports use its own pooled
 //! service type, which differs from the stock one only in process-local bookkeeping. This proves
 //! it on the contract's services: a stock node, configured as the plant contract says (the same
 //! prefix and root path, the same service settings), receives evoloop's states, sends commands

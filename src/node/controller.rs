@@ -428,17 +428,21 @@ fn run_lockstep(
     }
 }
 
-/// How far the first state's stamp may lie behind this machine's clock: a sample waits in the
-/// queue at most until the controller starts (well under a second); a plant stamping with
-/// another clock is off by years or by the machine's uptime.
+/// How far the first state's stamp may lie behind this machine's clock, beyond the periods its
+/// queue holds: the oldest queued sample is read first, and the controller may have been slow
+/// to start on a loaded machine; a plant stamping with another clock is off by years or by the
+/// machine's uptime.
 const PLANT_CLOCK_TOLERANCE_NS: u64 = 2_000_000_000;
+/// Samples the controller's state queue holds (`ports`: the subscriber's buffer), and more.
+const QUEUED_PERIODS: u64 = 16;
 
 /// The plant contract's stamps are CLOCK_MONOTONIC of this machine (the controller schedules its
 /// cycles on them): a stamp from another clock would have the loop wait for years or run at
 /// once on every cycle, so it is refused with what was seen.
-fn plant_clock(stamp_ns: u64, now_ns: u64) -> Result<(), String> {
+fn plant_clock(stamp_ns: u64, now_ns: u64, period_ns: u64) -> Result<(), String> {
     let behind = now_ns as i128 - stamp_ns as i128;
-    if (0..=PLANT_CLOCK_TOLERANCE_NS as i128).contains(&behind) {
+    let tolerance = PLANT_CLOCK_TOLERANCE_NS as i128 + (QUEUED_PERIODS * period_ns) as i128;
+    if (0..=tolerance).contains(&behind) {
         return Ok(());
     }
     Err(format!(
@@ -463,7 +467,7 @@ fn run_realtime(
     // Align to the plant's sample clock: cycle k runs `phase` of a period after sample k. A
     // sample's stamp is its tick plus the plant's wake-up latency, so the earliest
     // stamp - seq * period seen so far is the best estimate of the plant's epoch.
-    plant_clock(state.stamp_ns, now_ns()).map_err(Failure::Failed)?;
+    plant_clock(state.stamp_ns, now_ns(), period).map_err(Failure::Failed)?;
     let mut epoch = state.stamp_ns.saturating_sub(state.seq * period);
     let phase = (scn.timing.phase * period as f64) as u64;
     let n = scn.cycles();
@@ -585,17 +589,21 @@ mod clock_tests {
     #[test]
     fn a_stamp_from_another_clock_is_refused_with_what_was_seen() {
         let now = 5_000_000_000_000; // 5 000 s of uptime
-        assert!(plant_clock(now, now).is_ok());
-        assert!(plant_clock(now - 1_500_000_000, now).is_ok());
+        let ms = 1_000_000;
+        assert!(plant_clock(now, now, ms).is_ok());
+        assert!(plant_clock(now - 1_500_000_000, now, ms).is_ok());
+        // A slow period: the queued samples' age is allowed for.
+        assert!(plant_clock(now - 9_000_000_000, now, 500 * ms).is_ok());
+        assert!(plant_clock(now - 2_100_000_000, now, ms).is_err());
         // CLOCK_REALTIME (about 1.8e18 ns): decades ahead.
-        let e = plant_clock(1_800_000_000_000_000_000, now).unwrap_err();
+        let e = plant_clock(1_800_000_000_000_000_000, now, ms).unwrap_err();
         assert!(
             e.contains("ahead of") && e.contains("CLOCK_MONOTONIC"),
             "{e}"
         );
         // Zero, or a clock that started with the plant: the uptime behind.
-        let e = plant_clock(0, now).unwrap_err();
+        let e = plant_clock(0, now, ms).unwrap_err();
         assert!(e.contains("5000.000 s behind"), "{e}");
-        assert!(plant_clock(now + 1, now).is_err());
+        assert!(plant_clock(now + 1, now, ms).is_err());
     }
 }
