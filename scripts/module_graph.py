@@ -38,17 +38,37 @@ def crate_graph():
         manifest = os.path.join(crates, name, "Cargo.toml")
         if not os.path.isfile(manifest):
             continue
-        text = open(manifest, encoding="utf-8").read()
-        deps = re.search(r"^\[dependencies\]\n(.*?)(?=^\[|\Z)", text, re.S | re.M)
-        names = re.findall(r"^(evoloop-[a-z0-9-]+)", deps.group(1), re.M) if deps else []
-        g[name] = sorted(set(names))
+        g[name] = sorted(set(evoloop_deps(manifest)))
     return g
+
+
+def evoloop_deps(manifest):
+    """The evoloop crates a manifest's normal dependencies name (every target's, renamed ones by
+    their package), read as TOML where Python has it (3.11+)."""
+    try:
+        import tomllib
+    except ImportError:  # older Python: the plain `[dependencies]` table only
+        text = open(manifest, encoding="utf-8").read()
+        deps = re.search(r"^\[dependencies\]\s*\n(.*?)(?=^\[|\Z)", text, re.S | re.M)
+        return re.findall(r"^\s*(evoloop-[a-z0-9-]+)", deps.group(1), re.M) if deps else []
+    with open(manifest, "rb") as f:
+        m = tomllib.load(f)
+    tables = [m.get("dependencies", {})]
+    tables += [t.get("dependencies", {}) for t in m.get("target", {}).values()]
+    names = []
+    for table in tables:
+        for key, spec in table.items():
+            package = spec.get("package", key) if isinstance(spec, dict) else key
+            if package.startswith("evoloop-"):
+                names.append(package)
+    return names
 
 
 def upward_edges(g):
     """(crate, dependency, why) for every edge that does not go down a layer."""
     layer = {c: i for i, names in enumerate(LAYERS) for c in names}
     bad = [(c, "", "not placed in LAYERS") for c in g if c not in layer]
+    bad += [(c, "", "in LAYERS but no crate of crates/") for c in layer if c not in g]
     for c, deps in g.items():
         for d in deps:
             if c in layer and d in layer and layer[d] >= layer[c]:
