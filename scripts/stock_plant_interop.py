@@ -111,6 +111,7 @@ def main():
     command = pubsub(node, f"{base}/command", Command, 264)
     subscriber = command.subscriber_builder().buffer_size(8).create()
 
+    # tests/common's contract_state, which the test compares bit for bit.
     s = PlantState(seq=7, stamp_ns=123456789, t=0.007, n_x=4, n_q=2, n_y=2, flags=0)
     for i, v in enumerate([0.1, -0.2, 1e-300, sys.float_info.max]):
         s.x_true[i] = v

@@ -108,14 +108,19 @@ fn rust_layouts() -> BTreeMap<&'static str, (Fields, usize, usize)> {
     ])
 }
 
+/// The chapter's text.
+fn chapter() -> String {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/src/plant-contract.md");
+    std::fs::read_to_string(path).unwrap()
+}
+
 /// One documented message: its rows (field, type, offset, size) and its stated (size, alignment).
 type Documented = (Vec<(String, String, usize, usize)>, Option<(usize, usize)>);
 
 /// The chapter's message sections: `### Type`, a `| field | type | offset | size | meaning |`
 /// table, then "Size: N bytes, alignment: A."
 fn documented() -> BTreeMap<String, Documented> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/src/plant-contract.md");
-    let text = std::fs::read_to_string(&path).unwrap();
+    let text = chapter();
     let mut out = BTreeMap::new();
     let mut current: Option<String> = None;
     for line in text.lines() {
@@ -188,8 +193,7 @@ fn the_documented_layouts_are_the_rust_layouts() {
 
 #[test]
 fn the_chapter_names_the_contract_version_it_documents() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/src/plant-contract.md");
-    let text = std::fs::read_to_string(path).unwrap();
+    let text = chapter();
     assert!(
         text.contains(&format!("(v{CONTRACT})")),
         "the title names the contract version"

@@ -4,6 +4,9 @@
 //! Ignored where Python's iceoryx2 is not installed (`pip install -r scripts/interop.txt`); CI
 //! installs it and runs this with `--ignored`.
 
+mod common;
+
+use common::{assert_same_state, contract_command, contract_state};
 use evoloop::ipc::namespace::{user_prefix, user_subdir};
 use evoloop::ipc::{Ipc, Topic, Wait};
 use evoloop::msg::{Command, PlantState};
@@ -25,8 +28,8 @@ fn finish(mut child: Child, limit: Duration) -> Output {
 #[test]
 #[ignore = "needs Python 3 with iceoryx2 0.10: pip install -r scripts/interop.txt"]
 fn a_python_plant_written_from_the_contract_joins_evoloops_services() {
-    let prefix = format!("py{}_", std::process::id());
-    let run = "pyinterop";
+    let (prefix, run) = common::unique("py");
+    let run = run.as_str();
     let ours = Ipc::new("evoloop-controller", run, &prefix).unwrap();
     let state = ours
         .subscriber::<PlantState>(Topic::State, 8, true)
@@ -64,21 +67,11 @@ fn a_python_plant_written_from_the_contract_joins_evoloops_services() {
             );
         }
     };
-    // Every field where the contract's table puts it, every f64 bit for bit.
+    // Every field where the contract's table puts it, every f64 bit for bit (the script sends
+    // common::contract_state).
     assert_eq!((s.seq, s.stamp_ns, s.t), (7, 123_456_789, 0.007));
-    assert_eq!((s.n_x, s.n_q, s.n_y, s.flags), (4, 2, 2, 0));
-    let x = [0.1, -0.2, 1e-300, f64::MAX];
-    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&s.x_true[..4]), bits(&x));
-    assert_eq!(s.y[0].to_bits(), std::f64::consts::PI.to_bits());
-    assert_eq!(s.y[1].to_bits(), (-0.0f64).to_bits());
-    let mut c = Command {
-        cycle: 1,
-        state_seq: s.seq,
-        n_u: 2,
-        ..Default::default()
-    };
-    c.u[..2].copy_from_slice(&[0.5, -1.25]);
+    assert_same_state(&s, &contract_state());
+    let c = contract_command();
     command.send(&c).unwrap();
     let out = finish(child, Duration::from_secs(20));
     assert!(

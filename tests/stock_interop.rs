@@ -6,15 +6,13 @@
 //! prefix and root path, the same service settings), receives evoloop's states, sends commands
 //! evoloop receives, and wakes and is woken through the paired event services.
 
+mod common;
+
+use common::{assert_same_state, contract_command, contract_state};
 use evoloop::ipc::{create_node, ipc_config, Ipc, Topic, Wait};
 use evoloop::msg::{Command, PlantState};
 use iceoryx2::prelude::*;
 use std::time::Duration;
-
-/// A prefix of this test's own, so that parallel tests do not meet.
-fn prefix() -> String {
-    format!("stock{}_", std::process::id())
-}
 
 /// The stock node, as a foreign plant would make it from the contract.
 fn stock_node(prefix: &str) -> Node<ipc::Service> {
@@ -63,8 +61,8 @@ fn stock_event(
 
 #[test]
 fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports() {
-    let prefix = prefix();
-    let run = "interop";
+    let (prefix, run) = common::unique("stock");
+    let run = run.as_str();
     // evoloop's side, as the controller makes its ports: the state subscriber, the command
     // publisher, each with its event.
     let ours = Ipc::new("evoloop-controller", run, &prefix).unwrap();
@@ -101,18 +99,7 @@ fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports()
     let command_listener = command_event.listener_builder().create().unwrap();
 
     // Foreign plant -> evoloop: a state, every f64 bit for bit, and the wake-up.
-    let mut s = PlantState {
-        seq: 7,
-        stamp_ns: 123_456_789,
-        t: 0.007,
-        n_x: 4,
-        n_q: 2,
-        n_y: 2,
-        flags: 0,
-        ..Default::default()
-    };
-    s.x_true[..4].copy_from_slice(&[0.1, -0.2, 1e-300, f64::MAX]);
-    s.y[..2].copy_from_slice(&[std::f64::consts::PI, -0.0]);
+    let s = contract_state();
     state_pub.send_copy(s).unwrap();
     state_notifier.notify().unwrap();
     let got = match state_sub
@@ -123,17 +110,10 @@ fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports()
         Wait::TimedOut => panic!("evoloop's subscriber saw no state from the stock publisher"),
     };
     assert_eq!(got.seq, 7);
-    assert_eq!(got.x_true.map(f64::to_bits), s.x_true.map(f64::to_bits));
-    assert_eq!(got.y.map(f64::to_bits), s.y.map(f64::to_bits));
+    assert_same_state(&got, &s);
 
     // evoloop -> foreign plant: the answer, and the stock listener is woken by evoloop's ring.
-    let mut c = Command {
-        cycle: 1,
-        state_seq: 7,
-        n_u: 2,
-        ..Default::default()
-    };
-    c.u[..2].copy_from_slice(&[0.5, -1.25]);
+    let c = contract_command();
     command_pub.send(&c).unwrap();
     let mut woke = 0;
     command_listener

@@ -134,14 +134,8 @@ pub fn validate(t: RawTiming, check: &Check, ov: &Overrides) -> Result<Timing, C
     if duration < period {
         return check.fail(key_d, format!("shorter than one period ({period} s)"));
     }
-    let prio = |key: &str, p: Option<i32>| -> Result<Option<i32>, ConfigError> {
-        match p {
-            Some(v) if !(1..=99).contains(&v) => {
-                check.fail(key, format!("SCHED_FIFO priority must be 1..=99 (got {v})"))
-            }
-            _ => Ok(p),
-        }
-    };
+    // A SCHED_FIFO priority.
+    let prio = |key: &str, p: Option<i32>| p.map(|v| check.count(key, v, 1, 99)).transpose();
     let spin_us = t.spin_us.unwrap_or(50);
     if spin_us > 1_000_000 {
         return check.fail("timing.spin_us", format!("at most 1000000 (got {spin_us})"));

@@ -532,19 +532,8 @@ pub fn identify(
     let layout = Layout::new(d.n, s.counts);
     let probes = region_probes(&train, s.probes);
     let (x0, s0) = initial(&layout, &train, prior);
-    let (x0, s0) = match s.start {
-        // A known servo is not searched, from the paper's start too.
-        Start::Random => match (layout.gains, &s.servo) {
-            (Some(g), ServoPrior::Known { kp, kd, .. }) => {
-                let (mut x0, mut s0) = (x0, s0);
-                for j in 0..d.n {
-                    (x0[g + 2 * j], x0[g + 2 * j + 1]) = (kp[j], kd[j]);
-                }
-                s0[g..g + 2 * d.n].fill(0.0);
-                (x0, s0)
-            }
-            _ => (x0, s0),
-        },
+    let (mut x0, mut s0) = match s.start {
+        Start::Random => (x0, s0),
         Start::LeastSquares => {
             let full = data.window(0, ((split - 1) * s.stride.max(1) + 1).min(data.len()));
             let x = least_squares_start(&layout, &x0, &full, &probes, prior, s).ok_or(
@@ -552,14 +541,16 @@ pub fn identify(
                      (give --start random)",
             )?;
             let x = refine_start(&layout, x, &train, &probes, prior, s);
-            let mut s0: Vec<f64> = s0.iter().map(|v| v * LS_SIGMA).collect();
-            if let (Some(g), ServoPrior::Known { .. }) = (layout.gains, &s.servo) {
-                // A known servo is not searched.
-                s0[g..g + 2 * d.n].fill(0.0);
-            }
-            (x, s0)
+            (x, s0.iter().map(|v| v * LS_SIGMA).collect())
         }
     };
+    // A known servo is not searched, whatever the start: its gains are the given ones.
+    if let (Some(g), ServoPrior::Known { kp, kd, .. }) = (layout.gains, &s.servo) {
+        for j in 0..d.n {
+            (x0[g + 2 * j], x0[g + 2 * j + 1]) = (kp[j], kd[j]);
+        }
+        s0[g..g + 2 * d.n].fill(0.0);
+    }
     let mut ea = ChaoticEa::new(s.ea, &x0, &s0);
     let mut history = Vec::new();
     // Eq. 13 at generation k: s_t = 10 + ln(k + 1).

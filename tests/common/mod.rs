@@ -397,3 +397,67 @@ pub fn assert_plotted(path: &Path) {
         path.display()
     );
 }
+
+/// The plant-contract tests' state: finite, tiny, huge and signed-zero values where a wrong
+/// offset or a lossy copy would show. scripts/stock_plant_interop.py sends the same one.
+pub fn contract_state() -> evoloop::msg::PlantState {
+    let mut s = evoloop::msg::PlantState {
+        seq: 7,
+        stamp_ns: 123_456_789,
+        t: 0.007,
+        n_x: 4,
+        n_q: 2,
+        n_y: 2,
+        flags: 0,
+        ..Default::default()
+    };
+    s.x_true[..4].copy_from_slice(&[0.1, -0.2, 1e-300, f64::MAX]);
+    s.y[..2].copy_from_slice(&[std::f64::consts::PI, -0.0]);
+    s
+}
+
+/// The command answering `contract_state`.
+pub fn contract_command() -> evoloop::msg::Command {
+    let mut c = evoloop::msg::Command {
+        cycle: 1,
+        state_seq: 7,
+        n_u: 2,
+        ..Default::default()
+    };
+    c.u[..2].copy_from_slice(&[0.5, -1.25]);
+    c
+}
+
+/// `got` is `want` field by field, every f64 bit for bit (-0.0 is not 0.0 here).
+pub fn assert_same_state(got: &evoloop::msg::PlantState, want: &evoloop::msg::PlantState) {
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(
+        (
+            got.seq,
+            got.stamp_ns,
+            got.t.to_bits(),
+            got.n_x,
+            got.n_q,
+            got.n_y,
+            got.flags
+        ),
+        (
+            want.seq,
+            want.stamp_ns,
+            want.t.to_bits(),
+            want.n_x,
+            want.n_q,
+            want.n_y,
+            want.flags
+        )
+    );
+    for (name, g, w) in [
+        ("x_true", &got.x_true[..], &want.x_true[..]),
+        ("q_true", &got.q_true[..], &want.q_true[..]),
+        ("qd_true", &got.qd_true[..], &want.qd_true[..]),
+        ("y", &got.y[..], &want.y[..]),
+        ("u_applied", &got.u_applied[..], &want.u_applied[..]),
+    ] {
+        assert_eq!(bits(g), bits(w), "{name}");
+    }
+}
