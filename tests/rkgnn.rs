@@ -5,6 +5,7 @@
 mod common;
 use common::*;
 use evoloop::config::{Overrides, Scenario};
+use evoloop::rkgnn::data::SMOOTHING;
 use evoloop::rkgnn::{RkgnnModel, Trajectory};
 use evoloop::sim::simulate;
 use std::path::{Path, PathBuf};
@@ -53,22 +54,38 @@ fn min_eig_on(model: &RkgnnModel, data: &Trajectory) -> f64 {
 }
 
 #[test]
-fn the_identifier_reads_reference_and_output_never_the_torques() {
+fn the_identifier_reads_reference_and_measured_positions_never_torques_or_true_velocities() {
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let out = training_run(tmp.path(), "rk_notau");
-    let before = Trajectory::from_run(&out).unwrap();
+    let before = Trajectory::from_run(&out, SMOOTHING).unwrap();
     assert_eq!(before.n, 3);
     assert_eq!(before.len(), 2000);
-    // Overwrite every torque column with NaN: the data read is unchanged.
+    // Judged against the simulator's velocities (never given to it): the estimate from the
+    // encoders is within a few mrad/s after the servo's start-up.
+    let table = evoloop::report::Table::read(&out.join("run.csv")).unwrap();
+    for j in 0..3 {
+        let truth = table.col(&format!("qd{j}")).unwrap();
+        let err = (200..1900)
+            .map(|i| (before.x_at(i)[3 + j] - truth[i]).powi(2))
+            .sum::<f64>()
+            / 1700.0;
+        assert!(
+            err.sqrt() < 5e-3,
+            "joint {j}: velocity rms error {}",
+            err.sqrt()
+        );
+    }
+    // Overwrite every torque column and the simulator's noise-free velocities `qd*` with NaN:
+    // the data read is unchanged (the velocities are estimated from the measured `y*`).
     let path = out.join("run.csv");
     let text = std::fs::read_to_string(&path).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let u_cols: Vec<usize> = (0..header.len())
-        .filter(|&i| header[i].starts_with('u'))
+        .filter(|&i| header[i].starts_with('u') || header[i].starts_with("qd"))
         .collect();
-    assert_eq!(u_cols.len(), 3);
+    assert_eq!(u_cols.len(), 6);
     let mut rewritten = header.join(",") + "\n";
     for l in lines {
         let mut f: Vec<&str> = l.split(',').collect();
@@ -78,13 +95,13 @@ fn the_identifier_reads_reference_and_output_never_the_torques() {
         rewritten += &(f.join(",") + "\n");
     }
     std::fs::write(&path, rewritten).unwrap();
-    assert_eq!(Trajectory::from_run(&out).unwrap(), before);
+    assert_eq!(Trajectory::from_run(&out, SMOOTHING).unwrap(), before);
     // A run without the velocity columns is refused with the reason.
     let two_mass = tmp.path().join("tm");
     std::fs::create_dir_all(&two_mass).unwrap();
     std::fs::write(two_mass.join("run.csv"), "t,reference,y0,u0\n0,0,0,0\n").unwrap();
-    let e = Trajectory::from_run(&two_mass).unwrap_err();
-    assert!(e.contains("no joint velocity columns qd0"), "{e}");
+    let e = Trajectory::from_run(&two_mass, SMOOTHING).unwrap_err();
+    assert!(e.contains("no reference velocity columns rd0"), "{e}");
 }
 
 #[test]
@@ -106,7 +123,7 @@ fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_s
     assert!(min_eig > 0.0, "M-hat not positive definite: {min_eig}");
     // The file loads (its own checks) and M-hat is positive definite on every sample, 1 kHz.
     let model = RkgnnModel::load(&model_path).unwrap();
-    let data = Trajectory::from_run(&out).unwrap();
+    let data = Trajectory::from_run(&out, SMOOTHING).unwrap();
     assert!(min_eig_on(&model, &data.window(0, 1600)) > 0.0);
     // Seeded: the same command gives the same parameters.
     let again = tmp.path().join("again.json");
@@ -199,7 +216,7 @@ fn a_model_identified_under_the_known_servo_has_the_arms_gravity_and_inertia() {
     let arm = evoloop::dynamics::load(&config("robots/arm3.toml")).unwrap();
     let scn = Scenario::load(&config("arm3_train1.toml"), &Overrides::default()).unwrap();
     let sim = simulate(&scn);
-    let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period);
+    let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period, SMOOTHING);
     let mut d = arm.data();
     let positions: Vec<&[f64]> = data.x.chunks(6).step_by(50).map(|x| &x[..3]).collect();
     // The baseline M-hat must beat: the best constant matrix in hindsight (the true M's mean
@@ -225,12 +242,13 @@ fn a_model_identified_under_the_known_servo_has_the_arms_gravity_and_inertia() {
         "relative error on train1: G-hat {g_rel:.4}, M-hat {m_rel:.4}, constant M {c_rel:.4}"
     );
     assert!(g_rel < 0.05, "G-hat off by {g_rel}");
-    // Measured: G-hat 1.5 %, M-hat 20 % (README "RKGNN"), where the best constant matrix in
-    // hindsight, which knows the truth, is 12 % off: the fit's M-hat does not yet follow M(q)'s
-    // variation better than a constant would (issue 41, open). Bounds a little above the
-    // measurement, so that a regression shows.
+    // Measured: G-hat 1.3 %, M-hat 44 % (the book's Arms chapter; 14 % when the fit took the
+    // simulator's noise-free velocities), where the best constant matrix in hindsight, which
+    // knows the truth, is 12 % off: from encoder data the fit's M-hat does not follow M(q)
+    // better than a constant would (issue 41, open). Bounds a little above the measurement, so
+    // that a regression shows.
     assert!(
-        m_rel < 0.25,
+        m_rel < 0.5,
         "M-hat off by {m_rel}, the best constant by {c_rel}"
     );
     assert_eq!(
@@ -273,7 +291,7 @@ fn the_shipped_models_are_positive_definite_on_every_training_sample() {
         let m = RkgnnModel::load(&config(&format!("models/{name}.json"))).unwrap();
         let scn = Scenario::load(&config(&format!("{name}.toml")), &Overrides::default()).unwrap();
         let sim = simulate(&scn);
-        let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period);
+        let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period, SMOOTHING);
         let lo = min_eig_on(&m, &data);
         assert!(lo > 0.0, "{name}: smallest eigenvalue {lo}");
         assert!(m.report.min_eig_m_hat > 0.0);
@@ -618,7 +636,12 @@ fn rkgnn_study_on_arm3_is_the_shipped_scenarios_and_writes_figures_7_to_10() {
     for (k, m) in v["models"].as_array().unwrap().iter().enumerate() {
         let model = RkgnnModel::load(&dir.join(format!("model_{}.json", k + 1))).unwrap();
         let on_reference = m["min_eig_on_reference"].as_f64().unwrap();
-        assert_eq!(on_reference, model.min_eig(along.iter().map(Vec::as_slice)));
+        // The file's decimal round trip may move the last bits.
+        let reloaded = model.min_eig(along.iter().map(Vec::as_slice));
+        assert!(
+            (on_reference - reloaded).abs() <= 1e-12 * reloaded.abs(),
+            "{on_reference} vs {reloaded}"
+        );
         assert!(on_reference > 0.0, "model {}: {on_reference}", k + 1);
     }
 }
@@ -876,7 +899,7 @@ fn rkgnn_prior_is_the_eigenvalue_range_of_the_robots_mass_matrix() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let arm = evoloop::dynamics::load(&robot).unwrap();
     let mut d = arm.data();
-    let t = Trajectory::from_run(&data).unwrap();
+    let t = Trajectory::from_run(&data, SMOOTHING).unwrap();
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
     for x in t.x.chunks(6) {
         let m = arm.mass_matrix(&mut d, &x[..3]);
@@ -901,7 +924,7 @@ fn rkgnn_prior_is_the_eigenvalue_range_of_the_robots_mass_matrix() {
 fn the_selection_study_finds_fuzzy_max_above_the_best_single_model_as_the_readme_says() {
     // `evoloop rkgnn selection`: three models, four trajectories that are not midpoints, every
     // baseline. The README reports that the paper's max rule is above the best single model in
-    // hindsight on 38 of 40 (seed, trajectory) pairs; seed 1 (the training trajectories as
+    // hindsight on 39 of 40 (seed, trajectory) pairs; seed 1 (the training trajectories as
     // written) is one where it is above on all four, checked here, so that a change that made
     // the claim false would fail until the README says otherwise.
     let tmp = tempfile::tempdir().unwrap();
@@ -919,32 +942,43 @@ fn the_selection_study_finds_fuzzy_max_above_the_best_single_model_as_the_readme
     assert!(out.join("selection.json").is_file() && out.join("report.md").is_file());
     let cells = v["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 4, "one seed, four trajectories");
-    let rms = |c: &serde_json::Value, key: &str| -> f64 {
+    // A model the controller refused on a trajectory has no run there (null).
+    let rms = |c: &serde_json::Value, key: &str| -> Option<f64> {
         let row = c["rms"]
             .as_array()
             .unwrap()
             .iter()
             .find(|r| r[0] == key)
             .unwrap_or_else(|| panic!("{key}"));
-        overall(serde_json::from_value::<[f64; 3]>(row[1].clone()).unwrap())
+        serde_json::from_value::<[f64; 3]>(row[1].clone())
+            .ok()
+            .map(overall)
     };
+    let ran = |c: &serde_json::Value, key: &str| rms(c, key).unwrap_or_else(|| panic!("{key}"));
     for c in cells {
-        let singles = ["ct_model_1", "ct_model_2", "ct_model_3"].map(|k| rms(c, k));
+        let singles: Vec<f64> = ["ct_model_1", "ct_model_2", "ct_model_3"]
+            .iter()
+            .filter_map(|k| rms(c, k))
+            .collect();
         let best = singles.iter().cloned().fold(f64::INFINITY, f64::min);
-        assert_eq!(rms(c, "best_single"), best);
+        assert_eq!(ran(c, "best_single"), best);
         assert!(
-            rms(c, "fuzzy_max") >= best,
+            ran(c, "fuzzy_max") >= best,
             "{}: fuzzy max {} below the best single model {best}: update the README",
             c["trajectory"],
-            rms(c, "fuzzy_max")
+            ran(c, "fuzzy_max")
         );
-        // Every model was positive definite along the trajectory (the controller refuses
-        // one that is not, and the study leaves it out: none here).
-        assert_eq!(c["refused"], 0, "{c}");
-        for e in c["min_eig_on_reference"].as_array().unwrap() {
-            assert!(e.as_f64().unwrap() > 0.0, "{c}");
-        }
-        assert!(rms(c, "ct_true") < rms(c, "pd_matched"));
+        // A model not positive definite along the trajectory is refused by the controller and
+        // left out (on seed 1: train3's model along beyond2), every other one ran.
+        let indefinite = c["min_eig_on_reference"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e.as_f64().unwrap() <= 0.0)
+            .count();
+        assert_eq!(c["refused"], indefinite, "{c}");
+        assert_eq!(singles.len(), 3 - indefinite, "{c}");
+        assert!(ran(c, "ct_true") < ran(c, "pd_matched"));
     }
     // (claim_held is false whatever happens with one seed: 4 pairs cannot reach p < 0.05. The
     // per-trajectory checks above are this test's claim.)
@@ -953,10 +987,10 @@ fn the_selection_study_finds_fuzzy_max_above_the_best_single_model_as_the_readme
 
 #[test]
 fn identification_seeds_vary_the_training_data_and_a_refused_model_is_left_out() {
-    // Seeds 2 and 3 move the training trajectories (offsets, amplitudes), so their models
-    // differ from seed 1's by more than noise; on seed 3 train3's model is not positive
-    // definite along near1 (the controller refuses it): its run is missing (null), the fuzzy
-    // rules ran on the other two, and the pairs leave it out.
+    // Seed 2 moves the training trajectories (offsets, amplitudes), so its models differ from
+    // seed 1's by more than noise; on seed 2 train3's model is not positive definite along
+    // near1 (the controller refuses it): its run is missing (null), the fuzzy rules ran on the
+    // other two, and the pairs leave it out.
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sel");
     let v = stdout_json(&cli(&[
@@ -965,7 +999,7 @@ fn identification_seeds_vary_the_training_data_and_a_refused_model_is_left_out()
         "--out",
         out.to_str().unwrap(),
         "--seeds",
-        "3",
+        "2",
         "--json",
     ]));
     let cells = v["cells"].as_array().unwrap();
@@ -978,18 +1012,18 @@ fn identification_seeds_vary_the_training_data_and_a_refused_model_is_left_out()
             .unwrap()[1]
             .clone()
     };
-    let near1 = |seed: u64| {
+    let cell = |seed: u64, trajectory: &str| {
         cells
             .iter()
-            .find(|c| c["seed"] == seed && c["trajectory"] == "near1")
+            .find(|c| c["seed"] == seed && c["trajectory"] == trajectory)
             .unwrap()
     };
     assert_ne!(
-        row(near1(1), "ct_model_1"),
-        row(near1(2), "ct_model_1"),
+        row(cell(1, "near1"), "ct_model_1"),
+        row(cell(2, "near1"), "ct_model_1"),
         "seed 2's model 1 tracks as seed 1's: the training data did not change"
     );
-    let c = near1(3);
+    let c = cell(2, "near1");
     assert_eq!(c["refused"], 1, "{c}");
     assert!(c["min_eig_on_reference"][2].as_f64().unwrap() <= 0.0, "{c}");
     assert!(row(c, "ct_model_3")
@@ -1014,21 +1048,22 @@ fn identification_seeds_vary_the_training_data_and_a_refused_model_is_left_out()
         .iter()
         .filter(|c| c["min_eig_on_reference"][2].as_f64().unwrap() <= 0.0)
         .count() as u64;
-    assert_eq!(pairs, 12 - refused3, "pairs leave the refused runs out");
+    assert_eq!(pairs, 8 - refused3, "pairs leave the refused runs out");
 }
 
 #[test]
-fn weighing_the_joints_gives_arm7_a_positive_definite_m_hat_that_unweighted_least_squares_misses() {
-    // arm7's training run 1 under its known P-D servo (lockstep, in-process), identified by
-    // the known-servo least squares with Christoffel V-hat, once with every joint's equations
-    // in N m and once each in units of its own torque rms (`--weigh-joints`). Unweighted, the
-    // shoulder's residuals (tens of N m) decide the fit and no M-hat is positive definite;
-    // weighted, it is, and it is judged (never fitted) against the true arm's M and G.
+fn arm7_least_squares_without_a_positive_definite_m_hat_is_refused_with_the_reason() {
+    // arm7's training run 1 under its known P-D servo (lockstep, in-process), identified by the
+    // known-servo least squares with Christoffel V-hat, each joint's equations in N m and in
+    // units of its own torque rms (`--weigh-joints`). From the encoders' positions (velocities
+    // estimated, never the simulator's) neither finds an M-hat positive definite over the
+    // region; the identification says so and writes nothing. (With the simulator's noise-free
+    // velocities the weighted fit did, smallest eigenvalue 0.0048: the book's Known limits.)
     use evoloop::rkgnn::identify::{self, Prior, Settings};
     use evoloop::rkgnn::model::ServoPrior;
     let scn = Scenario::load(&config("arm7_train1.toml"), &Overrides::default()).unwrap();
     let sim = simulate(&scn);
-    let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period);
+    let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period, SMOOTHING);
     let prior = Prior::new(0.003532, 3.827894).unwrap(); // `evoloop rkgnn prior --robot arm7.urdf`
     let settings = |weigh: bool| {
         let mut s = Settings::least_squares(7, 1, 0);
@@ -1041,27 +1076,11 @@ fn weighing_the_joints_gives_arm7_a_positive_definite_m_hat_that_unweighted_leas
         s.weigh_joints = weigh;
         s
     };
-    let unweighted =
-        identify::identify_model(&data, &prior, &settings(false), "u".into(), |_, _| {});
-    let e = unweighted.expect_err("unweighted least squares found a positive definite M-hat");
-    assert!(e.contains("positive definite"), "{e}");
-    let m = identify::identify_model(&data, &prior, &settings(true), "w".into(), |_, _| {})
-        .unwrap_or_else(|e| panic!("weighted: {e}"));
-    assert!(m.report.weigh_joints);
-    assert!(m.report.min_eig_m_hat > 0.0, "{}", m.report.min_eig_m_hat);
-    // Judged against the true arm at the training positions.
-    let arm = evoloop::dynamics::load(&config("robots/arm7.urdf")).unwrap();
-    let positions: Vec<&[f64]> = data.x.chunks(14).step_by(100).map(|x| &x[..7]).collect();
-    let (g_rel, m_rel) = relative_errors(&m, &arm, &positions);
-    eprintln!(
-        "arm7 train1, weighted: min eig {:.4}, G-hat {g_rel:.4}, M-hat {m_rel:.4} relative error",
-        m.report.min_eig_m_hat
-    );
-    // Measured: G-hat 4.5 %, M-hat 64 % off (positive definite, but far from M: README). The
-    // gravity bound is a little above the measurement, so that a regression shows; M-hat's
-    // accuracy is reported, not yet claimed.
-    assert!(g_rel < 0.05, "G-hat off by {g_rel}");
-    assert!(m_rel.is_finite());
+    for weigh in [false, true] {
+        let e = identify::identify_model(&data, &prior, &settings(weigh), "a".into(), |_, _| {})
+            .expect_err("least squares found a positive definite M-hat: update the book");
+        assert!(e.contains("positive definite"), "{e}");
+    }
     // Without known torques there is nothing to weigh: refused before any data is read.
     let o = cli(&[
         "identify",

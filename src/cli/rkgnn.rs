@@ -56,6 +56,13 @@ pub struct IdentifyArgs {
     /// (h = 10 ms) arm3's forearm servo sits at 2.77, at the edge.
     #[arg(long, default_value_t = 5)]
     pub stride: usize,
+    /// Half width of the low-pass, s: the joint velocities are estimated from the measured
+    /// positions (never the run's logged `qd*`) by a local quadratic fit over this window either
+    /// side, and the positions are smoothed with it. 0.08 s passes arm motion below about 3 Hz
+    /// and cuts 1e-4 rad encoder noise to 2e-4 rad/s; widen it for noisier encoders, narrow it
+    /// for faster motion.
+    #[arg(long, default_value_t = crate::rkgnn::data::SMOOTHING)]
+    pub smoothing: f64,
     /// Eq. 2's lower bound m1 on the arm's inertia matrix (y^T M(q) y >= m1 |y|^2, kg m^2): the
     /// smallest eigenvalue of M(q) over the workspace, from a datasheet, a CAD model
     /// (`evoloop rkgnn prior --robot FILE`) or a conservative bound. With m2 it is all the
@@ -219,6 +226,9 @@ pub struct StudyArgs {
     /// gains identified, scale from eq. 2).
     #[arg(long, value_enum, default_value_t = StudyServo::Known)]
     pub servo: StudyServo,
+    /// Half width of the identification's low-pass, s (as `identify rkgnn --smoothing`).
+    #[arg(long, default_value_t = crate::rkgnn::data::SMOOTHING)]
+    pub smoothing: f64,
     /// Where the EA starts: `least-squares` (the shipped models' recipe) or `random` (the
     /// paper's: a stiff critically damped servo, every other weight 0, the population about
     /// it; give --evaluations).
@@ -330,7 +340,8 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
         return Err("--evaluations must be >= 1 (0 only with --start least-squares)".into());
     }
     let prior = Prior::new(a.m1, a.m2).map_err(|e| format!("--m1, --m2: {e}"))?;
-    let data = Trajectory::from_run(&a.data)?;
+    positive_seconds("--smoothing", a.smoothing)?;
+    let data = Trajectory::from_run(&a.data, a.smoothing)?;
     let mut s = Settings::paper(data.n, a.seed, a.evaluations);
     s.stride = a.stride;
     s.start = a.start;
@@ -456,7 +467,7 @@ fn prior(a: &PriorArgs) -> Result<(), String> {
     let n = arm.dof();
     let (p, positions) = match &a.data {
         Some(dir) => {
-            let d = Trajectory::from_run(dir)?;
+            let d = Trajectory::from_run(dir, crate::rkgnn::data::SMOOTHING)?;
             if d.n != n {
                 return Err(format!(
                     "{} has {n} joints, the data {}",
@@ -530,6 +541,7 @@ fn selection(a: &SelectionArgs) -> Result<(), String> {
 
 fn study(a: &StudyArgs) -> Result<(), String> {
     use crate::rkgnn::study;
+    positive_seconds("--smoothing", a.smoothing)?;
     let settings = study::StudySettings {
         robot: a.robot.clone(),
         seed: a.seed,
@@ -537,6 +549,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         refine: a.refine,
         servo_known: a.servo == StudyServo::Known,
         start: a.start,
+        smoothing: a.smoothing,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
     let r = with_bar("stages", a.quiet || a.json, |p| {
@@ -567,4 +580,15 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         a.out.display()
     );
     Ok(())
+}
+
+/// A window in seconds: positive and finite, or the flag's name and what it got.
+fn positive_seconds(flag: &str, v: f64) -> Result<(), String> {
+    if v > 0.0 && v.is_finite() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{flag} must be a positive number of seconds, got {v}"
+        ))
+    }
 }

@@ -591,6 +591,7 @@ pub fn identify(
         start: s.start,
         servo: s.servo.clone(),
         weigh_joints: s.weigh_joints,
+        velocity_smoothing: Some(d.smoothing),
         seed: s.ea.seed,
         history,
     };
@@ -685,8 +686,14 @@ pub fn least_squares_start(
     let n = layout.n;
     let g = layout.gains?;
     let floor = at_least(layout, probes, 0.5 * prior.m1);
+    // Reference and measurement low-passed alike (`Trajectory::filtered`). The servo's torque
+    // k_p e is read off the position error, and with torque-free data the scale of joints that
+    // couple only weakly to joint 1 hangs on small terms: encoder-class noise of 1e-4 rad on e,
+    // unfiltered, halved the shoulder and forearm gains of arm3's fit (1.29 and 0.77 of k_p,1 on
+    // clean data, 0.64 and 0.28 with noise; truth 1.33 and 0.67).
+    let data = &data.filtered();
     if let ServoPrior::Known { kp, kd, .. } = servo {
-        // The servo's torque, as the controller computed it from the same measurements.
+        // The servo's torque, as the controller computed it from the same (filtered) signals.
         let mut tau = vec![0.0; data.len() * n];
         for i in 0..data.len() {
             servo.torque(data.r_at(i), data.x_at(i), &mut tau[i * n..(i + 1) * n]);
@@ -702,7 +709,6 @@ pub fn least_squares_start(
         };
         return least_squares(layout, &p, data, target, stride, INERTIA_RIDGES, floor);
     }
-    let data = &smooth_positions(data, SMOOTH_HALF_WINDOW);
     // Stage 1, the servo: every weight free (no ridge on the inertia, which would shrink the
     // joints that are tied to joint 1's scale only weakly), for the gains alone.
     let positive = |p: Vec<f64>| {
@@ -747,8 +753,11 @@ pub fn least_squares_with_torques(
     min_eig: f64,
 ) -> Option<Vec<f64>> {
     assert_eq!(torques.len(), data.len() * data.n);
+    // The torques through the same low-pass as the signals (`Trajectory::filtered`).
+    let tau = data.filter_alike(torques);
+    let data = &data.filtered();
     let target = Target::Torques {
-        tau: torques,
+        tau: &tau,
         weigh: false,
     };
     let floor = at_least(layout, probes, min_eig);
@@ -948,40 +957,6 @@ fn weigh_rows(a: &mut nalgebra::DMatrix<f64>, rhs: &mut nalgebra::DVector<f64>, 
         }
     }
 }
-
-/// `data` with its measured positions smoothed by a centred quadratic Savitzky-Golay window of
-/// 2 `half` + 1 samples (ends kept as measured). The servo's torque k_p e is read off the
-/// position error, and with torque-free data the scale of joints that couple only weakly to
-/// joint 1 hangs on small terms: encoder-class noise of 1e-4 rad on e, unfiltered, halved the
-/// shoulder and forearm gains of arm3's fit (1.29 and 0.77 of k_p,1 on clean data, 0.64 and 0.28
-/// with noise; truth 1.33 and 0.67). A quadratic window passes the arm's motion (Hz) and cuts
-/// white noise by about sqrt(window).
-fn smooth_positions(data: &Trajectory, half: usize) -> Trajectory {
-    let n = data.n;
-    let len = data.len();
-    let mut out = data.clone();
-    if half == 0 || len < 2 * half + 1 {
-        return out;
-    }
-    let m = half as f64;
-    let norm = (2.0 * m + 1.0) * (4.0 * m * m + 4.0 * m - 3.0);
-    let coef: Vec<f64> = (-(half as i64)..=half as i64)
-        .map(|i| (3.0 * (3.0 * m * m + 3.0 * m - 1.0) - 15.0 * (i * i) as f64) / norm)
-        .collect();
-    for i in half..len - half {
-        for j in 0..n {
-            out.x[2 * n * i + j] = coef
-                .iter()
-                .enumerate()
-                .map(|(k, c)| c * data.x_at(i + k - half)[j])
-                .sum();
-        }
-    }
-    out
-}
-
-/// Half width of `smooth_positions`' window, samples.
-const SMOOTH_HALF_WINDOW: usize = 10;
 
 /// Relative SVD cut-off of the least-squares start.
 const LS_TOLERANCE: f64 = 1e-6;

@@ -33,13 +33,14 @@ use std::collections::VecDeque;
 /// Samples between the rows the fit and the comparison use (the identification's step).
 const STRIDE: usize = 5;
 
-/// One recorded sample: time, reference [theta_d; theta_d'], output [theta; theta'] and the
-/// torque applied from this sample to the next.
+/// One recorded sample: time, reference [theta_d; theta_d'], measured joint positions theta
+/// and the torque applied from this sample to the next. The velocities are estimated from the
+/// positions per window (`Trajectory::from_positions`), as from a run's file.
 #[derive(Clone, Copy)]
 struct Sample {
     t: f64,
     r: [f64; 2 * MAX_JOINTS],
-    x: [f64; 2 * MAX_JOINTS],
+    q: [f64; MAX_JOINTS],
     u: [f64; MAX_JOINTS],
 }
 
@@ -120,13 +121,12 @@ impl LiveIdentify {
                 let mut rec = Sample {
                     t: p.t,
                     r: [0.0; 2 * MAX_JOINTS],
-                    x: [0.0; 2 * MAX_JOINTS],
+                    q: [0.0; MAX_JOINTS],
                     u: [0.0; MAX_JOINTS],
                 };
                 rec.r[..n].copy_from_slice(&sp.q[..n]);
                 rec.r[n..2 * n].copy_from_slice(&sp.qd[..n]);
-                rec.x[..n].copy_from_slice(&p.y[..n]);
-                rec.x[n..2 * n].copy_from_slice(&p.qd_true[..n]);
+                rec.q[..n].copy_from_slice(&p.y[..n]);
                 rec.u[..n].copy_from_slice(&s.u_applied[..n]);
                 self.buf.push_back(rec);
                 while self.buf.len() > self.window + self.fresh {
@@ -141,19 +141,16 @@ impl LiveIdentify {
     /// `samples` as identification data and their torques.
     fn data(&self, samples: impl Iterator<Item = Sample>) -> (Trajectory, Vec<f64>) {
         let n = self.n;
-        let mut d = Trajectory {
-            n,
-            h: self.dt,
-            r: Vec::new(),
-            x: Vec::new(),
-        };
-        let mut tau = Vec::new();
+        let (mut r, mut q, mut tau) = (Vec::new(), Vec::new(), Vec::new());
         for s in samples {
-            d.r.extend_from_slice(&s.r[..2 * n]);
-            d.x.extend_from_slice(&s.x[..2 * n]);
+            r.extend_from_slice(&s.r[..2 * n]);
+            q.extend_from_slice(&s.q[..n]);
             tau.extend_from_slice(&s.u[..n]);
         }
-        (d, tau)
+        (
+            Trajectory::from_positions(n, self.dt, r, &q, super::data::SMOOTHING),
+            tau,
+        )
     }
 
     /// The model the selector chose most often over `d`, whose first sample is at `t0`.
@@ -199,6 +196,9 @@ impl LiveIdentify {
             &probes,
             floor,
         );
+        // The fresh data through the fit's low-pass too, so that q'' and tau are filtered alike.
+        let fresh_tau = fresh.filter_alike(&fresh_tau);
+        let fresh = fresh.filtered();
         let in_err = prediction_rms(layout, in_service.params(), &fresh, &fresh_tau);
         let cand_err = candidate.as_deref().map_or(f64::INFINITY, |p| {
             prediction_rms(layout, p, &fresh, &fresh_tau)
@@ -236,7 +236,7 @@ impl LiveIdentify {
     }
 }
 
-/// RMS over joints and samples (every STRIDE-th) of q'' (central differences of the measured
+/// RMS over joints and samples (every STRIDE-th) of q'' (central differences of the estimated
 /// q') minus N_f's M-hat^-1 (tau - V-hat - G-hat): how well a model predicts the arm's motion
 /// from the torque applied. Infinite where M-hat is singular.
 pub fn prediction_rms(layout: &network::Layout, p: &[f64], d: &Trajectory, tau: &[f64]) -> f64 {

@@ -388,8 +388,12 @@ pub fn run(
         let sims = simulate_all(&training, s.threads, &|| tick("training run"));
         let mut models: Vec<Option<(PathBuf, crate::rkgnn::RkgnnModel)>> = Vec::new();
         for (c, sim) in training.iter().zip(&sims) {
-            let data =
-                Trajectory::from_sim(&sim.rows, &c.scenario.reference, c.scenario.timing.period);
+            let data = Trajectory::from_sim(
+                &sim.rows,
+                &c.scenario.reference,
+                c.scenario.timing.period,
+                crate::rkgnn::data::SMOOTHING,
+            );
             let mut settings = Settings::least_squares(n, seed, 0);
             settings.threads = s.threads.max(1);
             settings.weigh_joints = s.weigh_joints;

@@ -52,6 +52,8 @@ pub struct StudySettings {
     pub servo_known: bool,
     /// Where the EA starts (the shipped recipe: least squares).
     pub start: crate::rkgnn::model::Start,
+    /// Half width of the identification's low-pass, s (`data::SMOOTHING` by default).
+    pub smoothing: f64,
     pub threads: usize,
 }
 
@@ -123,6 +125,8 @@ pub struct IdentificationInputs {
     pub servo: crate::rkgnn::model::ServoPrior,
     pub start: crate::rkgnn::model::Start,
     pub stride: usize,
+    /// The velocity estimate's and position smoothing's half width, s.
+    pub smoothing: f64,
     pub evaluations: usize,
     pub refine: usize,
 }
@@ -488,7 +492,12 @@ pub fn run(
         new.timing.duration,
     );
     for (k, (c, sim)) in training.iter().zip(&train_sims).enumerate() {
-        let data = Trajectory::from_sim(&sim.rows, &c.scenario.reference, c.scenario.timing.period);
+        let data = Trajectory::from_sim(
+            &sim.rows,
+            &c.scenario.reference,
+            c.scenario.timing.period,
+            s.smoothing,
+        );
         let mut settings = Settings::least_squares(JOINTS, s.seed, s.evaluations);
         settings.threads = s.threads.max(1);
         settings.refine = s.refine;
@@ -518,13 +527,15 @@ pub fn run(
         ));
         inputs.get_or_insert_with(|| IdentificationInputs {
             runs: training.iter().map(|c| c.name.clone()).collect(),
-            signals: "the reference (q_d, q_d'), the measured joint positions q (with the \
-                      run's encoder noise) and velocities q' at every sample",
+            signals: "the reference (q_d, q_d') and the measured joint positions q (with the \
+                      run's encoder noise) at every sample; q' estimated from q (a local \
+                      quadratic fit over +-smoothing s), never the simulator's velocities",
             m1: prior.m1,
             m2: prior.m2,
             servo: settings.servo.clone(),
             start: settings.start,
             stride: settings.stride,
+            smoothing: s.smoothing,
             evaluations: settings.evaluations,
             refine: settings.refine,
         });

@@ -35,6 +35,10 @@ pub struct Report {
     /// Each joint's equations weighed by its torque rms (`Settings::weigh_joints`).
     #[serde(default)]
     pub weigh_joints: bool,
+    /// Half width of the low-pass the joint velocities were estimated with from the measured
+    /// positions, s. None: a file from before that, fitted on the simulator's velocities.
+    #[serde(default)]
+    pub velocity_smoothing: Option<f64>,
     pub seed: u64,
     /// Best objective after each generation.
     pub history: Vec<f64>,
