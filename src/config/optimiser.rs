@@ -262,18 +262,20 @@ pub fn validate(
         epoch_evaluations,
         threads,
         cost_u_weight: range("cost_u_weight", o.cost_u_weight, 1e-3, 0.0, 1e6)?,
+        // The identification's low-pass drops SMOOTHING (and a sample) at each end of both
+        // windows: at least 4 SMOOTHING leaves half of either to compare on.
         identify_window: range(
             "identify_window",
             o.identify_window,
             4.0,
-            periods(50.0),
+            periods(50.0).max(4.0 * crate::rkgnn::data::SMOOTHING),
             600.0,
         )?,
         identify_fresh: range(
             "identify_fresh",
             o.identify_fresh,
             1.0,
-            periods(20.0),
+            periods(20.0).max(4.0 * crate::rkgnn::data::SMOOTHING),
             600.0,
         )?,
         identify_every: range("identify_every", o.identify_every, 2.0, periods(1.0), 1e6)?,

@@ -1,14 +1,15 @@
 //! Identification data without torques: the servo's reference (theta_d, theta_d') and the arm's
-//! output (theta, theta'), from a run's `run.csv` or from an in-process simulation of the same
-//! loop. The torque columns `u*` are never read: the RKGNN paper's premise is that the joint
-//! torques of an industrial arm are not available.
+//! output (theta measured by the encoders, theta' estimated from it), from a run's `run.csv` or
+//! from an in-process simulation of the same loop. The torque columns `u*` are never read (the
+//! RKGNN paper's premise is that the joint torques of an industrial arm are not available), nor
+//! the simulator's noise-free velocities.
 
 use crate::report::Table;
 use crate::sim::SimRow;
 use std::path::Path;
 
 /// Samples every `h` seconds: per sample the reference r = [theta_d; theta_d'] and the output
-/// x = [theta; theta'] (2n values each, flat, sample-major).
+/// x = [theta; theta'] (2n values each, flat, sample-major), theta' estimated from theta.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
     pub n: usize,
@@ -88,15 +89,22 @@ impl Trajectory {
                 }
             }
         }
-        let half = half_window(len, self.h, self.smoothing);
-        out.window(half, len - half)
+        let trim = self.trim();
+        out.window(trim, len - trim)
     }
 
-    /// `values` (n per sample, as a torque record) through the same low-pass as `filtered`,
-    /// trimmed as it is.
+    /// Samples `filtered` and `filter_alike` drop at each end: the low-pass's half window, where
+    /// the fit is one-sided.
+    pub fn trim(&self) -> usize {
+        half_window(self.len(), self.h, self.smoothing)
+    }
+
+    /// `values` (n per sample of this trajectory, as a torque record) through the same low-pass
+    /// as `filtered`, trimmed as it is.
     pub fn filter_alike(&self, values: &[f64]) -> Vec<f64> {
-        let (n, len) = (self.n, values.len() / self.n.max(1));
-        let half = half_window(len, self.h, self.smoothing);
+        let (n, len) = (self.n, self.len());
+        assert_eq!(values.len(), n * len, "one value per joint and sample");
+        let half = self.trim();
         let mut out = vec![0.0; values.len()];
         for j in 0..n {
             let v: Vec<f64> = (0..len).map(|i| values[n * i + j]).collect();
@@ -213,13 +221,13 @@ impl Trajectory {
     }
 }
 
-/// Half width T of the identification's low-pass by default, s (`identify rkgnn --smoothing`): a local quadratic fit over +-T (161
-/// samples at 1 kHz): -3 dB near 6.4 Hz on the positions, 3.6 Hz on the velocities. It passes the arms' references (harmonics
-/// of 0.1-0.7 Hz: a velocity is underestimated by (omega T)^2 / 10, 1.2 % at 0.7 Hz) and cuts
-/// encoder noise of std 1e-4 rad to 2e-4 rad/s on the velocity. Chosen by sweeping T over
-/// 0.03-0.2 s on `evoloop rkgnn study` (arm3, seeds 1-6): below 0.06 s the least-squares start
-/// finds no positive definite M-hat or a model that loses the arm, 0.06-0.1 s track alike, above
-/// 0.15 s the motion itself is cut (see the arms chapter).
+/// Half width T of the identification's low-pass by default, s (`identify rkgnn --smoothing`):
+/// a local quadratic fit over +-T (161 samples at 1 kHz), -3 dB near 6.4 Hz on the positions and
+/// 3.6 Hz on the velocities. It passes the arms' references (harmonics of 0.1-0.7 Hz: a velocity
+/// is underestimated by (omega T)^2 / 10, 1.2 % at 0.7 Hz) and cuts encoder noise of std 1e-4
+/// rad to 2e-4 rad/s on the velocity. Chosen from data alone, as a user would: the window with
+/// the smallest held-out free-run prediction error (`holdout_rms`) on arm3's training runs over
+/// 0.04-0.2 s (the book's Arms chapter has the sweep, and why tracking is not the criterion).
 pub const SMOOTHING: f64 = 0.08;
 
 /// The `deriv`-th derivative (0: the value) of `x`, sampled every `h` seconds, by a local

@@ -536,6 +536,15 @@ pub fn identify(
         Start::Random => (x0, s0),
         Start::LeastSquares => {
             let full = data.window(0, ((split - 1) * s.stride.max(1) + 1).min(data.len()));
+            if full.len() < 2 * full.trim() + MIN_ROWS * s.stride.max(1) {
+                return Err(format!(
+                    "too few samples for the least-squares start: {:.2} s, the low-pass \
+                     (--smoothing {} s) drops {:.2} s at each end and {MIN_ROWS} rows must remain",
+                    full.len() as f64 * full.h,
+                    full.smoothing,
+                    full.trim() as f64 * full.h
+                ));
+            }
             let x = least_squares_start(&layout, &x0, &full, &probes, prior, s).ok_or(
                 "the least-squares start found no model with a positive definite M-hat \
                      (give --start random)",
@@ -693,7 +702,9 @@ pub fn least_squares_start(
     // clean data, 0.64 and 0.28 with noise; truth 1.33 and 0.67).
     let data = &data.filtered();
     if let ServoPrior::Known { kp, kd, .. } = servo {
-        // The servo's torque, as the controller computed it from the same (filtered) signals.
+        // The servo's torque from the filtered signals (the controller computed it from the raw
+        // ones and the plant's velocity; with the torque inside its limits, as in arm3's training
+        // runs, the law is linear and filtering commutes with it; a clamped torque would not).
         let mut tau = vec![0.0; data.len() * n];
         for i in 0..data.len() {
             servo.torque(data.r_at(i), data.x_at(i), &mut tau[i * n..(i + 1) * n]);
@@ -957,6 +968,9 @@ fn weigh_rows(a: &mut nalgebra::DMatrix<f64>, rhs: &mut nalgebra::DVector<f64>, 
         }
     }
 }
+
+/// Fewest equation rows (samples at the identification's step) the least squares takes.
+const MIN_ROWS: usize = 20;
 
 /// Relative SVD cut-off of the least-squares start.
 const LS_TOLERANCE: f64 = 1e-6;
