@@ -256,6 +256,11 @@ fn nonsense_values_are_refused_by_check_with_their_key() {
             ),
             "optimiser.schedule[0].values",
         ),
+        (
+            // Shorter than the identification's low-pass leaves anything to compare on.
+            base().replace("[timing]", "[optimiser]\nidentify_fresh = 0.2\n[timing]"),
+            "optimiser.identify_fresh",
+        ),
     ] {
         let e = err_of(&text);
         assert!(e.contains(&format!("`{key}`")), "{key}: {e}");

@@ -105,6 +105,23 @@ fn the_identifier_reads_reference_and_measured_positions_never_torques_or_true_v
 }
 
 #[test]
+fn a_run_too_short_for_the_low_pass_is_refused_with_the_reason() {
+    // 0.25 s of data: the low-pass (0.08 s) drops 0.08 s at each end of the least squares'
+    // part, fewer than 20 rows remain, and the identification says so instead of "no positive
+    // definite M-hat".
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = training_run(tmp.path(), "rk_short");
+    let path = out.join("run.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let short: Vec<&str> = text.lines().take(251).collect();
+    std::fs::write(&path, short.join("\n") + "\n").unwrap();
+    let o = identify(&out, &tmp.path().join("m.json"), "0", &SHIPPED);
+    assert_refused(&o, "too few samples for the least-squares start");
+    assert!(!tmp.path().join("m.json").exists());
+}
+
+#[test]
 fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_sample() {
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
