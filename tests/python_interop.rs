@@ -8,8 +8,7 @@ mod common;
 
 use common::{assert_same_state, contract_command, contract_state};
 use evoloop::ipc::namespace::{user_prefix, user_subdir};
-use evoloop::ipc::{Ipc, Topic, Wait};
-use evoloop::msg::{Command, PlantState};
+use evoloop::ipc::Wait;
 use std::process::{Child, Command as Process, Output, Stdio};
 use std::time::{Duration, Instant};
 
@@ -30,11 +29,7 @@ fn finish(mut child: Child, limit: Duration) -> Output {
 fn a_python_plant_written_from_the_contract_joins_evoloops_services() {
     let (prefix, run) = common::unique("py");
     let run = run.as_str();
-    let ours = Ipc::new("evoloop-controller", run, &prefix).unwrap();
-    let state = ours
-        .subscriber::<PlantState>(Topic::State, 8, true)
-        .unwrap();
-    let command = ours.publisher::<Command>(Topic::Command, true).unwrap();
+    let ours = common::controller_ports(run, &prefix);
     let root = format!("{}/", user_subdir("iceoryx2").unwrap().display());
     let script = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -54,7 +49,8 @@ fn a_python_plant_written_from_the_contract_joins_evoloops_services() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("python3");
-    let s = match state
+    let s = match ours
+        .state
         .wait_next(Duration::ZERO, Duration::from_secs(20))
         .unwrap()
     {
@@ -72,7 +68,7 @@ fn a_python_plant_written_from_the_contract_joins_evoloops_services() {
     assert_eq!((s.seq, s.stamp_ns, s.t), (7, 123_456_789, 0.007));
     assert_same_state(&s, &contract_state());
     let c = contract_command();
-    command.send(&c).unwrap();
+    ours.command.send(&c).unwrap();
     let out = finish(child, Duration::from_secs(20));
     assert!(
         out.status.success(),

@@ -9,7 +9,7 @@
 mod common;
 
 use common::{assert_same_state, contract_command, contract_state};
-use evoloop::ipc::{create_node, ipc_config, Ipc, Topic, Wait};
+use evoloop::ipc::{create_node, ipc_config, Topic, Wait};
 use evoloop::msg::{Command, PlantState};
 use iceoryx2::prelude::*;
 use std::time::Duration;
@@ -59,21 +59,36 @@ fn stock_event(
         .unwrap()
 }
 
+/// A topic of the contract from the stock side: its publish-subscribe service `name` (the
+/// contract's `evoloop/<run>/<topic>`, spelled out here as a foreign plant would) and the event
+/// service of the same name.
+#[allow(clippy::type_complexity)]
+fn stock_topic<T: std::fmt::Debug + ZeroCopySend + 'static>(
+    node: &Node<ipc::Service>,
+    name: &str,
+    max_buffer: usize,
+) -> (
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>,
+    iceoryx2::service::port_factory::event::PortFactory<ipc::Service>,
+) {
+    (
+        stock_pubsub::<T>(node, name, max_buffer),
+        stock_event(node, name),
+    )
+}
+
 #[test]
 fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports() {
     let (prefix, run) = common::unique("stock");
     let run = run.as_str();
     // evoloop's side, as the controller makes its ports: the state subscriber, the command
     // publisher, each with its event.
-    let ours = Ipc::new("evoloop-controller", run, &prefix).unwrap();
-    let state_sub = ours
-        .subscriber::<PlantState>(Topic::State, 8, true)
-        .unwrap();
-    let command_pub = ours.publisher::<Command>(Topic::Command, true).unwrap();
+    let ours = common::controller_ports(run, &prefix);
+    let (state_sub, command_pub) = (&ours.state, &ours.command);
 
     // The foreign plant's side, stock iceoryx2.
     let node = stock_node(&prefix);
-    let state = stock_pubsub::<PlantState>(
+    let (state, state_event) = stock_topic::<PlantState>(
         &node,
         &format!("evoloop/{run}/state"),
         Topic::State.max_buffer(),
@@ -83,9 +98,8 @@ fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports()
         .max_loaned_samples(1)
         .create()
         .unwrap();
-    let state_event = stock_event(&node, &format!("evoloop/{run}/state"));
     let state_notifier = state_event.notifier_builder().create().unwrap();
-    let command = stock_pubsub::<Command>(
+    let (command, command_event) = stock_topic::<Command>(
         &node,
         &format!("evoloop/{run}/command"),
         Topic::Command.max_buffer(),
@@ -95,7 +109,6 @@ fn a_stock_iceoryx2_participant_speaks_the_contract_with_evoloops_pooled_ports()
         .buffer_size(8)
         .create()
         .unwrap();
-    let command_event = stock_event(&node, &format!("evoloop/{run}/command"));
     let command_listener = command_event.listener_builder().create().unwrap();
 
     // Foreign plant -> evoloop: a state, every f64 bit for bit, and the wake-up.

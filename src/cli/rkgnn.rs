@@ -61,7 +61,8 @@ pub struct IdentifyArgs {
     /// side, and the positions are smoothed with it. 0.08 s passes arm motion below 3.6 Hz (-3 dB on the velocities)
     /// and cuts 1e-4 rad encoder noise to 2e-4 rad/s; widen it for noisier encoders, narrow it
     /// for faster motion.
-    #[arg(long, default_value_t = crate::rkgnn::data::SMOOTHING)]
+    #[arg(long, default_value_t = crate::rkgnn::data::SMOOTHING,
+          value_parser = |s: &str| crate::node::args::seconds_in(s, 10.0))]
     pub smoothing: f64,
     /// Eq. 2's lower bound m1 on the arm's inertia matrix (y^T M(q) y >= m1 |y|^2, kg m^2): the
     /// smallest eigenvalue of M(q) over the workspace, from a datasheet, a CAD model
@@ -227,7 +228,8 @@ pub struct StudyArgs {
     #[arg(long, value_enum, default_value_t = StudyServo::Known)]
     pub servo: StudyServo,
     /// Half width of the identification's low-pass, s (as `identify rkgnn --smoothing`).
-    #[arg(long, default_value_t = crate::rkgnn::data::SMOOTHING)]
+    #[arg(long, default_value_t = crate::rkgnn::data::SMOOTHING,
+          value_parser = |s: &str| crate::node::args::seconds_in(s, 10.0))]
     pub smoothing: f64,
     /// Where the EA starts: `least-squares` (the shipped models' recipe) or `random` (the
     /// paper's: a stiff critically damped servo, every other weight 0, the population about
@@ -340,7 +342,6 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
         return Err("--evaluations must be >= 1 (0 only with --start least-squares)".into());
     }
     let prior = Prior::new(a.m1, a.m2).map_err(|e| format!("--m1, --m2: {e}"))?;
-    positive_seconds("--smoothing", a.smoothing)?;
     let data = Trajectory::from_run(&a.data, a.smoothing)?;
     let mut s = Settings::paper(data.n, a.seed, a.evaluations);
     s.stride = a.stride;
@@ -541,7 +542,6 @@ fn selection(a: &SelectionArgs) -> Result<(), String> {
 
 fn study(a: &StudyArgs) -> Result<(), String> {
     use crate::rkgnn::study;
-    positive_seconds("--smoothing", a.smoothing)?;
     let settings = study::StudySettings {
         robot: a.robot.clone(),
         seed: a.seed,
@@ -580,15 +580,4 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         a.out.display()
     );
     Ok(())
-}
-
-/// A window in seconds: positive and finite, or the flag's name and what it got.
-fn positive_seconds(flag: &str, v: f64) -> Result<(), String> {
-    if v > 0.0 && v.is_finite() {
-        Ok(())
-    } else {
-        Err(format!(
-            "{flag} must be a positive number of seconds, got {v}"
-        ))
-    }
 }

@@ -262,8 +262,8 @@ pub fn validate(
         epoch_evaluations,
         threads,
         cost_u_weight: range("cost_u_weight", o.cost_u_weight, 1e-3, 0.0, 1e6)?,
-        // The identification's low-pass drops SMOOTHING (and a sample) at each end of both
-        // windows: at least 4 SMOOTHING leaves half of either to compare on.
+        // The identification's low-pass drops SMOOTHING at each end of both windows
+        // (`Trajectory::trim`): at least 4 SMOOTHING leaves half of either to compare on.
         identify_window: range(
             "identify_window",
             o.identify_window,

@@ -453,6 +453,13 @@ fn plant_clock(stamp_ns: u64, now_ns: u64, period_ns: u64) -> Result<(), String>
     ))
 }
 
+/// When sample 0 would have been taken, as `s` tells it: its stamp less `seq` periods. The
+/// numbers come from another process (any language), so neither the product nor the difference
+/// may wrap: a seq past the run's length gives epoch 0, a loop that is simply late.
+fn plant_epoch(s: &PlantState, period_ns: u64) -> u64 {
+    s.stamp_ns.saturating_sub(s.seq.saturating_mul(period_ns))
+}
+
 fn run_realtime(
     scn: &Scenario,
     ports: &Ports,
@@ -468,7 +475,7 @@ fn run_realtime(
     // sample's stamp is its tick plus the plant's wake-up latency, so the earliest
     // stamp - seq * period seen so far is the best estimate of the plant's epoch.
     plant_clock(state.stamp_ns, now_ns(), period).map_err(Failure::Failed)?;
-    let mut epoch = state.stamp_ns.saturating_sub(state.seq * period);
+    let mut epoch = plant_epoch(&state, period);
     let phase = (scn.timing.phase * period as f64) as u64;
     let n = scn.cycles();
     let mut k = state.seq;
@@ -498,7 +505,7 @@ fn run_realtime(
         match ports.state.latest() {
             Ok(Some(s)) => {
                 state = s;
-                epoch = epoch.min(s.stamp_ns.saturating_sub(s.seq * period));
+                epoch = epoch.min(plant_epoch(&s, period));
             }
             Ok(None) => {}
             Err(e) => return Err(Failure::Setup(e.to_string())),
@@ -605,5 +612,17 @@ mod clock_tests {
         let e = plant_clock(0, now, ms).unwrap_err();
         assert!(e.contains("5000.000 s behind"), "{e}");
         assert!(plant_clock(now + 1, now, ms).is_err());
+    }
+
+    #[test]
+    fn a_foreign_sequence_number_does_not_wrap_the_epoch() {
+        let s = |seq, stamp_ns| crate::msg::PlantState {
+            seq,
+            stamp_ns,
+            ..Default::default()
+        };
+        assert_eq!(super::plant_epoch(&s(3, 10_000), 1_000), 7_000);
+        assert_eq!(super::plant_epoch(&s(u64::MAX, 10_000), 1_000), 0);
+        assert_eq!(super::plant_epoch(&s(20, 10_000), 1_000), 0);
     }
 }

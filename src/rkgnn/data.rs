@@ -80,7 +80,7 @@ impl Trajectory {
         let mut out = self.clone();
         for (src, dst) in [(&self.r, &mut out.r), (&self.x, &mut out.x)] {
             for j in 0..n {
-                let q: Vec<f64> = (0..len).map(|i| src[2 * n * i + j]).collect();
+                let q = column(src, 2 * n, j);
                 let value = smooth(&q, self.h, self.smoothing, 0);
                 let rate = smooth(&q, self.h, self.smoothing, 1);
                 for i in 0..len {
@@ -107,8 +107,7 @@ impl Trajectory {
         let half = self.trim();
         let mut out = vec![0.0; values.len()];
         for j in 0..n {
-            let v: Vec<f64> = (0..len).map(|i| values[n * i + j]).collect();
-            for (i, f) in smooth(&v, self.h, self.smoothing, 0)
+            for (i, f) in smooth(&column(values, n, j), self.h, self.smoothing, 0)
                 .into_iter()
                 .enumerate()
             {
@@ -204,7 +203,7 @@ impl Trajectory {
         let len = q.len() / n.max(1);
         let mut x = vec![0.0; 2 * n * len];
         for j in 0..n {
-            let joint: Vec<f64> = (0..len).map(|i| q[n * i + j]).collect();
+            let joint = column(q, n, j);
             let v = smooth(&joint, h, smoothing, 1);
             for i in 0..len {
                 x[2 * n * i + j] = joint[i];
@@ -242,8 +241,10 @@ pub(crate) fn smooth(x: &[f64], h: f64, window: f64, deriv: usize) -> Vec<f64> {
 }
 
 /// Savitzky-Golay weights: fit a polynomial of `degree` by least squares to unit-spaced samples
-/// at offsets -half..=half and take its `deriv`-th derivative at offset `at`, per unit spacing.
-pub(crate) fn savitzky_golay(half: usize, degree: usize, deriv: usize, at: f64) -> Vec<f64> {
+/// at offsets -half..=half and take its `deriv`-th derivative, per unit spacing, at each offset
+/// `at` in -half..=half: one kernel per offset (the centre's for inner samples, the others for
+/// the ends). The least-squares projection is the same for every offset: it is computed once.
+fn savitzky_golay(half: usize, degree: usize, deriv: usize) -> Vec<Vec<f64>> {
     let m = half as f64;
     let width = 2 * half + 1;
     // Offsets scaled to [-1, 1] keep the normal equations well conditioned.
@@ -251,25 +252,34 @@ pub(crate) fn savitzky_golay(half: usize, degree: usize, deriv: usize, at: f64) 
         ((k as f64 - m) / m.max(1.0)).powi(p as i32)
     });
     let Some(inv) = (v.transpose() * &v).try_inverse() else {
-        return vec![f64::NAN; width];
+        return vec![vec![f64::NAN; width]; width];
     };
     let coef = inv * v.transpose();
-    let s = at / m.max(1.0);
-    // d^deriv/ds^deriv of sum_p c_p s^p at s, then per unit spacing (ds/dk = 1/m).
-    let basis: Vec<f64> = (0..=degree)
-        .map(|p| {
-            if p < deriv {
-                0.0
-            } else {
-                let falling: f64 = (p - deriv + 1..=p).map(|f| f as f64).product();
-                falling * s.powi((p - deriv) as i32)
-            }
-        })
-        .collect();
     let scale = m.max(1.0).powi(-(deriv as i32));
     (0..width)
-        .map(|k| scale * (0..=degree).map(|p| basis[p] * coef[(p, k)]).sum::<f64>())
+        .map(|a| {
+            let s = (a as f64 - m) / m.max(1.0);
+            // d^deriv/ds^deriv of sum_p c_p s^p at s, then per unit spacing (ds/dk = 1/m).
+            let basis: Vec<f64> = (0..=degree)
+                .map(|p| {
+                    if p < deriv {
+                        0.0
+                    } else {
+                        let falling: f64 = (p - deriv + 1..=p).map(|f| f as f64).product();
+                        falling * s.powi((p - deriv) as i32)
+                    }
+                })
+                .collect();
+            (0..width)
+                .map(|k| scale * (0..=degree).map(|p| basis[p] * coef[(p, k)]).sum::<f64>())
+                .collect()
+        })
         .collect()
+}
+
+/// Column `j` of `v`, rows of `width` values each (one joint's samples of a sample-major record).
+fn column(v: &[f64], width: usize, j: usize) -> Vec<f64> {
+    v.iter().skip(j).step_by(width).copied().collect()
 }
 
 /// `smooth`'s half width in samples for `len` samples every `h` s: `window` s, at least 1, at
@@ -280,8 +290,8 @@ fn half_window(len: usize, h: f64, window: f64) -> usize {
         .min(len.saturating_sub(1) / 2)
 }
 
-/// `x` filtered by `savitzky_golay(half, degree, deriv, .)`: centred windows inside, the first
-/// and last full window's fit evaluated at the ends.
+/// `x` filtered by `savitzky_golay(half, degree, deriv)`: centred windows inside, the first and
+/// last full window's fit evaluated at the ends.
 pub(crate) fn filter(x: &[f64], half: usize, degree: usize, deriv: usize) -> Vec<f64> {
     let len = x.len();
     if len < 2 * half + 1 || len <= degree {
@@ -291,9 +301,7 @@ pub(crate) fn filter(x: &[f64], half: usize, degree: usize, deriv: usize) -> Vec
             vec![0.0; len]
         };
     }
-    let kernels: Vec<Vec<f64>> = (0..=2 * half)
-        .map(|a| savitzky_golay(half, degree, deriv, a as f64 - half as f64))
-        .collect();
+    let kernels = savitzky_golay(half, degree, deriv);
     (0..len)
         .map(|i| {
             let c = i.clamp(half, len - 1 - half);

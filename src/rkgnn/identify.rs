@@ -763,7 +763,6 @@ pub fn least_squares_with_torques(
     probes: &[Vec<f64>],
     min_eig: f64,
 ) -> Option<Vec<f64>> {
-    assert_eq!(torques.len(), data.len() * data.n);
     // The torques through the same low-pass as the signals (`Trajectory::filtered`).
     let tau = data.filter_alike(torques);
     let data = &data.filtered();

@@ -398,6 +398,26 @@ pub fn assert_plotted(path: &Path) {
     );
 }
 
+/// evoloop's side of the plant contract as the controller makes its ports: the node, the state
+/// subscriber and the command publisher, each with its event.
+pub struct ControllerPorts {
+    pub ipc: evoloop::ipc::Ipc,
+    pub state: evoloop::ipc::Sub<evoloop::msg::PlantState>,
+    pub command: evoloop::ipc::Pub<evoloop::msg::Command>,
+}
+
+pub fn controller_ports(run: &str, prefix: &str) -> ControllerPorts {
+    use evoloop::ipc::{Ipc, Topic};
+    let ipc = Ipc::new("evoloop-controller", run, prefix).unwrap();
+    let state = ipc.subscriber(Topic::State, 8, true).unwrap();
+    let command = ipc.publisher(Topic::Command, true).unwrap();
+    ControllerPorts {
+        ipc,
+        state,
+        command,
+    }
+}
+
 /// The plant-contract tests' state: finite, tiny, huge and signed-zero values where a wrong
 /// offset or a lossy copy would show. scripts/stock_plant_interop.py sends the same one.
 pub fn contract_state() -> evoloop::msg::PlantState {
