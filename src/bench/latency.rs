@@ -275,6 +275,8 @@ fn ping_evoloop(
         let t0 = now_ns();
         msg.stamp_ns = t0;
         state.send(&msg)?;
+        // Busy polling has no timed wait of its own: the same deadline, read off the clock.
+        let deadline = t0 + timeout.as_nanos() as u64;
         loop {
             let got = if busy {
                 cmd.next()?.map(Wait::Got).unwrap_or(Wait::TimedOut)
@@ -284,7 +286,7 @@ fn ping_evoloop(
             match got {
                 Wait::Got(c) if c.state_seq == k => break,
                 Wait::Got(_) => {}
-                Wait::TimedOut if busy => std::hint::spin_loop(),
+                Wait::TimedOut if busy && now_ns() < deadline => std::hint::spin_loop(),
                 Wait::TimedOut => return Err(err("bench", "peer did not answer within 5 s")),
             }
         }
@@ -304,6 +306,11 @@ pub fn peer(variant: Variant, prefix: &str, run_id: &str, payload: usize) -> Res
         Variant::BareBusy | Variant::BareEvent => pong_bare(variant, prefix, run_id, payload),
     }
 }
+
+/// How long a peer waits for the next message before it gives up: busy polling has no timed
+/// wait of its own, and a lost message or a peer that is gone must not leave both processes
+/// spinning a core for ever (a test run once hung so).
+const PEER_TIMEOUT_NS: u64 = 10_000_000_000;
 
 fn pong_evoloop(v: Variant, prefix: &str, run_id: &str) -> Result<(), IpcError> {
     let ipc = Ipc::new("bench-controller", run_id, prefix)?;
@@ -326,10 +333,17 @@ fn pong_evoloop(v: Variant, prefix: &str, run_id: &str) -> Result<(), IpcError> 
         },
     );
     let mut tel = Telemetry::default();
+    let mut last = now_ns();
     loop {
         let s = if busy {
             match state.next()? {
-                Some(s) => s,
+                Some(s) => {
+                    last = now_ns();
+                    s
+                }
+                None if now_ns() - last > PEER_TIMEOUT_NS => {
+                    return Err(err("bench", "no state within 10 s"));
+                }
                 None => {
                     std::hint::spin_loop();
                     continue;
@@ -456,11 +470,15 @@ impl Bare {
         }
         Ok(())
     }
-    /// Wait for the next message; returns its first byte.
+    /// Wait for the next message, up to `PEER_TIMEOUT_NS`; returns its first byte.
     fn recv(&self) -> Result<u8, IpcError> {
+        let deadline = now_ns() + PEER_TIMEOUT_NS;
         loop {
             if let Some(s) = self.subscriber.receive().map_err(|e| err("receive", e))? {
                 return Ok(s.payload().first().copied().unwrap_or(0));
+            }
+            if now_ns() > deadline {
+                return Err(err("bench", "no message from the peer within 10 s"));
             }
             match &self.listener {
                 Some(l) => {
