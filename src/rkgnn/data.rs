@@ -220,14 +220,9 @@ impl Trajectory {
     }
 }
 
-/// Half width T of the identification's low-pass by default, s (`identify rkgnn --smoothing`):
-/// a local quadratic fit over +-T (161 samples at 1 kHz), -3 dB near 6.4 Hz on the positions and
-/// 3.6 Hz on the velocities. It passes the arms' references (harmonics of 0.1-0.7 Hz: a velocity
-/// is underestimated by (omega T)^2 / 10, 1.2 % at 0.7 Hz) and cuts encoder noise of std 1e-4
-/// rad to 2e-4 rad/s on the velocity. Chosen from data alone, as a user would: the window with
-/// the smallest held-out free-run prediction error (`holdout_rms`) on arm3's training runs over
-/// 0.04-0.2 s (the book's Arms chapter has the sweep, and why tracking is not the criterion).
-pub const SMOOTHING: f64 = 0.08;
+/// The low-pass's default half width (its reasons where it is defined, below the config that
+/// bounds the identification windows by it).
+pub use evoloop_rkgnn::SMOOTHING;
 
 /// The `deriv`-th derivative (0: the value) of `x`, sampled every `h` seconds, by a local
 /// quadratic fit over `window` seconds either side (fewer samples if `x` is short).
