@@ -343,7 +343,8 @@ fn scheduled_set_fits(
 }
 
 /// `optimiser.mode = "identify"` replaces models of a fuzzy computed-torque controller, each sent
-/// as one parameter set [slot, parameters].
+/// as one parameter set [slot, parameters], or in parts where larger (`ParamSet::model_sets`),
+/// all of which the controller must be able to queue at once.
 fn identify_mode_fits(check: &Check, controller: &ControllerSpec) -> Result<(), ConfigError> {
     let crate::control::ControllerModel::FuzzyComputedTorque(f) = &controller.model else {
         return check.fail(
@@ -352,15 +353,16 @@ fn identify_mode_fits(check: &Check, controller: &ControllerSpec) -> Result<(), 
              (controller.kind = \"fuzzy_computed_torque\")",
         );
     };
+    let queue = crate::control::cycle::PENDING_CAPACITY;
     for (i, m) in f.loaded.iter().enumerate() {
-        if 1 + m.net.layout.len > crate::MAX_PARAMS {
+        let sets = crate::msg::ParamSet::model_set_count(1 + m.net.layout.len);
+        if sets > queue {
             return check.fail(
                 &format!("controller.fuzzy_computed_torque.models[{i}]"),
                 format!(
-                    "a model of {} parameters does not fit a parameter set of {} values, which \
-                     optimiser.mode = \"identify\" sends it in",
-                    m.net.layout.len,
-                    crate::MAX_PARAMS
+                    "a model of {} parameters travels in {sets} parameter sets; the controller \
+                     queues at most {queue}, so optimiser.mode = \"identify\" could not send it",
+                    m.net.layout.len
                 ),
             );
         }

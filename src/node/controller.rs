@@ -329,7 +329,11 @@ pub fn main(args: &ProcessArgs) {
     } = start(args, WHO);
     let ports = ports(WHO, || {
         Ok(Ports {
-            params: ipc.subscriber(Topic::Params, 16, false)?,
+            params: ipc.subscriber(
+                Topic::Params,
+                crate::control::cycle::PENDING_CAPACITY,
+                false,
+            )?,
             estimate: match scn.linear_model() {
                 Some(_) => Some(ipc.subscriber(Topic::Estimate, 4, false)?),
                 None => None,

@@ -323,8 +323,8 @@ impl<'a> Serve<'a> {
             self.send(&set, t)?;
         }
         // At fixed simulated times, the plant waiting: reproducible per seed.
-        if let Some(set) = self.live.as_mut().and_then(|l| l.attempt(t, next)) {
-            self.send(&set, t)?;
+        if let Some(m) = self.live.as_mut().and_then(|l| l.attempt(t, next)) {
+            self.send_model(&m, t)?;
         }
         // Every sample up to this one seen with its command, the next trial (if one starts
         // at the next sample) goes out before the plant may take that sample.
@@ -377,8 +377,8 @@ impl<'a> Serve<'a> {
             }
         }
         if self.live.is_some() && !self.ports.state.has_pending().map_err(io)? {
-            if let Some(set) = self.live.as_mut().and_then(|l| l.attempt(t, 0)) {
-                self.send(&set, t)?;
+            if let Some(m) = self.live.as_mut().and_then(|l| l.attempt(t, 0)) {
+                self.send_model(&m, t)?;
             }
         }
         Ok(())
@@ -386,7 +386,29 @@ impl<'a> Serve<'a> {
 
     fn send(&mut self, set: &ParamSet, t: f64) -> Result<(), Failure> {
         let dir = &self.scn.output.dir;
-        send_set(self.ports, set, t, &mut self.published, dir).map_err(io)
+        send_set(
+            self.ports,
+            &[*set],
+            set.values(),
+            t,
+            &mut self.published,
+            dir,
+        )
+        .map_err(io)
+    }
+
+    /// A model, in as many sets as it needs; journalled and recorded whole.
+    fn send_model(&mut self, m: &crate::rkgnn::live::ModelUpdate, t: f64) -> Result<(), Failure> {
+        let dir = &self.scn.output.dir;
+        send_set(
+            self.ports,
+            &m.sets(),
+            &m.values,
+            t,
+            &mut self.published,
+            dir,
+        )
+        .map_err(io)
     }
 
     /// The next set of the schedule, applied at `apply_at_seq` (0: at once).
@@ -529,9 +551,9 @@ impl DirectLive {
 /// report), so a restarted one continues the versions and knows the set in service.
 const JOURNAL: &str = "published.jsonl";
 
-fn journal(dir: &std::path::Path, set: &ParamSet, t: f64) {
+fn journal(dir: &std::path::Path, version: u64, values: &[f64], t: f64) {
     use std::io::Write;
-    let line = serde_json::json!({"version": set.version, "t": t, "values": set.values()});
+    let line = serde_json::json!({"version": version, "t": t, "values": values});
     let f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
@@ -561,21 +583,27 @@ fn last_published(dir: &std::path::Path) -> Option<(u64, Vec<f64>)> {
     Some((v["version"].as_u64()?, values))
 }
 
+/// One set, or the parts of one model (`sets`, sharing version and `apply_at_seq`), whose
+/// values are `values`: journalled and recorded as the one set they are.
 fn send_set(
     ports: &Ports,
-    set: &ParamSet,
+    sets: &[ParamSet],
+    values: &[f64],
     t: f64,
     published: &mut History<PublishedSet>,
     dir: &std::path::Path,
 ) -> Result<(), IpcError> {
+    let first = sets[0];
     // Journal first: a set the controller may have received is always on record for a restart.
-    journal(dir, set, t);
-    ports.params.send(set)?;
+    journal(dir, first.version, values, t);
+    for set in sets {
+        ports.params.send(set)?;
+    }
     published.push(PublishedSet {
-        version: set.version,
+        version: first.version,
         at: t,
-        apply_at_seq: set.apply_at_seq,
-        values: set.values().to_vec(),
+        apply_at_seq: first.apply_at_seq,
+        values: values.to_vec(),
     });
     Ok(())
 }

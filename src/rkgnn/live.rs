@@ -11,7 +11,8 @@
 //! - both models, the candidate and the slot's model in service, predict q'' = M-hat^-1 (tau -
 //!   V-hat - G-hat) (N_f's output) on the `identify_fresh` seconds after the window, data the
 //!   fit has not seen; the candidate is published (kind `ParamKind::RkgnnModel`, values [slot,
-//!   parameters]) only if its RMS error there is below the in-service model's by `margin`.
+//!   parameters]; in parts, `ParamKind::ModelPart`, when larger than one set) only if its RMS
+//!   error there is below the in-service model's by `margin`.
 //!
 //! The controller checks it again (finite, M-hat positive definite on the slot's probes and at
 //! least `MIN_EIG_RATIO` of the model it replaces) before it uses it. In lockstep the attempts
@@ -44,6 +45,23 @@ struct Sample {
     u: [f64; MAX_JOINTS],
 }
 
+/// A model to publish: values = [slot, parameters], of any length (a 7-DOF arm's exceed one
+/// parameter set: `sets` sends it in parts, which the controller checks and applies whole).
+pub struct ModelUpdate {
+    pub version: u64,
+    pub apply_at_seq: u64,
+    pub expected_cost: f64,
+    pub values: Vec<f64>,
+}
+
+impl ModelUpdate {
+    /// The parameter sets that carry it, in order.
+    pub fn sets(&self) -> Vec<ParamSet> {
+        let (v, at, cost) = (self.version, self.apply_at_seq, self.expected_cost);
+        ParamSet::model_sets(v, at, cost, ParamKind::RkgnnModel, &self.values)
+    }
+}
+
 pub struct LiveIdentify {
     n: usize,
     /// The models in service, as this optimiser last published them.
@@ -69,8 +87,7 @@ pub struct LiveIdentify {
 
 impl LiveIdentify {
     pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
-        // The scenario's validation refuses identify mode for other controllers and for models
-        // too large for one parameter set.
+        // The scenario's validation refuses identify mode for other controllers.
         let crate::control::ControllerModel::FuzzyComputedTorque(f) = &scn.controller.model else {
             return Err(
                 "optimiser.mode = \"identify\" needs a fuzzy_computed_torque controller".into(),
@@ -168,7 +185,7 @@ impl LiveIdentify {
 
     /// One attempt if one is due at `t`: a model set to publish when the candidate predicts the
     /// fresh data better than the model in service.
-    pub fn attempt(&mut self, t: f64, apply_at_seq: u64) -> Option<ParamSet> {
+    pub fn attempt(&mut self, t: f64, apply_at_seq: u64) -> Option<ModelUpdate> {
         if t < self.next_t || self.buf.len() < self.window + self.fresh {
             return None;
         }
@@ -217,17 +234,14 @@ impl LiveIdentify {
                 self.version += 1;
                 rec.published = Some(self.version);
                 self.models[slot].net.set_params(&p);
-                let mut set = ParamSet {
+                let mut values = vec![slot as f64];
+                values.extend_from_slice(&p);
+                Some(ModelUpdate {
                     version: self.version,
                     apply_at_seq,
                     expected_cost: cand_err,
-                    kind: ParamKind::RkgnnModel.code(),
-                    n: 1 + p.len() as u32,
-                    ..Default::default()
-                };
-                set.values[0] = slot as f64;
-                set.values[1..=p.len()].copy_from_slice(&p);
-                Some(set)
+                    values,
+                })
             }
             _ => None,
         };

@@ -17,8 +17,12 @@ pub const CONTRACT: u32 = 1;
 pub const MAX_JOINTS: usize = 8;
 /// Largest plant state vector a message carries (positions, velocities and extra states).
 pub const MAX_STATES: usize = 32;
-/// Largest parameter set (identified models of later issues fit: RBF networks, fuzzy rule bases).
+/// Largest parameter set; a model with more values travels in parts (`ParamSet::model_sets`).
 pub const MAX_PARAMS: usize = 1024;
+/// Values before a `ParamKind::ModelPart` set's share of the model: kind, offset, total.
+pub const PART_HEADER: usize = 3;
+/// A `ParamKind::ModelPart` set's share of the model: the values after its header.
+pub const PART_VALUES: usize = MAX_PARAMS - PART_HEADER;
 
 /// A `u32` code on the wire that is not one of the enum's: a message from another version of
 /// the contract, or a corrupt one. Reading it is an error, never a silent default.
@@ -162,6 +166,9 @@ pub enum ParamCode {
     RejectedUnknownFallback = 11,
     /// Stable on the configured model but not on the latest estimate of the plant.
     RejectedUnstableOnEstimate = 12,
+    /// A part of a model sent in parts (`ParamKind::ModelPart`) came without the parts before
+    /// it, or its header disagrees with them: the model is dropped whole, none of it in service.
+    RejectedPartMissing = 13,
 }
 }
 
@@ -197,6 +204,9 @@ impl ParamCode {
             }
             Self::RejectedUnstableOnEstimate => {
                 "rejected: the closed loop would be unstable on the latest estimate of the plant"
+            }
+            Self::RejectedPartMissing => {
+                "rejected: a model sent in parts lost a part or mixed two models; none of it used"
             }
         }
     }
@@ -272,6 +282,11 @@ pub enum ParamKind {
     /// The genes of a fuzzy network controller (`fuzzy::codec::Codec` order: per variable the
     /// centre genes then the widths, then the scaling factors).
     FuzzyNetwork = 12,
+    /// One part of a model set larger than one parameter set (`ParamSet::model_sets`): values =
+    /// [the whole's kind code, offset, total length, the whole's values[offset..]]. Every part
+    /// carries the model's version and `apply_at_seq`; the controller gathers them in order and
+    /// checks and applies the whole at its last part, as one set of the whole's kind.
+    ModelPart = 13,
 }
 }
 
@@ -332,6 +347,57 @@ impl ParamSet {
 
     pub fn values(&self) -> &[f64] {
         &self.values[..(self.n as usize).min(MAX_PARAMS)]
+    }
+
+    /// How many sets `model_sets` sends a model of `len` values in.
+    pub fn model_set_count(len: usize) -> usize {
+        if len <= MAX_PARAMS {
+            1
+        } else {
+            len.div_ceil(PART_VALUES)
+        }
+    }
+
+    /// A model set of `kind` with `values` of any length, as the sets that carry it: the set
+    /// itself where it fits, otherwise `ModelPart` sets in order, each with at most
+    /// `PART_VALUES` of the model's values after its header. All share `version` and
+    /// `apply_at_seq`, and carry `expected_cost`.
+    pub fn model_sets(
+        version: u64,
+        apply_at_seq: u64,
+        expected_cost: f64,
+        kind: ParamKind,
+        values: &[f64],
+    ) -> Vec<ParamSet> {
+        let with_cost = |mut set: ParamSet| {
+            set.expected_cost = expected_cost;
+            set
+        };
+        if values.len() <= MAX_PARAMS {
+            return vec![with_cost(ParamSet::new(
+                version,
+                apply_at_seq,
+                kind,
+                values,
+            ))];
+        }
+        let chunk = PART_VALUES;
+        let total = values.len() as f64;
+        values
+            .chunks(chunk)
+            .enumerate()
+            .map(|(i, part)| {
+                let mut set = ParamSet::new(version, apply_at_seq, ParamKind::ModelPart, &[]);
+                set.values[..PART_HEADER].copy_from_slice(&[
+                    kind.code() as f64,
+                    (i * chunk) as f64,
+                    total,
+                ]);
+                set.values[PART_HEADER..PART_HEADER + part.len()].copy_from_slice(part);
+                set.n = (PART_HEADER + part.len()) as u32;
+                with_cost(set)
+            })
+            .collect()
     }
 
     /// What the set is for; an unknown code (a sender of another version, a corrupt set) is an
@@ -455,15 +521,15 @@ mod tests {
         for c in ParamCode::ALL {
             assert_eq!(ParamCode::try_from(c.code()), Ok(*c));
         }
-        // Codes are 1..=12 and 0..=12, dense: anything else is unknown, named as what.
-        for bad in [0, 13, 99, u32::MAX] {
+        // Codes are 1..=13 and 0..=13, dense: anything else is unknown, named as what.
+        for bad in [0, 14, 99, u32::MAX] {
             let e = ParamKind::try_from(bad).unwrap_err();
             assert_eq!((e.what, e.code), ("ParamKind", bad));
             assert_eq!(e.to_string(), format!("unknown ParamKind code {bad}"));
         }
-        assert!(ParamCode::try_from(13).is_err());
-        assert_eq!(ParamKind::ALL.len(), 12);
-        assert_eq!(ParamCode::ALL.len(), 13);
+        assert!(ParamCode::try_from(14).is_err());
+        assert_eq!(ParamKind::ALL.len(), 13);
+        assert_eq!(ParamCode::ALL.len(), 14);
         let set = ParamSet::new(1, 0, ParamKind::RkgnnModel, &[1.0]);
         assert_eq!(set.param_kind(), Ok(ParamKind::RkgnnModel));
         let corrupt = ParamSet { kind: 77, ..set };

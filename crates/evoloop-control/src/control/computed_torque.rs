@@ -184,6 +184,10 @@ impl Controller for ComputedTorque {
         Some(ParamKind::RigidBodyModel)
     }
 
+    fn model_len(&self) -> usize {
+        MODEL_COLUMNS_PER_JOINT * self.model.dof()
+    }
+
     fn swap_model(&mut self, values: &[f64]) -> Result<(), (ParamCode, u32)> {
         let n = self.model.dof();
         if values.len() != MODEL_COLUMNS_PER_JOINT * n {

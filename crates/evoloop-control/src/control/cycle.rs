@@ -2,9 +2,10 @@
 //! so both compute the same numbers: take due parameter sets, validate and swap them in at the
 //! cycle boundary, evaluate the reference and the control law, fill the telemetry.
 
+use super::model_parts::{Gather, Gathered};
 use super::validate::validate_model;
 use super::{validate_params, Controller, LinearModel, ParamBounds};
-use crate::msg::{ParamCode, ParamSet, PlantState, Telemetry};
+use crate::msg::{ParamCode, ParamKind, ParamSet, PlantState, Telemetry};
 use crate::reference::{Reference, Setpoint};
 use crate::MAX_JOINTS;
 
@@ -89,6 +90,16 @@ pub struct ControlCycle {
     trial_until: Option<u64>,
     /// Trials aborted for leaving the envelope.
     pub trials_aborted: u64,
+    /// A model larger than one set, gathered from its parts.
+    parts: Gather,
+}
+
+/// What a due set did.
+enum Applied {
+    /// Now in service.
+    InService,
+    /// A part of a model, kept until its last part (no event: the whole gets one).
+    Gathered,
 }
 
 /// The number of the law's own values, which telemetry carries (at most `MAX_LAW_VALUES`: a
@@ -128,6 +139,7 @@ impl ControlCycle {
             last_trial_live: false,
             trial_until: None,
             trials_aborted: 0,
+            parts: Gather::new(controller.model_len()),
             controller,
         }
     }
@@ -200,14 +212,15 @@ impl ControlCycle {
             .position(|p| p.apply_at_seq <= state.seq)
         {
             let set = self.pending.remove(i);
-            let (code, index) = match self.apply(&set, state, &sp) {
-                Ok(()) => {
+            let refusal = match self.apply(&set, state, &sp) {
+                Ok(Applied::InService) => {
                     self.version = set.version;
-                    (ParamCode::Accepted, 0)
+                    Some((ParamCode::Accepted, 0))
                 }
-                Err(refusal) => refusal,
+                Ok(Applied::Gathered) => None,
+                Err(refusal) => Some(refusal),
             };
-            event = Some(event_of(code, set.version, index));
+            event = refusal.map(|(code, index)| event_of(code, set.version, index));
         }
         // A trial that has served its repetition (and was not replaced by the next just now).
         if self.trial_until.is_some_and(|end| state.seq >= end) {
@@ -262,17 +275,23 @@ impl ControlCycle {
         set: &ParamSet,
         state: &PlantState,
         sp: &Setpoint,
-    ) -> Result<(), (ParamCode, u32)> {
+    ) -> Result<Applied, (ParamCode, u32)> {
         let c = self.controller.as_ref();
         let refused = |r: super::Rejection| (r.code, r.index);
         let trial = set.until_seq > 0;
-        if c.model_kind().is_some_and(|k| set.param_kind() == Ok(k)) {
-            if trial {
-                // Trials are gain sets: a model has no fallback to return to.
-                return Err((ParamCode::RejectedWrongKind, 0));
+        if let Some(kind) = c.model_kind() {
+            if set.param_kind() == Ok(ParamKind::ModelPart) {
+                return self.apply_part(set, kind);
             }
-            validate_model(set, self.version).map_err(refused)?;
-            return self.controller.swap_model(set.values());
+            if set.param_kind() == Ok(kind) {
+                if trial {
+                    // Trials are gain sets: a model has no fallback to return to.
+                    return Err((ParamCode::RejectedWrongKind, 0));
+                }
+                validate_model(set, self.version).map_err(refused)?;
+                self.controller.swap_model(set.values())?;
+                return Ok(Applied::InService);
+            }
         }
         validate_params(set, c.kind(), c.n_params(), self.version, &self.bounds)
             .map_err(refused)?;
@@ -306,7 +325,31 @@ impl ControlCycle {
             self.trial_until = None;
         }
         self.controller.swap_params(set.values(), state, sp);
-        Ok(())
+        Ok(Applied::InService)
+    }
+
+    /// A part of a model of `kind`: checked as a model set, gathered, and the whole checked by
+    /// the law and put in service at the last part. A refused part drops the model.
+    fn apply_part(&mut self, set: &ParamSet, kind: ParamKind) -> Result<Applied, (ParamCode, u32)> {
+        if self.parts.is_refused(set) {
+            return Ok(Applied::Gathered);
+        }
+        let common = if set.until_seq > 0 {
+            Err((ParamCode::RejectedWrongKind, 0))
+        } else {
+            validate_model(set, self.version).map_err(|r| (r.code, r.index))
+        };
+        if let Err(e) = common {
+            self.parts.refuse(set);
+            return Err(e);
+        }
+        match self.parts.add(set, kind)? {
+            Gathered::Whole(values) => {
+                self.controller.swap_model(values)?;
+                Ok(Applied::InService)
+            }
+            Gathered::Incomplete | Gathered::Dropped => Ok(Applied::Gathered),
+        }
     }
 
     /// Put the fallback back in service (the trial is over).

@@ -275,6 +275,10 @@ impl Controller for FuzzyComputedTorque {
         Some(ParamKind::RkgnnModel)
     }
 
+    fn model_len(&self) -> usize {
+        1 + self.models.iter().map(|m| m.net.layout.len).max().unwrap_or(0)
+    }
+
     /// values = [slot, parameters]: the slot must exist, the parameters fit its layout, and
     /// M-hat be positive definite on the slot's probes, at least MIN_EIG_RATIO of the model in
     /// service there. The premise (the slot's identification reference) stays.
@@ -441,9 +445,13 @@ mod tests {
     use crate::msg::{ParamSet, Telemetry};
 
     fn shipped(k: usize) -> RkgnnModel {
+        shipped_arm("arm3", k)
+    }
+
+    fn shipped_arm(arm: &str, k: usize) -> RkgnnModel {
         // The workspace's shipped models (config/models at its root).
         let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join(format!("../../config/models/arm3_train{k}.json"));
+            .join(format!("../../config/models/{arm}_train{k}.json"));
         RkgnnModel::load(&p).unwrap()
     }
 
@@ -523,6 +531,104 @@ mod tests {
         assert_ne!(before, after);
         // A stale version is refused.
         assert_eq!(offer(&mut c, &model_set(2, 0.0, p2)).0, ParamCode::RejectedStale);
+    }
+
+    /// arm7's fuzzy CT on `models` at config/arm7_fuzzy_ct.toml's mean position, held there.
+    fn arm7_cycle(models: Vec<RkgnnModel>) -> ControlCycle {
+        let q = vec![0.15, -0.4, 0.15, -2.0, 0.15, 1.75, 0.8];
+        let mut gains = vec![900.0; 7];
+        gains.extend([60.0; 7]);
+        let law = FuzzyComputedTorque::new(
+            models,
+            Selection::Max,
+            fuzzy_select::GAMMA,
+            &gains,
+            0.0,
+            vec![87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
+            std::slice::from_ref(&q),
+        );
+        let reference = crate::reference::Reference::Quintic {
+            times: vec![0.0],
+            waypoints: vec![q],
+        };
+        let bounds = crate::check::ParamBounds {
+            lower: vec![0.0; 14],
+            upper: vec![2500.0; 14],
+        };
+        ControlCycle::new(Box::new(law), reference, bounds)
+    }
+
+    /// Offer the sets, then run a cycle per set: each cycle's event code (None: no event) and
+    /// command followed by the version in service, on a state off the set-point so that the
+    /// model matters.
+    fn offer_all(c: &mut ControlCycle, sets: &[ParamSet]) -> Vec<(Option<ParamCode>, Vec<f64>)> {
+        sets.iter().for_each(|s| c.offer(s));
+        let mut state = PlantState::default();
+        state.y[..7].copy_from_slice(&[0.16, -0.41, 0.14, -1.99, 0.16, 1.74, 0.81]);
+        (0..sets.len())
+            .map(|_| {
+                let mut tel = Telemetry::default();
+                let e = c.step(&state, &mut tel).map(|e| e.code);
+                let mut u = c.u[..7].to_vec();
+                u.push(tel.param_version as f64);
+                (e, u)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn an_arm7_model_larger_than_a_set_travels_in_parts_and_is_checked_and_applied_whole() {
+        let (m1, m2) = (shipped_arm("arm7", 1), shipped_arm("arm7", 2));
+        let whole = |slot: f64, m: &RkgnnModel| {
+            let mut v = vec![slot];
+            v.extend_from_slice(m.net.params());
+            v
+        };
+        let parts = |version, values: &[f64]| {
+            ParamSet::model_sets(version, 0, f64::NAN, ParamKind::RkgnnModel, values)
+        };
+        let new_model = parts(1, &whole(0.0, &m2));
+        assert!(whole(0.0, &m2).len() > crate::msg::MAX_PARAMS);
+        assert_eq!(new_model.len(), 4);
+        let mut c = arm7_cycle(vec![m1.clone(), m2.clone()]);
+        let before = offer_all(&mut c, &[ParamSet::default()])[0].1.clone();
+        // Gathering: no event, nothing of the new model in service, until its last part.
+        let out = offer_all(&mut c, &new_model);
+        for (code, u) in &out[..3] {
+            assert_eq!((*code, u), (None, &before));
+        }
+        assert_eq!(out[3].0, Some(ParamCode::Accepted));
+        assert_eq!(c.version(), 1);
+        // Slot 0 now computes exactly as model 2 does (the same command, bit for bit).
+        let mut reference = arm7_cycle(vec![m2.clone(), m2.clone()]);
+        let mut want = offer_all(&mut reference, &[ParamSet::default()])[0].1.clone();
+        want[7] = 1.0;
+        assert_eq!(out[3].1, want);
+        assert_ne!(want[..7], before[..7]);
+        // A part lost: the model is refused once, whole; the loop keeps model 2.
+        let lost = parts(2, &whole(0.0, &m1));
+        let out = offer_all(&mut c, &[lost[0], lost[2], lost[3]]);
+        let codes: Vec<_> = out.iter().map(|o| o.0).collect();
+        assert_eq!(codes, [None, Some(ParamCode::RejectedPartMissing), None]);
+        assert!(out.iter().all(|o| o.1 == want));
+        // A NaN in the last part: refused at that part; an indefinite whole: refused whole.
+        let mut nan = parts(3, &whole(0.0, &m1));
+        nan[3].values[9] = f64::NAN;
+        let out = offer_all(&mut c, &nan);
+        assert_eq!(out[3].0, Some(ParamCode::RejectedNonFinite));
+        let mut flipped = whole(0.0, &m1);
+        for (_, net) in &m1.net.layout.inertia {
+            net.all_weights().for_each(|w| flipped[1 + w] = -flipped[1 + w]);
+        }
+        let out = offer_all(&mut c, &parts(4, &flipped));
+        assert_eq!(out[3].0, Some(ParamCode::RejectedNotPositiveDefinite));
+        assert!(out.iter().all(|o| o.1 == want));
+        assert_eq!(c.version(), 1);
+        // The next whole model is accepted.
+        let out = offer_all(&mut c, &parts(5, &whole(0.0, &m1)));
+        let mut back = before;
+        back[7] = 5.0;
+        assert_eq!(out[3], (Some(ParamCode::Accepted), back));
     }
 
     #[test]

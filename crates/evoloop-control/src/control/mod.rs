@@ -4,6 +4,7 @@
 
 pub mod fuzzy_select;
 pub mod model_check;
+pub mod model_parts;
 pub mod validate;
 
 pub use crate::plant::LinearModel;
@@ -171,6 +172,11 @@ pub trait Controller: Send {
     /// checked and put in service by `swap_model`; `None` for laws that take gains only.
     fn model_kind(&self) -> Option<ParamKind> {
         None
+    }
+    /// The number of values of the largest model set the law takes (0 for none): room for a
+    /// model sent in parts (`ParamKind::ModelPart`), allocated once.
+    fn model_len(&self) -> usize {
+        0
     }
     /// Check a model set's values (finite already) and put it in service at this cycle
     /// boundary, or refuse it with a code and the offending value's index. Must not allocate.
