@@ -353,7 +353,8 @@ fn identify_mode_fits(check: &Check, controller: &ControllerSpec) -> Result<(), 
              (controller.kind = \"fuzzy_computed_torque\")",
         );
     };
-    let queue = crate::control::cycle::PENDING_CAPACITY;
+    // The controller's queue of sets and its params subscriber's buffer both hold every part.
+    let queue = crate::control::cycle::PENDING_CAPACITY.min(crate::ipc::Topic::Params.max_buffer());
     for (i, m) in f.loaded.iter().enumerate() {
         let sets = crate::msg::ParamSet::model_set_count(1 + m.net.layout.len);
         if sets > queue {

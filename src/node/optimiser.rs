@@ -564,10 +564,12 @@ fn journal(dir: &std::path::Path, version: u64, values: &[f64], t: f64) {
 }
 
 /// The last set in the journal: its version and values.
-/// Only the journal's tail is read: it grows with the run, which may have no end.
+/// Only the journal's tail is read: it grows with the run, which may have no end. It must hold
+/// the longest line: a model is journalled whole (arm7's 3396 values: about 67 kB; the most a
+/// controller takes, PENDING_CAPACITY parts, about 16 000 values: under 400 kB).
 fn last_published(dir: &std::path::Path) -> Option<(u64, Vec<f64>)> {
     use std::io::{Read, Seek, SeekFrom};
-    const TAIL: u64 = 64 * 1024;
+    const TAIL: u64 = 1024 * 1024;
     let mut f = std::fs::File::open(dir.join(JOURNAL)).ok()?;
     let len = f.metadata().ok()?.len();
     f.seek(SeekFrom::Start(len.saturating_sub(TAIL))).ok()?;
@@ -738,4 +740,27 @@ mod remote {
 
     #[cfg(not(feature = "zenoh"))]
     pub fn finish(_: Mirror, _: &std::path::Path) {}
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{journal, last_published};
+
+    /// A rejoining optimiser continues from the journal's last line, which holds a whole model:
+    /// arm7's is longer than the 64 kB tail read before models travelled in parts.
+    #[test]
+    fn the_last_journalled_model_reads_back_whole_however_long() {
+        let dir = tempfile::tempdir().unwrap();
+        let gains = [1.0, 2.0];
+        journal(dir.path(), 1, &gains, 0.5);
+        assert_eq!(last_published(dir.path()), Some((1, gains.to_vec())));
+        // 3396 values of 17 significant digits, as arm7's models are written.
+        let model: Vec<f64> = (0..3396)
+            .map(|i| 0.123_456_789_012_345_6 * i as f64)
+            .collect();
+        journal(dir.path(), 2, &model, 1.0);
+        let (version, values) = last_published(dir.path()).unwrap();
+        assert_eq!(version, 2);
+        assert_eq!(values, model);
+    }
 }

@@ -142,7 +142,7 @@ pub struct OptimiserReport {
     /// The sets published, thinned evenly past `indirect::HISTORY` like the estimates
     /// (`published.jsonl` has every one).
     pub published: Vec<PublishedSet>,
-    /// How many sets were published.
+    /// How many sets were published (a model sent in parts counts once).
     #[serde(default)]
     pub published_count: u64,
     /// Indirect mode: plant samples the estimator never saw (gaps in the sequence numbers).

@@ -98,8 +98,9 @@ pub struct ControlCycle {
 enum Applied {
     /// Now in service.
     InService,
-    /// A part of a model, kept until its last part (no event: the whole gets one).
-    Gathered,
+    /// A part of a model, kept until its last part (no event: the whole gets one), and the
+    /// version of a half-gathered model it displaced (refused in this cycle's event).
+    Gathered { dropped: Option<u64> },
 }
 
 /// The number of the law's own values, which telemetry carries (at most `MAX_LAW_VALUES`: a
@@ -212,15 +213,17 @@ impl ControlCycle {
             .position(|p| p.apply_at_seq <= state.seq)
         {
             let set = self.pending.remove(i);
-            let refusal = match self.apply(&set, state, &sp) {
+            let outcome = match self.apply(&set, state, &sp) {
                 Ok(Applied::InService) => {
                     self.version = set.version;
-                    Some((ParamCode::Accepted, 0))
+                    Some((ParamCode::Accepted, set.version, 0))
                 }
-                Ok(Applied::Gathered) => None,
-                Err(refusal) => Some(refusal),
+                Ok(Applied::Gathered { dropped }) => {
+                    dropped.map(|v| (ParamCode::RejectedPartMissing, v, 0))
+                }
+                Err((code, index)) => Some((code, set.version, index)),
             };
-            event = refusal.map(|(code, index)| event_of(code, set.version, index));
+            event = outcome.map(|(code, version, index)| event_of(code, version, index));
         }
         // A trial that has served its repetition (and was not replaced by the next just now).
         if self.trial_until.is_some_and(|end| state.seq >= end) {
@@ -332,12 +335,13 @@ impl ControlCycle {
     /// the law and put in service at the last part. A refused part drops the model.
     fn apply_part(&mut self, set: &ParamSet, kind: ParamKind) -> Result<Applied, (ParamCode, u32)> {
         if self.parts.is_refused(set) {
-            return Ok(Applied::Gathered);
+            return Ok(Applied::Gathered { dropped: None });
         }
         let common = if set.until_seq > 0 {
             Err((ParamCode::RejectedWrongKind, 0))
         } else {
-            validate_model(set, self.version).map_err(|r| (r.code, r.index))
+            validate_model(set, self.version)
+                .map_err(|r| (r.code, Gather::model_index(set, r.index)))
         };
         if let Err(e) = common {
             self.parts.refuse(set);
@@ -348,7 +352,8 @@ impl ControlCycle {
                 self.controller.swap_model(values)?;
                 Ok(Applied::InService)
             }
-            Gathered::Incomplete | Gathered::Dropped => Ok(Applied::Gathered),
+            Gathered::Incomplete { dropped } => Ok(Applied::Gathered { dropped }),
+            Gathered::Dropped => Ok(Applied::Gathered { dropped: None }),
         }
     }
 

@@ -8,12 +8,21 @@ use crate::msg::{ParamCode, ParamKind, ParamSet, PART_HEADER};
 
 /// What a part added up to.
 pub enum Gathered<'a> {
-    /// More parts to come.
-    Incomplete,
+    /// More parts to come. A first part that found another model half gathered drops that one:
+    /// its version, to be refused (no model goes without an outcome it could be given).
+    Incomplete { dropped: Option<u64> },
     /// The last part: the whole model's values.
     Whole(&'a [f64]),
     /// A later part of a model already refused (refused once, in one event).
     Dropped,
+}
+
+/// A part's offset (header value 1), if it is a whole number.
+fn offset_of(set: &ParamSet) -> Option<f64> {
+    set.values()
+        .get(1)
+        .copied()
+        .filter(|o| *o >= 0.0 && o.fract() == 0.0)
 }
 
 pub struct Gather {
@@ -41,16 +50,28 @@ impl Gather {
         }
     }
 
-    /// Whether `set` belongs to a model refused already.
+    /// Whether `set` is a later part of a model refused already (a first part always starts
+    /// a model afresh).
     pub fn is_refused(&self, set: &ParamSet) -> bool {
-        self.refused == Some(set.version)
+        self.refused == Some(set.version) && offset_of(set) != Some(0.0)
     }
 
-    /// Drop the model `set` belongs to (a part failed the common checks).
+    /// Drop the model `set` belongs to (a part failed a check). A stray part of another
+    /// version (stale, a trial, a lost model's rest) leaves the model being gathered alone.
     pub fn refuse(&mut self, set: &ParamSet) {
-        self.values.clear();
-        self.total = 0;
+        if self.version == set.version {
+            self.values.clear();
+            self.total = 0;
+        }
         self.refused = Some(set.version);
+    }
+
+    /// The index in the whole model of value `i` of part `set` (a value of the header: `i`).
+    pub fn model_index(set: &ParamSet, i: u32) -> u32 {
+        match offset_of(set) {
+            Some(o) if i as usize >= PART_HEADER => (o as usize + i as usize - PART_HEADER) as u32,
+            _ => i,
+        }
     }
 
     /// Add `set`, a part of a model of `kind` (finite and newer than the set in service already
@@ -64,10 +85,10 @@ impl Gather {
             return Ok(Gathered::Dropped);
         }
         match self.check(set, kind) {
-            Ok(chunk) => {
+            Ok((chunk, dropped)) => {
                 self.values.extend_from_slice(chunk);
                 if self.values.len() < self.total {
-                    return Ok(Gathered::Incomplete);
+                    return Ok(Gathered::Incomplete { dropped });
                 }
                 self.total = 0;
                 Ok(Gathered::Whole(&self.values))
@@ -80,12 +101,14 @@ impl Gather {
     }
 
     /// `set`'s share of the model, once its header agrees with the parts before it (a first
-    /// part, offset 0, starts a model afresh).
+    /// part, offset 0, starts a model afresh), and the version of a half-gathered model that
+    /// start dropped.
+    #[allow(clippy::type_complexity)]
     fn check<'s>(
         &mut self,
         set: &'s ParamSet,
         kind: ParamKind,
-    ) -> Result<&'s [f64], (ParamCode, u32)> {
+    ) -> Result<(&'s [f64], Option<u64>), (ParamCode, u32)> {
         let v = set.values();
         let n = v.len();
         if n <= PART_HEADER {
@@ -102,13 +125,21 @@ impl Gather {
         if offset + chunk.len() > total {
             return Err((ParamCode::RejectedWrongLength, n as u32));
         }
+        let mut dropped = None;
         if offset == 0 {
+            if self.total > 0 && self.version != set.version {
+                // Its remaining parts, if they come, are dropped without a second event.
+                dropped = Some(self.version);
+                self.refused = dropped;
+            } else if self.refused == Some(set.version) {
+                self.refused = None;
+            }
             self.values.clear();
             (self.version, self.total) = (set.version, total);
         } else if (self.version, self.total, self.values.len()) != (set.version, total, offset) {
             return Err((ParamCode::RejectedPartMissing, 1));
         }
-        Ok(chunk)
+        Ok((chunk, dropped))
     }
 }
 
@@ -125,13 +156,23 @@ mod tests {
         ParamSet::model_sets(version, 0, f64::NAN, ParamKind::RkgnnModel, values)
     }
 
-    /// Feed `sets` in order; the whole model if one completed.
-    fn gather(g: &mut Gather, sets: &[ParamSet]) -> Vec<Result<Option<Vec<f64>>, ParamCode>> {
+    /// What one part did, as a test compares it.
+    #[derive(Debug, PartialEq)]
+    enum Out {
+        /// Gathered; the version of a model it displaced.
+        Part(Option<u64>),
+        Whole(Vec<f64>),
+        Dropped,
+        Refused(ParamCode),
+    }
+
+    fn gather(g: &mut Gather, sets: &[ParamSet]) -> Vec<Out> {
         sets.iter()
             .map(|s| match g.add(s, ParamKind::RkgnnModel) {
-                Ok(Gathered::Whole(v)) => Ok(Some(v.to_vec())),
-                Ok(_) => Ok(None),
-                Err((code, _)) => Err(code),
+                Ok(Gathered::Incomplete { dropped }) => Out::Part(dropped),
+                Ok(Gathered::Whole(v)) => Out::Whole(v.to_vec()),
+                Ok(Gathered::Dropped) => Out::Dropped,
+                Err((code, _)) => Out::Refused(code),
             })
             .collect()
     }
@@ -146,10 +187,9 @@ mod tests {
                 .iter()
                 .all(|s| s.param_kind() == Ok(ParamKind::ModelPart)));
             let mut g = Gather::new(len);
-            let out = gather(&mut g, &sets);
-            let (last, before) = out.split_last().unwrap();
-            assert!(before.iter().all(|r| *r == Ok(None)));
-            assert_eq!(*last, Ok(Some(m)));
+            let mut out = gather(&mut g, &sets);
+            assert_eq!(out.pop(), Some(Out::Whole(m)));
+            assert!(out.iter().all(|o| *o == Out::Part(None)));
         }
         // A model that fits one set travels as that set.
         let sets = parts(1, &model(MAX_PARAMS));
@@ -164,32 +204,53 @@ mod tests {
         assert_eq!(sets.len(), 3);
         let mut g = Gather::new(3000);
         let out = gather(&mut g, &[sets[0], sets[2]]);
-        assert_eq!(out, vec![Ok(None), Err(ParamCode::RejectedPartMissing)]);
+        assert_eq!(
+            out,
+            [
+                Out::Part(None),
+                Out::Refused(ParamCode::RejectedPartMissing)
+            ]
+        );
         // Its other parts are dropped without a second event.
-        assert_eq!(gather(&mut g, &sets[1..2]), vec![Ok(None)]);
+        assert_eq!(gather(&mut g, &sets[1..2]), [Out::Dropped]);
         let next = parts(3, &m);
-        assert_eq!(gather(&mut g, &next).pop().unwrap(), Ok(Some(m)));
+        assert_eq!(gather(&mut g, &next).pop(), Some(Out::Whole(m.clone())));
+        // A model whose last parts never came is refused when the next one starts, once.
+        let (late, next) = (parts(4, &m), parts(5, &m));
+        let out = gather(&mut g, &[late[0], next[0], late[1], next[1], next[2]]);
+        let want = [
+            Out::Part(None),
+            Out::Part(Some(4)),
+            Out::Dropped,
+            Out::Part(None),
+        ];
+        assert_eq!(out[..4], want);
+        assert_eq!(out[4], Out::Whole(m));
     }
 
     #[test]
-    fn parts_of_two_models_interleaved_are_refused_not_mixed() {
+    fn a_stray_part_of_another_version_leaves_the_model_being_gathered_alone() {
         let (a, b) = (
             model(2500),
             model(2500).iter().map(|x| -x).collect::<Vec<_>>(),
         );
         let (pa, pb) = (parts(5, &a), parts(6, &b));
         let mut g = Gather::new(2500);
-        let out = gather(&mut g, &[pa[0], pb[0], pa[1]]);
-        // b's first part restarts the gathering; a's second no longer fits.
+        // b's first part displaces a, whose second part is then dropped silently; b completes.
+        let out = gather(&mut g, &[pa[0], pb[0], pa[1], pb[1], pb[2]]);
         assert_eq!(
-            out,
-            vec![Ok(None), Ok(None), Err(ParamCode::RejectedPartMissing)]
+            out[..3],
+            [Out::Part(None), Out::Part(Some(5)), Out::Dropped]
         );
-        // b's rest completes nothing now: its gathering was dropped with a's refusal.
-        assert_eq!(
-            gather(&mut g, &pb[1..])[0],
-            Err(ParamCode::RejectedPartMissing)
-        );
+        assert_eq!(out[3..], [Out::Part(None), Out::Whole(b)]);
+        // A part refused by the cycle's common checks (stale, say) of another version.
+        let pc = parts(7, &a);
+        gather(&mut g, &pc[..1]);
+        g.refuse(&parts(3, &a)[1]);
+        assert_eq!(gather(&mut g, &pc[1..]).pop(), Some(Out::Whole(a.clone())));
+        // A version refused once may come again whole (an optimiser restarted).
+        g.refuse(&pc[0]);
+        assert_eq!(gather(&mut g, &pc).pop(), Some(Out::Whole(a)));
     }
 
     #[test]
@@ -198,22 +259,28 @@ mod tests {
         let mut g = Gather::new(2000);
         let mut wrong_kind = parts(1, &m)[0];
         wrong_kind.values[0] = ParamKind::RigidBodyModel.code() as f64;
+        let refused = |c| vec![Out::Refused(c)];
         assert_eq!(
             gather(&mut g, &[wrong_kind]),
-            vec![Err(ParamCode::RejectedWrongKind)]
+            refused(ParamCode::RejectedWrongKind)
         );
         // Longer than the law's largest model, or a fractional offset.
         let mut g = Gather::new(1999);
+        let first = parts(2, &m)[0];
         assert_eq!(
-            gather(&mut g, &parts(2, &m)[..1]),
-            vec![Err(ParamCode::RejectedWrongLength)]
+            gather(&mut g, &[first]),
+            refused(ParamCode::RejectedWrongLength)
         );
         let mut g = Gather::new(2000);
         let mut half = parts(3, &m)[1];
         half.values[1] += 0.5;
         assert_eq!(
             gather(&mut g, &[half]),
-            vec![Err(ParamCode::RejectedWrongLength)]
+            refused(ParamCode::RejectedWrongLength)
         );
+        // A part's value index in the whole model.
+        let second = parts(4, &m)[1];
+        assert_eq!(Gather::model_index(&second, 3), PART_VALUES as u32);
+        assert_eq!(Gather::model_index(&second, 1), 1);
     }
 }
