@@ -733,16 +733,18 @@ fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_lo
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    // arm3_payload: arm3_identify's loop, whose arm changes at 6 s (on the unchanged arm of
+    // arm3_identify no attempt of seed 1 beats the models in service: the book's Known limits).
     for (out, tag) in [(&a, "rk_ident_a"), (&b, "rk_ident_b")] {
-        assert_ok(&run(&config("arm3_identify.toml"), out, tag, &[]));
+        assert_ok(&run(&config("arm3_payload.toml"), out, tag, &[]));
     }
     // Lockstep: the attempts are at fixed simulated times, so the run is reproducible.
     let csv = |d: &Path| std::fs::read_to_string(d.join("run.csv")).unwrap();
     assert_eq!(csv(&a), csv(&b), "two lockstep runs of one seed differ");
     let opt = json(&a.join("optimiser.json"));
     let epochs = opt["epochs"].as_array().unwrap();
-    // 20 s, a first attempt once 5 s of data are in, then every 2 s.
-    assert!(epochs.len() >= 7, "{} attempts", epochs.len());
+    // 30 s, a first attempt once 5 s of data are in, then every 2 s.
+    assert!(epochs.len() >= 12, "{} attempts", epochs.len());
     let mut published = 0;
     for e in epochs {
         if e["published"].is_u64() {
@@ -784,37 +786,39 @@ fn identify_mode_on_a_controller_without_models_is_refused_with_the_key() {
     );
 }
 
-/// The paired study the README quotes: on every seed, identification alongside operation tracks
-/// the arm better after it picks up a payload than the frozen starting models do, and the
-/// frozen comparison in the report is what a lockstep run with the optimiser off gives
-/// (recomputed here from that run's run.csv).
+/// The paired study the book quotes (seeds 1..10): identification alongside operation tracks
+/// the arm better after it picks up a payload than the frozen starting models do, on most seeds
+/// and significantly, and the frozen comparison in the report is what a lockstep run with the
+/// optimiser off gives (recomputed here from that run's run.csv).
 #[test]
-fn identification_alongside_operation_beats_the_frozen_models_after_a_payload_on_every_seed() {
+fn identification_alongside_operation_beats_the_frozen_models_after_a_payload_over_seeds() {
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("study");
     let scn = config("arm3_payload.toml");
-    assert_ok(&run(&scn, &out, "rk_payload", &["--seeds", "1..6"]));
+    assert_ok(&run(&scn, &out, "rk_payload", &["--seeds", "1..10"]));
     let study = json(&out.join("study.json"));
     assert_eq!(study["measure"]["column"], "tracking_mrad");
     let after = &study["comparisons"][1];
     assert_eq!(after["phase"], "after the change");
-    // Six seeds all one way: the exact two-sided Wilcoxon p is 2/64.
-    assert_eq!(after["wilcoxon"]["a_lower"].as_u64(), Some(6), "{after}");
+    // Measured: lower on 9 of 10 seeds, exact two-sided Wilcoxon p = 0.010.
+    assert!(
+        after["wilcoxon"]["a_lower"].as_u64().unwrap() >= 8,
+        "{after}"
+    );
     assert!(after["wilcoxon"]["p_two_sided"].as_f64().unwrap() < 0.05);
     let sentence = after["sentence"].as_str().unwrap();
     assert!(
         sentence.starts_with("Identification alongside operation has a lower tracking RMS"),
         "{sentence}"
     );
-    // Measured: -58 % [-65, -51] over seeds 1..10 (the book's Arms chapter), -57 % over these
-    // six; "more than halved" is the claim made there (-87 % when the models were fitted on the
-    // simulator's velocities).
+    // Measured: -25 % [-41, -9] over seeds 1..10 (the book's Arms chapter, which says how
+    // fragile it is: -58 % before model files were read back to the last bit).
     let rel = after["relative_pct"]["mean"].as_f64().unwrap();
-    assert!(rel < -50.0, "identified vs frozen: {rel} %");
+    assert!(rel < -10.0, "identified vs frozen: {rel} %");
     // The study's per-seed numbers are the runs' own summaries, in mrad.
     let rows = Csv::read(&out.join("seeds.csv"));
-    for (i, seed) in (1..=6).enumerate() {
+    for (i, seed) in (1..=10).enumerate() {
         let s = json(&out.join(format!("seed-{seed}/summary.json")));
         for (col, key) in [
             ("tracking_mrad_after", "tracking_after_change"),
