@@ -425,18 +425,23 @@ mod evaluate_tests {
             spin_ns: 0,
             threads: Default::default(),
         };
-        // Two at a time, as the arsinh GA asks: a cheap evaluation would have to cost 50 us to
-        // go parallel, so a cold first call (slow in a debug build) cannot tip it; a batch of 16
-        // would go parallel at 7 us per evaluation, which a debug build can reach.
-        for _ in 0..3 {
-            assert_eq!(evaluate(&candidates[..2], None, &cheap, 2), expect[..2]);
-        }
+        // The decision is made from the cost estimate before each batch; the estimates are
+        // set here, as earlier batches would have measured them, because one measured on a
+        // loaded machine is whatever the scheduler made it (a cold evaluation of a cheap
+        // function preempted for a time slice measured 100 us and sent this batch to the pool).
+        let estimate = |key: &'static str, ns: u64| {
+            cost_estimates().lock().unwrap().insert(key, ns);
+        };
+        // Two at a time, as the arsinh GA asks, at 1 us each: serial.
+        estimate(std::any::type_name::<Probe>(), 1_000);
+        assert_eq!(evaluate(&candidates[..2], None, &cheap, 2), expect[..2]);
         assert_eq!(cheap.threads.lock().unwrap().len(), 1, "cheap: one thread");
         let costly = Costly(Probe {
             spin_ns: 200_000,
             threads: Default::default(),
         });
         for _ in 0..2 {
+            estimate(std::any::type_name::<Costly>(), 200_000);
             assert_eq!(evaluate(&candidates, None, &costly, 2), expect);
         }
         assert!(
