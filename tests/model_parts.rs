@@ -113,3 +113,23 @@ fn identify_mode_takes_arm7_models_larger_than_a_set() {
     let scn = Scenario::load(&path, &Overrides::default()).unwrap();
     assert_eq!(scn.optimiser.mode, evoloop::config::OptimiserMode::Identify);
 }
+
+/// A law that takes no model (arm3's P-D servo) refuses a model in parts once, at its first
+/// part, and keeps its gains.
+#[test]
+fn a_law_without_models_refuses_a_model_in_parts_once() {
+    let scn = Scenario::load(&common::config("arm3_pd.toml"), &Overrides::default()).unwrap();
+    let mut cycle = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());
+    let gains = cycle.controller.params().to_vec();
+    let sets = ParamSet::model_sets(1, 0, f64::NAN, ParamKind::RkgnnModel, &[0.5; 3000]);
+    assert_eq!(sets.len(), 3);
+    let mut events = Vec::new();
+    for s in &sets {
+        cycle.offer(s);
+        let e = cycle.step(&PlantState::default(), &mut Telemetry::default());
+        events.push(e.map(|e| e.code));
+    }
+    assert_eq!(events, [Some(ParamCode::RejectedWrongKind), None, None]);
+    assert_eq!(cycle.controller.params(), gains);
+    assert_eq!(cycle.version(), 0);
+}

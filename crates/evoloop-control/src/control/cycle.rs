@@ -282,10 +282,18 @@ impl ControlCycle {
         let c = self.controller.as_ref();
         let refused = |r: super::Rejection| (r.code, r.index);
         let trial = set.until_seq > 0;
+        if set.param_kind() == Ok(ParamKind::ModelPart) {
+            return match c.model_kind() {
+                Some(kind) => self.apply_part(set, kind),
+                // A law that takes no model: the model is refused once, not once per part.
+                None if self.parts.is_refused(set) => Ok(Applied::Gathered { dropped: None }),
+                None => {
+                    self.parts.refuse(set);
+                    Err((ParamCode::RejectedWrongKind, 0))
+                }
+            };
+        }
         if let Some(kind) = c.model_kind() {
-            if set.param_kind() == Ok(ParamKind::ModelPart) {
-                return self.apply_part(set, kind);
-            }
             if set.param_kind() == Ok(kind) {
                 if trial {
                     // Trials are gain sets: a model has no fallback to return to.
