@@ -58,9 +58,9 @@ pub struct IdentifyArgs {
     pub stride: usize,
     /// Half width of the low-pass, s: the joint velocities are estimated from the measured
     /// positions (never the run's logged `qd*`) by a local quadratic fit over this window either
-    /// side, and the positions are smoothed with it. 0.08 s passes arm motion below 3.6 Hz (-3 dB on the velocities)
-    /// and cuts 1e-4 rad encoder noise to 2e-4 rad/s; widen it for noisier encoders, narrow it
-    /// for faster motion.
+    /// side, and the positions are smoothed with it. 0.08 s passes arm motion below 3.6 Hz (-3 dB
+    /// on the velocities) and cuts 1e-4 rad encoder noise to 2e-4 rad/s; widen it for noisier
+    /// encoders, narrow it for faster motion.
     #[arg(long, default_value_t = crate::rkgnn::data::SMOOTHING,
           value_parser = |s: &str| crate::node::args::seconds_in(s, 10.0))]
     pub smoothing: f64,

@@ -381,16 +381,15 @@ impl ParamSet {
                 values,
             ))];
         }
-        let chunk = PART_VALUES;
         let total = values.len() as f64;
         values
-            .chunks(chunk)
+            .chunks(PART_VALUES)
             .enumerate()
             .map(|(i, part)| {
                 let mut set = ParamSet::new(version, apply_at_seq, ParamKind::ModelPart, &[]);
                 set.values[..PART_HEADER].copy_from_slice(&[
                     kind.code() as f64,
-                    (i * chunk) as f64,
+                    (i * PART_VALUES) as f64,
                     total,
                 ]);
                 set.values[PART_HEADER..PART_HEADER + part.len()].copy_from_slice(part);

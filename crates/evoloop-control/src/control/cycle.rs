@@ -282,27 +282,20 @@ impl ControlCycle {
         let c = self.controller.as_ref();
         let refused = |r: super::Rejection| (r.code, r.index);
         let trial = set.until_seq > 0;
-        if set.param_kind() == Ok(ParamKind::ModelPart) {
-            return match c.model_kind() {
-                Some(kind) => self.apply_part(set, kind),
-                // A law that takes no model: the model is refused once, not once per part.
-                None if self.parts.is_refused(set) => Ok(Applied::Gathered { dropped: None }),
-                None => {
-                    self.parts.refuse(set);
-                    Err((ParamCode::RejectedWrongKind, 0))
-                }
-            };
-        }
-        if let Some(kind) = c.model_kind() {
-            if set.param_kind() == Ok(kind) {
-                if trial {
-                    // Trials are gain sets: a model has no fallback to return to.
-                    return Err((ParamCode::RejectedWrongKind, 0));
-                }
-                validate_model(set, self.version).map_err(refused)?;
-                self.controller.swap_model(set.values())?;
-                return Ok(Applied::InService);
+        let part = set.param_kind() == Ok(ParamKind::ModelPart);
+        match c.model_kind() {
+            Some(kind) if part || set.param_kind() == Ok(kind) => {
+                return self.apply_model(set, kind);
             }
+            // A law that takes no model: a model in parts is refused once, not once per part.
+            None if part && self.parts.is_refused(set) => {
+                return Ok(Applied::Gathered { dropped: None });
+            }
+            None if part => {
+                self.parts.refuse(set);
+                return Err((ParamCode::RejectedWrongKind, 0));
+            }
+            _ => {}
         }
         validate_params(set, c.kind(), c.n_params(), self.version, &self.bounds)
             .map_err(refused)?;
@@ -339,30 +332,43 @@ impl ControlCycle {
         Ok(Applied::InService)
     }
 
-    /// A part of a model of `kind`: checked as a model set, gathered, and the whole checked by
-    /// the law and put in service at the last part. A refused part drops the model.
-    fn apply_part(&mut self, set: &ParamSet, kind: ParamKind) -> Result<Applied, (ParamCode, u32)> {
-        if self.parts.is_refused(set) {
+    /// A model set of the law's `kind`, whole or one of its parts (`ParamKind::ModelPart`):
+    /// checked as a model set (no trial, newer, finite), a part gathered, and the whole checked
+    /// by the law and put in service (at a model's last part). A refused part drops its model.
+    fn apply_model(
+        &mut self,
+        set: &ParamSet,
+        kind: ParamKind,
+    ) -> Result<Applied, (ParamCode, u32)> {
+        let part = set.param_kind() == Ok(ParamKind::ModelPart);
+        if part && self.parts.is_refused(set) {
             return Ok(Applied::Gathered { dropped: None });
         }
         let common = if set.until_seq > 0 {
+            // Trials are gain sets: a model has no fallback to return to.
             Err((ParamCode::RejectedWrongKind, 0))
         } else {
-            validate_model(set, self.version)
-                .map_err(|r| (r.code, Gather::model_index(set, r.index)))
+            // A part's offending index is the whole model's.
+            let index = |i| if part { Gather::model_index(set, i) } else { i };
+            validate_model(set, self.version).map_err(|r| (r.code, index(r.index)))
         };
         if let Err(e) = common {
-            self.parts.refuse(set);
+            if part {
+                self.parts.refuse(set);
+            }
             return Err(e);
         }
-        match self.parts.add(set, kind)? {
-            Gathered::Whole(values) => {
-                self.controller.swap_model(values)?;
-                Ok(Applied::InService)
+        let values = if part {
+            match self.parts.add(set, kind)? {
+                Gathered::Whole(values) => values,
+                Gathered::Incomplete { dropped } => return Ok(Applied::Gathered { dropped }),
+                Gathered::Dropped => return Ok(Applied::Gathered { dropped: None }),
             }
-            Gathered::Incomplete { dropped } => Ok(Applied::Gathered { dropped }),
-            Gathered::Dropped => Ok(Applied::Gathered { dropped: None }),
-        }
+        } else {
+            set.values()
+        };
+        self.controller.swap_model(values)?;
+        Ok(Applied::InService)
     }
 
     /// Put the fallback back in service (the trial is over).

@@ -17,14 +17,6 @@ pub enum Gathered<'a> {
     Dropped,
 }
 
-/// A part's offset (header value 1), if it is a whole number.
-fn offset_of(set: &ParamSet) -> Option<f64> {
-    set.values()
-        .get(1)
-        .copied()
-        .filter(|o| *o >= 0.0 && o.fract() == 0.0)
-}
-
 pub struct Gather {
     values: Vec<f64>,
     /// The model being gathered: its version and length (0: none).
@@ -37,6 +29,44 @@ pub struct Gather {
 /// A header value that must be a whole number of at most `max`.
 fn count(v: f64, max: usize) -> Option<usize> {
     (v >= 0.0 && v.fract() == 0.0 && v <= max as f64).then_some(v as usize)
+}
+
+/// A part's offset in the whole model (header value 1), if it is one.
+fn offset_of(set: &ParamSet) -> Option<usize> {
+    set.values().get(1).and_then(|&v| count(v, usize::MAX))
+}
+
+/// A part's header, read and checked on its own: the whole's kind must be `kind`, offset and
+/// total whole numbers of at most `max`, and the share must end within the total.
+struct Header<'a> {
+    offset: usize,
+    total: usize,
+    share: &'a [f64],
+}
+
+impl<'a> Header<'a> {
+    fn read(set: &'a ParamSet, kind: ParamKind, max: usize) -> Result<Self, (ParamCode, u32)> {
+        let v = set.values();
+        let n = v.len();
+        if n <= PART_HEADER {
+            return Err((ParamCode::RejectedWrongLength, n as u32));
+        }
+        if v[0] != kind.code() as f64 {
+            return Err((ParamCode::RejectedWrongKind, 0));
+        }
+        let (Some(offset), Some(total)) = (count(v[1], max), count(v[2], max)) else {
+            return Err((ParamCode::RejectedWrongLength, 2));
+        };
+        let share = &v[PART_HEADER..];
+        if offset + share.len() > total {
+            return Err((ParamCode::RejectedWrongLength, n as u32));
+        }
+        Ok(Self {
+            offset,
+            total,
+            share,
+        })
+    }
 }
 
 impl Gather {
@@ -53,7 +83,7 @@ impl Gather {
     /// Whether `set` is a later part of a model refused already (a first part always starts
     /// a model afresh).
     pub fn is_refused(&self, set: &ParamSet) -> bool {
-        self.refused == Some(set.version) && offset_of(set) != Some(0.0)
+        self.refused == Some(set.version) && offset_of(set) != Some(0)
     }
 
     /// Drop the model `set` belongs to (a part failed a check). A stray part of another
@@ -69,7 +99,7 @@ impl Gather {
     /// The index in the whole model of value `i` of part `set` (a value of the header: `i`).
     pub fn model_index(set: &ParamSet, i: u32) -> u32 {
         match offset_of(set) {
-            Some(o) if i as usize >= PART_HEADER => (o as usize + i as usize - PART_HEADER) as u32,
+            Some(o) if i as usize >= PART_HEADER => (o + i as usize - PART_HEADER) as u32,
             _ => i,
         }
     }
@@ -84,49 +114,27 @@ impl Gather {
         if self.is_refused(set) {
             return Ok(Gathered::Dropped);
         }
-        match self.check(set, kind) {
-            Ok((chunk, dropped)) => {
-                self.values.extend_from_slice(chunk);
-                if self.values.len() < self.total {
-                    return Ok(Gathered::Incomplete { dropped });
-                }
-                self.total = 0;
-                Ok(Gathered::Whole(&self.values))
-            }
+        let dropped = match self.place(set, kind) {
+            Ok(dropped) => dropped,
             Err(e) => {
                 self.refuse(set);
-                Err(e)
+                return Err(e);
             }
+        };
+        if self.values.len() < self.total {
+            return Ok(Gathered::Incomplete { dropped });
         }
+        self.total = 0;
+        Ok(Gathered::Whole(&self.values))
     }
 
-    /// `set`'s share of the model, once its header agrees with the parts before it (a first
-    /// part, offset 0, starts a model afresh), and the version of a half-gathered model that
-    /// start dropped.
-    #[allow(clippy::type_complexity)]
-    fn check<'s>(
-        &mut self,
-        set: &'s ParamSet,
-        kind: ParamKind,
-    ) -> Result<(&'s [f64], Option<u64>), (ParamCode, u32)> {
-        let v = set.values();
-        let n = v.len();
-        if n <= PART_HEADER {
-            return Err((ParamCode::RejectedWrongLength, n as u32));
-        }
-        if v[0] != kind.code() as f64 {
-            return Err((ParamCode::RejectedWrongKind, 0));
-        }
-        let cap = self.values.capacity();
-        let (Some(offset), Some(total)) = (count(v[1], cap), count(v[2], cap)) else {
-            return Err((ParamCode::RejectedWrongLength, 2));
-        };
-        let chunk = &v[PART_HEADER..];
-        if offset + chunk.len() > total {
-            return Err((ParamCode::RejectedWrongLength, n as u32));
-        }
+    /// Append `set`'s share once its header agrees with the parts before it (a first part,
+    /// offset 0, starts a model afresh): the version of a half-gathered model that start
+    /// displaced.
+    fn place(&mut self, set: &ParamSet, kind: ParamKind) -> Result<Option<u64>, (ParamCode, u32)> {
+        let h = Header::read(set, kind, self.values.capacity())?;
         let mut dropped = None;
-        if offset == 0 {
+        if h.offset == 0 {
             if self.total > 0 && self.version != set.version {
                 // Its remaining parts, if they come, are dropped without a second event.
                 dropped = Some(self.version);
@@ -135,11 +143,13 @@ impl Gather {
                 self.refused = None;
             }
             self.values.clear();
-            (self.version, self.total) = (set.version, total);
-        } else if (self.version, self.total, self.values.len()) != (set.version, total, offset) {
+            (self.version, self.total) = (set.version, h.total);
+        } else if (self.version, self.total, self.values.len()) != (set.version, h.total, h.offset)
+        {
             return Err((ParamCode::RejectedPartMissing, 1));
         }
-        Ok((chunk, dropped))
+        self.values.extend_from_slice(h.share);
+        Ok(dropped)
     }
 }
 
