@@ -230,6 +230,11 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let timing = timing::validate(raw.timing, check, ov)?;
     let reference = reference::validate(raw.reference, check, timing.period)?;
     let plant = PlantSpec::validate(raw.plant, check, timing.period, &reference, timing.duration)?;
+    if timing.mode == Mode::Realtime {
+        if let Some(why) = plant.model.config().realtime_refusal() {
+            return check.fail("timing.mode", format!("\"realtime\": {why}"));
+        }
+    }
     let controller = ControllerSpec::validate(
         raw.controller,
         check,

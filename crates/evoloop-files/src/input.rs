@@ -28,9 +28,9 @@ pub fn read_text(path: &Path) -> std::io::Result<String> {
     Ok(text)
 }
 
-/// What went wrong deserialising a TOML text: the dotted key (empty at file level), the 1-based
-/// line when known, and a reason that is never empty.
-pub struct TomlProblem {
+/// What went wrong deserialising a TOML or JSON text: the dotted key (empty at file level), the
+/// 1-based line when known, and a reason that is never empty.
+pub struct Problem {
     pub key: String,
     pub line: Option<usize>,
     pub reason: String,
@@ -38,11 +38,11 @@ pub struct TomlProblem {
 
 /// Deserialise `text` as TOML into `T`, or say where and why not (every TOML reader of the
 /// project goes through here: scenarios, D-H tables, tuning experiments).
-pub fn from_toml<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, TomlProblem> {
+pub fn from_toml<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Problem> {
     serde_path_to_error::deserialize(toml::Deserializer::new(text)).map_err(|e| {
         let key = e.path().to_string();
         let inner = e.into_inner();
-        TomlProblem {
+        Problem {
             key: if key == "." { String::new() } else { key },
             line: inner
                 .span()
@@ -53,6 +53,21 @@ pub fn from_toml<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, TomlPr
                 "" => "invalid TOML here: a value is missing, or the file is cut short".into(),
                 m => m.to_string(),
             },
+        }
+    })
+}
+
+/// Deserialise `text` as JSON into `T`, or say where and why not (model files written by other
+/// tools: a linear plant exported from python-control, say).
+pub fn from_json<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Problem> {
+    let mut de = serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let key = e.path().to_string();
+        let inner = e.into_inner();
+        Problem {
+            key: if key == "." { String::new() } else { key },
+            line: (inner.line() > 0).then_some(inner.line()),
+            reason: inner.to_string(),
         }
     })
 }

@@ -6,5 +6,5 @@
 mod input;
 mod output;
 
-pub use input::{from_toml, read_text, TomlProblem, MAX_FILE_BYTES};
+pub use input::{from_json, from_toml, read_text, Problem, MAX_FILE_BYTES};
 pub use output::{create, free_bytes, named, open_in_place, release, reserve, write};

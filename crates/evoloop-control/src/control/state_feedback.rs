@@ -124,7 +124,8 @@ pub fn validate(
     let Some(model) = cx.plant.config().linear_model() else {
         return check.fail(
             "controller.kind",
-            "state_feedback drives the two_mass plant; arms take pd_servo or computed_torque",
+            "state_feedback drives a single-input plant with a linear model of at most 8 states \
+             (two_mass, or a single-input single-output lti); arms take pd_servo or computed_torque",
         );
     };
     let Some(t) = t else {
@@ -133,7 +134,7 @@ pub fn validate(
             "missing table [controller.state_feedback] with `gains`",
         );
     };
-    let n_x = model.a.len();
+    let n_x = model.n();
     let n = n_x + 1;
     if t.gains.len() != n {
         return check.fail(

@@ -121,6 +121,7 @@ mod tests {
     fn spec() -> HeaterSpec {
         let cx = PlantContext {
             step: 0.01,
+            period: 0.01,
             reference: &crate::reference::Reference::Step {
                 amplitude: 60.0,
                 start: 0.0,

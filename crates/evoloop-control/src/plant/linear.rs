@@ -1,54 +1,218 @@
-//! A plant's linearisation, x' = A x + B u, y = C x, and its closed loop under state feedback
-//! with integral action (two-mass paper, eq. 2): the integral state xi' = r - y and
-//! u = -K [x; xi]. One place builds the augmented matrices: the controller's stability check,
-//! the optimisers' acceptance rule and the robust design all use them.
+//! A single-input plant's linear model and its closed loop under state feedback with integral
+//! action (two-mass paper, eq. 2): the integral state xi' = r - y and u = -K [x; xi]. One place
+//! builds the closed loop: the controller's stability check, the optimisers' acceptance rule and
+//! the robust design all use it.
+//!
+//! Two forms. `continuous`: x' = A x + B u, y = C x, checked as the paper does (the augmented
+//! continuous closed loop, every eigenvalue in the open left half-plane). `sampled`: the exact
+//! zero-order-hold model of an `lti` plant at the control period, z+ = A z + B u, checked as the
+//! controller really runs it (the integrator summed once a period, the measured output's direct
+//! feedthrough acting through the input of the period before), every eigenvalue inside the unit
+//! circle.
 
-use nalgebra::{Matrix5, Vector5};
+use nalgebra::{Complex, DMatrix, SMatrix};
 
-/// The linear model a controller checks state-feedback gains against before use.
+/// The most states a linear model checked in the control cycle has (its closed loop is at most
+/// 10 x 10, decomposed on the stack).
+pub const MAX_LINEAR_STATES: usize = 8;
+
+/// Continuous time, or sampled at the control period (s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Time {
+    Continuous,
+    Sampled { period: f64 },
+}
+
+/// The linear model a controller checks state-feedback gains against.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LinearModel {
-    pub a: [[f64; 4]; 4],
-    pub b: [f64; 4],
-    pub c: [f64; 4],
+    n: usize,
+    a: [[f64; MAX_LINEAR_STATES]; MAX_LINEAR_STATES],
+    b: [f64; MAX_LINEAR_STATES],
+    c: [f64; MAX_LINEAR_STATES],
+    /// Sampled only: y_k = C z_k + d v_{k-1}, where v is the input reaching the plant over a
+    /// period, v_k = f z_k + g u_k (u itself, or the head of an input delay line).
+    d: f64,
+    f: [f64; MAX_LINEAR_STATES],
+    g: f64,
+    time: Time,
 }
 
 impl LinearModel {
-    /// The augmented open loop (Â, B̂) = ([[A, 0], [-C, 0]], [B; 0]).
-    pub fn augmented(&self) -> (Matrix5<f64>, Vector5<f64>) {
-        let mut ah = Matrix5::zeros();
-        for i in 0..4 {
-            for j in 0..4 {
-                ah[(i, j)] = self.a[i][j];
-            }
-            ah[(4, i)] = -self.c[i];
-        }
-        let b = self.b;
-        (ah, Vector5::new(b[0], b[1], b[2], b[3], 0.0))
-    }
-
-    /// Â - B̂ K: the closed loop under u = -K [x; xi] (5 gains). Written out rather than as a
-    /// matrix product so the integrator row stays exactly [-C, 0] whatever the gains.
-    pub fn closed_loop(&self, gains: &[f64]) -> Matrix5<f64> {
-        let (mut m, b) = self.augmented();
-        for i in 0..4 {
-            for j in 0..5 {
-                m[(i, j)] -= b[i] * gains[j];
-            }
-        }
+    /// x' = A x + B u, y = C x with n = `b.len()` states (at most `MAX_LINEAR_STATES`); `a` is
+    /// row-major, n x n.
+    pub fn continuous(a: &[f64], b: &[f64], c: &[f64]) -> Self {
+        let mut m = Self::empty(b.len(), Time::Continuous);
+        m.fill(a, b, c);
         m
     }
 
-    /// Whether u = -K [x; xi] makes the augmented closed loop asymptotically stable (every
-    /// eigenvalue in the open left half-plane). Stack-only (a fixed 5 x 5 Schur decomposition),
-    /// so it can run inside the control cycle.
+    /// z_{k+1} = A z_k + B u_k, y_k = C z_k + d v_{k-1}, v_k = f z_k + g u_k, at `period`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn sampled(
+        period: f64,
+        a: &[f64],
+        b: &[f64],
+        c: &[f64],
+        d: f64,
+        f: &[f64],
+        g: f64,
+    ) -> Self {
+        let mut m = Self::empty(b.len(), Time::Sampled { period });
+        m.fill(a, b, c);
+        m.f[..f.len()].copy_from_slice(f);
+        (m.d, m.g) = (d, g);
+        m
+    }
+
+    fn empty(n: usize, time: Time) -> Self {
+        assert!(
+            (1..=MAX_LINEAR_STATES).contains(&n),
+            "a linear model has 1..={MAX_LINEAR_STATES} states, got {n}"
+        );
+        Self {
+            n,
+            a: [[0.0; MAX_LINEAR_STATES]; MAX_LINEAR_STATES],
+            b: [0.0; MAX_LINEAR_STATES],
+            c: [0.0; MAX_LINEAR_STATES],
+            d: 0.0,
+            f: [0.0; MAX_LINEAR_STATES],
+            g: 1.0,
+            time,
+        }
+    }
+
+    fn fill(&mut self, a: &[f64], b: &[f64], c: &[f64]) {
+        let n = self.n;
+        assert!(a.len() == n * n && c.len() == n, "A is n x n and C 1 x n");
+        for i in 0..n {
+            self.a[i][..n].copy_from_slice(&a[i * n..(i + 1) * n]);
+        }
+        self.b[..n].copy_from_slice(b);
+        self.c[..n].copy_from_slice(c);
+    }
+
+    /// The number of plant states (state feedback takes this many gains and the integrator's).
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    pub fn time(&self) -> Time {
+        self.time
+    }
+
+    /// The augmented continuous open loop (Â, B̂) = ([[A, 0], [-C, 0]], [B; 0]) (the robust
+    /// design's, off the control cycle). For a sampled model, its discrete matrices.
+    pub fn augmented(&self) -> (DMatrix<f64>, DMatrix<f64>) {
+        let n = self.n;
+        let a = DMatrix::from_fn(n + 1, n + 1, |i, j| self.open_loop(i, j));
+        let b = DMatrix::from_fn(n + 1, 1, |i, _| if i < n { self.b[i] } else { 0.0 });
+        (a, b)
+    }
+
+    fn open_loop(&self, i: usize, j: usize) -> f64 {
+        let n = self.n;
+        match (i < n, j < n) {
+            (true, true) => self.a[i][j],
+            (false, true) => -self.c[j],
+            _ => 0.0,
+        }
+    }
+
+    /// Whether u = -K [x; xi] (n + 1 gains) makes the closed loop asymptotically stable.
+    /// Stack-only (a fixed-size Schur decomposition), so it can run inside the control cycle.
     pub fn stabilised_by(&self, gains: &[f64]) -> bool {
-        if gains.len() != 5 {
+        let n = self.n;
+        if gains.len() != n + 1 {
             return false;
         }
-        self.closed_loop(gains)
-            .complex_eigenvalues()
-            .iter()
-            .all(|l| l.re < 0.0)
+        match self.time {
+            // Â - B̂ K, written element by element so the integrator row stays exactly [-C, 0]
+            // whatever the gains.
+            Time::Continuous => all_eigenvalues(
+                n + 1,
+                |i, j| {
+                    let bk = if i < n { self.b[i] * gains[j] } else { 0.0 };
+                    self.open_loop(i, j) - bk
+                },
+                |l| l.re < 0.0,
+            ),
+            Time::Sampled { period } => all_eigenvalues(
+                n + 2,
+                |i, j| self.sampled_closed_loop(gains, period, i, j),
+                |l| l.norm() < 1.0,
+            ),
+        }
+    }
+
+    /// Element (i, j) of the sampled closed loop over s = [z; I; v_prev], where the law is
+    /// u_k = -K_z z_k + I_k and its integrator I_{k+1} = I_k - k_i T (r - y_k) (`StateFeedback`):
+    ///   z+      = (A - B K_z) z + B I
+    ///   I+      = k_i T C z + I + k_i T d v_prev
+    ///   v_prev+ = (f - g K_z) z + g I
+    fn sampled_closed_loop(&self, gains: &[f64], period: f64, i: usize, j: usize) -> f64 {
+        let n = self.n;
+        let kt = gains[n] * period;
+        // Blocks: 0 = z (the first n), 1 = I, 2 = v_prev.
+        let block = |k: usize| (k >= n) as u8 + (k > n) as u8;
+        match (block(i), block(j)) {
+            (0, 0) => self.a[i][j] - self.b[i] * gains[j],
+            (0, 1) => self.b[i],
+            (1, 0) => kt * self.c[j],
+            (1, 1) => 1.0,
+            (1, 2) => kt * self.d,
+            (2, 0) => self.f[j] - self.g * gains[j],
+            (2, 1) => self.g,
+            _ => 0.0,
+        }
+    }
+}
+
+/// Whether every eigenvalue of the k x k matrix `fill(i, j)` (2 <= k <= 10) satisfies `ok`, on
+/// a matrix of exactly that size (no padding, so a 5 x 5 loop decomposes as it always did).
+fn all_eigenvalues(
+    k: usize,
+    fill: impl Fn(usize, usize) -> f64,
+    ok: impl Fn(Complex<f64>) -> bool,
+) -> bool {
+    macro_rules! sized {
+        ($($n:literal)*) => {
+            match k {
+                $($n => SMatrix::<f64, $n, $n>::from_fn(&fill)
+                    .complex_eigenvalues()
+                    .iter()
+                    .all(|l| ok(*l)),)*
+                _ => false,
+            }
+        };
+    }
+    sized!(2 3 4 5 6 7 8 9 10)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// x' = u, y = x under u = -k1 x - k2 xi: poles of s^2 + k1 s - k2, stable iff k1 > 0 and
+    /// k2 < 0 (the paper's sign: k_i = -k2).
+    #[test]
+    fn a_continuous_integrator_is_stable_exactly_where_routh_says() {
+        let m = LinearModel::continuous(&[0.0], &[1.0], &[1.0]);
+        assert!(m.stabilised_by(&[1.0, -1.0]));
+        assert!(!m.stabilised_by(&[-1.0, -1.0]));
+        assert!(!m.stabilised_by(&[1.0, 1.0]));
+        assert!(!m.stabilised_by(&[1.0]), "wrong gain count");
+    }
+
+    /// The sampled integrator z+ = z + T u, y = z: deadbeat-ish gains are stable, but gains
+    /// a continuous check accepts become unstable once k1 T > 2 (sampling matters).
+    #[test]
+    fn a_sampled_loop_goes_unstable_where_the_continuous_one_would_not() {
+        let t = 0.1;
+        let m = LinearModel::sampled(t, &[1.0], &[t], &[1.0], 0.0, &[0.0], 1.0);
+        assert!(m.stabilised_by(&[5.0, -1.0]));
+        // k1 T = 2.5: the proportional loop alone has pole 1 - 2.5 = -1.5.
+        assert!(!m.stabilised_by(&[25.0, -1.0]));
+        assert!(LinearModel::continuous(&[0.0], &[1.0], &[1.0]).stabilised_by(&[25.0, -1.0]));
     }
 }

@@ -44,6 +44,7 @@ crate::kinds! {
     maglev => Maglev(MaglevParams),
     heater => Heater(HeaterSpec),
     arsinh => Arsinh(ArsinhSpec),
+    lti => Lti(LtiSpec),
 }
 
 /// What a plant kind's configuration offers the rest of the system. Besides this, a kind's
@@ -79,6 +80,11 @@ pub trait PlantConfig {
     fn first_change(&self) -> Option<f64> {
         None
     }
+    /// Why this plant cannot run in realtime (a model that moves once a control period, while
+    /// realtime splits a period where a command arrives); None if it can.
+    fn realtime_refusal(&self) -> Option<String> {
+        None
+    }
 }
 
 /// A single input as a controller must respect it.
@@ -105,6 +111,8 @@ pub fn step_at<T>(steps: &[(f64, T)], t: f64) -> Option<&T> {
 pub struct PlantContext<'a> {
     /// The integration step, s (validated: 0 < step <= period).
     pub step: f64,
+    /// The control period, s.
+    pub period: f64,
     pub reference: &'a Reference,
     /// The run's duration, s (infinite for a run until stopped).
     pub duration: f64,
@@ -162,6 +170,7 @@ impl PlantSpec {
         let kind = raw.kind;
         let cx = PlantContext {
             step,
+            period,
             reference,
             duration,
         };
@@ -206,10 +215,11 @@ pub trait Plant: Send {
     fn constrain(&self, _x: &mut [f64]) {}
     /// The measuring chain after the sensor noise (e.g. an ADC's quantisation). Default: none.
     fn measure(&self, _y: &mut [f64]) {}
-    /// A discrete-time plant, x_{k+1} = f(x_k, u_k) once per control period: advance the state
-    /// in place and return true; `PlantSim::advance` then integrates nothing. Default: false (a
-    /// continuous plant, integrated with RK4 from `derivative`).
-    fn map(&self, _x: &mut [f64], _u: &[f64]) -> bool {
+    /// A plant that advances itself over `dt` with `u` held (a discrete-time map, once per
+    /// control period, or an exact discretisation): advance the state in place and return true;
+    /// `PlantSim::advance` then integrates nothing. Default: false (a continuous plant, integrated
+    /// with RK4 from `derivative`).
+    fn map(&self, _x: &mut [f64], _u: &[f64], _dt: f64) -> bool {
         false
     }
 }
@@ -257,7 +267,7 @@ impl PlantSim {
         if dt <= 0.0 {
             return;
         }
-        if self.plant.map(&mut self.x, u) {
+        if self.plant.map(&mut self.x, u, dt) {
             self.t += dt;
             return;
         }

@@ -102,7 +102,7 @@ impl TwoMass {
     /// The (A, B, C) model a state-feedback controller checks its gains against.
     pub fn linear_model(&self) -> LinearModel {
         let (a, b, c) = self.matrices();
-        LinearModel { a, b, c }
+        LinearModel::continuous(a.as_flattened(), &b, &c)
     }
 
     /// Total mechanical energy (kinetic + spring); conserved when u = 0.

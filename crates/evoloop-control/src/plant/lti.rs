@@ -1,0 +1,759 @@
+//! A linear time-invariant plant of the user's own: state-space matrices (A, B, C, D) or a
+//! transfer function (num, den), continuous or discrete, written in the scenario or in a model
+//! file (JSON as python-control or MATLAB export it, or TOML).
+//!
+//! A continuous model is discretised exactly for a zero-order hold at the control period:
+//! exp([[A, B], [0, 0]] T) = [[Phi, Gamma], [0, I]] (nalgebra's Padé scaling-and-squaring
+//! exponential), so a lockstep run steps x_{k+1} = Phi x_k + Gamma u_k with no integration
+//! error. A period split where a command arrives (realtime) is integrated from x' = A x + B u
+//! with RK4 at `plant.step`. A discrete model (`dt`, which must be the control period) and an
+//! input delay (whole periods) move once a period, so they run in lockstep only.
+//!
+//! The measured output at sample k is y_k = C x_k + D v_{k-1}, where v is the input that reached
+//! the plant over the period before: the sample is taken before the controller answers it, so
+//! a direct feedthrough acts through the input in force at that instant, not the one it causes.
+//!
+//! Simulated state: [x (n) | the delay line (m per period of delay) | v (m)].
+
+use super::{LinearModel, Plant, PlantConfig, PlantContext, ScalarInput};
+use crate::check::{Check, ConfigError};
+use crate::plant::linear::MAX_LINEAR_STATES;
+use crate::{MAX_JOINTS, MAX_STATES};
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// The most periods of input delay (the delay line is part of the state, `MAX_STATES`).
+pub const MAX_DELAY_PERIODS: usize = 24;
+
+/// The validated `[plant.lti]`, also the simulated model. Matrices are row-major.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LtiSpec {
+    /// States, inputs, outputs.
+    pub n: usize,
+    pub m: usize,
+    pub p: usize,
+    /// As configured (continuous, or discrete at `dt`), after a transfer function's
+    /// realisation (controllable canonical form, as SciPy's `tf2ss`).
+    pub a: Vec<f64>,
+    pub b: Vec<f64>,
+    pub c: Vec<f64>,
+    pub d: Vec<f64>,
+    /// A discrete model's sample time (the control period); None for a continuous one.
+    pub dt: Option<f64>,
+    /// The control period and the model's exact zero-order-hold discretisation at it.
+    pub period: f64,
+    pub phi: Vec<f64>,
+    pub gamma: Vec<f64>,
+    /// Input delay, whole control periods.
+    pub delay: usize,
+    pub x0: Vec<f64>,
+    /// The actuator's range per input (the command is clipped to it).
+    pub u_min: Vec<f64>,
+    pub u_max: Vec<f64>,
+    /// The model file the matrices came from, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+}
+
+/// y = Mx (+ y), M rows x cols row-major.
+fn mul_add(m: &[f64], rows: usize, x: &[f64], y: &mut [f64]) {
+    let cols = x.len();
+    for (i, yi) in y.iter_mut().enumerate().take(rows) {
+        *yi += m[i * cols..(i + 1) * cols]
+            .iter()
+            .zip(x)
+            .map(|(a, b)| a * b)
+            .sum::<f64>();
+    }
+}
+
+impl LtiSpec {
+    fn delay_len(&self) -> usize {
+        self.m * self.delay
+    }
+
+    /// y = C x + D v.
+    pub fn output_with(&self, x: &[f64], v: &[f64], y: &mut [f64]) {
+        y[..self.p].fill(0.0);
+        mul_add(&self.c, self.p, &x[..self.n], y);
+        mul_add(&self.d, self.p, &v[..self.m], y);
+    }
+
+    /// The command as the actuator applies it (clipped to its range), on the stack.
+    fn clipped(&self, u: &[f64]) -> [f64; MAX_JOINTS] {
+        let mut out = [0.0; MAX_JOINTS];
+        for (i, o) in out.iter_mut().enumerate().take(self.m) {
+            *o = u[i].clamp(self.u_min[i], self.u_max[i]);
+        }
+        out
+    }
+
+    /// One control period with the (clipped) command `u`: exact, allocation-free.
+    fn step_period(&self, s: &mut [f64], u: &[f64]) {
+        let (n, m, dl) = (self.n, self.m, self.delay_len());
+        let (x, rest) = s.split_at_mut(n);
+        let (line, v) = rest.split_at_mut(dl);
+        // The input reaching the plant this period: the delay line's head, or u itself.
+        let mut reach = [0.0; MAX_JOINTS];
+        reach[..m].copy_from_slice(if dl > 0 { &line[..m] } else { &u[..m] });
+        let mut next = [0.0; MAX_STATES];
+        mul_add(&self.phi, n, x, &mut next);
+        mul_add(&self.gamma, n, &reach[..m], &mut next);
+        x.copy_from_slice(&next[..n]);
+        if dl > 0 {
+            line.copy_within(m.., 0);
+            line[dl - m..].copy_from_slice(&u[..m]);
+        }
+        v[..m].copy_from_slice(&reach[..m]);
+    }
+
+    /// Whole control periods in `dt`, if it is (to 1e-9 of a period) a whole number of them.
+    fn periods_in(&self, dt: f64) -> Option<usize> {
+        let k = (dt / self.period).round();
+        ((dt - k * self.period).abs() <= 1e-9 * self.period && k >= 1.0).then_some(k as usize)
+    }
+
+    /// Moves once a period only (discrete, or delayed).
+    fn periodic_only(&self) -> bool {
+        self.dt.is_some() || self.delay > 0
+    }
+
+    /// The sampled single-input single-output model state feedback is checked against, over
+    /// z = [x; the delay line] (what the law reads of the state).
+    fn sampled_model(&self) -> Option<LinearModel> {
+        let nz = self.n + self.delay;
+        if self.m != 1 || self.p != 1 || nz > MAX_LINEAR_STATES {
+            return None;
+        }
+        let n = self.n;
+        let mut a = vec![0.0; nz * nz];
+        let mut b = vec![0.0; nz];
+        let mut c = vec![0.0; nz];
+        let mut f = vec![0.0; nz];
+        for i in 0..n {
+            a[i * nz..i * nz + n].copy_from_slice(&self.phi[i * n..(i + 1) * n]);
+        }
+        c[..n].copy_from_slice(&self.c);
+        let g = if self.delay == 0 {
+            b[..n].copy_from_slice(&self.gamma);
+            1.0
+        } else {
+            // x+ = Phi x + Gamma w_1; w_i+ = w_{i+1}; w_d+ = u; the plant receives w_1.
+            for i in 0..n {
+                a[i * nz + n] = self.gamma[i];
+            }
+            for i in n..nz - 1 {
+                a[i * nz + i + 1] = 1.0;
+            }
+            b[nz - 1] = 1.0;
+            f[n] = 1.0;
+            0.0
+        };
+        Some(LinearModel::sampled(self.period, &a, &b, &c, self.d[0], &f, g))
+    }
+}
+
+impl Plant for LtiSpec {
+    fn n_states(&self) -> usize {
+        self.n + self.delay_len() + self.m
+    }
+    fn n_inputs(&self) -> usize {
+        self.m
+    }
+    fn n_outputs(&self) -> usize {
+        self.p
+    }
+    fn n_joints(&self) -> usize {
+        self.p
+    }
+    /// x' = A x + B v (v, the input in force, is part of the state; RK4 leaves it).
+    fn derivative(&self, _t: f64, s: &[f64], _u: &[f64], ds: &mut [f64]) {
+        ds.fill(0.0);
+        let v = &s[self.n + self.delay_len()..];
+        mul_add(&self.a, self.n, &s[..self.n], ds);
+        mul_add(&self.b, self.n, v, ds);
+    }
+    fn output(&self, s: &[f64], y: &mut [f64]) {
+        self.output_with(s, &s[self.n + self.delay_len()..], y);
+    }
+    /// The outputs and, for a continuous model, their rate C (A x + B v); 0 for a discrete one.
+    fn joints(&self, s: &[f64], q: &mut [f64], qd: &mut [f64]) {
+        self.output(s, q);
+        qd[..self.p].fill(0.0);
+        if self.dt.is_none() {
+            let mut dx = [0.0; MAX_STATES];
+            self.derivative(0.0, s, &[], &mut dx[..s.len()]);
+            mul_add(&self.c, self.p, &dx[..self.n], qd);
+        }
+    }
+    fn initial_state(&self, s: &mut [f64]) {
+        s.fill(0.0);
+        s[..self.n].copy_from_slice(&self.x0);
+    }
+    /// Whole periods step exactly; any other span of a continuous model is integrated (RK4)
+    /// with the command recorded as the input in force. A discrete or delayed model moves the
+    /// whole periods in `dt` (the configuration keeps it to lockstep, where every span is one).
+    fn map(&self, s: &mut [f64], u: &[f64], dt: f64) -> bool {
+        let u = self.clipped(u);
+        match self.periods_in(dt) {
+            Some(k) => (0..k).for_each(|_| self.step_period(s, &u)),
+            None if self.periodic_only() => {
+                let k = (dt / self.period).round() as usize;
+                (0..k).for_each(|_| self.step_period(s, &u));
+            }
+            None => {
+                let at = self.n + self.delay_len();
+                s[at..at + self.m].copy_from_slice(&u[..self.m]);
+                return false;
+            }
+        }
+        true
+    }
+}
+
+impl PlantConfig for LtiSpec {
+    fn build(&self) -> Box<dyn Plant> {
+        Box::new(self.clone())
+    }
+    fn linear_model(&self) -> Option<LinearModel> {
+        self.sampled_model()
+    }
+    /// A single input's range; it holds at 0 (clipped into the range).
+    fn scalar_input(&self) -> Option<ScalarInput> {
+        (self.m == 1).then(|| ScalarInput {
+            range: (self.u_min[0], self.u_max[0]),
+            hold: 0.0_f64.clamp(self.u_min[0], self.u_max[0]),
+        })
+    }
+    fn realtime_refusal(&self) -> Option<String> {
+        let what = match (self.dt.is_some(), self.delay > 0) {
+            (true, _) => "a discrete-time model (plant.lti.dt)",
+            (false, true) => "an input delay (plant.lti.input_delay)",
+            (false, false) => return None,
+        };
+        Some(format!(
+            "{what} moves once a control period, and realtime splits a period where a command \
+             arrives: run it in lockstep, or give a continuous model without delay"
+        ))
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// A matrix as written: a number, one row (a column for B, a row for C), or rows.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum Matrix {
+    Scalar(f64),
+    Flat(Vec<f64>),
+    Rows(Vec<Vec<f64>>),
+}
+
+/// The model's keys, in `[plant.lti]` or in the model file `file` names.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelKeys {
+    a: Option<Matrix>,
+    b: Option<Matrix>,
+    c: Option<Matrix>,
+    d: Option<Matrix>,
+    num: Option<Vec<f64>>,
+    den: Option<Vec<f64>>,
+    dt: Option<f64>,
+}
+
+/// The `[plant.lti]` keys.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    /// A model file (JSON or TOML) holding the model's keys instead.
+    file: Option<PathBuf>,
+    a: Option<Matrix>,
+    b: Option<Matrix>,
+    c: Option<Matrix>,
+    d: Option<Matrix>,
+    num: Option<Vec<f64>>,
+    den: Option<Vec<f64>>,
+    dt: Option<f64>,
+    /// s, whole control periods.
+    input_delay: Option<f64>,
+    x0: Option<Vec<f64>>,
+    u_min: Option<Matrix>,
+    u_max: Option<Matrix>,
+}
+
+/// Where the model's keys were read and how to name them in an error.
+struct Source {
+    check: Check,
+    prefix: &'static str,
+}
+
+impl Source {
+    fn key(&self, k: &str) -> String {
+        format!("{}{k}", self.prefix)
+    }
+    fn fail<T>(&self, k: &str, reason: impl Into<String>) -> Result<T, ConfigError> {
+        self.check.fail(&self.key(k), reason)
+    }
+}
+
+/// A realised model: (A, B, C, D) row-major and its sizes.
+struct Realised {
+    n: usize,
+    m: usize,
+    p: usize,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    c: Vec<f64>,
+    d: Vec<f64>,
+}
+
+pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<LtiSpec, ConfigError> {
+    let Some(t) = t else {
+        return check.fail(
+            "plant.lti",
+            "missing table [plant.lti]: the model's a, b, c (and d), or num and den, or a file",
+        );
+    };
+    let (keys, src, file) = model_keys(&t, check)?;
+    let dt = match keys.dt {
+        Some(dt) => Some(discrete_at(&src, dt, cx.period)?),
+        None => None,
+    };
+    let r = realise(&keys, &src)?;
+    let delay = input_delay(check, t.input_delay.unwrap_or(0.0), cx.period)?;
+    let states = r.n + r.m * delay + r.m;
+    if states > MAX_STATES {
+        return check.fail(
+            "plant.lti",
+            format!(
+                "{} states, {} inputs and a delay of {delay} periods make {states} simulated \
+                 states; at most {MAX_STATES}",
+                r.n, r.m
+            ),
+        );
+    }
+    if cx.reference.joints() != r.p {
+        return check.fail(
+            "reference",
+            format!(
+                "the plant has {} output(s) and the reference {} joint(s): one reference per output",
+                r.p,
+                cx.reference.joints()
+            ),
+        );
+    }
+    let x0 = t.x0.unwrap_or_else(|| vec![0.0; r.n]);
+    check.finite_values("plant.lti.x0", &x0, r.n, " (one per state)")?;
+    let (u_min, u_max) = limits(check, t.u_min, t.u_max, r.m)?;
+    let (phi, gamma) = match dt {
+        Some(_) => (r.a.clone(), r.b.clone()),
+        None => zero_order_hold(&r.a, &r.b, r.n, r.m, cx.period),
+    };
+    if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
+        return src.fail("a", "exp(A T) overflows at the control period: the model is far too fast or unstable for it");
+    }
+    Ok(LtiSpec {
+        n: r.n,
+        m: r.m,
+        p: r.p,
+        a: r.a,
+        b: r.b,
+        c: r.c,
+        d: r.d,
+        dt,
+        period: cx.period,
+        phi,
+        gamma,
+        delay,
+        x0,
+        u_min,
+        u_max,
+        file,
+    })
+}
+
+/// The model's keys from the table, or from the file it names (then the table holds none).
+fn model_keys(t: &Table, check: &Check) -> Result<(ModelKeys, Source, Option<PathBuf>), ConfigError> {
+    let inline = ModelKeys {
+        a: t.a.clone(),
+        b: t.b.clone(),
+        c: t.c.clone(),
+        d: t.d.clone(),
+        num: t.num.clone(),
+        den: t.den.clone(),
+        dt: t.dt,
+    };
+    let Some(rel) = &t.file else {
+        let src = Source {
+            check: Check::new(&check.file),
+            prefix: "plant.lti.",
+        };
+        return Ok((inline, src, None));
+    };
+    let given = [
+        ("a", inline.a.is_some()),
+        ("b", inline.b.is_some()),
+        ("c", inline.c.is_some()),
+        ("d", inline.d.is_some()),
+        ("num", inline.num.is_some()),
+        ("den", inline.den.is_some()),
+        ("dt", inline.dt.is_some()),
+    ];
+    for (k, present) in given {
+        check.unused(&format!("plant.lti.{k}"), present, "beside plant.lti.file, which holds the model")?;
+    }
+    let path = check.resolve(rel);
+    let in_file = Check::new(&path);
+    let text = evoloop_files::read_text(&path)
+        .or_else(|e| check.fail("plant.lti.file", format!("cannot read {}: {e}", path.display())))?;
+    let json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let parsed = if json {
+        evoloop_files::from_json::<ModelKeys>(&text)
+    } else {
+        evoloop_files::from_toml::<ModelKeys>(&text)
+    };
+    let keys = parsed.map_err(|p| ConfigError {
+        file: path.clone(),
+        key: p.key,
+        reason: p.reason,
+        line: p.line,
+    })?;
+    let src = Source {
+        check: in_file,
+        prefix: "",
+    };
+    Ok((keys, src, Some(path)))
+}
+
+fn discrete_at(src: &Source, dt: f64, period: f64) -> Result<f64, ConfigError> {
+    let dt = src.check.positive(&src.key("dt"), dt)?;
+    if (dt - period).abs() > 1e-9 * period {
+        return src.fail(
+            "dt",
+            format!(
+                "the model is sampled at {dt} s and the control period is {period} s: resample \
+                 it (python-control's sample_system, MATLAB's d2d) or set timing.period"
+            ),
+        );
+    }
+    Ok(period)
+}
+
+/// (A, B, C, D) from the matrices, or a transfer function's controllable canonical form.
+fn realise(k: &ModelKeys, src: &Source) -> Result<Realised, ConfigError> {
+    let state_space = k.a.is_some() || k.b.is_some() || k.c.is_some() || k.d.is_some();
+    let transfer = k.num.is_some() || k.den.is_some();
+    match (state_space, transfer) {
+        (true, true) => src.fail(
+            "num",
+            "give the state-space matrices (a, b, c, d) or a transfer function (num, den), not both",
+        ),
+        (false, false) => src.fail("a", "missing: the state-space a, b, c (and d), or num and den"),
+        (false, true) => transfer_function(k.num.as_deref(), k.den.as_deref(), src),
+        (true, false) => state_space_model(k, src),
+    }
+}
+
+/// `m` as (rows, cols, row-major values), finite; a flat list is a column where `flat_is_column`.
+fn shaped(
+    src: &Source,
+    key: &str,
+    m: &Matrix,
+    flat_is_column: bool,
+) -> Result<(usize, usize, Vec<f64>), ConfigError> {
+    let (rows, cols, v) = match m {
+        Matrix::Scalar(x) => (1, 1, vec![*x]),
+        Matrix::Flat(v) if flat_is_column => (v.len(), 1, v.clone()),
+        Matrix::Flat(v) => (1, v.len(), v.clone()),
+        Matrix::Rows(r) => {
+            let cols = r.first().map_or(0, Vec::len);
+            if let Some(i) = r.iter().position(|row| row.len() != cols) {
+                return src.fail(
+                    &format!("{key}[{i}]"),
+                    format!("row {i} has {} values, row 0 has {cols}", r[i].len()),
+                );
+            }
+            (r.len(), cols, r.concat())
+        }
+    };
+    if rows == 0 || cols == 0 {
+        return src.fail(key, "is empty");
+    }
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return src.fail(key, format!("entry {i} (row-major) is {}: must be finite", v[i]));
+    }
+    Ok((rows, cols, v))
+}
+
+fn expect_size(
+    src: &Source,
+    key: &str,
+    got: (usize, usize),
+    want: (usize, usize),
+    why: &str,
+) -> Result<(), ConfigError> {
+    if got != want {
+        return src.fail(
+            key,
+            format!(
+                "is {} x {}, must be {} x {} ({why})",
+                got.0, got.1, want.0, want.1
+            ),
+        );
+    }
+    Ok(())
+}
+
+fn state_space_model(k: &ModelKeys, src: &Source) -> Result<Realised, ConfigError> {
+    let (a, b, c) = match (&k.a, &k.b, &k.c) {
+        (Some(a), Some(b), Some(c)) => (a, b, c),
+        _ => {
+            let key = [("a", &k.a), ("b", &k.b), ("c", &k.c)]
+                .iter()
+                .find(|(_, m)| m.is_none())
+                .map_or("a", |(key, _)| *key);
+            return src.fail(key, "missing (a state-space model needs a, b and c; d defaults to 0)");
+        }
+    };
+    let (n, na, a) = shaped(src, "a", a, false)?;
+    expect_size(src, "a", (n, na), (n, n), "A is square")?;
+    if n > MAX_STATES - 1 {
+        return src.fail("a", format!("{n} states; at most {}", MAX_STATES - 1));
+    }
+    let (nb, m, b) = shaped(src, "b", b, true)?;
+    expect_size(src, "b", (nb, m), (n, m), &format!("one row per state: A is {n} x {n}"))?;
+    let (p, nc, c) = shaped(src, "c", c, false)?;
+    expect_size(src, "c", (p, nc), (p, n), &format!("one column per state: A is {n} x {n}"))?;
+    for (key, count, what) in [("b", m, "inputs"), ("c", p, "outputs")] {
+        if count > MAX_JOINTS {
+            return src.fail(key, format!("{count} {what}; at most {MAX_JOINTS}"));
+        }
+    }
+    let d = match &k.d {
+        None => vec![0.0; p * m],
+        Some(Matrix::Scalar(x)) if *x == 0.0 => vec![0.0; p * m],
+        Some(d) => {
+            let flat_is_column = m == 1;
+            let (pd, md, d) = shaped(src, "d", d, flat_is_column)?;
+            expect_size(src, "d", (pd, md), (p, m), &format!("outputs x inputs: C has {p} rows, B {m} columns"))?;
+            d
+        }
+    };
+    Ok(Realised { n, m, p, a, b, c, d })
+}
+
+/// num/den (descending powers) to the controllable canonical form SciPy's `tf2ss` gives.
+fn transfer_function(num: Option<&[f64]>, den: Option<&[f64]>, src: &Source) -> Result<Realised, ConfigError> {
+    let (Some(num), Some(den)) = (num, den) else {
+        let key = if num.is_none() { "num" } else { "den" };
+        return src.fail(key, "missing: a transfer function needs num and den");
+    };
+    for (key, v) in [("num", num), ("den", den)] {
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return src.fail(&format!("{key}[{i}]"), format!("must be finite (got {})", v[i]));
+        }
+    }
+    let den = &den[den.iter().position(|x| *x != 0.0).unwrap_or(den.len())..];
+    let num = &num[num.iter().position(|x| *x != 0.0).unwrap_or(num.len())..];
+    if den.len() < 2 {
+        return src.fail("den", "needs degree >= 1 (a leading coefficient that is not 0 and at least one more)");
+    }
+    if num.len() > den.len() {
+        return src.fail(
+            "num",
+            format!(
+                "degree {} above the denominator's {}: the transfer function is improper",
+                num.len() - 1,
+                den.len() - 1
+            ),
+        );
+    }
+    let n = den.len() - 1;
+    if n > MAX_STATES - 1 {
+        return src.fail("den", format!("degree {n}; at most {}", MAX_STATES - 1));
+    }
+    let lead = den[0];
+    let den: Vec<f64> = den.iter().map(|x| x / lead).collect();
+    let mut padded = vec![0.0; n + 1 - num.len()];
+    padded.extend(num.iter().map(|x| x / lead));
+    let mut a = vec![0.0; n * n];
+    for j in 0..n {
+        a[j] = -den[j + 1];
+    }
+    for i in 1..n {
+        a[i * n + i - 1] = 1.0;
+    }
+    let mut b = vec![0.0; n];
+    b[0] = 1.0;
+    let c = (0..n).map(|j| padded[j + 1] - padded[0] * den[j + 1]).collect();
+    Ok(Realised { n, m: 1, p: 1, a, b, c, d: vec![padded[0]] })
+}
+
+fn input_delay(check: &Check, delay: f64, period: f64) -> Result<usize, ConfigError> {
+    let key = "plant.lti.input_delay";
+    let delay = check.range(key, delay, 0.0, MAX_DELAY_PERIODS as f64 * period)?;
+    let k = (delay / period).round();
+    if (delay - k * period).abs() > 1e-9 * period.max(delay) {
+        return check.fail(
+            key,
+            format!("{delay} s is not a whole number of control periods ({period} s)"),
+        );
+    }
+    Ok(k as usize)
+}
+
+fn limits(
+    check: &Check,
+    lo: Option<Matrix>,
+    hi: Option<Matrix>,
+    m: usize,
+) -> Result<(Vec<f64>, Vec<f64>), ConfigError> {
+    let read = |key: &str, v: Option<Matrix>, default: f64| -> Result<Vec<f64>, ConfigError> {
+        let v = match v {
+            None => vec![default; m],
+            Some(Matrix::Scalar(x)) if m == 1 => vec![x],
+            Some(Matrix::Flat(v)) => v,
+            Some(_) => return check.fail(key, format!("a list of {m} values, one per input")),
+        };
+        if v.len() != m {
+            return check.fail(key, format!("needs {m} values (one per input), got {}", v.len()));
+        }
+        Ok(v)
+    };
+    let lo = read("plant.lti.u_min", lo, f64::NEG_INFINITY)?;
+    let hi = read("plant.lti.u_max", hi, f64::INFINITY)?;
+    for i in 0..m {
+        if lo[i].is_nan() || hi[i].is_nan() || lo[i] >= hi[i] {
+            return check.fail(
+                &format!("plant.lti.u_min[{i}]"),
+                format!("must be below u_max[{i}] (got {} and {})", lo[i], hi[i]),
+            );
+        }
+    }
+    Ok((lo, hi))
+}
+
+/// The exact zero-order-hold discretisation at `t`: exp([[A, B], [0, 0]] t) = [[Phi, Gamma],
+/// [0, I]] (Van Loan).
+pub fn zero_order_hold(a: &[f64], b: &[f64], n: usize, m: usize, t: f64) -> (Vec<f64>, Vec<f64>) {
+    let big = DMatrix::from_fn(n + m, n + m, |i, j| match (i < n, j < n) {
+        (true, true) => a[i * n + j] * t,
+        (true, false) => b[i * m + j - n] * t,
+        _ => 0.0,
+    })
+    .exp();
+    let phi = (0..n * n).map(|k| big[(k / n, k % n)]).collect();
+    let gamma = (0..n * m).map(|k| big[(k / m, n + k % m)]).collect();
+    (phi, gamma)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::PlantSim;
+    use crate::reference::Reference;
+
+    fn parse(toml: &str, period: f64) -> Result<LtiSpec, ConfigError> {
+        let t: Table = evoloop_files::from_toml(toml).map_err(|p| p.reason).unwrap();
+        let reference = Reference::Step {
+            amplitude: 1.0,
+            start: 0.0,
+        };
+        let cx = PlantContext {
+            step: period,
+            period,
+            reference: &reference,
+            duration: 1.0,
+        };
+        validate(Some(t), &Check::new("lti.toml".as_ref()), &cx)
+    }
+
+    /// A first-order lag x' = -x/tau + u/tau: Phi = e^{-T/tau}, Gamma = 1 - e^{-T/tau}.
+    #[test]
+    fn a_first_order_lag_discretises_to_its_closed_form() {
+        let s = parse("a = [[-2.0]]\nb = [2.0]\nc = [1.0]", 0.1).unwrap();
+        let e = (-0.2f64).exp();
+        assert!((s.phi[0] - e).abs() < 1e-15, "{}", s.phi[0]);
+        assert!((s.gamma[0] - (1.0 - e)).abs() < 1e-15, "{}", s.gamma[0]);
+    }
+
+    #[test]
+    fn a_transfer_function_is_realised_as_scipys_tf2ss() {
+        // (s + 3) / (2 s^2 + 4 s + 6): den normalised to s^2 + 2 s + 3.
+        let s = parse("num = [1.0, 3.0]\nden = [2.0, 4.0, 6.0]", 0.01).unwrap();
+        assert_eq!(s.a, [-2.0, -3.0, 1.0, 0.0]);
+        assert_eq!(s.b, [1.0, 0.0]);
+        assert_eq!(s.c, [0.5, 1.5]);
+        assert_eq!(s.d, [0.0]);
+        // Biproper: D takes the leading ratio.
+        let s = parse("num = [1.0, 0.0]\nden = [1.0, 1.0]", 0.01).unwrap();
+        assert_eq!((s.c[0], s.d[0]), (-1.0, 1.0));
+    }
+
+    #[test]
+    fn wrong_sizes_name_the_key_and_both_sizes() {
+        let e = parse("a = [[0.0, 1.0], [-1.0, -1.0]]\nb = [0.0, 1.0, 2.0]\nc = [1.0, 0.0]", 0.01)
+            .unwrap_err();
+        assert_eq!(e.key, "plant.lti.b");
+        assert!(e.reason.contains("is 3 x 1, must be 2 x 1"), "{}", e.reason);
+        let e = parse("num = [1.0, 2.0, 3.0]\nden = [1.0, 1.0]", 0.01).unwrap_err();
+        assert_eq!(e.key, "plant.lti.num");
+        assert!(e.reason.contains("improper"), "{}", e.reason);
+        let e = parse("num = [1.0]\nden = [1.0, 1.0]\ninput_delay = 0.015", 0.01).unwrap_err();
+        assert_eq!(e.key, "plant.lti.input_delay");
+        let e = parse("num = [1.0]\nden = [1.0, 1.0]\ndt = 0.02", 0.01).unwrap_err();
+        assert_eq!(e.key, "plant.lti.dt");
+    }
+
+    /// A delay of 3 periods: the first 3 periods' output is the free response, then the step's.
+    #[test]
+    fn an_input_delay_shifts_the_response_by_whole_periods() {
+        let plain = parse("num = [1.0]\nden = [1.0, 1.0]", 0.1).unwrap();
+        let late = parse("num = [1.0]\nden = [1.0, 1.0]\ninput_delay = 0.3", 0.1).unwrap();
+        let run = |s: &LtiSpec| {
+            let mut sim = PlantSim::new(Box::new(s.clone()), 0.1, 0.0, 1);
+            let mut y = vec![];
+            for _ in 0..10 {
+                sim.advance(&[1.0], 0.1);
+                let mut out = [0.0];
+                sim.plant.output(&sim.x, &mut out);
+                y.push(out[0]);
+            }
+            y
+        };
+        let (a, b) = (run(&plain), run(&late));
+        assert_eq!(&b[..3], &[0.0; 3]);
+        assert_eq!(&b[3..], &a[..7]);
+    }
+
+    /// Realtime's split periods integrate x' = A x + B u: within RK4's error of the exact step.
+    #[test]
+    fn a_split_period_integrates_close_to_the_exact_step() {
+        let s = parse("a = [[0.0, 1.0], [-4.0, -0.4]]\nb = [0.0, 1.0]\nc = [1.0, 0.0]", 0.01).unwrap();
+        let mut exact = PlantSim::new(Box::new(s.clone()), 0.001, 0.0, 1);
+        let mut split = PlantSim::new(Box::new(s), 0.001, 0.0, 1);
+        for _ in 0..100 {
+            exact.advance(&[1.0], 0.01);
+            split.advance(&[1.0], 0.0037);
+            split.advance(&[1.0], 0.0063);
+        }
+        for i in 0..2 {
+            assert!((exact.x[i] - split.x[i]).abs() < 1e-10, "{:?} {:?}", exact.x, split.x);
+        }
+    }
+
+    #[test]
+    fn the_command_is_clipped_and_a_feedthrough_acts_through_the_held_input() {
+        let s = parse("num = [2.0, 0.0]\nden = [1.0, 1.0]\nu_min = [-1.0]\nu_max = [0.5]", 0.1).unwrap();
+        let mut sim = PlantSim::new(Box::new(s), 0.1, 0.0, 1);
+        let mut y = [0.0];
+        sim.plant.output(&sim.x, &mut y);
+        assert_eq!(y[0], 0.0, "nothing in force before the first command");
+        sim.advance(&[3.0], 0.1);
+        sim.plant.output(&sim.x, &mut y);
+        // 2 s / (s + 1): y = 2 u e^{-t} for a step u; clipped to 0.5, at t = T.
+        assert!((y[0] - (-0.1f64).exp()).abs() < 1e-14, "{}", y[0]);
+    }
+}
