@@ -137,6 +137,13 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
                 Err(format!("no example `{name}` in examples/"))
             }
         }
+        ["cargo", "test", "--release", "--test", name] => {
+            if root().join("tests").join(format!("{name}.rs")).exists() {
+                Ok(None)
+            } else {
+                Err(format!("no test `{name}` in tests/"))
+            }
+        }
         ["cargo", "bench", "--bench", name] => {
             if root().join("benches").join(format!("{name}.rs")).exists() {
                 Ok(None)
