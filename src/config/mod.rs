@@ -197,6 +197,18 @@ impl Scenario {
         }
     }
 
+    /// What the controller requires of every plant state: the configured plant's counts, and
+    /// its safe command to send in place of the law's when a state fails.
+    pub fn state_check(&self) -> crate::control::state_check::StateCheck {
+        let p = self.build_plant();
+        crate::control::state_check::StateCheck {
+            n_x: p.n_states(),
+            n_q: p.n_joints(),
+            n_y: p.n_outputs(),
+            safe_command: self.plant.safe_command,
+        }
+    }
+
     pub fn bounds(&self) -> ParamBounds {
         self.controller.tunable().bounds.clone()
     }

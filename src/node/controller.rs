@@ -165,9 +165,7 @@ impl Loop {
         };
         Ok(Self {
             record,
-            cycle: ControlCycle::new(controller, scn.reference.clone(), scn.bounds())
-                .with_stability_check(scn.linear_model())
-                .with_envelope(scn.optimiser.envelope),
+            cycle: crate::sim::control_cycle(scn),
             model_check: scn
                 .linear_model()
                 .and_then(|_| ModelCheck::new(&scn.plant.model)),
@@ -257,7 +255,7 @@ impl Loop {
         ports.command.send(&cmd)?;
         let done = now_ns();
         let compute = done.saturating_sub(woke_ns);
-        let mut flags = flags_in;
+        let mut flags = flags_in | tel.flags;
         if lateness_ns.max(0) as u64 + compute > period_ns && period_ns > 0 {
             flags |= TELEMETRY_FLAG_OVERRUN;
             self.overruns += 1;
@@ -566,6 +564,7 @@ fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
     report.final_version = lp.cycle.version();
     report.final_params = lp.cycle.controller.params().to_vec();
     report.pending_dropped = lp.cycle.pending_dropped;
+    report.refused_states = lp.cycle.refused;
     report.check_model = lp.model_check.as_ref().map(|m| m.report.clone());
     report.cycle_allocations = lp.watch_allocations.then(|| alloc_count::CycleAllocations {
         cycles: lp

@@ -1065,6 +1065,14 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
             out!("    note: {n}");
         }
     }
+    if let Some(f) = &s.first_refused_state {
+        out!(
+            "  plant: {} state(s) refused, the safe command sent for each (first at sample {}: {})",
+            s.refused_states,
+            f.seq,
+            f.fault
+        );
+    }
     let pv = &s.parameter_versions;
     out!(
         "  parameters: version {} in service; {} accepted, {} rejected",

@@ -626,6 +626,8 @@ fn loop_summary(
         log_dropped: ctrl.log_dropped,
         cycle_allocations: ctrl.cycle_allocations,
         plant_safe_samples: plant.safe_samples,
+        refused_states: ctrl.refused_states.count,
+        first_refused_state: ctrl.refused_states.first,
         plant_samples_before_first_command: plant.samples_before_first_command,
         check_model: ctrl.check_model.clone(),
         ..Summary::default()

@@ -71,6 +71,10 @@ pub struct ControllerReport {
     pub final_version: u64,
     pub final_params: Vec<f64>,
     pub pending_dropped: u64,
+    /// Plant states the controller refused (a count not the configured plant's, or a value the
+    /// law reads not finite), sending the safe command instead: how many, and the first.
+    #[serde(default)]
+    pub refused_states: crate::control::state_check::Refused,
     pub log_dropped: u64,
     /// The first error writing run.csv / timing.csv (a full disk): rows after it are lost.
     #[serde(default)]
@@ -281,6 +285,12 @@ pub struct Summary {
     pub wait: Option<crate::rt::WaitStrategy>,
     pub floor: Option<FloorReport>,
     pub plant_safe_samples: u64,
+    /// Plant states the controller refused and answered with the safe command (see
+    /// `ControllerReport::refused_states`), and the first of them.
+    #[serde(default)]
+    pub refused_states: u64,
+    #[serde(default)]
+    pub first_refused_state: Option<crate::control::state_check::FirstRefused>,
     /// Realtime: samples the plant held its safe command before the controller's first command
     /// (a controller slow to start, or one that never commanded).
     #[serde(default)]

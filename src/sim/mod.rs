@@ -144,12 +144,14 @@ pub fn run_loop(scn: &Scenario, hook: &mut impl LoopHook) -> ControlCycle {
     cycle
 }
 
-/// The scenario's control cycle as the controller process builds it: its law, reference,
-/// parameter bounds, stability check (linear plants) and trial envelope (direct scheme).
+/// The scenario's control cycle, as the controller process and the in-process simulations
+/// build it: its law, reference, parameter bounds, stability check (linear plants), trial
+/// envelope (direct scheme) and the check of every plant state against the configured plant.
 pub fn control_cycle(scn: &Scenario) -> ControlCycle {
     ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())
         .with_stability_check(scn.linear_model())
         .with_envelope(scn.optimiser.envelope)
+        .with_state_check(scn.state_check())
 }
 
 /// `simulate`'s hook: offers the scheduled sets at their samples and keeps every sample.

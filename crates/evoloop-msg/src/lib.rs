@@ -218,6 +218,9 @@ pub const TELEMETRY_FLAG_STALE: u32 = 1;
 pub const TELEMETRY_FLAG_OVERRUN: u32 = 2;
 /// `Telemetry::flags`: this cycle started a full period or more after its deadline.
 pub const TELEMETRY_FLAG_MISSED: u32 = 4;
+/// `Telemetry::flags`: the plant's state was refused (a count not the configured plant's, or a
+/// value the law reads not finite); the law did not run and the safe command went out.
+pub const TELEMETRY_FLAG_REFUSED_STATE: u32 = 8;
 
 /// One controller cycle as the controller saw it.
 #[repr(C)]

@@ -3,9 +3,12 @@
 //! cycle boundary, evaluate the reference and the control law, fill the telemetry.
 
 use super::model_parts::{Gather, Gathered};
+use super::state_check::{Refused, StateCheck};
 use super::validate::validate_model;
 use super::{validate_params, Controller, LinearModel, ParamBounds};
-use crate::msg::{ParamCode, ParamKind, ParamSet, PlantState, Telemetry};
+use crate::msg::{
+    ParamCode, ParamKind, ParamSet, PlantState, Telemetry, TELEMETRY_FLAG_REFUSED_STATE,
+};
 use crate::reference::{Reference, Setpoint};
 use crate::MAX_JOINTS;
 
@@ -92,6 +95,10 @@ pub struct ControlCycle {
     pub trials_aborted: u64,
     /// A model larger than one set, gathered from its parts.
     parts: Gather,
+    /// What each plant state must be to run the law on (none: every state is taken).
+    state_check: Option<StateCheck>,
+    /// The states refused by `state_check`.
+    pub refused: Refused,
 }
 
 /// What a due set did.
@@ -141,8 +148,17 @@ impl ControlCycle {
             trial_until: None,
             trials_aborted: 0,
             parts: Gather::new(controller.model_len()),
+            state_check: None,
+            refused: Refused::default(),
             controller,
         }
+    }
+
+    /// Refuse states that fail `check` (`state_check`): the law skips them and the plant's safe
+    /// command goes out instead.
+    pub fn with_state_check(mut self, check: StateCheck) -> Self {
+        self.state_check = Some(check);
+        self
     }
 
     /// Run trial sets under `envelope`.
@@ -196,6 +212,17 @@ impl ControlCycle {
     /// each accept/reject gets its own telemetry record; a trial's end or abort in the same cycle
     /// shows in the version in service (an abort is recorded in place of the acceptance).
     pub fn step(&mut self, state: &PlantState, tel: &mut Telemetry) -> Option<ParamEvent> {
+        if let Some(check) = self.state_check {
+            if let Err(fault) = check.judge(state) {
+                self.refused.note(state.seq, fault);
+                let n_u = self.controller.n_outputs();
+                self.u[..n_u].fill(check.safe_command);
+                self.telemetry(state, None, tel);
+                tel.flags = TELEMETRY_FLAG_REFUSED_STATE;
+                self.cycle += 1;
+                return None;
+            }
+        }
         self.reference.sample(state.t, &mut self.setpoint);
         let sp = self.setpoint;
         let mut event = None;
@@ -243,6 +270,14 @@ impl ControlCycle {
             self.abort(state, &sp);
             self.controller.step(state, &sp, &mut self.u[..n_u]);
         }
+        self.telemetry(state, event, tel);
+        self.cycle += 1;
+        event
+    }
+
+    /// This cycle's telemetry: its state, set-point, command, law values and parameter event.
+    fn telemetry(&self, state: &PlantState, event: Option<ParamEvent>, tel: &mut Telemetry) {
+        let (sp, n_u) = (self.setpoint, self.controller.n_outputs());
         tel.cycle = self.cycle;
         tel.state_seq = state.seq;
         tel.t = state.t;
@@ -265,8 +300,6 @@ impl ControlCycle {
                 tel.param_index = 0;
             }
         }
-        self.cycle += 1;
-        event
     }
 
     /// Check a due set and put it in service: a model set (the law's `model_kind`) through the

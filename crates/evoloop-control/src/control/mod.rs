@@ -5,6 +5,7 @@
 pub mod fuzzy_select;
 pub mod model_check;
 pub mod model_parts;
+pub mod state_check;
 pub mod validate;
 
 pub use crate::plant::LinearModel;
