@@ -44,28 +44,52 @@ def response(sysd, u, x0):
     return np.atleast_2d(r.states).T, np.atleast_2d(r.outputs).T
 
 
-def gain_verdicts(ad, bd, c, period, seed, count=40):
-    """Gains [K_x, k_i] for u = -K_x x + I, I+ = I - k_i T (r - y) (evoloop's StateFeedback),
-    around a discrete LQR gain, each with whether the closed loop python-control builds is
-    stable (every pole inside the unit circle, clear of it by 1e-6 either way)."""
+def held_plant(ad, bd, c, d, delay):
+    """The sampled plant as the controller sees it: state s = [x; w_1..w_delay; v], where w is
+    the input delay line (w_1 the oldest) and v the input that reached the plant over the last
+    period, y_k = C x_k + D v_{k-1} (the sample is taken before the command it causes)."""
     n = ad.shape[0]
-    # The augmented loop for the LQR seed: [x; xi], xi+ = xi + T (r - y).
-    a_aug = np.block([[ad, np.zeros((n, 1))], [-period * c, np.ones((1, 1))]])
-    b_aug = np.vstack([bd, np.zeros((1, 1))])
-    k_lqr, _, _ = control.dlqr(a_aug, b_aug, np.eye(n + 1), np.eye(1))
-    # u = -K [x; xi] with xi+ = xi + T (r - y) is evoloop's law with I = -k_i xi, so an LQR
-    # gain on [x; xi] is a gain set as it stands.
+    nz = n + delay
+    a = np.zeros((nz + 1, nz + 1))
+    b = np.zeros((nz + 1, 1))
+    a[:n, :n] = ad
+    if delay:
+        a[:n, n:n + 1] = bd
+        for i in range(delay - 1):
+            a[n + i, n + i + 1] = 1.0
+        b[nz - 1, 0] = 1.0
+        a[nz, n] = 1.0
+    else:
+        b[:n] = bd
+        b[nz, 0] = 1.0
+    cy = np.hstack([np.atleast_2d(c), np.zeros((1, delay)), np.atleast_2d(d)])
+    return a, b, cy, nz
+
+
+def gain_verdicts(ad, bd, c, d, period, seed, delay=0, count=40):
+    """Gains [K_z, k_i] for u = -K_z z + I, I+ = I - k_i T (r - y) (evoloop's StateFeedback,
+    z = [x; the delay line]), around a discrete LQR gain, each with whether the closed loop
+    python-control builds is stable (every pole inside the unit circle, clear of it by 1e-6
+    either way)."""
+    a, b, cy, nz = held_plant(ad, bd, c, d, delay)
+    # The LQR seed on [z; xi], xi+ = xi + T (r - y), y taken without the feedthrough:
+    # u = -K [z; xi] is evoloop's law with I = -k_i xi, so its gain is a gain set as it stands.
+    a_aug = np.block([[a[:nz, :nz], np.zeros((nz, 1))], [-period * cy[:, :nz], np.ones((1, 1))]])
+    b_aug = np.vstack([b[:nz], np.zeros((1, 1))])
+    k_lqr, _, _ = control.dlqr(a_aug, b_aug, np.eye(nz + 1), np.eye(1))
     k_lqr = np.asarray(k_lqr).ravel()
-    plant = control.ss(ad, bd, np.vstack([c, np.eye(n)]), np.zeros((n + 1, 1)), period)
+    # The plant's outputs: y and the law's state z.
+    outputs = np.vstack([cy, np.hstack([np.eye(nz), np.zeros((nz, 1))])])
+    plant = control.ss(a, b, outputs, np.zeros((nz + 1, 1)), period)
     rng = np.random.default_rng(seed)
     out = []
     while len(out) < count:
-        k = k_lqr * rng.uniform(-0.5, 3.0, size=n + 1)
-        kx, ki = k[:n], k[n]
-        # The law as a discrete system from [y; x] to u (r = 0): state I,
-        # I+ = I + ki T y, u = I - kx x.
-        law = control.ss([[1.0]], np.hstack([[[ki * period]], np.zeros((1, n))]),
-                         [[1.0]], np.hstack([[[0.0]], -kx.reshape(1, n)]), period)
+        k = k_lqr * rng.uniform(-0.5, 3.0, size=nz + 1)
+        kz, ki = k[:nz], k[nz]
+        # The law as a discrete system from [y; z] to u (r = 0): state I,
+        # I+ = I + ki T y, u = I - kz z.
+        law = control.ss([[1.0]], np.hstack([[[ki * period]], np.zeros((1, nz))]),
+                         [[1.0]], np.hstack([[[0.0]], -kz.reshape(1, nz)]), period)
         loop = control.feedback(plant, law, sign=+1)
         radius = max(abs(p) for p in loop.poles())
         if abs(radius - 1.0) < 1e-6:
@@ -96,7 +120,7 @@ def case_ss(name, a, b, c, d, period, x0, seed, gains=False, dt=None):
     }
     if gains:
         resp["verdicts"] = gain_verdicts(np.asarray(sysd.A), np.asarray(sysd.B),
-                                         np.asarray(c), period, seed)
+                                         np.asarray(c), np.asarray(d), period, seed)
     return name, model, resp
 
 
@@ -119,7 +143,8 @@ def case_tf(name, num, den, period, seed, delay_periods=0, gains=False):
         a, b, c, d = scipy.signal.tf2ss(num, den)
         sysd = control.c2d(control.ss(a, b, c, d), period, method="zoh")
         resp["verdicts"] = gain_verdicts(np.asarray(sysd.A), np.asarray(sysd.B),
-                                         np.asarray(c), period, seed)
+                                         np.asarray(c), np.asarray(d), period, seed,
+                                         delay=delay_periods)
     return name, model, resp
 
 
@@ -135,9 +160,9 @@ def cases():
         case_tf("third_order_lag", [1.0], [1.0, 3.0, 3.0, 1.0], 0.05, 3, gains=True),
         # Non-minimum phase: a right-half-plane zero, and a direct feedthrough.
         case_tf("nonminimum_phase", [-1.0, 2.0], [1.0, 3.0, 2.0], 0.01, 4),
-        case_tf("biproper_lead", [2.0, 1.0], [1.0, 5.0], 0.01, 5),
+        case_tf("biproper_lead", [2.0, 1.0], [1.0, 5.0], 0.01, 5, gains=True),
         # A delay of 3 periods on a first-order lag.
-        case_tf("delayed_lag", [1.0], [0.5, 1.0], 0.02, 6, delay_periods=3),
+        case_tf("delayed_lag", [1.0], [0.5, 1.0], 0.02, 6, delay_periods=3, gains=True),
         # MIMO, with a direct feedthrough.
         case_ss("mimo_feedthrough",
                 [[-1, 0.5, 0], [0, -2, 1], [0.3, 0, -0.5]],

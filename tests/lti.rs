@@ -109,32 +109,62 @@ fn worst(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
         / scale
 }
 
-/// evoloop's lockstep simulation of the case's inputs: the states and python-control's output
-/// convention, y_k = C x_k + D u_k (evoloop's own sample reads D v_{k-1}, the input in force
-/// when it is taken; `output_with` evaluates the other).
-fn simulate(c: &Case) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+/// evoloop's lockstep simulation of the case's inputs: the states, python-control's output
+/// convention y_k = C x_k + D u_k (`output_with`), and the plant's own sample after each period,
+/// y_{k+1} = C x_{k+1} + D u_k (the input in force when it is taken).
+fn simulate(c: &Case) -> [Vec<Vec<f64>>; 3] {
     let s = &c.spec;
     let period = s.period;
     let mut sim = PlantSim::new(Box::new(s.clone()), period, 0.0, 1);
-    let (mut xs, mut ys) = (vec![], vec![]);
+    let (mut xs, mut ys, mut held) = (vec![], vec![], vec![]);
     for u in matrix(&c.response["u"]) {
         xs.push(sim.x[..s.n].to_vec());
         let mut y = vec![0.0; s.p];
         s.output_with(&sim.x, &u, &mut y);
         ys.push(y);
         sim.advance(&u, period);
+        let mut y = vec![0.0; s.p];
+        sim.plant.output(&sim.x, &mut y);
+        held.push(y);
     }
-    (xs, ys)
+    [xs, ys, held]
+}
+
+/// python-control's outputs in the plant's sampling convention: y_{k+1} - D (u_{k+1} - u_k),
+/// for k up to the second-last sample (D: the feedthrough, num[0]/den[0] for a transfer function
+/// whatever its realisation).
+fn held_reference(c: &Case) -> Vec<Vec<f64>> {
+    let (u, y) = (matrix(&c.response["u"]), matrix(&c.response["y"]));
+    let (p, m) = (c.spec.p, c.spec.m);
+    (0..u.len() - 1)
+        .map(|k| {
+            (0..p)
+                .map(|i| {
+                    let du: f64 = (0..m)
+                        .map(|j| c.spec.d[i * m + j] * (u[k + 1][j] - u[k][j]))
+                        .sum();
+                    y[k + 1][i] - du
+                })
+                .collect()
+        })
+        .collect()
 }
 
 #[test]
 fn every_system_responds_as_python_control_computes() {
     let mut report = vec![];
     for c in cases() {
-        let (xs, ys) = simulate(&c);
+        let [xs, ys, held] = simulate(&c);
         let y_err = worst(&ys, &matrix(&c.response["y"]));
         assert!(y_err < TOLERANCE, "{}: outputs off by {y_err:e}", c.name);
-        let mut line = format!("{}: y {y_err:.1e}", c.name);
+        let expected = held_reference(&c);
+        let held_err = worst(&held[..expected.len()], &expected);
+        assert!(
+            held_err < TOLERANCE,
+            "{}: sampled outputs off by {held_err:e}",
+            c.name
+        );
+        let mut line = format!("{}: y {y_err:.1e}, sampled y {held_err:.1e}", c.name);
         // State-space cases keep the user's realisation: states and c2d's matrices compare too.
         if let Some(x) = c.response.get("x") {
             let x_err = worst(&xs, &matrix(x));
@@ -194,7 +224,7 @@ fn the_stability_check_agrees_with_python_controls_closed_loop_poles() {
         assert!(stable > 0 && unstable > 0, "{}: one-sided", c.name);
         checked += stable + unstable;
     }
-    assert!(checked >= 100, "{checked} gain sets");
+    assert!(checked >= 200, "{checked} gain sets");
 }
 
 impl Case {
@@ -296,6 +326,23 @@ fn a_wrong_matrix_size_is_named_with_its_key_and_sizes() {
     let filed = common::write(dir.path(), "filed.toml", &scenario("file = \"m.json\""));
     let o = common::cli(&["check", filed.to_str().unwrap()]);
     common::assert_refused(&o, "m.json: key `c`: is 1 x 2, must be 1 x 1");
+    // A model that moves once a period cannot run where realtime splits periods.
+    let delayed = common::write(
+        dir.path(),
+        "delayed.toml",
+        &scenario("num = [1.0]\nden = [1.0, 1.0]\ninput_delay = 0.002")
+            .replace("period = 0.001", "period = 0.001\nmode = \"realtime\""),
+    );
+    let o = common::cli(&["check", delayed.to_str().unwrap()]);
+    common::assert_refused(&o, "key `timing.mode`: \"realtime\": an input delay (plant.lti.input_delay) moves once a control period");
+    // A huge entry is refused before the exponential, not computed for ever.
+    let huge = common::write(
+        dir.path(),
+        "huge.toml",
+        &scenario("a = [[1e42]]\nb = [1.0]\nc = [1.0]"),
+    );
+    let o = common::cli(&["check", huge.to_str().unwrap()]);
+    common::assert_refused(&o, "key `plant.lti.a`: |[A B]| T is about 2.0e39");
     // A model file's own syntax error keeps its line.
     common::write(
         dir.path(),

@@ -255,7 +255,8 @@ pub fn validate(
     let Some(input) = cx.plant.config().scalar_input() else {
         return check.fail(
             "controller.kind",
-            "the PID of eq. 26 drives a single-input plant (maglev, two_mass), not an arm",
+            "the PID of eq. 26 drives a single-input single-output plant (maglev, two_mass, heater, \
+             arsinh, or an lti plant with one input and one output), not an arm",
         );
     };
     let Some(t) = t else {

@@ -84,6 +84,14 @@ impl PlantConfig for ArsinhSpec {
     fn build(&self) -> Box<dyn Plant> {
         Box::new(self.clone())
     }
+    /// Its map is one control period: realtime's split periods would apply it several times.
+    fn realtime_refusal(&self) -> Option<String> {
+        Some(
+            "the arsinh plant is a discrete map, one step a control period, and realtime splits \
+             a period where a command arrives: run it in lockstep"
+                .into(),
+        )
+    }
 }
 
 #[cfg(test)]

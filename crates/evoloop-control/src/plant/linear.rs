@@ -102,8 +102,14 @@ impl LinearModel {
     }
 
     /// The augmented continuous open loop (Â, B̂) = ([[A, 0], [-C, 0]], [B; 0]) (the robust
-    /// design's, off the control cycle). For a sampled model, its discrete matrices.
+    /// design's, off the control cycle). A continuous model's only: panics on a sampled one,
+    /// whose integrator row is another.
     pub fn augmented(&self) -> (DMatrix<f64>, DMatrix<f64>) {
+        assert_eq!(
+            self.time,
+            Time::Continuous,
+            "augmented() is the continuous loop's"
+        );
         let n = self.n;
         let a = DMatrix::from_fn(n + 1, n + 1, |i, j| self.open_loop(i, j));
         let b = DMatrix::from_fn(n + 1, 1, |i, _| if i < n { self.b[i] } else { 0.0 });

@@ -23,6 +23,10 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
+/// The largest |[A B]| T (max entry times size times period) discretised: e^{1e3} already
+/// overflows, so a larger product is a model far too fast for the control period.
+const MAX_NORM_PERIOD: f64 = 1e3;
+
 /// The most periods of input delay (the delay line is part of the state, `MAX_STATES`).
 pub const MAX_DELAY_PERIODS: usize = 24;
 
@@ -170,7 +174,8 @@ impl Plant for LtiSpec {
     /// x' = A x + B v (v, the input in force, is part of the state; RK4 leaves it).
     fn derivative(&self, _t: f64, s: &[f64], _u: &[f64], ds: &mut [f64]) {
         ds.fill(0.0);
-        let v = &s[self.n + self.delay_len()..];
+        let at = self.n + self.delay_len();
+        let v = &s[at..at + self.m];
         mul_add(&self.a, self.n, &s[..self.n], ds);
         mul_add(&self.b, self.n, v, ds);
     }
@@ -199,6 +204,7 @@ impl Plant for LtiSpec {
         match self.periods_in(dt) {
             Some(k) => (0..k).for_each(|_| self.step_period(s, &u)),
             None if self.periodic_only() => {
+                debug_assert!(false, "a discrete or delayed lti plant advanced by {dt} s");
                 let k = (dt / self.period).round() as usize;
                 (0..k).for_each(|_| self.step_period(s, &u));
             }
@@ -219,9 +225,10 @@ impl PlantConfig for LtiSpec {
     fn linear_model(&self) -> Option<LinearModel> {
         self.sampled_model()
     }
-    /// A single input's range; it holds at 0 (clipped into the range).
+    /// A single input's range (for a plant with one input and one output); it holds at 0
+    /// (clipped into the range).
     fn scalar_input(&self) -> Option<ScalarInput> {
-        (self.m == 1).then(|| ScalarInput {
+        (self.m == 1 && self.p == 1).then(|| ScalarInput {
             range: (self.u_min[0], self.u_max[0]),
             hold: 0.0_f64.clamp(self.u_min[0], self.u_max[0]),
         })
@@ -349,7 +356,23 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Lt
     let (u_min, u_max) = limits(check, t.u_min, t.u_max, r.m)?;
     let (phi, gamma) = match dt {
         Some(_) => (r.a.clone(), r.b.clone()),
-        None => zero_order_hold(&r.a, &r.b, r.n, r.m, cx.period),
+        None => {
+            // exp() squares its argument ceil(log2 |M|) times: bound |[A B] T| first, so a
+            // huge entry is an error and not an endless (or overflowing) exponential.
+            let norm = r.a.iter().chain(&r.b).fold(0.0f64, |m, v| m.max(v.abs()));
+            if norm * (r.n + r.m) as f64 * cx.period > MAX_NORM_PERIOD {
+                return src.fail(
+                    "a",
+                    format!(
+                        "|[A B]| T is about {:.1e}: a model this fast (or stiff) against the control \
+                         period {} s cannot be held between samples; scale it or sample faster",
+                        norm * (r.n + r.m) as f64 * cx.period,
+                        cx.period
+                    ),
+                );
+            }
+            zero_order_hold(&r.a, &r.b, r.n, r.m, cx.period)
+        }
     };
     if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
         return src.fail("a", "exp(A T) overflows at the control period: the model is far too fast or unstable for it");
@@ -517,6 +540,9 @@ fn state_space_model(k: &ModelKeys, src: &Source) -> Result<Realised, ConfigErro
             return src.fail(key, "missing (a state-space model needs a, b and c; d defaults to 0)");
         }
     };
+    if matches!(a, Matrix::Flat(v) if v.len() > 1) {
+        return src.fail("a", "A is square: write it as a list of rows, [[a11, a12], [a21, a22]]");
+    }
     let (n, na, a) = shaped(src, "a", a, false)?;
     expect_size(src, "a", (n, na), (n, n), "A is square")?;
     if n > MAX_STATES - 1 {
