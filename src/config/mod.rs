@@ -148,13 +148,18 @@ impl Scenario {
     /// (every `sync_samples`; the direct scheme shifts them onto the samples before its
     /// repetition boundaries, where it decides the next trial).
     pub fn is_sync_point(&self, k: u64) -> bool {
-        let sync = self.sync_samples();
-        let offset = if self.optimiser.mode == OptimiserMode::Direct {
-            ((self.optimiser.first_repetition / self.timing.period).round() as u64 - 1) % sync
+        k % self.sync_samples() == self.sync_offset()
+    }
+
+    /// Lockstep: the synchronisation points are the samples k with k % `sync_samples` equal to
+    /// this (0 but in the direct scheme).
+    pub fn sync_offset(&self) -> u64 {
+        if self.optimiser.mode == OptimiserMode::Direct {
+            let first = (self.optimiser.first_repetition / self.timing.period).round() as u64;
+            (first - 1) % self.sync_samples()
         } else {
             0
-        };
-        k % sync == offset
+        }
     }
 
     /// Lockstep: the first synchronisation point at or after sample `k`.
@@ -195,6 +200,17 @@ impl Scenario {
         } else {
             None
         }
+    }
+
+    /// How long the controller and the optimiser wait for the plant's first state: a process of
+    /// the user's own gets `plant.external.wait`; evoloop's plant, the start-up of the processes
+    /// (`timing.lockstep_timeout`, at least 10 s).
+    pub fn first_state_wait(&self) -> std::time::Duration {
+        let s = match self.plant.model.config().external() {
+            Some(e) => e.wait,
+            None => self.timing.lockstep_timeout.max(10.0),
+        };
+        std::time::Duration::from_secs_f64(s)
     }
 
     /// What the controller requires of every plant state: the configured plant's counts, and
@@ -257,6 +273,21 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let optimiser = optimiser::validate(raw.optimiser, check, &timing, ov)?;
     if optimiser.mode == OptimiserMode::Identify {
         identify_mode_fits(check, &controller)?;
+    }
+    if plant.model.config().external().is_some()
+        && matches!(
+            optimiser.mode,
+            OptimiserMode::Indirect | OptimiserMode::Identify
+        )
+    {
+        return check.fail(
+            "optimiser.mode",
+            format!(
+                "\"{}\" tunes on a model it simulates beside the plant, and an external plant is \
+                 simulated by its own process only: \"off\", \"schedule\" or \"direct\"",
+                optimiser.mode
+            ),
+        );
     }
     if optimiser.mode == OptimiserMode::Direct {
         let b = &controller.tunable().bounds;

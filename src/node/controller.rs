@@ -407,7 +407,7 @@ fn run_lockstep(
     let mut first = true;
     loop {
         let wait = if first {
-            timeout.max(Duration::from_secs(10))
+            scn.first_state_wait()
         } else {
             2 * timeout
         };
@@ -470,7 +470,7 @@ fn run_realtime(
 ) -> Result<(), Failure> {
     let period = scn.period_ns();
     let stale_ns = scn.controller.stale_after_periods as u64 * period;
-    let Some(mut state) = next_state(ports, Duration::ZERO, Duration::from_secs(10), stop)? else {
+    let Some(mut state) = next_state(ports, Duration::ZERO, scn.first_state_wait(), stop)? else {
         return Ok(());
     };
     // Align to the plant's sample clock: cycle k runs `phase` of a period after sample k. A

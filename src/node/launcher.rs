@@ -4,10 +4,12 @@
 //! seed and writes the study.
 
 use super::args::RunArgs;
+use super::external::EXTERNAL;
 use super::start::stop_flag;
 use crate::config::{Mode, Scenario};
 use crate::ipc::{Ipc, Topic};
 use crate::msg::Telemetry;
+use crate::plant::external::ExternalSpec;
 use crate::report::build::build_report;
 use crate::report::summary::{FloorReport, OptimiserLife, Summary};
 use crate::report::Outcome;
@@ -545,13 +547,18 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
         quiet,
         span,
     } = *w;
+    // The plant's place (none when the user starts a plant of their own).
+    let plant = children
+        .iter()
+        .position(|(n, _)| *n == PROCESSES[PLANT] || *n == EXTERNAL);
     while exited.iter().any(|e| !e) {
         for (i, (name, c)) in children.iter_mut().enumerate() {
             if exited[i] {
                 continue;
             }
             // Not once the plant has ended: there is no run left to rejoin.
-            let rejoinable = !exited[PLANT] && !interrupted && stop_sent.is_none();
+            let plant_on = plant.is_none_or(|p| !exited[p]);
+            let rejoinable = plant_on && !interrupted && stop_sent.is_none();
             if let Some(due) = restart_due.filter(|_| *name == OPTIMISER) {
                 if !rejoinable {
                     (exited[i], restart_due) = (true, None);
@@ -610,9 +617,9 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
             err!("evoloop: stopping all processes");
         }
         if (interrupted || !failed.is_empty()) && stop_sent.is_none() {
-            for (i, (_, c)) in children.iter().enumerate() {
+            for (i, (name, c)) in children.iter().enumerate() {
                 if !exited[i] {
-                    signal(c, libc::SIGTERM);
+                    signal_process(name, c, libc::SIGTERM);
                 }
             }
             stop_sent = Some(Instant::now());
@@ -621,7 +628,7 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
             for (i, (name, c)) in children.iter_mut().enumerate() {
                 if !exited[i] {
                     err!("evoloop: {name} did not stop within 5 s; killing it");
-                    let _ = c.kill();
+                    signal_process(name, c, libc::SIGKILL);
                 }
             }
         }
@@ -774,7 +781,17 @@ impl Running {
             err!("error: {e}");
             ExitCode::from(1)
         })?;
-        let children = spawn_all(&args)?;
+        let external = p.scn.plant.model.config().external().map(|e| {
+            let env = super::external::environment(&p.scn, &config, &p.run_id, &a.ipc_prefix);
+            let dir = config.parent().unwrap_or(Path::new("/")).to_path_buf();
+            (e, env, dir)
+        });
+        let children = spawn_all(
+            &args,
+            external
+                .as_ref()
+                .map(|(e, env, dir)| (*e, env.as_slice(), dir.as_path())),
+        )?;
         Ok(Running {
             children,
             args,
@@ -789,8 +806,12 @@ impl Running {
     /// Wait for every process, stop the workers and leave; the processes whose resources were
     /// cleaned up, at the start and now.
     fn wind_down(mut self, quiet: bool) -> usize {
-        for (_, c) in &mut self.children {
+        for (name, c) in &mut self.children {
             let _ = c.wait();
+            // What a plant process of the user's own started and left behind goes with it.
+            if *name == EXTERNAL {
+                super::external::signal_group(c, libc::SIGKILL);
+            }
         }
         // The workers serve until told to stop.
         drop(self.workers);
@@ -812,17 +833,32 @@ const PROCESSES: [&str; 3] = ["evoloop-plant", "evoloop-controller", "evoloop-op
 const PLANT: usize = 0;
 const _: () = assert!(matches!(PROCESSES[PLANT].as_bytes(), b"evoloop-plant"));
 
-/// The plant, the controller and the optimiser, in that order; if one cannot start, those
-/// already started are stopped.
-fn spawn_all(args: &[String]) -> Result<Vec<(&'static str, Child)>, ExitCode> {
+/// A plant of the user's own: its table, the variables it joins with, the scenario's directory.
+type External<'a> = (&'a ExternalSpec, &'a [(String, String)], &'a Path);
+
+/// The plant (evoloop's, the user's `plant.external.command`, or none when the user starts it),
+/// the controller and the optimiser, in that order; if one cannot start, those already started
+/// are stopped.
+fn spawn_all(
+    args: &[String],
+    external: Option<External>,
+) -> Result<Vec<(&'static str, Child)>, ExitCode> {
     let mut children: Vec<(&'static str, Child)> = Vec::new();
     for name in PROCESSES {
-        match spawn_process(name, args) {
-            Ok(c) => children.push((name, c)),
+        let started = match external.filter(|_| name == PROCESSES[PLANT]) {
+            Some((e, env, _)) if e.command.is_empty() => {
+                super::external::announce(e, env);
+                continue;
+            }
+            Some((e, env, dir)) => super::external::spawn(e, dir, env).map(|c| (EXTERNAL, c)),
+            None => spawn_process(name, args).map(|c| (name, c)),
+        };
+        match started {
+            Ok(c) => children.push(c),
             Err(e) => {
                 err!("error: cannot start {name}: {e}");
-                for (_, c) in &mut children {
-                    signal(c, libc::SIGTERM);
+                for (n, c) in &mut children {
+                    signal_process(n, c, libc::SIGTERM);
                     let _ = c.wait();
                 }
                 return Err(ExitCode::from(1));
@@ -830,6 +866,15 @@ fn spawn_all(args: &[String]) -> Result<Vec<(&'static str, Child)>, ExitCode> {
         }
     }
     Ok(children)
+}
+
+/// `sig` to a child; to a plant process of the user's own, to its whole process group.
+fn signal_process(name: &str, c: &Child, sig: i32) {
+    if name == EXTERNAL {
+        super::external::signal_group(c, sig);
+    } else {
+        signal(c, sig);
+    }
 }
 
 /// The bare loop's floor after a realtime run, as long as `--floor-duration` (default: the

@@ -6,6 +6,7 @@
 
 pub mod args;
 pub mod controller;
+pub mod external;
 pub mod launcher;
 pub mod optimiser;
 pub mod plant;

@@ -191,11 +191,17 @@ impl<'a> Serve<'a> {
     /// the plant has gone or at an IPC failure.
     fn serve(&mut self, stop: &AtomicBool, report: &mut OptimiserReport) -> Result<(), Failure> {
         let mut last_state = Instant::now();
+        let mut first = true;
         while !stop.load(Ordering::Relaxed) {
             let Some(state) = self.receive()? else {
                 // In realtime the plant keeps sampling; silence this long means it is gone.
-                if last_state.elapsed() > self.timeout {
-                    let timeout = self.timeout;
+                // The first state may take as long as the plant process's start.
+                let timeout = if first {
+                    self.scn.first_state_wait().max(self.timeout)
+                } else {
+                    self.timeout
+                };
+                if last_state.elapsed() > timeout {
                     return Err(Failure::PeerTimeout(format!(
                         "no plant state within {timeout:?}"
                     )));
@@ -203,6 +209,7 @@ impl<'a> Serve<'a> {
                 continue;
             };
             last_state = Instant::now();
+            first = false;
             report.states_seen += 1;
             self.tell_epochs()?;
             self.observe(&state, report)?;

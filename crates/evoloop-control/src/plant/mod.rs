@@ -45,6 +45,7 @@ crate::kinds! {
     heater => Heater(HeaterSpec),
     arsinh => Arsinh(ArsinhSpec),
     lti => Lti(LtiSpec),
+    external => External(ExternalSpec),
 }
 
 /// What a plant kind's configuration offers the rest of the system. Besides this, a kind's
@@ -83,6 +84,11 @@ pub trait PlantConfig {
     /// Why this plant cannot run in realtime (a model that moves once a control period, while
     /// realtime splits a period where a command arrives); None if it can.
     fn realtime_refusal(&self) -> Option<String> {
+        None
+    }
+    /// A plant that is the user's own process (`plant.kind = "external"`): what the launcher
+    /// starts and how long the run waits for it. None for the plants evoloop simulates.
+    fn external(&self) -> Option<&external::ExternalSpec> {
         None
     }
 }

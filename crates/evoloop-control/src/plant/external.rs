@@ -1,0 +1,204 @@
+//! A plant that is the user's own process, in any language, speaking the plant contract
+//! (docs/src/plant-contract.md): a rig behind its driver, a simulator evoloop did not write.
+//! The scenario declares what the process must send (its counts, names, units) and the
+//! actuator's range; `command`, if given, is the process the launcher starts and supervises
+//! (otherwise the run waits up to `wait` s for one the user starts). evoloop never simulates it:
+//! the in-process loops (the frozen comparison, the in-process tuners) refuse it.
+
+use super::{Plant, PlantConfig, PlantContext, ScalarInput};
+use crate::check::{Check, ConfigError};
+use crate::{MAX_JOINTS, MAX_STATES};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// The validated `[plant.external]`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ExternalSpec {
+    /// The counts every state must carry (`n_x`, `n_q`, `n_y`) and the command's (`n_u`).
+    pub states: usize,
+    pub joints: usize,
+    pub outputs: usize,
+    pub inputs: usize,
+    pub output_names: Vec<String>,
+    pub output_units: Vec<String>,
+    pub input_names: Vec<String>,
+    pub input_units: Vec<String>,
+    /// The actuator's range per input (the controller's output range).
+    pub u_min: Vec<f64>,
+    pub u_max: Vec<f64>,
+    /// The plant process: program and arguments (a program with a `/` relative to the scenario's
+    /// directory, which is also its working directory); empty: the user starts it.
+    pub command: Vec<String>,
+    /// s the run waits for the plant's first state.
+    pub wait: f64,
+}
+
+impl ExternalSpec {
+    /// The program to start, resolved: a path with a `/` is relative to the scenario's
+    /// directory, a bare name is looked up on PATH when it starts.
+    pub fn program(&self, check_dir: &std::path::Path) -> Option<PathBuf> {
+        let first = self.command.first()?;
+        Some(if first.contains('/') {
+            check_dir.join(first)
+        } else {
+            PathBuf::from(first)
+        })
+    }
+}
+
+/// Never called: evoloop does not simulate an external plant (the configuration keeps it out of
+/// every in-process loop). Only its counts are read.
+fn not_simulated() -> ! {
+    unreachable!("an external plant is simulated by its own process, never in evoloop's")
+}
+
+impl Plant for ExternalSpec {
+    fn n_states(&self) -> usize {
+        self.states
+    }
+    fn n_inputs(&self) -> usize {
+        self.inputs
+    }
+    fn n_outputs(&self) -> usize {
+        self.outputs
+    }
+    fn n_joints(&self) -> usize {
+        self.joints
+    }
+    fn derivative(&self, _t: f64, _x: &[f64], _u: &[f64], _dx: &mut [f64]) {
+        not_simulated()
+    }
+    fn output(&self, _x: &[f64], _y: &mut [f64]) {
+        not_simulated()
+    }
+    fn joints(&self, _x: &[f64], _q: &mut [f64], _qd: &mut [f64]) {
+        not_simulated()
+    }
+    fn initial_state(&self, _x: &mut [f64]) {
+        not_simulated()
+    }
+}
+
+impl PlantConfig for ExternalSpec {
+    fn build(&self) -> Box<dyn Plant> {
+        Box::new(self.clone())
+    }
+    fn scalar_input(&self) -> Option<ScalarInput> {
+        (self.inputs == 1 && self.outputs == 1).then(|| ScalarInput {
+            range: (self.u_min[0], self.u_max[0]),
+            hold: 0.0_f64.clamp(self.u_min[0], self.u_max[0]),
+        })
+    }
+    fn external(&self) -> Option<&ExternalSpec> {
+        Some(self)
+    }
+}
+
+// ---------------------------------------------------------------- configuration
+
+/// The `[plant.external]` keys.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    states: Option<usize>,
+    joints: Option<usize>,
+    outputs: Option<usize>,
+    inputs: Option<usize>,
+    output_names: Option<Vec<String>>,
+    output_units: Option<Vec<String>>,
+    input_names: Option<Vec<String>>,
+    input_units: Option<Vec<String>>,
+    u_min: Option<Vec<f64>>,
+    u_max: Option<Vec<f64>>,
+    command: Option<Vec<String>>,
+    wait: Option<f64>,
+}
+
+/// Names (or units) per channel: `n` of them, or `prefix0..` when absent.
+fn labels(
+    check: &Check,
+    key: &str,
+    given: Option<Vec<String>>,
+    n: usize,
+    default: impl Fn(usize) -> String,
+) -> Result<Vec<String>, ConfigError> {
+    let v = given.unwrap_or_else(|| (0..n).map(default).collect());
+    if v.len() != n {
+        return check.fail(key, format!("needs {n} entries (one per channel), got {}", v.len()));
+    }
+    Ok(v)
+}
+
+pub fn validate(
+    t: Option<Table>,
+    check: &Check,
+    cx: &PlantContext,
+) -> Result<ExternalSpec, ConfigError> {
+    let Some(t) = t else {
+        return check.fail(
+            "plant.external",
+            "missing table [plant.external]: at least `states`, the length of the state the \
+             process sends",
+        );
+    };
+    let Some(states) = t.states else {
+        return check.fail("plant.external.states", "missing: the length of x_true the process sends");
+    };
+    let states = check.count("plant.external.states", states, 1, MAX_STATES)?;
+    let outputs = check.count("plant.external.outputs", t.outputs.unwrap_or(1), 1, MAX_JOINTS)?;
+    let inputs = check.count("plant.external.inputs", t.inputs.unwrap_or(1), 1, MAX_JOINTS)?;
+    let joints = check.count("plant.external.joints", t.joints.unwrap_or(outputs), 0, MAX_JOINTS)?;
+    if cx.reference.joints() != outputs {
+        return check.fail(
+            "reference",
+            format!(
+                "the plant has {outputs} output(s) and the reference {} joint(s): one reference \
+                 per output",
+                cx.reference.joints()
+            ),
+        );
+    }
+    let u_min = t.u_min.unwrap_or_else(|| vec![f64::NEG_INFINITY; inputs]);
+    let u_max = t.u_max.unwrap_or_else(|| vec![f64::INFINITY; inputs]);
+    for (key, v) in [("u_min", &u_min), ("u_max", &u_max)] {
+        if v.len() != inputs {
+            return check.fail(
+                &format!("plant.external.{key}"),
+                format!("needs {inputs} values (one per input), got {}", v.len()),
+            );
+        }
+    }
+    if let Some(i) = (0..inputs).find(|&i| u_min[i].is_nan() || u_max[i].is_nan() || u_min[i] >= u_max[i]) {
+        return check.fail(
+            &format!("plant.external.u_min[{i}]"),
+            format!("must be below u_max[{i}] (got {} and {})", u_min[i], u_max[i]),
+        );
+    }
+    let command = t.command.unwrap_or_default();
+    if command.first().is_some_and(|c| c.trim().is_empty()) {
+        return check.fail("plant.external.command", "the program (its first entry) is empty");
+    }
+    if let Some(p) = command.first().filter(|c| c.contains('/')) {
+        let path = check.resolve(p.as_ref());
+        if !path.is_file() {
+            return check.fail(
+                "plant.external.command",
+                format!("{} is not a file (a program with a / is relative to the scenario)", path.display()),
+            );
+        }
+    }
+    Ok(ExternalSpec {
+        states,
+        joints,
+        outputs,
+        inputs,
+        output_names: labels(check, "plant.external.output_names", t.output_names, outputs, |i| format!("y{i}"))?,
+        output_units: labels(check, "plant.external.output_units", t.output_units, outputs, |_| String::new())?,
+        input_names: labels(check, "plant.external.input_names", t.input_names, inputs, |i| format!("u{i}"))?,
+        input_units: labels(check, "plant.external.input_units", t.input_units, inputs, |_| String::new())?,
+        u_min,
+        u_max,
+        command,
+        wait: check.range("plant.external.wait", t.wait.unwrap_or(60.0), 1.0, 3600.0)?,
+    })
+}

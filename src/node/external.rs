@@ -1,0 +1,104 @@
+//! The launcher's side of a plant that is the user's own process (`plant.kind = "external"`):
+//! the variables that tell it how to join the run, starting it in its own process group (so a
+//! stop reaches whatever it starts, and nothing it started outlives the run), and what the run
+//! says while it waits for one the user starts.
+
+use crate::config::{Mode, Scenario};
+use crate::plant::external::ExternalSpec;
+use std::path::Path;
+use std::process::Child;
+
+/// The launcher's name for the plant process of the user's own, in messages and the report.
+pub const EXTERNAL: &str = "the plant process (plant.external)";
+
+/// What a plant process reads to join the run (the book's plant contract, "A plant of your
+/// own"), as (name, value) pairs.
+pub fn environment(
+    scn: &Scenario,
+    config: &Path,
+    run_id: &str,
+    ipc_prefix: &str,
+) -> Vec<(String, String)> {
+    let root = crate::ipc::namespace::user_subdir("iceoryx2")
+        .map(|p| format!("{}/", p.display()))
+        .unwrap_or_default();
+    let p = scn.build_plant();
+    let samples = if scn.timing.until_stopped() {
+        "forever".to_string()
+    } else {
+        scn.cycles().to_string()
+    };
+    let mode = match scn.timing.mode {
+        Mode::Lockstep => "lockstep",
+        Mode::Realtime => "realtime",
+    };
+    [
+        ("EVOLOOP_RUN_ID", run_id.to_string()),
+        (
+            "EVOLOOP_IPC_PREFIX",
+            crate::ipc::namespace::user_prefix(ipc_prefix),
+        ),
+        ("EVOLOOP_IPC_ROOT", root),
+        ("EVOLOOP_CONFIG", config.display().to_string()),
+        ("EVOLOOP_OUT", scn.output.dir.display().to_string()),
+        ("EVOLOOP_MODE", mode.to_string()),
+        ("EVOLOOP_PERIOD", format!("{:?}", scn.timing.period)),
+        ("EVOLOOP_SAMPLES", samples),
+        ("EVOLOOP_SYNC_SAMPLES", scn.sync_samples().to_string()),
+        ("EVOLOOP_SYNC_OFFSET", scn.sync_offset().to_string()),
+        (
+            "EVOLOOP_TIMEOUT",
+            format!("{:?}", scn.timing.lockstep_timeout),
+        ),
+        ("EVOLOOP_SPIN_US", scn.timing.spin_us.to_string()),
+        (
+            "EVOLOOP_SAFE_COMMAND",
+            format!("{:?}", scn.plant.safe_command),
+        ),
+        (
+            "EVOLOOP_COMMAND_TIMEOUT_PERIODS",
+            scn.plant.command_timeout_periods.to_string(),
+        ),
+        ("EVOLOOP_SEED", scn.seed.to_string()),
+        ("EVOLOOP_STATES", p.n_states().to_string()),
+        ("EVOLOOP_JOINTS", p.n_joints().to_string()),
+        ("EVOLOOP_OUTPUTS", p.n_outputs().to_string()),
+        ("EVOLOOP_INPUTS", p.n_inputs().to_string()),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect()
+}
+
+/// Start `command` with `env`, in the scenario's directory `dir`, in a process group of its
+/// own, with SIGTERM when the launcher dies.
+pub fn spawn(e: &ExternalSpec, dir: &Path, env: &[(String, String)]) -> std::io::Result<Child> {
+    use std::os::unix::process::CommandExt;
+    let program = e.program(dir).expect("a command to spawn");
+    let mut cmd = std::process::Command::new(&program);
+    cmd.args(&e.command[1..])
+        .current_dir(&dir)
+        .envs(env.iter().map(|(k, v)| (k, v)))
+        .process_group(0);
+    super::launcher::die_with_parent(&mut cmd);
+    cmd.spawn()
+        .map_err(|err| std::io::Error::new(err.kind(), format!("{}: {err}", program.display())))
+}
+
+/// `sig` to the plant process's whole group (it and what it started).
+pub fn signal_group(child: &Child, sig: i32) {
+    // SAFETY: plain syscall on the process group our own child leads.
+    unsafe { libc::kill(-(child.id() as i32), sig) };
+}
+
+/// What the run waits for when the user starts the plant: the variables to start it with.
+pub fn announce(e: &ExternalSpec, env: &[(String, String)]) {
+    eprintln!(
+        "evoloop: waiting up to {} s for the plant process: start it with these variables \
+         (the book's plant contract, \"A plant of your own\"):",
+        e.wait
+    );
+    for (k, v) in env {
+        eprintln!("  export {k}={v}");
+    }
+}

@@ -1,0 +1,173 @@
+//! A plant of the user's own in Python (`plant.kind = "external"`, the `evoloop_plant` package
+//! of python/) through the real processes: the launcher starts it, it plays lti_motor's DC
+//! motor, and the run equals the built-in lti plant's; the package's message mirrors equal the
+//! Rust layouts; a Python plant that stalls and then dies fails the run with its report and
+//! leaves no process behind. Ignored where Python's iceoryx2 and NumPy are missing
+//! (`pip install ./python`); CI installs the package and runs these with `--ignored`.
+
+mod common;
+
+use evoloop::msg::{Command, OptimiserAck, PlantState};
+use std::mem::{offset_of, size_of};
+use std::path::Path;
+use std::process::Command as Process;
+
+const NEEDS: &str = "needs Python 3 with the evoloop_plant package's deps: pip install ./python";
+
+/// The Rust layouts, as the Python mirrors must have them: (type, field, offset), and sizes.
+fn rust_layout() -> serde_json::Value {
+    macro_rules! fields {
+        ($t:ty: $($f:ident),*) => {
+            serde_json::json!({
+                "size": size_of::<$t>(),
+                "fields": { $(stringify!($f): offset_of!($t, $f)),* }
+            })
+        };
+    }
+    serde_json::json!({
+        "PlantState": fields!(PlantState: seq, stamp_ns, t, n_x, n_q, n_y, flags, x_true, q_true, qd_true, y, u_applied),
+        "Command": fields!(Command: cycle, state_seq, stamp_ns, param_version, n_u, _pad, u),
+        "OptimiserAck": fields!(OptimiserAck: through_seq),
+    })
+}
+
+#[test]
+#[ignore = "needs Python 3 with the evoloop_plant package's deps: pip install ./python"]
+fn the_python_mirrors_are_the_rust_layouts() {
+    let script = r#"
+import ctypes, json, evoloop_plant as e
+print(json.dumps({t.__name__: {"size": ctypes.sizeof(t),
+    "fields": {f: getattr(t, f).offset for f, _ in t._fields_}}
+    for t in (e.PlantState, e.Command, e.OptimiserAck)}))
+"#;
+    let o = Process::new("python3")
+        .args(["-c", script])
+        .output()
+        .expect(NEEDS);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let python: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(python, rust_layout());
+}
+
+#[test]
+#[ignore = "needs Python 3 with the evoloop_plant package's deps: pip install ./python"]
+fn a_python_plant_runs_the_motor_as_the_built_in_lti_plant_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let external = dir.path().join("external");
+    common::assert_ok(&common::run(
+        &common::config("external_motor.toml"),
+        &external,
+        "pyext",
+        &[],
+    ));
+    // lti_motor without its encoder noise: the same motor, discretised exactly.
+    let lti = std::fs::read_to_string(common::config("lti_motor.toml"))
+        .unwrap()
+        .replace("noise_std = 0.0005", "noise_std = 0.0");
+    let lti = common::write(dir.path(), "lti.toml", &lti);
+    let builtin = dir.path().join("builtin");
+    common::assert_ok(&common::run(&lti, &builtin, "pylti", &[]));
+    let (a, b) = (
+        common::Csv::read(&external.join("run.csv")),
+        common::Csv::read(&builtin.join("run.csv")),
+    );
+    assert_eq!(a.rows.len(), 6000);
+    // RK4 at a tenth of the period against the exact exponential: 6e-14 rad measured.
+    for col in ["y0", "u0"] {
+        let worst = a
+            .col(col)
+            .iter()
+            .zip(b.col(col))
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        assert!(
+            worst < 1e-9,
+            "{col}: the Python plant's run differs by {worst}"
+        );
+    }
+    let s = common::json(&external.join("summary.json"));
+    assert_eq!(s["outcome"], "ok");
+    assert_eq!(s["refused_states"], 0);
+}
+
+/// A Python plant that starts a helper process, answers 300 samples, stalls 2 s and dies.
+const STALLING: &str = r#"
+import os, subprocess, sys, time
+sys.path.insert(0, os.environ["EVOLOOP_PACKAGE_DIR"])
+import evoloop_plant
+
+helper = subprocess.Popen(["sleep", "600"])
+open("helper.pid", "w").write(str(helper.pid))
+
+class Stalling(evoloop_plant.Plant):
+    def reset(self):
+        self.x, self.k = 0.0, 0
+        return [self.x]
+    def step(self, u, dt):
+        self.k += 1
+        if self.k == 300:
+            time.sleep(2.0)
+            sys.exit(7)
+        self.x += dt * u[0]
+        return [self.x]
+
+evoloop_plant.run(Stalling())
+"#;
+
+#[test]
+#[ignore = "needs Python 3 with the evoloop_plant package's deps: pip install ./python"]
+fn a_python_plant_that_stalls_then_dies_fails_the_run_with_its_report_and_no_orphans() {
+    let dir = tempfile::tempdir().unwrap();
+    common::write(dir.path(), "stalling.py", STALLING);
+    let scenario = std::fs::read_to_string(common::config("external_motor.toml"))
+        .unwrap()
+        .replace("plants/motor_plant.py", "stalling.py")
+        .replace("states = 2 ", "states = 1 ");
+    let config = common::write(dir.path(), "stalling.toml", &scenario);
+    let out = dir.path().join("out");
+    let package = Path::new(env!("CARGO_MANIFEST_DIR")).join("python");
+    let (_, run_id) = common::unique("pystall");
+    let o = Process::new(common::evoloop())
+        .args([
+            "run",
+            config.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .args(["--run-id", &run_id, "--quiet"])
+        .env("EVOLOOP_PACKAGE_DIR", &package)
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains("the plant process (plant.external) exited with exit status: 7"),
+        "{said}"
+    );
+    let s = common::json(&out.join("summary.json"));
+    assert_eq!(s["outcome"], "failed", "{s}");
+    assert!(s["failures"].to_string().contains("exit status: 7"), "{s}");
+    // What the controller logged before the plant died is kept.
+    let rows = common::Csv::read(&out.join("run.csv")).rows.len();
+    assert!(rows >= 299, "{rows} rows of run.csv");
+    // No process of the run is left: not the controller or the optimiser, and not what the
+    // plant process started.
+    assert!(common::processes_with(&run_id).is_empty());
+    let helper: i32 = std::fs::read_to_string(dir.path().join("helper.pid"))
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    // SAFETY: signal 0 only asks whether the pid exists. (Killed, it is reaped by init within
+    // moments: its parent, the plant process, is gone.)
+    let alive = || unsafe { libc::kill(helper, 0) } == 0;
+    for _ in 0..100 {
+        if !alive() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    assert!(
+        !alive(),
+        "the plant's helper process {helper} outlived the run"
+    );
+}
