@@ -151,6 +151,14 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
                 Err(format!("no benchmark `{name}` in benches/"))
             }
         }
+        // A Python package of the repository (python/: the plant package).
+        ["pip", "install", dir] if dir.starts_with("./") => {
+            if root().join(dir).join("pyproject.toml").exists() {
+                Ok(None)
+            } else {
+                Err(format!("no Python package (pyproject.toml) in {dir}"))
+            }
+        }
         // The Python comparison's script and its requirements (run outside the test suite).
         ["python3", script, ..] | ["pip", "install", "-r", script] => {
             if root().join(script).exists() {
