@@ -77,7 +77,7 @@ pub fn spawn(e: &ExternalSpec, dir: &Path, env: &[(String, String)]) -> std::io:
     let program = e.program(dir).expect("a command to spawn");
     let mut cmd = std::process::Command::new(&program);
     cmd.args(&e.command[1..])
-        .current_dir(&dir)
+        .current_dir(dir)
         .envs(env.iter().map(|(k, v)| (k, v)))
         .process_group(0);
     super::launcher::die_with_parent(&mut cmd);
