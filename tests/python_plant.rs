@@ -87,6 +87,10 @@ fn a_python_plant_runs_the_motor_as_the_built_in_lti_plant_does() {
     let s = common::json(&external.join("summary.json"));
     assert_eq!(s["outcome"], "ok");
     assert_eq!(s["refused_states"], 0);
+    // The control cycle allocates nothing on a plant of the user's own either.
+    let a = &s["cycle_allocations"];
+    assert!(a["cycles"].as_u64().unwrap() > 5000, "{a}");
+    assert_eq!(a["allocations"], 0, "{a}");
 }
 
 /// A Python plant that starts a helper process, answers 300 samples, stalls 2 s and dies.
@@ -96,7 +100,7 @@ sys.path.insert(0, os.environ["EVOLOOP_PACKAGE_DIR"])
 import evoloop_plant
 
 helper = subprocess.Popen(["sleep", "600"])
-open("helper.pid", "w").write(str(helper.pid))
+open("helper.pid", "w").write(f"{helper.pid} {os.getpid()}")
 
 class Stalling(evoloop_plant.Plant):
     def reset(self):
@@ -152,22 +156,53 @@ fn a_python_plant_that_stalls_then_dies_fails_the_run_with_its_report_and_no_orp
     // No process of the run is left: not the controller or the optimiser, and not what the
     // plant process started.
     assert!(common::processes_with(&run_id).is_empty());
-    let helper: i32 = std::fs::read_to_string(dir.path().join("helper.pid"))
+    let pids: Vec<i32> = std::fs::read_to_string(dir.path().join("helper.pid"))
         .unwrap()
-        .trim()
-        .parse()
-        .unwrap();
-    // SAFETY: signal 0 only asks whether the pid exists. (Killed, it is reaped by init within
-    // moments: its parent, the plant process, is gone.)
-    let alive = || unsafe { libc::kill(helper, 0) } == 0;
-    for _ in 0..100 {
-        if !alive() {
-            break;
+        .split_whitespace()
+        .map(|p| p.parse().unwrap())
+        .collect();
+    // The helper and the plant process itself: neither runs (a killed helper whose parent is
+    // gone waits as a zombie until init reaps it, which is not running).
+    for pid in pids {
+        let alive = || {
+            std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|s| {
+                s.rsplit(')')
+                    .next()
+                    .is_some_and(|r| !r.trim_start().starts_with('Z'))
+            })
+        };
+        for _ in 0..100 {
+            if !alive() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
         }
-        std::thread::sleep(std::time::Duration::from_millis(10));
+        assert!(!alive(), "process {pid} of the plant outlived the run");
     }
-    assert!(
-        !alive(),
-        "the plant's helper process {helper} outlived the run"
-    );
+}
+
+/// The plant's program is checked when the scenario is: a script without its execute bit, or a
+/// name not on PATH, is refused with the key and what to do, not found missing at the start.
+#[test]
+fn a_plant_program_that_cannot_start_is_refused_by_evoloop_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let shipped = std::fs::read_to_string(common::config("external_motor.toml")).unwrap();
+    common::write(dir.path(), "plant.py", "print('a plant')\n");
+    let cases = [
+        (
+            r#"command = ["./plant.py"]"#,
+            "plant.py is not an executable file",
+        ),
+        (
+            r#"command = ["no-such-plant-program"]"#,
+            "no-such-plant-program is not on PATH",
+        ),
+    ];
+    for (command, reason) in cases {
+        let text = shipped.replace(r#"command = ["python3", "plants/motor_plant.py"]"#, command);
+        let file = common::write(dir.path(), "s.toml", &text);
+        let o = common::cli(&["check", file.to_str().unwrap()]);
+        common::assert_refused(&o, "key `plant.external.command`: ");
+        common::assert_refused(&o, reason);
+    }
 }

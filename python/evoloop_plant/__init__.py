@@ -166,9 +166,13 @@ class _Ports:
         cfg = iox2.config.global_config()
         cfg.global_cfg.prefix = iox2.FileName.new(env.prefix)
         cfg.global_cfg.root_path = iox2.Path.new(env.root)
-        self.node = (iox2.NodeBuilder.new().name(iox2.NodeName.new("evoloop-plant-python"))
-                     .config(cfg).signal_handling_mode(iox2.SignalHandlingMode.Disabled)
-                     .create(iox2.ServiceType.Ipc))
+        try:
+            self.node = (iox2.NodeBuilder.new().name(iox2.NodeName.new("evoloop-plant-python"))
+                         .config(cfg).signal_handling_mode(iox2.SignalHandlingMode.Disabled)
+                         .create(iox2.ServiceType.Ipc))
+        except Exception as e:
+            raise Failure(2, f"cannot create the iceoryx2 node under {env.root} with prefix "
+                          f"{env.prefix}: {e}")
         base = f"evoloop/{env.run_id}"
         self.ready = self._event(f"{base}/ready").listener_builder().create()
         self.sync = self._event(f"{base}/sync").notifier_builder().create()
@@ -197,12 +201,19 @@ class _Ports:
 
     def _event(self, name):
         iox2 = self.iox2
-        return (self.node.service_builder(iox2.ServiceName.new(name)).event().max_notifiers(4)
-                .max_listeners(6).max_nodes(8).open_or_create())
+        try:
+            return (self.node.service_builder(iox2.ServiceName.new(name)).event().max_notifiers(4)
+                    .max_listeners(6).max_nodes(8).open_or_create())
+        except Exception as e:
+            raise Failure(2, f"cannot open the event service {name}: {e}")
 
     def wait(self, listener, seconds):
-        """Sleep on an event service until woken or `seconds` pass."""
-        listener.timed_wait(self.iox2.Duration.from_secs_f64(seconds))
+        """Sleep on an event service until woken, `seconds` pass or a signal arrives (a stop:
+        the caller looks at its flag)."""
+        try:
+            listener.timed_wait(self.iox2.Duration.from_secs_f64(seconds))
+        except self.iox2.ListenerWaitError:
+            pass
 
     @staticmethod
     def take(subscriber):
@@ -236,13 +247,18 @@ class _Ports:
 
 
 class _Runner:
-    def __init__(self, plant, env, ports):
+    def __init__(self, plant, env, ports, stopped):
         self.plant, self.env, self.ports = plant, env, ports
-        self.stop = False
+        self._stopped = stopped
         self.msg = PlantState()
         self.y = None
         self.t = 0.0
         self.u = [0.0] * env.inputs
+
+    @property
+    def stop(self):
+        """A SIGTERM, SIGINT or SIGHUP has arrived."""
+        return bool(self._stopped)
 
     def sample(self, seq, u_applied, flags=0):
         e, m = self.env, self.msg
@@ -251,6 +267,9 @@ class _Runner:
         _fill(m.y, self.y, e.outputs, "step()'s y")
         _fill(m.x_true, self.plant.state(), e.states, "state()")
         j = self.plant.joints(self.y)
+        if j is None and e.joints > e.outputs:
+            raise Failure(2, f"the scenario declares {e.joints} joints and {e.outputs} outputs: "
+                          "override Plant.joints(y) to give q and qd")
         q, qd = (list(np.ravel(self.y))[:e.joints], None) if j is None else j
         _fill(m.q_true, q, e.joints, "joints()'s q")
         _fill(m.qd_true, qd, e.joints, "joints()'s qd")
@@ -276,7 +295,7 @@ class _Runner:
         e, p = self.env, self.ports
         n = e.samples
         k, u = 0, [0.0] * e.inputs
-        stalled = False
+        paced = True
         while True:
             last = n is not None and k == n
             m = self.sample(k, u, STATE_FLAG_END if last else 0)
@@ -286,33 +305,44 @@ class _Runner:
                 return
             if k % e.sync_samples == e.sync_offset:
                 p.sync.notify()
-                stalled = self.wait_for_ack(k, stalled)
+                paced = self.wait_for_ack(k, paced)
             u = self.wait_for_command(k)
             if u is None:
                 return
             self.advance(u, e.period)
             k += 1
 
-    def wait_for_ack(self, k, stalled):
-        """Until the optimiser has consumed sample k; a silent one is waited for once up to the
-        timeout, then only when it acknowledges again (the contract's stall rule)."""
+    def wait_for_ack(self, k, paced):
+        """Until the optimiser has consumed sample k (the contract's Lockstep, step 4): with no
+        optimiser, at once; one that stalled for the timeout is not waited for (paced = False)
+        until it acknowledges anything again. Returns whether it is paced."""
         p = self.ports
-        limit = time.monotonic() + self.env.timeout
+        t0 = time.monotonic()
+        reached = lambda a: a.through_seq == U64_MAX or a.through_seq >= k
+        if p.ack_service.dynamic_config.number_of_publishers == 0:
+            return paced
+        if not paced:
+            heard = False
+            while (a := p.take(p.ack)) is not None:
+                heard = True
+                if reached(a):
+                    return True
+            if not heard:
+                return False
+            print(f"evoloop-plant (python): the optimiser acknowledges again; pacing it from "
+                  f"sample {k}", file=sys.stderr)
         while True:
-            while True:
-                a = p.take(p.ack)
-                if a is None:
-                    break
-                seq = a.through_seq
-                if seq == U64_MAX or seq >= k:
-                    return False
-            if stalled or p.ack_service.dynamic_config.number_of_publishers == 0:
-                return stalled
-            if time.monotonic() > limit or self.stop:
-                print(f"evoloop-plant (python): the optimiser did not acknowledge sample {k} "
-                      f"within {self.env.timeout} s; going on without it", file=sys.stderr)
+            while (a := p.take(p.ack)) is not None:
+                if reached(a):
+                    return True
+            if self.stop or p.ack_service.dynamic_config.number_of_publishers == 0:
                 return True
-            p.wait(p.ack_wake, 0.1)
+            if time.monotonic() - t0 >= self.env.timeout:
+                print(f"evoloop-plant (python): the optimiser did not acknowledge sample {k} "
+                      f"within {self.env.timeout} s; going on without waiting for it",
+                      file=sys.stderr)
+                return False
+            p.wait(p.ack_wake, min(0.2, self.env.timeout))
 
     def wait_for_command(self, k):
         p = self.ports
@@ -364,16 +394,18 @@ def run(plant, environ=None):
     sample or SIGTERM/SIGINT. Exits the process with the contract's code on a failure (2 setup,
     3 a peer timed out), with the reason on stderr."""
     ports = None
+    stopped = []
+
+    def stop(*_):
+        stopped.append(True)
+
+    # Before any port exists: a stop is a flag the loops look at, never an exception.
+    for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+        signal.signal(sig, stop)
     try:
         env = Environment(environ)
         ports = _Ports(env)
-        r = _Runner(plant, env, ports)
-
-        def stop(*_):
-            r.stop = True
-
-        signal.signal(signal.SIGTERM, stop)
-        signal.signal(signal.SIGINT, stop)
+        r = _Runner(plant, env, ports, stopped)
         r.y = plant.reset()
         r.wait_for_peers()
         if env.mode == "lockstep":

@@ -75,7 +75,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         },
         ..Settings::default()
     };
-    scn.require_duration()?;
+    scn.require_in_process()?;
     if scn.timing.duration < 3.0 * settings.period {
         return Err(format!(
             "{}: timing.duration {} s holds fewer than three {} s periods (one dropped, one \

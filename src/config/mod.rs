@@ -123,8 +123,21 @@ impl Scenario {
         compose(raw, &Check::new(path), ov)
     }
 
-    /// An in-process simulation keeps every sample, so it refuses a run until stopped.
-    pub fn require_duration(&self) -> Result<(), String> {
+    /// Whether evoloop simulates the plant (every kind but a process of the user's own).
+    pub fn simulated(&self) -> bool {
+        self.plant.model.config().external().is_none()
+    }
+
+    /// An in-process simulation simulates the plant and keeps every sample, so it refuses a
+    /// plant of the user's own and a run until stopped.
+    pub fn require_in_process(&self) -> Result<(), String> {
+        if !self.simulated() {
+            return Err(format!(
+                "{}: plant.kind: \"external\" is simulated by its own process only: run it \
+                 with `evoloop run`",
+                self.source.display()
+            ));
+        }
         if self.timing.until_stopped() {
             return Err(format!(
                 "{}: timing.duration: simulated in-process, the scenario needs a duration",
@@ -208,7 +221,7 @@ impl Scenario {
     pub fn first_state_wait(&self) -> std::time::Duration {
         let s = match self.plant.model.config().external() {
             Some(e) => e.wait,
-            None => self.timing.lockstep_timeout.max(10.0),
+            None => self.timing.start_timeout(),
         };
         std::time::Duration::from_secs_f64(s)
     }
@@ -217,11 +230,16 @@ impl Scenario {
     /// its safe command to send in place of the law's when a state fails.
     pub fn state_check(&self) -> crate::control::state_check::StateCheck {
         let p = self.build_plant();
+        // Within a single input's range, as every law's own command is.
+        let safe_command = match self.plant.model.config().scalar_input() {
+            Some(s) => self.plant.safe_command.clamp(s.range.0, s.range.1),
+            None => self.plant.safe_command,
+        };
         crate::control::state_check::StateCheck {
             n_x: p.n_states(),
             n_q: p.n_joints(),
             n_y: p.n_outputs(),
-            safe_command: self.plant.safe_command,
+            safe_command,
         }
     }
 

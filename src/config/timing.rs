@@ -80,6 +80,12 @@ pub struct Timing {
 }
 
 impl Timing {
+    /// The longest wait for a peer while the run starts (the processes' start-up): the lockstep
+    /// timeout, at least 10 s.
+    pub fn start_timeout(&self) -> f64 {
+        self.lockstep_timeout.max(10.0)
+    }
+
     /// Whether the run goes on until it is stopped (no duration).
     pub fn until_stopped(&self) -> bool {
         self.duration == f64::INFINITY

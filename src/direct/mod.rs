@@ -510,7 +510,7 @@ pub fn run_in_process(
     scn: &Scenario,
     progress: impl FnMut(usize, f64),
 ) -> Result<InProcess, String> {
-    scn.require_duration()?;
+    scn.require_in_process()?;
     struct Hook<P> {
         tuner: DirectTuner,
         n: usize,

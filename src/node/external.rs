@@ -40,7 +40,14 @@ pub fn environment(
         ),
         ("EVOLOOP_IPC_ROOT", root),
         ("EVOLOOP_CONFIG", config.display().to_string()),
-        ("EVOLOOP_OUT", scn.output.dir.display().to_string()),
+        // Absolute: the process runs in the scenario's directory, not the launcher's.
+        (
+            "EVOLOOP_OUT",
+            std::path::absolute(&scn.output.dir)
+                .unwrap_or(scn.output.dir.clone())
+                .display()
+                .to_string(),
+        ),
         ("EVOLOOP_MODE", mode.to_string()),
         ("EVOLOOP_PERIOD", format!("{:?}", scn.timing.period)),
         ("EVOLOOP_SAMPLES", samples),
@@ -70,14 +77,14 @@ pub fn environment(
     .collect()
 }
 
-/// Start `command` with `env`, in the scenario's directory `dir`, in a process group of its
-/// own, with SIGTERM when the launcher dies.
-pub fn spawn(e: &ExternalSpec, dir: &Path, env: &[(String, String)]) -> std::io::Result<Child> {
+/// Start `command` with `env`, in the scenario's directory, in a process group of its own, with
+/// SIGTERM when the launcher dies.
+pub fn spawn(e: &ExternalSpec, env: &[(String, String)]) -> std::io::Result<Child> {
     use std::os::unix::process::CommandExt;
-    let program = e.program(dir).expect("a command to spawn");
-    let mut cmd = std::process::Command::new(&program);
+    let program = e.program.as_ref().expect("a command to spawn");
+    let mut cmd = std::process::Command::new(program);
     cmd.args(&e.command[1..])
-        .current_dir(dir)
+        .current_dir(&e.dir)
         .envs(env.iter().map(|(k, v)| (k, v)))
         .process_group(0);
     super::launcher::die_with_parent(&mut cmd);
@@ -99,6 +106,6 @@ pub fn announce(e: &ExternalSpec, env: &[(String, String)]) {
         e.wait
     );
     for (k, v) in env {
-        eprintln!("  export {k}={v}");
+        eprintln!("  export {k}='{}'", v.replace('\'', "'\\''"));
     }
 }

@@ -516,6 +516,8 @@ struct Watch<'a> {
     estimate: &'a Option<crate::ipc::Sub<crate::msg::ModelEstimate>>,
     quiet: bool,
     span: &'a str,
+    /// How long a plant process of the user's own may outlive the controller and optimiser.
+    linger: Duration,
 }
 
 /// How the processes ended.
@@ -546,11 +548,21 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
         estimate,
         quiet,
         span,
+        linger,
     } = *w;
-    // The plant's place (none when the user starts a plant of their own).
+    // The plant's place; when the user starts a plant of their own, the controller's stands for
+    // it (it ends when the plant's last state comes or the plant falls silent).
     let plant = children
         .iter()
-        .position(|(n, _)| *n == PROCESSES[PLANT] || *n == EXTERNAL);
+        .position(|(n, _)| *n == PROCESSES[PLANT] || *n == EXTERNAL)
+        .or_else(|| {
+            children
+                .iter()
+                .position(|(n, _)| *n == "evoloop-controller")
+        });
+    // A plant process of the user's own that outlives the controller and the optimiser gets the
+    // lockstep timeout to finish, then a stop.
+    let mut lingering: Option<Instant> = None;
     while exited.iter().any(|e| !e) {
         for (i, (name, c)) in children.iter_mut().enumerate() {
             if exited[i] {
@@ -559,6 +571,20 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
             // Not once the plant has ended: there is no run left to rejoin.
             let plant_on = plant.is_none_or(|p| !exited[p]);
             let rejoinable = plant_on && !interrupted && stop_sent.is_none();
+            if *name == EXTERNAL && stop_sent.is_none() {
+                let others_done = exited.iter().enumerate().all(|(j, e)| j == i || *e);
+                let since = *lingering.get_or_insert_with(Instant::now);
+                if !others_done {
+                    lingering = None;
+                } else if since.elapsed() > linger {
+                    err!(
+                        "evoloop: {name} still runs {:.0} s after the run ended; stopping it",
+                        linger.as_secs_f64()
+                    );
+                    signal_process(name, c, libc::SIGTERM);
+                    stop_sent = Some(Instant::now());
+                }
+            }
             if let Some(due) = restart_due.filter(|_| *name == OPTIMISER) {
                 if !rejoinable {
                     (exited[i], restart_due) = (true, None);
@@ -697,6 +723,7 @@ pub fn run(mut a: RunArgs) -> ExitCode {
         estimate: &r.estimate,
         quiet: a.quiet,
         span: &span,
+        linger: Duration::from_secs_f64(scn.timing.lockstep_timeout),
     };
     let Supervised {
         failed,
@@ -783,14 +810,11 @@ impl Running {
         })?;
         let external = p.scn.plant.model.config().external().map(|e| {
             let env = super::external::environment(&p.scn, &config, &p.run_id, &a.ipc_prefix);
-            let dir = config.parent().unwrap_or(Path::new("/")).to_path_buf();
-            (e, env, dir)
+            (e, env)
         });
         let children = spawn_all(
             &args,
-            external
-                .as_ref()
-                .map(|(e, env, dir)| (*e, env.as_slice(), dir.as_path())),
+            external.as_ref().map(|(e, env)| (*e, env.as_slice())),
         )?;
         Ok(Running {
             children,
@@ -833,8 +857,8 @@ const PROCESSES: [&str; 3] = ["evoloop-plant", "evoloop-controller", "evoloop-op
 const PLANT: usize = 0;
 const _: () = assert!(matches!(PROCESSES[PLANT].as_bytes(), b"evoloop-plant"));
 
-/// A plant of the user's own: its table, the variables it joins with, the scenario's directory.
-type External<'a> = (&'a ExternalSpec, &'a [(String, String)], &'a Path);
+/// A plant of the user's own: its table and the variables it joins with.
+type External<'a> = (&'a ExternalSpec, &'a [(String, String)]);
 
 /// The plant (evoloop's, the user's `plant.external.command`, or none when the user starts it),
 /// the controller and the optimiser, in that order; if one cannot start, those already started
@@ -846,17 +870,22 @@ fn spawn_all(
     let mut children: Vec<(&'static str, Child)> = Vec::new();
     for name in PROCESSES {
         let started = match external.filter(|_| name == PROCESSES[PLANT]) {
-            Some((e, env, _)) if e.command.is_empty() => {
+            Some((e, env)) if e.command.is_empty() => {
                 super::external::announce(e, env);
                 continue;
             }
-            Some((e, env, dir)) => super::external::spawn(e, dir, env).map(|c| (EXTERNAL, c)),
+            Some((e, env)) => super::external::spawn(e, env).map(|c| (EXTERNAL, c)),
             None => spawn_process(name, args).map(|c| (name, c)),
         };
         match started {
             Ok(c) => children.push(c),
             Err(e) => {
-                err!("error: cannot start {name}: {e}");
+                let who = if external.is_some() && name == PROCESSES[PLANT] {
+                    EXTERNAL
+                } else {
+                    name
+                };
+                err!("error: cannot start {who}: {e}");
                 for (n, c) in &mut children {
                     signal_process(n, c, libc::SIGTERM);
                     let _ = c.wait();

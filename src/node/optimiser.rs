@@ -155,7 +155,7 @@ impl<'a> Serve<'a> {
             ports,
             lockstep: scn.timing.mode == Mode::Lockstep,
             sync: scn.sync_samples(),
-            timeout: Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0)),
+            timeout: Duration::from_secs_f64(scn.timing.start_timeout()),
             next_set: 0,
             indirect: None,
             live: None,

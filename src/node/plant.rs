@@ -66,7 +66,7 @@ pub fn main(args: &ProcessArgs) {
     // lockstep plant would not wait for the optimiser and could finish a short run before a
     // starved optimiser ever received: samples of a publisher that is gone before the
     // subscriber's first receive are lost, the end sample with them.
-    wait_for_peers(&ports, &stop, scn.timing.lockstep_timeout.max(10.0));
+    wait_for_peers(&ports, &stop, scn.timing.start_timeout());
     let t0 = Instant::now();
     let result = match scn.timing.mode {
         Mode::Lockstep => run_lockstep(&scn, &ports, &mut sim, &stop, &mut report),

@@ -275,7 +275,7 @@ fn play(
         ports.ready.wait(Duration::from_millis(100)).map_err(io)?;
     }
     let spin = Duration::from_micros(scn.timing.spin_us);
-    let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout.max(10.0));
+    let timeout = Duration::from_secs_f64(scn.timing.start_timeout());
     let t_first = rec.states[0].t;
     let progress =
         crate::report::progress::bar(rec.states.len() as u64, "replay", a.quiet || a.json);

@@ -189,9 +189,10 @@ impl LoopHook for Keep<'_> {
 
 /// Simulate the scenario in lockstep in this process, scheduled parameter sets included when
 /// the scenario's optimiser mode is `schedule`. The result holds every sample, so the scenario
-/// needs a duration: callers refuse a run until stopped first (`Scenario::require_duration`).
+/// needs a duration: callers refuse a run until stopped and a plant of the user's own first
+/// (`Scenario::require_in_process`).
 pub fn simulate(scn: &Scenario) -> SimResult {
-    if let Err(e) = scn.require_duration() {
+    if let Err(e) = scn.require_in_process() {
         panic!("sim::simulate: {e}");
     }
     let mut keep = Keep {

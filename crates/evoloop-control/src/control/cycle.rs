@@ -215,6 +215,9 @@ impl ControlCycle {
         if let Some(check) = self.state_check {
             if let Err(fault) = check.judge(state) {
                 self.refused.note(state.seq, fault);
+                if state.t.is_finite() {
+                    self.reference.sample(state.t, &mut self.setpoint);
+                }
                 let n_u = self.controller.n_outputs();
                 self.u[..n_u].fill(check.safe_command);
                 self.telemetry(state, None, tel);

@@ -26,24 +26,49 @@ pub struct ExternalSpec {
     /// The actuator's range per input (the controller's output range).
     pub u_min: Vec<f64>,
     pub u_max: Vec<f64>,
-    /// The plant process: program and arguments (a program with a `/` relative to the scenario's
-    /// directory, which is also its working directory); empty: the user starts it.
+    /// The plant process: program and arguments as written; empty: the user starts it.
     pub command: Vec<String>,
+    /// The program to start, resolved when validated: a path with a `/` against the scenario's
+    /// directory, a bare name found on PATH.
+    pub program: Option<PathBuf>,
+    /// Its working directory: the scenario's.
+    pub dir: PathBuf,
     /// s the run waits for the plant's first state.
     pub wait: f64,
 }
 
-impl ExternalSpec {
-    /// The program to start, resolved: a path with a `/` is relative to the scenario's
-    /// directory, a bare name is looked up on PATH when it starts.
-    pub fn program(&self, check_dir: &std::path::Path) -> Option<PathBuf> {
-        let first = self.command.first()?;
-        Some(if first.contains('/') {
-            check_dir.join(first)
-        } else {
-            PathBuf::from(first)
-        })
+/// An executable file (any execute bit set).
+fn executable(p: &std::path::Path) -> bool {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+}
+
+/// `program` as the launcher will start it: a path with a `/` against the scenario's
+/// directory, a bare name on PATH; an error that says which, if it is not an executable file.
+fn resolve_program(check: &Check, program: &str) -> Result<PathBuf, ConfigError> {
+    let key = "plant.external.command";
+    if program.contains('/') {
+        let path = check.resolve(program.as_ref());
+        if !executable(&path) {
+            return check.fail(
+                key,
+                format!(
+                    "{} is not an executable file (a program with a / is relative to the \
+                     scenario; a script needs its execute bit, or name its interpreter first)",
+                    path.display()
+                ),
+            );
+        }
+        return Ok(path);
     }
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    std::env::split_paths(&path)
+        .map(|d| d.join(program))
+        .find(|p| executable(p))
+        .map_or_else(
+            || check.fail(key, format!("{program} is not on PATH")),
+            Ok,
+        )
 }
 
 /// Never called: evoloop does not simulate an external plant (the configuration keeps it out of
@@ -84,10 +109,7 @@ impl PlantConfig for ExternalSpec {
         Box::new(self.clone())
     }
     fn scalar_input(&self) -> Option<ScalarInput> {
-        (self.inputs == 1 && self.outputs == 1).then(|| ScalarInput {
-            range: (self.u_min[0], self.u_max[0]),
-            hold: 0.0_f64.clamp(self.u_min[0], self.u_max[0]),
-        })
+        (self.inputs == 1 && self.outputs == 1).then(|| ScalarInput::holding_zero(self.u_min[0], self.u_max[0]))
     }
     fn external(&self) -> Option<&ExternalSpec> {
         Some(self)
@@ -178,15 +200,11 @@ pub fn validate(
     if command.first().is_some_and(|c| c.trim().is_empty()) {
         return check.fail("plant.external.command", "the program (its first entry) is empty");
     }
-    if let Some(p) = command.first().filter(|c| c.contains('/')) {
-        let path = check.resolve(p.as_ref());
-        if !path.is_file() {
-            return check.fail(
-                "plant.external.command",
-                format!("{} is not a file (a program with a / is relative to the scenario)", path.display()),
-            );
-        }
-    }
+    let program = match command.first() {
+        Some(p) => Some(resolve_program(check, p)?),
+        None => None,
+    };
+    let dir = check.resolve(".".as_ref());
     Ok(ExternalSpec {
         states,
         joints,
@@ -199,6 +217,8 @@ pub fn validate(
         u_min,
         u_max,
         command,
+        program,
+        dir,
         wait: check.range("plant.external.wait", t.wait.unwrap_or(60.0), 1.0, 3600.0)?,
     })
 }

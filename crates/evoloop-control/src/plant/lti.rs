@@ -228,10 +228,7 @@ impl PlantConfig for LtiSpec {
     /// A single input's range (for a plant with one input and one output); it holds at 0
     /// (clipped into the range).
     fn scalar_input(&self) -> Option<ScalarInput> {
-        (self.m == 1 && self.p == 1).then(|| ScalarInput {
-            range: (self.u_min[0], self.u_max[0]),
-            hold: 0.0_f64.clamp(self.u_min[0], self.u_max[0]),
-        })
+        (self.m == 1 && self.p == 1).then(|| ScalarInput::holding_zero(self.u_min[0], self.u_max[0]))
     }
     fn realtime_refusal(&self) -> Option<String> {
         let what = match (self.dt.is_some(), self.delay > 0) {

@@ -100,6 +100,17 @@ pub struct ScalarInput {
     pub hold: f64,
 }
 
+impl ScalarInput {
+    /// The range [lo, hi], held at 0 (clipped into it): a plant whose operating point is its
+    /// origin (a linear model, a process of the user's own).
+    pub fn holding_zero(lo: f64, hi: f64) -> Self {
+        Self {
+            range: (lo, hi),
+            hold: 0.0_f64.clamp(lo, hi),
+        }
+    }
+}
+
 /// Most points in a parameter schedule (a spring constant, a mass) over a run.
 pub const MAX_SCHEDULE: usize = 8;
 
