@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
 /// The validated `[plant.external]`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct ExternalSpec {
     /// The counts every state must carry (`n_x`, `n_q`, `n_y`) and the command's (`n_u`).
     pub states: usize,
@@ -35,6 +35,9 @@ pub struct ExternalSpec {
     pub dir: PathBuf,
     /// s the run waits for the plant's first state.
     pub wait: f64,
+    /// An arm's nominal rigid-body model (`robot`, a D-H table or URDF): what a joint-space
+    /// controller (computed torque) computes with. The plant process has its own.
+    pub robot: Option<(PathBuf, crate::dynamics::Model)>,
 }
 
 /// An executable file (any execute bit set).
@@ -114,6 +117,9 @@ impl PlantConfig for ExternalSpec {
     fn external(&self) -> Option<&ExternalSpec> {
         Some(self)
     }
+    fn rigid_body(&self) -> Option<&crate::dynamics::Model> {
+        self.robot.as_ref().map(|r| &r.1)
+    }
 }
 
 // ---------------------------------------------------------------- configuration
@@ -134,6 +140,7 @@ pub struct Table {
     u_max: Option<Vec<f64>>,
     command: Option<Vec<String>>,
     wait: Option<f64>,
+    robot: Option<PathBuf>,
 }
 
 /// Names (or units) per channel: `n` of them, or `prefix0..` when absent.
@@ -149,6 +156,29 @@ fn labels(
         return check.fail(key, format!("needs {n} entries (one per channel), got {}", v.len()));
     }
     Ok(v)
+}
+
+/// An arm's model for the controller: its joints must be the process's joints, outputs (the
+/// joint angles) and inputs (torques), its state [q; qd].
+fn arm_model(
+    check: &Check,
+    rel: &std::path::Path,
+    [states, joints, outputs, inputs]: [usize; 4],
+) -> Result<(PathBuf, crate::dynamics::Model), ConfigError> {
+    let (path, model) = check.robot("plant.external.robot", rel)?;
+    let n = model.dof();
+    if [joints, outputs, inputs] != [n; 3] || states != 2 * n {
+        return check.fail(
+            "plant.external.robot",
+            format!(
+                "{} has {n} joints: the process must declare joints = outputs = inputs = {n} and \
+                 states = {} ([q; qd]), not {joints}, {outputs}, {inputs} and {states}",
+                path.display(),
+                2 * n
+            ),
+        );
+    }
+    Ok((path, model))
 }
 
 pub fn validate(
@@ -170,6 +200,10 @@ pub fn validate(
     let outputs = check.count("plant.external.outputs", t.outputs.unwrap_or(1), 1, MAX_JOINTS)?;
     let inputs = check.count("plant.external.inputs", t.inputs.unwrap_or(1), 1, MAX_JOINTS)?;
     let joints = check.count("plant.external.joints", t.joints.unwrap_or(outputs), 0, MAX_JOINTS)?;
+    let robot = match &t.robot {
+        Some(rel) => Some(arm_model(check, rel, [states, joints, outputs, inputs])?),
+        None => None,
+    };
     if cx.reference.joints() != outputs {
         return check.fail(
             "reference",
@@ -220,5 +254,6 @@ pub fn validate(
         program,
         dir,
         wait: check.range("plant.external.wait", t.wait.unwrap_or(60.0), 1.0, 3600.0)?,
+        robot,
     })
 }
