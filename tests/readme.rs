@@ -152,7 +152,7 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
             }
         }
         // A Python package of the repository (python/: the plant package).
-        ["pip", "install", dir] if dir.starts_with("./") => {
+        ["pip", "install", dir, ..] if dir.starts_with("./") => {
             if root().join(dir).join("pyproject.toml").exists() {
                 Ok(None)
             } else {
