@@ -206,3 +206,43 @@ fn a_plant_program_that_cannot_start_is_refused_by_evoloop_check() {
         common::assert_refused(&o, reason);
     }
 }
+
+/// A plant process that speaks another contract version names its messages' types otherwise
+/// (`evoloop::PlantState.v2`): the services do not open for it, and the run fails with the
+/// reason instead of exchanging misread bytes.
+#[test]
+#[ignore = "needs Python 3 with the evoloop_plant package's deps: pip install ./python"]
+fn a_plant_on_another_contract_version_fails_the_run_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    common::write(
+        dir.path(),
+        "v2.py",
+        "import os, sys\nsys.path.insert(0, os.environ['EVOLOOP_PACKAGE_DIR'])\n\
+         import evoloop_plant\nevoloop_plant.CONTRACT = 2\n\
+         class P(evoloop_plant.Plant):\n    def reset(self):\n        return [0.0]\n\
+         \x20   def step(self, u, dt):\n        return [0.0]\nevoloop_plant.run(P())\n",
+    );
+    let scenario = std::fs::read_to_string(common::config("external_motor.toml"))
+        .unwrap()
+        .replace("plants/motor_plant.py", "v2.py");
+    let config = common::write(dir.path(), "v2.toml", &scenario);
+    let out = dir.path().join("out");
+    let o = Process::new(common::evoloop())
+        .args([
+            "run",
+            config.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .env(
+            "EVOLOOP_PACKAGE_DIR",
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("python"),
+        )
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(said.contains("speaks plant contract v2"), "{said}");
+    assert_eq!(common::json(&out.join("summary.json"))["outcome"], "failed");
+}
