@@ -14,6 +14,7 @@ tanh(qd / 0.01 rad/s), MuJoCo enforces it as a constraint, and near zero speed t
 import argparse
 import json
 import os
+import re
 import sys
 
 import numpy as np
@@ -36,7 +37,7 @@ def main():
     ap.add_argument("--no-coulomb", action="store_true")
     a = ap.parse_args()
     run = read_run(a.run)
-    n = len([c for c in run if c.startswith("u")])
+    n = len([c for c in run if re.fullmatch(r"u\d+", c)])
     t = run["t"]
     period = t[1] - t[0]
     samples = min(len(t), int(round(a.seconds / period)) + 1)
@@ -61,7 +62,9 @@ def main():
         "coulomb": not a.no_coulomb,
         "max_abs_q_error_rad": worst,
         "at_s": float(worst_at),
-        "error_at_1s_rad": errors[int(round(1.0 / period)) - 1] if samples > 1 / period else None,
+        # The difference at these instants (s), where the run reaches them.
+        "at": {str(s): errors[int(round(s / period)) - 1]
+               for s in (0.001, 0.01, 0.1, 1.0, 2.0, 5.0) if round(s / period) - 1 < len(errors)},
         "rms_q_error_rad": float(np.sqrt(np.mean(np.square(errors)))),
     }))
 

@@ -88,12 +88,24 @@ fn computed_torque_runs_against_the_mujoco_arm_reproducibly() {
             .as_f64()
             .unwrap()
     };
-    let (mujoco, own) = (rms(&a), rms(&run("arm3_ct.toml", "own")));
-    println!("tracking rms: MuJoCo arm {mujoco}, evoloop's arm {own}");
-    assert!(
-        mujoco < 2.0 * own && own < 2.0 * mujoco,
-        "computed torque tracks the two simulators' arm alike: {mujoco} vs {own}"
-    );
+    // Per joint after the start-up ramp (whose transient dominates the whole run's rms and is
+    // alike on any arm near this one): 3.0e-4 against 1.1e-4 rad on the elbow measured, where
+    // MuJoCo's dry friction holds a reversing joint; a mass 20 % off gives 10-100 times more.
+    let settled = |d: &Path| -> Vec<f64> {
+        let s = common::json(&d.join("summary.json"));
+        let rms = s["tracking_after_1s"]["rms"].as_array().unwrap().clone();
+        rms.iter().map(|v| v.as_f64().unwrap()).collect()
+    };
+    let own = settled(&run("arm3_ct.toml", "own"));
+    let on_mujoco = settled(&a);
+    println!("tracking rms after 1 s: MuJoCo arm {on_mujoco:?}, evoloop's arm {own:?}");
+    for (j, (m, o)) in on_mujoco.iter().zip(&own).enumerate() {
+        assert!(
+            *m < 4.0 * o && *o < 4.0 * m,
+            "joint {j}: computed torque tracks the two simulators' arm alike: {m} vs {o}"
+        );
+    }
+    let mujoco = rms(&a);
     let wall = rms(&run("arm3_mujoco_wall.toml", "wall"));
     println!("with the wall: {wall}");
     assert!(

@@ -9,8 +9,8 @@ limits, as evoloop's own arm plant clips them.
 
 `--noise STD` adds Gaussian noise to the measured angles (seeded by EVOLOOP_SEED, so lockstep
 reruns are identical). `--wall X` adds what evoloop's rigid-body plant cannot simulate: a ball
-of 4 cm radius at the URDF's last frame (the tool flange) and a rigid wall, the plane y = Y in the
-world, that the ball touches.
+of 4 cm radius at the URDF's last frame (the tool flange) and a stiff wall, the plane y = Y in the
+world, that the ball touches (MuJoCo's default soft contact: the ball sinks a few mm into it).
 Needs `pip install mujoco` and the evoloop_plant package (`pip install ./python`; run from the
 repository, it is found there without installing)."""
 import argparse
@@ -50,7 +50,11 @@ class MujocoArm(evoloop_plant.Plant):
         self.m, self.d = model, mujoco.MjData(model)
         self.q0 = np.asarray(q0, dtype=float)
         self.step_size = model.opt.timestep
-        self.limit = model.jnt_actfrcrange[:, 1].copy()
+        hinge_or_slide = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+        if model.njnt != model.nq or any(int(t) not in hinge_or_slide for t in model.jnt_type):
+            raise SystemExit("mujoco_arm.py: only arms of hinge and slide joints (one value each)")
+        # URDF effort limits; a joint without one (continuous, or no effort) is not clipped.
+        self.limit = np.where(model.jnt_actfrclimited, model.jnt_actfrcrange[:, 1], np.inf)
         self.noise, self.rng = noise, np.random.default_rng(seed)
 
     def measured(self):

@@ -208,7 +208,10 @@ pub(crate) fn driven_arm<'a>(
         Some(m) => Ok(m),
         None => check.fail(
             "controller.kind",
-            format!("{law} drives an arm plant (plant.kind = \"arm\")"),
+            format!(
+                "{law} drives an arm: plant.kind = \"arm\", or an external plant with its model \
+                 in plant.external.robot"
+            ),
         ),
     }
 }
