@@ -237,13 +237,10 @@ class _Ports:
         return c >= 1 and s >= 2 and a >= 1
 
     def close(self):
-        for name in ["state_wake", "state", "ack_wake", "ack", "command_wake", "command",
-                     "sync", "ready"]:
-            port = getattr(self, name, None)
-            if port is not None and hasattr(port, "delete"):
-                port.delete()
-        if hasattr(self.node, "delete"):
-            self.node.delete()
+        """The ports, last made first (the node goes with the object)."""
+        for port in (self.state_wake, self.state, self.ack_wake, self.ack, self.command_wake,
+                     self.command, self.sync, self.ready):
+            port.delete()
 
 
 class _Runner:
@@ -253,7 +250,6 @@ class _Runner:
         self.msg = PlantState()
         self.y = None
         self.t = 0.0
-        self.u = [0.0] * env.inputs
 
     @property
     def stop(self):
@@ -282,13 +278,15 @@ class _Runner:
             self.t += dt
 
     def wait_for_peers(self):
-        limit = time.monotonic() + max(self.env.timeout, 10.0)
+        # The start timeout, as the Rust plant's: the lockstep timeout, at least 10 s.
+        start_timeout = max(self.env.timeout, 10.0)
+        limit = time.monotonic() + start_timeout
         while not self.ports.peers_present():
             if self.stop:
                 return
             if time.monotonic() > limit:
                 raise Failure(3, "the controller and the optimiser did not join within "
-                              f"{max(self.env.timeout, 10.0)} s")
+                              f"{start_timeout} s")
             self.ports.wait(self.ports.ready, 0.1)
 
     def lockstep(self):
@@ -318,23 +316,27 @@ class _Runner:
         until it acknowledges anything again. Returns whether it is paced."""
         p = self.ports
         t0 = time.monotonic()
-        reached = lambda a: a.through_seq == U64_MAX or a.through_seq >= k
-        if p.ack_service.dynamic_config.number_of_publishers == 0:
-            return paced
-        if not paced:
+
+        def drain():
+            """(any ack heard, one for sample k among them)."""
             heard = False
             while (a := p.take(p.ack)) is not None:
                 heard = True
-                if reached(a):
-                    return True
+                if a.through_seq == U64_MAX or a.through_seq >= k:
+                    return True, True
+            return heard, False
+
+        if p.ack_service.dynamic_config.number_of_publishers == 0:
+            return paced
+        heard, reached = drain()
+        if reached:
+            return True
+        if not paced:
             if not heard:
                 return False
             print(f"evoloop-plant (python): the optimiser acknowledges again; pacing it from "
                   f"sample {k}", file=sys.stderr)
         while True:
-            while (a := p.take(p.ack)) is not None:
-                if reached(a):
-                    return True
             if self.stop or p.ack_service.dynamic_config.number_of_publishers == 0:
                 return True
             if time.monotonic() - t0 >= self.env.timeout:
@@ -343,6 +345,8 @@ class _Runner:
                       file=sys.stderr)
                 return False
             p.wait(p.ack_wake, min(0.2, self.env.timeout))
+            if drain()[1]:
+                return True
 
     def wait_for_command(self, k):
         p = self.ports
@@ -355,7 +359,7 @@ class _Runner:
                 continue
             if time.monotonic() > limit:
                 raise Failure(3, f"controller did not answer sample {k} within {self.env.timeout} s")
-            p.wait(p.command_wake, min(0.1, max(self.env.timeout, 1e-3)))
+            p.wait(p.command_wake, min(0.1, self.env.timeout))
         return None
 
     def realtime(self):

@@ -106,8 +106,9 @@ impl Loop {
         };
         header.extend((0..n_vel).map(|i| format!("rd{i}")));
         header.extend((0..n_vel).map(|i| format!("qd{i}")));
-        let controller = scn.build_controller();
-        let law = controller.log_columns();
+        // The cycle the loop runs, built once: its law names the columns it logs.
+        let cycle = crate::sim::control_cycle(scn);
+        let law = cycle.controller.log_columns();
         let n_law = law.len();
         header.extend(law);
         let dir = &scn.output.dir;
@@ -165,7 +166,7 @@ impl Loop {
         };
         Ok(Self {
             record,
-            cycle: crate::sim::control_cycle(scn),
+            cycle,
             model_check: scn
                 .linear_model()
                 .and_then(|_| ModelCheck::new(&scn.plant.model)),

@@ -3,7 +3,7 @@
 //! stop reaches whatever it starts, and nothing it started outlives the run), and what the run
 //! says while it waits for one the user starts.
 
-use crate::config::{Mode, Scenario};
+use crate::config::Scenario;
 use crate::plant::external::ExternalSpec;
 use std::path::Path;
 use std::process::Child;
@@ -28,10 +28,6 @@ pub fn environment(
     } else {
         scn.cycles().to_string()
     };
-    let mode = match scn.timing.mode {
-        Mode::Lockstep => "lockstep",
-        Mode::Realtime => "realtime",
-    };
     [
         ("EVOLOOP_RUN_ID", run_id.to_string()),
         (
@@ -48,7 +44,7 @@ pub fn environment(
                 .display()
                 .to_string(),
         ),
-        ("EVOLOOP_MODE", mode.to_string()),
+        ("EVOLOOP_MODE", scn.timing.mode.to_string()),
         ("EVOLOOP_PERIOD", format!("{:?}", scn.timing.period)),
         ("EVOLOOP_SAMPLES", samples),
         ("EVOLOOP_SYNC_SAMPLES", scn.sync_samples().to_string()),

@@ -558,11 +558,11 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
         .or_else(|| {
             children
                 .iter()
-                .position(|(n, _)| *n == "evoloop-controller")
+                .position(|(n, _)| *n == PROCESSES[CONTROLLER])
         });
-    // A plant process of the user's own that outlives the controller and the optimiser gets the
-    // lockstep timeout to finish, then a stop.
-    let mut lingering: Option<Instant> = None;
+    // When the controller and the optimiser have ended: a plant process of the user's own still
+    // running `linger` after that is stopped.
+    let mut others_ended: Option<Instant> = None;
     while exited.iter().any(|e| !e) {
         for (i, (name, c)) in children.iter_mut().enumerate() {
             if exited[i] {
@@ -571,20 +571,6 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
             // Not once the plant has ended: there is no run left to rejoin.
             let plant_on = plant.is_none_or(|p| !exited[p]);
             let rejoinable = plant_on && !interrupted && stop_sent.is_none();
-            if *name == EXTERNAL && stop_sent.is_none() {
-                let others_done = exited.iter().enumerate().all(|(j, e)| j == i || *e);
-                let since = *lingering.get_or_insert_with(Instant::now);
-                if !others_done {
-                    lingering = None;
-                } else if since.elapsed() > linger {
-                    err!(
-                        "evoloop: {name} still runs {:.0} s after the run ended; stopping it",
-                        linger.as_secs_f64()
-                    );
-                    signal_process(name, c, libc::SIGTERM);
-                    stop_sent = Some(Instant::now());
-                }
-            }
             if let Some(due) = restart_due.filter(|_| *name == OPTIMISER) {
                 if !rejoinable {
                     (exited[i], restart_due) = (true, None);
@@ -636,6 +622,20 @@ fn supervise(children: &mut [(&str, Child)], w: &Watch) -> Supervised {
                 if !expected {
                     failed.push(format!("{name} exited with {status}"));
                 }
+            }
+        }
+        if let Some(p) = plant.filter(|&p| children[p].0 == EXTERNAL && !exited[p]) {
+            let others_done = exited.iter().enumerate().all(|(j, e)| j == p || *e);
+            let since = *others_ended.get_or_insert_with(Instant::now);
+            if !others_done {
+                others_ended = None;
+            } else if stop_sent.is_none() && since.elapsed() > linger {
+                err!(
+                    "evoloop: {EXTERNAL} still runs {:.0} s after the run ended; stopping it",
+                    linger.as_secs_f64()
+                );
+                signal_process(EXTERNAL, &children[p].1, libc::SIGTERM);
+                stop_sent = Some(Instant::now());
             }
         }
         if stop.load(Ordering::SeqCst) && !interrupted {
@@ -855,6 +855,8 @@ impl Running {
 const PROCESSES: [&str; 3] = ["evoloop-plant", "evoloop-controller", "evoloop-optimiser"];
 /// The plant's index in `PROCESSES`: once it has ended there is no run to rejoin.
 const PLANT: usize = 0;
+/// The controller's: it stands for a plant the user starts.
+const CONTROLLER: usize = 1;
 const _: () = assert!(matches!(PROCESSES[PLANT].as_bytes(), b"evoloop-plant"));
 
 /// A plant of the user's own: its table and the variables it joins with.
@@ -869,22 +871,17 @@ fn spawn_all(
 ) -> Result<Vec<(&'static str, Child)>, ExitCode> {
     let mut children: Vec<(&'static str, Child)> = Vec::new();
     for name in PROCESSES {
-        let started = match external.filter(|_| name == PROCESSES[PLANT]) {
+        let (who, started) = match external.filter(|_| name == PROCESSES[PLANT]) {
             Some((e, env)) if e.command.is_empty() => {
                 super::external::announce(e, env);
                 continue;
             }
-            Some((e, env)) => super::external::spawn(e, env).map(|c| (EXTERNAL, c)),
-            None => spawn_process(name, args).map(|c| (name, c)),
+            Some((e, env)) => (EXTERNAL, super::external::spawn(e, env)),
+            None => (name, spawn_process(name, args)),
         };
         match started {
-            Ok(c) => children.push(c),
+            Ok(c) => children.push((who, c)),
             Err(e) => {
-                let who = if external.is_some() && name == PROCESSES[PLANT] {
-                    EXTERNAL
-                } else {
-                    name
-                };
                 err!("error: cannot start {who}: {e}");
                 for (n, c) in &mut children {
                     signal_process(n, c, libc::SIGTERM);

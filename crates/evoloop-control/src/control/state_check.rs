@@ -116,7 +116,7 @@ impl StateCheck {
     }
 }
 
-/// The refused states of a run: how many, and the first (sample, time, why).
+/// The refused states of a run: how many, and the first (its sample and why).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Refused {
     pub count: u64,

@@ -204,32 +204,8 @@ pub fn validate(
         Some(rel) => Some(arm_model(check, rel, [states, joints, outputs, inputs])?),
         None => None,
     };
-    if cx.reference.joints() != outputs {
-        return check.fail(
-            "reference",
-            format!(
-                "the plant has {outputs} output(s) and the reference {} joint(s): one reference \
-                 per output",
-                cx.reference.joints()
-            ),
-        );
-    }
-    let u_min = t.u_min.unwrap_or_else(|| vec![f64::NEG_INFINITY; inputs]);
-    let u_max = t.u_max.unwrap_or_else(|| vec![f64::INFINITY; inputs]);
-    for (key, v) in [("u_min", &u_min), ("u_max", &u_max)] {
-        if v.len() != inputs {
-            return check.fail(
-                &format!("plant.external.{key}"),
-                format!("needs {inputs} values (one per input), got {}", v.len()),
-            );
-        }
-    }
-    if let Some(i) = (0..inputs).find(|&i| u_min[i].is_nan() || u_max[i].is_nan() || u_min[i] >= u_max[i]) {
-        return check.fail(
-            &format!("plant.external.u_min[{i}]"),
-            format!("must be below u_max[{i}] (got {} and {})", u_min[i], u_max[i]),
-        );
-    }
+    super::one_reference_per_output(check, cx.reference, outputs)?;
+    let (u_min, u_max) = super::input_range(check, "plant.external", t.u_min, t.u_max, inputs)?;
     let command = t.command.unwrap_or_default();
     if command.first().is_some_and(|c| c.trim().is_empty()) {
         return check.fail("plant.external.command", "the program (its first entry) is empty");

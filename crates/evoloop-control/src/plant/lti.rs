@@ -246,7 +246,7 @@ impl PlantConfig for LtiSpec {
 // ---------------------------------------------------------------- configuration
 
 /// A matrix as written: a number, one row (a column for B, a row for C), or rows.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Deserialize)]
 #[serde(untagged)]
 pub enum Matrix {
     Scalar(f64),
@@ -267,7 +267,24 @@ pub struct ModelKeys {
     dt: Option<f64>,
 }
 
-/// The `[plant.lti]` keys.
+impl ModelKeys {
+    /// Each key and whether it is given, in declaration order: the state space's four, the
+    /// transfer function's two, then `dt`.
+    fn present(&self) -> [(&'static str, bool); 7] {
+        [
+            ("a", self.a.is_some()),
+            ("b", self.b.is_some()),
+            ("c", self.c.is_some()),
+            ("d", self.d.is_some()),
+            ("num", self.num.is_some()),
+            ("den", self.den.is_some()),
+            ("dt", self.dt.is_some()),
+        ]
+    }
+}
+
+/// The `[plant.lti]` keys: the model's (as `ModelKeys`, which a model file holds instead:
+/// repeated here because serde's `flatten` cannot refuse unknown keys) and the plant's.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Table {
@@ -283,8 +300,8 @@ pub struct Table {
     /// s, whole control periods.
     input_delay: Option<f64>,
     x0: Option<Vec<f64>>,
-    u_min: Option<Matrix>,
-    u_max: Option<Matrix>,
+    u_min: Option<Vec<f64>>,
+    u_max: Option<Vec<f64>>,
 }
 
 /// Where the model's keys were read and how to name them in an error.
@@ -314,13 +331,13 @@ struct Realised {
 }
 
 pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<LtiSpec, ConfigError> {
-    let Some(t) = t else {
+    let Some(mut t) = t else {
         return check.fail(
             "plant.lti",
             "missing table [plant.lti]: the model's a, b, c (and d), or num and den, or a file",
         );
     };
-    let (keys, src, file) = model_keys(&t, check)?;
+    let (keys, src, file) = model_keys(&mut t, check)?;
     let dt = match keys.dt {
         Some(dt) => Some(discrete_at(&src, dt, cx.period)?),
         None => None,
@@ -338,32 +355,24 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Lt
             ),
         );
     }
-    if cx.reference.joints() != r.p {
-        return check.fail(
-            "reference",
-            format!(
-                "the plant has {} output(s) and the reference {} joint(s): one reference per output",
-                r.p,
-                cx.reference.joints()
-            ),
-        );
-    }
+    super::one_reference_per_output(check, cx.reference, r.p)?;
     let x0 = t.x0.unwrap_or_else(|| vec![0.0; r.n]);
     check.finite_values("plant.lti.x0", &x0, r.n, " (one per state)")?;
-    let (u_min, u_max) = limits(check, t.u_min, t.u_max, r.m)?;
+    let (u_min, u_max) = super::input_range(check, "plant.lti", t.u_min, t.u_max, r.m)?;
     let (phi, gamma) = match dt {
         Some(_) => (r.a.clone(), r.b.clone()),
         None => {
             // exp() squares its argument ceil(log2 |M|) times: bound |[A B] T| first, so a
             // huge entry is an error and not an endless (or overflowing) exponential.
-            let norm = r.a.iter().chain(&r.b).fold(0.0f64, |m, v| m.max(v.abs()));
-            if norm * (r.n + r.m) as f64 * cx.period > MAX_NORM_PERIOD {
+            let largest = r.a.iter().chain(&r.b).fold(0.0f64, |m, v| m.max(v.abs()));
+            let norm_t = largest * (r.n + r.m) as f64 * cx.period;
+            if norm_t > MAX_NORM_PERIOD {
                 return src.fail(
                     "a",
                     format!(
-                        "|[A B]| T is about {:.1e}: a model this fast (or stiff) against the control \
-                         period {} s cannot be held between samples; scale it or sample faster",
-                        norm * (r.n + r.m) as f64 * cx.period,
+                        "|[A B]| T is about {norm_t:.1e}: a model this fast (or stiff) against the \
+                         control period {} s cannot be held between samples; scale it or sample \
+                         faster",
                         cx.period
                     ),
                 );
@@ -395,15 +404,15 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Lt
 }
 
 /// The model's keys from the table, or from the file it names (then the table holds none).
-fn model_keys(t: &Table, check: &Check) -> Result<(ModelKeys, Source, Option<PathBuf>), ConfigError> {
+fn model_keys(t: &mut Table, check: &Check) -> Result<(ModelKeys, Source, Option<PathBuf>), ConfigError> {
     let inline = ModelKeys {
-        a: t.a.clone(),
-        b: t.b.clone(),
-        c: t.c.clone(),
-        d: t.d.clone(),
-        num: t.num.clone(),
-        den: t.den.clone(),
-        dt: t.dt,
+        a: t.a.take(),
+        b: t.b.take(),
+        c: t.c.take(),
+        d: t.d.take(),
+        num: t.num.take(),
+        den: t.den.take(),
+        dt: t.dt.take(),
     };
     let Some(rel) = &t.file else {
         let src = Source {
@@ -412,16 +421,7 @@ fn model_keys(t: &Table, check: &Check) -> Result<(ModelKeys, Source, Option<Pat
         };
         return Ok((inline, src, None));
     };
-    let given = [
-        ("a", inline.a.is_some()),
-        ("b", inline.b.is_some()),
-        ("c", inline.c.is_some()),
-        ("d", inline.d.is_some()),
-        ("num", inline.num.is_some()),
-        ("den", inline.den.is_some()),
-        ("dt", inline.dt.is_some()),
-    ];
-    for (k, present) in given {
+    for (k, present) in inline.present() {
         check.unused(&format!("plant.lti.{k}"), present, "beside plant.lti.file, which holds the model")?;
     }
     let path = check.resolve(rel);
@@ -463,8 +463,9 @@ fn discrete_at(src: &Source, dt: f64, period: f64) -> Result<f64, ConfigError> {
 
 /// (A, B, C, D) from the matrices, or a transfer function's controllable canonical form.
 fn realise(k: &ModelKeys, src: &Source) -> Result<Realised, ConfigError> {
-    let state_space = k.a.is_some() || k.b.is_some() || k.c.is_some() || k.d.is_some();
-    let transfer = k.num.is_some() || k.den.is_some();
+    let given = k.present();
+    let state_space = given[..4].iter().any(|g| g.1);
+    let transfer = given[4..6].iter().any(|g| g.1);
     match (state_space, transfer) {
         (true, true) => src.fail(
             "num",
@@ -625,37 +626,6 @@ fn input_delay(check: &Check, delay: f64, period: f64) -> Result<usize, ConfigEr
         );
     }
     Ok(k as usize)
-}
-
-fn limits(
-    check: &Check,
-    lo: Option<Matrix>,
-    hi: Option<Matrix>,
-    m: usize,
-) -> Result<(Vec<f64>, Vec<f64>), ConfigError> {
-    let read = |key: &str, v: Option<Matrix>, default: f64| -> Result<Vec<f64>, ConfigError> {
-        let v = match v {
-            None => vec![default; m],
-            Some(Matrix::Scalar(x)) if m == 1 => vec![x],
-            Some(Matrix::Flat(v)) => v,
-            Some(_) => return check.fail(key, format!("a list of {m} values, one per input")),
-        };
-        if v.len() != m {
-            return check.fail(key, format!("needs {m} values (one per input), got {}", v.len()));
-        }
-        Ok(v)
-    };
-    let lo = read("plant.lti.u_min", lo, f64::NEG_INFINITY)?;
-    let hi = read("plant.lti.u_max", hi, f64::INFINITY)?;
-    for i in 0..m {
-        if lo[i].is_nan() || hi[i].is_nan() || lo[i] >= hi[i] {
-            return check.fail(
-                &format!("plant.lti.u_min[{i}]"),
-                format!("must be below u_max[{i}] (got {} and {})", lo[i], hi[i]),
-            );
-        }
-    }
-    Ok((lo, hi))
 }
 
 /// The exact zero-order-hold discretisation at `t`: exp([[A, B], [0, 0]] t) = [[Phi, Gamma],

@@ -111,6 +111,55 @@ impl ScalarInput {
     }
 }
 
+/// `[plant.<kind>] u_min`, `u_max` (`table` is `plant.<kind>`): the actuator's range, one value
+/// per input each (default unbounded), every lower bound below its upper.
+pub(crate) fn input_range(
+    check: &Check,
+    table: &str,
+    lo: Option<Vec<f64>>,
+    hi: Option<Vec<f64>>,
+    inputs: usize,
+) -> Result<(Vec<f64>, Vec<f64>), ConfigError> {
+    let read = |key: &str, v: Option<Vec<f64>>, default: f64| {
+        let v = v.unwrap_or_else(|| vec![default; inputs]);
+        if v.len() != inputs {
+            return check.fail(
+                &format!("{table}.{key}"),
+                format!("needs {inputs} values (one per input), got {}", v.len()),
+            );
+        }
+        Ok(v)
+    };
+    let lo = read("u_min", lo, f64::NEG_INFINITY)?;
+    let hi = read("u_max", hi, f64::INFINITY)?;
+    if let Some(i) = (0..inputs).find(|&i| lo[i].is_nan() || hi[i].is_nan() || lo[i] >= hi[i]) {
+        return check.fail(
+            &format!("{table}.u_min[{i}]"),
+            format!("must be below u_max[{i}] (got {} and {})", lo[i], hi[i]),
+        );
+    }
+    Ok((lo, hi))
+}
+
+/// A plant of `outputs` outputs follows one reference per output.
+pub(crate) fn one_reference_per_output(
+    check: &Check,
+    reference: &Reference,
+    outputs: usize,
+) -> Result<(), ConfigError> {
+    if reference.joints() != outputs {
+        return check.fail(
+            "reference",
+            format!(
+                "the plant has {outputs} output(s) and the reference {} joint(s): one reference \
+                 per output",
+                reference.joints()
+            ),
+        );
+    }
+    Ok(())
+}
+
 /// Most points in a parameter schedule (a spring constant, a mass) over a run.
 pub const MAX_SCHEDULE: usize = 8;
 
