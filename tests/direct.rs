@@ -296,6 +296,19 @@ fn direct_settings_are_checked_with_file_key_and_reason() {
             "{extra}: {err}"
         );
     }
+    // The safe Bayesian optimiser models each trial's margin inside the envelope: none, refused.
+    let cfg = short_direct(tmp.path(), 14, ("envelope_output = 4.0", ""));
+    let text = std::fs::read_to_string(&cfg)
+        .unwrap()
+        .replace("algorithm = \"ga\"", "algorithm = \"safe_bayes\"");
+    let cfg = write(tmp.path(), "direct.toml", &text);
+    let o = cli(&["check", cfg.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("optimiser.algorithm") && err.contains("envelope"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -372,4 +385,98 @@ fn a_hybrid_direct_run_through_the_processes_equals_the_in_process_tuner() {
         (1..i).any(|j| values[i][..22] == values[j][..22] && values[i][22..] != values[j][22..])
     });
     assert!(scaling_only, "no Hooke-Jeeves step on the scaling genes");
+}
+
+/// Safe Bayesian optimisation through the processes: the margins it is told (each trial's
+/// distance inside the envelope) are the same in the live run as in one process, so its
+/// proposals and costs are too, bit for bit; from the configured (known-safe) set, on the
+/// poor-start maglev, none of its trials is aborted, and each trial's margin is what its samples
+/// show (>= 0, and < 1 since the ball moves).
+#[test]
+fn safe_bayes_through_the_processes_equals_the_in_process_tuner() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = short_direct(
+        tmp.path(),
+        12,
+        ("algorithm = \"ga\"", "algorithm = \"safe_bayes\""),
+    );
+    let (live, _fast, tuned) = live_and_in_process(tmp.path(), &cfg, "safebo");
+    let opt = json(&live.join("optimiser.json"));
+    let live_reps = opt["direct"]["repetitions"].as_array().unwrap().clone();
+    let fast_reps = tuned["direct"]["repetitions"].as_array().unwrap().clone();
+    assert_eq!(live_reps.len(), 13);
+    assert_eq!(opt["direct"]["algorithm"], "safe_bayes");
+    for (a, b) in live_reps.iter().zip(&fast_reps) {
+        let bits = |r: &serde_json::Value, k: &str| r[k].as_f64().map(f64::to_bits);
+        assert_eq!(bits(a, "cost"), bits(b, "cost"), "trial {}", a["trial"]);
+        assert_eq!(bits(a, "margin"), bits(b, "margin"), "trial {}", a["trial"]);
+        assert_eq!(f64s(&a["values"]), f64s(&b["values"]));
+        assert_eq!(a["aborted"], false, "trial {}: {a}", a["trial"]);
+        let m = a["margin"].as_f64().unwrap();
+        assert!((0.0..1.0).contains(&m), "trial {}: margin {m}", a["trial"]);
+    }
+    // The first trial is the configured set itself (the known-safe seed).
+    assert_eq!(f64s(&live_reps[1]["values"]), f64s(&live_reps[0]["values"]));
+}
+
+/// `evoloop tune SCENARIO --compare`: every (algorithm, seed) run, the GA as the yardstick. The
+/// GA's own runs reach their final cost, so each has an experiment count, the one where its best
+/// first came within 1 % of its final (checked against its own curve); every curve is
+/// non-increasing and as long as the budget; the files are written.
+#[test]
+fn the_comparison_counts_experiments_to_the_gas_final_cost() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = short_direct(tmp.path(), 20, ("", ""));
+    let out = tmp.path().join("cmp");
+    let o = cli(&[
+        "tune",
+        cfg.to_str().unwrap(),
+        "--compare",
+        "ga,cmaes,safe_bayes",
+        "--seeds",
+        "1..3",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = stdout_json(&o);
+    let runs = v["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 9);
+    for r in runs {
+        let best: Vec<f64> = r["best"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap_or(f64::INFINITY))
+            .collect();
+        assert_eq!(best.len(), 20);
+        assert!(best.windows(2).all(|w| w[1] <= w[0]), "{best:?}");
+        let ga = runs
+            .iter()
+            .find(|g| g["algorithm"] == "ga" && g["seed"] == r["seed"])
+            .unwrap();
+        let target = ga["final_cost"].as_f64().unwrap() * 1.01;
+        let expected = best.iter().position(|&b| b <= target).map(|i| i as u64 + 1);
+        assert_eq!(r["to_target"].as_u64(), expected, "{}", r["algorithm"]);
+        if r["algorithm"] == "ga" {
+            assert!(expected.is_some());
+        }
+    }
+    let s = v["summaries"].as_array().unwrap();
+    assert_eq!(s[0]["algorithm"], "ga");
+    assert!(s[0]["vs_ga"].is_null() && !s[1]["vs_ga"].is_null());
+    for f in [
+        "compare.json",
+        "compare.csv",
+        "report.md",
+        "convergence.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // The GA is the yardstick: a comparison without it is refused.
+    let o = cli(&["tune", cfg.to_str().unwrap(), "--compare", "de,cmaes"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("yardstick"));
 }

@@ -16,6 +16,13 @@ pub struct TuneArgs {
     /// controller tuned per seed with the same budget, statistics and paired tests over seeds.
     #[arg(long, value_parser = parse_seeds, conflicts_with = "seed")]
     pub seeds: Option<Seeds>,
+    /// On a direct scenario: compare these optimisers (e.g. `ga,de,jade,cmaes,bayes,safe_bayes`,
+    /// the GA included as the yardstick) over --seeds, each from the configured set with the
+    /// scenario's budget: experiments until the best cost is within 1 % of the GA's final cost,
+    /// aborts and final cost, paired tests; writes compare.json, compare.csv, report.md and
+    /// convergence.png.
+    #[arg(long, value_delimiter = ',', value_name = "ALGORITHMS")]
+    pub compare: Option<Vec<String>>,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -77,6 +84,7 @@ pub fn main(a: TuneArgs) -> i32 {
         file: a.file,
         seed: a.seed,
         seeds: a.seeds.map(|s| s.0),
+        compare: a.compare,
         json: a.json,
         out: a.out,
         quiet: a.quiet,

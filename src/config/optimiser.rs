@@ -442,7 +442,7 @@ struct DirectSettings {
 
 /// The direct scheme's optimisers: the study's ask/tell ones and the GA/Hooke-Jeeves hybrid.
 pub fn direct_algorithms() -> Vec<&'static str> {
-    let mut a = crate::optim::by_name::ALGORITHMS.to_vec();
+    let mut a = crate::optim::by_name::all();
     a.push("hybrid");
     a
 }
@@ -489,6 +489,16 @@ fn direct_settings(
         output: bound("optimiser.envelope_output", o.envelope_output)?,
         control: bound("optimiser.envelope_control", o.envelope_control)?,
     };
+    if algorithm == "safe_bayes"
+        && [envelope.error, envelope.output, envelope.control]
+            .iter()
+            .all(|v| v.is_infinite())
+    {
+        return check.fail(
+            "optimiser.algorithm",
+            "safe_bayes models each trial's margin inside the envelope: set optimiser.envelope_error, envelope_output or envelope_control",
+        );
+    }
     let repetition = o.repetition.unwrap_or(1.0);
     check.range("optimiser.repetition", repetition, timing.period, 1e6)?;
     let first = o.first_repetition.unwrap_or(repetition);

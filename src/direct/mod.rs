@@ -88,6 +88,10 @@ pub struct Repetition {
     #[serde(with = "crate::indirect::infinite_as_null")]
     pub cost: f64,
     pub aborted: bool,
+    /// How far inside the envelope it stayed at its closest, as a fraction of the envelope
+    /// (1 = never moved towards it, < 0 = left it; `Envelope::margin`). 0 in files from before.
+    #[serde(default)]
+    pub margin: f64,
     /// The best cost known after it.
     #[serde(with = "crate::indirect::infinite_as_null")]
     pub best: f64,
@@ -109,6 +113,8 @@ struct Running {
     samples: u64,
     aborted: bool,
     t: f64,
+    /// The smallest margin inside the envelope over its samples (`Envelope::margin`).
+    margin: f64,
 }
 
 pub struct DirectTuner {
@@ -119,6 +125,8 @@ pub struct DirectTuner {
     configured: Vec<f64>,
     /// Values of the last `ask`, a flag per candidate (tried and scored), their costs.
     scored: Vec<Option<f64>>,
+    /// Their safety margins (for an optimiser that `models_safety`).
+    margins: Vec<f64>,
     /// The next candidate of the last `ask` to send.
     next_index: usize,
     running: Option<Running>,
@@ -146,7 +154,11 @@ impl DirectTuner {
         let spec = DirectSpec::of(scn);
         let b = scn.bounds();
         let configured = scn.controller.tunable().gains.clone();
-        let seeds = if scn.optimiser.seed_configured {
+        // The sample-efficient optimisers start from the set in service always (safe_bayes: its
+        // known-safe seed); the population methods when `seed_configured` says so.
+        let from_service =
+            crate::optim::by_name::SAMPLE_EFFICIENT.contains(&spec.algorithm.as_str());
+        let seeds = if scn.optimiser.seed_configured || from_service {
             vec![configured.clone()]
         } else {
             Vec::new()
@@ -191,6 +203,7 @@ impl DirectTuner {
             samples: 0,
             aborted: false,
             t: f64::NAN,
+            margin: 1.0,
         };
         Ok(Self {
             kind: scn.controller.param_kind(),
@@ -198,6 +211,7 @@ impl DirectTuner {
             configured,
             opt,
             scored: Vec::new(),
+            margins: Vec::new(),
             next_index: 0,
             running: Some(baseline),
             next_version: 1,
@@ -254,6 +268,10 @@ impl DirectTuner {
         }
         run.cost.add(r, y, u);
         run.samples += 1;
+        if !run.aborted {
+            // Through the first sample the trial no longer ran: the one that left the envelope.
+            run.margin = run.margin.min(self.spec.envelope.margin(r, y, u));
+        }
         if version != run.version {
             // The controller is not running this trial (aborted, or never accepted it).
             run.aborted = true;
@@ -312,6 +330,7 @@ impl DirectTuner {
             samples: 0,
             aborted: false,
             t: f64::NAN,
+            margin: 1.0,
         });
         self.tried += 1;
         Some(set)
@@ -345,11 +364,16 @@ impl DirectTuner {
                 .iter()
                 .map(|v| v.unwrap_or(f64::INFINITY))
                 .collect();
+            if self.opt.models_safety() {
+                self.opt.tell_safety(&self.margins);
+            }
             self.opt.tell(&values);
         }
         let n = self.opt.ask().len();
         self.scored.clear();
         self.scored.resize(n, None);
+        self.margins.clear();
+        self.margins.resize(n, f64::NAN);
         self.next_index = 1;
         (n > 0).then_some(0)
     }
@@ -374,12 +398,19 @@ impl DirectTuner {
         } else {
             run.cost.total
         };
+        // An aborted trial was unsafe whatever its samples showed (it may have been refused).
+        let margin = if run.aborted {
+            run.margin.min(0.0)
+        } else {
+            run.margin
+        };
         let values = match run.index {
             Some(i) => self.opt.candidates()[i].clone(),
             None => self.configured.clone(),
         };
         if let Some(i) = run.index {
             self.scored[i] = Some(cost);
+            self.margins[i] = margin;
         }
         if cost < self.best.1 {
             self.best = (values.clone(), cost, run.version);
@@ -391,6 +422,7 @@ impl DirectTuner {
             t: run.t,
             cost,
             aborted: run.aborted,
+            margin,
             best: self.best.1,
             best_version: self.best.2,
             values,

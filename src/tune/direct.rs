@@ -13,8 +13,14 @@ pub fn is_scenario(text: &str) -> bool {
 }
 
 pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), String> {
+    if let Some(algorithms) = &a.compare {
+        let seeds = a.seeds.clone().unwrap_or_else(|| vec![a.seed.unwrap_or(1)]);
+        return super::compare::run(file, algorithms, &seeds, a);
+    }
     if a.seeds.is_some() {
-        return Err("--seeds: a direct scenario is tuned for one seed at a time (--seed N)".into());
+        return Err(
+            "--seeds: a direct scenario is tuned for one seed at a time (--seed N), or compared over seeds with --compare".into(),
+        );
     }
     let ov = Overrides {
         seed: a.seed,

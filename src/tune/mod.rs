@@ -3,6 +3,7 @@
 //! in the output directory, a summary on stdout (or JSON with --json), progress on a terminal.
 
 pub mod arsinh;
+pub mod compare;
 pub mod direct;
 pub mod maglev;
 
@@ -21,6 +22,8 @@ pub struct TuneRequest {
     pub json: bool,
     pub out: Option<PathBuf>,
     pub quiet: bool,
+    /// `--compare`: the optimisers to compare on a direct scenario.
+    pub compare: Option<Vec<String>>,
 }
 
 #[derive(Debug, Deserialize)]

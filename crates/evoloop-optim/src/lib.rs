@@ -2,7 +2,9 @@
 //! generation of candidates, the caller evaluates them (in parallel, on whatever model), and
 //! tells it the objective values (minimised). Seeded for reproducibility.
 
+pub mod bayes;
 pub mod by_name;
+pub mod cmaes;
 pub mod de;
 pub mod emupso;
 pub mod ga;
@@ -45,6 +47,16 @@ pub trait Optimiser {
     /// the optimiser knows one (DE: its target's value). Lets an objective stop early.
     fn thresholds(&self) -> Option<&[f64]> {
         None
+    }
+    /// Before `tell`: each candidate's safety margin (>= 0: the experiment stayed safe; evoloop's
+    /// direct scheme measures how far inside the envelope a trial stayed, as a fraction of it).
+    /// Only an optimiser that `models_safety` reads it.
+    fn tell_safety(&mut self, margins: &[f64]) {
+        let _ = margins;
+    }
+    /// Whether this optimiser models safety (`tell_safety`): then its caller must measure it.
+    fn models_safety(&self) -> bool {
+        false
     }
 }
 

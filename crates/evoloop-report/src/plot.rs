@@ -96,6 +96,17 @@ pub fn stacked_png(
     panels: &[Panel],
     marks: &[f64],
 ) -> Result<(), String> {
+    stacked_png_over(path, title, (t, "t [s]"), panels, marks)
+}
+
+/// `stacked_png` over another shared axis: its values and its label (e.g. the experiment).
+pub fn stacked_png_over(
+    path: &Path,
+    title: &str,
+    (t, x_label): (&[f64], &str),
+    panels: &[Panel],
+    marks: &[f64],
+) -> Result<(), String> {
     ensure_font();
     let (height, breaks): (u32, Vec<u32>) = match panels.len() {
         2 => (800, vec![460]),
@@ -122,7 +133,7 @@ pub fn stacked_png(
                 .map_err(|e| e.to_string())?;
             chart
                 .configure_mesh()
-                .x_desc("t [s]")
+                .x_desc(x_label)
                 .y_desc(*label)
                 .label_style(("sans-serif", 16))
                 .draw()

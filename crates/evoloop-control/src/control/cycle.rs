@@ -37,6 +37,27 @@ impl Default for Envelope {
 }
 
 impl Envelope {
+    /// How far inside the envelope one sample is, at its closest: the smallest of 1 - |r - y| /
+    /// error, 1 - |y| / output and 1 - |u| / control over the joints and inputs (1 with no
+    /// limits, 0 on the boundary, negative outside; -1 for a NaN). The direct scheme's safety
+    /// measure for an optimiser that models safety.
+    pub fn margin(&self, r: &[f64], y: &[f64], u: &[f64]) -> f64 {
+        let e = r
+            .iter()
+            .zip(y)
+            .map(|(r, y)| (1.0 - (r - y).abs() / self.error).min(1.0 - y.abs() / self.output));
+        let m = e
+            .chain(u.iter().map(|u| 1.0 - u.abs() / self.control))
+            .fold(1.0f64, |m, v| {
+                if v.is_nan() {
+                    f64::NEG_INFINITY
+                } else {
+                    m.min(v)
+                }
+            });
+        m.max(-1.0)
+    }
+
     /// NaN counts as outside.
     fn left_by_error(&self, sp: &Setpoint, state: &PlantState, n: usize) -> bool {
         (0..n).any(|j| {
