@@ -11,6 +11,7 @@ pub mod identify_base;
 pub mod identify_excitation;
 pub mod identify_lls;
 pub mod identify_study;
+pub mod operator;
 pub mod optim;
 pub mod rkgnn;
 pub mod robust;
@@ -105,8 +106,12 @@ pub enum Cmd {
     Replay(crate::node::replay::ReplayArgs),
     /// A live terminal view of a running run: processes, the controller's rate, lateness and
     /// misses (last second and since start), parameter sets and model estimate, a sparkline of
-    /// the tracking error; read-only (`--json`: one snapshot for scripts).
+    /// the tracking error (`--json`: one snapshot for scripts); keys h, g, b, x hold, resume,
+    /// revert and stop the tuning as `evoloop operator` does.
     Top(top::TopArgs),
+    /// An operator's command to a running run's tuner: hold, resume, revert (to an earlier set,
+    /// 0 = the set before tuning) or stop; prints the optimiser's answer.
+    Operator(operator::OperatorArgs),
     /// A running run's topics on a Zenoh network (states, commands, telemetry, estimates out;
     /// parameter sets in, validated by the controller as any other), for an optimiser on another
     /// host (`evoloop optimiser --connect`) or a remote monitor. Needs the `zenoh` feature.
@@ -223,6 +228,7 @@ pub fn main() -> ExitCode {
         Some(Cmd::Soak(a)) => soak::main(a),
         Some(Cmd::Replay(a)) => ExitCode::from(crate::node::replay::main(&a) as u8),
         Some(Cmd::Top(a)) => ExitCode::from(top::main(&a)),
+        Some(Cmd::Operator(a)) => ExitCode::from(operator::main(&a)),
         Some(Cmd::Bridge(a)) => ExitCode::from(bridge::main(&a)),
         Some(Cmd::Worker(a)) => ExitCode::from(worker::main(&a)),
     }

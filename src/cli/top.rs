@@ -1,6 +1,8 @@
 //! `evoloop top [--run RUN_ID]`: a live terminal view of a running run (ratatui), or one
-//! snapshot as JSON (`--json`). Read-only: subscribers on the run's telemetry, parameter-set
-//! and estimate topics (whose publishers never wait for them) and /proc; see `crate::top`.
+//! snapshot as JSON (`--json`). It reads through subscribers on the run's telemetry,
+//! parameter-set and estimate topics (whose publishers never wait for them) and /proc (see
+//! `crate::top`); it writes only when an operator key is pressed (h, g, b, x: `evoloop operator`'s
+//! hold, resume, revert to the set before tuning, stop).
 
 use crate::ipc::{Ipc, Sub, Topic};
 use crate::msg::{ModelEstimate, OptimiserStatus, ParamSet, Telemetry};
@@ -99,6 +101,8 @@ pub fn main(a: &TopArgs) -> u8 {
     let mut lost = false;
     let mut last_draw: Option<Instant> = None;
     let mut ended_at: Option<Instant> = None;
+    // The last operator command's answer, written by the thread that waits for it.
+    let operator_said = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
     let result = loop {
         drain(&ports, &mut watch, start);
         if last_draw.is_none_or(|t| t.elapsed() >= REDRAW) {
@@ -109,7 +113,9 @@ pub fn main(a: &TopArgs) -> u8 {
                 ended_at = Some(Instant::now());
             }
             let snap = watch.snapshot(start.elapsed().as_secs_f64(), &procs);
-            if let Err(e) = terminal.draw(|f| render(f, &snap, ended_at.is_some())) {
+            let said = operator_said.lock().map(|s| s.clone()).unwrap_or_default();
+            let ended = ended_at.is_some();
+            if let Err(e) = terminal.draw(|f| render(f, &snap, ended, &said)) {
                 break Err(e.to_string());
             }
         }
@@ -133,6 +139,9 @@ pub fn main(a: &TopArgs) -> u8 {
                             && k.code == KeyCode::Char('c');
                         if ctrl_c || matches!(k.code, KeyCode::Char('q') | KeyCode::Esc) {
                             break Ok(());
+                        }
+                        if let KeyCode::Char(c) = k.code {
+                            operate(c, &run.run_id, &operator_said);
                         }
                     }
                 }
@@ -233,7 +242,50 @@ fn g6(x: f64) -> String {
 
 /// The screen: a title line, the processes, the controller and parameter panels, the tracking
 /// error's sparkline.
-pub fn render(f: &mut Frame, s: &Snapshot, ended: bool) {
+/// An operator's key: h hold, g resume (go), b revert to the set before tuning (back), x stop.
+/// The command is sent and its answer awaited on a thread of its own, so the screen goes on;
+/// the answer shows in the title line.
+fn operate(key: char, run_id: &str, said: &std::sync::Arc<std::sync::Mutex<String>>) {
+    use crate::msg::OperatorAction::*;
+    let action = match key {
+        'h' => Hold,
+        'g' => Resume,
+        'b' => Revert,
+        'x' => Stop,
+        _ => return,
+    };
+    let args = super::operator::OperatorArgs {
+        action,
+        version: 0,
+        run: Some(run_id.to_string()),
+        timeout: 5.0,
+        json: false,
+    };
+    let said = said.clone();
+    if let Ok(mut s) = said.lock() {
+        *s = format!("{}: sent", action.name());
+    }
+    std::thread::spawn(move || {
+        let text = match super::operator::send(&args) {
+            Ok(ack) => {
+                let outcome = crate::msg::OperatorOutcome::try_from(ack.outcome)
+                    .map_or("unknown outcome", |o| o.reason());
+                format!(
+                    "{}: {outcome} at t = {:.2} s (v{})",
+                    action.name(),
+                    ack.t,
+                    ack.version
+                )
+            }
+            Err(e) => format!("{}: {e}", action.name()),
+        };
+        if let Ok(mut s) = said.lock() {
+            *s = text;
+        }
+    });
+}
+
+pub fn render(f: &mut Frame, s: &Snapshot, ended: bool, operator: &str) {
     let rows = s.processes.len().max(1) as u16 + 3;
     let [title, procs, panels, spark] = Layout::vertical([
         Constraint::Length(1),
@@ -245,7 +297,7 @@ pub fn render(f: &mut Frame, s: &Snapshot, ended: bool) {
     let status = if ended { "  RUN ENDED" } else { "" };
     f.render_widget(
         Paragraph::new(format!(
-            "evoloop top  run {}  t = {:.2} s  attached {:.0} s  (q quits){status}",
+            "evoloop top  run {}  t = {:.2} s  attached {:.0} s  (q quits; tuning: h hold, g go, b back to the set before tuning, x stop){status}  {operator}",
             s.run_id, s.controller.t, s.attached_s
         ))
         .style(Style::default().add_modifier(Modifier::BOLD)),
@@ -414,7 +466,7 @@ mod tests {
         });
         let snap = w.snapshot(0.5, &[("evoloop-top-test".into(), std::process::id())]);
         let mut terminal = Terminal::new(TestBackend::new(100, 28)).unwrap();
-        terminal.draw(|f| render(f, &snap, false)).unwrap();
+        terminal.draw(|f| render(f, &snap, false, "")).unwrap();
         let text: String = terminal
             .backend()
             .buffer()

@@ -78,7 +78,8 @@ impl DirectSpec {
 /// One repetition's record: the baseline (trial 0, the configured set) or a trial.
 #[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct Repetition {
-    /// 0 = the baseline, then 1, 2, ... in the order tried.
+    /// 0 = the baseline, then 1, 2, ... in the order tried (0 also for a set an operator put
+    /// back, or a restarted optimiser restored: measured like the baseline).
     pub trial: usize,
     /// Parameter version the controller ran it under (0 = the configured set).
     pub version: u64,
@@ -105,8 +106,11 @@ struct Running {
     /// 0 = the baseline, then 1, 2, ...
     trial: usize,
     version: u64,
-    /// Index of the candidate in the optimiser's last `ask` (None: the baseline).
+    /// Index of the candidate in the optimiser's last `ask` (None: the baseline, or a set an
+    /// operator put back).
     index: Option<usize>,
+    /// The values it runs.
+    values: Vec<f64>,
     start: u64,
     until: u64,
     cost: TrackingCost,
@@ -134,8 +138,13 @@ pub struct DirectTuner {
     next_version: u64,
     tried: usize,
     finished: bool,
-    /// Resumed: the next set restores the configured parameters.
-    reset: bool,
+    /// The next set to put in service for good, at the next boundary, measured on its first
+    /// repetition (a restarted optimiser: the configured parameters; an operator's revert).
+    restore: Option<(u64, Vec<f64>)>,
+    /// An operator's hold: no trial starts while it lasts.
+    held: bool,
+    /// An operator's stop: the best set goes in service for good at the next boundary.
+    stop: bool,
     /// Every repetition scored, in order (the budget bounds it: `evaluations` + 1).
     pub records: Vec<Repetition>,
     /// Trials not scored because the optimiser missed some of their samples (tried again).
@@ -197,6 +206,7 @@ impl DirectTuner {
             trial: 0,
             version: 0,
             index: None,
+            values: configured.clone(),
             start: spec.first.saturating_sub(spec.repetition),
             until: spec.first,
             cost: TrackingCost::new(spec.u_weight),
@@ -217,7 +227,9 @@ impl DirectTuner {
             next_version: 1,
             tried: 0,
             finished: false,
-            reset: false,
+            restore: None,
+            held: false,
+            stop: false,
             records: Vec::with_capacity(spec.evaluations + 1),
             incomplete: 0,
             refs: [[0.0; crate::MAX_JOINTS]; LAGS],
@@ -245,7 +257,39 @@ impl DirectTuner {
     pub fn resume(&mut self, version: u64) {
         self.next_version = self.next_version.max(version + 1);
         self.running = None;
-        self.reset = true;
+        let configured = self.configured.clone();
+        self.revert(configured);
+        self.held = false;
+    }
+
+    /// An operator's revert: `values` go in service for good at the next boundary (after the
+    /// trial under way, which the controller then ends as usual), under the version returned,
+    /// and tuning holds. Their first repetition is measured and they become the best set known,
+    /// the fallback of any later trial. A revert before the previous one went out replaces it
+    /// (that version is never published).
+    pub fn revert(&mut self, values: Vec<f64>) -> u64 {
+        let version = self.next_version;
+        self.next_version += 1;
+        self.restore = Some((version, values));
+        self.held = true;
+        version
+    }
+
+    /// An operator's hold (true) or resume (false): while held no trial starts; the one under
+    /// way ends at its boundary and the best set known serves.
+    pub fn hold(&mut self, held: bool) {
+        self.held = held;
+    }
+
+    /// An operator's stop: at the next boundary the best set goes in service for good, as after
+    /// the budget.
+    pub fn stop(&mut self) {
+        self.stop = true;
+    }
+
+    /// The last version this tuner published or reserved.
+    pub fn last_version(&self) -> u64 {
+        self.next_version - 1
     }
 
     /// One sample: its sequence number and time, the references and outputs of the driven
@@ -299,15 +343,29 @@ impl DirectTuner {
             None if self.is_boundary(next) => next,
             None => return None,
         };
-        if self.reset {
-            self.reset = false;
-            let version = self.next_version;
-            self.next_version += 1;
-            self.best = (self.configured.clone(), f64::INFINITY, version);
-            return Some(self.set(version, start, &self.configured.clone()));
+        if let Some((version, values)) = self.restore.take() {
+            // Measured on its first repetition like the baseline; the best known until then.
+            self.best = (values.clone(), f64::INFINITY, version);
+            self.running = Some(Running {
+                trial: 0,
+                version,
+                index: None,
+                values: values.clone(),
+                start,
+                until: start + self.spec.repetition,
+                cost: TrackingCost::new(self.spec.u_weight),
+                samples: 0,
+                aborted: false,
+                t: f64::NAN,
+                margin: 1.0,
+            });
+            return Some(self.set(version, start, &values));
         }
-        if self.tried >= self.spec.evaluations {
+        if self.tried >= self.spec.evaluations || self.stop {
             return self.finish(start);
+        }
+        if self.held {
+            return None;
         }
         // None: the optimiser has nothing more to try (a hybrid whose last local search
         // converged before its budget): the best set goes in service as after the budget.
@@ -317,13 +375,15 @@ impl DirectTuner {
         let version = self.next_version;
         self.next_version += 1;
         let until = start + self.spec.repetition;
-        let mut set = self.set(version, start, &self.opt.candidates()[index].clone());
+        let values = self.opt.candidates()[index].clone();
+        let mut set = self.set(version, start, &values);
         set.until_seq = until;
         set.fallback_version = self.best.2;
         self.running = Some(Running {
             trial: self.tried + 1,
             version,
             index: Some(index),
+            values,
             start,
             until,
             cost: TrackingCost::new(self.spec.u_weight),
@@ -404,10 +464,7 @@ impl DirectTuner {
         } else {
             run.margin
         };
-        let values = match run.index {
-            Some(i) => self.opt.candidates()[i].clone(),
-            None => self.configured.clone(),
-        };
+        let values = run.values;
         if let Some(i) = run.index {
             self.scored[i] = Some(cost);
             self.margins[i] = margin;

@@ -12,7 +12,8 @@ use super::args::OptimiserArgs;
 use crate::config::{Mode, OptimiserMode, Scenario};
 use crate::ipc::{Doorbell, IpcError, Pub, Sub, Topic, Wait};
 use crate::msg::{
-    Command, ModelEstimate, OptimiserAck, OptimiserStatus, ParamSet, PlantState, STATE_FLAG_END,
+    Command, ModelEstimate, OperatorAck, OperatorAction, OperatorCommand, OperatorOutcome,
+    OptimiserAck, OptimiserStatus, ParamSet, PlantState, STATE_FLAG_END,
 };
 use crate::node::start::{fail, leave_and_fail, ports, start, Failure, Started};
 use crate::report::history::History;
@@ -34,6 +35,9 @@ struct Ports {
     ack: Pub<OptimiserAck>,
     command: Sub<Command>,
     state: Sub<PlantState>,
+    /// An operator's commands (`evoloop operator`, `evoloop top`) and the answers.
+    operator: Sub<OperatorCommand>,
+    operator_ack: Pub<OperatorAck>,
 }
 
 /// The optimiser process: `evoloop optimiser ...` or `evoloop-optimiser ...`.
@@ -55,6 +59,8 @@ pub fn main(cli: &OptimiserArgs) {
             params: ipc.publisher(Topic::Params, false)?,
             estimate: ipc.publisher(Topic::Estimate, false)?,
             status: ipc.publisher(Topic::OptimiserStatus, false)?,
+            operator: ipc.subscriber(Topic::Operator, 4, false)?,
+            operator_ack: ipc.publisher(Topic::OperatorAck, false)?,
             // The direct scheme waits for the command answering a boundary's last sample.
             command: ipc.subscriber(
                 Topic::Command,
@@ -139,6 +145,12 @@ struct Serve<'a> {
     published: History<PublishedSet>,
     /// Epochs told to watchers so far.
     status_epochs: u64,
+    /// Every gain set published, by version, for an operator's revert (0: the set before
+    /// tuning).
+    sets: std::collections::BTreeMap<u64, Vec<f64>>,
+    /// An operator's hold or stop is in force.
+    held: bool,
+    stopped: bool,
 }
 
 fn io(e: IpcError) -> Failure {
@@ -162,6 +174,9 @@ impl<'a> Serve<'a> {
             direct: None,
             published: History::new(crate::indirect::HISTORY),
             status_epochs: 0,
+            sets: [(0, scn.controller.tunable().gains.clone())].into(),
+            held: false,
+            stopped: false,
         };
         if mode == OptimiserMode::Indirect {
             let mut ind = crate::indirect::Indirect::new(scn).map_err(Failure::Setup)?;
@@ -217,8 +232,12 @@ impl<'a> Serve<'a> {
                 return Ok(());
             }
             if !self.lockstep {
+                self.operate(&state, report)?;
                 self.free_running(&state)?;
             } else if self.scn.is_sync_point(state.seq) {
+                // Lockstep: at synchronisation points only, so a revert's set goes out before
+                // the acknowledgement like any other.
+                self.operate(&state, report)?;
                 self.at_sync_point(&state, report)?;
             }
         }
@@ -322,15 +341,22 @@ impl<'a> Serve<'a> {
         // Paced by simulated time: the plant waits for the acknowledgement, so the epochs
         // run at the same samples in every run of a seed.
         let interval = self.sync as f64 * scn.timing.period;
+        let tuning = !self.held;
         if let Some(set) = self
             .indirect
             .as_mut()
+            .filter(|_| tuning)
             .and_then(|i| i.paced(t, interval, next))
         {
             self.send(&set, t)?;
         }
         // At fixed simulated times, the plant waiting: reproducible per seed.
-        if let Some(m) = self.live.as_mut().and_then(|l| l.attempt(t, next)) {
+        if let Some(m) = self
+            .live
+            .as_mut()
+            .filter(|_| tuning)
+            .and_then(|l| l.attempt(t, next))
+        {
             self.send_model(&m, t)?;
         }
         // Every sample up to this one seen with its command, the next trial (if one starts
@@ -368,7 +394,7 @@ impl<'a> Serve<'a> {
         {
             self.send(&set, t)?;
         }
-        if let Some(ind) = self.indirect.as_mut() {
+        if let Some(ind) = self.indirect.as_mut().filter(|_| !self.held) {
             ind.start_epoch(t);
         }
         if let Some(d) = self.direct.as_mut() {
@@ -383,7 +409,7 @@ impl<'a> Serve<'a> {
                 self.send(&set, t)?;
             }
         }
-        if self.live.is_some() && !self.ports.state.has_pending().map_err(io)? {
+        if self.live.is_some() && !self.held && !self.ports.state.has_pending().map_err(io)? {
             if let Some(m) = self.live.as_mut().and_then(|l| l.attempt(t, 0)) {
                 self.send_model(&m, t)?;
             }
@@ -392,6 +418,7 @@ impl<'a> Serve<'a> {
     }
 
     fn send(&mut self, set: &ParamSet, t: f64) -> Result<(), Failure> {
+        self.sets.insert(set.version, set.values().to_vec());
         let dir = &self.scn.output.dir;
         send_set(
             self.ports,
@@ -416,6 +443,89 @@ impl<'a> Serve<'a> {
             dir,
         )
         .map_err(io)
+    }
+
+    /// An operator's commands since the last sample: each applied, answered on `operator_ack`
+    /// and recorded in the report.
+    fn operate(&mut self, state: &PlantState, report: &mut OptimiserReport) -> Result<(), Failure> {
+        while let Some(c) = self.ports.operator.next().map_err(io)? {
+            let action = OperatorAction::try_from(c.action).ok();
+            let (outcome, version) = match action {
+                Some(a) => self.apply(a, c.version, state)?,
+                None => (OperatorOutcome::UnknownAction, self.last_version()),
+            };
+            let ack = OperatorAck {
+                id: c.id,
+                action: c.action,
+                outcome: outcome.code(),
+                t: state.t,
+                version,
+            };
+            self.ports.operator_ack.send(&ack).map_err(io)?;
+            report.operator.push(crate::report::summary::OperatorEvent {
+                t: state.t,
+                seq: state.seq,
+                action,
+                requested_version: (action == Some(OperatorAction::Revert)).then_some(c.version),
+                outcome,
+                version,
+            });
+        }
+        Ok(())
+    }
+
+    /// The last version published (or reserved by the direct scheme for a revert).
+    fn last_version(&self) -> u64 {
+        let published = self.sets.keys().next_back().copied().unwrap_or(0);
+        let direct = self.direct.as_ref().map_or(0, |d| d.tuner.last_version());
+        published.max(direct)
+    }
+
+    /// One operator command: what came of it and the version it leaves (see `OperatorAction`).
+    fn apply(
+        &mut self,
+        action: OperatorAction,
+        version: u64,
+        state: &PlantState,
+    ) -> Result<(OperatorOutcome, u64), Failure> {
+        use OperatorAction::*;
+        if self.stopped && action != Revert {
+            return Ok((OperatorOutcome::Stopped, self.last_version()));
+        }
+        match action {
+            Hold | Resume | Stop => {
+                self.held = action != Resume;
+                self.stopped = action == Stop;
+                if let Some(d) = self.direct.as_mut() {
+                    d.tuner.hold(self.held);
+                    if action == Stop {
+                        d.tuner.stop();
+                    }
+                }
+                return Ok((OperatorOutcome::Done, self.last_version()));
+            }
+            Revert => {}
+        }
+        if self.live.is_some() {
+            return Ok((OperatorOutcome::NotHere, self.last_version()));
+        }
+        let Some(values) = self.sets.get(&version).cloned() else {
+            return Ok((OperatorOutcome::UnknownVersion, self.last_version()));
+        };
+        self.held = true;
+        if let Some(d) = self.direct.as_mut() {
+            // At the next repetition boundary, through the tuner (a trial may be under way).
+            return Ok((OperatorOutcome::Done, d.tuner.revert(values)));
+        }
+        let new = self.last_version() + 1;
+        let at = if self.lockstep { state.seq + 1 } else { 0 };
+        let set = ParamSet::new(new, at, self.scn.controller.param_kind(), &values);
+        self.send(&set, state.t)?;
+        if let Some(ind) = self.indirect.as_mut() {
+            // Its next set follows this version, and it judges sets against these values.
+            ind.resume(new, values);
+        }
+        Ok((OperatorOutcome::Done, new))
     }
 
     /// The next set of the schedule, applied at `apply_at_seq` (0: at once).

@@ -138,6 +138,22 @@ pub struct PublishedSet {
     pub values: Vec<f64>,
 }
 
+/// One operator command as the optimiser took it.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct OperatorEvent {
+    /// Plant time and sample at which it was taken.
+    pub t: f64,
+    pub seq: u64,
+    /// None: an action code this build does not know.
+    pub action: Option<crate::msg::OperatorAction>,
+    /// Revert: the version asked for (0: the set before tuning).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub requested_version: Option<u64>,
+    pub outcome: crate::msg::OperatorOutcome,
+    /// Revert: the version the earlier values went out under; otherwise the last published.
+    pub version: u64,
+}
+
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct OptimiserReport {
     pub mode: crate::config::OptimiserMode,
@@ -173,6 +189,9 @@ pub struct OptimiserReport {
     /// `evaluations_local`, `evaluations_remote`, `evaluations_reissued`.
     #[serde(flatten)]
     pub evaluations: crate::optim::remote::Tally,
+    /// An operator's commands (`evoloop operator`, `evoloop top`) as the optimiser took them.
+    #[serde(default)]
+    pub operator: Vec<OperatorEvent>,
     /// `optimiser.workers = "zenoh"`: every worker seen, by id (`net::workers::WorkerStats`).
     #[serde(default)]
     pub workers: std::collections::BTreeMap<String, serde_json::Value>,

@@ -148,7 +148,10 @@ pub fn run(
     });
     crate::report::write_json(&dir, "compare.json", &result).map_err(|e| e.to_string())?;
     write_csv(&dir, &runs)?;
-    let md = report_md(&scn.name, budget, seeds.len(), &summaries);
+    let mut md = report_md(&scn.name, budget, seeds.len(), &summaries);
+    if scn.output.plots {
+        md.push_str("\n![Best cost and aborts against the experiment](convergence.png)\n");
+    }
     crate::files::write(dir.join("report.md"), &md)
         .map_err(|e| format!("{}: {e}", dir.join("report.md").display()))?;
     if scn.output.plots {

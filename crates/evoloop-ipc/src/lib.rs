@@ -71,6 +71,10 @@ pub enum Topic {
     Estimate,
     /// The optimiser's progress after each epoch (for watchers).
     OptimiserStatus,
+    /// An operator's command to the tuner (`evoloop operator`, `evoloop top`).
+    Operator,
+    /// The tuner's answer to it.
+    OperatorAck,
     /// Event only: a process has created all its ports.
     Ready,
     /// Event only (lockstep): the plant reached a sample the optimiser must acknowledge.
@@ -87,6 +91,8 @@ impl Topic {
             Topic::OptimiserAck => "optimiser_ack",
             Topic::Estimate => "estimate",
             Topic::OptimiserStatus => "optimiser_status",
+            Topic::Operator => "operator",
+            Topic::OperatorAck => "operator_ack",
             Topic::Ready => "ready",
             Topic::Sync => "sync",
         }
@@ -102,7 +108,9 @@ impl Topic {
             | Topic::Ready
             | Topic::Sync
             | Topic::Estimate
-            | Topic::OptimiserStatus => 4,
+            | Topic::OptimiserStatus
+            | Topic::Operator
+            | Topic::OperatorAck => 4,
         }
     }
 }

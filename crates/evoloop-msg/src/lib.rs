@@ -450,6 +450,128 @@ pub struct ModelEstimate {
     pub apply_at_seq: u64,
 }
 
+/// What an operator asks of the tuner of a running run (`evoloop operator`, `evoloop top`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OperatorAction {
+    /// Propose nothing new: the trial (or epoch) under way ends, the set in service stays.
+    Hold = 1,
+    /// Tune again after a hold.
+    Resume = 2,
+    /// Put an earlier set back in service (`OperatorCommand::version`; 0 = the set in service
+    /// before tuning) and hold.
+    Revert = 3,
+    /// End tuning for this run: the set in service stays (the direct scheme: the best found).
+    Stop = 4,
+}
+
+impl OperatorAction {
+    pub const ALL: [OperatorAction; 4] = [Self::Hold, Self::Resume, Self::Revert, Self::Stop];
+    pub fn code(self) -> u32 {
+        self as u32
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Hold => "hold",
+            Self::Resume => "resume",
+            Self::Revert => "revert",
+            Self::Stop => "stop",
+        }
+    }
+}
+
+impl TryFrom<u32> for OperatorAction {
+    type Error = UnknownCode;
+    fn try_from(code: u32) -> Result<Self, UnknownCode> {
+        Self::ALL
+            .into_iter()
+            .find(|a| a.code() == code)
+            .ok_or(UnknownCode {
+                what: "OperatorAction",
+                code,
+            })
+    }
+}
+
+/// How the tuner answered an operator's command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OperatorOutcome {
+    /// Done: the state it leaves (held, reverted at `version`, stopped) holds from `t`.
+    Done = 0,
+    /// Revert: no set of that version was published in this run.
+    UnknownVersion = 1,
+    /// Tuning has stopped; only a revert is still taken.
+    Stopped = 2,
+    /// The scheme has no gain set to revert to (identification publishes models).
+    NotHere = 3,
+    /// The command's action code is not one this build knows.
+    UnknownAction = 4,
+}
+
+impl OperatorOutcome {
+    pub const ALL: [OperatorOutcome; 5] = [
+        Self::Done,
+        Self::UnknownVersion,
+        Self::Stopped,
+        Self::NotHere,
+        Self::UnknownAction,
+    ];
+    pub fn code(self) -> u32 {
+        self as u32
+    }
+    pub fn reason(self) -> &'static str {
+        match self {
+            Self::Done => "done",
+            Self::UnknownVersion => "no set of that version was published in this run",
+            Self::Stopped => "tuning has stopped (a revert is still taken)",
+            Self::NotHere => "this scheme publishes models, not gain sets: nothing to revert to",
+            Self::UnknownAction => "unknown action code",
+        }
+    }
+}
+
+impl TryFrom<u32> for OperatorOutcome {
+    type Error = UnknownCode;
+    fn try_from(code: u32) -> Result<Self, UnknownCode> {
+        Self::ALL
+            .into_iter()
+            .find(|a| a.code() == code)
+            .ok_or(UnknownCode {
+                what: "OperatorOutcome",
+                code,
+            })
+    }
+}
+
+/// An operator's command to the optimiser (topic `operator`). `id` is the sender's own number,
+/// echoed in the answer.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct OperatorCommand {
+    pub id: u64,
+    /// `OperatorAction::code`.
+    pub action: u32,
+    pub _pad: u32,
+    /// Revert: the version to put back (0: the set before tuning).
+    pub version: u64,
+}
+
+/// The optimiser's answer (topic `operator_ack`), also recorded in optimiser.json `operator`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct OperatorAck {
+    pub id: u64,
+    pub action: u32,
+    /// `OperatorOutcome::code`.
+    pub outcome: u32,
+    /// Plant time at which the optimiser took it.
+    pub t: f64,
+    /// Revert: the version of the set it published (the earlier values under a new version);
+    /// otherwise the last version it published.
+    pub version: u64,
+}
+
 #[cfg(feature = "iceoryx2")]
 use iceoryx2_bb_elementary_traits::zero_copy_send::ZeroCopySend;
 
@@ -478,6 +600,8 @@ zero_copy!(
     OptimiserAck => "evoloop::OptimiserAck.v1",
     ModelEstimate => "evoloop::ModelEstimate.v1",
     OptimiserStatus => "evoloop::OptimiserStatus.v1",
+    OperatorCommand => "evoloop::OperatorCommand.v1",
+    OperatorAck => "evoloop::OperatorAck.v1",
 );
 
 #[cfg(test)]
@@ -508,6 +632,8 @@ mod tests {
                 OptimiserAck::type_name(),
                 ModelEstimate::type_name(),
                 OptimiserStatus::type_name(),
+                OperatorCommand::type_name(),
+                OperatorAck::type_name(),
             ]
         };
         for n in names {
@@ -556,6 +682,12 @@ mod tests {
         assert_eq!(size_of::<OptimiserAck>(), 8);
         assert_eq!(size_of::<OptimiserStatus>(), 40);
         assert_eq!(size_of::<ModelEstimate>(), 40);
+        assert_eq!(size_of::<OperatorCommand>(), 24);
+        assert_eq!(size_of::<OperatorAck>(), 32);
+        for a in OperatorAction::ALL {
+            assert_eq!(OperatorAction::try_from(a.code()), Ok(a));
+        }
+        assert!(OperatorAction::try_from(0).is_err() && OperatorOutcome::try_from(5).is_err());
         for align in [
             align_of::<PlantState>(),
             align_of::<Command>(),

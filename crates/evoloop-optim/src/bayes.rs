@@ -59,8 +59,8 @@ const NOISES: [f64; 4] = [1e-6, 1e-4, 1e-2, 1e-1];
 /// The safety model's length scale per dimension (times sqrt(d) for the isotropic kernel): a
 /// prior, as SafeOpt's kernel is (a handful of margins near the seed cannot tell a length
 /// scale by likelihood; the grid's ties went to the shortest, and the safe set never grew).
-/// Chosen on the arsinh and maglev direct scenarios, seed 1, from {0.03, 0.05, 0.1} x beta
-/// {2, 3, 4} (`by_name`): the fewest aborts; the lti plant of the comparison is held out.
+/// Chosen on the arsinh and maglev direct scenarios, seed 1, from seven of {0.03, 0.05, 0.1} x
+/// beta {2, 3, 4} (`by_name`): the fewest aborts; the lti plant of the comparison is held out.
 const SAFE_LENGTH: f64 = 0.03;
 const REFIT_EVERY: usize = 5;
 const WINDOW: usize = 150;
