@@ -480,3 +480,53 @@ fn the_comparison_counts_experiments_to_the_gas_final_cost() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("yardstick"));
 }
+
+/// The tuner's operator controls, driven sample by sample: after a stop (the budget ended
+/// early, the best set in service) a revert still goes out, at the next boundary, with the
+/// configured values bit for bit under a new version; it is measured on its repetition (a
+/// record with trial 0), and no trial follows it (a revert holds).
+#[test]
+fn a_revert_after_a_stop_still_goes_out_and_holds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = short_direct(tmp.path(), 14, ("", ""));
+    let scn = Scenario::load(&cfg, &Overrides::default()).unwrap();
+    let configured = scn.controller.tunable().gains.clone();
+    let mut tuner = evoloop::direct::DirectTuner::new(&scn).unwrap();
+    let (first, rep) = (3000u64, 1600u64);
+    let mut sent: Vec<ParamSet> = Vec::new();
+    let mut version = 0;
+    let mut reverted = 0;
+    for seq in 0..first + 8 * rep {
+        if seq == first + 2 * rep + 10 {
+            tuner.stop();
+        }
+        if seq == first + 3 * rep + 10 {
+            reverted = tuner.revert(configured.clone());
+        }
+        if let Some(set) = tuner.at(seq, None) {
+            version = set.version;
+            sent.push(set);
+        }
+        tuner.observe(seq, seq as f64 * 1e-3, &[2.0], &[1.9], &[1000.0], version);
+    }
+    // Three trials (the stop comes during the third), nothing at the fourth boundary (the
+    // configured set is still the best: every repetition here costs the same), then the revert
+    // at the fifth.
+    let trials: Vec<u64> = sent
+        .iter()
+        .filter(|s| s.until_seq != 0)
+        .map(|s| s.version)
+        .collect();
+    assert_eq!(trials, [1, 2, 3]);
+    assert_eq!(sent.len(), 4);
+    let last = sent.last().unwrap();
+    assert_eq!(last.version, reverted);
+    assert_eq!(last.apply_at_seq, first + 4 * rep);
+    assert_eq!(last.until_seq, 0, "for good, not a trial");
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(last.values()), bits(&configured));
+    let r = tuner.report();
+    let measured = r.repetitions.last().unwrap();
+    assert_eq!((measured.trial, measured.version), (0, reverted));
+    assert!(measured.cost.is_finite());
+}

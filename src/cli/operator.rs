@@ -31,7 +31,8 @@ pub struct OperatorArgs {
 
 fn parse_action(s: &str) -> Result<OperatorAction, String> {
     OperatorAction::ALL
-        .into_iter()
+        .iter()
+        .copied()
         .find(|a| a.name() == s)
         .ok_or_else(|| format!("unknown action {s:?} (hold, resume, revert, stop)"))
 }

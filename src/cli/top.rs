@@ -103,6 +103,8 @@ pub fn main(a: &TopArgs) -> u8 {
     let mut ended_at: Option<Instant> = None;
     // The last operator command's answer, written by the thread that waits for it.
     let operator_said = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+    // A revert changes the plant's gains: `b` arms it, a second `b` within 3 s sends it.
+    let mut revert_armed: Option<Instant> = None;
     let result = loop {
         drain(&ports, &mut watch, start);
         if last_draw.is_none_or(|t| t.elapsed() >= REDRAW) {
@@ -141,7 +143,7 @@ pub fn main(a: &TopArgs) -> u8 {
                             break Ok(());
                         }
                         if let KeyCode::Char(c) = k.code {
-                            operate(c, &run.run_id, &operator_said);
+                            operate(c, &run.run_id, &operator_said, &mut revert_armed);
                         }
                     }
                 }
@@ -242,18 +244,34 @@ fn g6(x: f64) -> String {
 
 /// The screen: a title line, the processes, the controller and parameter panels, the tracking
 /// error's sparkline.
-/// An operator's key: h hold, g resume (go), b revert to the set before tuning (back), x stop.
-/// The command is sent and its answer awaited on a thread of its own, so the screen goes on;
-/// the answer shows in the title line.
-fn operate(key: char, run_id: &str, said: &std::sync::Arc<std::sync::Mutex<String>>) {
+/// An operator's key: h hold, g resume (go), b b revert to the set before tuning (back; the
+/// first b only arms it, for 3 s), x stop. The command is sent and its answer awaited on a
+/// thread of its own, so the screen goes on; the answer shows in the title line.
+fn operate(
+    key: char,
+    run_id: &str,
+    said: &std::sync::Arc<std::sync::Mutex<String>>,
+    revert_armed: &mut Option<Instant>,
+) {
     use crate::msg::OperatorAction::*;
+    let tell = |text: &str| {
+        if let Ok(mut s) = said.lock() {
+            *s = text.to_string();
+        }
+    };
     let action = match key {
         'h' => Hold,
         'g' => Resume,
-        'b' => Revert,
+        'b' if revert_armed.is_some_and(|t| t.elapsed() < Duration::from_secs(3)) => Revert,
+        'b' => {
+            *revert_armed = Some(Instant::now());
+            tell("revert: press b again within 3 s to put the set before tuning back");
+            return;
+        }
         'x' => Stop,
         _ => return,
     };
+    *revert_armed = None;
     let args = super::operator::OperatorArgs {
         action,
         version: 0,
@@ -261,10 +279,8 @@ fn operate(key: char, run_id: &str, said: &std::sync::Arc<std::sync::Mutex<Strin
         timeout: 5.0,
         json: false,
     };
+    tell(&format!("{}: sent", action.name()));
     let said = said.clone();
-    if let Ok(mut s) = said.lock() {
-        *s = format!("{}: sent", action.name());
-    }
     std::thread::spawn(move || {
         let text = match super::operator::send(&args) {
             Ok(ack) => {
@@ -297,7 +313,7 @@ pub fn render(f: &mut Frame, s: &Snapshot, ended: bool, operator: &str) {
     let status = if ended { "  RUN ENDED" } else { "" };
     f.render_widget(
         Paragraph::new(format!(
-            "evoloop top  run {}  t = {:.2} s  attached {:.0} s  (q quits; tuning: h hold, g go, b back to the set before tuning, x stop){status}  {operator}",
+            "evoloop top  run {}  t = {:.2} s  attached {:.0} s  (q quits; tuning: h hold, g go, b b back to the set before tuning, x stop){status}  {operator}",
             s.run_id, s.controller.t, s.attached_s
         ))
         .style(Style::default().add_modifier(Modifier::BOLD)),

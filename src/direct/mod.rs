@@ -36,7 +36,8 @@ use serde::Serialize;
 /// The direct scheme's settings, from the scenario's `[optimiser]` table.
 #[derive(Debug, Clone, Serialize)]
 pub struct DirectSpec {
-    /// `optim::by_name::build`'s name: ga, de, pso, emupso, gwo, woa, goa.
+    /// `optim::by_name::build`'s name: ga, de, jade, pso, emupso, gwo, woa, goa, cmaes, bayes,
+    /// safe_bayes (or hybrid).
     pub algorithm: String,
     pub population: usize,
     /// Candidates tried (repetitions spent on trials).
@@ -121,6 +122,33 @@ struct Running {
     margin: f64,
 }
 
+impl Running {
+    /// A repetition of `values` from sample `start` (until `start + repetition`), nothing seen.
+    fn new(
+        trial: usize,
+        version: u64,
+        index: Option<usize>,
+        values: Vec<f64>,
+        start: u64,
+        repetition: u64,
+        u_weight: f64,
+    ) -> Self {
+        Self {
+            trial,
+            version,
+            index,
+            values,
+            start,
+            until: start + repetition,
+            cost: TrackingCost::new(u_weight),
+            samples: 0,
+            aborted: false,
+            t: f64::NAN,
+            margin: 1.0,
+        }
+    }
+}
+
 pub struct DirectTuner {
     spec: DirectSpec,
     opt: Box<dyn Optimiser + Send>,
@@ -152,6 +180,9 @@ pub struct DirectTuner {
     /// The references of the last samples, by sequence number (`DirectSpec::lag`).
     refs: [[f64; crate::MAX_JOINTS]; LAGS],
 }
+
+/// An aborted trial's margin is at most minus this.
+const ABORTED_MARGIN: f64 = 0.01;
 
 /// Room for `cost_lag` up to 16 samples.
 const LAGS: usize = 17;
@@ -202,19 +233,17 @@ impl DirectTuner {
                 &seeds,
             )?
         };
-        let baseline = Running {
-            trial: 0,
-            version: 0,
-            index: None,
-            values: configured.clone(),
-            start: spec.first.saturating_sub(spec.repetition),
-            until: spec.first,
-            cost: TrackingCost::new(spec.u_weight),
-            samples: 0,
-            aborted: false,
-            t: f64::NAN,
-            margin: 1.0,
-        };
+        // Ends at the first trial's boundary (shorter when `first` < one repetition).
+        let start = spec.first.saturating_sub(spec.repetition);
+        let baseline = Running::new(
+            0,
+            0,
+            None,
+            configured.clone(),
+            start,
+            spec.first - start,
+            spec.u_weight,
+        );
         Ok(Self {
             kind: scn.controller.param_kind(),
             best: (configured.clone(), f64::INFINITY, 0),
@@ -298,9 +327,10 @@ impl DirectTuner {
     pub fn observe(&mut self, seq: u64, t: f64, r: &[f64], y: &[f64], u: &[f64], version: u64) {
         let n = r.len();
         self.refs[seq as usize % LAGS][..n].copy_from_slice(r);
-        // The reference `lag` samples back (the first samples of a run: the first reference).
+        // The reference `lag` samples back (the first samples of a run: the first reference)
+        // for the cost; the margin against the set-point the controller's envelope judges.
         let back = seq.saturating_sub(self.spec.lag as u64) as usize % LAGS;
-        let r = &self.refs[back][..n];
+        let (set_point, r) = (r, &self.refs[back][..n]);
         let Some(run) = self.running.as_mut() else {
             return;
         };
@@ -314,7 +344,7 @@ impl DirectTuner {
         run.samples += 1;
         if !run.aborted {
             // Through the first sample the trial no longer ran: the one that left the envelope.
-            run.margin = run.margin.min(self.spec.envelope.margin(r, y, u));
+            run.margin = run.margin.min(self.spec.envelope.margin(set_point, y, u));
         }
         if version != run.version {
             // The controller is not running this trial (aborted, or never accepted it).
@@ -335,7 +365,7 @@ impl DirectTuner {
             }
             self.score();
         }
-        if self.finished {
+        if self.finished && self.restore.is_none() {
             return None;
         }
         let start = match earliest {
@@ -346,19 +376,16 @@ impl DirectTuner {
         if let Some((version, values)) = self.restore.take() {
             // Measured on its first repetition like the baseline; the best known until then.
             self.best = (values.clone(), f64::INFINITY, version);
-            self.running = Some(Running {
-                trial: 0,
+            let (rep, w) = (self.spec.repetition, self.spec.u_weight);
+            self.running = Some(Running::new(
+                0,
                 version,
-                index: None,
-                values: values.clone(),
+                None,
+                values.clone(),
                 start,
-                until: start + self.spec.repetition,
-                cost: TrackingCost::new(self.spec.u_weight),
-                samples: 0,
-                aborted: false,
-                t: f64::NAN,
-                margin: 1.0,
-            });
+                rep,
+                w,
+            ));
             return Some(self.set(version, start, &values));
         }
         if self.tried >= self.spec.evaluations || self.stop {
@@ -379,19 +406,16 @@ impl DirectTuner {
         let mut set = self.set(version, start, &values);
         set.until_seq = until;
         set.fallback_version = self.best.2;
-        self.running = Some(Running {
-            trial: self.tried + 1,
+        let (rep, w) = (self.spec.repetition, self.spec.u_weight);
+        self.running = Some(Running::new(
+            self.tried + 1,
             version,
-            index: Some(index),
+            Some(index),
             values,
             start,
-            until,
-            cost: TrackingCost::new(self.spec.u_weight),
-            samples: 0,
-            aborted: false,
-            t: f64::NAN,
-            margin: 1.0,
-        });
+            rep,
+            w,
+        ));
         self.tried += 1;
         Some(set)
     }
@@ -458,9 +482,10 @@ impl DirectTuner {
         } else {
             run.cost.total
         };
-        // An aborted trial was unsafe whatever its samples showed (it may have been refused).
+        // An aborted trial was unsafe whatever its samples showed (it may have been refused, or
+        // left by its command, which the telemetry never shows): below 0, never on it.
         let margin = if run.aborted {
-            run.margin.min(0.0)
+            run.margin.min(-ABORTED_MARGIN)
         } else {
             run.margin
         };

@@ -509,6 +509,21 @@ impl Indirect {
     /// The running epoch's outcome once it has ended (at once with `wait`): a parameter set to
     /// publish when it found a better one. None while it runs or when none runs.
     pub fn finish_epoch(&mut self, apply_at_seq: u64, wait: bool) -> Option<crate::msg::ParamSet> {
+        self.end_epoch(apply_at_seq, wait, true)
+    }
+
+    /// An operator's hold, revert or stop: the epoch under way (if any) is waited for and its
+    /// outcome recorded but not published, so nothing it found goes out after the command.
+    pub fn discard_epoch(&mut self) {
+        self.end_epoch(0, true, false);
+    }
+
+    fn end_epoch(
+        &mut self,
+        apply_at_seq: u64,
+        wait: bool,
+        publish: bool,
+    ) -> Option<crate::msg::ParamSet> {
         if !wait && !self.running.as_ref()?.handle.is_finished() {
             return None;
         }
@@ -527,7 +542,8 @@ impl Indirect {
                     .linear_model_at(run.p)
                     .is_some_and(|m| m.stabilised_by(&c.params))
         });
-        let better = accepted_there && c.expected_cost < c.in_service_cost * (1.0 - self.margin);
+        let better =
+            publish && accepted_there && c.expected_cost < c.in_service_cost * (1.0 - self.margin);
         let mut rec = EpochRecord {
             t: run.t,
             model_value: run.p,

@@ -26,6 +26,9 @@ use std::time::{Duration, Instant};
 
 const WHO: &str = "evoloop-optimiser";
 
+/// Gain sets kept for an operator's revert besides version 0 (the set before tuning).
+pub const SETS_KEPT: usize = 4096;
+
 struct Ports {
     /// Lockstep: the plant rings at every sample the optimiser must acknowledge.
     sync: Doorbell,
@@ -178,6 +181,10 @@ impl<'a> Serve<'a> {
             held: false,
             stopped: false,
         };
+        if let Some((version, values)) = last() {
+            // A restarted optimiser keeps the last set it published for an operator's revert.
+            serve.sets.insert(version, values);
+        }
         if mode == OptimiserMode::Indirect {
             let mut ind = crate::indirect::Indirect::new(scn).map_err(Failure::Setup)?;
             if let Some((version, params)) = last() {
@@ -229,6 +236,8 @@ impl<'a> Serve<'a> {
             self.tell_epochs()?;
             self.observe(&state, report)?;
             if state.flags & STATE_FLAG_END != 0 {
+                // Commands still queued are answered (with the run's last time) before leaving.
+                self.operate(&state, report)?;
                 return Ok(());
             }
             if !self.lockstep {
@@ -419,6 +428,11 @@ impl<'a> Serve<'a> {
 
     fn send(&mut self, set: &ParamSet, t: f64) -> Result<(), Failure> {
         self.sets.insert(set.version, set.values().to_vec());
+        // Bounded for a run without end: version 0 and the latest SETS_KEPT.
+        if self.sets.len() > SETS_KEPT + 1 {
+            let oldest = self.sets.keys().copied().find(|&v| v != 0);
+            oldest.map(|v| self.sets.remove(&v));
+        }
         let dir = &self.scn.output.dir;
         send_set(
             self.ports,
@@ -474,11 +488,14 @@ impl<'a> Serve<'a> {
         Ok(())
     }
 
-    /// The last version published (or reserved by the direct scheme for a revert).
+    /// The last version published (a set or a model, by any scheme, or before a restart), or
+    /// reserved by the direct scheme for a revert.
     fn last_version(&self) -> u64 {
-        let published = self.sets.keys().next_back().copied().unwrap_or(0);
+        let sets = self.sets.keys().next_back().copied().unwrap_or(0);
+        let published = self.published.last().map_or(0, |p| p.version);
         let direct = self.direct.as_ref().map_or(0, |d| d.tuner.last_version());
-        published.max(direct)
+        let indirect = self.indirect.as_ref().map_or(0, |i| i.version());
+        sets.max(published).max(direct).max(indirect)
     }
 
     /// One operator command: what came of it and the version it leaves (see `OperatorAction`).
@@ -489,8 +506,16 @@ impl<'a> Serve<'a> {
         state: &PlantState,
     ) -> Result<(OperatorOutcome, u64), Failure> {
         use OperatorAction::*;
+        if self.direct.is_none() && self.indirect.is_none() && self.live.is_none() {
+            // A schedule (or nothing) publishes here: no tuning to hold or revert.
+            return Ok((OperatorOutcome::NotHere, self.last_version()));
+        }
         if self.stopped && action != Revert {
             return Ok((OperatorOutcome::Stopped, self.last_version()));
+        }
+        if let Some(ind) = self.indirect.as_mut() {
+            // Realtime: an epoch running on its thread must not publish after the command.
+            ind.discard_epoch();
         }
         match action {
             Hold | Resume | Stop => {

@@ -241,18 +241,17 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
     };
     let vs_ga = (alg != REFERENCE).then(|| {
         let ga = of(REFERENCE);
-        let lower = |a: &[f64], b: &[f64]| a.iter().zip(b).filter(|(x, y)| x < y).count();
-        let (e, eg) = (experiments(&mine), experiments(&ga));
-        let (f, fg) = (finals(&mine), finals(&ga));
-        let (b, bg) = (aborts(&mine), aborts(&ga));
+        let e = wilcoxon(&experiments(&mine), &experiments(&ga));
+        let f = wilcoxon(&finals(&mine), &finals(&ga));
+        let b = wilcoxon(&aborts(&mine), &aborts(&ga));
         VsGa {
-            fewer_experiments: lower(&e, &eg),
-            experiments_p: wilcoxon(&e, &eg).p_two_sided,
-            lower_final_cost: lower(&f, &fg),
-            final_cost_p: wilcoxon(&f, &fg).p_two_sided,
-            fewer_aborts: lower(&b, &bg),
-            more_aborts: lower(&bg, &b),
-            aborts_p: wilcoxon(&b, &bg).p_two_sided,
+            fewer_experiments: e.a_lower,
+            experiments_p: e.p_two_sided,
+            lower_final_cost: f.a_lower,
+            final_cost_p: f.p_two_sided,
+            fewer_aborts: b.a_lower,
+            more_aborts: b.a_higher,
+            aborts_p: b.p_two_sided,
         }
     });
     Summary {
@@ -291,13 +290,35 @@ fn q3(q: &[f64; 3], digits: usize) -> String {
     format!("{:.d$} [{:.d$}, {:.d$}]", q[1], q[0], q[2], d = digits)
 }
 
+/// Experiments to the target: a quartile beyond the budget (runs that never reached it) reads
+/// "never", and so does the median unless more than half the runs reached it (a median between
+/// a reached count and "never" is no count).
+fn experiments_q3(m: &Summary, budget: usize) -> String {
+    let q = &m.to_target_quartiles;
+    let never = budget as f64 + 1.0;
+    let one = |v: f64| {
+        if v >= never {
+            "never".to_string()
+        } else {
+            format!("{v:.0}")
+        }
+    };
+    let median = if m.reached * 2 <= m.seeds {
+        "never".to_string()
+    } else {
+        one(q[1])
+    };
+    format!("{median} [{}, {}]", one(q[0]), one(q[2]))
+}
+
 /// The table and the verdicts, every sentence from the numbers above it.
 fn report_md(name: &str, budget: usize, seeds: usize, summaries: &[Summary]) -> String {
     let mut s = format!(
         "# Experiments to a good set: {name}\n\n{seeds} seeds, a budget of {budget} experiments each, \
          every run from the scenario's configured set. Target: the best cost within 1 % of the GA's \
          final cost on the same seed. Median [quartiles] over seeds; a run that never reaches the \
-         target counts as {} experiments. Against the GA: runs better of {seeds}, paired Wilcoxon p.\n\n\
+         target counts as {} experiments (\"never\", and the median reads so unless more than half \
+         reached it). Against the GA: runs better of {seeds}, paired Wilcoxon p.\n\n\
          | algorithm | reached | experiments to target | final cost | aborts | fewer experiments than GA | lower final cost than GA | aborts vs GA (fewer/more) |\n\
          |---|---|---|---|---|---|---|---|\n",
         budget + 1
@@ -321,9 +342,9 @@ fn report_md(name: &str, budget: usize, seeds: usize, summaries: &[Summary]) -> 
             m.algorithm,
             m.reached,
             m.seeds,
-            q3(&m.to_target_quartiles, 0),
+            experiments_q3(m, budget),
             q3(&m.final_cost_quartiles, 4),
-            q3(&m.aborts_quartiles, 0),
+            q3(&m.aborts_quartiles, 1),
             vs[0],
             vs[1],
             vs[2]

@@ -115,6 +115,17 @@ impl Topic {
     }
 }
 
+impl Topic {
+    /// Publishers a service admits: one process and a restarted one, or for an operator's
+    /// commands several senders at once (`evoloop operator` and `top` keys).
+    pub fn max_publishers(self) -> usize {
+        match self {
+            Topic::Operator => 8,
+            _ => 2,
+        }
+    }
+}
+
 /// Most samples between two optimiser acknowledgements in lockstep (config validation enforces it).
 pub const MAX_SYNC_SAMPLES: usize = 256;
 
@@ -263,7 +274,7 @@ impl Ipc {
                 .subscriber_max_buffer_size(topic.max_buffer())
                 .subscriber_max_borrowed_samples(2)
                 .history_size(0)
-                .max_publishers(2)
+                .max_publishers(topic.max_publishers())
                 .max_subscribers(6)
                 .max_nodes(8)
                 .enable_safe_overflow(true)

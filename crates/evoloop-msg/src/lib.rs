@@ -450,26 +450,22 @@ pub struct ModelEstimate {
     pub apply_at_seq: u64,
 }
 
-/// What an operator asks of the tuner of a running run (`evoloop operator`, `evoloop top`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum OperatorAction {
-    /// Propose nothing new: the trial (or epoch) under way ends, the set in service stays.
-    Hold = 1,
-    /// Tune again after a hold.
-    Resume = 2,
-    /// Put an earlier set back in service (`OperatorCommand::version`; 0 = the set in service
-    /// before tuning) and hold.
-    Revert = 3,
-    /// End tuning for this run: the set in service stays (the direct scheme: the best found).
-    Stop = 4,
+wire_enum! {
+    /// What an operator asks of the tuner of a running run (`evoloop operator`, `evoloop top`).
+    pub enum OperatorAction {
+        /// Propose nothing new: the trial (or epoch) under way ends, the set in service stays.
+        Hold = 1,
+        /// Tune again after a hold.
+        Resume = 2,
+        /// Put an earlier set back in service (`OperatorCommand::version`; 0 = the set in
+        /// service before tuning) and hold.
+        Revert = 3,
+        /// End tuning for this run: the set in service stays (the direct scheme: the best found).
+        Stop = 4,
+    }
 }
 
 impl OperatorAction {
-    pub const ALL: [OperatorAction; 4] = [Self::Hold, Self::Resume, Self::Revert, Self::Stop];
-    pub fn code(self) -> u32 {
-        self as u32
-    }
     pub fn name(self) -> &'static str {
         match self {
             Self::Hold => "hold",
@@ -480,67 +476,34 @@ impl OperatorAction {
     }
 }
 
-impl TryFrom<u32> for OperatorAction {
-    type Error = UnknownCode;
-    fn try_from(code: u32) -> Result<Self, UnknownCode> {
-        Self::ALL
-            .into_iter()
-            .find(|a| a.code() == code)
-            .ok_or(UnknownCode {
-                what: "OperatorAction",
-                code,
-            })
+wire_enum! {
+    /// How the tuner answered an operator's command.
+    pub enum OperatorOutcome {
+        /// Done: the state it leaves (held, reverted at `version`, stopped) holds from `t`.
+        Done = 0,
+        /// Revert: no set of that version is kept (`node::optimiser::SETS_KEPT`).
+        UnknownVersion = 1,
+        /// Tuning has stopped; only a revert is still taken.
+        Stopped = 2,
+        /// Nothing to operate: no tuning scheme runs (a schedule, or off), or a revert where
+        /// the scheme publishes models, not gain sets (identification).
+        NotHere = 3,
+        /// The command's action code is not one this build knows.
+        UnknownAction = 4,
     }
-}
-
-/// How the tuner answered an operator's command.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum OperatorOutcome {
-    /// Done: the state it leaves (held, reverted at `version`, stopped) holds from `t`.
-    Done = 0,
-    /// Revert: no set of that version was published in this run.
-    UnknownVersion = 1,
-    /// Tuning has stopped; only a revert is still taken.
-    Stopped = 2,
-    /// The scheme has no gain set to revert to (identification publishes models).
-    NotHere = 3,
-    /// The command's action code is not one this build knows.
-    UnknownAction = 4,
 }
 
 impl OperatorOutcome {
-    pub const ALL: [OperatorOutcome; 5] = [
-        Self::Done,
-        Self::UnknownVersion,
-        Self::Stopped,
-        Self::NotHere,
-        Self::UnknownAction,
-    ];
-    pub fn code(self) -> u32 {
-        self as u32
-    }
     pub fn reason(self) -> &'static str {
         match self {
             Self::Done => "done",
-            Self::UnknownVersion => "no set of that version was published in this run",
+            Self::UnknownVersion => "no set of that version is kept from this run",
             Self::Stopped => "tuning has stopped (a revert is still taken)",
-            Self::NotHere => "this scheme publishes models, not gain sets: nothing to revert to",
+            Self::NotHere => {
+                "nothing to operate here: no tuning scheme runs, or it publishes models (no revert)"
+            }
             Self::UnknownAction => "unknown action code",
         }
-    }
-}
-
-impl TryFrom<u32> for OperatorOutcome {
-    type Error = UnknownCode;
-    fn try_from(code: u32) -> Result<Self, UnknownCode> {
-        Self::ALL
-            .into_iter()
-            .find(|a| a.code() == code)
-            .ok_or(UnknownCode {
-                what: "OperatorOutcome",
-                code,
-            })
     }
 }
 
@@ -685,7 +648,7 @@ mod tests {
         assert_eq!(size_of::<OperatorCommand>(), 24);
         assert_eq!(size_of::<OperatorAck>(), 32);
         for a in OperatorAction::ALL {
-            assert_eq!(OperatorAction::try_from(a.code()), Ok(a));
+            assert_eq!(OperatorAction::try_from(a.code()), Ok(*a));
         }
         assert!(OperatorAction::try_from(0).is_err() && OperatorOutcome::try_from(5).is_err());
         for align in [

@@ -27,8 +27,9 @@
 
 use super::rng::Xoshiro256pp;
 use super::Optimiser;
+use crate::settings::{from_unit, to_unit};
 use crate::SettingsError;
-use evoloop_stats::normal_cdf;
+use evoloop_stats::{normal_cdf, normal_pdf};
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
@@ -221,19 +222,19 @@ impl Bayes {
     }
 
     fn normalise(&self, x: &[f64]) -> DVector<f64> {
-        DVector::from_iterator(
-            self.d,
-            (0..self.d).map(|i| {
-                ((x[i] - self.cfg.lower[i]) / (self.cfg.upper[i] - self.cfg.lower[i]))
-                    .clamp(0.0, 1.0)
-            }),
-        )
+        to_unit(&self.cfg.lower, &self.cfg.upper, x)
     }
 
     fn to_real(&self, u: &DVector<f64>) -> Vec<f64> {
-        (0..self.d)
-            .map(|i| self.cfg.lower[i] + u[i] * (self.cfg.upper[i] - self.cfg.lower[i]))
-            .collect()
+        from_unit(&self.cfg.lower, &self.cfg.upper, u)
+    }
+
+    /// The safe variant has experiments, none of them observed safe: its seed was not safe, and
+    /// every proposal would be a guess (`ask` then proposes nothing).
+    fn exhausted(&self) -> bool {
+        self.cfg.safety.is_some()
+            && !self.seen.is_empty()
+            && !self.seen.iter().any(|o| o.margin.is_some_and(|m| m > 0.0))
     }
 
     /// The safety model's lower confidence bound mu - beta sigma at `x` (real units), as the
@@ -291,7 +292,8 @@ impl Bayes {
         let mean = y.iter().sum::<f64>() / y.len() as f64;
         let sd = (y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / y.len() as f64).sqrt();
         let scale = sd.max(1e-3);
-        let refit = self.seen.len() <= 2 * REFIT_EVERY || self.seen.len() % REFIT_EVERY == 0;
+        let refit =
+            self.seen.len() <= 2 * REFIT_EVERY || self.seen.len().is_multiple_of(REFIT_EVERY);
         let cost = match (&self.cost_gp, refit) {
             (Some(g), false) => Gp::fit(&x, &y, mean, scale, g.length, g.noise),
             _ => None,
@@ -322,7 +324,7 @@ impl Bayes {
         let mut anchors: Vec<&Observation> = self
             .seen
             .iter()
-            .filter(|o| !safe || o.margin.is_some_and(|m| m >= 0.0))
+            .filter(|o| !safe || o.margin.is_some_and(|m| m > 0.0))
             .collect();
         anchors.sort_by(|a, b| a.cost.total_cmp(&b.cost));
         anchors.truncate(5);
@@ -388,10 +390,6 @@ fn expected_improvement((mu, sd): (f64, f64), incumbent: f64) -> f64 {
     sd * (z * normal_cdf(z) + normal_pdf(z))
 }
 
-fn normal_pdf(z: f64) -> f64 {
-    (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt()
-}
-
 impl Optimiser for Bayes {
     fn ask(&mut self) -> &[Vec<f64>] {
         let k = self.seen.len();
@@ -400,6 +398,12 @@ impl Optimiser for Bayes {
             (None, 0) => DVector::from_element(self.d, 0.5),
             _ if self.cfg.safety.is_none() && k < 1 + self.cfg.initial => {
                 DVector::from_iterator(self.d, (0..self.d).map(|_| self.rng.gen::<f64>()))
+            }
+            _ if self.exhausted() => {
+                // The seed itself was not safe and nothing else has been: nothing to propose.
+                self.candidates.clear();
+                self.pending.clear();
+                return &self.candidates;
             }
             _ => match self.choose() {
                 Some(u) => u,
@@ -448,8 +452,9 @@ impl Optimiser for Bayes {
         self.seen.len()
     }
 
+    /// The safe variant with no experiment observed safe (its seed was not): it stops.
     fn converged(&self) -> bool {
-        false
+        self.exhausted()
     }
 }
 
@@ -538,6 +543,23 @@ mod tests {
             unsafe_tried += usize::from(margin(x) < 0.0)
         });
         assert!(unsafe_tried > 0);
+    }
+
+    /// A seed that turns out unsafe leaves the safe variant nothing it has seen safe: it
+    /// proposes nothing more (and says it has converged) instead of repeating the seed.
+    #[test]
+    fn an_unsafe_seed_ends_the_safe_variant() {
+        let mut o = Bayes::new(BayesConfig {
+            start: Some(vec![1.9, 1.9]),
+            ..config(Some(Safety { beta: 2.0 }), 1)
+        })
+        .unwrap();
+        let x = o.ask()[0].clone();
+        assert!(margin(&x) < 0.0);
+        o.tell_safety(&[margin(&x)]);
+        o.tell(&[f64::INFINITY]);
+        assert!(o.ask().is_empty());
+        assert!(o.converged());
     }
 
     #[test]

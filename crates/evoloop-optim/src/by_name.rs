@@ -34,8 +34,9 @@ pub fn all() -> Vec<&'static str> {
 const CMAES_SIGMA: f64 = 0.2;
 /// Random experiments after the start before Bayesian optimisation's model decides.
 const BAYES_INITIAL: usize = 4;
-/// The safe variant's confidence multiplier: a one-sided 99.87 % bound under its model (2, 97.7 %,
-/// let 2-20 trials of 660 abort on arsinh's seed 1; see `bayes::SAFE_LENGTH`).
+/// The safe variant's confidence multiplier: a one-sided 99.87 % bound under its model. On
+/// arsinh's seed 1 it and 2 sigma both aborted 2 trials of 660 at `bayes::SAFE_LENGTH`; 3 ended
+/// lower (the record, docs/measurements/2026-11-28-optimisers.md, has all seven settings tried).
 const SAFE_BETA: f64 = 3.0;
 
 /// An optimiser of the study over a box, for a population and an evaluation budget.

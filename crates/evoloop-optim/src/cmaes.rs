@@ -10,15 +10,18 @@
 //!   a tuner on a running plant starts where the plant is), else at the box's centre; sigma_0 =
 //!   `CmaesConfig::sigma` of the box (0.2 by default: a step the plant is likely to survive).
 //! - **Box.** A sample outside the box is projected onto it and the projected point is both
-//!   evaluated and used in the update (the tutorial's "repair", Lamarckian): the strategy adapts
-//!   to the steps it really took.
-//! - **A value of +infinity** (an aborted trial) ranks last, as any worse value.
+//!   evaluated and used in the update (the tutorial's "repair", Lamarckian), its step bounded in
+//!   C's norm as Hansen (2011) does for injected solutions: the strategy adapts to the steps it
+//!   really took without a projected step inflating its paths.
+//! - **A value of +infinity** (an aborted trial) ranks last and is not recombined; a generation
+//!   with none finite halves the step and leaves the mean.
 //!
 //! The eigendecomposition of C runs once a generation (d <= 25 in evoloop's tuning problems,
-//! microseconds); a generation allocates only that.
+//! microseconds); vectors are allocated per sample, negligible beside an experiment on a plant.
 
 use super::rng::Xoshiro256pp;
 use super::Optimiser;
+use crate::settings::{from_unit, to_unit};
 use crate::SettingsError;
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
@@ -47,8 +50,8 @@ impl CmaesConfig {
 pub struct Cmaes {
     cfg: CmaesConfig,
     d: usize,
+    /// Recombination weights of the best mu (their mu_eff set the constants below).
     weights: Vec<f64>,
-    mu_eff: f64,
     c_sigma: f64,
     d_sigma: f64,
     c_c: f64,
@@ -111,18 +114,12 @@ impl Cmaes {
             (1.0 - c_1).min(2.0 * (mu_eff - 2.0 + 1.0 / mu_eff) / ((df + 2.0).powi(2) + mu_eff));
         let chi_n = df.sqrt() * (1.0 - 1.0 / (4.0 * df) + 1.0 / (21.0 * df * df));
         let mean = match &cfg.start {
-            Some(s) => DVector::from_iterator(
-                d,
-                (0..d).map(|i| {
-                    ((s[i] - cfg.lower[i]) / (cfg.upper[i] - cfg.lower[i])).clamp(0.0, 1.0)
-                }),
-            ),
+            Some(s) => to_unit(&cfg.lower, &cfg.upper, s),
             None => DVector::from_element(d, 0.5),
         };
         Ok(Self {
             d,
             weights,
-            mu_eff,
             c_sigma,
             d_sigma,
             c_c,
@@ -144,12 +141,6 @@ impl Cmaes {
             evaluations: 0,
             cfg,
         })
-    }
-
-    fn to_real(&self, u: &DVector<f64>) -> Vec<f64> {
-        (0..self.d)
-            .map(|i| self.cfg.lower[i] + u[i] * (self.cfg.upper[i] - self.cfg.lower[i]))
-            .collect()
     }
 
     /// The step size, in units of the box (for tests and reports).
@@ -180,7 +171,8 @@ impl Optimiser for Cmaes {
                 (0..self.d).map(|_| StandardNormal.sample(&mut self.rng)),
             );
             let x = (&self.mean + (&self.bd * z) * self.sigma).map(|v| v.clamp(0.0, 1.0));
-            self.candidates.push(self.to_real(&x));
+            self.candidates
+                .push(from_unit(&self.cfg.lower, &self.cfg.upper, &x));
             self.points.push(x);
         }
         &self.candidates
@@ -198,16 +190,52 @@ impl Optimiser for Cmaes {
         if values[order[0]] < self.best.1 {
             self.best = (self.candidates[order[0]].clone(), values[order[0]]);
         }
-        let old = self.mean.clone();
-        let mut mean = DVector::zeros(self.d);
-        for (w, &i) in self.weights.iter().zip(&order) {
-            mean += &self.points[i] * *w;
+        // Recombine the best mu with finite values only: aborted candidates carry no ranking
+        // among themselves. None finite: nothing learnt, and the region about the mean aborts
+        // its samples, so the step halves.
+        let ranked: Vec<usize> = order
+            .iter()
+            .copied()
+            .filter(|&i| values[i].is_finite())
+            .take(self.weights.len())
+            .collect();
+        if ranked.is_empty() {
+            self.sigma *= 0.5;
+            self.generation += 1;
+            return;
         }
-        let step = (&mean - &old) / self.sigma;
-        self.mean = mean;
+        let sum: f64 = self.weights[..ranked.len()].iter().sum();
+        let weights: Vec<f64> = self.weights[..ranked.len()]
+            .iter()
+            .map(|w| w / sum)
+            .collect();
+        let mu_eff = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
+        // Each step as taken (after the projection onto the box), no longer in Mahalanobis norm
+        // than sqrt(d) + 2d / (d + 2): a projected sample's step is not one C would draw, and
+        // unbounded it would inflate the paths (Hansen 2011, "Injecting external solutions").
+        let old = self.mean.clone();
+        let df = self.d as f64;
+        let bound = df.sqrt() + 2.0 * df / (df + 2.0);
+        let ys: Vec<DVector<f64>> = ranked
+            .iter()
+            .map(|&i| {
+                let y = (&self.points[i] - &old) / self.sigma;
+                let m = (&self.c_inv_sqrt * &y).norm();
+                if m > bound {
+                    y * (bound / m)
+                } else {
+                    y
+                }
+            })
+            .collect();
+        let mut step = DVector::zeros(self.d);
+        for (w, y) in weights.iter().zip(&ys) {
+            step += y * *w;
+        }
+        self.mean = (&old + &step * self.sigma).map(|v| v.clamp(0.0, 1.0));
         let cs = self.c_sigma;
         self.p_sigma = &self.p_sigma * (1.0 - cs)
-            + (&self.c_inv_sqrt * &step) * (cs * (2.0 - cs) * self.mu_eff).sqrt();
+            + (&self.c_inv_sqrt * &step) * (cs * (2.0 - cs) * mu_eff).sqrt();
         let g = (self.generation + 1) as f64;
         let ps_norm = self.p_sigma.norm();
         // h_sigma: stall the rank-one update while the step-size path is long (tutorial eq. 45).
@@ -216,13 +244,12 @@ impl Optimiser for Cmaes {
         let cc = self.c_c;
         self.p_c = &self.p_c * (1.0 - cc);
         if h_sigma {
-            self.p_c += &step * (cc * (2.0 - cc) * self.mu_eff).sqrt();
+            self.p_c += &step * (cc * (2.0 - cc) * mu_eff).sqrt();
         }
         let delta_h = if h_sigma { 0.0 } else { cc * (2.0 - cc) };
         let mut rank_mu = DMatrix::zeros(self.d, self.d);
-        for (w, &i) in self.weights.iter().zip(&order) {
-            let y = (&self.points[i] - &old) / self.sigma;
-            rank_mu += &y * y.transpose() * *w;
+        for (w, y) in weights.iter().zip(&ys) {
+            rank_mu += y * y.transpose() * *w;
         }
         self.c = &self.c * (1.0 + self.c_1 * delta_h - self.c_1 - self.c_mu)
             + &self.p_c * self.p_c.transpose() * self.c_1

@@ -81,6 +81,22 @@ pub fn check_box(lower: &[f64], upper: &[f64]) -> Result<(), SettingsError> {
     Ok(())
 }
 
+/// A point of the box `lower..upper` in the box's unit coordinates [0, 1]^d (clamped), where the
+/// model-based optimisers (`cmaes`, `bayes`) search so one step suits gains of any magnitude.
+pub(crate) fn to_unit(lower: &[f64], upper: &[f64], x: &[f64]) -> nalgebra::DVector<f64> {
+    nalgebra::DVector::from_iterator(
+        x.len(),
+        (0..x.len()).map(|i| ((x[i] - lower[i]) / (upper[i] - lower[i])).clamp(0.0, 1.0)),
+    )
+}
+
+/// `to_unit`'s inverse.
+pub(crate) fn from_unit(lower: &[f64], upper: &[f64], u: &nalgebra::DVector<f64>) -> Vec<f64> {
+    (0..u.len())
+        .map(|i| lower[i] + u[i] * (upper[i] - lower[i]))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

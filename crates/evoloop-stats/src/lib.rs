@@ -112,6 +112,11 @@ pub fn median(v: &[f64]) -> f64 {
     }
 }
 
+/// Standard normal density phi(z).
+pub fn normal_pdf(z: f64) -> f64 {
+    (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt()
+}
+
 /// Standard normal distribution function Phi(z) (relative error < 1.2e-7, `erfc`'s).
 pub fn normal_cdf(z: f64) -> f64 {
     0.5 * erfc(-z / std::f64::consts::SQRT_2)
