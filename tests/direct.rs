@@ -484,7 +484,8 @@ fn the_comparison_counts_experiments_to_the_gas_final_cost() {
 /// The tuner's operator controls, driven sample by sample: after a stop (the budget ended
 /// early, the best set in service) a revert still goes out, at the next boundary, with the
 /// configured values bit for bit under a new version; it is measured on its repetition (a
-/// record with trial 0), and no trial follows it (a revert holds).
+/// record with trial 0), and no trial follows it (a revert holds); a stop after it sends nothing
+/// more (the reverted set is already in service for good).
 #[test]
 fn a_revert_after_a_stop_still_goes_out_and_holds() {
     let tmp = tempfile::tempdir().unwrap();
@@ -503,6 +504,10 @@ fn a_revert_after_a_stop_still_goes_out_and_holds() {
         if seq == first + 3 * rep + 10 {
             reverted = tuner.revert(configured.clone());
         }
+        if seq == first + 5 * rep + 10 {
+            // After the revert went out: a stop must not send the reverted set again.
+            tuner.stop();
+        }
         if let Some(set) = tuner.at(seq, None) {
             version = set.version;
             sent.push(set);
@@ -518,7 +523,11 @@ fn a_revert_after_a_stop_still_goes_out_and_holds() {
         .map(|s| s.version)
         .collect();
     assert_eq!(trials, [1, 2, 3]);
-    assert_eq!(sent.len(), 4);
+    assert_eq!(
+        sent.len(),
+        4,
+        "the revert once, nothing after the second stop"
+    );
     let last = sent.last().unwrap();
     assert_eq!(last.version, reverted);
     assert_eq!(last.apply_at_seq, first + 4 * rep);

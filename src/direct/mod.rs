@@ -173,6 +173,9 @@ pub struct DirectTuner {
     held: bool,
     /// An operator's stop: the best set goes in service for good at the next boundary.
     stop: bool,
+    /// The version an operator's revert put in service for good (`finish` does not send it
+    /// again).
+    for_good: Option<u64>,
     /// Every repetition scored, in order (the budget bounds it: `evaluations` + 1).
     pub records: Vec<Repetition>,
     /// Trials not scored because the optimiser missed some of their samples (tried again).
@@ -259,6 +262,7 @@ impl DirectTuner {
             restore: None,
             held: false,
             stop: false,
+            for_good: None,
             records: Vec::with_capacity(spec.evaluations + 1),
             incomplete: 0,
             refs: [[0.0; crate::MAX_JOINTS]; LAGS],
@@ -376,6 +380,7 @@ impl DirectTuner {
         if let Some((version, values)) = self.restore.take() {
             // Measured on its first repetition like the baseline; the best known until then.
             self.best = (values.clone(), f64::INFINITY, version);
+            self.for_good = Some(version);
             let (rep, w) = (self.spec.repetition, self.spec.u_weight);
             self.running = Some(Running::new(
                 0,
@@ -521,7 +526,8 @@ impl DirectTuner {
     /// The budget is spent: the best set for good (none if the configured set is still best).
     fn finish(&mut self, start: u64) -> Option<ParamSet> {
         self.finished = true;
-        if self.best.2 == 0 {
+        // The configured set, or an operator's revert, is already in service for good.
+        if self.best.2 == 0 || Some(self.best.2) == self.for_good {
             return None;
         }
         let version = self.next_version;

@@ -154,6 +154,8 @@ struct Serve<'a> {
     /// An operator's hold or stop is in force.
     held: bool,
     stopped: bool,
+    /// The plant's last sample has come: commands are answered `Stopped`.
+    ended: bool,
 }
 
 fn io(e: IpcError) -> Failure {
@@ -180,6 +182,7 @@ impl<'a> Serve<'a> {
             sets: [(0, scn.controller.tunable().gains.clone())].into(),
             held: false,
             stopped: false,
+            ended: false,
         };
         if let Some((version, values)) = last() {
             // A restarted optimiser keeps the last set it published for an operator's revert.
@@ -236,7 +239,8 @@ impl<'a> Serve<'a> {
             self.tell_epochs()?;
             self.observe(&state, report)?;
             if state.flags & STATE_FLAG_END != 0 {
-                // Commands still queued are answered (with the run's last time) before leaving.
+                // Commands still queued are answered, not carried out: the run has ended.
+                self.ended = true;
                 self.operate(&state, report)?;
                 return Ok(());
             }
@@ -465,6 +469,7 @@ impl<'a> Serve<'a> {
         while let Some(c) = self.ports.operator.next().map_err(io)? {
             let action = OperatorAction::try_from(c.action).ok();
             let (outcome, version) = match action {
+                Some(_) if self.ended => (OperatorOutcome::Stopped, self.last_version()),
                 Some(a) => self.apply(a, c.version, state)?,
                 None => (OperatorOutcome::UnknownAction, self.last_version()),
             };
@@ -513,12 +518,19 @@ impl<'a> Serve<'a> {
         if self.stopped && action != Revert {
             return Ok((OperatorOutcome::Stopped, self.last_version()));
         }
-        if let Some(ind) = self.indirect.as_mut() {
-            // Realtime: an epoch running on its thread must not publish after the command.
-            ind.discard_epoch();
-        }
+        // Realtime: an indirect epoch running on its thread must not publish after a hold, a stop
+        // or a revert. Waiting for it here holds up this thread (not the loop) for the rest of
+        // the epoch; the samples it misses meanwhile are counted (`samples_missed`).
+        let discard = |s: &mut Self| {
+            if let Some(ind) = s.indirect.as_mut() {
+                ind.discard_epoch();
+            }
+        };
         match action {
             Hold | Resume | Stop => {
+                if action != Resume {
+                    discard(self);
+                }
                 self.held = action != Resume;
                 self.stopped = action == Stop;
                 if let Some(d) = self.direct.as_mut() {
@@ -537,6 +549,7 @@ impl<'a> Serve<'a> {
         let Some(values) = self.sets.get(&version).cloned() else {
             return Ok((OperatorOutcome::UnknownVersion, self.last_version()));
         };
+        discard(self);
         self.held = true;
         if let Some(d) = self.direct.as_mut() {
             // At the next repetition boundary, through the tuner (a trial may be under way).

@@ -124,6 +124,22 @@ impl Topic {
             _ => 2,
         }
     }
+
+    /// Subscribers: the run's processes and watchers, or every operator waiting for its answer.
+    pub fn max_subscribers(self) -> usize {
+        match self {
+            Topic::OperatorAck => 10,
+            _ => 6,
+        }
+    }
+
+    /// Nodes on the service: the optimiser and as many operators as may send at once.
+    pub fn max_nodes(self) -> usize {
+        match self {
+            Topic::Operator | Topic::OperatorAck => 12,
+            _ => 8,
+        }
+    }
 }
 
 /// Most samples between two optimiser acknowledgements in lockstep (config validation enforces it).
@@ -275,8 +291,8 @@ impl Ipc {
                 .subscriber_max_borrowed_samples(2)
                 .history_size(0)
                 .max_publishers(topic.max_publishers())
-                .max_subscribers(6)
-                .max_nodes(8)
+                .max_subscribers(topic.max_subscribers())
+                .max_nodes(topic.max_nodes())
                 .enable_safe_overflow(true)
                 .open_or_create()
         })

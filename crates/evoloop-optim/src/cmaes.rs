@@ -67,8 +67,10 @@ pub struct Cmaes {
     /// B D (C = B D^2 B^T) and C^{-1/2} from the last decomposition.
     bd: DMatrix<f64>,
     c_inv_sqrt: DMatrix<f64>,
-    /// This generation's normalised points (after projection) and their real-valued copies.
+    /// This generation's normalised points (after projection), whether each was projected,
+    /// and their real-valued copies.
     points: Vec<DVector<f64>>,
+    projected: Vec<bool>,
     candidates: Vec<Vec<f64>>,
     rng: Xoshiro256pp,
     best: (Vec<f64>, f64),
@@ -134,6 +136,7 @@ impl Cmaes {
             bd: DMatrix::identity(d, d),
             c_inv_sqrt: DMatrix::identity(d, d),
             points: Vec::with_capacity(lambda),
+            projected: Vec::with_capacity(lambda),
             candidates: Vec::with_capacity(lambda),
             rng: Xoshiro256pp::seed_from_u64(cfg.seed),
             best: (Vec::new(), f64::INFINITY),
@@ -164,13 +167,16 @@ impl Cmaes {
 impl Optimiser for Cmaes {
     fn ask(&mut self) -> &[Vec<f64>] {
         self.points.clear();
+        self.projected.clear();
         self.candidates.clear();
         for _ in 0..self.cfg.population {
             let z = DVector::from_iterator(
                 self.d,
                 (0..self.d).map(|_| StandardNormal.sample(&mut self.rng)),
             );
-            let x = (&self.mean + (&self.bd * z) * self.sigma).map(|v| v.clamp(0.0, 1.0));
+            let drawn = &self.mean + (&self.bd * z) * self.sigma;
+            let x = drawn.map(|v| v.clamp(0.0, 1.0));
+            self.projected.push(x != drawn);
             self.candidates
                 .push(from_unit(&self.cfg.lower, &self.cfg.upper, &x));
             self.points.push(x);
@@ -210,9 +216,9 @@ impl Optimiser for Cmaes {
             .map(|w| w / sum)
             .collect();
         let mu_eff = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
-        // Each step as taken (after the projection onto the box), no longer in Mahalanobis norm
-        // than sqrt(d) + 2d / (d + 2): a projected sample's step is not one C would draw, and
-        // unbounded it would inflate the paths (Hansen 2011, "Injecting external solutions").
+        // Each step as taken; a projected sample's step (not one C would draw) no longer in
+        // Mahalanobis norm than sqrt(d) + 2d / (d + 2), so that it does not inflate the paths
+        // (Hansen 2011, "Injecting external solutions"). Drawn steps are used as drawn.
         let old = self.mean.clone();
         let df = self.d as f64;
         let bound = df.sqrt() + 2.0 * df / (df + 2.0);
@@ -221,7 +227,7 @@ impl Optimiser for Cmaes {
             .map(|&i| {
                 let y = (&self.points[i] - &old) / self.sigma;
                 let m = (&self.c_inv_sqrt * &y).norm();
-                if m > bound {
+                if self.projected[i] && m > bound {
                     y * (bound / m)
                 } else {
                     y
