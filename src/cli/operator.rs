@@ -112,14 +112,21 @@ fn print(
             "version": ack.version,
         });
         println!("{v}");
-    } else if outcome == Ok(OperatorOutcome::Done) {
-        println!(
+    } else {
+        println!("{}", describe(a.action, ack));
+    }
+}
+
+/// An answer in one line, as `evoloop operator` prints it and top shows it.
+pub fn describe(action: OperatorAction, ack: &OperatorAck) -> String {
+    match OperatorOutcome::try_from(ack.outcome) {
+        Ok(OperatorOutcome::Done) => format!(
             "{}: done at plant time {:.3} s (version {})",
-            a.action.name(),
+            action.name(),
             ack.t,
             ack.version
-        );
-    } else {
-        println!("{}: refused: {reason}", a.action.name());
+        ),
+        Ok(o) => format!("{}: refused: {}", action.name(), o.reason()),
+        Err(_) => format!("{}: unknown outcome code {}", action.name(), ack.outcome),
     }
 }

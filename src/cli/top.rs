@@ -283,16 +283,7 @@ fn operate(
     let said = said.clone();
     std::thread::spawn(move || {
         let text = match super::operator::send(&args) {
-            Ok(ack) => {
-                let outcome = crate::msg::OperatorOutcome::try_from(ack.outcome)
-                    .map_or("unknown outcome", |o| o.reason());
-                format!(
-                    "{}: {outcome} at t = {:.2} s (v{})",
-                    action.name(),
-                    ack.t,
-                    ack.version
-                )
-            }
+            Ok(ack) => super::operator::describe(action, &ack),
             Err(e) => format!("{}: {e}", action.name()),
         };
         if let Ok(mut s) = said.lock() {

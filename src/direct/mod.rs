@@ -157,7 +157,7 @@ pub struct DirectTuner {
     configured: Vec<f64>,
     /// Values of the last `ask`, a flag per candidate (tried and scored), their costs.
     scored: Vec<Option<f64>>,
-    /// Their safety margins (for an optimiser that `models_safety`).
+    /// Their safety margins (`Optimiser::tell_safety`).
     margins: Vec<f64>,
     /// The next candidate of the last `ask` to send.
     next_index: usize,
@@ -291,8 +291,7 @@ impl DirectTuner {
         self.next_version = self.next_version.max(version + 1);
         self.running = None;
         let configured = self.configured.clone();
-        self.revert(configured);
-        self.held = false;
+        self.restore_for_good(configured);
     }
 
     /// An operator's revert: `values` go in service for good at the next boundary (after the
@@ -301,10 +300,15 @@ impl DirectTuner {
     /// the fallback of any later trial. A revert before the previous one went out replaces it
     /// (that version is never published).
     pub fn revert(&mut self, values: Vec<f64>) -> u64 {
+        self.held = true;
+        self.restore_for_good(values)
+    }
+
+    /// `values` in service for good at the next boundary, under the version returned.
+    fn restore_for_good(&mut self, values: Vec<f64>) -> u64 {
         let version = self.next_version;
         self.next_version += 1;
         self.restore = Some((version, values));
-        self.held = true;
         version
     }
 
@@ -453,9 +457,7 @@ impl DirectTuner {
                 .iter()
                 .map(|v| v.unwrap_or(f64::INFINITY))
                 .collect();
-            if self.opt.models_safety() {
-                self.opt.tell_safety(&self.margins);
-            }
+            self.opt.tell_safety(&self.margins);
             self.opt.tell(&values);
         }
         let n = self.opt.ask().len();

@@ -493,6 +493,15 @@ impl<'a> Serve<'a> {
         Ok(())
     }
 
+    /// Realtime: an indirect epoch running on its thread must not publish after a hold, a stop
+    /// or a revert. Waiting for it holds up this thread (not the loop) for the rest of the
+    /// epoch; the samples it misses meanwhile are counted (`samples_missed`).
+    fn discard_epoch(&mut self) {
+        if let Some(ind) = self.indirect.as_mut() {
+            ind.discard_epoch();
+        }
+    }
+
     /// The last version published (a set or a model, by any scheme, or before a restart), or
     /// reserved by the direct scheme for a revert.
     fn last_version(&self) -> u64 {
@@ -518,18 +527,10 @@ impl<'a> Serve<'a> {
         if self.stopped && action != Revert {
             return Ok((OperatorOutcome::Stopped, self.last_version()));
         }
-        // Realtime: an indirect epoch running on its thread must not publish after a hold, a stop
-        // or a revert. Waiting for it here holds up this thread (not the loop) for the rest of
-        // the epoch; the samples it misses meanwhile are counted (`samples_missed`).
-        let discard = |s: &mut Self| {
-            if let Some(ind) = s.indirect.as_mut() {
-                ind.discard_epoch();
-            }
-        };
         match action {
             Hold | Resume | Stop => {
                 if action != Resume {
-                    discard(self);
+                    self.discard_epoch();
                 }
                 self.held = action != Resume;
                 self.stopped = action == Stop;
@@ -549,7 +550,7 @@ impl<'a> Serve<'a> {
         let Some(values) = self.sets.get(&version).cloned() else {
             return Ok((OperatorOutcome::UnknownVersion, self.last_version()));
         };
-        discard(self);
+        self.discard_epoch();
         self.held = true;
         if let Some(d) = self.direct.as_mut() {
             // At the next repetition boundary, through the tuner (a trial may be under way).

@@ -35,6 +35,13 @@ pub struct Run {
     pub to_target: Option<usize>,
 }
 
+impl Run {
+    /// Trials aborted over the whole run.
+    fn total_aborts(&self) -> u32 {
+        self.aborts.last().copied().unwrap_or(0)
+    }
+}
+
 /// One algorithm over the seeds.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
@@ -117,17 +124,14 @@ pub fn run(
         })
         .collect::<Result<_, _>>()?;
     bar.abandon();
-    let ga_final = |seed: u64| {
-        runs.iter()
-            .find(|r| r.algorithm == REFERENCE && r.seed == seed)
-            .map(|r| r.final_cost)
-    };
-    let targets: Vec<(u64, f64)> = seeds
+    // The GA's final cost per seed, then each run's first experiment within 1 % of it.
+    let ga: std::collections::HashMap<u64, f64> = runs
         .iter()
-        .map(|&s| (s, ga_final(s).unwrap_or(f64::NAN) * (1.0 + WITHIN)))
+        .filter(|r| r.algorithm == REFERENCE)
+        .map(|r| (r.seed, r.final_cost * (1.0 + WITHIN)))
         .collect();
     for r in &mut runs {
-        let target = targets.iter().find(|(s, _)| *s == r.seed).map(|t| t.1);
+        let target = ga.get(&r.seed).copied();
         r.to_target = target.and_then(|t| r.best.iter().position(|&b| b <= t).map(|i| i + 1));
     }
     let summaries: Vec<Summary> = algorithms
@@ -234,11 +238,8 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
             .collect()
     };
     let finals = |rs: &[&Run]| -> Vec<f64> { rs.iter().map(|r| r.final_cost).collect() };
-    let aborts = |rs: &[&Run]| -> Vec<f64> {
-        rs.iter()
-            .map(|r| r.aborts.last().copied().unwrap_or(0) as f64)
-            .collect()
-    };
+    let aborts =
+        |rs: &[&Run]| -> Vec<f64> { rs.iter().map(|r| f64::from(r.total_aborts())).collect() };
     let vs_ga = (alg != REFERENCE).then(|| {
         let ga = of(REFERENCE);
         let e = wilcoxon(&experiments(&mine), &experiments(&ga));
@@ -261,10 +262,7 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
         to_target_quartiles: quartiles(&experiments(&mine)),
         final_cost_quartiles: quartiles(&finals(&mine)),
         aborts_quartiles: quartiles(&aborts(&mine)),
-        aborts_total: mine
-            .iter()
-            .map(|r| u64::from(r.aborts.last().copied().unwrap_or(0)))
-            .sum(),
+        aborts_total: mine.iter().map(|r| u64::from(r.total_aborts())).sum(),
         vs_ga,
     }
 }
@@ -278,7 +276,7 @@ fn write_csv(dir: &Path, runs: &[Run]) -> Result<(), String> {
             r.seed,
             r.baseline_cost,
             r.final_cost,
-            r.aborts.last().copied().unwrap_or(0),
+            r.total_aborts(),
             r.to_target.map_or(String::new(), |k| k.to_string())
         ));
     }

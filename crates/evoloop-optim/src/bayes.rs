@@ -425,10 +425,6 @@ impl Optimiser for Bayes {
         self.margins = margins.to_vec();
     }
 
-    fn models_safety(&self) -> bool {
-        self.cfg.safety.is_some()
-    }
-
     fn tell(&mut self, values: &[f64]) {
         assert_eq!(values.len(), self.pending.len(), "one value per candidate");
         for (i, (u, &cost)) in self.pending.drain(..).zip(values).enumerate() {

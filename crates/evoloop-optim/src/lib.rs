@@ -48,15 +48,11 @@ pub trait Optimiser {
     fn thresholds(&self) -> Option<&[f64]> {
         None
     }
-    /// Before `tell`: each candidate's safety margin (>= 0: the experiment stayed safe; evoloop's
+    /// Before `tell`: each candidate's safety margin (> 0: the experiment stayed safe; evoloop's
     /// direct scheme measures how far inside the envelope a trial stayed, as a fraction of it).
-    /// Only an optimiser that `models_safety` reads it.
+    /// An optimiser that does not model safety ignores it (the default).
     fn tell_safety(&mut self, margins: &[f64]) {
         let _ = margins;
-    }
-    /// Whether this optimiser models safety (`tell_safety`): then its caller must measure it.
-    fn models_safety(&self) -> bool {
-        false
     }
 }
 
