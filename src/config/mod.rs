@@ -10,6 +10,7 @@
 //! `plant/`, each control law its `[controller.<kind>]` table under `control/`, registered by
 //! one line in `plant::kinds!` / `control::kinds!`.
 
+mod model_prior;
 mod optimiser;
 mod reference;
 mod timing;
@@ -17,6 +18,7 @@ mod timing;
 pub use crate::check::ConfigError;
 pub use crate::control::{ControllerKind, ControllerModel, ControllerSpec};
 pub use crate::plant::{PlantKind, PlantModel, PlantSpec};
+pub use model_prior::ModelPrior;
 pub use optimiser::{
     Expect, OptimiserMode, OptimiserSpec, ScheduledSet, SetKind, WorkersKind, WorkersSpec,
     WORKERS_WAIT_S,
@@ -288,23 +290,26 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
         &reference,
         timing.duration,
     )?;
-    let optimiser = optimiser::validate(raw.optimiser, check, &timing, ov)?;
+    let mut raw_optimiser = raw.optimiser;
+    let raw_model = raw_optimiser.as_mut().and_then(|o| o.model.take());
+    let mut optimiser = optimiser::validate(raw_optimiser, check, &timing, ov)?;
+    optimiser.model = model_prior::validate(
+        raw_model,
+        check,
+        &plant.model,
+        &controller,
+        optimiser.mode == OptimiserMode::Indirect,
+        timing.period,
+    )?;
     if optimiser.mode == OptimiserMode::Identify {
         identify_mode_fits(check, &controller)?;
     }
-    if plant.model.config().external().is_some()
-        && matches!(
-            optimiser.mode,
-            OptimiserMode::Indirect | OptimiserMode::Identify
-        )
-    {
+    if plant.model.config().external().is_some() && optimiser.mode == OptimiserMode::Identify {
         return check.fail(
             "optimiser.mode",
-            format!(
-                "\"{}\" tunes on a model it simulates beside the plant, and an external plant is \
-                 simulated by its own process only: \"off\", \"schedule\" or \"direct\"",
-                optimiser.mode
-            ),
+            "\"identify\" fits arm models, and an external plant is simulated by its own \
+             process only: \"off\", \"schedule\", \"direct\" or \"indirect\" (with \
+             [optimiser.model])",
         );
     }
     if optimiser.mode == OptimiserMode::Direct {

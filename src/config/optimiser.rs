@@ -37,6 +37,8 @@ pub struct RawOptimiser {
     pub workers_listen: Option<String>,
     pub workers_zenoh_config: Option<std::path::PathBuf>,
     pub workers_expect: Option<usize>,
+    /// `[optimiser.model]`, validated with the plant (`config::model_prior`).
+    pub model: Option<super::model_prior::RawModel>,
 }
 
 /// Where the optimiser's population evaluations run.
@@ -201,6 +203,8 @@ pub struct OptimiserSpec {
     pub phases: [usize; 3],
     /// Evaluation workers over Zenoh (`optimiser.workers = "zenoh"`); None: local threads only.
     pub workers: Option<WorkersSpec>,
+    /// The general indirect scheme's prior (`[optimiser.model]`, lti and external plants).
+    pub model: Option<super::model_prior::ModelPrior>,
 }
 
 pub fn validate(
@@ -237,6 +241,7 @@ pub fn validate(
         check.range(&format!("optimiser.{key}"), v.unwrap_or(default), lo, hi)
     };
     Ok(OptimiserSpec {
+        model: None,
         workers,
         algorithm: d.algorithm,
         population: d.population,

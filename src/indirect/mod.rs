@@ -35,6 +35,8 @@ pub const ROBUST_MASS: f64 = 0.02;
 pub struct Estimate {
     pub t: f64,
     pub value: f64,
+    /// Infinite (JSON null) while no fit has been adopted.
+    #[serde(with = "infinite_as_null")]
     pub std: f64,
 }
 
@@ -250,6 +252,10 @@ pub struct EpochRecord {
     /// as the epoch runs on its own thread.
     #[serde(default)]
     pub wall_s: f64,
+    /// The model's coefficients, for a model of several (the general scheme's transfer
+    /// function, [a_0 .. a_{n-1}, b_0 .. b_m]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub model: Vec<f64>,
 }
 
 /// A cost that may be infinite, as JSON: a number, or null for infinity (JSON has no infinity,
@@ -280,13 +286,26 @@ pub trait Estimator: Send {
     fn ready(&self) -> bool;
     /// The model parameter's nominal (configured) value.
     fn nominal(&self) -> f64;
+    /// A model of several coefficients (the general scheme's transfer function): the current
+    /// and the nominal ones; empty for a scheme whose model is the one parameter.
+    fn coefficients(&self) -> Vec<f64> {
+        Vec::new()
+    }
+    fn nominal_coefficients(&self) -> Vec<f64> {
+        Vec::new()
+    }
+    /// What the estimator's excitation and drift monitors saw (general scheme).
+    fn monitor(&self) -> Option<linear::Monitor> {
+        None
+    }
 }
 
 /// The tuning half: epochs of an optimiser on the model carrying an estimate. An epoch may take
 /// longer than the state queue holds, so in realtime it runs on a worker thread (`Indirect`).
 pub trait Tuner: Send {
-    /// One optimiser epoch on the model with parameter `p`, seeded with the in-service set.
-    fn epoch(&mut self, p: f64, in_service: &[f64]) -> Candidate;
+    /// One optimiser epoch on the model with parameter `p` (and `coefficients`, for a model of
+    /// several), seeded with the in-service set.
+    fn epoch(&mut self, p: f64, coefficients: &[f64], in_service: &[f64]) -> Candidate;
     /// Publish when the candidate beats the in-service set by this fraction.
     fn margin(&self) -> f64;
     /// Evaluations one epoch spends.
@@ -311,7 +330,7 @@ impl Estimator for MaglevEstimator {
 }
 
 impl Tuner for MaglevTuner {
-    fn epoch(&mut self, p: f64, in_service: &[f64]) -> Candidate {
+    fn epoch(&mut self, p: f64, _: &[f64], in_service: &[f64]) -> Candidate {
         MaglevTuner::epoch(self, p, in_service)
     }
     fn margin(&self) -> f64 {
@@ -325,9 +344,10 @@ impl Tuner for MaglevTuner {
 /// An epoch on the worker thread: the tuner goes with it and comes back with the candidate.
 struct Running {
     handle: std::thread::JoinHandle<(Box<dyn Tuner>, Candidate)>,
-    /// Plant time and model parameter of the snapshot it tunes on.
+    /// Plant time, model parameter and coefficients of the snapshot it tunes on.
     t: f64,
     p: f64,
+    coefficients: Vec<f64>,
     started: std::time::Instant,
 }
 
@@ -406,7 +426,14 @@ impl Indirect {
                 let (estimator, tuner) = two_mass::scheme(scn, plant, &sf.tunable);
                 (Box::new(estimator), Box::new(tuner))
             }
-            _ => return Err("the indirect optimiser drives the maglev under a PID or the two-mass plant under state feedback".into()),
+            _ => match &o.model {
+                // Any other linear single-input plant: the general scheme.
+                Some(prior) => {
+                    let (estimator, tuner) = linear::scheme(scn, prior)?;
+                    (Box::new(estimator), Box::new(tuner))
+                }
+                None => return Err("the indirect optimiser drives the maglev under a PID, the two-mass plant under state feedback, or an lti or external plant under a PID".into()),
+            },
         };
         Ok(Self {
             margin: tuner.margin(),
@@ -456,6 +483,11 @@ impl Indirect {
         self.estimator.estimate(t)
     }
 
+    /// The estimator's monitors (general scheme).
+    pub fn monitor(&self) -> Option<linear::Monitor> {
+        self.estimator.monitor()
+    }
+
     /// The last version this optimiser published (0: none yet).
     pub fn version(&self) -> u64 {
         self.version
@@ -485,16 +517,23 @@ impl Indirect {
             return;
         };
         // Until the estimator has data, the model is the nominal plant.
-        let p = if self.estimator.ready() {
-            self.estimator.estimate(t).value
+        let (p, coefficients) = if self.estimator.ready() {
+            (
+                self.estimator.estimate(t).value,
+                self.estimator.coefficients(),
+            )
         } else {
-            self.estimator.nominal()
+            (
+                self.estimator.nominal(),
+                self.estimator.nominal_coefficients(),
+            )
         };
         let in_service = self.in_service.clone();
+        let theta = coefficients.clone();
         let handle = std::thread::Builder::new()
             .name("epoch".into())
             .spawn(move || {
-                let c = tuner.epoch(p, &in_service);
+                let c = tuner.epoch(p, &theta, &in_service);
                 (tuner, c)
             })
             .expect("spawning the epoch thread");
@@ -502,6 +541,7 @@ impl Indirect {
             handle,
             t,
             p,
+            coefficients,
             started: std::time::Instant::now(),
         });
     }
@@ -551,6 +591,7 @@ impl Indirect {
             in_service_cost: c.in_service_cost,
             published: None,
             wall_s: run.started.elapsed().as_secs_f64(),
+            model: run.coefficients,
         };
         let out = better.then(|| {
             self.version += 1;
@@ -566,6 +607,7 @@ impl Indirect {
     }
 }
 
+pub mod linear;
 pub mod rls;
 
 pub mod svf;
@@ -605,6 +647,7 @@ mod tests {
             in_service_cost: f64::INFINITY,
             published: Some(3),
             wall_s: 0.5,
+            model: Vec::new(),
         };
         let text = serde_json::to_string(&r).unwrap();
         assert!(text.contains("\"in_service_cost\":null"), "{text}");

@@ -69,6 +69,11 @@ impl SvfDesign {
         }
     }
 
+    /// The filter's pole (rad/s).
+    pub fn pole(&self) -> f64 {
+        self.a
+    }
+
     /// Root-mean-square gain from white noise on a sampled input to s^j F of it: the square
     /// root of the energy of the response to a unit sample (first-order hold), summed until the
     /// filter has forgotten it (40 time constants).

@@ -325,7 +325,7 @@ impl Estimator for SpringEstimator {
 }
 
 impl Tuner for TwoMassTuner {
-    fn epoch(&mut self, k: f64, in_service: &[f64]) -> Candidate {
+    fn epoch(&mut self, k: f64, _: &[f64], in_service: &[f64]) -> Candidate {
         let k = k.max(1e-3);
         let np = 15;
         let mut de = DifferentialEvolution::new(DeConfig {

@@ -580,6 +580,7 @@ impl<'a> Serve<'a> {
     fn finish(self, report: &mut OptimiserReport) {
         if let Some(ind) = self.indirect {
             report.samples_missed = ind.samples_missed;
+            report.monitor = ind.monitor();
             report.estimates = ind.estimates.into_vec();
             report.epochs = ind.epochs.into_vec();
         }

@@ -176,6 +176,10 @@ pub struct OptimiserReport {
     /// Indirect mode: every tuning epoch.
     #[serde(default)]
     pub epochs: Vec<crate::indirect::EpochRecord>,
+    /// Indirect mode on an lti or external plant: the estimator's excitation and drift
+    /// monitors.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub monitor: Option<crate::indirect::linear::Monitor>,
     /// Direct mode: every repetition, the best set.
     #[serde(default)]
     pub direct: Option<crate::direct::DirectReport>,

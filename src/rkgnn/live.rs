@@ -228,6 +228,7 @@ impl LiveIdentify {
             in_service_cost: in_err,
             published: None,
             wall_s: started.elapsed().as_secs_f64(),
+            model: Vec::new(),
         };
         let out = match candidate {
             Some(p) if better => {

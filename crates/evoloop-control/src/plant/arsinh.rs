@@ -46,7 +46,7 @@ impl Plant for ArsinhSpec {
     fn initial_state(&self, x: &mut [f64]) {
         x[0] = self.initial;
     }
-    fn map(&self, x: &mut [f64], u: &[f64], _dt: f64) -> bool {
+    fn map(&self, _t: f64, x: &mut [f64], u: &[f64], _dt: f64) -> bool {
         let next = -self.a * x[0] + u[0].asinh();
         // NaN (a NaN command) is held at the limit too: the state stays a number.
         x[0] = if next.is_nan() {

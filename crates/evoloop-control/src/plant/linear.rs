@@ -174,7 +174,49 @@ impl LinearModel {
     }
 }
 
-/// Whether every eigenvalue of the k x k matrix `fill(i, j)` (2 <= k <= 10) satisfies `ok`, on
+impl LinearModel {
+    /// Whether a PID stabilises this sampled model (the loop as `control::Pid` runs it while
+    /// unsaturated): u_k = P e_k + I_{k-1} - k_d e_{k-1} with P = k_p + k_d + k_i and
+    /// I_k = I_{k-1} + k_i e_k, e_k = r - y_k; `kd` = K_p T_v / T and `ki` per sample. Over
+    /// s = [z; I_prev; e_prev; v_prev], every eigenvalue inside the unit circle. A continuous
+    /// model is never accepted (the PID is a sampled law).
+    pub fn stabilised_by_pid(&self, kp: f64, kd: f64, ki: f64) -> bool {
+        if self.time == Time::Continuous || ![kp, kd, ki].iter().all(|v| v.is_finite()) {
+            return false;
+        }
+        let n = self.n;
+        let p = kp + kd + ki;
+        // Blocks: 0 = z, 1 = I_prev, 2 = e_prev, 3 = v_prev.
+        let block = |k: usize| if k < n { 0 } else { k - n + 1 };
+        all_eigenvalues(
+            n + 3,
+            |i, j| {
+                let (bi, bj) = (block(i), block(j));
+                let b = if bi == 0 { self.b[i] } else { 0.0 };
+                let c = if bj == 0 { self.c[j] } else { 0.0 };
+                match (bi, bj) {
+                    (0, 0) => self.a[i][j] - b * p * c,
+                    (0, 1) => b,
+                    (0, 2) => -b * kd,
+                    (0, 3) => -b * p * self.d,
+                    (1, 0) => -ki * c,
+                    (1, 1) => 1.0,
+                    (1, 3) => -ki * self.d,
+                    (2, 0) => -c,
+                    (2, 3) => -self.d,
+                    (3, 0) => self.f[j] - self.g * p * c,
+                    (3, 1) => self.g,
+                    (3, 2) => -self.g * kd,
+                    (3, 3) => -self.g * p * self.d,
+                    _ => 0.0,
+                }
+            },
+            |l| l.norm() < 1.0,
+        )
+    }
+}
+
+/// Whether every eigenvalue of the k x k matrix `fill(i, j)` (2 <= k <= 11) satisfies `ok`, on
 /// a matrix of exactly that size (no padding, so a 5 x 5 loop decomposes as it always did).
 fn all_eigenvalues(
     k: usize,
@@ -192,7 +234,7 @@ fn all_eigenvalues(
             }
         };
     }
-    sized!(2 3 4 5 6 7 8 9 10)
+    sized!(2 3 4 5 6 7 8 9 10 11)
 }
 
 #[cfg(test)]
@@ -220,5 +262,42 @@ mod tests {
         // k1 T = 2.5: the proportional loop alone has pole 1 - 2.5 = -1.5.
         assert!(!m.stabilised_by(&[25.0, -1.0]));
         assert!(LinearModel::continuous(&[0.0], &[1.0], &[1.0]).stabilised_by(&[25.0, -1.0]));
+    }
+
+    /// A proportional controller on the sampled integrator z+ = z + T u: pole 1 - k_p T,
+    /// stable for 0 < k_p T < 2; an integral gain moves the limit (Jury: with P = k_p + k_i
+    /// the poles of z^2 - (2 - P T) z + (1 - k_p T) are inside for 0 < k_i T and
+    /// (2 - P T) < 2 - k_p T ... checked against the roots directly).
+    #[test]
+    fn a_pid_on_the_sampled_integrator_is_stable_where_its_poles_say() {
+        let t = 0.1;
+        let m = LinearModel::sampled(t, &[1.0], &[t], &[1.0], 0.0, &[0.0], 1.0);
+        assert!(m.stabilised_by_pid(5.0, 0.0, 0.0));
+        assert!(!m.stabilised_by_pid(25.0, 0.0, 0.0));
+        assert!(!m.stabilised_by_pid(-1.0, 0.0, 0.0));
+        // With integral action: the poles are the roots of z^2 - (2 - (k_p + k_i) T) z + (1 - k_p T).
+        for (kp, ki) in [
+            (5.0, 1.0),
+            (5.0, 12.0),
+            (15.0, 4.0),
+            (19.0, 2.0),
+            (1.0, 0.5),
+        ] {
+            let (b, c) = (-(2.0 - (kp + ki) * t), 1.0 - kp * t);
+            let disc: f64 = b * b - 4.0 * c;
+            let largest = if disc >= 0.0 {
+                ((-b + disc.sqrt()) / 2.0)
+                    .abs()
+                    .max(((-b - disc.sqrt()) / 2.0).abs())
+            } else {
+                c.sqrt()
+            };
+            assert_eq!(
+                m.stabilised_by_pid(kp, 0.0, ki),
+                largest < 1.0,
+                "{kp} {ki}: {largest}"
+            );
+        }
+        assert!(!LinearModel::continuous(&[0.0], &[1.0], &[1.0]).stabilised_by_pid(1.0, 0.0, 0.0));
     }
 }

@@ -58,6 +58,30 @@ pub struct LtiSpec {
     /// The model file the matrices came from, if any.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub file: Option<PathBuf>,
+    /// Changes of A and B in operation, in time order (`[[plant.lti.change]]`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub changes: Vec<LtiChange>,
+}
+
+/// A change of the plant in operation (a load attached, a gear changed): from `at` on it runs
+/// with these A and B, its state carrying over (C and D stay). Written in the model's own
+/// state coordinates, so states with a physical meaning stay continuous across it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LtiChange {
+    pub at: f64,
+    pub a: Vec<f64>,
+    pub b: Vec<f64>,
+    /// Their zero-order-hold discretisation at the control period.
+    pub phi: Vec<f64>,
+    pub gamma: Vec<f64>,
+}
+
+/// The model in force at one instant: (A, B) and (Phi, Gamma).
+struct Phase<'a> {
+    a: &'a [f64],
+    b: &'a [f64],
+    phi: &'a [f64],
+    gamma: &'a [f64],
 }
 
 /// y = Mx (+ y), M rows x cols row-major.
@@ -93,8 +117,126 @@ impl LtiSpec {
         out
     }
 
-    /// One control period with the (clipped) command `u`: exact, allocation-free.
-    fn step_period(&self, s: &mut [f64], u: &[f64]) {
+    /// The model in force at time `t` (a change takes effect at the period starting at its
+    /// time, to within 1e-9 of a period of accumulated rounding).
+    fn phase(&self, t: f64) -> Phase<'_> {
+        let slack = 1e-9 * self.period;
+        match self.changes.iter().rev().find(|c| t + slack >= c.at) {
+            Some(c) => Phase {
+                a: &c.a,
+                b: &c.b,
+                phi: &c.phi,
+                gamma: &c.gamma,
+            },
+            None => Phase {
+                a: &self.a,
+                b: &self.b,
+                phi: &self.phi,
+                gamma: &self.gamma,
+            },
+        }
+    }
+
+    /// A continuous single-input single-output model from a transfer function (descending
+    /// powers), realised and discretised as `[plant.lti]` does at `period`, with the actuator's
+    /// range: the model the general indirect scheme tunes on.
+    pub fn from_transfer_function(
+        num: &[f64],
+        den: &[f64],
+        period: f64,
+        u_range: (f64, f64),
+    ) -> Result<LtiSpec, String> {
+        let src = Source {
+            check: Check::new("model".as_ref()),
+            prefix: "",
+        };
+        let r = transfer_function(Some(num), Some(den), &src).map_err(|e| e.reason)?;
+        let (phi, gamma) = zero_order_hold(&r.a, &r.b, r.n, r.m, period);
+        if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
+            return Err("exp(A T) overflows at the control period".into());
+        }
+        Ok(LtiSpec {
+            x0: vec![0.0; r.n],
+            n: r.n,
+            m: 1,
+            p: 1,
+            a: r.a,
+            b: r.b,
+            c: r.c,
+            d: r.d,
+            dt: None,
+            period,
+            phi,
+            gamma,
+            delay: 0,
+            u_min: vec![u_range.0],
+            u_max: vec![u_range.1],
+            file: None,
+            changes: Vec::new(),
+        })
+    }
+
+    /// The configured (t = 0) model's transfer function (num, den), descending powers, den
+    /// monic: the characteristic polynomial by Faddeev-LeVerrier, the numerator from the Markov
+    /// parameters (b = a(s) H(s), truncated). Continuous, single input and output only.
+    pub fn transfer_function(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+        if self.m != 1 || self.p != 1 || self.dt.is_some() {
+            return None;
+        }
+        let n = self.n;
+        let a = DMatrix::from_row_slice(n, n, &self.a);
+        // den[k] is the coefficient of s^(n-k); den[0] = 1.
+        let mut den = vec![1.0; n + 1];
+        let mut m = DMatrix::<f64>::zeros(n, n);
+        for k in 1..=n {
+            m = &a * &m + DMatrix::identity(n, n) * den[k - 1];
+            den[k] = -(&a * &m).trace() / k as f64;
+        }
+        // Markov parameters h_0 = D, h_j = C A^(j-1) B.
+        let (b, c) = (
+            nalgebra::DVector::from_column_slice(&self.b),
+            nalgebra::DVector::from_column_slice(&self.c),
+        );
+        let mut h = vec![self.d[0]];
+        let mut v = b;
+        for _ in 0..n {
+            h.push(c.dot(&v));
+            v = &a * v;
+        }
+        let num = (0..=n)
+            .map(|j| (0..=j).map(|i| den[i] * h[j - i]).sum())
+            .collect();
+        Some((num, den))
+    }
+
+    /// The input gain at time `t`: the first Markov parameter that is not zero (D, C B,
+    /// C A B, ...), which is a monic transfer function's leading numerator coefficient. Single
+    /// input and output only.
+    pub fn input_gain_at(&self, t: f64) -> Option<f64> {
+        if self.m != 1 || self.p != 1 {
+            return None;
+        }
+        let ph = self.phase(t);
+        if self.d[0] != 0.0 {
+            return Some(self.d[0]);
+        }
+        let mut v = ph.b.to_vec();
+        for _ in 0..self.n {
+            let h: f64 = self.c.iter().zip(&v).map(|(c, x)| c * x).sum();
+            if h != 0.0 {
+                return Some(h);
+            }
+            let mut next = vec![0.0; self.n];
+            mul_add(ph.a, self.n, &v, &mut next);
+            v = next;
+        }
+        None
+    }
+
+    /// One control period with the (clipped) command `u` under the model of time `t`: exact,
+    /// allocation-free.
+    fn step_period(&self, t: f64, s: &mut [f64], u: &[f64]) {
+        let ph = self.phase(t);
         let (n, m, dl) = (self.n, self.m, self.delay_len());
         let (x, rest) = s.split_at_mut(n);
         let (line, v) = rest.split_at_mut(dl);
@@ -102,8 +244,8 @@ impl LtiSpec {
         let mut reach = [0.0; MAX_JOINTS];
         reach[..m].copy_from_slice(if dl > 0 { &line[..m] } else { &u[..m] });
         let mut next = [0.0; MAX_STATES];
-        mul_add(&self.phi, n, x, &mut next);
-        mul_add(&self.gamma, n, &reach[..m], &mut next);
+        mul_add(ph.phi, n, x, &mut next);
+        mul_add(ph.gamma, n, &reach[..m], &mut next);
         x.copy_from_slice(&next[..n]);
         if dl > 0 {
             line.copy_within(m.., 0);
@@ -172,23 +314,25 @@ impl Plant for LtiSpec {
         self.p
     }
     /// x' = A x + B v (v, the input in force, is part of the state; RK4 leaves it).
-    fn derivative(&self, _t: f64, s: &[f64], _u: &[f64], ds: &mut [f64]) {
+    fn derivative(&self, t: f64, s: &[f64], _u: &[f64], ds: &mut [f64]) {
         ds.fill(0.0);
         let at = self.n + self.delay_len();
         let v = &s[at..at + self.m];
-        mul_add(&self.a, self.n, &s[..self.n], ds);
-        mul_add(&self.b, self.n, v, ds);
+        let ph = self.phase(t);
+        mul_add(ph.a, self.n, &s[..self.n], ds);
+        mul_add(ph.b, self.n, v, ds);
     }
     fn output(&self, s: &[f64], y: &mut [f64]) {
         self.output_with(s, &s[self.n + self.delay_len()..], y);
     }
     /// The outputs and, for a continuous model, their rate C (A x + B v); 0 for a discrete one.
+    /// (The rate is the configured model's: `joints` knows no time, and it is for display.)
     fn joints(&self, s: &[f64], q: &mut [f64], qd: &mut [f64]) {
         self.output(s, q);
         qd[..self.p].fill(0.0);
         if self.dt.is_none() {
             let mut dx = [0.0; MAX_STATES];
-            self.derivative(0.0, s, &[], &mut dx[..s.len()]);
+            self.derivative(f64::NEG_INFINITY, s, &[], &mut dx[..s.len()]);
             mul_add(&self.c, self.p, &dx[..self.n], qd);
         }
     }
@@ -199,14 +343,15 @@ impl Plant for LtiSpec {
     /// Whole periods step exactly; any other span of a continuous model is integrated (RK4)
     /// with the command recorded as the input in force. A discrete or delayed model moves the
     /// whole periods in `dt` (the configuration keeps it to lockstep, where every span is one).
-    fn map(&self, s: &mut [f64], u: &[f64], dt: f64) -> bool {
+    fn map(&self, t: f64, s: &mut [f64], u: &[f64], dt: f64) -> bool {
         let u = self.clipped(u);
+        let at = |i: usize| t + i as f64 * self.period;
         match self.periods_in(dt) {
-            Some(k) => (0..k).for_each(|_| self.step_period(s, &u)),
+            Some(k) => (0..k).for_each(|i| self.step_period(at(i), s, &u)),
             None if self.periodic_only() => {
                 debug_assert!(false, "a discrete or delayed lti plant advanced by {dt} s");
                 let k = (dt / self.period).round() as usize;
-                (0..k).for_each(|_| self.step_period(s, &u));
+                (0..k).for_each(|i| self.step_period(at(i), s, &u));
             }
             None => {
                 let at = self.n + self.delay_len();
@@ -229,6 +374,17 @@ impl PlantConfig for LtiSpec {
     /// (clipped into the range).
     fn scalar_input(&self) -> Option<ScalarInput> {
         (self.m == 1 && self.p == 1).then(|| ScalarInput::holding_zero(self.u_min[0], self.u_max[0]))
+    }
+    /// With changes configured: the input gain (`input_gain_at`), what the general indirect
+    /// scheme's estimate is judged against.
+    fn varying_parameter(&self, t: f64) -> Option<f64> {
+        if self.changes.is_empty() {
+            return None;
+        }
+        self.input_gain_at(t)
+    }
+    fn first_change(&self) -> Option<f64> {
+        self.changes.first().map(|c| c.at)
     }
     fn realtime_refusal(&self) -> Option<String> {
         let what = match (self.dt.is_some(), self.delay > 0) {
@@ -302,6 +458,17 @@ pub struct Table {
     x0: Option<Vec<f64>>,
     u_min: Option<Vec<f64>>,
     u_max: Option<Vec<f64>>,
+    /// Changes in operation: `[[plant.lti.change]]` with `at` and a new `a` and/or `b`.
+    change: Option<Vec<ChangeTable>>,
+}
+
+/// One `[[plant.lti.change]]`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChangeTable {
+    at: f64,
+    a: Option<Matrix>,
+    b: Option<Matrix>,
 }
 
 /// Where the model's keys were read and how to name them in an error.
@@ -383,6 +550,7 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Lt
     if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
         return src.fail("a", "exp(A T) overflows at the control period: the model is far too fast or unstable for it");
     }
+    let changes = changes(t.change.take().unwrap_or_default(), check, &r, dt.is_some(), cx.period)?;
     Ok(LtiSpec {
         n: r.n,
         m: r.m,
@@ -400,7 +568,64 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Lt
         u_min,
         u_max,
         file,
+        changes,
     })
+}
+
+/// The validated `[[plant.lti.change]]` list: times increasing and positive, matrices the
+/// model's sizes (a missing one stays as it was), each discretised as the model is.
+fn changes(
+    raw: Vec<ChangeTable>,
+    check: &Check,
+    r: &Realised,
+    discrete: bool,
+    period: f64,
+) -> Result<Vec<LtiChange>, ConfigError> {
+    let mut out: Vec<LtiChange> = Vec::with_capacity(raw.len());
+    for (i, c) in raw.into_iter().enumerate() {
+        let key = format!("plant.lti.change[{i}]");
+        let src = Source {
+            check: Check::new(&check.file),
+            prefix: "",
+        };
+        let at = check.range(&format!("{key}.at"), c.at, 0.0, 1e9)?;
+        if out.last().is_some_and(|p| at <= p.at) {
+            return check.fail(&format!("{key}.at"), "change times must increase");
+        }
+        let (prev_a, prev_b) = out.last().map_or((&r.a, &r.b), |p| (&p.a, &p.b));
+        let (n, m) = (r.n, r.m);
+        let a = match &c.a {
+            Some(a) => {
+                let k = format!("{key}.a");
+                let (rows, cols, v) = shaped(&src, &k, a, false)?;
+                expect_size(&src, &k, (rows, cols), (n, n), "the model's A is square, its size")?;
+                v
+            }
+            None => prev_a.clone(),
+        };
+        let b = match &c.b {
+            Some(b) => {
+                let k = format!("{key}.b");
+                let (rows, cols, v) = shaped(&src, &k, b, true)?;
+                expect_size(&src, &k, (rows, cols), (n, m), "the model's B, its size")?;
+                v
+            }
+            None => prev_b.clone(),
+        };
+        if c.a.is_none() && c.b.is_none() {
+            return check.fail(&key, "a change needs a new a, b or both");
+        }
+        let (phi, gamma) = if discrete {
+            (a.clone(), b.clone())
+        } else {
+            zero_order_hold(&a, &b, n, m, period)
+        };
+        if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
+            return check.fail(&format!("{key}.a"), "exp(A T) overflows at the control period");
+        }
+        out.push(LtiChange { at, a, b, phi, gamma });
+    }
+    Ok(out)
 }
 
 /// The model's keys from the table, or from the file it names (then the table holds none).
@@ -683,6 +908,55 @@ mod tests {
         // Biproper: D takes the leading ratio.
         let s = parse("num = [1.0, 0.0]\nden = [1.0, 1.0]", 0.01).unwrap();
         assert_eq!((s.c[0], s.d[0]), (-1.0, 1.0));
+    }
+
+    /// Faddeev-LeVerrier and the Markov parameters give back a realised transfer function,
+    /// and a physical-state model's: theta/V = 40 / (s^2 + 20 s).
+    #[test]
+    fn the_transfer_function_comes_back_from_the_state_space() {
+        let s = parse("num = [1.0, 3.0]\nden = [2.0, 4.0, 6.0]", 0.01).unwrap();
+        let (num, den) = s.transfer_function().unwrap();
+        let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
+        assert!(close(&den, &[1.0, 2.0, 3.0]), "{den:?}");
+        assert!(close(&num, &[0.0, 0.5, 1.5]), "{num:?}");
+        let s = parse("a = [[0.0, 1.0], [0.0, -20.0]]\nb = [0.0, 40.0]\nc = [1.0, 0.0]", 0.001).unwrap();
+        let (num, den) = s.transfer_function().unwrap();
+        assert!(close(&den, &[1.0, 20.0, 0.0]) && close(&num, &[0.0, 0.0, 40.0]), "{num:?} {den:?}");
+        assert_eq!(s.input_gain_at(0.0), Some(40.0));
+    }
+
+    /// A change takes over A and B at its time with the state carried over: before it the
+    /// response is the first model's, after it the second's from the state it reached.
+    #[test]
+    fn a_change_switches_the_model_at_its_time_and_keeps_the_state() {
+        let base = "a = [[0.0, 1.0], [0.0, -20.0]]\nb = [0.0, 40.0]\nc = [1.0, 0.0]\n";
+        let changed = parse(
+            &format!("{base}[[change]]\nat = 0.05\na = [[0.0, 1.0], [0.0, -5.0]]\nb = [0.0, 10.0]\n"),
+            0.001,
+        )
+        .unwrap();
+        let late = parse("a = [[0.0, 1.0], [0.0, -5.0]]\nb = [0.0, 10.0]\nc = [1.0, 0.0]", 0.001).unwrap();
+        let first = parse(base, 0.001).unwrap();
+        let mut sim = PlantSim::new(Box::new(changed.clone()), 0.001, 0.0, 1);
+        let mut before = PlantSim::new(Box::new(first), 0.001, 0.0, 1);
+        for _ in 0..50 {
+            sim.advance(&[1.0], 0.001);
+            before.advance(&[1.0], 0.001);
+        }
+        assert_eq!(sim.x, before.x);
+        let mut after = PlantSim::new(Box::new(late), 0.001, 0.0, 1);
+        after.x = sim.x.clone();
+        for _ in 0..50 {
+            sim.advance(&[1.0], 0.001);
+            after.advance(&[1.0], 0.001);
+        }
+        assert_eq!(sim.x, after.x);
+        assert_eq!(changed.input_gain_at(0.0), Some(40.0));
+        assert_eq!(changed.input_gain_at(0.06), Some(10.0));
+        let e = parse(&format!("{base}[[change]]\nat = 1.0\nb = [1.0]\n"), 0.001).unwrap_err();
+        assert_eq!(e.key, "plant.lti.change[0].b");
+        let e = parse(&format!("{base}[[change]]\nat = 1.0\n"), 0.001).unwrap_err();
+        assert_eq!(e.key, "plant.lti.change[0]");
     }
 
     #[test]

@@ -285,7 +285,8 @@ pub trait Plant: Send {
     /// control period, or an exact discretisation): advance the state in place and return true;
     /// `PlantSim::advance` then integrates nothing. Default: false (a continuous plant, integrated
     /// with RK4 from `derivative`).
-    fn map(&self, _x: &mut [f64], _u: &[f64], _dt: f64) -> bool {
+    /// `t` is the time the span starts.
+    fn map(&self, _t: f64, _x: &mut [f64], _u: &[f64], _dt: f64) -> bool {
         false
     }
 }
@@ -333,7 +334,7 @@ impl PlantSim {
         if dt <= 0.0 {
             return;
         }
-        if self.plant.map(&mut self.x, u, dt) {
+        if self.plant.map(self.t, &mut self.x, u, dt) {
             self.t += dt;
             return;
         }
