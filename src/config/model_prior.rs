@@ -53,15 +53,16 @@ pub fn validate(
     indirect: bool,
     period: f64,
 ) -> Result<Option<ModelPrior>, ConfigError> {
-    let general = indirect && matches!(plant, PlantModel::Lti(_) | PlantModel::External(_));
-    if !general {
+    let linear = matches!(plant, PlantModel::Lti(_) | PlantModel::External(_));
+    if !(linear && indirect) {
+        // Kept but unused in another mode (a frozen comparison run with `--optimiser off`).
         return match raw {
-            Some(_) => check.fail(
+            Some(_) if !linear => check.fail(
                 "optimiser.model",
                 "is the general indirect scheme's (optimiser.mode = \"indirect\" on an lti or \
                  external plant)",
             ),
-            None => Ok(None),
+            _ => Ok(None),
         };
     }
     if !matches!(controller.model, ControllerModel::Pid(_)) {
@@ -182,6 +183,64 @@ fn largest_root(den: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::{Overrides, Scenario};
+
+    fn parse(file: &str, edit: impl Fn(String) -> String) -> Result<Scenario, ConfigError> {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config")
+            .join(file);
+        let text = edit(std::fs::read_to_string(&path).unwrap());
+        Scenario::parse(&text, &path, &Overrides::default())
+    }
+
+    /// An lti plant's prior is its own configured model (not its changes); an external plant
+    /// must give one; the table is refused on a plant with a scheme of its own, and state
+    /// feedback is refused under the general scheme, each naming its key.
+    #[test]
+    fn the_prior_comes_from_the_plant_or_the_table_and_misuse_names_its_key() {
+        let s = parse("lti_motor_indirect.toml", |t| t).unwrap();
+        let p = s.optimiser.model.unwrap();
+        assert_eq!(p.den.len(), 3);
+        assert!(
+            p.den
+                .iter()
+                .zip([1.0, 20.0, 0.0])
+                .all(|(a, b)| (a - b).abs() < 1e-9),
+            "{p:?}"
+        );
+        assert!((p.num[2] - 40.0).abs() < 1e-9 && p.zeros == 0, "{p:?}");
+        assert!((p.filter_pole - 60.0).abs() < 1e-6, "{}", p.filter_pole);
+        let s = parse("external_motor_indirect.toml", |t| t).unwrap();
+        assert_eq!(s.optimiser.model.unwrap().den, vec![1.0, 20.0, 0.0]);
+        let e = parse("external_motor_indirect.toml", |t| {
+            t.replace("num = [40.0]", "")
+                .replace("den = [1.0, 20.0, 0.0]", "")
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "optimiser.model.num");
+        // Kept, unused, when the run is frozen.
+        let frozen = Overrides {
+            optimiser: Some(crate::config::OptimiserMode::Off),
+            ..Default::default()
+        };
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config/external_motor_indirect.toml");
+        assert!(Scenario::load(&path, &frozen)
+            .unwrap()
+            .optimiser
+            .model
+            .is_none());
+        let e = parse("maglev_indirect.toml", |t| {
+            t.replace("[output]", "[optimiser.model]\nmemory = 2.0\n\n[output]")
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "optimiser.model");
+        let e = parse("lti_pendulum.toml", |t| {
+            t.replace("mode = \"schedule\"", "mode = \"indirect\"")
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "controller.kind");
+    }
 
     #[test]
     fn the_prior_is_made_monic_and_padded_and_bad_orders_are_refused() {

@@ -461,7 +461,13 @@ fn frozen_comparison(
     if compare && span > FROZEN_LIMIT_S {
         eprintln!("evoloop: note: the run is longer than {FROZEN_LIMIT_S} s; the frozen comparison is left out of the report");
     }
-    (compare && span <= FROZEN_LIMIT_S)
+    // A plant of the user's own runs in its own process only: its frozen run is theirs to make
+    // (`--optimiser off`).
+    let simulated = scn.require_in_process().is_ok();
+    if compare && !simulated {
+        eprintln!("evoloop: note: evoloop cannot simulate this plant; for the frozen comparison run it again with --optimiser off");
+    }
+    (compare && simulated && span <= FROZEN_LIMIT_S)
         .then(|| frozen_readings(scn, &frozen_traces(scn, span), change, quarter))
 }
 

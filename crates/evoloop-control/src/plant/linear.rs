@@ -200,7 +200,9 @@ impl LinearModel {
                     (0, 2) => -b * kd,
                     (0, 3) => -b * p * self.d,
                     (1, 0) => -ki * c,
-                    (1, 1) => 1.0,
+                    // Without integral action the integrator holds a constant, an offset and not
+                    // a mode: its eigenvalue 1 is left out (written 0).
+                    (1, 1) => f64::from(ki != 0.0),
                     (1, 3) => -ki * self.d,
                     (2, 0) => -c,
                     (2, 3) => -self.d,
@@ -265,9 +267,8 @@ mod tests {
     }
 
     /// A proportional controller on the sampled integrator z+ = z + T u: pole 1 - k_p T,
-    /// stable for 0 < k_p T < 2; an integral gain moves the limit (Jury: with P = k_p + k_i
-    /// the poles of z^2 - (2 - P T) z + (1 - k_p T) are inside for 0 < k_i T and
-    /// (2 - P T) < 2 - k_p T ... checked against the roots directly).
+    /// stable for 0 < k_p T < 2. With integral action the poles are the roots of
+    /// z^2 - (2 - (k_p + k_i) T) z + (1 - k_p T), checked against the roots directly.
     #[test]
     fn a_pid_on_the_sampled_integrator_is_stable_where_its_poles_say() {
         let t = 0.1;
