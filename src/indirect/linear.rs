@@ -194,7 +194,10 @@ impl LinearEstimator {
         self.tt = l * self.tt + target * target;
         self.weight = l * self.weight + 1.0;
         self.samples += 1;
-        if self.samples % ((SOLVE_EVERY_S / self.period).round().max(1.0) as u64) == 0 {
+        if self
+            .samples
+            .is_multiple_of((SOLVE_EVERY_S / self.period).round().max(1.0) as u64)
+        {
             self.solve();
         }
     }
