@@ -316,7 +316,8 @@ fn in_realtime_an_epoch_longer_than_the_state_queue_loses_no_sample() {
 /// tuned PID costs less per repetition than the frozen configured set on every seed, with the
 /// study's paired test saying so, and less than the strongest frozen baseline too: the set the
 /// scheme itself had tuned for the nominal motor, kept frozen from the start (Wilcoxon on the
-/// same seeds). The estimate ends on the true input gain.
+/// same seeds). The estimate ends on the true input gain, and the controller checks sets on the
+/// estimated transfer function it adopts.
 #[test]
 fn the_general_scheme_beats_the_frozen_pid_and_the_nominally_tuned_one_after_the_motor_s_load_change(
 ) {
@@ -337,6 +338,15 @@ fn the_general_scheme_beats_the_frozen_pid_and_the_nominally_tuned_one_after_the
         let s = json(&dir.join("summary.json"));
         let err = s["model_estimate_error"].as_f64().unwrap();
         assert!(err.abs() < 0.01, "seed {seed}: input gain off by {err}");
+        // The controller checked every set on the estimates it adopted, in the cycle, without
+        // allocating, and the optimiser sent none it would refuse.
+        assert!(
+            s["check_model"]["adopted"].as_u64().unwrap() > 100,
+            "{}",
+            s["check_model"]
+        );
+        assert_eq!(s["cycle_allocations"]["allocations"], 0);
+        assert_eq!(s["rejected_versions"], 0);
         tuned.push(s["cost_after_change"].as_f64().unwrap());
         frozen.push(s["cost_after_change_frozen"].as_f64().unwrap());
         // The last set published before the change, frozen from the start on the same seed.

@@ -199,10 +199,17 @@ impl Scenario {
     }
 
     /// The linear model new parameter sets must stabilise before use (state feedback on a plant
-    /// with a linear model, at its nominal parameters); None otherwise.
+    /// with a linear model, at its nominal parameters; a PID under the general indirect scheme,
+    /// on the nominal transfer function of `[optimiser.model]`); None otherwise.
     pub fn linear_model(&self) -> Option<crate::control::LinearModel> {
         if self.controller.model.config().checks_stability() {
             self.plant.model.config().linear_model()
+        } else if let Some(prior) = &self.optimiser.model {
+            crate::control::LinearModel::sampled_transfer_function(
+                &prior.num,
+                &prior.den,
+                self.timing.period,
+            )
         } else {
             None
         }

@@ -261,6 +261,11 @@ impl LinearEstimator {
         self.monitor.theta = self.theta.iter().copied().collect();
     }
 
+    /// A fit has been adopted.
+    pub fn ready(&self) -> bool {
+        self.monitor.fits_adopted > 0
+    }
+
     /// The input gain b_m (the transfer function's leading numerator coefficient, den monic)
     /// and its standard deviation.
     pub fn estimate(&self, t: f64) -> Estimate {
@@ -280,7 +285,7 @@ impl Estimator for LinearEstimator {
         LinearEstimator::estimate(self, t)
     }
     fn ready(&self) -> bool {
-        self.monitor.fits_adopted > 0
+        LinearEstimator::ready(self)
     }
     fn nominal(&self) -> f64 {
         self.nominal[self.n + self.m]
@@ -294,6 +299,24 @@ impl Estimator for LinearEstimator {
     fn monitor(&self) -> Option<Monitor> {
         Some(self.monitor.clone())
     }
+    fn transfer_function(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+        let theta: Vec<f64> = self.theta.iter().copied().collect();
+        self.ready()
+            .then(|| transfer_function(self.n, self.m, &theta))
+    }
+}
+
+/// (num, den), descending powers, den monic, from theta = [a_0 .. a_{n-1}, b_0 .. b_m].
+pub fn transfer_function(n: usize, m: usize, theta: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let mut den = vec![1.0; n + 1];
+    for i in 0..n {
+        den[n - i] = theta[i];
+    }
+    let mut num = vec![0.0; n + 1];
+    for j in 0..=m {
+        num[n - j] = theta[n + j];
+    }
+    (num, den)
 }
 
 /// The closed loop a candidate is scored on, all but the model's coefficients.
@@ -314,16 +337,7 @@ pub struct LoopModel {
 impl LoopModel {
     /// The estimated transfer function (num, den), descending powers, from theta.
     pub fn transfer_function(&self, theta: &[f64]) -> (Vec<f64>, Vec<f64>) {
-        let n = self.n;
-        let mut den = vec![1.0; n + 1];
-        for i in 0..n {
-            den[n - i] = theta[i];
-        }
-        let mut num = vec![0.0; n + 1];
-        for j in 0..=self.m {
-            num[n - j] = theta[n + j];
-        }
-        (num, den)
+        transfer_function(self.n, self.m, theta)
     }
 
     fn plant(&self, theta: &[f64], gain: f64) -> Option<LtiSpec> {
@@ -332,24 +346,16 @@ impl LoopModel {
         LtiSpec::from_transfer_function(&num, &den, self.period, self.u_range).ok()
     }
 
-    /// Whether the PID's set keeps the sampled loop stable on the model, its input gain at each
-    /// of `GAIN_CHECKED` times the estimate's.
+    /// Whether the set keeps the sampled loop stable on the model, its input gain at each of
+    /// `GAIN_CHECKED` times the estimate's: the controller's own check (`Controller::stabilises`
+    /// on `LinearModel::sampled_transfer_function`), which it applies to the estimates it adopts.
     pub fn stable(&self, theta: &[f64], params: &[f64]) -> bool {
-        let pid = crate::control::Pid::new(
-            match &self.controller.model {
-                crate::control::ControllerModel::Pid(p) => p.anti_windup,
-                _ => return false,
-            },
-            params,
-            self.period,
-            self.u_range,
-            0.0,
-        );
-        let (kp, kd, ki) = (params[0], params[0] * params[1] / self.period, pid.ki(0.0));
+        let law = self.controller.build(self.period);
+        let (num, den) = self.transfer_function(theta);
         GAIN_CHECKED.iter().all(|g| {
-            self.plant(theta, *g)
-                .and_then(|p| crate::plant::PlantConfig::linear_model(&p))
-                .is_some_and(|lm| lm.stabilised_by_pid(kp, kd, ki))
+            let scaled: Vec<f64> = num.iter().map(|b| b * g).collect();
+            crate::control::LinearModel::sampled_transfer_function(&scaled, &den, self.period)
+                .is_some_and(|lm| law.stabilises(&lm, params))
         })
     }
 
@@ -495,6 +501,10 @@ impl Tuner for LinearTuner {
     fn epoch_evaluations(&self) -> usize {
         self.epoch_evaluations
     }
+    fn checked_model(&self, _: f64, theta: &[f64]) -> Option<crate::control::LinearModel> {
+        let (num, den) = self.model.transfer_function(theta);
+        crate::control::LinearModel::sampled_transfer_function(&num, &den, self.model.period)
+    }
 }
 
 #[cfg(test)]
@@ -635,5 +645,56 @@ mod tests {
         assert!(!tuner.model.stable(&theta, &[10.0, 0.0, 1.0]));
         assert!(tuner.model.stable(&theta, &[60.0, 0.0, 1.0]));
         assert_eq!(tuner.model.cost(&theta, &[10.0, 0.0, 1.0]), f64::INFINITY);
+    }
+
+    /// The controller's own check under the general scheme: a PID set stable on the nominal
+    /// motor but not on the loaded one (Routh on s^3 + a_1 s^2 + b K_p s + b K_i / T: stable
+    /// for a_1 K_p > K_i / T, 200 > 100 nominal, 66.7 < 100 loaded) goes into service until
+    /// the loaded motor's estimate is adopted, and is refused after it with its own reason;
+    /// a set unstable on the nominal model is refused from the start.
+    #[test]
+    fn the_controller_refuses_a_pid_set_unstable_on_the_adopted_estimate() {
+        use crate::msg::{ParamCode, ParamSet, Telemetry};
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lti_motor_indirect.toml");
+        let scn = Scenario::load(&path, &Overrides::default()).unwrap();
+        let offer = |cycle: &mut crate::control::cycle::ControlCycle, v: u64, values: &[f64]| {
+            let seq = cycle.next_cycle();
+            cycle.offer(&ParamSet::new(v, seq, scn.controller.param_kind(), values));
+            let s = PlantState {
+                seq,
+                t: seq as f64 * 1e-3,
+                n_x: 3,
+                n_q: 1,
+                n_y: 1,
+                ..Default::default()
+            };
+            cycle
+                .step(&s, &mut Telemetry::default())
+                .expect("an event")
+                .code
+        };
+        let set = [10.0, 0.0, 0.1];
+        let mut cycle = crate::sim::control_cycle(&scn);
+        assert_eq!(
+            offer(&mut cycle, 1, &[1.0, 0.0, 1.0]),
+            ParamCode::RejectedUnstable
+        );
+        assert_eq!(offer(&mut cycle, 1, &set), ParamCode::Accepted);
+        let loaded = crate::control::LinearModel::sampled_transfer_function(
+            &[0.0, 0.0, 13.3333],
+            &[1.0, 6.6667, 0.0],
+            1e-3,
+        )
+        .unwrap();
+        cycle.check_on(loaded);
+        assert_eq!(
+            offer(&mut cycle, 2, &set),
+            ParamCode::RejectedUnstableOnEstimate
+        );
+        assert_eq!(
+            offer(&mut cycle, 2, &[20.0, 0.02, 0.02]),
+            ParamCode::Accepted
+        );
     }
 }

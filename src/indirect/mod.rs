@@ -298,6 +298,11 @@ pub trait Estimator: Send {
     fn monitor(&self) -> Option<linear::Monitor> {
         None
     }
+    /// The estimated transfer function (num, den), once a fit has been adopted (general
+    /// scheme), for the controller's check.
+    fn transfer_function(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+        None
+    }
 }
 
 /// The tuning half: epochs of an optimiser on the model carrying an estimate. An epoch may take
@@ -310,6 +315,12 @@ pub trait Tuner: Send {
     fn margin(&self) -> f64;
     /// Evaluations one epoch spends.
     fn epoch_evaluations(&self) -> usize;
+    /// The linear model the controller checks sets on once it adopts this estimate, when the
+    /// tuner's model defines it (the general scheme's estimated transfer function); None to
+    /// take the plant's (`PlantConfig::linear_model_at`).
+    fn checked_model(&self, _p: f64, _coefficients: &[f64]) -> Option<crate::control::LinearModel> {
+        None
+    }
 }
 
 impl Estimator for MaglevEstimator {
@@ -339,6 +350,14 @@ impl Tuner for MaglevTuner {
     fn epoch_evaluations(&self) -> usize {
         self.epoch_evaluations
     }
+}
+
+/// The controller's stability check as the optimiser applies it: its law, the configured
+/// model and the plant (for the model at an estimate).
+struct LawCheck {
+    nominal: crate::control::LinearModel,
+    law: Box<dyn crate::control::Controller>,
+    plant: PlantModel,
 }
 
 /// An epoch on the worker thread: the tuner goes with it and comes back with the candidate.
@@ -374,9 +393,9 @@ pub struct Indirect {
     /// realtime, those that overflowed the state queue while an epoch ran.
     pub samples_missed: u64,
     /// Linear plants: the controller checks sets for stability on the configured linear model
-    /// and on the one at the latest estimate it adopted; the optimiser applies the same checks,
-    /// the second on the model the epoch tuned on, before publishing.
-    check: Option<(crate::control::LinearModel, PlantModel)>,
+    /// and on the one at the latest estimate it adopted; the optimiser applies the same checks
+    /// with the same law, the second on the model the epoch tuned on, before publishing.
+    check: Option<LawCheck>,
 }
 
 impl Indirect {
@@ -451,7 +470,11 @@ impl Indirect {
             estimates: History::new(HISTORY),
             epochs: History::new(HISTORY),
             samples_missed: 0,
-            check: scn.linear_model().map(|m| (m, scn.plant.model.clone())),
+            check: scn.linear_model().map(|nominal| LawCheck {
+                nominal,
+                law: scn.build_controller(),
+                plant: scn.plant.model.clone(),
+            }),
         })
     }
 
@@ -486,6 +509,11 @@ impl Indirect {
     /// The estimator's monitors (general scheme).
     pub fn monitor(&self) -> Option<linear::Monitor> {
         self.estimator.monitor()
+    }
+
+    /// The estimated transfer function, once adopted (general scheme).
+    pub fn transfer_function(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+        self.estimator.transfer_function()
     }
 
     /// The last version this optimiser published (0: none yet).
@@ -573,15 +601,15 @@ impl Indirect {
             // An epoch that panicked is a bug: let the process fail as it would have inline.
             Err(panic) => std::panic::resume_unwind(panic),
         };
-        self.tuner = Some(tuner);
         // Only sets the controller will accept: linear plants must be stable on its model.
-        let accepted_there = self.check.as_ref().is_none_or(|(nominal, plant)| {
-            nominal.stabilised_by(&c.params)
-                && plant
-                    .config()
-                    .linear_model_at(run.p)
-                    .is_some_and(|m| m.stabilised_by(&c.params))
+        let accepted_there = self.check.as_ref().is_none_or(|ck| {
+            let at = tuner
+                .checked_model(run.p, &run.coefficients)
+                .or_else(|| ck.plant.config().linear_model_at(run.p));
+            ck.law.stabilises(&ck.nominal, &c.params)
+                && at.is_some_and(|m| ck.law.stabilises(&m, &c.params))
         });
+        self.tuner = Some(tuner);
         let better =
             publish && accepted_there && c.expected_cost < c.in_service_cost * (1.0 - self.margin);
         let mut rec = EpochRecord {

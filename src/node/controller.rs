@@ -51,16 +51,49 @@ struct Wake {
 struct Ports {
     params: Sub<ParamSet>,
     /// The optimiser's model estimate, when new sets are checked on a model of the plant.
-    estimate: Option<Sub<ModelEstimate>>,
+    estimate: Option<EstimatePort>,
     command: Pub<Command>,
     telemetry: Pub<Telemetry>,
     state: Sub<PlantState>,
 }
 
+/// The estimates a controller checks new sets on: a plant parameter (`ModelCheck`: the
+/// two-mass's spring) or a whole transfer function (`LinearCheck`: the general scheme's).
+enum EstimatePort {
+    Parameter(Sub<ModelEstimate>),
+    Linear(Sub<crate::msg::LinearEstimate>),
+}
+
+enum EstimateCheck {
+    Parameter(ModelCheck),
+    Linear(crate::control::model_check::LinearCheck),
+}
+
+impl EstimateCheck {
+    /// For the scenario: the general scheme's transfer function, or the plant parameter when
+    /// the plant has a linear model at any value of it; None when nothing is re-checked.
+    fn of(scn: &crate::config::Scenario) -> Option<Self> {
+        scn.linear_model()?;
+        match scn.optimiser.model {
+            Some(_) => Some(Self::Linear(crate::control::model_check::LinearCheck::new(
+                scn.timing.period,
+            ))),
+            None => ModelCheck::new(&scn.plant.model).map(Self::Parameter),
+        }
+    }
+
+    fn report(&self) -> crate::control::model_check::ModelCheckReport {
+        match self {
+            Self::Parameter(m) => m.report.clone(),
+            Self::Linear(l) => l.report.clone(),
+        }
+    }
+}
+
 /// Everything the loop writes into, allocated before it starts.
 struct Loop {
     cycle: ControlCycle,
-    model_check: Option<ModelCheck>,
+    model_check: Option<EstimateCheck>,
     /// run.csv's columns, then timing.csv's: streamed to disk by a writer thread.
     log: LogStream,
     /// run.mcap's recorder (`output.mcap`).
@@ -167,9 +200,7 @@ impl Loop {
         Ok(Self {
             record,
             cycle,
-            model_check: scn
-                .linear_model()
-                .and_then(|_| ModelCheck::new(&scn.plant.model)),
+            model_check: EstimateCheck::of(scn),
             row: vec![0.0; width],
             log,
             timing: TimingStats::default(),
@@ -225,16 +256,26 @@ impl Loop {
                 r.params(&p);
             }
         }
-        if let (Some(mc), Some(sub)) = (self.model_check.as_mut(), ports.estimate.as_ref()) {
-            while let Some(e) = sub.next()? {
-                mc.offer(&e);
-                if let Some(r) = self.record.as_mut() {
-                    r.estimate(&e);
+        let adopted = match (self.model_check.as_mut(), ports.estimate.as_ref()) {
+            (Some(EstimateCheck::Parameter(mc)), Some(EstimatePort::Parameter(sub))) => {
+                while let Some(e) = sub.next()? {
+                    mc.offer(&e);
+                    if let Some(r) = self.record.as_mut() {
+                        r.estimate(&e);
+                    }
                 }
+                mc.due(state.seq)
             }
-            if let Some(m) = mc.due(state.seq) {
-                self.cycle.check_on(m);
+            (Some(EstimateCheck::Linear(lc)), Some(EstimatePort::Linear(sub))) => {
+                while let Some(e) = sub.next()? {
+                    lc.offer(&e);
+                }
+                lc.due(state.seq)
             }
+            _ => None,
+        };
+        if let Some(m) = adopted {
+            self.cycle.check_on(m);
         }
         let mut tel = Telemetry::default();
         if let Some(e) = self.cycle.step(state, &mut tel) {
@@ -333,9 +374,18 @@ pub fn main(args: &ProcessArgs) {
                 crate::control::cycle::PENDING_CAPACITY,
                 false,
             )?,
-            estimate: match scn.linear_model() {
-                Some(_) => Some(ipc.subscriber(Topic::Estimate, 4, false)?),
-                None => None,
+            estimate: match (scn.linear_model(), &scn.optimiser.model) {
+                (Some(_), Some(_)) => Some(EstimatePort::Linear(ipc.subscriber(
+                    Topic::LinearEstimate,
+                    4,
+                    false,
+                )?)),
+                (Some(_), None) => Some(EstimatePort::Parameter(ipc.subscriber(
+                    Topic::Estimate,
+                    4,
+                    false,
+                )?)),
+                _ => None,
             },
             command: ipc.publisher(Topic::Command, true)?,
             telemetry: ipc.publisher(Topic::Telemetry, false)?,
@@ -566,7 +616,7 @@ fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
     report.final_params = lp.cycle.controller.params().to_vec();
     report.pending_dropped = lp.cycle.pending_dropped;
     report.refused_states = lp.cycle.refused;
-    report.check_model = lp.model_check.as_ref().map(|m| m.report.clone());
+    report.check_model = lp.model_check.as_ref().map(EstimateCheck::report);
     report.cycle_allocations = lp.watch_allocations.then(|| alloc_count::CycleAllocations {
         cycles: lp
             .cycle

@@ -34,6 +34,8 @@ struct Ports {
     sync: Doorbell,
     params: Pub<ParamSet>,
     estimate: Pub<ModelEstimate>,
+    /// The general indirect scheme's estimated transfer function.
+    estimate_linear: Option<Pub<crate::msg::LinearEstimate>>,
     status: Pub<OptimiserStatus>,
     ack: Pub<OptimiserAck>,
     command: Sub<Command>,
@@ -61,6 +63,10 @@ pub fn main(cli: &OptimiserArgs) {
             sync: ipc.doorbell(Topic::Sync)?,
             params: ipc.publisher(Topic::Params, false)?,
             estimate: ipc.publisher(Topic::Estimate, false)?,
+            estimate_linear: match scn.optimiser.model {
+                Some(_) => Some(ipc.publisher(Topic::LinearEstimate, false)?),
+                None => None,
+            },
             status: ipc.publisher(Topic::OptimiserStatus, false)?,
             operator: ipc.subscriber(Topic::Operator, 4, false)?,
             operator_ack: ipc.publisher(Topic::OperatorAck, false)?,
@@ -327,6 +333,19 @@ impl<'a> Serve<'a> {
                     },
                 };
                 self.ports.estimate.send(&msg).map_err(io)?;
+                if let (Some(port), Some((num, den))) =
+                    (self.ports.estimate_linear.as_ref(), ind.transfer_function())
+                {
+                    let mut lin = crate::msg::LinearEstimate {
+                        t: e.t,
+                        apply_at_seq: msg.apply_at_seq,
+                        poles: (den.len() - 1) as u32,
+                        ..Default::default()
+                    };
+                    lin.num[..num.len()].copy_from_slice(&num);
+                    lin.den[..den.len()].copy_from_slice(&den);
+                    port.send(&lin).map_err(io)?;
+                }
             }
         }
         if let Some(l) = self.live.as_mut() {

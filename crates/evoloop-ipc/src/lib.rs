@@ -69,6 +69,8 @@ pub enum Topic {
     OptimiserAck,
     /// The optimiser's online model estimate (indirect scheme).
     Estimate,
+    /// The general indirect scheme's estimated transfer function.
+    LinearEstimate,
     /// The optimiser's progress after each epoch (for watchers).
     OptimiserStatus,
     /// An operator's command to the tuner (`evoloop operator`, `evoloop top`).
@@ -90,6 +92,7 @@ impl Topic {
             Topic::Params => "params",
             Topic::OptimiserAck => "optimiser_ack",
             Topic::Estimate => "estimate",
+            Topic::LinearEstimate => "estimate_linear",
             Topic::OptimiserStatus => "optimiser_status",
             Topic::Operator => "operator",
             Topic::OperatorAck => "operator_ack",
@@ -108,6 +111,7 @@ impl Topic {
             | Topic::Ready
             | Topic::Sync
             | Topic::Estimate
+            | Topic::LinearEstimate
             | Topic::OptimiserStatus
             | Topic::Operator
             | Topic::OperatorAck => 4,

@@ -450,6 +450,25 @@ pub struct ModelEstimate {
     pub apply_at_seq: u64,
 }
 
+/// The most poles of a `LinearEstimate`'s transfer function.
+pub const MAX_ESTIMATE_POLES: usize = 4;
+
+/// The general indirect scheme's estimated transfer function (an `lti` plant or a plant of the
+/// user's own), published beside `ModelEstimate` at 10 Hz of plant time, for the controller to
+/// check new sets on: b(s) / a(s), descending powers, `poles + 1` values of each in use, `den`
+/// monic and `num[0] = 0` (strictly proper).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LinearEstimate {
+    pub t: f64,
+    /// Adopted at the cycle of this sample, or at once when 0 (as `ModelEstimate`'s).
+    pub apply_at_seq: u64,
+    pub poles: u32,
+    pub reserved: u32,
+    pub num: [f64; MAX_ESTIMATE_POLES + 1],
+    pub den: [f64; MAX_ESTIMATE_POLES + 1],
+}
+
 wire_enum! {
     /// What an operator asks of the tuner of a running run (`evoloop operator`, `evoloop top`).
     pub enum OperatorAction {
@@ -565,6 +584,7 @@ zero_copy!(
     OptimiserStatus => "evoloop::OptimiserStatus.v1",
     OperatorCommand => "evoloop::OperatorCommand.v1",
     OperatorAck => "evoloop::OperatorAck.v1",
+    LinearEstimate => "evoloop::LinearEstimate.v1",
 );
 
 #[cfg(test)]
@@ -597,6 +617,7 @@ mod tests {
                 OptimiserStatus::type_name(),
                 OperatorCommand::type_name(),
                 OperatorAck::type_name(),
+                LinearEstimate::type_name(),
             ]
         };
         for n in names {
@@ -647,6 +668,8 @@ mod tests {
         assert_eq!(size_of::<ModelEstimate>(), 40);
         assert_eq!(size_of::<OperatorCommand>(), 24);
         assert_eq!(size_of::<OperatorAck>(), 32);
+        assert_eq!(size_of::<LinearEstimate>(), 24 + 8 * 10);
+        assert_eq!(offset_of!(LinearEstimate, num), 24);
         for a in OperatorAction::ALL {
             assert_eq!(OperatorAction::try_from(a.code()), Ok(*a));
         }

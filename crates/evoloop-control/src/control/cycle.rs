@@ -358,13 +358,13 @@ impl ControlCycle {
             .map_err(refused)?;
         if self
             .stability
-            .is_some_and(|m| !m.stabilised_by(set.values()))
+            .is_some_and(|m| !c.stabilises(&m, set.values()))
         {
             return Err((ParamCode::RejectedUnstable, 0));
         }
         if self
             .estimated
-            .is_some_and(|m| !m.stabilised_by(set.values()))
+            .is_some_and(|m| !c.stabilises(&m, set.values()))
         {
             return Err((ParamCode::RejectedUnstableOnEstimate, 0));
         }

@@ -159,6 +159,12 @@ pub trait Controller: Send {
     /// have (bumpless transfer). Laws without internal state cannot absorb the difference; they
     /// switch outright (the jump is proportional to the gain change times the tracking error).
     fn swap_params(&mut self, new: &[f64], state: &PlantState, sp: &Setpoint);
+    /// Whether the set `values` keeps this law's loop on the linear `model` stable, the check
+    /// a linear plant's new sets pass: state feedback's u = -K [x; xi] unless the law says
+    /// otherwise. Allocation-free.
+    fn stabilises(&self, model: &LinearModel, values: &[f64]) -> bool {
+        model.stabilised_by(values)
+    }
     /// A trial set (the direct scheme) is about to go in service: remember the law's internal
     /// state (integrators) as it is, for `abort_to`. Must not allocate.
     fn save_state(&mut self) {}

@@ -9,7 +9,7 @@
 //! or not positive is refused and the last good model stays.
 
 use super::LinearModel;
-use crate::msg::ModelEstimate;
+use crate::msg::{LinearEstimate, ModelEstimate};
 use crate::plant::PlantModel;
 
 /// Estimates waiting for their sample: at 10 Hz and applied within a synchronisation interval,
@@ -76,5 +76,98 @@ impl ModelCheck {
             }
         }
         model
+    }
+}
+
+/// The general indirect scheme's counterpart of `ModelCheck` (an `lti` plant or a plant of the
+/// user's own): the controller checks new sets on the estimated transfer function the
+/// optimiser publishes (`LinearEstimate`), adopted at the sample it names. An estimate that is
+/// malformed (not finite, not monic, not strictly proper, more poles than the message holds)
+/// or whose sampled model is not finite is refused and the last good model stays.
+pub struct LinearCheck {
+    period: f64,
+    pending: Vec<LinearEstimate>,
+    pub report: ModelCheckReport,
+}
+
+impl LinearCheck {
+    pub fn new(period: f64) -> Self {
+        Self {
+            period,
+            pending: Vec::with_capacity(PENDING),
+            report: ModelCheckReport::default(),
+        }
+    }
+
+    /// Queue a received estimate. Never allocates.
+    pub fn offer(&mut self, e: &LinearEstimate) {
+        if self.pending.len() == PENDING {
+            self.pending.remove(0);
+            self.report.dropped += 1;
+        }
+        self.pending.push(*e);
+    }
+
+    /// Adopt every estimate due at sample `seq`, in order; the sampled model of the last good
+    /// one when any was adopted. Allocation-free.
+    pub fn due(&mut self, seq: u64) -> Option<LinearModel> {
+        let mut model = None;
+        while let Some(i) = self.pending.iter().position(|e| e.apply_at_seq <= seq) {
+            let e = self.pending.remove(i);
+            let n = e.poles as usize;
+            let m = (n < e.num.len())
+                .then(|| {
+                    let (num, den) = (&e.num[..=n], &e.den[..=n]);
+                    if num.iter().chain(den).all(|v| v.is_finite()) {
+                        LinearModel::sampled_transfer_function(num, den, self.period)
+                    } else {
+                        None
+                    }
+                })
+                .flatten();
+            match m {
+                Some(m) => {
+                    model = Some(m);
+                    self.report.adopted += 1;
+                    // The input gain, the leading numerator coefficient that is not zero.
+                    self.report.last_adopted = e.num[..=n].iter().copied().find(|b| *b != 0.0);
+                }
+                None => self.report.refused += 1,
+            }
+        }
+        model
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn estimate(at: u64, num: [f64; 3], den: [f64; 3]) -> LinearEstimate {
+        let mut e = LinearEstimate {
+            apply_at_seq: at,
+            poles: 2,
+            ..Default::default()
+        };
+        e.num[..3].copy_from_slice(&num);
+        e.den[..3].copy_from_slice(&den);
+        e
+    }
+
+    /// Estimates are adopted at their sample, and a malformed one is refused and the last good
+    /// model stays. (That adopting allocates nothing is checked on the real loop:
+    /// `cycle_allocations` of `tests/indirect.rs`'s general-scheme runs.)
+    #[test]
+    fn estimates_are_adopted_at_their_sample_and_bad_ones_refused() {
+        let mut c = LinearCheck::new(1e-3);
+        c.offer(&estimate(10, [0.0, 0.0, 40.0], [1.0, 20.0, 0.0]));
+        c.offer(&estimate(20, [0.0, 0.0, f64::NAN], [1.0, 20.0, 0.0]));
+        c.offer(&estimate(20, [1.0, 0.0, 40.0], [1.0, 20.0, 0.0]));
+        assert!(c.due(9).is_none());
+        let m = c.due(10).expect("the good estimate");
+        assert!(m.stabilised_by_pid(20.0, 20.0 * 0.02 / 1e-3, 0.02));
+        assert!(c.due(20).is_none());
+        assert_eq!((c.report.adopted, c.report.refused), (1, 2));
+        assert_eq!(c.report.last_adopted, Some(40.0));
     }
 }

@@ -101,6 +101,19 @@ pub fn fuzzy_ki_normalised(x: f64, v0e: f64, v1e: f64, ratio_k: f64) -> f64 {
     1.0 / (1.0 + ratio_k * (a * a - b * b).exp())
 }
 
+/// The integral gain (per sample) of scheme `aw` with parameters `p` at error e: K_i, or the
+/// fuzzy anti-windup's error-dependent one.
+pub fn integral_gain(aw: AntiWindup, p: &[f64], e: f64) -> f64 {
+    match aw {
+        AntiWindup::Fuzzy => {
+            let (v0e, v1e, r, ci, ce) = (p[2], p[3], p[4], p[5], p[6]);
+            let x = (e.abs() / ce).min(1.0);
+            ci * (fuzzy_ki_normalised(x, v0e, v1e, r) - fuzzy_ki_normalised(1.0, v0e, v1e, r))
+        }
+        _ => p[2],
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct Pid {
     pub aw: AntiWindup,
@@ -137,15 +150,7 @@ impl Pid {
 
     /// The integral gain at error e (per sample, mA/mm).
     pub fn ki(&self, e: f64) -> f64 {
-        let p = &self.params;
-        match self.aw {
-            AntiWindup::Fuzzy => {
-                let (v0e, v1e, r, ci, ce) = (p[2], p[3], p[4], p[5], p[6]);
-                let x = (e.abs() / ce).min(1.0);
-                ci * (fuzzy_ki_normalised(x, v0e, v1e, r) - fuzzy_ki_normalised(1.0, v0e, v1e, r))
-            }
-            _ => p[2],
-        }
+        integral_gain(self.aw, &self.params, e)
     }
 
     fn pd(&self, e: f64) -> f64 {
@@ -211,6 +216,17 @@ impl Controller for Pid {
         let old = self.pd(e);
         self.params.copy_from_slice(new);
         self.integral += old - self.pd(e);
+    }
+
+    /// The loop as `step` runs it while unsaturated (`LinearModel::stabilised_by_pid`), with
+    /// the integral gain at zero error.
+    fn stabilises(&self, model: &crate::plant::LinearModel, values: &[f64]) -> bool {
+        values.len() == self.aw.n_params()
+            && model.stabilised_by_pid(
+                values[0],
+                values[0] * values[1] / self.period,
+                integral_gain(self.aw, values, 0.0),
+            )
     }
 
     fn save_state(&mut self) {

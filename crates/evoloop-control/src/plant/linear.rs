@@ -175,6 +175,50 @@ impl LinearModel {
 }
 
 impl LinearModel {
+    /// The exact zero-order-hold model at `period` of the strictly proper b(s) / a(s) with n
+    /// poles (`num`, `den`: n + 1 values each, descending powers, den monic, num[0] = 0), in
+    /// the controllable canonical form `[plant.lti]` realises a transfer function in.
+    /// Allocation-free (the exponential of a padded 5 x 5 matrix on the stack), so a controller
+    /// adopts an estimate with it in the cycle. None for more than 4 poles, a model that is not
+    /// strictly proper, or one whose exponential is not finite.
+    pub fn sampled_transfer_function(num: &[f64], den: &[f64], period: f64) -> Option<Self> {
+        const P: usize = 5;
+        let n = den.len().checked_sub(1)?;
+        let proper = num.len() == n + 1 && num[0] == 0.0 && den[0] == 1.0;
+        let period_ok = period.is_finite() && period > 0.0;
+        if !(1..P).contains(&n) || !proper || !period_ok {
+            return None;
+        }
+        // [[A, B], [0, 0]] T: A's first row -den[1..], ones below the diagonal, B = e_0.
+        let m = SMatrix::<f64, P, P>::from_fn(|i, j| match (i, j) {
+            (0, j) if j < n => -den[j + 1] * period,
+            (0, j) if j == n => period,
+            (i, j) if i < n && j + 1 == i => period,
+            _ => 0.0,
+        });
+        let e = m.exp();
+        let (mut a, mut b, mut c) = ([0.0; 16], [0.0; 4], [0.0; 4]);
+        for i in 0..n {
+            for j in 0..n {
+                a[i * n + j] = e[(i, j)];
+            }
+            b[i] = e[(i, n)];
+            c[i] = num[i + 1];
+        }
+        if !a[..n * n].iter().chain(&b[..n]).all(|v| v.is_finite()) {
+            return None;
+        }
+        Some(Self::sampled(
+            period,
+            &a[..n * n],
+            &b[..n],
+            &c[..n],
+            0.0,
+            &[0.0; 4][..n],
+            1.0,
+        ))
+    }
+
     /// Whether a PID stabilises this sampled model (the loop as `control::Pid` runs it while
     /// unsaturated): u_k = P e_k + I_{k-1} - k_d e_{k-1} with P = k_p + k_d + k_i and
     /// I_k = I_{k-1} + k_i e_k, e_k = r - y_k; `kd` = K_p T_v / T and `ki` per sample. Over
@@ -300,5 +344,31 @@ mod tests {
             );
         }
         assert!(!LinearModel::continuous(&[0.0], &[1.0], &[1.0]).stabilised_by_pid(1.0, 0.0, 0.0));
+    }
+
+    /// The transfer function's sampled model is the integrator's closed form for 1/s (Phi = 1,
+    /// Gamma = T), so the PID check on it agrees with the one above; a first-order lag
+    /// 2/(s + 2) gives Phi = e^(-2T), Gamma = 1 - e^(-2T) (through C = 2: b = (1 - e^(-2T))).
+    #[test]
+    fn a_transfer_function_samples_to_its_closed_form() {
+        let t = 0.1;
+        let m = LinearModel::sampled_transfer_function(&[0.0, 1.0], &[1.0, 0.0], t).unwrap();
+        let direct = LinearModel::sampled(t, &[1.0], &[t], &[1.0], 0.0, &[0.0], 1.0);
+        assert!(
+            (m.a[0][0] - 1.0).abs() < 1e-15 && (m.b[0] - t).abs() < 1e-15,
+            "{m:?}"
+        );
+        for (kp, ki) in [(5.0, 1.0), (5.0, 12.0), (15.0, 4.0), (25.0, 0.0)] {
+            assert_eq!(
+                m.stabilised_by_pid(kp, 0.0, ki),
+                direct.stabilised_by_pid(kp, 0.0, ki)
+            );
+        }
+        let lag = LinearModel::sampled_transfer_function(&[0.0, 2.0], &[1.0, 2.0], t).unwrap();
+        let e = (-2.0 * t).exp();
+        assert!((lag.a[0][0] - e).abs() < 1e-14);
+        assert!((lag.b[0] * lag.c[0] - (1.0 - e)).abs() < 1e-14);
+        assert!(LinearModel::sampled_transfer_function(&[1.0, 1.0], &[1.0, 1.0], t).is_none());
+        assert!(LinearModel::sampled_transfer_function(&[0.0; 6], &[1.0; 6], t).is_none());
     }
 }
