@@ -65,7 +65,8 @@ enum EstimatePort {
 }
 
 enum EstimateCheck {
-    Parameter(ModelCheck),
+    /// Boxed: it holds the plant's whole model (allocated once, before the loop).
+    Parameter(Box<ModelCheck>),
     Linear(crate::control::model_check::LinearCheck),
 }
 
@@ -78,7 +79,7 @@ impl EstimateCheck {
             Some(_) => Some(Self::Linear(crate::control::model_check::LinearCheck::new(
                 scn.timing.period,
             ))),
-            None => ModelCheck::new(&scn.plant.model).map(Self::Parameter),
+            None => ModelCheck::new(&scn.plant.model).map(|m| Self::Parameter(Box::new(m))),
         }
     }
 
