@@ -182,6 +182,13 @@ pub fn run(
     let params = In::<ParamSet>::new(&ipc, &z, k(Topic::Params), Topic::Params, false)?;
     let estimate_in =
         In::<ModelEstimate>::new(&ipc, &z, kr(Topic::Estimate), Topic::Estimate, false)?;
+    let estimate_linear_in = In::<crate::msg::LinearEstimate>::new(
+        &ipc,
+        &z,
+        kr(Topic::LinearEstimate),
+        Topic::LinearEstimate,
+        false,
+    )?;
     let status_in = In::<OptimiserStatus>::new(
         &ipc,
         &z,
@@ -212,6 +219,7 @@ pub fn run(
         rep.status_out += status.drain(|_| {})?;
         rep.params_in += params.drain(Duration::ZERO, &mut rep.refused)?;
         rep.estimates_in += estimate_in.drain(Duration::ZERO, &mut rep.refused)?;
+        rep.estimates_in += estimate_linear_in.drain(Duration::ZERO, &mut rep.refused)?;
         status_in.drain(Duration::ZERO, &mut rep.refused)?;
         if ended {
             // The controller's last command and telemetry follow the plant's last state.

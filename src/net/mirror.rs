@@ -90,6 +90,8 @@ struct Ports {
     telemetry: In<Telemetry>,
     params: Out<ParamSet>,
     estimate: Out<ModelEstimate>,
+    /// The general indirect scheme's transfer function, which the controller checks sets on.
+    estimate_linear: Out<crate::msg::LinearEstimate>,
     status: Out<OptimiserStatus>,
 }
 
@@ -112,6 +114,7 @@ impl Ports {
             telemetry: In::new(&ipc, &z, k(Topic::Telemetry), Topic::Telemetry, false)?,
             params: Out::new(&ipc, &z, Topic::Params, k(Topic::Params))?,
             estimate: Out::new(&ipc, &z, Topic::Estimate, kr(Topic::Estimate))?,
+            estimate_linear: Out::new(&ipc, &z, Topic::LinearEstimate, kr(Topic::LinearEstimate))?,
             status: Out::new(&ipc, &z, Topic::OptimiserStatus, kr(Topic::OptimiserStatus))?,
             _z: z,
         })
@@ -128,11 +131,13 @@ impl Ports {
             rep.telemetry_in += self.telemetry.drain(none, &mut rep.refused)?;
             rep.params_out += self.params.drain(|_| {})?;
             rep.estimates_out += self.estimate.drain(|_| {})?;
+            rep.estimates_out += self.estimate_linear.drain(|_| {})?;
             self.status.drain(|_| {})?;
         }
         // What the optimiser published last.
         rep.params_out += self.params.drain(|_| {})?;
         rep.estimates_out += self.estimate.drain(|_| {})?;
+        rep.estimates_out += self.estimate_linear.drain(|_| {})?;
         Ok(rep)
     }
 }
