@@ -311,6 +311,13 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     if optimiser.mode == OptimiserMode::Identify {
         identify_mode_fits(check, &controller)?;
     }
+    if optimiser.model.is_some() && optimiser.workers.is_some() {
+        return check.fail(
+            "optimiser.workers",
+            "the indirect scheme on an lti or external plant evaluates on local threads only \
+             (optimiser.threads)",
+        );
+    }
     if plant.model.config().external().is_some() && optimiser.mode == OptimiserMode::Identify {
         return check.fail(
             "optimiser.mode",

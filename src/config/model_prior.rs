@@ -73,16 +73,18 @@ pub fn validate(
         );
     }
     let raw = raw.unwrap_or_default();
+    if let PlantModel::Lti(spec) = plant {
+        if spec.delay > 0 || spec.dt.is_some() {
+            return check.fail(
+                "optimiser.mode",
+                "the indirect scheme estimates a continuous model without delay: the plant's \
+                 model is discrete or delayed",
+            );
+        }
+    }
     let (num, den) = match (raw.num, raw.den, plant) {
         (Some(num), Some(den), _) => (num, den),
         (None, None, PlantModel::Lti(spec)) => {
-            if spec.delay > 0 || spec.dt.is_some() {
-                return check.fail(
-                    "optimiser.mode",
-                    "the indirect scheme estimates a continuous model without delay: the plant's \
-                     model is discrete or delayed",
-                );
-            }
             spec.transfer_function().ok_or_else(|| ConfigError {
                 file: check.file.clone(),
                 key: "optimiser.mode".into(),
@@ -111,7 +113,7 @@ pub fn validate(
         Some(a) => check.range("optimiser.model.filter_pole", a, 1e-3, 0.5 / period)?,
         // A few times the fastest mode, so the filtered signals keep the dynamics, and well
         // below the sampling rate, where the noise would dominate.
-        None => (3.0 * fastest).clamp(5.0, 0.1 / period),
+        None => (3.0 * fastest).max(5.0).min(0.1 / period),
     };
     let memory = check.range(
         "optimiser.model.memory",
@@ -119,6 +121,13 @@ pub fn validate(
         0.1,
         3600.0,
     )?;
+    // The controller checks sets on this model's sampled loop from the start.
+    if crate::control::LinearModel::sampled_transfer_function(&num, &den, period).is_none() {
+        return check.fail(
+            "optimiser.model.den",
+            format!("the model is far too fast to hold between samples of {period} s"),
+        );
+    }
     Ok(Some(ModelPrior {
         num,
         den,
@@ -212,6 +221,12 @@ mod tests {
         assert!((p.filter_pole - 60.0).abs() < 1e-6, "{}", p.filter_pole);
         let s = parse("external_motor_indirect.toml", |t| t).unwrap();
         assert_eq!(s.optimiser.model.unwrap().den, vec![1.0, 20.0, 0.0]);
+        // A slow loop (20 Hz): the default filter pole is capped below the sampling rate.
+        let slow = parse("lti_motor_indirect.toml", |t| {
+            t.replace("period = 0.001", "period = 0.05")
+        })
+        .unwrap();
+        assert!((slow.optimiser.model.unwrap().filter_pole - 2.0).abs() < 1e-12);
         let e = parse("external_motor_indirect.toml", |t| {
             t.replace("num = [40.0]", "")
                 .replace("den = [1.0, 20.0, 0.0]", "")

@@ -463,7 +463,7 @@ fn frozen_comparison(
     }
     // A plant of the user's own runs in its own process only: its frozen run is theirs to make
     // (`--optimiser off`).
-    let simulated = scn.require_in_process().is_ok();
+    let simulated = scn.simulated();
     if compare && !simulated {
         eprintln!("evoloop: note: evoloop cannot simulate this plant; for the frozen comparison run it again with --optimiser off");
     }

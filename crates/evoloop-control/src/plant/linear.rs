@@ -16,6 +16,18 @@ use nalgebra::{Complex, DMatrix, SMatrix};
 /// 10 x 10, decomposed on the stack).
 pub const MAX_LINEAR_STATES: usize = 8;
 
+/// The largest |[A B]| T (max entry times size times period) discretised: e^{1e3} already
+/// overflows, and nalgebra's exponential squares ceil(log2 |M|) times (endlessly once |M|
+/// overflows), so a larger product is a model far too fast for the control period.
+pub const MAX_NORM_PERIOD: f64 = 1e3;
+
+/// |[A B]| T as `MAX_NORM_PERIOD` bounds it: the largest entry of `a` and `b` times `size`
+/// (states plus inputs) times `period`.
+pub fn norm_period(a: &[f64], b: &[f64], size: usize, period: f64) -> f64 {
+    let largest = a.iter().chain(b).fold(0.0f64, |m, v| m.max(v.abs()));
+    largest * size as f64 * period
+}
+
 /// Continuous time, or sampled at the control period (s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Time {
@@ -187,6 +199,10 @@ impl LinearModel {
         let proper = num.len() == n + 1 && num[0] == 0.0 && den[0] == 1.0;
         let period_ok = period.is_finite() && period > 0.0;
         if !(1..P).contains(&n) || !proper || !period_ok {
+            return None;
+        }
+        // A, B = e_0: the entries are den's and 1.
+        if norm_period(&den[1..], &[1.0], n + 1, period) > MAX_NORM_PERIOD {
             return None;
         }
         // [[A, B], [0, 0]] T: A's first row -den[1..], ones below the diagonal, B = e_0.
@@ -370,5 +386,7 @@ mod tests {
         assert!((lag.b[0] * lag.c[0] - (1.0 - e)).abs() < 1e-14);
         assert!(LinearModel::sampled_transfer_function(&[1.0, 1.0], &[1.0, 1.0], t).is_none());
         assert!(LinearModel::sampled_transfer_function(&[0.0; 6], &[1.0; 6], t).is_none());
+        // Too fast to hold between samples: refused at once, not an endless exponential.
+        assert!(LinearModel::sampled_transfer_function(&[0.0, 1.0], &[1.0, 1e60], t).is_none());
     }
 }

@@ -17,15 +17,12 @@
 
 use super::{LinearModel, Plant, PlantConfig, PlantContext, ScalarInput};
 use crate::check::{Check, ConfigError};
-use crate::plant::linear::MAX_LINEAR_STATES;
+use crate::plant::linear::{norm_period, MAX_LINEAR_STATES, MAX_NORM_PERIOD};
 use crate::{MAX_JOINTS, MAX_STATES};
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
-/// The largest |[A B]| T (max entry times size times period) discretised: e^{1e3} already
-/// overflows, so a larger product is a model far too fast for the control period.
-const MAX_NORM_PERIOD: f64 = 1e3;
 
 /// The most periods of input delay (the delay line is part of the state, `MAX_STATES`).
 pub const MAX_DELAY_PERIODS: usize = 24;
@@ -118,9 +115,11 @@ impl LtiSpec {
     }
 
     /// The model in force at time `t` (a change takes effect at the period starting at its
-    /// time, to within 1e-9 of a period of accumulated rounding).
+    /// time, to within a millionth of a period of accumulated rounding).
     fn phase(&self, t: f64) -> Phase<'_> {
-        let slack = 1e-9 * self.period;
+        // Plant time is a running sum of periods: its rounding reaches 1e-11 s within a minute
+        // at 1 ms, so the slack is a millionth of a period.
+        let slack = 1e-6 * self.period;
         match self.changes.iter().rev().find(|c| t + slack >= c.at) {
             Some(c) => Phase {
                 a: &c.a,
@@ -151,6 +150,9 @@ impl LtiSpec {
             prefix: "",
         };
         let r = transfer_function(Some(num), Some(den), &src).map_err(|e| e.reason)?;
+        if norm_period(&r.a, &r.b, r.n + r.m, period) > MAX_NORM_PERIOD {
+            return Err("the model is far too fast for the control period".into());
+        }
         let (phi, gamma) = zero_order_hold(&r.a, &r.b, r.n, r.m, period);
         if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
             return Err("exp(A T) overflows at the control period".into());
@@ -531,8 +533,7 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Lt
         None => {
             // exp() squares its argument ceil(log2 |M|) times: bound |[A B] T| first, so a
             // huge entry is an error and not an endless (or overflowing) exponential.
-            let largest = r.a.iter().chain(&r.b).fold(0.0f64, |m, v| m.max(v.abs()));
-            let norm_t = largest * (r.n + r.m) as f64 * cx.period;
+            let norm_t = norm_period(&r.a, &r.b, r.n + r.m, cx.period);
             if norm_t > MAX_NORM_PERIOD {
                 return src.fail(
                     "a",
@@ -614,6 +615,13 @@ fn changes(
         };
         if c.a.is_none() && c.b.is_none() {
             return check.fail(&key, "a change needs a new a, b or both");
+        }
+        let norm_t = norm_period(&a, &b, n + m, period);
+        if !discrete && norm_t > MAX_NORM_PERIOD {
+            return check.fail(
+                &format!("{key}.a"),
+                format!("|[A B]| T is about {norm_t:.1e}: too fast for the control period"),
+            );
         }
         let (phi, gamma) = if discrete {
             (a.clone(), b.clone())
@@ -953,6 +961,27 @@ mod tests {
         assert_eq!(sim.x, after.x);
         assert_eq!(changed.input_gain_at(0.0), Some(40.0));
         assert_eq!(changed.input_gain_at(0.06), Some(10.0));
+        // At 40 s the running sum of 1 ms periods falls 1e-11 s short of 40: the change still
+        // takes effect with the period that starts there.
+        let at40 = parse(
+            &format!("{base}[[change]]\nat = 40.0\na = [[0.0, 1.0], [0.0, -5.0]]\nb = [0.0, 10.0]\n"),
+            0.001,
+        )
+        .unwrap();
+        let mut sim = PlantSim::new(Box::new(at40), 0.001, 0.0, 1);
+        for _ in 0..40_000 {
+            sim.advance(&[0.1], 0.001);
+        }
+        let mut after = PlantSim::new(
+            Box::new(parse("a = [[0.0, 1.0], [0.0, -5.0]]\nb = [0.0, 10.0]\nc = [1.0, 0.0]", 0.001).unwrap()),
+            0.001,
+            0.0,
+            1,
+        );
+        after.x = sim.x.clone();
+        sim.advance(&[0.1], 0.001);
+        after.advance(&[0.1], 0.001);
+        assert_eq!(sim.x, after.x, "t = {}", sim.t);
         let e = parse(&format!("{base}[[change]]\nat = 1.0\nb = [1.0]\n"), 0.001).unwrap_err();
         assert_eq!(e.key, "plant.lti.change[0].b");
         let e = parse(&format!("{base}[[change]]\nat = 1.0\n"), 0.001).unwrap_err();
