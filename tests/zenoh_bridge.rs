@@ -96,6 +96,7 @@ struct RemoteTuning {
     run: Child,
     bridge: Child,
     optimiser: Child,
+    run_id: String,
 }
 
 #[cfg(feature = "zenoh")]
@@ -118,13 +119,15 @@ fn remote_tuning(tag: &str, secs: &str, bridge_args: &[&str]) -> RemoteTuning {
         run,
         bridge,
         optimiser,
+        run_id,
     }
 }
 
 /// A realtime run of the maglev's indirect scenario with its own optimiser off; the bridge
 /// listens on loopback and an optimiser process joins over Zenoh with the indirect scheme. The
 /// sets it publishes cross the network and the controller accepts them: the scheme runs with
-/// its tuner on "another host".
+/// its tuner on "another host". An operator on the run's host holds and resumes it: the commands
+/// cross to the remote optimiser and its answers come back.
 #[cfg(feature = "zenoh")]
 #[test]
 fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
@@ -136,7 +139,33 @@ fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
         run,
         bridge,
         optimiser,
+        run_id,
     } = remote_tuning("znet", "12", &["--json"]);
+    let t0 = Instant::now();
+    let mut answers = Vec::new();
+    for (at, action) in [(7.0, "hold"), (7.5, "resume")] {
+        std::thread::sleep(Duration::from_secs_f64(at).saturating_sub(t0.elapsed()));
+        let o = cli(&[
+            "operator",
+            action,
+            "--run",
+            &run_id,
+            "--json",
+            "--timeout",
+            "5",
+        ]);
+        assert!(
+            o.status.code().is_some_and(|c| c <= 1),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        answers
+            .push(serde_json::from_slice::<serde_json::Value>(&o.stdout).expect("JSON on stdout"));
+    }
+    assert!(
+        answers.iter().all(|a| a["outcome"] == "done"),
+        "{answers:?}"
+    );
     let run = finish(run, Duration::from_secs(60));
     assert_ok(&run);
     let bridge = finish(bridge, Duration::from_secs(10));
@@ -149,11 +178,23 @@ fn a_remote_optimiser_tunes_a_realtime_run_through_the_bridge() {
     assert!(b["states"].as_u64().unwrap() >= 11_000, "{b}");
     assert!(b["params_in"].as_u64().unwrap() >= 1, "{b}");
     assert_eq!(b["refused"], 0);
+    assert_eq!(
+        (b["operator_out"].as_u64(), b["operator_acks_in"].as_u64()),
+        (Some(2), Some(2)),
+        "{b}"
+    );
 
     let net = json(&remote.join("network.json"));
     let o = json(&remote.join("optimiser.json"));
     assert!(net["states_in"].as_u64().unwrap() >= 11_000, "{net}");
     assert_eq!(o["mode"], "indirect");
+    let ops: Vec<&str> = o["operator"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["action"].as_str().unwrap())
+        .collect();
+    assert_eq!(ops, ["hold", "resume"], "{}", o["operator"]);
     let published = o["published_count"].as_u64().unwrap();
     assert!(published >= 1, "the remote optimiser published nothing");
     assert_eq!(net["params_out"].as_u64().unwrap(), published);

@@ -152,6 +152,11 @@ pub struct BridgeReport {
     pub status_out: u64,
     pub params_in: u64,
     pub estimates_in: u64,
+    /// An operator's commands out to a remote optimiser, and its answers in.
+    #[serde(default)]
+    pub operator_out: u64,
+    #[serde(default)]
+    pub operator_acks_in: u64,
     pub refused: u64,
     pub seconds: f64,
     /// Why it ended: "run ended", "stopped" or "duration".
@@ -182,6 +187,15 @@ pub fn run(
     let params = In::<ParamSet>::new(&ipc, &z, k(Topic::Params), Topic::Params, false)?;
     let estimate_in =
         In::<ModelEstimate>::new(&ipc, &z, kr(Topic::Estimate), Topic::Estimate, false)?;
+    let operator =
+        Out::<crate::msg::OperatorCommand>::new(&ipc, &z, Topic::Operator, k(Topic::Operator))?;
+    let operator_ack_in = In::<crate::msg::OperatorAck>::new(
+        &ipc,
+        &z,
+        kr(Topic::OperatorAck),
+        Topic::OperatorAck,
+        false,
+    )?;
     let estimate_linear_in = In::<crate::msg::LinearEstimate>::new(
         &ipc,
         &z,
@@ -220,6 +234,8 @@ pub fn run(
         rep.params_in += params.drain(Duration::ZERO, &mut rep.refused)?;
         rep.estimates_in += estimate_in.drain(Duration::ZERO, &mut rep.refused)?;
         rep.estimates_in += estimate_linear_in.drain(Duration::ZERO, &mut rep.refused)?;
+        rep.operator_out += operator.drain(|_| {})?;
+        rep.operator_acks_in += operator_ack_in.drain(Duration::ZERO, &mut rep.refused)?;
         status_in.drain(Duration::ZERO, &mut rep.refused)?;
         if ended {
             // The controller's last command and telemetry follow the plant's last state.

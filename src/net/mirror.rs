@@ -33,6 +33,9 @@ pub struct MirrorReport {
     pub telemetry_in: u64,
     pub params_out: u64,
     pub estimates_out: u64,
+    /// An operator's commands in from the run's host, and the optimiser's answers out.
+    pub operator_in: u64,
+    pub operator_acks_out: u64,
     pub refused: u64,
 }
 
@@ -93,6 +96,8 @@ struct Ports {
     /// The general indirect scheme's transfer function, which the controller checks sets on.
     estimate_linear: Out<crate::msg::LinearEstimate>,
     status: Out<OptimiserStatus>,
+    operator: In<crate::msg::OperatorCommand>,
+    operator_ack: Out<crate::msg::OperatorAck>,
 }
 
 impl Ports {
@@ -116,6 +121,8 @@ impl Ports {
             estimate: Out::new(&ipc, &z, Topic::Estimate, kr(Topic::Estimate))?,
             estimate_linear: Out::new(&ipc, &z, Topic::LinearEstimate, kr(Topic::LinearEstimate))?,
             status: Out::new(&ipc, &z, Topic::OptimiserStatus, kr(Topic::OptimiserStatus))?,
+            operator: In::new(&ipc, &z, k(Topic::Operator), Topic::Operator, false)?,
+            operator_ack: Out::new(&ipc, &z, Topic::OperatorAck, kr(Topic::OperatorAck))?,
             _z: z,
         })
     }
@@ -133,11 +140,15 @@ impl Ports {
             rep.estimates_out += self.estimate.drain(|_| {})?;
             rep.estimates_out += self.estimate_linear.drain(|_| {})?;
             self.status.drain(|_| {})?;
+            rep.operator_in += self.operator.drain(none, &mut rep.refused)?;
+            rep.operator_acks_out += self.operator_ack.drain(|_| {})?;
         }
         // What the optimiser published last.
         rep.params_out += self.params.drain(|_| {})?;
         rep.estimates_out += self.estimate.drain(|_| {})?;
         rep.estimates_out += self.estimate_linear.drain(|_| {})?;
+        // The answers to commands the run's end stopped.
+        rep.operator_acks_out += self.operator_ack.drain(|_| {})?;
         Ok(rep)
     }
 }

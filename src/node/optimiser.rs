@@ -40,8 +40,11 @@ struct Ports {
     ack: Pub<OptimiserAck>,
     command: Sub<Command>,
     state: Sub<PlantState>,
-    /// An operator's commands (`evoloop operator`, `evoloop top`) and the answers.
-    operator: Sub<OperatorCommand>,
+    /// An operator's commands (`evoloop operator`, `evoloop top`) and the answers. Only a
+    /// tuning scheme listens: an optimiser that only publishes a schedule (or nothing) leaves
+    /// the commands to one that tunes the run from another host (`evoloop bridge`), and
+    /// without one `evoloop operator` says no optimiser listens.
+    operator: Option<Sub<OperatorCommand>>,
     operator_ack: Pub<OperatorAck>,
 }
 
@@ -68,7 +71,12 @@ pub fn main(cli: &OptimiserArgs) {
                 None => None,
             },
             status: ipc.publisher(Topic::OptimiserStatus, false)?,
-            operator: ipc.subscriber(Topic::Operator, 4, false)?,
+            operator: match scn.optimiser.mode {
+                OptimiserMode::Direct | OptimiserMode::Indirect | OptimiserMode::Identify => {
+                    Some(ipc.subscriber(Topic::Operator, 4, false)?)
+                }
+                OptimiserMode::Off | OptimiserMode::Schedule => None,
+            },
             operator_ack: ipc.publisher(Topic::OperatorAck, false)?,
             // The direct scheme waits for the command answering a boundary's last sample.
             command: ipc.subscriber(
@@ -485,7 +493,14 @@ impl<'a> Serve<'a> {
     /// An operator's commands since the last sample: each applied, answered on `operator_ack`
     /// and recorded in the report.
     fn operate(&mut self, state: &PlantState, report: &mut OptimiserReport) -> Result<(), Failure> {
-        while let Some(c) = self.ports.operator.next().map_err(io)? {
+        let Some(sub) = self.ports.operator.as_ref() else {
+            return Ok(());
+        };
+        let mut commands = Vec::new();
+        while let Some(c) = sub.next().map_err(io)? {
+            commands.push(c);
+        }
+        for c in commands {
             let action = OperatorAction::try_from(c.action).ok();
             let (outcome, version) = match action {
                 Some(_) if self.ended => (OperatorOutcome::Stopped, self.last_version()),
