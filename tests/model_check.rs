@@ -28,13 +28,13 @@ fn estimates_are_adopted_at_their_sample_and_bad_ones_keep_the_model() {
     assert!(mc.due(100).is_none(), "not due yet");
     let m = mc.due(101).expect("1.5 adopted, the NaN refused");
     assert_eq!(Some(m), scn.linear_model_at(1.5));
-    assert_eq!((mc.report.adopted, mc.report.refused), (1, 1));
-    assert_eq!(mc.report.last_adopted, Some(1.5));
+    assert_eq!((mc.report().adopted, mc.report().refused), (1, 1));
+    assert_eq!(mc.report().last_adopted, Some(1.5));
     mc.offer(&estimate_at(-1.0, 150));
     assert!(mc.due(150).is_none(), "a negative spring is refused");
     assert_eq!(mc.due(201), scn.linear_model_at(1.8));
-    assert_eq!(mc.report.last_adopted, Some(1.8));
-    assert_eq!(mc.report.refused, 2);
+    assert_eq!(mc.report().last_adopted, Some(1.8));
+    assert_eq!(mc.report().refused, 2);
 }
 
 /// A gain set that stabilises the configured model (two_mass_indirect leaves

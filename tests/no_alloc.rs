@@ -189,7 +189,7 @@ fn the_control_cycle_allocates_nothing() {
     assert_eq!(trials_ended, 1);
     assert_eq!(sends, 3 * (n as u64 - 1) + (n as u64 - 1) / 100);
     // 29 in the measured cycles, one in the warm-up.
-    assert_eq!(model_check.report.adopted, 30);
+    assert_eq!(model_check.report().adopted, 30);
     assert_eq!(timing.cycles(), n as u64);
     assert_eq!(log.finish().rows, n as u64, "every row reached the file");
     assert_eq!(

@@ -32,7 +32,6 @@ use super::{Candidate, Estimate, Estimator, Tuner};
 use crate::config::{ModelPrior, Scenario};
 use crate::control::ControllerSpec;
 use crate::msg::PlantState;
-use crate::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
 use crate::plant::lti::LtiSpec;
 use crate::reference::Reference;
 use crate::sim::cost::TrackingCost;
@@ -419,13 +418,8 @@ impl crate::optim::Objective for LinearCost<'_> {
 
 pub struct LinearTuner {
     pub model: LoopModel,
-    lower: Vec<f64>,
-    upper: Vec<f64>,
-    seed: u64,
-    threads: usize,
-    epoch_evaluations: usize,
+    de: super::DeEpochs,
     margin: f64,
-    epoch_no: u64,
     previous_best: Option<Vec<f64>>,
 }
 
@@ -437,7 +431,6 @@ impl LinearTuner {
             Reference::Square { period, start, .. } => (start + 2.0 * period, start + period),
             _ => (scn.timing.duration.min(10.0), 0.0),
         };
-        let b = &scn.controller.tunable().bounds;
         Self {
             model: LoopModel {
                 n: prior.poles(),
@@ -451,13 +444,8 @@ impl LinearTuner {
                 score_from,
                 w: scn.optimiser.cost_u_weight,
             },
-            lower: b.lower.clone(),
-            upper: b.upper.clone(),
-            seed: scn.seed,
-            threads: scn.optimiser.threads,
-            epoch_evaluations: scn.optimiser.epoch_evaluations,
+            de: super::DeEpochs::new(scn, &scn.controller.tunable().bounds),
             margin: scn.optimiser.margin,
-            epoch_no: 0,
             previous_best: None,
         }
     }
@@ -465,37 +453,16 @@ impl LinearTuner {
 
 impl Tuner for LinearTuner {
     fn epoch(&mut self, p: f64, theta: &[f64], in_service: &[f64]) -> Candidate {
-        let np = 15;
-        let mut de = DifferentialEvolution::new(DeConfig {
-            np,
-            f: 0.5,
-            cr: 0.9,
-            lower: self.lower.clone(),
-            upper: self.upper.clone(),
-            seed: self
-                .seed
-                .wrapping_add(self.epoch_no.wrapping_mul(0x9E37_79B9)),
-            diversity_stop: false,
-            eta: 100,
-            epsilon: 0.01,
-        })
-        .expect("valid DE settings");
-        self.epoch_no += 1;
         let mut seeds = vec![in_service.to_vec()];
         seeds.extend(self.previous_best.clone());
-        de.seed_population(&seeds);
         let f = LinearCost {
             model: &self.model,
             theta: theta.to_vec(),
         };
-        while de.evaluations() + np <= self.epoch_evaluations {
-            let v = evaluate(de.ask(), None, &f, self.threads);
-            de.tell(&v);
-        }
-        let (best, value) = de.best();
-        self.previous_best = Some(best.to_vec());
+        let (best, value) = self.de.run(&seeds, &f);
+        self.previous_best = Some(best.clone());
         Candidate {
-            params: best.to_vec(),
+            params: best,
             expected_cost: value,
             in_service_cost: self.model.cost(theta, in_service),
             model_value: p,
@@ -505,7 +472,7 @@ impl Tuner for LinearTuner {
         self.margin
     }
     fn epoch_evaluations(&self) -> usize {
-        self.epoch_evaluations
+        self.de.evaluations
     }
     fn checked_model(&self, _: f64, theta: &[f64]) -> Option<crate::control::LinearModel> {
         let (num, den) = self.model.transfer_function(theta);

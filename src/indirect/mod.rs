@@ -234,6 +234,58 @@ impl MaglevTuner {
     }
 }
 
+/// The epochs of DE/rand/1/bin (population 15, F 0.5, CR 0.9) the two-mass and the general
+/// scheme tune with: within the controller's bounds, seeded, `evaluations` per epoch on
+/// `threads`, the random stream moved on with each epoch's number.
+#[derive(Debug, Clone)]
+pub struct DeEpochs {
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    pub seed: u64,
+    pub threads: usize,
+    pub evaluations: usize,
+    done: u64,
+}
+
+impl DeEpochs {
+    pub fn new(scn: &crate::config::Scenario, bounds: &crate::control::ParamBounds) -> Self {
+        Self {
+            lower: bounds.lower.clone(),
+            upper: bounds.upper.clone(),
+            seed: scn.seed,
+            threads: scn.optimiser.threads,
+            evaluations: scn.optimiser.epoch_evaluations,
+            done: 0,
+        }
+    }
+
+    /// The next epoch on `f`, its population seeded with `seeds`: the best set and its cost.
+    pub fn run(&mut self, seeds: &[Vec<f64>], f: &dyn crate::optim::Objective) -> (Vec<f64>, f64) {
+        use crate::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
+        let np = 15;
+        let mut de = DifferentialEvolution::new(DeConfig {
+            np,
+            f: 0.5,
+            cr: 0.9,
+            lower: self.lower.clone(),
+            upper: self.upper.clone(),
+            seed: self.seed.wrapping_add(self.done.wrapping_mul(0x9E37_79B9)),
+            diversity_stop: false,
+            eta: 100,
+            epsilon: 0.01,
+        })
+        .expect("valid DE settings");
+        self.done += 1;
+        de.seed_population(seeds);
+        while de.evaluations() + np <= self.evaluations {
+            let v = evaluate(de.ask(), None, f, self.threads);
+            de.tell(&v);
+        }
+        let (best, value) = de.best();
+        (best.to_vec(), value)
+    }
+}
+
 /// What happened in one tuning epoch.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize, PartialEq)]
 pub struct EpochRecord {

@@ -21,7 +21,6 @@ use crate::check::Tunable;
 use crate::config::Scenario;
 use crate::control::StateFeedback;
 use crate::msg::PlantState;
-use crate::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
 use crate::plant::two_mass::{Sensor, TwoMass, TwoMassSpec};
 use crate::reference::Reference;
 use crate::sim::cost::TrackingCost;
@@ -41,13 +40,8 @@ pub fn scheme(
 /// DE on the state-feedback gains, over one repetition on the model with the estimated spring.
 pub struct TwoMassTuner {
     model: SpringModel,
-    lower: Vec<f64>,
-    upper: Vec<f64>,
-    seed: u64,
-    threads: usize,
-    epoch_evaluations: usize,
+    de: super::DeEpochs,
     margin: f64,
-    epoch_no: u64,
 }
 
 /// The model a candidate is scored on, all but its spring constant: one repetition of the
@@ -156,13 +150,8 @@ impl TwoMassTuner {
                 u_limit: scn.controller.u_limit,
                 w: scn.optimiser.cost_u_weight,
             },
-            lower: tunable.bounds.lower.clone(),
-            upper: tunable.bounds.upper.clone(),
-            seed: scn.seed,
-            threads: scn.optimiser.threads,
-            epoch_evaluations: scn.optimiser.epoch_evaluations,
+            de: super::DeEpochs::new(scn, &tunable.bounds),
             margin: scn.optimiser.margin,
-            epoch_no: 0,
         }
     }
 
@@ -327,31 +316,9 @@ impl Estimator for SpringEstimator {
 impl Tuner for TwoMassTuner {
     fn epoch(&mut self, k: f64, _: &[f64], in_service: &[f64]) -> Candidate {
         let k = k.max(1e-3);
-        let np = 15;
-        let mut de = DifferentialEvolution::new(DeConfig {
-            np,
-            f: 0.5,
-            cr: 0.9,
-            lower: self.lower.clone(),
-            upper: self.upper.clone(),
-            seed: self
-                .seed
-                .wrapping_add(self.epoch_no.wrapping_mul(0x9E37_79B9)),
-            diversity_stop: false,
-            eta: 100,
-            epsilon: 0.01,
-        })
-        .expect("valid DE settings");
-        self.epoch_no += 1;
-        de.seed_population(&[in_service.to_vec()]);
-        let f = self.objective(k);
-        while de.evaluations() + np <= self.epoch_evaluations {
-            let v = evaluate(de.ask(), None, &f, self.threads);
-            de.tell(&v);
-        }
-        let (best, value) = de.best();
+        let (best, value) = self.de.run(&[in_service.to_vec()], &self.objective(k));
         Candidate {
-            params: best.to_vec(),
+            params: best,
             expected_cost: value,
             in_service_cost: self.cost(k, in_service),
             model_value: k,
@@ -363,7 +330,7 @@ impl Tuner for TwoMassTuner {
     }
 
     fn epoch_evaluations(&self) -> usize {
-        self.epoch_evaluations
+        self.de.evaluations
     }
 }
 

@@ -85,8 +85,8 @@ impl EstimateCheck {
 
     fn report(&self) -> crate::control::model_check::ModelCheckReport {
         match self {
-            Self::Parameter(m) => m.report.clone(),
-            Self::Linear(l) => l.report.clone(),
+            Self::Parameter(m) => m.report().clone(),
+            Self::Linear(l) => l.report().clone(),
         }
     }
 }

@@ -28,11 +28,57 @@ pub struct ModelCheckReport {
     pub dropped: u64,
 }
 
+/// Estimates waiting for their sample and what became of them: the queue both checks share.
+/// Capacity `PENDING`, never grown; the oldest goes when it is full.
+struct Adoption<T> {
+    pending: Vec<T>,
+    report: ModelCheckReport,
+}
+
+impl<T: Copy> Adoption<T> {
+    fn new() -> Self {
+        Self {
+            pending: Vec::with_capacity(PENDING),
+            report: ModelCheckReport::default(),
+        }
+    }
+
+    fn offer(&mut self, e: &T) {
+        if self.pending.len() == PENDING {
+            self.pending.remove(0);
+            self.report.dropped += 1;
+        }
+        self.pending.push(*e);
+    }
+
+    /// Adopt every estimate due at sample `seq` (`at` gives its sample), in order, through
+    /// `model_of` (the model and the value reported, None to refuse it); the model of the last
+    /// good one when any was adopted. Allocation-free.
+    fn due(
+        &mut self,
+        seq: u64,
+        at: impl Fn(&T) -> u64,
+        model_of: impl Fn(&T) -> Option<(LinearModel, Option<f64>)>,
+    ) -> Option<LinearModel> {
+        let mut model = None;
+        while let Some(i) = self.pending.iter().position(|e| at(e) <= seq) {
+            let e = self.pending.remove(i);
+            match model_of(&e) {
+                Some((m, value)) => {
+                    model = Some(m);
+                    self.report.adopted += 1;
+                    self.report.last_adopted = value;
+                }
+                None => self.report.refused += 1,
+            }
+        }
+        model
+    }
+}
+
 pub struct ModelCheck {
     plant: PlantModel,
-    /// Received, not yet due; capacity `PENDING`, never grown.
-    pending: Vec<ModelEstimate>,
-    pub report: ModelCheckReport,
+    adoption: Adoption<ModelEstimate>,
 }
 
 impl ModelCheck {
@@ -43,39 +89,33 @@ impl ModelCheck {
         cfg.linear_model_at(cfg.varying_parameter(0.0)?)?;
         Some(Self {
             plant: plant.clone(),
-            pending: Vec::with_capacity(PENDING),
-            report: ModelCheckReport::default(),
+            adoption: Adoption::new(),
         })
     }
 
     /// Queue a received estimate. Never allocates.
     pub fn offer(&mut self, e: &ModelEstimate) {
-        if self.pending.len() == PENDING {
-            self.pending.remove(0);
-            self.report.dropped += 1;
-        }
-        self.pending.push(*e);
+        self.adoption.offer(e);
     }
 
     /// Adopt every estimate due at sample `seq`, in order; the model at the last good one when
     /// any was adopted. Allocation-free.
     pub fn due(&mut self, seq: u64) -> Option<LinearModel> {
-        let mut model = None;
-        while let Some(i) = self.pending.iter().position(|e| e.apply_at_seq <= seq) {
-            let e = self.pending.remove(i);
-            let m = (e.value.is_finite() && e.value > 0.0)
-                .then(|| self.plant.config().linear_model_at(e.value))
-                .flatten();
-            match m {
-                Some(m) => {
-                    model = Some(m);
-                    self.report.adopted += 1;
-                    self.report.last_adopted = Some(e.value);
-                }
-                None => self.report.refused += 1,
-            }
-        }
-        model
+        let plant = &self.plant;
+        self.adoption.due(
+            seq,
+            |e| e.apply_at_seq,
+            |e| {
+                (e.value.is_finite() && e.value > 0.0)
+                    .then(|| plant.config().linear_model_at(e.value))
+                    .flatten()
+                    .map(|m| (m, Some(e.value)))
+            },
+        )
+    }
+
+    pub fn report(&self) -> &ModelCheckReport {
+        &self.adoption.report
     }
 }
 
@@ -86,56 +126,47 @@ impl ModelCheck {
 /// or whose sampled model is not finite is refused and the last good model stays.
 pub struct LinearCheck {
     period: f64,
-    pending: Vec<LinearEstimate>,
-    pub report: ModelCheckReport,
+    adoption: Adoption<LinearEstimate>,
 }
 
 impl LinearCheck {
     pub fn new(period: f64) -> Self {
         Self {
             period,
-            pending: Vec::with_capacity(PENDING),
-            report: ModelCheckReport::default(),
+            adoption: Adoption::new(),
         }
     }
 
     /// Queue a received estimate. Never allocates.
     pub fn offer(&mut self, e: &LinearEstimate) {
-        if self.pending.len() == PENDING {
-            self.pending.remove(0);
-            self.report.dropped += 1;
-        }
-        self.pending.push(*e);
+        self.adoption.offer(e);
     }
 
     /// Adopt every estimate due at sample `seq`, in order; the sampled model of the last good
     /// one when any was adopted. Allocation-free.
     pub fn due(&mut self, seq: u64) -> Option<LinearModel> {
-        let mut model = None;
-        while let Some(i) = self.pending.iter().position(|e| e.apply_at_seq <= seq) {
-            let e = self.pending.remove(i);
-            let n = e.poles as usize;
-            let m = (n < e.num.len())
-                .then(|| {
-                    let (num, den) = (&e.num[..=n], &e.den[..=n]);
-                    if num.iter().chain(den).all(|v| v.is_finite()) {
-                        LinearModel::sampled_transfer_function(num, den, self.period)
-                    } else {
-                        None
-                    }
-                })
-                .flatten();
-            match m {
-                Some(m) => {
-                    model = Some(m);
-                    self.report.adopted += 1;
-                    // The input gain, the leading numerator coefficient that is not zero.
-                    self.report.last_adopted = e.num[..=n].iter().copied().find(|b| *b != 0.0);
+        let period = self.period;
+        self.adoption.due(
+            seq,
+            |e| e.apply_at_seq,
+            |e| {
+                let n = e.poles as usize;
+                if n >= e.num.len() {
+                    return None;
                 }
-                None => self.report.refused += 1,
-            }
-        }
-        model
+                let (num, den) = (&e.num[..=n], &e.den[..=n]);
+                if !num.iter().chain(den).all(|v| v.is_finite()) {
+                    return None;
+                }
+                // Reported: the input gain, the leading numerator coefficient not zero.
+                LinearModel::sampled_transfer_function(num, den, period)
+                    .map(|m| (m, num.iter().copied().find(|b| *b != 0.0)))
+            },
+        )
+    }
+
+    pub fn report(&self) -> &ModelCheckReport {
+        &self.adoption.report
     }
 }
 
@@ -167,7 +198,7 @@ mod tests {
         let m = c.due(10).expect("the good estimate");
         assert!(m.stabilised_by_pid(20.0, 20.0 * 0.02 / 1e-3, 0.02));
         assert!(c.due(20).is_none());
-        assert_eq!((c.report.adopted, c.report.refused), (1, 2));
-        assert_eq!(c.report.last_adopted, Some(40.0));
+        assert_eq!((c.report().adopted, c.report().refused), (1, 2));
+        assert_eq!(c.report().last_adopted, Some(40.0));
     }
 }
