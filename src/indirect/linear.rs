@@ -30,7 +30,7 @@
 use super::svf::{Svf, SvfDesign};
 use super::{Candidate, Estimate, Estimator, Tuner};
 use crate::config::{ModelPrior, Scenario};
-use crate::control::ControllerSpec;
+use crate::control::{Controller, ControllerSpec};
 use crate::msg::PlantState;
 use crate::plant::lti::LtiSpec;
 use crate::reference::Reference;
@@ -167,7 +167,7 @@ impl LinearEstimator {
         if !follows {
             self.y_f = Svf::at_rest(s.y[0]);
             self.u_f = Svf::at_rest(s.u_applied[0]);
-            let settle = SETTLE_TIME_CONSTANTS / self.svf_pole();
+            let settle = SETTLE_TIME_CONSTANTS / self.svf.pole();
             self.settling = if s.seq == 0 && self.starts_at_rest {
                 0
             } else {
@@ -205,10 +205,6 @@ impl LinearEstimator {
         {
             self.solve();
         }
-    }
-
-    fn svf_pole(&self) -> f64 {
-        self.svf.pole()
     }
 
     /// The drift monitor: the adopted model's prediction error against the fit's residual.
@@ -345,9 +341,8 @@ impl LoopModel {
         transfer_function(self.n, self.m, theta)
     }
 
-    fn plant(&self, theta: &[f64], gain: f64) -> Option<LtiSpec> {
-        let (mut num, den) = self.transfer_function(theta);
-        num.iter_mut().for_each(|b| *b *= gain);
+    fn plant(&self, theta: &[f64]) -> Option<LtiSpec> {
+        let (num, den) = self.transfer_function(theta);
         LtiSpec::from_transfer_function(&num, &den, self.period, self.u_range).ok()
     }
 
@@ -355,7 +350,10 @@ impl LoopModel {
     /// `GAIN_CHECKED` times the estimate's: the controller's own check (`Controller::stabilises`
     /// on `LinearModel::sampled_transfer_function`), which it applies to the estimates it adopts.
     pub fn stable(&self, theta: &[f64], params: &[f64]) -> bool {
-        let law = self.controller.build(self.period);
+        self.stable_under(self.controller.build(self.period).as_ref(), theta, params)
+    }
+
+    fn stable_under(&self, law: &dyn Controller, theta: &[f64], params: &[f64]) -> bool {
         let (num, den) = self.transfer_function(theta);
         GAIN_CHECKED.iter().all(|g| {
             let scaled: Vec<f64> = num.iter().map(|b| b * g).collect();
@@ -367,13 +365,13 @@ impl LoopModel {
     /// Cost of `params` on the model with coefficients `theta`: sum |r - y| + w |u| per sample
     /// over the second repetition; infinite when the loop is not stable or is lost.
     pub fn cost(&self, theta: &[f64], params: &[f64]) -> f64 {
-        if !self.stable(theta, params) {
+        let mut ctrl = self.controller.build(self.period);
+        if !self.stable_under(ctrl.as_ref(), theta, params) {
             return f64::INFINITY;
         }
-        let Some(plant) = self.plant(theta, 1.0) else {
+        let Some(plant) = self.plant(theta) else {
             return f64::INFINITY;
         };
-        let mut ctrl = self.controller.build(self.period);
         ctrl.swap_params(
             params,
             &PlantState::default(),

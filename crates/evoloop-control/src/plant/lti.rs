@@ -150,13 +150,7 @@ impl LtiSpec {
             prefix: "",
         };
         let r = transfer_function(Some(num), Some(den), &src).map_err(|e| e.reason)?;
-        if norm_period(&r.a, &r.b, r.n + r.m, period) > MAX_NORM_PERIOD {
-            return Err("the model is far too fast for the control period".into());
-        }
-        let (phi, gamma) = zero_order_hold(&r.a, &r.b, r.n, r.m, period);
-        if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
-            return Err("exp(A T) overflows at the control period".into());
-        }
+        let (phi, gamma) = discretised(&r.a, &r.b, r.n, r.m, period, false)?;
         Ok(LtiSpec {
             x0: vec![0.0; r.n],
             n: r.n,
@@ -194,17 +188,7 @@ impl LtiSpec {
             m = &a * &m + DMatrix::identity(n, n) * den[k - 1];
             den[k] = -(&a * &m).trace() / k as f64;
         }
-        // Markov parameters h_0 = D, h_j = C A^(j-1) B.
-        let (b, c) = (
-            nalgebra::DVector::from_column_slice(&self.b),
-            nalgebra::DVector::from_column_slice(&self.c),
-        );
-        let mut h = vec![self.d[0]];
-        let mut v = b;
-        for _ in 0..n {
-            h.push(c.dot(&v));
-            v = &a * v;
-        }
+        let h = self.markov_parameters(&self.a, &self.b);
         let num = (0..=n)
             .map(|j| (0..=j).map(|i| den[i] * h[j - i]).sum())
             .collect();
@@ -219,20 +203,23 @@ impl LtiSpec {
             return None;
         }
         let ph = self.phase(t);
-        if self.d[0] != 0.0 {
-            return Some(self.d[0]);
-        }
-        let mut v = ph.b.to_vec();
+        self.markov_parameters(ph.a, ph.b)
+            .into_iter()
+            .find(|h| *h != 0.0)
+    }
+
+    /// h_0 = D, h_j = C A^(j-1) B for j = 1..=n, of the single-input single-output model with
+    /// these A and B.
+    fn markov_parameters(&self, a: &[f64], b: &[f64]) -> Vec<f64> {
+        let mut h = vec![self.d[0]];
+        let mut v = b.to_vec();
         for _ in 0..self.n {
-            let h: f64 = self.c.iter().zip(&v).map(|(c, x)| c * x).sum();
-            if h != 0.0 {
-                return Some(h);
-            }
+            h.push(self.c.iter().zip(&v).map(|(c, x)| c * x).sum());
             let mut next = vec![0.0; self.n];
-            mul_add(ph.a, self.n, &v, &mut next);
+            mul_add(a, self.n, &v, &mut next);
             v = next;
         }
-        None
+        h
     }
 
     /// One control period with the (clipped) command `u` under the model of time `t`: exact,
@@ -528,29 +515,8 @@ pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<Lt
     let x0 = t.x0.unwrap_or_else(|| vec![0.0; r.n]);
     check.finite_values("plant.lti.x0", &x0, r.n, " (one per state)")?;
     let (u_min, u_max) = super::input_range(check, "plant.lti", t.u_min, t.u_max, r.m)?;
-    let (phi, gamma) = match dt {
-        Some(_) => (r.a.clone(), r.b.clone()),
-        None => {
-            // exp() squares its argument ceil(log2 |M|) times: bound |[A B] T| first, so a
-            // huge entry is an error and not an endless (or overflowing) exponential.
-            let norm_t = norm_period(&r.a, &r.b, r.n + r.m, cx.period);
-            if norm_t > MAX_NORM_PERIOD {
-                return src.fail(
-                    "a",
-                    format!(
-                        "|[A B]| T is about {norm_t:.1e}: a model this fast (or stiff) against the \
-                         control period {} s cannot be held between samples; scale it or sample \
-                         faster",
-                        cx.period
-                    ),
-                );
-            }
-            zero_order_hold(&r.a, &r.b, r.n, r.m, cx.period)
-        }
-    };
-    if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
-        return src.fail("a", "exp(A T) overflows at the control period: the model is far too fast or unstable for it");
-    }
+    let (phi, gamma) = discretised(&r.a, &r.b, r.n, r.m, cx.period, dt.is_some())
+        .or_else(|why| src.fail("a", why))?;
     let changes = changes(t.change.take().unwrap_or_default(), check, &r, dt.is_some(), cx.period)?;
     Ok(LtiSpec {
         n: r.n,
@@ -595,42 +561,23 @@ fn changes(
         }
         let (prev_a, prev_b) = out.last().map_or((&r.a, &r.b), |p| (&p.a, &p.b));
         let (n, m) = (r.n, r.m);
-        let a = match &c.a {
-            Some(a) => {
-                let k = format!("{key}.a");
-                let (rows, cols, v) = shaped(&src, &k, a, false)?;
-                expect_size(&src, &k, (rows, cols), (n, n), "the model's A is square, its size")?;
-                v
-            }
-            None => prev_a.clone(),
+        // A given matrix, of the model's size; a missing one stays as it was.
+        let read = |name: &str, given: &Option<Matrix>, prev: &Vec<f64>, size, flat_is_column| {
+            let Some(given) = given else {
+                return Ok(prev.clone());
+            };
+            let k = format!("{key}.{name}");
+            let (rows, cols, v) = shaped(&src, &k, given, flat_is_column)?;
+            expect_size(&src, &k, (rows, cols), size, "the model's, its size")?;
+            Ok(v)
         };
-        let b = match &c.b {
-            Some(b) => {
-                let k = format!("{key}.b");
-                let (rows, cols, v) = shaped(&src, &k, b, true)?;
-                expect_size(&src, &k, (rows, cols), (n, m), "the model's B, its size")?;
-                v
-            }
-            None => prev_b.clone(),
-        };
+        let a = read("a", &c.a, prev_a, (n, n), false)?;
+        let b = read("b", &c.b, prev_b, (n, m), true)?;
         if c.a.is_none() && c.b.is_none() {
             return check.fail(&key, "a change needs a new a, b or both");
         }
-        let norm_t = norm_period(&a, &b, n + m, period);
-        if !discrete && norm_t > MAX_NORM_PERIOD {
-            return check.fail(
-                &format!("{key}.a"),
-                format!("|[A B]| T is about {norm_t:.1e}: too fast for the control period"),
-            );
-        }
-        let (phi, gamma) = if discrete {
-            (a.clone(), b.clone())
-        } else {
-            zero_order_hold(&a, &b, n, m, period)
-        };
-        if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
-            return check.fail(&format!("{key}.a"), "exp(A T) overflows at the control period");
-        }
+        let (phi, gamma) = discretised(&a, &b, n, m, period, discrete)
+            .or_else(|why| check.fail(&format!("{key}.a"), why))?;
         out.push(LtiChange { at, a, b, phi, gamma });
     }
     Ok(out)
@@ -859,6 +806,37 @@ fn input_delay(check: &Check, delay: f64, period: f64) -> Result<usize, ConfigEr
         );
     }
     Ok(k as usize)
+}
+
+/// (Phi, Gamma) at `period`: the zero-order hold of a continuous model, (A, B) as they are for a
+/// discrete one; the reason when the model is too fast to hold between samples. nalgebra's
+/// exponential squares its argument ceil(log2 |M|) times, so |[A B] T| is bounded first: a huge
+/// entry is an error, not an endless (or overflowing) exponential.
+fn discretised(
+    a: &[f64],
+    b: &[f64],
+    n: usize,
+    m: usize,
+    period: f64,
+    discrete: bool,
+) -> Result<(Vec<f64>, Vec<f64>), String> {
+    if discrete {
+        return Ok((a.to_vec(), b.to_vec()));
+    }
+    let norm_t = norm_period(a, b, n + m, period);
+    if norm_t > MAX_NORM_PERIOD {
+        return Err(format!(
+            "|[A B]| T is about {norm_t:.1e}: a model this fast (or stiff) against the control \
+             period {period} s cannot be held between samples; scale it or sample faster"
+        ));
+    }
+    let (phi, gamma) = zero_order_hold(a, b, n, m, period);
+    if phi.iter().chain(&gamma).any(|v| !v.is_finite()) {
+        return Err("exp(A T) overflows at the control period: the model is far too fast or \
+                    unstable for it"
+            .into());
+    }
+    Ok((phi, gamma))
 }
 
 /// The exact zero-order-hold discretisation at `t`: exp([[A, B], [0, 0]] t) = [[Phi, Gamma],
