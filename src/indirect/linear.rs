@@ -88,7 +88,8 @@ pub struct Monitor {
     pub excitation: f64,
     /// Plant times at which the drift monitor discounted the old data.
     pub drift_alarms: Vec<f64>,
-    /// The adopted model's coefficients [a_0 .. a_{n-1}, b_0 .. b_m].
+    /// The model in use, [a_0 .. a_{n-1}, b_0 .. b_m]: the last fit adopted, or the prior
+    /// (filled in when the monitor is read).
     pub theta: Vec<f64>,
 }
 
@@ -259,7 +260,6 @@ impl LinearEstimator {
         self.gain_std = gain_std;
         self.residual_var = var;
         self.monitor.fits_adopted += 1;
-        self.monitor.theta = self.theta.iter().copied().collect();
     }
 
     /// A fit has been adopted.
@@ -298,7 +298,10 @@ impl Estimator for LinearEstimator {
         self.nominal.iter().copied().collect()
     }
     fn monitor(&self) -> Option<Monitor> {
-        Some(self.monitor.clone())
+        Some(Monitor {
+            theta: self.coefficients(),
+            ..self.monitor.clone()
+        })
     }
     fn transfer_function(&self) -> Option<(Vec<f64>, Vec<f64>)> {
         let theta: Vec<f64> = self.theta.iter().copied().collect();
@@ -524,7 +527,7 @@ mod tests {
     #[test]
     fn an_ideal_sensor_gives_the_transfer_function_before_and_after_the_change() {
         let (est, run) = estimate_run(0.0, 19.9);
-        let th = &est.monitor.theta;
+        let th = &Estimator::monitor(&est).unwrap().theta;
         assert!(
             th[0].abs() < 1e-3 && (th[1] - 20.0).abs() < 2e-3 && (th[2] - 40.0).abs() < 4e-3,
             "{th:?}"
@@ -539,7 +542,7 @@ mod tests {
             .filter(|r| r.0 > 3.0)
             .all(|r| ((r.1 - r.3) / r.3).abs() < 1e-4));
         let (est, _) = estimate_run(0.0, 40.0);
-        let th = &est.monitor.theta;
+        let th = &Estimator::monitor(&est).unwrap().theta;
         assert!(
             (th[1] - 6.6667).abs() < 2e-3 && (th[2] - 13.3333).abs() < 2e-3,
             "{th:?}"

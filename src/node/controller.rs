@@ -83,6 +83,18 @@ impl EstimateCheck {
         }
     }
 
+    /// The subscriber to the estimates this check adopts.
+    fn subscribe(&self, ipc: &crate::ipc::Ipc) -> Result<EstimatePort, IpcError> {
+        Ok(match self {
+            Self::Parameter(_) => {
+                EstimatePort::Parameter(ipc.subscriber(Topic::Estimate, 4, false)?)
+            }
+            Self::Linear(_) => {
+                EstimatePort::Linear(ipc.subscriber(Topic::LinearEstimate, 4, false)?)
+            }
+        })
+    }
+
     fn report(&self) -> crate::control::model_check::ModelCheckReport {
         match self {
             Self::Parameter(m) => m.report().clone(),
@@ -122,7 +134,7 @@ struct Loop {
 impl Loop {
     /// The loop, with run.csv and timing.csv created (an unwritable output directory is an
     /// error here, before the run starts).
-    fn new(scn: &Scenario) -> Result<Self, String> {
+    fn new(scn: &Scenario, model_check: Option<EstimateCheck>) -> Result<Self, String> {
         let plant = scn.build_plant();
         let (n_y, n_u, n_q) = (plant.n_outputs(), plant.n_inputs(), plant.n_joints());
         // Joint 0's reference keeps the name `reference`; joint-space trajectories add r1, r2, ...
@@ -201,7 +213,7 @@ impl Loop {
         Ok(Self {
             record,
             cycle,
-            model_check: EstimateCheck::of(scn),
+            model_check,
             row: vec![0.0; width],
             log,
             timing: TimingStats::default(),
@@ -257,6 +269,7 @@ impl Loop {
                 r.params(&p);
             }
         }
+        // The port is the check's own (`EstimateCheck::subscribe`): the pairs always match.
         let adopted = match (self.model_check.as_mut(), ports.estimate.as_ref()) {
             (Some(EstimateCheck::Parameter(mc)), Some(EstimatePort::Parameter(sub))) => {
                 while let Some(e) = sub.next()? {
@@ -368,6 +381,7 @@ pub fn main(args: &ProcessArgs) {
         stop,
         ipc,
     } = start(args, WHO);
+    let model_check = EstimateCheck::of(&scn);
     let ports = ports(WHO, || {
         Ok(Ports {
             params: ipc.subscriber(
@@ -375,19 +389,11 @@ pub fn main(args: &ProcessArgs) {
                 crate::control::cycle::PENDING_CAPACITY,
                 false,
             )?,
-            estimate: match (scn.linear_model(), &scn.optimiser.model) {
-                (Some(_), Some(_)) => Some(EstimatePort::Linear(ipc.subscriber(
-                    Topic::LinearEstimate,
-                    4,
-                    false,
-                )?)),
-                (Some(_), None) => Some(EstimatePort::Parameter(ipc.subscriber(
-                    Topic::Estimate,
-                    4,
-                    false,
-                )?)),
-                _ => None,
-            },
+            // The estimates of the check the loop makes, and no others.
+            estimate: model_check
+                .as_ref()
+                .map(|c| c.subscribe(&ipc))
+                .transpose()?,
             command: ipc.publisher(Topic::Command, true)?,
             telemetry: ipc.publisher(Topic::Telemetry, false)?,
             // Last: the plant starts the run once it sees this subscriber.
@@ -398,7 +404,7 @@ pub fn main(args: &ProcessArgs) {
         leave_and_fail(WHO, ports, ipc, Failure::Setup(e.to_string()));
     }
 
-    let mut lp = match Loop::new(&scn) {
+    let mut lp = match Loop::new(&scn, model_check) {
         Ok(lp) => lp,
         Err(e) => leave_and_fail(
             WHO,
