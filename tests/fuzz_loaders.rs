@@ -539,14 +539,19 @@ fn mutated_bytes(b: &[u8], rng: &mut StdRng) -> Vec<u8> {
 #[test]
 fn mutated_recordings_are_refused_with_file_and_reason_or_read_without_panic() {
     quiet_panics();
-    let original = recording();
+    // Today's recordings (ROS 2 CDR) and one from before (JSON), half the cases each.
+    let originals = [
+        recording(),
+        std::fs::read("tests/data/json-recording/run.mcap").unwrap(),
+    ];
     let mut rng = StdRng::seed_from_u64(seed() ^ 0x3ca9);
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("run.mcap");
     let (mut accepted, mut failures) = (0, Vec::new());
     let n = cases();
-    for _ in 0..n {
-        let bytes = mutated_bytes(&original, &mut rng);
+    for case in 0..n {
+        let original = &originals[case % 2];
+        let bytes = mutated_bytes(original, &mut rng);
         std::fs::write(&path, &bytes).unwrap();
         let read = catch_unwind(AssertUnwindSafe(|| {
             evoloop::report::recording::Recording::read(&path)
@@ -561,7 +566,7 @@ fn mutated_recordings_are_refused_with_file_and_reason_or_read_without_panic() {
             Err(p) => format!("panic: {}", panic_text(p)),
         };
         let shown = format!("{} bytes, first difference at {:?}", bytes.len(), {
-            bytes.iter().zip(&original).position(|(a, b)| a != b)
+            bytes.iter().zip(original).position(|(a, b)| a != b)
         });
         failures.push((path.clone(), shown, why));
     }

@@ -49,8 +49,14 @@ impl Wires {
                 ipc.subscriber(Topic::Telemetry, 4, false).unwrap(),
             ),
             record: std::cell::RefCell::new(
-                Recorder::start(&dir.path().join("run.mcap"), true, Default::default(), None)
-                    .unwrap(),
+                Recorder::start(
+                    &dir.path().join("run.mcap"),
+                    true,
+                    Default::default(),
+                    None,
+                    vec!["j1".into(), "j2".into(), "j3".into()],
+                )
+                .unwrap(),
             ),
             _dir: dir,
             _ipc: ipc,
@@ -58,7 +64,7 @@ impl Wires {
     }
 
     /// Close the recording: messages per topic.
-    fn finish(self) -> [u64; 5] {
+    fn finish(self) -> [u64; 6] {
         let r = self.record.into_inner().finish();
         assert_eq!((r.dropped, r.error), (0, None));
         r.messages
@@ -157,7 +163,12 @@ fn computed_torque() {
         "allocations in 2000 arm cycles"
     );
     // The recorder had every cycle's state, command and telemetry (the warm-up's too).
-    assert_eq!(wires.finish()[..3], [2000; 3]);
+    let m = wires.finish();
+    assert_eq!(
+        [m[0], m[1], m[2], m[5]],
+        [2000; 4],
+        "state, command, telemetry, joint_states"
+    );
 }
 
 fn fuzzy_computed_torque() {
@@ -183,5 +194,10 @@ fn fuzzy_computed_torque() {
         0,
         "allocations in 3000 fuzzy computed-torque cycles"
     );
-    assert_eq!(wires.finish()[..3], [3000; 3]);
+    let m = wires.finish();
+    assert_eq!(
+        [m[0], m[1], m[2], m[5]],
+        [3000; 4],
+        "state, command, telemetry, joint_states"
+    );
 }

@@ -1,9 +1,11 @@
-//! run.mcap: every run records its topics for Foxglove and PlotJuggler; read back with the
-//! `mcap` crate's reader, each topic carries the right number of messages, log time is the
-//! sample's stamp, and the recorded commands are the run's own, bit for bit.
+//! run.mcap: every run records its topics for Foxglove and PlotJuggler as ROS 2 messages in CDR
+//! with `ros2msg` schemas; read back with the `mcap` crate's reader, each topic carries the right
+//! number of messages, log time is the sample's stamp, and the recorded commands are the run's
+//! own, bit for bit. (tests/foxglove_decode.rs decodes them with Foxglove's own Python decoder.)
 
 mod common;
 use common::*;
+use evoloop::report::ros2;
 use std::collections::BTreeMap;
 
 fn json(path: &std::path::Path) -> serde_json::Value {
@@ -43,24 +45,22 @@ fn a_lockstep_run_records_every_topic_with_the_right_counts_and_stamps() {
     for msg in mcap::MessageStream::new(&bytes).unwrap() {
         let msg = msg.unwrap();
         let ch = &msg.channel;
-        assert_eq!(ch.message_encoding, "json");
+        assert_eq!(ch.message_encoding, "cdr");
         let schema = ch.schema.as_ref().expect("every channel has a schema");
-        assert_eq!(schema.encoding, "jsonschema");
-        let v: serde_json::Value = serde_json::from_slice(&msg.data).unwrap();
+        assert_eq!(schema.encoding, "ros2msg");
         *count.entry(ch.topic.clone()).or_default() += 1;
         match ch.topic.as_str() {
             "state" => {
-                assert_eq!(msg.log_time, v["stamp_ns"].as_u64().unwrap());
-                states.push(v["seq"].as_u64().unwrap());
+                assert_eq!(schema.name, "evoloop_msgs/msg/PlantState");
+                let s = ros2::decode_state(&msg.data).unwrap();
+                assert_eq!(msg.log_time, s.stamp_ns);
+                states.push(s.seq);
             }
             "command" => {
-                assert_eq!(msg.log_time, v["stamp_ns"].as_u64().unwrap());
-                // The number's own text, read by Rust's correctly rounded parser (serde_json's
-                // default float parsing may be 1 ulp off).
-                let text = std::str::from_utf8(&msg.data).unwrap();
-                let u = &text[text.find("\"u\":[").unwrap() + 5..];
-                let first = u.split([',', ']']).next().unwrap();
-                commands.push(first.parse::<f64>().unwrap());
+                assert_eq!(schema.name, "evoloop_msgs/msg/Command");
+                let c = ros2::decode_command(&msg.data).unwrap();
+                assert_eq!(msg.log_time, c.stamp_ns);
+                commands.push(c.u[0]);
             }
             _ => {}
         }
@@ -76,16 +76,16 @@ fn a_lockstep_run_records_every_topic_with_the_right_counts_and_stamps() {
     .map(|(k, v)| (k.to_string(), v))
     .collect();
     assert_eq!(count, expect);
-    // The summary section (what Foxglove reads first) agrees.
-    let stats = mcap::read::Summary::read(&bytes)
-        .unwrap()
-        .unwrap()
-        .stats
-        .unwrap();
+    // The summary section (what Foxglove reads first) agrees; `joint_states` is there, empty
+    // (not an arm).
+    let index = mcap::read::Summary::read(&bytes).unwrap().unwrap();
+    let topics: Vec<&str> = index.channels.values().map(|c| c.topic.as_str()).collect();
+    assert!(topics.contains(&"joint_states"), "{topics:?}");
+    let stats = index.stats.unwrap();
     assert_eq!(stats.message_count, 3 * cycles + sets + estimates);
     assert_eq!(
         ctrl["mcap"]["messages"],
-        serde_json::json!([cycles, cycles, cycles, sets, estimates])
+        serde_json::json!([cycles, cycles, cycles, sets, estimates, 0])
     );
     assert_eq!(ctrl["mcap"]["dropped"], 0);
     // Every state once, in order; the commands are run.csv's u0, exactly.

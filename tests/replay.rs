@@ -150,3 +150,66 @@ fn a_realtime_recording_replays_to_its_live_commands() {
     assert_eq!(r["commands_equal"], r["commands_compared"], "{r}");
     assert!(r["first_mismatch"].is_null());
 }
+
+/// Recordings evoloop wrote before ROS 2 CDR were JSON (tests/data/json-recording/run.mcap, a
+/// run of the scenario beside it written by evoloop at e8a2f43). One still replays to its live
+/// commands bit for bit, scheduled set included; and the replayed controller's own recording,
+/// now CDR, reads back to the same states, commands and set as the JSON one: every f64 bit for
+/// bit through both encodings.
+#[test]
+fn an_old_json_recording_replays_and_reads_as_its_cdr_re_recording() {
+    use evoloop::report::recording::Recording;
+    let dir = std::path::Path::new("tests/data/json-recording");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("replay");
+    let r = stdout_json(&cli(&[
+        "replay",
+        dir.join("run.mcap").to_str().unwrap(),
+        "--scenario",
+        dir.join("scenario.toml").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]));
+    assert_eq!(
+        (&r["states"], &r["commands_equal"], &r["params_sent"]),
+        (&400.into(), &400.into(), &1.into()),
+        "{r}"
+    );
+    assert_eq!(r["max_abs_diff"].as_f64(), Some(0.0));
+    let json = Recording::read(&dir.join("run.mcap")).unwrap();
+    let cdr = Recording::read(&out.join("run.mcap")).unwrap();
+    let encodings = |f: &std::path::Path| {
+        let bytes = std::fs::read(f).unwrap();
+        let s = mcap::read::Summary::read(&bytes).unwrap().unwrap();
+        let mut e: Vec<String> = s
+            .channels
+            .values()
+            .map(|c| c.message_encoding.clone())
+            .collect();
+        e.dedup();
+        e
+    };
+    assert_eq!(encodings(&dir.join("run.mcap")), ["json"]);
+    assert_eq!(encodings(&out.join("run.mcap")), ["cdr"]);
+    assert_eq!(json.states.len(), 400);
+    assert_eq!(cdr.states.len(), 400);
+    for (a, b) in json.states.iter().zip(&cdr.states) {
+        common::assert_same_state(b, a);
+    }
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for (a, b) in json.commands.iter().zip(&cdr.commands) {
+        assert_eq!(
+            (a.cycle, a.state_seq, a.param_version),
+            (b.cycle, b.state_seq, b.param_version)
+        );
+        assert_eq!(bits(&a.u[..a.n_u as usize]), bits(&b.u[..b.n_u as usize]));
+    }
+    assert_eq!((json.params.len(), cdr.params.len()), (1, 1));
+    let ((at_a, a), (at_b, b)) = (&json.params[0], &cdr.params[0]);
+    assert_eq!((at_a.cycle, a.version, a.n), (at_b.cycle, b.version, b.n));
+    assert_eq!(
+        bits(&a.values[..a.n as usize]),
+        bits(&b.values[..b.n as usize])
+    );
+}

@@ -224,6 +224,17 @@ impl Scenario {
         }
     }
 
+    /// An arm's joint names (the robot file's), for `joint_states`; empty for other plants.
+    pub fn joint_names(&self) -> Vec<String> {
+        self.plant
+            .model
+            .config()
+            .rigid_body()
+            .map_or_else(Vec::new, |m| {
+                m.bodies.iter().map(|b| b.joint.clone()).collect()
+            })
+    }
+
     /// How long the controller and the optimiser wait for the plant's first state: a process of
     /// the user's own gets `plant.external.wait`; evoloop's plant, the start-up of the processes
     /// (`timing.lockstep_timeout`, at least 10 s).

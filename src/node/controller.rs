@@ -206,6 +206,7 @@ impl Loop {
                     Mode::Realtime => scn.timing.controller_cpu,
                     Mode::Lockstep => None,
                 },
+                scn.joint_names(),
             )?)
         } else {
             None

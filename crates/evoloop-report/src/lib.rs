@@ -11,6 +11,7 @@ pub mod plot;
 pub mod progress;
 pub mod record;
 pub mod recording;
+pub mod ros2;
 pub mod scan;
 pub mod stream;
 

@@ -1,12 +1,14 @@
 //! `run.mcap`: the run's messages as Foxglove and PlotJuggler open them (MCAP, one channel per
-//! topic, JSON messages with a JSON Schema each, LZ4 chunks), written by `report::mcap_file`,
-//! whose memory stays flat however long the run.
+//! topic, ROS 2 messages in CDR with their `ros2msg` definitions, `super::ros2`; LZ4 chunks),
+//! written by `report::mcap_file`, whose memory stays flat however long the run. An arm's
+//! joints are also on `joint_states` as `sensor_msgs/msg/JointState`. Recordings written
+//! before this encoding (up to e8a2f43, 2026-11-28) were JSON; `report::recording` reads both.
 //!
 //! The controller is the recorder: every topic passes through it. It sees each state it
 //! controls on, the command and telemetry it sends, each parameter set it receives and each
 //! model estimate it takes. The control cycle only copies the messages into bounded queues
 //! allocated at the start (`std::sync::mpsc::sync_channel`: a lock-free `try_send` while the
-//! receiver never blocks, and it never does: it polls and sleeps); a writer thread formats and
+//! receiver never blocks, and it never does: it polls and sleeps); a writer thread encodes and
 //! writes them. In lockstep a full queue makes the cycle wait (nothing is lost, the run is only
 //! slower); in realtime the message is dropped and counted (`mcap.dropped` in controller.json), as
 //! the CSV log does.
@@ -19,6 +21,7 @@
 //! controller needs.
 
 use super::mcap_file::McapWriter;
+use super::ros2::{self, MessageType};
 use evoloop_msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -29,8 +32,23 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-/// The channels, in the order of their ids (1..).
-pub const TOPICS: [&str; 5] = ["state", "command", "telemetry", "params", "estimate"];
+/// The channels, in the order of their ids (1..), and their messages.
+pub const TOPICS: [&str; 6] = [
+    "state",
+    "command",
+    "telemetry",
+    "params",
+    "estimate",
+    "joint_states",
+];
+const TYPES: [MessageType; 6] = [
+    ros2::PLANT_STATE,
+    ros2::COMMAND,
+    ros2::TELEMETRY,
+    ros2::PARAM_SET,
+    ros2::MODEL_ESTIMATE,
+    ros2::JOINT_STATE,
+];
 
 /// One control cycle's messages.
 #[derive(Clone, Copy)]
@@ -43,7 +61,7 @@ struct Cycle {
 /// Messages written per topic (in `TOPICS` order) and dropped, and the first write error.
 #[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize, PartialEq)]
 pub struct Recorded {
-    pub messages: [u64; 5],
+    pub messages: [u64; 6],
     pub dropped: u64,
     pub error: Option<String>,
 }
@@ -76,12 +94,14 @@ const IDLE: Duration = Duration::from_millis(2);
 
 impl Recorder {
     /// Create `path` and start the writer. `lockstep`: wait when a queue is full instead of
-    /// dropping. `metadata` goes into the file's `evoloop` metadata record.
+    /// dropping. `metadata` goes into the file's `evoloop` metadata record. `joints`: an arm's
+    /// joint names (the robot file's), recorded on `joint_states`; none for other plants.
     pub fn start(
         path: &Path,
         lockstep: bool,
         metadata: BTreeMap<String, String>,
         avoid_cpu: Option<usize>,
+        joints: Vec<String>,
     ) -> Result<Self, String> {
         let file = evoloop_files::create(path).map_err(|e| e.to_string())?;
         let at = |e: std::io::Error| format!("{}: {e}", path.display());
@@ -101,15 +121,13 @@ impl Recorder {
             dir,
         )
         .map_err(at)?;
-        for (i, topic) in TOPICS.iter().enumerate() {
+        for (i, (topic, ty)) in TOPICS.iter().zip(&TYPES).enumerate() {
             let schema = w
-                .add_schema(
-                    &format!("evoloop.{topic}"),
-                    "jsonschema",
-                    schema(topic).as_bytes(),
-                )
+                .add_schema(ty.name, ros2::SCHEMA_ENCODING, ty.schema().as_bytes())
                 .map_err(at)?;
-            let id = w.add_channel(schema, topic, "json").map_err(at)?;
+            let id = w
+                .add_channel(schema, topic, ros2::MESSAGE_ENCODING)
+                .map_err(at)?;
             debug_assert_eq!(id as usize, i + 1, "channel ids are 1.. in TOPICS order");
         }
         w.write_metadata("evoloop", &metadata).map_err(at)?;
@@ -133,7 +151,7 @@ impl Recorder {
                 if let Some(cpu) = avoid_cpu {
                     avoid(cpu);
                 }
-                write_all(w, &path, rc, rp, re, &d)
+                write_all(w, &path, &joints, rc, rp, re, &d)
             })
             .map_err(|e| format!("cannot start the MCAP writer: {e}"))?;
         Ok(Self {
@@ -243,11 +261,12 @@ fn avoid(cpu: usize) {
     }
 }
 
-/// The writer thread: drain the queues, format and write each message, sleep when idle, and
+/// The writer thread: drain the queues, encode and write each message, sleep when idle, and
 /// after `done` drain the rest and finish the file (summary, indexes).
 fn write_all<W: std::io::Write>(
     mut w: McapWriter<W>,
     path: &Path,
+    joints: &[String],
     cycles: Receiver<Cycle>,
     params: Receiver<(u64, u64, ParamSet)>,
     estimates: Receiver<(u64, u64, ModelEstimate)>,
@@ -270,21 +289,25 @@ fn write_all<W: std::io::Write>(
         let mut any = false;
         while let Ok(c) = cycles.try_recv() {
             any = true;
-            json_state(&mut buf, &c.state);
+            ros2::encode_state(&mut buf, &c.state);
             put(&mut w, &mut r, 0, c.state.stamp_ns, &buf);
-            json_command(&mut buf, &c.command);
+            ros2::encode_command(&mut buf, &c.command);
             put(&mut w, &mut r, 1, c.command.stamp_ns, &buf);
-            json_telemetry(&mut buf, &c.telemetry);
+            ros2::encode_telemetry(&mut buf, &c.telemetry);
             put(&mut w, &mut r, 2, c.command.stamp_ns, &buf);
+            if !joints.is_empty() {
+                ros2::encode_joint_state(&mut buf, &c.state, joints);
+                put(&mut w, &mut r, 5, c.state.stamp_ns, &buf);
+            }
         }
         while let Ok((stamp, cycle, p)) = params.try_recv() {
             any = true;
-            json_params(&mut buf, &p, cycle);
+            ros2::encode_params(&mut buf, &p, cycle);
             put(&mut w, &mut r, 3, stamp, &buf);
         }
         while let Ok((stamp, cycle, e)) = estimates.try_recv() {
             any = true;
-            json_estimate(&mut buf, &e, cycle);
+            ros2::encode_estimate(&mut buf, &e, cycle);
             put(&mut w, &mut r, 4, stamp, &buf);
         }
         if finishing && !any {
@@ -300,258 +323,4 @@ fn write_all<W: std::io::Write>(
         }
     }
     r
-}
-
-/// A JSON number (the shortest text that reads back to the same f64, by ryu, as serde_json
-/// writes it); NaN and infinities (not JSON) as null.
-fn num(buf: &mut Vec<u8>, x: f64) {
-    if x.is_finite() {
-        buf.extend_from_slice(ryu::Buffer::new().format_finite(x).as_bytes());
-    } else {
-        buf.extend_from_slice(b"null");
-    }
-}
-
-fn key(buf: &mut Vec<u8>, name: &str) {
-    buf.push(b'"');
-    buf.extend_from_slice(name.as_bytes());
-    buf.extend_from_slice(b"\":");
-}
-
-fn field(buf: &mut Vec<u8>, name: &str, x: f64) {
-    key(buf, name);
-    num(buf, x);
-    buf.push(b',');
-}
-
-fn int(buf: &mut Vec<u8>, name: &str, x: impl itoa::Integer) {
-    key(buf, name);
-    buf.extend_from_slice(itoa::Buffer::new().format(x).as_bytes());
-    buf.push(b',');
-}
-
-fn array(buf: &mut Vec<u8>, name: &str, xs: &[f64]) {
-    key(buf, name);
-    buf.push(b'[');
-    for (i, x) in xs.iter().enumerate() {
-        if i > 0 {
-            buf.push(b',');
-        }
-        num(buf, *x);
-    }
-    buf.extend_from_slice(b"],");
-}
-
-/// Close an object: the last field's comma becomes the closing brace.
-fn end(buf: &mut Vec<u8>) {
-    if buf.last() == Some(&b',') {
-        buf.pop();
-    }
-    buf.push(b'}');
-}
-
-/// The first `n` values of a message's array, at most all of them: the counts come from another
-/// process (a plant in any language), and a wrong one must not stop the recording.
-fn first(values: &[f64], n: u32) -> &[f64] {
-    &values[..(n as usize).min(values.len())]
-}
-
-fn json_state(buf: &mut Vec<u8>, s: &PlantState) {
-    buf.clear();
-    buf.push(b'{');
-    int(buf, "seq", s.seq);
-    int(buf, "stamp_ns", s.stamp_ns);
-    field(buf, "t", s.t);
-    int(buf, "flags", s.flags);
-    array(buf, "y", first(&s.y, s.n_y));
-    array(buf, "q_true", first(&s.q_true, s.n_q));
-    array(buf, "qd_true", first(&s.qd_true, s.n_q));
-    array(buf, "x_true", first(&s.x_true, s.n_x));
-    array(buf, "u_applied", first(&s.u_applied, s.n_y.max(s.n_q)));
-    end(buf);
-}
-
-fn json_command(buf: &mut Vec<u8>, c: &Command) {
-    buf.clear();
-    buf.push(b'{');
-    int(buf, "cycle", c.cycle);
-    int(buf, "state_seq", c.state_seq);
-    int(buf, "stamp_ns", c.stamp_ns);
-    int(buf, "param_version", c.param_version);
-    array(buf, "u", first(&c.u, c.n_u));
-    end(buf);
-}
-
-fn json_telemetry(buf: &mut Vec<u8>, t: &Telemetry) {
-    buf.clear();
-    buf.push(b'{');
-    int(buf, "cycle", t.cycle);
-    int(buf, "state_seq", t.state_seq);
-    field(buf, "t", t.t);
-    int(buf, "lateness_ns", t.lateness_ns);
-    int(buf, "compute_ns", t.compute_ns);
-    int(buf, "state_age_ns", t.state_age_ns);
-    field(buf, "reference", t.reference);
-    field(buf, "tracking_error", t.tracking_error);
-    int(buf, "flags", t.flags);
-    array(buf, "u", first(&t.u, t.n_u));
-    int(buf, "param_version", t.param_version);
-    int(buf, "param_event_version", t.param_event_version);
-    int(buf, "param_code", t.param_code);
-    int(buf, "param_index", t.param_index);
-    int(buf, "overruns", t.overruns);
-    int(buf, "missed", t.missed);
-    array(buf, "law", first(&t.law, t.n_law));
-    end(buf);
-}
-
-/// A set and the controller cycle that received it.
-fn json_params(buf: &mut Vec<u8>, p: &ParamSet, cycle: u64) {
-    buf.clear();
-    buf.push(b'{');
-    int(buf, "cycle", cycle);
-    int(buf, "version", p.version);
-    int(buf, "apply_at_seq", p.apply_at_seq);
-    field(buf, "expected_cost", p.expected_cost);
-    int(buf, "until_seq", p.until_seq);
-    int(buf, "fallback_version", p.fallback_version);
-    int(buf, "kind", p.kind);
-    array(
-        buf,
-        "values",
-        &p.values[..(p.n as usize).min(p.values.len())],
-    );
-    end(buf);
-}
-
-/// An estimate and the controller cycle that took it.
-fn json_estimate(buf: &mut Vec<u8>, e: &ModelEstimate, cycle: u64) {
-    buf.clear();
-    buf.push(b'{');
-    int(buf, "cycle", cycle);
-    field(buf, "t", e.t);
-    field(buf, "value", e.value);
-    field(buf, "std", e.std);
-    int(buf, "last_version", e.last_version);
-    int(buf, "apply_at_seq", e.apply_at_seq);
-    end(buf);
-}
-
-/// The JSON Schema of a topic's messages (what Foxglove uses to list the fields), read off the
-/// topic's own writer: one default message is written and each field's value typed, so the
-/// schema cannot drift from what is written.
-fn schema(topic: &str) -> String {
-    let mut buf = Vec::new();
-    let title = match topic {
-        "state" => {
-            json_state(&mut buf, &PlantState::default());
-            "Plant state sample (noisy outputs y, true positions, velocities and states)"
-        }
-        "command" => {
-            json_command(&mut buf, &Command::default());
-            "Controller command"
-        }
-        "telemetry" => {
-            json_telemetry(&mut buf, &Telemetry::default());
-            "Controller telemetry (timing, tracking, parameter events)"
-        }
-        "params" => {
-            json_params(&mut buf, &ParamSet::default(), 0);
-            "Parameter set received by the controller"
-        }
-        _ => {
-            json_estimate(&mut buf, &ModelEstimate::default(), 0);
-            "Model estimate taken by the controller"
-        }
-    };
-    let sample: serde_json::Map<String, serde_json::Value> =
-        serde_json::from_slice(&buf).expect("the writers write JSON objects");
-    // Floats may be written as null (NaN, infinities); integers never are.
-    let number = serde_json::json!({"type": ["number", "null"]});
-    let properties: serde_json::Map<String, serde_json::Value> = sample
-        .iter()
-        .map(|(k, v)| {
-            let ty = match v {
-                serde_json::Value::Array(_) => {
-                    serde_json::json!({"type": "array", "items": number})
-                }
-                serde_json::Value::Number(n) if n.is_f64() => number.clone(),
-                _ => serde_json::json!({"type": "integer"}),
-            };
-            (k.clone(), ty)
-        })
-        .collect();
-    serde_json::json!({
-        "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "title": title,
-        "type": "object",
-        "properties": properties,
-    })
-    .to_string()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn messages_are_json_with_only_the_valid_entries_and_schemas_parse() {
-        let mut s = PlantState {
-            seq: 7,
-            stamp_ns: 123,
-            t: 0.007,
-            n_y: 2,
-            n_q: 2,
-            n_x: 4,
-            ..Default::default()
-        };
-        s.y[0] = f64::NAN;
-        s.y[1] = 1.5;
-        let mut buf = Vec::new();
-        json_state(&mut buf, &s);
-        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
-        assert_eq!(v["seq"], 7);
-        assert_eq!(v["y"], serde_json::json!([null, 1.5]));
-        assert_eq!(v["x_true"].as_array().unwrap().len(), 4);
-        for topic in TOPICS {
-            let sch: serde_json::Value = serde_json::from_str(&schema(topic)).unwrap();
-            assert_eq!(sch["type"], "object", "{topic}");
-        }
-        let sch: serde_json::Value = serde_json::from_str(&schema("state")).unwrap();
-        let p = &sch["properties"];
-        assert_eq!(
-            (&p["seq"]["type"], &p["y"]["type"]),
-            (&"integer".into(), &"array".into())
-        );
-        assert_eq!(p["t"]["type"], serde_json::json!(["number", "null"]));
-        assert_eq!(p.as_object().unwrap().len(), v.as_object().unwrap().len());
-    }
-
-    /// A plant in another language may send any count: one past the array records the whole
-    /// array (it used to panic the writer thread and lose run.mcap while the loop ran on).
-    #[test]
-    fn a_count_beyond_the_array_records_the_array_not_a_panic() {
-        let s = PlantState {
-            n_y: 1000,
-            n_q: u32::MAX,
-            n_x: 33,
-            ..Default::default()
-        };
-        let mut buf = Vec::new();
-        json_state(&mut buf, &s);
-        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
-        assert_eq!(v["y"].as_array().unwrap().len(), evoloop_msg::MAX_JOINTS);
-        assert_eq!(v["x_true"].as_array().unwrap().len(), 32);
-        assert_eq!(
-            v["u_applied"].as_array().unwrap().len(),
-            evoloop_msg::MAX_JOINTS
-        );
-        let c = Command {
-            n_u: 9,
-            ..Default::default()
-        };
-        json_command(&mut buf, &c);
-        let v: serde_json::Value = serde_json::from_slice(&buf).unwrap();
-        assert_eq!(v["u"].as_array().unwrap().len(), evoloop_msg::MAX_JOINTS);
-    }
 }

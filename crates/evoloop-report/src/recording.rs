@@ -1,12 +1,16 @@
 //! Reading `run.mcap` back (the writer is `super::record`): the run's metadata and its messages
 //! as the typed messages the processes exchanged, for `evoloop replay`.
 //!
-//! The messages are the flat JSON objects `record` writes (integers, numbers or null, arrays of
-//! numbers). They are read here by a small reader of exactly that form rather than serde_json:
-//! numbers go through Rust's `str::parse`, which is correctly rounded, so every recorded f64
-//! comes back bit for bit (serde_json without `float_roundtrip` can be an ulp off, and that
-//! feature would change how the whole crate reads JSON). null reads as NaN.
+//! A channel's message encoding says how its messages are read. `cdr` (since 2026-11-28): the
+//! ROS 2 messages of `super::ros2`, every f64 its own 8 bytes; the schema's name is checked, so a
+//! file of another program's messages on a topic of the same name is refused, not misread.
+//! `json` (recordings before): the flat JSON objects the writer then wrote (integers, numbers or
+//! null, arrays of numbers), read by a small reader of exactly that form rather than
+//! serde_json: numbers go through Rust's `str::parse`, which is correctly rounded, so every
+//! recorded number comes back bit for bit; null (how NaN and infinities were written) reads as
+//! NaN.
 
+use super::ros2;
 use evoloop_msg::{Command, ModelEstimate, ParamSet, PlantState};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -125,36 +129,86 @@ impl Recording {
         check_chunks(&bytes).map_err(|e| at(&e))?;
         for msg in mcap::MessageStream::new(&bytes).map_err(|e| at(&e))? {
             let msg = msg.map_err(|e| at(&e))?;
-            let text = std::str::from_utf8(&msg.data).map_err(|e| at(&e))?;
             let bad = |e: String| {
                 at(&format!(
                     "{} message {}: {e}",
                     msg.channel.topic, msg.sequence
                 ))
             };
-            // Telemetry is the controller's own output: a replay makes it again, so it is not read.
-            let fields = || Fields::parse(text).map_err(bad);
-            match msg.channel.topic.as_str() {
-                "state" => r.states.push(fields()?.state().map_err(bad)?),
-                "command" => r.commands.push(fields()?.command().map_err(bad)?),
-                "params" => {
-                    let f = fields()?;
-                    r.params
-                        .push((f.received(msg.log_time), f.params().map_err(bad)?));
-                }
-                "estimate" => {
-                    let f = fields()?;
-                    r.estimates
-                        .push((f.received(msg.log_time), f.estimate().map_err(bad)?));
-                }
-                _ => {}
-            }
+            r.add(&msg).map_err(bad)?;
         }
         Ok(r)
     }
 
     pub fn meta(&self, key: &str) -> Option<&str> {
         self.metadata.get(key).map(String::as_str)
+    }
+}
+
+/// The topics a replay reads. Telemetry is the controller's own output (a replay makes it
+/// again) and joint states repeat the state: neither is read.
+const READ: [&str; 4] = ["state", "command", "params", "estimate"];
+
+impl Recording {
+    /// Add one recorded message, decoded by its channel's message encoding.
+    fn add(&mut self, msg: &mcap::Message) -> Result<(), String> {
+        let topic = msg.channel.topic.as_str();
+        if !READ.contains(&topic) {
+            return Ok(());
+        }
+        let received = |cycle| Received {
+            stamp_ns: msg.log_time,
+            cycle,
+        };
+        match msg.channel.message_encoding.as_str() {
+            ros2::MESSAGE_ENCODING => {
+                let ty = match topic {
+                    "state" => ros2::PLANT_STATE,
+                    "command" => ros2::COMMAND,
+                    "params" => ros2::PARAM_SET,
+                    _ => ros2::MODEL_ESTIMATE,
+                };
+                let schema = msg.channel.schema.as_ref().map(|s| s.name.as_str());
+                if schema != Some(ty.name) {
+                    return Err(format!(
+                        "schema {}, expected {}",
+                        schema.unwrap_or("none"),
+                        ty.name
+                    ));
+                }
+                let b = &msg.data;
+                match topic {
+                    "state" => self.states.push(ros2::decode_state(b)?),
+                    "command" => self.commands.push(ros2::decode_command(b)?),
+                    "params" => {
+                        let (cycle, p) = ros2::decode_params(b)?;
+                        self.params.push((received(Some(cycle)), p));
+                    }
+                    _ => {
+                        let (cycle, e) = ros2::decode_estimate(b)?;
+                        self.estimates.push((received(Some(cycle)), e));
+                    }
+                }
+            }
+            "json" => {
+                let text = std::str::from_utf8(&msg.data).map_err(|e| e.to_string())?;
+                let f = Fields::parse(text)?;
+                // The first JSON recordings did not name the cycle.
+                let cycle = f.int("cycle").ok();
+                match topic {
+                    "state" => self.states.push(f.state()?),
+                    "command" => self.commands.push(f.command()?),
+                    "params" => self.params.push((received(cycle), f.params()?)),
+                    _ => self.estimates.push((received(cycle), f.estimate()?)),
+                }
+            }
+            other => {
+                return Err(format!(
+                    "message encoding `{other}` (evoloop writes cdr, once json)"
+                ))
+            }
+        }
+        Ok(())
     }
 }
 
@@ -236,13 +290,6 @@ impl<'a> Fields<'a> {
             *slot = number(t)?;
         }
         Ok(v.len())
-    }
-
-    fn received(&self, log_time: u64) -> Received {
-        Received {
-            stamp_ns: log_time,
-            cycle: self.int("cycle").ok(),
-        }
     }
 
     fn state(&self) -> Result<PlantState, String> {

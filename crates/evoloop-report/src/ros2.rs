@@ -1,0 +1,647 @@
+//! The run's messages as ROS 2 messages: their definitions (`ros2msg`, the text `ros2 interface
+//! show` prints, dependencies appended as rosbag2 writes them) and their CDR encoding (OMG CDR,
+//! little endian, the 4-byte encapsulation header ROS 2's rmw layers put before every message).
+//!
+//! Why ROS 2 CDR and not protobuf: Foxglove and PlotJuggler decode both from the schema alone,
+//! but CDR is also what a ROS 2 node receives over rmw_zenoh or DDS, so one encoding serves the
+//! recording, a ROS 2 bridge and the tools of the users' other nodes; it needs no code
+//! generator, and its layout (fixed-size fields at natural alignment, sequences as a u32 count and
+//! their elements) costs no more to write than a copy.
+//!
+//! Each of evoloop's topics keeps its own message, field for field as the processes exchange
+//! it (the counts become the sequences' lengths), so a recording reads back bit for bit: every
+//! f64 is its 8 bytes, NaN payloads and signed zeros included. Where a standard message fits, the
+//! recording carries it too: `sensor_msgs/msg/JointState` for an arm's joints.
+
+use evoloop_msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
+
+/// MCAP's names of the message and schema encodings.
+pub const MESSAGE_ENCODING: &str = "cdr";
+pub const SCHEMA_ENCODING: &str = "ros2msg";
+
+/// The package evoloop's own messages are named in.
+pub const PACKAGE: &str = "evoloop_msgs";
+
+/// The separator between a definition and each dependency's (rosbag2's, 80 '=').
+const SEPARATOR: &str =
+    "================================================================================\n";
+
+/// ROS 2's CDR header: representation CDR_LE (0x0001), options 0.
+const CDR_LE: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
+
+/// A message being written: the header, then fields at their natural alignment, measured from
+/// the end of the header (the CDR stream's origin).
+pub struct CdrWriter<'a>(&'a mut Vec<u8>);
+
+impl<'a> CdrWriter<'a> {
+    /// Start a message in `buf` (cleared).
+    pub fn new(buf: &'a mut Vec<u8>) -> Self {
+        buf.clear();
+        buf.extend_from_slice(&CDR_LE);
+        Self(buf)
+    }
+
+    fn align(&mut self, n: usize) {
+        let pad = (n - (self.0.len() - CDR_LE.len()) % n) % n;
+        self.0.resize(self.0.len() + pad, 0);
+    }
+
+    pub fn u32(&mut self, v: u32) {
+        self.align(4);
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+
+    pub fn i32(&mut self, v: i32) {
+        self.align(4);
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+
+    pub fn u64(&mut self, v: u64) {
+        self.align(8);
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+
+    pub fn i64(&mut self, v: i64) {
+        self.align(8);
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+
+    pub fn f64(&mut self, v: f64) {
+        self.align(8);
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+
+    /// A string: its length with the terminating NUL, its bytes, the NUL.
+    pub fn string(&mut self, s: &str) {
+        self.u32(s.len() as u32 + 1);
+        self.0.extend_from_slice(s.as_bytes());
+        self.0.push(0);
+    }
+
+    /// A `float64[]`: the count, then (aligned only if there is one, as Fast-CDR writes) the
+    /// values.
+    pub fn f64s(&mut self, xs: &[f64]) {
+        self.u32(xs.len() as u32);
+        if !xs.is_empty() {
+            self.align(8);
+        }
+        for x in xs {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+
+    /// A `string[]`.
+    pub fn strings<'s>(&mut self, items: impl ExactSizeIterator<Item = &'s str>) {
+        self.u32(items.len() as u32);
+        for s in items {
+            self.string(s);
+        }
+    }
+
+    /// `builtin_interfaces/Time` from CLOCK_MONOTONIC-style nanoseconds.
+    pub fn time(&mut self, ns: u64) {
+        self.i32((ns / 1_000_000_000).min(i32::MAX as u64) as i32);
+        self.u32((ns % 1_000_000_000) as u32);
+    }
+}
+
+/// A message being read; every read checks the bounds and names what ran short.
+pub struct CdrReader<'a> {
+    b: &'a [u8],
+    at: usize,
+}
+
+impl<'a> CdrReader<'a> {
+    /// Refuse anything but little-endian plain CDR (what `CdrWriter` and ROS 2 write).
+    pub fn new(b: &'a [u8]) -> Result<Self, String> {
+        match b.get(..4) {
+            Some(h) if h[..2] == CDR_LE[..2] => Ok(Self { b, at: 4 }),
+            Some(h) => Err(format!(
+                "CDR representation {:02x}{:02x}: only little-endian CDR (0001) is read",
+                h[0], h[1]
+            )),
+            None => Err("shorter than a CDR header".into()),
+        }
+    }
+
+    fn align(&mut self, n: usize) {
+        self.at += (n - (self.at - 4) % n) % n;
+    }
+
+    fn take<const N: usize>(&mut self, what: &str) -> Result<[u8; N], String> {
+        self.align(N);
+        let bytes = self
+            .at
+            .checked_add(N)
+            .and_then(|end| self.b.get(self.at..end))
+            .ok_or_else(|| format!("cut short at `{what}` (byte {})", self.at))?;
+        self.at += N;
+        Ok(bytes.try_into().expect("N bytes"))
+    }
+
+    pub fn u32(&mut self, what: &str) -> Result<u32, String> {
+        self.take::<4>(what).map(u32::from_le_bytes)
+    }
+
+    pub fn i32(&mut self, what: &str) -> Result<i32, String> {
+        self.take::<4>(what).map(i32::from_le_bytes)
+    }
+
+    pub fn u64(&mut self, what: &str) -> Result<u64, String> {
+        self.take::<8>(what).map(u64::from_le_bytes)
+    }
+
+    pub fn i64(&mut self, what: &str) -> Result<i64, String> {
+        self.take::<8>(what).map(i64::from_le_bytes)
+    }
+
+    pub fn f64(&mut self, what: &str) -> Result<f64, String> {
+        self.take::<8>(what).map(f64::from_le_bytes)
+    }
+
+    /// A `float64[]` into `out`; its length (refused if longer than `out`).
+    pub fn f64s(&mut self, what: &str, out: &mut [f64]) -> Result<u32, String> {
+        let n = self.u32(what)?;
+        if n as usize > out.len() {
+            return Err(format!("`{what}` has {n} values, at most {}", out.len()));
+        }
+        for slot in &mut out[..n as usize] {
+            *slot = self.f64(what)?;
+        }
+        Ok(n)
+    }
+
+    /// A string (the NUL dropped).
+    pub fn string(&mut self, what: &str) -> Result<String, String> {
+        let n = self.u32(what)? as usize;
+        let bytes = self
+            .at
+            .checked_add(n)
+            .and_then(|end| self.b.get(self.at..end))
+            .ok_or_else(|| format!("cut short in `{what}`"))?;
+        self.at += n;
+        let text = bytes.strip_suffix(&[0]).unwrap_or(bytes);
+        String::from_utf8(text.to_vec()).map_err(|_| format!("`{what}` is not UTF-8"))
+    }
+
+    /// A `string[]`.
+    pub fn strings(&mut self, what: &str) -> Result<Vec<String>, String> {
+        let n = self.u32(what)? as usize;
+        // Each string takes at least its 4-byte length: a count beyond that is a damaged file.
+        if n > self.b.len() / 4 {
+            return Err(format!("`{what}` claims {n} strings"));
+        }
+        (0..n).map(|_| self.string(what)).collect()
+    }
+}
+
+/// The first `n` values of a message's array, at most all of them: the counts come from another
+/// process (a plant in any language), and a wrong one must not stop the recording.
+fn first(values: &[f64], n: u32) -> &[f64] {
+    &values[..(n as usize).min(values.len())]
+}
+
+// ------------------------------------------------------------------ evoloop's messages
+
+/// A topic's message type: its ROS 2 name and definition.
+pub struct MessageType {
+    pub name: &'static str,
+    pub definition: &'static str,
+}
+
+pub const PLANT_STATE: MessageType = MessageType {
+    name: "evoloop_msgs/msg/PlantState",
+    definition: "\
+# A plant sample: noisy outputs y, true positions, velocities and states, the applied input.
+uint64 seq
+# CLOCK_MONOTONIC ns when the plant produced the sample (the recording's log time)
+uint64 stamp_ns
+# simulated time, s
+float64 t
+uint32 flags
+float64[] y
+float64[] q_true
+float64[] qd_true
+float64[] x_true
+float64[] u_applied
+",
+};
+
+pub const COMMAND: MessageType = MessageType {
+    name: "evoloop_msgs/msg/Command",
+    definition: "\
+# The controller's command on state `state_seq`, with the parameter version it ran.
+uint64 cycle
+uint64 state_seq
+uint64 stamp_ns
+uint64 param_version
+float64[] u
+",
+};
+
+pub const TELEMETRY: MessageType = MessageType {
+    name: "evoloop_msgs/msg/Telemetry",
+    definition: "\
+# The controller's cycle: timing (ns), tracking, the last parameter event and the law's values.
+uint64 cycle
+uint64 state_seq
+float64 t
+int64 lateness_ns
+uint64 compute_ns
+uint64 state_age_ns
+float64 reference
+float64 tracking_error
+uint32 flags
+float64[] u
+uint64 param_version
+uint64 param_event_version
+uint32 param_code
+uint32 param_index
+uint64 overruns
+uint64 missed
+float64[] law
+",
+};
+
+pub const PARAM_SET: MessageType = MessageType {
+    name: "evoloop_msgs/msg/ParamSet",
+    definition: "\
+# A parameter set the controller received, and the controller cycle that received it.
+uint64 cycle
+uint64 version
+uint64 apply_at_seq
+float64 expected_cost
+uint64 until_seq
+uint64 fallback_version
+uint32 kind
+float64[] values
+",
+};
+
+pub const MODEL_ESTIMATE: MessageType = MessageType {
+    name: "evoloop_msgs/msg/ModelEstimate",
+    definition: "\
+# A model estimate the controller took, and the controller cycle that took it.
+uint64 cycle
+float64 t
+float64 value
+float64 std
+uint64 last_version
+uint64 apply_at_seq
+",
+};
+
+pub const JOINT_STATE: MessageType = MessageType {
+    name: "sensor_msgs/msg/JointState",
+    definition: "\
+std_msgs/Header header
+string[] name
+float64[] position
+float64[] velocity
+float64[] effort
+",
+};
+
+/// `std_msgs/Header` and `builtin_interfaces/Time`, which JointState's definition needs.
+const HEADER_DEPENDENCIES: &str = "\
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+";
+
+impl MessageType {
+    /// The schema MCAP carries: the definition and its dependencies' (for `ros2msg`).
+    pub fn schema(&self) -> String {
+        if self.definition.starts_with("std_msgs/Header") {
+            format!("{}{SEPARATOR}{HEADER_DEPENDENCIES}", self.definition)
+        } else {
+            self.definition.to_string()
+        }
+    }
+}
+
+pub fn encode_state(buf: &mut Vec<u8>, s: &PlantState) {
+    let mut w = CdrWriter::new(buf);
+    w.u64(s.seq);
+    w.u64(s.stamp_ns);
+    w.f64(s.t);
+    w.u32(s.flags);
+    w.f64s(first(&s.y, s.n_y));
+    w.f64s(first(&s.q_true, s.n_q));
+    w.f64s(first(&s.qd_true, s.n_q));
+    w.f64s(first(&s.x_true, s.n_x));
+    w.f64s(first(&s.u_applied, s.n_y.max(s.n_q)));
+}
+
+pub fn decode_state(b: &[u8]) -> Result<PlantState, String> {
+    let mut r = CdrReader::new(b)?;
+    let mut s = PlantState {
+        seq: r.u64("seq")?,
+        stamp_ns: r.u64("stamp_ns")?,
+        t: r.f64("t")?,
+        flags: r.u32("flags")?,
+        ..Default::default()
+    };
+    s.n_y = r.f64s("y", &mut s.y)?;
+    s.n_q = r.f64s("q_true", &mut s.q_true)?;
+    r.f64s("qd_true", &mut s.qd_true)?;
+    s.n_x = r.f64s("x_true", &mut s.x_true)?;
+    r.f64s("u_applied", &mut s.u_applied)?;
+    Ok(s)
+}
+
+pub fn encode_command(buf: &mut Vec<u8>, c: &Command) {
+    let mut w = CdrWriter::new(buf);
+    w.u64(c.cycle);
+    w.u64(c.state_seq);
+    w.u64(c.stamp_ns);
+    w.u64(c.param_version);
+    w.f64s(first(&c.u, c.n_u));
+}
+
+pub fn decode_command(b: &[u8]) -> Result<Command, String> {
+    let mut r = CdrReader::new(b)?;
+    let mut c = Command {
+        cycle: r.u64("cycle")?,
+        state_seq: r.u64("state_seq")?,
+        stamp_ns: r.u64("stamp_ns")?,
+        param_version: r.u64("param_version")?,
+        ..Default::default()
+    };
+    c.n_u = r.f64s("u", &mut c.u)?;
+    Ok(c)
+}
+
+pub fn encode_telemetry(buf: &mut Vec<u8>, t: &Telemetry) {
+    let mut w = CdrWriter::new(buf);
+    w.u64(t.cycle);
+    w.u64(t.state_seq);
+    w.f64(t.t);
+    w.i64(t.lateness_ns);
+    w.u64(t.compute_ns);
+    w.u64(t.state_age_ns);
+    w.f64(t.reference);
+    w.f64(t.tracking_error);
+    w.u32(t.flags);
+    w.f64s(first(&t.u, t.n_u));
+    w.u64(t.param_version);
+    w.u64(t.param_event_version);
+    w.u32(t.param_code);
+    w.u32(t.param_index);
+    w.u64(t.overruns);
+    w.u64(t.missed);
+    w.f64s(first(&t.law, t.n_law));
+}
+
+pub fn decode_telemetry(b: &[u8]) -> Result<Telemetry, String> {
+    let mut r = CdrReader::new(b)?;
+    let mut t = Telemetry {
+        cycle: r.u64("cycle")?,
+        state_seq: r.u64("state_seq")?,
+        t: r.f64("t")?,
+        lateness_ns: r.i64("lateness_ns")?,
+        compute_ns: r.u64("compute_ns")?,
+        state_age_ns: r.u64("state_age_ns")?,
+        reference: r.f64("reference")?,
+        tracking_error: r.f64("tracking_error")?,
+        flags: r.u32("flags")?,
+        ..Default::default()
+    };
+    t.n_u = r.f64s("u", &mut t.u)?;
+    t.param_version = r.u64("param_version")?;
+    t.param_event_version = r.u64("param_event_version")?;
+    t.param_code = r.u32("param_code")?;
+    t.param_index = r.u32("param_index")?;
+    t.overruns = r.u64("overruns")?;
+    t.missed = r.u64("missed")?;
+    t.n_law = r.f64s("law", &mut t.law)?;
+    Ok(t)
+}
+
+/// A set and the controller cycle that received it.
+pub fn encode_params(buf: &mut Vec<u8>, p: &ParamSet, cycle: u64) {
+    let mut w = CdrWriter::new(buf);
+    w.u64(cycle);
+    w.u64(p.version);
+    w.u64(p.apply_at_seq);
+    w.f64(p.expected_cost);
+    w.u64(p.until_seq);
+    w.u64(p.fallback_version);
+    w.u32(p.kind);
+    w.f64s(first(&p.values, p.n));
+}
+
+pub fn decode_params(b: &[u8]) -> Result<(u64, ParamSet), String> {
+    let mut r = CdrReader::new(b)?;
+    let cycle = r.u64("cycle")?;
+    let mut p = ParamSet {
+        version: r.u64("version")?,
+        apply_at_seq: r.u64("apply_at_seq")?,
+        expected_cost: r.f64("expected_cost")?,
+        until_seq: r.u64("until_seq")?,
+        fallback_version: r.u64("fallback_version")?,
+        kind: r.u32("kind")?,
+        ..Default::default()
+    };
+    p.n = r.f64s("values", &mut p.values)?;
+    Ok((cycle, p))
+}
+
+/// An estimate and the controller cycle that took it.
+pub fn encode_estimate(buf: &mut Vec<u8>, e: &ModelEstimate, cycle: u64) {
+    let mut w = CdrWriter::new(buf);
+    w.u64(cycle);
+    w.f64(e.t);
+    w.f64(e.value);
+    w.f64(e.std);
+    w.u64(e.last_version);
+    w.u64(e.apply_at_seq);
+}
+
+pub fn decode_estimate(b: &[u8]) -> Result<(u64, ModelEstimate), String> {
+    let mut r = CdrReader::new(b)?;
+    let cycle = r.u64("cycle")?;
+    Ok((
+        cycle,
+        ModelEstimate {
+            t: r.f64("t")?,
+            value: r.f64("value")?,
+            std: r.f64("std")?,
+            last_version: r.u64("last_version")?,
+            apply_at_seq: r.u64("apply_at_seq")?,
+        },
+    ))
+}
+
+/// An arm's joints as `sensor_msgs/msg/JointState`: stamped with the sample's stamp, position
+/// the measured joint angles y, velocity the joint velocities the controller reads, effort the
+/// torques applied. `names` are the robot file's joint names, one per joint.
+pub fn encode_joint_state(buf: &mut Vec<u8>, s: &PlantState, names: &[String]) {
+    let n = (s.n_q as usize).min(names.len());
+    let mut w = CdrWriter::new(buf);
+    w.time(s.stamp_ns);
+    w.string("");
+    w.strings(names[..n].iter().map(String::as_str));
+    w.f64s(&first(&s.y, s.n_y)[..n.min(s.n_y as usize)]);
+    w.f64s(first(&s.qd_true, n as u32));
+    w.f64s(first(&s.u_applied, n as u32));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Worked by hand from the CDR rules: header 00 01 00 00; a u32 at 0; a u64 aligned to 8
+    /// (4 bytes of padding); an empty float64[] (its count only, no alignment); a float64[] of one
+    /// (count at 20, aligned to 24); a string (length with NUL, bytes, NUL).
+    #[test]
+    fn the_layout_is_cdrs() {
+        let mut buf = Vec::new();
+        let mut w = CdrWriter::new(&mut buf);
+        w.u32(7);
+        w.u64(1);
+        w.f64s(&[]);
+        w.f64s(&[1.0]);
+        w.string("ab");
+        let mut expect = vec![0, 1, 0, 0, 7, 0, 0, 0, 0, 0, 0, 0];
+        expect.extend(1u64.to_le_bytes());
+        expect.extend([0, 0, 0, 0]); // the empty sequence's count, at 16
+        expect.extend([1, 0, 0, 0]); // the count, at 20
+        expect.extend(1.0f64.to_le_bytes()); // at 24
+        expect.extend([3, 0, 0, 0, b'a', b'b', 0]);
+        assert_eq!(buf, expect);
+    }
+
+    #[test]
+    fn every_message_reads_back_bit_for_bit() {
+        let mut s = PlantState {
+            seq: 7,
+            stamp_ns: u64::MAX,
+            t: 0.1 + 0.2,
+            flags: 3,
+            n_y: 2,
+            n_q: 2,
+            n_x: 4,
+            ..Default::default()
+        };
+        s.y[0] = f64::from_bits(0x7ff8_dead_beef_0001); // a NaN with a payload
+        s.y[1] = -0.0;
+        s.x_true[3] = f64::NEG_INFINITY;
+        s.qd_true[1] = 1e-310;
+        s.u_applied[0] = -2.5;
+        let mut buf = Vec::new();
+        encode_state(&mut buf, &s);
+        let back = decode_state(&buf).unwrap();
+        // PlantState has no padding: its bytes compare every field, NaN payloads included.
+        assert_eq!(bytes_of(&back), bytes_of(&s));
+
+        let mut t = Telemetry {
+            cycle: 9,
+            lateness_ns: -42,
+            n_u: 1,
+            n_law: 3,
+            param_code: 5,
+            ..Default::default()
+        };
+        t.law[2] = f64::NAN;
+        t.u[0] = 4.0;
+        encode_telemetry(&mut buf, &t);
+        assert_eq!(bytes_of(&decode_telemetry(&buf).unwrap()), bytes_of(&t));
+
+        let mut p = ParamSet {
+            version: 3,
+            n: 5,
+            kind: 2,
+            expected_cost: f64::INFINITY,
+            ..Default::default()
+        };
+        p.values[4] = 1.25;
+        encode_params(&mut buf, &p, 11);
+        let (cycle, back) = decode_params(&buf).unwrap();
+        assert_eq!((cycle, bytes_of(&back)), (11, bytes_of(&p)));
+
+        let e = ModelEstimate {
+            t: 1.0,
+            value: 2.0,
+            std: f64::NAN,
+            last_version: 4,
+            apply_at_seq: 5,
+        };
+        encode_estimate(&mut buf, &e, 12);
+        let (cycle, back) = decode_estimate(&buf).unwrap();
+        assert_eq!((cycle, bytes_of(&back)), (12, bytes_of(&e)));
+
+        let mut c = Command {
+            cycle: 1,
+            n_u: 2,
+            ..Default::default()
+        };
+        c.u[1] = -1.0;
+        encode_command(&mut buf, &c);
+        assert_eq!(bytes_of(&decode_command(&buf).unwrap()), bytes_of(&c));
+    }
+
+    fn bytes_of<T: Copy>(v: &T) -> Vec<u8> {
+        // SAFETY: the message types are plain `repr(C)` data without padding (evoloop-msg's own
+        // layout tests); reading their bytes is reading their fields.
+        unsafe { std::slice::from_raw_parts(v as *const T as *const u8, std::mem::size_of::<T>()) }
+            .to_vec()
+    }
+
+    #[test]
+    fn damaged_messages_are_refused_with_the_field() {
+        let mut buf = Vec::new();
+        let s = PlantState {
+            n_y: 3,
+            ..Default::default()
+        };
+        encode_state(&mut buf, &s);
+        for cut in [0, 3, 10, buf.len() - 1] {
+            assert!(decode_state(&buf[..cut]).is_err(), "cut at {cut}");
+        }
+        let mut big = buf.clone();
+        big[4 + 28..4 + 32].copy_from_slice(&1000u32.to_le_bytes()); // y's count, far too many
+        let e = decode_state(&big).unwrap_err();
+        assert!(e.contains("`y`"), "{e}");
+        let mut be = buf.clone();
+        be[1] = 0; // CDR_BE
+        assert!(decode_state(&be).unwrap_err().contains("little-endian"));
+    }
+
+    #[test]
+    fn joint_states_carry_the_joints_only_and_the_header_schema() {
+        let mut s = PlantState {
+            stamp_ns: 3_500_000_001,
+            n_y: 2,
+            n_q: 2,
+            ..Default::default()
+        };
+        s.y[..2].copy_from_slice(&[0.5, -0.5]);
+        s.qd_true[1] = 2.0;
+        s.u_applied[0] = 9.0;
+        let names = vec!["shoulder".to_string(), "elbow".to_string()];
+        let mut buf = Vec::new();
+        encode_joint_state(&mut buf, &s, &names);
+        let mut r = CdrReader::new(&buf).unwrap();
+        assert_eq!(
+            (r.i32("sec").unwrap(), r.u32("ns").unwrap()),
+            (3, 500_000_001)
+        );
+        assert_eq!(r.string("frame_id").unwrap(), "");
+        assert_eq!(r.strings("name").unwrap(), names);
+        let mut v = [0.0; 8];
+        assert_eq!(r.f64s("position", &mut v).unwrap(), 2);
+        assert_eq!(v[..2], [0.5, -0.5]);
+        assert_eq!(r.f64s("velocity", &mut v).unwrap(), 2);
+        assert_eq!(v[1], 2.0);
+        assert_eq!(r.f64s("effort", &mut v).unwrap(), 2);
+        assert_eq!(v[0], 9.0);
+        let schema = JOINT_STATE.schema();
+        assert!(schema.contains("\nMSG: std_msgs/Header\n") && schema.contains("uint32 nanosec"));
+        assert_eq!(PLANT_STATE.schema(), PLANT_STATE.definition);
+    }
+}
