@@ -18,11 +18,13 @@ use std::collections::VecDeque;
 pub const SPARK_SECONDS: f64 = 10.0;
 pub const SPARK_BUCKETS: usize = 100;
 
-/// A running run, as found in /proc: its controller's `--run-id` and `--ipc-prefix`.
+/// A running run, as found in /proc: its controller's `--run-id`, `--ipc-prefix` and
+/// `--config` (the scenario, resolved against the controller's working directory).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunningRun {
     pub run_id: String,
     pub ipc_prefix: String,
+    pub config: Option<std::path::PathBuf>,
 }
 
 /// The runs with a live controller process of this user's.
@@ -37,6 +39,10 @@ pub fn running_runs() -> Vec<RunningRun> {
                     .arg("--ipc-prefix")
                     .unwrap_or(crate::ipc::DEFAULT_PREFIX)
                     .to_string(),
+                config: p.arg("--config").and_then(|c| {
+                    let cwd = std::fs::read_link(format!("/proc/{}/cwd", p.pid)).ok()?;
+                    Some(cwd.join(c))
+                }),
             })
         })
         .collect();

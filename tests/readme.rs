@@ -137,7 +137,8 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
                 Err(format!("no example `{name}` in examples/"))
             }
         }
-        ["cargo", "test", "--release", "--test", name] => {
+        ["cargo", "test", "--release", "--test", name]
+        | ["cargo", "test", "--release", "--test", name, "--", "--ignored"] => {
             if root().join("tests").join(format!("{name}.rs")).exists() {
                 Ok(None)
             } else {

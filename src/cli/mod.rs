@@ -104,6 +104,10 @@ pub enum Cmd {
     /// the plant's place, and compare its commands with the recorded ones (replay.json,
     /// replay.csv, replay.png); `--scenario FILE` tries another controller on the recorded data.
     Replay(crate::node::replay::ReplayArgs),
+    /// Serve a running run to Foxglove or PlotJuggler in Foxglove's WebSocket protocol: its
+    /// topics (ROS 2 CDR) and the controller's gains as a parameter a viewer may set (checked by
+    /// the controller like any set). `evoloop run --live` starts it with the run.
+    Live(crate::node::live::LiveArgs),
     /// A live terminal view of a running run: processes, the controller's rate, lateness and
     /// misses (last second and since start), parameter sets and model estimate, a sparkline of
     /// the tracking error (`--json`: one snapshot for scripts); keys h, g, b, x hold, resume,
@@ -181,6 +185,7 @@ pub fn main() -> ExitCode {
             seeds: None,
             floor_duration: None,
             workers: None,
+            live: None,
         }),
         Some(Cmd::Run(a)) if a.seeds.is_some() => launcher::run_seeds(a),
         Some(Cmd::Run(a)) => launcher::run(a),
@@ -227,6 +232,7 @@ pub fn main() -> ExitCode {
         },
         Some(Cmd::Soak(a)) => soak::main(a),
         Some(Cmd::Replay(a)) => ExitCode::from(crate::node::replay::main(&a) as u8),
+        Some(Cmd::Live(a)) => ExitCode::from(crate::node::live::main(&a)),
         Some(Cmd::Top(a)) => ExitCode::from(top::main(&a)),
         Some(Cmd::Operator(a)) => ExitCode::from(operator::main(&a)),
         Some(Cmd::Bridge(a)) => ExitCode::from(bridge::main(&a)),

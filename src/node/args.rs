@@ -39,6 +39,11 @@ pub struct RunArgs {
     /// `zenoh`, indirect scenarios).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64), conflicts_with = "workers_listen")]
     pub workers: Option<u16>,
+    /// Serve the run live to Foxglove or PlotJuggler (Foxglove WebSocket protocol) on ADDR
+    /// [default ADDR: 127.0.0.1:8765]: `evoloop live` started beside the run's processes, its
+    /// own process, stopped with the run.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+    pub live: Option<String>,
 }
 
 fn parse_floor_duration(s: &str) -> Result<f64, String> {

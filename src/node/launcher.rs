@@ -77,9 +77,10 @@ pub fn measure_floor(
     .unwrap_or_default()
 }
 
-/// Evaluation workers on this host (`evoloop worker` processes): `--workers N` of `run` and
-/// `tune`, and `bench workers`. They serve until this is dropped (SIGTERM, then waited for), and
-/// die with the process that started them.
+/// Helper processes on this host: evaluation workers (`evoloop worker`: `--workers N` of `run`
+/// and `tune`, and `bench workers`) and a run's live view (`evoloop live`, `run --live`). They
+/// serve until this is dropped (SIGTERM, then waited for), and die with the process that
+/// started them.
 #[derive(Default)]
 pub struct LocalWorkers(Vec<Child>);
 
@@ -808,6 +809,26 @@ impl Running {
             err!("error: {e}");
             ExitCode::from(1)
         })?;
+        let mut workers = workers;
+        if let Some(addr) = &a.live {
+            let live: Vec<String> = [
+                "--run",
+                &p.run_id,
+                "--ipc-prefix",
+                &a.ipc_prefix,
+                "--config",
+                &config.display().to_string(),
+                "--addr",
+                addr,
+            ]
+            .map(String::from)
+            .to_vec();
+            let c = spawn_process("evoloop-live", &live).map_err(|e| {
+                err!("error: cannot start evoloop-live: {e}");
+                ExitCode::from(1)
+            })?;
+            workers.0.push(c);
+        }
         let external = p.scn.plant.model.config().external().map(|e| {
             let env = super::external::environment(&p.scn, &config, &p.run_id, &a.ipc_prefix);
             (e, env)

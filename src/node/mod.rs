@@ -8,6 +8,7 @@ pub mod args;
 pub mod controller;
 pub mod external;
 pub mod launcher;
+pub mod live;
 pub mod optimiser;
 pub mod plant;
 pub mod replay;

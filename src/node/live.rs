@@ -1,0 +1,562 @@
+//! `evoloop live`: a running run in Foxglove's WebSocket protocol (`foxglove.websocket.v1`,
+//! <https://github.com/foxglove/ws-protocol>), for Foxglove and PlotJuggler: the run's topics as
+//! channels (ROS 2 CDR with `ros2msg` schemas, the recording's own encoding, `report::ros2`) and
+//! the controller's tunable values as the parameter `gains`, which a viewer may set.
+//!
+//! Off the control path by construction: its own process (`evoloop run --live` starts it beside
+//! the run's), attached as a passive subscriber like `top` (the run's publishers never wait for a
+//! subscriber; a full queue loses its oldest sample, counted nowhere on the loop). One thread
+//! polls the topics and hands each encoded message to every client's bounded queue (dropped,
+//! and counted, when a viewer is slow); a thread per client writes its frames and reads its
+//! requests.
+//!
+//! A parameter set a viewer sends goes to the controller as any other set: a `ParamSet` on the
+//! run's `params` topic, version one above the newest the run has seen, checked by the
+//! controller's validation (bounds, finiteness, stability where the law checks it). The answer
+//! is the controller's own, read from its telemetry: accepted, the new values come back as
+//! `parameterValues`; refused, a `status` error names the reason and the values in service come
+//! back.
+
+use crate::config::{Overrides, Scenario};
+use crate::ipc::{Ipc, Pub, Sub, Topic};
+use crate::msg::{Command, ParamCode, ParamSet, PlantState, Telemetry};
+use crate::report::ros2::{self, MessageType};
+use serde_json::{json, Value};
+use std::net::{TcpListener, TcpStream};
+use std::path::PathBuf;
+use std::sync::mpsc::{channel, sync_channel, Sender, SyncSender, TrySendError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// The WebSocket subprotocol a Foxglove client asks for.
+pub const SUBPROTOCOL: &str = "foxglove.websocket.v1";
+/// The parameter holding the controller's tunable values.
+pub const GAINS: &str = "gains";
+
+#[derive(clap::Args, Debug)]
+pub struct LiveArgs {
+    /// The run to serve (its run id); default: the only run running.
+    #[arg(long)]
+    pub run: Option<String>,
+    /// Address to listen on (Foxglove: "Open connection", Foxglove WebSocket, ws://ADDR).
+    #[arg(long, default_value = "127.0.0.1:8765")]
+    pub addr: String,
+    /// The run's scenario (default: the one its controller was started with).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Prefix of iceoryx2's files (default: the run's).
+    #[arg(long)]
+    pub ipc_prefix: Option<String>,
+}
+
+/// The channels served, by id (1..).
+const CHANNELS: [(&str, MessageType); 5] = [
+    ("state", ros2::PLANT_STATE),
+    ("command", ros2::COMMAND),
+    ("telemetry", ros2::TELEMETRY),
+    ("params", ros2::PARAM_SET),
+    ("joint_states", ros2::JOINT_STATE),
+];
+
+/// What a client thread sends on its connection.
+enum Out {
+    /// A message on channel `channel` (1..), stamped.
+    Data {
+        channel: u32,
+        stamp_ns: u64,
+        payload: Arc<Vec<u8>>,
+    },
+    Text(String),
+}
+
+/// What a client asks of the hub.
+enum Ask {
+    Get {
+        id: Value,
+        reply: SyncSender<Out>,
+    },
+    Set {
+        id: Value,
+        values: Vec<f64>,
+        reply: SyncSender<Out>,
+    },
+}
+
+/// Messages a client's queue holds before newer ones are dropped for it.
+const CLIENT_QUEUE: usize = 4096;
+/// How often the hub polls the topics.
+const POLL: Duration = Duration::from_millis(2);
+/// How long a set waits for the controller's answer.
+const ANSWER: Duration = Duration::from_secs(3);
+
+pub fn main(a: &LiveArgs) -> u8 {
+    match serve(a) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            2
+        }
+    }
+}
+
+fn serve(a: &LiveArgs) -> Result<(), String> {
+    // Started by `evoloop run --live`: everything given, the controller perhaps not started yet.
+    let run = match (&a.run, &a.ipc_prefix, &a.config) {
+        (Some(id), Some(prefix), Some(config)) => crate::top::RunningRun {
+            run_id: id.clone(),
+            ipc_prefix: prefix.clone(),
+            config: Some(config.clone()),
+        },
+        _ => crate::top::pick_run(a.run.as_deref())?,
+    };
+    let prefix = a.ipc_prefix.clone().unwrap_or(run.ipc_prefix.clone());
+    let config = a
+        .config
+        .clone()
+        .or(run.config.clone())
+        .ok_or("the run's scenario is unknown: give --config")?;
+    let scn = Scenario::load(&config, &Overrides::default()).map_err(|e| e.to_string())?;
+    let listener = TcpListener::bind(&a.addr).map_err(|e| format!("--addr {}: {e}", a.addr))?;
+    let ipc = Ipc::with_cleanup("evoloop-live", &run.run_id, &prefix, false)
+        .map_err(|e| format!("attaching to run {}: {e}", run.run_id))?;
+    let mut hub = Hub::new(&ipc, &scn).map_err(|e| format!("run {}: {e}", run.run_id))?;
+    let (join_tx, join_rx) = channel::<SyncSender<Out>>();
+    let (ask_tx, ask_rx) = channel::<Ask>();
+    let info = server_info(&run.run_id, &scn);
+    let advertise = advertise(!hub.joints.is_empty());
+    eprintln!(
+        "evoloop live: run {} on ws://{} (Foxglove WebSocket)",
+        run.run_id,
+        listener.local_addr().map_err(|e| e.to_string())?
+    );
+    std::thread::Builder::new()
+        .name("live-accept".into())
+        .spawn(move || accept(listener, info, advertise, join_tx, ask_tx))
+        .map_err(|e| e.to_string())?;
+    let stop = crate::node::start::stop_flag();
+    while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+        while let Ok(c) = join_rx.try_recv() {
+            hub.clients.push(c);
+        }
+        while let Ok(ask) = ask_rx.try_recv() {
+            hub.ask(ask);
+        }
+        if !hub.poll() {
+            break;
+        }
+        std::thread::sleep(POLL);
+    }
+    Ok(())
+}
+
+fn server_info(run_id: &str, scn: &Scenario) -> String {
+    json!({
+        "op": "serverInfo",
+        "name": format!("evoloop live: {} ({run_id})", scn.name),
+        "capabilities": ["parameters"],
+        "supportedEncodings": [],
+        "metadata": {"run_id": run_id, "scenario": scn.name, "period_s": scn.timing.period.to_string()},
+        "sessionId": run_id,
+    })
+    .to_string()
+}
+
+fn advertise(joints: bool) -> String {
+    let n = if joints { 5 } else { 4 };
+    let channels: Vec<Value> = CHANNELS[..n]
+        .iter()
+        .enumerate()
+        .map(|(i, (topic, ty))| {
+            json!({
+                "id": i + 1,
+                "topic": topic,
+                "encoding": ros2::MESSAGE_ENCODING,
+                "schemaName": ty.name,
+                "schema": ty.schema(),
+                "schemaEncoding": ros2::SCHEMA_ENCODING,
+            })
+        })
+        .collect();
+    json!({"op": "advertise", "channels": channels}).to_string()
+}
+
+/// The run's side: its topics, the parameter and the clients' queues.
+struct Hub {
+    state: Sub<PlantState>,
+    command: Sub<Command>,
+    telemetry: Sub<Telemetry>,
+    params_in: Sub<ParamSet>,
+    params_out: Pub<ParamSet>,
+    clients: Vec<SyncSender<Out>>,
+    joints: Vec<String>,
+    kind: crate::msg::ParamKind,
+    /// The values in service as far as the hub knows, and the newest version seen.
+    values: Vec<f64>,
+    newest: u64,
+    /// Sets sent for clients, awaiting the controller's answer.
+    pending: Vec<Pending>,
+    /// Messages dropped for slow clients.
+    dropped: u64,
+    buf: Vec<u8>,
+    /// The controller's newest parameter event, for answers that arrive before the set is seen.
+    last_event: (u64, u32, u32),
+    last_heard: Instant,
+    /// The newest state's stamp.
+    stamp_ns: u64,
+}
+
+struct Pending {
+    version: u64,
+    values: Vec<f64>,
+    id: Value,
+    reply: SyncSender<Out>,
+    since: Instant,
+}
+
+impl Hub {
+    fn new(ipc: &Ipc, scn: &Scenario) -> Result<Self, crate::ipc::IpcError> {
+        let cfg = scn.controller.model.config();
+        Ok(Self {
+            state: ipc.subscriber(Topic::State, 64, false)?,
+            command: ipc.subscriber(Topic::Command, 64, false)?,
+            telemetry: ipc.subscriber(Topic::Telemetry, 64, false)?,
+            params_in: ipc.subscriber(Topic::Params, 16, false)?,
+            params_out: ipc.publisher(Topic::Params, false)?,
+            clients: Vec::new(),
+            joints: scn.joint_names(),
+            kind: cfg.param_kind(),
+            values: cfg.tunable().gains.clone(),
+            newest: 0,
+            pending: Vec::new(),
+            dropped: 0,
+            buf: Vec::with_capacity(16 << 10),
+            last_event: (0, 0, 0),
+            last_heard: Instant::now(),
+            stamp_ns: 0,
+        })
+    }
+
+    /// Drain the topics to the clients; false once the run has gone quiet for good (no
+    /// telemetry for 5 s after some was heard).
+    fn poll(&mut self) -> bool {
+        while let Ok(Some(s)) = self.state.next() {
+            self.stamp_ns = s.stamp_ns;
+            ros2::encode_state(&mut self.buf, &s);
+            self.broadcast(1, s.stamp_ns);
+            if !self.joints.is_empty() {
+                ros2::encode_joint_state(&mut self.buf, &s, &self.joints);
+                self.broadcast(5, s.stamp_ns);
+            }
+        }
+        while let Ok(Some(c)) = self.command.next() {
+            ros2::encode_command(&mut self.buf, &c);
+            self.broadcast(2, c.stamp_ns);
+        }
+        let mut heard = false;
+        while let Ok(Some(t)) = self.telemetry.next() {
+            heard = true;
+            self.newest = self.newest.max(t.param_version).max(t.param_event_version);
+            self.last_event = (t.param_event_version, t.param_code, t.param_index);
+            ros2::encode_telemetry(&mut self.buf, &t);
+            // Telemetry and sets carry no stamp of their own: the newest state's (as run.mcap).
+            self.broadcast(3, self.stamp_ns);
+            self.answer();
+        }
+        while let Ok(Some(p)) = self.params_in.next() {
+            self.newest = self.newest.max(p.version);
+            ros2::encode_params(&mut self.buf, &p, 0);
+            self.broadcast(4, self.stamp_ns);
+        }
+        self.expire();
+        if heard {
+            self.last_heard = Instant::now();
+        }
+        self.last_heard.elapsed() < Duration::from_secs(5)
+    }
+
+    fn broadcast(&mut self, channel: u32, stamp_ns: u64) {
+        let payload = Arc::new(self.buf.clone());
+        let dropped = &mut self.dropped;
+        self.clients.retain(|c| {
+            match c.try_send(Out::Data {
+                channel,
+                stamp_ns,
+                payload: payload.clone(),
+            }) {
+                Ok(()) => true,
+                Err(TrySendError::Full(_)) => {
+                    *dropped += 1;
+                    true
+                }
+                Err(TrySendError::Disconnected(_)) => false,
+            }
+        });
+    }
+
+    fn ask(&mut self, ask: Ask) {
+        match ask {
+            Ask::Get { id, reply } => {
+                let _ = reply.try_send(Out::Text(values_message(&self.values, &id)));
+            }
+            Ask::Set { id, values, reply } => {
+                if values.len() != self.values.len() {
+                    let text = format!(
+                        "`{GAINS}` takes {} values, got {}",
+                        self.values.len(),
+                        values.len()
+                    );
+                    let _ = reply.try_send(Out::Text(status(2, &text)));
+                    let _ = reply.try_send(Out::Text(values_message(&self.values, &id)));
+                    return;
+                }
+                self.newest += 1;
+                let set = ParamSet::new(self.newest, 0, self.kind, &values);
+                if let Err(e) = self.params_out.send(&set) {
+                    let _ = reply.try_send(Out::Text(status(2, &format!("not sent: {e}"))));
+                    return;
+                }
+                self.pending.push(Pending {
+                    version: self.newest,
+                    values,
+                    id,
+                    reply,
+                    since: Instant::now(),
+                });
+            }
+        }
+    }
+
+    /// Answer the sets whose event the controller's telemetry now shows.
+    fn answer(&mut self) {
+        let (version, code, index) = self.last_event;
+        let Some(at) = self.pending.iter().position(|p| p.version == version) else {
+            return;
+        };
+        let p = self.pending.remove(at);
+        let code = ParamCode::try_from(code).unwrap_or(ParamCode::None);
+        if code == ParamCode::Accepted {
+            self.values = p.values;
+            let text = format!("version {version} accepted by the controller");
+            let _ = p.reply.try_send(Out::Text(status(0, &text)));
+        } else {
+            let text = format!(
+                "version {version} refused by the controller: {} (value {index})",
+                code.reason()
+            );
+            let _ = p.reply.try_send(Out::Text(status(2, &text)));
+        }
+        let _ = p
+            .reply
+            .try_send(Out::Text(values_message(&self.values, &p.id)));
+    }
+
+    fn expire(&mut self) {
+        let values = &self.values;
+        self.pending.retain(|p| {
+            if p.since.elapsed() < ANSWER {
+                return true;
+            }
+            let text = format!("version {}: no answer from the controller", p.version);
+            let _ = p.reply.try_send(Out::Text(status(1, &text)));
+            let _ = p.reply.try_send(Out::Text(values_message(values, &p.id)));
+            false
+        });
+    }
+}
+
+fn values_message(values: &[f64], id: &Value) -> String {
+    let mut m = json!({
+        "op": "parameterValues",
+        "parameters": [{"name": GAINS, "value": values, "type": "float64_array"}],
+    });
+    if !id.is_null() {
+        m["id"] = id.clone();
+    }
+    m.to_string()
+}
+
+/// A status message: level 0 info, 1 warning, 2 error.
+fn status(level: u8, message: &str) -> String {
+    json!({"op": "status", "level": level, "message": message}).to_string()
+}
+
+/// Accept connections for ever; each gets its thread.
+fn accept(
+    listener: TcpListener,
+    info: String,
+    advertise: String,
+    join: Sender<SyncSender<Out>>,
+    ask: Sender<Ask>,
+) {
+    for stream in listener.incoming().flatten() {
+        let (info, advertise, join, ask) =
+            (info.clone(), advertise.clone(), join.clone(), ask.clone());
+        let _ = std::thread::Builder::new()
+            .name("live-client".into())
+            .spawn(move || {
+                if let Err(e) = client(stream, &info, &advertise, &join, &ask) {
+                    eprintln!("evoloop live: a viewer left: {e}");
+                }
+            });
+    }
+}
+
+/// One viewer: the handshake (the subprotocol required), serverInfo and advertise, then its
+/// requests read and its queue written until it leaves.
+fn client(
+    stream: TcpStream,
+    info: &str,
+    advertise: &str,
+    join: &Sender<SyncSender<Out>>,
+    ask: &Sender<Ask>,
+) -> Result<(), String> {
+    use tungstenite::handshake::server::{ErrorResponse, Request, Response};
+    use tungstenite::Message;
+    stream
+        .set_read_timeout(Some(Duration::from_secs(5)))
+        .map_err(|e| e.to_string())?;
+    // The signature is tungstenite's handshake callback's.
+    #[allow(clippy::result_large_err)]
+    let pick = |req: &Request, mut resp: Response| -> Result<Response, ErrorResponse> {
+        let offered = req
+            .headers()
+            .get_all("Sec-WebSocket-Protocol")
+            .iter()
+            .filter_map(|v| v.to_str().ok())
+            .flat_map(|v| v.split(',').map(str::trim))
+            .any(|p| p == SUBPROTOCOL);
+        if !offered {
+            let mut e = ErrorResponse::new(Some(format!("subprotocol {SUBPROTOCOL} required")));
+            *e.status_mut() = tungstenite::http::StatusCode::BAD_REQUEST;
+            return Err(e);
+        }
+        resp.headers_mut().insert(
+            "Sec-WebSocket-Protocol",
+            tungstenite::http::HeaderValue::from_static(SUBPROTOCOL),
+        );
+        Ok(resp)
+    };
+    let mut ws = tungstenite::accept_hdr(stream, pick).map_err(|e| e.to_string())?;
+    ws.get_ref()
+        .set_read_timeout(Some(Duration::from_millis(5)))
+        .map_err(|e| e.to_string())?;
+    let io = |e: tungstenite::Error| e.to_string();
+    ws.send(Message::text(info)).map_err(io)?;
+    ws.send(Message::text(advertise)).map_err(io)?;
+    let (tx, rx) = sync_channel::<Out>(CLIENT_QUEUE);
+    join.send(tx.clone()).map_err(|_| "the hub has stopped")?;
+    // Subscription ids by channel id.
+    let mut subscribed: Vec<(u32, u32)> = Vec::new();
+    loop {
+        match ws.read() {
+            Ok(Message::Text(t)) => request(&t, &mut subscribed, &tx, ask, &mut ws)?,
+            Ok(Message::Close(_)) => return Ok(()),
+            Ok(_) => {}
+            Err(tungstenite::Error::Io(e))
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) => {}
+            Err(tungstenite::Error::ConnectionClosed) => return Ok(()),
+            Err(e) => return Err(e.to_string()),
+        }
+        let mut wrote = false;
+        while let Ok(out) = rx.try_recv() {
+            let msg = match out {
+                Out::Text(t) => Message::text(t),
+                Out::Data {
+                    channel,
+                    stamp_ns,
+                    payload,
+                } => {
+                    let Some(&(_, sub)) = subscribed.iter().find(|(c, _)| *c == channel) else {
+                        continue;
+                    };
+                    let mut frame = Vec::with_capacity(13 + payload.len());
+                    frame.push(0x01);
+                    frame.extend_from_slice(&sub.to_le_bytes());
+                    frame.extend_from_slice(&stamp_ns.to_le_bytes());
+                    frame.extend_from_slice(&payload);
+                    Message::binary(frame)
+                }
+            };
+            ws.write(msg).map_err(io)?;
+            wrote = true;
+        }
+        if wrote {
+            ws.flush().map_err(io)?;
+        }
+    }
+}
+
+/// One text request of a client (subscribe, unsubscribe, getParameters, setParameters); others
+/// are answered with a warning.
+fn request(
+    text: &str,
+    subscribed: &mut Vec<(u32, u32)>,
+    reply: &SyncSender<Out>,
+    ask: &Sender<Ask>,
+    ws: &mut tungstenite::WebSocket<TcpStream>,
+) -> Result<(), String> {
+    let warn = |ws: &mut tungstenite::WebSocket<TcpStream>, m: String| {
+        ws.send(tungstenite::Message::text(status(1, &m)))
+            .map_err(|e| e.to_string())
+    };
+    let Ok(v) = serde_json::from_str::<Value>(text) else {
+        return warn(ws, "not JSON".into());
+    };
+    let id = v.get("id").cloned().unwrap_or(Value::Null);
+    match v["op"].as_str().unwrap_or("") {
+        "subscribe" => {
+            for s in v["subscriptions"].as_array().into_iter().flatten() {
+                let (Some(sub), Some(ch)) = (s["id"].as_u64(), s["channelId"].as_u64()) else {
+                    continue;
+                };
+                subscribed.retain(|(c, _)| *c != ch as u32);
+                subscribed.push((ch as u32, sub as u32));
+            }
+        }
+        "unsubscribe" => {
+            let ids: Vec<u64> = v["subscriptionIds"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(Value::as_u64)
+                .collect();
+            subscribed.retain(|(_, s)| !ids.contains(&(*s as u64)));
+        }
+        "getParameters" => {
+            let _ = ask.send(Ask::Get {
+                id,
+                reply: reply.clone(),
+            });
+        }
+        "setParameters" => {
+            for p in v["parameters"].as_array().into_iter().flatten() {
+                if p["name"] != GAINS {
+                    warn(
+                        ws,
+                        format!("no parameter {}; there is `{GAINS}`", p["name"]),
+                    )?;
+                    continue;
+                }
+                let values: Option<Vec<f64>> = p["value"]
+                    .as_array()
+                    .map(|a| a.iter().map(Value::as_f64).collect())
+                    .unwrap_or(None);
+                match values {
+                    Some(values) => {
+                        let _ = ask.send(Ask::Set {
+                            id: id.clone(),
+                            values,
+                            reply: reply.clone(),
+                        });
+                    }
+                    None => warn(ws, format!("`{GAINS}` takes an array of numbers"))?,
+                }
+            }
+        }
+        op => warn(ws, format!("operation `{op}` is not served"))?,
+    }
+    Ok(())
+}

@@ -1,0 +1,199 @@
+//! `evoloop run --live`: a client written here from Foxglove's WebSocket protocol specification
+//! (<https://github.com/foxglove/ws-protocol/blob/main/docs/spec.md>, subprotocol
+//! `foxglove.websocket.v1`), not from the server's code: it reads serverInfo and advertise,
+//! subscribes to `command`, decodes the binary message frames (opcode 0x01, u32 subscription id,
+//! u64 timestamp, payload) and the CDR payload by the OMG CDR rules, and checks each command
+//! against run.csv bit for bit; then sets the parameter `gains` twice, once to a set the
+//! controller accepts and once to one out of its bounds, which it refuses with the reason.
+
+mod common;
+use common::*;
+use serde_json::{json, Value};
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+use tungstenite::{client::IntoClientRequest, stream::MaybeTlsStream, Message, WebSocket};
+
+type Ws = WebSocket<MaybeTlsStream<TcpStream>>;
+
+fn connect(addr: &str, until: Instant) -> Ws {
+    loop {
+        let mut req = format!("ws://{addr}").into_client_request().unwrap();
+        req.headers_mut().insert(
+            "Sec-WebSocket-Protocol",
+            "foxglove.websocket.v1".parse().unwrap(),
+        );
+        match tungstenite::connect(req) {
+            Ok((ws, resp)) => {
+                assert_eq!(
+                    resp.headers()["Sec-WebSocket-Protocol"],
+                    "foxglove.websocket.v1"
+                );
+                return ws;
+            }
+            Err(e) if Instant::now() < until => {
+                let _ = e;
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            Err(e) => panic!("no live server on {addr}: {e}"),
+        }
+    }
+}
+
+/// The next text message (JSON), skipping binary frames.
+fn next_text(ws: &mut Ws) -> Value {
+    loop {
+        match ws.read().unwrap() {
+            Message::Text(t) => return serde_json::from_str(&t).unwrap(),
+            Message::Binary(_) | Message::Ping(_) | Message::Pong(_) | Message::Frame(_) => {}
+            Message::Close(c) => panic!("closed: {c:?}"),
+        }
+    }
+}
+
+/// The text messages up to and including the `parameterValues` answering `id`.
+fn answer(ws: &mut Ws, id: &str) -> Vec<Value> {
+    let mut got = Vec::new();
+    loop {
+        let v = next_text(ws);
+        let done = v["op"] == "parameterValues" && v["id"] == id;
+        got.push(v);
+        if done {
+            return got;
+        }
+    }
+}
+
+/// A CDR `Command`'s cycle and u (cycle u64, state_seq u64, stamp_ns u64, param_version u64, float64[] u),
+/// read by the CDR rules: a 4-byte encapsulation header (0x00 0x01: little endian), each
+/// primitive aligned to its size from the end of the header, a sequence as a u32 count then
+/// its elements.
+fn command(payload: &[u8]) -> (u64, Vec<f64>) {
+    assert_eq!(&payload[..2], &[0, 1], "CDR little endian");
+    let body = &payload[4..];
+    let u64_at = |o: usize| u64::from_le_bytes(body[o..o + 8].try_into().unwrap());
+    let cycle = u64_at(0);
+    let n = u32::from_le_bytes(body[32..36].try_into().unwrap()) as usize;
+    let first = 40; // 36 aligned to 8
+    let u = (0..n)
+        .map(|i| f64::from_le_bytes(body[first + 8 * i..first + 8 * i + 8].try_into().unwrap()))
+        .collect();
+    (cycle, u)
+}
+
+#[test]
+fn a_viewer_subscribes_decodes_commands_equal_to_run_csv_and_sets_gains() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let addr = format!("127.0.0.1:{port}");
+    let (_, run_id) = unique("live");
+    let mut child = std::process::Command::new(evoloop())
+        .args([
+            "run",
+            "config/two_mass.toml",
+            "--mode",
+            "realtime",
+            "--no-rt",
+        ])
+        .args(["--duration", "6", "--floor-duration", "0.2", "--quiet"])
+        .args(["--live", &addr, "--run-id", &run_id, "--out"])
+        .arg(&out)
+        .spawn()
+        .unwrap();
+    let mut ws = connect(&addr, Instant::now() + Duration::from_secs(10));
+    let info = next_text(&mut ws);
+    assert_eq!(info["op"], "serverInfo", "{info}");
+    assert!(info["capabilities"]
+        .as_array()
+        .unwrap()
+        .contains(&json!("parameters")));
+    let adv = next_text(&mut ws);
+    assert_eq!(adv["op"], "advertise");
+    let channel = adv["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["topic"] == "command")
+        .expect("a command channel")
+        .clone();
+    assert_eq!(
+        (&channel["encoding"], &channel["schemaEncoding"]),
+        (&json!("cdr"), &json!("ros2msg"))
+    );
+    assert!(channel["schema"].as_str().unwrap().contains("float64[] u"));
+    ws.send(Message::text(
+        json!({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": channel["id"]}]})
+            .to_string(),
+    ))
+    .unwrap();
+    let mut received = Vec::new();
+    let until = Instant::now() + Duration::from_millis(1500);
+    while Instant::now() < until {
+        if let Message::Binary(b) = ws.read().unwrap() {
+            assert_eq!(b[0], 0x01, "message data opcode");
+            assert_eq!(u32::from_le_bytes(b[1..5].try_into().unwrap()), 7);
+            received.push(command(&b[13..]));
+        }
+    }
+    assert!(received.len() > 100, "{} commands in 1.5 s", received.len());
+
+    // Accepted: the LQR gains of the scenario's own schedule.
+    let lqr = [12.1946, 11.7906, 18.7567, 4.958, -10.0];
+    ws.send(Message::text(
+        json!({"op": "setParameters", "id": "ok", "parameters": [{"name": "gains", "value": lqr}]})
+            .to_string(),
+    ))
+    .unwrap();
+    let got = answer(&mut ws, "ok");
+    let status: Vec<&Value> = got.iter().filter(|v| v["op"] == "status").collect();
+    assert!(
+        status
+            .iter()
+            .any(|s| s["level"] == 0 && s["message"].as_str().unwrap().contains("accepted")),
+        "{got:?}"
+    );
+    assert_eq!(got.last().unwrap()["parameters"][0]["value"], json!(lqr));
+    // Refused: out of the controller's bounds (|k| <= 100); the reason is shown, the values in
+    // service come back.
+    let bad = [1000.0, 11.7906, 18.7567, 4.958, -10.0];
+    ws.send(Message::text(
+        json!({"op": "setParameters", "id": "bad", "parameters": [{"name": "gains", "value": bad}]})
+            .to_string(),
+    ))
+    .unwrap();
+    let got = answer(&mut ws, "bad");
+    let refused = got
+        .iter()
+        .find(|v| v["op"] == "status" && v["level"] == 2)
+        .unwrap_or_else(|| panic!("no error status: {got:?}"));
+    let text = refused["message"].as_str().unwrap();
+    assert!(text.contains("refused") && text.contains("bound"), "{text}");
+    assert_eq!(got.last().unwrap()["parameters"][0]["value"], json!(lqr));
+    drop(ws);
+
+    assert!(child.wait().unwrap().success());
+    let summary = json(&out.join("summary.json"));
+    assert_eq!(summary["log_dropped"], 0, "run.csv has every cycle");
+    let csv = std::fs::read_to_string(out.join("run.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (u0, version) = (col("u0"), col("param_version"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // run.csv has a row per cycle.
+    for (cycle, u) in &received {
+        let row = &rows[*cycle as usize];
+        let logged: f64 = row[u0].parse().unwrap();
+        assert_eq!(u[0].to_bits(), logged.to_bits(), "command of cycle {cycle}");
+    }
+    // The accepted set went into service; the refused one never did.
+    let versions: Vec<u64> = rows.iter().map(|r| r[version].parse().unwrap()).collect();
+    assert!(
+        versions.iter().any(|v| *v >= 1),
+        "the viewer's set never went into service"
+    );
+}
