@@ -3,8 +3,10 @@
 //! `foxglove.websocket.v1`), not from the server's code: it reads serverInfo and advertise,
 //! subscribes to `command`, decodes the binary message frames (opcode 0x01, u32 subscription id,
 //! u64 timestamp, payload) and the CDR payload by the OMG CDR rules, and checks each command
-//! against run.csv bit for bit; then sets the parameter `gains` twice, once to a set the
-//! controller accepts and once to one out of its bounds, which it refuses with the reason.
+//! against run.csv bit for bit and each frame's timestamp against the command's stamp; then
+//! sets the parameter `gains` twice, once to a set the controller accepts (it ends the run with
+//! those gains in service) and once to one out of its bounds, which it refuses with the reason.
+//! Where an optimiser numbers the sets (a schedule), a viewer's set is refused before it is sent.
 
 mod common;
 use common::*;
@@ -67,23 +69,21 @@ fn answer(ws: &mut Ws, id: &str) -> Vec<Value> {
 /// read by the CDR rules: a 4-byte encapsulation header (0x00 0x01: little endian), each
 /// primitive aligned to its size from the end of the header, a sequence as a u32 count then
 /// its elements.
-fn command(payload: &[u8]) -> (u64, Vec<f64>) {
+fn command(payload: &[u8]) -> (u64, u64, Vec<f64>) {
     assert_eq!(&payload[..2], &[0, 1], "CDR little endian");
     let body = &payload[4..];
     let u64_at = |o: usize| u64::from_le_bytes(body[o..o + 8].try_into().unwrap());
-    let cycle = u64_at(0);
+    let (cycle, stamp_ns) = (u64_at(0), u64_at(16));
     let n = u32::from_le_bytes(body[32..36].try_into().unwrap()) as usize;
     let first = 40; // 36 aligned to 8
     let u = (0..n)
         .map(|i| f64::from_le_bytes(body[first + 8 * i..first + 8 * i + 8].try_into().unwrap()))
         .collect();
-    (cycle, u)
+    (cycle, stamp_ns, u)
 }
 
-#[test]
-fn a_viewer_subscribes_decodes_commands_equal_to_run_csv_and_sets_gains() {
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("run");
+/// `evoloop run FILE --mode realtime --live ADDR` plus `extra`, and the address.
+fn live_run(out: &std::path::Path, seconds: &str, extra: &[&str]) -> (std::process::Child, String) {
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()
@@ -91,7 +91,7 @@ fn a_viewer_subscribes_decodes_commands_equal_to_run_csv_and_sets_gains() {
         .port();
     let addr = format!("127.0.0.1:{port}");
     let (_, run_id) = unique("live");
-    let mut child = std::process::Command::new(evoloop())
+    let child = std::process::Command::new(evoloop())
         .args([
             "run",
             "config/two_mass.toml",
@@ -99,11 +99,30 @@ fn a_viewer_subscribes_decodes_commands_equal_to_run_csv_and_sets_gains() {
             "realtime",
             "--no-rt",
         ])
-        .args(["--duration", "6", "--floor-duration", "0.2", "--quiet"])
+        .args(["--duration", seconds, "--floor-duration", "0.2", "--quiet"])
         .args(["--live", &addr, "--run-id", &run_id, "--out"])
-        .arg(&out)
+        .arg(out)
+        .args(extra)
         .spawn()
         .unwrap();
+    (child, addr)
+}
+
+fn set_gains(ws: &mut Ws, id: &str, gains: &[f64]) -> Vec<Value> {
+    ws.send(Message::text(
+        json!({"op": "setParameters", "id": id, "parameters": [{"name": "gains", "value": gains}]})
+            .to_string(),
+    ))
+    .unwrap();
+    answer(ws, id)
+}
+
+#[test]
+fn a_viewer_subscribes_decodes_commands_equal_to_run_csv_and_sets_gains() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    // No optimiser publishing: the viewer may set the gains.
+    let (mut child, addr) = live_run(&out, "6", &["--optimiser", "off"]);
     let mut ws = connect(&addr, Instant::now() + Duration::from_secs(10));
     let info = next_text(&mut ws);
     assert_eq!(info["op"], "serverInfo", "{info}");
@@ -136,19 +155,17 @@ fn a_viewer_subscribes_decodes_commands_equal_to_run_csv_and_sets_gains() {
         if let Message::Binary(b) = ws.read().unwrap() {
             assert_eq!(b[0], 0x01, "message data opcode");
             assert_eq!(u32::from_le_bytes(b[1..5].try_into().unwrap()), 7);
-            received.push(command(&b[13..]));
+            let (cycle, stamp_ns, u) = command(&b[13..]);
+            let at = u64::from_le_bytes(b[5..13].try_into().unwrap());
+            assert_eq!(at, stamp_ns, "a frame's timestamp is its command's stamp");
+            received.push((cycle, u));
         }
     }
     assert!(received.len() > 100, "{} commands in 1.5 s", received.len());
 
     // Accepted: the LQR gains of the scenario's own schedule.
     let lqr = [12.1946, 11.7906, 18.7567, 4.958, -10.0];
-    ws.send(Message::text(
-        json!({"op": "setParameters", "id": "ok", "parameters": [{"name": "gains", "value": lqr}]})
-            .to_string(),
-    ))
-    .unwrap();
-    let got = answer(&mut ws, "ok");
+    let got = set_gains(&mut ws, "ok", &lqr);
     let status: Vec<&Value> = got.iter().filter(|v| v["op"] == "status").collect();
     assert!(
         status
@@ -159,13 +176,7 @@ fn a_viewer_subscribes_decodes_commands_equal_to_run_csv_and_sets_gains() {
     assert_eq!(got.last().unwrap()["parameters"][0]["value"], json!(lqr));
     // Refused: out of the controller's bounds (|k| <= 100); the reason is shown, the values in
     // service come back.
-    let bad = [1000.0, 11.7906, 18.7567, 4.958, -10.0];
-    ws.send(Message::text(
-        json!({"op": "setParameters", "id": "bad", "parameters": [{"name": "gains", "value": bad}]})
-            .to_string(),
-    ))
-    .unwrap();
-    let got = answer(&mut ws, "bad");
+    let got = set_gains(&mut ws, "bad", &[1000.0, 11.7906, 18.7567, 4.958, -10.0]);
     let refused = got
         .iter()
         .find(|v| v["op"] == "status" && v["level"] == 2)
@@ -173,6 +184,15 @@ fn a_viewer_subscribes_decodes_commands_equal_to_run_csv_and_sets_gains() {
     let text = refused["message"].as_str().unwrap();
     assert!(text.contains("refused") && text.contains("bound"), "{text}");
     assert_eq!(got.last().unwrap()["parameters"][0]["value"], json!(lqr));
+    // getParameters answers with the same.
+    ws.send(Message::text(
+        json!({"op": "getParameters", "id": "get", "parameterNames": ["gains"]}).to_string(),
+    ))
+    .unwrap();
+    assert_eq!(
+        answer(&mut ws, "get").last().unwrap()["parameters"][0]["value"],
+        json!(lqr)
+    );
     drop(ws);
 
     assert!(child.wait().unwrap().success());
@@ -190,10 +210,46 @@ fn a_viewer_subscribes_decodes_commands_equal_to_run_csv_and_sets_gains() {
         let logged: f64 = row[u0].parse().unwrap();
         assert_eq!(u[0].to_bits(), logged.to_bits(), "command of cycle {cycle}");
     }
-    // The accepted set went into service; the refused one never did.
+    // The controller's own account: the viewer's set went into service as version 1 and stayed
+    // (the refused one never did), and the run ended on its gains.
     let versions: Vec<u64> = rows.iter().map(|r| r[version].parse().unwrap()).collect();
+    assert_eq!(
+        versions.last(),
+        Some(&1),
+        "the viewer's set is not the one in service"
+    );
+    assert_eq!(
+        (&summary["accepted_versions"], &summary["rejected_versions"]),
+        (&json!(1), &json!(1))
+    );
+    let ctrl = json(&out.join("controller.json"));
+    assert_eq!(ctrl["final_params"], json!(lqr));
+}
+
+#[test]
+fn where_an_optimiser_numbers_the_sets_a_viewers_set_is_refused_before_it_is_sent() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    // two_mass's own optimiser: a schedule (its set goes out at 12 s, after this run).
+    let (mut child, addr) = live_run(&out, "3", &[]);
+    let mut ws = connect(&addr, Instant::now() + Duration::from_secs(10));
+    let got = set_gains(&mut ws, "s", &[12.1946, 11.7906, 18.7567, 4.958, -10.0]);
+    let refused = got
+        .iter()
+        .find(|v| v["op"] == "status" && v["level"] == 2)
+        .unwrap_or_else(|| panic!("no error status: {got:?}"));
     assert!(
-        versions.iter().any(|v| *v >= 1),
-        "the viewer's set never went into service"
+        refused["message"]
+            .as_str()
+            .unwrap()
+            .contains("--optimiser off"),
+        "{refused}"
+    );
+    drop(ws);
+    assert!(child.wait().unwrap().success());
+    let summary = json(&out.join("summary.json"));
+    assert_eq!(
+        summary["accepted_versions"], 0,
+        "a set reached the controller"
     );
 }

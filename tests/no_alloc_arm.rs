@@ -64,7 +64,7 @@ impl Wires {
     }
 
     /// Close the recording: messages per topic.
-    fn finish(self) -> [u64; 6] {
+    fn finish(self) -> Vec<u64> {
         let r = self.record.into_inner().finish();
         assert_eq!((r.dropped, r.error), (0, None));
         r.messages

@@ -811,7 +811,7 @@ impl Running {
         })?;
         let mut workers = workers;
         if let Some(addr) = &a.live {
-            let live: Vec<String> = [
+            let mut live: Vec<String> = [
                 "--run",
                 &p.run_id,
                 "--ipc-prefix",
@@ -823,6 +823,9 @@ impl Running {
             ]
             .map(String::from)
             .to_vec();
+            // The scenario as the run's processes read it (`--optimiser off` decides whether
+            // viewers may set the gains).
+            live.extend(child_ov.to_args());
             let c = spawn_process("evoloop-live", &live).map_err(|e| {
                 err!("error: cannot start evoloop-live: {e}");
                 ExitCode::from(1)

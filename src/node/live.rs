@@ -4,8 +4,9 @@
 //! the controller's tunable values as the parameter `gains`, which a viewer may set.
 //!
 //! Off the control path by construction: its own process (`evoloop run --live` starts it beside
-//! the run's), attached as a passive subscriber like `top` (the run's publishers never wait for a
-//! subscriber; a full queue loses its oldest sample, counted nowhere on the loop). One thread
+//! the run's), subscribed to the run's topics like `top` (the run's publishers never wait for a
+//! subscriber; a full queue loses its oldest sample, counted nowhere on the loop); it publishes
+//! only the sets viewers send. One thread
 //! polls the topics and hands each encoded message to every client's bounded queue (dropped,
 //! and counted, when a viewer is slow); a thread per client writes its frames and reads its
 //! requests.
@@ -15,12 +16,14 @@
 //! controller's validation (bounds, finiteness, stability where the law checks it). The answer
 //! is the controller's own, read from its telemetry: accepted, the new values come back as
 //! `parameterValues`; refused, a `status` error names the reason and the values in service come
-//! back.
+//! back. Only a run whose optimiser publishes nothing (`optimiser.mode = "off"`) takes sets from
+//! a viewer: an optimiser numbers its own sets (a schedule's i-th is version i, a tuner's the
+//! next after its last), and a viewer's set in between would make its next one stale.
 
-use crate::config::{Overrides, Scenario};
+use crate::config::{OptimiserMode, Scenario};
 use crate::ipc::{Ipc, Pub, Sub, Topic};
 use crate::msg::{Command, ParamCode, ParamSet, PlantState, Telemetry};
-use crate::report::ros2::{self, MessageType};
+use crate::report::ros2;
 use serde_json::{json, Value};
 use std::net::{TcpListener, TcpStream};
 use std::path::PathBuf;
@@ -47,16 +50,22 @@ pub struct LiveArgs {
     /// Prefix of iceoryx2's files (default: the run's).
     #[arg(long)]
     pub ipc_prefix: Option<String>,
+    /// The run's overrides of its scenario (`evoloop run --live` passes its own).
+    #[command(flatten)]
+    pub overrides: crate::node::args::OverrideArgs,
 }
 
-/// The channels served, by id (1..).
-const CHANNELS: [(&str, MessageType); 5] = [
-    ("state", ros2::PLANT_STATE),
-    ("command", ros2::COMMAND),
-    ("telemetry", ros2::TELEMETRY),
-    ("params", ros2::PARAM_SET),
-    ("joint_states", ros2::JOINT_STATE),
-];
+/// The topics served, with the channel ids run.mcap gives them (their place in `ros2::TOPICS`,
+/// 1..); `joint_states` for an arm only.
+const SERVED: [&str; 5] = ["state", "command", "telemetry", "params", "joint_states"];
+
+fn channel_id(topic: &str) -> u32 {
+    ros2::TOPICS
+        .iter()
+        .position(|(t, _)| *t == topic)
+        .expect("served topics are run topics") as u32
+        + 1
+}
 
 /// What a client thread sends on its connection.
 enum Out {
@@ -84,6 +93,11 @@ enum Ask {
 
 /// Messages a client's queue holds before newer ones are dropped for it.
 const CLIENT_QUEUE: usize = 4096;
+/// Viewers served at once; the largest message a viewer may send (a set of gains is < 1 KiB).
+const MAX_CLIENTS: usize = 16;
+const MAX_MESSAGE: usize = 1 << 20;
+/// How long a write to a viewer may block before the viewer is dropped.
+const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
 /// How often the hub polls the topics.
 const POLL: Duration = Duration::from_millis(2);
 /// How long a set waits for the controller's answer.
@@ -115,7 +129,7 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
         .clone()
         .or(run.config.clone())
         .ok_or("the run's scenario is unknown: give --config")?;
-    let scn = Scenario::load(&config, &Overrides::default()).map_err(|e| e.to_string())?;
+    let scn = Scenario::load(&config, &a.overrides.to_overrides()).map_err(|e| e.to_string())?;
     let listener = TcpListener::bind(&a.addr).map_err(|e| format!("--addr {}: {e}", a.addr))?;
     let ipc = Ipc::with_cleanup("evoloop-live", &run.run_id, &prefix, false)
         .map_err(|e| format!("attaching to run {}: {e}", run.run_id))?;
@@ -136,7 +150,12 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
     let stop = crate::node::start::stop_flag();
     while !stop.load(std::sync::atomic::Ordering::Relaxed) {
         while let Ok(c) = join_rx.try_recv() {
-            hub.clients.push(c);
+            if hub.clients.len() < MAX_CLIENTS {
+                hub.clients.push(c);
+            } else {
+                let text = format!("{MAX_CLIENTS} viewers are connected already");
+                let _ = c.try_send(Out::Text(status(2, &text)));
+            }
         }
         while let Ok(ask) = ask_rx.try_recv() {
             hub.ask(ask);
@@ -145,6 +164,12 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
             break;
         }
         std::thread::sleep(POLL);
+    }
+    if hub.dropped > 0 {
+        eprintln!(
+            "evoloop live: {} messages dropped for viewers that could not keep up",
+            hub.dropped
+        );
     }
     Ok(())
 }
@@ -162,13 +187,13 @@ fn server_info(run_id: &str, scn: &Scenario) -> String {
 }
 
 fn advertise(joints: bool) -> String {
-    let n = if joints { 5 } else { 4 };
-    let channels: Vec<Value> = CHANNELS[..n]
+    let channels: Vec<Value> = SERVED
         .iter()
-        .enumerate()
-        .map(|(i, (topic, ty))| {
+        .filter(|t| joints || **t != "joint_states")
+        .map(|topic| {
+            let ty = ros2::message_type(topic).expect("served topics are run topics");
             json!({
-                "id": i + 1,
+                "id": channel_id(topic),
                 "topic": topic,
                 "encoding": ros2::MESSAGE_ENCODING,
                 "schemaName": ty.name,
@@ -186,13 +211,20 @@ struct Hub {
     command: Sub<Command>,
     telemetry: Sub<Telemetry>,
     params_in: Sub<ParamSet>,
-    params_out: Pub<ParamSet>,
+    /// Only where viewers may set parameters.
+    params_out: Option<Pub<ParamSet>>,
     clients: Vec<SyncSender<Out>>,
     joints: Vec<String>,
     kind: crate::msg::ParamKind,
-    /// The values in service as far as the hub knows, and the newest version seen.
+    /// The values in service (by the controller's telemetry), the newest version seen, and the
+    /// values of the latest sets seen on the params topic, to know a version's values when the
+    /// controller puts it in service.
     values: Vec<f64>,
+    in_service: u64,
     newest: u64,
+    seen: std::collections::VecDeque<(u64, Vec<f64>)>,
+    /// Whether viewers may set parameters (no optimiser publishes), else why not.
+    settable: Result<(), String>,
     /// Sets sent for clients, awaiting the controller's answer.
     pending: Vec<Pending>,
     /// Messages dropped for slow clients.
@@ -200,9 +232,12 @@ struct Hub {
     buf: Vec<u8>,
     /// The controller's newest parameter event, for answers that arrive before the set is seen.
     last_event: (u64, u32, u32),
-    last_heard: Instant,
-    /// The newest state's stamp.
+    /// When telemetry was last heard (none yet: the run may still be starting).
+    last_heard: Option<Instant>,
+    /// The newest state's stamp, and the commands' stamps by cycle (telemetry is stamped with
+    /// its cycle's command's, as in run.mcap).
     stamp_ns: u64,
+    command_stamps: [(u64, u64); 256],
 }
 
 struct Pending {
@@ -221,57 +256,95 @@ impl Hub {
             command: ipc.subscriber(Topic::Command, 64, false)?,
             telemetry: ipc.subscriber(Topic::Telemetry, 64, false)?,
             params_in: ipc.subscriber(Topic::Params, 16, false)?,
-            params_out: ipc.publisher(Topic::Params, false)?,
+            params_out: match scn.optimiser.mode {
+                OptimiserMode::Off => Some(ipc.publisher(Topic::Params, false)?),
+                _ => None,
+            },
             clients: Vec::new(),
             joints: scn.joint_names(),
             kind: cfg.param_kind(),
             values: cfg.tunable().gains.clone(),
+            in_service: 0,
             newest: 0,
+            seen: std::collections::VecDeque::new(),
+            settable: match scn.optimiser.mode {
+                OptimiserMode::Off => Ok(()),
+                mode => Err(format!(
+                    "this run's optimiser (mode {mode:?}) numbers the parameter sets; viewers may \
+                     set `{GAINS}` when it publishes none (`--optimiser off`)"
+                )),
+            },
             pending: Vec::new(),
             dropped: 0,
             buf: Vec::with_capacity(16 << 10),
             last_event: (0, 0, 0),
-            last_heard: Instant::now(),
+            last_heard: None,
             stamp_ns: 0,
+            command_stamps: [(u64::MAX, 0); 256],
         })
     }
 
     /// Drain the topics to the clients; false once the run has gone quiet for good (no
     /// telemetry for 5 s after some was heard).
     fn poll(&mut self) -> bool {
+        let (state, command, telemetry, params, joints) = (
+            channel_id("state"),
+            channel_id("command"),
+            channel_id("telemetry"),
+            channel_id("params"),
+            channel_id("joint_states"),
+        );
         while let Ok(Some(s)) = self.state.next() {
             self.stamp_ns = s.stamp_ns;
             ros2::encode_state(&mut self.buf, &s);
-            self.broadcast(1, s.stamp_ns);
+            self.broadcast(state, s.stamp_ns);
             if !self.joints.is_empty() {
                 ros2::encode_joint_state(&mut self.buf, &s, &self.joints);
-                self.broadcast(5, s.stamp_ns);
+                self.broadcast(joints, s.stamp_ns);
             }
         }
         while let Ok(Some(c)) = self.command.next() {
+            self.command_stamps[c.cycle as usize % 256] = (c.cycle, c.stamp_ns);
             ros2::encode_command(&mut self.buf, &c);
-            self.broadcast(2, c.stamp_ns);
-        }
-        let mut heard = false;
-        while let Ok(Some(t)) = self.telemetry.next() {
-            heard = true;
-            self.newest = self.newest.max(t.param_version).max(t.param_event_version);
-            self.last_event = (t.param_event_version, t.param_code, t.param_index);
-            ros2::encode_telemetry(&mut self.buf, &t);
-            // Telemetry and sets carry no stamp of their own: the newest state's (as run.mcap).
-            self.broadcast(3, self.stamp_ns);
-            self.answer();
+            self.broadcast(command, c.stamp_ns);
         }
         while let Ok(Some(p)) = self.params_in.next() {
             self.newest = self.newest.max(p.version);
+            if self.seen.len() == 64 {
+                self.seen.pop_front();
+            }
+            self.seen.push_back((p.version, p.values().to_vec()));
+            // The cycle that took it is not known here: 0.
             ros2::encode_params(&mut self.buf, &p, 0);
-            self.broadcast(4, self.stamp_ns);
+            self.broadcast(params, self.stamp_ns);
+        }
+        while let Ok(Some(t)) = self.telemetry.next() {
+            self.last_heard = Some(Instant::now());
+            self.newest = self.newest.max(t.param_version).max(t.param_event_version);
+            self.put_in_service(t.param_version);
+            self.last_event = (t.param_event_version, t.param_code, t.param_index);
+            let stamp = match self.command_stamps[t.cycle as usize % 256] {
+                (cycle, stamp) if cycle == t.cycle => stamp,
+                _ => self.stamp_ns,
+            };
+            ros2::encode_telemetry(&mut self.buf, &t);
+            self.broadcast(telemetry, stamp);
+            self.answer();
         }
         self.expire();
-        if heard {
-            self.last_heard = Instant::now();
+        self.last_heard
+            .is_none_or(|at| at.elapsed() < Duration::from_secs(5))
+    }
+
+    /// The controller reports `version` in service: its values, if the hub saw the set.
+    fn put_in_service(&mut self, version: u64) {
+        if version == self.in_service {
+            return;
         }
-        self.last_heard.elapsed() < Duration::from_secs(5)
+        if let Some((_, v)) = self.seen.iter().rev().find(|(v, _)| *v == version) {
+            self.values.clone_from(v);
+        }
+        self.in_service = version;
     }
 
     fn broadcast(&mut self, channel: u32, stamp_ns: u64) {
@@ -299,6 +372,11 @@ impl Hub {
                 let _ = reply.try_send(Out::Text(values_message(&self.values, &id)));
             }
             Ask::Set { id, values, reply } => {
+                if let Err(why) = &self.settable {
+                    let _ = reply.try_send(Out::Text(status(2, why)));
+                    let _ = reply.try_send(Out::Text(values_message(&self.values, &id)));
+                    return;
+                }
                 if values.len() != self.values.len() {
                     let text = format!(
                         "`{GAINS}` takes {} values, got {}",
@@ -311,7 +389,8 @@ impl Hub {
                 }
                 self.newest += 1;
                 let set = ParamSet::new(self.newest, 0, self.kind, &values);
-                if let Err(e) = self.params_out.send(&set) {
+                let sent = self.params_out.as_ref().map(|p| p.send(&set));
+                if let Some(Err(e)) = sent {
                     let _ = reply.try_send(Out::Text(status(2, &format!("not sent: {e}"))));
                     return;
                 }
@@ -336,6 +415,7 @@ impl Hub {
         let code = ParamCode::try_from(code).unwrap_or(ParamCode::None);
         if code == ParamCode::Accepted {
             self.values = p.values;
+            self.in_service = version;
             let text = format!("version {version} accepted by the controller");
             let _ = p.reply.try_send(Out::Text(status(0, &text)));
         } else {
@@ -436,9 +516,14 @@ fn client(
         );
         Ok(resp)
     };
-    let mut ws = tungstenite::accept_hdr(stream, pick).map_err(|e| e.to_string())?;
-    ws.get_ref()
-        .set_read_timeout(Some(Duration::from_millis(5)))
+    let config = tungstenite::protocol::WebSocketConfig::default()
+        .max_message_size(Some(MAX_MESSAGE))
+        .max_frame_size(Some(MAX_MESSAGE));
+    let mut ws = tungstenite::accept_hdr_with_config(stream, pick, Some(config))
+        .map_err(|e| e.to_string())?;
+    let tcp = ws.get_ref();
+    tcp.set_read_timeout(Some(Duration::from_millis(5)))
+        .and_then(|()| tcp.set_write_timeout(Some(WRITE_TIMEOUT)))
         .map_err(|e| e.to_string())?;
     let io = |e: tungstenite::Error| e.to_string();
     ws.send(Message::text(info)).map_err(io)?;
@@ -509,11 +594,20 @@ fn request(
     match v["op"].as_str().unwrap_or("") {
         "subscribe" => {
             for s in v["subscriptions"].as_array().into_iter().flatten() {
-                let (Some(sub), Some(ch)) = (s["id"].as_u64(), s["channelId"].as_u64()) else {
+                let id = |k: &str| s[k].as_u64().and_then(|x| u32::try_from(x).ok());
+                let (Some(sub), Some(ch)) = (id("id"), id("channelId")) else {
+                    warn(
+                        ws,
+                        format!("a subscription needs u32 `id` and `channelId`: {s}"),
+                    )?;
                     continue;
                 };
-                subscribed.retain(|(c, _)| *c != ch as u32);
-                subscribed.push((ch as u32, sub as u32));
+                if !SERVED.iter().any(|t| channel_id(t) == ch) {
+                    warn(ws, format!("no channel {ch}"))?;
+                    continue;
+                }
+                subscribed.retain(|(c, _)| *c != ch);
+                subscribed.push((ch, sub));
             }
         }
         "unsubscribe" => {

@@ -120,11 +120,13 @@ impl Topic {
 }
 
 impl Topic {
-    /// Publishers a service admits: one process and a restarted one, or for an operator's
-    /// commands several senders at once (`evoloop operator` and `top` keys).
+    /// Publishers a service admits: one process and a restarted one, and for parameter sets a
+    /// live view's too (`evoloop live`), or for an operator's commands several senders at once
+    /// (`evoloop operator` and `top` keys).
     pub fn max_publishers(self) -> usize {
         match self {
             Topic::Operator => 8,
+            Topic::Params => 3,
             _ => 2,
         }
     }

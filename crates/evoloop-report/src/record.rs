@@ -21,7 +21,7 @@
 //! controller needs.
 
 use super::mcap_file::McapWriter;
-use super::ros2::{self, MessageType};
+use super::ros2;
 use evoloop_msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -32,23 +32,8 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-/// The channels, in the order of their ids (1..), and their messages.
-pub const TOPICS: [&str; 6] = [
-    "state",
-    "command",
-    "telemetry",
-    "params",
-    "estimate",
-    "joint_states",
-];
-const TYPES: [MessageType; 6] = [
-    ros2::PLANT_STATE,
-    ros2::COMMAND,
-    ros2::TELEMETRY,
-    ros2::PARAM_SET,
-    ros2::MODEL_ESTIMATE,
-    ros2::JOINT_STATE,
-];
+/// The channels, in the order of their ids (1..): `ros2::TOPICS`.
+pub use super::ros2::TOPICS;
 
 /// One control cycle's messages.
 #[derive(Clone, Copy)]
@@ -59,11 +44,22 @@ struct Cycle {
 }
 
 /// Messages written per topic (in `TOPICS` order) and dropped, and the first write error.
-#[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize, PartialEq)]
+/// controller.json files before `joint_states` have five counts; they read as they are.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize, PartialEq)]
 pub struct Recorded {
-    pub messages: [u64; 6],
+    pub messages: Vec<u64>,
     pub dropped: u64,
     pub error: Option<String>,
+}
+
+impl Default for Recorded {
+    fn default() -> Self {
+        Self {
+            messages: vec![0; TOPICS.len()],
+            dropped: 0,
+            error: None,
+        }
+    }
 }
 
 /// The recorder's end in the control cycle.
@@ -121,7 +117,7 @@ impl Recorder {
             dir,
         )
         .map_err(at)?;
-        for (i, (topic, ty)) in TOPICS.iter().zip(&TYPES).enumerate() {
+        for (i, (topic, ty)) in TOPICS.iter().enumerate() {
             let schema = w
                 .add_schema(ty.name, ros2::SCHEMA_ENCODING, ty.schema().as_bytes())
                 .map_err(at)?;
@@ -323,4 +319,19 @@ fn write_all<W: std::io::Write>(
         }
     }
     r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// controller.json written before `joint_states` (five counts) still reads: `evoloop report`
+    /// rebuilds the report of an older run directory.
+    #[test]
+    fn an_older_count_of_five_topics_reads() {
+        let old = r#"{"messages":[12000,12000,12000,3,797],"dropped":0,"error":null}"#;
+        let r: Recorded = serde_json::from_str(old).unwrap();
+        assert_eq!(r.messages, [12000, 12000, 12000, 3, 797]);
+        assert_eq!(Recorded::default().messages.len(), TOPICS.len());
+    }
 }

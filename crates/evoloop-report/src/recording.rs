@@ -127,6 +127,9 @@ impl Recording {
         // Every chunk's CRC is checked here, once: mcap's own check (ValidateChunkCrcs) would
         // decompress each chunk a second time.
         check_chunks(&bytes).map_err(|e| at(&e))?;
+        for ch in summary.channels.values() {
+            check_schema(ch).map_err(|e| at(&format!("channel {}: {e}", ch.topic)))?;
+        }
         for msg in mcap::MessageStream::new(&bytes).map_err(|e| at(&e))? {
             let msg = msg.map_err(|e| at(&e))?;
             let bad = |e: String| {
@@ -142,6 +145,34 @@ impl Recording {
 
     pub fn meta(&self, key: &str) -> Option<&str> {
         self.metadata.get(key).map(String::as_str)
+    }
+}
+
+/// A CDR channel of a topic a replay reads must carry evoloop's message: its name, encoding and
+/// fields (comments aside), so a file of another program's messages on a topic of the same name
+/// is refused, not misread.
+fn check_schema(ch: &mcap::Channel) -> Result<(), String> {
+    if ch.message_encoding != ros2::MESSAGE_ENCODING || !READ.contains(&ch.topic.as_str()) {
+        return Ok(());
+    }
+    let ty = ros2::message_type(&ch.topic).expect("READ's topics are in ros2::TOPICS");
+    match ch.schema.as_deref() {
+        Some(s) if s.name == ty.name && s.encoding == ros2::SCHEMA_ENCODING => {
+            if ty.same_fields(std::str::from_utf8(&s.data).unwrap_or("")) {
+                Ok(())
+            } else {
+                Err(format!(
+                    "schema {}'s fields are not evoloop's (a newer or another program's file?)",
+                    ty.name
+                ))
+            }
+        }
+        s => Err(format!(
+            "schema {}, expected {} ({})",
+            s.map_or("none", |s| s.name.as_str()),
+            ty.name,
+            ros2::SCHEMA_ENCODING
+        )),
     }
 }
 
@@ -162,20 +193,6 @@ impl Recording {
         };
         match msg.channel.message_encoding.as_str() {
             ros2::MESSAGE_ENCODING => {
-                let ty = match topic {
-                    "state" => ros2::PLANT_STATE,
-                    "command" => ros2::COMMAND,
-                    "params" => ros2::PARAM_SET,
-                    _ => ros2::MODEL_ESTIMATE,
-                };
-                let schema = msg.channel.schema.as_ref().map(|s| s.name.as_str());
-                if schema != Some(ty.name) {
-                    return Err(format!(
-                        "schema {}, expected {}",
-                        schema.unwrap_or("none"),
-                        ty.name
-                    ));
-                }
                 let b = &msg.data;
                 match topic {
                     "state" => self.states.push(ros2::decode_state(b)?),

@@ -184,6 +184,14 @@ impl<'a> CdrReader<'a> {
         String::from_utf8(text.to_vec()).map_err(|_| format!("`{what}` is not UTF-8"))
     }
 
+    /// The end of the message: at most the padding a writer may add after the last field.
+    pub fn end(&self) -> Result<(), String> {
+        match self.b.len().saturating_sub(self.at) {
+            0..=3 => Ok(()),
+            extra => Err(format!("{extra} bytes after the message's last field")),
+        }
+    }
+
     /// A `string[]`.
     pub fn strings(&mut self, what: &str) -> Result<Vec<String>, String> {
         let n = self.u32(what)? as usize;
@@ -203,10 +211,13 @@ fn first(values: &[f64], n: u32) -> &[f64] {
 
 // ------------------------------------------------------------------ evoloop's messages
 
-/// A topic's message type: its ROS 2 name and definition.
+/// A topic's message type: its ROS 2 name, definition and the definitions it depends on (in
+/// rosbag2's form: each after the separator, headed `MSG: pkg/Type`).
+#[derive(Clone, Copy)]
 pub struct MessageType {
     pub name: &'static str,
     pub definition: &'static str,
+    pub dependencies: &'static str,
 }
 
 pub const PLANT_STATE: MessageType = MessageType {
@@ -225,6 +236,7 @@ float64[] qd_true
 float64[] x_true
 float64[] u_applied
 ",
+    dependencies: "",
 };
 
 pub const COMMAND: MessageType = MessageType {
@@ -237,6 +249,7 @@ uint64 stamp_ns
 uint64 param_version
 float64[] u
 ",
+    dependencies: "",
 };
 
 pub const TELEMETRY: MessageType = MessageType {
@@ -261,6 +274,7 @@ uint64 overruns
 uint64 missed
 float64[] law
 ",
+    dependencies: "",
 };
 
 pub const PARAM_SET: MessageType = MessageType {
@@ -276,6 +290,7 @@ uint64 fallback_version
 uint32 kind
 float64[] values
 ",
+    dependencies: "",
 };
 
 pub const MODEL_ESTIMATE: MessageType = MessageType {
@@ -289,6 +304,7 @@ float64 std
 uint64 last_version
 uint64 apply_at_seq
 ",
+    dependencies: "",
 };
 
 pub const JOINT_STATE: MessageType = MessageType {
@@ -300,6 +316,7 @@ float64[] position
 float64[] velocity
 float64[] effort
 ",
+    dependencies: HEADER_DEPENDENCIES,
 };
 
 /// `std_msgs/Header` and `builtin_interfaces/Time`, which JointState's definition needs.
@@ -314,14 +331,43 @@ uint32 nanosec
 ";
 
 impl MessageType {
-    /// The schema MCAP carries: the definition and its dependencies' (for `ros2msg`).
+    /// The schema MCAP and Foxglove's WebSocket protocol carry: the definition and its
+    /// dependencies' (`ros2msg`).
     pub fn schema(&self) -> String {
-        if self.definition.starts_with("std_msgs/Header") {
-            format!("{}{SEPARATOR}{HEADER_DEPENDENCIES}", self.definition)
-        } else {
+        if self.dependencies.is_empty() {
             self.definition.to_string()
+        } else {
+            format!("{}{SEPARATOR}{}", self.definition, self.dependencies)
         }
     }
+
+    /// Whether `schema` declares the same fields as this type (comments and blank lines aside):
+    /// a recording's schema must, for its messages to be read as this type.
+    pub fn same_fields(&self, schema: &str) -> bool {
+        let fields = |text: &str| -> Vec<String> {
+            text.lines()
+                .map(|l| l.split('#').next().unwrap_or("").trim().to_string())
+                .filter(|l| !l.is_empty())
+                .collect()
+        };
+        fields(schema) == fields(&self.schema())
+    }
+}
+
+/// The run's topics and their messages, in the order of run.mcap's channel ids (1..): the one
+/// table the recorder, its reader and the live view share.
+pub const TOPICS: [(&str, MessageType); 6] = [
+    ("state", PLANT_STATE),
+    ("command", COMMAND),
+    ("telemetry", TELEMETRY),
+    ("params", PARAM_SET),
+    ("estimate", MODEL_ESTIMATE),
+    ("joint_states", JOINT_STATE),
+];
+
+/// A topic's message type.
+pub fn message_type(topic: &str) -> Option<MessageType> {
+    TOPICS.iter().find(|(t, _)| *t == topic).map(|(_, ty)| *ty)
 }
 
 pub fn encode_state(buf: &mut Vec<u8>, s: &PlantState) {
@@ -348,9 +394,16 @@ pub fn decode_state(b: &[u8]) -> Result<PlantState, String> {
     };
     s.n_y = r.f64s("y", &mut s.y)?;
     s.n_q = r.f64s("q_true", &mut s.q_true)?;
-    r.f64s("qd_true", &mut s.qd_true)?;
+    let qd = r.f64s("qd_true", &mut s.qd_true)?;
     s.n_x = r.f64s("x_true", &mut s.x_true)?;
-    r.f64s("u_applied", &mut s.u_applied)?;
+    let applied = r.f64s("u_applied", &mut s.u_applied)?;
+    if qd != s.n_q || applied != s.n_y.max(s.n_q) {
+        return Err(format!(
+            "{qd} velocities and {applied} inputs for {} joints and {} outputs",
+            s.n_q, s.n_y
+        ));
+    }
+    r.end()?;
     Ok(s)
 }
 
@@ -373,6 +426,7 @@ pub fn decode_command(b: &[u8]) -> Result<Command, String> {
         ..Default::default()
     };
     c.n_u = r.f64s("u", &mut c.u)?;
+    r.end()?;
     Ok(c)
 }
 
@@ -419,6 +473,7 @@ pub fn decode_telemetry(b: &[u8]) -> Result<Telemetry, String> {
     t.overruns = r.u64("overruns")?;
     t.missed = r.u64("missed")?;
     t.n_law = r.f64s("law", &mut t.law)?;
+    r.end()?;
     Ok(t)
 }
 
@@ -448,6 +503,7 @@ pub fn decode_params(b: &[u8]) -> Result<(u64, ParamSet), String> {
         ..Default::default()
     };
     p.n = r.f64s("values", &mut p.values)?;
+    r.end()?;
     Ok((cycle, p))
 }
 
@@ -465,28 +521,29 @@ pub fn encode_estimate(buf: &mut Vec<u8>, e: &ModelEstimate, cycle: u64) {
 pub fn decode_estimate(b: &[u8]) -> Result<(u64, ModelEstimate), String> {
     let mut r = CdrReader::new(b)?;
     let cycle = r.u64("cycle")?;
-    Ok((
-        cycle,
-        ModelEstimate {
-            t: r.f64("t")?,
-            value: r.f64("value")?,
-            std: r.f64("std")?,
-            last_version: r.u64("last_version")?,
-            apply_at_seq: r.u64("apply_at_seq")?,
-        },
-    ))
+    let e = ModelEstimate {
+        t: r.f64("t")?,
+        value: r.f64("value")?,
+        std: r.f64("std")?,
+        last_version: r.u64("last_version")?,
+        apply_at_seq: r.u64("apply_at_seq")?,
+    };
+    r.end()?;
+    Ok((cycle, e))
 }
 
 /// An arm's joints as `sensor_msgs/msg/JointState`: stamped with the sample's stamp, position
-/// the measured joint angles y, velocity the joint velocities the controller reads, effort the
-/// torques applied. `names` are the robot file's joint names, one per joint.
+/// the measured joint angles y (empty if the plant measures fewer outputs than joints: each
+/// array is either empty or one per name), velocity the joint velocities the controller reads,
+/// effort the torques applied. `names` are the robot file's joint names, one per joint.
 pub fn encode_joint_state(buf: &mut Vec<u8>, s: &PlantState, names: &[String]) {
     let n = (s.n_q as usize).min(names.len());
+    let y = first(&s.y, s.n_y);
     let mut w = CdrWriter::new(buf);
     w.time(s.stamp_ns);
     w.string("");
     w.strings(names[..n].iter().map(String::as_str));
-    w.f64s(&first(&s.y, s.n_y)[..n.min(s.n_y as usize)]);
+    w.f64s(if y.len() >= n { &y[..n] } else { &[] });
     w.f64s(first(&s.qd_true, n as u32));
     w.f64s(first(&s.u_applied, n as u32));
 }
@@ -610,6 +667,77 @@ mod tests {
         let mut be = buf.clone();
         be[1] = 0; // CDR_BE
         assert!(decode_state(&be).unwrap_err().contains("little-endian"));
+    }
+
+    /// Every decoder on damaged bytes (flipped, cut, lengthened, counts made huge) returns an
+    /// error or a message, never a panic; and a message with bytes after it is refused.
+    #[test]
+    fn damaged_bytes_never_panic_a_decoder() {
+        let mut s = PlantState {
+            n_y: 3,
+            n_q: 3,
+            n_x: 6,
+            ..Default::default()
+        };
+        s.x_true[5] = 1.5;
+        let mut msgs = Vec::new();
+        let mut buf = Vec::new();
+        encode_state(&mut buf, &s);
+        msgs.push(buf.clone());
+        encode_telemetry(
+            &mut buf,
+            &Telemetry {
+                n_u: 2,
+                n_law: 4,
+                ..Default::default()
+            },
+        );
+        msgs.push(buf.clone());
+        encode_params(
+            &mut buf,
+            &ParamSet {
+                n: 7,
+                ..Default::default()
+            },
+            3,
+        );
+        msgs.push(buf.clone());
+        let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for case in 0..20_000 {
+            let mut m = msgs[case % msgs.len()].clone();
+            match next() % 3 {
+                0 => {
+                    let i = (next() as usize) % m.len();
+                    m[i] ^= 1 << (next() % 8);
+                }
+                1 => m.truncate((next() as usize) % m.len()),
+                _ => m.extend((0..next() % 9).map(|_| next() as u8)),
+            }
+            let _ = decode_state(&m);
+            let _ = decode_telemetry(&m);
+            let _ = decode_params(&m);
+            let _ = decode_command(&m);
+            let _ = decode_estimate(&m);
+        }
+        let mut long = msgs[0].clone();
+        long.extend([0u8; 8]);
+        assert!(decode_state(&long).unwrap_err().contains("after"));
+    }
+
+    #[test]
+    fn a_schema_is_the_same_type_by_its_fields_not_its_comments() {
+        let with_comments = format!("# a comment\n{}\n  # another\n", PLANT_STATE.definition);
+        assert!(PLANT_STATE.same_fields(&with_comments));
+        assert!(!PLANT_STATE.same_fields(COMMAND.definition));
+        let renamed = PLANT_STATE.definition.replace("float64[] y", "float64[] z");
+        assert!(!PLANT_STATE.same_fields(&renamed));
+        assert!(JOINT_STATE.same_fields(&JOINT_STATE.schema()));
     }
 
     #[test]
