@@ -85,7 +85,7 @@ fn a_lockstep_run_records_every_topic_with_the_right_counts_and_stamps() {
     assert_eq!(stats.message_count, 3 * cycles + sets + estimates);
     assert_eq!(
         ctrl["mcap"]["messages"],
-        serde_json::json!([cycles, cycles, cycles, sets, estimates, 0])
+        serde_json::json!([cycles, cycles, cycles, sets, estimates, 0, 0])
     );
     assert_eq!(ctrl["mcap"]["dropped"], 0);
     // Every state once, in order; the commands are run.csv's u0, exactly.

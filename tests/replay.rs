@@ -79,6 +79,48 @@ fn replaying_a_lockstep_recording_into_its_controller_gives_the_live_commands() 
     assert!(r["first_mismatch"]["state_seq"].is_u64(), "{r}");
 }
 
+/// The general indirect scheme: the controller checks sets on the estimated transfer function it
+/// took, so the recording carries those estimates (`estimate_linear`) and the replay delivers
+/// them at the cycles the live controller took them; the commands are the live ones and the
+/// replayed controller adopts the same estimates.
+#[test]
+fn a_general_indirect_recording_replays_its_linear_estimates() {
+    let tmp = tempfile::tempdir().unwrap();
+    let live = tmp.path().join("live");
+    let o = cli(&[
+        "run",
+        "config/lti_motor_indirect.toml",
+        "--duration",
+        "8",
+        "--out",
+        live.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = tmp.path().join("replay");
+    let r = stdout_json(&cli(&[
+        "replay",
+        live.join("run.mcap").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]));
+    let ctrl = |d: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("controller.json")).unwrap()).unwrap()
+    };
+    let (a, b) = (ctrl(&live), ctrl(&out));
+    let adopted = a["check_model"]["adopted"].as_u64().unwrap();
+    assert!(adopted > 10, "{}", a["check_model"]);
+    assert_eq!(
+        r["linear_estimates_sent"].as_u64(),
+        a["mcap"]["messages"][6].as_u64(),
+        "{r}"
+    );
+    assert_eq!(b["check_model"]["adopted"].as_u64(), Some(adopted));
+    assert_eq!(r["commands_equal"], r["commands_compared"], "{r}");
+    assert_eq!(r["states"].as_u64(), Some(8000));
+}
+
 #[test]
 fn a_file_that_is_not_a_recording_and_a_missing_scenario_are_refused() {
     let tmp = tempfile::tempdir().unwrap();

@@ -284,6 +284,9 @@ impl Loop {
             (Some(EstimateCheck::Linear(lc)), Some(EstimatePort::Linear(sub))) => {
                 while let Some(e) = sub.next()? {
                     lc.offer(&e);
+                    if let Some(r) = self.record.as_mut() {
+                        r.linear_estimate(&e);
+                    }
                 }
                 lc.due(state.seq)
             }

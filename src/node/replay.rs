@@ -21,7 +21,7 @@
 
 use crate::config::{Mode, Overrides, Scenario};
 use crate::ipc::{Doorbell, Ipc, Pub, Sub, Topic, Waited};
-use crate::msg::{Command, ModelEstimate, ParamSet, PlantState, STATE_FLAG_END};
+use crate::msg::{Command, LinearEstimate, ModelEstimate, ParamSet, PlantState, STATE_FLAG_END};
 use crate::node::launcher::{process_args, signal, spawn_process};
 use crate::node::start::stop_flag;
 use crate::node::start::Failure;
@@ -90,6 +90,8 @@ pub struct ReplayReport {
     pub states: usize,
     pub params_sent: usize,
     pub estimates_sent: usize,
+    /// Estimated transfer functions (the general indirect scheme) sent to the controller.
+    pub linear_estimates_sent: usize,
     /// Cycles whose recorded command exists to compare with.
     pub commands_compared: usize,
     /// Of those, replayed commands equal to the recorded ones bit for bit.
@@ -104,6 +106,7 @@ struct Ports {
     state: Pub<PlantState>,
     params: Pub<ParamSet>,
     estimate: Pub<ModelEstimate>,
+    linear: Pub<LinearEstimate>,
     command: Sub<Command>,
 }
 
@@ -201,6 +204,7 @@ fn replay(a: &ReplayArgs) -> Result<ReplayReport, Failure> {
         command: ipc.subscriber(Topic::Command, 8, true).map_err(io)?,
         params: ipc.publisher(Topic::Params, false).map_err(io)?,
         estimate: ipc.publisher(Topic::Estimate, false).map_err(io)?,
+        linear: ipc.publisher(Topic::LinearEstimate, false).map_err(io)?,
         state: ipc.publisher(Topic::State, true).map_err(io)?,
     };
     let config_abs = std::fs::canonicalize(&config).unwrap_or(config.clone());
@@ -279,7 +283,7 @@ fn play(
     let t_first = rec.states[0].t;
     let progress =
         crate::report::progress::bar(rec.states.len() as u64, "replay", a.quiet || a.json);
-    let (mut pi, mut ei) = (0, 0);
+    let (mut pi, mut ei, mut li) = (0, 0, 0);
     let mut header = vec!["t".to_string(), "state_seq".to_string()];
     header.extend((0..n_u).map(|i| format!("u{i}_recorded")));
     header.extend((0..n_u).map(|i| format!("u{i}_replayed")));
@@ -295,6 +299,7 @@ fn play(
         states: 0,
         params_sent: 0,
         estimates_sent: 0,
+        linear_estimates_sent: 0,
         commands_compared: 0,
         commands_equal: 0,
         max_abs_diff: 0.0,
@@ -327,6 +332,10 @@ fn play(
         while let Some((_, e)) = rec.estimates.get(ei).filter(|(r, _)| due(r)) {
             ports.estimate.send(e).map_err(io)?;
             ei += 1;
+        }
+        while let Some((_, e)) = rec.linear_estimates.get(li).filter(|(r, _)| due(r)) {
+            ports.linear.send(e).map_err(io)?;
+            li += 1;
         }
         ports.state.send(state).map_err(io)?;
         let cmd = match ports
@@ -384,6 +393,7 @@ fn play(
     progress.finish_and_clear();
     report.params_sent = pi;
     report.estimates_sent = ei;
+    report.linear_estimates_sent = li;
     report.wall_s = start.elapsed().as_secs_f64();
     Ok((report, rows))
 }

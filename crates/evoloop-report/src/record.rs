@@ -22,7 +22,7 @@
 
 use super::mcap_file::McapWriter;
 use super::ros2;
-use evoloop_msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
+use evoloop_msg::{Command, LinearEstimate, ModelEstimate, ParamSet, PlantState, Telemetry};
 use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -67,6 +67,7 @@ pub struct Recorder {
     cycles: SyncSender<Cycle>,
     params: SyncSender<(u64, u64, ParamSet)>,
     estimates: SyncSender<(u64, u64, ModelEstimate)>,
+    linear: SyncSender<(u64, u64, LinearEstimate)>,
     /// The stamp params and estimates are logged at (the current cycle's state's) and the
     /// cycle's number, which they carry: a state used by two cycles (realtime, the plant late)
     /// has one stamp, and a replay needs to know which of the two took the set.
@@ -130,6 +131,7 @@ impl Recorder {
         let (cycles, rc) = sync_channel(CYCLES);
         let (params, rp) = sync_channel(SETS);
         let (estimates, re) = sync_channel(ESTIMATES);
+        let (linear, rl) = sync_channel(ESTIMATES);
         let done = Arc::new(AtomicBool::new(false));
         let d = done.clone();
         let path: PathBuf = path.to_path_buf();
@@ -147,13 +149,25 @@ impl Recorder {
                 if let Some(cpu) = avoid_cpu {
                     avoid(cpu);
                 }
-                write_all(w, &path, &joints, rc, rp, re, &d)
+                write_all(
+                    w,
+                    &path,
+                    &joints,
+                    Queues {
+                        cycles: rc,
+                        params: rp,
+                        estimates: re,
+                        linear: rl,
+                    },
+                    &d,
+                )
             })
             .map_err(|e| format!("cannot start the MCAP writer: {e}"))?;
         Ok(Self {
             cycles,
             params,
             estimates,
+            linear,
             stamp_ns: 0,
             cycle: 0,
             wait_when_full: lockstep,
@@ -200,6 +214,15 @@ impl Recorder {
     pub fn estimate(&mut self, e: &ModelEstimate) {
         Self::put(
             &self.estimates,
+            (self.stamp_ns, self.cycle, *e),
+            self.wait_when_full,
+            &mut self.dropped,
+        );
+    }
+
+    pub fn linear_estimate(&mut self, e: &LinearEstimate) {
+        Self::put(
+            &self.linear,
             (self.stamp_ns, self.cycle, *e),
             self.wait_when_full,
             &mut self.dropped,
@@ -257,15 +280,21 @@ fn avoid(cpu: usize) {
     }
 }
 
+/// The writer's ends of the recorder's queues.
+struct Queues {
+    cycles: Receiver<Cycle>,
+    params: Receiver<(u64, u64, ParamSet)>,
+    estimates: Receiver<(u64, u64, ModelEstimate)>,
+    linear: Receiver<(u64, u64, LinearEstimate)>,
+}
+
 /// The writer thread: drain the queues, encode and write each message, sleep when idle, and
 /// after `done` drain the rest and finish the file (summary, indexes).
 fn write_all<W: std::io::Write>(
     mut w: McapWriter<W>,
     path: &Path,
     joints: &[String],
-    cycles: Receiver<Cycle>,
-    params: Receiver<(u64, u64, ParamSet)>,
-    estimates: Receiver<(u64, u64, ModelEstimate)>,
+    q: Queues,
     done: &AtomicBool,
 ) -> Recorded {
     let mut r = Recorded::default();
@@ -283,7 +312,7 @@ fn write_all<W: std::io::Write>(
     loop {
         let finishing = done.load(Ordering::Acquire);
         let mut any = false;
-        while let Ok(c) = cycles.try_recv() {
+        while let Ok(c) = q.cycles.try_recv() {
             any = true;
             ros2::encode_state(&mut buf, &c.state);
             put(&mut w, &mut r, 0, c.state.stamp_ns, &buf);
@@ -296,15 +325,20 @@ fn write_all<W: std::io::Write>(
                 put(&mut w, &mut r, 5, c.state.stamp_ns, &buf);
             }
         }
-        while let Ok((stamp, cycle, p)) = params.try_recv() {
+        while let Ok((stamp, cycle, p)) = q.params.try_recv() {
             any = true;
             ros2::encode_params(&mut buf, &p, cycle);
             put(&mut w, &mut r, 3, stamp, &buf);
         }
-        while let Ok((stamp, cycle, e)) = estimates.try_recv() {
+        while let Ok((stamp, cycle, e)) = q.estimates.try_recv() {
             any = true;
             ros2::encode_estimate(&mut buf, &e, cycle);
             put(&mut w, &mut r, 4, stamp, &buf);
+        }
+        while let Ok((stamp, cycle, e)) = q.linear.try_recv() {
+            any = true;
+            ros2::encode_linear_estimate(&mut buf, &e, cycle);
+            put(&mut w, &mut r, 6, stamp, &buf);
         }
         if finishing && !any {
             break;

@@ -11,7 +11,7 @@
 //! NaN.
 
 use super::ros2;
-use evoloop_msg::{Command, ModelEstimate, ParamSet, PlantState};
+use evoloop_msg::{Command, LinearEstimate, ModelEstimate, ParamSet, PlantState};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -24,6 +24,8 @@ pub struct Recording {
     pub commands: Vec<Command>,
     pub params: Vec<(Received, ParamSet)>,
     pub estimates: Vec<(Received, ModelEstimate)>,
+    /// Estimated transfer functions (the general indirect scheme; none before 2026-11-28).
+    pub linear_estimates: Vec<(Received, LinearEstimate)>,
 }
 
 /// When the controller took a set or an estimate: the stamp of the state of that cycle, and
@@ -178,7 +180,7 @@ fn check_schema(ch: &mcap::Channel) -> Result<(), String> {
 
 /// The topics a replay reads. Telemetry is the controller's own output (a replay makes it
 /// again) and joint states repeat the state: neither is read.
-const READ: [&str; 4] = ["state", "command", "params", "estimate"];
+const READ: [&str; 5] = ["state", "command", "params", "estimate", "estimate_linear"];
 
 impl Recording {
     /// Add one recorded message, decoded by its channel's message encoding.
@@ -201,9 +203,13 @@ impl Recording {
                         let (cycle, p) = ros2::decode_params(b)?;
                         self.params.push((received(Some(cycle)), p));
                     }
-                    _ => {
+                    "estimate" => {
                         let (cycle, e) = ros2::decode_estimate(b)?;
                         self.estimates.push((received(Some(cycle)), e));
+                    }
+                    _ => {
+                        let (cycle, e) = ros2::decode_linear_estimate(b)?;
+                        self.linear_estimates.push((received(Some(cycle)), e));
                     }
                 }
             }
@@ -216,7 +222,9 @@ impl Recording {
                     "state" => self.states.push(f.state()?),
                     "command" => self.commands.push(f.command()?),
                     "params" => self.params.push((received(cycle), f.params()?)),
-                    _ => self.estimates.push((received(cycle), f.estimate()?)),
+                    "estimate" => self.estimates.push((received(cycle), f.estimate()?)),
+                    // JSON recordings never had it.
+                    _ => {}
                 }
             }
             other => {

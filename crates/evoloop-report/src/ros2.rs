@@ -13,7 +13,7 @@
 //! f64 is its 8 bytes, NaN payloads and signed zeros included. Where a standard message fits, the
 //! recording carries it too: `sensor_msgs/msg/JointState` for an arm's joints.
 
-use evoloop_msg::{Command, ModelEstimate, ParamSet, PlantState, Telemetry};
+use evoloop_msg::{Command, LinearEstimate, ModelEstimate, ParamSet, PlantState, Telemetry};
 
 /// MCAP's names of the message and schema encodings.
 pub const MESSAGE_ENCODING: &str = "cdr";
@@ -307,6 +307,21 @@ uint64 apply_at_seq
     dependencies: "",
 };
 
+pub const LINEAR_ESTIMATE: MessageType = MessageType {
+    name: "evoloop_msgs/msg/LinearEstimate",
+    definition: "\
+# An estimated transfer function num(s) / den(s) the controller took (descending powers, the
+# first poles + 1 of each in use), and the controller cycle that took it.
+uint64 cycle
+float64 t
+uint64 apply_at_seq
+uint32 poles
+float64[] num
+float64[] den
+",
+    dependencies: "",
+};
+
 pub const JOINT_STATE: MessageType = MessageType {
     name: "sensor_msgs/msg/JointState",
     definition: "\
@@ -356,13 +371,14 @@ impl MessageType {
 
 /// The run's topics and their messages, in the order of run.mcap's channel ids (1..): the one
 /// table the recorder, its reader and the live view share.
-pub const TOPICS: [(&str, MessageType); 6] = [
+pub const TOPICS: [(&str, MessageType); 7] = [
     ("state", PLANT_STATE),
     ("command", COMMAND),
     ("telemetry", TELEMETRY),
     ("params", PARAM_SET),
     ("estimate", MODEL_ESTIMATE),
     ("joint_states", JOINT_STATE),
+    ("estimate_linear", LINEAR_ESTIMATE),
 ];
 
 /// A topic's message type.
@@ -532,6 +548,32 @@ pub fn decode_estimate(b: &[u8]) -> Result<(u64, ModelEstimate), String> {
     Ok((cycle, e))
 }
 
+/// A linear estimate and the controller cycle that took it (every coefficient, in use or not).
+pub fn encode_linear_estimate(buf: &mut Vec<u8>, e: &LinearEstimate, cycle: u64) {
+    let mut w = CdrWriter::new(buf);
+    w.u64(cycle);
+    w.f64(e.t);
+    w.u64(e.apply_at_seq);
+    w.u32(e.poles);
+    w.f64s(&e.num);
+    w.f64s(&e.den);
+}
+
+pub fn decode_linear_estimate(b: &[u8]) -> Result<(u64, LinearEstimate), String> {
+    let mut r = CdrReader::new(b)?;
+    let cycle = r.u64("cycle")?;
+    let mut e = LinearEstimate {
+        t: r.f64("t")?,
+        apply_at_seq: r.u64("apply_at_seq")?,
+        poles: r.u32("poles")?,
+        ..Default::default()
+    };
+    r.f64s("num", &mut e.num)?;
+    r.f64s("den", &mut e.den)?;
+    r.end()?;
+    Ok((cycle, e))
+}
+
 /// An arm's joints as `sensor_msgs/msg/JointState`: stamped with the sample's stamp, position
 /// the measured joint angles y (empty if the plant measures fewer outputs than joints: each
 /// array is either empty or one per name), velocity the joint velocities the controller reads,
@@ -631,6 +673,18 @@ mod tests {
         encode_estimate(&mut buf, &e, 12);
         let (cycle, back) = decode_estimate(&buf).unwrap();
         assert_eq!((cycle, bytes_of(&back)), (12, bytes_of(&e)));
+
+        let mut l = LinearEstimate {
+            t: 2.5,
+            apply_at_seq: 9,
+            poles: 2,
+            ..Default::default()
+        };
+        l.num[2] = 40.0;
+        l.den[..3].copy_from_slice(&[1.0, 20.0, -0.0]);
+        encode_linear_estimate(&mut buf, &l, 13);
+        let (cycle, back) = decode_linear_estimate(&buf).unwrap();
+        assert_eq!((cycle, bytes_of(&back)), (13, bytes_of(&l)));
 
         let mut c = Command {
             cycle: 1,
