@@ -8,16 +8,29 @@ use common::{cli, stdout_json};
 /// replay must deliver at the cycles the live controller took them; the first three sets are
 /// published at 8.9, 11.9 and 14.9 s), recorded.
 fn recorded_run(dir: &std::path::Path) {
-    let o = cli(&[
-        "run",
-        "config/two_mass_indirect.toml",
-        "--duration",
-        "16",
-        "--out",
-        dir.to_str().unwrap(),
-        "--quiet",
-    ]);
+    recorded("config/two_mass_indirect.toml", dir, &["--duration", "16"]);
+}
+
+/// `evoloop run CONFIG --out DIR --quiet EXTRA...`, which must succeed.
+fn recorded(config: &str, dir: &std::path::Path, extra: &[&str]) {
+    let mut args = vec!["run", config, "--out", dir.to_str().unwrap(), "--quiet"];
+    args.extend(extra);
+    let o = cli(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// `evoloop replay DIR/run.mcap --out OUT --json EXTRA...`: its replay.json.
+fn replayed(dir: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> serde_json::Value {
+    let file = dir.join("run.mcap");
+    let mut args = vec![
+        "replay",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ];
+    args.extend(extra);
+    stdout_json(&cli(&args))
 }
 
 #[test]
@@ -87,24 +100,13 @@ fn replaying_a_lockstep_recording_into_its_controller_gives_the_live_commands() 
 fn a_general_indirect_recording_replays_its_linear_estimates() {
     let tmp = tempfile::tempdir().unwrap();
     let live = tmp.path().join("live");
-    let o = cli(&[
-        "run",
+    recorded(
         "config/lti_motor_indirect.toml",
-        "--duration",
-        "8",
-        "--out",
-        live.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        &live,
+        &["--duration", "8"],
+    );
     let out = tmp.path().join("replay");
-    let r = stdout_json(&cli(&[
-        "replay",
-        live.join("run.mcap").to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-    ]));
+    let r = replayed(&live, &out, &[]);
     let ctrl = |d: &std::path::Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(d.join("controller.json")).unwrap()).unwrap()
     };
@@ -157,19 +159,11 @@ fn a_file_that_is_not_a_recording_and_a_missing_scenario_are_refused() {
 fn a_realtime_recording_replays_to_its_live_commands() {
     let tmp = tempfile::tempdir().unwrap();
     let live = tmp.path().join("live");
-    let o = cli(&[
-        "run",
+    recorded(
         "config/two_mass_indirect.toml",
-        "--mode",
-        "realtime",
-        "--no-rt",
-        "--duration",
-        "4",
-        "--out",
-        live.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        &live,
+        &["--mode", "realtime", "--no-rt", "--duration", "4"],
+    );
     let controller: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(live.join("controller.json")).unwrap())
             .unwrap();
@@ -177,13 +171,7 @@ fn a_realtime_recording_replays_to_its_live_commands() {
         controller["mcap"]["dropped"], 0,
         "the recording lost messages"
     );
-    let r = stdout_json(&cli(&[
-        "replay",
-        live.join("run.mcap").to_str().unwrap(),
-        "--out",
-        tmp.path().join("replay").to_str().unwrap(),
-        "--json",
-    ]));
+    let r = replayed(&live, &tmp.path().join("replay"), &[]);
     eprintln!(
         "stale states in the live run: {}",
         controller["timing"]["stale_states"]
