@@ -15,6 +15,10 @@
 
 use evoloop_msg::{Command, LinearEstimate, ModelEstimate, ParamSet, PlantState, Telemetry};
 
+mod hash;
+pub mod rmw_zenoh;
+pub use hash::{hashed_description, type_hash};
+
 /// MCAP's names of the message and schema encodings.
 pub const MESSAGE_ENCODING: &str = "cdr";
 pub const SCHEMA_ENCODING: &str = "ros2msg";
@@ -44,6 +48,10 @@ impl<'a> CdrWriter<'a> {
     fn align(&mut self, n: usize) {
         let pad = (n - (self.0.len() - CDR_LE.len()) % n) % n;
         self.0.resize(self.0.len() + pad, 0);
+    }
+
+    pub fn bool(&mut self, v: bool) {
+        self.0.push(v as u8);
     }
 
     pub fn u32(&mut self, v: u32) {
@@ -139,6 +147,15 @@ impl<'a> CdrReader<'a> {
         Ok(bytes.try_into().expect("N bytes"))
     }
 
+    /// A `bool`: 0 or 1, anything else refused.
+    pub fn bool(&mut self, what: &str) -> Result<bool, String> {
+        match self.take::<1>(what)? {
+            [0] => Ok(false),
+            [1] => Ok(true),
+            [b] => Err(format!("`{what}` is {b}, not a bool")),
+        }
+    }
+
     pub fn u32(&mut self, what: &str) -> Result<u32, String> {
         self.take::<4>(what).map(u32::from_le_bytes)
     }
@@ -169,6 +186,15 @@ impl<'a> CdrReader<'a> {
             *slot = self.f64(what)?;
         }
         Ok(n)
+    }
+
+    /// A `float64[]` of at most `max` values.
+    pub fn f64_vec(&mut self, what: &str, max: usize) -> Result<Vec<f64>, String> {
+        let n = self.u32(what)? as usize;
+        if n > max {
+            return Err(format!("`{what}` has {n} values, at most {max}"));
+        }
+        (0..n).map(|_| self.f64(what)).collect()
     }
 
     /// A string (the NUL dropped).
@@ -344,6 +370,44 @@ MSG: builtin_interfaces/Time
 int32 sec
 uint32 nanosec
 ";
+
+/// `std_msgs/msg/Float64MultiArray`: a vector of values for tools that know only the standard
+/// messages (the command's u, the gains in service, a set of gains from a ROS 2 node).
+pub const FLOAT64_MULTI_ARRAY: MessageType = MessageType {
+    name: "std_msgs/msg/Float64MultiArray",
+    definition: "\
+# Please look at the MultiArrayLayout message definition for
+# documentation on all multiarrays.
+
+MultiArrayLayout  layout        # specification of data layout
+float64[]         data          # array of data
+",
+    dependencies: "\
+MSG: std_msgs/MultiArrayLayout
+MultiArrayDimension[] dim # Array of dimension properties
+uint32 data_offset        # padding bytes at front of data
+================================================================================
+MSG: std_msgs/MultiArrayDimension
+string label   # label of given dimension
+uint32 size    # size of given dimension (in type units)
+uint32 stride  # stride of given dimension
+",
+};
+
+/// `rcl_interfaces/msg/SetParametersResult`: the controller's answer to a set.
+pub const SET_PARAMETERS_RESULT: MessageType = MessageType {
+    name: "rcl_interfaces/msg/SetParametersResult",
+    definition: "\
+# A true value of the same index indicates that the parameter was set
+# successfully. A false value indicates the change was rejected.
+bool successful
+
+# Reason why the setting was either successful or a failure. This should only be
+# used for logging and user interfaces.
+string reason
+",
+    dependencies: "",
+};
 
 impl MessageType {
     /// The schema MCAP and Foxglove's WebSocket protocol carry: the definition and its
@@ -588,6 +652,52 @@ pub fn encode_joint_state(buf: &mut Vec<u8>, s: &PlantState, names: &[String]) {
     w.f64s(if y.len() >= n { &y[..n] } else { &[] });
     w.f64s(first(&s.qd_true, n as u32));
     w.f64s(first(&s.u_applied, n as u32));
+}
+
+/// `values` as a `std_msgs/msg/Float64MultiArray` of one dimension labelled `label`.
+pub fn encode_float64_multi_array(buf: &mut Vec<u8>, label: &str, values: &[f64]) {
+    let mut w = CdrWriter::new(buf);
+    w.u32(1);
+    w.string(label);
+    w.u32(values.len() as u32);
+    w.u32(1);
+    w.u32(0);
+    w.f64s(values);
+}
+
+/// A `std_msgs/msg/Float64MultiArray`'s data (at most `max` values; the layout is read and
+/// checked for size, not used: the data are taken as one vector).
+pub fn decode_float64_multi_array(b: &[u8], max: usize) -> Result<Vec<f64>, String> {
+    let mut r = CdrReader::new(b)?;
+    let dims = r.u32("layout.dim")?;
+    // Each dimension takes at least 12 bytes.
+    if dims as usize > b.len() / 12 {
+        return Err(format!("`layout.dim` claims {dims} dimensions"));
+    }
+    for _ in 0..dims {
+        r.string("layout.dim.label")?;
+        r.u32("layout.dim.size")?;
+        r.u32("layout.dim.stride")?;
+    }
+    r.u32("layout.data_offset")?;
+    let data = r.f64_vec("data", max)?;
+    r.end()?;
+    Ok(data)
+}
+
+/// A `rcl_interfaces/msg/SetParametersResult`.
+pub fn encode_set_parameters_result(buf: &mut Vec<u8>, successful: bool, reason: &str) {
+    let mut w = CdrWriter::new(buf);
+    w.bool(successful);
+    w.string(reason);
+}
+
+pub fn decode_set_parameters_result(b: &[u8]) -> Result<(bool, String), String> {
+    let mut r = CdrReader::new(b)?;
+    let ok = r.bool("successful")?;
+    let reason = r.string("reason")?;
+    r.end()?;
+    Ok((ok, reason))
 }
 
 #[cfg(test)]
