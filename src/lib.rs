@@ -21,6 +21,7 @@ pub mod bench;
 pub mod cli;
 pub mod config;
 pub mod direct;
+pub mod gains;
 pub use evoloop_control::{check, control, fuzzy, plant, reference};
 pub use evoloop_dynamics as dynamics;
 pub use evoloop_files as files;

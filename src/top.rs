@@ -18,13 +18,32 @@ use std::collections::VecDeque;
 pub const SPARK_SECONDS: f64 = 10.0;
 pub const SPARK_BUCKETS: usize = 100;
 
-/// A running run, as found in /proc: its controller's `--run-id`, `--ipc-prefix` and
-/// `--config` (the scenario, resolved against the controller's working directory).
+/// A running run, as found in /proc: its controller's `--run-id`, `--ipc-prefix`, `--config`
+/// (the scenario, resolved against the controller's working directory) and `--optimiser`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunningRun {
     pub run_id: String,
     pub ipc_prefix: String,
     pub config: Option<std::path::PathBuf>,
+    pub optimiser: Option<crate::config::OptimiserMode>,
+}
+
+impl RunningRun {
+    /// The run's scenario: `config` or the controller's, with `ov` over it; the optimiser mode
+    /// the controller was started with unless `ov` names one (what a set from outside the
+    /// loop may do depends on it).
+    pub fn scenario(
+        &self,
+        config: Option<&std::path::Path>,
+        ov: &crate::config::Overrides,
+    ) -> Result<crate::config::Scenario, String> {
+        let file = config
+            .or(self.config.as_deref())
+            .ok_or("the run's scenario is unknown: give --config")?;
+        let mut ov = ov.clone();
+        ov.optimiser = ov.optimiser.or(self.optimiser);
+        crate::config::Scenario::load(file, &ov).map_err(|e| e.to_string())
+    }
 }
 
 /// The runs with a live controller process of this user's.
@@ -43,6 +62,7 @@ pub fn running_runs() -> Vec<RunningRun> {
                     let cwd = std::fs::read_link(format!("/proc/{}/cwd", p.pid)).ok()?;
                     Some(cwd.join(c))
                 }),
+                optimiser: p.arg("--optimiser").and_then(|m| m.parse().ok()),
             })
         })
         .collect();

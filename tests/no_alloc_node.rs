@@ -90,3 +90,38 @@ fn a_realtime_run_reports_its_cycle_allocations_too() {
     assert_eq!(n, 0, "the realtime control cycle allocated");
     assert!(cycles > 1000, "{cycles} cycles watched");
 }
+
+/// A viewer attaching to a running run (`evoloop live`: a publisher on `params`, subscribers
+/// of the streams) makes the controller connect to it; the connecting (mapping the newcomer's
+/// memory, which allocates) happens between cycles (`Ports::update_connections`), not in one.
+/// Before, the cycle's own receive or send did it: 49 allocations on this very run.
+#[test]
+fn a_viewer_attaching_mid_run_adds_no_allocation_to_the_cycle() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("rt");
+    let (prefix, run_id) = unique("noalloclive");
+    let cfg = realtime_config_lasting(tmp.path(), 4.0);
+    let mut run = start(&cfg, &out, &prefix, &run_id);
+    let addr = format!(
+        "127.0.0.1:{}",
+        evoloop::node::launcher::free_port().unwrap()
+    );
+    let mut live = std::process::Command::new(evoloop())
+        .args(["live", "--run", &run_id, "--addr", &addr])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    assert!(wait_exit(&mut run, std::time::Duration::from_secs(30)).success());
+    wait_exit(&mut live, std::time::Duration::from_secs(15));
+    let live = live.wait_with_output().unwrap();
+    let said = String::from_utf8_lossy(&live.stderr);
+    assert!(
+        said.contains("Foxglove WebSocket"),
+        "the viewer did not attach: {said}"
+    );
+    let s = json(&out.join("summary.json"));
+    let (cycles, n) = allocations(&s);
+    assert_eq!(n, 0, "the cycle allocated while a viewer attached");
+    assert!(cycles > 2000, "{cycles} cycles watched");
+}

@@ -263,7 +263,7 @@ fn measure(
             stop.clone(),
         );
         std::thread::spawn(move || {
-            crate::net::bridge::run(&run_id, &prefix, &ep, None, None, &stop)
+            crate::net::bridge::run(&run_id, &prefix, &ep, None, None, None, &stop)
         })
     };
     let z = open(&Endpoint::Connect(ep), None)?;

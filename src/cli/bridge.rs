@@ -30,6 +30,37 @@ pub struct BridgeArgs {
     /// Print what was relayed as JSON at the end.
     #[arg(long)]
     pub json: bool,
+    /// Be a ROS 2 node too, over rmw_zenoh (ROS 2 nodes with RMW_IMPLEMENTATION=rmw_zenoh_cpp
+    /// on the same Zenoh network see it): joint_states, state, command, telemetry, u, gains,
+    /// and sets of gains on set_gains, answered on set_gains_result.
+    #[arg(long)]
+    pub ros2: bool,
+    /// The ROS 2 domain id [default: $ROS_DOMAIN_ID, else 0].
+    #[arg(long, value_name = "ID", requires = "ros2")]
+    pub ros_domain: Option<u32>,
+    /// The namespace of the node and its topics.
+    #[arg(long, value_name = "NS", default_value = "/evoloop", requires = "ros2")]
+    pub ros_namespace: String,
+    /// The node's name.
+    #[arg(long, value_name = "NAME", default_value = "bridge", requires = "ros2")]
+    pub ros_node: String,
+    /// The run's scenario, for --ros2 (its joints and gains) [default: the one its controller
+    /// was started with].
+    #[arg(long, value_name = "FILE", requires = "ros2")]
+    pub config: Option<PathBuf>,
+}
+
+/// The ROS 2 domain: `--ros-domain`, else `$ROS_DOMAIN_ID` as ROS 2 reads it, else 0.
+#[cfg(feature = "zenoh")]
+fn ros_domain(a: &BridgeArgs) -> Result<u32, String> {
+    match (a.ros_domain, std::env::var("ROS_DOMAIN_ID")) {
+        (Some(d), _) => Ok(d),
+        (None, Ok(v)) if !v.trim().is_empty() => v
+            .trim()
+            .parse()
+            .map_err(|_| format!("ROS_DOMAIN_ID={v}: not a domain id")),
+        _ => Ok(0),
+    }
 }
 
 /// How long `--run RUN_ID` waits for that run to start.
@@ -39,6 +70,15 @@ const RUN_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
 #[cfg(feature = "zenoh")]
 pub fn main(a: &BridgeArgs) -> u8 {
     use crate::net::{bridge, Endpoint};
+    if a.ros2 {
+        let name = ros_domain(a).and_then(|d| {
+            crate::report::ros2::rmw_zenoh::NodeName::new(d, &a.ros_namespace, &a.ros_node)
+        });
+        if let Err(e) = name {
+            err!("error: --ros2: {e}");
+            return 2;
+        }
+    }
     // A named run may be starting with the bridge (a script starts both): wait for it a while.
     let t0 = std::time::Instant::now();
     let run = loop {
@@ -65,18 +105,52 @@ pub fn main(a: &BridgeArgs) -> u8 {
         }
     }
     let duration = a.duration.map(std::time::Duration::from_secs_f64);
+    let scenario = match a.ros2 {
+        true => match run.scenario(a.config.as_deref(), &Default::default()) {
+            Ok(s) => Some(s),
+            Err(e) => {
+                err!("error: --ros2: {e}");
+                return 2;
+            }
+        },
+        false => None,
+    };
+    let ros = match (&scenario, ros_domain(a)) {
+        (None, _) => None,
+        (Some(scenario), Ok(domain)) => Some(bridge::Ros2Bridge {
+            options: crate::net::ros2::Ros2Options {
+                domain,
+                namespace: a.ros_namespace.clone(),
+                node: a.ros_node.clone(),
+            },
+            scenario,
+        }),
+        (Some(_), Err(e)) => {
+            err!("error: {e}");
+            return 2;
+        }
+    };
     let stop = crate::node::start::stop_flag();
     err!(
         "evoloop bridge: run {} on Zenoh ({ep:?}), keys evoloop/{}/...",
         run.run_id,
         run.run_id
     );
+    if let Some(r) = &ros {
+        err!(
+            "evoloop bridge: ROS 2 node {} `{}` in domain {} (rmw_zenoh)",
+            r.options.namespace,
+            r.options.node,
+            r.options.domain
+        );
+    }
     match bridge::run(
         &run.run_id,
         &run.ipc_prefix,
         &ep,
         a.zenoh_config.as_deref(),
         duration,
+        ros,
         &stop,
     ) {
         Ok(r) => {
@@ -99,6 +173,22 @@ pub fn main(a: &BridgeArgs) -> u8 {
                         String::new()
                     }
                 );
+                if let Some(r2) = &r.ros2 {
+                    err!(
+                        "evoloop bridge: ROS 2 node {} (domain {}): {} messages out ({} joint states); {} sets of gains in: {} accepted, {} refused{}",
+                        r2.node,
+                        r2.domain,
+                        r2.messages_out,
+                        r2.joint_states_out,
+                        r2.sets_in,
+                        r2.sets_accepted,
+                        r2.sets_refused,
+                        r2.first_error
+                            .as_ref()
+                            .map(|e| format!("; {} puts failed, the first: {e}", r2.put_errors))
+                            .unwrap_or_default()
+                    );
+                }
             }
             0
         }

@@ -158,9 +158,19 @@ pub struct BridgeReport {
     #[serde(default)]
     pub operator_acks_in: u64,
     pub refused: u64,
+    /// The ROS 2 node's (`--ros2`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ros2: Option<super::ros2::Ros2Report>,
     pub seconds: f64,
     /// Why it ended: "run ended", "stopped" or "duration".
     pub ended: String,
+}
+
+/// The run as a ROS 2 node too (`--ros2`): where, and the run's scenario (its joints, its
+/// gains, its optimiser's mode).
+pub struct Ros2Bridge<'a> {
+    pub options: super::ros2::Ros2Options,
+    pub scenario: &'a crate::config::Scenario,
 }
 
 /// Relay run `run_id` (iceoryx2 prefix `prefix`) until its last state, a stop request or
@@ -171,11 +181,18 @@ pub fn run(
     ep: &Endpoint,
     config: Option<&Path>,
     duration: Option<Duration>,
+    ros: Option<Ros2Bridge>,
     stop: &AtomicBool,
 ) -> Result<BridgeReport, String> {
     let z = open(ep, config)?;
     // No clean-up of dead nodes from here: the bridge changes nothing of the run's.
     let ipc = Ipc::with_cleanup("evoloop-bridge", run_id, prefix, false).map_err(ipc_err)?;
+    let mut ros = match ros {
+        Some(r) => Some(super::ros2::Ros2Node::new(
+            &z, &ipc, r.scenario, &r.options,
+        )?),
+        None => None,
+    };
     let k = |t: Topic| key(run_id, t, false);
     let kr = |t: Topic| key(run_id, t, true);
     let state = Out::<PlantState>::new(&ipc, &z, Topic::State, k(Topic::State))?;
@@ -226,9 +243,17 @@ pub fn run(
         // A short sleep, not a timed wait on the state's event: iceoryx2's timed waits wake on
         // this kernel's timer tick (milliseconds), clock_nanosleep within ~0.1 ms.
         std::thread::sleep(POLL);
-        rep.states += state.drain(|s| ended |= s.flags & STATE_FLAG_END != 0)?;
-        rep.commands += command.drain(|_| {})?;
-        rep.telemetry += telemetry.drain(|_| {})?;
+        rep.states += state.drain(|s| {
+            ended |= s.flags & STATE_FLAG_END != 0;
+            if let Some(r) = ros.as_mut() {
+                r.state(s);
+            }
+        })?;
+        rep.commands += command.drain(|c| ros.iter_mut().for_each(|r| r.command(c)))?;
+        rep.telemetry += telemetry.drain(|t| ros.iter_mut().for_each(|r| r.telemetry(t)))?;
+        if let Some(r) = ros.as_mut() {
+            r.poll();
+        }
         rep.estimates_out += estimate.drain(|_| {})?;
         rep.status_out += status.drain(|_| {})?;
         rep.params_in += params.drain(Duration::ZERO, &mut rep.refused)?;
@@ -240,12 +265,13 @@ pub fn run(
         if ended {
             // The controller's last command and telemetry follow the plant's last state.
             std::thread::sleep(Duration::from_millis(50));
-            rep.commands += command.drain(|_| {})?;
-            rep.telemetry += telemetry.drain(|_| {})?;
+            rep.commands += command.drain(|c| ros.iter_mut().for_each(|r| r.command(c)))?;
+            rep.telemetry += telemetry.drain(|t| ros.iter_mut().for_each(|r| r.telemetry(t)))?;
             break "run ended";
         }
     }
     .to_string();
     rep.seconds = t0.elapsed().as_secs_f64();
+    rep.ros2 = ros.map(|r| r.report);
     Ok(rep)
 }

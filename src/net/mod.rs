@@ -29,12 +29,16 @@
 //! configuration file (`--zenoh-config`) with TLS and access control
 //! (`config/zenoh/tls_acl.json5` is an example); see the book (docs/).
 //!
+//! With `--ros2` the bridge is also a ROS 2 node over rmw_zenoh (`ros2`): the run's topics in
+//! rmw_zenoh's keys, tokens and CDR, and sets of gains from a ROS 2 topic.
+//!
 //! Wire format (`wire`): the message's fixed-size `#[repr(C)]` bytes as they are in shared
 //! memory, behind a header with the type's versioned iceoryx2 name and size, so a peer of
 //! another build refuses a layout it does not share instead of misreading it.
 
 pub mod bridge;
 pub mod mirror;
+pub mod ros2;
 pub mod wire;
 pub mod workers;
 

@@ -57,6 +57,22 @@ struct Ports {
     state: Sub<PlantState>,
 }
 
+impl Ports {
+    /// Connect to the ports that joined since the last cycle (a viewer, a bridge, a restarted
+    /// optimiser), between cycles: inside one, connecting allocates and delays the command.
+    fn update_connections(&self) -> Result<(), IpcError> {
+        self.params.update_connections()?;
+        match &self.estimate {
+            Some(EstimatePort::Parameter(s)) => s.update_connections()?,
+            Some(EstimatePort::Linear(s)) => s.update_connections()?,
+            None => {}
+        }
+        self.command.update_connections()?;
+        self.telemetry.update_connections()?;
+        self.state.update_connections()
+    }
+}
+
 /// The estimates a controller checks new sets on: a plant parameter (`ModelCheck`: the
 /// two-mass's spring) or a whole transfer function (`LinearCheck`: the general scheme's).
 enum EstimatePort {
@@ -488,6 +504,7 @@ fn run_lockstep(
             period_ns: 0,
         };
         lp.cycle(ports, &state, wake)
+            .and_then(|()| ports.update_connections())
             .map_err(|e| Failure::Setup(e.to_string()))?;
     }
 }
@@ -588,6 +605,7 @@ fn run_realtime(
             period_ns: period,
         };
         lp.cycle(ports, &state, wake)
+            .and_then(|()| ports.update_connections())
             .map_err(|e| Failure::Setup(e.to_string()))?;
         k += 1;
     }

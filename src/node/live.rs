@@ -11,18 +11,15 @@
 //! and counted, when a viewer is slow); a thread per client writes its frames and reads its
 //! requests.
 //!
-//! A parameter set a viewer sends goes to the controller as any other set: a `ParamSet` on the
-//! run's `params` topic, version one above the newest the run has seen, checked by the
-//! controller's validation (bounds, finiteness, stability where the law checks it). The answer
-//! is the controller's own, read from its telemetry: accepted, the new values come back as
-//! `parameterValues`; refused, a `status` error names the reason and the values in service come
-//! back. Only a run whose optimiser publishes nothing (`optimiser.mode = "off"`) takes sets from
-//! a viewer: an optimiser numbers its own sets (a schedule's i-th is version i, a tuner's the
-//! next after its last), and a viewer's set in between would make its next one stale.
+//! A parameter set a viewer sends goes to the controller as any other set (`crate::gains`: its
+//! validation, its answer, only where no optimiser publishes). Accepted, the new values come
+//! back as `parameterValues`; refused, a `status` error names the reason and the values in
+//! service come back.
 
-use crate::config::{OptimiserMode, Scenario};
-use crate::ipc::{Ipc, Pub, Sub, Topic};
-use crate::msg::{Command, ParamCode, ParamSet, PlantState, Telemetry};
+use crate::config::Scenario;
+use crate::gains::{Answer, Gains};
+use crate::ipc::{Ipc, Sub, Topic};
+use crate::msg::{Command, ParamSet, PlantState, Telemetry};
 use crate::report::ros2;
 use serde_json::{json, Value};
 use std::net::{TcpListener, TcpStream};
@@ -100,8 +97,6 @@ const MAX_MESSAGE: usize = 1 << 20;
 const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
 /// How often the hub polls the topics.
 const POLL: Duration = Duration::from_millis(2);
-/// How long a set waits for the controller's answer.
-const ANSWER: Duration = Duration::from_secs(3);
 
 pub fn main(a: &LiveArgs) -> u8 {
     match serve(a) {
@@ -120,16 +115,12 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
             run_id: id.clone(),
             ipc_prefix: prefix.clone(),
             config: Some(config.clone()),
+            optimiser: None,
         },
         _ => crate::top::pick_run(a.run.as_deref())?,
     };
     let prefix = a.ipc_prefix.clone().unwrap_or(run.ipc_prefix.clone());
-    let config = a
-        .config
-        .clone()
-        .or(run.config.clone())
-        .ok_or("the run's scenario is unknown: give --config")?;
-    let scn = Scenario::load(&config, &a.overrides.to_overrides()).map_err(|e| e.to_string())?;
+    let scn = run.scenario(a.config.as_deref(), &a.overrides.to_overrides())?;
     let listener = TcpListener::bind(&a.addr).map_err(|e| format!("--addr {}: {e}", a.addr))?;
     let ipc = Ipc::with_cleanup("evoloop-live", &run.run_id, &prefix, false)
         .map_err(|e| format!("attaching to run {}: {e}", run.run_id))?;
@@ -211,27 +202,13 @@ struct Hub {
     command: Sub<Command>,
     telemetry: Sub<Telemetry>,
     params_in: Sub<ParamSet>,
-    /// Only where viewers may set parameters.
-    params_out: Option<Pub<ParamSet>>,
+    /// The parameter `gains`; a set's answer goes back to its viewer (request id, queue).
+    gains: Gains<(Value, SyncSender<Out>)>,
     clients: Vec<SyncSender<Out>>,
     joints: Vec<String>,
-    kind: crate::msg::ParamKind,
-    /// The values in service (by the controller's telemetry), the newest version seen, and the
-    /// values of the latest sets seen on the params topic, to know a version's values when the
-    /// controller puts it in service.
-    values: Vec<f64>,
-    in_service: u64,
-    newest: u64,
-    seen: std::collections::VecDeque<(u64, Vec<f64>)>,
-    /// Whether viewers may set parameters (no optimiser publishes), else why not.
-    settable: Result<(), String>,
-    /// Sets sent for clients, awaiting the controller's answer.
-    pending: Vec<Pending>,
     /// Messages dropped for slow clients.
     dropped: u64,
     buf: Vec<u8>,
-    /// The controller's newest parameter event, for answers that arrive before the set is seen.
-    last_event: (u64, u32, u32),
     /// When telemetry was last heard (none yet: the run may still be starting).
     last_heard: Option<Instant>,
     /// The newest state's stamp, and the commands' stamps by cycle (telemetry is stamped with
@@ -240,44 +217,18 @@ struct Hub {
     command_stamps: [(u64, u64); 256],
 }
 
-struct Pending {
-    version: u64,
-    values: Vec<f64>,
-    id: Value,
-    reply: SyncSender<Out>,
-    since: Instant,
-}
-
 impl Hub {
     fn new(ipc: &Ipc, scn: &Scenario) -> Result<Self, crate::ipc::IpcError> {
-        let cfg = scn.controller.model.config();
         Ok(Self {
             state: ipc.subscriber(Topic::State, 64, false)?,
             command: ipc.subscriber(Topic::Command, 64, false)?,
             telemetry: ipc.subscriber(Topic::Telemetry, 64, false)?,
             params_in: ipc.subscriber(Topic::Params, 16, false)?,
-            params_out: match scn.optimiser.mode {
-                OptimiserMode::Off => Some(ipc.publisher(Topic::Params, false)?),
-                _ => None,
-            },
+            gains: Gains::new(ipc, scn, &format!("viewers' `{GAINS}`"))?,
             clients: Vec::new(),
             joints: scn.joint_names(),
-            kind: cfg.param_kind(),
-            values: cfg.tunable().gains.clone(),
-            in_service: 0,
-            newest: 0,
-            seen: std::collections::VecDeque::new(),
-            settable: match scn.optimiser.mode {
-                OptimiserMode::Off => Ok(()),
-                mode => Err(format!(
-                    "this run's optimiser (mode {mode:?}) numbers the parameter sets; viewers may \
-                     set `{GAINS}` when it publishes none (`--optimiser off`)"
-                )),
-            },
-            pending: Vec::new(),
             dropped: 0,
             buf: Vec::with_capacity(16 << 10),
-            last_event: (0, 0, 0),
             last_heard: None,
             stamp_ns: 0,
             command_stamps: [(u64::MAX, 0); 256],
@@ -309,42 +260,28 @@ impl Hub {
             self.broadcast(command, c.stamp_ns);
         }
         while let Ok(Some(p)) = self.params_in.next() {
-            self.newest = self.newest.max(p.version);
-            if self.seen.len() == 64 {
-                self.seen.pop_front();
-            }
-            self.seen.push_back((p.version, p.values().to_vec()));
+            self.gains.saw_set(&p);
             // The cycle that took it is not known here: 0.
             ros2::encode_params(&mut self.buf, &p, 0);
             self.broadcast(params, self.stamp_ns);
         }
         while let Ok(Some(t)) = self.telemetry.next() {
             self.last_heard = Some(Instant::now());
-            self.newest = self.newest.max(t.param_version).max(t.param_event_version);
-            self.put_in_service(t.param_version);
-            self.last_event = (t.param_event_version, t.param_code, t.param_index);
+            if let Some(((id, reply), answer)) = self.gains.saw_telemetry(&t) {
+                self.reply(&id, &reply, &answer);
+            }
             let stamp = match self.command_stamps[t.cycle as usize % 256] {
                 (cycle, stamp) if cycle == t.cycle => stamp,
                 _ => self.stamp_ns,
             };
             ros2::encode_telemetry(&mut self.buf, &t);
             self.broadcast(telemetry, stamp);
-            self.answer();
         }
-        self.expire();
+        for ((id, reply), answer) in self.gains.expired() {
+            self.reply(&id, &reply, &answer);
+        }
         self.last_heard
             .is_none_or(|at| at.elapsed() < Duration::from_secs(5))
-    }
-
-    /// The controller reports `version` in service: its values, if the hub saw the set.
-    fn put_in_service(&mut self, version: u64) {
-        if version == self.in_service {
-            return;
-        }
-        if let Some((_, v)) = self.seen.iter().rev().find(|(v, _)| *v == version) {
-            self.values.clone_from(v);
-        }
-        self.in_service = version;
     }
 
     fn broadcast(&mut self, channel: u32, stamp_ns: u64) {
@@ -369,78 +306,27 @@ impl Hub {
     fn ask(&mut self, ask: Ask) {
         match ask {
             Ask::Get { id, reply } => {
-                let _ = reply.try_send(Out::Text(values_message(&self.values, &id)));
+                let _ = reply.try_send(Out::Text(values_message(self.gains.values(), &id)));
             }
             Ask::Set { id, values, reply } => {
-                if let Err(why) = &self.settable {
-                    let _ = reply.try_send(Out::Text(status(2, why)));
-                    let _ = reply.try_send(Out::Text(values_message(&self.values, &id)));
-                    return;
+                if let Err(((id, reply), why)) = self.gains.set(values, (id, reply)) {
+                    let _ = reply.try_send(Out::Text(status(2, &format!("`{GAINS}`: {why}"))));
+                    let _ = reply.try_send(Out::Text(values_message(self.gains.values(), &id)));
                 }
-                if values.len() != self.values.len() {
-                    let text = format!(
-                        "`{GAINS}` takes {} values, got {}",
-                        self.values.len(),
-                        values.len()
-                    );
-                    let _ = reply.try_send(Out::Text(status(2, &text)));
-                    let _ = reply.try_send(Out::Text(values_message(&self.values, &id)));
-                    return;
-                }
-                self.newest += 1;
-                let set = ParamSet::new(self.newest, 0, self.kind, &values);
-                let sent = self.params_out.as_ref().map(|p| p.send(&set));
-                if let Some(Err(e)) = sent {
-                    let _ = reply.try_send(Out::Text(status(2, &format!("not sent: {e}"))));
-                    return;
-                }
-                self.pending.push(Pending {
-                    version: self.newest,
-                    values,
-                    id,
-                    reply,
-                    since: Instant::now(),
-                });
             }
         }
     }
 
-    /// Answer the sets whose event the controller's telemetry now shows.
-    fn answer(&mut self) {
-        let (version, code, index) = self.last_event;
-        let Some(at) = self.pending.iter().position(|p| p.version == version) else {
-            return;
+    /// A set's answer to its viewer: a status (info when accepted, a warning when unanswered,
+    /// an error when refused) and the values in service.
+    fn reply(&self, id: &Value, reply: &SyncSender<Out>, answer: &Answer) {
+        let level = match answer {
+            Answer::Accepted { .. } => 0,
+            Answer::NoAnswer { .. } => 1,
+            Answer::Refused { .. } => 2,
         };
-        let p = self.pending.remove(at);
-        let code = ParamCode::try_from(code).unwrap_or(ParamCode::None);
-        if code == ParamCode::Accepted {
-            self.values = p.values;
-            self.in_service = version;
-            let text = format!("version {version} accepted by the controller");
-            let _ = p.reply.try_send(Out::Text(status(0, &text)));
-        } else {
-            let text = format!(
-                "version {version} refused by the controller: {} (value {index})",
-                code.reason()
-            );
-            let _ = p.reply.try_send(Out::Text(status(2, &text)));
-        }
-        let _ = p
-            .reply
-            .try_send(Out::Text(values_message(&self.values, &p.id)));
-    }
-
-    fn expire(&mut self) {
-        let values = &self.values;
-        self.pending.retain(|p| {
-            if p.since.elapsed() < ANSWER {
-                return true;
-            }
-            let text = format!("version {}: no answer from the controller", p.version);
-            let _ = p.reply.try_send(Out::Text(status(1, &text)));
-            let _ = p.reply.try_send(Out::Text(values_message(values, &p.id)));
-            false
-        });
+        let _ = reply.try_send(Out::Text(status(level, &answer.to_string())));
+        let _ = reply.try_send(Out::Text(values_message(self.gains.values(), id)));
     }
 }
 

@@ -105,10 +105,14 @@ fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
     }
 }
 
+/// Send the sample, then connect to ports that joined since the last (a viewer, a bridge):
+/// after the send, so the mapping a new connection takes never delays a sample.
 fn publish(ports: &Ports, msg: &PlantState) -> Result<(), Failure> {
     ports
         .state
         .send(msg)
+        .and_then(|()| ports.state.update_connections())
+        .and_then(|()| ports.command.update_connections())
         .map_err(|e| Failure::Setup(e.to_string()))
 }
 

@@ -9,6 +9,7 @@ use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use std::fmt::{self, Debug};
 use std::time::{Duration, Instant};
@@ -121,12 +122,12 @@ impl Topic {
 
 impl Topic {
     /// Publishers a service admits: one process and a restarted one, and for parameter sets a
-    /// live view's too (`evoloop live`), or for an operator's commands several senders at once
+    /// live view's and a ROS 2 bridge's too (`evoloop live`, `evoloop bridge --ros2`), or for an operator's commands several senders at once
     /// (`evoloop operator` and `top` keys).
     pub fn max_publishers(self) -> usize {
         match self {
             Topic::Operator => 8,
-            Topic::Params => 3,
+            Topic::Params => 4,
             _ => 2,
         }
     }
@@ -418,6 +419,16 @@ pub struct Pub<T: Debug + ZeroCopySend + 'static> {
 type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Pub<T> {
+    /// Connect to subscribers that joined since the last call (or send). A loop calls this
+    /// between its cycles: connecting maps the newcomer's memory, which allocates and takes
+    /// time, and `send` would otherwise do it inside the cycle (a viewer or a bridge that
+    /// attaches mid-run).
+    pub fn update_connections(&self) -> Result<(), IpcError> {
+        self.publisher
+            .update_connections()
+            .map_err(|e| err(format!("connections of {}", self.topic.name()), e))
+    }
+
     /// Copy `value` into a shared-memory slot, send it and wake the listeners. No allocation.
     pub fn send(&self, value: &T) -> Result<(), IpcError> {
         let sample = self
@@ -545,6 +556,14 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
         self.subscriber
             .has_samples()
             .map_err(|e| err(format!("poll {}", self.topic.name()), e))
+    }
+
+    /// Connect to publishers that joined since the last call (or receive): see
+    /// `Pub::update_connections`.
+    pub fn update_connections(&self) -> Result<(), IpcError> {
+        self.subscriber
+            .update_connections()
+            .map_err(|e| err(format!("connections of {}", self.topic.name()), e))
     }
 
     /// The oldest unread sample, if any (in-order consumption).

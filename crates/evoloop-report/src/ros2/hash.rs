@@ -150,7 +150,11 @@ fn definitions(ty: &MessageType) -> Result<BTreeMap<String, Fields>, String> {
     let own = qualified(ty.name, "");
     let mut out = BTreeMap::new();
     out.insert(own.clone(), fields(ty.definition, package(&own))?);
-    for part in ty.dependencies.split(SEPARATOR).filter(|p| !p.trim().is_empty()) {
+    for part in ty
+        .dependencies
+        .split(SEPARATOR)
+        .filter(|p| !p.trim().is_empty())
+    {
         let (head, body) = part.split_once('\n').unwrap_or((part, ""));
         let name = head
             .strip_prefix("MSG: ")
@@ -254,9 +258,18 @@ mod tests {
     #[test]
     fn standard_types_hash_as_ros_2s() {
         for (ty, hash) in [
-            (JOINT_STATE, "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e"),
-            (FLOAT64_MULTI_ARRAY, "RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f"),
-            (SET_PARAMETERS_RESULT, "RIHS01_cfcc0fb0371ee5159b403960ef4300f8f9d2f1fd6117c8666b7f9654d528a9b1"),
+            (
+                JOINT_STATE,
+                "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e",
+            ),
+            (
+                FLOAT64_MULTI_ARRAY,
+                "RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f",
+            ),
+            (
+                SET_PARAMETERS_RESULT,
+                "RIHS01_cfcc0fb0371ee5159b403960ef4300f8f9d2f1fd6117c8666b7f9654d528a9b1",
+            ),
         ] {
             assert_eq!(type_hash(&ty), hash, "{}", ty.name);
         }
@@ -296,12 +309,30 @@ mod tests {
     }
 
     const EVOLOOP_HASHES: [(&str, &str); 6] = [
-        ("evoloop_msgs/msg/PlantState", "RIHS01_bf30d88f9cf516e691d27dda51b3dcfd25cae6cf81e6ce2435318c2836381ed6"),
-        ("evoloop_msgs/msg/Command", "RIHS01_b3fdb42f0c19cc6fc3b99c61d470cceccf68177a0f53aaf1d1fd23fb352ddade"),
-        ("evoloop_msgs/msg/Telemetry", "RIHS01_4fb19e71b9f22cf8d43f99cde9841c0d390ed3ae07ee019aa171690c6074954c"),
-        ("evoloop_msgs/msg/ParamSet", "RIHS01_ed071dc3c2027c0a5728d6300b04cbf225bae64bcea5b334a905a095033c653b"),
-        ("evoloop_msgs/msg/ModelEstimate", "RIHS01_13c02312901363e09f9ca1c2a3d8a0a76f1608e70274a096074462de918ddb40"),
-        ("evoloop_msgs/msg/LinearEstimate", "RIHS01_ca007b0227752a90d985186266dbf77a07006cdd856126c8cf75524aef3e17f8"),
+        (
+            "evoloop_msgs/msg/PlantState",
+            "RIHS01_bf30d88f9cf516e691d27dda51b3dcfd25cae6cf81e6ce2435318c2836381ed6",
+        ),
+        (
+            "evoloop_msgs/msg/Command",
+            "RIHS01_b3fdb42f0c19cc6fc3b99c61d470cceccf68177a0f53aaf1d1fd23fb352ddade",
+        ),
+        (
+            "evoloop_msgs/msg/Telemetry",
+            "RIHS01_4fb19e71b9f22cf8d43f99cde9841c0d390ed3ae07ee019aa171690c6074954c",
+        ),
+        (
+            "evoloop_msgs/msg/ParamSet",
+            "RIHS01_ed071dc3c2027c0a5728d6300b04cbf225bae64bcea5b334a905a095033c653b",
+        ),
+        (
+            "evoloop_msgs/msg/ModelEstimate",
+            "RIHS01_13c02312901363e09f9ca1c2a3d8a0a76f1608e70274a096074462de918ddb40",
+        ),
+        (
+            "evoloop_msgs/msg/LinearEstimate",
+            "RIHS01_ca007b0227752a90d985186266dbf77a07006cdd856126c8cf75524aef3e17f8",
+        ),
     ];
 
     #[test]

@@ -704,6 +704,28 @@ pub fn decode_set_parameters_result(b: &[u8]) -> Result<(bool, String), String> 
 mod tests {
     use super::*;
 
+    /// ros2/evoloop_msgs, the ROS 2 package a ROS 2 user builds to read evoloop's own messages
+    /// (from run.mcap or `evoloop bridge --ros2`), has the same definitions, every one listed.
+    #[test]
+    fn the_ros_2_packages_definitions_are_these() {
+        let pkg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ros2/evoloop_msgs");
+        let cmake = std::fs::read_to_string(pkg.join("CMakeLists.txt")).unwrap();
+        let mut listed = 0;
+        for (_, ty) in TOPICS.iter().filter(|(_, t)| t.name.starts_with(PACKAGE)) {
+            let name = ty.name.rsplit('/').next().unwrap();
+            let file = pkg.join("msg").join(format!("{name}.msg"));
+            let text = std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("{file:?}: {e}"));
+            assert_eq!(text, ty.definition, "{file:?}");
+            assert!(
+                cmake.contains(&format!("\"msg/{name}.msg\"")),
+                "{name} not in CMakeLists.txt"
+            );
+            listed += 1;
+        }
+        let files = std::fs::read_dir(pkg.join("msg")).unwrap().count();
+        assert_eq!((listed, files), (6, 6));
+    }
+
     /// Worked by hand from the CDR rules: header 00 01 00 00; a u32 at 0; a u64 aligned to 8
     /// (4 bytes of padding); an empty float64[] (its count only, no alignment); a float64[] of one
     /// (count at 20, aligned to 24); a string (length with NUL, bytes, NUL).

@@ -218,7 +218,10 @@ mod tests {
     #[test]
     fn keys_and_tokens_have_rmw_zenohs_form() {
         let node = NodeName::new(0, "/", "talker").unwrap();
-        assert_eq!(node.token("aac3178e146ba6f1fc6e6a4085e77f21", 0), "@ros2_lv/0/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/talker");
+        assert_eq!(
+            node.token("aac3178e146ba6f1fc6e6a4085e77f21", 0),
+            "@ros2_lv/0/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/talker"
+        );
         let e = entity(
             &node,
             "aac3",
@@ -251,8 +254,12 @@ mod tests {
             &FLOAT64_MULTI_ARRAY,
             Qos::BestEffort { depth: 1 },
         );
-        assert!(e.key.starts_with("3/robot/arm/set_gains/std_msgs::msg::dds_::Float64MultiArray_/RIHS01_1025dd"));
-        assert!(e.token.starts_with("@ros2_lv/3/z/1/2/MS/%/%robot%arm/evoloop/%robot%arm%set_gains/"));
+        assert!(e.key.starts_with(
+            "3/robot/arm/set_gains/std_msgs::msg::dds_::Float64MultiArray_/RIHS01_1025dd"
+        ));
+        assert!(e
+            .token
+            .starts_with("@ros2_lv/3/z/1/2/MS/%/%robot%arm/evoloop/%robot%arm%set_gains/"));
         assert!(e.token.ends_with("/2::,1:,:,:,,"));
     }
 
@@ -277,7 +284,10 @@ mod tests {
         expect.push(0x10);
         expect.extend(gid);
         assert_eq!(a.to_vec(), expect);
-        assert_eq!(parse_attachment(&a).unwrap(), (7, 0x0102_0304_0506_0708, gid));
+        assert_eq!(
+            parse_attachment(&a).unwrap(),
+            (7, 0x0102_0304_0506_0708, gid)
+        );
         assert!(parse_attachment(&a[..32]).is_err());
         assert_ne!(super::gid("a"), super::gid("b"));
     }
