@@ -11,6 +11,7 @@
 //!   EVOLOOP_ROS2_PEER=target/ros2-peer/release/ros2-peer cargo test --release --features zenoh --test ros2_bridge -- --ignored
 
 mod common;
+#[cfg(feature = "zenoh")]
 use common::*;
 
 /// Names a ROS 2 graph would refuse are refused before the bridge starts, with the reason.

@@ -59,7 +59,10 @@ struct Ports {
 
 impl Ports {
     /// Connect to the ports that joined since the last cycle (a viewer, a bridge, a restarted
-    /// optimiser), between cycles: inside one, connecting allocates and delays the command.
+    /// optimiser), just before a cycle rather than in it, where the cycle's own receive or send
+    /// would (connecting allocates). A port that attaches during the microseconds of the
+    /// cycle's own computation is still connected by it. Checking costs a lock and a load per
+    /// port when nothing changed.
     fn update_connections(&self) -> Result<(), IpcError> {
         self.params.update_connections()?;
         match &self.estimate {
@@ -503,8 +506,9 @@ fn run_lockstep(
             flags: 0,
             period_ns: 0,
         };
-        lp.cycle(ports, &state, wake)
-            .and_then(|()| ports.update_connections())
+        ports
+            .update_connections()
+            .and_then(|()| lp.cycle(ports, &state, wake))
             .map_err(|e| Failure::Setup(e.to_string()))?;
     }
 }
@@ -604,8 +608,9 @@ fn run_realtime(
             flags,
             period_ns: period,
         };
-        lp.cycle(ports, &state, wake)
-            .and_then(|()| ports.update_connections())
+        ports
+            .update_connections()
+            .and_then(|()| lp.cycle(ports, &state, wake))
             .map_err(|e| Failure::Setup(e.to_string()))?;
         k += 1;
     }

@@ -6,7 +6,9 @@
 //!     ros2-peer --connect tcp/127.0.0.1:7447 [--namespace /evoloop] [--joint-states 300]
 //!               [--set 1,2,3 ...] [--timeout 30]
 
-use ros2_client::{Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, QosProfile};
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, QosProfile,
+};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::time::{Duration, Instant};
@@ -89,7 +91,11 @@ fn args() -> Result<Args, String> {
             "--set" => a.sets.push(
                 value()?
                     .split(',')
-                    .map(|v| v.trim().parse::<f64>().map_err(|e| format!("--set {v}: {e}")))
+                    .map(|v| {
+                        v.trim()
+                            .parse::<f64>()
+                            .map_err(|e| format!("--set {v}: {e}"))
+                    })
                     .collect::<Result<_, _>>()?,
             ),
             other => return Err(format!("unknown argument {other}")),
@@ -125,7 +131,10 @@ fn peer() -> Result<(), String> {
     }
     let ctx = Context::with_options(ContextOptions::new().zenoh_config(cfg)).map_err(|x| e(&x))?;
     let node = ctx
-        .new_node(NodeName::new("/", "ros2_peer").map_err(|x| e(&x))?, NodeOptions::new())
+        .new_node(
+            NodeName::new("/", "ros2_peer").map_err(|x| e(&x))?,
+            NodeOptions::new(),
+        )
         .map_err(|x| e(&x))?;
     let ns = a.namespace.as_str();
     let topic = |name: &str, pkg: &str, ty: &str| -> Result<ros2_client::Topic, String> {
@@ -136,7 +145,10 @@ fn peer() -> Result<(), String> {
         ))
     };
     let joints = node
-        .create_subscription::<JointState>(&topic("joint_states", "sensor_msgs", "JointState")?, None)
+        .create_subscription::<JointState>(
+            &topic("joint_states", "sensor_msgs", "JointState")?,
+            None,
+        )
         .map_err(|x| e(&x))?;
     let results = node
         .create_subscription::<SetParametersResult>(
@@ -158,7 +170,9 @@ fn peer() -> Result<(), String> {
     let set_topic = format!("{}/set_gains", ns.trim_end_matches('/'));
     while ctx.publisher_count(&js_topic) == 0 || ctx.subscription_count(&set_topic) == 0 {
         if late() {
-            return Err(format!("no publisher of {js_topic} or subscriber of {set_topic} appeared"));
+            return Err(format!(
+                "no publisher of {js_topic} or subscriber of {set_topic} appeared"
+            ));
         }
         std::thread::sleep(Duration::from_millis(10));
     }
@@ -190,7 +204,10 @@ fn peer() -> Result<(), String> {
             Err(x) => return Err(format!("joint_states: {}", e(&x))),
         }
         if late() {
-            return Err(format!("{got} of {} joint states before the timeout", a.joint_states));
+            return Err(format!(
+                "{got} of {} joint states before the timeout",
+                a.joint_states
+            ));
         }
     }
 
