@@ -106,14 +106,24 @@ fn wait_for_peers(ports: &Ports, stop: &AtomicBool, timeout_s: f64) {
 }
 
 /// Send the sample, then connect to ports that joined since the last (a viewer, a bridge):
-/// after the send, so the mapping a new connection takes never delays a sample.
+/// after the send, so the mapping a new connection takes never delays a sample. A newcomer
+/// that cannot be connected is left out (iceoryx2 does not try it again), not the end of the
+/// run.
 fn publish(ports: &Ports, msg: &PlantState) -> Result<(), Failure> {
     ports
         .state
         .send(msg)
-        .and_then(|()| ports.state.update_connections())
-        .and_then(|()| ports.command.update_connections())
-        .map_err(|e| Failure::Setup(e.to_string()))
+        .map_err(|e| Failure::Setup(e.to_string()))?;
+    for e in [
+        ports.state.update_connections(),
+        ports.command.update_connections(),
+    ]
+    .into_iter()
+    .filter_map(Result::err)
+    {
+        eprintln!("plant: {e}; the run goes on without that port");
+    }
+    Ok(())
 }
 
 fn run_lockstep(

@@ -91,6 +91,12 @@ pub struct ControllerReport {
     /// counting allocator is not the process's).
     #[serde(default)]
     pub cycle_allocations: Option<crate::rt::alloc_count::CycleAllocations>,
+    /// Ports attached mid-run (a viewer, a bridge) that the controller could not connect, left
+    /// out while the run went on, and the first failure.
+    #[serde(default)]
+    pub connection_failures: u64,
+    #[serde(default)]
+    pub connection_error: Option<String>,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
