@@ -108,13 +108,17 @@ impl Ros2Node {
     ) -> Result<Self, String> {
         let name = rz::NodeName::new(o.domain, &o.namespace, &o.node)
             .map_err(|e| format!("--ros-namespace / --ros-node: {e}"))?;
-        let zid = z.zid().to_string();
-        let node = token(z, name.token(&zid, 0))?;
+        let me = rz::Node {
+            name: name.clone(),
+            zid: z.zid().to_string(),
+            id: 0,
+        };
+        let node = token(z, me.token())?;
         let mut next_id = 0u64;
         let mut entity = |topic: &str, ty: &MessageType, kind, qos| {
             next_id += 1;
             let fq = name.topic(topic)?;
-            Ok::<_, String>(rz::entity(&name, &zid, 0, next_id, kind, &fq, ty, qos))
+            Ok::<_, String>(me.entity(next_id, kind, &fq, ty, qos))
         };
         let stream = rz::Qos::BestEffort { depth: 10 };
         let reliable = rz::Qos::Reliable { depth: 10 };
@@ -143,7 +147,6 @@ impl Ros2Node {
         let u = publisher("u", &ros2::FLOAT64_MULTI_ARRAY, stream)?;
         let gains_out = publisher("gains", &ros2::FLOAT64_MULTI_ARRAY, reliable)?;
         let result = publisher("set_gains_result", &ros2::SET_PARAMETERS_RESULT, reliable)?;
-        drop(publisher);
         let e = entity(
             "set_gains",
             &ros2::FLOAT64_MULTI_ARRAY,

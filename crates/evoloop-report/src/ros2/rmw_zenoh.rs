@@ -96,15 +96,62 @@ impl NodeName {
             format!("{}/{name}", self.namespace)
         })
     }
+}
 
-    /// The node's liveliness token, in Zenoh session `zid`, node id `node_id`.
-    pub fn token(&self, zid: &str, node_id: u64) -> String {
+/// A node in a Zenoh session: its name, the session's id and the node's id in the session.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Node {
+    pub name: NodeName,
+    pub zid: String,
+    pub id: u64,
+}
+
+impl Node {
+    /// The node's liveliness token.
+    pub fn token(&self) -> String {
         format!(
-            "{ADMIN_SPACE}/{}/{zid}/{node_id}/{node_id}/NN/%/{}/{}",
-            self.domain,
-            mangle(&self.namespace),
-            self.name
+            "{ADMIN_SPACE}/{}/{}/{}/{}/NN/%/{}/{}",
+            self.name.domain,
+            self.zid,
+            self.id,
+            self.id,
+            mangle(&self.name.namespace),
+            self.name.name
         )
+    }
+
+    /// Topic `fq_topic` (fully qualified) of type `ty`, as the node's entity `entity_id`.
+    pub fn entity(
+        &self,
+        entity_id: u64,
+        kind: EntityKind,
+        fq_topic: &str,
+        ty: &MessageType,
+        qos: Qos,
+    ) -> Entity {
+        let (dds, hash) = (dds_type_name(ty), type_hash(ty));
+        let kind = match kind {
+            EntityKind::Publisher => "MP",
+            EntityKind::Subscription => "MS",
+        };
+        let n = &self.name;
+        Entity {
+            key: format!(
+                "{}/{}/{dds}/{hash}",
+                n.domain,
+                fq_topic.trim_start_matches('/')
+            ),
+            token: format!(
+                "{ADMIN_SPACE}/{}/{}/{}/{entity_id}/{kind}/%/{}/{}/{}/{dds}/{hash}/{}",
+                n.domain,
+                self.zid,
+                self.id,
+                mangle(&n.namespace),
+                n.name,
+                mangle(fq_topic),
+                qos.encode()
+            ),
+        }
     }
 }
 
@@ -140,40 +187,6 @@ impl Qos {
 pub struct Entity {
     pub key: String,
     pub token: String,
-}
-
-/// Topic `fq_topic` (fully qualified) of type `ty` for node `node`, entity `entity_id` of the
-/// node `node_id` in session `zid`.
-pub fn entity(
-    node: &NodeName,
-    zid: &str,
-    node_id: u64,
-    entity_id: u64,
-    kind: EntityKind,
-    fq_topic: &str,
-    ty: &MessageType,
-    qos: Qos,
-) -> Entity {
-    let (dds, hash) = (dds_type_name(ty), type_hash(ty));
-    let kind = match kind {
-        EntityKind::Publisher => "MP",
-        EntityKind::Subscription => "MS",
-    };
-    Entity {
-        key: format!(
-            "{}/{}/{dds}/{hash}",
-            node.domain,
-            fq_topic.trim_start_matches('/')
-        ),
-        token: format!(
-            "{ADMIN_SPACE}/{}/{zid}/{node_id}/{entity_id}/{kind}/%/{}/{}/{}/{dds}/{hash}/{}",
-            node.domain,
-            mangle(&node.namespace),
-            node.name,
-            mangle(fq_topic),
-            qos.encode()
-        ),
-    }
 }
 
 /// An entity's GID, 16 bytes unique to its token. rmw_zenoh takes the XXH3-128 of the token;
@@ -217,18 +230,24 @@ mod tests {
     /// hashes of this module's own.
     #[test]
     fn keys_and_tokens_have_rmw_zenohs_form() {
-        let node = NodeName::new(0, "/", "talker").unwrap();
+        let name = NodeName::new(0, "/", "talker").unwrap();
+        let node = Node {
+            name: name.clone(),
+            zid: "aac3178e146ba6f1fc6e6a4085e77f21".into(),
+            id: 0,
+        };
         assert_eq!(
-            node.token("aac3178e146ba6f1fc6e6a4085e77f21", 0),
+            node.token(),
             "@ros2_lv/0/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/talker"
         );
-        let e = entity(
-            &node,
-            "aac3",
-            0,
+        let node = Node {
+            zid: "aac3".into(),
+            ..node
+        };
+        let e = node.entity(
             10,
             EntityKind::Publisher,
-            &node.topic("joint_states").unwrap(),
+            &name.topic("joint_states").unwrap(),
             &JOINT_STATE,
             Qos::Reliable { depth: 7 },
         );
@@ -244,10 +263,12 @@ mod tests {
         let ns = NodeName::new(3, "/robot/arm/", "evoloop").unwrap();
         assert_eq!(ns.namespace, "/robot/arm");
         assert_eq!(ns.topic("set_gains").unwrap(), "/robot/arm/set_gains");
-        let e = entity(
-            &ns,
-            "z",
-            1,
+        let node = Node {
+            name: ns.clone(),
+            zid: "z".into(),
+            id: 1,
+        };
+        let e = node.entity(
             2,
             EntityKind::Subscription,
             &ns.topic("set_gains").unwrap(),
