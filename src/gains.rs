@@ -185,16 +185,9 @@ impl<R> Gains<R> {
 
     /// The sets that have waited `ANSWER` without one.
     pub fn expired(&mut self) -> Vec<(R, Answer)> {
-        let mut out = Vec::new();
-        let mut i = 0;
-        while i < self.pending.len() {
-            if self.pending[i].since.elapsed() < ANSWER {
-                i += 1;
-                continue;
-            }
-            let p = self.pending.remove(i);
-            out.push((p.reply, Answer::NoAnswer { version: p.version }));
-        }
-        out
+        self.pending
+            .extract_if(.., |p| p.since.elapsed() >= ANSWER)
+            .map(|p| (p.reply, Answer::NoAnswer { version: p.version }))
+            .collect()
     }
 }

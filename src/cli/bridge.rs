@@ -70,15 +70,18 @@ const RUN_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
 #[cfg(feature = "zenoh")]
 pub fn main(a: &BridgeArgs) -> u8 {
     use crate::net::{bridge, Endpoint};
-    if a.ros2 {
-        let name = ros_domain(a).and_then(|d| {
+    // The node's name, checked before anything starts.
+    let ros_name = match a.ros2.then(|| {
+        ros_domain(a).and_then(|d| {
             crate::report::ros2::rmw_zenoh::NodeName::new(d, &a.ros_namespace, &a.ros_node)
-        });
-        if let Err(e) = name {
+        })
+    }) {
+        Some(Err(e)) => {
             err!("error: --ros2: {e}");
             return 2;
         }
-    }
+        name => name.and_then(Result::ok),
+    };
     // A named run may be starting with the bridge (a script starts both): wait for it a while.
     let t0 = std::time::Instant::now();
     let run = loop {
@@ -115,21 +118,10 @@ pub fn main(a: &BridgeArgs) -> u8 {
         },
         false => None,
     };
-    let ros = match (&scenario, ros_domain(a)) {
-        (None, _) => None,
-        (Some(scenario), Ok(domain)) => Some(bridge::Ros2Bridge {
-            options: crate::net::ros2::Ros2Options {
-                domain,
-                namespace: a.ros_namespace.clone(),
-                node: a.ros_node.clone(),
-            },
-            scenario,
-        }),
-        (Some(_), Err(e)) => {
-            err!("error: {e}");
-            return 2;
-        }
-    };
+    let ros = scenario
+        .as_ref()
+        .zip(ros_name)
+        .map(|(scenario, name)| bridge::Ros2Bridge { name, scenario });
     let stop = crate::node::start::stop_flag();
     err!(
         "evoloop bridge: run {} on Zenoh ({ep:?}), keys evoloop/{}/...",
@@ -139,9 +131,9 @@ pub fn main(a: &BridgeArgs) -> u8 {
     if let Some(r) = &ros {
         err!(
             "evoloop bridge: ROS 2 node {} `{}` in domain {} (rmw_zenoh)",
-            r.options.namespace,
-            r.options.node,
-            r.options.domain
+            r.name.namespace,
+            r.name.name,
+            r.name.domain
         );
     }
     match bridge::run(

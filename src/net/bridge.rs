@@ -166,10 +166,10 @@ pub struct BridgeReport {
     pub ended: String,
 }
 
-/// The run as a ROS 2 node too (`--ros2`): where, and the run's scenario (its joints, its
-/// gains, its optimiser's mode).
+/// The run as a ROS 2 node too (`--ros2`): where on the ROS 2 graph, and the run's scenario
+/// (its joints, its gains, its optimiser's mode).
 pub struct Ros2Bridge<'a> {
-    pub options: super::ros2::Ros2Options,
+    pub name: crate::report::ros2::rmw_zenoh::NodeName,
     pub scenario: &'a crate::config::Scenario,
 }
 
@@ -188,9 +188,7 @@ pub fn run(
     // No clean-up of dead nodes from here: the bridge changes nothing of the run's.
     let ipc = Ipc::with_cleanup("evoloop-bridge", run_id, prefix, false).map_err(ipc_err)?;
     let mut ros = match ros {
-        Some(r) => Some(super::ros2::Ros2Node::new(
-            &z, &ipc, r.scenario, &r.options,
-        )?),
+        Some(r) => Some(super::ros2::Ros2Node::new(&z, &ipc, r.scenario, &r.name)?),
         None => None,
     };
     let k = |t: Topic| key(run_id, t, false);

@@ -33,14 +33,6 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::Sample;
 use zenoh::Wait as _;
 
-/// Where the node is on the ROS 2 graph.
-#[derive(Debug, Clone)]
-pub struct Ros2Options {
-    pub domain: u32,
-    pub namespace: String,
-    pub node: String,
-}
-
 /// What the node did, in the bridge's report.
 #[derive(Debug, Default, Clone, serde::Serialize)]
 pub struct Ros2Report {
@@ -104,10 +96,8 @@ impl Ros2Node {
         z: &zenoh::Session,
         ipc: &Ipc,
         scn: &Scenario,
-        o: &Ros2Options,
+        name: &rz::NodeName,
     ) -> Result<Self, String> {
-        let name = rz::NodeName::new(o.domain, &o.namespace, &o.node)
-            .map_err(|e| format!("--ros-namespace / --ros-node: {e}"))?;
         let me = rz::Node {
             name: name.clone(),
             zid: z.zid().to_string(),
@@ -221,8 +211,7 @@ impl Ros2Node {
     pub fn command(&mut self, c: &Command) {
         ros2::encode_command(&mut self.buf, c);
         Self::put(&self.buf, &mut self.command, &mut self.report);
-        let u = &c.u[..(c.n_u as usize).min(c.u.len())];
-        ros2::encode_float64_multi_array(&mut self.buf, "u", u);
+        ros2::encode_float64_multi_array(&mut self.buf, "u", ros2::first(&c.u, c.n_u));
         Self::put(&self.buf, &mut self.u, &mut self.report);
     }
 

@@ -231,7 +231,7 @@ impl<'a> CdrReader<'a> {
 
 /// The first `n` values of a message's array, at most all of them: the counts come from another
 /// process (a plant in any language), and a wrong one must not stop the recording.
-fn first(values: &[f64], n: u32) -> &[f64] {
+pub fn first(values: &[f64], n: u32) -> &[f64] {
     &values[..(n as usize).min(values.len())]
 }
 
