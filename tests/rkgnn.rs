@@ -1007,7 +1007,8 @@ fn the_selection_study_finds_fuzzy_max_above_the_best_single_model_as_the_readme
     }
     // (claim_held is false whatever happens with one seed: 4 pairs cannot reach p < 0.05. The
     // per-trajectory checks above are this test's claim.)
-    assert_eq!(v["comparisons"].as_array().unwrap().len(), 20);
+    // Three rules (max, blend, uniform blend), each against the ten other controllers.
+    assert_eq!(v["comparisons"].as_array().unwrap().len(), 30);
 }
 
 #[test]
@@ -1147,4 +1148,71 @@ fn a_known_servo_is_not_searched_from_the_papers_start() {
         }
         assert!(model.report.evaluations >= 60, "model {k}: the EA ran");
     }
+}
+
+#[test]
+fn the_selection_study_identifies_by_the_papers_recipe_and_tracks_at_its_own_period() {
+    // `--servo unknown --start random --evaluations N` is the paper's identification (the
+    // shipped arm7 models' recipe), `--period` the tracking runs' loop rate: each model file
+    // must say it came from the EA's random start with the servo unknown and the budget spent,
+    // the training runs stay at 1 kHz and every tracking run (with computed torque's per-sample
+    // start-up rate) runs at the period asked for.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("sel");
+    let v = stdout_json(&cli(&[
+        "rkgnn",
+        "selection",
+        "--out",
+        out.to_str().unwrap(),
+        "--seeds",
+        "1",
+        "--servo",
+        "unknown",
+        "--start",
+        "random",
+        "--evaluations",
+        "300",
+        "--period",
+        "0.0005",
+        "--json",
+    ]));
+    assert_eq!(v["servo_known"], false);
+    assert_eq!(v["start"], "random");
+    assert_eq!(v["evaluations"], 300);
+    assert_eq!(v["period"], 0.0005);
+    let identified = 3 - v["unidentified"].as_array().unwrap().len();
+    assert_eq!(
+        v["identification_seconds"].as_array().unwrap().len(),
+        identified
+    );
+    let seed = out.join("seed1");
+    let mut models = 0;
+    for t in ["train1", "train2", "train3"] {
+        let Ok(text) = std::fs::read_to_string(seed.join(format!("model_{t}.json"))) else {
+            continue;
+        };
+        models += 1;
+        let m: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let r = &m["report"];
+        assert_eq!(r["start"], "random", "{t}");
+        assert_eq!(r["servo"]["kind"], "unknown", "{t}");
+        assert!(r["evaluations"].as_u64().unwrap() >= 300, "{t}: {r}");
+    }
+    assert_eq!(models, identified);
+    let scenario = |name: &str| -> toml::Table {
+        std::fs::read_to_string(seed.join("scenarios").join(format!("{name}.toml")))
+            .unwrap_or_else(|e| panic!("{name}: {e}"))
+            .parse()
+            .unwrap()
+    };
+    let period = |t: &toml::Table| t["timing"]["period"].as_float().unwrap();
+    assert_eq!(period(&scenario("train1")), 0.001);
+    for k in ["pd", "pd_matched", "ct_true"] {
+        assert_eq!(period(&scenario(&format!("near1_{k}"))), 0.0005, "{k}");
+    }
+    let ct = scenario("near1_ct_true");
+    let rate = ct["controller"]["computed_torque"]["startup_rate"]
+        .as_float()
+        .unwrap();
+    assert!((rate - 0.015).abs() < 1e-12, "startup_rate {rate}");
 }

@@ -175,6 +175,21 @@ pub struct SelectionArgs {
     /// (from M-hat's Christoffel symbols; 8x faster to fit on a 7-DOF arm).
     #[arg(long, value_enum, default_value_t = VelocityKind::Network)]
     pub velocity: VelocityKind,
+    /// What the identification knows of the training runs' P-D servo: `known` (its gains; the
+    /// shipped recipe) or `unknown` (the paper's premise: gains identified, scale from eq. 2).
+    #[arg(long, value_enum, default_value_t = StudyServo::Known)]
+    pub servo: StudyServo,
+    /// Where the identification starts: `least-squares` (the shipped recipe) or `random` (the
+    /// paper's; give --evaluations).
+    #[arg(long, value_enum, default_value_t = crate::rkgnn::model::Start::LeastSquares)]
+    pub start: crate::rkgnn::model::Start,
+    /// The paper's EA evaluations per model after the start; 0 keeps the start.
+    #[arg(long, default_value_t = 0)]
+    pub evaluations: usize,
+    /// The tracking runs' loop period, s (e.g. 0.0001: a 7-DOF arm's 10 kHz); the training
+    /// runs stay at 1 ms [default: 0.001].
+    #[arg(long, value_parser = |s: &str| crate::node::args::seconds_in(s, 0.01))]
+    pub period: Option<f64>,
     /// Threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -526,6 +541,10 @@ fn selection(a: &SelectionArgs) -> Result<(), String> {
         seeds: a.seeds,
         weigh_joints: a.weigh_joints,
         christoffel: a.velocity == VelocityKind::Christoffel,
+        servo_known: a.servo == StudyServo::Known,
+        start: a.start,
+        evaluations: a.evaluations,
+        period: a.period,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
     let r = with_bar("runs", a.quiet || a.json, |p| {

@@ -169,6 +169,9 @@ pub const RUN: [&str; 9] = [
     "fuzzy_blend",
     "uniform_blend",
 ];
+/// The rules compared with every other controller: the fuzzy rules, and the uniform blend (all
+/// models at equal weight), the rule that selects nothing.
+const RULES: [&str; 3] = ["fuzzy_max", "fuzzy_blend", "uniform_blend"];
 /// ... and those computed from the single models.
 pub const DERIVED: [&str; 2] = ["best_single", "random_single"];
 
@@ -189,6 +192,17 @@ pub struct SelectionSettings {
     pub weigh_joints: bool,
     /// V-hat from M-hat's Christoffel symbols instead of the velocity network.
     pub christoffel: bool,
+    /// Whether the identification knows the training servo's gains (the shipped recipe) or,
+    /// as in the paper's premise, identifies them (a linear servo network, scale from eq. 2).
+    pub servo_known: bool,
+    /// Where the identification starts: least squares (the shipped recipe) or the paper's
+    /// random start (give `evaluations`).
+    pub start: crate::rkgnn::model::Start,
+    /// The paper's EA evaluations after the start (0 = the start itself).
+    pub evaluations: usize,
+    /// The tracking runs' loop period, s (None: the training runs', 1 ms). The training runs
+    /// stay at 1 kHz, a vendor servo's log; a 7-DOF arm's computed torque runs at 10 kHz.
+    pub period: Option<f64>,
     pub threads: usize,
 }
 
@@ -210,15 +224,15 @@ pub struct Cell {
     pub refused: usize,
 }
 
-/// A paired comparison of a fuzzy rule with one baseline over every (seed, trajectory).
+/// A paired comparison of a rule (`RULES`) with one baseline over every (seed, trajectory).
 #[derive(Debug, Clone, Serialize)]
 pub struct Comparison {
-    /// `fuzzy_max` (the paper's rule) or `fuzzy_blend`.
+    /// `fuzzy_max` (the paper's rule), `fuzzy_blend` or `uniform_blend`.
     pub rule: String,
     pub baseline: String,
     pub median_fuzzy: f64,
     pub median_baseline: f64,
-    /// Pairs where fuzzy max is lower.
+    /// Pairs where the rule is lower.
     pub fuzzy_lower: usize,
     pub pairs: usize,
     pub wilcoxon: Wilcoxon,
@@ -234,9 +248,20 @@ pub struct SelectionResult {
     pub trajectories: Vec<&'static str>,
     /// Eq. 2's bounds given to the identification (over the joint limits).
     pub prior: Prior,
-    /// Training runs that gave no model (least squares found no positive definite M-hat), with
-    /// the reason: left out alone and from the fuzzy sets.
+    /// How the models were identified: what of the servo was known, the start, the EA's
+    /// evaluations, the joints' weighing, V-hat's form.
+    pub servo_known: bool,
+    pub start: crate::rkgnn::model::Start,
+    pub evaluations: usize,
+    pub weigh_joints: bool,
+    pub christoffel: bool,
+    /// The tracking runs' loop period, s (the training runs': 1 ms).
+    pub period: f64,
+    /// Training runs that gave no model (no positive definite M-hat), with the reason: left
+    /// out alone and from the fuzzy sets.
     pub unidentified: Vec<String>,
+    /// Each identified model's identification time, s (wall clock, every thread).
+    pub identification_seconds: Vec<f64>,
     pub cells: Vec<Cell>,
     /// Per trajectory, the median overall RMS of each controller.
     pub medians: Medians,
@@ -246,6 +271,8 @@ pub struct SelectionResult {
     pub claim_held: bool,
     /// The same for the blend.
     pub claim_held_blend: bool,
+    /// The same for the uniform blend (every model at equal weight: no selection at all).
+    pub claim_held_uniform: bool,
     pub seconds: f64,
 }
 
@@ -297,11 +324,27 @@ impl Sines {
 const OFFSET_SPREAD: f64 = 0.1;
 const AMPLITUDE_SPREAD: f64 = 0.15;
 
-/// `base` with its reference replaced by `s`.
-fn with_reference(s: &Sines) -> Result<String, String> {
+/// `base` with its reference replaced by `s`, run at `period` (None: the base's 1 ms): the
+/// plant's RK4 step at most the period.
+fn with_reference(s: &Sines, period: Option<f64>) -> Result<String, String> {
     let mut t: toml::Table = BASE
         .parse()
         .map_err(|e| format!("built-in scenario: {e}"))?;
+    if let Some(p) = period {
+        super::study::table(&mut t, "timing")?.insert("period".into(), toml::Value::Float(p));
+        let plant = super::study::table(&mut t, "plant")?;
+        let step = plant.get("step").and_then(toml::Value::as_float);
+        let step = step.ok_or("built-in scenario: no plant.step")?;
+        plant.insert("step".into(), toml::Value::Float(step.min(p)));
+        // The (idle) optimiser's sync period stays within its 256 periods.
+        let optimiser = super::study::table(&mut t, "optimiser")?;
+        let sync = optimiser.get("sync_period").and_then(toml::Value::as_float);
+        let sync = sync.ok_or("built-in scenario: no optimiser.sync_period")?;
+        optimiser.insert(
+            "sync_period".into(),
+            toml::Value::Float(sync.min(crate::ipc::MAX_SYNC_SAMPLES as f64 * p)),
+        );
+    }
     let mut r = toml::Table::new();
     r.insert("kind".into(), "sines".into());
     r.insert("frequencies".into(), float_list(&s.frequencies));
@@ -334,9 +377,10 @@ pub fn run(
     g.ct = [vec![MATCH.0; n], vec![MATCH.1; n]];
     let texts: Vec<String> = training_set
         .iter()
-        .chain(&new_set)
-        .map(with_reference)
+        .map(|t| with_reference(t, None))
+        .chain(new_set.iter().map(|t| with_reference(t, s.period)))
         .collect::<Result<_, _>>()?;
+
     let pd = pd_servo;
     // Every trajectory must stay within the arm's limits: `case` parses each probe's
     // scenario, whose check refuses a reference that leaves one (plant::arm). The probes are
@@ -348,6 +392,10 @@ pub fn run(
         .map(|(k, t)| case(&format!("probe{k}"), t, &robot, 1, pd(&unit, &unit), dir))
         .collect::<Result<_, _>>()?;
     let qs = trajectory_positions(&probe.iter().map(|c| &c.scenario).collect::<Vec<_>>());
+    // Computed torque's start-up rate is per sample: the same 33 ms at any period.
+    let base_period = probe[0].scenario.timing.period;
+    let period = s.period.unwrap_or(base_period);
+    g.startup_rate *= period / base_period;
     let mid = diagonal_mid(&arm, &qs);
     let matched = (
         mid.iter().map(|m| m * MATCH.0).collect::<Vec<_>>(),
@@ -364,7 +412,7 @@ pub fn run(
         ];
     }
     let (servo_kp, servo_kd) = (&g.servo[0], &g.servo[1]);
-    let total = s.seeds * (training_set.len() + new_set.len() * RUN.len()) as u64;
+    let total = s.seeds * (2 * training_set.len() + new_set.len() * RUN.len()) as u64;
     let step = std::sync::atomic::AtomicU64::new(0);
     let tick = |stage: &str| {
         let k = step.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -372,6 +420,7 @@ pub fn run(
     };
     let mut cells = Vec::new();
     let mut unidentified = Vec::new();
+    let mut identification_seconds = Vec::new();
     for seed in 1..=s.seeds {
         let sd = dir.join(format!("seed{seed}"));
         std::fs::create_dir_all(&sd).map_err(|e| format!("{}: {e}", sd.display()))?;
@@ -380,7 +429,7 @@ pub fn run(
             .iter()
             .enumerate()
             .map(|(k, tr)| {
-                let text = with_reference(&tr.for_seed(seed, k))?;
+                let text = with_reference(&tr.for_seed(seed, k), None)?;
                 case(tr.name, &text, &robot, seed, pd(servo_kp, servo_kd), &sd)
             })
             .collect::<Result<_, _>>()?;
@@ -394,21 +443,28 @@ pub fn run(
                 c.scenario.timing.period,
                 crate::rkgnn::data::SMOOTHING,
             );
-            let mut settings = Settings::least_squares(n, seed, 0);
+            let mut settings = Settings::least_squares(n, seed, s.evaluations);
             settings.threads = s.threads.max(1);
             settings.weigh_joints = s.weigh_joints;
+            settings.start = s.start;
             if s.christoffel {
                 settings.christoffel_velocity();
             }
-            settings.servo = crate::rkgnn::model::ServoPrior::Known {
-                kp: servo_kp.clone(),
-                kd: servo_kd.clone(),
-                limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
-            };
+            if s.servo_known {
+                settings.servo = crate::rkgnn::model::ServoPrior::Known {
+                    kp: servo_kp.clone(),
+                    kd: servo_kd.clone(),
+                    limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
+                };
+            }
             // A training run from which least squares finds no positive definite M-hat gives
             // no model: it is left out as a refused one is (and counted), not the study ended.
-            match identify::identify_model(&data, &prior, &settings, c.name.clone(), |_, _| {}) {
+            let found =
+                identify::identify_model(&data, &prior, &settings, c.name.clone(), |_, _| {});
+            tick("identification");
+            match found {
                 Ok(model) => {
+                    identification_seconds.push(model.report.seconds);
                     let file = sd.join(format!("model_{}.json", c.name));
                     model.save(&file)?;
                     models.push(Some((file, model)));
@@ -563,11 +619,19 @@ pub fn run(
         training: names(&training_set),
         trajectories,
         prior,
+        servo_known: s.servo_known,
+        start: s.start,
+        evaluations: s.evaluations,
+        weigh_joints: s.weigh_joints,
+        christoffel: s.christoffel,
+        period,
         unidentified,
+        identification_seconds,
         cells,
         medians,
         claim_held: claim_held(&comparisons, "fuzzy_max"),
         claim_held_blend: claim_held(&comparisons, "fuzzy_blend"),
+        claim_held_uniform: claim_held(&comparisons, "uniform_blend"),
         comparisons,
         seconds: t0.elapsed().as_secs_f64(),
     };
@@ -614,7 +678,7 @@ fn summarise(cells: &[Cell], trajectories: &[&str]) -> (Medians, Vec<Comparison>
             (name.to_string(), m)
         })
         .collect();
-    let comparisons: Vec<Comparison> = ["fuzzy_max", "fuzzy_blend"]
+    let comparisons: Vec<Comparison> = RULES
         .iter()
         .flat_map(|rule| {
             keys.iter()
@@ -665,16 +729,27 @@ fn verdict(held: bool) -> &'static str {
 
 /// report.md: the table of medians, the comparisons, the claim, each from this run's numbers.
 pub fn report_markdown(r: &SelectionResult) -> String {
-    let mut md = format!(
+    let mut md =
+        format!(
         "# Fuzzy selection on trajectories that are not midpoints\n\n{} on {} new trajectories \
          ({}), three models identified on {} per seed, {} seeds. Median whole-run RMS tracking \
-         error over the {} joints (rad):\n\n| controller | {} |\n|---|{}\n",
+         error over the {} joints (rad), tracking at {} Hz; identification: servo {}, {} start, \
+         {} EA evaluations per model{}{}:\n\n| controller | {} |\n|---|{}\n",
         r.robot.display(),
         r.trajectories.len(),
         r.trajectories.join(", "),
         r.training.join(", "),
         r.seeds,
         r.joints,
+        (1.0 / r.period).round(),
+        if r.servo_known { "known" } else { "unknown" },
+        match r.start {
+            crate::rkgnn::model::Start::Random => "random",
+            crate::rkgnn::model::Start::LeastSquares => "least-squares",
+        },
+        r.evaluations,
+        if r.weigh_joints { ", joints weighed" } else { "" },
+        if r.christoffel { ", Christoffel V-hat" } else { "" },
         r.trajectories.join(" | "),
         "---|".repeat(r.trajectories.len())
     );
@@ -691,7 +766,7 @@ pub fn report_markdown(r: &SelectionResult) -> String {
             .collect();
         md += &format!("| {k} | {} |\n", row.join(" | "));
     }
-    md += "\nEach fuzzy rule against each other controller, paired over every (seed, trajectory):\n\n\
+    md += "\nEach rule (the fuzzy rules and the uniform blend) against each other controller, paired over every (seed, trajectory):\n\n\
            | rule | baseline | median rule | median baseline | rule lower | Wilcoxon p |\n\
            |---|---|---|---|---|---|\n";
     for c in &r.comparisons {
@@ -728,9 +803,10 @@ pub fn report_markdown(r: &SelectionResult) -> String {
     md += &format!(
         "\nThe max rule switched models {sw:.1} times a second (median over runs).\n\n\
          The paper's claim, fuzzy selection (its max rule) better than the best single model \
-         in hindsight, {} here; with the blend it {}.\n",
+         in hindsight, {} here; with the blend it {}; the uniform blend's (no selection) {}.\n",
         verdict(r.claim_held),
-        verdict(r.claim_held_blend)
+        verdict(r.claim_held_blend),
+        verdict(r.claim_held_uniform)
     );
     md
 }
