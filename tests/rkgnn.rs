@@ -945,6 +945,19 @@ fn rkgnn_prior_is_the_eigenvalue_range_of_the_robots_mass_matrix() {
     assert!(!bad.status.success());
 }
 
+/// `evoloop rkgnn selection --out OUT ARGS --json`: selection.json as printed.
+fn selection(out: &Path, args: &[&str]) -> serde_json::Value {
+    let mut all = vec![
+        "rkgnn",
+        "selection",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ];
+    all.extend_from_slice(args);
+    stdout_json(&cli(&all))
+}
+
 #[test]
 fn the_selection_study_finds_fuzzy_max_above_the_best_single_model_as_the_readme_says() {
     // `evoloop rkgnn selection`: three models, four trajectories that are not midpoints, every
@@ -954,16 +967,7 @@ fn the_selection_study_finds_fuzzy_max_above_the_best_single_model_as_the_readme
     // the claim false would fail until the README says otherwise.
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sel");
-    let o = cli(&[
-        "rkgnn",
-        "selection",
-        "--out",
-        out.to_str().unwrap(),
-        "--seeds",
-        "1",
-        "--json",
-    ]);
-    let v = stdout_json(&o);
+    let v = selection(&out, &["--seeds", "1"]);
     assert!(out.join("selection.json").is_file() && out.join("report.md").is_file());
     let cells = v["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 4, "one seed, four trajectories");
@@ -1019,15 +1023,7 @@ fn identification_seeds_vary_the_training_data_and_a_refused_model_is_left_out()
     // other two, and the pairs leave it out.
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sel");
-    let v = stdout_json(&cli(&[
-        "rkgnn",
-        "selection",
-        "--out",
-        out.to_str().unwrap(),
-        "--seeds",
-        "2",
-        "--json",
-    ]));
+    let v = selection(&out, &["--seeds", "2"]);
     let cells = v["cells"].as_array().unwrap();
     let row = |c: &serde_json::Value, key: &str| -> serde_json::Value {
         c["rms"]
@@ -1159,23 +1155,21 @@ fn the_selection_study_identifies_by_the_papers_recipe_and_tracks_at_its_own_per
     // start-up rate) runs at the period asked for.
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sel");
-    let v = stdout_json(&cli(&[
-        "rkgnn",
-        "selection",
-        "--out",
-        out.to_str().unwrap(),
-        "--seeds",
-        "1",
-        "--servo",
-        "unknown",
-        "--start",
-        "random",
-        "--evaluations",
-        "300",
-        "--period",
-        "0.0005",
-        "--json",
-    ]));
+    let v = selection(
+        &out,
+        &[
+            "--seeds",
+            "1",
+            "--servo",
+            "unknown",
+            "--start",
+            "random",
+            "--evaluations",
+            "300",
+            "--period",
+            "0.0005",
+        ],
+    );
     assert_eq!(v["servo_known"], false);
     assert_eq!(v["start"], "random");
     assert_eq!(v["evaluations"], 300);
