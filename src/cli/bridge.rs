@@ -71,16 +71,17 @@ const RUN_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
 pub fn main(a: &BridgeArgs) -> u8 {
     use crate::net::{bridge, Endpoint};
     // The node's name, checked before anything starts.
-    let ros_name = match a.ros2.then(|| {
+    let ros_name = a.ros2.then(|| {
         ros_domain(a).and_then(|d| {
             crate::report::ros2::rmw_zenoh::NodeName::new(d, &a.ros_namespace, &a.ros_node)
         })
-    }) {
-        Some(Err(e)) => {
+    });
+    let ros_name = match ros_name.transpose() {
+        Ok(name) => name,
+        Err(e) => {
             err!("error: --ros2: {e}");
             return 2;
         }
-        name => name.and_then(Result::ok),
     };
     // A named run may be starting with the bridge (a script starts both): wait for it a while.
     let t0 = std::time::Instant::now();

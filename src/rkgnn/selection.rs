@@ -20,8 +20,8 @@
 
 use super::identify::{self, Prior, Settings};
 use super::study::{
-    arm_of, case, controller, diagonal_mid, float_list, gains, pd_servo, simulate_all,
-    trajectory_positions, write_scenarios, Case, JOINTS,
+    arm_of, case, controller, diagonal_mid, float_list, gains, pd_servo, servo_prior, simulate_all,
+    table, trajectory_positions, write_scenarios, Case, JOINTS,
 };
 use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::dynamics::Model;
@@ -324,6 +324,15 @@ impl Sines {
 const OFFSET_SPREAD: f64 = 0.1;
 const AMPLITUDE_SPREAD: f64 = 0.15;
 
+/// `t[section][key]`, a number, made at most `max`.
+fn at_most(t: &mut toml::Table, section: &str, key: &str, max: f64) -> Result<(), String> {
+    let s = table(t, section)?;
+    let v = s.get(key).and_then(toml::Value::as_float);
+    let v = v.ok_or_else(|| format!("built-in scenario: no {section}.{key}"))?;
+    s.insert(key.into(), toml::Value::Float(v.min(max)));
+    Ok(())
+}
+
 /// `base` with its reference replaced by `s`, run at `period` (None: the base's 1 ms): the
 /// plant's RK4 step at most the period.
 fn with_reference(s: &Sines, period: Option<f64>) -> Result<String, String> {
@@ -331,19 +340,11 @@ fn with_reference(s: &Sines, period: Option<f64>) -> Result<String, String> {
         .parse()
         .map_err(|e| format!("built-in scenario: {e}"))?;
     if let Some(p) = period {
-        super::study::table(&mut t, "timing")?.insert("period".into(), toml::Value::Float(p));
-        let plant = super::study::table(&mut t, "plant")?;
-        let step = plant.get("step").and_then(toml::Value::as_float);
-        let step = step.ok_or("built-in scenario: no plant.step")?;
-        plant.insert("step".into(), toml::Value::Float(step.min(p)));
+        table(&mut t, "timing")?.insert("period".into(), toml::Value::Float(p));
+        at_most(&mut t, "plant", "step", p)?;
         // The (idle) optimiser's sync period stays within its 256 periods.
-        let optimiser = super::study::table(&mut t, "optimiser")?;
-        let sync = optimiser.get("sync_period").and_then(toml::Value::as_float);
-        let sync = sync.ok_or("built-in scenario: no optimiser.sync_period")?;
-        optimiser.insert(
-            "sync_period".into(),
-            toml::Value::Float(sync.min(crate::ipc::MAX_SYNC_SAMPLES as f64 * p)),
-        );
+        let sync = crate::ipc::MAX_SYNC_SAMPLES as f64 * p;
+        at_most(&mut t, "optimiser", "sync_period", sync)?;
     }
     let mut r = toml::Table::new();
     r.insert("kind".into(), "sines".into());
@@ -380,7 +381,6 @@ pub fn run(
         .map(|t| with_reference(t, None))
         .chain(new_set.iter().map(|t| with_reference(t, s.period)))
         .collect::<Result<_, _>>()?;
-
     let pd = pd_servo;
     // Every trajectory must stay within the arm's limits: `case` parses each probe's
     // scenario, whose check refuses a reference that leaves one (plant::arm). The probes are
@@ -450,13 +450,7 @@ pub fn run(
             if s.christoffel {
                 settings.christoffel_velocity();
             }
-            if s.servo_known {
-                settings.servo = crate::rkgnn::model::ServoPrior::Known {
-                    kp: servo_kp.clone(),
-                    kd: servo_kd.clone(),
-                    limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
-                };
-            }
+            settings.servo = servo_prior(s.servo_known, servo_kp, servo_kd, &arm);
             // A training run from which least squares finds no positive definite M-hat gives
             // no model: it is left out as a refused one is (and counted), not the study ended.
             let found =
@@ -743,10 +737,7 @@ pub fn report_markdown(r: &SelectionResult) -> String {
         r.joints,
         (1.0 / r.period).round(),
         if r.servo_known { "known" } else { "unknown" },
-        match r.start {
-            crate::rkgnn::model::Start::Random => "random",
-            crate::rkgnn::model::Start::LeastSquares => "least-squares",
-        },
+        r.start.name(),
         r.evaluations,
         if r.weigh_joints { ", joints weighed" } else { "" },
         if r.christoffel { ", Christoffel V-hat" } else { "" },

@@ -218,6 +218,24 @@ pub(super) fn case(
     })
 }
 
+/// What an identification is told of the training runs' P-D servo: its gains and the arm's
+/// torque limits when `known`, nothing (the paper's premise) otherwise.
+pub(super) fn servo_prior(
+    known: bool,
+    kp: &[f64],
+    kd: &[f64],
+    arm: &crate::dynamics::Model,
+) -> crate::rkgnn::model::ServoPrior {
+    match known {
+        true => crate::rkgnn::model::ServoPrior::Known {
+            kp: kp.to_vec(),
+            kd: kd.to_vec(),
+            limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
+        },
+        false => crate::rkgnn::model::ServoPrior::Unknown,
+    }
+}
+
 /// Write each case's scenario file, so that it can be rerun through the processes.
 pub(super) fn write_scenarios(cases: &[Case]) -> Result<(), String> {
     for c in cases {
@@ -502,13 +520,7 @@ pub fn run(
         settings.threads = s.threads.max(1);
         settings.refine = s.refine;
         settings.start = s.start;
-        if s.servo_known {
-            settings.servo = crate::rkgnn::model::ServoPrior::Known {
-                kp: servo_kp.clone(),
-                kd: servo_kd.clone(),
-                limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
-            };
-        }
+        settings.servo = servo_prior(s.servo_known, &servo_kp, &servo_kd, &arm);
         let model = identify::identify_model(
             &data,
             &prior,
@@ -685,10 +697,7 @@ pub fn report_markdown(r: &StudyResult) -> String {
         r.robot.display(),
         r.seed,
         r.evaluations,
-        match r.identification_inputs.start {
-            crate::rkgnn::model::Start::LeastSquares => "least-squares",
-            crate::rkgnn::model::Start::Random => "paper's (random)",
-        },
+        r.identification_inputs.start.name(),
         r.servo_kp.iter().map(|v| round(*v)).collect::<Vec<_>>(),
         r.servo_kd.iter().map(|v| round(*v)).collect::<Vec<_>>(),
         r.inertia_ratio

@@ -123,6 +123,16 @@ pub enum Start {
     LeastSquares,
 }
 
+impl Start {
+    /// Its name as the command line and the model file spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Start::Random => "random",
+            Start::LeastSquares => "least-squares",
+        }
+    }
+}
+
 /// Why a model file was not read, written or accepted.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ModelError {
