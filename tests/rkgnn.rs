@@ -6,6 +6,7 @@ mod common;
 use common::*;
 use evoloop::config::{Overrides, Scenario};
 use evoloop::rkgnn::data::SMOOTHING;
+use evoloop::rkgnn::network::Part;
 use evoloop::rkgnn::{RkgnnModel, Trajectory};
 use evoloop::sim::simulate;
 use std::path::{Path, PathBuf};
@@ -753,8 +754,9 @@ fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_lo
                 e["best_cost"].as_f64().unwrap(),
                 e["in_service_cost"].as_f64().unwrap(),
             );
+            // The scenario's margin is 0.2.
             assert!(
-                cand < 0.95 * held,
+                cand < 0.8 * held,
                 "published without beating the model in service: {e}"
             );
         }
@@ -763,6 +765,55 @@ fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_lo
     let summary = json(&a.join("summary.json"));
     assert_eq!(summary["accepted_versions"].as_u64(), Some(published));
     assert_eq!(summary["rejected_versions"].as_u64(), Some(0));
+}
+
+/// arm7_payload, shortened to 14 s: the 7-DOF arm's models (3395 values, more than one
+/// parameter set) are updated alongside operation, travel in parts, are taken whole by the loop,
+/// and track the loaded arm better than the starting models do. Fitted from zero, no attempt on
+/// this arm was positive definite (the book's Known limits until 2026-11-29).
+#[test]
+fn identify_mode_updates_arm7s_models_in_parts_and_tracks_the_loaded_arm_better() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("arm7");
+    let args = ["--duration", "14"];
+    assert_ok(&run(
+        &config("arm7_payload.toml"),
+        &out,
+        "rk_arm7_ident",
+        &args,
+    ));
+    let opt = json(&out.join("optimiser.json"));
+    let epochs = opt["epochs"].as_array().unwrap();
+    // A first attempt once 5 s of data are in, then every 2 s.
+    assert!(epochs.len() >= 4, "{} attempts", epochs.len());
+    let published: Vec<&serde_json::Value> =
+        epochs.iter().filter(|e| e["published"].is_u64()).collect();
+    assert!(!published.is_empty(), "no model published: {epochs:?}");
+    for e in &published {
+        let (cand, held) = (
+            e["best_cost"].as_f64().unwrap(),
+            e["in_service_cost"].as_f64().unwrap(),
+        );
+        assert!(
+            cand < 0.8 * held,
+            "published without beating the model in service: {e}"
+        );
+    }
+    let summary = json(&out.join("summary.json"));
+    assert_eq!(
+        summary["accepted_versions"].as_u64(),
+        Some(published.len() as u64)
+    );
+    assert_eq!(summary["rejected_versions"].as_u64(), Some(0));
+    let (after, frozen) = (
+        summary["tracking_after_change"].as_f64().unwrap(),
+        summary["tracking_after_change_frozen"].as_f64().unwrap(),
+    );
+    assert!(
+        after < frozen,
+        "identified {after} rad against frozen {frozen}"
+    );
 }
 
 #[test]
@@ -801,7 +852,8 @@ fn identification_alongside_operation_beats_the_frozen_models_after_a_payload_ov
     assert_eq!(study["measure"]["column"], "tracking_mrad");
     let after = &study["comparisons"][1];
     assert_eq!(after["phase"], "after the change");
-    // Measured: lower on 9 of 10 seeds, exact two-sided Wilcoxon p = 0.010.
+    // Measured (2026-11-29, the update centred on the model in service): lower on 10 of 10
+    // seeds, exact two-sided Wilcoxon p = 0.002 (9 of 10, p = 0.010, fitted from zero).
     assert!(
         after["wilcoxon"]["a_lower"].as_u64().unwrap() >= 8,
         "{after}"
@@ -812,8 +864,8 @@ fn identification_alongside_operation_beats_the_frozen_models_after_a_payload_ov
         sentence.starts_with("Identification alongside operation has a lower tracking RMS"),
         "{sentence}"
     );
-    // Measured: -25 % [-41, -9] over seeds 1..10 (the book's Arms chapter, which says how
-    // fragile it is: -58 % before model files were read back to the last bit).
+    // Measured: -72 % [-73, -71] over seeds 1..10 (the book's Arms chapter; -25 % [-41, -9]
+    // when each attempt was fitted from zero).
     let rel = after["relative_pct"]["mean"].as_f64().unwrap();
     assert!(rel < -10.0, "identified vs frozen: {rel} %");
     // The study's per-seed numbers are the runs' own summaries, in mrad.
@@ -1209,4 +1261,95 @@ fn the_selection_study_identifies_by_the_papers_recipe_and_tracks_at_its_own_per
         .as_float()
         .unwrap();
     assert!((rate - 0.015).abs() < 1e-12, "startup_rate {rate}");
+}
+
+/// Data of an "arm" that is one network (`truth`): torques M q'' + V + G along smooth sines at
+/// 1 kHz from `t0` for `seconds`, as positions (the velocities estimated from them, as a run's
+/// are) and torques.
+fn network_arm_data(
+    truth: &evoloop::rkgnn::Network,
+    t0: f64,
+    seconds: f64,
+) -> (Trajectory, Vec<f64>) {
+    let (n, h) = (3, 0.001);
+    let (off, a, w) = ([0.1, 0.6, -1.2], [0.8, 0.35, 0.5], [1.9, 3.1, 2.5]);
+    let (mut r, mut q, mut tau) = (Vec::new(), Vec::new(), Vec::new());
+    for i in 0..(seconds / h).round() as usize {
+        let t = t0 + i as f64 * h;
+        let pos: Vec<f64> = (0..n)
+            .map(|j| off[j] + a[j] * (w[j] * t + j as f64).sin())
+            .collect();
+        let vel: Vec<f64> = (0..n)
+            .map(|j| a[j] * w[j] * (w[j] * t + j as f64).cos())
+            .collect();
+        let acc: Vec<f64> = (0..n)
+            .map(|j| -a[j] * w[j] * w[j] * (w[j] * t + j as f64).sin())
+            .collect();
+        let mut m = [0.0; evoloop::MAX_JOINTS * evoloop::MAX_JOINTS];
+        let (mut v, mut g) = ([0.0; 3], [0.0; 3]);
+        truth.inertia_and_velocity(&pos, &vel, &mut m, &mut v);
+        truth.gravity(&pos, &mut g);
+        for j in 0..n {
+            let mq: f64 = (0..n).map(|k| m[j * n + k] * acc[k]).sum();
+            tau.push(mq + v[j] + g[j]);
+        }
+        r.extend(pos.iter().chain(&vel));
+        q.extend(pos);
+    }
+    (Trajectory::from_positions(n, h, r, &q, SMOOTHING), tau)
+}
+
+/// The live update (`update_with_torques`, identify mode's fit) moves the model in service
+/// towards the arm its window comes from: an arm that is the shipped arm3_train1 model, a model
+/// in service whose M-hat is 1.3, V-hat 1.5 and G-hat 0.7 times the arm's, 4 s of data with the
+/// loop's torques. The update predicts the 2 s after the window
+/// better, keeps every centre, width and gain, and keeps M-hat above the floor it is given.
+#[test]
+fn the_live_update_moves_the_model_in_service_towards_the_arms_data() {
+    use evoloop::rkgnn::identify::update_with_torques;
+    use evoloop::rkgnn::live::prediction_rms;
+    let truth = RkgnnModel::load(&config("models/arm3_train1.json"))
+        .unwrap()
+        .net;
+    let layout = truth.layout.clone();
+    let mut p0 = truth.params().to_vec();
+    let mut weights = Vec::new();
+    for (part, net) in layout.subnets() {
+        let off = match part {
+            Part::Inertia(..) => 1.3,
+            Part::Velocity(_) => 1.5,
+            Part::Gravity => 0.7,
+            Part::Proportional(_) | Part::Derivative(_) => continue,
+        };
+        for k in net.all_weights() {
+            p0[k] *= off;
+            weights.push(k);
+        }
+    }
+    let (window, tau) = network_arm_data(&truth, 0.0, 4.0);
+    let (fresh, fresh_tau) = network_arm_data(&truth, 4.0, 2.0);
+    let probes: Vec<Vec<f64>> = (0..window.len())
+        .step_by(100)
+        .map(|i| window.x_at(i)[..3].to_vec())
+        .collect();
+    let in_service = evoloop::rkgnn::Network::new(layout.clone(), p0.clone());
+    let floor = 0.1 * in_service.min_eig(probes.iter().map(Vec::as_slice));
+    let p = update_with_torques(&layout, &p0, &window, &tau, 5, &probes, floor)
+        .expect("an update above the floor");
+    let (fresh_tau, fresh) = (fresh.filter_alike(&fresh_tau), fresh.filtered());
+    let before = prediction_rms(&layout, &p0, &fresh, &fresh_tau, 5);
+    let after = prediction_rms(&layout, &p, &fresh, &fresh_tau, 5);
+    let arm = prediction_rms(&layout, truth.params(), &fresh, &fresh_tau, 5);
+    assert!(
+        after < 0.5 * before,
+        "q'' error on fresh data: updated {after}, in service {before}, the arm's own {arm}"
+    );
+    for k in (0..p.len()).filter(|k| !weights.contains(k)) {
+        assert_eq!(
+            p[k], p0[k],
+            "parameter {k} is not an output weight and moved"
+        );
+    }
+    let updated = evoloop::rkgnn::Network::new(layout, p);
+    assert!(updated.min_eig(probes.iter().map(Vec::as_slice)) >= floor);
 }

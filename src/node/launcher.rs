@@ -272,7 +272,7 @@ pub(crate) fn signal(child: &Child, sig: i32) {
 /// has its own signal handling and report), then the study of tuning alongside operation
 /// (indirect or identify) against the frozen controller over the seeds.
 pub fn run_seeds(a: RunArgs) -> ExitCode {
-    use crate::report::seeds_study::{Measure, SeedRun, Study};
+    use crate::report::seeds_study::{after_phase, Measure, SeedRun, Study};
     let seeds = a.seeds.clone().map(|s| s.0).unwrap_or_default();
     let file = a.file.clone().unwrap_or_else(default_scenario);
     let scn = match Scenario::load(&file, &a.overrides.to_overrides()) {
@@ -351,9 +351,13 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
         match result {
             Ok(r) => {
                 if !a.quiet {
+                    let before = r.before.map_or(String::new(), |(b, bf)| {
+                        format!(", before {b:.1} vs {bf:.1}")
+                    });
+                    let phase = after_phase(r.before.is_some());
                     err!(
-                        "  seed {seed}: {} after the change {} {:.1} vs frozen {:.1}, before {:.1} vs {:.1} ({} of {}, {:.0} s)",
-                        measure.what, measure.short, r.after, r.after_frozen, r.before, r.before_frozen, i + 1, seeds.len(),
+                        "  seed {seed}: {} {phase} {} {:.1} vs frozen {:.1}{before} ({} of {}, {:.0} s)",
+                        measure.what, measure.short, r.after, r.after_frozen, i + 1, seeds.len(),
                         t0.elapsed().as_secs_f64()
                     );
                 }

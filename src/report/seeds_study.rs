@@ -107,8 +107,8 @@ impl Measure {
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct SeedRun {
     pub seed: u64,
-    pub before: f64,
-    pub before_frozen: f64,
+    /// Tuned and frozen before the plant's change; None when the plant does not change.
+    pub before: Option<(f64, f64)>,
     pub after: f64,
     pub after_frozen: f64,
     /// The final model estimate's relative error (the indirect scheme's estimator).
@@ -123,11 +123,14 @@ impl SeedRun {
         let f = |v: Option<f64>, k: &str| {
             v.ok_or_else(|| format!("summary.json of seed {seed} has no number `{k}`"))
         };
-        let mut v = [0.0; 4];
-        for ((v, x), k) in v.iter_mut().zip((m.read)(s)).zip(m.keys) {
-            *v = m.scale * f(x, k)?;
-        }
-        let [before, before_frozen, after, after_frozen] = v;
+        let [b, bf, a, af] = (m.read)(s);
+        // A plant without a change has no "before" (its summary leaves both out).
+        let before = match (b, bf) {
+            (None, None) => None,
+            (b, bf) => Some((m.scale * f(b, m.keys[0])?, m.scale * f(bf, m.keys[1])?)),
+        };
+        let after = m.scale * f(a, m.keys[2])?;
+        let after_frozen = m.scale * f(af, m.keys[3])?;
         let estimate_error = if m.estimates {
             Some(f(s.model_estimate_error, "model_estimate_error")?)
         } else {
@@ -136,7 +139,6 @@ impl SeedRun {
         Ok(Self {
             seed,
             before,
-            before_frozen,
             after,
             after_frozen,
             estimate_error,
@@ -149,7 +151,8 @@ impl SeedRun {
 /// Tuned against frozen over the seeds, for one phase of the run.
 #[derive(Debug, Clone, Serialize)]
 pub struct PhaseComparison {
-    /// "before the change" or "after the change".
+    /// "before the change", "after the change", or "over the last quarter" (a plant without a
+    /// change).
     pub phase: &'static str,
     pub tuned: MeanCi,
     pub frozen: MeanCi,
@@ -188,6 +191,15 @@ fn compare(m: &Measure, phase: &'static str, tuned: &[f64], frozen: &[f64]) -> P
     }
 }
 
+/// The last quarter's phase: after the plant's change, if it has one.
+pub fn after_phase(changed: bool) -> &'static str {
+    if changed {
+        "after the change"
+    } else {
+        "over the last quarter"
+    }
+}
+
 /// The study over `runs`; `failed` lists seeds whose run did not complete, with the reason.
 #[derive(Debug, Clone, Serialize)]
 pub struct Study {
@@ -212,25 +224,24 @@ impl Study {
         let col = |f: fn(&SeedRun) -> f64| runs.iter().map(f).collect::<Vec<f64>>();
         let m = &measure;
         let errors: Vec<f64> = runs.iter().filter_map(|r| r.estimate_error).collect();
+        let before: Option<Vec<(f64, f64)>> = runs.iter().map(|r| r.before).collect();
+        let mut comparisons = Vec::new();
+        if let Some(before) = &before {
+            let (tuned, frozen): (Vec<f64>, Vec<f64>) = before.iter().copied().unzip();
+            comparisons.push(compare(m, "before the change", &tuned, &frozen));
+        }
+        comparisons.push(compare(
+            m,
+            after_phase(before.is_some()),
+            &col(|r| r.after),
+            &col(|r| r.after_frozen),
+        ));
         Self {
             scenario: scenario.to_string(),
             measure,
             seeds: runs.iter().map(|r| r.seed).collect(),
             failed,
-            comparisons: vec![
-                compare(
-                    m,
-                    "before the change",
-                    &col(|r| r.before),
-                    &col(|r| r.before_frozen),
-                ),
-                compare(
-                    m,
-                    "after the change",
-                    &col(|r| r.after),
-                    &col(|r| r.after_frozen),
-                ),
-            ],
+            comparisons,
             estimate_error_pct: (errors.len() == runs.len() && !errors.is_empty())
                 .then(|| mean_ci(&errors.iter().map(|e| 100.0 * e).collect::<Vec<f64>>())),
             accepted: mean_ci(&col(|r| r.accepted as f64)),
@@ -301,11 +312,12 @@ impl Study {
             "seed,{c}_before,{c}_before_frozen,{c}_after,{c}_after_frozen,estimate_error,accepted,rejected\n",
         );
         for r in runs {
+            let (before, before_frozen) = r.before.unwrap_or((f64::NAN, f64::NAN));
             csv.push_str(&format!(
                 "{},{},{},{},{},{},{},{}\n",
                 r.seed,
-                r.before,
-                r.before_frozen,
+                before,
+                before_frozen,
                 r.after,
                 r.after_frozen,
                 r.estimate_error.unwrap_or(f64::NAN),
@@ -319,24 +331,22 @@ impl Study {
         if plots && !runs.is_empty() {
             use crate::report::plot::{xy_png, Curve, Style, XySeries};
             let xs: Vec<f64> = runs.iter().map(|r| r.seed as f64).collect();
-            let rel = |a: fn(&SeedRun) -> f64, b: fn(&SeedRun) -> f64| {
+            let rel = |ab: &dyn Fn(&SeedRun) -> Option<(f64, f64)>| {
                 runs.iter()
-                    .map(|r| 100.0 * (a(r) - b(r)) / b(r))
+                    .filter_map(ab)
+                    .map(|(a, b)| 100.0 * (a - b) / b)
                     .collect::<Vec<f64>>()
             };
             let n = xs.len();
-            let curves: Vec<Curve> = vec![
-                (
-                    "after the change".into(),
-                    xs.clone(),
-                    rel(|r| r.after, |r| r.after_frozen),
-                ),
-                (
-                    "before the change".into(),
-                    xs.clone(),
-                    rel(|r| r.before, |r| r.before_frozen),
-                ),
-            ];
+            let changed = runs.iter().all(|r| r.before.is_some());
+            let mut curves: Vec<Curve> = vec![(
+                after_phase(changed).into(),
+                xs.clone(),
+                rel(&|r| Some((r.after, r.after_frozen))),
+            )];
+            if changed {
+                curves.push(("before the change".into(), xs.clone(), rel(&|r| r.before)));
+            }
             let mut series = XySeries::from_curves(&curves, Style::Points);
             let zero = vec![0.0; n];
             series.push(XySeries {
@@ -372,8 +382,7 @@ mod tests {
     fn run(seed: u64, after: f64, after_frozen: f64) -> SeedRun {
         SeedRun {
             seed,
-            before: 100.0 + seed as f64,
-            before_frozen: 100.0 + seed as f64,
+            before: Some((100.0 + seed as f64, 100.0 + seed as f64)),
             after,
             after_frozen,
             estimate_error: Some(0.01),
@@ -436,5 +445,38 @@ mod tests {
             e.contains("seed 3") && e.contains("cost_before_change_frozen"),
             "{e}"
         );
+    }
+
+    /// A plant without a change (arm3_identify): its summary has no "before"; the study
+    /// compares the last quarter only, and says so.
+    #[test]
+    fn a_plant_without_a_change_is_compared_over_the_last_quarter() {
+        let s = Summary {
+            tracking_after_change: Some(0.002),
+            tracking_after_change_frozen: Some(0.003),
+            ..Default::default()
+        };
+        let r = SeedRun::from_summary(1, &s, &Measure::IDENTIFY).unwrap();
+        assert_eq!(r.before, None);
+        assert_eq!((r.after, r.after_frozen), (2.0, 3.0));
+        let runs: Vec<SeedRun> = (1..=6)
+            .map(|seed| SeedRun {
+                seed,
+                after: 2.0 + 0.01 * seed as f64,
+                ..r.clone()
+            })
+            .collect();
+        let st = Study::new("x", Measure::IDENTIFY, &runs, Vec::new());
+        assert_eq!(st.comparisons.len(), 1);
+        assert_eq!(st.comparisons[0].phase, "over the last quarter");
+        assert_eq!(st.comparisons[0].wilcoxon.a_lower, 6);
+        assert!(st.markdown().contains("| over the last quarter |"));
+        // One of the pair without the other is still refused by name.
+        let half = Summary {
+            tracking_before_change: Some(0.002),
+            ..s
+        };
+        let e = SeedRun::from_summary(2, &half, &Measure::IDENTIFY).unwrap_err();
+        assert!(e.contains("tracking_before_change_frozen"), "{e}");
     }
 }

@@ -749,12 +749,20 @@ pub fn least_squares_start(
     least_squares(layout, &servo, data, target, stride, INERTIA_RIDGES, scaled)
 }
 
-/// The same fit when the loop's joint torques are known (`torques`, n per sample of `data`):
-/// a loop whose law is the controller's own, e.g. computed torque, where the command is known
-/// without measuring a torque. Then M-hat q'' + V-hat + G-hat = tau is solved directly (no
-/// homogeneity, no scale to fix); the servo network keeps `p0`'s values (it plays no part in
-/// computed torque). `min_eig` is the smallest eigenvalue M-hat must keep over the probes.
-pub fn least_squares_with_torques(
+/// The live identification's fit (`rkgnn::live`): the model in service, `p0`, updated to a
+/// window of data whose joint torques are known (`torques`, n per sample of `data`: under
+/// computed torque the command is the controller's own, known without measuring a torque).
+/// The equations are `--servo known`'s, M-hat q'' + V-hat + G-hat = tau (no scale to fix; the
+/// servo network keeps p0's values, it plays no part in computed torque), but the fit is
+/// centred on the model in service: each output weight is p0's plus a correction, and a ridge
+/// on the corrections, each in units of its output's size in p0 (`prior_scales`), says how far
+/// a few seconds of one trajectory may move a model identified on more. Fitted from zero
+/// instead (as before 2026-11-29), the window's data leave most of a 7-DOF arm's inertia
+/// network to a ridge and M-hat was positive definite in none of arm7's attempts. Of
+/// `UPDATE_RIDGES` (relative to the largest singular value) the smallest whose M-hat reaches
+/// `min_eig` over `probes` is taken; the largest leaves p0 nearly as it is. One SVD serves
+/// every ridge.
+pub fn update_with_torques(
     layout: &Layout,
     p0: &[f64],
     data: &Trajectory,
@@ -763,15 +771,79 @@ pub fn least_squares_with_torques(
     probes: &[Vec<f64>],
     min_eig: f64,
 ) -> Option<Vec<f64>> {
+    let n = layout.n;
+    let g = layout.gains?;
     // The torques through the same low-pass as the signals (`Trajectory::filtered`).
     let tau = data.filter_alike(torques);
     let data = &data.filtered();
-    let target = Target::Torques {
-        tau: &tau,
-        weigh: false,
+    let cols: Vec<usize> = weight_indices(layout)
+        .into_iter()
+        .filter(|k| !(g..g + 2 * n).contains(k))
+        .collect();
+    let samples = rows_at(data, stride);
+    if samples.len() < MIN_ROWS {
+        return None;
+    }
+    let (mut a, _) = design(layout, p0, data, &cols, &samples);
+    // What the model in service leaves of the torques is the correction's right-hand side.
+    let w0 = nalgebra::DVector::from_iterator(
+        a.ncols(),
+        cols.iter()
+            .map(|&k| p0[k])
+            .chain(std::iter::repeat(0.0).take(2 * n)),
+    );
+    let rhs = at_samples(&tau, &samples, n) - &a * &w0;
+    // The friction columns, which p0 has no weights for, in unit norm.
+    let sizes = prior_scales(layout, p0);
+    let scale: Vec<f64> = (0..a.ncols())
+        .map(|c| match cols.get(c) {
+            Some(&k) => sizes[k],
+            None => 1.0 / a.column(c).norm().max(1e-300),
+        })
+        .collect();
+    for (c, sc) in scale.iter().enumerate() {
+        a.column_mut(c).scale_mut(*sc);
+    }
+    let svd = a.svd(true, true);
+    let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
+    let s = &svd.singular_values;
+    let ub = u.tr_mul(&rhs);
+    let accept = at_least(layout, probes, min_eig);
+    UPDATE_RIDGES.iter().find_map(|&rho| {
+        let l2 = (rho * s.max()).powi(2);
+        let z = nalgebra::DVector::from_iterator(
+            s.len(),
+            s.iter()
+                .zip(ub.iter())
+                .map(|(&si, &b)| si / (si * si + l2) * b),
+        );
+        let du = v_t.tr_mul(&z);
+        let mut p = p0.to_vec();
+        for (c, &k) in cols.iter().enumerate() {
+            p[k] += du[c] * scale[c];
+        }
+        accept(p)
+    })
+}
+
+/// Per parameter, the size of its output in `p`: the rms of that output's weights over its
+/// sub-network's RBFs (one inertia entry, one joint's gravity, one velocity product), at least
+/// 1e-6 of the rms of every weight, so that an output at zero may still move.
+fn prior_scales(layout: &Layout, p: &[f64]) -> Vec<f64> {
+    let rms = |ks: &mut dyn Iterator<Item = usize>| {
+        let (sum, count) = ks.fold((0.0, 0usize), |(s, c), k| (s + p[k] * p[k], c + 1));
+        (sum / count.max(1) as f64).sqrt()
     };
-    let floor = at_least(layout, probes, min_eig);
-    least_squares(layout, p0, data, target, stride, INERTIA_RIDGES, floor)
+    let floor = 1e-6 * rms(&mut layout.subnets().flat_map(|(_, net)| net.all_weights()));
+    let mut sizes = vec![floor; p.len()];
+    for (_, net) in layout.subnets() {
+        for o in 0..net.outputs {
+            let of = |l: usize| net.weights(l).start + o;
+            let size = rms(&mut (0..net.rbfs).map(of)).max(floor);
+            (0..net.rbfs).for_each(|l| sizes[of(l)] = size);
+        }
+    }
+    sizes
 }
 
 /// A least-squares acceptance: the parameters if M-hat's smallest eigenvalue over `probes`
@@ -821,62 +893,19 @@ fn least_squares(
         .into_iter()
         .filter(|k| !servo(*k))
         .collect();
-    let samples: Vec<usize> = (1..data.len().saturating_sub(1))
-        .step_by(stride.max(1))
-        .collect();
-    let rows = samples.len() * n;
-    // Joint friction is not in N_f but is in every real arm's data (and our plant's): viscous
-    // and Coulomb columns per joint absorb it here and are dropped after, so that it does not
-    // bend the inertia and gravity estimates.
-    let nuis = 2 * n;
-    let mut a = nalgebra::DMatrix::<f64>::zeros(rows, cols.len() + nuis);
-    for (s, &i) in samples.iter().enumerate() {
-        for j in 0..n {
-            let v = data.x_at(i)[n + j];
-            a[(s * n + j, cols.len() + 2 * j)] = v;
-            a[(s * n + j, cols.len() + 2 * j + 1)] = (v / 1e-2).tanh();
-        }
-    }
-    let mut rhs = nalgebra::DVector::<f64>::zeros(rows);
+    let samples = rows_at(data, stride);
+    let (mut a, xdd) = design(layout, p0, data, &cols, &samples);
+    let rows = a.nrows();
+    let mut rhs = match torques {
+        Some(tau) => at_samples(tau, &samples, n),
+        None => nalgebra::DVector::<f64>::zeros(rows),
+    };
     let mut p = p0.to_vec();
     weight_indices(layout).iter().for_each(|&k| p[k] = 0.0);
-    if let Some(tau) = torques {
-        for (s, &i) in samples.iter().enumerate() {
-            for j in 0..n {
-                rhs[s * n + j] = tau[i * n + j];
-            }
-        }
-    }
-    // q'' at each sample, by central differences of the measured q'.
-    let xdd: Vec<[f64; MAX_JOINTS]> = samples
-        .iter()
-        .map(|&i| {
-            let mut a = [0.0; MAX_JOINTS];
-            let (next, prev) = (&data.x_at(i + 1)[n..], &data.x_at(i - 1)[n..]);
-            for (a, (v1, v0)) in a[..n].iter_mut().zip(next.iter().zip(prev)) {
-                *a = (v1 - v0) / (2.0 * data.h);
-            }
-            a
-        })
-        .collect();
-    // The column of parameter k: the residual with k at 1 and every weight at 0.
-    let mut column = nalgebra::DVector::<f64>::zeros(rows);
-    let fill = |p: &mut Vec<f64>, k: usize, col: &mut nalgebra::DVector<f64>| {
-        p[k] = 1.0;
-        let mut out = [0.0; MAX_JOINTS];
-        for (s, &i) in samples.iter().enumerate() {
-            residual(layout, p, data.x_at(i), &xdd[s], data.r_at(i), &mut out);
-            col.rows_mut(s * n, n).copy_from_slice(&out[..n]);
-        }
-        p[k] = 0.0;
-    };
-    for (c, &k) in cols.iter().enumerate() {
-        fill(&mut p, k, &mut column);
-        a.set_column(c, &column);
-    }
     if torques.is_none() {
         // k_p,1 = 1 moves to the right-hand side.
-        fill(&mut p, kp(0), &mut column);
+        let mut column = nalgebra::DVector::<f64>::zeros(rows);
+        fill_column(layout, &mut p, kp(0), data, &samples, &xdd, &mut column);
         rhs -= &column;
     }
     if let Target::Torques { weigh: true, .. } = target {
@@ -885,7 +914,7 @@ fn least_squares(
         // arm7's smallest eigenvalue, is left to round-off (M-hat indefinite).
         weigh_rows(&mut a, &mut rhs, n);
     }
-    let norms: Vec<f64> = (0..cols.len() + nuis)
+    let norms: Vec<f64> = (0..a.ncols())
         .map(|c| a.column(c).norm().max(1e-300))
         .collect();
     for (c, nrm) in norms.iter().enumerate() {
@@ -954,6 +983,89 @@ fn least_squares(
     None
 }
 
+/// The samples whose equations a least squares takes: every `stride`-th, each with a neighbour
+/// on both sides (q'' by central differences).
+fn rows_at(data: &Trajectory, stride: usize) -> Vec<usize> {
+    (1..data.len().saturating_sub(1))
+        .step_by(stride.max(1))
+        .collect()
+}
+
+/// The inverse-dynamics equations at `samples` as a linear system in the output weights `cols`
+/// (every other parameter as in `p0`, the servo's weights at zero), with viscous and Coulomb
+/// friction columns per joint after them; and q'' at the samples (central differences of the
+/// measured q'). Joint friction is not in N_f but is in every real arm's data (and our
+/// plant's): the friction columns absorb it, so that it does not bend the inertia and gravity
+/// estimates, and the fits drop them.
+fn design(
+    layout: &Layout,
+    p0: &[f64],
+    data: &Trajectory,
+    cols: &[usize],
+    samples: &[usize],
+) -> (nalgebra::DMatrix<f64>, Vec<[f64; MAX_JOINTS]>) {
+    let n = layout.n;
+    let rows = samples.len() * n;
+    let mut a = nalgebra::DMatrix::<f64>::zeros(rows, cols.len() + 2 * n);
+    for (s, &i) in samples.iter().enumerate() {
+        for j in 0..n {
+            let v = data.x_at(i)[n + j];
+            a[(s * n + j, cols.len() + 2 * j)] = v;
+            a[(s * n + j, cols.len() + 2 * j + 1)] = (v / 1e-2).tanh();
+        }
+    }
+    let xdd: Vec<[f64; MAX_JOINTS]> = samples
+        .iter()
+        .map(|&i| {
+            let mut a = [0.0; MAX_JOINTS];
+            let (next, prev) = (&data.x_at(i + 1)[n..], &data.x_at(i - 1)[n..]);
+            for (a, (v1, v0)) in a[..n].iter_mut().zip(next.iter().zip(prev)) {
+                *a = (v1 - v0) / (2.0 * data.h);
+            }
+            a
+        })
+        .collect();
+    let mut p = p0.to_vec();
+    weight_indices(layout).iter().for_each(|&k| p[k] = 0.0);
+    let mut column = nalgebra::DVector::<f64>::zeros(rows);
+    for (c, &k) in cols.iter().enumerate() {
+        fill_column(layout, &mut p, k, data, samples, &xdd, &mut column);
+        a.set_column(c, &column);
+    }
+    (a, xdd)
+}
+
+/// The n values per sample of `v` at `samples`, one after the other.
+fn at_samples(v: &[f64], samples: &[usize], n: usize) -> nalgebra::DVector<f64> {
+    nalgebra::DVector::from_iterator(
+        samples.len() * n,
+        samples
+            .iter()
+            .flat_map(|&i| v[i * n..(i + 1) * n].iter().copied()),
+    )
+}
+
+/// The column of parameter k: the residual at `samples` with k at 1 and every weight at 0 (as
+/// `p` has them, and leaves them).
+fn fill_column(
+    layout: &Layout,
+    p: &mut [f64],
+    k: usize,
+    data: &Trajectory,
+    samples: &[usize],
+    xdd: &[[f64; MAX_JOINTS]],
+    col: &mut nalgebra::DVector<f64>,
+) {
+    let n = layout.n;
+    p[k] = 1.0;
+    let mut out = [0.0; MAX_JOINTS];
+    for (s, &i) in samples.iter().enumerate() {
+        residual(layout, p, data.x_at(i), &xdd[s], data.r_at(i), &mut out);
+        col.rows_mut(s * n, n).copy_from_slice(&out[..n]);
+    }
+    p[k] = 0.0;
+}
+
 /// Scale the rows of joint j (row s n + j of sample s) of `a` and `rhs` by 1 / the rms of
 /// joint j's right-hand side.
 fn weigh_rows(a: &mut nalgebra::DMatrix<f64>, rhs: &mut nalgebra::DVector<f64>, n: usize) {
@@ -975,6 +1087,9 @@ const MIN_ROWS: usize = 20;
 const LS_TOLERANCE: f64 = 1e-6;
 /// Ridge on the velocity network's columns in the least-squares start.
 const VELOCITY_RIDGE: f64 = 0.1;
+/// Ridges on the live update's correction (`update_with_torques`), relative to the largest
+/// singular value of its unit-norm columns, smallest first.
+const UPDATE_RIDGES: &[f64] = &[1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 0.3, 1.0];
 /// Ridges tried on the inertia network's bumps, smallest first.
 const INERTIA_RIDGES: &[f64] = &[0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0];
 

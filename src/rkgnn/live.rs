@@ -7,7 +7,7 @@
 //! - the slot it may replace is the model the selector chose most often over the window;
 //! - under computed torque the "servo" is the controller's law, so the fit is the least
 //!   squares of M-hat q'' + V-hat + G-hat = tau on the window
-//!   (`identify::least_squares_with_torques`), started from the slot's model;
+//!   (`identify::update_with_torques`), started from the slot's model;
 //! - both models, the candidate and the slot's model in service, predict q'' = M-hat^-1 (tau -
 //!   V-hat - G-hat) (N_f's output) on the `identify_fresh` seconds after the window, data the
 //!   fit has not seen; the candidate is published (kind `ParamKind::RkgnnModel`, values [slot,
@@ -25,14 +25,15 @@ use crate::control::fuzzy_select;
 use crate::indirect::EpochRecord;
 use crate::msg::{ParamKind, ParamSet, PlantState};
 use crate::reference::{Reference, Setpoint};
-use crate::rkgnn::identify::least_squares_with_torques;
+use crate::rkgnn::identify::update_with_torques;
 use crate::rkgnn::network;
 use crate::rkgnn::{RkgnnModel, Trajectory};
 use crate::MAX_JOINTS;
 use std::collections::VecDeque;
 
-/// Samples between the rows the fit and the comparison use (the identification's step).
-const STRIDE: usize = 5;
+/// Time between the rows the fit and the comparison use (the identification's step), s: 5
+/// samples at 1 kHz, 50 at 10 kHz.
+const STEP: f64 = 0.005;
 
 /// One recorded sample: time, reference [theta_d; theta_d'], measured joint positions theta
 /// and the torque applied from this sample to the next. The velocities are estimated from the
@@ -71,6 +72,8 @@ pub struct LiveIdentify {
     reference: Reference,
     /// The control period: the samples' spacing.
     dt: f64,
+    /// Samples a row apart (`STEP`).
+    stride: usize,
     window: usize,
     fresh: usize,
     every: f64,
@@ -103,6 +106,7 @@ impl LiveIdentify {
             gamma: f.gamma,
             reference: scn.reference.clone(),
             dt: scn.timing.period,
+            stride: ((STEP / scn.timing.period).round() as usize).max(1),
             window: samples(o.identify_window),
             fresh: samples(o.identify_fresh),
             every: o.identify_every,
@@ -175,7 +179,7 @@ impl LiveIdentify {
         let q = self.models.len();
         let mut count = vec![0usize; q];
         let mut w = vec![0.0; q];
-        for i in (0..d.len()).step_by(STRIDE) {
+        for i in (0..d.len()).step_by(self.stride) {
             let t = t0 + i as f64 * d.h;
             model_weights(&self.models, t, d.r_at(i), &self.l, self.gamma, &mut w);
             count[fuzzy_select::largest(&w)] += 1;
@@ -204,21 +208,21 @@ impl LiveIdentify {
         let in_service = &self.models[slot].net;
         let floor = MIN_EIG_RATIO * in_service.min_eig(check.iter().map(Vec::as_slice));
         let layout = &in_service.layout;
-        let candidate = least_squares_with_torques(
+        let candidate = update_with_torques(
             layout,
             in_service.params(),
             &train,
             &tau,
-            STRIDE,
+            self.stride,
             &probes,
             floor,
         );
         // The fresh data through the fit's low-pass too, so that q'' and tau are filtered alike.
         let fresh_tau = fresh.filter_alike(&fresh_tau);
         let fresh = fresh.filtered();
-        let in_err = prediction_rms(layout, in_service.params(), &fresh, &fresh_tau);
+        let in_err = prediction_rms(layout, in_service.params(), &fresh, &fresh_tau, self.stride);
         let cand_err = candidate.as_deref().map_or(f64::INFINITY, |p| {
-            prediction_rms(layout, p, &fresh, &fresh_tau)
+            prediction_rms(layout, p, &fresh, &fresh_tau, self.stride)
         });
         let better = cand_err < in_err * (1.0 - self.margin);
         let mut rec = EpochRecord {
@@ -251,13 +255,19 @@ impl LiveIdentify {
     }
 }
 
-/// RMS over joints and samples (every STRIDE-th) of q'' (central differences of the estimated
+/// RMS over joints and samples (every `stride`-th) of q'' (central differences of the estimated
 /// q') minus N_f's M-hat^-1 (tau - V-hat - G-hat): how well a model predicts the arm's motion
 /// from the torque applied. Infinite where M-hat is singular.
-pub fn prediction_rms(layout: &network::Layout, p: &[f64], d: &Trajectory, tau: &[f64]) -> f64 {
+pub fn prediction_rms(
+    layout: &network::Layout,
+    p: &[f64],
+    d: &Trajectory,
+    tau: &[f64],
+    stride: usize,
+) -> f64 {
     let n = d.n;
     let (mut sum, mut count) = (0.0, 0usize);
-    for i in (1..d.len().saturating_sub(1)).step_by(STRIDE) {
+    for i in (1..d.len().saturating_sub(1)).step_by(stride) {
         let mut a = [0.0; MAX_JOINTS];
         a[..n].copy_from_slice(&tau[i * n..(i + 1) * n]);
         if !network::acceleration(layout, p, d.x_at(i), &mut a[..n]) {
