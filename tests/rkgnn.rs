@@ -1263,16 +1263,17 @@ fn the_selection_study_identifies_by_the_papers_recipe_and_tracks_at_its_own_per
     assert!((rate - 0.015).abs() < 1e-12, "startup_rate {rate}");
 }
 
-/// Data of an "arm" that is one network (`truth`): torques M q'' + V + G along smooth sines at
-/// 1 kHz from `t0` for `seconds`, as positions (the velocities estimated from them, as a run's
-/// are) and torques.
+/// Data of an "arm" that is one network (`truth`): torques M q'' + V + G along smooth sines of
+/// amplitudes `a` at 1 kHz from `t0` for `seconds`, as positions (the velocities estimated from
+/// them, as a run's are) and torques.
 fn network_arm_data(
     truth: &evoloop::rkgnn::Network,
+    a: [f64; 3],
     t0: f64,
     seconds: f64,
 ) -> (Trajectory, Vec<f64>) {
     let (n, h) = (3, 0.001);
-    let (off, a, w) = ([0.1, 0.6, -1.2], [0.8, 0.35, 0.5], [1.9, 3.1, 2.5]);
+    let (off, w) = ([0.1, 0.6, -1.2], [1.9, 3.1, 2.5]);
     let (mut r, mut q, mut tau) = (Vec::new(), Vec::new(), Vec::new());
     for i in 0..(seconds / h).round() as usize {
         let t = t0 + i as f64 * h;
@@ -1326,8 +1327,9 @@ fn the_live_update_moves_the_model_in_service_towards_the_arms_data() {
             weights.push(k);
         }
     }
-    let (window, tau) = network_arm_data(&truth, 0.0, 4.0);
-    let (fresh, fresh_tau) = network_arm_data(&truth, 4.0, 2.0);
+    let moving = [0.8, 0.35, 0.5];
+    let (window, tau) = network_arm_data(&truth, moving, 0.0, 4.0);
+    let (fresh, fresh_tau) = network_arm_data(&truth, moving, 4.0, 2.0);
     let probes: Vec<Vec<f64>> = (0..window.len())
         .step_by(100)
         .map(|i| window.x_at(i)[..3].to_vec())
@@ -1350,6 +1352,35 @@ fn the_live_update_moves_the_model_in_service_towards_the_arms_data() {
             "parameter {k} is not an output weight and moved"
         );
     }
-    let updated = evoloop::rkgnn::Network::new(layout, p);
+    let updated = evoloop::rkgnn::Network::new(layout.clone(), p);
     assert!(updated.min_eig(probes.iter().map(Vec::as_slice)) >= floor);
+
+    // Centred on the model in service: with the third joint at rest its M_33 never enters the
+    // torques, and the update leaves M_33's weights as they were (a fit from zero would zero
+    // them: M-hat singular).
+    let (still, still_tau) = network_arm_data(&truth, [0.8, 0.35, 0.0], 0.0, 4.0);
+    let p = update_with_torques(&layout, &p0, &still, &still_tau, 5, &probes, floor)
+        .expect("an update above the floor");
+    let m33 = layout
+        .subnets()
+        .find(|(part, _)| *part == Part::Inertia(2, 2))
+        .unwrap()
+        .1
+        .all_weights()
+        .collect::<Vec<_>>();
+    let moved = m33
+        .iter()
+        .map(|&k| (p[k] - p0[k]).abs() / p0[k].abs().max(1e-12));
+    assert!(
+        moved.clone().all(|r| r < 1e-6),
+        "M_33 moved: {:?}",
+        moved.collect::<Vec<_>>()
+    );
+    let other = weights.iter().filter(|k| !m33.contains(k));
+    assert!(
+        other
+            .clone()
+            .any(|&k| (p[k] - p0[k]).abs() > 1e-3 * p0[k].abs()),
+        "nothing moved"
+    );
 }

@@ -292,6 +292,8 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
         );
         return ExitCode::from(2);
     };
+    // A plant without a change is compared over the last quarter only.
+    let changed = scn.plant.model.config().first_change().is_some();
     let out = scn.output.dir.clone();
     if let Err(e) = std::fs::create_dir_all(&out) {
         err!(
@@ -346,7 +348,7 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
             Ok(_) => std::fs::read_to_string(dir.join("summary.json"))
                 .map_err(|e| format!("summary.json: {e}"))
                 .and_then(|t| serde_json::from_str::<Summary>(&t).map_err(|e| e.to_string()))
-                .and_then(|s| SeedRun::from_summary(seed, &s, &measure)),
+                .and_then(|s| SeedRun::from_summary(seed, &s, &measure, changed)),
         };
         match result {
             Ok(r) => {

@@ -118,16 +118,21 @@ pub struct SeedRun {
 }
 
 impl SeedRun {
-    /// Take what the study needs from a run's summary; an error names what is missing.
-    pub fn from_summary(seed: u64, s: &Summary, m: &Measure) -> Result<Self, String> {
+    /// Take what the study needs from a run's summary, of a scenario whose plant `changed`
+    /// (else it has no "before"); an error names what is missing.
+    pub fn from_summary(
+        seed: u64,
+        s: &Summary,
+        m: &Measure,
+        changed: bool,
+    ) -> Result<Self, String> {
         let f = |v: Option<f64>, k: &str| {
             v.ok_or_else(|| format!("summary.json of seed {seed} has no number `{k}`"))
         };
         let [b, bf, a, af] = (m.read)(s);
-        // A plant without a change has no "before" (its summary leaves both out).
-        let before = match (b, bf) {
-            (None, None) => None,
-            (b, bf) => Some((m.scale * f(b, m.keys[0])?, m.scale * f(bf, m.keys[1])?)),
+        let before = match changed {
+            true => Some((m.scale * f(b, m.keys[0])?, m.scale * f(bf, m.keys[1])?)),
+            false => None,
         };
         let after = m.scale * f(a, m.keys[2])?;
         let after_frozen = m.scale * f(af, m.keys[3])?;
@@ -254,11 +259,15 @@ impl Study {
         let f = |m: &MeanCi| format!("{:.1} [{:.1} .. {:.1}]", m.mean, m.ci95[0], m.ci95[1]);
         let m = &self.measure;
         let how = m.how;
+        let note = match self.comparisons.len() {
+            1 => " The plant does not change: the last quarter alone is compared.",
+            _ => "",
+        };
         let mut md = format!(
             "# {}: {} against the frozen controller over {} seeds\n\n\
              Each seed is a lockstep run of the processes (plant noise and the optimiser's random \
              streams from the seed); its frozen comparison is the same scenario and seed with the \
-             optimiser off. {how}\n\n\
+             optimiser off. {how}{note}\n\n\
              | phase | {s} mean [95 % CI] | frozen mean [95 % CI] | {s} - frozen [95 % CI] | relative, % [95 % CI] |\n|---|---|---|---|---|\n",
             self.scenario,
             lower_first(m.scheme),
@@ -440,7 +449,7 @@ mod tests {
             cost_before_change: Some(1.0),
             ..Default::default()
         };
-        let e = SeedRun::from_summary(3, &s, &Measure::INDIRECT).unwrap_err();
+        let e = SeedRun::from_summary(3, &s, &Measure::INDIRECT, true).unwrap_err();
         assert!(
             e.contains("seed 3") && e.contains("cost_before_change_frozen"),
             "{e}"
@@ -456,7 +465,7 @@ mod tests {
             tracking_after_change_frozen: Some(0.003),
             ..Default::default()
         };
-        let r = SeedRun::from_summary(1, &s, &Measure::IDENTIFY).unwrap();
+        let r = SeedRun::from_summary(1, &s, &Measure::IDENTIFY, false).unwrap();
         assert_eq!(r.before, None);
         assert_eq!((r.after, r.after_frozen), (2.0, 3.0));
         let runs: Vec<SeedRun> = (1..=6)
@@ -470,13 +479,14 @@ mod tests {
         assert_eq!(st.comparisons.len(), 1);
         assert_eq!(st.comparisons[0].phase, "over the last quarter");
         assert_eq!(st.comparisons[0].wilcoxon.a_lower, 6);
-        assert!(st.markdown().contains("| over the last quarter |"));
-        // One of the pair without the other is still refused by name.
+        let md = st.markdown();
+        assert!(md.contains("| over the last quarter |") && md.contains("does not change"));
+        // A plant that changes needs both numbers before the change.
         let half = Summary {
             tracking_before_change: Some(0.002),
             ..s
         };
-        let e = SeedRun::from_summary(2, &half, &Measure::IDENTIFY).unwrap_err();
+        let e = SeedRun::from_summary(2, &half, &Measure::IDENTIFY, true).unwrap_err();
         assert!(e.contains("tracking_before_change_frozen"), "{e}");
     }
 }

@@ -656,7 +656,7 @@ fn weight_indices(layout: &Layout) -> Vec<usize> {
 
 /// The inverse-dynamics residual M-hat(q) q'' + V-hat(q, q') + G-hat(q) - tau-hat(e, e') into
 /// `out`. For fixed centres and widths it is linear in the output weights (zero when they all
-/// are), which is what `least_squares_start` uses.
+/// are), which is what the least squares (`design`) use.
 fn residual(layout: &Layout, p: &[f64], x: &[f64], xdd: &[f64], r: &[f64], out: &mut [f64]) {
     let n = layout.n;
     let zero = network::servo_zero(layout, p);
@@ -758,7 +758,8 @@ pub fn least_squares_start(
 /// on the corrections, each in units of its output's size in p0 (`prior_scales`), says how far
 /// a few seconds of one trajectory may move a model identified on more. Fitted from zero
 /// instead (as before 2026-11-29), the window's data leave most of a 7-DOF arm's inertia
-/// network to a ridge and M-hat was positive definite in none of arm7's attempts. Of
+/// network to a ridge and M-hat was positive definite in none of arm7's attempts. The friction
+/// columns of `design` stay free (projected out) and are dropped. Of
 /// `UPDATE_RIDGES` (relative to the largest singular value) the smallest whose M-hat reaches
 /// `min_eig` over `probes` is taken; the largest leaves p0 nearly as it is. One SVD serves
 /// every ridge.
@@ -784,29 +785,28 @@ pub fn update_with_torques(
     if samples.len() < MIN_ROWS {
         return None;
     }
-    let (mut a, _) = design(layout, p0, data, &cols, &samples);
+    let (a, _) = design(layout, p0, data, &cols, &samples);
+    let w = cols.len();
     // What the model in service leaves of the torques is the correction's right-hand side.
-    let w0 = nalgebra::DVector::from_iterator(
-        a.ncols(),
-        cols.iter()
-            .map(|&k| p0[k])
-            .chain(std::iter::repeat(0.0).take(2 * n)),
-    );
-    let rhs = at_samples(&tau, &samples, n) - &a * &w0;
-    // The friction columns, which p0 has no weights for, in unit norm.
-    let sizes = prior_scales(layout, p0);
-    let scale: Vec<f64> = (0..a.ncols())
-        .map(|c| match cols.get(c) {
-            Some(&k) => sizes[k],
-            None => 1.0 / a.column(c).norm().max(1e-300),
-        })
-        .collect();
-    for (c, sc) in scale.iter().enumerate() {
-        a.column_mut(c).scale_mut(*sc);
+    let w0 = nalgebra::DVector::from_iterator(w, cols.iter().map(|&k| p0[k]));
+    let mut rhs = at_samples(&tau, &samples, n) - a.columns(0, w) * &w0;
+    // The friction columns (`design`) are free, unlike the weights: projected out of the
+    // weights' columns and the right-hand side, so that the ridge never leaves the arm's
+    // friction for V-hat and G-hat to take.
+    let friction = column_space(a.columns(w, 2 * n).clone_owned());
+    let mut a = a.columns(0, w).clone_owned();
+    a -= &friction * friction.tr_mul(&a);
+    rhs -= &friction * friction.tr_mul(&rhs);
+    let scale = prior_scales(layout, p0);
+    for (c, &k) in cols.iter().enumerate() {
+        a.column_mut(c).scale_mut(scale[k]);
     }
     let svd = a.svd(true, true);
     let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
     let s = &svd.singular_values;
+    if !(s.max() > 0.0) {
+        return None;
+    }
     let ub = u.tr_mul(&rhs);
     let accept = at_least(layout, probes, min_eig);
     UPDATE_RIDGES.iter().find_map(|&rho| {
@@ -820,40 +820,62 @@ pub fn update_with_torques(
         let du = v_t.tr_mul(&z);
         let mut p = p0.to_vec();
         for (c, &k) in cols.iter().enumerate() {
-            p[k] += du[c] * scale[c];
+            p[k] += du[c] * scale[k];
         }
         accept(p)
     })
 }
 
+/// An orthonormal basis of the span of `m`'s columns (a joint at rest leaves its friction
+/// columns at zero, which span nothing).
+fn column_space(m: nalgebra::DMatrix<f64>) -> nalgebra::DMatrix<f64> {
+    let svd = m.svd(true, false);
+    let Some(u) = svd.u else {
+        return nalgebra::DMatrix::zeros(svd.singular_values.len(), 0);
+    };
+    let tol = 1e-12 * svd.singular_values.max();
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&i| svd.singular_values[i] > tol)
+        .collect();
+    u.select_columns(&keep)
+}
+
 /// Per parameter, the size of its output in `p`: the rms of that output's weights over its
-/// sub-network's RBFs (one inertia entry, one joint's gravity, one velocity product), at least
-/// 1e-6 of the rms of every weight, so that an output at zero may still move.
+/// sub-network's RBFs (one inertia entry, one joint's gravity, one velocity product). An output
+/// near zero (an off-diagonal inertia entry, a product the arm hardly has) gets at least 1 % of
+/// the rms of its kind's weights (inertia, velocity, gravity), so that it may still move; a
+/// kind all at zero, 1.
 fn prior_scales(layout: &Layout, p: &[f64]) -> Vec<f64> {
     let rms = |ks: &mut dyn Iterator<Item = usize>| {
         let (sum, count) = ks.fold((0.0, 0usize), |(s, c), k| (s + p[k] * p[k], c + 1));
         (sum / count.max(1) as f64).sqrt()
     };
-    let floor = 1e-6 * rms(&mut layout.subnets().flat_map(|(_, net)| net.all_weights()));
-    let mut sizes = vec![floor; p.len()];
-    for (_, net) in layout.subnets() {
+    let kind = |part: Part| std::mem::discriminant(&part);
+    let mut sizes = vec![1.0; p.len()];
+    for (part, net) in layout.subnets() {
+        let same = layout.subnets().filter(|(q, _)| kind(*q) == kind(part));
+        let floor = 0.01 * rms(&mut same.flat_map(|(_, net)| net.all_weights()));
         for o in 0..net.outputs {
             let of = |l: usize| net.weights(l).start + o;
             let size = rms(&mut (0..net.rbfs).map(of)).max(floor);
-            (0..net.rbfs).for_each(|l| sizes[of(l)] = size);
+            (0..net.rbfs).for_each(|l| sizes[of(l)] = if size > 0.0 { size } else { 1.0 });
         }
     }
     sizes
 }
 
-/// A least-squares acceptance: the parameters if M-hat's smallest eigenvalue over `probes`
-/// reaches `floor`.
+/// A least-squares acceptance: the parameters if they are finite and M-hat's smallest eigenvalue
+/// over `probes` reaches `floor`.
 fn at_least<'a>(
     layout: &'a Layout,
     probes: &'a [Vec<f64>],
     floor: f64,
 ) -> impl Fn(Vec<f64>) -> Option<Vec<f64>> + 'a {
-    move |p| (network::min_eig(layout, &p, probes.iter().map(Vec::as_slice)) >= floor).then_some(p)
+    move |p| {
+        let finite = p.iter().all(|v| v.is_finite());
+        (finite && network::min_eig(layout, &p, probes.iter().map(Vec::as_slice)) >= floor)
+            .then_some(p)
+    }
 }
 
 /// What the least squares fit the dynamics to.
@@ -992,11 +1014,11 @@ fn rows_at(data: &Trajectory, stride: usize) -> Vec<usize> {
 }
 
 /// The inverse-dynamics equations at `samples` as a linear system in the output weights `cols`
-/// (every other parameter as in `p0`, the servo's weights at zero), with viscous and Coulomb
-/// friction columns per joint after them; and q'' at the samples (central differences of the
-/// measured q'). Joint friction is not in N_f but is in every real arm's data (and our
-/// plant's): the friction columns absorb it, so that it does not bend the inertia and gravity
-/// estimates, and the fits drop them.
+/// (every other parameter as in `p0`, every output weight and servo gain at zero), with viscous
+/// and Coulomb friction columns per joint after them; and q'' at the samples (central
+/// differences of the measured q'). Joint friction is not in N_f but is in every real arm's
+/// data (and our plant's): the friction columns absorb it, so that it does not bend the inertia
+/// and gravity estimates, and the fits drop them.
 fn design(
     layout: &Layout,
     p0: &[f64],
@@ -1087,8 +1109,8 @@ const MIN_ROWS: usize = 20;
 const LS_TOLERANCE: f64 = 1e-6;
 /// Ridge on the velocity network's columns in the least-squares start.
 const VELOCITY_RIDGE: f64 = 0.1;
-/// Ridges on the live update's correction (`update_with_torques`), relative to the largest
-/// singular value of its unit-norm columns, smallest first.
+/// Ridges on the live update's corrections (`update_with_torques`), relative to the largest
+/// singular value of its columns (each in units of its output's size), smallest first.
 const UPDATE_RIDGES: &[f64] = &[1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 0.3, 1.0];
 /// Ridges tried on the inertia network's bumps, smallest first.
 const INERTIA_RIDGES: &[f64] = &[0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0];

@@ -7,7 +7,7 @@
 //! - the slot it may replace is the model the selector chose most often over the window;
 //! - under computed torque the "servo" is the controller's law, so the fit is the least
 //!   squares of M-hat q'' + V-hat + G-hat = tau on the window
-//!   (`identify::update_with_torques`), started from the slot's model;
+//!   (`identify::update_with_torques`), centred on the slot's model in service;
 //! - both models, the candidate and the slot's model in service, predict q'' = M-hat^-1 (tau -
 //!   V-hat - G-hat) (N_f's output) on the `identify_fresh` seconds after the window, data the
 //!   fit has not seen; the candidate is published (kind `ParamKind::RkgnnModel`, values [slot,
@@ -31,8 +31,8 @@ use crate::rkgnn::{RkgnnModel, Trajectory};
 use crate::MAX_JOINTS;
 use std::collections::VecDeque;
 
-/// Time between the rows the fit and the comparison use (the identification's step), s: 5
-/// samples at 1 kHz, 50 at 10 kHz.
+/// Time between the rows the fit and the comparison use (the identification's step), s: the
+/// nearest whole number of periods, at least one (5 samples at 1 kHz, 50 at 10 kHz).
 const STEP: f64 = 0.005;
 
 /// One recorded sample: time, reference [theta_d; theta_d'], measured joint positions theta
@@ -267,7 +267,7 @@ pub fn prediction_rms(
 ) -> f64 {
     let n = d.n;
     let (mut sum, mut count) = (0.0, 0usize);
-    for i in (1..d.len().saturating_sub(1)).step_by(stride) {
+    for i in (1..d.len().saturating_sub(1)).step_by(stride.max(1)) {
         let mut a = [0.0; MAX_JOINTS];
         a[..n].copy_from_slice(&tau[i * n..(i + 1) * n]);
         if !network::acceleration(layout, p, d.x_at(i), &mut a[..n]) {
