@@ -804,7 +804,8 @@ pub fn update_with_torques(
     let svd = a.svd(true, true);
     let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
     let s = &svd.singular_values;
-    if !(s.max() > 0.0) {
+    // An empty window, or a model and data all at zero: nothing to update.
+    if s.max().is_nan() || s.max() <= 0.0 {
         return None;
     }
     let ub = u.tr_mul(&rhs);
