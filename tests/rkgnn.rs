@@ -742,51 +742,17 @@ fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_lo
     // Lockstep: the attempts are at fixed simulated times, so the run is reproducible.
     let csv = |d: &Path| std::fs::read_to_string(d.join("run.csv")).unwrap();
     assert_eq!(csv(&a), csv(&b), "two lockstep runs of one seed differ");
-    let opt = json(&a.join("optimiser.json"));
-    let epochs = opt["epochs"].as_array().unwrap();
     // 30 s, a first attempt once 5 s of data are in, then every 2 s.
-    assert!(epochs.len() >= 12, "{} attempts", epochs.len());
-    let mut published = 0;
-    for e in epochs {
-        if e["published"].is_u64() {
-            published += 1;
-            let (cand, held) = (
-                e["best_cost"].as_f64().unwrap(),
-                e["in_service_cost"].as_f64().unwrap(),
-            );
-            // The scenario's margin is 0.2.
-            assert!(
-                cand < 0.8 * held,
-                "published without beating the model in service: {e}"
-            );
-        }
-    }
-    assert!(published >= 1, "no model published: {epochs:?}");
-    let summary = json(&a.join("summary.json"));
-    assert_eq!(summary["accepted_versions"].as_u64(), Some(published));
-    assert_eq!(summary["rejected_versions"].as_u64(), Some(0));
+    assert_published_only_better(&a, 12);
 }
 
-/// arm7_payload, shortened to 14 s: the 7-DOF arm's models (3395 values, more than one
-/// parameter set) are updated alongside operation, travel in parts, are taken whole by the loop,
-/// and track the loaded arm better than the starting models do. Fitted from zero, no attempt on
-/// this arm was positive definite (the book's Known limits until 2026-11-29).
-#[test]
-fn identify_mode_updates_arm7s_models_in_parts_and_tracks_the_loaded_arm_better() {
-    let _alone = alone();
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("arm7");
-    let args = ["--duration", "14"];
-    assert_ok(&run(
-        &config("arm7_payload.toml"),
-        &out,
-        "rk_arm7_ident",
-        &args,
-    ));
+/// An identify run in `out` made at least `attempts` attempts, published at least one model,
+/// each only when it beat the model in service by the scenarios' margin (0.2), and the loop
+/// took every one.
+fn assert_published_only_better(out: &Path, attempts: usize) -> serde_json::Value {
     let opt = json(&out.join("optimiser.json"));
     let epochs = opt["epochs"].as_array().unwrap();
-    // A first attempt once 5 s of data are in, then every 2 s.
-    assert!(epochs.len() >= 4, "{} attempts", epochs.len());
+    assert!(epochs.len() >= attempts, "{} attempts", epochs.len());
     let published: Vec<&serde_json::Value> =
         epochs.iter().filter(|e| e["published"].is_u64()).collect();
     assert!(!published.is_empty(), "no model published: {epochs:?}");
@@ -806,6 +772,27 @@ fn identify_mode_updates_arm7s_models_in_parts_and_tracks_the_loaded_arm_better(
         Some(published.len() as u64)
     );
     assert_eq!(summary["rejected_versions"].as_u64(), Some(0));
+    summary
+}
+
+/// arm7_payload, shortened to 14 s: the 7-DOF arm's models (3395 values, more than one
+/// parameter set) are updated alongside operation, travel in parts, are taken whole by the loop,
+/// and track the loaded arm better than the starting models do. Fitted from zero, no attempt on
+/// this arm was positive definite (the book's Known limits until 2026-11-29).
+#[test]
+fn identify_mode_updates_arm7s_models_in_parts_and_tracks_the_loaded_arm_better() {
+    let _alone = alone();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("arm7");
+    let args = ["--duration", "14"];
+    assert_ok(&run(
+        &config("arm7_payload.toml"),
+        &out,
+        "rk_arm7_ident",
+        &args,
+    ));
+    // A first attempt once 5 s of data are in, then every 2 s.
+    let summary = assert_published_only_better(&out, 4);
     let (after, frozen) = (
         summary["tracking_after_change"].as_f64().unwrap(),
         summary["tracking_after_change_frozen"].as_f64().unwrap(),
