@@ -734,8 +734,7 @@ fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_lo
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
-    // arm3_payload: arm3_identify's loop, whose arm changes at 6 s (on the unchanged arm of
-    // arm3_identify no attempt of seed 1 beats the models in service: the book's Known limits).
+    // arm3_payload: arm3_identify's loop, whose arm changes at 6 s.
     for (out, tag) in [(&a, "rk_ident_a"), (&b, "rk_ident_b")] {
         assert_ok(&run(&config("arm3_payload.toml"), out, tag, &[]));
     }
