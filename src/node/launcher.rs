@@ -356,7 +356,7 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
                     let before = r.before.map_or(String::new(), |(b, bf)| {
                         format!(", before {b:.1} vs {bf:.1}")
                     });
-                    let phase = after_phase(r.before.is_some());
+                    let phase = after_phase(changed);
                     err!(
                         "  seed {seed}: {} {phase} {} {:.1} vs frozen {:.1}{before} ({} of {}, {:.0} s)",
                         measure.what, measure.short, r.after, r.after_frozen, i + 1, seeds.len(),

@@ -196,6 +196,9 @@ fn compare(m: &Measure, phase: &'static str, tuned: &[f64], frozen: &[f64]) -> P
     }
 }
 
+/// The phase before the plant's change.
+const BEFORE: &str = "before the change";
+
 /// The last quarter's phase: after the plant's change, if it has one.
 pub fn after_phase(changed: bool) -> &'static str {
     if changed {
@@ -233,7 +236,7 @@ impl Study {
         let mut comparisons = Vec::new();
         if let Some(before) = &before {
             let (tuned, frozen): (Vec<f64>, Vec<f64>) = before.iter().copied().unzip();
-            comparisons.push(compare(m, "before the change", &tuned, &frozen));
+            comparisons.push(compare(m, BEFORE, &tuned, &frozen));
         }
         comparisons.push(compare(
             m,
@@ -254,14 +257,19 @@ impl Study {
         }
     }
 
+    /// Whether the runs' plant changed: the study then compares before the change too.
+    fn changed(&self) -> bool {
+        self.comparisons.iter().any(|c| c.phase == BEFORE)
+    }
+
     /// The report as Markdown: the table, then one computed sentence per comparison.
     pub fn markdown(&self) -> String {
         let f = |m: &MeanCi| format!("{:.1} [{:.1} .. {:.1}]", m.mean, m.ci95[0], m.ci95[1]);
         let m = &self.measure;
         let how = m.how;
-        let note = match self.comparisons.len() {
-            1 => " The plant does not change: the last quarter alone is compared.",
-            _ => "",
+        let note = match self.changed() {
+            true => "",
+            false => " The plant does not change: the last quarter alone is compared.",
         };
         let mut md = format!(
             "# {}: {} against the frozen controller over {} seeds\n\n\
@@ -347,14 +355,14 @@ impl Study {
                     .collect::<Vec<f64>>()
             };
             let n = xs.len();
-            let changed = runs.iter().all(|r| r.before.is_some());
+            let changed = self.changed();
             let mut curves: Vec<Curve> = vec![(
                 after_phase(changed).into(),
                 xs.clone(),
                 rel(&|r| Some((r.after, r.after_frozen))),
             )];
             if changed {
-                curves.push(("before the change".into(), xs.clone(), rel(&|r| r.before)));
+                curves.push((BEFORE.into(), xs.clone(), rel(&|r| r.before)));
             }
             let mut series = XySeries::from_curves(&curves, Style::Points);
             let zero = vec![0.0; n];

@@ -38,6 +38,23 @@ impl Trajectory {
         &self.x[2 * self.n * i..2 * self.n * (i + 1)]
     }
 
+    /// The samples whose q'' `acceleration_at` can estimate (a neighbour on each side), every
+    /// `stride`-th: the rows of the inverse-dynamics fits and of their comparisons.
+    pub fn interior(&self, stride: usize) -> std::iter::StepBy<std::ops::Range<usize>> {
+        (1..self.len().saturating_sub(1)).step_by(stride.max(1))
+    }
+
+    /// q'' at interior sample `i`: central differences of the estimated q'.
+    pub fn acceleration_at(&self, i: usize) -> [f64; crate::MAX_JOINTS] {
+        let n = self.n;
+        let mut a = [0.0; crate::MAX_JOINTS];
+        let (next, prev) = (&self.x_at(i + 1)[n..], &self.x_at(i - 1)[n..]);
+        for (a, (v1, v0)) in a[..n].iter_mut().zip(next.iter().zip(prev)) {
+            *a = (v1 - v0) / (2.0 * self.h);
+        }
+        a
+    }
+
     /// Samples `from..to` as a trajectory of their own.
     pub fn window(&self, from: usize, to: usize) -> Trajectory {
         let w = 2 * self.n;

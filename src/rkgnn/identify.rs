@@ -654,6 +654,13 @@ fn weight_indices(layout: &Layout) -> Vec<usize> {
     w
 }
 
+/// `p` with every output weight and servo gain at zero (the residual's zero).
+fn without_weights(layout: &Layout, p: &[f64]) -> Vec<f64> {
+    let mut p = p.to_vec();
+    weight_indices(layout).iter().for_each(|&k| p[k] = 0.0);
+    p
+}
+
 /// The inverse-dynamics residual M-hat(q) q'' + V-hat(q, q') + G-hat(q) - tau-hat(e, e') into
 /// `out`. For fixed centres and widths it is linear in the output weights (zero when they all
 /// are), which is what the least squares (`design`) use.
@@ -781,7 +788,7 @@ pub fn update_with_torques(
         .into_iter()
         .filter(|k| !(g..g + 2 * n).contains(k))
         .collect();
-    let samples = rows_at(data, stride);
+    let samples: Vec<usize> = data.interior(stride).collect();
     if samples.len() < MIN_ROWS {
         return None;
     }
@@ -852,10 +859,15 @@ fn prior_scales(layout: &Layout, p: &[f64]) -> Vec<f64> {
         (sum / count.max(1) as f64).sqrt()
     };
     let kind = |part: Part| std::mem::discriminant(&part);
+    let floor = |part: Part| {
+        let same = layout
+            .subnets()
+            .filter(move |(q, _)| kind(*q) == kind(part));
+        0.01 * rms(&mut same.flat_map(|(_, net)| net.all_weights()))
+    };
     let mut sizes = vec![1.0; p.len()];
     for (part, net) in layout.subnets() {
-        let same = layout.subnets().filter(|(q, _)| kind(*q) == kind(part));
-        let floor = 0.01 * rms(&mut same.flat_map(|(_, net)| net.all_weights()));
+        let floor = floor(part);
         for o in 0..net.outputs {
             let of = |l: usize| net.weights(l).start + o;
             let size = rms(&mut (0..net.rbfs).map(of)).max(floor);
@@ -916,15 +928,14 @@ fn least_squares(
         .into_iter()
         .filter(|k| !servo(*k))
         .collect();
-    let samples = rows_at(data, stride);
+    let samples: Vec<usize> = data.interior(stride).collect();
     let (mut a, xdd) = design(layout, p0, data, &cols, &samples);
     let rows = a.nrows();
     let mut rhs = match torques {
         Some(tau) => at_samples(tau, &samples, n),
         None => nalgebra::DVector::<f64>::zeros(rows),
     };
-    let mut p = p0.to_vec();
-    weight_indices(layout).iter().for_each(|&k| p[k] = 0.0);
+    let mut p = without_weights(layout, p0);
     if torques.is_none() {
         // k_p,1 = 1 moves to the right-hand side.
         let mut column = nalgebra::DVector::<f64>::zeros(rows);
@@ -1006,14 +1017,6 @@ fn least_squares(
     None
 }
 
-/// The samples whose equations a least squares takes: every `stride`-th, each with a neighbour
-/// on both sides (q'' by central differences).
-fn rows_at(data: &Trajectory, stride: usize) -> Vec<usize> {
-    (1..data.len().saturating_sub(1))
-        .step_by(stride.max(1))
-        .collect()
-}
-
 /// The inverse-dynamics equations at `samples` as a linear system in the output weights `cols`
 /// (every other parameter as in `p0`, every output weight and servo gain at zero), with viscous
 /// and Coulomb friction columns per joint after them; and q'' at the samples (central
@@ -1037,19 +1040,8 @@ fn design(
             a[(s * n + j, cols.len() + 2 * j + 1)] = (v / 1e-2).tanh();
         }
     }
-    let xdd: Vec<[f64; MAX_JOINTS]> = samples
-        .iter()
-        .map(|&i| {
-            let mut a = [0.0; MAX_JOINTS];
-            let (next, prev) = (&data.x_at(i + 1)[n..], &data.x_at(i - 1)[n..]);
-            for (a, (v1, v0)) in a[..n].iter_mut().zip(next.iter().zip(prev)) {
-                *a = (v1 - v0) / (2.0 * data.h);
-            }
-            a
-        })
-        .collect();
-    let mut p = p0.to_vec();
-    weight_indices(layout).iter().for_each(|&k| p[k] = 0.0);
+    let xdd: Vec<[f64; MAX_JOINTS]> = samples.iter().map(|&i| data.acceleration_at(i)).collect();
+    let mut p = without_weights(layout, p0);
     let mut column = nalgebra::DVector::<f64>::zeros(rows);
     for (c, &k) in cols.iter().enumerate() {
         fill_column(layout, &mut p, k, data, samples, &xdd, &mut column);

@@ -267,14 +267,14 @@ pub fn prediction_rms(
 ) -> f64 {
     let n = d.n;
     let (mut sum, mut count) = (0.0, 0usize);
-    for i in (1..d.len().saturating_sub(1)).step_by(stride.max(1)) {
+    for i in d.interior(stride) {
         let mut a = [0.0; MAX_JOINTS];
         a[..n].copy_from_slice(&tau[i * n..(i + 1) * n]);
         if !network::acceleration(layout, p, d.x_at(i), &mut a[..n]) {
             return f64::INFINITY;
         }
-        for (j, aj) in a[..n].iter().enumerate() {
-            let qdd = (d.x_at(i + 1)[n + j] - d.x_at(i - 1)[n + j]) / (2.0 * d.h);
+        let qdd = d.acceleration_at(i);
+        for (qdd, aj) in qdd[..n].iter().zip(&a[..n]) {
             sum += (qdd - aj).powi(2);
             count += 1;
         }
