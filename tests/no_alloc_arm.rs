@@ -103,7 +103,17 @@ fn scenario(name: &str) -> Scenario {
 #[test]
 fn arm_plant_and_computed_torque_cycles_allocate_nothing() {
     computed_torque();
-    fuzzy_computed_torque();
+    fuzzy_computed_torque(scenario("arm3_fuzzy_ct"), "fuzzy");
+    // The evidence rule: its filter, its residuals (a model evaluation and a solve) and the
+    // per-joint weights, every cycle.
+    let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3_fuzzy_ct.toml");
+    let text = std::fs::read_to_string(&cfg)
+        .unwrap()
+        .replace("selection = \"max\"", "selection = \"evidence\"");
+    let scn = Scenario::parse(&text, &cfg, &Overrides::default()).unwrap();
+    let rule = serde_json::to_value(&scn.controller).unwrap();
+    assert_eq!(rule["selection"], "evidence", "{rule}");
+    fuzzy_computed_torque(scn, "evidence");
 }
 
 fn computed_torque() {
@@ -171,13 +181,12 @@ fn computed_torque() {
     );
 }
 
-fn fuzzy_computed_torque() {
-    let scn = scenario("arm3_fuzzy_ct");
+fn fuzzy_computed_torque(scn: Scenario, name: &str) {
     let n = scn.plant.model.config().rigid_body().unwrap().dof();
     let mut plant = PlantSim::new(scn.build_plant(), scn.plant.step, 1e-4, 3);
     let mut cyc = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());
     let (mut msg, mut tel) = (PlantState::default(), Telemetry::default());
-    let wires = Wires::new("fuzzy");
+    let wires = Wires::new(name);
     let mut u = vec![0.0; n];
     plant.sample(0, 0, &u, &mut msg);
     wires.cycle(&msg, &mut cyc, &mut tel, &mut u);
@@ -192,7 +201,7 @@ fn fuzzy_computed_torque() {
     assert_eq!(
         COUNT.load(Ordering::SeqCst),
         0,
-        "allocations in 3000 fuzzy computed-torque cycles"
+        "allocations in 3000 fuzzy computed-torque cycles ({name})"
     );
     let m = wires.finish();
     assert_eq!(

@@ -103,7 +103,7 @@ impl LiveIdentify {
             l: premise_distances(&f.loaded),
             models: f.loaded.clone(),
             checks: model_probes(&f.loaded, &f.along),
-            gamma: f.gamma,
+            gamma: f.rule.gamma,
             reference: scn.reference.clone(),
             dt: scn.timing.period,
             stride: ((STEP / scn.timing.period).round() as usize).max(1),

@@ -158,7 +158,7 @@ fn generated(arm: &Model) -> (Vec<Sines>, Vec<Sines>) {
 }
 
 /// The controllers run on each new trajectory, in the table's order.
-pub const RUN: [&str; 9] = [
+pub const RUN: [&str; 11] = [
     "pd",
     "pd_matched",
     "ct_true",
@@ -168,10 +168,20 @@ pub const RUN: [&str; 9] = [
     "fuzzy_max",
     "fuzzy_blend",
     "uniform_blend",
+    "fuzzy_evidence",
+    "uniform_evidence",
 ];
-/// The rules compared with every other controller: the fuzzy rules, and the uniform blend (all
-/// models at equal weight), the rule that selects nothing.
-const RULES: [&str; 3] = ["fuzzy_max", "fuzzy_blend", "uniform_blend"];
+/// The rules compared with every other controller: the fuzzy rules, the uniform blend (all
+/// models at equal weight), the rule that selects nothing, and the evidence rule (each model
+/// weighted per joint by how well it predicts the applied torque) on the memberships and on a
+/// uniform prior.
+const RULES: [&str; 5] = [
+    "fuzzy_max",
+    "fuzzy_blend",
+    "uniform_blend",
+    "fuzzy_evidence",
+    "uniform_evidence",
+];
 /// ... and those computed from the single models.
 pub const DERIVED: [&str; 2] = ["best_single", "random_single"];
 
@@ -273,6 +283,9 @@ pub struct SelectionResult {
     pub claim_held_blend: bool,
     /// The same for the uniform blend (every model at equal weight: no selection at all).
     pub claim_held_uniform: bool,
+    /// The same for the evidence rule, on the memberships and on a uniform prior.
+    pub claim_held_evidence: bool,
+    pub claim_held_uniform_evidence: bool,
     pub seconds: f64,
 }
 
@@ -518,6 +531,8 @@ pub fn run(
                 any.then(|| fuzzy(&kept, "max", None)),
                 any.then(|| fuzzy(&kept, "blend", None)),
                 any.then(|| fuzzy(&kept, "blend", Some(UNIFORM_GAMMA))),
+                any.then(|| fuzzy(&kept, "evidence", None)),
+                any.then(|| fuzzy(&kept, "evidence", Some(UNIFORM_GAMMA))),
             ];
             let runnable: Vec<(&str, toml::Table)> = RUN
                 .iter()
@@ -626,6 +641,8 @@ pub fn run(
         claim_held: claim_held(&comparisons, "fuzzy_max"),
         claim_held_blend: claim_held(&comparisons, "fuzzy_blend"),
         claim_held_uniform: claim_held(&comparisons, "uniform_blend"),
+        claim_held_evidence: claim_held(&comparisons, "fuzzy_evidence"),
+        claim_held_uniform_evidence: claim_held(&comparisons, "uniform_evidence"),
         comparisons,
         seconds: t0.elapsed().as_secs_f64(),
     };
@@ -757,7 +774,7 @@ pub fn report_markdown(r: &SelectionResult) -> String {
             .collect();
         md += &format!("| {k} | {} |\n", row.join(" | "));
     }
-    md += "\nEach rule (the fuzzy rules and the uniform blend) against each other controller, paired over every (seed, trajectory):\n\n\
+    md += "\nEach rule (the fuzzy rules, the uniform blend and the evidence rules) against each other controller, paired over every (seed, trajectory):\n\n\
            | rule | baseline | median rule | median baseline | rule lower | Wilcoxon p |\n\
            |---|---|---|---|---|---|\n";
     for c in &r.comparisons {
@@ -794,10 +811,14 @@ pub fn report_markdown(r: &SelectionResult) -> String {
     md += &format!(
         "\nThe max rule switched models {sw:.1} times a second (median over runs).\n\n\
          The paper's claim, fuzzy selection (its max rule) better than the best single model \
-         in hindsight, {} here; with the blend it {}; the uniform blend's (no selection) {}.\n",
+         in hindsight, {} here; with the blend it {}; the uniform blend's (no selection) {}. \
+         Weighted per joint by the evidence of the applied torque, on the memberships it {}, \
+         on a uniform prior {}.\n",
         verdict(r.claim_held),
         verdict(r.claim_held_blend),
-        verdict(r.claim_held_uniform)
+        verdict(r.claim_held_uniform),
+        verdict(r.claim_held_evidence),
+        verdict(r.claim_held_uniform_evidence)
     );
     md
 }

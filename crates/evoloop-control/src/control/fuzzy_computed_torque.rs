@@ -5,7 +5,9 @@
 //! with s the selection of eqs. 19-20 (`fuzzy_select`) on the premises z = [theta; theta']:
 //! model i's premise z_i(k) is the reference it was identified on at the same time, the new
 //! reference's z_r(k) the set-point. `Selection::Max` (the paper) puts s = 1 on the model of
-//! largest weight, `Selection::Blend` weights them all by their normalised memberships.
+//! largest weight, `Selection::Blend` weights them all by their normalised memberships, and
+//! `Selection::Evidence` weights them per joint by membership and by how well each predicts
+//! the torque the loop applies (`evidence`): tau_j = psi sum_i s_ij tau_ij.
 //!
 //! L_j, "the distance between the j-th premise variables of two adjacent trajectories", varies
 //! along the trajectories and vanishes where they cross; we take its RMS over the identification
@@ -13,8 +15,12 @@
 //!
 //! Positions are the measured outputs y, velocities the joint velocities (as computed torque).
 //! The per-cycle cost is one N_f inertia, velocity and gravity evaluation per model in use, with
-//! no allocation. Logged per cycle: the model of largest weight and the normalised memberships.
+//! no allocation (`Blend` and `Evidence` evaluate every model, `Evidence` one more every cycle
+//! for its residual). Logged per cycle: the model of largest weight and the normalised
+//! memberships; under `Evidence`, the model of largest weight in the law and each model's
+//! weight in it, averaged over the joints.
 
+use super::evidence::{self, Evidence};
 use super::fuzzy_select::{self, Selection};
 use super::computed_torque::{damp_and_limit, gains_and_startup, startup_damping};
 use super::{driven_arm, Controller, ControllerConfig, ControllerContext};
@@ -30,12 +36,38 @@ use std::path::PathBuf;
 /// Most models a selector chooses among.
 pub const MAX_MODELS: usize = 8;
 
+/// How the selector weighs the models: the rule, the fuzzy sets' width and, for
+/// `Selection::Evidence`, its filter bandwidth (rad/s) and memory (s).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Rule {
+    pub selection: Selection,
+    pub gamma: f64,
+    pub evidence_bandwidth: f64,
+    pub evidence_memory: f64,
+}
+
+impl Rule {
+    /// `selection` with the paper's gamma and the evidence's defaults.
+    pub fn paper(selection: Selection) -> Self {
+        Self {
+            selection,
+            gamma: fuzzy_select::GAMMA,
+            evidence_bandwidth: evidence::BANDWIDTH,
+            evidence_memory: evidence::MEMORY,
+        }
+    }
+}
+
 pub struct FuzzyComputedTorque {
     models: Vec<RkgnnModel>,
     /// L_j per premise (2n).
     l: Vec<f64>,
     gamma: f64,
     selection: Selection,
+    /// Under `Selection::Evidence`: the models' evidence and the per-joint weights it gives
+    /// (`s_joint[i * MAX_JOINTS + j]`).
+    evidence: Option<Evidence>,
+    s_joint: [f64; MAX_MODELS * MAX_JOINTS],
     gains: Vec<f64>,
     startup_rate: f64,
     effort: Vec<f64>,
@@ -166,15 +198,16 @@ pub fn premise_distances(models: &[RkgnnModel]) -> Vec<f64> {
 
 impl FuzzyComputedTorque {
     /// `gains` = [Kp; Kv]; `effort` the joints' torque limits.
-    /// `along`: positions of the reference the run tracks (`reference_positions`).
+    /// `along`: positions of the reference the run tracks (`reference_positions`); `period`
+    /// the loop's, s.
     pub fn new(
         models: Vec<RkgnnModel>,
-        selection: Selection,
-        gamma: f64,
+        rule: Rule,
         gains: &[f64],
         startup_rate: f64,
         effort: Vec<f64>,
         along: &[Vec<f64>],
+        period: f64,
     ) -> Self {
         assert!((1..=MAX_MODELS).contains(&models.len()));
         let n = models[0].dof();
@@ -184,13 +217,24 @@ impl FuzzyComputedTorque {
         for ((e, m), p) in min_eig.iter_mut().zip(&models).zip(&probes) {
             *e = m.net.min_eig(p.iter().map(Vec::as_slice));
         }
+        let evidence = (rule.selection == Selection::Evidence).then(|| {
+            Evidence::new(
+                models.len(),
+                n,
+                period,
+                rule.evidence_bandwidth,
+                rule.evidence_memory,
+            )
+        });
         Self {
             l: premise_distances(&models),
             probes,
             min_eig,
             models,
-            gamma,
-            selection,
+            gamma: rule.gamma,
+            selection: rule.selection,
+            evidence,
+            s_joint: [0.0; MAX_MODELS * MAX_JOINTS],
             gains: gains.to_vec(),
             startup_rate,
             effort,
@@ -205,9 +249,29 @@ impl FuzzyComputedTorque {
         &self.s[..self.models.len()]
     }
 
-    /// The model of largest weight in the last cycle.
+    /// The model of largest weight in the last cycle (under `Evidence`, in the law).
     pub fn active(&self) -> usize {
-        fuzzy_select::largest(&self.w[..self.models.len()])
+        let q_count = self.models.len();
+        if self.evidence.is_none() {
+            return fuzzy_select::largest(&self.w[..q_count]);
+        }
+        let mut mean = [0.0; MAX_MODELS];
+        self.law_weights(&mut mean[..q_count]);
+        fuzzy_select::largest(&mean[..q_count])
+    }
+
+    /// Each model's weight in the law averaged over the joints (`Evidence`).
+    fn law_weights(&self, out: &mut [f64]) {
+        let n = self.models[0].dof();
+        for (i, o) in out.iter_mut().enumerate() {
+            let row = &self.s_joint[i * MAX_JOINTS..][..n];
+            *o = row.iter().sum::<f64>() / n as f64;
+        }
+    }
+
+    /// The evidence (under `Selection::Evidence`).
+    pub fn evidence(&self) -> Option<&Evidence> {
+        self.evidence.as_ref()
     }
 }
 
@@ -251,15 +315,28 @@ impl Controller for FuzzyComputedTorque {
         u[..n].fill(0.0);
         let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
         let (mut v, mut g) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
-        for (model, &s) in self.models.iter().zip(&self.s[..q_count]) {
-            if s == 0.0 {
+        // Per model and joint, the weight in the law: s_i on every joint, or the evidence's.
+        match &mut self.evidence {
+            Some(ev) => {
+                ev.update(&self.models, &state.y[..n], &state.u_applied[..n], &mut m, &mut v, &mut g);
+                ev.weights(&self.s[..q_count], &mut self.s_joint);
+            }
+            None => {
+                for (i, &s) in self.s[..q_count].iter().enumerate() {
+                    self.s_joint[i * MAX_JOINTS..][..n].fill(s);
+                }
+            }
+        }
+        for (i, model) in self.models.iter().enumerate() {
+            let s = &self.s_joint[i * MAX_JOINTS..][..n];
+            if s.iter().all(|&x| x == 0.0) {
                 continue;
             }
             model.net.inertia_and_velocity(q, qd, &mut m, &mut v[..n]);
             model.net.gravity(q, &mut g[..n]);
-            for i in 0..n {
-                let ma: f64 = (0..n).map(|k| m[i * n + k] * acc[k]).sum();
-                u[i] += s * (ma + v[i] + g[i]);
+            for j in 0..n {
+                let ma: f64 = (0..n).map(|k| m[j * n + k] * acc[k]).sum();
+                u[j] += s[j] * (ma + v[j] + g[j]);
             }
         }
         let psi = startup_damping(self.startup_rate, self.k);
@@ -312,10 +389,15 @@ impl Controller for FuzzyComputedTorque {
     fn log_values(&self, out: &mut [f64]) {
         let q_count = self.models.len();
         out[0] = self.active() as f64;
-        // The normalised memberships: the blend rule's weights.
         let m = &mut out[1..1 + q_count];
-        m.copy_from_slice(&self.w[..q_count]);
-        fuzzy_select::select(Selection::Blend, m);
+        if self.evidence.is_some() {
+            // The weights the law used, averaged over the joints.
+            self.law_weights(m);
+        } else {
+            // The normalised memberships: the blend rule's weights.
+            m.copy_from_slice(&self.w[..q_count]);
+            fuzzy_select::select(Selection::Blend, m);
+        }
     }
 }
 
@@ -332,10 +414,14 @@ pub struct Table {
     /// Identified model files (`evoloop identify rkgnn`), relative to the scenario, in the order
     /// of their trajectories (adjacent models give L_j).
     models: Vec<PathBuf>,
-    /// "max" (the paper's rule, default) or "blend".
+    /// "max" (the paper's rule, default), "blend" or "evidence".
     selection: Option<Selection>,
     /// Width of the fuzzy sets (default 0.66, the paper's).
     gamma: Option<f64>,
+    /// Under "evidence": the filter's bandwidth, rad/s (default 50), and the memory of the
+    /// averaged squared residual, s (default 0.5).
+    evidence_bandwidth: Option<f64>,
+    evidence_memory: Option<f64>,
     lower: Option<Vec<f64>>,
     upper: Option<Vec<f64>>,
 }
@@ -347,8 +433,8 @@ pub struct FuzzyComputedTorqueSpec {
     pub tunable: Tunable,
     pub startup_rate: f64,
     pub models: Vec<PathBuf>,
-    pub selection: Selection,
-    pub gamma: f64,
+    #[serde(flatten)]
+    pub rule: Rule,
     #[serde(skip)]
     pub loaded: Vec<RkgnnModel>,
     #[serde(skip)]
@@ -356,6 +442,25 @@ pub struct FuzzyComputedTorqueSpec {
     /// Positions of the run's reference (`reference_positions`).
     #[serde(skip)]
     pub along: Vec<Vec<f64>>,
+}
+
+/// The selection keys: the rule, gamma and, only with "evidence", its bandwidth and memory.
+fn rule(check: &Check, t: &Table) -> Result<Rule, ConfigError> {
+    let key = |k: &str| format!("controller.fuzzy_computed_torque.{k}");
+    let selection = t.selection.unwrap_or(Selection::Max);
+    let mut rule = Rule::paper(selection);
+    rule.gamma = check.positive(&key("gamma"), t.gamma.unwrap_or(rule.gamma))?;
+    for (name, given, default) in [
+        ("evidence_bandwidth", t.evidence_bandwidth, &mut rule.evidence_bandwidth),
+        ("evidence_memory", t.evidence_memory, &mut rule.evidence_memory),
+    ] {
+        let Some(v) = given else { continue };
+        if selection != Selection::Evidence {
+            return check.fail(&key(name), "applies only with selection = \"evidence\"");
+        }
+        *default = check.positive(&key(name), v)?;
+    }
+    Ok(rule)
 }
 
 pub fn validate(
@@ -372,12 +477,9 @@ pub fn validate(
         );
     };
     let n = arm.dof();
+    let rule = rule(check, &t)?;
     let (tunable, startup_rate) =
         gains_and_startup(check, law, n, [t.kp, t.kv], t.startup_rate, t.lower, t.upper)?;
-    let gamma = check.positive(
-        "controller.fuzzy_computed_torque.gamma",
-        t.gamma.unwrap_or(fuzzy_select::GAMMA),
-    )?;
     let key = "controller.fuzzy_computed_torque.models";
     if !(1..=MAX_MODELS).contains(&t.models.len()) {
         return check.fail(key, format!("needs 1 to {MAX_MODELS} model files"));
@@ -407,8 +509,7 @@ pub fn validate(
         tunable,
         startup_rate,
         models,
-        selection: t.selection.unwrap_or(Selection::Max),
-        gamma,
+        rule,
         loaded,
         effort: arm.bodies.iter().map(|b| b.limits.effort).collect(),
         along,
@@ -416,15 +517,15 @@ pub fn validate(
 }
 
 impl ControllerConfig for FuzzyComputedTorqueSpec {
-    fn build(&self, _period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
+    fn build(&self, period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
         Box::new(FuzzyComputedTorque::new(
             self.loaded.clone(),
-            self.selection,
-            self.gamma,
+            self.rule,
             &self.tunable.gains,
             self.startup_rate,
             self.effort.clone(),
             &self.along,
+            period,
         ))
     }
     fn tunable(&self) -> &Tunable {
@@ -458,12 +559,12 @@ mod tests {
     fn cycle() -> ControlCycle {
         let law = FuzzyComputedTorque::new(
             vec![shipped(1), shipped(2)],
-            Selection::Max,
-            fuzzy_select::GAMMA,
+            Rule::paper(Selection::Max),
             &[900.0, 900.0, 900.0, 60.0, 60.0, 60.0],
             0.0,
             vec![40.0, 60.0, 30.0],
             &[vec![0.2, 0.7, -1.3]],
+            0.001,
         );
         let reference = crate::reference::Reference::Quintic {
             times: vec![0.0],
@@ -540,12 +641,12 @@ mod tests {
         gains.extend([60.0; 7]);
         let law = FuzzyComputedTorque::new(
             models,
-            Selection::Max,
-            fuzzy_select::GAMMA,
+            Rule::paper(Selection::Max),
             &gains,
             0.0,
             vec![87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
             std::slice::from_ref(&q),
+            0.0001,
         );
         let reference = crate::reference::Reference::Quintic {
             times: vec![0.0],

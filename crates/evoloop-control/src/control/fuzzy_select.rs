@@ -5,7 +5,9 @@
 //! The grade of membership of z_r in model i's fuzzy set for premise j is a Gaussian (eq. 19),
 //! the model's weight the product over the p premises (eq. 20), and the paper's rule takes the
 //! model of largest weight (`Selection::Max`); `Selection::Blend` (beyond the paper) weights the
-//! models by their normalised memberships.
+//! models by their normalised memberships, and `Selection::Evidence` (beyond the paper too)
+//! weights them per joint by memberships and by how well each predicts the applied torque
+//! (`control::evidence`).
 //!
 //! Reading of eq. 19. As printed, M_ij = exp(ln(0.5) (z_ij - z_rj)^2 gamma L_j^2) multiplies the
 //! squared distance by gamma L_j^2: trajectories further apart (larger L_j) would give *narrower*
@@ -25,6 +27,8 @@ pub enum Selection {
     Max,
     /// Every model, weighted by w_i / sum w.
     Blend,
+    /// Every model, weighted per joint by w_i / sum w and by its evidence (`control::evidence`).
+    Evidence,
 }
 
 /// The paper's gamma.
@@ -58,7 +62,8 @@ pub fn largest<T: PartialOrd>(w: &[T]) -> usize {
 }
 
 /// The rule: with `Max`, 1 for the first model of largest weight and 0 for the others; with
-/// `Blend`, the weights normalised to sum 1 (uniform if every weight underflows to 0). In place.
+/// `Blend` and `Evidence` (whose memberships are its prior), the weights normalised to sum 1
+/// (uniform if every weight underflows to 0). In place.
 pub fn select(selection: Selection, w: &mut [f64]) {
     match selection {
         Selection::Max => {
@@ -67,7 +72,7 @@ pub fn select(selection: Selection, w: &mut [f64]) {
                 *v = if i == best { 1.0 } else { 0.0 };
             }
         }
-        Selection::Blend => {
+        Selection::Blend | Selection::Evidence => {
             let sum: f64 = w.iter().sum();
             let n = w.len() as f64;
             for v in w.iter_mut() {

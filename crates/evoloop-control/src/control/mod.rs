@@ -2,6 +2,7 @@
 //! cycle without allocating. Parameter sets arrive from the optimiser; `validate` checks them at
 //! the boundary and `swap_params` puts an accepted set in service without a bump in u.
 
+pub mod evidence;
 pub mod fuzzy_select;
 pub mod model_check;
 pub mod model_parts;
