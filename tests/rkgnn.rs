@@ -436,9 +436,18 @@ fn the_evidence_rule_takes_its_keys_and_they_are_refused_elsewhere_with_file_key
     let v = serde_json::to_value(parse(&with("selection = \"evidence\"")).unwrap().controller);
     let v = v.unwrap();
     assert_eq!(
-        (&v["evidence_bandwidth"], &v["evidence_memory"]),
-        (&50.0.into(), &0.5.into())
+        (
+            &v["evidence_prior"],
+            &v["evidence_bandwidth"],
+            &v["evidence_memory"]
+        ),
+        (&"uniform".into(), &50.0.into(), &0.5.into())
     );
+    let scn = parse(&with(
+        "selection = \"evidence\"\nevidence_prior = \"memberships\"",
+    ));
+    let v = serde_json::to_value(scn.unwrap().controller).unwrap();
+    assert_eq!(v["evidence_prior"], "memberships");
     let refused = |rule: &str, key: &str, reason: &str| {
         let e = parse(&with(rule)).unwrap_err();
         assert!(e.contains("arm3_fuzzy_ct.toml"), "{e}");
@@ -452,6 +461,11 @@ fn the_evidence_rule_takes_its_keys_and_they_are_refused_elsewhere_with_file_key
     refused(
         "selection = \"max\"\nevidence_memory = 1.0",
         "evidence_memory",
+        "only with selection = \"evidence\"",
+    );
+    refused(
+        "selection = \"blend\"\nevidence_prior = \"uniform\"",
+        "evidence_prior",
         "only with selection = \"evidence\"",
     );
     refused(

@@ -482,7 +482,11 @@ pub fn run(
                 }
             }
         }
-        let fuzzy = |list: &[&PathBuf], selection: &str, gamma| g.fuzzy(list, selection, gamma);
+        let fuzzy = |list: &[&PathBuf], selection: &str, keys: &[(&str, toml::Value)]| {
+            g.fuzzy(list, selection, keys)
+        };
+        let uniform = [("gamma", toml::Value::Float(UNIFORM_GAMMA))];
+        let memberships = [("evidence_prior", "memberships".into())];
         let ct_true = controller("computed_torque", g.ct_table());
         let first_new = training_set.len();
         for (i, (tr, text)) in new_set.iter().zip(&texts[first_new..]).enumerate() {
@@ -518,7 +522,7 @@ pub fn run(
             let kept: Vec<&PathBuf> = kept_idx.iter().filter_map(|&k| file(k)).collect();
             let single = |k: usize| {
                 let f = file(k).filter(|_| usable[k])?;
-                Some(fuzzy(&[f], "max", None))
+                Some(fuzzy(&[f], "max", &[]))
             };
             let any = !kept.is_empty();
             let laws = [
@@ -528,11 +532,11 @@ pub fn run(
                 single(0),
                 single(1),
                 single(2),
-                any.then(|| fuzzy(&kept, "max", None)),
-                any.then(|| fuzzy(&kept, "blend", None)),
-                any.then(|| fuzzy(&kept, "blend", Some(UNIFORM_GAMMA))),
-                any.then(|| fuzzy(&kept, "evidence", None)),
-                any.then(|| fuzzy(&kept, "evidence", Some(UNIFORM_GAMMA))),
+                any.then(|| fuzzy(&kept, "max", &[])),
+                any.then(|| fuzzy(&kept, "blend", &[])),
+                any.then(|| fuzzy(&kept, "blend", &uniform)),
+                any.then(|| fuzzy(&kept, "evidence", &memberships)),
+                any.then(|| fuzzy(&kept, "evidence", &[])),
             ];
             let runnable: Vec<(&str, toml::Table)> = RUN
                 .iter()
@@ -812,8 +816,8 @@ pub fn report_markdown(r: &SelectionResult) -> String {
         "\nThe max rule switched models {sw:.1} times a second (median over runs).\n\n\
          The paper's claim, fuzzy selection (its max rule) better than the best single model \
          in hindsight, {} here; with the blend it {}; the uniform blend's (no selection) {}. \
-         Weighted per joint by the evidence of the applied torque, on the memberships it {}, \
-         on a uniform prior {}.\n",
+         Weighted per joint by each model's evidence (how well it explains the motion under \
+         the torque applied), on the memberships it {}, on a uniform prior {}.\n",
         verdict(r.claim_held),
         verdict(r.claim_held_blend),
         verdict(r.claim_held_uniform),

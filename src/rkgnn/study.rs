@@ -274,12 +274,13 @@ impl Gains {
         t
     }
 
-    /// `[controller]` of fuzzy computed torque on `models` with `selection` (and `gamma`).
+    /// `[controller]` of fuzzy computed torque on `models` with `selection` and further `keys`
+    /// of its table (`gamma`, `evidence_prior`).
     pub(super) fn fuzzy(
         &self,
         models: &[&PathBuf],
         selection: &str,
-        gamma: Option<f64>,
+        keys: &[(&str, toml::Value)],
     ) -> toml::Table {
         let mut t = self.ct_table();
         let list = models
@@ -288,8 +289,8 @@ impl Gains {
             .collect();
         t.insert("models".into(), toml::Value::Array(list));
         t.insert("selection".into(), selection.into());
-        if let Some(g) = gamma {
-            t.insert("gamma".into(), toml::Value::Float(g));
+        for (k, v) in keys {
+            t.insert(k.to_string(), v.clone());
         }
         controller("fuzzy_computed_torque", t)
     }
@@ -557,7 +558,7 @@ pub fn run(
 
     // The controllers on the new trajectory, and each model on its own trajectory.
     // Both computed-torque laws take the same gains and psi rate.
-    let fuzzy = |files: &[&PathBuf], selection: &str| g.fuzzy(files, selection, None);
+    let fuzzy = |files: &[&PathBuf], selection: &str| g.fuzzy(files, selection, &[]);
     let ct_true = controller("computed_torque", g.ct_table());
     let (m1, m2) = (&models[0], &models[1]);
     let cases = [

@@ -21,9 +21,9 @@
 //!
 //! The law then weights the models per joint by prior x evidence, w_ij ∝ s_i / E_ij (inverse
 //! variance weighting, the combination of unbiased estimates with the least variance), with
-//! s_i the memberships' blend (or a uniform prior, with gamma large): on joint j a model that
-//! misses the motion counts for little, whatever its membership. Until every model has been
-//! evaluated after the filter's warm-up, the weights are the prior's.
+//! s_i the prior: uniform (the default) or the memberships' blend (`evidence_prior`). On joint
+//! j a model that misses the motion counts for little, whatever its membership. Until every
+//! model has been evaluated after the filter's warm-up, the weights are the prior's.
 //!
 //! Cost: the filter is 4 multiply-adds per joint and signal per cycle; one model is evaluated
 //! (M-hat, V-hat, G-hat and an n x n solve) every cycle at most, each model once every `stride`

@@ -36,12 +36,23 @@ use std::path::PathBuf;
 /// Most models a selector chooses among.
 pub const MAX_MODELS: usize = 8;
 
+/// What the evidence rule weighs the models' evidence against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EvidencePrior {
+    /// Every model alike: the evidence alone decides (the default).
+    Uniform,
+    /// The memberships' blend (eqs. 19-20): the model identified nearest the reference first.
+    Memberships,
+}
+
 /// How the selector weighs the models: the rule, the fuzzy sets' width and, for
-/// `Selection::Evidence`, its filter bandwidth (rad/s) and memory (s).
+/// `Selection::Evidence`, its prior, filter bandwidth (rad/s) and memory (s).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Rule {
     pub selection: Selection,
     pub gamma: f64,
+    pub evidence_prior: EvidencePrior,
     pub evidence_bandwidth: f64,
     pub evidence_memory: f64,
 }
@@ -52,6 +63,7 @@ impl Rule {
         Self {
             selection,
             gamma: fuzzy_select::GAMMA,
+            evidence_prior: EvidencePrior::Uniform,
             evidence_bandwidth: evidence::BANDWIDTH,
             evidence_memory: evidence::MEMORY,
         }
@@ -64,6 +76,7 @@ pub struct FuzzyComputedTorque {
     l: Vec<f64>,
     gamma: f64,
     selection: Selection,
+    evidence_prior: EvidencePrior,
     /// Under `Selection::Evidence`: the models' evidence and the per-joint weights it gives
     /// (`s_joint[i * MAX_JOINTS + j]`).
     evidence: Option<Evidence>,
@@ -233,6 +246,7 @@ impl FuzzyComputedTorque {
             models,
             gamma: rule.gamma,
             selection: rule.selection,
+            evidence_prior: rule.evidence_prior,
             evidence,
             s_joint: [0.0; MAX_MODELS * MAX_JOINTS],
             gains: gains.to_vec(),
@@ -318,6 +332,9 @@ impl Controller for FuzzyComputedTorque {
         // Per model and joint, the weight in the law: s_i on every joint, or the evidence's.
         match &mut self.evidence {
             Some(ev) => {
+                if self.evidence_prior == EvidencePrior::Uniform {
+                    self.s[..q_count].fill(1.0 / q_count as f64);
+                }
                 ev.update(&self.models, &state.y[..n], &state.u_applied[..n], &mut m, &mut v, &mut g);
                 ev.weights(&self.s[..q_count], &mut self.s_joint);
             }
@@ -418,8 +435,10 @@ pub struct Table {
     selection: Option<Selection>,
     /// Width of the fuzzy sets (default 0.66, the paper's).
     gamma: Option<f64>,
-    /// Under "evidence": the filter's bandwidth, rad/s (default 50), and the memory of the
-    /// averaged squared residual, s (default 0.5).
+    /// Under "evidence": its prior ("uniform", default, or "memberships"), the filter's
+    /// bandwidth, rad/s (default 50), and the memory of the averaged squared residual, s
+    /// (default 0.5).
+    evidence_prior: Option<EvidencePrior>,
     evidence_bandwidth: Option<f64>,
     evidence_memory: Option<f64>,
     lower: Option<Vec<f64>>,
@@ -444,19 +463,27 @@ pub struct FuzzyComputedTorqueSpec {
     pub along: Vec<Vec<f64>>,
 }
 
-/// The selection keys: the rule, gamma and, only with "evidence", its bandwidth and memory.
+/// The selection keys: the rule, gamma and, only with "evidence", its prior, bandwidth and
+/// memory.
 fn rule(check: &Check, t: &Table) -> Result<Rule, ConfigError> {
     let key = |k: &str| format!("controller.fuzzy_computed_torque.{k}");
     let selection = t.selection.unwrap_or(Selection::Max);
     let mut rule = Rule::paper(selection);
     rule.gamma = check.positive(&key("gamma"), t.gamma.unwrap_or(rule.gamma))?;
+    let only = "applies only with selection = \"evidence\"";
+    if let Some(prior) = t.evidence_prior {
+        if selection != Selection::Evidence {
+            return check.fail(&key("evidence_prior"), only);
+        }
+        rule.evidence_prior = prior;
+    }
     for (name, given, default) in [
         ("evidence_bandwidth", t.evidence_bandwidth, &mut rule.evidence_bandwidth),
         ("evidence_memory", t.evidence_memory, &mut rule.evidence_memory),
     ] {
         let Some(v) = given else { continue };
         if selection != Selection::Evidence {
-            return check.fail(&key(name), "applies only with selection = \"evidence\"");
+            return check.fail(&key(name), only);
         }
         *default = check.positive(&key(name), v)?;
     }

@@ -27,7 +27,8 @@ pub enum Selection {
     Max,
     /// Every model, weighted by w_i / sum w.
     Blend,
-    /// Every model, weighted per joint by w_i / sum w and by its evidence (`control::evidence`).
+    /// Every model, weighted per joint by its evidence (`control::evidence`) against a prior:
+    /// uniform, or the memberships' w_i / sum w.
     Evidence,
 }
 
@@ -62,7 +63,7 @@ pub fn largest<T: PartialOrd>(w: &[T]) -> usize {
 }
 
 /// The rule: with `Max`, 1 for the first model of largest weight and 0 for the others; with
-/// `Blend` and `Evidence` (whose memberships are its prior), the weights normalised to sum 1
+/// `Blend` and `Evidence` (the memberships as its prior), the weights normalised to sum 1
 /// (uniform if every weight underflows to 0). In place.
 pub fn select(selection: Selection, w: &mut [f64]) {
     match selection {
