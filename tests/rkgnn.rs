@@ -1189,6 +1189,44 @@ fn over_ten_seeds_the_evidence_rule_beats_the_best_single_model_and_the_max_rule
 }
 
 #[test]
+fn a_study_on_an_earlier_studys_models_tracks_as_it_did_and_refuses_another_recipes() {
+    // `--models-from DIR` takes each seed's models from an earlier study instead of
+    // identifying them: the same models give the same tracking, bit for bit; models
+    // identified by another recipe are refused (counted as not identified, with the reason).
+    let tmp = tempfile::tempdir().unwrap();
+    let (first, again) = (tmp.path().join("first"), tmp.path().join("again"));
+    let a = selection(&first, &["--seeds", "1"]);
+    let from = first.to_str().unwrap();
+    let b = selection(&again, &["--seeds", "1", "--models-from", from]);
+    assert_eq!(a["cells"], b["cells"]);
+    assert_eq!(b["models_from"], from);
+    assert_eq!(a["identification_seconds"], b["identification_seconds"]);
+    let other = tmp.path().join("other");
+    let args = [
+        "--seeds",
+        "1",
+        "--evaluations",
+        "300",
+        "--models-from",
+        from,
+    ];
+    let o = cli(&[
+        &[
+            "rkgnn",
+            "selection",
+            "--out",
+            other.to_str().unwrap(),
+            "--json",
+        ],
+        &args[..],
+    ]
+    .concat());
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_default();
+    let text = format!("{}{v}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("identified otherwise"), "{text}");
+}
+
+#[test]
 fn identification_seeds_vary_the_training_data_and_a_refused_model_is_left_out() {
     // Seed 2 moves the training trajectories (offsets, amplitudes), so its models differ from
     // seed 1's by more than noise; on seed 2 train3's model is not positive definite along

@@ -190,6 +190,11 @@ pub struct SelectionArgs {
     /// runs stay at 1 ms [default: 0.001].
     #[arg(long, value_parser = |s: &str| crate::node::args::seconds_in(s, 0.01))]
     pub period: Option<f64>,
+    /// Take each seed's models from an earlier study's --out (its seed<N>/model_<run>.json,
+    /// identified by the same recipe and seeds) instead of identifying them again: to compare
+    /// the rules anew without the identification's minutes.
+    #[arg(long)]
+    pub models_from: Option<PathBuf>,
     /// Threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -545,6 +550,7 @@ fn selection(a: &SelectionArgs) -> Result<(), String> {
         start: a.start,
         evaluations: a.evaluations,
         period: a.period,
+        models_from: a.models_from.clone(),
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
     let r = with_bar("runs", a.quiet || a.json, |p| {

@@ -213,6 +213,9 @@ pub struct SelectionSettings {
     /// The tracking runs' loop period, s (None: the training runs', 1 ms). The training runs
     /// stay at 1 kHz, a vendor servo's log; a 7-DOF arm's computed torque runs at 10 kHz.
     pub period: Option<f64>,
+    /// Take each seed's models from an earlier study's output (`<dir>/seed<N>/model_<run>.json`,
+    /// identified by the same recipe) instead of identifying them.
+    pub models_from: Option<PathBuf>,
     pub threads: usize,
 }
 
@@ -237,7 +240,8 @@ pub struct Cell {
 /// A paired comparison of a rule (`RULES`) with one baseline over every (seed, trajectory).
 #[derive(Debug, Clone, Serialize)]
 pub struct Comparison {
-    /// `fuzzy_max` (the paper's rule), `fuzzy_blend` or `uniform_blend`.
+    /// One of `RULES`: `fuzzy_max` (the paper's rule), `fuzzy_blend`, `uniform_blend`,
+    /// `fuzzy_evidence` or `uniform_evidence`.
     pub rule: String,
     pub baseline: String,
     pub median_fuzzy: f64,
@@ -270,8 +274,11 @@ pub struct SelectionResult {
     /// Training runs that gave no model (no positive definite M-hat), with the reason: left
     /// out alone and from the fuzzy sets.
     pub unidentified: Vec<String>,
-    /// Each identified model's identification time, s (wall clock, every thread).
+    /// Each identified model's identification time, s (wall clock, every thread; for models
+    /// taken from an earlier study, that study's).
     pub identification_seconds: Vec<f64>,
+    /// The earlier study the models were taken from (`--models-from`), if any.
+    pub models_from: Option<PathBuf>,
     pub cells: Vec<Cell>,
     /// Per trajectory, the median overall RMS of each controller.
     pub medians: Medians,
@@ -466,8 +473,12 @@ pub fn run(
             settings.servo = servo_prior(s.servo_known, servo_kp, servo_kd, &arm);
             // A training run from which least squares finds no positive definite M-hat gives
             // no model: it is left out as a refused one is (and counted), not the study ended.
-            let found =
-                identify::identify_model(&data, &prior, &settings, c.name.clone(), |_, _| {});
+            let found = match &s.models_from {
+                Some(from) => earlier_model(from, seed, &c.name, &settings),
+                None => {
+                    identify::identify_model(&data, &prior, &settings, c.name.clone(), |_, _| {})
+                }
+            };
             tick("identification");
             match found {
                 Ok(model) => {
@@ -640,6 +651,7 @@ pub fn run(
         period,
         unidentified,
         identification_seconds,
+        models_from: s.models_from.clone(),
         cells,
         medians,
         claim_held: claim_held(&comparisons, "fuzzy_max"),
@@ -656,6 +668,40 @@ pub fn run(
     crate::files::write(&p, report_markdown(&result))
         .map_err(|e| format!("{}: {e}", p.display()))?;
     Ok(result)
+}
+
+/// Seed `seed`'s model of training run `name` from the earlier study in `from`, which must have
+/// been identified as `settings` would: the same seed, start, servo prior, joints' weighing
+/// and at least the EA evaluations. None there: an error, counted as a run not identified.
+fn earlier_model(
+    from: &Path,
+    seed: u64,
+    name: &str,
+    settings: &Settings,
+) -> Result<crate::rkgnn::RkgnnModel, String> {
+    let file = from
+        .join(format!("seed{seed}"))
+        .join(format!("model_{name}.json"));
+    if !file.is_file() {
+        return Err(format!("no model in {}", file.display()));
+    }
+    let model = crate::rkgnn::RkgnnModel::load(&file)?;
+    let r = &model.report;
+    let same = r.seed == settings.ea.seed
+        && r.start == settings.start
+        && r.weigh_joints == settings.weigh_joints
+        && std::mem::discriminant(&r.servo) == std::mem::discriminant(&settings.servo)
+        && r.evaluations >= settings.evaluations;
+    if !same {
+        return Err(format!(
+            "{}: identified otherwise (seed {}, {} start, {} evaluations) than this study asks",
+            file.display(),
+            r.seed,
+            r.start.name(),
+            r.evaluations
+        ));
+    }
+    Ok(model)
 }
 
 /// Per trajectory, each controller's median tracking RMS over the seeds.

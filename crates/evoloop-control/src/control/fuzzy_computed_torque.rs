@@ -6,8 +6,11 @@
 //! model i's premise z_i(k) is the reference it was identified on at the same time, the new
 //! reference's z_r(k) the set-point. `Selection::Max` (the paper) puts s = 1 on the model of
 //! largest weight, `Selection::Blend` weights them all by their normalised memberships, and
-//! `Selection::Evidence` weights them per joint by membership and by how well each predicts
-//! the torque the loop applies (`evidence`): tau_j = psi sum_i s_ij tau_ij.
+//! `Selection::Evidence` weights them per joint by how well each explains the motion under the
+//! torque the loop applies, against a uniform prior or the memberships (`evidence`):
+//! tau_j = psi sum_i s_ij tau_ij. Each row of the law's effective M-hat is then a convex
+//! combination of the models' rows for that joint: not symmetric in general, which computed
+//! torque does not need (its error dynamics ask M^-1 M-hat_eff near I, row by row).
 //!
 //! L_j, "the distance between the j-th premise variables of two adjacent trajectories", varies
 //! along the trajectories and vanishes where they cross; we take its RMS over the identification
@@ -15,8 +18,8 @@
 //!
 //! Positions are the measured outputs y, velocities the joint velocities (as computed torque).
 //! The per-cycle cost is one N_f inertia, velocity and gravity evaluation per model in use, with
-//! no allocation (`Blend` and `Evidence` evaluate every model, `Evidence` one more every cycle
-//! for its residual). Logged per cycle: the model of largest weight and the normalised
+//! no allocation (`Blend` and `Evidence` evaluate every model, `Evidence` at most one more a
+//! cycle for its residual). Logged per cycle: the model of largest weight and the normalised
 //! memberships; under `Evidence`, the model of largest weight in the law and each model's
 //! weight in it, averaged over the joints.
 
@@ -85,7 +88,8 @@ pub struct FuzzyComputedTorque {
     startup_rate: f64,
     effort: Vec<f64>,
     k: u64,
-    /// Raw weights w_i (eq. 20) and the selection s_i of the last cycle.
+    /// Raw weights w_i (eq. 20) and the selection s_i of the last cycle (under `Evidence`, the
+    /// memberships' blend, its prior when `evidence_prior = "memberships"`).
     w: [f64; MAX_MODELS],
     s: [f64; MAX_MODELS],
     /// Per model, positions of its identification reference (`probe_positions`) and of the
@@ -258,11 +262,6 @@ impl FuzzyComputedTorque {
         }
     }
 
-    /// The selection of the last cycle (one per model).
-    pub fn selection(&self) -> &[f64] {
-        &self.s[..self.models.len()]
-    }
-
     /// The model of largest weight in the last cycle (under `Evidence`, in the law).
     pub fn active(&self) -> usize {
         let q_count = self.models.len();
@@ -332,11 +331,12 @@ impl Controller for FuzzyComputedTorque {
         // Per model and joint, the weight in the law: s_i on every joint, or the evidence's.
         match &mut self.evidence {
             Some(ev) => {
-                if self.evidence_prior == EvidencePrior::Uniform {
-                    self.s[..q_count].fill(1.0 / q_count as f64);
+                let mut prior = [1.0 / q_count as f64; MAX_MODELS];
+                if self.evidence_prior == EvidencePrior::Memberships {
+                    prior[..q_count].copy_from_slice(&self.s[..q_count]);
                 }
-                ev.update(&self.models, &state.y[..n], &state.u_applied[..n], &mut m, &mut v, &mut g);
-                ev.weights(&self.s[..q_count], &mut self.s_joint);
+                ev.update(&self.models, state.seq, &state.y[..n], &state.u_applied[..n]);
+                ev.weights(&prior[..q_count], &mut self.s_joint);
             }
             None => {
                 for (i, &s) in self.s[..q_count].iter().enumerate() {

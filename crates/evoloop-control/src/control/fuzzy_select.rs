@@ -6,8 +6,8 @@
 //! the model's weight the product over the p premises (eq. 20), and the paper's rule takes the
 //! model of largest weight (`Selection::Max`); `Selection::Blend` (beyond the paper) weights the
 //! models by their normalised memberships, and `Selection::Evidence` (beyond the paper too)
-//! weights them per joint by memberships and by how well each predicts the applied torque
-//! (`control::evidence`).
+//! weights them per joint by how well each explains the measured motion under the applied
+//! torque, against a uniform prior or the memberships (`control::evidence`).
 //!
 //! Reading of eq. 19. As printed, M_ij = exp(ln(0.5) (z_ij - z_rj)^2 gamma L_j^2) multiplies the
 //! squared distance by gamma L_j^2: trajectories further apart (larger L_j) would give *narrower*
