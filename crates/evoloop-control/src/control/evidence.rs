@@ -421,9 +421,9 @@ mod tests {
         feed(&mut once, &models, &one, 3001..5000);
         let mut w = [0.0; MAX_MODELS * MAX_JOINTS];
         once.weights(&[0.5, 0.5], &mut w);
-        for j in 0..3 {
+        for (j, wj) in w[..3].iter().enumerate() {
             assert!(once.squared_residual(0, j).is_finite());
-            assert!(w[j] > 0.95, "joint {j}: {}", w[j]);
+            assert!(*wj > 0.95, "joint {j}: {wj}");
         }
     }
 
