@@ -1202,27 +1202,18 @@ fn a_study_on_an_earlier_studys_models_tracks_as_it_did_and_refuses_another_reci
     assert_eq!(b["models_from"], from);
     assert_eq!(a["identification_seconds"], b["identification_seconds"]);
     let other = tmp.path().join("other");
-    let args = [
-        "--seeds",
-        "1",
-        "--evaluations",
-        "300",
-        "--models-from",
-        from,
-    ];
-    let o = cli(&[
+    let v = selection(
+        &other,
         &[
-            "rkgnn",
-            "selection",
-            "--out",
-            other.to_str().unwrap(),
-            "--json",
+            "--seeds",
+            "1",
+            "--evaluations",
+            "300",
+            "--models-from",
+            from,
         ],
-        &args[..],
-    ]
-    .concat());
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_default();
-    let text = format!("{}{v}", String::from_utf8_lossy(&o.stderr));
+    );
+    let text = v["unidentified"].to_string();
     assert!(text.contains("identified otherwise"), "{text}");
 }
 

@@ -493,9 +493,6 @@ pub fn run(
                 }
             }
         }
-        let fuzzy = |list: &[&PathBuf], selection: &str, keys: &[(&str, toml::Value)]| {
-            g.fuzzy(list, selection, keys)
-        };
         let uniform = [("gamma", toml::Value::Float(UNIFORM_GAMMA))];
         let memberships = [("evidence_prior", "memberships".into())];
         let ct_true = controller("computed_torque", g.ct_table());
@@ -533,7 +530,7 @@ pub fn run(
             let kept: Vec<&PathBuf> = kept_idx.iter().filter_map(|&k| file(k)).collect();
             let single = |k: usize| {
                 let f = file(k).filter(|_| usable[k])?;
-                Some(fuzzy(&[f], "max", &[]))
+                Some(g.fuzzy(&[f], "max", &[]))
             };
             let any = !kept.is_empty();
             let laws = [
@@ -543,11 +540,11 @@ pub fn run(
                 single(0),
                 single(1),
                 single(2),
-                any.then(|| fuzzy(&kept, "max", &[])),
-                any.then(|| fuzzy(&kept, "blend", &[])),
-                any.then(|| fuzzy(&kept, "blend", &uniform)),
-                any.then(|| fuzzy(&kept, "evidence", &memberships)),
-                any.then(|| fuzzy(&kept, "evidence", &[])),
+                any.then(|| g.fuzzy(&kept, "max", &[])),
+                any.then(|| g.fuzzy(&kept, "blend", &[])),
+                any.then(|| g.fuzzy(&kept, "blend", &uniform)),
+                any.then(|| g.fuzzy(&kept, "evidence", &memberships)),
+                any.then(|| g.fuzzy(&kept, "evidence", &[])),
             ];
             let runnable: Vec<(&str, toml::Table)> = RUN
                 .iter()

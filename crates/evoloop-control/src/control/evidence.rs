@@ -19,8 +19,9 @@
 //! lambda is well above the motion's bandwidth). Each a_ij^2 is averaged with a memory of
 //! `memory` s per model and joint: E_ij.
 //!
-//! The law then weights the models per joint by prior x evidence, w_ij ∝ s_i / E_ij (inverse
-//! variance weighting, the combination of unbiased estimates with the least variance), with
+//! The law then weights the models per joint by prior x evidence, at full evidence
+//! w_ij ∝ s_i / E_ij (inverse variance weighting, the combination of unbiased estimates with
+//! the least variance; `weights` eases into it from the prior), with
 //! s_i the prior: uniform (the default) or the memberships' blend (`evidence_prior`). On joint
 //! j a model that misses the motion counts for little, whatever its membership. Until every
 //! model has been evaluated after the filter's warm-up, the weights are the prior's.
@@ -74,12 +75,16 @@ impl Filter {
         Self { period, phi, gamma }
     }
 
-    /// Advance one period with `v` held over it; the mean of (F v)'' over the period.
-    fn step(&self, x: &mut [f64; 2], v: f64) -> f64 {
+    /// Advance one period with `v` held over it.
+    fn step(&self, x: &mut [f64; 2], v: f64) {
         let [a, b] = *x;
         x[0] = self.phi[0][0] * a + self.phi[0][1] * b + self.gamma[0] * v;
         x[1] = self.phi[1][0] * a + self.phi[1][1] * b + self.gamma[1] * v;
-        (x[1] - b) / self.period
+    }
+
+    /// The mean of (F v)'' over the period from state `before` to `now`.
+    fn mean_acceleration(&self, before: &[f64; 2], now: &[f64; 2]) -> f64 {
+        (now[1] - before[1]) / self.period
     }
 }
 
@@ -92,8 +97,6 @@ pub struct Evidence {
     tau: [[f64; 2]; MAX_JOINTS],
     y_before: [[f64; 2]; MAX_JOINTS],
     tau_before: [[f64; 2]; MAX_JOINTS],
-    /// (F y)'' over the last period.
-    y_acc: [f64; MAX_JOINTS],
     /// The positions of the last sample, and its sequence number.
     y_last: [f64; MAX_JOINTS],
     seq_last: Option<u64>,
@@ -122,7 +125,6 @@ impl Evidence {
             tau: [[0.0; 2]; MAX_JOINTS],
             y_before: [[0.0; 2]; MAX_JOINTS],
             tau_before: [[0.0; 2]; MAX_JOINTS],
-            y_acc: [0.0; MAX_JOINTS],
             y_last: [0.0; MAX_JOINTS],
             seq_last: None,
             e: [[0.0; MAX_JOINTS]; MAX_MODELS],
@@ -173,7 +175,7 @@ impl Evidence {
         for j in 0..n {
             let mid = 0.5 * (y[j] + self.y_last[j]);
             self.y_last[j] = y[j];
-            self.y_acc[j] = self.filter.step(&mut self.y[j], mid);
+            self.filter.step(&mut self.y[j], mid);
             self.filter.step(&mut self.tau[j], tau[j]);
         }
         let turn = (self.k % self.stride) as usize;
@@ -207,7 +209,10 @@ impl Evidence {
         ) {
             return;
         }
-        let a2 = |j: usize| (acc[j] - self.y_acc[j]).powi(2);
+        let a2 = |j: usize| {
+            let qdd = self.filter.mean_acceleration(&self.y_before[j], &self.y[j]);
+            (acc[j] - qdd).powi(2)
+        };
         if (0..n).any(|j| !a2(j).is_finite()) {
             return;
         }
@@ -228,14 +233,12 @@ impl Evidence {
         let (n, models) = (self.n, prior.len());
         let most = self.count[..models].iter().copied().max().unwrap_or(0);
         let rho = (most as f64 * self.alpha).min(1.0);
+        let prior_sum: f64 = prior.iter().sum();
         for j in 0..n {
-            let evaluated = || {
-                (0..models)
-                    .filter(|&i| self.count[i] > 0)
-                    .map(|i| self.e[i][j])
-            };
-            let best = evaluated().fold(f64::INFINITY, f64::min);
-            let worst = evaluated().fold(0.0, f64::max);
+            let (best, worst) = (0..models)
+                .filter(|&i| self.count[i] > 0)
+                .map(|i| self.e[i][j])
+                .fold((f64::INFINITY, 0.0f64), |(b, w), e| (b.min(e), w.max(e)));
             let mut sum = 0.0;
             for (i, p) in prior.iter().enumerate() {
                 let e = if self.count[i] > 0 {
@@ -251,7 +254,6 @@ impl Evidence {
                 w[i * MAX_JOINTS + j] = p * factor;
                 sum += p * factor;
             }
-            let prior_sum: f64 = prior.iter().sum();
             for (i, p) in prior.iter().enumerate() {
                 let x = &mut w[i * MAX_JOINTS + j];
                 *x = if sum > 0.0 && sum.is_finite() {
@@ -436,7 +438,9 @@ mod tests {
         let steps = 20_000;
         let mut acc = 0.0;
         for k in 1..=steps {
-            acc = f.step(&mut x, c * k as f64 * h);
+            let before = x;
+            f.step(&mut x, c * k as f64 * h);
+            acc = f.mean_acceleration(&before, &x);
         }
         assert!(acc.abs() < 1e-6, "{acc}");
         let t = steps as f64 * h;
@@ -452,7 +456,9 @@ mod tests {
         let mut worst: f64 = 0.0;
         for k in 1..=steps {
             let t = k as f64 * h;
-            let acc = f.step(&mut x, (w * t).sin());
+            let before = x;
+            f.step(&mut x, (w * t).sin());
+            let acc = f.mean_acceleration(&before, &x);
             if t > 1.0 {
                 // F at w: magnitude 1 / (1 + (w/lambda)^2), phase -2 atan(w/lambda).
                 let phase = 2.0 * (w / lambda).atan();

@@ -77,9 +77,7 @@ pub struct FuzzyComputedTorque {
     models: Vec<RkgnnModel>,
     /// L_j per premise (2n).
     l: Vec<f64>,
-    gamma: f64,
-    selection: Selection,
-    evidence_prior: EvidencePrior,
+    rule: Rule,
     /// Under `Selection::Evidence`: the models' evidence and the per-joint weights it gives
     /// (`s_joint[i * MAX_JOINTS + j]`).
     evidence: Option<Evidence>,
@@ -89,7 +87,8 @@ pub struct FuzzyComputedTorque {
     effort: Vec<f64>,
     k: u64,
     /// Raw weights w_i (eq. 20) and the selection s_i of the last cycle (under `Evidence`, the
-    /// memberships' blend, its prior when `evidence_prior = "memberships"`).
+    /// memberships' blend, its prior when `evidence_prior = "memberships"`; not computed under
+    /// a uniform prior).
     w: [f64; MAX_MODELS],
     s: [f64; MAX_MODELS],
     /// Per model, positions of its identification reference (`probe_positions`) and of the
@@ -248,9 +247,7 @@ impl FuzzyComputedTorque {
             probes,
             min_eig,
             models,
-            gamma: rule.gamma,
-            selection: rule.selection,
-            evidence_prior: rule.evidence_prior,
+            rule,
             evidence,
             s_joint: [0.0; MAX_MODELS * MAX_JOINTS],
             gains: gains.to_vec(),
@@ -262,17 +259,6 @@ impl FuzzyComputedTorque {
         }
     }
 
-    /// The model of largest weight in the last cycle (under `Evidence`, in the law).
-    pub fn active(&self) -> usize {
-        let q_count = self.models.len();
-        if self.evidence.is_none() {
-            return fuzzy_select::largest(&self.w[..q_count]);
-        }
-        let mut mean = [0.0; MAX_MODELS];
-        self.law_weights(&mut mean[..q_count]);
-        fuzzy_select::largest(&mean[..q_count])
-    }
-
     /// Each model's weight in the law averaged over the joints (`Evidence`).
     fn law_weights(&self, out: &mut [f64]) {
         let n = self.models[0].dof();
@@ -282,9 +268,44 @@ impl FuzzyComputedTorque {
         }
     }
 
-    /// The evidence (under `Selection::Evidence`).
-    pub fn evidence(&self) -> Option<&Evidence> {
-        self.evidence.as_ref()
+    /// This cycle's weight of each model on each joint (`s_joint`): the memberships' selection
+    /// (eqs. 19-20) on every joint, or the evidence's per joint against its prior. The
+    /// memberships are not computed when nothing uses them (the evidence on a uniform prior).
+    fn weigh(&mut self, state: &PlantState, sp: &Setpoint) {
+        let n = self.models[0].dof();
+        let q_count = self.models.len();
+        let uniform = self.evidence.is_some() && self.rule.evidence_prior == EvidencePrior::Uniform;
+        if !uniform {
+            // Premises: the set-point against each model's identification reference now.
+            let mut z_r = [0.0; 2 * MAX_JOINTS];
+            z_r[..n].copy_from_slice(&sp.q[..n]);
+            z_r[n..2 * n].copy_from_slice(&sp.qd[..n]);
+            model_weights(
+                &self.models,
+                state.t,
+                &z_r[..2 * n],
+                &self.l,
+                self.rule.gamma,
+                &mut self.w[..q_count],
+            );
+            self.s[..q_count].copy_from_slice(&self.w[..q_count]);
+            fuzzy_select::select(self.rule.selection, &mut self.s[..q_count]);
+        }
+        match &mut self.evidence {
+            Some(ev) => {
+                let mut prior = [1.0 / q_count as f64; MAX_MODELS];
+                if !uniform {
+                    prior[..q_count].copy_from_slice(&self.s[..q_count]);
+                }
+                ev.update(&self.models, state.seq, &state.y[..n], &state.u_applied[..n]);
+                ev.weights(&prior[..q_count], &mut self.s_joint);
+            }
+            None => {
+                for (i, &s) in self.s[..q_count].iter().enumerate() {
+                    self.s_joint[i * MAX_JOINTS..][..n].fill(s);
+                }
+            }
+        }
     }
 }
 
@@ -304,21 +325,7 @@ impl Controller for FuzzyComputedTorque {
 
     fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
         let n = self.models[0].dof();
-        let q_count = self.models.len();
-        // Premises: the set-point against each model's identification reference at this time.
-        let mut z_r = [0.0; 2 * MAX_JOINTS];
-        z_r[..n].copy_from_slice(&sp.q[..n]);
-        z_r[n..2 * n].copy_from_slice(&sp.qd[..n]);
-        model_weights(
-            &self.models,
-            state.t,
-            &z_r[..2 * n],
-            &self.l,
-            self.gamma,
-            &mut self.w[..q_count],
-        );
-        self.s[..q_count].copy_from_slice(&self.w[..q_count]);
-        fuzzy_select::select(self.selection, &mut self.s[..q_count]);
+        self.weigh(state, sp);
         let (kp, kv) = self.gains.split_at(n);
         let (q, qd) = (&state.y[..n], &state.qd_true[..n]);
         let mut acc = [0.0; MAX_JOINTS];
@@ -328,22 +335,6 @@ impl Controller for FuzzyComputedTorque {
         u[..n].fill(0.0);
         let mut m: Mat = [0.0; MAX_JOINTS * MAX_JOINTS];
         let (mut v, mut g) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
-        // Per model and joint, the weight in the law: s_i on every joint, or the evidence's.
-        match &mut self.evidence {
-            Some(ev) => {
-                let mut prior = [1.0 / q_count as f64; MAX_MODELS];
-                if self.evidence_prior == EvidencePrior::Memberships {
-                    prior[..q_count].copy_from_slice(&self.s[..q_count]);
-                }
-                ev.update(&self.models, state.seq, &state.y[..n], &state.u_applied[..n]);
-                ev.weights(&prior[..q_count], &mut self.s_joint);
-            }
-            None => {
-                for (i, &s) in self.s[..q_count].iter().enumerate() {
-                    self.s_joint[i * MAX_JOINTS..][..n].fill(s);
-                }
-            }
-        }
         for (i, model) in self.models.iter().enumerate() {
             let s = &self.s_joint[i * MAX_JOINTS..][..n];
             if s.iter().all(|&x| x == 0.0) {
@@ -403,15 +394,17 @@ impl Controller for FuzzyComputedTorque {
         c
     }
 
+    /// The model of largest weight and each model's weight: the memberships (normalised), or
+    /// under `Evidence` the law's weights averaged over the joints.
     fn log_values(&self, out: &mut [f64]) {
         let q_count = self.models.len();
-        out[0] = self.active() as f64;
-        let m = &mut out[1..1 + q_count];
+        let (active, m) = out.split_at_mut(1);
+        let m = &mut m[..q_count];
         if self.evidence.is_some() {
-            // The weights the law used, averaged over the joints.
             self.law_weights(m);
+            active[0] = fuzzy_select::largest(m) as f64;
         } else {
-            // The normalised memberships: the blend rule's weights.
+            active[0] = fuzzy_select::largest(&self.w[..q_count]) as f64;
             m.copy_from_slice(&self.w[..q_count]);
             fuzzy_select::select(Selection::Blend, m);
         }
@@ -470,22 +463,22 @@ fn rule(check: &Check, t: &Table) -> Result<Rule, ConfigError> {
     let selection = t.selection.unwrap_or(Selection::Max);
     let mut rule = Rule::paper(selection);
     rule.gamma = check.positive(&key("gamma"), t.gamma.unwrap_or(rule.gamma))?;
-    let only = "applies only with selection = \"evidence\"";
-    if let Some(prior) = t.evidence_prior {
-        if selection != Selection::Evidence {
-            return check.fail(&key("evidence_prior"), only);
-        }
-        rule.evidence_prior = prior;
+    let given = [
+        ("evidence_prior", t.evidence_prior.is_some()),
+        ("evidence_bandwidth", t.evidence_bandwidth.is_some()),
+        ("evidence_memory", t.evidence_memory.is_some()),
+    ];
+    if let Some((name, _)) = given.iter().find(|(_, g)| *g && selection != Selection::Evidence) {
+        return check.fail(&key(name), "applies only with selection = \"evidence\"");
     }
-    for (name, given, default) in [
+    rule.evidence_prior = t.evidence_prior.unwrap_or(rule.evidence_prior);
+    for (name, given, value) in [
         ("evidence_bandwidth", t.evidence_bandwidth, &mut rule.evidence_bandwidth),
         ("evidence_memory", t.evidence_memory, &mut rule.evidence_memory),
     ] {
-        let Some(v) = given else { continue };
-        if selection != Selection::Evidence {
-            return check.fail(&key(name), only);
+        if let Some(v) = given {
+            *value = check.positive(&key(name), v)?;
         }
-        *default = check.positive(&key(name), v)?;
     }
     Ok(rule)
 }
