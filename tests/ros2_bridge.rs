@@ -7,8 +7,8 @@
 //!
 //! The peer is built apart (its own lock file and Zenoh build); give its binary in
 //! EVOLOOP_ROS2_PEER. CI:
-//!   cargo build --release --locked --manifest-path tests/ros2_peer/Cargo.toml --target-dir target/ros2-peer
-//!   EVOLOOP_ROS2_PEER=target/ros2-peer/release/ros2-peer cargo test --release --features zenoh --test ros2_bridge -- --ignored
+//!   cargo build --release --locked --manifest-path tests/ros2_peer/Cargo.toml --target-dir target
+//!   EVOLOOP_ROS2_PEER=target/release/ros2-peer cargo test --release --features zenoh --test ros2_bridge -- --ignored
 
 mod common;
 #[cfg(feature = "zenoh")]

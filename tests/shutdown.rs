@@ -38,42 +38,81 @@ fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
 #[test]
 fn a_killed_run_is_cleaned_up_by_the_next_start() {
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = realtime_config(tmp.path());
     let (prefix, run_id) = unique("kill");
-    let mut child = start(&cfg, &tmp.path().join("dead"), &prefix, &run_id);
-    for pid in processes_with(&run_id) {
+    kill_a_run(tmp.path(), &prefix, &run_id);
+    // The next run in the same namespace starts, cleans the dead run, and leaves nothing.
+    next_run_cleans_up(tmp.path(), &prefix);
+}
+
+#[test]
+fn a_dead_node_whose_details_are_gone_is_cleaned_up_too() {
+    // What a cleaner killed between removing a dead node's details and its monitor leaves (a
+    // crash-looping optimiser killed while it cleaned up its predecessor; seen once in CI), or a
+    // node killed while it was created: only the monitor files. iceoryx2 0.10 then looks for
+    // them under its global configuration's prefix and leaves them for good.
+    let tmp = tempfile::tempdir().unwrap();
+    let (prefix, run_id) = unique("orphan");
+    kill_a_run(tmp.path(), &prefix, &run_id);
+    let full = evoloop::ipc::namespace::user_prefix(&prefix);
+    let monitors: Vec<String> = leftovers(&prefix)
+        .into_iter()
+        .filter(|f| f.ends_with(".node_monitor"))
+        .collect();
+    assert!(!monitors.is_empty(), "the killed nodes' monitors");
+    for m in &monitors {
+        let file = std::path::Path::new(m);
+        let name = file.file_name().unwrap().to_string_lossy();
+        let id = name[full.len()..].trim_end_matches(".node_monitor");
+        let details = file.parent().unwrap().join(id);
+        assert!(
+            details.is_dir(),
+            "{} holds the node's details",
+            details.display()
+        );
+        std::fs::remove_dir_all(&details).unwrap();
+    }
+    next_run_cleans_up(tmp.path(), &prefix);
+}
+
+/// A realtime run of `prefix` with every process killed outright: its resources left behind.
+fn kill_a_run(dir: &std::path::Path, prefix: &str, run_id: &str) {
+    let cfg = realtime_config(dir);
+    let mut child = start(&cfg, &dir.join("dead"), prefix, run_id);
+    for pid in processes_with(run_id) {
         signal(pid, libc::SIGKILL);
     }
     let _ = child.wait();
-    wait_gone(&run_id);
+    wait_gone(run_id);
     assert!(
-        !leftovers(&prefix).is_empty(),
+        !leftovers(prefix).is_empty(),
         "a killed run leaves resources behind"
     );
+}
 
-    // The next run in the same namespace starts, cleans the dead run, and leaves nothing.
+/// The next run under `prefix` succeeds, says it cleaned up a dead run, and leaves nothing.
+fn next_run_cleans_up(dir: &std::path::Path, prefix: &str) {
     let lock = write(
-        tmp.path(),
+        dir,
         "ls.toml",
         &scenario(
             "kind = \"step\"\namplitude = 1.0",
             "mode = \"lockstep\"\nduration = 2.0",
         ),
     );
-    let out = tmp.path().join("next");
+    let out = dir.join("next");
     let o = Command::new(evoloop())
         .arg("run")
         .arg(&lock)
         .arg("--out")
         .arg(&out)
-        .args(["--ipc-prefix", &prefix, "--quiet"])
+        .args(["--ipc-prefix", prefix, "--quiet"])
         .output()
         .unwrap();
     assert_ok(&o);
     let s = json(&out.join("summary.json"));
     assert!(s["stale_resources_cleaned"].as_u64().unwrap() >= 1, "{s}");
-    assert_eq!(leftovers(&prefix), Vec::<String>::new());
-    forget_prefix(&prefix);
+    assert_eq!(leftovers(prefix), Vec::<String>::new());
+    forget_prefix(prefix);
 }
 
 #[test]

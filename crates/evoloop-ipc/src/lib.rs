@@ -5,6 +5,7 @@
 //! never cross-talk, and every file iceoryx2 creates carries the run's prefix (`--ipc-prefix`,
 //! default `evoloop_`) so a run's resources can be told apart from other iceoryx2 users.
 
+use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -282,7 +283,42 @@ impl Ipc {
 
     /// Remove what dead processes of earlier runs left behind; returns how many nodes were cleaned.
     pub fn cleanup_dead_nodes(&self) -> usize {
-        self.node.try_cleanup_dead_nodes().cleanups as usize
+        // First the nodes iceoryx2 cannot clean: it would count them as cleaned, finding nothing.
+        let orphans = self.remove_orphaned_monitors();
+        orphans + self.node.try_cleanup_dead_nodes().cleanups as usize
+    }
+
+    /// Remove the monitor files of dead nodes whose details are gone, which iceoryx2 0.10 leaves
+    /// for good under a prefix of our own. Its cleanup finds a dead node's files through the
+    /// configuration recorded in the node's details and, without them, through the global
+    /// configuration (another prefix and root). A cleaner killed after removing the details but
+    /// before the monitor (a crash-looping optimiser killed while it cleaned up its predecessor)
+    /// or a node killed while it was created leaves exactly that: no service or port tag, only
+    /// `<prefix><id>.node_monitor`, `_context` and `_owner_lock`, and a next run under the same
+    /// prefix would inherit them. Returns how many such nodes were removed.
+    fn remove_orphaned_monitors(&self) -> usize {
+        let cfg = self.node.config();
+        let mut orphans = Vec::new();
+        // A listing that fails leaves the files for the next cleanup; nothing else depends on it.
+        let _ = Node::<Svc>::list(cfg, |state| {
+            if let NodeState::Dead(view) = &state {
+                if view.details().is_none() {
+                    orphans.push(view.id().value());
+                }
+            }
+            CallbackProgression::Continue
+        });
+        let dir = std::path::PathBuf::from(cfg.global.node_dir().to_string());
+        let (prefix, suffix) = (&cfg.global.prefix, &cfg.global.node.monitor_suffix);
+        for id in &orphans {
+            let monitor = format!("{prefix}{id}{suffix}");
+            for file in namespace::entries(&dir, &monitor) {
+                let _ = std::fs::remove_file(file);
+            }
+            // A node killed while it was created may have left its unfinished details.
+            let _ = std::fs::remove_dir_all(dir.join(id.to_string()));
+        }
+        orphans.len()
     }
 
     fn pubsub<T: Debug + ZeroCopySend + 'static>(
