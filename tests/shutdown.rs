@@ -44,33 +44,58 @@ fn a_killed_run_is_cleaned_up_by_the_next_start() {
     next_run_cleans_up(tmp.path(), &prefix);
 }
 
+/// Set in the child of `a_dead_node_whose_details_are_gone_is_cleaned_up_too`: the prefix under
+/// which it creates a node and waits to be killed.
+const NODE_ONLY: &str = "EVOLOOP_TEST_NODE_ONLY";
+
 #[test]
 fn a_dead_node_whose_details_are_gone_is_cleaned_up_too() {
+    if let Ok(prefix) = std::env::var(NODE_ONLY) {
+        // The child: a node and nothing else (no service, no port), until it is killed.
+        let _ipc = evoloop::ipc::Ipc::new("orphan", "orphan", &prefix).unwrap();
+        println!("node up");
+        loop {
+            std::thread::sleep(Duration::from_secs(1));
+        }
+    }
     // What a cleaner killed between removing a dead node's details and its monitor leaves (a
-    // crash-looping optimiser killed while it cleaned up its predecessor; seen once in CI), or a
-    // node killed while it was created: only the monitor files. iceoryx2 0.10 then looks for
-    // them under its global configuration's prefix and leaves them for good.
+    // crash-looping optimiser killed while it cleaned up its predecessor: a flaky
+    // tests/faults.rs in CI), and what a node killed while it was created leaves: only the
+    // monitor files. iceoryx2 0.10 then looks for them under its global configuration's prefix
+    // and leaves them for good. Made here from a node with no port, killed, its details removed.
     let tmp = tempfile::tempdir().unwrap();
-    let (prefix, run_id) = unique("orphan");
-    kill_a_run(tmp.path(), &prefix, &run_id);
+    let (prefix, _) = unique("orphan");
+    let mut child = Command::new(std::env::current_exe().unwrap())
+        .args([
+            "a_dead_node_whose_details_are_gone_is_cleaned_up_too",
+            "--exact",
+            "--nocapture",
+        ])
+        .env(NODE_ONLY, &prefix)
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("node up") {
+        line.clear();
+        let n = std::io::BufRead::read_line(&mut out, &mut line).unwrap();
+        assert!(n > 0, "the child ended before its node was up");
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
     let full = evoloop::ipc::namespace::user_prefix(&prefix);
     let monitors: Vec<String> = leftovers(&prefix)
         .into_iter()
         .filter(|f| f.ends_with(".node_monitor"))
         .collect();
-    assert!(!monitors.is_empty(), "the killed nodes' monitors");
-    for m in &monitors {
-        let file = std::path::Path::new(m);
-        let name = file.file_name().unwrap().to_string_lossy();
-        let id = name[full.len()..].trim_end_matches(".node_monitor");
-        let details = file.parent().unwrap().join(id);
-        assert!(
-            details.is_dir(),
-            "{} holds the node's details",
-            details.display()
-        );
-        std::fs::remove_dir_all(&details).unwrap();
-    }
+    assert_eq!(monitors.len(), 1, "the killed node's monitor: {monitors:?}");
+    let file = std::path::Path::new(&monitors[0]);
+    let name = file.file_name().unwrap().to_string_lossy();
+    let id = name[full.len()..].trim_end_matches(".node_monitor");
+    let details = file.parent().unwrap().join(id);
+    assert!(details.is_dir(), "{} holds its details", details.display());
+    std::fs::remove_dir_all(&details).unwrap();
     next_run_cleans_up(tmp.path(), &prefix);
 }
 
