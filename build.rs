@@ -1,8 +1,9 @@
 //! The build's identity for evaluation workers (`net::workers::build`): a hash of every source
 //! file, the lock file, the compiler and the target, so a worker and an optimiser agree only when
 //! they run the same code compiled the same way (the same code on the same bits gives the same
-//! values; the same version number alone does not promise that). Without `rerun-if-changed`
-//! lines Cargo runs this again whenever a file of the package changes.
+//! values; the same version number alone does not promise that). It is run again when what it
+//! hashes changes, and only then: without `rerun-if-changed` lines Cargo ran it for any file of
+//! the package, so editing a test recompiled the library and every binary.
 
 use std::collections::hash_map::DefaultHasher;
 use std::hash::Hasher;
@@ -57,4 +58,9 @@ fn main() {
         h.write(&o.stdout);
     }
     println!("cargo:rustc-env=EVOLOOP_BUILD_ID={:016x}", h.finish());
+    // A directory is scanned whole, so a new source file counts too. The compiler and the
+    // target are in Cargo's own fingerprint: a change of either rebuilds this anyway.
+    for p in ["src", "bin", "build.rs", "Cargo.toml", "Cargo.lock"] {
+        println!("cargo:rerun-if-changed={p}");
+    }
 }

@@ -5,7 +5,7 @@
 //! and sends sets of gains; its joint states must be run.csv's rows bit for bit, and the
 //! controller's answers to its sets must reach it.
 //!
-//! The peer is built apart (its own lock file and Zenoh build); give its binary in
+//! The peer is built from its own lock file, into the same target directory; give its binary in
 //! EVOLOOP_ROS2_PEER. CI:
 //!   cargo build --release --locked --manifest-path tests/ros2_peer/Cargo.toml --target-dir target
 //!   EVOLOOP_ROS2_PEER=target/release/ros2-peer cargo test --release --features zenoh --test ros2_bridge -- --ignored
