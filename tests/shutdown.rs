@@ -38,8 +38,18 @@ fn sigint_to_the_launcher_stops_all_processes_and_leaves_no_shared_memory() {
 #[test]
 fn a_killed_run_is_cleaned_up_by_the_next_start() {
     let tmp = tempfile::tempdir().unwrap();
+    let cfg = realtime_config(tmp.path());
     let (prefix, run_id) = unique("kill");
-    kill_a_run(tmp.path(), &prefix, &run_id);
+    let mut child = start(&cfg, &tmp.path().join("dead"), &prefix, &run_id);
+    for pid in processes_with(&run_id) {
+        signal(pid, libc::SIGKILL);
+    }
+    let _ = child.wait();
+    wait_gone(&run_id);
+    assert!(
+        !leftovers(&prefix).is_empty(),
+        "a killed run leaves resources behind"
+    );
     // The next run in the same namespace starts, cleans the dead run, and leaves nothing.
     next_run_cleans_up(tmp.path(), &prefix);
 }
@@ -97,21 +107,6 @@ fn a_dead_node_whose_details_are_gone_is_cleaned_up_too() {
     assert!(details.is_dir(), "{} holds its details", details.display());
     std::fs::remove_dir_all(&details).unwrap();
     next_run_cleans_up(tmp.path(), &prefix);
-}
-
-/// A realtime run of `prefix` with every process killed outright: its resources left behind.
-fn kill_a_run(dir: &std::path::Path, prefix: &str, run_id: &str) {
-    let cfg = realtime_config(dir);
-    let mut child = start(&cfg, &dir.join("dead"), prefix, run_id);
-    for pid in processes_with(run_id) {
-        signal(pid, libc::SIGKILL);
-    }
-    let _ = child.wait();
-    wait_gone(run_id);
-    assert!(
-        !leftovers(prefix).is_empty(),
-        "a killed run leaves resources behind"
-    );
 }
 
 /// The next run under `prefix` succeeds, says it cleaned up a dead run, and leaves nothing.
