@@ -482,22 +482,21 @@ fn prepare(a: &mut RunArgs) -> Result<Prepared, ExitCode> {
         }
     };
     // Remove the previous run's files so a failed run never leaves a stale report looking fresh.
-    for f in [
+    // The figures too, all of them: report.html embeds those of the list present after the run.
+    let files = [
         "run.csv",
         "timing.csv",
         "summary.json",
-        "response.png",
-        "tracking.png",
         "published.jsonl",
         "estimates.csv",
         "repetitions.csv",
-        "indirect.png",
         "controller.json",
         "plant.json",
         "optimiser.json",
         "run.mcap",
         "report.html",
-    ] {
+    ];
+    for f in files.iter().chain(crate::report::html::RUN_FIGURES.iter()) {
         let _ = std::fs::remove_file(dir.join(f));
     }
     let _ = crate::report::write_json(&dir, "scenario.json", &scn);

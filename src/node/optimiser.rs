@@ -160,6 +160,7 @@ struct Serve<'a> {
     live: Option<crate::rkgnn::live::LiveIdentify>,
     direct: Option<DirectLive>,
     published: History<PublishedSet>,
+    journal: Journal,
     /// Epochs told to watchers so far.
     status_epochs: u64,
     /// Every gain set published, by version, for an operator's revert (0: the set before
@@ -192,6 +193,7 @@ impl<'a> Serve<'a> {
             live: None,
             direct: None,
             published: History::new(crate::indirect::HISTORY),
+            journal: Journal::open(&scn.output.dir),
             status_epochs: 0,
             sets: [(0, scn.controller.tunable().gains.clone())].into(),
             held: false,
@@ -464,28 +466,26 @@ impl<'a> Serve<'a> {
             let oldest = self.sets.keys().copied().find(|&v| v != 0);
             oldest.map(|v| self.sets.remove(&v));
         }
-        let dir = &self.scn.output.dir;
         send_set(
             self.ports,
             &[*set],
             set.values(),
             t,
             &mut self.published,
-            dir,
+            &mut self.journal,
         )
         .map_err(io)
     }
 
     /// A model, in as many sets as it needs; journalled and recorded whole.
     fn send_model(&mut self, m: &crate::rkgnn::live::ModelUpdate, t: f64) -> Result<(), Failure> {
-        let dir = &self.scn.output.dir;
         send_set(
             self.ports,
             &m.sets(),
             &m.values,
             t,
             &mut self.published,
-            dir,
+            &mut self.journal,
         )
         .map_err(io)
     }
@@ -625,6 +625,7 @@ impl<'a> Serve<'a> {
             report.direct = Some(d.tuner.report());
         }
         report.published_count = self.published.offered();
+        report.journal_error = self.journal.error;
         report.published = self.published.into_vec();
     }
 }
@@ -742,15 +743,39 @@ impl DirectLive {
 /// report), so a restarted one continues the versions and knows the set in service.
 const JOURNAL: &str = "published.jsonl";
 
-fn journal(dir: &std::path::Path, version: u64, values: &[f64], t: f64) {
-    use std::io::Write;
-    let line = serde_json::json!({"version": version, "t": t, "values": values});
-    let f = std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(dir.join(JOURNAL));
-    if let Ok(mut f) = f {
-        let _ = writeln!(f, "{line}");
+/// `published.jsonl`, opened once for the run (never through a link, see
+/// `evoloop_files::append`) and held: a link planted at the name later in the run is not
+/// reopened, so it is never written through. What could not be written is kept for the report.
+struct Journal {
+    path: std::path::PathBuf,
+    file: Option<std::fs::File>,
+    error: Option<String>,
+}
+
+impl Journal {
+    fn open(dir: &std::path::Path) -> Journal {
+        let path = dir.join(JOURNAL);
+        let (file, error) = match evoloop_files::append(&path) {
+            Ok(f) => (Some(f), None),
+            Err(e) => {
+                eprintln!("{WHO}: {e}; the published sets are not journalled");
+                (None, Some(e.to_string()))
+            }
+        };
+        Journal { path, file, error }
+    }
+
+    fn add(&mut self, version: u64, values: &[f64], t: f64) {
+        use std::io::Write;
+        let line = serde_json::json!({"version": version, "t": t, "values": values});
+        let Some(f) = &mut self.file else { return };
+        if let Err(e) = writeln!(f, "{line}") {
+            if self.error.is_none() {
+                let e = evoloop_files::named(&self.path, "cannot append to", e).to_string();
+                eprintln!("{WHO}: {e}");
+                self.error = Some(e);
+            }
+        }
     }
 }
 
@@ -761,7 +786,7 @@ fn journal(dir: &std::path::Path, version: u64, values: &[f64], t: f64) {
 fn last_published(dir: &std::path::Path) -> Option<(u64, Vec<f64>)> {
     use std::io::{Read, Seek, SeekFrom};
     const TAIL: u64 = 1024 * 1024;
-    let mut f = std::fs::File::open(dir.join(JOURNAL)).ok()?;
+    let mut f = evoloop_files::open_own(&dir.join(JOURNAL)).ok()?;
     let len = f.metadata().ok()?.len();
     f.seek(SeekFrom::Start(len.saturating_sub(TAIL))).ok()?;
     let mut tail = Vec::new();
@@ -784,11 +809,11 @@ fn send_set(
     values: &[f64],
     t: f64,
     published: &mut History<PublishedSet>,
-    dir: &std::path::Path,
+    journal: &mut Journal,
 ) -> Result<(), IpcError> {
     let first = sets[0];
     // Journal first: a set the controller may have received is always on record for a restart.
-    journal(dir, first.version, values, t);
+    journal.add(first.version, values, t);
     for set in sets {
         ports.params.send(set)?;
     }
@@ -935,7 +960,7 @@ mod remote {
 
 #[cfg(test)]
 mod tests {
-    use super::{journal, last_published};
+    use super::{last_published, Journal, JOURNAL};
 
     /// A rejoining optimiser continues from the journal's last line, which holds a whole model:
     /// arm7's is longer than the 64 kB tail read before models travelled in parts.
@@ -943,15 +968,39 @@ mod tests {
     fn the_last_journalled_model_reads_back_whole_however_long() {
         let dir = tempfile::tempdir().unwrap();
         let gains = [1.0, 2.0];
-        journal(dir.path(), 1, &gains, 0.5);
+        let mut journal = Journal::open(dir.path());
+        journal.add(1, &gains, 0.5);
         assert_eq!(last_published(dir.path()), Some((1, gains.to_vec())));
         // 3396 values of 17 significant digits, as arm7's models are written.
         let model: Vec<f64> = (0..3396)
             .map(|i| 0.123_456_789_012_345_6 * i as f64)
             .collect();
-        journal(dir.path(), 2, &model, 1.0);
+        journal.add(2, &model, 1.0);
         let (version, values) = last_published(dir.path()).unwrap();
         assert_eq!(version, 2);
         assert_eq!(values, model);
+    }
+
+    /// A link planted at the journal's name during the run, after the optimiser opened it, is
+    /// never written through: the journal holds its own file, and a restart refuses to read
+    /// the link.
+    #[test]
+    fn a_link_planted_at_the_journal_during_the_run_is_not_written_through() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("root-only.txt");
+        std::fs::write(&target, "keep me").unwrap();
+        let mut journal = Journal::open(dir.path());
+        journal.add(1, &[1.0], 0.1);
+        let name = dir.path().join(JOURNAL);
+        std::fs::remove_file(&name).unwrap();
+        std::os::unix::fs::symlink(&target, &name).unwrap();
+        journal.add(2, &[2.0], 0.2);
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep me");
+        assert_eq!(last_published(dir.path()), None, "the link is not read");
+        let again = Journal::open(dir.path());
+        assert!(again.file.is_none());
+        let e = again.error.unwrap();
+        assert!(e.contains("symbolic link"), "{e}");
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep me");
     }
 }

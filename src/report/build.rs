@@ -515,10 +515,11 @@ fn direct_summary(d: &crate::direct::DirectReport) -> DirectSummary {
 }
 
 /// The messages of what could not be written (a full disk): the run is then incomplete.
-fn write_errors(ctrl: &ControllerReport) -> Vec<String> {
+fn write_errors(ctrl: &ControllerReport, opt: &OptimiserReport) -> Vec<String> {
     ctrl.log_error
         .iter()
         .cloned()
+        .chain(opt.journal_error.clone())
         .chain(
             ctrl.mcap
                 .as_ref()
@@ -657,7 +658,7 @@ fn processes_summary(s: &mut Summary, inputs: &Inputs, cleaned: usize, optimiser
     s.stale_resources_cleaned = cleaned;
     s.optimiser_restarts = optimiser.restarts;
     s.optimiser_lost = optimiser.lost;
-    s.write_errors = write_errors(ctrl);
+    s.write_errors = write_errors(ctrl, opt);
     s.optimiser_stalls = plant.optimiser_stalls.clone();
     s.optimiser_resumed = plant.optimiser_resumed;
     s.outcome = if !s.write_errors.is_empty() {

@@ -171,6 +171,10 @@ pub struct OptimiserReport {
     /// How many sets were published (a model sent in parts counts once).
     #[serde(default)]
     pub published_count: u64,
+    /// What could not be appended to `published.jsonl` (a link planted at its name, a full
+    /// disk): the run's record of its sets is then incomplete.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub journal_error: Option<String>,
     /// Indirect mode: plant samples the estimator never saw (gaps in the sequence numbers).
     #[serde(default)]
     pub samples_missed: u64,

@@ -9,13 +9,14 @@ use std::path::Path;
 /// without end.
 pub const MAX_FILE_BYTES: u64 = 16 << 20;
 
-/// A text file, read up to `MAX_FILE_BYTES`.
+/// A text file, read up to `MAX_FILE_BYTES`. Anything but a regular file (a FIFO, which would
+/// block the reader forever; a device, which has no end) is refused with the reason. Links are
+/// followed: a user's configuration may well be one.
 pub fn read_text(path: &Path) -> std::io::Result<String> {
     use std::io::Read;
+    let f = open_regular(path, 0)?;
     let mut text = String::new();
-    std::fs::File::open(path)?
-        .take(MAX_FILE_BYTES + 1)
-        .read_to_string(&mut text)?;
+    f.take(MAX_FILE_BYTES + 1).read_to_string(&mut text)?;
     if text.len() as u64 > MAX_FILE_BYTES {
         return Err(std::io::Error::new(
             std::io::ErrorKind::InvalidData,
@@ -26,6 +27,73 @@ pub fn read_text(path: &Path) -> std::io::Result<String> {
         ));
     }
     Ok(text)
+}
+
+/// A file a run wrote itself, read back (a run's summary, its plots, its journal): up to `max`
+/// bytes, and only if the name is not a symbolic link and holds a regular file this user owns
+/// with no other name (a hard link). An output directory may be writable by another user, who
+/// could plant `DIR/zz.png -> /root/secret` for a report to embed; that is refused here with
+/// the reason, never read.
+pub fn read_own(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let f = open_own(path)?;
+    let len = f.metadata()?.len();
+    if len > max {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "{}: {len} bytes, more than the {max} expected",
+                path.display()
+            ),
+        ));
+    }
+    let mut bytes = Vec::with_capacity(len as usize);
+    f.take(max).read_to_end(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// A file a run wrote itself, opened for reading as `read_own` opens it (for a reader that
+/// wants only part of it: a journal's tail).
+pub fn open_own(path: &Path) -> std::io::Result<std::fs::File> {
+    let f = open_regular(path, libc::O_NOFOLLOW)?;
+    if let Some(why) = crate::output::not_this_runs(&f.metadata()?) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::PermissionDenied,
+            format!("{}: {why}: not a file this run wrote", path.display()),
+        ));
+    }
+    Ok(f)
+}
+
+/// `path` opened for reading if it is a regular file (`extra` flags, e.g. `O_NOFOLLOW`);
+/// `O_NONBLOCK` only for the open, so that a FIFO at the name cannot block it.
+fn open_regular(path: &Path, extra: i32) -> std::io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let f = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(extra | libc::O_NONBLOCK | libc::O_CLOEXEC)
+        .open(path)
+        .map_err(|e| match e.raw_os_error() {
+            Some(libc::ELOOP) => std::io::Error::new(
+                e.kind(),
+                format!(
+                    "{}: a symbolic link (refusing to read through it)",
+                    path.display()
+                ),
+            ),
+            _ => e,
+        })?;
+    if !f.metadata()?.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!(
+                "{}: not a regular file (a FIFO, device or directory)",
+                path.display()
+            ),
+        ));
+    }
+    crate::output::clear_nonblock(&f);
+    Ok(f)
 }
 
 /// What went wrong deserialising a TOML or JSON text: the dotted key (empty at file level), the
@@ -74,6 +142,42 @@ pub fn from_json<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Proble
 
 #[cfg(test)]
 mod tests {
+    use std::os::unix::fs::symlink;
+
+    #[test]
+    fn a_fifo_is_refused_not_waited_on() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("plant.toml");
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: a valid C string.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let e = super::read_text(&fifo).expect_err("refused");
+        assert!(e.to_string().contains("not a regular file"), "{e}");
+        let e = super::read_own(&fifo, 10).expect_err("refused");
+        assert!(e.to_string().contains("not a regular file"), "{e}");
+    }
+
+    #[test]
+    fn a_run_file_is_read_only_if_it_is_no_link_and_has_one_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let own = dir.path().join("response.png");
+        std::fs::write(&own, b"ours").unwrap();
+        assert_eq!(super::read_own(&own, 10).unwrap(), b"ours");
+        let e = super::read_own(&own, 3).expect_err("too long");
+        assert!(e.to_string().contains("more than the 3"), "{e}");
+        let link = dir.path().join("zz.png");
+        symlink(&own, &link).unwrap();
+        let e = super::read_own(&link, 10).expect_err("a link");
+        assert!(e.to_string().contains("symbolic link"), "{e}");
+        let hard = dir.path().join("hard.png");
+        std::fs::hard_link(&own, &hard).unwrap();
+        let e = super::read_own(&hard, 10).expect_err("a hard link");
+        assert!(e.to_string().contains("2 names"), "{e}");
+        // Read through a link, a configuration is still fine.
+        std::fs::remove_file(&hard).unwrap();
+        assert_eq!(super::read_text(&link).unwrap(), "ours");
+    }
+
     #[test]
     fn a_file_cut_short_after_an_equals_sign_gets_a_reason() {
         // Found by tests/fuzz_loaders.rs: toml's own message is empty here.

@@ -120,13 +120,62 @@ pub fn open_in_place(path: &Path) -> io::Result<File> {
             format!("{}: not a regular file", path.display()),
         ));
     }
-    // SAFETY: fcntl on a descriptor we own; clears O_NONBLOCK for the file's later use.
+    clear_nonblock(&f);
+    Ok(f)
+}
+
+/// Open `path` to append to it (a journal the run adds to while it runs), creating it if missing:
+/// never through a symbolic link, and only a regular file this user owns with one name. A link
+/// planted at the name, before or during the run, fails the open with the reason instead of
+/// being written through; hold the `File` for the run, so a name replaced later is not reopened.
+pub fn append(path: &Path) -> io::Result<File> {
+    let f = std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .mode(0o644)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC | libc::O_NONBLOCK)
+        .open(path)
+        .map_err(|e| named(path, "cannot append to", e))?;
+    let why = not_this_runs(&f.metadata()?);
+    if let Some(why) = why {
+        return Err(io::Error::new(
+            io::ErrorKind::PermissionDenied,
+            format!("cannot append to {}: {why}", path.display()),
+        ));
+    }
+    clear_nonblock(&f);
+    Ok(f)
+}
+
+/// Why a file is not one this run can have made itself, if it is not: anything but a regular
+/// file, a file another user owns (planted), or one with a second name (a hard link to a file
+/// the planter could not read).
+pub(crate) fn not_this_runs(meta: &std::fs::Metadata) -> Option<String> {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: geteuid has no preconditions.
+    let me = unsafe { libc::geteuid() };
+    if !meta.is_file() {
+        Some("not a regular file".into())
+    } else if meta.uid() != me {
+        Some(format!(
+            "owned by user {}, not by this run's user {me}",
+            meta.uid()
+        ))
+    } else if meta.nlink() != 1 {
+        Some(format!("it has {} names (a hard link)", meta.nlink()))
+    } else {
+        None
+    }
+}
+
+/// Clear `O_NONBLOCK`, set only so that opening a FIFO could not block, for the file's use.
+pub(crate) fn clear_nonblock(f: &File) {
+    // SAFETY: fcntl on a descriptor we own.
     unsafe {
-        let fd = std::os::unix::io::AsRawFd::as_raw_fd(&f);
+        let fd = std::os::unix::io::AsRawFd::as_raw_fd(f);
         let flags = libc::fcntl(fd, libc::F_GETFL);
         libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK);
     }
-    Ok(f)
 }
 
 /// `e` with the path and what was being done, and the reason in words where the OS's is

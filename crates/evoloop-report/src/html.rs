@@ -71,14 +71,56 @@ fn rows(summary: &Value) -> Vec<(String, String)> {
     out
 }
 
-/// Files of `dir` with extension `ext`, sorted by name.
+/// The figures an `evoloop run` writes, by name, in the order the page shows them. The page
+/// embeds these and nothing else found in the directory: an output directory may be writable
+/// by another user, and a page that inlined any `*.png` would publish whatever a planted link
+/// points at. The launcher removes each at a run's start, so one present is this run's.
+pub const RUN_FIGURES: [&str; 5] = [
+    "direct.png",
+    "identify.png",
+    "indirect.png",
+    "response.png",
+    "tracking.png",
+];
+
+/// The largest figure embedded (the run's plots are a few hundred kB).
+const MAX_FIGURE_BYTES: u64 = 64 << 20;
+
+/// One of `RUN_FIGURES` read back, if it is the run's own (no link, a regular file of this
+/// user with one name) and a PNG; `Ok(None)` if the run did not write it.
+fn figure(dir: &Path, n: &str) -> Result<Option<Vec<u8>>, String> {
+    let p = dir.join(n);
+    match evoloop_files::read_own(&p, MAX_FIGURE_BYTES) {
+        Ok(bytes) if bytes.starts_with(b"\x89PNG\r\n\x1a\n") => Ok(Some(bytes)),
+        Ok(_) => Err(format!("{}: not a PNG image", p.display())),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A JSON file the run wrote, read as `figure` reads (never through a link).
+fn run_json(dir: &Path, n: &str) -> Result<Value, String> {
+    let p = dir.join(n);
+    let bytes = evoloop_files::read_own(&p, evoloop_files::MAX_FILE_BYTES).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::NotFound {
+            format!("{}: {e}", p.display())
+        } else {
+            e.to_string()
+        }
+    })?;
+    serde_json::from_slice(&bytes).map_err(|e| format!("{}: {e}", p.display()))
+}
+
+/// Data files of `dir` with extension `ext`, sorted by name, listed as links (never read): only
+/// regular files, not a link planted among them.
 fn files(dir: &Path, ext: &str) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()
         .flatten()
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
         .map(|e| e.path())
-        .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == ext))
+        .filter(|p| p.extension().is_some_and(|e| e == ext))
         .collect();
     v.sort();
     v
@@ -93,13 +135,8 @@ fn name(p: &Path) -> String {
 /// Write `dir/report.html` from the run's `summary.json`, `scenario.json` and plots; returns
 /// its path. Err names the file that is missing or unreadable.
 pub fn write(dir: &Path) -> Result<PathBuf, String> {
-    let read = |n: &str| -> Result<Value, String> {
-        let p = dir.join(n);
-        let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
-        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))
-    };
-    let summary = read("summary.json")?;
-    let scenario = read("scenario.json").ok();
+    let summary = run_json(dir, "summary.json")?;
+    let scenario = run_json(dir, "scenario.json").ok();
     let get = |k: &str| summary.get(k).and_then(scalar).unwrap_or_default();
     let title = format!("evoloop run: {}", get("scenario"));
     let mut h = String::new();
@@ -126,19 +163,27 @@ pub fn write(dir: &Path) -> Result<PathBuf, String> {
         esc(&get("samples")),
         esc(&get("wall_s")),
     );
-    let pngs = files(dir, "png");
     h.push_str("<h2>Figures</h2>\n");
-    if pngs.is_empty() {
-        h.push_str("<p>No plots (the run had <code>output.plots = false</code>).</p>\n");
-    }
-    for p in &pngs {
-        let bytes = std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?;
+    let mut shown = 0;
+    for n in RUN_FIGURES {
+        let bytes = match figure(dir, n) {
+            Ok(Some(bytes)) => bytes,
+            Ok(None) => continue,
+            Err(e) => {
+                let _ = writeln!(h, "<p>Not shown: {} (refused).</p>", esc(&e));
+                continue;
+            }
+        };
+        shown += 1;
         let b64 = base64::engine::general_purpose::STANDARD.encode(bytes);
-        let n = esc(&name(p));
+        let n = esc(n);
         let _ = writeln!(
             h,
             "<figure><img src=\"data:image/png;base64,{b64}\" alt=\"{n}\"><figcaption>{n}</figcaption></figure>"
         );
+    }
+    if shown == 0 {
+        h.push_str("<p>No plots (the run had <code>output.plots = false</code>).</p>\n");
     }
     h.push_str("<h2>Summary</h2>\n<table>\n<tr><th>key (summary.json)</th><th>value</th></tr>\n");
     for (k, v) in rows(&summary) {
@@ -152,7 +197,7 @@ pub fn write(dir: &Path) -> Result<PathBuf, String> {
     h.push_str("</table>\n<h2>Data files</h2>\n<ul>\n");
     for ext in ["csv", "json", "jsonl"] {
         for p in files(dir, ext) {
-            let size = std::fs::metadata(&p).map(|m| m.len()).unwrap_or(0);
+            let size = std::fs::symlink_metadata(&p).map_or(0, |m| m.len());
             let n = esc(&name(&p));
             let _ = writeln!(h, "<li><a href=\"{n}\">{n}</a> ({size} bytes)</li>");
         }
