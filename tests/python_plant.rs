@@ -143,13 +143,13 @@ fn run_script_plant(
     dir: &Path,
     script: &str,
     text: &str,
-    replace: Option<(&str, &str)>,
+    replace: &[(&str, &str)],
 ) -> (std::process::Output, std::path::PathBuf, String) {
     common::write(dir, script, text);
     let mut scenario = std::fs::read_to_string(common::config("external_motor.toml"))
         .unwrap()
         .replace("plants/motor_plant.py", script);
-    if let Some((from, to)) = replace {
+    for (from, to) in replace {
         scenario = scenario.replace(from, to);
     }
     let config = common::write(dir, "scenario.toml", &scenario);
@@ -204,7 +204,7 @@ fn a_python_plant_that_stalls_then_dies_fails_the_run_with_its_report_and_no_orp
         dir.path(),
         "stalling.py",
         STALLING,
-        Some(("states = 2 ", "states = 1 ")),
+        &[("states = 2 ", "states = 1 ")],
     );
     let said = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{said}");
@@ -295,7 +295,7 @@ evoloop_plant.run(P())
 #[ignore = "needs Python 3 with the evoloop_plant package's deps: pip install ./python"]
 fn a_plant_on_another_contract_version_fails_the_run_with_the_reason() {
     let dir = tempfile::tempdir().unwrap();
-    let (o, out, _) = run_script_plant(dir.path(), "v2.py", V2, None);
+    let (o, out, _) = run_script_plant(dir.path(), "v2.py", V2, &[]);
     let said = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{said}");
     // Whichever process opens a service second is refused it: the plant, with the package's
@@ -305,4 +305,103 @@ fn a_plant_on_another_contract_version_fails_the_run_with_the_reason() {
         "{said}"
     );
     assert_eq!(common::json(&out.join("summary.json"))["outcome"], "failed");
+}
+
+/// A Python plant whose samples break time from sample 300 on, as the third hostile probe sent
+/// them: `BAD` says how (one stamp of 0; every seq from then on 10^6 further; one seq back).
+const TIME_BREAKING: &str = r#"
+import os, sys
+sys.path.insert(0, os.environ["EVOLOOP_PACKAGE_DIR"])
+import evoloop_plant
+
+BAD = "@BAD@"
+sample = evoloop_plant._Runner.sample
+
+def bad_sample(self, seq, u_applied, flags=0):
+    m = sample(self, seq, u_applied, flags)
+    if BAD == "stamp" and seq == 300:
+        m.stamp_ns = 0
+    if BAD == "jump" and seq >= 300:
+        m.seq = seq + 10**6
+    if BAD == "back" and seq == 300:
+        m.seq = 100
+    return m
+
+evoloop_plant._Runner.sample = bad_sample
+
+class Integrator(evoloop_plant.Plant):
+    def reset(self):
+        self.x = 0.0
+        return [self.x]
+    def step(self, u, dt):
+        self.x += dt * (u[0] - self.x)
+        return [self.x]
+
+evoloop_plant.run(Integrator())
+"#;
+
+/// A realtime run of `TIME_BREAKING` with `bad`, 2 s: the launcher's output and the summary.
+fn run_time_breaking(bad: &str) -> (std::process::Output, serde_json::Value) {
+    let dir = tempfile::tempdir().unwrap();
+    let (o, out, _) = run_script_plant(
+        dir.path(),
+        "bad_time.py",
+        &TIME_BREAKING.replace("@BAD@", bad),
+        &[
+            ("states = 2 ", "states = 1 "),
+            ("mode = \"lockstep\"", "mode = \"realtime\""),
+            ("duration = 6.0", "duration = 2.0"),
+            ("measure_floor = true", "measure_floor = false"),
+        ],
+    );
+    (o, common::json(&out.join("summary.json")))
+}
+
+/// One sample whose stamp is 0 (or whose seq goes back) is refused and counted, and the loop
+/// keeps its period from the next good sample: the run is ok. A plant whose seq jumps by 10^6
+/// and stays there has every later sample refused: the run goes to its end, says it is
+/// degraded and why, and exits 1, where it said "ok" with 1 902 of 2 000 deadlines missed.
+#[test]
+#[ignore = "needs Python 3 with the evoloop_plant package's deps: pip install ./python"]
+fn a_python_plant_whose_samples_break_time_has_them_refused_and_a_run_that_was_not_controlled_fails(
+) {
+    for bad in ["stamp", "back"] {
+        let (o, s) = run_time_breaking(bad);
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(s["refused_states"], 1, "{bad}: {s}\n{said}");
+        let first = s["first_refused_state"]["fault"]["time"].to_string();
+        let want = if bad == "stamp" {
+            "stamp_behind"
+        } else {
+            "seq_not_after"
+        };
+        assert!(first.contains(want), "{bad}: {first}");
+        let (samples, missed) = (
+            s["samples"].as_u64().unwrap(),
+            s["deadline_misses"].as_u64().unwrap(),
+        );
+        // The loop went on at its period after the bad sample (before: 98 samples handled).
+        assert!(
+            samples > 1000,
+            "{bad}: {samples} samples, {missed} missed\n{said}"
+        );
+        assert_eq!(s["outcome"], "ok", "{bad}: {s}\n{said}");
+        assert!(o.status.success(), "{bad}: {said}");
+    }
+    let (o, s) = run_time_breaking("jump");
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(s["outcome"], "degraded", "{s}\n{said}");
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(s["refused_states"].as_u64().unwrap() > 1000, "{s}");
+    assert!(
+        s["degraded"][0]
+            .as_str()
+            .unwrap()
+            .contains("refused sample"),
+        "{s}"
+    );
+    assert!(
+        said.contains("the loop did not control the plant"),
+        "{said}"
+    );
 }

@@ -13,6 +13,7 @@ use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
 use crate::control::cycle::{ControlCycle, ParamEvent};
 use crate::control::model_check::ModelCheck;
+use crate::control::state_check::{SampleTime, StateFault};
 use crate::ipc::{IpcError, Pub, Sub, Topic, Waited};
 use crate::msg::{
     Command, ModelEstimate, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
@@ -565,11 +566,11 @@ fn plant_clock(stamp_ns: u64, now_ns: u64, period_ns: u64) -> Result<(), String>
     ))
 }
 
-/// When sample 0 would have been taken, as `s` tells it: its stamp less `seq` periods. The
-/// numbers come from another process (any language), so neither the product nor the difference
-/// may wrap: a seq past the run's length gives epoch 0, a loop that is simply late.
-fn plant_epoch(s: &PlantState, period_ns: u64) -> u64 {
-    s.stamp_ns.saturating_sub(s.seq.saturating_mul(period_ns))
+/// How far a sample's period may seem to begin before the first sample's: the first sample's
+/// wake-up latency, up to the age at which a state is stale, and at least 2 ms (a loaded
+/// machine's wake-up).
+fn time_allowance_ns(scn: &Scenario) -> u64 {
+    (scn.controller.stale_after_periods as u64 * scn.period_ns()).max(2_000_000)
 }
 
 fn run_realtime(
@@ -587,7 +588,7 @@ fn run_realtime(
     // sample's stamp is its tick plus the plant's wake-up latency, so the earliest
     // stamp - seq * period seen so far is the best estimate of the plant's epoch.
     plant_clock(state.stamp_ns, now_ns(), period).map_err(Failure::Failed)?;
-    let mut epoch = plant_epoch(&state, period);
+    let mut clock = SampleTime::new(&state, period, time_allowance_ns(scn));
     let phase = (scn.timing.phase * period as f64) as u64;
     let n = scn.cycles();
     let mut k = state.seq;
@@ -597,7 +598,7 @@ fn run_realtime(
         if stop.load(Ordering::Relaxed) {
             return Ok(());
         }
-        let deadline = epoch + k * period + phase;
+        let deadline = clock.epoch() + k * period + phase;
         scn.timing.wait.wait_until(deadline);
         let woke = now_ns();
         let lateness = woke as i64 - deadline as i64;
@@ -615,10 +616,12 @@ fn run_realtime(
             }
         }
         match ports.state.latest() {
-            Ok(Some(s)) => {
-                state = s;
-                epoch = epoch.min(plant_epoch(&s, period));
-            }
+            // A sample that breaks time is refused and counted like one whose values are not
+            // finite; the cycle runs on the last good sample, as when none came.
+            Ok(Some(s)) => match clock.judge(&s, now_ns()) {
+                Ok(()) => state = s,
+                Err(fault) => lp.cycle.refused.note(s.seq, StateFault::Time(fault)),
+            },
             Ok(None) => {}
             Err(e) => return Err(Failure::Setup(e.to_string())),
         }
@@ -728,17 +731,5 @@ mod clock_tests {
         let e = plant_clock(0, now, ms).unwrap_err();
         assert!(e.contains("5000.000 s behind"), "{e}");
         assert!(plant_clock(now + 1, now, ms).is_err());
-    }
-
-    #[test]
-    fn a_foreign_sequence_number_does_not_wrap_the_epoch() {
-        let s = |seq, stamp_ns| crate::msg::PlantState {
-            seq,
-            stamp_ns,
-            ..Default::default()
-        };
-        assert_eq!(super::plant_epoch(&s(3, 10_000), 1_000), 7_000);
-        assert_eq!(super::plant_epoch(&s(u64::MAX, 10_000), 1_000), 0);
-        assert_eq!(super::plant_epoch(&s(20, 10_000), 1_000), 0);
     }
 }

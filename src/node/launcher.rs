@@ -962,8 +962,11 @@ fn report(
                 Ok(p) => out!("  open {} (the whole report in one page)", p.display()),
                 Err(e) => err!("evoloop: warning: report.html: {e}"),
             }
+            for why in &s.degraded {
+                err!("error: the loop did not control the plant: {why}");
+            }
             if s.write_errors.is_empty() {
-                return None;
+                return (!s.degraded.is_empty()).then(|| ExitCode::from(1));
             }
             // The report covers what was written; the run is not whole.
             for e in &s.write_errors {

@@ -514,6 +514,33 @@ fn direct_summary(d: &crate::direct::DirectReport) -> DirectSummary {
     }
 }
 
+/// Why the loop did not control the plant for most of the run, if it did not: more than half
+/// of its cycles on a refused sample (a NaN, a wrong count, a sample that broke time), or more
+/// periods missed than cycles run. A run can then go to its end and still have done nothing a
+/// user asked for, which an exit status of 0 would hide.
+fn degraded(ctrl: &ControllerReport) -> Vec<String> {
+    let cycles = ctrl.cycles;
+    let refused = &ctrl.refused_states;
+    let missed = ctrl.timing.missed_deadlines;
+    let mut why = Vec::new();
+    if refused.count > 0 && 2 * refused.count > cycles {
+        let first = refused
+            .first
+            .map(|f| format!(" (the first at seq {}: {})", f.seq, f.fault))
+            .unwrap_or_default();
+        why.push(format!(
+            "{} of the loop's {cycles} cycles had a refused sample{first}",
+            refused.count
+        ));
+    }
+    if missed > 0 && missed > cycles {
+        why.push(format!(
+            "the loop missed {missed} deadlines and ran {cycles} cycles: it did not keep its period"
+        ));
+    }
+    why
+}
+
 /// The messages of what could not be written (a full disk): the run is then incomplete.
 fn write_errors(ctrl: &ControllerReport, opt: &OptimiserReport) -> Vec<String> {
     ctrl.log_error
@@ -659,12 +686,15 @@ fn processes_summary(s: &mut Summary, inputs: &Inputs, cleaned: usize, optimiser
     s.optimiser_restarts = optimiser.restarts;
     s.optimiser_lost = optimiser.lost;
     s.write_errors = write_errors(ctrl, opt);
+    s.degraded = degraded(ctrl);
     s.optimiser_stalls = plant.optimiser_stalls.clone();
     s.optimiser_resumed = plant.optimiser_resumed;
     s.outcome = if !s.write_errors.is_empty() {
         Outcome::Incomplete
     } else if s.interrupted && !s.until_stopped {
         Outcome::Interrupted
+    } else if !s.degraded.is_empty() {
+        Outcome::Degraded
     } else if optimiser.lost {
         Outcome::TunerLost
     } else {

@@ -352,6 +352,11 @@ pub struct Summary {
     /// error are lost, and the outcome is "incomplete".
     #[serde(default)]
     pub write_errors: Vec<String>,
+    /// Why the loop did not control the plant for most of the run (most of its samples
+    /// refused, most of its deadlines missed): the outcome is then "degraded" and the exit
+    /// status 1, though the run went to its end.
+    #[serde(default)]
+    pub degraded: Vec<String>,
     /// The optimiser died once more after its last restart: the loop ran on with the set in
     /// service, untuned (outcome "tuner_lost").
     #[serde(default)]
@@ -412,6 +417,7 @@ mod outcome_tests {
             (Outcome::Failed, "failed"),
             (Outcome::Incomplete, "incomplete"),
             (Outcome::TunerLost, "tuner_lost"),
+            (Outcome::Degraded, "degraded"),
         ] {
             let json = serde_json::to_string(&o).unwrap();
             assert_eq!(json, format!("\"{text}\""));

@@ -36,6 +36,9 @@ pub enum Outcome {
     Incomplete,
     /// The loop ran to its end with its set in service, the optimiser lost on the way.
     TunerLost,
+    /// The run went to its end but its loop did not control the plant for most of it (most
+    /// samples refused, most deadlines missed); `degraded` in the summary says why.
+    Degraded,
 }
 
 /// Print `value` as pretty JSON on stdout (for `--json`), ignoring a closed pipe.

@@ -29,6 +29,28 @@ pub enum StateFault {
     },
     /// A value is NaN or infinite (`field[index]`; index 0 for `t`).
     NonFinite { field: Field, index: u32 },
+    /// The sample breaks time (realtime): its stamp or sequence number cannot follow the last
+    /// good sample's.
+    Time(TimeFault),
+}
+
+/// How a sample breaks time. The plant contract's `stamp_ns` is CLOCK_MONOTONIC of this
+/// machine at the sample and `seq` counts the plant's periods; the realtime loop schedules its
+/// cycles on them, so one bad pair (a stamp of 0, a seq jumping by 10^6, a plant ticking ten
+/// times too fast) would otherwise move every later deadline.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeFault {
+    /// `seq` is not after the last good sample's `last`.
+    SeqNotAfter { seq: u64, last: u64 },
+    /// `stamp_ns` is `by_ns` before the last good sample's.
+    StampBehind { by_ns: u64 },
+    /// `stamp_ns` is `by_ns` ahead of this machine's clock.
+    StampAhead { by_ns: u64 },
+    /// `seq` is further on than the time since the first sample allows: its period would have
+    /// begun `by_ns` before the plant's first period did (a jump, or a plant ticking faster
+    /// than the period).
+    SeqAhead { by_ns: u64 },
 }
 
 /// A field of `PlantState`.
@@ -75,8 +97,109 @@ impl std::fmt::Display for StateFault {
             StateFault::NonFinite { field, index } => {
                 write!(f, "{}[{index}] is not a finite number", field.name())
             }
+            StateFault::Time(t) => write!(f, "{t}"),
         }
     }
+}
+
+impl std::fmt::Display for TimeFault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let ms = |ns: &u64| *ns as f64 * 1e-6;
+        match self {
+            TimeFault::SeqNotAfter { seq, last } => {
+                write!(f, "seq {seq} is not after the last good sample's {last}")
+            }
+            TimeFault::StampBehind { by_ns } => write!(
+                f,
+                "stamp_ns is {:.3} ms before the last good sample's",
+                ms(by_ns)
+            ),
+            TimeFault::StampAhead { by_ns } => write!(
+                f,
+                "stamp_ns is {:.3} ms ahead of this machine's CLOCK_MONOTONIC",
+                ms(by_ns)
+            ),
+            TimeFault::SeqAhead { by_ns } => write!(
+                f,
+                "seq is {:.3} ms of periods further on than its stamp allows",
+                ms(by_ns)
+            ),
+        }
+    }
+}
+
+/// The plant's sample clock as the realtime loop follows it: when sample 0 was due (`epoch`),
+/// and whether each new sample keeps time with the good ones before it. Allocation-free.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SampleTime {
+    period_ns: u64,
+    /// How far a sample's period may seem to begin before the first sample's (the first
+    /// sample's own wake-up latency, which the estimate then sheds).
+    allowance_ns: u64,
+    /// `first`'s epoch: no good sample's period begins more than `allowance_ns` before it.
+    anchor: u64,
+    epoch: u64,
+    last_seq: u64,
+    last_stamp: u64,
+}
+
+impl SampleTime {
+    /// Following `first`, a sample already judged against this machine's clock.
+    pub fn new(first: &PlantState, period_ns: u64, allowance_ns: u64) -> SampleTime {
+        let anchor = plant_epoch(first, period_ns);
+        SampleTime {
+            period_ns,
+            allowance_ns,
+            anchor,
+            epoch: anchor,
+            last_seq: first.seq,
+            last_stamp: first.stamp_ns,
+        }
+    }
+
+    /// When sample 0 was taken, as the good samples tell it: a sample's stamp is its tick plus
+    /// the plant's wake-up latency, so the earliest `stamp - seq * period` is the best estimate.
+    pub fn epoch(&self) -> u64 {
+        self.epoch
+    }
+
+    /// Whether `s`, read at `now_ns`, keeps time with the good samples before it; if it does,
+    /// it is the last good sample from now on.
+    pub fn judge(&mut self, s: &PlantState, now_ns: u64) -> Result<(), TimeFault> {
+        if s.seq <= self.last_seq {
+            return Err(TimeFault::SeqNotAfter {
+                seq: s.seq,
+                last: self.last_seq,
+            });
+        }
+        if s.stamp_ns < self.last_stamp {
+            return Err(TimeFault::StampBehind {
+                by_ns: self.last_stamp - s.stamp_ns,
+            });
+        }
+        if s.stamp_ns > now_ns.saturating_add(self.allowance_ns) {
+            return Err(TimeFault::StampAhead {
+                by_ns: s.stamp_ns - now_ns,
+            });
+        }
+        let epoch = plant_epoch(s, self.period_ns);
+        if epoch < self.anchor.saturating_sub(self.allowance_ns) {
+            return Err(TimeFault::SeqAhead {
+                by_ns: self.anchor - epoch,
+            });
+        }
+        self.epoch = self.epoch.min(epoch);
+        self.last_seq = s.seq;
+        self.last_stamp = s.stamp_ns;
+        Ok(())
+    }
+}
+
+/// When sample 0 would have been taken, as `s` tells it: its stamp less `seq` periods. The
+/// numbers come from another process (any language), so neither the product nor the difference
+/// may wrap.
+fn plant_epoch(s: &PlantState, period_ns: u64) -> u64 {
+    s.stamp_ns.saturating_sub(s.seq.saturating_mul(period_ns))
 }
 
 impl StateCheck {
@@ -183,5 +306,88 @@ mod tests {
         s.y[1] = f64::NAN;
         s.x_true[4] = f64::NAN;
         assert_eq!(check().judge(&s), Ok(()));
+    }
+
+    fn sample(seq: u64, stamp_ns: u64) -> PlantState {
+        PlantState {
+            seq,
+            stamp_ns,
+            ..PlantState::default()
+        }
+    }
+
+    /// The third hostile probe's samples: a stamp of 0, a seq jump of 10^6, a seq going back,
+    /// a stamp ahead of the clock, a plant ticking ten times faster than the period; each is
+    /// refused and the estimate of when sample 0 was due does not move, while good samples
+    /// (late ones too) go on being taken.
+    #[test]
+    fn a_sample_that_breaks_time_is_refused_and_moves_nothing() {
+        let ms = 1_000_000;
+        let t0 = 1_000_000 * ms;
+        // The first sample woke 0.4 ms late.
+        let mut c = SampleTime::new(&sample(0, t0 + 400_000), ms, 3 * ms);
+        assert_eq!(c.epoch(), t0 + 400_000);
+        assert_eq!(c.judge(&sample(1, t0 + ms + 10_000), t0 + 2 * ms), Ok(()));
+        assert_eq!(
+            c.epoch(),
+            t0 + 10_000,
+            "the estimate sheds the first sample's latency"
+        );
+        // Late, and skipping two samples: still good.
+        assert_eq!(
+            c.judge(&sample(4, t0 + 4 * ms + 900_000), t0 + 5 * ms),
+            Ok(())
+        );
+        let now = t0 + 6 * ms;
+        let bad = [
+            (sample(5, 0), "stamp 0"),
+            (sample(1_000_005, t0 + 5 * ms), "seq + 10^6"),
+            (sample(3, t0 + 5 * ms), "seq back"),
+            (sample(4, t0 + 5 * ms), "seq repeated"),
+            (sample(5, now + 10 * ms), "stamp ahead of the clock"),
+        ];
+        for (s, what) in bad {
+            assert!(c.judge(&s, now).is_err(), "{what}");
+            assert_eq!(c.epoch(), t0 + 10_000, "{what}");
+        }
+        assert!(matches!(
+            c.judge(&sample(0, 0), now),
+            Err(TimeFault::SeqNotAfter { .. })
+        ));
+        assert!(matches!(
+            c.judge(&sample(5, 0), now),
+            Err(TimeFault::StampBehind { .. })
+        ));
+        assert!(matches!(
+            c.judge(&sample(5, now + 10 * ms), now),
+            Err(TimeFault::StampAhead { .. })
+        ));
+        assert!(matches!(
+            c.judge(&sample(1_000_005, t0 + 5 * ms), now),
+            Err(TimeFault::SeqAhead { .. })
+        ));
+        // A plant ticking every 0.1 ms: taken while within the allowance, then refused, and
+        // the estimate never moves more than the allowance.
+        let mut refused = 0;
+        for i in 1..=100u64 {
+            let stamp = t0 + 5 * ms + i * ms / 10;
+            if c.judge(&sample(4 + i, stamp), stamp).is_err() {
+                refused += 1;
+            }
+            assert!(c.epoch() + 3 * ms >= t0 + 400_000);
+        }
+        assert!(refused > 90, "{refused}");
+        // A good sample after them is taken.
+        assert_eq!(
+            c.judge(&sample(200, t0 + 200 * ms + 5_000), t0 + 201 * ms),
+            Ok(())
+        );
+    }
+
+    #[test]
+    fn a_foreign_sequence_number_does_not_wrap_the_epoch() {
+        assert_eq!(plant_epoch(&sample(3, 10_000), 1_000), 7_000);
+        assert_eq!(plant_epoch(&sample(u64::MAX, 10_000), 1_000), 0);
+        assert_eq!(plant_epoch(&sample(20, 10_000), 1_000), 0);
     }
 }
