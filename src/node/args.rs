@@ -207,21 +207,42 @@ impl OverrideArgs {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Seeds(pub Vec<u64>);
 
-/// `A..B` (inclusive) or a comma-separated list of seeds.
+/// The most seeds a study takes.
+const MAX_SEEDS: u64 = 1000;
+
+/// `A..B` (inclusive) or a comma-separated list of seeds: 2 to `MAX_SEEDS` different ones. The
+/// count is checked before anything is built (`0..18446744073709551615` asked for 2^64 seeds).
 pub fn parse_seeds(s: &str) -> Result<Seeds, String> {
+    let too_many = |n: String| format!("give 2 to {MAX_SEEDS} seeds, e.g. 1..20 (got {n})");
     let seeds: Vec<u64> = if let Some((a, b)) = s.split_once("..") {
         let a: u64 = a.trim().parse().map_err(|e| format!("`{a}`: {e}"))?;
         let b: u64 = b.trim().parse().map_err(|e| format!("`{b}`: {e}"))?;
-        (a..=b).collect()
+        if b < a {
+            return Err(format!("{a}..{b} is empty: give A..B with A <= B, e.g. 1..20"));
+        }
+        match (b - a).checked_add(1) {
+            Some(n) if n <= MAX_SEEDS => (a..=b).collect(),
+            Some(n) => return Err(too_many(n.to_string())),
+            None => return Err(too_many("2^64".into())),
+        }
     } else {
+        let n = s.split(',').count() as u64;
+        if n > MAX_SEEDS {
+            return Err(too_many(n.to_string()));
+        }
         s.split(',')
             .map(|x| x.trim().parse().map_err(|e| format!("`{x}`: {e}")))
             .collect::<Result<_, _>>()?
     };
-    if seeds.len() < 2 || seeds.len() > 1000 {
+    if seeds.len() < 2 {
+        return Err(too_many(seeds.len().to_string()));
+    }
+    let mut sorted = seeds.clone();
+    sorted.sort_unstable();
+    if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
         return Err(format!(
-            "give 2 to 1000 seeds, e.g. 1..20 (got {})",
-            seeds.len()
+            "seed {} is given twice: a study's seeds are its independent samples",
+            w[0]
         ));
     }
     Ok(Seeds(seeds))

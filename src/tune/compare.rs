@@ -77,6 +77,15 @@ pub fn run(
     seeds: &[u64],
     a: &super::TuneRequest,
 ) -> Result<(), String> {
+    let mut named = algorithms.iter().enumerate();
+    if let Some((_, dup)) = named.find(|(i, a)| algorithms[..*i].contains(a)) {
+        return Err(format!(
+            "--compare: `{dup}` is named twice: each optimiser is compared once, against the others"
+        ));
+    }
+    if algorithms.len() < 2 {
+        return Err("--compare: name two optimisers or more, the GA among them".into());
+    }
     if !algorithms.iter().any(|a| a == REFERENCE) {
         return Err(format!(
             "--compare: the GA is the yardstick (experiments to within 1 % of its final cost): include `{REFERENCE}`"
