@@ -73,7 +73,10 @@ fn a_fifo_as_a_model_file_is_refused_not_waited_on() {
         }
     };
     let text: Vec<String> = text.lines().map(with_fifo).collect();
-    assert!(text.iter().any(|l| l.contains("pendulum.json")), "no plant.lti.file");
+    assert!(
+        text.iter().any(|l| l.contains("pendulum.json")),
+        "no plant.lti.file"
+    );
     std::fs::write(&cfg, text.join("\n")).unwrap();
     let mut child = Command::new(evoloop())
         .args(["check", cfg.to_str().unwrap()])
@@ -114,7 +117,14 @@ fn a_seed_range_is_counted_before_it_is_built() {
 /// `--compare ga,ga` compared the GA with itself (issue 63, item 8): refused with the reason.
 #[test]
 fn an_optimiser_named_twice_in_a_comparison_is_refused() {
-    let o = cli(&["tune", "config/maglev_direct.toml", "--compare", "ga,ga", "--seeds", "1..2"]);
+    let o = cli(&[
+        "tune",
+        "config/maglev_direct.toml",
+        "--compare",
+        "ga,ga",
+        "--seeds",
+        "1..2",
+    ]);
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{e}");
     assert!(e.contains("`ga` is named twice"), "{e}");

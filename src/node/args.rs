@@ -218,7 +218,9 @@ pub fn parse_seeds(s: &str) -> Result<Seeds, String> {
         let a: u64 = a.trim().parse().map_err(|e| format!("`{a}`: {e}"))?;
         let b: u64 = b.trim().parse().map_err(|e| format!("`{b}`: {e}"))?;
         if b < a {
-            return Err(format!("{a}..{b} is empty: give A..B with A <= B, e.g. 1..20"));
+            return Err(format!(
+                "{a}..{b} is empty: give A..B with A <= B, e.g. 1..20"
+            ));
         }
         match (b - a).checked_add(1) {
             Some(n) if n <= MAX_SEEDS => (a..=b).collect(),

@@ -92,8 +92,16 @@ impl ResponseAcc {
         }
     }
 
+    /// A sample that is not finite (a state the controller refused: its NaN is in run.csv as
+    /// it came) is left out of the integrals and the settling, which would all be NaN; the
+    /// refusals are counted in the summary.
     pub fn add(&mut self, t: f64, r: f64, y: f64) {
         let e = r - y;
+        if !e.is_finite() {
+            self.r_prev = if r.is_finite() { r } else { self.r_prev };
+            self.i += 1;
+            return;
+        }
         let m = &mut self.m;
         m.iae += e.abs() * self.dt;
         m.ise += e * e * self.dt;
@@ -198,7 +206,12 @@ impl TrackingAcc {
         }
     }
 
+    /// A sample with an error that is not finite (a refused state) is left out, as by
+    /// `ResponseAcc::add`.
     pub fn add(&mut self, e: &[f64]) {
+        if e.iter().any(|e| !e.is_finite()) {
+            return;
+        }
         for ((s, m), e) in self.sum.iter_mut().zip(&mut self.max).zip(e) {
             *s += e * e;
             *m = m.max(e.abs());
@@ -248,5 +261,22 @@ mod tests {
         let (t, r, y) = ([0.0, 0.001, 0.002], [1.0; 3], [0.5, 1.1, 1.0]);
         let m = response_metrics(&t, &r, &y, 0.001, 0.0);
         assert!((m.overshoot_pct - 10.0).abs() < 1e-9, "{}", m.overshoot_pct);
+    }
+
+    /// A refused state's NaN in run.csv made the summary print "IAE NaN" (issue 63, item 8):
+    /// the sample is left out, and the figures are the other samples'.
+    #[test]
+    fn a_sample_that_is_not_finite_is_left_out_not_nan() {
+        let (t, r) = ([0.0, 0.001, 0.002, 0.003], [1.0; 4]);
+        let with_nan = response_metrics(&t, &r, &[0.5, f64::NAN, 1.0, 1.0], 0.001, 0.0);
+        let without = response_metrics(&t[..3], &r[..3], &[0.5, 1.0, 1.0], 0.001, 0.0);
+        assert_eq!(with_nan.iae, without.iae);
+        assert_eq!(with_nan.ise, without.ise);
+        assert!(with_nan.settling_time_s.is_some_and(f64::is_finite));
+        let mut acc = TrackingAcc::new(2);
+        acc.add(&[0.1, 0.2]);
+        acc.add(&[f64::NAN, 0.2]);
+        assert_eq!(acc.samples(), 1);
+        assert!(acc.finish().rms_all.is_finite());
     }
 }

@@ -764,6 +764,12 @@ fn transfer_function(num: Option<&[f64]>, den: Option<&[f64]>, src: &Source) -> 
     if den.len() < 2 {
         return src.fail("den", "needs degree >= 1 (a leading coefficient that is not 0 and at least one more)");
     }
+    if num.is_empty() {
+        return src.fail(
+            "num",
+            "is zero (or empty): the plant's output would be 0 whatever the input, nothing to control",
+        );
+    }
     if num.len() > den.len() {
         return src.fail(
             "num",
@@ -975,6 +981,12 @@ mod tests {
         let e = parse("num = [1.0, 2.0, 3.0]\nden = [1.0, 1.0]", 0.01).unwrap_err();
         assert_eq!(e.key, "plant.lti.num");
         assert!(e.reason.contains("improper"), "{}", e.reason);
+        // An empty or zero numerator is a plant whose output never moves (issue 63, item 8).
+        for num in ["[]", "[0.0, 0.0]"] {
+            let e = parse(&format!("num = {num}\nden = [1.0, 1.0]"), 0.01).unwrap_err();
+            assert_eq!(e.key, "plant.lti.num");
+            assert!(e.reason.contains("nothing to control"), "{}", e.reason);
+        }
         let e = parse("num = [1.0]\nden = [1.0, 1.0]\ninput_delay = 0.015", 0.01).unwrap_err();
         assert_eq!(e.key, "plant.lti.input_delay");
         let e = parse("num = [1.0]\nden = [1.0, 1.0]\ndt = 0.02", 0.01).unwrap_err();
