@@ -272,6 +272,71 @@ fn a_plant_program_that_cannot_start_is_refused_by_evoloop_check() {
     }
 }
 
+/// A plant program named relative to the scenario (`command = ["plants/m.sh"]` in
+/// `DIR/m.toml`) starts whether the scenario is given by a relative or an absolute path, with a
+/// space in it, and through a symbolic link (issue 63, item 4: "config/plants/m.py: No such
+/// file or directory" from a relative scenario path, though `evoloop check` accepted it). The
+/// program here only says where it ran and exits 3, which the run reports as the plant's exit.
+#[test]
+fn a_plant_program_relative_to_the_scenario_starts_from_any_scenario_path() {
+    use std::os::unix::fs::PermissionsExt;
+    let tmp = tempfile::tempdir().unwrap();
+    let scenarios = tmp.path().join("my scenarios");
+    std::fs::create_dir_all(scenarios.join("plants")).unwrap();
+    std::fs::create_dir_all(tmp.path().join("real plants")).unwrap();
+    let program = tmp.path().join("real plants/m.sh");
+    std::fs::write(&program, "#!/bin/sh\npwd > started\nexit 3\n").unwrap();
+    std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
+    std::os::unix::fs::symlink(&program, scenarios.join("plants/m.sh")).unwrap();
+    let text = std::fs::read_to_string(common::config("external_motor.toml"))
+        .unwrap()
+        .replace(
+            r#"command = ["python3", "plants/motor_plant.py"]"#,
+            r#"command = ["plants/m.sh"]"#,
+        );
+    common::write(&scenarios, "m.toml", &text);
+    let relative = "my scenarios/m.toml".to_string();
+    let absolute = scenarios.join("m.toml").to_str().unwrap().to_string();
+    for scenario in [relative, absolute] {
+        let started = scenarios.join("started");
+        let _ = std::fs::remove_file(&started);
+        let run = |args: &[&str]| {
+            Process::new(common::evoloop())
+                .current_dir(tmp.path())
+                .args(args)
+                .output()
+                .unwrap()
+        };
+        let o = run(&["check", &scenario]);
+        assert!(
+            o.status.success(),
+            "{scenario}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let out = tmp.path().join("out");
+        let (_, run_id) = common::unique("relplant");
+        let o = run(&[
+            "run",
+            &scenario,
+            "--out",
+            out.to_str().unwrap(),
+            "--run-id",
+            &run_id,
+            "--quiet",
+        ]);
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert!(!said.contains("No such file"), "{scenario}: {said}");
+        assert!(said.contains("exit status: 3"), "{scenario}: {said}");
+        // It ran in the scenario's directory, as the contract says.
+        let pwd = std::fs::read_to_string(&started).unwrap();
+        assert_eq!(
+            Path::new(pwd.trim()),
+            scenarios.canonicalize().unwrap(),
+            "{scenario}"
+        );
+    }
+}
+
 /// A plant that speaks contract v2.
 const V2: &str = r#"
 import os, sys

@@ -46,12 +46,20 @@ fn executable(p: &std::path::Path) -> bool {
     std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
 }
 
-/// `program` as the launcher will start it: a path with a `/` against the scenario's
+/// `path` made absolute against the current directory, its links kept (a linked program runs
+/// as the link names it). The launcher starts the plant in the scenario's directory, so a
+/// path relative to the launcher's (`config/plants/m.py` of `config/m.toml`) would name
+/// another file there: resolved once, here, for `evoloop check` and the run alike.
+fn absolute(path: PathBuf) -> PathBuf {
+    std::path::absolute(&path).unwrap_or(path)
+}
+
+/// `program` as the launcher will start it, absolute: a path with a `/` against the scenario's
 /// directory, a bare name on PATH; an error that says which, if it is not an executable file.
 fn resolve_program(check: &Check, program: &str) -> Result<PathBuf, ConfigError> {
     let key = "plant.external.command";
     if program.contains('/') {
-        let path = check.resolve(program.as_ref());
+        let path = absolute(check.resolve(program.as_ref()));
         if !executable(&path) {
             return check.fail(
                 key,
@@ -66,7 +74,7 @@ fn resolve_program(check: &Check, program: &str) -> Result<PathBuf, ConfigError>
     }
     let path = std::env::var_os("PATH").unwrap_or_default();
     std::env::split_paths(&path)
-        .map(|d| d.join(program))
+        .map(|d| absolute(d.join(program)))
         .find(|p| executable(p))
         .map_or_else(
             || check.fail(key, format!("{program} is not on PATH")),
@@ -214,7 +222,7 @@ pub fn validate(
         Some(p) => Some(resolve_program(check, p)?),
         None => None,
     };
-    let dir = check.resolve(".".as_ref());
+    let dir = absolute(check.resolve(".".as_ref()));
     Ok(ExternalSpec {
         states,
         joints,
