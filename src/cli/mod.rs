@@ -186,6 +186,7 @@ pub fn main() -> ExitCode {
             floor_duration: None,
             workers: None,
             live: None,
+            live_remote: false,
         }),
         Some(Cmd::Run(a)) if a.seeds.is_some() => launcher::run_seeds(a),
         Some(Cmd::Run(a)) => launcher::run(a),

@@ -44,6 +44,11 @@ pub struct RunArgs {
     /// own process, stopped with the run.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
     pub live: Option<String>,
+    /// Let --live listen beyond loopback (e.g. 0.0.0.0:8765): anyone who reaches the port sees
+    /// the run, and a viewer on another machine sets gains only with the token the live view
+    /// prints (ws://HOST:PORT/?token=TOKEN). Without it such an ADDR is refused.
+    #[arg(long, requires = "live")]
+    pub live_remote: bool,
 }
 
 fn parse_floor_duration(s: &str) -> Result<f64, String> {

@@ -164,6 +164,15 @@ pub(crate) fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Chil
     cmd.spawn()
 }
 
+/// The descriptor of `listener`, left open across the next exec (Rust opens everything
+/// close-on-exec): the live view serves on the port the launcher bound.
+fn inheritable(listener: &std::net::TcpListener) -> i32 {
+    let fd = std::os::fd::AsRawFd::as_raw_fd(listener);
+    // SAFETY: fcntl on a descriptor this process owns; only FD_CLOEXEC is cleared.
+    unsafe { libc::fcntl(fd, libc::F_SETFD, 0) };
+    fd
+}
+
 /// The child gets SIGTERM when this process dies, however it dies (`kill -9` included), and
 /// stops as on Ctrl-C (safe command, its shared memory removed): a launcher killed outright
 /// leaves no run behind (Linux's PR_SET_PDEATHSIG). The signal follows the *thread* that
@@ -804,7 +813,17 @@ impl Running {
         child_ov.out = Some(p.dir.clone());
         let mut args = process_args(&config, &p.run_id, &a.ipc_prefix);
         args.extend(child_ov.to_args());
-        // The evaluation workers first: the optimiser waits for them before the run starts.
+        // The live view's port first: one that cannot be had fails the run before it starts.
+        let live_listener = match &a.live {
+            Some(addr) => Some(
+                super::live::bind(addr, a.live_remote, "--live-remote").map_err(|e| {
+                    err!("error: --live {e}");
+                    ExitCode::from(2)
+                })?,
+            ),
+            None => None,
+        };
+        // The evaluation workers next: the optimiser waits for them before the run starts.
         let nice = p.scn.optimiser.nice;
         let workers = match &p.local {
             Some((n, ep)) => LocalWorkers::start(ep, *n, 1, nice, &p.run_id),
@@ -815,7 +834,8 @@ impl Running {
             ExitCode::from(1)
         })?;
         let mut workers = workers;
-        if let Some(addr) = &a.live {
+        if let Some(listener) = live_listener {
+            let fd = inheritable(&listener);
             let mut live: Vec<String> = [
                 "--run",
                 &p.run_id,
@@ -823,8 +843,8 @@ impl Running {
                 &a.ipc_prefix,
                 "--config",
                 &config.display().to_string(),
-                "--addr",
-                addr,
+                "--listen-fd",
+                &fd.to_string(),
             ]
             .map(String::from)
             .to_vec();
@@ -835,6 +855,8 @@ impl Running {
                 err!("error: cannot start evoloop-live: {e}");
                 ExitCode::from(1)
             })?;
+            // Closed here: no process started after the live view inherits the port.
+            drop(listener);
             workers.0.push(c);
         }
         let external = p.scn.plant.model.config().external().map(|e| {

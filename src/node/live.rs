@@ -50,6 +50,16 @@ pub struct LiveArgs {
     /// The run's overrides of its scenario (`evoloop run --live` passes its own).
     #[command(flatten)]
     pub overrides: crate::node::args::OverrideArgs,
+    /// Listen beyond loopback (ADDR on another interface, e.g. 0.0.0.0:8765): anyone who
+    /// reaches the port sees the run, and a viewer on another machine sets `gains` only with
+    /// the token printed at start (ws://HOST:PORT/?token=TOKEN). Without it such an ADDR is
+    /// refused.
+    #[arg(long)]
+    pub remote: bool,
+    /// A listening socket already bound, inherited as this descriptor (`evoloop run --live`
+    /// binds ADDR itself, so a port it cannot have fails the run before it starts).
+    #[arg(long, hide = true)]
+    pub listen_fd: Option<i32>,
 }
 
 /// The topics served, with the channel ids run.mcap gives them (their place in `ros2::TOPICS`,
@@ -90,8 +100,13 @@ enum Ask {
 
 /// Messages a client's queue holds before newer ones are dropped for it.
 const CLIENT_QUEUE: usize = 4096;
-/// Viewers served at once; the largest message a viewer may send (a set of gains is < 1 KiB).
+/// Connections served at once, viewers and handshakes in progress together (each has a
+/// thread); one more is answered "503" and closed. The largest message a viewer may send (a
+/// set of gains is < 1 KiB).
 const MAX_CLIENTS: usize = 16;
+/// The longest a connection may take to finish its WebSocket handshake, however slowly its
+/// bytes come.
+const HANDSHAKE: Duration = Duration::from_secs(5);
 const MAX_MESSAGE: usize = 1 << 20;
 /// How long a write to a viewer may block before the viewer is dropped.
 const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
@@ -121,7 +136,13 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
     };
     let prefix = a.ipc_prefix.clone().unwrap_or(run.ipc_prefix.clone());
     let scn = run.scenario(a.config.as_deref(), &a.overrides.to_overrides())?;
-    let listener = TcpListener::bind(&a.addr).map_err(|e| format!("--addr {}: {e}", a.addr))?;
+    let listener = match a.listen_fd {
+        // SAFETY: the descriptor is the bound listener `evoloop run --live` made for this
+        // process and passed on, owned by nothing else here.
+        Some(fd) => unsafe { std::os::fd::FromRawFd::from_raw_fd(fd) },
+        None => bind(&a.addr, a.remote, "--remote")?,
+    };
+    let access = Access::new(&listener)?;
     let ipc = Ipc::with_cleanup("evoloop-live", &run.run_id, &prefix, false)
         .map_err(|e| format!("attaching to run {}: {e}", run.run_id))?;
     let mut hub = Hub::new(&ipc, &scn).map_err(|e| format!("run {}: {e}", run.run_id))?;
@@ -134,19 +155,22 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
         run.run_id,
         listener.local_addr().map_err(|e| e.to_string())?
     );
+    let served = Served {
+        info,
+        advertise,
+        join: join_tx,
+        ask: ask_tx,
+        access,
+    };
     std::thread::Builder::new()
         .name("live-accept".into())
-        .spawn(move || accept(listener, info, advertise, join_tx, ask_tx))
+        .spawn(move || accept(listener, served))
         .map_err(|e| e.to_string())?;
     let stop = crate::node::start::stop_flag();
     while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+        // At most MAX_CLIENTS: `accept` admits no more connections than that.
         while let Ok(c) = join_rx.try_recv() {
-            if hub.clients.len() < MAX_CLIENTS {
-                hub.clients.push(c);
-            } else {
-                let text = format!("{MAX_CLIENTS} viewers are connected already");
-                let _ = c.try_send(Out::Text(status(2, &text)));
-            }
+            hub.clients.push(c);
         }
         while let Ok(ask) = ask_rx.try_recv() {
             hub.ask(ask);
@@ -346,41 +370,160 @@ fn status(level: u8, message: &str) -> String {
     json!({"op": "status", "level": level, "message": message}).to_string()
 }
 
-/// Accept connections for ever; each gets its thread.
-fn accept(
-    listener: TcpListener,
+/// `addr` bound for viewers; an address beyond loopback only with `remote` (the flag that
+/// says so is `flag`): anyone who reaches the port sees the run.
+pub fn bind(addr: &str, remote: bool, flag: &str) -> Result<TcpListener, String> {
+    use std::net::ToSocketAddrs;
+    let addrs: Vec<_> = addr
+        .to_socket_addrs()
+        .map_err(|e| format!("{addr}: {e}"))?
+        .collect();
+    if !remote && addrs.iter().any(|a| !a.ip().is_loopback()) {
+        return Err(format!(
+            "{addr} listens beyond this machine: anyone who reaches it sees the run; listen on \
+             127.0.0.1 (the default), or add {flag} to mean it (viewers on other machines then \
+             set gains only with the token it prints)"
+        ));
+    }
+    TcpListener::bind(&addrs[..]).map_err(|e| format!("{addr}: {e}"))
+}
+
+/// Who may set `gains`: a viewer on this machine, and one elsewhere only with the token (made
+/// at start where the listener reaches beyond loopback, and printed there).
+struct Access {
+    token: Option<String>,
+}
+
+impl Access {
+    fn new(listener: &TcpListener) -> Result<Access, String> {
+        let at = listener.local_addr().map_err(|e| e.to_string())?;
+        if at.ip().is_loopback() {
+            return Ok(Access { token: None });
+        }
+        let token = format!("{:032x}", rand::random::<u128>());
+        eprintln!(
+            "evoloop live: warning: listening on {at}, beyond this machine: anyone who reaches \
+             it sees the run; a viewer elsewhere sets gains only through \
+             ws://HOST:{}/?token={token}",
+            at.port()
+        );
+        Ok(Access { token: Some(token) })
+    }
+
+    /// Whether the viewer at `peer`, which asked for `uri`, may set `gains`.
+    fn may_set(&self, peer: Option<std::net::SocketAddr>, uri: &tungstenite::http::Uri) -> bool {
+        if peer.is_some_and(|p| p.ip().is_loopback()) {
+            return true;
+        }
+        let Some(token) = &self.token else {
+            return false;
+        };
+        uri.query()
+            .into_iter()
+            .flat_map(|q| q.split('&'))
+            .filter_map(|kv| kv.strip_prefix("token="))
+            .any(|t| t.as_bytes() == token.as_bytes())
+    }
+}
+
+/// What every connection is served with: the run's description, the hub's queues, who may set.
+struct Served {
     info: String,
     advertise: String,
     join: Sender<SyncSender<Out>>,
     ask: Sender<Ask>,
-) {
+    access: Access,
+}
+
+/// One of the MAX_CLIENTS places, given back when its connection's thread ends.
+struct Place(Arc<std::sync::atomic::AtomicUsize>);
+
+impl Drop for Place {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
+}
+
+/// Accept connections for ever: each of at most MAX_CLIENTS at once gets its thread, one more
+/// is answered 503 and closed at once (a crowd of idle connections or unfinished handshakes
+/// costs a bounded number of threads, and none of them for long: `HANDSHAKE`).
+fn accept(listener: TcpListener, served: Served) {
+    use std::sync::atomic::Ordering;
+    let served = Arc::new(served);
+    let taken = Arc::new(std::sync::atomic::AtomicUsize::new(0));
     for stream in listener.incoming().flatten() {
-        let (info, advertise, join, ask) =
-            (info.clone(), advertise.clone(), join.clone(), ask.clone());
+        if taken.fetch_add(1, Ordering::SeqCst) >= MAX_CLIENTS {
+            taken.fetch_sub(1, Ordering::SeqCst);
+            refuse(stream);
+            continue;
+        }
+        let place = Place(taken.clone());
+        let served = served.clone();
         let _ = std::thread::Builder::new()
             .name("live-client".into())
             .spawn(move || {
-                if let Err(e) = client(stream, &info, &advertise, &join, &ask) {
+                let _place = place;
+                if let Err(e) = client(stream, &served) {
                     eprintln!("evoloop live: a viewer left: {e}");
                 }
             });
     }
 }
 
-/// One viewer: the handshake (the subprotocol required), serverInfo and advertise, then its
-/// requests read and its queue written until it leaves.
-fn client(
-    stream: TcpStream,
-    info: &str,
-    advertise: &str,
-    join: &Sender<SyncSender<Out>>,
-    ask: &Sender<Ask>,
-) -> Result<(), String> {
+/// A connection beyond MAX_CLIENTS: told why in HTTP (never waiting on it), and closed.
+fn refuse(stream: TcpStream) {
+    use std::io::Write;
+    let why = format!("{MAX_CLIENTS} viewers are connected already\n");
+    let reply = format!(
+        "HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\nContent-Length: {}\r\n\
+         Connection: close\r\n\r\n{why}",
+        why.len()
+    );
+    let _ = stream.set_nonblocking(true);
+    let _ = (&stream).write(reply.as_bytes());
+}
+
+/// A connection whose reads end at `until` (the handshake's deadline) however slowly its bytes
+/// come; no deadline after the handshake.
+struct Timed {
+    tcp: TcpStream,
+    until: Option<Instant>,
+}
+
+impl std::io::Read for Timed {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if let Some(until) = self.until {
+            let left = until.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::TimedOut,
+                    format!("no WebSocket handshake within {HANDSHAKE:?}"),
+                ));
+            }
+            self.tcp.set_read_timeout(Some(left))?;
+        }
+        self.tcp.read(buf)
+    }
+}
+
+impl std::io::Write for Timed {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.tcp.write(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.tcp.flush()
+    }
+}
+
+type Ws = tungstenite::WebSocket<Timed>;
+
+/// One viewer: the handshake (the subprotocol required, within `HANDSHAKE`), serverInfo and
+/// advertise, then its requests read and its queue written until it leaves.
+fn client(stream: TcpStream, served: &Served) -> Result<(), String> {
     use tungstenite::handshake::server::{ErrorResponse, Request, Response};
     use tungstenite::Message;
-    stream
-        .set_read_timeout(Some(Duration::from_secs(5)))
-        .map_err(|e| e.to_string())?;
+    let peer = stream.peer_addr().ok();
+    let mut may_set = false;
     // The signature is tungstenite's handshake callback's.
     #[allow(clippy::result_large_err)]
     let pick = |req: &Request, mut resp: Response| -> Result<Response, ErrorResponse> {
@@ -396,6 +539,7 @@ fn client(
             *e.status_mut() = tungstenite::http::StatusCode::BAD_REQUEST;
             return Err(e);
         }
+        may_set = served.access.may_set(peer, req.uri());
         resp.headers_mut().insert(
             "Sec-WebSocket-Protocol",
             tungstenite::http::HeaderValue::from_static(SUBPROTOCOL),
@@ -405,22 +549,40 @@ fn client(
     let config = tungstenite::protocol::WebSocketConfig::default()
         .max_message_size(Some(MAX_MESSAGE))
         .max_frame_size(Some(MAX_MESSAGE));
-    let mut ws = tungstenite::accept_hdr_with_config(stream, pick, Some(config))
-        .map_err(|e| e.to_string())?;
-    let tcp = ws.get_ref();
+    let timed = Timed {
+        tcp: stream,
+        until: Some(Instant::now() + HANDSHAKE),
+    };
+    let mut ws = tungstenite::accept_hdr_with_config(timed, pick, Some(config)).map_err(|e| {
+        match e {
+            // The deadline's read timeout: the handshake did not finish in time.
+            tungstenite::HandshakeError::Interrupted(_) => {
+                format!("no WebSocket handshake within {HANDSHAKE:?}")
+            }
+            e => e.to_string(),
+        }
+    })?;
+    ws.get_mut().until = None;
+    let tcp = &ws.get_ref().tcp;
     tcp.set_read_timeout(Some(Duration::from_millis(5)))
         .and_then(|()| tcp.set_write_timeout(Some(WRITE_TIMEOUT)))
         .map_err(|e| e.to_string())?;
     let io = |e: tungstenite::Error| e.to_string();
-    ws.send(Message::text(info)).map_err(io)?;
-    ws.send(Message::text(advertise)).map_err(io)?;
+    ws.send(Message::text(served.info.as_str())).map_err(io)?;
+    ws.send(Message::text(served.advertise.as_str()))
+        .map_err(io)?;
     let (tx, rx) = sync_channel::<Out>(CLIENT_QUEUE);
-    join.send(tx.clone()).map_err(|_| "the hub has stopped")?;
+    served
+        .join
+        .send(tx.clone())
+        .map_err(|_| "the hub has stopped")?;
     // Subscription ids by channel id.
     let mut subscribed: Vec<(u32, u32)> = Vec::new();
     loop {
         match ws.read() {
-            Ok(Message::Text(t)) => request(&t, &mut subscribed, &tx, ask, &mut ws)?,
+            Ok(Message::Text(t)) => {
+                request(&t, &mut subscribed, &tx, (&served.ask, may_set), &mut ws)?
+            }
             Ok(Message::Close(_)) => return Ok(()),
             Ok(_) => {}
             Err(tungstenite::Error::Io(e))
@@ -460,16 +622,22 @@ fn client(
     }
 }
 
+/// What a viewer on another machine without the token is told when it asks for `gains`.
+const NOT_FROM_HERE: &str = "`gains` is set only from this machine, or with the token the \
+                             live view printed at start (ws://HOST:PORT/?token=TOKEN)";
+
 /// One text request of a client (subscribe, unsubscribe, getParameters, setParameters); others
 /// are answered with a warning.
+/// A viewer that may not set `gains` (`may_set` false: on another machine, without the token)
+/// has its sets refused with the reason.
 fn request(
     text: &str,
     subscribed: &mut Vec<(u32, u32)>,
     reply: &SyncSender<Out>,
-    ask: &Sender<Ask>,
-    ws: &mut tungstenite::WebSocket<TcpStream>,
+    (ask, may_set): (&Sender<Ask>, bool),
+    ws: &mut Ws,
 ) -> Result<(), String> {
-    let warn = |ws: &mut tungstenite::WebSocket<TcpStream>, m: String| {
+    let warn = |ws: &mut Ws, m: String| {
         ws.send(tungstenite::Message::text(status(1, &m)))
             .map_err(|e| e.to_string())
     };
@@ -512,6 +680,10 @@ fn request(
             });
         }
         "setParameters" => {
+            if !may_set {
+                let e = tungstenite::Message::text(status(2, NOT_FROM_HERE));
+                return ws.send(e).map_err(|e| e.to_string());
+            }
             for p in v["parameters"].as_array().into_iter().flatten() {
                 if p["name"] != GAINS {
                     warn(
@@ -539,4 +711,39 @@ fn request(
         op => warn(ws, format!("operation `{op}` is not served"))?,
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Access;
+
+    /// A viewer on this machine may set `gains`; one elsewhere only with the token, which a
+    /// listener on loopback has none of (issue 63, item 6).
+    #[test]
+    fn gains_from_another_machine_need_the_token() {
+        let uri = |q: &str| format!("/{q}").parse::<tungstenite::http::Uri>().unwrap();
+        let here = Some("127.0.0.1:50000".parse().unwrap());
+        let there = Some("192.0.2.7:50000".parse().unwrap());
+        let open = Access {
+            token: Some("abc123".into()),
+        };
+        assert!(open.may_set(here, &uri("")));
+        assert!(!open.may_set(there, &uri("")));
+        assert!(!open.may_set(there, &uri("?token=abc12")));
+        assert!(!open.may_set(None, &uri("?token=")));
+        assert!(open.may_set(there, &uri("?x=1&token=abc123")));
+        let loopback = Access { token: None };
+        assert!(!loopback.may_set(there, &uri("?token=")));
+    }
+
+    #[test]
+    fn an_address_beyond_loopback_is_refused_without_its_flag() {
+        let e = super::bind("0.0.0.0:0", false, "--live-remote").unwrap_err();
+        assert!(
+            e.contains("beyond this machine") && e.contains("--live-remote"),
+            "{e}"
+        );
+        assert!(super::bind("127.0.0.1:0", false, "--live-remote").is_ok());
+        assert!(super::bind("0.0.0.0:0", true, "--live-remote").is_ok());
+    }
 }
