@@ -337,6 +337,55 @@ fn a_plant_program_relative_to_the_scenario_starts_from_any_scenario_path() {
     }
 }
 
+/// A plant program that starts a helper in a session of its own (`setsid`, out of the process
+/// group the launcher stops) and ends: the helper does not outlive the run (issue 63, item 8).
+#[test]
+fn what_a_plant_started_in_its_own_session_does_not_outlive_the_run() {
+    use std::os::unix::fs::PermissionsExt;
+    let tmp = tempfile::tempdir().unwrap();
+    let program = tmp.path().join("detaching.sh");
+    std::fs::write(
+        &program,
+        "#!/bin/sh\nsetsid sh -c 'echo $$ > helper.pid; exec sleep 600' &\nsleep 0.3\nexit 3\n",
+    )
+    .unwrap();
+    std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let text = std::fs::read_to_string(common::config("external_motor.toml"))
+        .unwrap()
+        .replace(
+            r#"command = ["python3", "plants/motor_plant.py"]"#,
+            r#"command = ["./detaching.sh"]"#,
+        );
+    let scenario = common::write(tmp.path(), "s.toml", &text);
+    let (_, run_id) = common::unique("setsid");
+    let o = Process::new(common::evoloop())
+        .args([
+            "run",
+            scenario.to_str().unwrap(),
+            "--run-id",
+            &run_id,
+            "--quiet",
+            "--out",
+        ])
+        .arg(tmp.path().join("out"))
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(said.contains("exit status: 3"), "{said}");
+    let pid: i32 = std::fs::read_to_string(tmp.path().join("helper.pid"))
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    // SAFETY: signal 0 only asks whether the process exists.
+    let alive = unsafe { libc::kill(pid, 0) } == 0;
+    if alive {
+        // SAFETY: the helper this test's plant started.
+        unsafe { libc::kill(pid, libc::SIGKILL) };
+    }
+    assert!(!alive, "the plant's helper {pid} outlived the run: {said}");
+}
+
 /// A plant that speaks contract v2.
 const V2: &str = r#"
 import os, sys

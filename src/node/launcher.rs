@@ -164,6 +164,55 @@ pub(crate) fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Chil
     cmd.spawn()
 }
 
+/// Make this process the reaper of its descendants: what a child started and left (a plant
+/// script's helper that called setsid, leaving the group the launcher stops) becomes the
+/// launcher's own child when its parent ends, not init's, so `reap_orphans` can stop it.
+fn adopt_orphans() {
+    // SAFETY: prctl with an integer argument; no memory is passed.
+    unsafe { libc::prctl(libc::PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) };
+}
+
+/// Stop and reap every child this process has left once the run's own have ended: the
+/// descendants `adopt_orphans` gave it (their children in turn come to it as each ends).
+/// Returns how many it stopped.
+fn reap_orphans() -> usize {
+    let me = std::process::id();
+    let mut stopped = 0;
+    // Bounded: each round reaps a generation.
+    for _ in 0..64 {
+        let children = children_of(me);
+        if children.is_empty() {
+            break;
+        }
+        for pid in children {
+            // SAFETY: plain syscalls on a child of this process (its parent is us, so the pid
+            // cannot be reused by another process until we reap it).
+            unsafe {
+                libc::kill(pid as i32, libc::SIGKILL);
+                libc::waitpid(pid as i32, std::ptr::null_mut(), 0);
+            }
+            stopped += 1;
+        }
+    }
+    stopped
+}
+
+/// The pids whose parent is `parent`, from /proc.
+fn children_of(parent: u32) -> Vec<u32> {
+    let Ok(rd) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    rd.flatten()
+        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|pid| {
+            // The parent is the 2nd field after the command, which ends at the last ')'.
+            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+            let after = stat.rsplit_once(')').map_or("", |(_, r)| r);
+            after.split_whitespace().nth(1) == Some(parent.to_string().as_str())
+        })
+        .collect()
+}
+
 /// The descriptor of `listener`, left open across the next exec (Rust opens everything
 /// close-on-exec): the live view serves on the port the launcher bound.
 fn inheritable(listener: &std::net::TcpListener) -> i32 {
@@ -798,6 +847,7 @@ struct Running {
 
 impl Running {
     fn start(p: &Prepared, a: &RunArgs) -> Result<Self, ExitCode> {
+        adopt_orphans();
         // The launcher's own node: creating it cleans up what killed runs left behind, and it
         // watches the telemetry for progress lines.
         let ipc = Ipc::with_cleanup("evoloop", &p.run_id, &a.ipc_prefix, false).map_err(|e| {
@@ -890,6 +940,10 @@ impl Running {
         }
         // The workers serve until told to stop.
         drop(self.workers);
+        let orphans = reap_orphans();
+        if orphans > 0 && !quiet {
+            err!("evoloop: stopped {orphans} process(es) the run's processes left running");
+        }
         drop(self.telemetry);
         drop(self.estimate);
         // A child that died without dropping its ports (killed) left its resources behind:
