@@ -12,6 +12,7 @@ mod common;
 use common::*;
 use serde_json::{json, Value};
 use std::net::TcpStream;
+use std::path::Path;
 use std::time::{Duration, Instant};
 use tungstenite::{client::IntoClientRequest, stream::MaybeTlsStream, Message, WebSocket};
 
@@ -83,20 +84,10 @@ fn command(payload: &[u8]) -> (u64, u64, Vec<f64>) {
 }
 
 /// `evoloop run FILE --mode realtime --live ADDR` plus `extra`, and the address.
-/// A realtime run of two_mass served live: the launcher, the live view's address, the run id.
-fn live_run(
-    out: &std::path::Path,
-    seconds: &str,
-    extra: &[&str],
-) -> (std::process::Child, String, String) {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let addr = format!("127.0.0.1:{port}");
-    let (_, run_id) = unique("live");
-    let child = std::process::Command::new(evoloop())
+/// `evoloop run` of two_mass in realtime for `seconds`, served live on `addr`.
+fn live_command(addr: &str, seconds: &str, run_id: &str, out: &Path) -> std::process::Command {
+    let mut c = std::process::Command::new(evoloop());
+    c.current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
             "run",
             "config/two_mass.toml",
@@ -105,8 +96,21 @@ fn live_run(
             "--no-rt",
         ])
         .args(["--duration", seconds, "--floor-duration", "0.2", "--quiet"])
-        .args(["--live", &addr, "--run-id", &run_id, "--out"])
-        .arg(out)
+        .args(["--live", addr, "--run-id", run_id, "--out"])
+        .arg(out);
+    c
+}
+
+/// A realtime run of two_mass served live: the launcher, the live view's address, the run id.
+fn live_run(out: &Path, seconds: &str, extra: &[&str]) -> (std::process::Child, String, String) {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let addr = format!("127.0.0.1:{port}");
+    let (_, run_id) = unique("live");
+    let child = live_command(&addr, seconds, &run_id, out)
         .args(extra)
         .spawn()
         .unwrap();
@@ -392,25 +396,7 @@ fn a_live_address_beyond_loopback_or_taken_fails_the_run_before_it_starts() {
     ] {
         let tmp = tempfile::tempdir().unwrap();
         let (_, run_id) = unique("livebad");
-        let o = std::process::Command::new(evoloop())
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .args([
-                "run",
-                "config/two_mass.toml",
-                "--mode",
-                "realtime",
-                "--no-rt",
-            ])
-            .args([
-                "--duration",
-                "2",
-                "--live",
-                &addr,
-                "--run-id",
-                &run_id,
-                "--out",
-            ])
-            .arg(tmp.path())
+        let o = live_command(&addr, "2", &run_id, tmp.path())
             .output()
             .unwrap();
         let said = String::from_utf8_lossy(&o.stderr);
