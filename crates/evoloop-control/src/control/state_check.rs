@@ -136,12 +136,26 @@ pub struct SampleTime {
     /// How far a sample's period may seem to begin before the first sample's (the first
     /// sample's own wake-up latency, which the estimate then sheds).
     allowance_ns: u64,
-    /// `first`'s epoch: no good sample's period begins more than `allowance_ns` before it.
+    /// `first`'s epoch: no good sample's period begins more than `allowance_ns` before it
+    /// (unless a run of samples agrees on an earlier one: `late_first`).
     anchor: u64,
+    /// The first sample's epoch, which the anchor never leaves by more than `MAX_FOLLOW_NS`.
+    first: u64,
     epoch: u64,
     last_seq: u64,
     last_stamp: u64,
+    /// Samples in a row refused as `SeqAhead` that agree with each other on their period's
+    /// start: (how many, earliest, latest).
+    ahead: (u32, u64, u64),
 }
+
+/// Samples in a row that must agree on periods beginning before the anchor allows for the
+/// clock to follow them: the first sample was late (a plant's slow wake-up), not the rest
+/// early. A plant ticking fast or whose seq jumped never gives as many that agree.
+const FOLLOW_AFTER: u32 = 64;
+/// The most the clock follows such samples, from the first sample's epoch: a seq jump beyond
+/// it is never taken for a late first sample.
+const MAX_FOLLOW_NS: u64 = 1_000_000_000;
 
 impl SampleTime {
     /// Following `first`, a sample already judged against this machine's clock.
@@ -151,9 +165,11 @@ impl SampleTime {
             period_ns,
             allowance_ns,
             anchor,
+            first: anchor,
             epoch: anchor,
             last_seq: first.seq,
             last_stamp: first.stamp_ns,
+            ahead: (0, 0, 0),
         }
     }
 
@@ -183,15 +199,37 @@ impl SampleTime {
             });
         }
         let epoch = plant_epoch(s, self.period_ns);
-        if epoch < self.anchor.saturating_sub(self.allowance_ns) {
+        if epoch < self.anchor.saturating_sub(self.allowance_ns) && !self.late_first(epoch) {
             return Err(TimeFault::SeqAhead {
                 by_ns: self.anchor - epoch,
             });
         }
+        self.ahead.0 = 0;
         self.epoch = self.epoch.min(epoch);
         self.last_seq = s.seq;
         self.last_stamp = s.stamp_ns;
         Ok(())
+    }
+}
+
+impl SampleTime {
+    /// Whether `epoch`, earlier than the anchor allows, ends a run of `FOLLOW_AFTER` such
+    /// samples that agree within the allowance (and lie within `MAX_FOLLOW_NS` of the first
+    /// sample's): the first sample was late, and the anchor moves to the run's earliest.
+    fn late_first(&mut self, epoch: u64) -> bool {
+        let (n, lo, hi) = self.ahead;
+        let agrees = n > 0 && hi.max(epoch) - lo.min(epoch) <= self.allowance_ns;
+        self.ahead = if agrees {
+            (n + 1, lo.min(epoch), hi.max(epoch))
+        } else {
+            (1, epoch, epoch)
+        };
+        let (n, lo, _) = self.ahead;
+        if n >= FOLLOW_AFTER && self.first - lo <= MAX_FOLLOW_NS {
+            self.anchor = lo;
+            return true;
+        }
+        false
     }
 }
 
@@ -382,6 +420,29 @@ mod tests {
             c.judge(&sample(200, t0 + 200 * ms + 5_000), t0 + 201 * ms),
             Ok(())
         );
+        // A seq that jumped by 10^6 for good stays refused, however many samples agree on it.
+        for i in 201..1000u64 {
+            let stamp = t0 + i * ms + 5_000;
+            assert!(c.judge(&sample(1_000_000 + i, stamp), stamp).is_err());
+        }
+    }
+
+    /// A first sample 40 ms late (a plant's slow first wake-up) refuses the on-time samples
+    /// after it only until `FOLLOW_AFTER` of them agree: then the clock follows them.
+    #[test]
+    fn a_late_first_sample_is_outgrown() {
+        let ms = 1_000_000;
+        let t0 = 1_000_000 * ms;
+        let mut c = SampleTime::new(&sample(0, t0 + 40 * ms), ms, 3 * ms);
+        let mut refused = 0;
+        for k in 1..200u64 {
+            let stamp = t0 + k * ms + 20_000;
+            if c.judge(&sample(k, stamp), stamp).is_err() {
+                refused += 1;
+            }
+        }
+        assert_eq!(refused, FOLLOW_AFTER - 1);
+        assert_eq!(c.epoch(), t0 + 20_000);
     }
 
     #[test]
