@@ -1246,7 +1246,8 @@ fn print_summary(s: &Summary, dir: &Path, plots: bool) {
     }
     if let Some(f) = &s.first_refused_state {
         out!(
-            "  plant: {} state(s) refused, the safe command sent for each (first at sample {}: {})",
+            "  plant: {} state(s) refused: the safe command sent for a bad value or count, the \
+             last good state used for a sample that broke time (first at sample {}: {})",
             s.refused_states,
             f.seq,
             f.fault
