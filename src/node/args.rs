@@ -233,11 +233,12 @@ pub fn parse_seeds(s: &str) -> Result<Seeds, String> {
             None => return Err(too_many("2^64".into())),
         }
     } else {
-        let n = s.split(',').count() as u64;
-        if n > MAX_SEEDS {
-            return Err(too_many(n.to_string()));
+        let parts: Vec<&str> = s.split(',').collect();
+        if parts.len() as u64 > MAX_SEEDS {
+            return Err(too_many(parts.len().to_string()));
         }
-        s.split(',')
+        parts
+            .iter()
             .map(|x| x.trim().parse().map_err(|e| format!("`{x}`: {e}")))
             .collect::<Result<_, _>>()?
     };

@@ -566,13 +566,6 @@ fn plant_clock(stamp_ns: u64, now_ns: u64, period_ns: u64) -> Result<(), String>
     ))
 }
 
-/// How far a sample's period may seem to begin before the first sample's: the first sample's
-/// wake-up latency, up to the age at which a state is stale, and at least 2 ms (a loaded
-/// machine's wake-up).
-fn time_allowance_ns(scn: &Scenario) -> u64 {
-    (scn.controller.stale_after_periods as u64 * scn.period_ns()).max(2_000_000)
-}
-
 fn run_realtime(
     scn: &Scenario,
     ports: &Ports,
@@ -588,7 +581,10 @@ fn run_realtime(
     // sample's stamp is its tick plus the plant's wake-up latency, so the earliest
     // stamp - seq * period seen so far is the best estimate of the plant's epoch.
     plant_clock(state.stamp_ns, now_ns(), period).map_err(Failure::Failed)?;
-    let mut clock = SampleTime::new(&state, period, time_allowance_ns(scn));
+    // How far a sample's period may seem to begin before the first sample's: the first
+    // sample's wake-up latency, up to the age at which a state is stale, and at least 2 ms (a
+    // loaded machine's wake-up).
+    let mut clock = SampleTime::new(&state, period, stale_ns.max(2_000_000));
     let phase = (scn.timing.phase * period as f64) as u64;
     let n = scn.cycles();
     let mut k = state.seq;
@@ -616,11 +612,13 @@ fn run_realtime(
             }
         }
         match ports.state.latest() {
-            // A sample that breaks time is refused and counted like one whose values are not
-            // finite; the cycle runs on the last good sample, as when none came.
+            // The plant's last sample ends the loop, whatever its stamp.
+            Ok(Some(s)) if s.flags & STATE_FLAG_END != 0 => return Ok(()),
+            // A sample that breaks time is refused like one whose values are not finite: the
+            // cycle sends the safe command (on the last good state's record) and counts it.
             Ok(Some(s)) => match clock.judge(&s, now_ns()) {
                 Ok(()) => state = s,
-                Err(fault) => lp.cycle.refused.note(s.seq, StateFault::Time(fault)),
+                Err(fault) => lp.cycle.refuse(s.seq, StateFault::Time(fault)),
             },
             Ok(None) => {}
             Err(e) => return Err(Failure::Setup(e.to_string())),

@@ -173,28 +173,46 @@ fn adopt_orphans() {
 }
 
 /// Stop and reap every child this process has left once the run's own have ended: the
-/// descendants `adopt_orphans` gave it (their children in turn come to it as each ends).
-/// Returns how many it stopped.
+/// descendants `adopt_orphans` gave it (their children in turn come to it as each ends). Each
+/// gets SIGTERM and a second to end (a helper driving hardware may need to make it safe), then
+/// SIGKILL; one that does not end even then (stuck in the kernel) is left, never waited on
+/// without end. Returns how many it stopped.
 fn reap_orphans() -> usize {
     let me = std::process::id();
-    let mut stopped = 0;
+    let mut tried: Vec<u32> = Vec::new();
     // Bounded: each round reaps a generation.
     for _ in 0..64 {
-        let children = children_of(me);
+        let children: Vec<u32> = children_of(me)
+            .into_iter()
+            .filter(|p| !tried.contains(p))
+            .collect();
         if children.is_empty() {
             break;
         }
-        for pid in children {
-            // SAFETY: plain syscalls on a child of this process (its parent is us, so the pid
-            // cannot be reused by another process until we reap it).
-            unsafe {
-                libc::kill(pid as i32, libc::SIGKILL);
-                libc::waitpid(pid as i32, std::ptr::null_mut(), 0);
-            }
-            stopped += 1;
+        let left = end_within(&children, libc::SIGTERM);
+        end_within(&left, libc::SIGKILL);
+        tried.extend(children);
+    }
+    tried.len()
+}
+
+/// Send `sig` to each of `pids` (children of this process) and reap those that end within a
+/// second; the ones still running.
+fn end_within(pids: &[u32], sig: i32) -> Vec<u32> {
+    let mut left = pids.to_vec();
+    // SAFETY: plain syscalls on children of this process: a child's pid is not reused until
+    // it is reaped, so the signal cannot reach another process.
+    unsafe {
+        for &pid in &left {
+            libc::kill(pid as i32, sig);
+        }
+        let until = Instant::now() + Duration::from_secs(1);
+        while !left.is_empty() && Instant::now() < until {
+            left.retain(|&pid| libc::waitpid(pid as i32, std::ptr::null_mut(), libc::WNOHANG) == 0);
+            std::thread::sleep(Duration::from_millis(10));
         }
     }
-    stopped
+    left
 }
 
 /// The pids whose parent is `parent`, from /proc.
@@ -758,12 +776,24 @@ fn progress_line(
 pub fn run(mut a: RunArgs) -> ExitCode {
     // First: a Ctrl-C from here on is an interrupted run, with its summary.
     let stop = stop_flag();
+    // The live view's port before anything else: one that cannot be had fails the run before
+    // it starts (and before the last run's files are removed).
+    let live = match &a.live {
+        Some(addr) => match super::live::bind(addr, a.live_remote, "--live-remote") {
+            Ok(l) => Some(l),
+            Err(e) => {
+                err!("error: --live {e}");
+                return ExitCode::from(2);
+            }
+        },
+        None => None,
+    };
     let p = match prepare(&mut a) {
         Ok(p) => p,
         Err(code) => return code,
     };
     let (scn, dir, run_id) = (&p.scn, &p.dir, &p.run_id);
-    let mut r = match Running::start(&p, &a) {
+    let mut r = match Running::start(&p, &a, live) {
         Ok(r) => r,
         Err(code) => return code,
     };
@@ -846,7 +876,11 @@ struct Running {
 }
 
 impl Running {
-    fn start(p: &Prepared, a: &RunArgs) -> Result<Self, ExitCode> {
+    fn start(
+        p: &Prepared,
+        a: &RunArgs,
+        live_listener: Option<std::net::TcpListener>,
+    ) -> Result<Self, ExitCode> {
         adopt_orphans();
         // The launcher's own node: creating it cleans up what killed runs left behind, and it
         // watches the telemetry for progress lines.
@@ -863,17 +897,7 @@ impl Running {
         child_ov.out = Some(p.dir.clone());
         let mut args = process_args(&config, &p.run_id, &a.ipc_prefix);
         args.extend(child_ov.to_args());
-        // The live view's port first: one that cannot be had fails the run before it starts.
-        let live_listener = match &a.live {
-            Some(addr) => Some(
-                super::live::bind(addr, a.live_remote, "--live-remote").map_err(|e| {
-                    err!("error: --live {e}");
-                    ExitCode::from(2)
-                })?,
-            ),
-            None => None,
-        };
-        // The evaluation workers next: the optimiser waits for them before the run starts.
+        // The evaluation workers first: the optimiser waits for them before the run starts.
         let nice = p.scn.optimiser.nice;
         let workers = match &p.local {
             Some((n, ep)) => LocalWorkers::start(ep, *n, 1, nice, &p.run_id),
@@ -1042,7 +1066,7 @@ fn report(
                 err!("error: the loop did not control the plant: {why}");
             }
             if s.write_errors.is_empty() {
-                return (!s.degraded.is_empty()).then(|| ExitCode::from(1));
+                return (s.outcome == Outcome::Degraded).then(|| ExitCode::from(1));
             }
             // The report covers what was written; the run is not whole.
             for e in &s.write_errors {

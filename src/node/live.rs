@@ -139,7 +139,12 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
     let listener = match a.listen_fd {
         // SAFETY: the descriptor is the bound listener `evoloop run --live` made for this
         // process and passed on, owned by nothing else here.
-        Some(fd) => unsafe { std::os::fd::FromRawFd::from_raw_fd(fd) },
+        Some(fd) => {
+            // SAFETY: as above; fcntl on that descriptor sets close-on-exec again, so nothing
+            // this process might start inherits the port.
+            unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
+            unsafe { std::os::fd::FromRawFd::from_raw_fd(fd) }
+        }
         None => bind(&a.addr, a.remote, "--remote")?,
     };
     let access = Access::new(&listener)?;
@@ -378,7 +383,7 @@ pub fn bind(addr: &str, remote: bool, flag: &str) -> Result<TcpListener, String>
         .to_socket_addrs()
         .map_err(|e| format!("{addr}: {e}"))?
         .collect();
-    if !remote && addrs.iter().any(|a| !a.ip().is_loopback()) {
+    if !remote && addrs.iter().any(|a| !a.ip().to_canonical().is_loopback()) {
         return Err(format!(
             "{addr} listens beyond this machine: anyone who reaches it sees the run; listen on \
              127.0.0.1 (the default), or add {flag} to mean it (viewers on other machines then \
@@ -397,7 +402,7 @@ struct Access {
 impl Access {
     fn new(listener: &TcpListener) -> Result<Access, String> {
         let at = listener.local_addr().map_err(|e| e.to_string())?;
-        if at.ip().is_loopback() {
+        if at.ip().to_canonical().is_loopback() {
             return Ok(Access { token: None });
         }
         let token = format!("{:032x}", rand::random::<u128>());
@@ -412,7 +417,8 @@ impl Access {
 
     /// Whether the viewer at `peer`, which asked for `uri`, may set `gains`.
     fn may_set(&self, peer: Option<std::net::SocketAddr>, uri: &tungstenite::http::Uri) -> bool {
-        if peer.is_some_and(|p| p.ip().is_loopback()) {
+        // An IPv4 viewer of this machine on a [::] listener comes as ::ffff:127.0.0.1.
+        if peer.is_some_and(|p| p.ip().to_canonical().is_loopback()) {
             return true;
         }
         let Some(token) = &self.token else {
@@ -422,8 +428,13 @@ impl Access {
             .into_iter()
             .flat_map(|q| q.split('&'))
             .filter_map(|kv| kv.strip_prefix("token="))
-            .any(|t| t.as_bytes() == token.as_bytes())
+            .any(|t| same(t.as_bytes(), token.as_bytes()))
     }
+}
+
+/// `a == b` in a time that does not tell how much of a token was right.
+fn same(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0, |d, (x, y)| d | (x ^ y)) == 0
 }
 
 /// What every connection is served with: the run's description, the hub's queues, who may set.
@@ -479,8 +490,13 @@ fn refuse(stream: TcpStream) {
          Connection: close\r\n\r\n{why}",
         why.len()
     );
+    use std::io::Read;
     let _ = stream.set_nonblocking(true);
     let _ = (&stream).write(reply.as_bytes());
+    // Closed with the request unread, the connection would be reset, and the reply with it:
+    // end the writing side, then drop what has come so far.
+    let _ = stream.shutdown(std::net::Shutdown::Write);
+    let _ = (&stream).read(&mut [0u8; 4096]);
 }
 
 /// A connection whose reads end at `until` (the handshake's deadline) however slowly its bytes
@@ -724,10 +740,12 @@ mod tests {
         let uri = |q: &str| format!("/{q}").parse::<tungstenite::http::Uri>().unwrap();
         let here = Some("127.0.0.1:50000".parse().unwrap());
         let there = Some("192.0.2.7:50000".parse().unwrap());
+        let mapped = Some("[::ffff:127.0.0.1]:50000".parse().unwrap());
         let open = Access {
             token: Some("abc123".into()),
         };
         assert!(open.may_set(here, &uri("")));
+        assert!(open.may_set(mapped, &uri("")));
         assert!(!open.may_set(there, &uri("")));
         assert!(!open.may_set(there, &uri("?token=abc12")));
         assert!(!open.may_set(None, &uri("?token=")));

@@ -74,7 +74,7 @@ fn open_regular(path: &Path, extra: i32) -> std::io::Result<std::fs::File> {
         .custom_flags(extra | libc::O_NONBLOCK | libc::O_CLOEXEC)
         .open(path)
         .map_err(|e| match e.raw_os_error() {
-            Some(libc::ELOOP) => std::io::Error::new(
+            Some(libc::ELOOP) if extra & libc::O_NOFOLLOW != 0 => std::io::Error::new(
                 e.kind(),
                 format!(
                     "{}: a symbolic link (refusing to read through it)",

@@ -164,13 +164,14 @@ pub fn write(dir: &Path) -> Result<PathBuf, String> {
         esc(&get("wall_s")),
     );
     h.push_str("<h2>Figures</h2>\n");
-    let mut shown = 0;
+    let (mut shown, mut refused) = (0, 0);
     for n in RUN_FIGURES {
         let bytes = match figure(dir, n) {
             Ok(Some(bytes)) => bytes,
             Ok(None) => continue,
             Err(e) => {
                 let _ = writeln!(h, "<p>Not shown: {} (refused).</p>", esc(&e));
+                refused += 1;
                 continue;
             }
         };
@@ -182,7 +183,7 @@ pub fn write(dir: &Path) -> Result<PathBuf, String> {
             "<figure><img src=\"data:image/png;base64,{b64}\" alt=\"{n}\"><figcaption>{n}</figcaption></figure>"
         );
     }
-    if shown == 0 {
+    if shown + refused == 0 {
         h.push_str("<p>No plots (the run had <code>output.plots = false</code>).</p>\n");
     }
     h.push_str("<h2>Summary</h2>\n<table>\n<tr><th>key (summary.json)</th><th>value</th></tr>\n");

@@ -3,7 +3,7 @@
 //! cycle boundary, evaluate the reference and the control law, fill the telemetry.
 
 use super::model_parts::{Gather, Gathered};
-use super::state_check::{Refused, StateCheck};
+use super::state_check::{Refused, StateCheck, StateFault};
 use super::validate::validate_model;
 use super::{validate_params, Controller, LinearModel, ParamBounds};
 use crate::msg::{
@@ -118,8 +118,11 @@ pub struct ControlCycle {
     parts: Gather,
     /// What each plant state must be to run the law on (none: every state is taken).
     state_check: Option<StateCheck>,
-    /// The states refused by `state_check`.
+    /// The states refused by `state_check`, and those refused before the cycle (`refuse`).
     pub refused: Refused,
+    /// A sample refused before this cycle (realtime: it broke time), its seq and why: the
+    /// cycle sends the safe command as for a state `state_check` refuses.
+    refuse: Option<(u64, StateFault)>,
 }
 
 /// What a due set did.
@@ -171,6 +174,7 @@ impl ControlCycle {
             parts: Gather::new(controller.model_len()),
             state_check: None,
             refused: Refused::default(),
+            refuse: None,
             controller,
         }
     }
@@ -232,10 +236,18 @@ impl ControlCycle {
     /// parameter event of this cycle if one happened. At most one set is handled per cycle, so
     /// each accept/reject gets its own telemetry record; a trial's end or abort in the same cycle
     /// shows in the version in service (an abort is recorded in place of the acceptance).
+    /// Have the next `step` refuse its state: sample `seq`, refused before the cycle for
+    /// `fault`, is answered with the safe command and counted, as a state `state_check` refuses.
+    pub fn refuse(&mut self, seq: u64, fault: StateFault) {
+        self.refuse = Some((seq, fault));
+    }
+
     pub fn step(&mut self, state: &PlantState, tel: &mut Telemetry) -> Option<ParamEvent> {
         if let Some(check) = self.state_check {
-            if let Err(fault) = check.judge(state) {
-                self.refused.note(state.seq, fault);
+            let refused = self.refuse.take();
+            let judged = || check.judge(state).err().map(|f| (state.seq, f));
+            if let Some((seq, fault)) = refused.or_else(judged) {
+                self.refused.note(seq, fault);
                 if state.t.is_finite() {
                     self.reference.sample(state.t, &mut self.setpoint);
                 }

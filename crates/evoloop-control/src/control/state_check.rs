@@ -139,13 +139,15 @@ pub struct SampleTime {
     /// `first`'s epoch: no good sample's period begins more than `allowance_ns` before it
     /// (unless a run of samples agrees on an earlier one: `late_first`).
     anchor: u64,
-    /// The first sample's epoch, which the anchor never leaves by more than `MAX_FOLLOW_NS`.
+    /// The first sample's epoch and stamp: the anchor never leaves the epoch by more than
+    /// `MAX_FOLLOW_NS` and `FOLLOW_RATE` of the time since.
     first: u64,
+    first_stamp: u64,
     epoch: u64,
     last_seq: u64,
     last_stamp: u64,
-    /// Samples in a row refused as `SeqAhead` that agree with each other on their period's
-    /// start: (how many, earliest, latest).
+    /// Samples in a row whose period begins before the anchor's (refused or not) that agree
+    /// with each other on it: (how many, earliest, latest).
     ahead: (u32, u64, u64),
 }
 
@@ -153,9 +155,11 @@ pub struct SampleTime {
 /// clock to follow them: the first sample was late (a plant's slow wake-up), not the rest
 /// early. A plant ticking fast or whose seq jumped never gives as many that agree.
 const FOLLOW_AFTER: u32 = 64;
-/// The most the clock follows such samples, from the first sample's epoch: a seq jump beyond
-/// it is never taken for a late first sample.
+/// The most the clock follows such samples, from the first sample's epoch: 1 s, and 1 ms for
+/// each second since (a plant whose timer runs up to 1000 ppm fast against this machine's
+/// clock). A seq jump beyond it is never taken for a late first sample.
 const MAX_FOLLOW_NS: u64 = 1_000_000_000;
+const FOLLOW_RATE: u64 = 1000;
 
 impl SampleTime {
     /// Following `first`, a sample already judged against this machine's clock.
@@ -166,6 +170,7 @@ impl SampleTime {
             allowance_ns,
             anchor,
             first: anchor,
+            first_stamp: first.stamp_ns,
             epoch: anchor,
             last_seq: first.seq,
             last_stamp: first.stamp_ns,
@@ -199,12 +204,15 @@ impl SampleTime {
             });
         }
         let epoch = plant_epoch(s, self.period_ns);
-        if epoch < self.anchor.saturating_sub(self.allowance_ns) && !self.late_first(epoch) {
+        let followed = epoch < self.anchor && self.late_first(epoch, s.stamp_ns);
+        if epoch >= self.anchor {
+            self.ahead.0 = 0;
+        }
+        if epoch < self.anchor.saturating_sub(self.allowance_ns) && !followed {
             return Err(TimeFault::SeqAhead {
                 by_ns: self.anchor - epoch,
             });
         }
-        self.ahead.0 = 0;
         self.epoch = self.epoch.min(epoch);
         self.last_seq = s.seq;
         self.last_stamp = s.stamp_ns;
@@ -213,19 +221,22 @@ impl SampleTime {
 }
 
 impl SampleTime {
-    /// Whether `epoch`, earlier than the anchor allows, ends a run of `FOLLOW_AFTER` such
-    /// samples that agree within the allowance (and lie within `MAX_FOLLOW_NS` of the first
-    /// sample's): the first sample was late, and the anchor moves to the run's earliest.
-    fn late_first(&mut self, epoch: u64) -> bool {
+    /// Whether `epoch`, earlier than the anchor's, ends a run of `FOLLOW_AFTER` such samples
+    /// (taken or refused) that agree within the allowance and lie within the follow limit of
+    /// the first sample's: the first sample was late, and the anchor moves to the run's
+    /// earliest.
+    fn late_first(&mut self, epoch: u64, stamp_ns: u64) -> bool {
         let (n, lo, hi) = self.ahead;
         let agrees = n > 0 && hi.max(epoch) - lo.min(epoch) <= self.allowance_ns;
         self.ahead = if agrees {
-            (n + 1, lo.min(epoch), hi.max(epoch))
+            (n.saturating_add(1), lo.min(epoch), hi.max(epoch))
         } else {
             (1, epoch, epoch)
         };
         let (n, lo, _) = self.ahead;
-        if n >= FOLLOW_AFTER && self.first - lo <= MAX_FOLLOW_NS {
+        let since = stamp_ns.saturating_sub(self.first_stamp);
+        let limit = MAX_FOLLOW_NS.saturating_add(since / FOLLOW_RATE);
+        if n >= FOLLOW_AFTER && self.first - lo <= limit {
             self.anchor = lo;
             return true;
         }
