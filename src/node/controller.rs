@@ -579,8 +579,12 @@ fn run_realtime(
     };
     // Align to the plant's sample clock: cycle k runs `phase` of a period after sample k. A
     // sample's stamp is its tick plus the plant's wake-up latency, so the earliest
-    // stamp - seq * period seen so far is the best estimate of the plant's epoch.
+    // stamp - seq * period among the good samples is the best estimate of the plant's epoch.
     plant_clock(state.stamp_ns, now_ns(), period).map_err(Failure::Failed)?;
+    // A later END sample ends the loop where it is read; only the first is looked at here.
+    if state.flags & STATE_FLAG_END != 0 {
+        return Ok(());
+    }
     // How far a sample's period may seem to begin before the first sample's: the first
     // sample's wake-up latency, up to the age at which a state is stale, and at least 2 ms (a
     // loaded machine's wake-up).
@@ -622,9 +626,6 @@ fn run_realtime(
             },
             Ok(None) => {}
             Err(e) => return Err(Failure::Setup(e.to_string())),
-        }
-        if state.flags & STATE_FLAG_END != 0 {
-            return Ok(());
         }
         if woke.saturating_sub(state.stamp_ns) > stale_ns {
             flags |= TELEMETRY_FLAG_STALE;

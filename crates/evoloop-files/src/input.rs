@@ -14,7 +14,7 @@ pub const MAX_FILE_BYTES: u64 = 16 << 20;
 /// followed: a user's configuration may well be one.
 pub fn read_text(path: &Path) -> std::io::Result<String> {
     use std::io::Read;
-    let f = open_regular(path, 0)?;
+    let f = open_regular(path)?;
     let mut text = String::new();
     f.take(MAX_FILE_BYTES + 1).read_to_string(&mut text)?;
     if text.len() as u64 > MAX_FILE_BYTES {
@@ -55,21 +55,21 @@ pub fn read_own(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
 /// A file a run wrote itself, opened for reading as `read_own` opens it (for a reader that
 /// wants only part of it: a journal's tail).
 pub fn open_own(path: &Path) -> std::io::Result<std::fs::File> {
-    let f = open_regular(path, libc::O_NOFOLLOW)?;
-    if let Some(why) = crate::output::not_this_runs(&f.metadata()?) {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::PermissionDenied,
-            format!("{}: {why}: not a file this run wrote", path.display()),
-        ));
-    }
-    Ok(f)
+    let f = open_nonblocking(path, libc::O_NOFOLLOW)?;
+    crate::output::vet(f, path, "cannot read", true)
 }
 
-/// `path` opened for reading if it is a regular file (`extra` flags, e.g. `O_NOFOLLOW`);
-/// `O_NONBLOCK` only for the open, so that a FIFO at the name cannot block it.
-fn open_regular(path: &Path, extra: i32) -> std::io::Result<std::fs::File> {
+/// `path` opened for reading if it is a regular file (links followed: a configuration may be
+/// one); `O_NONBLOCK` only for the open, so that a FIFO at the name cannot block it.
+fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
+    let f = open_nonblocking(path, 0)?;
+    crate::output::vet(f, path, "cannot read", false)
+}
+
+/// `path` opened `O_NONBLOCK` for reading with `extra` flags; a refused link said as such.
+fn open_nonblocking(path: &Path, extra: i32) -> std::io::Result<std::fs::File> {
     use std::os::unix::fs::OpenOptionsExt;
-    let f = std::fs::OpenOptions::new()
+    std::fs::OpenOptions::new()
         .read(true)
         .custom_flags(extra | libc::O_NONBLOCK | libc::O_CLOEXEC)
         .open(path)
@@ -82,18 +82,7 @@ fn open_regular(path: &Path, extra: i32) -> std::io::Result<std::fs::File> {
                 ),
             ),
             _ => e,
-        })?;
-    if !f.metadata()?.is_file() {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            format!(
-                "{}: not a regular file (a FIFO, device or directory)",
-                path.display()
-            ),
-        ));
-    }
-    crate::output::clear_nonblock(&f);
-    Ok(f)
+        })
 }
 
 /// What went wrong deserialising a TOML or JSON text: the dotted key (empty at file level), the

@@ -114,14 +114,7 @@ pub fn open_in_place(path: &Path) -> io::Result<File> {
         .custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC | libc::O_NONBLOCK)
         .open(path)
         .map_err(|e| named(path, "cannot open", e))?;
-    if !f.metadata()?.is_file() {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!("{}: not a regular file", path.display()),
-        ));
-    }
-    clear_nonblock(&f);
-    Ok(f)
+    vet(f, path, "cannot open", false)
 }
 
 /// Open `path` to append to it (a journal the run adds to while it runs), creating it if missing:
@@ -136,11 +129,27 @@ pub fn append(path: &Path) -> io::Result<File> {
         .custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC | libc::O_NONBLOCK)
         .open(path)
         .map_err(|e| named(path, "cannot append to", e))?;
-    let why = not_this_runs(&f.metadata()?);
+    vet(f, path, "cannot append to", true)
+}
+
+/// `f`, just opened `O_NONBLOCK` at `path`, kept if it is a regular file (and, with `own`, one
+/// this run can have made: `not_this_runs`), with `O_NONBLOCK` cleared for its use; else the
+/// reason, saying what was being done. Every open of the crate that must not block on a FIFO
+/// or go through a planted file ends here.
+pub(crate) fn vet(f: File, path: &Path, doing: &str, own: bool) -> io::Result<File> {
+    let meta = f.metadata()?;
+    let why = match own {
+        true => not_this_runs(&meta),
+        false => (!meta.is_file()).then(|| "not a regular file".to_string()),
+    };
     if let Some(why) = why {
+        let kind = match meta.is_file() {
+            true => io::ErrorKind::PermissionDenied,
+            false => io::ErrorKind::InvalidInput,
+        };
         return Err(io::Error::new(
-            io::ErrorKind::PermissionDenied,
-            format!("cannot append to {}: {why}", path.display()),
+            kind,
+            format!("{doing} {}: {why}", path.display()),
         ));
     }
     clear_nonblock(&f);
@@ -150,7 +159,7 @@ pub fn append(path: &Path) -> io::Result<File> {
 /// Why a file is not one this run can have made itself, if it is not: anything but a regular
 /// file, a file another user owns (planted), or one with a second name (a hard link to a file
 /// the planter could not read).
-pub(crate) fn not_this_runs(meta: &std::fs::Metadata) -> Option<String> {
+fn not_this_runs(meta: &std::fs::Metadata) -> Option<String> {
     use std::os::unix::fs::MetadataExt;
     // SAFETY: geteuid has no preconditions.
     let me = unsafe { libc::geteuid() };
@@ -169,7 +178,7 @@ pub(crate) fn not_this_runs(meta: &std::fs::Metadata) -> Option<String> {
 }
 
 /// Clear `O_NONBLOCK`, set only so that opening a FIFO could not block, for the file's use.
-pub(crate) fn clear_nonblock(f: &File) {
+fn clear_nonblock(f: &File) {
     // SAFETY: fcntl on a descriptor we own.
     unsafe {
         let fd = std::os::unix::io::AsRawFd::as_raw_fd(f);
