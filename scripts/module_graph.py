@@ -23,7 +23,7 @@ SRC = os.path.join(ROOT, "src")
 # The workspace's layers, bottom first: a crate may depend only on crates of lower layers (the
 # root package `evoloop`, above them all, on any). A new crate must be placed here.
 LAYERS = [
-    ["evoloop-msg", "evoloop-files", "evoloop-stats", "evoloop-rt"],
+    ["evoloop-msg", "evoloop-files", "evoloop-stats", "evoloop-rt", "evoloop-workspace-hack"],
     ["evoloop-linalg", "evoloop-ipc", "evoloop-report", "evoloop-optim"],
     ["evoloop-dynamics", "evoloop-rkgnn"],
     ["evoloop-control"],

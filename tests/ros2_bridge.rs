@@ -5,9 +5,9 @@
 //! and sends sets of gains; its joint states must be run.csv's rows bit for bit, and the
 //! controller's answers to its sets must reach it.
 //!
-//! The peer is built from its own lock file, into the same target directory; give its binary in
-//! EVOLOOP_ROS2_PEER. CI:
-//!   cargo build --release --locked --manifest-path tests/ros2_peer/Cargo.toml --target-dir target
+//! The peer is a member of the workspace that no default build includes (the lock file and the
+//! feature pins are evoloop's); give its binary in EVOLOOP_ROS2_PEER. CI:
+//!   cargo build --release --locked -p ros2-peer
 //!   EVOLOOP_ROS2_PEER=target/release/ros2-peer cargo test --release --features zenoh --test ros2_bridge -- --ignored
 
 mod common;
