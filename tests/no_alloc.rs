@@ -1,5 +1,5 @@
 //! The control cycle does not allocate: a counting global allocator watches the plant step, the
-//! controller cycle (with a parameter swap in it), the run log streamed to disk, the timing
+//! controller cycle (state feedback on its Kalman filter, with a parameter swap in it), the run log streamed to disk, the timing
 //! statistics and the iceoryx2 send/receive of state, command and telemetry, after the set-up
 //! allocated everything once; and, as for a linear plant under the indirect scheme, the
 //! optimiser's model estimates received and adopted, and every set checked for stability on the
@@ -73,8 +73,21 @@ fn the_control_cycle_allocates_nothing() {
         lower: vec![-100.0; 5],
         upper: vec![100.0; 5],
     };
+    // The law on the default scenario's filter, as its controller runs it.
+    let default = evoloop::config::Scenario::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass.toml"),
+        &evoloop::config::Overrides::default(),
+    )
+    .unwrap();
+    let kalman = match &default.controller.model {
+        evoloop::control::ControllerModel::StateFeedback(sf) => sf
+            .kalman_gains()
+            .expect("two_mass runs on its filter")
+            .clone(),
+        _ => unreachable!("two_mass is state feedback"),
+    };
     let mut cyc = ControlCycle::new(
-        Box::new(StateFeedback::new(&gains, dt, Some(100.0))),
+        Box::new(StateFeedback::new(&gains, dt, Some(100.0)).with_kalman(&kalman)),
         Reference::Steps {
             times: vec![0.1, 1.0],
             values: vec![1.0, 0.5],
@@ -203,5 +216,54 @@ fn the_control_cycle_allocates_nothing() {
         0,
         "{allocations} allocations in {} control cycles with {sends} iceoryx2 sends",
         n - 1
+    );
+}
+
+/// An arm's computed torque on velocities it estimates from its encoders (`velocity =
+/// "filtered"`): the filter's update in the cycle allocates nothing either.
+#[test]
+fn computed_torque_on_filtered_velocities_allocates_nothing() {
+    use evoloop::control::estimator::VelocitySource;
+    use evoloop::control::{ComputedTorque, Controller};
+    let scn = evoloop::config::Scenario::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3_ct.toml"),
+        &evoloop::config::Overrides::default(),
+    )
+    .unwrap();
+    let model = match &scn.controller.model {
+        evoloop::control::ControllerModel::ComputedTorque(spec) => spec.model.clone(),
+        _ => unreachable!("arm3_ct is computed torque"),
+    };
+    let n = model.dof();
+    let mut ct = ComputedTorque::new(model.clone(), &vec![100.0; 2 * n], 0.03)
+        .with_velocity(VelocitySource::Filtered { cutoff_hz: 50.0 }, 0.001);
+    let mut state = PlantState {
+        n_q: n as u32,
+        n_y: n as u32,
+        ..Default::default()
+    };
+    let sp = evoloop::reference::Setpoint {
+        n,
+        ..Default::default()
+    };
+    let mut u = vec![0.0; n];
+    let mut step = |k: u64, ct: &mut ComputedTorque, state: &mut PlantState| {
+        state.seq = k;
+        for (i, y) in state.y[..n].iter_mut().enumerate() {
+            *y = 0.1 * (i as f64 + 1.0) * (k as f64 * 1e-3).sin();
+        }
+        ct.step(state, &sp, &mut u);
+    };
+    step(0, &mut ct, &mut state);
+    let before = COUNT.load(Ordering::SeqCst);
+    counting_alloc::arm();
+    for k in 1..2000 {
+        step(k, &mut ct, &mut state);
+    }
+    counting_alloc::disarm();
+    assert_eq!(
+        COUNT.load(Ordering::SeqCst) - before,
+        0,
+        "allocations in 1999 cycles"
     );
 }

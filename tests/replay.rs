@@ -182,7 +182,8 @@ fn a_realtime_recording_replays_to_its_live_commands() {
 }
 
 /// Recordings evoloop wrote before ROS 2 CDR were JSON (tests/data/json-recording/run.mcap, a
-/// run of the scenario beside it written by evoloop at e8a2f43). One still replays to its live
+/// run of the scenario beside it written by evoloop at e8a2f43, with `state = "true"` added
+/// since: the full-state law it ran then). One still replays to its live
 /// commands bit for bit, scheduled set included; and the replayed controller's own recording,
 /// now CDR, reads back to the same states, commands and set as the JSON one: every f64 bit for
 /// bit through both encodings.

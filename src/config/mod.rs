@@ -259,6 +259,8 @@ impl Scenario {
             n_x: p.n_states(),
             n_q: p.n_joints(),
             n_y: p.n_outputs(),
+            n_u: p.n_inputs(),
+            reads_truth: self.controller.reads_truth(),
             safe_command,
         }
     }
@@ -304,10 +306,21 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let controller = ControllerSpec::validate(
         raw.controller,
         check,
-        &plant.model,
+        &plant,
         &reference,
         timing.duration,
+        timing.period,
     )?;
+    if !plant.publish_truth && controller.reads_truth() {
+        return check.fail(
+            "plant.publish_truth",
+            format!(
+                "false withholds the true state, which controller.kind = \"{}\" reads as this \
+                 scenario configures it (a full-state or true-velocity reproduction)",
+                controller.kind().name()
+            ),
+        );
+    }
     let mut raw_optimiser = raw.optimiser;
     let raw_model = raw_optimiser.as_mut().and_then(|o| o.model.take());
     let mut optimiser = optimiser::validate(raw_optimiser, check, &timing, ov)?;

@@ -19,7 +19,8 @@ use super::svf::{Svf, SvfDesign};
 use super::{Candidate, Estimate, Estimator, Tuner};
 use crate::check::Tunable;
 use crate::config::Scenario;
-use crate::control::StateFeedback;
+use crate::control::estimator::KalmanDesign;
+use crate::control::{ControllerModel, StateFeedback};
 use crate::msg::PlantState;
 use crate::plant::two_mass::{Sensor, TwoMass, TwoMassSpec};
 use crate::reference::Reference;
@@ -57,6 +58,10 @@ pub struct SpringModel {
     duration: f64,
     u_limit: Option<f64>,
     w: f64,
+    /// The running law's filter (`controller.state_feedback.state = "kalman"`), designed as the
+    /// controller designs it, from the nominal spring constant: each candidate is judged in the
+    /// loop it will run in, the filter's model error included. None: the true state.
+    kalman: Option<(KalmanDesign, f64)>,
 }
 
 /// The DE's objective: the gains' cost on the model with spring constant `k`. It owns the model,
@@ -149,6 +154,10 @@ impl TwoMassTuner {
                 duration: repetition,
                 u_limit: scn.controller.u_limit,
                 w: scn.optimiser.cost_u_weight,
+                kalman: match &scn.controller.model {
+                    ControllerModel::StateFeedback(sf) => sf.kalman.map(|d| (d, plant.spring)),
+                    _ => None,
+                },
             },
             de: super::DeEpochs::new(scn, &tunable.bounds),
             margin: scn.optimiser.margin,
@@ -187,7 +196,15 @@ impl SpringModel {
             return f64::INFINITY;
         }
         let plant = TwoMass::new(self.m1, self.m2, k, self.sensor);
-        let ctrl = StateFeedback::new(gains, self.period, self.u_limit);
+        let mut ctrl = StateFeedback::new(gains, self.period, self.u_limit);
+        if let Some((design, k_nominal)) = self.kalman {
+            let nominal = TwoMass::new(self.m1, self.m2, k_nominal, self.sensor).linear_model();
+            match design.gains(&nominal, self.period) {
+                Ok(g) => ctrl = ctrl.with_kalman(&g),
+                // The scenario's check designed this very filter.
+                Err(_) => return f64::INFINITY,
+            }
+        }
         let (_, y, u) = crate::sim::response(
             Box::new(plant),
             Box::new(ctrl),

@@ -53,7 +53,8 @@ pub fn main(args: &ProcessArgs) {
         scn.plant.step,
         scn.plant.noise_std,
         scn.seed,
-    );
+    )
+    .publishing_truth(scn.plant.publish_truth);
     let mut report = PlantReport {
         mode: scn.timing.mode,
         ..Default::default()

@@ -126,7 +126,8 @@ pub fn run_loop(scn: &Scenario, hook: &mut impl LoopHook) -> ControlCycle {
         scn.plant.step,
         scn.plant.noise_std,
         scn.seed,
-    );
+    )
+    .publishing_truth(scn.plant.publish_truth);
     let mut cycle = control_cycle(scn);
     let dt = scn.timing.period;
     let mut state = PlantState::default();

@@ -19,7 +19,11 @@
 //! swap. The floor stays the configured model's, so a series of sets cannot ratchet it down.
 //! Nothing is allocated.
 
-use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
+use super::estimator::{Velocities, VelocitySource};
+use super::{
+    driven_arm, joint_gains, velocity_source, Controller, ControllerConfig, ControllerContext,
+    VelocityKey,
+};
 use crate::check::{Check, ConfigError, Tunable};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -46,6 +50,7 @@ pub struct ComputedTorque {
     acc: Vec<f64>,
     q: Vec<f64>,
     qd: Vec<f64>,
+    velocity: Velocities,
 }
 
 impl ComputedTorque {
@@ -70,7 +75,14 @@ impl ComputedTorque {
             acc: vec![0.0; n],
             q: vec![0.0; n],
             qd: vec![0.0; n],
+            velocity: Velocities::True,
         }
+    }
+
+    /// Read velocities from `source` (the true ones until this is called), every `period` s.
+    pub fn with_velocity(mut self, source: VelocitySource, period: f64) -> Self {
+        self.velocity = Velocities::new(source, self.model.dof(), period);
+        self
     }
 
     /// psi(k) = 1 - exp(-c k).
@@ -158,9 +170,9 @@ impl Controller for ComputedTorque {
     fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
         let n = self.model.dof();
         let (kp, kv) = self.gains.split_at(n);
+        self.qd.copy_from_slice(self.velocity.read(state, n));
         for i in 0..n {
             self.q[i] = state.y[i];
-            self.qd[i] = state.qd_true[i];
             let e = sp.q[i] - self.q[i];
             let ed = sp.qd[i] - self.qd[i];
             self.acc[i] = sp.qdd[i] + kv[i] * ed + kp[i] * e;
@@ -228,6 +240,8 @@ pub struct Table {
     model: Option<PathBuf>,
     lower: Option<Vec<f64>>,
     upper: Option<Vec<f64>>,
+    velocity: Option<VelocityKey>,
+    velocity_cutoff_hz: Option<f64>,
 }
 
 /// Validated computed-torque gains [Kp; Kv] with their bounds, the start-up rate and the model.
@@ -239,6 +253,7 @@ pub struct ComputedTorqueSpec {
     pub startup_rate: f64,
     /// The controller's model (the plant's robot unless `model` is given).
     pub model: Model,
+    pub velocity: VelocitySource,
 }
 
 pub fn validate(
@@ -278,6 +293,13 @@ pub fn validate(
         tunable,
         startup_rate,
         model,
+        velocity: velocity_source(
+            check,
+            "computed_torque",
+            t.velocity,
+            t.velocity_cutoff_hz,
+            cx.period,
+        )?,
     })
 }
 
@@ -303,12 +325,14 @@ pub(crate) fn gains_and_startup(
 }
 
 impl ControllerConfig for ComputedTorqueSpec {
-    fn build(&self, _period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
-        Box::new(ComputedTorque::new(
-            self.model.clone(),
-            &self.tunable.gains,
-            self.startup_rate,
-        ))
+    fn build(&self, period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
+        Box::new(
+            ComputedTorque::new(self.model.clone(), &self.tunable.gains, self.startup_rate)
+                .with_velocity(self.velocity, period),
+        )
+    }
+    fn reads_truth(&self) -> bool {
+        self.velocity.reads_truth()
     }
     fn tunable(&self) -> &Tunable {
         &self.tunable

@@ -26,7 +26,8 @@
 use super::evidence::{self, Evidence};
 use super::fuzzy_select::{self, Selection};
 use super::computed_torque::{damp_and_limit, gains_and_startup, startup_damping};
-use super::{driven_arm, Controller, ControllerConfig, ControllerContext};
+use super::estimator::{Velocities, VelocitySource};
+use super::{driven_arm, velocity_source, Controller, ControllerConfig, ControllerContext, VelocityKey};
 use crate::check::{Check, ConfigError, Tunable};
 use crate::msg::{ParamCode, PlantState, ParamKind};
 use crate::reference::Setpoint;
@@ -97,6 +98,7 @@ pub struct FuzzyComputedTorque {
     /// there.
     probes: Vec<Vec<Vec<f64>>>,
     min_eig: [f64; MAX_MODELS],
+    velocity: Velocities,
 }
 
 /// Probe positions per model for checking a replacement.
@@ -256,7 +258,14 @@ impl FuzzyComputedTorque {
             k: 0,
             w: [0.0; MAX_MODELS],
             s: [0.0; MAX_MODELS],
+            velocity: Velocities::True,
         }
+    }
+
+    /// Read velocities from `source` (the true ones until this is called), every `period` s.
+    pub fn with_velocity(mut self, source: VelocitySource, period: f64) -> Self {
+        self.velocity = Velocities::new(source, self.models[0].dof(), period);
+        self
     }
 
     /// Each model's weight in the law averaged over the joints (`Evidence`).
@@ -327,7 +336,7 @@ impl Controller for FuzzyComputedTorque {
         let n = self.models[0].dof();
         self.weigh(state, sp);
         let (kp, kv) = self.gains.split_at(n);
-        let (q, qd) = (&state.y[..n], &state.qd_true[..n]);
+        let (q, qd) = (&state.y[..n], self.velocity.read(state, n));
         let mut acc = [0.0; MAX_JOINTS];
         for i in 0..n {
             acc[i] = sp.qdd[i] + kv[i] * (sp.qd[i] - qd[i]) + kp[i] * (sp.q[i] - q[i]);
@@ -436,6 +445,8 @@ pub struct Table {
     evidence_memory: Option<f64>,
     lower: Option<Vec<f64>>,
     upper: Option<Vec<f64>>,
+    velocity: Option<VelocityKey>,
+    velocity_cutoff_hz: Option<f64>,
 }
 
 /// Validated settings with the models loaded and checked.
@@ -447,6 +458,7 @@ pub struct FuzzyComputedTorqueSpec {
     pub models: Vec<PathBuf>,
     #[serde(flatten)]
     pub rule: Rule,
+    pub velocity: VelocitySource,
     #[serde(skip)]
     pub loaded: Vec<RkgnnModel>,
     #[serde(skip)]
@@ -530,6 +542,13 @@ pub fn validate(
         startup_rate,
         models,
         rule,
+        velocity: velocity_source(
+            check,
+            "fuzzy_computed_torque",
+            t.velocity,
+            t.velocity_cutoff_hz,
+            cx.period,
+        )?,
         loaded,
         effort: arm.bodies.iter().map(|b| b.limits.effort).collect(),
         along,
@@ -546,7 +565,12 @@ impl ControllerConfig for FuzzyComputedTorqueSpec {
             self.effort.clone(),
             &self.along,
             period,
-        ))
+        )
+        .with_velocity(self.velocity, period),
+        )
+    }
+    fn reads_truth(&self) -> bool {
+        self.velocity.reads_truth()
     }
     fn tunable(&self) -> &Tunable {
         &self.tunable

@@ -2,6 +2,7 @@
 //! cycle without allocating. Parameter sets arrive from the optimiser; `validate` checks them at
 //! the boundary and `swap_params` puts an accepted set in service without a bump in u.
 
+pub mod estimator;
 pub mod evidence;
 pub mod fuzzy_select;
 pub mod model_check;
@@ -66,6 +67,12 @@ pub trait ControllerConfig {
     fn checks_stability(&self) -> bool {
         false
     }
+    /// Whether the law reads the simulator's truth fields (`x_true`, `q_true`, `qd_true`),
+    /// which no sensor gives: a paper reproduction's full-state or true-velocity assumption,
+    /// said in its file. Such a law's states must carry them (`plant.publish_truth`).
+    fn reads_truth(&self) -> bool {
+        false
+    }
 }
 
 /// What a law's validation may look at besides its own table.
@@ -75,6 +82,11 @@ pub struct ControllerContext<'a> {
     /// stopped): a model-based law checks its models where the run will take them.
     pub reference: &'a crate::reference::Reference,
     pub duration: f64,
+    /// The control period, s (an estimator is designed for it).
+    pub period: f64,
+    /// The standard deviation of the plant's measurement error as its sensor is declared: the
+    /// noise and the quantisation together (`PlantSpec::measurement_std`).
+    pub measurement_std: f64,
 }
 
 /// A validated controller: the keys every law shares, and its own settings.
@@ -93,9 +105,10 @@ impl ControllerSpec {
     pub fn validate(
         mut raw: RawController,
         check: &Check,
-        plant: &PlantModel,
+        plant: &crate::plant::PlantSpec,
         reference: &crate::reference::Reference,
         duration: f64,
+        period: f64,
     ) -> Result<ControllerSpec, ConfigError> {
         let u_limit = match raw.u_limit {
             Some(l) => Some(check.positive("controller.u_limit", l)?),
@@ -106,9 +119,11 @@ impl ControllerSpec {
             return check.fail("controller.stale_after_periods", "must be >= 1");
         }
         let cx = ControllerContext {
-            plant,
+            plant: &plant.model,
             reference,
             duration,
+            period,
+            measurement_std: plant.measurement_std(),
         };
         let kind = raw.kind;
         Ok(ControllerSpec {
@@ -140,6 +155,10 @@ impl ControllerSpec {
 
     pub fn scaling_genes(&self) -> Vec<usize> {
         self.model.config().scaling_genes()
+    }
+
+    pub fn reads_truth(&self) -> bool {
+        self.model.config().reads_truth()
     }
 }
 
@@ -220,6 +239,47 @@ pub(crate) fn driven_arm<'a>(
                  in plant.external.robot"
             ),
         ),
+    }
+}
+
+/// `controller.<law>.velocity` as written: "true" or "filtered".
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VelocityKey {
+    True,
+    Filtered,
+}
+
+/// The cutoff of a joint-space law's velocity filter when `velocity_cutoff_hz` is not given.
+pub const DEFAULT_VELOCITY_CUTOFF_HZ: f64 = 50.0;
+
+/// A joint-space law's velocity source from its `velocity` and `velocity_cutoff_hz` keys
+/// (under `controller.<law>`): the true velocities unless "filtered", whose cutoff must lie
+/// below the sampling's Nyquist frequency 1 / (2 period).
+pub(crate) fn velocity_source(
+    check: &Check,
+    law: &str,
+    velocity: Option<VelocityKey>,
+    cutoff_hz: Option<f64>,
+    period: f64,
+) -> Result<estimator::VelocitySource, ConfigError> {
+    let key = format!("controller.{law}.velocity_cutoff_hz");
+    match velocity.unwrap_or(VelocityKey::True) {
+        VelocityKey::True => match cutoff_hz {
+            Some(_) => check.fail(&key, "the cutoff of velocity = \"filtered\""),
+            None => Ok(estimator::VelocitySource::True),
+        },
+        VelocityKey::Filtered => {
+            let nyquist = 0.5 / period;
+            let fc = cutoff_hz.unwrap_or(DEFAULT_VELOCITY_CUTOFF_HZ);
+            if !(fc > 0.0 && fc < nyquist) {
+                return check.fail(
+                    &key,
+                    format!("must lie in (0, {nyquist}) Hz, below the control rate's Nyquist frequency (got {fc})"),
+                );
+            }
+            Ok(estimator::VelocitySource::Filtered { cutoff_hz: fc })
+        }
     }
 }
 

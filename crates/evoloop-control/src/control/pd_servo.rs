@@ -4,10 +4,15 @@
 //! with no model and no gravity compensation, clipped to the joint's torque limit. It is the
 //! "actual controller" whose gains a later identification does not know.
 //! Parameters: [Kp_1..Kp_n, Kd_1..Kd_n]. Positions are the measured outputs y (with the plant's
-//! sensor noise); velocities are the simulator's true joint velocities `qd_true` (hardware would
-//! give a differentiated, filtered encoder signal instead).
+//! sensor noise); velocities are the simulator's true joint velocities `qd_true` by default (the
+//! paper's simulation), or with `velocity = "filtered"` the measured positions differenced and
+//! low-passed as a drive makes them (`estimator::VelocityFilter`).
 
-use super::{driven_arm, joint_gains, Controller, ControllerConfig, ControllerContext};
+use super::estimator::{Velocities, VelocitySource};
+use super::{
+    driven_arm, joint_gains, velocity_source, Controller, ControllerConfig, ControllerContext,
+    VelocityKey,
+};
 use crate::check::{Check, ConfigError, Tunable};
 use serde::{Deserialize, Serialize};
 use crate::msg::{PlantState, ParamKind};
@@ -16,6 +21,7 @@ use crate::reference::Setpoint;
 pub struct PdServo {
     gains: Vec<f64>,
     limits: Vec<f64>,
+    velocity: Velocities,
 }
 
 impl PdServo {
@@ -29,7 +35,14 @@ impl PdServo {
         Self {
             gains: gains.to_vec(),
             limits: limits.to_vec(),
+            velocity: Velocities::True,
         }
+    }
+
+    /// Read velocities from `source` (the true ones until this is called), every `period` s.
+    pub fn with_velocity(mut self, source: VelocitySource, period: f64) -> Self {
+        self.velocity = Velocities::new(source, self.limits.len(), period);
+        self
     }
 }
 
@@ -50,8 +63,9 @@ impl Controller for PdServo {
     fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
         let n = self.limits.len();
         let (kp, kd) = self.gains.split_at(n);
+        let qd = self.velocity.read(state, n);
         for i in 0..n {
-            let tau = kp[i] * (sp.q[i] - state.y[i]) + kd[i] * (sp.qd[i] - state.qd_true[i]);
+            let tau = kp[i] * (sp.q[i] - state.y[i]) + kd[i] * (sp.qd[i] - qd[i]);
             u[i] = tau.clamp(-self.limits[i], self.limits[i]);
         }
     }
@@ -71,6 +85,8 @@ pub struct Table {
     kd: Vec<f64>,
     lower: Option<Vec<f64>>,
     upper: Option<Vec<f64>>,
+    velocity: Option<VelocityKey>,
+    velocity_cutoff_hz: Option<f64>,
 }
 
 /// Validated P-D gains [Kp; Kd] with their bounds, and the arm's torque limits.
@@ -80,6 +96,7 @@ pub struct PdServoSpec {
     pub tunable: Tunable,
     /// Torque limit per joint (from the robot description; infinite where none).
     pub torque_limits: Vec<f64>,
+    pub velocity: VelocitySource,
 }
 
 pub fn validate(
@@ -106,12 +123,19 @@ pub fn validate(
     Ok(PdServoSpec {
         tunable,
         torque_limits: model.bodies.iter().map(|b| b.limits.effort).collect(),
+        velocity: velocity_source(check, "pd_servo", t.velocity, t.velocity_cutoff_hz, cx.period)?,
     })
 }
 
 impl ControllerConfig for PdServoSpec {
-    fn build(&self, _period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
-        Box::new(PdServo::new(&self.tunable.gains, &self.torque_limits))
+    fn build(&self, period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
+        Box::new(
+            PdServo::new(&self.tunable.gains, &self.torque_limits)
+                .with_velocity(self.velocity, period),
+        )
+    }
+    fn reads_truth(&self) -> bool {
+        self.velocity.reads_truth()
     }
     fn tunable(&self) -> &Tunable {
         &self.tunable

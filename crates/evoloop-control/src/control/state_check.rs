@@ -13,6 +13,12 @@ pub struct StateCheck {
     pub n_x: usize,
     pub n_q: usize,
     pub n_y: usize,
+    /// The commands the law sends: the applied command's valid prefix (`u_applied`), which
+    /// an estimator reads.
+    pub n_u: usize,
+    /// Whether the law reads the truth fields (`ControllerConfig::reads_truth`): only then must
+    /// they be finite (a plant may withhold them as NaN, `plant.publish_truth = false`).
+    pub reads_truth: bool,
     /// The command sent in place of the law's for a refused state (`plant.safe_command`).
     pub safe_command: f64,
 }
@@ -65,6 +71,7 @@ pub enum Field {
     QTrue,
     QdTrue,
     Y,
+    UApplied,
 }
 
 impl Field {
@@ -78,6 +85,7 @@ impl Field {
             Field::QTrue => "q_true",
             Field::QdTrue => "qd_true",
             Field::Y => "y",
+            Field::UApplied => "u_applied",
         }
     }
 }
@@ -252,8 +260,9 @@ fn plant_epoch(s: &PlantState, period_ns: u64) -> u64 {
 }
 
 impl StateCheck {
-    /// The counts and values the laws read: every count, `t`, and the valid prefix of each
-    /// array. Allocation-free, at most 57 comparisons.
+    /// The counts and values the laws read: every count, `t`, and the valid prefix of `y`,
+    /// `u_applied` and, for a law that reads them, the truth fields. Allocation-free, at most
+    /// 65 comparisons.
     pub fn judge(&self, s: &PlantState) -> Result<(), StateFault> {
         let counts = [
             (Field::NX, s.n_x, self.n_x.min(MAX_STATES)),
@@ -269,12 +278,14 @@ impl StateCheck {
                 });
             }
         }
-        let arrays: [(Field, &[f64]); 5] = [
+        let truth = |n: usize| if self.reads_truth { n } else { 0 };
+        let arrays: [(Field, &[f64]); 6] = [
             (Field::T, std::slice::from_ref(&s.t)),
-            (Field::XTrue, &s.x_true[..self.n_x.min(MAX_STATES)]),
-            (Field::QTrue, &s.q_true[..self.n_q.min(MAX_JOINTS)]),
-            (Field::QdTrue, &s.qd_true[..self.n_q.min(MAX_JOINTS)]),
+            (Field::XTrue, &s.x_true[..truth(self.n_x.min(MAX_STATES))]),
+            (Field::QTrue, &s.q_true[..truth(self.n_q.min(MAX_JOINTS))]),
+            (Field::QdTrue, &s.qd_true[..truth(self.n_q.min(MAX_JOINTS))]),
             (Field::Y, &s.y[..self.n_y.min(MAX_JOINTS)]),
+            (Field::UApplied, &s.u_applied[..self.n_u.min(MAX_JOINTS)]),
         ];
         for (field, values) in arrays {
             if let Some(i) = values.iter().position(|v| !v.is_finite()) {
@@ -317,6 +328,8 @@ mod tests {
             n_x: 4,
             n_q: 2,
             n_y: 1,
+            n_u: 1,
+            reads_truth: true,
             safe_command: 0.0,
         }
     }
@@ -354,7 +367,35 @@ mod tests {
         let mut s = good();
         s.y[1] = f64::NAN;
         s.x_true[4] = f64::NAN;
+        s.u_applied[1] = f64::NAN;
         assert_eq!(check().judge(&s), Ok(()));
+        // The applied command an estimator reads.
+        let mut s = good();
+        s.u_applied[0] = f64::NAN;
+        let e = check().judge(&s).unwrap_err();
+        assert_eq!(e.to_string(), "u_applied[0] is not a finite number");
+    }
+
+    /// A plant that withholds its truth (NaN in every truth field) is judged on its readings
+    /// alone when the law reads none of it, and refused for a law that does.
+    #[test]
+    fn withheld_truth_is_refused_only_for_a_law_that_reads_it() {
+        let mut s = good();
+        s.x_true = [f64::NAN; MAX_STATES];
+        s.q_true = [f64::NAN; MAX_JOINTS];
+        s.qd_true = [f64::NAN; MAX_JOINTS];
+        let readings_only = StateCheck {
+            reads_truth: false,
+            ..check()
+        };
+        assert_eq!(readings_only.judge(&s), Ok(()));
+        assert_eq!(
+            check().judge(&s),
+            Err(StateFault::NonFinite {
+                field: Field::XTrue,
+                index: 0
+            })
+        );
     }
 
     fn sample(seq: u64, stamp_ns: u64) -> PlantState {

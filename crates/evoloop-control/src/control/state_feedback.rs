@@ -1,15 +1,19 @@
 //! State feedback with integral action (two-mass paper, eq. 2 and Fig. 1):
 //!   u = -K x̂,  x̂ = [x; ξ],  ξ' = r - y,
 //! with K = [k1, ..., kn, k_{n+1}] in the column order of the paper's Table 9 (so the paper's
-//! integral gain k_i equals -k_{n+1}). x is the plant's full state in its documented order, read
-//! from the simulator's true state `x_true` as the paper's full-state feedback assumes (on
-//! hardware an observer would supply it); the integrator acts on the measured output y.
+//! integral gain k_i equals -k_{n+1}). x is the plant's state in its documented order. By
+//! default (`state = "kalman"`) it is a steady-state Kalman filter's estimate from the measured
+//! output y and the applied command, designed from the plant's nominal model for its declared
+//! sensor (`control::estimator`), as a machine with one position sensor runs this law. The
+//! paper assumes the full state measured: `state = "true"` reads the simulator's true state
+//! `x_true` instead, for reproducing its tables, and says so. The integrator acts on y.
 //!
 //! The integrator is stored as its contribution to u, I = -k_{n+1} ξ (as ros2_control stores
 //! Ki·∫e), which makes the bumpless swap a one-line re-initialisation of I.
 //! Optional output limit with conditional integration (the integrator holds while the output is
 //! saturated and the error would drive it further into saturation).
 
+use super::estimator::{Kalman, KalmanDesign, KalmanGains};
 use super::{Controller, ControllerConfig, ControllerContext};
 use crate::check::{Check, ConfigError, Tunable};
 use serde::{Deserialize, Serialize};
@@ -19,6 +23,8 @@ use crate::reference::Setpoint;
 pub struct StateFeedback {
     gains: Vec<f64>,
     n_x: usize,
+    /// The state the law runs on: a filter's estimate, or (None) the simulator's truth.
+    kalman: Option<Kalman>,
     /// Control period (s): the integrator's step.
     period: f64,
     /// Integral contribution to u.
@@ -27,11 +33,13 @@ pub struct StateFeedback {
 }
 
 impl StateFeedback {
-    /// `gains` has n_x + 1 entries.
+    /// `gains` has n_x + 1 entries. The law runs on the simulator's true state (the paper's
+    /// full-state assumption) until `with_kalman` gives it a filter.
     pub fn new(gains: &[f64], period: f64, u_limit: Option<f64>) -> Self {
         assert!(gains.len() >= 2, "state feedback needs n_x + 1 >= 2 gains");
         Self {
             n_x: gains.len() - 1,
+            kalman: None,
             gains: gains.to_vec(),
             period,
             integral: 0.0,
@@ -39,22 +47,25 @@ impl StateFeedback {
         }
     }
 
-    /// The unsaturated law -K_x x + I.
-    fn law(&self, x: &[f64]) -> f64 {
-        self.integral - self.state_term(x)
-    }
-
-    /// K_x x (the state part of the law, without the integrator).
-    fn state_term(&self, x: &[f64]) -> f64 {
-        self.gains[..self.n_x]
-            .iter()
-            .zip(x)
-            .map(|(k, xi)| k * xi)
-            .sum()
-    }
-
     pub fn integral(&self) -> f64 {
         self.integral
+    }
+
+    /// Run on the estimate of a Kalman filter with `gains` (designed for a model with this
+    /// law's n_x states).
+    pub fn with_kalman(mut self, gains: &KalmanGains) -> Self {
+        assert_eq!(gains.model.n(), self.n_x, "the filter estimates the law's states");
+        self.kalman = Some(Kalman::new(gains));
+        self
+    }
+
+    /// The plant state at `state`'s sample as the law knows it. Allocation-free; the filter
+    /// takes each sample once however often it is asked.
+    fn state_of<'a>(kalman: &'a mut Option<Kalman>, n_x: usize, state: &'a PlantState) -> &'a [f64] {
+        match kalman {
+            Some(k) => k.update(state),
+            None => &state.x_true[..n_x],
+        }
     }
 }
 
@@ -74,7 +85,8 @@ impl Controller for StateFeedback {
 
     fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
         let reference = sp.q[0];
-        let raw = self.law(&state.x_true[..self.n_x]);
+        let x = Self::state_of(&mut self.kalman, self.n_x, state);
+        let raw = self.integral - dot(&self.gains[..self.n_x], x);
         let out = match self.u_limit {
             Some(l) => raw.clamp(-l, l),
             None => raw,
@@ -89,12 +101,17 @@ impl Controller for StateFeedback {
     }
 
     fn swap_params(&mut self, new: &[f64], state: &PlantState, _sp: &Setpoint) {
-        let x = &state.x_true[..self.n_x];
-        let u_old = self.law(x);
-        self.gains.copy_from_slice(new);
+        let x = Self::state_of(&mut self.kalman, self.n_x, state);
+        let u_old = self.integral - dot(&self.gains[..self.n_x], x);
         // Choose I so that -K_new x + I = u_old on this sample: no step in u.
-        self.integral = u_old + self.state_term(x);
+        self.integral = u_old + dot(&new[..self.n_x], x);
+        self.gains.copy_from_slice(new);
     }
+}
+
+/// K_x x.
+fn dot(k: &[f64], x: &[f64]) -> f64 {
+    k.iter().zip(x).map(|(k, x)| k * x).sum()
 }
 
 // ---------------------------------------------------------------- configuration
@@ -106,13 +123,39 @@ pub struct Table {
     gains: Vec<f64>,
     lower: Option<Vec<f64>>,
     upper: Option<Vec<f64>>,
+    state: Option<StateSource>,
+    process_noise: Option<f64>,
+    measurement_noise: Option<f64>,
 }
 
-/// Validated state-feedback gains [K_x, k_{n+1}] and their bounds.
+/// `controller.state_feedback.state`: where the law's x comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StateSource {
+    /// A steady-state Kalman filter's estimate from the measured output (the default).
+    #[default]
+    Kalman,
+    /// The simulator's true state `x_true`: the paper's full-state assumption, which no
+    /// machine with one position sensor has (paper reproductions only).
+    True,
+}
+
+/// The filter's design when no key gives it: a disturbance of this standard deviation in the
+/// input's units per period, and no less than this measurement error for an ideal sensor.
+pub const DEFAULT_PROCESS_NOISE: f64 = 1.0;
+pub const IDEAL_SENSOR_NOISE: f64 = 1e-6;
+
+/// Validated state-feedback gains [K_x, k_{n+1}] and their bounds, and the state they act on.
 #[derive(Debug, Clone, Serialize)]
 pub struct StateFeedbackSpec {
     #[serde(flatten)]
     pub tunable: Tunable,
+    pub state: StateSource,
+    /// The filter's design (`state = "kalman"`), and its error dynamics' slowest pole's radius.
+    pub kalman: Option<KalmanDesign>,
+    pub kalman_slowest_pole: Option<f64>,
+    #[serde(skip)]
+    gains: Option<KalmanGains>,
 }
 
 pub fn validate(
@@ -145,14 +188,71 @@ pub fn validate(
             ),
         );
     }
+    let tunable = check.tunable("controller.state_feedback", t.gains, t.lower, t.upper, 1e3)?;
+    let state = t.state.unwrap_or_default();
+    let design = match state {
+        StateSource::True => {
+            if t.process_noise.is_some() || t.measurement_noise.is_some() {
+                return check.fail(
+                    "controller.state_feedback.state",
+                    "\"true\" reads the true state: process_noise and measurement_noise design \
+                     the Kalman filter of state = \"kalman\"",
+                );
+            }
+            None
+        }
+        StateSource::Kalman => Some(KalmanDesign {
+            process_noise: check.positive(
+                "controller.state_feedback.process_noise",
+                t.process_noise.unwrap_or(DEFAULT_PROCESS_NOISE),
+            )?,
+            measurement_noise: check.positive(
+                "controller.state_feedback.measurement_noise",
+                t.measurement_noise
+                    .unwrap_or(cx.measurement_std.max(IDEAL_SENSOR_NOISE)),
+            )?,
+        }),
+    };
+    let gains = match design {
+        Some(d) => match d.gains(&model, cx.period) {
+            Ok(g) => Some(g),
+            Err(why) => {
+                return check.fail(
+                    "controller.state_feedback.state",
+                    format!("no Kalman filter for this plant's model: {why}"),
+                )
+            }
+        },
+        None => None,
+    };
     Ok(StateFeedbackSpec {
-        tunable: check.tunable("controller.state_feedback", t.gains, t.lower, t.upper, 1e3)?,
+        tunable,
+        state,
+        kalman: design,
+        kalman_slowest_pole: gains
+            .as_ref()
+            .map(|g| g.poles.iter().map(|z| z.norm()).fold(0.0, f64::max)),
+        gains,
     })
+}
+
+impl StateFeedbackSpec {
+    /// The Kalman filter the law runs on (`state = "kalman"`), designed for the plant's model.
+    pub fn kalman_gains(&self) -> Option<&KalmanGains> {
+        self.gains.as_ref()
+    }
 }
 
 impl ControllerConfig for StateFeedbackSpec {
     fn build(&self, period: f64, u_limit: Option<f64>) -> Box<dyn Controller> {
-        Box::new(StateFeedback::new(&self.tunable.gains, period, u_limit))
+        let law = StateFeedback::new(&self.tunable.gains, period, u_limit);
+        Box::new(match &self.gains {
+            Some(g) => law.with_kalman(g),
+            None => law,
+        })
+    }
+    fn reads_truth(&self) -> bool {
+        self.state == StateSource::True
     }
     fn tunable(&self) -> &Tunable {
         &self.tunable

@@ -113,6 +113,75 @@ impl LinearModel {
         self.time
     }
 
+    /// A's entry (i, j).
+    pub fn a(&self, i: usize, j: usize) -> f64 {
+        self.a[i][j]
+    }
+
+    /// B's entry i.
+    pub fn b(&self, i: usize) -> f64 {
+        self.b[i]
+    }
+
+    /// C's entry j.
+    pub fn c(&self, j: usize) -> f64 {
+        self.c[j]
+    }
+
+    /// A sampled model's (d, f, g): y_k = C z_k + d v_{k-1}, v_k = f z_k + g u_k; a continuous
+    /// one's are (0, 0, 1), the input reaching the plant as it is.
+    pub fn feedthrough(&self) -> (f64, &[f64], f64) {
+        (self.d, &self.f[..self.n], self.g)
+    }
+
+    /// Entry i of the column through which what reaches the plant (v, the input after any
+    /// delay line) moves the state: A f' + B g (B for a model without an input delay).
+    pub fn input_column(&self, i: usize) -> f64 {
+        let n = self.n;
+        (0..n).map(|j| self.a[i][j] * self.f[j]).sum::<f64>() + self.b[i] * self.g
+    }
+
+    /// The model as a controller running every `period` s sees it: a sampled model at its own
+    /// period as it is (None at another), a continuous one discretised exactly with the input
+    /// held over the period (the exponential of [[A, B], [0, 0]] T). Off the cycle (allocates);
+    /// None when the exponential is not finite or the product of size and period is beyond
+    /// `MAX_NORM_PERIOD`.
+    pub fn at_period(&self, period: f64) -> Option<LinearModel> {
+        let n = self.n;
+        match self.time {
+            Time::Sampled { period: own } => {
+                ((own - period).abs() <= 1e-12 * own.max(period)).then_some(*self)
+            }
+            Time::Continuous => {
+                let flat: Vec<f64> = (0..n).flat_map(|i| self.a[i][..n].to_vec()).collect();
+                let too_fast = norm_period(&flat, &self.b[..n], n + 1, period) > MAX_NORM_PERIOD;
+                if period.is_nan() || period <= 0.0 || too_fast {
+                    return None;
+                }
+                let m = DMatrix::from_fn(n + 1, n + 1, |i, j| match (i < n, j < n) {
+                    (true, true) => self.a[i][j] * period,
+                    (true, false) => self.b[i] * period,
+                    _ => 0.0,
+                });
+                let e = m.exp();
+                let a: Vec<f64> = (0..n * n).map(|k| e[(k / n, k % n)]).collect();
+                let b: Vec<f64> = (0..n).map(|i| e[(i, n)]).collect();
+                if !a.iter().chain(&b).all(|v| v.is_finite()) {
+                    return None;
+                }
+                Some(Self::sampled(
+                    period,
+                    &a,
+                    &b,
+                    &self.c[..n],
+                    0.0,
+                    &vec![0.0; n],
+                    1.0,
+                ))
+            }
+        }
+    }
+
     /// The augmented continuous open loop (Â, B̂) = ([[A, 0], [-C, 0]], [B; 0]) (the robust
     /// design's, off the control cycle). A continuous model's only: panics on a sampled one,
     /// whose integrator row is another.

@@ -11,7 +11,7 @@ pub mod linear;
 
 pub use arm::Arm;
 pub use integrator::Rk4;
-pub use linear::LinearModel;
+pub use linear::{LinearModel, MAX_LINEAR_STATES};
 pub use two_mass::TwoMass;
 
 use crate::check::{Check, ConfigError};
@@ -38,6 +38,7 @@ crate::kinds! {
         pub noise_std: Option<f64>,
         pub safe_command: Option<f64>,
         pub command_timeout_periods: Option<u32>,
+        pub publish_truth: Option<bool>,
     };
     two_mass => TwoMass(TwoMassSpec),
     arm => Arm(ArmSpec),
@@ -80,6 +81,10 @@ pub trait PlantConfig {
     /// When that parameter's schedule starts.
     fn first_change(&self) -> Option<f64> {
         None
+    }
+    /// The measured output's quantisation step (an encoder's length per count); 0 for none.
+    fn quantisation(&self) -> f64 {
+        0.0
     }
     /// Why this plant cannot run in realtime (a model that moves once a control period, while
     /// realtime splits a period where a command arrives); None if it can.
@@ -195,6 +200,10 @@ pub struct PlantSpec {
     pub safe_command: f64,
     /// Periods without a command before the plant applies `safe_command`.
     pub command_timeout_periods: u32,
+    /// Whether the samples carry the simulator's truth (`x_true`, `q_true`, `qd_true`) for
+    /// judging the run; false sends NaN there, as a real plant that has no truth to send, which
+    /// proves that no law reads it.
+    pub publish_truth: bool,
     #[serde(flatten)]
     pub model: PlantModel,
 }
@@ -233,6 +242,13 @@ impl PlantSpec {
         if command_timeout_periods == 0 {
             return check.fail("plant.command_timeout_periods", "must be >= 1");
         }
+        let publish_truth = raw.publish_truth.unwrap_or(true);
+        if raw.publish_truth.is_some() && raw.kind == PlantKind::External {
+            return check.fail(
+                "plant.publish_truth",
+                "an external plant's process decides what its samples carry (the plant contract)",
+            );
+        }
         let kind = raw.kind;
         let cx = PlantContext {
             step,
@@ -245,12 +261,20 @@ impl PlantSpec {
             noise_std,
             safe_command,
             command_timeout_periods,
+            publish_truth,
             model: raw.validate_kind(kind, check, &cx)?,
         })
     }
 
     pub fn kind(&self) -> PlantKind {
         self.model.kind()
+    }
+
+    /// The standard deviation of the measurement error a controller designs for: the additive
+    /// noise and the quantisation step q (a uniform error of variance q² / 12) together.
+    pub fn measurement_std(&self) -> f64 {
+        let q = self.model.config().quantisation();
+        (self.noise_std * self.noise_std + q * q / 12.0).sqrt()
     }
 
     /// The plant model, with the configured parameters.
@@ -301,6 +325,7 @@ pub struct PlantSim {
     rk: Rk4,
     noise: Option<(Normal<f64>, ChaCha8Rng)>,
     y_clean: Vec<f64>,
+    publish_truth: bool,
 }
 
 impl PlantSim {
@@ -324,7 +349,14 @@ impl PlantSim {
             step,
             rk: Rk4::new(n),
             noise,
+            publish_truth: true,
         }
+    }
+
+    /// Samples carry the truth fields (true, the default) or NaN in them (`plant.publish_truth`).
+    pub fn publishing_truth(mut self, publish: bool) -> Self {
+        self.publish_truth = publish;
+        self
     }
 
     /// Integrate over `dt` with the command `u` held constant (zero-order hold), in fixed
@@ -358,8 +390,14 @@ impl PlantSim {
         msg.n_x = nx as u32;
         msg.n_q = nq as u32;
         msg.n_y = ny as u32;
-        msg.x_true[..nx.min(MAX_STATES)].copy_from_slice(&self.x[..nx.min(MAX_STATES)]);
-        p.joints(&self.x, &mut msg.q_true[..nq], &mut msg.qd_true[..nq]);
+        if self.publish_truth {
+            msg.x_true[..nx.min(MAX_STATES)].copy_from_slice(&self.x[..nx.min(MAX_STATES)]);
+            p.joints(&self.x, &mut msg.q_true[..nq], &mut msg.qd_true[..nq]);
+        } else {
+            msg.x_true[..nx.min(MAX_STATES)].fill(f64::NAN);
+            msg.q_true[..nq].fill(f64::NAN);
+            msg.qd_true[..nq].fill(f64::NAN);
+        }
         p.output(&self.x, &mut self.y_clean);
         for i in 0..ny.min(MAX_JOINTS) {
             let e = match &mut self.noise {

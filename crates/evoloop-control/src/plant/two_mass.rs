@@ -263,4 +263,7 @@ impl PlantConfig for TwoMassSpec {
     fn first_change(&self) -> Option<f64> {
         self.spring_schedule.first().map(|s| s.0)
     }
+    fn quantisation(&self) -> f64 {
+        self.resolution
+    }
 }

@@ -1,0 +1,449 @@
+//! State estimators for the laws that need states no sensor gives. A law knows the plant
+//! through its sensor readings (`PlantState::y`, the applied command `u_applied`, the sample's
+//! `seq`) and its own model; the truth fields (`x_true`, `q_true`, `qd_true`) are the
+//! simulator's, there to judge a run, and no estimator reads them.
+//!
+//! - [`Kalman`]: the steady-state discrete Kalman filter of a single-input single-output linear
+//!   model at the control period, designed once off the cycle ([`KalmanDesign::gains`]: the
+//!   gains python-control's `dlqe` gives, checked in tests/estimator.rs), run in its current
+//!   form, so a sample's estimate already uses that sample's measurement.
+//! - [`VelocityFilter`]: joint velocities from measured positions as a servo drive makes them,
+//!   differenced positions through a first-order low-pass.
+//!
+//! Both step without allocating and advance by the samples' `seq`: a sample seen again (the
+//! cycle's bumpless swap and its step read the same one) is not counted twice, and samples the
+//! loop never saw (realtime skips a late one, a refused one is not read) are predicted across.
+
+use crate::msg::{PlantState, MAX_JOINTS};
+use crate::plant::{LinearModel, MAX_LINEAR_STATES};
+use nalgebra::DMatrix;
+
+const N: usize = MAX_LINEAR_STATES;
+
+/// The most samples predicted across in one step: a longer gap is a plant that stopped, after
+/// which the filter goes on from where it was rather than spinning through the gap.
+const MAX_GAP: u64 = 1000;
+
+/// Samples since the last one seen (`None` before the first); 0 for the same sample again.
+fn samples_since(last: Option<u64>, seq: u64) -> Option<u64> {
+    last.map(|l| seq.saturating_sub(l).min(MAX_GAP))
+}
+
+/// What a Kalman filter is designed for, both as standard deviations: a disturbance entering
+/// where the input does and held over a period as the input is (input units), and the
+/// measurement's error (output units: the sensor's noise and its quantisation).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct KalmanDesign {
+    pub process_noise: f64,
+    pub measurement_noise: f64,
+}
+
+/// A designed steady-state filter.
+#[derive(Debug, Clone)]
+pub struct KalmanGains {
+    /// The sampled model the filter predicts with (a continuous one discretised with the input
+    /// held over the period).
+    pub model: LinearModel,
+    /// The measurement update's gain M = P C' (C P C' + R)^-1 (the current form's).
+    pub m: Vec<f64>,
+    /// The one-step predictor's gain L = A M: python-control's `dlqe` L.
+    pub l: Vec<f64>,
+    /// The a-priori error covariance P, the filtering Riccati equation's solution (`dlqe`'s P).
+    pub p: DMatrix<f64>,
+    /// The estimation error's eigenvalues, those of A - L C (inside the unit circle).
+    pub poles: Vec<nalgebra::Complex<f64>>,
+}
+
+impl KalmanDesign {
+    /// The filter for `model` run at `period` (s): the steady state of the filtering Riccati
+    /// equation P = A P A' - A P C' (C P C' + R)^-1 C P A' + G Q G', with Q = process_noise²,
+    /// R = measurement_noise² and G the column through which the input reaches the plant.
+    /// Off the cycle (allocates). An error says why no filter exists.
+    pub fn gains(&self, model: &LinearModel, period: f64) -> Result<KalmanGains, String> {
+        let (q, r) = (self.process_noise, self.measurement_noise);
+        if !(q.is_finite() && q > 0.0 && r.is_finite() && r > 0.0) {
+            return Err(format!(
+                "process and measurement noise must be finite and > 0 (got {q}, {r})"
+            ));
+        }
+        let model = model
+            .at_period(period)
+            .ok_or("the model cannot be sampled at the control period")?;
+        let n = model.n();
+        let a = DMatrix::from_fn(n, n, |i, j| model.a(i, j));
+        let c = DMatrix::from_fn(1, n, |_, j| model.c(j));
+        let g = DMatrix::from_fn(n, 1, |i, _| model.input_column(i));
+        let gq = &g * g.transpose() * (q * q);
+        let p = filter_riccati(&a, &c, &gq, r * r).ok_or(
+            "no steady-state filter: the measured output does not see every unstable mode \
+             (the model is not detectable from y)",
+        )?;
+        let s = (&c * &p * c.transpose())[(0, 0)] + r * r;
+        let m: Vec<f64> = (0..n).map(|i| (&p * c.transpose())[(i, 0)] / s).collect();
+        let l: Vec<f64> = (0..n)
+            .map(|i| (0..n).map(|j| a[(i, j)] * m[j]).sum())
+            .collect();
+        let error = DMatrix::from_fn(n, n, |i, j| a[(i, j)] - l[i] * c[(0, j)]);
+        let poles = crate::linalg::eigen::eigenvalues(&error).ok_or("no eigenvalues of A - L C")?;
+        if !poles.iter().all(|z| z.norm() < 1.0) {
+            return Err("the filter's error dynamics are not stable".into());
+        }
+        Ok(KalmanGains {
+            model,
+            m,
+            l,
+            p,
+            poles,
+        })
+    }
+}
+
+/// The stabilising solution of P = A P A' - A P C' (C P C' + r)^-1 C P A' + GQG' by the
+/// structure-preserving doubling algorithm (quadratic convergence, where the Riccati
+/// recursion would take as many steps as the slowest mode has samples), checked by its
+/// residual. None when it does not converge to a finite, accurate solution.
+fn filter_riccati(
+    a: &DMatrix<f64>,
+    c: &DMatrix<f64>,
+    gq: &DMatrix<f64>,
+    r: f64,
+) -> Option<DMatrix<f64>> {
+    let n = a.nrows();
+    let id = DMatrix::<f64>::identity(n, n);
+    // The filtering equation is the control one of (A', C'): A_0 = A', G_0 = C' C / r, H_0 = GQG'.
+    let mut ak = a.transpose();
+    let mut gk = c.transpose() * c / r;
+    let mut hk = gq.clone();
+    for _ in 0..100 {
+        let w = (&id + &gk * &hk).try_inverse()?;
+        let next_h = &hk + ak.transpose() * &hk * &w * &ak;
+        let next_g = &gk + &ak * &w * &gk * ak.transpose();
+        let next_a = &ak * &w * &ak;
+        let change = (&next_h - &hk).norm();
+        (ak, gk, hk) = (next_a, next_g, next_h);
+        if !hk.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        if change <= 1e-15 * hk.norm() {
+            break;
+        }
+    }
+    let p = (&hk + hk.transpose()) * 0.5;
+    let pct = &p * c.transpose();
+    let s = (c * &pct)[(0, 0)] + r;
+    let apct = a * &pct;
+    let residual = a * &p * a.transpose() - &apct * apct.transpose() / s + gq - &p;
+    (residual.norm() <= 1e-9 * p.norm().max(gq.norm())).then_some(p)
+}
+
+/// A Kalman filter in the control cycle: fixed-size, allocation-free.
+#[derive(Debug, Clone)]
+pub struct Kalman {
+    n: usize,
+    a: [[f64; N]; N],
+    b: [f64; N],
+    c: [f64; N],
+    /// Sampled models only: y_k = C z_k + d v_{k-1}, v_k = f z_k + g u_k.
+    d: f64,
+    f: [f64; N],
+    g: f64,
+    m: [f64; N],
+    /// The estimate after the last sample's measurement.
+    x: [f64; N],
+    /// The input that reached the plant over the period before the last sample, as estimated.
+    v_prev: f64,
+    last_seq: Option<u64>,
+}
+
+impl Kalman {
+    /// The filter with `gains`, starting from the state 0 (a rest the first measurements
+    /// correct).
+    pub fn new(gains: &KalmanGains) -> Self {
+        let model = &gains.model;
+        let n = model.n();
+        let (d, f, g) = model.feedthrough();
+        let fill = |v: &mut [f64; N], at: &dyn Fn(usize) -> f64| {
+            v.iter_mut()
+                .take(n)
+                .enumerate()
+                .for_each(|(i, e)| *e = at(i));
+        };
+        let mut k = Self {
+            n,
+            a: [[0.0; N]; N],
+            b: [0.0; N],
+            c: [0.0; N],
+            d,
+            f: [0.0; N],
+            g,
+            m: [0.0; N],
+            x: [0.0; N],
+            v_prev: 0.0,
+            last_seq: None,
+        };
+        for (i, row) in k.a.iter_mut().enumerate().take(n) {
+            fill(row, &|j| model.a(i, j));
+        }
+        fill(&mut k.b, &|i| model.b(i));
+        fill(&mut k.c, &|j| model.c(j));
+        fill(&mut k.f, &|j| f[j]);
+        fill(&mut k.m, &|i| gains.m[i]);
+        k
+    }
+
+    /// The estimate of the state at `state`'s sample, from its measurement `y[0]` and the
+    /// command applied since the last sample `u_applied[0]` (held over any samples between).
+    pub fn update(&mut self, state: &PlantState) -> &[f64] {
+        let n = self.n;
+        match samples_since(self.last_seq, state.seq) {
+            Some(0) => return &self.x[..n],
+            Some(k) => {
+                for _ in 0..k {
+                    self.predict(state.u_applied[0]);
+                }
+            }
+            None => {}
+        }
+        self.last_seq = Some(state.seq);
+        let predicted: f64 =
+            (0..n).map(|j| self.c[j] * self.x[j]).sum::<f64>() + self.d * self.v_prev;
+        let innovation = state.y[0] - predicted;
+        for (x, m) in self.x[..n].iter_mut().zip(&self.m[..n]) {
+            *x += m * innovation;
+        }
+        &self.x[..n]
+    }
+
+    /// The last estimate (zeros before the first sample).
+    pub fn estimate(&self) -> &[f64] {
+        &self.x[..self.n]
+    }
+
+    fn predict(&mut self, u: f64) {
+        let n = self.n;
+        let mut next = [0.0; N];
+        for (i, z) in next.iter_mut().enumerate().take(n) {
+            *z = (0..n).map(|j| self.a[i][j] * self.x[j]).sum::<f64>() + self.b[i] * u;
+        }
+        self.v_prev = (0..n).map(|j| self.f[j] * self.x[j]).sum::<f64>() + self.g * u;
+        self.x = next;
+    }
+}
+
+/// Joint velocities as a servo drive estimates them from its encoders: the position difference
+/// over the time between samples, through a first-order low-pass of cutoff `cutoff_hz`
+/// (discretised exactly: each sample moves the estimate a fraction 1 - e^(-2 pi fc T) of the way
+/// to the new difference). Its lag is about 1 / (2 pi fc) plus half a period.
+#[derive(Debug, Clone)]
+pub struct VelocityFilter {
+    n: usize,
+    period: f64,
+    /// The share of a new difference per sample, 1 - e^(-2 pi fc T).
+    alpha: f64,
+    q_prev: [f64; MAX_JOINTS],
+    qd: [f64; MAX_JOINTS],
+    last_seq: Option<u64>,
+}
+
+impl VelocityFilter {
+    /// For `n` joints sampled every `period` s, with the low-pass's cutoff `cutoff_hz` (> 0).
+    pub fn new(n: usize, period: f64, cutoff_hz: f64) -> Self {
+        Self {
+            n: n.min(MAX_JOINTS),
+            period,
+            alpha: 1.0 - (-2.0 * std::f64::consts::PI * cutoff_hz * period).exp(),
+            q_prev: [0.0; MAX_JOINTS],
+            qd: [0.0; MAX_JOINTS],
+            last_seq: None,
+        }
+    }
+
+    /// The joint velocities at `state`'s sample from its measured positions `y[..n]`. The first
+    /// sample gives zero (a start at rest).
+    pub fn update(&mut self, state: &PlantState) -> &[f64] {
+        let n = self.n;
+        if let Some(k) = samples_since(self.last_seq, state.seq) {
+            if k == 0 {
+                return &self.qd[..n];
+            }
+            let dt = k as f64 * self.period;
+            // A gap of k samples is one difference over k periods, filtered as k samples are.
+            let share = 1.0 - (1.0 - self.alpha).powi(k as i32);
+            let moved = state.y[..n].iter().zip(&self.q_prev[..n]);
+            for (qd, (y, prev)) in self.qd[..n].iter_mut().zip(moved) {
+                *qd += share * ((y - prev) / dt - *qd);
+            }
+        }
+        self.q_prev[..n].copy_from_slice(&state.y[..n]);
+        self.last_seq = Some(state.seq);
+        &self.qd[..n]
+    }
+
+    /// The last estimate.
+    pub fn estimate(&self) -> &[f64] {
+        &self.qd[..self.n]
+    }
+}
+
+/// Where a joint-space law's velocities come from (`controller.<law>.velocity`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VelocitySource {
+    /// The simulator's true joint velocities `qd_true`, which no encoder gives: the RKGNN
+    /// paper's simulation, and these laws' default until their claims are measured on the filter.
+    True,
+    /// Measured positions differenced and low-passed (`VelocityFilter`) at this cutoff, Hz.
+    Filtered { cutoff_hz: f64 },
+}
+
+impl VelocitySource {
+    pub fn reads_truth(self) -> bool {
+        self == VelocitySource::True
+    }
+}
+
+/// A law's velocity reading in the cycle.
+#[derive(Debug, Clone)]
+pub enum Velocities {
+    True,
+    Filtered(VelocityFilter),
+}
+
+impl Velocities {
+    /// For a law of `n` joints run every `period` s.
+    pub fn new(source: VelocitySource, n: usize, period: f64) -> Self {
+        match source {
+            VelocitySource::True => Velocities::True,
+            VelocitySource::Filtered { cutoff_hz } => {
+                Velocities::Filtered(VelocityFilter::new(n, period, cutoff_hz))
+            }
+        }
+    }
+
+    /// The first `n` joint velocities at `state`'s sample. Allocation-free.
+    pub fn read<'a>(&'a mut self, state: &'a PlantState, n: usize) -> &'a [f64] {
+        match self {
+            Velocities::True => &state.qd_true[..n],
+            Velocities::Filtered(f) => f.update(state),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(seq: u64, y: &[f64], u: f64) -> PlantState {
+        let mut s = PlantState {
+            seq,
+            ..Default::default()
+        };
+        s.y[..y.len()].copy_from_slice(y);
+        s.u_applied[0] = u;
+        s
+    }
+
+    /// A scalar random walk x+ = x + w, y = x + v: the Riccati equation has the closed form
+    /// P = (Q + sqrt(Q² + 4 Q R)) / 2 and M = P / (P + R).
+    #[test]
+    fn a_random_walk_has_the_closed_form_gain() {
+        let model = LinearModel::sampled(0.1, &[1.0], &[1.0], &[1.0], 0.0, &[0.0], 1.0);
+        let (q, r) = (0.3f64, 0.5f64);
+        let k = KalmanDesign {
+            process_noise: q,
+            measurement_noise: r,
+        }
+        .gains(&model, 0.1)
+        .unwrap();
+        let (q2, r2) = (q * q, r * r);
+        let p = (q2 + (q2 * q2 + 4.0 * q2 * r2).sqrt()) / 2.0;
+        assert!(
+            (k.p[(0, 0)] - p).abs() < 1e-12 * p,
+            "{} vs {p}",
+            k.p[(0, 0)]
+        );
+        assert!((k.m[0] - p / (p + r2)).abs() < 1e-12);
+        assert!((k.l[0] - k.m[0]).abs() < 1e-15);
+    }
+
+    /// On a noise-free double integrator the filter converges to the true position and
+    /// velocity from a wrong start, one sample at a time, without being told the truth.
+    #[test]
+    fn the_filter_finds_a_double_integrators_velocity_from_its_position() {
+        let t = 0.01;
+        let model = LinearModel::continuous(&[0.0, 1.0, 0.0, 0.0], &[0.0, 1.0], &[1.0, 0.0]);
+        let gains = KalmanDesign {
+            process_noise: 1.0,
+            measurement_noise: 1e-3,
+        }
+        .gains(&model, t)
+        .unwrap();
+        // Zero-order hold of the double integrator: A = [[1, T], [0, 1]], B = [T²/2, T].
+        assert!((gains.model.a(0, 1) - t).abs() < 1e-15);
+        assert!((gains.model.b(0) - t * t / 2.0).abs() < 1e-15);
+        let mut kf = Kalman::new(&gains);
+        let (mut pos, mut vel) = (0.5, -2.0);
+        let u = 3.0;
+        for seq in 0..400 {
+            let x = kf.update(&sample(seq, &[pos], u));
+            if seq > 300 {
+                assert!(
+                    (x[0] - pos).abs() < 1e-9 && (x[1] - vel).abs() < 1e-6,
+                    "{x:?}"
+                );
+            }
+            pos += vel * t + u * t * t / 2.0;
+            vel += u * t;
+        }
+        // The same sample again changes nothing.
+        let before = kf.estimate().to_vec();
+        kf.update(&sample(399, &[123.0], u));
+        assert_eq!(kf.estimate(), &before[..]);
+    }
+
+    #[test]
+    fn an_undetectable_unstable_mode_has_no_filter() {
+        // Two states, the unstable second never reaching y.
+        let model = LinearModel::sampled(
+            0.1,
+            &[0.5, 0.0, 0.0, 1.2],
+            &[1.0, 1.0],
+            &[1.0, 0.0],
+            0.0,
+            &[0.0, 0.0],
+            1.0,
+        );
+        let e = KalmanDesign {
+            process_noise: 1.0,
+            measurement_noise: 0.1,
+        }
+        .gains(&model, 0.1)
+        .unwrap_err();
+        assert!(e.contains("detectable") || e.contains("stable"), "{e}");
+    }
+
+    #[test]
+    fn the_velocity_filter_follows_a_ramp_with_its_lag_and_skips_gaps() {
+        let t = 0.001;
+        let mut f = VelocityFilter::new(2, t, 50.0);
+        for seq in 0..200u64 {
+            let tk = seq as f64 * t;
+            f.update(&sample(seq, &[2.0 * tk, -tk], 0.0));
+        }
+        let v = f.estimate();
+        assert!(
+            (v[0] - 2.0).abs() < 1e-9 && (v[1] + 1.0).abs() < 1e-9,
+            "{v:?}"
+        );
+        // Three samples missed: one difference over four periods, still the slope.
+        let tk = 203.0 * t;
+        let v = f.update(&sample(203, &[2.0 * tk, -tk], 0.0));
+        assert!((v[0] - 2.0).abs() < 1e-9, "{v:?}");
+        // A step of 1 mrad moves the estimate by the filter's share of 1 mrad / T, not all of it.
+        let mut f = VelocityFilter::new(1, t, 50.0);
+        f.update(&sample(0, &[0.0], 0.0));
+        let v = f.update(&sample(1, &[1e-3], 0.0))[0];
+        let share = 1.0 - (-2.0 * std::f64::consts::PI * 50.0 * t).exp();
+        assert!((v - share).abs() < 1e-12, "{v}");
+    }
+}
