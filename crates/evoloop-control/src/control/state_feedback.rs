@@ -154,8 +154,9 @@ pub struct StateFeedbackSpec {
     /// The filter's design (`state = "kalman"`), and its error dynamics' slowest pole's radius.
     pub kalman: Option<KalmanDesign>,
     pub kalman_slowest_pole: Option<f64>,
+    /// Boxed: a designed filter is ten times the size of the other laws' settings.
     #[serde(skip)]
-    gains: Option<KalmanGains>,
+    gains: Option<Box<KalmanGains>>,
 }
 
 pub fn validate(
@@ -215,7 +216,7 @@ pub fn validate(
     };
     let gains = match design {
         Some(d) => match d.gains(&model, cx.period) {
-            Ok(g) => Some(g),
+            Ok(g) => Some(Box::new(g)),
             Err(why) => {
                 return check.fail(
                     "controller.state_feedback.state",
@@ -239,7 +240,7 @@ pub fn validate(
 impl StateFeedbackSpec {
     /// The Kalman filter the law runs on (`state = "kalman"`), designed for the plant's model.
     pub fn kalman_gains(&self) -> Option<&KalmanGains> {
-        self.gains.as_ref()
+        self.gains.as_deref()
     }
 }
 
