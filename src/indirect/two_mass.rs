@@ -19,7 +19,7 @@ use super::svf::{Svf, SvfDesign};
 use super::{Candidate, Estimate, Estimator, Tuner};
 use crate::check::Tunable;
 use crate::config::Scenario;
-use crate::control::estimator::KalmanDesign;
+use crate::control::estimator::{KalmanDesign, KalmanGains};
 use crate::control::{ControllerModel, StateFeedback};
 use crate::msg::PlantState;
 use crate::plant::two_mass::{Sensor, TwoMass, TwoMassSpec};
@@ -62,6 +62,10 @@ pub struct SpringModel {
     /// controller designs it, from the nominal spring constant: each candidate is judged in the
     /// loop it will run in, the filter's model error included. None: the true state.
     kalman: Option<(KalmanDesign, f64)>,
+    /// That filter, designed once on first use (not per candidate; rebuilt by each evaluation
+    /// worker from `kalman`, since it does not travel). None inside: no filter exists.
+    #[serde(skip)]
+    filter: std::sync::OnceLock<Option<KalmanGains>>,
 }
 
 /// The DE's objective: the gains' cost on the model with spring constant `k`. It owns the model,
@@ -158,6 +162,7 @@ impl TwoMassTuner {
                     ControllerModel::StateFeedback(sf) => sf.kalman.map(|d| (d, plant.spring)),
                     _ => None,
                 },
+                filter: std::sync::OnceLock::new(),
             },
             de: super::DeEpochs::new(scn, &tunable.bounds),
             margin: scn.optimiser.margin,
@@ -198,11 +203,14 @@ impl SpringModel {
         let plant = TwoMass::new(self.m1, self.m2, k, self.sensor);
         let mut ctrl = StateFeedback::new(gains, self.period, self.u_limit);
         if let Some((design, k_nominal)) = self.kalman {
-            let nominal = TwoMass::new(self.m1, self.m2, k_nominal, self.sensor).linear_model();
-            match design.gains(&nominal, self.period) {
-                Ok(g) => ctrl = ctrl.with_kalman(&g),
+            let filter = self.filter.get_or_init(|| {
+                let nominal = TwoMass::new(self.m1, self.m2, k_nominal, self.sensor);
+                design.gains(&nominal.linear_model(), self.period).ok()
+            });
+            match filter {
+                Some(g) => ctrl = ctrl.with_kalman(g),
                 // The scenario's check designed this very filter.
-                Err(_) => return f64::INFINITY,
+                None => return f64::INFINITY,
             }
         }
         let (_, y, u) = crate::sim::response(
