@@ -365,3 +365,48 @@ fn the_example_zenoh_configurations_load() {
         }
     }
 }
+
+/// The network message format (formerly `net::wire`'s unit tests).
+#[cfg(feature = "zenoh")]
+mod wire {
+    use evoloop::msg::{Command, ParamSet, PlantState};
+    use evoloop::net::wire::{decode, encode};
+
+    #[test]
+    fn a_message_comes_back_bit_for_bit() {
+        let mut s = PlantState {
+            seq: 42,
+            t: 0.125,
+            n_x: 3,
+            ..Default::default()
+        };
+        s.x_true[2] = -1.5e-300;
+        s.y[7] = f64::NAN;
+        let back: PlantState = decode(&encode(&s)).unwrap();
+        assert_eq!(back.seq, 42);
+        assert_eq!(back.x_true[2].to_bits(), s.x_true[2].to_bits());
+        assert_eq!(back.y[7].to_bits(), s.y[7].to_bits());
+        let p = ParamSet::new(
+            7,
+            0,
+            evoloop::msg::ParamKind::ComputedTorque,
+            &[1.0, f64::INFINITY],
+        );
+        let q: ParamSet = decode(&encode(&p)).unwrap();
+        assert_eq!((q.version, q.n), (7, 2));
+        assert_eq!(q.values()[1], f64::INFINITY);
+    }
+
+    #[test]
+    fn another_type_or_a_cut_message_is_refused() {
+        let bytes = encode(&Command::default());
+        let e = decode::<PlantState>(&bytes).unwrap_err();
+        assert!(e.contains("evoloop::Command.v1"), "{e}");
+        assert!(decode::<Command>(&bytes[..bytes.len() - 1]).is_err());
+        assert!(decode::<Command>(b"hello").is_err());
+        let mut other = bytes.clone();
+        other[0] = b'X';
+        assert!(decode::<Command>(&other).is_err());
+        assert!(decode::<Command>(&bytes).is_ok());
+    }
+}

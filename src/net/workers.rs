@@ -49,11 +49,11 @@ pub fn build() -> String {
 
 /// A run of candidates of one job, as it crosses.
 #[derive(Debug, Serialize, Deserialize)]
-struct Request {
-    build: String,
-    job: Job,
-    candidates: Vec<Vec<f64>>,
-    thresholds: Vec<f64>,
+pub struct Request {
+    pub build: String,
+    pub job: Job,
+    pub candidates: Vec<Vec<f64>>,
+    pub thresholds: Vec<f64>,
 }
 
 /// A worker's values for a run, and the time it spent computing them.
@@ -94,7 +94,7 @@ pub struct ZenohWorkers {
 }
 
 /// `id` from a token's key `evoloop/workers/<id>/<threads>/<build>`.
-fn parse_token(key: &str) -> Option<(String, usize, String)> {
+pub fn parse_token(key: &str) -> Option<(String, usize, String)> {
     let rest = key.strip_prefix(TOKENS)?.strip_prefix('/')?;
     let mut parts = rest.split('/');
     let (id, threads, build) = (parts.next()?, parts.next()?, parts.next()?);
@@ -173,6 +173,11 @@ impl ZenohWorkers {
             stats,
             _tokens: tokens,
         })
+    }
+
+    /// The optimiser's Zenoh session (to query a worker directly).
+    pub fn session(&self) -> &zenoh::Session {
+        &self.session
     }
 
     /// Wait up to `limit` for `n` workers to be up; how many are.
@@ -444,167 +449,4 @@ fn evaluate(
         &**f,
         threads,
     ))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_token_names_the_worker_its_threads_and_build() {
-        assert_eq!(
-            parse_token("evoloop/workers/host-12/3/0.1.0-x86_64"),
-            Some(("host-12".into(), 3, "0.1.0-x86_64".into()))
-        );
-        assert_eq!(parse_token("evoloop/workers/host-12/x/b"), None);
-        assert_eq!(parse_token("evoloop/workers/host-12/3"), None);
-        assert_eq!(parse_token("evoloop/other/h/3/b"), None);
-        assert_eq!(key_safe("my host/1*"), "my_host_1_");
-    }
-
-    /// On loopback: an optimiser's pool, the endpoint its workers connect to, and a real worker
-    /// `id` serving it on a thread until the flag is set.
-    struct Loopback {
-        pool: ZenohWorkers,
-        connect: Endpoint,
-        stop: Arc<AtomicBool>,
-        worker: std::thread::JoinHandle<WorkerReport>,
-    }
-
-    impl Loopback {
-        fn with_worker(id: &'static str) -> Self {
-            let port = crate::node::launcher::free_port().unwrap();
-            let pool =
-                ZenohWorkers::start(&Endpoint::Listen(format!("tcp/127.0.0.1:{port}")), None)
-                    .unwrap();
-            let connect = Endpoint::Connect(format!("tcp/127.0.0.1:{port}"));
-            let stop = Arc::new(AtomicBool::new(false));
-            let worker = {
-                let (ep, stop) = (connect.clone(), stop.clone());
-                std::thread::spawn(move || serve(&ep, None, id, 1, None, &stop).unwrap())
-            };
-            Self {
-                pool,
-                connect,
-                stop,
-                worker,
-            }
-        }
-
-        /// Wait for `n` workers up (they must come).
-        fn up(&self, n: usize) {
-            let up = self
-                .pool
-                .wait_for(n, Duration::from_secs(20), &AtomicBool::new(false));
-            assert_eq!(up, n, "workers up");
-        }
-
-        /// Stop the real worker: what it served.
-        fn finish(self) -> WorkerReport {
-            self.stop.store(true, Ordering::SeqCst);
-            self.worker.join().unwrap()
-        }
-    }
-
-    /// A run from another build is refused with the reason, and the worker goes on serving.
-    #[test]
-    fn a_worker_refuses_a_run_of_another_build() {
-        let lo = Loopback::with_worker("w");
-        lo.up(1);
-        let f = crate::sim::maglev::Objective::fuzzy(0.1, 1);
-        let job = crate::optim::Objective::describe(&f).unwrap();
-        let request = |build: String| Request {
-            build,
-            job: job.clone(),
-            candidates: vec![crate::sim::maglev::PAPER_FUZZY.to_vec()],
-            thresholds: vec![f64::INFINITY],
-        };
-        let ask = |r: &Request| {
-            let replies = lo
-                .pool
-                .session
-                .get(format!("{EVAL}/w"))
-                .payload(postcard::to_allocvec(r).unwrap())
-                .wait()
-                .unwrap();
-            replies.recv().unwrap().into_result()
-        };
-        let e = ask(&request("0.0.0-other".into())).expect_err("refused");
-        let why = String::from_utf8_lossy(&e.payload().to_bytes()).into_owned();
-        assert!(
-            why.contains("0.0.0-other") && why.contains(&build()),
-            "{why}"
-        );
-        assert!(ask(&request(build())).is_ok(), "the same build is served");
-        let r = lo.finish();
-        assert_eq!((r.refused, r.batches), (1, 1));
-    }
-
-    /// An optimiser's pool with a real worker and one that takes its run and vanishes (its
-    /// session closes with the query unanswered): the vanished worker's run is reissued here,
-    /// on the closed query rather than at its deadline, and every value equals the local one.
-    #[test]
-    fn a_worker_that_vanishes_mid_run_has_its_run_reissued_and_the_values_stay_exact() {
-        use crate::optim::remote::spread;
-        use crate::optim::Objective;
-        let lo = Loopback::with_worker("good");
-        let pool = &lo.pool;
-        let vanishing = {
-            let ep = lo.connect.clone();
-            std::thread::spawn(move || {
-                let s = super::super::open(&ep, None).unwrap();
-                let q = s.declare_queryable(format!("{EVAL}/gone")).wait().unwrap();
-                let _t = s
-                    .liveliness()
-                    .declare_token(format!("{TOKENS}/gone/1/{}", build()))
-                    .wait()
-                    .unwrap();
-                let query = q.recv().unwrap();
-                // Gone with the run in hand: the link closes before any answer.
-                s.close().wait().unwrap();
-                drop(query);
-            })
-        };
-        lo.up(2);
-        let f = crate::sim::maglev::Objective::fuzzy(0.3, 5);
-        let base = crate::sim::maglev::PAPER_FUZZY;
-        let xs: Vec<Vec<f64>> = (0..6)
-            .map(|i| base.iter().map(|v| v * (1.0 - 0.02 * i as f64)).collect())
-            .collect();
-        let local = |r: std::ops::Range<usize>| xs[r].iter().map(|x| f.value(x)).collect();
-        // A long expected time per evaluation: the deadline alone would take > 10 s.
-        let (v, tally) = spread(
-            pool,
-            &pool.live(),
-            crate::optim::remote::Batch {
-                job: &f.describe().unwrap(),
-                candidates: &xs,
-                thresholds: None,
-            },
-            1,
-            3_000_000_000,
-            &local,
-        );
-        let exact: Vec<u64> = xs.iter().map(|x| f.value(x).to_bits()).collect();
-        assert_eq!(v.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), exact);
-        assert_eq!((tally.remote, tally.reissued, tally.local), (2, 2, 4));
-        let stats = pool.stats();
-        assert_eq!((stats["good"].answered, stats["good"].evaluations), (1, 2));
-        assert_eq!((stats["gone"].failed, stats["gone"].answered), (1, 0));
-        vanishing.join().unwrap();
-        // The vanished worker drops out of the pool.
-        let t0 = Instant::now();
-        while pool.live().len() > 1 && t0.elapsed() < Duration::from_secs(10) {
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        assert_eq!(
-            pool.live()
-                .iter()
-                .map(|s| s.id.as_str())
-                .collect::<Vec<_>>(),
-            ["good"]
-        );
-        let r = lo.finish();
-        assert_eq!((r.batches, r.evaluations, r.refused), (1, 2, 0));
-    }
 }
