@@ -1,7 +1,9 @@
 //! `evoloop robust ...`: the robust-control tools from the command line.
 
+use crate::control::estimator::KalmanDesign;
 use crate::optim::{run, DeConfig, DifferentialEvolution, Optimiser};
 use crate::plant::two_mass::Sensor;
+use crate::robust::observer::command_noise;
 use crate::robust::problem::{Perturbation, RobustProblem};
 use crate::robust::study::{lqr_gains, study};
 use crate::robust::Wedge;
@@ -44,6 +46,50 @@ pub struct WedgeArgs {
     pub perturbation: PerturbationArg,
 }
 
+/// The loop a machine with one position sensor runs (the default scenario's `state = "kalman"`).
+#[derive(Args, Clone)]
+pub struct ObserverArgs {
+    /// Analyse the feedback acting on a steady-state Kalman filter's estimate from the one
+    /// measured position, not on the full state the paper assumes: r_c of the loop with the
+    /// filter, beside the full-state r_c and the springs the sampled loop stays stable for.
+    #[arg(long)]
+    pub observer: bool,
+    /// The filter's sampling period, s (the scenario's timing.period).
+    #[arg(long, default_value_t = 0.001)]
+    pub period: f64,
+    /// The filter's process noise: std of a disturbance at the input, held over a period.
+    #[arg(long, default_value_t = crate::control::state_feedback::DEFAULT_PROCESS_NOISE)]
+    pub process_noise: f64,
+    /// The filter's measurement noise std [default: the default scenario's sensor,
+    /// sqrt(0.0005² + 0.0001²/12) for noise 0.0005 and resolution 0.0001].
+    #[arg(long)]
+    pub measurement_noise: Option<f64>,
+}
+
+impl ObserverArgs {
+    fn design(&self) -> Result<Option<KalmanDesign>, String> {
+        if !self.observer {
+            return Ok(None);
+        }
+        let measurement_noise = self
+            .measurement_noise
+            .unwrap_or_else(|| (0.0005f64.powi(2) + 0.0001f64.powi(2) / 12.0).sqrt());
+        for (flag, v) in [
+            ("--period", self.period),
+            ("--process-noise", self.process_noise),
+            ("--measurement-noise", measurement_noise),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(format!("{flag} must be > 0 (got {v})"));
+            }
+        }
+        Ok(Some(KalmanDesign {
+            process_noise: self.process_noise,
+            measurement_noise,
+        }))
+    }
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 pub enum PerturbationArg {
     Spring,
@@ -65,6 +111,8 @@ pub struct RadiusArgs {
     pub plant: PlantArgs,
     #[command(flatten)]
     pub wedge: WedgeArgs,
+    #[command(flatten)]
+    pub observer: ObserverArgs,
     #[arg(long)]
     pub json: bool,
 }
@@ -117,6 +165,8 @@ pub struct TuneArgs {
     pub plant: PlantArgs,
     #[command(flatten)]
     pub wedge: WedgeArgs,
+    #[command(flatten)]
+    pub observer: ObserverArgs,
     #[arg(long)]
     pub json: bool,
 }
@@ -141,7 +191,12 @@ fn usage(msg: &str) -> i32 {
     2
 }
 
-fn problem(plant: &PlantArgs, w: &WedgeArgs, bound: f64) -> Result<RobustProblem, String> {
+fn problem(
+    plant: &PlantArgs,
+    w: &WedgeArgs,
+    observer: &ObserverArgs,
+    bound: f64,
+) -> Result<RobustProblem, String> {
     if !(plant.k > 0.0 && plant.k.is_finite()) {
         return Err(format!("--k must be > 0 (got {})", plant.k));
     }
@@ -159,7 +214,95 @@ fn problem(plant: &PlantArgs, w: &WedgeArgs, bound: f64) -> Result<RobustProblem
         PerturbationArg::Spring => Perturbation::Spring,
         PerturbationArg::Literal => Perturbation::Literal,
     };
-    Ok(RobustProblem::new(plant.k, sensor, pert, wedge, bound))
+    let prob = RobustProblem::new(plant.k, sensor, pert, wedge, bound);
+    match observer.design()? {
+        None => Ok(prob),
+        Some(d) => prob
+            .with_observer(d, observer.period)
+            .map_err(|e| format!("no Kalman filter for this plant: {e}")),
+    }
+}
+
+/// What a loop with a filter adds to a report: the full-state r_c beside the loop's, the
+/// filter's poles, and the springs the loop stays stable for. None without a filter.
+fn filter_report(prob: &RobustProblem, gains: &[f64], r_c: f64) -> Option<serde_json::Value> {
+    let o = prob.observer.as_ref()?;
+    let full = RobustProblem {
+        observer: None,
+        ..prob.clone()
+    };
+    let full_rc = full.evaluate(gains).map(|e| e.stability_radius).ok();
+    let full_springs = full_rc.map(|rc| full.spring_ranges(gains, rc).continuous);
+    let poles: Vec<(f64, f64)> = o
+        .error_poles(&prob.nominal_model())
+        .iter()
+        .map(|p| (p.re, p.im))
+        .collect();
+    let springs = prob.spring_ranges(gains, r_c);
+    let u_noise = command_noise(
+        &prob.nominal_model(),
+        &o.filter,
+        o.period,
+        gains,
+        o.design.measurement_noise,
+    );
+    Some(json!({
+        "command_noise": u_noise,
+        "full_state_stability_radius": full_rc,
+        "full_state_springs": full_springs,
+        "filter": {
+            "period": o.period, "process_noise": o.design.process_noise,
+            "measurement_noise": o.design.measurement_noise,
+            "poles": poles_json(&poles), "l_c": o.l_c.as_slice(),
+        },
+        "spring_ranges": springs,
+    }))
+}
+
+fn print_filter_report(r: &serde_json::Value) {
+    let range = |v: &serde_json::Value| {
+        format!(
+            "[{}, {}]",
+            v[0].as_f64()
+                .map_or("below k/1000".into(), |x| format!("{x:.4}")),
+            v[1].as_f64()
+                .map_or("above 1000 k".into(), |x| format!("{x:.4}"))
+        )
+    };
+    match r["full_state_stability_radius"].as_f64() {
+        Some(v) => out!("  full state (the paper's assumption): r_c = {v:.6}"),
+        None => out!("  full state (the paper's assumption): r_c not computable"),
+    }
+    let s = &r["spring_ranges"];
+    if !s["guaranteed"].is_null() {
+        out!("springs the loop is stable for:");
+        out!(
+            "  guaranteed by r_c (|dk| < r_c/2): {}",
+            range(&s["guaranteed"])
+        );
+    }
+    out!(
+        "  continuous loop with the filter:  {}",
+        range(&s["continuous"])
+    );
+    out!(
+        "  sampled loop, as the controller runs: {}",
+        range(&s["sampled"])
+    );
+    if let Some(v) = r["command_noise"].as_f64() {
+        out!(
+            "std of u from the sensor's noise ({} std), in steady state: {v:.4}",
+            r["filter"]["measurement_noise"]
+        );
+    }
+    out!("filter poles (continuous equivalent, L_c = L/T):");
+    for p in r["filter"]["poles"].as_array().into_iter().flatten() {
+        out!(
+            "    {:+.6} {:+.6}j",
+            p[0].as_f64().unwrap_or(f64::NAN),
+            p[1].as_f64().unwrap_or(f64::NAN)
+        );
+    }
 }
 
 fn poles_json(p: &[(f64, f64)]) -> serde_json::Value {
@@ -191,7 +334,7 @@ fn radius(a: RadiusArgs) -> i32 {
     if a.gains.iter().any(|g| !g.is_finite()) {
         return usage("--gains must be finite numbers");
     }
-    let prob = match problem(&a.plant, &a.wedge, 1e9) {
+    let prob = match problem(&a.plant, &a.wedge, &a.observer, 1e9) {
         Ok(p) => p,
         Err(e) => return usage(&e),
     };
@@ -202,18 +345,29 @@ fn radius(a: RadiusArgs) -> i32 {
             return 1;
         }
     };
+    let filter = filter_report(&prob, &a.gains, ev.stability_radius);
     if a.json {
-        out!(
-            "{}",
-            json!({
-                "gains": a.gains, "k": a.plant.k, "collocated": a.plant.collocated,
-                "zeta": a.wedge.zeta, "rho": a.wedge.rho,
-                "stability_radius": ev.stability_radius, "poles": poles_json(&ev.poles),
-                "in_wedge": ev.in_wedge, "wedge_distance": ev.wedge_distance,
-            })
-        );
+        let mut v = json!({
+            "gains": a.gains, "k": a.plant.k, "collocated": a.plant.collocated,
+            "zeta": a.wedge.zeta, "rho": a.wedge.rho,
+            "stability_radius": ev.stability_radius, "poles": poles_json(&ev.poles),
+            "in_wedge": ev.in_wedge, "wedge_distance": ev.wedge_distance,
+        });
+        if let Some(f) = filter {
+            v["observer"] = f;
+        }
+        out!("{v}");
     } else {
-        out!("stability radius r_c = {:.6}", ev.stability_radius);
+        match &filter {
+            Some(_) => out!(
+                "stability radius r_c = {:.6} (the loop with the Kalman filter)",
+                ev.stability_radius
+            ),
+            None => out!("stability radius r_c = {:.6}", ev.stability_radius),
+        }
+        if let Some(f) = &filter {
+            print_filter_report(f);
+        }
         out!(
             "poles in wedge: {} (summed distance {:.6})",
             ev.in_wedge,
@@ -281,7 +435,7 @@ fn lqr_cmd(a: LqrArgs) -> i32 {
 }
 
 fn tune(a: TuneArgs) -> i32 {
-    let prob = match problem(&a.plant, &a.wedge, a.bound) {
+    let prob = match problem(&a.plant, &a.wedge, &a.observer, a.bound) {
         Ok(p) => p,
         Err(e) => return usage(&e),
     };
@@ -315,16 +469,18 @@ fn tune(a: TuneArgs) -> i32 {
             return 1;
         }
     };
+    let filter = filter_report(&prob, &r.best, ev.stability_radius);
     if a.json {
-        out!(
-            "{}",
-            json!({
-                "gains": r.best, "stability_radius": ev.stability_radius, "f_x": r.value,
-                "in_wedge": ev.in_wedge, "poles": poles_json(&ev.poles),
-                "iterations": r.generations, "evaluations": r.evaluations, "seconds": r.seconds,
-                "stopped_by": r.stopped_by, "seed": a.seed, "f": a.f, "cr": a.cr, "np": a.np,
-            })
-        );
+        let mut v = json!({
+            "gains": r.best, "stability_radius": ev.stability_radius, "f_x": r.value,
+            "in_wedge": ev.in_wedge, "poles": poles_json(&ev.poles),
+            "iterations": r.generations, "evaluations": r.evaluations, "seconds": r.seconds,
+            "stopped_by": r.stopped_by, "seed": a.seed, "f": a.f, "cr": a.cr, "np": a.np,
+        });
+        if let Some(f) = filter {
+            v["observer"] = f;
+        }
+        out!("{v}");
     } else {
         out!(
             "K = [{}]",
@@ -339,6 +495,9 @@ fn tune(a: TuneArgs) -> i32 {
             ev.stability_radius,
             ev.in_wedge
         );
+        if let Some(f) = &filter {
+            print_filter_report(f);
+        }
         out!(
             "{} iterations, {} evaluations, {:.3} s, stopped by {}",
             r.generations,

@@ -3,6 +3,7 @@
 //! pole region, and the two-mass design problem that DE solves.
 
 pub mod lqr;
+pub mod observer;
 pub mod pole_region;
 pub mod problem;
 pub mod stability_radius;

@@ -13,10 +13,12 @@
 //! - the objective of Table 2 (DOCHM): F(X) = summed pole distance to the wedge when positive,
 //!   else f(X) = -r_c.
 
+use super::observer::{continuous_loop, sampled_loop, spectral_radius, spring_range, Observer};
 use super::pole_region::Wedge;
 use super::stability_radius::{hinf_from_poles, stability_radius, Bounded, HinfError};
 use crate::linalg::eig;
 use crate::optim::Objective;
+use crate::plant::linear::LinearModel;
 use crate::plant::two_mass::{Sensor, TwoMass};
 use nalgebra::{Complex, DMatrix};
 use serde::Serialize;
@@ -46,6 +48,19 @@ impl Objective for RobustProblem {
     }
 }
 
+/// The springs a loop stays stable for, around the nominal one.
+#[derive(Debug, Clone, Serialize)]
+pub struct SpringRanges {
+    /// What r_c guarantees under the spring structure (`Perturbation::Spring`, where a spring
+    /// change is a perturbation of norm 2|δ|): |δ| < r_c / 2. None under another structure.
+    pub guaranteed: Option<(f64, f64)>,
+    /// The continuous loop r_c is computed on, by its eigenvalues (None on a side: still
+    /// stable at k / 1000 or 1000 k).
+    pub continuous: (Option<f64>, Option<f64>),
+    /// With a filter: the sampled loop exactly as the controller runs it.
+    pub sampled: Option<(Option<f64>, Option<f64>)>,
+}
+
 /// Everything one candidate gain vector is judged by.
 #[derive(Debug, Clone, Serialize)]
 pub struct Evaluation {
@@ -65,9 +80,12 @@ pub struct RobustProblem {
     pub b_hat: DMatrix<f64>,
     pub e: DMatrix<f64>,
     pub h: DMatrix<f64>,
+    pub perturbation: Perturbation,
     pub wedge: Wedge,
     pub lower: Vec<f64>,
     pub upper: Vec<f64>,
+    /// The filter the feedback acts on (`with_observer`); None: the full state, as the paper.
+    pub observer: Option<Observer>,
 }
 
 impl RobustProblem {
@@ -90,9 +108,97 @@ impl RobustProblem {
             b_hat,
             e,
             h,
+            perturbation,
             wedge,
             lower: vec![-bound; 5],
             upper: vec![bound; 5],
+            observer: None,
+        }
+    }
+
+    /// The same problem with the feedback acting on `design`'s Kalman filter, run every
+    /// `period` s on the nominal model: the wedge still holds the state feedback's poles (the
+    /// loop's others are the filter's, by separation), r_c is the whole loop's.
+    pub fn with_observer(
+        mut self,
+        design: crate::control::estimator::KalmanDesign,
+        period: f64,
+    ) -> Result<Self, String> {
+        let model = self.nominal_model();
+        self.observer = Some(Observer::new(&model, (&self.e, &self.h), design, period)?);
+        Ok(self)
+    }
+
+    /// The nominal plant's continuous model (A, B, C).
+    pub fn nominal_model(&self) -> LinearModel {
+        self.model_of(&self.a_hat)
+    }
+
+    /// The plant (A, B, C) inside an augmented Â = [[A, 0], [-C, 0]] and this problem's B̂.
+    fn model_of(&self, a_hat: &DMatrix<f64>) -> LinearModel {
+        let n = a_hat.nrows() - 1;
+        let a: Vec<f64> = (0..n * n).map(|k| a_hat[(k / n, k % n)]).collect();
+        let b: Vec<f64> = (0..n).map(|i| self.b_hat[(i, 0)]).collect();
+        let c: Vec<f64> = (0..n).map(|j| -a_hat[(n, j)]).collect();
+        LinearModel::continuous(&a, &b, &c)
+    }
+
+    /// The nominal spring (m1 = m2 = 1: Â's entry (3, 1) is -k).
+    pub fn spring(&self) -> f64 {
+        -self.a_hat[(2, 0)]
+    }
+
+    /// Â with the spring at `k`: the change δ = k - k_nominal enters rows 3-4, columns 1-2 as
+    /// δ [[-1, 1], [1, -1]], a perturbation of norm 2|δ|.
+    pub fn a_hat_with_spring(&self, k: f64) -> DMatrix<f64> {
+        let d = k - self.spring();
+        let mut a = self.a_hat.clone();
+        for (i, j, s) in [(2, 0, -d), (2, 1, d), (3, 0, d), (3, 1, -d)] {
+            a[(i, j)] += s;
+        }
+        a
+    }
+
+    /// The springs for which the loop with `gains` stays stable (see `SpringRanges`), `r_c`
+    /// being its stability radius.
+    pub fn spring_ranges(&self, gains: &[f64], r_c: f64) -> SpringRanges {
+        let k = self.spring();
+        let continuous = spring_range(k, |kk| {
+            eig(&self.whole_loop(gains, Some(&self.a_hat_with_spring(kk))))
+                .iter()
+                .all(|p| p.re < 0.0)
+        });
+        let sampled = self.observer.as_ref().map(|o| {
+            spring_range(k, |kk| {
+                let plant = self.model_of(&self.a_hat_with_spring(kk));
+                sampled_loop(&plant, &o.filter, o.period, gains)
+                    .is_some_and(|m| spectral_radius(&m) < 1.0)
+            })
+        });
+        SpringRanges {
+            guaranteed: (self.perturbation == Perturbation::Spring)
+                .then(|| ((k - 0.5 * r_c).max(0.0), k + 0.5 * r_c)),
+            continuous,
+            sampled,
+        }
+    }
+
+    /// The loop r_c is computed on: Ã = Â - B̂ K on the full state, or the loop with the
+    /// filter's continuous equivalent, [x; ξ; x̂]. `plant` replaces Â in the plant's rows (a
+    /// perturbed spring); None: the nominal plant.
+    pub fn whole_loop(&self, gains: &[f64], plant: Option<&DMatrix<f64>>) -> DMatrix<f64> {
+        let a = plant.unwrap_or(&self.a_hat);
+        match &self.observer {
+            None => a - &self.b_hat * DMatrix::from_row_slice(1, gains.len(), gains),
+            Some(o) => continuous_loop(a, &self.a_hat, &self.b_hat, &o.l_c, gains),
+        }
+    }
+
+    /// E and H of `whole_loop`: the perturbation reaches the plant, not the filter.
+    pub fn loop_perturbation(&self) -> (&DMatrix<f64>, &DMatrix<f64>) {
+        match &self.observer {
+            None => (&self.e, &self.h),
+            Some(o) => (&o.e_loop, &o.h_loop),
         }
     }
 
@@ -140,13 +246,23 @@ impl RobustProblem {
         if f > 0.0 {
             return f;
         }
-        // Feasible: every pole has Re <= -rho < 0, so the loop is Hurwitz.
+        // Feasible: every pole has Re <= -rho < 0, so the full-state loop is Hurwitz (with a
+        // filter, the loop's other poles are the filter's, stable by its design).
+        let (acl, poles) = match self.observer {
+            None => (acl, poles),
+            Some(_) => {
+                let whole = self.whole_loop(gains, None);
+                let poles = eig(&whole);
+                (whole, poles)
+            }
+        };
+        let (e, h) = self.loop_perturbation();
         let level = if threshold < 0.0 {
             -1.0 / threshold
         } else {
             f64::INFINITY
         };
-        match hinf_from_poles(&acl, &self.e, &self.h, &poles, level) {
+        match hinf_from_poles(&acl, e, h, &poles, level) {
             Ok(Bounded::Exact(n, _)) if n > 0.0 => -1.0 / n,
             Ok(Bounded::Exact(..)) => f64::NEG_INFINITY,
             Ok(Bounded::Above(lb)) => -1.0 / lb,
@@ -158,10 +274,10 @@ impl RobustProblem {
 
     /// Full evaluation for reports; an error when r_c cannot be computed.
     pub fn evaluate(&self, gains: &[f64]) -> Result<Evaluation, HinfError> {
-        let acl = self.closed_loop(gains);
-        let poles = eig(&acl);
+        let poles = eig(&self.closed_loop(gains));
         let f = self.wedge.total_distance(&poles);
-        let rc = stability_radius(&acl, &self.e, &self.h)?;
+        let (e, h) = self.loop_perturbation();
+        let rc = stability_radius(&self.whole_loop(gains, None), e, h)?;
         Ok(Evaluation {
             poles: poles.iter().map(|p| (p.re, p.im)).collect(),
             wedge_distance: f,
