@@ -115,3 +115,83 @@ fn computed_torque_runs_against_the_mujoco_arm_reproducibly() {
     let s = common::json(&a.join("summary.json"));
     assert_eq!(s["cycle_allocations"]["allocations"], 0);
 }
+
+/// arm3_mujoco with the Python plant sending no truth (`--no-truth`: NaN in x_true, q_true and
+/// qd_true, as a real arm has none to send) and computed torque on velocities from its encoders
+/// (`velocity = "filtered"`): the run is ok, its commands are bit for bit those of the same run
+/// with the truth sent (the law read none of it), and it tracks as the same law does on
+/// evoloop's own arm with the same encoders.
+#[test]
+#[ignore = "needs Python 3 with mujoco and the evoloop_plant package's deps: pip install ./python mujoco"]
+fn computed_torque_runs_the_mujoco_arm_on_its_encoders_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = |name: &str, truth: bool| {
+        let abs = |p: &str| root().join("config").join(p).display().to_string();
+        let text = std::fs::read_to_string(common::config(name))
+            .unwrap()
+            .replace("\"robots/", &format!("\"{}/", abs("robots")))
+            .replace("\"plants/", &format!("\"{}/", abs("plants")))
+            .replace(
+                "[controller.computed_torque]\n",
+                "[controller.computed_torque]\nvelocity = \"filtered\"\n",
+            )
+            .replace(
+                "\"--noise\", \"0.0001\"]",
+                if truth {
+                    "\"--noise\", \"0.0001\"]"
+                } else {
+                    "\"--noise\", \"0.0001\", \"--no-truth\"]"
+                },
+            );
+        common::write(dir.path(), &format!("{truth}-{name}"), &text)
+    };
+    let run = |file: &Path, out: &str| {
+        let out = dir.path().join(out);
+        common::assert_ok(&common::run(file, &out, "mjblind", &[]));
+        out
+    };
+    let blind = run(&config("arm3_mujoco.toml", false), "blind");
+    let seen = run(&config("arm3_mujoco.toml", true), "seen");
+    let rows = |d: &Path| common::Csv::read(&d.join("run.csv"));
+    let (b, s) = (rows(&blind), rows(&seen));
+    for j in 0..3 {
+        let u = format!("u{j}");
+        let (ub, us) = (b.col(&u), s.col(&u));
+        assert_eq!(ub.len(), us.len());
+        assert!(
+            ub.iter().zip(&us).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "{u}: the commands differ with the truth withheld"
+        );
+    }
+    let truth: Vec<String> = b
+        .header
+        .iter()
+        .filter(|n| n.starts_with('q')) // q0.., qd0..: the plant's q_true and qd_true
+        .cloned()
+        .collect();
+    assert!(!truth.is_empty(), "run.csv records the truth columns");
+    for c in &truth {
+        assert!(
+            b.col(c).iter().all(|v| v.is_nan()),
+            "{c} is NaN when not sent"
+        );
+    }
+    let settled = |d: &Path| -> Vec<f64> {
+        let s = common::json(&d.join("summary.json"));
+        let rms = s["tracking_after_1s"]["rms"].as_array().unwrap().clone();
+        rms.iter().map(|v| v.as_f64().unwrap()).collect()
+    };
+    let own = settled(&run(&config("arm3_ct.toml", true), "own"));
+    let on_mujoco = settled(&blind);
+    println!(
+        "filtered velocity, rms after 1 s: MuJoCo arm blind {on_mujoco:?}, evoloop's arm {own:?}"
+    );
+    for (j, (m, o)) in on_mujoco.iter().zip(&own).enumerate() {
+        assert!(
+            *m < 4.0 * o && *o < 4.0 * m,
+            "joint {j}: computed torque on encoders tracks the two simulators' arm alike: {m} vs {o}"
+        );
+    }
+    let s = common::json(&blind.join("summary.json"));
+    assert_eq!(s["cycle_allocations"]["allocations"], 0);
+}

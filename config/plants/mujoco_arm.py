@@ -5,10 +5,11 @@ joint damping and frictionloss) and integrates it with its RK4 at `--step`; the 
 plant contract through the evoloop_plant package. Torques are clipped to the URDF's effort
 limits, as evoloop's own arm plant clips them.
 
-  mujoco_arm.py ROBOT.urdf --q0 Q1 Q2 ... [--step 0.0005] [--noise STD] [--wall Y]
+  mujoco_arm.py ROBOT.urdf --q0 Q1 Q2 ... [--step 0.0005] [--noise STD] [--wall Y] [--no-truth]
 
 `--noise STD` adds Gaussian noise to the measured angles (seeded by EVOLOOP_SEED, so lockstep
-reruns are identical). `--wall X` adds what evoloop's rigid-body plant cannot simulate: a ball
+reruns are identical). `--no-truth` sends NaN in every truth field, as a real arm has no
+truth to send: the controller then runs on the encoders alone. `--wall X` adds what evoloop's rigid-body plant cannot simulate: a ball
 of 4 cm radius at the URDF's last frame (the tool flange) and a stiff wall, the plane y = Y in the
 world, that the ball touches (MuJoCo's default soft contact: the ball sinks a few mm into it).
 Needs `pip install mujoco` and the evoloop_plant package (`pip install ./python`; run from the
@@ -46,8 +47,9 @@ def load(urdf, step, wall=None, coulomb=True):
 
 
 class MujocoArm(evoloop_plant.Plant):
-    def __init__(self, model, q0, noise=0.0, seed=1):
+    def __init__(self, model, q0, noise=0.0, seed=1, truth=True):
         self.m, self.d = model, mujoco.MjData(model)
+        self.truth = truth
         self.q0 = np.asarray(q0, dtype=float)
         self.step_size = model.opt.timestep
         hinge_or_slide = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
@@ -91,9 +93,11 @@ def main():
     ap.add_argument("--step", type=float, default=0.0005, help="MuJoCo's RK4 step, s")
     ap.add_argument("--noise", type=float, default=0.0, help="encoder noise, rad (std)")
     ap.add_argument("--wall", type=float, help="a wall at y = WALL m that the tool's ball touches")
+    ap.add_argument("--no-truth", action="store_true",
+                    help="send NaN in every truth field (x_true, q_true, qd_true)")
     a = ap.parse_args()
     seed = int(os.environ.get("EVOLOOP_SEED", "1"))
-    evoloop_plant.run(MujocoArm(load(a.urdf, a.step, a.wall), a.q0, a.noise, seed))
+    evoloop_plant.run(MujocoArm(load(a.urdf, a.step, a.wall), a.q0, a.noise, seed, not a.no_truth))
 
 
 if __name__ == "__main__":

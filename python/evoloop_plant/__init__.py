@@ -125,6 +125,11 @@ class Environment:
 class Plant:
     """Subclass and override `reset` and `step`. Arrays may be lists or NumPy arrays."""
 
+    #: False for a plant that has no truth to send, as a real machine has none: every truth field
+    #: (x_true, q_true, qd_true) is then NaN, and `state()` and `joints()` are not called. The
+    #: scenario's law must then read only the measured outputs (e.g. `velocity = "filtered"`).
+    truth = True
+
     def reset(self):
         """Put the plant in its initial state; return the measured outputs y (one per output)."""
         raise NotImplementedError
@@ -261,6 +266,12 @@ class _Runner:
         m.seq, m.stamp_ns, m.t, m.flags = seq, time.monotonic_ns(), self.t, flags
         m.n_x, m.n_q, m.n_y = e.states, e.joints, e.outputs
         _fill(m.y, self.y, e.outputs, "step()'s y")
+        _fill(m.u_applied, u_applied, e.inputs, "the command")
+        if not self.plant.truth:
+            for field, n in ((m.x_true, e.states), (m.q_true, e.joints), (m.qd_true, e.joints)):
+                for i in range(n):
+                    field[i] = math.nan
+            return m
         _fill(m.x_true, self.plant.state(), e.states, "state()")
         j = self.plant.joints(self.y)
         if j is None and e.joints > e.outputs:
@@ -269,7 +280,6 @@ class _Runner:
         q, qd = (list(np.ravel(self.y))[:e.joints], None) if j is None else j
         _fill(m.q_true, q, e.joints, "joints()'s q")
         _fill(m.qd_true, qd, e.joints, "joints()'s qd")
-        _fill(m.u_applied, u_applied, e.inputs, "the command")
         return m
 
     def advance(self, u, dt):
