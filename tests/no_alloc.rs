@@ -220,9 +220,10 @@ fn the_control_cycle_allocates_nothing() {
 }
 
 /// An arm's computed torque on velocities it estimates from its encoders (`velocity =
-/// "filtered"`): the filter's update in the cycle allocates nothing either.
+/// "filtered"`) or by its model-based observer (`velocity = "observer"`, a forward-dynamics
+/// pass of the law's model each cycle): neither estimator's update allocates in the cycle.
 #[test]
-fn computed_torque_on_filtered_velocities_allocates_nothing() {
+fn computed_torque_on_estimated_velocities_allocates_nothing() {
     use evoloop::control::estimator::VelocitySource;
     use evoloop::control::{ComputedTorque, Controller};
     let scn = evoloop::config::Scenario::load(
@@ -235,35 +236,41 @@ fn computed_torque_on_filtered_velocities_allocates_nothing() {
         _ => unreachable!("arm3_ct is computed torque"),
     };
     let n = model.dof();
-    let mut ct = ComputedTorque::new(model.clone(), &vec![100.0; 2 * n], 0.03)
-        .with_velocity(VelocitySource::Filtered { cutoff_hz: 50.0 }, 0.001);
-    let mut state = PlantState {
-        n_q: n as u32,
-        n_y: n as u32,
-        ..Default::default()
-    };
-    let sp = evoloop::reference::Setpoint {
-        n,
-        ..Default::default()
-    };
-    let mut u = vec![0.0; n];
-    let mut step = |k: u64, ct: &mut ComputedTorque, state: &mut PlantState| {
-        state.seq = k;
-        for (i, y) in state.y[..n].iter_mut().enumerate() {
-            *y = 0.1 * (i as f64 + 1.0) * (k as f64 * 1e-3).sin();
+    for source in [
+        VelocitySource::Filtered { cutoff_hz: 50.0 },
+        VelocitySource::Observer { bandwidth_hz: 50.0 },
+    ] {
+        let mut ct = ComputedTorque::new(model.clone(), &vec![100.0; 2 * n], 0.03)
+            .with_velocity(source, 0.001);
+        let mut state = PlantState {
+            n_q: n as u32,
+            n_y: n as u32,
+            ..Default::default()
+        };
+        let sp = evoloop::reference::Setpoint {
+            n,
+            ..Default::default()
+        };
+        let mut u = vec![0.0; n];
+        let mut step = |k: u64, ct: &mut ComputedTorque, state: &mut PlantState| {
+            state.seq = k;
+            for (i, y) in state.y[..n].iter_mut().enumerate() {
+                *y = 0.1 * (i as f64 + 1.0) * (k as f64 * 1e-3).sin();
+            }
+            state.u_applied[..n].copy_from_slice(&u);
+            ct.step(state, &sp, &mut u);
+        };
+        step(0, &mut ct, &mut state);
+        let before = COUNT.load(Ordering::SeqCst);
+        counting_alloc::arm();
+        for k in 1..2000 {
+            step(k, &mut ct, &mut state);
         }
-        ct.step(state, &sp, &mut u);
-    };
-    step(0, &mut ct, &mut state);
-    let before = COUNT.load(Ordering::SeqCst);
-    counting_alloc::arm();
-    for k in 1..2000 {
-        step(k, &mut ct, &mut state);
+        counting_alloc::disarm();
+        assert_eq!(
+            COUNT.load(Ordering::SeqCst) - before,
+            0,
+            "{source:?}: allocations in 1999 cycles"
+        );
     }
-    counting_alloc::disarm();
-    assert_eq!(
-        COUNT.load(Ordering::SeqCst) - before,
-        0,
-        "allocations in 1999 cycles"
-    );
 }

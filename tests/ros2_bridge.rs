@@ -162,7 +162,7 @@ fn a_ros_2_node_gets_joint_states_equal_to_run_csv_and_sets_gains_through_the_co
     };
     let states: Vec<&Value> = lines.iter().filter_map(|l| l.get("joint_state")).collect();
     assert_eq!(states.len(), 300);
-    let (mut last_row, mut skipped, mut last_seq) = (None, 0, None);
+    let (mut last_row, mut skipped, mut last_seq, mut held) = (None, 0, None, 0);
     for js in &states {
         assert_eq!(js["name"], json!(["waist", "shoulder", "elbow"]));
         let ns = js["sec"].as_u64().unwrap() * 1_000_000_000 + js["nanosec"].as_u64().unwrap();
@@ -189,12 +189,20 @@ fn a_ros_2_node_gets_joint_states_equal_to_run_csv_and_sets_gains_through_the_co
             row_bits(&qd, k),
             "velocity, row {k}"
         );
-        let applied = if k == 0 {
+        // The effort is the torque the plant applied over the period before the row (its
+        // state's u_applied, recorded in run.mcap): the row before's command when it arrived in
+        // time, another when it did not (counted below).
+        let applied: Vec<u64> = rec.states[k].u_applied[..3]
+            .iter()
+            .map(|v| v.to_bits())
+            .collect();
+        assert_eq!(bits_of(&js["effort"]), applied, "effort, row {k}");
+        let commanded = if k == 0 {
             vec![0u64; 3]
         } else {
             row_bits(&u, k - 1)
         };
-        assert_eq!(bits_of(&js["effort"]), applied, "effort, row {k}");
+        held += usize::from(applied != commanded);
         assert_eq!(ns, stamps[k], "stamp, row {k}");
     }
     let summary = json(&out.join("summary.json"));
@@ -206,6 +214,14 @@ fn a_ros_2_node_gets_joint_states_equal_to_run_csv_and_sets_gains_through_the_co
     assert!(
         skipped <= late,
         "{skipped} joint states are no row, the controller was late or stale only {late} times"
+    );
+    // Not bounded: in realtime a command that arrives within the period is applied from its
+    // stamp, so u_applied departs from the row before's command whenever the controller's
+    // answer crossed a tick, which a slow host does without counting a miss (a landing's CI
+    // found one at row 1104 of 1500).
+    println!(
+        "{held} of {} joint states carry a command other than their row's",
+        states.len()
     );
 
     // The controller's answers, each to its set.

@@ -261,6 +261,9 @@ fn filter_report(prob: &RobustProblem, gains: &[f64], r_c: f64) -> Option<serde_
 
 fn print_filter_report(r: &serde_json::Value) {
     let range = |v: &serde_json::Value| {
+        if v[0].as_f64().is_some() && v[0] == v[1] {
+            return "none: unstable at the nominal spring".to_string();
+        }
         format!(
             "[{}, {}]",
             v[0].as_f64()

@@ -4,7 +4,9 @@
 //!
 //! - **Continuous time, for the paper's r_c.** The filter enters as its continuous-time
 //!   equivalent x̂' = A x̂ + B u + L_c (y - C x̂) with L_c = L / T, L = Φ M the sampled filter's
-//!   predictor gain (what the sampled filter tends to as T -> 0). The loop's state is
+//!   predictor gain: an approximation (it drops the current form's direct use of y, and the
+//!   gain depends on T), which the sampled loop below checks (their spring ranges agree to three
+//!   digits on the default filter). The loop's state is
 //!   [x; ξ; x̂]; the perturbation E Δ H acts on the plant's rows and columns only, because the
 //!   filter keeps its nominal model while the plant's spring moves.
 //! - **Sampled, as the controller runs it:** the plant held over each period (ZOH), the
@@ -44,14 +46,23 @@ impl Observer {
         let n = model.n();
         let l_c = DMatrix::from_fn(n, 1, |i, _| filter.l[i] / period);
         let (e_loop, h_loop) = pad_perturbation(e, h, n);
-        Ok(Self {
+        let observer = Self {
             design,
             period,
             filter,
             l_c,
             e_loop,
             h_loop,
-        })
+        };
+        // The sampled filter is stable by its design; its continuous equivalent, on which r_c
+        // is computed, need not be at a long period. Refused then, not scored.
+        if let Some(p) = observer.error_poles(model).iter().find(|p| p.re >= 0.0) {
+            return Err(format!(
+                "the filter's continuous equivalent L/T at period {period} s has an error pole                  at {:.4} {:+.4}j, not in the left half-plane: r_c of the loop with it is not                  defined (a shorter period or a slower filter)",
+                p.re, p.im
+            ));
+        }
+        Ok(observer)
     }
 
     /// The continuous equivalent's error dynamics A - L_c C: its eigenvalues are the loop's
@@ -181,8 +192,12 @@ pub fn spectral_radius(m: &DMatrix<f64>) -> f64 {
 
 /// The springs around `k` for which `stable` holds without a break: (lowest, highest), each
 /// found by stepping 2 % at a time and bisecting the first failure to 1e-6 relative; None on a
-/// side where the loop is still stable at k/1000 (below) or 1000 k (above).
+/// side where the loop is still stable at k/1000 (below) or 1000 k (above). A loop unstable at
+/// `k` itself is stable for no spring around it: the empty range (k, k).
 pub fn spring_range(k: f64, stable: impl Fn(f64) -> bool) -> (Option<f64>, Option<f64>) {
+    if !stable(k) {
+        return (Some(k), Some(k));
+    }
     let edge = |factor: f64, limit: f64| -> Option<f64> {
         let mut inside = k;
         loop {

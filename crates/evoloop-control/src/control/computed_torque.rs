@@ -6,8 +6,11 @@
 //!
 //! The whole bracket is one recursive Newton-Euler pass with the commanded acceleration
 //! (tau = ID(q, qd, a)), a few hundred nanoseconds for six joints and allocation-free.
-//! Parameters: [Kp_1..Kp_n, Kv_1..Kv_n]. Positions are the measured outputs y; velocities the
-//! simulator's true joint velocities `qd_true` (as the paper's simulation has them).
+//! Parameters: [Kp_1..Kp_n, Kv_1..Kv_n]. Positions are the measured outputs y; velocities by
+//! default the simulator's true joint velocities `qd_true` (as the paper's simulation has
+//! them), or the encoders' differenced and low-passed (`velocity = "filtered"`), or a
+//! model-based observer's that predicts with this law's model in service from the applied
+//! torques (`velocity = "observer"`).
 //!
 //! The model itself can be replaced while the loop runs (an identified model, the eMuPSO
 //! paper's Section 4.1 put to use): a set of kind `ParamKind::RigidBodyModel` carries the
@@ -25,12 +28,12 @@ use super::{
     VelocityKey,
 };
 use crate::check::{Check, ConfigError, Tunable};
+use crate::dynamics::{Data, Model};
+use crate::linalg::cholesky_solve_in_place;
+use crate::msg::{ParamCode, ParamKind, PlantState};
+use crate::reference::Setpoint;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
-use crate::linalg::cholesky_solve_in_place;
-use crate::dynamics::{Data, Model};
-use crate::msg::{ParamCode, PlantState, ParamKind};
-use crate::reference::Setpoint;
 
 pub struct ComputedTorque {
     model: Model,
@@ -81,7 +84,7 @@ impl ComputedTorque {
 
     /// Read velocities from `source` (the true ones until this is called), every `period` s.
     pub fn with_velocity(mut self, source: VelocitySource, period: f64) -> Self {
-        self.velocity = Velocities::new(source, self.model.dof(), period);
+        self.velocity = Velocities::new(source, self.model.dof(), period, Some(&self.model));
         self
     }
 
@@ -170,7 +173,8 @@ impl Controller for ComputedTorque {
     fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
         let n = self.model.dof();
         let (kp, kv) = self.gains.split_at(n);
-        self.qd.copy_from_slice(self.velocity.read(state, n));
+        self.qd
+            .copy_from_slice(self.velocity.read(state, n, Some(&self.model)));
         for i in 0..n {
             self.q[i] = state.y[i];
             let e = sp.q[i] - self.q[i];
@@ -299,6 +303,7 @@ pub fn validate(
             t.velocity,
             t.velocity_cutoff_hz,
             cx.period,
+            true,
         )?,
     })
 }

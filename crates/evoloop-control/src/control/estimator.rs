@@ -9,11 +9,15 @@
 //!   form, so a sample's estimate already uses that sample's measurement.
 //! - [`VelocityFilter`]: joint velocities from measured positions as a servo drive makes them,
 //!   differenced positions through a first-order low-pass.
+//! - [`VelocityObserver`]: joint positions and velocities predicted by the law's own rigid-body
+//!   model from the applied torques and corrected by the measured positions (a model-based
+//!   observer; without the model's acceleration it is the alpha-beta tracker of a drive).
 //!
-//! Both step without allocating and advance by the samples' `seq`: a sample seen again (the
+//! All step without allocating and advance by the samples' `seq`: a sample seen again (the
 //! cycle's bumpless swap and its step read the same one) is not counted twice, and samples the
 //! loop never saw (realtime skips a late one, a refused one is not read) are predicted across.
 
+use crate::dynamics::{Data, Model};
 use crate::msg::{PlantState, MAX_JOINTS};
 use crate::plant::{LinearModel, MAX_LINEAR_STATES};
 use nalgebra::DMatrix;
@@ -285,6 +289,127 @@ impl VelocityFilter {
     }
 }
 
+/// The most samples a `VelocityObserver` predicts across in one cycle (one forward-dynamics pass
+/// each, about a microsecond for seven joints).
+const MAX_OBSERVER_GAP: u64 = 20;
+
+/// Joint positions and velocities from the measured positions, the applied torques and a
+/// rigid-body model, one sample at a time. Over each period the model predicts
+///   qdd = M(q̂)^-1 (tau - V(q̂, q̂d) - G(q̂) - F(q̂d)),  q̂ += T q̂d + T²/2 qdd,  q̂d += T qdd,
+/// with tau the torque that reached the plant (`u_applied`), and the measured position corrects
+/// the prediction, q̂ += m1 (y - q̂), q̂d += m2 (y - q̂). Where the model is right the error of
+/// each joint obeys the double integrator's e+ = (I - M C) A e, whose two eigenvalues the gains
+/// m1 = 1 - p² (dimensionless) and m2 = (1 - p)² / T (1/s) place together at
+/// p = e^(-2 pi fc T): the error decays as a critically damped pair of bandwidth `bandwidth_hz`.
+/// A gap of more than `MAX_OBSERVER_GAP` samples (a stalled plant, which meanwhile applied its
+/// safe command, not the held one) restarts the estimate from the measured position and the
+/// difference quotient over the gap, rather than spending the late cycle on predictions. A model error or an unmodelled load
+/// enters as an acceleration the correction must carry, so the observer lags less than the
+/// low-pass the better the model is.
+#[derive(Debug, Clone)]
+pub struct VelocityObserver {
+    n: usize,
+    period: f64,
+    m1: f64,
+    m2: f64,
+    q: [f64; MAX_JOINTS],
+    qd: [f64; MAX_JOINTS],
+    qdd: [f64; MAX_JOINTS],
+    tau: [f64; MAX_JOINTS],
+    data: Data,
+    last_seq: Option<u64>,
+}
+
+impl VelocityObserver {
+    /// For `model`'s joints sampled every `period` s, the error's double pole at `bandwidth_hz`.
+    pub fn new(model: &Model, period: f64, bandwidth_hz: f64) -> Self {
+        let (m1, m2) = Self::gains(period, bandwidth_hz);
+        Self {
+            n: model.dof().min(MAX_JOINTS),
+            period,
+            m1,
+            m2,
+            q: [0.0; MAX_JOINTS],
+            qd: [0.0; MAX_JOINTS],
+            qdd: [0.0; MAX_JOINTS],
+            tau: [0.0; MAX_JOINTS],
+            data: model.data(),
+            last_seq: None,
+        }
+    }
+
+    /// The correction's gains (m1 on the position, m2 on the velocity, 1/s) that put both
+    /// eigenvalues of a joint's error map at p = e^(-2 pi fc T).
+    pub fn gains(period: f64, bandwidth_hz: f64) -> (f64, f64) {
+        let p = (-2.0 * std::f64::consts::PI * bandwidth_hz * period).exp();
+        (1.0 - p * p, (1.0 - p) * (1.0 - p) / period)
+    }
+
+    /// The joint velocities at `state`'s sample, from its measured positions `y[..n]` and the
+    /// torques applied since the last sample `u_applied[..n]` (held over any samples between),
+    /// predicted by `model` (the law's model in service, whose joints this observer was built
+    /// for). The first sample starts the estimate at its positions, at rest.
+    pub fn update(&mut self, model: &Model, state: &PlantState) -> &[f64] {
+        let n = self.n;
+        match samples_since(self.last_seq, state.seq) {
+            Some(0) => return &self.qd[..n],
+            Some(k) if k > MAX_OBSERVER_GAP => {
+                let dt = k as f64 * self.period;
+                for i in 0..n {
+                    self.qd[i] = (state.y[i] - self.q[i]) / dt;
+                    self.q[i] = state.y[i];
+                }
+            }
+            Some(k) => {
+                self.tau[..n].copy_from_slice(&state.u_applied[..n]);
+                for _ in 0..k {
+                    self.predict(model);
+                }
+                for i in 0..n {
+                    let e = state.y[i] - self.q[i];
+                    self.q[i] += self.m1 * e;
+                    self.qd[i] += self.m2 * e;
+                }
+            }
+            None => {
+                self.q[..n].copy_from_slice(&state.y[..n]);
+                self.qd[..n].fill(0.0);
+            }
+        }
+        self.last_seq = Some(state.seq);
+        &self.qd[..n]
+    }
+
+    /// One period of the model's motion under the held torques. A model whose mass matrix is
+    /// not positive definite at q̂ (none the laws accept, which check theirs) predicts no
+    /// acceleration: the correction alone then tracks, as a drive's alpha-beta tracker does.
+    fn predict(&mut self, model: &Model) {
+        let (n, t) = (self.n, self.period);
+        let (q, qd, tau) = (&self.q[..n], &self.qd[..n], &self.tau[..n]);
+        if model
+            .forward_dynamics_aba(&mut self.data, q, qd, tau, &mut self.qdd[..n])
+            .is_err()
+            || !self.qdd[..n].iter().all(|a| a.is_finite())
+        {
+            self.qdd[..n].fill(0.0);
+        }
+        for i in 0..n {
+            self.q[i] += t * self.qd[i] + 0.5 * t * t * self.qdd[i];
+            self.qd[i] += t * self.qdd[i];
+        }
+    }
+
+    /// The last velocity estimate.
+    pub fn estimate(&self) -> &[f64] {
+        &self.qd[..self.n]
+    }
+
+    /// The last position estimate.
+    pub fn positions(&self) -> &[f64] {
+        &self.q[..self.n]
+    }
+}
+
 /// Where a joint-space law's velocities come from (`controller.<law>.velocity`).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -294,6 +419,9 @@ pub enum VelocitySource {
     True,
     /// Measured positions differenced and low-passed (`VelocityFilter`) at this cutoff, Hz.
     Filtered { cutoff_hz: f64 },
+    /// The law's own model predicting from the applied torques, corrected by the measured
+    /// positions (`VelocityObserver`), the error's double pole at this bandwidth, Hz.
+    Observer { bandwidth_hz: f64 },
 }
 
 impl VelocitySource {
@@ -307,24 +435,41 @@ impl VelocitySource {
 pub enum Velocities {
     True,
     Filtered(VelocityFilter),
+    /// Boxed: its state and the model's workspace, built once off the cycle.
+    Observer(Box<VelocityObserver>),
 }
 
 impl Velocities {
-    /// For a law of `n` joints run every `period` s.
-    pub fn new(source: VelocitySource, n: usize, period: f64) -> Self {
-        match source {
-            VelocitySource::True => Velocities::True,
-            VelocitySource::Filtered { cutoff_hz } => {
+    /// For a law of `n` joints run every `period` s; `model` is the law's own, which an
+    /// observer needs (a law without one is refused `velocity = "observer"` by its config).
+    pub fn new(source: VelocitySource, n: usize, period: f64, model: Option<&Model>) -> Self {
+        match (source, model) {
+            (VelocitySource::True, _) => Velocities::True,
+            (VelocitySource::Filtered { cutoff_hz }, _) => {
                 Velocities::Filtered(VelocityFilter::new(n, period, cutoff_hz))
+            }
+            (VelocitySource::Observer { bandwidth_hz }, Some(m)) => {
+                Velocities::Observer(Box::new(VelocityObserver::new(m, period, bandwidth_hz)))
+            }
+            (VelocitySource::Observer { .. }, None) => {
+                panic!("a velocity observer needs the law's model (its config refuses it without)")
             }
         }
     }
 
-    /// The first `n` joint velocities at `state`'s sample. Allocation-free.
-    pub fn read<'a>(&'a mut self, state: &'a PlantState, n: usize) -> &'a [f64] {
-        match self {
-            Velocities::True => &state.qd_true[..n],
-            Velocities::Filtered(f) => f.update(state),
+    /// The first `n` joint velocities at `state`'s sample; an observer predicts with `model`,
+    /// the law's model in service. Allocation-free.
+    pub fn read<'a>(
+        &'a mut self,
+        state: &'a PlantState,
+        n: usize,
+        model: Option<&Model>,
+    ) -> &'a [f64] {
+        match (self, model) {
+            (Velocities::True, _) => &state.qd_true[..n],
+            (Velocities::Filtered(f), _) => f.update(state),
+            (Velocities::Observer(o), Some(m)) => o.update(m, state),
+            (Velocities::Observer(o), None) => o.estimate(),
         }
     }
 }
@@ -399,6 +544,80 @@ mod tests {
         let before = kf.estimate().to_vec();
         kf.update(&sample(399, &[123.0], u));
         assert_eq!(kf.estimate(), &before[..]);
+    }
+
+    /// One joint turning about a vertical axis, no gravity, no friction: its acceleration is
+    /// tau / izz whatever the state, so the model's prediction is exact.
+    fn free_joint() -> Model {
+        let text = "name = \"free\"\nconvention = \"standard\"\ngravity = [0.0, 0.0, 0.0]\n\
+                    [[joint]]\nname = \"j\"\na = 0.0\nalpha = 0.0\nd = 0.0\nmass = 1.0\n\
+                    com = [0.0, 0.0, 0.0]\ninertia = [0.3, 0.3, 0.5, 0.0, 0.0, 0.0]\n";
+        crate::dynamics::dh::parse(text, std::path::Path::new("free.toml")).unwrap()
+    }
+
+    /// The gains put both eigenvalues of the error map (I - M C) A at p = e^(-2 pi fc T):
+    /// trace 2p, determinant p².
+    #[test]
+    fn the_observer_gains_place_a_double_pole_at_the_bandwidth() {
+        for (t, fc) in [(0.001, 50.0), (0.0001, 200.0), (0.002, 5.0)] {
+            let (m1, m2) = VelocityObserver::gains(t, fc);
+            let p = (-2.0 * std::f64::consts::PI * fc * t).exp();
+            // (I - M C) A = [[1 - m1, (1 - m1) T], [-m2, 1 - m2 T]].
+            let (trace, det) = (
+                2.0 - m1 - m2 * t,
+                (1.0 - m1) * (1.0 - m2 * t) + (1.0 - m1) * m2 * t,
+            );
+            assert!((trace - 2.0 * p).abs() < 1e-12, "{trace} vs {}", 2.0 * p);
+            assert!((det - p * p).abs() < 1e-12, "{det} vs {}", p * p);
+        }
+    }
+
+    /// Where the model is exact (a free joint under a constant torque) the observer's error
+    /// after k samples is the analytic Phi^k e_0, Phi = (I - M C) A, from a start at rest while
+    /// the joint already turns.
+    #[test]
+    fn on_an_exact_model_the_observer_error_follows_its_error_map() {
+        let (model, t, fc) = (free_joint(), 0.001, 20.0);
+        let mut obs = VelocityObserver::new(&model, t, fc);
+        let (m1, m2) = VelocityObserver::gains(t, fc);
+        let phi = [[1.0 - m1, (1.0 - m1) * t], [-m2, 1.0 - m2 * t]];
+        let (tau, izz) = (0.2, 0.5);
+        let acc = tau / izz;
+        let (mut q, mut v) = (0.3, 1.5);
+        let mut e = [0.0, v]; // the observer starts at the measured position, at rest
+        for seq in 0..300 {
+            obs.update(&model, &sample(seq, &[q], tau));
+            let got = [q - obs.positions()[0], v - obs.estimate()[0]];
+            assert!(
+                (got[0] - e[0]).abs() < 1e-12 && (got[1] - e[1]).abs() < 1e-9,
+                "sample {seq}: error {got:?}, analytic {e:?}"
+            );
+            e = [
+                phi[0][0] * e[0] + phi[0][1] * e[1],
+                phi[1][0] * e[0] + phi[1][1] * e[1],
+            ];
+            q += v * t + 0.5 * acc * t * t;
+            v += acc * t;
+        }
+        // After 300 samples (p^300 ~ 1e-16) the velocity error is gone.
+        assert!(e[1].abs() < 1e-12, "{e:?}");
+    }
+
+    /// A gap of samples is predicted across with the held torque: the estimate after the gap
+    /// equals the one of an observer that saw every sample but was corrected only at the end.
+    #[test]
+    fn the_observer_predicts_across_a_gap_and_ignores_a_repeated_sample() {
+        let model = free_joint();
+        let mut obs = VelocityObserver::new(&model, 0.001, 20.0);
+        obs.update(&model, &sample(0, &[0.0], 0.5));
+        let once = obs.update(&model, &sample(5, &[0.0], 0.5)).to_vec();
+        // Five periods at 1 rad/s² from rest: q̂ = 12.5e-6, q̂d = 5e-3 before the correction.
+        let (m1, m2) = VelocityObserver::gains(0.001, 20.0);
+        let (qp, vp) = (0.5 * 1.0 * 0.005f64.powi(2), 0.005);
+        assert!((obs.positions()[0] - (qp + m1 * (0.0 - qp))).abs() < 1e-15);
+        assert!((once[0] - (vp + m2 * (0.0 - qp))).abs() < 1e-12);
+        let again = obs.update(&model, &sample(5, &[9.0], 0.5)).to_vec();
+        assert_eq!(once, again);
     }
 
     #[test]

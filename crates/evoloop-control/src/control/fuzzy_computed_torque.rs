@@ -23,17 +23,19 @@
 //! memberships; under `Evidence`, the model of largest weight in the law and each model's
 //! weight in it, averaged over the joints.
 
-use super::evidence::{self, Evidence};
-use super::fuzzy_select::{self, Selection};
 use super::computed_torque::{damp_and_limit, gains_and_startup, startup_damping};
 use super::estimator::{Velocities, VelocitySource};
-use super::{driven_arm, velocity_source, Controller, ControllerConfig, ControllerContext, VelocityKey};
+use super::evidence::{self, Evidence};
+use super::fuzzy_select::{self, Selection};
+use super::{
+    driven_arm, velocity_source, Controller, ControllerConfig, ControllerContext, VelocityKey,
+};
 use crate::check::{Check, ConfigError, Tunable};
-use crate::msg::{ParamCode, PlantState, ParamKind};
-use crate::reference::Setpoint;
 use crate::linalg::Mat;
-use evoloop_rkgnn::RkgnnModel;
+use crate::msg::{ParamCode, ParamKind, PlantState};
+use crate::reference::Setpoint;
 use crate::MAX_JOINTS;
+use evoloop_rkgnn::RkgnnModel;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -120,7 +122,10 @@ const REFERENCE_HORIZON: f64 = 120.0;
 
 /// The joint positions of `reference` every `REFERENCE_PROBE_DT` over the run's `duration`
 /// (at most `REFERENCE_HORIZON`): where the controller will evaluate its models' M-hat.
-pub fn reference_positions(reference: &crate::reference::Reference, duration: f64) -> Vec<Vec<f64>> {
+pub fn reference_positions(
+    reference: &crate::reference::Reference,
+    duration: f64,
+) -> Vec<Vec<f64>> {
     let mut sp = Setpoint::default();
     let n = reference.joints();
     let steps = (duration.min(REFERENCE_HORIZON) / REFERENCE_PROBE_DT).ceil() as usize;
@@ -264,7 +269,7 @@ impl FuzzyComputedTorque {
 
     /// Read velocities from `source` (the true ones until this is called), every `period` s.
     pub fn with_velocity(mut self, source: VelocitySource, period: f64) -> Self {
-        self.velocity = Velocities::new(source, self.models[0].dof(), period);
+        self.velocity = Velocities::new(source, self.models[0].dof(), period, None);
         self
     }
 
@@ -306,7 +311,12 @@ impl FuzzyComputedTorque {
                 if !uniform {
                     prior[..q_count].copy_from_slice(&self.s[..q_count]);
                 }
-                ev.update(&self.models, state.seq, &state.y[..n], &state.u_applied[..n]);
+                ev.update(
+                    &self.models,
+                    state.seq,
+                    &state.y[..n],
+                    &state.u_applied[..n],
+                );
                 ev.weights(&prior[..q_count], &mut self.s_joint);
             }
             None => {
@@ -336,7 +346,7 @@ impl Controller for FuzzyComputedTorque {
         let n = self.models[0].dof();
         self.weigh(state, sp);
         let (kp, kv) = self.gains.split_at(n);
-        let (q, qd) = (&state.y[..n], self.velocity.read(state, n));
+        let (q, qd) = (&state.y[..n], self.velocity.read(state, n, None));
         let mut acc = [0.0; MAX_JOINTS];
         for i in 0..n {
             acc[i] = sp.qdd[i] + kv[i] * (sp.qd[i] - qd[i]) + kp[i] * (sp.q[i] - q[i]);
@@ -370,7 +380,12 @@ impl Controller for FuzzyComputedTorque {
     }
 
     fn model_len(&self) -> usize {
-        1 + self.models.iter().map(|m| m.net.layout.len).max().unwrap_or(0)
+        1 + self
+            .models
+            .iter()
+            .map(|m| m.net.layout.len)
+            .max()
+            .unwrap_or(0)
     }
 
     /// values = [slot, parameters]: the slot must exist, the parameters fit its layout, and
@@ -480,13 +495,24 @@ fn rule(check: &Check, t: &Table) -> Result<Rule, ConfigError> {
         ("evidence_bandwidth", t.evidence_bandwidth.is_some()),
         ("evidence_memory", t.evidence_memory.is_some()),
     ];
-    if let Some((name, _)) = given.iter().find(|(_, g)| *g && selection != Selection::Evidence) {
+    if let Some((name, _)) = given
+        .iter()
+        .find(|(_, g)| *g && selection != Selection::Evidence)
+    {
         return check.fail(&key(name), "applies only with selection = \"evidence\"");
     }
     rule.evidence_prior = t.evidence_prior.unwrap_or(rule.evidence_prior);
     for (name, given, value) in [
-        ("evidence_bandwidth", t.evidence_bandwidth, &mut rule.evidence_bandwidth),
-        ("evidence_memory", t.evidence_memory, &mut rule.evidence_memory),
+        (
+            "evidence_bandwidth",
+            t.evidence_bandwidth,
+            &mut rule.evidence_bandwidth,
+        ),
+        (
+            "evidence_memory",
+            t.evidence_memory,
+            &mut rule.evidence_memory,
+        ),
     ] {
         if let Some(v) = given {
             *value = check.positive(&key(name), v)?;
@@ -510,8 +536,15 @@ pub fn validate(
     };
     let n = arm.dof();
     let rule = rule(check, &t)?;
-    let (tunable, startup_rate) =
-        gains_and_startup(check, law, n, [t.kp, t.kv], t.startup_rate, t.lower, t.upper)?;
+    let (tunable, startup_rate) = gains_and_startup(
+        check,
+        law,
+        n,
+        [t.kp, t.kv],
+        t.startup_rate,
+        t.lower,
+        t.upper,
+    )?;
     let key = "controller.fuzzy_computed_torque.models";
     if !(1..=MAX_MODELS).contains(&t.models.len()) {
         return check.fail(key, format!("needs 1 to {MAX_MODELS} model files"));
@@ -548,6 +581,7 @@ pub fn validate(
             t.velocity,
             t.velocity_cutoff_hz,
             cx.period,
+            false,
         )?,
         loaded,
         effort: arm.bodies.iter().map(|b| b.limits.effort).collect(),
@@ -557,16 +591,17 @@ pub fn validate(
 
 impl ControllerConfig for FuzzyComputedTorqueSpec {
     fn build(&self, period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
-        Box::new(FuzzyComputedTorque::new(
-            self.loaded.clone(),
-            self.rule,
-            &self.tunable.gains,
-            self.startup_rate,
-            self.effort.clone(),
-            &self.along,
-            period,
-        )
-        .with_velocity(self.velocity, period),
+        Box::new(
+            FuzzyComputedTorque::new(
+                self.loaded.clone(),
+                self.rule,
+                &self.tunable.gains,
+                self.startup_rate,
+                self.effort.clone(),
+                &self.along,
+                period,
+            )
+            .with_velocity(self.velocity, period),
         )
     }
     fn reads_truth(&self) -> bool {
@@ -651,9 +686,18 @@ mod tests {
         let p2 = m2.net.params();
         let mut nan = p2.to_vec();
         nan[7] = f64::NAN;
-        assert_eq!(offer(&mut c, &model_set(1, 0.0, &nan)).0, ParamCode::RejectedNonFinite);
-        assert_eq!(offer(&mut c, &model_set(1, 2.0, p2)).0, ParamCode::RejectedOutOfBounds);
-        assert_eq!(offer(&mut c, &model_set(1, 0.5, p2)).0, ParamCode::RejectedOutOfBounds);
+        assert_eq!(
+            offer(&mut c, &model_set(1, 0.0, &nan)).0,
+            ParamCode::RejectedNonFinite
+        );
+        assert_eq!(
+            offer(&mut c, &model_set(1, 2.0, p2)).0,
+            ParamCode::RejectedOutOfBounds
+        );
+        assert_eq!(
+            offer(&mut c, &model_set(1, 0.5, p2)).0,
+            ParamCode::RejectedOutOfBounds
+        );
         assert_eq!(
             offer(&mut c, &model_set(1, 0.0, &p2[1..])).0,
             ParamCode::RejectedWrongLength
@@ -675,7 +719,10 @@ mod tests {
         assert_eq!(c.version(), 2);
         assert_ne!(before, after);
         // A stale version is refused.
-        assert_eq!(offer(&mut c, &model_set(2, 0.0, p2)).0, ParamCode::RejectedStale);
+        assert_eq!(
+            offer(&mut c, &model_set(2, 0.0, p2)).0,
+            ParamCode::RejectedStale
+        );
     }
 
     /// arm7's fuzzy CT on `models` at config/arm7_fuzzy_ct.toml's mean position, held there.
@@ -746,7 +793,9 @@ mod tests {
         assert_eq!(c.version(), 1);
         // Slot 0 now computes exactly as model 2 does (the same command, bit for bit).
         let mut reference = arm7_cycle(vec![m2.clone(), m2.clone()]);
-        let mut want = offer_all(&mut reference, &[ParamSet::default()])[0].1.clone();
+        let mut want = offer_all(&mut reference, &[ParamSet::default()])[0]
+            .1
+            .clone();
         want[7] = 1.0;
         assert_eq!(out[3].1, want);
         assert_ne!(want[..7], before[..7]);
@@ -763,7 +812,8 @@ mod tests {
         assert_eq!(out[3].0, Some(ParamCode::RejectedNonFinite));
         let mut flipped = whole(0.0, &m1);
         for (_, net) in &m1.net.layout.inertia {
-            net.all_weights().for_each(|w| flipped[1 + w] = -flipped[1 + w]);
+            net.all_weights()
+                .for_each(|w| flipped[1 + w] = -flipped[1 + w]);
         }
         let out = offer_all(&mut c, &parts(4, &flipped));
         assert_eq!(out[3].0, Some(ParamCode::RejectedNotPositiveDefinite));

@@ -242,45 +242,59 @@ pub(crate) fn driven_arm<'a>(
     }
 }
 
-/// `controller.<law>.velocity` as written: "true" or "filtered".
+/// `controller.<law>.velocity` as written: "true", "filtered" or "observer".
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum VelocityKey {
     True,
     Filtered,
+    Observer,
 }
 
 /// The cutoff of a joint-space law's velocity filter when `velocity_cutoff_hz` is not given.
 pub const DEFAULT_VELOCITY_CUTOFF_HZ: f64 = 50.0;
 
 /// A joint-space law's velocity source from its `velocity` and `velocity_cutoff_hz` keys
-/// (under `controller.<law>`): the true velocities unless "filtered", whose cutoff must lie
-/// below the sampling's Nyquist frequency 1 / (2 period).
+/// (under `controller.<law>`): the true velocities unless "filtered" or "observer", whose
+/// cutoff (the low-pass's, or the observer's bandwidth) must lie below the sampling's Nyquist
+/// frequency 1 / (2 period). Only a law with a model of its own (`has_model`) runs an observer.
 pub(crate) fn velocity_source(
     check: &Check,
     law: &str,
     velocity: Option<VelocityKey>,
     cutoff_hz: Option<f64>,
     period: f64,
+    has_model: bool,
 ) -> Result<estimator::VelocitySource, ConfigError> {
     let key = format!("controller.{law}.velocity_cutoff_hz");
-    match velocity.unwrap_or(VelocityKey::True) {
-        VelocityKey::True => match cutoff_hz {
-            Some(_) => check.fail(&key, "the cutoff of velocity = \"filtered\""),
+    let velocity = velocity.unwrap_or(VelocityKey::True);
+    if velocity == VelocityKey::True {
+        return match cutoff_hz {
+            Some(_) => check.fail(
+                &key,
+                "the cutoff of velocity = \"filtered\" or \"observer\"",
+            ),
             None => Ok(estimator::VelocitySource::True),
-        },
-        VelocityKey::Filtered => {
-            let nyquist = 0.5 / period;
-            let fc = cutoff_hz.unwrap_or(DEFAULT_VELOCITY_CUTOFF_HZ);
-            if !(fc > 0.0 && fc < nyquist) {
-                return check.fail(
-                    &key,
-                    format!("must lie in (0, {nyquist}) Hz, below the control rate's Nyquist frequency (got {fc})"),
-                );
-            }
-            Ok(estimator::VelocitySource::Filtered { cutoff_hz: fc })
-        }
+        };
     }
+    if velocity == VelocityKey::Observer && !has_model {
+        return check.fail(
+            &format!("controller.{law}.velocity"),
+            format!("\"observer\" predicts with the law's own model, and {law} has no single model in service (use \"filtered\", or computed_torque)"),
+        );
+    }
+    let nyquist = 0.5 / period;
+    let fc = cutoff_hz.unwrap_or(DEFAULT_VELOCITY_CUTOFF_HZ);
+    if !(fc > 0.0 && fc < nyquist) {
+        return check.fail(
+            &key,
+            format!("must lie in (0, {nyquist}) Hz, below the control rate's Nyquist frequency (got {fc})"),
+        );
+    }
+    Ok(match velocity {
+        VelocityKey::Observer => estimator::VelocitySource::Observer { bandwidth_hz: fc },
+        _ => estimator::VelocitySource::Filtered { cutoff_hz: fc },
+    })
 }
 
 /// A joint-space law's gains [K_a; K_b] under `controller.<law>` (one of each per joint of an

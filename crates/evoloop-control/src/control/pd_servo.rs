@@ -14,9 +14,9 @@ use super::{
     VelocityKey,
 };
 use crate::check::{Check, ConfigError, Tunable};
-use serde::{Deserialize, Serialize};
-use crate::msg::{PlantState, ParamKind};
+use crate::msg::{ParamKind, PlantState};
 use crate::reference::Setpoint;
+use serde::{Deserialize, Serialize};
 
 pub struct PdServo {
     gains: Vec<f64>,
@@ -41,7 +41,7 @@ impl PdServo {
 
     /// Read velocities from `source` (the true ones until this is called), every `period` s.
     pub fn with_velocity(mut self, source: VelocitySource, period: f64) -> Self {
-        self.velocity = Velocities::new(source, self.limits.len(), period);
+        self.velocity = Velocities::new(source, self.limits.len(), period, None);
         self
     }
 }
@@ -63,7 +63,7 @@ impl Controller for PdServo {
     fn step(&mut self, state: &PlantState, sp: &Setpoint, u: &mut [f64]) {
         let n = self.limits.len();
         let (kp, kd) = self.gains.split_at(n);
-        let qd = self.velocity.read(state, n);
+        let qd = self.velocity.read(state, n, None);
         for i in 0..n {
             let tau = kp[i] * (sp.q[i] - state.y[i]) + kd[i] * (sp.qd[i] - qd[i]);
             u[i] = tau.clamp(-self.limits[i], self.limits[i]);
@@ -123,7 +123,14 @@ pub fn validate(
     Ok(PdServoSpec {
         tunable,
         torque_limits: model.bodies.iter().map(|b| b.limits.effort).collect(),
-        velocity: velocity_source(check, "pd_servo", t.velocity, t.velocity_cutoff_hz, cx.period)?,
+        velocity: velocity_source(
+            check,
+            "pd_servo",
+            t.velocity,
+            t.velocity_cutoff_hz,
+            cx.period,
+            false,
+        )?,
     })
 }
 
