@@ -58,7 +58,9 @@ impl Observer {
         // is computed, need not be at a long period. Refused then, not scored.
         if let Some(p) = observer.error_poles(model).iter().find(|p| p.re >= 0.0) {
             return Err(format!(
-                "the filter's continuous equivalent L/T at period {period} s has an error pole                  at {:.4} {:+.4}j, not in the left half-plane: r_c of the loop with it is not                  defined (a shorter period or a slower filter)",
+                "the filter's continuous equivalent L/T at period {period} s has an error pole \
+                 at {:.4} {:+.4}j, not in the left half-plane: r_c of the loop with it is not \
+                 defined (a shorter period or a slower filter)",
                 p.re, p.im
             ));
         }
@@ -116,29 +118,10 @@ pub fn continuous_loop(
 /// perturbation reaches the plant, not the filter.
 fn pad_perturbation(e: &DMatrix<f64>, h: &DMatrix<f64>, n: usize) -> (DMatrix<f64>, DMatrix<f64>) {
     let size = e.nrows() + n;
-    let e_loop = DMatrix::from_fn(
-        size,
-        e.ncols(),
-        |i, j| {
-            if i < e.nrows() {
-                e[(i, j)]
-            } else {
-                0.0
-            }
-        },
-    );
-    let h_loop = DMatrix::from_fn(
-        h.nrows(),
-        size,
-        |i, j| {
-            if j < h.ncols() {
-                h[(i, j)]
-            } else {
-                0.0
-            }
-        },
-    );
-    (e_loop, h_loop)
+    (
+        e.clone().resize_vertically(size, 0.0),
+        h.clone().resize_horizontally(size, 0.0),
+    )
 }
 
 /// The sampled loop as the controller runs it, state [x; x̄; I] at a sample (x̄ the filter's
@@ -156,11 +139,8 @@ pub fn sampled_loop(
     let p = plant.at_period(period)?;
     let f = &filter.model;
     let n = p.n();
-    let (kx, ki) = (&gains[..n], gains[n]);
-    let km: f64 = (0..n).map(|j| kx[j] * filter.m[j]).sum();
-    // u = u_x·x + u_bar·x̄ + I.
-    let u_x: Vec<f64> = (0..n).map(|j| -km * p.c(j)).collect();
-    let u_bar: Vec<f64> = (0..n).map(|j| -kx[j] + km * f.c(j)).collect();
+    let ki = gains[n];
+    let (_, u_x, u_bar) = command_row(&p, filter, gains);
     // x̂ = (I - M C) x̄ + M C x: the (i, j) entries of its two blocks.
     let hat_x = |i: usize, j: usize| filter.m[i] * p.c(j);
     let hat_bar = |i: usize, j: usize| f64::from(u8::from(i == j)) - filter.m[i] * f.c(j);
@@ -183,6 +163,17 @@ pub fn sampled_loop(
     }
     m[(2 * n, 2 * n)] = 1.0;
     Some(m)
+}
+
+/// The command's row of the sampled loop, u = u_x·x + u_bar·x̄ + I, with u = I - K_x x̂ and
+/// x̂ = x̄ + M (C x - C x̄); and K_x M, the command's direct response to a measurement.
+fn command_row(p: &LinearModel, filter: &KalmanGains, gains: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
+    let n = p.n();
+    let kx = &gains[..n];
+    let km: f64 = (0..n).map(|j| kx[j] * filter.m[j]).sum();
+    let u_x = (0..n).map(|j| -km * p.c(j)).collect();
+    let u_bar = (0..n).map(|j| -kx[j] + km * filter.model.c(j)).collect();
+    (km, u_x, u_bar)
 }
 
 /// The largest eigenvalue modulus (< 1: the sampled loop is stable).
@@ -243,16 +234,15 @@ pub fn command_noise(
     let p = plant.at_period(period)?;
     let f = &filter.model;
     let n = p.n();
-    let (kx, ki) = (&gains[..n], gains[n]);
-    let km: f64 = (0..n).map(|j| kx[j] * filter.m[j]).sum();
-    // u = U z + d v, z+ = M z + N v (see `sampled_loop` for U's blocks).
-    let mut u_row = DMatrix::zeros(1, 2 * n + 1);
+    let ki = gains[n];
+    let (km, u_x, u_bar) = command_row(&p, filter, gains);
+    // u = U z + d v, z+ = M z + N v.
+    let u_row = DMatrix::from_fn(1, 2 * n + 1, |_, j| match j {
+        j if j < n => u_x[j],
+        j if j < 2 * n => u_bar[j - n],
+        _ => 1.0,
+    });
     let mut noise = DMatrix::zeros(2 * n + 1, 1);
-    for j in 0..n {
-        u_row[(0, j)] = -km * p.c(j);
-        u_row[(0, n + j)] = -kx[j] + km * f.c(j);
-    }
-    u_row[(0, 2 * n)] = 1.0;
     for i in 0..n {
         noise[(i, 0)] = -km * p.b(i);
         noise[(n + i, 0)] = (0..n).map(|l| f.a(i, l) * filter.m[l]).sum::<f64>() - km * f.b(i);

@@ -80,6 +80,9 @@ pub struct RobustProblem {
     pub b_hat: DMatrix<f64>,
     pub e: DMatrix<f64>,
     pub h: DMatrix<f64>,
+    /// The nominal spring and the sensor Â and B̂ are built from.
+    pub k: f64,
+    pub sensor: Sensor,
     pub perturbation: Perturbation,
     pub wedge: Wedge,
     pub lower: Vec<f64>,
@@ -108,6 +111,8 @@ impl RobustProblem {
             b_hat,
             e,
             h,
+            k,
+            sensor,
             perturbation,
             wedge,
             lower: vec![-bound; 5],
@@ -131,47 +136,28 @@ impl RobustProblem {
 
     /// The nominal plant's continuous model (A, B, C).
     pub fn nominal_model(&self) -> LinearModel {
-        self.model_of(&self.a_hat)
+        self.plant_at(self.k)
     }
 
-    /// The plant (A, B, C) inside an augmented Â = [[A, 0], [-C, 0]] and this problem's B̂.
-    fn model_of(&self, a_hat: &DMatrix<f64>) -> LinearModel {
-        let n = a_hat.nrows() - 1;
-        let a: Vec<f64> = (0..n * n).map(|k| a_hat[(k / n, k % n)]).collect();
-        let b: Vec<f64> = (0..n).map(|i| self.b_hat[(i, 0)]).collect();
-        let c: Vec<f64> = (0..n).map(|j| -a_hat[(n, j)]).collect();
-        LinearModel::continuous(&a, &b, &c)
-    }
-
-    /// The nominal spring (m1 = m2 = 1: Â's entry (3, 1) is -k).
-    pub fn spring(&self) -> f64 {
-        -self.a_hat[(2, 0)]
-    }
-
-    /// Â with the spring at `k`: the change δ = k - k_nominal enters rows 3-4, columns 1-2 as
-    /// δ [[-1, 1], [1, -1]], a perturbation of norm 2|δ|.
-    pub fn a_hat_with_spring(&self, k: f64) -> DMatrix<f64> {
-        let d = k - self.spring();
-        let mut a = self.a_hat.clone();
-        for (i, j, s) in [(2, 0, -d), (2, 1, d), (3, 0, d), (3, 1, -d)] {
-            a[(i, j)] += s;
-        }
-        a
+    /// The plant (m1 = m2 = 1, this problem's sensor) with its spring at `k`: Â with it moves
+    /// by δ [[-1, 1], [1, -1]] in rows 3-4, columns 1-2 (δ = k - k_nominal), a perturbation of
+    /// norm 2|δ|.
+    pub fn plant_at(&self, k: f64) -> LinearModel {
+        TwoMass::new(1.0, 1.0, k, self.sensor).linear_model()
     }
 
     /// The springs for which the loop with `gains` stays stable (see `SpringRanges`), `r_c`
     /// being its stability radius.
     pub fn spring_ranges(&self, gains: &[f64], r_c: f64) -> SpringRanges {
-        let k = self.spring();
+        let k = self.k;
         let continuous = spring_range(k, |kk| {
-            eig(&self.whole_loop(gains, Some(&self.a_hat_with_spring(kk))))
+            eig(&self.whole_loop(gains, Some(&self.plant_at(kk).augmented().0)))
                 .iter()
                 .all(|p| p.re < 0.0)
         });
         let sampled = self.observer.as_ref().map(|o| {
             spring_range(k, |kk| {
-                let plant = self.model_of(&self.a_hat_with_spring(kk));
-                sampled_loop(&plant, &o.filter, o.period, gains)
+                sampled_loop(&self.plant_at(kk), &o.filter, o.period, gains)
                     .is_some_and(|m| spectral_radius(&m) < 1.0)
             })
         });

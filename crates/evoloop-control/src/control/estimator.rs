@@ -301,11 +301,11 @@ const MAX_OBSERVER_GAP: u64 = 20;
 /// each joint obeys the double integrator's e+ = (I - M C) A e, whose two eigenvalues the gains
 /// m1 = 1 - p² (dimensionless) and m2 = (1 - p)² / T (1/s) place together at
 /// p = e^(-2 pi fc T): the error decays as a critically damped pair of bandwidth `bandwidth_hz`.
-/// A gap of more than `MAX_OBSERVER_GAP` samples (a stalled plant, which meanwhile applied its
-/// safe command, not the held one) restarts the estimate from the measured position and the
-/// difference quotient over the gap, rather than spending the late cycle on predictions. A model error or an unmodelled load
-/// enters as an acceleration the correction must carry, so the observer lags less than the
-/// low-pass the better the model is.
+/// A model error or an unmodelled load enters as an acceleration the correction must carry, so
+/// the observer lags less than the low-pass the better the model is. A gap of more than
+/// `MAX_OBSERVER_GAP` samples (a stalled plant, which meanwhile applied its safe command, not
+/// the held one) restarts the estimate from the measured position and the difference quotient
+/// over the gap, rather than spending the late cycle on predictions.
 #[derive(Debug, Clone)]
 pub struct VelocityObserver {
     n: usize,
@@ -315,7 +315,6 @@ pub struct VelocityObserver {
     q: [f64; MAX_JOINTS],
     qd: [f64; MAX_JOINTS],
     qdd: [f64; MAX_JOINTS],
-    tau: [f64; MAX_JOINTS],
     data: Data,
     last_seq: Option<u64>,
 }
@@ -332,7 +331,6 @@ impl VelocityObserver {
             q: [0.0; MAX_JOINTS],
             qd: [0.0; MAX_JOINTS],
             qdd: [0.0; MAX_JOINTS],
-            tau: [0.0; MAX_JOINTS],
             data: model.data(),
             last_seq: None,
         }
@@ -361,9 +359,8 @@ impl VelocityObserver {
                 }
             }
             Some(k) => {
-                self.tau[..n].copy_from_slice(&state.u_applied[..n]);
                 for _ in 0..k {
-                    self.predict(model);
+                    self.predict(model, &state.u_applied[..n]);
                 }
                 for i in 0..n {
                     let e = state.y[i] - self.q[i];
@@ -383,9 +380,9 @@ impl VelocityObserver {
     /// One period of the model's motion under the held torques. A model whose mass matrix is
     /// not positive definite at q̂ (none the laws accept, which check theirs) predicts no
     /// acceleration: the correction alone then tracks, as a drive's alpha-beta tracker does.
-    fn predict(&mut self, model: &Model) {
+    fn predict(&mut self, model: &Model, tau: &[f64]) {
         let (n, t) = (self.n, self.period);
-        let (q, qd, tau) = (&self.q[..n], &self.qd[..n], &self.tau[..n]);
+        let (q, qd) = (&self.q[..n], &self.qd[..n]);
         if model
             .forward_dynamics_aba(&mut self.data, q, qd, tau, &mut self.qdd[..n])
             .is_err()
