@@ -768,8 +768,8 @@ pub fn least_squares_start(
 /// network to a ridge and M-hat was positive definite in none of arm7's attempts. The friction
 /// columns of `design` stay free (projected out) and are dropped. Of
 /// `UPDATE_RIDGES` (relative to the largest singular value) the smallest whose M-hat reaches
-/// `min_eig` over `probes` is taken; the largest leaves p0 nearly as it is. One SVD serves
-/// every ridge.
+/// `min_eig` over `probes` is taken; the largest leaves p0 nearly as it is. One SVD (of the
+/// design's R, `svd_through_qr`) serves every ridge.
 pub fn update_with_torques(
     layout: &Layout,
     p0: &[f64],
@@ -808,14 +808,13 @@ pub fn update_with_torques(
     for (c, &k) in cols.iter().enumerate() {
         a.column_mut(c).scale_mut(scale[k]);
     }
-    let svd = a.svd(true, true);
-    let (u, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
+    let (svd, ub) = svd_through_qr(a, rhs);
+    let v_t = svd.v_t.as_ref()?;
     let s = &svd.singular_values;
     // An empty window, or a model and data all at zero: nothing to update.
     if s.max().is_nan() || s.max() <= 0.0 {
         return None;
     }
-    let ub = u.tr_mul(&rhs);
     let accept = at_least(layout, probes, min_eig);
     UPDATE_RIDGES.iter().find_map(|&rho| {
         let l2 = (rho * s.max()).powi(2);
@@ -832,6 +831,26 @@ pub fn update_with_torques(
         }
         accept(p)
     })
+}
+
+/// The SVD of `a` = U S V^T without forming U, and U^T `b`. The design has a row per joint and
+/// sample (arm7's 4 s window: 5 376) and a column per weight (917): its own SVD spends most of
+/// its time carrying U's rotations over every row. With a = Q R, R has the same singular values
+/// and right vectors, U = Q U_R, and U^T b = U_R^T (Q^T b) over R's rows.
+fn svd_through_qr(
+    a: nalgebra::DMatrix<f64>,
+    b: nalgebra::DVector<f64>,
+) -> (
+    nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    nalgebra::DVector<f64>,
+) {
+    let (r, qtb) = crate::linalg::householder_reduce(a, b);
+    let svd = r.svd(true, true);
+    let ub = match svd.u.as_ref() {
+        Some(u) => u.tr_mul(&qtb),
+        None => nalgebra::DVector::zeros(0),
+    };
+    (svd, ub)
 }
 
 /// An orthonormal basis of the span of `m`'s columns (a joint at rest leaves its friction

@@ -1,13 +1,15 @@
 //! evoloop's one home for dense linear algebra it writes itself: small stack matrices with the
 //! solves and eigenvalue bounds the control cycle and the RKGNN models need without allocating
-//! (`small`), and the eigenvalues of a general real matrix for the stability checks (`eigen`,
-//! Francis QR). General-purpose work (decompositions of larger, heap matrices) goes through
+//! (`small`), the eigenvalues of a general real matrix for the stability checks (`eigen`,
+//! Francis QR), and the Householder reduction of tall least-squares problems (`householder`). General-purpose work (decompositions of larger, heap matrices) goes through
 //! nalgebra directly (one version for the workspace, `[workspace.dependencies]`).
 
 pub mod eigen;
+pub mod householder;
 pub mod small;
 
 pub use eigen::{eig, eigenvalues};
+pub use householder::householder_reduce;
 pub use small::{
     cholesky_solve_in_place, min_leading_minor, solve, sym_eig_range, Mat, NotPositiveDefinite,
 };

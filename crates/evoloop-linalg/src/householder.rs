@@ -1,0 +1,150 @@
+//! Householder reduction of a tall least-squares problem: `a` = Q R and Q^T `b`, without
+//! forming Q. nalgebra's `QR` (0.33) is not used: on arm7's identification design (5 376 x 917,
+//! rank 265 to 1e-5, 2026-12-03) its Q R did not reproduce the matrix (‖A − QR‖ 180 against
+//! ‖A‖ 302) while its SVD did (6.6e-13); the cause was not isolated (random designs with zero,
+//! -0.0 and dependent columns factor correctly). Here a column already zero below the diagonal
+//! is left as it is (its reflection is the identity).
+
+use nalgebra::{DMatrix, DVector};
+
+/// R (the first min(m, n) rows of the reduced `a`, upper trapezoidal) and the same rows of
+/// Q^T `b`: the least-squares problem min ‖a x − b‖ becomes min ‖R x − (Q^T b)‖ up to a
+/// constant residual, and R has `a`'s singular values and right singular vectors.
+///
+/// # Panics
+/// If `b` does not have one entry per row of `a`.
+pub fn householder_reduce(
+    mut a: DMatrix<f64>,
+    mut b: DVector<f64>,
+) -> (DMatrix<f64>, DVector<f64>) {
+    let (m, n) = a.shape();
+    assert_eq!(b.len(), m, "one right-hand side entry per row");
+    let k = m.min(n);
+    let mut v = vec![0.0; m];
+    let data = a.as_mut_slice();
+    for j in 0..k {
+        let len = m - j;
+        let x = &data[j * m + j..(j + 1) * m];
+        let norm = x.iter().map(|e| e * e).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            continue;
+        }
+        // The reflection I - beta v v^T maps x to alpha e_1; alpha's sign opposes x_0's, so
+        // that v_0 = x_0 - alpha does not cancel.
+        let alpha = if x[0] >= 0.0 { -norm } else { norm };
+        v[..len].copy_from_slice(x);
+        v[0] -= alpha;
+        let beta = 2.0 / v[..len].iter().map(|e| e * e).sum::<f64>();
+        let reflect = |col: &mut [f64]| {
+            let d = beta
+                * v[..len]
+                    .iter()
+                    .zip(col.iter())
+                    .map(|(p, q)| p * q)
+                    .sum::<f64>();
+            col.iter_mut().zip(&v[..len]).for_each(|(c, p)| *c -= d * p);
+        };
+        for c in j + 1..n {
+            reflect(&mut data[c * m + j..(c + 1) * m]);
+        }
+        reflect(&mut b.as_mut_slice()[j..]);
+        let col = &mut data[j * m + j..(j + 1) * m];
+        col[0] = alpha;
+        col[1..].fill(0.0);
+    }
+    let r = a.rows(0, k).upper_triangle();
+    (r, b.rows(0, k).into_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
+    /// A tall design as the RKGNN's: columns over eight decades, zero columns (one of -0.0),
+    /// columns that are combinations of others, and one nonzero only in its first rows (zero
+    /// below the diagonal once the columns before it are reduced).
+    fn design(m: usize, n: usize) -> (DMatrix<f64>, DVector<f64>) {
+        let mut next = xorshift(0x2545_f491_4f6c_dd1d);
+        let mut a = DMatrix::from_fn(m, n, |_, _| next());
+        for c in 0..n {
+            a.column_mut(c)
+                .scale_mut(10f64.powf(-8.0 * c as f64 / n as f64));
+        }
+        a.column_mut(7).fill(0.0);
+        // Zero times a negative scale: -0.0, whose sign nalgebra's QR reflects with.
+        a.column_mut(11).fill(-0.0);
+        for c in (n / 2..n).step_by(3) {
+            let copy = a.column(c - n / 2) * 0.5 + a.column(c - n / 2 + 1) * 0.25;
+            a.column_mut(c).copy_from(&copy);
+        }
+        a.column_mut(n - 1).fill(0.0);
+        a[(0, n - 1)] = 1.0;
+        a[(3, n - 1)] = -2.0;
+        (a, DVector::from_fn(m, |_, _| next()))
+    }
+
+    #[test]
+    fn r_reproduces_the_matrix_and_keeps_its_singular_values() {
+        let (a, b) = design(300, 60);
+        let whole = a.clone().svd(false, false).singular_values;
+        let (r, qtb) = householder_reduce(a.clone(), b.clone());
+        assert_eq!(r.shape(), (60, 60));
+        let reduced = r.clone().svd(false, false).singular_values;
+        let diff = (&whole - &reduced).norm() / whole.norm();
+        assert!(diff < 1e-13, "singular values differ by {diff}");
+        // R^T R = A^T A and R^T (Q^T b) = A^T b: the normal equations are the same.
+        let gram = (r.tr_mul(&r) - a.tr_mul(&a)).norm() / a.tr_mul(&a).norm();
+        assert!(gram < 1e-13, "R^T R differs from A^T A by {gram}");
+        let atb = (r.tr_mul(&qtb) - a.tr_mul(&b)).norm() / a.tr_mul(&b).norm();
+        assert!(atb < 1e-13, "R^T Q^T b differs from A^T b by {atb}");
+    }
+
+    /// Ridge solutions, from R's SVD with U_R^T (Q^T b) and from the whole matrix's SVD with
+    /// U^T b, at ridges from 1e-5 to 1 of the largest singular value.
+    #[test]
+    fn ridge_solutions_through_r_equal_the_whole_matrixs() {
+        let (a, b) = design(700, 120);
+        let ridge = |svd: &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
+                     ub: &DVector<f64>,
+                     rho: f64| {
+            let s = &svd.singular_values;
+            let l2 = (rho * s.max()).powi(2);
+            let z = DVector::from_iterator(
+                s.len(),
+                s.iter()
+                    .zip(ub.iter())
+                    .map(|(&si, &b)| si / (si * si + l2) * b),
+            );
+            svd.v_t.as_ref().unwrap().tr_mul(&z)
+        };
+        let whole = a.clone().svd(true, true);
+        let ub_whole = whole.u.as_ref().unwrap().tr_mul(&b);
+        let (r, qtb) = householder_reduce(a, b);
+        let reduced = r.svd(true, true);
+        let ub = reduced.u.as_ref().unwrap().tr_mul(&qtb);
+        for rho in [1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0] {
+            let (x, y) = (ridge(&whole, &ub_whole, rho), ridge(&reduced, &ub, rho));
+            let err = (&x - &y).norm() / x.norm();
+            assert!(err < 1e-9, "ridge {rho}: relative difference {err}");
+        }
+    }
+
+    /// A wide problem (fewer rows than columns) keeps every row.
+    #[test]
+    fn a_wide_matrix_keeps_its_rows() {
+        let (a, b) = design(30, 60);
+        let (r, qtb) = householder_reduce(a.clone(), b.clone());
+        assert_eq!((r.shape(), qtb.len()), ((30, 60), 30));
+        let gram = (r.tr_mul(&r) - a.tr_mul(&a)).norm() / a.tr_mul(&a).norm();
+        assert!(gram < 1e-13, "{gram}");
+    }
+}
