@@ -1,5 +1,5 @@
 //! Householder reduction of a tall least-squares problem: `a` = Q R and Q^T `b`, without
-//! forming Q. nalgebra's `QR` (0.33) is not used: on arm7's identification design (5 376 x 917,
+//! forming Q; and `Ridges`, every ridge solution of such a problem from one SVD of R. nalgebra's `QR` (0.33) is not used: on arm7's identification design (5 376 x 917,
 //! rank 265 to 1e-5, 2026-12-03) its Q R did not reproduce the matrix (‖A − QR‖ 180 against
 //! ‖A‖ 302) while its SVD did (6.6e-13); the cause was not isolated (random designs with zero,
 //! -0.0 and dependent columns factor correctly). Here a column already zero below the diagonal
@@ -56,6 +56,54 @@ pub fn householder_reduce(
     (r, b.rows(0, k).into_owned())
 }
 
+/// The ridge solutions x(rho) = argmin ‖a x − b‖² + (rho s_max)² ‖x‖² of one least-squares
+/// problem, for any rho relative to `a`'s largest singular value s_max, from one SVD:
+/// x = V (S² + (rho s_max)²)⁻¹ S U^T b. Built through R (`householder_reduce`), whose SVD has
+/// `a`'s S and V and whose U_R^T (Q^T b) is U^T b, so that U never has a row per equation.
+pub struct Ridges {
+    v_t: DMatrix<f64>,
+    s: DVector<f64>,
+    ub: DVector<f64>,
+}
+
+impl Ridges {
+    /// `None` where the SVD gives no singular vectors.
+    pub fn new(a: DMatrix<f64>, b: DVector<f64>) -> Option<Self> {
+        let (r, qtb) = householder_reduce(a, b);
+        Self::from_svd(r.svd(true, true), &qtb)
+    }
+
+    fn from_svd(
+        svd: nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
+        b: &DVector<f64>,
+    ) -> Option<Self> {
+        let ub = svd.u?.tr_mul(b);
+        Some(Ridges {
+            v_t: svd.v_t?,
+            s: svd.singular_values,
+            ub,
+        })
+    }
+
+    /// s_max (NaN where the problem held one).
+    pub fn largest_singular_value(&self) -> f64 {
+        self.s.max()
+    }
+
+    /// x(rho).
+    pub fn solution(&self, rho: f64) -> DVector<f64> {
+        let l2 = (rho * self.s.max()).powi(2);
+        let z = DVector::from_iterator(
+            self.s.len(),
+            self.s
+                .iter()
+                .zip(self.ub.iter())
+                .map(|(&si, &b)| si / (si * si + l2) * b),
+        );
+        self.v_t.tr_mul(&z)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -80,7 +128,7 @@ mod tests {
                 .scale_mut(10f64.powf(-8.0 * c as f64 / n as f64));
         }
         a.column_mut(7).fill(0.0);
-        // Zero times a negative scale: -0.0, whose sign nalgebra's QR reflects with.
+        // Zero times a negative scale gives -0.0.
         a.column_mut(11).fill(-0.0);
         for c in (n / 2..n).step_by(3) {
             let copy = a.column(c - n / 2) * 0.5 + a.column(c - n / 2 + 1) * 0.25;
@@ -108,31 +156,15 @@ mod tests {
         assert!(atb < 1e-13, "R^T Q^T b differs from A^T b by {atb}");
     }
 
-    /// Ridge solutions, from R's SVD with U_R^T (Q^T b) and from the whole matrix's SVD with
-    /// U^T b, at ridges from 1e-5 to 1 of the largest singular value.
+    /// Ridge solutions through R equal those of the whole matrix's SVD (U^T b over every
+    /// row), at ridges from 1e-5 to 1 of the largest singular value.
     #[test]
     fn ridge_solutions_through_r_equal_the_whole_matrixs() {
         let (a, b) = design(700, 120);
-        let ridge = |svd: &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
-                     ub: &DVector<f64>,
-                     rho: f64| {
-            let s = &svd.singular_values;
-            let l2 = (rho * s.max()).powi(2);
-            let z = DVector::from_iterator(
-                s.len(),
-                s.iter()
-                    .zip(ub.iter())
-                    .map(|(&si, &b)| si / (si * si + l2) * b),
-            );
-            svd.v_t.as_ref().unwrap().tr_mul(&z)
-        };
-        let whole = a.clone().svd(true, true);
-        let ub_whole = whole.u.as_ref().unwrap().tr_mul(&b);
-        let (r, qtb) = householder_reduce(a, b);
-        let reduced = r.svd(true, true);
-        let ub = reduced.u.as_ref().unwrap().tr_mul(&qtb);
+        let whole = Ridges::from_svd(a.clone().svd(true, true), &b).unwrap();
+        let reduced = Ridges::new(a, b).unwrap();
         for rho in [1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0] {
-            let (x, y) = (ridge(&whole, &ub_whole, rho), ridge(&reduced, &ub, rho));
+            let (x, y) = (whole.solution(rho), reduced.solution(rho));
             let err = (&x - &y).norm() / x.norm();
             assert!(err < 1e-9, "ridge {rho}: relative difference {err}");
         }

@@ -1,15 +1,16 @@
 //! evoloop's one home for dense linear algebra it writes itself: small stack matrices with the
 //! solves and eigenvalue bounds the control cycle and the RKGNN models need without allocating
 //! (`small`), the eigenvalues of a general real matrix for the stability checks (`eigen`,
-//! Francis QR), and the Householder reduction of tall least-squares problems (`householder`). General-purpose work (decompositions of larger, heap matrices) goes through
-//! nalgebra directly (one version for the workspace, `[workspace.dependencies]`).
+//! Francis QR), and the ridge solutions of tall least-squares problems through a Householder
+//! reduction (`householder`). General-purpose work (decompositions of larger, heap matrices)
+//! goes through nalgebra directly (one version for the workspace, `[workspace.dependencies]`).
 
 pub mod eigen;
 pub mod householder;
 pub mod small;
 
 pub use eigen::{eig, eigenvalues};
-pub use householder::householder_reduce;
+pub use householder::{householder_reduce, Ridges};
 pub use small::{
     cholesky_solve_in_place, min_leading_minor, solve, sym_eig_range, Mat, NotPositiveDefinite,
 };
