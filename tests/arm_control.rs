@@ -23,7 +23,7 @@ fn joint_tracking(scn: &Scenario, sim: &SimResult, from: usize) -> Tracking {
 
 #[test]
 fn computed_torque_tracks_the_new_trajectory_an_order_of_magnitude_better_than_the_pd_servo() {
-    let _alone = alone();
+    let _heavy = heavy();
     let ov = Overrides::default();
     let ct = load("arm3_ct.toml", &ov);
     let pd = load("arm3_pd.toml", &ov);
@@ -53,7 +53,7 @@ fn computed_torque_tracks_the_new_trajectory_an_order_of_magnitude_better_than_t
 
 #[test]
 fn the_new_trajectory_lies_between_the_two_training_trajectories() {
-    let _alone = alone();
+    let _heavy = heavy();
     let ov = Overrides::default();
     let (a, b, new) = (
         load("arm3_train1.toml", &ov),
@@ -78,7 +78,7 @@ fn the_new_trajectory_lies_between_the_two_training_trajectories() {
 
 #[test]
 fn startup_damping_fades_the_torque_in() {
-    let _alone = alone();
+    let _heavy = heavy();
     let scn = load("arm3_ct.toml", &Overrides::default());
     let sim = simulate(&scn);
     let u0: Vec<f64> = sim.rows.iter().map(|r| r.telemetry.u[1]).collect();
@@ -100,7 +100,7 @@ fn startup_damping_fades_the_torque_in() {
 
 #[test]
 fn startup_damping_scales_the_law_by_one_minus_exp_of_minus_0_03_k() {
-    let _alone = alone();
+    let _heavy = heavy();
     // The same controller with and without psi, fed the same state at every sample: the damped
     // torque is exactly (1 - exp(-0.03 k)) times the undamped one (the paper's Section 5.1).
     use evoloop::control::computed_torque::ComputedTorque;
@@ -217,7 +217,7 @@ fn the_industrial_arm_runs_at_one_kilohertz_in_realtime_mode() {
 
 #[test]
 fn a_urdf_robot_runs_in_a_scenario_like_its_dh_twin() {
-    let _alone = alone();
+    let _heavy = heavy();
     let dh = load(
         "arm3_ct.toml",
         &Overrides {
@@ -375,7 +375,7 @@ fn seven_dof_lockstep_twice_equals_simulation(file: &str, tag: &str) -> (Csv, se
 /// run.csv byte for byte, and it equals the in-process simulation bit for bit.
 #[test]
 fn the_seven_dof_arm_at_ten_kilohertz_is_bit_reproducible_in_lockstep() {
-    let _alone = alone();
+    let _heavy = heavy();
     let (_, s) = seven_dof_lockstep_twice_equals_simulation("arm7_ct.toml", "arm7ls");
     // Computed torque with the true model: after the start-up, the error is the sensor noise
     // (noise_std = 1e-4 rad).
@@ -401,7 +401,7 @@ fn the_seven_dof_arm_runs_at_ten_kilohertz_in_realtime_mode() {
 /// corrected. (It once pinned `rms < 0.2`, which passed a controller four times worse.)
 #[test]
 fn the_fuzzy_selection_controller_runs_the_seven_dof_arm_at_ten_kilohertz() {
-    let _alone = alone();
+    let _heavy = heavy();
     let (csv, s) = seven_dof_lockstep_twice_equals_simulation("arm7_fuzzy_ct.toml", "arm7fz");
     let chosen = csv.col("fuzzy_model");
     for m in [0.0, 1.0] {
@@ -455,7 +455,7 @@ fn arm7_servo_rms(duration: f64) -> f64 {
 /// corrected.
 #[test]
 fn on_arm7_the_evidence_rule_tracks_below_each_model_alone_and_the_servo() {
-    let _alone = alone();
+    let _heavy = heavy();
     let rms = |scn: &Scenario| joint_tracking(scn, &simulate(scn), 10_000).rms_all;
     let evidence = rms(&arm7_fuzzy_variant(
         &[("selection = \"max\"", "selection = \"evidence\"")],

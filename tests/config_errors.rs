@@ -1,7 +1,7 @@
 //! A malformed scenario fails with a message naming the file, the key and the reason, both from
 //! the library and from `evoloop check`.
 
-mod common;
+use crate::common;
 use common::*;
 use evoloop::config::{Overrides, Scenario};
 use std::path::Path;

@@ -1,7 +1,7 @@
 //! The direct scheme (issue 19, parts 1-3): candidates tried on the plant through the processes,
 //! one repetition each, under the safety envelope; the live run equals the in-process tuner.
 
-mod common;
+use crate::common;
 use common::*;
 use evoloop::config::{Overrides, Scenario};
 use evoloop::control::cycle::{ControlCycle, ParamEvent};

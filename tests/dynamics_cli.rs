@@ -1,7 +1,7 @@
 //! `evoloop dynamics` and the arm scenario files from the command line: the JSON keys, the
 //! URDF's chain order, agreement with the library, and clear errors (exit 2).
 
-mod common;
+use crate::common;
 use common::{cli, stdout_json};
 use std::path::Path;
 

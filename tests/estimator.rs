@@ -6,7 +6,6 @@
 //! them with the pinned python-control and compares). Then the filter in the default scenario:
 //! the law on its estimate, the truth withheld.
 
-mod common;
 use evoloop::control::estimator::{Kalman, KalmanDesign};
 use evoloop::msg::PlantState;
 use evoloop::plant::LinearModel;

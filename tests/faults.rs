@@ -3,7 +3,7 @@
 //! run starts clean). The launcher's own SIGKILL and a realtime optimiser's SIGSTOP are in
 //! `shutdown.rs`.
 
-mod common;
+use crate::common;
 use common::*;
 use std::time::{Duration, Instant};
 

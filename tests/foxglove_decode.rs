@@ -14,7 +14,7 @@
 //! Ignored where those packages are not installed (`pip install mcap mcap-ros2-support`); CI
 //! installs them into target/pymcap and runs this with `--ignored` and PYTHONPATH set.
 
-mod common;
+use crate::common;
 use common::*;
 use evoloop::report::recording::Recording;
 use serde_json::Value;

@@ -4,7 +4,7 @@
 //! Needs root to mount a small tmpfs: ignored by a plain `cargo test`, run as root by .ci/run
 //! with `--ignored`.
 
-mod common;
+use crate::common;
 use common::*;
 use std::path::Path;
 use std::process::Command;

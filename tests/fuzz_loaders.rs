@@ -51,10 +51,24 @@ fn files(dir: &str, ext: &str) -> Vec<PathBuf> {
     v
 }
 
-/// Silence the default panic message (a caught panic is reported by the test itself).
+thread_local! {
+    static QUIET: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Silence the panic message on this test's thread (a caught panic is reported by the test
+/// itself). The hook is the process's, and the other tests of tests/suite.rs share the process:
+/// their panics still print through the default hook.
 fn quiet_panics() {
     static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| std::panic::set_hook(Box::new(|_| {})));
+    ONCE.call_once(|| {
+        let default = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(|q| q.get()) {
+                default(info)
+            }
+        }))
+    });
+    QUIET.with(|q| q.set(true));
 }
 
 fn panic_text(p: Box<dyn std::any::Any + Send>) -> String {
@@ -234,7 +248,7 @@ fn verdict(what: &str, n: usize, failures: Vec<(PathBuf, String, String)>) {
     }
     if let Some((file, text, why)) = failures.first() {
         // The quiet hook would swallow this test's own verdict.
-        let _ = std::panic::take_hook();
+        QUIET.with(|q| q.set(false));
         panic!(
             "{what}: {} of {n} cases failed; first: {} ({why}):\n{text}",
             failures.len(),

@@ -2,7 +2,7 @@
 //! trajectory run through the real processes (lockstep and realtime) in between: the JSON keys, the
 //! `excitation` reference kind, and clear errors (exit 2).
 
-mod common;
+use crate::common;
 use common::{assert_ok, assert_plotted, assert_refused, cli, run, stdout_json, write};
 use std::path::Path;
 

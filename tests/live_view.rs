@@ -8,7 +8,7 @@
 //! those gains in service) and once to one out of its bounds, which it refuses with the reason.
 //! Where an optimiser numbers the sets (a schedule), a viewer's set is refused before it is sent.
 
-mod common;
+use crate::common;
 use common::*;
 use serde_json::{json, Value};
 use std::net::TcpStream;

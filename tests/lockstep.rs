@@ -2,7 +2,7 @@
 //! runs are bit-for-bit reproducible, and the multi-process loop computes exactly what the
 //! in-process simulation (the one simulation core) computes.
 
-mod common;
+use crate::common;
 use common::*;
 use evoloop::config::{Overrides, Scenario};
 

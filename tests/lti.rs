@@ -236,7 +236,7 @@ impl Case {
     }
 }
 
-mod common;
+use crate::common;
 
 /// The shipped scenarios through the real processes: state feedback holds the open-loop
 /// unstable pendulum from its model file and refuses the set that would drop it (checked on the

@@ -3,7 +3,7 @@
 //! `ParamKind::ModelPart` sets (`rkgnn::live::ModelUpdate::sets`), received in order through
 //! the controller's params subscriber, gathered by the controller's cycle and put in service
 //! whole, at its last part, after the law's checks.
-mod common;
+use crate::common;
 
 use evoloop::config::{Overrides, Scenario};
 use evoloop::control::ControlCycle;

@@ -21,7 +21,7 @@ fn allocations(s: &serde_json::Value) -> (u64, u64) {
 
 #[test]
 fn every_shipped_scenario_runs_its_control_cycle_without_allocating() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let mut files: Vec<_> = std::fs::read_dir(config(""))
         .unwrap()

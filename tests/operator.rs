@@ -4,7 +4,7 @@
 //! before tuning, then to the first trial's set; the loop keeps running throughout and the
 //! controller ends with that set bit for bit.
 
-mod common;
+use crate::common;
 use common::*;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};

@@ -1,7 +1,7 @@
 //! `evoloop optim study`, `bench`, `functions` and `serve` from the command line: files, JSON keys,
 //! statistics consistent with the runs, errors naming their flag.
 
-mod common;
+use crate::common;
 use common::*;
 use std::collections::HashMap;
 

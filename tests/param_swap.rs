@@ -2,7 +2,7 @@
 //! without a bump in u; a NaN set, an out-of-bounds set and a wrong-length set are rejected with a
 //! reason, and the loop keeps running on the set in service.
 
-mod common;
+use crate::common;
 use common::*;
 
 const OLD: [f64; 5] = [18.49, 19.04, 47.27, 7.30, -10.54];

@@ -4,7 +4,7 @@
 //! Ignored where Python's iceoryx2 is not installed (`pip install -r scripts/interop.txt`); CI
 //! installs it and runs this with `--ignored`.
 
-mod common;
+use crate::common;
 
 use common::{assert_same_state, contract_command, contract_state};
 use evoloop::ipc::namespace::{user_prefix, user_subdir};

@@ -5,7 +5,7 @@
 //! leaves no process behind. Ignored where Python's iceoryx2 and NumPy are missing
 //! (`pip install ./python`); CI installs the package and runs these with `--ignored`.
 
-mod common;
+use crate::common;
 
 use evoloop::msg::{Command, OptimiserAck, PlantState};
 use std::mem::{offset_of, size_of};

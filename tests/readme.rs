@@ -145,12 +145,23 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
                 Err(format!("no example `{name}` in examples/"))
             }
         }
+        // A test target of its own (Cargo.toml's [[test]]; autotests are off) ...
         ["cargo", "test", "--release", "--test", name]
         | ["cargo", "test", "--release", "--test", name, "--", "--ignored"] => {
-            if root().join("tests").join(format!("{name}.rs")).exists() {
+            let manifest = std::fs::read_to_string(root().join("Cargo.toml")).unwrap();
+            if manifest.contains(&format!("[[test]]\nname = \"{name}\"\n")) {
                 Ok(None)
             } else {
-                Err(format!("no test `{name}` in tests/"))
+                Err(format!("no test target `{name}` in Cargo.toml"))
+            }
+        }
+        // ... or a file of tests/suite.rs, picked by its module's name.
+        ["cargo", "test", "--release", "--test", "suite", filter]
+        | ["cargo", "test", "--release", "--test", "suite", "--", "--ignored", filter] => {
+            let suite = std::fs::read_to_string(root().join("tests/suite.rs")).unwrap();
+            match filter.strip_suffix("::") {
+                Some(module) if suite.lines().any(|l| l == format!("mod {module};")) => Ok(None),
+                _ => Err(format!("`{filter}` is no `module::` of tests/suite.rs")),
             }
         }
         ["cargo", "bench", "--bench", name] => {

@@ -3,7 +3,7 @@
 //! number of messages, log time is the sample's stamp, and the recorded commands are the run's
 //! own, bit for bit. (tests/foxglove_decode.rs decodes them with Foxglove's own Python decoder.)
 
-mod common;
+use crate::common;
 use common::*;
 use evoloop::report::ros2;
 use std::collections::BTreeMap;

@@ -4,7 +4,7 @@
 //! PID's integrator) is kept as it was, and controller.json and the report count the refusals
 //! and name the first.
 
-mod common;
+use crate::common;
 
 use evoloop::ipc::{Ipc, Topic, Wait};
 use evoloop::msg::{Command, PlantState, STATE_FLAG_END};

@@ -1,7 +1,7 @@
 //! `evoloop replay`: a recorded run played into a controller over iceoryx2 gives the live
 //! commands; another controller on the same data gives others; bad input is refused.
 
-mod common;
+use crate::common;
 use common::{cli, stdout_json};
 
 /// A lockstep run of the indirect scheme (the optimiser publishes sets and estimates, which the

@@ -7,7 +7,7 @@
 //! and the same page with every inlined image taken out does not. So the inlined PNGs decode
 //! and are laid out where a reader sees them, not merely present in the file.
 
-mod common;
+use crate::common;
 use common::cli;
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -56,7 +56,7 @@ fn min_eig_on(model: &RkgnnModel, data: &Trajectory) -> f64 {
 
 #[test]
 fn the_identifier_reads_reference_and_measured_positions_never_torques_or_true_velocities() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = training_run(tmp.path(), "rk_notau");
     let before = Trajectory::from_run(&out, SMOOTHING).unwrap();
@@ -110,7 +110,7 @@ fn a_run_too_short_for_the_low_pass_is_refused_with_the_reason() {
     // 0.25 s of data: the low-pass (0.08 s) drops 0.08 s at each end of the least squares'
     // part, fewer than 20 rows remain, and the identification says so instead of "no positive
     // definite M-hat".
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = training_run(tmp.path(), "rk_short");
     let path = out.join("run.csv");
@@ -124,7 +124,7 @@ fn a_run_too_short_for_the_low_pass_is_refused_with_the_reason() {
 
 #[test]
 fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_sample() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = training_run(tmp.path(), "rk_ident");
     let model_path = tmp.path().join("model.json");
@@ -155,7 +155,7 @@ fn identify_rkgnn_from_a_run_gives_a_model_positive_definite_on_every_training_s
 
 #[test]
 fn the_shipped_models_are_what_their_command_makes_of_the_training_runs() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     for name in ["arm3_train1", "arm3_train2"] {
         let out = tmp.path().join(name);
@@ -285,7 +285,7 @@ fn a_model_identified_under_the_known_servo_has_the_arms_gravity_and_an_inertia_
 fn identification_never_opens_the_robot_file() {
     // The run's scenario.json names its robot; point it at a file that does not exist, and
     // the identification (either servo prior) gives the same model bit for bit.
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = training_run(tmp.path(), "rk_norobot");
     let blind = tmp.path().join("blind");
@@ -356,7 +356,7 @@ fn rkgnn_eval_prints_a_symmetric_m_hat_v_hat_and_g_hat() {
 
 #[test]
 fn the_fuzzy_scenario_through_the_processes_equals_the_in_process_simulation() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
     assert_ok(&run(
@@ -800,7 +800,7 @@ fn rkgnn_study_refuses_an_arm_whose_joint_limits_the_trajectories_leave() {
 
 #[test]
 fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_loop_takes_them() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
     // arm3_payload: arm3_identify's loop, whose arm changes at 6 s.
@@ -849,7 +849,7 @@ fn assert_published_only_better(out: &Path, attempts: usize) -> serde_json::Valu
 /// this arm was positive definite (the book's Known limits until 2026-11-29).
 #[test]
 fn identify_mode_updates_arm7s_models_in_parts_and_tracks_the_loaded_arm_better() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("arm7");
     let args = ["--duration", "14"];
@@ -876,7 +876,7 @@ fn identify_mode_updates_arm7s_models_in_parts_and_tracks_the_loaded_arm_better(
 /// summaries (before 2026-11-29 every seed "failed" for want of a number before the change).
 #[test]
 fn a_seeds_study_of_an_unchanging_arm_compares_the_last_quarter() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("study");
     assert_ok(&run(
@@ -929,7 +929,7 @@ fn identify_mode_on_a_controller_without_models_is_refused_with_the_key() {
 /// optimiser off gives (recomputed here from that run's run.csv).
 #[test]
 fn identification_alongside_operation_beats_the_frozen_models_after_a_payload_over_seeds() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("study");
     let scn = config("arm3_payload.toml");

@@ -3,7 +3,7 @@
 //! `strict`), and only what cannot be simulated is refused, naming the link or joint. The same
 //! files pass the dynamics property tests in `tests/dynamics.rs`.
 
-mod common;
+use crate::common;
 use common::{cli, stdout_json};
 use evoloop::dynamics::{self, LoadOptions, Loaded};
 use std::path::{Path, PathBuf};

@@ -4,7 +4,7 @@
 //! does read it (a paper reproduction's full state, an arm law on true velocities) is refused
 //! with the key and the reason instead of running on NaN.
 
-mod common;
+use crate::common;
 use common::*;
 use evoloop::config::{OptimiserMode, Overrides, Scenario};
 use evoloop::sim::simulate;

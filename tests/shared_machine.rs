@@ -6,7 +6,7 @@
 //! need root: a plain `cargo test` lists them as ignored, .ci/run runs them as root with
 //! `--ignored`, and run so without root they fail rather than pass unchecked.
 
-mod common;
+use crate::common;
 use common::*;
 use std::os::unix::fs::{MetadataExt, PermissionsExt};
 use std::os::unix::process::CommandExt;

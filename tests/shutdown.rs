@@ -2,7 +2,7 @@
 //! shared memory; SIGKILL to the launcher stops them too (no orphans); after a killed run, the
 //! next start cleans the dead run's resources.
 
-mod common;
+use crate::common;
 use common::*;
 use std::os::unix::process::CommandExt;
 use std::process::Command;
@@ -77,7 +77,7 @@ fn a_dead_node_whose_details_are_gone_is_cleaned_up_too() {
     let (prefix, _) = unique("orphan");
     let mut child = Command::new(std::env::current_exe().unwrap())
         .args([
-            "a_dead_node_whose_details_are_gone_is_cleaned_up_too",
+            &test_name("a_dead_node_whose_details_are_gone_is_cleaned_up_too"),
             "--exact",
             "--nocapture",
         ])
@@ -322,5 +322,14 @@ fn ctrl_c_in_the_first_milliseconds_is_an_interrupted_run_not_a_failure() {
         }
         wait_gone(&run_id);
         forget_prefix(&prefix);
+    }
+}
+
+/// libtest's name of this file's test `f`: its module path without the crate's name (the file
+/// is a module of tests/suite.rs), as `--exact` wants it.
+fn test_name(f: &str) -> String {
+    match module_path!().split_once("::") {
+        Some((_, module)) => format!("{module}::{f}"),
+        None => f.to_string(),
     }
 }

@@ -2,7 +2,7 @@
 //! that overflow, out-of-range reference values, each with a clear outcome instead of a panic,
 //! a hang or NaN with exit 0.
 
-mod common;
+use crate::common;
 use common::{assert_refused, cli, evoloop, scenario, write};
 use std::process::{Command, Stdio};
 

@@ -6,7 +6,7 @@
 //! prefix and root path, the same service settings), receives evoloop's states, sends commands
 //! evoloop receives, and wakes and is woken through the paired event services.
 
-mod common;
+use crate::common;
 
 use common::{assert_same_state, contract_command, contract_state};
 use evoloop::ipc::{create_node, ipc_config, Topic, Wait};

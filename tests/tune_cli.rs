@@ -7,7 +7,7 @@ use std::path::Path;
 
 #[test]
 fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("a");
     let v = stdout_json(&cli(&[
@@ -65,7 +65,7 @@ fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
 
 #[test]
 fn tune_maglev_reports_the_tuned_set_and_g_of_every_variant() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("m");
     let v = stdout_json(&cli(&[
@@ -102,7 +102,7 @@ fn tune_maglev_reports_the_tuned_set_and_g_of_every_variant() {
 
 #[test]
 fn tune_refuses_bad_files_with_the_key() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let cases = [
         (
@@ -189,7 +189,7 @@ fn the_maglev_scenario_runs_in_lockstep_like_the_in_process_simulation_and_in_re
 
 #[test]
 fn tune_maglev_over_seeds_writes_the_statistics_and_sentences_that_follow_them() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("s");
     let v = stdout_json(&cli(&[
@@ -246,7 +246,7 @@ fn tune_maglev_over_seeds_writes_the_statistics_and_sentences_that_follow_them()
 
 #[test]
 fn study_sentences_follow_the_sign_and_significance_of_the_test() {
-    let _alone = alone();
+    let _heavy = heavy();
     use evoloop::stats::{mean_ci, wilcoxon};
     use evoloop::tune::maglev::comparison_sentence;
     // Fuzzy clearly worse on 12 seeds: the sentence must say HIGHER, never "lower".
@@ -282,7 +282,7 @@ fn study_sentences_follow_the_sign_and_significance_of_the_test() {
 /// No progress bar when stderr is not a terminal, so scripts see clean output.
 #[test]
 fn no_progress_bar_when_stderr_is_not_a_terminal() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("a");
     let piped = cli(&[
@@ -302,7 +302,7 @@ fn no_progress_bar_when_stderr_is_not_a_terminal() {
 #[test]
 #[ignore = "needs a pseudo-terminal from util-linux `script`: .ci/run runs it with --ignored"]
 fn the_progress_bar_shows_on_a_terminal() {
-    let _alone = alone();
+    let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("a");
     let out = out.to_str().unwrap();

@@ -2,7 +2,7 @@
 //! it is stopped, and being stopped is its normal end: exit 0, outcome "ok", the report of what
 //! ran, the optimiser's histories kept.
 
-mod common;
+use crate::common;
 use common::*;
 use std::process::Command;
 use std::time::Duration;

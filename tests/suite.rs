@@ -1,0 +1,87 @@
+//! The integration tests that can share one process, as one test binary: each file below is a
+//! module (`cargo test --release --test suite lti::` runs tests/lti.rs alone). One binary instead
+//! of one per file: each of these 42 files was linked against the whole library and compiled
+//! iceoryx2's generics again (a 3.9 s floor a binary, up to 20 s), and libtest ran the files one
+//! after the other, each leaving a core idle behind its slowest test; here all of them share the
+//! two threads. Files that cannot share a process have targets of their own in Cargo.toml: a
+//! counting global allocator (`no_alloc*`, `optim_no_alloc`, `recorder_memory`), a memory peak
+//! taken over every child of the process (`long_report`: a spawned child's peak includes its
+//! parent's resident set, which a binary of 40 files running beside it makes 180 MiB), the `zenoh`
+//! feature's (`zenoh_*`, `ros2_bridge`), and those with a realtime run judged on its rate, which
+//! keep everything else off the machine while it runs (`common::alone`). `tests/suite.rs`'s own
+//! test checks that every file in tests/ is one or the other.
+
+mod common;
+
+mod config_errors;
+mod direct;
+mod dynamics;
+mod dynamics_cli;
+mod estimator;
+mod examples;
+mod faults;
+mod foxglove_decode;
+mod full_disk;
+mod fuzz_loaders;
+mod fuzzy;
+mod heater;
+mod hooke_jeeves;
+mod identify;
+mod identify_cli;
+mod live_view;
+mod lockstep;
+mod lti;
+mod model_check;
+mod model_parts;
+mod numerics;
+mod operator;
+mod optim_cli;
+mod param_swap;
+mod plant_contract;
+mod python_interop;
+mod python_plant;
+mod readme;
+mod record_mcap;
+mod refused_states;
+mod replay;
+mod report_browser;
+mod robot_files;
+mod robust;
+mod robust_cli;
+mod sensors;
+mod shared_machine;
+mod shutdown;
+mod small_things;
+mod soak;
+mod stock_interop;
+mod until_stopped;
+
+/// Every `tests/*.rs` is a module of this suite or a `[[test]]` target of Cargo.toml: with
+/// `autotests = false` a new file that is neither would compile nowhere and pass by silence.
+#[test]
+fn every_test_file_is_built() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let suite = std::fs::read_to_string(root.join("tests/suite.rs")).unwrap();
+    let manifest = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
+    let mut missing = Vec::new();
+    for entry in std::fs::read_dir(root.join("tests")).unwrap() {
+        let path = entry.unwrap().path();
+        let (Some(stem), Some("rs")) = (
+            path.file_stem().and_then(|s| s.to_str()),
+            path.extension().and_then(|e| e.to_str()),
+        ) else {
+            continue;
+        };
+        let module = suite.lines().any(|l| l == format!("mod {stem};"));
+        let target = manifest.contains(&format!("path = \"tests/{stem}.rs\""));
+        if stem != "suite" && module == target {
+            missing.push(format!(
+                "tests/{stem}.rs (module: {module}, target: {target})"
+            ));
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "each file must be exactly one of a `mod` in tests/suite.rs or a [[test]] in Cargo.toml: {missing:?}"
+    );
+}
