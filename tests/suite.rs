@@ -8,8 +8,8 @@
 //! taken over every child of the process (`long_report`: a spawned child's peak includes its
 //! parent's resident set, which a binary of 40 files running beside it makes 180 MiB), the `zenoh`
 //! feature's (`zenoh_*`, `ros2_bridge`), and those with a realtime run judged on its rate, which
-//! keep everything else off the machine while it runs (`common::alone`). `tests/suite.rs`'s own
-//! test checks that every file in tests/ is one or the other.
+//! keep their binary's other heavy tests from running beside it (`common::alone`).
+//! `tests/suite.rs`'s own test checks that every file in tests/ is one or the other.
 
 mod common;
 

@@ -88,7 +88,7 @@ fn finish(mut c: Child, limit: Duration) -> std::process::Output {
 /// the lock and the directory with them.
 #[cfg(feature = "zenoh")]
 struct RemoteTuning {
-    _alone: std::sync::MutexGuard<'static, ()>,
+    _alone: std::sync::RwLockWriteGuard<'static, ()>,
     _tmp: tempfile::TempDir,
     /// The run's output directory, and the remote optimiser's.
     host: PathBuf,

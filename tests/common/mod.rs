@@ -290,9 +290,9 @@ pub fn spawn_run_and_wait_for_the_loop(
 /// realtime run (or a timing it reports) takes `alone()`; a heavy test of the same binary takes
 /// `heavy()`, which runs beside other heavy tests but never beside an `alone()` one (a write
 /// and read lock; Linux's std lock lets a waiting writer in before new readers). `heavy()` is
-/// for tests that compute in the test's process or run the processes briefly; tests that run
-/// the processes with a working optimiser keep `alone()`: two of them at once spin four busy
-/// processes on two cores (tests/indirect.rs took 68 s that way against 40 s one at a time).
+/// used where two at once measured faster than one after the other (tests/rkgnn.rs 174 s
+/// against 164 s); tests/indirect.rs keeps `alone()` throughout: its runs spin the processes
+/// and an optimiser on both cores, and two at once took 68 s against 40 s.
 static ONE_AT_A_TIME: std::sync::RwLock<()> = std::sync::RwLock::new(());
 
 pub fn alone() -> std::sync::RwLockWriteGuard<'static, ()> {
