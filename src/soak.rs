@@ -72,9 +72,8 @@ pub struct SoakReport {
     pub misses_per_interval_max: u64,
     pub missed_deadlines: u64,
     pub cycles: u64,
-    /// This user's files under the soak run's own IPC prefix (`evoloop_soak<pid>_`) in /dev/shm
-    /// and iceoryx2's root before the start and after the end, and those the run left (after
-    /// but not before); other runs on the machine are not counted.
+    /// This user's evoloop files in /dev/shm and iceoryx2's root before the start and after the
+    /// end, and those the run left (after but not before).
     pub shm_before: Vec<String>,
     pub shm_after: Vec<String>,
     pub shm_left: Vec<String>,

@@ -2,7 +2,7 @@
 //! with a record per interval for every process, the run's own report beside it, and nothing
 //! left in shared memory.
 
-use crate::common;
+mod common;
 use common::*;
 use std::process::Command;
 

@@ -1,14 +1,15 @@
 //! The integration tests that can share one process, as one test binary: each file below is a
 //! module (`cargo test --release --test suite lti::` runs tests/lti.rs alone). One binary instead
-//! of one per file: each of these 42 files was linked against the whole library and compiled
+//! of one per file: each of these 41 files was linked against the whole library and compiled
 //! iceoryx2's generics again (a 3.9 s floor a binary, up to 20 s), and libtest ran the files one
 //! after the other, each leaving a core idle behind its slowest test; here all of them share the
 //! two threads. Files that cannot share a process have targets of their own in Cargo.toml: a
 //! counting global allocator (`no_alloc*`, `optim_no_alloc`, `recorder_memory`), a memory peak
 //! taken over every child of the process (`long_report`: a spawned child's peak includes its
-//! parent's resident set, which a binary of 40 files running beside it makes 180 MiB), the `zenoh`
-//! feature's (`zenoh_*`, `ros2_bridge`), and those with a realtime run judged on its rate, which
-//! keep their binary's other heavy tests from running beside it (`common::alone`).
+//! parent's resident set, which a binary of 40 files running beside it makes 180 MiB), the shared
+//! memory a soak finds left under the default prefix, which other tests' runs share (`soak`), the
+//! `zenoh` feature's (`zenoh_*`, `ros2_bridge`), and those with a realtime run judged on its rate,
+//! which keep their binary's other heavy tests from running beside it (`common::alone`).
 //! `tests/suite.rs`'s own test checks that every file in tests/ is one or the other.
 
 mod common;
@@ -52,7 +53,6 @@ mod sensors;
 mod shared_machine;
 mod shutdown;
 mod small_things;
-mod soak;
 mod stock_interop;
 mod until_stopped;
 

@@ -43,13 +43,10 @@ pub fn main(a: SoakArgs) -> ExitCode {
     };
     let run_dir = a.out.join("run");
     let run_id = format!("soak-{}", std::process::id());
-    // A prefix of the run's own, so that what is left under it is the run's and not that of
-    // another run on the machine under the default prefix.
-    let prefix = format!("{}soak{}_", crate::ipc::DEFAULT_PREFIX, std::process::id());
-    let prefix = prefix.as_str();
+    let prefix = crate::ipc::DEFAULT_PREFIX;
     let shm_before = crate::ipc::namespace::files(prefix);
     let stop = crate::cli::stop_flag();
-    let launcher = match start_run(&a, &file, &run_dir, &run_id, prefix) {
+    let launcher = match start_run(&a, &file, &run_dir, &run_id) {
         Ok(c) => c,
         Err(e) => {
             err!("error: cannot start the run: {e}");
@@ -115,7 +112,6 @@ fn start_run(
     file: &Path,
     run_dir: &Path,
     run_id: &str,
-    prefix: &str,
 ) -> std::io::Result<std::process::Child> {
     let exe = std::env::current_exe().unwrap_or_else(|_| PathBuf::from("evoloop"));
     let mut cmd = std::process::Command::new(exe);
@@ -125,7 +121,12 @@ fn start_run(
         .arg(a.duration.to_string())
         .arg("--out")
         .arg(run_dir)
-        .args(["--run-id", run_id, "--ipc-prefix", prefix])
+        .args([
+            "--run-id",
+            run_id,
+            "--ipc-prefix",
+            crate::ipc::DEFAULT_PREFIX,
+        ])
         .arg("--quiet");
     if a.no_rt {
         cmd.arg("--no-rt");
