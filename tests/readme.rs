@@ -148,8 +148,7 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
         // A test target of its own (Cargo.toml's [[test]]; autotests are off) ...
         ["cargo", "test", "--release", "--test", name]
         | ["cargo", "test", "--release", "--test", name, "--", "--ignored"] => {
-            let manifest = std::fs::read_to_string(root().join("Cargo.toml")).unwrap();
-            if manifest.contains(&format!("[[test]]\nname = \"{name}\"\n")) {
+            if crate::common::test_targets().iter().any(|t| t == name) {
                 Ok(None)
             } else {
                 Err(format!("no test target `{name}` in Cargo.toml"))
@@ -158,9 +157,9 @@ fn evoloop_args(cmd: &str) -> Result<Option<Vec<String>>, String> {
         // ... or a file of tests/suite.rs, picked by its module's name.
         ["cargo", "test", "--release", "--test", "suite", filter]
         | ["cargo", "test", "--release", "--test", "suite", "--", "--ignored", filter] => {
-            let suite = std::fs::read_to_string(root().join("tests/suite.rs")).unwrap();
+            let modules = crate::common::suite_modules();
             match filter.strip_suffix("::") {
-                Some(module) if suite.lines().any(|l| l == format!("mod {module};")) => Ok(None),
+                Some(module) if modules.iter().any(|m| m == module) => Ok(None),
                 _ => Err(format!("`{filter}` is no `module::` of tests/suite.rs")),
             }
         }

@@ -756,21 +756,21 @@ pub fn least_squares_start(
     least_squares(layout, &servo, data, target, stride, INERTIA_RIDGES, scaled)
 }
 
-/// The live identification's fit (`rkgnn::live`): the model in service, `p0`, updated to a
-/// window of data whose joint torques are known (`torques`, n per sample of `data`: under
-/// computed torque the command is the controller's own, known without measuring a torque).
-/// The equations are `--servo known`'s, M-hat q'' + V-hat + G-hat = tau (no scale to fix; the
-/// servo network keeps p0's values, it plays no part in computed torque), but the fit is
-/// centred on the model in service: each output weight is p0's plus a correction, and a ridge
-/// on the corrections, each in units of its output's size in p0 (`prior_scales`), says how far
-/// a few seconds of one trajectory may move a model identified on more. Fitted from zero
-/// instead (as before 2026-11-29), the window's data leave most of a 7-DOF arm's inertia
-/// network to a ridge and M-hat was positive definite in none of arm7's attempts. The friction
-/// columns of `design` stay free (projected out) and are dropped. Of
-/// `UPDATE_RIDGES` (relative to the largest singular value) the smallest whose M-hat reaches
-/// `min_eig` over `probes` is taken; the largest leaves p0 nearly as it is. One SVD serves every ridge,
-/// of the design's R (`linalg::Ridges`): arm7's window is 5 376 rows by 917 columns, and its
-/// attempts took 20 s through the whole matrix's SVD, 12.5 s through R (2026-12-03).
+/// The live identification's fit (`rkgnn::live`): the model in service, `p0`, updated to a window
+/// of data whose joint torques are known (`torques`, n per sample of `data`: under computed torque
+/// the command is the controller's own, known without measuring a torque). The equations are
+/// `--servo known`'s, M-hat q'' + V-hat + G-hat = tau (no scale to fix; the servo network keeps
+/// p0's values, it plays no part in computed torque), but the fit is centred on the model in
+/// service: each output weight is p0's plus a correction, and a ridge on the corrections, each in
+/// units of its output's size in p0 (`prior_scales`), says how far a few seconds of one trajectory
+/// may move a model identified on more. Fitted from zero instead (as before 2026-11-29), the
+/// window's data leave most of a 7-DOF arm's inertia network to a ridge and M-hat was positive
+/// definite in none of arm7's attempts. The friction columns of `design` stay free (projected out)
+/// and are dropped. Of `UPDATE_RIDGES` (relative to the largest singular value) the smallest whose
+/// M-hat reaches `min_eig` over `probes` is taken; the largest leaves p0 nearly as it is. One SVD
+/// serves every ridge, of the design's R (`linalg::Ridges`): arm7's window is 5 376 rows by 917
+/// columns, and its attempts took 20 s through the whole matrix's SVD, 12.5 s through R
+/// (2026-12-03).
 pub fn update_with_torques(
     layout: &Layout,
     p0: &[f64],

@@ -490,3 +490,29 @@ pub fn assert_same_state(got: &evoloop::msg::PlantState, want: &evoloop::msg::Pl
         assert_eq!(bits(g), bits(w), "{name}");
     }
 }
+
+/// The test targets Cargo.toml declares (`[[test]]`, each named after its file; autotests are
+/// off), read from its `path = "tests/NAME.rs"` lines. One reading for tests/suite.rs's check
+/// that every file is built and tests/readme.rs's check of the book's `--test NAME`.
+pub fn test_targets() -> Vec<String> {
+    let manifest =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml")).unwrap();
+    manifest
+        .lines()
+        .filter_map(|l| l.strip_prefix("path = \"tests/")?.strip_suffix(".rs\""))
+        .map(String::from)
+        .collect()
+}
+
+/// The files of tests/ that are modules of tests/suite.rs (its `mod NAME;` lines).
+pub fn suite_modules() -> Vec<String> {
+    let suite =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/suite.rs"))
+            .unwrap();
+    suite
+        .lines()
+        .filter_map(|l| l.strip_prefix("mod ")?.strip_suffix(';'))
+        .filter(|m| *m != "common")
+        .map(String::from)
+        .collect()
+}

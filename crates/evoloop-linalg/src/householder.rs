@@ -1,9 +1,9 @@
-//! Householder reduction of a tall least-squares problem: `a` = Q R and Q^T `b`, without
-//! forming Q; and `Ridges`, every ridge solution of such a problem from one SVD of R. nalgebra's `QR` (0.33) is not used: on arm7's identification design (5 376 x 917,
-//! rank 265 to 1e-5, 2026-12-03) its Q R did not reproduce the matrix (‖A − QR‖ 180 against
-//! ‖A‖ 302) while its SVD did (6.6e-13); the cause was not isolated (random designs with zero,
-//! -0.0 and dependent columns factor correctly). Here a column already zero below the diagonal
-//! is left as it is (its reflection is the identity).
+//! Householder reduction of a tall least-squares problem: `a` = Q R and Q^T `b`, without forming Q;
+//! and `Ridges`, every ridge solution of such a problem from one SVD of R. nalgebra's `QR` (0.33)
+//! is not used: on arm7's identification design (5 376 x 917, rank 265 to 1e-5, 2026-12-03) its Q R
+//! did not reproduce the matrix (‖A − QR‖ 180 against ‖A‖ 302) while its SVD did (6.6e-13); the
+//! cause was not isolated (random designs with zero, -0.0 and dependent columns factor correctly).
+//! Here a column already zero below the diagonal is left as it is (its reflection is the identity).
 
 use nalgebra::{DMatrix, DVector};
 
