@@ -74,7 +74,7 @@ fn the_kalman_filter_is_python_controls_dlqe_on_every_case() {
         // dlqe's predictor x[k+1|k].
         let (u, y) = (floats(&c["u"]), floats(&c["y"]));
         let predicted = floats(&c["predicted"]);
-        let mut kf = Kalman::new(&g);
+        let mut kf = Kalman::new(&g, 0);
         let mut s = PlantState::default();
         for k in 0..u.len() {
             s.seq = k as u64;

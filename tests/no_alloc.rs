@@ -73,7 +73,8 @@ fn the_control_cycle_allocates_nothing() {
         lower: vec![-100.0; 5],
         upper: vec![100.0; 5],
     };
-    // The law on the default scenario's filter, as its controller runs it.
+    // The law on the default scenario's filter, as its controller runs it, told of a sensor
+    // 100 samples late (the filter's input ring and its prediction across them).
     let default = evoloop::config::Scenario::load(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass.toml"),
         &evoloop::config::Overrides::default(),
@@ -87,7 +88,7 @@ fn the_control_cycle_allocates_nothing() {
         _ => unreachable!("two_mass is state feedback"),
     };
     let mut cyc = ControlCycle::new(
-        Box::new(StateFeedback::new(&gains, dt, Some(100.0)).with_kalman(&kalman)),
+        Box::new(StateFeedback::new(&gains, dt, Some(100.0)).with_kalman(&kalman, 100)),
         Reference::Steps {
             times: vec![0.1, 1.0],
             values: vec![1.0, 0.5],

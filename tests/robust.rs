@@ -418,7 +418,7 @@ fn the_sampled_loop_matrix_is_the_controller_as_it_runs() {
     let plant = evoloop::plant::two_mass::TwoMass::new(1.0, 1.0, 1.3, Sensor::Far).linear_model();
     let m = evoloop::robust::observer::sampled_loop(&plant, &o.filter, o.period, &DEFC).unwrap();
     let sampled = plant.at_period(o.period).unwrap();
-    let mut law = StateFeedback::new(&DEFC, o.period, None).with_kalman(&o.filter);
+    let mut law = StateFeedback::new(&DEFC, o.period, None).with_kalman(&o.filter, 0);
     let mut x = [0.3, -0.2, 0.1, 0.4];
     let mut z = DVector::from_vec(vec![0.3, -0.2, 0.1, 0.4, 0.0, 0.0, 0.0, 0.0, 0.0]);
     let mut state = evoloop::msg::PlantState {
@@ -493,7 +493,7 @@ fn the_command_noise_of_the_loop_with_the_filter_is_what_a_noisy_run_gives() {
         evoloop::robust::observer::command_noise(&plant, &o.filter, o.period, &DEFC, sigma)
             .unwrap();
     let sampled = plant.at_period(o.period).unwrap();
-    let mut law = StateFeedback::new(&DEFC, o.period, None).with_kalman(&o.filter);
+    let mut law = StateFeedback::new(&DEFC, o.period, None).with_kalman(&o.filter, 0);
     let mut rng = rand::rngs::StdRng::seed_from_u64(7);
     let mut gauss = move || {
         let (u1, u2): (f64, f64) = (rng.gen::<f64>().max(1e-300), rng.gen());

@@ -330,6 +330,8 @@ pub struct LoopModel {
     m: usize,
     period: f64,
     step: f64,
+    /// The plant's declared sensor delay, samples: the model's runs measure as the plant does.
+    sensor_delay: usize,
     u_range: (f64, f64),
     controller: ControllerSpec,
     reference: Reference,
@@ -388,6 +390,7 @@ impl LoopModel {
             diverged: 1e6,
             noise_std: 0.0,
             seed: 0,
+            sensor_delay: self.sensor_delay,
             u0: 0.0,
         }
         .response(Box::new(plant), ctrl);
@@ -438,6 +441,7 @@ impl LinearTuner {
                 m: prior.zeros,
                 period: scn.timing.period,
                 step: scn.plant.step,
+                sensor_delay: scn.plant.sensor_delay as usize,
                 u_range,
                 controller: scn.controller.clone(),
                 reference: scn.reference.clone(),
@@ -702,6 +706,7 @@ mod tests {
                         diverged: 1e30,
                         noise_std: 0.0,
                         seed: 0,
+                        sensor_delay: 0,
                         u0: 0.0,
                     }
                     .response(Box::new(plant), Box::new(pid));

@@ -58,6 +58,10 @@ pub struct SpringModel {
     duration: f64,
     u_limit: Option<f64>,
     w: f64,
+    /// The plant's declared sensor delay, samples: the model measures as the plant does and
+    /// the filter predicts across it.
+    #[serde(default)]
+    sensor_delay: usize,
     /// The running law's filter (`controller.state_feedback.state = "kalman"`), designed as the
     /// controller designs it, from the nominal spring constant: each candidate is judged in the
     /// loop it will run in, the filter's model error included. None: the true state.
@@ -158,6 +162,7 @@ impl TwoMassTuner {
                 duration: repetition,
                 u_limit: scn.controller.u_limit,
                 w: scn.optimiser.cost_u_weight,
+                sensor_delay: scn.plant.sensor_delay as usize,
                 kalman: match &scn.controller.model {
                     ControllerModel::StateFeedback(sf) => sf.kalman.map(|d| (d, plant.spring)),
                     _ => None,
@@ -208,20 +213,23 @@ impl SpringModel {
                 design.gains(&nominal.linear_model(), self.period).ok()
             });
             match filter {
-                Some(g) => ctrl = ctrl.with_kalman(g),
+                Some(g) => ctrl = ctrl.with_kalman(g, self.sensor_delay),
                 // The scenario's check designed this very filter.
                 None => return f64::INFINITY,
             }
         }
-        let (_, y, u) = crate::sim::response(
-            Box::new(plant),
-            Box::new(ctrl),
-            &self.reference,
-            self.period,
-            self.step,
-            self.duration,
-            1e3,
-        );
+        let crate::sim::Response { y, u, .. } = crate::sim::Run {
+            reference: &self.reference,
+            period: self.period,
+            step: self.step,
+            duration: self.duration,
+            diverged: 1e3,
+            noise_std: 0.0,
+            seed: 0,
+            sensor_delay: self.sensor_delay,
+            u0: 0.0,
+        }
+        .response(Box::new(plant), Box::new(ctrl));
         let n = (self.duration / self.period).round() as usize;
         if y.len() < n {
             return f64::INFINITY;

@@ -48,13 +48,7 @@ pub fn main(args: &ProcessArgs) {
         })
     });
 
-    let mut sim = PlantSim::new(
-        scn.build_plant(),
-        scn.plant.step,
-        scn.plant.noise_std,
-        scn.seed,
-    )
-    .publishing_truth(scn.plant.publish_truth);
+    let mut sim = scn.plant.simulation(scn.seed);
     let mut report = PlantReport {
         mode: scn.timing.mode,
         ..Default::default()

@@ -86,6 +86,7 @@ pub fn simulate(
         diverged: lost,
         noise_std: spec.noise_mm,
         seed,
+        sensor_delay: 0,
         u0: hold,
     };
     let r = run.response(Box::new(Maglev::new(spec.plant.clone())), Box::new(pid));

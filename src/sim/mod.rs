@@ -121,13 +121,7 @@ pub trait LoopHook {
 /// `ControlCycle` the plant and controller processes run, for `scn.cycles()` samples, each shown
 /// to `hook` and none kept. Returns the control cycle as it ends (the set in service, counts).
 pub fn run_loop(scn: &Scenario, hook: &mut impl LoopHook) -> ControlCycle {
-    let mut plant = PlantSim::new(
-        scn.build_plant(),
-        scn.plant.step,
-        scn.plant.noise_std,
-        scn.seed,
-    )
-    .publishing_truth(scn.plant.publish_truth);
+    let mut plant = scn.plant.simulation(scn.seed);
     let mut cycle = control_cycle(scn);
     let dt = scn.timing.period;
     let mut state = PlantState::default();
@@ -231,6 +225,7 @@ pub fn response(
         diverged,
         noise_std: 0.0,
         seed: 0,
+        sensor_delay: 0,
         u0: 0.0,
     }
     .response(plant, controller);
@@ -252,6 +247,9 @@ pub struct Run<'a> {
     /// Output noise (std) and its seed.
     pub noise_std: f64,
     pub seed: u64,
+    /// Samples the measurement lags (`plant.sensor_delay`; the controller's estimator predicts
+    /// across the same delay).
+    pub sensor_delay: usize,
     /// The command held before the first control step.
     pub u0: f64,
 }
@@ -272,7 +270,8 @@ impl Run<'_> {
         mut controller: Box<dyn crate::control::Controller>,
     ) -> Response {
         let n_u = plant.n_inputs();
-        let mut sim = PlantSim::new(plant, self.step, self.noise_std, self.seed);
+        let mut sim =
+            PlantSim::new(plant, self.step, self.noise_std, self.seed).delaying(self.sensor_delay);
         let n = (self.duration / self.period).round() as usize;
         let mut out = Response {
             t: Vec::with_capacity(n),

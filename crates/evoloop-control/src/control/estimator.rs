@@ -19,7 +19,7 @@
 
 use crate::dynamics::{Data, Model};
 use crate::msg::{PlantState, MAX_JOINTS};
-use crate::plant::{LinearModel, MAX_LINEAR_STATES};
+use crate::plant::{LinearModel, MAX_LINEAR_STATES, MAX_SENSOR_DELAY};
 use nalgebra::DMatrix;
 
 const N: usize = MAX_LINEAR_STATES;
@@ -152,17 +152,33 @@ pub struct Kalman {
     f: [f64; N],
     g: f64,
     m: [f64; N],
-    /// The estimate after the last sample's measurement.
+    /// The estimate, after the last sample's measurement, of the state that measurement is of
+    /// (`delay` samples before the sample).
     x: [f64; N],
     /// The input that reached the plant over the period before the last sample, as estimated.
     v_prev: f64,
     last_seq: Option<u64>,
+    /// Samples the measurement lags the state (the plant's declared `sensor_delay`): the filter
+    /// runs that far behind, on the samples its measurements are of, and `ahead` predicts the
+    /// present from `x` over the inputs applied since, the d-step predictor of the delayed
+    /// measurement's Kalman filter. The gains are the undelayed filter's; with the model right,
+    /// the loop's poles are the state feedback's and the filter's, whatever the delay.
+    delay: usize,
+    /// The inputs of the last `delay` samples (`u_applied`), a ring whose oldest is at `head`.
+    inputs: [f64; MAX_SENSOR_DELAY],
+    head: usize,
+    /// The estimate of the state at the last sample: `x` predicted over `inputs`.
+    ahead: [f64; N],
 }
 
 impl Kalman {
     /// The filter with `gains`, starting from the state 0 (a rest the first measurements
-    /// correct).
-    pub fn new(gains: &KalmanGains) -> Self {
+    /// correct), for measurements `delay` samples old (at most `MAX_SENSOR_DELAY`).
+    pub fn new(gains: &KalmanGains, delay: usize) -> Self {
+        assert!(
+            delay <= MAX_SENSOR_DELAY,
+            "a sensor delay of {delay} samples"
+        );
         let model = &gains.model;
         let n = model.n();
         let (d, f, g) = model.feedthrough();
@@ -184,6 +200,10 @@ impl Kalman {
             x: [0.0; N],
             v_prev: 0.0,
             last_seq: None,
+            delay,
+            inputs: [0.0; MAX_SENSOR_DELAY],
+            head: 0,
+            ahead: [0.0; N],
         };
         for (i, row) in k.a.iter_mut().enumerate().take(n) {
             fill(row, &|j| model.a(i, j));
@@ -200,10 +220,11 @@ impl Kalman {
     pub fn update(&mut self, state: &PlantState) -> &[f64] {
         let n = self.n;
         match samples_since(self.last_seq, state.seq) {
-            Some(0) => return &self.x[..n],
+            Some(0) => return &self.ahead[..n],
             Some(k) => {
                 for _ in 0..k {
-                    self.predict(state.u_applied[0]);
+                    let u = self.delayed(state.u_applied[0]);
+                    self.predict(u);
                 }
             }
             None => {}
@@ -215,12 +236,39 @@ impl Kalman {
         for (x, m) in self.x[..n].iter_mut().zip(&self.m[..n]) {
             *x += m * innovation;
         }
-        &self.x[..n]
+        self.predict_ahead();
+        &self.ahead[..n]
     }
 
     /// The last estimate (zeros before the first sample).
     pub fn estimate(&self) -> &[f64] {
-        &self.x[..self.n]
+        &self.ahead[..self.n]
+    }
+
+    /// Record `u`, the input of the newest sample, and return the one of `delay` samples
+    /// before it: the input of the sample the delayed measurement is of (`u` itself without a
+    /// delay; 0, a rest, before the run's first inputs are that old).
+    fn delayed(&mut self, u: f64) -> f64 {
+        if self.delay == 0 {
+            return u;
+        }
+        let oldest = std::mem::replace(&mut self.inputs[self.head], u);
+        self.head = (self.head + 1) % self.delay;
+        oldest
+    }
+
+    /// `ahead`: `x` through the model over the inputs of the last `delay` samples, oldest first.
+    fn predict_ahead(&mut self) {
+        let n = self.n;
+        self.ahead = self.x;
+        for i in 0..self.delay {
+            let u = self.inputs[(self.head + i) % self.delay];
+            let mut next = [0.0; N];
+            for (r, z) in next.iter_mut().enumerate().take(n) {
+                *z = (0..n).map(|j| self.a[r][j] * self.ahead[j]).sum::<f64>() + self.b[r] * u;
+            }
+            self.ahead = next;
+        }
     }
 
     fn predict(&mut self, u: f64) {
@@ -508,22 +556,27 @@ mod tests {
         assert!((k.l[0] - k.m[0]).abs() < 1e-15);
     }
 
+    /// The filter of a double integrator measured in position, sampled every `t` s.
+    fn double_integrator_filter(t: f64) -> KalmanGains {
+        let model = LinearModel::continuous(&[0.0, 1.0, 0.0, 0.0], &[0.0, 1.0], &[1.0, 0.0]);
+        KalmanDesign {
+            process_noise: 1.0,
+            measurement_noise: 1e-3,
+        }
+        .gains(&model, t)
+        .unwrap()
+    }
+
     /// On a noise-free double integrator the filter converges to the true position and
     /// velocity from a wrong start, one sample at a time, without being told the truth.
     #[test]
     fn the_filter_finds_a_double_integrators_velocity_from_its_position() {
         let t = 0.01;
-        let model = LinearModel::continuous(&[0.0, 1.0, 0.0, 0.0], &[0.0, 1.0], &[1.0, 0.0]);
-        let gains = KalmanDesign {
-            process_noise: 1.0,
-            measurement_noise: 1e-3,
-        }
-        .gains(&model, t)
-        .unwrap();
+        let gains = double_integrator_filter(t);
         // Zero-order hold of the double integrator: A = [[1, T], [0, 1]], B = [T²/2, T].
         assert!((gains.model.a(0, 1) - t).abs() < 1e-15);
         assert!((gains.model.b(0) - t * t / 2.0).abs() < 1e-15);
-        let mut kf = Kalman::new(&gains);
+        let mut kf = Kalman::new(&gains, 0);
         let (mut pos, mut vel) = (0.5, -2.0);
         let u = 3.0;
         for seq in 0..400 {
@@ -541,6 +594,41 @@ mod tests {
         let before = kf.estimate().to_vec();
         kf.update(&sample(399, &[123.0], u));
         assert_eq!(kf.estimate(), &before[..]);
+    }
+
+    /// With the position measured `delay` samples late, the filter runs that far behind and
+    /// predicts the present over the inputs applied since: on a noise-free double integrator
+    /// driven by a varying input it finds the present state to round-off, where the same filter
+    /// told of no delay is off by the motion over the delay. An input taken one sample early
+    /// or late would leave an error of the order of T² u per step, far above round-off.
+    #[test]
+    fn a_delayed_measurement_is_predicted_across_to_the_present() {
+        let t = 0.01;
+        let delay = 7;
+        let gains = double_integrator_filter(t);
+        let (mut told, mut blind) = (Kalman::new(&gains, delay), Kalman::new(&gains, 0));
+        // At rest at 0.5 before the start, as the sensor's first readings say.
+        let (mut pos, mut vel) = (0.5, 0.0);
+        let mut readings = vec![pos; delay];
+        let mut u_applied = 0.0;
+        let (mut worst_told, mut worst_blind) = (0.0f64, 0.0f64);
+        for seq in 0..600u64 {
+            readings.push(pos);
+            let y = readings[readings.len() - 1 - delay];
+            let state = sample(seq, &[y], u_applied);
+            let (x, xb) = (told.update(&state).to_vec(), blind.update(&state).to_vec());
+            if seq > 400 {
+                worst_told = worst_told.max((x[0] - pos).abs() + (x[1] - vel).abs() * t);
+                worst_blind = worst_blind.max((xb[0] - pos).abs());
+            }
+            let u = 3.0 * (0.05 * seq as f64).sin() + 1.0;
+            pos += vel * t + u * t * t / 2.0;
+            vel += u * t;
+            u_applied = u;
+        }
+        assert!(worst_told < 1e-9, "told of the delay: {worst_told}");
+        assert!(worst_blind > 1e-3, "not told: {worst_blind}");
+        assert_eq!(told.estimate().len(), 2);
     }
 
     /// One joint turning about a vertical axis, no gravity, no friction: its acceleration is

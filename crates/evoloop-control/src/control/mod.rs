@@ -87,6 +87,8 @@ pub struct ControllerContext<'a> {
     /// The standard deviation of the plant's measurement error as its sensor is declared: the
     /// noise and the quantisation together (`PlantSpec::measurement_std`).
     pub measurement_std: f64,
+    /// Samples the measurement lags the state it is of (`PlantSpec::sensor_delay`).
+    pub sensor_delay: usize,
 }
 
 /// A validated controller: the keys every law shares, and its own settings.
@@ -124,6 +126,7 @@ impl ControllerSpec {
             duration,
             period,
             measurement_std: plant.measurement_std(),
+            sensor_delay: plant.sensor_delay as usize,
         };
         let kind = raw.kind;
         Ok(ControllerSpec {

@@ -52,10 +52,10 @@ impl StateFeedback {
     }
 
     /// Run on the estimate of a Kalman filter with `gains` (designed for a model with this
-    /// law's n_x states).
-    pub fn with_kalman(mut self, gains: &KalmanGains) -> Self {
+    /// law's n_x states), for measurements `sensor_delay` samples old.
+    pub fn with_kalman(mut self, gains: &KalmanGains, sensor_delay: usize) -> Self {
         assert_eq!(gains.model.n(), self.n_x, "the filter estimates the law's states");
-        self.kalman = Some(Kalman::new(gains));
+        self.kalman = Some(Kalman::new(gains, sensor_delay));
         self
     }
 
@@ -157,6 +157,9 @@ pub struct StateFeedbackSpec {
     /// Boxed: a designed filter is ten times the size of the other laws' settings.
     #[serde(skip)]
     gains: Option<Box<KalmanGains>>,
+    /// The plant's declared sensor delay, samples: the filter predicts across it.
+    #[serde(skip)]
+    sensor_delay: usize,
 }
 
 pub fn validate(
@@ -234,6 +237,7 @@ pub fn validate(
             .as_ref()
             .map(|g| g.poles.iter().map(|z| z.norm()).fold(0.0, f64::max)),
         gains,
+        sensor_delay: cx.sensor_delay,
     })
 }
 
@@ -248,7 +252,7 @@ impl ControllerConfig for StateFeedbackSpec {
     fn build(&self, period: f64, u_limit: Option<f64>) -> Box<dyn Controller> {
         let law = StateFeedback::new(&self.tunable.gains, period, u_limit);
         Box::new(match &self.gains {
-            Some(g) => law.with_kalman(g),
+            Some(g) => law.with_kalman(g, self.sensor_delay),
             None => law,
         })
     }

@@ -116,6 +116,7 @@ impl PlantConfig for HeaterSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::msg::PlantState;
     use crate::plant::PlantSim;
 
     fn spec() -> HeaterSpec {
@@ -140,6 +141,30 @@ mod tests {
         assert!((sim.x[1] - h.steady_state(30.0)).abs() < 1e-6, "{:?}", sim.x);
         // The element runs hotter by P R_eb.
         assert!((sim.x[0] - sim.x[1] - 30.0 * h.r_element_block).abs() < 1e-6);
+    }
+
+    /// `plant.sensor_delay`: each sample's measurement is, bit for bit, the undelayed sensor's
+    /// of `delay` samples before (the noise drawn as it was), the first reading before that;
+    /// the state and the truth fields are the present's.
+    #[test]
+    fn a_delayed_sensor_gives_the_reading_of_delay_samples_before() {
+        let delay = 4;
+        let sims = |d: usize| PlantSim::new(Box::new(spec()), 0.01, 0.2, 9).delaying(d);
+        let (mut plain, mut late) = (sims(0), sims(delay));
+        let (mut a, mut b) = (PlantState::default(), PlantState::default());
+        let mut readings = Vec::new();
+        for k in 0..50u64 {
+            let u = [10.0 + 5.0 * (k as f64 * 0.3).sin()];
+            plain.sample(k, 0, &u, &mut a);
+            late.sample(k, 0, &u, &mut b);
+            readings.push(a.y[0]);
+            let want = readings[(k as usize).saturating_sub(delay)];
+            assert_eq!(b.y[0].to_bits(), want.to_bits(), "sample {k}");
+            assert_eq!(a.x_true, b.x_true);
+            plain.advance(&u, 0.01);
+            late.advance(&u, 0.01);
+        }
+        assert_ne!(readings[10], readings[10 - delay]);
     }
 
     #[test]

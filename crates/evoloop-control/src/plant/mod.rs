@@ -39,6 +39,7 @@ crate::kinds! {
         pub safe_command: Option<f64>,
         pub command_timeout_periods: Option<u32>,
         pub publish_truth: Option<bool>,
+        pub sensor_delay: Option<u32>,
     };
     two_mass => TwoMass(TwoMassSpec),
     arm => Arm(ArmSpec),
@@ -204,9 +205,18 @@ pub struct PlantSpec {
     /// judging the run; false sends NaN there, as a real plant that has no truth to send, which
     /// proves that no law reads it.
     pub publish_truth: bool,
+    /// Samples the measurement lags the state it is of (`plant.sensor_delay`): a sample's `y`
+    /// is the reading of `sensor_delay` periods before (a transport or filter delay in the
+    /// sensor chain). Simulated by the plants evoloop runs; declared by an external plant for
+    /// its controller's estimator, which predicts across it.
+    pub sensor_delay: u32,
     #[serde(flatten)]
     pub model: PlantModel,
 }
+
+/// The most samples a plant's measurement may lag (`plant.sensor_delay`): the estimators hold
+/// that many inputs in fixed arrays to predict across it.
+pub const MAX_SENSOR_DELAY: usize = 1000;
 
 impl PlantSpec {
     /// Validate the `[plant]` table against the control period and the reference.
@@ -249,6 +259,13 @@ impl PlantSpec {
                 "an external plant's process decides what its samples carry (the plant contract)",
             );
         }
+        let sensor_delay = raw.sensor_delay.unwrap_or(0);
+        if sensor_delay as usize > MAX_SENSOR_DELAY {
+            return check.fail(
+                "plant.sensor_delay",
+                format!("{sensor_delay} samples: at most {MAX_SENSOR_DELAY}"),
+            );
+        }
         let kind = raw.kind;
         let cx = PlantContext {
             step,
@@ -262,6 +279,7 @@ impl PlantSpec {
             safe_command,
             command_timeout_periods,
             publish_truth,
+            sensor_delay,
             model: raw.validate_kind(kind, check, &cx)?,
         })
     }
@@ -280,6 +298,15 @@ impl PlantSpec {
     /// The plant model, with the configured parameters.
     pub fn build(&self) -> Box<dyn Plant> {
         self.model.config().build()
+    }
+
+    /// The plant simulated as configured: its model, integration step, sensor (noise drawn
+    /// from `seed`, delay) and whether samples carry the truth. The one recipe of the plant
+    /// process and of the in-process simulation.
+    pub fn simulation(&self, seed: u64) -> PlantSim {
+        PlantSim::new(self.build(), self.step, self.noise_std, seed)
+            .publishing_truth(self.publish_truth)
+            .delaying(self.sensor_delay as usize)
     }
 }
 
@@ -326,6 +353,42 @@ pub struct PlantSim {
     noise: Option<(Normal<f64>, ChaCha8Rng)>,
     y_clean: Vec<f64>,
     publish_truth: bool,
+    delay: Readings,
+}
+
+/// The sensor's delay line: the last `delay + 1` readings, the oldest of which a sample
+/// carries. Allocated once (`PlantSim::delaying`).
+#[derive(Default)]
+struct Readings {
+    delay: usize,
+    /// `delay + 1` rows of `MAX_JOINTS` readings, a ring.
+    rows: Vec<[f64; MAX_JOINTS]>,
+    /// The row the next reading goes into.
+    next: usize,
+    /// Whether a reading was taken: before one, there is no older reading to give.
+    started: bool,
+}
+
+impl Readings {
+    /// Take the reading `y`, and leave in it the one of `delay` samples before (before the
+    /// first reading is that old, the first: a sensor at rest before the run starts reads
+    /// what it read first).
+    fn delay(&mut self, y: &mut [f64]) {
+        if self.delay == 0 {
+            return;
+        }
+        let n = y.len();
+        if !self.started {
+            for row in &mut self.rows {
+                row[..n].copy_from_slice(y);
+            }
+            self.started = true;
+        }
+        self.rows[self.next][..n].copy_from_slice(y);
+        self.next = (self.next + 1) % self.rows.len();
+        // The oldest row is the one written `delay` readings ago, and the next to be replaced.
+        y.copy_from_slice(&self.rows[self.next][..n]);
+    }
 }
 
 impl PlantSim {
@@ -350,7 +413,20 @@ impl PlantSim {
             rk: Rk4::new(n),
             noise,
             publish_truth: true,
+            delay: Readings::default(),
         }
+    }
+
+    /// Each sample's measurement is the reading of `samples` periods before (the sensor's
+    /// delay, `plant.sensor_delay`; 0, the default, for none).
+    pub fn delaying(mut self, samples: usize) -> Self {
+        self.delay = Readings {
+            delay: samples,
+            rows: vec![[0.0; MAX_JOINTS]; samples + 1],
+            next: 0,
+            started: false,
+        };
+        self
     }
 
     /// Samples carry the truth fields (true, the default) or NaN in them (`plant.publish_truth`).
@@ -407,6 +483,7 @@ impl PlantSim {
             msg.y[i] = self.y_clean[i] + e;
         }
         p.measure(&mut msg.y[..ny.min(MAX_JOINTS)]);
+        self.delay.delay(&mut msg.y[..ny.min(MAX_JOINTS)]);
         let nu = u_applied.len().min(MAX_JOINTS);
         msg.u_applied[..nu].copy_from_slice(&u_applied[..nu]);
     }
