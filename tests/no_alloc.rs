@@ -239,7 +239,10 @@ fn computed_torque_on_estimated_velocities_allocates_nothing() {
     let n = model.dof();
     for source in [
         VelocitySource::Filtered { cutoff_hz: 50.0 },
-        VelocitySource::Observer { bandwidth_hz: 50.0 },
+        VelocitySource::Observer {
+            bandwidth_hz: 50.0,
+            delay: 0,
+        },
     ] {
         let mut ct = ComputedTorque::new(model.clone(), &vec![100.0; 2 * n], 0.03)
             .with_velocity(source, 0.001);

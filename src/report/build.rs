@@ -13,6 +13,7 @@ use crate::msg::ParamCode;
 use crate::sim::cost::TrackingCost;
 use crate::sim::JointTraces;
 use crate::MAX_JOINTS;
+use std::collections::VecDeque;
 use std::path::Path;
 
 /// Cost per repetition of a repeating (square-wave) reference, one sample at a time:
@@ -305,8 +306,13 @@ fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
         .then(|| PlotColumns::new(extent.rows, width));
     let (mut e, mut r, mut y, mut u) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut values = Vec::with_capacity(width);
+    // A sensor `late` samples late (`plant.sensor_delay`) reads the output of `late` rows
+    // before: each reading is judged at that row's time, against that row's reference, and the
+    // first `late` readings (of before the run) are not judged.
+    let late = scn.plant.sensor_delay as usize;
+    let mut earlier: VecDeque<(f64, Vec<f64>)> = VecDeque::with_capacity(late + 1);
+    let mut r_then = Vec::new();
     while let Some(row) = rows.next().map_err(err)? {
-        let t = row[ti];
         let pick = |out: &mut Vec<f64>, cols: &[(String, usize)]| {
             out.clear();
             out.extend(cols.iter().map(|c| row[c.1]));
@@ -314,23 +320,42 @@ fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
         pick(&mut r, &refs);
         pick(&mut y, &ys);
         pick(&mut u, &us);
+        let t_row = row[ti];
+        let judged_at = if late == 0 {
+            Some(t_row)
+        } else {
+            earlier.push_back((t_row, r.clone()));
+            (earlier.len() > late)
+                .then(|| earlier.pop_front())
+                .flatten()
+                .map(|(t, r)| {
+                    r_then = r;
+                    t
+                })
+        };
+        let r_judged = if late == 0 { &r } else { &r_then };
         e.clear();
-        e.extend((0..n_track).map(|j| r[j] - y[j]));
-        if let Some(acc) = response.as_mut() {
-            acc.add(t, r[0], y[0]);
+        match judged_at {
+            Some(_) => e.extend((0..n_track).map(|j| r_judged[j] - y[j])),
+            None => e.resize(n_track, f64::NAN),
         }
-        tracking.add(&e);
-        if t >= 1.0 {
-            after_1s.add(&e);
-        }
-        if identify {
-            phases.add(t, &e);
-        }
-        if let Some(w) = windowed.as_mut() {
-            w.add(t, &e);
-        }
-        if let Some(reps) = reps.as_mut() {
-            reps.add(t, &r, &y, &u);
+        if let Some(t) = judged_at {
+            if let Some(acc) = response.as_mut() {
+                acc.add(t, r_judged[0], y[0]);
+            }
+            tracking.add(&e);
+            if t >= 1.0 {
+                after_1s.add(&e);
+            }
+            if identify {
+                phases.add(t, &e);
+            }
+            if let Some(w) = windowed.as_mut() {
+                w.add(t, &e);
+            }
+            if let Some(reps) = reps.as_mut() {
+                reps.add(t, r_judged, &y, &u);
+            }
         }
         if let Some(p) = plot.as_mut() {
             values.clear();
@@ -338,7 +363,7 @@ fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
             values.extend_from_slice(&y);
             values.extend_from_slice(&u);
             values.extend_from_slice(&e[..errors]);
-            p.push(t, &values);
+            p.push(t_row, &values);
         }
     }
     let plot = plot.map(|p| {

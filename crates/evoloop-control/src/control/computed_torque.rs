@@ -175,8 +175,10 @@ impl Controller for ComputedTorque {
         let (kp, kv) = self.gains.split_at(n);
         self.qd
             .copy_from_slice(self.velocity.read(state, n, Some(&self.model)));
+        // On a late sensor the observer's prediction of the present, else the measurement.
+        let q = self.velocity.predicted_positions().unwrap_or(&state.y[..n]);
         for i in 0..n {
-            self.q[i] = state.y[i];
+            self.q[i] = q[i];
             let e = sp.q[i] - self.q[i];
             let ed = sp.qd[i] - self.qd[i];
             self.acc[i] = sp.qdd[i] + kv[i] * ed + kp[i] * e;
@@ -302,7 +304,7 @@ pub fn validate(
             "computed_torque",
             t.velocity,
             t.velocity_cutoff_hz,
-            cx.period,
+            cx,
             true,
         )?,
     })

@@ -365,6 +365,15 @@ pub struct VelocityObserver {
     qdd: [f64; MAX_JOINTS],
     data: Data,
     last_seq: Option<u64>,
+    /// Samples the measured positions lag (the plant's `sensor_delay`): the estimate above is
+    /// of the sample the last measurement is of, `ahead` the present's, predicted by the model
+    /// over the torques applied since (`torques`, a ring whose oldest is at `head`, allocated
+    /// once). d forward-dynamics passes a cycle.
+    delay: usize,
+    torques: Vec<[f64; MAX_JOINTS]>,
+    head: usize,
+    ahead_q: [f64; MAX_JOINTS],
+    ahead_qd: [f64; MAX_JOINTS],
 }
 
 impl VelocityObserver {
@@ -381,7 +390,25 @@ impl VelocityObserver {
             qdd: [0.0; MAX_JOINTS],
             data: model.data(),
             last_seq: None,
+            delay: 0,
+            torques: Vec::new(),
+            head: 0,
+            ahead_q: [0.0; MAX_JOINTS],
+            ahead_qd: [0.0; MAX_JOINTS],
         }
+    }
+
+    /// For positions measured `delay` samples late (at most `MAX_SENSOR_DELAY`): the observer
+    /// runs that far behind and predicts the present across the torques since.
+    pub fn delayed_by(mut self, delay: usize) -> Self {
+        assert!(
+            delay <= MAX_SENSOR_DELAY,
+            "a sensor delay of {delay} samples"
+        );
+        self.delay = delay;
+        self.torques = vec![[0.0; MAX_JOINTS]; delay];
+        self.head = 0;
+        self
     }
 
     /// The correction's gains (m1 on the position, m2 on the velocity, 1/s) that put both
@@ -398,17 +425,22 @@ impl VelocityObserver {
     pub fn update(&mut self, model: &Model, state: &PlantState) -> &[f64] {
         let n = self.n;
         match samples_since(self.last_seq, state.seq) {
-            Some(0) => return &self.qd[..n],
+            Some(0) => return self.estimate(),
             Some(k) if k > MAX_OBSERVER_GAP => {
                 let dt = k as f64 * self.period;
                 for i in 0..n {
                     self.qd[i] = (state.y[i] - self.q[i]) / dt;
                     self.q[i] = state.y[i];
                 }
+                // Over the gap the plant held one command: the torques since are that one.
+                for tau in &mut self.torques {
+                    tau[..n].copy_from_slice(&state.u_applied[..n]);
+                }
             }
             Some(k) => {
                 for _ in 0..k {
-                    self.predict(model, &state.u_applied[..n]);
+                    let tau = self.delayed(&state.u_applied[..n]);
+                    self.predict(model, &tau[..n]);
                 }
                 for i in 0..n {
                     let e = state.y[i] - self.q[i];
@@ -422,7 +454,39 @@ impl VelocityObserver {
             }
         }
         self.last_seq = Some(state.seq);
-        &self.qd[..n]
+        self.predict_ahead(model);
+        self.estimate()
+    }
+
+    /// Record `tau`, the torques of the newest sample, and return those of `delay` samples
+    /// before it (`tau` itself without a delay; zero, a rest, before the run's are that old).
+    fn delayed(&mut self, tau: &[f64]) -> [f64; MAX_JOINTS] {
+        let mut out = [0.0; MAX_JOINTS];
+        if self.delay == 0 {
+            out[..tau.len()].copy_from_slice(tau);
+            return out;
+        }
+        out = self.torques[self.head];
+        self.torques[self.head][..tau.len()].copy_from_slice(tau);
+        self.head = (self.head + 1) % self.delay;
+        out
+    }
+
+    /// The present's estimate: the delayed one stepped by the model over the torques of the
+    /// last `delay` samples, oldest first (nothing to do on time).
+    fn predict_ahead(&mut self, model: &Model) {
+        if self.delay == 0 {
+            return;
+        }
+        let n = self.n;
+        let (q, qd) = (self.q, self.qd);
+        for i in 0..self.delay {
+            let tau = self.torques[(self.head + i) % self.delay];
+            self.predict(model, &tau[..n]);
+        }
+        self.ahead_q = self.q;
+        self.ahead_qd = self.qd;
+        (self.q, self.qd) = (q, qd);
     }
 
     /// One period of the model's motion under the held torques. A model whose mass matrix is
@@ -444,14 +508,22 @@ impl VelocityObserver {
         }
     }
 
-    /// The last velocity estimate.
+    /// The last velocity estimate (of the present, across a sensor delay).
     pub fn estimate(&self) -> &[f64] {
-        &self.qd[..self.n]
+        if self.delay > 0 {
+            &self.ahead_qd[..self.n]
+        } else {
+            &self.qd[..self.n]
+        }
     }
 
-    /// The last position estimate.
+    /// The last position estimate (of the present, across a sensor delay).
     pub fn positions(&self) -> &[f64] {
-        &self.q[..self.n]
+        if self.delay > 0 {
+            &self.ahead_q[..self.n]
+        } else {
+            &self.q[..self.n]
+        }
     }
 }
 
@@ -465,8 +537,9 @@ pub enum VelocitySource {
     /// Measured positions differenced and low-passed (`VelocityFilter`) at this cutoff, Hz.
     Filtered { cutoff_hz: f64 },
     /// The law's own model predicting from the applied torques, corrected by the measured
-    /// positions (`VelocityObserver`), the error's double pole at this bandwidth, Hz.
-    Observer { bandwidth_hz: f64 },
+    /// positions (`VelocityObserver`), the error's double pole at this bandwidth, Hz, the
+    /// positions `delay` samples late (the plant's `sensor_delay`).
+    Observer { bandwidth_hz: f64, delay: usize },
 }
 
 impl VelocitySource {
@@ -493,9 +566,15 @@ impl Velocities {
             (VelocitySource::Filtered { cutoff_hz }, _) => {
                 Velocities::Filtered(VelocityFilter::new(n, period, cutoff_hz))
             }
-            (VelocitySource::Observer { bandwidth_hz }, Some(m)) => {
-                Velocities::Observer(Box::new(VelocityObserver::new(m, period, bandwidth_hz)))
-            }
+            (
+                VelocitySource::Observer {
+                    bandwidth_hz,
+                    delay,
+                },
+                Some(m),
+            ) => Velocities::Observer(Box::new(
+                VelocityObserver::new(m, period, bandwidth_hz).delayed_by(delay),
+            )),
             (VelocitySource::Observer { .. }, None) => {
                 panic!("a velocity observer needs the law's model (its config refuses it without)")
             }
@@ -515,6 +594,16 @@ impl Velocities {
             (Velocities::Filtered(f), _) => f.update(state),
             (Velocities::Observer(o), Some(m)) => o.update(m, state),
             (Velocities::Observer(o), None) => o.estimate(),
+        }
+    }
+
+    /// The joint positions a law acts on where they are not the measured ones: an observer's
+    /// prediction across a late sensor (after `read` on the same sample). None: the
+    /// measurement `y` (on time, or no model to predict with).
+    pub fn predicted_positions(&self) -> Option<&[f64]> {
+        match self {
+            Velocities::Observer(o) if o.delay > 0 => Some(o.positions()),
+            _ => None,
         }
     }
 }
@@ -686,6 +775,39 @@ mod tests {
         }
         // After 300 samples (p^300 ~ 1e-16) the velocity error is gone.
         assert!(e[1].abs() < 1e-12, "{e:?}");
+    }
+
+    /// Positions measured `delay` samples late: the observer told of it runs behind and steps
+    /// its (here exact) model over the torques since, so on a free joint under a varying torque
+    /// it finds the present position and velocity to round-off; one not told is a motion over
+    /// the delay behind. An off-by-one in the torques would show as an error of T² tau / izz.
+    #[test]
+    fn the_observer_predicts_across_a_late_sensor() {
+        let (model, t, fc, delay) = (free_joint(), 0.001, 20.0, 12);
+        let mut told = VelocityObserver::new(&model, t, fc).delayed_by(delay);
+        let mut blind = VelocityObserver::new(&model, t, fc);
+        let izz = 0.5;
+        let (mut q, mut v) = (0.3, 0.0);
+        let mut readings = vec![q; delay];
+        let mut tau_applied = 0.0;
+        let (mut worst_told, mut worst_blind) = (0.0f64, 0.0f64);
+        for seq in 0..800u64 {
+            readings.push(q);
+            let state = sample(seq, &[readings[readings.len() - 1 - delay]], tau_applied);
+            let qd = told.update(&model, &state)[0];
+            blind.update(&model, &state);
+            if seq > 600 {
+                worst_told = worst_told.max((told.positions()[0] - q).abs() + (qd - v).abs() * t);
+                worst_blind = worst_blind.max((blind.positions()[0] - q).abs());
+            }
+            let tau = 0.2 * (0.01 * seq as f64).sin() + 0.05;
+            let acc = tau / izz;
+            q += v * t + 0.5 * acc * t * t;
+            v += acc * t;
+            tau_applied = tau;
+        }
+        assert!(worst_told < 1e-9, "told of the delay: {worst_told}");
+        assert!(worst_blind > 1e-4, "not told: {worst_blind}");
     }
 
     /// A gap of samples is predicted across with the held torque: the estimate after the gap

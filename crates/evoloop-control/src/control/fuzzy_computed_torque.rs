@@ -580,7 +580,7 @@ pub fn validate(
             "fuzzy_computed_torque",
             t.velocity,
             t.velocity_cutoff_hz,
-            cx.period,
+            cx,
             false,
         )?,
         loaded,

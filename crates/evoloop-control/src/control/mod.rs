@@ -260,15 +260,17 @@ pub const DEFAULT_VELOCITY_CUTOFF_HZ: f64 = 50.0;
 /// A joint-space law's velocity source from its `velocity` and `velocity_cutoff_hz` keys
 /// (under `controller.<law>`): the true velocities unless "filtered" or "observer", whose
 /// cutoff (the low-pass's, or the observer's bandwidth) must lie below the sampling's Nyquist
-/// frequency 1 / (2 period). Only a law with a model of its own (`has_model`) runs an observer.
+/// frequency 1 / (2 period). Only a law with a model of its own (`has_model`) runs an observer,
+/// which predicts across the plant's declared sensor delay.
 pub(crate) fn velocity_source(
     check: &Check,
     law: &str,
     velocity: Option<VelocityKey>,
     cutoff_hz: Option<f64>,
-    period: f64,
+    cx: &ControllerContext,
     has_model: bool,
 ) -> Result<estimator::VelocitySource, ConfigError> {
+    let period = cx.period;
     let key = format!("controller.{law}.velocity_cutoff_hz");
     let velocity = velocity.unwrap_or(VelocityKey::True);
     if velocity == VelocityKey::True {
@@ -295,7 +297,10 @@ pub(crate) fn velocity_source(
         );
     }
     Ok(match velocity {
-        VelocityKey::Observer => estimator::VelocitySource::Observer { bandwidth_hz: fc },
+        VelocityKey::Observer => estimator::VelocitySource::Observer {
+            bandwidth_hz: fc,
+            delay: cx.sensor_delay,
+        },
         _ => estimator::VelocitySource::Filtered { cutoff_hz: fc },
     })
 }

@@ -128,7 +128,7 @@ pub fn validate(
             "pd_servo",
             t.velocity,
             t.velocity_cutoff_hz,
-            cx.period,
+            cx,
             false,
         )?,
     })
