@@ -243,6 +243,11 @@ fn computed_torque_on_estimated_velocities_allocates_nothing() {
             bandwidth_hz: 50.0,
             delay: 0,
         },
+        // Across a late sensor: the torque ring and the prediction to the present.
+        VelocitySource::Observer {
+            bandwidth_hz: 50.0,
+            delay: 10,
+        },
     ] {
         let mut ct = ComputedTorque::new(model.clone(), &vec![100.0; 2 * n], 0.03)
             .with_velocity(source, 0.001);
