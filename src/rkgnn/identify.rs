@@ -782,9 +782,10 @@ pub fn update_with_torques(
 ) -> Option<Vec<f64>> {
     let n = layout.n;
     let g = layout.gains?;
-    // The torques through the same low-pass as the signals (`Trajectory::filtered`).
-    let tau = data.filter_alike(torques);
-    let data = &data.filtered();
+    // The torques through the same low-pass as the signals (`Trajectory::filtered`), where
+    // the fit reads them.
+    let tau = data.filter_alike_for(torques, stride);
+    let data = &data.filtered_for(stride);
     let cols: Vec<usize> = weight_indices(layout)
         .into_iter()
         .filter(|k| !(g..g + 2 * n).contains(k))

@@ -218,8 +218,8 @@ impl LiveIdentify {
             floor,
         );
         // The fresh data through the fit's low-pass too, so that q'' and tau are filtered alike.
-        let fresh_tau = fresh.filter_alike(&fresh_tau);
-        let fresh = fresh.filtered();
+        let fresh_tau = fresh.filter_alike_for(&fresh_tau, self.stride);
+        let fresh = fresh.filtered_for(self.stride);
         let in_err = prediction_rms(layout, in_service.params(), &fresh, &fresh_tau, self.stride);
         let cand_err = candidate.as_deref().map_or(f64::INFINITY, |p| {
             prediction_rms(layout, p, &fresh, &fresh_tau, self.stride)
