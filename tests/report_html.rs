@@ -160,7 +160,11 @@ fn links_planted_during_a_run_are_neither_embedded_nor_written_through() {
     assert!(!page.contains("<a href=\"published.jsonl\">"));
     // The sets went on being journalled, into the journal's own file (the planted links replaced
     // its name, so the count is the optimiser's): the run is whole.
-    assert!(status.success(), "{status}");
+    assert!(
+        status.success(),
+        "{status}: {}",
+        common::spawned_stderr(&dir)
+    );
     let s = common::json(&dir.join("summary.json"));
     assert!(s["optimiser_published"].as_u64().unwrap() >= 8, "{s}");
 }

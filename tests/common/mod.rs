@@ -154,6 +154,9 @@ pub fn forget_prefix(prefix: &str) {
 
 /// Start `evoloop run` in the background with its own prefix and run id (stdout discarded).
 pub fn spawn_run(config: &Path, out: &Path, prefix: &str, run_id: &str) -> std::process::Child {
+    // What the run says on stderr, beside its folder, for a test's failure message
+    // (`spawned_stderr`): a run that fails says why.
+    let log = std::fs::File::create(spawned_log(out)).expect("create the run's stderr log");
     Command::new(evoloop())
         .arg("run")
         .arg(config)
@@ -161,9 +164,20 @@ pub fn spawn_run(config: &Path, out: &Path, prefix: &str, run_id: &str) -> std::
         .arg(out)
         .args(["--ipc-prefix", prefix, "--run-id", run_id, "--quiet"])
         .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
+        .stderr(log)
         .spawn()
         .expect("start evoloop")
+}
+
+fn spawned_log(out: &Path) -> PathBuf {
+    let mut name = out.as_os_str().to_owned();
+    name.push(".stderr");
+    PathBuf::from(name)
+}
+
+/// The stderr of a run started by `spawn_run` into `out`, so far.
+pub fn spawned_stderr(out: &Path) -> String {
+    std::fs::read_to_string(spawned_log(out)).unwrap_or_default()
 }
 
 /// Pid of the run's process whose binary is `binary` (e.g. "evoloop-plant"), waiting up to 20 s
