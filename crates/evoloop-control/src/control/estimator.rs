@@ -19,7 +19,7 @@
 
 use crate::dynamics::{Data, Model};
 use crate::msg::{PlantState, MAX_JOINTS};
-use crate::plant::{LinearModel, MAX_LINEAR_STATES, MAX_SENSOR_DELAY};
+use crate::plant::{DelayLine, LinearModel, MAX_LINEAR_STATES};
 use nalgebra::DMatrix;
 
 const N: usize = MAX_LINEAR_STATES;
@@ -158,27 +158,21 @@ pub struct Kalman {
     /// The input that reached the plant over the period before the last sample, as estimated.
     v_prev: f64,
     last_seq: Option<u64>,
-    /// Samples the measurement lags the state (the plant's declared `sensor_delay`): the filter
-    /// runs that far behind, on the samples its measurements are of, and `ahead` predicts the
-    /// present from `x` over the inputs applied since, the d-step predictor of the delayed
-    /// measurement's Kalman filter. The gains are the undelayed filter's; with the model right,
-    /// the loop's poles are the state feedback's and the filter's, whatever the delay.
-    delay: usize,
-    /// The inputs of the last `delay` samples (`u_applied`), a ring whose oldest is at `head`.
-    inputs: [f64; MAX_SENSOR_DELAY],
-    head: usize,
+    /// The inputs (`u_applied`) of the last d samples, d the samples the measurement lags the
+    /// state (the plant's declared `sensor_delay`): the filter runs that far behind, on the
+    /// samples its measurements are of, and `ahead` predicts the present from `x` over these
+    /// inputs, the d-step predictor of the delayed measurement's Kalman filter. The gains are
+    /// the undelayed filter's; with the model right, the loop's poles are the state feedback's
+    /// and the filter's, whatever the delay.
+    inputs: DelayLine<f64>,
     /// The estimate of the state at the last sample: `x` predicted over `inputs`.
     ahead: [f64; N],
 }
 
 impl Kalman {
     /// The filter with `gains`, starting from the state 0 (a rest the first measurements
-    /// correct), for measurements `delay` samples old (at most `MAX_SENSOR_DELAY`).
+    /// correct), for measurements `delay` samples old.
     pub fn new(gains: &KalmanGains, delay: usize) -> Self {
-        assert!(
-            delay <= MAX_SENSOR_DELAY,
-            "a sensor delay of {delay} samples"
-        );
         let model = &gains.model;
         let n = model.n();
         let (d, f, g) = model.feedthrough();
@@ -200,9 +194,7 @@ impl Kalman {
             x: [0.0; N],
             v_prev: 0.0,
             last_seq: None,
-            delay,
-            inputs: [0.0; MAX_SENSOR_DELAY],
-            head: 0,
+            inputs: DelayLine::new(delay, 0.0),
             ahead: [0.0; N],
         };
         for (i, row) in k.a.iter_mut().enumerate().take(n) {
@@ -223,7 +215,9 @@ impl Kalman {
             Some(0) => return &self.ahead[..n],
             Some(k) => {
                 for _ in 0..k {
-                    let u = self.delayed(state.u_applied[0]);
+                    // The input of the sample the delayed measurement is of (0, a rest, before
+                    // the run's first inputs are that old).
+                    let u = self.inputs.push(state.u_applied[0]);
                     self.predict(u);
                 }
             }
@@ -245,38 +239,27 @@ impl Kalman {
         &self.ahead[..self.n]
     }
 
-    /// Record `u`, the input of the newest sample, and return the one of `delay` samples
-    /// before it: the input of the sample the delayed measurement is of (`u` itself without a
-    /// delay; 0, a rest, before the run's first inputs are that old).
-    fn delayed(&mut self, u: f64) -> f64 {
-        if self.delay == 0 {
-            return u;
+    /// `ahead`: `x` through the model over the inputs of the last d samples, oldest first.
+    fn predict_ahead(&mut self) {
+        self.ahead = self.x;
+        for i in 0..self.inputs.len() {
+            self.ahead = self.step(&self.ahead, self.inputs.get(i));
         }
-        let oldest = std::mem::replace(&mut self.inputs[self.head], u);
-        self.head = (self.head + 1) % self.delay;
-        oldest
     }
 
-    /// `ahead`: `x` through the model over the inputs of the last `delay` samples, oldest first.
-    fn predict_ahead(&mut self) {
+    /// A x + B u.
+    fn step(&self, x: &[f64; N], u: f64) -> [f64; N] {
         let n = self.n;
-        self.ahead = self.x;
-        for i in 0..self.delay {
-            let u = self.inputs[(self.head + i) % self.delay];
-            let mut next = [0.0; N];
-            for (r, z) in next.iter_mut().enumerate().take(n) {
-                *z = (0..n).map(|j| self.a[r][j] * self.ahead[j]).sum::<f64>() + self.b[r] * u;
-            }
-            self.ahead = next;
+        let mut next = [0.0; N];
+        for (i, z) in next.iter_mut().enumerate().take(n) {
+            *z = (0..n).map(|j| self.a[i][j] * x[j]).sum::<f64>() + self.b[i] * u;
         }
+        next
     }
 
     fn predict(&mut self, u: f64) {
         let n = self.n;
-        let mut next = [0.0; N];
-        for (i, z) in next.iter_mut().enumerate().take(n) {
-            *z = (0..n).map(|j| self.a[i][j] * self.x[j]).sum::<f64>() + self.b[i] * u;
-        }
+        let next = self.step(&self.x, u);
         self.v_prev = (0..n).map(|j| self.f[j] * self.x[j]).sum::<f64>() + self.g * u;
         self.x = next;
     }
@@ -337,6 +320,13 @@ impl VelocityFilter {
     }
 }
 
+/// A joint vector's first values in a fixed array (the rest 0), as the delay lines hold them.
+fn joint_values(v: &[f64]) -> [f64; MAX_JOINTS] {
+    let mut out = [0.0; MAX_JOINTS];
+    out[..v.len()].copy_from_slice(v);
+    out
+}
+
 /// The most samples a `VelocityObserver` predicts across in one cycle (one forward-dynamics pass
 /// each, about a microsecond for seven joints).
 const MAX_OBSERVER_GAP: u64 = 20;
@@ -365,13 +355,11 @@ pub struct VelocityObserver {
     qdd: [f64; MAX_JOINTS],
     data: Data,
     last_seq: Option<u64>,
-    /// Samples the measured positions lag (the plant's `sensor_delay`): the estimate above is
-    /// of the sample the last measurement is of, `ahead` the present's, predicted by the model
-    /// over the torques applied since (`torques`, a ring whose oldest is at `head`, allocated
-    /// once). d forward-dynamics passes a cycle.
-    delay: usize,
-    torques: Vec<[f64; MAX_JOINTS]>,
-    head: usize,
+    /// The torques of the last d samples, d the samples the measured positions lag (the
+    /// plant's `sensor_delay`): the estimate above is of the sample the last measurement is of,
+    /// `ahead` the present's, predicted by the model over these torques (d forward-dynamics
+    /// passes a cycle).
+    torques: DelayLine<[f64; MAX_JOINTS]>,
     ahead_q: [f64; MAX_JOINTS],
     ahead_qd: [f64; MAX_JOINTS],
 }
@@ -390,24 +378,16 @@ impl VelocityObserver {
             qdd: [0.0; MAX_JOINTS],
             data: model.data(),
             last_seq: None,
-            delay: 0,
-            torques: Vec::new(),
-            head: 0,
+            torques: DelayLine::new(0, [0.0; MAX_JOINTS]),
             ahead_q: [0.0; MAX_JOINTS],
             ahead_qd: [0.0; MAX_JOINTS],
         }
     }
 
-    /// For positions measured `delay` samples late (at most `MAX_SENSOR_DELAY`): the observer
+    /// For positions measured `delay` samples late: the observer
     /// runs that far behind and predicts the present across the torques since.
     pub fn delayed_by(mut self, delay: usize) -> Self {
-        assert!(
-            delay <= MAX_SENSOR_DELAY,
-            "a sensor delay of {delay} samples"
-        );
-        self.delay = delay;
-        self.torques = vec![[0.0; MAX_JOINTS]; delay];
-        self.head = 0;
+        self.torques = DelayLine::new(delay, [0.0; MAX_JOINTS]);
         self
     }
 
@@ -433,13 +413,13 @@ impl VelocityObserver {
                     self.q[i] = state.y[i];
                 }
                 // Over the gap the plant held one command: the torques since are that one.
-                for tau in &mut self.torques {
-                    tau[..n].copy_from_slice(&state.u_applied[..n]);
-                }
+                self.torques.fill(joint_values(&state.u_applied[..n]));
             }
             Some(k) => {
                 for _ in 0..k {
-                    let tau = self.delayed(&state.u_applied[..n]);
+                    // The torques of the sample the late measurement is of (zero, a rest,
+                    // before the run's are that old).
+                    let tau = self.torques.push(joint_values(&state.u_applied[..n]));
                     self.predict(model, &tau[..n]);
                 }
                 for i in 0..n {
@@ -458,30 +438,16 @@ impl VelocityObserver {
         self.estimate()
     }
 
-    /// Record `tau`, the torques of the newest sample, and return those of `delay` samples
-    /// before it (`tau` itself without a delay; zero, a rest, before the run's are that old).
-    fn delayed(&mut self, tau: &[f64]) -> [f64; MAX_JOINTS] {
-        let mut out = [0.0; MAX_JOINTS];
-        if self.delay == 0 {
-            out[..tau.len()].copy_from_slice(tau);
-            return out;
-        }
-        out = self.torques[self.head];
-        self.torques[self.head][..tau.len()].copy_from_slice(tau);
-        self.head = (self.head + 1) % self.delay;
-        out
-    }
-
     /// The present's estimate: the delayed one stepped by the model over the torques of the
     /// last `delay` samples, oldest first (nothing to do on time).
     fn predict_ahead(&mut self, model: &Model) {
-        if self.delay == 0 {
+        if self.torques.is_empty() {
             return;
         }
         let n = self.n;
         let (q, qd) = (self.q, self.qd);
-        for i in 0..self.delay {
-            let tau = self.torques[(self.head + i) % self.delay];
+        for i in 0..self.torques.len() {
+            let tau = self.torques.get(i);
             self.predict(model, &tau[..n]);
         }
         self.ahead_q = self.q;
@@ -510,7 +476,7 @@ impl VelocityObserver {
 
     /// The last velocity estimate (of the present, across a sensor delay).
     pub fn estimate(&self) -> &[f64] {
-        if self.delay > 0 {
+        if !self.torques.is_empty() {
             &self.ahead_qd[..self.n]
         } else {
             &self.qd[..self.n]
@@ -519,7 +485,7 @@ impl VelocityObserver {
 
     /// The last position estimate (of the present, across a sensor delay).
     pub fn positions(&self) -> &[f64] {
-        if self.delay > 0 {
+        if !self.torques.is_empty() {
             &self.ahead_q[..self.n]
         } else {
             &self.q[..self.n]
@@ -602,7 +568,7 @@ impl Velocities {
     /// measurement `y` (on time, or no model to predict with).
     pub fn predicted_positions(&self) -> Option<&[f64]> {
         match self {
-            Velocities::Observer(o) if o.delay > 0 => Some(o.positions()),
+            Velocities::Observer(o) if !o.torques.is_empty() => Some(o.positions()),
             _ => None,
         }
     }

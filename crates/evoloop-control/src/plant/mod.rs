@@ -5,11 +5,13 @@
 //! The same `PlantSim` runs in the plant process, in the in-process simulation used by tests and
 //! (in later issues) in the optimiser's model evaluations.
 
+pub mod delay;
 pub mod gill;
 pub mod integrator;
 pub mod linear;
 
 pub use arm::Arm;
+pub use delay::DelayLine;
 pub use integrator::Rk4;
 pub use linear::{LinearModel, MAX_LINEAR_STATES};
 pub use two_mass::TwoMass;
@@ -214,8 +216,8 @@ pub struct PlantSpec {
     pub model: PlantModel,
 }
 
-/// The most samples a plant's measurement may lag (`plant.sensor_delay`): the estimators hold
-/// that many inputs in fixed arrays to predict across it.
+/// The most samples a plant's measurement may lag (`plant.sensor_delay`): the estimators
+/// predict across the delay every cycle, one model step a sample.
 pub const MAX_SENSOR_DELAY: usize = 1000;
 
 impl PlantSpec {
@@ -353,42 +355,10 @@ pub struct PlantSim {
     noise: Option<(Normal<f64>, ChaCha8Rng)>,
     y_clean: Vec<f64>,
     publish_truth: bool,
-    delay: Readings,
-}
-
-/// The sensor's delay line: the last `delay + 1` readings, the oldest of which a sample
-/// carries. Allocated once (`PlantSim::delaying`).
-#[derive(Default)]
-struct Readings {
-    delay: usize,
-    /// `delay + 1` rows of `MAX_JOINTS` readings, a ring.
-    rows: Vec<[f64; MAX_JOINTS]>,
-    /// The row the next reading goes into.
-    next: usize,
-    /// Whether a reading was taken: before one, there is no older reading to give.
-    started: bool,
-}
-
-impl Readings {
-    /// Take the reading `y`, and leave in it the one of `delay` samples before (before the
-    /// first reading is that old, the first: a sensor at rest before the run starts reads
-    /// what it read first).
-    fn delay(&mut self, y: &mut [f64]) {
-        if self.delay == 0 {
-            return;
-        }
-        let n = y.len();
-        if !self.started {
-            for row in &mut self.rows {
-                row[..n].copy_from_slice(y);
-            }
-            self.started = true;
-        }
-        self.rows[self.next][..n].copy_from_slice(y);
-        self.next = (self.next + 1) % self.rows.len();
-        // The oldest row is the one written `delay` readings ago, and the next to be replaced.
-        y.copy_from_slice(&self.rows[self.next][..n]);
-    }
+    /// The sensor's readings of the last `sensor_delay` samples (`delaying`); none on time.
+    readings: DelayLine<[f64; MAX_JOINTS]>,
+    /// Whether a reading was taken: before one, the line holds no reading to give.
+    read: bool,
 }
 
 impl PlantSim {
@@ -413,19 +383,15 @@ impl PlantSim {
             rk: Rk4::new(n),
             noise,
             publish_truth: true,
-            delay: Readings::default(),
+            readings: DelayLine::new(0, [0.0; MAX_JOINTS]),
+            read: false,
         }
     }
 
     /// Each sample's measurement is the reading of `samples` periods before (the sensor's
     /// delay, `plant.sensor_delay`; 0, the default, for none).
     pub fn delaying(mut self, samples: usize) -> Self {
-        self.delay = Readings {
-            delay: samples,
-            rows: vec![[0.0; MAX_JOINTS]; samples + 1],
-            next: 0,
-            started: false,
-        };
+        self.readings = DelayLine::new(samples, [0.0; MAX_JOINTS]);
         self
     }
 
@@ -483,8 +449,24 @@ impl PlantSim {
             msg.y[i] = self.y_clean[i] + e;
         }
         p.measure(&mut msg.y[..ny.min(MAX_JOINTS)]);
-        self.delay.delay(&mut msg.y[..ny.min(MAX_JOINTS)]);
+        self.delay_reading(&mut msg.y[..ny.min(MAX_JOINTS)]);
         let nu = u_applied.len().min(MAX_JOINTS);
         msg.u_applied[..nu].copy_from_slice(&u_applied[..nu]);
+    }
+
+    /// Take the reading `y` into the delay line and leave in it the one of `sensor_delay`
+    /// samples before; before a reading is that old, the first one (a sensor at rest before the
+    /// run starts reads what it read first).
+    fn delay_reading(&mut self, y: &mut [f64]) {
+        if self.readings.is_empty() {
+            return;
+        }
+        let mut now = [0.0; MAX_JOINTS];
+        now[..y.len()].copy_from_slice(y);
+        if !self.read {
+            self.readings.fill(now);
+            self.read = true;
+        }
+        y.copy_from_slice(&self.readings.push(now)[..y.len()]);
     }
 }
