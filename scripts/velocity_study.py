@@ -74,6 +74,7 @@ def scenario(name, velocity, model, out):
     text = open(os.path.join(ROOT, "config", name + ".toml")).read()
     text = re.sub(r'(?m)^robot = "([^"]+)"',
                   lambda m: f'robot = "{os.path.join(ROOT, "config", m.group(1))}"', text)
+    text = re.sub(r'(?m)^velocity = "[a-z]+"\n', "", text)  # the file's own choice
     extra = f'velocity = "{velocity}"\n'
     if model:
         extra += f'model = "{model}"\n'

@@ -316,6 +316,7 @@ kind = "computed_torque"
 [controller.computed_torque]
 kp = [400.0, 400.0, 400.0, 400.0, 400.0, 400.0, 400.0]
 kv = [40.0, 40.0, 40.0, 40.0, 40.0, 40.0, 40.0]
+velocity = "observer"
 [reference]
 kind = "quintic"
 times = [0.2, 1.7]
@@ -353,8 +354,8 @@ duration = 2.0
         .collect();
     assert_eq!(rms.len(), 7);
     eprintln!("rms after 1 s: {rms:?}");
-    // The true model in the controller and no sensor noise: only the zero-order hold separates
-    // the arm from the trajectory. Joint 7 moves 1.3e-3 kg m^2 against the file's damping of
+    // The true model in the controller (and in its velocity observer) and no sensor noise: only
+    // the zero-order hold separates the arm from the trajectory. Joint 7 moves 1.3e-3 kg m^2 against the file's damping of
     // 0.5 N m s (time constant 2.6 ms, under three periods), so its held damping compensation
     // lags: 1.3e-3 rad rms here, 2e-5 with the damping removed (measured).
     assert!(rms[..6].iter().all(|&e| e < 2e-4), "{rms:?}");

@@ -77,22 +77,33 @@ fn withholding_the_truth_changes_no_command_of_a_law_on_sensors() {
     }
     eprintln!("on sensors, commands identical without the truth: {compared:?}");
     eprintln!("still reading the truth (said in their files or their laws' velocity key): {truth_readers:?}");
-    // The default scenario, state feedback on an lti plant, the maglev's fuzzy network and the
-    // motor's PID run on their sensors.
+    // The default scenario, state feedback on an lti plant, the maglev's fuzzy network, the
+    // motor's PID and every arm law (the servo, computed torque on its observer and on a drive's
+    // filter, fuzzy computed torque) run on their sensors.
     for name in [
         "two_mass.toml",
         "lti_pendulum.toml",
         "maglev.toml",
         "lti_motor.toml",
+        "arm3_pd.toml",
+        "arm3_ct.toml",
+        "arm7_ct.toml",
+        "industrial6_ct.toml",
+        "arm3_fuzzy_ct.toml",
+        "arm7_payload.toml",
     ] {
         assert!(compared.iter().any(|c| c == name), "{name} not compared");
     }
-    // Only the paper's full-state reproductions among the linear plants read x_true.
+    // Only the two-mass paper's full-state reproductions and the eMuPSO paper's identification
+    // experiments read the truth, and their files say so.
     for name in &truth_readers {
         let text = std::fs::read_to_string(config(name)).unwrap();
-        let labelled = text.contains("state = \"true\"") || !text.contains("state_feedback");
-        assert!(labelled, "{name} reads the truth without saying so");
+        assert!(
+            text.contains("state = \"true\"") || text.contains("velocity = \"true\""),
+            "{name} reads the truth without saying so"
+        );
     }
+    assert_eq!(truth_readers.len(), 7, "{truth_readers:?}");
 }
 
 #[test]
@@ -117,8 +128,8 @@ fn a_law_that_reads_the_truth_is_refused_when_the_plant_withholds_it() {
 }
 
 /// The shipped scenario `file` written into `dir` as `name`, its robot and model paths made
-/// absolute, `extra` under its `[controller.<law>]` table, and `publish_truth = false` in its
-/// plant table where `blind`.
+/// absolute, `extra` under its `[controller.<law>]` table (in place of the file's own velocity
+/// where `extra` gives one), and `publish_truth = false` in its plant table where `blind`.
 fn scenario_with(
     dir: &std::path::Path,
     (file, law): (&str, &str),
@@ -130,6 +141,10 @@ fn scenario_with(
     let mut text = std::fs::read_to_string(config(file)).unwrap();
     for sub in ["robots/", "models/"] {
         text = text.replace(&format!("\"{sub}"), &format!("\"{}/{sub}", root.display()));
+    }
+    if extra.contains("velocity = ") {
+        let own: Vec<&str> = text.lines().filter(|l| !l.starts_with("velocity = ")).collect();
+        text = own.join("\n") + "\n";
     }
     let table = format!("[controller.{law}]\n");
     let text = text

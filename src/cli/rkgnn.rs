@@ -3,6 +3,7 @@
 use crate::rkgnn::identify::{self, Prior, Settings};
 use crate::rkgnn::model::{ServoPrior, Start};
 use crate::rkgnn::network::RbfCounts;
+use crate::rkgnn::study::JointVelocity;
 use crate::rkgnn::{RkgnnModel, Trajectory};
 use clap::{Args, Subcommand};
 use serde_json::json;
@@ -96,6 +97,11 @@ pub struct IdentifyArgs {
     /// With --servo known: the servo's derivative gains, one per joint.
     #[arg(long, value_delimiter = ',')]
     pub kd: Option<Vec<f64>>,
+    /// With --kp and --kd: the cutoff of the drive's velocity filter k_d acted on (positions
+    /// differenced and low-passed), Hz [default: the joint velocity itself, an ideal sensor].
+    /// Without them, the run's scenario.json says (a pd_servo's velocity).
+    #[arg(long, requires = "kd")]
+    pub servo_velocity_cutoff_hz: Option<f64>,
     /// With --servo known: weigh each joint's equations by 1 / its torque rms, so that joints
     /// carrying little torque (a 7-DOF arm's wrist) are fitted as closely, relatively, as the
     /// shoulder (arm7: the only way the least squares finds a positive definite M-hat).
@@ -195,6 +201,11 @@ pub struct SelectionArgs {
     /// the rules anew without the identification's minutes.
     #[arg(long)]
     pub models_from: Option<PathBuf>,
+    /// The joint velocity the training servo and every tracking law act on: `filtered` (the
+    /// measured positions differenced and low-passed at 50 Hz, as a drive does) or `true` (the
+    /// simulator's velocities, an ideal sensor no plant has: the figures before 2026-12-03).
+    #[arg(long, value_enum, default_value_t = JointVelocity::Filtered)]
+    pub joint_velocity: JointVelocity,
     /// Threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -251,6 +262,11 @@ pub struct StudyArgs {
     #[arg(long, default_value_t = crate::rkgnn::data::SMOOTHING,
           value_parser = |s: &str| crate::node::args::seconds_in(s, 10.0))]
     pub smoothing: f64,
+    /// The joint velocity the training servo and every tracking law act on: `filtered` (the
+    /// measured positions differenced and low-passed at 50 Hz, as a drive does) or `true` (the
+    /// simulator's velocities, an ideal sensor no plant has: the figures before 2026-12-03).
+    #[arg(long, value_enum, default_value_t = JointVelocity::Filtered)]
+    pub joint_velocity: JointVelocity,
     /// Where the EA starts: `least-squares` (the shipped models' recipe) or `random` (the
     /// paper's: a stiff critically damped servo, every other weight 0, the population about
     /// it; give --evaluations).
@@ -285,13 +301,14 @@ pub struct EvalArgs {
 }
 
 /// The known servo: --kp and --kd if given, else the run's scenario.json controller (a
-/// pd_servo's gains = [kp..., kd...] and its torque limits).
+/// pd_servo's gains = [kp..., kd...], its torque limits and the velocity it acted on).
 fn known_servo(a: &IdentifyArgs) -> Result<ServoPrior, String> {
     if let (Some(kp), Some(kd)) = (&a.kp, &a.kd) {
         return Ok(ServoPrior::Known {
             kp: kp.clone(),
             kd: kd.clone(),
             limits: None,
+            velocity_cutoff_hz: a.servo_velocity_cutoff_hz,
         });
     }
     if a.kp.is_some() || a.kd.is_some() {
@@ -317,11 +334,21 @@ fn known_servo(a: &IdentifyArgs) -> Result<ServoPrior, String> {
             p.display()
         ));
     };
+    let velocity_cutoff_hz = match &c["velocity"] {
+        serde_json::Value::String(s) if s == "true" => None,
+        v => Some(v["filtered"]["cutoff_hz"].as_f64().ok_or_else(|| {
+            format!(
+                "{}: controller.velocity is {v}, not \"true\" or a filter's cutoff",
+                p.display()
+            )
+        })?),
+    };
     let n = gains.len() / 2;
     Ok(ServoPrior::Known {
         kp: gains[..n].to_vec(),
         kd: gains[n..].to_vec(),
         limits,
+        velocity_cutoff_hz,
     })
 }
 
@@ -551,6 +578,7 @@ fn selection(a: &SelectionArgs) -> Result<(), String> {
         evaluations: a.evaluations,
         period: a.period,
         models_from: a.models_from.clone(),
+        velocity: a.joint_velocity,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
     let r = with_bar("runs", a.quiet || a.json, |p| {
@@ -575,6 +603,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         servo_known: a.servo == StudyServo::Known,
         start: a.start,
         smoothing: a.smoothing,
+        velocity: a.joint_velocity,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
     };
     let r = with_bar("stages", a.quiet || a.json, |p| {

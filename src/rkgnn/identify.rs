@@ -709,13 +709,7 @@ pub fn least_squares_start(
     // clean data, 0.64 and 0.28 with noise; truth 1.33 and 0.67).
     let data = &data.filtered();
     if let ServoPrior::Known { kp, kd, .. } = servo {
-        // The servo's torque from the filtered signals (the controller computed it from the raw
-        // ones and the plant's velocity; with the torque inside its limits, as in arm3's training
-        // runs, the law is linear and filtering commutes with it; a clamped torque would not).
-        let mut tau = vec![0.0; data.len() * n];
-        for i in 0..data.len() {
-            servo.torque(data.r_at(i), data.x_at(i), &mut tau[i * n..(i + 1) * n]);
-        }
+        let tau = servo_torques(servo, data);
         let mut p = p0.to_vec();
         for j in 0..n {
             p[g + 2 * j] = kp[j];
@@ -1098,6 +1092,39 @@ const MIN_ROWS: usize = 20;
 
 /// Relative SVD cut-off of the least-squares start.
 const LS_TOLERANCE: f64 = 1e-6;
+/// A known servo's torque at every sample of the filtered trajectory `data`. Filtering every
+/// signal alike commutes with the servo's linear law while its torque is inside its limits (as
+/// in arm3's training runs; a clamped torque would not): its torque from the filtered signals
+/// is its filtered torque. Behind a drive's velocity filter (`velocity_cutoff_hz`) the velocity
+/// the law saw was the positions' backward difference, low-passed: on filtered signals, the
+/// filtered velocity half a sample late (the mean of two), through the same low-pass, which
+/// starts settled on the first one.
+fn servo_torques(servo: &ServoPrior, data: &Trajectory) -> Vec<f64> {
+    let n = data.n;
+    let drive = match servo {
+        ServoPrior::Known {
+            velocity_cutoff_hz: Some(fc),
+            ..
+        } => Some(crate::control::estimator::low_pass_share(*fc, data.h)),
+        _ => None,
+    };
+    let velocity = |i: usize| &data.x_at(i)[n..];
+    let mut seen = velocity(0).to_vec();
+    let (mut x, mut tau) = (vec![0.0; 2 * n], vec![0.0; data.len() * n]);
+    for i in 0..data.len() {
+        x.copy_from_slice(data.x_at(i));
+        if let Some(share) = drive {
+            let late = velocity(i).iter().zip(velocity(i.saturating_sub(1)));
+            for (v, (now, before)) in seen.iter_mut().zip(late) {
+                *v += share * (0.5 * (now + before) - *v);
+            }
+            x[n..].copy_from_slice(&seen);
+        }
+        servo.torque(data.r_at(i), &x, &mut tau[i * n..(i + 1) * n]);
+    }
+    tau
+}
+
 /// Ridge on the velocity network's columns in the least-squares start.
 const VELOCITY_RIDGE: f64 = 0.1;
 /// Ridges on the live update's corrections (`update_with_torques`), relative to the largest

@@ -21,7 +21,7 @@
 use super::identify::{self, Prior, Settings};
 use super::study::{
     arm_of, case, controller, diagonal_mid, float_list, gains, pd_servo, servo_prior, simulate_all,
-    table, trajectory_positions, write_scenarios, Case, JOINTS,
+    table, trajectory_positions, write_scenarios, Case, JointVelocity, JOINTS,
 };
 use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::dynamics::Model;
@@ -216,6 +216,8 @@ pub struct SelectionSettings {
     /// Take each seed's models from an earlier study's output (`<dir>/seed<N>/model_<run>.json`,
     /// identified by the same recipe) instead of identifying them.
     pub models_from: Option<PathBuf>,
+    /// The joint velocity the training servo and every tracking law act on.
+    pub velocity: JointVelocity,
     pub threads: usize,
 }
 
@@ -279,6 +281,9 @@ pub struct SelectionResult {
     pub identification_seconds: Vec<f64>,
     /// The earlier study the models were taken from (`--models-from`), if any.
     pub models_from: Option<PathBuf>,
+    /// The joint velocity the training servo and every tracking law acted on: `filtered` (a
+    /// drive's, from the encoders) or `true` (the simulator's, an ideal sensor).
+    pub joint_velocity: JointVelocity,
     pub cells: Vec<Cell>,
     /// Per trajectory, the median overall RMS of each controller.
     pub medians: Medians,
@@ -409,7 +414,17 @@ pub fn run(
     let probe: Vec<Case> = texts
         .iter()
         .enumerate()
-        .map(|(k, t)| case(&format!("probe{k}"), t, &robot, 1, pd(&unit, &unit), dir))
+        .map(|(k, t)| {
+            case(
+                &format!("probe{k}"),
+                t,
+                &robot,
+                1,
+                pd(&unit, &unit),
+                s.velocity,
+                dir,
+            )
+        })
         .collect::<Result<_, _>>()?;
     let qs = trajectory_positions(&probe.iter().map(|c| &c.scenario).collect::<Vec<_>>());
     // Computed torque's start-up rate is per sample: the same 33 ms at any period.
@@ -450,7 +465,15 @@ pub fn run(
             .enumerate()
             .map(|(k, tr)| {
                 let text = with_reference(&tr.for_seed(seed, k), None)?;
-                case(tr.name, &text, &robot, seed, pd(servo_kp, servo_kd), &sd)
+                case(
+                    tr.name,
+                    &text,
+                    &robot,
+                    seed,
+                    pd(servo_kp, servo_kd),
+                    s.velocity,
+                    &sd,
+                )
             })
             .collect::<Result<_, _>>()?;
         write_scenarios(&training)?;
@@ -470,11 +493,11 @@ pub fn run(
             if s.christoffel {
                 settings.christoffel_velocity();
             }
-            settings.servo = servo_prior(s.servo_known, servo_kp, servo_kd, &arm);
+            settings.servo = servo_prior(s.servo_known, [servo_kp, servo_kd], s.velocity, &arm);
             // A training run from which least squares finds no positive definite M-hat gives
             // no model: it is left out as a refused one is (and counted), not the study ended.
             let found = match &s.models_from {
-                Some(from) => earlier_model(from, seed, &c.name, &settings),
+                Some(from) => earlier_model(from, seed, &c.name, &settings, s.velocity),
                 None => {
                     identify::identify_model(&data, &prior, &settings, c.name.clone(), |_, _| {})
                 }
@@ -560,6 +583,7 @@ pub fn run(
                         &robot,
                         seed,
                         law.clone(),
+                        s.velocity,
                         &sd,
                     )
                 })
@@ -649,6 +673,7 @@ pub fn run(
         unidentified,
         identification_seconds,
         models_from: s.models_from.clone(),
+        joint_velocity: s.velocity,
         cells,
         medians,
         claim_held: claim_held(&comparisons, "fuzzy_max"),
@@ -669,18 +694,28 @@ pub fn run(
 
 /// Seed `seed`'s model of training run `name` from the earlier study in `from`, which must have
 /// been identified as `settings` would: the same seed, start, servo prior, joints' weighing
-/// and at least the EA evaluations. None there: an error, counted as a run not identified.
+/// and at least the EA evaluations, from a training run whose servo acted on `velocity`. None
+/// there: an error, counted as a run not identified.
 fn earlier_model(
     from: &Path,
     seed: u64,
     name: &str,
     settings: &Settings,
+    velocity: JointVelocity,
 ) -> Result<crate::rkgnn::RkgnnModel, String> {
-    let file = from
-        .join(format!("seed{seed}"))
-        .join(format!("model_{name}.json"));
+    let seed_dir = from.join(format!("seed{seed}"));
+    let file = seed_dir.join(format!("model_{name}.json"));
     if !file.is_file() {
         return Err(format!("no model in {}", file.display()));
+    }
+    let training = seed_dir.join("scenarios").join(format!("{name}.toml"));
+    let trained_on = training_velocity(&training)?;
+    if trained_on != velocity.key() {
+        return Err(format!(
+            "{}: its training servo acted on velocity = \"{trained_on}\", this study's on \"{}\"",
+            training.display(),
+            velocity.key()
+        ));
     }
     let model = crate::rkgnn::RkgnnModel::load(&file)?;
     let r = &model.report;
@@ -699,6 +734,22 @@ fn earlier_model(
         ));
     }
     Ok(model)
+}
+
+/// The `velocity` key of a training run's servo as its scenario file says: "true" where the file
+/// has none (studies written before the scenarios' default became "filtered").
+fn training_velocity(scenario: &Path) -> Result<String, String> {
+    let text =
+        crate::files::read_text(scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
+    let t: toml::Table = text
+        .parse()
+        .map_err(|e| format!("{}: {e}", scenario.display()))?;
+    let servo = t.get("controller").and_then(|c| c.get("pd_servo"));
+    Ok(servo
+        .and_then(|s| s.get("velocity"))
+        .and_then(|v| v.as_str())
+        .unwrap_or("true")
+        .to_string())
 }
 
 /// Per trajectory, each controller's median tracking RMS over the seeds.

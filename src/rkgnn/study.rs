@@ -54,7 +54,36 @@ pub struct StudySettings {
     pub start: crate::rkgnn::model::Start,
     /// Half width of the identification's low-pass, s (`data::SMOOTHING` by default).
     pub smoothing: f64,
+    /// The joint velocity every run's controller acts on.
+    pub velocity: JointVelocity,
     pub threads: usize,
+}
+
+/// The joint velocity an arm study's controllers act on (the training servo's and every
+/// tracking law's `velocity` key).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum JointVelocity {
+    /// The measured positions differenced and low-passed at 50 Hz, as a servo drive does: the
+    /// scenarios' default.
+    Filtered,
+    /// The simulator's velocities, an ideal sensor no plant has: the studies' figures before
+    /// 2026-12-03, for comparison.
+    True,
+}
+
+impl JointVelocity {
+    pub fn key(self) -> &'static str {
+        match self {
+            JointVelocity::Filtered => "filtered",
+            JointVelocity::True => "true",
+        }
+    }
+
+    /// The drive filter's cutoff (the scenarios' default), if any.
+    pub fn drive_cutoff_hz(self) -> Option<f64> {
+        (self == JointVelocity::Filtered).then_some(crate::control::DEFAULT_VELOCITY_CUTOFF_HZ)
+    }
 }
 
 /// RMS tracking error per joint (rad) on the new trajectory, one entry per controller.
@@ -184,16 +213,23 @@ pub(super) fn float_list(v: &[f64]) -> toml::Value {
     toml::Value::Array(v.iter().map(|x| toml::Value::Float(*x)).collect())
 }
 
-/// `base` (a built-in scenario) for `robot` with the controller table `controller`, validated
-/// as `dir/scenarios/NAME.toml` (`write_scenarios` writes it there).
+/// `base` (a built-in scenario) for `robot` with the controller table `controller` acting on
+/// `velocity`, validated as `dir/scenarios/NAME.toml` (`write_scenarios` writes it there).
 pub(super) fn case(
     name: &str,
     base: &str,
     robot: &Path,
     seed: u64,
-    controller: toml::Table,
+    mut controller: toml::Table,
+    velocity: JointVelocity,
     dir: &Path,
 ) -> Result<Case, String> {
+    let kind = controller
+        .get("kind")
+        .and_then(|k| k.as_str())
+        .map(str::to_owned);
+    let law = kind.ok_or("built-in scenario: a controller without its kind")?;
+    table(&mut controller, &law)?.insert("velocity".into(), velocity.key().into());
     let mut t: toml::Table = base
         .parse()
         .map_err(|e| format!("built-in scenario: {e}"))?;
@@ -218,12 +254,13 @@ pub(super) fn case(
     })
 }
 
-/// What an identification is told of the training runs' P-D servo: its gains and the arm's
-/// torque limits when `known`, nothing (the paper's premise) otherwise.
+/// What an identification is told of the training runs' P-D servo: its gains, the arm's
+/// torque limits and the velocity it acted on when `known`, nothing (the paper's premise)
+/// otherwise.
 pub(super) fn servo_prior(
     known: bool,
-    kp: &[f64],
-    kd: &[f64],
+    [kp, kd]: [&[f64]; 2],
+    velocity: JointVelocity,
     arm: &crate::dynamics::Model,
 ) -> crate::rkgnn::model::ServoPrior {
     match known {
@@ -231,6 +268,7 @@ pub(super) fn servo_prior(
             kp: kp.to_vec(),
             kd: kd.to_vec(),
             limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
+            velocity_cutoff_hz: velocity.drive_cutoff_hz(),
         },
         false => crate::rkgnn::model::ServoPrior::Unknown,
     }
@@ -472,6 +510,7 @@ pub fn run(
             &robot,
             s.seed,
             pd_table(&g.servo[0], &g.servo[1]),
+            s.velocity,
             dir,
         )
     };
@@ -496,8 +535,24 @@ pub fn run(
 
     // Training runs and identification.
     let training = [
-        case("train1", TRAIN1, &robot, s.seed, pd.clone(), dir)?,
-        case("train2", TRAIN2, &robot, s.seed, pd.clone(), dir)?,
+        case(
+            "train1",
+            TRAIN1,
+            &robot,
+            s.seed,
+            pd.clone(),
+            s.velocity,
+            dir,
+        )?,
+        case(
+            "train2",
+            TRAIN2,
+            &robot,
+            s.seed,
+            pd.clone(),
+            s.velocity,
+            dir,
+        )?,
     ];
     write_scenarios(&training)?;
     let train_sims = simulate_all(&training, s.threads, &|| tick("training run"));
@@ -521,7 +576,7 @@ pub fn run(
         settings.threads = s.threads.max(1);
         settings.refine = s.refine;
         settings.start = s.start;
-        settings.servo = servo_prior(s.servo_known, &servo_kp, &servo_kd, &arm);
+        settings.servo = servo_prior(s.servo_known, [&servo_kp, &servo_kd], s.velocity, &arm);
         let model = identify::identify_model(
             &data,
             &prior,
@@ -562,16 +617,33 @@ pub fn run(
     let ct_true = controller("computed_torque", g.ct_table());
     let (m1, m2) = (&models[0], &models[1]);
     let cases = [
-        case("pd", NEW, &robot, s.seed, pd, dir)?,
-        case("ct_true", NEW, &robot, s.seed, ct_true, dir)?,
-        case("ct_model_1", NEW, &robot, s.seed, fuzzy(&[m1], "max"), dir)?,
-        case("ct_model_2", NEW, &robot, s.seed, fuzzy(&[m2], "max"), dir)?,
+        case("pd", NEW, &robot, s.seed, pd, s.velocity, dir)?,
+        case("ct_true", NEW, &robot, s.seed, ct_true, s.velocity, dir)?,
+        case(
+            "ct_model_1",
+            NEW,
+            &robot,
+            s.seed,
+            fuzzy(&[m1], "max"),
+            s.velocity,
+            dir,
+        )?,
+        case(
+            "ct_model_2",
+            NEW,
+            &robot,
+            s.seed,
+            fuzzy(&[m2], "max"),
+            s.velocity,
+            dir,
+        )?,
         case(
             "ct_fuzzy_max",
             NEW,
             &robot,
             s.seed,
             fuzzy(&[m1, m2], "max"),
+            s.velocity,
             dir,
         )?,
         case(
@@ -580,6 +652,7 @@ pub fn run(
             &robot,
             s.seed,
             fuzzy(&[m1, m2], "blend"),
+            s.velocity,
             dir,
         )?,
         case(
@@ -588,6 +661,7 @@ pub fn run(
             &robot,
             s.seed,
             fuzzy(&[m1], "max"),
+            s.velocity,
             dir,
         )?,
         case(
@@ -596,6 +670,7 @@ pub fn run(
             &robot,
             s.seed,
             fuzzy(&[m2], "max"),
+            s.velocity,
             dir,
         )?,
     ];

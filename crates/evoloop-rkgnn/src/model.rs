@@ -72,6 +72,11 @@ pub enum ServoPrior {
         /// Torque limits, N m (none = unclamped).
         #[serde(default)]
         limits: Option<Vec<f64>>,
+        /// The cutoff of the drive's velocity filter the servo's k_d acted on (the measured
+        /// positions differenced and low-passed, a servo's `velocity = "filtered"`), Hz; none:
+        /// the joint velocity itself (an ideal sensor, as in the runs before 2026-12-03).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        velocity_cutoff_hz: Option<f64>,
     },
 }
 
@@ -79,7 +84,7 @@ impl ServoPrior {
     /// The known servo's torque at reference `r` and state `x` (n each of position and
     /// velocity), or None if unknown.
     pub fn torque(&self, r: &[f64], x: &[f64], tau: &mut [f64]) -> Option<()> {
-        let ServoPrior::Known { kp, kd, limits } = self else {
+        let ServoPrior::Known { kp, kd, limits, .. } = self else {
             return None;
         };
         let n = kp.len();
@@ -92,7 +97,7 @@ impl ServoPrior {
 
     /// Checked against the data's joint count: finite, k_p > 0, k_d >= 0, limits > 0.
     pub fn check(&self, n: usize) -> Result<(), String> {
-        let ServoPrior::Known { kp, kd, limits } = self else {
+        let ServoPrior::Known { kp, kd, limits, .. } = self else {
             return Ok(());
         };
         if kp.len() != n || kd.len() != n || limits.as_ref().is_some_and(|l| l.len() != n) {
@@ -105,6 +110,17 @@ impl ServoPrior {
             && limits.iter().flatten().all(|v| *v > 0.0);
         if !ok {
             return Err("the servo needs k_p > 0, k_d >= 0 and limits > 0, all finite".into());
+        }
+        if let ServoPrior::Known {
+            velocity_cutoff_hz: Some(fc),
+            ..
+        } = self
+        {
+            if !(fc.is_finite() && *fc > 0.0) {
+                return Err(format!(
+                    "the servo's velocity cutoff must be a positive frequency (got {fc} Hz)"
+                ));
+            }
         }
         Ok(())
     }

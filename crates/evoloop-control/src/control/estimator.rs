@@ -280,13 +280,19 @@ pub struct VelocityFilter {
     last_seq: Option<u64>,
 }
 
+/// The share of a new input per sample of a first-order low-pass at `cutoff_hz` sampled every
+/// `period` s: 1 - e^(-2 pi fc T) (`VelocityFilter`'s; the identification reproduces a drive's).
+pub fn low_pass_share(cutoff_hz: f64, period: f64) -> f64 {
+    1.0 - (-2.0 * std::f64::consts::PI * cutoff_hz * period).exp()
+}
+
 impl VelocityFilter {
     /// For `n` joints sampled every `period` s, with the low-pass's cutoff `cutoff_hz` (> 0).
     pub fn new(n: usize, period: f64, cutoff_hz: f64) -> Self {
         Self {
             n: n.min(MAX_JOINTS),
             period,
-            alpha: 1.0 - (-2.0 * std::f64::consts::PI * cutoff_hz * period).exp(),
+            alpha: low_pass_share(cutoff_hz, period),
             q_prev: [0.0; MAX_JOINTS],
             qd: [0.0; MAX_JOINTS],
             last_seq: None,
@@ -498,7 +504,7 @@ impl VelocityObserver {
 #[serde(rename_all = "snake_case")]
 pub enum VelocitySource {
     /// The simulator's true joint velocities `qd_true`, which no encoder gives: the RKGNN
-    /// paper's simulation, and these laws' default until their claims are measured on the filter.
+    /// paper's simulation, an ideal sensor (`velocity = "true"`).
     True,
     /// Measured positions differenced and low-passed (`VelocityFilter`) at this cutoff, Hz.
     Filtered { cutoff_hz: f64 },

@@ -258,8 +258,10 @@ pub enum VelocityKey {
 pub const DEFAULT_VELOCITY_CUTOFF_HZ: f64 = 50.0;
 
 /// A joint-space law's velocity source from its `velocity` and `velocity_cutoff_hz` keys
-/// (under `controller.<law>`): the true velocities unless "filtered" or "observer", whose
-/// cutoff (the low-pass's, or the observer's bandwidth) must lie below the sampling's Nyquist
+/// (under `controller.<law>`): by default "filtered", the measured positions differenced and
+/// low-passed as a servo drive does (a law acts on what a plant measures); "observer" or
+/// "true" (the simulator's velocities, an ideal sensor no plant has) when written. The cutoff
+/// (the low-pass's, or the observer's bandwidth) must lie below the sampling's Nyquist
 /// frequency 1 / (2 period). Only a law with a model of its own (`has_model`) runs an observer,
 /// which predicts across the plant's declared sensor delay.
 pub(crate) fn velocity_source(
@@ -272,7 +274,7 @@ pub(crate) fn velocity_source(
 ) -> Result<estimator::VelocitySource, ConfigError> {
     let period = cx.period;
     let key = format!("controller.{law}.velocity_cutoff_hz");
-    let velocity = velocity.unwrap_or(VelocityKey::True);
+    let velocity = velocity.unwrap_or(VelocityKey::Filtered);
     if velocity == VelocityKey::True {
         return match cutoff_hz {
             Some(_) => check.fail(
