@@ -143,7 +143,10 @@ fn scenario_with(
         text = text.replace(&format!("\"{sub}"), &format!("\"{}/{sub}", root.display()));
     }
     if extra.contains("velocity = ") {
-        let own: Vec<&str> = text.lines().filter(|l| !l.starts_with("velocity = ")).collect();
+        let own: Vec<&str> = text
+            .lines()
+            .filter(|l| !l.starts_with("velocity = "))
+            .collect();
         text = own.join("\n") + "\n";
     }
     let table = format!("[controller.{law}]\n");

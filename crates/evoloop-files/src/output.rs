@@ -158,7 +158,7 @@ pub(crate) fn vet(f: File, path: &Path, doing: &str, own: bool) -> io::Result<Fi
 
 /// Why a file is not one this run can have made itself, if it is not: anything but a regular
 /// file, a file another user owns (planted), or one with a second name (a hard link to a file
-/// the planter could not read).
+/// the planter could not read). A file whose one name was removed after the open is the run's.
 fn not_this_runs(meta: &std::fs::Metadata) -> Option<String> {
     use std::os::unix::fs::MetadataExt;
     // SAFETY: geteuid has no preconditions.
@@ -170,7 +170,10 @@ fn not_this_runs(meta: &std::fs::Metadata) -> Option<String> {
             "owned by user {}, not by this run's user {me}",
             meta.uid()
         ))
-    } else if meta.nlink() != 1 {
+    } else if meta.nlink() > 1 {
+        // No name (0) is a file this run opened whose name was removed since, by a planter
+        // racing the open: the descriptor is still the run's own file, and writing to it
+        // reaches no one else's.
         Some(format!("it has {} names (a hard link)", meta.nlink()))
     } else {
         None
@@ -202,6 +205,23 @@ pub fn named(path: &Path, doing: &str, e: io::Error) -> io::Error {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_journal_keeps_its_file_when_its_name_is_removed_but_not_when_it_has_two() {
+        // A planter that removes the journal's name between the run's open and its check
+        // leaves the run its own file with no name: kept (the race report_html's planted-links
+        // test met in CI). A second name is a hard link: refused.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("published.jsonl");
+        let f = append(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let kept = vet(f, &path, "cannot append to", true).unwrap();
+        assert_eq!(kept.metadata().unwrap().len(), 0);
+        let f = append(&path).unwrap();
+        std::fs::hard_link(&path, dir.path().join("other")).unwrap();
+        let e = vet(f, &path, "cannot append to", true).unwrap_err();
+        assert!(e.to_string().contains("2 names (a hard link)"), "{e}");
+    }
 
     #[test]
     fn a_planted_symlink_is_replaced_not_followed() {
