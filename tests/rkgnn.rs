@@ -273,6 +273,15 @@ fn a_servo_behind_a_drives_filter_is_reconstructed_with_its_filters_lag() {
     assert_eq!(cutoff(&from_run), Some(50.0));
     assert_eq!(cutoff(&told), Some(50.0));
     assert_eq!(cutoff(&untold), None);
+    let bad = tmp.path().join("bad.json");
+    let refused = identify(
+        &out,
+        &bad,
+        "0",
+        &[&gains[..], &servo, &["--servo-velocity-cutoff-hz=-5"]].concat(),
+    );
+    assert_refused(&refused, "velocity cutoff must be a positive frequency");
+    assert!(!bad.exists());
     // The run's scenario.json gives the same filter, so the same model (its torque limits are
     // not reached on this run).
     assert_eq!(from_run.net.params(), told.net.params());
