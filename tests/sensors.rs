@@ -202,6 +202,30 @@ fn the_velocity_observer_is_taken_by_computed_torque_only() {
     }
 }
 
+/// A drive's filter by default at any control rate: at 100 Hz (Nyquist 50 Hz) the default cutoff
+/// is a fifth of the rate, 20 Hz, where 50 Hz written out is refused with the key.
+#[test]
+fn the_default_velocity_filter_fits_a_slow_loop() {
+    let dir = tempfile::tempdir().unwrap();
+    let slow = |name: &str, extra: &str| {
+        let path = scenario_with(dir.path(), ("arm3_pd.toml", "pd_servo"), name, extra, true);
+        let text = std::fs::read_to_string(&path).unwrap().replacen(
+            "period = 0.001 ",
+            "period = 0.01 ",
+            1,
+        );
+        assert!(text.contains("period = 0.01 "), "{text}");
+        std::fs::write(&path, text).unwrap();
+        cli(&["check", path.to_str().unwrap()])
+    };
+    let o = slow("default.toml", "");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_refused(
+        &slow("fifty.toml", "velocity_cutoff_hz = 50.0\n"),
+        "controller.pd_servo.velocity_cutoff_hz",
+    );
+}
+
 /// Computed torque on arm3 with the truth withheld, on its observer: it runs, and on the same
 /// encoder noise (seeds 1-3) it tracks better than on the drive's low-passed difference, the
 /// observer's prediction carrying the acceleration the low-pass lags behind.

@@ -99,7 +99,8 @@ pub struct IdentifyArgs {
     pub kd: Option<Vec<f64>>,
     /// With --kp and --kd: the cutoff of the drive's velocity filter k_d acted on (positions
     /// differenced and low-passed), Hz [default: the joint velocity itself, an ideal sensor].
-    /// Without them, the run's scenario.json says (a pd_servo's velocity).
+    /// Without them, the run's scenario.json says (a pd_servo's velocity). The least-squares
+    /// start uses it; the EA's and --refine's free run do not yet.
     #[arg(long, requires = "kd")]
     pub servo_velocity_cutoff_hz: Option<f64>,
     /// With --servo known: weigh each joint's equations by 1 / its torque rms, so that joints
@@ -334,7 +335,9 @@ fn known_servo(a: &IdentifyArgs) -> Result<ServoPrior, String> {
             p.display()
         ));
     };
+    // No key: a run from before the servo had a velocity choice, on the true velocity.
     let velocity_cutoff_hz = match &c["velocity"] {
+        serde_json::Value::Null => None,
         serde_json::Value::String(s) if s == "true" => None,
         v => Some(v["filtered"]["cutoff_hz"].as_f64().ok_or_else(|| {
             format!(

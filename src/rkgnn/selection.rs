@@ -493,7 +493,8 @@ pub fn run(
             if s.christoffel {
                 settings.christoffel_velocity();
             }
-            settings.servo = servo_prior(s.servo_known, [servo_kp, servo_kd], s.velocity, &arm);
+            settings.servo =
+                servo_prior(s.servo_known, [servo_kp, servo_kd], (s.velocity, c), &arm);
             // A training run from which least squares finds no positive definite M-hat gives
             // no model: it is left out as a refused one is (and counted), not the study ended.
             let found = match &s.models_from {

@@ -80,9 +80,10 @@ impl JointVelocity {
         }
     }
 
-    /// The drive filter's cutoff (the scenarios' default), if any.
-    pub fn drive_cutoff_hz(self) -> Option<f64> {
-        (self == JointVelocity::Filtered).then_some(crate::control::DEFAULT_VELOCITY_CUTOFF_HZ)
+    /// The drive filter's cutoff (the scenarios' default at this control period), if any.
+    pub fn drive_cutoff_hz(self, period: f64) -> Option<f64> {
+        (self == JointVelocity::Filtered)
+            .then(|| crate::control::default_velocity_cutoff_hz(period))
     }
 }
 
@@ -254,13 +255,13 @@ pub(super) fn case(
     })
 }
 
-/// What an identification is told of the training runs' P-D servo: its gains, the arm's
+/// What an identification is told of the training run `case`'s P-D servo: its gains, the arm's
 /// torque limits and the velocity it acted on when `known`, nothing (the paper's premise)
 /// otherwise.
 pub(super) fn servo_prior(
     known: bool,
     [kp, kd]: [&[f64]; 2],
-    velocity: JointVelocity,
+    (velocity, case): (JointVelocity, &Case),
     arm: &crate::dynamics::Model,
 ) -> crate::rkgnn::model::ServoPrior {
     match known {
@@ -268,7 +269,7 @@ pub(super) fn servo_prior(
             kp: kp.to_vec(),
             kd: kd.to_vec(),
             limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
-            velocity_cutoff_hz: velocity.drive_cutoff_hz(),
+            velocity_cutoff_hz: velocity.drive_cutoff_hz(case.scenario.timing.period),
         },
         false => crate::rkgnn::model::ServoPrior::Unknown,
     }
@@ -576,7 +577,7 @@ pub fn run(
         settings.threads = s.threads.max(1);
         settings.refine = s.refine;
         settings.start = s.start;
-        settings.servo = servo_prior(s.servo_known, [&servo_kp, &servo_kd], s.velocity, &arm);
+        settings.servo = servo_prior(s.servo_known, [&servo_kp, &servo_kd], (s.velocity, c), &arm);
         let model = identify::identify_model(
             &data,
             &prior,

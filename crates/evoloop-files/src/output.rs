@@ -118,7 +118,7 @@ pub fn open_in_place(path: &Path) -> io::Result<File> {
 }
 
 /// Open `path` to append to it (a journal the run adds to while it runs), creating it if missing:
-/// never through a symbolic link, and only a regular file this user owns with one name. A link
+/// never through a symbolic link, and only a regular file this user owns with no second name. A link
 /// planted at the name, before or during the run, fails the open with the reason instead of
 /// being written through; hold the `File` for the run, so a name replaced later is not reopened.
 pub fn append(path: &Path) -> io::Result<File> {

@@ -74,7 +74,9 @@ pub enum ServoPrior {
         limits: Option<Vec<f64>>,
         /// The cutoff of the drive's velocity filter the servo's k_d acted on (the measured
         /// positions differenced and low-passed, a servo's `velocity = "filtered"`), Hz; none:
-        /// the joint velocity itself (an ideal sensor, as in the runs before 2026-12-03).
+        /// the joint velocity itself (an ideal sensor, as in the runs before 2026-12-03). Known
+        /// to the least-squares start only: the network's free run, which the EA and the
+        /// refinement judge a model by, applies k_d to the velocity itself (not yet the filter).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         velocity_cutoff_hz: Option<f64>,
     },

@@ -7,10 +7,10 @@
 //! The whole bracket is one recursive Newton-Euler pass with the commanded acceleration
 //! (tau = ID(q, qd, a)), a few hundred nanoseconds for six joints and allocation-free.
 //! Parameters: [Kp_1..Kp_n, Kv_1..Kv_n]. Positions are the measured outputs y; velocities by
-//! default the simulator's true joint velocities `qd_true` (as the paper's simulation has
-//! them), or the encoders' differenced and low-passed (`velocity = "filtered"`), or a
-//! model-based observer's that predicts with this law's model in service from the applied
-//! torques (`velocity = "observer"`).
+//! default the encoders' differenced and low-passed (`velocity = "filtered"`), or a model-based
+//! observer's that predicts with this law's model in service from the applied torques
+//! (`velocity = "observer"`), or the simulator's true joint velocities `qd_true` (`velocity =
+//! "true"`, as the paper's simulation has them; the programmatic constructor's start).
 //!
 //! The model itself can be replaced while the loop runs (an identified model, the eMuPSO
 //! paper's Section 4.1 put to use): a set of kind `ParamKind::RigidBodyModel` carries the

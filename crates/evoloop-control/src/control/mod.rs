@@ -254,8 +254,16 @@ pub enum VelocityKey {
     Observer,
 }
 
-/// The cutoff of a joint-space law's velocity filter when `velocity_cutoff_hz` is not given.
+/// The cutoff of a joint-space law's velocity filter when `velocity_cutoff_hz` is not given, at
+/// control rates of 250 Hz and above (`default_velocity_cutoff_hz`).
 pub const DEFAULT_VELOCITY_CUTOFF_HZ: f64 = 50.0;
+
+/// The velocity filter's cutoff when `velocity_cutoff_hz` is not given, for a law sampled every
+/// `period` s: 50 Hz, or a fifth of the sampling rate where that is lower (a 100 Hz loop: 20 Hz),
+/// so that the default is below the Nyquist frequency at any rate.
+pub fn default_velocity_cutoff_hz(period: f64) -> f64 {
+    DEFAULT_VELOCITY_CUTOFF_HZ.min(0.2 / period)
+}
 
 /// A joint-space law's velocity source from its `velocity` and `velocity_cutoff_hz` keys
 /// (under `controller.<law>`): by default "filtered", the measured positions differenced and
@@ -291,7 +299,7 @@ pub(crate) fn velocity_source(
         );
     }
     let nyquist = 0.5 / period;
-    let fc = cutoff_hz.unwrap_or(DEFAULT_VELOCITY_CUTOFF_HZ);
+    let fc = cutoff_hz.unwrap_or_else(|| default_velocity_cutoff_hz(period));
     if !(fc > 0.0 && fc < nyquist) {
         return check.fail(
             &key,

@@ -4,9 +4,10 @@
 //! with no model and no gravity compensation, clipped to the joint's torque limit. It is the
 //! "actual controller" whose gains a later identification does not know.
 //! Parameters: [Kp_1..Kp_n, Kd_1..Kd_n]. Positions are the measured outputs y (with the plant's
-//! sensor noise); velocities are the simulator's true joint velocities `qd_true` by default (the
-//! paper's simulation), or with `velocity = "filtered"` the measured positions differenced and
-//! low-passed as a drive makes them (`estimator::VelocityFilter`).
+//! sensor noise); velocities by default the measured positions differenced and low-passed as a
+//! drive makes them (`velocity = "filtered"`, `estimator::VelocityFilter`), or the simulator's
+//! true joint velocities `qd_true` (`velocity = "true"`, the paper's simulation). The
+//! programmatic constructor starts on the true velocities (`with_velocity` sets another).
 
 use super::estimator::{Velocities, VelocitySource};
 use super::{
