@@ -60,11 +60,7 @@ fn on_filtered_velocity(name: &str) -> String {
         .unwrap()
         .replace("\"robots/", &format!("\"{}/", abs("robots")))
         .replace("\"plants/", &format!("\"{}/", abs("plants")));
-    let kept: Vec<&str> = text
-        .lines()
-        .filter(|l| !l.starts_with("velocity = "))
-        .collect();
-    (kept.join("\n") + "\n").replace(
+    common::without_lines(&text, "velocity = ").replace(
         "[controller.computed_torque]\n",
         "[controller.computed_torque]\nvelocity = \"filtered\"\n",
     )

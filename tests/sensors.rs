@@ -143,11 +143,7 @@ fn scenario_with(
         text = text.replace(&format!("\"{sub}"), &format!("\"{}/{sub}", root.display()));
     }
     if extra.contains("velocity = ") {
-        let own: Vec<&str> = text
-            .lines()
-            .filter(|l| !l.starts_with("velocity = "))
-            .collect();
-        text = own.join("\n") + "\n";
+        text = without_lines(&text, "velocity = ");
     }
     let table = format!("[controller.{law}]\n");
     let text = text

@@ -502,19 +502,12 @@ pub fn run(
         progress(k, total, stage);
     };
 
-    // The servo on this arm: arm3's gains times the inertia ratio over the trajectories.
-    let pd_table = pd_servo;
-    let probe = |base: &'static str| {
-        case(
-            "probe",
-            base,
-            &robot,
-            s.seed,
-            pd_table(&g.servo[0], &g.servo[1]),
-            s.velocity,
-            dir,
-        )
+    // Every run of the study: its robot, seed and joint velocity, written under `dir`.
+    let at = |name: &str, base: &str, law: toml::Table| {
+        case(name, base, &robot, s.seed, law, s.velocity, dir)
     };
+    // The servo on this arm: arm3's gains times the inertia ratio over the trajectories.
+    let probe = |base: &'static str| at("probe", base, pd_servo(&g.servo[0], &g.servo[1]));
     let probes = [probe(TRAIN1)?, probe(TRAIN2)?, probe(NEW)?];
     let qs = trajectory_positions(&probes.iter().map(|c| &c.scenario).collect::<Vec<_>>());
     // Each probe's scenario was refused above (`case`) if its reference leaves a joint limit.
@@ -532,28 +525,12 @@ pub fn run(
     let prior = Prior::of_model(&arm, workspace.iter().map(Vec::as_slice));
     let scale = |v: &[f64]| v.iter().zip(&ratio).map(|(g, r)| g * r).collect::<Vec<_>>();
     let (servo_kp, servo_kd) = (scale(&g.servo[0]), scale(&g.servo[1]));
-    let pd = pd_table(&servo_kp, &servo_kd);
+    let pd = pd_servo(&servo_kp, &servo_kd);
 
     // Training runs and identification.
     let training = [
-        case(
-            "train1",
-            TRAIN1,
-            &robot,
-            s.seed,
-            pd.clone(),
-            s.velocity,
-            dir,
-        )?,
-        case(
-            "train2",
-            TRAIN2,
-            &robot,
-            s.seed,
-            pd.clone(),
-            s.velocity,
-            dir,
-        )?,
+        at("train1", TRAIN1, pd.clone())?,
+        at("train2", TRAIN2, pd.clone())?,
     ];
     write_scenarios(&training)?;
     let train_sims = simulate_all(&training, s.threads, &|| tick("training run"));
@@ -618,62 +595,14 @@ pub fn run(
     let ct_true = controller("computed_torque", g.ct_table());
     let (m1, m2) = (&models[0], &models[1]);
     let cases = [
-        case("pd", NEW, &robot, s.seed, pd, s.velocity, dir)?,
-        case("ct_true", NEW, &robot, s.seed, ct_true, s.velocity, dir)?,
-        case(
-            "ct_model_1",
-            NEW,
-            &robot,
-            s.seed,
-            fuzzy(&[m1], "max"),
-            s.velocity,
-            dir,
-        )?,
-        case(
-            "ct_model_2",
-            NEW,
-            &robot,
-            s.seed,
-            fuzzy(&[m2], "max"),
-            s.velocity,
-            dir,
-        )?,
-        case(
-            "ct_fuzzy_max",
-            NEW,
-            &robot,
-            s.seed,
-            fuzzy(&[m1, m2], "max"),
-            s.velocity,
-            dir,
-        )?,
-        case(
-            "ct_fuzzy_blend",
-            NEW,
-            &robot,
-            s.seed,
-            fuzzy(&[m1, m2], "blend"),
-            s.velocity,
-            dir,
-        )?,
-        case(
-            "fig8_model_1_on_train1",
-            TRAIN1,
-            &robot,
-            s.seed,
-            fuzzy(&[m1], "max"),
-            s.velocity,
-            dir,
-        )?,
-        case(
-            "fig9_model_2_on_train2",
-            TRAIN2,
-            &robot,
-            s.seed,
-            fuzzy(&[m2], "max"),
-            s.velocity,
-            dir,
-        )?,
+        at("pd", NEW, pd)?,
+        at("ct_true", NEW, ct_true)?,
+        at("ct_model_1", NEW, fuzzy(&[m1], "max"))?,
+        at("ct_model_2", NEW, fuzzy(&[m2], "max"))?,
+        at("ct_fuzzy_max", NEW, fuzzy(&[m1, m2], "max"))?,
+        at("ct_fuzzy_blend", NEW, fuzzy(&[m1, m2], "blend"))?,
+        at("fig8_model_1_on_train1", TRAIN1, fuzzy(&[m1], "max"))?,
+        at("fig9_model_2_on_train2", TRAIN2, fuzzy(&[m2], "max"))?,
     ];
     write_scenarios(&cases)?;
     let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"));

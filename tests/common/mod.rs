@@ -208,6 +208,13 @@ pub fn cli(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// `text` without its lines that start with `prefix` (a scenario's own key, before a test
+/// writes another value for it).
+pub fn without_lines(text: &str, prefix: &str) -> String {
+    let kept: Vec<&str> = text.lines().filter(|l| !l.starts_with(prefix)).collect();
+    kept.join("\n") + "\n"
+}
+
 /// The command was refused as bad input (exit 2) with `reason` in what it said.
 pub fn assert_refused(o: &Output, reason: &str) {
     let e = String::from_utf8_lossy(&o.stderr);
