@@ -99,7 +99,13 @@ impl ServoPrior {
 
     /// Checked against the data's joint count: finite, k_p > 0, k_d >= 0, limits > 0.
     pub fn check(&self, n: usize) -> Result<(), String> {
-        let ServoPrior::Known { kp, kd, limits, .. } = self else {
+        let ServoPrior::Known {
+            kp,
+            kd,
+            limits,
+            velocity_cutoff_hz,
+        } = self
+        else {
             return Ok(());
         };
         if kp.len() != n || kd.len() != n || limits.as_ref().is_some_and(|l| l.len() != n) {
@@ -113,18 +119,12 @@ impl ServoPrior {
         if !ok {
             return Err("the servo needs k_p > 0, k_d >= 0 and limits > 0, all finite".into());
         }
-        if let ServoPrior::Known {
-            velocity_cutoff_hz: Some(fc),
-            ..
-        } = self
-        {
-            if !(fc.is_finite() && *fc > 0.0) {
-                return Err(format!(
-                    "the servo's velocity cutoff must be a positive frequency (got {fc} Hz)"
-                ));
-            }
+        match velocity_cutoff_hz {
+            Some(fc) if !(fc.is_finite() && *fc > 0.0) => Err(format!(
+                "the servo's velocity cutoff must be a positive frequency (got {fc} Hz)"
+            )),
+            _ => Ok(()),
         }
-        Ok(())
     }
 }
 
