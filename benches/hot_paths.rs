@@ -3,6 +3,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use evoloop::control::cycle::ControlCycle;
+use evoloop::control::estimator::{Kalman, KalmanDesign};
 use evoloop::control::{ParamBounds, StateFeedback};
 use evoloop::msg::{PlantState, Telemetry};
 use evoloop::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
@@ -41,6 +42,18 @@ fn control(c: &mut Criterion) {
             state.seq += 1;
             black_box(cycle.step(black_box(&state), &mut tel));
         })
+    });
+    // The indirect scheme's adoption of an estimate: the law's Kalman filter designed again on
+    // the model at the estimated spring (`Kalman::redesign`, in the cycle, allocation-free).
+    let design = KalmanDesign {
+        process_noise: 1.0,
+        measurement_noise: 5e-4,
+    };
+    let nominal = TwoMass::new(1.0, 1.0, 1.0, Sensor::Far).linear_model();
+    let mut filter = Kalman::new(&design.gains(&nominal, 0.001).unwrap(), 0);
+    let estimate = TwoMass::new(1.0, 1.0, 0.5, Sensor::Far).linear_model();
+    c.bench_function("Kalman filter designed again on an estimate (two-mass, in the cycle)", |b| {
+        b.iter(|| assert!(filter.redesign(black_box(&estimate))))
     });
     let mut sim = PlantSim::new(
         Box::new(TwoMass::new(1.0, 1.0, 1.0, Sensor::Far)),

@@ -20,6 +20,7 @@ use super::{Candidate, Estimate, Estimator, Tuner};
 use crate::check::Tunable;
 use crate::config::Scenario;
 use crate::control::estimator::{KalmanDesign, KalmanGains};
+use crate::robust::observer::{sampled_loop, spectral_radius};
 use crate::control::{ControllerModel, StateFeedback};
 use crate::msg::PlantState;
 use crate::plant::two_mass::{Sensor, TwoMass, TwoMassSpec};
@@ -62,14 +63,11 @@ pub struct SpringModel {
     /// the filter predicts across it.
     #[serde(default)]
     sensor_delay: usize,
-    /// The running law's filter (`controller.state_feedback.state = "kalman"`), designed as the
-    /// controller designs it, from the nominal spring constant: each candidate is judged in the
-    /// loop it will run in, the filter's model error included. None: the true state.
-    kalman: Option<(KalmanDesign, f64)>,
-    /// That filter, designed once on first use (not per candidate; rebuilt by each evaluation
-    /// worker from `kalman`, since it does not travel). None inside: no filter exists.
-    #[serde(skip)]
-    filter: std::sync::OnceLock<Option<KalmanGains>>,
+    /// The running law's filter design (`controller.state_feedback.state = "kalman"`). The
+    /// controller designs its filter again on each estimate it adopts (`Kalman::redesign`), the
+    /// one an epoch tunes on: each candidate is judged in the loop it will run in, with the
+    /// filter designed at the spring scored. None: the true state.
+    kalman: Option<KalmanDesign>,
 }
 
 /// The DE's objective: the gains' cost on the model with spring constant `k`. It owns the model,
@@ -78,6 +76,11 @@ pub struct SpringModel {
 pub struct SpringCost {
     pub model: SpringModel,
     pub k: f64,
+    /// The filter on the model at `k`, designed once on first use (not per candidate; rebuilt
+    /// by each evaluation worker, since it does not travel). None with a `kalman` design: no
+    /// filter exists, and every candidate costs infinity.
+    #[serde(skip)]
+    filter: std::sync::OnceLock<Option<KalmanGains>>,
 }
 
 impl SpringCost {
@@ -87,7 +90,16 @@ impl SpringCost {
 
 impl crate::optim::Objective for SpringCost {
     fn value(&self, gains: &[f64]) -> f64 {
-        self.model.cost(self.k, gains)
+        let filter = self.filter.get_or_init(|| {
+            let design = self.model.kalman?;
+            let model = self.model.plant(self.k).linear_model();
+            design.gains(&model, self.model.period).ok()
+        });
+        match (self.model.kalman, filter) {
+            // The scenario's check designed the filter at the nominal spring; none exists here.
+            (Some(_), None) => f64::INFINITY,
+            _ => self.model.cost(self.k, filter.as_ref(), gains),
+        }
     }
     fn describe(&self) -> Option<crate::optim::Job> {
         crate::optim::Job::of(Self::KIND, self)
@@ -164,10 +176,9 @@ impl TwoMassTuner {
                 w: scn.optimiser.cost_u_weight,
                 sensor_delay: scn.plant.sensor_delay as usize,
                 kalman: match &scn.controller.model {
-                    ControllerModel::StateFeedback(sf) => sf.kalman.map(|d| (d, plant.spring)),
+                    ControllerModel::StateFeedback(sf) => sf.kalman,
                     _ => None,
                 },
-                filter: std::sync::OnceLock::new(),
             },
             de: super::DeEpochs::new(scn, &tunable.bounds),
             margin: scn.optimiser.margin,
@@ -177,7 +188,7 @@ impl TwoMassTuner {
     /// Cost of `gains` over one repetition on the model with spring constant k (infinite when
     /// the loop diverges).
     pub fn cost(&self, k: f64, gains: &[f64]) -> f64 {
-        self.model.cost(k, gains)
+        crate::optim::Objective::value(&self.objective(k), gains)
     }
 
     /// The DE's objective on the model with spring constant k.
@@ -185,38 +196,40 @@ impl TwoMassTuner {
         SpringCost {
             model: self.model.clone(),
             k,
+            filter: std::sync::OnceLock::new(),
         }
     }
 }
 
 impl SpringModel {
-    /// Cost of `gains` over one repetition on the model with spring constant k (infinite when
-    /// the loop diverges or is not stable over the drift checked).
-    pub fn cost(&self, k: f64, gains: &[f64]) -> f64 {
+    fn plant(&self, k: f64) -> TwoMass {
+        TwoMass::new(self.m1, self.m2, k, self.sensor)
+    }
+
+    /// Cost of `gains` over one repetition on the model with spring constant k, the law on
+    /// `filter` (designed at k) or on the true state (infinite when the loop diverges or is not
+    /// stable over the drift checked).
+    fn cost(&self, k: f64, filter: Option<&KalmanGains>, gains: &[f64]) -> f64 {
         // A finite horizon cannot see a slowly growing oscillation (a set with closed-loop poles
         // at +0.08 +- 4.7j costs little over one 10 s repetition from rest, then diverges on the
         // plant), and k keeps drifting after the epoch: a set must make the loop asymptotically
-        // stable on the model over the drift it may meet before the next epoch.
+        // stable on the model over the drift it may meet before the next epoch, with the filter
+        // staying where it was designed (the sampled loop as the controller runs it).
         let stable = DRIFT_CHECKED.iter().all(|f| {
-            TwoMass::new(self.m1, self.m2, k * f, self.sensor)
-                .linear_model()
-                .stabilised_by(gains)
+            let drifted = self.plant(k * f).linear_model();
+            match filter {
+                Some(g) => sampled_loop(&drifted, g, self.period, gains)
+                    .is_some_and(|m| spectral_radius(&m) < 1.0),
+                None => drifted.stabilised_by(gains),
+            }
         });
         if !stable {
             return f64::INFINITY;
         }
-        let plant = TwoMass::new(self.m1, self.m2, k, self.sensor);
+        let plant = self.plant(k);
         let mut ctrl = StateFeedback::new(gains, self.period, self.u_limit);
-        if let Some((design, k_nominal)) = self.kalman {
-            let filter = self.filter.get_or_init(|| {
-                let nominal = TwoMass::new(self.m1, self.m2, k_nominal, self.sensor);
-                design.gains(&nominal.linear_model(), self.period).ok()
-            });
-            match filter {
-                Some(g) => ctrl = ctrl.with_kalman(g, self.sensor_delay),
-                // The scenario's check designed this very filter.
-                None => return f64::INFINITY,
-            }
+        if let Some(g) = filter {
+            ctrl = ctrl.with_kalman(g, self.sensor_delay);
         }
         let crate::sim::Response { y, u, .. } = crate::sim::Run {
             reference: &self.reference,

@@ -12,7 +12,7 @@
 use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
 use crate::control::cycle::{ControlCycle, ParamEvent};
-use crate::control::model_check::ModelCheck;
+use crate::control::model_check::{ModelCheck, ModelCheckReport};
 use crate::control::state_check::{SampleTime, StateFault};
 use crate::ipc::{IpcError, Pub, Sub, Topic, Waited};
 use crate::msg::{
@@ -680,7 +680,11 @@ fn finish(scn: &Scenario, lp: Loop, report: &mut ControllerReport) {
     report.connection_failures = lp.connection_failures;
     report.connection_error = lp.connection_error.clone();
     report.refused_states = lp.cycle.refused;
-    report.check_model = lp.model_check.as_ref().map(EstimateCheck::report);
+    report.check_model = lp.model_check.as_ref().map(|c| ModelCheckReport {
+        filters_designed: lp.cycle.filters_designed,
+        filters_refused: lp.cycle.filters_refused,
+        ..c.report()
+    });
     report.cycle_allocations = lp.watch_allocations.then(|| alloc_count::CycleAllocations {
         cycles: lp
             .cycle

@@ -98,6 +98,10 @@ pub struct ControlCycle {
     stability: Option<LinearModel>,
     /// ... and, once the optimiser's estimate of the plant has been adopted, this one too.
     estimated: Option<LinearModel>,
+    /// The law's filter designed again on an adopted estimate: how often, and how often no
+    /// stable filter came of it (the last one kept).
+    pub filters_designed: u64,
+    pub filters_refused: u64,
     cycle: u64,
     /// How many values the law logs (`Controller::log_columns`); telemetry carries them all.
     n_law: usize,
@@ -163,6 +167,8 @@ impl ControlCycle {
             setpoint: Setpoint::default(),
             stability: None,
             estimated: None,
+            filters_designed: 0,
+            filters_refused: 0,
             cycle: 0,
             n_law: law_columns(controller.as_ref()),
             envelope: Envelope::default(),
@@ -206,8 +212,14 @@ impl ControlCycle {
     /// Check new sets on `model` too from now on (the latest estimate of the plant adopted),
     /// when sets are checked for stability at all. The configured model stays in the check: an
     /// estimate may be wrong, and the tuner's own robustness margin is narrow (two-mass: stable
-    /// at 0.8 to 1.25 times its estimate).
+    /// at 0.8 to 1.25 times its estimate). A law that runs on a model-based filter designs it
+    /// again on `model` (`Controller::adopt_model`). Allocation-free.
     pub fn check_on(&mut self, model: LinearModel) {
+        match self.controller.adopt_model(&model) {
+            Some(true) => self.filters_designed += 1,
+            Some(false) => self.filters_refused += 1,
+            None => {}
+        }
         if self.stability.is_some() {
             self.estimated = Some(model);
         }

@@ -20,7 +20,8 @@
 use crate::dynamics::{Data, Model};
 use crate::msg::{PlantState, MAX_JOINTS};
 use crate::plant::{DelayLine, LinearModel, MAX_LINEAR_STATES};
-use nalgebra::DMatrix;
+use nalgebra::allocator::Allocator;
+use nalgebra::{DMatrix, DefaultAllocator, Dim, OMatrix, SMatrix};
 
 const N: usize = MAX_LINEAR_STATES;
 
@@ -56,6 +57,9 @@ pub struct KalmanGains {
     pub p: DMatrix<f64>,
     /// The estimation error's eigenvalues, those of A - L C (inside the unit circle).
     pub poles: Vec<nalgebra::Complex<f64>>,
+    /// What it was designed for: the design a filter in the cycle repeats on an estimated
+    /// model (`Kalman::redesign`).
+    pub design: KalmanDesign,
 }
 
 impl KalmanDesign {
@@ -98,6 +102,7 @@ impl KalmanDesign {
             l,
             p,
             poles,
+            design: *self,
         })
     }
 }
@@ -106,14 +111,20 @@ impl KalmanDesign {
 /// structure-preserving doubling algorithm (quadratic convergence, where the Riccati
 /// recursion would take as many steps as the slowest mode has samples), checked by its
 /// residual. None when it does not converge to a finite, accurate solution.
-fn filter_riccati(
-    a: &DMatrix<f64>,
-    c: &DMatrix<f64>,
-    gq: &DMatrix<f64>,
+/// Generic over the size, so that the design off the cycle (dynamic matrices, `C` 1 x n) and
+/// the one in it (`Kalman::redesign`: fixed-size, zero-padded, allocation-free) are one
+/// algorithm.
+fn filter_riccati<R: Dim, D: Dim>(
+    a: &OMatrix<f64, D, D>,
+    c: &OMatrix<f64, R, D>,
+    gq: &OMatrix<f64, D, D>,
     r: f64,
-) -> Option<DMatrix<f64>> {
-    let n = a.nrows();
-    let id = DMatrix::<f64>::identity(n, n);
+) -> Option<OMatrix<f64, D, D>>
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<R, D> + Allocator<D, R> + Allocator<R, R>,
+{
+    let (rows, cols) = a.shape_generic();
+    let id = OMatrix::<f64, D, D>::identity_generic(rows, cols);
     // The filtering equation is the control one of (A', C'): A_0 = A', G_0 = C' C / r, H_0 = GQG'.
     let mut ak = a.transpose();
     let mut gk = c.transpose() * c / r;
@@ -167,6 +178,9 @@ pub struct Kalman {
     inputs: DelayLine<f64>,
     /// The estimate of the state at the last sample: `x` predicted over `inputs`.
     ahead: [f64; N],
+    /// What the filter is designed for and its period, for `redesign`.
+    design: KalmanDesign,
+    period: f64,
 }
 
 impl Kalman {
@@ -174,37 +188,79 @@ impl Kalman {
     /// correct), for measurements `delay` samples old.
     pub fn new(gains: &KalmanGains, delay: usize) -> Self {
         let model = &gains.model;
-        let n = model.n();
-        let (d, f, g) = model.feedthrough();
-        let fill = |v: &mut [f64; N], at: &dyn Fn(usize) -> f64| {
-            v.iter_mut()
-                .take(n)
-                .enumerate()
-                .for_each(|(i, e)| *e = at(i));
+        let period = match model.time() {
+            crate::plant::linear::Time::Sampled { period } => period,
+            crate::plant::linear::Time::Continuous => unreachable!("a filter's model is sampled"),
         };
         let mut k = Self {
-            n,
+            n: model.n(),
             a: [[0.0; N]; N],
             b: [0.0; N],
             c: [0.0; N],
-            d,
+            d: 0.0,
             f: [0.0; N],
-            g,
+            g: 1.0,
             m: [0.0; N],
             x: [0.0; N],
             v_prev: 0.0,
             last_seq: None,
             inputs: DelayLine::new(delay, 0.0),
             ahead: [0.0; N],
+            design: gains.design,
+            period,
         };
-        for (i, row) in k.a.iter_mut().enumerate().take(n) {
-            fill(row, &|j| model.a(i, j));
-        }
-        fill(&mut k.b, &|i| model.b(i));
-        fill(&mut k.c, &|j| model.c(j));
-        fill(&mut k.f, &|j| f[j]);
-        fill(&mut k.m, &|i| gains.m[i]);
+        k.load(model, &gains.m);
         k
+    }
+
+    /// Predict with the sampled `model` and correct with gain `m` from now on; the estimate
+    /// goes on from where it is (the states keep their meaning).
+    fn load(&mut self, model: &LinearModel, m: &[f64]) {
+        let n = model.n();
+        let (d, f, g) = model.feedthrough();
+        for i in 0..n {
+            for j in 0..n {
+                self.a[i][j] = model.a(i, j);
+            }
+            self.b[i] = model.b(i);
+            self.c[i] = model.c(i);
+            self.f[i] = f[i];
+            self.m[i] = m[i];
+        }
+        (self.d, self.g) = (d, g);
+    }
+
+    /// Design the filter again for `model`, an estimate of the plant with the filter's states
+    /// (the indirect scheme's), with the same noise design and period, and run on it from now
+    /// on. Allocation-free, for the control cycle: the model sampled and the Riccati equation
+    /// solved on fixed-size matrices (`LinearModel::at_period_fixed`, `filter_riccati`), tens
+    /// of microseconds for the two-mass. False, the filter unchanged, when the model cannot be
+    /// sampled or gives no stable filter.
+    pub fn redesign(&mut self, model: &LinearModel) -> bool {
+        let n = self.n;
+        let Some(s) = model.at_period_fixed(self.period).filter(|s| s.n() == n) else {
+            return false;
+        };
+        let pad = |i: usize, j: usize, v: &dyn Fn() -> f64| if i < n && j < n { v() } else { 0.0 };
+        let a = SMatrix::<f64, N, N>::from_fn(|i, j| pad(i, j, &|| s.a(i, j)));
+        let c = SMatrix::<f64, 1, N>::from_fn(|_, j| pad(0, j, &|| s.c(j)));
+        let g = SMatrix::<f64, N, 1>::from_fn(|i, _| pad(i, 0, &|| s.input_column(i)));
+        let (q, r) = (self.design.process_noise, self.design.measurement_noise);
+        let Some(p) = filter_riccati(&a, &c, &(g * g.transpose() * (q * q)), r * r) else {
+            return false;
+        };
+        let pct = p * c.transpose();
+        let denominator = (c * pct)[(0, 0)] + r * r;
+        let m: [f64; N] = std::array::from_fn(|i| pct[i] / denominator);
+        // The error's dynamics A - L C, L = A M, as the design checks them.
+        let error = |i: usize, j: usize| {
+            s.a(i, j) - (0..n).map(|l| s.a(i, l) * m[l]).sum::<f64>() * s.c(j)
+        };
+        if !crate::plant::linear::all_eigenvalues(n, error, |z| z.norm() < 1.0) {
+            return false;
+        }
+        self.load(&s, &m);
+        true
     }
 
     /// The estimate of the state at `state`'s sample, from its measurement `y[0]` and the
@@ -592,6 +648,50 @@ mod tests {
         s.y[..y.len()].copy_from_slice(y);
         s.u_applied[0] = u;
         s
+    }
+
+    /// Designed again in the cycle on an estimated model (the indirect scheme's spring), the
+    /// filter predicts with that model sampled and corrects with the gain the off-cycle design
+    /// gives it; a model it cannot filter (an unstable mode the sensor does not see) or of
+    /// another size leaves it as it was.
+    #[test]
+    fn a_filter_designed_again_on_an_estimate_is_the_one_designed_for_it() {
+        use crate::plant::two_mass::Sensor;
+        use crate::plant::TwoMass;
+        let design = KalmanDesign {
+            process_noise: 1.0,
+            measurement_noise: 5e-4,
+        };
+        let at = |k| TwoMass::new(1.0, 1.0, k, Sensor::Far).linear_model();
+        let mut kf = Kalman::new(&design.gains(&at(1.0), 1e-3).unwrap(), 0);
+        let nominal_m = kf.m;
+        assert!(kf.redesign(&at(0.5)));
+        let direct = design.gains(&at(0.5), 1e-3).unwrap();
+        for i in 0..4 {
+            let m = direct.m[i];
+            assert!((kf.m[i] - m).abs() <= 1e-9 * m.abs(), "M {i}: {} vs {m}", kf.m[i]);
+            assert!((kf.m[i] - nominal_m[i]).abs() > 1e-6 * m.abs(), "M {i} did not move");
+            assert!((kf.b[i] - direct.model.b(i)).abs() <= 1e-15);
+            for j in 0..4 {
+                assert!((kf.a[i][j] - direct.model.a(i, j)).abs() <= 1e-14, "A {i} {j}");
+            }
+        }
+        let designed = kf.clone();
+        let hidden = LinearModel::continuous(
+            &[
+                1.0, 0.0, 0.0, 0.0, //
+                0.0, -1.0, 0.0, 0.0, //
+                0.0, 0.0, -1.0, 0.0, //
+                0.0, 0.0, 0.0, -1.0,
+            ],
+            &[1.0, 1.0, 1.0, 1.0],
+            &[0.0, 1.0, 0.0, 0.0],
+        );
+        let smaller = LinearModel::continuous(&[-1.0], &[1.0], &[1.0]);
+        for refused in [hidden, smaller] {
+            assert!(!kf.redesign(&refused));
+            assert_eq!((kf.a, kf.m), (designed.a, designed.m));
+        }
     }
 
     /// A scalar random walk x+ = x + w, y = x + v: the Riccati equation has the closed form

@@ -208,6 +208,12 @@ pub trait Controller: Send {
     fn model_len(&self) -> usize {
         0
     }
+    /// The plant's linear model at the latest estimate the loop adopted (the indirect scheme):
+    /// a law that estimates its state with a model-based filter designs the filter again on
+    /// it. Some(whether it did), None for a law without such a filter. Must not allocate.
+    fn adopt_model(&mut self, _model: &LinearModel) -> Option<bool> {
+        None
+    }
     /// Check a model set's values (finite already) and put it in service at this cycle
     /// boundary, or refuse it with a code and the offending value's index. Must not allocate.
     fn swap_model(&mut self, _values: &[f64]) -> Result<(), (crate::msg::ParamCode, u32)> {

@@ -26,6 +26,13 @@ pub struct ModelCheckReport {
     pub refused: u64,
     /// More estimates waiting than the queue holds (the oldest go).
     pub dropped: u64,
+    /// A law on a model-based filter (state feedback's Kalman filter): the filter designed
+    /// again on an adopted estimate, and the estimates that gave no stable filter (the last
+    /// filter kept).
+    #[serde(default)]
+    pub filters_designed: u64,
+    #[serde(default)]
+    pub filters_refused: u64,
 }
 
 /// Estimates waiting for their sample and what became of them: the queue both checks share.

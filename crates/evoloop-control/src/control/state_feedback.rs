@@ -100,6 +100,10 @@ impl Controller for StateFeedback {
         u[0] = out;
     }
 
+    fn adopt_model(&mut self, model: &super::LinearModel) -> Option<bool> {
+        self.kalman.as_mut().map(|k| k.redesign(model))
+    }
+
     fn swap_params(&mut self, new: &[f64], state: &PlantState, _sp: &Setpoint) {
         let x = Self::state_of(&mut self.kalman, self.n_x, state);
         let u_old = self.integral - dot(&self.gains[..self.n_x], x);

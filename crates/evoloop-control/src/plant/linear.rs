@@ -148,36 +148,59 @@ impl LinearModel {
     /// `MAX_NORM_PERIOD`.
     pub fn at_period(&self, period: f64) -> Option<LinearModel> {
         let n = self.n;
+        self.sample_with(period, |m| {
+            let e = DMatrix::from_fn(n + 1, n + 1, |i, j| m(i, j)).exp();
+            move |i: usize, j: usize| e[(i, j)]
+        })
+    }
+
+    /// `at_period` without allocating, for the control cycle (a filter designed again on an
+    /// estimated model): the same exponential on a fixed-size matrix, zero-padded (the padding
+    /// stays zero and leaves the model's block as it is, to rounding).
+    pub fn at_period_fixed(&self, period: f64) -> Option<LinearModel> {
+        const S: usize = MAX_LINEAR_STATES + 1;
+        self.sample_with(period, |m| {
+            let e = SMatrix::<f64, S, S>::from_fn(|i, j| m(i, j)).exp();
+            move |i: usize, j: usize| e[(i, j)]
+        })
+    }
+
+    /// The sampled model from `exp`, which gives the exponential of the (n + 1) x (n + 1)
+    /// matrix [[A T, B T], [0, 0]] (entries by `m(i, j)`, zero outside it) as a function of
+    /// (row, column).
+    fn sample_with<E: Fn(usize, usize) -> f64>(
+        &self,
+        period: f64,
+        exp: impl FnOnce(&dyn Fn(usize, usize) -> f64) -> E,
+    ) -> Option<LinearModel> {
+        let n = self.n;
         match self.time {
             Time::Sampled { period: own } => {
                 ((own - period).abs() <= 1e-12 * own.max(period)).then_some(*self)
             }
             Time::Continuous => {
-                let flat: Vec<f64> = (0..n).flat_map(|i| self.a[i][..n].to_vec()).collect();
-                let too_fast = norm_period(&flat, &self.b[..n], n + 1, period) > MAX_NORM_PERIOD;
+                let largest = (0..n)
+                    .flat_map(|i| self.a[i][..n].iter().chain([&self.b[i]]))
+                    .fold(0.0f64, |m, v| m.max(v.abs()));
+                let too_fast = largest * (n + 1) as f64 * period > MAX_NORM_PERIOD;
                 if period.is_nan() || period <= 0.0 || too_fast {
                     return None;
                 }
-                let m = DMatrix::from_fn(n + 1, n + 1, |i, j| match (i < n, j < n) {
-                    (true, true) => self.a[i][j] * period,
-                    (true, false) => self.b[i] * period,
+                let e = exp(&|i, j| match (i < n && j < n, i < n && j == n) {
+                    (true, _) => self.a[i][j] * period,
+                    (false, true) => self.b[i] * period,
                     _ => 0.0,
                 });
-                let e = m.exp();
-                let a: Vec<f64> = (0..n * n).map(|k| e[(k / n, k % n)]).collect();
-                let b: Vec<f64> = (0..n).map(|i| e[(i, n)]).collect();
-                if !a.iter().chain(&b).all(|v| v.is_finite()) {
-                    return None;
+                let mut m = Self::empty(n, Time::Sampled { period });
+                for i in 0..n {
+                    for j in 0..n {
+                        m.a[i][j] = e(i, j);
+                    }
+                    m.b[i] = e(i, n);
                 }
-                Some(Self::sampled(
-                    period,
-                    &a,
-                    &b,
-                    &self.c[..n],
-                    0.0,
-                    &vec![0.0; n],
-                    1.0,
-                ))
+                m.c = self.c;
+                let finite = (0..n).all(|i| m.a[i][..n].iter().all(|v| v.is_finite()));
+                (finite && m.b[..n].iter().all(|v| v.is_finite())).then_some(m)
             }
         }
     }
@@ -347,9 +370,10 @@ impl LinearModel {
     }
 }
 
-/// Whether every eigenvalue of the k x k matrix `fill(i, j)` (2 <= k <= 11) satisfies `ok`, on
+/// Whether every eigenvalue of the k x k matrix `fill(i, j)` (1 <= k <= 11) satisfies `ok`, on
 /// a matrix of exactly that size (no padding, so a 5 x 5 loop decomposes as it always did).
-fn all_eigenvalues(
+/// Stack-only.
+pub(crate) fn all_eigenvalues(
     k: usize,
     fill: impl Fn(usize, usize) -> f64,
     ok: impl Fn(Complex<f64>) -> bool,
@@ -364,6 +388,9 @@ fn all_eigenvalues(
                 _ => false,
             }
         };
+    }
+    if k == 1 {
+        return ok(Complex::new(fill(0, 0), 0.0));
     }
     sized!(2 3 4 5 6 7 8 9 10 11)
 }
