@@ -52,9 +52,10 @@ fn control(c: &mut Criterion) {
     let nominal = TwoMass::new(1.0, 1.0, 1.0, Sensor::Far).linear_model();
     let mut filter = Kalman::new(&design.gains(&nominal, 0.001).unwrap(), 0);
     let estimate = TwoMass::new(1.0, 1.0, 0.5, Sensor::Far).linear_model();
-    c.bench_function("Kalman filter designed again on an estimate (two-mass, in the cycle)", |b| {
-        b.iter(|| assert!(filter.redesign(black_box(&estimate))))
-    });
+    c.bench_function(
+        "Kalman filter designed again on an estimate (two-mass, in the cycle)",
+        |b| b.iter(|| assert!(filter.redesign(black_box(&estimate)))),
+    );
     let mut sim = PlantSim::new(
         Box::new(TwoMass::new(1.0, 1.0, 1.0, Sensor::Far)),
         5e-4,

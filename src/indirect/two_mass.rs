@@ -20,11 +20,11 @@ use super::{Candidate, Estimate, Estimator, Tuner};
 use crate::check::Tunable;
 use crate::config::Scenario;
 use crate::control::estimator::{KalmanDesign, KalmanGains};
-use crate::robust::observer::{sampled_loop, spectral_radius};
 use crate::control::{ControllerModel, StateFeedback};
 use crate::msg::PlantState;
 use crate::plant::two_mass::{Sensor, TwoMass, TwoMassSpec};
 use crate::reference::Reference;
+use crate::robust::observer::{sampled_loop, spectral_radius};
 use crate::sim::cost::TrackingCost;
 
 /// The two-mass indirect scheme: the spring's estimator and the tuner of the gains.

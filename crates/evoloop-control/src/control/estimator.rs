@@ -253,9 +253,8 @@ impl Kalman {
         let denominator = (c * pct)[(0, 0)] + r * r;
         let m: [f64; N] = std::array::from_fn(|i| pct[i] / denominator);
         // The error's dynamics A - L C, L = A M, as the design checks them.
-        let error = |i: usize, j: usize| {
-            s.a(i, j) - (0..n).map(|l| s.a(i, l) * m[l]).sum::<f64>() * s.c(j)
-        };
+        let error =
+            |i: usize, j: usize| s.a(i, j) - (0..n).map(|l| s.a(i, l) * m[l]).sum::<f64>() * s.c(j);
         if !crate::plant::linear::all_eigenvalues(n, error, |z| z.norm() < 1.0) {
             return false;
         }
@@ -667,13 +666,23 @@ mod tests {
         let nominal_m = kf.m;
         assert!(kf.redesign(&at(0.5)));
         let direct = design.gains(&at(0.5), 1e-3).unwrap();
-        for i in 0..4 {
+        for (i, nominal) in nominal_m.iter().enumerate().take(4) {
             let m = direct.m[i];
-            assert!((kf.m[i] - m).abs() <= 1e-9 * m.abs(), "M {i}: {} vs {m}", kf.m[i]);
-            assert!((kf.m[i] - nominal_m[i]).abs() > 1e-6 * m.abs(), "M {i} did not move");
+            assert!(
+                (kf.m[i] - m).abs() <= 1e-9 * m.abs(),
+                "M {i}: {} vs {m}",
+                kf.m[i]
+            );
+            assert!(
+                (kf.m[i] - nominal).abs() > 1e-6 * m.abs(),
+                "M {i} did not move"
+            );
             assert!((kf.b[i] - direct.model.b(i)).abs() <= 1e-15);
             for j in 0..4 {
-                assert!((kf.a[i][j] - direct.model.a(i, j)).abs() <= 1e-14, "A {i} {j}");
+                assert!(
+                    (kf.a[i][j] - direct.model.a(i, j)).abs() <= 1e-14,
+                    "A {i} {j}"
+                );
             }
         }
         let designed = kf.clone();

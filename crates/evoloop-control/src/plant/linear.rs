@@ -149,7 +149,7 @@ impl LinearModel {
     pub fn at_period(&self, period: f64) -> Option<LinearModel> {
         let n = self.n;
         self.sample_with(period, |m| {
-            let e = DMatrix::from_fn(n + 1, n + 1, |i, j| m(i, j)).exp();
+            let e = DMatrix::from_fn(n + 1, n + 1, m).exp();
             move |i: usize, j: usize| e[(i, j)]
         })
     }
@@ -160,7 +160,7 @@ impl LinearModel {
     pub fn at_period_fixed(&self, period: f64) -> Option<LinearModel> {
         const S: usize = MAX_LINEAR_STATES + 1;
         self.sample_with(period, |m| {
-            let e = SMatrix::<f64, S, S>::from_fn(|i, j| m(i, j)).exp();
+            let e = SMatrix::<f64, S, S>::from_fn(m).exp();
             move |i: usize, j: usize| e[(i, j)]
         })
     }
