@@ -119,6 +119,9 @@ fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
     let cm = &s["check_model"];
     assert!(cm["adopted"].as_u64().unwrap() > 700, "{cm}");
     assert_eq!(cm["refused"], 0);
+    // The law runs on its Kalman filter, designed again on each estimate it adopted.
+    assert_eq!(cm["filters_designed"], cm["adopted"], "{cm}");
+    assert_eq!(cm["filters_refused"], 0);
     let last = cm["last_adopted"].as_f64().unwrap();
     assert!((last - 2.0).abs() < 0.05 * 2.0, "{cm}");
     // The estimator reads the noisy, quantised position (noise 5e-4, 1e-4 per count) and the

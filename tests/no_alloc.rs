@@ -141,11 +141,17 @@ fn the_control_cycle_allocates_nothing() {
         while let Some(e) = est_sub.next().unwrap() {
             model_check.offer(&e);
         }
-        if let Some(m) = model_check.due(s.seq) {
+        let adopted = model_check.due(s.seq);
+        if let Some(m) = adopted {
             cyc.check_on(m);
         }
         if cyc.step(&s, &mut tel).map(|e| e.code) == Some(ParamCode::TrialEnded) {
             trials_ended += 1;
+        }
+        // The law's filter designed again on the adopted estimate, as the controller does
+        // once the command is out.
+        if let Some(m) = adopted {
+            cyc.redesign_on(&m);
         }
         let c = Command {
             cycle: k,
@@ -202,8 +208,9 @@ fn the_control_cycle_allocates_nothing() {
     );
     assert_eq!(trials_ended, 1);
     assert_eq!(sends, 3 * (n as u64 - 1) + (n as u64 - 1) / 100);
-    // 29 in the measured cycles, one in the warm-up.
+    // 29 in the measured cycles, one in the warm-up; and the filter designed on each.
     assert_eq!(model_check.report().adopted, 30);
+    assert_eq!((cyc.filters_designed, cyc.filters_refused), (30, 0));
     assert_eq!(timing.cycles(), n as u64);
     assert_eq!(log.finish().rows, n as u64, "every row reached the file");
     assert_eq!(

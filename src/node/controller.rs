@@ -361,6 +361,11 @@ impl Loop {
             u: self.cycle.u,
         };
         ports.command.send(&cmd)?;
+        // The filter designed again on the adopted estimate, for the next sample: after the
+        // command, so the design does not delay it (`compute` below includes it).
+        if let Some(m) = adopted {
+            self.cycle.redesign_on(&m);
+        }
         let done = now_ns();
         let compute = done.saturating_sub(woke_ns);
         let mut flags = flags_in | tel.flags;

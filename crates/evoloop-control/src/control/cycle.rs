@@ -212,16 +212,22 @@ impl ControlCycle {
     /// Check new sets on `model` too from now on (the latest estimate of the plant adopted),
     /// when sets are checked for stability at all. The configured model stays in the check: an
     /// estimate may be wrong, and the tuner's own robustness margin is narrow (two-mass: stable
-    /// at 0.8 to 1.25 times its estimate). A law that runs on a model-based filter designs it
-    /// again on `model` (`Controller::adopt_model`). Allocation-free.
+    /// at 0.8 to 1.25 times its estimate).
     pub fn check_on(&mut self, model: LinearModel) {
-        match self.controller.adopt_model(&model) {
+        if self.stability.is_some() {
+            self.estimated = Some(model);
+        }
+    }
+
+    /// A law that runs on a model-based filter designs it again on `model`, the latest estimate
+    /// of the plant adopted (`Controller::adopt_model`), for the samples after this one: the
+    /// loop calls it once the cycle's command is out, so the design (tens of microseconds)
+    /// never delays a command. Allocation-free.
+    pub fn redesign_on(&mut self, model: &LinearModel) {
+        match self.controller.adopt_model(model) {
             Some(true) => self.filters_designed += 1,
             Some(false) => self.filters_refused += 1,
             None => {}
-        }
-        if self.stability.is_some() {
-            self.estimated = Some(model);
         }
     }
 

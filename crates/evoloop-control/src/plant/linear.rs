@@ -156,7 +156,7 @@ impl LinearModel {
 
     /// `at_period` without allocating, for the control cycle (a filter designed again on an
     /// estimated model): the same exponential on a fixed-size matrix, zero-padded (the padding
-    /// stays zero and leaves the model's block as it is, to rounding).
+    /// is decoupled from the model's block, which it leaves as it is, to rounding).
     pub fn at_period_fixed(&self, period: f64) -> Option<LinearModel> {
         const S: usize = MAX_LINEAR_STATES + 1;
         self.sample_with(period, |m| {
