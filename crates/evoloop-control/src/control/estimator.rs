@@ -86,16 +86,15 @@ impl KalmanDesign {
             "no steady-state filter: the measured output does not see every unstable mode \
              (the model is not detectable from y)",
         )?;
-        let s = (&c * &p * c.transpose())[(0, 0)] + r * r;
-        let m: Vec<f64> = (0..n).map(|i| (&p * c.transpose())[(i, 0)] / s).collect();
+        let m: Vec<f64> = measurement_gain(&p, &c, r * r).iter().copied().collect();
+        if !error_is_stable(&model, &m) {
+            return Err("the filter's error dynamics are not stable".into());
+        }
         let l: Vec<f64> = (0..n)
             .map(|i| (0..n).map(|j| a[(i, j)] * m[j]).sum())
             .collect();
         let error = DMatrix::from_fn(n, n, |i, j| a[(i, j)] - l[i] * c[(0, j)]);
         let poles = crate::linalg::eigen::eigenvalues(&error).ok_or("no eigenvalues of A - L C")?;
-        if !poles.iter().all(|z| z.norm() < 1.0) {
-            return Err("the filter's error dynamics are not stable".into());
-        }
         Ok(KalmanGains {
             model,
             m,
@@ -105,6 +104,31 @@ impl KalmanDesign {
             design: *self,
         })
     }
+}
+
+/// The measurement update's gain M = P C' (C P C' + r)^-1 of the filter whose Riccati solution
+/// is `p` (generic as `filter_riccati`, for the design off the cycle and in it).
+fn measurement_gain<R: Dim, D: Dim>(
+    p: &OMatrix<f64, D, D>,
+    c: &OMatrix<f64, R, D>,
+    r: f64,
+) -> OMatrix<f64, D, R>
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<R, D> + Allocator<D, R> + Allocator<R, R>,
+{
+    let s = (c * p * c.transpose())[(0, 0)] + r;
+    (p * c.transpose()) / s
+}
+
+/// Whether the filter's error dynamics A - L C, L = A M, of the sampled `model` with gain `m`
+/// are stable (every eigenvalue inside the unit circle). Stack-only: the design checks its
+/// filter with it off the cycle and `Kalman::redesign` in it.
+fn error_is_stable(model: &LinearModel, m: &[f64]) -> bool {
+    let n = model.n();
+    let error = |i: usize, j: usize| {
+        model.a(i, j) - (0..n).map(|l| model.a(i, l) * m[l]).sum::<f64>() * model.c(j)
+    };
+    crate::plant::linear::all_eigenvalues(n, error, |z| z.norm() < 1.0)
 }
 
 /// The stabilising solution of P = A P A' - A P C' (C P C' + r)^-1 C P A' + GQG' by the
@@ -241,24 +265,19 @@ impl Kalman {
         let Some(s) = model.at_period_fixed(self.period).filter(|s| s.n() == n) else {
             return false;
         };
-        let pad = |i: usize, j: usize, v: &dyn Fn() -> f64| if i < n && j < n { v() } else { 0.0 };
-        let a = SMatrix::<f64, N, N>::from_fn(|i, j| pad(i, j, &|| s.a(i, j)));
-        let c = SMatrix::<f64, 1, N>::from_fn(|_, j| pad(0, j, &|| s.c(j)));
-        let g = SMatrix::<f64, N, 1>::from_fn(|i, _| pad(i, 0, &|| s.input_column(i)));
+        // Zero-padded to the largest model: the padding is decoupled and stays zero in P.
+        let a = SMatrix::<f64, N, N>::from_fn(|i, j| if i < n && j < n { s.a(i, j) } else { 0.0 });
+        let c = SMatrix::<f64, 1, N>::from_fn(|_, j| if j < n { s.c(j) } else { 0.0 });
+        let g = SMatrix::<f64, N, 1>::from_fn(|i, _| if i < n { s.input_column(i) } else { 0.0 });
         let (q, r) = (self.design.process_noise, self.design.measurement_noise);
         let Some(p) = filter_riccati(&a, &c, &(g * g.transpose() * (q * q)), r * r) else {
             return false;
         };
-        let pct = p * c.transpose();
-        let denominator = (c * pct)[(0, 0)] + r * r;
-        let m: [f64; N] = std::array::from_fn(|i| pct[i] / denominator);
-        // The error's dynamics A - L C, L = A M, as the design checks them.
-        let error =
-            |i: usize, j: usize| s.a(i, j) - (0..n).map(|l| s.a(i, l) * m[l]).sum::<f64>() * s.c(j);
-        if !crate::plant::linear::all_eigenvalues(n, error, |z| z.norm() < 1.0) {
+        let m = measurement_gain(&p, &c, r * r);
+        if !error_is_stable(&s, &m.as_slice()[..n]) {
             return false;
         }
-        self.load(&s, &m);
+        self.load(&s, m.as_slice());
         true
     }
 

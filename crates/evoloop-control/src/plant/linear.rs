@@ -21,10 +21,14 @@ pub const MAX_LINEAR_STATES: usize = 8;
 /// overflows), so a larger product is a model far too fast for the control period.
 pub const MAX_NORM_PERIOD: f64 = 1e3;
 
-/// |[A B]| T as `MAX_NORM_PERIOD` bounds it: the largest entry of `a` and `b` times `size`
+/// |[A B]| T as `MAX_NORM_PERIOD` bounds it: the largest of A's and B's `entries` times `size`
 /// (states plus inputs) times `period`.
-pub fn norm_period(a: &[f64], b: &[f64], size: usize, period: f64) -> f64 {
-    let largest = a.iter().chain(b).fold(0.0f64, |m, v| m.max(v.abs()));
+pub fn norm_period<'a>(
+    entries: impl IntoIterator<Item = &'a f64>,
+    size: usize,
+    period: f64,
+) -> f64 {
+    let largest = entries.into_iter().fold(0.0f64, |m, v| m.max(v.abs()));
     largest * size as f64 * period
 }
 
@@ -179,10 +183,8 @@ impl LinearModel {
                 ((own - period).abs() <= 1e-12 * own.max(period)).then_some(*self)
             }
             Time::Continuous => {
-                let largest = (0..n)
-                    .flat_map(|i| self.a[i][..n].iter().chain([&self.b[i]]))
-                    .fold(0.0f64, |m, v| m.max(v.abs()));
-                let too_fast = largest * (n + 1) as f64 * period > MAX_NORM_PERIOD;
+                let entries = (0..n).flat_map(|i| self.a[i][..n].iter().chain([&self.b[i]]));
+                let too_fast = norm_period(entries, n + 1, period) > MAX_NORM_PERIOD;
                 if period.is_nan() || period <= 0.0 || too_fast {
                     return None;
                 }
@@ -294,7 +296,7 @@ impl LinearModel {
             return None;
         }
         // A, B = e_0: the entries are den's and 1.
-        if norm_period(&den[1..], &[1.0], n + 1, period) > MAX_NORM_PERIOD {
+        if norm_period(den[1..].iter().chain(&[1.0]), n + 1, period) > MAX_NORM_PERIOD {
             return None;
         }
         // [[A, B], [0, 0]] T: A's first row -den[1..], ones below the diagonal, B = e_0.

@@ -829,7 +829,7 @@ fn discretised(
     if discrete {
         return Ok((a.to_vec(), b.to_vec()));
     }
-    let norm_t = norm_period(a, b, n + m, period);
+    let norm_t = norm_period(a.iter().chain(b), n + m, period);
     if norm_t > MAX_NORM_PERIOD {
         return Err(format!(
             "|[A B]| T is about {norm_t:.1e}: a model this fast (or stiff) against the control \
