@@ -48,6 +48,7 @@ fn control(c: &mut Criterion) {
     let design = KalmanDesign {
         process_noise: 1.0,
         measurement_noise: 5e-4,
+        state_noise: 0.0,
     };
     let nominal = TwoMass::new(1.0, 1.0, 1.0, Sensor::Far).linear_model();
     let mut filter = Kalman::new(&design.gains(&nominal, 0.001).unwrap(), 0);

@@ -2,8 +2,9 @@
 """Reference values for evoloop's Kalman filter (`control::estimator`), from python-control (an
 independent implementation): each continuous single-input single-output model's zero-order-hold
 discretisation at the control period (`control.c2d`), the steady-state filter `control.dlqe`
-designs for a disturbance entering with the input (G = B_d, variance QN = q^2) and a measurement
-error of variance RN = r^2 (its gain L, the Riccati solution P and the error dynamics' poles E),
+designs for a disturbance entering with the input (G = B_d, variance QN = q^2; with a state
+noise w, G = [B_d I] and QN = diag(q^2, w^2, ...)) and a measurement error of variance RN = r^2
+(its gain L, the Riccati solution P and the error dynamics' poles E),
 and that filter's one-step predictions x[k+1|k] = A x[k|k-1] + B u[k] + L (y[k] - C x[k|k-1])
 over a seeded input and a noisy measured output of the model itself. tests/estimator.rs checks
 evoloop against them.
@@ -32,7 +33,7 @@ def two_mass(k, m1, m2, sensor):
     return a, b, c
 
 
-# name, (A, B, C), period, process noise std q, measurement noise std r
+# name, (A, B, C), period, process noise std q, measurement noise std r[, state noise std w]
 CASES = [
     # config/two_mass.toml's plant and filter: the encoder's 1e-4 counts as a uniform error.
     ("two_mass_far", two_mass(1.0, 1.0, 1.0, "far"), 0.001, 1.0,
@@ -41,14 +42,25 @@ CASES = [
     # config/plants/pendulum.json upright: theta'' = 25 theta + u, angle measured.
     ("pendulum", ([[0, 1], [25, 0]], [[0], [1]], [[1, 0]]), 0.001, 2.0, 2e-4),
     ("double_integrator", ([[0, 1], [0, 0]], [[0], [1]], [[1, 0]]), 0.01, 1.0, 1e-3),
+    # The collocated encoder whose filter, on the input's disturbance alone, has its error poles
+    # on the antiresonance sqrt(k/m2); a state noise moves them off it (config/
+    # two_mass_indirect_collocated.toml's design at k = 0.5).
+    ("two_mass_actuated_state_noise", two_mass(0.5, 1.0, 1.0, "actuated"), 0.001, 1.0,
+     float(np.sqrt(0.0005 ** 2 + 0.0001 ** 2 / 12)), 0.001),
 ]
 
 
-def case(name, abc, period, q, r, seed):
+def case(name, abc, period, q, r, w=0.0, *, seed):
     a, b, c = (np.array(m, dtype=float) for m in abc)
     sysd = control.c2d(control.ss(a, b, c, 0), period, method="zoh")
     ad, bd, cd = np.asarray(sysd.A), np.asarray(sysd.B), np.asarray(sysd.C)
-    l, p, e = control.dlqe(ad, bd, cd, q * q, r * r)
+    if w > 0.0:
+        n = ad.shape[0]
+        g = np.hstack([bd, np.eye(n)])
+        qn = np.diag([q * q] + [w * w] * n)
+        l, p, e = control.dlqe(ad, g, cd, qn, r * r)
+    else:
+        l, p, e = control.dlqe(ad, bd, cd, q * q, r * r)
     l = np.asarray(l)
     # The model's own motion under a seeded input, measured with noise.
     rng = np.random.default_rng(seed)
@@ -74,6 +86,7 @@ def case(name, abc, period, q, r, seed):
         "period": period,
         "process_noise": q,
         "measurement_noise": r,
+        "state_noise": w,
         "ad": ad.tolist(),
         "bd": bd[:, 0].tolist(),
         "l": l[:, 0].tolist(),

@@ -52,6 +52,23 @@ fn an_out_of_range_value_is_named_with_its_key_and_range() {
     );
 }
 
+/// The filter's state noise (issue 64): >= 0 and finite, and a key of the filter only.
+#[test]
+fn a_filters_state_noise_is_refused_below_zero_and_on_the_true_state() {
+    let sf = "[controller.state_feedback]\n";
+    for bad in ["-0.001", "nan"] {
+        let e = err_of(&base().replace(sf, &format!("{sf}state_noise = {bad}\n")));
+        assert!(
+            e.contains("`controller.state_feedback.state_noise`") && e.contains("[0,"),
+            "{e}"
+        );
+    }
+    let e = err_of(&base().replace(sf, &format!("{sf}state = \"true\"\nstate_noise = 0.001\n")));
+    assert!(e.contains("state_noise design the Kalman filter"), "{e}");
+    let ok = base().replace(sf, &format!("{sf}state_noise = 0.001\n"));
+    Scenario::parse(&ok, Path::new("config/ok.toml"), &Overrides::default()).unwrap();
+}
+
 #[test]
 fn a_missing_key_and_wrong_lengths_are_reported() {
     let e = err_of(&base().replace("kind = \"state_feedback\"", ""));

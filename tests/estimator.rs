@@ -41,7 +41,8 @@ fn cases() -> Vec<Value> {
 #[test]
 fn the_kalman_filter_is_python_controls_dlqe_on_every_case() {
     let cases = cases();
-    assert_eq!(cases.len(), 4);
+    // The fifth designs with a state noise as well (python-control's dlqe with G = [B_d I]).
+    assert_eq!(cases.len(), 5);
     for c in &cases {
         let name = c["name"].as_str().unwrap();
         let (a, b, cc) = (floats(&c["a"]), floats(&c["b"]), floats(&c["c"]));
@@ -50,6 +51,7 @@ fn the_kalman_filter_is_python_controls_dlqe_on_every_case() {
         let design = KalmanDesign {
             process_noise: c["process_noise"].as_f64().unwrap(),
             measurement_noise: c["measurement_noise"].as_f64().unwrap(),
+            state_noise: c["state_noise"].as_f64().unwrap_or(0.0),
         };
         let g = design
             .gains(&LinearModel::continuous(&a, &b, &cc), period)

@@ -336,6 +336,7 @@ fn filtered(prob: RobustProblem) -> RobustProblem {
     let design = evoloop::control::estimator::KalmanDesign {
         process_noise: 1.0,
         measurement_noise: (0.0005f64.powi(2) + 0.0001f64.powi(2) / 12.0).sqrt(),
+        state_noise: 0.0,
     };
     prob.with_observer(design, 0.001).unwrap()
 }

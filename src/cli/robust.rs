@@ -64,6 +64,10 @@ pub struct ObserverArgs {
     /// sqrt(0.0005² + 0.0001²/12) for noise 0.0005 and resolution 0.0001].
     #[arg(long)]
     pub measurement_noise: Option<f64>,
+    /// The filter's state noise: std of a disturbance on every sampled state each period (0:
+    /// none; what moves a collocated sensor's filter off the antiresonance).
+    #[arg(long, default_value_t = 0.0)]
+    pub state_noise: f64,
 }
 
 impl ObserverArgs {
@@ -83,9 +87,16 @@ impl ObserverArgs {
                 return Err(format!("{flag} must be > 0 (got {v})"));
             }
         }
+        if !(self.state_noise >= 0.0 && self.state_noise.is_finite()) {
+            return Err(format!(
+                "--state-noise must be >= 0 (got {})",
+                self.state_noise
+            ));
+        }
         Ok(Some(KalmanDesign {
             process_noise: self.process_noise,
             measurement_noise,
+            state_noise: self.state_noise,
         }))
     }
 }
@@ -251,7 +262,7 @@ fn filter_report(prob: &RobustProblem, gains: &[f64], r_c: f64) -> Option<serde_
         "full_state_stability_radius": full_rc,
         "full_state_springs": full_springs,
         "filter": {
-            "period": o.period, "process_noise": o.design.process_noise,
+            "period": o.period, "process_noise": o.design.process_noise, "state_noise": o.design.state_noise,
             "measurement_noise": o.design.measurement_noise,
             "poles": poles_json(&poles), "l_c": o.l_c.as_slice(),
         },

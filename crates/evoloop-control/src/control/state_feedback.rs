@@ -130,6 +130,7 @@ pub struct Table {
     state: Option<StateSource>,
     process_noise: Option<f64>,
     measurement_noise: Option<f64>,
+    state_noise: Option<f64>,
 }
 
 /// `controller.state_feedback.state`: where the law's x comes from.
@@ -200,11 +201,12 @@ pub fn validate(
     let state = t.state.unwrap_or_default();
     let design = match state {
         StateSource::True => {
-            if t.process_noise.is_some() || t.measurement_noise.is_some() {
+            if t.process_noise.is_some() || t.measurement_noise.is_some() || t.state_noise.is_some()
+            {
                 return check.fail(
                     "controller.state_feedback.state",
-                    "\"true\" reads the true state: process_noise and measurement_noise design \
-                     the Kalman filter of state = \"kalman\"",
+                    "\"true\" reads the true state: process_noise, measurement_noise and \
+                     state_noise design the Kalman filter of state = \"kalman\"",
                 );
             }
             None
@@ -218,6 +220,12 @@ pub fn validate(
                 "controller.state_feedback.measurement_noise",
                 t.measurement_noise
                     .unwrap_or(cx.measurement_std.max(IDEAL_SENSOR_NOISE)),
+            )?,
+            state_noise: check.range(
+                "controller.state_feedback.state_noise",
+                t.state_noise.unwrap_or(0.0),
+                0.0,
+                f64::MAX,
             )?,
         }),
     };
