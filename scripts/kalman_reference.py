@@ -78,7 +78,7 @@ def case(name, abc, period, q, r, w=0.0, *, seed):
         xp = ad @ xp + bd[:, 0] * u[k] + l[:, 0] * (y[k] - (cd @ xp)[0])
         predicted.append(xp.tolist())
     poles = sorted((complex(z) for z in np.atleast_1d(e)), key=lambda z: (z.real, z.imag))
-    return {
+    out = {
         "name": name,
         "a": a.tolist(),
         "b": b[:, 0].tolist(),
@@ -86,7 +86,6 @@ def case(name, abc, period, q, r, w=0.0, *, seed):
         "period": period,
         "process_noise": q,
         "measurement_noise": r,
-        "state_noise": w,
         "ad": ad.tolist(),
         "bd": bd[:, 0].tolist(),
         "l": l[:, 0].tolist(),
@@ -96,6 +95,9 @@ def case(name, abc, period, q, r, w=0.0, *, seed):
         "y": y.tolist(),
         "predicted": predicted,
     }
+    if w > 0.0:
+        out["state_noise"] = w
+    return out
 
 
 def generate():

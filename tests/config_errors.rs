@@ -56,7 +56,7 @@ fn an_out_of_range_value_is_named_with_its_key_and_range() {
 #[test]
 fn a_filters_state_noise_is_refused_below_zero_and_on_the_true_state() {
     let sf = "[controller.state_feedback]\n";
-    for bad in ["-0.001", "nan"] {
+    for bad in ["-0.001", "nan", "inf", "1e200"] {
         let e = err_of(&base().replace(sf, &format!("{sf}state_noise = {bad}\n")));
         assert!(
             e.contains("`controller.state_feedback.state_noise`") && e.contains("[0,"),

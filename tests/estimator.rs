@@ -1,10 +1,11 @@
 //! evoloop's Kalman filter (`control::estimator`) against python-control: tests/data/kalman.json
-//! holds, for four continuous models (the two-mass benchmark with either sensor, the upright
-//! pendulum, a double integrator), `c2d`'s zero-order-hold model at the control period,
-//! `dlqe`'s gain L, Riccati solution P and error poles, and the one-step predictions of that
-//! filter over a seeded input and noisy output (scripts/kalman_reference.py; CI regenerates
-//! them with the pinned python-control and compares). Then the filter in the default scenario:
-//! the law on its estimate, the truth withheld.
+//! holds, for five continuous models (the two-mass benchmark with either sensor, and collocated
+//! with a state noise in the design; the upright pendulum; a double integrator), `c2d`'s
+//! zero-order-hold model at the control period, `dlqe`'s gain L, Riccati solution P and error
+//! poles, and the one-step predictions of that filter over a seeded input and noisy output
+//! (scripts/kalman_reference.py; CI regenerates them with the pinned python-control and
+//! compares). Then the filter in the default scenario: the law on its estimate, the truth
+//! withheld.
 
 use evoloop::control::estimator::{Kalman, KalmanDesign};
 use evoloop::msg::PlantState;

@@ -89,7 +89,7 @@ impl ObserverArgs {
         }
         if !(self.state_noise >= 0.0 && self.state_noise.is_finite()) {
             return Err(format!(
-                "--state-noise must be >= 0 (got {})",
+                "--state-noise must be finite and >= 0 (got {})",
                 self.state_noise
             ));
         }
@@ -262,8 +262,9 @@ fn filter_report(prob: &RobustProblem, gains: &[f64], r_c: f64) -> Option<serde_
         "full_state_stability_radius": full_rc,
         "full_state_springs": full_springs,
         "filter": {
-            "period": o.period, "process_noise": o.design.process_noise, "state_noise": o.design.state_noise,
+            "period": o.period, "process_noise": o.design.process_noise,
             "measurement_noise": o.design.measurement_noise,
+            "state_noise": o.design.state_noise,
             "poles": poles_json(&poles), "l_c": o.l_c.as_slice(),
         },
         "spring_ranges": springs,

@@ -21,7 +21,7 @@ use crate::dynamics::{Data, Model};
 use crate::msg::{PlantState, MAX_JOINTS};
 use crate::plant::{DelayLine, LinearModel, MAX_LINEAR_STATES};
 use nalgebra::allocator::Allocator;
-use nalgebra::{DMatrix, DefaultAllocator, Dim, OMatrix, SMatrix, U1};
+use nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, OMatrix, SMatrix, U1};
 
 const N: usize = MAX_LINEAR_STATES;
 
@@ -37,13 +37,14 @@ fn samples_since(last: Option<u64>, seq: u64) -> Option<u64> {
 /// What a Kalman filter is designed for, as standard deviations: a disturbance entering where
 /// the input does and held over a period as the input is (input units), the measurement's error
 /// (output units: the sensor's noise and its quantisation), and a disturbance on every sampled
-/// state each period (the states' units; 0: none).
+/// state each period (the states' units, one number for every state, per sample: a value is
+/// tied to the model's state coordinates and to the period; 0: none).
 ///
 /// Why the third: with the input's disturbance alone the filter trusts the model wherever the
 /// input cannot move the output. A collocated sensor (the two-mass's encoder on the driven mass)
 /// does not see the far mass swing at the antiresonance sqrt(k/m2), a zero of the input-to-output
 /// path, and the filter's error poles settle on that zero, all but undamped (k = 0.5: -0.00009 ±
-/// 0.707j): the loop is then stable for springs within 2 % of the one designed for. A disturbance
+/// 0.707j): the loop is then stable for springs at most 2 % above the one designed for. A disturbance
 /// on the states reaches the output through the spring, which moves those poles off the axis.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct KalmanDesign {
@@ -91,7 +92,7 @@ impl KalmanDesign {
         let n = model.n();
         let a = DMatrix::from_fn(n, n, |i, j| model.a(i, j));
         let c = DMatrix::from_fn(1, n, |_, j| model.c(j));
-        let g = nalgebra::DVector::from_fn(n, |i, _| model.input_column(i));
+        let g = DVector::from_fn(n, |i, _| model.input_column(i));
         let gq = self.process_covariance(&g, n);
         let p = filter_riccati(&a, &c, &gq, r * r).ok_or(
             "no steady-state filter: the measured output does not see every unstable mode \
@@ -157,7 +158,7 @@ fn error_is_stable(model: &LinearModel, m: &[f64]) -> bool {
     crate::plant::linear::all_eigenvalues(n, error, |z| z.norm() < 1.0)
 }
 
-/// The stabilising solution of P = A P A' - A P C' (C P C' + r)^-1 C P A' + GQG' by the
+/// The stabilising solution of P = A P A' - A P C' (C P C' + r)^-1 C P A' + Q by the
 /// structure-preserving doubling algorithm (quadratic convergence, where the Riccati
 /// recursion would take as many steps as the slowest mode has samples), checked by its
 /// residual. None when it does not converge to a finite, accurate solution.
@@ -175,7 +176,7 @@ where
 {
     let (rows, cols) = a.shape_generic();
     let id = OMatrix::<f64, D, D>::identity_generic(rows, cols);
-    // The filtering equation is the control one of (A', C'): A_0 = A', G_0 = C' C / r, H_0 = GQG'.
+    // The filtering equation is the control one of (A', C'): A_0 = A', G_0 = C' C / r, H_0 = Q.
     let mut ak = a.transpose();
     let mut gk = c.transpose() * c / r;
     let mut hk = gq.clone();
@@ -696,7 +697,7 @@ mod tests {
     }
 
     /// With a state noise (the collocated encoder's design), the redesign in the cycle is the
-    /// off-cycle design too: the noise on the states is in both, not in the padding.
+    /// off-cycle design too: the noise on the states is in both.
     #[test]
     fn a_filter_with_a_state_noise_designed_again_is_the_one_designed_for_it() {
         use crate::plant::two_mass::Sensor;
@@ -724,6 +725,14 @@ mod tests {
             );
             assert!((plain.m[i] - m).abs() > 1e-3 * m.abs(), "M {i} without it");
         }
+        // The padded states of the cycle's fixed-size design get no noise (they stay zero in P).
+        let g = SMatrix::<f64, N, 1>::from_fn(|i, _| if i < 4 { 1.0 } else { 0.0 });
+        let q = design.process_covariance(&g, 4);
+        assert!(q
+            .iter()
+            .enumerate()
+            .all(|(k, v)| (k % N < 4 && k / N < 4) || *v == 0.0));
+        assert!((q[(3, 3)] - (1.0 + 1e-6)).abs() < 1e-15 && q[(2, 3)] == 1.0);
         // The error poles: on the antiresonance without it (|z| within 1e-6 of 1), off it with.
         let slowest = |g: &KalmanGains| g.poles.iter().map(|z| z.norm()).fold(0.0, f64::max);
         assert!(slowest(&plain) > 1.0 - 1e-6, "{:?}", plain.poles);

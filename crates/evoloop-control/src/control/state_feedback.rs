@@ -225,7 +225,7 @@ pub fn validate(
                 "controller.state_feedback.state_noise",
                 t.state_noise.unwrap_or(0.0),
                 0.0,
-                f64::MAX,
+                crate::reference::MAX_VALUE,
             )?,
         }),
     };
