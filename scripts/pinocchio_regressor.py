@@ -21,6 +21,10 @@ ROBOTS = [
     "tests/robots/panda_style.urdf",
     "config/robots/arm3.urdf",
     "config/robots/arm7.urdf",
+    # `evoloop robot generate` arms (tests/robot_generate.rs checks the files are its output).
+    "tests/robots/gen3_s11.urdf",
+    "tests/robots/gen6_s12.urdf",
+    "tests/robots/gen7_s13.urdf",
 ]
 
 

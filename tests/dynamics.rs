@@ -667,7 +667,8 @@ fn a_joint_row_of_the_regressor_sees_only_the_bodies_it_carries() {
 /// The regressor equals Pinocchio's `computeJointTorqueRegressor` column by column (same
 /// parameter order, inertia about the joint frame) on files as ROS packages ship them, RNEA
 /// equals Pinocchio's `rnea`, the mass matrix its `crba`, and forward dynamics (ABA and the
-/// CRBA + Cholesky route) its `aba`, on the shipped 7-DOF arm too. Reference values from
+/// CRBA + Cholesky route) its `aba`, on the shipped 7-DOF arm and three arms of `evoloop robot
+/// generate` too. Reference values from
 /// Pinocchio 4.1.0 via scripts/pinocchio_regressor.py (tests/data/pinocchio_regressor.json).
 #[test]
 fn regressor_rnea_crba_and_aba_equal_pinocchio_on_urdf_arms() {
@@ -682,10 +683,10 @@ fn regressor_rnea_crba_and_aba_equal_pinocchio_on_urdf_arms() {
             .collect()
     };
     let cases = v["cases"].as_array().unwrap();
-    assert!(cases.len() >= 12);
-    assert!(cases
-        .iter()
-        .any(|c| c["robot"] == "config/robots/arm7.urdf"));
+    assert!(cases.len() >= 21);
+    for robot in ["config/robots/arm7.urdf", "tests/robots/gen7_s13.urdf"] {
+        assert!(cases.iter().any(|c| c["robot"] == robot), "{robot}");
+    }
     for case in cases {
         let file = case["robot"].as_str().unwrap();
         let mut m = dynamics::load(&root.join(file)).unwrap();

@@ -1,6 +1,6 @@
 //! The integration tests that can share one process, as one test binary: each file below is a
 //! module (`cargo test --release --test suite lti::` runs tests/lti.rs alone). One binary instead
-//! of one per file: each of these 41 files was linked against the whole library and compiled
+//! of one per file: each of these files was linked against the whole library and compiled
 //! iceoryx2's generics again (a 3.9 s floor a binary, up to 20 s), and libtest ran the files one
 //! after the other, each leaving a core idle behind its slowest test; here all of them share the
 //! two threads. Files that cannot share a process have targets of their own in Cargo.toml: a
@@ -47,6 +47,7 @@ mod refused_states;
 mod replay;
 mod report_browser;
 mod robot_files;
+mod robot_generate;
 mod robust;
 mod robust_cli;
 mod sensors;

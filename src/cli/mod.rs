@@ -14,6 +14,7 @@ pub mod identify_study;
 pub mod operator;
 pub mod optim;
 pub mod rkgnn;
+pub mod robot;
 pub mod robust;
 pub mod soak;
 pub mod top;
@@ -67,6 +68,12 @@ pub enum Cmd {
     /// Rigid-body dynamics of a robot file (D-H TOML or URDF) at one state: tau, M, G, V, and,
     /// given --tau, the forward dynamics.
     Dynamics(dynamics::DynamicsArgs),
+    /// Arms of one's own to try the controllers on: `robot generate` (a plausible serial arm of
+    /// 3-7 joints from a seed, as URDF), `robot zoo` (the fixed unseen arms of a zoo file).
+    Robot {
+        #[command(subcommand)]
+        cmd: robot::RobotCmd,
+    },
     /// The fuzzy-network paper's GA experiments: `tune config/arsinh_tune.toml` (Section 5.1),
     /// `tune config/maglev_tune.toml` (Section 5.2).
     Tune(tune::TuneArgs),
@@ -166,6 +173,7 @@ pub fn main() -> ExitCode {
                 | Cmd::Robust { .. }
                 | Cmd::Optim { .. }
                 | Cmd::Dynamics(_)
+                | Cmd::Robot { .. }
                 | Cmd::Tune(_)
                 | Cmd::Identify { .. }
                 | Cmd::Rkgnn { .. }
@@ -217,6 +225,7 @@ pub fn main() -> ExitCode {
         Some(Cmd::Identify { cmd }) => ExitCode::from(rkgnn::identify(cmd) as u8),
         Some(Cmd::Rkgnn { cmd }) => ExitCode::from(rkgnn::main(cmd) as u8),
         Some(Cmd::Dynamics(a)) => ExitCode::from(crate::cli::dynamics::main(a) as u8),
+        Some(Cmd::Robot { cmd }) => ExitCode::from(robot::main(cmd) as u8),
         Some(Cmd::Floor(a)) => floor::main(&a),
         Some(Cmd::Report(a)) => match crate::report::html::write(&a.dir) {
             Ok(p) => {

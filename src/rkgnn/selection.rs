@@ -106,6 +106,49 @@ fn written() -> (Vec<Sines>, Vec<Sines>) {
     (training, new)
 }
 
+/// Where the study's trajectories come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrajectorySource {
+    /// As written for the paper's 3-joint arm.
+    Paper,
+    /// Built from the arm's joint limits (`generated`).
+    Limits,
+}
+
+/// The written trajectories on a 3-joint arm whose limits hold them;
+/// trajectories built from the limits on any other arm, and on a 3-joint arm the written ones
+/// would take past a limit (a generated arm's elbow may turn less than the paper's).
+fn trajectories_for(arm: &Model) -> (Vec<Sines>, Vec<Sines>, TrajectorySource) {
+    if arm.dof() == JOINTS {
+        let (training, new) = written();
+        if training.iter().chain(&new).all(|s| holds(arm, s)) {
+            return (training, new, TrajectorySource::Paper);
+        }
+    }
+    let (training, new) = generated(arm);
+    (training, new, TrajectorySource::Limits)
+}
+
+/// Each joint's lowest and highest position along `s` (offset -+ both harmonics).
+fn reach(s: &Sines) -> Vec<(f64, f64)> {
+    s.offsets
+        .iter()
+        .zip(&s.amplitudes)
+        .map(|(o, a)| (o - a[0] - a[1], o + a[0] + a[1]))
+        .collect()
+}
+
+/// Whether `s` as written stays strictly within `arm`'s limits, its harmonics' peaks added (a
+/// bound on its excursion). As the probe scenarios, without a seed's spread (`Sines::for_seed`),
+/// which would fail arm3's own beyond2 by 5 mrad at its elbow although the peaks never meet.
+fn holds(arm: &Model, s: &Sines) -> bool {
+    arm.bodies.iter().zip(reach(s)).all(|(b, (lo, hi))| {
+        let (q_min, q_max) = b.limits.position_span();
+        lo > q_min && hi < q_max
+    })
+}
+
 /// The study's trajectories on an arm of any other joint count, built from its joint limits by
 /// the written ones' pattern: about the middle c of each joint's range (half-range r, at most
 /// pi; a joint without limits: -pi..pi), train1 at c - d and train2 at c + d (d = 0.15 r, at
@@ -262,6 +305,9 @@ pub struct SelectionResult {
     pub seeds: u64,
     pub training: Vec<&'static str>,
     pub trajectories: Vec<&'static str>,
+    /// Where the trajectories come from: `paper` (the RKGNN paper's arm, written) or `limits`
+    /// (built from this arm's joint limits).
+    pub trajectory_source: TrajectorySource,
     /// Eq. 2's bounds given to the identification (over the joint limits).
     pub prior: Prior,
     /// How the models were identified: what of the servo was known, the start, the EA's
@@ -393,11 +439,7 @@ pub fn run(
     }
     let (robot, arm) = arm_of(&s.robot, dir)?;
     let n = arm.dof();
-    let (training_set, new_set) = if n == JOINTS {
-        written()
-    } else {
-        generated(&arm)
-    };
+    let (training_set, new_set, trajectory_source) = trajectories_for(&arm);
     let mut g = gains()?;
     // Computed torque's gains are accelerations per error: the same on every arm.
     g.ct = [vec![MATCH.0; n], vec![MATCH.1; n]];
@@ -664,6 +706,7 @@ pub fn run(
         seeds: s.seeds,
         training: names(&training_set),
         trajectories,
+        trajectory_source,
         prior,
         servo_known: s.servo_known,
         start: s.start,
@@ -935,12 +978,20 @@ mod tests {
     }
 
     /// Every position a trajectory reaches: offset +- the sum of its amplitudes, per joint.
-    fn reach(s: &Sines) -> Vec<(f64, f64)> {
-        s.offsets
-            .iter()
-            .zip(&s.amplitudes)
-            .map(|(o, a)| (o - a[0] - a[1], o + a[0] + a[1]))
-            .collect()
+    #[test]
+    fn the_paper_arm_keeps_the_written_trajectories_and_an_arm_they_leave_gets_its_own() {
+        for file in ["arm3.toml", "arm3.urdf"] {
+            let (_, _, source) = trajectories_for(&arm(file));
+            assert_eq!(source, TrajectorySource::Paper, "{file}");
+        }
+        let tight = crate::dynamics::load(Path::new(&format!(
+            "{}/tests/robots/gen3_s11.urdf",
+            env!("CARGO_MANIFEST_DIR")
+        )))
+        .unwrap();
+        let (training, new, source) = trajectories_for(&tight);
+        assert_eq!(source, TrajectorySource::Limits);
+        assert!(training.iter().chain(&new).all(|s| holds(&tight, s)));
     }
 
     #[test]
