@@ -10,19 +10,23 @@ use nalgebra::SymmetricEigen;
 use rand::{Rng, SeedableRng};
 use std::path::Path;
 
-fn generate(dir: &Path, joints: usize, seed: u64) -> std::path::PathBuf {
-    let out = dir.join(format!("gen{joints}_s{seed}.urdf"));
-    let (j, s) = (joints.to_string(), seed.to_string());
-    let o = cli(&[
+/// `evoloop robot generate --joints JOINTS --seed SEED --out OUT`, as a user types it.
+fn run_generate(joints: &str, seed: &str, out: &Path) -> std::process::Output {
+    cli(&[
         "robot",
         "generate",
         "--joints",
-        &j,
+        joints,
         "--seed",
-        &s,
+        seed,
         "--out",
         out.to_str().unwrap(),
-    ]);
+    ])
+}
+
+fn generate(dir: &Path, joints: usize, seed: u64) -> std::path::PathBuf {
+    let out = dir.join(format!("gen{joints}_s{seed}.urdf"));
+    let o = run_generate(&joints.to_string(), &seed.to_string(), &out);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let said = String::from_utf8_lossy(&o.stdout);
     assert!(said.contains(&format!("{joints} joints")), "{said}");
@@ -124,16 +128,7 @@ fn bad_joint_counts_and_zoo_files_are_refused_with_file_key_and_reason() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("a.urdf");
     for joints in ["2", "8", "x"] {
-        let o = cli(&[
-            "robot",
-            "generate",
-            "--joints",
-            joints,
-            "--seed",
-            "1",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+        let o = run_generate(joints, "1", &out);
         assert_eq!(o.status.code(), Some(2));
         assert!(String::from_utf8_lossy(&o.stderr).contains("--joints"));
         assert!(!out.exists());
@@ -177,16 +172,7 @@ fn a_link_planted_at_the_out_name_is_replaced_not_followed() {
     std::fs::write(&victim, "keep").unwrap();
     let out = dir.path().join("arm.urdf");
     std::os::unix::fs::symlink(&victim, &out).unwrap();
-    let o = cli(&[
-        "robot",
-        "generate",
-        "--joints",
-        "3",
-        "--seed",
-        "1",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = run_generate("3", "1", &out);
     assert!(o.status.success());
     assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
     assert!(!std::fs::symlink_metadata(&out)

@@ -44,15 +44,15 @@ pub struct ZooArgs {
 /// A zoo file: the arms, each by joint count and seed.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Zoo {
-    pub arm: Vec<ZooArm>,
+struct Zoo {
+    arm: Vec<ZooArm>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ZooArm {
-    pub joints: usize,
-    pub seed: u64,
+struct ZooArm {
+    joints: usize,
+    seed: u64,
 }
 
 pub fn main(cmd: RobotCmd) -> i32 {
@@ -75,7 +75,7 @@ fn generate_one(a: GenerateArgs) -> Result<(), String> {
 }
 
 /// The arms of a zoo file, checked whole before any is written.
-pub fn read_zoo(file: &Path) -> Result<Vec<Arm>, String> {
+fn read_zoo(file: &Path) -> Result<Vec<Arm>, String> {
     let text = crate::files::read_text(file)
         .map_err(|e| format!("{}: cannot read: {e}", file.display()))?;
     let zoo: Zoo = crate::files::from_toml(&text)

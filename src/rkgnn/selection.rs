@@ -140,8 +140,8 @@ fn reach(s: &Sines) -> Vec<(f64, f64)> {
 }
 
 /// Whether `s` as written stays strictly within `arm`'s limits, its harmonics' peaks added (a
-/// bound on its excursion). As the probe scenarios, without a seed's spread (`Sines::for_seed`),
-/// which would fail arm3's own beyond2 by 5 mrad at its elbow although the peaks never meet.
+/// bound on its excursion). Without a seed's spread (`Sines::for_seed`), as the probe scenarios
+/// check it: with the spread, arm3's own beyond2 would fail at its elbow by 5 mrad.
 fn holds(arm: &Model, s: &Sines) -> bool {
     arm.bodies.iter().zip(reach(s)).all(|(b, (lo, hi))| {
         let (q_min, q_max) = b.limits.position_span();
@@ -977,7 +977,8 @@ mod tests {
         .unwrap()
     }
 
-    /// Every position a trajectory reaches: offset +- the sum of its amplitudes, per joint.
+    /// arm3 (as D-H table and as URDF) runs the paper's trajectories; gen3_s11, whose elbow turns
+    /// less, runs its own, within its limits.
     #[test]
     fn the_paper_arm_keeps_the_written_trajectories_and_an_arm_they_leave_gets_its_own() {
         for file in ["arm3.toml", "arm3.urdf"] {
