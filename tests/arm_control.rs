@@ -475,3 +475,70 @@ fn on_arm7_the_evidence_rule_tracks_below_each_model_alone_and_the_servo() {
          {two:.4}) and the servo ({pd:.4}): correct the book's Arms chapter"
     );
 }
+
+/// config/arm3_train1.toml holding its start pose (amplitudes zero) for 3 s, with `gravity`
+/// as `[controller.pd_servo]`'s gravity_model line (or none): the last second's error per
+/// joint, rad.
+fn held_pose_error(gravity: Option<&str>) -> Result<Vec<f64>, String> {
+    let mut text = std::fs::read_to_string(config("arm3_train1.toml")).unwrap();
+    let amps = "amplitudes = [[0.8, 0.2], [0.3, 0.1], [0.5, 0.15]]";
+    assert!(text.contains(amps));
+    text = text.replace(amps, "amplitudes = [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]");
+    if let Some(line) = gravity {
+        text = text.replace(
+            "kd = [15.0, 20.0, 8.0]",
+            &format!("kd = [15.0, 20.0, 8.0]\n{line}"),
+        );
+    }
+    let ov = Overrides {
+        duration: Some(3.0),
+        ..Default::default()
+    };
+    let scn = Scenario::parse(&text, &config("arm3_held.toml"), &ov).map_err(|e| e.to_string())?;
+    let sim = simulate(&scn);
+    let traces = JointTraces::of(&sim, &scn.reference, 3);
+    let (r, y) = traces.columns();
+    Ok((0..3)
+        .map(|j| {
+            let tail = &y[j][2000..];
+            let mean = tail.iter().sum::<f64>() / tail.len() as f64;
+            (r[j][2000] - mean).abs()
+        })
+        .collect())
+}
+
+#[test]
+fn gravity_compensation_removes_the_p_d_servos_droop_and_a_wrong_model_leaves_part_of_it() {
+    // Without compensation the servo holds the arm where Kp e = G(q): a droop of centiradians.
+    let droop = held_pose_error(None).unwrap();
+    assert!(droop[1] > 0.01, "{droop:?}");
+    // With the arm's own G(q) the droop is gone (to the encoders' noise).
+    let exact = held_pose_error(Some("gravity_model = \"robots/arm3.toml\"")).unwrap();
+    assert!(exact.iter().all(|e| *e < 1e-4), "{exact:?}");
+    // With a CAD model 20 % wrong, part of it remains: the baseline is only as good as its model.
+    let truth = evoloop::dynamics::load(&config("robots/arm3.toml")).unwrap();
+    let errors = vec![
+        evoloop::dynamics::nominal::CadError {
+            mass: 1.2,
+            com: [1.2; 3],
+            inertia: 1.0,
+        };
+        3
+    ];
+    let nominal = evoloop::dynamics::nominal::perturbed(&truth, &errors);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("nominal.urdf");
+    std::fs::write(&file, evoloop::dynamics::urdf::to_urdf(&nominal).unwrap()).unwrap();
+    let line = format!("gravity_model = \"{}\"", file.display());
+    let wrong = held_pose_error(Some(&line)).unwrap();
+    assert!(
+        wrong[1] > 10.0 * exact[1] && wrong[1] < 0.8 * droop[1],
+        "{wrong:?} {droop:?}"
+    );
+    // A model of another arm is refused with its key.
+    let e = held_pose_error(Some("gravity_model = \"robots/arm7.urdf\"")).unwrap_err();
+    assert!(
+        e.contains("controller.pd_servo.gravity_model") && e.contains("7 joints"),
+        "{e}"
+    );
+}

@@ -156,10 +156,31 @@ pub enum RkgnnCmd {
     /// positions within the joint limits; what `identify rkgnn --m1 --m2` takes.
     Prior(PriorArgs),
     /// Fuzzy selection against every baseline on four trajectories that are not midpoints:
-    /// three models per seed, the training and a gain-matched P-D servo, CT on the true model
-    /// and on each model, max, blend and uniform blend, best single model in hindsight;
-    /// paired Wilcoxon tests; writes selection.json and report.md.
+    /// three models per seed, the training and a gain-matched P-D servo, the servo with gravity
+    /// compensation and CT on a CAD model 20 % off (seed<N>/nominal.urdf), one model updated
+    /// online, CT on the true model and on each model, max, blend, uniform blend and evidence
+    /// rules, best single model in hindsight; each model's error against the arm; paired
+    /// Wilcoxon tests over seeds; writes selection.json and report.md.
     Selection(SelectionArgs),
+    /// The selection study on every arm of a zoo file (config/robots/zoo.toml: arms no setting
+    /// was tuned on): each arm written to OUT/arms/, studied in OUT/NAME/, and one table of
+    /// each rule against each strongest baseline per arm with the models' errors, and across
+    /// arms the count with its sign test; writes zoo.json and zoo.md.
+    Zoo(ZooArgs),
+}
+
+#[derive(Args)]
+pub struct ZooArgs {
+    /// The zoo file (`[[arm]] joints = N, seed = S`).
+    #[arg(long, default_value = "config/robots/zoo.toml")]
+    pub zoo: PathBuf,
+    /// Only the arms with these joint counts (e.g. 3,4) [default: all].
+    #[arg(long, value_delimiter = ',')]
+    pub joints: Vec<usize>,
+    /// The selection study's settings (every one but --robot); --models-from DIR takes each
+    /// arm's models from DIR/NAME.
+    #[command(flatten)]
+    pub selection: SelectionArgs,
 }
 
 #[derive(Args)]
@@ -168,9 +189,10 @@ pub struct SelectionArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// An arm (D-H TOML or URDF): a 3-joint arm runs the trajectories written for the paper's
-    /// arm, any other its trajectories built from its joint limits.
-    #[arg(long, default_value = "config/robots/arm3.toml")]
-    pub robot: PathBuf,
+    /// arm, any other its trajectories built from its joint limits [default:
+    /// config/robots/arm3.toml].
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
     /// Seeds (each: new measurement noise, models re-identified).
     #[arg(long, default_value_t = 10)]
     pub seeds: u64,
@@ -466,6 +488,7 @@ pub fn main(cmd: RkgnnCmd) -> i32 {
         RkgnnCmd::Study(a) => study(&a),
         RkgnnCmd::Prior(a) => prior(&a),
         RkgnnCmd::Selection(a) => selection(&a),
+        RkgnnCmd::Zoo(a) => zoo(&a),
     };
     match r {
         Ok(()) => 0,
@@ -555,7 +578,7 @@ fn prior(a: &PriorArgs) -> Result<(), String> {
 
 /// `run` with a progress bar of `unit` (hidden when `quiet`) fed by its progress callback.
 fn with_bar<T>(
-    unit: &'static str,
+    unit: &str,
     quiet: bool,
     run: impl FnOnce(&(dyn Fn(u64, u64, &str) + Sync)) -> Result<T, String>,
 ) -> Result<T, String> {
@@ -569,10 +592,13 @@ fn with_bar<T>(
     r
 }
 
-fn selection(a: &SelectionArgs) -> Result<(), String> {
-    use crate::rkgnn::selection;
-    let settings = selection::SelectionSettings {
-        robot: a.robot.clone(),
+/// The selection study's settings of `a` on `robot`.
+fn selection_settings(
+    a: &SelectionArgs,
+    robot: PathBuf,
+) -> crate::rkgnn::selection::SelectionSettings {
+    crate::rkgnn::selection::SelectionSettings {
+        robot,
         seeds: a.seeds,
         weigh_joints: a.weigh_joints,
         christoffel: a.velocity == VelocityKind::Christoffel,
@@ -583,7 +609,13 @@ fn selection(a: &SelectionArgs) -> Result<(), String> {
         models_from: a.models_from.clone(),
         velocity: a.joint_velocity,
         threads: a.threads.unwrap_or_else(crate::optim::all_cores),
-    };
+    }
+}
+
+fn selection(a: &SelectionArgs) -> Result<(), String> {
+    use crate::rkgnn::selection;
+    let robot = (a.robot.clone()).unwrap_or_else(|| PathBuf::from("config/robots/arm3.toml"));
+    let settings = selection_settings(a, robot);
     let r = with_bar("runs", a.quiet || a.json, |p| {
         selection::run(&settings, &a.out, p)
     })?;
@@ -592,6 +624,64 @@ fn selection(a: &SelectionArgs) -> Result<(), String> {
     } else {
         out!("{}", selection::report_markdown(&r));
         out!("wrote {}/{{selection.json, report.md}}", a.out.display());
+    }
+    Ok(())
+}
+
+fn zoo(a: &ZooArgs) -> Result<(), String> {
+    use crate::rkgnn::{selection, zoo};
+    let t0 = std::time::Instant::now();
+    let sel = &a.selection;
+    if sel.robot.is_some() {
+        return Err("--robot: the zoo's arms come from --zoo".into());
+    }
+    let arms: Vec<_> = (crate::cli::robot::read_zoo(&a.zoo)?.into_iter())
+        .filter(|arm| a.joints.is_empty() || a.joints.contains(&arm.joints.len()))
+        .collect();
+    if arms.is_empty() {
+        return Err(format!(
+            "{}: no arm with --joints {:?}",
+            a.zoo.display(),
+            a.joints
+        ));
+    }
+    let dir = sel.out.join("arms");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("cannot make {}: {e}", dir.display()))?;
+    let mut lines = Vec::new();
+    for (i, arm) in arms.iter().enumerate() {
+        let file = dir.join(format!("{}.urdf", arm.name));
+        crate::files::write(&file, arm.to_urdf())
+            .map_err(|e| format!("{}: {e}", file.display()))?;
+        let mut settings = selection_settings(sel, file);
+        settings.models_from = sel.models_from.as_ref().map(|d| d.join(&arm.name));
+        let label = format!("{} ({} of {})", arm.name, i + 1, arms.len());
+        let r = with_bar(&label, sel.quiet || sel.json, |p| {
+            selection::run(&settings, &sel.out.join(&arm.name), p)
+        })?;
+        let line = zoo::arm_line(&arm.name, &r);
+        if !sel.quiet && !sel.json {
+            out!(
+                "{}: {} joints, {:.0} s",
+                line.arm,
+                line.joints,
+                line.seconds
+            );
+        }
+        lines.push(line);
+    }
+    let result = zoo::ZooResult {
+        zoo: a.zoo.clone(),
+        seeds: sel.seeds,
+        tallies: zoo::tallies(&lines),
+        arms: lines,
+        seconds: t0.elapsed().as_secs_f64(),
+    };
+    zoo::write(&sel.out, &result)?;
+    if sel.json {
+        crate::cli::print_json(&result);
+    } else {
+        out!("{}", zoo::report_markdown(&result));
+        out!("wrote {}/{{zoo.json, zoo.md}}", sel.out.display());
     }
     Ok(())
 }

@@ -75,7 +75,7 @@ fn generate_one(a: GenerateArgs) -> Result<(), String> {
 }
 
 /// The arms of a zoo file, checked whole before any is written.
-fn read_zoo(file: &Path) -> Result<Vec<Arm>, String> {
+pub(crate) fn read_zoo(file: &Path) -> Result<Vec<Arm>, String> {
     let text = crate::files::read_text(file)
         .map_err(|e| format!("{}: cannot read: {e}", file.display()))?;
     let zoo: Zoo = crate::files::from_toml(&text)

@@ -284,3 +284,54 @@ pub fn prediction_rms(
     }
     (sum / count as f64).sqrt()
 }
+
+/// `run_loop`'s hook of `simulate`: the optimiser process's identification in this process,
+/// at the same samples as in lockstep (it sees each state, attempts at the synchronisation
+/// points and its sets are offered before the next sample).
+struct Identifying<'a> {
+    keep: crate::sim::Keep<'a>,
+    live: LiveIdentify,
+    scn: &'a crate::config::Scenario,
+    due: Vec<ParamSet>,
+}
+
+impl crate::sim::LoopHook for Identifying<'_> {
+    fn before(&mut self, seq: u64, cycle: &mut crate::control::ControlCycle) {
+        self.keep.before(seq, cycle);
+        for s in self.due.drain(..) {
+            cycle.offer(&s);
+        }
+    }
+
+    fn after(
+        &mut self,
+        state: &PlantState,
+        tel: &crate::msg::Telemetry,
+        event: Option<crate::control::cycle::ParamEvent>,
+        cycle: &crate::control::ControlCycle,
+    ) {
+        self.keep.after(state, tel, event, cycle);
+        self.live.observe(state);
+        if self.scn.is_sync_point(state.seq) {
+            if let Some(m) = self.live.attempt(state.t, state.seq + 1) {
+                self.due.extend(m.sets());
+            }
+        }
+    }
+}
+
+/// A scenario with `optimiser.mode = "identify"` run in this process, as the processes run it
+/// in lockstep: every sample, and the identification's epochs (one per attempt).
+pub fn simulate(
+    scn: &crate::config::Scenario,
+) -> Result<(crate::sim::SimResult, Vec<EpochRecord>), String> {
+    scn.require_in_process()?;
+    let mut hook = Identifying {
+        keep: crate::sim::Keep::new(scn),
+        live: LiveIdentify::new(scn)?,
+        scn,
+        due: Vec::new(),
+    };
+    let cycle = crate::sim::run_loop(scn, &mut hook);
+    Ok((hook.keep.result(&cycle), hook.live.epochs.into_vec()))
+}

@@ -9,9 +9,11 @@
 //! - `refine`: Levenberg-Marquardt on the free-run output error (after the least squares).
 //! - `model`: the identified model's file (`MODEL.json`).
 //! - `live`: identification alongside operation (`optimiser.mode = "identify"`).
+//! - `model_error`: a model's M, V and G against the arm's along a path.
 //! - `study`: Section 5 on any 3-joint arm (`evoloop rkgnn study`, Figs. 7-10).
 //! - `selection`: fuzzy selection against every baseline on trajectories that are not
 //!   midpoints (`evoloop rkgnn selection`).
+//! - `zoo`: the selection study on every arm of a zoo, one table (`evoloop rkgnn zoo`).
 //!
 //! The controller that uses the models is `control::fuzzy_computed_torque`, the selection rule
 //! `control::fuzzy_select`.
@@ -20,11 +22,13 @@ pub mod data;
 pub mod ea;
 pub mod identify;
 pub mod live;
+pub mod model_error;
 /// The model and its network live in crate `evoloop-rkgnn`, below the control laws.
 pub use evoloop_rkgnn::{model, network};
 pub mod refine;
 pub mod selection;
 pub mod study;
+pub mod zoo;
 
 pub use data::Trajectory;
 pub use model::RkgnnModel;

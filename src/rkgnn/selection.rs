@@ -13,10 +13,18 @@
 //! torque on the true model, on each model alone, fuzzy selection (max, blend) and a uniform blend
 //! (the blend with memberships flattened, gamma = 1e6). Computed from those: the best single model
 //! in hindsight (per trajectory and seed) and a random single model (the mean of the three, what
-//! choosing one blindly gives on average). Seeds change the measurement noise of every run and
+//! choosing one blindly gives on average). The baselines a control engineer would use beside
+//! them: the matched servo with gravity compensation from the nominal model (`pd_gravity`),
+//! computed torque on the nominal model (`ct_nominal`), the nominal model being the arm's file
+//! with its masses, centres of mass and inertias off by up to `NOMINAL_SPREAD` (a CAD model,
+//! drawn per arm and seed and written to `seed<N>/nominal.urdf`), and one model updated online
+//! from the applied torques (`online_model`: the seed's first usable model under identification
+//! alongside operation, `rkgnn::live`). Seeds change the measurement noise of every run and
 //! the training trajectories themselves (seed 1: as written; others: offsets and amplitudes
 //! moved, `Sines::for_seed`), and the models are re-identified on each seed's training data.
-//! The comparisons are paired Wilcoxon signed-rank tests over (seed, trajectory) pairs.
+//! The comparisons are paired Wilcoxon signed-rank tests over seeds (each seed's mean over the
+//! four tasks: a seed's tasks share its models), overall and per task. Each model's M-hat, V-hat
+//! and G-hat are judged against the arm along each task (`model_error`).
 
 use super::identify::{self, Prior, Settings};
 use super::study::{
@@ -25,6 +33,7 @@ use super::study::{
 };
 use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::dynamics::Model;
+use crate::rkgnn::model_error::{model_error, ModelError, RigidBody};
 use crate::rkgnn::Trajectory;
 use crate::sim::JointTraces;
 use crate::stats::{median, wilcoxon, Wilcoxon};
@@ -201,7 +210,7 @@ fn generated(arm: &Model) -> (Vec<Sines>, Vec<Sines>) {
 }
 
 /// The controllers run on each new trajectory, in the table's order.
-pub const RUN: [&str; 11] = [
+pub const RUN: [&str; 14] = [
     "pd",
     "pd_matched",
     "ct_true",
@@ -213,7 +222,12 @@ pub const RUN: [&str; 11] = [
     "uniform_blend",
     "fuzzy_evidence",
     "uniform_evidence",
+    "pd_gravity",
+    "ct_nominal",
+    "online_model",
 ];
+/// The single identified models (the best and the random single are computed from them).
+const SINGLES: [&str; 3] = ["ct_model_1", "ct_model_2", "ct_model_3"];
 /// The rules compared with every other controller: the fuzzy rules, the uniform blend (all
 /// models at equal weight), the rule that selects nothing, and the evidence rule (each model
 /// weighted per joint by how well it predicts the applied torque) on the memberships and on a
@@ -280,9 +294,18 @@ pub struct Cell {
     /// Models the controller refused on this trajectory (not positive definite along it):
     /// left out alone (their rms is null) and from the fuzzy sets, as models not identified are.
     pub refused: usize,
+    /// Each identified model's M-hat, V-hat and G-hat against the arm along this trajectory
+    /// (null: not identified), and the nominal (CAD) model's.
+    pub model_error: Vec<Option<ModelError>>,
+    pub nominal_error: ModelError,
+    /// Models the online identification put in service during online_model's run (null: not
+    /// run, no usable model to start from).
+    pub online_updates: Option<usize>,
 }
 
-/// A paired comparison of a rule (`RULES`) with one baseline over every (seed, trajectory).
+/// A paired comparison of a rule (`RULES`) with one baseline over the seeds: per seed the mean
+/// over the tasks both ran of the overall RMS (seeds re-identify, so they are the independent
+/// units; the tasks of a seed share its models). The Wilcoxon test is exact up to 30 seeds.
 #[derive(Debug, Clone, Serialize)]
 pub struct Comparison {
     /// One of `RULES`: `fuzzy_max` (the paper's rule), `fuzzy_blend`, `uniform_blend`,
@@ -291,8 +314,9 @@ pub struct Comparison {
     pub baseline: String,
     pub median_fuzzy: f64,
     pub median_baseline: f64,
-    /// Pairs where the rule is lower.
+    /// Seeds where the rule is lower.
     pub fuzzy_lower: usize,
+    /// Seeds compared.
     pub pairs: usize,
     pub wilcoxon: Wilcoxon,
 }
@@ -330,10 +354,19 @@ pub struct SelectionResult {
     /// The joint velocity the training servo and every tracking law acted on: `filtered` (a
     /// drive's, from the encoders) or `true` (the simulator's, an ideal sensor).
     pub joint_velocity: JointVelocity,
+    /// How far each seed's nominal (CAD) model is off (factors within 1 +- this), and each
+    /// seed's nominal model as written: pd_gravity and ct_nominal use it.
+    pub nominal_spread: f64,
+    pub nominal: Vec<NominalWritten>,
+    /// online_model's identification settings (`optimiser` keys).
+    pub online: Vec<(&'static str, f64)>,
     pub cells: Vec<Cell>,
     /// Per trajectory, the median overall RMS of each controller.
     pub medians: Medians,
+    /// Each rule against each controller over the seeds (the claims' test).
     pub comparisons: Vec<Comparison>,
+    /// The same per task (trajectory), over the seeds.
+    pub tasks: Vec<TaskComparisons>,
     /// Whether fuzzy max (the paper's rule) is below the best single model in hindsight:
     /// median lower and Wilcoxon p < 0.05 with fuzzy lower.
     pub claim_held: bool,
@@ -498,6 +531,7 @@ pub fn run(
     let mut cells = Vec::new();
     let mut unidentified = Vec::new();
     let mut identification_seconds = Vec::new();
+    let mut nominals = Vec::new();
     for seed in 1..=s.seeds {
         let sd = dir.join(format!("seed{seed}"));
         std::fs::create_dir_all(&sd).map_err(|e| format!("{}: {e}", sd.display()))?;
@@ -519,7 +553,7 @@ pub fn run(
             })
             .collect::<Result<_, _>>()?;
         write_scenarios(&training)?;
-        let sims = simulate_all(&training, s.threads, &|| tick("training run"));
+        let sims = simulate_all(&training, s.threads, &|| tick("training run"))?;
         let mut models: Vec<Option<(PathBuf, crate::rkgnn::RkgnnModel)>> = Vec::new();
         for (c, sim) in training.iter().zip(&sims) {
             let data = Trajectory::from_sim(
@@ -559,147 +593,31 @@ pub fn run(
                 }
             }
         }
-        let uniform = [("gamma", toml::Value::Float(UNIFORM_GAMMA))];
-        let memberships = [("evidence_prior", "memberships".into())];
-        let ct_true = controller("computed_torque", g.ct_table());
+        // This seed's CAD model: the arm with its mass properties off (`nominal`), written
+        // down beside the models; the gravity compensation and ct_nominal use it.
+        let nominal = nominal_model(&arm, seed, &sd)?;
+        let seed_run = SeedRun {
+            s,
+            g: &g,
+            robot: &robot,
+            arm: &arm,
+            dir: &sd,
+            seed,
+            models: &models,
+            servo: [servo_kp, servo_kd],
+            matched: [&matched.0, &matched.1],
+            nominal: &nominal,
+        };
         let first_new = training_set.len();
         for (i, (tr, text)) in new_set.iter().zip(&texts[first_new..]).enumerate() {
-            // The controller refuses a model whose M-hat is not positive definite along the
-            // reference (control::fuzzy_computed_torque): such a model is left out here as a
-            // user would leave it out, alone and in the fuzzy sets.
             let reference = &probe[first_new + i].scenario;
-            let duration = reference.timing.duration;
-            let along = crate::control::fuzzy_computed_torque::reference_positions(
-                &reference.reference,
-                duration,
-            );
-            // The controller's own check, once per model: it gives the smallest eigenvalue along
-            // the reference when the model passes; a refused one's is looked up in full.
-            let checked: Vec<Option<Result<f64, String>>> = models
-                .iter()
-                .map(|m| m.as_ref().map(|(_, m)| check_along_reference(m, &along)))
-                .collect();
-            let usable: Vec<bool> = checked.iter().map(|c| matches!(c, Some(Ok(_)))).collect();
-            // NaN for a model not identified.
-            let min_eig_on_reference: Vec<f64> = models
-                .iter()
-                .zip(&checked)
-                .map(|(m, c)| match (m, c) {
-                    (_, Some(Ok(lowest))) => *lowest,
-                    (Some((_, m)), _) => m.min_eig(along.iter().map(Vec::as_slice)),
-                    (None, _) => f64::NAN,
-                })
-                .collect();
-            // The usable models' indices: slot k of the fuzzy sets is model kept_idx[k].
-            let kept_idx: Vec<usize> = (0..models.len()).filter(|&k| usable[k]).collect();
-            let file = |k: usize| models[k].as_ref().map(|(f, _)| f);
-            let kept: Vec<&PathBuf> = kept_idx.iter().filter_map(|&k| file(k)).collect();
-            let single = |k: usize| {
-                let f = file(k).filter(|_| usable[k])?;
-                Some(g.fuzzy(&[f], "max", &[]))
-            };
-            let any = !kept.is_empty();
-            let laws = [
-                Some(pd(servo_kp, servo_kd)),
-                Some(pd(&matched.0, &matched.1)),
-                Some(ct_true.clone()),
-                single(0),
-                single(1),
-                single(2),
-                any.then(|| g.fuzzy(&kept, "max", &[])),
-                any.then(|| g.fuzzy(&kept, "blend", &[])),
-                any.then(|| g.fuzzy(&kept, "blend", &uniform)),
-                any.then(|| g.fuzzy(&kept, "evidence", &memberships)),
-                any.then(|| g.fuzzy(&kept, "evidence", &[])),
-            ];
-            let runnable: Vec<(&str, toml::Table)> = RUN
-                .iter()
-                .zip(laws)
-                .filter_map(|(k, law)| law.map(|l| (*k, l)))
-                .collect();
-            let cases: Vec<Case> = runnable
-                .iter()
-                .map(|(k, law)| {
-                    case(
-                        &format!("{}_{k}", tr.name),
-                        text,
-                        &robot,
-                        seed,
-                        law.clone(),
-                        s.velocity,
-                        &sd,
-                    )
-                })
-                .collect::<Result<_, _>>()?;
-            write_scenarios(&cases)?;
-            let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"));
-            let ran = |key: &str| runnable.iter().position(|(k, _)| *k == key);
-            // A run not made (a refused model) is NaN, left out of every comparison; a run made
-            // whose error is not finite (it diverged) is +inf, the worst of all.
-            let mut rms: Vec<(String, Vec<f64>)> = RUN
-                .iter()
-                .map(|k| {
-                    let v = ran(k).map_or(vec![f64::NAN; n], |c| {
-                        let v = JointTraces::of(&sims[c], &cases[c].scenario.reference, n).rms();
-                        if overall(&v).is_finite() {
-                            v
-                        } else {
-                            vec![f64::INFINITY; n]
-                        }
-                    });
-                    (k.to_string(), v)
-                })
-                .collect();
-            let singles: Vec<&Vec<f64>> = rms[3..6]
-                .iter()
-                .map(|(_, v)| v)
-                .filter(|v| !overall(v).is_nan())
-                .collect();
-            let best = singles
-                .iter()
-                .min_by(|a, b| overall(a).total_cmp(&overall(b)))
-                .map_or(vec![f64::NAN; n], |v| (*v).clone());
-            let random: Vec<f64> = (0..n)
-                .map(|j| singles.iter().map(|v| v[j]).sum::<f64>() / singles.len() as f64)
-                .collect();
-            rms.push(("best_single".into(), best));
-            rms.push(("random_single".into(), random));
-            // The max rule's switching, over the models it was given (the usable ones).
-            let (switches, share) = match ran("fuzzy_max") {
-                Some(c) => {
-                    let active = sims[c]
-                        .law_column("fuzzy_model")
-                        .ok_or("fuzzy run logged no active model")?;
-                    let share = (0..models.len())
-                        .map(|m| {
-                            active
-                                .iter()
-                                .filter(|&&a| kept_idx.get(a as usize) == Some(&m))
-                                .count() as f64
-                                / active.len().max(1) as f64
-                        })
-                        .collect();
-                    (active.windows(2).filter(|w| w[0] != w[1]).count(), share)
-                }
-                None => (0, vec![0.0; models.len()]),
-            };
-            let refused = (0..models.len())
-                .filter(|&k| models[k].is_some() && !usable[k])
-                .count();
-            cells.push(Cell {
-                seed,
-                trajectory: tr.name,
-                rms,
-                switches_per_s: switches as f64 / duration,
-                share,
-                min_eig_on_reference,
-                refused,
-            });
+            cells.push(seed_run.track(tr.name, text, reference, &tick)?);
         }
+        nominals.push(nominal.written);
     }
     let names = |v: &[Sines]| v.iter().map(|t| t.name).collect::<Vec<_>>();
     let trajectories = names(&new_set);
-    let (medians, comparisons) = summarise(&cells, &trajectories);
+    let (medians, comparisons, tasks) = summarise(&cells, &trajectories);
     let result = SelectionResult {
         robot,
         joints: n,
@@ -718,8 +636,12 @@ pub fn run(
         identification_seconds,
         models_from: s.models_from.clone(),
         joint_velocity: s.velocity,
+        nominal_spread: NOMINAL_SPREAD,
+        nominal: nominals,
+        online: ONLINE.to_vec(),
         cells,
         medians,
+        tasks,
         claim_held: claim_held(&comparisons, "fuzzy_max"),
         claim_held_blend: claim_held(&comparisons, "fuzzy_blend"),
         claim_held_uniform: claim_held(&comparisons, "uniform_blend"),
@@ -734,6 +656,294 @@ pub fn run(
     crate::files::write(&p, report_markdown(&result))
         .map_err(|e| format!("{}: {e}", p.display()))?;
     Ok(result)
+}
+
+/// How far the nominal (CAD) model's mass properties are off: each factor within 1 +- this.
+pub const NOMINAL_SPREAD: f64 = 0.2;
+
+/// online_model's identification alongside operation (`optimiser.mode = "identify"`): the
+/// shipped settings of config/arm3_identify.toml (4 s window, 1 s fresh, every 2 s) halved to
+/// fit a 10 s task, set before any run of this baseline; the margin as shipped.
+const ONLINE: [(&str, f64); 5] = [
+    ("identify_window", 2.0),
+    ("identify_fresh", 0.5),
+    ("identify_every", 1.0),
+    ("margin", 0.2),
+    ("sync_period", 0.1),
+];
+
+/// A seed's nominal model as written down: its file, the seed its errors were drawn from and
+/// the errors (per body, factors on mass, centre of mass and inertia).
+#[derive(Debug, Clone, Serialize)]
+pub struct NominalWritten {
+    pub seed: u64,
+    pub file: PathBuf,
+    pub drawn_from: u64,
+    pub errors: Vec<crate::dynamics::nominal::CadError>,
+}
+
+/// The nominal model in memory and as written.
+struct Nominal {
+    model: Model,
+    written: NominalWritten,
+}
+
+/// The seed the nominal model's errors are drawn from: the arm's name and the study's seed, so
+/// that two arms of one study, and two seeds of one arm, have other errors (FNV-1a of the name).
+fn nominal_seed(arm: &Model, seed: u64) -> u64 {
+    let name = arm.name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    });
+    name ^ seed.wrapping_mul(0x9e37_79b9_7f4a_7c15)
+}
+
+/// `arm` as its CAD model has it for `seed`, written to `dir/nominal.urdf`.
+fn nominal_model(arm: &Model, seed: u64, dir: &Path) -> Result<Nominal, String> {
+    use crate::dynamics::nominal;
+    let drawn_from = nominal_seed(arm, seed);
+    let errors = nominal::draw(arm.dof(), NOMINAL_SPREAD, drawn_from);
+    let model = nominal::perturbed(arm, &errors);
+    let file = dir.join("nominal.urdf");
+    let text =
+        crate::dynamics::urdf::to_urdf(&model).map_err(|e| format!("the nominal model: {e}"))?;
+    crate::files::write(&file, text).map_err(|e| format!("{}: {e}", file.display()))?;
+    Ok(Nominal {
+        model,
+        written: NominalWritten {
+            seed,
+            file,
+            drawn_from,
+            errors,
+        },
+    })
+}
+
+/// `[controller]` with `key = file` added to its law's table.
+fn with_file(mut c: toml::Table, key: &str, file: &Path) -> toml::Table {
+    let law = c.get("kind").and_then(|k| k.as_str()).map(str::to_owned);
+    if let Some(t) = law
+        .and_then(|l| c.get_mut(&l))
+        .and_then(|t| t.as_table_mut())
+    {
+        t.insert(key.into(), file.display().to_string().into());
+    }
+    c
+}
+
+/// A tracking scenario's text with identification alongside operation (`ONLINE`).
+fn identifying(text: &str) -> Result<String, String> {
+    let mut t: toml::Table = text
+        .parse()
+        .map_err(|e| format!("built-in scenario: {e}"))?;
+    let o = table(&mut t, "optimiser")?;
+    o.insert("mode".into(), "identify".into());
+    for (k, v) in ONLINE {
+        o.insert(k.into(), toml::Value::Float(v));
+    }
+    toml::to_string(&t).map_err(|e| e.to_string())
+}
+
+/// The (q, qd) of a reference every 10 ms: the path models are judged on.
+fn reference_path(scn: &crate::config::Scenario) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let mut sp = crate::reference::Setpoint::default();
+    let steps = (scn.timing.duration / 0.01).round() as usize;
+    (0..=steps)
+        .map(|k| {
+            scn.reference.sample(k as f64 * 0.01, &mut sp);
+            (sp.q[..sp.n].to_vec(), sp.qd[..sp.n].to_vec())
+        })
+        .collect()
+}
+
+/// One seed's tracking: what every trajectory's runs share.
+struct SeedRun<'a> {
+    s: &'a SelectionSettings,
+    g: &'a super::study::Gains,
+    robot: &'a Path,
+    arm: &'a Model,
+    dir: &'a Path,
+    seed: u64,
+    /// The three training runs' models (None: not identified) and their files.
+    models: &'a [Option<(PathBuf, crate::rkgnn::RkgnnModel)>],
+    servo: [&'a [f64]; 2],
+    matched: [&'a [f64]; 2],
+    nominal: &'a Nominal,
+}
+
+impl SeedRun<'_> {
+    /// Every controller of `RUN` on the trajectory `name` (scenario `text`, parsed as
+    /// `reference`): one cell.
+    fn track(
+        &self,
+        name: &'static str,
+        text: &str,
+        reference: &crate::config::Scenario,
+        tick: &(dyn Fn(&str) + Sync),
+    ) -> Result<Cell, String> {
+        let (s, g, n) = (self.s, self.g, self.arm.dof());
+        let models = self.models;
+        // The controller refuses a model whose M-hat is not positive definite along the
+        // reference (control::fuzzy_computed_torque): such a model is left out here as a
+        // user would leave it out, alone and in the fuzzy sets.
+        let duration = reference.timing.duration;
+        let along = crate::control::fuzzy_computed_torque::reference_positions(
+            &reference.reference,
+            duration,
+        );
+        // The controller's own check, once per model: it gives the smallest eigenvalue along
+        // the reference when the model passes; a refused one's is looked up in full.
+        let checked: Vec<Option<Result<f64, String>>> = models
+            .iter()
+            .map(|m| m.as_ref().map(|(_, m)| check_along_reference(m, &along)))
+            .collect();
+        let usable: Vec<bool> = checked.iter().map(|c| matches!(c, Some(Ok(_)))).collect();
+        // NaN for a model not identified.
+        let min_eig_on_reference: Vec<f64> = models
+            .iter()
+            .zip(&checked)
+            .map(|(m, c)| match (m, c) {
+                (_, Some(Ok(lowest))) => *lowest,
+                (Some((_, m)), _) => m.min_eig(along.iter().map(Vec::as_slice)),
+                (None, _) => f64::NAN,
+            })
+            .collect();
+        // The truth judges the models along the reference (after the fact).
+        let path = reference_path(reference);
+        let models_error = models
+            .iter()
+            .map(|m| {
+                m.as_ref()
+                    .map(|(_, m)| model_error(self.arm, &path, &mut &m.net))
+            })
+            .collect();
+        let nominal_error = model_error(self.arm, &path, &mut RigidBody::new(&self.nominal.model));
+        // The usable models' indices: slot k of the fuzzy sets is model kept_idx[k].
+        let kept_idx: Vec<usize> = (0..models.len()).filter(|&k| usable[k]).collect();
+        let file = |k: usize| models[k].as_ref().map(|(f, _)| f);
+        let kept: Vec<&PathBuf> = kept_idx.iter().filter_map(|&k| file(k)).collect();
+        let single = |k: usize| {
+            let f = file(k).filter(|_| usable[k])?;
+            Some(g.fuzzy(&[f], "max", &[]))
+        };
+        let any = !kept.is_empty();
+        let uniform = [("gamma", toml::Value::Float(UNIFORM_GAMMA))];
+        let memberships = [("evidence_prior", "memberships".into())];
+        let ct = || controller("computed_torque", g.ct_table());
+        let nominal_file = &self.nominal.written.file;
+        let [kp, kd] = self.matched;
+        let laws = [
+            Some(pd_servo(self.servo[0], self.servo[1])),
+            Some(pd_servo(kp, kd)),
+            Some(ct()),
+            single(0),
+            single(1),
+            single(2),
+            any.then(|| g.fuzzy(&kept, "max", &[])),
+            any.then(|| g.fuzzy(&kept, "blend", &[])),
+            any.then(|| g.fuzzy(&kept, "blend", &uniform)),
+            any.then(|| g.fuzzy(&kept, "evidence", &memberships)),
+            any.then(|| g.fuzzy(&kept, "evidence", &[])),
+            Some(with_file(pd_servo(kp, kd), "gravity_model", nominal_file)),
+            Some(with_file(ct(), "model", nominal_file)),
+            // One model, updated online: the first usable one.
+            kept.first().map(|f| g.fuzzy(&[f], "max", &[])),
+        ];
+        let runnable: Vec<(&str, toml::Table)> = RUN
+            .iter()
+            .zip(laws)
+            .filter_map(|(k, law)| law.map(|l| (*k, l)))
+            .collect();
+        let online = identifying(text)?;
+        let cases: Vec<Case> = runnable
+            .iter()
+            .map(|(k, law)| {
+                let text = if *k == "online_model" { &online } else { text };
+                case(
+                    &format!("{name}_{k}"),
+                    text,
+                    self.robot,
+                    self.seed,
+                    law.clone(),
+                    s.velocity,
+                    self.dir,
+                )
+            })
+            .collect::<Result<_, _>>()?;
+        write_scenarios(&cases)?;
+        let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"))?;
+        let ran = |key: &str| runnable.iter().position(|(k, _)| *k == key);
+        // A run not made (a refused model) is NaN, left out of every comparison; a run made
+        // whose error is not finite (it diverged) is +inf, the worst of all.
+        let mut rms: Vec<(String, Vec<f64>)> = RUN
+            .iter()
+            .map(|k| {
+                let v = ran(k).map_or(vec![f64::NAN; n], |c| {
+                    let v = JointTraces::of(&sims[c], &cases[c].scenario.reference, n).rms();
+                    if overall(&v).is_finite() {
+                        v
+                    } else {
+                        vec![f64::INFINITY; n]
+                    }
+                });
+                (k.to_string(), v)
+            })
+            .collect();
+        let singles: Vec<&Vec<f64>> = rms
+            .iter()
+            .filter(|(k, _)| SINGLES.contains(&k.as_str()))
+            .map(|(_, v)| v)
+            .filter(|v| !overall(v).is_nan())
+            .collect();
+        let best = singles
+            .iter()
+            .min_by(|a, b| overall(a).total_cmp(&overall(b)))
+            .map_or(vec![f64::NAN; n], |v| (*v).clone());
+        let random: Vec<f64> = (0..n)
+            .map(|j| singles.iter().map(|v| v[j]).sum::<f64>() / singles.len() as f64)
+            .collect();
+        rms.push(("best_single".into(), best));
+        rms.push(("random_single".into(), random));
+        // The max rule's switching, over the models it was given (the usable ones).
+        let (switches, share) = match ran("fuzzy_max") {
+            Some(c) => {
+                let active = sims[c]
+                    .law_column("fuzzy_model")
+                    .ok_or("fuzzy run logged no active model")?;
+                let share = (0..models.len())
+                    .map(|m| {
+                        active
+                            .iter()
+                            .filter(|&&a| kept_idx.get(a as usize) == Some(&m))
+                            .count() as f64
+                            / active.len().max(1) as f64
+                    })
+                    .collect();
+                (active.windows(2).filter(|w| w[0] != w[1]).count(), share)
+            }
+            None => (0, vec![0.0; models.len()]),
+        };
+        // The models the online identification put in service (accepted sets).
+        let online_updates = ran("online_model").map(|c| {
+            let accepted =
+                |e: &&crate::control::cycle::ParamEvent| e.code == crate::msg::ParamCode::Accepted;
+            sims[c].events.iter().filter(accepted).count()
+        });
+        let refused = (0..models.len())
+            .filter(|&k| models[k].is_some() && !usable[k])
+            .count();
+        Ok(Cell {
+            seed: self.seed,
+            trajectory: name,
+            rms,
+            switches_per_s: switches as f64 / duration,
+            share,
+            min_eig_on_reference,
+            refused,
+            model_error: models_error,
+            nominal_error,
+            online_updates,
+        })
+    }
 }
 
 /// Seed `seed`'s model of training run `name` from the earlier study in `from`, which must have
@@ -799,39 +1009,47 @@ fn training_velocity(scenario: &Path) -> Result<String, String> {
 /// Per trajectory, each controller's median tracking RMS over the seeds.
 pub type Medians = Vec<(String, Vec<(String, f64)>)>;
 
-/// Medians per trajectory and the paired comparisons of each fuzzy rule with every other
-/// controller.
-fn summarise(cells: &[Cell], trajectories: &[&str]) -> (Medians, Vec<Comparison>) {
-    let keys: Vec<&str> = RUN.iter().chain(&DERIVED).copied().collect();
-    let value = |c: &Cell, k: &str| {
-        c.rms
-            .iter()
-            .find(|(key, _)| key == k)
-            .map_or(f64::NAN, |(_, v)| overall(v))
-    };
-    let medians = trajectories
+/// A cell's overall RMS of controller `k` (NaN: not run).
+fn value(c: &Cell, k: &str) -> f64 {
+    c.rms
         .iter()
-        .map(|name| {
-            let here: Vec<&Cell> = cells.iter().filter(|c| c.trajectory == *name).collect();
-            let m = keys
-                .iter()
-                .map(|k| {
-                    (
-                        k.to_string(),
-                        median(
-                            &here
-                                .iter()
-                                .map(|c| value(c, k))
-                                .filter(|v| !v.is_nan())
-                                .collect::<Vec<_>>(),
-                        ),
-                    )
-                })
+        .find(|(key, _)| key == k)
+        .map_or(f64::NAN, |(_, v)| overall(v))
+}
+
+/// Every controller key, run and derived.
+fn keys() -> Vec<&'static str> {
+    RUN.iter().chain(&DERIVED).copied().collect()
+}
+
+/// Per seed, the mean over `cells` of that seed of the (rule, baseline) overall RMS, on the
+/// tasks both ran. Seeds are the independent units: a seed's models are identified anew, the
+/// four tasks of a seed share them. Both diverged on a task: a tie, left out.
+fn per_seed(cells: &[&Cell], rule: &str, baseline: &str) -> (Vec<f64>, Vec<f64>) {
+    let mut seeds: Vec<u64> = cells.iter().map(|c| c.seed).collect();
+    seeds.dedup();
+    seeds
+        .iter()
+        .filter_map(|&seed| {
+            let both: Vec<(f64, f64)> = (cells.iter())
+                .filter(|c| c.seed == seed)
+                .map(|c| (value(c, rule), value(c, baseline)))
+                .filter(|(f, b)| !f.is_nan() && !b.is_nan())
+                .filter(|(f, b)| !(f.is_infinite() && b.is_infinite()))
                 .collect();
-            (name.to_string(), m)
+            let k = both.len() as f64;
+            (k > 0.0).then(|| {
+                let (f, b): (Vec<f64>, Vec<f64>) = both.into_iter().unzip();
+                (f.iter().sum::<f64>() / k, b.iter().sum::<f64>() / k)
+            })
         })
-        .collect();
-    let comparisons: Vec<Comparison> = RULES
+        .unzip()
+}
+
+/// Each rule against every other controller over the seeds of `cells`.
+fn compare_all(cells: &[&Cell]) -> Vec<Comparison> {
+    let keys = keys();
+    RULES
         .iter()
         .flat_map(|rule| {
             keys.iter()
@@ -839,12 +1057,7 @@ fn summarise(cells: &[Cell], trajectories: &[&str]) -> (Medians, Vec<Comparison>
                 .map(move |k| (rule, k))
         })
         .map(|(rule, k)| {
-            // Pairs where both ran (a refused model's run is missing, NaN).
-            let (fuzzy, b): (Vec<f64>, Vec<f64>) = cells
-                .iter()
-                .map(|c| (value(c, rule), value(c, k)))
-                .filter(|(f, b)| !f.is_nan() && !b.is_nan())
-                .unzip();
+            let (fuzzy, b) = per_seed(cells, rule, k);
             Comparison {
                 rule: rule.to_string(),
                 baseline: k.to_string(),
@@ -855,8 +1068,53 @@ fn summarise(cells: &[Cell], trajectories: &[&str]) -> (Medians, Vec<Comparison>
                 wilcoxon: wilcoxon(&fuzzy, &b),
             }
         })
+        .collect()
+}
+
+/// One task's (trajectory's) comparisons over the seeds.
+#[derive(Debug, Clone, Serialize)]
+pub struct TaskComparisons {
+    pub trajectory: String,
+    pub comparisons: Vec<Comparison>,
+}
+
+/// Medians per trajectory, the comparisons over seeds (each seed's mean over the tasks) and
+/// per task.
+fn summarise(
+    cells: &[Cell],
+    trajectories: &[&str],
+) -> (Medians, Vec<Comparison>, Vec<TaskComparisons>) {
+    let keys = keys();
+    let medians = trajectories
+        .iter()
+        .map(|name| {
+            let here: Vec<&Cell> = cells.iter().filter(|c| c.trajectory == *name).collect();
+            let m = keys
+                .iter()
+                .map(|k| {
+                    let v: Vec<f64> = (here.iter().map(|c| value(c, k)))
+                        .filter(|v| !v.is_nan())
+                        .collect();
+                    (k.to_string(), median(&v))
+                })
+                .collect();
+            (name.to_string(), m)
+        })
         .collect();
-    (medians, comparisons)
+    let all: Vec<&Cell> = cells.iter().collect();
+    let tasks = trajectories
+        .iter()
+        .map(|name| TaskComparisons {
+            trajectory: name.to_string(),
+            comparisons: compare_all(
+                &all.iter()
+                    .copied()
+                    .filter(|c| c.trajectory == *name)
+                    .collect::<Vec<_>>(),
+            ),
+        })
+        .collect();
+    (medians, compare_all(&all), tasks)
 }
 
 /// Whether `rule` is below the best single model in hindsight: median lower and Wilcoxon
@@ -872,9 +1130,88 @@ fn claim_held(comparisons: &[Comparison], rule: &str) -> bool {
         })
 }
 
+/// The baselines a control engineer would set a rule against: the best single model in
+/// hindsight, the servo with gravity compensation and computed torque on the CAD model, one
+/// model identified online, and computed torque on the true arm (the bound).
+pub const STRONGEST: [&str; 5] = [
+    "best_single",
+    "pd_gravity",
+    "ct_nominal",
+    "online_model",
+    "ct_true",
+];
+
+/// A comparison's table row (from its rule on), `units` what its pairs are.
+fn comparison_row(c: &Comparison, units: &str) -> String {
+    format!(
+        "| {} | {} | {:.4} | {:.4} | {} of {} {units} | {:.2e} ({}) |\n",
+        c.rule,
+        c.baseline,
+        c.median_fuzzy,
+        c.median_baseline,
+        c.fuzzy_lower,
+        c.pairs,
+        c.wilcoxon.p_two_sided,
+        c.wilcoxon.method
+    )
+}
+
+/// The models' errors against the arm along the tasks: medians over seeds and tasks.
+fn model_error_table(r: &SelectionResult) -> String {
+    let mut md =
+        format!(
+        "\nThe models against the arm along the tasks (medians over seeds and tasks; the arm's \
+         own smallest eigenvalue of M along them {:.3}): relative errors of M-hat (Frobenius), \
+         V-hat (Coriolis, centrifugal and friction) and G-hat, and tr(M-hat) / tr(M) (above 1: \
+         an inflated model, a stiffer loop). The nominal model is the arm's file with its masses, \
+         centres of mass and inertias off by up to {:.0} %, fixed per seed:\n\n\
+         | model | M-hat error | tr ratio | V-hat error | G-hat error | smallest eigenvalue |\n\
+         |---|---|---|---|---|---|\n",
+        median(&r.cells.iter().map(|c| c.nominal_error.min_eig_arm).collect::<Vec<_>>()),
+        100.0 * r.nominal_spread
+    );
+    let row = |name: String, e: Vec<ModelError>| {
+        let m = |f: fn(&ModelError) -> f64| median(&e.iter().map(f).collect::<Vec<_>>());
+        format!(
+            "| {name} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |\n",
+            m(|e| e.m_rel),
+            m(|e| e.m_scale),
+            m(|e| e.v_rel),
+            m(|e| e.g_rel),
+            m(|e| e.min_eig)
+        )
+    };
+    for (k, name) in r.training.iter().enumerate() {
+        let e = r
+            .cells
+            .iter()
+            .filter_map(|c| c.model_error.get(k).copied().flatten());
+        md += &row(format!("model {} ({name})", k + 1), e.collect());
+    }
+    md += &row(
+        "nominal".into(),
+        r.cells.iter().map(|c| c.nominal_error).collect(),
+    );
+    let updates: Vec<f64> = (r.cells.iter().filter_map(|c| c.online_updates))
+        .map(|u| u as f64)
+        .collect();
+    md += &format!(
+        "\nonline_model: computed torque on the seed's first usable model, which identification \
+         alongside operation updates from the applied torques ({}); it put a median of {} \
+         models in service a run.\n",
+        r.online
+            .iter()
+            .map(|(k, v)| format!("{k} = {v}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        median(&updates)
+    );
+    md
+}
+
 fn verdict(held: bool) -> &'static str {
     if held {
-        "held (median lower, Wilcoxon p < 0.05)"
+        "held (median lower over the seeds, Wilcoxon p < 0.05)"
     } else {
         "did not hold"
     }
@@ -916,21 +1253,28 @@ pub fn report_markdown(r: &SelectionResult) -> String {
             .collect();
         md += &format!("| {k} | {} |\n", row.join(" | "));
     }
-    md += "\nEach rule (the fuzzy rules, the uniform blend and the evidence rules) against each other controller, paired over every (seed, trajectory):\n\n\
+    md += "\nEach rule (the fuzzy rules, the uniform blend and the evidence rules) against each \
+           other controller, paired over the seeds (per seed the mean over the tasks both ran; \
+           seeds re-identify their models, so they are the independent units), Wilcoxon \
+           signed-rank test (exact up to 30 seeds):\n\n\
            | rule | baseline | median rule | median baseline | rule lower | Wilcoxon p |\n\
            |---|---|---|---|---|---|\n";
     for c in &r.comparisons {
-        md += &format!(
-            "| {} | {} | {:.4} | {:.4} | {} of {} | {:.2e} |\n",
-            c.rule,
-            c.baseline,
-            c.median_fuzzy,
-            c.median_baseline,
-            c.fuzzy_lower,
-            c.pairs,
-            c.wilcoxon.p_two_sided
-        );
+        md += &comparison_row(c, "seeds");
     }
+    md += "\nPer task (trajectory), over the seeds, each rule against the strongest baselines:\n\n\
+           | task | rule | baseline | median rule | median baseline | rule lower | Wilcoxon p |\n\
+           |---|---|---|---|---|---|---|\n";
+    for t in &r.tasks {
+        for c in t
+            .comparisons
+            .iter()
+            .filter(|c| STRONGEST.contains(&c.baseline.as_str()))
+        {
+            md += &format!("| {} {}", t.trajectory, comparison_row(c, "seeds"));
+        }
+    }
+    md += &model_error_table(r);
     let sw = median(&r.cells.iter().map(|c| c.switches_per_s).collect::<Vec<_>>());
     let refused: usize = r.cells.iter().map(|c| c.refused).sum();
     md += &format!(

@@ -424,22 +424,23 @@ pub(super) fn simulate_all(
     cases: &[Case],
     threads: usize,
     done: &(dyn Fn() + Sync),
-) -> Vec<SimResult> {
+) -> Result<Vec<SimResult>, String> {
     let share = cases.len().div_ceil(threads.max(1)).max(1);
+    let one = |c: &Case| {
+        // A case identifying alongside operation runs the optimiser's identification too.
+        let r = match c.scenario.optimiser.mode {
+            crate::config::OptimiserMode::Identify => {
+                crate::rkgnn::live::simulate(&c.scenario).map(|(r, _)| r)
+            }
+            _ => Ok(simulate(&c.scenario)),
+        };
+        done();
+        r.map_err(|e| format!("{}: {e}", c.name))
+    };
     std::thread::scope(|s| {
         let workers: Vec<_> = cases
             .chunks(share)
-            .map(|part| {
-                s.spawn(move || {
-                    part.iter()
-                        .map(|c| {
-                            let r = simulate(&c.scenario);
-                            done();
-                            r
-                        })
-                        .collect::<Vec<_>>()
-                })
-            })
+            .map(|part| s.spawn(move || part.iter().map(one).collect::<Vec<_>>()))
             .collect();
         workers
             .into_iter()
@@ -533,7 +534,7 @@ pub fn run(
         at("train2", TRAIN2, pd.clone())?,
     ];
     write_scenarios(&training)?;
-    let train_sims = simulate_all(&training, s.threads, &|| tick("training run"));
+    let train_sims = simulate_all(&training, s.threads, &|| tick("training run"))?;
     let mut models = Vec::new();
     let mut summaries = Vec::new();
     let mut inputs = None;
@@ -605,7 +606,7 @@ pub fn run(
         at("fig9_model_2_on_train2", TRAIN2, fuzzy(&[m2], "max"))?,
     ];
     write_scenarios(&cases)?;
-    let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"));
+    let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"))?;
     let traces: Vec<JointTraces> = cases
         .iter()
         .zip(&sims)

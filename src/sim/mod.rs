@@ -150,7 +150,7 @@ pub fn control_cycle(scn: &Scenario) -> ControlCycle {
 }
 
 /// `simulate`'s hook: offers the scheduled sets at their samples and keeps every sample.
-struct Keep<'a> {
+pub struct Keep<'a> {
     scn: &'a Scenario,
     schedule_on: bool,
     rows: Vec<SimRow>,
@@ -190,17 +190,29 @@ pub fn simulate(scn: &Scenario) -> SimResult {
     if let Err(e) = scn.require_in_process() {
         panic!("sim::simulate: {e}");
     }
-    let mut keep = Keep {
-        scn,
-        schedule_on: scn.optimiser.mode == crate::config::OptimiserMode::Schedule,
-        rows: Vec::with_capacity(scn.cycles() as usize),
-        events: Vec::new(),
-    };
+    let mut keep = Keep::new(scn);
     let cycle = run_loop(scn, &mut keep);
-    SimResult {
-        rows: keep.rows,
-        events: keep.events,
-        law_columns: cycle.controller.log_columns(),
+    keep.result(&cycle)
+}
+
+impl<'a> Keep<'a> {
+    /// Keeping every sample of `scn`'s loop, its scheduled sets offered (`schedule` mode).
+    pub fn new(scn: &'a Scenario) -> Self {
+        Keep {
+            scn,
+            schedule_on: scn.optimiser.mode == crate::config::OptimiserMode::Schedule,
+            rows: Vec::with_capacity(scn.cycles() as usize),
+            events: Vec::new(),
+        }
+    }
+
+    /// What was kept, with the law's log columns of the `cycle` run.
+    pub fn result(self, cycle: &ControlCycle) -> SimResult {
+        SimResult {
+            rows: self.rows,
+            events: self.events,
+            law_columns: cycle.controller.log_columns(),
+        }
     }
 }
 

@@ -7,6 +7,7 @@
 //! - `regressor`: the joint-torque regressor Y(q, qd, qdd), tau = Y pi (Pinocchio's order);
 //! - `dh`: robots from D-H tables in TOML (standard or modified convention);
 //! - `urdf`: robots from URDF files (through the `urdf-rs` crate);
+//! - `nominal`: the robot as a CAD model has it, its mass properties off by seeded factors;
 //! - `generate`: plausible serial arms from a seed, written as URDF (`evoloop robot generate`);
 //! - (the command `evoloop dynamics` is the evoloop package's `cli::dynamics`).
 //!
@@ -17,6 +18,7 @@ pub mod base;
 pub mod dh;
 pub mod generate;
 pub mod model;
+pub mod nominal;
 pub mod regressor;
 pub mod spatial;
 pub mod urdf;

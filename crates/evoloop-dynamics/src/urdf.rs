@@ -357,3 +357,87 @@ fn moving_body(
         armature: 0.0,
     })
 }
+
+/// A URDF `rpy` triple of a rotation (the inverse of `rpy`; at pitch +-90 deg roll is 0).
+fn rpy_of(r: DMat3) -> [f64; 3] {
+    let at = |i: usize, j: usize| r.col(j)[i];
+    let s = (-at(2, 0)).clamp(-1.0, 1.0);
+    if s.abs() > 1.0 - 1e-12 {
+        return [0.0, s.asin(), (-at(0, 1)).atan2(at(1, 1))];
+    }
+    [at(2, 1).atan2(at(2, 2)), s.asin(), at(1, 0).atan2(at(0, 0))]
+}
+
+/// `model` as URDF: a base link, each body's joint (placement, axis, limits, friction) and its
+/// link (mass, centre of mass, inertia about it). Numbers are written in Rust's shortest form
+/// that reads back to the same value; rotations as `rpy`, which reads back to within rounding.
+/// URDF has no armature, no friction smoothing and a fixed gravity: a model with an armature, a
+/// `v_smooth` other than the default or another gravity is refused, not written wrong.
+pub fn to_urdf(model: &Model) -> Result<String, String> {
+    if model.gravity != DVec3::new(0.0, 0.0, -9.81) {
+        return Err(format!(
+            "gravity {} is not URDF's (0, 0, -9.81)",
+            model.gravity
+        ));
+    }
+    let base = "base";
+    let mut s = format!(
+        "<?xml version=\"1.0\"?>\n<robot name=\"{}\">\n  <link name=\"{base}\"/>\n",
+        model.name
+    );
+    for b in &model.bodies {
+        if b.armature != 0.0 || b.friction.v_smooth != Friction::default().v_smooth {
+            return Err(format!(
+                "joint `{}`: an armature or a friction smoothing URDF cannot carry",
+                b.joint
+            ));
+        }
+        let c = b.inertia.com();
+        let i = b.inertia.i_com();
+        let at = |r: usize, k: usize| i.col(k)[r];
+        let o = &b.placement;
+        let [rr, rp, ry] = rpy_of(o.rotation());
+        let parent = b.parent.map_or(base, |p| model.bodies[p].link.as_str());
+        let (kind, lower, upper) = match (b.kind, b.limits.q_min.is_finite()) {
+            (JointKind::Revolute, false) => ("continuous", 0.0, 0.0),
+            (JointKind::Revolute, true) => ("revolute", b.limits.q_min, b.limits.q_max),
+            (JointKind::Prismatic, false) => ("prismatic", 0.0, 0.0),
+            (JointKind::Prismatic, true) => ("prismatic", b.limits.q_min, b.limits.q_max),
+        };
+        // The loader reads 0 as "no limit".
+        let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
+        s += &format!(
+            "  <link name=\"{link}\">\n    <inertial>\n      <origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>\n      \
+             <mass value=\"{}\"/>\n      <inertia ixx=\"{}\" ixy=\"{}\" ixz=\"{}\" iyy=\"{}\" iyz=\"{}\" \
+             izz=\"{}\"/>\n    </inertial>\n  </link>\n  <joint name=\"{}\" type=\"{kind}\">\n    \
+             <parent link=\"{parent}\"/>\n    <child link=\"{link}\"/>\n    <origin xyz=\"{} {} {}\" \
+             rpy=\"{rr} {rp} {ry}\"/>\n    <axis xyz=\"{} {} {}\"/>\n    <limit lower=\"{lower}\" \
+             upper=\"{upper}\" effort=\"{}\" velocity=\"{}\"/>\n    <dynamics damping=\"{}\" \
+             friction=\"{}\"/>\n  </joint>\n",
+            c.x,
+            c.y,
+            c.z,
+            b.inertia.m,
+            at(0, 0),
+            at(0, 1),
+            at(0, 2),
+            at(1, 1),
+            at(1, 2),
+            at(2, 2),
+            b.joint,
+            o.r.x,
+            o.r.y,
+            o.r.z,
+            b.axis.x,
+            b.axis.y,
+            b.axis.z,
+            finite(b.limits.effort),
+            finite(b.limits.velocity),
+            b.friction.viscous,
+            b.friction.coulomb,
+            link = b.link,
+        );
+    }
+    s.push_str("</robot>\n");
+    Ok(s)
+}

@@ -24,8 +24,8 @@
 
 use super::estimator::{Velocities, VelocitySource};
 use super::{
-    driven_arm, joint_gains, velocity_source, Controller, ControllerConfig, ControllerContext,
-    VelocityKey,
+    driven_arm, joint_gains, model_file, velocity_source, Controller, ControllerConfig,
+    ControllerContext, VelocityKey,
 };
 use crate::check::{Check, ConfigError, Tunable};
 use crate::dynamics::{Data, Model};
@@ -285,14 +285,7 @@ pub fn validate(
         t.upper,
     )?;
     let model = match t.model {
-        Some(rel) => {
-            let key = "controller.computed_torque.model";
-            let (_, m) = check.robot(key, &rel)?;
-            if m.dof() != n {
-                return check.fail(key, format!("has {} joints, the plant {n}", m.dof()));
-            }
-            m
-        }
+        Some(rel) => model_file(check, "controller.computed_torque.model", &rel, n)?,
         None => arm.clone(),
     };
     Ok(ComputedTorqueSpec {

@@ -233,6 +233,20 @@ pub trait Controller: Send {
 pub mod cycle;
 pub use cycle::ControlCycle;
 
+/// The robot file `rel` at `key` as a controller's model of an `n`-joint plant.
+pub(crate) fn model_file(
+    check: &Check,
+    key: &str,
+    rel: &std::path::Path,
+    n: usize,
+) -> Result<crate::dynamics::Model, ConfigError> {
+    let (_, m) = check.robot(key, rel)?;
+    if m.dof() != n {
+        return check.fail(key, format!("has {} joints, the plant {n}", m.dof()));
+    }
+    Ok(m)
+}
+
 /// The arm a joint-space law (`law`) drives; an error on `controller.kind` for other plants.
 pub(crate) fn driven_arm<'a>(
     check: &Check,

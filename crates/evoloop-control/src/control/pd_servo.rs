@@ -2,7 +2,10 @@
 //! a Proportional Derivative (P-D) controller"): per joint
 //!   tau_i = Kp_i (q_d,i - q_i) + Kd_i (qd_d,i - qd_i),
 //! with no model and no gravity compensation, clipped to the joint's torque limit. It is the
-//! "actual controller" whose gains a later identification does not know.
+//! "actual controller" whose gains a later identification does not know. With `gravity_model`
+//! (a robot file: the CAD model a user has) it adds that model's G(q) at the measured positions,
+//! the P-D servo with gravity compensation of Takegaki and Arimoto (1981), the usual industrial
+//! baseline: tau_i = Kp_i e_i + Kd_i e_dot_i + G_i,model(q).
 //! Parameters: [Kp_1..Kp_n, Kd_1..Kd_n]. Positions are the measured outputs y (with the plant's
 //! sensor noise); velocities by default the measured positions differenced and low-passed as a
 //! drive makes them (`velocity = "filtered"`, `estimator::VelocityFilter`), or the simulator's
@@ -11,9 +14,10 @@
 
 use super::estimator::{Velocities, VelocitySource};
 use super::{
-    driven_arm, joint_gains, velocity_source, Controller, ControllerConfig, ControllerContext,
-    VelocityKey,
+    driven_arm, joint_gains, model_file, velocity_source, Controller, ControllerConfig,
+    ControllerContext, VelocityKey,
 };
+use crate::dynamics::{Data, Model};
 use crate::check::{Check, ConfigError, Tunable};
 use crate::msg::{ParamKind, PlantState};
 use crate::reference::Setpoint;
@@ -23,6 +27,14 @@ pub struct PdServo {
     gains: Vec<f64>,
     limits: Vec<f64>,
     velocity: Velocities,
+    gravity: Option<Gravity>,
+}
+
+/// A model's gravity torque with its buffers (computed in place every cycle).
+struct Gravity {
+    model: Model,
+    data: Data,
+    g: Vec<f64>,
 }
 
 impl PdServo {
@@ -37,7 +49,18 @@ impl PdServo {
             gains: gains.to_vec(),
             limits: limits.to_vec(),
             velocity: Velocities::True,
+            gravity: None,
         }
+    }
+
+    /// Add `model`'s gravity torque G(q) at the measured positions.
+    pub fn with_gravity(mut self, model: Model) -> Self {
+        self.gravity = Some(Gravity {
+            data: model.data(),
+            g: vec![0.0; model.dof()],
+            model,
+        });
+        self
     }
 
     /// Read velocities from `source` (the true ones until this is called), every `period` s.
@@ -65,8 +88,12 @@ impl Controller for PdServo {
         let n = self.limits.len();
         let (kp, kd) = self.gains.split_at(n);
         let qd = self.velocity.read(state, n, None);
+        if let Some(c) = &mut self.gravity {
+            c.model.gravity_torque(&mut c.data, &state.y[..n], &mut c.g);
+        }
         for i in 0..n {
-            let tau = kp[i] * (sp.q[i] - state.y[i]) + kd[i] * (sp.qd[i] - qd[i]);
+            let g = self.gravity.as_ref().map_or(0.0, |c| c.g[i]);
+            let tau = kp[i] * (sp.q[i] - state.y[i]) + kd[i] * (sp.qd[i] - qd[i]) + g;
             u[i] = tau.clamp(-self.limits[i], self.limits[i]);
         }
     }
@@ -88,6 +115,8 @@ pub struct Table {
     upper: Option<Vec<f64>>,
     velocity: Option<VelocityKey>,
     velocity_cutoff_hz: Option<f64>,
+    /// A robot file whose G(q) the servo adds (relative to the scenario): gravity compensation.
+    gravity_model: Option<std::path::PathBuf>,
 }
 
 /// Validated P-D gains [Kp; Kd] with their bounds, and the arm's torque limits.
@@ -98,6 +127,8 @@ pub struct PdServoSpec {
     /// Torque limit per joint (from the robot description; infinite where none).
     pub torque_limits: Vec<f64>,
     pub velocity: VelocitySource,
+    /// The model whose gravity torque is added, if any (`gravity_model`).
+    pub gravity_model: Option<Model>,
 }
 
 pub fn validate(
@@ -121,8 +152,18 @@ pub fn validate(
         t.lower,
         t.upper,
     )?;
+    let gravity_model = match &t.gravity_model {
+        Some(rel) => Some(model_file(
+            check,
+            "controller.pd_servo.gravity_model",
+            rel,
+            model.dof(),
+        )?),
+        None => None,
+    };
     Ok(PdServoSpec {
         tunable,
+        gravity_model,
         torque_limits: model.bodies.iter().map(|b| b.limits.effort).collect(),
         velocity: velocity_source(
             check,
@@ -137,10 +178,12 @@ pub fn validate(
 
 impl ControllerConfig for PdServoSpec {
     fn build(&self, period: f64, _u_limit: Option<f64>) -> Box<dyn Controller> {
-        Box::new(
-            PdServo::new(&self.tunable.gains, &self.torque_limits)
-                .with_velocity(self.velocity, period),
-        )
+        let servo = PdServo::new(&self.tunable.gains, &self.torque_limits)
+            .with_velocity(self.velocity, period);
+        Box::new(match &self.gravity_model {
+            Some(m) => servo.with_gravity(m.clone()),
+            None => servo,
+        })
     }
     fn reads_truth(&self) -> bool {
         self.velocity.reads_truth()

@@ -1,0 +1,219 @@
+//! The selection study on every arm of a zoo (`evoloop rkgnn zoo`): arms generated from a
+//! fixed list (config/robots/zoo.toml) that no setting was tuned on, each through
+//! `selection::run`, and one table of each rule against each strongest baseline per arm, with
+//! the models' errors. Across arms the claim is counted, not pooled: arms differ in scale, so
+//! the table says on how many arms a rule is lower (each arm's own test over its seeds) and the
+//! exact sign test of that count.
+
+use super::selection::{SelectionResult, STRONGEST};
+use crate::stats::{median, sign_test};
+use serde::Serialize;
+
+/// The rules the zoo reports: the paper's max rule and the evidence rules.
+pub const ZOO_RULES: [&str; 3] = ["fuzzy_max", "fuzzy_evidence", "uniform_evidence"];
+
+/// One arm's line: what it is, how its identification went, each rule against each strongest
+/// baseline over its seeds, its models' errors.
+#[derive(Debug, Clone, Serialize)]
+pub struct ZooArm {
+    pub arm: String,
+    pub joints: usize,
+    pub seeds: u64,
+    /// Training runs that gave no model, of all.
+    pub unidentified: usize,
+    pub training_runs: usize,
+    /// (model, task, seed) cases the controller refused (not positive definite along the task).
+    pub refused: usize,
+    /// Per rule and baseline: seeds where the rule is lower, seeds, medians over seeds, p.
+    pub versus: Vec<Versus>,
+    /// Medians over seeds, tasks and models of the identified models' errors, and the nominal's.
+    pub m_rel: f64,
+    pub m_scale: f64,
+    pub g_rel: f64,
+    pub nominal_m_rel: f64,
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Versus {
+    pub rule: String,
+    pub baseline: String,
+    pub median_rule: f64,
+    pub median_baseline: f64,
+    pub lower: usize,
+    pub seeds: usize,
+    pub p: f64,
+    pub method: &'static str,
+}
+
+impl Versus {
+    /// The rule below the baseline on this arm: median lower and p < 0.05 the rule's way.
+    pub fn held(&self) -> bool {
+        self.median_rule < self.median_baseline && self.p < 0.05 && 2 * self.lower > self.seeds
+    }
+    /// The baseline below the rule on this arm, the same way.
+    pub fn lost(&self) -> bool {
+        self.median_baseline < self.median_rule && self.p < 0.05 && 2 * self.lower < self.seeds
+    }
+}
+
+/// Across arms, one rule against one baseline.
+#[derive(Debug, Clone, Serialize)]
+pub struct Tally {
+    pub rule: String,
+    pub baseline: String,
+    pub arms: usize,
+    /// Arms where the rule's median over seeds is lower.
+    pub median_lower: usize,
+    /// The exact sign test of `median_lower` of `arms`.
+    pub sign_p: f64,
+    /// Arms where the rule is lower with p < 0.05, and where the baseline is.
+    pub held: usize,
+    pub lost: usize,
+}
+
+/// `zoo.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ZooResult {
+    pub zoo: std::path::PathBuf,
+    pub seeds: u64,
+    pub arms: Vec<ZooArm>,
+    pub tallies: Vec<Tally>,
+    pub seconds: f64,
+}
+
+/// One arm's line from its selection study.
+pub fn arm_line(name: &str, r: &SelectionResult) -> ZooArm {
+    let versus = ZOO_RULES
+        .iter()
+        .flat_map(|rule| STRONGEST.iter().map(move |b| (*rule, *b)))
+        .filter_map(|(rule, b)| {
+            let c = (r.comparisons.iter()).find(|c| c.rule == rule && c.baseline == b)?;
+            Some(Versus {
+                rule: rule.into(),
+                baseline: b.into(),
+                median_rule: c.median_fuzzy,
+                median_baseline: c.median_baseline,
+                lower: c.fuzzy_lower,
+                seeds: c.pairs,
+                p: c.wilcoxon.p_two_sided,
+                method: c.wilcoxon.method,
+            })
+        })
+        .collect();
+    let errors: Vec<_> = (r.cells.iter())
+        .flat_map(|c| c.model_error.iter().flatten())
+        .collect();
+    let m = |f: &dyn Fn(&super::model_error::ModelError) -> f64| {
+        median(&errors.iter().map(|e| f(e)).collect::<Vec<_>>())
+    };
+    ZooArm {
+        arm: name.into(),
+        joints: r.joints,
+        seeds: r.seeds,
+        unidentified: r.unidentified.len(),
+        training_runs: r.training.len() * r.seeds as usize,
+        refused: r.cells.iter().map(|c| c.refused).sum(),
+        versus,
+        m_rel: m(&|e| e.m_rel),
+        m_scale: m(&|e| e.m_scale),
+        g_rel: m(&|e| e.g_rel),
+        nominal_m_rel: median(
+            &r.cells
+                .iter()
+                .map(|c| c.nominal_error.m_rel)
+                .collect::<Vec<_>>(),
+        ),
+        seconds: r.seconds,
+    }
+}
+
+/// The tallies across `arms`.
+pub fn tallies(arms: &[ZooArm]) -> Vec<Tally> {
+    ZOO_RULES
+        .iter()
+        .flat_map(|rule| STRONGEST.iter().map(move |b| (*rule, *b)))
+        .map(|(rule, b)| {
+            let here: Vec<&Versus> = (arms.iter())
+                .filter_map(|a| a.versus.iter().find(|v| v.rule == rule && v.baseline == b))
+                .filter(|v| !v.median_rule.is_nan() && !v.median_baseline.is_nan())
+                .collect();
+            let lower = here
+                .iter()
+                .filter(|v| v.median_rule < v.median_baseline)
+                .count();
+            Tally {
+                rule: rule.into(),
+                baseline: b.into(),
+                arms: here.len(),
+                median_lower: lower,
+                sign_p: sign_test(lower, here.len()),
+                held: here.iter().filter(|v| v.held()).count(),
+                lost: here.iter().filter(|v| v.lost()).count(),
+            }
+        })
+        .collect()
+}
+
+/// zoo.md: the tallies, then per arm each rule against each baseline and the model errors.
+pub fn report_markdown(z: &ZooResult) -> String {
+    let mut md = format!(
+        "# The arm controllers on the zoo\n\n{} arms of {}, {} seeds each (each seed \
+         re-identifies the models and draws a new CAD model). Per arm, each rule against each \
+         baseline over its seeds (Wilcoxon signed-rank, exact up to 30 seeds); across arms, on \
+         how many arms the rule's median is lower, with the exact sign test of that count, and \
+         on how many either side is lower with p < 0.05 on that arm's own seeds.\n\n\
+         | rule | baseline | median lower | sign test p | rule lower, p < 0.05 | baseline lower, p < 0.05 |\n\
+         |---|---|---|---|---|---|\n",
+        z.arms.len(),
+        z.zoo.display(),
+        z.seeds
+    );
+    for t in &z.tallies {
+        md += &format!(
+            "| {} | {} | {} of {} arms | {:.2e} | {} | {} |\n",
+            t.rule, t.baseline, t.median_lower, t.arms, t.sign_p, t.held, t.lost
+        );
+    }
+    md += "\nPer arm: median RMS over seeds (rad) of each rule and baseline, seeds where the rule \
+           is lower, Wilcoxon p; the identified models' errors along the tasks (medians: M-hat \
+           relative error, tr(M-hat) / tr(M), G-hat relative error) and the CAD model's M error.\n\n\
+           | arm | joints | no model | refused | rule | baseline | rule | baseline | lower | p |\n\
+           |---|---|---|---|---|---|---|---|---|---|\n";
+    for a in &z.arms {
+        for v in &a.versus {
+            md += &format!(
+                "| {} | {} | {} of {} | {} | {} | {} | {:.4} | {:.4} | {} of {} | {:.2e} |\n",
+                a.arm,
+                a.joints,
+                a.unidentified,
+                a.training_runs,
+                a.refused,
+                v.rule,
+                v.baseline,
+                v.median_rule,
+                v.median_baseline,
+                v.lower,
+                v.seeds,
+                v.p
+            );
+        }
+    }
+    md += "\n| arm | M-hat error | tr(M-hat) / tr(M) | G-hat error | CAD M error | study, s |\n\
+           |---|---|---|---|---|---|\n";
+    for a in &z.arms {
+        md += &format!(
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.0} |\n",
+            a.arm, a.m_rel, a.m_scale, a.g_rel, a.nominal_m_rel, a.seconds
+        );
+    }
+    md
+}
+
+/// zoo.json and zoo.md into `dir`.
+pub fn write(dir: &std::path::Path, z: &ZooResult) -> Result<(), String> {
+    crate::report::write_json(dir, "zoo.json", z)
+        .map_err(|e| format!("{}: {e}", dir.join("zoo.json").display()))?;
+    let md = dir.join("zoo.md");
+    crate::files::write(&md, report_markdown(z)).map_err(|e| format!("{}: {e}", md.display()))
+}
