@@ -3,7 +3,7 @@
 //! Coriolis matrix, the joint-torque regressor (with friction columns) and ABA, and a model swap
 //! (a computed-torque model set checked on its probes); state, command and telemetry go through
 //! iceoryx2 every cycle as in a run, and into run.mcap's recorder. The same for the computed
-//! torque with fuzzy model selection.
+//! torque with fuzzy model selection, and the P-D servo with gravity compensation.
 //! (A separate test binary: the counting allocator is process-global.)
 
 use evoloop::config::{Overrides, Scenario};
@@ -114,6 +114,33 @@ fn arm_plant_and_computed_torque_cycles_allocate_nothing() {
     let rule = serde_json::to_value(&scn.controller).unwrap();
     assert_eq!(rule["selection"], "evidence", "{rule}");
     fuzzy_computed_torque(scn, "evidence");
+    pd_servo_with_gravity_compensation();
+}
+
+/// The P-D servo with a model's gravity torque (`gravity_model`): G(q) every cycle.
+fn pd_servo_with_gravity_compensation() {
+    let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3_train1.toml");
+    let text = std::fs::read_to_string(&cfg).unwrap().replace(
+        "kd = [15.0, 20.0, 8.0]",
+        "kd = [15.0, 20.0, 8.0]\ngravity_model = \"robots/arm3.urdf\"",
+    );
+    let scn = Scenario::parse(&text, &cfg, &Overrides::default()).unwrap();
+    assert!(serde_json::to_value(&scn.controller).unwrap()["gravity_model"].is_object());
+    let mut plant = PlantSim::new(scn.build_plant(), scn.plant.step, 1e-4, 3);
+    let mut cyc = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());
+    let (mut msg, mut tel) = (PlantState::default(), Telemetry::default());
+    let mut u = [0.0; 3];
+    plant.sample(0, 0, &u, &mut msg);
+    cyc.step(&msg, &mut tel);
+    counting_alloc::arm();
+    for k in 1..2000u64 {
+        plant.sample(k, 0, &u, &mut msg);
+        cyc.step(&msg, &mut tel);
+        u.copy_from_slice(&cyc.u[..3]);
+        plant.advance(&u, scn.timing.period);
+    }
+    counting_alloc::disarm();
+    assert_eq!(COUNT.load(Ordering::SeqCst), 0, "allocations in 2000 P-D + gravity cycles");
 }
 
 fn computed_torque() {
