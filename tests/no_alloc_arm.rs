@@ -140,7 +140,11 @@ fn pd_servo_with_gravity_compensation() {
         plant.advance(&u, scn.timing.period);
     }
     counting_alloc::disarm();
-    assert_eq!(COUNT.load(Ordering::SeqCst), 0, "allocations in 2000 P-D + gravity cycles");
+    assert_eq!(
+        COUNT.load(Ordering::SeqCst),
+        0,
+        "allocations in 2000 P-D + gravity cycles"
+    );
 }
 
 fn computed_torque() {

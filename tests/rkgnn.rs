@@ -1244,6 +1244,15 @@ fn the_baselines_a_control_engineer_would_use_run_on_a_cad_model_written_down() 
     // the arm's file with its mass properties off by at most 20 %, written to seed1/nominal.urdf
     // with its factors in selection.json; each model is judged against the arm.
     let tmp = tempfile::tempdir().unwrap();
+    // An arm whose nominal model URDF cannot carry (armature) is refused before any run.
+    let six = config("robots/industrial6.toml");
+    let o = tmp.path().join("six");
+    let (six, o_str) = (six.to_str().unwrap(), o.to_str().unwrap());
+    assert_refused(
+        &cli(&["rkgnn", "selection", "--robot", six, "--out", o_str]),
+        "industrial6.toml: its nominal model cannot be written as URDF: joint",
+    );
+    assert!(!o.join("seed1").exists());
     let out = tmp.path().join("sel");
     let v = selection(&out, &["--seeds", "1"]);
     let nominal = &v["nominal"][0];
@@ -1261,6 +1270,8 @@ fn the_baselines_a_control_engineer_would_use_run_on_a_cad_model_written_down() 
             "body {k}: {m_cad} / {m_true} != {mass}"
         );
     }
+    // A CAD model knows no friction.
+    assert!(!cad.has_friction() && truth.has_friction());
     let scenarios = out.join("seed1/scenarios");
     let text = |name: &str| std::fs::read_to_string(scenarios.join(name)).unwrap();
     assert!(text("near1_pd_gravity.toml").contains(&format!("gravity_model = \"{file}\"")));

@@ -471,7 +471,17 @@ pub fn run(
         return Err("--seeds must be >= 1".into());
     }
     let (robot, arm) = arm_of(&s.robot, dir)?;
+    // Every file the scenarios name (models, the nominal model) absolute: a scenario resolves a
+    // relative path against its own directory, not the working directory.
+    let dir = &std::path::absolute(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let n = arm.dof();
+    // The nominal model must be writable before any run is made (URDF has no armature).
+    crate::dynamics::urdf::to_urdf(&arm).map_err(|e| {
+        format!(
+            "{}: its nominal model cannot be written as URDF: {e}",
+            robot.display()
+        )
+    })?;
     let (training_set, new_set, trajectory_source) = trajectories_for(&arm);
     let mut g = gains()?;
     // Computed torque's gains are accelerations per error: the same on every arm.
@@ -596,6 +606,12 @@ pub fn run(
         // This seed's CAD model: the arm with its mass properties off (`nominal`), written
         // down beside the models; the gravity compensation and ct_nominal use it.
         let nominal = nominal_model(&arm, seed, &sd)?;
+        // pd_gravity is tuned as the matched servo is, on the CAD model (what its user has).
+        let cad_mid = diagonal_mid(&nominal.model, &qs);
+        let cad_matched: [Vec<f64>; 2] = [
+            cad_mid.iter().map(|m| m * MATCH.0).collect(),
+            cad_mid.iter().map(|m| m * MATCH.1).collect(),
+        ];
         let seed_run = SeedRun {
             s,
             g: &g,
@@ -606,6 +622,7 @@ pub fn run(
             models: &models,
             servo: [servo_kp, servo_kd],
             matched: [&matched.0, &matched.1],
+            cad_matched: [&cad_matched[0], &cad_matched[1]],
             nominal: &nominal,
         };
         let first_new = training_set.len();
@@ -697,12 +714,15 @@ fn nominal_seed(arm: &Model, seed: u64) -> u64 {
     name ^ seed.wrapping_mul(0x9e37_79b9_7f4a_7c15)
 }
 
-/// `arm` as its CAD model has it for `seed`, written to `dir/nominal.urdf`.
+/// `arm` as its CAD model has it for `seed` (mass properties off, no friction), written to
+/// `dir/nominal.urdf`.
 fn nominal_model(arm: &Model, seed: u64, dir: &Path) -> Result<Nominal, String> {
     use crate::dynamics::nominal;
     let drawn_from = nominal_seed(arm, seed);
     let errors = nominal::draw(arm.dof(), NOMINAL_SPREAD, drawn_from);
-    let model = nominal::perturbed(arm, &errors);
+    // A CAD model knows the masses, roughly, and nothing of the joints' friction.
+    let mut model = nominal::perturbed(arm, &errors);
+    model.clear_friction();
     let file = dir.join("nominal.urdf");
     let text =
         crate::dynamics::urdf::to_urdf(&model).map_err(|e| format!("the nominal model: {e}"))?;
@@ -719,15 +739,11 @@ fn nominal_model(arm: &Model, seed: u64, dir: &Path) -> Result<Nominal, String> 
 }
 
 /// `[controller]` with `key = file` added to its law's table.
-fn with_file(mut c: toml::Table, key: &str, file: &Path) -> toml::Table {
+fn with_file(mut c: toml::Table, key: &str, file: &Path) -> Result<toml::Table, String> {
     let law = c.get("kind").and_then(|k| k.as_str()).map(str::to_owned);
-    if let Some(t) = law
-        .and_then(|l| c.get_mut(&l))
-        .and_then(|t| t.as_table_mut())
-    {
-        t.insert(key.into(), file.display().to_string().into());
-    }
-    c
+    let law = law.ok_or("built-in scenario: a controller without its kind")?;
+    table(&mut c, &law)?.insert(key.into(), file.display().to_string().into());
+    Ok(c)
 }
 
 /// A tracking scenario's text with identification alongside operation (`ONLINE`).
@@ -767,6 +783,8 @@ struct SeedRun<'a> {
     models: &'a [Option<(PathBuf, crate::rkgnn::RkgnnModel)>],
     servo: [&'a [f64]; 2],
     matched: [&'a [f64]; 2],
+    /// The matched servo's gains tuned on the nominal model (pd_gravity's).
+    cad_matched: [&'a [f64]; 2],
     nominal: &'a Nominal,
 }
 
@@ -831,6 +849,7 @@ impl SeedRun<'_> {
         let ct = || controller("computed_torque", g.ct_table());
         let nominal_file = &self.nominal.written.file;
         let [kp, kd] = self.matched;
+        let [cad_kp, cad_kd] = self.cad_matched;
         let laws = [
             Some(pd_servo(self.servo[0], self.servo[1])),
             Some(pd_servo(kp, kd)),
@@ -843,8 +862,12 @@ impl SeedRun<'_> {
             any.then(|| g.fuzzy(&kept, "blend", &uniform)),
             any.then(|| g.fuzzy(&kept, "evidence", &memberships)),
             any.then(|| g.fuzzy(&kept, "evidence", &[])),
-            Some(with_file(pd_servo(kp, kd), "gravity_model", nominal_file)),
-            Some(with_file(ct(), "model", nominal_file)),
+            Some(with_file(
+                pd_servo(cad_kp, cad_kd),
+                "gravity_model",
+                nominal_file,
+            )?),
+            Some(with_file(ct(), "model", nominal_file)?),
             // One model, updated online: the first usable one.
             kept.first().map(|f| g.fuzzy(&[f], "max", &[])),
         ];
@@ -1027,6 +1050,7 @@ fn keys() -> Vec<&'static str> {
 /// four tasks of a seed share them. Both diverged on a task: a tie, left out.
 fn per_seed(cells: &[&Cell], rule: &str, baseline: &str) -> (Vec<f64>, Vec<f64>) {
     let mut seeds: Vec<u64> = cells.iter().map(|c| c.seed).collect();
+    seeds.sort_unstable();
     seeds.dedup();
     seeds
         .iter()
@@ -1171,7 +1195,7 @@ fn model_error_table(r: &SelectionResult) -> String {
         100.0 * r.nominal_spread
     );
     let row = |name: String, e: Vec<ModelError>| {
-        let m = |f: fn(&ModelError) -> f64| median(&e.iter().map(f).collect::<Vec<_>>());
+        let m = |f: fn(&ModelError) -> f64| super::zoo::finite_median(e.iter().map(f));
         format!(
             "| {name} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |\n",
             m(|e| e.m_rel),
@@ -1196,7 +1220,7 @@ fn model_error_table(r: &SelectionResult) -> String {
         .map(|u| u as f64)
         .collect();
     md += &format!(
-        "\nonline_model: computed torque on the seed's first usable model, which identification \
+        "\nonline_model: computed torque on the seed's first model usable on the task, which identification \
          alongside operation updates from the applied torques ({}); it put a median of {} \
          models in service a run.\n",
         r.online

@@ -7,6 +7,11 @@
 
 use super::selection::{SelectionResult, STRONGEST};
 use crate::stats::{median, sign_test};
+
+/// The median of the values that are not NaN (an error undefined on a path: no torque there).
+pub fn finite_median(v: impl Iterator<Item = f64>) -> f64 {
+    median(&v.filter(|x| !x.is_nan()).collect::<Vec<_>>())
+}
 use serde::Serialize;
 
 /// The rules the zoo reports: the paper's max rule and the evidence rules.
@@ -62,6 +67,7 @@ impl Versus {
 pub struct Tally {
     pub rule: String,
     pub baseline: String,
+    /// Arms where both ran and their medians differ.
     pub arms: usize,
     /// Arms where the rule's median over seeds is lower.
     pub median_lower: usize,
@@ -105,7 +111,7 @@ pub fn arm_line(name: &str, r: &SelectionResult) -> ZooArm {
         .flat_map(|c| c.model_error.iter().flatten())
         .collect();
     let m = |f: &dyn Fn(&super::model_error::ModelError) -> f64| {
-        median(&errors.iter().map(|e| f(e)).collect::<Vec<_>>())
+        finite_median(errors.iter().map(|e| f(e)))
     };
     ZooArm {
         arm: name.into(),
@@ -118,12 +124,7 @@ pub fn arm_line(name: &str, r: &SelectionResult) -> ZooArm {
         m_rel: m(&|e| e.m_rel),
         m_scale: m(&|e| e.m_scale),
         g_rel: m(&|e| e.g_rel),
-        nominal_m_rel: median(
-            &r.cells
-                .iter()
-                .map(|c| c.nominal_error.m_rel)
-                .collect::<Vec<_>>(),
-        ),
+        nominal_m_rel: finite_median(r.cells.iter().map(|c| c.nominal_error.m_rel)),
         seconds: r.seconds,
     }
 }
@@ -134,9 +135,12 @@ pub fn tallies(arms: &[ZooArm]) -> Vec<Tally> {
         .iter()
         .flat_map(|rule| STRONGEST.iter().map(move |b| (*rule, *b)))
         .map(|(rule, b)| {
+            // Arms where both ran and the medians differ (a tie, e.g. the evidence rule on a
+            // single model against the best single model, counts neither way).
             let here: Vec<&Versus> = (arms.iter())
                 .filter_map(|a| a.versus.iter().find(|v| v.rule == rule && v.baseline == b))
                 .filter(|v| !v.median_rule.is_nan() && !v.median_baseline.is_nan())
+                .filter(|v| v.median_rule != v.median_baseline)
                 .collect();
             let lower = here
                 .iter()

@@ -361,11 +361,21 @@ fn moving_body(
 /// A URDF `rpy` triple of a rotation (the inverse of `rpy`; at pitch +-90 deg roll is 0).
 fn rpy_of(r: DMat3) -> [f64; 3] {
     let at = |i: usize, j: usize| r.col(j)[i];
-    let s = (-at(2, 0)).clamp(-1.0, 1.0);
-    if s.abs() > 1.0 - 1e-12 {
-        return [0.0, s.asin(), (-at(0, 1)).atan2(at(1, 1))];
+    // cos(pitch) from the first column: well conditioned near +-90 deg, where asin is not.
+    let c = at(0, 0).hypot(at(1, 0));
+    let pitch = (-at(2, 0)).atan2(c);
+    if c < 1e-15 {
+        return [0.0, pitch, (-at(0, 1)).atan2(at(1, 1))];
     }
-    [at(2, 1).atan2(at(2, 2)), s.asin(), at(1, 0).atan2(at(0, 0))]
+    [at(2, 1).atan2(at(2, 2)), pitch, at(1, 0).atan2(at(0, 0))]
+}
+
+/// `s` as an XML attribute value.
+fn escaped(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('"', "&quot;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// `model` as URDF: a base link, each body's joint (placement, axis, limits, friction) and its
@@ -380,10 +390,15 @@ pub fn to_urdf(model: &Model) -> Result<String, String> {
             model.gravity
         ));
     }
-    let base = "base";
+    // The fixed base link, named apart from every body's link.
+    let mut base = "base".to_string();
+    while model.bodies.iter().any(|b| b.link == base) {
+        base.push('_');
+    }
+    let base = escaped(&base);
     let mut s = format!(
         "<?xml version=\"1.0\"?>\n<robot name=\"{}\">\n  <link name=\"{base}\"/>\n",
-        model.name
+        escaped(&model.name)
     );
     for b in &model.bodies {
         if b.armature != 0.0 || b.friction.v_smooth != Friction::default().v_smooth {
@@ -397,7 +412,9 @@ pub fn to_urdf(model: &Model) -> Result<String, String> {
         let at = |r: usize, k: usize| i.col(k)[r];
         let o = &b.placement;
         let [rr, rp, ry] = rpy_of(o.rotation());
-        let parent = b.parent.map_or(base, |p| model.bodies[p].link.as_str());
+        let parent = b
+            .parent
+            .map_or(base.clone(), |p| escaped(&model.bodies[p].link));
         let (kind, lower, upper) = match (b.kind, b.limits.q_min.is_finite()) {
             (JointKind::Revolute, false) => ("continuous", 0.0, 0.0),
             (JointKind::Revolute, true) => ("revolute", b.limits.q_min, b.limits.q_max),
@@ -424,7 +441,7 @@ pub fn to_urdf(model: &Model) -> Result<String, String> {
             at(1, 1),
             at(1, 2),
             at(2, 2),
-            b.joint,
+            escaped(&b.joint),
             o.r.x,
             o.r.y,
             o.r.z,
@@ -435,9 +452,34 @@ pub fn to_urdf(model: &Model) -> Result<String, String> {
             finite(b.limits.velocity),
             b.friction.viscous,
             b.friction.coulomb,
-            link = b.link,
+            link = escaped(&b.link),
         );
     }
     s.push_str("</robot>\n");
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rpy_of_inverts_rpy_also_at_and_near_ninety_degrees_of_pitch() {
+        let half = std::f64::consts::FRAC_PI_2;
+        for r in [
+            [0.3, -0.7, 2.1],
+            [1.0, half, -0.4],
+            [0.2, half - 3e-7, 0.9],
+            [-0.5, -half, 0.1],
+            [0.7, -half + 2e-8, -2.0],
+            [0.0, 0.0, 0.0],
+        ] {
+            let m = rpy(r);
+            assert!(
+                m.abs_diff_eq(rpy(rpy_of(m)), 1e-12),
+                "{r:?}: {:?}",
+                rpy_of(m)
+            );
+        }
+    }
 }

@@ -315,19 +315,18 @@ pub fn paired_sentence(
 /// goes either way with probability 1/2 (a binomial tail, doubled, at most 1). For counts over
 /// units too few or too unlike for a signed-rank test, e.g. arms of a zoo.
 pub fn sign_test(lower: usize, n: usize) -> f64 {
-    if n == 0 {
-        return 1.0;
-    }
+    assert!(lower <= n, "sign test: {lower} of {n}");
     let k = lower.min(n - lower);
-    // sum_{i <= k} C(n, i) / 2^n, with C(n, i) built up in floating point (exact to n ~ 1000).
-    let (mut c, mut tail) = (1.0f64, 0.0f64);
+    // sum_{i <= k} C(n, i) / 2^n, each term in logarithms (exact enough for any n).
+    let ln_half = n as f64 * 0.5f64.ln();
+    let (mut ln_c, mut tail) = (0.0f64, 0.0f64);
     for i in 0..=k {
         if i > 0 {
-            c *= (n - i + 1) as f64 / i as f64;
+            ln_c += ((n - i + 1) as f64 / i as f64).ln();
         }
-        tail += c;
+        tail += (ln_c + ln_half).exp();
     }
-    (2.0 * tail / 2f64.powi(n as i32)).min(1.0)
+    (2.0 * tail).min(1.0)
 }
 
 #[cfg(test)]
@@ -450,8 +449,11 @@ mod tests {
     #[test]
     fn the_sign_test_matches_the_binomial_tables() {
         // 10 of 10 one way: 2 / 1024; 8 of 10: 2 * 56 / 1024; 5 of 10: 1.
-        assert_eq!(sign_test(10, 10), 2.0 / 1024.0);
-        assert_eq!(sign_test(0, 10), 2.0 / 1024.0);
+        assert!((sign_test(10, 10) - 2.0 / 1024.0).abs() < 1e-15);
+        assert!((sign_test(0, 10) - 2.0 / 1024.0).abs() < 1e-15);
+        // Beyond 2^1024: 1000 of 2000 is an even split, 0 of 2000 vanishingly rare.
+        assert_eq!(sign_test(1000, 2000), 1.0);
+        assert!(sign_test(0, 2000) < 1e-300);
         assert!((sign_test(8, 10) - 112.0 / 1024.0).abs() < 1e-15);
         assert_eq!(sign_test(5, 10), 1.0);
         assert_eq!(sign_test(0, 0), 1.0);

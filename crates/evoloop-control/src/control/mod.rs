@@ -240,9 +240,10 @@ pub(crate) fn model_file(
     rel: &std::path::Path,
     n: usize,
 ) -> Result<crate::dynamics::Model, ConfigError> {
-    let (_, m) = check.robot(key, rel)?;
+    let (path, m) = check.robot(key, rel)?;
     if m.dof() != n {
-        return check.fail(key, format!("has {} joints, the plant {n}", m.dof()));
+        let why = format!("{} has {} joints, the plant {n}", path.display(), m.dof());
+        return check.fail(key, why);
     }
     Ok(m)
 }
