@@ -65,11 +65,8 @@ impl ArmTerms for &crate::rkgnn::network::Network {
         let n = self.dof();
         let mut buf = [0.0; crate::MAX_JOINTS * crate::MAX_JOINTS];
         self.inertia_and_velocity(q, qd, &mut buf, v);
-        for r in 0..n {
-            for c in 0..n {
-                m[(r, c)] = buf[r * n + c];
-            }
-        }
+        // Row-major into column-major: the same numbers, M-hat being symmetric by construction.
+        m.copy_from_slice(&buf[..n * n]);
         self.gravity(q, g);
     }
 }

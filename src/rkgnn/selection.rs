@@ -28,15 +28,16 @@
 
 use super::identify::{self, Prior, Settings};
 use super::study::{
-    arm_of, case, controller, diagonal_mid, float_list, gains, pd_servo, servo_prior, simulate_all,
-    table, trajectory_positions, write_scenarios, Case, JointVelocity, JOINTS,
+    arm_of, case, controller, diagonal_mid, float_list, gains, pd_servo, reference_states,
+    servo_prior, simulate_all, table, trajectory_positions, write_scenarios, Case, JointVelocity,
+    JOINTS,
 };
 use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::dynamics::Model;
 use crate::rkgnn::model_error::{model_error, ModelError, RigidBody};
 use crate::rkgnn::Trajectory;
 use crate::sim::JointTraces;
-use crate::stats::{median, wilcoxon, Wilcoxon};
+use crate::stats::{median, median_of_numbers, wilcoxon, Wilcoxon};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -247,6 +248,15 @@ const MATCH: (f64, f64) = (900.0, 60.0);
 /// The training servo's error dynamics on an arm other than the paper's (k_p and k_d per unit
 /// of M_jj,mid): 20 rad/s, critically damped, slower than computed torque's 30 rad/s.
 const VENDOR: (f64, f64) = (400.0, 40.0);
+/// P-D gains [k_p; k_d] of the error dynamics `(kp, kd)` (per unit of inertia) on joints of
+/// inertia `mid`.
+fn per_inertia(mid: &[f64], (kp, kd): (f64, f64)) -> [Vec<f64>; 2] {
+    [
+        mid.iter().map(|m| m * kp).collect(),
+        mid.iter().map(|m| m * kd).collect(),
+    ]
+}
+
 /// gamma of the uniform blend: memberships within 1e-12 of 1 over any trajectory here.
 const UNIFORM_GAMMA: f64 = 1e6;
 
@@ -476,7 +486,7 @@ pub fn run(
     let dir = &std::path::absolute(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let n = arm.dof();
     // The nominal model must be writable before any run is made (URDF has no armature).
-    crate::dynamics::urdf::to_urdf(&arm).map_err(|e| {
+    crate::dynamics::urdf::writable(&arm).map_err(|e| {
         format!(
             "{}: its nominal model cannot be written as URDF: {e}",
             robot.display()
@@ -517,19 +527,13 @@ pub fn run(
     let period = s.period.unwrap_or(base_period);
     g.startup_rate *= period / base_period;
     let mid = diagonal_mid(&arm, &qs);
-    let matched = (
-        mid.iter().map(|m| m * MATCH.0).collect::<Vec<_>>(),
-        mid.iter().map(|m| m * MATCH.1).collect::<Vec<_>>(),
-    );
+    let matched = per_inertia(&mid, MATCH);
     let workspace = identify::limit_positions(&arm, identify::LIMIT_SAMPLES);
     let prior = Prior::of_model(&arm, workspace.iter().map(Vec::as_slice));
     // The training servo: the written one on the paper's 3-joint arm; on another arm a vendor's
     // servo tuned as the matched one is but slower (VENDOR: 20 rad/s, critically damped).
     if n != JOINTS {
-        g.servo = [
-            mid.iter().map(|m| m * VENDOR.0).collect(),
-            mid.iter().map(|m| m * VENDOR.1).collect(),
-        ];
+        g.servo = per_inertia(&mid, VENDOR);
     }
     let (servo_kp, servo_kd) = (&g.servo[0], &g.servo[1]);
     let total = s.seeds * (2 * training_set.len() + new_set.len() * RUN.len()) as u64;
@@ -607,11 +611,7 @@ pub fn run(
         // down beside the models; the gravity compensation and ct_nominal use it.
         let nominal = nominal_model(&arm, seed, &sd)?;
         // pd_gravity is tuned as the matched servo is, on the CAD model (what its user has).
-        let cad_mid = diagonal_mid(&nominal.model, &qs);
-        let cad_matched: [Vec<f64>; 2] = [
-            cad_mid.iter().map(|m| m * MATCH.0).collect(),
-            cad_mid.iter().map(|m| m * MATCH.1).collect(),
-        ];
+        let cad_matched = per_inertia(&diagonal_mid(&nominal.model, &qs), MATCH);
         let seed_run = SeedRun {
             s,
             g: &g,
@@ -621,7 +621,7 @@ pub fn run(
             seed,
             models: &models,
             servo: [servo_kp, servo_kd],
-            matched: [&matched.0, &matched.1],
+            matched: [&matched[0], &matched[1]],
             cad_matched: [&cad_matched[0], &cad_matched[1]],
             nominal: &nominal,
         };
@@ -759,18 +759,6 @@ fn identifying(text: &str) -> Result<String, String> {
     toml::to_string(&t).map_err(|e| e.to_string())
 }
 
-/// The (q, qd) of a reference every 10 ms: the path models are judged on.
-fn reference_path(scn: &crate::config::Scenario) -> Vec<(Vec<f64>, Vec<f64>)> {
-    let mut sp = crate::reference::Setpoint::default();
-    let steps = (scn.timing.duration / 0.01).round() as usize;
-    (0..=steps)
-        .map(|k| {
-            scn.reference.sample(k as f64 * 0.01, &mut sp);
-            (sp.q[..sp.n].to_vec(), sp.qd[..sp.n].to_vec())
-        })
-        .collect()
-}
-
 /// One seed's tracking: what every trajectory's runs share.
 struct SeedRun<'a> {
     s: &'a SelectionSettings,
@@ -826,7 +814,7 @@ impl SeedRun<'_> {
             })
             .collect();
         // The truth judges the models along the reference (after the fact).
-        let path = reference_path(reference);
+        let path = reference_states(reference);
         let models_error = models
             .iter()
             .map(|m| {
@@ -1116,10 +1104,10 @@ fn summarise(
             let m = keys
                 .iter()
                 .map(|k| {
-                    let v: Vec<f64> = (here.iter().map(|c| value(c, k)))
-                        .filter(|v| !v.is_nan())
-                        .collect();
-                    (k.to_string(), median(&v))
+                    (
+                        k.to_string(),
+                        median_of_numbers(here.iter().map(|c| value(c, k))),
+                    )
                 })
                 .collect();
             (name.to_string(), m)
@@ -1147,11 +1135,21 @@ fn claim_held(comparisons: &[Comparison], rule: &str) -> bool {
     comparisons
         .iter()
         .find(|c| c.rule == rule && c.baseline == "best_single")
-        .is_some_and(|c| {
-            c.median_fuzzy < c.median_baseline
-                && c.wilcoxon.w_plus < c.wilcoxon.w_minus
-                && c.wilcoxon.p_two_sided < 0.05
-        })
+        .is_some_and(Comparison::rule_lower)
+}
+
+impl Comparison {
+    /// The rule below the baseline: median lower, the signed ranks its way, Wilcoxon p < 0.05.
+    pub fn rule_lower(&self) -> bool {
+        let w = &self.wilcoxon;
+        self.median_fuzzy < self.median_baseline && w.w_plus < w.w_minus && w.p_two_sided < 0.05
+    }
+
+    /// The baseline below the rule, the same way.
+    pub fn baseline_lower(&self) -> bool {
+        let w = &self.wilcoxon;
+        self.median_baseline < self.median_fuzzy && w.w_minus < w.w_plus && w.p_two_sided < 0.05
+    }
 }
 
 /// The baselines a control engineer would set a rule against: the best single model in
@@ -1165,10 +1163,10 @@ pub const STRONGEST: [&str; 5] = [
     "ct_true",
 ];
 
-/// A comparison's table row (from its rule on), `units` what its pairs are.
-fn comparison_row(c: &Comparison, units: &str) -> String {
+/// A comparison's table row (from its rule on).
+fn comparison_row(c: &Comparison) -> String {
     format!(
-        "| {} | {} | {:.4} | {:.4} | {} of {} {units} | {:.2e} ({}) |\n",
+        "| {} | {} | {:.4} | {:.4} | {} of {} seeds | {:.2e} ({}) |\n",
         c.rule,
         c.baseline,
         c.median_fuzzy,
@@ -1195,7 +1193,7 @@ fn model_error_table(r: &SelectionResult) -> String {
         100.0 * r.nominal_spread
     );
     let row = |name: String, e: Vec<ModelError>| {
-        let m = |f: fn(&ModelError) -> f64| super::zoo::finite_median(e.iter().map(f));
+        let m = |f: fn(&ModelError) -> f64| median_of_numbers(e.iter().map(f));
         format!(
             "| {name} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |\n",
             m(|e| e.m_rel),
@@ -1284,7 +1282,7 @@ pub fn report_markdown(r: &SelectionResult) -> String {
            | rule | baseline | median rule | median baseline | rule lower | Wilcoxon p |\n\
            |---|---|---|---|---|---|\n";
     for c in &r.comparisons {
-        md += &comparison_row(c, "seeds");
+        md += &comparison_row(c);
     }
     md += "\nPer task (trajectory), over the seeds, each rule against the strongest baselines:\n\n\
            | task | rule | baseline | median rule | median baseline | rule lower | Wilcoxon p |\n\
@@ -1295,7 +1293,7 @@ pub fn report_markdown(r: &SelectionResult) -> String {
             .iter()
             .filter(|c| STRONGEST.contains(&c.baseline.as_str()))
         {
-            md += &format!("| {} {}", t.trajectory, comparison_row(c, "seeds"));
+            md += &format!("| {} {}", t.trajectory, comparison_row(c));
         }
     }
     md += &model_error_table(r);

@@ -370,16 +370,21 @@ pub(super) fn gains() -> Result<Gains, String> {
 
 /// The positions of the trajectories every 10 ms.
 pub(super) fn trajectory_positions(cases: &[&Scenario]) -> Vec<Vec<f64>> {
+    (cases.iter())
+        .flat_map(|scn| reference_states(scn).into_iter().map(|(q, _)| q))
+        .collect()
+}
+
+/// A scenario's reference (q, qd) every 10 ms over its duration.
+pub(super) fn reference_states(scn: &Scenario) -> Vec<(Vec<f64>, Vec<f64>)> {
     let mut sp = crate::reference::Setpoint::default();
-    let mut qs = Vec::new();
-    for scn in cases {
-        let steps = (scn.timing.duration / 0.01).round() as usize;
-        for k in 0..=steps {
+    let steps = (scn.timing.duration / 0.01).round() as usize;
+    (0..=steps)
+        .map(|k| {
             scn.reference.sample(k as f64 * 0.01, &mut sp);
-            qs.push(sp.q[..sp.n].to_vec());
-        }
-    }
-    qs
+            (sp.q[..sp.n].to_vec(), sp.qd[..sp.n].to_vec())
+        })
+        .collect()
 }
 
 /// Per joint, the middle of M_jj(q)'s range over `qs`: the simulated vendor tunes its servo to

@@ -5,13 +5,8 @@
 //! the table says on how many arms a rule is lower (each arm's own test over its seeds) and the
 //! exact sign test of that count.
 
-use super::selection::{SelectionResult, STRONGEST};
-use crate::stats::{median, sign_test};
-
-/// The median of the values that are not NaN (an error undefined on a path: no torque there).
-pub fn finite_median(v: impl Iterator<Item = f64>) -> f64 {
-    median(&v.filter(|x| !x.is_nan()).collect::<Vec<_>>())
-}
+use super::selection::{Comparison, SelectionResult, STRONGEST};
+use crate::stats::{median_of_numbers, sign_test};
 use serde::Serialize;
 
 /// The rules the zoo reports: the paper's max rule and the evidence rules.
@@ -29,8 +24,8 @@ pub struct ZooArm {
     pub training_runs: usize,
     /// (model, task, seed) cases the controller refused (not positive definite along the task).
     pub refused: usize,
-    /// Per rule and baseline: seeds where the rule is lower, seeds, medians over seeds, p.
-    pub versus: Vec<Versus>,
+    /// Each rule against each strongest baseline over the arm's seeds (its study's comparisons).
+    pub versus: Vec<Comparison>,
     /// Medians over seeds, tasks and models of the identified models' errors, and the nominal's.
     pub m_rel: f64,
     pub m_scale: f64,
@@ -39,27 +34,9 @@ pub struct ZooArm {
     pub seconds: f64,
 }
 
-#[derive(Debug, Clone, Serialize)]
-pub struct Versus {
-    pub rule: String,
-    pub baseline: String,
-    pub median_rule: f64,
-    pub median_baseline: f64,
-    pub lower: usize,
-    pub seeds: usize,
-    pub p: f64,
-    pub method: &'static str,
-}
-
-impl Versus {
-    /// The rule below the baseline on this arm: median lower and p < 0.05 the rule's way.
-    pub fn held(&self) -> bool {
-        self.median_rule < self.median_baseline && self.p < 0.05 && 2 * self.lower > self.seeds
-    }
-    /// The baseline below the rule on this arm, the same way.
-    pub fn lost(&self) -> bool {
-        self.median_baseline < self.median_rule && self.p < 0.05 && 2 * self.lower < self.seeds
-    }
+/// Each rule the zoo reports with each strongest baseline.
+fn rule_baselines() -> impl Iterator<Item = (&'static str, &'static str)> {
+    (ZOO_RULES.iter()).flat_map(|rule| STRONGEST.iter().map(move |b| (*rule, *b)))
 }
 
 /// Across arms, one rule against one baseline.
@@ -90,28 +67,18 @@ pub struct ZooResult {
 
 /// One arm's line from its selection study.
 pub fn arm_line(name: &str, r: &SelectionResult) -> ZooArm {
-    let versus = ZOO_RULES
-        .iter()
-        .flat_map(|rule| STRONGEST.iter().map(move |b| (*rule, *b)))
+    let versus = rule_baselines()
         .filter_map(|(rule, b)| {
-            let c = (r.comparisons.iter()).find(|c| c.rule == rule && c.baseline == b)?;
-            Some(Versus {
-                rule: rule.into(),
-                baseline: b.into(),
-                median_rule: c.median_fuzzy,
-                median_baseline: c.median_baseline,
-                lower: c.fuzzy_lower,
-                seeds: c.pairs,
-                p: c.wilcoxon.p_two_sided,
-                method: c.wilcoxon.method,
-            })
+            (r.comparisons.iter())
+                .find(|c| c.rule == rule && c.baseline == b)
+                .cloned()
         })
         .collect();
     let errors: Vec<_> = (r.cells.iter())
         .flat_map(|c| c.model_error.iter().flatten())
         .collect();
     let m = |f: &dyn Fn(&super::model_error::ModelError) -> f64| {
-        finite_median(errors.iter().map(|e| f(e)))
+        median_of_numbers(errors.iter().map(|e| f(e)))
     };
     ZooArm {
         arm: name.into(),
@@ -124,27 +91,25 @@ pub fn arm_line(name: &str, r: &SelectionResult) -> ZooArm {
         m_rel: m(&|e| e.m_rel),
         m_scale: m(&|e| e.m_scale),
         g_rel: m(&|e| e.g_rel),
-        nominal_m_rel: finite_median(r.cells.iter().map(|c| c.nominal_error.m_rel)),
+        nominal_m_rel: median_of_numbers(r.cells.iter().map(|c| c.nominal_error.m_rel)),
         seconds: r.seconds,
     }
 }
 
 /// The tallies across `arms`.
 pub fn tallies(arms: &[ZooArm]) -> Vec<Tally> {
-    ZOO_RULES
-        .iter()
-        .flat_map(|rule| STRONGEST.iter().map(move |b| (*rule, *b)))
+    rule_baselines()
         .map(|(rule, b)| {
             // Arms where both ran and the medians differ (a tie, e.g. the evidence rule on a
             // single model against the best single model, counts neither way).
-            let here: Vec<&Versus> = (arms.iter())
+            let here: Vec<&Comparison> = (arms.iter())
                 .filter_map(|a| a.versus.iter().find(|v| v.rule == rule && v.baseline == b))
-                .filter(|v| !v.median_rule.is_nan() && !v.median_baseline.is_nan())
-                .filter(|v| v.median_rule != v.median_baseline)
+                .filter(|v| !v.median_fuzzy.is_nan() && !v.median_baseline.is_nan())
+                .filter(|v| v.median_fuzzy != v.median_baseline)
                 .collect();
             let lower = here
                 .iter()
-                .filter(|v| v.median_rule < v.median_baseline)
+                .filter(|v| v.median_fuzzy < v.median_baseline)
                 .count();
             Tally {
                 rule: rule.into(),
@@ -152,8 +117,8 @@ pub fn tallies(arms: &[ZooArm]) -> Vec<Tally> {
                 arms: here.len(),
                 median_lower: lower,
                 sign_p: sign_test(lower, here.len()),
-                held: here.iter().filter(|v| v.held()).count(),
-                lost: here.iter().filter(|v| v.lost()).count(),
+                held: here.iter().filter(|v| v.rule_lower()).count(),
+                lost: here.iter().filter(|v| v.baseline_lower()).count(),
             }
         })
         .collect()
@@ -195,11 +160,11 @@ pub fn report_markdown(z: &ZooResult) -> String {
                 a.refused,
                 v.rule,
                 v.baseline,
-                v.median_rule,
+                v.median_fuzzy,
                 v.median_baseline,
-                v.lower,
-                v.seeds,
-                v.p
+                v.fuzzy_lower,
+                v.pairs,
+                v.wilcoxon.p_two_sided
             );
         }
     }

@@ -378,18 +378,32 @@ fn escaped(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-/// `model` as URDF: a base link, each body's joint (placement, axis, limits, friction) and its
-/// link (mass, centre of mass, inertia about it). Numbers are written in Rust's shortest form
-/// that reads back to the same value; rotations as `rpy`, which reads back to within rounding.
-/// URDF has no armature, no friction smoothing and a fixed gravity: a model with an armature, a
-/// `v_smooth` other than the default or another gravity is refused, not written wrong.
-pub fn to_urdf(model: &Model) -> Result<String, String> {
+/// Whether `to_urdf` can write `model` whole: URDF's gravity, no armature and the default
+/// friction smoothing; why not otherwise.
+pub fn writable(model: &Model) -> Result<(), String> {
     if model.gravity != DVec3::new(0.0, 0.0, -9.81) {
         return Err(format!(
             "gravity {} is not URDF's (0, 0, -9.81)",
             model.gravity
         ));
     }
+    let smoothing = Friction::default().v_smooth;
+    match (model.bodies.iter()).find(|b| b.armature != 0.0 || b.friction.v_smooth != smoothing) {
+        Some(b) => Err(format!(
+            "joint `{}`: an armature or a friction smoothing URDF cannot carry",
+            b.joint
+        )),
+        None => Ok(()),
+    }
+}
+
+/// `model` as URDF: a base link, each body's joint (placement, axis, limits, friction) and its
+/// link (mass, centre of mass, inertia about it). Numbers are written in Rust's shortest form
+/// that reads back to the same value; rotations as `rpy`, which reads back to within rounding.
+/// URDF has no armature, no friction smoothing and a fixed gravity: a model with an armature, a
+/// `v_smooth` other than the default or another gravity is refused, not written wrong.
+pub fn to_urdf(model: &Model) -> Result<String, String> {
+    writable(model)?;
     // The fixed base link, named apart from every body's link.
     let mut base = "base".to_string();
     while model.bodies.iter().any(|b| b.link == base) {
@@ -401,12 +415,6 @@ pub fn to_urdf(model: &Model) -> Result<String, String> {
         escaped(&model.name)
     );
     for b in &model.bodies {
-        if b.armature != 0.0 || b.friction.v_smooth != Friction::default().v_smooth {
-            return Err(format!(
-                "joint `{}`: an armature or a friction smoothing URDF cannot carry",
-                b.joint
-            ));
-        }
         let c = b.inertia.com();
         let i = b.inertia.i_com();
         let at = |r: usize, k: usize| i.col(k)[r];

@@ -112,6 +112,12 @@ pub fn median(v: &[f64]) -> f64 {
     }
 }
 
+/// The median of the values that are numbers (NaN marks one missing: a run not made, an error
+/// undefined); NaN if none is.
+pub fn median_of_numbers(v: impl IntoIterator<Item = f64>) -> f64 {
+    median(&v.into_iter().filter(|x| !x.is_nan()).collect::<Vec<_>>())
+}
+
 /// Standard normal density phi(z).
 pub fn normal_pdf(z: f64) -> f64 {
     (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt()
