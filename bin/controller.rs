@@ -14,7 +14,7 @@ use clap::Parser;
 )]
 struct Cli {
     #[command(flatten)]
-    args: evoloop::cli::ProcessArgs,
+    args: evoloop_cli::ProcessArgs,
 }
 
 fn main() {

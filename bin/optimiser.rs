@@ -10,7 +10,7 @@ use clap::Parser;
 )]
 struct Cli {
     #[command(flatten)]
-    args: evoloop::cli::OptimiserArgs,
+    args: evoloop_cli::OptimiserArgs,
 }
 
 fn main() {

@@ -10,7 +10,7 @@ use clap::Parser;
 )]
 struct Cli {
     #[command(flatten)]
-    args: evoloop::cli::ProcessArgs,
+    args: evoloop_cli::ProcessArgs,
 }
 
 fn main() {

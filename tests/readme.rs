@@ -3,7 +3,7 @@
 //! two lines of "The two commands" are what `.ci/run` executes on a clean clone.
 
 use clap::Parser;
-use evoloop::cli::{Cli, Cmd};
+use evoloop_cli::{Cli, Cmd};
 use std::path::{Path, PathBuf};
 
 fn root() -> &'static Path {
@@ -209,7 +209,7 @@ fn check_files(cmd: &Cmd) -> Result<(), String> {
         }
         Cmd::Dynamics(a) => {
             let robot = match &a.cmd {
-                Some(evoloop::cli::dynamics::DynamicsCmd::Regressor(r)) => Some(&r.robot),
+                Some(evoloop_cli::dynamics::DynamicsCmd::Regressor(r)) => Some(&r.robot),
                 None => a.robot.as_ref(),
             };
             let robot = robot.ok_or("no --robot")?;

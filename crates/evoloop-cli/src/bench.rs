@@ -1,0 +1,263 @@
+//! `evoloop bench latency | latency-peer | loop`: the options, and the tables they print. The
+//! measurements live in `evoloop_run::bench`.
+
+use clap::Args;
+use evoloop_run::bench::latency::{self, Variant};
+use evoloop_run::bench::loop_bench::{self, Load};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct LatencyArgs {
+    /// Timed round trips per variant.
+    #[arg(long, default_value_t = 20_000)]
+    pub samples: usize,
+    /// Payload of the bare ping-pong in bytes (default: the size of the evoloop state message).
+    #[arg(long)]
+    pub payload: Option<usize>,
+    #[arg(long)]
+    pub json: bool,
+    /// Write latency.json, latency.csv and latency_cdf.png here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct PeerArgs {
+    #[arg(long, value_enum)]
+    pub variant: Variant,
+    #[arg(long)]
+    pub prefix: String,
+    #[arg(long)]
+    pub run_id: String,
+    #[arg(long)]
+    pub payload: usize,
+}
+
+/// `evoloop bench latency`: every variant, then the table (or JSON) and the files.
+pub fn latency(a: LatencyArgs) -> i32 {
+    if a.samples < 100 || a.samples > 10_000_000 {
+        eprintln!("error: --samples must be in 100..=10000000");
+        return 2;
+    }
+    let payload = a
+        .payload
+        .unwrap_or(std::mem::size_of::<evoloop_msg::PlantState>());
+    if payload == 0 || payload > 1 << 20 {
+        eprintln!("error: --payload must be in 1..=1048576 bytes");
+        return 2;
+    }
+    let bar = evoloop_report::progress::stages(4, "variants", a.json);
+    let progress = |v: Variant| {
+        bar.inc_stage(&format!("{} ({} round trips)", v.name(), a.samples));
+    };
+    let latency::Measured {
+        report,
+        results,
+        raw,
+    } = match latency::measure(a.samples, payload, &progress) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 1;
+        }
+    };
+    if a.json {
+        super::print_json(&report);
+    } else {
+        out!(
+            "round trip, {payload}-byte payload, {} samples per variant (ns):",
+            a.samples
+        );
+        out!(
+            "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  ratio p50 / p99.9 to bare",
+            "variant",
+            "min",
+            "p50",
+            "p90",
+            "p99",
+            "p99.9",
+            "p99.99",
+            "max"
+        );
+        for r in &results {
+            let ratio = match (r.ratio_p50, r.ratio_p99_9) {
+                (Some(a), Some(b)) => format!("{a:.2} / {b:.2}"),
+                _ => "(reference)".into(),
+            };
+            let [min, p50, p90, p99, p99_9, p99_99, max] = r.figures();
+            out!(
+                "{:<14} {min:>8} {p50:>8} {p90:>8} {p99:>8} {p99_9:>9} {p99_99:>9} {max:>10}  {ratio}",
+                r.variant.name(),
+            );
+        }
+    }
+    if let Some(dir) = &a.out {
+        if let Err(e) = latency::write_out(dir, &report, &results, &raw) {
+            eprintln!("error: {e}");
+            return 1;
+        }
+    }
+    0
+}
+
+/// `evoloop bench latency-peer` (started by `bench latency`).
+pub fn latency_peer(a: PeerArgs) -> i32 {
+    match latency::peer(a.variant, &a.prefix, &a.run_id, a.payload) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("latency-peer: error: {e}");
+            1
+        }
+    }
+}
+
+#[derive(Args)]
+pub struct LoopArgs {
+    /// Loop rate in Hz (1000 and 10000 are the usual ones). Default: 1000 on the built-in
+    /// two-mass loop, a `--scenario`'s own rate (which it must match if given).
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Run this scenario (realtime, for `--duration`) instead of the built-in two-mass loop,
+    /// e.g. config/arm7_ct.toml for the 7-DOF computed-torque loop at 10 kHz.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// How the controller and the plant wait: sleep, spin or hybrid (default: the scenario's
+    /// `timing.wait`; sleep on the built-in loop). The floor waits the same way.
+    #[arg(long, value_enum)]
+    pub wait: Option<evoloop_rt::WaitKind>,
+    /// Seconds per measurement.
+    #[arg(long, default_value_t = 5.0)]
+    pub duration: f64,
+    #[arg(long, value_enum, default_value_t = Load::Off)]
+    pub load: Load,
+    /// Only with SCHED_FIFO/mlockall (default: with and without).
+    #[arg(long)]
+    pub rt_only: bool,
+    #[arg(long)]
+    pub json: bool,
+    /// Output directory (runs, loop.json, loop_lateness.png).
+    #[arg(long, default_value = "runs/bench_loop")]
+    pub out: PathBuf,
+}
+
+/// `evoloop bench loop`: the measurements, then the table (or JSON).
+pub fn loop_(a: LoopArgs) -> i32 {
+    let what = a
+        .scenario
+        .as_ref()
+        .map_or("the two-mass loop".to_string(), |p| p.display().to_string());
+    let bar = evoloop_report::progress::stages(if a.rt_only { 1 } else { 2 }, "settings", a.json);
+    let progress = |name: &str| {
+        bar.inc_stage(&format!(
+            "{what}, {name}, load {:?}: {} s and the floor after it",
+            a.load, a.duration
+        ));
+    };
+    let spec = loop_bench::LoopSpec {
+        rate: a.rate,
+        duration: a.duration,
+        load: a.load,
+        rt_only: a.rt_only,
+        wait: a.wait,
+        scenario: a.scenario.clone(),
+    };
+    let loop_bench::Measured { report, results } =
+        match loop_bench::measure(&spec, &a.out, &progress) {
+            Ok(m) => m,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return e.code();
+            }
+        };
+    if a.json {
+        super::print_json(&report);
+    } else {
+        out!(
+            "controller loop of {what} at {} Hz for {} s, load {:?} (ns):",
+            report["rate_hz"],
+            a.duration,
+            a.load
+        );
+        out!("{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  floor p50/p99/p99.9      ratio p99 (p99.9)", "privs", "what", "p50", "p99", "p99.9", "max", "compute50", "age p50", "overrun", "missed");
+        for r in &results {
+            let s = &r.summary;
+            let l = &s.timing.lateness;
+            let f = s.floor.clone().unwrap_or_default();
+            out!(
+                "{:<7} {:<9} {:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>8} {:>7}  {}/{}/{}  {:.2} ({:.2})",
+                r.privileges, "lateness", l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns, s.timing.compute.p50_ns,
+                s.timing.state_age.p50_ns, s.overruns, s.deadline_misses,
+                f.lateness.p50_ns, f.lateness.p99_ns, f.lateness.p99_9_ns, f.ratio_p99, f.ratio_p99_9
+            );
+        }
+        for (r, row) in results
+            .iter()
+            .zip(report["results"].as_array().into_iter().flatten())
+        {
+            let s = &r.summary;
+            out!(
+                "{:<7} wait {}: misses per 10^6 cycles {:.1} (floor: {:.1} periods lost per 10^6), compute p99 {} ns, controller/floor lateness p99 {:.2}, optimiser {:.2} cores ({:.1} s CPU)",
+                r.privileges,
+                s.wait.map_or("-".into(), |w| w.describe()),
+                row["misses_per_million"].as_f64().unwrap_or(0.0),
+                row["floor_lost_per_million"].as_f64().unwrap_or(0.0),
+                s.timing.compute.p99_ns,
+                row["ratio_p99"].as_f64().unwrap_or(0.0),
+                s.optimiser_load_cores,
+                s.optimiser_cpu_s,
+            );
+        }
+        out!(
+            "wrote {}/loop.json, loop_lateness.png and the runs",
+            a.out.display()
+        );
+    }
+    0
+}
+
+#[derive(Args)]
+pub struct DynamicsArgs {
+    /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Timed calls per algorithm (64 random states in [-1, 1], cycled).
+    #[arg(long, default_value_t = 200_000)]
+    pub calls: u64,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `evoloop bench dynamics`: ns per call of each algorithm on one robot.
+pub fn dynamics(a: DynamicsArgs) -> i32 {
+    if !(1000..=1_000_000_000).contains(&a.calls) {
+        eprintln!("error: --calls must be in 1000..=1000000000");
+        return 2;
+    }
+    let model = match evoloop_dynamics::load(&a.robot) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 2;
+        }
+    };
+    let b = evoloop_run::bench::dynamics::measure(&model, a.calls);
+    if a.json {
+        super::print_json(&b);
+    } else {
+        let p = &b.ns_per_call;
+        out!(
+            "{} ({} joints), {} calls each, rigid body (no friction), ns per call:",
+            a.robot.display(),
+            b.joints,
+            b.calls
+        );
+        out!("  inverse dynamics (RNEA)              {:>8.1}", p.rnea);
+        out!("  M(q) (CRBA)                          {:>8.1}", p.crba);
+        out!("  forward dynamics (ABA)               {:>8.1}", p.aba);
+        out!(
+            "  forward dynamics (RNEA+CRBA+Cholesky){:>8.1}",
+            p.forward_crba
+        );
+    }
+    0
+}

@@ -1,0 +1,257 @@
+//! The command line: `evoloop`'s subcommands, and the arguments shared by the launcher and the
+//! three processes, so the launcher hands each child exactly the options the child parses. The
+//! parser lives in its own crate, above every library crate, so a test can parse every command
+//! the README and the book show; the terminal view's ratatui is only here.
+
+#[macro_use]
+extern crate evoloop_scenario;
+
+pub mod bench;
+pub mod bridge;
+pub mod check;
+pub mod dynamics;
+pub mod floor;
+pub mod identify_base;
+pub mod identify_excitation;
+pub mod identify_lls;
+pub mod identify_study;
+pub mod operator;
+pub mod optim;
+pub mod rkgnn;
+pub mod robot;
+pub mod robust;
+pub mod soak;
+pub mod top;
+pub mod tune;
+pub mod worker;
+
+use clap::{Parser, Subcommand};
+pub use evoloop_run::node::args::{
+    parse_seeds, OptimiserArgs, OverrideArgs, ProcessArgs, RunArgs, Seeds,
+};
+use evoloop_run::node::launcher;
+pub use evoloop_run::node::start::stop_flag;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "evoloop",
+    version,
+    about = "Real-time control loops tuned by evolutionary optimisers while the plant runs",
+    long_about = "evoloop starts a plant simulator, a fixed-rate controller and an optimiser as separate \
+processes that talk over iceoryx2 shared memory.\n\nWithout a subcommand it runs the default scenario \
+(config/two_mass.toml) and writes its report to runs/two_mass/."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Cmd>,
+}
+
+#[derive(Subcommand)]
+pub enum Cmd {
+    /// Run a scenario: start the three processes, supervise them, write the report.
+    Run(RunArgs),
+    /// Validate a scenario file and print what it resolves to.
+    Check {
+        /// Scenario file (TOML).
+        file: PathBuf,
+    },
+    /// The eMuPSO paper's optimiser benchmark: `optim study` (Tables 4-9 on the 36-function
+    /// suite and shifted copies), `optim bench` (each optimiser's own overhead).
+    Optim {
+        #[command(subcommand)]
+        cmd: optim::OptimCmd,
+    },
+    /// Robust state feedback for the two-mass benchmark: stability radius, LQR, DE tuning, the
+    /// paper's reproduction.
+    Robust {
+        #[command(subcommand)]
+        cmd: robust::RobustCmd,
+    },
+    /// Rigid-body dynamics of a robot file (D-H TOML or URDF) at one state: tau, M, G, V, and,
+    /// given --tau, the forward dynamics.
+    Dynamics(dynamics::DynamicsArgs),
+    /// Arms of one's own to try the controllers on: `robot generate` (a plausible serial arm of
+    /// 3-7 joints from a seed, as URDF), `robot zoo` (the fixed unseen arms of a zoo file).
+    Robot {
+        #[command(subcommand)]
+        cmd: robot::RobotCmd,
+    },
+    /// The fuzzy-network paper's GA experiments: `tune config/arsinh_tune.toml` (Section 5.1),
+    /// `tune config/maglev_tune.toml` (Section 5.2).
+    Tune(tune::TuneArgs),
+    /// System identification from run data: `identify rkgnn` (the RKGNN paper, no torques).
+    Identify {
+        #[command(subcommand)]
+        cmd: rkgnn::IdentifyCmd,
+    },
+    /// Identified RKGNN models: `rkgnn eval` (M_hat, V_hat, G_hat at a state).
+    Rkgnn {
+        #[command(subcommand)]
+        cmd: rkgnn::RkgnnCmd,
+    },
+    /// Benchmarks measured against the machine's own floor in the same run.
+    Bench {
+        #[command(subcommand)]
+        cmd: BenchCmd,
+    },
+    /// The plant simulator process of a run (`evoloop run` starts it; for starting processes by
+    /// hand or under your own supervisor).
+    Plant(ProcessArgs),
+    /// The fixed-rate controller process of a run (`evoloop run` starts it).
+    Controller(ProcessArgs),
+    /// The optimiser process of a run (`evoloop run` starts it).
+    Optimiser(OptimiserArgs),
+    /// A long realtime run with the optimiser tuning: memory of every process, missed deadlines
+    /// and lateness per minute, shared-memory files before and after (soak.json, soak.csv, plots).
+    Soak(soak::SoakArgs),
+    /// Measure the machine's timing floor: a bare absolute-deadline loop (sleep, spin or hybrid).
+    Floor(floor::FloorArgs),
+    /// (Re)build report.html, the one-page report of a finished run, from its directory
+    /// (summary.json, scenario.json, the plots, the data files).
+    Report(ReportArgs),
+    /// Play a recorded run (its run.mcap) into a controller over the run's iceoryx2 topics, in
+    /// the plant's place, and compare its commands with the recorded ones (replay.json,
+    /// replay.csv, replay.png); `--scenario FILE` tries another controller on the recorded data.
+    Replay(evoloop_run::node::replay::ReplayArgs),
+    /// Serve a running run to Foxglove or PlotJuggler in Foxglove's WebSocket protocol: its
+    /// topics (ROS 2 CDR) and the controller's gains as a parameter a viewer may set (checked by
+    /// the controller like any set). `evoloop run --live` starts it with the run.
+    Live(evoloop_run::node::live::LiveArgs),
+    /// A live terminal view of a running run: processes, the controller's rate, lateness and
+    /// misses (last second and since start), parameter sets and model estimate, a sparkline of
+    /// the tracking error (`--json`: one snapshot for scripts); keys h, g, b, x hold, resume,
+    /// revert and stop the tuning as `evoloop operator` does.
+    Top(top::TopArgs),
+    /// An operator's command to a running run's tuner: hold, resume, revert (to an earlier set,
+    /// 0 = the set before tuning) or stop; prints the optimiser's answer.
+    Operator(operator::OperatorArgs),
+    /// A running run's topics on a Zenoh network (states, commands, telemetry, estimates out;
+    /// parameter sets in, validated by the controller as any other), for an optimiser on another
+    /// host (`evoloop optimiser --connect`) or a remote monitor. Needs the `zenoh` feature.
+    Bridge(bridge::BridgeArgs),
+    /// Serve candidate evaluations to an optimiser with `optimiser.workers = "zenoh"` over
+    /// Zenoh: model and candidates in, costs out, computed exactly as the optimiser would.
+    /// Needs the `zenoh` feature.
+    Worker(worker::WorkerArgs),
+}
+
+#[derive(clap::Args)]
+pub struct ReportArgs {
+    /// The run's output directory (where summary.json is), e.g. runs/two_mass.
+    pub dir: std::path::PathBuf,
+}
+
+#[derive(Subcommand)]
+pub enum BenchCmd {
+    /// Round trip plant -> controller -> plant against a bare iceoryx2 ping-pong.
+    Latency(bench::LatencyArgs),
+    /// The controller loop's timing at a rate, under load, against the bare sleep-loop floor.
+    Loop(bench::LoopArgs),
+    /// Nanoseconds per call of RNEA, CRBA, ABA and the CRBA forward dynamics on a robot file
+    /// (the JSON scripts/pinocchio_bench.py sets beside Pinocchio's).
+    Dynamics(bench::DynamicsArgs),
+    /// A parameter set's round trip (sent -> in service, seen by the sender) on the local path
+    /// and through `evoloop bridge` on loopback, on one realtime run (feature `zenoh`).
+    Bridge(bridge::BridgeBenchArgs),
+    /// Evaluations per second of the maglev model with 0, 1, 2, ... evaluation workers on
+    /// loopback, and the remote path's cost per run and per evaluation (feature `zenoh`).
+    Workers(worker::BenchWorkersArgs),
+    /// The peer process of `bench latency` (started by it).
+    #[command(hide = true)]
+    LatencyPeer(bench::PeerArgs),
+}
+
+/// `evoloop [COMMAND]`: parse the command line and run the command.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    // One-shot commands that start no process end quietly when their reader goes away
+    // (`evoloop dynamics ... | head`), like any Unix filter. Commands that supervise processes
+    // (run, bench, the roles) keep Rust's ignored SIGPIPE: a closed pipe must not kill a
+    // supervisor and orphan its children.
+    if matches!(
+        cli.command,
+        Some(
+            Cmd::Check { .. }
+                | Cmd::Robust { .. }
+                | Cmd::Optim { .. }
+                | Cmd::Dynamics(_)
+                | Cmd::Robot { .. }
+                | Cmd::Tune(_)
+                | Cmd::Identify { .. }
+                | Cmd::Rkgnn { .. }
+                | Cmd::Floor(_)
+        )
+    ) {
+        // SAFETY: resetting a signal disposition before any thread is started.
+        unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
+    }
+    match cli.command {
+        None => launcher::run(RunArgs {
+            file: None,
+            overrides: OverrideArgs::default(),
+            run_id: None,
+            ipc_prefix: evoloop_ipc::DEFAULT_PREFIX.into(),
+            quiet: false,
+            seeds: None,
+            floor_duration: None,
+            workers: None,
+            live: None,
+            live_remote: false,
+        }),
+        Some(Cmd::Run(a)) if a.seeds.is_some() => launcher::run_seeds(a),
+        Some(Cmd::Run(a)) => launcher::run(a),
+        Some(Cmd::Check { file }) => check::check(&file),
+        Some(Cmd::Plant(a)) => {
+            evoloop_run::node::plant::main(&a);
+            ExitCode::SUCCESS
+        }
+        Some(Cmd::Controller(a)) => {
+            evoloop_run::node::controller::main(&a);
+            ExitCode::SUCCESS
+        }
+        Some(Cmd::Optimiser(a)) => {
+            evoloop_run::node::optimiser::main(&a);
+            ExitCode::SUCCESS
+        }
+        Some(Cmd::Bench { cmd }) => ExitCode::from(match cmd {
+            BenchCmd::Latency(a) => bench::latency(a),
+            BenchCmd::LatencyPeer(a) => bench::latency_peer(a),
+            BenchCmd::Loop(a) => bench::loop_(a),
+            BenchCmd::Dynamics(a) => bench::dynamics(a),
+            BenchCmd::Bridge(a) => bridge::bench(&a) as i32,
+            BenchCmd::Workers(a) => worker::bench(&a) as i32,
+        } as u8),
+        Some(Cmd::Optim { cmd }) => ExitCode::from(optim::main(cmd) as u8),
+        Some(Cmd::Robust { cmd }) => ExitCode::from(robust::main(cmd) as u8),
+        Some(Cmd::Tune(a)) => ExitCode::from(tune::main(a) as u8),
+        Some(Cmd::Identify { cmd }) => ExitCode::from(rkgnn::identify(cmd) as u8),
+        Some(Cmd::Rkgnn { cmd }) => ExitCode::from(rkgnn::main(cmd) as u8),
+        Some(Cmd::Dynamics(a)) => ExitCode::from(dynamics::main(a) as u8),
+        Some(Cmd::Robot { cmd }) => ExitCode::from(robot::main(cmd) as u8),
+        Some(Cmd::Floor(a)) => floor::main(&a),
+        Some(Cmd::Report(a)) => match evoloop_report::html::write(&a.dir) {
+            Ok(p) => {
+                out!("wrote {}", p.display());
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!(
+                    "error: {e} (is {} a finished run's directory?)",
+                    a.dir.display()
+                );
+                ExitCode::from(2)
+            }
+        },
+        Some(Cmd::Soak(a)) => soak::main(a),
+        Some(Cmd::Replay(a)) => ExitCode::from(evoloop_run::node::replay::main(&a) as u8),
+        Some(Cmd::Live(a)) => ExitCode::from(evoloop_run::node::live::main(&a)),
+        Some(Cmd::Top(a)) => ExitCode::from(top::main(&a)),
+        Some(Cmd::Operator(a)) => ExitCode::from(operator::main(&a)),
+        Some(Cmd::Bridge(a)) => ExitCode::from(bridge::main(&a)),
+        Some(Cmd::Worker(a)) => ExitCode::from(worker::main(&a)),
+    }
+}
+
+pub use evoloop_report::print_json;

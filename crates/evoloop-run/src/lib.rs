@@ -1,0 +1,31 @@
+//! A run of evoloop: its processes and what measures and reports them.
+//!
+//! - `node`: the process loops (plant, controller, optimiser), the launcher that starts,
+//!   supervises and stops them, the live view's server and the replay.
+//! - `run_report`: the report built after a run (report.html, plots, summary.json, seeds).
+//! - `bench`: the latency and loop benchmarks, against raw iceoryx2 and the bare loop.
+//! - `soak`, `top`: a long run's accounting and the live terminal view's data.
+
+#[macro_use]
+extern crate evoloop_scenario;
+
+pub mod bench;
+pub mod node;
+pub mod run_report;
+pub mod soak;
+pub mod top;
+
+use evoloop_control::{control, plant, reference};
+use evoloop_dynamics as dynamics;
+use evoloop_files as files;
+use evoloop_identify::rkgnn;
+use evoloop_ipc as ipc;
+use evoloop_msg as msg;
+#[cfg(feature = "zenoh")]
+use evoloop_net as net;
+use evoloop_optim as optim;
+use evoloop_report as report;
+use evoloop_rt as rt;
+use evoloop_scenario::{config, needs_zenoh, sim};
+use evoloop_schemes::{direct, gains, indirect};
+use evoloop_stats as stats;

@@ -1,0 +1,276 @@
+//! `[optimiser.model]`: what the general indirect scheme (`indirect::linear`) knows of a linear
+//! single-input plant before it has data: the structure and nominal coefficients of its transfer
+//! function, and the estimator's filter and memory. For an `lti` plant the nominal model is the
+//! configured one (its changes in operation are the plant's secret); a plant of the user's own
+//! (`external`) must name it, as a datasheet or an earlier identification gives it.
+
+use crate::check::{Check, ConfigError};
+use crate::control::{ControllerModel, ControllerSpec};
+use crate::plant::PlantModel;
+use serde::{Deserialize, Serialize};
+
+/// The most poles the estimator fits: its state-variable filter gives four derivatives.
+pub const MAX_POLES: usize = 4;
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawModel {
+    num: Option<Vec<f64>>,
+    den: Option<Vec<f64>>,
+    filter_pole: Option<f64>,
+    memory: Option<f64>,
+}
+
+/// The validated prior: num and den in descending powers, den monic, num padded to den's
+/// length (strictly proper: num[0] = 0).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelPrior {
+    pub num: Vec<f64>,
+    pub den: Vec<f64>,
+    /// Numerator degree: the estimator fits b_0 .. b_zeros.
+    pub zeros: usize,
+    /// The state-variable filter's pole (rad/s).
+    pub filter_pole: f64,
+    /// Time constant (s) over which the estimator forgets old data.
+    pub memory: f64,
+}
+
+impl ModelPrior {
+    /// Poles (the denominator's degree).
+    pub fn poles(&self) -> usize {
+        self.den.len() - 1
+    }
+}
+
+/// The prior for an indirect run on an `lti` or `external` plant under a PID; None for every
+/// other run (the maglev's and the two-mass's schemes know their plants), where the table
+/// must not appear.
+pub fn validate(
+    raw: Option<RawModel>,
+    check: &Check,
+    plant: &PlantModel,
+    controller: &ControllerSpec,
+    indirect: bool,
+    period: f64,
+) -> Result<Option<ModelPrior>, ConfigError> {
+    let linear = matches!(plant, PlantModel::Lti(_) | PlantModel::External(_));
+    if !(linear && indirect) {
+        // Kept but unused in another mode (a frozen comparison run with `--optimiser off`).
+        return match raw {
+            Some(_) if !linear => check.fail(
+                "optimiser.model",
+                "is the general indirect scheme's (optimiser.mode = \"indirect\" on an lti or \
+                 external plant)",
+            ),
+            _ => Ok(None),
+        };
+    }
+    if !matches!(controller.model, ControllerModel::Pid(_)) {
+        return check.fail(
+            "controller.kind",
+            "the indirect scheme on an lti or external plant tunes a PID (state feedback there \
+             would need the plant's state coordinates, which input-output data do not give)",
+        );
+    }
+    let raw = raw.unwrap_or_default();
+    if let PlantModel::Lti(spec) = plant {
+        if spec.delay > 0 || spec.dt.is_some() {
+            return check.fail(
+                "optimiser.mode",
+                "the indirect scheme estimates a continuous model without delay: the plant's \
+                 model is discrete or delayed",
+            );
+        }
+    }
+    let (num, den) = match (raw.num, raw.den, plant) {
+        (Some(num), Some(den), _) => (num, den),
+        (None, None, PlantModel::Lti(spec)) => {
+            spec.transfer_function().ok_or_else(|| ConfigError {
+                file: check.file.clone(),
+                key: "optimiser.mode".into(),
+                reason: "the indirect scheme takes a plant with one input and one output".into(),
+                line: None,
+            })?
+        }
+        (None, None, _) => {
+            return check.fail(
+                "optimiser.model.num",
+                "missing: a plant of your own needs its nominal transfer function (num and den, \
+                 descending powers) for the indirect scheme to start from",
+            )
+        }
+        (num, _, _) => {
+            let key = if num.is_none() { "num" } else { "den" };
+            return check.fail(
+                &format!("optimiser.model.{key}"),
+                "give num and den together",
+            );
+        }
+    };
+    let (num, den, zeros) = normalised(check, num, den)?;
+    let fastest = largest_root(&den);
+    let filter_pole = match raw.filter_pole {
+        Some(a) => check.range("optimiser.model.filter_pole", a, 1e-3, 0.5 / period)?,
+        // A few times the fastest mode, so the filtered signals keep the dynamics, and well
+        // below the sampling rate, where the noise would dominate.
+        None => (3.0 * fastest).max(5.0).min(0.1 / period),
+    };
+    let memory = check.range(
+        "optimiser.model.memory",
+        raw.memory.unwrap_or(5.0),
+        0.1,
+        3600.0,
+    )?;
+    // The controller checks sets on this model's sampled loop from the start.
+    if crate::control::LinearModel::sampled_transfer_function(&num, &den, period).is_none() {
+        return check.fail(
+            "optimiser.model.den",
+            format!("the model is far too fast to hold between samples of {period} s"),
+        );
+    }
+    Ok(Some(ModelPrior {
+        num,
+        den,
+        zeros,
+        filter_pole,
+        memory,
+    }))
+}
+
+/// Leading zeros dropped, den made monic, num padded; refused unless finite, strictly proper
+/// and of 1..=MAX_POLES poles.
+fn normalised(
+    check: &Check,
+    num: Vec<f64>,
+    den: Vec<f64>,
+) -> Result<(Vec<f64>, Vec<f64>, usize), ConfigError> {
+    for (key, v) in [("num", &num), ("den", &den)] {
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return check.fail(&format!("optimiser.model.{key}[{i}]"), "must be finite");
+        }
+    }
+    let trim = |v: &[f64]| v[v.iter().position(|x| *x != 0.0).unwrap_or(v.len())..].to_vec();
+    let (num, den) = (trim(&num), trim(&den));
+    let n = den.len().saturating_sub(1);
+    if !(1..=MAX_POLES).contains(&n) {
+        return check.fail(
+            "optimiser.model.den",
+            format!("degree {n}: the estimator fits 1 to {MAX_POLES} poles"),
+        );
+    }
+    if num.is_empty() || num.len() > n {
+        return check.fail(
+            "optimiser.model.num",
+            format!(
+                "degree {} with {n} poles: the estimator fits a strictly proper model with an \
+                 input gain (a numerator below the denominator's degree, not all zero)",
+                num.len() as isize - 1
+            ),
+        );
+    }
+    let lead = den[0];
+    let mut padded = vec![0.0; n + 1 - num.len()];
+    padded.extend(num.iter().map(|x| x / lead));
+    let zeros = num.len() - 1;
+    Ok((padded, den.iter().map(|x| x / lead).collect(), zeros))
+}
+
+/// The largest |root| of a monic polynomial (descending powers): its companion matrix's
+/// largest eigenvalue magnitude.
+fn largest_root(den: &[f64]) -> f64 {
+    let n = den.len() - 1;
+    let c = nalgebra::DMatrix::from_fn(n, n, |i, j| match i {
+        0 => -den[j + 1],
+        _ if j + 1 == i => 1.0,
+        _ => 0.0,
+    });
+    evoloop_linalg::eigen::eigenvalues(&c)
+        .map(|ls| ls.iter().map(|l| l.norm()).fold(0.0, f64::max))
+        .unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{Overrides, Scenario};
+
+    fn parse(file: &str, edit: impl Fn(String) -> String) -> Result<Scenario, ConfigError> {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../config")
+            .join(file);
+        let text = edit(std::fs::read_to_string(&path).unwrap());
+        Scenario::parse(&text, &path, &Overrides::default())
+    }
+
+    /// An lti plant's prior is its own configured model (not its changes); an external plant
+    /// must give one; the table is refused on a plant with a scheme of its own, and state
+    /// feedback is refused under the general scheme, each naming its key.
+    #[test]
+    fn the_prior_comes_from_the_plant_or_the_table_and_misuse_names_its_key() {
+        let s = parse("lti_motor_indirect.toml", |t| t).unwrap();
+        let p = s.optimiser.model.unwrap();
+        assert_eq!(p.den.len(), 3);
+        assert!(
+            p.den
+                .iter()
+                .zip([1.0, 20.0, 0.0])
+                .all(|(a, b)| (a - b).abs() < 1e-9),
+            "{p:?}"
+        );
+        assert!((p.num[2] - 40.0).abs() < 1e-9 && p.zeros == 0, "{p:?}");
+        assert!((p.filter_pole - 60.0).abs() < 1e-6, "{}", p.filter_pole);
+        let s = parse("external_motor_indirect.toml", |t| t).unwrap();
+        assert_eq!(s.optimiser.model.unwrap().den, vec![1.0, 20.0, 0.0]);
+        // A slow loop (20 Hz): the default filter pole is capped below the sampling rate.
+        let slow = parse("lti_motor_indirect.toml", |t| {
+            t.replace("period = 0.001", "period = 0.05")
+        })
+        .unwrap();
+        assert!((slow.optimiser.model.unwrap().filter_pole - 2.0).abs() < 1e-12);
+        let e = parse("external_motor_indirect.toml", |t| {
+            t.replace("num = [40.0]", "")
+                .replace("den = [1.0, 20.0, 0.0]", "")
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "optimiser.model.num");
+        // Kept, unused, when the run is frozen.
+        let frozen = Overrides {
+            optimiser: Some(crate::config::OptimiserMode::Off),
+            ..Default::default()
+        };
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../config/external_motor_indirect.toml");
+        assert!(Scenario::load(&path, &frozen)
+            .unwrap()
+            .optimiser
+            .model
+            .is_none());
+        let e = parse("maglev_indirect.toml", |t| {
+            t.replace("[output]", "[optimiser.model]\nmemory = 2.0\n\n[output]")
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "optimiser.model");
+        let e = parse("lti_pendulum.toml", |t| {
+            t.replace("mode = \"schedule\"", "mode = \"indirect\"")
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "controller.kind");
+    }
+
+    #[test]
+    fn the_prior_is_made_monic_and_padded_and_bad_orders_are_refused() {
+        let check = Check::new("s.toml".as_ref());
+        let (num, den, zeros) = normalised(&check, vec![4.0], vec![2.0, 40.0, 0.0]).unwrap();
+        assert_eq!(
+            (num, den, zeros),
+            (vec![0.0, 0.0, 2.0], vec![1.0, 20.0, 0.0], 0)
+        );
+        assert!((largest_root(&[1.0, 20.0, 0.0]) - 20.0).abs() < 1e-9);
+        let e = normalised(&check, vec![1.0, 0.0], vec![1.0, 1.0]).unwrap_err();
+        assert_eq!(e.key, "optimiser.model.num");
+        let e = normalised(&check, vec![1.0], vec![1.0; 6]).unwrap_err();
+        assert_eq!(e.key, "optimiser.model.den");
+        let e = normalised(&check, vec![f64::NAN], vec![1.0, 1.0]).unwrap_err();
+        assert_eq!(e.key, "optimiser.model.num[0]");
+    }
+}

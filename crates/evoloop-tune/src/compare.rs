@@ -1,0 +1,449 @@
+//! `evoloop tune SCENARIO --compare ga,de,jade,cmaes,bayes,safe_bayes --seeds 1..20`: how many
+//! experiments each optimiser spends on the plant. Every (algorithm, seed) runs the direct
+//! scenario as written, with only `optimiser.algorithm` changed, in this process in lockstep
+//! (`direct::run_in_process`, equal bit for bit to the processes' run, `tests/direct.rs`), all
+//! from the scenario's configured set. Per run: the best cost after each experiment, the
+//! aborts, and the experiments until the best cost is within 1 % of the GA's final cost on the
+//! same seed (the paper's optimiser and budget as the yardstick). Then, per algorithm, medians
+//! and quartiles over seeds and paired Wilcoxon tests against the GA: experiments to that
+//! target (a run that never reaches it counts as budget + 1), final cost and aborts. Writes
+//! compare.json, compare.csv, report.md and convergence.png (best cost and aborts against the
+//! experiment, median and quartiles over seeds).
+
+use crate::config::{Overrides, Scenario};
+use crate::stats::{median, wilcoxon};
+use serde::Serialize;
+use std::path::Path;
+
+/// The yardstick: the GA's final cost on the same seed.
+const REFERENCE: &str = "ga";
+/// Within this fraction of the yardstick counts as reached.
+const WITHIN: f64 = 0.01;
+
+/// One (algorithm, seed) run.
+#[derive(Debug, Clone, Serialize)]
+pub struct Run {
+    pub algorithm: String,
+    pub seed: u64,
+    /// Best cost known after each experiment (index 0 = after the first trial).
+    pub best: Vec<f64>,
+    /// Aborted trials up to and including each experiment.
+    pub aborts: Vec<u32>,
+    pub final_cost: f64,
+    pub baseline_cost: f64,
+    /// Experiments until the best cost is within 1 % of the GA's final cost (None: never).
+    pub to_target: Option<usize>,
+}
+
+impl Run {
+    /// Trials aborted over the whole run.
+    fn total_aborts(&self) -> u32 {
+        self.aborts.last().copied().unwrap_or(0)
+    }
+}
+
+/// One algorithm over the seeds.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub algorithm: String,
+    pub seeds: usize,
+    /// Runs that reached the target within the budget.
+    pub reached: usize,
+    /// Experiments to the target: quartiles over seeds (never reached = budget + 1).
+    pub to_target_quartiles: [f64; 3],
+    pub final_cost_quartiles: [f64; 3],
+    pub aborts_quartiles: [f64; 3],
+    pub aborts_total: u64,
+    /// Against the GA, paired over seeds (not for the GA itself): runs where this one is
+    /// lower (fewer experiments, lower cost) and the Wilcoxon p-value.
+    pub vs_ga: Option<VsGa>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct VsGa {
+    pub fewer_experiments: usize,
+    pub experiments_p: f64,
+    pub lower_final_cost: usize,
+    pub final_cost_p: f64,
+    pub fewer_aborts: usize,
+    pub more_aborts: usize,
+    pub aborts_p: f64,
+}
+
+/// Run the comparison and write its files into the scenario's output directory (or `out`).
+pub fn run(
+    file: &Path,
+    algorithms: &[String],
+    seeds: &[u64],
+    a: &super::TuneRequest,
+) -> Result<(), String> {
+    let mut named = algorithms.iter().enumerate();
+    if let Some((_, dup)) = named.find(|(i, a)| algorithms[..*i].contains(a)) {
+        return Err(format!(
+            "--compare: `{dup}` is named twice: each optimiser is compared once, against the others"
+        ));
+    }
+    if algorithms.len() < 2 {
+        return Err("--compare: name two optimisers or more, the GA among them".into());
+    }
+    if !algorithms.iter().any(|a| a == REFERENCE) {
+        return Err(format!(
+            "--compare: the GA is the yardstick (experiments to within 1 % of its final cost): include `{REFERENCE}`"
+        ));
+    }
+    let text = crate::files::read_text(file).map_err(|e| format!("{}: {e}", file.display()))?;
+    let scenario = |algorithm: &str, seed: u64| -> Result<Scenario, String> {
+        let mut t: toml::Table = text
+            .parse()
+            .map_err(|e| format!("{}: {e}", file.display()))?;
+        let opt = t
+            .entry("optimiser")
+            .or_insert_with(|| toml::Value::Table(Default::default()));
+        if let Some(o) = opt.as_table_mut() {
+            o.insert("algorithm".into(), toml::Value::String(algorithm.into()));
+        }
+        let ov = Overrides {
+            seed: Some(seed),
+            out: a.out.clone(),
+            ..Overrides::default()
+        };
+        Scenario::parse(&toml::to_string(&t).map_err(|e| e.to_string())?, file, &ov)
+            .map_err(|e| e.to_string())
+    };
+    // Every scenario first: a bad algorithm or scenario fails before any run.
+    let mut jobs = Vec::new();
+    for alg in algorithms {
+        for &seed in seeds {
+            jobs.push((alg.clone(), seed, scenario(alg, seed)?));
+        }
+    }
+    let dir = jobs[0].2.output.dir.clone();
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let budget = jobs[0].2.optimiser.evaluations;
+    let bar = crate::report::progress::bar(jobs.len() as u64, "runs", a.quiet || a.json);
+    bar.set_prefix("compare: ");
+    let t0 = std::time::Instant::now();
+    use rayon::prelude::*;
+    let mut runs: Vec<Run> = jobs
+        .par_iter()
+        .map(|(alg, seed, scn)| {
+            let r = evoloop_schemes::direct::run_in_process(scn, |_, _| {});
+            bar.inc(1);
+            r.map(|r| one_run(alg, *seed, &r.report))
+        })
+        .collect::<Result<_, _>>()?;
+    bar.abandon();
+    // The GA's final cost per seed, then each run's first experiment within 1 % of it.
+    let ga: std::collections::HashMap<u64, f64> = runs
+        .iter()
+        .filter(|r| r.algorithm == REFERENCE)
+        .map(|r| (r.seed, r.final_cost * (1.0 + WITHIN)))
+        .collect();
+    for r in &mut runs {
+        let target = ga.get(&r.seed).copied();
+        r.to_target = target.and_then(|t| r.best.iter().position(|&b| b <= t).map(|i| i + 1));
+    }
+    let summaries: Vec<Summary> = algorithms
+        .iter()
+        .map(|alg| summarise(alg, &runs, seeds, budget))
+        .collect();
+    let seconds = t0.elapsed().as_secs_f64();
+    let scn = &jobs[0].2;
+    let result = serde_json::json!({
+        "experiment": "compare",
+        "scenario": scn.name,
+        "budget": budget,
+        "seeds": seeds,
+        "target": format!("best cost within {} % of the GA's final cost on the same seed", WITHIN * 100.0),
+        "summaries": summaries,
+        "runs": runs,
+        "seconds": seconds,
+    });
+    crate::report::write_json(&dir, "compare.json", &result).map_err(|e| e.to_string())?;
+    write_csv(&dir, &runs)?;
+    let mut md = report_md(&scn.name, budget, seeds.len(), &summaries);
+    if scn.output.plots {
+        md.push_str("\n![Best cost and aborts against the experiment](convergence.png)\n");
+    }
+    crate::files::write(dir.join("report.md"), &md)
+        .map_err(|e| format!("{}: {e}", dir.join("report.md").display()))?;
+    if scn.output.plots {
+        plot(&dir, &scn.name, algorithms, &runs, budget)?;
+    }
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&result).map_err(|e| e.to_string())?
+        );
+    } else {
+        print!("{md}");
+        println!(
+            "wrote {}/{{compare.json, compare.csv, report.md{}}} in {seconds:.1} s",
+            dir.display(),
+            if scn.output.plots {
+                ", convergence.png"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(())
+}
+
+fn one_run(algorithm: &str, seed: u64, report: &evoloop_schemes::direct::DirectReport) -> Run {
+    let trials: Vec<_> = report.repetitions.iter().filter(|r| r.trial > 0).collect();
+    let mut aborts = 0u32;
+    Run {
+        algorithm: algorithm.into(),
+        seed,
+        best: trials.iter().map(|r| r.best).collect(),
+        aborts: trials
+            .iter()
+            .map(|r| {
+                aborts += u32::from(r.aborted);
+                aborts
+            })
+            .collect(),
+        final_cost: report.best_cost,
+        baseline_cost: report
+            .repetitions
+            .iter()
+            .find(|r| r.trial == 0)
+            .map_or(f64::NAN, |r| r.cost),
+        to_target: None,
+    }
+}
+
+/// Lower quartile, median, upper quartile (linear interpolation between order statistics).
+fn quartiles(v: &[f64]) -> [f64; 3] {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let q = |p: f64| {
+        if s.is_empty() {
+            return f64::NAN;
+        }
+        let x = p * (s.len() - 1) as f64;
+        let (i, f) = (x.floor() as usize, x.fract());
+        if i + 1 < s.len() {
+            s[i] + f * (s[i + 1] - s[i])
+        } else {
+            s[i]
+        }
+    };
+    [q(0.25), median(&s), q(0.75)]
+}
+
+fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
+    let of = |a: &str| -> Vec<&Run> {
+        seeds
+            .iter()
+            .filter_map(|s| runs.iter().find(|r| r.algorithm == a && r.seed == *s))
+            .collect()
+    };
+    let mine = of(alg);
+    let experiments = |rs: &[&Run]| -> Vec<f64> {
+        rs.iter()
+            .map(|r| r.to_target.map_or(budget as f64 + 1.0, |k| k as f64))
+            .collect()
+    };
+    let finals = |rs: &[&Run]| -> Vec<f64> { rs.iter().map(|r| r.final_cost).collect() };
+    let aborts =
+        |rs: &[&Run]| -> Vec<f64> { rs.iter().map(|r| f64::from(r.total_aborts())).collect() };
+    let vs_ga = (alg != REFERENCE).then(|| {
+        let ga = of(REFERENCE);
+        let e = wilcoxon(&experiments(&mine), &experiments(&ga));
+        let f = wilcoxon(&finals(&mine), &finals(&ga));
+        let b = wilcoxon(&aborts(&mine), &aborts(&ga));
+        VsGa {
+            fewer_experiments: e.a_lower,
+            experiments_p: e.p_two_sided,
+            lower_final_cost: f.a_lower,
+            final_cost_p: f.p_two_sided,
+            fewer_aborts: b.a_lower,
+            more_aborts: b.a_higher,
+            aborts_p: b.p_two_sided,
+        }
+    });
+    Summary {
+        algorithm: alg.into(),
+        seeds: mine.len(),
+        reached: mine.iter().filter(|r| r.to_target.is_some()).count(),
+        to_target_quartiles: quartiles(&experiments(&mine)),
+        final_cost_quartiles: quartiles(&finals(&mine)),
+        aborts_quartiles: quartiles(&aborts(&mine)),
+        aborts_total: mine.iter().map(|r| u64::from(r.total_aborts())).sum(),
+        vs_ga,
+    }
+}
+
+fn write_csv(dir: &Path, runs: &[Run]) -> Result<(), String> {
+    let mut s = String::from("algorithm,seed,baseline_cost,final_cost,aborts,to_target\n");
+    for r in runs {
+        s.push_str(&format!(
+            "{},{},{},{},{},{}\n",
+            r.algorithm,
+            r.seed,
+            r.baseline_cost,
+            r.final_cost,
+            r.total_aborts(),
+            r.to_target.map_or(String::new(), |k| k.to_string())
+        ));
+    }
+    crate::files::write(dir.join("compare.csv"), s)
+        .map_err(|e| format!("{}: {e}", dir.join("compare.csv").display()))
+}
+
+fn q3(q: &[f64; 3], digits: usize) -> String {
+    format!("{:.d$} [{:.d$}, {:.d$}]", q[1], q[0], q[2], d = digits)
+}
+
+/// Experiments to the target: a quartile that rests on a run which never reached it reads
+/// "never" (sorted, the reached counts come first; quantile p interpolates between order
+/// statistics floor and ceil of p (n - 1), and one of "never" in that pair makes no count).
+fn experiments_q3(m: &Summary) -> String {
+    let q = &m.to_target_quartiles;
+    let one = |p: f64, v: f64| {
+        let upper = (p * (m.seeds.max(1) - 1) as f64).ceil() as usize;
+        if upper >= m.reached {
+            "never".to_string()
+        } else {
+            format!("{v:.0}")
+        }
+    };
+    format!(
+        "{} [{}, {}]",
+        one(0.5, q[1]),
+        one(0.25, q[0]),
+        one(0.75, q[2])
+    )
+}
+
+/// The table and the verdicts, every sentence from the numbers above it.
+fn report_md(name: &str, budget: usize, seeds: usize, summaries: &[Summary]) -> String {
+    let mut s = format!(
+        "# Experiments to a good set: {name}\n\n{seeds} seeds, a budget of {budget} experiments each, \
+         every run from the scenario's configured set. Target: the best cost within 1 % of the GA's \
+         final cost on the same seed. Median [quartiles] over seeds; a run that never reaches the \
+         target counts as {} experiments; a quartile that rests on such a run reads \"never\". Against the GA: runs better of {seeds}, paired Wilcoxon p.\n\n\
+         | algorithm | reached | experiments to target | final cost | aborts | fewer experiments than GA | lower final cost than GA | aborts vs GA (fewer/more) |\n\
+         |---|---|---|---|---|---|---|---|\n",
+        budget + 1
+    );
+    for m in summaries {
+        let vs = m
+            .vs_ga
+            .as_ref()
+            .map_or(["-".into(), "-".into(), "-".into()], |v| {
+                [
+                    format!("{} (p = {:.2e})", v.fewer_experiments, v.experiments_p),
+                    format!("{} (p = {:.2e})", v.lower_final_cost, v.final_cost_p),
+                    format!(
+                        "{}/{} (p = {:.2e})",
+                        v.fewer_aborts, v.more_aborts, v.aborts_p
+                    ),
+                ]
+            });
+        s.push_str(&format!(
+            "| {} | {} of {} | {} | {} | {} | {} | {} | {} |\n",
+            m.algorithm,
+            m.reached,
+            m.seeds,
+            experiments_q3(m),
+            q3(&m.final_cost_quartiles, 4),
+            q3(&m.aborts_quartiles, 1),
+            vs[0],
+            vs[1],
+            vs[2]
+        ));
+    }
+    let fifth = budget as f64 / 5.0;
+    s.push_str(&format!(
+        "\nThe goal (issue 45): the GA's final cost in a fifth of its experiments ({fifth:.0}), with no \
+         aborts for the safe variant.\n\n"
+    ));
+    for m in summaries.iter().filter(|m| m.algorithm != REFERENCE) {
+        let median = m.to_target_quartiles[1];
+        let verdict = if median <= fifth {
+            "reached it in a fifth of the budget or less (median)"
+        } else if m.reached * 2 > m.seeds {
+            "reached it on most seeds, but not in a fifth of the budget (median)"
+        } else {
+            "did not reach it on most seeds"
+        };
+        s.push_str(&format!(
+            "- {}: {verdict}; {} aborts in all.\n",
+            m.algorithm, m.aborts_total
+        ));
+    }
+    s
+}
+
+/// Best cost (median, lower and upper quartile over seeds, a panel each) and cumulative aborts
+/// (median) against the experiment, one colour per algorithm.
+fn plot(
+    dir: &Path,
+    name: &str,
+    algorithms: &[String],
+    runs: &[Run],
+    budget: usize,
+) -> Result<(), String> {
+    use crate::report::plot::{stacked_png_over, Panel, Series};
+    let x: Vec<f64> = (1..=budget).map(|k| k as f64).collect();
+    // [median, q1, q3, aborts median] per algorithm, each a curve over the experiments.
+    let curves: Vec<[Vec<f64>; 4]> = algorithms
+        .iter()
+        .map(|alg| {
+            let mine: Vec<&Run> = runs.iter().filter(|r| &r.algorithm == alg).collect();
+            let at = |f: &dyn Fn(&Run) -> Option<f64>| {
+                quartiles(&mine.iter().filter_map(|r| f(r)).collect::<Vec<_>>())
+            };
+            let (mut c, mut a) = ([Vec::new(), Vec::new(), Vec::new()], Vec::new());
+            for k in 0..budget {
+                // Infinite (nothing finite yet) is left out of the plot.
+                let q = at(&|r| r.best.get(k).copied().filter(|v| v.is_finite()));
+                c[0].push(q[1]);
+                c[1].push(q[0]);
+                c[2].push(q[2]);
+                a.push(at(&|r| r.aborts.get(k).map(|&v| f64::from(v)))[1]);
+            }
+            let [m, q1, q3] = c;
+            [m, q1, q3, a]
+        })
+        .collect();
+    let series = |i: usize| -> Vec<Series> {
+        algorithms
+            .iter()
+            .zip(&curves)
+            .map(|(alg, c)| Series {
+                name: alg,
+                values: &c[i],
+            })
+            .collect()
+    };
+    let (s0, s1, s2, s3) = (series(0), series(1), series(2), series(3));
+    let panels = [
+        Panel {
+            series: &s0,
+            label: "best cost, median",
+        },
+        Panel {
+            series: &s1,
+            label: "best cost, lower quartile",
+        },
+        Panel {
+            series: &s2,
+            label: "best cost, upper quartile",
+        },
+        Panel {
+            series: &s3,
+            label: "aborted trials so far, median",
+        },
+    ];
+    stacked_png_over(
+        &dir.join("convergence.png"),
+        &format!("{name}: best cost and aborts against the experiment, over seeds"),
+        (&x, "experiment"),
+        &panels,
+        &[],
+    )
+}

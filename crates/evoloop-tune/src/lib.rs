@@ -1,0 +1,240 @@
+//! `evoloop tune FILE`: the fuzzy-network paper's optimisation experiments from a TOML file.
+//! `experiment = "arsinh"` (Section 5.1) or `"maglev"` (Section 5.2); results as JSON/CSV and PNG
+//! in the output directory, a summary on stdout (or JSON with --json), progress on a terminal.
+
+pub mod arsinh;
+pub mod compare;
+pub mod direct;
+pub mod maglev;
+
+use evoloop_control::{control, fuzzy, reference};
+use evoloop_files as files;
+use evoloop_optim as optim;
+use evoloop_report as report;
+use evoloop_scenario::{config, sim};
+use evoloop_stats as stats;
+
+use crate::optim::hybrid::HybridConfig;
+use crate::optim::GaConfig;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// What to run: the experiment file and the command line's choices.
+#[derive(Debug, Clone)]
+pub struct TuneRequest {
+    pub file: PathBuf,
+    pub seed: Option<u64>,
+    /// Several seeds: the multi-seed study (maglev).
+    pub seeds: Option<Vec<u64>>,
+    pub json: bool,
+    pub out: Option<PathBuf>,
+    pub quiet: bool,
+    /// `--compare`: the optimisers to compare on a direct scenario.
+    pub compare: Option<Vec<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTune {
+    experiment: Experiment,
+    seed: Option<u64>,
+    ga: Option<RawGa>,
+    maglev: Option<maglev::RawMaglevTune>,
+    output: Option<RawOut>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum Experiment {
+    Arsinh,
+    Maglev,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGa {
+    population: Option<usize>,
+    p_crossover: Option<f64>,
+    p_mutation: Option<f64>,
+    phases: Option<[usize; 3]>,
+    threads: Option<usize>,
+    hj_step: Option<f64>,
+    hj_per_candidate: Option<usize>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawOut {
+    dir: Option<PathBuf>,
+    plots: Option<bool>,
+}
+
+/// What every experiment needs to know about the run.
+pub struct Run {
+    pub hybrid: HybridConfig,
+    pub out: PathBuf,
+    pub plots: bool,
+    pub json: bool,
+    pub progress: bool,
+    pub seed: u64,
+}
+
+fn bad(file: &Path, key: &str, reason: impl std::fmt::Display) -> String {
+    if key.is_empty() {
+        format!("{}: {reason}", file.display())
+    } else {
+        format!("{}: key `{key}`: {reason}", file.display())
+    }
+}
+
+fn hybrid_config(
+    file: &Path,
+    g: Option<RawGa>,
+    seed: u64,
+    default_phases: [usize; 3],
+) -> Result<HybridConfig, String> {
+    let g = g.unwrap_or(RawGa {
+        population: None,
+        p_crossover: None,
+        p_mutation: None,
+        phases: None,
+        threads: None,
+        hj_step: None,
+        hj_per_candidate: None,
+    });
+    let population = g.population.unwrap_or(10);
+    if !(2..=10_000).contains(&population) {
+        return Err(bad(
+            file,
+            "ga.population",
+            format!("must be 2..=10000 (got {population})"),
+        ));
+    }
+    let p_crossover = g.p_crossover.unwrap_or(0.9);
+    if !(0.0..=1.0).contains(&p_crossover) {
+        return Err(bad(
+            file,
+            "ga.p_crossover",
+            format!("must be within [0, 1] (got {p_crossover})"),
+        ));
+    }
+    if let Some(p) = g.p_mutation {
+        if !(0.0..=1.0).contains(&p) {
+            return Err(bad(
+                file,
+                "ga.p_mutation",
+                format!("must be within [0, 1] (got {p})"),
+            ));
+        }
+    }
+    let phases = g.phases.unwrap_or(default_phases);
+    let threads = g.threads.unwrap_or(2);
+    if !(1..=256).contains(&threads) {
+        return Err(bad(
+            file,
+            "ga.threads",
+            format!("must be 1..=256 (got {threads})"),
+        ));
+    }
+    let hj_step = g.hj_step.unwrap_or(0.05);
+    if !(hj_step > 0.0 && hj_step <= 1.0) {
+        return Err(bad(
+            file,
+            "ga.hj_step",
+            format!("must be within (0, 1] (got {hj_step})"),
+        ));
+    }
+    Ok(HybridConfig {
+        ga: GaConfig {
+            population,
+            p_crossover,
+            p_mutation: g.p_mutation,
+            // Mutation steps shrink to local over the GA's phases (1 and 2).
+            max_iterations: (phases[0] + phases[1]).max(1),
+            seed,
+        },
+        phases,
+        scaling: Vec::new(),
+        threads,
+        hj_step,
+        hj_per_candidate: g.hj_per_candidate.unwrap_or(0),
+    })
+}
+
+fn read(file: &Path) -> Result<RawTune, String> {
+    let text =
+        crate::files::read_text(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
+    crate::files::from_toml(&text).map_err(|p| bad(file, &p.key, p.reason))
+}
+
+/// Read and validate an experiment file without running it.
+pub fn validate_file(file: &Path) -> Result<(), String> {
+    let raw = read(file)?;
+    let phases = match raw.experiment {
+        Experiment::Arsinh => [95, 200, 30],
+        Experiment::Maglev => [150, 0, 0],
+    };
+    hybrid_config(file, raw.ga, 1, phases)?;
+    if raw.experiment == Experiment::Maglev {
+        maglev::spec(file, raw.maglev)?;
+    } else if raw.maglev.is_some() {
+        return Err(bad(
+            file,
+            "maglev",
+            "not used by the arsinh experiment; remove it",
+        ));
+    }
+    Ok(())
+}
+
+/// Run the experiment the request names (or a direct-scheme scenario, in this process).
+pub fn tune(a: &TuneRequest) -> Result<(), String> {
+    if crate::files::read_text(&a.file).is_ok_and(|t| direct::is_scenario(&t)) {
+        return direct::run(&a.file, a);
+    }
+    let raw = read(&a.file)?;
+    let seed = a.seed.or(raw.seed).unwrap_or(1);
+    let (default_phases, default_dir) = match raw.experiment {
+        Experiment::Arsinh => ([95, 200, 30], "runs/arsinh_tune"),
+        Experiment::Maglev => ([150, 0, 0], "runs/maglev_tune"),
+    };
+    let out_raw = raw.output.unwrap_or(RawOut {
+        dir: None,
+        plots: None,
+    });
+    let run = Run {
+        hybrid: hybrid_config(&a.file, raw.ga, seed, default_phases)?,
+        out: a
+            .out
+            .clone()
+            .or(out_raw.dir)
+            .unwrap_or_else(|| PathBuf::from(default_dir)),
+        plots: out_raw.plots.unwrap_or(true),
+        json: a.json,
+        progress: !a.quiet && !a.json,
+        seed,
+    };
+    std::fs::create_dir_all(&run.out).map_err(|e| format!("{}: {e}", run.out.display()))?;
+    match raw.experiment {
+        Experiment::Arsinh => {
+            if raw.maglev.is_some() {
+                return Err(bad(
+                    &a.file,
+                    "maglev",
+                    "not used by the arsinh experiment; remove it",
+                ));
+            }
+            if a.seeds.is_some() {
+                return Err("--seeds: the multi-seed study is for the maglev experiment".into());
+            }
+            arsinh::run(run)
+        }
+        Experiment::Maglev => {
+            let spec = maglev::spec(&a.file, raw.maglev)?;
+            match &a.seeds {
+                Some(seeds) => maglev::study(run, spec, seeds),
+                None => maglev::run(run, spec),
+            }
+        }
+    }
+}
