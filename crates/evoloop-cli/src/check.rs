@@ -1,11 +1,10 @@
 //! `evoloop check FILE`: validate a scenario without starting anything.
 
-use evoloop_scenario::config::Scenario;
 use std::path::Path;
 use std::process::ExitCode;
 
 pub fn check(file: &Path) -> ExitCode {
-    match Scenario::load(file, &Default::default()) {
+    match evoloop_run::node::start::load(file, &Default::default()) {
         Ok(s) => {
             for w in &s.warnings {
                 err!("warning: {w}");

@@ -357,7 +357,7 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
     use crate::run_report::seeds_study::{after_phase, Measure, SeedRun, Study};
     let seeds = a.seeds.clone().map(|s| s.0).unwrap_or_default();
     let file = a.file.clone().unwrap_or_else(default_scenario);
-    let scn = match Scenario::load(&file, &a.overrides.to_overrides()) {
+    let scn = match super::start::load(&file, &a.overrides.to_overrides()) {
         Ok(s) => s,
         Err(e) => {
             err!("error: {e}");
@@ -520,7 +520,7 @@ fn prepare(a: &mut RunArgs) -> Result<Prepared, ExitCode> {
         a.overrides.remote.workers_expect = Some(*n);
     }
     let ov = a.overrides.to_overrides();
-    let scn = match Scenario::load(&file, &ov) {
+    let scn = match super::start::load(&file, &ov) {
         Ok(s) => s,
         Err(e) => {
             err!("error: {e}");

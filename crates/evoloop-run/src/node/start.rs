@@ -2,8 +2,9 @@
 //! convention, and writing a JSON report into the run directory.
 
 use super::args::ProcessArgs;
-use crate::config::Scenario;
+use crate::config::{ConfigError, Overrides, Scenario};
 use crate::ipc::{Ipc, IpcError};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Once, OnceLock};
 
@@ -77,9 +78,26 @@ pub fn ports<P>(who: &str, build: impl FnOnce() -> Result<P, IpcError>) -> P {
     build().unwrap_or_else(|e| fail(who, Failure::Setup(e.to_string())))
 }
 
+/// Load a scenario to run in this build: the loader's checks, then what this build cannot do.
+/// Without the `zenoh` feature, evaluation workers over Zenoh are refused here, naming the key,
+/// rather than in the loader: a feature of the loader's crate would make the `zenoh` build
+/// compile every crate above it a second time.
+pub fn load(path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
+    let scn = Scenario::load(path, ov)?;
+    if scn.optimiser.workers.is_some() && !cfg!(feature = "zenoh") {
+        return Err(ConfigError {
+            file: path.to_path_buf(),
+            key: "optimiser.workers".into(),
+            reason: crate::needs_zenoh("\"zenoh\""),
+            line: None,
+        });
+    }
+    Ok(scn)
+}
+
 /// Load the scenario with the launcher's overrides, or exit with the config error.
 pub fn load_scenario(args: &ProcessArgs, who: &str) -> Scenario {
-    match Scenario::load(&args.config, &args.overrides.to_overrides()) {
+    match load(&args.config, &args.overrides.to_overrides()) {
         Ok(s) => s,
         Err(e) => fail(who, Failure::Setup(e.to_string())),
     }

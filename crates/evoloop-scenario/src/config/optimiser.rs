@@ -381,9 +381,8 @@ fn workers_settings(
         check.unused("optimiser.workers_expect", o.workers_expect.is_some(), why)?;
         return Ok(None);
     }
-    if !cfg!(feature = "zenoh") {
-        return check.fail("optimiser.workers", crate::needs_zenoh("\"zenoh\""));
-    }
+    // A build without the network refuses these workers where a scenario is loaded to run
+    // (`evoloop_run::node::start::load`), so the loader stays the same in every build.
     // Off and schedule evaluate nothing: the key is harmless there (`--optimiser off` on a
     // scenario with workers). Direct evaluates on the plant itself and identify on the recorded
     // window, neither of which a worker has.
