@@ -50,7 +50,7 @@ fn readme_commands() -> Vec<(usize, String)> {
 
 /// The commands of every ```sh block of `file`: continuation lines joined, comments dropped.
 fn commands_of(file: &Path) -> Vec<(usize, String)> {
-    let text = std::fs::read_to_string(file).unwrap();
+    let text = std::fs::read_to_string(root().join(file)).unwrap();
     let mut out = Vec::new();
     let mut in_sh = false;
     let mut pending: Option<(usize, String)> = None;
@@ -430,4 +430,49 @@ fn every_measurement_is_dated_placed_and_in_the_book() {
             "docs/src/measurements.md does not include {name} and link #{anchor}"
         );
     }
+}
+
+/// The book quotes evoloop-msg's version (its major version is the plant contract's): each
+/// quotation is the version its Cargo.toml says, so a release that bumps it cannot leave the
+/// book behind (the book said 1.2.0 for two releases).
+#[test]
+fn the_book_quotes_the_message_crates_own_version() {
+    let manifest = std::fs::read_to_string(root().join("crates/evoloop-msg/Cargo.toml")).unwrap();
+    let version = manifest
+        .lines()
+        .find_map(|l| l.strip_prefix("version = \"")?.strip_suffix('"'))
+        .expect("crates/evoloop-msg/Cargo.toml has its own version");
+    for (file, quoted) in [
+        ("docs/src/layout.md", format!("Versioned on its own ({version})")),
+        (
+            "docs/src/plant-contract.md",
+            format!("`evoloop-msg` crate ({version})"),
+        ),
+    ] {
+        let text = std::fs::read_to_string(root().join(file)).unwrap();
+        assert!(text.contains(&quoted), "{file} does not say {quoted:?}");
+    }
+}
+
+/// config/README.md is the index of the shipped scenarios: it names every `.toml` of config/
+/// (in backticks, as its tables do) and names no file that is not there.
+#[test]
+fn the_config_index_names_every_scenario_and_only_those() {
+    let index = std::fs::read_to_string(root().join("config/README.md")).unwrap();
+    let named: std::collections::BTreeSet<String> = index
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|s| s.ends_with(".toml") && !s.contains('/') && !s.contains(' '))
+        .map(str::to_string)
+        .collect();
+    let shipped: std::collections::BTreeSet<String> = std::fs::read_dir(root().join("config"))
+        .unwrap()
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|n| n.ends_with(".toml"))
+        .collect();
+    let missing: Vec<_> = shipped.difference(&named).collect();
+    let stale: Vec<_> = named.difference(&shipped).collect();
+    assert!(missing.is_empty(), "config/README.md does not name {missing:?}");
+    assert!(stale.is_empty(), "config/README.md names {stale:?}, not in config/");
 }
