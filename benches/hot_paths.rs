@@ -398,13 +398,13 @@ fn rkgnn(c: &mut Criterion) {
 /// stacked over 100 instants of a 10 s trajectory (600 x 52, every joint moving, friction and
 /// armature columns) and its singular values, as the eMuPSO search evaluates it.
 fn identify(c: &mut Criterion) {
-    use evoloop::identify::excitation::{Problem, Settings};
+    use evoloop::identify::excitation::{ExcitationProblem, Settings};
     use evoloop::identify::{Stage, StageKind};
     use evoloop::optim::Objective;
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let model = evoloop::dynamics::load(&root.join("config/robots/industrial6.toml")).unwrap();
     let stage = Stage::new(StageKind::All, &model).unwrap();
-    let p = Problem::new(model, stage, Settings::default()).unwrap();
+    let p = ExcitationProblem::new(model, stage, Settings::default()).unwrap();
     // The shipped optimised trajectory (feasible, so the objective does the whole SVD).
     let text =
         std::fs::read_to_string(root.join("config/excitation/industrial6_all.json")).unwrap();

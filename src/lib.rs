@@ -9,6 +9,8 @@
 //! the same in the controller process, in an optimiser's model evaluation and in a unit test.
 //! The command line is crate `evoloop-cli`, which the binaries in `bin/` call.
 
+#![forbid(unsafe_code)]
+
 pub use evoloop_control::{check, control, fuzzy, plant, reference};
 pub use evoloop_dynamics as dynamics;
 pub use evoloop_files as files;
@@ -21,8 +23,8 @@ pub use evoloop_net as net;
 pub use evoloop_optim as optim;
 pub use evoloop_report as report;
 pub use evoloop_rt as rt;
-pub use evoloop_run::{bench, node, run_report, soak, top};
-pub use evoloop_scenario::{config, needs_zenoh, sim};
+pub use evoloop_run::{bench, needs_zenoh, node, run_report, run_watch, soak};
+pub use evoloop_scenario::{config, sim};
 pub use evoloop_schemes::{direct, gains, indirect, jobs, robust};
 pub use evoloop_stats as stats;
 pub use evoloop_tune as tune;

@@ -21,10 +21,8 @@ impl Drop for Mounted<'_> {
 #[ignore = "needs root to mount a small tmpfs: .ci/run runs it as root with --ignored"]
 fn a_run_that_fills_its_disk_says_so_and_keeps_what_it_wrote_readable() {
     // SAFETY: geteuid has no preconditions.
-    assert!(
-        unsafe { libc::geteuid() } == 0,
-        "needs root to mount a small tmpfs"
-    );
+    let euid = unsafe { libc::geteuid() };
+    assert!(euid == 0, "needs root to mount a small tmpfs");
     let tmp = tempfile::tempdir().unwrap();
     let disk = tmp.path().join("disk");
     std::fs::create_dir(&disk).unwrap();

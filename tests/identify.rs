@@ -3,7 +3,7 @@
 
 use evoloop::config::{Overrides, Scenario};
 use evoloop::dynamics::{self, Model};
-use evoloop::identify::excitation::{search, Problem, Search, Settings, TrajectoryKind};
+use evoloop::identify::excitation::{search, ExcitationProblem, Search, Settings, TrajectoryKind};
 use evoloop::identify::lls::{estimate, Options, Recording};
 use evoloop::identify::{stage_base, states_needed, Columns, Stacker, Stage, StageKind};
 use nalgebra::{DMatrix, DVector};
@@ -72,7 +72,7 @@ fn noise_free_least_squares_recovers_the_stage_base_parameters_to_1e_8() {
     let mut d = model.data();
     for kind in STAGES {
         let stage = Stage::new(kind, &model).unwrap();
-        let p = Problem::new(model.clone(), stage.clone(), Settings::default()).unwrap();
+        let p = ExcitationProblem::new(model.clone(), stage.clone(), Settings::default()).unwrap();
         let (lo, hi) = p.bounds();
         let x: Vec<f64> = (0..lo.len())
             .map(|i| lo[i] + (hi[i] - lo[i]) * (0.5 + 0.4 * (i as f64 * 1.7).sin()))
@@ -90,7 +90,7 @@ fn noise_free_least_squares_recovers_the_stage_base_parameters_to_1e_8() {
             }
         }
         // base_regressor divides by sqrt(samples) with samples = 100; rebuild it at k instants.
-        let p = Problem::new(
+        let p = ExcitationProblem::new(
             model.clone(),
             stage.clone(),
             Settings {
@@ -131,7 +131,7 @@ fn optimised_excitation_beats_the_random_initial_ones_inside_every_limit() {
             },
             ..Settings::default()
         };
-        let p = Problem::new(model.clone(), stage, settings).unwrap();
+        let p = ExcitationProblem::new(model.clone(), stage, settings).unwrap();
         let s = Search {
             iterations: 20,
             threads: 2,
@@ -368,7 +368,7 @@ fn the_papers_cartesian_path_keeps_the_wrist_centre_on_it_and_identifies_the_arm
         harmonics: 3,
         ..Settings::default()
     };
-    let p = Problem::new(model.clone(), stage, settings).unwrap();
+    let p = ExcitationProblem::new(model.clone(), stage, settings).unwrap();
     let o = search(
         &p,
         &Search {

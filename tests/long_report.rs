@@ -25,10 +25,9 @@ fn a_long_runs_report_reads_run_csv_in_bounded_memory() {
     assert!(csv > 100_000_000, "run.csv is {csv} B");
     // SAFETY: getrusage fills the struct it is given.
     let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    assert_eq!(
-        unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut usage) },
-        0
-    );
+    // SAFETY: a valid rusage to fill.
+    let got = unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut usage) };
+    assert_eq!(got, 0);
     // ru_maxrss (KiB): the largest resident set of any process of the run, launcher included.
     let peak_mib = usage.ru_maxrss as f64 / 1024.0;
     assert!(

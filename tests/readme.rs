@@ -443,7 +443,10 @@ fn the_book_quotes_the_message_crates_own_version() {
         .find_map(|l| l.strip_prefix("version = \"")?.strip_suffix('"'))
         .expect("crates/evoloop-msg/Cargo.toml has its own version");
     for (file, quoted) in [
-        ("docs/src/layout.md", format!("Versioned on its own ({version})")),
+        (
+            "docs/src/layout.md",
+            format!("Versioned on its own ({version})"),
+        ),
         (
             "docs/src/plant-contract.md",
             format!("`evoloop-msg` crate ({version})"),
@@ -473,6 +476,12 @@ fn the_config_index_names_every_scenario_and_only_those() {
         .collect();
     let missing: Vec<_> = shipped.difference(&named).collect();
     let stale: Vec<_> = named.difference(&shipped).collect();
-    assert!(missing.is_empty(), "config/README.md does not name {missing:?}");
-    assert!(stale.is_empty(), "config/README.md names {stale:?}, not in config/");
+    assert!(
+        missing.is_empty(),
+        "config/README.md does not name {missing:?}"
+    );
+    assert!(
+        stale.is_empty(),
+        "config/README.md names {stale:?}, not in config/"
+    );
 }

@@ -106,9 +106,11 @@ fn a_controller_throttled_to_a_fifth_of_its_rate_fails_the_rate_check() {
             break; // the run ended
         }
         std::thread::sleep(Duration::from_millis(8));
+        // SAFETY: kill takes a pid and a signal number; no memory is involved.
         unsafe { libc::kill(controller, libc::SIGCONT) };
         std::thread::sleep(Duration::from_millis(2));
     }
+    // SAFETY: kill takes a pid and a signal number; no memory is involved.
     unsafe { libc::kill(controller, libc::SIGCONT) };
     let status = child.wait().unwrap();
     let s = json(&out.join("summary.json"));
@@ -157,6 +159,7 @@ fn a_stalled_controller_is_counted_and_the_plant_falls_back_to_its_safe_command(
     // SAFETY: signalling this test's own process (found by its run id).
     unsafe { libc::kill(controller as i32, libc::SIGSTOP) };
     std::thread::sleep(Duration::from_millis(300));
+    // SAFETY: kill takes a pid and a signal number; no memory is involved.
     unsafe { libc::kill(controller as i32, libc::SIGCONT) };
     let status = child.wait().unwrap();
     assert!(
@@ -213,6 +216,7 @@ fn the_controller_flags_stale_state_when_the_plant_stalls() {
     // SAFETY: this test's own plant process.
     unsafe { libc::kill(plant as i32, libc::SIGSTOP) };
     std::thread::sleep(Duration::from_millis(200));
+    // SAFETY: kill takes a pid and a signal number; no memory is involved.
     unsafe { libc::kill(plant as i32, libc::SIGCONT) };
     let status = child.wait().unwrap();
     assert!(status.success(), "{status}");

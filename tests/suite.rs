@@ -29,6 +29,7 @@ mod heater;
 mod hooke_jeeves;
 mod identify;
 mod identify_cli;
+mod layers;
 mod live_view;
 mod lockstep;
 mod lti;

@@ -204,6 +204,7 @@ fn top_exits_when_its_terminal_goes_away_and_on_sigterm() {
     unsafe { libc::kill(top.id() as i32, libc::SIGTERM) };
     let status = exits_within(&mut top, Duration::from_secs(5)).expect("top ignored SIGTERM");
     assert_eq!(status.code(), Some(0), "{status:?}");
+    // SAFETY: kill takes a pid and a signal number; no memory is involved.
     unsafe { libc::kill(run.id() as i32, libc::SIGINT) };
     let _ = wait_exit(&mut run, Duration::from_secs(30));
 }

@@ -17,7 +17,9 @@ fn files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
         let p = e.path();
         if p.is_dir() {
             files(&p, out);
-        } else if p.extension().is_some_and(|x| x == "rs") {
+        } else if p.extension().is_some_and(|x| x == "rs")
+            || p.file_name().is_some_and(|n| n == "Cargo.toml")
+        {
             out.push(p);
         }
     }

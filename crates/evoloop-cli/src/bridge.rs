@@ -86,7 +86,7 @@ pub fn main(a: &BridgeArgs) -> u8 {
     // A named run may be starting with the bridge (a script starts both): wait for it a while.
     let t0 = std::time::Instant::now();
     let run = loop {
-        match evoloop_run::top::pick_run(a.run.as_deref()) {
+        match evoloop_run::run_watch::pick_run(a.run.as_deref()) {
             Ok(r) => break r,
             Err(_) if a.run.is_some() && t0.elapsed() < RUN_WAIT => {
                 std::thread::sleep(std::time::Duration::from_millis(50))
@@ -194,7 +194,7 @@ pub fn main(a: &BridgeArgs) -> u8 {
 
 #[cfg(not(feature = "zenoh"))]
 pub fn main(_: &BridgeArgs) -> u8 {
-    err!("error: {}", evoloop_scenario::needs_zenoh("evoloop bridge"));
+    err!("error: {}", evoloop_run::needs_zenoh("evoloop bridge"));
     2
 }
 
@@ -270,7 +270,7 @@ pub fn bench(a: &BridgeBenchArgs) -> u8 {
 pub fn bench(_: &BridgeBenchArgs) -> u8 {
     err!(
         "error: {}",
-        evoloop_scenario::needs_zenoh("evoloop bench bridge")
+        evoloop_run::needs_zenoh("evoloop bench bridge")
     );
     2
 }

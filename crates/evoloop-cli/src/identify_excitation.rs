@@ -1,7 +1,9 @@
 //! `evoloop identify excitation`: an optimal excitation trajectory for one identification stage.
 
 use clap::Args;
-use evoloop_identify::identify::excitation::{search, Problem, Search, Settings, TrajectoryKind};
+use evoloop_identify::identify::excitation::{
+    search, ExcitationProblem, Search, Settings, TrajectoryKind,
+};
 use evoloop_identify::identify::{Stage, StageKind};
 use evoloop_report::plot::{xy_png, Curve, Style, XySeries};
 use serde_json::json;
@@ -103,7 +105,7 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
         qdd_max: a.qdd_max,
         ..Settings::default()
     };
-    let problem = Problem::new(model, stage, settings)?;
+    let problem = ExcitationProblem::new(model, stage, settings)?;
     let s = Search {
         population: a.population,
         iterations: a.iterations,
@@ -216,7 +218,7 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
 
 /// The moving joints' positions over one period.
 fn plot(
-    problem: &Problem,
+    problem: &ExcitationProblem,
     s: &evoloop_control::reference::series::FourierSeries,
     png: &std::path::Path,
 ) -> Result<(), String> {

@@ -1,7 +1,7 @@
 //! `evoloop identify study`: optimised against random feasible excitation, paired over seeds.
 
 use clap::Args;
-use evoloop_identify::identify::excitation::{Problem, Search, Settings, TrajectoryKind};
+use evoloop_identify::identify::excitation::{ExcitationProblem, Search, Settings, TrajectoryKind};
 use evoloop_identify::identify::study::{run, SeedResult};
 use evoloop_identify::identify::{Stage, StageKind};
 use evoloop_report::plot::{xy_png, Curve, Style, XySeries};
@@ -50,7 +50,9 @@ pub fn main(a: &StudyArgs) -> i32 {
     }
 }
 
-fn study(a: &StudyArgs) -> Result<(), String> {
+/// The study's inputs checked, and the excitation problem of its scenario's arm and stage with
+/// the scenario's text.
+fn prepare(a: &StudyArgs) -> Result<(ExcitationProblem, String), String> {
     if a.seeds < 2 {
         return Err("--seeds must be >= 2 (a paired comparison)".into());
     }
@@ -86,7 +88,12 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         ));
     }
     let stage = Stage::new(a.stage, &model)?;
-    let problem = Problem::new(model, stage, settings)?;
+    let problem = ExcitationProblem::new(model, stage, settings)?;
+    Ok((problem, text))
+}
+
+fn study(a: &StudyArgs) -> Result<(), String> {
+    let (problem, text) = prepare(a)?;
     let search = Search {
         iterations: a.iterations,
         ..Search::default()

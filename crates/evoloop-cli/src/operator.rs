@@ -4,7 +4,7 @@
 
 use evoloop_ipc::{Ipc, Topic, Wait};
 use evoloop_msg::{OperatorAck, OperatorAction, OperatorCommand, OperatorOutcome};
-use evoloop_run::top::pick_run;
+use evoloop_run::run_watch::pick_run;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]

@@ -182,7 +182,8 @@ pub fn execute(
     let done: Vec<Result<RunResult, String>> = pool.install(|| {
         jobs.par_iter()
             .map(|&(p, a, s)| {
-                let r = study::run_one(&problems[p], &algorithms[a], population, evaluations, s);
+                let r = study::run_one(&problems[p], &algorithms[a], population, evaluations, s)
+                    .map_err(|e| e.to_string());
                 tick();
                 r
             })
@@ -687,7 +688,8 @@ fn bench(a: &BenchArgs) -> Result<(), String> {
                 a.population,
                 a.evaluations,
                 rep as u64,
-            )?;
+            )
+            .map_err(|e| e.to_string())?;
             let t = Instant::now();
             evoloop_optim::drive(opt.as_mut(), a.evaluations, |x| x[0], |_| {});
             samples.push(opt.evaluations() as f64 / t.elapsed().as_secs_f64());

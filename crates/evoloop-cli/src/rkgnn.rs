@@ -447,7 +447,7 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
         },
     )?;
     bar.finish_and_clear();
-    model.save(&a.out)?;
+    model.save(&a.out).map_err(|e| e.to_string())?;
     let r = &model.report;
     if a.json {
         crate::print_json(r);
@@ -500,7 +500,7 @@ pub fn main(cmd: RkgnnCmd) -> i32 {
 }
 
 fn eval(a: &EvalArgs) -> Result<(), String> {
-    let m = RkgnnModel::load(&a.model)?;
+    let m = RkgnnModel::load(&a.model).map_err(|e| e.to_string())?;
     let n = m.dof();
     let qd = a.qd.clone().unwrap_or_else(|| vec![0.0; n]);
     for (name, v) in [("q", &a.q), ("qd", &qd)] {

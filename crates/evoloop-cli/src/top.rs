@@ -1,12 +1,12 @@
 //! `evoloop top [--run RUN_ID]`: a live terminal view of a running run (ratatui), or one
 //! snapshot as JSON (`--json`). It reads through subscribers on the run's telemetry,
 //! parameter-set and estimate topics (whose publishers never wait for them) and /proc (see
-//! `evoloop_run::top`); it writes only when an operator key is pressed (h, g, b, x: `evoloop operator`'s
+//! `evoloop_run::run_watch`); it writes only when an operator key is pressed (h, g, b, x: `evoloop operator`'s
 //! hold, resume, revert to the set before tuning, stop).
 
 use evoloop_ipc::{Ipc, Sub, Topic};
 use evoloop_msg::{ModelEstimate, OptimiserStatus, ParamSet, Telemetry};
-use evoloop_run::top::{pick_run, Snapshot, Watch, SPARK_SECONDS};
+use evoloop_run::run_watch::{pick_run, Snapshot, Watch, SPARK_SECONDS};
 use ratatui::crossterm::event::{self, Event, KeyCode, KeyModifiers};
 use ratatui::prelude::*;
 use ratatui::widgets::{Block, Borders, Paragraph, Row, Sparkline, Table};

@@ -54,9 +54,7 @@ fn workers(a: &TuneArgs) -> Result<evoloop_run::node::launcher::LocalWorkers, St
         (None, Some(ep)) => ep.clone(),
     };
     if !cfg!(feature = "zenoh") {
-        return Err(evoloop_scenario::needs_zenoh(
-            "--workers (or --workers-listen)",
-        ));
+        return Err(evoloop_run::needs_zenoh("--workers (or --workers-listen)"));
     }
     // Niceness 10, the optimiser's default: they yield to whatever else runs here.
     let local = LocalWorkers::start(&listen, a.workers.unwrap_or(0) as usize, 1, 10, "tune")?;

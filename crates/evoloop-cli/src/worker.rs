@@ -88,7 +88,7 @@ pub fn bench(a: &BenchWorkersArgs) -> u8 {
 pub fn bench(_: &BenchWorkersArgs) -> u8 {
     err!(
         "error: {}",
-        evoloop_scenario::needs_zenoh("evoloop bench workers")
+        evoloop_run::needs_zenoh("evoloop bench workers")
     );
     2
 }
@@ -155,6 +155,6 @@ pub fn main(a: &WorkerArgs) -> u8 {
 
 #[cfg(not(feature = "zenoh"))]
 pub fn main(_: &WorkerArgs) -> u8 {
-    err!("error: {}", evoloop_scenario::needs_zenoh("evoloop worker"));
+    err!("error: {}", evoloop_run::needs_zenoh("evoloop worker"));
     2
 }

@@ -6,6 +6,8 @@
 //! processes, in an optimiser's model evaluation and in a test; the scenario loader, the
 //! in-process loop and the processes are evoloop's, above.
 
+#![forbid(unsafe_code)]
+
 pub mod check;
 pub mod control;
 pub mod fuzzy;

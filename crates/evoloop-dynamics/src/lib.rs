@@ -9,10 +9,43 @@
 //! - `urdf`: robots from URDF files (through the `urdf-rs` crate);
 //! - `nominal`: the robot as a CAD model has it, its mass properties off by seeded factors;
 //! - `generate`: plausible serial arms from a seed, written as URDF (`evoloop robot generate`);
-//! - (the command `evoloop dynamics` is the evoloop package's `cli::dynamics`).
+//! - (the command `evoloop dynamics` is crate `evoloop-cli`'s `dynamics`).
 //!
 //! Every algorithm runs in place on a `Data`, so the plant's integrator and the computed-torque
 //! controller call them every cycle without allocating.
+//!
+//! ```
+//! use std::path::Path;
+//!
+//! // A pendulum from a D-H table: one revolute joint, 1 kg at the end of a 0.5 m link.
+//! let text = r#"
+//! name = "pendulum"
+//! convention = "standard"
+//! gravity = [0.0, -9.81, 0.0]
+//!
+//! [[joint]]
+//! name = "hinge"
+//! a = 0.5
+//! alpha = 0.0
+//! d = 0.0
+//! mass = 1.0
+//! com = [0.0, 0.0, 0.0]
+//! inertia = [1e-3, 1e-3, 1e-3, 0.0, 0.0, 0.0]
+//! q_min = -3.0
+//! q_max = 3.0
+//! torque_max = 20.0
+//! "#;
+//! let model = evoloop_dynamics::dh::parse(text, Path::new("pendulum.toml")).unwrap();
+//! let mut data = model.data();
+//! // Held level (q = 0), gravity pulls with m g l = 4.905 N m; M = m l^2 + I_zz.
+//! let mut g = [0.0];
+//! model.gravity_torque(&mut data, &[0.0], &mut g);
+//! assert!((g[0].abs() - 4.905).abs() < 1e-9);
+//! let m = model.mass_matrix(&mut data, &[0.0]);
+//! assert!((m[(0, 0)] - 0.251).abs() < 1e-9);
+//! ```
+
+#![forbid(unsafe_code)]
 
 pub mod base;
 pub mod dh;

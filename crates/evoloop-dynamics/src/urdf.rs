@@ -143,6 +143,97 @@ pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Load
     })?;
     let robot = urdf_rs::read_from_string(text)
         .map_err(|e| fail(String::new(), format!("not a readable URDF: {e}")))?;
+    let Tree {
+        link_index,
+        children,
+        root,
+    } = tree(&robot, &fail)?;
+
+    let mut bodies: Vec<Body> = Vec::new();
+    let mut reached = vec![false; robot.links.len()];
+    // Depth-first walk. An entry is a link to visit, the moving body it hangs from, the transform
+    // from that body's frame to the link's frame, and the moving joint that leads to it (the body
+    // is created when the entry is popped, so bodies come in depth-first order).
+    let mut stack: Vec<(usize, Option<usize>, Transform, Option<usize>)> =
+        vec![(root, None, Transform::IDENTITY, None)];
+    while let Some((l, mut body, mut offset, via)) = stack.pop() {
+        reached[l] = true;
+        if let Some(j) = via {
+            let joint = &robot.joints[j];
+            if let Some(m) = &joint.mimic {
+                checks.dubious(
+                    format!("joint `{}`", joint.name),
+                    format!(
+                        "mimics joint `{}` (multiplier {}, offset {}): simulated as an independent joint, evoloop does not couple joints",
+                        m.joint,
+                        m.multiplier.unwrap_or(1.0),
+                        m.offset.unwrap_or(0.0)
+                    ),
+                )?;
+            }
+            bodies.push(
+                moving_body(&robot.joints[j], body, offset)
+                    .map_err(|r| fail(format!("joint `{}`", robot.joints[j].name), r))?,
+            );
+            body = Some(bodies.len() - 1);
+            offset = Transform::IDENTITY;
+        }
+        let link = &robot.links[l];
+        let inl = &link.inertial;
+        let i = &inl.inertia;
+        let i_frame = inertia_tensor(i.ixx, i.ixy, i.ixz, i.iyy, i.iyz, i.izz);
+        let r = rpy(inl.origin.rpy.0);
+        let i_com = r * i_frame * r.transpose();
+        let com = DVec3::from(inl.origin.xyz.0);
+        // Links of the fixed base (the root and what is fixed to it) never move: their mass
+        // properties do not enter the dynamics, so they are not checked.
+        if let Some(b) = body {
+            checks.inertial(&format!("link `{}`", link.name), inl.mass.value, i_com, com)?;
+            let inertia = Inertia::from_com(inl.mass.value, com, i_com).to_parent(&offset);
+            bodies[b].inertia = bodies[b].inertia + inertia;
+        }
+        // Pushed in reverse so children are visited in document order.
+        for &j in children[l].iter().rev() {
+            let joint = &robot.joints[j];
+            let c = link_index[joint.child.link.as_str()];
+            let to_joint = offset.then(&pose(&joint.origin));
+            if joint.joint_type == urdf_rs::JointType::Fixed {
+                stack.push((c, body, to_joint, None));
+            } else {
+                stack.push((c, body, to_joint, Some(j)));
+            }
+        }
+    }
+    if let Some(l) = (0..robot.links.len()).find(|&l| !reached[l]) {
+        return Err(fail(
+            format!("link `{}`", robot.links[l].name),
+            format!(
+                "is not reachable from the root link `{}`: the joints form a loop",
+                robot.links[root].name
+            ),
+        ));
+    }
+    let model = Model {
+        name: robot.name.clone(),
+        bodies,
+        gravity: DVec3::new(0.0, 0.0, -9.81),
+    };
+    checks.finish(model)
+}
+
+/// The joints and links as a tree: each link's index by name, each link's child joints, and the
+/// one root link. Refused, naming the item: a name defined twice, a joint whose origin is not
+/// finite or whose links are undefined, a link with two parents, no root or several.
+struct Tree<'a> {
+    link_index: HashMap<&'a str, usize>,
+    children: Vec<Vec<usize>>,
+    root: usize,
+}
+
+fn tree<'a>(
+    robot: &'a urdf_rs::Robot,
+    fail: &dyn Fn(String, String) -> RobotError,
+) -> Result<Tree<'a>, RobotError> {
     // Names are how joints and links are found (limits, mimic, parent and child): two of one
     // name would silently make one of them unreachable.
     let joints = robot.joints.iter().map(|j| j.name.as_str());
@@ -224,77 +315,11 @@ pub fn parse_with(text: &str, file: &Path, options: &LoadOptions) -> Result<Load
             ));
         }
     };
-
-    let mut bodies: Vec<Body> = Vec::new();
-    let mut reached = vec![false; robot.links.len()];
-    // Depth-first walk. An entry is a link to visit, the moving body it hangs from, the transform
-    // from that body's frame to the link's frame, and the moving joint that leads to it (the body
-    // is created when the entry is popped, so bodies come in depth-first order).
-    let mut stack: Vec<(usize, Option<usize>, Transform, Option<usize>)> =
-        vec![(root, None, Transform::IDENTITY, None)];
-    while let Some((l, mut body, mut offset, via)) = stack.pop() {
-        reached[l] = true;
-        if let Some(j) = via {
-            let joint = &robot.joints[j];
-            if let Some(m) = &joint.mimic {
-                checks.dubious(
-                    format!("joint `{}`", joint.name),
-                    format!(
-                        "mimics joint `{}` (multiplier {}, offset {}): simulated as an independent joint, evoloop does not couple joints",
-                        m.joint,
-                        m.multiplier.unwrap_or(1.0),
-                        m.offset.unwrap_or(0.0)
-                    ),
-                )?;
-            }
-            bodies.push(
-                moving_body(&robot.joints[j], body, offset)
-                    .map_err(|r| fail(format!("joint `{}`", robot.joints[j].name), r))?,
-            );
-            body = Some(bodies.len() - 1);
-            offset = Transform::IDENTITY;
-        }
-        let link = &robot.links[l];
-        let inl = &link.inertial;
-        let i = &inl.inertia;
-        let i_frame = inertia_tensor(i.ixx, i.ixy, i.ixz, i.iyy, i.iyz, i.izz);
-        let r = rpy(inl.origin.rpy.0);
-        let i_com = r * i_frame * r.transpose();
-        let com = DVec3::from(inl.origin.xyz.0);
-        // Links of the fixed base (the root and what is fixed to it) never move: their mass
-        // properties do not enter the dynamics, so they are not checked.
-        if let Some(b) = body {
-            checks.inertial(&format!("link `{}`", link.name), inl.mass.value, i_com, com)?;
-            let inertia = Inertia::from_com(inl.mass.value, com, i_com).to_parent(&offset);
-            bodies[b].inertia = bodies[b].inertia + inertia;
-        }
-        // Pushed in reverse so children are visited in document order.
-        for &j in children[l].iter().rev() {
-            let joint = &robot.joints[j];
-            let c = link_index[joint.child.link.as_str()];
-            let to_joint = offset.then(&pose(&joint.origin));
-            if joint.joint_type == urdf_rs::JointType::Fixed {
-                stack.push((c, body, to_joint, None));
-            } else {
-                stack.push((c, body, to_joint, Some(j)));
-            }
-        }
-    }
-    if let Some(l) = (0..robot.links.len()).find(|&l| !reached[l]) {
-        return Err(fail(
-            format!("link `{}`", robot.links[l].name),
-            format!(
-                "is not reachable from the root link `{}`: the joints form a loop",
-                robot.links[root].name
-            ),
-        ));
-    }
-    let model = Model {
-        name: robot.name.clone(),
-        bodies,
-        gravity: DVec3::new(0.0, 0.0, -9.81),
-    };
-    checks.finish(model)
+    Ok(Tree {
+        link_index,
+        children,
+        root,
+    })
 }
 
 /// The body moved by a revolute, continuous or prismatic joint placed at `placement` in the

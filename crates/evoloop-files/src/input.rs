@@ -87,7 +87,7 @@ fn open_nonblocking(path: &Path, extra: i32) -> std::io::Result<std::fs::File> {
 
 /// What went wrong deserialising a TOML or JSON text: the dotted key (empty at file level), the
 /// 1-based line when known, and a reason that is never empty.
-pub struct Problem {
+pub struct DecodeError {
     pub key: String,
     pub line: Option<usize>,
     pub reason: String,
@@ -95,11 +95,11 @@ pub struct Problem {
 
 /// Deserialise `text` as TOML into `T`, or say where and why not (every TOML reader of the
 /// project goes through here: scenarios, D-H tables, tuning experiments).
-pub fn from_toml<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Problem> {
+pub fn from_toml<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, DecodeError> {
     serde_path_to_error::deserialize(toml::Deserializer::new(text)).map_err(|e| {
         let key = e.path().to_string();
         let inner = e.into_inner();
-        Problem {
+        DecodeError {
             key: if key == "." { String::new() } else { key },
             line: inner
                 .span()
@@ -116,12 +116,12 @@ pub fn from_toml<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Proble
 
 /// Deserialise `text` as JSON into `T`, or say where and why not (model files written by other
 /// tools: a linear plant exported from python-control, say).
-pub fn from_json<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, Problem> {
+pub fn from_json<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, DecodeError> {
     let mut de = serde_json::Deserializer::from_str(text);
     serde_path_to_error::deserialize(&mut de).map_err(|e| {
         let key = e.path().to_string();
         let inner = e.into_inner();
-        Problem {
+        DecodeError {
             key: if key == "." { String::new() } else { key },
             line: (inner.line() > 0).then_some(inner.line()),
             reason: inner.to_string(),

@@ -6,5 +6,5 @@
 mod input;
 mod output;
 
-pub use input::{from_json, from_toml, open_own, read_own, read_text, Problem, MAX_FILE_BYTES};
+pub use input::{from_json, from_toml, open_own, read_own, read_text, DecodeError, MAX_FILE_BYTES};
 pub use output::{append, create, free_bytes, named, open_in_place, release, reserve, write};

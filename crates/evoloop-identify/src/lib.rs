@@ -6,6 +6,8 @@
 //!   through Runge-Kutta-Gill by the paper's EA), identification alongside operation, and the
 //!   studies of fuzzy selection among the identified models.
 
+#![forbid(unsafe_code)]
+
 pub mod identify;
 pub mod rkgnn;
 

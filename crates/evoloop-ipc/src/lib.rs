@@ -22,11 +22,37 @@ pub mod service;
 /// The iceoryx2 service type of every evoloop port (iceoryx2's ipc service, pooled loans).
 pub type Svc = service::Service;
 
-/// An IPC failure with what was being done when it happened.
+/// An IPC failure with what was being done when it happened, and the transport's own error
+/// beneath it (`source()`), so a caller can act on iceoryx2's cause.
 #[derive(Debug)]
 pub struct IpcError {
     pub context: String,
+    /// The cause as text (iceoryx2's error debug-formatted: its variant names say most).
     pub cause: String,
+    source: Option<Box<dyn std::error::Error + Send + Sync>>,
+}
+
+impl IpcError {
+    /// `context` failed because of `cause`, kept as this error's `source()`.
+    pub fn new<E>(context: impl Into<String>, cause: E) -> Self
+    where
+        E: std::error::Error + Send + Sync + 'static,
+    {
+        IpcError {
+            context: context.into(),
+            cause: format!("{cause:?}"),
+            source: Some(Box::new(cause)),
+        }
+    }
+
+    /// `context` failed for a reason evoloop found itself (no error beneath it).
+    pub fn reason(context: impl Into<String>, why: impl Into<String>) -> Self {
+        IpcError {
+            context: context.into(),
+            cause: why.into(),
+            source: None,
+        }
+    }
 }
 
 impl fmt::Display for IpcError {
@@ -35,30 +61,38 @@ impl fmt::Display for IpcError {
     }
 }
 
-impl std::error::Error for IpcError {}
-
-fn err(context: impl Into<String>, cause: impl Debug) -> IpcError {
-    IpcError {
-        context: context.into(),
-        cause: format!("{cause:?}"),
+impl std::error::Error for IpcError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        let e: &(dyn std::error::Error + 'static) = self.source.as_deref()?;
+        Some(e)
     }
+}
+
+fn err<E: std::error::Error + Send + Sync + 'static>(
+    context: impl Into<String>,
+    cause: E,
+) -> IpcError {
+    IpcError::new(context, cause)
 }
 
 /// Open or create a service, retrying for up to half a second: peers open the same service
 /// concurrently at start-up, and iceoryx2 reports a service that another process is creating or
 /// tearing down as an error for a short moment.
-fn retry<T, E: Debug>(what: &str, mut f: impl FnMut() -> Result<T, E>) -> Result<T, IpcError> {
-    let mut last = None;
-    for _ in 0..50 {
+fn retry<T, E>(what: &str, mut f: impl FnMut() -> Result<T, E>) -> Result<T, IpcError>
+where
+    E: std::error::Error + Send + Sync + 'static,
+{
+    let mut tries = 0;
+    loop {
         match f() {
             Ok(v) => return Ok(v),
-            Err(e) => {
-                last = Some(e);
+            Err(e) if tries == 49 => return Err(err(what, e)),
+            Err(_) => {
+                tries += 1;
                 std::thread::sleep(Duration::from_millis(10));
             }
         }
     }
-    Err(err(what, last))
 }
 
 /// The topics of a run. Each has one QoS, used by whichever process creates the service first.

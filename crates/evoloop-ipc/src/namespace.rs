@@ -24,10 +24,7 @@ use std::path::{Path, PathBuf};
 pub const SHM_DIR: &str = "/dev/shm";
 
 fn fail(context: impl Into<String>, cause: impl Into<String>) -> IpcError {
-    IpcError {
-        context: context.into(),
-        cause: cause.into(),
-    }
+    IpcError::reason(context, cause)
 }
 
 fn uid() -> u32 {

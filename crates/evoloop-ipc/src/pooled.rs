@@ -115,6 +115,7 @@ fn take(layout: Layout) -> *mut u8 {
 /// `p` came from `take(layout)` on this thread and holds no live value.
 unsafe fn give_back(p: *mut u8, layout: Layout) {
     let Some(class) = class_of(layout) else {
+        // SAFETY: a layout of no class was allocated by `alloc(layout)` in `take`.
         unsafe { dealloc(p, layout) };
         return;
     };
@@ -130,6 +131,7 @@ unsafe fn give_back(p: *mut u8, layout: Layout) {
     });
     if kept.is_err() {
         // The thread's pool is gone (thread exit): back to the heap.
+        // SAFETY: every block of `class` was allocated with `block_layout(class)`.
         unsafe { dealloc(p, block_layout(class)) };
     }
 }
@@ -175,13 +177,18 @@ impl<T: Send + fmt::Debug + Abandonable> Pooled<T> {
     /// # Safety
     /// `this` is a live handle that is not used again.
     unsafe fn release(this: NonNull<Self>, finish: impl FnOnce(NonNull<T>)) {
+        // SAFETY: `this` is a live handle (the caller's promise).
         let ptr = unsafe { this.as_ref() }.ptr;
+        // SAFETY: the block lives while any handle does, and `this` is one.
         let inner = unsafe { ptr.as_ref() };
         let n = inner.count.get() - 1;
         inner.count.set(n);
         if n == 0 {
+            // SAFETY: the block is live (the count was 1) and a field's address is not null.
             let value = unsafe { NonNull::new_unchecked(&raw mut (*ptr.as_ptr()).value) };
             finish(value);
+            // SAFETY: the last handle is gone and `finish` took the value: the block, taken
+            // with this layout on this thread (a `Pooled` is not Send), holds nothing live.
             unsafe { give_back(ptr.as_ptr().cast(), Layout::new::<Inner<T>>()) };
         }
     }
@@ -217,6 +224,7 @@ impl<T: Send + fmt::Debug + Abandonable> Abandonable for Pooled<T> {
     /// As iceoryx2's `SingleThreaded`: the last handle abandons the value (its shared resources
     /// are left as they are) instead of dropping it; any other handle is just released.
     unsafe fn abandon_in_place(this: NonNull<Self>) {
+        // SAFETY: `this` is live and not used again (abandon_in_place's own contract).
         unsafe { Self::release(this, |v| T::abandon_in_place(v)) };
     }
 }
@@ -279,7 +287,7 @@ mod tests {
         abandoned: Rc<Cell<u32>>,
         payload: [u64; 4],
     }
-    // SAFETY (test only): probes never leave their thread.
+    // SAFETY: test only; probes (and their Rc counters) never leave their thread.
     unsafe impl Send for Probe {}
     impl Drop for Probe {
         fn drop(&mut self) {
@@ -288,9 +296,11 @@ mod tests {
     }
     impl Abandonable for Probe {
         unsafe fn abandon_in_place(this: NonNull<Self>) {
+            // SAFETY: `this` is a live probe (abandon_in_place's contract).
             let p = unsafe { this.as_ref() };
             p.abandoned.set(p.abandoned.get() + 1);
             // Release the probe's own handles without running its Drop.
+            // SAFETY: each field is live and dropped once; the probe is not used again.
             unsafe {
                 core::ptr::drop_in_place(&raw mut (*this.as_ptr()).dropped);
                 core::ptr::drop_in_place(&raw mut (*this.as_ptr()).abandoned);

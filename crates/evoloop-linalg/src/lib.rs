@@ -5,6 +5,8 @@
 //! reduction (`householder`). General-purpose work (decompositions of larger, heap matrices)
 //! goes through nalgebra directly (one version for the workspace, `[workspace.dependencies]`).
 
+#![forbid(unsafe_code)]
+
 pub mod eigen;
 pub mod householder;
 pub mod small;

@@ -335,6 +335,18 @@ impl Default for ParamSet {
 impl ParamSet {
     /// A set of `kind` carrying `values` (at most `MAX_PARAMS` of them), applied at sample
     /// `apply_at_seq` (0: at once). Allocation-free.
+    ///
+    /// ```
+    /// use evoloop_msg::{ParamKind, ParamSet, UnknownCode};
+    ///
+    /// // A P-D servo's gains (k_p, k_d per joint), version 3, to be applied at once.
+    /// let set = ParamSet::new(3, 0, ParamKind::PdServo, &[100.0, 20.0]);
+    /// assert_eq!(set.values(), &[100.0, 20.0]);
+    /// assert_eq!(set.param_kind(), Ok(ParamKind::PdServo));
+    /// // A kind code from another contract version is refused, not read as a default.
+    /// let foreign = ParamSet { kind: 99, ..set };
+    /// assert_eq!(foreign.param_kind(), Err(UnknownCode { what: "ParamKind", code: 99 }));
+    /// ```
     pub fn new(version: u64, apply_at_seq: u64, kind: ParamKind, values: &[f64]) -> Self {
         let n = values.len().min(MAX_PARAMS);
         let mut set = ParamSet {

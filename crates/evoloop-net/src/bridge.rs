@@ -27,7 +27,7 @@ use zenoh::Wait as _;
 const NET_QUEUE: usize = 4096;
 
 /// An iceoryx2 topic relayed to a Zenoh key.
-pub struct Out<T: Debug + ZeroCopySend + Copy + 'static> {
+pub(crate) struct Out<T: Debug + ZeroCopySend + Copy + 'static> {
     pub sub: Sub<T>,
     pub net: Publisher<'static>,
 }
@@ -68,7 +68,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Out<T> {
 }
 
 /// A Zenoh key relayed to an iceoryx2 topic.
-pub struct In<T: Debug + ZeroCopySend + Copy + 'static> {
+pub(crate) struct In<T: Debug + ZeroCopySend + Copy + 'static> {
     pub net: Subscriber<FifoChannelHandler<Sample>>,
     pub publ: Pub<T>,
 }

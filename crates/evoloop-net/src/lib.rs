@@ -8,8 +8,8 @@
 //!   (`mirror::PREFIX`), and the optimiser's own code runs against it unchanged.
 //! - `evoloop worker --connect ENDPOINT` (`workers`) serves candidate evaluations to an optimiser
 //!   with `optimiser.workers = "zenoh"`, which spreads its costly populations over the workers up
-//!   (`optim::remote`); `evoloop bench workers` (`bench::workers`) measures it; `evoloop bench bridge`
-//!   (`bench::bridge`) the bridge.
+//!   (`optim::remote`); `evoloop bench workers` (`evoloop_run::bench::workers`) measures it;
+//!   `evoloop bench bridge` (`evoloop_run::bench::bridge`) the bridge.
 //!
 //! What crosses and which way (`ROUTES`):
 //!

@@ -8,7 +8,7 @@ use crate::jade::{Jade, JadeConfig};
 use crate::pso::Pso;
 use crate::swarm::SwarmConfig;
 use crate::wolves::{Goa, Gwo, Woa};
-use crate::{DeConfig, DifferentialEvolution, Ga, GaConfig, Optimiser};
+use crate::{DeConfig, DifferentialEvolution, Ga, GaConfig, Optimiser, SettingsError};
 
 /// The study's algorithms: the paper's six, then the real-coded GA of the fuzzy-network paper
 /// and JADE, the adaptive DE the Python libraries offer (`crate::jade`). (Hooke-Jeeves is a
@@ -51,8 +51,47 @@ pub fn build(
     population: usize,
     evaluations: usize,
     seed: u64,
-) -> Result<Box<dyn Optimiser + Send>, String> {
+) -> Result<Box<dyn Optimiser + Send>, BuildError> {
     build_seeded(name, lower, upper, population, evaluations, seed, &[])
+}
+
+/// Why an optimiser could not be built by name.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BuildError {
+    /// No optimiser has this name.
+    Unknown(String),
+    /// The optimiser refused its settings (box, population, budget).
+    Settings(SettingsError),
+}
+
+impl std::fmt::Display for BuildError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BuildError::Unknown(name) => {
+                write!(
+                    f,
+                    "unknown algorithm {name:?} (known: {})",
+                    all().join(", ")
+                )
+            }
+            BuildError::Settings(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for BuildError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            BuildError::Unknown(_) => None,
+            BuildError::Settings(e) => Some(e),
+        }
+    }
+}
+
+impl From<SettingsError> for BuildError {
+    fn from(e: SettingsError) -> Self {
+        BuildError::Settings(e)
+    }
 }
 
 /// `build`, with user-specified sets placed in the GA's initial population (the fuzzy-network
@@ -65,7 +104,7 @@ pub fn build_seeded(
     evaluations: usize,
     seed: u64,
     seeds: &[Vec<f64>],
-) -> Result<Box<dyn Optimiser + Send>, String> {
+) -> Result<Box<dyn Optimiser + Send>, BuildError> {
     let swarm = || {
         SwarmConfig::for_budget(
             lower.to_vec(),
@@ -126,11 +165,6 @@ pub fn build_seeded(
             initial: BAYES_INITIAL,
             safety: (name == "safe_bayes").then_some(Safety { beta: SAFE_BETA }),
         })?),
-        other => {
-            return Err(format!(
-                "unknown algorithm {other:?} (known: {})",
-                all().join(", ")
-            ))
-        }
+        other => return Err(BuildError::Unknown(other.to_string())),
     })
 }

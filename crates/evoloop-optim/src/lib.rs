@@ -1,9 +1,25 @@
 //! Optimisers. Every optimiser is an ask/tell object over the `Optimiser` trait: it proposes a
 //! generation of candidates, the caller evaluates them (in parallel, on whatever model), and
 //! tells it the objective values (minimised). Seeded for reproducibility.
+//!
+//! ```
+//! use evoloop_optim::{DeConfig, DifferentialEvolution};
+//! use evoloop_optim::{run, Optimiser};
+//!
+//! // Any `Fn(&[f64]) -> f64 + Sync` is an objective: here the sphere on [-5, 5]^3.
+//! let sphere = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>();
+//! // The two-mass paper's DE settings (Table 4: 100 members, its stopping rule), F 0.5, CR 0.9.
+//! let cfg = DeConfig::paper(0.5, 0.9, vec![-5.0; 3], vec![5.0; 3], 7);
+//! let mut de = DifferentialEvolution::new(cfg).unwrap();
+//! // Generations evaluated on 1 thread, at most 300 of them, no target value, no progress.
+//! let r = run(&mut de, &sphere, 1, 300, None, |_| {});
+//! assert!(r.value < 1e-3, "{}", r.value);
+//! assert_eq!(de.best().1, r.value);
+//! ```
 
 pub mod bayes;
 pub mod by_name;
+pub mod chaotic;
 pub mod cmaes;
 pub mod de;
 pub mod emupso;

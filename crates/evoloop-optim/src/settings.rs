@@ -54,13 +54,6 @@ impl std::fmt::Display for SettingsError {
 
 impl std::error::Error for SettingsError {}
 
-/// The callers that report errors as text keep using `?`.
-impl From<SettingsError> for String {
-    fn from(e: SettingsError) -> String {
-        e.to_string()
-    }
-}
-
 /// A search box: as many lower as upper bounds, at least one, each pair finite and ordered.
 pub fn check_box(lower: &[f64], upper: &[f64]) -> Result<(), SettingsError> {
     if lower.is_empty() || lower.len() != upper.len() {

@@ -36,7 +36,7 @@ pub fn run_one(
     population: usize,
     evaluations: usize,
     seed: u64,
-) -> Result<RunResult, String> {
+) -> Result<RunResult, super::by_name::BuildError> {
     let (lower, upper) = problem.bounds();
     let mut opt = build(algorithm, &lower, &upper, population, evaluations, seed)?;
     let mut curve = Vec::with_capacity(CHECKPOINTS);

@@ -1,7 +1,7 @@
 //! Run records and the report's materials: the fixed-capacity logs the processes fill during a
 //! run, CSV writing/reading, the MCAP recording and its reader, response metrics (settling time,
 //! overshoot, IAE, ISE), plots, the HTML page and progress bars. A sink: it takes data and never
-//! runs a simulation; the run's report (`evoloop::report::build`, which does) sits above.
+//! runs a simulation; the run's report (`evoloop::run_report::build`, which does) sits above.
 
 pub mod history;
 pub mod html;
@@ -252,5 +252,27 @@ mod tests {
             "a whole file is left as it is"
         );
         assert!(!cut_partial_row(&dir.path().join("none.csv")).unwrap());
+    }
+}
+
+#[cfg(test)]
+mod outcome_tests {
+    use super::Outcome;
+
+    #[test]
+    fn outcomes_serialise_to_the_strings_scripts_read() {
+        for (o, text) in [
+            (Outcome::Ok, "ok"),
+            (Outcome::Interrupted, "interrupted"),
+            (Outcome::Failed, "failed"),
+            (Outcome::Incomplete, "incomplete"),
+            (Outcome::TunerLost, "tuner_lost"),
+            (Outcome::Degraded, "degraded"),
+        ] {
+            let json = serde_json::to_string(&o).unwrap();
+            assert_eq!(json, format!("\"{text}\""));
+            assert_eq!(serde_json::from_str::<Outcome>(&json).unwrap(), o);
+        }
+        assert!(serde_json::from_str::<Outcome>("\"exploded\"").is_err());
     }
 }

@@ -4,6 +4,8 @@
 //! report. Below the control laws (fuzzy computed torque evaluates it every cycle,
 //! allocation-free); the identification that fits it is evoloop's `rkgnn` module, above them.
 
+#![forbid(unsafe_code)]
+
 pub mod model;
 pub mod network;
 

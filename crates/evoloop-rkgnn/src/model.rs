@@ -190,13 +190,6 @@ impl std::fmt::Display for ModelError {
 
 impl std::error::Error for ModelError {}
 
-/// The callers that report errors as text keep using `?`.
-impl From<ModelError> for String {
-    fn from(e: ModelError) -> String {
-        e.to_string()
-    }
-}
-
 /// The `format` value of a model file.
 pub const FORMAT: &str = "evoloop-rkgnn";
 /// The file layout version this build reads and writes.

@@ -38,18 +38,22 @@ fn armed() -> bool {
     ARMED.try_with(|a| a.get()).unwrap_or(false)
 }
 
+// SAFETY: every call is forwarded to the system allocator with the caller's arguments; the
+// counting beside it touches only atomics and a thread-local flag, never the heap.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
         if armed() {
             COUNT.fetch_add(1, Ordering::Relaxed);
             LIVE.fetch_add(l.size() as i64, Ordering::Relaxed);
         }
+        // SAFETY: the caller's layout, as GlobalAlloc::alloc requires it.
         unsafe { System.alloc(l) }
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
         if armed() {
             LIVE.fetch_sub(l.size() as i64, Ordering::Relaxed);
         }
+        // SAFETY: `p` came from this allocator, hence from System, with layout `l`.
         unsafe { System.dealloc(p, l) }
     }
     unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
@@ -57,6 +61,7 @@ unsafe impl GlobalAlloc for Counting {
             COUNT.fetch_add(1, Ordering::Relaxed);
             LIVE.fetch_add(n as i64 - l.size() as i64, Ordering::Relaxed);
         }
+        // SAFETY: `p` came from System with layout `l`; the caller guarantees `n`'s validity.
         unsafe { System.realloc(p, l, n) }
     }
 }

@@ -4,7 +4,8 @@
 //!   supervises and stops them, the live view's server and the replay.
 //! - `run_report`: the report built after a run (report.html, plots, summary.json, seeds).
 //! - `bench`: the latency and loop benchmarks, against raw iceoryx2 and the bare loop.
-//! - `soak`, `top`: a long run's accounting and the live terminal view's data.
+//! - `soak`, `run_watch`: a long run's accounting, and what `evoloop top` and the live view
+//!   gather of a running run.
 
 #[macro_use]
 extern crate evoloop_scenario;
@@ -12,8 +13,13 @@ extern crate evoloop_scenario;
 pub mod bench;
 pub mod node;
 pub mod run_report;
+pub mod run_watch;
 pub mod soak;
-pub mod top;
+
+/// The message for `what` (a command, an option, a key) in a build without the `zenoh` feature.
+pub fn needs_zenoh(what: &str) -> String {
+    format!("{what} needs evoloop built with the zenoh feature (cargo build --release --features zenoh)")
+}
 
 use evoloop_control::{control, plant, reference};
 use evoloop_dynamics as dynamics;
@@ -26,6 +32,6 @@ use evoloop_net as net;
 use evoloop_optim as optim;
 use evoloop_report as report;
 use evoloop_rt as rt;
-use evoloop_scenario::{config, needs_zenoh, sim};
+use evoloop_scenario::{config, sim};
 use evoloop_schemes::{direct, gains, indirect};
 use evoloop_stats as stats;

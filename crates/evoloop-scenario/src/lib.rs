@@ -5,6 +5,8 @@
 //! The lowest crate of evoloop's application layers, so it also holds the two output macros
 //! (`out!`, `err!`) the crates above print with.
 
+#![forbid(unsafe_code)]
+
 /// Print a line to stdout, ignoring errors: a closed pipe (`evoloop run | head`) must not kill
 /// the launcher while it supervises the processes.
 #[macro_export]
@@ -26,8 +28,3 @@ use evoloop_ipc as ipc;
 use evoloop_msg as msg;
 use evoloop_optim as optim;
 use evoloop_rt as rt;
-
-/// The message for `what` (a command, an option, a key) in a build without the `zenoh` feature.
-pub fn needs_zenoh(what: &str) -> String {
-    format!("{what} needs evoloop built with the zenoh feature (cargo build --release --features zenoh)")
-}

@@ -8,6 +8,8 @@
 //! - `jobs`: the model costs an evaluation worker can rebuild from their description.
 //! - `gains`: the controller's tunable values as one parameter a process outside the loop sets.
 
+#![forbid(unsafe_code)]
+
 pub mod direct;
 pub mod gains;
 pub mod indirect;

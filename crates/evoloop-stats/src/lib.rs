@@ -3,6 +3,8 @@
 //! untied pairs, normal approximation with tie and continuity corrections beyond that or with
 //! ties), and the Mann-Whitney U test for unpaired samples.
 
+#![forbid(unsafe_code)]
+
 use serde::Serialize;
 
 /// Mean, sample standard deviation and 95 % confidence interval of the mean (Student t).

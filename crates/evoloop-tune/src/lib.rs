@@ -2,6 +2,8 @@
 //! `experiment = "arsinh"` (Section 5.1) or `"maglev"` (Section 5.2); results as JSON/CSV and PNG
 //! in the output directory, a summary on stdout (or JSON with --json), progress on a terminal.
 
+#![forbid(unsafe_code)]
+
 pub mod arsinh;
 pub mod compare;
 pub mod direct;

@@ -420,11 +420,11 @@ pub fn comparison_sentence(
 /// per variant the mean and 95 % interval of G and its parts; fuzzy against each baseline by a
 /// paired Wilcoxon test on G, the error term and the control term. Writes `seeds.csv`,
 /// `study.json`, `study.md`, `study_g.png`, `study_error.png`.
-pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
-    use crate::stats::{mean_ci, wilcoxon};
-    let n_v = STUDY_VARIANTS.len();
+/// Tune every variant on every seed and score it on its test run: costs[v][s], None where the
+/// variant lost the ball; each row also in seeds.csv.
+fn tune_seeds(base: &Run, spec: &Spec, seeds: &[u64]) -> Result<Vec<Vec<Option<Cost>>>, String> {
     // costs[v][s]: None = lost the ball on the test run.
-    let mut costs: Vec<Vec<Option<Cost>>> = vec![Vec::new(); n_v];
+    let mut costs: Vec<Vec<Option<Cost>>> = vec![Vec::new(); STUDY_VARIANTS.len()];
     let mut csv = String::from("seed,variant,G,error,current,holding,control,lost\n");
     let t0 = std::time::Instant::now();
     for (k, &seed) in seeds.iter().enumerate() {
@@ -439,7 +439,7 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
             seed,
         };
         for (v, aw) in STUDY_VARIANTS.iter().enumerate() {
-            let t = tune_variant(&run, &spec, *aw);
+            let t = tune_variant(&run, spec, *aw);
             match t.test {
                 Some(c) => csv.push_str(&format!(
                     "{seed},{},{},{},{},{},{},0\n",
@@ -464,12 +464,59 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
         }
     }
     crate::files::write(base.out.join("seeds.csv"), &csv).map_err(|e| e.to_string())?;
-    let part = |c: &Option<Cost>, p: &str| match (c, p) {
+    Ok(costs)
+}
+
+/// One part of a test run's cost (G, its error term or its control term); infinite where the
+/// ball was lost.
+fn part(c: &Option<Cost>, p: &str) -> f64 {
+    match (c, p) {
         (None, _) => f64::INFINITY,
         (Some(c), "G") => c.g,
         (Some(c), "error") => c.g_error,
         (Some(c), _) => c.g_control,
-    };
+    }
+}
+
+/// study_g.png and study_error.png: each variant's cost per seed.
+fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result<(), String> {
+    let xs: Vec<f64> = seeds.iter().map(|s| *s as f64).collect();
+    for (p, file, label) in [
+        ("G", "study_g.png", "G on the test run (eq. 31)"),
+        ("error", "study_error.png", "error term of eq. 31 (mm)"),
+    ] {
+        let curves: Vec<crate::report::plot::Curve> = STUDY_VARIANTS
+            .iter()
+            .enumerate()
+            .map(|(v, aw)| {
+                let y = costs[v]
+                    .iter()
+                    .map(|c| part(c, p))
+                    .map(|x| if x.is_finite() { x } else { f64::NAN })
+                    .collect();
+                (aw.name().to_string(), xs.clone(), y)
+            })
+            .collect();
+        crate::report::plot::xy_png(
+            &out.join(file),
+            &format!("maglev: {label} per seed, each controller tuned with the same budget"),
+            "seed",
+            label,
+            &crate::report::plot::XySeries::from_curves(
+                &curves,
+                crate::report::plot::Style::Points,
+            ),
+            None,
+            None,
+        )?;
+    }
+    Ok(())
+}
+
+pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
+    use crate::stats::{mean_ci, wilcoxon};
+    let n_v = STUDY_VARIANTS.len();
+    let costs = tune_seeds(&base, &spec, seeds)?;
     let parts = ["G", "error", "control"];
     // stats[v][p]: mean and interval of part p over the seeds where variant v kept the ball.
     let stats: Vec<Vec<crate::stats::MeanCi>> = (0..n_v)
@@ -558,36 +605,7 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
     }
     crate::files::write(base.out.join("study.md"), &md).map_err(|e| e.to_string())?;
     if base.plots {
-        let xs: Vec<f64> = seeds.iter().map(|s| *s as f64).collect();
-        for (p, file, label) in [
-            ("G", "study_g.png", "G on the test run (eq. 31)"),
-            ("error", "study_error.png", "error term of eq. 31 (mm)"),
-        ] {
-            let curves: Vec<crate::report::plot::Curve> = STUDY_VARIANTS
-                .iter()
-                .enumerate()
-                .map(|(v, aw)| {
-                    let y = costs[v]
-                        .iter()
-                        .map(|c| part(c, p))
-                        .map(|x| if x.is_finite() { x } else { f64::NAN })
-                        .collect();
-                    (aw.name().to_string(), xs.clone(), y)
-                })
-                .collect();
-            crate::report::plot::xy_png(
-                &base.out.join(file),
-                &format!("maglev: {label} per seed, each controller tuned with the same budget"),
-                "seed",
-                label,
-                &crate::report::plot::XySeries::from_curves(
-                    &curves,
-                    crate::report::plot::Style::Points,
-                ),
-                None,
-                None,
-            )?;
-        }
+        study_plots(&base.out, seeds, &costs)?;
     }
     if base.json {
         println!(

@@ -556,7 +556,7 @@ pub fn validate(
         let path = check.resolve(rel);
         let m = match RkgnnModel::load(&path) {
             Ok(m) => m,
-            Err(e) => return check.fail(&format!("{key}[{i}]"), e),
+            Err(e) => return check.fail(&format!("{key}[{i}]"), e.to_string()),
         };
         if m.dof() != n {
             return check.fail(

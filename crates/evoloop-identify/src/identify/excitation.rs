@@ -145,7 +145,7 @@ impl Criteria {
 }
 
 /// One stage's excitation design problem.
-pub struct Problem {
+pub struct ExcitationProblem {
     pub model: Model,
     pub stage: Stage,
     pub settings: Settings,
@@ -157,8 +157,12 @@ pub struct Problem {
     pub base: BaseParameters,
 }
 
-impl Problem {
-    pub fn new(model: Model, stage: Stage, settings: Settings) -> Result<Problem, String> {
+impl ExcitationProblem {
+    pub fn new(
+        model: Model,
+        stage: Stage,
+        settings: Settings,
+    ) -> Result<ExcitationProblem, String> {
         if settings.harmonics < 2 {
             return Err("at least 2 harmonics (the last one brings the start to rest)".into());
         }
@@ -213,7 +217,7 @@ impl Problem {
                 )?)
             }
         };
-        Ok(Problem {
+        Ok(ExcitationProblem {
             model,
             stage,
             settings,
@@ -327,7 +331,7 @@ impl Problem {
     }
 }
 
-impl Objective for Problem {
+impl Objective for ExcitationProblem {
     fn value(&self, x: &[f64]) -> f64 {
         let Some(s) = self.decode(x) else {
             return PENALTY * (1.0 + UNREACHABLE);
@@ -347,7 +351,7 @@ impl Objective for Problem {
 }
 
 /// The feasibility objective of the elite phase.
-struct Excess<'a>(&'a Problem);
+struct Excess<'a>(&'a ExcitationProblem);
 
 impl Objective for Excess<'_> {
     fn value(&self, x: &[f64]) -> f64 {
@@ -409,7 +413,11 @@ pub struct Outcome {
 pub type Progress<'a> = &'a mut dyn FnMut(&str, usize, f64);
 
 /// The two-phase search of Section 4.1 on `problem`.
-pub fn search(problem: &Problem, s: &Search, progress: Progress) -> Result<Outcome, String> {
+pub fn search(
+    problem: &ExcitationProblem,
+    s: &Search,
+    progress: Progress,
+) -> Result<Outcome, String> {
     let (lo, hi) = problem.bounds();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(s.seed ^ 0x5eed_e11e);
     let random = |rng: &mut rand_chacha::ChaCha8Rng| -> Vec<f64> {
@@ -426,7 +434,7 @@ pub fn search(problem: &Problem, s: &Search, progress: Progress) -> Result<Outco
         iterations: s.elite_iterations,
         seed: s.seed,
     };
-    let mut pso = Pso::new(cfg)?;
+    let mut pso = Pso::new(cfg).map_err(|e| e.to_string())?;
     let mut elites: Vec<Vec<f64>> = Vec::new();
     let mut near: Vec<(f64, Vec<f64>)> = Vec::new();
     let mut evaluations = 0;
@@ -489,7 +497,7 @@ pub fn search(problem: &Problem, s: &Search, progress: Progress) -> Result<Outco
         iterations: s.iterations,
         seed: s.seed,
     };
-    let mut opt = EmuPso::new(cfg, settings)?;
+    let mut opt = EmuPso::new(cfg, settings).map_err(|e| e.to_string())?;
     opt.swarm.start_from(&start);
     let mut history = Vec::with_capacity(s.iterations + 1);
     while opt.generation() <= s.iterations {

@@ -4,7 +4,7 @@
 //! found, and the optimised one. The paired relative errors of the identified base parameters
 //! are compared by Wilcoxon's signed-rank test.
 
-use super::excitation::{search, Problem, Search};
+use super::excitation::{search, ExcitationProblem, Search};
 use super::lls::{estimate, Options, Recording};
 use crate::config::{Overrides, Scenario};
 use crate::reference::series::FourierSeries;
@@ -61,7 +61,7 @@ pub fn with_trajectory(
 /// The study: for each seed, a search on `problem` and the experiment on its first feasible
 /// initial trajectory and on its optimised one. `progress` sees each finished seed.
 pub fn run(
-    problem: &Problem,
+    problem: &ExcitationProblem,
     scenario_text: &str,
     path: &Path,
     seeds: &[u64],

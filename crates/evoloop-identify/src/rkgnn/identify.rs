@@ -49,11 +49,11 @@
 //!   wrong ones (M-hat_33 three times the truth, G-hat_2 at 40 % of it, seen at stride 10).
 
 use super::data::Trajectory;
-use super::ea::{ChaoticEa, ChaoticEaConfig};
 use super::model::{Report, ServoPrior, Start};
 use super::network::{self, Layout, Network, Part, RbfCounts};
 use crate::linalg::{min_leading_minor, sym_eig_range, Mat};
 use crate::msg::MAX_JOINTS;
+use crate::optim::chaotic::{ChaoticEa, ChaoticEaConfig};
 use crate::optim::{evaluate, Objective, Optimiser};
 use crate::plant::gill::RungeKuttaGill;
 use serde::{Deserialize, Serialize};

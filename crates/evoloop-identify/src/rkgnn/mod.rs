@@ -3,7 +3,8 @@
 //! (`../shared/papers/rkgnn-computed-torque-fuzzy-model-selection.md`).
 //!
 //! - `network`: the function network N_f of shape-adaptive RBF sub-networks (eqs. 6-10).
-//! - `ea`: the evolutionary algorithm of Section 4 (chaotic mutation, strategic moves).
+//! - the evolutionary algorithm of Section 4 (chaotic mutation, strategic moves) is
+//!   `optim::chaotic`, beside the other optimisers.
 //! - `data`: reference and output data from a run's `run.csv`, never the torques.
 //! - `identify`: the RKGNN (Runge-Kutta-Gill around N_f, `plant::gill`) fitted by eq. 13.
 //! - `refine`: Levenberg-Marquardt on the free-run output error (after the least squares).
@@ -19,7 +20,6 @@
 //! `control::fuzzy_select`.
 
 pub mod data;
-pub mod ea;
 pub mod identify;
 pub mod live;
 pub mod model_error;

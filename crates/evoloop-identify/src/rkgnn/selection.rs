@@ -37,7 +37,7 @@ use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::dynamics::Model;
 use crate::rkgnn::model_error::{model_error, ModelError, RigidBody};
 use crate::rkgnn::Trajectory;
-use crate::sim::JointTraces;
+use crate::sim::{JointTraces, SimResult};
 use crate::stats::{median, median_of_numbers, wilcoxon, Wilcoxon};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -502,26 +502,7 @@ pub fn run(
         .map(|t| with_reference(t, None))
         .chain(new_set.iter().map(|t| with_reference(t, s.period)))
         .collect::<Result<_, _>>()?;
-    let pd = pd_servo;
-    // Every trajectory must stay within the arm's limits: `case` parses each probe's
-    // scenario, whose check refuses a reference that leaves one (plant::arm). The probes are
-    // never run: their servo (unit gains) only makes them whole scenarios.
-    let unit = vec![1.0; n];
-    let probe: Vec<Case> = texts
-        .iter()
-        .enumerate()
-        .map(|(k, t)| {
-            case(
-                &format!("probe{k}"),
-                t,
-                &robot,
-                1,
-                pd(&unit, &unit),
-                s.velocity,
-                dir,
-            )
-        })
-        .collect::<Result<_, _>>()?;
+    let probe = probes(&texts, &robot, n, s.velocity, dir)?;
     let qs = trajectory_positions(&probe.iter().map(|c| &c.scenario).collect::<Vec<_>>());
     // Computed torque's start-up rate is per sample: the same 33 ms at any period.
     let base_period = probe[0].scenario.timing.period;
@@ -543,6 +524,14 @@ pub fn run(
         let k = step.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(k, total, stage);
     };
+    let training = Training {
+        s,
+        set: &training_set,
+        robot: &robot,
+        arm: &arm,
+        prior: &prior,
+        servo: [servo_kp, servo_kd],
+    };
     let mut cells = Vec::new();
     let mut unidentified = Vec::new();
     let mut identification_seconds = Vec::new();
@@ -550,64 +539,10 @@ pub fn run(
     for seed in 1..=s.seeds {
         let sd = dir.join(format!("seed{seed}"));
         std::fs::create_dir_all(&sd).map_err(|e| format!("{}: {e}", sd.display()))?;
-        // Training runs (this seed's trajectories) and the three models.
-        let training: Vec<Case> = training_set
-            .iter()
-            .enumerate()
-            .map(|(k, tr)| {
-                let text = with_reference(&tr.for_seed(seed, k), None)?;
-                case(
-                    tr.name,
-                    &text,
-                    &robot,
-                    seed,
-                    pd(servo_kp, servo_kd),
-                    s.velocity,
-                    &sd,
-                )
-            })
-            .collect::<Result<_, _>>()?;
-        write_scenarios(&training)?;
-        let sims = simulate_all(&training, s.threads, &|| tick("training run"))?;
-        let mut models: Vec<Option<(PathBuf, crate::rkgnn::RkgnnModel)>> = Vec::new();
-        for (c, sim) in training.iter().zip(&sims) {
-            let data = Trajectory::from_sim(
-                &sim.rows,
-                &c.scenario.reference,
-                c.scenario.timing.period,
-                crate::rkgnn::data::SMOOTHING,
-            );
-            let mut settings = Settings::least_squares(n, seed, s.evaluations);
-            settings.threads = s.threads.max(1);
-            settings.weigh_joints = s.weigh_joints;
-            settings.start = s.start;
-            if s.christoffel {
-                settings.christoffel_velocity();
-            }
-            settings.servo =
-                servo_prior(s.servo_known, [servo_kp, servo_kd], (s.velocity, c), &arm);
-            // A training run from which least squares finds no positive definite M-hat gives
-            // no model: it is left out as a refused one is (and counted), not the study ended.
-            let found = match &s.models_from {
-                Some(from) => earlier_model(from, seed, &c.name, &settings, s.velocity),
-                None => {
-                    identify::identify_model(&data, &prior, &settings, c.name.clone(), |_, _| {})
-                }
-            };
-            tick("identification");
-            match found {
-                Ok(model) => {
-                    identification_seconds.push(model.report.seconds);
-                    let file = sd.join(format!("model_{}.json", c.name));
-                    model.save(&file)?;
-                    models.push(Some((file, model)));
-                }
-                Err(e) => {
-                    unidentified.push(format!("seed {seed}, {}: {e}", c.name));
-                    models.push(None);
-                }
-            }
-        }
+        let found = training.models(seed, &sd, &tick)?;
+        unidentified.extend(found.unidentified);
+        identification_seconds.extend(found.seconds);
+        let models = found.models;
         // This seed's CAD model: the arm with its mass properties off (`nominal`), written
         // down beside the models; the gravity compensation and ct_nominal use it.
         let nominal = nominal_model(&arm, seed, &sd)?;
@@ -674,6 +609,132 @@ pub fn run(
     crate::files::write(&p, report_markdown(&result))
         .map_err(|e| format!("{}: {e}", p.display()))?;
     Ok(result)
+}
+
+/// Every trajectory as a scenario that is never run, to check it: `case` parses each, and the
+/// scenario's check refuses a reference that leaves a joint limit (plant::arm). Their servo (unit
+/// gains) only makes them whole scenarios.
+fn probes(
+    texts: &[String],
+    robot: &Path,
+    n: usize,
+    velocity: JointVelocity,
+    dir: &Path,
+) -> Result<Vec<Case>, String> {
+    let unit = vec![1.0; n];
+    texts
+        .iter()
+        .enumerate()
+        .map(|(k, t)| {
+            case(
+                &format!("probe{k}"),
+                t,
+                robot,
+                1,
+                pd_servo(&unit, &unit),
+                velocity,
+                dir,
+            )
+        })
+        .collect()
+}
+
+/// What every seed's training runs and identification share.
+struct Training<'a> {
+    s: &'a SelectionSettings,
+    set: &'a [Sines],
+    robot: &'a Path,
+    arm: &'a Model,
+    prior: &'a Prior,
+    servo: [&'a [f64]; 2],
+}
+
+/// The models one seed's training runs yield (None where identification found none), why not,
+/// and how long each identification took.
+struct SeedModels {
+    models: Vec<Option<(PathBuf, crate::rkgnn::RkgnnModel)>>,
+    unidentified: Vec<String>,
+    seconds: Vec<f64>,
+}
+
+impl Training<'_> {
+    /// Run this seed's training trajectories under the servo and identify a model from each.
+    fn models(
+        &self,
+        seed: u64,
+        sd: &Path,
+        tick: &(dyn Fn(&str) + Sync),
+    ) -> Result<SeedModels, String> {
+        let (s, arm, n) = (self.s, self.arm, self.arm.dof());
+        let [servo_kp, servo_kd] = self.servo;
+        let training: Vec<Case> = self
+            .set
+            .iter()
+            .enumerate()
+            .map(|(k, tr)| {
+                let text = with_reference(&tr.for_seed(seed, k), None)?;
+                case(
+                    tr.name,
+                    &text,
+                    self.robot,
+                    seed,
+                    pd_servo(servo_kp, servo_kd),
+                    s.velocity,
+                    sd,
+                )
+            })
+            .collect::<Result<_, _>>()?;
+        write_scenarios(&training)?;
+        let sims = simulate_all(&training, s.threads, &|| tick("training run"))?;
+        let mut out = SeedModels {
+            models: Vec::new(),
+            unidentified: Vec::new(),
+            seconds: Vec::new(),
+        };
+        for (c, sim) in training.iter().zip(&sims) {
+            let data = Trajectory::from_sim(
+                &sim.rows,
+                &c.scenario.reference,
+                c.scenario.timing.period,
+                crate::rkgnn::data::SMOOTHING,
+            );
+            let mut settings = Settings::least_squares(n, seed, s.evaluations);
+            settings.threads = s.threads.max(1);
+            settings.weigh_joints = s.weigh_joints;
+            settings.start = s.start;
+            if s.christoffel {
+                settings.christoffel_velocity();
+            }
+            settings.servo = servo_prior(s.servo_known, self.servo, (s.velocity, c), arm);
+            // A training run from which least squares finds no positive definite M-hat gives
+            // no model: it is left out as a refused one is (and counted), not the study ended.
+            let found = match &s.models_from {
+                Some(from) => earlier_model(from, seed, &c.name, &settings, s.velocity),
+                None => identify::identify_model(
+                    &data,
+                    self.prior,
+                    &settings,
+                    c.name.clone(),
+                    |_, _| {},
+                ),
+            };
+            tick("identification");
+            match found {
+                Ok(model) => {
+                    out.seconds.push(model.report.seconds);
+                    let file = sd.join(format!("model_{}.json", c.name));
+                    model.save(&file).map_err(|e| e.to_string())?;
+                    out.models.push(Some((file, model)));
+                }
+                Err(e) => {
+                    out.unidentified
+                        .push(format!("seed {seed}, {}: {e}", c.name));
+                    out.models.push(None);
+                }
+            }
+        }
+        Ok(out)
+    }
 }
 
 /// How far the nominal (CAD) model's mass properties are off: each factor within 1 +- this.
@@ -884,37 +945,7 @@ impl SeedRun<'_> {
         write_scenarios(&cases)?;
         let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"))?;
         let ran = |key: &str| runnable.iter().position(|(k, _)| *k == key);
-        // A run not made (a refused model) is NaN, left out of every comparison; a run made
-        // whose error is not finite (it diverged) is +inf, the worst of all.
-        let mut rms: Vec<(String, Vec<f64>)> = RUN
-            .iter()
-            .map(|k| {
-                let v = ran(k).map_or(vec![f64::NAN; n], |c| {
-                    let v = JointTraces::of(&sims[c], &cases[c].scenario.reference, n).rms();
-                    if overall(&v).is_finite() {
-                        v
-                    } else {
-                        vec![f64::INFINITY; n]
-                    }
-                });
-                (k.to_string(), v)
-            })
-            .collect();
-        let singles: Vec<&Vec<f64>> = rms
-            .iter()
-            .filter(|(k, _)| SINGLES.contains(&k.as_str()))
-            .map(|(_, v)| v)
-            .filter(|v| !overall(v).is_nan())
-            .collect();
-        let best = singles
-            .iter()
-            .min_by(|a, b| overall(a).total_cmp(&overall(b)))
-            .map_or(vec![f64::NAN; n], |v| (*v).clone());
-        let random: Vec<f64> = (0..n)
-            .map(|j| singles.iter().map(|v| v[j]).sum::<f64>() / singles.len() as f64)
-            .collect();
-        rms.push(("best_single".into(), best));
-        rms.push(("random_single".into(), random));
+        let rms = tracking_rms(&ran, &sims, &cases, n);
         // The max rule's switching, over the models it was given (the usable ones).
         let (switches, share) = match ran("fuzzy_max") {
             Some(c) => {
@@ -958,6 +989,47 @@ impl SeedRun<'_> {
     }
 }
 
+/// Each law's rms tracking error per joint (`ran` says which case ran it), then the best and
+/// the average single model. A run not made (a refused model) is NaN, left out of every
+/// comparison; a run made whose error is not finite (it diverged) is +inf, the worst of all.
+fn tracking_rms(
+    ran: &dyn Fn(&str) -> Option<usize>,
+    sims: &[SimResult],
+    cases: &[Case],
+    n: usize,
+) -> Vec<(String, Vec<f64>)> {
+    let mut rms: Vec<(String, Vec<f64>)> = RUN
+        .iter()
+        .map(|k| {
+            let v = ran(k).map_or(vec![f64::NAN; n], |c| {
+                let v = JointTraces::of(&sims[c], &cases[c].scenario.reference, n).rms();
+                if overall(&v).is_finite() {
+                    v
+                } else {
+                    vec![f64::INFINITY; n]
+                }
+            });
+            (k.to_string(), v)
+        })
+        .collect();
+    let singles: Vec<&Vec<f64>> = rms
+        .iter()
+        .filter(|(k, _)| SINGLES.contains(&k.as_str()))
+        .map(|(_, v)| v)
+        .filter(|v| !overall(v).is_nan())
+        .collect();
+    let best = singles
+        .iter()
+        .min_by(|a, b| overall(a).total_cmp(&overall(b)))
+        .map_or(vec![f64::NAN; n], |v| (*v).clone());
+    let random: Vec<f64> = (0..n)
+        .map(|j| singles.iter().map(|v| v[j]).sum::<f64>() / singles.len() as f64)
+        .collect();
+    rms.push(("best_single".into(), best));
+    rms.push(("random_single".into(), random));
+    rms
+}
+
 /// Seed `seed`'s model of training run `name` from the earlier study in `from`, which must have
 /// been identified as `settings` would: the same seed, start, servo prior, joints' weighing
 /// and at least the EA evaluations, from a training run whose servo acted on `velocity`. None
@@ -983,7 +1055,7 @@ fn earlier_model(
             velocity.key()
         ));
     }
-    let model = crate::rkgnn::RkgnnModel::load(&file)?;
+    let model = crate::rkgnn::RkgnnModel::load(&file).map_err(|e| e.to_string())?;
     let r = &model.report;
     let same = r.seed == settings.ea.seed
         && r.start == settings.start

@@ -547,16 +547,91 @@ pub fn run(
     ];
     write_scenarios(&training)?;
     let train_sims = simulate_all(&training, s.threads, &|| tick("training run"))?;
-    let mut models = Vec::new();
-    let mut summaries = Vec::new();
-    let mut inputs = None;
     // Where the controller will run the models: the new trajectory's positions.
     let new = &probes[2].scenario;
     let along = crate::control::fuzzy_computed_torque::reference_positions(
         &new.reference,
         new.timing.duration,
     );
-    for (k, (c, sim)) in training.iter().zip(&train_sims).enumerate() {
+    let servo = [servo_kp.as_slice(), servo_kd.as_slice()];
+    let (models, summaries, inputs) = identify_each(
+        s,
+        &training,
+        &train_sims,
+        (&robot, &arm, &prior),
+        servo,
+        &along,
+        dir,
+        &tick,
+    )?;
+
+    // The controllers on the new trajectory, and each model on its own trajectory.
+    // Both computed-torque laws take the same gains and psi rate.
+    let fuzzy = |files: &[&PathBuf], selection: &str| g.fuzzy(files, selection, &[]);
+    let ct_true = controller("computed_torque", g.ct_table());
+    let (m1, m2) = (&models[0], &models[1]);
+    let cases = [
+        at("pd", NEW, pd)?,
+        at("ct_true", NEW, ct_true)?,
+        at("ct_model_1", NEW, fuzzy(&[m1], "max"))?,
+        at("ct_model_2", NEW, fuzzy(&[m2], "max"))?,
+        at("ct_fuzzy_max", NEW, fuzzy(&[m1, m2], "max"))?,
+        at("ct_fuzzy_blend", NEW, fuzzy(&[m1, m2], "blend"))?,
+        at("fig8_model_1_on_train1", TRAIN1, fuzzy(&[m1], "max"))?,
+        at("fig9_model_2_on_train2", TRAIN2, fuzzy(&[m2], "max"))?,
+    ];
+    write_scenarios(&cases)?;
+    let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"))?;
+    let traces = traces_written(&cases, &sims, dir)?;
+    let rms: Vec<Vec<f64>> = traces.iter().map(JointTraces::rms).collect();
+    let tracking_rms = TrackingRms {
+        pd: rms[0].clone(),
+        ct_true: rms[1].clone(),
+        ct_model_1: rms[2].clone(),
+        ct_model_2: rms[3].clone(),
+        ct_fuzzy_max: rms[4].clone(),
+        ct_fuzzy_blend: rms[5].clone(),
+    };
+    let fuzzy_sim = &sims[4];
+    let (fuzzy_share, membership_range) = fuzzy_usage(fuzzy_sim)?;
+    let result = StudyResult {
+        robot: robot.clone(),
+        seed: s.seed,
+        evaluations: s.evaluations,
+        servo_kp,
+        servo_kd,
+        inertia_ratio: ratio,
+        ct_kp: g.ct[0].clone(),
+        ct_kv: g.ct[1].clone(),
+        identification_inputs: inputs,
+        models: summaries,
+        tracking_rms,
+        own_trajectory_rms: [rms[6].clone(), rms[7].clone()],
+        fuzzy_share,
+        membership_range,
+        seconds: t0.elapsed().as_secs_f64(),
+    };
+    write_outputs(&result, dir, &cases, &traces, fuzzy_sim)?;
+    Ok(result)
+}
+
+/// Identify a model from each training run: the models' files, their summaries, and what the
+/// identification was given.
+#[allow(clippy::too_many_arguments)]
+fn identify_each(
+    s: &StudySettings,
+    training: &[Case],
+    train_sims: &[SimResult],
+    (robot, arm, prior): (&Path, &crate::dynamics::Model, &Prior),
+    servo: [&[f64]; 2],
+    along: &[Vec<f64>],
+    dir: &Path,
+    tick: &(dyn Fn(&str) + Sync),
+) -> Result<(Vec<PathBuf>, Vec<ModelSummary>, IdentificationInputs), String> {
+    let mut models = Vec::new();
+    let mut summaries = Vec::new();
+    let mut inputs = None;
+    for (k, (c, sim)) in training.iter().zip(train_sims).enumerate() {
         let data = Trajectory::from_sim(
             &sim.rows,
             &c.scenario.reference,
@@ -567,16 +642,16 @@ pub fn run(
         settings.threads = s.threads.max(1);
         settings.refine = s.refine;
         settings.start = s.start;
-        settings.servo = servo_prior(s.servo_known, [&servo_kp, &servo_kd], (s.velocity, c), &arm);
+        settings.servo = servo_prior(s.servo_known, servo, (s.velocity, c), arm);
         let model = identify::identify_model(
             &data,
-            &prior,
+            prior,
             &settings,
             format!("rkgnn study: {} on {}", c.name, robot.display()),
             |_, _| {},
         )?;
         let file = dir.join(format!("model_{}.json", k + 1));
-        model.save(&file)?;
+        model.save(&file).map_err(|e| e.to_string())?;
         let on_reference = model.min_eig(along.iter().map(Vec::as_slice));
         summaries.push(ModelSummary::of(
             file.clone(),
@@ -601,78 +676,47 @@ pub fn run(
         models.push(file);
         tick("identification");
     }
+    Ok((models, summaries, inputs.ok_or("no training run")?))
+}
 
-    // The controllers on the new trajectory, and each model on its own trajectory.
-    // Both computed-torque laws take the same gains and psi rate.
-    let fuzzy = |files: &[&PathBuf], selection: &str| g.fuzzy(files, selection, &[]);
-    let ct_true = controller("computed_torque", g.ct_table());
-    let (m1, m2) = (&models[0], &models[1]);
-    let cases = [
-        at("pd", NEW, pd)?,
-        at("ct_true", NEW, ct_true)?,
-        at("ct_model_1", NEW, fuzzy(&[m1], "max"))?,
-        at("ct_model_2", NEW, fuzzy(&[m2], "max"))?,
-        at("ct_fuzzy_max", NEW, fuzzy(&[m1, m2], "max"))?,
-        at("ct_fuzzy_blend", NEW, fuzzy(&[m1, m2], "blend"))?,
-        at("fig8_model_1_on_train1", TRAIN1, fuzzy(&[m1], "max"))?,
-        at("fig9_model_2_on_train2", TRAIN2, fuzzy(&[m2], "max"))?,
-    ];
-    write_scenarios(&cases)?;
-    let sims = simulate_all(&cases, s.threads, &|| tick("tracking run"))?;
+/// Each case's traces per joint, written as runs/NAME.csv.
+fn traces_written(
+    cases: &[Case],
+    sims: &[SimResult],
+    dir: &Path,
+) -> Result<Vec<JointTraces>, String> {
     let traces: Vec<JointTraces> = cases
         .iter()
-        .zip(&sims)
+        .zip(sims)
         .map(|(c, sim)| JointTraces::of(sim, &c.scenario.reference, JOINTS))
         .collect();
     let runs = dir.join("runs");
     std::fs::create_dir_all(&runs).map_err(|e| format!("{}: {e}", runs.display()))?;
-    for ((c, sim), tr) in cases.iter().zip(&sims).zip(&traces) {
+    for ((c, sim), tr) in cases.iter().zip(sims).zip(&traces) {
         tr.write_csv(sim, &runs.join(format!("{}.csv", c.name)))?;
     }
-    let rms: Vec<Vec<f64>> = traces.iter().map(JointTraces::rms).collect();
-    let tracking_rms = TrackingRms {
-        pd: rms[0].clone(),
-        ct_true: rms[1].clone(),
-        ct_model_1: rms[2].clone(),
-        ct_model_2: rms[3].clone(),
-        ct_fuzzy_max: rms[4].clone(),
-        ct_fuzzy_blend: rms[5].clone(),
-    };
-    let fuzzy_sim = &sims[4];
-    let active = fuzzy_sim
+    Ok(traces)
+}
+
+/// How long fuzzy selection kept each of the two models active, and the range of model 0's
+/// membership, from the fuzzy run's law columns.
+fn fuzzy_usage(sim: &SimResult) -> Result<(Vec<f64>, [f64; 2]), String> {
+    let active = sim
         .law_column("fuzzy_model")
         .ok_or("fuzzy run logged no active model")?;
-    let membership_range = fuzzy_sim
+    let membership_range = sim
         .law_column("fuzzy_w0")
         .ok_or("fuzzy run logged no memberships")?
         .iter()
         .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], w| {
             [lo.min(*w), hi.max(*w)]
         });
-    let fuzzy_share = (0..2)
+    let share = (0..2)
         .map(|i| {
             active.iter().filter(|&&a| a == i as f64).count() as f64 / active.len().max(1) as f64
         })
         .collect();
-    let result = StudyResult {
-        robot: robot.clone(),
-        seed: s.seed,
-        evaluations: s.evaluations,
-        servo_kp,
-        servo_kd,
-        inertia_ratio: ratio,
-        ct_kp: g.ct[0].clone(),
-        ct_kv: g.ct[1].clone(),
-        identification_inputs: inputs.ok_or("no training run")?,
-        models: summaries,
-        tracking_rms,
-        own_trajectory_rms: [rms[6].clone(), rms[7].clone()],
-        fuzzy_share,
-        membership_range,
-        seconds: t0.elapsed().as_secs_f64(),
-    };
-    write_outputs(&result, dir, &cases, &traces, fuzzy_sim)?;
-    Ok(result)
+    Ok((share, membership_range))
 }
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {

@@ -1,6 +1,6 @@
 //! The names and bytes of rmw_zenoh, ROS 2's Zenoh middleware (its design document,
 //! <https://github.com/ros2/rmw_zenoh/blob/rolling/docs/design.md>), for a process that is a
-//! ROS 2 node without ROS 2 installed. Pure: `crate::net::ros2` (feature `zenoh`) does the I/O.
+//! ROS 2 node without ROS 2 installed. Pure: `evoloop_net::ros2` (feature `zenoh`) does the I/O.
 //!
 //! - A topic's messages are Zenoh puts on `<domain>/<topic>/<type>/<hash>`: the topic's fully
 //!   qualified name without its leading '/', the DDS form of the type's name

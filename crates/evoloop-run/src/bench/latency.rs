@@ -88,10 +88,7 @@ impl VariantResult {
 const WARMUP: usize = 2_000;
 
 fn err(context: &str, e: impl std::fmt::Debug) -> IpcError {
-    IpcError {
-        context: context.into(),
-        cause: format!("{e:?}"),
-    }
+    IpcError::reason(context, format!("{e:?}"))
 }
 
 fn spawn_peer(v: Variant, prefix: &str, run_id: &str, payload: usize) -> std::io::Result<Child> {

@@ -41,7 +41,7 @@ pub fn shipped(relative: &str) -> PathBuf {
 }
 
 /// The source tree evoloop was built from (this crate lives in its `crates/evoloop-run`).
-pub fn source_tree() -> &'static Path {
+fn source_tree() -> &'static Path {
     let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
     manifest.ancestors().nth(2).unwrap_or(manifest)
 }
@@ -146,7 +146,7 @@ pub fn free_port() -> Result<u16, String> {
 }
 
 /// The options every process of a run takes (`ProcessArgs`), before the overrides.
-pub fn process_args(config: &Path, run_id: &str, ipc_prefix: &str) -> Vec<String> {
+pub(crate) fn process_args(config: &Path, run_id: &str, ipc_prefix: &str) -> Vec<String> {
     vec![
         "--config".to_string(),
         config.display().to_string(),
@@ -161,7 +161,7 @@ pub fn process_args(config: &Path, run_id: &str, ipc_prefix: &str) -> Vec<String
 /// its subcommand, so a run needs nothing but the `evoloop` binary (`cargo run` builds only the
 /// binary it runs). argv[0] is the process's name, so `ps`, `pgrep -f evoloop-plant` and the
 /// tests see `evoloop-plant ...` as they would the stand-alone binary.
-pub fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Child> {
+pub(crate) fn spawn_process(name: &str, args: &[String]) -> std::io::Result<Child> {
     use std::os::unix::process::CommandExt;
     let role = name.trim_start_matches("evoloop-");
     let mut cmd = std::process::Command::new(std::env::current_exe()?);
@@ -256,6 +256,8 @@ pub fn die_with_parent(cmd: &mut std::process::Command) {
     // SAFETY: getpid before the fork; in the child only async-signal-safe calls (prctl,
     // getppid, _exit).
     let parent = unsafe { libc::getpid() };
+    // SAFETY: the closure runs in the forked child and calls only prctl, getppid and _exit,
+    // all async-signal-safe; it touches no lock or allocation of the parent.
     unsafe {
         cmd.pre_exec(move || {
             if libc::prctl(

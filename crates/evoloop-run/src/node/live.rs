@@ -126,13 +126,13 @@ pub fn main(a: &LiveArgs) -> u8 {
 fn serve(a: &LiveArgs) -> Result<(), String> {
     // Started by `evoloop run --live`: everything given, the controller perhaps not started yet.
     let run = match (&a.run, &a.ipc_prefix, &a.config) {
-        (Some(id), Some(prefix), Some(config)) => crate::top::RunningRun {
+        (Some(id), Some(prefix), Some(config)) => crate::run_watch::RunningRun {
             run_id: id.clone(),
             ipc_prefix: prefix.clone(),
             config: Some(config.clone()),
             optimiser: None,
         },
-        _ => crate::top::pick_run(a.run.as_deref())?,
+        _ => crate::run_watch::pick_run(a.run.as_deref())?,
     };
     let prefix = a.ipc_prefix.clone().unwrap_or(run.ipc_prefix.clone());
     let scn = run.scenario(a.config.as_deref(), &a.overrides.to_overrides())?;
@@ -143,6 +143,8 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
             // SAFETY: as above; fcntl on that descriptor sets close-on-exec again, so nothing
             // this process might start inherits the port.
             unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) };
+            // SAFETY: the listener's descriptor, owned by nothing else (above): the listener
+            // takes it over.
             unsafe { std::os::fd::FromRawFd::from_raw_fd(fd) }
         }
         None => bind(&a.addr, a.remote, "--remote")?,

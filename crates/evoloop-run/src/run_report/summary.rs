@@ -406,28 +406,6 @@ pub struct Summary {
 }
 
 #[cfg(test)]
-mod outcome_tests {
-    use crate::report::Outcome;
-
-    #[test]
-    fn outcomes_serialise_to_the_strings_scripts_read() {
-        for (o, text) in [
-            (Outcome::Ok, "ok"),
-            (Outcome::Interrupted, "interrupted"),
-            (Outcome::Failed, "failed"),
-            (Outcome::Incomplete, "incomplete"),
-            (Outcome::TunerLost, "tuner_lost"),
-            (Outcome::Degraded, "degraded"),
-        ] {
-            let json = serde_json::to_string(&o).unwrap();
-            assert_eq!(json, format!("\"{text}\""));
-            assert_eq!(serde_json::from_str::<Outcome>(&json).unwrap(), o);
-        }
-        assert!(serde_json::from_str::<Outcome>("\"exploded\"").is_err());
-    }
-}
-
-#[cfg(test)]
 mod record_tests {
     use super::ParamRecord;
     use crate::msg::ParamCode;

@@ -234,7 +234,8 @@ impl DirectTuner {
                 spec.evaluations,
                 spec.seed,
                 &seeds,
-            )?
+            )
+            .map_err(|e| e.to_string())?
         };
         // Ends at the first trial's boundary (shorter when `first` < one repetition).
         let start = spec.first.saturating_sub(spec.repetition);

@@ -274,37 +274,7 @@ pub fn study(
     let lqr1 = lqr_gains(1.2, Sensor::Actuated, &[10.0, 1.0, 1.0, 1.0, 10.0], 1.0)?;
     let lqr2 = lqr_gains(1.2, Sensor::Actuated, &[100.0, 1.0, 1.0, 1.0, 1000.0], 1.0)?;
 
-    // Fig. 5: poles of the runs with the wedge.
-    let mut px = Vec::new();
-    let mut py = Vec::new();
-    for r in &t7.runs {
-        for p in prob.poles(&r.best) {
-            px.push(p.re);
-            py.push(p.im);
-        }
-    }
-    let slope = prob.wedge.slope();
-    let xmin = px.iter().copied().fold(-2.0, f64::min) * 1.1;
-    let wx = [xmin, -prob.wedge.rho, -prob.wedge.rho, xmin];
-    let wy = [
-        -slope * xmin,
-        slope * prob.wedge.rho,
-        -slope * prob.wedge.rho,
-        slope * xmin,
-    ];
-    let ymax = py.iter().map(|v| v.abs()).fold(slope * -xmin, f64::max) * 1.05;
-    xy_png(
-        &dir.join("poles.png"),
-        &format!("Fig. 5: closed-loop poles of the {runs} DE runs (F = 0.5, CR = 0.9) and the wedge (zeta = 0.7, rho = 1)"),
-        "Re",
-        "Im",
-        &[
-            XySeries { name: "wedge boundary", x: &wx, y: &wy, style: Style::Line },
-            XySeries { name: "poles", x: &px, y: &py, style: Style::Points },
-        ],
-        Some((xmin, 0.5)),
-        Some((-ymax, ymax)),
-    )?;
+    poles_figure(&prob, t7, runs, dir)?;
 
     // Figs. 6-8, Table 10.
     let mut rng = ChaCha8Rng::seed_from_u64(2012);
@@ -405,6 +375,46 @@ pub fn study(
     let report = report_md(&prob, &settings, &median_gains, &lqr1, &lqr2, &responses);
     crate::files::write(dir.join("report.md"), &report).map_err(|e| e.to_string())?;
     Ok(report)
+}
+
+/// Fig. 5: the closed-loop poles of the runs of one setting, with the wedge.
+fn poles_figure(
+    prob: &RobustProblem,
+    t7: &SettingStats,
+    runs: usize,
+    dir: &Path,
+) -> Result<(), String> {
+    let mut px = Vec::new();
+    let mut py = Vec::new();
+    for r in &t7.runs {
+        for p in prob.poles(&r.best) {
+            px.push(p.re);
+            py.push(p.im);
+        }
+    }
+    let slope = prob.wedge.slope();
+    let xmin = px.iter().copied().fold(-2.0, f64::min) * 1.1;
+    let wx = [xmin, -prob.wedge.rho, -prob.wedge.rho, xmin];
+    let wy = [
+        -slope * xmin,
+        slope * prob.wedge.rho,
+        -slope * prob.wedge.rho,
+        slope * xmin,
+    ];
+    let ymax = py.iter().map(|v| v.abs()).fold(slope * -xmin, f64::max) * 1.05;
+    xy_png(
+        &dir.join("poles.png"),
+        &format!("Fig. 5: closed-loop poles of the {runs} DE runs (F = 0.5, CR = 0.9) and the wedge (zeta = 0.7, rho = 1)"),
+        "Re",
+        "Im",
+        &[
+            XySeries { name: "wedge boundary", x: &wx, y: &wy, style: Style::Line },
+            XySeries { name: "poles", x: &px, y: &py, style: Style::Points },
+        ],
+        Some((xmin, 0.5)),
+        Some((-ymax, ymax)),
+    )?;
+    Ok(())
 }
 
 /// "DEFC (Table 9 gains)" -> "defc_table9".

@@ -32,7 +32,7 @@
 //! The first generation is the initial point and mu - 1 individuals scattered uniformly within
 //! +-sigma0 around it. Seeded; the generation's buffers are reused (no allocation per generation).
 
-use super::super::optim::Optimiser;
+use crate::Optimiser;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::collections::VecDeque;
@@ -323,7 +323,7 @@ impl Optimiser for ChaoticEa {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optim::{run, Objective};
+    use crate::{run, Objective};
 
     fn sphere(x: &[f64]) -> f64 {
         x.iter().map(|v| (v - 1.0) * (v - 1.0)).sum()

@@ -1,0 +1,148 @@
+//! The workspace's layers, read from `cargo metadata`: the compiler forbids cycles between crates,
+//! not a crate that reaches up a layer, nor one namespace built out of two crates. This holds the
+//! design the book's "Layout" chapter draws.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::Command;
+
+/// The layers, bottom first: a crate of `crates/` depends only on crates of lower layers (the
+/// root package `evoloop`, a facade above them all, on any). A new crate must be placed here.
+const LAYERS: &[&[&str]] = &[
+    &[
+        "evoloop-msg",
+        "evoloop-files",
+        "evoloop-stats",
+        "evoloop-rt",
+        "evoloop-workspace-hack",
+    ],
+    &[
+        "evoloop-linalg",
+        "evoloop-ipc",
+        "evoloop-report",
+        "evoloop-optim",
+    ],
+    &["evoloop-dynamics", "evoloop-rkgnn"],
+    &["evoloop-control"],
+    &["evoloop-scenario"],
+    &["evoloop-schemes"],
+    &["evoloop-identify", "evoloop-tune", "evoloop-net"],
+    &["evoloop-run"],
+    &["evoloop-cli"],
+];
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Each package of `crates/`: its normal dependencies' names.
+fn crate_graph() -> BTreeMap<String, Vec<String>> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = Command::new(cargo)
+        .args([
+            "metadata",
+            "--format-version",
+            "1",
+            "--no-deps",
+            "--offline",
+        ])
+        .current_dir(root())
+        .output()
+        .expect("cargo metadata runs");
+    assert!(
+        out.status.success(),
+        "cargo metadata: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let crates = root().join("crates");
+    let mut g = BTreeMap::new();
+    for p in meta["packages"].as_array().unwrap() {
+        let manifest = Path::new(p["manifest_path"].as_str().unwrap());
+        if !manifest.starts_with(&crates) {
+            continue; // the root facade, the ROS 2 peer under tests/
+        }
+        let deps = p["dependencies"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|d| d["kind"].is_null()) // normal, not dev or build
+            .map(|d| d["name"].as_str().unwrap().to_string())
+            .collect();
+        g.insert(p["name"].as_str().unwrap().to_string(), deps);
+    }
+    g
+}
+
+#[test]
+fn every_crate_is_in_a_layer_and_depends_only_on_lower_ones() {
+    let g = crate_graph();
+    let layer: BTreeMap<&str, usize> = LAYERS
+        .iter()
+        .enumerate()
+        .flat_map(|(i, names)| names.iter().map(move |n| (*n, i)))
+        .collect();
+    let mut bad = Vec::new();
+    for (name, deps) in &g {
+        let Some(&mine) = layer.get(name.as_str()) else {
+            bad.push(format!("{name}: not placed in LAYERS"));
+            continue;
+        };
+        for d in deps {
+            if let Some(&theirs) = layer.get(d.as_str()) {
+                if theirs >= mine {
+                    bad.push(format!("{name} (layer {mine}) -> {d} (layer {theirs})"));
+                }
+            }
+        }
+    }
+    for name in layer.keys() {
+        if !g.contains_key(*name) {
+            bad.push(format!("{name}: in LAYERS but no crate of crates/"));
+        }
+    }
+    assert!(bad.is_empty(), "{bad:#?}");
+    // The graph was read, not empty: the command line sits on the run.
+    assert!(g["evoloop-cli"].iter().any(|d| d == "evoloop-run"));
+}
+
+/// Only the command line's crate draws a terminal: no library pulls ratatui.
+#[test]
+fn the_terminal_view_is_the_command_lines_alone() {
+    let with: Vec<_> = crate_graph()
+        .into_iter()
+        .filter(|(_, deps)| deps.iter().any(|d| d == "ratatui"))
+        .map(|(name, _)| name)
+        .collect();
+    assert_eq!(with, ["evoloop-cli"]);
+}
+
+/// No module re-exports a crate whole (`pub use evoloop_x::*;`): each namespace is one crate's.
+#[test]
+fn no_module_re_exports_a_crate_whole() {
+    fn walk(dir: &Path, found: &mut Vec<String>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p, found);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                let text = std::fs::read_to_string(&p).unwrap();
+                for (i, line) in text.lines().enumerate() {
+                    let l = line.trim();
+                    if l.starts_with("pub use evoloop_") && l.ends_with("::*;") {
+                        found.push(format!("{}:{}", p.display(), i + 1));
+                    }
+                }
+            }
+        }
+    }
+    let mut found = Vec::new();
+    walk(&root().join("src"), &mut found);
+    for e in std::fs::read_dir(root().join("crates")).unwrap() {
+        let src = e.unwrap().path().join("src");
+        if src.is_dir() {
+            walk(&src, &mut found);
+        }
+    }
+    assert!(found.is_empty(), "{found:#?}");
+}
