@@ -68,13 +68,6 @@ impl std::error::Error for IpcError {
     }
 }
 
-fn err<E: std::error::Error + Send + Sync + 'static>(
-    context: impl Into<String>,
-    cause: E,
-) -> IpcError {
-    IpcError::new(context, cause)
-}
-
 /// Open or create a service, retrying for up to half a second: peers open the same service
 /// concurrently at start-up, and iceoryx2 reports a service that another process is creating or
 /// tearing down as an error for a short moment.
@@ -86,7 +79,7 @@ where
     loop {
         match f() {
             Ok(v) => return Ok(v),
-            Err(e) if tries == 49 => return Err(err(what, e)),
+            Err(e) if tries == 49 => return Err(IpcError::new(what, e)),
             Err(_) => {
                 tries += 1;
                 std::thread::sleep(Duration::from_millis(10));
@@ -245,11 +238,12 @@ fn checked_name(
 pub fn ipc_config(prefix: &str) -> Result<Config, IpcError> {
     let mut cfg = Config::global_config().clone();
     let full = namespace::user_prefix(prefix);
-    cfg.global.prefix =
-        FileName::new(full.as_bytes()).map_err(|e| err(format!("ipc prefix {full:?}"), e))?;
+    cfg.global.prefix = FileName::new(full.as_bytes())
+        .map_err(|e| IpcError::new(format!("ipc prefix {full:?}"), e))?;
     let root = namespace::user_subdir("iceoryx2")?;
     let root = format!("{}/", root.display());
-    let root = Path::new(root.as_bytes()).map_err(|e| err(format!("ipc root {root:?}"), e))?;
+    let root =
+        Path::new(root.as_bytes()).map_err(|e| IpcError::new(format!("ipc root {root:?}"), e))?;
     cfg.global.set_root_path(&root);
     Ok(cfg)
 }
@@ -268,7 +262,7 @@ pub fn create_node<S: iceoryx2::service::Service>(
     let node = builder
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<S>()
-        .map_err(|e| err(what, e))?;
+        .map_err(|e| IpcError::new(what, e))?;
     namespace::claim_shm(prefix)?;
     Ok(node)
 }
@@ -298,7 +292,7 @@ impl Ipc {
         set_log_level(LogLevel::Error);
         let mut cfg = ipc_config(prefix)?;
         cfg.global.node.cleanup_dead_nodes_on_creation = cleanup_on_create;
-        let name = NodeName::new(process).map_err(|e| err("node name", e))?;
+        let name = NodeName::new(process).map_err(|e| IpcError::new("node name", e))?;
         let node = create_node(
             NodeBuilder::new().name(&name).config(&cfg),
             prefix,
@@ -312,7 +306,7 @@ impl Ipc {
 
     pub fn service_name(&self, topic: Topic) -> Result<ServiceName, IpcError> {
         let s = format!("evoloop/{}/{}", self.run_id, topic.name());
-        ServiceName::new(&s).map_err(|e| err(format!("service name {s}"), e))
+        ServiceName::new(&s).map_err(|e| IpcError::new(format!("service name {s}"), e))
     }
 
     /// Remove what dead processes of earlier runs left behind; returns how many nodes were cleaned.
@@ -402,7 +396,7 @@ impl Ipc {
             .event(topic)?
             .notifier_builder()
             .create()
-            .map_err(|e| err(format!("notifier on {}", topic.name()), e))?;
+            .map_err(|e| IpcError::new(format!("notifier on {}", topic.name()), e))?;
         Ok(Bell { notifier, topic })
     }
 
@@ -412,7 +406,7 @@ impl Ipc {
             .event(topic)?
             .listener_builder()
             .create()
-            .map_err(|e| err(format!("listener on {}", topic.name()), e))?;
+            .map_err(|e| IpcError::new(format!("listener on {}", topic.name()), e))?;
         Ok(Doorbell { listener, topic })
     }
 
@@ -427,13 +421,13 @@ impl Ipc {
             .publisher_builder()
             .max_loaned_samples(1)
             .create()
-            .map_err(|e| err(format!("publisher on {}", topic.name()), e))?;
+            .map_err(|e| IpcError::new(format!("publisher on {}", topic.name()), e))?;
         let notifier = if wake {
             let ev = self.event(topic)?;
             Some(
                 ev.notifier_builder()
                     .create()
-                    .map_err(|e| err(format!("notifier on {}", topic.name()), e))?,
+                    .map_err(|e| IpcError::new(format!("notifier on {}", topic.name()), e))?,
             )
         } else {
             None
@@ -458,13 +452,13 @@ impl Ipc {
             .subscriber_builder()
             .buffer_size(buffer.clamp(1, topic.max_buffer()))
             .create()
-            .map_err(|e| err(format!("subscriber on {}", topic.name()), e))?;
+            .map_err(|e| IpcError::new(format!("subscriber on {}", topic.name()), e))?;
         let listener = if wake {
             let ev = self.event(topic)?;
             Some(
                 ev.listener_builder()
                     .create()
-                    .map_err(|e| err(format!("listener on {}", topic.name()), e))?,
+                    .map_err(|e| IpcError::new(format!("listener on {}", topic.name()), e))?,
             )
         } else {
             None
@@ -496,7 +490,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Pub<T> {
     pub fn update_connections(&self) -> Result<(), IpcError> {
         self.publisher
             .update_connections()
-            .map_err(|e| err(format!("connections of {}", self.topic.name()), e))
+            .map_err(|e| IpcError::new(format!("connections of {}", self.topic.name()), e))
     }
 
     /// Copy `value` into a shared-memory slot, send it and wake the listeners. No allocation.
@@ -504,14 +498,14 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Pub<T> {
         let sample = self
             .publisher
             .loan_uninit()
-            .map_err(|e| err(format!("loan on {}", self.topic.name()), e))?;
+            .map_err(|e| IpcError::new(format!("loan on {}", self.topic.name()), e))?;
         sample
             .write_payload(*value)
             .send()
-            .map_err(|e| err(format!("send on {}", self.topic.name()), e))?;
+            .map_err(|e| IpcError::new(format!("send on {}", self.topic.name()), e))?;
         if let Some(n) = &self.notifier {
             n.notify()
-                .map_err(|e| err(format!("notify on {}", self.topic.name()), e))?;
+                .map_err(|e| IpcError::new(format!("notify on {}", self.topic.name()), e))?;
         }
         Ok(())
     }
@@ -533,7 +527,7 @@ impl Bell {
         self.notifier
             .notify()
             .map(|_| ())
-            .map_err(|e| err(format!("notify on {}", self.topic.name()), e))
+            .map_err(|e| IpcError::new(format!("notify on {}", self.topic.name()), e))
     }
 }
 
@@ -556,7 +550,7 @@ impl Doorbell {
 fn listen(listener: &Listener<Svc>, timeout: Duration, topic: Topic) -> Result<(), IpcError> {
     match listener.timed_wait(|_| {}, timeout) {
         Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
-        Err(e) => Err(err(format!("wait on {}", topic.name()), e)),
+        Err(e) => Err(IpcError::new(format!("wait on {}", topic.name()), e)),
     }
 }
 
@@ -625,7 +619,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
     pub fn has_pending(&self) -> Result<bool, IpcError> {
         self.subscriber
             .has_samples()
-            .map_err(|e| err(format!("poll {}", self.topic.name()), e))
+            .map_err(|e| IpcError::new(format!("poll {}", self.topic.name()), e))
     }
 
     /// Connect to publishers that joined since the last call (or receive): see
@@ -633,7 +627,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
     pub fn update_connections(&self) -> Result<(), IpcError> {
         self.subscriber
             .update_connections()
-            .map_err(|e| err(format!("connections of {}", self.topic.name()), e))
+            .map_err(|e| IpcError::new(format!("connections of {}", self.topic.name()), e))
     }
 
     /// The oldest unread sample, if any (in-order consumption).
@@ -641,7 +635,10 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
         match self.subscriber.receive() {
             Ok(Some(s)) => Ok(Some(*s.payload())),
             Ok(None) => Ok(None),
-            Err(e) => Err(err(format!("receive on {}", self.topic.name()), e)),
+            Err(e) => Err(IpcError::new(
+                format!("receive on {}", self.topic.name()),
+                e,
+            )),
         }
     }
 
