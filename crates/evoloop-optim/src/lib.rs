@@ -162,6 +162,13 @@ fn pool(threads: usize) -> std::sync::Arc<rayon::ThreadPool> {
         .clone()
 }
 
+/// Run `f` on the persistent pool of `threads` workers: parallel iterators inside it share those
+/// workers (nested ones too, by work stealing), so a study that runs its seeds side by side and
+/// each seed's simulations side by side keeps `threads` busy and never more.
+pub fn in_pool<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    pool(threads.max(1)).install(f)
+}
+
 /// The measured cost of one evaluation per objective type (ns, last call's mean), so that even a
 /// GA asking for two candidates at a time can decide before evaluating whether to go parallel.
 type CostTable = std::sync::Mutex<std::collections::HashMap<&'static str, u64>>;

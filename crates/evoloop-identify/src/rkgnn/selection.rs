@@ -532,16 +532,11 @@ pub fn run(
         prior: &prior,
         servo: [servo_kp, servo_kd],
     };
-    let mut cells = Vec::new();
-    let mut unidentified = Vec::new();
-    let mut identification_seconds = Vec::new();
-    let mut nominals = Vec::new();
-    for seed in 1..=s.seeds {
+    let first_new = training_set.len();
+    let one_seed = |seed: u64| -> Result<SeedOut, String> {
         let sd = dir.join(format!("seed{seed}"));
         std::fs::create_dir_all(&sd).map_err(|e| format!("{}: {e}", sd.display()))?;
         let found = training.models(seed, &sd, &tick)?;
-        unidentified.extend(found.unidentified);
-        identification_seconds.extend(found.seconds);
         let models = found.models;
         // This seed's CAD model: the arm with its mass properties off (`nominal`), written
         // down beside the models; the gravity compensation and ct_nominal use it.
@@ -561,12 +556,38 @@ pub fn run(
             cad_matched: [&cad_matched[0], &cad_matched[1]],
             nominal: &nominal,
         };
-        let first_new = training_set.len();
-        for (i, (tr, text)) in new_set.iter().zip(&texts[first_new..]).enumerate() {
-            let reference = &probe[first_new + i].scenario;
-            cells.push(seed_run.track(tr.name, text, reference, &tick)?);
-        }
-        nominals.push(nominal.written);
+        let cells = new_set
+            .iter()
+            .zip(&texts[first_new..])
+            .enumerate()
+            .map(|(i, (tr, text))| {
+                seed_run.track(tr.name, text, &probe[first_new + i].scenario, &tick)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(SeedOut {
+            cells,
+            unidentified: found.unidentified,
+            seconds: found.seconds,
+            nominal: nominal.written,
+        })
+    };
+    // Seeds are independent (each identifies its own models into its own folder), so they run
+    // side by side on the `threads` workers, sharing them with each seed's simulations; the
+    // results are taken in seed order, so the study's files do not depend on the thread count.
+    let per_seed: Vec<SeedOut> = crate::optim::in_pool(s.threads, || {
+        use rayon::prelude::*;
+        (1..=s.seeds)
+            .into_par_iter()
+            .map(one_seed)
+            .collect::<Result<_, _>>()
+    })?;
+    let (mut cells, mut unidentified, mut identification_seconds, mut nominals) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for o in per_seed {
+        cells.extend(o.cells);
+        unidentified.extend(o.unidentified);
+        identification_seconds.extend(o.seconds);
+        nominals.push(o.nominal);
     }
     let names = |v: &[Sines]| v.iter().map(|t| t.name).collect::<Vec<_>>();
     let trajectories = names(&new_set);
@@ -655,6 +676,15 @@ struct SeedModels {
     models: Vec<Option<(PathBuf, crate::rkgnn::RkgnnModel)>>,
     unidentified: Vec<String>,
     seconds: Vec<f64>,
+}
+
+/// One seed's share of the study: its cells (one per task), the models it could not identify,
+/// how long each identification took and its CAD model as written.
+struct SeedOut {
+    cells: Vec<Cell>,
+    unidentified: Vec<String>,
+    seconds: Vec<f64>,
+    nominal: NominalWritten,
 }
 
 impl Training<'_> {

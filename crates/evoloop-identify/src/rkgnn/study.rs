@@ -430,7 +430,6 @@ pub(super) fn simulate_all(
     threads: usize,
     done: &(dyn Fn() + Sync),
 ) -> Result<Vec<SimResult>, String> {
-    let share = cases.len().div_ceil(threads.max(1)).max(1);
     let one = |c: &Case| {
         // A case identifying alongside operation runs the optimiser's identification too.
         let r = match c.scenario.optimiser.mode {
@@ -442,16 +441,10 @@ pub(super) fn simulate_all(
         done();
         r.map_err(|e| format!("{}: {e}", c.name))
     };
-    std::thread::scope(|s| {
-        let workers: Vec<_> = cases
-            .chunks(share)
-            .map(|part| s.spawn(move || part.iter().map(one).collect::<Vec<_>>()))
-            .collect();
-        workers
-            .into_iter()
-            .flat_map(|w| w.join().expect("a simulation thread panicked"))
-            .collect()
-    })
+    // Work-stealing rather than one fixed share per thread: a case identifying alongside
+    // operation costs several times a frozen one, and a fixed share left a core idle.
+    use rayon::prelude::*;
+    crate::optim::in_pool(threads, || cases.par_iter().map(one).collect())
 }
 
 /// What the study reads off a simulated case per joint (a trait: the traces are the simulation's
