@@ -18,5 +18,6 @@ struct Cli {
 }
 
 fn main() {
+    evoloop::install_network();
     evoloop::node::controller::main(&Cli::parse().args);
 }

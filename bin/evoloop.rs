@@ -6,5 +6,6 @@
 static ALLOC: evoloop::rt::alloc_count::Counting = evoloop::rt::alloc_count::Counting;
 
 fn main() -> std::process::ExitCode {
+    evoloop::install_network();
     evoloop_cli::main()
 }

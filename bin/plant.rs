@@ -14,5 +14,6 @@ struct Cli {
 }
 
 fn main() {
+    evoloop::install_network();
     evoloop::node::plant::main(&Cli::parse().args);
 }

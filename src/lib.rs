@@ -30,3 +30,11 @@ pub use evoloop_stats as stats;
 pub use evoloop_tune as tune;
 
 pub use evoloop_msg::{MAX_JOINTS, MAX_PARAMS, MAX_STATES};
+
+/// Give this process the network (Eclipse Zenoh: evaluation workers, a remote optimiser, the
+/// bridge and worker commands) when built with the `zenoh` feature; every binary calls it
+/// first. Without the feature it does nothing, and every network option is refused by name.
+pub fn install_network() {
+    #[cfg(feature = "zenoh")]
+    evoloop_net::install();
+}

@@ -26,9 +26,12 @@ const LAYERS: &[&[&str]] = &[
     &["evoloop-control"],
     &["evoloop-scenario"],
     &["evoloop-schemes"],
-    &["evoloop-identify", "evoloop-tune", "evoloop-net"],
+    &["evoloop-identify", "evoloop-tune"],
     &["evoloop-run"],
     &["evoloop-cli"],
+    // The network above the command line: it implements evoloop-run's `Network` and
+    // evoloop-cli's `NetworkCommands`, so that neither has a `zenoh` feature to build twice.
+    &["evoloop-net"],
 ];
 
 fn root() -> &'static Path {

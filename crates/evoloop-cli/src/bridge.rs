@@ -50,152 +50,15 @@ pub struct BridgeArgs {
     pub config: Option<PathBuf>,
 }
 
-/// The ROS 2 domain: `--ros-domain`, else `$ROS_DOMAIN_ID` as ROS 2 reads it, else 0.
-#[cfg(feature = "zenoh")]
-fn ros_domain(a: &BridgeArgs) -> Result<u32, String> {
-    match (a.ros_domain, std::env::var("ROS_DOMAIN_ID")) {
-        (Some(d), _) => Ok(d),
-        (None, Ok(v)) if !v.trim().is_empty() => v
-            .trim()
-            .parse()
-            .map_err(|_| format!("ROS_DOMAIN_ID={v}: not a domain id")),
-        _ => Ok(0),
-    }
-}
-
-/// How long `--run RUN_ID` waits for that run to start.
-#[cfg(feature = "zenoh")]
-const RUN_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
-
-#[cfg(feature = "zenoh")]
+/// `evoloop bridge` (crate evoloop-net, through `crate::network`).
 pub fn main(a: &BridgeArgs) -> u8 {
-    use evoloop_net::{bridge, Endpoint};
-    // The node's name, checked before anything starts.
-    let ros_name = a.ros2.then(|| {
-        ros_domain(a).and_then(|d| {
-            evoloop_report::ros2::rmw_zenoh::NodeName::new(d, &a.ros_namespace, &a.ros_node)
-        })
-    });
-    let ros_name = match ros_name.transpose() {
-        Ok(name) => name,
-        Err(e) => {
-            err!("error: --ros2: {e}");
-            return 2;
-        }
-    };
-    // A named run may be starting with the bridge (a script starts both): wait for it a while.
-    let t0 = std::time::Instant::now();
-    let run = loop {
-        match evoloop_run::run_watch::pick_run(a.run.as_deref()) {
-            Ok(r) => break r,
-            Err(_) if a.run.is_some() && t0.elapsed() < RUN_WAIT => {
-                std::thread::sleep(std::time::Duration::from_millis(50))
-            }
-            Err(e) => {
-                err!("error: {e}");
-                return 2;
-            }
-        }
-    };
-    // clap takes exactly one of the two.
-    let ep = match (&a.listen, &a.connect) {
-        (Some(l), _) => Endpoint::Listen(l.clone()),
-        (None, c) => Endpoint::Connect(c.clone().unwrap_or_default()),
-    };
-    if let Some(p) = &a.zenoh_config {
-        if !p.is_file() {
-            err!("error: --zenoh-config {}: no such file", p.display());
-            return 2;
-        }
-    }
-    let duration = a.duration.map(std::time::Duration::from_secs_f64);
-    let scenario = match a.ros2 {
-        true => match run.scenario(a.config.as_deref(), &Default::default()) {
-            Ok(s) => Some(s),
-            Err(e) => {
-                err!("error: --ros2: {e}");
-                return 2;
-            }
-        },
-        false => None,
-    };
-    let ros = scenario
-        .as_ref()
-        .zip(ros_name)
-        .map(|(scenario, name)| bridge::Ros2Bridge { name, scenario });
-    let stop = evoloop_run::node::start::stop_flag();
-    err!(
-        "evoloop bridge: run {} on Zenoh ({ep:?}), keys evoloop/{}/...",
-        run.run_id,
-        run.run_id
-    );
-    if let Some(r) = &ros {
-        err!(
-            "evoloop bridge: ROS 2 node {} `{}` in domain {} (rmw_zenoh)",
-            r.name.namespace,
-            r.name.name,
-            r.name.domain
-        );
-    }
-    match bridge::run(
-        &run.run_id,
-        &run.ipc_prefix,
-        &ep,
-        a.zenoh_config.as_deref(),
-        duration,
-        ros,
-        &stop,
-    ) {
-        Ok(r) => {
-            if a.json {
-                crate::print_json(&r);
-            } else {
-                err!(
-                    "evoloop bridge: {} ({:.1} s): out {} states, {} commands, {} telemetry, {} estimates; in {} parameter sets, {} estimates{}",
-                    r.ended,
-                    r.seconds,
-                    r.states,
-                    r.commands,
-                    r.telemetry,
-                    r.estimates_out,
-                    r.params_in,
-                    r.estimates_in,
-                    if r.refused > 0 {
-                        format!("; {} messages of another layout refused", r.refused)
-                    } else {
-                        String::new()
-                    }
-                );
-                if let Some(r2) = &r.ros2 {
-                    err!(
-                        "evoloop bridge: ROS 2 node {} (domain {}): {} messages out ({} joint states); {} sets of gains in: {} accepted, {} refused{}",
-                        r2.node,
-                        r2.domain,
-                        r2.messages_out,
-                        r2.joint_states_out,
-                        r2.sets_in,
-                        r2.sets_accepted,
-                        r2.sets_refused,
-                        r2.first_error
-                            .as_ref()
-                            .map(|e| format!("; {} puts failed, the first: {e}", r2.put_errors))
-                            .unwrap_or_default()
-                    );
-                }
-            }
-            0
-        }
+    match crate::network::commands("evoloop bridge") {
+        Ok(n) => n.bridge(a),
         Err(e) => {
             err!("error: {e}");
-            1
+            2
         }
     }
-}
-
-#[cfg(not(feature = "zenoh"))]
-pub fn main(_: &BridgeArgs) -> u8 {
-    err!("error: {}", evoloop_run::needs_zenoh("evoloop bridge"));
-    2
 }
 
 #[derive(clap::Args)]
@@ -211,66 +74,12 @@ pub struct BridgeBenchArgs {
 }
 
 /// `evoloop bench bridge`: a parameter set's round trip, local path against the bridge.
-#[cfg(feature = "zenoh")]
 pub fn bench(a: &BridgeBenchArgs) -> u8 {
-    use evoloop_run::bench::bridge as bench;
-    if a.sets == 0 {
-        err!("error: --sets must be at least 1");
-        return 2;
-    }
-    let scenario = a.scenario.clone().unwrap_or_else(bench::default_scenario);
-    let port = match bench::free_port() {
-        Ok(p) => p,
+    match crate::network::commands("evoloop bench bridge") {
+        Ok(n) => n.bench_bridge(a),
         Err(e) => {
             err!("error: {e}");
-            return 1;
-        }
-    };
-    match bench::run(&scenario, a.sets, port) {
-        Ok(r) => {
-            if a.json {
-                crate::print_json(&r);
-            } else {
-                let row = |name: &str, p: &evoloop_rt::timing::Percentiles| {
-                    let us = |ns: i64| ns as f64 / 1e3;
-                    out!(
-                        "  {name:38} p50 {:8.1} us  p90 {:8.1} us  p99 {:8.1} us  max {:8.1} us",
-                        us(p.p50_ns),
-                        us(p.p90_ns),
-                        us(p.p99_ns),
-                        us(p.max_ns)
-                    );
-                };
-                out!(
-                    "parameter set sent -> in service, seen by the sender ({} sets each, period {} ms):",
-                    r.sets_per_phase,
-                    r.period_s * 1e3
-                );
-                row("local (iceoryx2)", &r.local);
-                row("through the bridge (Zenoh, loopback)", &r.bridge);
-                row("local again", &r.local_again);
-                out!(
-                    "  the network adds {:.1} us at the median (set in and telemetry out)",
-                    r.added_p50_ns / 1e3
-                );
-                out!("a state's age on arrival (plant stamp -> receipt):");
-                row("iceoryx2", &r.state_local);
-                row("through the bridge", &r.state_bridge);
-            }
-            0
-        }
-        Err(e) => {
-            err!("error: {e}");
-            1
+            2
         }
     }
-}
-
-#[cfg(not(feature = "zenoh"))]
-pub fn bench(_: &BridgeBenchArgs) -> u8 {
-    err!(
-        "error: {}",
-        evoloop_run::needs_zenoh("evoloop bench bridge")
-    );
-    2
 }

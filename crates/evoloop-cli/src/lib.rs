@@ -15,6 +15,7 @@ pub mod identify_base;
 pub mod identify_excitation;
 pub mod identify_lls;
 pub mod identify_study;
+pub mod network;
 pub mod operator;
 pub mod optim;
 pub mod rkgnn;

@@ -53,21 +53,16 @@ fn workers(a: &TuneArgs) -> Result<evoloop_run::node::launcher::LocalWorkers, St
         (Some(_), _) => local_workers_endpoint()?,
         (None, Some(ep)) => ep.clone(),
     };
-    if !cfg!(feature = "zenoh") {
-        return Err(evoloop_run::needs_zenoh("--workers (or --workers-listen)"));
-    }
+    let net = evoloop_run::network::required("--workers (or --workers-listen)")?;
     // Niceness 10, the optimiser's default: they yield to whatever else runs here.
     let local = LocalWorkers::start(&listen, a.workers.unwrap_or(0) as usize, 1, 10, "tune")?;
-    #[cfg(feature = "zenoh")]
-    {
-        let expect = a
-            .workers
-            .map(usize::from)
-            .or(a.remote.workers_expect)
-            .unwrap_or(0);
-        let stop = std::sync::atomic::AtomicBool::new(false);
-        evoloop_net::workers::install(&listen, None, expect, &stop)?;
-    }
+    let expect = a
+        .workers
+        .map(usize::from)
+        .or(a.remote.workers_expect)
+        .unwrap_or(0);
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    net.install_workers(&listen, None, expect, &stop)?;
     Ok(local)
 }
 

@@ -55,106 +55,24 @@ pub struct BenchWorkersArgs {
     pub json: bool,
 }
 
-/// `evoloop bench workers`.
-#[cfg(feature = "zenoh")]
+/// `evoloop bench workers` (crate evoloop-net, through `crate::network`).
 pub fn bench(a: &BenchWorkersArgs) -> u8 {
-    use evoloop_run::bench::workers::{run, Settings};
-    if a.workers.is_empty() || a.workers.iter().any(|n| *n > 64) {
-        err!("error: --workers: give 0 to 64 workers per phase, e.g. 0,1,2");
-        return 2;
-    }
-    let s = Settings {
-        workers: a.workers.clone(),
-        population: a.population as usize,
-        populations: a.populations as usize,
-        threads: a.threads as usize,
-        worker_threads: a.worker_threads as usize,
-    };
-    match run(&s, |line| err!("  {line}")) {
-        Ok(r) => {
-            if a.json {
-                crate::print_json(&r);
-            }
-            0
-        }
+    match crate::network::commands("evoloop bench workers") {
+        Ok(n) => n.bench_workers(a),
         Err(e) => {
             err!("error: {e}");
-            1
+            2
         }
     }
 }
 
-#[cfg(not(feature = "zenoh"))]
-pub fn bench(_: &BenchWorkersArgs) -> u8 {
-    err!(
-        "error: {}",
-        evoloop_run::needs_zenoh("evoloop bench workers")
-    );
-    2
-}
-
-#[cfg(feature = "zenoh")]
+/// `evoloop worker` (crate evoloop-net, through `crate::network`).
 pub fn main(a: &WorkerArgs) -> u8 {
-    use evoloop_net::{workers, Endpoint};
-    if let Some(p) = &a.zenoh_config {
-        if !p.is_file() {
-            err!("error: --zenoh-config {}: no such file", p.display());
-            return 2;
-        }
-    }
-    let threads = a
-        .threads
-        .map_or_else(evoloop_optim::all_cores, |t| t as usize);
-    let id = workers::key_safe(&a.id.clone().unwrap_or_else(workers::default_id));
-    let stop = evoloop_run::node::start::stop_flag();
-    if let Some(n) = a.nice {
-        if !evoloop_rt::privileges::set_nice(n) {
-            err!("warning: evoloop worker: cannot set niceness {n}");
-        }
-    }
-    if !a.quiet {
-        err!(
-            "evoloop worker {id}: {threads} thread(s), build {}, serving on {}",
-            workers::build(),
-            a.connect
-        );
-    }
-    match workers::serve(
-        &Endpoint::Connect(a.connect.clone()),
-        a.zenoh_config.as_deref(),
-        &id,
-        threads,
-        a.duration.map(std::time::Duration::from_secs_f64),
-        &stop,
-    ) {
-        Ok(r) => {
-            if a.json {
-                crate::print_json(&r);
-            } else if !a.quiet {
-                err!(
-                    "evoloop worker {id}: {} runs, {} evaluations, busy {:.2} s of {:.1} s{}",
-                    r.batches,
-                    r.evaluations,
-                    r.busy_s,
-                    r.wall_s,
-                    if r.refused > 0 {
-                        format!("; {} runs refused", r.refused)
-                    } else {
-                        String::new()
-                    }
-                );
-            }
-            0
-        }
+    match crate::network::commands("evoloop worker") {
+        Ok(n) => n.worker(a),
         Err(e) => {
             err!("error: {e}");
-            1
+            2
         }
     }
-}
-
-#[cfg(not(feature = "zenoh"))]
-pub fn main(_: &WorkerArgs) -> u8 {
-    err!("error: {}", evoloop_run::needs_zenoh("evoloop worker"));
-    2
 }

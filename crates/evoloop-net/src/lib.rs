@@ -8,8 +8,11 @@
 //!   (`mirror::PREFIX`), and the optimiser's own code runs against it unchanged.
 //! - `evoloop worker --connect ENDPOINT` (`workers`) serves candidate evaluations to an optimiser
 //!   with `optimiser.workers = "zenoh"`, which spreads its costly populations over the workers up
-//!   (`optim::remote`); `evoloop bench workers` (`evoloop_run::bench::workers`) measures it;
-//!   `evoloop bench bridge` (`evoloop_run::bench::bridge`) the bridge.
+//!   (`optim::remote`); `evoloop bench workers` (`bench::workers`) measures it; `evoloop bench
+//!   bridge` (`bench::bridge`) the bridge.
+//! - `install` gives a binary all of it: evoloop-run's `network::Network` (workers and the
+//!   mirror for the optimiser process and `evoloop tune`) and evoloop-cli's `NetworkCommands`
+//!   (the commands above). This crate sits above both, so neither is compiled again for it.
 //!
 //! What crosses and which way (`ROUTES`):
 //!
@@ -36,7 +39,13 @@
 //! memory, behind a header with the type's versioned iceoryx2 name and size, so a peer of
 //! another build refuses a layout it does not share instead of misreading it.
 
+#[macro_use]
+extern crate evoloop_scenario;
+
+pub mod bench;
 pub mod bridge;
+pub mod cli;
+mod hooks;
 pub mod mirror;
 pub mod ros2;
 pub mod wire;
@@ -47,6 +56,12 @@ use std::time::Duration;
 use zenoh::Wait;
 
 use crate::ipc::Topic;
+
+/// Install the network into this process: call first thing in `main`.
+pub fn install() {
+    evoloop_run::network::install(&hooks::Zenoh);
+    evoloop_cli::network::install(&cli::Commands);
+}
 use evoloop_ipc as ipc;
 use evoloop_msg as msg;
 use evoloop_optim as optim;

@@ -4,6 +4,7 @@
 //!   supervises and stops them, the live view's server and the replay.
 //! - `run_report`: the report built after a run (report.html, plots, summary.json, seeds).
 //! - `bench`: the latency and loop benchmarks, against raw iceoryx2 and the bare loop.
+//! - `network`: what a run asks of the network (Zenoh), which crate `evoloop-net` provides.
 //! - `soak`, `run_watch`: a long run's accounting, and what `evoloop top` and the live view
 //!   gather of a running run.
 
@@ -11,6 +12,7 @@
 extern crate evoloop_scenario;
 
 pub mod bench;
+pub mod network;
 pub mod node;
 pub mod run_report;
 pub mod run_watch;
@@ -27,8 +29,6 @@ use evoloop_files as files;
 use evoloop_identify::rkgnn;
 use evoloop_ipc as ipc;
 use evoloop_msg as msg;
-#[cfg(feature = "zenoh")]
-use evoloop_net as net;
 use evoloop_optim as optim;
 use evoloop_report as report;
 use evoloop_rt as rt;

@@ -504,7 +504,7 @@ struct Prepared {
 fn prepare(a: &mut RunArgs) -> Result<Prepared, ExitCode> {
     let file = a.file.clone().unwrap_or_else(default_scenario);
     // `--workers N`: the optimiser listens on a free loopback port and waits for N workers.
-    if a.workers.is_some() && !cfg!(feature = "zenoh") {
+    if a.workers.is_some() && crate::network::get().is_none() {
         err!("error: {}", crate::needs_zenoh("--workers"));
         return Err(ExitCode::from(2));
     }

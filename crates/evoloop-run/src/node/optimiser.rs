@@ -851,57 +851,42 @@ mod workers {
     /// The workers this optimiser listens for, if any.
     #[derive(Default)]
     pub struct Pool {
-        #[cfg(feature = "zenoh")]
-        zenoh: Option<&'static crate::net::workers::ZenohWorkers>,
+        workers: Option<&'static dyn crate::network::Workers>,
     }
 
-    /// Listen for workers and install them; wait for `workers_expect` of them.
-    #[cfg(feature = "zenoh")]
+    /// Listen for workers and install them; wait for `workers_expect` of them. (`load` refuses
+    /// `workers = "zenoh"` in a binary without the network.)
     pub fn start(scn: &Scenario, stop: &AtomicBool) -> Result<Pool, String> {
         let Some(w) = &scn.optimiser.workers else {
             return Ok(Pool::default());
         };
-        let z = crate::net::workers::install(&w.listen, w.zenoh_config.as_deref(), w.expect, stop)?;
-        Ok(Pool { zenoh: Some(z) })
-    }
-
-    /// None in this build: the configuration refuses `workers = "zenoh"` without the feature.
-    #[cfg(not(feature = "zenoh"))]
-    pub fn start(_: &Scenario, _: &AtomicBool) -> Result<Pool, String> {
-        Ok(Pool::default())
+        let net = crate::network::required("optimiser.workers = \"zenoh\"")?;
+        let z = net.install_workers(&w.listen, w.zenoh_config.as_deref(), w.expect, stop)?;
+        Ok(Pool { workers: Some(z) })
     }
 
     /// The evaluations by where they ran, and every worker seen, into the report.
     pub fn finish(pool: Pool, report: &mut OptimiserReport) {
         report.evaluations = crate::optim::remote::totals();
-        #[cfg(feature = "zenoh")]
-        if let Some(z) = pool.zenoh {
-            report.workers = z
-                .stats()
-                .into_iter()
-                .map(|(id, s)| (id, serde_json::to_value(s).unwrap_or_default()))
-                .collect();
+        if let Some(z) = pool.workers {
+            report.workers = z.stats();
         }
-        #[cfg(not(feature = "zenoh"))]
-        let Pool {} = pool;
     }
 }
 
 /// The optimiser on another host (`--connect`): the run mirrored into the namespace of remote
-/// optimisers (`net::mirror::PREFIX`).
+/// optimisers (`Network::mirror_prefix`).
 mod remote {
     use super::{fail, Failure, WHO};
     use crate::node::args::OptimiserArgs;
 
-    #[cfg(feature = "zenoh")]
-    pub type Mirror = crate::net::mirror::Mirror;
-    #[cfg(not(feature = "zenoh"))]
-    pub type Mirror = ();
+    pub type Mirror = Box<dyn crate::network::Mirror>;
 
     /// Start mirroring the run (realtime runs only) and point the process at the mirror's
     /// iceoryx2 namespace.
-    #[cfg(feature = "zenoh")]
     pub fn join(cli: &mut OptimiserArgs, ep: String) -> Mirror {
+        let net =
+            crate::network::required("--connect").unwrap_or_else(|e| fail(WHO, Failure::Setup(e)));
         // Checked before `start` creates this process's iceoryx2 node: a refused optimiser
         // leaves nothing in the namespace (the scenario is loaded again there, as always).
         let scn = crate::node::start::load_scenario(&cli.args, WHO);
@@ -925,9 +910,8 @@ mod remote {
         // A namespace of its own (the run's id may also be running on this host), one for
         // every remote optimiser of this user: iceoryx2 keeps a small management file per
         // prefix, and a node created here cleans up what a killed predecessor left.
-        cli.args.ipc_prefix = crate::net::mirror::PREFIX.to_string();
-        let ep = crate::net::Endpoint::Connect(ep);
-        crate::net::mirror::Mirror::start(
+        cli.args.ipc_prefix = net.mirror_prefix().to_string();
+        net.mirror(
             &cli.args.run_id,
             &cli.args.ipc_prefix,
             ep,
@@ -936,30 +920,10 @@ mod remote {
         .unwrap_or_else(|e| fail(WHO, Failure::Setup(e)))
     }
 
-    #[cfg(not(feature = "zenoh"))]
-    pub fn join(_: &mut OptimiserArgs, _: String) -> Mirror {
-        fail(WHO, Failure::Setup(crate::needs_zenoh("--connect")))
-    }
-
     /// Stop the mirror and write what crossed the network (network.json).
-    #[cfg(feature = "zenoh")]
     pub fn finish(m: Mirror, dir: &std::path::Path) {
-        match m.join() {
-            Ok(r) => {
-                eprintln!(
-                    "{WHO}: over the network: {} states, {} commands in; {} sets, {} estimates out",
-                    r.states_in, r.commands_in, r.params_out, r.estimates_out
-                );
-                if let Err(e) = crate::report::write_json(dir, "network.json", &r) {
-                    eprintln!("{WHO}: cannot write network.json: {e}");
-                }
-            }
-            Err(e) => eprintln!("{WHO}: network mirror: {e}"),
-        }
+        m.finish(dir);
     }
-
-    #[cfg(not(feature = "zenoh"))]
-    pub fn finish(_: Mirror, _: &std::path::Path) {}
 }
 
 #[cfg(test)]

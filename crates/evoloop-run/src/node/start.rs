@@ -79,12 +79,11 @@ pub fn ports<P>(who: &str, build: impl FnOnce() -> Result<P, IpcError>) -> P {
 }
 
 /// Load a scenario to run in this build: the loader's checks, then what this build cannot do.
-/// Without the `zenoh` feature, evaluation workers over Zenoh are refused here, naming the key,
-/// rather than in the loader: a feature of the loader's crate would make the `zenoh` build
-/// compile every crate above it a second time.
+/// In a binary without the network (`crate::network`), evaluation workers over Zenoh are refused
+/// here, naming the key, rather than in the loader, which knows nothing of binaries.
 pub fn load(path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
     let scn = Scenario::load(path, ov)?;
-    if scn.optimiser.workers.is_some() && !cfg!(feature = "zenoh") {
+    if scn.optimiser.workers.is_some() && crate::network::get().is_none() {
         return Err(ConfigError {
             file: path.to_path_buf(),
             key: "optimiser.workers".into(),

@@ -3,9 +3,9 @@
 //! every phase, and what the remote path costs per run and per evaluation (a run's round trip
 //! minus the worker's own compute time), for the scaling model in the book.
 
-use crate::net::workers::ZenohWorkers;
 use crate::optim::remote::{totals, Workers as _};
 use crate::optim::{evaluate, Objective};
+use crate::workers::ZenohWorkers;
 use serde::Serialize;
 use std::time::{Duration, Instant};
 
@@ -55,14 +55,17 @@ pub struct Report {
     pub phases: Vec<Phase>,
     /// The remote path alone: runs of one candidate of a near-empty job to one worker, nothing
     /// else running here: round trip minus the worker's compute time, us.
-    pub probe: crate::rt::timing::Percentiles,
+    pub probe: evoloop_rt::timing::Percentiles,
     pub probe_runs: usize,
 }
 
 /// The maglev model every phase evaluates: the fuzzy-network paper's 2.5 s experiment with the
 /// fuzzy anti-windup PID.
-fn objective() -> crate::sim::maglev::Objective {
-    crate::sim::maglev::Objective::fuzzy(crate::sim::maglev::Spec::default().duration, 1)
+fn objective() -> evoloop_scenario::sim::maglev::Objective {
+    evoloop_scenario::sim::maglev::Objective::fuzzy(
+        evoloop_scenario::sim::maglev::Spec::default().duration,
+        1,
+    )
 }
 
 /// `n` sets about the paper's tuned one (+-10 %, seeded).
@@ -71,7 +74,7 @@ fn candidates(n: usize, seed: u64) -> Vec<Vec<f64>> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     (0..n)
         .map(|_| {
-            crate::sim::maglev::PAPER_FUZZY
+            evoloop_scenario::sim::maglev::PAPER_FUZZY
                 .iter()
                 .map(|v| v * rng.gen_range(0.9..1.1))
                 .collect()
@@ -111,9 +114,9 @@ fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
 }
 
 pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
-    let ep = crate::node::launcher::local_workers_endpoint()?;
+    let ep = evoloop_run::node::launcher::local_workers_endpoint()?;
     let stop = std::sync::atomic::AtomicBool::new(false);
-    let pool = crate::net::workers::install(&ep, None, 0, &stop)?;
+    let pool = crate::workers::install(&ep, None, 0, &stop)?;
     let f = objective();
     let local_us = {
         let mut t: Vec<f64> = candidates(s.population, 99)
@@ -134,7 +137,7 @@ pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
     let mut phases = Vec::new();
     let mut probe = Vec::new();
     for (k, &n) in s.workers.iter().enumerate() {
-        let procs = crate::node::launcher::LocalWorkers::start(
+        let procs = evoloop_run::node::launcher::LocalWorkers::start(
             &ep,
             n,
             s.worker_threads,
@@ -209,7 +212,7 @@ pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
             std::thread::sleep(Duration::from_millis(20));
         }
     }
-    let p = crate::rt::timing::Percentiles::from_samples(probe.iter().map(|us| (us * 1e3) as i64));
+    let p = evoloop_rt::timing::Percentiles::from_samples(probe.iter().map(|us| (us * 1e3) as i64));
     if !probe.is_empty() {
         progress(&format!(
             "remote path alone (1 worker, {} runs of 1 near-empty evaluation): {:.0} us median, {:.0} us p90",

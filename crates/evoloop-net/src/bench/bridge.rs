@@ -12,11 +12,11 @@
 //! drifted. They cannot interleave sample by sample: the run's params topic takes two
 //! publishers (its optimiser's and one more).
 
+use crate::bridge::{ipc_err, BridgeReport};
 use crate::ipc::{Ipc, Topic};
 use crate::msg::{ParamKind, ParamSet, PlantState, Telemetry};
-use crate::net::bridge::{ipc_err, BridgeReport};
-use crate::net::{key, open, wire, Endpoint};
-use crate::rt::timing::Percentiles;
+use crate::{key, open, wire, Endpoint};
+use evoloop_rt::timing::Percentiles;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -60,7 +60,7 @@ pub fn run(scenario: &std::path::Path, sets: usize, port: u16) -> Result<BridgeB
     let out = std::env::temp_dir().join(format!("evoloop-bench-bridge-{pid}"));
     let mut child = start_run(scenario, &run_id, &prefix, &out)?;
     let result = measure(&run_id, &prefix, kind, &gains, sets, port, scn.period_ns());
-    crate::node::launcher::signal(&child, libc::SIGTERM);
+    evoloop_run::node::launcher::signal(&child, libc::SIGTERM);
     let _ = child.wait();
     let _ = std::fs::remove_dir_all(&out);
     let m = result?;
@@ -196,7 +196,7 @@ fn state_ages(
     let mut ages = Vec::with_capacity(STATES);
     while ages.len() < STATES {
         if let Some(s) = next()? {
-            ages.push(crate::rt::clock::now_ns().saturating_sub(s.stamp_ns) as f64);
+            ages.push(evoloop_rt::clock::now_ns().saturating_sub(s.stamp_ns) as f64);
         }
     }
     Ok(ages)
@@ -263,12 +263,12 @@ fn measure(
             stop.clone(),
         );
         std::thread::spawn(move || {
-            crate::net::bridge::run(&run_id, &prefix, &ep, None, None, None, &stop)
+            crate::bridge::run(&run_id, &prefix, &ep, None, None, None, &stop)
         })
     };
     let z = open(&Endpoint::Connect(ep), None)?;
-    let zt = crate::net::bridge::subscriber(&z, key(run_id, Topic::Telemetry, false))?;
-    let zp = crate::net::bridge::publisher(
+    let zt = crate::bridge::subscriber(&z, key(run_id, Topic::Telemetry, false))?;
+    let zp = crate::bridge::publisher(
         &z,
         key(run_id, Topic::Params, false),
         zenoh::qos::CongestionControl::Block,
@@ -280,7 +280,7 @@ fn measure(
         || recv(&zt),
     )?;
     let state_bridge = {
-        let zs = crate::net::bridge::subscriber(&z, key(run_id, Topic::State, false))?;
+        let zs = crate::bridge::subscriber(&z, key(run_id, Topic::State, false))?;
         state_ages(|| recv(&zs))?
     };
     stop.store(true, Ordering::SeqCst);
@@ -300,9 +300,9 @@ fn measure(
 }
 
 /// A free TCP port on loopback.
-pub use crate::node::launcher::free_port;
+pub use evoloop_run::node::launcher::free_port;
 
 /// The scenario `bench bridge` runs by default.
 pub fn default_scenario() -> PathBuf {
-    crate::node::launcher::shipped("config/two_mass.toml")
+    evoloop_run::node::launcher::shipped("config/two_mass.toml")
 }
