@@ -120,6 +120,7 @@ class Environment:
         self.states, self.joints = int(g("STATES")), int(g("JOINTS"))
         self.outputs, self.inputs = int(g("OUTPUTS")), int(g("INPUTS"))
         self.seed = int(e.get("EVOLOOP_SEED", "1"))
+        self.spin_us = float(e.get("EVOLOOP_SPIN_US", "0"))
 
 
 class Plant:
@@ -151,11 +152,24 @@ class Plant:
 
 
 def _fill(array, values, n, what):
-    v = [] if values is None else [float(x) for x in np.ravel(values)]
-    if values is not None and len(v) != n:
-        raise Failure(2, f"{what} has {len(v)} values, the scenario declares {n}")
-    for i in range(n):
-        array[i] = v[i] if v else 0.0
+    """Write the first n entries of a ctypes array from a list, tuple or NumPy array (or zeros
+    for None), by one slice assignment: the per-sample path allocates nothing beyond what the
+    plant returned."""
+    if values is None:
+        array[:n] = _ZEROS[:n]
+        return
+    if not isinstance(values, (list, tuple)):
+        values = np.ravel(values).tolist()
+    if len(values) != n:
+        raise Failure(2, f"{what} has {len(values)} values, the scenario declares {n}")
+    try:
+        array[:n] = values
+    except TypeError:  # ints or NumPy scalars: ctypes takes only floats into c_double
+        array[:n] = [float(x) for x in values]
+
+
+_ZEROS = [0.0] * max(MAX_STATES, MAX_JOINTS)
+_NANS = [math.nan] * max(MAX_STATES, MAX_JOINTS)
 
 
 class _Ports:
@@ -167,6 +181,12 @@ class _Ports:
         import iceoryx2 as iox2
 
         self.iox2 = iox2
+        # The poll before blocking (EVOLOOP_SPIN_US, the scenario's timing.spin_us): in lockstep
+        # the controller answers within tens of microseconds, sooner than a sleep on an event
+        # and the wake-up after it.
+        self.spin_s = env.spin_us * 1e-6
+        # Where a received message is copied, once per port: no object per message.
+        self.received = {}
         iox2.set_log_level_from_env_or(iox2.LogLevel.Error)
         cfg = iox2.config.global_config()
         cfg.global_cfg.prefix = iox2.FileName.new(env.prefix)
@@ -220,16 +240,35 @@ class _Ports:
         except self.iox2.ListenerWaitError:
             pass
 
-    @staticmethod
-    def take(subscriber):
-        """The next message, copied out of shared memory (the loan returned at once), or None."""
+    def take(self, subscriber, payload):
+        """The next message, copied out of shared memory into this port's one buffer of type
+        `payload` (the loan returned at once; read it before the next `take` of this port), or
+        None."""
         sample = subscriber.receive()
         if sample is None:
             return None
-        contents = sample.payload().contents
-        copy = type(contents).from_buffer_copy(contents)
+        into = self.received.get(id(subscriber))
+        if into is None:
+            into = self.received[id(subscriber)] = payload()
+        ctypes.memmove(ctypes.addressof(into), sample.payload_ptr, ctypes.sizeof(payload))
         sample.delete()
-        return copy
+        return into
+
+    def poll(self, subscriber, payload, listener, seconds):
+        """`take`, polling for up to the spin time before sleeping on `listener` for `seconds`
+        (or until woken): None when nothing came."""
+        m = self.take(subscriber, payload)
+        if m is not None or self.spin_s <= 0:
+            if m is None:
+                self.wait(listener, seconds)
+            return m
+        until = time.perf_counter() + self.spin_s
+        while time.perf_counter() < until:
+            m = self.take(subscriber, payload)
+            if m is not None:
+                return m
+        self.wait(listener, seconds)
+        return None
 
     def publish(self, s):
         self.state.send_copy(s)
@@ -252,7 +291,14 @@ class _Runner:
     def __init__(self, plant, env, ports, stopped):
         self.plant, self.env, self.ports = plant, env, ports
         self._stopped = stopped
+        # The one message every sample is written into (and copied from into shared memory): its
+        # counts, and the NaN truth of a plant without one, are set once.
         self.msg = PlantState()
+        self.msg.n_x, self.msg.n_q, self.msg.n_y = env.states, env.joints, env.outputs
+        if not plant.truth:
+            for field, n in ((self.msg.x_true, env.states), (self.msg.q_true, env.joints),
+                             (self.msg.qd_true, env.joints)):
+                field[:n] = _NANS[:n]
         self.y = None
         self.t = 0.0
 
@@ -264,20 +310,20 @@ class _Runner:
     def sample(self, seq, u_applied, flags=0):
         e, m = self.env, self.msg
         m.seq, m.stamp_ns, m.t, m.flags = seq, time.monotonic_ns(), self.t, flags
-        m.n_x, m.n_q, m.n_y = e.states, e.joints, e.outputs
         _fill(m.y, self.y, e.outputs, "step()'s y")
         _fill(m.u_applied, u_applied, e.inputs, "the command")
         if not self.plant.truth:
-            for field, n in ((m.x_true, e.states), (m.q_true, e.joints), (m.qd_true, e.joints)):
-                for i in range(n):
-                    field[i] = math.nan
             return m
         _fill(m.x_true, self.plant.state(), e.states, "state()")
         j = self.plant.joints(self.y)
         if j is None and e.joints > e.outputs:
             raise Failure(2, f"the scenario declares {e.joints} joints and {e.outputs} outputs: "
                           "override Plant.joints(y) to give q and qd")
-        q, qd = (list(np.ravel(self.y))[:e.joints], None) if j is None else j
+        if j is None:
+            y = self.y if isinstance(self.y, (list, tuple)) else np.ravel(self.y).tolist()
+            q, qd = y[:e.joints], None
+        else:
+            q, qd = j
         _fill(m.q_true, q, e.joints, "joints()'s q")
         _fill(m.qd_true, qd, e.joints, "joints()'s qd")
         return m
@@ -330,7 +376,7 @@ class _Runner:
         def drain():
             """(any ack heard, one for sample k among them)."""
             heard = False
-            while (a := p.take(p.ack)) is not None:
+            while (a := p.take(p.ack, OptimiserAck)) is not None:
                 heard = True
                 if a.through_seq == U64_MAX or a.through_seq >= k:
                     return True, True
@@ -359,17 +405,17 @@ class _Runner:
                 return True
 
     def wait_for_command(self, k):
-        p = self.ports
+        p, inputs = self.ports, self.env.inputs
         limit = time.monotonic() + self.env.timeout
+        wait = min(0.1, self.env.timeout)
         while not self.stop:
-            c = p.take(p.command)
+            c = p.poll(p.command, Command, p.command_wake, wait)
             if c is not None:
                 if c.state_seq == k:
-                    return [c.u[i] for i in range(self.env.inputs)]
+                    return c.u[:inputs]
                 continue
             if time.monotonic() > limit:
                 raise Failure(3, f"controller did not answer sample {k} within {self.env.timeout} s")
-            p.wait(p.command_wake, min(0.1, self.env.timeout))
         return None
 
     def realtime(self):
@@ -385,12 +431,12 @@ class _Runner:
             if pause > 0:
                 time.sleep(pause)
             while True:
-                c = p.take(p.command)
+                c = p.take(p.command, Command)
                 if c is None:
                     break
                 at = min(max(c.stamp_ns, epoch + round(self.t * 1e9)), tick)
                 self.advance(u, (at - epoch) / 1e9 - self.t)
-                u = [c.u[i] for i in range(e.inputs)]
+                u = c.u[:e.inputs]
                 last, safe_mode = at, False
             if last is not None and not safe_mode and tick - last > timeout_ns:
                 self.advance(u, (last + timeout_ns - epoch) / 1e9 - self.t)
