@@ -154,18 +154,22 @@ class Plant:
 def _fill(array, values, n, what):
     """Write the first n entries of a ctypes array from a list, tuple or NumPy array (or zeros
     for None), by one slice assignment: the per-sample path allocates nothing beyond what the
-    plant returned."""
+    plant returned. Anything else NumPy can flatten (nested lists, a list of arrays) goes
+    through NumPy first, as every value once did."""
     if values is None:
         array[:n] = _ZEROS[:n]
         return
-    if not isinstance(values, (list, tuple)):
+    if not isinstance(values, (list, tuple)) or len(values) != n:
         values = np.ravel(values).tolist()
     if len(values) != n:
         raise Failure(2, f"{what} has {len(values)} values, the scenario declares {n}")
     try:
         array[:n] = values
-    except TypeError:  # ints or NumPy scalars: ctypes takes only floats into c_double
-        array[:n] = [float(x) for x in values]
+    except TypeError:  # nested sequences, or entries ctypes does not take as a double
+        flat = np.ravel(values).tolist()
+        if len(flat) != n:
+            raise Failure(2, f"{what} has {len(flat)} values, the scenario declares {n}")
+        array[:n] = [float(x) for x in flat]
 
 
 _ZEROS = [0.0] * max(MAX_STATES, MAX_JOINTS)
@@ -295,10 +299,7 @@ class _Runner:
         # counts, and the NaN truth of a plant without one, are set once.
         self.msg = PlantState()
         self.msg.n_x, self.msg.n_q, self.msg.n_y = env.states, env.joints, env.outputs
-        if not plant.truth:
-            for field, n in ((self.msg.x_true, env.states), (self.msg.q_true, env.joints),
-                             (self.msg.qd_true, env.joints)):
-                field[:n] = _NANS[:n]
+        self.nan_truth = False  # the truth fields hold NaN (written at the first truthless sample)
         self.y = None
         self.t = 0.0
 
@@ -313,7 +314,13 @@ class _Runner:
         _fill(m.y, self.y, e.outputs, "step()'s y")
         _fill(m.u_applied, u_applied, e.inputs, "the command")
         if not self.plant.truth:
+            if not self.nan_truth:
+                for field, n in ((m.x_true, e.states), (m.q_true, e.joints),
+                                 (m.qd_true, e.joints)):
+                    field[:n] = _NANS[:n]
+                self.nan_truth = True
             return m
+        self.nan_truth = False
         _fill(m.x_true, self.plant.state(), e.states, "state()")
         j = self.plant.joints(self.y)
         if j is None and e.joints > e.outputs:

@@ -423,8 +423,8 @@ pub(super) fn three_joint_arm(robot: &Path, dir: &Path) -> Result<(PathBuf, Mode
     Ok((robot, arm))
 }
 
-/// Simulate the cases on up to `threads` threads (contiguous shares: the cases cost about the
-/// same), in order; `done` after each.
+/// Simulate the cases on the pool of `threads` workers (each takes the next case when it is
+/// free), the results in the cases' order; `done` after each.
 pub(super) fn simulate_all(
     cases: &[Case],
     threads: usize,
