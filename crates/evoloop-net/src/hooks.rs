@@ -22,17 +22,12 @@ impl evoloop_run::network::Network for Zenoh {
     fn mirror(
         &self,
         run_id: &str,
-        prefix: &str,
         connect: String,
         zenoh_config: Option<PathBuf>,
     ) -> Result<Box<dyn evoloop_run::network::Mirror>, String> {
         let ep = crate::Endpoint::Connect(connect);
-        Ok(Box::new(crate::mirror::Mirror::start(
-            run_id,
-            prefix,
-            ep,
-            zenoh_config,
-        )?))
+        let m = crate::mirror::Mirror::start(run_id, crate::mirror::PREFIX, ep, zenoh_config)?;
+        Ok(Box::new(m))
     }
 
     fn mirror_prefix(&self) -> &'static str {
@@ -50,19 +45,15 @@ impl evoloop_run::network::Workers for crate::workers::ZenohWorkers {
 }
 
 impl evoloop_run::network::Mirror for crate::mirror::Mirror {
-    fn finish(self: Box<Self>, dir: &Path) {
-        const WHO: &str = "evoloop-optimiser";
-        match self.join() {
-            Ok(r) => {
-                eprintln!(
-                    "{WHO}: over the network: {} states, {} commands in; {} sets, {} estimates out",
-                    r.states_in, r.commands_in, r.params_out, r.estimates_out
-                );
-                if let Err(e) = crate::report::write_json(dir, "network.json", &r) {
-                    eprintln!("{WHO}: cannot write network.json: {e}");
-                }
-            }
-            Err(e) => eprintln!("{WHO}: network mirror: {e}"),
+    fn finish(self: Box<Self>, dir: &Path) -> Result<String, String> {
+        let r = self.join()?;
+        let line = format!(
+            "{} states, {} commands in; {} sets, {} estimates out",
+            r.states_in, r.commands_in, r.params_out, r.estimates_out
+        );
+        match crate::report::write_json(dir, "network.json", &r) {
+            Ok(()) => Ok(line),
+            Err(e) => Err(format!("{line}; cannot write network.json: {e}")),
         }
     }
 }

@@ -22,12 +22,11 @@ pub trait Network: Sync {
         stop: &AtomicBool,
     ) -> Result<&'static dyn Workers, String>;
 
-    /// Mirror run `run_id` from the bridge at `connect` into the iceoryx2 namespace `prefix`
-    /// (`mirror_prefix`), so that an optimiser on this host runs against it unchanged.
+    /// Mirror run `run_id` from the bridge at `connect` into the iceoryx2 namespace of remote
+    /// optimisers (`mirror_prefix`), so that an optimiser on this host runs against it unchanged.
     fn mirror(
         &self,
         run_id: &str,
-        prefix: &str,
         connect: String,
         zenoh_config: Option<PathBuf>,
     ) -> Result<Box<dyn Mirror>, String>;
@@ -44,8 +43,9 @@ pub trait Workers: Sync {
 
 /// A remote optimiser's mirror of the run, running until `finish`.
 pub trait Mirror: Send {
-    /// Stop mirroring; say what crossed the network and write it into `dir` (network.json).
-    fn finish(self: Box<Self>, dir: &Path);
+    /// Stop mirroring and write what crossed the network into `dir` (network.json); a line
+    /// that says it, or why it could not.
+    fn finish(self: Box<Self>, dir: &Path) -> Result<String, String>;
 }
 
 static NETWORK: OnceLock<&'static dyn Network> = OnceLock::new();

@@ -504,8 +504,8 @@ struct Prepared {
 fn prepare(a: &mut RunArgs) -> Result<Prepared, ExitCode> {
     let file = a.file.clone().unwrap_or_else(default_scenario);
     // `--workers N`: the optimiser listens on a free loopback port and waits for N workers.
-    if a.workers.is_some() && crate::network::get().is_none() {
-        err!("error: {}", crate::needs_zenoh("--workers"));
+    if let (Some(_), Err(e)) = (a.workers, crate::network::required("--workers")) {
+        err!("error: {e}");
         return Err(ExitCode::from(2));
     }
     // The workers to start and where: set as the optimiser's overrides.

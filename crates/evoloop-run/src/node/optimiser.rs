@@ -122,8 +122,11 @@ pub fn main(cli: &OptimiserArgs) {
     if let Err(e) = write_json(&scn.output.dir, "optimiser.json", &report) {
         eprintln!("{WHO}: cannot write optimiser.json: {e}");
     }
-    if let Some(m) = mirror {
-        remote::finish(m, &scn.output.dir);
+    // What crossed the network, said and written (network.json).
+    match mirror.map(|m| m.finish(&scn.output.dir)) {
+        Some(Ok(line)) => eprintln!("{WHO}: over the network: {line}"),
+        Some(Err(e)) => eprintln!("{WHO}: network mirror: {e}"),
+        None => {}
     }
     if let Err(e) = result {
         leave_and_fail(WHO, ports, ipc, e);
@@ -849,26 +852,23 @@ mod workers {
     use std::sync::atomic::AtomicBool;
 
     /// The workers this optimiser listens for, if any.
-    #[derive(Default)]
-    pub struct Pool {
-        workers: Option<&'static dyn crate::network::Workers>,
-    }
+    pub type Pool = Option<&'static dyn crate::network::Workers>;
 
     /// Listen for workers and install them; wait for `workers_expect` of them. (`load` refuses
     /// `workers = "zenoh"` in a binary without the network.)
     pub fn start(scn: &Scenario, stop: &AtomicBool) -> Result<Pool, String> {
         let Some(w) = &scn.optimiser.workers else {
-            return Ok(Pool::default());
+            return Ok(None);
         };
         let net = crate::network::required("optimiser.workers = \"zenoh\"")?;
-        let z = net.install_workers(&w.listen, w.zenoh_config.as_deref(), w.expect, stop)?;
-        Ok(Pool { workers: Some(z) })
+        net.install_workers(&w.listen, w.zenoh_config.as_deref(), w.expect, stop)
+            .map(Some)
     }
 
     /// The evaluations by where they ran, and every worker seen, into the report.
     pub fn finish(pool: Pool, report: &mut OptimiserReport) {
         report.evaluations = crate::optim::remote::totals();
-        if let Some(z) = pool.workers {
+        if let Some(z) = pool {
             report.workers = z.stats();
         }
     }
@@ -880,11 +880,9 @@ mod remote {
     use super::{fail, Failure, WHO};
     use crate::node::args::OptimiserArgs;
 
-    pub type Mirror = Box<dyn crate::network::Mirror>;
-
     /// Start mirroring the run (realtime runs only) and point the process at the mirror's
     /// iceoryx2 namespace.
-    pub fn join(cli: &mut OptimiserArgs, ep: String) -> Mirror {
+    pub fn join(cli: &mut OptimiserArgs, ep: String) -> Box<dyn crate::network::Mirror> {
         let net =
             crate::network::required("--connect").unwrap_or_else(|e| fail(WHO, Failure::Setup(e)));
         // Checked before `start` creates this process's iceoryx2 node: a refused optimiser
@@ -911,18 +909,8 @@ mod remote {
         // every remote optimiser of this user: iceoryx2 keeps a small management file per
         // prefix, and a node created here cleans up what a killed predecessor left.
         cli.args.ipc_prefix = net.mirror_prefix().to_string();
-        net.mirror(
-            &cli.args.run_id,
-            &cli.args.ipc_prefix,
-            ep,
-            cli.zenoh_config.clone(),
-        )
-        .unwrap_or_else(|e| fail(WHO, Failure::Setup(e)))
-    }
-
-    /// Stop the mirror and write what crossed the network (network.json).
-    pub fn finish(m: Mirror, dir: &std::path::Path) {
-        m.finish(dir);
+        net.mirror(&cli.args.run_id, ep, cli.zenoh_config.clone())
+            .unwrap_or_else(|e| fail(WHO, Failure::Setup(e)))
     }
 }
 

@@ -83,13 +83,15 @@ pub fn ports<P>(who: &str, build: impl FnOnce() -> Result<P, IpcError>) -> P {
 /// here, naming the key, rather than in the loader, which knows nothing of binaries.
 pub fn load(path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
     let scn = Scenario::load(path, ov)?;
-    if scn.optimiser.workers.is_some() && crate::network::get().is_none() {
-        return Err(ConfigError {
-            file: path.to_path_buf(),
-            key: "optimiser.workers".into(),
-            reason: crate::needs_zenoh("\"zenoh\""),
-            line: None,
-        });
+    if scn.optimiser.workers.is_some() {
+        if let Err(reason) = crate::network::required("\"zenoh\"") {
+            return Err(ConfigError {
+                file: path.to_path_buf(),
+                key: "optimiser.workers".into(),
+                reason,
+                line: None,
+            });
+        }
     }
     Ok(scn)
 }
