@@ -189,8 +189,6 @@ class _Ports:
         # the controller answers within tens of microseconds, sooner than a sleep on an event
         # and the wake-up after it.
         self.spin_s = env.spin_us * 1e-6
-        # Where a received message is copied, once per port: no object per message.
-        self.received = {}
         iox2.set_log_level_from_env_or(iox2.LogLevel.Error)
         cfg = iox2.config.global_config()
         cfg.global_cfg.prefix = iox2.FileName.new(env.prefix)
@@ -207,6 +205,8 @@ class _Ports:
         self.sync = self._event(f"{base}/sync").notifier_builder().create()
         self.command_service = self._pubsub(base, "command")
         self.command = self.command_service.subscriber_builder().buffer_size(8).create()
+        # Where each received message is copied: one buffer per port, no object per message.
+        self.command_in, self.ack_in = Command(), OptimiserAck()
         self.command_wake = self._event(f"{base}/command").listener_builder().create()
         self.ack_service = self._pubsub(base, "optimiser_ack")
         self.ack = self.ack_service.subscriber_builder().buffer_size(4).create()
@@ -244,35 +244,28 @@ class _Ports:
         except self.iox2.ListenerWaitError:
             pass
 
-    def take(self, subscriber, payload):
-        """The next message, copied out of shared memory into this port's one buffer of type
-        `payload` (the loan returned at once; read it before the next `take` of this port), or
-        None."""
+    @staticmethod
+    def take(subscriber, into):
+        """The next message, copied out of shared memory into `into` (the port's one buffer:
+        read it before the next `take` of the port; the loan is returned at once), or None."""
         sample = subscriber.receive()
         if sample is None:
             return None
-        into = self.received.get(id(subscriber))
-        if into is None:
-            into = self.received[id(subscriber)] = payload()
-        ctypes.memmove(ctypes.addressof(into), sample.payload_ptr, ctypes.sizeof(payload))
+        ctypes.memmove(ctypes.addressof(into), sample.payload_ptr, ctypes.sizeof(into))
         sample.delete()
         return into
 
-    def poll(self, subscriber, payload, listener, seconds):
-        """`take`, polling for up to the spin time before sleeping on `listener` for `seconds`
+    def poll(self, subscriber, into, listener, seconds):
+        """`take`, polling for up to the spin time, then sleeping on `listener` for `seconds`
         (or until woken): None when nothing came."""
-        m = self.take(subscriber, payload)
-        if m is not None or self.spin_s <= 0:
-            if m is None:
-                self.wait(listener, seconds)
-            return m
         until = time.perf_counter() + self.spin_s
-        while time.perf_counter() < until:
-            m = self.take(subscriber, payload)
+        while True:
+            m = self.take(subscriber, into)
             if m is not None:
                 return m
-        self.wait(listener, seconds)
-        return None
+            if time.perf_counter() >= until:
+                self.wait(listener, seconds)
+                return None
 
     def publish(self, s):
         self.state.send_copy(s)
@@ -383,7 +376,7 @@ class _Runner:
         def drain():
             """(any ack heard, one for sample k among them)."""
             heard = False
-            while (a := p.take(p.ack, OptimiserAck)) is not None:
+            while (a := p.take(p.ack, p.ack_in)) is not None:
                 heard = True
                 if a.through_seq == U64_MAX or a.through_seq >= k:
                     return True, True
@@ -416,7 +409,7 @@ class _Runner:
         limit = time.monotonic() + self.env.timeout
         wait = min(0.1, self.env.timeout)
         while not self.stop:
-            c = p.poll(p.command, Command, p.command_wake, wait)
+            c = p.poll(p.command, p.command_in, p.command_wake, wait)
             if c is not None:
                 if c.state_seq == k:
                     return c.u[:inputs]
@@ -438,7 +431,7 @@ class _Runner:
             if pause > 0:
                 time.sleep(pause)
             while True:
-                c = p.take(p.command, Command)
+                c = p.take(p.command, p.command_in)
                 if c is None:
                     break
                 at = min(max(c.stamp_ns, epoch + round(self.t * 1e9)), tick)
