@@ -33,6 +33,12 @@ pub struct Run {
     pub baseline_cost: f64,
     /// Experiments until the best cost is within 1 % of the GA's final cost (None: never).
     pub to_target: Option<usize>,
+    /// Repetitions spent settling between trials (`optimiser.settle`), and the plant's time
+    /// the run took: baseline, trials and settle repetitions, in seconds.
+    pub settle_repetitions: u64,
+    pub plant_seconds: f64,
+    /// The share of `plant_seconds` spent settling.
+    pub settle_share: f64,
 }
 
 impl Run {
@@ -54,6 +60,9 @@ pub struct Summary {
     pub final_cost_quartiles: [f64; 3],
     pub aborts_quartiles: [f64; 3],
     pub aborts_total: u64,
+    /// The plant's time a run took (s) and the share of it spent settling between trials.
+    pub plant_seconds_quartiles: [f64; 3],
+    pub settle_share_quartiles: [f64; 3],
     /// Against the GA, paired over seeds (not for the GA itself): runs where this one is
     /// lower (fewer experiments, lower cost) and the Wilcoxon p-value.
     pub vs_ga: Option<VsGa>,
@@ -107,8 +116,10 @@ pub fn run(
             out: a.out.clone(),
             ..Overrides::default()
         };
-        Scenario::parse(&toml::to_string(&t).map_err(|e| e.to_string())?, file, &ov)
-            .map_err(|e| e.to_string())
+        let mut scn = Scenario::parse(&toml::to_string(&t).map_err(|e| e.to_string())?, file, &ov)
+            .map_err(|e| e.to_string())?;
+        fit_settle(&mut scn);
+        Ok(scn)
     };
     // Every scenario first: a bad algorithm or scenario fails before any run.
     let mut jobs = Vec::new();
@@ -129,7 +140,7 @@ pub fn run(
         .map(|(alg, seed, scn)| {
             let r = evoloop_schemes::direct::run_in_process(scn, |_, _| {});
             bar.inc(1);
-            r.map(|r| one_run(alg, *seed, &r.report))
+            r.map(|r| one_run(alg, *seed, &r.report, scn.optimiser.repetition))
         })
         .collect::<Result<_, _>>()?;
     bar.abandon();
@@ -190,8 +201,25 @@ pub fn run(
     Ok(())
 }
 
-fn one_run(algorithm: &str, seed: u64, report: &evoloop_schemes::direct::DirectReport) -> Run {
+/// With settle repetitions between trials, the run is as long as the budget needs at most
+/// (every trial followed by `settle` of them), so that every optimiser spends its budget.
+fn fit_settle(scn: &mut Scenario) {
+    let o = &scn.optimiser;
+    if o.settle > 0 {
+        let trials = o.evaluations as f64 * (1.0 + f64::from(o.settle));
+        let needed = o.first_repetition + o.repetition * (trials + 1.0);
+        scn.timing.duration = scn.timing.duration.max(needed);
+    }
+}
+
+fn one_run(
+    algorithm: &str,
+    seed: u64,
+    report: &evoloop_schemes::direct::DirectReport,
+    repetition: f64,
+) -> Run {
     let trials: Vec<_> = report.repetitions.iter().filter(|r| r.trial > 0).collect();
+    let repetitions = report.repetitions.len() as u64 + report.settle_repetitions;
     let mut aborts = 0u32;
     Run {
         algorithm: algorithm.into(),
@@ -211,6 +239,9 @@ fn one_run(algorithm: &str, seed: u64, report: &evoloop_schemes::direct::DirectR
             .find(|r| r.trial == 0)
             .map_or(f64::NAN, |r| r.cost),
         to_target: None,
+        settle_repetitions: report.settle_repetitions,
+        plant_seconds: repetitions as f64 * repetition,
+        settle_share: report.settle_repetitions as f64 / repetitions.max(1) as f64,
     }
 }
 
@@ -272,21 +303,29 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
         final_cost_quartiles: quartiles(&finals(&mine)),
         aborts_quartiles: quartiles(&aborts(&mine)),
         aborts_total: mine.iter().map(|r| u64::from(r.total_aborts())).sum(),
+        plant_seconds_quartiles: quartiles(
+            &mine.iter().map(|r| r.plant_seconds).collect::<Vec<_>>(),
+        ),
+        settle_share_quartiles: quartiles(&mine.iter().map(|r| r.settle_share).collect::<Vec<_>>()),
         vs_ga,
     }
 }
 
 fn write_csv(dir: &Path, runs: &[Run]) -> Result<(), String> {
-    let mut s = String::from("algorithm,seed,baseline_cost,final_cost,aborts,to_target\n");
+    let mut s = String::from(
+        "algorithm,seed,baseline_cost,final_cost,aborts,to_target,settle_repetitions,plant_seconds\n",
+    );
     for r in runs {
         s.push_str(&format!(
-            "{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{}\n",
             r.algorithm,
             r.seed,
             r.baseline_cost,
             r.final_cost,
             r.total_aborts(),
-            r.to_target.map_or(String::new(), |k| k.to_string())
+            r.to_target.map_or(String::new(), |k| k.to_string()),
+            r.settle_repetitions,
+            r.plant_seconds
         ));
     }
     crate::files::write(dir.join("compare.csv"), s)
@@ -373,6 +412,19 @@ fn report_md(name: &str, budget: usize, seeds: usize, summaries: &[Summary]) -> 
         s.push_str(&format!(
             "- {}: {verdict}; {} aborts in all.\n",
             m.algorithm, m.aborts_total
+        ));
+    }
+    s.push_str(
+        "\nThe plant's time a run took (baseline, trials and the settle repetitions between \
+         them, `optimiser.settle`), and the share of it spent settling:\n\n\
+         | algorithm | plant time, s | settling |\n|---|---|---|\n",
+    );
+    for m in summaries {
+        s.push_str(&format!(
+            "| {} | {} | {} |\n",
+            m.algorithm,
+            q3(&m.plant_seconds_quartiles, 0),
+            q3(&m.settle_share_quartiles, 2)
         ));
     }
     s

@@ -31,6 +31,8 @@ pub struct RawOptimiser {
     pub envelope_output: Option<f64>,
     pub envelope_control: Option<f64>,
     pub cost_lag: Option<u32>,
+    pub settle: Option<u32>,
+    pub settle_band: Option<f64>,
     pub seed_configured: Option<bool>,
     pub phases: Option<[usize; 3]>,
     pub workers: Option<WorkersKind>,
@@ -195,6 +197,14 @@ pub struct OptimiserSpec {
     /// Direct: the output at sample k is judged against the reference `cost_lag` samples
     /// earlier (1 for the arsinh plant: eq. 25 compares x_{i+1} with w_i).
     pub cost_lag: u32,
+    /// Direct: after each trial, up to this many repetitions under the set in service (its
+    /// fallback) before the next trial starts, until the loop is back where that set leaves it
+    /// (`settle_band`); 0: trials back to back, each starting where the last left the plant.
+    pub settle: u32,
+    /// Direct: the loop has settled when a repetition under the set in service ends with its
+    /// mean output and command over the last 5 % of the repetition within this fraction of that
+    /// set's own peaks of where its own repetition ended.
+    pub settle_band: f64,
     /// Direct: the configured set is a member of the GA's initial population (it is tried
     /// again as a candidate, beside the baseline).
     pub seed_configured: bool,
@@ -252,6 +262,8 @@ pub fn validate(
         seed_configured: o.seed_configured.unwrap_or(false),
         phases: d.phases,
         cost_lag: check.count("optimiser.cost_lag", o.cost_lag.unwrap_or(0), 0, 16)?,
+        settle: check.count("optimiser.settle", o.settle.unwrap_or(0), 0, 100)?,
+        settle_band: range("settle_band", o.settle_band, 0.02, 1e-6, 1.0)?,
         mode,
         sync_period,
         nice,

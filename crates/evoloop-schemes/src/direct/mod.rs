@@ -25,6 +25,14 @@
 //! - Realtime: a candidate starts at the first boundary after its predecessor's cost is known, so
 //!   the fallback may serve a repetition between two trials; a trial whose samples did not all
 //!   reach the optimiser (queue overflow) is not scored but tried again.
+//! - `optimiser.settle` (not the paper's; off by default): back to back, a trial starts where its
+//!   predecessor left the plant and the controller's integrator, so the same set scores
+//!   differently after a gentle and after a wild predecessor, which a model of cost and safety
+//!   over the sets cannot know. With `settle = N` each trial is followed by up to N repetitions
+//!   under the set in service (the trial's fallback) until the loop is back on that set's
+//!   periodic orbit: the repetition's mean output and command over its last `TAIL` of samples
+//!   within `settle_band` of those of the last repetition the set served, scaled by that
+//!   repetition's peaks. The sensor and command only: what the optimiser sees on a real plant.
 
 use crate::config::Scenario;
 use crate::control::cycle::Envelope;
@@ -51,6 +59,9 @@ pub struct DirectSpec {
     pub lag: usize,
     pub envelope: Envelope,
     pub seed: u64,
+    /// Settle repetitions after a trial, at most (0: none) and the band they settle to.
+    pub settle: u32,
+    pub settle_band: f64,
 }
 
 impl DirectSpec {
@@ -67,6 +78,8 @@ impl DirectSpec {
             lag: o.cost_lag as usize,
             envelope: o.envelope,
             seed: scn.seed,
+            settle: o.settle,
+            settle_band: o.settle_band,
         }
     }
 
@@ -94,6 +107,12 @@ pub struct Repetition {
     /// (1 = never moved towards it, < 0 = left it; `Envelope::margin`). 0 in files from before.
     #[serde(default)]
     pub margin: f64,
+    /// Settle repetitions run under the set in service before it (`optimiser.settle`).
+    #[serde(default)]
+    pub settle: u32,
+    /// It started after the most settle repetitions allowed, the loop not back in the band.
+    #[serde(default)]
+    pub unsettled: bool,
     /// The best cost known after it.
     #[serde(with = "crate::indirect::infinite_as_null")]
     pub best: f64,
@@ -120,6 +139,68 @@ struct Running {
     t: f64,
     /// The smallest margin inside the envelope over its samples (`Envelope::margin`).
     margin: f64,
+    /// A settle repetition under the set in service (not scored as a trial).
+    settle: bool,
+    /// Where it leaves the loop.
+    tail: Tail,
+}
+
+/// Where a repetition left the loop: the sums of each output and command over its last `TAIL`
+/// of samples, and the peaks of |y| and |u| over all of it that scale a comparison.
+#[derive(Debug, Clone, Copy)]
+struct Tail {
+    from: u64,
+    samples: u64,
+    joints: usize,
+    y: [f64; crate::msg::MAX_JOINTS],
+    u: [f64; crate::msg::MAX_JOINTS],
+    peak_y: f64,
+    peak_u: f64,
+}
+
+/// The fraction of a repetition at its end whose means say where the loop is.
+const TAIL: f64 = 0.05;
+
+impl Tail {
+    fn new(start: u64, until: u64) -> Self {
+        let n = until - start;
+        let tail = ((n as f64 * TAIL).round() as u64).clamp(1, n.max(1));
+        Self {
+            from: until - tail,
+            samples: 0,
+            joints: 0,
+            y: [0.0; crate::msg::MAX_JOINTS],
+            u: [0.0; crate::msg::MAX_JOINTS],
+            peak_y: 0.0,
+            peak_u: 0.0,
+        }
+    }
+
+    fn add(&mut self, seq: u64, y: &[f64], u: &[f64]) {
+        let peak = |m: f64, v: &[f64]| v.iter().fold(m, |m, x| m.max(x.abs()));
+        self.peak_y = peak(self.peak_y, y);
+        self.peak_u = peak(self.peak_u, u);
+        if seq < self.from {
+            return;
+        }
+        self.joints = y.len().min(u.len());
+        for j in 0..self.joints {
+            self.y[j] += y[j];
+            self.u[j] += u[j];
+        }
+        self.samples += 1;
+    }
+
+    /// Whether this repetition ends within `band` of where `own` (the last repetition the set
+    /// in service ran) ended, each output and command scaled by `own`'s peak. NaN is never near.
+    fn near(&self, own: &Tail, band: f64) -> bool {
+        let (k, o) = (self.samples.max(1) as f64, own.samples.max(1) as f64);
+        let close = |a: f64, b: f64, scale: f64| (a / k - b / o).abs() <= band * scale;
+        self.joints == own.joints
+            && (0..self.joints).all(|j| {
+                close(self.y[j], own.y[j], own.peak_y) && close(self.u[j], own.u[j], own.peak_u)
+            })
+    }
 }
 
 impl Running {
@@ -134,6 +215,8 @@ impl Running {
         u_weight: f64,
     ) -> Self {
         Self {
+            settle: false,
+            tail: Tail::new(start, start + repetition),
             trial,
             version,
             index,
@@ -182,6 +265,16 @@ pub struct DirectTuner {
     pub incomplete: u64,
     /// The references of the last samples, by sequence number (`DirectSpec::lag`).
     refs: [[f64; crate::msg::MAX_JOINTS]; LAGS],
+    /// Where the last repetition the best set served left the loop.
+    best_tail: Option<Tail>,
+    /// The set in service while the running trial's settle segment lasts (its fallback): its
+    /// version and where the last repetition it served left the loop.
+    fallback: Option<(u64, Tail)>,
+    /// Settle repetitions run since the last trial ended; whether the last segment settled.
+    settling: u32,
+    settled: bool,
+    /// Settle repetitions over the run.
+    pub settle_repetitions: u64,
 }
 
 /// An aborted trial's margin is at most minus this.
@@ -194,6 +287,11 @@ impl DirectTuner {
     /// A tuner for the scenario: its optimiser over the controller's bounds, seeded with the
     /// scenario's seed. Validation has made sure the bounds are finite.
     pub fn new(scn: &Scenario) -> Result<Self, String> {
+        Ok(Self::with_optimiser(scn, Self::optimiser(scn)?))
+    }
+
+    /// The scenario's optimiser (`optimiser.algorithm`) over the controller's bounds.
+    fn optimiser(scn: &Scenario) -> Result<Box<dyn Optimiser + Send>, String> {
         let spec = DirectSpec::of(scn);
         let b = scn.bounds();
         let configured = scn.controller.tunable().gains.clone();
@@ -237,6 +335,14 @@ impl DirectTuner {
             )
             .map_err(|e| e.to_string())?
         };
+        Ok(opt)
+    }
+
+    /// A tuner for the scenario that tries what `opt` asks for (a test's fixed list of sets, an
+    /// optimiser built elsewhere).
+    pub fn with_optimiser(scn: &Scenario, opt: Box<dyn Optimiser + Send>) -> Self {
+        let spec = DirectSpec::of(scn);
+        let configured = scn.controller.tunable().gains.clone();
         // Ends at the first trial's boundary (shorter when `first` < one repetition).
         let start = spec.first.saturating_sub(spec.repetition);
         let baseline = Running::new(
@@ -248,7 +354,7 @@ impl DirectTuner {
             spec.first - start,
             spec.u_weight,
         );
-        Ok(Self {
+        Self {
             kind: scn.controller.param_kind(),
             best: (configured.clone(), f64::INFINITY, 0),
             configured,
@@ -267,8 +373,13 @@ impl DirectTuner {
             records: Vec::with_capacity(spec.evaluations + 1),
             incomplete: 0,
             refs: [[0.0; crate::msg::MAX_JOINTS]; LAGS],
+            best_tail: None,
+            fallback: None,
+            settling: 0,
+            settled: true,
+            settle_repetitions: 0,
             spec,
-        })
+        }
     }
 
     pub fn spec(&self) -> &DirectSpec {
@@ -350,6 +461,7 @@ impl DirectTuner {
             run.t = t;
         }
         run.cost.add(r, y, u);
+        run.tail.add(seq, y, u);
         run.samples += 1;
         if !run.aborted {
             // Through the first sample the trial no longer ran: the one that left the envelope.
@@ -372,7 +484,10 @@ impl DirectTuner {
             if next < run.until {
                 return None;
             }
-            self.score();
+            self.running = self.score(next);
+            if self.running.is_some() {
+                return None; // settling under the set in service
+            }
         }
         if self.finished && self.restore.is_none() {
             return None;
@@ -416,6 +531,7 @@ impl DirectTuner {
         let mut set = self.set(version, start, &values);
         set.until_seq = until;
         set.fallback_version = self.best.2;
+        self.fallback = self.best_tail.map(|t| (self.best.2, t));
         let (rep, w) = (self.spec.repetition, self.spec.u_weight);
         self.running = Some(Running::new(
             self.tried + 1,
@@ -470,11 +586,13 @@ impl DirectTuner {
         (n > 0).then_some(0)
     }
 
-    /// Score the repetition that just ended.
-    fn score(&mut self) {
-        let Some(run) = self.running.take() else {
-            return;
-        };
+    /// Score the repetition that just ended, before sample `next`; returns the settle
+    /// repetition to run next, if one is due (`optimiser.settle`).
+    fn score(&mut self, next: u64) -> Option<Running> {
+        let run = self.running.take()?;
+        if run.settle {
+            return self.score_settle(run, next);
+        }
         let expected = run.until - run.start;
         if run.samples < expected {
             // Samples missed: not scored; a candidate goes back to be tried again.
@@ -483,7 +601,7 @@ impl DirectTuner {
                 self.tried -= 1;
                 self.requeue(i);
             }
-            return;
+            return self.settle_after(&run, next);
         }
         let cost = if run.aborted || !run.cost.total.is_finite() {
             f64::INFINITY
@@ -497,14 +615,19 @@ impl DirectTuner {
         } else {
             run.margin
         };
-        let values = run.values;
         if let Some(i) = run.index {
             self.scored[i] = Some(cost);
             self.margins[i] = margin;
         }
         if cost < self.best.1 {
-            self.best = (values.clone(), cost, run.version);
+            self.best = (run.values.clone(), cost, run.version);
+            self.best_tail = Some(run.tail);
         }
+        let (settle, unsettled) = match run.index {
+            Some(_) => (std::mem::take(&mut self.settling), !self.settled),
+            None => (0, false),
+        };
+        let next_settle = self.settle_after(&run, next);
         self.records.push(Repetition {
             trial: run.trial,
             version: run.version,
@@ -513,10 +636,55 @@ impl DirectTuner {
             cost,
             aborted: run.aborted,
             margin,
+            settle,
+            unsettled,
             best: self.best.1,
             best_version: self.best.2,
-            values,
+            values: run.values,
         });
+        next_settle
+    }
+
+    /// After trial `run` (not the baseline or a restored set), the first settle repetition,
+    /// from the first boundary at or after `next`, when settling is on and the trial's fallback
+    /// has a repetition of its own to settle to.
+    fn settle_after(&mut self, run: &Running, next: u64) -> Option<Running> {
+        self.settling = 0;
+        self.settled = true;
+        if self.spec.settle == 0 || run.index.is_none() || self.finished {
+            return None;
+        }
+        let (version, _) = self.fallback?;
+        Some(self.settle_repetition(version, next))
+    }
+
+    fn settle_repetition(&mut self, version: u64, next: u64) -> Running {
+        let start = self.boundary_at_or_after(next);
+        self.settling += 1;
+        self.settle_repetitions += 1;
+        let (rep, w) = (self.spec.repetition, self.spec.u_weight);
+        let mut run = Running::new(0, version, None, Vec::new(), start, rep, w);
+        run.settle = true;
+        run
+    }
+
+    /// A settle repetition ended: another one, unless the loop is back on the set in service's
+    /// periodic orbit, this repetition ending in the band around the last one it served (or
+    /// the most allowed have run: the next trial says it started unsettled).
+    fn score_settle(&mut self, run: Running, next: u64) -> Option<Running> {
+        let (version, last) = self.fallback?;
+        let complete = run.samples == run.until - run.start;
+        self.settled = complete && run.tail.near(&last, self.spec.settle_band);
+        if complete {
+            self.fallback = Some((version, run.tail));
+            if version == self.best.2 {
+                self.best_tail = Some(run.tail);
+            }
+        }
+        if self.settled || self.settling >= self.spec.settle {
+            return None;
+        }
+        Some(self.settle_repetition(version, next))
     }
 
     /// Put candidate `i` back in line (its trial was not scored). Candidates are sent in order,
@@ -549,17 +717,20 @@ impl DirectTuner {
     }
 }
 
-/// `direct.csv`: trial, start, cost, best so far, the version in service and the values.
+/// `direct.csv`: trial, start, cost, best so far, the version in service, the safety margin,
+/// the settle repetitions before it, and the values.
 pub fn records_csv(records: &[Repetition]) -> String {
     let n = records.first().map_or(0, |r| r.values.len());
-    let mut s = String::from("trial,t,start_seq,version,aborted,cost,best,best_version");
+    let mut s = String::from(
+        "trial,t,start_seq,version,aborted,cost,best,best_version,margin,settle,unsettled",
+    );
     for i in 0..n {
         s.push_str(&format!(",p{i}"));
     }
     s.push('\n');
     for r in records {
         s.push_str(&format!(
-            "{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{}",
             r.trial,
             r.t,
             r.start_seq,
@@ -567,7 +738,10 @@ pub fn records_csv(records: &[Repetition]) -> String {
             u8::from(r.aborted),
             r.cost,
             r.best,
-            r.best_version
+            r.best_version,
+            r.margin,
+            r.settle,
+            u8::from(r.unsettled)
         ));
         for v in &r.values {
             s.push_str(&format!(",{v}"));
@@ -597,6 +771,12 @@ pub struct DirectReport {
     pub aborted: u64,
     /// Trials not scored (samples missed) and tried again.
     pub incomplete: u64,
+    /// Repetitions spent settling under the set in service between trials
+    /// (`optimiser.settle`), and trials that started before the loop was back in the band.
+    #[serde(default)]
+    pub settle_repetitions: u64,
+    #[serde(default)]
+    pub unsettled: u64,
 }
 
 impl DirectTuner {
@@ -613,6 +793,8 @@ impl DirectTuner {
             best_values: self.best.0.clone(),
             aborted: self.records.iter().filter(|r| r.aborted).count() as u64,
             incomplete: self.incomplete,
+            settle_repetitions: self.settle_repetitions,
+            unsettled: self.records.iter().filter(|r| r.unsettled).count() as u64,
         }
     }
 }
@@ -631,6 +813,15 @@ pub struct InProcess {
 /// repetitions is half a million of them); `progress(repetitions, best)` after each repetition.
 pub fn run_in_process(
     scn: &Scenario,
+    progress: impl FnMut(usize, f64),
+) -> Result<InProcess, String> {
+    run_tuner_in_process(scn, DirectTuner::new(scn)?, progress)
+}
+
+/// `run_in_process` with a tuner of the caller's (`DirectTuner::with_optimiser`).
+pub fn run_tuner_in_process(
+    scn: &Scenario,
+    tuner: DirectTuner,
     progress: impl FnMut(usize, f64),
 ) -> Result<InProcess, String> {
     scn.require_in_process()?;
@@ -668,7 +859,7 @@ pub fn run_in_process(
         }
     }
     let mut hook = Hook {
-        tuner: DirectTuner::new(scn)?,
+        tuner,
         n: scn.build_controller().n_outputs(),
         progress,
     };
