@@ -100,6 +100,40 @@ fn a_direct_run_through_the_processes_equals_the_in_process_tuner_bit_for_bit() 
     assert!(fast.join("direct.json").is_file());
 }
 
+/// Settle segments through the processes (issue 66): the optimiser process and the in-process
+/// tuner make the same decisions on the same samples, settle repetitions included, and the
+/// live controller runs the trials isolated as the in-process cycle does (costs equal bit for
+/// bit would not survive a law that swapped differently).
+#[test]
+fn settled_trials_through_the_processes_equal_the_in_process_tuner_bit_for_bit() {
+    let tmp = tempfile::tempdir().unwrap();
+    // 10 trials with up to 2 settle repetitions after each (and after the baseline).
+    let cfg = short_direct(
+        tmp.path(),
+        10,
+        ("evaluations = 10", "evaluations = 10\nsettle = 2"),
+    );
+    // Room for every settle repetition: the baseline's and each trial's, two at most.
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    let short = format!("duration = {}", 3.0 + 1.6 * 10.0 + 0.5);
+    assert!(text.contains(&short), "{short}");
+    let text = text.replace(&short, &format!("duration = {}", 3.0 + 1.6 * 32.0 + 0.5));
+    std::fs::write(&cfg, text).unwrap();
+    let (live, _fast, tuned) = live_and_in_process(tmp.path(), &cfg, "settle");
+    let opt = json(&live.join("optimiser.json"));
+    let (a, b) = (&opt["direct"], &tuned["direct"]);
+    assert_eq!(a["repetitions"], b["repetitions"]);
+    assert_eq!(a["settle_repetitions"], b["settle_repetitions"]);
+    let reps = a["repetitions"].as_array().unwrap();
+    assert_eq!(reps.len(), 11, "{a}");
+    // Every trial after one settle repetition at least (the first after the baseline's).
+    for r in &reps[1..] {
+        assert!(r["settle"].as_u64().unwrap() >= 1, "{r}");
+    }
+    let settled: u64 = reps.iter().map(|r| r["settle"].as_u64().unwrap()).sum();
+    assert!(a["settle_repetitions"].as_u64().unwrap() >= settled);
+}
+
 /// Offers one trial set at a given sample and records what the cycle did with it.
 struct OneTrial {
     set: ParamSet,
@@ -577,39 +611,87 @@ impl evoloop::optim::Optimiser for Listed {
     }
 }
 
-/// The resonant motor (config/lti_resonant_direct.toml) from a set in service whose integral
-/// forgets in a few seconds, trying `before` and then `judged`, with `settle` settle
-/// repetitions at most (to a band of 0.5 %): the records of the two trials. (The shipped
-/// sluggish set's integral takes tens of seconds: settling to it is the reported cost.)
-fn judged_after(before: &[f64], judged: &[f64], settle: u32) -> Vec<evoloop::direct::Repetition> {
-    let shipped = std::fs::read_to_string(config("lti_resonant_direct.toml")).unwrap();
-    // The baseline, two trials and up to `settle` repetitions after each.
-    let duration = 5.2 + 4.0 * (2 + 2 * settle) as f64 + 0.5;
-    let text = shipped
-        .replace("duration = 406.0", &format!("duration = {duration}"))
-        .replace("params = [1.0, 0.0, 0.0001]", "params = [2.0, 0.0, 0.001]")
-        .replace(
-            "evaluations = 100",
-            &format!("evaluations = 10\nsettle = {settle}\nsettle_band = 0.005"),
-        );
-    let path = config("lti_resonant_direct.toml");
+/// The shipped direct scenario `file` with its text edited by `edits` (from, to), trying
+/// `sets` in order: the report.
+fn listed_run(
+    file: &str,
+    edits: &[(&str, &str)],
+    sets: Vec<Vec<f64>>,
+) -> evoloop::direct::DirectReport {
+    let path = config(file);
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{file} has no `{from}`");
+        text = text.replace(from, to);
+    }
     let scn = Scenario::parse(&text, &path, &Overrides::default()).unwrap();
     let listed = Listed {
-        sets: vec![before.to_vec(), judged.to_vec()],
+        sets,
         next: 0,
         asked: Vec::new(),
         best: (Vec::new(), f64::INFINITY),
     };
     let tuner = evoloop::direct::DirectTuner::with_optimiser(&scn, Box::new(listed));
-    let r = evoloop::direct::run_tuner_in_process(&scn, tuner, |_, _| {}).unwrap();
-    let trials: Vec<_> = r
+    evoloop::direct::run_tuner_in_process(&scn, tuner, |_, _| {})
+        .unwrap()
         .report
+}
+
+/// The resonant motor (config/lti_resonant_direct.toml) from a set in service whose integral
+/// forgets in a few seconds, trying `before` and then `judged`, with `settle` settle
+/// repetitions at most (to a band of 0.5 %): the records of the two trials. (The shipped
+/// sluggish set's integral takes tens of seconds: settling to it is the reported cost.)
+fn judged_after(before: &[f64], judged: &[f64], settle: u32) -> Vec<evoloop::direct::Repetition> {
+    // The baseline, two trials and up to `settle` repetitions after each.
+    let duration = 5.2 + 4.0 * (2 + 2 * settle) as f64 + 0.5;
+    let settings = format!("evaluations = 10\nsettle = {settle}\nsettle_band = 0.005");
+    let report = listed_run(
+        "lti_resonant_direct.toml",
+        &[
+            ("duration = 406.0", &format!("duration = {duration}")),
+            ("params = [1.0, 0.0, 0.0001]", "params = [2.0, 0.0, 0.001]"),
+            ("evaluations = 100", &settings),
+        ],
+        vec![before.to_vec(), judged.to_vec()],
+    );
+    let trials: Vec<_> = report
         .repetitions
         .into_iter()
         .filter(|r| r.trial > 0)
         .collect();
     assert_eq!(trials.len(), 2, "{trials:?}");
     trials
+}
+
+/// With settle segments the baseline is measured where every trial starts, on the configured
+/// set's orbit, not from rest: config/lti_motor_direct.toml's first repetition starts at rest on
+/// a 1 rad step, every later one on the 2 rad step from -1 rad, so back to back the configured
+/// set tried again as a trial costs far more than its baseline, and settled it costs the same.
+#[test]
+fn a_settled_baseline_is_measured_where_the_trials_start() {
+    let configured = vec![5.0, 0.0, 0.002];
+    let ratio = |settle: u32| {
+        let settings = format!("evaluations = 10\nsettle = {settle}");
+        let r = listed_run(
+            "lti_motor_direct.toml",
+            &[
+                ("duration = 303.0", "duration = 20.0"),
+                ("evaluations = 150", &settings),
+            ],
+            vec![configured.clone()],
+        );
+        let (baseline, trial) = (&r.repetitions[0], &r.repetitions[1]);
+        assert_eq!((baseline.trial, trial.trial), (0, 1));
+        assert_eq!(trial.values, configured);
+        trial.cost / baseline.cost
+    };
+    let back_to_back = ratio(0);
+    assert!(back_to_back > 1.1, "{back_to_back}");
+    let settled = ratio(3);
+    assert!(
+        (settled - 1.0).abs() < 0.01,
+        "{settled} (back to back {back_to_back})"
+    );
 }
 
 /// Issue 66: a trial that starts from the settle condition costs the same for the same set

@@ -23,6 +23,10 @@ pub struct TuneArgs {
     /// convergence.png.
     #[arg(long, value_delimiter = ',', value_name = "ALGORITHMS")]
     pub compare: Option<Vec<String>>,
+    /// With --compare: every run with up to N settle repetitions after each trial
+    /// (`optimiser.settle`, isolated trials), the run lengthened to fit its budget.
+    #[arg(long, value_name = "N", requires = "compare")]
+    pub settle: Option<u32>,
     /// Print the result as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -80,6 +84,7 @@ pub fn main(a: TuneArgs) -> i32 {
         seed: a.seed,
         seeds: a.seeds.map(|s| s.0),
         compare: a.compare,
+        settle: a.settle,
         json: a.json,
         out: a.out,
         quiet: a.quiet,

@@ -110,6 +110,9 @@ pub fn run(
             .or_insert_with(|| toml::Value::Table(Default::default()));
         if let Some(o) = opt.as_table_mut() {
             o.insert("algorithm".into(), toml::Value::String(algorithm.into()));
+            if let Some(n) = a.settle {
+                o.insert("settle".into(), toml::Value::Integer(i64::from(n)));
+            }
         }
         let ov = Overrides {
             seed: Some(seed),

@@ -33,6 +33,8 @@ pub struct TuneRequest {
     pub quiet: bool,
     /// `--compare`: the optimisers to compare on a direct scenario.
     pub compare: Option<Vec<String>>,
+    /// `--settle`: `optimiser.settle` for every run of the comparison.
+    pub settle: Option<u32>,
 }
 
 #[derive(Debug, Deserialize)]

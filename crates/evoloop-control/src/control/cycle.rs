@@ -116,6 +116,8 @@ pub struct ControlCycle {
     last_trial_live: bool,
     /// While a trial is in service: the state sequence number at which it ends.
     trial_until: Option<u64>,
+    /// Trials isolated from the set in service (`with_isolated_trials`).
+    isolated_trials: bool,
     /// Trials aborted for leaving the envelope.
     pub trials_aborted: u64,
     /// A model larger than one set, gathered from its parts.
@@ -176,6 +178,7 @@ impl ControlCycle {
             last_trial: Box::default(),
             last_trial_live: false,
             trial_until: None,
+            isolated_trials: false,
             trials_aborted: 0,
             parts: Gather::new(controller.model_len()),
             state_check: None,
@@ -195,6 +198,18 @@ impl ControlCycle {
     /// Run trial sets under `envelope`.
     pub fn with_envelope(mut self, envelope: Envelope) -> Self {
         self.envelope = envelope;
+        self
+    }
+
+    /// Isolated trials (the direct scheme with settle segments, `optimiser.settle`): a trial
+    /// starts from the law's state as the set in service left it (its integrator as it was, no
+    /// bumpless transfer moving the P-D difference into it), and when it ends the set in service
+    /// resumes from the state it had when the trial began, as after an abort. So a trial's cost
+    /// depends on the set tried and the state the set in service settled to, not on the gain
+    /// step at its boundaries: with a bumpless swap at a set-point step, and on an integrating
+    /// plant, the P difference moved into the integrator is a drift that grows with the step.
+    pub fn with_isolated_trials(mut self, isolated: bool) -> Self {
+        self.isolated_trials = isolated;
         self
     }
 
@@ -415,7 +430,12 @@ impl ControlCycle {
             self.last_trial_live = false;
             self.trial_until = None;
         }
-        self.controller.swap_params(set.values(), state, sp);
+        if trial && self.isolated_trials {
+            // The state just saved, under the trial's gains: a swap without the bumpless shift.
+            self.controller.abort_to(set.values(), state, sp);
+        } else {
+            self.controller.swap_params(set.values(), state, sp);
+        }
         Ok(Applied::InService)
     }
 
@@ -460,8 +480,12 @@ impl ControlCycle {
 
     /// Put the fallback back in service (the trial is over).
     fn restore(&mut self, state: &PlantState, sp: &Setpoint) {
-        self.controller
-            .swap_params(self.fallback.values(), state, sp);
+        if self.isolated_trials {
+            self.controller.abort_to(self.fallback.values(), state, sp);
+        } else {
+            self.controller
+                .swap_params(self.fallback.values(), state, sp);
+        }
         self.version = self.fallback.version;
         self.trial_until = None;
     }

@@ -200,6 +200,8 @@ pub struct OptimiserSpec {
     /// Direct: after each trial, up to this many repetitions under the set in service (its
     /// fallback) before the next trial starts, until the loop is back where that set leaves it
     /// (`settle_band`); 0: trials back to back, each starting where the last left the plant.
+    /// Above 0 the controller also isolates each trial from the set in service
+    /// (`ControlCycle::with_isolated_trials`).
     pub settle: u32,
     /// Direct: the loop has settled when a repetition under the set in service ends with its
     /// mean output and command over the last 5 % of the repetition within this fraction of that

@@ -146,6 +146,9 @@ pub fn control_cycle(scn: &Scenario) -> ControlCycle {
     ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds())
         .with_stability_check(scn.linear_model())
         .with_envelope(scn.optimiser.envelope)
+        .with_isolated_trials(
+            scn.optimiser.mode == crate::config::OptimiserMode::Direct && scn.optimiser.settle > 0,
+        )
         .with_state_check(scn.state_check())
 }
 

@@ -33,6 +33,10 @@
 //!   periodic orbit: the repetition's mean output and command over its last `TAIL` of samples
 //!   within `settle_band` of those of the last repetition the set served, scaled by that
 //!   repetition's peaks. The sensor and command only: what the optimiser sees on a real plant.
+//!   The baseline settles too, and its cost is taken on the configured set's orbit, where every
+//!   trial starts (the first repetition starts from rest). With settling on, the controller
+//!   isolates each trial (`ControlCycle::with_isolated_trials`): it starts from the integrator
+//!   the set in service left, without a bumpless shift, and that set resumes from it after.
 
 use crate::config::Scenario;
 use crate::control::cycle::Envelope;
@@ -645,17 +649,27 @@ impl DirectTuner {
         next_settle
     }
 
-    /// After trial `run` (not the baseline or a restored set), the first settle repetition,
-    /// from the first boundary at or after `next`, when settling is on and the trial's fallback
-    /// has a repetition of its own to settle to.
+    /// After trial `run` or the baseline (not a restored set), the first settle repetition,
+    /// from the first boundary at or after `next`, when settling is on and the set in service
+    /// has a repetition of its own to settle to. The baseline settles too: from rest it does
+    /// not start where every trial will, on the set's orbit, and its cost is taken there.
     fn settle_after(&mut self, run: &Running, next: u64) -> Option<Running> {
         self.settling = 0;
         self.settled = true;
-        if self.spec.settle == 0 || run.index.is_none() || self.finished {
+        let baseline = self.is_baseline(run);
+        if self.spec.settle == 0 || (run.index.is_none() && !baseline) || self.finished {
             return None;
+        }
+        if baseline {
+            self.fallback = self.best_tail.map(|t| (run.version, t));
         }
         let (version, _) = self.fallback?;
         Some(self.settle_repetition(version, next))
+    }
+
+    /// The configured set's first repetition (scored before any other record).
+    fn is_baseline(&self, run: &Running) -> bool {
+        run.index.is_none() && run.version == 0 && self.records.is_empty()
     }
 
     fn settle_repetition(&mut self, version: u64, next: u64) -> Running {
@@ -679,6 +693,15 @@ impl DirectTuner {
             self.fallback = Some((version, run.tail));
             if version == self.best.2 {
                 self.best_tail = Some(run.tail);
+            }
+            // Before the first trial: the baseline's cost is its cost on its orbit, the one
+            // every trial is compared with.
+            if let (0, [baseline]) = (self.tried, self.records.as_mut_slice()) {
+                if run.cost.total.is_finite() {
+                    baseline.cost = run.cost.total;
+                    baseline.best = run.cost.total;
+                    self.best.1 = run.cost.total;
+                }
             }
         }
         if self.settled || self.settling >= self.spec.settle {
