@@ -279,6 +279,55 @@ fn a_trial_serves_its_repetition_then_its_fallback_returns() {
     assert_eq!(end.controller.params(), &scn.controller.tunable().gains[..]);
 }
 
+/// Offers `set` (if any) at its sample and keeps every command.
+struct Commands {
+    set: Option<ParamSet>,
+    u: Vec<f64>,
+}
+
+impl LoopHook for Commands {
+    fn before(&mut self, seq: u64, cycle: &mut ControlCycle) {
+        if let Some(set) = self.set.as_ref().filter(|s| s.apply_at_seq == seq) {
+            cycle.offer(set);
+        }
+    }
+    fn after(&mut self, _: &PlantState, tel: &Telemetry, _: Option<ParamEvent>, _: &ControlCycle) {
+        self.u.push(tel.u[0]);
+    }
+}
+
+/// Isolated trials (`optimiser.settle` > 0): the trial starts from the integrator as the set in
+/// service left it (no bumpless shift: the command steps by the gain change times the error),
+/// and the set in service resumes from the state it had when the trial began (a trial of the
+/// same values then still moves the command at its end, by what its repetition integrated).
+/// Without isolation both swaps are bumpless: a trial of the same values changes nothing.
+#[test]
+fn isolated_trials_swap_without_the_bumpless_shift() {
+    let commands = |settle: u32, set: Option<ParamSet>| {
+        let mut scn = maglev_direct(3.0);
+        scn.optimiser.settle = settle;
+        let mut h = Commands { set, u: vec![] };
+        evoloop::sim::run_loop(&scn, &mut h);
+        h.u
+    };
+    let gains = maglev_direct(1.0).controller.tunable().gains.clone();
+    let mut stiffer = gains.clone();
+    stiffer[0] *= 1.05;
+    let same = || Some(trial(1, &gains, 1800, 2600, 0));
+    let reference = commands(0, None);
+    assert_eq!(commands(0, same()), reference);
+    let isolated = commands(1, same());
+    assert_eq!(isolated[..2600], reference[..2600]);
+    assert_ne!(isolated[2600], reference[2600]);
+    // At the trial's first sample (mid-plateau, the command unsaturated): the old law's
+    // command, bumpless; another, isolated.
+    let bumpless = commands(0, Some(trial(1, &stiffer, 1400, 2200, 0)));
+    assert!((bumpless[1400] - reference[1400]).abs() < 1e-9);
+    let isolated = commands(1, Some(trial(1, &stiffer, 1400, 2200, 0)));
+    assert!(reference[1400].abs() < 1900.0, "{}", reference[1400]);
+    assert!((isolated[1400] - reference[1400]).abs() > 1e-6);
+}
+
 #[test]
 fn a_trial_naming_a_fallback_the_controller_does_not_hold_is_refused() {
     let scn = maglev_direct(3.0);
@@ -703,8 +752,10 @@ fn a_set_settled_into_costs_the_same_whatever_ran_before() {
     let gentle = [1.5, 0.0, 0.001];
     // High gain with no derivative: the shaft's resonance rings the load out of the envelope.
     let wild = [30.0, 0.0, 0.05];
+    // Both judged trials run from the configured set's orbit: neither predecessor beats it.
     let cost = |before: &[f64], settle| {
         let t = judged_after(before, &judged, settle);
+        assert_eq!(t[0].best_version, 0, "{t:?}");
         (t[0].aborted, t[1].clone())
     };
     let (gentle_aborted, after_gentle) = cost(&gentle, 0);

@@ -1,6 +1,7 @@
 //! `evoloop tune SCENARIO --compare ga,de,jade,cmaes,bayes,safe_bayes --seeds 1..20`: how many
 //! experiments each optimiser spends on the plant. Every (algorithm, seed) runs the direct
-//! scenario as written, with only `optimiser.algorithm` changed, in this process in lockstep
+//! scenario as written, with only `optimiser.algorithm` changed (and with `--settle N`,
+//! `optimiser.settle` and the length the settle repetitions need), in this process in lockstep
 //! (`direct::run_in_process`, equal bit for bit to the processes' run, `tests/direct.rs`), all
 //! from the scenario's configured set. Per run: the best cost after each experiment, the
 //! aborts, and the experiments until the best cost is within 1 % of the GA's final cost on the
@@ -114,15 +115,21 @@ pub fn run(
                 o.insert("settle".into(), toml::Value::Integer(i64::from(n)));
             }
         }
-        let ov = Overrides {
+        let mut ov = Overrides {
             seed: Some(seed),
             out: a.out.clone(),
             ..Overrides::default()
         };
-        let mut scn = Scenario::parse(&toml::to_string(&t).map_err(|e| e.to_string())?, file, &ov)
-            .map_err(|e| e.to_string())?;
-        fit_settle(&mut scn);
-        Ok(scn)
+        let text = toml::to_string(&t).map_err(|e| e.to_string())?;
+        let scn = Scenario::parse(&text, file, &ov).map_err(|e| e.to_string())?;
+        match settled_duration(&scn) {
+            // Validated again at the length the settle repetitions need.
+            Some(d) if d > scn.timing.duration => {
+                ov.duration = Some(d);
+                Scenario::parse(&text, file, &ov).map_err(|e| e.to_string())
+            }
+            _ => Ok(scn),
+        }
     };
     // Every scenario first: a bad algorithm or scenario fails before any run.
     let mut jobs = Vec::new();
@@ -204,15 +211,13 @@ pub fn run(
     Ok(())
 }
 
-/// With settle repetitions between trials, the run is as long as the budget needs at most
-/// (every trial followed by `settle` of them), so that every optimiser spends its budget.
-fn fit_settle(scn: &mut Scenario) {
+/// With settle repetitions (`optimiser.settle` = N), the length a run needs at most to spend its
+/// budget of E trials: the baseline's N, then each trial followed by N but the last, and one
+/// repetition of the final set. None without settling.
+fn settled_duration(scn: &Scenario) -> Option<f64> {
     let o = &scn.optimiser;
-    if o.settle > 0 {
-        let trials = o.evaluations as f64 * (1.0 + f64::from(o.settle));
-        let needed = o.first_repetition + o.repetition * (trials + 1.0);
-        scn.timing.duration = scn.timing.duration.max(needed);
-    }
+    let (n, e) = (f64::from(o.settle), o.evaluations as f64);
+    (o.settle > 0).then_some(o.first_repetition + o.repetition * (n + e + (e - 1.0) * n + 1.0))
 }
 
 fn one_run(

@@ -29,6 +29,8 @@ pub struct StateFeedback {
     period: f64,
     /// Integral contribution to u.
     integral: f64,
+    /// `integral` when the last trial set went in service (`save_state`).
+    saved_integral: f64,
     u_limit: Option<f64>,
 }
 
@@ -43,6 +45,7 @@ impl StateFeedback {
             gains: gains.to_vec(),
             period,
             integral: 0.0,
+            saved_integral: 0.0,
             u_limit,
         }
     }
@@ -110,6 +113,15 @@ impl Controller for StateFeedback {
         // Choose I so that -K_new x + I = u_old on this sample: no step in u.
         self.integral = u_old + dot(&new[..self.n_x], x);
         self.gains.copy_from_slice(new);
+    }
+
+    fn save_state(&mut self) {
+        self.saved_integral = self.integral;
+    }
+
+    fn abort_to(&mut self, fallback: &[f64], _state: &PlantState, _sp: &Setpoint) {
+        self.gains.copy_from_slice(fallback);
+        self.integral = self.saved_integral;
     }
 }
 

@@ -204,8 +204,8 @@ pub struct OptimiserSpec {
     /// (`ControlCycle::with_isolated_trials`).
     pub settle: u32,
     /// Direct: the loop has settled when a repetition under the set in service ends with its
-    /// mean output and command over the last 5 % of the repetition within this fraction of that
-    /// set's own peaks of where its own repetition ended.
+    /// mean output and command (over its last 5 %) within this fraction of those of the last
+    /// settle repetition the set served, each scaled by that repetition's peak |y| or |u|.
     pub settle_band: f64,
     /// Direct: the configured set is a member of the GA's initial population (it is tried
     /// again as a candidate, beside the baseline).

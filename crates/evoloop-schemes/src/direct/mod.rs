@@ -31,10 +31,12 @@
 //!   over the sets cannot know. With `settle = N` each trial is followed by up to N repetitions
 //!   under the set in service (the trial's fallback) until the loop is back on that set's
 //!   periodic orbit: the repetition's mean output and command over its last `TAIL` of samples
-//!   within `settle_band` of those of the last repetition the set served, scaled by that
-//!   repetition's peaks. The sensor and command only: what the optimiser sees on a real plant.
-//!   The baseline settles too, and its cost is taken on the configured set's orbit, where every
-//!   trial starts (the first repetition starts from rest). With settling on, the controller
+//!   within `settle_band` of those of the last settle repetition the set served, scaled by that
+//!   repetition's peaks (a set's own trial started on another set's orbit: after it, two settle
+//!   repetitions at least). The sensor and command only: what the optimiser sees on a real
+//!   plant. None after the last trial or before an operator's stop or revert. The baseline
+//!   settles too, and its cost is taken on the configured set's orbit, where the trials start
+//!   until one beats it (its first repetition starts from rest). With settling on, the controller
 //!   isolates each trial (`ControlCycle::with_isolated_trials`): it starts from the integrator
 //!   the set in service left, without a bumpless shift, and that set resumes from it after.
 
@@ -165,6 +167,17 @@ struct Tail {
 /// The fraction of a repetition at its end whose means say where the loop is.
 const TAIL: f64 = 0.05;
 
+/// The set a settle segment runs and where the last repetition it served left the loop.
+#[derive(Debug, Clone, Copy)]
+struct SettleTarget {
+    version: u64,
+    last: Tail,
+    /// `last` is a settle repetition's, on the set's orbit; otherwise the set's own trial or
+    /// baseline (started from another set's orbit or from rest), which one repetition agreeing
+    /// with does not show settled.
+    on_orbit: bool,
+}
+
 impl Tail {
     fn new(start: u64, until: u64) -> Self {
         let n = until - start;
@@ -269,11 +282,13 @@ pub struct DirectTuner {
     pub incomplete: u64,
     /// The references of the last samples, by sequence number (`DirectSpec::lag`).
     refs: [[f64; crate::msg::MAX_JOINTS]; LAGS],
-    /// Where the last repetition the best set served left the loop.
-    best_tail: Option<Tail>,
-    /// The set in service while the running trial's settle segment lasts (its fallback): its
-    /// version and where the last repetition it served left the loop.
-    fallback: Option<(u64, Tail)>,
+    /// Where the last repetition the best set served left the loop, and whether it was a
+    /// settle repetition (its orbit) rather than its own trial (which started elsewhere).
+    best_tail: Option<(Tail, bool)>,
+    /// What the running trial's settle segment settles to: the set in service then.
+    fallback: Option<SettleTarget>,
+    /// The baseline's settle segment is running (its cost is taken from it).
+    baseline_settling: bool,
     /// Settle repetitions run since the last trial ended; whether the last segment settled.
     settling: u32,
     settled: bool,
@@ -379,6 +394,7 @@ impl DirectTuner {
             refs: [[0.0; crate::msg::MAX_JOINTS]; LAGS],
             best_tail: None,
             fallback: None,
+            baseline_settling: false,
             settling: 0,
             settled: true,
             settle_repetitions: 0,
@@ -504,6 +520,7 @@ impl DirectTuner {
         if let Some((version, values)) = self.restore.take() {
             // Measured on its first repetition like the baseline; the best known until then.
             self.best = (values.clone(), f64::INFINITY, version);
+            self.best_tail = None;
             self.for_good = Some(version);
             let (rep, w) = (self.spec.repetition, self.spec.u_weight);
             self.running = Some(Running::new(
@@ -535,7 +552,7 @@ impl DirectTuner {
         let mut set = self.set(version, start, &values);
         set.until_seq = until;
         set.fallback_version = self.best.2;
-        self.fallback = self.best_tail.map(|t| (self.best.2, t));
+        self.fallback = self.settle_target();
         let (rep, w) = (self.spec.repetition, self.spec.u_weight);
         self.running = Some(Running::new(
             self.tried + 1,
@@ -625,7 +642,7 @@ impl DirectTuner {
         }
         if cost < self.best.1 {
             self.best = (run.values.clone(), cost, run.version);
-            self.best_tail = Some(run.tail);
+            self.best_tail = Some((run.tail, false));
         }
         let (settle, unsettled) = match run.index {
             Some(_) => (std::mem::take(&mut self.settling), !self.settled),
@@ -650,26 +667,37 @@ impl DirectTuner {
     }
 
     /// After trial `run` or the baseline (not a restored set), the first settle repetition,
-    /// from the first boundary at or after `next`, when settling is on and the set in service
-    /// has a repetition of its own to settle to. The baseline settles too: from rest it does
-    /// not start where every trial will, on the set's orbit, and its cost is taken there.
+    /// from the first boundary at or after `next`, when settling is on and another trial is
+    /// due (not after the last, nor before an operator's stop or revert, which go out at the
+    /// next boundary). The baseline settles too: from rest it does not start where the trials
+    /// will, on the set's orbit, and its cost is taken there. A trial whose set in service has
+    /// no complete repetition to settle to runs unsettled, and says so.
     fn settle_after(&mut self, run: &Running, next: u64) -> Option<Running> {
         self.settling = 0;
         self.settled = true;
-        let baseline = self.is_baseline(run);
-        if self.spec.settle == 0 || (run.index.is_none() && !baseline) || self.finished {
+        let baseline = run.index.is_none() && run.version == 0 && self.records.is_empty();
+        let due = !(self.stop || self.restore.is_some() || self.tried >= self.spec.evaluations);
+        if self.spec.settle == 0 || (run.index.is_none() && !baseline) || !due {
             return None;
         }
         if baseline {
-            self.fallback = self.best_tail.map(|t| (run.version, t));
+            self.fallback = self.settle_target();
+            self.baseline_settling = self.fallback.is_some();
         }
-        let (version, _) = self.fallback?;
-        Some(self.settle_repetition(version, next))
+        let Some(target) = self.fallback else {
+            self.settled = false;
+            return None;
+        };
+        Some(self.settle_repetition(target.version, next))
     }
 
-    /// The configured set's first repetition (scored before any other record).
-    fn is_baseline(&self, run: &Running) -> bool {
-        run.index.is_none() && run.version == 0 && self.records.is_empty()
+    /// What a settle segment under the best set settles to.
+    fn settle_target(&self) -> Option<SettleTarget> {
+        self.best_tail.map(|(last, on_orbit)| SettleTarget {
+            version: self.best.2,
+            last,
+            on_orbit,
+        })
     }
 
     fn settle_repetition(&mut self, version: u64, next: u64) -> Running {
@@ -683,31 +711,47 @@ impl DirectTuner {
     }
 
     /// A settle repetition ended: another one, unless the loop is back on the set in service's
-    /// periodic orbit, this repetition ending in the band around the last one it served (or
-    /// the most allowed have run: the next trial says it started unsettled).
+    /// periodic orbit, this repetition ending in the band around the last settle repetition it
+    /// served (or the most allowed have run, or an operator's stop or revert is due: the next
+    /// trial says it started unsettled).
     fn score_settle(&mut self, run: Running, next: u64) -> Option<Running> {
-        let (version, last) = self.fallback?;
+        let target = self.fallback?;
         let complete = run.samples == run.until - run.start;
-        self.settled = complete && run.tail.near(&last, self.spec.settle_band);
+        self.settled =
+            complete && target.on_orbit && run.tail.near(&target.last, self.spec.settle_band);
         if complete {
-            self.fallback = Some((version, run.tail));
-            if version == self.best.2 {
-                self.best_tail = Some(run.tail);
+            self.fallback = Some(SettleTarget {
+                last: run.tail,
+                on_orbit: true,
+                ..target
+            });
+            if target.version == self.best.2 {
+                self.best_tail = Some((run.tail, true));
             }
-            // Before the first trial: the baseline's cost is its cost on its orbit, the one
-            // every trial is compared with.
-            if let (0, [baseline]) = (self.tried, self.records.as_mut_slice()) {
-                if run.cost.total.is_finite() {
-                    baseline.cost = run.cost.total;
-                    baseline.best = run.cost.total;
-                    self.best.1 = run.cost.total;
-                }
+            if self.baseline_settling && run.cost.total.is_finite() {
+                self.baseline_on_orbit(&run);
             }
         }
-        if self.settled || self.settling >= self.spec.settle {
+        let interrupted = self.stop || self.restore.is_some();
+        if self.settled || self.settling >= self.spec.settle || interrupted {
+            self.baseline_settling = false;
             return None;
         }
-        Some(self.settle_repetition(version, next))
+        Some(self.settle_repetition(target.version, next))
+    }
+
+    /// Before the first trial: the baseline is the configured set on its orbit, measured on
+    /// the settle repetition that just ended, the one every first trial is compared with.
+    fn baseline_on_orbit(&mut self, run: &Running) {
+        let Some(baseline) = self.records.first_mut() else {
+            return;
+        };
+        baseline.cost = run.cost.total;
+        baseline.best = run.cost.total;
+        baseline.start_seq = run.start;
+        baseline.t = run.t;
+        baseline.margin = run.margin;
+        self.best.1 = run.cost.total;
     }
 
     /// Put candidate `i` back in line (its trial was not scored). Candidates are sent in order,
