@@ -430,12 +430,14 @@ impl ControlCycle {
             self.last_trial_live = false;
             self.trial_until = None;
         }
-        if trial && self.isolated_trials {
-            // The state just saved, under the trial's gains: a swap without the bumpless shift.
-            self.controller.abort_to(set.values(), state, sp);
-        } else {
-            self.controller.swap_params(set.values(), state, sp);
-        }
+        // An isolated trial runs from the state just saved: no bumpless shift.
+        swap(
+            &mut *self.controller,
+            set.values(),
+            state,
+            sp,
+            trial && self.isolated_trials,
+        );
         Ok(Applied::InService)
     }
 
@@ -480,23 +482,47 @@ impl ControlCycle {
 
     /// Put the fallback back in service (the trial is over).
     fn restore(&mut self, state: &PlantState, sp: &Setpoint) {
-        if self.isolated_trials {
-            self.controller.abort_to(self.fallback.values(), state, sp);
-        } else {
-            self.controller
-                .swap_params(self.fallback.values(), state, sp);
-        }
+        let values = self.fallback.values();
+        swap(
+            &mut *self.controller,
+            values,
+            state,
+            sp,
+            self.isolated_trials,
+        );
         self.version = self.fallback.version;
         self.trial_until = None;
     }
 
     /// A trial left the envelope: back to the fallback with the law's state of the trial's
-    /// start (`Controller::abort_to`), and the trial may not be named again.
+    /// start (`Controller::swap_to_saved`), and the trial may not be named again.
     fn abort(&mut self, state: &PlantState, sp: &Setpoint) {
-        self.controller.abort_to(self.fallback.values(), state, sp);
+        swap(
+            &mut *self.controller,
+            self.fallback.values(),
+            state,
+            sp,
+            true,
+        );
         self.version = self.fallback.version;
         self.trial_until = None;
         self.last_trial_live = false;
         self.trials_aborted += 1;
+    }
+}
+
+/// `values` in service: from the state saved when the last trial began (`saved`: an abort, an
+/// isolated trial's start or end), or bumpless.
+fn swap(
+    controller: &mut dyn Controller,
+    values: &[f64],
+    state: &PlantState,
+    sp: &Setpoint,
+    saved: bool,
+) {
+    if saved {
+        controller.swap_to_saved(values, state, sp);
+    } else {
+        controller.swap_params(values, state, sp);
     }
 }

@@ -189,14 +189,15 @@ pub trait Controller: Send {
         model.stabilised_by(values)
     }
     /// A trial set (the direct scheme) is about to go in service: remember the law's internal
-    /// state (integrators) as it is, for `abort_to`. Must not allocate.
+    /// state (integrators) as it is, for `swap_to_saved`. Must not allocate.
     fn save_state(&mut self) {}
-    /// A trial left the safety envelope: put `fallback` back in service with the internal state
-    /// saved when the trial began. Not bumpless on purpose: a bumpless transfer would keep the
-    /// failing trial's command and move the difference into the integrator, leaving the fallback
-    /// the failing trial's windup to undo. Laws without internal state just switch.
-    fn abort_to(&mut self, fallback: &[f64], state: &PlantState, sp: &Setpoint) {
-        self.swap_params(fallback, state, sp);
+    /// Put `values` in service with the internal state saved when the last trial began
+    /// (`save_state`), not bumpless: a trial's abort back to its fallback (a bumpless transfer
+    /// would keep the failing trial's command and move the difference into the integrator,
+    /// leaving the fallback the failing trial's windup to undo), and an isolated trial's start
+    /// and end (`ControlCycle::with_isolated_trials`). Laws without internal state just switch.
+    fn swap_to_saved(&mut self, values: &[f64], state: &PlantState, sp: &Setpoint) {
+        self.swap_params(values, state, sp);
     }
     /// The kind of a second sort of set the law takes besides its gains (an identified model),
     /// checked and put in service by `swap_model`; `None` for laws that take gains only.

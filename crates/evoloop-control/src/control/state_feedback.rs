@@ -119,8 +119,8 @@ impl Controller for StateFeedback {
         self.saved_integral = self.integral;
     }
 
-    fn abort_to(&mut self, fallback: &[f64], _state: &PlantState, _sp: &Setpoint) {
-        self.gains.copy_from_slice(fallback);
+    fn swap_to_saved(&mut self, values: &[f64], _state: &PlantState, _sp: &Setpoint) {
+        self.gains.copy_from_slice(values);
         self.integral = self.saved_integral;
     }
 }

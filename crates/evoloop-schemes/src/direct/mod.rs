@@ -522,16 +522,7 @@ impl DirectTuner {
             self.best = (values.clone(), f64::INFINITY, version);
             self.best_tail = None;
             self.for_good = Some(version);
-            let (rep, w) = (self.spec.repetition, self.spec.u_weight);
-            self.running = Some(Running::new(
-                0,
-                version,
-                None,
-                values.clone(),
-                start,
-                rep,
-                w,
-            ));
+            self.running = Some(self.repetition(0, version, None, values.clone(), start));
             return Some(self.set(version, start, &values));
         }
         if self.tried >= self.spec.evaluations || self.stop {
@@ -553,16 +544,7 @@ impl DirectTuner {
         set.until_seq = until;
         set.fallback_version = self.best.2;
         self.fallback = self.settle_target();
-        let (rep, w) = (self.spec.repetition, self.spec.u_weight);
-        self.running = Some(Running::new(
-            self.tried + 1,
-            version,
-            Some(index),
-            values,
-            start,
-            rep,
-            w,
-        ));
+        self.running = Some(self.repetition(self.tried + 1, version, Some(index), values, start));
         self.tried += 1;
         Some(set)
     }
@@ -704,10 +686,22 @@ impl DirectTuner {
         let start = self.boundary_at_or_after(next);
         self.settling += 1;
         self.settle_repetitions += 1;
-        let (rep, w) = (self.spec.repetition, self.spec.u_weight);
-        let mut run = Running::new(0, version, None, Vec::new(), start, rep, w);
+        let mut run = self.repetition(0, version, None, Vec::new(), start);
         run.settle = true;
         run
+    }
+
+    /// One repetition of `values` from sample `start`, nothing seen yet.
+    fn repetition(
+        &self,
+        trial: usize,
+        version: u64,
+        index: Option<usize>,
+        values: Vec<f64>,
+        start: u64,
+    ) -> Running {
+        let (rep, w) = (self.spec.repetition, self.spec.u_weight);
+        Running::new(trial, version, index, values, start, rep, w)
     }
 
     /// A settle repetition ended: another one, unless the loop is back on the set in service's
