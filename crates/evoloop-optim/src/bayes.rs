@@ -24,6 +24,15 @@
 //! - **Window**: past `WINDOW` experiments the models use the `WINDOW` nearest the best one
 //!   (a local model, as trust-region BO does), so a step costs the same at 600 as at 150.
 //! - **Nothing safe to propose**: the safe variant proposes the seed again (known safe).
+//! - **A model of the plant** (`Bayes::with_prior`, issue 66): its predictions (a simulated trial
+//!   of each set on a nominal model) are both processes' prior mean: ln(cost) and the margin are
+//!   modelled as the model's value plus a GP of the residual, so a set nobody has tried is
+//!   expected where the model puts it (not at the average, nor at the safety boundary) and the
+//!   experiments only correct the model. Far from every experiment the margin's bound is the
+//!   model's margin minus beta times the residuals' spread: a set the model predicts well inside
+//!   the envelope may be tried there, one it predicts near or past it never is. The acquisition
+//!   adds `POOL` uniform points (the model's view of the whole box, predicted once) and tries
+//!   `LOCAL_WITH_PRIOR` perturbations a step instead of `LOCAL` (each costs a simulated trial).
 
 use super::rng::Xoshiro256pp;
 use super::Optimiser;
@@ -68,6 +77,25 @@ const WINDOW: usize = 150;
 const RANDOM: usize = 256;
 const LOCAL: usize = 256;
 const LOCAL_SCALES: [f64; 4] = [0.01, 0.03, 0.1, 0.3];
+/// With a model: uniform points predicted once, and perturbations a step.
+const POOL: usize = 256;
+const LOCAL_WITH_PRIOR: usize = 64;
+/// ln(cost) a model's aborted or unstable trial stands for: this much above its seed's.
+const PRIOR_ABORT_LN: f64 = 3.0;
+
+/// A model's prediction for one set (real units): its trial's cost (+infinity when the model's
+/// trial left the envelope or the loop was not stable) and its safety margin.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prediction {
+    pub cost: f64,
+    pub margin: f64,
+}
+
+/// A model of the experiment: the Gaussian processes' prior mean (`Bayes::with_prior`).
+pub trait PriorMean: Send {
+    /// One prediction per set, in order.
+    fn predict(&mut self, sets: &[Vec<f64>]) -> Vec<Prediction>;
+}
 
 /// A Gaussian process on fixed hyperparameters, fitted to standardised targets.
 #[derive(Clone)]
@@ -166,6 +194,8 @@ struct Observation {
     u: DVector<f64>,
     cost: f64,
     margin: Option<f64>,
+    /// The prior mean there: (ln cost, margin); (0, 0) without a model.
+    prior: (f64, f64),
 }
 
 pub struct Bayes {
@@ -181,6 +211,13 @@ pub struct Bayes {
     cost_gp: Option<Gp>,
     safe_gp: Option<Gp>,
     best: (Vec<f64>, f64),
+    /// The model (`with_prior`), the ln(cost) its aborts stand for (set at its first
+    /// prediction), its uniform points with their prior means, and the prior of each pending
+    /// candidate once known.
+    prior: Option<Box<dyn PriorMean>>,
+    abort_ln: Option<f64>,
+    pool: Vec<(DVector<f64>, (f64, f64))>,
+    pending_prior: Vec<Option<(f64, f64)>>,
 }
 
 impl Bayes {
@@ -217,8 +254,49 @@ impl Bayes {
             cost_gp: None,
             safe_gp: None,
             best: (Vec::new(), f64::INFINITY),
+            prior: None,
+            abort_ln: None,
+            pool: Vec::new(),
+            pending_prior: Vec::new(),
             cfg,
         })
+    }
+
+    /// Model-informed: `model`'s predictions are the prior mean of both processes.
+    pub fn with_prior(mut self, model: Box<dyn PriorMean>) -> Self {
+        self.prior = Some(model);
+        self
+    }
+
+    /// The prior means (ln cost, margin) at normalised points: (0, 0) each without a model.
+    fn prior_at(&mut self, us: &[DVector<f64>]) -> Vec<(f64, f64)> {
+        let sets: Vec<Vec<f64>> = us.iter().map(|u| self.to_real(u)).collect();
+        let Some(model) = self.prior.as_mut() else {
+            return vec![(0.0, 0.0); us.len()];
+        };
+        let p = model.predict(&sets);
+        let abort_ln = *self.abort_ln.get_or_insert_with(|| {
+            // The first prediction is the seed's (or the first ask's): aborts stand above it.
+            let first = p.first().map_or(f64::NAN, |p| p.cost.ln());
+            let finite = p.iter().map(|p| p.cost.ln()).filter(|c| c.is_finite());
+            let ln0 = if first.is_finite() {
+                first
+            } else {
+                finite.fold(0.0, f64::max)
+            };
+            ln0 + PRIOR_ABORT_LN
+        });
+        p.iter()
+            .map(|p| {
+                let ln = if p.cost.is_finite() && p.cost > 0.0 {
+                    p.cost.ln().min(abort_ln)
+                } else {
+                    abort_ln
+                };
+                let margin = if p.margin.is_nan() { -1.0 } else { p.margin.clamp(-1.0, 1.0) };
+                (ln, margin)
+            })
+            .collect()
     }
 
     fn normalise(&self, x: &[f64]) -> DVector<f64> {
@@ -240,10 +318,23 @@ impl Bayes {
     /// The safety model's lower confidence bound mu - beta sigma at `x` (real units), as the
     /// last `ask` fitted it: what the safe variant requires >= 0 of every proposal but the seed.
     /// None for the plain variant or before a model exists.
-    pub fn safety_lcb(&self, x: &[f64]) -> Option<f64> {
-        let (gp, s) = (self.safe_gp.as_ref()?, self.cfg.safety?);
-        let (mu, sd) = gp.predict(&self.normalise(x));
-        Some(mu - s.beta * sd)
+    pub fn safety_lcb(&mut self, x: &[f64]) -> Option<f64> {
+        self.safe_gp.as_ref()?;
+        let u = self.normalise(x);
+        let prior = self.prior_at(std::slice::from_ref(&u))[0];
+        Some(self.lcb(&u, prior.1))
+    }
+
+    /// The margin's lower bound at `u` with the model's margin `prior` there: -inf without a
+    /// safety model.
+    fn lcb(&self, u: &DVector<f64>, prior: f64) -> f64 {
+        match (&self.safe_gp, self.cfg.safety) {
+            (Some(gp), Some(s)) => {
+                let (mu, sd) = gp.predict(u);
+                prior + mu - s.beta * sd
+            }
+            _ => f64::NEG_INFINITY,
+        }
     }
 
     /// The experiments the models see: all, or past `WINDOW` the nearest the best one.
@@ -288,7 +379,12 @@ impl Bayes {
     fn fit(&mut self) {
         let obs = self.window();
         let x: Vec<DVector<f64>> = obs.iter().map(|o| o.u.clone()).collect();
-        let y = Self::targets(&obs);
+        // Residuals from the prior mean (the model's ln cost; 0 without one).
+        let y: Vec<f64> = Self::targets(&obs)
+            .iter()
+            .zip(&obs)
+            .map(|(y, o)| y - o.prior.0)
+            .collect();
         let mean = y.iter().sum::<f64>() / y.len() as f64;
         let sd = (y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / y.len() as f64).sqrt();
         let scale = sd.max(1e-3);
@@ -304,7 +400,7 @@ impl Bayes {
             // Margins below -1 say "unsafe" as well as -1 does; clipping keeps the fit local.
             let g: Vec<f64> = obs
                 .iter()
-                .map(|o| o.margin.unwrap_or(-1.0).max(-1.0))
+                .map(|o| o.margin.unwrap_or(-1.0).max(-1.0) - o.prior.1)
                 .collect();
             let amp = (g.iter().map(|v| v * v).sum::<f64>() / g.len() as f64)
                 .sqrt()
@@ -317,10 +413,12 @@ impl Bayes {
         self.safe_gp = safe_gp;
     }
 
-    /// Candidate points for the acquisition: uniform ones (plain variant) and perturbations of
-    /// the best (safe variant: the best observed safe) points, plus those points themselves.
-    fn proposals(&mut self) -> Vec<DVector<f64>> {
+    /// Candidate points for the acquisition with their prior means: uniform ones (plain
+    /// variant; with a model, the pool instead, predicted once) and perturbations of the best
+    /// (safe variant: the best observed safe) points, plus those points themselves.
+    fn proposals(&mut self) -> Vec<(DVector<f64>, (f64, f64))> {
         let safe = self.cfg.safety.is_some();
+        let modelled = self.prior.is_some();
         let mut anchors: Vec<&Observation> = self
             .seen
             .iter()
@@ -328,18 +426,18 @@ impl Bayes {
             .collect();
         anchors.sort_by(|a, b| a.cost.total_cmp(&b.cost));
         anchors.truncate(5);
-        let anchors: Vec<DVector<f64>> = anchors.iter().map(|o| o.u.clone()).collect();
-        let mut out = anchors.clone();
-        if !safe {
+        let mut out: Vec<(DVector<f64>, (f64, f64))> =
+            anchors.iter().map(|o| (o.u.clone(), o.prior)).collect();
+        let n_anchors = out.len();
+        let mut fresh = Vec::new();
+        if !safe && !modelled {
             for _ in 0..RANDOM {
-                out.push(DVector::from_iterator(
-                    self.d,
-                    (0..self.d).map(|_| self.rng.gen::<f64>()),
-                ));
+                fresh.push(self.uniform());
             }
         }
-        for k in 0..LOCAL {
-            let Some(a) = anchors.get(k % anchors.len().max(1)) else {
+        let local = if modelled { LOCAL_WITH_PRIOR } else { LOCAL };
+        for k in 0..local {
+            let Some((a, _)) = out.get(k % n_anchors.max(1)) else {
                 break;
             };
             let s = LOCAL_SCALES[k % LOCAL_SCALES.len()];
@@ -348,39 +446,55 @@ impl Bayes {
                 let z: f64 = StandardNormal.sample(&mut self.rng);
                 *v = (*v + s * z).clamp(0.0, 1.0);
             }
-            out.push(u);
+            fresh.push(u);
+        }
+        let priors = self.prior_at(&fresh);
+        out.extend(fresh.into_iter().zip(priors));
+        if modelled {
+            if self.pool.is_empty() {
+                let pool: Vec<DVector<f64>> = (0..POOL).map(|_| self.uniform()).collect();
+                let priors = self.prior_at(&pool);
+                self.pool = pool.into_iter().zip(priors).collect();
+            }
+            out.extend(self.pool.iter().cloned());
         }
         out
     }
 
-    /// The model's choice: the proposal of largest expected improvement (safe variant: among
-    /// those whose margin bound clears 0); None when nothing qualifies.
-    fn choose(&mut self) -> Option<DVector<f64>> {
+    fn uniform(&mut self) -> DVector<f64> {
+        DVector::from_iterator(self.d, (0..self.d).map(|_| self.rng.gen::<f64>()))
+    }
+
+    /// The model's choice and its prior mean: the proposal of largest expected improvement
+    /// (safe variant: among those whose margin bound clears 0); None when nothing qualifies.
+    fn choose(&mut self) -> Option<(DVector<f64>, (f64, f64))> {
         self.fit();
         let proposals = self.proposals();
         let cost = self.cost_gp.as_ref()?;
-        let incumbent = cost.mean
-            + cost.scale * {
-                let obs = self.window();
-                let y = Self::targets(&obs);
-                y.iter()
-                    .map(|v| (v - cost.mean) / cost.scale)
-                    .fold(f64::INFINITY, f64::min)
-            };
-        let mut best: Option<(f64, DVector<f64>)> = None;
-        for u in proposals {
-            if let (Some(gp), Some(s)) = (&self.safe_gp, self.cfg.safety) {
-                let (mu, sd) = gp.predict(&u);
-                if mu - s.beta * sd < 0.0 {
-                    continue;
-                }
+        // The best ln(cost) seen: each residual target in the model's units plus its prior.
+        let incumbent = {
+            let obs = self.window();
+            Self::targets(&obs)
+                .iter()
+                .zip(&obs)
+                .map(|(y, o)| {
+                    let r = y - o.prior.0;
+                    cost.mean + cost.scale * ((r - cost.mean) / cost.scale) + o.prior.0
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        let mut best: Option<(f64, DVector<f64>, (f64, f64))> = None;
+        for (u, prior) in proposals {
+            if self.cfg.safety.is_some() && self.lcb(&u, prior.1) < 0.0 {
+                continue;
             }
-            let ei = expected_improvement(cost.predict(&u), incumbent);
-            if best.as_ref().is_none_or(|(b, _)| ei > *b) {
-                best = Some((ei, u));
+            let (mu, sd) = cost.predict(&u);
+            let ei = expected_improvement((prior.0 + mu, sd), incumbent);
+            if best.as_ref().is_none_or(|(b, _, _)| ei > *b) {
+                best = Some((ei, u, prior));
             }
         }
-        best.map(|(_, u)| u)
+        best.map(|(_, u, p)| (u, p))
     }
 }
 
@@ -393,11 +507,13 @@ fn expected_improvement((mu, sd): (f64, f64), incumbent: f64) -> f64 {
 impl Optimiser for Bayes {
     fn ask(&mut self) -> &[Vec<f64>] {
         let k = self.seen.len();
+        let mut prior = None;
         let u = match (&self.cfg.start, k) {
             (Some(s), 0) => self.normalise(s),
             (None, 0) => DVector::from_element(self.d, 0.5),
-            _ if self.cfg.safety.is_none() && k < 1 + self.cfg.initial => {
-                DVector::from_iterator(self.d, (0..self.d).map(|_| self.rng.gen::<f64>()))
+            // With a model the first proposals are its own (no random experiments).
+            _ if self.cfg.safety.is_none() && self.prior.is_none() && k < 1 + self.cfg.initial => {
+                self.uniform()
             }
             _ if self.exhausted() => {
                 // The seed itself was not safe and nothing else has been: nothing to propose.
@@ -406,13 +522,17 @@ impl Optimiser for Bayes {
                 return &self.candidates;
             }
             _ => match self.choose() {
-                Some(u) => u,
+                Some((u, p)) => {
+                    prior = Some(p);
+                    u
+                }
                 // Nothing predicted safe (or no model): the known-safe seed again.
                 None => self.normalise(self.cfg.start.as_ref().expect("safe has a start")),
             },
         };
         self.candidates = vec![self.to_real(&u)];
         self.pending = vec![u];
+        self.pending_prior = vec![prior];
         self.margins.clear();
         &self.candidates
     }
@@ -427,13 +547,34 @@ impl Optimiser for Bayes {
 
     fn tell(&mut self, values: &[f64]) {
         assert_eq!(values.len(), self.pending.len(), "one value per candidate");
+        // The model's prediction where the acquisition did not make one (the seed).
+        let unknown: Vec<DVector<f64>> = self
+            .pending
+            .iter()
+            .zip(&self.pending_prior)
+            .filter(|(_, p)| p.is_none())
+            .map(|(u, _)| u.clone())
+            .collect();
+        let mut predicted = self.prior_at(&unknown).into_iter();
+        let priors: Vec<(f64, f64)> = (0..self.pending.len())
+            .map(|i| match self.pending_prior.get(i).copied().flatten() {
+                Some(p) => p,
+                None => predicted.next().unwrap_or((0.0, 0.0)),
+            })
+            .collect();
         for (i, (u, &cost)) in self.pending.drain(..).zip(values).enumerate() {
             let margin = self.margins.get(i).copied().filter(|m| !m.is_nan());
             if cost < self.best.1 {
                 self.best = (self.candidates[i].clone(), cost);
             }
-            self.seen.push(Observation { u, cost, margin });
+            self.seen.push(Observation {
+                u,
+                cost,
+                margin,
+                prior: priors[i],
+            });
         }
+        self.pending_prior.clear();
     }
 
     fn best(&self) -> (&[f64], f64) {
@@ -478,7 +619,7 @@ mod tests {
         1.6 - ((x[0] + 0.5).powi(2) + (x[1] + 0.5).powi(2)).sqrt()
     }
 
-    fn run(o: &mut Bayes, n: usize, mut each: impl FnMut(&Bayes, &[f64])) {
+    fn run(o: &mut Bayes, n: usize, mut each: impl FnMut(&mut Bayes, &[f64])) {
         for _ in 0..n {
             let x = o.ask()[0].clone();
             each(o, &x);
@@ -556,6 +697,79 @@ mod tests {
         o.tell(&[f64::INFINITY]);
         assert!(o.ask().is_empty());
         assert!(o.converged());
+    }
+
+    /// A model of the bowl: its margin exact, its cost that of a bowl moved by `shift` (a model
+    /// wrong about where the optimum is); counts the sets it predicted.
+    struct Model {
+        shift: f64,
+        predicted: usize,
+    }
+
+    impl PriorMean for Model {
+        fn predict(&mut self, sets: &[Vec<f64>]) -> Vec<Prediction> {
+            self.predicted += sets.len();
+            sets.iter()
+                .map(|x| Prediction {
+                    cost: cost(&[x[0] - self.shift, x[1] - self.shift]),
+                    margin: margin(x),
+                })
+                .collect()
+        }
+    }
+
+    fn safe(seed: u64) -> Bayes {
+        Bayes::new(config(Some(Safety { beta: 2.0 }), seed)).unwrap()
+    }
+
+    /// With a right model the safe variant goes to the optimum (1 at (0.5, 0.5), inside the safe
+    /// disc) in a handful of experiments, where without one it is far from it after as many;
+    /// with a model whose optimum is 0.57 away (outside the safe disc) the experiments correct
+    /// it. Neither ever tries an unsafe set.
+    #[test]
+    fn a_model_as_prior_mean_is_followed_where_right_and_corrected_where_wrong() {
+        for seed in 1..=3 {
+            let mut plain = safe(seed);
+            run(&mut plain, 6, |_, x| assert!(margin(x) >= 0.0));
+            let mut right = safe(seed).with_prior(Box::new(Model {
+                shift: 0.0,
+                predicted: 0,
+            }));
+            run(&mut right, 6, |_, x| assert!(margin(x) >= 0.0, "{x:?}"));
+            assert!(right.best().1 < 1.01, "seed {seed}: {:?}", right.best());
+            assert!(plain.best().1 > 1.5, "seed {seed}: {:?}", plain.best());
+            let mut wrong = safe(seed).with_prior(Box::new(Model {
+                shift: 0.4,
+                predicted: 0,
+            }));
+            run(&mut wrong, 30, |_, x| assert!(margin(x) >= 0.0, "{x:?}"));
+            assert!(wrong.best().1 < 1.02, "seed {seed}: {:?}", wrong.best());
+        }
+    }
+
+    /// The model's margin decides far from the experiments: where it says a set leaves the
+    /// envelope, the set is not proposed, even where the cost model pulls towards it (a model
+    /// whose margin is 0.3 too low everywhere keeps the optimiser further inside the disc).
+    #[test]
+    fn a_set_the_model_predicts_unsafe_is_never_proposed() {
+        struct Cautious;
+        impl PriorMean for Cautious {
+            fn predict(&mut self, sets: &[Vec<f64>]) -> Vec<Prediction> {
+                sets.iter()
+                    .map(|x| Prediction {
+                        cost: cost(x),
+                        margin: margin(x) - 0.3,
+                    })
+                    .collect()
+            }
+        }
+        let mut o = safe(1).with_prior(Box::new(Cautious));
+        run(&mut o, 30, |o, x| {
+            if x != [-1.5, -1.5] {
+                assert!(o.safety_lcb(x).unwrap() >= 0.0, "{x:?}");
+            }
+        });
+        assert!(o.best().1 < 1.2, "{:?}", o.best());
     }
 
     #[test]

@@ -157,14 +157,26 @@ pub fn build_seeded(
             start: seeds.first().cloned(),
             seed,
         })?),
-        "bayes" | "safe_bayes" => Box::new(Bayes::new(BayesConfig {
-            lower: lower.to_vec(),
-            upper: upper.to_vec(),
-            seed,
-            start: seeds.first().cloned(),
-            initial: BAYES_INITIAL,
-            safety: (name == "safe_bayes").then_some(Safety { beta: SAFE_BETA }),
-        })?),
+        "bayes" | "safe_bayes" => Box::new(bayes(name == "safe_bayes", lower, upper, seed, seeds)?),
         other => return Err(BuildError::Unknown(other.to_string())),
+    })
+}
+
+/// `bayes` or (`safe`) `safe_bayes` as `build_seeded` makes them, for a caller that adds a model
+/// of the plant (`Bayes::with_prior`).
+pub fn bayes(
+    safe: bool,
+    lower: &[f64],
+    upper: &[f64],
+    seed: u64,
+    seeds: &[Vec<f64>],
+) -> Result<Bayes, SettingsError> {
+    Bayes::new(BayesConfig {
+        lower: lower.to_vec(),
+        upper: upper.to_vec(),
+        seed,
+        start: seeds.first().cloned(),
+        initial: BAYES_INITIAL,
+        safety: safe.then_some(Safety { beta: SAFE_BETA }),
     })
 }

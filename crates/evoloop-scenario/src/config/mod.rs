@@ -21,7 +21,7 @@ pub use crate::plant::{PlantKind, PlantModel, PlantSpec};
 pub use model_prior::ModelPrior;
 pub use optimiser::{
     Expect, OptimiserMode, OptimiserSpec, ScheduledSet, SetKind, WorkersKind, WorkersSpec,
-    WORKERS_WAIT_S,
+    SAFE_BAYES_MODEL, WORKERS_WAIT_S,
 };
 pub use timing::{default_margin_us, parse_duration, Mode, Timing};
 
@@ -329,7 +329,7 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
         check,
         &plant.model,
         &controller,
-        optimiser.mode == OptimiserMode::Indirect,
+        model_prior::Use::of(&optimiser),
         timing.period,
     )?;
     if optimiser.mode == OptimiserMode::Identify {

@@ -42,19 +42,49 @@ impl ModelPrior {
     }
 }
 
-/// The prior for an indirect run on an `lti` or `external` plant under a PID; None for every
-/// other run (the maglev's and the two-mass's schemes know their plants), where the table
-/// must not appear.
+/// Who reads the prior.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Use {
+    /// Nobody (the table is kept but unused).
+    None,
+    /// The general indirect scheme: its estimator's structure and start.
+    Indirect,
+    /// The direct scheme's `safe_bayes_model`: the nominal model its trials are predicted on.
+    DirectModel,
+}
+
+impl Use {
+    pub fn of(o: &super::OptimiserSpec) -> Self {
+        match o.mode {
+            super::OptimiserMode::Indirect => Use::Indirect,
+            super::OptimiserMode::Direct if o.algorithm == super::SAFE_BAYES_MODEL => {
+                Use::DirectModel
+            }
+            _ => Use::None,
+        }
+    }
+}
+
+/// The prior for an indirect run (or a direct run of `safe_bayes_model`) on an `lti` or
+/// `external` plant under a PID; None for every other run (the maglev's and the two-mass's
+/// schemes know their plants), where the table must not appear.
 pub fn validate(
     raw: Option<RawModel>,
     check: &Check,
     plant: &PlantModel,
     controller: &ControllerSpec,
-    indirect: bool,
+    reader: Use,
     period: f64,
 ) -> Result<Option<ModelPrior>, ConfigError> {
     let linear = matches!(plant, PlantModel::Lti(_) | PlantModel::External(_));
-    if !(linear && indirect) {
+    if reader == Use::DirectModel && !linear {
+        return check.fail(
+            "optimiser.algorithm",
+            "safe_bayes_model predicts trials on a transfer function ([optimiser.model]): an lti \
+             or external plant with one input and one output",
+        );
+    }
+    if !(linear && reader != Use::None) {
         // Kept but unused in another mode (a frozen comparison run with `--optimiser off`).
         return match raw {
             Some(_) if !linear => check.fail(
@@ -68,12 +98,23 @@ pub fn validate(
     if !matches!(controller.model, ControllerModel::Pid(_)) {
         return check.fail(
             "controller.kind",
-            "the indirect scheme on an lti or external plant tunes a PID (state feedback there \
-             would need the plant's state coordinates, which input-output data do not give)",
+            "the indirect scheme and safe_bayes_model on an lti or external plant tune a PID \
+             (state feedback there would need the plant's state coordinates, which input-output \
+             data do not give)",
+        );
+    }
+    if reader == Use::DirectModel && raw.as_ref().is_none_or(|r| r.num.is_none()) {
+        // Not the simulated plant's own model by default: that is the truth, which a tuner
+        // must not be fed.
+        return check.fail(
+            "optimiser.model.num",
+            "missing: safe_bayes_model predicts its trials on the nominal model you give (num \
+             and den, descending powers: a datasheet's, a CAD model's or an earlier \
+             identification's)",
         );
     }
     let raw = raw.unwrap_or_default();
-    if let PlantModel::Lti(spec) = plant {
+    if let (PlantModel::Lti(spec), Use::Indirect) = (plant, reader) {
         if spec.delay > 0 || spec.dt.is_some() {
             return check.fail(
                 "optimiser.mode",

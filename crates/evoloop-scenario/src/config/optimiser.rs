@@ -458,10 +458,15 @@ struct DirectSettings {
     phases: [usize; 3],
 }
 
-/// The direct scheme's optimisers: the study's ask/tell ones and the GA/Hooke-Jeeves hybrid.
+/// The safe Bayesian optimiser with the plant's nominal model (`[optimiser.model]`) as its prior
+/// mean (the schemes' `direct::model`).
+pub const SAFE_BAYES_MODEL: &str = "safe_bayes_model";
+
+/// The direct scheme's optimisers: the study's ask/tell ones, the GA/Hooke-Jeeves hybrid and
+/// the model-informed safe Bayesian optimiser.
 pub fn direct_algorithms() -> Vec<&'static str> {
     let mut a = crate::optim::by_name::all();
-    a.push("hybrid");
+    a.extend(["hybrid", SAFE_BAYES_MODEL]);
     a
 }
 
@@ -507,14 +512,14 @@ fn direct_settings(
         output: bound("optimiser.envelope_output", o.envelope_output)?,
         control: bound("optimiser.envelope_control", o.envelope_control)?,
     };
-    if algorithm == "safe_bayes"
+    if (algorithm == "safe_bayes" || algorithm == SAFE_BAYES_MODEL)
         && [envelope.error, envelope.output, envelope.control]
             .iter()
             .all(|v| v.is_infinite())
     {
         return check.fail(
             "optimiser.algorithm",
-            "safe_bayes models each trial's margin inside the envelope: set optimiser.envelope_error, envelope_output or envelope_control",
+            format!("{algorithm} models each trial's margin inside the envelope: set optimiser.envelope_error, envelope_output or envelope_control"),
         );
     }
     let repetition = o.repetition.unwrap_or(1.0);

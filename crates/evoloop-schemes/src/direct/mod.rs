@@ -40,6 +40,8 @@
 //!   isolates each trial (`ControlCycle::with_isolated_trials`): it starts from the integrator
 //!   the set in service left, without a bumpless shift, and that set resumes from it after.
 
+pub mod model;
+
 use crate::config::Scenario;
 use crate::control::cycle::Envelope;
 use crate::msg::{ParamKind, ParamSet};
@@ -51,7 +53,7 @@ use serde::Serialize;
 #[derive(Debug, Clone, Serialize)]
 pub struct DirectSpec {
     /// `optim::by_name::build`'s name: ga, de, jade, pso, emupso, gwo, woa, goa, cmaes, bayes,
-    /// safe_bayes (or hybrid).
+    /// safe_bayes (or hybrid, or safe_bayes_model: `model`).
     pub algorithm: String,
     pub population: usize,
     /// Candidates tried (repetitions spent on trials).
@@ -316,13 +318,21 @@ impl DirectTuner {
         let configured = scn.controller.tunable().gains.clone();
         // The sample-efficient optimisers start from the set in service always (safe_bayes: its
         // known-safe seed); the population methods when `seed_configured` says so.
-        let from_service =
-            crate::optim::by_name::SAMPLE_EFFICIENT.contains(&spec.algorithm.as_str());
+        let model_informed = spec.algorithm == crate::config::SAFE_BAYES_MODEL;
+        let from_service = model_informed
+            || crate::optim::by_name::SAMPLE_EFFICIENT.contains(&spec.algorithm.as_str());
         let seeds = if scn.optimiser.seed_configured || from_service {
             vec![configured.clone()]
         } else {
             Vec::new()
         };
+        if model_informed {
+            let prior = model::ModelTrials::new(scn)?;
+            let bayes =
+                crate::optim::by_name::bayes(true, &b.lower, &b.upper, spec.seed, &seeds)
+                    .map_err(|e| e.to_string())?;
+            return Ok(Box::new(bayes.with_prior(Box::new(prior))));
+        }
         let opt: Box<dyn Optimiser + Send> = if spec.algorithm == "hybrid" {
             let o = &scn.optimiser;
             let cfg = crate::optim::hybrid::HybridConfig {

@@ -1,0 +1,154 @@
+//! `safe_bayes_model` (issue 66): the safe Bayesian optimiser with a model of the plant as its
+//! prior mean. Each set's predicted cost and margin are those of its trial on the nominal model
+//! of `[optimiser.model]` (a datasheet's or an earlier identification's transfer function, never
+//! the simulated plant's own: the truth only judges), run through the same control cycle and
+//! the same `DirectTuner` that score the plant's trials, so a trial on the model is judged as
+//! one on the plant is (its cost over one repetition, its margin inside the envelope, aborted
+//! where the envelope aborts it).
+//!
+//! The trials of one `predict` run back to back on one model loop, each from the state the
+//! configured set's first repetition left at the first boundary: the model's plant is put back
+//! there at every boundary, and the controller's trials start from that set's saved state as
+//! the plant's do with `optimiser.settle` (isolated trials). A set costs one repetition of the
+//! model, the configured set's warm-up once per call.
+
+use super::{DirectSpec, DirectTuner};
+use crate::config::Scenario;
+use crate::optim::bayes::{Prediction, PriorMean};
+use crate::optim::Optimiser;
+use crate::plant::lti::LtiSpec;
+use crate::plant::PlantModel;
+
+/// The direct scenario on its nominal model: the prior mean of `safe_bayes_model`.
+pub struct ModelTrials {
+    model: Scenario,
+}
+
+impl ModelTrials {
+    /// The scenario's trials on `[optimiser.model]` (validation requires it for this
+    /// algorithm), without the plant's noise.
+    pub fn new(scn: &Scenario) -> Result<Self, String> {
+        let prior = scn
+            .optimiser
+            .model
+            .as_ref()
+            .ok_or("safe_bayes_model needs the plant's nominal model: [optimiser.model] num, den")?;
+        let range = scn
+            .plant
+            .model
+            .config()
+            .scalar_input()
+            .ok_or("safe_bayes_model takes a plant with one input and one output")?
+            .range;
+        let lti = LtiSpec::from_transfer_function(&prior.num, &prior.den, scn.timing.period, range)?;
+        let mut model = scn.clone();
+        model.plant.model = PlantModel::Lti(lti);
+        model.plant.noise_std = 0.0;
+        Ok(Self { model })
+    }
+}
+
+/// The sets of one `predict`, asked one at a time as the tuner tries them.
+struct Listed {
+    sets: Vec<Vec<f64>>,
+    next: usize,
+    asked: Vec<Vec<f64>>,
+    best: (Vec<f64>, f64),
+}
+
+impl Optimiser for Listed {
+    fn ask(&mut self) -> &[Vec<f64>] {
+        self.asked = self.sets.get(self.next).cloned().into_iter().collect();
+        self.next += 1;
+        &self.asked
+    }
+    fn candidates(&self) -> &[Vec<f64>] {
+        &self.asked
+    }
+    fn tell(&mut self, values: &[f64]) {
+        if values[0] < self.best.1 {
+            self.best = (self.asked[0].clone(), values[0]);
+        }
+    }
+    fn best(&self) -> (&[f64], f64) {
+        (&self.best.0, self.best.1)
+    }
+    fn generation(&self) -> usize {
+        self.next
+    }
+    fn evaluations(&self) -> usize {
+        self.next
+    }
+    fn converged(&self) -> bool {
+        self.next >= self.sets.len()
+    }
+}
+
+impl PriorMean for ModelTrials {
+    fn predict(&mut self, sets: &[Vec<f64>]) -> Vec<Prediction> {
+        if sets.is_empty() {
+            return Vec::new();
+        }
+        // Back to back, no settle segments: the plant is put back at each boundary instead.
+        let mut scn = self.model.clone();
+        scn.optimiser.evaluations = sets.len();
+        scn.optimiser.settle = 0;
+        let spec = DirectSpec::of(&scn);
+        let listed = Listed {
+            sets: sets.to_vec(),
+            next: 0,
+            asked: Vec::new(),
+            best: (Vec::new(), f64::INFINITY),
+        };
+        let mut tuner = DirectTuner::with_optimiser(&scn, Box::new(listed));
+        // The cycle as the plant's run builds it (isolated trials when it settles).
+        let mut cycle = crate::sim::control_cycle(&self.model);
+        let mut plant = scn.plant.simulation(scn.seed);
+        let n = cycle.controller.n_outputs();
+        let n_u = plant.plant.n_inputs();
+        let mut state = crate::msg::PlantState::default();
+        let mut u = [0.0; crate::msg::MAX_JOINTS];
+        let mut start: Option<Vec<f64>> = None;
+        let end = spec.boundary(sets.len() as u64);
+        for k in 0..=end {
+            if k >= spec.first && (k - spec.first).is_multiple_of(spec.repetition) {
+                match &start {
+                    None => start = Some(plant.x.clone()),
+                    Some(x) => plant.x.copy_from_slice(x),
+                }
+            }
+            plant.sample(k, 0, &u[..n_u], &mut state);
+            if let Some(set) = tuner.at(k, None) {
+                cycle.offer(&set);
+            }
+            let mut tel = crate::msg::Telemetry::default();
+            cycle.step(&state, &mut tel);
+            tuner.observe(
+                state.seq,
+                state.t,
+                &cycle.setpoint.q[..n],
+                &state.y[..n],
+                &tel.u[..n],
+                tel.param_version,
+            );
+            u = cycle.u;
+            plant.advance(&u[..n_u], scn.timing.period);
+        }
+        let mut out = vec![
+            Prediction {
+                cost: f64::INFINITY,
+                margin: -1.0,
+            };
+            sets.len()
+        ];
+        for r in tuner.records.iter().filter(|r| r.trial >= 1) {
+            if let Some(p) = out.get_mut(r.trial - 1) {
+                *p = Prediction {
+                    cost: r.cost,
+                    margin: r.margin,
+                };
+            }
+        }
+        out
+    }
+}
