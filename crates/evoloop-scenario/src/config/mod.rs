@@ -288,6 +288,55 @@ impl Scenario {
     }
 }
 
+/// `[optimiser.nominal_plant]`: the plant as a user's model has it (a datasheet's, a CAD
+/// model's, an earlier identification's), a plant table like `[plant]` whose errors name its own
+/// keys; read by `safe_bayes_model` only, with the plant's inputs and outputs.
+fn nominal_plant(
+    raw: Option<crate::plant::RawPlant>,
+    check: &Check,
+    timing: &Timing,
+    reference: &crate::reference::Reference,
+    plant: &PlantSpec,
+    optimiser: &OptimiserSpec,
+) -> Result<Option<PlantSpec>, ConfigError> {
+    let Some(raw) = raw else {
+        return Ok(None);
+    };
+    const KEY: &str = "optimiser.nominal_plant";
+    if optimiser.algorithm != SAFE_BAYES_MODEL {
+        // Kept but unused (a comparison run of other optimisers on the same file).
+        return Ok(None);
+    }
+    let spec = PlantSpec::validate(raw, check, timing.period, reference, timing.duration)
+        .map_err(|mut e| {
+            e.key = e.key.replacen("plant", KEY, 1);
+            e.reason = e.reason.replace("plant.", &format!("{KEY}."));
+            e
+        })?;
+    let (a, b) = (plant.model.config(), spec.model.config());
+    if b.external().is_some() {
+        return check.fail(
+            &format!("{KEY}.kind"),
+            "a model evoloop simulates (a process of your own is the plant, not its model)",
+        );
+    }
+    let shape = |c: &dyn crate::plant::PlantConfig| {
+        let p = c.build();
+        (p.n_inputs(), p.n_outputs())
+    };
+    if a.external().is_none() && shape(a) != shape(b) {
+        return check.fail(
+            KEY,
+            format!(
+                "has {:?} inputs and outputs where the plant has {:?}",
+                shape(b),
+                shape(a)
+            ),
+        );
+    }
+    Ok(Some(spec))
+}
+
 fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, ConfigError> {
     let path = &check.file;
     let name = raw.name.unwrap_or_else(|| {
@@ -323,7 +372,9 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     }
     let mut raw_optimiser = raw.optimiser;
     let raw_model = raw_optimiser.as_mut().and_then(|o| o.model.take());
+    let raw_nominal = raw_optimiser.as_mut().and_then(|o| o.nominal_plant.take());
     let mut optimiser = optimiser::validate(raw_optimiser, check, &timing, ov)?;
+    optimiser.nominal_plant = nominal_plant(raw_nominal, check, &timing, &reference, &plant, &optimiser)?;
     optimiser.model = model_prior::validate(
         raw_model,
         check,

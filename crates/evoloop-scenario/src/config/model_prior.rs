@@ -57,7 +57,10 @@ impl Use {
     pub fn of(o: &super::OptimiserSpec) -> Self {
         match o.mode {
             super::OptimiserMode::Indirect => Use::Indirect,
-            super::OptimiserMode::Direct if o.algorithm == super::SAFE_BAYES_MODEL => {
+            // A nominal plant of its own, or else a transfer function.
+            super::OptimiserMode::Direct
+                if o.algorithm == super::SAFE_BAYES_MODEL && o.nominal_plant.is_none() =>
+            {
                 Use::DirectModel
             }
             _ => Use::None,
@@ -79,9 +82,10 @@ pub fn validate(
     let linear = matches!(plant, PlantModel::Lti(_) | PlantModel::External(_));
     if reader == Use::DirectModel && !linear {
         return check.fail(
-            "optimiser.algorithm",
-            "safe_bayes_model predicts trials on a transfer function ([optimiser.model]): an lti \
-             or external plant with one input and one output",
+            "optimiser.nominal_plant",
+            "missing: safe_bayes_model predicts its trials on the nominal model you give, here \
+             a plant table ([optimiser.model]'s transfer function is for lti and external \
+             plants)",
         );
     }
     if !(linear && reader != Use::None) {
@@ -109,8 +113,8 @@ pub fn validate(
         return check.fail(
             "optimiser.model.num",
             "missing: safe_bayes_model predicts its trials on the nominal model you give (num \
-             and den, descending powers: a datasheet's, a CAD model's or an earlier \
-             identification's)",
+             and den, descending powers, or a plant table [optimiser.nominal_plant]: a \
+             datasheet's, a CAD model's or an earlier identification's)",
         );
     }
     let raw = raw.unwrap_or_default();

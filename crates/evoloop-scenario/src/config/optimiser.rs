@@ -41,6 +41,8 @@ pub struct RawOptimiser {
     pub workers_expect: Option<usize>,
     /// `[optimiser.model]`, validated with the plant (`config::model_prior`).
     pub model: Option<super::model_prior::RawModel>,
+    /// `[optimiser.nominal_plant]`, validated with the plant (`config::nominal_plant`).
+    pub nominal_plant: Option<crate::plant::RawPlant>,
 }
 
 /// Where the optimiser's population evaluations run.
@@ -217,6 +219,9 @@ pub struct OptimiserSpec {
     pub workers: Option<WorkersSpec>,
     /// The general indirect scheme's prior (`[optimiser.model]`, lti and external plants).
     pub model: Option<super::model_prior::ModelPrior>,
+    /// The nominal model of the plant as a plant of its own (`[optimiser.nominal_plant]`), the
+    /// one `safe_bayes_model` predicts its trials on where it is not a transfer function.
+    pub nominal_plant: Option<crate::plant::PlantSpec>,
 }
 
 pub fn validate(
@@ -254,6 +259,7 @@ pub fn validate(
     };
     Ok(OptimiserSpec {
         model: None,
+        nominal_plant: None,
         workers,
         algorithm: d.algorithm,
         population: d.population,

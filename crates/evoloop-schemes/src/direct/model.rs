@@ -1,7 +1,8 @@
 //! `safe_bayes_model` (issue 66): the safe Bayesian optimiser with a model of the plant as its
 //! prior mean. Each set's predicted cost and margin are those of its trial on the nominal model
-//! of `[optimiser.model]` (a datasheet's or an earlier identification's transfer function, never
-//! the simulated plant's own: the truth only judges), run through the same control cycle and
+//! (`[optimiser.nominal_plant]`, a plant table, or `[optimiser.model]`'s transfer function: a
+//! datasheet's, a CAD model's or an earlier identification's, never the simulated plant's own:
+//! the truth only judges), run through the same control cycle and
 //! the same `DirectTuner` that score the plant's trials, so a trial on the model is judged as
 //! one on the plant is (its cost over one repetition, its margin inside the envelope, aborted
 //! where the envelope aborts it).
@@ -25,24 +26,35 @@ pub struct ModelTrials {
 }
 
 impl ModelTrials {
-    /// The scenario's trials on `[optimiser.model]` (validation requires it for this
-    /// algorithm), without the plant's noise.
+    /// The scenario's trials on its nominal model (validation requires one for this algorithm):
+    /// `[optimiser.nominal_plant]`, or `[optimiser.model]`'s transfer function; without the
+    /// plant's noise.
     pub fn new(scn: &Scenario) -> Result<Self, String> {
-        let prior = scn
-            .optimiser
-            .model
-            .as_ref()
-            .ok_or("safe_bayes_model needs the plant's nominal model: [optimiser.model] num, den")?;
-        let range = scn
-            .plant
-            .model
-            .config()
-            .scalar_input()
-            .ok_or("safe_bayes_model takes a plant with one input and one output")?
-            .range;
-        let lti = LtiSpec::from_transfer_function(&prior.num, &prior.den, scn.timing.period, range)?;
         let mut model = scn.clone();
-        model.plant.model = PlantModel::Lti(lti);
+        match (&scn.optimiser.nominal_plant, &scn.optimiser.model) {
+            (Some(nominal), _) => model.plant = nominal.clone(),
+            (None, Some(prior)) => {
+                let range = scn
+                    .plant
+                    .model
+                    .config()
+                    .scalar_input()
+                    .ok_or("a transfer function models a plant with one input and one output")?
+                    .range;
+                let lti = LtiSpec::from_transfer_function(
+                    &prior.num,
+                    &prior.den,
+                    scn.timing.period,
+                    range,
+                )?;
+                model.plant.model = PlantModel::Lti(lti);
+            }
+            (None, None) => {
+                return Err("safe_bayes_model needs the plant's nominal model: \
+                            [optimiser.nominal_plant] or [optimiser.model] num, den"
+                    .into())
+            }
+        }
         model.plant.noise_std = 0.0;
         Ok(Self { model })
     }
