@@ -293,7 +293,11 @@ impl Bayes {
                 } else {
                     abort_ln
                 };
-                let margin = if p.margin.is_nan() { -1.0 } else { p.margin.clamp(-1.0, 1.0) };
+                let margin = if p.margin.is_nan() {
+                    -1.0
+                } else {
+                    p.margin.clamp(-1.0, 1.0)
+                };
                 (ln, margin)
             })
             .collect()

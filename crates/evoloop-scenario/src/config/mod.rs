@@ -307,12 +307,13 @@ fn nominal_plant(
         // Kept but unused (a comparison run of other optimisers on the same file).
         return Ok(None);
     }
-    let spec = PlantSpec::validate(raw, check, timing.period, reference, timing.duration)
-        .map_err(|mut e| {
+    let spec = PlantSpec::validate(raw, check, timing.period, reference, timing.duration).map_err(
+        |mut e| {
             e.key = e.key.replacen("plant", KEY, 1);
             e.reason = e.reason.replace("plant.", &format!("{KEY}."));
             e
-        })?;
+        },
+    )?;
     let (a, b) = (plant.model.config(), spec.model.config());
     if b.external().is_some() {
         return check.fail(
@@ -374,7 +375,8 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let raw_model = raw_optimiser.as_mut().and_then(|o| o.model.take());
     let raw_nominal = raw_optimiser.as_mut().and_then(|o| o.nominal_plant.take());
     let mut optimiser = optimiser::validate(raw_optimiser, check, &timing, ov)?;
-    optimiser.nominal_plant = nominal_plant(raw_nominal, check, &timing, &reference, &plant, &optimiser)?;
+    optimiser.nominal_plant =
+        nominal_plant(raw_nominal, check, &timing, &reference, &plant, &optimiser)?;
     optimiser.model = model_prior::validate(
         raw_model,
         check,

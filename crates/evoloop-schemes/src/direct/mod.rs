@@ -328,9 +328,8 @@ impl DirectTuner {
         };
         if model_informed {
             let prior = model::ModelTrials::new(scn)?;
-            let bayes =
-                crate::optim::by_name::bayes(true, &b.lower, &b.upper, spec.seed, &seeds)
-                    .map_err(|e| e.to_string())?;
+            let bayes = crate::optim::by_name::bayes(true, &b.lower, &b.upper, spec.seed, &seeds)
+                .map_err(|e| e.to_string())?;
             return Ok(Box::new(bayes.with_prior(Box::new(prior))));
         }
         let opt: Box<dyn Optimiser + Send> = if spec.algorithm == "hybrid" {
