@@ -218,6 +218,10 @@ pub struct Bayes {
     abort_ln: Option<f64>,
     pool: Vec<(DVector<f64>, (f64, f64))>,
     pending_prior: Vec<Option<(f64, f64)>>,
+    /// The stop rule (`with_stop`): the expected improvement below which no candidate is worth
+    /// an experiment, and whether it has stopped.
+    stop_below: Option<f64>,
+    stopped: bool,
 }
 
 impl Bayes {
@@ -258,8 +262,18 @@ impl Bayes {
             abort_ln: None,
             pool: Vec::new(),
             pending_prior: Vec::new(),
+            stop_below: None,
+            stopped: false,
             cfg,
         })
+    }
+
+    /// The stop rule: once no proposal (safe variant: no proposal predicted safe) has an
+    /// expected improvement in ln(cost) of `ei` or more, nothing is worth another experiment on
+    /// the plant; `ask` proposes nothing and the optimiser says it has converged.
+    pub fn with_stop(mut self, ei: f64) -> Self {
+        self.stop_below = Some(ei);
+        self
     }
 
     /// Model-informed: `model`'s predictions are the prior mean of both processes.
@@ -498,6 +512,12 @@ impl Bayes {
                 best = Some((ei, u, prior));
             }
         }
+        if let Some(stop) = self.stop_below {
+            self.stopped = best.as_ref().is_none_or(|(ei, _, _)| *ei < stop);
+            if self.stopped {
+                return None;
+            }
+        }
         best.map(|(_, u, p)| (u, p))
     }
 }
@@ -519,6 +539,12 @@ impl Optimiser for Bayes {
             _ if self.cfg.safety.is_none() && self.prior.is_none() && k < 1 + self.cfg.initial => {
                 self.uniform()
             }
+            // Stopped for good: the best set stays in service.
+            _ if self.stopped => {
+                self.candidates.clear();
+                self.pending.clear();
+                return &self.candidates;
+            }
             _ if self.exhausted() => {
                 // The seed itself was not safe and nothing else has been: nothing to propose.
                 self.candidates.clear();
@@ -529,6 +555,11 @@ impl Optimiser for Bayes {
                 Some((u, p)) => {
                     prior = Some(p);
                     u
+                }
+                None if self.stopped => {
+                    self.candidates.clear();
+                    self.pending.clear();
+                    return &self.candidates;
                 }
                 // Nothing predicted safe (or no model): the known-safe seed again.
                 None => self.normalise(self.cfg.start.as_ref().expect("safe has a start")),
@@ -593,9 +624,10 @@ impl Optimiser for Bayes {
         self.seen.len()
     }
 
-    /// The safe variant with no experiment observed safe (its seed was not): it stops.
+    /// The safe variant with no experiment observed safe (its seed was not), or the stop rule
+    /// (`with_stop`) met: it stops.
     fn converged(&self) -> bool {
-        self.exhausted()
+        self.exhausted() || self.stopped
     }
 }
 
@@ -774,6 +806,33 @@ mod tests {
             }
         });
         assert!(o.best().1 < 1.2, "{:?}", o.best());
+    }
+
+    /// The stop rule: with a right model the safe variant finds the optimum, then stops (no
+    /// proposal left worth an experiment) long before a budget of 60, and proposes nothing
+    /// more; without the rule it runs on.
+    #[test]
+    fn the_stop_rule_ends_the_run_when_nothing_is_worth_an_experiment() {
+        let right = || {
+            safe(1).with_prior(Box::new(Model {
+                shift: 0.0,
+                predicted: 0,
+            }))
+        };
+        let mut o = right().with_stop(1e-5);
+        let mut n = 0;
+        while n < 60 && !o.ask().is_empty() {
+            let x = o.candidates()[0].clone();
+            o.tell_safety(&[margin(&x)]);
+            o.tell(&[cost(&x)]);
+            n += 1;
+        }
+        assert!(o.converged() && n < 30, "{n} experiments");
+        assert!(o.best().1 < 1.01, "{:?}", o.best());
+        assert!(o.ask().is_empty());
+        let mut endless = right();
+        run(&mut endless, 60, |_, _| {});
+        assert!(!endless.converged());
     }
 
     #[test]

@@ -29,8 +29,11 @@ const WITHIN: f64 = 0.01;
 pub struct Run {
     pub algorithm: String,
     pub seed: u64,
-    /// Best cost known after each experiment (index 0 = after the first trial).
+    /// Best cost known after each experiment (index 0 = after the first trial), as long as the
+    /// budget (after an optimiser's stop rule, its last value).
     pub best: Vec<f64>,
+    /// Experiments run (fewer than the budget when the optimiser stopped itself).
+    pub experiments: usize,
     /// Aborted trials up to and including each experiment.
     pub aborts: Vec<u32>,
     pub final_cost: f64,
@@ -81,6 +84,8 @@ pub struct Summary {
     pub settle_share_quartiles: [f64; 3],
     /// A run's wall time (s).
     pub wall_seconds_quartiles: [f64; 3],
+    /// Experiments a run spent (fewer than the budget after a stop rule).
+    pub experiments_quartiles: [f64; 3],
     /// Against the GA, paired over seeds (not for the GA itself): runs where this one is
     /// lower (fewer experiments, lower cost) and the Wilcoxon p-value.
     pub vs_ga: Option<VsGa>,
@@ -260,17 +265,25 @@ fn one_run(
     let trials: Vec<_> = report.repetitions.iter().filter(|r| r.trial > 0).collect();
     let repetitions = report.repetitions.len() as u64 + report.settle_repetitions;
     let mut aborts = 0u32;
+    let mut best: Vec<f64> = trials.iter().map(|r| r.best).collect();
+    let mut aborts: Vec<u32> = trials
+        .iter()
+        .map(|r| {
+            aborts += u32::from(r.aborted);
+            aborts
+        })
+        .collect();
+    // An optimiser that stopped before its budget (a stop rule) holds its best set and its
+    // aborts from there on.
+    let budget = report.evaluations.max(trials.len());
+    best.resize(budget, best.last().copied().unwrap_or(f64::INFINITY));
+    aborts.resize(budget, aborts.last().copied().unwrap_or(0));
     Run {
         algorithm: algorithm.into(),
         seed,
-        best: trials.iter().map(|r| r.best).collect(),
-        aborts: trials
-            .iter()
-            .map(|r| {
-                aborts += u32::from(r.aborted);
-                aborts
-            })
-            .collect(),
+        best,
+        aborts,
+        experiments: trials.len(),
         final_cost: report.best_cost,
         baseline_cost: report
             .repetitions
@@ -349,6 +362,9 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
         ),
         settle_share_quartiles: quartiles(&mine.iter().map(|r| r.settle_share).collect::<Vec<_>>()),
         wall_seconds_quartiles: quartiles(&mine.iter().map(|r| r.wall_seconds).collect::<Vec<_>>()),
+        experiments_quartiles: quartiles(
+            &mine.iter().map(|r| r.experiments as f64).collect::<Vec<_>>(),
+        ),
         vs_ga,
     }
 }
@@ -442,16 +458,18 @@ fn report_md(name: &str, budget: usize, seeds: usize, summaries: &[Summary]) -> 
     s.push_str(&goal(summaries));
     s.push_str(
         "\nThe plant's time a run took (baseline, trials and the settle repetitions between \
-         them, `optimiser.settle`), the share of it spent settling, and a run's wall time here \
+         them, `optimiser.settle`), the share of it spent settling, the experiments it ran (fewer \
+         than the budget where the optimiser stopped itself), and a run's wall time here \
          (simulated, beside the comparison's other runs):\n\n\
-         | algorithm | plant time, s | settling | wall time, s |\n|---|---|---|---|\n",
+         | algorithm | plant time, s | settling | experiments run | wall time, s |\n|---|---|---|---|---|\n",
     );
     for m in summaries {
         s.push_str(&format!(
-            "| {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} |\n",
             m.algorithm,
             q3(&m.plant_seconds_quartiles, 0),
             q3(&m.settle_share_quartiles, 2),
+            q3(&m.experiments_quartiles, 0),
             q3(&m.wall_seconds_quartiles, 1)
         ));
     }

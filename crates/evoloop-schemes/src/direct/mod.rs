@@ -330,7 +330,11 @@ impl DirectTuner {
             let prior = model::ModelTrials::new(scn)?;
             let bayes = crate::optim::by_name::bayes(true, &b.lower, &b.upper, spec.seed, &seeds)
                 .map_err(|e| e.to_string())?;
-            return Ok(Box::new(bayes.with_prior(Box::new(prior))));
+            return Ok(Box::new(
+                bayes
+                    .with_prior(Box::new(prior))
+                    .with_stop(model::STOP_EI),
+            ));
         }
         let opt: Box<dyn Optimiser + Send> = if spec.algorithm == "hybrid" {
             let o = &scn.optimiser;
