@@ -785,43 +785,6 @@ fn a_revert_after_a_stop_still_goes_out_and_holds() {
     assert!(measured.cost.is_finite());
 }
 
-/// Tries a fixed list of sets, one per `ask`, in order: a test's way to choose what runs
-/// before what.
-struct Listed {
-    sets: Vec<Vec<f64>>,
-    next: usize,
-    asked: Vec<Vec<f64>>,
-    best: (Vec<f64>, f64),
-}
-
-impl evoloop::optim::Optimiser for Listed {
-    fn ask(&mut self) -> &[Vec<f64>] {
-        self.asked = self.sets.get(self.next).cloned().into_iter().collect();
-        self.next += 1;
-        &self.asked
-    }
-    fn candidates(&self) -> &[Vec<f64>] {
-        &self.asked
-    }
-    fn tell(&mut self, values: &[f64]) {
-        if values[0] < self.best.1 {
-            self.best = (self.asked[0].clone(), values[0]);
-        }
-    }
-    fn best(&self) -> (&[f64], f64) {
-        (&self.best.0, self.best.1)
-    }
-    fn generation(&self) -> usize {
-        self.next
-    }
-    fn evaluations(&self) -> usize {
-        self.next
-    }
-    fn converged(&self) -> bool {
-        self.next >= self.sets.len()
-    }
-}
-
 /// The shipped direct scenario `file` with its text edited by `edits` (from, to), trying
 /// `sets` in order: the report.
 fn listed_run(
@@ -836,12 +799,7 @@ fn listed_run(
         text = text.replace(from, to);
     }
     let scn = Scenario::parse(&text, &path, &Overrides::default()).unwrap();
-    let listed = Listed {
-        sets,
-        next: 0,
-        asked: Vec::new(),
-        best: (Vec::new(), f64::INFINITY),
-    };
+    let listed = evoloop::optim::listed::Listed::new(sets);
     let tuner = evoloop::direct::DirectTuner::with_optimiser(&scn, Box::new(listed));
     evoloop::direct::run_tuner_in_process(&scn, tuner, |_, _| {})
         .unwrap()

@@ -331,9 +331,7 @@ impl DirectTuner {
             let bayes = crate::optim::by_name::bayes(true, &b.lower, &b.upper, spec.seed, &seeds)
                 .map_err(|e| e.to_string())?;
             return Ok(Box::new(
-                bayes
-                    .with_prior(Box::new(prior))
-                    .with_stop(model::STOP_EI),
+                bayes.with_prior(Box::new(prior)).with_stop(model::STOP_EI),
             ));
         }
         let opt: Box<dyn Optimiser + Send> = if spec.algorithm == "hybrid" {

@@ -16,7 +16,6 @@
 use super::{DirectSpec, DirectTuner};
 use crate::config::Scenario;
 use crate::optim::bayes::{Prediction, PriorMean};
-use crate::optim::Optimiser;
 use crate::plant::lti::LtiSpec;
 use crate::plant::PlantModel;
 
@@ -68,42 +67,6 @@ impl ModelTrials {
     }
 }
 
-/// The sets of one `predict`, asked one at a time as the tuner tries them.
-struct Listed {
-    sets: Vec<Vec<f64>>,
-    next: usize,
-    asked: Vec<Vec<f64>>,
-    best: (Vec<f64>, f64),
-}
-
-impl Optimiser for Listed {
-    fn ask(&mut self) -> &[Vec<f64>] {
-        self.asked = self.sets.get(self.next).cloned().into_iter().collect();
-        self.next += 1;
-        &self.asked
-    }
-    fn candidates(&self) -> &[Vec<f64>] {
-        &self.asked
-    }
-    fn tell(&mut self, values: &[f64]) {
-        if values[0] < self.best.1 {
-            self.best = (self.asked[0].clone(), values[0]);
-        }
-    }
-    fn best(&self) -> (&[f64], f64) {
-        (&self.best.0, self.best.1)
-    }
-    fn generation(&self) -> usize {
-        self.next
-    }
-    fn evaluations(&self) -> usize {
-        self.next
-    }
-    fn converged(&self) -> bool {
-        self.next >= self.sets.len()
-    }
-}
-
 impl PriorMean for ModelTrials {
     fn predict(&mut self, sets: &[Vec<f64>]) -> Vec<Prediction> {
         if sets.is_empty() {
@@ -114,12 +77,7 @@ impl PriorMean for ModelTrials {
         scn.optimiser.evaluations = sets.len();
         scn.optimiser.settle = 0;
         let spec = DirectSpec::of(&scn);
-        let listed = Listed {
-            sets: sets.to_vec(),
-            next: 0,
-            asked: Vec::new(),
-            best: (Vec::new(), f64::INFINITY),
-        };
+        let listed = crate::optim::listed::Listed::new(sets.to_vec());
         let mut tuner = DirectTuner::with_optimiser(&scn, Box::new(listed));
         // The cycle as the plant's run builds it (isolated trials when it settles).
         let mut cycle = crate::sim::control_cycle(&self.model);
