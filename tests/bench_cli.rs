@@ -113,7 +113,8 @@ fn bench_loop_measures_the_loop_and_its_floor_in_the_same_run() {
 }
 
 /// The optimiser's load during the run is reported: with `--load optimiser` its DE epochs keep
-/// it busy (on 2 threads, back to back), far above the idle listener of `--load off`.
+/// it busy (on 2 threads, back to back), far above the idle listener of `--load off` measured
+/// in the same sitting.
 #[test]
 fn bench_loop_reports_the_optimisers_load_during_the_run() {
     let _alone = alone();
@@ -134,12 +135,15 @@ fn bench_loop_reports_the_optimisers_load_during_the_run() {
         )
     };
     let (busy, busy_cpu) = load("optimiser");
-    let (idle, _) = load("off");
-    assert!(busy_cpu > 0.5, "{busy_cpu} s of CPU in a 2 s run");
+    let (idle, idle_cpu) = load("off");
+    // Ratios to the idle run of the same sitting, not absolute seconds: on a host loaded by
+    // others (CI beside two busy loops at nice 4, 2026-12-05) the optimiser, at nice 10, got
+    // 0.45 s of CPU in the 2 s where an idle host gives it more than a second.
     assert!(
-        busy > 0.25 && busy > 5.0 * idle,
-        "busy {busy} cores, idle {idle}"
+        busy_cpu > 5.0 * idle_cpu && busy_cpu > 0.05,
+        "{busy_cpu} s of CPU in a 2 s run, idle {idle_cpu} s"
     );
+    assert!(busy > 5.0 * idle, "busy {busy} cores, idle {idle}");
 }
 
 /// `--scenario` runs a shipped scenario (here the 7-DOF arm at 10 kHz) with the chosen wait

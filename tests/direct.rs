@@ -526,8 +526,9 @@ fn motor_direct(dir: &Path, trials: usize, settle: u32, edits: &[(&str, &str)]) 
 /// `safe_bayes_model` (issue 66): the safe optimiser with the nominal model of
 /// `[optimiser.model]` as its prior mean. Through the processes its trials equal the in-process
 /// tuner's bit for bit; from the configured set, on the DC motor whose nominal model is 20 % off
-/// in gain and time constant, none of its 10 trials is aborted and its best set is within 1 % of
-/// the final cost of the paper's GA after its whole budget of 150 trials on the same seed.
+/// in gain and time constant, none of its trials (10 at most: its stop rule may end it sooner) is
+/// aborted and its best set is within 1 % of the final cost of the paper's GA after its whole
+/// budget of 150 trials on the same seed.
 #[test]
 fn safe_bayes_model_reaches_the_gas_final_cost_in_ten_trials_through_the_processes() {
     let tmp = tempfile::tempdir().unwrap();
@@ -542,7 +543,8 @@ fn safe_bayes_model_reaches_the_gas_final_cost_in_ten_trials_through_the_process
     assert_eq!(opt["direct"]["algorithm"], "safe_bayes_model");
     let live_reps = opt["direct"]["repetitions"].as_array().unwrap().clone();
     let fast_reps = tuned["direct"]["repetitions"].as_array().unwrap().clone();
-    assert_eq!(live_reps.len(), 11);
+    assert_eq!(live_reps.len(), fast_reps.len());
+    assert!(live_reps.len() > 1);
     for (a, b) in live_reps.iter().zip(&fast_reps) {
         let bits = |r: &serde_json::Value, k: &str| r[k].as_f64().map(f64::to_bits);
         assert_eq!(bits(a, "cost"), bits(b, "cost"), "trial {}", a["trial"]);
@@ -618,7 +620,7 @@ fn safe_bayes_model_needs_a_nominal_model_and_never_reads_the_plants_own() {
         vec![12.0, 0.02, 0.01],
         vec![60.0, 0.0, 0.5],
     ];
-    let predict = |num: &str| {
+    let predict = |num: &str, sets: &[Vec<f64>]| {
         let cfg = motor_direct(
             tmp.path(),
             10,
@@ -630,15 +632,22 @@ fn safe_bayes_model_needs_a_nominal_model_and_never_reads_the_plants_own() {
         );
         let scn = Scenario::load(&cfg, &Overrides::default()).unwrap();
         let mut m = evoloop::direct::model::ModelTrials::new(&scn).unwrap();
-        evoloop::optim::bayes::PriorMean::predict(&mut m, &sets)
+        evoloop::optim::bayes::PriorMean::predict(&mut m, sets)
     };
-    let (a, b) = (predict("num = [2.0]"), predict("num = [3.0]"));
+    let (a, b) = (predict("num = [2.0]", &sets), predict("num = [3.0]", &sets));
     assert_eq!(a, b);
+    // A set's prediction hardly depends on what else is predicted with it, or in which order:
+    // each trial starts from the same plant state and the law's saved state; what isolation
+    // does not restore is the law's memory of the last samples (its derivative's last error),
+    // 0.1-0.5 % of the cost here.
+    let alone = predict("num = [2.0]", &sets[2..]);
+    let reversed = predict("num = [2.0]", &[sets[2].clone(), sets[1].clone()]);
+    for (x, y) in [(alone[0], a[2]), (reversed[1], a[1]), (reversed[0], a[2])] {
+        assert!((x.cost / y.cost - 1.0).abs() < 0.01, "{x:?} {y:?}");
+        assert!((x.margin - y.margin).abs() < 0.01, "{x:?} {y:?}");
+    }
     // The configured set stays inside the envelope on the model, and the tuned ones cost less.
-    assert!(
-        a[0].cost.is_finite() && (0.0..1.0).contains(&a[0].margin),
-        "{a:?}"
-    );
+    assert!(a[0].cost.is_finite() && (0.0..1.0).contains(&a[0].margin), "{a:?}");
     assert!(a[1].cost < a[0].cost && a[2].cost < a[0].cost, "{a:?}");
 }
 

@@ -289,32 +289,36 @@ impl Bayes {
             return vec![(0.0, 0.0); us.len()];
         };
         let p = model.predict(&sets);
-        let abort_ln = *self.abort_ln.get_or_insert_with(|| {
-            // The first prediction is the seed's (or the first ask's): aborts stand above it.
-            let first = p.first().map_or(f64::NAN, |p| p.cost.ln());
-            let finite = p.iter().map(|p| p.cost.ln()).filter(|c| c.is_finite());
-            let ln0 = if first.is_finite() {
-                first
-            } else {
-                finite.fold(0.0, f64::max)
-            };
-            ln0 + PRIOR_ABORT_LN
-        });
-        p.iter()
-            .map(|p| {
-                let ln = if p.cost.is_finite() && p.cost > 0.0 {
-                    p.cost.ln().min(abort_ln)
-                } else {
-                    abort_ln
-                };
-                let margin = if p.margin.is_nan() {
-                    -1.0
-                } else {
-                    p.margin.clamp(-1.0, 1.0)
-                };
-                (ln, margin)
-            })
-            .collect()
+        if self.abort_ln.is_none() {
+            // Aborts stand above the model's first finite cost (the seed's, normally), else above
+            // the worst finite cost seen on the plant; fixed once the model has given one.
+            let ln = |c: f64| (c.is_finite() && c > 0.0).then(|| c.ln());
+            let first = p.iter().find_map(|p| ln(p.cost));
+            let seen = self.seen.iter().filter_map(|o| ln(o.cost)).reduce(f64::max);
+            self.abort_ln = first.map(|l| l + PRIOR_ABORT_LN);
+            if self.abort_ln.is_none() {
+                let ln0 = seen.unwrap_or(0.0) + PRIOR_ABORT_LN;
+                return p.iter().map(|p| Self::prior_pair(p, ln0)).collect();
+            }
+        }
+        let abort_ln = self.abort_ln.expect("set above");
+        p.iter().map(|p| Self::prior_pair(p, abort_ln)).collect()
+    }
+
+    /// A prediction as prior means: ln(cost) (an abort, or past it, at `abort_ln`) and the
+    /// margin clipped to [-1, 1] (NaN: -1).
+    fn prior_pair(p: &Prediction, abort_ln: f64) -> (f64, f64) {
+        let ln = if p.cost.is_finite() && p.cost > 0.0 {
+            p.cost.ln().min(abort_ln)
+        } else {
+            abort_ln
+        };
+        let margin = if p.margin.is_nan() {
+            -1.0
+        } else {
+            p.margin.clamp(-1.0, 1.0)
+        };
+        (ln, margin)
     }
 
     fn normalise(&self, x: &[f64]) -> DVector<f64> {
@@ -489,7 +493,9 @@ impl Bayes {
         self.fit();
         let proposals = self.proposals();
         let cost = self.cost_gp.as_ref()?;
-        // The best ln(cost) seen: each residual target in the model's units plus its prior.
+        // The best ln(cost) seen: each residual target in the model's units plus its prior. (Not
+        // simply the smallest target: written so, without a model it is the value the plain
+        // variant always took, mean + scale * min standardised, bit for bit.)
         let incumbent = {
             let obs = self.window();
             Self::targets(&obs)
@@ -528,6 +534,15 @@ fn expected_improvement((mu, sd): (f64, f64), incumbent: f64) -> f64 {
     sd * (z * normal_cdf(z) + normal_pdf(z))
 }
 
+impl Bayes {
+    /// An `ask` with nothing to propose.
+    fn nothing(&mut self) -> &[Vec<f64>] {
+        self.candidates.clear();
+        self.pending.clear();
+        &self.candidates
+    }
+}
+
 impl Optimiser for Bayes {
     fn ask(&mut self) -> &[Vec<f64>] {
         let k = self.seen.len();
@@ -539,28 +554,15 @@ impl Optimiser for Bayes {
             _ if self.cfg.safety.is_none() && self.prior.is_none() && k < 1 + self.cfg.initial => {
                 self.uniform()
             }
-            // Stopped for good: the best set stays in service.
-            _ if self.stopped => {
-                self.candidates.clear();
-                self.pending.clear();
-                return &self.candidates;
-            }
-            _ if self.exhausted() => {
-                // The seed itself was not safe and nothing else has been: nothing to propose.
-                self.candidates.clear();
-                self.pending.clear();
-                return &self.candidates;
-            }
+            // Stopped for good (the best set stays in service), or the seed itself was not safe
+            // and nothing else has been: nothing to propose.
+            _ if self.stopped || self.exhausted() => return self.nothing(),
             _ => match self.choose() {
                 Some((u, p)) => {
                     prior = Some(p);
                     u
                 }
-                None if self.stopped => {
-                    self.candidates.clear();
-                    self.pending.clear();
-                    return &self.candidates;
-                }
+                None if self.stopped => return self.nothing(),
                 // Nothing predicted safe (or no model): the known-safe seed again.
                 None => self.normalise(self.cfg.start.as_ref().expect("safe has a start")),
             },
@@ -736,15 +738,13 @@ mod tests {
     }
 
     /// A model of the bowl: its margin exact, its cost that of a bowl moved by `shift` (a model
-    /// wrong about where the optimum is); counts the sets it predicted.
+    /// wrong about where the optimum is).
     struct Model {
         shift: f64,
-        predicted: usize,
     }
 
     impl PriorMean for Model {
         fn predict(&mut self, sets: &[Vec<f64>]) -> Vec<Prediction> {
-            self.predicted += sets.len();
             sets.iter()
                 .map(|x| Prediction {
                     cost: cost(&[x[0] - self.shift, x[1] - self.shift]),
@@ -767,27 +767,22 @@ mod tests {
         for seed in 1..=3 {
             let mut plain = safe(seed);
             run(&mut plain, 6, |_, x| assert!(margin(x) >= 0.0));
-            let mut right = safe(seed).with_prior(Box::new(Model {
-                shift: 0.0,
-                predicted: 0,
-            }));
+            let mut right = safe(seed).with_prior(Box::new(Model { shift: 0.0 }));
             run(&mut right, 6, |_, x| assert!(margin(x) >= 0.0, "{x:?}"));
             assert!(right.best().1 < 1.01, "seed {seed}: {:?}", right.best());
             assert!(plain.best().1 > 1.5, "seed {seed}: {:?}", plain.best());
-            let mut wrong = safe(seed).with_prior(Box::new(Model {
-                shift: 0.4,
-                predicted: 0,
-            }));
+            let mut wrong = safe(seed).with_prior(Box::new(Model { shift: 0.4 }));
             run(&mut wrong, 30, |_, x| assert!(margin(x) >= 0.0, "{x:?}"));
             assert!(wrong.best().1 < 1.02, "seed {seed}: {:?}", wrong.best());
         }
     }
 
-    /// The model's margin decides far from the experiments: where it says a set leaves the
-    /// envelope, the set is not proposed, even where the cost model pulls towards it (a model
-    /// whose margin is 0.3 too low everywhere keeps the optimiser further inside the disc).
+    /// A model whose margin is 0.3 too low everywhere (the optimum, 0.19 inside the safe disc,
+    /// predicted outside it): every proposal clears the bound of the model's margin plus the
+    /// residual model, none is unsafe on the plant, and the experiments near the optimum correct
+    /// the model enough to come close to it.
     #[test]
-    fn a_set_the_model_predicts_unsafe_is_never_proposed() {
+    fn a_cautious_models_margin_is_corrected_by_the_experiments_without_an_unsafe_one() {
         struct Cautious;
         impl PriorMean for Cautious {
             fn predict(&mut self, sets: &[Vec<f64>]) -> Vec<Prediction> {
@@ -801,6 +796,7 @@ mod tests {
         }
         let mut o = safe(1).with_prior(Box::new(Cautious));
         run(&mut o, 30, |o, x| {
+            assert!(margin(x) >= 0.0, "{x:?}");
             if x != [-1.5, -1.5] {
                 assert!(o.safety_lcb(x).unwrap() >= 0.0, "{x:?}");
             }
@@ -813,12 +809,7 @@ mod tests {
     /// more; without the rule it runs on.
     #[test]
     fn the_stop_rule_ends_the_run_when_nothing_is_worth_an_experiment() {
-        let right = || {
-            safe(1).with_prior(Box::new(Model {
-                shift: 0.0,
-                predicted: 0,
-            }))
-        };
+        let right = || safe(1).with_prior(Box::new(Model { shift: 0.0 }));
         let mut o = right().with_stop(1e-5);
         let mut n = 0;
         while n < 60 && !o.ask().is_empty() {

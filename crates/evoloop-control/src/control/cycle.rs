@@ -303,11 +303,22 @@ impl ControlCycle {
             code,
             index,
         };
-        if let Some(i) = self
+        let due = self
             .pending
             .iter()
-            .position(|p| p.apply_at_seq <= state.seq)
+            .position(|p| p.apply_at_seq <= state.seq);
+        // Isolated trials back to back (a model's predicted trials; the plant's settle between
+        // them): the ended trial gives way to the set in service before the next is applied, so
+        // the next starts from that set's saved state, not from where the ended trial left it.
+        let mut ended = None;
+        if self.isolated_trials
+            && self.trial_until.is_some_and(|end| state.seq >= end)
+            && due.is_some_and(|i| self.pending[i].until_seq > 0)
         {
+            ended = Some(self.version);
+            self.restore(state, &sp);
+        }
+        if let Some(i) = due {
             let set = self.pending.remove(i);
             let outcome = match self.apply(&set, state, &sp) {
                 Ok(Applied::InService) => {
@@ -323,9 +334,11 @@ impl ControlCycle {
         }
         // A trial that has served its repetition (and was not replaced by the next just now).
         if self.trial_until.is_some_and(|end| state.seq >= end) {
-            let ended = self.version;
+            ended = Some(self.version);
             self.restore(state, &sp);
-            event = event.or(Some(event_of(ParamCode::TrialEnded, ended, 0)));
+        }
+        if let Some(v) = ended {
+            event = event.or(Some(event_of(ParamCode::TrialEnded, v, 0)));
         }
         let n_u = self.controller.n_outputs();
         if self.trial_until.is_some() && self.envelope.left_by_error(&sp, state, n_u) {

@@ -204,7 +204,9 @@ impl Scenario {
     pub fn linear_model(&self) -> Option<crate::control::LinearModel> {
         if self.controller.model.config().checks_stability() {
             self.plant.model.config().linear_model()
-        } else if let Some(prior) = &self.optimiser.model {
+        } else if let (Some(prior), OptimiserMode::Indirect) =
+            (&self.optimiser.model, self.optimiser.mode)
+        {
             crate::control::LinearModel::sampled_transfer_function(
                 &prior.num,
                 &prior.den,
@@ -290,7 +292,8 @@ impl Scenario {
 
 /// `[optimiser.nominal_plant]`: the plant as a user's model has it (a datasheet's, a CAD
 /// model's, an earlier identification's), a plant table like `[plant]` whose errors name its own
-/// keys; read by `safe_bayes_model` only, with the plant's inputs and outputs.
+/// keys; read by `safe_bayes_model` only, with the plant's inputs and outputs, and not beside
+/// `[optimiser.model]` (`transfer_function`: that table is there).
 fn nominal_plant(
     raw: Option<crate::plant::RawPlant>,
     check: &Check,
@@ -298,19 +301,19 @@ fn nominal_plant(
     reference: &crate::reference::Reference,
     plant: &PlantSpec,
     optimiser: &OptimiserSpec,
+    transfer_function: bool,
 ) -> Result<Option<PlantSpec>, ConfigError> {
     let Some(raw) = raw else {
         return Ok(None);
     };
     const KEY: &str = "optimiser.nominal_plant";
-    if optimiser.algorithm != SAFE_BAYES_MODEL {
-        // Kept but unused (a comparison run of other optimisers on the same file).
-        return Ok(None);
-    }
+    // Checked whatever the algorithm (a typo should not wait for safe_bayes_model); kept for it
+    // only (a comparison of other optimisers on the same file leaves it unused).
     let spec = PlantSpec::validate(raw, check, timing.period, reference, timing.duration).map_err(
         |mut e| {
-            e.key = e.key.replacen("plant", KEY, 1);
-            e.reason = e.reason.replace("plant.", &format!("{KEY}."));
+            if let Some(rest) = e.key.strip_prefix("plant") {
+                e.key = format!("{KEY}{rest}");
+            }
             e
         },
     )?;
@@ -335,7 +338,14 @@ fn nominal_plant(
             ),
         );
     }
-    Ok(Some(spec))
+    let modelled = optimiser.algorithm == SAFE_BAYES_MODEL;
+    if modelled && transfer_function {
+        return check.fail(
+            KEY,
+            "give the nominal model once: [optimiser.nominal_plant] or [optimiser.model], not both",
+        );
+    }
+    Ok(modelled.then_some(spec))
 }
 
 fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, ConfigError> {
@@ -375,8 +385,15 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let raw_model = raw_optimiser.as_mut().and_then(|o| o.model.take());
     let raw_nominal = raw_optimiser.as_mut().and_then(|o| o.nominal_plant.take());
     let mut optimiser = optimiser::validate(raw_optimiser, check, &timing, ov)?;
-    optimiser.nominal_plant =
-        nominal_plant(raw_nominal, check, &timing, &reference, &plant, &optimiser)?;
+    optimiser.nominal_plant = nominal_plant(
+        raw_nominal,
+        check,
+        &timing,
+        &reference,
+        &plant,
+        &optimiser,
+        raw_model.is_some(),
+    )?;
     optimiser.model = model_prior::validate(
         raw_model,
         check,

@@ -9,9 +9,16 @@
 //!
 //! The trials of one `predict` run back to back on one model loop, each from the state the
 //! configured set's first repetition left at the first boundary: the model's plant is put back
-//! there at every boundary, and the controller's trials start from that set's saved state as
-//! the plant's do with `optimiser.settle` (isolated trials). A set costs one repetition of the
+//! there at every boundary, and each trial is isolated (`ControlCycle::with_isolated_trials`):
+//! it starts from the configured set's state saved at that boundary, whatever the trial before
+//! it did, so a set's prediction does not depend on the others of the batch. (On the plant,
+//! trials are isolated only with `optimiser.settle`; back to back they inherit the integrator
+//! their predecessor left, which the model does not predict.) A set costs one repetition of the
 //! model, the configured set's warm-up once per call.
+//!
+//! The nominal model takes the plant's declared interface from `[plant]` (the actuator's range,
+//! the sensor's declared delay, the integration step), which the controller is configured with
+//! anyway, and nothing of its dynamics; its trials run without the plant's noise.
 
 use super::{DirectSpec, DirectTuner};
 use crate::config::Scenario;
@@ -79,8 +86,8 @@ impl PriorMean for ModelTrials {
         let spec = DirectSpec::of(&scn);
         let listed = crate::optim::listed::Listed::new(sets.to_vec());
         let mut tuner = DirectTuner::with_optimiser(&scn, Box::new(listed));
-        // The cycle as the plant's run builds it (isolated trials when it settles).
-        let mut cycle = crate::sim::control_cycle(&self.model);
+        // The cycle as the plant's run builds it, its trials isolated (see the module's text).
+        let mut cycle = crate::sim::control_cycle(&self.model).with_isolated_trials(true);
         let mut plant = scn.plant.simulation(scn.seed);
         let n = cycle.controller.n_outputs();
         let n_u = plant.plant.n_inputs();
