@@ -647,7 +647,10 @@ fn safe_bayes_model_needs_a_nominal_model_and_never_reads_the_plants_own() {
         assert!((x.margin - y.margin).abs() < 0.01, "{x:?} {y:?}");
     }
     // The configured set stays inside the envelope on the model, and the tuned ones cost less.
-    assert!(a[0].cost.is_finite() && (0.0..1.0).contains(&a[0].margin), "{a:?}");
+    assert!(
+        a[0].cost.is_finite() && (0.0..1.0).contains(&a[0].margin),
+        "{a:?}"
+    );
     assert!(a[1].cost < a[0].cost && a[2].cost < a[0].cost, "{a:?}");
 }
 
