@@ -311,12 +311,8 @@ impl ControlCycle {
         // them): the ended trial gives way to the set in service before the next is applied, so
         // the next starts from that set's saved state, not from where the ended trial left it.
         let mut ended = None;
-        if self.isolated_trials
-            && self.trial_until.is_some_and(|end| state.seq >= end)
-            && due.is_some_and(|i| self.pending[i].until_seq > 0)
-        {
-            ended = Some(self.version);
-            self.restore(state, &sp);
+        if self.isolated_trials && due.is_some_and(|i| self.pending[i].until_seq > 0) {
+            ended = self.end_trial(state, &sp);
         }
         if let Some(i) = due {
             let set = self.pending.remove(i);
@@ -333,10 +329,7 @@ impl ControlCycle {
             event = outcome.map(|(code, version, index)| event_of(code, version, index));
         }
         // A trial that has served its repetition (and was not replaced by the next just now).
-        if self.trial_until.is_some_and(|end| state.seq >= end) {
-            ended = Some(self.version);
-            self.restore(state, &sp);
-        }
+        ended = ended.or_else(|| self.end_trial(state, &sp));
         if let Some(v) = ended {
             event = event.or(Some(event_of(ParamCode::TrialEnded, v, 0)));
         }
@@ -491,6 +484,18 @@ impl ControlCycle {
         };
         self.controller.swap_model(values)?;
         Ok(Applied::InService)
+    }
+
+    /// A trial that has served its repetition gives way to its fallback: the trial's version,
+    /// or None when no trial has ended at this state.
+    fn end_trial(&mut self, state: &PlantState, sp: &Setpoint) -> Option<u64> {
+        let ended = self.version;
+        self.trial_until
+            .is_some_and(|end| state.seq >= end)
+            .then(|| {
+                self.restore(state, sp);
+                ended
+            })
     }
 
     /// Put the fallback back in service (the trial is over).
