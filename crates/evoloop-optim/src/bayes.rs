@@ -289,36 +289,36 @@ impl Bayes {
             return vec![(0.0, 0.0); us.len()];
         };
         let p = model.predict(&sets);
-        if self.abort_ln.is_none() {
-            // Aborts stand above the model's first finite cost (the seed's, normally), else above
-            // the worst finite cost seen on the plant; fixed once the model has given one.
-            let ln = |c: f64| (c.is_finite() && c > 0.0).then(|| c.ln());
-            let first = p.iter().find_map(|p| ln(p.cost));
-            let seen = self.seen.iter().filter_map(|o| ln(o.cost)).reduce(f64::max);
-            self.abort_ln = first.map(|l| l + PRIOR_ABORT_LN);
-            if self.abort_ln.is_none() {
-                let ln0 = seen.unwrap_or(0.0) + PRIOR_ABORT_LN;
-                return p.iter().map(|p| Self::prior_pair(p, ln0)).collect();
-            }
-        }
-        let abort_ln = self.abort_ln.expect("set above");
-        p.iter().map(|p| Self::prior_pair(p, abort_ln)).collect()
+        // Aborts stand above the model's first finite cost (the seed's, normally), fixed once the
+        // model has given one; until then above the worst finite cost seen on the plant.
+        let abort_ln = match self.abort_ln {
+            Some(a) => a,
+            None => match p.iter().find_map(|p| finite_ln(p.cost)) {
+                Some(first) => *self.abort_ln.insert(first + PRIOR_ABORT_LN),
+                None => {
+                    let seen = self.seen.iter().filter_map(|o| finite_ln(o.cost));
+                    seen.reduce(f64::max).unwrap_or(0.0) + PRIOR_ABORT_LN
+                }
+            },
+        };
+        p.iter()
+            .map(|p| {
+                let ln = finite_ln(p.cost).map_or(abort_ln, |l| l.min(abort_ln));
+                let margin = if p.margin.is_nan() {
+                    -1.0
+                } else {
+                    p.margin.clamp(-1.0, 1.0)
+                };
+                (ln, margin)
+            })
+            .collect()
     }
 
-    /// A prediction as prior means: ln(cost) (an abort, or past it, at `abort_ln`) and the
-    /// margin clipped to [-1, 1] (NaN: -1).
-    fn prior_pair(p: &Prediction, abort_ln: f64) -> (f64, f64) {
-        let ln = if p.cost.is_finite() && p.cost > 0.0 {
-            p.cost.ln().min(abort_ln)
-        } else {
-            abort_ln
-        };
-        let margin = if p.margin.is_nan() {
-            -1.0
-        } else {
-            p.margin.clamp(-1.0, 1.0)
-        };
-        (ln, margin)
+    /// An `ask` with nothing to propose.
+    fn nothing(&mut self) -> &[Vec<f64>] {
+        self.candidates.clear();
+        self.pending.clear();
+        &self.candidates
     }
 
     fn normalise(&self, x: &[f64]) -> DVector<f64> {
@@ -528,19 +528,15 @@ impl Bayes {
     }
 }
 
+/// ln(cost) of a finite positive cost.
+fn finite_ln(c: f64) -> Option<f64> {
+    (c.is_finite() && c > 0.0).then(|| c.ln())
+}
+
 /// E[max(incumbent - f, 0)] for f ~ N(mu, sd^2) (minimising).
 fn expected_improvement((mu, sd): (f64, f64), incumbent: f64) -> f64 {
     let z = (incumbent - mu) / sd;
     sd * (z * normal_cdf(z) + normal_pdf(z))
-}
-
-impl Bayes {
-    /// An `ask` with nothing to propose.
-    fn nothing(&mut self) -> &[Vec<f64>] {
-        self.candidates.clear();
-        self.pending.clear();
-        &self.candidates
-    }
 }
 
 impl Optimiser for Bayes {
@@ -585,18 +581,13 @@ impl Optimiser for Bayes {
     fn tell(&mut self, values: &[f64]) {
         assert_eq!(values.len(), self.pending.len(), "one value per candidate");
         // The model's prediction where the acquisition did not make one (the seed).
-        let unknown: Vec<DVector<f64>> = self
-            .pending
-            .iter()
-            .zip(&self.pending_prior)
-            .filter(|(_, p)| p.is_none())
-            .map(|(u, _)| u.clone())
-            .collect();
-        let mut predicted = self.prior_at(&unknown).into_iter();
         let priors: Vec<(f64, f64)> = (0..self.pending.len())
             .map(|i| match self.pending_prior.get(i).copied().flatten() {
                 Some(p) => p,
-                None => predicted.next().unwrap_or((0.0, 0.0)),
+                None => {
+                    let u = self.pending[i].clone();
+                    self.prior_at(std::slice::from_ref(&u))[0]
+                }
             })
             .collect();
         for (i, (u, &cost)) in self.pending.drain(..).zip(values).enumerate() {
