@@ -266,13 +266,13 @@ fn one_run(
 ) -> Run {
     let trials: Vec<_> = report.repetitions.iter().filter(|r| r.trial > 0).collect();
     let repetitions = report.repetitions.len() as u64 + report.settle_repetitions;
-    let mut aborts = 0u32;
+    let mut so_far = 0u32;
     let mut best: Vec<f64> = trials.iter().map(|r| r.best).collect();
     let mut aborts: Vec<u32> = trials
         .iter()
         .map(|r| {
-            aborts += u32::from(r.aborted);
-            aborts
+            so_far += u32::from(r.aborted);
+            so_far
         })
         .collect();
     // An optimiser that stopped before its budget (a stop rule) holds its best set and its
@@ -329,6 +329,8 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
     };
     let mine = of(alg);
     let count = |k: Option<usize>| k.map_or(budget as f64 + 1.0, |k| k as f64);
+    // Quartiles over this algorithm's runs of one figure of each.
+    let over = |f: &dyn Fn(&Run) -> f64| quartiles(&mine.iter().map(|r| f(r)).collect::<Vec<_>>());
     let experiments = |rs: &[&Run]| -> Vec<f64> { rs.iter().map(|r| count(r.to_target)).collect() };
     let finals = |rs: &[&Run]| -> Vec<f64> { rs.iter().map(|r| r.final_cost).collect() };
     let aborts =
@@ -354,7 +356,7 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
         reached: mine.iter().filter(|r| r.to_target.is_some()).count(),
         to_target_quartiles: quartiles(&experiments(&mine)),
         reached_best: mine.iter().filter(|r| r.to_best.is_some()).count(),
-        to_best_quartiles: quartiles(&mine.iter().map(|r| count(r.to_best)).collect::<Vec<_>>()),
+        to_best_quartiles: over(&|r| count(r.to_best)),
         runs_without_aborts: mine.iter().filter(|r| r.total_aborts() == 0).count(),
         improved_on_start: mine
             .iter()
@@ -363,17 +365,10 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
         final_cost_quartiles: quartiles(&finals(&mine)),
         aborts_quartiles: quartiles(&aborts(&mine)),
         aborts_total: mine.iter().map(|r| u64::from(r.total_aborts())).sum(),
-        plant_seconds_quartiles: quartiles(
-            &mine.iter().map(|r| r.plant_seconds).collect::<Vec<_>>(),
-        ),
-        settle_share_quartiles: quartiles(&mine.iter().map(|r| r.settle_share).collect::<Vec<_>>()),
-        wall_seconds_quartiles: quartiles(&mine.iter().map(|r| r.wall_seconds).collect::<Vec<_>>()),
-        experiments_quartiles: quartiles(
-            &mine
-                .iter()
-                .map(|r| r.experiments as f64)
-                .collect::<Vec<_>>(),
-        ),
+        plant_seconds_quartiles: over(&|r| r.plant_seconds),
+        settle_share_quartiles: over(&|r| r.settle_share),
+        wall_seconds_quartiles: over(&|r| r.wall_seconds),
+        experiments_quartiles: over(&|r| r.experiments as f64),
         vs_ga,
     }
 }
