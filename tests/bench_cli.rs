@@ -1,6 +1,6 @@
 //! `evoloop bench latency`: every variant measured, percentiles ordered, ratios against the bare
 //! iceoryx2 reference present, files written; `bench loop` on the built-in loop and on a given
-//! scenario. No timing thresholds. Every test takes `alone()`: each starts realtime processes.
+//! scenario; `bench guard`'s verdicts and exit status. No timing thresholds. Every test takes `alone()`: each starts realtime processes.
 
 mod common;
 use common::{alone, assert_plotted};
@@ -55,6 +55,82 @@ fn bench_latency_reports_every_variant_against_the_bare_reference() {
     }
     let bad = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
         .args(["bench", "latency", "--samples", "5"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+}
+
+/// The guard's report holds every hot path, each judged against 1.5x its recorded ratio, and its
+/// exit status says whether every path passed (which this test does not require: it would be a
+/// timing threshold on a shared machine).
+#[test]
+fn bench_guard_judges_every_hot_path_by_its_ratio_and_exits_by_its_verdict() {
+    let _alone = alone();
+    let dir = tempfile::tempdir().unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+        .args(["bench", "guard", "--rounds", "3", "--json", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&o.stderr)));
+    let file: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("guard.json")).unwrap()).unwrap();
+    assert_eq!(v, file);
+    let paths = v["paths"].as_object().unwrap();
+    let names = [
+        "rnea",
+        "crba",
+        "ct_cycle",
+        "pso",
+        "de",
+        "ga",
+        "round_trip_busy",
+        "round_trip_event",
+    ];
+    let keys: std::collections::BTreeSet<&str> = paths.keys().map(|k| k.as_str()).collect();
+    assert_eq!(keys, names.into_iter().collect());
+    let mut all_pass = true;
+    for (name, p) in paths {
+        let f = |k: &str| p[k].as_f64().unwrap_or_else(|| panic!("{name}.{k}"));
+        assert!((f("limit") - 1.5 * f("recorded")).abs() < 1e-12, "{name}");
+        let attempts = p["attempts"].as_array().unwrap();
+        assert!((1..=3).contains(&attempts.len()), "{name}");
+        let lowest = attempts
+            .iter()
+            .map(|a| {
+                let g = |k: &str| a[k].as_f64().unwrap();
+                assert!(g("hot_ns") > 0.0 && g("reference_ns") > 0.0, "{name}: {a}");
+                assert!((g("ratio") - g("hot_ns") / g("reference_ns")).abs() < 1e-9 * g("ratio"));
+                g("ratio")
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(f("ratio"), lowest, "{name}");
+        let pass = p["pass"].as_bool().unwrap();
+        assert_eq!(pass, lowest <= f("limit"), "{name}");
+        // Measured again only while over the limit: a pass ends on an attempt within it.
+        if pass {
+            let last = attempts.last().unwrap()["ratio"].as_f64().unwrap();
+            assert!(
+                last <= f("limit"),
+                "{name}: passed on an attempt over its limit"
+            );
+        } else {
+            assert_eq!(attempts.len(), 3, "{name}: failed before its third attempt");
+        }
+        all_pass &= pass;
+    }
+    assert_eq!(v["pass"], all_pass);
+    assert_eq!(
+        o.status.code(),
+        Some(if all_pass { 0 } else { 1 }),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(stderr.contains("hot path slower"), !all_pass, "{stderr}");
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+        .args(["bench", "guard", "--rounds", "0"])
         .output()
         .unwrap();
     assert_eq!(bad.status.code(), Some(2));

@@ -36,7 +36,7 @@ fn arms() -> Vec<Model> {
         robot("arm3.toml"),
         robot("industrial6.toml"),
         robot("arm3.urdf"),
-        dynamics::urdf::parse(BRANCHED, Path::new("branched.urdf")).unwrap(),
+        ros_style("branched.urdf"),
         ros_style("ur5_style.urdf"),
         ros_style("panda_style.urdf"),
         ros_style("iiwa_style.urdf"),
@@ -404,22 +404,9 @@ fn fixed_joints_merge_inertia_into_the_moving_body() {
     }
 }
 
-/// A small branched tree: a torso with two 2-link arms (tests order and off-branch zeros).
-const BRANCHED: &str = r#"<robot name="branched">
-  <link name="torso"><inertial><mass value="5"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
-  <link name="la1"><inertial><origin xyz="0.1 0 0"/><mass value="1"/><inertia ixx="0.01" ixy="0.001" ixz="0" iyy="0.02" iyz="0" izz="0.02"/></inertial></link>
-  <link name="la2"><inertial><origin xyz="0.1 0 0"/><mass value="0.5"/><inertia ixx="0.005" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
-  <link name="ra1"><inertial><origin xyz="0.1 0 0"/><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.02"/></inertial></link>
-  <link name="ra2"><inertial><origin xyz="0 0 0.1"/><mass value="0.5"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.005"/></inertial></link>
-  <joint name="l_shoulder" type="revolute"><parent link="torso"/><child link="la1"/><origin xyz="0 0.2 0.5" rpy="0.3 0 0"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="50" velocity="5"/></joint>
-  <joint name="l_elbow" type="continuous"><parent link="la1"/><child link="la2"/><origin xyz="0.2 0 0"/><axis xyz="0 0.6 0.8"/></joint>
-  <joint name="r_shoulder" type="revolute"><parent link="torso"/><child link="ra1"/><origin xyz="0 -0.2 0.5" rpy="-0.3 0.1 0"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="50" velocity="5"/></joint>
-  <joint name="r_slide" type="prismatic"><parent link="ra1"/><child link="ra2"/><origin xyz="0.2 0 0"/><axis xyz="1 0 0"/><limit lower="-0.1" upper="0.1" effort="50" velocity="1"/></joint>
-</robot>"#;
-
 #[test]
 fn branched_tree_orders_depth_first_and_decouples_branches() {
-    let m = dynamics::urdf::parse(BRANCHED, Path::new("branched.urdf")).unwrap();
+    let m = ros_style("branched.urdf");
     let names: Vec<&str> = m.bodies.iter().map(|b| b.joint.as_str()).collect();
     assert_eq!(names, ["l_shoulder", "l_elbow", "r_shoulder", "r_slide"]);
     let mut d = m.data();
@@ -642,7 +629,7 @@ fn regressor_times_parameters_equals_inverse_dynamics_on_random_states() {
 /// every body that is neither j nor a descendant of j (the other branch of a tree included).
 #[test]
 fn a_joint_row_of_the_regressor_sees_only_the_bodies_it_carries() {
-    let m = dynamics::urdf::parse(BRANCHED, Path::new("branched.urdf")).unwrap();
+    let m = ros_style("branched.urdf");
     let n = m.dof();
     let mut d = m.data();
     let mut y = DMatrix::zeros(n, m.regressor_columns(false));

@@ -261,3 +261,113 @@ pub fn dynamics(a: DynamicsArgs) -> i32 {
     }
     0
 }
+
+#[derive(Args)]
+pub struct GuardArgs {
+    /// Interleaved rounds of short batches per measurement of a compute path (each side's
+    /// fastest batch is kept).
+    #[arg(long, default_value_t = 101)]
+    pub rounds: usize,
+    #[arg(long)]
+    pub json: bool,
+    /// Write guard.json here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// `evoloop bench guard`: every hot path's ratio to its reference against its limit; exit 1 if
+/// one is over it on every attempt.
+pub fn guard(a: GuardArgs) -> i32 {
+    use evoloop_run::bench::guard::{self, HotPath};
+    if !(1..=1001).contains(&a.rounds) {
+        eprintln!("error: --rounds must be in 1..=1001");
+        return 2;
+    }
+    let bar = evoloop_report::progress::stages(HotPath::ALL.len() as u64, "paths", a.json);
+    let progress = |p: HotPath, attempt: usize| {
+        let again = if attempt > 1 {
+            ", again: over its limit"
+        } else {
+            ""
+        };
+        bar.inc_stage(&format!("{} (attempt {attempt}{again})", p.name()));
+    };
+    let verdicts = match guard::run(a.rounds, &progress) {
+        Ok(v) => v,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return 1;
+        }
+    };
+    let report = guard::report(a.rounds, &verdicts);
+    if a.json {
+        super::print_json(&report);
+    } else {
+        out!(
+            "hot paths against references timed in this run (ratio = hot / reference; fails above {}x the recorded ratio):",
+            guard::FACTOR
+        );
+        out!(
+            "{:<17} {:>11} {:>13} {:>7} {:>9} {:>7}  verdict",
+            "path",
+            "hot ns",
+            "reference ns",
+            "ratio",
+            "recorded",
+            "limit"
+        );
+        for v in &verdicts {
+            let best = v
+                .attempts
+                .iter()
+                .find(|r| r.ratio == v.ratio)
+                .copied()
+                .unwrap_or(v.attempts[0]);
+            out!(
+                "{:<17} {:>11.1} {:>13.1} {:>7.3} {:>9.3} {:>7.3}  {}{}",
+                v.path.name(),
+                best.hot_ns,
+                best.reference_ns,
+                v.ratio,
+                v.recorded,
+                v.limit,
+                if v.pass { "ok" } else { "SLOWER" },
+                if v.attempts.len() > 1 {
+                    format!(" ({} attempts)", v.attempts.len())
+                } else {
+                    String::new()
+                }
+            );
+        }
+    }
+    if let Some(dir) = &a.out {
+        if let Err(e) = evoloop_report::write_json(dir, "guard.json", &report) {
+            eprintln!("error: {}: {e}", dir.join("guard.json").display());
+            return 1;
+        }
+    }
+    let slower: Vec<String> = verdicts
+        .iter()
+        .filter(|v| !v.pass)
+        .map(|v| {
+            format!(
+                "{} at {:.3}x its reference on every one of {} attempts, limit {:.3} ({} x the recorded {:.3}): {}",
+                v.path.name(),
+                v.ratio,
+                v.attempts.len(),
+                v.limit,
+                guard::FACTOR,
+                v.recorded,
+                v.what
+            )
+        })
+        .collect();
+    if slower.is_empty() {
+        0
+    } else {
+        for s in &slower {
+            eprintln!("error: hot path slower: {s}");
+        }
+        1
+    }
+}

@@ -153,6 +153,10 @@ pub enum BenchCmd {
     /// Nanoseconds per call of RNEA, CRBA, ABA and the CRBA forward dynamics on a robot file
     /// (the JSON scripts/pinocchio_bench.py sets beside Pinocchio's).
     Dynamics(bench::DynamicsArgs),
+    /// The hot paths (RNEA, CRBA, the 7-DOF computed-torque cycle, the optimisers' overhead, the
+    /// state's round trip) against references timed in the same run: fails (exit 1) when one is
+    /// more than 1.5x its recorded ratio, whatever the host's speed.
+    Guard(bench::GuardArgs),
     /// A parameter set's round trip (sent -> in service, seen by the sender) on the local path
     /// and through `evoloop bridge` on loopback, on one realtime run (feature `zenoh`).
     Bridge(bridge::BridgeBenchArgs),
@@ -221,6 +225,7 @@ pub fn main() -> ExitCode {
             BenchCmd::LatencyPeer(a) => bench::latency_peer(a),
             BenchCmd::Loop(a) => bench::loop_(a),
             BenchCmd::Dynamics(a) => bench::dynamics(a),
+            BenchCmd::Guard(a) => bench::guard(a),
             BenchCmd::Bridge(a) => bridge::bench(&a) as i32,
             BenchCmd::Workers(a) => worker::bench(&a) as i32,
         } as u8),

@@ -113,6 +113,14 @@ pub struct Measured {
     pub raw: Vec<(Variant, Vec<i64>)>,
 }
 
+/// Every variant, each reference before the variant it is the reference of.
+pub const ALL: [Variant; 4] = [
+    Variant::BareBusy,
+    Variant::EvoloopBusy,
+    Variant::BareEvent,
+    Variant::EvoloopEvent,
+];
+
 /// Measure every variant, `samples` round trips each with a `payload`-byte bare message;
 /// `progress` is told each variant as it starts.
 pub fn measure(
@@ -120,14 +128,19 @@ pub fn measure(
     payload: usize,
     progress: &dyn Fn(Variant),
 ) -> Result<Measured, String> {
+    measure_variants(&ALL, samples, payload, progress)
+}
+
+/// `measure` for some of the variants (a ratio needs its reference among them).
+pub fn measure_variants(
+    variants: &[Variant],
+    samples: usize,
+    payload: usize,
+    progress: &dyn Fn(Variant),
+) -> Result<Measured, String> {
     let prefix = crate::ipc::DEFAULT_PREFIX.to_string();
     let mut raw: Vec<(Variant, Vec<i64>)> = Vec::new();
-    for v in [
-        Variant::BareBusy,
-        Variant::EvoloopBusy,
-        Variant::BareEvent,
-        Variant::EvoloopEvent,
-    ] {
+    for &v in variants {
         let run_id = format!("{}-{}", std::process::id(), v.name());
         progress(v);
         let mut child = spawn_peer(v, &prefix, &run_id, payload)

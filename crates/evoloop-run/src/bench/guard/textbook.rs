@@ -1,0 +1,373 @@
+//! The guard's references: the same arithmetic as a hot path, written the plain way and sharing
+//! none of its code, so a change that slows the hot path cannot slow its reference too.
+//!
+//! - `Rnea`: recursive Newton-Euler as a textbook states it (Craig's outward and inward
+//!   recursions on 3-vectors, a body's frame at its joint), on `[f64; 3]` arrays: no spatial
+//!   algebra, no glam, none of `evoloop_dynamics`' passes. It reads only the robot's numbers.
+//!   Its torques and its mass matrix (one inverse dynamics per column) are checked against
+//!   evoloop's, so the two time the same work.
+//! - `BareSwarm`: a particle swarm's flight written as one scalar loop with its own xorshift
+//!   generator, on the guard's trivial objective: the arithmetic an evaluation of the optimisers
+//!   costs without their bookkeeping.
+
+use crate::dynamics::{JointKind, Model};
+
+type V3 = [f64; 3];
+/// Row-major 3x3.
+type M3 = [[f64; 3]; 3];
+
+fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+fn scale(a: V3, s: f64) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn mul(m: &M3, v: V3) -> V3 {
+    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
+}
+/// mᵀ v.
+fn mul_t(m: &M3, v: V3) -> V3 {
+    [
+        m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
+        m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
+        m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2],
+    ]
+}
+fn mat_mul(a: &M3, b: &M3) -> M3 {
+    let mut c = [[0.0; 3]; 3];
+    for (i, row) in c.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
+        }
+    }
+    c
+}
+
+/// One body as the textbook needs it: where its joint sits on the parent, the joint's axis, and
+/// the body's mass, centre of mass and inertia about it, all in the body's own frame.
+struct Link {
+    parent: Option<usize>,
+    revolute: bool,
+    /// Parent coordinates -> joint coordinates before the joint moves.
+    placement: M3,
+    /// The joint's origin in parent coordinates.
+    origin: V3,
+    axis: V3,
+    mass: f64,
+    com: V3,
+    inertia: M3,
+    armature: f64,
+}
+
+/// Recursive Newton-Euler on plain arrays, with its buffers (allocated once).
+pub struct Rnea {
+    links: Vec<Link>,
+    /// Gravity as the base's upward acceleration.
+    base: V3,
+    /// Per body at the last call: parent -> body rotation, the body's origin in parent
+    /// coordinates, angular velocity and acceleration, the origin's linear acceleration, and
+    /// the force and moment the parent exerts on the body.
+    rot: Vec<M3>,
+    pos: Vec<V3>,
+    w: Vec<V3>,
+    dw: Vec<V3>,
+    dv: Vec<V3>,
+    f: Vec<V3>,
+    n: Vec<V3>,
+    /// Zero velocities and one unit acceleration: `mass_matrix`'s columns.
+    zero: Vec<f64>,
+    unit: Vec<f64>,
+    column: Vec<f64>,
+}
+
+impl Rnea {
+    /// The robot's numbers, read once.
+    pub fn new(model: &Model) -> Rnea {
+        let links: Vec<Link> = model
+            .bodies
+            .iter()
+            .map(|b| Link {
+                parent: b.parent,
+                revolute: b.kind == JointKind::Revolute,
+                // The columns of eᵀ are the rows of e.
+                placement: b.placement.e.transpose().to_cols_array_2d(),
+                origin: b.placement.r.to_array(),
+                axis: b.axis.to_array(),
+                mass: b.inertia.m,
+                com: b.inertia.com().to_array(),
+                inertia: b.inertia.i_com().transpose().to_cols_array_2d(),
+                armature: b.armature,
+            })
+            .collect();
+        let n = links.len();
+        Rnea {
+            links,
+            base: (-model.gravity).to_array(),
+            rot: vec![[[0.0; 3]; 3]; n],
+            pos: vec![[0.0; 3]; n],
+            w: vec![[0.0; 3]; n],
+            dw: vec![[0.0; 3]; n],
+            dv: vec![[0.0; 3]; n],
+            f: vec![[0.0; 3]; n],
+            n: vec![[0.0; 3]; n],
+            zero: vec![0.0; n],
+            unit: vec![0.0; n],
+            column: vec![0.0; n],
+        }
+    }
+
+    /// tau = M(q) qdd + V(q, qd) + G(q) (no friction), gravity dropped when `gravity` is false.
+    pub fn torques(&mut self, q: &[f64], qd: &[f64], qdd: &[f64], gravity: bool, tau: &mut [f64]) {
+        let base = if gravity { self.base } else { [0.0; 3] };
+        // Outward: each body's rotation, velocities and accelerations from its parent's.
+        for i in 0..self.links.len() {
+            let l = &self.links[i];
+            let (c, s) = (q[i].cos(), q[i].sin());
+            let a = l.axis;
+            let (rot, pos) = if l.revolute {
+                // Parent -> body: the joint's rotation by -q about its axis after the placement
+                // (Rodrigues, transposed).
+                let k = 1.0 - c;
+                let joint = [
+                    [
+                        c + k * a[0] * a[0],
+                        k * a[0] * a[1] + s * a[2],
+                        k * a[0] * a[2] - s * a[1],
+                    ],
+                    [
+                        k * a[1] * a[0] - s * a[2],
+                        c + k * a[1] * a[1],
+                        k * a[1] * a[2] + s * a[0],
+                    ],
+                    [
+                        k * a[2] * a[0] + s * a[1],
+                        k * a[2] * a[1] - s * a[0],
+                        c + k * a[2] * a[2],
+                    ],
+                ];
+                (mat_mul(&joint, &l.placement), l.origin)
+            } else {
+                (
+                    l.placement,
+                    add(l.origin, mul_t(&l.placement, scale(a, q[i]))),
+                )
+            };
+            let (w_p, dw_p, dv_p) = match l.parent {
+                Some(p) => (self.w[p], self.dw[p], self.dv[p]),
+                None => ([0.0; 3], [0.0; 3], base),
+            };
+            let carried = add(dv_p, add(cross(dw_p, pos), cross(w_p, cross(w_p, pos))));
+            let (w, dw, dv) = if l.revolute {
+                let w_in = mul(&rot, w_p);
+                let w = add(w_in, scale(a, qd[i]));
+                let dw = add(
+                    add(mul(&rot, dw_p), scale(a, qdd[i])),
+                    cross(w_in, scale(a, qd[i])),
+                );
+                (w, dw, mul(&rot, carried))
+            } else {
+                let w = mul(&rot, w_p);
+                let slide = add(scale(cross(w, scale(a, qd[i])), 2.0), scale(a, qdd[i]));
+                (w, mul(&rot, dw_p), add(mul(&rot, carried), slide))
+            };
+            let dv_com = add(dv, add(cross(dw, l.com), cross(w, cross(w, l.com))));
+            let force = scale(dv_com, l.mass);
+            let moment = add(mul(&l.inertia, dw), cross(w, mul(&l.inertia, w)));
+            (self.rot[i], self.pos[i]) = (rot, pos);
+            (self.w[i], self.dw[i], self.dv[i]) = (w, dw, dv);
+            self.f[i] = force;
+            self.n[i] = add(moment, cross(l.com, force));
+        }
+        // Inward: each body's joint takes the axis' part of what holds it and passes it on.
+        for i in (0..self.links.len()).rev() {
+            let l = &self.links[i];
+            let along = if l.revolute { self.n[i] } else { self.f[i] };
+            tau[i] = dot(l.axis, along) + l.armature * qdd[i];
+            if let Some(p) = l.parent {
+                let f_p = mul_t(&self.rot[i], self.f[i]);
+                let n_p = add(mul_t(&self.rot[i], self.n[i]), cross(self.pos[i], f_p));
+                self.f[p] = add(self.f[p], f_p);
+                self.n[p] = add(self.n[p], n_p);
+            }
+        }
+    }
+
+    /// M(q) column by column: the torques of a unit acceleration at rest without gravity.
+    /// `m` is n x n, row-major.
+    pub fn mass_matrix(&mut self, q: &[f64], m: &mut [f64]) {
+        let n = self.links.len();
+        let (zero, mut unit, mut column) = (
+            std::mem::take(&mut self.zero),
+            std::mem::take(&mut self.unit),
+            std::mem::take(&mut self.column),
+        );
+        for j in 0..n {
+            unit[j] = 1.0;
+            self.torques(q, &zero, &unit, false, &mut column);
+            unit[j] = 0.0;
+            for i in 0..n {
+                m[i * n + j] = column[i];
+            }
+        }
+        (self.zero, self.unit, self.column) = (zero, unit, column);
+    }
+}
+
+/// A particle swarm's flight on the trivial objective f(x) = x_0, in one scalar loop.
+pub struct BareSwarm {
+    dim: usize,
+    x: Vec<f64>,
+    v: Vec<f64>,
+    best_x: Vec<f64>,
+    best_f: Vec<f64>,
+    swarm_x: Vec<f64>,
+    swarm_f: f64,
+    state: u64,
+}
+
+impl BareSwarm {
+    pub fn new(population: usize, dim: usize) -> BareSwarm {
+        let mut s = BareSwarm {
+            dim,
+            x: vec![0.0; population * dim],
+            v: vec![0.0; population * dim],
+            best_x: vec![0.0; population * dim],
+            best_f: vec![f64::INFINITY; population],
+            swarm_x: vec![0.0; dim],
+            swarm_f: f64::INFINITY,
+            state: 0x9E37_79B9_7F4A_7C15,
+        };
+        for k in 0..s.x.len() {
+            s.x[k] = 2.0 * s.uniform() - 1.0;
+        }
+        s
+    }
+
+    /// xorshift64*, in [0, 1).
+    fn uniform(&mut self) -> f64 {
+        self.state ^= self.state >> 12;
+        self.state ^= self.state << 25;
+        self.state ^= self.state >> 27;
+        (self.state.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// One generation: every particle flies, is evaluated and updates the bests. Returns the
+    /// evaluations made (the population).
+    pub fn generation(&mut self) -> usize {
+        let (d, population) = (self.dim, self.best_f.len());
+        for i in 0..population {
+            for j in 0..d {
+                let k = i * d + j;
+                let (r1, r2) = (self.uniform(), self.uniform());
+                let v = 0.7 * self.v[k]
+                    + 2.0 * r1 * (self.best_x[k] - self.x[k])
+                    + 2.0 * r2 * (self.swarm_x[j] - self.x[k]);
+                let v = v.clamp(-0.4, 0.4);
+                let x = (self.x[k] + v).clamp(-1.0, 1.0);
+                self.v[k] = v;
+                self.x[k] = x;
+            }
+            let f = self.x[i * d];
+            if f < self.best_f[i] {
+                self.best_f[i] = f;
+                self.best_x[i * d..(i + 1) * d].copy_from_slice(&self.x[i * d..(i + 1) * d]);
+            }
+            if f < self.swarm_f {
+                self.swarm_f = f;
+                self.swarm_x.copy_from_slice(&self.x[i * d..(i + 1) * d]);
+            }
+        }
+        population
+    }
+
+    /// The best value found (kept so the work is not optimised away).
+    pub fn best(&self) -> f64 {
+        self.swarm_f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    fn robots() -> Vec<Model> {
+        // The shipped arms, and a branched tree with a prismatic joint and tilted axes: the
+        // joints the arms do not have.
+        [
+            "config/robots/arm7.urdf",
+            "config/robots/arm3.urdf",
+            "tests/robots/branched.urdf",
+        ]
+        .iter()
+        .map(|p| crate::dynamics::load(&crate::node::launcher::shipped(p)).unwrap())
+        .collect()
+    }
+
+    /// The textbook's torques and mass matrix are evoloop's (so the guard times the same work),
+    /// on random states of the shipped arms.
+    #[test]
+    fn the_textbook_recursion_gives_evoloops_torques_and_mass_matrix() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for mut model in robots() {
+            model.clear_friction();
+            let n = model.dof();
+            let mut textbook = Rnea::new(&model);
+            let mut d = model.data();
+            let (mut ours, mut theirs, mut m) = (vec![0.0; n], vec![0.0; n], vec![0.0; n * n]);
+            for _ in 0..20 {
+                let mut draw =
+                    || -> Vec<f64> { (0..n).map(|_| rng.gen_range(-2.0..2.0)).collect() };
+                let (q, qd, qdd) = (draw(), draw(), draw());
+                model.rnea(&mut d, &q, &qd, &qdd, &mut ours);
+                textbook.torques(&q, &qd, &qdd, true, &mut theirs);
+                for i in 0..n {
+                    let scale = ours[i].abs().max(1.0);
+                    assert!(
+                        (ours[i] - theirs[i]).abs() < 1e-9 * scale,
+                        "{}: joint {i}: {} vs {}",
+                        model.name,
+                        ours[i],
+                        theirs[i]
+                    );
+                }
+                let mass = model.mass_matrix(&mut d, &q).clone();
+                textbook.mass_matrix(&q, &mut m);
+                for i in 0..n {
+                    for j in 0..n {
+                        assert!(
+                            (mass[(i, j)] - m[i * n + j]).abs() < 1e-9,
+                            "{}: M[{i},{j}]",
+                            model.name
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_bare_swarm_descends_on_its_objective() {
+        let mut s = BareSwarm::new(30, 30);
+        assert_eq!(s.generation(), 30);
+        let first = s.best();
+        for _ in 0..200 {
+            s.generation();
+        }
+        assert!(
+            s.best() < first && s.best() >= -1.0,
+            "{first} -> {}",
+            s.best()
+        );
+    }
+}
