@@ -94,6 +94,7 @@ fn bench_guard_judges_every_hot_path_by_its_ratio_and_exits_by_its_verdict() {
     for (name, p) in paths {
         let f = |k: &str| p[k].as_f64().unwrap_or_else(|| panic!("{name}.{k}"));
         assert!((f("limit") - 1.5 * f("recorded")).abs() < 1e-12, "{name}");
+        assert_eq!(v["limit_scale"], 1.0);
         let attempts = p["attempts"].as_array().unwrap();
         assert!((1..=3).contains(&attempts.len()), "{name}");
         let lowest = attempts
@@ -129,11 +130,62 @@ fn bench_guard_judges_every_hot_path_by_its_ratio_and_exits_by_its_verdict() {
     );
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(stderr.contains("hot path slower"), !all_pass, "{stderr}");
-    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
-        .args(["bench", "guard", "--rounds", "0"])
+    for bad in [
+        &["--rounds", "0"][..],
+        &["--paths", "rnea,no_such_path"],
+        &["--limit-scale", "-1"],
+    ] {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+            .args(["bench", "guard"])
+            .args(bad)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+    }
+}
+
+/// A path over its limit is measured three times and fails the guard with its name: shown on
+/// limits scaled far below any ratio (a compute path and a round trip), so that the failure
+/// path is checked on any machine without slowing a hot path.
+#[test]
+fn bench_guard_fails_a_path_over_its_limit_on_every_attempt_and_names_it() {
+    let _alone = alone();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+        .args([
+            "bench",
+            "guard",
+            "--rounds",
+            "3",
+            "--json",
+            "--limit-scale",
+            "0.001",
+        ])
+        .args(["--paths", "rnea,round_trip_busy"])
         .output()
         .unwrap();
-    assert_eq!(bad.status.code(), Some(2));
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["pass"], false);
+    assert_eq!(v["limit_scale"], 0.001);
+    let paths = v["paths"].as_object().unwrap();
+    assert_eq!(paths.len(), 2, "only the paths asked for");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    for name in ["rnea", "round_trip_busy"] {
+        let p = &paths[name];
+        assert_eq!(p["pass"], false, "{name}");
+        assert_eq!(p["attempts"].as_array().unwrap().len(), 3, "{name}");
+        let limit = p["limit"].as_f64().unwrap();
+        assert!((limit - 0.001 * 1.5 * p["recorded"].as_f64().unwrap()).abs() < 1e-12);
+        assert!(
+            stderr.contains(&format!("error: hot path slower: {name} at ")),
+            "{stderr}"
+        );
+    }
 }
 
 #[test]

@@ -74,6 +74,11 @@ impl Stages {
         }
         self.bar.set_message(name.to_string());
     }
+
+    /// What the current stage is doing now, without counting a new one.
+    pub fn set_message(&self, what: &str) {
+        self.bar.set_message(what.to_string());
+    }
 }
 
 impl Drop for Stages {

@@ -150,11 +150,16 @@ pub fn measure_variants(
         } else {
             ping_evoloop(v, &prefix, &run_id, samples)
         };
-        let _ = child.wait();
         match r {
-            Ok(s) => raw.push((v, s)),
+            Ok(s) => {
+                let _ = child.wait();
+                raw.push((v, s));
+            }
             Err(e) => {
+                // Killed before it is reaped: a peer still waiting for its partner would
+                // otherwise hold the benchmark until its own timeout.
                 let _ = child.kill();
+                let _ = child.wait();
                 return Err(e.to_string());
             }
         }

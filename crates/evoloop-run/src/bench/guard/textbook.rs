@@ -98,7 +98,10 @@ impl Rnea {
             .iter()
             .map(|b| Link {
                 parent: b.parent,
-                revolute: b.kind == JointKind::Revolute,
+                revolute: match b.kind {
+                    JointKind::Revolute => true,
+                    JointKind::Prismatic => false,
+                },
                 // The columns of eᵀ are the rows of e.
                 placement: b.placement.e.transpose().to_cols_array_2d(),
                 origin: b.placement.r.to_array(),
@@ -223,7 +226,10 @@ impl Rnea {
     }
 }
 
-/// A particle swarm's flight on the trivial objective f(x) = x_0, in one scalar loop.
+/// A particle swarm's flight on the trivial objective f(x) = x_0: a particle's random numbers
+/// drawn into a buffer, then its update in one loop over the coordinates, compiled four lanes
+/// wide where the CPU has AVX2, as the optimisers' flights are (so the ratio holds on a host
+/// without it too).
 pub struct BareSwarm {
     dim: usize,
     x: Vec<f64>,
@@ -232,6 +238,7 @@ pub struct BareSwarm {
     best_f: Vec<f64>,
     swarm_x: Vec<f64>,
     swarm_f: f64,
+    draws: Vec<f64>,
     state: u64,
 }
 
@@ -245,6 +252,7 @@ impl BareSwarm {
             best_f: vec![f64::INFINITY; population],
             swarm_x: vec![0.0; dim],
             swarm_f: f64::INFINITY,
+            draws: vec![0.0; 2 * dim],
             state: 0x9E37_79B9_7F4A_7C15,
         };
         for k in 0..s.x.len() {
@@ -266,25 +274,25 @@ impl BareSwarm {
     pub fn generation(&mut self) -> usize {
         let (d, population) = (self.dim, self.best_f.len());
         for i in 0..population {
-            for j in 0..d {
-                let k = i * d + j;
-                let (r1, r2) = (self.uniform(), self.uniform());
-                let v = 0.7 * self.v[k]
-                    + 2.0 * r1 * (self.best_x[k] - self.x[k])
-                    + 2.0 * r2 * (self.swarm_x[j] - self.x[k]);
-                let v = v.clamp(-0.4, 0.4);
-                let x = (self.x[k] + v).clamp(-1.0, 1.0);
-                self.v[k] = v;
-                self.x[k] = x;
+            for k in 0..2 * d {
+                self.draws[k] = self.uniform();
             }
+            let row = i * d..(i + 1) * d;
+            fly(
+                &mut self.x[row.clone()],
+                &mut self.v[row.clone()],
+                &self.best_x[row.clone()],
+                &self.swarm_x,
+                &self.draws,
+            );
             let f = self.x[i * d];
             if f < self.best_f[i] {
                 self.best_f[i] = f;
-                self.best_x[i * d..(i + 1) * d].copy_from_slice(&self.x[i * d..(i + 1) * d]);
+                self.best_x[row.clone()].copy_from_slice(&self.x[row.clone()]);
             }
             if f < self.swarm_f {
                 self.swarm_f = f;
-                self.swarm_x.copy_from_slice(&self.x[i * d..(i + 1) * d]);
+                self.swarm_x.copy_from_slice(&self.x[row]);
             }
         }
         population
@@ -296,17 +304,48 @@ impl BareSwarm {
     }
 }
 
+/// One particle's update, four lanes wide where the CPU has AVX2.
+fn fly(x: &mut [f64], v: &mut [f64], p: &[f64], g: &[f64], draws: &[f64]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has just been checked for AVX2.
+        return unsafe { fly_avx2(x, v, p, g, draws) };
+    }
+    fly_body(x, v, p, g, draws)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fly_avx2(x: &mut [f64], v: &mut [f64], p: &[f64], g: &[f64], draws: &[f64]) {
+    fly_body(x, v, p, g, draws)
+}
+
+#[inline(always)]
+fn fly_body(x: &mut [f64], v: &mut [f64], p: &[f64], g: &[f64], draws: &[f64]) {
+    let d = x.len();
+    let (v, p, g, r1, r2) = (&mut v[..d], &p[..d], &g[..d], &draws[..d], &draws[d..2 * d]);
+    for j in 0..d {
+        let nv = (0.7 * v[j] + 2.0 * r1[j] * (p[j] - x[j]) + 2.0 * r2[j] * (g[j] - x[j]))
+            .clamp(-0.4, 0.4);
+        let nx = x[j] + nv;
+        let cx = nx.clamp(-1.0, 1.0);
+        v[j] = if cx == nx { nv } else { 0.0 };
+        x[j] = cx;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
 
     fn robots() -> Vec<Model> {
-        // The shipped arms, and a branched tree with a prismatic joint and tilted axes: the
-        // joints the arms do not have.
+        // The shipped arms (the D-H one with its drives' armature), and a branched tree with a
+        // prismatic joint and tilted axes: the joints the arms do not have.
         [
             "config/robots/arm7.urdf",
             "config/robots/arm3.urdf",
+            "config/robots/industrial6.toml",
             "tests/robots/branched.urdf",
         ]
         .iter()
