@@ -337,25 +337,87 @@ fn a_plant_program_relative_to_the_scenario_starts_from_any_scenario_path() {
     }
 }
 
+/// `config/external_motor.toml` with its plant a shell script of `body`, written executable as
+/// `dir/name` (the scenario's directory, where the plant runs).
+fn shell_plant(dir: &Path, name: &str, body: &str) -> String {
+    use std::os::unix::fs::PermissionsExt;
+    let program = dir.join(name);
+    std::fs::write(&program, format!("#!/bin/sh\n{body}\n")).unwrap();
+    std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
+    std::fs::read_to_string(common::config("external_motor.toml"))
+        .unwrap()
+        .replace(
+            r#"command = ["python3", "plants/motor_plant.py"]"#,
+            &format!(r#"command = ["./{name}"]"#),
+        )
+}
+
+/// In realtime a plant program runs where evoloop's own plant would (`timing.plant_cpu`,
+/// `timing.plant_fifo_priority`), from before its first instruction: the program reads its own
+/// CPUs and scheduling policy from /proc, and plant.json and the launcher say what it got
+/// (SCHED_FIFO where the launcher may grant it: root; the CPU anywhere).
+#[test]
+fn a_plant_program_runs_on_the_plants_cpu_and_priority_in_realtime() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = shell_plant(
+        tmp.path(),
+        "where.sh",
+        "cat /proc/$$/stat > stat\ngrep Cpus_allowed_list /proc/$$/status > cpus\nsleep 1\nexit 3",
+    )
+    .replace(
+        "plant_fifo_priority = 70",
+        "plant_fifo_priority = 70\nplant_cpu = 0",
+    );
+    common::write(tmp.path(), "where.toml", &text);
+    let out = tmp.path().join("out");
+    // The run (which fails: the script exits 3), and the script's own scheduling policy and
+    // priority (/proc/<pid>/stat after the command name: fields 41 and 40).
+    let run = |mode: &str| {
+        let (_, run_id) = common::unique("placed");
+        let o = Process::new(common::evoloop())
+            .current_dir(tmp.path())
+            .args(["run", "where.toml", "--mode", mode, "--duration", "2"])
+            .args(["--out", out.to_str().unwrap(), "--run-id", &run_id])
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(said.contains("exit status: 3"), "{said}");
+        let stat = std::fs::read_to_string(tmp.path().join("stat")).unwrap();
+        let after_name = stat.rsplit(')').next().unwrap().to_string();
+        let fields: Vec<String> = after_name.split_whitespace().map(String::from).collect();
+        (said, fields[41 - 3].clone(), fields[40 - 3].clone())
+    };
+    let (said, policy, priority) = run("realtime");
+    // SAFETY: a plain syscall.
+    let root = unsafe { libc::geteuid() } == 0;
+    let cpus = std::fs::read_to_string(tmp.path().join("cpus")).unwrap();
+    assert_eq!(cpus.split_whitespace().last(), Some("0"), "{cpus}");
+    assert_eq!(policy == "1", root, "policy {policy}");
+    if root {
+        assert_eq!(priority, "70");
+        assert!(said.contains("runs SCHED_FIFO 70 on CPU 0"), "{said}");
+    }
+    let plant = common::json(&out.join("plant.json"));
+    assert_eq!(plant["rt"]["cpu"], 0, "{plant}");
+    assert_eq!(plant["rt"]["sched_fifo"], root, "{plant}");
+    // 1 ns as set; the kernel keeps none for a SCHED_FIFO process (it reads 0 then).
+    let slack = plant["rt"]["timer_slack_ns"].as_u64().unwrap();
+    assert!(slack <= 1, "{plant}");
+    // Lockstep places nothing, as evoloop's own plant takes no privileges there.
+    let (_, policy, _) = run("lockstep");
+    assert_eq!(policy, "0", "SCHED_OTHER in lockstep");
+}
+
 /// A plant program that starts a helper in a session of its own (`setsid`, out of the process
 /// group the launcher stops) and ends: the helper does not outlive the run (issue 63, item 8).
 #[test]
 fn what_a_plant_started_in_its_own_session_does_not_outlive_the_run() {
-    use std::os::unix::fs::PermissionsExt;
     let tmp = tempfile::tempdir().unwrap();
-    let program = tmp.path().join("detaching.sh");
-    std::fs::write(
-        &program,
-        "#!/bin/sh\nsetsid sh -c 'echo $$ > helper.pid; exec sleep 600' &\nsleep 0.3\nexit 3\n",
-    )
-    .unwrap();
-    std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
-    let text = std::fs::read_to_string(common::config("external_motor.toml"))
-        .unwrap()
-        .replace(
-            r#"command = ["python3", "plants/motor_plant.py"]"#,
-            r#"command = ["./detaching.sh"]"#,
-        );
+    let text = shell_plant(
+        tmp.path(),
+        "detaching.sh",
+        "setsid sh -c 'echo $$ > helper.pid; exec sleep 600' &\nsleep 0.3\nexit 3",
+    );
     let scenario = common::write(tmp.path(), "s.toml", &text);
     let (_, run_id) = common::unique("setsid");
     let o = Process::new(common::evoloop())

@@ -5,6 +5,7 @@
 
 use crate::config::Scenario;
 use crate::plant::external::ExternalSpec;
+use crate::rt::{RtGranted, RtRequest};
 use std::path::Path;
 use std::process::Child;
 
@@ -74,8 +75,14 @@ pub fn environment(
 }
 
 /// Start `command` with `env`, in the scenario's directory, in a process group of its own, with
-/// SIGTERM when the launcher dies.
-pub fn spawn(e: &ExternalSpec, env: &[(String, String)]) -> std::io::Result<Child> {
+/// SIGTERM when the launcher dies; in realtime, where evoloop's own plant would run
+/// (`placement`: `timing.plant_cpu` and `timing.plant_fifo_priority`), set before the command
+/// runs so that every thread it starts runs there too. `granted_to` says what it got.
+pub fn spawn(
+    e: &ExternalSpec,
+    env: &[(String, String)],
+    placement: &RtRequest,
+) -> std::io::Result<Child> {
     use std::os::unix::process::CommandExt;
     let program = e.program.as_ref().expect("a command to spawn");
     let mut cmd = std::process::Command::new(program);
@@ -84,8 +91,51 @@ pub fn spawn(e: &ExternalSpec, env: &[(String, String)]) -> std::io::Result<Chil
         .envs(env.iter().map(|(k, v)| (k, v)))
         .process_group(0);
     super::launcher::die_with_parent(&mut cmd);
+    let (cpu, priority) = (placement.cpu, placement.fifo_priority);
+    if cpu.is_some() || priority.is_some() {
+        // SAFETY: `place_self` makes syscalls only, which a child may between fork and exec.
+        unsafe {
+            cmd.pre_exec(move || {
+                crate::rt::privileges::place_self(cpu, priority);
+                Ok(())
+            })
+        };
+    }
     cmd.spawn()
         .map_err(|err| std::io::Error::new(err.kind(), format!("{}: {err}", program.display())))
+}
+
+/// What the plant process `child` got of `placement`, in plant.json (which evoloop's own plant
+/// writes at its end, and a plant of the user's own does not), so the run's report shows it as
+/// it shows the controller's; and said, unless `quiet`.
+pub fn report_placement(
+    scn: &Scenario,
+    child: &Child,
+    placement: &RtRequest,
+    quiet: bool,
+) -> RtGranted {
+    let got = crate::rt::privileges::granted_to(child.id() as i32, placement);
+    let report = crate::run_report::summary::PlantReport {
+        mode: scn.timing.mode,
+        rt: got.clone(),
+        ..Default::default()
+    };
+    if let Err(e) = crate::report::write_json(&scn.output.dir, "plant.json", &report) {
+        eprintln!("evoloop: warning: cannot write plant.json: {e}");
+    }
+    if !quiet {
+        let fifo = if got.sched_fifo {
+            format!("SCHED_FIFO {}", got.priority)
+        } else {
+            "SCHED_OTHER".into()
+        };
+        let cpu = got.cpu.map_or("any CPU".into(), |c| format!("CPU {c}"));
+        eprintln!("evoloop: {EXTERNAL} runs {fifo} on {cpu}");
+        for n in &got.notes {
+            eprintln!("evoloop: warning: {n}");
+        }
+    }
+    got
 }
 
 /// `sig` to the plant process's whole group (it and what it started).

@@ -11,10 +11,10 @@ use crate::ipc::{Ipc, Topic};
 use crate::msg::Telemetry;
 use crate::plant::external::ExternalSpec;
 use crate::report::Outcome;
-use crate::rt::apply_privileges;
 use crate::rt::clock::wait_loop_lateness;
 use crate::rt::timing::Percentiles;
 use crate::rt::WaitStrategy;
+use crate::rt::{apply_privileges, RtRequest};
 use crate::run_report::build::build_report;
 use crate::run_report::summary::{FloorReport, OptimiserLife, Summary};
 use std::os::unix::process::ExitStatusExt;
@@ -945,10 +945,22 @@ impl Running {
             let env = super::external::environment(&p.scn, &config, &p.run_id, &a.ipc_prefix);
             (e, env)
         });
+        // Where evoloop's own plant runs: its CPU and priority in realtime, none in lockstep.
+        let placement = match p.scn.timing.mode {
+            Mode::Realtime => p.scn.plant_rt(),
+            Mode::Lockstep => RtRequest::default(),
+        };
         let children = spawn_all(
             &args,
-            external.as_ref().map(|(e, env)| (*e, env.as_slice())),
+            external
+                .as_ref()
+                .map(|(e, env)| (*e, env.as_slice(), &placement)),
         )?;
+        if let Some((_, c)) = children.iter().find(|(n, _)| *n == EXTERNAL) {
+            if placement.cpu.is_some() || placement.fifo_priority.is_some() {
+                super::external::report_placement(&p.scn, c, &placement, a.quiet);
+            }
+        }
         Ok(Running {
             children,
             args,
@@ -996,8 +1008,8 @@ const PLANT: usize = 0;
 const CONTROLLER: usize = 1;
 const _: () = assert!(matches!(PROCESSES[PLANT].as_bytes(), b"evoloop-plant"));
 
-/// A plant of the user's own: its table and the variables it joins with.
-type External<'a> = (&'a ExternalSpec, &'a [(String, String)]);
+/// A plant of the user's own: its table, the variables it joins with, and where it runs.
+type External<'a> = (&'a ExternalSpec, &'a [(String, String)], &'a RtRequest);
 
 /// The plant (evoloop's, the user's `plant.external.command`, or none when the user starts it),
 /// the controller and the optimiser, in that order; if one cannot start, those already started
@@ -1009,11 +1021,11 @@ fn spawn_all(
     let mut children: Vec<(&'static str, Child)> = Vec::new();
     for name in PROCESSES {
         let (who, started) = match external.filter(|_| name == PROCESSES[PLANT]) {
-            Some((e, env)) if e.command.is_empty() => {
+            Some((e, env, _)) if e.command.is_empty() => {
                 super::external::announce(e, env);
                 continue;
             }
-            Some((e, env)) => (EXTERNAL, super::external::spawn(e, env)),
+            Some((e, env, at)) => (EXTERNAL, super::external::spawn(e, env, at)),
             None => (name, spawn_process(name, args)),
         };
         match started {
