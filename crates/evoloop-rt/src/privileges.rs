@@ -15,6 +15,13 @@ pub struct RtRequest {
     pub wait: crate::WaitKind,
 }
 
+impl RtRequest {
+    /// Whether it asks for a CPU or a SCHED_FIFO priority (what `place_self` gives another process).
+    pub fn places(&self) -> bool {
+        self.cpu.is_some() || self.fifo_priority.is_some()
+    }
+}
+
 /// What the process got; goes into summary.json so timing figures can be read in context.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct RtGranted {
@@ -37,8 +44,7 @@ fn os_error() -> String {
 /// slack is always set to 1 ns: a control loop sleeping to absolute deadlines wants no slack.
 pub fn apply_privileges(req: &RtRequest) -> RtGranted {
     let mut got = RtGranted::default();
-    // SAFETY: prctl with an integer argument; 1 ns is the smallest slack Linux accepts.
-    if unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) } == 0 {
+    if least_timer_slack() {
         got.timer_slack_ns = 1;
     } else {
         got.notes
@@ -53,24 +59,15 @@ pub fn apply_privileges(req: &RtRequest) -> RtGranted {
         }
     }
     if let Some(cpu) = req.cpu {
-        // SAFETY: cpu_set_t is plain data; CPU_SET bounds-checks against its size.
-        unsafe {
-            let mut set: libc::cpu_set_t = std::mem::zeroed();
-            libc::CPU_SET(cpu, &mut set);
-            if libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) == 0 {
-                got.cpu = Some(cpu);
-            } else {
-                got.notes
-                    .push(format!("affinity to cpu {cpu} refused: {}", os_error()));
-            }
+        if pin(cpu) {
+            got.cpu = Some(cpu);
+        } else {
+            got.notes
+                .push(format!("affinity to cpu {cpu} refused: {}", os_error()));
         }
     }
     if let Some(prio) = req.fifo_priority {
-        let param = libc::sched_param {
-            sched_priority: prio,
-        };
-        // SAFETY: param is valid for the call.
-        if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0 {
+        if fifo(prio) {
             got.sched_fifo = true;
             got.priority = prio;
         } else {
@@ -94,23 +91,40 @@ pub fn apply_privileges(req: &RtRequest) -> RtGranted {
 /// All three survive exec and pass to the threads the program starts; failures are left for
 /// `granted_to` to read back and report.
 pub fn place_self(cpu: Option<usize>, priority: Option<i32>) {
-    // SAFETY: prctl with an integer argument.
-    unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) };
-    if let Some(cpu) = cpu.filter(|c| *c < libc::CPU_SETSIZE as usize) {
-        // SAFETY: cpu_set_t is plain data, `cpu` is within its size; a call on this process.
-        unsafe {
-            let mut set: libc::cpu_set_t = std::mem::zeroed();
-            libc::CPU_SET(cpu, &mut set);
-            libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
-        }
+    least_timer_slack();
+    if let Some(cpu) = cpu {
+        pin(cpu);
     }
     if let Some(prio) = priority {
-        let param = libc::sched_param {
-            sched_priority: prio,
-        };
-        // SAFETY: param is valid for the call; a call on this process.
-        unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+        fifo(prio);
     }
+}
+
+/// The three placements, each one syscall on the calling process and nothing else (so
+/// `place_self` may make them between fork and exec); whether it took (errno says why not).
+fn least_timer_slack() -> bool {
+    // SAFETY: prctl with an integer argument; 1 ns is the smallest slack Linux accepts.
+    unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong, 0, 0, 0) == 0 }
+}
+
+fn pin(cpu: usize) -> bool {
+    if cpu >= libc::CPU_SETSIZE as usize {
+        return false;
+    }
+    // SAFETY: cpu_set_t is plain data and `cpu` is within its size; a call on this process.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) == 0
+    }
+}
+
+fn fifo(priority: i32) -> bool {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: param is valid for the call; a call on this process.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) == 0 }
 }
 
 /// What process `pid` runs with, read from outside (its scheduling policy and priority, the

@@ -10,7 +10,7 @@ use std::time::Instant;
 
 /// States cycled through (as on Pinocchio's side): enough to defeat a branch predictor that
 /// learns one state, few enough to stay in L1.
-const STATES: usize = 64;
+pub const STATES: usize = 64;
 /// Batches the calls are timed in (the median batch is reported).
 const BATCHES: u64 = 10;
 
@@ -36,6 +36,16 @@ pub struct DynamicsBench {
     pub ns_per_call: PerCall,
 }
 
+/// `STATES` random states (q, qd, qdd, tau) of an `n`-joint arm in [-1, 1], the same on every
+/// call (seeded): what `bench dynamics` and `bench guard` time the algorithms on.
+pub fn random_states(n: usize) -> Vec<[Vec<f64>; 4]> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let mut draw = || -> Vec<f64> { (0..n).map(|_| rng.gen_range(-1.0..=1.0)).collect() };
+    (0..STATES)
+        .map(|_| [draw(), draw(), draw(), draw()])
+        .collect()
+}
+
 /// Time `calls` calls of each algorithm on `STATES` random states in [-1, 1] (friction dropped:
 /// the rigid-body quantities Pinocchio computes), after a batch of warm-up calls each; ns per
 /// call is the median over `BATCHES` batches.
@@ -43,11 +53,7 @@ pub fn measure(model: &Model, calls: u64) -> DynamicsBench {
     let mut model = model.clone();
     model.clear_friction();
     let n = model.dof();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-    let mut draw = || -> Vec<f64> { (0..n).map(|_| rng.gen_range(-1.0..=1.0)).collect() };
-    let states: Vec<[Vec<f64>; 4]> = (0..STATES)
-        .map(|_| [draw(), draw(), draw(), draw()])
-        .collect();
+    let states = random_states(n);
     let mut d = model.data();
     let mut out = vec![0.0; n];
     let m = &model;

@@ -92,7 +92,7 @@ pub fn spawn(
         .process_group(0);
     super::launcher::die_with_parent(&mut cmd);
     let (cpu, priority) = (placement.cpu, placement.fifo_priority);
-    if cpu.is_some() || priority.is_some() {
+    if placement.places() {
         // SAFETY: `place_self` makes syscalls only, which a child may between fork and exec.
         unsafe {
             cmd.pre_exec(move || {

@@ -957,7 +957,7 @@ impl Running {
                 .map(|(e, env)| (*e, env.as_slice(), &placement)),
         )?;
         if let Some((_, c)) = children.iter().find(|(n, _)| *n == EXTERNAL) {
-            if placement.cpu.is_some() || placement.fifo_priority.is_some() {
+            if placement.places() {
                 super::external::report_placement(&p.scn, c, &placement, a.quiet);
             }
         }

@@ -5,8 +5,8 @@
 //! does not, when both sides do the same kind of work. Each hot path is timed in interleaved
 //! rounds of short batches against a reference that does its arithmetic and shares none of its
 //! code (the textbook recursion, a bare swarm, raw iceoryx2), each side's fastest batch is kept,
-//! and their ratio is compared with the ratio recorded on the development machine: a path fails when it is more than `FACTOR` times
-//! that. A path over its limit is measured again, up to `ATTEMPTS` times, and fails only if every
+//! and their ratio is compared with the ratio recorded on the development machine: a path fails
+//! when it is more than `FACTOR` times that. A path over its limit is measured again, up to `ATTEMPTS` times, and fails only if every
 //! attempt is over: a burst of noise on a shared machine passes, a slower path stays slow.
 
 pub mod textbook;
@@ -16,7 +16,6 @@ use crate::control::cycle::ControlCycle;
 use crate::dynamics::Model;
 use crate::msg::{PlantState, Telemetry};
 use crate::optim::by_name;
-use rand::{Rng, SeedableRng};
 use serde::Serialize;
 use std::hint::black_box;
 use std::time::Instant;
@@ -203,8 +202,7 @@ fn per_call(calls: usize, mut f: impl FnMut(usize)) -> f64 {
     t.elapsed().as_nanos() as f64 / calls as f64
 }
 
-/// Random states of the arm (cycled, as `bench dynamics` does).
-const STATES: usize = 64;
+use crate::bench::dynamics::{random_states, STATES};
 /// Calls per batch: 0.2 ms of each side on the development VM (GA's batch 1.3 ms, the others
 /// under 0.5 ms), short beside a scheduler's time slice, so that many batches run without being
 /// preempted.
@@ -231,7 +229,8 @@ pub struct Bench {
     model: Model,
     data: crate::dynamics::Data,
     textbook: Rnea,
-    states: Vec<[Vec<f64>; 3]>,
+    /// `bench dynamics`' states of the arm, cycled: (q, qd, qdd, tau).
+    states: Vec<[Vec<f64>; 4]>,
     scenario: crate::config::Scenario,
     /// A window of a closed-loop run of the computed-torque scenario, replayed to a fresh cycle
     /// per batch (a cycle carries its observer's state from sample to sample: one replaying the
@@ -272,10 +271,7 @@ impl Bench {
         let shipped = crate::node::launcher::shipped;
         let mut model = crate::dynamics::load(&shipped(ROBOT)).map_err(|e| e.to_string())?;
         model.clear_friction();
-        let n = model.dof();
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-        let mut draw = || -> Vec<f64> { (0..n).map(|_| rng.gen_range(-1.0..=1.0)).collect() };
-        let states = (0..STATES).map(|_| [draw(), draw(), draw()]).collect();
+        let states = random_states(model.dof());
         let overrides = crate::config::Overrides {
             // Twice the window at the scenario's 10 kHz: enough whatever the rounding of t.
             duration: Some(CYCLE_FROM + 2.0 * CYCLE_SAMPLES as f64 * 1e-4),
@@ -312,25 +308,16 @@ impl Bench {
     /// The textbook's torques and M(q) equal evoloop's on every state: the two sides time the
     /// same work, or the guard says so and stops.
     fn check_references(&mut self) -> Result<(), String> {
-        let n = self.model.dof();
-        let (mut ours, mut theirs, mut m) = (vec![0.0; n], vec![0.0; n], vec![0.0; n * n]);
-        for [q, qd, qdd] in &self.states {
-            self.model.rnea(&mut self.data, q, qd, qdd, &mut ours);
-            self.textbook.torques(q, qd, qdd, true, &mut theirs);
-            let mass = self.model.mass_matrix(&mut self.data, q);
-            self.textbook.mass_matrix(q, &mut m);
-            let torques =
-                (0..n).all(|i| (ours[i] - theirs[i]).abs() <= 1e-9 * ours[i].abs().max(1.0));
-            let masses = (0..n * n).all(|k| (mass[(k / n, k % n)] - m[k]).abs() <= 1e-9);
-            let what = match (torques, masses) {
-                (true, true) => continue,
-                (false, _) => format!("torques {ours:?} against {theirs:?}"),
-                (true, false) => format!("M(q) {:?} against {m:?}", mass.as_slice()),
-            };
-            return Err(format!(
-                "the guard's textbook reference disagrees with evoloop's dynamics on {ROBOT} at \
-                 q = {q:?} ({what}): the two would time different work"
-            ));
+        for [q, qd, qdd, _] in &self.states {
+            let found = self
+                .textbook
+                .disagreement(&self.model, &mut self.data, q, qd, qdd);
+            if let Some(what) = found {
+                return Err(format!(
+                    "the guard's textbook reference disagrees with evoloop's dynamics on {ROBOT} \
+                     ({what}): the two would time different work"
+                ));
+            }
         }
         Ok(())
     }
@@ -381,13 +368,13 @@ impl Bench {
                 rounds,
                 || {
                     per_call(DYNAMICS_CALLS, |k| {
-                        let [q, qd, qdd] = state(k);
+                        let [q, qd, qdd, _] = state(k);
                         model.rnea(data, q, qd, qdd, black_box(&mut tau));
                     })
                 },
                 || {
                     per_call(DYNAMICS_CALLS, |k| {
-                        let [q, qd, qdd] = state(k);
+                        let [q, qd, qdd, _] = state(k);
                         textbook.torques(q, qd, qdd, true, black_box(&mut tau2));
                     })
                 },
@@ -405,8 +392,7 @@ impl Bench {
             samples,
             ..
         } = self;
-        let n = states[0][0].len();
-        let mut tau = vec![0.0; n];
+        let mut tau = vec![0.0; states[0][0].len()];
         interleaved(
             rounds,
             || {
@@ -420,7 +406,7 @@ impl Bench {
             },
             || {
                 per_call(samples.len(), |k| {
-                    let [q, qd, qdd] = black_box(&states[k % STATES]);
+                    let [q, qd, qdd, _] = black_box(&states[k % STATES]);
                     textbook.torques(q, qd, qdd, true, black_box(&mut tau));
                 })
             },

@@ -226,6 +226,46 @@ impl Rnea {
     }
 }
 
+impl Rnea {
+    /// Where this recursion and evoloop's `model` (friction cleared) differ at a state, beyond
+    /// round-off (torques to 1e-9 relative, M(q) to 1e-9): None where they agree.
+    pub fn disagreement(
+        &mut self,
+        model: &Model,
+        data: &mut crate::dynamics::Data,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+    ) -> Option<String> {
+        let n = model.dof();
+        let (mut ours, mut theirs, mut m) = (vec![0.0; n], vec![0.0; n], vec![0.0; n * n]);
+        model.rnea(data, q, qd, qdd, &mut ours);
+        self.torques(q, qd, qdd, true, &mut theirs);
+        if let Some(i) =
+            (0..n).find(|&i| (ours[i] - theirs[i]).abs() > 1e-9 * ours[i].abs().max(1.0))
+        {
+            return Some(format!(
+                "{}: joint {i}'s torque {} against {} at q = {q:?}",
+                model.name, ours[i], theirs[i]
+            ));
+        }
+        let mass = model.mass_matrix(data, q);
+        self.mass_matrix(q, &mut m);
+        (0..n * n)
+            .find(|&k| (mass[(k / n, k % n)] - m[k]).abs() > 1e-9)
+            .map(|k| {
+                format!(
+                    "{}: M[{},{}] {} against {} at q = {q:?}",
+                    model.name,
+                    k / n,
+                    k % n,
+                    mass[(k / n, k % n)],
+                    m[k]
+                )
+            })
+    }
+}
+
 /// A particle swarm's flight on the trivial objective f(x) = x_0: a particle's random numbers
 /// drawn into a buffer, then its update in one loop over the coordinates, compiled four lanes
 /// wide where the CPU has AVX2, as the optimisers' flights are (so the ratio holds on a host
@@ -363,34 +403,12 @@ mod tests {
             let n = model.dof();
             let mut textbook = Rnea::new(&model);
             let mut d = model.data();
-            let (mut ours, mut theirs, mut m) = (vec![0.0; n], vec![0.0; n], vec![0.0; n * n]);
             for _ in 0..20 {
                 let mut draw =
                     || -> Vec<f64> { (0..n).map(|_| rng.gen_range(-2.0..2.0)).collect() };
                 let (q, qd, qdd) = (draw(), draw(), draw());
-                model.rnea(&mut d, &q, &qd, &qdd, &mut ours);
-                textbook.torques(&q, &qd, &qdd, true, &mut theirs);
-                for i in 0..n {
-                    let scale = ours[i].abs().max(1.0);
-                    assert!(
-                        (ours[i] - theirs[i]).abs() < 1e-9 * scale,
-                        "{}: joint {i}: {} vs {}",
-                        model.name,
-                        ours[i],
-                        theirs[i]
-                    );
-                }
-                let mass = model.mass_matrix(&mut d, &q).clone();
-                textbook.mass_matrix(&q, &mut m);
-                for i in 0..n {
-                    for j in 0..n {
-                        assert!(
-                            (mass[(i, j)] - m[i * n + j]).abs() < 1e-9,
-                            "{}: M[{i},{j}]",
-                            model.name
-                        );
-                    }
-                }
+                // Torques to 1e-9 relative and M(q) to 1e-9, joint by joint.
+                assert_eq!(textbook.disagreement(&model, &mut d, &q, &qd, &qdd), None);
             }
         }
     }
