@@ -924,3 +924,90 @@ fn a_set_settled_into_costs_the_same_whatever_ran_before() {
         100.0 * back_to_back
     );
 }
+
+/// `[[optimiser.nominal_alternatives]]` (issue 66): the plants the nominal model's tolerance
+/// allows. On the shipped arsinh scenario (its pole -1.0 in the model, -0.8 and -1.2 in the
+/// alternatives) a trial's predicted margin is the least of the three models' and its cost the
+/// nominal model's, and for some set the least is an alternative's. An alternative's errors name
+/// its own keys, and without a nominal model alternatives are refused.
+#[test]
+fn safe_bayes_model_believes_the_least_margin_its_models_tolerance_allows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shipped = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arsinh_direct.toml"),
+    )
+    .unwrap()
+    .replace("algorithm = \"ga\"", "algorithm = \"safe_bayes_model\"");
+    let cut = shipped.find("[[optimiser.nominal_alternatives]]").unwrap();
+    let nominal_only = &shipped[..cut];
+    let load = |name: &str, text: &str| {
+        let path = write(tmp.path(), name, text);
+        Scenario::load(&path, &Overrides::default()).unwrap()
+    };
+    let pole = |a: &str| {
+        assert_eq!(nominal_only.matches("\na = 1.0\n").count(), 1);
+        load(
+            &format!("pole{a}.toml"),
+            &nominal_only.replace("\na = 1.0\n", &format!("\na = {a}\n")),
+        )
+    };
+    let with = load("with.toml", &shipped);
+    assert_eq!(with.optimiser.nominal_alternatives.len(), 2);
+    // The configured set and the same with its output scaling C_y0 (the last gene) changed.
+    let configured = with.controller.build(with.timing.period).params().to_vec();
+    assert_eq!(configured.len(), 25);
+    let sets: Vec<Vec<f64>> = [4.0, 2.0, 6.0, 8.0]
+        .iter()
+        .map(|c| {
+            let mut s = configured.clone();
+            *s.last_mut().unwrap() = *c;
+            s
+        })
+        .collect();
+    let predict = |scn: &Scenario| {
+        let mut m = evoloop::direct::model::ModelTrials::new(scn).unwrap();
+        evoloop::optim::bayes::PriorMean::predict(&mut m, &sets)
+    };
+    let all = predict(&with);
+    let each: Vec<_> = ["1.0", "0.8", "1.2"]
+        .iter()
+        .map(|a| predict(&pole(a)))
+        .collect();
+    for (i, p) in all.iter().enumerate() {
+        assert_eq!(p.cost.to_bits(), each[0][i].cost.to_bits(), "set {i}");
+        let least = each
+            .iter()
+            .map(|e| e[i].margin)
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(p.margin.to_bits(), least.to_bits(), "set {i}: {each:?}");
+    }
+    assert!(
+        all.iter().zip(&each[0]).any(|(p, n)| p.margin < n.margin),
+        "no set where an alternative is less safe: {each:?}"
+    );
+    // Errors name the alternative's own keys; alternatives without a nominal model are refused.
+    let check = |name: &str, text: &str| {
+        let o = cli(&["check", write(tmp.path(), name, text).to_str().unwrap()]);
+        assert!(!o.status.success());
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let bad_step = format!(
+        "{nominal_only}{}",
+        &shipped[cut..]
+            .replacen("step = 0.01", "step = -0.01", 2)
+            .replacen("step = -0.01", "step = 0.01", 1)
+    );
+    let err = check("bad.toml", &bad_step);
+    assert!(
+        err.contains("optimiser.nominal_alternatives[1].step"),
+        "{err}"
+    );
+    let start = nominal_only.find("[optimiser.nominal_plant]").unwrap();
+    let end = nominal_only.find("[output]").unwrap();
+    let orphan = format!("{}{}", &shipped[..start], &shipped[end..]);
+    let err = check("orphan.toml", &orphan);
+    assert!(
+        err.contains("optimiser.nominal_alternatives") && err.contains("nominal model"),
+        "{err}"
+    );
+}

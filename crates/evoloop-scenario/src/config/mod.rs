@@ -297,9 +297,7 @@ impl Scenario {
 fn nominal_plant(
     raw: Option<crate::plant::RawPlant>,
     check: &Check,
-    timing: &Timing,
-    reference: &crate::reference::Reference,
-    plant: &PlantSpec,
+    context: (&Timing, &crate::reference::Reference, &PlantSpec),
     optimiser: &OptimiserSpec,
     transfer_function: bool,
 ) -> Result<Option<PlantSpec>, ConfigError> {
@@ -309,10 +307,69 @@ fn nominal_plant(
     const KEY: &str = "optimiser.nominal_plant";
     // Checked whatever the algorithm (a typo should not wait for safe_bayes_model); kept for it
     // only (a comparison of other optimisers on the same file leaves it unused).
+    let spec = model_plant(raw, KEY, check, context)?;
+    let modelled = optimiser.algorithm == SAFE_BAYES_MODEL;
+    if modelled && transfer_function {
+        return check.fail(
+            KEY,
+            "give the nominal model once: [optimiser.nominal_plant] or [optimiser.model], not both",
+        );
+    }
+    Ok(modelled.then_some(spec))
+}
+
+/// `[[optimiser.nominal_alternatives]]`: the plants the nominal model's tolerance allows (its
+/// pole at either end of a datasheet's +-20 %, say), each a plant table checked as
+/// `[optimiser.nominal_plant]` is; at most `MAX_ALTERNATIVES` (each one is a further simulated
+/// trial per prediction). Kept for `safe_bayes_model` only, and only beside a nominal model.
+fn nominal_alternatives(
+    raw: Option<Vec<crate::plant::RawPlant>>,
+    check: &Check,
+    context: (&Timing, &crate::reference::Reference, &PlantSpec),
+    optimiser: &OptimiserSpec,
+    nominal: bool,
+) -> Result<Vec<PlantSpec>, ConfigError> {
+    const KEY: &str = "optimiser.nominal_alternatives";
+    const MAX_ALTERNATIVES: usize = 8;
+    let raw = raw.unwrap_or_default();
+    if raw.len() > MAX_ALTERNATIVES {
+        return check.fail(
+            KEY,
+            format!(
+                "{} plants: at most {MAX_ALTERNATIVES} (each is simulated for every prediction)",
+                raw.len()
+            ),
+        );
+    }
+    let specs = raw
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| model_plant(r, &format!("{KEY}[{i}]"), check, context))
+        .collect::<Result<Vec<_>, _>>()?;
+    let modelled = optimiser.algorithm == SAFE_BAYES_MODEL;
+    if modelled && !specs.is_empty() && !nominal {
+        return check.fail(
+            KEY,
+            "alternatives to a nominal model that is not there: give [optimiser.nominal_plant] \
+             or [optimiser.model] too",
+        );
+    }
+    Ok(if modelled { specs } else { Vec::new() })
+}
+
+/// A plant table that models the plant (`[optimiser.nominal_plant]` and its alternatives),
+/// validated as `[plant]` is with its errors under `key`: one evoloop simulates, with the
+/// plant's inputs and outputs.
+fn model_plant(
+    raw: crate::plant::RawPlant,
+    key: &str,
+    check: &Check,
+    (timing, reference, plant): (&Timing, &crate::reference::Reference, &PlantSpec),
+) -> Result<PlantSpec, ConfigError> {
     let spec = PlantSpec::validate(raw, check, timing.period, reference, timing.duration).map_err(
         |mut e| {
             if let Some(rest) = e.key.strip_prefix("plant") {
-                e.key = format!("{KEY}{rest}");
+                e.key = format!("{key}{rest}");
             }
             e
         },
@@ -320,7 +377,7 @@ fn nominal_plant(
     let (a, b) = (plant.model.config(), spec.model.config());
     if b.external().is_some() {
         return check.fail(
-            &format!("{KEY}.kind"),
+            &format!("{key}.kind"),
             "a model evoloop simulates (a process of your own is the plant, not its model)",
         );
     }
@@ -330,7 +387,7 @@ fn nominal_plant(
     };
     if a.external().is_none() && shape(a) != shape(b) {
         return check.fail(
-            KEY,
+            key,
             format!(
                 "has {:?} inputs and outputs where the plant has {:?}",
                 shape(b),
@@ -338,14 +395,7 @@ fn nominal_plant(
             ),
         );
     }
-    let modelled = optimiser.algorithm == SAFE_BAYES_MODEL;
-    if modelled && transfer_function {
-        return check.fail(
-            KEY,
-            "give the nominal model once: [optimiser.nominal_plant] or [optimiser.model], not both",
-        );
-    }
-    Ok(modelled.then_some(spec))
+    Ok(spec)
 }
 
 fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, ConfigError> {
@@ -384,16 +434,16 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
     let mut raw_optimiser = raw.optimiser;
     let raw_model = raw_optimiser.as_mut().and_then(|o| o.model.take());
     let raw_nominal = raw_optimiser.as_mut().and_then(|o| o.nominal_plant.take());
+    let raw_alternatives = raw_optimiser
+        .as_mut()
+        .and_then(|o| o.nominal_alternatives.take());
     let mut optimiser = optimiser::validate(raw_optimiser, check, &timing, ov)?;
-    optimiser.nominal_plant = nominal_plant(
-        raw_nominal,
-        check,
-        &timing,
-        &reference,
-        &plant,
-        &optimiser,
-        raw_model.is_some(),
-    )?;
+    let context = (&timing, &reference, &plant);
+    let nominal = raw_nominal.is_some() || raw_model.is_some();
+    optimiser.nominal_plant =
+        nominal_plant(raw_nominal, check, context, &optimiser, raw_model.is_some())?;
+    optimiser.nominal_alternatives =
+        nominal_alternatives(raw_alternatives, check, context, &optimiser, nominal)?;
     optimiser.model = model_prior::validate(
         raw_model,
         check,

@@ -43,6 +43,8 @@ pub struct RawOptimiser {
     pub model: Option<super::model_prior::RawModel>,
     /// `[optimiser.nominal_plant]`, validated with the plant (`config::nominal_plant`).
     pub nominal_plant: Option<crate::plant::RawPlant>,
+    /// `[[optimiser.nominal_alternatives]]`, validated with the plant (`config::nominal_plant`).
+    pub nominal_alternatives: Option<Vec<crate::plant::RawPlant>>,
 }
 
 /// Where the optimiser's population evaluations run.
@@ -222,6 +224,10 @@ pub struct OptimiserSpec {
     /// The nominal model of the plant as a plant of its own (`[optimiser.nominal_plant]`), the
     /// one `safe_bayes_model` predicts its trials on where it is not a transfer function.
     pub nominal_plant: Option<crate::plant::PlantSpec>,
+    /// The plants the nominal model's tolerance allows besides it
+    /// (`[[optimiser.nominal_alternatives]]`): `safe_bayes_model` predicts each trial's margin on
+    /// every one of them too and believes the least.
+    pub nominal_alternatives: Vec<crate::plant::PlantSpec>,
 }
 
 pub fn validate(
@@ -260,6 +266,7 @@ pub fn validate(
     Ok(OptimiserSpec {
         model: None,
         nominal_plant: None,
+        nominal_alternatives: Vec::new(),
         workers,
         algorithm: d.algorithm,
         population: d.population,

@@ -37,6 +37,9 @@ pub const STOP_EI: f64 = 1e-5;
 /// The direct scenario on its nominal model: the prior mean of `safe_bayes_model`.
 pub struct ModelTrials {
     model: Scenario,
+    /// The plants the nominal model's tolerance allows (`[[optimiser.nominal_alternatives]]`),
+    /// each the scenario on that plant: a trial's predicted margin is the least of all.
+    alternatives: Vec<Scenario>,
 }
 
 impl ModelTrials {
@@ -70,70 +73,96 @@ impl ModelTrials {
             }
         }
         model.plant.noise_std = 0.0;
-        Ok(Self { model })
+        let alternatives = (scn.optimiser.nominal_alternatives.iter())
+            .map(|plant| {
+                let mut alternative = model.clone();
+                alternative.plant = plant.clone();
+                alternative.plant.noise_std = 0.0;
+                alternative
+            })
+            .collect();
+        Ok(Self {
+            model,
+            alternatives,
+        })
     }
 }
 
 impl PriorMean for ModelTrials {
+    /// The nominal model's cost, and the least margin of the nominal model and its alternatives:
+    /// a set is predicted as safe as it is on the worst plant the tolerance allows (an aborted
+    /// trial on any of them, margin -1, makes it unsafe), while the cost to beat stays the
+    /// nominal model's.
     fn predict(&mut self, sets: &[Vec<f64>]) -> Vec<Prediction> {
-        if sets.is_empty() {
-            return Vec::new();
-        }
-        // Back to back, no settle segments: the plant is put back at each boundary instead.
-        let mut scn = self.model.clone();
-        scn.optimiser.evaluations = sets.len();
-        scn.optimiser.settle = 0;
-        let spec = DirectSpec::of(&scn);
-        let listed = crate::optim::listed::Listed::new(sets.to_vec());
-        let mut tuner = DirectTuner::with_optimiser(&scn, Box::new(listed));
-        // The cycle as the plant's run builds it, its trials isolated (see the module's text).
-        let mut cycle = crate::sim::control_cycle(&self.model).with_isolated_trials(true);
-        let mut plant = scn.plant.simulation(scn.seed);
-        let n = cycle.controller.n_outputs();
-        let n_u = plant.plant.n_inputs();
-        let mut state = crate::msg::PlantState::default();
-        let mut u = [0.0; crate::msg::MAX_JOINTS];
-        let mut start: Option<Vec<f64>> = None;
-        let end = spec.boundary(sets.len() as u64);
-        for k in 0..=end {
-            if k >= spec.first && (k - spec.first).is_multiple_of(spec.repetition) {
-                match &start {
-                    None => start = Some(plant.x.clone()),
-                    Some(x) => plant.x.copy_from_slice(x),
-                }
-            }
-            plant.sample(k, 0, &u[..n_u], &mut state);
-            if let Some(set) = tuner.at(k, None) {
-                cycle.offer(&set);
-            }
-            let mut tel = crate::msg::Telemetry::default();
-            cycle.step(&state, &mut tel);
-            tuner.observe(
-                state.seq,
-                state.t,
-                &cycle.setpoint.q[..n],
-                &state.y[..n],
-                &tel.u[..n],
-                tel.param_version,
-            );
-            u = cycle.u;
-            plant.advance(&u[..n_u], scn.timing.period);
-        }
-        let mut out = vec![
-            Prediction {
-                cost: f64::INFINITY,
-                margin: -1.0,
-            };
-            sets.len()
-        ];
-        for r in tuner.records.iter().filter(|r| r.trial >= 1) {
-            if let Some(p) = out.get_mut(r.trial - 1) {
-                *p = Prediction {
-                    cost: r.cost,
-                    margin: r.margin,
-                };
+        let mut out = trials(&self.model, sets);
+        for alternative in &self.alternatives {
+            for (p, q) in out.iter_mut().zip(trials(alternative, sets)) {
+                p.margin = p.margin.min(q.margin);
             }
         }
         out
     }
+}
+
+/// Each set's trial on `model` (the scenario on a model plant), isolated, back to back.
+fn trials(model: &Scenario, sets: &[Vec<f64>]) -> Vec<Prediction> {
+    if sets.is_empty() {
+        return Vec::new();
+    }
+    // Back to back, no settle segments: the plant is put back at each boundary instead.
+    let mut scn = model.clone();
+    scn.optimiser.evaluations = sets.len();
+    scn.optimiser.settle = 0;
+    let spec = DirectSpec::of(&scn);
+    let listed = crate::optim::listed::Listed::new(sets.to_vec());
+    let mut tuner = DirectTuner::with_optimiser(&scn, Box::new(listed));
+    // The cycle as the plant's run builds it, its trials isolated (see the module's text).
+    let mut cycle = crate::sim::control_cycle(model).with_isolated_trials(true);
+    let mut plant = scn.plant.simulation(scn.seed);
+    let n = cycle.controller.n_outputs();
+    let n_u = plant.plant.n_inputs();
+    let mut state = crate::msg::PlantState::default();
+    let mut u = [0.0; crate::msg::MAX_JOINTS];
+    let mut start: Option<Vec<f64>> = None;
+    let end = spec.boundary(sets.len() as u64);
+    for k in 0..=end {
+        if k >= spec.first && (k - spec.first).is_multiple_of(spec.repetition) {
+            match &start {
+                None => start = Some(plant.x.clone()),
+                Some(x) => plant.x.copy_from_slice(x),
+            }
+        }
+        plant.sample(k, 0, &u[..n_u], &mut state);
+        if let Some(set) = tuner.at(k, None) {
+            cycle.offer(&set);
+        }
+        let mut tel = crate::msg::Telemetry::default();
+        cycle.step(&state, &mut tel);
+        tuner.observe(
+            state.seq,
+            state.t,
+            &cycle.setpoint.q[..n],
+            &state.y[..n],
+            &tel.u[..n],
+            tel.param_version,
+        );
+        u = cycle.u;
+        plant.advance(&u[..n_u], scn.timing.period);
+    }
+    let mut out = vec![
+        Prediction {
+            cost: f64::INFINITY,
+            margin: -1.0,
+        };
+        sets.len()
+    ];
+    for r in tuner.records.iter().filter(|r| r.trial >= 1) {
+        if let Some(p) = out.get_mut(r.trial - 1) {
+            *p = Prediction {
+                cost: r.cost,
+                margin: r.margin,
+            };
+        }
+    }
+    out
 }
