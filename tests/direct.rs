@@ -1010,4 +1010,16 @@ fn safe_bayes_model_believes_the_least_margin_its_models_tolerance_allows() {
         err.contains("optimiser.nominal_alternatives") && err.contains("nominal model"),
         "{err}"
     );
+    // Checked and unused for another algorithm; at most 8.
+    let ga = shipped.replace("algorithm = \"safe_bayes_model\"", "algorithm = \"ga\"");
+    assert!(load("ga.toml", &ga)
+        .optimiser
+        .nominal_alternatives
+        .is_empty());
+    let ten = format!("{nominal_only}{}", shipped[cut..].repeat(5));
+    let err = check("ten.toml", &ten);
+    assert!(
+        err.contains("optimiser.nominal_alternatives") && err.contains("at most 8"),
+        "{err}"
+    );
 }

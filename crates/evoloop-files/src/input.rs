@@ -182,6 +182,6 @@ mod tests {
             .map(|_| ())
             .expect_err("refused");
         assert_eq!(p.line, Some(2));
-        assert!(p.reason.len() > 10, "{}", p.reason);
+        assert!(!p.reason.trim().is_empty());
     }
 }

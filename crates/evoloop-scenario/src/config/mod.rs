@@ -320,14 +320,16 @@ fn nominal_plant(
 
 /// `[[optimiser.nominal_alternatives]]`: the plants the nominal model's tolerance allows (its
 /// pole at either end of a datasheet's +-20 %, say), each a plant table checked as
-/// `[optimiser.nominal_plant]` is; at most `MAX_ALTERNATIVES` (each one is a further simulated
-/// trial per prediction). Kept for `safe_bayes_model` only, and only beside a nominal model.
+/// `[optimiser.nominal_plant]` is and with the nominal model's inputs and outputs
+/// (`nominal_shape`: None without a nominal model kept); at most `MAX_ALTERNATIVES` (each one is
+/// a further simulated trial per prediction). Kept for `safe_bayes_model` only, and only beside
+/// a nominal model.
 fn nominal_alternatives(
     raw: Option<Vec<crate::plant::RawPlant>>,
     check: &Check,
     context: (&Timing, &crate::reference::Reference, &PlantSpec),
     optimiser: &OptimiserSpec,
-    nominal: bool,
+    nominal_shape: Option<(usize, usize)>,
 ) -> Result<Vec<PlantSpec>, ConfigError> {
     const KEY: &str = "optimiser.nominal_alternatives";
     const MAX_ALTERNATIVES: usize = 8;
@@ -341,13 +343,21 @@ fn nominal_alternatives(
             ),
         );
     }
-    let specs = raw
-        .into_iter()
-        .enumerate()
-        .map(|(i, r)| model_plant(r, &format!("{KEY}[{i}]"), check, context))
-        .collect::<Result<Vec<_>, _>>()?;
+    let mut specs = Vec::with_capacity(raw.len());
+    for (i, r) in raw.into_iter().enumerate() {
+        let key = format!("{KEY}[{i}]");
+        let spec = model_plant(r, &key, check, context)?;
+        let own = shape(spec.model.config());
+        if let Some(nominal) = nominal_shape.filter(|n| *n != own) {
+            return check.fail(
+                &key,
+                format!("has {own:?} inputs and outputs where the nominal model has {nominal:?}"),
+            );
+        }
+        specs.push(spec);
+    }
     let modelled = optimiser.algorithm == SAFE_BAYES_MODEL;
-    if modelled && !specs.is_empty() && !nominal {
+    if modelled && !specs.is_empty() && nominal_shape.is_none() {
         return check.fail(
             KEY,
             "alternatives to a nominal model that is not there: give [optimiser.nominal_plant] \
@@ -381,10 +391,6 @@ fn model_plant(
             "a model evoloop simulates (a process of your own is the plant, not its model)",
         );
     }
-    let shape = |c: &dyn crate::plant::PlantConfig| {
-        let p = c.build();
-        (p.n_inputs(), p.n_outputs())
-    };
     if a.external().is_none() && shape(a) != shape(b) {
         return check.fail(
             key,
@@ -396,6 +402,12 @@ fn model_plant(
         );
     }
     Ok(spec)
+}
+
+/// A plant's (inputs, outputs).
+fn shape(c: &dyn crate::plant::PlantConfig) -> (usize, usize) {
+    let p = c.build();
+    (p.n_inputs(), p.n_outputs())
 }
 
 fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, ConfigError> {
@@ -439,11 +451,17 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
         .and_then(|o| o.nominal_alternatives.take());
     let mut optimiser = optimiser::validate(raw_optimiser, check, &timing, ov)?;
     let context = (&timing, &reference, &plant);
-    let nominal = raw_nominal.is_some() || raw_model.is_some();
+    let transfer_function = raw_model.is_some();
     optimiser.nominal_plant =
-        nominal_plant(raw_nominal, check, context, &optimiser, raw_model.is_some())?;
+        nominal_plant(raw_nominal, check, context, &optimiser, transfer_function)?;
+    // The nominal model's inputs and outputs: its plant table's, or a transfer function's one
+    // and one.
+    let nominal_shape = match &optimiser.nominal_plant {
+        Some(spec) => Some(shape(spec.model.config())),
+        None => transfer_function.then_some((1, 1)),
+    };
     optimiser.nominal_alternatives =
-        nominal_alternatives(raw_alternatives, check, context, &optimiser, nominal)?;
+        nominal_alternatives(raw_alternatives, check, context, &optimiser, nominal_shape)?;
     optimiser.model = model_prior::validate(
         raw_model,
         check,

@@ -43,7 +43,8 @@ pub struct RawOptimiser {
     pub model: Option<super::model_prior::RawModel>,
     /// `[optimiser.nominal_plant]`, validated with the plant (`config::nominal_plant`).
     pub nominal_plant: Option<crate::plant::RawPlant>,
-    /// `[[optimiser.nominal_alternatives]]`, validated with the plant (`config::nominal_plant`).
+    /// `[[optimiser.nominal_alternatives]]`, validated with the plant
+    /// (`config::nominal_alternatives`).
     pub nominal_alternatives: Option<Vec<crate::plant::RawPlant>>,
 }
 

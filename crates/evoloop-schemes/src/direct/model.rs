@@ -5,7 +5,9 @@
 //! the truth only judges), run through the same control cycle and
 //! the same `DirectTuner` that score the plant's trials, so a trial on the model is judged as
 //! one on the plant is (its cost over one repetition, its margin inside the envelope, aborted
-//! where the envelope aborts it).
+//! where the envelope aborts it). With `[[optimiser.nominal_alternatives]]` (the plants the
+//! model's tolerance allows) each set is also tried on every alternative, and its predicted
+//! margin is the least of all; its cost stays the nominal model's.
 //!
 //! The trials of one `predict` run back to back on one model loop, each from the state the
 //! configured set's first repetition left at the first boundary: the model's plant is put back
@@ -16,9 +18,10 @@
 //! their predecessor left, which the model does not predict.) A set costs one repetition of the
 //! model, the configured set's warm-up once per call.
 //!
-//! The nominal model takes the plant's declared interface from `[plant]` (the actuator's range,
-//! the sensor's declared delay, the integration step), which the controller is configured with
-//! anyway, and nothing of its dynamics; its trials run without the plant's noise.
+//! A transfer function takes the plant's declared interface from `[plant]` (the actuator's
+//! range, the sensor's declared delay, the integration step), which the controller is configured
+//! with anyway, and nothing of its dynamics; a plant table (the nominal one and each
+//! alternative) is whole and states its own. Every model's trials run without the plant's noise.
 
 use super::{DirectSpec, DirectTuner};
 use crate::config::Scenario;
