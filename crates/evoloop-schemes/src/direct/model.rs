@@ -76,7 +76,10 @@ impl ModelTrials {
             }
         }
         model.plant.noise_std = 0.0;
-        let alternatives = (scn.optimiser.nominal_alternatives.iter())
+        let alternatives = scn
+            .optimiser
+            .nominal_alternatives
+            .iter()
             .map(|plant| {
                 let mut alternative = model.clone();
                 alternative.plant = plant.clone();
