@@ -33,37 +33,45 @@ pub fn eig(a: &DMatrix<f64>) -> Vec<Complex<f64>> {
     eigenvalues(a).unwrap_or_else(|| a.complex_eigenvalues().iter().copied().collect())
 }
 
-#[allow(clippy::many_single_char_names)]
+/// The 1-based Hessenberg matrix of order `n` stored row by row with stride `n + 1`, as the
+/// classical `hqr` indexes it.
+struct Hess<'a> {
+    a: &'a mut [f64],
+    w: usize,
+}
+
+impl Hess<'_> {
+    fn at(&self, i: usize, j: usize) -> f64 {
+        self.a[i * self.w + j]
+    }
+
+    fn at_mut(&mut self, i: usize, j: usize) -> &mut f64 {
+        &mut self.a[i * self.w + j]
+    }
+}
+
+/// The classical `hqr`: the eigenvalues of the upper Hessenberg `a` (1-based, order `n`) into
+/// `wr` and `wi` (1-based), deflating one or two roots at a time off the bottom of the active
+/// block. None after 60 iterations on one root. Each step below is one part of the classical
+/// routine, with its arithmetic in the same order (the results are bit for bit those of the
+/// single routine they were split from).
 fn hqr(a: &mut [f64], n: usize, wr: &mut [f64], wi: &mut [f64]) -> Option<()> {
-    let w = n + 1;
-    let ix = |i: usize, j: usize| i * w + j;
+    let mut h = Hess { a, w: n + 1 };
     let mut anorm = 0.0;
     for i in 1..=n {
         for j in i.saturating_sub(1).max(1)..=n {
-            anorm += a[ix(i, j)].abs();
+            anorm += h.at(i, j).abs();
         }
     }
-    let mut nn = n as isize;
+    let mut nn = n;
+    // The shifts accumulated by exceptional shifts, added back to every root.
     let mut t = 0.0;
-    let (mut p, mut q, mut r, mut s, mut x, mut y, mut z);
     while nn >= 1 {
         let mut its = 0;
         loop {
-            let nu = nn as usize;
-            // Look for a single small subdiagonal element.
-            let mut l = nu;
-            while l >= 2 {
-                s = a[ix(l - 1, l - 1)].abs() + a[ix(l, l)].abs();
-                if s == 0.0 {
-                    s = anorm;
-                }
-                if a[ix(l, l - 1)].abs() + s == s {
-                    a[ix(l, l - 1)] = 0.0;
-                    break;
-                }
-                l -= 1;
-            }
-            x = a[ix(nu, nu)];
+            let nu = nn;
+            let l = small_subdiagonal(&mut h, nu, anorm);
+            let x = h.at(nu, nu);
             if l == nu {
                 // One root found.
                 wr[nu] = x + t;
@@ -71,135 +79,175 @@ fn hqr(a: &mut [f64], n: usize, wr: &mut [f64], wi: &mut [f64]) -> Option<()> {
                 nn -= 1;
                 break;
             }
-            y = a[ix(nu - 1, nu - 1)];
-            let ww = a[ix(nu, nu - 1)] * a[ix(nu - 1, nu)];
+            let y = h.at(nu - 1, nu - 1);
+            let ww = h.at(nu, nu - 1) * h.at(nu - 1, nu);
             if l == nu - 1 {
-                // Two roots found.
-                p = 0.5 * (y - x);
-                q = p * p + ww;
-                z = q.abs().sqrt();
-                x += t;
-                if q >= 0.0 {
-                    z = p + z.copysign(p);
-                    wr[nu - 1] = x + z;
-                    wr[nu] = x + z;
-                    if z != 0.0 {
-                        wr[nu] = x - ww / z;
-                    }
-                    wi[nu - 1] = 0.0;
-                    wi[nu] = 0.0;
-                } else {
-                    wr[nu - 1] = x + p;
-                    wr[nu] = x + p;
-                    wi[nu - 1] = -z;
-                    wi[nu] = z;
-                }
+                two_roots(x, y, ww, t, &mut wr[nu - 1..=nu], &mut wi[nu - 1..=nu]);
                 nn -= 2;
                 break;
             }
             if its == 60 {
                 return None;
             }
-            let mut wv = ww;
+            let (mut x, mut y, mut wv) = (x, y, ww);
             if its == 10 || its == 20 {
                 // Exceptional shift.
                 t += x;
                 for i in 1..=nu {
-                    a[ix(i, i)] -= x;
+                    *h.at_mut(i, i) -= x;
                 }
-                s = a[ix(nu, nu - 1)].abs() + a[ix(nu - 1, nu - 2)].abs();
+                let s = h.at(nu, nu - 1).abs() + h.at(nu - 1, nu - 2).abs();
                 x = 0.75 * s;
                 y = x;
                 wv = -0.4375 * s * s;
             }
             its += 1;
-            // Form the shift and look for two consecutive small subdiagonal elements.
-            let mut m = nu - 2;
-            loop {
-                z = a[ix(m, m)];
-                r = x - z;
-                s = y - z;
-                p = (r * s - wv) / a[ix(m + 1, m)] + a[ix(m, m + 1)];
-                q = a[ix(m + 1, m + 1)] - z - r - s;
-                r = a[ix(m + 2, m + 1)];
-                s = p.abs() + q.abs() + r.abs();
-                p /= s;
-                q /= s;
-                r /= s;
-                if m == l {
-                    break;
-                }
-                let u = a[ix(m, m - 1)].abs() * (q.abs() + r.abs());
-                let v = p.abs() * (a[ix(m - 1, m - 1)].abs() + z.abs() + a[ix(m + 1, m + 1)].abs());
-                if u + v == v {
-                    break;
-                }
-                m -= 1;
-            }
-            for i in (m + 2)..=nu {
-                a[ix(i, i - 2)] = 0.0;
-                if i != m + 2 {
-                    a[ix(i, i - 3)] = 0.0;
-                }
-            }
-            // Double QR step on rows l..nn and columns m..nn.
-            let mut k = m;
-            while k < nu {
-                if k != m {
-                    p = a[ix(k, k - 1)];
-                    q = a[ix(k + 1, k - 1)];
-                    r = 0.0;
-                    if k != nu - 1 {
-                        r = a[ix(k + 2, k - 1)];
-                    }
-                    x = p.abs() + q.abs() + r.abs();
-                    if x != 0.0 {
-                        p /= x;
-                        q /= x;
-                        r /= x;
-                    }
-                }
-                s = (p * p + q * q + r * r).sqrt().copysign(p);
-                if s != 0.0 {
-                    if k == m {
-                        if l != m {
-                            a[ix(k, k - 1)] = -a[ix(k, k - 1)];
-                        }
-                    } else {
-                        a[ix(k, k - 1)] = -s * x;
-                    }
-                    p += s;
-                    x = p / s;
-                    y = q / s;
-                    z = r / s;
-                    q /= p;
-                    r /= p;
-                    for j in k..=nu {
-                        p = a[ix(k, j)] + q * a[ix(k + 1, j)];
-                        if k != nu - 1 {
-                            p += r * a[ix(k + 2, j)];
-                            a[ix(k + 2, j)] -= p * z;
-                        }
-                        a[ix(k + 1, j)] -= p * y;
-                        a[ix(k, j)] -= p * x;
-                    }
-                    let mmin = if nu < k + 3 { nu } else { k + 3 };
-                    for i in l..=mmin {
-                        p = x * a[ix(i, k)] + y * a[ix(i, k + 1)];
-                        if k != nu - 1 {
-                            p += z * a[ix(i, k + 2)];
-                            a[ix(i, k + 2)] -= p * r;
-                        }
-                        a[ix(i, k + 1)] -= p * q;
-                        a[ix(i, k)] -= p;
-                    }
-                }
-                k += 1;
-            }
+            let (m, pqr) = shift_start(&mut h, nu, l, x, y, wv);
+            double_qr_step(&mut h, nu, l, m, pqr);
             if l >= nu - 1 {
                 break;
             }
         }
     }
     Some(())
+}
+
+/// The lowest `l` (down from `nu`) whose subdiagonal element is negligible against its two
+/// diagonal neighbours (or against `anorm` where both are zero), zeroed; 1 if none is.
+fn small_subdiagonal(h: &mut Hess, nu: usize, anorm: f64) -> usize {
+    let mut l = nu;
+    while l >= 2 {
+        let mut s = h.at(l - 1, l - 1).abs() + h.at(l, l).abs();
+        if s == 0.0 {
+            s = anorm;
+        }
+        if h.at(l, l - 1).abs() + s == s {
+            *h.at_mut(l, l - 1) = 0.0;
+            break;
+        }
+        l -= 1;
+    }
+    l
+}
+
+/// The two roots of the trailing 2x2 block (diagonal `y` above `x`; `ww` the product of its
+/// off-diagonal elements), shifted back by `t`, into `wr` and `wi` (two entries each).
+fn two_roots(x: f64, y: f64, ww: f64, t: f64, wr: &mut [f64], wi: &mut [f64]) {
+    let p = 0.5 * (y - x);
+    let q = p * p + ww;
+    let mut z = q.abs().sqrt();
+    let x = x + t;
+    if q >= 0.0 {
+        z = p + z.copysign(p);
+        wr[0] = x + z;
+        wr[1] = x + z;
+        if z != 0.0 {
+            wr[1] = x - ww / z;
+        }
+        wi[0] = 0.0;
+        wi[1] = 0.0;
+    } else {
+        wr[0] = x + p;
+        wr[1] = x + p;
+        wi[0] = -z;
+        wi[1] = z;
+    }
+}
+
+/// Forms the double shift from `x`, `y` and `wv` and looks, from `nu - 2` up to `l`, for two
+/// consecutive small subdiagonal elements: the row `m` where the QR step starts and the first
+/// column of the shifted matrix there (p, q, r, scaled), with the entries the step would leave
+/// below the Hessenberg band zeroed.
+fn shift_start(h: &mut Hess, nu: usize, l: usize, x: f64, y: f64, wv: f64) -> (usize, [f64; 3]) {
+    let mut m = nu - 2;
+    let (mut p, mut q, mut r);
+    loop {
+        let z = h.at(m, m);
+        r = x - z;
+        let s = y - z;
+        p = (r * s - wv) / h.at(m + 1, m) + h.at(m, m + 1);
+        q = h.at(m + 1, m + 1) - z - r - s;
+        r = h.at(m + 2, m + 1);
+        let s = p.abs() + q.abs() + r.abs();
+        p /= s;
+        q /= s;
+        r /= s;
+        if m == l {
+            break;
+        }
+        let u = h.at(m, m - 1).abs() * (q.abs() + r.abs());
+        let v = p.abs() * (h.at(m - 1, m - 1).abs() + z.abs() + h.at(m + 1, m + 1).abs());
+        if u + v == v {
+            break;
+        }
+        m -= 1;
+    }
+    for i in (m + 2)..=nu {
+        *h.at_mut(i, i - 2) = 0.0;
+        if i != m + 2 {
+            *h.at_mut(i, i - 3) = 0.0;
+        }
+    }
+    (m, [p, q, r])
+}
+
+/// One Francis double-shift QR step on rows `l..=nu` and columns `m..=nu`, starting from the
+/// shifted first column `pqr` of `shift_start`: a Householder reflection per column chases the
+/// bulge down the band.
+fn double_qr_step(h: &mut Hess, nu: usize, l: usize, m: usize, pqr: [f64; 3]) {
+    let [mut p, mut q, mut r] = pqr;
+    // x carries over from one column's reflection to the next column's first entry.
+    let mut x = 0.0;
+    for k in m..nu {
+        if k != m {
+            p = h.at(k, k - 1);
+            q = h.at(k + 1, k - 1);
+            r = 0.0;
+            if k != nu - 1 {
+                r = h.at(k + 2, k - 1);
+            }
+            x = p.abs() + q.abs() + r.abs();
+            if x != 0.0 {
+                p /= x;
+                q /= x;
+                r /= x;
+            }
+        }
+        let s = (p * p + q * q + r * r).sqrt().copysign(p);
+        if s == 0.0 {
+            continue;
+        }
+        if k == m {
+            if l != m {
+                *h.at_mut(k, k - 1) = -h.at(k, k - 1);
+            }
+        } else {
+            *h.at_mut(k, k - 1) = -s * x;
+        }
+        p += s;
+        x = p / s;
+        let y = q / s;
+        let z = r / s;
+        q /= p;
+        r /= p;
+        for j in k..=nu {
+            p = h.at(k, j) + q * h.at(k + 1, j);
+            if k != nu - 1 {
+                p += r * h.at(k + 2, j);
+                *h.at_mut(k + 2, j) -= p * z;
+            }
+            *h.at_mut(k + 1, j) -= p * y;
+            *h.at_mut(k, j) -= p * x;
+        }
+        let mmin = if nu < k + 3 { nu } else { k + 3 };
+        for i in l..=mmin {
+            p = x * h.at(i, k) + y * h.at(i, k + 1);
+            if k != nu - 1 {
+                p += z * h.at(i, k + 2);
+                *h.at_mut(i, k + 2) -= p * r;
+            }
+            *h.at_mut(i, k + 1) -= p * q;
+            *h.at_mut(i, k) -= p;
+        }
+    }
 }
