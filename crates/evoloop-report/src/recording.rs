@@ -19,10 +19,15 @@ use std::path::Path;
 /// they were written. Parameter sets and estimates carry when the controller took them.
 #[derive(Debug, Default)]
 pub struct Recording {
+    /// The file's `evoloop` metadata record: scenario, config, mode, seed, period_s, log_time.
     pub metadata: BTreeMap<String, String>,
+    /// The plant states the controller controlled on, in recorded order.
     pub states: Vec<PlantState>,
+    /// The commands the controller sent, in recorded order.
     pub commands: Vec<Command>,
+    /// The parameter sets the controller received, each with when it took it.
     pub params: Vec<(Received, ParamSet)>,
+    /// The model estimates the controller took, each with when it took it.
     pub estimates: Vec<(Received, ModelEstimate)>,
     /// Estimated transfer functions (the general indirect scheme; none before 2026-11-28).
     pub linear_estimates: Vec<(Received, LinearEstimate)>,
@@ -32,7 +37,9 @@ pub struct Recording {
 /// the cycle's number (recordings before the number was written have none).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Received {
+    /// The stamp of the cycle's state (CLOCK_MONOTONIC, ns): the message's log time.
     pub stamp_ns: u64,
+    /// The cycle's number, as in its command; `None` in the first JSON recordings, which lack it.
     pub cycle: Option<u64>,
 }
 
@@ -145,6 +152,7 @@ impl Recording {
         Ok(r)
     }
 
+    /// The metadata value of `key` (e.g. "config", "seed"), if the recording has it.
     pub fn meta(&self, key: &str) -> Option<&str> {
         self.metadata.get(key).map(String::as_str)
     }
@@ -196,19 +204,20 @@ impl Recording {
         match msg.channel.message_encoding.as_str() {
             ros2::MESSAGE_ENCODING => {
                 let b = &msg.data;
+                let cdr = |e: ros2::CdrError| format!("a `{topic}` message: {e}");
                 match topic {
-                    "state" => self.states.push(ros2::decode_state(b)?),
-                    "command" => self.commands.push(ros2::decode_command(b)?),
+                    "state" => self.states.push(ros2::decode_state(b).map_err(cdr)?),
+                    "command" => self.commands.push(ros2::decode_command(b).map_err(cdr)?),
                     "params" => {
-                        let (cycle, p) = ros2::decode_params(b)?;
+                        let (cycle, p) = ros2::decode_params(b).map_err(cdr)?;
                         self.params.push((received(Some(cycle)), p));
                     }
                     "estimate" => {
-                        let (cycle, e) = ros2::decode_estimate(b)?;
+                        let (cycle, e) = ros2::decode_estimate(b).map_err(cdr)?;
                         self.estimates.push((received(Some(cycle)), e));
                     }
                     _ => {
-                        let (cycle, e) = ros2::decode_linear_estimate(b)?;
+                        let (cycle, e) = ros2::decode_linear_estimate(b).map_err(cdr)?;
                         self.linear_estimates.push((received(Some(cycle)), e));
                     }
                 }

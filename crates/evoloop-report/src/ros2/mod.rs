@@ -21,6 +21,7 @@ pub use hash::{hashed_description, type_hash};
 
 /// MCAP's names of the message and schema encodings.
 pub const MESSAGE_ENCODING: &str = "cdr";
+/// MCAP's name of the schema encoding: ROS 2 `.msg` definitions (`MessageType::schema`).
 pub const SCHEMA_ENCODING: &str = "ros2msg";
 
 /// The package evoloop's own messages are named in.
@@ -50,30 +51,36 @@ impl<'a> CdrWriter<'a> {
         self.0.resize(self.0.len() + pad, 0);
     }
 
+    /// A `bool`: one byte, 0 or 1 (no alignment).
     pub fn bool(&mut self, v: bool) {
         self.0.push(v as u8);
     }
 
+    /// A `uint32`, aligned to 4 bytes.
     pub fn u32(&mut self, v: u32) {
         self.align(4);
         self.0.extend_from_slice(&v.to_le_bytes());
     }
 
+    /// An `int32`, aligned to 4 bytes.
     pub fn i32(&mut self, v: i32) {
         self.align(4);
         self.0.extend_from_slice(&v.to_le_bytes());
     }
 
+    /// A `uint64`, aligned to 8 bytes.
     pub fn u64(&mut self, v: u64) {
         self.align(8);
         self.0.extend_from_slice(&v.to_le_bytes());
     }
 
+    /// An `int64`, aligned to 8 bytes.
     pub fn i64(&mut self, v: i64) {
         self.align(8);
         self.0.extend_from_slice(&v.to_le_bytes());
     }
 
+    /// A `float64`, aligned to 8 bytes: its exact bits.
     pub fn f64(&mut self, v: f64) {
         self.align(8);
         self.0.extend_from_slice(&v.to_le_bytes());
@@ -113,6 +120,106 @@ impl<'a> CdrWriter<'a> {
     }
 }
 
+/// Why a CDR message was refused, with the field it happened at: a recording's reader names
+/// the damaged message, a bridge drops it and counts it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CdrError {
+    /// Shorter than the 4-byte CDR header.
+    NoHeader,
+    /// Another representation than little-endian plain CDR: its identifier's two bytes.
+    Representation([u8; 2]),
+    /// The message ends inside `field`, read from byte `at`.
+    CutShort {
+        /// The field being read.
+        field: &'static str,
+        /// Its offset in the message, bytes.
+        at: usize,
+    },
+    /// A `bool` that is neither 0 nor 1.
+    NotABool {
+        /// The field.
+        field: &'static str,
+        /// Its byte.
+        byte: u8,
+    },
+    /// A string that is not UTF-8.
+    NotUtf8 {
+        /// The field.
+        field: &'static str,
+    },
+    /// A sequence with more elements than the message type allows.
+    TooLong {
+        /// The sequence.
+        field: &'static str,
+        /// Its length on the wire.
+        len: usize,
+        /// The most the type allows.
+        max: usize,
+    },
+    /// A count no message of this length can hold (each element takes at least a few bytes):
+    /// a damaged length, refused before anything is allocated for it.
+    Implausible {
+        /// The sequence.
+        field: &'static str,
+        /// The count on the wire.
+        count: usize,
+        /// What is counted ("strings", "dimensions").
+        of: &'static str,
+    },
+    /// Bytes after the last field, more than a writer's padding.
+    Trailing {
+        /// How many.
+        bytes: usize,
+    },
+    /// A `PlantState` whose sequences disagree: velocities for every joint, an applied input for
+    /// every output or joint.
+    Inconsistent {
+        /// Entries of `qd_true`.
+        velocities: u32,
+        /// Entries of `u_applied`.
+        inputs: u32,
+        /// Entries of `q_true`.
+        joints: u32,
+        /// Entries of `y`.
+        outputs: u32,
+    },
+}
+
+impl std::fmt::Display for CdrError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CdrError::NoHeader => write!(f, "shorter than a CDR header"),
+            CdrError::Representation([a, b]) => write!(
+                f,
+                "CDR representation {a:02x}{b:02x}: only little-endian CDR (0001) is read"
+            ),
+            CdrError::CutShort { field, at } => write!(f, "cut short at `{field}` (byte {at})"),
+            CdrError::NotABool { field, byte } => write!(f, "`{field}` is {byte}, not a bool"),
+            CdrError::NotUtf8 { field } => write!(f, "`{field}` is not UTF-8"),
+            CdrError::TooLong { field, len, max } => {
+                write!(f, "`{field}` has {len} values, at most {max}")
+            }
+            CdrError::Implausible { field, count, of } => {
+                write!(f, "`{field}` claims {count} {of}")
+            }
+            CdrError::Trailing { bytes } => {
+                write!(f, "{bytes} bytes after the message's last field")
+            }
+            CdrError::Inconsistent {
+                velocities,
+                inputs,
+                joints,
+                outputs,
+            } => write!(
+                f,
+                "{velocities} velocities and {inputs} inputs for {joints} joints and {outputs} outputs"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for CdrError {}
+
 /// A message being read; every read checks the bounds and names what ran short.
 pub struct CdrReader<'a> {
     b: &'a [u8],
@@ -121,14 +228,11 @@ pub struct CdrReader<'a> {
 
 impl<'a> CdrReader<'a> {
     /// Refuse anything but little-endian plain CDR (what `CdrWriter` and ROS 2 write).
-    pub fn new(b: &'a [u8]) -> Result<Self, String> {
+    pub fn new(b: &'a [u8]) -> Result<Self, CdrError> {
         match b.get(..4) {
             Some(h) if h[..2] == CDR_LE[..2] => Ok(Self { b, at: 4 }),
-            Some(h) => Err(format!(
-                "CDR representation {:02x}{:02x}: only little-endian CDR (0001) is read",
-                h[0], h[1]
-            )),
-            None => Err("shorter than a CDR header".into()),
+            Some(h) => Err(CdrError::Representation([h[0], h[1]])),
+            None => Err(CdrError::NoHeader),
         }
     }
 
@@ -136,51 +240,63 @@ impl<'a> CdrReader<'a> {
         self.at += (n - (self.at - 4) % n) % n;
     }
 
-    fn take<const N: usize>(&mut self, what: &str) -> Result<[u8; N], String> {
+    fn take<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], CdrError> {
         self.align(N);
         let bytes = self
             .at
             .checked_add(N)
             .and_then(|end| self.b.get(self.at..end))
-            .ok_or_else(|| format!("cut short at `{what}` (byte {})", self.at))?;
+            .ok_or(CdrError::CutShort {
+                field: what,
+                at: self.at,
+            })?;
         self.at += N;
         Ok(bytes.try_into().expect("N bytes"))
     }
 
     /// A `bool`: 0 or 1, anything else refused.
-    pub fn bool(&mut self, what: &str) -> Result<bool, String> {
+    pub fn bool(&mut self, what: &'static str) -> Result<bool, CdrError> {
         match self.take::<1>(what)? {
             [0] => Ok(false),
             [1] => Ok(true),
-            [b] => Err(format!("`{what}` is {b}, not a bool")),
+            [byte] => Err(CdrError::NotABool { field: what, byte }),
         }
     }
 
-    pub fn u32(&mut self, what: &str) -> Result<u32, String> {
+    /// A `uint32`; `what` names the field in the error when the message is cut short.
+    pub fn u32(&mut self, what: &'static str) -> Result<u32, CdrError> {
         self.take::<4>(what).map(u32::from_le_bytes)
     }
 
-    pub fn i32(&mut self, what: &str) -> Result<i32, String> {
+    /// An `int32`; `what` names the field in the error when the message is cut short.
+    pub fn i32(&mut self, what: &'static str) -> Result<i32, CdrError> {
         self.take::<4>(what).map(i32::from_le_bytes)
     }
 
-    pub fn u64(&mut self, what: &str) -> Result<u64, String> {
+    /// A `uint64`; `what` names the field in the error when the message is cut short.
+    pub fn u64(&mut self, what: &'static str) -> Result<u64, CdrError> {
         self.take::<8>(what).map(u64::from_le_bytes)
     }
 
-    pub fn i64(&mut self, what: &str) -> Result<i64, String> {
+    /// An `int64`; `what` names the field in the error when the message is cut short.
+    pub fn i64(&mut self, what: &'static str) -> Result<i64, CdrError> {
         self.take::<8>(what).map(i64::from_le_bytes)
     }
 
-    pub fn f64(&mut self, what: &str) -> Result<f64, String> {
+    /// A `float64`, bit for bit; `what` names the field in the error when the message is cut short.
+    pub fn f64(&mut self, what: &'static str) -> Result<f64, CdrError> {
         self.take::<8>(what).map(f64::from_le_bytes)
     }
 
     /// A `float64[]` into `out`; its length (refused if longer than `out`).
-    pub fn f64s(&mut self, what: &str, out: &mut [f64]) -> Result<u32, String> {
+    pub fn f64s(&mut self, what: &'static str, out: &mut [f64]) -> Result<u32, CdrError> {
         let n = self.u32(what)?;
         if n as usize > out.len() {
-            return Err(format!("`{what}` has {n} values, at most {}", out.len()));
+            return Err(CdrError::TooLong {
+                field: what,
+                len: n as usize,
+                max: out.len(),
+            });
         }
         for slot in &mut out[..n as usize] {
             *slot = self.f64(what)?;
@@ -189,41 +305,52 @@ impl<'a> CdrReader<'a> {
     }
 
     /// A `float64[]` of at most `max` values.
-    pub fn f64_vec(&mut self, what: &str, max: usize) -> Result<Vec<f64>, String> {
+    pub fn f64_vec(&mut self, what: &'static str, max: usize) -> Result<Vec<f64>, CdrError> {
         let n = self.u32(what)? as usize;
         if n > max {
-            return Err(format!("`{what}` has {n} values, at most {max}"));
+            return Err(CdrError::TooLong {
+                field: what,
+                len: n,
+                max,
+            });
         }
         (0..n).map(|_| self.f64(what)).collect()
     }
 
     /// A string (the NUL dropped).
-    pub fn string(&mut self, what: &str) -> Result<String, String> {
+    pub fn string(&mut self, what: &'static str) -> Result<String, CdrError> {
         let n = self.u32(what)? as usize;
         let bytes = self
             .at
             .checked_add(n)
             .and_then(|end| self.b.get(self.at..end))
-            .ok_or_else(|| format!("cut short in `{what}`"))?;
+            .ok_or(CdrError::CutShort {
+                field: what,
+                at: self.at,
+            })?;
         self.at += n;
         let text = bytes.strip_suffix(&[0]).unwrap_or(bytes);
-        String::from_utf8(text.to_vec()).map_err(|_| format!("`{what}` is not UTF-8"))
+        String::from_utf8(text.to_vec()).map_err(|_| CdrError::NotUtf8 { field: what })
     }
 
     /// The end of the message: at most the padding a writer may add after the last field.
-    pub fn end(&self) -> Result<(), String> {
+    pub fn end(&self) -> Result<(), CdrError> {
         match self.b.len().saturating_sub(self.at) {
             0..=3 => Ok(()),
-            extra => Err(format!("{extra} bytes after the message's last field")),
+            bytes => Err(CdrError::Trailing { bytes }),
         }
     }
 
     /// A `string[]`.
-    pub fn strings(&mut self, what: &str) -> Result<Vec<String>, String> {
+    pub fn strings(&mut self, what: &'static str) -> Result<Vec<String>, CdrError> {
         let n = self.u32(what)? as usize;
         // Each string takes at least its 4-byte length: a count beyond that is a damaged file.
         if n > self.b.len() / 4 {
-            return Err(format!("`{what}` claims {n} strings"));
+            return Err(CdrError::Implausible {
+                field: what,
+                count: n,
+                of: "strings",
+            });
         }
         (0..n).map(|_| self.string(what)).collect()
     }
@@ -241,11 +368,16 @@ pub fn first(values: &[f64], n: u32) -> &[f64] {
 /// rosbag2's form: each after the separator, headed `MSG: pkg/Type`).
 #[derive(Clone, Copy)]
 pub struct MessageType {
+    /// The ROS 2 type name, e.g. `evoloop_msgs/msg/PlantState`.
     pub name: &'static str,
+    /// The `.msg` definition, as `ros2 interface show` prints it.
     pub definition: &'static str,
+    /// The definitions of the types it uses, each after the separator headed `MSG: pkg/Type`; empty
+    /// when it uses none.
     pub dependencies: &'static str,
 }
 
+/// `evoloop_msgs/msg/PlantState`: a plant sample (`PlantState`), topic `state`.
 pub const PLANT_STATE: MessageType = MessageType {
     name: "evoloop_msgs/msg/PlantState",
     definition: "\
@@ -265,6 +397,7 @@ float64[] u_applied
     dependencies: "",
 };
 
+/// `evoloop_msgs/msg/Command`: the controller's command (`Command`), topic `command`.
 pub const COMMAND: MessageType = MessageType {
     name: "evoloop_msgs/msg/Command",
     definition: "\
@@ -278,6 +411,7 @@ float64[] u
     dependencies: "",
 };
 
+/// `evoloop_msgs/msg/Telemetry`: the controller's cycle (`Telemetry`), topic `telemetry`.
 pub const TELEMETRY: MessageType = MessageType {
     name: "evoloop_msgs/msg/Telemetry",
     definition: "\
@@ -303,6 +437,8 @@ float64[] law
     dependencies: "",
 };
 
+/// `evoloop_msgs/msg/ParamSet`: a parameter set the controller received, with its cycle, topic
+/// `params`.
 pub const PARAM_SET: MessageType = MessageType {
     name: "evoloop_msgs/msg/ParamSet",
     definition: "\
@@ -319,6 +455,8 @@ float64[] values
     dependencies: "",
 };
 
+/// `evoloop_msgs/msg/ModelEstimate`: a model estimate the controller took, with its cycle, topic
+/// `estimate`.
 pub const MODEL_ESTIMATE: MessageType = MessageType {
     name: "evoloop_msgs/msg/ModelEstimate",
     definition: "\
@@ -333,6 +471,8 @@ uint64 apply_at_seq
     dependencies: "",
 };
 
+/// `evoloop_msgs/msg/LinearEstimate`: an estimated transfer function the controller took, with
+/// its cycle, topic `estimate_linear`.
 pub const LINEAR_ESTIMATE: MessageType = MessageType {
     name: "evoloop_msgs/msg/LinearEstimate",
     definition: "\
@@ -348,6 +488,7 @@ float64[] den
     dependencies: "",
 };
 
+/// The standard `sensor_msgs/msg/JointState`: an arm's joints, topic `joint_states`.
 pub const JOINT_STATE: MessageType = MessageType {
     name: "sensor_msgs/msg/JointState",
     definition: "\
@@ -450,6 +591,7 @@ pub fn message_type(topic: &str) -> Option<MessageType> {
     TOPICS.iter().find(|(t, _)| *t == topic).map(|(_, ty)| *ty)
 }
 
+/// Encode `s` into `buf` (cleared first) as a `PlantState` message, each array cut to its count.
 pub fn encode_state(buf: &mut Vec<u8>, s: &PlantState) {
     let mut w = CdrWriter::new(buf);
     w.u64(s.seq);
@@ -463,7 +605,13 @@ pub fn encode_state(buf: &mut Vec<u8>, s: &PlantState) {
     w.f64s(first(&s.u_applied, s.n_y.max(s.n_q)));
 }
 
-pub fn decode_state(b: &[u8]) -> Result<PlantState, String> {
+/// Decode a `PlantState` message, bit for bit.
+///
+/// # Errors
+///
+/// Not little-endian CDR, cut short, an array longer than the message's capacity, velocity or
+/// input counts that do not match the joints and outputs, or bytes after the last field.
+pub fn decode_state(b: &[u8]) -> Result<PlantState, CdrError> {
     let mut r = CdrReader::new(b)?;
     let mut s = PlantState {
         seq: r.u64("seq")?,
@@ -478,15 +626,18 @@ pub fn decode_state(b: &[u8]) -> Result<PlantState, String> {
     s.n_x = r.f64s("x_true", &mut s.x_true)?;
     let applied = r.f64s("u_applied", &mut s.u_applied)?;
     if qd != s.n_q || applied != s.n_y.max(s.n_q) {
-        return Err(format!(
-            "{qd} velocities and {applied} inputs for {} joints and {} outputs",
-            s.n_q, s.n_y
-        ));
+        return Err(CdrError::Inconsistent {
+            velocities: qd,
+            inputs: applied,
+            joints: s.n_q,
+            outputs: s.n_y,
+        });
     }
     r.end()?;
     Ok(s)
 }
 
+/// Encode `c` into `buf` (cleared first) as a `Command` message, `u` cut to its count.
 pub fn encode_command(buf: &mut Vec<u8>, c: &Command) {
     let mut w = CdrWriter::new(buf);
     w.u64(c.cycle);
@@ -496,7 +647,13 @@ pub fn encode_command(buf: &mut Vec<u8>, c: &Command) {
     w.f64s(first(&c.u, c.n_u));
 }
 
-pub fn decode_command(b: &[u8]) -> Result<Command, String> {
+/// Decode a `Command` message, bit for bit.
+///
+/// # Errors
+///
+/// Not little-endian CDR, cut short, more inputs than `Command` holds, or bytes after the last
+/// field.
+pub fn decode_command(b: &[u8]) -> Result<Command, CdrError> {
     let mut r = CdrReader::new(b)?;
     let mut c = Command {
         cycle: r.u64("cycle")?,
@@ -510,6 +667,7 @@ pub fn decode_command(b: &[u8]) -> Result<Command, String> {
     Ok(c)
 }
 
+/// Encode `t` into `buf` (cleared first) as a `Telemetry` message, each array cut to its count.
 pub fn encode_telemetry(buf: &mut Vec<u8>, t: &Telemetry) {
     let mut w = CdrWriter::new(buf);
     w.u64(t.cycle);
@@ -531,7 +689,13 @@ pub fn encode_telemetry(buf: &mut Vec<u8>, t: &Telemetry) {
     w.f64s(first(&t.law, t.n_law));
 }
 
-pub fn decode_telemetry(b: &[u8]) -> Result<Telemetry, String> {
+/// Decode a `Telemetry` message, bit for bit.
+///
+/// # Errors
+///
+/// Not little-endian CDR, cut short, an array longer than `Telemetry` holds, or bytes after the
+/// last field.
+pub fn decode_telemetry(b: &[u8]) -> Result<Telemetry, CdrError> {
     let mut r = CdrReader::new(b)?;
     let mut t = Telemetry {
         cycle: r.u64("cycle")?,
@@ -570,7 +734,13 @@ pub fn encode_params(buf: &mut Vec<u8>, p: &ParamSet, cycle: u64) {
     w.f64s(first(&p.values, p.n));
 }
 
-pub fn decode_params(b: &[u8]) -> Result<(u64, ParamSet), String> {
+/// Decode a `ParamSet` message: the cycle that received the set, and the set.
+///
+/// # Errors
+///
+/// Not little-endian CDR, cut short, more values than `ParamSet` holds, or bytes after the last
+/// field.
+pub fn decode_params(b: &[u8]) -> Result<(u64, ParamSet), CdrError> {
     let mut r = CdrReader::new(b)?;
     let cycle = r.u64("cycle")?;
     let mut p = ParamSet {
@@ -598,7 +768,12 @@ pub fn encode_estimate(buf: &mut Vec<u8>, e: &ModelEstimate, cycle: u64) {
     w.u64(e.apply_at_seq);
 }
 
-pub fn decode_estimate(b: &[u8]) -> Result<(u64, ModelEstimate), String> {
+/// Decode a `ModelEstimate` message: the cycle that took the estimate, and the estimate.
+///
+/// # Errors
+///
+/// Not little-endian CDR, cut short, or bytes after the last field.
+pub fn decode_estimate(b: &[u8]) -> Result<(u64, ModelEstimate), CdrError> {
     let mut r = CdrReader::new(b)?;
     let cycle = r.u64("cycle")?;
     let e = ModelEstimate {
@@ -623,7 +798,13 @@ pub fn encode_linear_estimate(buf: &mut Vec<u8>, e: &LinearEstimate, cycle: u64)
     w.f64s(&e.den);
 }
 
-pub fn decode_linear_estimate(b: &[u8]) -> Result<(u64, LinearEstimate), String> {
+/// Decode a `LinearEstimate` message: the cycle that took the estimate, and the estimate.
+///
+/// # Errors
+///
+/// Not little-endian CDR, cut short, more coefficients than `LinearEstimate` holds, or bytes after
+/// the last field.
+pub fn decode_linear_estimate(b: &[u8]) -> Result<(u64, LinearEstimate), CdrError> {
     let mut r = CdrReader::new(b)?;
     let cycle = r.u64("cycle")?;
     let mut e = LinearEstimate {
@@ -667,12 +848,16 @@ pub fn encode_float64_multi_array(buf: &mut Vec<u8>, label: &str, values: &[f64]
 
 /// A `std_msgs/msg/Float64MultiArray`'s data (at most `max` values; the layout is read and
 /// checked for size, not used: the data are taken as one vector).
-pub fn decode_float64_multi_array(b: &[u8], max: usize) -> Result<Vec<f64>, String> {
+pub fn decode_float64_multi_array(b: &[u8], max: usize) -> Result<Vec<f64>, CdrError> {
     let mut r = CdrReader::new(b)?;
     let dims = r.u32("layout.dim")?;
     // Each dimension takes at least 12 bytes.
     if dims as usize > b.len() / 12 {
-        return Err(format!("`layout.dim` claims {dims} dimensions"));
+        return Err(CdrError::Implausible {
+            field: "layout.dim",
+            count: dims as usize,
+            of: "dimensions",
+        });
     }
     for _ in 0..dims {
         r.string("layout.dim.label")?;
@@ -692,7 +877,13 @@ pub fn encode_set_parameters_result(buf: &mut Vec<u8>, successful: bool, reason:
     w.string(reason);
 }
 
-pub fn decode_set_parameters_result(b: &[u8]) -> Result<(bool, String), String> {
+/// Decode a `rcl_interfaces/msg/SetParametersResult`: whether the set succeeded, and the reason.
+///
+/// # Errors
+///
+/// Not little-endian CDR, cut short, a `successful` that is neither 0 nor 1, a reason that is not
+/// UTF-8, or bytes after the last field.
+pub fn decode_set_parameters_result(b: &[u8]) -> Result<(bool, String), CdrError> {
     let mut r = CdrReader::new(b)?;
     let ok = r.bool("successful")?;
     let reason = r.string("reason")?;
@@ -843,16 +1034,28 @@ mod tests {
             ..Default::default()
         };
         encode_state(&mut buf, &s);
-        for cut in [0, 3, 10, buf.len() - 1] {
-            assert!(decode_state(&buf[..cut]).is_err(), "cut at {cut}");
+        assert_eq!(decode_state(&buf[..3]), Err(CdrError::NoHeader));
+        for cut in [10, buf.len() - 1] {
+            let e = decode_state(&buf[..cut]).unwrap_err();
+            assert!(matches!(e, CdrError::CutShort { .. }), "cut at {cut}: {e}");
         }
         let mut big = buf.clone();
         big[4 + 28..4 + 32].copy_from_slice(&1000u32.to_le_bytes()); // y's count, far too many
         let e = decode_state(&big).unwrap_err();
-        assert!(e.contains("`y`"), "{e}");
+        assert_eq!(
+            e,
+            CdrError::TooLong {
+                field: "y",
+                len: 1000,
+                max: evoloop_msg::MAX_JOINTS
+            }
+        );
+        assert!(e.to_string().contains("`y`"), "{e}");
         let mut be = buf.clone();
         be[1] = 0; // CDR_BE
-        assert!(decode_state(&be).unwrap_err().contains("little-endian"));
+        let e = decode_state(&be).unwrap_err();
+        assert_eq!(e, CdrError::Representation([0, 0]));
+        assert!(e.to_string().contains("little-endian"));
     }
 
     /// Every decoder on damaged bytes (flipped, cut, lengthened, counts made huge) returns an
@@ -913,7 +1116,9 @@ mod tests {
         }
         let mut long = msgs[0].clone();
         long.extend([0u8; 8]);
-        assert!(decode_state(&long).unwrap_err().contains("after"));
+        let e = decode_state(&long).unwrap_err();
+        assert_eq!(e, CdrError::Trailing { bytes: 8 });
+        assert!(e.to_string().contains("after"));
     }
 
     #[test]
