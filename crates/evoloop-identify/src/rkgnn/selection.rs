@@ -264,7 +264,9 @@ const UNIFORM_GAMMA: f64 = 1e6;
 /// What `evoloop rkgnn selection` is asked for.
 #[derive(Debug, Clone)]
 pub struct SelectionSettings {
+    /// The arm's robot file.
     pub robot: PathBuf,
+    /// Seeds to run: 1 to `seeds` (each with its own training data, models and CAD model).
     pub seeds: u64,
     /// Each joint's equations in units of its own torque rms (`identify::Settings::weigh_joints`).
     pub weigh_joints: bool,
@@ -286,13 +288,16 @@ pub struct SelectionSettings {
     pub models_from: Option<PathBuf>,
     /// The joint velocity the training servo and every tracking law act on.
     pub velocity: JointVelocity,
+    /// Worker threads shared by the seeds' simulations and identifications.
     pub threads: usize,
 }
 
 /// One (seed, trajectory): each controller's RMS error per joint and overall.
 #[derive(Debug, Clone, Serialize)]
 pub struct Cell {
+    /// The seed: its training data, models, CAD model and measurement noise.
     pub seed: u64,
+    /// The new trajectory tracked (near1, near3, beyond2 or faster1).
     pub trajectory: &'static str,
     /// Controller key -> per-joint RMS (rad), `RUN` then `DERIVED` order.
     pub rms: Vec<(String, Vec<f64>)>,
@@ -308,6 +313,7 @@ pub struct Cell {
     /// Each identified model's M-hat, V-hat and G-hat against the arm along this trajectory
     /// (null: not identified), and the nominal (CAD) model's.
     pub model_error: Vec<Option<ModelError>>,
+    /// The nominal (CAD) model's M, V and G against the arm along this trajectory.
     pub nominal_error: ModelError,
     /// Models the online identification put in service during online_model's run (null: not
     /// run, no usable model to start from).
@@ -322,23 +328,32 @@ pub struct Comparison {
     /// One of `RULES`: `fuzzy_max` (the paper's rule), `fuzzy_blend`, `uniform_blend`,
     /// `fuzzy_evidence` or `uniform_evidence`.
     pub rule: String,
+    /// The controller key the rule is compared with (from `RUN` or `DERIVED`).
     pub baseline: String,
+    /// Median over the seeds of the rule's per-seed mean overall RMS, rad.
     pub median_fuzzy: f64,
+    /// The same for the baseline, rad.
     pub median_baseline: f64,
     /// Seeds where the rule is lower.
     pub fuzzy_lower: usize,
     /// Seeds compared.
     pub pairs: usize,
+    /// The paired signed-rank test of the rule's per-seed means against the baseline's.
     pub wilcoxon: Wilcoxon,
 }
 
 /// `selection.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct SelectionResult {
+    /// The arm's robot file, absolute.
     pub robot: PathBuf,
+    /// The arm's joint count.
     pub joints: usize,
+    /// Seeds run (1 to `seeds`).
     pub seeds: u64,
+    /// The training trajectories' names.
     pub training: Vec<&'static str>,
+    /// The new trajectories' names: the tasks tracked.
     pub trajectories: Vec<&'static str>,
     /// Where the trajectories come from: `paper` (the RKGNN paper's arm, written) or `limits`
     /// (built from this arm's joint limits).
@@ -348,9 +363,13 @@ pub struct SelectionResult {
     /// How the models were identified: what of the servo was known, the start, the EA's
     /// evaluations, the joints' weighing, V-hat's form.
     pub servo_known: bool,
+    /// Where each identification started.
     pub start: crate::rkgnn::model::Start,
+    /// The EA's evaluations after the start (0 = the start itself).
     pub evaluations: usize,
+    /// Whether each joint's equations were weighed by its torque rms.
     pub weigh_joints: bool,
+    /// Whether V-hat came from M-hat's Christoffel symbols (no velocity network).
     pub christoffel: bool,
     /// The tracking runs' loop period, s (the training runs': 1 ms).
     pub period: f64,
@@ -368,9 +387,11 @@ pub struct SelectionResult {
     /// How far each seed's nominal (CAD) model is off (factors within 1 +- this), and each
     /// seed's nominal model as written: pd_gravity and ct_nominal use it.
     pub nominal_spread: f64,
+    /// Per seed, its nominal model's file and errors.
     pub nominal: Vec<NominalWritten>,
     /// online_model's identification settings (`optimiser` keys).
     pub online: Vec<(&'static str, f64)>,
+    /// One per (seed, task), seed by seed.
     pub cells: Vec<Cell>,
     /// Per trajectory, the median overall RMS of each controller.
     pub medians: Medians,
@@ -387,7 +408,9 @@ pub struct SelectionResult {
     pub claim_held_uniform: bool,
     /// The same for the evidence rule, on the memberships and on a uniform prior.
     pub claim_held_evidence: bool,
+    /// The same for the evidence rule on a uniform prior.
     pub claim_held_uniform_evidence: bool,
+    /// The study's wall-clock time, s.
     pub seconds: f64,
 }
 
@@ -581,6 +604,44 @@ pub fn run(
             .map(one_seed)
             .collect::<Result<_, _>>()
     })?;
+    let names = |v: &[Sines]| v.iter().map(|t| t.name).collect::<Vec<_>>();
+    let frame = Frame {
+        robot,
+        joints: n,
+        training: names(&training_set),
+        trajectories: names(&new_set),
+        trajectory_source,
+        prior,
+        period,
+    };
+    let result = assemble(s, frame, per_seed, t0.elapsed().as_secs_f64());
+    crate::report::write_json(dir, "selection.json", &result)
+        .map_err(|e| format!("{}: {e}", dir.join("selection.json").display()))?;
+    let p = dir.join("report.md");
+    crate::files::write(&p, report_markdown(&result))
+        .map_err(|e| format!("{}: {e}", p.display()))?;
+    Ok(result)
+}
+
+/// What the study ran on, the same for every seed.
+struct Frame {
+    robot: PathBuf,
+    joints: usize,
+    training: Vec<&'static str>,
+    trajectories: Vec<&'static str>,
+    trajectory_source: TrajectorySource,
+    prior: Prior,
+    period: f64,
+}
+
+/// The study's result from its seeds' outputs (taken in seed order): the cells, their medians
+/// and comparisons, and each claim's verdict.
+fn assemble(
+    s: &SelectionSettings,
+    frame: Frame,
+    per_seed: Vec<SeedOut>,
+    seconds: f64,
+) -> SelectionResult {
     let (mut cells, mut unidentified, mut identification_seconds, mut nominals) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for o in per_seed {
@@ -589,23 +650,21 @@ pub fn run(
         identification_seconds.extend(o.seconds);
         nominals.push(o.nominal);
     }
-    let names = |v: &[Sines]| v.iter().map(|t| t.name).collect::<Vec<_>>();
-    let trajectories = names(&new_set);
-    let (medians, comparisons, tasks) = summarise(&cells, &trajectories);
-    let result = SelectionResult {
-        robot,
-        joints: n,
+    let (medians, comparisons, tasks) = summarise(&cells, &frame.trajectories);
+    SelectionResult {
+        robot: frame.robot,
+        joints: frame.joints,
         seeds: s.seeds,
-        training: names(&training_set),
-        trajectories,
-        trajectory_source,
-        prior,
+        training: frame.training,
+        trajectories: frame.trajectories,
+        trajectory_source: frame.trajectory_source,
+        prior: frame.prior,
         servo_known: s.servo_known,
         start: s.start,
         evaluations: s.evaluations,
         weigh_joints: s.weigh_joints,
         christoffel: s.christoffel,
-        period,
+        period: frame.period,
         unidentified,
         identification_seconds,
         models_from: s.models_from.clone(),
@@ -622,14 +681,8 @@ pub fn run(
         claim_held_evidence: claim_held(&comparisons, "fuzzy_evidence"),
         claim_held_uniform_evidence: claim_held(&comparisons, "uniform_evidence"),
         comparisons,
-        seconds: t0.elapsed().as_secs_f64(),
-    };
-    crate::report::write_json(dir, "selection.json", &result)
-        .map_err(|e| format!("{}: {e}", dir.join("selection.json").display()))?;
-    let p = dir.join("report.md");
-    crate::files::write(&p, report_markdown(&result))
-        .map_err(|e| format!("{}: {e}", p.display()))?;
-    Ok(result)
+        seconds,
+    }
 }
 
 /// Every trajectory as a scenario that is never run, to check it: `case` parses each, and the
@@ -785,9 +838,13 @@ const ONLINE: [(&str, f64); 5] = [
 /// the errors (per body, factors on mass, centre of mass and inertia).
 #[derive(Debug, Clone, Serialize)]
 pub struct NominalWritten {
+    /// The study's seed the model belongs to.
     pub seed: u64,
+    /// Where it is written (`seed<N>/nominal.urdf`).
     pub file: PathBuf,
+    /// The seed its errors were drawn from (`nominal_seed`: the arm's name and `seed`).
     pub drawn_from: u64,
+    /// Per body, the factors on mass, centre of mass and inertia.
     pub errors: Vec<crate::dynamics::nominal::CadError>,
 }
 
@@ -1189,7 +1246,9 @@ fn compare_all(cells: &[&Cell]) -> Vec<Comparison> {
 /// One task's (trajectory's) comparisons over the seeds.
 #[derive(Debug, Clone, Serialize)]
 pub struct TaskComparisons {
+    /// The task's (new trajectory's) name.
     pub trajectory: String,
+    /// Each rule against every other controller on this task, over the seeds.
     pub comparisons: Vec<Comparison>,
 }
 
