@@ -30,23 +30,29 @@ pub const HISTORY: usize = 36_000;
 /// (a few of the estimate's own standard deviations at the end of the shipped run).
 pub const ROBUST_MASS: f64 = 0.02;
 
-/// Online estimate of the maglev's mass (kg) with its standard deviation.
+/// An online estimate of the scheme's uncertain parameter (the maglev's mass, the two-mass's
+/// spring, the general scheme's input gain) with its standard deviation.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Estimate {
+    /// Plant time of the estimate, s.
     pub t: f64,
+    /// The estimated parameter: the maglev's mass (kg), the two-mass's spring constant k, or
+    /// the general scheme's input gain b_m.
     pub value: f64,
-    /// Infinite (JSON null) while no fit has been adopted.
+    /// The estimate's standard deviation, in `value`'s unit; infinite (JSON null) while no fit
+    /// has been adopted.
     #[serde(with = "infinite_as_null")]
     pub std: f64,
 }
 
+/// Online estimate of the maglev ball's mass: RLS with forgetting on theta = k_F / m from
+/// second differences of the measured height and the reconstructed coil current.
 pub struct MaglevEstimator {
     p: MaglevParams,
     plant: Maglev,
     period: f64,
     /// Samples between the three positions of one second difference.
     stride: usize,
-    /// Forgetting factor per update.
     /// Ring of the last 2 * stride + 1 (gap z, reconstructed current i).
     ring: Vec<(f64, f64)>,
     filled: usize,
@@ -111,6 +117,7 @@ impl MaglevEstimator {
         }
     }
 
+    /// RLS updates so far: one every `stride` samples once the difference window is full.
     pub fn updates(&self) -> u64 {
         self.rls.updates
     }
@@ -119,6 +126,7 @@ impl MaglevEstimator {
 /// One published candidate.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Candidate {
+    /// The best parameter set the epoch found.
     pub params: Vec<f64>,
     /// Its cost on the model it was tuned on.
     pub expected_cost: f64,
@@ -128,15 +136,23 @@ pub struct Candidate {
     pub model_value: f64,
 }
 
+/// The maglev's tuner: epochs of the paper's GA on the PID's parameters, on the model with
+/// the estimated mass; a set is published only when it beats the one in service there.
 pub struct MaglevTuner {
+    /// The nominal experiment candidates are scored on; `model` puts the estimated mass in it.
     pub spec: Spec,
+    /// The PID's anti-windup scheme, whose paper ranges bound the search.
     pub aw: AntiWindup,
+    /// The GA's settings (population 10, crossover 0.9); each epoch sets its own seed and
+    /// iteration count.
     pub ga: GaConfig,
+    /// Threads evaluating candidates (`optimiser.threads`, default 2).
     pub threads: usize,
     /// Evaluations per epoch.
     pub epoch_evaluations: usize,
     /// Publish when best < in_service * (1 - margin).
     pub margin: f64,
+    /// Seed of the model's sensor noise and, moved on with each epoch's number, of the GA.
     pub seed: u64,
     epoch: u64,
     previous_best: Option<Vec<f64>>,
@@ -239,15 +255,22 @@ impl MaglevTuner {
 /// `threads`, the random stream moved on with each epoch's number.
 #[derive(Debug, Clone)]
 pub struct DeEpochs {
+    /// Lower bounds of the parameters searched (the controller's).
     pub lower: Vec<f64>,
+    /// Upper bounds of the parameters searched (the controller's).
     pub upper: Vec<f64>,
+    /// Seed of the first epoch's DE; each later epoch's moves on with its number.
     pub seed: u64,
+    /// Threads evaluating candidates.
     pub threads: usize,
+    /// Evaluations per epoch at most, spent in whole generations of 15 (one when fewer).
     pub evaluations: usize,
     done: u64,
 }
 
 impl DeEpochs {
+    /// Epochs within `bounds`, seeded with the scenario's seed, on `optimiser.threads` threads,
+    /// `optimiser.epoch_evaluations` evaluations each.
     pub fn new(scn: &crate::config::Scenario, bounds: &crate::control::ParamBounds) -> Self {
         Self {
             lower: bounds.lower.clone(),
@@ -277,7 +300,9 @@ impl DeEpochs {
         .expect("valid DE settings");
         self.done += 1;
         de.seed_population(seeds);
-        while de.evaluations() + np <= self.evaluations {
+        // Whole generations within the budget, and at least one: `optimiser.epoch_evaluations`
+        // may be as low as 12 (the maglev GA's population and one generation), below DE's 15.
+        while de.evaluations() == 0 || de.evaluations() + np <= self.evaluations {
             let v = evaluate(de.ask(), None, f, self.threads);
             de.tell(&v);
         }
@@ -296,6 +321,7 @@ pub struct EpochRecord {
     /// Costs on the model; infinite (JSON null) when the set loses the plant or destabilises it.
     #[serde(with = "infinite_as_null")]
     pub best_cost: f64,
+    /// The in-service set's cost on the same model.
     #[serde(with = "infinite_as_null")]
     pub in_service_cost: f64,
     /// The version published from this epoch, if any.
@@ -333,6 +359,7 @@ pub(crate) mod infinite_as_null {
 pub trait Estimator: Send {
     /// Feed sample `s`; `prev` is the previous sample when `s` directly follows it.
     fn observe(&mut self, prev: Option<&crate::msg::PlantState>, s: &crate::msg::PlantState);
+    /// The estimate at plant time `t` (s), with its standard deviation.
     fn estimate(&self, t: f64) -> Estimate;
     /// Enough data for the estimate to replace the nominal value.
     fn ready(&self) -> bool;
@@ -343,6 +370,8 @@ pub trait Estimator: Send {
     fn coefficients(&self) -> Vec<f64> {
         Vec::new()
     }
+    /// The nominal coefficients of a model of several (the prior's), the model's until the
+    /// estimate is ready; empty for a scheme whose model is the one parameter.
     fn nominal_coefficients(&self) -> Vec<f64> {
         Vec::new()
     }
@@ -432,6 +461,8 @@ pub struct Indirect {
     margin: f64,
     epoch_evaluations: usize,
     prev: Option<crate::msg::PlantState>,
+    /// The set in service as this optimiser knows it: the configured one, then the last it
+    /// published (or `resume` restored).
     pub in_service: Vec<f64>,
     version: u64,
     kind: crate::msg::ParamKind,
@@ -440,6 +471,7 @@ pub struct Indirect {
     next_record_t: f64,
     /// Bounded: thinned evenly past `HISTORY` items (see `report::history`).
     pub estimates: History<Estimate>,
+    /// Every tuning epoch's record, bounded as `estimates` is.
     pub epochs: History<EpochRecord>,
     /// Samples the estimator never saw (gaps in the sequence numbers after its first): in
     /// realtime, those that overflowed the state queue while an epoch ran.
@@ -554,6 +586,7 @@ impl Indirect {
         None
     }
 
+    /// The estimator's current estimate at plant time `t` (s), not recorded.
     pub fn estimate(&self, t: f64) -> Estimate {
         self.estimator.estimate(t)
     }
@@ -696,6 +729,24 @@ pub mod two_mass;
 #[cfg(test)]
 mod tests {
     use super::EpochRecord;
+
+    /// The smallest budget the scenario accepts (12, the maglev GA's) still runs one generation
+    /// of DE's 15: an epoch never ends unscored.
+    #[test]
+    fn a_budget_below_des_population_still_runs_one_generation() {
+        let sphere = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>();
+        let mut epochs = super::DeEpochs {
+            lower: vec![-1.0; 2],
+            upper: vec![1.0; 2],
+            seed: 1,
+            threads: 1,
+            evaluations: 12,
+            done: 0,
+        };
+        let (best, cost) = epochs.run(&[], &sphere);
+        assert_eq!(best.len(), 2);
+        assert!(cost.is_finite(), "{cost}");
+    }
 
     #[test]
     fn samples_the_estimator_never_saw_are_counted() {
