@@ -10,6 +10,8 @@ use evoloop_stats::{mean_ci, median, paired_sentence, wilcoxon};
 use serde_json::json;
 use std::path::PathBuf;
 
+/// Options of `evoloop identify study`: the experiment's scenario, the seeds, the searches'
+/// settings and the torque noise.
 #[derive(Args)]
 pub struct StudyArgs {
     /// The identification experiment: an arm scenario whose reference each trajectory replaces
@@ -22,6 +24,7 @@ pub struct StudyArgs {
     /// Which joints move.
     #[arg(long, value_enum, default_value = "all")]
     pub stage: StageKind,
+    /// The trajectory: a joint-space Fourier series, or the paper's modified Fourier series (mfs)
     #[arg(long, value_enum, default_value = "fourier")]
     pub trajectory: TrajectoryKind,
     /// eMuPSO iterations per search.
@@ -33,6 +36,7 @@ pub struct StudyArgs {
     /// Output directory (results.json, report.md, errors.png).
     #[arg(long, default_value = "runs/identify_study")]
     pub out: PathBuf,
+    /// No progress bar
     #[arg(long)]
     pub quiet: bool,
     /// Print results.json on stdout.
@@ -40,6 +44,8 @@ pub struct StudyArgs {
     pub json: bool,
 }
 
+/// `evoloop identify study`: run the study, write results.json, report.md and errors.png.
+/// Returns the exit code: 0, or 2 with the error on stderr.
 pub fn main(a: &StudyArgs) -> i32 {
     match study(a) {
         Ok(()) => 0,
@@ -60,7 +66,7 @@ fn prepare(a: &StudyArgs) -> Result<(ExcitationProblem, String), String> {
         return Err(format!("--torque-noise {}: must be >= 0", a.torque_noise));
     }
     let scn = Scenario::load(&a.scenario, &Overrides::default()).map_err(|e| e.to_string())?;
-    let text = std::fs::read_to_string(&a.scenario).map_err(|e| e.to_string())?;
+    let text = evoloop_files::read_text(&a.scenario).map_err(|e| e.to_string())?;
     let model = scn
         .plant
         .model

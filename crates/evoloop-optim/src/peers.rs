@@ -22,8 +22,11 @@ pub type Errors = BTreeMap<String, BTreeMap<String, Vec<f64>>>;
 /// The runs of a peers file.
 #[derive(Debug, Clone)]
 pub struct PeerRuns {
+    /// The file's path as given, for messages.
     pub file: String,
+    /// The file's algorithm names, sorted, each once.
     pub algorithms: Vec<String>,
+    /// Each run's final error, by function and algorithm, in file order.
     pub errors: Errors,
 }
 
@@ -37,7 +40,7 @@ const HEADER: &str = "function,algorithm,seed,best_value,error,evaluations";
 /// evaluations (a larger budget is no comparison).
 pub fn load(path: &Path, budget: usize, ours: &[String]) -> Result<PeerRuns, String> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{file}: {e}"))?;
+    let text = evoloop_files::read_text(path).map_err(|e| format!("{file}: {e}"))?;
     let mut lines = text.lines().enumerate();
     match lines.next() {
         Some((_, h)) if h.trim() == HEADER => {}
@@ -95,9 +98,13 @@ pub fn load(path: &Path, budget: usize, ours: &[String]) -> Result<PeerRuns, Str
 /// One side's best on a function.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Best {
+    /// The algorithm's name.
     pub algorithm: String,
+    /// Mean final error over its runs (errors below `SOLVED` as 0).
     pub mean_error: f64,
+    /// Median final error over its runs (errors below `SOLVED` as 0).
     pub median_error: f64,
+    /// Number of runs.
     pub runs: usize,
 }
 
@@ -105,16 +112,25 @@ pub struct Best {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Verdict {
+    /// Our best's errors are lower than theirs (significant at 5 %).
     Beats,
+    /// No difference shown at the 5 % level.
     Matches,
+    /// Our best's errors are higher than theirs (significant at 5 %).
     Loses,
 }
 
+/// Our best algorithm against theirs on one function, with the Mann-Whitney test between
+/// their errors and its verdict.
 #[derive(Debug, Clone, Serialize)]
 pub struct Comparison {
+    /// The study's best algorithm on the function.
     pub ours: Best,
+    /// The peers file's best algorithm on the function.
     pub theirs: Best,
+    /// Mann-Whitney U test of our best's errors (sample a) against theirs (b).
     pub test: MannWhitney,
+    /// What the test says at the 5 % level.
     pub verdict: Verdict,
 }
 

@@ -16,8 +16,11 @@ pub struct Report {
     pub holdout_rms: Vec<f64>,
     /// Smallest eigenvalue of M-hat over every training sample.
     pub min_eig_m_hat: f64,
+    /// Objective evaluations the EA made (0: the start kept, `--evaluations 0`).
     pub evaluations: usize,
+    /// Wall-clock time the identification took, s.
     pub seconds: f64,
+    /// EA generations run.
     pub generations: usize,
     /// Eq. 13 at the end (with the last generation's s_t).
     pub objective: f64,
@@ -25,6 +28,7 @@ pub struct Report {
     pub h: f64,
     /// Eq. 2's bounds, the identification's only knowledge of the arm besides the data.
     pub m1: f64,
+    /// Eq. 2's upper bound: y^T M(q) y <= m_2 ||y||^2 (`m1` is the lower one).
     pub m2: f64,
     /// Where the search started.
     #[serde(default = "Report::random")]
@@ -39,6 +43,7 @@ pub struct Report {
     /// positions, s. None: a file from before that, fitted on the simulator's velocities.
     #[serde(default)]
     pub velocity_smoothing: Option<f64>,
+    /// Seed of the evolutionary algorithm (`identify rkgnn --seed`).
     pub seed: u64,
     /// Best objective after each generation.
     pub history: Vec<f64>,
@@ -67,7 +72,9 @@ pub enum ServoPrior {
     /// structure of the network can be altered accordingly"). Then the servo's torque is known
     /// at every sample and the arm's M-hat, V-hat, G-hat are fitted to it, scale included.
     Known {
+        /// Proportional gain k_p,j per joint, N m/rad.
         kp: Vec<f64>,
+        /// Derivative gain k_d,j per joint, N m s/rad.
         kd: Vec<f64>,
         /// Torque limits, N m (none = unclamped).
         #[serde(default)]
@@ -195,12 +202,18 @@ pub const FORMAT: &str = "evoloop-rkgnn";
 /// The file layout version this build reads and writes.
 pub const VERSION: u32 = 1;
 
+/// A model file's JSON layout, as `RkgnnModel::save` writes it and `RkgnnModel::load` reads
+/// it before checking it (`RkgnnModel::from_file`).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ModelFile {
+    /// Always `FORMAT`; anything else is refused as not a model file.
     pub format: String,
+    /// File layout version; must be `VERSION`.
     pub version: u32,
+    /// Joint count n of the arm, 1..=`MAX_JOINTS`.
     pub joints: usize,
+    /// RBF counts per sub-network; with `joints` they fix the `Layout` of `params`.
     pub rbf: RbfCounts,
     /// N_f's parameters in `network::Layout` order.
     pub params: Vec<f64>,
@@ -210,17 +223,22 @@ pub struct ModelFile {
     pub premise: Vec<Vec<f64>>,
     /// Where the data came from (a run directory or a study).
     pub source: String,
+    /// The identification's report, kept with the model it produced.
     pub report: Report,
 }
 
 /// A loaded, checked model.
 #[derive(Debug, Clone)]
 pub struct RkgnnModel {
+    /// The identified function network N_f.
     pub net: Network,
+    /// Spacing of the premise rows, s.
     pub premise_period: f64,
     /// Premise rows, flat (2n each).
     pub premise: Vec<f64>,
+    /// Where the training data came from (a run directory or a study).
     pub source: String,
+    /// The identification's report.
     pub report: Report,
 }
 
@@ -243,6 +261,7 @@ impl RkgnnModel {
         }
     }
 
+    /// Joint count n.
     pub fn dof(&self) -> usize {
         self.net.dof()
     }
@@ -265,6 +284,7 @@ impl RkgnnModel {
         self.net.min_eig(qs)
     }
 
+    /// The model in its file layout, the premise back in rows of 2n values.
     pub fn to_file(&self) -> ModelFile {
         let w = 2 * self.dof();
         ModelFile {
@@ -280,6 +300,8 @@ impl RkgnnModel {
         }
     }
 
+    /// Write the model to `path` as pretty-printed JSON, whole or not at all
+    /// (`evoloop_files::write`). Fails with `ModelError::Io` naming the path.
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
         let s = serde_json::to_string_pretty(&self.to_file())
             .map_err(|e| ModelError::Io(e.to_string()).at(path))?;
@@ -290,7 +312,7 @@ impl RkgnnModel {
     /// values, premise rows of 2n values, M-hat positive definite on the premise positions.
     pub fn load(path: &Path) -> Result<RkgnnModel, ModelError> {
         let text =
-            std::fs::read_to_string(path).map_err(|e| ModelError::Io(e.to_string()).at(path))?;
+            evoloop_files::read_text(path).map_err(|e| ModelError::Io(e.to_string()).at(path))?;
         let de = &mut serde_json::Deserializer::from_str(&text);
         let f: ModelFile = serde_path_to_error::deserialize(de).map_err(|e| {
             ModelError::NotAModelFile(format!("{} ({})", e.inner(), e.path())).at(path)
@@ -298,6 +320,9 @@ impl RkgnnModel {
         Self::from_file(f).map_err(|e| e.at(path))
     }
 
+    /// Check a decoded model file as `load` does (format and version, joint and parameter
+    /// counts, finite values, premise rows of 2n values, M-hat positive definite on the premise
+    /// positions) and build the model from it. The errors name no path.
     pub fn from_file(f: ModelFile) -> Result<RkgnnModel, ModelError> {
         use ModelError::{Invalid, NotAModelFile};
         if f.format != FORMAT {

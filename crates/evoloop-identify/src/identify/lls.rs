@@ -32,11 +32,13 @@ pub struct Recording {
     pub h: f64,
     /// The excitation's period, s.
     pub period: f64,
+    /// Per joint, whether the excitation moves it (a non-zero coefficient in the reference).
     pub moving: Vec<bool>,
     /// Held joints' positions (the reference offsets).
     pub hold: Vec<f64>,
     /// Measured positions and torques, one vector per joint.
     pub y: Vec<Vec<f64>>,
+    /// Torques, one vector per joint, N m: the commands `u*` (a real robot's motor currents).
     pub u: Vec<Vec<f64>>,
 }
 
@@ -45,7 +47,7 @@ impl Recording {
     /// harmonic `sines` reference, e.g. from `evoloop identify excitation`).
     pub fn from_run(dir: &Path) -> Result<Recording, String> {
         let sj = dir.join("scenario.json");
-        let text = std::fs::read_to_string(&sj)
+        let text = crate::files::read_text(&sj)
             .map_err(|e| format!("{}: cannot read: {e}", sj.display()))?;
         let v: serde_json::Value =
             serde_json::from_str(&text).map_err(|e| format!("{}: {e}", sj.display()))?;
@@ -81,7 +83,7 @@ impl Recording {
             .unwrap_or(time[1] - time[0]);
         // A run that ended normally ran its plant to the scenario's duration: a cycle the
         // controller missed at the very end (realtime, a loaded machine) is a gap at the tail.
-        let ended = std::fs::read_to_string(dir.join("summary.json"))
+        let ended = crate::files::read_text(&dir.join("summary.json"))
             .ok()
             .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
             .and_then(|s| serde_json::from_value::<Outcome>(s["outcome"].clone()).ok())
@@ -234,6 +236,7 @@ pub struct Options {
     pub harmonics: usize,
     /// Instants per period in the regression (the samples are thinned to about this many).
     pub instants: usize,
+    /// The parameters estimated (the base parameters of these columns).
     pub columns: Columns,
 }
 
@@ -251,16 +254,21 @@ impl Default for Options {
 /// One stage's estimate.
 #[derive(Debug, Clone, Serialize)]
 pub struct Estimate {
+    /// The stage the run excited: `wrist`, `arm` or `all`.
     pub stage: String,
     /// Base parameter names and the relations regrouped into them.
     pub base: Vec<String>,
+    /// Per base parameter, its relation: the parameter plus what is regrouped into it.
     pub regrouping: Vec<String>,
+    /// The base values of the robot file's own parameters (the simulated arm's truth).
     pub base_true: Vec<f64>,
+    /// The least-squares estimate of each base parameter.
     pub base_estimate: Vec<f64>,
     /// |estimate - true| / |true| per base parameter; None where the true value is zero (below
     /// 1e-9 of the largest: a parameter that is zero in the model, e.g. a product of inertia of
     /// a symmetric link), whose error is in `absolute_error`.
     pub relative_error: Vec<Option<f64>>,
+    /// |estimate - true| per base parameter.
     pub absolute_error: Vec<f64>,
     /// |estimate - true| / |true| over the whole vector (2-norms).
     pub relative_error_norm: f64,
@@ -283,11 +291,17 @@ pub struct Estimate {
     pub validation: Validation,
 }
 
+/// The held-out period's torques for the validation plot: measured and predicted per
+/// moving joint.
 #[derive(Debug, Clone, Default)]
 pub struct Validation {
+    /// Time of each sample of the held-out period in the run, s.
     pub t: Vec<f64>,
+    /// The moving joints' indices, one per entry of `measured` and `predicted`.
     pub joints: Vec<usize>,
+    /// Per moving joint, the recorded torque at each sample, N m.
     pub measured: Vec<Vec<f64>>,
+    /// Per moving joint, the torque the estimate predicts from the period's states, N m.
     pub predicted: Vec<Vec<f64>>,
 }
 

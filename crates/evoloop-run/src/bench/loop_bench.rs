@@ -15,6 +15,7 @@ use std::process::{Child, Command};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+/// The background load `bench loop` measures the loop under.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Load {
@@ -28,11 +29,17 @@ pub enum Load {
     Hog,
 }
 
+/// One run of `bench loop`: its setting and the summary.json it wrote.
 #[derive(Debug, Clone, Serialize)]
 pub struct LoopResult {
+    /// `"fifo"` (SCHED_FIFO and mlockall) or `"no_rt"` (run with `--no-rt`): also the name of
+    /// the run's directory under `out`.
     pub privileges: String,
+    /// The background load it ran under.
     pub load: Load,
+    /// The controller's rate, Hz.
     pub rate_hz: f64,
+    /// The run's summary.json: its cycles, misses, lateness and the floor measured beside it.
     pub summary: Summary,
 }
 
@@ -152,13 +159,16 @@ fn run_once(out: &Path, cfg: &Path, no_rt: bool, spec: &LoopSpec) -> Result<Summ
             String::from_utf8_lossy(&o.stderr)
         ));
     }
-    let text = std::fs::read_to_string(out.join("summary.json")).map_err(|e| e.to_string())?;
-    serde_json::from_str(&text).map_err(|e| e.to_string())
+    let bytes = evoloop_files::read_own(&out.join("summary.json"), evoloop_files::MAX_FILE_BYTES)
+        .map_err(|e| e.to_string())?;
+    serde_json::from_slice(&bytes).map_err(|e| e.to_string())
 }
 
 /// What one `evoloop bench loop` measured, and its JSON report (also written as loop.json).
 pub struct Measured {
+    /// loop.json's content: the setting, and each run's cycles, misses, lateness and floor.
     pub report: serde_json::Value,
+    /// One result per run: `fifo` first, then `no_rt` unless `rt_only`.
     pub results: Vec<LoopResult>,
 }
 
@@ -167,7 +177,9 @@ pub struct Measured {
 pub struct LoopSpec {
     /// Hz; None: 1000 on the built-in scenario, a given scenario's own rate.
     pub rate: Option<f64>,
+    /// Length of each run, s, and of the floor measured beside it; in [0.5, 3600].
     pub duration: f64,
+    /// The background load to run under.
     pub load: Load,
     /// Only with SCHED_FIFO/mlockall.
     pub rt_only: bool,

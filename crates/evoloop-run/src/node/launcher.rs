@@ -347,6 +347,8 @@ impl Drop for RunLock {
     }
 }
 
+/// Send signal `sig` (e.g. `libc::SIGTERM`) to the child process; a failure (a child already
+/// reaped) is ignored.
 pub fn signal(child: &Child, sig: i32) {
     // SAFETY: plain syscall on our own child's pid.
     unsafe { libc::kill(child.id() as i32, sig) };
@@ -429,10 +431,12 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
                     .unwrap_or("");
                 Err(format!("{}: {last}", o.status))
             }
-            Ok(_) => std::fs::read_to_string(dir.join("summary.json"))
-                .map_err(|e| format!("summary.json: {e}"))
-                .and_then(|t| serde_json::from_str::<Summary>(&t).map_err(|e| e.to_string()))
-                .and_then(|s| SeedRun::from_summary(seed, &s, &measure, changed)),
+            Ok(_) => {
+                evoloop_files::read_own(&dir.join("summary.json"), evoloop_files::MAX_FILE_BYTES)
+                    .map_err(|e| format!("summary.json: {e}"))
+                    .and_then(|t| serde_json::from_slice::<Summary>(&t).map_err(|e| e.to_string()))
+                    .and_then(|s| SeedRun::from_summary(seed, &s, &measure, changed))
+            }
         };
         match result {
             Ok(r) => {
@@ -781,6 +785,11 @@ fn progress_line(
     }
 }
 
+/// `evoloop run` of one scenario: set up the output directory, start the processes (and the
+/// live view and local workers if asked), supervise them to the run's end or a Ctrl-C, then
+/// measure the floor (realtime) and write the report. Exit code: 0 for a whole run, 2 for bad
+/// options or set-up, 1 when a process failed, the loop degraded or a file was not written,
+/// 130 when stopped before its end.
 pub fn run(mut a: RunArgs) -> ExitCode {
     // First: a Ctrl-C from here on is an interrupted run, with its summary.
     let stop = stop_flag();

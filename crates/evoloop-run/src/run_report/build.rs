@@ -402,8 +402,10 @@ fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
 
 fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
     let p = dir.join(name);
-    let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))
+    // The run's own file: never read through a link planted in its directory.
+    let bytes = evoloop_files::read_own(&p, evoloop_files::MAX_FILE_BYTES)
+        .map_err(|e| format!("{}: {e}", p.display()))?;
+    serde_json::from_slice(&bytes).map_err(|e| format!("{}: {e}", p.display()))
 }
 
 /// The processes' own reports in the run directory.
