@@ -12,6 +12,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
+/// The (1+1) evolution strategy: a parent, its value, and the step size the 1/5th rule adapts,
+/// inside a box.
 pub struct OnePlusOne {
     parent: Vec<f64>,
     parent_value: f64,

@@ -10,6 +10,7 @@ use std::path::Path;
 /// What the checks measured on `robot` at a fixed state.
 #[derive(Debug)]
 pub struct Checks {
+    /// The robot's joint count.
     pub joints: usize,
     /// max |M - M^T|.
     pub asymmetry: f64,
@@ -21,6 +22,8 @@ pub struct Checks {
     pub gravity: f64,
 }
 
+/// Load the URDF at `robot` and run the three checks at one fixed (q, qd, qdd). Fails when the
+/// file does not load or M is not positive definite there.
 pub fn run(robot: &Path) -> Result<Checks, String> {
     let model = evoloop::dynamics::load(robot).map_err(|e| e.to_string())?;
     let n = model.dof();

@@ -149,3 +149,61 @@ fn no_module_re_exports_a_crate_whole() {
     }
     assert!(found.is_empty(), "{found:#?}");
 }
+
+/// The house rules the compiler keeps, taken by every crate: the workspace's lints (every public
+/// item documented, every unsafe block with the reason it is sound; warnings are errors in CI),
+/// and `#![forbid(unsafe_code)]` in each crate with no unsafe code, so that adding some is a
+/// change its lib.rs shows.
+#[test]
+fn every_crate_takes_the_house_rules() {
+    let table = |path: &Path| -> toml::Table {
+        let text = std::fs::read_to_string(path).unwrap();
+        text.parse()
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    };
+    let workspace = table(&root().join("Cargo.toml"));
+    let lints = &workspace["workspace"]["lints"];
+    assert_eq!(lints["rust"]["missing_docs"].as_str(), Some("warn"));
+    assert_eq!(
+        lints["clippy"]["undocumented_unsafe_blocks"].as_str(),
+        Some("warn")
+    );
+    fn has_unsafe_code(dir: &Path) -> bool {
+        std::fs::read_dir(dir).unwrap().any(|e| {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                return has_unsafe_code(&p);
+            }
+            let text = std::fs::read_to_string(&p).unwrap_or_default();
+            text.lines()
+                .map(|l| l.split("//").next().unwrap_or(""))
+                .any(|code| {
+                    ["unsafe {", "unsafe impl", "unsafe fn", "unsafe extern"]
+                        .iter()
+                        .any(|k| code.contains(k))
+                })
+        })
+    }
+    let mut bad = Vec::new();
+    for name in crate_graph().keys() {
+        let dir = root().join("crates").join(name);
+        let manifest = table(&dir.join("Cargo.toml"));
+        let takes = manifest
+            .get("lints")
+            .and_then(|l| l.get("workspace"))
+            .and_then(|w| w.as_bool());
+        if takes != Some(true) {
+            bad.push(format!("{name}: no `[lints] workspace = true`"));
+        }
+        let lib = std::fs::read_to_string(dir.join("src/lib.rs")).unwrap();
+        let forbids = lib.contains("#![forbid(unsafe_code)]");
+        match (has_unsafe_code(&dir.join("src")), forbids) {
+            (false, false) => bad.push(format!(
+                "{name}: no unsafe code, and no forbid(unsafe_code)"
+            )),
+            (true, true) => bad.push(format!("{name}: forbids unsafe code it has")),
+            _ => {}
+        }
+    }
+    assert!(bad.is_empty(), "{bad:#?}");
+}

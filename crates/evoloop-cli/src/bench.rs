@@ -6,6 +6,8 @@ use evoloop_run::bench::latency::{self, Variant};
 use evoloop_run::bench::loop_bench::{self, Load};
 use std::path::PathBuf;
 
+/// Options of `evoloop bench latency`: the plant -> controller -> plant round trip against a bare
+/// iceoryx2 ping-pong.
 #[derive(Args)]
 pub struct LatencyArgs {
     /// Timed round trips per variant.
@@ -14,6 +16,7 @@ pub struct LatencyArgs {
     /// Payload of the bare ping-pong in bytes (default: the size of the evoloop state message).
     #[arg(long)]
     pub payload: Option<usize>,
+    /// Print the report as JSON on stdout instead of the table
     #[arg(long)]
     pub json: bool,
     /// Write latency.json, latency.csv and latency_cdf.png here.
@@ -21,14 +24,20 @@ pub struct LatencyArgs {
     pub out: Option<PathBuf>,
 }
 
+/// Options of the hidden `evoloop bench latency-peer`, the peer process that `bench latency`
+/// starts with exactly these arguments.
 #[derive(Args)]
 pub struct PeerArgs {
+    /// Round trip to answer: evoloop state/command or the bare ping-pong, busy-poll or event
     #[arg(long, value_enum)]
     pub variant: Variant,
+    /// Prefix of the iceoryx2 resources of the measuring process, so both open the same services
     #[arg(long)]
     pub prefix: String,
+    /// Run id the measuring process chose for this variant, part of every service name
     #[arg(long)]
     pub run_id: String,
+    /// Payload of the bare ping-pong in bytes (ignored by the evoloop variants)
     #[arg(long)]
     pub payload: usize,
 }
@@ -111,6 +120,8 @@ pub fn latency_peer(a: PeerArgs) -> i32 {
     }
 }
 
+/// Options of `evoloop bench loop`: the controller loop's timing at a rate, under load, against the
+/// bare sleep-loop floor.
 #[derive(Args)]
 pub struct LoopArgs {
     /// Loop rate in Hz (1000 and 10000 are the usual ones). Default: 1000 on the built-in
@@ -128,11 +139,13 @@ pub struct LoopArgs {
     /// Seconds per measurement.
     #[arg(long, default_value_t = 5.0)]
     pub duration: f64,
+    /// What else runs during each measurement: nothing, the live optimiser or a busy thread per CPU
     #[arg(long, value_enum, default_value_t = Load::Off)]
     pub load: Load,
     /// Only with SCHED_FIFO/mlockall (default: with and without).
     #[arg(long)]
     pub rt_only: bool,
+    /// Print the report as JSON on stdout instead of the table
     #[arg(long)]
     pub json: bool,
     /// Output directory (runs, loop.json, loop_lateness.png).
@@ -215,6 +228,8 @@ pub fn loop_(a: LoopArgs) -> i32 {
     0
 }
 
+/// Options of `evoloop bench dynamics`: nanoseconds per call of RNEA, CRBA, ABA and the CRBA
+/// forward dynamics on one robot file.
 #[derive(Args)]
 pub struct DynamicsArgs {
     /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
@@ -223,6 +238,7 @@ pub struct DynamicsArgs {
     /// Timed calls per algorithm (64 random states in [-1, 1], cycled).
     #[arg(long, default_value_t = 200_000)]
     pub calls: u64,
+    /// Print the timings as JSON on stdout instead of the table
     #[arg(long)]
     pub json: bool,
 }
@@ -262,6 +278,7 @@ pub fn dynamics(a: DynamicsArgs) -> i32 {
     0
 }
 
+/// Options of `evoloop bench guard`: the hot paths against references timed in the same run.
 #[derive(Args)]
 pub struct GuardArgs {
     /// Interleaved rounds of short batches per measurement of a compute path (each side's
@@ -274,6 +291,7 @@ pub struct GuardArgs {
     /// Every limit times this: the guard's own test of its failure path.
     #[arg(long, default_value_t = 1.0, hide = true)]
     pub limit_scale: f64,
+    /// Print the report as JSON on stdout instead of the table
     #[arg(long)]
     pub json: bool,
     /// Write guard.json here.

@@ -3,6 +3,8 @@
 
 use std::path::PathBuf;
 
+/// Options of `evoloop bridge`: which run to relay, the Zenoh endpoint, and the optional ROS 2
+/// node over rmw_zenoh.
 #[derive(clap::Args)]
 pub struct BridgeArgs {
     /// The run to bridge: its run id, as `evoloop run` prints it (waited for up to 10 s when it is
@@ -61,6 +63,8 @@ pub fn main(a: &BridgeArgs) -> u8 {
     }
 }
 
+/// Options of `evoloop bench bridge`: a parameter set's round trip on the local path against the
+/// path through `evoloop bridge` on loopback.
 #[derive(clap::Args)]
 pub struct BridgeBenchArgs {
     /// Scenario run in realtime for the measurement [default: config/two_mass.toml].
@@ -69,6 +73,7 @@ pub struct BridgeBenchArgs {
     /// Parameter sets per phase (local, through the bridge, local again).
     #[arg(long, default_value_t = 200)]
     pub sets: usize,
+    /// Print the measurement as JSON on stdout instead of the table
     #[arg(long)]
     pub json: bool,
 }

@@ -3,6 +3,8 @@
 use std::path::Path;
 use std::process::ExitCode;
 
+/// `evoloop check FILE`: load and validate the scenario `file` without starting a process, print
+/// its warnings and a one-line summary of what it resolves to. Exit code 2 if it does not load.
 pub fn check(file: &Path) -> ExitCode {
     match evoloop_run::node::start::load(file, &Default::default()) {
         Ok(s) => {

@@ -6,6 +6,8 @@ use nalgebra::DMatrix;
 use serde_json::json;
 use std::path::PathBuf;
 
+/// Options of `evoloop dynamics`: a robot file and one state, at which it prints
+/// tau = M qdd + V + G + F and its terms, and, given `--tau`, the forward dynamics.
 #[derive(Args)]
 #[command(
     allow_negative_numbers = true,
@@ -13,11 +15,13 @@ use std::path::PathBuf;
     subcommand_negates_reqs = true
 )]
 pub struct DynamicsArgs {
+    /// `evoloop dynamics regressor`, if given; otherwise the dynamics at `state`.
     #[command(subcommand)]
     pub cmd: Option<DynamicsCmd>,
     /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
     #[arg(long, required = true)]
     pub robot: Option<PathBuf>,
+    /// The joint positions, velocities and accelerations to evaluate at.
     #[command(flatten)]
     pub state: State,
     /// Joint torques/forces: also print the forward dynamics qdd = M^-1 (tau - V - G - F).
@@ -51,6 +55,7 @@ pub struct State {
     pub qdd: Option<Vec<f64>>,
 }
 
+/// The subcommands of `evoloop dynamics`.
 #[derive(clap::Subcommand)]
 pub enum DynamicsCmd {
     /// The joint-torque regressor Y(q, qd, qdd), tau = Y pi: 10 inertial parameters per body,
@@ -59,12 +64,15 @@ pub enum DynamicsCmd {
     Regressor(RegressorArgs),
 }
 
+/// Options of `evoloop dynamics regressor`: the joint-torque regressor Y(q, qd, qdd) of a robot
+/// file at one state.
 #[derive(Args)]
 #[command(allow_negative_numbers = true)]
 pub struct RegressorArgs {
     /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
     #[arg(long)]
     pub robot: PathBuf,
+    /// The joint positions, velocities and accelerations the regressor is evaluated at.
     #[command(flatten)]
     pub state: State,
     /// Add the friction columns (viscous, Coulomb) after the rigid-body ones.
@@ -100,15 +108,30 @@ fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
 
 /// Everything `evoloop dynamics` prints, computed by the library's algorithms.
 pub struct Evaluation {
+    /// Inverse dynamics tau = M qdd + V + G + F per joint (N m, or N for a prismatic joint).
     pub tau: Vec<f64>,
+    /// Joint-space inertia matrix M(q), n x n for n joints.
     pub m: DMatrix<f64>,
+    /// Gravity vector G(q), one entry per joint.
     pub g: Vec<f64>,
+    /// Centrifugal and Coriolis vector V(q, qd), one entry per joint.
     pub v: Vec<f64>,
+    /// Joint friction and damping F(qd), one entry per joint (zeros when the file gives none or
+    /// `--no-friction` dropped it).
     pub f: Vec<f64>,
+    /// Coriolis matrix C(q, qd), with V = C qd.
     pub c: DMatrix<f64>,
+    /// Forward dynamics qdd = M^-1 (tau - V - G - F) for the given torques; `None` without `--tau`.
     pub qdd: Option<Vec<f64>>,
 }
 
+/// Evaluate `model` at the state (`q`, `qd`, `qdd`): tau, M, G, V, F and C, and, given `tau_in`,
+/// the forward dynamics. Slices have one entry per joint.
+///
+/// # Errors
+///
+/// A message when M(q) is not positive definite (forward dynamics only) or when a result is not
+/// finite.
 pub fn evaluate(
     model: &Model,
     q: &[f64],
@@ -170,6 +193,8 @@ pub fn evaluate(
     })
 }
 
+/// `evoloop dynamics` (and its `regressor` subcommand): print the dynamics as text or JSON.
+/// Returns the exit code: 0, or 2 with the error on stderr.
 pub fn main(a: DynamicsArgs) -> i32 {
     let usage = |msg: &str| {
         eprintln!("evoloop dynamics: {msg}");

@@ -6,6 +6,8 @@ use evoloop_rt::{WaitKind, WaitStrategy};
 use evoloop_run::node::launcher::measure_floor;
 use std::process::ExitCode;
 
+/// Options of `evoloop floor`: the bare absolute-deadline loop's rate, length, wait strategy and
+/// scheduling.
 #[derive(Debug, Clone, Args)]
 pub struct FloorArgs {
     /// Loop rate in Hz.
@@ -32,6 +34,8 @@ pub struct FloorArgs {
     pub json: bool,
 }
 
+/// `evoloop floor`: measure the bare loop's lateness and print it as a line or JSON. Exit code 2
+/// when the rate, duration or margin is out of range.
 pub fn main(a: &FloorArgs) -> ExitCode {
     let rate_ok = a.rate > 0.0 && a.rate <= 100_000.0;
     let duration_ok = a.duration > 0.0 && a.duration <= 3600.0;

@@ -5,6 +5,8 @@ use evoloop_dynamics::base::{base_parameters, TOLERANCE};
 use serde_json::json;
 use std::path::PathBuf;
 
+/// Options of `evoloop identify base`: the robot file and the random states its regressor is
+/// stacked over.
 #[derive(Args)]
 pub struct BaseArgs {
     /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
@@ -24,6 +26,9 @@ pub struct BaseArgs {
     pub json: bool,
 }
 
+/// `evoloop identify base`: print the base parameters, the unidentifiable and the combined ones,
+/// and the regrouping. Returns the exit code: 0, or 2 when the file does not load or `--states`
+/// is too few for the robot.
 pub fn main(a: &BaseArgs) -> i32 {
     let model = match evoloop_dynamics::load(&a.robot) {
         Ok(m) => m,

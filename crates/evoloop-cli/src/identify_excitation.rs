@@ -9,6 +9,8 @@ use evoloop_report::plot::{xy_png, Curve, Style, XySeries};
 use serde_json::json;
 use std::path::PathBuf;
 
+/// Options of `evoloop identify excitation`: the robot and stage, the trajectory's form and
+/// limits, and the eMuPSO search.
 #[derive(Args)]
 pub struct ExcitationArgs {
     /// Robot description: a D-H table (.toml) or a URDF file (.urdf).
@@ -63,6 +65,8 @@ pub struct ExcitationArgs {
     pub json: bool,
 }
 
+/// `evoloop identify excitation`: search the trajectory, write it (JSON) and its plot (PNG).
+/// Returns the exit code: 0, or 2 with the error on stderr.
 pub fn main(a: &ExcitationArgs) -> i32 {
     match run(a) {
         Ok(()) => 0,

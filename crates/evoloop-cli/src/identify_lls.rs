@@ -6,6 +6,8 @@ use evoloop_report::plot::{xy_png, Curve, Style, XySeries};
 use serde_json::json;
 use std::path::PathBuf;
 
+/// Options of `evoloop identify lls`: the robot file to compare with, the excitation runs, and how
+/// their data are processed.
 #[derive(Args)]
 pub struct LlsArgs {
     /// Robot description whose parameters are the truth the estimate is compared with (the
@@ -38,6 +40,8 @@ pub struct LlsArgs {
     pub json: bool,
 }
 
+/// `evoloop identify lls`: estimate the base parameters, write lls.json and the validation plots.
+/// Returns the exit code: 0, or 2 with the error on stderr.
 pub fn main(a: &LlsArgs) -> i32 {
     match run(a) {
         Ok(()) => 0,

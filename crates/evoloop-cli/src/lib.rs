@@ -35,6 +35,7 @@ pub use evoloop_run::node::start::stop_flag;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// The `evoloop` command line: real-time control loops tuned by evolutionary optimisers.
 #[derive(Parser)]
 #[command(
     name = "evoloop",
@@ -45,10 +46,13 @@ processes that talk over iceoryx2 shared memory.\n\nWithout a subcommand it runs
 (config/two_mass.toml) and writes its report to runs/two_mass/."
 )]
 pub struct Cli {
+    /// The subcommand; without one the default scenario runs (config/two_mass.toml, report in
+    /// runs/two_mass/).
     #[command(subcommand)]
     pub command: Option<Cmd>,
 }
 
+/// `evoloop`'s subcommands.
 #[derive(Subcommand)]
 pub enum Cmd {
     /// Run a scenario: start the three processes, supervise them, write the report.
@@ -61,12 +65,14 @@ pub enum Cmd {
     /// The eMuPSO paper's optimiser benchmark: `optim study` (Tables 4-9 on the 36-function
     /// suite and shifted copies), `optim bench` (each optimiser's own overhead).
     Optim {
+        /// The `optim` subcommand: `study`, `bench`, `functions` or `serve`.
         #[command(subcommand)]
         cmd: optim::OptimCmd,
     },
     /// Robust state feedback for the two-mass benchmark: stability radius, LQR, DE tuning, the
     /// paper's reproduction.
     Robust {
+        /// The `robust` subcommand: `radius`, `lqr`, `tune` or `study`.
         #[command(subcommand)]
         cmd: robust::RobustCmd,
     },
@@ -76,6 +82,7 @@ pub enum Cmd {
     /// Arms of one's own to try the controllers on: `robot generate` (a plausible serial arm of
     /// 3-7 joints from a seed, as URDF), `robot zoo` (the fixed unseen arms of a zoo file).
     Robot {
+        /// The `robot` subcommand: `generate` or `zoo`.
         #[command(subcommand)]
         cmd: robot::RobotCmd,
     },
@@ -84,16 +91,19 @@ pub enum Cmd {
     Tune(tune::TuneArgs),
     /// System identification from run data: `identify rkgnn` (the RKGNN paper, no torques).
     Identify {
+        /// The `identify` subcommand: `rkgnn`, `base`, `excitation`, `lls` or `study`.
         #[command(subcommand)]
         cmd: rkgnn::IdentifyCmd,
     },
     /// Identified RKGNN models: `rkgnn eval` (M_hat, V_hat, G_hat at a state).
     Rkgnn {
+        /// The `rkgnn` subcommand: `eval`, `study`, `prior`, `selection` or `zoo`.
         #[command(subcommand)]
         cmd: rkgnn::RkgnnCmd,
     },
     /// Benchmarks measured against the machine's own floor in the same run.
     Bench {
+        /// The `bench` subcommand: the benchmark to run.
         #[command(subcommand)]
         cmd: BenchCmd,
     },
@@ -138,12 +148,14 @@ pub enum Cmd {
     Worker(worker::WorkerArgs),
 }
 
+/// Options of `evoloop report`: the finished run's directory.
 #[derive(clap::Args)]
 pub struct ReportArgs {
     /// The run's output directory (where summary.json is), e.g. runs/two_mass.
     pub dir: std::path::PathBuf,
 }
 
+/// The subcommands of `evoloop bench`: benchmarks measured against the machine's own floor.
 #[derive(Subcommand)]
 pub enum BenchCmd {
     /// Round trip plant -> controller -> plant against a bare iceoryx2 ping-pong.

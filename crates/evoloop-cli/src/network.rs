@@ -9,9 +9,13 @@ use std::sync::OnceLock;
 
 /// The network's commands; each returns the process's exit code.
 pub trait NetworkCommands: Sync {
+    /// `evoloop bridge`: relay a running run's topics and parameter sets over Zenoh.
     fn bridge(&self, a: &BridgeArgs) -> u8;
+    /// `evoloop bench bridge`: a parameter set's round trip, local path against the bridge.
     fn bench_bridge(&self, a: &BridgeBenchArgs) -> u8;
+    /// `evoloop worker`: serve candidate evaluations to an optimiser over Zenoh.
     fn worker(&self, a: &WorkerArgs) -> u8;
+    /// `evoloop bench workers`: evaluations per second with 0, 1, 2, ... workers on loopback.
     fn bench_workers(&self, a: &BenchWorkersArgs) -> u8;
 }
 

@@ -7,6 +7,8 @@ use evoloop_msg::{OperatorAck, OperatorAction, OperatorCommand, OperatorOutcome}
 use evoloop_run::run_watch::pick_run;
 use std::time::{Duration, Instant};
 
+/// Options of `evoloop operator`: the action, the version a revert puts back, the run, and how
+/// long to wait for the optimiser's answer.
 #[derive(clap::Args)]
 pub struct OperatorArgs {
     /// hold (propose nothing new: the trial or epoch under way ends, the set in service

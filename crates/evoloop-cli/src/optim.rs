@@ -14,12 +14,13 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// The subcommands of `evoloop optim`: the eMuPSO paper's optimiser benchmark and its suite.
 #[derive(Subcommand)]
 pub enum OptimCmd {
     /// The eMuPSO paper's benchmark study: every algorithm on every function (and the shifted,
     /// rotated copies of the origin-centred ones), seeded runs at one evaluation budget.
     /// Writes results.json, runs.csv, report.md (beside the paper's Tables 4-9) and
-    /// convergence/<function>.png.
+    /// `convergence/<function>.png`.
     Study(StudyArgs),
     /// Evaluations per second of each algorithm on a trivial objective: the optimiser's own
     /// overhead per evaluation, one thread.
@@ -34,6 +35,7 @@ pub enum OptimCmd {
     Serve(ServeArgs),
 }
 
+/// Options of `evoloop optim functions`: list the benchmark suite's functions.
 #[derive(Args)]
 pub struct FunctionsArgs {
     /// Leave out the shifted copies.
@@ -44,6 +46,7 @@ pub struct FunctionsArgs {
     pub json: bool,
 }
 
+/// Options of `evoloop optim serve`: which suite function to evaluate over stdin and stdout.
 #[derive(Args)]
 pub struct ServeArgs {
     /// The function's key (`<key>_shifted` for a shifted copy).
@@ -51,6 +54,8 @@ pub struct ServeArgs {
     pub function: String,
 }
 
+/// Options of `evoloop optim study`: the functions and algorithms, runs per pair, the evaluation
+/// budget and the population size.
 #[derive(Args)]
 pub struct StudyArgs {
     /// Output directory.
@@ -91,6 +96,8 @@ pub struct StudyArgs {
     pub quiet: bool,
 }
 
+/// Options of `evoloop optim bench`: each optimiser's own overhead per evaluation on a trivial
+/// objective.
 #[derive(Args)]
 pub struct BenchArgs {
     /// Dimension of the trivial objective.
@@ -108,11 +115,13 @@ pub struct BenchArgs {
     /// Algorithms, comma-separated (default: all of them).
     #[arg(long, value_delimiter = ',')]
     pub algorithms: Option<Vec<String>>,
-    /// Print JSON (key evals_per_s[algorithm]).
+    /// Print JSON (key `evals_per_s[algorithm]`).
     #[arg(long)]
     pub json: bool,
 }
 
+/// `evoloop optim SUBCOMMAND`: run it and return the exit code (0, or 2 with the error on
+/// stderr).
 pub fn main(cmd: OptimCmd) -> i32 {
     let r = match cmd {
         OptimCmd::Study(a) => run_study(&a),
@@ -131,8 +140,11 @@ pub fn main(cmd: OptimCmd) -> i32 {
 
 /// Every run of a study, by problem then algorithm, runs in seed order.
 pub struct StudyRuns {
+    /// The study's problems (suite functions and shifted copies), in the order of `runs`.
     pub problems: Vec<Problem>,
+    /// The algorithms' names, in the order of each problem's row of `runs`.
     pub algorithms: Vec<String>,
+    /// The results, indexed `[problem][algorithm][seed]`.
     pub runs: Vec<Vec<Vec<RunResult>>>,
 }
 

@@ -9,6 +9,7 @@ use evoloop_identify::rkgnn::{RkgnnModel, Trajectory};
 use serde_json::json;
 use std::path::PathBuf;
 
+/// The subcommands of `evoloop identify`: system identification from run data and robot files.
 #[derive(Subcommand)]
 pub enum IdentifyCmd {
     /// Identify an arm's dynamics and its servo as an RKGNN from a run's reference and output
@@ -34,6 +35,8 @@ pub enum IdentifyCmd {
     Study(super::identify_study::StudyArgs),
 }
 
+/// Options of `evoloop identify rkgnn`: the run to learn from, eq. 2's inertia bounds, the model's
+/// form (velocity and servo networks) and the evolutionary algorithm's budget.
 #[derive(Args)]
 pub struct IdentifyArgs {
     /// Run directory holding run.csv (an arm under its servo, e.g. runs/arm3_train1).
@@ -120,28 +123,39 @@ pub struct IdentifyArgs {
     pub quiet: bool,
 }
 
+/// The servo network of `identify rkgnn --servo`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum ServoKind {
+    /// The paper's servo network (Fig. 3): 3 RBFs per P and D sub-network
     Rbf,
+    /// A P-D servo tau_j = k_p e_j + k_d e_j' whose gains are identified
     Linear,
+    /// The P-D servo with the user's gains (--kp, --kd) or the run's scenario.json pd_servo
     Known,
 }
 
+/// The form of V-hat, the velocity term of an identified model (`--velocity`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum VelocityKind {
+    /// The paper's velocity network (eqs. 8-10)
     Network,
+    /// From M-hat's Christoffel symbols, so that eq. 3 holds; no velocity parameters
     Christoffel,
 }
 
+/// What a study's identification knows of the training runs' P-D servo (`--servo`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum StudyServo {
+    /// Its gains are known (the shipped recipe)
     Known,
+    /// Its gains are identified, the model's scale from eq. 2 (the paper's premise)
     Unknown,
 }
 
 /// The default identification budget.
 pub const DEFAULT_EVALUATIONS: usize = 20_000;
 
+/// The subcommands of `evoloop rkgnn`: identified RKGNN models and the paper's studies.
 #[derive(Subcommand)]
 pub enum RkgnnCmd {
     /// Evaluate an identified model at one state: M_hat, V_hat, G_hat.
@@ -157,7 +171,7 @@ pub enum RkgnnCmd {
     Prior(PriorArgs),
     /// Fuzzy selection against every baseline on four trajectories that are not midpoints:
     /// three models per seed, the training and a gain-matched P-D servo, the servo with gravity
-    /// compensation and CT on a CAD model 20 % off (seed<N>/nominal.urdf), one model updated
+    /// compensation and CT on a CAD model 20 % off (`seed<N>/nominal.urdf`), one model updated
     /// online, CT on the true model and on each model, max, blend, uniform blend and evidence
     /// rules, best single model in hindsight; each model's error against the arm; paired
     /// Wilcoxon tests over seeds; writes selection.json and report.md.
@@ -169,6 +183,8 @@ pub enum RkgnnCmd {
     Zoo(ZooArgs),
 }
 
+/// Options of `evoloop rkgnn zoo`: the zoo file, which of its arms, and the selection study's
+/// settings for each arm.
 #[derive(Args)]
 pub struct ZooArgs {
     /// The zoo file (`[[arm]] joints = N, seed = S`).
@@ -183,6 +199,8 @@ pub struct ZooArgs {
     pub selection: SelectionArgs,
 }
 
+/// Options of `evoloop rkgnn selection`: fuzzy model selection against every baseline, over
+/// seeds, on one arm (also the per-arm settings of `rkgnn zoo`).
 #[derive(Args)]
 pub struct SelectionArgs {
     /// Output directory.
@@ -219,7 +237,7 @@ pub struct SelectionArgs {
     /// runs stay at 1 ms [default: 0.001].
     #[arg(long, value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 0.01))]
     pub period: Option<f64>,
-    /// Take each seed's models from an earlier study's --out (its seed<N>/model_<run>.json,
+    /// Take each seed's models from an earlier study's --out (its `seed<N>/model_<run>.json`,
     /// identified by the same recipe and seeds) instead of identifying them again: to compare
     /// the rules anew without the identification's minutes.
     #[arg(long)]
@@ -240,6 +258,7 @@ pub struct SelectionArgs {
     pub quiet: bool,
 }
 
+/// Options of `evoloop rkgnn prior`: eq. 2's inertia bounds m1, m2 from a robot file.
 #[derive(Args)]
 pub struct PriorArgs {
     /// Robot file (D-H TOML or URDF).
@@ -257,6 +276,7 @@ pub struct PriorArgs {
     pub json: bool,
 }
 
+/// Options of `evoloop rkgnn study`: the paper's Section 5 on a 3-joint arm.
 #[derive(Args)]
 pub struct StudyArgs {
     /// Output directory.
@@ -306,6 +326,7 @@ pub struct StudyArgs {
     pub quiet: bool,
 }
 
+/// Options of `evoloop rkgnn eval`: an identified model and the state to evaluate it at.
 #[derive(Args)]
 #[command(allow_negative_numbers = true)]
 pub struct EvalArgs {
@@ -377,6 +398,8 @@ fn known_servo(a: &IdentifyArgs) -> Result<ServoPrior, String> {
     })
 }
 
+/// `evoloop identify SUBCOMMAND`: run it and return the exit code (0, or 2 with the error on
+/// stderr).
 pub fn identify(cmd: IdentifyCmd) -> i32 {
     let a = match cmd {
         IdentifyCmd::Rkgnn(a) => a,
@@ -482,6 +505,8 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// `evoloop rkgnn SUBCOMMAND`: run it and return the exit code (0, or 2 with the error on
+/// stderr).
 pub fn main(cmd: RkgnnCmd) -> i32 {
     let r = match cmd {
         RkgnnCmd::Eval(a) => eval(&a),

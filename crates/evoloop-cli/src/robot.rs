@@ -5,6 +5,7 @@ use evoloop_dynamics::generate::{self, Arm, JOINTS};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+/// The subcommands of `evoloop robot`: generated arms to try the controllers on.
 #[derive(Subcommand)]
 pub enum RobotCmd {
     /// A plausible serial arm from a seed, written as URDF: base yaw, shoulder and elbow, then a
@@ -18,6 +19,7 @@ pub enum RobotCmd {
     Zoo(ZooArgs),
 }
 
+/// Options of `evoloop robot generate`: the joint count and seed of the arm, and its URDF file.
 #[derive(Args)]
 pub struct GenerateArgs {
     /// Number of joints, 3 to 7.
@@ -31,6 +33,7 @@ pub struct GenerateArgs {
     pub out: PathBuf,
 }
 
+/// Options of `evoloop robot zoo`: the zoo file and the directory its arms are written to.
 #[derive(Args)]
 pub struct ZooArgs {
     /// The zoo file.
@@ -55,6 +58,8 @@ struct ZooArm {
     seed: u64,
 }
 
+/// `evoloop robot SUBCOMMAND`: write the arm(s) and return the exit code (0, or 2 with the error
+/// on stderr).
 pub fn main(cmd: RobotCmd) -> i32 {
     let done = match cmd {
         RobotCmd::Generate(a) => generate_one(a),

@@ -11,6 +11,7 @@ use evoloop_schemes::robust::Wedge;
 use serde_json::json;
 use std::path::PathBuf;
 
+/// The subcommands of `evoloop robust`: robust state feedback for the two-mass benchmark.
 #[derive(Subcommand)]
 pub enum RobustCmd {
     /// Stability radius, closed-loop poles and wedge membership of a gain vector.
@@ -23,6 +24,7 @@ pub enum RobustCmd {
     Study(StudyArgs),
 }
 
+/// The nominal two-mass plant (m1 = m2 = 1): its spring constant and where its sensor sits.
 #[derive(Args, Clone)]
 pub struct PlantArgs {
     /// Spring constant of the nominal plant.
@@ -33,6 +35,8 @@ pub struct PlantArgs {
     pub collocated: bool,
 }
 
+/// The wedge the closed-loop poles must lie in (minimum damping ratio and decay rate), and the
+/// structure of the perturbation the stability radius is measured against.
 #[derive(Args, Clone)]
 pub struct WedgeArgs {
     /// Minimum damping ratio of the wedge, in (0, 1).
@@ -101,12 +105,17 @@ impl ObserverArgs {
     }
 }
 
+/// The perturbation structure of `--perturbation` (`Perturbation` of `evoloop_schemes`).
 #[derive(Clone, Copy, ValueEnum)]
 pub enum PerturbationArg {
+    /// Ê = diag(0,0,1,1,0), Ĥ = diag(1,1,0,0,0): exactly where the spring constant enters A
     Spring,
+    /// Ê = diag(0,0,1,1,0), Ĥ = diag(0,1,1,0,0): the text's literal wording
     Literal,
 }
 
+/// Options of `evoloop robust radius`: a gain vector and the plant, wedge and filter it is
+/// analysed with.
 #[derive(Args)]
 #[command(allow_negative_numbers = true)]
 pub struct RadiusArgs {
@@ -118,16 +127,21 @@ pub struct RadiusArgs {
         required = true
     )]
     pub gains: Vec<f64>,
+    /// The nominal plant the gains act on.
     #[command(flatten)]
     pub plant: PlantArgs,
+    /// The pole wedge and the perturbation structure.
     #[command(flatten)]
     pub wedge: WedgeArgs,
+    /// The Kalman filter between the one measured position and the gains, if `--observer`.
     #[command(flatten)]
     pub observer: ObserverArgs,
+    /// Print the result as JSON
     #[arg(long)]
     pub json: bool,
 }
 
+/// Options of `evoloop robust lqr`: the LQR weights and the plant.
 #[derive(Args)]
 #[command(allow_negative_numbers = true)]
 pub struct LqrArgs {
@@ -137,12 +151,15 @@ pub struct LqrArgs {
     /// R (scalar, > 0).
     #[arg(long, default_value_t = 1.0)]
     pub r: f64,
+    /// The nominal plant the LQR gains are designed for.
     #[command(flatten)]
     pub plant: PlantArgs,
+    /// Print the gains and the closed-loop poles as JSON
     #[arg(long)]
     pub json: bool,
 }
 
+/// Options of `evoloop robust tune`: one DE/rand/1/bin run maximising the stability radius.
 #[derive(Args)]
 #[command(allow_negative_numbers = true)]
 pub struct TuneArgs {
@@ -155,6 +172,7 @@ pub struct TuneArgs {
     /// Population size.
     #[arg(long, default_value_t = 100)]
     pub np: usize,
+    /// Seed of the DE run
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Iteration limit.
@@ -172,16 +190,21 @@ pub struct TuneArgs {
     /// Threads for the population's evaluations.
     #[arg(long, default_value_t = 2)]
     pub threads: usize,
+    /// The nominal plant being tuned for.
     #[command(flatten)]
     pub plant: PlantArgs,
+    /// The pole wedge the gains must keep the loop in, and the perturbation structure.
     #[command(flatten)]
     pub wedge: WedgeArgs,
+    /// The Kalman filter the gains act through, if `--observer`.
     #[command(flatten)]
     pub observer: ObserverArgs,
+    /// Print the result as JSON (no progress bar)
     #[arg(long)]
     pub json: bool,
 }
 
+/// Options of `evoloop robust study`: the reproduction of the paper's Tables 5-10 and Figs. 5-8.
 #[derive(Args)]
 pub struct StudyArgs {
     /// Output directory.
@@ -190,6 +213,7 @@ pub struct StudyArgs {
     /// Seeded runs per (F, CR) setting.
     #[arg(long, default_value_t = 15)]
     pub runs: usize,
+    /// Threads evaluating each run's population
     #[arg(long, default_value_t = 2)]
     pub threads: usize,
     /// No progress bar.
@@ -330,6 +354,8 @@ fn print_poles(p: &[(f64, f64)]) {
     }
 }
 
+/// `evoloop robust SUBCOMMAND`: run it and return the exit code: 0, 1 when the computation
+/// fails, 2 for a bad argument.
 pub fn main(cmd: RobustCmd) -> i32 {
     match cmd {
         RobustCmd::Radius(a) => radius(a),

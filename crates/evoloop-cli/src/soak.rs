@@ -12,6 +12,8 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
+/// Options of `evoloop soak`: the scenario, how long it runs in realtime, how often it is
+/// recorded, and where the report goes.
 #[derive(clap::Args)]
 pub struct SoakArgs {
     /// Seconds to run (the book's figure: 3600).
@@ -36,6 +38,10 @@ pub struct SoakArgs {
     pub json: bool,
 }
 
+/// `evoloop soak`: run the scenario in realtime under `evoloop run`, record every process's
+/// memory and the loop's timing per interval, write and print the report. Exit code 0 when the run
+/// ended normally; 1 when it could not start, did not end normally or the report could not be
+/// written; 2 for a bad argument.
 pub fn main(a: SoakArgs) -> ExitCode {
     let (file, scn) = match prepare(&a) {
         Ok(p) => p,

@@ -14,6 +14,8 @@ use std::io::IsTerminal;
 use std::os::unix::fs::OpenOptionsExt;
 use std::time::{Duration, Instant};
 
+/// Options of `evoloop top`: which run to watch, for how long, and whether to print one JSON
+/// snapshot instead of the screen.
 #[derive(clap::Args)]
 pub struct TopArgs {
     /// The run to watch: its run id, as `evoloop run` prints it [default: the only running run].
@@ -39,6 +41,9 @@ struct Ports {
 const DRAIN: Duration = Duration::from_millis(2);
 const REDRAW: Duration = Duration::from_millis(250);
 
+/// `evoloop top`: draw the live view until q, Esc, Ctrl-C, `--duration` or two seconds after the
+/// run ends, or print one snapshot (`--json`). Returns the exit code: 0; 1 when attaching to the
+/// run or the terminal fails; 2 with no terminal or no run to watch.
 pub fn main(a: &TopArgs) -> u8 {
     if !a.json && !std::io::stdout().is_terminal() {
         err!("error: top draws on a terminal; use --json for a snapshot on a pipe");
@@ -292,6 +297,9 @@ fn operate(
     });
 }
 
+/// Draw one frame of the view from `s`: the title line (with "RUN ENDED" when `ended` and the last
+/// `operator` answer), the processes, the controller and parameter panels, and the tracking
+/// error's sparkline.
 pub fn render(f: &mut Frame, s: &Snapshot, ended: bool, operator: &str) {
     let rows = s.processes.len().max(1) as u16 + 3;
     let [title, procs, panels, spark] = Layout::vertical([

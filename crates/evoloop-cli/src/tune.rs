@@ -4,6 +4,8 @@ use super::{parse_seeds, Seeds};
 use clap::Args;
 use std::path::PathBuf;
 
+/// Options of `evoloop tune`: the experiment file or direct scenario, its seed(s), the optimisers
+/// to compare and the evaluation workers.
 #[derive(Args)]
 pub struct TuneArgs {
     /// Experiment file (TOML): config/arsinh_tune.toml or config/maglev_tune.toml; or a scenario
@@ -41,6 +43,7 @@ pub struct TuneArgs {
     /// same bits; the other experiments' evaluations stay here). Feature `zenoh`.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64), conflicts_with = "workers_listen")]
     pub workers: Option<u16>,
+    /// Evaluation workers on other hosts: `--workers-listen` and `--workers-expect`.
     #[command(flatten)]
     pub remote: evoloop_run::node::args::WorkersArgs,
 }

@@ -3,6 +3,8 @@
 
 use std::path::PathBuf;
 
+/// Options of `evoloop worker`: the optimiser's endpoint to serve, and how many evaluations run at
+/// once.
 #[derive(clap::Args)]
 pub struct WorkerArgs {
     /// The optimiser's endpoint (its `optimiser.workers_listen`), e.g. `tcp/192.0.2.10:7448`;
@@ -33,6 +35,8 @@ pub struct WorkerArgs {
     pub quiet: bool,
 }
 
+/// Options of `evoloop bench workers`: the worker counts to measure and the populations each
+/// phase evaluates.
 #[derive(clap::Args)]
 pub struct BenchWorkersArgs {
     /// Worker counts to measure, one phase each (separate `evoloop worker` processes on
@@ -51,6 +55,7 @@ pub struct BenchWorkersArgs {
     /// Threads of each worker.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=256))]
     pub worker_threads: u16,
+    /// Print the measurement as JSON on stdout
     #[arg(long)]
     pub json: bool,
 }

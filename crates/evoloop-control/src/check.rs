@@ -11,9 +11,11 @@ use std::path::{Path, PathBuf};
 /// A configuration error: file, key and reason.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConfigError {
+    /// The file the error is in: the scenario file, or a file it names (an LTI model file).
     pub file: PathBuf,
     /// Dotted key path (`plant.two_mass.spring`); empty for file-level errors.
     pub key: String,
+    /// What is wrong, with the value given where it helps (`must be finite (got NaN)`).
     pub reason: String,
     /// 1-based line, when known.
     pub line: Option<usize>,
@@ -37,14 +39,18 @@ impl std::error::Error for ConfigError {}
 /// Per-parameter inclusive bounds from the config, which every received set must respect.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct ParamBounds {
+    /// The lowest value of each parameter, in the law's parameter order.
     pub lower: Vec<f64>,
+    /// The highest value of each parameter, in the law's parameter order.
     pub upper: Vec<f64>,
 }
 
 /// A tunable parameter vector as configured: its initial values and their bounds.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Tunable {
+    /// The initial values: the set in service before the optimiser sends one.
     pub gains: Vec<f64>,
+    /// The inclusive bounds of each value (`lower`, `upper` beside `gains` when serialised).
     #[serde(flatten)]
     pub bounds: ParamBounds,
 }
@@ -52,12 +58,14 @@ pub struct Tunable {
 /// The checks, bound to the file being validated. Each returns the value it accepted or the
 /// error naming `key`.
 pub struct Check {
+    /// The file being validated: errors name it, relative paths resolve from its directory.
     pub file: PathBuf,
     /// Robot-file warnings met while validating (interior mutability: the checks take `&self`).
     warnings: RefCell<Vec<String>>,
 }
 
 impl Check {
+    /// The checks for `file`, with no warnings collected yet.
     pub fn new(file: &Path) -> Self {
         Self {
             file: file.to_path_buf(),
@@ -70,6 +78,7 @@ impl Check {
         self.warnings.take()
     }
 
+    /// Always `Err`: the error naming `key` in this file with `reason`, typed to fit the caller.
     pub fn fail<T>(&self, key: &str, reason: impl Into<String>) -> Result<T, ConfigError> {
         Err(ConfigError {
             file: self.file.clone(),
@@ -79,6 +88,7 @@ impl Check {
         })
     }
 
+    /// `v` if it is finite and > 0, else an error naming `key`.
     pub fn positive(&self, key: &str, v: f64) -> Result<f64, ConfigError> {
         if !v.is_finite() || v <= 0.0 {
             return self.fail(key, format!("must be a finite number > 0 (got {v})"));
@@ -86,6 +96,7 @@ impl Check {
         Ok(v)
     }
 
+    /// `v` if it is finite (neither NaN nor infinite), else an error naming `key`.
     pub fn finite(&self, key: &str, v: f64) -> Result<f64, ConfigError> {
         if !v.is_finite() {
             return self.fail(key, format!("must be finite (got {v})"));
@@ -93,6 +104,7 @@ impl Check {
         Ok(v)
     }
 
+    /// `v` if it lies within `lo..=hi` (NaN does not), else an error naming `key`.
     pub fn range(&self, key: &str, v: f64, lo: f64, hi: f64) -> Result<f64, ConfigError> {
         if !(v >= lo && v <= hi) {
             return self.fail(key, format!("must be within [{lo}, {hi}] (got {v})"));
@@ -289,7 +301,10 @@ macro_rules! kinds {
         #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
         #[serde(rename_all = "snake_case")]
         pub enum $Kind {
-            $( $Variant, )+
+            $(
+                /// A kind of the family, written in TOML as its module's name (`name` gives it).
+                $Variant,
+            )+
         }
 
         impl $Kind {
@@ -306,7 +321,11 @@ macro_rules! kinds {
         #[serde(deny_unknown_fields)]
         pub struct $Tables {
             $( $(#[$fmeta])* pub $field: $fty, )*
-            $( pub $name: Option<$name::Table>, )+
+            $(
+                /// A kind's own table (`[<family>.<name>]`) if the file has one; only the chosen
+                /// kind may have one.
+                pub $name: Option<$name::Table>,
+            )+
         }
 
         impl $Tables {
@@ -337,10 +356,14 @@ macro_rules! kinds {
         #[derive(Debug, Clone, serde::Serialize)]
         #[serde(tag = "kind", rename_all = "snake_case")]
         pub enum $Spec {
-            $( $Variant($name::$SpecTy), )+
+            $(
+                /// A kind's validated settings.
+                $Variant($name::$SpecTy),
+            )+
         }
 
         impl $Spec {
+            /// The kind these settings are of.
             pub fn kind(&self) -> $Kind {
                 match self { $( $Spec::$Variant(_) => $Kind::$Variant, )+ }
             }

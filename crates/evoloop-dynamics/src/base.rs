@@ -23,7 +23,9 @@ pub const TOLERANCE: f64 = 1e-10;
 /// One base parameter: its column and what is regrouped into it.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Base {
+    /// The parameter's own name (e.g. `Izz1`), one of `BaseParameters::names`.
     pub name: String,
+    /// Its column in the stacked regressor (an index into `BaseParameters::names`).
     pub column: usize,
     /// (name, coefficient) of the dependent parameters added to it (|coefficient| > 1e-10).
     pub plus: Vec<(String, f64)>,
@@ -42,10 +44,13 @@ impl Base {
     }
 }
 
+/// The base parameters of a stacked regressor (`base_parameters`, `reduce`): which columns form
+/// the base, which are regrouped into it and which never act on a torque.
 #[derive(Debug, Clone, Serialize)]
 pub struct BaseParameters {
     /// Every column's name (regressor order).
     pub names: Vec<String>,
+    /// The base parameters, in regressor order (base to tip).
     pub base: Vec<Base>,
     /// Columns that never act on a torque.
     pub unidentifiable: Vec<String>,
@@ -59,6 +64,7 @@ pub struct BaseParameters {
 }
 
 impl BaseParameters {
+    /// How many base parameters there are (the stacked regressor's rank).
     pub fn base_count(&self) -> usize {
         self.base.len()
     }

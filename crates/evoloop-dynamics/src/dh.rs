@@ -36,10 +36,15 @@ use glam::{DMat3, DVec3};
 use serde::Deserialize;
 use std::path::Path;
 
+/// The D-H convention a table is written in (its `convention` key).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Convention {
+    /// Standard D-H (Spong; Siciliano et al.): row i is Rz(theta_i + q_i) Tz(d_i) Tx(a_i)
+    /// Rx(alpha_i), link i's frame at its distal end.
     Standard,
+    /// Modified D-H (Craig): row i is Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i + q_i) Tz(d_i),
+    /// frame i on joint i.
     Modified,
 }
 

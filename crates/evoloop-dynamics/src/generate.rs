@@ -32,6 +32,7 @@ const G: f64 = 9.81;
 pub struct Joint {
     /// The joint frame from its parent link's.
     pub frame: DhRow,
+    /// Mass of the link (kg).
     pub mass: f64,
     /// Centre of mass in the link frame (m).
     pub com: DVec3,
@@ -39,18 +40,24 @@ pub struct Joint {
     pub inertia: DMat3,
     /// Position limits (rad), symmetric.
     pub limit: f64,
+    /// Torque limit (N m): four times the static load the joint carries at full reach, at least 5.
     pub effort: f64,
+    /// Velocity limit (rad/s).
     pub velocity: f64,
     /// Viscous (N m s/rad) and Coulomb (N m) friction, URDF's damping and friction.
     pub damping: f64,
+    /// Coulomb friction (N m), URDF's `friction`.
     pub friction: f64,
 }
 
 /// A twist of the modified D-H convention: the only ones real arms use.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Twist {
+    /// No twist: the joint's z axis is parallel to the parent's.
     Zero,
+    /// +90° about the parent's x axis.
     PlusHalfPi,
+    /// -90° about the parent's x axis.
     MinusHalfPi,
 }
 
@@ -67,9 +74,13 @@ impl Twist {
 /// A generated arm: its joints base to tip and the tool frame's offset from the last joint.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Arm {
+    /// The arm's name, `gen<joints>_s<seed>` (its URDF robot name).
     pub name: String,
+    /// The seed it was generated from.
     pub seed: u64,
+    /// Its joints, base to tip.
     pub joints: Vec<Joint>,
+    /// The tool frame's origin in the last link's frame (m).
     pub tool: DVec3,
 }
 
@@ -124,8 +135,11 @@ pub fn generate(joints: usize, seed: u64) -> Result<Arm, String> {
 /// offset along the joint's z.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DhRow {
+    /// The twist about the parent's x axis.
     pub twist: Twist,
+    /// Length along the parent's x axis (m).
     pub a: f64,
+    /// Offset along the joint's z axis (m).
     pub d: f64,
 }
 

@@ -66,9 +66,11 @@ use std::path::{Path, PathBuf};
 /// A robot description that cannot be used: the file, the link or joint, and why.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobotError {
+    /// The robot file.
     pub file: PathBuf,
     /// "joint `name`" or "link `name`"; empty for file-level errors.
     pub item: String,
+    /// What is wrong.
     pub reason: String,
 }
 
@@ -101,6 +103,7 @@ pub struct LoadOptions {
 pub struct RobotWarning {
     /// "joint `name`" or "link `name`".
     pub item: String,
+    /// What deserves a look, and what the loader did with it.
     pub reason: String,
 }
 
@@ -113,7 +116,9 @@ impl fmt::Display for RobotWarning {
 /// A robot file, loaded: the model and what the loader warned about.
 #[derive(Debug, Clone)]
 pub struct Loaded {
+    /// The robot.
     pub model: Model,
+    /// What the loader warned about (none in strict mode, where each would have been an error).
     pub warnings: Vec<RobotWarning>,
 }
 

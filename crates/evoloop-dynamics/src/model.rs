@@ -11,10 +11,13 @@ use glam::{DMat3, DVec3};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
+/// How a joint moves its body.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum JointKind {
+    /// Turns about its axis: positions in rad, efforts in N m.
     Revolute,
+    /// Slides along its axis: positions in m, efforts in N.
     Prismatic,
 }
 
@@ -22,8 +25,12 @@ pub enum JointKind {
 /// equations stay Lipschitz through zero velocity (an integrator-friendly stand-in for stiction).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Friction {
+    /// Viscous coefficient (N m s/rad; N s/m on a prismatic joint).
     pub viscous: f64,
+    /// Coulomb level (N m; N on a prismatic joint).
     pub coulomb: f64,
+    /// Velocity scale of the Coulomb part's tanh (rad/s or m/s; default 0.01): at this velocity it
+    /// gives 76 % of `coulomb`.
     pub v_smooth: f64,
 }
 
@@ -38,6 +45,8 @@ impl Default for Friction {
 }
 
 impl Friction {
+    /// The friction torque (force, on a prismatic joint) at joint velocity `qd`:
+    /// viscous qd + coulomb tanh(qd / v_smooth).
     pub fn torque(&self, qd: f64) -> f64 {
         self.viscous * qd + self.coulomb * (qd / self.v_smooth).tanh()
     }
@@ -46,9 +55,13 @@ impl Friction {
 /// Joint limits; infinite where the description gives none.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Limits {
+    /// Lower position limit (rad; m on a prismatic joint).
     pub q_min: f64,
+    /// Upper position limit (rad; m on a prismatic joint).
     pub q_max: f64,
+    /// Velocity limit (rad/s; m/s on a prismatic joint).
     pub velocity: f64,
+    /// Effort limit: the actuator's largest torque (N m), or force on a prismatic joint (N).
     pub effort: f64,
 }
 
@@ -87,6 +100,7 @@ pub struct Body {
     /// Parent body frame → joint frame (before the joint moves).
     #[serde(skip)]
     pub placement: Transform,
+    /// Whether the joint turns about `axis` or slides along it.
     pub kind: JointKind,
     /// Unit joint axis in the joint frame.
     #[serde(skip)]
@@ -94,14 +108,19 @@ pub struct Body {
     /// The body's inertia in its own frame (the joint frame after the joint's motion).
     #[serde(skip)]
     pub inertia: Inertia,
+    /// The joint's friction, F(qd).
     pub friction: Friction,
+    /// The joint's position, velocity and effort limits.
     pub limits: Limits,
     /// Reflected rotor inertia added to M's diagonal (Pinocchio's and MuJoCo's `armature`).
     pub armature: f64,
 }
 
+/// A robot: its moving bodies, each with the joint that moves it, and gravity. Immutable; the
+/// algorithms write into a `Data` of it (`Model::data`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Model {
+    /// The robot's name (URDF `<robot name>`; D-H `name`, or the file's stem).
     pub name: String,
     /// Bodies in an order where every parent precedes its children.
     pub bodies: Vec<Body>,
@@ -194,6 +213,8 @@ impl Model {
         self.bodies.len()
     }
 
+    /// Fresh buffers for the algorithms on this model, allocated here once: no call on them
+    /// allocates afterwards.
     pub fn data(&self) -> Data {
         let n = self.dof();
         Data {

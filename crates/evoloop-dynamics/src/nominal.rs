@@ -18,8 +18,11 @@ use serde::Serialize;
 /// about the centre of mass.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CadError {
+    /// Factor on the body's mass.
     pub mass: f64,
+    /// Factors on the x, y and z of the centre of mass, in the body's frame.
     pub com: [f64; 3],
+    /// Factor on the inertia tensor about the centre of mass.
     pub inertia: f64,
 }
 

@@ -9,23 +9,29 @@ use glam::{DMat3, DVec3};
 /// frame's origin), in the coordinates of one body frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Motion {
+    /// Angular part: the angular velocity (or acceleration).
     pub w: DVec3,
+    /// Linear part: the velocity (or acceleration) of the body point at the frame's origin.
     pub v: DVec3,
 }
 
 /// A spatial force (moment n about the frame's origin, force f), in one body frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Force {
+    /// Moment about the frame's origin (N m).
     pub n: DVec3,
+    /// Force (N).
     pub f: DVec3,
 }
 
 impl Motion {
+    /// No motion.
     pub const ZERO: Motion = Motion {
         w: DVec3::ZERO,
         v: DVec3::ZERO,
     };
 
+    /// Both parts times `s`.
     pub fn scaled(self, s: f64) -> Motion {
         Motion {
             w: self.w * s,
@@ -56,11 +62,13 @@ impl Motion {
 }
 
 impl Force {
+    /// No force.
     pub const ZERO: Force = Force {
         n: DVec3::ZERO,
         f: DVec3::ZERO,
     };
 
+    /// Both parts times `s`.
     pub fn scaled(self, s: f64) -> Force {
         Force {
             n: self.n * s,
@@ -73,7 +81,9 @@ impl Force {
 /// child coordinates, `r` is the child's origin in parent coordinates.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transform {
+    /// Rotation from parent coordinates into child coordinates.
     pub e: DMat3,
+    /// The child frame's origin in parent coordinates (m).
     pub r: DVec3,
 }
 
@@ -84,6 +94,7 @@ impl Default for Transform {
 }
 
 impl Transform {
+    /// The child frame is the parent frame.
     pub const IDENTITY: Transform = Transform {
         e: DMat3::IDENTITY,
         r: DVec3::ZERO,
@@ -140,8 +151,11 @@ impl Transform {
 /// so massless bodies compose.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Inertia {
+    /// Mass (kg).
     pub m: f64,
+    /// First moment of mass about the frame's origin, h = m c with c the centre of mass (kg m).
     pub h: DVec3,
+    /// Rotational inertia about the frame's origin (kg m^2).
     pub i: DMat3,
 }
 
@@ -156,6 +170,7 @@ fn outer(a: DVec3, b: DVec3) -> DMat3 {
 }
 
 impl Inertia {
+    /// No mass and no inertia.
     pub const ZERO: Inertia = Inertia {
         m: 0.0,
         h: DVec3::ZERO,
@@ -219,8 +234,11 @@ impl Inertia {
 /// transform to the parent costs 3 x 3 products instead of two 6 x 6 ones.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Articulated {
+    /// Block A: moment from angular motion (symmetric).
     pub a: DMat3,
+    /// Block B: moment from linear motion (Bᵀ gives force from angular motion).
     pub b: DMat3,
+    /// Block C: force from linear motion (symmetric).
     pub c: DMat3,
 }
 
@@ -234,6 +252,7 @@ fn skew(r: DVec3) -> DMat3 {
 }
 
 impl Articulated {
+    /// The zero inertia.
     pub const ZERO: Articulated = Articulated {
         a: DMat3::ZERO,
         b: DMat3::ZERO,
@@ -249,6 +268,7 @@ impl Articulated {
         }
     }
 
+    /// The force for motion `m`: [A w + B v; Bᵀ w + C v].
     pub fn apply(&self, m: Motion) -> Force {
         Force {
             n: self.a * m.w + self.b * m.v,

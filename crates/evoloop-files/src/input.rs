@@ -88,8 +88,12 @@ fn open_nonblocking(path: &Path, extra: i32) -> std::io::Result<std::fs::File> {
 /// What went wrong deserialising a TOML or JSON text: the dotted key (empty at file level), the
 /// 1-based line when known, and a reason that is never empty.
 pub struct DecodeError {
+    /// Dotted path of the key at fault, as `serde_path_to_error` prints it; empty for a
+    /// file-level error.
     pub key: String,
+    /// 1-based line of the problem in the text, when the reader gave a position.
     pub line: Option<usize>,
+    /// Why it failed, in the reader's words, or a stand-in where those are empty: never empty.
     pub reason: String,
 }
 

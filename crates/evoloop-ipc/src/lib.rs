@@ -26,6 +26,7 @@ pub type Svc = service::Service;
 /// beneath it (`source()`), so a caller can act on iceoryx2's cause.
 #[derive(Debug)]
 pub struct IpcError {
+    /// What was being done when it failed (e.g. `opening service evoloop/<run id>/state`).
     pub context: String,
     /// The cause as text (iceoryx2's error debug-formatted: its variant names say most).
     pub cause: String,
@@ -91,10 +92,15 @@ where
 /// The topics of a run. Each has one QoS, used by whichever process creates the service first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Topic {
+    /// The plant's samples (`PlantState`), published every control period.
     State,
+    /// The controller's commands (`Command`), one per controller cycle.
     Command,
+    /// The controller's record of each cycle (`Telemetry`), for watchers (`evoloop top`, bridges).
     Telemetry,
+    /// Parameter sets for the controller (`ParamSet`): the optimiser's, a live view's, a bridge's.
     Params,
+    /// The optimiser's lockstep acknowledgements to the plant (`OptimiserAck`).
     OptimiserAck,
     /// The optimiser's online model estimate (indirect scheme).
     Estimate,
@@ -113,6 +119,7 @@ pub enum Topic {
 }
 
 impl Topic {
+    /// The topic's part of its service name, `evoloop/<run id>/<name>`.
     pub fn name(self) -> &'static str {
         match self {
             Topic::State => "state",
@@ -269,7 +276,9 @@ pub fn create_node<S: iceoryx2::service::Service>(
 
 /// One process's membership in a run: its iceoryx2 node and the run id.
 pub struct Ipc {
+    /// This process's iceoryx2 node, which owns all its ports.
     pub node: Node<Svc>,
+    /// The run id every service name carries (`evoloop/<run id>/<topic>`).
     pub run_id: String,
 }
 
@@ -304,6 +313,8 @@ impl Ipc {
         })
     }
 
+    /// The service name of `topic` in this run, `evoloop/<run id>/<topic>`; an error if iceoryx2
+    /// refuses it as a service name.
     pub fn service_name(&self, topic: Topic) -> Result<ServiceName, IpcError> {
         let s = format!("evoloop/{}/{}", self.run_id, topic.name());
         ServiceName::new(&s).map_err(|e| IpcError::new(format!("service name {s}"), e))
@@ -523,6 +534,7 @@ pub struct Bell {
 }
 
 impl Bell {
+    /// Notify the topic's listeners once (with the notifier's default event id).
     pub fn ring(&self) -> Result<(), IpcError> {
         self.notifier
             .notify()
@@ -565,16 +577,20 @@ pub struct Sub<T: Debug + ZeroCopySend + 'static> {
 /// What a bounded wait ended with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Wait<T> {
+    /// A sample arrived: the oldest unread one.
     Got(T),
+    /// No sample arrived before the timeout.
     TimedOut,
 }
 
 /// How `Sub::wait_for` ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Waited<T> {
+    /// A sample that satisfied `done` (the samples before it were discarded).
     Got(T),
     /// The stop flag was raised (SIGINT/SIGTERM).
     Stopped,
+    /// No sample satisfied `done` before the timeout.
     TimedOut,
 }
 

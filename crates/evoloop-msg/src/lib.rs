@@ -30,6 +30,7 @@ pub const PART_VALUES: usize = MAX_PARAMS - PART_HEADER;
 pub struct UnknownCode {
     /// The enum the code was read as.
     pub what: &'static str,
+    /// The code read from the wire.
     pub code: u32,
 }
 
@@ -89,17 +90,20 @@ pub struct PlantState {
     pub stamp_ns: u64,
     /// Simulated time of the sample, s.
     pub t: f64,
-    /// Number of valid entries in `x`, `q`/`qd` and `y`.
+    /// Number of valid entries in `x_true`: the plant's states.
     pub n_x: u32,
+    /// Number of valid entries in `q_true` and `qd_true`: the plant's joints.
     pub n_q: u32,
+    /// Number of valid entries in `y`: the plant's measured outputs.
     pub n_y: u32,
     /// `STATE_FLAG_*` bits.
     pub flags: u32,
     /// The simulator's true full state vector in the plant's documented order: what no sensor
     /// gives. A control law that reads it (full-state feedback) says so in its docs.
     pub x_true: [f64; MAX_STATES],
-    /// True joint (body) positions and velocities (exact, noise-free).
+    /// True joint (body) positions (exact, noise-free).
     pub q_true: [f64; MAX_JOINTS],
+    /// True joint (body) velocities, the time derivatives of `q_true` (exact, noise-free).
     pub qd_true: [f64; MAX_JOINTS],
     /// Measured outputs: what the plant's sensors report, with their noise and quantisation.
     pub y: [f64; MAX_JOINTS],
@@ -138,8 +142,11 @@ pub struct Command {
     pub stamp_ns: u64,
     /// Parameter-set version in service when the command was computed.
     pub param_version: u64,
+    /// Number of valid entries in `u`: the controller's outputs, one per plant input.
     pub n_u: u32,
+    /// Padding, 0.
     pub _pad: u32,
+    /// The command, one value per plant input in that input's unit; the first `n_u` are valid.
     pub u: [f64; MAX_JOINTS],
 }
 
@@ -148,12 +155,19 @@ wire_enum! {
 pub enum ParamCode {
     /// Nothing happened to the parameters this cycle.
     None = 0,
+    /// The set passed the controller's checks and is in service from this cycle.
     Accepted = 1,
+    /// A value is NaN or infinite (`Telemetry::param_index` names it).
     RejectedNonFinite = 2,
+    /// The set is for another controller kind (`ParamSet::kind`).
     RejectedWrongKind = 3,
+    /// The set's number of values is not the one the controller takes.
     RejectedWrongLength = 4,
+    /// A value is outside the configured bounds (`Telemetry::param_index` names it).
     RejectedOutOfBounds = 5,
+    /// The version is not newer than the one in service.
     RejectedStale = 6,
+    /// The closed loop would be unstable on the controller's plant model.
     RejectedUnstable = 7,
     /// A model set whose M-hat is not positive definite (or far less so than the model it
     /// would replace) on the model's probe positions.
@@ -226,7 +240,9 @@ pub const TELEMETRY_FLAG_REFUSED_STATE: u32 = 8;
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Telemetry {
+    /// Controller cycle index (as `Command::cycle`).
     pub cycle: u64,
+    /// `PlantState::seq` of the state this cycle used.
     pub state_seq: u64,
     /// Simulated time of the state used, s.
     pub t: f64,
@@ -236,10 +252,16 @@ pub struct Telemetry {
     pub compute_ns: u64,
     /// Age of the state sample when the control law used it, ns.
     pub state_age_ns: u64,
+    /// The reference (set-point) of the first output at this cycle, in that output's unit.
     pub reference: f64,
+    /// `reference` minus the first measured output `PlantState::y[0]`, in that output's unit.
     pub tracking_error: f64,
+    /// Number of valid entries in `u`: the controller's outputs, one per plant input.
     pub n_u: u32,
+    /// `TELEMETRY_FLAG_*` bits.
     pub flags: u32,
+    /// The command sent for this cycle's state (the safe command for a refused state), one value
+    /// per plant input; the first `n_u` are valid.
     pub u: [f64; MAX_JOINTS],
     /// Parameter version in service after this cycle.
     pub param_version: u64,
@@ -249,13 +271,18 @@ pub struct Telemetry {
     pub param_code: u32,
     /// Index of the offending value for `RejectedOutOfBounds`/`RejectedNonFinite`.
     pub param_index: u32,
-    /// Running counts since the start of the run.
+    /// Cycles since the start of the run whose lateness plus compute time exceeded the period
+    /// (a running count; always 0 in lockstep, where no cycle is late).
     pub overruns: u64,
+    /// Control periods that passed without a cycle (missed deadlines, those before the first state
+    /// included) since the start of the run; always 0 in lockstep.
     pub missed: u64,
-    /// The law's own values of this cycle (`Controller::log_values`, its run.csv columns; a
-    /// fuzzy selector's active model and memberships), the first `n_law` of them.
+    /// Number of valid entries in `law`.
     pub n_law: u32,
+    /// Padding, 0.
     pub _pad: u32,
+    /// The law's own values of this cycle (`Controller::log_values`, its run.csv columns; a
+    /// fuzzy selector's active model and memberships), the first `n_law` valid.
     pub law: [f64; MAX_LAW_VALUES],
 }
 
@@ -266,14 +293,23 @@ wire_enum! {
 /// What a parameter set is for (`ParamSet::kind`, as its code): the gains of one controller
 /// kind, or a model for a controller that takes models besides its gains.
 pub enum ParamKind {
+    /// Gains of `state_feedback`: K = [k_1..k_n, k_{n+1}] with n = n_x, k_{n+1} on the integral.
     StateFeedback = 1,
+    /// Gains of `pd_servo`: [Kp_1..Kp_n, Kd_1..Kd_n], per joint.
     PdServo = 2,
+    /// Gains of `computed_torque`: [Kp_1..Kp_n, Kv_1..Kv_n], per joint.
     ComputedTorque = 3,
+    /// Gains of `pid` with `anti_windup = "fuzzy"`: [Kp, Tv, v0e, v1e, v0K/v1K, C_i, C_e].
     PidFuzzyAntiWindup = 4,
+    /// Gains of `pid` with `anti_windup = "none"`: [Kp, Tv, Ki].
     Pid = 5,
+    /// Gains of `pid` with `anti_windup = "clamping"` (conditional integration): [Kp, Tv, Ki].
     PidClamping = 6,
+    /// Gains of `pid` with `anti_windup = "back_calculation"`: [Kp, Tv, Ki, Kb].
     PidBackCalculation = 7,
+    /// Gains of `pid` with `anti_windup = "integrator_clamp"`: [Kp, Tv, Ki].
     PidIntegratorClamp = 8,
+    /// Gains of `fuzzy_computed_torque`: [Kp_1..Kp_n, Kv_1..Kv_n], per joint.
     FuzzyComputedTorque = 9,
     /// An identified RKGNN model for one slot of a fuzzy computed-torque controller: values =
     /// [slot, the network's parameters in `rkgnn::Layout` order].
@@ -313,7 +349,9 @@ pub struct ParamSet {
     pub fallback_version: u64,
     /// A `ParamKind`'s code (`ParamSet::param_kind` reads it back, refusing an unknown one).
     pub kind: u32,
+    /// Number of valid entries in `values`.
     pub n: u32,
+    /// The parameters, in the order the `kind` defines; the first `n` are valid.
     pub values: [f64; MAX_PARAMS],
 }
 
@@ -360,6 +398,7 @@ impl ParamSet {
         set
     }
 
+    /// The set's valid values, `values[..n]` (at most `MAX_PARAMS`, whatever `n` says).
     pub fn values(&self) -> &[f64] {
         &self.values[..(self.n as usize).min(MAX_PARAMS)]
     }
@@ -426,6 +465,8 @@ impl ParamSet {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct OptimiserAck {
+    /// The optimiser has consumed every sample up to this `PlantState::seq`; `u64::MAX`: a
+    /// rejoining optimiser releases the plant.
     pub through_seq: u64,
 }
 
@@ -436,12 +477,14 @@ pub struct OptimiserAck {
 pub struct OptimiserStatus {
     /// Plant time of the last epoch.
     pub t: f64,
+    /// Tuning epochs ended so far.
     pub epochs: u64,
     /// Sets published so far.
     pub published: u64,
-    /// The last epoch's best cost on the model, and the cost of the set in service there
-    /// (infinite: it loses the plant).
+    /// The last epoch's best cost on the model (infinite: it loses the plant).
     pub best_cost: f64,
+    /// The cost of the set in service on the same model as `best_cost` (infinite: it loses the
+    /// plant).
     pub in_service_cost: f64,
 }
 
@@ -451,9 +494,14 @@ pub struct OptimiserStatus {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ModelEstimate {
+    /// Plant time of the estimate, s.
     pub t: f64,
+    /// The estimated parameter, in its own unit (maglev: ball mass, kg; two-mass: spring
+    /// constant; a linear plant's model: its input gain, the leading numerator coefficient).
     pub value: f64,
+    /// Standard deviation of `value`, in the same unit; infinite while no fit has been adopted.
     pub std: f64,
+    /// Version of the last parameter set the optimiser published (0: none yet).
     pub last_version: u64,
     /// The controller adopts the estimate (as the model it checks new sets on) at the cycle of
     /// this sample, or at once when 0. Lockstep: the sample after the next synchronisation point,
@@ -472,12 +520,17 @@ pub const MAX_ESTIMATE_POLES: usize = 4;
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LinearEstimate {
+    /// Plant time of the estimate, s.
     pub t: f64,
     /// Adopted at the cycle of this sample, or at once when 0 (as `ModelEstimate`'s).
     pub apply_at_seq: u64,
+    /// Number of poles: the degree of a(s); `poles + 1` entries of `num` and `den` are in use.
     pub poles: u32,
+    /// Padding, 0.
     pub reserved: u32,
+    /// Numerator b(s), descending powers; `num[0] = 0`.
     pub num: [f64; MAX_ESTIMATE_POLES + 1],
+    /// Denominator a(s), descending powers; monic, `den[0] = 1`.
     pub den: [f64; MAX_ESTIMATE_POLES + 1],
 }
 
@@ -497,6 +550,7 @@ wire_enum! {
 }
 
 impl OperatorAction {
+    /// The action's lower-case name, as `evoloop operator` prints it (and JSON files spell it).
     pub fn name(self) -> &'static str {
         match self {
             Self::Hold => "hold",
@@ -525,6 +579,7 @@ wire_enum! {
 }
 
 impl OperatorOutcome {
+    /// Short reason for the operator's output (`evoloop operator`, `evoloop top`).
     pub fn reason(self) -> &'static str {
         match self {
             Self::Done => "done",
@@ -543,9 +598,11 @@ impl OperatorOutcome {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct OperatorCommand {
+    /// The sender's own number for this command, echoed in `OperatorAck::id`.
     pub id: u64,
     /// `OperatorAction::code`.
     pub action: u32,
+    /// Padding, 0.
     pub _pad: u32,
     /// Revert: the version to put back (0: the set before tuning).
     pub version: u64,
@@ -555,7 +612,9 @@ pub struct OperatorCommand {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct OperatorAck {
+    /// `OperatorCommand::id` of the command this answers.
     pub id: u64,
+    /// `OperatorCommand::action` of the command this answers, echoed.
     pub action: u32,
     /// `OperatorOutcome::code`.
     pub outcome: u32,

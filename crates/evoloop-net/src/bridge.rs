@@ -116,6 +116,8 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> In<T> {
     }
 }
 
+/// A Zenoh publisher on `key` with congestion control `cc` (`Block` for what must not be
+/// dropped, as parameter sets; `Drop` for streams); an error if Zenoh refuses it.
 pub fn publisher(
     z: &zenoh::Session,
     key: String,
@@ -127,6 +129,8 @@ pub fn publisher(
         .map_err(|e| format!("Zenoh publisher on {key}: {e}"))
 }
 
+/// A Zenoh subscriber on `key` whose queue holds 4096 samples (0.4 s of a 10 kHz run's states);
+/// an error if Zenoh refuses it.
 pub fn subscriber(
     z: &zenoh::Session,
     key: String,
@@ -137,6 +141,7 @@ pub fn subscriber(
         .map_err(|e| format!("Zenoh subscriber on {key}: {e}"))
 }
 
+/// An iceoryx2 error as this crate's `String` errors.
 pub fn ipc_err(e: IpcError) -> String {
     e.to_string()
 }
@@ -144,23 +149,34 @@ pub fn ipc_err(e: IpcError) -> String {
 /// What a bridge did, printed and returned at its end.
 #[derive(Debug, Default, serde::Serialize)]
 pub struct BridgeReport {
+    /// The run relayed.
     pub run_id: String,
+    /// States relayed out to Zenoh.
     pub states: u64,
+    /// Commands relayed out.
     pub commands: u64,
+    /// Telemetry samples relayed out.
     pub telemetry: u64,
+    /// The run's optimiser's model estimates relayed out.
     pub estimates_out: u64,
+    /// The run's optimiser's status messages relayed out.
     pub status_out: u64,
+    /// Parameter sets relayed in from the network to the run's params topic.
     pub params_in: u64,
+    /// A remote optimiser's model estimates and transfer functions relayed in.
     pub estimates_in: u64,
     /// An operator's commands out to a remote optimiser, and its answers in.
     #[serde(default)]
     pub operator_out: u64,
+    /// A remote optimiser's answers to operators relayed in.
     #[serde(default)]
     pub operator_acks_in: u64,
+    /// Messages from the network dropped because their layout is not this build's.
     pub refused: u64,
     /// The ROS 2 node's (`--ros2`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ros2: Option<super::ros2::Ros2Report>,
+    /// How long the bridge ran, s.
     pub seconds: f64,
     /// Why it ended: "run ended", "stopped" or "duration".
     pub ended: String,
@@ -169,7 +185,9 @@ pub struct BridgeReport {
 /// The run as a ROS 2 node too (`--ros2`): where on the ROS 2 graph, and the run's scenario
 /// (its joints, its gains, its optimiser's mode).
 pub struct Ros2Bridge<'a> {
+    /// The node's ROS 2 domain, namespace and name.
     pub name: crate::report::ros2::rmw_zenoh::NodeName,
+    /// The run's scenario.
     pub scenario: &'a crate::config::Scenario,
 }
 

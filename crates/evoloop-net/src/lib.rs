@@ -73,7 +73,9 @@ use evoloop_schemes::{gains, jobs};
 /// or connects to one. Zenoh endpoints: `tcp/127.0.0.1:7447`, `tls/host:7447`, ...
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Endpoint {
+    /// Listen on this endpoint: the host others connect to.
     Listen(String),
+    /// Connect to this endpoint, trying until it answers.
     Connect(String),
 }
 

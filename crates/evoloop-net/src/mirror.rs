@@ -22,20 +22,29 @@ pub const PREFIX: &str = "evoloop_net_";
 
 /// A running mirror: stop it with `stop` and `join`.
 pub struct Mirror {
+    /// Raised to end the mirror (`join` raises it too).
     pub stop: Arc<AtomicBool>,
     handle: Option<JoinHandle<Result<MirrorReport, String>>>,
 }
 
+/// What a mirror relayed (`Mirror::join`).
 #[derive(Debug, Default, Clone, Copy, serde::Serialize)]
 pub struct MirrorReport {
+    /// States in from the network.
     pub states_in: u64,
+    /// Commands in from the network.
     pub commands_in: u64,
+    /// Telemetry samples in from the network.
     pub telemetry_in: u64,
+    /// The optimiser's parameter sets out to the run.
     pub params_out: u64,
+    /// The optimiser's model estimates and transfer functions out to the run.
     pub estimates_out: u64,
     /// An operator's commands in from the run's host, and the optimiser's answers out.
     pub operator_in: u64,
+    /// The optimiser's answers to operators out to the run.
     pub operator_acks_out: u64,
+    /// Messages from the network dropped because their layout is not this build's.
     pub refused: u64,
 }
 
@@ -77,6 +86,8 @@ impl Mirror {
         }
     }
 
+    /// Stop the mirror and wait for its thread: what it relayed, or the error that ended it (or
+    /// that it panicked).
     pub fn join(mut self) -> Result<MirrorReport, String> {
         self.stop.store(true, Ordering::SeqCst);
         match self.handle.take().map(JoinHandle::join) {

@@ -36,19 +36,26 @@ use zenoh::Wait as _;
 /// What the node did, in the bridge's report.
 #[derive(Debug, Default, Clone, serde::Serialize)]
 pub struct Ros2Report {
+    /// The node's full name, `<namespace>/<name>`.
     pub node: String,
+    /// Its ROS 2 domain id.
     pub domain: u32,
     /// Messages put on the ROS 2 topics, and of them joint states.
     pub messages_out: u64,
+    /// Of them, `joint_states` messages (an arm's run only).
     pub joint_states_out: u64,
     /// Sets of gains from ROS 2, the controller's acceptances and refusals (those refused
     /// before reaching it included), and messages on `set_gains` that did not read.
     pub sets_in: u64,
+    /// Sets the controller accepted.
     pub sets_accepted: u64,
+    /// Sets refused, by the controller or before reaching it (unreadable ones included).
     pub sets_refused: u64,
+    /// Messages on `set_gains` that did not read as a `Float64MultiArray`.
     pub unreadable: u64,
     /// The first put that failed, if any (the others are counted in `put_errors`).
     pub put_errors: u64,
+    /// The first failed put: its key and Zenoh's error.
     pub first_error: Option<String>,
 }
 
@@ -78,6 +85,7 @@ pub struct Ros2Node {
     buf: Vec<u8>,
     /// The version last published on `gains`, and when.
     gains_published: Option<(u64, Instant)>,
+    /// What the node has done so far (the bridge's report takes it at the end).
     pub report: Ros2Report,
 }
 
@@ -92,6 +100,9 @@ fn token(z: &zenoh::Session, key: String) -> Result<LivelinessToken, String> {
 }
 
 impl Ros2Node {
+    /// Declare the run's node on `z` under `name`: its liveliness token, its publishers (an
+    /// arm's `joint_states` too), its `set_gains` subscription, and a subscriber on the run's
+    /// params topic. Fails when Zenoh or iceoryx2 refuses one of them.
     pub fn new(
         z: &zenoh::Session,
         ipc: &Ipc,
@@ -198,6 +209,7 @@ impl Ros2Node {
         }
     }
 
+    /// Put a state on `state` and, for an arm, on `joint_states`.
     pub fn state(&mut self, s: &PlantState) {
         if let Some(p) = self.joint_states.as_mut() {
             ros2::encode_joint_state(&mut self.buf, s, &self.joints);
@@ -208,6 +220,7 @@ impl Ros2Node {
         Self::put(&self.buf, &mut self.state, &mut self.report);
     }
 
+    /// Put a command on `command`, and its `u[..n_u]` on `u`.
     pub fn command(&mut self, c: &Command) {
         ros2::encode_command(&mut self.buf, c);
         Self::put(&self.buf, &mut self.command, &mut self.report);
@@ -215,6 +228,8 @@ impl Ros2Node {
         Self::put(&self.buf, &mut self.u, &mut self.report);
     }
 
+    /// Put a telemetry sample on `telemetry`; when it shows the controller's answer to a set from
+    /// `set_gains`, publish that answer on `set_gains_result`.
     pub fn telemetry(&mut self, t: &Telemetry) {
         ros2::encode_telemetry(&mut self.buf, t);
         Self::put(&self.buf, &mut self.telemetry, &mut self.report);

@@ -50,9 +50,14 @@ pub fn build() -> String {
 /// A run of candidates of one job, as it crosses.
 #[derive(Debug, Serialize, Deserialize)]
 pub struct Request {
+    /// The optimiser's `build()`: a worker refuses a run from another build.
     pub build: String,
+    /// The objective, described exactly for the worker to rebuild.
     pub job: Job,
+    /// The points to evaluate, in order.
     pub candidates: Vec<Vec<f64>>,
+    /// For each candidate, the value it must reach to be of any use (infinite: none); the worker
+    /// may stop an evaluation once the value is proven above it.
     pub thresholds: Vec<f64>,
 }
 
@@ -66,9 +71,11 @@ struct Answer {
 /// One worker as the optimiser saw it.
 #[derive(Debug, Clone, Default, Serialize, PartialEq)]
 pub struct WorkerStats {
+    /// Its threads, from its liveliness token.
     pub threads: usize,
     /// Runs sent, and those answered.
     pub batches: u64,
+    /// Runs it answered.
     pub answered: u64,
     /// Candidates it evaluated (answered runs).
     pub evaluations: u64,
@@ -76,6 +83,7 @@ pub struct WorkerStats {
     pub failed: u64,
     /// Its own compute time, and the round trips of its answered runs, s.
     pub compute_s: f64,
+    /// Total round trip of its answered runs, s.
     pub round_trip_s: f64,
 }
 
@@ -315,16 +323,21 @@ impl Pending for ZenohPending {
 /// What a worker did (printed at its end; `--json`).
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct WorkerReport {
+    /// The worker's id: its key chunk in `evoloop/eval/<id>` (by default host and process id).
     pub id: String,
+    /// Threads it evaluates with.
     pub threads: usize,
+    /// Its `build()`: the optimisers it serves must have the same.
     pub build: String,
     /// Runs answered, and the candidates in them.
     pub batches: u64,
+    /// Candidates in the runs answered.
     pub evaluations: u64,
     /// Runs refused (another build, a job it cannot rebuild, a payload that does not decode).
     pub refused: u64,
     /// Time spent evaluating, s, and the time it was up.
     pub busy_s: f64,
+    /// How long it was up, s.
     pub wall_s: f64,
 }
 

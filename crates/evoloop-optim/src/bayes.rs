@@ -51,15 +51,20 @@ pub struct Safety {
     pub beta: f64,
 }
 
+/// Settings of `Bayes`: the search box, the seed, the set in service and the safe variant.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BayesConfig {
+    /// Lower bounds of the search box, one per object variable.
     pub lower: Vec<f64>,
+    /// Upper bounds of the search box, each above its lower bound.
     pub upper: Vec<f64>,
+    /// Seed of the random proposals (the initial experiments and the acquisition's points).
     pub seed: u64,
     /// The set in service: the first experiment (the safe variant's known-safe seed).
     pub start: Option<Vec<f64>>,
     /// Random experiments after the start before the model decides (plain variant only).
     pub initial: usize,
+    /// The safe variant's settings; None for plain expected improvement.
     pub safety: Option<Safety>,
 }
 
@@ -87,7 +92,11 @@ const PRIOR_ABORT_LN: f64 = 3.0;
 /// trial left the envelope or the loop was not stable) and its safety margin.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Prediction {
+    /// The model trial's cost (+infinity when it left the envelope or the loop was not
+    /// stable).
     pub cost: f64,
+    /// The model trial's safety margin, as `Optimiser::tell_safety` takes it (> 0: safe;
+    /// NaN is read as unsafe, -1).
     pub margin: f64,
 }
 
@@ -198,6 +207,8 @@ struct Observation {
     prior: (f64, f64),
 }
 
+/// Bayesian optimisation (see the module): one experiment per `ask`, chosen by expected
+/// improvement, with `Safety` only among sets predicted safe.
 pub struct Bayes {
     cfg: BayesConfig,
     d: usize,
@@ -225,6 +236,9 @@ pub struct Bayes {
 }
 
 impl Bayes {
+    /// A Bayesian optimiser with `cfg`. Fails if the bounds are not a box, `start` has the
+    /// wrong length or a non-finite value, or the safe variant lacks a `start` or has a
+    /// negative or non-finite `beta`.
     pub fn new(cfg: BayesConfig) -> Result<Self, SettingsError> {
         crate::settings::check_box(&cfg.lower, &cfg.upper)?;
         let d = cfg.lower.len();

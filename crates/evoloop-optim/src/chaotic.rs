@@ -4,7 +4,7 @@
 //! - Individuals a = (x, sigma) (eq. 11): object variables and one strategy parameter each.
 //! - Recombination: arithmetical crossover with probability `crossover` (0.2, Section 4.2): the
 //!   child of parents a and b is (w x_a + (1-w) x_b, w sigma_a + (1-w) sigma_b), w ~ U(0, 1).
-//! - Chaotic mutation (Section 4.3, after the authors' ref. [5]): every object variable of every
+//! - Chaotic mutation (Section 4.3, after the authors' ref. \[5\]): every object variable of every
 //!   individual owns a logistic map z <- 4 z (1 - z), fully chaotic on (0, 1), seeded at random.
 //!   Each mutation iterates it twice: the first value drives the strategy parameter,
 //!   sigma' = sigma exp(tau (2 z - 1)) with tau = 1/sqrt(2 sqrt(n_x)) (the self-adaptation rate of
@@ -37,6 +37,8 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::collections::VecDeque;
 
+/// Settings of `ChaoticEa`; the defaults are the RKGNN paper's (mu 30, crossover 0.2) with
+/// n_p 2, mu_p 3 and seed 1.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ChaoticEaConfig {
     /// Population size mu.
@@ -47,6 +49,8 @@ pub struct ChaoticEaConfig {
     pub memory: usize,
     /// Strategic moves per generation mu_p ("a lower percentage of the population").
     pub strategic: usize,
+    /// Seed of the random numbers (initial scatter, crossover, logistic-map seeds, strategic
+    /// moves).
     pub seed: u64,
 }
 
@@ -62,6 +66,8 @@ impl Default for ChaoticEaConfig {
     }
 }
 
+/// The RKGNN paper's evolutionary algorithm with chaotic mutation and strategic moves (see
+/// the module). It has no stopping rule of its own: `converged` is always false.
 pub struct ChaoticEa {
     cfg: ChaoticEaConfig,
     rng: StdRng,

@@ -27,9 +27,12 @@ use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
+/// Settings of `Cmaes`: the search box, lambda, sigma_0, the start and the seed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CmaesConfig {
+    /// Lower bounds of the search box, one per object variable.
     pub lower: Vec<f64>,
+    /// Upper bounds of the search box, each above its lower bound.
     pub upper: Vec<f64>,
     /// lambda, candidates per generation (the tutorial's default: 4 + floor(3 ln d)).
     pub population: usize,
@@ -37,6 +40,7 @@ pub struct CmaesConfig {
     pub sigma: f64,
     /// Where the mean starts (None: the box's centre).
     pub start: Option<Vec<f64>>,
+    /// Seed of the Gaussian samples.
     pub seed: u64,
 }
 
@@ -47,6 +51,8 @@ impl CmaesConfig {
     }
 }
 
+/// CMA-ES in the box's unit coordinates (see the module). Converged once the step size
+/// sigma falls below 1e-12.
 pub struct Cmaes {
     cfg: CmaesConfig,
     d: usize,
@@ -79,6 +85,8 @@ pub struct Cmaes {
 }
 
 impl Cmaes {
+    /// A CMA-ES with `cfg`. Fails if the bounds are not a box, the population is below 2,
+    /// `sigma` is not in (0, 1] or `start` has the wrong length.
     pub fn new(cfg: CmaesConfig) -> Result<Self, SettingsError> {
         crate::settings::check_box(&cfg.lower, &cfg.upper)?;
         let d = cfg.lower.len();

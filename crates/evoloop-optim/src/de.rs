@@ -20,13 +20,21 @@ use rand::{Rng, RngCore, SeedableRng};
 use serde::Serialize;
 use std::collections::VecDeque;
 
+/// Settings of `DifferentialEvolution`: population, F, CR, the search box, the seed and the
+/// diversity stopping rule.
 #[derive(Debug, Clone, Serialize)]
 pub struct DeConfig {
+    /// Population size NP (at least 4: a mutant needs three members besides its target).
     pub np: usize,
+    /// Mutation scale factor F, in (0, 2].
     pub f: f64,
+    /// Binomial crossover rate CR, in [0, 1].
     pub cr: f64,
+    /// Lower bounds of the search box, one per object variable.
     pub lower: Vec<f64>,
+    /// Upper bounds of the search box, each above its lower bound.
     pub upper: Vec<f64>,
+    /// Seed of the initial population, the mutants' members, the crossover and the redraws.
     pub seed: u64,
     /// Apply the diversity stopping rule (off: run to the iteration limit or a target).
     pub diversity_stop: bool,
@@ -52,6 +60,8 @@ impl DeConfig {
         }
     }
 
+    /// Check the settings: `eta` in 1..=100000, NP >= 4, F in (0, 2], CR in [0, 1] and the
+    /// bounds a box.
     pub fn validate(&self) -> Result<(), SettingsError> {
         if self.eta == 0 || self.eta > 100_000 {
             return Err(SettingsError::out_of_range(
@@ -161,6 +171,7 @@ impl Generations {
     }
 }
 
+/// DE/rand/1/bin with the two-mass paper's diversity stopping rule (see the module).
 pub struct DifferentialEvolution {
     cfg: DeConfig,
     rng: Xoshiro256pp,
@@ -171,6 +182,7 @@ pub struct DifferentialEvolution {
 }
 
 impl DifferentialEvolution {
+    /// A DE with `cfg` and its random initial population. Fails as `DeConfig::validate` does.
     pub fn new(cfg: DeConfig) -> Result<Self, SettingsError> {
         cfg.validate()?;
         let mut rng = Xoshiro256pp::seed_from_u64(cfg.seed);
@@ -184,6 +196,7 @@ impl DifferentialEvolution {
         })
     }
 
+    /// The current targets, the population member i in place i.
     pub fn population(&self) -> &[Vec<f64>] {
         &self.g.pop
     }

@@ -66,8 +66,11 @@ use rand_distr::{Distribution, StandardNormal};
 /// eMuPSO's settings beyond the swarm's.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EmuPsoSettings {
+    /// Inertia weight w at the start and at the end of the budget (eq. 3; 2.1 and 0.6).
     pub w: [f64; 2],
+    /// Social coefficient c2 at the start and at the end of the budget (eq. 4; 1.8 and 3.9).
     pub c2: [f64; 2],
+    /// Cognitive coefficient c1 (towards the personal best), constant (1.8).
     pub c1: f64,
     /// Stagnant iterations before a mutation (G).
     pub stagnation: usize,
@@ -75,9 +78,12 @@ pub struct EmuPsoSettings {
     pub elites: usize,
     /// The mutation's sigma as a fraction of each range (eq. 8).
     pub sigma: f64,
+    /// The velocity clamp at the start, as a fraction of each dimension's range (0.2); a
+    /// rebuilt swarm's clamp restarts at `sigma`.
     pub vmax_fraction: f64,
     /// The clamp's factor after `vmax_patience` iterations without a better best.
     pub vmax_shrink: f64,
+    /// Iterations without a better best before the clamp shrinks by `vmax_shrink` (3).
     pub vmax_patience: usize,
     /// A change of the swarm radius at most this fraction of it counts as none (eq. 6).
     pub stagnation_tolerance: f64,
@@ -103,6 +109,8 @@ impl Default for EmuPsoSettings {
     }
 }
 
+/// eMuPSO's `Rule`: the schedules, the stagnation counter, the mutation and the elite
+/// archive (see the module).
 pub struct EmuPsoRule {
     set: EmuPsoSettings,
     p: Particles,
@@ -121,15 +129,20 @@ pub struct EmuPsoRule {
     order: Vec<usize>,
     best: Vec<usize>,
     keep: Vec<usize>,
+    /// Mutations (swarm rebuilds around the elites) so far.
     pub mutations: usize,
     /// The run's best when it last improved, and the iterations since.
     last_best: f64,
     idle: usize,
 }
 
+/// eMuPSO as an `Optimiser`.
 pub type EmuPso = SwarmOptimiser<EmuPsoRule>;
 
 impl EmuPso {
+    /// An eMuPSO on the swarm `cfg` with `set`. Fails if `elites` is not in 1..population,
+    /// `sigma`, `vmax_fraction` or `vmax_shrink` is not in (0, 1], `vmax_patience` is 0,
+    /// `stagnation_tolerance` is negative or NaN, or `SwarmConfig::validate` refuses `cfg`.
     pub fn new(cfg: SwarmConfig, set: EmuPsoSettings) -> Result<Self, SettingsError> {
         if set.elites == 0 || set.elites >= cfg.population {
             return Err(SettingsError::out_of_range(

@@ -19,14 +19,19 @@ use super::Optimiser;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// Settings of `Ga`; the defaults are population 10, P_C 0.9, P_M = 1/L, N_max 150 and
+/// seed 1.
 #[derive(Debug, Clone)]
 pub struct GaConfig {
+    /// Population size (at least 2).
     pub population: usize,
+    /// Crossover probability P_C of a pair of parents.
     pub p_crossover: f64,
     /// Per-gene mutation probability; None = 1 / (number of genes).
     pub p_mutation: Option<f64>,
     /// N_max of eq. 19: the iteration at which mutation steps have shrunk to zero.
     pub max_iterations: usize,
+    /// Seed of the initial population, the selections, crossovers and mutations.
     pub seed: u64,
 }
 
@@ -42,6 +47,8 @@ impl Default for GaConfig {
     }
 }
 
+/// The fuzzy-network paper's steady-state real-coded GA (see the module): two children per
+/// iteration. It has no stopping rule of its own: `converged` is always false.
 pub struct Ga {
     cfg: GaConfig,
     lower: Vec<f64>,

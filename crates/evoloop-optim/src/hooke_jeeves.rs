@@ -6,18 +6,25 @@
 use super::Optimiser;
 use serde::Serialize;
 
+/// Where a Hooke-Jeeves search ended: its best point, that point's value and the cost.
 #[derive(Debug, Clone, Serialize)]
 pub struct LocalResult {
+    /// Best point found (within the box).
     pub x: Vec<f64>,
+    /// Its objective value.
     pub value: f64,
+    /// Objective evaluations the search made (a known starting value not counted).
     pub evaluations: usize,
 }
 
+/// Hooke-Jeeves settings; the defaults are a step of 1 % of the box, a smallest step of
+/// 1e-9 of it and 20 000 evaluations.
 pub struct HookeJeeves {
     /// Initial step per coordinate, as a fraction of the box width.
     pub initial_step: f64,
     /// Stop when every step is below this fraction of the box width.
     pub min_step: f64,
+    /// Evaluation budget: the search stops once it has made this many.
     pub max_evaluations: usize,
 }
 
@@ -32,6 +39,8 @@ impl Default for HookeJeeves {
 }
 
 impl HookeJeeves {
+    /// Minimise `f` in the box `lower..upper` from `x0` (clamped into it); the starting value
+    /// is evaluated here.
     pub fn minimise(
         &self,
         f: impl Fn(&[f64]) -> f64,
@@ -114,6 +123,8 @@ pub struct HjSearch {
 }
 
 impl HjSearch {
+    /// A search from `x0` (clamped into the box `lower..upper`) with the settings `cfg`; `f0`,
+    /// the value at `x0`, is used only when `x0` lies inside the box, otherwise evaluated.
     pub fn new(
         cfg: &HookeJeeves,
         x0: &[f64],

@@ -14,8 +14,10 @@ use super::{evaluate, Ga, GaConfig, HookeJeeves, Objective, Optimiser};
 use serde::Serialize;
 use std::time::Instant;
 
+/// Settings of the three-phase `hybrid`.
 #[derive(Debug, Clone)]
 pub struct HybridConfig {
+    /// The GA's settings (phases 1 and 2).
     pub ga: GaConfig,
     /// Iterations of the three phases (0 skips a phase).
     pub phases: [usize; 3],
@@ -30,12 +32,16 @@ pub struct HybridConfig {
     pub hj_per_candidate: usize,
 }
 
+/// What `hybrid` found and what it spent, evaluation by evaluation.
 #[derive(Debug, Clone, Serialize)]
 pub struct HybridResult {
+    /// Best set found.
     pub best: Vec<f64>,
+    /// Its objective value.
     pub value: f64,
     /// Best value among the initial population.
     pub initial_best: f64,
+    /// Objective evaluations made in all (the sum of `phase_evaluations`).
     pub evaluations: usize,
     /// Evaluations spent in each phase (phase 1 includes the initial population).
     pub phase_evaluations: [usize; 3],
@@ -45,6 +51,7 @@ pub struct HybridResult {
     pub values: Vec<f64>,
     /// Best value so far after each evaluation.
     pub best_so_far: Vec<f64>,
+    /// Wall-clock time of the run, s.
     pub seconds: f64,
 }
 

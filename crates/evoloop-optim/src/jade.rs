@@ -35,11 +35,16 @@ use crate::SettingsError;
 use rand::{Rng, RngCore, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 
+/// Settings of `Jade`: population, search box, seed, p, c and the archive.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JadeConfig {
+    /// Population size NP (at least 4).
     pub np: usize,
+    /// Lower bounds of the search box, one per object variable.
     pub lower: Vec<f64>,
+    /// Upper bounds of the search box, each above its lower bound.
     pub upper: Vec<f64>,
+    /// Seed of the initial population and of every draw (F_i, CR_i, members, crossover).
     pub seed: u64,
     /// Share of the population the p-best is drawn from.
     pub p: f64,
@@ -63,6 +68,7 @@ impl JadeConfig {
         }
     }
 
+    /// Check the settings: NP >= 4, `p` and `c` in (0, 1], the bounds a box.
     pub fn validate(&self) -> Result<(), SettingsError> {
         if self.np < 4 {
             return Err(SettingsError::out_of_range(
@@ -87,6 +93,8 @@ impl JadeConfig {
     }
 }
 
+/// JADE, adaptive DE/current-to-pbest/1 with an optional archive (see the module). It has
+/// no stopping rule of its own: `converged` is always false.
 pub struct Jade {
     cfg: JadeConfig,
     rng: Xoshiro256pp,
@@ -101,11 +109,15 @@ pub struct Jade {
     draws: Vec<u64>,
     /// Members by value, best first (scratch: sorted in place every generation).
     order: Vec<usize>,
+    /// Location mu_F of the Cauchy distribution F_i is drawn from (0.5 at the start).
     pub mu_f: f64,
+    /// Mean mu_CR of the normal distribution CR_i is drawn from (0.5 at the start).
     pub mu_cr: f64,
 }
 
 impl Jade {
+    /// A JADE with `cfg` and its random initial population. Fails as `JadeConfig::validate`
+    /// does.
     pub fn new(cfg: JadeConfig) -> Result<Self, SettingsError> {
         cfg.validate()?;
         let mut rng = Xoshiro256pp::seed_from_u64(cfg.seed);

@@ -47,6 +47,9 @@ pub use settings::SettingsError;
 
 use std::time::Instant;
 
+/// An ask/tell optimiser: `ask` proposes a generation of candidates, the caller evaluates them
+/// (in parallel, on any model) and `tell` takes their values, which it minimises. `run` drives
+/// any of them to its end.
 pub trait Optimiser {
     /// Candidates to evaluate now.
     fn ask(&mut self) -> &[Vec<f64>];
@@ -79,7 +82,10 @@ pub trait Optimiser {
 /// `threshold`, returning any number above it; the optimiser then makes the same decision as
 /// with the exact value.
 pub trait Objective: Sync {
+    /// The objective's value at `x` (minimised).
     fn value(&self, x: &[f64]) -> f64;
+    /// The value at `x`, or any number above `threshold` once it is proven to be above it. The
+    /// default computes the exact value.
     fn value_below(&self, x: &[f64], threshold: f64) -> f64 {
         let _ = threshold;
         self.value(x)
@@ -97,7 +103,9 @@ pub trait Objective: Sync {
 /// the same bits and computes the same values.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Job {
+    /// Which objective it is: the name `evoloop::jobs::rebuild` knows it by.
     pub kind: String,
+    /// The objective's fields, postcard-encoded.
     pub bytes: Vec<u8>,
 }
 
@@ -288,6 +296,7 @@ pub fn evaluate<F: Objective + ?Sized>(
 pub enum StopReason {
     /// The optimiser's own stopping rule.
     Converged,
+    /// The generation limit `max_generations` was reached.
     MaxGenerations,
     /// The best value reached the target.
     Target,
@@ -306,10 +315,15 @@ impl std::fmt::Display for StopReason {
 /// Result of running an optimiser to its end.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct RunResult {
+    /// Best candidate found.
     pub best: Vec<f64>,
+    /// Its objective value.
     pub value: f64,
+    /// Generations completed.
     pub generations: usize,
+    /// Objective evaluations made.
     pub evaluations: usize,
+    /// Wall-clock time of the run, s.
     pub seconds: f64,
     /// Why it stopped.
     pub stopped_by: StopReason,

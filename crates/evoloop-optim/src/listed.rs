@@ -4,6 +4,8 @@
 
 use crate::Optimiser;
 
+/// Tries `sets` one per `ask`, in order, keeping the best; converged once every set has
+/// been asked for.
 pub struct Listed {
     sets: Vec<Vec<f64>>,
     next: usize,
@@ -12,6 +14,7 @@ pub struct Listed {
 }
 
 impl Listed {
+    /// An optimiser that will try `sets` in the order given.
     pub fn new(sets: Vec<Vec<f64>>) -> Self {
         Self {
             sets,

@@ -18,6 +18,7 @@ use std::cell::RefCell;
 /// A shift and rotation: g(x) = f(R (x - o)).
 #[derive(Debug, Clone, Serialize)]
 pub struct Shift {
+    /// o, the shifted copy's minimiser: uniform in the middle 80 % of each dimension's range.
     pub offset: Vec<f64>,
     /// R, row-major, D x D.
     pub rotation: Vec<f64>,
@@ -26,8 +27,11 @@ pub struct Shift {
 /// A function of the suite as the study runs it, plain or shifted.
 #[derive(Debug, Clone)]
 pub struct Problem {
+    /// The problem's key: the function's, with `_shifted` appended for a shifted copy.
     pub key: String,
+    /// The suite function it evaluates.
     pub function: &'static Function,
+    /// The shift and rotation of a shifted copy; None for the plain function.
     pub shift: Option<Shift>,
 }
 
@@ -62,6 +66,7 @@ fn rotation(d: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
 }
 
 impl Problem {
+    /// The suite function as it is, under its own key.
     pub fn plain(function: &'static Function) -> Self {
         Self {
             key: function.key.into(),
@@ -96,14 +101,17 @@ impl Problem {
         (function.argmin)(function.dim).iter().all(|v| *v == 0.0)
     }
 
+    /// The box as lower and upper bound vectors (the function's own, shifted or not).
     pub fn bounds(&self) -> (Vec<f64>, Vec<f64>) {
         self.function.bounds()
     }
 
+    /// The global minimum value (a shifted copy keeps the function's).
     pub fn f_min(&self) -> f64 {
         self.function.f_min
     }
 
+    /// The function's group in the paper: "unimodal", "multimodal", "constant" or "extra".
     pub fn group(&self) -> &'static str {
         self.function.group
     }
@@ -116,6 +124,7 @@ impl Problem {
         }
     }
 
+    /// g(x) = f(R (x - o)) for a shifted copy, f(x) for the plain function.
     pub fn value(&self, x: &[f64]) -> f64 {
         let Some(s) = &self.shift else {
             return (self.function.f)(x);

@@ -13,8 +13,11 @@ use rand::RngCore;
 
 /// Velocities and personal bests: the particle part of a swarm.
 pub struct Particles {
+    /// Each particle's velocity, one component per dimension.
     pub v: Vec<Vec<f64>>,
+    /// Each particle's personal best position (its starting position until it has a value).
     pub pbest_x: Vec<Vec<f64>>,
+    /// Each particle's personal best value (+infinity before its first).
     pub pbest_f: Vec<f64>,
     /// The best personal best since the swarm was (re)built: the social attractor. For
     /// canonical PSO it is the run's best; eMuPSO restarts it at every mutation.
@@ -29,6 +32,8 @@ pub struct Particles {
 }
 
 impl Particles {
+    /// Particles for the swarm `s`: at rest, personal bests at the current positions with no
+    /// value yet, velocities clamped to `vmax_fraction` of each range.
     pub fn new(s: &Swarm, vmax_fraction: f64) -> Self {
         let (n, d) = (s.cfg.population, s.cfg.dim());
         Self {
@@ -155,6 +160,7 @@ pub struct PsoRule {
     p: Particles,
 }
 
+/// Canonical PSO as an `Optimiser`.
 pub type Pso = SwarmOptimiser<PsoRule>;
 
 /// Inertia weight at the start and at the end of the budget, and c1 = c2.
@@ -165,6 +171,8 @@ const C: f64 = 2.0;
 const VMAX: f64 = 0.2;
 
 impl Pso {
+    /// A canonical PSO on the swarm `cfg` (w 0.9 to 0.4, c1 = c2 = 2, velocities clamped to
+    /// 20 % of each range). Fails as `SwarmConfig::validate` does.
     pub fn new(cfg: SwarmConfig) -> Result<Self, SettingsError> {
         let swarm = Swarm::new(cfg)?;
         let p = Particles::new(&swarm, VMAX);

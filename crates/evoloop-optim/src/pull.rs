@@ -39,6 +39,9 @@ impl Objective for Relay {
     }
 }
 
+/// A push-style optimiser, running in its own thread, driven through `Optimiser`: each
+/// `ask` returns its next candidate (or none once it has finished), each `tell` hands the
+/// value back.
 pub struct Pulled {
     from_opt: Receiver<FromOpt>,
     to_opt: Sender<f64>,

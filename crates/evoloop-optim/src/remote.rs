@@ -17,13 +17,16 @@ use std::time::{Duration, Instant};
 /// A worker that is up now: its name and how many evaluations it runs at once.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Slot {
+    /// The worker's name, which `Workers::send` addresses it by.
     pub id: String,
+    /// Evaluations it runs at once; its share of a batch is in proportion to them.
     pub threads: usize,
 }
 
 /// Where a batch sent to a worker stands.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Reply {
+    /// No answer yet.
     Waiting,
     /// One value per candidate sent, in their order.
     Values(Vec<f64>),
@@ -63,6 +66,7 @@ pub const REMOTE_MIN_SAVING_NS: u64 = 1_000_000;
 /// length times the locally measured cost of one evaluation, over its threads) plus
 /// `REMOTE_GRACE`: generous, as a worker's host may be slower or busier than this one.
 pub const REMOTE_SLACK: u32 = 4;
+/// Added to every worker run's deadline beyond `REMOTE_SLACK` times its expected time.
 pub const REMOTE_GRACE: Duration = Duration::from_millis(200);
 
 /// Evaluations by where they were computed (in optimiser.json and summary.json under these
@@ -189,8 +193,12 @@ pub type Local<'a> = dyn Fn(Range<usize>) -> Vec<f64> + 'a;
 /// A population of one objective: its description, the candidates, their thresholds.
 #[derive(Clone, Copy)]
 pub struct Batch<'a> {
+    /// The objective, described for the workers to rebuild.
     pub job: &'a Job,
+    /// The points to evaluate, in order.
     pub candidates: &'a [Vec<f64>],
+    /// For each candidate, the value it must reach to be of any use (`Optimiser::thresholds`);
+    /// None when there are none.
     pub thresholds: Option<&'a [f64]>,
 }
 

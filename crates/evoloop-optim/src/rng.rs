@@ -7,6 +7,8 @@
 
 use rand::{Error, RngCore, SeedableRng};
 
+/// The xoshiro256++ generator: 256 bits of state, seeded from a `u64` by SplitMix64
+/// (`SeedableRng::seed_from_u64`).
 #[derive(Debug, Clone)]
 pub struct Xoshiro256pp {
     s: [u64; 4],

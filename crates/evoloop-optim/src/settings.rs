@@ -5,13 +5,29 @@
 #[derive(Debug, Clone, PartialEq)]
 pub enum SettingsError {
     /// The search box needs as many lower as upper bounds, at least one: the two lengths.
-    BoxShape { lower: usize, upper: usize },
+    BoxShape {
+        /// Number of lower bounds (the box's dimension).
+        lower: usize,
+        /// Number of upper bounds; for a start point that does not fit the box (`bayes`,
+        /// `cmaes`), its length.
+        upper: usize,
+    },
     /// Dimension `dim`'s bounds are not finite and ordered (lower < upper).
-    NotABox { dim: usize, lower: f64, upper: f64 },
+    NotABox {
+        /// Index of the dimension, from 0.
+        dim: usize,
+        /// Its lower bound.
+        lower: f64,
+        /// Its upper bound.
+        upper: f64,
+    },
     /// A setting outside its range: its name, the range it must lie in, what it was.
     OutOfRange {
+        /// The setting's name as the message spells it (`population`, `F`).
         setting: &'static str,
+        /// The range it must lie in, in words (`>= 4`, `in (0, 1]`).
         range: &'static str,
+        /// The value given, as text.
         got: String,
     },
 }

@@ -21,9 +21,13 @@ pub const CHECKPOINTS: usize = 60;
 /// One run's outcome.
 #[derive(Debug, Clone, Serialize)]
 pub struct RunResult {
+    /// The run's seed.
     pub seed: u64,
+    /// Best objective value found.
     pub best_value: f64,
+    /// Its error, best value minus the function's f_min.
     pub error: f64,
+    /// Objective evaluations made (at most the budget).
     pub evaluations: usize,
     /// Best error so far at evaluations budget * (k + 1) / CHECKPOINTS.
     pub curve: Vec<f64>,
@@ -68,16 +72,22 @@ pub fn run_one(
 /// The statistics of one algorithm on one function (Tables 4-6, results.json).
 #[derive(Debug, Clone, Serialize)]
 pub struct Cell {
+    /// Mean best value over the runs.
     pub mean_value: f64,
+    /// Mean final error f - f_min over the runs.
     pub mean_error: f64,
     /// Sample standard deviation (n - 1), as the paper's MATLAB `std`.
     pub std_error: f64,
+    /// Smallest final error of the runs.
     pub min_error: f64,
+    /// Median final error of the runs.
     pub median_error: f64,
+    /// Largest final error of the runs.
     pub max_error: f64,
 }
 
 impl Cell {
+    /// The statistics of `runs`, at least one (none panics).
     pub fn of(runs: &[RunResult]) -> Self {
         let n = runs.len() as f64;
         let mut e: Vec<f64> = runs.iter().map(|r| r.error).collect();
@@ -101,8 +111,11 @@ impl Cell {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Outcome {
+    /// eMuPSO's errors are lower (significant at 5 %, lower on more pairs).
     Win,
+    /// No difference shown at 5 %, or as many pairs lower as higher.
     Tie,
+    /// eMuPSO's errors are higher (significant at 5 %, higher on more pairs).
     Loss,
 }
 

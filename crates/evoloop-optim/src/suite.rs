@@ -44,15 +44,19 @@ use std::f64::consts::PI;
 /// One benchmark function.
 #[derive(Clone, Copy)]
 pub struct Function {
+    /// The function's snake_case key (`sphere`, `egg_holder`), as studies and tables name it.
     pub key: &'static str,
     /// The paper's group: "unimodal", "multimodal", "constant" (dimension), or "extra".
     pub group: &'static str,
+    /// Its dimension D, the number of variables.
     pub dim: usize,
     /// Dimension j's interval (the same for every j except Bukin's and Branin's).
     pub domain: fn(usize) -> (f64, f64),
+    /// The global minimum value (for the study's error f - f_min).
     pub f_min: f64,
     /// A minimiser (dimension `dim`).
     pub argmin: fn(usize) -> Vec<f64>,
+    /// The function itself: its value at a point of dimension `dim`.
     pub f: fn(&[f64]) -> f64,
 }
 

@@ -13,13 +13,16 @@ use crate::SettingsError;
 /// The settings every swarm method takes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SwarmConfig {
+    /// Lower bounds of the search box, one per object variable.
     pub lower: Vec<f64>,
+    /// Upper bounds of the search box, each above its lower bound.
     pub upper: Vec<f64>,
     /// Population size.
     pub population: usize,
     /// The iteration budget (generations after the initial one): the schedules (inertia weight,
     /// GWO's and WOA's a, GOA's c) run from their start to their end value over it.
     pub iterations: usize,
+    /// Seed of the initial population and of the method's random draws.
     pub seed: u64,
 }
 
@@ -42,6 +45,8 @@ impl SwarmConfig {
         }
     }
 
+    /// Check the settings: the bounds a box, a population of at least 4, at least one
+    /// iteration.
     pub fn validate(&self) -> Result<(), SettingsError> {
         check_box(&self.lower, &self.upper)?;
         if self.population < 4 {
@@ -57,6 +62,7 @@ impl SwarmConfig {
         Ok(())
     }
 
+    /// Number of object variables (the box's dimension).
     pub fn dim(&self) -> usize {
         self.lower.len()
     }
@@ -69,15 +75,21 @@ impl SwarmConfig {
 
 /// The population and its bookkeeping.
 pub struct Swarm {
+    /// The settings the swarm was built with.
     pub cfg: SwarmConfig,
+    /// The random stream of the initial population and of the rule's draws.
     pub rng: Xoshiro256pp,
     /// The positions asked for (and, after `tell`, evaluated).
     pub x: Vec<Vec<f64>>,
     /// Their values (NaN counted as +inf).
     pub f: Vec<f64>,
+    /// Best position found so far (the lower bounds before any value).
     pub best_x: Vec<f64>,
+    /// Its value (+infinity before any).
     pub best_f: f64,
+    /// Iterations completed (one per `tell`).
     pub generation: usize,
+    /// Objective evaluations recorded.
     pub evaluations: usize,
 }
 
@@ -174,11 +186,14 @@ pub trait Rule {
 
 /// A swarm method as an `Optimiser`.
 pub struct SwarmOptimiser<R: Rule> {
+    /// The population and its bookkeeping.
     pub swarm: Swarm,
+    /// The method that moves it.
     pub rule: R,
 }
 
 impl<R: Rule> SwarmOptimiser<R> {
+    /// The optimiser of `swarm` moved by `rule`.
     pub fn from_parts(swarm: Swarm, rule: R) -> Self {
         Self { swarm, rule }
     }

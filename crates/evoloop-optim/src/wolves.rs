@@ -26,9 +26,11 @@ pub struct GwoRule {
     leaders: [(Vec<f64>, f64); 3],
 }
 
+/// The Grey Wolf Optimizer as an `Optimiser`.
 pub type Gwo = SwarmOptimiser<GwoRule>;
 
 impl Gwo {
+    /// A GWO on the swarm `cfg`. Fails as `SwarmConfig::validate` does.
     pub fn new(cfg: SwarmConfig) -> Result<Self, SettingsError> {
         let swarm = Swarm::new(cfg)?;
         let d = swarm.cfg.dim();
@@ -70,11 +72,14 @@ impl Rule for GwoRule {
     }
 }
 
+/// WOA's `Rule`: it keeps no state beyond the swarm's (the best so far is `Swarm::best_x`).
 pub struct WoaRule;
 
+/// The Whale Optimization Algorithm as an `Optimiser`.
 pub type Woa = SwarmOptimiser<WoaRule>;
 
 impl Woa {
+    /// A WOA on the swarm `cfg`. Fails as `SwarmConfig::validate` does.
     pub fn new(cfg: SwarmConfig) -> Result<Self, SettingsError> {
         Ok(SwarmOptimiser::from_parts(Swarm::new(cfg)?, WoaRule))
     }
@@ -116,9 +121,11 @@ pub struct GoaRule {
     sum: Vec<f64>,
 }
 
+/// The Grasshopper Optimisation Algorithm as an `Optimiser`.
 pub type Goa = SwarmOptimiser<GoaRule>;
 
 impl Goa {
+    /// A GOA on the swarm `cfg`. Fails as `SwarmConfig::validate` does.
     pub fn new(cfg: SwarmConfig) -> Result<Self, SettingsError> {
         let swarm = Swarm::new(cfg)?;
         let prev = swarm.x.clone();

@@ -5,6 +5,8 @@
 //! here: kept in full, they grow with the run's length, which has none on a machine that runs
 //! for weeks.
 
+/// A series of at most `cap` items evenly spaced over everything offered, plus the latest one:
+/// past `cap`, every other kept item is dropped and the spacing doubles (see the module).
 #[derive(Debug, Clone)]
 pub struct History<T> {
     items: Vec<T>,
@@ -28,6 +30,8 @@ impl<T: Clone> History<T> {
         }
     }
 
+    /// Offer the next item: kept when it falls on the current spacing, always remembered as the
+    /// latest. Never holds more than `cap` items.
     pub fn push(&mut self, x: T) {
         if self.offered.is_multiple_of(self.stride) {
             if self.items.len() == self.cap {
@@ -51,6 +55,7 @@ impl<T: Clone> History<T> {
         self.offered
     }
 
+    /// The latest item offered, kept or not; `None` before the first.
     pub fn last(&self) -> Option<&T> {
         self.last.as_ref()
     }

@@ -62,10 +62,12 @@ pub struct RunLog {
     header: Vec<String>,
     data: Vec<f64>,
     capacity_rows: usize,
+    /// Rows pushed after the capacity was full, counted and not stored.
     pub dropped: u64,
 }
 
 impl RunLog {
+    /// An empty log with columns `header`, room for `rows` rows allocated now.
     pub fn new(header: Vec<String>, rows: usize) -> Self {
         Self {
             data: Vec::with_capacity(rows * header.len()),
@@ -75,14 +77,17 @@ impl RunLog {
         }
     }
 
+    /// Columns per row (the header's length).
     pub fn width(&self) -> usize {
         self.header.len()
     }
 
+    /// Rows stored (the dropped ones not counted).
     pub fn len(&self) -> usize {
         self.data.len() / self.header.len().max(1)
     }
 
+    /// Whether no row is stored.
     pub fn is_empty(&self) -> bool {
         self.data.is_empty()
     }
@@ -98,6 +103,7 @@ impl RunLog {
         }
     }
 
+    /// Row `i` as a slice of `width()` values; `i` must be below `len()`.
     pub fn row(&self, i: usize) -> &[f64] {
         let w = self.width();
         &self.data[i * w..(i + 1) * w]
@@ -157,11 +163,19 @@ pub fn cut_partial_row(path: &Path) -> std::io::Result<bool> {
 
 /// A CSV table read back: header and columns.
 pub struct Table {
+    /// Column names, from the file's first line.
     pub header: Vec<String>,
+    /// The rows after the header, each with one value per column; blank lines skipped.
     pub rows: Vec<Vec<f64>>,
 }
 
 impl Table {
+    /// Read the CSV file at `path`: a header line, then rows of numbers.
+    ///
+    /// # Errors
+    ///
+    /// The file cannot be read, or a row holds a value that is not a number or a count of values
+    /// other than the header's (`InvalidData`, with the line number).
     pub fn read(path: &Path) -> std::io::Result<Table> {
         let f = std::io::BufReader::new(std::fs::File::open(path)?);
         let mut lines = f.lines();

@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Step-response and tracking figures of one output against its reference over a run: settling
+/// time, overshoot, IAE, ISE and the final and tail errors (`response_metrics`, `ResponseAcc`).
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct ResponseMetrics {
     /// Time from the last reference change until |y - r| stays within `band` x step size for
@@ -13,6 +15,7 @@ pub struct ResponseMetrics {
     pub overshoot_pct: f64,
     /// Integral of |e| and of e^2 over the whole run (rectangle rule at the sample period).
     pub iae: f64,
+    /// Integral of e^2 over the whole run (rectangle rule at the sample period).
     pub ise: f64,
     /// e = r - y at the last sample.
     pub final_error: f64,
@@ -67,6 +70,8 @@ pub struct ResponseAcc {
 }
 
 impl ResponseAcc {
+    /// An accumulator for a run of `n` samples whose last sample is at `t_last` (s) with reference
+    /// `r_final`, sampled every `dt` (s), the last reference change at `t_change` (s).
     pub fn new(n: usize, t_last: f64, r_final: f64, dt: f64, t_change: f64) -> Self {
         Self {
             m: ResponseMetrics {
@@ -136,6 +141,8 @@ impl ResponseAcc {
         self.i += 1;
     }
 
+    /// The metrics of the samples added: settling time 0 when no sample left the band, `None` when
+    /// the last one was outside it. The default (no figures) for a run of no samples.
     pub fn finish(self) -> ResponseMetrics {
         let mut m = self.m;
         if self.n == 0 {
@@ -198,6 +205,7 @@ pub struct TrackingAcc {
 }
 
 impl TrackingAcc {
+    /// An accumulator for `joints` joints with no samples yet.
     pub fn new(joints: usize) -> Self {
         Self {
             sum: vec![0.0; joints],
@@ -219,6 +227,7 @@ impl TrackingAcc {
         self.n += 1;
     }
 
+    /// Samples counted so far (those with a non-finite error are not).
     pub fn samples(&self) -> usize {
         self.n
     }
@@ -230,6 +239,8 @@ impl TrackingAcc {
         self.n = 0;
     }
 
+    /// The tracking metrics of the samples counted so far (zeros with none); the accumulator stays
+    /// usable.
     pub fn finish(&self) -> Tracking {
         let n = self.n;
         let rms = |s: f64| if n > 0 { (s / n as f64).sqrt() } else { 0.0 };

@@ -39,7 +39,9 @@ fn ensure_font() {
 
 /// A named series.
 pub struct Series<'a> {
+    /// Legend label.
     pub name: &'a str,
+    /// One value per sample of the plot's shared axis (`t`), in the panel's units.
     pub values: &'a [f64],
 }
 
@@ -70,7 +72,9 @@ const COLOURS: [RGBColor; 6] = [
 
 /// One panel of a plot: its series and its y-axis label.
 pub struct Panel<'a> {
+    /// The series drawn in this panel, coloured in order.
     pub series: &'a [Series<'a>],
+    /// The y-axis label (e.g. "position (mm)").
     pub label: &'a str,
 }
 
@@ -179,15 +183,21 @@ pub fn stacked_png_over(
 /// How an x-y series is drawn.
 #[derive(Clone, Copy, PartialEq)]
 pub enum Style {
+    /// Joined by a line (non-finite points left out).
     Line,
+    /// A dot per point, unjoined.
     Points,
 }
 
 /// A named x-y series.
 pub struct XySeries<'a> {
+    /// Legend label; an empty name keeps the series out of the legend.
     pub name: &'a str,
+    /// The points' x values.
     pub x: &'a [f64],
+    /// The points' y values, one per x; pairs with a non-finite value are not drawn.
     pub y: &'a [f64],
+    /// Line or points.
     pub style: Style,
 }
 
@@ -283,7 +293,7 @@ pub fn xy_png(
     })
 }
 
-/// A colour map of z over a grid (`z[j][i]` at x = xs[i], y = ys[j]), blue (low) to red (high),
+/// A colour map of z over a grid (`z[j][i]` at `x = xs[i]`, `y = ys[j]`), blue (low) to red (high),
 /// with the z range in the title: for control surfaces.
 pub fn heatmap_png(
     path: &Path,

@@ -29,12 +29,15 @@ pub struct Optimisation {
 }
 
 impl Optimisation {
+    /// A bar of `total` evaluations prefixed `what`, the best cost shown under the name `cost`
+    /// (e.g. "G"); hidden when `hidden`.
     pub fn new(what: &str, total: usize, cost: &'static str, hidden: bool) -> Self {
         let bar = bar(total as u64, "evaluations", hidden);
         bar.set_prefix(format!("{what}: "));
         Self { bar, cost }
     }
 
+    /// Move the bar to `evaluations` done and show the best cost so far, `best`.
     pub fn tell(&self, evaluations: usize, best: f64) {
         self.bar.set_position(evaluations as u64);
         self.bar

@@ -47,8 +47,13 @@ struct Cycle {
 /// controller.json files before `joint_states` have five counts; they read as they are.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize, PartialEq)]
 pub struct Recorded {
+    /// Messages written per topic, in `TOPICS` order.
     pub messages: Vec<u64>,
+    /// What was not written: entries dropped from a full queue in realtime (a cycle's state,
+    /// command and telemetry count as one), plus every message after a write error.
     pub dropped: u64,
+    /// The first write error (with the file's path), or that the writer panicked; nothing was
+    /// written after it.
     pub error: Option<String>,
 }
 
@@ -202,6 +207,8 @@ impl Recorder {
         self.cycle = cycle;
     }
 
+    /// Queue a parameter set the controller received, logged at the stamp and cycle number of the
+    /// last `at_state`.
     pub fn params(&mut self, set: &ParamSet) {
         Self::put(
             &self.params,
@@ -211,6 +218,8 @@ impl Recorder {
         );
     }
 
+    /// Queue a model estimate the controller took, logged at the stamp and cycle number of the last
+    /// `at_state`.
     pub fn estimate(&mut self, e: &ModelEstimate) {
         Self::put(
             &self.estimates,
@@ -220,6 +229,8 @@ impl Recorder {
         );
     }
 
+    /// Queue a linear-model estimate the controller took (topic `estimate_linear`), logged at the
+    /// stamp and cycle number of the last `at_state`.
     pub fn linear_estimate(&mut self, e: &LinearEstimate) {
         Self::put(
             &self.linear,

@@ -17,12 +17,18 @@ pub const PLOT_BUCKETS: usize = 4096;
 pub struct Rows {
     path: PathBuf,
     lines: std::io::Lines<std::io::BufReader<std::fs::File>>,
+    /// Column names, from the file's first line (empty for an empty file).
     pub header: Vec<String>,
     row: Vec<f64>,
     line: usize,
 }
 
 impl Rows {
+    /// Open the CSV at `path` and read its header line; rows are read by `next`.
+    ///
+    /// # Errors
+    ///
+    /// The file cannot be opened or its first line read.
     pub fn open(path: &Path) -> std::io::Result<Self> {
         let mut lines = std::io::BufReader::new(std::fs::File::open(path)?).lines();
         let header = match lines.next() {
@@ -85,6 +91,7 @@ impl Rows {
         Ok(())
     }
 
+    /// The index of the column named `name`, if there is one.
     pub fn index(&self, name: &str) -> Option<usize> {
         self.header.iter().position(|h| h == name)
     }
@@ -103,7 +110,9 @@ impl Rows {
 /// What the first pass learns: the number of rows and the last one.
 #[derive(Debug, Clone, Default)]
 pub struct Extent {
+    /// Rows in the file (the header and blank lines not counted).
     pub rows: usize,
+    /// The last row's values (empty when there is no row).
     pub last: Vec<f64>,
 }
 
@@ -131,7 +140,10 @@ impl Extent {
 pub struct PlotColumns {
     /// Rows per bucket (1: every row as it is).
     bucket: usize,
+    /// The time axis: every row's time, or each bucket's first and last time.
     pub t: Vec<f64>,
+    /// Each column's values at the times of `t`: every row's, or each bucket's minimum and maximum
+    /// in the order they occurred.
     pub columns: Vec<Vec<f64>>,
     in_bucket: usize,
     t_first: f64,
@@ -169,6 +181,7 @@ impl PlotColumns {
         self.bucket == 1
     }
 
+    /// Add the next row: its time `t` and the plotted columns' `values`, one per column.
     pub fn push(&mut self, t: f64, values: &[f64]) {
         if self.bucket == 1 {
             self.t.push(t);

@@ -33,6 +33,7 @@ pub struct Ring {
 }
 
 impl Ring {
+    /// An empty ring of `capacity` rows (at least 1) of `width` values, allocated now.
     pub fn new(width: usize, capacity: usize) -> Self {
         let capacity = capacity.max(1);
         Self {
@@ -44,6 +45,7 @@ impl Ring {
         }
     }
 
+    /// Values per row.
     pub fn width(&self) -> usize {
         self.width
     }
@@ -92,14 +94,18 @@ pub enum Overflow {
 
 /// One CSV file of the stream: its path, header, and the columns of each row it takes.
 pub struct CsvPart {
+    /// The CSV file to create.
     pub path: PathBuf,
+    /// Its column names, written as its first line.
     pub header: Vec<String>,
+    /// The range of each logged row's values this file takes, in header order.
     pub columns: Range<usize>,
 }
 
 /// How the writer ended.
 #[derive(Debug, Default)]
 pub struct Written {
+    /// Rows taken from the ring, the ones discarded after a write error included.
     pub rows: u64,
     /// The first write error, if any (rows after it were taken from the ring and discarded, so
     /// the loop never blocked on a broken disk).

@@ -40,10 +40,12 @@ pub struct RbfCounts {
     /// RBFs per servo sub-network; 0 = a linear servo, tau_j = k_p,j e_j + k_d,j e_j' (see
     /// `Layout::gains`).
     pub torque: usize,
+    /// RBFs per inertia sub-network (one sub-network per entry of M-hat's upper triangle).
     pub inertia: usize,
     /// RBFs per velocity sub-network; 0 = no velocity network, V-hat from M-hat's Christoffel
     /// symbols (eq. 3 by construction).
     pub velocity: usize,
+    /// RBFs of the gravity network (the paper: n).
     pub gravity: usize,
 }
 
@@ -74,6 +76,8 @@ impl RbfCounts {
         }
     }
 
+    /// Whether the servo is linear (`torque` = 0): gains k_p, k_d per joint instead of RBF
+    /// sub-networks.
     pub fn is_linear_servo(&self) -> bool {
         self.torque == 0
     }
@@ -82,9 +86,13 @@ impl RbfCounts {
 /// Shape of one sub-network: inputs, outputs, RBFs; its parameters start at `offset`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SubNet {
+    /// Number of inputs y: the length of each RBF's centre.
     pub inputs: usize,
+    /// Number of outputs: the output weights per RBF.
     pub outputs: usize,
+    /// Number of RBFs.
     pub rbfs: usize,
+    /// Index of the sub-network's first parameter in the flat parameter vector.
     pub offset: usize,
 }
 
@@ -94,10 +102,12 @@ impl SubNet {
         self.inputs + 1 + self.outputs
     }
 
+    /// Number of parameters the sub-network holds: `rbfs` times `per_rbf()`.
     pub fn len(&self) -> usize {
         self.rbfs * self.per_rbf()
     }
 
+    /// Whether it has no RBFs, hence no parameters and an output of 0.
     pub fn is_empty(&self) -> bool {
         self.rbfs == 0
     }
@@ -174,7 +184,9 @@ const WIDTH_FLOOR: f64 = 1e-12;
 /// Where each sub-network's parameters sit in the flat vector.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Layout {
+    /// Joint count n.
     pub n: usize,
+    /// The RBF counts the layout was built from.
     pub counts: RbfCounts,
     /// Per joint: proportional, then derivative sub-network (inputs 1, output 1).
     pub torque: Vec<[SubNet; 2]>,
@@ -182,14 +194,19 @@ pub struct Layout {
     pub inertia: Vec<((usize, usize), SubNet)>,
     /// Per joint i: outputs [B_i (pairs a < b); C_i (n)].
     pub velocity: Vec<SubNet>,
+    /// The gravity network: inputs theta (n), outputs G-hat (n).
     pub gravity: SubNet,
     /// With a linear servo: where its gains sit, [k_p,j, k_d,j] per joint (2n parameters at
     /// the end); None with RBF servo sub-networks.
     pub gains: Option<usize>,
+    /// Total parameter count: the length of the flat parameter vector.
     pub len: usize,
 }
 
 impl Layout {
+    /// The layout of N_f for `n` joints with `counts`: the sub-networks one after the other
+    /// (torque, inertia, velocity, gravity), then a linear servo's gains. Panics unless
+    /// 1 <= n <= `MAX_JOINTS`.
     pub fn new(n: usize, counts: RbfCounts) -> Self {
         assert!(
             (1..=MAX_JOINTS).contains(&n),
@@ -261,16 +278,22 @@ impl Layout {
 /// What a sub-network stands for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Part {
+    /// Joint j's proportional servo sub-network (input theta_d,j - theta_j).
     Proportional(usize),
+    /// Joint j's derivative servo sub-network (input theta_d,j' - theta_j').
     Derivative(usize),
+    /// The inertia sub-network of M-hat's entry (a, b), a <= b.
     Inertia(usize, usize),
+    /// Joint i's velocity sub-network (outputs B_i and C_i).
     Velocity(usize),
+    /// The gravity network (G-hat).
     Gravity,
 }
 
 /// N_f with its parameters: the identified model.
 #[derive(Debug, Clone)]
 pub struct Network {
+    /// Where each sub-network's parameters sit in the parameter vector.
     pub layout: Layout,
     params: Vec<f64>,
     /// The servo sub-networks' values at zero error, fixed by the parameters.
@@ -296,6 +319,8 @@ pub fn servo_zero(layout: &Layout, p: &[f64]) -> ServoZero {
 }
 
 impl Network {
+    /// The network of `layout` with parameters `params` in `Layout` order. Panics if
+    /// `params.len()` is not `layout.len`.
     pub fn new(layout: Layout, params: Vec<f64>) -> Self {
         assert_eq!(params.len(), layout.len, "parameter count");
         let zero = servo_zero(&layout, &params);
@@ -317,6 +342,7 @@ impl Network {
         self.zero = servo_zero(&self.layout, &self.params);
     }
 
+    /// Joint count n.
     pub fn dof(&self) -> usize {
         self.layout.n
     }
@@ -369,6 +395,8 @@ pub fn min_eig<'a>(layout: &Layout, p: &[f64], qs: impl Iterator<Item = &'a [f64
     .fold(f64::INFINITY, f64::min)
 }
 
+/// M-hat(theta) with parameters `p` into `m` (row-major, stride n), symmetric by
+/// construction.
 pub fn inertia(layout: &Layout, p: &[f64], theta: &[f64], m: &mut Mat) {
     let n = layout.n;
     let mut out = [0.0; 1];

@@ -12,8 +12,11 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 
+/// The counting allocator, for `#[global_allocator]`: every call goes to the system allocator,
+/// and the armed thread's allocations are counted in `COUNT` and `LIVE`.
 pub struct Counting;
-/// Allocations (and reallocations) made while armed, by any thread, since the start.
+/// Allocations (and reallocations) made by an armed thread, since the start (all armed
+/// threads together).
 pub static COUNT: AtomicU64 = AtomicU64::new(0);
 /// Bytes allocated minus bytes freed while armed: what armed code keeps (a memory test's
 /// figure; memory freed while armed but allocated before counts negative).

@@ -63,13 +63,17 @@ pub fn spin_until_ns(deadline_ns: u64) {
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum WaitKind {
+    /// clock_nanosleep to the deadline: no CPU used, the kernel's wake-up lateness
     #[default]
     Sleep,
+    /// Read the clock until the deadline: least lateness, but holds its core all the while
     Spin,
+    /// Sleep until a margin before the deadline, then spin
     Hybrid,
 }
 
 impl WaitKind {
+    /// The strategy's name as `timing.wait` writes it: "sleep", "spin" or "hybrid".
     pub fn name(self) -> &'static str {
         match self {
             WaitKind::Sleep => "sleep",
@@ -82,7 +86,10 @@ impl WaitKind {
 /// A wait strategy and, for `hybrid`, how long before the deadline the sleep ends.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct WaitStrategy {
+    /// How the loop waits.
     pub kind: WaitKind,
+    /// `hybrid`: how long before the deadline the sleep ends and the spin begins, ns (0 for the
+    /// other kinds).
     pub margin_ns: u64,
 }
 

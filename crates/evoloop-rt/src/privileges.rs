@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 pub struct RtRequest {
     /// SCHED_FIFO priority (1-99); None = stay SCHED_OTHER.
     pub fifo_priority: Option<i32>,
+    /// Lock the process's current and future memory in RAM (mlockall).
     pub lock_memory: bool,
     /// CPU to pin to; None = no pinning.
     pub cpu: Option<usize>,
@@ -25,9 +26,13 @@ impl RtRequest {
 /// What the process got; goes into summary.json so timing figures can be read in context.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct RtGranted {
+    /// Whether the process runs SCHED_FIFO.
     pub sched_fifo: bool,
+    /// Its SCHED_FIFO priority (0 when not SCHED_FIFO).
     pub priority: i32,
+    /// Whether its memory is locked (mlockall succeeded).
     pub mlockall: bool,
+    /// The one CPU it is pinned to; None = not pinned.
     pub cpu: Option<usize>,
     /// Timer slack of the thread, ns (Linux adds up to this much to every timed sleep; the
     /// default 50 µs would dominate a SCHED_OTHER loop's lateness).

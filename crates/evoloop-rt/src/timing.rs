@@ -7,10 +7,15 @@ use serde::{Deserialize, Serialize};
 /// One cycle's timing.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CycleTiming {
+    /// Controller cycle index.
     pub cycle: u64,
+    /// Wake-up lateness against the cycle's absolute deadline, ns (0 in lockstep; negative: early).
     pub lateness_ns: i64,
+    /// Time from wake-up through the control law and the command's publication, ns.
     pub compute_ns: u64,
+    /// Age of the state sample at wake-up (wake-up time minus its stamp), ns.
     pub state_age_ns: u64,
+    /// The cycle's telemetry flags (`evoloop_msg::TELEMETRY_FLAG_*` bits).
     pub flags: u32,
 }
 
@@ -18,8 +23,11 @@ pub struct CycleTiming {
 /// of any length summarises exactly what it ran. `record` never allocates.
 #[derive(Default)]
 pub struct TimingStats {
+    /// Wake-up lateness of every cycle, ns.
     pub lateness: Accumulator,
+    /// Compute time of every cycle, ns.
     pub compute: Accumulator,
+    /// Age of the state every cycle used, ns.
     pub state_age: Accumulator,
 }
 
@@ -29,6 +37,7 @@ impl TimingStats {
         self.lateness.n
     }
 
+    /// Add one cycle's lateness, compute time and state age. No allocation.
     #[inline]
     pub fn record(&mut self, c: &CycleTiming) {
         self.lateness.record(c.lateness_ns);
@@ -54,6 +63,7 @@ impl Default for Accumulator {
 }
 
 impl Accumulator {
+    /// An empty accumulator; its histogram (fixed size) is allocated here, once.
     pub fn new() -> Self {
         Self {
             h: Histogram::<u64>::new_with_bounds(1, 60_000_000_000, 3)
@@ -76,6 +86,8 @@ impl Accumulator {
         self.h.saturating_record(s.max(1) as u64);
     }
 
+    /// The summary of the values recorded so far (all zeros when none was); the percentiles are
+    /// the histogram's, kept within the exact minimum and maximum.
     pub fn percentiles(&self) -> Percentiles {
         if self.n == 0 {
             return Percentiles::default();
@@ -98,18 +110,26 @@ impl Accumulator {
 /// Percentiles of one timing quantity, ns.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct Percentiles {
+    /// Number of values.
     pub count: u64,
+    /// Smallest value, exact (a negative lateness is an early wake-up), ns.
     pub min_ns: i64,
+    /// Median, ns.
     pub p50_ns: i64,
+    /// 90th percentile, ns.
     pub p90_ns: i64,
+    /// 99th percentile, ns.
     pub p99_ns: i64,
+    /// 99.9th percentile, ns.
     pub p99_9_ns: i64,
+    /// Largest value, exact, ns.
     pub max_ns: i64,
+    /// Mean, exact, ns.
     pub mean_ns: f64,
 }
 
 impl Percentiles {
-    /// From raw samples (negative lateness, i.e. early wake-ups, is clamped at 0 in the
+    /// From raw samples (negative lateness, i.e. early wake-ups, is clamped at 1 ns in the
     /// histogram but kept in `min_ns`).
     pub fn from_samples(samples: impl IntoIterator<Item = i64>) -> Self {
         let mut a = Accumulator::new();
@@ -123,13 +143,18 @@ impl Percentiles {
 /// The loop's timing over a run.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct TimingSummary {
+    /// Cycles the loop ran.
     pub cycles: u64,
+    /// Wake-up lateness against each cycle's absolute deadline (0 in lockstep).
     pub lateness: Percentiles,
+    /// Time from wake-up through the control law and the command's publication.
     pub compute: Percentiles,
+    /// Age of the state sample each cycle used, at wake-up.
     pub state_age: Percentiles,
-    /// Cycles whose compute time exceeded the period.
+    /// Cycles whose lateness plus compute time exceeded the period.
     pub overruns: u64,
-    /// Cycles that started a full period or more late (a deadline passed without a cycle).
+    /// Control periods that passed without a cycle (whole periods skipped, those before the
+    /// first state included).
     pub missed_deadlines: u64,
     /// Cycles that used a state older than the stale limit.
     pub stale_states: u64,

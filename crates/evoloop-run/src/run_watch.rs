@@ -16,15 +16,21 @@ use std::collections::VecDeque;
 
 /// Seconds of tracking error the sparkline spans, and its buckets.
 pub const SPARK_SECONDS: f64 = 10.0;
+/// Buckets of the sparkline: `SPARK_SECONDS` / 100, 0.1 s of run time each.
 pub const SPARK_BUCKETS: usize = 100;
 
 /// A running run, as found in /proc: its controller's `--run-id`, `--ipc-prefix`, `--config`
 /// (the scenario, resolved against the controller's working directory) and `--optimiser`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunningRun {
+    /// The run's id (the controller's `--run-id`).
     pub run_id: String,
+    /// Prefix of the run's iceoryx2 files (`--ipc-prefix`, else the default).
     pub ipc_prefix: String,
+    /// The scenario file, resolved; `None` without `--config` or when the controller's working
+    /// directory cannot be read.
     pub config: Option<std::path::PathBuf>,
+    /// The optimiser mode the controller was started with (`--optimiser`), if any.
     pub optimiser: Option<crate::config::OptimiserMode>,
 }
 
@@ -113,12 +119,15 @@ fn ours(pid: u32) -> bool {
 /// One process of the run.
 #[derive(Debug, Clone, Serialize)]
 pub struct ProcessView {
+    /// The process's role: one of `soak::PROCESSES`.
     pub name: String,
+    /// Its process id.
     pub pid: u32,
     /// The kernel's state letter (R running, S sleeping, T stopped, ...).
     pub state: String,
     /// CPU time over the last interval, % of one core.
     pub cpu_pct: f64,
+    /// Resident memory (VmRSS), KiB; 0 when it could not be read.
     pub rss_kib: u64,
 }
 
@@ -135,52 +144,80 @@ fn proc_stat(pid: u32) -> Option<(u64, String)> {
 /// The controller's view over the last second and since top attached.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct ControllerView {
+    /// Cycles the controller has run (the newest telemetry's cycle + 1).
     pub cycles: u64,
+    /// Cycles per second over the last second, by top's clock.
     pub cycle_rate_hz: f64,
+    /// Plant time of the state the newest telemetry's cycle used, s.
     pub t: f64,
+    /// Missed deadlines since the run's start (the controller's running count).
     pub missed_total: u64,
+    /// Missed deadlines in the last second.
     pub missed_last_s: u64,
+    /// Overruns since the run's start (the controller's running count).
     pub overruns_total: u64,
+    /// Overruns in the last second.
     pub overruns_last_s: u64,
     /// Cycles whose telemetry top received in the last second.
     pub seen_last_s: u64,
+    /// Wake-up lateness over the telemetry received in the last second, ns.
     pub lateness_last_s: Percentiles,
+    /// Compute time over the same samples, ns.
     pub compute_last_s: Percentiles,
+    /// The newest telemetry's tracking error: the first reference minus the first output.
     pub tracking_error: f64,
 }
 
+/// The parameter sets as top sees them: the version in service, and counts since it attached.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct ParamsView {
+    /// The parameter version in service, as the newest telemetry gives it.
     pub version_in_service: u64,
     /// Parameter events in the telemetry top received since it attached.
     pub accepted_seen: u64,
+    /// Of those, the rejections.
     pub rejected_seen: u64,
     /// Events whose code this build does not know (a controller of another version).
     pub unknown_codes_seen: u64,
     /// Sets published on the run's topic since top attached, and the last one.
     pub sets_seen: u64,
+    /// The last set's version.
     pub last_set_version: Option<u64>,
+    /// The last set's expected cost on the optimiser's model; `None` when not finite (unknown).
     pub last_set_expected_cost: Option<f64>,
 }
 
+/// The newest model estimate on the run's topic, and how many came.
 #[derive(Debug, Clone, Serialize)]
 pub struct EstimateView {
+    /// The estimated parameter, in its own unit (maglev: ball mass, kg; two-mass: spring constant).
     pub value: f64,
+    /// Its standard deviation, same unit; infinite while no fit has been adopted.
     pub std: f64,
+    /// Plant time of the estimate, s.
     pub t: f64,
+    /// Estimates received since top attached.
     pub seen: u64,
 }
 
 /// Everything top shows at one moment.
 #[derive(Debug, Clone, Serialize)]
 pub struct Snapshot {
+    /// The run watched.
     pub run_id: String,
+    /// The snapshot's time: seconds since top attached, by its own clock.
     pub attached_s: f64,
+    /// Telemetry samples received since top attached.
     pub telemetry_received: u64,
+    /// The run's processes found in /proc, sorted by name.
     pub processes: Vec<ProcessView>,
+    /// Plant samples per second over the last second (by the states the telemetry names).
     pub plant_sample_rate_hz: f64,
+    /// The controller over the last second and in total.
     pub controller: ControllerView,
+    /// The parameter sets and their events.
     pub params: ParamsView,
+    /// The newest model estimate; `None` before the first.
     pub estimate: Option<EstimateView>,
     /// The optimiser's last epoch (indirect and identify schemes); costs are null when
     /// infinite (the set loses the plant).
@@ -218,6 +255,7 @@ pub struct Watch {
 }
 
 impl Watch {
+    /// Top's state for run `run_id`, before anything has arrived.
     pub fn new(run_id: &str) -> Self {
         Self {
             run_id: run_id.to_string(),
@@ -232,6 +270,8 @@ impl Watch {
         }
     }
 
+    /// Take a telemetry sample received at `at_s`: count its parameter event, and keep it for
+    /// the last second's window and the sparkline.
     pub fn telemetry(&mut self, tel: &Telemetry, at_s: f64) {
         self.received += 1;
         if tel.param_event_version != 0 {
@@ -266,6 +306,7 @@ impl Watch {
         self.last = Some(*tel);
     }
 
+    /// Take a parameter set seen on the run's topic.
     pub fn params(&mut self, set: &ParamSet) {
         self.params.sets_seen += 1;
         self.params.last_set_version = Some(set.version);
@@ -273,6 +314,7 @@ impl Watch {
             set.expected_cost.is_finite().then_some(set.expected_cost);
     }
 
+    /// Take a model estimate seen on the run's topic.
     pub fn estimate(&mut self, e: &ModelEstimate) {
         let seen = self.estimate.as_ref().map_or(0, |v| v.seen) + 1;
         self.estimate = Some(EstimateView {
@@ -283,6 +325,7 @@ impl Watch {
         });
     }
 
+    /// Take the optimiser's status, published after each epoch.
     pub fn optimiser(&mut self, st: &OptimiserStatus) {
         self.optimiser = Some(*st);
     }

@@ -28,6 +28,7 @@ pub const PROCESSES: [&str; 4] = [
 /// One interval of the soak.
 #[derive(Debug, Clone, Serialize)]
 pub struct Interval {
+    /// The interval's number, from 0.
     pub index: usize,
     /// Wall time since the start at the end of the interval, s.
     pub t_s: f64,
@@ -36,9 +37,13 @@ pub struct Interval {
     /// Anonymous resident memory per process (RssAnon, KiB): the heap and stacks, without the
     /// binary's and libraries' pages, which mlockall makes resident at once; a leak shows here.
     pub anon_kib: BTreeMap<String, u64>,
+    /// Control cycles timing.csv recorded in the interval.
     pub cycles: u64,
+    /// Whole periods that late wake-ups skipped in the interval: the missed deadlines.
     pub missed_deadlines: u64,
+    /// Cycles in the interval whose compute time exceeded the period.
     pub overruns: u64,
+    /// Wake-up lateness of the interval's cycles, ns.
     pub lateness: Percentiles,
 }
 
@@ -47,35 +52,51 @@ pub struct Interval {
 pub struct Drift {
     /// At the end of the first interval (after start-up), KiB.
     pub first_kib: u64,
+    /// At the end of the last interval, KiB.
     pub last_kib: u64,
+    /// The largest over the intervals, KiB.
     pub max_kib: u64,
     /// last - first, KiB and per cent of first.
     pub drift_kib: i64,
+    /// `drift_kib` in % of `first_kib` (0 when `first_kib` is 0).
     pub drift_pct: f64,
 }
 
+/// What `evoloop soak` reports: soak.json.
 #[derive(Debug, Clone, Serialize)]
 pub struct SoakReport {
+    /// The scenario file run.
     pub scenario: String,
+    /// How long the run was asked to last, s (`--duration`).
     pub duration_s: f64,
+    /// Seconds between two records (`--interval`).
     pub interval_s: f64,
+    /// The run's own output directory (`<out>/run`), with its report.
     pub run_dir: PathBuf,
+    /// The run's id (`soak-<pid>`).
     pub run_id: String,
     /// The launcher's exit code (0: the run ended normally).
     pub exit_code: Option<i32>,
+    /// One record per whole interval, in order (the last, partial one counts in the totals only).
     pub intervals: Vec<Interval>,
+    /// Resident memory's drift (VmRSS) per process, by name.
     pub rss: BTreeMap<String, Drift>,
     /// The same for anonymous memory (RssAnon).
     pub anon: BTreeMap<String, Drift>,
     /// Missed deadlines per interval: median and largest.
     pub misses_per_interval_median: f64,
+    /// The most missed deadlines in one interval.
     pub misses_per_interval_max: u64,
+    /// Missed deadlines over the whole run, the last partial interval included.
     pub missed_deadlines: u64,
+    /// Control cycles over the whole run, the last partial interval included.
     pub cycles: u64,
     /// This user's evoloop files in /dev/shm and iceoryx2's root before the start and after the
     /// end, and those the run left (after but not before).
     pub shm_before: Vec<String>,
+    /// The files after the end.
     pub shm_after: Vec<String>,
+    /// The files after the end that were not there before: what the run left behind.
     pub shm_left: Vec<String>,
 }
 
@@ -93,8 +114,11 @@ pub fn rss_kib(pid: u32) -> Option<(u64, Option<u64>)> {
 /// A process of evoloop's on this machine: its name (a role of the one binary, `evoloop plant
 /// ...`, counts as `evoloop-plant`), pid and arguments.
 pub struct EvoloopProcess {
+    /// The process's role, one of `PROCESSES`.
     pub name: String,
+    /// Its process id.
     pub pid: u32,
+    /// Its command line, the program first.
     pub args: Vec<String>,
 }
 
@@ -161,6 +185,8 @@ pub struct Tail {
 }
 
 impl Tail {
+    /// A follower of the file at `path`, which need not exist yet; nothing is read until
+    /// `new_lines`.
     pub fn new(path: PathBuf) -> Self {
         Self {
             path,
@@ -169,6 +195,8 @@ impl Tail {
         }
     }
 
+    /// Calls `f` on each complete line appended since the last call, its line end trimmed; does
+    /// nothing while the file does not exist.
     pub fn new_lines(&mut self, mut f: impl FnMut(&str)) {
         if self.reader.is_none() {
             let Ok(file) = std::fs::File::open(&self.path) else {
@@ -196,13 +224,18 @@ impl Tail {
 /// Timing of the cycles in one interval, from timing.csv's lines.
 pub struct IntervalTiming {
     period_ns: u64,
+    /// Cycles (lines of timing.csv) read in the interval.
     pub cycles: u64,
+    /// Whole periods that late wake-ups skipped: a lateness of k periods or more counts k.
     pub missed: u64,
+    /// Cycles flagged `TELEMETRY_FLAG_OVERRUN` (compute time over the period).
     pub overruns: u64,
+    /// The cycles' wake-up lateness, ns.
     pub lateness: Accumulator,
 }
 
 impl IntervalTiming {
+    /// No cycles yet, for a loop of period `period_ns`, ns.
     pub fn new(period_ns: u64) -> Self {
         Self {
             period_ns,

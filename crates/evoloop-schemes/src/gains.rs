@@ -21,9 +21,23 @@ pub const ANSWER: Duration = Duration::from_secs(3);
 /// The controller's answer to a set, or its absence.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Answer {
-    Accepted { version: u64 },
-    Refused { version: u64, reason: String },
-    NoAnswer { version: u64 },
+    /// The controller accepted the set: its values are in service.
+    Accepted {
+        /// The version the set was sent under.
+        version: u64,
+    },
+    /// The controller refused the set (its validation's verdict); the values in service stay.
+    Refused {
+        /// The version the set was sent under.
+        version: u64,
+        /// Why: the controller's reason and the index of the offending value.
+        reason: String,
+    },
+    /// No parameter event for the set within `ANSWER`.
+    NoAnswer {
+        /// The version the set was sent under.
+        version: u64,
+    },
 }
 
 impl std::fmt::Display for Answer {

@@ -10,9 +10,14 @@ use serde::Serialize;
 /// Mean, sample standard deviation and 95 % confidence interval of the mean (Student t).
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct MeanCi {
+    /// Number of values.
     pub n: usize,
+    /// Arithmetic mean of the values (NaN for none).
     pub mean: f64,
+    /// Sample standard deviation (divisor n - 1; NaN for fewer than two values).
     pub std: f64,
+    /// Lower and upper ends of the 95 % Student t interval of the mean (NaN for fewer than
+    /// two values).
     pub ci95: [f64; 2],
 }
 
@@ -30,6 +35,8 @@ fn t975(df: usize) -> f64 {
     }
 }
 
+/// Mean, sample standard deviation and 95 % t interval of the mean of `x`. The spread and
+/// interval are NaN for fewer than two values, and the mean too for none.
 pub fn mean_ci(x: &[f64]) -> MeanCi {
     let n = x.len();
     let mean = x.iter().sum::<f64>() / n as f64;
@@ -56,12 +63,15 @@ pub struct Wilcoxon {
     pub n: usize,
     /// Rank sums of the positive and negative differences.
     pub w_plus: f64,
+    /// Rank sum of the negative differences (a below b); `w_plus + w_minus` is n (n + 1) / 2.
     pub w_minus: f64,
+    /// Two-sided p value, capped at 1 (1 when no pair differs).
     pub p_two_sided: f64,
     /// "exact" or "normal".
     pub method: &'static str,
     /// Pairs where a < b, and where a > b.
     pub a_lower: usize,
+    /// Pairs where a > b; with `a_lower` it sums to `n`.
     pub a_higher: usize,
 }
 
@@ -210,10 +220,13 @@ pub fn wilcoxon(a: &[f64], b: &[f64]) -> Wilcoxon {
 /// normal approximation with tie and continuity corrections. `p` is two-sided.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct MannWhitney {
+    /// Number of values in sample a.
     pub n_a: usize,
+    /// Number of values in sample b.
     pub n_b: usize,
     /// U of sample a: pairs (x in a, y in b) with x > y, ties counting one half.
     pub u_a: f64,
+    /// Two-sided p value, capped at 1 (1 when either sample is empty).
     pub p_two_sided: f64,
     /// "exact" or "normal".
     pub method: &'static str,
@@ -249,6 +262,8 @@ fn rank_sum_counts(m: usize, n: usize) -> Vec<f64> {
     c.swap_remove(n)
 }
 
+/// Mann-Whitney U test of sample `a` against sample `b` (see `MannWhitney` for the choice
+/// between the exact and the normal p value).
 pub fn mann_whitney(a: &[f64], b: &[f64]) -> MannWhitney {
     let (m, n) = (a.len(), b.len());
     let all: Vec<f64> = a.iter().chain(b).copied().collect();
@@ -279,10 +294,6 @@ pub fn mann_whitney(a: &[f64], b: &[f64]) -> MannWhitney {
     }
 }
 
-/// The sentence a paired comparison supports, from its own numbers: "lower"/"HIGHER" only when
-/// the two-sided Wilcoxon test says so at the 5 % level, otherwise "no difference shown". `a` is
-/// the subject ("Fuzzy anti-windup"), `a_short` its name in the counts ("fuzzy"), `what` the
-/// measure ("eq. 31 index G"), `d` the mean of a - b with its interval.
 /// `s` with its first letter in lower case (a sentence's subject inside a sentence).
 pub fn lower_first(s: &str) -> String {
     let mut s = s.to_string();
@@ -292,6 +303,11 @@ pub fn lower_first(s: &str) -> String {
     s
 }
 
+/// The sentence a paired comparison supports, from its own numbers: "lower"/"HIGHER" only
+/// when the two-sided Wilcoxon test `w` says so at the 5 % level, otherwise "no difference
+/// shown". `a` is the subject ("Fuzzy anti-windup"), `a_short` its name in the counts
+/// ("fuzzy"), `b` what it is compared with, `what` the measure ("eq. 31 index G"), `d` the
+/// mean of a - b with its interval.
 pub fn paired_sentence(
     a: &str,
     a_short: &str,

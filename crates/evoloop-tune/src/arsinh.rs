@@ -26,6 +26,10 @@ fn mf_curves(net: &FuzzyNetwork, var: usize, grid: &[f64]) -> Vec<(String, Vec<f
         .collect()
 }
 
+/// Section 5.1's experiment: the hybrid tunes the fuzzy controller from the
+/// prespecified sets (and random ones); writes result.json, evolution.csv,
+/// tracking.csv and (with plots) the figures into `run.out`, and prints a summary
+/// or the JSON.
 pub fn run(run: Run) -> Result<(), String> {
     let codec = exp::codec();
     let (lo, hi) = codec.bounds();

@@ -27,7 +27,9 @@ const WITHIN: f64 = 0.01;
 /// One (algorithm, seed) run.
 #[derive(Debug, Clone, Serialize)]
 pub struct Run {
+    /// The optimiser (`optimiser.algorithm`).
     pub algorithm: String,
+    /// The seed the scenario ran with.
     pub seed: u64,
     /// Best cost known after each experiment (index 0 = after the first trial), as long as the
     /// budget (after an optimiser's stop rule, its last value).
@@ -36,7 +38,9 @@ pub struct Run {
     pub experiments: usize,
     /// Aborted trials up to and including each experiment.
     pub aborts: Vec<u32>,
+    /// The best cost the optimiser found.
     pub final_cost: f64,
+    /// The configured set's cost (the baseline repetition; NaN without one).
     pub baseline_cost: f64,
     /// Experiments until the best cost is within 1 % of the GA's final cost (None: never).
     pub to_target: Option<usize>,
@@ -47,6 +51,7 @@ pub struct Run {
     /// Repetitions spent settling between trials (`optimiser.settle`), and the plant's time
     /// the run took: baseline, trials and settle repetitions, in seconds.
     pub settle_repetitions: u64,
+    /// The plant's time the run took, s.
     pub plant_seconds: f64,
     /// The share of `plant_seconds` spent settling.
     pub settle_share: f64,
@@ -65,7 +70,9 @@ impl Run {
 /// One algorithm over the seeds.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
+    /// The optimiser summarised.
     pub algorithm: String,
+    /// Its runs, one per seed.
     pub seeds: usize,
     /// Runs that reached the target within the budget.
     pub reached: usize,
@@ -73,16 +80,22 @@ pub struct Summary {
     pub to_target_quartiles: [f64; 3],
     /// The same to within 1 % of the best any algorithm reached on the seed (`Run::to_best`).
     pub reached_best: usize,
+    /// Experiments to within 1 % of the best any algorithm reached: quartiles over seeds
+    /// (never = budget + 1).
     pub to_best_quartiles: [f64; 3],
     /// Runs without an aborted trial.
     pub runs_without_aborts: usize,
     /// Runs whose final cost is below their baseline's (the configured set's).
     pub improved_on_start: usize,
+    /// Final cost: quartiles over seeds.
     pub final_cost_quartiles: [f64; 3],
+    /// Aborted trials per run: quartiles over seeds.
     pub aborts_quartiles: [f64; 3],
+    /// Aborted trials over all its runs.
     pub aborts_total: u64,
     /// The plant's time a run took (s) and the share of it spent settling between trials.
     pub plant_seconds_quartiles: [f64; 3],
+    /// Share of the plant's time spent settling: quartiles over seeds.
     pub settle_share_quartiles: [f64; 3],
     /// A run's wall time (s).
     pub wall_seconds_quartiles: [f64; 3],
@@ -93,14 +106,23 @@ pub struct Summary {
     pub vs_ga: Option<VsGa>,
 }
 
+/// One optimiser against the GA, paired over seeds: on how many seeds it is lower,
+/// and the two-sided Wilcoxon p-values.
 #[derive(Debug, Clone, Serialize)]
 pub struct VsGa {
+    /// Seeds where it reached the target in fewer experiments (never = budget + 1).
     pub fewer_experiments: usize,
+    /// Wilcoxon p of the experiments to the target.
     pub experiments_p: f64,
+    /// Seeds where its final cost is lower.
     pub lower_final_cost: usize,
+    /// Wilcoxon p of the final costs.
     pub final_cost_p: f64,
+    /// Seeds where it aborted fewer trials.
     pub fewer_aborts: usize,
+    /// Seeds where it aborted more trials.
     pub more_aborts: usize,
+    /// Wilcoxon p of the aborted trials per run.
     pub aborts_p: f64,
 }
 

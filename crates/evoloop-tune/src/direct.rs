@@ -12,6 +12,10 @@ pub fn is_scenario(text: &str) -> bool {
         .is_ok_and(|t| t.contains_key("controller") && !t.contains_key("experiment"))
 }
 
+/// Tune the direct scenario `file` in this process in lockstep (with `--compare`:
+/// compare the optimisers over the seeds); writes direct.json and the scheme's
+/// files into its output directory and prints a summary or the JSON. Fails with
+/// `--seeds` but no `--compare`, or on a scenario not of the direct scheme.
 pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), String> {
     if let Some(algorithms) = &a.compare {
         let seeds = a.seeds.clone().unwrap_or_else(|| vec![a.seed.unwrap_or(1)]);

@@ -24,12 +24,17 @@ use std::path::{Path, PathBuf};
 /// What to run: the experiment file and the command line's choices.
 #[derive(Debug, Clone)]
 pub struct TuneRequest {
+    /// The experiment file, or a direct-scheme scenario (tuned or compared in this process).
     pub file: PathBuf,
+    /// `--seed`: the seed (GA, plant noise), over the file's `seed` (default 1) or the scenario's.
     pub seed: Option<u64>,
     /// Several seeds: the multi-seed study (maglev).
     pub seeds: Option<Vec<u64>>,
+    /// `--json`: the result as JSON on stdout instead of the summary, without progress.
     pub json: bool,
+    /// `--out`: the output directory, over the file's `output.dir`.
     pub out: Option<PathBuf>,
+    /// `--quiet`: no progress bar.
     pub quiet: bool,
     /// `--compare`: the optimisers to compare on a direct scenario.
     pub compare: Option<Vec<String>>,
@@ -75,11 +80,17 @@ struct RawOut {
 
 /// What every experiment needs to know about the run.
 pub struct Run {
+    /// The optimiser's settings from the `[ga]` table (GA and Hooke-Jeeves phases).
     pub hybrid: HybridConfig,
+    /// The output directory (created before the experiment runs).
     pub out: PathBuf,
+    /// Whether to draw the PNG figures (`output.plots`, default true).
     pub plots: bool,
+    /// Print the result as JSON on stdout instead of the summary.
     pub json: bool,
+    /// Show progress bars (not with `--quiet` or `--json`).
     pub progress: bool,
+    /// The run's seed: the GA's, and the maglev tuning run's noise seed.
     pub seed: u64,
 }
 

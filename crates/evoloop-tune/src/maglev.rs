@@ -19,6 +19,8 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::path::Path;
 
+/// The `[maglev]` table of an experiment file as read, every key optional (`spec`
+/// checks them and fills in `Spec::default()`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawMaglevTune {
@@ -31,6 +33,10 @@ pub struct RawMaglevTune {
     values: Option<Vec<f64>>,
 }
 
+/// The experiment's `Spec`: the defaults with the `[maglev]` table's values (ball
+/// mass, kg; period, step and duration, s; noise, mm; the set-point steps' `times`,
+/// s, and `values`, mm). Fails, naming the key, on a value out of its range, times
+/// not strictly increasing, or `times` and `values` not given together.
 pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, String> {
     let mut s = Spec::default();
     let Some(r) = raw else { return Ok(s) };
@@ -92,13 +98,21 @@ pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, String> {
 /// One variant tuned: its best parameters and the GA's record.
 #[derive(Debug, Clone, Serialize)]
 pub struct Tuned {
+    /// The anti-windup variant tuned.
     pub anti_windup: AntiWindup,
+    /// The best parameters found, in `names`' order.
     pub params: Vec<f64>,
+    /// The parameters' names (`AntiWindup::param_names`).
     pub names: Vec<&'static str>,
+    /// Eq. 31's G of `params` on the tuning run (noise seed: the run's seed).
     pub g_tuning: f64,
+    /// The cost on the test run (noise seed + 1000); None when the ball was lost.
     pub test: Option<Cost>,
+    /// Objective evaluations the tuning spent.
     pub evaluations: usize,
+    /// The tuning's wall-clock time, s.
     pub seconds: f64,
+    /// Best G so far after each evaluation.
     pub best_so_far: Vec<f64>,
 }
 
@@ -128,6 +142,9 @@ pub fn tune_variant(run: &Run, spec: &Spec, aw: AntiWindup) -> Tuned {
     }
 }
 
+/// Section 5.2's experiment on one seed: each anti-windup variant tuned with the same
+/// budget and scored on the test run; writes result.json, response.csv and (with
+/// plots) the figures into `run.out`, and prints a summary or the JSON.
 pub fn run(run: Run, spec: Spec) -> Result<(), String> {
     let variants = [
         AntiWindup::Fuzzy,
@@ -390,6 +407,7 @@ pub const STUDY_VARIANTS: [AntiWindup; 5] = [
 /// One comparison of fuzzy anti-windup against a baseline on one part of eq. 31, over seeds.
 #[derive(Debug, Clone, Serialize)]
 pub struct Comparison {
+    /// The baseline variant's name (`AntiWindup::name`).
     pub baseline: &'static str,
     /// "G", "error", "control".
     pub part: &'static str,
@@ -397,6 +415,7 @@ pub struct Comparison {
     pub wilcoxon: crate::stats::Wilcoxon,
     /// Mean of (fuzzy - baseline) over the seeds where both kept the ball, with its 95 % interval.
     pub difference: crate::stats::MeanCi,
+    /// What the comparison supports, in words (`comparison_sentence`).
     pub sentence: String,
 }
 
@@ -415,11 +434,6 @@ pub fn comparison_sentence(
     crate::stats::paired_sentence("Fuzzy anti-windup", "fuzzy", baseline, &what, w, d)
 }
 
-/// `evoloop tune config/maglev_tune.toml --seeds 1..20`: for every seed, each variant tuned with
-/// the same GA budget (tuning noise = the seed) and scored on the test run (noise seed + 1000);
-/// per variant the mean and 95 % interval of G and its parts; fuzzy against each baseline by a
-/// paired Wilcoxon test on G, the error term and the control term. Writes `seeds.csv`,
-/// `study.json`, `study.md`, `study_g.png`, `study_error.png`.
 /// Tune every variant on every seed and score it on its test run: costs[v][s], None where the
 /// variant lost the ball; each row also in seeds.csv.
 fn tune_seeds(base: &Run, spec: &Spec, seeds: &[u64]) -> Result<Vec<Vec<Option<Cost>>>, String> {
@@ -513,6 +527,11 @@ fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result
     Ok(())
 }
 
+/// `evoloop tune config/maglev_tune.toml --seeds 1..20`: for every seed, each variant tuned with
+/// the same GA budget (tuning noise = the seed) and scored on the test run (noise seed + 1000);
+/// per variant the mean and 95 % interval of G and its parts; fuzzy against each baseline by a
+/// paired Wilcoxon test on G, the error term and the control term. Writes `seeds.csv`,
+/// `study.json`, `study.md` and (with plots) `study_g.png`, `study_error.png`.
 pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
     use crate::stats::{mean_ci, wilcoxon};
     let n_v = STUDY_VARIANTS.len();

@@ -35,6 +35,9 @@ use crate::reference::Setpoint;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
+/// The computed-torque law of the module docs: its model in service, a second model on which a
+/// replacement is checked, the gains [Kp; Kv] and the velocity source. Built once, then stepped
+/// without allocating.
 pub struct ComputedTorque {
     model: Model,
     data: Data,
@@ -253,15 +256,22 @@ pub struct Table {
 /// Validated computed-torque gains [Kp; Kv] with their bounds, the start-up rate and the model.
 #[derive(Debug, Clone, Serialize)]
 pub struct ComputedTorqueSpec {
+    /// The gains [Kp_1..Kp_n, Kv_1..Kv_n] (each >= 0) and their bounds.
     #[serde(flatten)]
     pub tunable: Tunable,
     /// psi's rate per sample (0 = off).
     pub startup_rate: f64,
     /// The controller's model (the plant's robot unless `model` is given).
     pub model: Model,
+    /// Where the law's joint velocities come from (`velocity`; differenced and low-passed by
+    /// default).
     pub velocity: VelocitySource,
 }
 
+/// Validate `[controller.computed_torque]` for the arm the plant drives: `kp` and `kv` (one per
+/// joint, >= 0, within their bounds), the start-up rate, the model (a robot file with as many
+/// joints, else the plant's) and the velocity source. Fails when the plant is no arm or the table
+/// is missing.
 pub fn validate(
     t: Option<Table>,
     check: &Check,

@@ -21,8 +21,11 @@ pub const PENDING_CAPACITY: usize = 16;
 /// catcher) or any command |u| exceeds `control`. Infinite bounds: no envelope.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Envelope {
+    /// The largest tracking error |r - y| a trial may reach on any joint, in the output's unit.
     pub error: f64,
+    /// The largest measured output |y| a trial may reach on any joint, in the output's unit.
     pub output: f64,
+    /// The largest command |u| a trial may give on any input, in the command's unit (N m, V ...).
     pub control: f64,
 }
 
@@ -74,15 +77,27 @@ impl Envelope {
 /// A parameter-set event, for the run's record.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParamEvent {
+    /// The cycle the event happened in (`ControlCycle::next_cycle` before that `step`).
     pub cycle: u64,
+    /// The plant time of the state that cycle ran on, s.
     pub t: f64,
+    /// The version of the set it concerns: the set received, the trial that ended or was aborted,
+    /// or the half-gathered model a newer one displaced.
     pub version: u64,
+    /// What happened: accepted, refused (and why), or a trial ended or aborted.
     pub code: ParamCode,
+    /// For a refusal, the index of the offending value (the length received, for a wrong length); 0
+    /// otherwise.
     pub index: u32,
 }
 
+/// One controller's cycle (see the module docs): the law, the reference, the sets waiting for their
+/// cycle, the trial in service and its fallback, and the checks a set and a state must pass. Built
+/// once; `step` does not allocate.
 pub struct ControlCycle {
+    /// The control law, stepped once per cycle.
     pub controller: Box<dyn Controller>,
+    /// The reference, sampled at each state's time for the cycle's set-point.
     pub reference: Reference,
     bounds: ParamBounds,
     version: u64,
@@ -90,6 +105,8 @@ pub struct ControlCycle {
     pending: Vec<ParamSet>,
     /// Sets dropped because the queue was full.
     pub pending_dropped: u64,
+    /// The command of the last cycle: the law's outputs in the first `n_outputs` entries, or the
+    /// safe command for a refused state.
     pub u: [f64; MAX_JOINTS],
     /// The set-point of the last cycle (all joints).
     pub setpoint: Setpoint,
@@ -101,6 +118,7 @@ pub struct ControlCycle {
     /// The law's filter designed again on an adopted estimate: how often, and how often no
     /// stable filter came of it (the last one kept).
     pub filters_designed: u64,
+    /// How often a redesign gave no stable filter (the last one kept).
     pub filters_refused: u64,
     cycle: u64,
     /// How many values the law logs (`Controller::log_columns`); telemetry carries them all.
@@ -158,6 +176,9 @@ fn current_set(c: &dyn Controller, version: u64) -> ParamSet {
 }
 
 impl ControlCycle {
+    /// A cycle running `controller` on `reference`, its gain sets checked against `bounds`. The
+    /// law's configured parameters are version 0 and the first fallback; there is no state check,
+    /// envelope, isolation or stability check until the `with_*` builders add them.
     pub fn new(controller: Box<dyn Controller>, reference: Reference, bounds: ParamBounds) -> Self {
         Self {
             reference,
@@ -265,16 +286,18 @@ impl ControlCycle {
         }
     }
 
-    /// Run one cycle on `state`; returns u and fills `tel` (all but the timing fields), and the
-    /// parameter event of this cycle if one happened. At most one set is handled per cycle, so
-    /// each accept/reject gets its own telemetry record; a trial's end or abort in the same cycle
-    /// shows in the version in service (an abort is recorded in place of the acceptance).
     /// Have the next `step` refuse its state: sample `seq`, refused before the cycle for
     /// `fault`, is answered with the safe command and counted, as a state `state_check` refuses.
     pub fn refuse(&mut self, seq: u64, fault: StateFault) {
         self.refuse = Some((seq, fault));
     }
 
+    /// Run one cycle on `state`: handle the due set (at most one), end or abort a trial, run the
+    /// law into `u` (or the safe command for a refused state) and fill `tel` (all but the timing
+    /// fields). Returns the cycle's parameter event, if one happened. At most one set is handled
+    /// per cycle, so each accept/reject gets its own telemetry record; a trial's end or abort in
+    /// the same cycle shows in the version in service (an abort is recorded in place of the
+    /// acceptance).
     pub fn step(&mut self, state: &PlantState, tel: &mut Telemetry) -> Option<ParamEvent> {
         if let Some(check) = self.state_check {
             let refused = self.refuse.take();

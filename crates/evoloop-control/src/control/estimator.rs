@@ -48,8 +48,14 @@ fn samples_since(last: Option<u64>, seq: u64) -> Option<u64> {
 /// on the states reaches the output through the spring, which moves those poles off the axis.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct KalmanDesign {
+    /// Standard deviation of the disturbance entering where the input does, held over a period as
+    /// the input is (input units; > 0).
     pub process_noise: f64,
+    /// Standard deviation of the measurement's error, the sensor's noise and its quantisation
+    /// together (output units; > 0).
     pub measurement_noise: f64,
+    /// Standard deviation of the disturbance on every sampled state, per sample (the states' units;
+    /// 0, the default: none).
     #[serde(default)]
     pub state_noise: f64,
 }
@@ -609,14 +615,23 @@ pub enum VelocitySource {
     /// paper's simulation, an ideal sensor (`velocity = "true"`).
     True,
     /// Measured positions differenced and low-passed (`VelocityFilter`) at this cutoff, Hz.
-    Filtered { cutoff_hz: f64 },
+    Filtered {
+        /// The low-pass's cutoff, Hz.
+        cutoff_hz: f64,
+    },
     /// The law's own model predicting from the applied torques, corrected by the measured
     /// positions (`VelocityObserver`), the error's double pole at this bandwidth, Hz, the
     /// positions `delay` samples late (the plant's `sensor_delay`).
-    Observer { bandwidth_hz: f64, delay: usize },
+    Observer {
+        /// Where the estimation error's double pole lies, Hz.
+        bandwidth_hz: f64,
+        /// Samples the measured positions lag the state (the plant's `sensor_delay`).
+        delay: usize,
+    },
 }
 
 impl VelocitySource {
+    /// Whether the law reads the simulator's `qd_true` (`True`), which no sensor gives.
     pub fn reads_truth(self) -> bool {
         self == VelocitySource::True
     }
@@ -625,7 +640,9 @@ impl VelocitySource {
 /// A law's velocity reading in the cycle.
 #[derive(Debug, Clone)]
 pub enum Velocities {
+    /// The simulator's true joint velocities `qd_true`.
     True,
+    /// Measured positions differenced and low-passed.
     Filtered(VelocityFilter),
     /// Boxed: its state and the model's workspace, built once off the cycle.
     Observer(Box<VelocityObserver>),

@@ -56,10 +56,16 @@ pub enum EvidencePrior {
 /// `Selection::Evidence`, its prior, filter bandwidth (rad/s) and memory (s).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Rule {
+    /// How the weights become the law's: `Max` (the paper's), `Blend` or `Evidence`.
     pub selection: Selection,
+    /// Width of the fuzzy sets of eq. 20 (the paper's 0.66 by default).
     pub gamma: f64,
+    /// Under `Evidence`: what the models' evidence is weighed against.
     pub evidence_prior: EvidencePrior,
+    /// Under `Evidence`: lambda of the state-variable filter the residuals are taken through,
+    /// rad/s.
     pub evidence_bandwidth: f64,
+    /// Under `Evidence`: the memory of each model's averaged squared residual, s.
     pub evidence_memory: f64,
 }
 
@@ -76,6 +82,9 @@ impl Rule {
     }
 }
 
+/// Computed torque on RKGNN-identified models with fuzzy model selection (see the module docs): the
+/// models, the selection rule and its weights, the gains [Kp; Kv], and each model's probes for
+/// checking a replacement. Built once, then stepped without allocating.
 pub struct FuzzyComputedTorque {
     models: Vec<RkgnnModel>,
     /// L_j per premise (2n).
@@ -467,15 +476,24 @@ pub struct Table {
 /// Validated settings with the models loaded and checked.
 #[derive(Debug, Clone, Serialize)]
 pub struct FuzzyComputedTorqueSpec {
+    /// The gains [Kp_1..Kp_n, Kv_1..Kv_n] (each >= 0) and their bounds.
     #[serde(flatten)]
     pub tunable: Tunable,
+    /// psi's rate per sample (0 = no start-up damping).
     pub startup_rate: f64,
+    /// The model files, resolved against the scenario's directory, in their configured order.
     pub models: Vec<PathBuf>,
+    /// How the models are weighed (`selection`, `gamma` and the evidence keys).
     #[serde(flatten)]
     pub rule: Rule,
+    /// Where the law's joint velocities come from (`velocity`; differenced and low-passed by
+    /// default).
     pub velocity: VelocitySource,
+    /// The models as loaded from `models`, checked along the run's reference.
     #[serde(skip)]
     pub loaded: Vec<RkgnnModel>,
+    /// Each joint's effort limit from the arm's robot file (N m; N for a prismatic joint): the law
+    /// clamps its command to it.
     #[serde(skip)]
     pub effort: Vec<f64>,
     /// Positions of the run's reference (`reference_positions`).
@@ -521,6 +539,10 @@ fn rule(check: &Check, t: &Table) -> Result<Rule, ConfigError> {
     Ok(rule)
 }
 
+/// Validate `[controller.fuzzy_computed_torque]` for the arm the plant drives: the gains and
+/// start-up rate as computed torque's, the selection keys, and 1 to `MAX_MODELS` model files, each
+/// with the arm's joints and a positive definite M-hat along the run's reference. Fails when the
+/// plant is no arm, the table is missing or a model does not load.
 pub fn validate(
     t: Option<Table>,
     check: &Check,

@@ -12,6 +12,8 @@ use crate::msg::{PlantState, ParamKind};
 use crate::reference::Setpoint;
 use serde::{Deserialize, Serialize};
 
+/// The direct fuzzy controller of the module docs: the network the genes in service describe,
+/// evaluated on [y, w] each cycle.
 pub struct FuzzyNetworkLaw {
     codec: Codec,
     net: FuzzyNetwork,
@@ -19,6 +21,8 @@ pub struct FuzzyNetworkLaw {
 }
 
 impl FuzzyNetworkLaw {
+    /// The law running the network `codec` decodes from `genes`, its first parameter set
+    /// (`codec.len()` values).
     pub fn new(codec: Codec, genes: &[f64]) -> Self {
         let net = codec.decode(genes);
         Self {
@@ -72,13 +76,19 @@ pub struct Table {
     upper: Option<Vec<f64>>,
 }
 
+/// Validated `[controller.fuzzy_network]` settings: the structure, and the genes with their bounds.
 #[derive(Debug, Clone, Serialize)]
 pub struct FuzzyNetworkSpec {
+    /// The network's structure (`network`).
     pub network: Structure,
+    /// The genes (default: the Fig. 1 controller with medium widths and unit scaling) and their
+    /// bounds (default: the codec's).
     #[serde(flatten)]
     pub tunable: Tunable,
 }
 
+/// Validate `[controller.fuzzy_network]`: as many genes as the structure's codec has, each within
+/// its bounds. Fails when the table is missing.
 pub fn validate(
     t: Option<Table>,
     check: &Check,

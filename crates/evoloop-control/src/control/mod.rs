@@ -32,8 +32,13 @@ crate::kinds! {
     pub enum ControllerModel;
     /// The `[controller]` table as read: the keys every law shares and one table per law.
     pub struct RawController {
+        /// `controller.kind`: which control law runs.
         pub kind: ControllerKind,
+        /// `controller.u_limit`: the output limit, > 0 (none by default); state feedback saturates
+        /// symmetrically at it.
         pub u_limit: Option<f64>,
+        /// `controller.stale_after_periods`: periods a state sample may be old before the
+        /// controller holds its output (default 3, >= 1).
         pub stale_after_periods: Option<u32>,
     };
     state_feedback => StateFeedback(StateFeedbackSpec),
@@ -77,10 +82,12 @@ pub trait ControllerConfig {
 
 /// What a law's validation may look at besides its own table.
 pub struct ControllerContext<'a> {
+    /// The validated plant the law will drive.
     pub plant: &'a PlantModel,
     /// The reference the controller will track, and for how long (s; infinite for a run until
     /// stopped): a model-based law checks its models where the run will take them.
     pub reference: &'a crate::reference::Reference,
+    /// The run's duration, s (infinite for a run until stopped).
     pub duration: f64,
     /// The control period, s (an estimator is designed for it).
     pub period: f64,
@@ -98,6 +105,7 @@ pub struct ControllerSpec {
     pub u_limit: Option<f64>,
     /// Periods a state sample may be old before the controller holds its output.
     pub stale_after_periods: u32,
+    /// The chosen law's own settings (its `[controller.<kind>]` table, validated).
     #[serde(flatten)]
     pub model: ControllerModel,
 }
@@ -136,35 +144,45 @@ impl ControllerSpec {
         })
     }
 
+    /// Which control law this is.
     pub fn kind(&self) -> ControllerKind {
         self.model.kind()
     }
 
+    /// The law with its configured initial parameters, for control period `period`, s.
     pub fn build(&self, period: f64) -> Box<dyn Controller> {
         self.model.config().build(period, self.u_limit)
     }
 
+    /// The law's initial parameter set and the bounds every later set must respect.
     pub fn tunable(&self) -> &Tunable {
         self.model.config().tunable()
     }
 
+    /// The `ParamKind` the law's parameter sets carry.
     pub fn param_kind(&self) -> ParamKind {
         self.model.config().param_kind()
     }
 
+    /// The `ParamKind` of the law's model sets, if it takes any.
     pub fn model_param_kind(&self) -> Option<ParamKind> {
         self.model.config().model_param_kind()
     }
 
+    /// Indices of the parameters that are scaling factors (the GA/Hooke-Jeeves hybrid's phase 2
+    /// searches them).
     pub fn scaling_genes(&self) -> Vec<usize> {
         self.model.config().scaling_genes()
     }
 
+    /// Whether the law reads the simulator's truth fields, which no sensor gives.
     pub fn reads_truth(&self) -> bool {
         self.model.config().reads_truth()
     }
 }
 
+/// A control law as the cycle runs it: built once with its buffers, then stepped once per period
+/// without allocating, its parameter sets swapped in at cycle boundaries.
 pub trait Controller: Send {
     /// The `msg::ParamKind` this controller accepts parameter sets for.
     fn kind(&self) -> ParamKind;
@@ -271,8 +289,12 @@ pub(crate) fn driven_arm<'a>(
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum VelocityKey {
+    /// `"true"`: the simulator's true joint velocities `qd_true`.
     True,
+    /// `"filtered"`: the measured positions differenced and low-passed (the default).
     Filtered,
+    /// `"observer"`: predicted by the law's own model from the applied torques, corrected by the
+    /// measured positions.
     Observer,
 }
 

@@ -21,6 +21,7 @@ const PENDING: usize = 8;
 pub struct ModelCheckReport {
     /// The last estimate adopted; None: sets were checked on the configured model only.
     pub last_adopted: Option<f64>,
+    /// Estimates adopted: sets were checked on their models from their sample on.
     pub adopted: u64,
     /// Not finite or not positive: the model in use was kept.
     pub refused: u64,
@@ -31,6 +32,7 @@ pub struct ModelCheckReport {
     /// filter kept).
     #[serde(default)]
     pub filters_designed: u64,
+    /// Adopted estimates on which no stable filter could be designed (the last filter kept).
     #[serde(default)]
     pub filters_refused: u64,
 }
@@ -83,6 +85,8 @@ impl<T: Copy> Adoption<T> {
     }
 }
 
+/// The model a controller checks new gain sets on for a plant with a varying parameter: the plant's
+/// linear model at the configured value, then at the latest estimate adopted (see the module docs).
 pub struct ModelCheck {
     plant: PlantModel,
     adoption: Adoption<ModelEstimate>,
@@ -121,6 +125,7 @@ impl ModelCheck {
         )
     }
 
+    /// What became of the estimates so far.
     pub fn report(&self) -> &ModelCheckReport {
         &self.adoption.report
     }
@@ -137,6 +142,8 @@ pub struct LinearCheck {
 }
 
 impl LinearCheck {
+    /// A check with no estimate yet, sampling each estimated transfer function at the control
+    /// period `period`, s.
     pub fn new(period: f64) -> Self {
         Self {
             period,
@@ -172,6 +179,7 @@ impl LinearCheck {
         )
     }
 
+    /// What became of the estimates so far.
     pub fn report(&self) -> &ModelCheckReport {
         &self.adoption.report
     }

@@ -10,13 +10,18 @@ use crate::msg::{ParamCode, ParamKind, ParamSet, PART_HEADER};
 pub enum Gathered<'a> {
     /// More parts to come. A first part that found another model half gathered drops that one:
     /// its version, to be refused (no model goes without an outcome it could be given).
-    Incomplete { dropped: Option<u64> },
+    Incomplete {
+        /// The version of the half-gathered model this part's model displaced, if any.
+        dropped: Option<u64>,
+    },
     /// The last part: the whole model's values.
     Whole(&'a [f64]),
     /// A later part of a model already refused (refused once, in one event).
     Dropped,
 }
 
+/// Where a model sent in parts is gathered (see the module docs): the values so far, the model they
+/// belong to, and the last model refused.
 pub struct Gather {
     values: Vec<f64>,
     /// The model being gathered: its version and length (0: none).

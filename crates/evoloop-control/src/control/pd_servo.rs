@@ -23,6 +23,8 @@ use crate::msg::{ParamKind, PlantState};
 use crate::reference::Setpoint;
 use serde::{Deserialize, Serialize};
 
+/// The joint P-D servo of the module docs, with gravity compensation when built `with_gravity`: the
+/// gains [Kp; Kd], each joint's torque limit and the velocity source.
 pub struct PdServo {
     gains: Vec<f64>,
     limits: Vec<f64>,
@@ -122,15 +124,21 @@ pub struct Table {
 /// Validated P-D gains [Kp; Kd] with their bounds, and the arm's torque limits.
 #[derive(Debug, Clone, Serialize)]
 pub struct PdServoSpec {
+    /// The gains [Kp_1..Kp_n, Kd_1..Kd_n] (each >= 0) and their bounds.
     #[serde(flatten)]
     pub tunable: Tunable,
     /// Torque limit per joint (from the robot description; infinite where none).
     pub torque_limits: Vec<f64>,
+    /// Where the servo's joint velocities come from (`velocity`; differenced and low-passed by
+    /// default).
     pub velocity: VelocitySource,
     /// The model whose gravity torque is added, if any (`gravity_model`).
     pub gravity_model: Option<Model>,
 }
 
+/// Validate `[controller.pd_servo]` for the arm the plant drives: `kp` and `kd` (one per joint,
+/// at least 0, within their bounds), the velocity source and the gravity model (a robot file with as
+/// many joints). Fails when the plant is no arm or the table is missing.
 pub fn validate(
     t: Option<Table>,
     check: &Check,

@@ -27,13 +27,24 @@ use crate::msg::{ParamKind, PlantState};
 use crate::reference::Setpoint;
 use serde::{Deserialize, Serialize};
 
+/// How the PID's integrator is handled while the actuator saturates (`controller.pid.anti_windup`;
+/// see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AntiWindup {
+    /// The paper's fuzzy anti-windup: K_i falls as |e| grows (eqs. 27-30).
+    /// Parameters [Kp, Tv, v0e, v1e, v0K/v1K, C_i, C_e].
     Fuzzy,
+    /// A constant K_i and no anti-windup. Parameters [Kp, Tv, Ki].
     None,
+    /// Conditional integration: the integrator holds while the output is saturated and the error
+    /// would drive it further. Parameters [Kp, Tv, Ki].
     Clamping,
+    /// The saturation excess fed back into the integrator with gain Kb.
+    /// Parameters [Kp, Tv, Ki, Kb].
     BackCalculation,
+    /// The plain integrator clamp: the integral kept within the output limits.
+    /// Parameters [Kp, Tv, Ki].
     IntegratorClamp,
 }
 
@@ -55,6 +66,7 @@ impl AntiWindup {
         }
     }
 
+    /// The number of parameters the scheme's PID takes: 7 fuzzy, 4 back-calculation, else 3.
     pub fn n_params(self) -> usize {
         match self {
             AntiWindup::Fuzzy => 7,
@@ -63,6 +75,7 @@ impl AntiWindup {
         }
     }
 
+    /// The `ParamKind` the scheme's sets carry (a set for one scheme is no use to another).
     pub fn kind(self) -> ParamKind {
         match self {
             AntiWindup::Fuzzy => ParamKind::PidFuzzyAntiWindup,
@@ -73,6 +86,7 @@ impl AntiWindup {
         }
     }
 
+    /// The parameters' names in set order, for messages and reports.
     pub fn param_names(self) -> &'static [&'static str] {
         match self {
             AntiWindup::Fuzzy => &["Kp", "Tv", "v0e", "v1e", "v0K/v1K", "C_i", "C_e"],
@@ -83,6 +97,8 @@ impl AntiWindup {
         }
     }
 
+    /// The scheme's name in reports, CSV columns and messages: as written in TOML, but `fuzzy_aw`
+    /// for `Fuzzy`.
     pub fn name(self) -> &'static str {
         match self {
             AntiWindup::Fuzzy => "fuzzy_aw",
@@ -114,8 +130,11 @@ pub fn integral_gain(aw: AntiWindup, p: &[f64], e: f64) -> f64 {
     }
 }
 
+/// The PID of eq. 26 under one anti-windup scheme: the parameters in service, the output limits,
+/// the integrator and the last error.
 #[derive(Debug, Clone)]
 pub struct Pid {
+    /// The anti-windup scheme, which also fixes the parameters' layout.
     pub aw: AntiWindup,
     params: Vec<f64>,
     period: f64,
@@ -128,6 +147,9 @@ pub struct Pid {
 }
 
 impl Pid {
+    /// A PID under `aw` with `params` (`aw.n_params()` values, else it panics), sampled every
+    /// `period` s, clipping its output to `limits` = (u_min, u_max), its integrator starting at
+    /// `initial_integral`.
     pub fn new(
         aw: AntiWindup,
         params: &[f64],
@@ -158,6 +180,7 @@ impl Pid {
         self.params[0] * (e + self.params[1] / self.period * de)
     }
 
+    /// The integrator's state, in the output's unit (mA for the maglev).
     pub fn integral(&self) -> f64 {
         self.integral
     }
@@ -256,13 +279,20 @@ pub struct Table {
 /// given), the integrator's start and the actuator's range it clips to.
 #[derive(Debug, Clone, Serialize)]
 pub struct PidSpec {
+    /// The anti-windup scheme (`anti_windup`).
     pub anti_windup: AntiWindup,
+    /// The parameters in the scheme's order (`params`) and their bounds.
     #[serde(flatten)]
     pub tunable: Tunable,
+    /// The integrator's start, within the output range (default: the plant's holding input).
     pub initial_integral: f64,
+    /// The plant's input range (u_min, u_max), which the output is clipped to.
     pub output_range: (f64, f64),
 }
 
+/// Validate `[controller.pid]` for a single-input single-output plant: as many `params` as the
+/// scheme takes, within their bounds, and an initial integral within the plant's input range. Fails
+/// for an arm or when the table is missing.
 pub fn validate(
     t: Option<Table>,
     check: &Check,

@@ -10,8 +10,11 @@ use crate::{MAX_JOINTS, MAX_STATES};
 /// What every state must have: the configured plant's counts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StateCheck {
+    /// The configured plant's state count, which every sample's `n_x` must equal.
     pub n_x: usize,
+    /// The configured plant's joint count, which every sample's `n_q` must equal.
     pub n_q: usize,
+    /// The configured plant's measured-output count, which every sample's `n_y` must equal.
     pub n_y: usize,
     /// The commands the law sends: the applied command's valid prefix (`u_applied`), which
     /// an estimator reads.
@@ -29,12 +32,20 @@ pub struct StateCheck {
 pub enum StateFault {
     /// A count (`n_x`, `n_q` or `n_y`) is not the configured plant's.
     Count {
+        /// Which count differs.
         field: Field,
+        /// The count the sample has.
         got: u32,
+        /// The configured plant's count.
         expected: u32,
     },
     /// A value is NaN or infinite (`field[index]`; index 0 for `t`).
-    NonFinite { field: Field, index: u32 },
+    NonFinite {
+        /// The field holding the value.
+        field: Field,
+        /// The value's index in it.
+        index: u32,
+    },
     /// The sample breaks time (realtime): its stamp or sequence number cannot follow the last
     /// good sample's.
     Time(TimeFault),
@@ -48,33 +59,57 @@ pub enum StateFault {
 #[serde(rename_all = "snake_case")]
 pub enum TimeFault {
     /// `seq` is not after the last good sample's `last`.
-    SeqNotAfter { seq: u64, last: u64 },
+    SeqNotAfter {
+        /// The sample's `seq`.
+        seq: u64,
+        /// The last good sample's `seq`.
+        last: u64,
+    },
     /// `stamp_ns` is `by_ns` before the last good sample's.
-    StampBehind { by_ns: u64 },
+    StampBehind {
+        /// How far behind, ns.
+        by_ns: u64,
+    },
     /// `stamp_ns` is `by_ns` ahead of this machine's clock.
-    StampAhead { by_ns: u64 },
+    StampAhead {
+        /// How far ahead of the clock when the sample was read, ns.
+        by_ns: u64,
+    },
     /// `seq` is further on than the time since the first sample allows: its period would have
     /// begun `by_ns` before the plant's first period did (a jump, or a plant ticking faster
     /// than the period).
-    SeqAhead { by_ns: u64 },
+    SeqAhead {
+        /// How long before the first period's start its period would have begun, ns.
+        by_ns: u64,
+    },
 }
 
 /// A field of `PlantState`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Field {
+    /// `t`: the sample's simulated time, s.
     T,
+    /// `n_x`: the number of valid states.
     NX,
+    /// `n_q`: the number of joints.
     NQ,
+    /// `n_y`: the number of measured outputs.
     NY,
+    /// `x_true`: the simulator's true state.
     XTrue,
+    /// `q_true`: the simulator's true joint positions.
     QTrue,
+    /// `qd_true`: the simulator's true joint velocities.
     QdTrue,
+    /// `y`: the measured outputs.
     Y,
+    /// `u_applied`: the command applied over the interval that ended at the sample.
     UApplied,
 }
 
 impl Field {
+    /// The field's name in `PlantState`, as messages give it.
     pub fn name(self) -> &'static str {
         match self {
             Field::T => "t",
@@ -302,17 +337,23 @@ impl StateCheck {
 /// The refused states of a run: how many, and the first (its sample and why).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Refused {
+    /// How many states were refused.
     pub count: u64,
+    /// The first refused state, if any.
     pub first: Option<FirstRefused>,
 }
 
+/// The first state refused in a run: its sample and why.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FirstRefused {
+    /// The refused sample's `seq`.
     pub seq: u64,
+    /// Why it was refused.
     pub fault: StateFault,
 }
 
 impl Refused {
+    /// Count a refused state, sample `seq`, refused for `fault`; the first one is kept.
     pub fn note(&mut self, seq: u64, fault: StateFault) {
         self.count += 1;
         self.first.get_or_insert(FirstRefused { seq, fault });

@@ -20,6 +20,9 @@ use serde::{Deserialize, Serialize};
 use crate::msg::{PlantState, ParamKind};
 use crate::reference::Setpoint;
 
+/// State feedback with integral action (see the module docs): the gains K, the integrator kept as
+/// its contribution to u, an optional output limit, and the Kalman filter whose estimate it runs on
+/// (or none: the true state).
 pub struct StateFeedback {
     gains: Vec<f64>,
     n_x: usize,
@@ -50,6 +53,7 @@ impl StateFeedback {
         }
     }
 
+    /// The integrator's contribution to u, I = -k_{n+1} ξ, in the command's unit.
     pub fn integral(&self) -> f64 {
         self.integral
     }
@@ -160,16 +164,22 @@ pub enum StateSource {
 /// The filter's design when no key gives it: a disturbance of this standard deviation in the
 /// input's units per period, and no less than this measurement error for an ideal sensor.
 pub const DEFAULT_PROCESS_NOISE: f64 = 1.0;
+/// The least measurement error a filter is designed for by default (output units): what a sensor
+/// declared ideal (no noise, no quantisation) is designed with.
 pub const IDEAL_SENSOR_NOISE: f64 = 1e-6;
 
 /// Validated state-feedback gains [K_x, k_{n+1}] and their bounds, and the state they act on.
 #[derive(Debug, Clone, Serialize)]
 pub struct StateFeedbackSpec {
+    /// The gains [k1, ..., kn, k_{n+1}] in the paper's Table 9 order, and their bounds.
     #[serde(flatten)]
     pub tunable: Tunable,
+    /// Where the law's x comes from (`state`; a Kalman filter by default).
     pub state: StateSource,
     /// The filter's design (`state = "kalman"`), and its error dynamics' slowest pole's radius.
     pub kalman: Option<KalmanDesign>,
+    /// The radius of the filter's slowest error pole (`state = "kalman"`): below 1, the nearer 1
+    /// the slower the estimate settles.
     pub kalman_slowest_pole: Option<f64>,
     /// Boxed: a designed filter is ten times the size of the other laws' settings.
     #[serde(skip)]
@@ -179,6 +189,10 @@ pub struct StateFeedbackSpec {
     sensor_delay: usize,
 }
 
+/// Validate `[controller.state_feedback]` for a plant with a linear model: n_x + 1 gains within
+/// their bounds, the state source and, for `state = "kalman"`, a design (noise keys, defaults from
+/// the plant's sensor) from which a stable filter comes at the control period. Fails when the plant
+/// has no linear model or the table is missing.
 pub fn validate(
     t: Option<Table>,
     check: &Check,

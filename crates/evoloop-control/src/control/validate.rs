@@ -7,7 +7,10 @@ pub use crate::check::ParamBounds;
 /// Why a set was refused, and which value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Rejection {
+    /// Why: one of the `ParamCode::Rejected*` codes.
     pub code: ParamCode,
+    /// The offending value's index: the length received for a wrong length, 0 when no one value is
+    /// at fault.
     pub index: u32,
 }
 

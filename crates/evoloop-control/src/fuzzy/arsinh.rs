@@ -102,7 +102,9 @@ pub fn run(net: &FuzzyNetwork, w: &[f64], mut xs: Option<&mut Vec<f64>>) -> f64 
 
 /// G of the controller the genes describe.
 pub struct Objective {
+    /// How the genes become the controller that is run.
     pub codec: Codec,
+    /// The desired trajectory w_k the closed loop tracks, one value per sample.
     pub trajectory: Vec<f64>,
 }
 

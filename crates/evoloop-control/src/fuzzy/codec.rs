@@ -8,11 +8,15 @@
 use super::network::FuzzyNetwork;
 use super::ordered;
 
+/// How a GA string describes a fuzzy network's membership functions and scaling factors, and back
+/// (see the module docs).
 #[derive(Debug, Clone)]
 pub struct Codec {
     /// The network whose structure (labels, rules, epsilon) the genes fill in.
     pub template: FuzzyNetwork,
+    /// The range (lo, hi) the ordered centre genes map into.
     pub centre: (f64, f64),
+    /// The bounds (lo, hi) of every width gene.
     pub width: (f64, f64),
     /// Bounds of each scaling factor (inputs first, then outputs).
     pub scale_bounds: Vec<(f64, f64)>,
@@ -30,10 +34,13 @@ impl Codec {
             .map(|v| v.mfs.len())
     }
 
+    /// The number of genes: a centre and a width per MF of every variable, then one per scaling
+    /// factor.
     pub fn len(&self) -> usize {
         self.variables().map(|n| 2 * n).sum::<usize>() + self.scale_bounds.len()
     }
 
+    /// Whether there are no genes.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -44,6 +51,8 @@ impl Codec {
         (start..self.len()).collect()
     }
 
+    /// The lower and upper bound of every gene, in gene order: centre genes just inside (0, 1),
+    /// widths within `width`, scaling factors within `scale_bounds`.
     pub fn bounds(&self) -> (Vec<f64>, Vec<f64>) {
         let (mut lo, mut hi) = (Vec::new(), Vec::new());
         for n in self.variables() {
@@ -90,6 +99,7 @@ impl Codec {
         }
     }
 
+    /// A copy of the template with the MFs and scaling factors `genes` describe (`len` values).
     pub fn decode(&self, genes: &[f64]) -> FuzzyNetwork {
         let mut net = self.template.clone();
         self.decode_into(genes, &mut net);

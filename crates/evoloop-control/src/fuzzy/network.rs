@@ -11,8 +11,11 @@
 use serde::Serialize;
 use std::fmt::Write as _;
 
+/// Most inputs a network may have (`validate`); `eval`'s fixed buffers are this size.
 pub const MAX_INPUTS: usize = 4;
+/// Most linguistic labels (MFs) a variable may have (`validate`).
 pub const MAX_LABELS: usize = 16;
+/// Most outputs a network may have (`validate`).
 pub const MAX_OUTPUTS: usize = 4;
 /// Connection-array entry for an unconnected combination.
 pub const UNCONNECTED: u16 = u16::MAX;
@@ -20,11 +23,14 @@ pub const UNCONNECTED: u16 = u16::MAX;
 /// A Gaussian membership function exp(-((x - m) / v)^2).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Mf {
+    /// The centre m, on the variable's normalised scale.
     pub m: f64,
+    /// The width v (> 0): the membership is 1/e at m +- v.
     pub v: f64,
 }
 
 impl Mf {
+    /// The membership of `x` (on the normalised scale), in [0, 1].
     pub fn at(&self, x: f64) -> f64 {
         let z = (x - self.m) / self.v;
         (-z * z).exp()
@@ -34,14 +40,21 @@ impl Mf {
 /// One linguistic variable: its label names and membership functions.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Variable {
+    /// The variable's name (`x`, `w`, `u` ...), in messages and printouts.
     pub name: String,
+    /// The label names (N, Z, P ...), one per MF.
     pub labels: Vec<String>,
+    /// The membership functions, one per label.
     pub mfs: Vec<Mf>,
 }
 
+/// A fuzzy network as the module docs describe it: its input and output variables, the connection
+/// array and the scaling factors.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FuzzyNetwork {
+    /// The input variables, in the order `eval`'s `x` gives them.
     pub inputs: Vec<Variable>,
+    /// The output variables, in the order `eval` writes `y`.
     pub outputs: Vec<Variable>,
     /// For every input-label combination (input 0's label varying fastest), M output labels or
     /// `UNCONNECTED` (a combination is connected to all outputs or to none).
@@ -50,6 +63,7 @@ pub struct FuzzyNetwork {
     pub input_scale: Vec<f64>,
     /// C_y per output.
     pub output_scale: Vec<f64>,
+    /// Memberships below this are not evaluated (0: every one is).
     pub epsilon: f64,
 }
 

@@ -16,7 +16,10 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::cell::RefCell;
 
+/// An arm as a plant (see the module docs): its model, the models carrying each
+/// payload, the algorithms' buffers and the initial state.
 pub struct Arm {
+    /// The arm's model without payload, simulated until the first payload time.
     pub model: Model,
     /// The model from each payload time on (strictly increasing times), after `model`.
     loaded: Vec<(f64, Model)>,
@@ -24,6 +27,7 @@ pub struct Arm {
     /// plant is owned by one simulator thread, so a RefCell is enough and never contended.
     data: RefCell<Data>,
     tau: RefCell<Vec<f64>>,
+    /// The initial state [q0; 0]: at rest at the initial joint positions.
     pub x0: Vec<f64>,
 }
 
@@ -134,7 +138,10 @@ pub struct Table {
 pub struct ArmSpec {
     /// The robot file as resolved (relative to the scenario file).
     pub robot: PathBuf,
+    /// The robot file's model, without payload (what the controllers are given).
     pub model: Model,
+    /// The joint positions the arm starts at rest at, within the joint limits (rad; m for a
+    /// prismatic joint); by default the reference's at t = 0.
     pub initial_q: Vec<f64>,
     /// (time s, payload kg) steps; no payload before the first.
     pub payload: Vec<(f64, f64)>,
@@ -154,6 +161,9 @@ impl ArmSpec {
     }
 }
 
+/// Validate `[plant.arm]`: the robot file, a reference with one value per joint that keeps within
+/// the joint limits, the initial positions and the payload schedule. Fails when the table is
+/// missing or the robot file does not load.
 pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<ArmSpec, ConfigError> {
     let Some(t) = t else {
         return check.fail("plant.arm", "missing table [plant.arm] with `robot`");

@@ -11,11 +11,14 @@ use super::{Plant, PlantConfig, PlantContext};
 use crate::check::{Check, ConfigError};
 use serde::{Deserialize, Serialize};
 
+/// The arsinh plant as validated, which is also the plant simulated (see the module docs).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ArsinhSpec {
     /// The pole's magnitude (1.1 in the paper: unstable).
     pub a: f64,
+    /// The bound on |x|: each step's state is held within [-limit, limit] (default 100).
     pub limit: f64,
+    /// The initial state x_0, within the limit (default 0).
     pub initial: f64,
 }
 
@@ -67,6 +70,8 @@ pub struct Table {
     initial: Option<f64>,
 }
 
+/// Validate `[plant.arsinh]` (every key has a default, the table may be absent) for a scalar
+/// reference.
 pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<ArsinhSpec, ConfigError> {
     if cx.reference.joints() != 1 {
         return check.fail("reference", "the arsinh plant follows a scalar reference");

@@ -25,6 +25,7 @@ impl<T: Copy> DelayLine<T> {
         self.values.len()
     }
 
+    /// Whether the line has no delay (`push` gives back what it is given).
     pub fn is_empty(&self) -> bool {
         self.values.is_empty()
     }

@@ -16,15 +16,23 @@ use std::path::PathBuf;
 pub struct ExternalSpec {
     /// The counts every state must carry (`n_x`, `n_q`, `n_y`) and the command's (`n_u`).
     pub states: usize,
+    /// Joints every state must carry (`n_q`; default: as many as outputs).
     pub joints: usize,
+    /// Measured outputs every state must carry (`n_y`; default 1), one reference each.
     pub outputs: usize,
+    /// Inputs the command has (`n_u`; default 1).
     pub inputs: usize,
+    /// The outputs' names as declared, one per output (default `y0`, `y1`, ...).
     pub output_names: Vec<String>,
+    /// The outputs' units as declared, one per output (default empty).
     pub output_units: Vec<String>,
+    /// The inputs' names as declared, one per input (default `u0`, `u1`, ...).
     pub input_names: Vec<String>,
+    /// The inputs' units as declared, one per input (default empty).
     pub input_units: Vec<String>,
     /// The actuator's range per input (the controller's output range).
     pub u_min: Vec<f64>,
+    /// The upper end of each input's range, above its `u_min` (default unbounded).
     pub u_max: Vec<f64>,
     /// The plant process: program and arguments as written; empty: the user starts it.
     pub command: Vec<String>,
@@ -189,6 +197,9 @@ fn arm_model(
     Ok((path, model))
 }
 
+/// Validate `[plant.external]`: the counts (`states` is required), the robot model if given (which
+/// must match them), one reference per output, the input range, the names and units, the command
+/// (its program found and executable) and the wait. Fails when the table or `states` is missing.
 pub fn validate(
     t: Option<Table>,
     check: &Check,

@@ -32,6 +32,7 @@ pub struct RungeKuttaGill {
 }
 
 impl RungeKuttaGill {
+    /// A stepper for states of `n` values.
     pub fn new(n: usize) -> Self {
         Self {
             k: vec![0.0; n],

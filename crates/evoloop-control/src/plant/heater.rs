@@ -13,11 +13,17 @@ use serde::{Deserialize, Serialize};
 /// The validated `[plant.heater]`, also the simulated model.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct HeaterSpec {
+    /// The element's heat capacity C_e, J/K (default 5).
     pub c_element: f64,
+    /// The block's heat capacity C_b, J/K (default 50).
     pub c_block: f64,
+    /// The thermal resistance R_eb from element to block, K/W (default 0.5).
     pub r_element_block: f64,
+    /// The thermal resistance R_ba from block to ambient, K/W (default 2).
     pub r_block_ambient: f64,
+    /// The ambient temperature T_a, °C (default 20).
     pub ambient: f64,
+    /// The most power the element takes, W (default 100): the input is clipped to [0, p_max].
     pub p_max: f64,
     /// Both bodies start here, °C.
     pub initial: f64,
@@ -80,6 +86,8 @@ pub struct Table {
     initial: Option<f64>,
 }
 
+/// Validate `[plant.heater]` (every key has a default, the table may be absent) for a scalar
+/// temperature reference: capacities, resistances and `p_max` > 0, the temperatures in range.
 pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<HeaterSpec, ConfigError> {
     if cx.reference.joints() != 1 {
         return check.fail("reference", "the heater follows a scalar temperature reference (°C)");

@@ -2,6 +2,8 @@
 
 use super::Plant;
 
+/// The classical fourth-order Runge-Kutta integrator, with its stage buffers for an `n`-state
+/// plant; `step` never allocates.
 pub struct Rk4 {
     k1: Vec<f64>,
     k2: Vec<f64>,
@@ -11,6 +13,7 @@ pub struct Rk4 {
 }
 
 impl Rk4 {
+    /// An integrator for plants of `n` states.
     pub fn new(n: usize) -> Self {
         Self {
             k1: vec![0.0; n],

@@ -35,8 +35,13 @@ pub fn norm_period<'a>(
 /// Continuous time, or sampled at the control period (s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Time {
+    /// x' = A x + B u: checked on the continuous closed loop.
     Continuous,
-    Sampled { period: f64 },
+    /// z+ = A z + B u once a control period: checked on the sampled closed loop.
+    Sampled {
+        /// The control period the model is sampled at, s.
+        period: f64,
+    },
 }
 
 /// The linear model a controller checks state-feedback gains against.
@@ -113,6 +118,7 @@ impl LinearModel {
         self.n
     }
 
+    /// Whether the model is continuous or sampled, and at which period.
     pub fn time(&self) -> Time {
         self.time
     }
@@ -282,7 +288,7 @@ impl LinearModel {
 
 impl LinearModel {
     /// The exact zero-order-hold model at `period` of the strictly proper b(s) / a(s) with n
-    /// poles (`num`, `den`: n + 1 values each, descending powers, den monic, num[0] = 0), in
+    /// poles (`num`, `den`: n + 1 values each, descending powers, den monic, `num[0] = 0`), in
     /// the controllable canonical form `[plant.lti]` realises a transfer function in.
     /// Allocation-free (the exponential of a padded 5 x 5 matrix on the stack), so a controller
     /// adopts an estimate with it in the cycle. None for more than 4 poles, a model that is not

@@ -32,25 +32,34 @@ pub const MAX_DELAY_PERIODS: usize = 24;
 pub struct LtiSpec {
     /// States, inputs, outputs.
     pub n: usize,
+    /// The number of inputs.
     pub m: usize,
+    /// The number of measured outputs.
     pub p: usize,
     /// As configured (continuous, or discrete at `dt`), after a transfer function's
     /// realisation (controllable canonical form, as SciPy's `tf2ss`).
     pub a: Vec<f64>,
+    /// B, n x m.
     pub b: Vec<f64>,
+    /// C, p x n.
     pub c: Vec<f64>,
+    /// D, p x m: the direct feedthrough, acting through the input of the period before.
     pub d: Vec<f64>,
     /// A discrete model's sample time (the control period); None for a continuous one.
     pub dt: Option<f64>,
     /// The control period and the model's exact zero-order-hold discretisation at it.
     pub period: f64,
+    /// Phi = exp(A T), n x n (A itself for a discrete model).
     pub phi: Vec<f64>,
+    /// Gamma, n x m: the effect of an input held over one period (B itself for a discrete model).
     pub gamma: Vec<f64>,
     /// Input delay, whole control periods.
     pub delay: usize,
+    /// The initial state, n values (default 0).
     pub x0: Vec<f64>,
     /// The actuator's range per input (the command is clipped to it).
     pub u_min: Vec<f64>,
+    /// The upper end of each input's range, above its `u_min` (default unbounded).
     pub u_max: Vec<f64>,
     /// The model file the matrices came from, if any.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -65,11 +74,15 @@ pub struct LtiSpec {
 /// state coordinates, so states with a physical meaning stay continuous across it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LtiChange {
+    /// When the change takes effect, s of plant time (from the period starting then).
     pub at: f64,
+    /// A from then on, n x n (the one before where the change gives none).
     pub a: Vec<f64>,
+    /// B from then on, n x m (the one before where the change gives none).
     pub b: Vec<f64>,
     /// Their zero-order-hold discretisation at the control period.
     pub phi: Vec<f64>,
+    /// Gamma of that discretisation, n x m (B itself for a discrete model).
     pub gamma: Vec<f64>,
 }
 
@@ -394,8 +407,11 @@ impl PlantConfig for LtiSpec {
 #[derive(Debug, Deserialize)]
 #[serde(untagged)]
 pub enum Matrix {
+    /// A number: a 1 x 1 matrix.
     Scalar(f64),
+    /// One list: a column for B, a row otherwise.
     Flat(Vec<f64>),
+    /// A list of rows, all of the same length.
     Rows(Vec<Vec<f64>>),
 }
 
@@ -486,6 +502,10 @@ struct Realised {
     d: Vec<f64>,
 }
 
+/// Validate `[plant.lti]`: the model (state space or transfer function, in the table or the file it
+/// names; a discrete one at the control period), the input delay, at most `MAX_STATES` simulated
+/// states, one reference per output, the initial state, the input range and the changes. Fails when
+/// the table is missing, or the model is malformed or too fast to discretise at the period.
 pub fn validate(t: Option<Table>, check: &Check, cx: &PlantContext) -> Result<LtiSpec, ConfigError> {
     let Some(mut t) = t else {
         return check.fail(

@@ -21,8 +21,11 @@ use super::{Plant, PlantConfig, PlantContext, ScalarInput};
 use crate::check::{Check, ConfigError};
 use serde::{Deserialize, Serialize};
 
+/// Standard gravity, m/s^2.
 pub const G: f64 = 9.80665;
 
+/// The maglev's parameters (see the module docs), validated from `[plant.maglev]`; the defaults are
+/// the documented laboratory values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MaglevParams {
     /// Ball mass, kg.
@@ -98,7 +101,10 @@ impl MaglevParams {
     }
 }
 
+/// The maglev as simulated: its parameters and the force constant and converter steps derived from
+/// them once.
 pub struct Maglev {
+    /// The parameters it was built from.
     pub p: MaglevParams,
     k_force: f64,
     dac_step_ma: f64,
@@ -106,6 +112,8 @@ pub struct Maglev {
 }
 
 impl Maglev {
+    /// The plant with parameters `p`, the ball starting at rest at the operating gap with the
+    /// holding current flowing.
     pub fn new(p: MaglevParams) -> Self {
         let levels = ((1u64 << p.bits) - 1) as f64;
         Self {
@@ -193,6 +201,9 @@ pub struct Table {
     mass_values: Option<Vec<f64>>,
 }
 
+/// Validate `[plant.maglev]` (every key has a default, the table may be absent) for a scalar height
+/// reference: the values in their ranges, the mass schedule, and an integration step no longer than
+/// the coil lag tau.
 pub fn validate(
     t: Option<Table>,
     check: &Check,

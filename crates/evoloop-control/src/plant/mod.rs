@@ -35,12 +35,24 @@ crate::kinds! {
     pub enum PlantModel;
     /// The `[plant]` table as read: the keys every plant shares and one table per kind.
     pub struct RawPlant {
+        /// `plant.kind`: which plant the scenario simulates.
         pub kind: PlantKind,
+        /// `plant.step`: the integration step, s (default: the control period or 1 ms, the
+        /// shorter).
         pub step: Option<f64>,
+        /// `plant.noise_std`: standard deviation of the additive output noise (default 0).
         pub noise_std: Option<f64>,
+        /// `plant.safe_command`: the command applied when the controller falls silent or refuses a
+        /// state (default 0).
         pub safe_command: Option<f64>,
+        /// `plant.command_timeout_periods`: periods without a command before the plant applies the
+        /// safe command (default 10, >= 1).
         pub command_timeout_periods: Option<u32>,
+        /// `plant.publish_truth`: whether samples carry the simulator's truth fields (default true;
+        /// not for an external plant).
         pub publish_truth: Option<bool>,
+        /// `plant.sensor_delay`: samples the measurement lags the state (default 0, at most
+        /// `MAX_SENSOR_DELAY`).
         pub sensor_delay: Option<u32>,
     };
     two_mass => TwoMass(TwoMassSpec),
@@ -104,7 +116,10 @@ pub trait PlantConfig {
 /// A single input as a controller must respect it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScalarInput {
+    /// The actuator's range (lo, hi), in the input's unit.
     pub range: (f64, f64),
+    /// The input that holds the plant at its operating point at t = 0, within `range`: where an
+    /// integrator starts.
     pub hold: f64,
 }
 
@@ -187,6 +202,7 @@ pub struct PlantContext<'a> {
     pub step: f64,
     /// The control period, s.
     pub period: f64,
+    /// The reference the run follows (one per output, for most plants).
     pub reference: &'a Reference,
     /// The run's duration, s (infinite for a run until stopped).
     pub duration: f64,
@@ -212,6 +228,7 @@ pub struct PlantSpec {
     /// sensor chain). Simulated by the plants evoloop runs; declared by an external plant for
     /// its controller's estimator, which predicts across it.
     pub sensor_delay: u32,
+    /// The kind's own parameters (its `[plant.<kind>]` table, validated).
     #[serde(flatten)]
     pub model: PlantModel,
 }
@@ -286,6 +303,7 @@ impl PlantSpec {
         })
     }
 
+    /// Which kind of plant this is.
     pub fn kind(&self) -> PlantKind {
         self.model.kind()
     }
@@ -347,8 +365,11 @@ pub trait Plant: Send {
 /// A plant being simulated: the model plus all the buffers its integration needs, allocated once
 /// (Model/Data split), so `advance` never allocates.
 pub struct PlantSim {
+    /// The model being simulated.
     pub plant: Box<dyn Plant>,
+    /// The state, in the plant's documented order.
     pub x: Vec<f64>,
+    /// The simulated time, s.
     pub t: f64,
     step: f64,
     rk: Rk4,

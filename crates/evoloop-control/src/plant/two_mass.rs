@@ -5,8 +5,8 @@
 //! State order follows the reading under which the paper's Table 9 gains are consistent:
 //! the measured body first, x = [x_far, x_act, v_far, v_act] with x_far = body 2 and
 //! x_act = body 1, so that
-//!   A = [[0,0,1,0],[0,0,0,1],[-k/m2,k/m2,0,0],[k/m1,-k/m1,0,0]], B = [0,0,0,1/m1]^T.
-//! The measurement is C = [1,0,0,0] (`Sensor::Far`, the paper's plant) or C = [0,1,0,0]
+//!   `A = [[0,0,1,0],[0,0,0,1],[-k/m2,k/m2,0,0],[k/m1,-k/m1,0,0]]`, `B = [0,0,0,1/m1]^T`.
+//! The measurement is `C = [1,0,0,0]` (`Sensor::Far`, the paper's plant) or `C = [0,1,0,0]`
 //! (`Sensor::Actuated`, the collocated variant that reproduces the LQR rows of Table 9).
 //! Joint order in messages is physical: q = [x1, x2] (body 1, body 2).
 
@@ -14,6 +14,7 @@ use super::{LinearModel, Plant, PlantConfig, PlantContext, ScalarInput};
 use crate::check::{Check, ConfigError};
 use serde::{Deserialize, Serialize};
 
+/// Which body's position the plant measures (`plant.two_mass.sensor`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Sensor {
@@ -24,11 +25,17 @@ pub enum Sensor {
     Actuated,
 }
 
+/// The two-mass-spring plant as simulated (see the module docs): its masses, spring, sensor, start,
+/// spring schedule and encoder.
 #[derive(Debug, Clone, Copy)]
 pub struct TwoMass {
+    /// Mass of body 1, the actuated one.
     pub m1: f64,
+    /// Mass of body 2, across the spring.
     pub m2: f64,
+    /// The spring constant, in force while `k_schedule` is empty.
     pub k: f64,
+    /// Which body's position is measured.
     pub sensor: Sensor,
     /// Initial positions of body 1 and body 2.
     pub x0: [f64; 2],
@@ -36,6 +43,7 @@ pub struct TwoMass {
     /// the first and after the last; `k` applies when it is empty. Fixed size so the plant stays
     /// `Copy` and its derivative allocation-free.
     pub k_schedule: [(f64, f64); MAX_SCHEDULE],
+    /// How many entries of `k_schedule` are in use (0: constant `k`).
     pub k_points: usize,
     /// Position encoder resolution (length per count); the measurement is rounded to it after
     /// the sensor noise. 0: an ideal sensor.
@@ -45,6 +53,8 @@ pub struct TwoMass {
 pub use super::MAX_SCHEDULE;
 
 impl TwoMass {
+    /// The plant with masses `m1`, `m2`, spring `k` and `sensor`: at rest at the origin, no spring
+    /// schedule, an ideal encoder.
     pub fn new(m1: f64, m2: f64, k: f64, sensor: Sensor) -> Self {
         Self {
             m1,
@@ -173,11 +183,15 @@ pub struct Table {
 /// A validated two-mass plant.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TwoMassSpec {
+    /// Mass of body 1, the actuated one (default 1).
     pub m1: f64,
+    /// Mass of body 2, across the spring (default 1).
     pub m2: f64,
     /// The nominal spring constant (the one gains are checked against).
     pub spring: f64,
+    /// Which body's position is measured (default `Far`, the paper's benchmark).
     pub sensor: Sensor,
+    /// Initial positions of body 1 and body 2 (default 0).
     pub initial_positions: [f64; 2],
     /// Spring-constant schedule (time, k), linearly interpolated; empty = constant `spring`.
     pub spring_schedule: Vec<(f64, f64)>,
@@ -185,6 +199,9 @@ pub struct TwoMassSpec {
     pub resolution: f64,
 }
 
+/// Validate `[plant.two_mass]` (every key has a default, the table may be absent) for a scalar
+/// reference: masses and spring within [1e-6, 1e6], the spring schedule, finite initial positions,
+/// a resolution within [0, 1].
 pub fn validate(
     t: Option<Table>,
     check: &Check,

@@ -17,9 +17,13 @@ pub const MAX_VALUE: f64 = 1e6;
 /// velocity and acceleration. Scalar references fill joint 0 with zero derivatives.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Setpoint {
+    /// The joints (outputs) the reference drives: the valid prefix of `q`, `qd` and `qdd`.
     pub n: usize,
+    /// Desired position per joint (output), in the output's unit (rad, m, mm, °C ...).
     pub q: [f64; MAX_JOINTS],
+    /// Desired velocity per joint, the output's unit per s (0 for a scalar reference).
     pub qd: [f64; MAX_JOINTS],
+    /// Desired acceleration per joint, the output's unit per s^2 (0 for a scalar reference).
     pub qdd: [f64; MAX_JOINTS],
 }
 
@@ -35,6 +39,7 @@ impl Default for Setpoint {
 }
 
 impl Setpoint {
+    /// A scalar set-point `r` on joint 0, with zero velocity and acceleration.
     pub fn scalar(r: f64) -> Self {
         let mut s = Self::default();
         s.q[0] = r;
@@ -54,36 +59,63 @@ fn quintic(x: f64) -> (f64, f64, f64) {
     )
 }
 
+/// A reference signal (see the module docs), as validated from a scenario's `[reference]`;
+/// values are in the plant output's unit, times in s.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Reference {
     /// 0 before `start`, `amplitude` from `start` on.
-    Step { amplitude: f64, start: f64 },
+    Step {
+        /// The value from `start` on.
+        amplitude: f64,
+        /// When the step happens, s.
+        start: f64,
+    },
     /// From `start` on, `offset + amplitude` for the first half of each period and
     /// `offset - amplitude` for the second half; `offset` before `start`.
     Square {
+        /// Half the peak-to-peak swing about `offset`.
         amplitude: f64,
+        /// The wave's period, s.
         period: f64,
+        /// The value the wave swings about, and holds before `start`.
         offset: f64,
+        /// When the wave starts, s.
         start: f64,
     },
     /// Piecewise constant: `values[i]` from `times[i]` on (0 before `times[0]`); times increasing.
-    Steps { times: Vec<f64>, values: Vec<f64> },
+    Steps {
+        /// When each value takes over, s, increasing.
+        times: Vec<f64>,
+        /// The values, one per time.
+        values: Vec<f64>,
+    },
     /// A sampled sequence repeated for ever: `values[k mod N]` at t = k `period` (the value of the
     /// nearest sample instant, so accumulated float time lands on its sample).
-    Samples { values: Vec<f64>, period: f64 },
+    Samples {
+        /// The sequence, one value per sample.
+        values: Vec<f64>,
+        /// The time between samples, s.
+        period: f64,
+    },
     /// Joint space, rest-to-rest quintic segments: `waypoints[k]` (one value per joint) at
     /// `times[k]`, held before the first and after the last; zero velocity and acceleration at
     /// every waypoint.
     Quintic {
+        /// The waypoints' times, s, increasing.
         times: Vec<f64>,
+        /// The waypoints, one value per joint each.
         waypoints: Vec<Vec<f64>>,
     },
     /// Joint space, sums of sinusoids:
-    /// q_j(t) = offsets[j] + sum_h amplitudes[j][h] sin(2 pi frequencies[h] t + phases[j][h]).
+    /// `q_j(t) = offsets[j] + sum_h amplitudes[j][h] sin(2 pi frequencies[h] t + phases[j][h])`.
     Sines {
+        /// The mean position per joint.
         offsets: Vec<f64>,
+        /// Per joint, the amplitude of each frequency.
         amplitudes: Vec<Vec<f64>>,
+        /// The frequencies every joint shares, Hz.
         frequencies: Vec<f64>,
+        /// Per joint, the phase of each frequency, rad.
         phases: Vec<Vec<f64>>,
     },
 }

@@ -24,14 +24,17 @@ pub struct FourierSeries {
     pub offsets: Vec<f64>,
     /// a_jl and b_jl: one row per joint, one entry per harmonic.
     pub a: Vec<Vec<f64>>,
+    /// b_jl: one row per joint, one entry per harmonic.
     pub b: Vec<Vec<f64>>,
 }
 
 impl FourierSeries {
+    /// The number of joints.
     pub fn joints(&self) -> usize {
         self.offsets.len()
     }
 
+    /// The number of harmonics N (0 for no joints).
     pub fn harmonics(&self) -> usize {
         self.a.first().map_or(0, |r| r.len())
     }
@@ -170,9 +173,15 @@ impl FourierSeries {
 /// are solved so that the trajectory starts (and, being periodic, ends) at rest.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Design {
+    /// The series' period T, s.
     pub period: f64,
+    /// The number of harmonics N per joint (N >= 1): N - 1 free, the last solved for the start at
+    /// rest.
     pub harmonics: usize,
+    /// Per joint, whether it moves (gets decision variables) or is held.
     pub moving: Vec<bool>,
+    /// Per joint, the position it is held at if it does not move (a moving joint's entry is
+    /// unused).
     pub hold: Vec<f64>,
 }
 
@@ -182,6 +191,7 @@ impl Design {
         1 + 2 * (self.harmonics - 1)
     }
 
+    /// The length of the decision vector: `per_joint` for each moving joint.
     pub fn dim(&self) -> usize {
         self.moving.iter().filter(|m| **m).count() * self.per_joint()
     }
@@ -200,6 +210,8 @@ impl Design {
         (lo, hi)
     }
 
+    /// The series decision vector `x` describes (`dim` values): held joints at `hold` with zero
+    /// coefficients, and each moving joint's last harmonic solved so that it starts at rest.
     pub fn decode(&self, x: &[f64]) -> FourierSeries {
         let n = self.moving.len();
         let h = self.harmonics;

@@ -57,9 +57,13 @@ pub enum TrajectoryKind {
 /// The limits a trajectory must respect, per joint.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct JointLimits {
+    /// Lowest position per joint, rad (m for a prismatic joint), the margin included.
     pub q_lo: Vec<f64>,
+    /// Highest position per joint, rad (m), the margin included.
     pub q_hi: Vec<f64>,
+    /// Largest speed per joint, rad/s (m/s).
     pub qd_max: Vec<f64>,
+    /// Largest acceleration per joint, rad/s^2 (m/s^2).
     pub qdd_max: Vec<f64>,
 }
 
@@ -93,6 +97,7 @@ impl JointLimits {
 pub struct Settings {
     /// Period T, s (the paper: 10 s, fundamental 0.6283 rad/s).
     pub period: f64,
+    /// The trajectory's form: a joint-space Fourier series or the paper's MFS.
     pub trajectory: TrajectoryKind,
     /// Harmonics N (the paper's MFS: 3; Swevers: 5).
     pub harmonics: usize,
@@ -102,7 +107,9 @@ pub struct Settings {
     pub margin: f64,
     /// Velocity and acceleration limits where the robot file has none.
     pub qd_max: f64,
+    /// Acceleration limit of every joint, rad/s^2 (robot files give none).
     pub qdd_max: f64,
+    /// The parameters the base regressor is built from (friction, armature).
     pub columns: Columns,
 }
 
@@ -124,8 +131,11 @@ impl Default for Settings {
 /// A trajectory's scores.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Criteria {
+    /// Condition number of the scaled base regressor: `sigma_max` / `sigma_min`.
     pub cond: f64,
+    /// Smallest singular value of W_b / sqrt(samples) (an RMS torque sensitivity).
     pub sigma_min: f64,
+    /// Largest singular value of W_b / sqrt(samples).
     pub sigma_max: f64,
     /// Eq. 15.
     pub fitness: f64,
@@ -146,10 +156,16 @@ impl Criteria {
 
 /// One stage's excitation design problem.
 pub struct ExcitationProblem {
+    /// The robot whose base parameters the trajectory is to identify.
     pub model: Model,
+    /// The experiment: which joints move and where the others are held.
     pub stage: Stage,
+    /// How the trajectory is designed and judged.
     pub settings: Settings,
+    /// The limits the trajectory must keep (`JointLimits::of` with the settings' values).
     pub limits: JointLimits,
+    /// The joint-space Fourier design: how a decision vector becomes a trajectory
+    /// (unused with `mfs`).
     pub design: Design,
     /// With `TrajectoryKind::Mfs`: the Cartesian path (and `design` unused).
     pub mfs: Option<MfsDesign>,
@@ -158,6 +174,10 @@ pub struct ExcitationProblem {
 }
 
 impl ExcitationProblem {
+    /// The problem of designing `stage`'s excitation for `model`: the stage's base
+    /// parameters, the joint limits and the trajectory's design. Fails with fewer than 2
+    /// harmonics, a period not above 0 s, fewer `samples` x moving joints than base
+    /// parameters, or an MFS that cannot be built (the wrist stage, no spherical wrist).
     pub fn new(
         model: Model,
         stage: Stage,
@@ -362,15 +382,22 @@ impl Objective for Excess<'_> {
 /// The search's settings (Section 4.1's values by default).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Search {
+    /// Swarm size of the elite phase's canonical PSO (the paper: 10).
     pub elite_population: usize,
+    /// Initial elites the first phase collects (the paper: 5); also eMuPSO's elite count
+    /// (at most `population` - 1).
     pub elites: usize,
     /// Iterations the elite phase may take at most.
     pub elite_iterations: usize,
+    /// Swarm size of the eMuPSO phase (the paper: 20).
     pub population: usize,
+    /// eMuPSO iterations after the starting swarm's evaluation (the paper: 30).
     pub iterations: usize,
     /// Stagnant iterations before a mutation (G).
     pub stagnation: usize,
+    /// Seed of both swarms, the random particles and the Gaussian offspring.
     pub seed: u64,
+    /// Threads that evaluate a swarm's particles.
     pub threads: usize,
 }
 
@@ -394,18 +421,23 @@ impl Default for Search {
 pub struct Outcome {
     /// The best decision vector.
     pub x: Vec<f64>,
+    /// The best trajectory (`x` decoded).
     pub series: FourierSeries,
+    /// The best trajectory's scores.
     pub criteria: Criteria,
     /// The initial elites' scores (the random feasible trajectories the search started from)
     /// and their decision vectors.
     pub initial: Vec<Criteria>,
+    /// The initial elites' decision vectors, in the order of `initial`.
     #[serde(skip)]
     pub initial_x: Vec<Vec<f64>>,
     /// How many initial elites were feasible (the rest filled in from the least violating).
     pub feasible_elites: usize,
     /// Best value after each eMuPSO iteration.
     pub history: Vec<f64>,
+    /// Objective evaluations of both phases.
     pub evaluations: usize,
+    /// Mutations eMuPSO made (each after `stagnation` stagnant iterations).
     pub mutations: usize,
 }
 

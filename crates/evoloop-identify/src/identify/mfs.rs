@@ -43,10 +43,15 @@ pub const HARMONICS: usize = 48;
 /// The Cartesian path's parameters (metres, metres per second).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mfs {
+    /// Period T, s.
     pub period: f64,
+    /// Per harmonic, a_j: their sum is the circle's radius, m.
     pub a: Vec<f64>,
+    /// Per harmonic, b_j: the sine coefficient of the disturbance F_j, m/s.
     pub b: Vec<f64>,
+    /// Per harmonic, c_j: the cosine coefficient of the disturbance F_j, m/s.
     pub c: Vec<f64>,
+    /// The circle's centre (d0, e0, f0), m.
     pub centre: [f64; 3],
 }
 
@@ -158,8 +163,11 @@ impl WristCentre {
 /// move).
 #[derive(Debug, Clone)]
 pub struct MfsDesign {
+    /// Period T, s.
     pub period: f64,
+    /// Harmonics N of the path (at least 2: b_N and c_N are solved to start at rest).
     pub harmonics: usize,
+    /// The wrist centre and the arm joints that place it.
     pub wrist: WristCentre,
     /// Where the arm starts its search for the first point (and the held joints).
     pub hold: Vec<f64>,
@@ -169,10 +177,15 @@ pub struct MfsDesign {
     pub nominal: [f64; 3],
     /// Half-widths: of the centre's box, and of the a, b, c coefficients.
     pub centre_span: f64,
+    /// Half-width of the a, b, c coefficients' box: 0.15 of the arm's size (the wrist
+    /// centre's distance from the first joint's origin).
     pub coef_span: f64,
 }
 
 impl MfsDesign {
+    /// The design for `model` about the hold pose `hold` (the boxes scaled by the arm's
+    /// size). Fails with fewer than 2 harmonics or without a spherical wrist
+    /// (`WristCentre::of`).
     pub fn new(
         model: &Model,
         period: f64,
@@ -205,6 +218,7 @@ impl MfsDesign {
         self.harmonics + 2 * (self.harmonics - 1) + 3
     }
 
+    /// Length of a decision vector: the path's 3N + 1 values, then the wrist series' (if any).
     pub fn dim(&self) -> usize {
         self.path_dim() + self.joints.as_ref().map_or(0, |d| d.dim())
     }

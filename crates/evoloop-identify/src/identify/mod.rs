@@ -31,7 +31,9 @@ use serde::{Deserialize, Serialize};
 /// every body, then (with `friction`) fv, fc per joint, then (with `armature`) Ia per joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Columns {
+    /// Estimate every joint's viscous and Coulomb friction (fv, fc).
     pub friction: bool,
+    /// Estimate every joint's armature Ia (the reflected rotor inertia).
     pub armature: bool,
 }
 
@@ -42,10 +44,12 @@ impl Columns {
         armature: true,
     };
 
+    /// Number of columns (parameters estimated) for `model`.
     pub fn count(&self, model: &Model) -> usize {
         model.regressor_columns(self.friction) + if self.armature { model.dof() } else { 0 }
     }
 
+    /// The columns' names in column order (the model's parameter names, then Ia1..Ian).
     pub fn names(&self, model: &Model) -> Vec<String> {
         let mut names = model.parameter_names(self.friction);
         if self.armature {
@@ -103,7 +107,9 @@ pub enum StageKind {
 /// One identification experiment: the joints that move and where the others are held.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Stage {
+    /// Which part of the arm moves.
     pub kind: StageKind,
+    /// Per joint, whether it moves (its torque row is used); the others are held.
     pub moving: Vec<bool>,
     /// Every joint's position when held (the moving joints' entries are not used).
     pub hold: Vec<f64>,
@@ -168,6 +174,7 @@ impl Stage {
         (0..self.moving.len()).filter(|&j| self.moving[j]).collect()
     }
 
+    /// The stage's name as commands and reports spell it: `wrist`, `arm` or `all`.
     pub fn name(&self) -> &'static str {
         match self.kind {
             StageKind::Wrist => "wrist",
@@ -188,6 +195,7 @@ pub struct Stacker<'a> {
 }
 
 impl<'a> Stacker<'a> {
+    /// A stacker of `model`'s regressor in `columns`, keeping `stage`'s moving joints' rows.
     pub fn new(model: &'a Model, columns: Columns, stage: &Stage) -> Self {
         let n = model.dof();
         Self {

@@ -14,11 +14,15 @@ use std::path::Path;
 /// One seed's pair.
 #[derive(Debug, Clone, Serialize)]
 pub struct SeedResult {
+    /// The search's seed, and the experiment's encoder and torque noise seed.
     pub seed: u64,
+    /// Condition number of the first feasible random trajectory's scaled base regressor.
     pub cond_initial: f64,
+    /// Condition number of the optimised trajectory's scaled base regressor.
     pub cond_optimised: f64,
     /// Relative error (2-norm) of the identified base parameters, percent.
     pub error_initial: f64,
+    /// The same on the optimised trajectory, percent.
     pub error_optimised: f64,
 }
 

@@ -12,9 +12,13 @@ use std::path::Path;
 /// x = [theta; theta'] (2n values each, flat, sample-major), theta' estimated from theta.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
+    /// Number of joints n.
     pub n: usize,
+    /// Sample interval, s.
     pub h: f64,
+    /// The reference [theta_d; theta_d'] per sample, rad and rad/s.
     pub r: Vec<f64>,
+    /// The output [theta; theta'] per sample, rad and rad/s.
     pub x: Vec<f64>,
     /// Half width of the low-pass the velocities were estimated with (`smooth`), s; the
     /// identification smooths the positions with the same window.
@@ -22,18 +26,22 @@ pub struct Trajectory {
 }
 
 impl Trajectory {
+    /// Number of samples.
     pub fn len(&self) -> usize {
         self.x.len() / (2 * self.n)
     }
 
+    /// Whether there are no samples.
     pub fn is_empty(&self) -> bool {
         self.x.is_empty()
     }
 
+    /// The reference [theta_d; theta_d'] of sample `i` (2n values).
     pub fn r_at(&self, i: usize) -> &[f64] {
         &self.r[2 * self.n * i..2 * self.n * (i + 1)]
     }
 
+    /// The output [theta; theta'] of sample `i` (2n values).
     pub fn x_at(&self, i: usize) -> &[f64] {
         &self.x[2 * self.n * i..2 * self.n * (i + 1)]
     }

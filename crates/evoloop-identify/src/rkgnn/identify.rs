@@ -66,6 +66,7 @@ const STATE_LIMIT: f64 = 1e3;
 /// Identification settings.
 #[derive(Debug, Clone, Serialize)]
 pub struct Settings {
+    /// RBFs per sub-network of N_f (0 torque RBFs: a linear servo).
     pub counts: RbfCounts,
     /// Use every `stride`-th sample (the RKGNN's step h = stride x the data's period).
     pub stride: usize,
@@ -73,11 +74,13 @@ pub struct Settings {
     pub holdout: f64,
     /// Objective evaluations.
     pub evaluations: usize,
+    /// The chaotic EA's settings (population, crossover, memory, strategic moves, seed).
     pub ea: ChaoticEaConfig,
     /// Eq. 13's lambda_1..3.
     pub lambda: [f64; 3],
     /// Probe positions for the constraints (`region_probes`).
     pub probes: usize,
+    /// Threads evaluating the EA's candidates and the refinement's Jacobian.
     pub threads: usize,
     /// Where the EA starts.
     pub start: Start,
@@ -98,6 +101,9 @@ pub struct Settings {
 const LS_SIGMA: f64 = 0.1;
 
 impl Settings {
+    /// Section 5.1's settings for an `n`-joint arm: the paper's RBF counts, lambda =
+    /// (1000, 1, 1), a random start and an unknown servo; stride 5 (h = 5 ms at 1 kHz),
+    /// 20 % held out, 40 probes, `evaluations` of the EA seeded with `seed`.
     pub fn paper(n: usize, seed: u64, evaluations: usize) -> Self {
         Self {
             counts: RbfCounts::paper(n),
@@ -138,7 +144,9 @@ impl Settings {
 /// M(q) y <= m_2 ||y||^2. Nothing else of the robot reaches the fit.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
 pub struct Prior {
+    /// Lower bound m_1 on M(q)'s eigenvalues (kg m^2 for revolute joints).
     pub m1: f64,
+    /// Upper bound m_2 on M(q)'s eigenvalues.
     pub m2: f64,
 }
 

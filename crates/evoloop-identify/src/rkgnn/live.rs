@@ -49,9 +49,13 @@ struct Sample {
 /// A model to publish: values = [slot, parameters], of any length (a 7-DOF arm's exceed one
 /// parameter set: `sets` sends it in parts, which the controller checks and applies whole).
 pub struct ModelUpdate {
+    /// Parameter-set version: one more than the last this optimiser published.
     pub version: u64,
+    /// State sequence number at whose cycle the controller is to apply it.
     pub apply_at_seq: u64,
+    /// The candidate's RMS error of q'' on the fresh data (`prediction_rms`), rad/s^2.
     pub expected_cost: f64,
+    /// The slot, then the model's network parameters.
     pub values: Vec<f64>,
 }
 
@@ -63,6 +67,9 @@ impl ModelUpdate {
     }
 }
 
+/// The optimiser process's identification alongside operation: it records every
+/// sample and, when an attempt is due, fits a candidate for the busiest slot and
+/// publishes it if it predicts the fresh data better.
 pub struct LiveIdentify {
     n: usize,
     /// The models in service, as this optimiser last published them.
@@ -89,6 +96,9 @@ pub struct LiveIdentify {
 }
 
 impl LiveIdentify {
+    /// The identification for `scn`: its controller's models as loaded, the window, fresh
+    /// data and interval from `scn.optimiser`. Fails unless the controller is
+    /// `fuzzy_computed_torque`.
     pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
         // The scenario's validation refuses identify mode for other controllers.
         let crate::control::ControllerModel::FuzzyComputedTorque(f) = &scn.controller.model else {

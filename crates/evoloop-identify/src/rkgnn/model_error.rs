@@ -22,11 +22,14 @@ pub struct ModelError {
     pub g_rel: f64,
     /// M-hat's smallest eigenvalue on the path, and M's (the scale it is judged against).
     pub min_eig: f64,
+    /// M's smallest eigenvalue on the path (the arm's own).
     pub min_eig_arm: f64,
 }
 
 /// A model's terms at (q, qd): M into the matrix, V and G into the slices.
 pub trait ArmTerms {
+    /// Write M(q) into `m` (n x n), the velocity-dependent torque V(q, qd) into `v` and the
+    /// gravity torque G(q) into `g`.
     fn terms(&mut self, q: &[f64], qd: &[f64], m: &mut DMatrix<f64>, v: &mut [f64], g: &mut [f64]);
 }
 
@@ -39,6 +42,7 @@ pub struct RigidBody<'a> {
 }
 
 impl<'a> RigidBody<'a> {
+    /// The terms of `model` (its friction counted in V).
     pub fn new(model: &'a Model) -> Self {
         RigidBody {
             data: model.data(),

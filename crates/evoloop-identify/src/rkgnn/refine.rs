@@ -30,9 +30,11 @@ const TOLERANCE: f64 = 1e-5;
 /// What a refinement did.
 #[derive(Debug, Clone, Copy)]
 pub struct Outcome {
+    /// Steps tried, accepted or rejected (a failed Cholesky factorisation counts too).
     pub iterations: usize,
     /// Sum of squared residuals before and after.
     pub before: f64,
+    /// After the last accepted step (`before` when none was).
     pub after: f64,
 }
 

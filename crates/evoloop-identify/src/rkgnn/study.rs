@@ -40,6 +40,7 @@ pub const JOINTS: usize = 3;
 /// What `evoloop rkgnn study` is asked for.
 #[derive(Debug, Clone)]
 pub struct StudySettings {
+    /// The robot file of the 3-joint arm studied.
     pub robot: PathBuf,
     /// Measurement-noise seed of every run and the EA's seed.
     pub seed: u64,
@@ -56,6 +57,7 @@ pub struct StudySettings {
     pub smoothing: f64,
     /// The joint velocity every run's controller acts on.
     pub velocity: JointVelocity,
+    /// Worker threads for the simulations and the identifications.
     pub threads: usize,
 }
 
@@ -73,6 +75,7 @@ pub enum JointVelocity {
 }
 
 impl JointVelocity {
+    /// The value of the scenarios' `velocity` key: "filtered" or "true".
     pub fn key(self) -> &'static str {
         match self {
             JointVelocity::Filtered => "filtered",
@@ -90,11 +93,17 @@ impl JointVelocity {
 /// RMS tracking error per joint (rad) on the new trajectory, one entry per controller.
 #[derive(Debug, Clone, Serialize)]
 pub struct TrackingRms {
+    /// The training P-D servo alone.
     pub pd: Vec<f64>,
+    /// Computed torque on the arm's true model.
     pub ct_true: Vec<f64>,
+    /// Computed torque on model 1 alone (identified on train1).
     pub ct_model_1: Vec<f64>,
+    /// Computed torque on model 2 alone (identified on train2).
     pub ct_model_2: Vec<f64>,
+    /// Fuzzy computed torque on both models, the paper's max rule.
     pub ct_fuzzy_max: Vec<f64>,
+    /// Fuzzy computed torque on both models, our blend rule.
     pub ct_fuzzy_blend: Vec<f64>,
 }
 
@@ -115,15 +124,20 @@ impl TrackingRms {
 /// One identified model as the study reports it.
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelSummary {
+    /// The model's file (`model_<k>.json` in the study's directory).
     pub file: PathBuf,
+    /// The training run it was identified on.
     pub trajectory: String,
+    /// Free-run prediction error over the training window, RMS per joint, rad.
     pub train_rms: Vec<f64>,
+    /// The same over the held-out end of the run, rad.
     pub holdout_rms: Vec<f64>,
     /// Smallest eigenvalue of M-hat over the model's own training positions.
     pub min_eig_m_hat: f64,
     /// Smallest eigenvalue of M-hat along the new trajectory, where the controller runs it
     /// (the controller refuses a model at or below 0 there).
     pub min_eig_on_reference: f64,
+    /// The EA's evaluations in the identification.
     pub evaluations: usize,
 }
 
@@ -150,31 +164,47 @@ pub struct IdentificationInputs {
     pub runs: Vec<String>,
     /// What of each run the fit reads.
     pub signals: &'static str,
+    /// Eq. 2's lower bound m_1.
     pub m1: f64,
+    /// Eq. 2's upper bound m_2.
     pub m2: f64,
+    /// What the identification was told of the training servo.
     pub servo: crate::rkgnn::model::ServoPrior,
+    /// Where the identification started.
     pub start: crate::rkgnn::model::Start,
+    /// Samples per RKGNN step (h = stride x the runs' period).
     pub stride: usize,
     /// The velocity estimate's and position smoothing's half width, s.
     pub smoothing: f64,
+    /// The EA's evaluations after the start (0 = the start itself).
     pub evaluations: usize,
+    /// Levenberg-Marquardt steps on the output error after the start (0 = none).
     pub refine: usize,
 }
 
 /// `study.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct StudyResult {
+    /// The robot file studied, absolute.
     pub robot: PathBuf,
+    /// Measurement-noise seed of every run and the EA's seed.
     pub seed: u64,
+    /// The EA's evaluations after the start (0 = the start itself).
     pub evaluations: usize,
     /// The P-D servo's gains on this arm (arm3's scaled by the inertia ratio).
     pub servo_kp: Vec<f64>,
+    /// The P-D servo's k_d per joint on this arm.
     pub servo_kd: Vec<f64>,
+    /// Per joint, this arm's mid-range M_jj over the trajectories over arm3's: the factor
+    /// on the servo's gains.
     pub inertia_ratio: Vec<f64>,
     /// Computed torque's gains.
     pub ct_kp: Vec<f64>,
+    /// Computed torque's velocity gains K_v, 1/s (`ct_kp`: K_p, 1/s^2).
     pub ct_kv: Vec<f64>,
+    /// Everything the identification was given.
     pub identification_inputs: IdentificationInputs,
+    /// The two identified models, train1's then train2's.
     pub models: Vec<ModelSummary>,
     /// The new trajectory.
     pub tracking_rms: TrackingRms,
@@ -184,6 +214,7 @@ pub struct StudyResult {
     pub fuzzy_share: Vec<f64>,
     /// Smallest and largest normalised membership of model 1 over the new trajectory.
     pub membership_range: [f64; 2],
+    /// The study's wall-clock time, s.
     pub seconds: f64,
 }
 

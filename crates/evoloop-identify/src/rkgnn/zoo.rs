@@ -16,11 +16,15 @@ pub const ZOO_RULES: [&str; 3] = ["fuzzy_max", "fuzzy_evidence", "uniform_eviden
 /// baseline over its seeds, its models' errors.
 #[derive(Debug, Clone, Serialize)]
 pub struct ZooArm {
+    /// The arm's name in the zoo file (its study is in the directory of that name).
     pub arm: String,
+    /// The arm's joint count.
     pub joints: usize,
+    /// Seeds its study ran.
     pub seeds: u64,
     /// Training runs that gave no model, of all.
     pub unidentified: usize,
+    /// Training runs in all: training trajectories x seeds.
     pub training_runs: usize,
     /// (model, task, seed) cases the controller refused (not positive definite along the task).
     pub refused: usize,
@@ -28,9 +32,13 @@ pub struct ZooArm {
     pub versus: Vec<Comparison>,
     /// Medians over seeds, tasks and models of the identified models' errors, and the nominal's.
     pub m_rel: f64,
+    /// Median tr(M-hat) / tr(M): above 1, inflated models.
     pub m_scale: f64,
+    /// Median relative error of G-hat.
     pub g_rel: f64,
+    /// Median relative error of the nominal (CAD) model's M.
     pub nominal_m_rel: f64,
+    /// Wall-clock time of the arm's selection study, s.
     pub seconds: f64,
 }
 
@@ -42,7 +50,9 @@ fn rule_baselines() -> impl Iterator<Item = (&'static str, &'static str)> {
 /// Across arms, one rule against one baseline.
 #[derive(Debug, Clone, Serialize)]
 pub struct Tally {
+    /// The rule (one of `ZOO_RULES`).
     pub rule: String,
+    /// The baseline (one of `STRONGEST`).
     pub baseline: String,
     /// Arms where both ran and their medians differ.
     pub arms: usize,
@@ -52,16 +62,22 @@ pub struct Tally {
     pub sign_p: f64,
     /// Arms where the rule is lower with p < 0.05, and where the baseline is.
     pub held: usize,
+    /// Arms where the baseline is lower with p < 0.05.
     pub lost: usize,
 }
 
 /// `zoo.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct ZooResult {
+    /// The zoo file the arms were generated from.
     pub zoo: std::path::PathBuf,
+    /// Seeds each arm's study ran.
     pub seeds: u64,
+    /// One line per arm.
     pub arms: Vec<ZooArm>,
+    /// Each rule against each strongest baseline, across the arms.
     pub tallies: Vec<Tally>,
+    /// The whole zoo's wall-clock time, s.
     pub seconds: f64,
 }
 

@@ -30,20 +30,28 @@ use zenoh::Wait;
 /// Give up on one set after this long (the controller refused it, or the run is gone).
 const SET_TIMEOUT: Duration = Duration::from_secs(2);
 
+/// What `evoloop bench bridge` measured (printed, or as JSON with `--json`).
 #[derive(Debug, serde::Serialize)]
 pub struct BridgeBench {
+    /// The scenario of the run (its path).
     pub scenario: String,
+    /// Its control period, s.
     pub period_s: f64,
+    /// Parameter sets timed in each phase.
     pub sets_per_phase: usize,
     /// Round trips in ns: local, through the bridge, local again.
     pub local: Percentiles,
+    /// Round trips through the bridge (Zenoh on loopback, both ways), ns.
     pub bridge: Percentiles,
+    /// Round trips on the local path again, after the bridge phase (did the run drift?), ns.
     pub local_again: Percentiles,
     /// bridge p50 - local p50 (both local phases' median), ns: what the network adds, twice.
     pub added_p50_ns: f64,
     /// A state's age on arrival (plant stamp to receipt), ns: iceoryx2 and through the bridge.
     pub state_local: Percentiles,
+    /// A state's age on arrival through the bridge, ns.
     pub state_bridge: Percentiles,
+    /// What the bridge relayed during its phase.
     pub bridge_report: Option<BridgeReport>,
 }
 

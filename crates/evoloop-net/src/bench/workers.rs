@@ -14,6 +14,7 @@ use std::time::{Duration, Instant};
 pub struct Settings {
     /// Worker counts, one phase each.
     pub workers: Vec<usize>,
+    /// Candidates per population.
     pub population: usize,
     /// Populations per phase (after one unmeasured warm-up population).
     pub populations: usize,
@@ -26,36 +27,54 @@ pub struct Settings {
 /// One phase's figures.
 #[derive(Debug, Clone, Serialize)]
 pub struct Phase {
+    /// Evaluation workers up in this phase.
     pub workers: usize,
+    /// Candidates evaluated in the measured populations, here and on the workers.
     pub evaluations: u64,
+    /// Wall time of the measured populations, s.
     pub seconds: f64,
+    /// `evaluations` over `seconds`.
     pub evaluations_per_s: f64,
+    /// Of them, those a worker evaluated.
     pub evaluations_remote: u64,
+    /// Of them, those this process evaluated (its own share and the reissued ones).
     pub evaluations_local: u64,
+    /// Of the local ones, those sent to a worker that failed or did not answer in time.
     pub evaluations_reissued: u64,
     /// Runs the workers answered, their mean length, and what the remote path added per run
     /// (round trip minus the worker's compute time) and per evaluation in them, us.
     pub runs: u64,
+    /// Mean candidates per answered run.
     pub run_length: f64,
+    /// What the remote path added per answered run (round trip minus compute time), us.
     pub overhead_per_run_us: f64,
+    /// The same per evaluation in the answered runs, us.
     pub overhead_per_evaluation_us: f64,
     /// The workers' own compute time per evaluation, us.
     pub worker_us_per_evaluation: f64,
 }
 
+/// What `evoloop bench workers` measured.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
+    /// CPUs this process may use (`std::thread::available_parallelism`).
     pub machine_cores: usize,
     /// One evaluation in this process, alone, us (median of `population`).
     pub local_us_per_evaluation: f64,
+    /// Candidates per population.
     pub population: usize,
+    /// Measured populations per phase.
     pub populations: usize,
+    /// This process's evaluation threads.
     pub threads: usize,
+    /// Each worker's threads.
     pub worker_threads: usize,
+    /// One phase per worker count of `Settings::workers`, in that order.
     pub phases: Vec<Phase>,
     /// The remote path alone: runs of one candidate of a near-empty job to one worker, nothing
     /// else running here: round trip minus the worker's compute time, us.
     pub probe: evoloop_rt::timing::Percentiles,
+    /// Round trips in `probe` (0 when no phase had exactly one worker).
     pub probe_runs: usize,
 }
 
@@ -113,6 +132,10 @@ fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
     Ok(out)
 }
 
+/// Run every phase of `s`: start its workers (`evoloop worker` processes on loopback), time the
+/// same populations, and probe the remote path alone in the first phase of one worker.
+/// `progress` gets a line per result. Fails when the workers are not up within 20 s or a probe
+/// run fails.
 pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
     let ep = evoloop_run::node::launcher::local_workers_endpoint()?;
     let stop = std::sync::atomic::AtomicBool::new(false);

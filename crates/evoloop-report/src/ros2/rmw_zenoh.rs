@@ -58,13 +58,22 @@ fn check_token(what: &str, token: &str) -> Result<(), String> {
 /// Where a node is: its domain, namespace and name, checked as ROS 2 checks them.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct NodeName {
+    /// The ROS 2 domain id, 0..=232.
     pub domain: u32,
     /// "/" or "/a/b".
     pub namespace: String,
+    /// The node's name: a letter or '_', then letters, digits and '_'.
     pub name: String,
 }
 
 impl NodeName {
+    /// Check a node's domain, namespace and name as ROS 2 does; the namespace's trailing '/' is
+    /// dropped ("/" stays "/").
+    ///
+    /// # Errors
+    ///
+    /// A domain above 232, a namespace not starting with '/', or a name or namespace part that is
+    /// not a ROS 2 token.
     pub fn new(domain: u32, namespace: &str, name: &str) -> Result<Self, String> {
         // ROS 2's domain ids run to 232 (rmw_zenoh takes any u32; DDS's ports stop there).
         if domain > 232 {
@@ -101,8 +110,11 @@ impl NodeName {
 /// A node in a Zenoh session: its name, the session's id and the node's id in the session.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Node {
+    /// Where the node is: domain, namespace and name.
     pub name: NodeName,
+    /// The Zenoh session's id, as Zenoh prints it (hex).
     pub zid: String,
+    /// The node's id in the session (also its entity id in its own token).
     pub id: u64,
 }
 
@@ -158,15 +170,25 @@ impl Node {
 /// A publisher or a subscription.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EntityKind {
+    /// Publishes on the topic (token kind `MP`).
     Publisher,
+    /// Subscribes to the topic (token kind `MS`).
     Subscription,
 }
 
 /// The QoS a token declares: reliable or best effort, volatile, keep the last `depth`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Qos {
-    Reliable { depth: u32 },
-    BestEffort { depth: u32 },
+    /// Reliable delivery, ROS 2's default (an empty reliability policy in the token).
+    Reliable {
+        /// Messages kept (history depth, keep last).
+        depth: u32,
+    },
+    /// Best effort: messages may be lost (reliability `2` in the token).
+    BestEffort {
+        /// Messages kept (history depth, keep last).
+        depth: u32,
+    },
 }
 
 impl Qos {
@@ -185,7 +207,9 @@ impl Qos {
 /// A publisher's or subscription's topic: its key expression and its liveliness token.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Entity {
+    /// The key expression its messages are put on: `<domain>/<topic>/<type>/<hash>`.
     pub key: String,
+    /// Its liveliness token, which announces it to ROS 2 discovery.
     pub token: String,
 }
 

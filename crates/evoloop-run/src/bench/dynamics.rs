@@ -27,12 +27,19 @@ pub struct PerCall {
     pub forward_crba: f64,
 }
 
+/// What `evoloop bench dynamics` prints as JSON: per-call costs in the shape of
+/// Pinocchio's `scripts/pinocchio_bench.cpp` output.
 #[derive(Debug, Clone, Serialize)]
 pub struct DynamicsBench {
+    /// Which library was timed: always `"evoloop"` here (`"pinocchio"` on the C++ side).
     pub library: &'static str,
+    /// The robot's name (`Model::name`).
     pub robot: String,
+    /// Degrees of freedom of the robot (`Model::dof`).
     pub joints: usize,
+    /// Calls asked for per algorithm, split into `BATCHES` timed batches.
     pub calls: u64,
+    /// Median ns per call of each algorithm.
     pub ns_per_call: PerCall,
 }
 

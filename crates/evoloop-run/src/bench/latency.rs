@@ -18,6 +18,8 @@ use serde::Serialize;
 use std::process::{Child, Command as Proc, Stdio};
 use std::time::Duration;
 
+/// One kind of round trip `bench latency` times: evoloop's messages and control law, or the
+/// bare iceoryx2 ping-pong it is measured against, each busy-polled or event-woken.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Variant {
@@ -32,6 +34,7 @@ pub enum Variant {
 }
 
 impl Variant {
+    /// The variant's snake_case name: its key in latency.json and its row in latency.csv.
     pub fn name(self) -> &'static str {
         match self {
             Variant::EvoloopBusy => "evoloop_busy",
@@ -45,19 +48,33 @@ impl Variant {
     }
 }
 
+/// One variant's round trips after the warm-up: their percentiles (ns) and, for an evoloop
+/// variant, its ratios to the bare reference of the same wake-up style.
 #[derive(Debug, Clone, Serialize)]
 pub struct VariantResult {
+    /// The variant measured.
     pub variant: Variant,
+    /// Round trips timed (the `WARMUP` ones before them are not).
     pub samples: u64,
+    /// The fastest round trip, ns.
     pub min_ns: i64,
+    /// The median round trip, ns (from a histogram of 3 significant digits, as `p90_ns` to
+    /// `p99_9_ns`).
     pub p50_ns: i64,
+    /// The 90th percentile round trip, ns.
     pub p90_ns: i64,
+    /// The 99th percentile round trip, ns.
     pub p99_ns: i64,
+    /// The 99.9th percentile round trip, ns.
     pub p99_9_ns: i64,
+    /// The 99.99th percentile round trip, ns, read exactly off the sorted samples.
     pub p99_99_ns: i64,
+    /// The slowest round trip, ns.
     pub max_ns: i64,
     /// Against the bare ping-pong of the same wake-up style, same run.
     pub ratio_p50: Option<f64>,
+    /// `p99_9_ns` against the same reference; `None`, as `ratio_p50`, for a bare variant or
+    /// when its reference was not measured.
     pub ratio_p99_9: Option<f64>,
 }
 
@@ -72,6 +89,7 @@ impl VariantResult {
         "p99_99_ns",
         "max_ns",
     ];
+    /// The round-trip figures, ns, in the order of `FIGURES`.
     pub fn figures(&self) -> [i64; 7] {
         [
             self.min_ns,
@@ -108,8 +126,12 @@ fn spawn_peer(v: Variant, prefix: &str, run_id: &str, payload: usize) -> std::io
 
 /// What `measure` found: the JSON report, one result per variant and the raw round trips.
 pub struct Measured {
+    /// latency.json's content: the payload size, the samples per variant and each variant's
+    /// result under its name.
     pub report: serde_json::Value,
+    /// One result per variant measured, in the order measured.
     pub results: Vec<VariantResult>,
+    /// Each variant's round trips in ns, in the order taken (latency_cdf.png plots them).
     pub raw: Vec<(Variant, Vec<i64>)>,
 }
 

@@ -5,10 +5,13 @@ use crate::config::{Mode, OptimiserMode, Overrides};
 use clap::Args;
 use std::path::PathBuf;
 
+/// The options of `evoloop run`: the scenario file and its overrides, the run's id and IPC
+/// prefix, its seeds, its floor, workers on this host and the live view.
 #[derive(clap::Args)]
 pub struct RunArgs {
     /// Scenario file (TOML) [default: config/two_mass.toml, here or in the source tree]
     pub file: Option<PathBuf>,
+    /// Overrides of the scenario file; the launcher passes them on to the run's processes.
     #[command(flatten)]
     pub overrides: OverrideArgs,
     /// Run id used in the service names: ASCII letters, digits, '_' and '-' (default:
@@ -75,6 +78,7 @@ pub struct ProcessArgs {
     /// Prefix of iceoryx2's files for this run.
     #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX, value_parser = crate::ipc::parse_prefix)]
     pub ipc_prefix: String,
+    /// `evoloop run`'s overrides of the scenario file, with `--out` set to the run's directory.
     #[command(flatten)]
     pub overrides: OverrideArgs,
 }
@@ -82,6 +86,7 @@ pub struct ProcessArgs {
 /// The optimiser process's options: those of every process, and `--rejoin`.
 #[derive(Debug, Clone, Args)]
 pub struct OptimiserArgs {
+    /// The options every process receives.
     #[command(flatten)]
     pub args: ProcessArgs,
     /// Rejoin a running run (started again after a crash): continue the version numbering and the
@@ -128,6 +133,8 @@ pub struct OverrideArgs {
     /// `timing.wait_margin_us` before it, then spin). Default: the scenario's `timing.wait`.
     #[arg(long)]
     pub wait: Option<crate::rt::WaitKind>,
+    /// Evaluation workers on other hosts for the optimiser (`--workers-listen`,
+    /// `--workers-expect`).
     #[command(flatten)]
     pub remote: WorkersArgs,
 }
@@ -146,6 +153,7 @@ pub struct WorkersArgs {
 }
 
 impl OverrideArgs {
+    /// These options as the `Overrides` a scenario is loaded with.
     pub fn to_overrides(&self) -> Overrides {
         Overrides {
             mode: self.mode,

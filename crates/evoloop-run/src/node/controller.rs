@@ -490,8 +490,7 @@ pub fn main(args: &ProcessArgs) {
     }
 }
 
-/// Wait for the next state, in slices so a signal is noticed. Ok(None): stopped.
-/// Wait for the next state sample. Ok(None): stopped by a signal.
+/// Wait for the next state, in slices so a signal is noticed. Ok(None): stopped by a signal.
 fn next_state(
     ports: &Ports,
     spin: Duration,

@@ -33,6 +33,7 @@ pub const SUBPROTOCOL: &str = "foxglove.websocket.v1";
 /// The parameter holding the controller's tunable values.
 pub const GAINS: &str = "gains";
 
+/// The options of `evoloop live`: which run to serve, on which address, and to whom.
 #[derive(clap::Args, Debug)]
 pub struct LiveArgs {
     /// The run to serve (its run id); default: the only run running.
@@ -101,18 +102,21 @@ enum Ask {
 /// Messages a client's queue holds before newer ones are dropped for it.
 const CLIENT_QUEUE: usize = 4096;
 /// Connections served at once, viewers and handshakes in progress together (each has a
-/// thread); one more is answered "503" and closed. The largest message a viewer may send (a
-/// set of gains is < 1 KiB).
+/// thread); one more is answered "503" and closed.
 const MAX_CLIENTS: usize = 16;
 /// The longest a connection may take to finish its WebSocket handshake, however slowly its
 /// bytes come.
 const HANDSHAKE: Duration = Duration::from_secs(5);
+/// The largest message a viewer may send, bytes (a set of gains is < 1 KiB).
 const MAX_MESSAGE: usize = 1 << 20;
 /// How long a write to a viewer may block before the viewer is dropped.
 const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
 /// How often the hub polls the topics.
 const POLL: Duration = Duration::from_millis(2);
 
+/// `evoloop live`: serve the run until it ends (its telemetry silent for 5 s after some came)
+/// or this process is stopped (SIGINT, SIGTERM, SIGHUP). Returns the exit code: 0, or 2 when
+/// serving could not start (the reason on stderr).
 pub fn main(a: &LiveArgs) -> u8 {
     match serve(a) {
         Ok(()) => 0,

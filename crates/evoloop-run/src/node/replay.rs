@@ -34,6 +34,8 @@ use std::process::Child;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+/// The options of `evoloop replay`: the recording, the controller's scenario, the pace and
+/// where the results go.
 #[derive(clap::Args)]
 pub struct ReplayArgs {
     /// The recording: a run's run.mcap.
@@ -74,21 +76,32 @@ fn parse_speed(s: &str) -> Result<f64, String> {
 /// The first cycle whose replayed command differs from the recorded one.
 #[derive(Debug, Serialize)]
 pub struct Mismatch {
+    /// The cycle's place among the recorded states, from 0.
     pub cycle: usize,
+    /// The sequence number of the recorded state both commands answer.
     pub state_seq: u64,
+    /// The state's time, s.
     pub t: f64,
+    /// The recorded command, one value per plant input.
     pub recorded: Vec<f64>,
+    /// The replayed controller's command, one value per plant input.
     pub replayed: Vec<f64>,
 }
 
 /// replay.json.
 #[derive(Debug, Serialize)]
 pub struct ReplayReport {
+    /// The recording played (the path given).
     pub recording: String,
+    /// The controller's scenario file: `--scenario`'s, else the recording's own.
     pub scenario: String,
+    /// `--speed`: the multiple of real time played at; `None`: as fast as the controller answered.
     pub speed: Option<f64>,
+    /// States the controller answered (all the recorded ones unless the replay was stopped).
     pub states: usize,
+    /// Recorded parameter sets sent to the controller.
     pub params_sent: usize,
+    /// Recorded model estimates (the changing parameter's value) sent to the controller.
     pub estimates_sent: usize,
     /// Estimated transfer functions (the general indirect scheme) sent to the controller.
     pub linear_estimates_sent: usize,
@@ -96,8 +109,11 @@ pub struct ReplayReport {
     pub commands_compared: usize,
     /// Of those, replayed commands equal to the recorded ones bit for bit.
     pub commands_equal: usize,
+    /// The largest |replayed - recorded| over the compared commands' inputs; NaN if any is NaN.
     pub max_abs_diff: f64,
+    /// The first cycle whose commands differ; `None` when all compared ones are equal.
     pub first_mismatch: Option<Mismatch>,
+    /// Wall-clock time of the play, s.
     pub wall_s: f64,
 }
 

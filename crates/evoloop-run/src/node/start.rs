@@ -54,8 +54,12 @@ impl std::fmt::Display for Failure {
 /// What every process starts with: its scenario, its stop flag (set by SIGINT/SIGTERM) and its
 /// iceoryx2 node in the run.
 pub struct Started {
+    /// The scenario file, loaded with the launcher's overrides.
     pub scenario: Scenario,
+    /// Raised by SIGINT, SIGTERM or SIGHUP (`stop_flag`): the loop ends and the process exits
+    /// cleanly.
     pub stop: Arc<AtomicBool>,
+    /// The process's iceoryx2 node in the run, named by `start`'s `who`.
     pub ipc: Ipc,
 }
 

@@ -43,6 +43,8 @@ pub struct Measure {
 }
 
 impl Measure {
+    /// The indirect scheme's measure: cost per repetition, from `cost_before_change`,
+    /// `cost_after_change` and their frozen twins.
     pub const INDIRECT: Measure = Measure {
         scheme: "The indirect scheme",
         short: "tuned",
@@ -67,6 +69,8 @@ impl Measure {
         scale: 1.0,
         estimates: true,
     };
+    /// Identification alongside operation's measure: tracking RMS over all joints, mrad, from
+    /// `tracking_before_change`, `tracking_after_change` and their frozen twins.
     pub const IDENTIFY: Measure = Measure {
         scheme: "Identification alongside operation",
         short: "identified",
@@ -106,14 +110,20 @@ impl Measure {
 /// One seed's run, from its summary.json.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct SeedRun {
+    /// The seed the run was made with.
     pub seed: u64,
     /// Tuned and frozen before the plant's change; None when the plant does not change.
     pub before: Option<(f64, f64)>,
+    /// The scheme's number over the last quarter of the run (after the change, if any), in the
+    /// measure's unit.
     pub after: f64,
+    /// The frozen controller's number over the same quarter.
     pub after_frozen: f64,
     /// The final model estimate's relative error (the indirect scheme's estimator).
     pub estimate_error: Option<f64>,
+    /// Parameter sets the controller put in service during the run.
     pub accepted: u64,
+    /// Parameter sets the controller refused during the run.
     pub rejected: u64,
 }
 
@@ -159,13 +169,18 @@ pub struct PhaseComparison {
     /// "before the change", "after the change", or "over the last quarter" (a plant without a
     /// change).
     pub phase: &'static str,
+    /// The scheme's mean over the seeds, with its 95 % interval.
     pub tuned: MeanCi,
+    /// The frozen controller's mean over the seeds, with its 95 % interval.
     pub frozen: MeanCi,
     /// tuned - frozen per seed.
     pub difference: MeanCi,
     /// (tuned - frozen) / frozen per seed, in %.
     pub relative_pct: MeanCi,
+    /// The paired Wilcoxon signed-rank test of tuned against frozen.
     pub wilcoxon: Wilcoxon,
+    /// What the comparison shows, one sentence computed from `wilcoxon` and `difference`
+    /// (`paired_sentence`).
     pub sentence: String,
 }
 
@@ -211,18 +226,29 @@ pub fn after_phase(changed: bool) -> &'static str {
 /// The study over `runs`; `failed` lists seeds whose run did not complete, with the reason.
 #[derive(Debug, Clone, Serialize)]
 pub struct Study {
+    /// The scenario's name.
     pub scenario: String,
+    /// What is compared, and how.
     pub measure: Measure,
+    /// The seeds whose runs completed, in the order run: the study's samples.
     pub seeds: Vec<u64>,
+    /// Seeds whose run did not complete, each with the reason; not in the statistics.
     pub failed: Vec<(u64, String)>,
+    /// Tuned against frozen per phase: before the change (when the plant changes), then the
+    /// last quarter.
     pub comparisons: Vec<PhaseComparison>,
     /// Over the seeds that report one (the indirect scheme's estimator).
     pub estimate_error_pct: Option<MeanCi>,
+    /// Parameter sets accepted per run: mean over the seeds, with its 95 % interval.
     pub accepted: MeanCi,
+    /// Parameter sets the controller refused, summed over all runs.
     pub rejected_total: u64,
 }
 
 impl Study {
+    /// The study of `runs`: a comparison per phase (before the change only when every run has
+    /// a `before`), the estimate error when every run reports one, and the sets' counts; `failed`
+    /// is kept as given for the report.
     pub fn new(
         scenario: &str,
         measure: Measure,

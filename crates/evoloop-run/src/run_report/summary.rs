@@ -8,11 +8,16 @@ use crate::rt::timing::Percentiles;
 use crate::rt::{RtGranted, TimingSummary};
 use serde::{Deserialize, Serialize};
 
+/// A parameter-set event as controller.json records it: which set, when, and what became
+/// of it.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(try_from = "RecordAsWritten")]
 pub struct ParamRecord {
+    /// The version of the set it concerns.
     pub version: u64,
+    /// The control cycle it happened in.
     pub cycle: u64,
+    /// Plant time of the state that cycle ran on, s.
     pub t: f64,
     /// What happened to the set: the report classifies by this.
     pub code: crate::msg::ParamCode,
@@ -60,21 +65,34 @@ impl TryFrom<RecordAsWritten> for ParamRecord {
     }
 }
 
+/// What the controller process reports at the end of a run: controller.json.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct ControllerReport {
+    /// The timing mode it ran in.
     pub mode: crate::config::Mode,
+    /// Control cycles it ran.
     pub cycles: u64,
+    /// Wall-clock time of its loop, s.
     pub wall_s: f64,
+    /// The real-time privileges it was granted (realtime mode; none asked in lockstep).
     pub rt: RtGranted,
+    /// Its loop's timing: lateness, compute time and state age percentiles, overruns, misses.
     pub timing: TimingSummary,
+    /// The parameter-set events of the run in order: accepted, refused, trial ended or aborted
+    /// (events past the list's capacity are dropped and counted in `log_dropped`).
     pub params: Vec<ParamRecord>,
+    /// The parameter version in service at the end (0: the configured initial set).
     pub final_version: u64,
+    /// The parameter values in service at the end.
     pub final_params: Vec<f64>,
+    /// Sets dropped because the queue of received sets not yet due was full.
     pub pending_dropped: u64,
     /// Plant states the controller refused (a count not the configured plant's, or a value the
     /// law reads not finite), sending the safe command instead: how many, and the first.
     #[serde(default)]
     pub refused_states: crate::control::state_check::Refused,
+    /// Rows of run.csv / timing.csv dropped because the log writer fell behind, plus
+    /// parameter events dropped because the event list was full.
     pub log_dropped: u64,
     /// The first error writing run.csv / timing.csv (a full disk): rows after it are lost.
     #[serde(default)]
@@ -95,15 +113,21 @@ pub struct ControllerReport {
     /// out while the run went on, and the first failure.
     #[serde(default)]
     pub connection_failures: u64,
+    /// The first of those failures, in words.
     #[serde(default)]
     pub connection_error: Option<String>,
 }
 
+/// What the plant process reports at the end of a run: plant.json.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct PlantReport {
+    /// The timing mode it ran in.
     pub mode: crate::config::Mode,
+    /// State samples published, the end-of-run state not counted.
     pub samples: u64,
+    /// Wall-clock time of its loop, s.
     pub wall_s: f64,
+    /// The real-time privileges it was granted (realtime mode; none asked in lockstep).
     pub rt: RtGranted,
     /// Samples during which the safe command was applied because commands had stopped.
     pub safe_samples: u64,
@@ -115,6 +139,7 @@ pub struct PlantReport {
     /// after the last command it took over (the timeout plus the wait for the next sample).
     #[serde(default)]
     pub first_safe_sample: Option<u64>,
+    /// Periods from the last command to `first_safe_sample`.
     #[serde(default)]
     pub first_safe_periods: Option<f64>,
     /// Realtime: samples published since the last command arrived, at the end of the run (how
@@ -132,15 +157,22 @@ pub struct PlantReport {
     /// Lockstep: times a stalled optimiser acknowledged again and paced the loop once more.
     #[serde(default)]
     pub optimiser_resumed: u64,
+    /// Controller commands the plant received and applied.
     pub commands_received: u64,
+    /// Set when it was stopped by a signal (SIGINT, SIGTERM, SIGHUP).
     pub interrupted: bool,
 }
 
+/// A parameter set the optimiser published, as optimiser.json lists it.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct PublishedSet {
+    /// The set's version.
     pub version: u64,
+    /// Plant time of the state at which it was published, s.
     pub at: f64,
+    /// The state sequence number at whose cycle the controller applies it; 0: the next cycle.
     pub apply_at_seq: u64,
+    /// The set's values (a model sent in parts: the whole model's).
     pub values: Vec<f64>,
 }
 
@@ -149,21 +181,27 @@ pub struct PublishedSet {
 pub struct OperatorEvent {
     /// Plant time and sample at which it was taken.
     pub t: f64,
+    /// The state sequence number it was taken at.
     pub seq: u64,
     /// None: an action code this build does not know.
     pub action: Option<crate::msg::OperatorAction>,
     /// Revert: the version asked for (0: the set before tuning).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub requested_version: Option<u64>,
+    /// How the optimiser answered it.
     pub outcome: crate::msg::OperatorOutcome,
     /// Revert: the version the earlier values went out under; otherwise the last published.
     pub version: u64,
 }
 
+/// What the optimiser process reports at the end of a run: optimiser.json.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct OptimiserReport {
+    /// The optimiser's mode (`optimiser.mode`).
     pub mode: crate::config::OptimiserMode,
+    /// Plant states it received.
     pub states_seen: u64,
+    /// Controller commands it received.
     pub commands_seen: u64,
     /// The sets published, thinned evenly past `indirect::HISTORY` like the estimates
     /// (`published.jsonl` has every one).
@@ -178,7 +216,9 @@ pub struct OptimiserReport {
     /// Indirect mode: plant samples the estimator never saw (gaps in the sequence numbers).
     #[serde(default)]
     pub samples_missed: u64,
+    /// The niceness it ran at (`optimiser.nice`); `None` when it could not be set.
     pub nice: Option<i32>,
+    /// Set when it was stopped by a signal (SIGINT, SIGTERM, SIGHUP).
     pub interrupted: bool,
     /// Indirect mode: the model estimate over time (every 0.1 s of plant time).
     #[serde(default)]
@@ -197,6 +237,7 @@ pub struct OptimiserReport {
     /// and the run's wall time: the load the optimiser put on the machine beside the loop.
     #[serde(default)]
     pub cpu_s: f64,
+    /// Wall-clock time over which `cpu_s` was taken, s.
     #[serde(default)]
     pub wall_s: f64,
     /// Population evaluations (`optim::evaluate`) by where they were computed:
@@ -223,26 +264,34 @@ pub struct OptimiserLife {
 /// The direct scheme's outcome in summary.json.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct DirectSummary {
+    /// The optimiser's name (`optimiser.algorithm`).
     pub algorithm: String,
     /// Candidates tried on the plant and scored, and how many of them the envelope aborted.
     pub trials: usize,
+    /// Of those trials, the ones the safety envelope aborted.
     pub aborted: u64,
     /// Trials whose samples did not all reach the optimiser (tried again).
     pub incomplete: u64,
     /// The configured set's cost on the baseline repetition, and the best cost found.
     pub baseline_cost: Option<f64>,
+    /// The best cost found; `None` when nothing was scored.
     pub best_cost: Option<f64>,
+    /// The best set's version (0: the configured set).
     pub best_version: u64,
 }
 
 /// The bare absolute-deadline sleep loop measured in the same run: the machine's floor.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct FloorReport {
+    /// The loop's period, s: the controller's.
     pub period_s: f64,
+    /// What the bare loop's thread was granted: the controller's priority and CPU, memory not
+    /// locked.
     pub rt: RtGranted,
     /// The wait strategy of the bare loop: the controller's, so the ratios compare like with like.
     #[serde(default)]
     pub wait: crate::rt::WaitStrategy,
+    /// The bare loop's wake-up lateness against its absolute deadlines, ns.
     pub lateness: Percentiles,
     /// Whole periods the bare loop lost (sum over its cycles of floor(lateness / period)): what
     /// the machine alone costs a loop at this rate and priority, the yardstick for judging
@@ -251,14 +300,21 @@ pub struct FloorReport {
     pub lost_periods: u64,
     /// Controller lateness percentile over the floor's, same run.
     pub ratio_p50: f64,
+    /// The same at the 99th percentile (NaN when the floor's is 0).
     pub ratio_p99: f64,
+    /// The same at the 99.9th percentile (NaN when the floor's is 0).
     pub ratio_p99_9: f64,
 }
 
+/// The parameter-set events of a run by what became of the set: summary.json's
+/// `parameter_versions`.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct ParamVersions {
+    /// The parameter version in service at the end (0: the configured initial set).
     pub final_version: u64,
+    /// Sets the controller put in service, in order.
     pub accepted: Vec<ParamRecord>,
+    /// Sets the controller refused, in order, each with its reason.
     pub rejected: Vec<ParamRecord>,
     /// Direct scheme: trial sets that ended (their fallback back in service) or were aborted by
     /// the safety envelope after they had been accepted. Not rejections.
@@ -266,21 +322,31 @@ pub struct ParamVersions {
     pub trials_ended: Vec<ParamRecord>,
 }
 
+/// The real-time privileges the controller and the plant were granted.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct RealtimePrivileges {
+    /// The controller's (`ControllerReport::rt`).
     pub controller: RtGranted,
+    /// The plant's (`PlantReport::rt`).
     pub plant: RtGranted,
 }
 
+/// The run summary the launcher assembles from the processes' reports and run.csv:
+/// summary.json.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct Summary {
     /// How the run ended (`Outcome`); required when read back (a file without it is not taken
     /// for a run that ended well).
     pub outcome: Outcome,
+    /// The scenario's name.
     pub scenario: String,
+    /// The scenario file, as the run loaded it.
     pub config: String,
+    /// The run's id, part of its iceoryx2 service names.
     pub run_id: String,
+    /// The timing mode: lockstep or realtime.
     pub mode: crate::config::Mode,
+    /// The seed of every random number generator in the run.
     pub seed: u64,
     /// The scenario's duration; null for a run until stopped.
     pub duration_s: Option<f64>,
@@ -290,20 +356,30 @@ pub struct Summary {
     /// The run had no duration and went on until it was stopped.
     #[serde(default)]
     pub until_stopped: bool,
+    /// The control period, s.
     pub period_s: f64,
+    /// Control cycles the controller ran.
     pub samples: u64,
+    /// Wall-clock time of the run, s: the launcher's, from the processes' start to their end.
     pub wall_s: f64,
     /// Control cycles per wall-clock second across the processes.
     pub throughput_samples_per_s: f64,
+    /// The first output's step-response metrics against its reference.
     pub response: ResponseMetrics,
     /// Tracking error per joint (r_i - y_i) over the whole run.
     pub tracking: crate::report::metrics::Tracking,
     /// The same from t = 1 s on (past start-up transients such as computed torque's psi(k)).
     pub tracking_after_1s: crate::report::metrics::Tracking,
+    /// The controller loop's timing (`ControllerReport::timing`).
     pub timing: TimingSummary,
+    /// Cycles whose compute time exceeded the period (`timing.overruns`).
     pub overruns: u64,
+    /// Deadlines that passed without a cycle: the whole periods late wake-ups skipped, and those
+    /// before the controller's first sample (`timing.missed_deadlines`).
     pub deadline_misses: u64,
+    /// The parameter sets the controller put in service, refused, or ended as trials.
     pub parameter_versions: ParamVersions,
+    /// The real-time privileges the controller and the plant were granted.
     pub realtime_privileges: RealtimePrivileges,
     /// Rows of run.csv/timing.csv the controller dropped because its log writer fell behind
     /// (realtime only; the timing statistics still count every cycle).
@@ -316,25 +392,34 @@ pub struct Summary {
     /// Realtime: how the controller and the plant waited for their deadlines (`timing.wait`).
     #[serde(default)]
     pub wait: Option<crate::rt::WaitStrategy>,
+    /// Realtime with `timing.measure_floor`: the bare loop measured after the run, with the
+    /// controller's lateness against it; `None` otherwise, or when the run was stopped before its
+    /// end.
     pub floor: Option<FloorReport>,
+    /// Samples the plant held its safe command because commands had stopped
+    /// (`PlantReport::safe_samples`).
     pub plant_safe_samples: u64,
     /// Plant states the controller refused and answered with the safe command (see
     /// `ControllerReport::refused_states`), and the first of them.
     #[serde(default)]
     pub refused_states: u64,
+    /// The first refused state: its sample and why.
     #[serde(default)]
     pub first_refused_state: Option<crate::control::state_check::FirstRefused>,
     /// Realtime: samples the plant held its safe command before the controller's first command
     /// (a controller slow to start, or one that never commanded).
     #[serde(default)]
     pub plant_samples_before_first_command: u64,
+    /// Parameter sets the optimiser published (a model sent in parts counts once).
     pub optimiser_published: usize,
     /// Indirect mode: plant samples the optimiser's estimator missed (its queue overflowed).
     #[serde(default)]
     pub optimiser_samples_missed: u64,
-    /// The optimiser process's CPU time over its wall time: cores it kept busy on average.
+    /// The optimiser process's CPU time, s (user and system, all its threads).
     #[serde(default)]
     pub optimiser_cpu_s: f64,
+    /// `optimiser_cpu_s` over the optimiser's wall time: the cores it kept busy on average (0
+    /// when it had no wall time).
     #[serde(default)]
     pub optimiser_load_cores: f64,
     /// The optimiser's population evaluations by where they ran (`optimiser.workers`):
@@ -344,7 +429,9 @@ pub struct Summary {
     /// Direct mode: the trials and what they found (every repetition: direct.csv).
     #[serde(default)]
     pub direct: Option<DirectSummary>,
+    /// A process was stopped by a signal (as a run until stopped always ends).
     pub interrupted: bool,
+    /// Processes of killed runs whose iceoryx2 resources the launcher removed at its start.
     pub stale_resources_cleaned: usize,
     /// Times the optimiser died and was started again to rejoin the run.
     pub optimiser_restarts: usize,
@@ -365,16 +452,19 @@ pub struct Summary {
     /// run is reproducible up to the first), and how often it came back to pace the loop.
     #[serde(default)]
     pub optimiser_stalls: Vec<u64>,
+    /// Lockstep: times a stalled optimiser acknowledged again and paced the loop once more.
     #[serde(default)]
     pub optimiser_resumed: u64,
     /// Parameter sets the controller put in service / refused during the run.
     pub accepted_versions: usize,
+    /// Parameter sets the controller refused during the run.
     pub rejected_versions: usize,
     /// Cost per repetition of a repeating reference (sum |e| + w sum |u|, `optimiser.cost_u_weight`).
     pub cost_per_repetition: Vec<f64>,
     /// Mean cost per repetition before the plant's parameter change (first repetition excluded:
     /// it starts from rest), and over the last quarter of the run.
     pub cost_before_change: Option<f64>,
+    /// Mean cost per repetition over the last quarter of the run.
     pub cost_after_change: Option<f64>,
     /// The same for the frozen comparison (the scenario with the optimiser off, simulated
     /// in-process after an indirect run).
@@ -382,10 +472,14 @@ pub struct Summary {
     /// `cost_before_change` of the frozen comparison.
     #[serde(default)]
     pub cost_before_change_frozen: Option<f64>,
+    /// `cost_per_repetition` of the frozen comparison (indirect runs that have one; else empty).
     pub cost_per_repetition_frozen: Vec<f64>,
     /// The optimiser's final model estimate, the true value then, and the relative error.
     pub model_estimate_final: Option<f64>,
+    /// The true value of the estimated parameter at the final estimate's time (the plant's,
+    /// unseen by the run).
     pub model_true_final: Option<f64>,
+    /// The final estimate's relative error: (estimate - true) / true.
     pub model_estimate_error: Option<f64>,
     /// Linear plants under the indirect scheme: the model the controller checked new sets on
     /// (nominal until the first estimate it adopted, then the latest).
@@ -397,10 +491,13 @@ pub struct Summary {
     /// in-process).
     #[serde(default)]
     pub tracking_before_change: Option<f64>,
+    /// Identification: tracking RMS over all joints over the last quarter of the run, rad.
     #[serde(default)]
     pub tracking_after_change: Option<f64>,
+    /// `tracking_before_change` of the frozen comparison, rad.
     #[serde(default)]
     pub tracking_before_change_frozen: Option<f64>,
+    /// `tracking_after_change` of the frozen comparison, rad.
     #[serde(default)]
     pub tracking_after_change_frozen: Option<f64>,
 }

@@ -58,16 +58,27 @@ struct RawOutput {
 
 // ---------------------------------------------------------------- validated scenario
 
+/// A scenario file, read and validated: every table checked, the command-line overrides
+/// applied.
 #[derive(Debug, Clone, Serialize)]
 pub struct Scenario {
+    /// Path of the scenario file it was loaded from, as given (named in messages).
     pub source: PathBuf,
+    /// The run's name: the `name` key, else the file's stem (output goes to `runs/<name>`).
     pub name: String,
+    /// Seed of every random number generator in the run: `--seed`, else `seed`, else 1.
     pub seed: u64,
+    /// The validated `[plant]` table.
     pub plant: PlantSpec,
+    /// The validated `[controller]` table.
     pub controller: ControllerSpec,
+    /// The validated `[reference]` table: the setpoint the loop follows.
     pub reference: Reference,
+    /// The validated `[timing]` table, with the command-line overrides applied.
     pub timing: Timing,
+    /// The validated `[optimiser]` table, with its nominal plant, alternatives and model.
     pub optimiser: OptimiserSpec,
+    /// The validated `[output]` table, with `--out` applied.
     pub output: Output,
     /// What the robot files' loader warned about (physically dubious but simulable), for
     /// `evoloop check` and the launcher to print.
@@ -75,9 +86,12 @@ pub struct Scenario {
     pub warnings: Vec<String>,
 }
 
+/// The validated `[output]` table: where a run's files go and which ones are written.
 #[derive(Debug, Clone, Serialize)]
 pub struct Output {
+    /// Directory of the run's files: `--out`, else `output.dir`, else `runs/<name>`.
     pub dir: PathBuf,
+    /// Draw the plots into `dir` (`output.plots`, default true).
     pub plots: bool,
     /// Record the run's messages into `run.mcap` (`report::record`).
     pub mcap: bool,
@@ -86,10 +100,16 @@ pub struct Output {
 /// Command-line overrides applied before validation.
 #[derive(Debug, Clone, Default)]
 pub struct Overrides {
+    /// `--mode`: lockstep or realtime, in place of `timing.mode`.
     pub mode: Option<Mode>,
+    /// `--duration`: run length in simulated s, in place of `timing.duration`; infinite for
+    /// `forever`.
     pub duration: Option<f64>,
+    /// `--seed`: the seed of every random number generator, in place of the file's `seed`.
     pub seed: Option<u64>,
+    /// `--out`: the output directory, in place of `output.dir`.
     pub out: Option<PathBuf>,
+    /// `--optimiser`: the optimiser mode, in place of `optimiser.mode`.
     pub optimiser: Option<OptimiserMode>,
     /// Drop every real-time privilege request (SCHED_FIFO, mlockall, pinning).
     pub no_rt: bool,
@@ -184,6 +204,7 @@ impl Scenario {
             .unwrap_or(k)
     }
 
+    /// The control period in ns, rounded to the nearest one (the realtime loops' deadline step).
     pub fn period_ns(&self) -> u64 {
         (self.timing.period * 1e9).round() as u64
     }
@@ -267,10 +288,14 @@ impl Scenario {
         }
     }
 
+    /// The controller's bounds on its tunable parameters (`lower`, `upper`), which every received
+    /// parameter set must respect.
     pub fn bounds(&self) -> ParamBounds {
         self.controller.tunable().bounds.clone()
     }
 
+    /// Real-time requests of the controller process in a realtime run: `timing.fifo_priority`,
+    /// `timing.lock_memory`, `timing.controller_cpu` and `timing.wait`.
     pub fn controller_rt(&self) -> RtRequest {
         RtRequest {
             fifo_priority: self.timing.fifo_priority,
@@ -280,6 +305,9 @@ impl Scenario {
         }
     }
 
+    /// Real-time requests of evoloop's plant process (and of a plant of the user's own) in a
+    /// realtime run: `timing.plant_fifo_priority`, `timing.lock_memory`, `timing.plant_cpu`
+    /// and `timing.wait`.
     pub fn plant_rt(&self) -> RtRequest {
         RtRequest {
             fifo_priority: self.timing.plant_fifo_priority,

@@ -22,10 +22,14 @@ pub struct RawModel {
 }
 
 /// The validated prior: num and den in descending powers, den monic, num padded to den's
-/// length (strictly proper: num[0] = 0).
+/// length (strictly proper: `num[0] = 0`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ModelPrior {
+    /// Nominal numerator of the continuous-time transfer function, descending powers of s,
+    /// padded to `den`'s length (from `optimiser.model.num`, or the `lti` plant's own).
     pub num: Vec<f64>,
+    /// Nominal denominator of the continuous-time transfer function, descending powers of s,
+    /// monic: 1 to `MAX_POLES` poles.
     pub den: Vec<f64>,
     /// Numerator degree: the estimator fits b_0 .. b_zeros.
     pub zeros: usize,

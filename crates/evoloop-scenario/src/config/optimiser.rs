@@ -77,6 +77,7 @@ pub const WORKERS_WAIT_S: f64 = 8.0;
 /// The default endpoint of `optimiser.workers_listen`: this host only.
 pub const WORKERS_LISTEN: &str = "tcp/127.0.0.1:7448";
 
+/// What the optimiser process does (`optimiser.mode`, `--optimiser`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum OptimiserMode {
@@ -144,8 +145,11 @@ pub struct RawScheduled {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Expect {
+    /// The controller is meant to take it: it is checked against the controller before the run.
     #[default]
     Accepted,
+    /// The controller is meant to refuse it (NaN, out of bounds, wrong length): not checked
+    /// before the run.
     Rejected,
 }
 
@@ -153,24 +157,43 @@ pub enum Expect {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum SetKind {
+    /// The law's tunable parameters (gains).
     #[default]
     Gains,
+    /// The law's model (a computed-torque controller's rigid-body parameters).
     Model,
 }
 
+/// One validated `[[optimiser.schedule]]` entry: a parameter set the optimiser publishes in
+/// `schedule` mode.
 #[derive(Debug, Clone, Serialize)]
 pub struct ScheduledSet {
+    /// Run time in s at which the optimiser publishes the set (lockstep: it applies at the
+    /// sample of that time).
     pub at: f64,
+    /// The set's parameters, from `values` or from the `model_parameters` of `file`
+    /// (1 to `MAX_PARAMS` of them).
     pub values: Vec<f64>,
+    /// Whether the set replaces the law's tunable parameters or its model.
     pub kind: SetKind,
+    /// Whether the controller is meant to accept the set (checked before the run) or refuse it.
     pub expect: Expect,
 }
 
+/// The validated `[optimiser]` table: the optimiser process's mode and every mode's settings
+/// (those of the modes not run are checked but unused).
 #[derive(Debug, Clone, Serialize)]
 pub struct OptimiserSpec {
+    /// What the optimiser does: `--optimiser`, else `optimiser.mode`, else off.
     pub mode: OptimiserMode,
+    /// Lockstep: s between two samples at which the plant waits for the optimiser's
+    /// acknowledgement (1 to `MAX_SYNC_SAMPLES` periods; default 100 periods, or in the direct
+    /// scheme the largest divisor of the repetition up to 100).
     pub sync_period: f64,
+    /// Nice value of the optimiser process (-20 to 19, default 10), so it yields the CPU to the
+    /// control loop.
     pub nice: i32,
+    /// Schedule: the sets `[[optimiser.schedule]]` publishes, in time order.
     pub schedule: Vec<ScheduledSet>,
     /// Indirect: publish when the candidate's model cost is below the in-service set's by this
     /// fraction.
@@ -187,15 +210,24 @@ pub struct OptimiserSpec {
     /// Identify: seconds of data each identification fits, the fresh seconds after them it is
     /// judged on, and the seconds between attempts.
     pub identify_window: f64,
+    /// Identify: seconds of fresh data after the window that an identified model is judged on
+    /// against the model in service (default 1).
     pub identify_fresh: f64,
+    /// Identify: seconds between identification attempts (default 2).
     pub identify_every: f64,
     /// Direct: the optimiser (`optim::by_name::ALGORITHMS`), its population and the candidates it
     /// tries, one per repetition of `repetition` s, the first starting at `first_repetition` s
     /// (the repetition before it runs the configured set: the baseline).
     pub algorithm: String,
+    /// Direct: the optimiser's population size (default 10, 4 to 10 000).
     pub population: usize,
+    /// Direct: candidates the optimiser tries in all (default 310, at least `population`).
     pub evaluations: usize,
+    /// Direct: length in s of one repetition of the reference, the time each candidate is
+    /// tried for (default 1, a whole number of control periods).
     pub repetition: f64,
+    /// Direct: start in s of the first trial's repetition (default `repetition`); the
+    /// repetition before it runs the configured set, the baseline.
     pub first_repetition: f64,
     /// Direct: the envelope a candidate is aborted outside of.
     pub envelope: crate::control::cycle::Envelope,

@@ -25,6 +25,7 @@ pub struct RawTiming {
     pub wait_margin_us: Option<f64>,
 }
 
+/// How the plant, the controller and the optimiser keep time (`timing.mode`, `--mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Mode {
@@ -32,6 +33,8 @@ pub enum Mode {
     /// always names or defaults its own, and a report read back must have one.)
     #[default]
     Lockstep,
+    /// The processes keep wall-clock time: the plant ticks on absolute deadlines and the
+    /// controller wakes `phase` of a period after each sample (not reproducible run to run).
     Realtime,
 }
 
@@ -58,21 +61,41 @@ impl std::str::FromStr for Mode {
     }
 }
 
+/// The validated `[timing]` table, with `--mode`, `--duration`, `--no-rt` and `--wait`
+/// applied.
 #[derive(Debug, Clone, Serialize)]
 pub struct Timing {
+    /// Lockstep or realtime: `--mode`, else `timing.mode`, else lockstep.
     pub mode: Mode,
+    /// Control period in s, within [1e-5, 10].
     pub period: f64,
     /// Simulated seconds; infinite for a run that goes on until it is stopped
     /// (`until_stopped`), serialised as null.
     pub duration: f64,
+    /// How long in us a waiting process polls before it blocks on an iceoryx2 event (default
+    /// 50, at most 1 000 000).
     pub spin_us: u64,
+    /// Longest wait in s for a peer's answer in lockstep (default 10): an optimiser that does
+    /// not acknowledge within it stops pacing the loop, which goes on without it.
     pub lockstep_timeout: f64,
+    /// Realtime: the fraction of a period after each plant sample at which the controller
+    /// wakes, in [0, 0.95] (default 0.1).
     pub phase: f64,
+    /// Realtime: the controller's SCHED_FIFO priority (1-99); None stays SCHED_OTHER (always
+    /// under `--no-rt`).
     pub fifo_priority: Option<i32>,
+    /// Realtime: the plant's SCHED_FIFO priority (1-99); None stays SCHED_OTHER (always
+    /// under `--no-rt`).
     pub plant_fifo_priority: Option<i32>,
+    /// Realtime: the controller and the plant ask for `mlockall` (default false; false under
+    /// `--no-rt`).
     pub lock_memory: bool,
+    /// Realtime: CPU the controller is pinned to; None without pinning or under `--no-rt`.
     pub controller_cpu: Option<usize>,
+    /// Realtime: CPU the plant process is pinned to; None without pinning or under `--no-rt`.
     pub plant_cpu: Option<usize>,
+    /// Realtime: after the run, measure a bare absolute-deadline loop at the same period,
+    /// priority, CPU and wait strategy, as the machine's floor to compare with (default true).
     pub measure_floor: bool,
     /// How the realtime controller and plant wait for their deadlines (`timing.wait`,
     /// `timing.wait_margin_us`); the floor is measured with the same strategy.

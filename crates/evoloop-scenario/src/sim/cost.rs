@@ -21,6 +21,7 @@ pub struct TrackingCost {
 }
 
 impl TrackingCost {
+    /// Empty sums, with |u| weighted by `w`.
     pub fn new(w: f64) -> Self {
         Self {
             w,

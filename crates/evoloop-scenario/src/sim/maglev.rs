@@ -11,11 +11,17 @@ use serde::{Deserialize, Serialize};
 /// The experiment: plant, sampling, trajectory and noise.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Spec {
+    /// The maglev plant's parameters (the paper's 160 g ball by default).
     pub plant: MaglevParams,
+    /// Control (sampling) period, s (default 1 ms).
     pub period: f64,
+    /// Integration step, s (default 0.25 ms).
     pub step: f64,
+    /// Standard deviation of the sensor noise, mm (default 0.002).
     pub noise_mm: f64,
+    /// Run length, s (default 2.5).
     pub duration: f64,
+    /// The set-point trajectory, mm above the operating point (default `default_reference`).
     pub reference: Reference,
     /// G counts the samples from this time on (s): 0 scores the whole run from rest; the
     /// indirect scheme scores a repetition that starts where the previous one left the plant.
@@ -50,10 +56,15 @@ pub fn default_reference() -> Reference {
 /// current spent beyond it, which can be negative).
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct Cost {
+    /// The index G of eq. 31: `g_error + g_current`.
     pub g: f64,
+    /// Sum of |r - y| over the scored samples, mm.
     pub g_error: f64,
+    /// Sum of |u| / 1000 over the scored samples (u in mA: 1/1000 per mA).
     pub g_current: f64,
+    /// The constant holding current's share of `g_current`, the same for every controller.
     pub g_holding: f64,
+    /// The current spent beyond the holding current: `g_current - g_holding` (can be negative).
     pub g_control: f64,
 }
 
@@ -126,8 +137,11 @@ pub const PAPER_FUZZY: [f64; 7] = [
 /// evaluation worker can rebuild it from its description (`optim::Job`).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Objective {
+    /// The experiment each candidate is run on.
     pub spec: Spec,
+    /// The PID's anti-windup scheme.
     pub aw: AntiWindup,
+    /// Seed of the sensor noise.
     pub seed: u64,
 }
 

@@ -32,13 +32,18 @@ pub fn scheduled_set(scn: &Scenario, i: usize, apply_at_seq: u64) -> ParamSet {
 /// One sample of the simulated loop, as the controller logs it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimRow {
+    /// The plant's sample as the controller received it.
     pub state: PlantState,
+    /// The controller cycle's telemetry for this sample (set-point, command, parameter
+    /// version, the law's own values).
     pub telemetry: Telemetry,
 }
 
 /// Result of an in-process lockstep simulation.
 pub struct SimResult {
+    /// Every sample of the loop, in order.
     pub rows: Vec<SimRow>,
+    /// Every parameter-set event of the run (a set accepted or refused), in cycle order.
     pub events: Vec<ParamEvent>,
     /// The law's own run.csv columns (`Controller::log_columns`, e.g. a fuzzy selector's active
     /// model); each row's telemetry holds their values (`law_values`).
@@ -62,9 +67,13 @@ impl SimResult {
 /// A simulated run per joint, as run.csv has it: times, each joint's set-point (the reference at
 /// the sample's time), output and command.
 pub struct JointTraces {
+    /// Time of each sample, s.
     pub t: Vec<f64>,
+    /// Each joint's set-point at each sample, `r[joint][sample]`.
     pub r: Vec<Vec<f64>>,
+    /// Each joint's output at each sample, `y[joint][sample]`.
     pub y: Vec<Vec<f64>>,
+    /// Each joint's command at each sample, `u[joint][sample]`.
     pub u: Vec<Vec<f64>>,
 }
 
@@ -250,6 +259,7 @@ pub fn response(
 /// A single-input, single-output closed-loop run without the scenario's machinery: the loop the
 /// tuners and the indirect scheme's models evaluate candidates with.
 pub struct Run<'a> {
+    /// The reference the loop follows, sampled at each sample's time.
     pub reference: &'a crate::reference::Reference,
     /// Control period, s.
     pub period: f64,
@@ -261,6 +271,7 @@ pub struct Run<'a> {
     pub diverged: f64,
     /// Output noise (std) and its seed.
     pub noise_std: f64,
+    /// Seed of the output noise.
     pub seed: u64,
     /// Samples the measurement lags (`plant.sensor_delay`; the controller's estimator predicts
     /// across the same delay).
@@ -272,13 +283,20 @@ pub struct Run<'a> {
 /// What a `Run` produced: per sample its time, reference, output and control.
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct Response {
+    /// Time of each sample, s.
     pub t: Vec<f64>,
+    /// The reference's first set-point at each sample's time.
     pub r: Vec<f64>,
+    /// The first output at each sample, noise included.
     pub y: Vec<f64>,
+    /// The first command at each sample, as the controller computed it.
     pub u: Vec<f64>,
 }
 
 impl Run<'_> {
+    /// Run `controller` on `plant` from the command `u0` for `duration` s and return every
+    /// sample. Stops early, the offending sample last, when the first output is not finite or
+    /// leaves +-`diverged`.
     pub fn response(
         &self,
         plant: Box<dyn crate::plant::Plant>,

@@ -55,6 +55,7 @@ pub struct DirectSpec {
     /// `optim::by_name::build`'s name: ga, de, jade, pso, emupso, gwo, woa, goa, cmaes, bayes,
     /// safe_bayes (or hybrid, or safe_bayes_model: `model`).
     pub algorithm: String,
+    /// The optimiser's population size (`optimiser.population`).
     pub population: usize,
     /// Candidates tried (repetitions spent on trials).
     pub evaluations: usize,
@@ -62,17 +63,25 @@ pub struct DirectSpec {
     pub repetition: u64,
     /// Sample at which the first trial starts (the baseline repetition ends there).
     pub first: u64,
+    /// Weight w of |u| in the repetition's cost, sum |r - y| + w sum |u|
+    /// (`optimiser.cost_u_weight`).
     pub u_weight: f64,
     /// Samples between a reference value and the output judged against it.
     pub lag: usize,
+    /// The safety envelope a trial is aborted outside of (`optimiser.envelope_*`).
     pub envelope: Envelope,
+    /// Seed of the optimiser's random numbers (the scenario's `seed`).
     pub seed: u64,
     /// Settle repetitions after a trial, at most (0: none) and the band they settle to.
     pub settle: u32,
+    /// How near a settle repetition's mean output and command must end to those of the last
+    /// repetition the set served, as a fraction of its peak |y| and |u| (`optimiser.settle_band`).
     pub settle_band: f64,
 }
 
 impl DirectSpec {
+    /// The scenario's direct-scheme settings, its repetition and first trial converted from s to
+    /// samples of its control period.
     pub fn of(scn: &Scenario) -> Self {
         let o = &scn.optimiser;
         let dt = scn.timing.period;
@@ -105,11 +114,14 @@ pub struct Repetition {
     pub trial: usize,
     /// Parameter version the controller ran it under (0 = the configured set).
     pub version: u64,
+    /// Sample at which it started.
     pub start_seq: u64,
+    /// Time of its first sample, s.
     pub t: f64,
     /// Its cost (+infinity when aborted).
     #[serde(with = "crate::indirect::infinite_as_null")]
     pub cost: f64,
+    /// The controller did not run it to its end: it left the envelope, or the set was refused.
     pub aborted: bool,
     /// How far inside the envelope it stayed at its closest, as a fraction of the envelope
     /// (1 = never moved towards it, < 0 = left it; `Envelope::margin`). 0 in files from before.
@@ -126,6 +138,7 @@ pub struct Repetition {
     pub best: f64,
     /// The version of the best set known after it (what a failed trial falls back to).
     pub best_version: u64,
+    /// The parameter values it ran.
     pub values: Vec<f64>,
 }
 
@@ -251,6 +264,9 @@ impl Running {
     }
 }
 
+/// The direct scheme's tuner: decides which set the controller runs from each repetition
+/// boundary (baseline, trial, settle repetition or the final set), scores each repetition from
+/// the samples it observes and tells the costs to its optimiser.
 pub struct DirectTuner {
     spec: DirectSpec,
     opt: Box<dyn Optimiser + Send>,
@@ -413,6 +429,7 @@ impl DirectTuner {
         }
     }
 
+    /// The settings it tunes under.
     pub fn spec(&self) -> &DirectSpec {
         &self.spec
     }
@@ -826,18 +843,24 @@ pub fn records_csv(records: &[Repetition]) -> String {
 /// The direct scheme's part of optimiser.json.
 #[derive(Debug, Clone, Default, Serialize, serde::Deserialize, PartialEq)]
 pub struct DirectReport {
+    /// The optimiser's name (`optimiser.algorithm`).
     pub algorithm: String,
+    /// The optimiser's population size (`optimiser.population`).
     pub population: usize,
+    /// Candidates the budget allows (repetitions spent on trials).
     pub evaluations: usize,
     /// Samples per repetition and the sample of the first trial.
     pub repetition_samples: u64,
+    /// Sample at which the first trial starts (the baseline repetition ends there).
     pub first_seq: u64,
     /// Every repetition scored: the baseline first, then the trials in order.
     pub repetitions: Vec<Repetition>,
-    /// The best set found and its cost (null: nothing beat... nothing scored).
+    /// The cost of the best set found (JSON null when no repetition was scored).
     #[serde(with = "crate::indirect::infinite_as_null")]
     pub best_cost: f64,
+    /// The best set's version (0: the configured set).
     pub best_version: u64,
+    /// The best set's parameter values.
     pub best_values: Vec<f64>,
     /// Trials aborted by the envelope (as the optimiser saw them: the controller left them).
     pub aborted: u64,
@@ -847,11 +870,14 @@ pub struct DirectReport {
     /// (`optimiser.settle`), and trials that started before the loop was back in the band.
     #[serde(default)]
     pub settle_repetitions: u64,
+    /// Trials that started before the loop was back in the band (`Repetition::unsettled`).
     #[serde(default)]
     pub unsettled: u64,
 }
 
 impl DirectTuner {
+    /// The direct scheme's part of optimiser.json, as it stands: settings, every repetition
+    /// scored, the best set and the counts.
     pub fn report(&self) -> DirectReport {
         DirectReport {
             algorithm: self.spec.algorithm.clone(),
@@ -873,10 +899,13 @@ impl DirectTuner {
 
 /// What an in-process direct run produced.
 pub struct InProcess {
+    /// The tuner's report: settings, every repetition scored and the best set.
     pub report: DirectReport,
     /// The set in service at the end and its version.
     pub final_params: Vec<f64>,
+    /// The version of the set in service at the end (0: the configured set).
     pub final_version: u64,
+    /// Trials the controller aborted for leaving the safety envelope.
     pub trials_aborted: u64,
 }
 

@@ -44,6 +44,8 @@ pub const GAIN_REL_STD_MAX: f64 = 0.05;
 /// The prediction error's averaging window (s) and the ratio to the fit's residual that means
 /// the plant has changed.
 pub const DRIFT_WINDOW_S: f64 = 0.2;
+/// Ratio of the averaged squared prediction error to the fit's residual variance past which
+/// the plant has changed.
 pub const DRIFT_RATIO: f64 = 10.0;
 /// What is kept of the old information when a drift is detected.
 pub const DRIFT_DISCOUNT: f64 = 0.01;
@@ -83,6 +85,7 @@ pub fn scheme(
 pub struct Monitor {
     /// Fits adopted, and fits held back because the data did not determine them.
     pub fits_adopted: u64,
+    /// Fits held back because the data did not determine them (the last adopted model kept).
     pub fits_held: u64,
     /// The last fit's excitation (smallest eigenvalue of the correlation matrix).
     pub excitation: f64,
@@ -93,6 +96,8 @@ pub struct Monitor {
     pub theta: Vec<f64>,
 }
 
+/// The general scheme's estimator: continuous-time least squares through the state-variable
+/// filter, with forgetting and the excitation and drift monitors (see the module).
 pub struct LinearEstimator {
     n: usize,
     m: usize,
@@ -121,10 +126,15 @@ pub struct LinearEstimator {
     /// The memory in samples (the effective count of a fully remembered window).
     memory_samples: f64,
     samples: u64,
+    /// What the excitation and drift monitors saw (its `theta` filled in when read through
+    /// `Estimator::monitor`).
     pub monitor: Monitor,
 }
 
 impl LinearEstimator {
+    /// An estimator with `prior`'s structure, filter pole and memory, starting from its nominal
+    /// coefficients; `period` is the control period (s), `starts_at_rest` whether the plant
+    /// starts at rest (the filters' start at sample 0 is then exact).
     pub fn new(prior: &ModelPrior, period: f64, starts_at_rest: bool) -> Self {
         let (n, m) = (prior.poles(), prior.zeros);
         let d = n + m + 1;
@@ -410,7 +420,9 @@ impl LoopModel {
 
 /// The DE's objective: the set's cost on the model with coefficients `theta`.
 pub struct LinearCost<'a> {
+    /// The closed loop the set runs in, all but the coefficients.
     pub model: &'a LoopModel,
+    /// The model's coefficients, [a_0 .. a_{n-1}, b_0 .. b_m].
     pub theta: Vec<f64>,
 }
 
@@ -420,7 +432,10 @@ impl crate::optim::Objective for LinearCost<'_> {
     }
 }
 
+/// The general scheme's tuner: epochs of DE on the controller's parameters, on the model with
+/// the estimated transfer function.
 pub struct LinearTuner {
+    /// The closed loop candidates are scored on, all but the model's coefficients.
     pub model: LoopModel,
     de: super::DeEpochs,
     margin: f64,
@@ -428,6 +443,9 @@ pub struct LinearTuner {
 }
 
 impl LinearTuner {
+    /// The tuner for the scenario: DE within the controller's bounds, each candidate scored on
+    /// the model over the second repetition of a square-wave reference (else over the run's
+    /// first 10 s at most); `u_range` is the plant's input range.
     pub fn new(scn: &Scenario, prior: &ModelPrior, u_range: (f64, f64)) -> Self {
         // Scored on the second repetition of a periodic reference, which starts where the first
         // left the loop, as every repetition after the first does on the plant.

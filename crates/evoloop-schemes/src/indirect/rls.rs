@@ -1,13 +1,17 @@
 //! Scalar recursive least squares with exponential forgetting, y = theta x + e: the estimator
 //! behind every model adaptation of the indirect scheme.
 
+/// Scalar recursive least squares with exponential forgetting: the estimate of theta in
+/// y = theta x + e, forgetting old data by `lambda` per update.
 #[derive(Debug, Clone)]
 pub struct Rls {
+    /// The current estimate of theta.
     pub theta: f64,
     p: f64,
     lambda: f64,
     /// Exponentially weighted variance of the prediction error.
     sigma2: f64,
+    /// Observations fed so far.
     pub updates: u64,
 }
 
@@ -23,6 +27,8 @@ impl Rls {
         }
     }
 
+    /// One observation y = theta x + e: moves theta by the gain times the prediction error and
+    /// forgets by `lambda`.
     pub fn update(&mut self, y: f64, x: f64) {
         let e = y - self.theta * x;
         let k = self.p * x / (self.lambda + x * self.p * x);
@@ -56,6 +62,7 @@ impl Rls {
 /// forgetting exactly when the parameter changes.
 #[derive(Debug, Clone)]
 pub struct InformationRls {
+    /// The current estimate of theta.
     pub theta: f64,
     /// Discounted information sum, 1 / P.
     info: f64,
@@ -63,6 +70,7 @@ pub struct InformationRls {
     /// Discount per update from the time constant alone.
     fade: f64,
     sigma2: f64,
+    /// Observations fed so far.
     pub updates: u64,
 }
 

@@ -74,7 +74,9 @@ pub struct SpringModel {
 /// so an evaluation worker can rebuild it from its description (`optim::Job`).
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct SpringCost {
+    /// The model the gains are scored on, all but its spring.
     pub model: SpringModel,
+    /// The spring constant of the model the gains are scored on.
     pub k: f64,
     /// The filter on the model at `k`, designed once on first use (not per candidate; rebuilt
     /// by each evaluation worker, since it does not travel). None with a `kalman` design: no
@@ -158,6 +160,9 @@ const FADE_S: f64 = 5.0;
 const NOISE_MEMORY_S: f64 = 1.0;
 
 impl TwoMassTuner {
+    /// The tuner for the scenario: DE within the gains' `tunable` bounds, each candidate scored
+    /// over one repetition of the reference on a model with the plant's masses and sensor and
+    /// the running law's filter design.
     pub fn new(scn: &Scenario, plant: &TwoMassSpec, tunable: &Tunable) -> Self {
         let repetition = match &scn.reference {
             Reference::Square { period, start, .. } => start + period,
@@ -270,6 +275,8 @@ impl SpringModel {
 }
 
 impl SpringEstimator {
+    /// The estimator for the scenario's two-mass plant: its masses and sensor, its configured
+    /// spring as the start, the filter pole `SVF_POLE` at the control period.
     pub fn new(scn: &Scenario, plant: &TwoMassSpec) -> Self {
         let svf = SvfDesign::new(SVF_POLE, scn.timing.period);
         Self {

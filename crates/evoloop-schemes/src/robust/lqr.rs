@@ -6,16 +6,21 @@
 use nalgebra::DMatrix;
 use std::fmt;
 
+/// The continuous-time LQR design: gain, Riccati solution and its residual.
 #[derive(Debug, Clone)]
 pub struct LqrSolution {
+    /// The optimal gain K = R^-1 B' P (m x n), for u = -K x.
     pub k: DMatrix<f64>,
+    /// The stabilising solution P of the Riccati equation (n x n, symmetric).
     pub p: DMatrix<f64>,
     /// ||A'P + PA - PBR^-1B'P + Q||_F / max(1, ||Q||_F).
     pub residual: f64,
 }
 
+/// Why `lqr` found no gain.
 #[derive(Debug, Clone, PartialEq)]
 pub enum LqrError {
+    /// A, B, Q and R do not fit together (their shapes).
     Dimensions(String),
     /// R is not symmetric positive definite.
     RNotPositiveDefinite,

@@ -22,7 +22,9 @@ use nalgebra::DMatrix;
 /// A steady-state Kalman filter in the loop, designed for the nominal model at `period`.
 #[derive(Debug, Clone)]
 pub struct Observer {
+    /// The noise levels the filter is designed for.
     pub design: KalmanDesign,
+    /// The period (s) the filter runs at, the controller's.
     pub period: f64,
     /// The sampled filter the controller runs.
     pub filter: KalmanGains,
@@ -30,6 +32,7 @@ pub struct Observer {
     pub l_c: DMatrix<f64>,
     /// The perturbation's E and H padded for the loop's filter states (`pad_perturbation`).
     pub e_loop: DMatrix<f64>,
+    /// H of the perturbation padded with zero columns for the filter's states.
     pub h_loop: DMatrix<f64>,
 }
 

@@ -5,6 +5,8 @@
 use nalgebra::Complex;
 use serde::Serialize;
 
+/// The wedge pole region: the poles it holds have a damping ratio of at least `zeta` and a
+/// decay rate of at least `rho`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Wedge {
     /// Minimum damping ratio, in (0, 1).
@@ -14,6 +16,7 @@ pub struct Wedge {
 }
 
 impl Wedge {
+    /// The wedge for `zeta` and `rho`; an error unless zeta is in (0, 1) and rho finite and > 0.
     pub fn new(zeta: f64, rho: f64) -> Result<Self, String> {
         if !(zeta > 0.0 && zeta < 1.0) {
             return Err(format!("zeta must be in (0, 1) (got {zeta})"));
@@ -29,6 +32,7 @@ impl Wedge {
         (1.0 - self.zeta * self.zeta).sqrt() / self.zeta
     }
 
+    /// Whether z lies in the region (damping ratio >= zeta, decay rate >= rho).
     pub fn contains(&self, z: Complex<f64>) -> bool {
         self.distance(z) == 0.0
     }

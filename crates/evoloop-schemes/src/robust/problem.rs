@@ -2,9 +2,10 @@
 //!
 //! Reading (verified against Table 9; see the book and `evoloop robust study`'s report):
 //! - state order with the measured body first, x = [x_meas, x_act, v_meas, v_act], force on the
-//!   actuated body: A = [[0,0,1,0],[0,0,0,1],[-k,k,0,0],[k,-k,0,0]], B = [0,0,0,1]', C = [1,0,0,0]
-//!   (the collocated variant has C = [0,1,0,0]);
-//! - augmented with the integrator xi' = r - y: Â = [[A,0],[-C,0]], B̂ = [B;0], u = -K x̂ with
+//!   actuated body: `A = [[0,0,1,0],[0,0,0,1],[-k,k,0,0],[k,-k,0,0]]`, `B = [0,0,0,1]'`,
+//!   `C = [1,0,0,0]`
+//!   (the collocated variant has `C = [0,1,0,0]`);
+//! - augmented with the integrator xi' = r - y: `Â = [[A,0],[-C,0]]`, `B̂ = [B;0]`, u = -K x̂ with
 //!   K = [k1..k5] in Table 9's column order (the paper's k_i = -k5);
 //! - perturbation structure where k enters A (rows 3-4, columns 1-2): Ê = diag(0,0,1,1,0),
 //!   Ĥ = diag(1,1,0,0,0) (default); the text's literal "rows 3-4 of Ê, columns 2-3 of Ĥ" is
@@ -23,6 +24,7 @@ use crate::plant::two_mass::{Sensor, TwoMass};
 use nalgebra::{Complex, DMatrix};
 use serde::Serialize;
 
+/// Where the uncertainty Ê Δ Ĥ enters the augmented loop: the structure r_c is computed for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Perturbation {
@@ -64,9 +66,11 @@ pub struct SpringRanges {
 /// Everything one candidate gain vector is judged by.
 #[derive(Debug, Clone, Serialize)]
 pub struct Evaluation {
+    /// The full-state closed loop's poles, as (re, im).
     pub poles: Vec<(f64, f64)>,
     /// F(X): summed distance of the poles to the wedge (0 = feasible).
     pub wedge_distance: f64,
+    /// Every pole inside the wedge (F(X) = 0).
     pub in_wedge: bool,
     /// r_c (0 when the closed loop is unstable).
     pub stability_radius: f64,
@@ -74,24 +78,38 @@ pub struct Evaluation {
     pub objective: f64,
 }
 
+/// The two-mass paper's robust design problem: the gains K of the augmented loop, judged by
+/// the wedge and the stability radius r_c (the DOCHM objective, which DE minimises).
 #[derive(Debug, Clone)]
 pub struct RobustProblem {
+    /// Â, the augmented open loop's state matrix (5 x 5) at the nominal spring.
     pub a_hat: DMatrix<f64>,
+    /// B̂, the augmented open loop's input matrix (5 x 1).
     pub b_hat: DMatrix<f64>,
+    /// Ê of the perturbation Ê Δ Ĥ: diag(0,0,1,1,0).
     pub e: DMatrix<f64>,
+    /// Ĥ of the perturbation Ê Δ Ĥ, as `perturbation` gives it.
     pub h: DMatrix<f64>,
     /// The nominal spring and the sensor Â and B̂ are built from.
     pub k: f64,
+    /// The position sensor's body (far: body 2, the paper's).
     pub sensor: Sensor,
+    /// The perturbation structure `h` follows.
     pub perturbation: Perturbation,
+    /// The pole region the state feedback's poles must lie in.
     pub wedge: Wedge,
+    /// Lower bounds of the gains searched (-`bound` each).
     pub lower: Vec<f64>,
+    /// Upper bounds of the gains searched (+`bound` each).
     pub upper: Vec<f64>,
     /// The filter the feedback acts on (`with_observer`); None: the full state, as the paper.
     pub observer: Option<Observer>,
 }
 
 impl RobustProblem {
+    /// The problem at the nominal spring `k` with `sensor`, the given perturbation structure and
+    /// wedge, and each gain searched within +-`bound`; the feedback on the full state (see
+    /// `with_observer`).
     pub fn new(
         k: f64,
         sensor: Sensor,
@@ -208,6 +226,7 @@ impl RobustProblem {
         &self.a_hat - &self.b_hat * k
     }
 
+    /// The full-state closed loop's poles: the eigenvalues of Ã = Â - B̂ K.
     pub fn poles(&self, gains: &[f64]) -> Vec<Complex<f64>> {
         self.closed_loop(gains)
             .complex_eigenvalues()

@@ -11,11 +11,14 @@ use crate::linalg::eig;
 use nalgebra::{Complex, DMatrix};
 use std::fmt;
 
+/// Why the H-infinity norm (and so r_c) could not be computed.
 #[derive(Debug, Clone, PartialEq)]
 pub enum HinfError {
+    /// A, E and H do not fit together (their shapes).
     Dimensions(String),
     /// A has an eigenvalue with non-negative real part: the norm is infinite.
     NotStable,
+    /// The level-set iteration did not settle within 50 steps.
     NoConvergence,
 }
 
@@ -47,6 +50,8 @@ pub struct Transfer {
 }
 
 impl Transfer {
+    /// G(s) = H (sI - A)^-1 E, the zero columns of E and rows of H dropped; an error when the
+    /// shapes do not fit (A n x n, E n rows, H n columns).
     pub fn new(a: &DMatrix<f64>, e: &DMatrix<f64>, h: &DMatrix<f64>) -> Result<Self, HinfError> {
         let n = a.nrows();
         if a.ncols() != n || e.nrows() != n || h.ncols() != n {

@@ -27,16 +27,25 @@ use std::path::Path;
 
 /// The paper's published statistics for one (F, CR) setting (Tables 5-8).
 pub struct PaperStats {
+    /// DE's scale factor F.
     pub f: f64,
+    /// DE's crossover rate CR.
     pub cr: f64,
+    /// Mean f(X) = -r_c over the runs.
     pub mean: f64,
+    /// Median f(X).
     pub median: f64,
+    /// Standard deviation of f(X).
     pub std: f64,
+    /// Smallest and largest f(X).
     pub range: (f64, f64),
+    /// Mean iterations (DE generations) per run.
     pub iterations: f64,
+    /// Mean time per run, minutes.
     pub minutes: f64,
 }
 
+/// Tables 5-8 as printed, in the order the study runs the settings.
 pub const PAPER_TABLES: [PaperStats; 4] = [
     PaperStats {
         f: 0.5,
@@ -82,7 +91,9 @@ pub const PAPER_TABLES: [PaperStats; 4] = [
 
 /// Table 9 as printed.
 pub const PAPER_DEFC: [f64; 5] = [18.49, 19.04, 47.27, 7.30, -10.54];
+/// Table 9's LQR1 row as printed.
 pub const PAPER_LQR1: [f64; 5] = [1.57, 5.76, 3.23, 3.54, -3.16];
+/// Table 9's LQR2 row as printed.
 pub const PAPER_LQR2: [f64; 5] = [8.96, 20.89, 5.95, 6.54, -31.62];
 /// Table 10 as printed: (controller, settling time s, overshoot %).
 pub const PAPER_TABLE_10: [(&str, f64, f64); 3] = [
@@ -91,30 +102,52 @@ pub const PAPER_TABLE_10: [(&str, f64, f64); 3] = [
     ("LQR2", 22.0, 17.0),
 ];
 
+/// The study's statistics for one (F, CR) setting over its seeded DE runs (Tables 5-8).
 #[derive(Debug, Clone, Serialize)]
 pub struct SettingStats {
+    /// DE's scale factor F.
     pub f: f64,
+    /// DE's crossover rate CR.
     pub cr: f64,
+    /// Each run's final f(X), by seed: -r_c when feasible, else the wedge distance F(X) > 0.
     pub values: Vec<f64>,
+    /// Mean final f(X).
     pub mean: f64,
+    /// Median final f(X).
     pub median: f64,
+    /// Sample standard deviation of the final f(X).
     pub std: f64,
+    /// Smallest final f(X): the best run.
     pub min: f64,
+    /// Largest final f(X).
     pub max: f64,
+    /// Mean DE generations per run.
     pub mean_iterations: f64,
+    /// Mean wall time per run, s.
     pub mean_seconds: f64,
+    /// Every run's result, by seed from 1.
     pub runs: Vec<RunResult>,
 }
 
+/// One controller's unit-step responses on one plant variant over the sampled springs
+/// (Figs. 6-8, Table 10).
 #[derive(Debug, Clone, Serialize)]
 pub struct ResponseStats {
+    /// The controller's name ("DEFC", "LQR1" ...).
     pub controller: String,
+    /// The plant variant: "described (sensor on body 2)" or "collocated (sensor on body 1)".
     pub plant: String,
+    /// The spring constants k, one response each.
     pub springs: Vec<f64>,
+    /// Each response's 2 % settling time, s (None when unstable or never settled).
     pub settling_times: Vec<Option<f64>>,
+    /// Each response's overshoot, % of the step (NaN when unstable).
     pub overshoots: Vec<f64>,
+    /// Responses that diverged (ended early or left |y| <= 10).
     pub unstable: usize,
+    /// Mean 2 % settling time, s; None unless every response is stable and settles.
     pub mean_settling_time: Option<f64>,
+    /// Mean overshoot, %; None when any response is unstable.
     pub mean_overshoot: Option<f64>,
 }
 

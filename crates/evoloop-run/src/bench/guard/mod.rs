@@ -31,17 +31,26 @@ pub const ATTEMPTS: usize = 3;
 #[serde(rename_all = "snake_case")]
 #[value(rename_all = "snake_case")]
 pub enum HotPath {
+    /// Inverse dynamics (RNEA) of the 7-DOF arm, per call, against textbook Newton-Euler.
     Rnea,
+    /// M(q) by CRBA of the 7-DOF arm, per call, against textbook Newton-Euler column by column.
     Crba,
+    /// One computed-torque control cycle of `config/arm7_ct.toml`, against textbook Newton-Euler.
     CtCycle,
+    /// PSO's overhead per evaluation (D = 30, population 30), against a bare swarm.
     Pso,
+    /// DE's overhead per evaluation (D = 30, population 30), against a bare swarm.
     De,
+    /// GA's overhead per evaluation (D = 30, population 30), against a bare swarm.
     Ga,
+    /// The busy-polled state -> control law -> command round trip's p50, against raw iceoryx2.
     RoundTripBusy,
+    /// The event-woken state -> control law -> command round trip's p50, against raw iceoryx2.
     RoundTripEvent,
 }
 
 impl HotPath {
+    /// Every hot path: what the guard measures, in this order, when `--paths` is not given.
     pub const ALL: [HotPath; 8] = [
         HotPath::Rnea,
         HotPath::Crba,
@@ -53,6 +62,7 @@ impl HotPath {
         HotPath::RoundTripEvent,
     ];
 
+    /// The path's snake_case name: its value on the command line and its key in guard.json.
     pub fn name(self) -> &'static str {
         match self {
             HotPath::Rnea => "rnea",
@@ -130,8 +140,11 @@ impl HotPath {
 /// the side's own cost; a median moves with the share of batches the noise hit.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Reading {
+    /// The hot path's time in ns per unit (call, cycle, evaluation, or p50 round trip).
     pub hot_ns: f64,
+    /// The reference's time in ns per the same unit.
     pub reference_ns: f64,
+    /// `hot_ns / reference_ns`: what the guard compares with the path's limit.
     pub ratio: f64,
 }
 
@@ -148,14 +161,21 @@ impl Reading {
 /// A path's verdict over its attempts.
 #[derive(Debug, Clone, Serialize)]
 pub struct Verdict {
+    /// The hot path judged.
     pub path: HotPath,
+    /// What is timed, per unit (`HotPath::what`).
     pub what: &'static str,
+    /// What it is timed against (`HotPath::reference`).
     pub reference: &'static str,
+    /// The ratio recorded on the development machine (`HotPath::recorded`).
     pub recorded: f64,
+    /// The ratio above which the path fails: `HotPath::limit` times the plan's `limit_scale`.
     pub limit: f64,
+    /// The readings taken, in order (at most `ATTEMPTS`), ending at the first within `limit`.
     pub attempts: Vec<Reading>,
     /// The lowest attempt's ratio: what the path costs when the machine lets it.
     pub ratio: f64,
+    /// Whether `ratio` is within `limit`: some attempt passed.
     pub pass: bool,
 }
 
@@ -471,6 +491,7 @@ fn round_trip(bare: Variant, evoloop: Variant) -> Result<Reading, String> {
 
 /// What `run` measures and how it judges.
 pub struct Plan<'a> {
+    /// The hot paths to measure, in this order.
     pub paths: &'a [HotPath],
     /// Interleaved rounds per measurement of a compute path.
     pub rounds: usize,

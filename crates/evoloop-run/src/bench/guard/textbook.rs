@@ -283,6 +283,8 @@ pub struct BareSwarm {
 }
 
 impl BareSwarm {
+    /// A swarm of `population` particles in `dim` dimensions, placed at fixed pseudo-random
+    /// points in [-1, 1) (the same every time), at rest and with no best yet.
     pub fn new(population: usize, dim: usize) -> BareSwarm {
         let mut s = BareSwarm {
             dim,
