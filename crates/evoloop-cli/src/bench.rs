@@ -1,5 +1,5 @@
-//! `evoloop bench latency | latency-peer | loop`: the options, and the tables they print. The
-//! measurements live in `evoloop_run::bench`.
+//! `evoloop bench latency | latency-peer | loop | dynamics | guard`: the options, and the tables
+//! they print. The measurements live in `evoloop_run::bench`.
 
 use clap::Args;
 use evoloop_run::bench::latency::{self, Variant};

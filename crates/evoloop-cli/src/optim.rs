@@ -214,10 +214,11 @@ pub fn execute(
 
 fn run_study(a: &StudyArgs) -> Result<(), String> {
     let algorithms = check_args(a)?;
-    let problems = problem::problems(a.functions.as_deref(), !a.no_shifted)?;
+    let problems =
+        problem::problems(a.functions.as_deref(), !a.no_shifted).map_err(|e| e.to_string())?;
     // Read before the study runs: a bad file is refused at once, not after minutes.
     let peers = match &a.peers {
-        Some(f) => Some(peers::load(f, a.evaluations, &algorithms)?),
+        Some(f) => Some(peers::load(f, a.evaluations, &algorithms).map_err(|e| e.to_string())?),
         None => None,
     };
     std::fs::create_dir_all(a.out.join("convergence"))
@@ -733,7 +734,7 @@ fn bench(a: &BenchArgs) -> Result<(), String> {
 }
 
 fn functions(a: &FunctionsArgs) -> Result<(), String> {
-    let problems = problem::problems(None, !a.no_shifted)?;
+    let problems = problem::problems(None, !a.no_shifted).map_err(|e| e.to_string())?;
     if a.json {
         let list: Vec<Value> = problems
             .iter()
@@ -779,7 +780,8 @@ fn functions(a: &FunctionsArgs) -> Result<(), String> {
 /// The evaluation server of `evoloop optim serve` (protocol in its help).
 fn serve(a: &ServeArgs) -> Result<(), String> {
     use std::io::{Read, Write};
-    let problem = problem::problems(Some(std::slice::from_ref(&a.function)), false)?
+    let problem = problem::problems(Some(std::slice::from_ref(&a.function)), false)
+        .map_err(|e| e.to_string())?
         .pop()
         .ok_or("no function")?;
     let d = problem.function.dim;

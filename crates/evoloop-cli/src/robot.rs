@@ -75,7 +75,7 @@ pub fn main(cmd: RobotCmd) -> i32 {
 }
 
 fn generate_one(a: GenerateArgs) -> Result<(), String> {
-    let arm = generate::generate(a.joints.into(), a.seed)?;
+    let arm = generate::generate(a.joints.into(), a.seed).map_err(|e| e.to_string())?;
     write(&arm, &a.out)
 }
 

@@ -84,14 +84,28 @@ pub struct Arm {
     pub tool: DVec3,
 }
 
-/// The arm of `joints` joints (3-7) that `seed` gives.
-pub fn generate(joints: usize, seed: u64) -> Result<Arm, String> {
-    if !JOINTS.contains(&joints) {
-        return Err(format!(
-            "an arm has {} to {} joints (got {joints})",
+/// An arm of a joint count outside `JOINTS` was asked for (the count asked).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct JointCountError(pub usize);
+
+impl std::fmt::Display for JointCountError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "an arm has {} to {} joints (got {})",
             JOINTS.start(),
-            JOINTS.end()
-        ));
+            JOINTS.end(),
+            self.0
+        )
+    }
+}
+
+impl std::error::Error for JointCountError {}
+
+/// The arm of `joints` joints (3-7) that `seed` gives.
+pub fn generate(joints: usize, seed: u64) -> Result<Arm, JointCountError> {
+    if !JOINTS.contains(&joints) {
+        return Err(JointCountError(joints));
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let frames = kinematics(joints, &mut rng);
@@ -440,7 +454,9 @@ mod tests {
 
     #[test]
     fn two_and_eight_joints_are_refused() {
-        assert!(generate(2, 1).unwrap_err().contains("3 to 7 joints"));
-        assert!(generate(8, 1).is_err());
+        let e = generate(2, 1).unwrap_err();
+        assert_eq!(e, JointCountError(2));
+        assert!(e.to_string().contains("3 to 7 joints"), "{e}");
+        assert_eq!(generate(8, 1).unwrap_err(), JointCountError(8));
     }
 }

@@ -405,29 +405,46 @@ fn escaped(s: &str) -> String {
 
 /// Whether `to_urdf` can write `model` whole: URDF's gravity, no armature and the default
 /// friction smoothing; why not otherwise.
-pub fn writable(model: &Model) -> Result<(), String> {
+pub fn writable(model: &Model) -> Result<(), NotWritable> {
     if model.gravity != DVec3::new(0.0, 0.0, -9.81) {
-        return Err(format!(
-            "gravity {} is not URDF's (0, 0, -9.81)",
-            model.gravity
-        ));
+        return Err(NotWritable::Gravity(model.gravity));
     }
     let smoothing = Friction::default().v_smooth;
     match (model.bodies.iter()).find(|b| b.armature != 0.0 || b.friction.v_smooth != smoothing) {
-        Some(b) => Err(format!(
-            "joint `{}`: an armature or a friction smoothing URDF cannot carry",
-            b.joint
-        )),
+        Some(b) => Err(NotWritable::Joint(b.joint.clone())),
         None => Ok(()),
     }
 }
+
+/// Why `to_urdf` refuses a model rather than write it wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NotWritable {
+    /// A gravity other than URDF's fixed (0, 0, -9.81) m/s^2 (the model's).
+    Gravity(DVec3),
+    /// A joint with an armature or a friction smoothing URDF cannot carry (its name).
+    Joint(String),
+}
+
+impl std::fmt::Display for NotWritable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NotWritable::Gravity(g) => write!(f, "gravity {g} is not URDF's (0, 0, -9.81)"),
+            NotWritable::Joint(j) => write!(
+                f,
+                "joint `{j}`: an armature or a friction smoothing URDF cannot carry"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for NotWritable {}
 
 /// `model` as URDF: a base link, each body's joint (placement, axis, limits, friction) and its
 /// link (mass, centre of mass, inertia about it). Numbers are written in Rust's shortest form
 /// that reads back to the same value; rotations as `rpy`, which reads back to within rounding.
 /// URDF has no armature, no friction smoothing and a fixed gravity: a model with an armature, a
 /// `v_smooth` other than the default or another gravity is refused, not written wrong.
-pub fn to_urdf(model: &Model) -> Result<String, String> {
+pub fn to_urdf(model: &Model) -> Result<String, NotWritable> {
     writable(model)?;
     // The fixed base link, named apart from every body's link.
     let mut base = "base".to_string();

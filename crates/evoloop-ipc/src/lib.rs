@@ -198,9 +198,8 @@ pub const MAX_PREFIX: usize = 32;
 
 /// `--ipc-prefix` checked: 1 to `MAX_PREFIX` characters of ASCII letters, digits, `_`, `-`
 /// and `.` (it becomes part of file names; the kernel caps socket paths at 108 bytes).
-pub fn parse_prefix(s: &str) -> Result<String, String> {
-    let why = " (it goes into socket paths, which the kernel caps at 108 bytes)";
-    checked_name(s, "an ipc prefix", MAX_PREFIX, why, "_-.")
+pub fn parse_prefix(s: &str) -> Result<String, NameError> {
+    checked_name(s, NameKind::Prefix)
 }
 
 /// The longest run id: it goes into every service name and the run's lock file name.
@@ -208,34 +207,96 @@ pub const MAX_RUN_ID: usize = 64;
 
 /// `--run-id` checked: 1 to `MAX_RUN_ID` ASCII letters, digits, `_` and `-` (no `.`: a lock file
 /// and service names must tell every two run ids apart).
-pub fn parse_run_id(s: &str) -> Result<String, String> {
-    checked_name(s, "a run id", MAX_RUN_ID, "", "_-")
+pub fn parse_run_id(s: &str) -> Result<String, NameError> {
+    checked_name(s, NameKind::RunId)
 }
 
-/// `s` if it has 1 to `max` characters (`why_max` says why, if anything), each an ASCII letter,
-/// a digit or one of `extra`.
-fn checked_name(
-    s: &str,
-    what: &str,
-    max: usize,
-    why_max: &str,
-    extra: &str,
-) -> Result<String, String> {
-    if s.is_empty() || s.len() > max {
-        return Err(format!(
-            "{} characters; {what} has 1 to {max}{why_max}",
-            s.len()
-        ));
+/// The two names that go into iceoryx2's file and service names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NameKind {
+    /// `--ipc-prefix` (`parse_prefix`).
+    Prefix,
+    /// `--run-id` (`parse_run_id`).
+    RunId,
+}
+
+impl NameKind {
+    fn what(self) -> &'static str {
+        match self {
+            NameKind::Prefix => "an ipc prefix",
+            NameKind::RunId => "a run id",
+        }
+    }
+
+    fn max(self) -> usize {
+        match self {
+            NameKind::Prefix => MAX_PREFIX,
+            NameKind::RunId => MAX_RUN_ID,
+        }
+    }
+
+    /// The characters allowed beside ASCII letters and digits.
+    fn extra(self) -> &'static str {
+        match self {
+            NameKind::Prefix => "_-.",
+            NameKind::RunId => "_-",
+        }
+    }
+}
+
+/// A prefix or run id refused: too short or too long (its length), or holding a character
+/// file and service names cannot take.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum NameError {
+    /// Empty or longer than the kind's maximum (the length given).
+    Length(NameKind, usize),
+    /// A character that is not allowed.
+    Character(NameKind, char),
+}
+
+impl fmt::Display for NameError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            NameError::Length(kind, len) => {
+                let why = match kind {
+                    NameKind::Prefix => {
+                        " (it goes into socket paths, which the kernel caps at 108 bytes)"
+                    }
+                    NameKind::RunId => "",
+                };
+                write!(
+                    f,
+                    "{len} characters; {} has 1 to {}{why}",
+                    kind.what(),
+                    kind.max()
+                )
+            }
+            NameError::Character(kind, c) => {
+                let listed: Vec<String> = kind.extra().chars().map(|c| format!("'{c}'")).collect();
+                write!(
+                    f,
+                    "{c:?} is not allowed; {} takes ASCII letters, digits and {}",
+                    kind.what(),
+                    listed.join(", ")
+                )
+            }
+        }
+    }
+}
+
+impl std::error::Error for NameError {}
+
+/// `s` if it has 1 to the kind's maximum characters, each an ASCII letter, a digit or one of
+/// the kind's extra characters.
+fn checked_name(s: &str, kind: NameKind) -> Result<String, NameError> {
+    if s.is_empty() || s.len() > kind.max() {
+        return Err(NameError::Length(kind, s.len()));
     }
     if let Some(c) = s
         .chars()
-        .find(|c| !(c.is_ascii_alphanumeric() || extra.contains(*c)))
+        .find(|c| !(c.is_ascii_alphanumeric() || kind.extra().contains(*c)))
     {
-        let listed: Vec<String> = extra.chars().map(|c| format!("'{c}'")).collect();
-        return Err(format!(
-            "{c:?} is not allowed; {what} takes ASCII letters, digits and {}",
-            listed.join(", ")
-        ));
+        return Err(NameError::Character(kind, c));
     }
     Ok(s.to_string())
 }

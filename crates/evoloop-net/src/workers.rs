@@ -125,7 +125,7 @@ pub fn install(
     let z = ZenohWorkers::start(&Endpoint::Listen(listen.to_string()), zenoh_config)?;
     // For the rest of the process: `optim::evaluate` may run on any thread at any time.
     let z: &'static ZenohWorkers = Box::leak(Box::new(z));
-    crate::optim::remote::install(z)?;
+    crate::optim::remote::install(z).map_err(|e| e.to_string())?;
     if expect > 0 {
         let limit = crate::config::WORKERS_WAIT_S;
         let up = z.wait_for(expect, Duration::from_secs_f64(limit), stop);

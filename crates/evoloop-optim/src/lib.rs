@@ -119,14 +119,39 @@ impl Job {
     }
 
     /// The objective back from its bytes.
-    pub fn decode<T: serde::de::DeserializeOwned>(&self) -> Result<T, String> {
-        postcard::from_bytes(&self.bytes).map_err(|e| {
-            format!(
-                "job `{}`: cannot decode its {} bytes: {e}",
-                self.kind,
-                self.bytes.len()
-            )
+    pub fn decode<T: serde::de::DeserializeOwned>(&self) -> Result<T, JobDecodeError> {
+        postcard::from_bytes(&self.bytes).map_err(|source| JobDecodeError {
+            kind: self.kind.clone(),
+            bytes: self.bytes.len(),
+            source,
         })
+    }
+}
+
+/// A job whose bytes do not decode as the objective its kind names: a worker or an optimiser
+/// of another version, or damaged bytes. The decoder's own error is the `source()`.
+#[derive(Debug)]
+pub struct JobDecodeError {
+    /// The job's kind.
+    pub kind: String,
+    /// Its length, bytes.
+    pub bytes: usize,
+    source: postcard::Error,
+}
+
+impl std::fmt::Display for JobDecodeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "job `{}`: cannot decode its {} bytes: {}",
+            self.kind, self.bytes, self.source
+        )
+    }
+}
+
+impl std::error::Error for JobDecodeError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        Some(&self.source)
     }
 }
 

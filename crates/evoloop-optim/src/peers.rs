@@ -38,42 +38,46 @@ const HEADER: &str = "function,algorithm,seed,best_value,error,evaluations";
 /// Reads a peers file. Refused, with file, line and reason: another header, a malformed row, an
 /// algorithm named like one of `ours`, a NaN error, or a run that used more than `budget`
 /// evaluations (a larger budget is no comparison).
-pub fn load(path: &Path, budget: usize, ours: &[String]) -> Result<PeerRuns, String> {
+pub fn load(path: &Path, budget: usize, ours: &[String]) -> Result<PeerRuns, PeersError> {
     let file = path.display().to_string();
-    let text = evoloop_files::read_text(path).map_err(|e| format!("{file}: {e}"))?;
+    let fail = |line: Option<usize>, fault: PeersFault| PeersError {
+        file: file.clone(),
+        line,
+        fault,
+    };
+    let text = evoloop_files::read_text(path).map_err(|e| fail(None, PeersFault::Unreadable(e)))?;
     let mut lines = text.lines().enumerate();
     match lines.next() {
         Some((_, h)) if h.trim() == HEADER => {}
-        _ => return Err(format!("{file}:1: the header must be `{HEADER}`")),
+        _ => return Err(fail(Some(1), PeersFault::Header)),
     }
     let mut errors = Errors::new();
     for (i, line) in lines {
         if line.trim().is_empty() {
             continue;
         }
-        let at = |why: String| format!("{file}:{}: {why}", i + 1);
+        let at = |fault: PeersFault| fail(Some(i + 1), fault);
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
         let [function, algorithm, _seed, _best, error, evaluations] = f[..] else {
-            return Err(at(format!("{} fields, expected 6", f.len())));
+            return Err(at(PeersFault::Fields(f.len())));
         };
         if ours.iter().any(|o| o == algorithm) {
-            return Err(at(format!(
-                "algorithm {algorithm:?} is also one of the study's; rename it"
-            )));
+            return Err(at(PeersFault::OneOfOurs(algorithm.to_string())));
         }
         let error: f64 = error
             .parse()
-            .map_err(|_| at(format!("error {error:?} is not a number")))?;
+            .map_err(|_| at(PeersFault::NotANumber(error.to_string())))?;
         if error.is_nan() {
-            return Err(at("error is NaN".into()));
+            return Err(at(PeersFault::NaN));
         }
         let evaluations: usize = evaluations
             .parse()
-            .map_err(|_| at(format!("evaluations {evaluations:?} is not a count")))?;
+            .map_err(|_| at(PeersFault::NotACount(evaluations.to_string())))?;
         if evaluations > budget {
-            return Err(at(format!(
-                "{evaluations} evaluations, more than the study's budget of {budget}"
-            )));
+            return Err(at(PeersFault::OverBudget {
+                evaluations,
+                budget,
+            }));
         }
         errors
             .entry(function.to_string())
@@ -86,13 +90,90 @@ pub fn load(path: &Path, budget: usize, ours: &[String]) -> Result<PeerRuns, Str
     algorithms.sort();
     algorithms.dedup();
     if algorithms.is_empty() {
-        return Err(format!("{file}: no runs"));
+        return Err(fail(None, PeersFault::NoRuns));
     }
     Ok(PeerRuns {
         file,
         algorithms,
         errors,
     })
+}
+
+/// A peers file `load` refused: the file, the line (from 1; None for the file as a whole) and
+/// what is wrong there.
+#[derive(Debug)]
+pub struct PeersError {
+    /// The file as given.
+    pub file: String,
+    /// The line, from 1.
+    pub line: Option<usize>,
+    /// What is wrong.
+    pub fault: PeersFault,
+}
+
+/// What is wrong with a peers file.
+#[derive(Debug)]
+pub enum PeersFault {
+    /// It cannot be read (missing, not a regular file, too large).
+    Unreadable(std::io::Error),
+    /// Its first line is not `HEADER`.
+    Header,
+    /// A row without the header's 6 fields (how many it has).
+    Fields(usize),
+    /// An algorithm named like one of the study's own.
+    OneOfOurs(String),
+    /// An error that is not a number.
+    NotANumber(String),
+    /// An error that is NaN.
+    NaN,
+    /// Evaluations that are not a count.
+    NotACount(String),
+    /// A run that used more evaluations than the study's budget.
+    OverBudget {
+        /// The run's evaluations.
+        evaluations: usize,
+        /// The study's budget.
+        budget: usize,
+    },
+    /// No row at all.
+    NoRuns,
+}
+
+impl std::fmt::Display for PeersError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "{}:{line}: ", self.file)?,
+            None => write!(f, "{}: ", self.file)?,
+        }
+        match &self.fault {
+            PeersFault::Unreadable(e) => write!(f, "{e}"),
+            PeersFault::Header => write!(f, "the header must be `{HEADER}`"),
+            PeersFault::Fields(n) => write!(f, "{n} fields, expected 6"),
+            PeersFault::OneOfOurs(a) => {
+                write!(f, "algorithm {a:?} is also one of the study's; rename it")
+            }
+            PeersFault::NotANumber(e) => write!(f, "error {e:?} is not a number"),
+            PeersFault::NaN => write!(f, "error is NaN"),
+            PeersFault::NotACount(e) => write!(f, "evaluations {e:?} is not a count"),
+            PeersFault::OverBudget {
+                evaluations,
+                budget,
+            } => write!(
+                f,
+                "{evaluations} evaluations, more than the study's budget of {budget}"
+            ),
+            PeersFault::NoRuns => write!(f, "no runs"),
+        }
+    }
+}
+
+impl std::error::Error for PeersError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match &self.fault {
+            PeersFault::Unreadable(e) => Some(e),
+            _ => None,
+        }
+    }
 }
 
 /// One side's best on a function.
@@ -209,10 +290,13 @@ mod tests {
         ] {
             let bad = file(&format!("{HEADER}\n{body}"));
             let e = load(bad.path(), 30_000, &ours).unwrap_err();
-            assert!(e.contains(":2: ") && e.contains(why), "{e}");
+            assert_eq!(e.line, Some(2), "{e}");
+            let text = e.to_string();
+            assert!(text.contains(":2: ") && text.contains(why), "{text}");
         }
         let e = load(file("a,b\n").path(), 30_000, &ours).unwrap_err();
-        assert!(e.contains(":1: the header"), "{e}");
+        assert!(matches!(e.fault, PeersFault::Header), "{e}");
+        assert!(e.to_string().contains(":1: the header"), "{e}");
     }
 
     #[test]

@@ -149,7 +149,7 @@ impl Problem {
 /// The problems of a study: the named functions (all when `keys` is None, `<key>_shifted`
 /// allowed), each origin-centred one followed by its shifted copy when `shifted` is set and no
 /// keys are named.
-pub fn problems(keys: Option<&[String]>, shifted: bool) -> Result<Vec<Problem>, String> {
+pub fn problems(keys: Option<&[String]>, shifted: bool) -> Result<Vec<Problem>, ProblemError> {
     let Some(keys) = keys else {
         let mut out = Vec::new();
         for f in suite::all() {
@@ -166,25 +166,51 @@ pub fn problems(keys: Option<&[String]>, shifted: bool) -> Result<Vec<Problem>, 
                 Some(b) => (b, true),
                 None => (k.as_str(), false),
             };
-            let f =
-                suite::get(base).ok_or_else(|| {
-                    format!(
-                    "unknown function {k:?} (known: {}, and <key>_shifted for origin-centred ones)",
-                    suite::all().iter().map(|f| f.key).collect::<Vec<_>>().join(", ")
-                )
-                })?;
+            let f = suite::get(base).ok_or_else(|| ProblemError::Unknown(k.clone()))?;
             if !is_shifted {
                 Ok(Problem::plain(f))
             } else if Problem::origin_centred(f) {
                 Ok(Problem::shifted(f))
             } else {
-                Err(format!(
-                    "{k:?}: {base} is not origin-centred, it has no shifted copy"
-                ))
+                Err(ProblemError::NoShiftedCopy(k.clone()))
             }
         })
         .collect()
 }
+
+/// A function key `problems` refuses.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ProblemError {
+    /// No function of the suite has this key.
+    Unknown(String),
+    /// `<key>_shifted` for a function that is not origin-centred, so it has no shifted copy.
+    NoShiftedCopy(String),
+}
+
+impl std::fmt::Display for ProblemError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ProblemError::Unknown(k) => write!(
+                f,
+                "unknown function {k:?} (known: {}, and <key>_shifted for origin-centred ones)",
+                suite::all()
+                    .iter()
+                    .map(|f| f.key)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            ProblemError::NoShiftedCopy(k) => {
+                let base = k.strip_suffix("_shifted").unwrap_or(k);
+                write!(
+                    f,
+                    "{k:?}: {base} is not origin-centred, it has no shifted copy"
+                )
+            }
+        }
+    }
+}
+
+impl std::error::Error for ProblemError {}
 
 #[cfg(test)]
 mod tests {
@@ -248,9 +274,18 @@ mod tests {
     #[test]
     fn unknown_or_unshiftable_functions_are_refused_by_name() {
         let e = problems(Some(&["nope".into()]), true).unwrap_err();
-        assert!(e.contains("\"nope\"") && e.contains("sphere"), "{e}");
+        assert_eq!(e, ProblemError::Unknown("nope".into()));
+        let text = e.to_string();
+        assert!(
+            text.contains("\"nope\"") && text.contains("sphere"),
+            "{text}"
+        );
         let e = problems(Some(&["rosenbrock_shifted".into()]), true).unwrap_err();
-        assert!(e.contains("not origin-centred"), "{e}");
+        assert_eq!(e, ProblemError::NoShiftedCopy("rosenbrock_shifted".into()));
+        assert!(
+            e.to_string().contains("rosenbrock is not origin-centred"),
+            "{e}"
+        );
         let all = problems(None, true).unwrap();
         assert!(all.iter().any(|p| p.key == "rastrigin_shifted"));
         assert_eq!(problems(None, false).unwrap().len(), 37);

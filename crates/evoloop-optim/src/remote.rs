@@ -123,11 +123,21 @@ static WORKERS: OnceLock<&'static dyn Workers> = OnceLock::new();
 
 /// Use `w` for every costly population evaluation of this process from now on (once per
 /// process, for the rest of it; a second call is refused).
-pub fn install(w: &'static dyn Workers) -> Result<(), String> {
-    WORKERS
-        .set(w)
-        .map_err(|_| "evaluation workers are already installed".to_string())
+pub fn install(w: &'static dyn Workers) -> Result<(), AlreadyInstalled> {
+    WORKERS.set(w).map_err(|_| AlreadyInstalled)
 }
+
+/// `install` was called a second time in one process: the first workers stay.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AlreadyInstalled;
+
+impl std::fmt::Display for AlreadyInstalled {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("evaluation workers are already installed")
+    }
+}
+
+impl std::error::Error for AlreadyInstalled {}
 
 /// The installed workers, if any.
 pub fn installed() -> Option<&'static dyn Workers> {

@@ -105,7 +105,7 @@ impl ServoPrior {
     }
 
     /// Checked against the data's joint count: finite, k_p > 0, k_d >= 0, limits > 0.
-    pub fn check(&self, n: usize) -> Result<(), String> {
+    pub fn check(&self, n: usize) -> Result<(), ServoError> {
         let ServoPrior::Known {
             kp,
             kd,
@@ -116,24 +116,51 @@ impl ServoPrior {
             return Ok(());
         };
         if kp.len() != n || kd.len() != n || limits.as_ref().is_some_and(|l| l.len() != n) {
-            return Err(format!(
-                "the servo's gains and limits need {n} values each (one per joint)"
-            ));
+            return Err(ServoError::Counts(n));
         }
         let ok = kp.iter().all(|v| v.is_finite() && *v > 0.0)
             && kd.iter().all(|v| v.is_finite() && *v >= 0.0)
             && limits.iter().flatten().all(|v| *v > 0.0);
         if !ok {
-            return Err("the servo needs k_p > 0, k_d >= 0 and limits > 0, all finite".into());
+            return Err(ServoError::Gains);
         }
         match velocity_cutoff_hz {
-            Some(fc) if !(fc.is_finite() && *fc > 0.0) => Err(format!(
-                "the servo's velocity cutoff must be a positive frequency (got {fc} Hz)"
-            )),
+            Some(fc) if !(fc.is_finite() && *fc > 0.0) => Err(ServoError::Cutoff(*fc)),
             _ => Ok(()),
         }
     }
 }
+
+/// A known servo `ServoPrior::check` refuses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ServoError {
+    /// Gains or limits not one per joint (the joint count).
+    Counts(usize),
+    /// A k_p not above 0, a k_d below 0, a limit not above 0, or a value not finite.
+    Gains,
+    /// A velocity cutoff that is not a positive frequency (the value given, Hz).
+    Cutoff(f64),
+}
+
+impl std::fmt::Display for ServoError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ServoError::Counts(n) => write!(
+                f,
+                "the servo's gains and limits need {n} values each (one per joint)"
+            ),
+            ServoError::Gains => {
+                f.write_str("the servo needs k_p > 0, k_d >= 0 and limits > 0, all finite")
+            }
+            ServoError::Cutoff(fc) => write!(
+                f,
+                "the servo's velocity cutoff must be a positive frequency (got {fc} Hz)"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for ServoError {}
 
 /// The EA's starting point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -19,11 +19,13 @@ pub const KINDS: [&str; 2] = [
 /// The objective `job` describes, ready to evaluate.
 pub fn rebuild(job: &Job) -> Result<Box<dyn Objective + Send>, String> {
     match job.kind.as_str() {
-        crate::sim::maglev::Objective::KIND => {
-            Ok(Box::new(job.decode::<crate::sim::maglev::Objective>()?))
-        }
+        crate::sim::maglev::Objective::KIND => Ok(Box::new(
+            job.decode::<crate::sim::maglev::Objective>()
+                .map_err(|e| e.to_string())?,
+        )),
         crate::indirect::two_mass::SpringCost::KIND => Ok(Box::new(
-            job.decode::<crate::indirect::two_mass::SpringCost>()?,
+            job.decode::<crate::indirect::two_mass::SpringCost>()
+                .map_err(|e| e.to_string())?,
         )),
         k => Err(format!(
             "unknown job kind `{k}` (this build knows {})",

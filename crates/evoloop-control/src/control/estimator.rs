@@ -79,40 +79,72 @@ pub struct KalmanGains {
     pub design: KalmanDesign,
 }
 
+/// Why `KalmanDesign::gains` gives no filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum KalmanError {
+    /// A process or measurement noise not finite and above 0, or a state noise not finite and at
+    /// least 0 (process, measurement, state).
+    Noise(f64, f64, f64),
+    /// The model cannot be sampled at the control period.
+    NotSampled,
+    /// No steady state of the Riccati equation: the measured output does not see every
+    /// unstable mode.
+    NotDetectable,
+    /// The filter's error dynamics are not stable.
+    Unstable,
+    /// The eigenvalues of A - L C did not converge.
+    NoEigenvalues,
+}
+
+impl std::fmt::Display for KalmanError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            KalmanError::Noise(q, r, w) => write!(
+                f,
+                "process and measurement noise must be finite and > 0, state noise finite and \
+                 >= 0 (got {q}, {r}, {w})"
+            ),
+            KalmanError::NotSampled => {
+                f.write_str("the model cannot be sampled at the control period")
+            }
+            KalmanError::NotDetectable => f.write_str(
+                "no steady-state filter: the measured output does not see every unstable mode \
+                 (the model is not detectable from y)",
+            ),
+            KalmanError::Unstable => f.write_str("the filter's error dynamics are not stable"),
+            KalmanError::NoEigenvalues => f.write_str("no eigenvalues of A - L C"),
+        }
+    }
+}
+
+impl std::error::Error for KalmanError {}
+
 impl KalmanDesign {
     /// The filter for `model` run at `period` (s): the steady state of the filtering Riccati
     /// equation P = A P A' - A P C' (C P C' + R)^-1 C P A' + Q, with Q = G G' process_noise² +
     /// I state_noise², R = measurement_noise² and G the column through which the input reaches
     /// the plant. Off the cycle (allocates). An error says why no filter exists.
-    pub fn gains(&self, model: &LinearModel, period: f64) -> Result<KalmanGains, String> {
+    pub fn gains(&self, model: &LinearModel, period: f64) -> Result<KalmanGains, KalmanError> {
         let (q, r, w) = (self.process_noise, self.measurement_noise, self.state_noise);
         if !(q.is_finite() && q > 0.0 && r.is_finite() && r > 0.0 && w.is_finite() && w >= 0.0) {
-            return Err(format!(
-                "process and measurement noise must be finite and > 0, state noise finite and \
-                 >= 0 (got {q}, {r}, {w})"
-            ));
+            return Err(KalmanError::Noise(q, r, w));
         }
-        let model = model
-            .at_period(period)
-            .ok_or("the model cannot be sampled at the control period")?;
+        let model = model.at_period(period).ok_or(KalmanError::NotSampled)?;
         let n = model.n();
         let a = DMatrix::from_fn(n, n, |i, j| model.a(i, j));
         let c = DMatrix::from_fn(1, n, |_, j| model.c(j));
         let g = DVector::from_fn(n, |i, _| model.input_column(i));
         let gq = self.process_covariance(&g, n);
-        let p = filter_riccati(&a, &c, &gq, r * r).ok_or(
-            "no steady-state filter: the measured output does not see every unstable mode \
-             (the model is not detectable from y)",
-        )?;
+        let p = filter_riccati(&a, &c, &gq, r * r).ok_or(KalmanError::NotDetectable)?;
         let m: Vec<f64> = measurement_gain(&p, &c, r * r).iter().copied().collect();
         if !error_is_stable(&model, &m) {
-            return Err("the filter's error dynamics are not stable".into());
+            return Err(KalmanError::Unstable);
         }
         let l: Vec<f64> = (0..n)
             .map(|i| (0..n).map(|j| a[(i, j)] * m[j]).sum())
             .collect();
         let error = DMatrix::from_fn(n, n, |i, j| a[(i, j)] - l[i] * c[(0, j)]);
-        let poles = crate::linalg::eigen::eigenvalues(&error).ok_or("no eigenvalues of A - L C")?;
+        let poles = crate::linalg::eigen::eigenvalues(&error).ok_or(KalmanError::NoEigenvalues)?;
         Ok(KalmanGains {
             model,
             m,
@@ -1037,7 +1069,10 @@ mod tests {
         }
         .gains(&model, 0.1)
         .unwrap_err();
-        assert!(e.contains("detectable") || e.contains("stable"), "{e}");
+        assert!(
+            matches!(e, KalmanError::NotDetectable | KalmanError::Unstable),
+            "{e}"
+        );
     }
 
     #[test]

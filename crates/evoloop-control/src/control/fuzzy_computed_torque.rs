@@ -146,24 +146,52 @@ pub fn reference_positions(
         .collect()
 }
 
-/// `model` must have a positive definite M-hat at every position of `along`: otherwise the
-/// reason, with the first position where it fails and its time.
-pub fn check_along_reference(model: &RkgnnModel, along: &[Vec<f64>]) -> Result<f64, String> {
+/// `model` must have a positive definite M-hat at every position of `along`: its smallest
+/// eigenvalue along it, or the first position where it fails, with its time.
+pub fn check_along_reference(
+    model: &RkgnnModel,
+    along: &[Vec<f64>],
+) -> Result<f64, IndefiniteAlong> {
     let mut lowest = f64::INFINITY;
     for (k, q) in along.iter().enumerate() {
         let e = model.min_eig(std::iter::once(q.as_slice()));
         if e.is_nan() || e <= 0.0 {
-            return Err(format!(
-                "M-hat is not positive definite along the reference this scenario tracks: \
-                 smallest eigenvalue {e:.3e} at t = {:.2} s, q = {q:.3?} (computed torque on \
-                 it would not be stable there)",
-                k as f64 * REFERENCE_PROBE_DT
-            ));
+            return Err(IndefiniteAlong {
+                eigenvalue: e,
+                t: k as f64 * REFERENCE_PROBE_DT,
+                q: q.clone(),
+            });
         }
         lowest = lowest.min(e);
     }
     Ok(lowest)
 }
+
+/// A model whose M-hat is not positive definite at a position of the reference a scenario
+/// tracks: computed torque on it would not be stable there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IndefiniteAlong {
+    /// M-hat's smallest eigenvalue there (NaN when it could not be computed).
+    pub eigenvalue: f64,
+    /// The reference's time of the position, s.
+    pub t: f64,
+    /// The position, rad (or m for a prismatic joint).
+    pub q: Vec<f64>,
+}
+
+impl std::fmt::Display for IndefiniteAlong {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "M-hat is not positive definite along the reference this scenario tracks: smallest \
+             eigenvalue {:.3e} at t = {:.2} s, q = {:.3?} (computed torque on it would not be \
+             stable there)",
+            self.eigenvalue, self.t, self.q
+        )
+    }
+}
+
+impl std::error::Error for IndefiniteAlong {}
 
 /// Per model, the positions where its M-hat is checked when it is loaded and before a
 /// replacement takes its slot: its identification reference (`probe_positions`) and the

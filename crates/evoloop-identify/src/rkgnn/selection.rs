@@ -947,7 +947,7 @@ impl SeedRun<'_> {
         );
         // The controller's own check, once per model: it gives the smallest eigenvalue along
         // the reference when the model passes; a refused one's is looked up in full.
-        let checked: Vec<Option<Result<f64, String>>> = models
+        let checked: Vec<Option<Result<f64, _>>> = models
             .iter()
             .map(|m| m.as_ref().map(|(_, m)| check_along_reference(m, &along)))
             .collect();

@@ -45,7 +45,7 @@ impl Observer {
         design: KalmanDesign,
         period: f64,
     ) -> Result<Self, String> {
-        let filter = design.gains(model, period)?;
+        let filter = design.gains(model, period).map_err(|e| e.to_string())?;
         let n = model.n();
         let l_c = DMatrix::from_fn(n, 1, |i, _| filter.l[i] / period);
         let (e_loop, h_loop) = pad_perturbation(e, h, n);
