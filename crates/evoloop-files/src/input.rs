@@ -9,21 +9,33 @@ use std::path::Path;
 /// without end.
 pub const MAX_FILE_BYTES: u64 = 16 << 20;
 
+/// The largest data file evoloop writes and reads back (1 GiB): an identified model, whose
+/// premise rows grow with its training run, or a run's record of every set it published.
+pub const MAX_DATA_BYTES: u64 = 1 << 30;
+
 /// A text file, read up to `MAX_FILE_BYTES`. Anything but a regular file (a FIFO, which would
 /// block the reader forever; a device, which has no end) is refused with the reason. Links are
 /// followed: a user's configuration may well be one.
 pub fn read_text(path: &Path) -> std::io::Result<String> {
+    read_text_up_to(path, MAX_FILE_BYTES).map_err(|e| match e.kind() {
+        std::io::ErrorKind::FileTooLarge => std::io::Error::new(
+            std::io::ErrorKind::FileTooLarge,
+            format!("{e}: not a configuration, robot or trajectory file"),
+        ),
+        _ => e,
+    })
+}
+
+/// A text file as `read_text` reads it, up to `max` bytes (a data file: `MAX_DATA_BYTES`).
+pub fn read_text_up_to(path: &Path, max: u64) -> std::io::Result<String> {
     use std::io::Read;
     let f = open_regular(path)?;
     let mut text = String::new();
-    f.take(MAX_FILE_BYTES + 1).read_to_string(&mut text)?;
-    if text.len() as u64 > MAX_FILE_BYTES {
+    f.take(max + 1).read_to_string(&mut text)?;
+    if text.len() as u64 > max {
         return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!(
-                "larger than {} MiB: not a configuration, robot or trajectory file",
-                MAX_FILE_BYTES >> 20
-            ),
+            std::io::ErrorKind::FileTooLarge,
+            format!("larger than {} MiB", max >> 20),
         ));
     }
     Ok(text)

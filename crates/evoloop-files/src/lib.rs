@@ -6,5 +6,8 @@
 mod input;
 mod output;
 
-pub use input::{from_json, from_toml, open_own, read_own, read_text, DecodeError, MAX_FILE_BYTES};
+pub use input::{
+    from_json, from_toml, open_own, read_own, read_text, read_text_up_to, DecodeError,
+    MAX_DATA_BYTES, MAX_FILE_BYTES,
+};
 pub use output::{append, create, free_bytes, named, open_in_place, release, reserve, write};

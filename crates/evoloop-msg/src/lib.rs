@@ -228,7 +228,7 @@ impl ParamCode {
 
 /// `Telemetry::flags`: the state the controller used was older than the stale limit.
 pub const TELEMETRY_FLAG_STALE: u32 = 1;
-/// `Telemetry::flags`: this cycle's compute overran its period.
+/// `Telemetry::flags`: this cycle's lateness plus compute time overran its period.
 pub const TELEMETRY_FLAG_OVERRUN: u32 = 2;
 /// `Telemetry::flags`: this cycle started a full period or more after its deadline.
 pub const TELEMETRY_FLAG_MISSED: u32 = 4;

@@ -338,8 +338,8 @@ impl RkgnnModel {
     /// Read and check a model file: format and version, joint count, parameter count, finite
     /// values, premise rows of 2n values, M-hat positive definite on the premise positions.
     pub fn load(path: &Path) -> Result<RkgnnModel, ModelError> {
-        let text =
-            evoloop_files::read_text(path).map_err(|e| ModelError::Io(e.to_string()).at(path))?;
+        let text = evoloop_files::read_text_up_to(path, evoloop_files::MAX_DATA_BYTES)
+            .map_err(|e| ModelError::Io(e.to_string()).at(path))?;
         let de = &mut serde_json::Deserializer::from_str(&text);
         let f: ModelFile = serde_path_to_error::deserialize(de).map_err(|e| {
             ModelError::NotAModelFile(format!("{} ({})", e.inner(), e.path())).at(path)

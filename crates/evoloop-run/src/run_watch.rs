@@ -16,7 +16,7 @@ use std::collections::VecDeque;
 
 /// Seconds of tracking error the sparkline spans, and its buckets.
 pub const SPARK_SECONDS: f64 = 10.0;
-/// Buckets of the sparkline: `SPARK_SECONDS` / 100, 0.1 s of run time each.
+/// Buckets of the sparkline: 100, each `SPARK_SECONDS` / 100 = 0.1 s of run time.
 pub const SPARK_BUCKETS: usize = 100;
 
 /// A running run, as found in /proc: its controller's `--run-id`, `--ipc-prefix`, `--config`

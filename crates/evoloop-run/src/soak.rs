@@ -41,7 +41,7 @@ pub struct Interval {
     pub cycles: u64,
     /// Whole periods that late wake-ups skipped in the interval: the missed deadlines.
     pub missed_deadlines: u64,
-    /// Cycles in the interval whose compute time exceeded the period.
+    /// Cycles in the interval whose lateness plus compute time exceeded the period.
     pub overruns: u64,
     /// Wake-up lateness of the interval's cycles, ns.
     pub lateness: Percentiles,
@@ -228,7 +228,7 @@ pub struct IntervalTiming {
     pub cycles: u64,
     /// Whole periods that late wake-ups skipped: a lateness of k periods or more counts k.
     pub missed: u64,
-    /// Cycles flagged `TELEMETRY_FLAG_OVERRUN` (compute time over the period).
+    /// Cycles flagged `TELEMETRY_FLAG_OVERRUN` (lateness plus compute time over the period).
     pub overruns: u64,
     /// The cycles' wake-up lateness, ns.
     pub lateness: Accumulator,

@@ -37,8 +37,8 @@ crate::kinds! {
         /// `controller.u_limit`: the output limit, > 0 (none by default); state feedback saturates
         /// symmetrically at it.
         pub u_limit: Option<f64>,
-        /// `controller.stale_after_periods`: periods a state sample may be old before the
-        /// controller holds its output (default 3, >= 1).
+        /// `controller.stale_after_periods`: periods a state sample may be old before it is
+        /// flagged stale (`TELEMETRY_FLAG_STALE`, counted; it is still used) (default 3, >= 1).
         pub stale_after_periods: Option<u32>,
     };
     state_feedback => StateFeedback(StateFeedbackSpec),
@@ -103,7 +103,8 @@ pub struct ControllerContext<'a> {
 pub struct ControllerSpec {
     /// Output limit (state feedback: symmetric saturation with conditional integration).
     pub u_limit: Option<f64>,
-    /// Periods a state sample may be old before the controller holds its output.
+    /// Periods a state sample may be old before it is flagged stale (`TELEMETRY_FLAG_STALE`,
+    /// counted); the law still uses it.
     pub stale_after_periods: u32,
     /// The chosen law's own settings (its `[controller.<kind>]` table, validated).
     #[serde(flatten)]

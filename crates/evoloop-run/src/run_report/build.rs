@@ -403,7 +403,7 @@ fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
 fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
     let p = dir.join(name);
     // The run's own file: never read through a link planted in its directory.
-    let bytes = evoloop_files::read_own(&p, evoloop_files::MAX_FILE_BYTES)
+    let bytes = evoloop_files::read_own(&p, evoloop_files::MAX_DATA_BYTES)
         .map_err(|e| format!("{}: {e}", p.display()))?;
     serde_json::from_slice(&bytes).map_err(|e| format!("{}: {e}", p.display()))
 }

@@ -372,7 +372,7 @@ pub struct Summary {
     pub tracking_after_1s: crate::report::metrics::Tracking,
     /// The controller loop's timing (`ControllerReport::timing`).
     pub timing: TimingSummary,
-    /// Cycles whose compute time exceeded the period (`timing.overruns`).
+    /// Cycles whose lateness plus compute time exceeded the period (`timing.overruns`).
     pub overruns: u64,
     /// Deadlines that passed without a cycle: the whole periods late wake-ups skipped, and those
     /// before the controller's first sample (`timing.missed_deadlines`).

@@ -263,7 +263,8 @@ pub struct DeEpochs {
     pub seed: u64,
     /// Threads evaluating candidates.
     pub threads: usize,
-    /// Evaluations per epoch at most, spent in whole generations of 15 (one when fewer).
+    /// Evaluations per epoch at most, spent in whole generations of 15; one generation (15)
+    /// always runs, also on a smaller budget.
     pub evaluations: usize,
     done: u64,
 }
