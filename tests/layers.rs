@@ -38,6 +38,21 @@ fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// Every `.rs` file under `dir`, with its text.
+fn rust_sources(dir: &Path) -> Vec<(std::path::PathBuf, String)> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(rust_sources(&p));
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            let text = std::fs::read_to_string(&p).unwrap();
+            out.push((p, text));
+        }
+    }
+    out
+}
+
 /// Each package of `crates/`: its normal dependencies' names.
 fn crate_graph() -> BTreeMap<String, Vec<String>> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
@@ -123,28 +138,21 @@ fn the_terminal_view_is_the_command_lines_alone() {
 /// No module re-exports a crate whole (`pub use evoloop_x::*;`): each namespace is one crate's.
 #[test]
 fn no_module_re_exports_a_crate_whole() {
-    fn walk(dir: &Path, found: &mut Vec<String>) {
-        for e in std::fs::read_dir(dir).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                walk(&p, found);
-            } else if p.extension().is_some_and(|x| x == "rs") {
-                let text = std::fs::read_to_string(&p).unwrap();
-                for (i, line) in text.lines().enumerate() {
-                    let l = line.trim();
-                    if l.starts_with("pub use evoloop_") && l.ends_with("::*;") {
-                        found.push(format!("{}:{}", p.display(), i + 1));
-                    }
-                }
-            }
-        }
+    let mut dirs = vec![root().join("src")];
+    for e in std::fs::read_dir(root().join("crates")).unwrap() {
+        dirs.push(e.unwrap().path().join("src"));
     }
     let mut found = Vec::new();
-    walk(&root().join("src"), &mut found);
-    for e in std::fs::read_dir(root().join("crates")).unwrap() {
-        let src = e.unwrap().path().join("src");
-        if src.is_dir() {
-            walk(&src, &mut found);
+    for (p, text) in dirs
+        .iter()
+        .filter(|d| d.is_dir())
+        .flat_map(|d| rust_sources(d))
+    {
+        for (i, line) in text.lines().enumerate() {
+            let l = line.trim();
+            if l.starts_with("pub use evoloop_") && l.ends_with("::*;") {
+                found.push(format!("{}:{}", p.display(), i + 1));
+            }
         }
     }
     assert!(found.is_empty(), "{found:#?}");
@@ -171,23 +179,6 @@ fn every_crate_takes_the_house_rules() {
     // CI's clippy makes the warnings errors.
     let ci = std::fs::read_to_string(root().join(".ci/run")).unwrap();
     assert!(ci.contains("cargo clippy --release --features zenoh --all-targets -- -D warnings"));
-    // Each source file's code lines, comments and string literals' lines left out.
-    fn code_lines(dir: &Path, out: &mut Vec<(String, String)>) {
-        for e in std::fs::read_dir(dir).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                code_lines(&p, out);
-            } else if p.extension().is_some_and(|x| x == "rs") {
-                let text = std::fs::read_to_string(&p).unwrap();
-                for l in text.lines() {
-                    let code = l.split("//").next().unwrap_or("").trim();
-                    if !code.is_empty() && !code.starts_with('"') && !code.starts_with('*') {
-                        out.push((p.display().to_string(), code.to_string()));
-                    }
-                }
-            }
-        }
-    }
     let unsafe_code = |lines: &[(String, String)]| {
         lines.iter().any(|(_, code)| {
             ["unsafe {", "unsafe impl", "unsafe fn", "unsafe extern"]
@@ -210,10 +201,17 @@ fn every_crate_takes_the_house_rules() {
         if takes != Some(true) {
             bad.push(format!("{name}: no `[lints] workspace = true`"));
         }
+        // Each source file's code lines: comments and string literals' lines left out.
         let mut lines = Vec::new();
-        for sub in ["src", "bin", "examples", "benches"] {
-            if dir.join(sub).is_dir() {
-                code_lines(&dir.join(sub), &mut lines);
+        let subs = ["src", "bin", "examples", "benches"].map(|s| dir.join(s));
+        for sub in subs.iter().filter(|d| d.is_dir()) {
+            for (p, text) in rust_sources(sub) {
+                for l in text.lines() {
+                    let code = l.split("//").next().unwrap_or("").trim();
+                    if !code.is_empty() && !code.starts_with('"') && !code.starts_with('*') {
+                        lines.push((p.display().to_string(), code.to_string()));
+                    }
+                }
             }
         }
         for (file, code) in &lines {

@@ -98,19 +98,6 @@ fn figure(dir: &Path, n: &str) -> Result<Option<Vec<u8>>, String> {
     }
 }
 
-/// A JSON file the run wrote, read as `figure` reads (never through a link).
-fn run_json(dir: &Path, n: &str) -> Result<Value, String> {
-    let p = dir.join(n);
-    let bytes = evoloop_files::read_own(&p, evoloop_files::MAX_FILE_BYTES).map_err(|e| {
-        if e.kind() == std::io::ErrorKind::NotFound {
-            format!("{}: {e}", p.display())
-        } else {
-            e.to_string()
-        }
-    })?;
-    serde_json::from_slice(&bytes).map_err(|e| format!("{}: {e}", p.display()))
-}
-
 /// Data files of `dir` with extension `ext`, sorted by name, listed as links (never read): only
 /// regular files, not a link planted among them.
 fn files(dir: &Path, ext: &str) -> Vec<PathBuf> {
@@ -135,8 +122,8 @@ fn name(p: &Path) -> String {
 /// Write `dir/report.html` from the run's `summary.json`, `scenario.json` and plots; returns
 /// its path. Err names the file that is missing or unreadable.
 pub fn write(dir: &Path) -> Result<PathBuf, String> {
-    let summary = run_json(dir, "summary.json")?;
-    let scenario = run_json(dir, "scenario.json").ok();
+    let summary = crate::read_json::<Value>(dir, "summary.json")?;
+    let scenario = crate::read_json::<Value>(dir, "scenario.json").ok();
     let get = |k: &str| summary.get(k).and_then(scalar).unwrap_or_default();
     let title = format!("evoloop run: {}", get("scenario"));
     let mut h = String::new();

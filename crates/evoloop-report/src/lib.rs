@@ -55,6 +55,22 @@ pub fn write_json<T: serde::Serialize>(dir: &Path, name: &str, value: &T) -> std
     evoloop_files::write(dir.join(name), text + "\n")
 }
 
+/// A JSON file a run wrote (`write_json`) read back: only the run's own (no link planted in its
+/// directory, a regular file of this user with one name), up to `MAX_DATA_BYTES`. The error
+/// names the file.
+pub fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
+    let p = dir.join(name);
+    let bytes = evoloop_files::read_own(&p, evoloop_files::MAX_DATA_BYTES).map_err(|e| {
+        // The refusals name the file already; "not found" does not.
+        if e.kind() == std::io::ErrorKind::NotFound {
+            format!("{}: {e}", p.display())
+        } else {
+            e.to_string()
+        }
+    })?;
+    serde_json::from_slice(&bytes).map_err(|e| format!("{}: {e}", p.display()))
+}
+
 /// A table of f64 rows with fixed width and capacity, allocated up front so recording a row
 /// never allocates; rows beyond the capacity are counted, not stored. (The control loop streams
 /// its log instead: `stream`.)

@@ -159,9 +159,7 @@ fn run_once(out: &Path, cfg: &Path, no_rt: bool, spec: &LoopSpec) -> Result<Summ
             String::from_utf8_lossy(&o.stderr)
         ));
     }
-    let bytes = evoloop_files::read_own(&out.join("summary.json"), evoloop_files::MAX_FILE_BYTES)
-        .map_err(|e| e.to_string())?;
-    serde_json::from_slice(&bytes).map_err(|e| e.to_string())
+    crate::report::read_json(out, "summary.json")
 }
 
 /// What one `evoloop bench loop` measured, and its JSON report (also written as loop.json).

@@ -431,12 +431,8 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
                     .unwrap_or("");
                 Err(format!("{}: {last}", o.status))
             }
-            Ok(_) => {
-                evoloop_files::read_own(&dir.join("summary.json"), evoloop_files::MAX_FILE_BYTES)
-                    .map_err(|e| format!("summary.json: {e}"))
-                    .and_then(|t| serde_json::from_slice::<Summary>(&t).map_err(|e| e.to_string()))
-                    .and_then(|s| SeedRun::from_summary(seed, &s, &measure, changed))
-            }
+            Ok(_) => crate::report::read_json::<Summary>(&dir, "summary.json")
+                .and_then(|s| SeedRun::from_summary(seed, &s, &measure, changed)),
         };
         match result {
             Ok(r) => {

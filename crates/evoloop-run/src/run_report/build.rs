@@ -400,14 +400,6 @@ fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
     })
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
-    let p = dir.join(name);
-    // The run's own file: never read through a link planted in its directory.
-    let bytes = evoloop_files::read_own(&p, evoloop_files::MAX_DATA_BYTES)
-        .map_err(|e| format!("{}: {e}", p.display()))?;
-    serde_json::from_slice(&bytes).map_err(|e| format!("{}: {e}", p.display()))
-}
-
 /// The processes' own reports in the run directory.
 struct Inputs {
     ctrl: ControllerReport,
@@ -416,11 +408,11 @@ struct Inputs {
 }
 
 fn read_inputs(dir: &Path) -> Result<Inputs, String> {
-    let ctrl: ControllerReport = read_json(dir, "controller.json")?;
-    let plant: PlantReport = read_json(dir, "plant.json").unwrap_or_default();
+    let ctrl: ControllerReport = crate::report::read_json(dir, "controller.json")?;
+    let plant: PlantReport = crate::report::read_json(dir, "plant.json").unwrap_or_default();
     // A missing optimiser.json is normal (it was killed); an unreadable one loses the estimates
     // and epochs from the report, so say so.
-    let opt: OptimiserReport = match read_json(dir, "optimiser.json") {
+    let opt: OptimiserReport = match crate::report::read_json(dir, "optimiser.json") {
         Ok(o) => o,
         Err(e) => {
             if dir.join("optimiser.json").is_file() {
