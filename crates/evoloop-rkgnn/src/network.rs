@@ -133,11 +133,21 @@ impl SubNet {
     }
 
     /// Eq. 7: out_k = sum_l W_kl exp(-|y - c_l|^2 / s_l^2), out overwritten.
+    ///
+    /// An RBF whose output weights are all zero is skipped: for finite inputs phi is finite and
+    /// positive, so a zero weight's terms are +-0, and adding +-0 to a sum that starts at +0
+    /// leaves it bit for bit as it was (a sum of nonzero terms is never -0). Identification's
+    /// least squares build each weight's column from a model whose other weights are all zero
+    /// (`evoloop_identify`'s `design`): arm7's columns cost one exp per sample, not one per RBF
+    /// of the whole model (the 14 s identify-mode run took 41 s, then 2026-12-06).
     #[inline]
     pub fn eval(&self, p: &[f64], y: &[f64], out: &mut [f64]) {
         out[..self.outputs].fill(0.0);
         for l in 0..self.rbfs {
             let (centre, s, w) = self.rbf(p, l);
+            if w.iter().all(|&w| w == 0.0) {
+                continue; // adds nothing (see above)
+            }
             let (phi, _) = phi(centre, s, &y[..self.inputs]);
             for (o, w) in out[..self.outputs].iter_mut().zip(w) {
                 *o += w * phi;
@@ -154,6 +164,9 @@ impl SubNet {
         let mut value = 0.0;
         for l in 0..self.rbfs {
             let (centre, s, w) = self.rbf(p, l);
+            if w[0] == 0.0 {
+                continue; // adds nothing (as in `eval`)
+            }
             let (phi, s2) = phi(centre, s, y);
             let wphi = w[0] * phi;
             value += wphi;

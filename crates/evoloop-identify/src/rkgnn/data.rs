@@ -312,40 +312,62 @@ fn smooth_where(
 }
 
 /// Savitzky-Golay weights: fit a polynomial of `degree` by least squares to unit-spaced samples
-/// at offsets -half..=half and take its `deriv`-th derivative, per unit spacing, at each offset
-/// `at` in -half..=half: one kernel per offset (the centre's for inner samples, the others for
-/// the ends). The least-squares projection is the same for every offset: it is computed once.
-fn savitzky_golay(half: usize, degree: usize, deriv: usize) -> Vec<Vec<f64>> {
-    let m = half as f64;
-    let width = 2 * half + 1;
-    // Offsets scaled to [-1, 1] keep the normal equations well conditioned.
-    let v = nalgebra::DMatrix::from_fn(width, degree + 1, |k, p| {
-        ((k as f64 - m) / m.max(1.0)).powi(p as i32)
-    });
-    let Some(inv) = (v.transpose() * &v).try_inverse() else {
-        return vec![vec![f64::NAN; width]; width];
-    };
-    let coef = inv * v.transpose();
-    let scale = m.max(1.0).powi(-(deriv as i32));
-    (0..width)
-        .map(|a| {
-            let s = (a as f64 - m) / m.max(1.0);
-            // d^deriv/ds^deriv of sum_p c_p s^p at s, then per unit spacing (ds/dk = 1/m).
-            let basis: Vec<f64> = (0..=degree)
-                .map(|p| {
-                    if p < deriv {
-                        0.0
-                    } else {
-                        let falling: f64 = (p - deriv + 1..=p).map(|f| f as f64).product();
-                        falling * s.powi((p - deriv) as i32)
-                    }
-                })
-                .collect();
-            (0..width)
-                .map(|k| scale * (0..=degree).map(|p| basis[p] * coef[(p, k)]).sum::<f64>())
-                .collect()
-        })
-        .collect()
+/// at offsets -half..=half and take its `deriv`-th derivative, per unit spacing, at an offset
+/// `at` in -half..=half (`kernel`): the centre's for inner samples, the others for the ends.
+/// The least-squares projection is the same for every offset: it is computed once, and a
+/// kernel only where a sample needs it (a 1 601-sample window has 1 601 of them, and a filter
+/// of the inner samples uses one).
+struct SavitzkyGolay {
+    half: usize,
+    degree: usize,
+    deriv: usize,
+    /// (V^T V)^-1 V^T, `degree + 1` rows by 2 `half` + 1; `None` where V^T V is singular.
+    coef: Option<nalgebra::DMatrix<f64>>,
+}
+
+impl SavitzkyGolay {
+    fn new(half: usize, degree: usize, deriv: usize) -> Self {
+        let m = half as f64;
+        // Offsets scaled to [-1, 1] keep the normal equations well conditioned.
+        let v = nalgebra::DMatrix::from_fn(2 * half + 1, degree + 1, |k, p| {
+            ((k as f64 - m) / m.max(1.0)).powi(p as i32)
+        });
+        let coef = (v.transpose() * &v)
+            .try_inverse()
+            .map(|inv| inv * v.transpose());
+        SavitzkyGolay {
+            half,
+            degree,
+            deriv,
+            coef,
+        }
+    }
+
+    /// The weights that give the fit's derivative at offset `a` - `half` (a in 0..=2 `half`),
+    /// NaN where the fit has no solution.
+    fn kernel(&self, a: usize) -> Vec<f64> {
+        let (m, width, degree, deriv) =
+            (self.half as f64, 2 * self.half + 1, self.degree, self.deriv);
+        let Some(coef) = &self.coef else {
+            return vec![f64::NAN; width];
+        };
+        let scale = m.max(1.0).powi(-(deriv as i32));
+        let s = (a as f64 - m) / m.max(1.0);
+        // d^deriv/ds^deriv of sum_p c_p s^p at s, then per unit spacing (ds/dk = 1/m).
+        let basis: Vec<f64> = (0..=degree)
+            .map(|p| {
+                if p < deriv {
+                    0.0
+                } else {
+                    let falling: f64 = (p - deriv + 1..=p).map(|f| f as f64).product();
+                    falling * s.powi((p - deriv) as i32)
+                }
+            })
+            .collect();
+        (0..width)
+            .map(|k| scale * (0..=degree).map(|p| basis[p] * coef[(p, k)]).sum::<f64>())
+            .collect()
+    }
 }
 
 /// Column `j` of `v`, rows of `width` values each (one joint's samples of a sample-major record).
@@ -361,7 +383,7 @@ fn half_window(len: usize, h: f64, window: f64) -> usize {
         .min(len.saturating_sub(1) / 2)
 }
 
-/// `x` filtered by `savitzky_golay(half, degree, deriv)`: centred windows inside, the first and
+/// `x` filtered by `SavitzkyGolay::new(half, degree, deriv)`: centred windows inside, the first and
 /// last full window's fit evaluated at the ends, at the samples `wanted` picks only (NaN at the others): the same sums where it is computed,
 /// in a fraction of the time where a fit reads every `stride`-th sample of 10 kHz data through
 /// a window of 1 601 samples.
@@ -380,14 +402,16 @@ fn filter_where(
             vec![0.0; len]
         };
     }
-    let kernels = savitzky_golay(half, degree, deriv);
+    let sg = SavitzkyGolay::new(half, degree, deriv);
+    let mut kernels: Vec<Option<Vec<f64>>> = vec![None; 2 * half + 1];
     (0..len)
         .map(|i| {
             if !wanted(i) {
                 return f64::NAN;
             }
             let c = i.clamp(half, len - 1 - half);
-            let k = &kernels[i + half - c];
+            let a = i + half - c;
+            let k = kernels[a].get_or_insert_with(|| sg.kernel(a));
             k.iter()
                 .zip(&x[c - half..=c + half])
                 .map(|(w, v)| w * v)
