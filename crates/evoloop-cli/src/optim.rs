@@ -703,9 +703,7 @@ fn bench(a: &BenchArgs) -> Result<(), String> {
                 rep as u64,
             )
             .map_err(|e| e.to_string())?;
-            let t = Instant::now();
-            evoloop_optim::drive(opt.as_mut(), a.evaluations, |x| x[0], |_| {});
-            samples.push(opt.evaluations() as f64 / t.elapsed().as_secs_f64());
+            samples.push(evoloop_optim::overhead_rate(opt.as_mut(), a.evaluations));
         }
         samples.sort_by(f64::total_cmp);
         rates.insert(name.to_string(), samples[samples.len() / 2]);

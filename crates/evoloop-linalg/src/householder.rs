@@ -97,20 +97,10 @@ fn reflect_columns(cols: &mut [f64], m: usize, v: &[f64], beta: f64, j: usize) {
     }
 }
 
-/// Each of `cols` reflected by I - beta v v^T: col -= beta (v . col) v, the dot product summed in
-/// order from `Sum`'s own start (bit for bit what `iter().sum()` gives), the columns' sums
-/// interleaved.
+/// Each of `cols` reflected by I - beta v v^T: col -= beta (v . col) v, the columns' dot
+/// products interleaved (`dots`: bit for bit each column's own in-order sum).
 fn reflect_lanes<const L: usize>(v: &[f64], beta: f64, mut cols: [&mut [f64]; L]) {
-    let start = std::iter::empty::<f64>().sum::<f64>();
-    let mut dot = [start; L];
-    for c in &cols {
-        assert_eq!(c.len(), v.len(), "a column as long as the reflection");
-    }
-    for (i, p) in v.iter().enumerate() {
-        for (s, c) in dot.iter_mut().zip(&cols) {
-            *s += p * c[i];
-        }
-    }
+    let dot = crate::dots(v, cols.each_ref().map(|c| &**c));
     for (c, s) in cols.iter_mut().zip(dot) {
         let d = beta * s;
         c.iter_mut().zip(v).for_each(|(c, p)| *c -= d * p);

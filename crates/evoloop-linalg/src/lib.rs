@@ -2,15 +2,17 @@
 //! solves and eigenvalue bounds the control cycle and the RKGNN models need without allocating
 //! (`small`), the eigenvalues of a general real matrix for the stability checks (`eigen`,
 //! Francis QR), and the ridge solutions of tall least-squares problems through a Householder
-//! reduction (`householder`). General-purpose work (decompositions of larger, heap matrices)
+//! reduction (`householder`), and several in-order dot products at once (`dots`). General-purpose work (decompositions of larger, heap matrices)
 //! goes through nalgebra directly (one version for the workspace, `[workspace.dependencies]`).
 
 #![forbid(unsafe_code)]
 
+pub mod dots;
 pub mod eigen;
 pub mod householder;
 pub mod small;
 
+pub use dots::dots;
 pub use eigen::{eig, eigenvalues};
 pub use householder::{householder_reduce, Ridges};
 pub use small::{

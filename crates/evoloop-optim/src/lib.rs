@@ -449,6 +449,16 @@ pub fn drive(
     }
 }
 
+/// Evaluations per second of `opt` driven `evaluations` times on a function that costs nothing
+/// (x -> x_0): the optimiser's own overhead per evaluation, one thread (`evoloop optim bench`,
+/// and CI's measure of a host's speed). Timed here, where `drive` and the function are
+/// compiled with the optimisers, whatever the calling crate's optimisation level.
+pub fn overhead_rate(opt: &mut dyn Optimiser, evaluations: usize) -> f64 {
+    let t = std::time::Instant::now();
+    drive(opt, evaluations, |x| x[0], |_| {});
+    opt.evaluations() as f64 / t.elapsed().as_secs_f64()
+}
+
 #[cfg(test)]
 mod evaluate_tests {
     use super::*;

@@ -404,21 +404,35 @@ fn filter_where(
     }
     let sg = SavitzkyGolay::new(half, degree, deriv);
     let mut kernels: Vec<Option<Vec<f64>>> = vec![None; 2 * half + 1];
-    (0..len)
-        .map(|i| {
-            if !wanted(i) {
-                return f64::NAN;
-            }
-            let c = i.clamp(half, len - 1 - half);
-            let a = i + half - c;
+    // Sample i's kernel (by offset) and window.
+    let window = |i: usize| {
+        let c = i.clamp(half, len - 1 - half);
+        (i + half - c, &x[c - half..=c + half])
+    };
+    let mut out = vec![f64::NAN; len];
+    let picked: Vec<usize> = (0..len).filter(|&i| wanted(i)).collect();
+    // Four samples with one kernel (every inner one has the centre's) at a time: their sums
+    // interleaved, each bit for bit its own (`linalg::dots`).
+    for group in picked.chunks(LANES) {
+        let a = window(group[0]).0;
+        if group.len() == LANES && group.iter().all(|&i| window(i).0 == a) {
             let k = kernels[a].get_or_insert_with(|| sg.kernel(a));
-            k.iter()
-                .zip(&x[c - half..=c + half])
-                .map(|(w, v)| w * v)
-                .sum()
-        })
-        .collect()
+            let sums: [f64; LANES] =
+                crate::linalg::dots(k, std::array::from_fn(|t| window(group[t]).1));
+            group.iter().zip(sums).for_each(|(&i, s)| out[i] = s);
+        } else {
+            for &i in group {
+                let (a, w) = window(i);
+                let k = kernels[a].get_or_insert_with(|| sg.kernel(a));
+                out[i] = crate::linalg::dots(k, [w])[0];
+            }
+        }
+    }
+    out
 }
+
+/// How many samples `filter_where` sums side by side.
+const LANES: usize = 4;
 
 #[cfg(test)]
 mod tests {
