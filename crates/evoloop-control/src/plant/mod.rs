@@ -364,6 +364,30 @@ pub trait Plant: Send {
 
 /// A plant being simulated: the model plus all the buffers its integration needs, allocated once
 /// (Model/Data split), so `advance` never allocates.
+///
+/// The heated block of the book's worked example, driven at 10 W: the block settles where
+/// the ambient plus the power through the resistance to the ambient puts it.
+///
+/// ```
+/// use evoloop_control::plant::{heater::HeaterSpec, PlantSim};
+///
+/// let spec = HeaterSpec {
+///     c_element: 5.0,       // J/K
+///     c_block: 50.0,        // J/K
+///     r_element_block: 0.5, // K/W
+///     r_block_ambient: 2.0, // K/W
+///     ambient: 20.0,        // °C
+///     p_max: 100.0,         // W
+///     initial: 20.0,        // °C
+/// };
+/// let steady = spec.steady_state(10.0); // 20 + 10 W x 2 K/W = 40 °C
+/// // RK4 in steps of at most 10 ms, no sensor noise (seed unused).
+/// let mut sim = PlantSim::new(Box::new(spec), 0.01, 0.0, 1);
+/// for _ in 0..2000 {
+///     sim.advance(&[10.0], 1.0); // one second with 10 W held
+/// }
+/// assert!((sim.x[1] - steady).abs() < 1e-3, "block at {} °C", sim.x[1]);
+/// ```
 pub struct PlantSim {
     /// The model being simulated.
     pub plant: Box<dyn Plant>,
