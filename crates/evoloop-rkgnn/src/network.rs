@@ -134,12 +134,14 @@ impl SubNet {
 
     /// Eq. 7: out_k = sum_l W_kl exp(-|y - c_l|^2 / s_l^2), out overwritten.
     ///
-    /// An RBF whose output weights are all zero is skipped: for finite inputs phi is finite and
-    /// positive, so a zero weight's terms are +-0, and adding +-0 to a sum that starts at +0
+    /// An RBF whose output weights are all zero is skipped: for finite inputs and parameters of
+    /// ordinary magnitude phi is finite and not negative, so a zero weight's terms are +-0, and adding +-0 to a sum that starts at +0
     /// leaves it bit for bit as it was (a sum of nonzero terms is never -0). Identification's
     /// least squares build each weight's column from a model whose other weights are all zero
     /// (`evoloop_identify`'s `design`): arm7's columns cost one exp per sample, not one per RBF
-    /// of the whole model (the 14 s identify-mode run took 41 s, then 2026-12-06).
+    /// of the whole model (a 14 s identify-mode run of arm7: 41 s -> 31 s, 2026-12-06). A NaN
+    /// input gives 0, not NaN, from a sub-network whose weights are all zero: the cycle refuses
+    /// non-finite states before a model sees them.
     #[inline]
     pub fn eval(&self, p: &[f64], y: &[f64], out: &mut [f64]) {
         out[..self.outputs].fill(0.0);
