@@ -135,8 +135,9 @@ impl SubNet {
     /// Eq. 7: out_k = sum_l W_kl exp(-|y - c_l|^2 / s_l^2), out overwritten.
     ///
     /// An RBF whose output weights are all zero is skipped: for finite inputs and parameters of
-    /// ordinary magnitude phi is finite and not negative, so a zero weight's terms are +-0, and adding +-0 to a sum that starts at +0
-    /// leaves it bit for bit as it was (a sum of nonzero terms is never -0). Identification's
+    /// ordinary magnitude phi is finite and not negative, so a zero weight's terms are +-0, and
+    /// adding +-0 to a sum that starts at +0 leaves it bit for bit as it was (a sum of nonzero
+    /// terms is never -0). In the control cycle it costs one comparison per RBF. Identification's
     /// least squares build each weight's column from a model whose other weights are all zero
     /// (`evoloop_identify`'s `design`): arm7's columns cost one exp per sample, not one per RBF
     /// of the whole model (a 14 s identify-mode run of arm7: 41 s -> 31 s, 2026-12-06). A NaN

@@ -383,10 +383,10 @@ fn half_window(len: usize, h: f64, window: f64) -> usize {
         .min(len.saturating_sub(1) / 2)
 }
 
-/// `x` filtered by `SavitzkyGolay::new(half, degree, deriv)`: centred windows inside, the first and
-/// last full window's fit evaluated at the ends, at the samples `wanted` picks only (NaN at the others): the same sums where it is computed,
-/// in a fraction of the time where a fit reads every `stride`-th sample of 10 kHz data through
-/// a window of 1 601 samples.
+/// `x` filtered by `SavitzkyGolay::new(half, degree, deriv)`: centred windows inside, the first
+/// and last full window's fit evaluated at the ends, at the samples `wanted` picks only (NaN at
+/// the others): the same sums where it is computed, in a fraction of the time where a fit reads
+/// every `stride`-th sample of 10 kHz data through a window of 1 601 samples.
 fn filter_where(
     x: &[f64],
     half: usize,
