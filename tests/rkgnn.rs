@@ -1530,7 +1530,7 @@ fn arm7_least_squares_without_a_positive_definite_m_hat_is_refused_with_the_reas
     let sim = simulate(&scn);
     let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period, SMOOTHING);
     let prior = Prior::new(0.003532, 3.827894).unwrap(); // `evoloop rkgnn prior --robot arm7.urdf`
-    let settings = |weigh: bool| {
+    let settings = |weigh| {
         let mut s = Settings::least_squares(7, 1, 0);
         s.counts.velocity = 0;
         s.servo = ServoPrior::Known {
@@ -1539,10 +1539,11 @@ fn arm7_least_squares_without_a_positive_definite_m_hat_is_refused_with_the_reas
             limits: Some(vec![87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]),
             velocity_cutoff_hz: Some(50.0),
         };
-        s.weigh_joints = weigh;
+        s.weighing = weigh;
         s
     };
-    for weigh in [false, true] {
+    use evoloop::rkgnn::model::Weighing;
+    for weigh in [Weighing::Never, Weighing::AsNeeded, Weighing::Always] {
         let e = identify::identify_model(&data, &prior, &settings(weigh), "a".into(), |_, _| {})
             .expect_err("least squares found a positive definite M-hat: update the book");
         assert!(e.contains("positive definite"), "{e}");

@@ -2,7 +2,7 @@
 
 use clap::{Args, Subcommand};
 use evoloop_identify::rkgnn::identify::{self, Prior, Settings};
-use evoloop_identify::rkgnn::model::{ServoPrior, Start};
+use evoloop_identify::rkgnn::model::{ServoPrior, Start, Weighing};
 use evoloop_identify::rkgnn::network::RbfCounts;
 use evoloop_identify::rkgnn::study::JointVelocity;
 use evoloop_identify::rkgnn::{RkgnnModel, Trajectory};
@@ -106,11 +106,14 @@ pub struct IdentifyArgs {
     /// start uses it; the EA's and --refine's free run do not yet.
     #[arg(long, requires = "kd")]
     pub servo_velocity_cutoff_hz: Option<f64>,
-    /// With --servo known: weigh each joint's equations by 1 / its torque rms, so that joints
-    /// carrying little torque (a 7-DOF arm's wrist) are fitted as closely, relatively, as the
-    /// shoulder (arm7: the only way the least squares finds a positive definite M-hat).
-    #[arg(long)]
-    pub weigh_joints: bool,
+    /// With --servo known: when to weigh each joint's equations by 1 / its torque rms, so that
+    /// joints carrying little torque (a wrist) are fitted as closely, relatively, as the
+    /// shoulder: `as-needed` (where the fit in N m finds no positive definite M-hat; the
+    /// default), `always` (what `--weigh-joints` alone means; arm7 needs it) or `never` (the
+    /// recipe before 2026-12-06)
+    #[arg(long, value_enum, value_name = "WHEN", num_args = 0..=1,
+          default_value_t = Weighing::AsNeeded, default_missing_value = "always")]
+    pub weigh_joints: Weighing,
     /// Evaluation threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -214,10 +217,14 @@ pub struct SelectionArgs {
     /// Seeds (each: new measurement noise, models re-identified).
     #[arg(long, default_value_t = 10)]
     pub seeds: u64,
-    /// Identify with each joint's equations in units of its own torque rms (what a 7-DOF
-    /// arm's least squares needs: its shoulder's torques are 100x its wrist's).
-    #[arg(long)]
-    pub weigh_joints: bool,
+    /// When to identify with each joint's equations in units of its own torque rms:
+    /// `as-needed` (where the fit in N m finds no positive definite M-hat: the zoo's 4-joint
+    /// arms; the default), `always` (what `--weigh-joints` alone means; a 7-DOF arm's least
+    /// squares needs it, its shoulder's torques are 100x its wrist's) or `never` (the recipe
+    /// before 2026-12-06)
+    #[arg(long, value_enum, value_name = "WHEN", num_args = 0..=1,
+          default_value_t = Weighing::AsNeeded, default_missing_value = "always")]
+    pub weigh_joints: Weighing,
     /// V-hat: `network` (the paper's velocity network; the shipped recipe) or `christoffel`
     /// (from M-hat's Christoffel symbols; 8x faster to fit on a 7-DOF arm).
     #[arg(long, value_enum, default_value_t = VelocityKind::Network)]
@@ -430,7 +437,7 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     if a.servo != ServoKind::Known && (a.kp.is_some() || a.kd.is_some()) {
         return Err("--kp and --kd go with --servo known".into());
     }
-    if a.weigh_joints && a.servo != ServoKind::Known {
+    if a.weigh_joints == Weighing::Always && a.servo != ServoKind::Known {
         return Err("--weigh-joints needs --servo known (it weighs the known torques)".into());
     }
     if a.evaluations == 0 && a.start != Start::LeastSquares {
@@ -442,7 +449,7 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
     s.stride = a.stride;
     s.start = a.start;
     s.refine = a.refine;
-    s.weigh_joints = a.weigh_joints;
+    s.weighing = a.weigh_joints;
     if a.servo != ServoKind::Rbf {
         s.counts = RbfCounts::linear_servo(data.n);
     }
@@ -626,7 +633,7 @@ fn selection_settings(
     evoloop_identify::rkgnn::selection::SelectionSettings {
         robot,
         seeds: a.seeds,
-        weigh_joints: a.weigh_joints,
+        weighing: a.weigh_joints,
         christoffel: a.velocity == VelocityKind::Christoffel,
         servo_known: a.servo == StudyServo::Known,
         start: a.start,

@@ -36,9 +36,14 @@ pub struct Report {
     /// What the identification knew of the servo (files before it: unknown).
     #[serde(default)]
     pub servo: ServoPrior,
-    /// Each joint's equations weighed by its torque rms (`Settings::weigh_joints`).
+    /// Whether the fit weighed each joint's equations by its torque rms (by `weighing`, or
+    /// as needed because the unweighted fit found no positive definite M-hat).
     #[serde(default)]
     pub weigh_joints: bool,
+    /// When the identification was to weigh them (`Settings::weighing`). None: a file from
+    /// before 2026-12-06, whose `weigh_joints` was the setting (always or never).
+    #[serde(default)]
+    pub weighing: Option<Weighing>,
     /// Half width of the low-pass the joint velocities were estimated with from the measured
     /// positions, s. None: a file from before that, fitted on the simulator's velocities.
     #[serde(default)]
@@ -53,6 +58,47 @@ impl Report {
     /// Reports written before `start` existed came from the paper's start.
     fn random() -> Start {
         Start::Random
+    }
+
+    /// When the identification was to weigh the joints' equations; a file from before
+    /// `weighing` existed either always did (`weigh_joints`) or never.
+    pub fn weighing(&self) -> Weighing {
+        self.weighing.unwrap_or(if self.weigh_joints {
+            Weighing::Always
+        } else {
+            Weighing::Never
+        })
+    }
+}
+
+/// When the known-servo least squares weighs each joint's equations by 1 / that joint's torque
+/// rms. Unweighted, the equations are in N m and the shoulder's residuals (tens of N m) decide
+/// the fit: a wrist carrying a hundredth of that torque is left to round-off and M-hat comes out
+/// indefinite (arm7; the zoo's 4-joint arms, whose wrist pitch has 650-3 500 times less inertia
+/// than the shoulder). Weighed, each joint is fitted as closely relative to its own torque, at
+/// the price of the noise on the small ones (on 3-joint arms whose unweighted fit is fine, it
+/// costs models).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Weighing {
+    /// Every equation in N m (the recipe before 2026-12-06).
+    Never,
+    /// In N m; weighed only where that finds no positive definite M-hat (the shipped recipe).
+    #[default]
+    AsNeeded,
+    /// Always weighed (what arm7 needs).
+    Always,
+}
+
+impl Weighing {
+    /// Its name as the command line and the model file spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Weighing::Never => "never",
+            Weighing::AsNeeded => "as-needed",
+            Weighing::Always => "always",
+        }
     }
 }
 

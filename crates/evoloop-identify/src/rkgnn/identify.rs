@@ -49,7 +49,7 @@
 //!   wrong ones (M-hat_33 three times the truth, G-hat_2 at 40 % of it, seen at stride 10).
 
 use super::data::Trajectory;
-use super::model::{Report, ServoPrior, Start};
+use super::model::{Report, ServoPrior, Start, Weighing};
 use super::network::{self, Layout, Network, Part, RbfCounts};
 use crate::linalg::{min_leading_minor, sym_eig_range, Mat};
 use crate::msg::MAX_JOINTS;
@@ -89,10 +89,10 @@ pub struct Settings {
     pub refine: usize,
     /// What the identification knows of the servo the data were taken under.
     pub servo: ServoPrior,
-    /// Known torques: weigh each joint's equations by 1 / that joint's torque rms, so that a
-    /// wrist carrying 100x less torque than the shoulder is fitted as closely, relatively
-    /// (`--weigh-joints`).
-    pub weigh_joints: bool,
+    /// Known torques: when to weigh each joint's equations by 1 / that joint's torque rms, so
+    /// that a wrist carrying 100x less torque than the shoulder is fitted as closely, relatively
+    /// (`--weigh-joints`; `Weighing` says why it is not always done).
+    pub weighing: Weighing,
 }
 
 /// The EA's mutation scales after a least-squares start, as a fraction of `initial`'s: the
@@ -120,7 +120,7 @@ impl Settings {
             start: Start::Random,
             refine: 0,
             servo: ServoPrior::Unknown,
-            weigh_joints: false,
+            weighing: Weighing::AsNeeded,
         }
     }
 
@@ -540,6 +540,7 @@ pub fn identify(
     let layout = Layout::new(d.n, s.counts);
     let probes = region_probes(&train, s.probes);
     let (x0, s0) = initial(&layout, &train, prior);
+    let mut weighed = false;
     let (mut x0, mut s0) = match s.start {
         Start::Random => (x0, s0),
         Start::LeastSquares => {
@@ -553,10 +554,11 @@ pub fn identify(
                     full.trim() as f64 * full.h
                 ));
             }
-            let x = least_squares_start(&layout, &x0, &full, &probes, prior, s).ok_or(
+            let (x, w) = least_squares_start(&layout, &x0, &full, &probes, prior, s).ok_or(
                 "the least-squares start found no model with a positive definite M-hat \
                      (give --start random)",
             )?;
+            weighed = w;
             let x = refine_start(&layout, x, &train, &probes, prior, s);
             (x, s0.iter().map(|v| v * LS_SIGMA).collect())
         }
@@ -607,7 +609,8 @@ pub fn identify(
         m2: prior.m2,
         start: s.start,
         servo: s.servo.clone(),
-        weigh_joints: s.weigh_joints,
+        weigh_joints: weighed,
+        weighing: Some(s.weighing),
         velocity_smoothing: Some(d.smoothing),
         seed: s.ea.seed,
         history,
@@ -698,6 +701,10 @@ fn residual(layout: &Layout, p: &[f64], x: &[f64], xdd: &[f64], r: &[f64], out: 
 /// squares, does not work: the data's accelerations are small, so "no servo, no gravity,
 /// M-hat q'' ~ 0" fits the equation better than the truth with its unmodelled friction. The EA
 /// then refines everything on the free-run prediction error it is judged by.
+///
+/// Returns the parameters and whether the joints' equations were weighed (`Settings::weighing`:
+/// with `AsNeeded`, a known servo's fit is tried in N m first and weighed only if that finds no
+/// positive definite M-hat).
 pub fn least_squares_start(
     layout: &Layout,
     p0: &[f64],
@@ -705,7 +712,7 @@ pub fn least_squares_start(
     probes: &[Vec<f64>],
     prior: &Prior,
     s: &Settings,
-) -> Option<Vec<f64>> {
+) -> Option<(Vec<f64>, bool)> {
     let (stride, servo) = (s.stride, &s.servo);
     let n = layout.n;
     let g = layout.gains?;
@@ -723,11 +730,16 @@ pub fn least_squares_start(
             p[g + 2 * j] = kp[j];
             p[g + 2 * j + 1] = kd[j];
         }
-        let target = Target::Torques {
-            tau: &tau,
-            weigh: s.weigh_joints,
+        let fit = |weigh: bool| {
+            let target = Target::Torques { tau: &tau, weigh };
+            least_squares(layout, &p, data, target, stride, INERTIA_RIDGES, &floor)
+                .map(|p| (p, weigh))
         };
-        return least_squares(layout, &p, data, target, stride, INERTIA_RIDGES, floor);
+        return match s.weighing {
+            Weighing::Never => fit(false),
+            Weighing::AsNeeded => fit(false).or_else(|| fit(true)),
+            Weighing::Always => fit(true),
+        };
     }
     // Stage 1, the servo: every weight free (no ridge on the inertia, which would shrink the
     // joints that are tied to joint 1's scale only weakly), for the gains alone.
@@ -755,7 +767,7 @@ pub fn least_squares_start(
         tau: &tau,
         weigh: false,
     };
-    least_squares(layout, &servo, data, target, stride, INERTIA_RIDGES, scaled)
+    least_squares(layout, &servo, data, target, stride, INERTIA_RIDGES, scaled).map(|p| (p, false))
 }
 
 /// The live identification's fit (`rkgnn::live`): the model in service, `p0`, updated to a window

@@ -35,6 +35,7 @@ use super::study::{
 };
 use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::dynamics::Model;
+use crate::rkgnn::model::Weighing;
 use crate::rkgnn::model_error::{model_error, ModelError, RigidBody};
 use crate::rkgnn::Trajectory;
 use crate::sim::{JointTraces, SimResult};
@@ -268,8 +269,9 @@ pub struct SelectionSettings {
     pub robot: PathBuf,
     /// Seeds to run: 1 to `seeds` (each with its own training data, models and CAD model).
     pub seeds: u64,
-    /// Each joint's equations in units of its own torque rms (`identify::Settings::weigh_joints`).
-    pub weigh_joints: bool,
+    /// When each joint's equations are put in units of its own torque rms
+    /// (`identify::Settings::weighing`).
+    pub weighing: Weighing,
     /// V-hat from M-hat's Christoffel symbols instead of the velocity network.
     pub christoffel: bool,
     /// Whether the identification knows the training servo's gains (the shipped recipe) or,
@@ -367,8 +369,12 @@ pub struct SelectionResult {
     pub start: crate::rkgnn::model::Start,
     /// The EA's evaluations after the start (0 = the start itself).
     pub evaluations: usize,
-    /// Whether each joint's equations were weighed by its torque rms.
-    pub weigh_joints: bool,
+    /// When each joint's equations were to be weighed by its torque rms (`never`, `as-needed`,
+    /// `always`).
+    pub weighing: Weighing,
+    /// Training runs whose model needed them weighed (`as-needed`) or had them (`always`), as
+    /// "seed N, name".
+    pub weighed: Vec<String>,
     /// Whether V-hat came from M-hat's Christoffel symbols (no velocity network).
     pub christoffel: bool,
     /// The tracking runs' loop period, s (the training runs': 1 ms).
@@ -590,6 +596,7 @@ pub fn run(
         Ok(SeedOut {
             cells,
             unidentified: found.unidentified,
+            weighed: found.weighed,
             seconds: found.seconds,
             nominal: nominal.written,
         })
@@ -642,11 +649,12 @@ fn assemble(
     per_seed: Vec<SeedOut>,
     seconds: f64,
 ) -> SelectionResult {
-    let (mut cells, mut unidentified, mut identification_seconds, mut nominals) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut cells, mut unidentified, mut weighed, mut identification_seconds, mut nominals) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for o in per_seed {
         cells.extend(o.cells);
         unidentified.extend(o.unidentified);
+        weighed.extend(o.weighed);
         identification_seconds.extend(o.seconds);
         nominals.push(o.nominal);
     }
@@ -662,7 +670,8 @@ fn assemble(
         servo_known: s.servo_known,
         start: s.start,
         evaluations: s.evaluations,
-        weigh_joints: s.weigh_joints,
+        weighing: s.weighing,
+        weighed,
         christoffel: s.christoffel,
         period: frame.period,
         unidentified,
@@ -728,6 +737,7 @@ struct Training<'a> {
 struct SeedModels {
     models: Vec<Option<(PathBuf, crate::rkgnn::RkgnnModel)>>,
     unidentified: Vec<String>,
+    weighed: Vec<String>,
     seconds: Vec<f64>,
 }
 
@@ -736,6 +746,7 @@ struct SeedModels {
 struct SeedOut {
     cells: Vec<Cell>,
     unidentified: Vec<String>,
+    weighed: Vec<String>,
     seconds: Vec<f64>,
     nominal: NominalWritten,
 }
@@ -772,6 +783,7 @@ impl Training<'_> {
         let mut out = SeedModels {
             models: Vec::new(),
             unidentified: Vec::new(),
+            weighed: Vec::new(),
             seconds: Vec::new(),
         };
         for (c, sim) in training.iter().zip(&sims) {
@@ -783,7 +795,7 @@ impl Training<'_> {
             );
             let mut settings = Settings::least_squares(n, seed, s.evaluations);
             settings.threads = s.threads.max(1);
-            settings.weigh_joints = s.weigh_joints;
+            settings.weighing = s.weighing;
             settings.start = s.start;
             if s.christoffel {
                 settings.christoffel_velocity();
@@ -805,6 +817,9 @@ impl Training<'_> {
             match found {
                 Ok(model) => {
                     out.seconds.push(model.report.seconds);
+                    if model.report.weigh_joints {
+                        out.weighed.push(format!("seed {seed}, {}", c.name));
+                    }
                     let file = sd.join(format!("model_{}.json", c.name));
                     model.save(&file).map_err(|e| e.to_string())?;
                     out.models.push(Some((file, model)));
@@ -1146,7 +1161,7 @@ fn earlier_model(
     let r = &model.report;
     let same = r.seed == settings.ea.seed
         && r.start == settings.start
-        && r.weigh_joints == settings.weigh_joints
+        && r.weighing() == settings.weighing
         && std::mem::discriminant(&r.servo) == std::mem::discriminant(&settings.servo)
         && r.evaluations >= settings.evaluations;
     if !same {
@@ -1419,7 +1434,15 @@ pub fn report_markdown(r: &SelectionResult) -> String {
         if r.servo_known { "known" } else { "unknown" },
         r.start.name(),
         r.evaluations,
-        if r.weigh_joints { ", joints weighed" } else { "" },
+        match r.weighing {
+            Weighing::Never => String::new(),
+            Weighing::AsNeeded => format!(
+                ", joints weighed as needed ({} of {} models)",
+                r.weighed.len(),
+                r.training.len() as u64 * r.seeds - r.unidentified.len() as u64
+            ),
+            Weighing::Always => ", joints weighed".into(),
+        },
         if r.christoffel { ", Christoffel V-hat" } else { "" },
         r.trajectories.join(" | "),
         "---|".repeat(r.trajectories.len())
