@@ -1238,6 +1238,64 @@ fn the_selection_study_finds_fuzzy_max_above_the_best_single_model_as_the_readme
 }
 
 #[test]
+fn a_fit_in_newton_metres_without_a_positive_definite_m_hat_is_weighed_as_needed() {
+    // gen4_s22, a development arm (seeds below 1000; the zoo's are fixed in
+    // config/robots/zoo.toml), seed 1: the known-servo least squares in N m finds a positive
+    // definite M-hat for none or few of its three training runs, its wrist pitch carrying a
+    // thousandth of the shoulder's inertia. As needed (the default), a run whose fit in N m fails
+    // is fitted again with each joint in units of its own torque rms (`--weigh-joints` alone:
+    // always), and a run whose fit in N m succeeds keeps that model.
+    let tmp = tempfile::tempdir().unwrap();
+    let arm = tmp.path().join("gen4_s22.urdf");
+    let arm_s = arm.to_str().unwrap();
+    let o = cli(&[
+        "robot", "generate", "--joints", "4", "--seed", "22", "--out", arm_s,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let study = |name: &str, weigh: &[&str]| {
+        let out = tmp.path().join(name);
+        let v = selection(
+            &out,
+            &[&["--robot", arm_s, "--seeds", "1"][..], weigh].concat(),
+        );
+        (v, out)
+    };
+    let names = |v: &serde_json::Value, key: &str| -> Vec<String> {
+        let runs = v[key].as_array().unwrap().iter();
+        runs.map(|u| u.as_str().unwrap().split(':').next().unwrap().to_string())
+            .collect()
+    };
+    let (never, never_dir) = study("never", &["--weigh-joints", "never"]);
+    let (needed, needed_dir) = study("as_needed", &[]);
+    let (always, always_dir) = study("always", &["--weigh-joints"]);
+    assert_eq!(never["weighing"], "never");
+    assert_eq!(needed["weighing"], "as-needed");
+    assert_eq!(always["weighing"], "always");
+    let failed_in_nm = names(&never, "unidentified");
+    assert!(
+        failed_in_nm.len() >= 2,
+        "the fit in N m found models on this arm: {failed_in_nm:?}"
+    );
+    // Every run that failed in N m, and only those, was weighed; each weighed one found a model.
+    assert_eq!(names(&needed, "weighed"), failed_in_nm);
+    assert!(
+        needed["unidentified"].as_array().unwrap().is_empty(),
+        "{needed}"
+    );
+    let params = |dir: &Path, run: &str| {
+        let file = dir.join("seed1").join(format!("model_{run}.json"));
+        RkgnnModel::load(&file).map(|m| (m.net.params().to_vec(), m.report.weigh_joints))
+    };
+    for run in ["train1", "train2", "train3"] {
+        let (p, weighed) = params(&needed_dir, run).unwrap();
+        let same_as = if weighed { &always_dir } else { &never_dir };
+        assert_eq!(Some(p), params(same_as, run).ok().map(|m| m.0), "{run}");
+        let failed = failed_in_nm.iter().any(|f| f.ends_with(run));
+        assert_eq!(weighed, failed, "{run}");
+    }
+}
+
+#[test]
 fn the_baselines_a_control_engineer_would_use_run_on_a_cad_model_written_down() {
     // pd_gravity (the matched servo with the CAD model's gravity), ct_nominal (computed torque
     // on it) and online_model (one model updated online) ran on every task; the CAD model is
