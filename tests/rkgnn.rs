@@ -1873,11 +1873,14 @@ fn the_zoo_studies_each_listed_arm_and_counts_arms_not_pairs() {
     ]));
     let read = |p: &Path| std::fs::read_to_string(p).unwrap();
     assert_eq!(read(&out.join("arms/gen3_s11.urdf")), read(&generated));
-    // The zoo's arms come from the zoo file: --robot is refused, as is a filter that keeps none.
+    // The zoo's arms come from the zoo file: it has no --robot (nor does its --help offer one),
+    // and a filter that keeps none is refused.
     assert_refused(
         &cli(&["rkgnn", "zoo", "--zoo", z, "--robot", g, "--out", o]),
-        "--robot: the zoo's arms come from --zoo",
+        "unexpected argument '--robot'",
     );
+    let help = cli(&["rkgnn", "zoo", "--help"]);
+    assert!(!String::from_utf8_lossy(&help.stdout).contains("--robot"));
     assert_refused(
         &cli(&["rkgnn", "zoo", "--zoo", z, "--joints", "6", "--out", o]),
         "no arm with --joints [6]",

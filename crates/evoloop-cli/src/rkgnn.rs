@@ -196,24 +196,33 @@ pub struct ZooArgs {
     /// Only the arms with these joint counts (e.g. 3,4) [default: all].
     #[arg(long, value_delimiter = ',')]
     pub joints: Vec<usize>,
-    /// The selection study's settings (every one but --robot); --models-from DIR takes each
-    /// arm's models from DIR/NAME.
+    /// The selection study's settings (its arms come from --zoo); --models-from DIR takes
+    /// each arm's models from DIR/NAME.
     #[command(flatten)]
-    pub selection: SelectionArgs,
+    pub selection: StudySettingsArgs,
 }
 
 /// Options of `evoloop rkgnn selection`: fuzzy model selection against every baseline, over
-/// seeds, on one arm (also the per-arm settings of `rkgnn zoo`).
+/// seeds, on one arm.
 #[derive(Args)]
 pub struct SelectionArgs {
-    /// Output directory.
-    #[arg(long)]
-    pub out: PathBuf,
     /// An arm (D-H TOML or URDF): a 3-joint arm runs the trajectories written for the paper's
     /// arm, any other its trajectories built from its joint limits [default:
     /// config/robots/arm3.toml].
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// The study's settings, shared with `rkgnn zoo`.
+    #[command(flatten)]
+    pub study: StudySettingsArgs,
+}
+
+/// The selection study's settings on any arm: `rkgnn selection`'s on its `--robot`, `rkgnn
+/// zoo`'s on each arm of the zoo.
+#[derive(Args)]
+pub struct StudySettingsArgs {
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
     /// Seeds (each: new measurement noise, models re-identified).
     #[arg(long, default_value_t = 10)]
     pub seeds: u64,
@@ -627,7 +636,7 @@ fn with_bar<T>(
 
 /// The selection study's settings of `a` on `robot`.
 fn selection_settings(
-    a: &SelectionArgs,
+    a: &StudySettingsArgs,
     robot: PathBuf,
 ) -> evoloop_identify::rkgnn::selection::SelectionSettings {
     evoloop_identify::rkgnn::selection::SelectionSettings {
@@ -645,9 +654,10 @@ fn selection_settings(
     }
 }
 
-fn selection(a: &SelectionArgs) -> Result<(), String> {
+fn selection(args: &SelectionArgs) -> Result<(), String> {
     use evoloop_identify::rkgnn::selection;
-    let robot = (a.robot.clone()).unwrap_or_else(|| PathBuf::from("config/robots/arm3.toml"));
+    let robot = (args.robot.clone()).unwrap_or_else(|| PathBuf::from("config/robots/arm3.toml"));
+    let a = &args.study;
     let settings = selection_settings(a, robot);
     let r = with_bar("runs", a.quiet || a.json, |p| {
         selection::run(&settings, &a.out, p)
@@ -665,9 +675,6 @@ fn zoo(a: &ZooArgs) -> Result<(), String> {
     use evoloop_identify::rkgnn::{selection, zoo};
     let t0 = std::time::Instant::now();
     let sel = &a.selection;
-    if sel.robot.is_some() {
-        return Err("--robot: the zoo's arms come from --zoo".into());
-    }
     let arms: Vec<_> = (crate::robot::read_zoo(&a.zoo)?.into_iter())
         .filter(|arm| a.joints.is_empty() || a.joints.contains(&arm.joints.len()))
         .collect();
