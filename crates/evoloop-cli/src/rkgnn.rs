@@ -516,6 +516,12 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
             r.m1,
             r.m2
         );
+        if r.weigh_joints {
+            out!(
+                "  each joint's equations weighed by its torque rms (--weigh-joints {})",
+                r.weighing().name()
+            );
+        }
         out!("  wrote {}", a.out.display());
     }
     Ok(())

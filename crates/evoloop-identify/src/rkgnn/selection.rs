@@ -35,7 +35,7 @@ use super::study::{
 };
 use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::dynamics::Model;
-use crate::rkgnn::model::Weighing;
+use crate::rkgnn::model::{ServoPrior, Weighing};
 use crate::rkgnn::model_error::{model_error, ModelError, RigidBody};
 use crate::rkgnn::Trajectory;
 use crate::sim::{JointTraces, SimResult};
@@ -1159,21 +1159,35 @@ fn earlier_model(
     }
     let model = crate::rkgnn::RkgnnModel::load(&file).map_err(|e| e.to_string())?;
     let r = &model.report;
+    let known = matches!(settings.servo, ServoPrior::Known { .. });
     let same = r.seed == settings.ea.seed
         && r.start == settings.start
-        && r.weighing() == settings.weighing
+        && (!known || same_weighing(settings.weighing, r))
         && std::mem::discriminant(&r.servo) == std::mem::discriminant(&settings.servo)
         && r.evaluations >= settings.evaluations;
     if !same {
         return Err(format!(
-            "{}: identified otherwise (seed {}, {} start, {} evaluations) than this study asks",
+            "{}: identified otherwise (seed {}, {} start, {} evaluations, joints weighed: {}) \
+             than this study asks",
             file.display(),
             r.seed,
             r.start.name(),
-            r.evaluations
+            r.evaluations,
+            r.weighing().name()
         ));
     }
     Ok(model)
+}
+
+/// Whether a known servo's model `r` is the one `setting` would have identified: a fit in N m is
+/// also what `as-needed` keeps (the weighing is tried only where it fails), a weighed fit also
+/// what `always` gives; a weighed fit under `always` need not be `as-needed`'s.
+fn same_weighing(setting: Weighing, r: &crate::rkgnn::model::Report) -> bool {
+    match setting {
+        Weighing::Never => !r.weigh_joints,
+        Weighing::AsNeeded => !r.weigh_joints || r.weighing() == Weighing::AsNeeded,
+        Weighing::Always => r.weigh_joints,
+    }
 }
 
 /// The `velocity` key of a training run's servo as its scenario file says: "true" where the file
@@ -1435,6 +1449,7 @@ pub fn report_markdown(r: &SelectionResult) -> String {
         r.start.name(),
         r.evaluations,
         match r.weighing {
+            _ if !r.servo_known => String::new(),
             Weighing::Never => String::new(),
             Weighing::AsNeeded => format!(
                 ", joints weighed as needed ({} of {} models)",
