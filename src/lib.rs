@@ -25,7 +25,7 @@ pub use evoloop_report as report;
 pub use evoloop_rt as rt;
 pub use evoloop_run::{bench, needs_zenoh, node, run_report, run_watch, soak};
 pub use evoloop_scenario::{config, sim};
-pub use evoloop_schemes::{direct, gains, indirect, jobs, robust};
+pub use evoloop_schemes::{direct, gains, indirect, jobs, robust, SchemeError};
 pub use evoloop_stats as stats;
 pub use evoloop_tune as tune;
 

@@ -1016,3 +1016,40 @@ fn safe_bayes_model_believes_the_least_margin_its_models_tolerance_allows() {
     assert_refused(&ten, "optimiser.nominal_alternatives");
     assert_refused(&ten, "at most 8");
 }
+
+#[test]
+fn the_schemes_refuse_a_scenario_with_its_cause() {
+    use evoloop::SchemeError;
+    let shipped = |name: &str, ov: &Overrides| {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config")
+            .join(name);
+        Scenario::load(&path, ov).unwrap()
+    };
+    // In this process a run needs an end: the file, the key and the reason.
+    let forever = Overrides {
+        duration: Some(f64::INFINITY),
+        ..Default::default()
+    };
+    let e = evoloop::direct::run_in_process(&shipped("maglev_direct.toml", &forever), |_, _| {})
+        .err()
+        .expect("a run until stopped is refused in this process");
+    let SchemeError::NotInProcess(cause) = &e else {
+        panic!("{e:?}")
+    };
+    assert_eq!(cause.key, "timing.duration");
+    assert!(cause.file.ends_with("maglev_direct.toml"), "{cause}");
+    let source = std::error::Error::source(&e).expect("the cause is kept");
+    assert_eq!(source.to_string(), cause.to_string());
+    // An indirect optimiser on a plant and controller it has no model of.
+    let mut scn = shipped("maglev_direct.toml", &Overrides::default());
+    scn.plant = shipped("two_mass.toml", &Overrides::default()).plant;
+    let e = evoloop::indirect::Indirect::new(&scn)
+        .err()
+        .expect("refused");
+    assert_eq!(e, SchemeError::NoIndirectModel, "{e}");
+    assert!(
+        e.to_string().contains("the indirect optimiser drives"),
+        "{e}"
+    );
+}

@@ -83,7 +83,7 @@ fn prepare(a: &StudyArgs) -> Result<(ExcitationProblem, String), String> {
         },
         ..Settings::default()
     };
-    scn.require_in_process()?;
+    scn.require_in_process().map_err(|e| e.to_string())?;
     if scn.timing.duration < 3.0 * settings.period {
         return Err(format!(
             "{}: timing.duration {} s holds fewer than three {} s periods (one dropped, one \

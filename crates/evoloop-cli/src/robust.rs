@@ -7,7 +7,7 @@ use evoloop_optim::{run, DeConfig, DifferentialEvolution, Optimiser};
 use evoloop_schemes::robust::observer::command_noise;
 use evoloop_schemes::robust::problem::{Perturbation, RobustProblem};
 use evoloop_schemes::robust::study::{lqr_gains, study};
-use evoloop_schemes::robust::Wedge;
+use evoloop_schemes::robust::{Wedge, WedgeError};
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -238,8 +238,10 @@ fn problem(
     if !(bound > 0.0 && bound.is_finite()) {
         return Err(format!("--bound must be > 0 (got {bound})"));
     }
-    let wedge = Wedge::new(w.zeta, w.rho)
-        .map_err(|e| e.replace("zeta", "--zeta").replace("rho", "--rho"))?;
+    let wedge = Wedge::new(w.zeta, w.rho).map_err(|e| match e {
+        WedgeError::Zeta(z) => format!("--zeta must be in (0, 1) (got {z})"),
+        WedgeError::Rho(r) => format!("--rho must be > 0 (got {r})"),
+    })?;
     let sensor = if plant.collocated {
         Sensor::Actuated
     } else {
@@ -254,7 +256,7 @@ fn problem(
         None => Ok(prob),
         Some(d) => prob
             .with_observer(d, observer.period)
-            .map_err(|e| format!("no Kalman filter for this plant: {e}")),
+            .map_err(|e| e.to_string()),
     }
 }
 

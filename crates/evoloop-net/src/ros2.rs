@@ -253,7 +253,7 @@ impl Ros2Node {
                 }
                 Ok(values) => {
                     if let Err(((), why)) = self.gains.set(values, ()) {
-                        self.refused(&why);
+                        self.refused(&why.to_string());
                     }
                 }
             }

@@ -62,7 +62,7 @@ pub struct Gains<R> {
     /// Only where sets may be sent.
     out: Option<Pub<ParamSet>>,
     /// Whether sets may be sent (no optimiser publishes), else why not.
-    settable: Result<(), String>,
+    settable: Result<(), SetError>,
     kind: ParamKind,
     /// The values in service (by the controller's telemetry), its version and the newest
     /// version seen; the values of the latest sets seen on the params topic, to know a
@@ -83,6 +83,53 @@ struct Pending<R> {
     since: Instant,
 }
 
+/// Why `Gains::set` sends no set.
+#[derive(Debug, Clone)]
+pub enum SetError {
+    /// This run's optimiser (in this mode) numbers the parameter sets: `what` (the bridge
+    /// that asked) may set them only when it publishes none.
+    OptimiserPublishes {
+        /// The run's `optimiser.mode`.
+        mode: OptimiserMode,
+        /// Who asked to set them, in the message.
+        what: String,
+    },
+    /// The controller takes `takes` values; the set had `got`.
+    Count {
+        /// Values the controller's law takes.
+        takes: usize,
+        /// Values the set had.
+        got: usize,
+    },
+    /// The params topic did not take the set.
+    NotSent(std::sync::Arc<IpcError>),
+}
+
+impl std::fmt::Display for SetError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SetError::OptimiserPublishes { mode, what } => write!(
+                f,
+                "this run's optimiser (mode {mode:?}) numbers the parameter sets; {what} may be \
+                 set when it publishes none (`--optimiser off`)"
+            ),
+            SetError::Count { takes, got } => {
+                write!(f, "the controller takes {takes} values, not {got}")
+            }
+            SetError::NotSent(e) => write!(f, "not sent: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for SetError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            SetError::NotSent(e) => Some(e.as_ref()),
+            _ => None,
+        }
+    }
+}
+
 impl<R> Gains<R> {
     /// For the run of scenario `scn`: its initial values, and a publisher on `params` where
     /// its optimiser publishes nothing.
@@ -98,11 +145,10 @@ impl<R> Gains<R> {
             settable: if off {
                 Ok(())
             } else {
-                Err(format!(
-                    "this run's optimiser (mode {:?}) numbers the parameter sets; {what} may be \
-                     set when it publishes none (`--optimiser off`)",
-                    scn.optimiser.mode
-                ))
+                Err(SetError::OptimiserPublishes {
+                    mode: scn.optimiser.mode,
+                    what: what.to_string(),
+                })
             },
             kind: cfg.param_kind(),
             values: cfg.tunable().gains.clone(),
@@ -170,22 +216,18 @@ impl<R> Gains<R> {
 
     /// Send `values` to the controller; `reply` comes back with its answer. Refused here, with
     /// the reason, when sets may not be sent or the count is not the controller's.
-    pub fn set(&mut self, values: Vec<f64>, reply: R) -> Result<u64, (R, String)> {
+    pub fn set(&mut self, values: Vec<f64>, reply: R) -> Result<u64, (R, SetError)> {
         if let Err(why) = &self.settable {
             return Err((reply, why.clone()));
         }
         if values.len() != self.values.len() {
-            let why = format!(
-                "the controller takes {} values, not {}",
-                self.values.len(),
-                values.len()
-            );
-            return Err((reply, why));
+            let (takes, got) = (self.values.len(), values.len());
+            return Err((reply, SetError::Count { takes, got }));
         }
         let version = self.newest + 1;
         let set = ParamSet::new(version, 0, self.kind, &values);
         if let Some(Err(e)) = self.out.as_ref().map(|p| p.send(&set)) {
-            return Err((reply, format!("not sent: {e}")));
+            return Err((reply, SetError::NotSent(std::sync::Arc::new(e))));
         }
         self.newest = version;
         self.pending.push(Pending {

@@ -11,10 +11,13 @@
 #![forbid(unsafe_code)]
 
 pub mod direct;
+pub mod error;
 pub mod gains;
 pub mod indirect;
 pub mod jobs;
 pub mod robust;
+
+pub use error::SchemeError;
 
 use evoloop_control::{check, control, plant, reference};
 use evoloop_files as files;

@@ -203,7 +203,8 @@ pub fn run(
                 ..one_run(alg, *seed, &r.report, scn.optimiser.repetition)
             })
         })
-        .collect::<Result<_, _>>()?;
+        .collect::<Result<_, evoloop_schemes::SchemeError>>()
+        .map_err(|e| e.to_string())?;
     bar.abandon();
     // The GA's final cost per seed, then each run's first experiment within 1 % of it.
     let ga: std::collections::HashMap<u64, f64> = runs

@@ -50,7 +50,7 @@ pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), String> {
         bar.set_message(format!("best {best:.4}"));
     });
     bar.abandon();
-    let r = r?;
+    let r = r.map_err(|e| e.to_string())?;
     let seconds = t0.elapsed().as_secs_f64();
     let report = &r.report;
     let baseline = report

@@ -5,4 +5,4 @@ pub mod codec;
 pub mod network;
 pub mod ordered;
 
-pub use network::{default_labels, FuzzyNetwork, Mf, Variable, UNCONNECTED};
+pub use network::{default_labels, FuzzyNetwork, FuzzyNetworkError, Mf, Variable, UNCONNECTED};

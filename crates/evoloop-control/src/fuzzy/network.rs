@@ -79,52 +79,88 @@ pub fn default_labels(n: usize) -> Vec<String> {
     }
 }
 
+/// Why `FuzzyNetwork::validate` refuses a network: the part that is wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FuzzyNetworkError {
+    /// Not 1..=MAX_INPUTS inputs and 1..=MAX_OUTPUTS outputs (inputs, outputs).
+    Size(usize, usize),
+    /// This variable has no MF, more than MAX_LABELS, or not one label per MF.
+    Labels(String),
+    /// This variable has an MF centre that is not finite or a width that is not above 0.
+    Mf(String),
+    /// The connection array does not have this many entries (one per combination and output).
+    Rules(usize),
+    /// This combination is connected to some outputs but not all.
+    PartlyConnected(usize),
+    /// This combination names an output label that does not exist.
+    NoLabel(usize, u16),
+    /// Not one scaling factor per input and per output.
+    Scales,
+    /// A scaling factor is not finite and above 0.
+    Scale,
+}
+
+impl std::fmt::Display for FuzzyNetworkError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FuzzyNetworkError::Size(n, m) => write!(
+                f,
+                "1..={MAX_INPUTS} inputs and 1..={MAX_OUTPUTS} outputs (got {n}, {m})"
+            ),
+            FuzzyNetworkError::Labels(v) => {
+                write!(f, "variable `{v}`: 1..={MAX_LABELS} MFs, one label each")
+            }
+            FuzzyNetworkError::Mf(v) => write!(
+                f,
+                "variable `{v}`: MF centres must be finite and widths > 0"
+            ),
+            FuzzyNetworkError::Rules(k) => write!(f, "connection array needs {k} entries"),
+            FuzzyNetworkError::PartlyConnected(c) => write!(
+                f,
+                "combination {c} is connected to some outputs but not all"
+            ),
+            FuzzyNetworkError::NoLabel(c, k) => {
+                write!(f, "combination {c}: output label {k} does not exist")
+            }
+            FuzzyNetworkError::Scales => f.write_str("one scaling factor per input and per output"),
+            FuzzyNetworkError::Scale => f.write_str("scaling factors must be finite and > 0"),
+        }
+    }
+}
+
+impl std::error::Error for FuzzyNetworkError {}
+
 impl FuzzyNetwork {
     /// Check sizes, label counts and the connection array.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), FuzzyNetworkError> {
         let (n, m) = (self.inputs.len(), self.outputs.len());
         if n == 0 || n > MAX_INPUTS || m == 0 || m > MAX_OUTPUTS {
-            return Err(format!(
-                "1..={MAX_INPUTS} inputs and 1..={MAX_OUTPUTS} outputs (got {n}, {m})"
-            ));
+            return Err(FuzzyNetworkError::Size(n, m));
         }
         for v in self.inputs.iter().chain(&self.outputs) {
             if v.mfs.is_empty() || v.mfs.len() > MAX_LABELS || v.labels.len() != v.mfs.len() {
-                return Err(format!(
-                    "variable `{}`: 1..={MAX_LABELS} MFs, one label each",
-                    v.name
-                ));
+                return Err(FuzzyNetworkError::Labels(v.name.clone()));
             }
-            for mf in &v.mfs {
-                if !(mf.m.is_finite() && mf.v.is_finite() && mf.v > 0.0) {
-                    return Err(format!(
-                        "variable `{}`: MF centres must be finite and widths > 0",
-                        v.name
-                    ));
-                }
+            if !(v.mfs.iter()).all(|mf| mf.m.is_finite() && mf.v.is_finite() && mf.v > 0.0) {
+                return Err(FuzzyNetworkError::Mf(v.name.clone()));
             }
         }
         if self.rules.len() != self.combinations() * m {
-            return Err(format!(
-                "connection array needs {} entries",
-                self.combinations() * m
-            ));
+            return Err(FuzzyNetworkError::Rules(self.combinations() * m));
         }
         for (c, chunk) in self.rules.chunks(m).enumerate() {
             let none = chunk.iter().filter(|k| **k == UNCONNECTED).count();
             if none != 0 && none != m {
-                return Err(format!(
-                    "combination {c} is connected to some outputs but not all"
-                ));
+                return Err(FuzzyNetworkError::PartlyConnected(c));
             }
             for (i, k) in chunk.iter().enumerate() {
                 if *k != UNCONNECTED && *k as usize >= self.outputs[i].mfs.len() {
-                    return Err(format!("combination {c}: output label {k} does not exist"));
+                    return Err(FuzzyNetworkError::NoLabel(c, *k));
                 }
             }
         }
         if self.input_scale.len() != n || self.output_scale.len() != m {
-            return Err("one scaling factor per input and per output".into());
+            return Err(FuzzyNetworkError::Scales);
         }
         if self
             .input_scale
@@ -132,7 +168,7 @@ impl FuzzyNetwork {
             .chain(&self.output_scale)
             .any(|c| !(c.is_finite() && *c > 0.0))
         {
-            return Err("scaling factors must be finite and > 0".into());
+            return Err(FuzzyNetworkError::Scale);
         }
         Ok(())
     }
@@ -291,5 +327,54 @@ impl FuzzyNetwork {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_network_is_refused_with_the_part_that_is_wrong() {
+        let good = crate::fuzzy::arsinh::initial_network(4.0, 0.5, 0.3);
+        assert_eq!(good.validate(), Ok(()));
+        let refused = |edit: &dyn Fn(&mut FuzzyNetwork)| {
+            let mut net = good.clone();
+            edit(&mut net);
+            net.validate().unwrap_err()
+        };
+        assert_eq!(
+            refused(&|n| n.inputs.clear()),
+            FuzzyNetworkError::Size(0, 1)
+        );
+        assert_eq!(
+            refused(&|n| n.inputs[1].mfs[2].v = 0.0),
+            FuzzyNetworkError::Mf("w".into())
+        );
+        assert_eq!(
+            refused(&|n| {
+                n.outputs[0].labels.pop();
+            }),
+            FuzzyNetworkError::Labels("u".into())
+        );
+        assert_eq!(
+            refused(&|n| n.rules.truncate(8)),
+            FuzzyNetworkError::Rules(9)
+        );
+        assert_eq!(
+            refused(&|n| n.rules[4] = 5),
+            FuzzyNetworkError::NoLabel(4, 5)
+        );
+        assert_eq!(
+            refused(&|n| n.output_scale[0] = f64::NAN),
+            FuzzyNetworkError::Scale
+        );
+        assert_eq!(
+            refused(&|n| n.input_scale.push(1.0)),
+            FuzzyNetworkError::Scales
+        );
+        // The message says which variable and what is allowed.
+        let e = refused(&|n| n.inputs[1].mfs[2].v = 0.0).to_string();
+        assert_eq!(e, "variable `w`: MF centres must be finite and widths > 0");
     }
 }

@@ -335,7 +335,7 @@ impl crate::sim::LoopHook for Identifying<'_> {
 pub fn simulate(
     scn: &crate::config::Scenario,
 ) -> Result<(crate::sim::SimResult, Vec<EpochRecord>), String> {
-    scn.require_in_process()?;
+    scn.require_in_process().map_err(|e| e.to_string())?;
     let mut hook = Identifying {
         keep: crate::sim::Keep::new(scn),
         live: LiveIdentify::new(scn)?,

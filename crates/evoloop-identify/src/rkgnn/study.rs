@@ -278,7 +278,7 @@ pub(super) fn case(
     let path = dir.join("scenarios").join(format!("{name}.toml"));
     let scenario =
         Scenario::parse(&text, &path, &Overrides::default()).map_err(|e| e.to_string())?;
-    scenario.require_in_process()?;
+    scenario.require_in_process().map_err(|e| e.to_string())?;
     Ok(Case {
         name: name.to_string(),
         text,

@@ -208,7 +208,8 @@ impl<'a> Serve<'a> {
             serve.sets.insert(version, values);
         }
         if mode == OptimiserMode::Indirect {
-            let mut ind = crate::indirect::Indirect::new(scn).map_err(Failure::Setup)?;
+            let mut ind =
+                crate::indirect::Indirect::new(scn).map_err(|e| Failure::Setup(e.to_string()))?;
             if let Some((version, params)) = last() {
                 ind.resume(version, params);
             }
@@ -222,7 +223,8 @@ impl<'a> Serve<'a> {
             serve.live = Some(l);
         }
         if mode == OptimiserMode::Direct {
-            let mut tuner = crate::direct::DirectTuner::new(scn).map_err(Failure::Setup)?;
+            let mut tuner =
+                crate::direct::DirectTuner::new(scn).map_err(|e| Failure::Setup(e.to_string()))?;
             if let Some((version, _)) = last() {
                 tuner.resume(version);
             }

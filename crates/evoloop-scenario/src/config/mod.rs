@@ -23,7 +23,7 @@ pub use optimiser::{
     Expect, OptimiserMode, OptimiserSpec, ScheduledSet, SetKind, WorkersKind, WorkersSpec,
     SAFE_BAYES_MODEL, WORKERS_WAIT_S,
 };
-pub use timing::{default_margin_us, parse_duration, Mode, Timing};
+pub use timing::{default_margin_us, parse_duration, DurationError, Mode, Timing};
 
 use crate::check::Check;
 use crate::control::{Controller, ParamBounds, RawController};
@@ -152,19 +152,19 @@ impl Scenario {
 
     /// An in-process simulation simulates the plant and keeps every sample, so it refuses a
     /// plant of the user's own and a run until stopped.
-    pub fn require_in_process(&self) -> Result<(), String> {
+    pub fn require_in_process(&self) -> Result<(), ConfigError> {
+        let check = Check::new(&self.source);
         if !self.simulated() {
-            return Err(format!(
-                "{}: plant.kind: \"external\" is simulated by its own process only: run it \
-                 with `evoloop run`",
-                self.source.display()
-            ));
+            return check.fail(
+                "plant.kind",
+                "\"external\" is simulated by its own process only: run it with `evoloop run`",
+            );
         }
         if self.timing.until_stopped() {
-            return Err(format!(
-                "{}: timing.duration: simulated in-process, the scenario needs a duration",
-                self.source.display()
-            ));
+            return check.fail(
+                "timing.duration",
+                "simulated in-process, the scenario needs a duration",
+            );
         }
         Ok(())
     }

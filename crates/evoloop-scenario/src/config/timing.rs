@@ -130,17 +130,31 @@ impl Timing {
 }
 
 /// `--duration`: seconds, or `forever` (also `inf`) for a run until it is stopped.
-pub fn parse_duration(s: &str) -> Result<f64, String> {
+pub fn parse_duration(s: &str) -> Result<f64, DurationError> {
     match s {
         "forever" | "inf" => Ok(f64::INFINITY),
         _ => match s.parse::<f64>() {
             Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-            _ => Err(format!(
-                "{s:?}: a number of seconds > 0, or `forever` (until Ctrl-C)"
-            )),
+            _ => Err(DurationError(s.to_string())),
         },
     }
 }
+
+/// A `--duration` that is neither a number of seconds > 0 nor `forever`: the text given.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DurationError(pub String);
+
+impl std::fmt::Display for DurationError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:?}: a number of seconds > 0, or `forever` (until Ctrl-C)",
+            self.0
+        )
+    }
+}
+
+impl std::error::Error for DurationError {}
 
 pub fn validate(t: RawTiming, check: &Check, ov: &Overrides) -> Result<Timing, ConfigError> {
     let period = check.range("timing.period", t.period, 1e-5, 10.0)?;

@@ -47,6 +47,7 @@ use crate::control::cycle::Envelope;
 use crate::msg::{ParamKind, ParamSet};
 use crate::optim::Optimiser;
 use crate::sim::cost::TrackingCost;
+use crate::SchemeError;
 use serde::Serialize;
 
 /// The direct scheme's settings, from the scenario's `[optimiser]` table.
@@ -323,12 +324,12 @@ const LAGS: usize = 17;
 impl DirectTuner {
     /// A tuner for the scenario: its optimiser over the controller's bounds, seeded with the
     /// scenario's seed. Validation has made sure the bounds are finite.
-    pub fn new(scn: &Scenario) -> Result<Self, String> {
+    pub fn new(scn: &Scenario) -> Result<Self, SchemeError> {
         Ok(Self::with_optimiser(scn, Self::optimiser(scn)?))
     }
 
     /// The scenario's optimiser (`optimiser.algorithm`) over the controller's bounds.
-    fn optimiser(scn: &Scenario) -> Result<Box<dyn Optimiser + Send>, String> {
+    fn optimiser(scn: &Scenario) -> Result<Box<dyn Optimiser + Send>, SchemeError> {
         let spec = DirectSpec::of(scn);
         let b = scn.bounds();
         let configured = scn.controller.tunable().gains.clone();
@@ -345,7 +346,7 @@ impl DirectTuner {
         if model_informed {
             let prior = model::ModelTrials::new(scn)?;
             let bayes = crate::optim::by_name::bayes(true, &b.lower, &b.upper, spec.seed, &seeds)
-                .map_err(|e| e.to_string())?;
+                .map_err(SchemeError::Settings)?;
             return Ok(Box::new(
                 bayes.with_prior(Box::new(prior)).with_stop(model::STOP_EI),
             ));
@@ -379,7 +380,7 @@ impl DirectTuner {
                 spec.seed,
                 &seeds,
             )
-            .map_err(|e| e.to_string())?
+            .map_err(SchemeError::Optimiser)?
         };
         Ok(opt)
     }
@@ -915,7 +916,7 @@ pub struct InProcess {
 pub fn run_in_process(
     scn: &Scenario,
     progress: impl FnMut(usize, f64),
-) -> Result<InProcess, String> {
+) -> Result<InProcess, SchemeError> {
     run_tuner_in_process(scn, DirectTuner::new(scn)?, progress)
 }
 
@@ -924,8 +925,9 @@ pub fn run_tuner_in_process(
     scn: &Scenario,
     tuner: DirectTuner,
     progress: impl FnMut(usize, f64),
-) -> Result<InProcess, String> {
-    scn.require_in_process()?;
+) -> Result<InProcess, SchemeError> {
+    scn.require_in_process()
+        .map_err(SchemeError::NotInProcess)?;
     struct Hook<P> {
         tuner: DirectTuner,
         n: usize,

@@ -28,6 +28,7 @@ use crate::config::Scenario;
 use crate::optim::bayes::{Prediction, PriorMean};
 use crate::plant::lti::LtiSpec;
 use crate::plant::PlantModel;
+use crate::SchemeError;
 
 /// The stop rule of `safe_bayes_model` (`Bayes::with_stop`): once no proposal predicted safe
 /// has an expected improvement in ln(cost) of 1e-5 (0.001 %), another experiment on the plant is
@@ -49,7 +50,7 @@ impl ModelTrials {
     /// The scenario's trials on its nominal model (validation requires one for this algorithm):
     /// `[optimiser.nominal_plant]`, or `[optimiser.model]`'s transfer function; without the
     /// plant's noise.
-    pub fn new(scn: &Scenario) -> Result<Self, String> {
+    pub fn new(scn: &Scenario) -> Result<Self, SchemeError> {
         let mut model = scn.clone();
         match (&scn.optimiser.nominal_plant, &scn.optimiser.model) {
             (Some(nominal), _) => model.plant = nominal.clone(),
@@ -59,21 +60,18 @@ impl ModelTrials {
                     .model
                     .config()
                     .scalar_input()
-                    .ok_or("a transfer function models a plant with one input and one output")?
+                    .ok_or(SchemeError::NotSiso("a transfer function"))?
                     .range;
                 let lti = LtiSpec::from_transfer_function(
                     &prior.num,
                     &prior.den,
                     scn.timing.period,
                     range,
-                )?;
+                )
+                .map_err(SchemeError::NominalModel)?;
                 model.plant.model = PlantModel::Lti(lti);
             }
-            (None, None) => {
-                return Err("safe_bayes_model needs the plant's nominal model: \
-                            [optimiser.nominal_plant] or [optimiser.model] num, den"
-                    .into())
-            }
+            (None, None) => return Err(SchemeError::NoNominalModel),
         }
         model.plant.noise_std = 0.0;
         let alternatives = scn

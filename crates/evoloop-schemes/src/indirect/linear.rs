@@ -63,13 +63,13 @@ const SETTLE_TIME_CONSTANTS: f64 = 20.0;
 pub fn scheme(
     scn: &Scenario,
     prior: &ModelPrior,
-) -> Result<(LinearEstimator, LinearTuner), String> {
+) -> Result<(LinearEstimator, LinearTuner), crate::SchemeError> {
     let range = scn
         .plant
         .model
         .config()
         .scalar_input()
-        .ok_or("the indirect scheme takes a plant with one input and one output")?
+        .ok_or(crate::SchemeError::NotSiso("the indirect scheme"))?
         .range;
     // The filters start exactly at rest on an lti plant that starts at rest; anything else
     // (an initial state, a plant of the user's own) waits for their start transient.

@@ -10,6 +10,7 @@ pub mod stability_radius;
 pub mod study;
 
 pub use lqr::{lqr, LqrError, LqrSolution};
-pub use pole_region::Wedge;
+pub use observer::ObserverError;
+pub use pole_region::{Wedge, WedgeError};
 pub use problem::{augmented, Perturbation, RobustProblem};
 pub use stability_radius::{hinf_norm, stability_radius, HinfError};

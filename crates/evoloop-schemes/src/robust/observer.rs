@@ -14,7 +14,7 @@
 //!   stable springs must contain what r_c guarantees: a spring change δ is the perturbation
 //!   δ [[-1, 1], [1, -1]] of norm 2|δ|, so |δ| < r_c / 2 keeps the loop stable.
 
-use crate::control::estimator::{KalmanDesign, KalmanGains};
+use crate::control::estimator::{KalmanDesign, KalmanError, KalmanGains};
 use crate::linalg::eig;
 use crate::plant::linear::LinearModel;
 use nalgebra::DMatrix;
@@ -36,6 +36,45 @@ pub struct Observer {
     pub h_loop: DMatrix<f64>,
 }
 
+/// Why `Observer::new` gives no filter to compute r_c with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ObserverError {
+    /// The Kalman design gives no filter for the model at the period.
+    Kalman(KalmanError),
+    /// The sampled filter's continuous equivalent L/T has this error pole in the right
+    /// half-plane at this period (s): r_c of the loop with it is not defined.
+    ContinuousUnstable {
+        /// The sampling period, s.
+        period: f64,
+        /// The error pole, Re >= 0.
+        pole: nalgebra::Complex<f64>,
+    },
+}
+
+impl std::fmt::Display for ObserverError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ObserverError::Kalman(e) => write!(f, "no Kalman filter for this plant: {e}"),
+            ObserverError::ContinuousUnstable { period, pole } => write!(
+                f,
+                "the filter's continuous equivalent L/T at period {period} s has an error pole \
+                 at {:.4} {:+.4}j, not in the left half-plane: r_c of the loop with it is not \
+                 defined (a shorter period or a slower filter)",
+                pole.re, pole.im
+            ),
+        }
+    }
+}
+
+impl std::error::Error for ObserverError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ObserverError::Kalman(e) => Some(e),
+            ObserverError::ContinuousUnstable { .. } => None,
+        }
+    }
+}
+
 impl Observer {
     /// The filter `design` gives for the continuous `model` sampled every `period` s, in the
     /// loop of the augmented open loop perturbed by E Δ H.
@@ -44,8 +83,8 @@ impl Observer {
         (e, h): (&DMatrix<f64>, &DMatrix<f64>),
         design: KalmanDesign,
         period: f64,
-    ) -> Result<Self, String> {
-        let filter = design.gains(model, period).map_err(|e| e.to_string())?;
+    ) -> Result<Self, ObserverError> {
+        let filter = design.gains(model, period).map_err(ObserverError::Kalman)?;
         let n = model.n();
         let l_c = DMatrix::from_fn(n, 1, |i, _| filter.l[i] / period);
         let (e_loop, h_loop) = pad_perturbation(e, h, n);
@@ -60,12 +99,7 @@ impl Observer {
         // The sampled filter is stable by its design; its continuous equivalent, on which r_c
         // is computed, need not be at a long period. Refused then, not scored.
         if let Some(p) = observer.error_poles(model).iter().find(|p| p.re >= 0.0) {
-            return Err(format!(
-                "the filter's continuous equivalent L/T at period {period} s has an error pole \
-                 at {:.4} {:+.4}j, not in the left half-plane: r_c of the loop with it is not \
-                 defined (a shorter period or a slower filter)",
-                p.re, p.im
-            ));
+            return Err(ObserverError::ContinuousUnstable { period, pole: *p });
         }
         Ok(observer)
     }

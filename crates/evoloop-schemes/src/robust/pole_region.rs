@@ -15,14 +15,34 @@ pub struct Wedge {
     pub rho: f64,
 }
 
+/// Why `Wedge::new` makes no wedge: the value refused.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WedgeError {
+    /// The damping ratio is not in (0, 1).
+    Zeta(f64),
+    /// The decay rate is not finite and above 0.
+    Rho(f64),
+}
+
+impl std::fmt::Display for WedgeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            WedgeError::Zeta(z) => write!(f, "zeta must be in (0, 1) (got {z})"),
+            WedgeError::Rho(r) => write!(f, "rho must be > 0 (got {r})"),
+        }
+    }
+}
+
+impl std::error::Error for WedgeError {}
+
 impl Wedge {
     /// The wedge for `zeta` and `rho`; an error unless zeta is in (0, 1) and rho finite and > 0.
-    pub fn new(zeta: f64, rho: f64) -> Result<Self, String> {
+    pub fn new(zeta: f64, rho: f64) -> Result<Self, WedgeError> {
         if !(zeta > 0.0 && zeta < 1.0) {
-            return Err(format!("zeta must be in (0, 1) (got {zeta})"));
+            return Err(WedgeError::Zeta(zeta));
         }
         if !(rho > 0.0 && rho.is_finite()) {
-            return Err(format!("rho must be > 0 (got {rho})"));
+            return Err(WedgeError::Rho(rho));
         }
         Ok(Self { zeta, rho })
     }

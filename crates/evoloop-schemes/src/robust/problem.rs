@@ -146,7 +146,7 @@ impl RobustProblem {
         mut self,
         design: crate::control::estimator::KalmanDesign,
         period: f64,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, super::observer::ObserverError> {
         let model = self.nominal_model();
         self.observer = Some(Observer::new(&model, (&self.e, &self.h), design, period)?);
         Ok(self)
