@@ -4,13 +4,16 @@ use crate::check::ConfigError;
 use crate::optim::by_name::BuildError;
 use crate::optim::settings::SettingsError;
 
-/// Why `DirectTuner::new`, `direct::run_in_process` or `Indirect::new` refuses a scenario.
+/// Why a scheme refuses a scenario: `DirectTuner::new`, `direct::run_in_process` and
+/// `run_tuner_in_process`, `direct::model::ModelTrials::new`, `Indirect::new` and the general
+/// indirect scheme (`indirect::linear::scheme`).
 #[derive(Debug, Clone, PartialEq)]
 pub enum SchemeError {
     /// The scenario cannot be simulated in this process: a plant of the user's own, or a run
     /// until stopped (`Scenario::require_in_process`'s file, key and reason).
     NotInProcess(ConfigError),
-    /// This scheme needs a plant with one input and one output; the plant has more.
+    /// The plant has more than one input or output, and this part needs one of each: the
+    /// sentence that says which.
     NotSiso(&'static str),
     /// The indirect optimiser has no model of this plant under this controller.
     NoIndirectModel,
@@ -28,9 +31,7 @@ impl std::fmt::Display for SchemeError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             SchemeError::NotInProcess(e) => e.fmt(f),
-            SchemeError::NotSiso(what) => {
-                write!(f, "{what} takes a plant with one input and one output")
-            }
+            SchemeError::NotSiso(sentence) => f.write_str(sentence),
             SchemeError::NoIndirectModel => f.write_str(
                 "the indirect optimiser drives the maglev under a PID, the two-mass plant under \
                  state feedback, or an lti or external plant under a PID",
@@ -39,7 +40,7 @@ impl std::fmt::Display for SchemeError {
                 "safe_bayes_model needs the plant's nominal model: [optimiser.nominal_plant] or \
                  [optimiser.model] num, den",
             ),
-            SchemeError::NominalModel(reason) => write!(f, "the nominal model: {reason}"),
+            SchemeError::NominalModel(reason) => f.write_str(reason),
             SchemeError::Optimiser(e) => e.fmt(f),
             SchemeError::Settings(e) => e.fmt(f),
         }

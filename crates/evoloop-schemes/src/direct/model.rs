@@ -60,7 +60,9 @@ impl ModelTrials {
                     .model
                     .config()
                     .scalar_input()
-                    .ok_or(SchemeError::NotSiso("a transfer function"))?
+                    .ok_or(SchemeError::NotSiso(
+                        "a transfer function models a plant with one input and one output",
+                    ))?
                     .range;
                 let lti = LtiSpec::from_transfer_function(
                     &prior.num,

@@ -69,7 +69,9 @@ pub fn scheme(
         .model
         .config()
         .scalar_input()
-        .ok_or(crate::SchemeError::NotSiso("the indirect scheme"))?
+        .ok_or(crate::SchemeError::NotSiso(
+            "the indirect scheme takes a plant with one input and one output",
+        ))?
         .range;
     // The filters start exactly at rest on an lti plant that starts at rest; anything else
     // (an initial state, a plant of the user's own) waits for their start transient.
