@@ -1020,12 +1020,7 @@ fn safe_bayes_model_believes_the_least_margin_its_models_tolerance_allows() {
 #[test]
 fn the_schemes_refuse_a_scenario_with_its_cause() {
     use evoloop::SchemeError;
-    let shipped = |name: &str, ov: &Overrides| {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("config")
-            .join(name);
-        Scenario::load(&path, ov).unwrap()
-    };
+    let shipped = |name: &str, ov: &Overrides| Scenario::load(&config(name), ov).unwrap();
     // In this process a run needs an end: the file, the key and the reason.
     let forever = Overrides {
         duration: Some(f64::INFINITY),

@@ -7,7 +7,7 @@ use evoloop_optim::{run, DeConfig, DifferentialEvolution, Optimiser};
 use evoloop_schemes::robust::observer::command_noise;
 use evoloop_schemes::robust::problem::{Perturbation, RobustProblem};
 use evoloop_schemes::robust::study::{lqr_gains, study};
-use evoloop_schemes::robust::{Wedge, WedgeError};
+use evoloop_schemes::robust::Wedge;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -238,10 +238,8 @@ fn problem(
     if !(bound > 0.0 && bound.is_finite()) {
         return Err(format!("--bound must be > 0 (got {bound})"));
     }
-    let wedge = Wedge::new(w.zeta, w.rho).map_err(|e| match e {
-        WedgeError::Zeta(z) => format!("--zeta must be in (0, 1) (got {z})"),
-        WedgeError::Rho(r) => format!("--rho must be > 0 (got {r})"),
-    })?;
+    // The wedge's message names its parameter first: the flag is that name after `--`.
+    let wedge = Wedge::new(w.zeta, w.rho).map_err(|e| format!("--{e}"))?;
     let sensor = if plant.collocated {
         Sensor::Actuated
     } else {

@@ -59,10 +59,11 @@ impl std::fmt::Display for Answer {
 /// The values in service and the sets awaiting an answer; `R` is what the asker needs to get
 /// its answer back (a viewer's request id and queue, nothing for a topic).
 pub struct Gains<R> {
-    /// Only where sets may be sent.
+    /// Only where sets may be sent: no optimiser publishes (`mode` off).
     out: Option<Pub<ParamSet>>,
-    /// Whether sets may be sent (no optimiser publishes), else why not.
-    settable: Result<(), SetError>,
+    /// The run's optimiser mode and who asks to set values (`what`), for a refusal's reason.
+    mode: OptimiserMode,
+    what: String,
     kind: ParamKind,
     /// The values in service (by the controller's telemetry), its version and the newest
     /// version seen; the values of the latest sets seen on the params topic, to know a
@@ -84,7 +85,7 @@ struct Pending<R> {
 }
 
 /// Why `Gains::set` sends no set.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub enum SetError {
     /// This run's optimiser (in this mode) numbers the parameter sets: `what` (the bridge
     /// that asked) may set them only when it publishes none.
@@ -102,7 +103,7 @@ pub enum SetError {
         got: usize,
     },
     /// The params topic did not take the set.
-    NotSent(std::sync::Arc<IpcError>),
+    NotSent(IpcError),
 }
 
 impl std::fmt::Display for SetError {
@@ -124,7 +125,7 @@ impl std::fmt::Display for SetError {
 impl std::error::Error for SetError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            SetError::NotSent(e) => Some(e.as_ref()),
+            SetError::NotSent(e) => Some(e),
             _ => None,
         }
     }
@@ -142,14 +143,8 @@ impl<R> Gains<R> {
             } else {
                 None
             },
-            settable: if off {
-                Ok(())
-            } else {
-                Err(SetError::OptimiserPublishes {
-                    mode: scn.optimiser.mode,
-                    what: what.to_string(),
-                })
-            },
+            mode: scn.optimiser.mode,
+            what: what.to_string(),
             kind: cfg.param_kind(),
             values: cfg.tunable().gains.clone(),
             in_service: 0,
@@ -217,17 +212,18 @@ impl<R> Gains<R> {
     /// Send `values` to the controller; `reply` comes back with its answer. Refused here, with
     /// the reason, when sets may not be sent or the count is not the controller's.
     pub fn set(&mut self, values: Vec<f64>, reply: R) -> Result<u64, (R, SetError)> {
-        if let Err(why) = &self.settable {
-            return Err((reply, why.clone()));
-        }
+        let Some(out) = &self.out else {
+            let (mode, what) = (self.mode, self.what.clone());
+            return Err((reply, SetError::OptimiserPublishes { mode, what }));
+        };
         if values.len() != self.values.len() {
             let (takes, got) = (self.values.len(), values.len());
             return Err((reply, SetError::Count { takes, got }));
         }
         let version = self.newest + 1;
         let set = ParamSet::new(version, 0, self.kind, &values);
-        if let Some(Err(e)) = self.out.as_ref().map(|p| p.send(&set)) {
-            return Err((reply, SetError::NotSent(std::sync::Arc::new(e))));
+        if let Err(e) = out.send(&set) {
+            return Err((reply, SetError::NotSent(e)));
         }
         self.newest = version;
         self.pending.push(Pending {

@@ -540,9 +540,9 @@ pub fn identify(
     let layout = Layout::new(d.n, s.counts);
     let probes = region_probes(&train, s.probes);
     let (x0, s0) = initial(&layout, &train, prior);
-    let mut weighed = false;
-    let (mut x0, mut s0) = match s.start {
-        Start::Random => (x0, s0),
+    // Whether the least squares weighed the joints' equations (`Settings::weighing`).
+    let (mut x0, mut s0, weighed) = match s.start {
+        Start::Random => (x0, s0, false),
         Start::LeastSquares => {
             let full = data.window(0, ((split - 1) * s.stride.max(1) + 1).min(data.len()));
             if full.len() < 2 * full.trim() + MIN_ROWS * s.stride.max(1) {
@@ -558,9 +558,8 @@ pub fn identify(
                 "the least-squares start found no model with a positive definite M-hat \
                      (give --start random)",
             )?;
-            weighed = w;
             let x = refine_start(&layout, x, &train, &probes, prior, s);
-            (x, s0.iter().map(|v| v * LS_SIGMA).collect())
+            (x, s0.iter().map(|v| v * LS_SIGMA).collect(), w)
         }
     };
     // A known servo is not searched, whatever the start: its gains are the given ones.

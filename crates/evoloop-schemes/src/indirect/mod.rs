@@ -484,66 +484,82 @@ pub struct Indirect {
     check: Option<LawCheck>,
 }
 
+/// A scheme's two halves: the plant's estimator and the tuner working on its estimate.
+type Halves = (Box<dyn Estimator>, Box<dyn Tuner>);
+
+/// The estimator and tuner for the scenario's plant and controller: the maglev under a PID, the
+/// two-mass plant under state feedback, any other single-input plant with `[optimiser.model]`
+/// under the general scheme.
+fn scheme(scn: &crate::config::Scenario) -> Result<Halves, SchemeError> {
+    Ok(match (&scn.plant.model, &scn.controller.model) {
+        (PlantModel::Maglev(plant), ControllerModel::Pid(pid)) => {
+            let (estimator, tuner) = maglev_scheme(scn, plant, pid.anti_windup);
+            (Box::new(estimator), Box::new(tuner))
+        }
+        (PlantModel::TwoMass(plant), ControllerModel::StateFeedback(sf)) => {
+            let (estimator, tuner) = two_mass::scheme(scn, plant, &sf.tunable);
+            (Box::new(estimator), Box::new(tuner))
+        }
+        _ => match &scn.optimiser.model {
+            // Any other linear single-input plant: the general scheme.
+            Some(prior) => {
+                let (estimator, tuner) = linear::scheme(scn, prior)?;
+                (Box::new(estimator), Box::new(tuner))
+            }
+            None => return Err(SchemeError::NoIndirectModel),
+        },
+    })
+}
+
+/// The maglev's scheme: its estimator and the GA tuning the fuzzy anti-windup PID (`aw`) on the
+/// nominal plant.
+fn maglev_scheme(
+    scn: &crate::config::Scenario,
+    plant: &MaglevParams,
+    aw: AntiWindup,
+) -> (MaglevEstimator, MaglevTuner) {
+    let o = &scn.optimiser;
+    // The model starts from the nominal plant: it does not know the true schedule.
+    let nominal = MaglevParams {
+        mass_steps: Vec::new(),
+        ..plant.clone()
+    };
+    // Candidates are scored on the second repetition of the reference, which starts where the
+    // first left the loop, as every repetition after the first does on the plant. Scored from
+    // rest instead (the start-up transient included), the sets it publishes cost more on the
+    // plant than the frozen one before its change: +0.40 % [+0.34, +0.47] over seeds 1-10 in
+    // lockstep, against -0.99 % [-1.02, -0.96] scored this way (and -0.73 % against -0.57 %
+    // after the change).
+    let (duration, score_from) = match &scn.reference {
+        Reference::Square { period, start, .. } => (start + 2.0 * period, start + period),
+        _ => (scn.timing.duration.min(5.0), 0.0),
+    };
+    let mut tuner = MaglevTuner::new(
+        Spec {
+            plant: nominal.clone(),
+            period: scn.timing.period,
+            step: scn.plant.step,
+            noise_mm: scn.plant.noise_std,
+            duration,
+            reference: scn.reference.clone(),
+            score_from,
+        },
+        aw,
+        scn.seed,
+    );
+    tuner.threads = o.threads;
+    tuner.epoch_evaluations = o.epoch_evaluations;
+    tuner.margin = o.margin;
+    let estimator = MaglevEstimator::new(nominal, scn.timing.period, 10, 0.995);
+    (estimator, tuner)
+}
+
 impl Indirect {
     /// The scheme for the scenario's plant and controller: the maglev under a PID (GA on the
     /// fuzzy anti-windup PID's parameters) or the two-mass under state feedback (DE on K).
     pub fn new(scn: &crate::config::Scenario) -> Result<Self, SchemeError> {
         let o = &scn.optimiser;
-        let (estimator, tuner): (Box<dyn Estimator>, Box<dyn Tuner>) =
-            match (&scn.plant.model, &scn.controller.model) {
-                (PlantModel::Maglev(plant), ControllerModel::Pid(pid)) => {
-                    let aw = pid.anti_windup;
-                    // The model starts from the nominal plant: it does not know the true schedule.
-                    let nominal = MaglevParams {
-                        mass_steps: Vec::new(),
-                        ..plant.clone()
-                    };
-                    // Candidates are scored on the second repetition of the reference, which starts
-                    // where the first left the loop, as every repetition after the first does on the
-                    // plant. Scored from rest instead (the start-up transient included), the sets it
-                    // publishes cost more on the plant than the frozen one before its change: +0.40 %
-                    // [+0.34, +0.47] over seeds 1-10 in lockstep, against -0.99 % [-1.02, -0.96]
-                    // scored this way (and -0.73 % against -0.57 % after the change).
-                    let (duration, score_from) = match &scn.reference {
-                        Reference::Square { period, start, .. } => {
-                            (start + 2.0 * period, start + period)
-                        }
-                        _ => (scn.timing.duration.min(5.0), 0.0),
-                    };
-                    let mut tuner = MaglevTuner::new(
-                        Spec {
-                            plant: nominal.clone(),
-                            period: scn.timing.period,
-                            step: scn.plant.step,
-                            noise_mm: scn.plant.noise_std,
-                            duration,
-                            reference: scn.reference.clone(),
-                            score_from,
-                        },
-                        aw,
-                        scn.seed,
-                    );
-                    tuner.threads = o.threads;
-                    tuner.epoch_evaluations = o.epoch_evaluations;
-                    tuner.margin = o.margin;
-                    (
-                        Box::new(MaglevEstimator::new(nominal, scn.timing.period, 10, 0.995)),
-                        Box::new(tuner),
-                    )
-                }
-                (PlantModel::TwoMass(plant), ControllerModel::StateFeedback(sf)) => {
-                    let (estimator, tuner) = two_mass::scheme(scn, plant, &sf.tunable);
-                    (Box::new(estimator), Box::new(tuner))
-                }
-                _ => match &o.model {
-                    // Any other linear single-input plant: the general scheme.
-                    Some(prior) => {
-                        let (estimator, tuner) = linear::scheme(scn, prior)?;
-                        (Box::new(estimator), Box::new(tuner))
-                    }
-                    None => return Err(SchemeError::NoIndirectModel),
-                },
-            };
+        let (estimator, tuner) = scheme(scn)?;
         Ok(Self {
             margin: tuner.margin(),
             epoch_evaluations: tuner.epoch_evaluations(),

@@ -15,7 +15,8 @@ pub struct Wedge {
     pub rho: f64,
 }
 
-/// Why `Wedge::new` makes no wedge: the value refused.
+/// Why `Wedge::new` makes no wedge: the value refused. Its message begins with the parameter's
+/// name (`zeta must ...`, `rho must ...`), which the command line's flags share.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum WedgeError {
     /// The damping ratio is not in (0, 1).
