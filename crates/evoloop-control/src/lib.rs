@@ -10,6 +10,7 @@
 
 pub mod check;
 pub mod control;
+pub mod filter;
 pub mod fuzzy;
 pub mod plant;
 pub mod reference;

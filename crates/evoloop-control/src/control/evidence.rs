@@ -33,6 +33,7 @@
 //! inherits the slot's evidence, which its own residuals replace over the memory: the weights
 //! do not jump when it arrives.
 
+use crate::filter::{Svf, SvfDesign};
 use crate::MAX_JOINTS;
 use evoloop_rkgnn::RkgnnModel;
 
@@ -47,45 +48,19 @@ const EVALUATION_PERIOD: f64 = 0.001;
 /// The filter's start-up is this many time constants 1/lambda: no evidence before.
 const WARMUP_TIME_CONSTANTS: f64 = 10.0;
 
-/// A critically damped second-order state-variable filter discretised exactly for an input
-/// held over each period: x = [F v, (F v)'].
+/// The residuals' filter: the state-variable filter lambda^2 / (s + lambda)^2 (critically
+/// damped), its input held over each period; its states are [F v, (F v)'].
 ///
 /// (F v)'' is taken as the change of (F v)' over the period divided by it: the mean over the
-/// period. The filter equation's value at the sample, lambda^2 (v - F v) - 2 lambda (F v)',
-/// would carry the staircase's ripple, lambda^2 times half a step of v: at 1 kHz and lambda =
-/// 50 rad/s, about 1 rad/s^2 for a joint moving at 1 rad/s, more than a poor model's error.
-#[derive(Debug, Clone, Copy)]
-struct Filter {
-    period: f64,
-    phi: [[f64; 2]; 2],
-    gamma: [f64; 2],
-}
+/// period (`mean_acceleration`). The filter equation's value at the sample, lambda^2 (v - F v) -
+/// 2 lambda (F v)', would carry the staircase's ripple, lambda^2 times half a step of v: at 1 kHz
+/// and lambda = 50 rad/s, about 1 rad/s^2 for a joint moving at 1 rad/s, more than a poor model's
+/// error.
+type Filter = SvfDesign<2>;
 
-impl Filter {
-    fn new(lambda: f64, period: f64) -> Self {
-        let lh = lambda * period;
-        let e = (-lh).exp();
-        // exp(A h) for A = [[0, 1], [-lambda^2, -2 lambda]].
-        let phi = [
-            [e * (1.0 + lh), e * period],
-            [-e * lambda * lh, e * (1.0 - lh)],
-        ];
-        // A held input u settles at x = [u, 0]: gamma = (I - phi) [1, 0]^T (unit DC gain).
-        let gamma = [1.0 - phi[0][0], -phi[1][0]];
-        Self { period, phi, gamma }
-    }
-
-    /// Advance one period with `v` held over it.
-    fn step(&self, x: &mut [f64; 2], v: f64) {
-        let [a, b] = *x;
-        x[0] = self.phi[0][0] * a + self.phi[0][1] * b + self.gamma[0] * v;
-        x[1] = self.phi[1][0] * a + self.phi[1][1] * b + self.gamma[1] * v;
-    }
-
-    /// The mean of (F v)'' over the period from state `before` to `now`.
-    fn mean_acceleration(&self, before: &[f64; 2], now: &[f64; 2]) -> f64 {
-        (now[1] - before[1]) / self.period
-    }
+/// The mean of (F v)'' over the period from state `before` to `now`.
+fn mean_acceleration(filter: &Filter, before: &Svf<2>, now: &Svf<2>) -> f64 {
+    (now.derivative(filter, 1) - before.derivative(filter, 1)) / filter.period()
 }
 
 /// The evidence of up to `MAX_MODELS` models on `n` joints.
@@ -93,10 +68,10 @@ pub struct Evidence {
     filter: Filter,
     n: usize,
     /// Filtered positions and torques, [F v, (F v)'] per joint, now and one period before.
-    y: [[f64; 2]; MAX_JOINTS],
-    tau: [[f64; 2]; MAX_JOINTS],
-    y_before: [[f64; 2]; MAX_JOINTS],
-    tau_before: [[f64; 2]; MAX_JOINTS],
+    y: [Svf<2>; MAX_JOINTS],
+    tau: [Svf<2>; MAX_JOINTS],
+    y_before: [Svf<2>; MAX_JOINTS],
+    tau_before: [Svf<2>; MAX_JOINTS],
     /// The positions of the last sample, and its sequence number.
     y_last: [f64; MAX_JOINTS],
     seq_last: Option<u64>,
@@ -121,10 +96,10 @@ impl Evidence {
         Self {
             filter: Filter::new(lambda, period),
             n,
-            y: [[0.0; 2]; MAX_JOINTS],
-            tau: [[0.0; 2]; MAX_JOINTS],
-            y_before: [[0.0; 2]; MAX_JOINTS],
-            tau_before: [[0.0; 2]; MAX_JOINTS],
+            y: [Svf::default(); MAX_JOINTS],
+            tau: [Svf::default(); MAX_JOINTS],
+            y_before: [Svf::default(); MAX_JOINTS],
+            tau_before: [Svf::default(); MAX_JOINTS],
             y_last: [0.0; MAX_JOINTS],
             seq_last: None,
             e: [[0.0; MAX_JOINTS]; MAX_MODELS],
@@ -165,8 +140,8 @@ impl Evidence {
         if self.k == 0 {
             // At rest on this sample: no step into the filter.
             for j in 0..n {
-                self.y[j] = [y[j], 0.0];
-                self.tau[j] = [tau[j], 0.0];
+                self.y[j] = Svf::at_rest(y[j]);
+                self.tau[j] = Svf::at_rest(tau[j]);
                 self.y_last[j] = y[j];
             }
         }
@@ -175,8 +150,8 @@ impl Evidence {
         for j in 0..n {
             let mid = 0.5 * (y[j] + self.y_last[j]);
             self.y_last[j] = y[j];
-            self.filter.step(&mut self.y[j], mid);
-            self.filter.step(&mut self.tau[j], tau[j]);
+            self.y[j].held(&self.filter, mid);
+            self.tau[j].held(&self.filter, tau[j]);
         }
         let turn = (self.k % self.stride) as usize;
         self.k += 1;
@@ -194,10 +169,13 @@ impl Evidence {
         let mut x = [0.0; 2 * MAX_JOINTS];
         let mut acc = [0.0; MAX_JOINTS];
         for j in 0..n {
-            let mid = |now: [f64; 2], before: [f64; 2], d: usize| 0.5 * (now[d] + before[d]);
-            x[j] = mid(self.y[j], self.y_before[j], 0);
-            x[n + j] = mid(self.y[j], self.y_before[j], 1);
-            acc[j] = mid(self.tau[j], self.tau_before[j], 0);
+            let f = &self.filter;
+            let mid = |now: &Svf<2>, before: &Svf<2>, d: usize| {
+                0.5 * (now.derivative(f, d) + before.derivative(f, d))
+            };
+            x[j] = mid(&self.y[j], &self.y_before[j], 0);
+            x[n + j] = mid(&self.y[j], &self.y_before[j], 1);
+            acc[j] = mid(&self.tau[j], &self.tau_before[j], 0);
         }
         // acc <- M-hat^-1 (tau - V-hat - G-hat): the model's acceleration for the torque.
         let net = &model.net;
@@ -210,7 +188,7 @@ impl Evidence {
             return;
         }
         let a2 = |j: usize| {
-            let qdd = self.filter.mean_acceleration(&self.y_before[j], &self.y[j]);
+            let qdd = mean_acceleration(&self.filter, &self.y_before[j], &self.y[j]);
             (acc[j] - qdd).powi(2)
         };
         if (0..n).any(|j| !a2(j).is_finite()) {
@@ -434,31 +412,32 @@ mod tests {
         // A ramp v = c t after the transient: F v = c (t - 2 / lambda), (F v)' = c, (F v)'' = 0.
         let (lambda, h, c) = (50.0, 1e-4, 0.7);
         let f = Filter::new(lambda, h);
-        let mut x = [0.0, 0.0];
+        let mut x = Svf::<2>::at_rest(0.0);
         let steps = 20_000;
-        let mut acc = 0.0;
+        let mut acc = 0.0f64;
         for k in 1..=steps {
             let before = x;
-            f.step(&mut x, c * k as f64 * h);
-            acc = f.mean_acceleration(&before, &x);
+            x.held(&f, c * k as f64 * h);
+            acc = mean_acceleration(&f, &before, &x);
         }
         assert!(acc.abs() < 1e-6, "{acc}");
         let t = steps as f64 * h;
         // (Each sample is held over the period it ends: within a period of the ramp.)
         let want = c * (t - 2.0 / lambda);
-        assert!((x[0] - want).abs() < c * h, "{} vs {want}", x[0]);
+        let (value, rate) = (x.derivative(&f, 0), x.derivative(&f, 1));
+        assert!((value - want).abs() < c * h, "{value} vs {want}");
         // (Within a period the staircase's slope ripples by about c (lambda h)^2.)
-        assert!((x[1] - c).abs() < 1e-5 * c, "{}", x[1]);
+        assert!((rate - c).abs() < 1e-5 * c, "{rate}");
         // A sine well inside the band: (F v)'' follows -w^2 sin within the filter's phase, at
-        // the middle of the period.
+        // the middle of the period (from rest: the start is forgotten long before t = 1 s).
         let w = 2.0;
-        let mut x = [0.0, 1.0 * w];
+        let mut x = Svf::<2>::at_rest(0.0);
         let mut worst: f64 = 0.0;
         for k in 1..=steps {
             let t = k as f64 * h;
             let before = x;
-            f.step(&mut x, (w * t).sin());
-            let acc = f.mean_acceleration(&before, &x);
+            x.held(&f, (w * t).sin());
+            let acc = mean_acceleration(&f, &before, &x);
             if t > 1.0 {
                 // F at w: magnitude 1 / (1 + (w/lambda)^2), phase -2 atan(w/lambda).
                 let phase = 2.0 * (w / lambda).atan();

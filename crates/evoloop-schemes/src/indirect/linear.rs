@@ -27,8 +27,8 @@
 //! rest; a set that the PID stability check (`LinearModel::stabilised_by_pid`) does not pass on
 //! the model with its input gain at each of `GAIN_CHECKED` times the estimate costs infinity.
 
-use super::svf::{Svf, SvfDesign};
 use super::{Candidate, Estimate, Estimator, Tuner};
+use super::{Svf, SvfDesign};
 use crate::config::{ModelPrior, Scenario};
 use crate::control::{Controller, ControllerSpec};
 use crate::msg::PlantState;

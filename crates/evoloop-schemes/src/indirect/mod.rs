@@ -745,7 +745,11 @@ impl Indirect {
 pub mod linear;
 pub mod rls;
 
-pub mod svf;
+/// The estimators' state-variable filter a^4 / (s + a)^4: s^4 F y is the highest derivative
+/// they use (its home: `evoloop_control::filter::svf`).
+type SvfDesign = crate::filter::SvfDesign<4>;
+type Svf = crate::filter::Svf<4>;
+
 pub mod two_mass;
 
 #[cfg(test)]

@@ -15,8 +15,8 @@
 //! off as 1/s^2, so the equation-error bias stays far below the tolerance of the tests.
 
 use super::rls::InformationRls;
-use super::svf::{Svf, SvfDesign};
 use super::{Candidate, Estimate, Estimator, Tuner};
+use super::{Svf, SvfDesign};
 use crate::check::Tunable;
 use crate::config::Scenario;
 use crate::control::estimator::{KalmanDesign, KalmanGains};
