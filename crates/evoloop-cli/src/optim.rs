@@ -6,6 +6,7 @@ use evoloop_optim::by_name::{self, ALGORITHMS};
 use evoloop_optim::peers::{self, Comparison, PeerRuns, Verdict};
 use evoloop_optim::problem::{self, Problem};
 use evoloop_optim::study::{self, Cell, Outcome, RunResult, SUBJECT};
+use evoloop_report::csv::{Csv, Sci};
 use evoloop_report::plot::{xy_png, Style, XySeries};
 use rayon::prelude::*;
 use serde_json::{json, Map, Value};
@@ -247,7 +248,10 @@ fn run_study(a: &StudyArgs) -> Result<(), String> {
         &a.out.join("results.json"),
         &serde_json::to_string_pretty(&results).unwrap_or_default(),
     )?;
-    write(&a.out.join("runs.csv"), &runs_csv(&s))?;
+    let runs = a.out.join("runs.csv");
+    runs_csv(&s)
+        .write(&runs)
+        .map_err(|e| format!("writing {}: {e}", runs.display()))?;
     let mut md = report_md(&s, &results, a);
     if let (Some(p), Some(c)) = (&peers, &comparisons) {
         peers_md(&mut md, p, c);
@@ -401,20 +405,28 @@ fn results_json(s: &StudyRuns, a: &StudyArgs, threads: usize, elapsed: f64) -> V
     })
 }
 
-fn runs_csv(s: &StudyRuns) -> String {
-    let mut out = String::from("function,algorithm,seed,best_value,error,evaluations\n");
+fn runs_csv(s: &StudyRuns) -> Csv {
+    let mut csv = Csv::new([
+        "function",
+        "algorithm",
+        "seed",
+        "best_value",
+        "error",
+        "evaluations",
+    ]);
     for (p, problem) in s.problems.iter().enumerate() {
         for (a, name) in s.algorithms.iter().enumerate() {
             for r in &s.runs[p][a] {
-                let _ = writeln!(
-                    out,
-                    "{},{name},{},{:e},{:e},{}",
-                    problem.key, r.seed, r.best_value, r.error, r.evaluations
-                );
+                csv.row()
+                    .put(&problem.key)
+                    .put(name)
+                    .put(r.seed)
+                    .all([Sci(r.best_value), Sci(r.error)])
+                    .put(r.evaluations);
             }
         }
     }
-    out
+    csv
 }
 
 /// The paper's Tables 4-6 and 8 (data/emupso_paper_tables.csv): (key, row) -> six values in

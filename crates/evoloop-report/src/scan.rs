@@ -101,7 +101,7 @@ impl Rows {
         self.header
             .iter()
             .enumerate()
-            .filter(|(_, h)| super::numbered(h, prefix))
+            .filter(|(_, h)| crate::csv::numbered(h, prefix))
             .map(|(i, h)| (h.clone(), i))
             .collect()
     }

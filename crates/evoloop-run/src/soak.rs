@@ -11,6 +11,7 @@
 //! It watches without touching the run: no iceoryx2 port, only /proc and the streamed file.
 
 use crate::msg::TELEMETRY_FLAG_OVERRUN;
+use crate::report::Csv;
 use crate::rt::timing::{Accumulator, Percentiles};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -309,31 +310,34 @@ pub fn drift(
 pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
     use crate::report::plot::{xy_png, Style, XySeries};
     crate::report::write_json(dir, "soak.json", r).map_err(|e| e.to_string())?;
-    let mut csv = String::from("interval,t_s");
-    for p in PROCESSES {
-        csv.push_str(&format!(",rss_kib_{p}"));
-    }
-    for p in PROCESSES {
-        csv.push_str(&format!(",anon_kib_{p}"));
-    }
-    csv.push_str(",cycles,missed_deadlines,overruns,lateness_p50_ns,lateness_p99_ns,lateness_p99_9_ns,lateness_max_ns\n");
+    let timing = [
+        "cycles",
+        "missed_deadlines",
+        "overruns",
+        "lateness_p50_ns",
+        "lateness_p99_ns",
+        "lateness_p99_9_ns",
+        "lateness_max_ns",
+    ];
+    let header = ["interval".to_string(), "t_s".to_string()]
+        .into_iter()
+        .chain(PROCESSES.iter().map(|p| format!("rss_kib_{p}")))
+        .chain(PROCESSES.iter().map(|p| format!("anon_kib_{p}")))
+        .chain(timing.map(String::from));
+    let mut csv = Csv::new(header);
     for i in &r.intervals {
-        csv.push_str(&format!("{},{}", i.index, i.t_s));
-        for m in [&i.rss_kib, &i.anon_kib] {
-            for p in PROCESSES {
-                match m.get(p) {
-                    Some(v) => csv.push_str(&format!(",{v}")),
-                    None => csv.push(','),
-                }
-            }
-        }
         let l = &i.lateness;
-        csv.push_str(&format!(
-            ",{},{},{},{},{},{},{}\n",
-            i.cycles, i.missed_deadlines, i.overruns, l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns
-        ));
+        // A process whose memory was not read in the interval: an empty field.
+        csv.row()
+            .put(i.index)
+            .put(i.t_s)
+            .all(PROCESSES.iter().map(|p| i.rss_kib.get(*p)))
+            .all(PROCESSES.iter().map(|p| i.anon_kib.get(*p)))
+            .all([i.cycles, i.missed_deadlines, i.overruns])
+            .all([l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns]);
     }
-    crate::files::write(dir.join("soak.csv"), csv).map_err(|e| e.to_string())?;
+    csv.write(&dir.join("soak.csv"))
+        .map_err(|e| e.to_string())?;
     let minutes: Vec<f64> = r.intervals.iter().map(|i| i.t_s / 60.0).collect();
     let rss: Vec<(String, Vec<f64>, Vec<f64>)> = PROCESSES
         .iter()

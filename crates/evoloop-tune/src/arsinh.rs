@@ -6,6 +6,7 @@ use crate::fuzzy::FuzzyNetwork;
 use crate::optim::hybrid::hybrid;
 use crate::report::plot::{heatmap_png, two_panel_png, xy_png, Panel, Series, Style, XySeries};
 use crate::report::progress::Optimisation;
+use crate::report::Csv;
 use serde_json::json;
 
 /// The paper's scaling factors after its optimisation.
@@ -86,21 +87,22 @@ pub fn run(run: Run) -> Result<(), String> {
         "rule_base": net.rule_table(),
     });
     crate::report::write_json(&run.out, "result.json", &result).map_err(|e| e.to_string())?;
-    let mut csv = String::from("evaluation,G,best_G\n");
+    let mut csv = Csv::new(["evaluation", "G", "best_G"]);
     for (i, (v, b)) in r.values.iter().zip(&r.best_so_far).enumerate() {
-        csv.push_str(&format!("{},{v},{b}\n", i + 1));
+        csv.row().put(i + 1).put(v).put(b);
     }
-    crate::files::write(run.out.join("evolution.csv"), csv).map_err(|e| e.to_string())?;
-    let mut tr = String::from("k,w,x_initial,x_optimised\n");
+    csv.write(&run.out.join("evolution.csv"))
+        .map_err(|e| e.to_string())?;
+    let mut tr = Csv::new(["k", "w", "x_initial", "x_optimised"]);
     for k in 0..trajectory.len() {
-        tr.push_str(&format!(
-            "{k},{},{},{}\n",
-            trajectory[k],
-            x0.get(k + 1).copied().unwrap_or(f64::NAN),
-            x1[k + 1]
-        ));
+        tr.row()
+            .put(k)
+            .put(trajectory[k])
+            .put(x0.get(k + 1).copied().unwrap_or(f64::NAN))
+            .put(x1[k + 1]);
     }
-    crate::files::write(run.out.join("tracking.csv"), tr).map_err(|e| e.to_string())?;
+    tr.write(&run.out.join("tracking.csv"))
+        .map_err(|e| e.to_string())?;
     if run.plots {
         plots(
             &run,

@@ -15,6 +15,7 @@
 //! experiment, median and quartiles over seeds).
 
 use crate::config::{Overrides, Scenario};
+use crate::report::Csv;
 use crate::stats::{median, wilcoxon};
 use serde::Serialize;
 use std::path::Path;
@@ -397,26 +398,33 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
 }
 
 fn write_csv(dir: &Path, runs: &[Run]) -> Result<(), String> {
-    let mut s = String::from(
-        "algorithm,seed,baseline_cost,final_cost,aborts,to_target,settle_repetitions,plant_seconds,to_best,wall_seconds\n",
-    );
+    let mut csv = Csv::new([
+        "algorithm",
+        "seed",
+        "baseline_cost",
+        "final_cost",
+        "aborts",
+        "to_target",
+        "settle_repetitions",
+        "plant_seconds",
+        "to_best",
+        "wall_seconds",
+    ]);
     for r in runs {
-        s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{}\n",
-            r.algorithm,
-            r.seed,
-            r.baseline_cost,
-            r.final_cost,
-            r.total_aborts(),
-            r.to_target.map_or(String::new(), |k| k.to_string()),
-            r.settle_repetitions,
-            r.plant_seconds,
-            r.to_best.map_or(String::new(), |k| k.to_string()),
-            r.wall_seconds,
-        ));
+        csv.row()
+            .put(&r.algorithm)
+            .put(r.seed)
+            .put(r.baseline_cost)
+            .put(r.final_cost)
+            .put(r.total_aborts())
+            .put(r.to_target)
+            .put(r.settle_repetitions)
+            .put(r.plant_seconds)
+            .put(r.to_best)
+            .put(r.wall_seconds);
     }
-    crate::files::write(dir.join("compare.csv"), s)
-        .map_err(|e| format!("{}: {e}", dir.join("compare.csv").display()))
+    csv.write(&dir.join("compare.csv"))
+        .map_err(|e| e.to_string())
 }
 
 fn q3(q: &[f64; 3], digits: usize) -> String {

@@ -12,6 +12,7 @@ use crate::optim::hybrid::hybrid;
 use crate::reference::Reference;
 use crate::report::plot::{two_panel_png, xy_png, Panel, Series, Style, XySeries};
 use crate::report::progress::Optimisation;
+use crate::report::Csv;
 pub use crate::sim::maglev::{
     default_reference, simulate, Cost, Objective, Spec, Trace, PAPER_FUZZY,
 };
@@ -215,23 +216,21 @@ pub fn run(run: Run, spec: Spec) -> Result<(), String> {
         );
         traces.push(tr);
     }
-    let mut csv = String::from("t,r");
+    let mut header = vec!["t".to_string(), "r".to_string()];
     for t in &tuned {
-        csv.push_str(&format!(",y_{0},u_{0}", t.anti_windup.name()));
+        let name = t.anti_windup.name();
+        header.extend([format!("y_{name}"), format!("u_{name}")]);
     }
-    csv.push('\n');
+    let mut csv = Csv::new(header);
+    let at = |v: &[f64], k: usize| v.get(k).copied().unwrap_or(f64::NAN);
     for k in 0..traces[0].t.len() {
-        csv.push_str(&format!("{},{}", traces[0].t[k], traces[0].r[k]));
-        for tr in &traces {
-            csv.push_str(&format!(
-                ",{},{}",
-                tr.y.get(k).copied().unwrap_or(f64::NAN),
-                tr.u.get(k).copied().unwrap_or(f64::NAN)
-            ));
-        }
-        csv.push('\n');
+        csv.row()
+            .put(traces[0].t[k])
+            .put(traces[0].r[k])
+            .all(traces.iter().flat_map(|tr| [at(&tr.y, k), at(&tr.u, k)]));
     }
-    crate::files::write(run.out.join("response.csv"), csv).map_err(|e| e.to_string())?;
+    csv.write(&run.out.join("response.csv"))
+        .map_err(|e| e.to_string())?;
     if run.plots {
         plots(&run, &tuned, &traces)?;
     }
@@ -439,7 +438,9 @@ pub fn comparison_sentence(
 fn tune_seeds(base: &Run, spec: &Spec, seeds: &[u64]) -> Result<Vec<Vec<Option<Cost>>>, String> {
     // costs[v][s]: None = lost the ball on the test run.
     let mut costs: Vec<Vec<Option<Cost>>> = vec![Vec::new(); STUDY_VARIANTS.len()];
-    let mut csv = String::from("seed,variant,G,error,current,holding,control,lost\n");
+    let mut csv = Csv::new([
+        "seed", "variant", "G", "error", "current", "holding", "control", "lost",
+    ]);
     let t0 = std::time::Instant::now();
     for (k, &seed) in seeds.iter().enumerate() {
         let mut hybrid = base.hybrid.clone();
@@ -454,18 +455,14 @@ fn tune_seeds(base: &Run, spec: &Spec, seeds: &[u64]) -> Result<Vec<Vec<Option<C
         };
         for (v, aw) in STUDY_VARIANTS.iter().enumerate() {
             let t = tune_variant(&run, spec, *aw);
-            match t.test {
-                Some(c) => csv.push_str(&format!(
-                    "{seed},{},{},{},{},{},{},0\n",
-                    aw.name(),
-                    c.g,
-                    c.g_error,
-                    c.g_current,
-                    c.g_holding,
-                    c.g_control
-                )),
-                None => csv.push_str(&format!("{seed},{},,,,,,1\n", aw.name())),
-            }
+            // A lost ball has no cost: empty fields and lost = 1.
+            let c = t.test.as_ref();
+            csv.row()
+                .put(seed)
+                .put(aw.name())
+                .all([c.map(|c| c.g), c.map(|c| c.g_error), c.map(|c| c.g_current)])
+                .all([c.map(|c| c.g_holding), c.map(|c| c.g_control)])
+                .put(c.is_none());
             costs[v].push(t.test);
         }
         if !base.json {
@@ -477,7 +474,8 @@ fn tune_seeds(base: &Run, spec: &Spec, seeds: &[u64]) -> Result<Vec<Vec<Option<C
             );
         }
     }
-    crate::files::write(base.out.join("seeds.csv"), &csv).map_err(|e| e.to_string())?;
+    csv.write(&base.out.join("seeds.csv"))
+        .map_err(|e| e.to_string())?;
     Ok(costs)
 }
 

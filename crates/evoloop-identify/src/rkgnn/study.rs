@@ -20,6 +20,7 @@ use crate::config::{Overrides, Scenario};
 use crate::dynamics::Model;
 use crate::report::metrics::tracking;
 use crate::report::plot::{stacked_png, Panel, Series};
+use crate::report::Csv;
 use crate::report::RunLog;
 use crate::rkgnn::identify::{self, Prior, Settings};
 use crate::rkgnn::model::Report;
@@ -760,12 +761,12 @@ fn write_outputs(
     fuzzy: &SimResult,
 ) -> Result<(), String> {
     crate::report::write_json(dir, "study.json", r).map_err(io(&dir.join("study.json")))?;
-    let mut csv = String::from("controller,joint1,joint2,joint3,overall\n");
+    let mut csv = Csv::new(["controller", "joint1", "joint2", "joint3", "overall"]);
     for (key, _, v) in r.tracking_rms.entries() {
-        csv += &format!("{key},{},{},{},{}\n", v[0], v[1], v[2], overall(v));
+        csv.row().put(key).all(&v[..3]).put(overall(v));
     }
     let p = dir.join("tracking_rms.csv");
-    crate::files::write(&p, csv).map_err(io(&p))?;
+    csv.write(&p).map_err(io(&p))?;
     let p = dir.join("report.md");
     crate::files::write(&p, report_markdown(r)).map_err(io(&p))?;
     figures(dir, cases, traces, fuzzy)

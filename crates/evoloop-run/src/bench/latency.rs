@@ -10,6 +10,7 @@ use crate::ipc::{ipc_config, Ipc, IpcError, Topic, Wait};
 use crate::msg::{Command, PlantState, Telemetry, STATE_FLAG_END};
 use crate::reference::Reference;
 use crate::report::plot::{xy_png, Style, XySeries};
+use crate::report::Csv;
 use crate::rt::now_ns;
 use crate::rt::timing::Percentiles;
 use clap::ValueEnum;
@@ -241,12 +242,12 @@ pub fn write_out(
     raw: &[(Variant, Vec<i64>)],
 ) -> Result<(), String> {
     crate::report::write_json(dir, "latency.json", report).map_err(|e| e.to_string())?;
-    let mut csv = format!("variant,{}\n", VariantResult::FIGURES.join(","));
+    let mut csv = Csv::new(std::iter::once("variant").chain(VariantResult::FIGURES));
     for r in results {
-        let f = r.figures().map(|v| v.to_string());
-        csv += &format!("{},{}\n", r.variant.name(), f.join(","));
+        csv.row().put(r.variant.name()).all(r.figures());
     }
-    crate::files::write(dir.join("latency.csv"), csv).map_err(|e| e.to_string())?;
+    csv.write(&dir.join("latency.csv"))
+        .map_err(|e| e.to_string())?;
     // CDF on a log time axis: x = log10(RTT / ns), y = fraction of round trips at or below.
     let curves: Vec<(String, Vec<f64>, Vec<f64>)> = raw
         .iter()

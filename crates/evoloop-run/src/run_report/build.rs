@@ -10,6 +10,7 @@ use crate::msg::MAX_JOINTS;
 use crate::report::metrics::{ResponseAcc, TrackingAcc};
 use crate::report::plot::{two_panel_png, Panel, Series};
 use crate::report::scan::{Extent, PlotColumns, Rows};
+use crate::report::Csv;
 use crate::report::Outcome;
 use crate::sim::cost::TrackingCost;
 use crate::sim::JointTraces;
@@ -769,12 +770,13 @@ fn write_repetitions(
     reps: &[(f64, f64, f64)],
     frozen_reps: &[(f64, f64, f64)],
 ) -> Result<(), String> {
-    let mut csv = String::from("repetition,t_start,t_end,cost,cost_frozen\n");
+    let mut csv = Csv::new(["repetition", "t_start", "t_end", "cost", "cost_frozen"]);
     for (j, r) in reps.iter().enumerate() {
         let f = frozen_reps.get(j).map_or(f64::NAN, |x| x.2);
-        csv.push_str(&format!("{j},{},{},{},{f}\n", r.0, r.1, r.2));
+        csv.row().put(j).all([r.0, r.1, r.2, f]);
     }
-    crate::files::write(dir.join("repetitions.csv"), csv).map_err(|e| e.to_string())
+    csv.write(&dir.join("repetitions.csv"))
+        .map_err(|e| e.to_string())
 }
 
 /// identify.png: tracking RMS per window, identified alongside operation against the frozen
@@ -833,17 +835,13 @@ fn write_estimates(
     truth: impl Fn(f64) -> Option<f64>,
 ) -> Result<(), String> {
     let dir = &scn.output.dir;
-    let mut csv = String::from("t,estimate,std,true\n");
+    let mut csv = Csv::new(["t", "estimate", "std", "true"]);
     for e in estimates {
-        csv.push_str(&format!(
-            "{},{},{},{}\n",
-            e.t,
-            e.value,
-            e.std,
-            truth(e.t).unwrap_or(f64::NAN)
-        ));
+        csv.row()
+            .all([e.t, e.value, e.std, truth(e.t).unwrap_or(f64::NAN)]);
     }
-    crate::files::write(dir.join("estimates.csv"), csv).map_err(|e| e.to_string())?;
+    csv.write(&dir.join("estimates.csv"))
+        .map_err(|e| e.to_string())?;
     if scn.output.plots {
         let te: Vec<f64> = estimates.iter().map(|e| e.t).collect();
         let est: Vec<f64> = estimates.iter().map(|e| e.value).collect();

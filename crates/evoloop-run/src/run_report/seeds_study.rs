@@ -10,6 +10,7 @@
 //! report follows from those numbers.
 
 use crate::config::OptimiserMode;
+use crate::report::Csv;
 use crate::run_report::summary::Summary;
 use crate::stats::{lower_first, mean_ci, paired_sentence, wilcoxon, MeanCi, Wilcoxon};
 use serde::Serialize;
@@ -351,24 +352,27 @@ impl Study {
     /// Write `seeds.csv`, `study.json`, `study.md` and (with `plots`) `study_cost.png` to `out`.
     pub fn write(&self, out: &Path, runs: &[SeedRun], plots: bool) -> Result<(), String> {
         let c = self.measure.column;
-        let mut csv = format!(
-            "seed,{c}_before,{c}_before_frozen,{c}_after,{c}_after_frozen,estimate_error,accepted,rejected\n",
-        );
+        let mut csv = Csv::new([
+            "seed".to_string(),
+            format!("{c}_before"),
+            format!("{c}_before_frozen"),
+            format!("{c}_after"),
+            format!("{c}_after_frozen"),
+            "estimate_error".into(),
+            "accepted".into(),
+            "rejected".into(),
+        ]);
         for r in runs {
             let (before, before_frozen) = r.before.unwrap_or((f64::NAN, f64::NAN));
-            csv.push_str(&format!(
-                "{},{},{},{},{},{},{},{}\n",
-                r.seed,
-                before,
-                before_frozen,
-                r.after,
-                r.after_frozen,
-                r.estimate_error.unwrap_or(f64::NAN),
-                r.accepted,
-                r.rejected
-            ));
+            csv.row()
+                .put(r.seed)
+                .all([before, before_frozen, r.after, r.after_frozen])
+                .put(r.estimate_error.unwrap_or(f64::NAN))
+                .put(r.accepted)
+                .put(r.rejected);
         }
-        crate::files::write(out.join("seeds.csv"), csv).map_err(|e| e.to_string())?;
+        csv.write(&out.join("seeds.csv"))
+            .map_err(|e| e.to_string())?;
         crate::report::write_json(out, "study.json", self).map_err(|e| e.to_string())?;
         crate::files::write(out.join("study.md"), self.markdown()).map_err(|e| e.to_string())?;
         if plots && !runs.is_empty() {

@@ -46,6 +46,7 @@ use crate::config::Scenario;
 use crate::control::cycle::Envelope;
 use crate::msg::{ParamKind, ParamSet};
 use crate::optim::Optimiser;
+use crate::report::Csv;
 use crate::sim::cost::TrackingCost;
 use crate::SchemeError;
 use serde::Serialize;
@@ -800,45 +801,47 @@ impl DirectTuner {
     fn set(&self, version: u64, apply_at_seq: u64, values: &[f64]) -> ParamSet {
         ParamSet::new(version, apply_at_seq, self.kind, values)
     }
-
-    /// The records as CSV: one row per repetition.
-    pub fn csv(&self) -> String {
-        records_csv(&self.records)
-    }
 }
 
 /// `direct.csv`: trial, start, cost, best so far, the version in service, the safety margin,
 /// the settle repetitions before it, and the values.
-pub fn records_csv(records: &[Repetition]) -> String {
+fn records_csv(records: &[Repetition]) -> Csv {
     let n = records.first().map_or(0, |r| r.values.len());
-    let mut s = String::from(
-        "trial,t,start_seq,version,aborted,cost,best,best_version,margin,settle,unsettled",
+    let fixed = [
+        "trial",
+        "t",
+        "start_seq",
+        "version",
+        "aborted",
+        "cost",
+        "best",
+        "best_version",
+        "margin",
+        "settle",
+        "unsettled",
+    ];
+    let mut csv = Csv::new(
+        fixed
+            .map(String::from)
+            .into_iter()
+            .chain((0..n).map(|i| format!("p{i}"))),
     );
-    for i in 0..n {
-        s.push_str(&format!(",p{i}"));
-    }
-    s.push('\n');
     for r in records {
-        s.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{}",
-            r.trial,
-            r.t,
-            r.start_seq,
-            r.version,
-            u8::from(r.aborted),
-            r.cost,
-            r.best,
-            r.best_version,
-            r.margin,
-            r.settle,
-            u8::from(r.unsettled)
-        ));
-        for v in &r.values {
-            s.push_str(&format!(",{v}"));
-        }
-        s.push('\n');
+        csv.row()
+            .put(r.trial)
+            .put(r.t)
+            .put(r.start_seq)
+            .put(r.version)
+            .put(r.aborted)
+            .put(r.cost)
+            .put(r.best)
+            .put(r.best_version)
+            .put(r.margin)
+            .put(r.settle)
+            .put(r.unsettled)
+            .all(&r.values);
     }
-    s
+    csv
 }
 
 /// The direct scheme's part of optimiser.json.
@@ -982,8 +985,9 @@ pub fn write_files(
     report: &DirectReport,
     plots: bool,
 ) -> Result<Vec<&'static str>, String> {
-    crate::files::write(dir.join("direct.csv"), records_csv(&report.repetitions))
-        .map_err(|e| format!("{}: {e}", dir.join("direct.csv").display()))?;
+    records_csv(&report.repetitions)
+        .write(&dir.join("direct.csv"))
+        .map_err(|e| e.to_string())?;
     let mut names = vec!["direct.csv"];
     if plots && !report.repetitions.is_empty() {
         use crate::report::plot::{xy_png, Style, XySeries};

@@ -18,6 +18,7 @@ use crate::plant::two_mass::{Sensor, TwoMass};
 use crate::reference::Reference;
 use crate::report::metrics::response_metrics;
 use crate::report::plot::{xy_png, Style, XySeries};
+use crate::report::Csv;
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -364,46 +365,57 @@ pub fn study(
         serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?,
     )
     .map_err(|e| e.to_string())?;
-    let mut csv = String::from("f,cr,seed,f_x,r_c,iterations,seconds,stopped_by,k1,k2,k3,k4,k5\n");
+    let mut csv = Csv::new([
+        "f",
+        "cr",
+        "seed",
+        "f_x",
+        "r_c",
+        "iterations",
+        "seconds",
+        "stopped_by",
+        "k1",
+        "k2",
+        "k3",
+        "k4",
+        "k5",
+    ]);
     for s in &settings {
         for (i, r) in s.runs.iter().enumerate() {
-            let _ = writeln!(
-                csv,
-                "{},{},{},{},{},{},{},{},{}",
-                s.f,
-                s.cr,
-                i + 1,
-                r.value,
-                -r.value,
-                r.generations,
-                r.seconds,
-                r.stopped_by,
-                r.best
-                    .iter()
-                    .map(|v| v.to_string())
-                    .collect::<Vec<_>>()
-                    .join(",")
-            );
+            csv.row()
+                .put(s.f)
+                .put(s.cr)
+                .put(i + 1)
+                .put(r.value)
+                .put(-r.value)
+                .put(r.generations)
+                .put(r.seconds)
+                .put(r.stopped_by.to_string())
+                .all(&r.best);
         }
     }
-    crate::files::write(dir.join("runs.csv"), csv).map_err(|e| e.to_string())?;
-    let mut rcsv = String::from("controller,plant,k,settling_time_s,overshoot_pct\n");
+    csv.write(&dir.join("runs.csv"))
+        .map_err(|e| e.to_string())?;
+    let mut rcsv = Csv::new([
+        "controller",
+        "plant",
+        "k",
+        "settling_time_s",
+        "overshoot_pct",
+    ]);
     for r in &responses {
         for i in 0..r.springs.len() {
-            let _ = writeln!(
-                rcsv,
-                "{},{},{},{},{}",
-                r.controller,
-                r.plant.split(' ').next().unwrap_or(""),
-                r.springs[i],
-                r.settling_times[i]
-                    .map(|v| v.to_string())
-                    .unwrap_or_else(|| "unstable".into()),
-                r.overshoots[i]
-            );
+            let settling = r.settling_times[i].map_or_else(|| "unstable".into(), |v| v.to_string());
+            rcsv.row()
+                .put(&r.controller)
+                .put(r.plant.split(' ').next().unwrap_or(""))
+                .put(r.springs[i])
+                .put(settling)
+                .put(r.overshoots[i]);
         }
     }
-    crate::files::write(dir.join("responses.csv"), rcsv).map_err(|e| e.to_string())?;
+    rcsv.write(&dir.join("responses.csv"))
+        .map_err(|e| e.to_string())?;
 
     let report = report_md(&prob, &settings, &median_gains, &lqr1, &lqr2, &responses);
     crate::files::write(dir.join("report.md"), &report).map_err(|e| e.to_string())?;
