@@ -2,9 +2,9 @@
 //! radius and one DE generation. `cargo bench --bench hot_paths`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use evoloop::control::cycle::ControlCycle;
-use evoloop::control::estimator::{Kalman, KalmanDesign};
-use evoloop::control::{ParamBounds, StateFeedback};
+use evoloop::law::cycle::ControlCycle;
+use evoloop::law::estimator::{Kalman, KalmanDesign};
+use evoloop::law::{ParamBounds, StateFeedback};
 use evoloop::msg::{PlantState, Telemetry};
 use evoloop::optim::{evaluate, DeConfig, DifferentialEvolution, Optimiser};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
@@ -239,7 +239,7 @@ fn dynamics(c: &mut Criterion) {
         "industrial6 plant: one 1 ms period (2 RK4 sub-steps)",
         |b| b.iter(|| sim.advance(black_box(&tau), 0.001)),
     );
-    let mut ct = evoloop::control::ComputedTorque::new(model.clone(), &[400.0; 12], 0.03);
+    let mut ct = evoloop::law::ComputedTorque::new(model.clone(), &[400.0; 12], 0.03);
     let mut state = PlantState {
         n_q: 6,
         n_y: 6,
@@ -255,7 +255,7 @@ fn dynamics(c: &mut Criterion) {
     let mut u = [0.0; 6];
     c.bench_function("computed-torque law, 6-DOF", |b| {
         b.iter(|| {
-            evoloop::control::Controller::step(&mut ct, black_box(&state), black_box(&sp), &mut u)
+            evoloop::law::Controller::step(&mut ct, black_box(&state), black_box(&sp), &mut u)
         })
     });
     // A model set checked (M(q) on 24 probes) and swapped in: what one identified model costs
@@ -263,7 +263,7 @@ fn dynamics(c: &mut Criterion) {
     let pi = evoloop::identify::Columns::PLANT.values(&model);
     c.bench_function(
         "computed-torque law, 6-DOF: model set check and swap",
-        |b| b.iter(|| evoloop::control::Controller::swap_model(&mut ct, black_box(&pi))),
+        |b| b.iter(|| evoloop::law::Controller::swap_model(&mut ct, black_box(&pi))),
     );
 }
 
@@ -320,7 +320,7 @@ fn fuzzy(c: &mut Criterion) {
         );
     }
     let spec = evoloop::tune::maglev::Spec::default();
-    let aw = evoloop::control::AntiWindup::Fuzzy;
+    let aw = evoloop::law::AntiWindup::Fuzzy;
     let (mlo, mhi) = aw.paper_ranges();
     let mobj = evoloop::tune::maglev::Objective {
         spec: spec.clone(),

@@ -7,7 +7,7 @@
 //!
 //!     cargo run --release --example custom_plant
 
-use evoloop::control::Controller;
+use evoloop::law::Controller;
 use evoloop::msg::PlantState;
 use evoloop::plant::{Plant, PlantSim};
 use evoloop::reference::Setpoint;

@@ -11,7 +11,7 @@
 
 #![forbid(unsafe_code)]
 
-pub use evoloop_control::{check, control, fuzzy, plant, reference};
+pub use evoloop_control::{check, fuzzy, law, plant, reference};
 pub use evoloop_dynamics as dynamics;
 pub use evoloop_files as files;
 pub use evoloop_identify::{identify, rkgnn};

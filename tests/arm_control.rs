@@ -103,8 +103,8 @@ fn startup_damping_scales_the_law_by_one_minus_exp_of_minus_0_03_k() {
     let _heavy = heavy();
     // The same controller with and without psi, fed the same state at every sample: the damped
     // torque is exactly (1 - exp(-0.03 k)) times the undamped one (the paper's Section 5.1).
-    use evoloop::control::computed_torque::ComputedTorque;
-    use evoloop::control::Controller;
+    use evoloop::law::computed_torque::ComputedTorque;
+    use evoloop::law::Controller;
     let model = evoloop::dynamics::load(
         &Path::new(env!("CARGO_MANIFEST_DIR")).join("config/robots/arm3.toml"),
     )

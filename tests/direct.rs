@@ -4,7 +4,7 @@
 use crate::common;
 use common::*;
 use evoloop::config::{Overrides, Scenario};
-use evoloop::control::cycle::{ControlCycle, ParamEvent};
+use evoloop::law::cycle::{ControlCycle, ParamEvent};
 use evoloop::msg::{ParamCode, ParamSet, PlantState, Telemetry};
 use evoloop::sim::LoopHook;
 use std::path::{Path, PathBuf};

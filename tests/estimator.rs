@@ -1,4 +1,4 @@
-//! evoloop's Kalman filter (`control::estimator`) against python-control: tests/data/kalman.json
+//! evoloop's Kalman filter (`law::estimator`) against python-control: tests/data/kalman.json
 //! holds, for five continuous models (the two-mass benchmark with either sensor, and collocated
 //! with a state noise in the design; the upright pendulum; a double integrator), `c2d`'s
 //! zero-order-hold model at the control period, `dlqe`'s gain L, Riccati solution P and error
@@ -7,7 +7,7 @@
 //! compares). Then the filter in the default scenario: the law on its estimate, the truth
 //! withheld.
 
-use evoloop::control::estimator::{Kalman, KalmanDesign};
+use evoloop::law::estimator::{Kalman, KalmanDesign};
 use evoloop::msg::PlantState;
 use evoloop::plant::LinearModel;
 use serde_json::Value;

@@ -303,7 +303,7 @@ fn step_scenario(scn: &Scenario) {
         scn.plant.noise_std,
         scn.seed,
     );
-    let mut cycle = evoloop::control::cycle::ControlCycle::new(
+    let mut cycle = evoloop::law::cycle::ControlCycle::new(
         scn.build_controller(),
         scn.reference.clone(),
         scn.bounds(),
@@ -401,7 +401,7 @@ fn a_controller_takes_a_set_whole_or_refuses_it_with_a_code_and_keeps_its_last_g
     for case in 0..n {
         let scn = &scenarios[rng.gen_range(0..scenarios.len())];
         let r = catch_unwind(AssertUnwindSafe(|| -> Result<(), String> {
-            let mut cycle = evoloop::control::cycle::ControlCycle::new(
+            let mut cycle = evoloop::law::cycle::ControlCycle::new(
                 scn.build_controller(),
                 scn.reference.clone(),
                 scn.bounds(),

@@ -3,9 +3,9 @@
 //! the GA and the hybrid on standard test functions, the fuzzy integral gain against the generic
 //! network, and the two experiments' headline claims.
 
-use evoloop::control::pid::{fuzzy_ki_normalised, AntiWindup};
 use evoloop::fuzzy::network::{FuzzyNetwork, Mf, Variable, UNCONNECTED};
 use evoloop::fuzzy::{arsinh, default_labels, ordered};
+use evoloop::law::pid::{fuzzy_ki_normalised, AntiWindup};
 use evoloop::optim::hybrid::{hybrid, HybridConfig};
 use evoloop::optim::{evaluate, Ga, GaConfig, Optimiser};
 use evoloop::plant::maglev::{Maglev, MaglevParams};

@@ -3,7 +3,7 @@
 //! unless the anti-windup scheme stops it; the config's comment quotes these figures.
 
 use evoloop::config::{ControllerModel, Overrides, Scenario};
-use evoloop::control::AntiWindup;
+use evoloop::law::AntiWindup;
 use evoloop::sim::simulate;
 
 /// Overshoot of the first step (20 -> 60 °C at 10 s, next change at 400 s), % of the step, and

@@ -228,7 +228,7 @@ fn the_stability_check_agrees_with_python_controls_closed_loop_poles() {
 }
 
 impl Case {
-    fn spec_model(&self) -> evoloop::control::LinearModel {
+    fn spec_model(&self) -> evoloop::law::LinearModel {
         use evoloop::plant::PlantConfig;
         self.spec
             .linear_model()

@@ -1,7 +1,7 @@
-//! The controller's model check (`control::model_check`) on a shipped scenario: estimates adopted
+//! The controller's model check (`law::model_check`) on a shipped scenario: estimates adopted
 //! at their sample, bad ones refused, and a set unstable on the adopted estimate refused.
 use evoloop::config::{Overrides, Scenario};
-use evoloop::control::model_check::ModelCheck;
+use evoloop::law::model_check::ModelCheck;
 use evoloop::msg::ModelEstimate;
 
 fn two_mass() -> Scenario {
@@ -43,7 +43,7 @@ fn estimates_are_adopted_at_their_sample_and_bad_ones_keep_the_model() {
 /// same set is accepted.
 #[test]
 fn a_set_unstable_on_the_adopted_estimate_is_refused_and_the_loop_keeps_its_set() {
-    use evoloop::control::ControlCycle;
+    use evoloop::law::ControlCycle;
     use evoloop::msg::{ParamCode, ParamSet, PlantState, Telemetry};
     let scn = two_mass();
     let configured = scn.linear_model().unwrap();

@@ -6,8 +6,8 @@
 use crate::common;
 
 use evoloop::config::{Overrides, Scenario};
-use evoloop::control::ControlCycle;
 use evoloop::ipc::{Ipc, Topic};
+use evoloop::law::ControlCycle;
 use evoloop::msg::{ParamCode, ParamKind, ParamSet, PlantState, Telemetry, MAX_PARAMS};
 use evoloop::rkgnn::live::ModelUpdate;
 use evoloop::rkgnn::RkgnnModel;
@@ -58,11 +58,7 @@ fn an_arm7_model_crosses_the_processes_ports_in_parts_and_is_applied_whole() {
         .publisher::<ParamSet>(Topic::Params, false)
         .unwrap();
     let subscriber = controller
-        .subscriber::<ParamSet>(
-            Topic::Params,
-            evoloop::control::cycle::PENDING_CAPACITY,
-            false,
-        )
+        .subscriber::<ParamSet>(Topic::Params, evoloop::law::cycle::PENDING_CAPACITY, false)
         .unwrap();
     let sent = update.sets();
     assert_eq!(sent.len(), 4);

@@ -10,10 +10,10 @@
 //! in a per-thread pool (`evoloop::ipc::pooled`), so after the warm-up cycle no send touches the
 //! heap. The pool's own counters show every loan served from its free list.
 
-use evoloop::control::cycle::ControlCycle;
-use evoloop::control::model_check::ModelCheck;
-use evoloop::control::{ParamBounds, StateFeedback};
 use evoloop::ipc::{Ipc, Topic};
+use evoloop::law::cycle::ControlCycle;
+use evoloop::law::model_check::ModelCheck;
+use evoloop::law::{ParamBounds, StateFeedback};
 use evoloop::msg::{Command, ModelEstimate, ParamCode, ParamKind, ParamSet, PlantState, Telemetry};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::PlantSim;
@@ -81,7 +81,7 @@ fn the_control_cycle_allocates_nothing() {
     )
     .unwrap();
     let kalman = match &default.controller.model {
-        evoloop::control::ControllerModel::StateFeedback(sf) => sf
+        evoloop::law::ControllerModel::StateFeedback(sf) => sf
             .kalman_gains()
             .expect("two_mass runs on its filter")
             .clone(),
@@ -232,15 +232,15 @@ fn the_control_cycle_allocates_nothing() {
 /// pass of the law's model each cycle): neither estimator's update allocates in the cycle.
 #[test]
 fn computed_torque_on_estimated_velocities_allocates_nothing() {
-    use evoloop::control::estimator::VelocitySource;
-    use evoloop::control::{ComputedTorque, Controller};
+    use evoloop::law::estimator::VelocitySource;
+    use evoloop::law::{ComputedTorque, Controller};
     let scn = evoloop::config::Scenario::load(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3_ct.toml"),
         &evoloop::config::Overrides::default(),
     )
     .unwrap();
     let model = match &scn.controller.model {
-        evoloop::control::ControllerModel::ComputedTorque(spec) => spec.model.clone(),
+        evoloop::law::ControllerModel::ComputedTorque(spec) => spec.model.clone(),
         _ => unreachable!("arm3_ct is computed torque"),
     };
     let n = model.dof();

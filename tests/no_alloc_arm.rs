@@ -7,8 +7,8 @@
 //! (A separate test binary: the counting allocator is process-global.)
 
 use evoloop::config::{Overrides, Scenario};
-use evoloop::control::cycle::ControlCycle;
 use evoloop::ipc::{Ipc, Pub, Sub, Topic};
+use evoloop::law::cycle::ControlCycle;
 use evoloop::msg::{Command, ParamSet, PlantState, Telemetry};
 use evoloop::plant::PlantSim;
 use evoloop::report::record::Recorder;

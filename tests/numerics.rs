@@ -1,8 +1,8 @@
 //! The numerical core against independent references: analytic solutions, conservation laws,
 //! eigenvalues, exact percentiles.
 
-use evoloop::control::cycle::ControlCycle;
-use evoloop::control::{validate_params, Controller, ParamBounds, StateFeedback};
+use evoloop::law::cycle::ControlCycle;
+use evoloop::law::{validate_params, Controller, ParamBounds, StateFeedback};
 use evoloop::msg::{ParamCode, ParamKind, ParamSet, PlantState, Telemetry};
 use evoloop::plant::two_mass::{Sensor, TwoMass};
 use evoloop::plant::{Plant, PlantSim};
@@ -344,7 +344,7 @@ fn references_take_their_documented_values() {
 
 #[test]
 fn the_stability_check_agrees_with_the_closed_loop_poles() {
-    use evoloop::control::LinearModel;
+    use evoloop::law::LinearModel;
     use evoloop::robust::RobustProblem;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
     for sensor in [Sensor::Far, Sensor::Actuated] {

@@ -795,7 +795,7 @@ fn rkgnn_study_on_arm3_is_the_shipped_scenarios_and_writes_figures_7_to_10() {
         &Overrides::default(),
     )
     .unwrap();
-    let along = evoloop::control::fuzzy_computed_torque::reference_positions(
+    let along = evoloop::law::fuzzy_computed_torque::reference_positions(
         &scn.reference,
         scn.timing.duration,
     );

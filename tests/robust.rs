@@ -333,7 +333,7 @@ fn a_radius_that_cannot_be_computed_is_an_error_not_zero() {
 /// The default scenario's filter: process noise 1, its sensor's noise 0.0005 and resolution
 /// 0.0001, run at 1 kHz.
 fn filtered(prob: RobustProblem) -> RobustProblem {
-    let design = evoloop::control::estimator::KalmanDesign {
+    let design = evoloop::law::estimator::KalmanDesign {
         process_noise: 1.0,
         measurement_noise: (0.0005f64.powi(2) + 0.0001f64.powi(2) / 12.0).sqrt(),
         state_noise: 0.0,
@@ -412,8 +412,8 @@ fn the_loop_with_the_filter_has_the_feedback_and_the_filter_poles() {
 /// gives the same outputs and commands as powers of the matrix.
 #[test]
 fn the_sampled_loop_matrix_is_the_controller_as_it_runs() {
-    use evoloop::control::Controller;
-    use evoloop::control::StateFeedback;
+    use evoloop::law::Controller;
+    use evoloop::law::StateFeedback;
     let prob = filtered(RobustProblem::paper());
     let o = prob.observer.as_ref().unwrap();
     let plant = evoloop::plant::two_mass::TwoMass::new(1.0, 1.0, 1.3, Sensor::Far).linear_model();
@@ -485,7 +485,7 @@ fn the_sampled_loop_is_stable_over_the_springs_rc_guarantees() {
 /// samples, the statistical error a few per cent).
 #[test]
 fn the_command_noise_of_the_loop_with_the_filter_is_what_a_noisy_run_gives() {
-    use evoloop::control::{Controller, StateFeedback};
+    use evoloop::law::{Controller, StateFeedback};
     let prob = filtered(RobustProblem::paper());
     let o = prob.observer.as_ref().unwrap();
     let plant = prob.nominal_model();

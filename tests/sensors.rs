@@ -260,7 +260,7 @@ fn computed_torque_on_its_observer_runs_blind_and_tracks_better_than_on_the_low_
 /// noise-free plant, each output judged at the time it is of (a measurement `delay` samples
 /// late is the output of `delay` samples before).
 fn delayed_two_mass_iae(delay: usize, told: bool) -> f64 {
-    use evoloop::control::{ControllerModel, StateFeedback};
+    use evoloop::law::{ControllerModel, StateFeedback};
     let scn = Scenario::load(&config("two_mass.toml"), &Overrides::default()).unwrap();
     let ControllerModel::StateFeedback(sf) = &scn.controller.model else {
         panic!("two_mass.toml runs state feedback")

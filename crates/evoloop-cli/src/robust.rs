@@ -1,7 +1,7 @@
 //! `evoloop robust ...`: the robust-control tools from the command line.
 
 use clap::{Args, Subcommand, ValueEnum};
-use evoloop_control::control::estimator::KalmanDesign;
+use evoloop_control::law::estimator::KalmanDesign;
 use evoloop_control::plant::two_mass::Sensor;
 use evoloop_optim::{run, DeConfig, DifferentialEvolution, Optimiser};
 use evoloop_schemes::robust::observer::command_noise;
@@ -62,7 +62,7 @@ pub struct ObserverArgs {
     #[arg(long, default_value_t = 0.001)]
     pub period: f64,
     /// The filter's process noise: std of a disturbance at the input, held over a period.
-    #[arg(long, default_value_t = evoloop_control::control::state_feedback::DEFAULT_PROCESS_NOISE)]
+    #[arg(long, default_value_t = evoloop_control::law::state_feedback::DEFAULT_PROCESS_NOISE)]
     pub process_noise: f64,
     /// The filter's measurement noise std [default: the default scenario's sensor,
     /// sqrt(0.0005² + 0.0001²/12) for noise 0.0005 and resolution 0.0001].

@@ -9,9 +9,9 @@
 #![forbid(unsafe_code)]
 
 pub mod check;
-pub mod control;
 pub mod filter;
 pub mod fuzzy;
+pub mod law;
 pub mod plant;
 pub mod reference;
 

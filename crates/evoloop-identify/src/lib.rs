@@ -11,7 +11,7 @@
 pub mod identify;
 pub mod rkgnn;
 
-use evoloop_control::{control, plant, reference};
+use evoloop_control::{law, plant, reference};
 use evoloop_dynamics as dynamics;
 use evoloop_files as files;
 use evoloop_ipc as ipc;

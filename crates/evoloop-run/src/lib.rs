@@ -23,7 +23,7 @@ pub fn needs_zenoh(what: &str) -> String {
     format!("{what} needs evoloop built with the zenoh feature (cargo build --release --features zenoh)")
 }
 
-use evoloop_control::{control, plant, reference};
+use evoloop_control::{law, plant, reference};
 use evoloop_dynamics as dynamics;
 use evoloop_files as files;
 use evoloop_identify::rkgnn;

@@ -22,7 +22,7 @@ macro_rules! err {
 pub mod config;
 pub mod sim;
 
-use evoloop_control::{check, control, plant, reference};
+use evoloop_control::{check, law, plant, reference};
 use evoloop_files as files;
 use evoloop_ipc as ipc;
 use evoloop_msg as msg;

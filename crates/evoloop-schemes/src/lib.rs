@@ -19,7 +19,7 @@ pub mod robust;
 
 pub use error::SchemeError;
 
-use evoloop_control::{check, control, filter, plant, reference};
+use evoloop_control::{check, filter, law, plant, reference};
 use evoloop_files as files;
 use evoloop_ipc as ipc;
 use evoloop_linalg as linalg;

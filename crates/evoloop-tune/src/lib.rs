@@ -9,7 +9,7 @@ pub mod compare;
 pub mod direct;
 pub mod maglev;
 
-use evoloop_control::{control, fuzzy, reference};
+use evoloop_control::{fuzzy, law, reference};
 use evoloop_files as files;
 use evoloop_optim as optim;
 use evoloop_report as report;

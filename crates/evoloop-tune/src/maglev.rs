@@ -7,7 +7,7 @@
 //! by the current best, as the paper does.
 
 use super::Run;
-use crate::control::pid::{fuzzy_ki_normalised, AntiWindup};
+use crate::law::pid::{fuzzy_ki_normalised, AntiWindup};
 use crate::optim::hybrid::hybrid;
 use crate::reference::Reference;
 use crate::report::plot::{two_panel_png, xy_png, Panel, Series, Style, XySeries};

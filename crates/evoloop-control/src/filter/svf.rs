@@ -7,7 +7,7 @@
 //! no numerical differentiation. Measurement noise reaches s^j F v with a gain of at most a^j, so
 //! `a` sits a few times above the plant's modes and far below the sampling rate. The indirect
 //! scheme's estimators use N = 4 (`evoloop-schemes`), the evidence of fuzzy model selection
-//! N = 2 (`control::evidence`).
+//! N = 2 (`law::evidence`).
 //!
 //! Between samples the filter is integrated exactly (one matrix exponential, computed when the
 //! design is made): a held command (zero-order hold) exactly as the plant saw it, a sampled

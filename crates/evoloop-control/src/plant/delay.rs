@@ -1,6 +1,6 @@
 //! A delay line: what a signal `len` samples late reads. One home for the sensor's delay in the
 //! simulated plant (`PlantSim::delaying`) and the inputs the estimators predict across
-//! (`control::estimator`).
+//! (`law::estimator`).
 
 /// The last `len` values pushed, in a ring allocated once (`new`, off the control cycle):
 /// `push` is allocation-free.

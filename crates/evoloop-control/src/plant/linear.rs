@@ -335,7 +335,7 @@ impl LinearModel {
         ))
     }
 
-    /// Whether a PID stabilises this sampled model (the loop as `control::Pid` runs it while
+    /// Whether a PID stabilises this sampled model (the loop as `law::Pid` runs it while
     /// unsaturated): u_k = P e_k + I_{k-1} - k_d e_{k-1} with P = k_p + k_d + k_i and
     /// I_k = I_{k-1} + k_i e_k, e_k = r - y_k; `kd` = K_p T_v / T and `ki` per sample. Over
     /// s = [z; I_prev; e_prev; v_prev], every eigenvalue inside the unit circle. A continuous

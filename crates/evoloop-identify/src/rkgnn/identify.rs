@@ -1124,7 +1124,7 @@ fn servo_torques(servo: &ServoPrior, data: &Trajectory) -> Vec<f64> {
         ServoPrior::Known {
             velocity_cutoff_hz: Some(fc),
             ..
-        } => Some(crate::control::estimator::low_pass_share(*fc, data.h)),
+        } => Some(crate::law::estimator::low_pass_share(*fc, data.h)),
         _ => None,
     };
     let velocity = |i: usize| &data.x_at(i)[n..];

@@ -18,11 +18,11 @@
 //! least `MIN_EIG_RATIO` of the model it replaces) before it uses it. In lockstep the attempts
 //! are at fixed simulated times, so a seeded run is reproducible.
 
-use crate::control::fuzzy_computed_torque::{
+use crate::indirect::EpochRecord;
+use crate::law::fuzzy_computed_torque::{
     model_probes, model_weights, premise_distances, probe_positions, MIN_EIG_RATIO,
 };
-use crate::control::fuzzy_select;
-use crate::indirect::EpochRecord;
+use crate::law::fuzzy_select;
 use crate::msg::MAX_JOINTS;
 use crate::msg::{ParamKind, ParamSet, PlantState};
 use crate::reference::{Reference, Setpoint};
@@ -101,7 +101,7 @@ impl LiveIdentify {
     /// `fuzzy_computed_torque`.
     pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
         // The scenario's validation refuses identify mode for other controllers.
-        let crate::control::ControllerModel::FuzzyComputedTorque(f) = &scn.controller.model else {
+        let crate::law::ControllerModel::FuzzyComputedTorque(f) = &scn.controller.model else {
             return Err(
                 "optimiser.mode = \"identify\" needs a fuzzy_computed_torque controller".into(),
             );
@@ -306,7 +306,7 @@ struct Identifying<'a> {
 }
 
 impl crate::sim::LoopHook for Identifying<'_> {
-    fn before(&mut self, seq: u64, cycle: &mut crate::control::ControlCycle) {
+    fn before(&mut self, seq: u64, cycle: &mut crate::law::ControlCycle) {
         self.keep.before(seq, cycle);
         for s in self.due.drain(..) {
             cycle.offer(&s);
@@ -317,8 +317,8 @@ impl crate::sim::LoopHook for Identifying<'_> {
         &mut self,
         state: &PlantState,
         tel: &crate::msg::Telemetry,
-        event: Option<crate::control::cycle::ParamEvent>,
-        cycle: &crate::control::ControlCycle,
+        event: Option<crate::law::cycle::ParamEvent>,
+        cycle: &crate::law::ControlCycle,
     ) {
         self.keep.after(state, tel, event, cycle);
         self.live.observe(state);

@@ -16,8 +16,8 @@
 //!   midpoints (`evoloop rkgnn selection`).
 //! - `zoo`: the selection study on every arm of a zoo, one table (`evoloop rkgnn zoo`).
 //!
-//! The controller that uses the models is `control::fuzzy_computed_torque`, the selection rule
-//! `control::fuzzy_select`.
+//! The controller that uses the models is `law::fuzzy_computed_torque`, the selection rule
+//! `law::fuzzy_select`.
 
 pub mod data;
 pub mod identify;

@@ -33,8 +33,8 @@ use super::study::{
     servo_prior, simulate_all, table, trajectory_positions, write_scenarios, Case, JointVelocity,
     JOINTS,
 };
-use crate::control::fuzzy_computed_torque::check_along_reference;
 use crate::dynamics::Model;
+use crate::law::fuzzy_computed_torque::check_along_reference;
 use crate::rkgnn::model::{ServoPrior, Weighing};
 use crate::rkgnn::model_error::{model_error, ModelError, RigidBody};
 use crate::rkgnn::Trajectory;
@@ -953,13 +953,11 @@ impl SeedRun<'_> {
         let (s, g, n) = (self.s, self.g, self.arm.dof());
         let models = self.models;
         // The controller refuses a model whose M-hat is not positive definite along the
-        // reference (control::fuzzy_computed_torque): such a model is left out here as a
+        // reference (law::fuzzy_computed_torque): such a model is left out here as a
         // user would leave it out, alone and in the fuzzy sets.
         let duration = reference.timing.duration;
-        let along = crate::control::fuzzy_computed_torque::reference_positions(
-            &reference.reference,
-            duration,
-        );
+        let along =
+            crate::law::fuzzy_computed_torque::reference_positions(&reference.reference, duration);
         // The controller's own check, once per model: it gives the smallest eigenvalue along
         // the reference when the model passes; a refused one's is looked up in full.
         let checked: Vec<Option<Result<f64, _>>> = models
@@ -1070,7 +1068,7 @@ impl SeedRun<'_> {
         // The models the online identification put in service (accepted sets).
         let online_updates = ran("online_model").map(|c| {
             let accepted =
-                |e: &&crate::control::cycle::ParamEvent| e.code == crate::msg::ParamCode::Accepted;
+                |e: &&crate::law::cycle::ParamEvent| e.code == crate::msg::ParamCode::Accepted;
             sims[c].events.iter().filter(accepted).count()
         });
         let refused = (0..models.len())

@@ -86,8 +86,7 @@ impl JointVelocity {
 
     /// The drive filter's cutoff (the scenarios' default at this control period), if any.
     pub fn drive_cutoff_hz(self, period: f64) -> Option<f64> {
-        (self == JointVelocity::Filtered)
-            .then(|| crate::control::default_velocity_cutoff_hz(period))
+        (self == JointVelocity::Filtered).then(|| crate::law::default_velocity_cutoff_hz(period))
     }
 }
 
@@ -574,10 +573,8 @@ pub fn run(
     let train_sims = simulate_all(&training, s.threads, &|| tick("training run"))?;
     // Where the controller will run the models: the new trajectory's positions.
     let new = &probes[2].scenario;
-    let along = crate::control::fuzzy_computed_torque::reference_positions(
-        &new.reference,
-        new.timing.duration,
-    );
+    let along =
+        crate::law::fuzzy_computed_torque::reference_positions(&new.reference, new.timing.duration);
     let servo = [servo_kp.as_slice(), servo_kd.as_slice()];
     let (models, summaries, inputs) = identify_each(
         s,

@@ -4,9 +4,9 @@
 //! processes as the reference. The peer side runs in a child process (`evoloop bench
 //! latency-peer`), so every round trip crosses processes as in a real run.
 
-use crate::control::cycle::ControlCycle;
-use crate::control::{ParamBounds, StateFeedback};
 use crate::ipc::{ipc_config, Ipc, IpcError, Topic, Wait};
+use crate::law::cycle::ControlCycle;
+use crate::law::{ParamBounds, StateFeedback};
 use crate::msg::{Command, PlantState, Telemetry, STATE_FLAG_END};
 use crate::reference::Reference;
 use crate::report::plot::{xy_png, Style, XySeries};

@@ -11,10 +11,10 @@
 
 use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
-use crate::control::cycle::{ControlCycle, ParamEvent};
-use crate::control::model_check::{ModelCheck, ModelCheckReport};
-use crate::control::state_check::{SampleTime, StateFault};
 use crate::ipc::{IpcError, Pub, Sub, Topic, Waited};
+use crate::law::cycle::{ControlCycle, ParamEvent};
+use crate::law::model_check::{ModelCheck, ModelCheckReport};
+use crate::law::state_check::{SampleTime, StateFault};
 use crate::msg::{
     Command, ModelEstimate, ParamCode, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
     TELEMETRY_FLAG_MISSED, TELEMETRY_FLAG_OVERRUN, TELEMETRY_FLAG_STALE,
@@ -96,7 +96,7 @@ enum EstimatePort {
 enum EstimateCheck {
     /// Boxed: it holds the plant's whole model (allocated once, before the loop).
     Parameter(Box<ModelCheck>),
-    Linear(crate::control::model_check::LinearCheck),
+    Linear(crate::law::model_check::LinearCheck),
 }
 
 impl EstimateCheck {
@@ -105,7 +105,7 @@ impl EstimateCheck {
     fn of(scn: &crate::config::Scenario) -> Option<Self> {
         scn.linear_model()?;
         match scn.optimiser.model {
-            Some(_) => Some(Self::Linear(crate::control::model_check::LinearCheck::new(
+            Some(_) => Some(Self::Linear(crate::law::model_check::LinearCheck::new(
                 scn.timing.period,
             ))),
             None => ModelCheck::new(&scn.plant.model).map(|m| Self::Parameter(Box::new(m))),
@@ -124,7 +124,7 @@ impl EstimateCheck {
         })
     }
 
-    fn report(&self) -> crate::control::model_check::ModelCheckReport {
+    fn report(&self) -> crate::law::model_check::ModelCheckReport {
         match self {
             Self::Parameter(m) => m.report().clone(),
             Self::Linear(l) => l.report().clone(),
@@ -441,11 +441,7 @@ pub fn main(args: &ProcessArgs) {
     let model_check = EstimateCheck::of(&scn);
     let ports = ports(WHO, || {
         Ok(Ports {
-            params: ipc.subscriber(
-                Topic::Params,
-                crate::control::cycle::PENDING_CAPACITY,
-                false,
-            )?,
+            params: ipc.subscriber(Topic::Params, crate::law::cycle::PENDING_CAPACITY, false)?,
             // The estimates of the check the loop makes, and no others.
             estimate: model_check
                 .as_ref()

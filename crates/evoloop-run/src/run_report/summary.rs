@@ -90,7 +90,7 @@ pub struct ControllerReport {
     /// Plant states the controller refused (a count not the configured plant's, or a value the
     /// law reads not finite), sending the safe command instead: how many, and the first.
     #[serde(default)]
-    pub refused_states: crate::control::state_check::Refused,
+    pub refused_states: crate::law::state_check::Refused,
     /// Rows of run.csv / timing.csv dropped because the log writer fell behind, plus
     /// parameter events dropped because the event list was full.
     pub log_dropped: u64,
@@ -99,7 +99,7 @@ pub struct ControllerReport {
     pub log_error: Option<String>,
     /// The model new sets were checked on (linear plants with a varying parameter).
     #[serde(default)]
-    pub check_model: Option<crate::control::model_check::ModelCheckReport>,
+    pub check_model: Option<crate::law::model_check::ModelCheckReport>,
     /// Set when the run was stopped by a signal before its end.
     pub interrupted: bool,
     /// run.mcap: messages per topic, dropped (realtime, queue full) and the first write error.
@@ -405,7 +405,7 @@ pub struct Summary {
     pub refused_states: u64,
     /// The first refused state: its sample and why.
     #[serde(default)]
-    pub first_refused_state: Option<crate::control::state_check::FirstRefused>,
+    pub first_refused_state: Option<crate::law::state_check::FirstRefused>,
     /// Realtime: samples the plant held its safe command before the controller's first command
     /// (a controller slow to start, or one that never commanded).
     #[serde(default)]
@@ -484,7 +484,7 @@ pub struct Summary {
     /// Linear plants under the indirect scheme: the model the controller checked new sets on
     /// (nominal until the first estimate it adopted, then the latest).
     #[serde(default)]
-    pub check_model: Option<crate::control::model_check::ModelCheckReport>,
+    pub check_model: Option<crate::law::model_check::ModelCheckReport>,
     /// Identification alongside operation (`optimiser.mode = "identify"`): tracking RMS over all
     /// joints (rad) from 1 s to the plant's first change and over the last quarter of the run,
     /// and the same for the frozen comparison (the starting models all run long, simulated

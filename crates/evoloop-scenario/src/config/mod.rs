@@ -8,7 +8,7 @@
 //! The loader keeps the shared tables (`[timing]`, `[reference]`, `[optimiser]`, `[output]`) and
 //! composes the rest: each plant kind owns its `[plant.<kind>]` table in its module under
 //! `plant/`, each control law its `[controller.<kind>]` table under `control/`, registered by
-//! one line in `plant::kinds!` / `control::kinds!`.
+//! one line in `plant::kinds!` / `law::kinds!`.
 
 mod model_prior;
 mod optimiser;
@@ -16,7 +16,7 @@ mod reference;
 mod timing;
 
 pub use crate::check::ConfigError;
-pub use crate::control::{ControllerKind, ControllerModel, ControllerSpec};
+pub use crate::law::{ControllerKind, ControllerModel, ControllerSpec};
 pub use crate::plant::{PlantKind, PlantModel, PlantSpec};
 pub use model_prior::ModelPrior;
 pub use optimiser::{
@@ -26,7 +26,7 @@ pub use optimiser::{
 pub use timing::{default_margin_us, parse_duration, DurationError, Mode, Timing};
 
 use crate::check::Check;
-use crate::control::{Controller, ParamBounds, RawController};
+use crate::law::{Controller, ParamBounds, RawController};
 use crate::plant::{Plant, RawPlant};
 use crate::reference::Reference;
 use crate::rt::RtRequest;
@@ -222,13 +222,13 @@ impl Scenario {
     /// The linear model new parameter sets must stabilise before use (state feedback on a plant
     /// with a linear model, at its nominal parameters; a PID under the general indirect scheme,
     /// on the nominal transfer function of `[optimiser.model]`); None otherwise.
-    pub fn linear_model(&self) -> Option<crate::control::LinearModel> {
+    pub fn linear_model(&self) -> Option<crate::law::LinearModel> {
         if self.controller.model.config().checks_stability() {
             self.plant.model.config().linear_model()
         } else if let (Some(prior), OptimiserMode::Indirect) =
             (&self.optimiser.model, self.optimiser.mode)
         {
-            crate::control::LinearModel::sampled_transfer_function(
+            crate::law::LinearModel::sampled_transfer_function(
                 &prior.num,
                 &prior.den,
                 self.timing.period,
@@ -239,7 +239,7 @@ impl Scenario {
     }
 
     /// `linear_model` with the plant's varying parameter at `p` (an estimate of it).
-    pub fn linear_model_at(&self, p: f64) -> Option<crate::control::LinearModel> {
+    pub fn linear_model_at(&self, p: f64) -> Option<crate::law::LinearModel> {
         if self.controller.model.config().checks_stability() {
             self.plant.model.config().linear_model_at(p)
         } else {
@@ -271,14 +271,14 @@ impl Scenario {
 
     /// What the controller requires of every plant state: the configured plant's counts, and
     /// its safe command to send in place of the law's when a state fails.
-    pub fn state_check(&self) -> crate::control::state_check::StateCheck {
+    pub fn state_check(&self) -> crate::law::state_check::StateCheck {
         let p = self.build_plant();
         // Within a single input's range, as every law's own command is.
         let safe_command = match self.plant.model.config().scalar_input() {
             Some(s) => self.plant.safe_command.clamp(s.range.0, s.range.1),
             None => self.plant.safe_command,
         };
-        crate::control::state_check::StateCheck {
+        crate::law::state_check::StateCheck {
             n_x: p.n_states(),
             n_q: p.n_joints(),
             n_y: p.n_outputs(),
@@ -572,7 +572,7 @@ fn compose(raw: RawScenario, check: &Check, ov: &Overrides) -> Result<Scenario, 
 }
 
 /// A scheduled set the controller is to take, judged by the controller's own validation
-/// (`control::validate_params` for gains: kind, length, finiteness, bounds; `validate_model`'s
+/// (`law::validate_params` for gains: kind, length, finiteness, bounds; `validate_model`'s
 /// finiteness for model sets, whose law-specific checks need the model): refused here, before
 /// the run, rather than 12 s into it. `expect = "rejected"` marks a set meant to be refused.
 fn scheduled_set_fits(
@@ -581,7 +581,7 @@ fn scheduled_set_fits(
     s: &ScheduledSet,
     controller: &ControllerSpec,
 ) -> Result<(), ConfigError> {
-    use crate::control::{validate_model, validate_params};
+    use crate::law::{validate_model, validate_params};
     let (kind, tunable) = (controller.param_kind(), controller.tunable());
     let set = crate::msg::ParamSet::new(1, 0, kind, &s.values);
     let judged = match s.kind {
@@ -621,7 +621,7 @@ fn scheduled_set_fits(
 /// as one parameter set [slot, parameters], or in parts where larger (`ParamSet::model_sets`),
 /// all of which the controller must be able to queue at once.
 fn identify_mode_fits(check: &Check, controller: &ControllerSpec) -> Result<(), ConfigError> {
-    let crate::control::ControllerModel::FuzzyComputedTorque(f) = &controller.model else {
+    let crate::law::ControllerModel::FuzzyComputedTorque(f) = &controller.model else {
         return check.fail(
             "optimiser.mode",
             "\"identify\" identifies models for a fuzzy_computed_torque controller \
@@ -629,7 +629,7 @@ fn identify_mode_fits(check: &Check, controller: &ControllerSpec) -> Result<(), 
         );
     };
     // The controller's queue of sets and its params subscriber's buffer both hold every part.
-    let queue = crate::control::cycle::PENDING_CAPACITY.min(crate::ipc::Topic::Params.max_buffer());
+    let queue = crate::law::cycle::PENDING_CAPACITY.min(crate::ipc::Topic::Params.max_buffer());
     for (i, m) in f.loaded.iter().enumerate() {
         let sets = crate::msg::ParamSet::model_set_count(1 + m.net.layout.len);
         if sets > queue {

@@ -5,7 +5,7 @@
 //! (`external`) must name it, as a datasheet or an earlier identification gives it.
 
 use crate::check::{Check, ConfigError};
-use crate::control::{ControllerModel, ControllerSpec};
+use crate::law::{ControllerModel, ControllerSpec};
 use crate::plant::PlantModel;
 use serde::{Deserialize, Serialize};
 
@@ -171,7 +171,7 @@ pub fn validate(
         3600.0,
     )?;
     // The controller checks sets on this model's sampled loop from the start.
-    if crate::control::LinearModel::sampled_transfer_function(&num, &den, period).is_none() {
+    if crate::law::LinearModel::sampled_transfer_function(&num, &den, period).is_none() {
         return check.fail(
             "optimiser.model.den",
             format!("the model is far too fast to hold between samples of {period} s"),

@@ -230,7 +230,7 @@ pub struct OptimiserSpec {
     /// repetition before it runs the configured set, the baseline.
     pub first_repetition: f64,
     /// Direct: the envelope a candidate is aborted outside of.
-    pub envelope: crate::control::cycle::Envelope,
+    pub envelope: crate::law::cycle::Envelope,
     /// Direct: the output at sample k is judged against the reference `cost_lag` samples
     /// earlier (1 for the arsinh plant: eq. 25 compares x_{i+1} with w_i).
     pub cost_lag: u32,
@@ -500,7 +500,7 @@ struct DirectSettings {
     evaluations: usize,
     repetition: f64,
     first_repetition: f64,
-    envelope: crate::control::cycle::Envelope,
+    envelope: crate::law::cycle::Envelope,
     phases: [usize; 3],
 }
 
@@ -553,7 +553,7 @@ fn direct_settings(
             Some(x) => check.range(key, x, 1e-12, 1e12),
         }
     };
-    let envelope = crate::control::cycle::Envelope {
+    let envelope = crate::law::cycle::Envelope {
         error: bound("optimiser.envelope_error", o.envelope_error)?,
         output: bound("optimiser.envelope_output", o.envelope_output)?,
         control: bound("optimiser.envelope_control", o.envelope_control)?,

@@ -3,7 +3,7 @@
 //! by the index of eq. 31. One loop for everyone who needs it: the GA experiments (`evoloop tune`),
 //! the indirect scheme's model, the tests and the benchmarks.
 
-use crate::control::pid::{AntiWindup, Pid};
+use crate::law::pid::{AntiWindup, Pid};
 use crate::plant::maglev::{Maglev, MaglevParams};
 use crate::reference::Reference;
 use serde::{Deserialize, Serialize};

@@ -6,7 +6,7 @@ pub mod cost;
 pub mod maglev;
 
 use crate::config::Scenario;
-use crate::control::cycle::{ControlCycle, ParamEvent};
+use crate::law::cycle::{ControlCycle, ParamEvent};
 use crate::msg::{ParamSet, PlantState, Telemetry};
 use crate::plant::PlantSim;
 
@@ -234,7 +234,7 @@ impl<'a> Keep<'a> {
 /// +-`diverged`. Noise-free, from u = 0; `Run` has the other settings.
 pub fn response(
     plant: Box<dyn crate::plant::Plant>,
-    controller: Box<dyn crate::control::Controller>,
+    controller: Box<dyn crate::law::Controller>,
     reference: &crate::reference::Reference,
     period: f64,
     step: f64,
@@ -300,7 +300,7 @@ impl Run<'_> {
     pub fn response(
         &self,
         plant: Box<dyn crate::plant::Plant>,
-        mut controller: Box<dyn crate::control::Controller>,
+        mut controller: Box<dyn crate::law::Controller>,
     ) -> Response {
         let n_u = plant.n_inputs();
         let mut sim =

@@ -43,7 +43,7 @@
 pub mod model;
 
 use crate::config::Scenario;
-use crate::control::cycle::Envelope;
+use crate::law::cycle::Envelope;
 use crate::msg::{ParamKind, ParamSet};
 use crate::optim::Optimiser;
 use crate::report::Csv;
@@ -937,7 +937,7 @@ pub fn run_tuner_in_process(
         progress: P,
     }
     impl<P: FnMut(usize, f64)> crate::sim::LoopHook for Hook<P> {
-        fn before(&mut self, seq: u64, cycle: &mut crate::control::cycle::ControlCycle) {
+        fn before(&mut self, seq: u64, cycle: &mut crate::law::cycle::ControlCycle) {
             let scored = self.tuner.records.len();
             if let Some(set) = self.tuner.at(seq, None) {
                 cycle.offer(&set);
@@ -950,8 +950,8 @@ pub fn run_tuner_in_process(
             &mut self,
             s: &crate::msg::PlantState,
             tel: &crate::msg::Telemetry,
-            _event: Option<crate::control::cycle::ParamEvent>,
-            cycle: &crate::control::cycle::ControlCycle,
+            _event: Option<crate::law::cycle::ParamEvent>,
+            cycle: &crate::law::cycle::ControlCycle,
         ) {
             let n = self.n;
             self.tuner.observe(

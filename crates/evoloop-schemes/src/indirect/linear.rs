@@ -30,7 +30,7 @@
 use super::{Candidate, Estimate, Estimator, Tuner};
 use super::{Svf, SvfDesign};
 use crate::config::{ModelPrior, Scenario};
-use crate::control::{Controller, ControllerSpec};
+use crate::law::{Controller, ControllerSpec};
 use crate::msg::PlantState;
 use crate::plant::lti::LtiSpec;
 use crate::reference::Reference;
@@ -374,7 +374,7 @@ impl LoopModel {
         let (num, den) = self.transfer_function(theta);
         GAIN_CHECKED.iter().all(|g| {
             let scaled: Vec<f64> = num.iter().map(|b| b * g).collect();
-            crate::control::LinearModel::sampled_transfer_function(&scaled, &den, self.period)
+            crate::law::LinearModel::sampled_transfer_function(&scaled, &den, self.period)
                 .is_some_and(|lm| law.stabilises(&lm, params))
         })
     }
@@ -499,9 +499,9 @@ impl Tuner for LinearTuner {
     fn epoch_evaluations(&self) -> usize {
         self.de.evaluations
     }
-    fn checked_model(&self, _: f64, theta: &[f64]) -> Option<crate::control::LinearModel> {
+    fn checked_model(&self, _: f64, theta: &[f64]) -> Option<crate::law::LinearModel> {
         let (num, den) = self.model.transfer_function(theta);
-        crate::control::LinearModel::sampled_transfer_function(&num, &den, self.model.period)
+        crate::law::LinearModel::sampled_transfer_function(&num, &den, self.model.period)
     }
 }
 
@@ -656,7 +656,7 @@ mod tests {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../config/lti_motor_indirect.toml");
         let scn = Scenario::load(&path, &Overrides::default()).unwrap();
-        let offer = |cycle: &mut crate::control::cycle::ControlCycle, v: u64, values: &[f64]| {
+        let offer = |cycle: &mut crate::law::cycle::ControlCycle, v: u64, values: &[f64]| {
             let seq = cycle.next_cycle();
             cycle.offer(&ParamSet::new(v, seq, scn.controller.param_kind(), values));
             let s = PlantState {
@@ -679,7 +679,7 @@ mod tests {
             ParamCode::RejectedUnstable
         );
         assert_eq!(offer(&mut cycle, 1, &set), ParamCode::Accepted);
-        let loaded = crate::control::LinearModel::sampled_transfer_function(
+        let loaded = crate::law::LinearModel::sampled_transfer_function(
             &[0.0, 0.0, 13.3333],
             &[1.0, 6.6667, 0.0],
             1e-3,
@@ -697,14 +697,14 @@ mod tests {
     }
 
     /// `LinearModel::stabilised_by_pid`, derivative and integral columns included, against the
-    /// loop itself: `control::Pid` on the sampled motor 40 / (s^2 + 20 s) without actuator
+    /// loop itself: `law::Pid` on the sampled motor 40 / (s^2 + 20 s) without actuator
     /// limits, a unit step, 4 s. Where the simulation is clear (the error's peak over the last
     /// half second below 1e-3 of the first half second's, or above it), the check agrees.
     #[test]
     fn the_pid_check_agrees_with_simulating_the_loop() {
-        use crate::control::{AntiWindup, Controller, Pid};
+        use crate::law::{AntiWindup, Controller, Pid};
         let (num, den, t) = ([0.0, 0.0, 40.0], [1.0, 20.0, 0.0], 1e-3);
-        let model = crate::control::LinearModel::sampled_transfer_function(&num, &den, t).unwrap();
+        let model = crate::law::LinearModel::sampled_transfer_function(&num, &den, t).unwrap();
         let (mut stable, mut unstable) = (0, 0);
         for kp in [1.0, 5.0, 20.0, 60.0, 150.0] {
             for tv in [0.0, 0.005, 0.02, 0.1] {

@@ -13,7 +13,7 @@
 //!   the set in service and the previous best; at the end of an epoch the best set is published
 //!   when its cost is below the in-service set's cost on the same model by the margin.
 
-use crate::control::{AntiWindup, ControllerModel};
+use crate::law::{AntiWindup, ControllerModel};
 use crate::optim::hybrid::{hybrid, HybridConfig};
 use crate::optim::GaConfig;
 use crate::plant::maglev::{Maglev, MaglevParams, G};
@@ -273,7 +273,7 @@ pub struct DeEpochs {
 impl DeEpochs {
     /// Epochs within `bounds`, seeded with the scenario's seed, on `optimiser.threads` threads,
     /// `optimiser.epoch_evaluations` evaluations each.
-    pub fn new(scn: &crate::config::Scenario, bounds: &crate::control::ParamBounds) -> Self {
+    pub fn new(scn: &crate::config::Scenario, bounds: &crate::law::ParamBounds) -> Self {
         Self {
             lower: bounds.lower.clone(),
             upper: bounds.upper.clone(),
@@ -401,7 +401,7 @@ pub trait Tuner: Send {
     /// The linear model the controller checks sets on once it adopts this estimate, when the
     /// tuner's model defines it (the general scheme's estimated transfer function); None to
     /// take the plant's (`PlantConfig::linear_model_at`).
-    fn checked_model(&self, _p: f64, _coefficients: &[f64]) -> Option<crate::control::LinearModel> {
+    fn checked_model(&self, _p: f64, _coefficients: &[f64]) -> Option<crate::law::LinearModel> {
         None
     }
 }
@@ -438,8 +438,8 @@ impl Tuner for MaglevTuner {
 /// The controller's stability check as the optimiser applies it: its law, the configured
 /// model and the plant (for the model at an estimate).
 struct LawCheck {
-    nominal: crate::control::LinearModel,
-    law: Box<dyn crate::control::Controller>,
+    nominal: crate::law::LinearModel,
+    law: Box<dyn crate::law::Controller>,
     plant: PlantModel,
 }
 

@@ -14,7 +14,7 @@
 //!   stable springs must contain what r_c guarantees: a spring change δ is the perturbation
 //!   δ [[-1, 1], [1, -1]] of norm 2|δ|, so |δ| < r_c / 2 keeps the loop stable.
 
-use crate::control::estimator::{KalmanDesign, KalmanError, KalmanGains};
+use crate::law::estimator::{KalmanDesign, KalmanError, KalmanGains};
 use crate::linalg::eig;
 use crate::plant::linear::LinearModel;
 use nalgebra::DMatrix;

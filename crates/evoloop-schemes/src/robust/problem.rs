@@ -144,7 +144,7 @@ impl RobustProblem {
     /// loop's others are the filter's, by separation), r_c is the whole loop's.
     pub fn with_observer(
         mut self,
-        design: crate::control::estimator::KalmanDesign,
+        design: crate::law::estimator::KalmanDesign,
         period: f64,
     ) -> Result<Self, super::observer::ObserverError> {
         let model = self.nominal_model();

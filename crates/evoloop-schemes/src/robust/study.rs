@@ -12,7 +12,7 @@
 
 use super::lqr::lqr;
 use super::problem::RobustProblem;
-use crate::control::StateFeedback;
+use crate::law::StateFeedback;
 use crate::optim::{run, DeConfig, DifferentialEvolution, RunResult};
 use crate::plant::two_mass::{Sensor, TwoMass};
 use crate::reference::Reference;

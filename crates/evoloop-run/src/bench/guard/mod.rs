@@ -12,8 +12,8 @@
 pub mod textbook;
 
 use crate::bench::latency::{self, Variant};
-use crate::control::cycle::ControlCycle;
 use crate::dynamics::Model;
+use crate::law::cycle::ControlCycle;
 use crate::msg::{PlantState, Telemetry};
 use crate::optim::by_name;
 use serde::Serialize;
@@ -275,7 +275,7 @@ impl crate::sim::LoopHook for Samples {
         &mut self,
         state: &PlantState,
         _: &Telemetry,
-        _: Option<crate::control::cycle::ParamEvent>,
+        _: Option<crate::law::cycle::ParamEvent>,
         _: &ControlCycle,
     ) {
         if state.t >= self.from {

@@ -99,7 +99,7 @@ impl ComputedTorque {
 
 /// Positions a replacement model's M(q) is checked on.
 pub const PROBES: usize = 24;
-pub use crate::control::fuzzy_computed_torque::MIN_EIG_RATIO;
+pub use crate::law::fuzzy_computed_torque::MIN_EIG_RATIO;
 
 /// `PROBES` positions spread over the joint limits (+-pi where there are none) by a fixed
 /// low-discrepancy sequence (the golden-ratio additive recurrence per joint): the same probes on

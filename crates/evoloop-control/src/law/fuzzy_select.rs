@@ -7,7 +7,7 @@
 //! model of largest weight (`Selection::Max`); `Selection::Blend` (beyond the paper) weights the
 //! models by their normalised memberships, and `Selection::Evidence` (beyond the paper too)
 //! weights them per joint by how well each explains the measured motion under the applied
-//! torque, against a uniform prior or the memberships (`control::evidence`).
+//! torque, against a uniform prior or the memberships (`law::evidence`).
 //!
 //! Reading of eq. 19. As printed, M_ij = exp(ln(0.5) (z_ij - z_rj)^2 gamma L_j^2) multiplies the
 //! squared distance by gamma L_j^2: trajectories further apart (larger L_j) would give *narrower*
@@ -27,7 +27,7 @@ pub enum Selection {
     Max,
     /// Every model, weighted by w_i / sum w.
     Blend,
-    /// Every model, weighted per joint by its evidence (`control::evidence`) against a prior:
+    /// Every model, weighted per joint by its evidence (`law::evidence`) against a prior:
     /// uniform, or the memberships' w_i / sum w.
     Evidence,
 }

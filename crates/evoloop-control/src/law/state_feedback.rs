@@ -4,7 +4,7 @@
 //! integral gain k_i equals -k_{n+1}). x is the plant's state in its documented order. By
 //! default (`state = "kalman"`) it is a steady-state Kalman filter's estimate from the measured
 //! output y and the applied command, designed from the plant's nominal model for its declared
-//! sensor (`control::estimator`), as a machine with one position sensor runs this law. The
+//! sensor (`law::estimator`), as a machine with one position sensor runs this law. The
 //! paper assumes the full state measured: `state = "true"` reads the simulator's true state
 //! `x_true` instead, for reproducing its tables, and says so. The integrator acts on y.
 //!

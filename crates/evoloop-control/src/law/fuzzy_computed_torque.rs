@@ -671,7 +671,7 @@ impl ControllerConfig for FuzzyComputedTorqueSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::cycle::ControlCycle;
+    use crate::law::cycle::ControlCycle;
     use crate::msg::{ParamSet, Telemetry};
 
     fn shipped(k: usize) -> RkgnnModel {
