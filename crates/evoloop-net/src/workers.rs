@@ -452,7 +452,7 @@ fn evaluate(
         return Err("thresholds and candidates differ in number".into());
     }
     if cached.as_ref().is_none_or(|(j, _)| *j != req.job) {
-        let f = crate::jobs::rebuild(&req.job)?;
+        let f = crate::jobs::rebuild(&req.job).map_err(|e| e.to_string())?;
         *cached = Some((req.job, f));
     }
     let f = &cached.as_ref().expect("just set").1;

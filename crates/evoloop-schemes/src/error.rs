@@ -19,8 +19,9 @@ pub enum SchemeError {
     NoIndirectModel,
     /// `safe_bayes_model` without the plant's nominal model.
     NoNominalModel,
-    /// The nominal transfer function (`[optimiser.model]`) makes no plant model: the reason.
-    NominalModel(String),
+    /// The nominal transfer function (`[optimiser.model]`) makes no plant model: why (its
+    /// `reason` is the message; the key names the part refused).
+    NominalModel(ConfigError),
     /// The optimiser named in the scenario cannot be built with its settings.
     Optimiser(BuildError),
     /// The Bayesian optimiser's settings are refused.
@@ -40,7 +41,7 @@ impl std::fmt::Display for SchemeError {
                 "safe_bayes_model needs the plant's nominal model: [optimiser.nominal_plant] or \
                  [optimiser.model] num, den",
             ),
-            SchemeError::NominalModel(reason) => f.write_str(reason),
+            SchemeError::NominalModel(e) => f.write_str(&e.reason),
             SchemeError::Optimiser(e) => e.fmt(f),
             SchemeError::Settings(e) => e.fmt(f),
         }
@@ -50,10 +51,126 @@ impl std::fmt::Display for SchemeError {
 impl std::error::Error for SchemeError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            SchemeError::NotInProcess(e) => Some(e),
+            SchemeError::NotInProcess(e) | SchemeError::NominalModel(e) => Some(e),
             SchemeError::Optimiser(e) => Some(e),
             SchemeError::Settings(e) => Some(e),
             _ => None,
         }
+    }
+}
+
+/// A result file a scheme or study could not write (`direct::write_files`, the robust study).
+#[derive(Debug)]
+pub enum WriteError {
+    /// A file or directory could not be made or written: its path and the system's error.
+    File {
+        /// The file or directory.
+        path: std::path::PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// A figure could not be drawn: its file and the plotting library's message.
+    Figure {
+        /// The PNG file.
+        path: std::path::PathBuf,
+        /// What the plotting library said.
+        reason: String,
+    },
+}
+
+impl WriteError {
+    /// `source` on writing `path`, for `map_err`.
+    pub fn file(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> Self + '_ {
+        move |source| WriteError::File {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    /// The plotting library's `reason` for the figure `path`, for `map_err`.
+    pub fn figure(path: &std::path::Path) -> impl FnOnce(String) -> Self + '_ {
+        move |reason| WriteError::Figure {
+            path: path.to_path_buf(),
+            reason,
+        }
+    }
+}
+
+impl std::fmt::Display for WriteError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            // evoloop_files' errors name the path already; a bare io::Error does not.
+            WriteError::File { path, source } => {
+                let p = path.display().to_string();
+                if source.to_string().contains(&p) {
+                    source.fmt(f)
+                } else {
+                    write!(f, "{p}: {source}")
+                }
+            }
+            WriteError::Figure { path, reason } => write!(f, "{}: {reason}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for WriteError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            WriteError::File { source, .. } => Some(source),
+            WriteError::Figure { .. } => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::error::Error;
+
+    /// Where the robust study cannot make its directory, it says so with the path and keeps the
+    /// system's error, before any run.
+    #[test]
+    fn a_study_that_cannot_write_keeps_the_path_and_the_cause() {
+        let tmp = tempfile::tempdir().unwrap();
+        let blocked = tmp.path().join("a_file");
+        std::fs::write(&blocked, "").unwrap();
+        let dir = blocked.join("study");
+        let e = crate::robust::study::study(&dir, 1, 1, &mut |_, _, _| {})
+            .expect_err("a directory inside a file cannot be made");
+        let crate::robust::study::StudyError::Write(WriteError::File { path, source }) = &e else {
+            panic!("{e:?}");
+        };
+        assert_eq!(path, &dir);
+        assert!(e.to_string().contains(&dir.display().to_string()), "{e}");
+        assert!(
+            e.source().is_some_and(|s| s.is::<std::io::Error>()),
+            "{source}"
+        );
+    }
+
+    /// A nominal transfer function the plant loader refuses names the part refused, and the
+    /// scheme's message is the reason alone.
+    #[test]
+    fn a_refused_nominal_model_keeps_its_key() {
+        let e = crate::plant::lti::LtiSpec::from_transfer_function(
+            &[1.0],
+            &[0.0, 1.0],
+            1e-3,
+            (-1.0, 1.0),
+        )
+        .expect_err("a leading zero in the denominator");
+        assert_eq!(e.file, std::path::Path::new("model"));
+        assert!(!e.key.is_empty(), "{e}");
+        let s = SchemeError::NominalModel(e.clone());
+        assert_eq!(s.to_string(), e.reason);
+        assert!(s.source().is_some());
+        let fast = crate::plant::lti::LtiSpec::from_transfer_function(
+            &[1.0],
+            &[1.0, 1e12],
+            1.0,
+            (-1.0, 1.0),
+        )
+        .expect_err("a pole at -1e12 rad/s cannot be held for a second");
+        assert_eq!(fast.key, "period", "{fast}");
     }
 }

@@ -17,7 +17,7 @@ pub mod indirect;
 pub mod jobs;
 pub mod robust;
 
-pub use error::SchemeError;
+pub use error::{SchemeError, WriteError};
 
 use evoloop_control::{check, filter, law, plant, reference};
 use evoloop_files as files;

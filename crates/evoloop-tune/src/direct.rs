@@ -70,7 +70,8 @@ pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), String> {
         "seconds": seconds,
     });
     crate::report::write_json(&dir, "direct.json", &result).map_err(|e| e.to_string())?;
-    let files = evoloop_schemes::direct::write_files(&dir, report, scn.output.plots)?;
+    let files = evoloop_schemes::direct::write_files(&dir, report, scn.output.plots)
+        .map_err(|e| e.to_string())?;
     if a.json {
         println!(
             "{}",

@@ -152,18 +152,25 @@ impl LtiSpec {
     /// A continuous single-input single-output model from a transfer function (descending
     /// powers), realised and discretised as `[plant.lti]` does at `period`, with the actuator's
     /// range: the model the general indirect scheme tunes on.
+    ///
+    /// # Errors
+    ///
+    /// The transfer function is refused as `[plant.lti]` refuses it (`num`, `den`: improper,
+    /// not finite, a leading zero ...), or it cannot be held between samples at `period`; the
+    /// error's file is `model`.
     pub fn from_transfer_function(
         num: &[f64],
         den: &[f64],
         period: f64,
         u_range: (f64, f64),
-    ) -> Result<LtiSpec, String> {
+    ) -> Result<LtiSpec, ConfigError> {
         let src = Source {
             check: Check::new("model".as_ref()),
             prefix: "",
         };
-        let r = transfer_function(Some(num), Some(den), &src).map_err(|e| e.reason)?;
-        let (phi, gamma) = discretised(&r.a, &r.b, r.n, r.m, period, false)?;
+        let r = transfer_function(Some(num), Some(den), &src)?;
+        let (phi, gamma) = discretised(&r.a, &r.b, r.n, r.m, period, false)
+            .or_else(|reason| src.check.fail("period", reason))?;
         Ok(LtiSpec {
             x0: vec![0.0; r.n],
             n: r.n,

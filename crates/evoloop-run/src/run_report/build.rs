@@ -605,7 +605,7 @@ pub fn build_report(
     }
     let opt = &inputs.opt;
     if let Some(d) = &opt.direct {
-        crate::direct::write_files(dir, d, scn.output.plots)?;
+        crate::direct::write_files(dir, d, scn.output.plots).map_err(|e| e.to_string())?;
     }
     if !scan.reps.is_empty() {
         write_repetitions(dir, &scan.reps, &frozen_reps)?;

@@ -48,7 +48,7 @@ use crate::msg::{ParamKind, ParamSet};
 use crate::optim::Optimiser;
 use crate::report::Csv;
 use crate::sim::cost::TrackingCost;
-use crate::SchemeError;
+use crate::{SchemeError, WriteError};
 use serde::Serialize;
 
 /// The direct scheme's settings, from the scenario's `[optimiser]` table.
@@ -984,10 +984,11 @@ pub fn write_files(
     dir: &std::path::Path,
     report: &DirectReport,
     plots: bool,
-) -> Result<Vec<&'static str>, String> {
+) -> Result<Vec<&'static str>, WriteError> {
+    let csv = dir.join("direct.csv");
     records_csv(&report.repetitions)
-        .write(&dir.join("direct.csv"))
-        .map_err(|e| e.to_string())?;
+        .write(&csv)
+        .map_err(WriteError::file(&csv))?;
     let mut names = vec!["direct.csv"];
     if plots && !report.repetitions.is_empty() {
         use crate::report::plot::{xy_png, Style, XySeries};
@@ -1034,8 +1035,9 @@ pub fn write_files(
                 style: Style::Points,
             });
         }
+        let png = dir.join("direct.png");
         xy_png(
-            &dir.join("direct.png"),
+            &png,
             &format!(
                 "direct scheme: {} trials of {} on the plant, one repetition each (0 = the configured set)",
                 reps.len().saturating_sub(1),
@@ -1046,7 +1048,8 @@ pub fn write_files(
             &series,
             None,
             None,
-        )?;
+        )
+        .map_err(WriteError::figure(&png))?;
         names.push("direct.png");
     }
     Ok(names)

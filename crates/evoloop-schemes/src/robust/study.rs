@@ -10,7 +10,7 @@
 //! Everything lands in DIR: report.md (each table beside the paper's), study.json, runs.csv,
 //! responses.csv, poles.png and step_*.png.
 
-use super::lqr::lqr;
+use super::lqr::{lqr, LqrError};
 use super::problem::RobustProblem;
 use crate::law::StateFeedback;
 use crate::optim::{run, DeConfig, DifferentialEvolution, RunResult};
@@ -19,6 +19,7 @@ use crate::reference::Reference;
 use crate::report::metrics::response_metrics;
 use crate::report::plot::{xy_png, Style, XySeries};
 use crate::report::Csv;
+use crate::WriteError;
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -201,11 +202,11 @@ pub fn setting(
 }
 
 /// LQR gains for the augmented two-mass system.
-pub fn lqr_gains(k: f64, sensor: Sensor, q: &[f64], r: f64) -> Result<Vec<f64>, String> {
+pub fn lqr_gains(k: f64, sensor: Sensor, q: &[f64], r: f64) -> Result<Vec<f64>, LqrError> {
     let (a, b) = super::augmented(k, sensor);
     let q = DMatrix::from_diagonal(&DVector::from_row_slice(q));
     let r = DMatrix::from_element(1, 1, r);
-    let sol = lqr(&a, &b, &q, &r).map_err(|e| e.to_string())?;
+    let sol = lqr(&a, &b, &q, &r)?;
     Ok(sol.k.row(0).iter().copied().collect())
 }
 
@@ -289,8 +290,8 @@ pub fn study(
     runs: usize,
     threads: usize,
     progress: &mut dyn FnMut(usize, usize, &str),
-) -> Result<String, String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+) -> Result<String, StudyError> {
+    std::fs::create_dir_all(dir).map_err(WriteError::file(dir))?;
     let prob = RobustProblem::paper();
     let mut settings = Vec::new();
     let total = PAPER_TABLES.len() * runs;
@@ -336,8 +337,9 @@ pub fn study(
                     style: Style::Line,
                 })
                 .collect();
+            let png = dir.join(format!("step_{}_{tag}.png", file_tag(name)));
             xy_png(
-                &dir.join(format!("step_{}_{tag}.png", file_tag(name))),
+                &png,
                 &format!(
                     "{name} on the {} plant: 20 step responses, k ~ U[0.5, 2]",
                     tag
@@ -347,7 +349,8 @@ pub fn study(
                 &series,
                 Some((0.0, 50.0)),
                 Some((-0.5, 2.0)),
-            )?;
+            )
+            .map_err(WriteError::figure(&png))?;
             responses.push(st);
         }
     }
@@ -360,11 +363,11 @@ pub fn study(
         lqr2: &lqr2,
         responses: &responses,
     };
-    crate::files::write(
-        dir.join("study.json"),
-        serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?,
-    )
-    .map_err(|e| e.to_string())?;
+    let path = dir.join("study.json");
+    serde_json::to_string_pretty(&json)
+        .map_err(std::io::Error::other)
+        .and_then(|text| crate::files::write(&path, text))
+        .map_err(WriteError::file(&path))?;
     let mut csv = Csv::new([
         "f",
         "cr",
@@ -394,8 +397,8 @@ pub fn study(
                 .all(&r.best);
         }
     }
-    csv.write(&dir.join("runs.csv"))
-        .map_err(|e| e.to_string())?;
+    let path = dir.join("runs.csv");
+    csv.write(&path).map_err(WriteError::file(&path))?;
     let mut rcsv = Csv::new([
         "controller",
         "plant",
@@ -414,12 +417,52 @@ pub fn study(
                 .put(r.overshoots[i]);
         }
     }
-    rcsv.write(&dir.join("responses.csv"))
-        .map_err(|e| e.to_string())?;
+    let path = dir.join("responses.csv");
+    rcsv.write(&path).map_err(WriteError::file(&path))?;
 
     let report = report_md(&prob, &settings, &median_gains, &lqr1, &lqr2, &responses);
-    crate::files::write(dir.join("report.md"), &report).map_err(|e| e.to_string())?;
+    let path = dir.join("report.md");
+    crate::files::write(&path, &report).map_err(WriteError::file(&path))?;
     Ok(report)
+}
+
+/// Why the robust study stopped (`study`).
+#[derive(Debug)]
+pub enum StudyError {
+    /// The LQR gains the study compares with could not be computed.
+    Lqr(LqrError),
+    /// A file of the study could not be written.
+    Write(WriteError),
+}
+
+impl std::fmt::Display for StudyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            StudyError::Lqr(e) => write!(f, "the LQR gains: {e}"),
+            StudyError::Write(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for StudyError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            StudyError::Lqr(e) => Some(e),
+            StudyError::Write(e) => e.source(),
+        }
+    }
+}
+
+impl From<LqrError> for StudyError {
+    fn from(e: LqrError) -> Self {
+        StudyError::Lqr(e)
+    }
+}
+
+impl From<WriteError> for StudyError {
+    fn from(e: WriteError) -> Self {
+        StudyError::Write(e)
+    }
 }
 
 /// Fig. 5: the closed-loop poles of the runs of one setting, with the wedge.
@@ -428,7 +471,7 @@ fn poles_figure(
     t7: &SettingStats,
     runs: usize,
     dir: &Path,
-) -> Result<(), String> {
+) -> Result<(), WriteError> {
     let mut px = Vec::new();
     let mut py = Vec::new();
     for r in &t7.runs {
@@ -447,8 +490,9 @@ fn poles_figure(
         slope * xmin,
     ];
     let ymax = py.iter().map(|v| v.abs()).fold(slope * -xmin, f64::max) * 1.05;
+    let png = dir.join("poles.png");
     xy_png(
-        &dir.join("poles.png"),
+        &png,
         &format!("Fig. 5: closed-loop poles of the {runs} DE runs (F = 0.5, CR = 0.9) and the wedge (zeta = 0.7, rho = 1)"),
         "Re",
         "Im",
@@ -458,8 +502,8 @@ fn poles_figure(
         ],
         Some((xmin, 0.5)),
         Some((-ymax, ymax)),
-    )?;
-    Ok(())
+    )
+    .map_err(WriteError::figure(&png))
 }
 
 /// "DEFC (Table 9 gains)" -> "defc_table9".
