@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Reference values for evoloop's Kalman filter (`control::estimator`), from python-control (an
+"""Reference values for evoloop's Kalman filter (`law::estimator`), from python-control (an
 independent implementation): each continuous single-input single-output model's zero-order-hold
 discretisation at the control period (`control.c2d`), the steady-state filter `control.dlqe`
 designs for a disturbance entering with the input (G = B_d, variance QN = q^2; with a state

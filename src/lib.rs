@@ -11,7 +11,7 @@
 
 #![forbid(unsafe_code)]
 
-pub use evoloop_control::{check, fuzzy, law, plant, reference};
+pub use evoloop_control::{check, filter, fuzzy, law, plant, reference};
 pub use evoloop_dynamics as dynamics;
 pub use evoloop_files as files;
 pub use evoloop_identify::{identify, rkgnn};
@@ -25,7 +25,7 @@ pub use evoloop_report as report;
 pub use evoloop_rt as rt;
 pub use evoloop_run::{bench, needs_zenoh, node, run_report, run_watch, soak};
 pub use evoloop_scenario::{config, sim};
-pub use evoloop_schemes::{direct, gains, indirect, jobs, robust, SchemeError};
+pub use evoloop_schemes::{direct, gains, indirect, jobs, robust, SchemeError, WriteError};
 pub use evoloop_stats as stats;
 pub use evoloop_tune as tune;
 

@@ -92,16 +92,7 @@ pub struct Csv {
 impl Csv {
     /// An empty table with the columns `header`.
     pub fn new<S: AsRef<str>>(header: impl IntoIterator<Item = S>) -> Self {
-        let mut text = String::new();
-        let mut width = 0;
-        for name in header {
-            if width > 0 {
-                text.push(',');
-            }
-            name.as_ref().put(&mut text);
-            width += 1;
-        }
-        text.push('\n');
+        let (text, width) = header_line(header);
         Self {
             text,
             width,
@@ -149,6 +140,22 @@ impl Csv {
         }
         evoloop_files::write(path, &self.text)
     }
+}
+
+/// A header line of `names` (quoted where they must be, ended by a line break), and how many:
+/// every table's, the streamed loop log's too.
+pub fn header_line<S: AsRef<str>>(names: impl IntoIterator<Item = S>) -> (String, usize) {
+    let mut text = String::new();
+    let mut width = 0;
+    for name in names {
+        if width > 0 {
+            text.push(',');
+        }
+        name.as_ref().put(&mut text);
+        width += 1;
+    }
+    text.push('\n');
+    (text, width)
 }
 
 /// One row of a `Csv` being written; it ends when dropped.
@@ -250,7 +257,7 @@ impl RunLog {
     /// byte-identical files.
     pub fn write_csv(&self, path: &Path) -> std::io::Result<()> {
         let mut w = BufWriter::new(evoloop_files::create(path)?);
-        writeln!(w, "{}", self.header.join(","))?;
+        w.write_all(header_line(&self.header).0.as_bytes())?;
         for i in 0..self.len() {
             write_row(&mut w, self.row(i))?;
         }

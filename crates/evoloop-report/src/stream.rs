@@ -138,7 +138,7 @@ impl LogStream {
         for p in &parts {
             let f = evoloop_files::create(&p.path)?;
             let mut w = BufWriter::with_capacity(1 << 16, f);
-            writeln!(w, "{}", p.header.join(","))?;
+            w.write_all(crate::csv::header_line(&p.header).0.as_bytes())?;
             w.flush()?;
             files.push((w, p.columns.clone()));
         }

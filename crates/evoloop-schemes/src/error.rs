@@ -98,17 +98,17 @@ impl WriteError {
 
 impl std::fmt::Display for WriteError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            // evoloop_files' errors name the path already; a bare io::Error does not.
-            WriteError::File { path, source } => {
-                let p = path.display().to_string();
-                if source.to_string().contains(&p) {
-                    source.fmt(f)
-                } else {
-                    write!(f, "{p}: {source}")
-                }
-            }
-            WriteError::Figure { path, reason } => write!(f, "{}: {reason}", path.display()),
+        // evoloop_files' errors, and the plotting library's where it could not create the file,
+        // name the path already; a bare io::Error or a drawing error does not.
+        let (path, message) = match self {
+            WriteError::File { path, source } => (path, source.to_string()),
+            WriteError::Figure { path, reason } => (path, reason.clone()),
+        };
+        let p = path.display().to_string();
+        if message.contains(&p) {
+            f.write_str(&message)
+        } else {
+            write!(f, "{p}: {message}")
         }
     }
 }

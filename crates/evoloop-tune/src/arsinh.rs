@@ -1,12 +1,13 @@
 //! The synthetic experiment of Section 5.1 as a command: tune, report, plot.
 
-use super::Run;
+use super::{Run, TuneError};
 use crate::fuzzy::arsinh as exp;
 use crate::fuzzy::FuzzyNetwork;
 use crate::optim::hybrid::hybrid;
 use crate::report::plot::{heatmap_png, two_panel_png, xy_png, Panel, Series, Style, XySeries};
 use crate::report::progress::Optimisation;
 use crate::report::Csv;
+use evoloop_schemes::WriteError;
 use serde_json::json;
 
 /// The paper's scaling factors after its optimisation.
@@ -31,14 +32,18 @@ fn mf_curves(net: &FuzzyNetwork, var: usize, grid: &[f64]) -> Vec<(String, Vec<f
 /// prespecified sets (and random ones); writes result.json, evolution.csv,
 /// tracking.csv and (with plots) the figures into `run.out`, and prints a summary
 /// or the JSON.
-pub fn run(run: Run) -> Result<(), String> {
+pub fn run(run: Run) -> Result<(), TuneError> {
     let codec = exp::codec();
     let (lo, hi) = codec.bounds();
     let initial = exp::prespecified();
     let seeds: Vec<Vec<f64>> = initial
         .iter()
-        .map(|n| codec.encode(n).ok_or("prespecified set not encodable"))
-        .collect::<Result<_, _>>()?;
+        .map(|n| {
+            codec
+                .encode(n)
+                .expect("the paper's prespecified sets lie within the codec's bounds")
+        })
+        .collect();
     let trajectory = exp::default_trajectory();
     let objective = exp::Objective {
         codec: codec.clone(),
@@ -86,13 +91,14 @@ pub fn run(run: Run) -> Result<(), String> {
         "network": net,
         "rule_base": net.rule_table(),
     });
-    crate::report::write_json(&run.out, "result.json", &result).map_err(|e| e.to_string())?;
+    crate::report::write_json(&run.out, "result.json", &result)
+        .map_err(WriteError::file(&run.out.join("result.json")))?;
     let mut csv = Csv::new(["evaluation", "G", "best_G"]);
     for (i, (v, b)) in r.values.iter().zip(&r.best_so_far).enumerate() {
         csv.row().put(i + 1).put(v).put(b);
     }
-    csv.write(&run.out.join("evolution.csv"))
-        .map_err(|e| e.to_string())?;
+    let path = run.out.join("evolution.csv");
+    csv.write(&path).map_err(WriteError::file(&path))?;
     let mut tr = Csv::new(["k", "w", "x_initial", "x_optimised"]);
     for k in 0..trajectory.len() {
         tr.row()
@@ -101,8 +107,8 @@ pub fn run(run: Run) -> Result<(), String> {
             .put(x0.get(k + 1).copied().unwrap_or(f64::NAN))
             .put(x1[k + 1]);
     }
-    tr.write(&run.out.join("tracking.csv"))
-        .map_err(|e| e.to_string())?;
+    let path = run.out.join("tracking.csv");
+    tr.write(&path).map_err(WriteError::file(&path))?;
     if run.plots {
         plots(
             &run,
@@ -117,10 +123,7 @@ pub fn run(run: Run) -> Result<(), String> {
         )?;
     }
     if run.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&result).map_err(|e| e.to_string())?
-        );
+        crate::report::print_json(&result);
     } else {
         println!(
             "arsinh (Section 5.1): G {:.4} (best initial set) -> {:.4} ({:.1} % of it) in {} evaluations ({} + {} + {}), {:.3} s",
@@ -171,7 +174,7 @@ fn plots(
     best_so_far: &[f64],
     g0: f64,
     g1: f64,
-) -> Result<(), String> {
+) -> Result<(), WriteError> {
     let grid: Vec<f64> = (0..=250).map(|i| -1.25 + 2.5 * i as f64 / 250.0).collect();
     for (var, name) in [(0, "x"), (1, "w"), (2, "u")] {
         let b = mf_curves(before, var, &grid);
@@ -184,14 +187,16 @@ fn plots(
             .iter()
             .map(|(n, v)| Series { name: n, values: v })
             .collect();
+        let png = run.out.join(format!("mf_{name}.png"));
         two_panel_png(
-            &run.out.join(format!("mf_{name}.png")),
+            &png,
             &format!("membership functions of {name} (normalised axis): initial (top), optimised (bottom)"),
             &grid,
             Panel { series: &top, label: "initial" },
             Panel { series: &bottom, label: "optimised" },
             &[],
-        )?;
+        )
+        .map_err(WriteError::figure(&png))?;
     }
     let k: Vec<f64> = (0..w.len()).map(|i| i as f64).collect();
     let xb: Vec<f64> = x0.iter().skip(1).copied().collect();
@@ -216,14 +221,16 @@ fn plots(
             values: &xa,
         },
     ];
+    let png = run.out.join("tracking.png");
     two_panel_png(
-        &run.out.join("tracking.png"),
+        &png,
         &format!("tracking x_(k+1) vs w_k: initial controller G = {g0:.3} (top), optimised G = {g1:.3} (bottom)"),
         &k,
         Panel { series: &top, label: "initial" },
         Panel { series: &bottom, label: "optimised" },
         &[],
-    )?;
+    )
+    .map_err(WriteError::figure(&png))?;
     let axis: Vec<f64> = (0..=40).map(|i| -1.0 + 2.0 * i as f64 / 40.0).collect();
     let mut u = [0.0];
     let z: Vec<Vec<f64>> = axis
@@ -237,18 +244,21 @@ fn plots(
                 .collect()
         })
         .collect();
+    let png = run.out.join("surface.png");
     heatmap_png(
-        &run.out.join("surface.png"),
+        &png,
         "control surface u(x_k, w_k) of the optimised controller",
         "x_k",
         "w_k",
         &axis,
         &axis,
         &z,
-    )?;
+    )
+    .map_err(WriteError::figure(&png))?;
     let n: Vec<f64> = (1..=best_so_far.len()).map(|i| i as f64).collect();
+    let png = run.out.join("evolution.png");
     xy_png(
-        &run.out.join("evolution.png"),
+        &png,
         "best G so far per evaluation (Fig. 7b)",
         "evaluation",
         "G",
@@ -261,4 +271,5 @@ fn plots(
         None,
         None,
     )
+    .map_err(WriteError::figure(&png))
 }

@@ -17,6 +17,9 @@
 use crate::config::{Overrides, Scenario};
 use crate::report::Csv;
 use crate::stats::{median, wilcoxon};
+use crate::TuneError;
+use evoloop_control::check::ConfigError;
+use evoloop_schemes::WriteError;
 use serde::Serialize;
 use std::path::Path;
 
@@ -133,26 +136,29 @@ pub fn run(
     algorithms: &[String],
     seeds: &[u64],
     a: &super::TuneRequest,
-) -> Result<(), String> {
+) -> Result<(), TuneError> {
     let mut named = algorithms.iter().enumerate();
     if let Some((_, dup)) = named.find(|(i, a)| algorithms[..*i].contains(a)) {
-        return Err(format!(
-            "--compare: `{dup}` is named twice: each optimiser is compared once, against the others"
+        return Err(TuneError::option(
+            "--compare",
+            format!("`{dup}` is named twice: each optimiser is compared once, against the others"),
         ));
     }
     if algorithms.len() < 2 {
-        return Err("--compare: name two optimisers or more, the GA among them".into());
-    }
-    if !algorithms.iter().any(|a| a == REFERENCE) {
-        return Err(format!(
-            "--compare: the GA is the yardstick (experiments to within 1 % of its final cost): include `{REFERENCE}`"
+        return Err(TuneError::option(
+            "--compare",
+            "name two optimisers or more, the GA among them",
         ));
     }
-    let text = crate::files::read_text(file).map_err(|e| format!("{}: {e}", file.display()))?;
-    let scenario = |algorithm: &str, seed: u64| -> Result<Scenario, String> {
-        let mut t: toml::Table = text
-            .parse()
-            .map_err(|e| format!("{}: {e}", file.display()))?;
+    if !algorithms.iter().any(|a| a == REFERENCE) {
+        return Err(TuneError::option(
+            "--compare",
+            format!("the GA is the yardstick (experiments to within 1 % of its final cost): include `{REFERENCE}`"),
+        ));
+    }
+    let text = crate::files::read_text(file).map_err(|e| super::bad(file, "", e))?;
+    let scenario = |algorithm: &str, seed: u64| -> Result<Scenario, ConfigError> {
+        let mut t: toml::Table = text.parse().map_err(|e| super::bad(file, "", e))?;
         let opt = t
             .entry("optimiser")
             .or_insert_with(|| toml::Value::Table(Default::default()));
@@ -167,13 +173,13 @@ pub fn run(
             out: a.out.clone(),
             ..Overrides::default()
         };
-        let text = toml::to_string(&t).map_err(|e| e.to_string())?;
-        let scn = Scenario::parse(&text, file, &ov).map_err(|e| e.to_string())?;
+        let text = toml::to_string(&t).map_err(|e| super::bad(file, "", e))?;
+        let scn = Scenario::parse(&text, file, &ov)?;
         match settled_duration(&scn) {
             // Validated again at the length the settle repetitions need.
             Some(d) if d > scn.timing.duration => {
                 ov.duration = Some(d);
-                Scenario::parse(&text, file, &ov).map_err(|e| e.to_string())
+                Scenario::parse(&text, file, &ov)
             }
             _ => Ok(scn),
         }
@@ -186,7 +192,7 @@ pub fn run(
         }
     }
     let dir = jobs[0].2.output.dir.clone();
-    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    std::fs::create_dir_all(&dir).map_err(WriteError::file(&dir))?;
     let budget = jobs[0].2.optimiser.evaluations;
     let bar = crate::report::progress::bar(jobs.len() as u64, "runs", a.quiet || a.json);
     bar.set_prefix("compare: ");
@@ -204,8 +210,7 @@ pub fn run(
                 ..one_run(alg, *seed, &r.report, scn.optimiser.repetition)
             })
         })
-        .collect::<Result<_, evoloop_schemes::SchemeError>>()
-        .map_err(|e| e.to_string())?;
+        .collect::<Result<_, evoloop_schemes::SchemeError>>()?;
     bar.abandon();
     // The GA's final cost per seed, then each run's first experiment within 1 % of it.
     let ga: std::collections::HashMap<u64, f64> = runs
@@ -242,22 +247,20 @@ pub fn run(
         "runs": runs,
         "seconds": seconds,
     });
-    crate::report::write_json(&dir, "compare.json", &result).map_err(|e| e.to_string())?;
+    crate::report::write_json(&dir, "compare.json", &result)
+        .map_err(WriteError::file(&dir.join("compare.json")))?;
     write_csv(&dir, &runs)?;
     let mut md = report_md(&scn.name, budget, seeds.len(), &summaries);
     if scn.output.plots {
         md.push_str("\n![Best cost and aborts against the experiment](convergence.png)\n");
     }
-    crate::files::write(dir.join("report.md"), &md)
-        .map_err(|e| format!("{}: {e}", dir.join("report.md").display()))?;
+    let path = dir.join("report.md");
+    crate::files::write(&path, &md).map_err(WriteError::file(&path))?;
     if scn.output.plots {
         plot(&dir, &scn.name, algorithms, &runs, budget)?;
     }
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&result).map_err(|e| e.to_string())?
-        );
+        crate::report::print_json(&result);
     } else {
         print!("{md}");
         println!(
@@ -397,7 +400,7 @@ fn summarise(alg: &str, runs: &[Run], seeds: &[u64], budget: usize) -> Summary {
     }
 }
 
-fn write_csv(dir: &Path, runs: &[Run]) -> Result<(), String> {
+fn write_csv(dir: &Path, runs: &[Run]) -> Result<(), WriteError> {
     let mut csv = Csv::new([
         "algorithm",
         "seed",
@@ -423,8 +426,8 @@ fn write_csv(dir: &Path, runs: &[Run]) -> Result<(), String> {
             .put(r.to_best)
             .put(r.wall_seconds);
     }
-    csv.write(&dir.join("compare.csv"))
-        .map_err(|e| e.to_string())
+    let path = dir.join("compare.csv");
+    csv.write(&path).map_err(WriteError::file(&path))
 }
 
 fn q3(q: &[f64; 3], digits: usize) -> String {
@@ -519,7 +522,7 @@ fn plot(
     algorithms: &[String],
     runs: &[Run],
     budget: usize,
-) -> Result<(), String> {
+) -> Result<(), WriteError> {
     use crate::report::plot::{stacked_png_over, Panel, Series};
     let x: Vec<f64> = (1..=budget).map(|k| k as f64).collect();
     // [median, q1, q3, aborts median] per algorithm, each a curve over the experiments.
@@ -572,13 +575,15 @@ fn plot(
             label: "aborted trials so far, median",
         },
     ];
+    let png = dir.join("convergence.png");
     stacked_png_over(
-        &dir.join("convergence.png"),
+        &png,
         &format!("{name}: best cost and aborts against the experiment, over seeds"),
         (&x, "experiment"),
         &panels,
         &[],
     )
+    .map_err(WriteError::figure(&png))
 }
 
 /// Issue 66's goal, each sentence from the summaries: the GA's final cost (within 1 %) in at most

@@ -3,6 +3,8 @@
 //! `evoloop run SCENARIO --mode lockstep` through the processes, in a fraction of the time.
 
 use crate::config::{OptimiserMode, Overrides, Scenario};
+use crate::TuneError;
+use evoloop_schemes::WriteError;
 use serde_json::json;
 use std::path::Path;
 
@@ -16,31 +18,36 @@ pub fn is_scenario(text: &str) -> bool {
 /// compare the optimisers over the seeds); writes direct.json and the scheme's
 /// files into its output directory and prints a summary or the JSON. Fails with
 /// `--seeds` but no `--compare`, or on a scenario not of the direct scheme.
-pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), String> {
+pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), TuneError> {
     if let Some(algorithms) = &a.compare {
         let seeds = a.seeds.clone().unwrap_or_else(|| vec![a.seed.unwrap_or(1)]);
         return super::compare::run(file, algorithms, &seeds, a);
     }
     if a.seeds.is_some() {
-        return Err(
-            "--seeds: a direct scenario is tuned for one seed at a time (--seed N), or compared over seeds with --compare".into(),
-        );
+        return Err(TuneError::option(
+            "--seeds",
+            "a direct scenario is tuned for one seed at a time (--seed N), or compared over seeds with --compare",
+        ));
     }
     let ov = Overrides {
         seed: a.seed,
         out: a.out.clone(),
         ..Overrides::default()
     };
-    let scn = Scenario::load(file, &ov).map_err(|e| e.to_string())?;
+    let scn = Scenario::load(file, &ov)?;
     if scn.optimiser.mode != OptimiserMode::Direct {
-        return Err(format!(
-            "{}: key `optimiser.mode`: `evoloop tune` runs scenarios of the direct scheme (\"direct\"); this one is {:?} (run it with `evoloop run`)",
-            file.display(),
-            scn.optimiser.mode
-        ));
+        return Err(super::bad(
+            file,
+            "optimiser.mode",
+            format!(
+                "`evoloop tune` runs scenarios of the direct scheme (\"direct\"); this one is {:?} (run it with `evoloop run`)",
+                scn.optimiser.mode
+            ),
+        )
+        .into());
     }
     let dir = scn.output.dir.clone();
-    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    std::fs::create_dir_all(&dir).map_err(WriteError::file(&dir))?;
     let total = scn.optimiser.evaluations + 1;
     let t0 = std::time::Instant::now();
     let bar = crate::report::progress::bar(total as u64, "repetitions", a.quiet || a.json);
@@ -50,7 +57,7 @@ pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), String> {
         bar.set_message(format!("best {best:.4}"));
     });
     bar.abandon();
-    let r = r.map_err(|e| e.to_string())?;
+    let r = r?;
     let seconds = t0.elapsed().as_secs_f64();
     let report = &r.report;
     let baseline = report
@@ -69,14 +76,11 @@ pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), String> {
         "trials_aborted": r.trials_aborted,
         "seconds": seconds,
     });
-    crate::report::write_json(&dir, "direct.json", &result).map_err(|e| e.to_string())?;
-    let files = evoloop_schemes::direct::write_files(&dir, report, scn.output.plots)
-        .map_err(|e| e.to_string())?;
+    crate::report::write_json(&dir, "direct.json", &result)
+        .map_err(WriteError::file(&dir.join("direct.json")))?;
+    let files = evoloop_schemes::direct::write_files(&dir, report, scn.output.plots)?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&result).map_err(|e| e.to_string())?
-        );
+        crate::report::print_json(&result);
     } else {
         println!(
             "{} (direct scheme, in-process lockstep): {} trials of {} on the plant, {} aborted; cost {} (configured set) -> {:.4} (best, version {}), {:.2} s",

@@ -7,7 +7,10 @@
 pub mod arsinh;
 pub mod compare;
 pub mod direct;
+mod error;
 pub mod maglev;
+
+pub use error::TuneError;
 
 use evoloop_control::{fuzzy, law, reference};
 use evoloop_files as files;
@@ -18,6 +21,8 @@ use evoloop_stats as stats;
 
 use crate::optim::hybrid::HybridConfig;
 use crate::optim::GaConfig;
+use evoloop_control::check::ConfigError;
+use evoloop_schemes::WriteError;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -94,11 +99,13 @@ pub struct Run {
     pub seed: u64,
 }
 
-fn bad(file: &Path, key: &str, reason: impl std::fmt::Display) -> String {
-    if key.is_empty() {
-        format!("{}: {reason}", file.display())
-    } else {
-        format!("{}: key `{key}`: {reason}", file.display())
+/// The experiment file `file` refused at `key` (empty: the whole file) for `reason`.
+fn bad(file: &Path, key: &str, reason: impl std::fmt::Display) -> ConfigError {
+    ConfigError {
+        file: file.to_path_buf(),
+        key: key.to_string(),
+        reason: reason.to_string(),
+        line: None,
     }
 }
 
@@ -107,7 +114,7 @@ fn hybrid_config(
     g: Option<RawGa>,
     seed: u64,
     default_phases: [usize; 3],
-) -> Result<HybridConfig, String> {
+) -> Result<HybridConfig, ConfigError> {
     let g = g.unwrap_or(RawGa {
         population: None,
         p_crossover: None,
@@ -176,14 +183,14 @@ fn hybrid_config(
     })
 }
 
-fn read(file: &Path) -> Result<RawTune, String> {
+fn read(file: &Path) -> Result<RawTune, ConfigError> {
     let text =
         crate::files::read_text(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
     crate::files::from_toml(&text).map_err(|p| bad(file, &p.key, p.reason))
 }
 
 /// Read and validate an experiment file without running it.
-pub fn validate_file(file: &Path) -> Result<(), String> {
+pub fn validate_file(file: &Path) -> Result<(), TuneError> {
     let raw = read(file)?;
     let phases = match raw.experiment {
         Experiment::Arsinh => [95, 200, 30],
@@ -197,13 +204,14 @@ pub fn validate_file(file: &Path) -> Result<(), String> {
             file,
             "maglev",
             "not used by the arsinh experiment; remove it",
-        ));
+        )
+        .into());
     }
     Ok(())
 }
 
 /// Run the experiment the request names (or a direct-scheme scenario, in this process).
-pub fn tune(a: &TuneRequest) -> Result<(), String> {
+pub fn tune(a: &TuneRequest) -> Result<(), TuneError> {
     if crate::files::read_text(&a.file).is_ok_and(|t| direct::is_scenario(&t)) {
         return direct::run(&a.file, a);
     }
@@ -229,7 +237,7 @@ pub fn tune(a: &TuneRequest) -> Result<(), String> {
         progress: !a.quiet && !a.json,
         seed,
     };
-    std::fs::create_dir_all(&run.out).map_err(|e| format!("{}: {e}", run.out.display()))?;
+    std::fs::create_dir_all(&run.out).map_err(WriteError::file(&run.out))?;
     match raw.experiment {
         Experiment::Arsinh => {
             if raw.maglev.is_some() {
@@ -237,10 +245,14 @@ pub fn tune(a: &TuneRequest) -> Result<(), String> {
                     &a.file,
                     "maglev",
                     "not used by the arsinh experiment; remove it",
-                ));
+                )
+                .into());
             }
             if a.seeds.is_some() {
-                return Err("--seeds: the multi-seed study is for the maglev experiment".into());
+                return Err(TuneError::option(
+                    "--seeds",
+                    "the multi-seed study is for the maglev experiment",
+                ));
             }
             arsinh::run(run)
         }

@@ -6,7 +6,7 @@
 //! GA budget. A candidate that loses the ball (leaves +-4.5 mm) is unstable: the GA replaces it
 //! by the current best, as the paper does.
 
-use super::Run;
+use super::{Run, TuneError};
 use crate::law::pid::{fuzzy_ki_normalised, AntiWindup};
 use crate::optim::hybrid::hybrid;
 use crate::reference::Reference;
@@ -16,6 +16,8 @@ use crate::report::Csv;
 pub use crate::sim::maglev::{
     default_reference, simulate, Cost, Objective, Spec, Trace, PAPER_FUZZY,
 };
+use evoloop_control::check::ConfigError;
+use evoloop_schemes::WriteError;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use std::path::Path;
@@ -38,10 +40,10 @@ pub struct RawMaglevTune {
 /// mass, kg; period, step and duration, s; noise, mm; the set-point steps' `times`,
 /// s, and `values`, mm). Fails, naming the key, on a value out of its range, times
 /// not strictly increasing, or `times` and `values` not given together.
-pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, String> {
+pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, ConfigError> {
     let mut s = Spec::default();
     let Some(r) = raw else { return Ok(s) };
-    let check = |key: &str, v: f64, lo: f64, hi: f64| -> Result<f64, String> {
+    let check = |key: &str, v: f64, lo: f64, hi: f64| -> Result<f64, ConfigError> {
         if v.is_finite() && v >= lo && v <= hi {
             Ok(v)
         } else {
@@ -146,7 +148,7 @@ pub fn tune_variant(run: &Run, spec: &Spec, aw: AntiWindup) -> Tuned {
 /// Section 5.2's experiment on one seed: each anti-windup variant tuned with the same
 /// budget and scored on the test run; writes result.json, response.csv and (with
 /// plots) the figures into `run.out`, and prints a summary or the JSON.
-pub fn run(run: Run, spec: Spec) -> Result<(), String> {
+pub fn run(run: Run, spec: Spec) -> Result<(), TuneError> {
     let variants = [
         AntiWindup::Fuzzy,
         AntiWindup::Clamping,
@@ -203,7 +205,8 @@ pub fn run(run: Run, spec: Spec) -> Result<(), String> {
         "spec": spec,
         "unstable_pole_rad_s": spec.plant.unstable_pole(),
     });
-    crate::report::write_json(&run.out, "result.json", &result).map_err(|e| e.to_string())?;
+    crate::report::write_json(&run.out, "result.json", &result)
+        .map_err(WriteError::file(&run.out.join("result.json")))?;
     let mut traces = Vec::new();
     for t in &tuned {
         let mut tr = Trace::default();
@@ -229,16 +232,13 @@ pub fn run(run: Run, spec: Spec) -> Result<(), String> {
             .put(traces[0].r[k])
             .all(traces.iter().flat_map(|tr| [at(&tr.y, k), at(&tr.u, k)]));
     }
-    csv.write(&run.out.join("response.csv"))
-        .map_err(|e| e.to_string())?;
+    let path = run.out.join("response.csv");
+    csv.write(&path).map_err(WriteError::file(&path))?;
     if run.plots {
         plots(&run, &tuned, &traces)?;
     }
     if run.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&result).map_err(|e| e.to_string())?
-        );
+        crate::report::print_json(&result);
         return Ok(());
     }
     println!("maglev (Section 5.2): GA alone, {} evaluations per controller, open-loop pole +{:.1} rad/s", fz.evaluations, spec.plant.unstable_pole());
@@ -283,10 +283,11 @@ pub fn run(run: Run, spec: Spec) -> Result<(), String> {
     Ok(())
 }
 
-fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
+fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), WriteError> {
     let f = &traces[0];
+    let png = run.out.join("response.png");
     two_panel_png(
-        &run.out.join("response.png"),
+        &png,
         "maglev, PID with fuzzy anti-windup (tuned): position and coil current (Fig. 8)",
         &f.t,
         Panel {
@@ -310,7 +311,8 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
             label: "current (mA)",
         },
         &[],
-    )?;
+    )
+    .map_err(WriteError::figure(&png))?;
     let names: Vec<String> = tuned
         .iter()
         .map(|t| t.anti_windup.name().to_string())
@@ -334,8 +336,9 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
     let n = f.t.len();
     let trim = |s: &[Series]| s.iter().all(|x| x.values.len() == n);
     if trim(&top) && trim(&bottom) {
+        let png = run.out.join("comparison.png");
         two_panel_png(
-            &run.out.join("comparison.png"),
+            &png,
             "maglev: fuzzy anti-windup vs clamping, back-calculation and none (each GA-tuned)",
             &f.t,
             Panel {
@@ -347,7 +350,8 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
                 label: "current (mA)",
             },
             &[],
-        )?;
+        )
+        .map_err(WriteError::figure(&png))?;
     }
     let p = &tuned[0].params;
     let e: Vec<f64> = (0..=200).map(|i| 1.5 * p[6] * i as f64 / 200.0).collect();
@@ -359,8 +363,9 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
                 - fuzzy_ki_normalised(1.0, p[2], p[3], p[4]))
         })
         .collect();
+    let png = run.out.join("ki.png");
     xy_png(
-        &run.out.join("ki.png"),
+        &png,
         "fuzzy integral gain K_i(|e|) of the tuned controller (eqs. 27-30)",
         "|e| (mm)",
         "K_i (mA/mm per sample)",
@@ -372,7 +377,8 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
         }],
         None,
         None,
-    )?;
+    )
+    .map_err(WriteError::figure(&png))?;
     let curves: Vec<(String, Vec<f64>, Vec<f64>)> = tuned
         .iter()
         .map(|t| {
@@ -383,8 +389,9 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
             )
         })
         .collect();
+    let png = run.out.join("evolution.png");
     xy_png(
-        &run.out.join("evolution.png"),
+        &png,
         "best G so far per evaluation (GA alone)",
         "evaluation",
         "G (eq. 31)",
@@ -392,6 +399,7 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), String> {
         None,
         None,
     )
+    .map_err(WriteError::figure(&png))
 }
 
 /// The variants of the multi-seed study: fuzzy anti-windup and the four baselines.
@@ -435,7 +443,11 @@ pub fn comparison_sentence(
 
 /// Tune every variant on every seed and score it on its test run: costs[v][s], None where the
 /// variant lost the ball; each row also in seeds.csv.
-fn tune_seeds(base: &Run, spec: &Spec, seeds: &[u64]) -> Result<Vec<Vec<Option<Cost>>>, String> {
+fn tune_seeds(
+    base: &Run,
+    spec: &Spec,
+    seeds: &[u64],
+) -> Result<Vec<Vec<Option<Cost>>>, WriteError> {
     // costs[v][s]: None = lost the ball on the test run.
     let mut costs: Vec<Vec<Option<Cost>>> = vec![Vec::new(); STUDY_VARIANTS.len()];
     let mut csv = Csv::new([
@@ -474,8 +486,8 @@ fn tune_seeds(base: &Run, spec: &Spec, seeds: &[u64]) -> Result<Vec<Vec<Option<C
             );
         }
     }
-    csv.write(&base.out.join("seeds.csv"))
-        .map_err(|e| e.to_string())?;
+    let path = base.out.join("seeds.csv");
+    csv.write(&path).map_err(WriteError::file(&path))?;
     Ok(costs)
 }
 
@@ -491,7 +503,7 @@ fn part(c: &Option<Cost>, p: &str) -> f64 {
 }
 
 /// study_g.png and study_error.png: each variant's cost per seed.
-fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result<(), String> {
+fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result<(), WriteError> {
     let xs: Vec<f64> = seeds.iter().map(|s| *s as f64).collect();
     for (p, file, label) in [
         ("G", "study_g.png", "G on the test run (eq. 31)"),
@@ -509,8 +521,9 @@ fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result
                 (aw.name().to_string(), xs.clone(), y)
             })
             .collect();
+        let png = out.join(file);
         crate::report::plot::xy_png(
-            &out.join(file),
+            &png,
             &format!("maglev: {label} per seed, each controller tuned with the same budget"),
             "seed",
             label,
@@ -520,7 +533,8 @@ fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result
             ),
             None,
             None,
-        )?;
+        )
+        .map_err(WriteError::figure(&png))?;
     }
     Ok(())
 }
@@ -530,7 +544,7 @@ fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result
 /// per variant the mean and 95 % interval of G and its parts; fuzzy against each baseline by a
 /// paired Wilcoxon test on G, the error term and the control term. Writes `seeds.csv`,
 /// `study.json`, `study.md` and (with plots) `study_g.png`, `study_error.png`.
-pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
+pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), TuneError> {
     use crate::stats::{mean_ci, wilcoxon};
     let n_v = STUDY_VARIANTS.len();
     let costs = tune_seeds(&base, &spec, seeds)?;
@@ -594,7 +608,8 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
         "variants": variants,
         "comparisons": comparisons,
     });
-    crate::report::write_json(&base.out, "study.json", &result).map_err(|e| e.to_string())?;
+    crate::report::write_json(&base.out, "study.json", &result)
+        .map_err(WriteError::file(&base.out.join("study.json")))?;
     let mut md = format!(
         "# Maglev: fuzzy anti-windup against four baselines over {} seeds\n\n\
          Each controller tuned by the GA with the same budget ({budget} evaluations) on each seed's \
@@ -620,15 +635,13 @@ pub fn study(base: Run, spec: Spec, seeds: &[u64]) -> Result<(), String> {
     for c in &comparisons {
         md.push_str(&format!("- {}\n", c.sentence));
     }
-    crate::files::write(base.out.join("study.md"), &md).map_err(|e| e.to_string())?;
+    let path = base.out.join("study.md");
+    crate::files::write(&path, &md).map_err(WriteError::file(&path))?;
     if base.plots {
         study_plots(&base.out, seeds, &costs)?;
     }
     if base.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&result).map_err(|e| e.to_string())?
-        );
+        crate::report::print_json(&result);
     } else {
         print!("{md}");
         println!(

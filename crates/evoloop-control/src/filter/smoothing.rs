@@ -28,7 +28,8 @@ pub fn smooth_where(
 
 /// Savitzky-Golay weights: fit a polynomial of `degree` by least squares to unit-spaced samples
 /// at offsets -half..=half and take its `deriv`-th derivative, per unit spacing, at an offset
-/// `at` in -half..=half (`kernel`): the centre's for inner samples, the others for the ends.
+/// in -half..=half (`kernel(a)` for offset a - half): the centre's for inner samples, the others
+/// for the ends.
 /// The least-squares projection is the same for every offset: it is computed once, and a
 /// kernel only where a sample needs it (a 1 601-sample window has 1 601 of them, and a filter
 /// of the inner samples uses one).
@@ -97,7 +98,7 @@ pub fn half_window(len: usize, h: f64, window: f64) -> usize {
 /// and last full window's fit evaluated at the ends, at the samples `wanted` picks only (NaN at
 /// the others): the same sums where it is computed, in a fraction of the time where a fit reads
 /// every `stride`-th sample of 10 kHz data through a window of 1 601 samples.
-pub fn filter_where(
+fn filter_where(
     x: &[f64],
     half: usize,
     degree: usize,

@@ -56,7 +56,7 @@ impl<const N: usize> SvfDesign<N> {
             a > 0.0 && period > 0.0,
             "filter pole and period must be positive"
         );
-        let c: [f64; N] = std::array::from_fn(|j| binomial(N, j) * a.powi((N - j) as i32));
+        let c: [f64; N] = std::array::from_fn(|j| coefficient(N, j, a));
         // Companion form: w^(N) = a^N (v - w) - sum_{j>0} c[j] w^(j), with input v, augmented with
         // v' = r, r' = 0 so one exponential gives the held and the ramp response. The unused rows
         // and columns of the fixed-size matrix are zero: its exponential is the identity there,
@@ -115,6 +115,18 @@ impl<const N: usize> SvfDesign<N> {
             }
             s
         })
+    }
+}
+
+/// c[j] of (s + a)^n: (n choose j) a^(n - j). The square is taken as (C a) a, the order the
+/// order-4 filter was first written in ((6 a) a), so that its design, and every run recorded
+/// with it, keeps its bits for any pole (6 (a a) differs in the last bit for about a third of
+/// poles).
+fn coefficient(n: usize, j: usize, a: f64) -> f64 {
+    let b = binomial(n, j);
+    match n - j {
+        2 => b * a * a,
+        k => b * a.powi(k as i32),
     }
 }
 
@@ -228,6 +240,25 @@ mod tests {
         check::<1>();
         check::<2>();
         check::<4>();
+    }
+
+    /// The order-4 design's coefficients are the ones the estimators were first written with,
+    /// [a^4, 4 a^3, (6 a) a, 4 a], bit for bit, at poles where 6 (a a) would round otherwise.
+    #[test]
+    fn the_fourth_order_coefficients_keep_their_bits() {
+        for a in [0.3f64, 2.0, 4.2, 12.3, 17.1, 60.0, 59.999999999999986] {
+            // (A pole read at run time: a constant's powers could be folded by the compiler
+            // with another rounding.)
+            let a = std::hint::black_box(a);
+            let old = [a.powi(4), 4.0 * a.powi(3), 6.0 * a * a, 4.0 * a];
+            let d = SvfDesign::<4>::new(a, 1e-3);
+            assert_eq!(d.c.map(f64::to_bits), old.map(f64::to_bits), "a = {a}");
+        }
+        assert_ne!(
+            (6.0 * 4.2) * 4.2,
+            6.0 * (4.2 * 4.2),
+            "a pole where the order matters"
+        );
     }
 
     /// The second-order design is the closed form the exponential of [[0, 1], [-a^2, -2a]] has:

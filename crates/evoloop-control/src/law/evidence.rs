@@ -90,6 +90,11 @@ pub struct Evidence {
 impl Evidence {
     /// For `models` models on `n` joints at `period` s, filter bandwidth `lambda` rad/s and
     /// memory `memory` s.
+    ///
+    /// # Panics
+    ///
+    /// If `models` is not 1..=`MAX_MODELS`, `n` above `MAX_JOINTS`, or `lambda` or `period` not
+    /// positive (the rule's table is checked before: `evidence_bandwidth` must be positive).
     pub fn new(models: usize, n: usize, period: f64, lambda: f64, memory: f64) -> Self {
         assert!((1..=MAX_MODELS).contains(&models) && n <= MAX_JOINTS);
         let stride = ((EVALUATION_PERIOD / period).round() as u64).max(models as u64);

@@ -4,7 +4,7 @@
 //!
 //! Estimator. The plant is a(s) y = b(s) u with a monic of degree n (<= 4) and b of degree
 //! m < n. The relation holds for the signals through the state-variable filter
-//! F = p^4 / (s + p)^4 (`svf`), whose states are the filtered derivatives:
+//! F = p^4 / (s + p)^4 (`evoloop_control::filter::svf`), whose states are the filtered derivatives:
 //!
 //!   s^n F y = -a_0 F y - ... - a_{n-1} s^{n-1} F y + b_0 F u + ... + b_m s^m F u,
 //!

@@ -9,7 +9,7 @@
 //! - collocated sensor (y = x1): m1 m2 y'''' - m2 u'' = k (u - (m1 + m2) y''),
 //!
 //! linear in k. The derivatives are those of the signals through the state-variable filter
-//! a^4 / (s + a)^4 (`svf`), which leaves the relation intact; recursive least squares with
+//! a^4 / (s + a)^4 (`evoloop_control::filter::svf`), which leaves the relation intact; recursive least squares with
 //! forgetting tracks k. Noise enters the target through s^4 F with gain ~a^4 but is white there,
 //! so the least-squares average removes it; the regressor sees it only through s^2 F, which falls
 //! off as 1/s^2, so the equation-error bias stays far below the tolerance of the tests.

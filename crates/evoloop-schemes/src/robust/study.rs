@@ -426,7 +426,8 @@ pub fn study(
     Ok(report)
 }
 
-/// Why the robust study stopped (`study`).
+/// Why the robust study stopped (`study`). Each variant reads as the error it wraps, whose own
+/// cause is its `source()` (a chain printed whole says each thing once).
 #[derive(Debug)]
 pub enum StudyError {
     /// The LQR gains the study compares with could not be computed.
@@ -438,7 +439,7 @@ pub enum StudyError {
 impl std::fmt::Display for StudyError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            StudyError::Lqr(e) => write!(f, "the LQR gains: {e}"),
+            StudyError::Lqr(e) => e.fmt(f),
             StudyError::Write(e) => e.fmt(f),
         }
     }
@@ -447,7 +448,7 @@ impl std::fmt::Display for StudyError {
 impl std::error::Error for StudyError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            StudyError::Lqr(e) => Some(e),
+            StudyError::Lqr(e) => e.source(),
             StudyError::Write(e) => e.source(),
         }
     }
