@@ -250,4 +250,5 @@ fn plot(
         None,
         None,
     )
+    .map_err(|e| e.to_string())
 }

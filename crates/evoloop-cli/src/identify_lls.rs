@@ -137,7 +137,8 @@ fn run(a: &LlsArgs) -> Result<(), String> {
             &XySeries::from_curves(&curves, Style::Line),
             None,
             None,
-        )?;
+        )
+        .map_err(|e| e.to_string())?;
         plots.push(png);
     }
     if a.json {

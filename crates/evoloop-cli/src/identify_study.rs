@@ -202,7 +202,8 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         &XySeries::from_curves(&curves, Style::Points),
         None,
         None,
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     if a.json {
         super::print_json(&doc);
         return Ok(());

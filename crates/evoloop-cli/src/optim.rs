@@ -258,7 +258,8 @@ fn run_study(a: &StudyArgs) -> Result<(), String> {
     }
     write(&a.out.join("report.md"), &md)?;
     for (p, problem) in s.problems.iter().enumerate() {
-        convergence_png(&a.out, problem, &s.algorithms, &s.runs[p], a.evaluations)?;
+        convergence_png(&a.out, problem, &s.algorithms, &s.runs[p], a.evaluations)
+            .map_err(|e| e.to_string())?;
     }
     if a.json {
         super::print_json(&results);
@@ -651,7 +652,7 @@ fn convergence_png(
     algorithms: &[String],
     runs: &[Vec<RunResult>],
     evaluations: usize,
-) -> Result<(), String> {
+) -> Result<(), evoloop_report::plot::PlotError> {
     let x: Vec<f64> = (1..=study::CHECKPOINTS)
         .map(|k| (evaluations * k) as f64 / study::CHECKPOINTS as f64)
         .collect();

@@ -5,8 +5,49 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
+
+/// Why a figure was not written.
+#[derive(Debug)]
+pub enum PlotError {
+    /// The drawing library refused the figure: its file and the library's message.
+    Draw {
+        /// The PNG file.
+        path: PathBuf,
+        /// What the drawing library said.
+        reason: String,
+    },
+    /// The file could not be created (`evoloop_files::create`'s error, which names it).
+    Create(std::io::Error),
+    /// The image could not be encoded or written to the file.
+    Encode {
+        /// The PNG file.
+        path: PathBuf,
+        /// The encoder's error.
+        source: image::ImageError,
+    },
+}
+
+impl std::fmt::Display for PlotError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PlotError::Draw { path, reason } => write!(f, "{}: {reason}", path.display()),
+            PlotError::Create(e) => e.fmt(f),
+            PlotError::Encode { path, source } => write!(f, "{}: {source}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for PlotError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            PlotError::Draw { .. } => None,
+            PlotError::Create(e) => e.source(),
+            PlotError::Encode { source, .. } => Some(source),
+        }
+    }
+}
 
 /// Draw a `size` PNG with `draw` (which presents its root) and write it to `path` through
 /// `files::create` (plotters' own file output follows a planted symbolic link).
@@ -14,14 +55,22 @@ fn png(
     path: &Path,
     size: (u32, u32),
     draw: impl for<'a> FnOnce(DrawingArea<BitMapBackend<'a>, Shift>) -> Result<(), String>,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     use image::ImageEncoder;
     let mut buf = vec![0u8; size.0 as usize * size.1 as usize * 3];
-    draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area())?;
-    let file = evoloop_files::create(path).map_err(|e| e.to_string())?;
+    draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area()).map_err(|reason| {
+        PlotError::Draw {
+            path: path.to_path_buf(),
+            reason,
+        }
+    })?;
+    let file = evoloop_files::create(path).map_err(PlotError::Create)?;
     image::codecs::png::PngEncoder::new(std::io::BufWriter::new(file))
         .write_image(&buf, size.0, size.1, image::ColorType::Rgb8)
-        .map_err(|e| format!("{}: {e}", path.display()))
+        .map_err(|source| PlotError::Encode {
+            path: path.to_path_buf(),
+            source,
+        })
 }
 
 static FONT: Once = Once::new();
@@ -87,7 +136,7 @@ pub fn two_panel_png(
     top: Panel,
     bottom: Panel,
     marks: &[f64],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     stacked_png(path, title, t, &[top, bottom], marks)
 }
 
@@ -99,7 +148,7 @@ pub fn stacked_png(
     t: &[f64],
     panels: &[Panel],
     marks: &[f64],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     stacked_png_over(path, title, (t, "t [s]"), panels, marks)
 }
 
@@ -110,7 +159,7 @@ pub fn stacked_png_over(
     (t, x_label): (&[f64], &str),
     panels: &[Panel],
     marks: &[f64],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     ensure_font();
     let (height, breaks): (u32, Vec<u32>) = match panels.len() {
         2 => (800, vec![460]),
@@ -223,7 +272,7 @@ pub fn xy_png(
     series: &[XySeries],
     x_range: Option<(f64, f64)>,
     y_range: Option<(f64, f64)>,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     ensure_font();
     png(path, (1000, 700), |root| {
         root.fill(&WHITE).map_err(|e| e.to_string())?;
@@ -303,7 +352,7 @@ pub fn heatmap_png(
     xs: &[f64],
     ys: &[f64],
     z: &[Vec<f64>],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     ensure_font();
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for v in z.iter().flatten().filter(|v| v.is_finite()) {
@@ -311,7 +360,10 @@ pub fn heatmap_png(
         hi = hi.max(*v);
     }
     if !lo.is_finite() || xs.len() < 2 || ys.len() < 2 {
-        return Err("heatmap needs a grid of at least 2 x 2 finite values".into());
+        return Err(PlotError::Draw {
+            path: path.to_path_buf(),
+            reason: "heatmap needs a grid of at least 2 x 2 finite values".into(),
+        });
     }
     png(path, (900, 760), |root| {
         root.fill(&WHITE).map_err(|e| e.to_string())?;
@@ -362,4 +414,37 @@ pub fn heatmap_png(
         }
         root.present().map_err(|e| e.to_string())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A figure that cannot be drawn, or whose file cannot be made, says which file and why;
+    /// nothing is left at the name.
+    #[test]
+    fn a_figure_that_cannot_be_written_names_its_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("h.png");
+        let e = heatmap_png(&path, "t", "x", "y", &[0.0], &[0.0], &[vec![1.0]]).unwrap_err();
+        assert!(
+            matches!(&e, PlotError::Draw { path: p, .. } if p == &path),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string().starts_with(&path.display().to_string()),
+            "{e}"
+        );
+        assert!(!path.exists());
+        let inside = dir.path().join("missing").join("x.png");
+        let series = [XySeries {
+            name: "s",
+            x: &[0.0, 1.0],
+            y: &[0.0, 1.0],
+            style: Style::Line,
+        }];
+        let e = xy_png(&inside, "t", "x", "y", &series, None, None).unwrap_err();
+        assert!(matches!(e, PlotError::Create(_)), "{e:?}");
+        assert!(e.to_string().contains(&inside.display().to_string()), "{e}");
+    }
 }

@@ -369,7 +369,8 @@ pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
         &series,
         None,
         None,
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     let misses: Vec<f64> = r
         .intervals
         .iter()
@@ -413,6 +414,7 @@ pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
         None,
         None,
     )
+    .map_err(|e| e.to_string())
 }
 
 #[cfg(test)]

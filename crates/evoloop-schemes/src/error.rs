@@ -3,6 +3,7 @@
 use crate::check::ConfigError;
 use crate::optim::by_name::BuildError;
 use crate::optim::settings::SettingsError;
+use crate::report::plot::PlotError;
 
 /// Why a scheme refuses a scenario: `DirectTuner::new`, `direct::run_in_process` and
 /// `run_tuner_in_process`, `direct::model::ModelTrials::new`, `Indirect::new` and the general
@@ -69,13 +70,8 @@ pub enum WriteError {
         /// The system's error.
         source: std::io::Error,
     },
-    /// A figure could not be drawn: its file and the plotting library's message.
-    Figure {
-        /// The PNG file.
-        path: std::path::PathBuf,
-        /// What the plotting library said.
-        reason: String,
-    },
+    /// A figure could not be drawn or written (the error names its file).
+    Figure(PlotError),
 }
 
 impl WriteError {
@@ -86,29 +82,21 @@ impl WriteError {
             source,
         }
     }
-
-    /// The plotting library's `reason` for the figure `path`, for `map_err`.
-    pub fn figure(path: &std::path::Path) -> impl FnOnce(String) -> Self + '_ {
-        move |reason| WriteError::Figure {
-            path: path.to_path_buf(),
-            reason,
-        }
-    }
 }
 
 impl std::fmt::Display for WriteError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        // evoloop_files' errors, and the plotting library's where it could not create the file,
-        // name the path already; a bare io::Error or a drawing error does not.
-        let (path, message) = match self {
-            WriteError::File { path, source } => (path, source.to_string()),
-            WriteError::Figure { path, reason } => (path, reason.clone()),
-        };
-        let p = path.display().to_string();
-        if message.contains(&p) {
-            f.write_str(&message)
-        } else {
-            write!(f, "{p}: {message}")
+        match self {
+            // evoloop_files' errors name the path already; a bare io::Error does not.
+            WriteError::File { path, source } => {
+                let (p, message) = (path.display().to_string(), source.to_string());
+                if message.contains(&p) {
+                    f.write_str(&message)
+                } else {
+                    write!(f, "{p}: {message}")
+                }
+            }
+            WriteError::Figure(e) => e.fmt(f),
         }
     }
 }
@@ -117,7 +105,7 @@ impl std::error::Error for WriteError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
             WriteError::File { source, .. } => Some(source),
-            WriteError::Figure { .. } => None,
+            WriteError::Figure(e) => e.source(),
         }
     }
 }

@@ -196,7 +196,7 @@ fn plots(
             Panel { series: &bottom, label: "optimised" },
             &[],
         )
-        .map_err(WriteError::figure(&png))?;
+        .map_err(WriteError::Figure)?;
     }
     let k: Vec<f64> = (0..w.len()).map(|i| i as f64).collect();
     let xb: Vec<f64> = x0.iter().skip(1).copied().collect();
@@ -230,7 +230,7 @@ fn plots(
         Panel { series: &bottom, label: "optimised" },
         &[],
     )
-    .map_err(WriteError::figure(&png))?;
+    .map_err(WriteError::Figure)?;
     let axis: Vec<f64> = (0..=40).map(|i| -1.0 + 2.0 * i as f64 / 40.0).collect();
     let mut u = [0.0];
     let z: Vec<Vec<f64>> = axis
@@ -254,7 +254,7 @@ fn plots(
         &axis,
         &z,
     )
-    .map_err(WriteError::figure(&png))?;
+    .map_err(WriteError::Figure)?;
     let n: Vec<f64> = (1..=best_so_far.len()).map(|i| i as f64).collect();
     let png = run.out.join("evolution.png");
     xy_png(
@@ -271,5 +271,5 @@ fn plots(
         None,
         None,
     )
-    .map_err(WriteError::figure(&png))
+    .map_err(WriteError::Figure)
 }

@@ -583,7 +583,7 @@ fn plot(
         &panels,
         &[],
     )
-    .map_err(WriteError::figure(&png))
+    .map_err(WriteError::Figure)
 }
 
 /// Issue 66's goal, each sentence from the summaries: the GA's final cost (within 1 %) in at most

@@ -312,7 +312,7 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), WriteError>
         },
         &[],
     )
-    .map_err(WriteError::figure(&png))?;
+    .map_err(WriteError::Figure)?;
     let names: Vec<String> = tuned
         .iter()
         .map(|t| t.anti_windup.name().to_string())
@@ -351,7 +351,7 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), WriteError>
             },
             &[],
         )
-        .map_err(WriteError::figure(&png))?;
+        .map_err(WriteError::Figure)?;
     }
     let p = &tuned[0].params;
     let e: Vec<f64> = (0..=200).map(|i| 1.5 * p[6] * i as f64 / 200.0).collect();
@@ -378,7 +378,7 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), WriteError>
         None,
         None,
     )
-    .map_err(WriteError::figure(&png))?;
+    .map_err(WriteError::Figure)?;
     let curves: Vec<(String, Vec<f64>, Vec<f64>)> = tuned
         .iter()
         .map(|t| {
@@ -399,7 +399,7 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), WriteError>
         None,
         None,
     )
-    .map_err(WriteError::figure(&png))
+    .map_err(WriteError::Figure)
 }
 
 /// The variants of the multi-seed study: fuzzy anti-windup and the four baselines.
@@ -534,7 +534,7 @@ fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result
             None,
             None,
         )
-        .map_err(WriteError::figure(&png))?;
+        .map_err(WriteError::Figure)?;
     }
     Ok(())
 }

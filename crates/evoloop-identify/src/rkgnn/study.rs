@@ -19,7 +19,7 @@
 use crate::config::{Overrides, Scenario};
 use crate::dynamics::Model;
 use crate::report::metrics::tracking;
-use crate::report::plot::{stacked_png, Panel, Series};
+use crate::report::plot::{stacked_png, Panel, PlotError, Series};
 use crate::report::Csv;
 use crate::report::RunLog;
 use crate::rkgnn::identify::{self, Prior, Settings};
@@ -766,7 +766,7 @@ fn write_outputs(
     csv.write(&p).map_err(io(&p))?;
     let p = dir.join("report.md");
     crate::files::write(&p, report_markdown(r)).map_err(io(&p))?;
-    figures(dir, cases, traces, fuzzy)
+    figures(dir, cases, traces, fuzzy).map_err(|e| e.to_string())
 }
 
 /// The report's sentences, each from this run's numbers.
@@ -866,7 +866,7 @@ fn figures(
     cases: &[Case],
     traces: &[JointTraces],
     fuzzy: &SimResult,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     // Fig. 7: the trajectories (training 1 and 2 from Figs. 8, 9's runs, the new one from pd).
     let (tr1, tr2, new) = (&traces[6], &traces[7], &traces[0]);
     let series = per_joint(&[
@@ -966,7 +966,7 @@ fn tracking_figure(
     title: &str,
     tr: &JointTraces,
     fuzzy: Option<&SimResult>,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     let joints = per_joint(&[("theta_d", &tr.r), ("theta", &tr.y)]);
     let errors: Vec<Vec<f64>> = (0..JOINTS).map(|j| tr.error(j)).collect();
     let error_series: Vec<Series> = errors

@@ -274,6 +274,7 @@ pub fn write_out(
         None,
         Some((0.0, 1.0)),
     )
+    .map_err(|e| e.to_string())
 }
 
 /// Wait (set-up only, before any timing) until `connected` holds, for up to 10 s.

@@ -325,4 +325,5 @@ fn plot(dir: &Path, results: &[LoopResult]) -> Result<(), String> {
         None,
         None,
     )
+    .map_err(|e| e.to_string())
 }

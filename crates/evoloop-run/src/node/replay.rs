@@ -460,4 +460,5 @@ fn write_outputs(out: &Path, r: &ReplayReport, rows: &RunLog, n_u: usize) -> Res
         ],
         &[],
     )
+    .map_err(|e| e.to_string())
 }

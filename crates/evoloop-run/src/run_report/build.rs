@@ -822,6 +822,7 @@ fn write_identify_plot(
         },
         marks,
     )
+    .map_err(|e| e.to_string())
 }
 
 /// estimates.csv and indirect.png: the model estimate against the true value, and the cost per
@@ -897,7 +898,8 @@ fn write_estimates(
                 label: "cost",
             },
             marks,
-        )?;
+        )
+        .map_err(|e| e.to_string())?;
     }
     Ok(())
 }
@@ -928,7 +930,8 @@ fn write_response_plots(
             label: "control u",
         },
         marks,
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     if p.errors.len() > 1 {
         // Joint-space tracking: the errors are far below what the overlaid curves resolve.
         two_panel_png(
@@ -947,7 +950,8 @@ fn write_response_plots(
                 label: "torque u",
             },
             marks,
-        )?;
+        )
+        .map_err(|e| e.to_string())?;
     }
     Ok(())
 }

@@ -416,7 +416,8 @@ impl Study {
                 &series,
                 None,
                 None,
-            )?;
+            )
+            .map_err(|e| e.to_string())?;
         }
         Ok(())
     }

@@ -1049,7 +1049,7 @@ pub fn write_files(
             None,
             None,
         )
-        .map_err(WriteError::figure(&png))?;
+        .map_err(WriteError::Figure)?;
         names.push("direct.png");
     }
     Ok(names)

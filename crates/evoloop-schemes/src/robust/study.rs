@@ -350,7 +350,7 @@ pub fn study(
                 Some((0.0, 50.0)),
                 Some((-0.5, 2.0)),
             )
-            .map_err(WriteError::figure(&png))?;
+            .map_err(WriteError::Figure)?;
             responses.push(st);
         }
     }
@@ -504,7 +504,7 @@ fn poles_figure(
         Some((xmin, 0.5)),
         Some((-ymax, ymax)),
     )
-    .map_err(WriteError::figure(&png))
+    .map_err(WriteError::Figure)
 }
 
 /// "DEFC (Table 9 gains)" -> "defc_table9".
