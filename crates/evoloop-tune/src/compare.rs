@@ -18,7 +18,7 @@ use crate::config::{Overrides, Scenario};
 use crate::report::Csv;
 use crate::stats::{median, wilcoxon};
 use crate::TuneError;
-use evoloop_control::check::ConfigError;
+use evoloop_control::check::{Check, ConfigError};
 use evoloop_schemes::WriteError;
 use serde::Serialize;
 use std::path::Path;
@@ -156,9 +156,10 @@ pub fn run(
             format!("the GA is the yardstick (experiments to within 1 % of its final cost): include `{REFERENCE}`"),
         ));
     }
-    let text = crate::files::read_text(file).map_err(|e| super::bad(file, "", e))?;
+    let check = Check::new(file);
+    let text = crate::files::read_text(file).or_else(|e| check.fail("", e.to_string()))?;
     let scenario = |algorithm: &str, seed: u64| -> Result<Scenario, ConfigError> {
-        let mut t: toml::Table = text.parse().map_err(|e| super::bad(file, "", e))?;
+        let mut t: toml::Table = text.parse().or_else(|e| check.fail("", format!("{e}")))?;
         let opt = t
             .entry("optimiser")
             .or_insert_with(|| toml::Value::Table(Default::default()));
@@ -173,7 +174,7 @@ pub fn run(
             out: a.out.clone(),
             ..Overrides::default()
         };
-        let text = toml::to_string(&t).map_err(|e| super::bad(file, "", e))?;
+        let text = toml::to_string(&t).or_else(|e| check.fail("", e.to_string()))?;
         let scn = Scenario::parse(&text, file, &ov)?;
         match settled_duration(&scn) {
             // Validated again at the length the settle repetitions need.

@@ -4,6 +4,7 @@
 
 use crate::config::{OptimiserMode, Overrides, Scenario};
 use crate::TuneError;
+use evoloop_control::check::Check;
 use evoloop_schemes::WriteError;
 use serde_json::json;
 use std::path::Path;
@@ -36,15 +37,13 @@ pub fn run(file: &Path, a: &super::TuneRequest) -> Result<(), TuneError> {
     };
     let scn = Scenario::load(file, &ov)?;
     if scn.optimiser.mode != OptimiserMode::Direct {
-        return Err(super::bad(
-            file,
-            "optimiser.mode",
-            format!(
-                "`evoloop tune` runs scenarios of the direct scheme (\"direct\"); this one is {:?} (run it with `evoloop run`)",
-                scn.optimiser.mode
-            ),
-        )
-        .into());
+        let reason = format!(
+            "`evoloop tune` runs scenarios of the direct scheme (\"direct\"); this one is {:?} (run it with `evoloop run`)",
+            scn.optimiser.mode
+        );
+        return Check::new(file)
+            .fail("optimiser.mode", reason)
+            .map_err(TuneError::from);
     }
     let dir = scn.output.dir.clone();
     std::fs::create_dir_all(&dir).map_err(WriteError::file(&dir))?;

@@ -21,7 +21,7 @@ use evoloop_stats as stats;
 
 use crate::optim::hybrid::HybridConfig;
 use crate::optim::GaConfig;
-use evoloop_control::check::ConfigError;
+use evoloop_control::check::{Check, ConfigError};
 use evoloop_schemes::WriteError;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -99,16 +99,6 @@ pub struct Run {
     pub seed: u64,
 }
 
-/// The experiment file `file` refused at `key` (empty: the whole file) for `reason`.
-fn bad(file: &Path, key: &str, reason: impl std::fmt::Display) -> ConfigError {
-    ConfigError {
-        file: file.to_path_buf(),
-        key: key.to_string(),
-        reason: reason.to_string(),
-        line: None,
-    }
-}
-
 fn hybrid_config(
     file: &Path,
     g: Option<RawGa>,
@@ -124,47 +114,20 @@ fn hybrid_config(
         hj_step: None,
         hj_per_candidate: None,
     });
-    let population = g.population.unwrap_or(10);
-    if !(2..=10_000).contains(&population) {
-        return Err(bad(
-            file,
-            "ga.population",
-            format!("must be 2..=10000 (got {population})"),
-        ));
-    }
-    let p_crossover = g.p_crossover.unwrap_or(0.9);
-    if !(0.0..=1.0).contains(&p_crossover) {
-        return Err(bad(
-            file,
-            "ga.p_crossover",
-            format!("must be within [0, 1] (got {p_crossover})"),
-        ));
-    }
+    let check = Check::new(file);
+    let population = check.count("ga.population", g.population.unwrap_or(10), 2, 10_000)?;
+    let p_crossover = check.range("ga.p_crossover", g.p_crossover.unwrap_or(0.9), 0.0, 1.0)?;
     if let Some(p) = g.p_mutation {
-        if !(0.0..=1.0).contains(&p) {
-            return Err(bad(
-                file,
-                "ga.p_mutation",
-                format!("must be within [0, 1] (got {p})"),
-            ));
-        }
+        check.range("ga.p_mutation", p, 0.0, 1.0)?;
     }
     let phases = g.phases.unwrap_or(default_phases);
-    let threads = g.threads.unwrap_or(2);
-    if !(1..=256).contains(&threads) {
-        return Err(bad(
-            file,
-            "ga.threads",
-            format!("must be 1..=256 (got {threads})"),
-        ));
-    }
+    let threads = check.count("ga.threads", g.threads.unwrap_or(2), 1, 256)?;
     let hj_step = g.hj_step.unwrap_or(0.05);
     if !(hj_step > 0.0 && hj_step <= 1.0) {
-        return Err(bad(
-            file,
+        return check.fail(
             "ga.hj_step",
             format!("must be within (0, 1] (got {hj_step})"),
-        ));
+        );
     }
     Ok(HybridConfig {
         ga: GaConfig {
@@ -184,9 +147,15 @@ fn hybrid_config(
 }
 
 fn read(file: &Path) -> Result<RawTune, ConfigError> {
+    let check = Check::new(file);
     let text =
-        crate::files::read_text(file).map_err(|e| bad(file, "", format!("cannot read: {e}")))?;
-    crate::files::from_toml(&text).map_err(|p| bad(file, &p.key, p.reason))
+        crate::files::read_text(file).or_else(|e| check.fail("", format!("cannot read: {e}")))?;
+    crate::files::from_toml(&text).or_else(|p| check.fail(&p.key, p.reason))
+}
+
+/// The experiment file refuses a `[maglev]` table the arsinh experiment does not use.
+fn maglev_unused<T>(file: &Path) -> Result<T, ConfigError> {
+    Check::new(file).fail("maglev", "not used by the arsinh experiment; remove it")
 }
 
 /// Read and validate an experiment file without running it.
@@ -200,12 +169,7 @@ pub fn validate_file(file: &Path) -> Result<(), TuneError> {
     if raw.experiment == Experiment::Maglev {
         maglev::spec(file, raw.maglev)?;
     } else if raw.maglev.is_some() {
-        return Err(bad(
-            file,
-            "maglev",
-            "not used by the arsinh experiment; remove it",
-        )
-        .into());
+        return maglev_unused(file).map_err(TuneError::from);
     }
     Ok(())
 }
@@ -241,12 +205,7 @@ pub fn tune(a: &TuneRequest) -> Result<(), TuneError> {
     match raw.experiment {
         Experiment::Arsinh => {
             if raw.maglev.is_some() {
-                return Err(bad(
-                    &a.file,
-                    "maglev",
-                    "not used by the arsinh experiment; remove it",
-                )
-                .into());
+                return maglev_unused(&a.file).map_err(TuneError::from);
             }
             if a.seeds.is_some() {
                 return Err(TuneError::option(

@@ -16,7 +16,7 @@ use crate::report::Csv;
 pub use crate::sim::maglev::{
     default_reference, simulate, Cost, Objective, Spec, Trace, PAPER_FUZZY,
 };
-use evoloop_control::check::ConfigError;
+use evoloop_control::check::{Check, ConfigError};
 use evoloop_schemes::WriteError;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -43,17 +43,9 @@ pub struct RawMaglevTune {
 pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, ConfigError> {
     let mut s = Spec::default();
     let Some(r) = raw else { return Ok(s) };
-    let check = |key: &str, v: f64, lo: f64, hi: f64| -> Result<f64, ConfigError> {
-        if v.is_finite() && v >= lo && v <= hi {
-            Ok(v)
-        } else {
-            Err(super::bad(
-                file,
-                &format!("maglev.{key}"),
-                format!("must be within [{lo}, {hi}] (got {v})"),
-            ))
-        }
-    };
+    let file_check = Check::new(file);
+    let check =
+        |key: &str, v: f64, lo: f64, hi: f64| file_check.range(&format!("maglev.{key}"), v, lo, hi);
     if let Some(m) = r.mass {
         s.plant.mass = check("mass", m, 0.01, 2.0)?;
     }
@@ -75,11 +67,10 @@ pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, ConfigError
             for i in 0..t.len() {
                 check(&format!("values[{i}]"), v[i], -4.0, 4.0)?;
                 if i > 0 && t[i] <= t[i - 1] {
-                    return Err(super::bad(
-                        file,
+                    return file_check.fail(
                         &format!("maglev.times[{i}]"),
                         "times must be strictly increasing",
-                    ));
+                    );
                 }
             }
             s.reference = Reference::Steps {
@@ -88,11 +79,10 @@ pub fn spec(file: &Path, raw: Option<RawMaglevTune>) -> Result<Spec, ConfigError
             };
         }
         _ => {
-            return Err(super::bad(
-                file,
+            return file_check.fail(
                 "maglev.values",
                 "`times` and `values` go together, same length, at least one step",
-            ))
+            )
         }
     }
     Ok(s)
