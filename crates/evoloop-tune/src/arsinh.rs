@@ -187,9 +187,8 @@ fn plots(
             .iter()
             .map(|(n, v)| Series { name: n, values: v })
             .collect();
-        let png = run.out.join(format!("mf_{name}.png"));
         two_panel_png(
-            &png,
+            &run.out.join(format!("mf_{name}.png")),
             &format!("membership functions of {name} (normalised axis): initial (top), optimised (bottom)"),
             &grid,
             Panel { series: &top, label: "initial" },
@@ -221,9 +220,8 @@ fn plots(
             values: &xa,
         },
     ];
-    let png = run.out.join("tracking.png");
     two_panel_png(
-        &png,
+        &run.out.join("tracking.png"),
         &format!("tracking x_(k+1) vs w_k: initial controller G = {g0:.3} (top), optimised G = {g1:.3} (bottom)"),
         &k,
         Panel { series: &top, label: "initial" },
@@ -244,9 +242,8 @@ fn plots(
                 .collect()
         })
         .collect();
-    let png = run.out.join("surface.png");
     heatmap_png(
-        &png,
+        &run.out.join("surface.png"),
         "control surface u(x_k, w_k) of the optimised controller",
         "x_k",
         "w_k",
@@ -256,9 +253,8 @@ fn plots(
     )
     .map_err(WriteError::Figure)?;
     let n: Vec<f64> = (1..=best_so_far.len()).map(|i| i as f64).collect();
-    let png = run.out.join("evolution.png");
     xy_png(
-        &png,
+        &run.out.join("evolution.png"),
         "best G so far per evaluation (Fig. 7b)",
         "evaluation",
         "G",

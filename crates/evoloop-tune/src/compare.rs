@@ -576,9 +576,8 @@ fn plot(
             label: "aborted trials so far, median",
         },
     ];
-    let png = dir.join("convergence.png");
     stacked_png_over(
-        &png,
+        &dir.join("convergence.png"),
         &format!("{name}: best cost and aborts against the experiment, over seeds"),
         (&x, "experiment"),
         &panels,

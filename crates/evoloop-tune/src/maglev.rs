@@ -275,9 +275,8 @@ pub fn run(run: Run, spec: Spec) -> Result<(), TuneError> {
 
 fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), WriteError> {
     let f = &traces[0];
-    let png = run.out.join("response.png");
     two_panel_png(
-        &png,
+        &run.out.join("response.png"),
         "maglev, PID with fuzzy anti-windup (tuned): position and coil current (Fig. 8)",
         &f.t,
         Panel {
@@ -326,9 +325,8 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), WriteError>
     let n = f.t.len();
     let trim = |s: &[Series]| s.iter().all(|x| x.values.len() == n);
     if trim(&top) && trim(&bottom) {
-        let png = run.out.join("comparison.png");
         two_panel_png(
-            &png,
+            &run.out.join("comparison.png"),
             "maglev: fuzzy anti-windup vs clamping, back-calculation and none (each GA-tuned)",
             &f.t,
             Panel {
@@ -353,9 +351,8 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), WriteError>
                 - fuzzy_ki_normalised(1.0, p[2], p[3], p[4]))
         })
         .collect();
-    let png = run.out.join("ki.png");
     xy_png(
-        &png,
+        &run.out.join("ki.png"),
         "fuzzy integral gain K_i(|e|) of the tuned controller (eqs. 27-30)",
         "|e| (mm)",
         "K_i (mA/mm per sample)",
@@ -379,9 +376,8 @@ fn plots(run: &Run, tuned: &[Tuned], traces: &[Trace]) -> Result<(), WriteError>
             )
         })
         .collect();
-    let png = run.out.join("evolution.png");
     xy_png(
-        &png,
+        &run.out.join("evolution.png"),
         "best G so far per evaluation (GA alone)",
         "evaluation",
         "G (eq. 31)",
@@ -511,9 +507,8 @@ fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result
                 (aw.name().to_string(), xs.clone(), y)
             })
             .collect();
-        let png = out.join(file);
         crate::report::plot::xy_png(
-            &png,
+            &out.join(file),
             &format!("maglev: {label} per seed, each controller tuned with the same budget"),
             "seed",
             label,

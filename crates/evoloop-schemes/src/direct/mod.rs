@@ -1035,9 +1035,8 @@ pub fn write_files(
                 style: Style::Points,
             });
         }
-        let png = dir.join("direct.png");
         xy_png(
-            &png,
+            &dir.join("direct.png"),
             &format!(
                 "direct scheme: {} trials of {} on the plant, one repetition each (0 = the configured set)",
                 reps.len().saturating_sub(1),

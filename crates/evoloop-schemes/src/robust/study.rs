@@ -337,9 +337,8 @@ pub fn study(
                     style: Style::Line,
                 })
                 .collect();
-            let png = dir.join(format!("step_{}_{tag}.png", file_tag(name)));
             xy_png(
-                &png,
+                &dir.join(format!("step_{}_{tag}.png", file_tag(name))),
                 &format!(
                     "{name} on the {} plant: 20 step responses, k ~ U[0.5, 2]",
                     tag
@@ -491,9 +490,8 @@ fn poles_figure(
         slope * xmin,
     ];
     let ymax = py.iter().map(|v| v.abs()).fold(slope * -xmin, f64::max) * 1.05;
-    let png = dir.join("poles.png");
     xy_png(
-        &png,
+        &dir.join("poles.png"),
         &format!("Fig. 5: closed-loop poles of the {runs} DE runs (F = 0.5, CR = 0.9) and the wedge (zeta = 0.7, rho = 1)"),
         "Re",
         "Im",
