@@ -110,11 +110,6 @@ impl Csv {
         }
     }
 
-    /// Rows so far.
-    pub fn rows(&self) -> usize {
-        self.rows
-    }
-
     /// The table as text (header first, every row ended by a line break).
     pub fn as_str(&self) -> &str {
         &self.text
