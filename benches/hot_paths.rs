@@ -374,7 +374,7 @@ fn rkgnn(c: &mut Criterion) {
     c.bench_function("RKGNN Christoffel: M-hat and V-hat in one pass", |b| {
         b.iter(|| chr.inertia_and_velocity(black_box(&x[..3]), black_box(&x[3..]), &mut mm, &mut v))
     });
-    let scn = Scenario::load(&root.join("arm3_fuzzy_ct.toml"), &Overrides::default()).unwrap();
+    let scn = Scenario::load(&root.join("arm3/arm3_fuzzy_ct.toml"), &Overrides::default()).unwrap();
     assert!(matches!(
         scn.controller.model,
         ControllerModel::FuzzyComputedTorque(_)

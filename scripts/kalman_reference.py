@@ -35,7 +35,7 @@ def two_mass(k, m1, m2, sensor):
 
 # name, (A, B, C), period, process noise std q, measurement noise std r[, state noise std w]
 CASES = [
-    # config/two_mass.toml's plant and filter: the encoder's 1e-4 counts as a uniform error.
+    # config/two_mass/two_mass.toml's plant and filter: the encoder's 1e-4 counts as a uniform error.
     ("two_mass_far", two_mass(1.0, 1.0, 1.0, "far"), 0.001, 1.0,
      float(np.sqrt(0.0005 ** 2 + 0.0001 ** 2 / 12))),
     ("two_mass_actuated", two_mass(1.2, 1.0, 1.0, "actuated"), 0.001, 0.3, 1e-3),

@@ -1,6 +1,6 @@
 #!/bin/sh
-# The regression reference of every shipped scenario: each config/*.toml that is a run scenario
-# (not a `tune` experiment) runs in lockstep with its own seed, and the md5 of its run.csv is
+# The regression reference of every shipped scenario: each config/PLANT/*.toml that is a run
+# scenario (not a `tune` experiment, not a robot file) runs in lockstep with its own seed, and the md5 of its run.csv is
 # printed as a table. Compare two checkouts by running this with each one's binary:
 #
 #   scripts/lockstep_md5.sh [BIN] [CONFIG_DIR] > md5.txt
@@ -13,8 +13,9 @@ configs=${2:-config}
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 printf '%-34s %s\n' scenario "run.csv md5"
-for f in "$configs"/*.toml; do
+for f in "$configs"/*/*.toml; do
     name=$(basename "$f" .toml)
+    case "$f" in */robots/*) continue ;; esac # a robot, not a scenario
     if grep -q '^experiment *=' "$f"; then
         continue # a `evoloop tune` experiment, not a run
     fi

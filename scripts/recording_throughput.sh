@@ -4,7 +4,7 @@
 #   binary scenario recording samples_per_s bytes_per_cycle
 # Usage: scripts/recording_throughput.sh [-n RUNS] [-d SECONDS] [-s SCENARIO] BIN [BIN ...]
 set -euo pipefail
-runs=5 duration=120 scenario=config/two_mass.toml
+runs=5 duration=120 scenario=config/two_mass/two_mass.toml
 while getopts n:d:s: o; do
   case $o in n) runs=$OPTARG ;; d) duration=$OPTARG ;; s) scenario=$OPTARG ;; *) exit 2 ;; esac
 done

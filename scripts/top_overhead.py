@@ -6,7 +6,7 @@ missed deadlines (flag 4), overran (flag 2) and the lateness percentiles. Same r
 machine's state is shared; compare the "on" windows with the "off" ones.
 
     python3 scripts/top_overhead.py [--evoloop target/release/evoloop]
-        [--scenario config/two_mass_indirect.toml] [--windows 6] [--window 10] [--out runs/top_overhead]
+        [--scenario config/two_mass/two_mass_indirect.toml] [--windows 6] [--window 10] [--out runs/top_overhead]
 
 Prints a table and writes top_overhead.json in --out. Needs `script` (util-linux).
 """
@@ -30,7 +30,7 @@ def percentile(xs, p):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--evoloop", default="target/release/evoloop")
-    ap.add_argument("--scenario", default="config/two_mass_indirect.toml")
+    ap.add_argument("--scenario", default="config/two_mass/two_mass_indirect.toml")
     ap.add_argument("--windows", type=int, default=6)
     ap.add_argument("--window", type=float, default=10.0)
     ap.add_argument("--out", default="runs/top_overhead")

@@ -25,8 +25,8 @@ fn joint_tracking(scn: &Scenario, sim: &SimResult, from: usize) -> Tracking {
 fn computed_torque_tracks_the_new_trajectory_an_order_of_magnitude_better_than_the_pd_servo() {
     let _heavy = heavy();
     let ov = Overrides::default();
-    let ct = load("arm3_ct.toml", &ov);
-    let pd = load("arm3_pd.toml", &ov);
+    let ct = load("arm3/arm3_ct.toml", &ov);
+    let pd = load("arm3/arm3_pd.toml", &ov);
     assert_eq!(
         ct.reference, pd.reference,
         "both run the same new trajectory"
@@ -56,9 +56,9 @@ fn the_new_trajectory_lies_between_the_two_training_trajectories() {
     let _heavy = heavy();
     let ov = Overrides::default();
     let (a, b, new) = (
-        load("arm3_train1.toml", &ov),
-        load("arm3_train2.toml", &ov),
-        load("arm3_ct.toml", &ov),
+        load("arm3/arm3_train1.toml", &ov),
+        load("arm3/arm3_train2.toml", &ov),
+        load("arm3/arm3_ct.toml", &ov),
     );
     let mut s = [evoloop::reference::Setpoint::default(); 3];
     for k in 0..1000 {
@@ -79,7 +79,7 @@ fn the_new_trajectory_lies_between_the_two_training_trajectories() {
 #[test]
 fn startup_damping_fades_the_torque_in() {
     let _heavy = heavy();
-    let scn = load("arm3_ct.toml", &Overrides::default());
+    let scn = load("arm3/arm3_ct.toml", &Overrides::default());
     let sim = simulate(&scn);
     let u0: Vec<f64> = sim.rows.iter().map(|r| r.telemetry.u[1]).collect();
     // psi(0) = 0: no torque on the first sample; then 1 - exp(-0.03 k).
@@ -147,13 +147,13 @@ fn the_arm_scenario_through_the_processes_equals_the_in_process_simulation() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
     assert_ok(&run(
-        &config("arm3_ct.toml"),
+        &config("arm3/arm3_ct.toml"),
         &out,
         "arm",
         &["--duration", "2"],
     ));
     let scn = load(
-        "arm3_ct.toml",
+        "arm3/arm3_ct.toml",
         &Overrides {
             duration: Some(2.0),
             ..Default::default()
@@ -212,25 +212,25 @@ fn realtime_arm_keeps_its_rate(file: &str, tag: &str, secs: f64, what: &str) -> 
 /// from 2900.)
 #[test]
 fn the_industrial_arm_runs_at_one_kilohertz_in_realtime_mode() {
-    realtime_arm_keeps_its_rate("industrial6_ct.toml", "arm6rt", 3.0, "6-DOF");
+    realtime_arm_keeps_its_rate("industrial6/industrial6_ct.toml", "arm6rt", 3.0, "6-DOF");
 }
 
 #[test]
 fn a_urdf_robot_runs_in_a_scenario_like_its_dh_twin() {
     let _heavy = heavy();
     let dh = load(
-        "arm3_ct.toml",
+        "arm3/arm3_ct.toml",
         &Overrides {
             duration: Some(2.0),
             ..Default::default()
         },
     );
-    let text = std::fs::read_to_string(config("arm3_ct.toml"))
+    let text = std::fs::read_to_string(config("arm3/arm3_ct.toml"))
         .unwrap()
-        .replace("robots/arm3.toml", "robots/arm3.urdf");
+        .replace("../robots/arm3.toml", "../robots/arm3.urdf");
     let urdf = Scenario::parse(
         &text,
-        &config("arm3_ct_urdf.toml"),
+        &config("arm3/arm3_ct_urdf.toml"),
         &Overrides {
             duration: Some(2.0),
             ..Default::default()
@@ -260,7 +260,7 @@ fn a_urdf_robot_runs_in_a_scenario_like_its_dh_twin() {
 /// obeys after the payload's time and not before.
 #[test]
 fn a_payload_loads_the_last_link_from_its_time_on() {
-    let scn = load("arm3_payload.toml", &Overrides::default());
+    let scn = load("arm3/arm3_payload.toml", &Overrides::default());
     let PlantModel::Arm(arm) = &scn.plant.model else {
         panic!("arm3_payload is an arm scenario")
     };
@@ -299,7 +299,7 @@ fn a_payload_loads_the_last_link_from_its_time_on() {
 
 #[test]
 fn payload_keys_are_checked_with_their_names() {
-    let path = config("arm3_payload.toml");
+    let path = config("arm3/arm3_payload.toml");
     let text = std::fs::read_to_string(&path).unwrap();
     let err = |from: &str, to: &str| {
         assert!(text.contains(from), "{from}");
@@ -376,7 +376,7 @@ fn seven_dof_lockstep_twice_equals_simulation(file: &str, tag: &str) -> (Csv, se
 #[test]
 fn the_seven_dof_arm_at_ten_kilohertz_is_bit_reproducible_in_lockstep() {
     let _heavy = heavy();
-    let (_, s) = seven_dof_lockstep_twice_equals_simulation("arm7_ct.toml", "arm7ls");
+    let (_, s) = seven_dof_lockstep_twice_equals_simulation("arm7/arm7_ct.toml", "arm7ls");
     // Computed torque with the true model: after the start-up, the error is the sensor noise
     // (noise_std = 1e-4 rad).
     let rms = s["tracking_after_1s"]["rms"].as_array().unwrap();
@@ -386,7 +386,7 @@ fn the_seven_dof_arm_at_ten_kilohertz_is_bit_reproducible_in_lockstep() {
 
 #[test]
 fn the_seven_dof_arm_runs_at_ten_kilohertz_in_realtime_mode() {
-    let s = realtime_arm_keeps_its_rate("arm7_ct.toml", "arm7rt", 4.0, "7-DOF 10 kHz");
+    let s = realtime_arm_keeps_its_rate("arm7/arm7_ct.toml", "arm7rt", 4.0, "7-DOF 10 kHz");
     assert_eq!(s["wait"]["kind"], "hybrid", "the scenario's wait strategy");
 }
 
@@ -402,7 +402,7 @@ fn the_seven_dof_arm_runs_at_ten_kilohertz_in_realtime_mode() {
 #[test]
 fn the_fuzzy_selection_controller_runs_the_seven_dof_arm_at_ten_kilohertz() {
     let _heavy = heavy();
-    let (csv, s) = seven_dof_lockstep_twice_equals_simulation("arm7_fuzzy_ct.toml", "arm7fz");
+    let (csv, s) = seven_dof_lockstep_twice_equals_simulation("arm7/arm7_fuzzy_ct.toml", "arm7fz");
     let chosen = csv.col("fuzzy_model");
     for m in [0.0, 1.0] {
         assert!(chosen.contains(&m), "model {m} never selected");
@@ -417,9 +417,9 @@ fn the_fuzzy_selection_controller_runs_the_seven_dof_arm_at_ten_kilohertz() {
     );
 }
 
-/// config/arm7_fuzzy_ct.toml with `edits` (text replacements) and run length `duration` s.
+/// config/arm7/arm7_fuzzy_ct.toml with `edits` (text replacements) and run length `duration` s.
 fn arm7_fuzzy_variant(edits: &[(&str, &str)], duration: f64) -> Scenario {
-    let mut text = std::fs::read_to_string(config("arm7_fuzzy_ct.toml")).unwrap();
+    let mut text = std::fs::read_to_string(config("arm7/arm7_fuzzy_ct.toml")).unwrap();
     for (from, to) in edits {
         assert!(text.contains(from), "{from}");
         text = text.replace(from, to);
@@ -428,14 +428,14 @@ fn arm7_fuzzy_variant(edits: &[(&str, &str)], duration: f64) -> Scenario {
         duration: Some(duration),
         ..Default::default()
     };
-    Scenario::parse(&text, &config("arm7_variant.toml"), &ov).unwrap_or_else(|e| panic!("{e}"))
+    Scenario::parse(&text, &config("arm7/arm7_variant.toml"), &ov).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// Tracking RMS after 1 s, all joints, of the P-D servo of config/arm7_train1.toml (gain-matched
+/// Tracking RMS after 1 s, all joints, of the P-D servo of config/arm7/arm7_train1.toml (gain-matched
 /// to computed torque at the ready pose) on the fuzzy scenario's trajectory and loop.
 fn arm7_servo_rms(duration: f64) -> f64 {
-    let text = std::fs::read_to_string(config("arm7_fuzzy_ct.toml")).unwrap();
-    let train = std::fs::read_to_string(config("arm7_train1.toml")).unwrap();
+    let text = std::fs::read_to_string(config("arm7/arm7_fuzzy_ct.toml")).unwrap();
+    let train = std::fs::read_to_string(config("arm7/arm7_train1.toml")).unwrap();
     let section = |t: &str, from: &str, to: &str| {
         let a = t.find(from).unwrap();
         t[a..a + t[a..].find(to).unwrap()].to_string()
@@ -461,9 +461,9 @@ fn on_arm7_the_evidence_rule_tracks_below_each_model_alone_and_the_servo() {
         &[("selection = \"max\"", "selection = \"evidence\"")],
         10.0,
     ));
-    let models = "models = [\"models/arm7_train1.json\", \"models/arm7_train2.json\"]";
+    let models = "models = [\"../models/arm7_train1.json\", \"../models/arm7_train2.json\"]";
     let single = |k: usize| {
-        let one = format!("models = [\"models/arm7_train{k}.json\"]");
+        let one = format!("models = [\"../models/arm7_train{k}.json\"]");
         rms(&arm7_fuzzy_variant(&[(models, &one)], 10.0))
     };
     let (one, two) = (single(1), single(2));
@@ -476,11 +476,11 @@ fn on_arm7_the_evidence_rule_tracks_below_each_model_alone_and_the_servo() {
     );
 }
 
-/// config/arm3_train1.toml holding its start pose (amplitudes zero) for 3 s, with `gravity`
+/// config/arm3/arm3_train1.toml holding its start pose (amplitudes zero) for 3 s, with `gravity`
 /// as `[controller.pd_servo]`'s gravity_model line (or none): the last second's error per
 /// joint, rad.
 fn held_pose_error(gravity: Option<&str>) -> Result<Vec<f64>, String> {
-    let mut text = std::fs::read_to_string(config("arm3_train1.toml")).unwrap();
+    let mut text = std::fs::read_to_string(config("arm3/arm3_train1.toml")).unwrap();
     let amps = "amplitudes = [[0.8, 0.2], [0.3, 0.1], [0.5, 0.15]]";
     assert!(text.contains(amps));
     text = text.replace(amps, "amplitudes = [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]");
@@ -494,7 +494,8 @@ fn held_pose_error(gravity: Option<&str>) -> Result<Vec<f64>, String> {
         duration: Some(3.0),
         ..Default::default()
     };
-    let scn = Scenario::parse(&text, &config("arm3_held.toml"), &ov).map_err(|e| e.to_string())?;
+    let scn =
+        Scenario::parse(&text, &config("arm3/arm3_held.toml"), &ov).map_err(|e| e.to_string())?;
     let sim = simulate(&scn);
     let traces = JointTraces::of(&sim, &scn.reference, 3);
     let (r, y) = traces.columns();
@@ -513,7 +514,7 @@ fn gravity_compensation_removes_the_p_d_servos_droop_and_a_wrong_model_leaves_pa
     let droop = held_pose_error(None).unwrap();
     assert!(droop[1] > 0.01, "{droop:?}");
     // With the arm's own G(q) the droop is gone (to the encoders' noise).
-    let exact = held_pose_error(Some("gravity_model = \"robots/arm3.toml\"")).unwrap();
+    let exact = held_pose_error(Some("gravity_model = \"../robots/arm3.toml\"")).unwrap();
     assert!(exact.iter().all(|e| *e < 1e-4), "{exact:?}");
     // With a CAD model 20 % wrong, part of it remains: the baseline is only as good as its model.
     let truth = evoloop::dynamics::load(&config("robots/arm3.toml")).unwrap();
@@ -536,7 +537,7 @@ fn gravity_compensation_removes_the_p_d_servos_droop_and_a_wrong_model_leaves_pa
         "{wrong:?} {droop:?}"
     );
     // A model of another arm is refused with its key.
-    let e = held_pose_error(Some("gravity_model = \"robots/arm7.urdf\"")).unwrap_err();
+    let e = held_pose_error(Some("gravity_model = \"../robots/arm7.urdf\"")).unwrap_err();
     assert!(
         e.contains("controller.pd_servo.gravity_model") && e.contains("7 joints"),
         "{e}"

@@ -280,7 +280,7 @@ fn bench_loop_reports_the_optimisers_load_during_the_run() {
 fn bench_loop_runs_a_given_scenario_with_its_wait_strategy() {
     let _alone = alone();
     let dir = tempfile::tempdir().unwrap();
-    let arm7 = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm7_ct.toml");
+    let arm7 = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm7/arm7_ct.toml");
     let bench = |extra: &[&str]| {
         std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
             .args(["bench", "loop", "--duration", "1", "--rt-only", "--json"])

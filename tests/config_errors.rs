@@ -144,22 +144,17 @@ fn evoloop_check_prints_the_error_and_exits_non_zero() {
 
 #[test]
 fn the_shipped_scenarios_are_valid() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
-    let mut n = 0;
-    for e in std::fs::read_dir(dir).unwrap() {
-        let p = e.unwrap().path();
-        if p.extension().is_some_and(|x| x == "toml") {
-            let text = std::fs::read_to_string(&p).unwrap();
-            if text.lines().any(|l| l.starts_with("experiment =")) {
-                // An `evoloop tune` experiment, not a scenario.
-                evoloop::tune::validate_file(&p).unwrap_or_else(|e| panic!("{e}"));
-            } else {
-                Scenario::load(&p, &Overrides::default()).unwrap_or_else(|e| panic!("{e}"));
-            }
-            n += 1;
+    let files = shipped_files();
+    for p in &files {
+        let text = std::fs::read_to_string(p).unwrap();
+        if text.lines().any(|l| l.starts_with("experiment =")) {
+            // An `evoloop tune` experiment, not a scenario.
+            evoloop::tune::validate_file(p).unwrap_or_else(|e| panic!("{e}"));
+        } else {
+            Scenario::load(p, &Overrides::default()).unwrap_or_else(|e| panic!("{e}"));
         }
     }
-    assert!(n >= 2);
+    assert!(files.len() >= 40, "{files:?}");
 }
 
 #[test]
@@ -226,7 +221,7 @@ fn an_ipc_prefix_too_long_or_with_a_slash_is_refused_before_iceoryx2_sees_it() {
     ] {
         let o = cli(&[
             "run",
-            "config/two_mass.toml",
+            "config/two_mass/two_mass.toml",
             "--duration",
             "0.01",
             "--ipc-prefix",
@@ -292,7 +287,10 @@ fn nonsense_values_are_refused_by_check_with_their_key() {
 
 #[test]
 fn an_arm_reference_beyond_a_joint_limit_is_refused_with_the_joint_and_time() {
-    let text = std::fs::read_to_string(config("arm3_ct.toml")).unwrap();
+    // Parsed as config/bad.toml: its robot path relative to config/.
+    let text = std::fs::read_to_string(config("arm3/arm3_ct.toml"))
+        .unwrap()
+        .replace("\"../robots/", "\"robots/");
     // Joint 3's limits are +-2.8 rad: an offset of -2.5 with 0.775 rad of amplitude passes them.
     let bad = text.replace("offsets = [0.0, 0.7, -1.3]", "offsets = [0.0, 0.7, -2.5]");
     assert_ne!(bad, text);
@@ -328,7 +326,7 @@ fn run_ids_are_checked_so_that_two_never_share_a_lock() {
     for bad in ["a.b", "a/b", "", &"x".repeat(65)] {
         let o = cli(&[
             "run",
-            "config/two_mass.toml",
+            "config/two_mass/two_mass.toml",
             "--run-id",
             bad,
             "--out",
@@ -338,4 +336,28 @@ fn run_ids_are_checked_so_that_two_never_share_a_lock() {
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(e.contains("--run-id"), "{bad:?}: {e}");
     }
+}
+
+/// A path of the flat layout config/ had until 2026-12-06 is refused with the file's place now,
+/// by `run`, `check` and `tune`; a file that never was shipped only says it cannot be read.
+#[test]
+fn a_scenario_path_from_before_the_plant_folders_names_the_files_place_now() {
+    for (args, now) in [
+        (
+            ["run", "config/maglev_direct.toml"],
+            "config/maglev/maglev_direct.toml",
+        ),
+        (["check", "config/arm7_ct.toml"], "config/arm7/arm7_ct.toml"),
+        (
+            ["tune", "config/maglev_tune.toml"],
+            "config/experiments/maglev_tune.toml",
+        ),
+    ] {
+        let o = cli(&args);
+        assert_refused(&o, "cannot read");
+        assert_refused(&o, now);
+    }
+    let o = cli(&["check", "config/never_shipped.toml"]);
+    assert_refused(&o, "cannot read");
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("per plant"));
 }

@@ -9,11 +9,11 @@ use evoloop::msg::{ParamCode, ParamSet, PlantState, Telemetry};
 use evoloop::sim::LoopHook;
 use std::path::{Path, PathBuf};
 
-/// config/maglev_direct.toml shortened to `trials` candidates (a population of 10, then GA
+/// config/maglev/maglev_direct.toml shortened to `trials` candidates (a population of 10, then GA
 /// iterations of two), with `edit` (from, to) applied to its text.
 fn short_direct(dir: &Path, trials: usize, edit: (&str, &str)) -> std::path::PathBuf {
     let shipped = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_direct.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev/maglev_direct.toml"),
     )
     .unwrap();
     // The first trial at 3.0 s, then 1.6 s each, and half a second of the final set.
@@ -161,7 +161,7 @@ fn maglev_direct(duration: f64) -> Scenario {
         ..Overrides::default()
     };
     Scenario::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_direct.toml"),
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev/maglev_direct.toml"),
         &ov,
     )
     .unwrap()
@@ -397,7 +397,7 @@ fn direct_settings_are_checked_with_file_key_and_reason() {
 #[test]
 fn the_arsinh_direct_run_halves_g_through_the_processes_as_the_in_process_tuner_does() {
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arsinh_direct.toml");
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arsinh/arsinh_direct.toml");
     let (live, _, tuned) = live_and_in_process(tmp.path(), &cfg, "arsinh");
     let opt = json(&live.join("optimiser.json"));
     let (a, b) = (
@@ -432,7 +432,7 @@ fn a_hybrid_direct_run_through_the_processes_equals_the_in_process_tuner() {
     // (optim::pull) it drives the direct scheme like the ask/tell optimisers.
     let tmp = tempfile::tempdir().unwrap();
     let shipped = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arsinh_direct.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arsinh/arsinh_direct.toml"),
     )
     .unwrap();
     let text = shipped
@@ -502,11 +502,11 @@ fn safe_bayes_through_the_processes_equals_the_in_process_tuner() {
     assert_eq!(f64s(&live_reps[1]["values"]), f64s(&live_reps[0]["values"]));
 }
 
-/// The shipped DC motor (`config/lti_motor_direct.toml`) with `trials` trials and `settle`
+/// The shipped DC motor (`config/linear/lti_motor_direct.toml`) with `trials` trials and `settle`
 /// settle repetitions at most, its text edited by `edits` (from, to).
 fn motor_direct(dir: &Path, trials: usize, settle: u32, edits: &[(&str, &str)]) -> PathBuf {
     let shipped = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lti_motor_direct.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/linear/lti_motor_direct.toml"),
     )
     .unwrap();
     // The first trial at 2.2 s, 2 s each with its settle repetitions, then 1 s of the final set.
@@ -606,7 +606,7 @@ fn safe_bayes_model_needs_a_nominal_model_and_never_reads_the_plants_own() {
         "{err}"
     );
     let poor = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_direct_poor.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev/maglev_direct_poor.toml"),
     )
     .unwrap()
     .replace("algorithm = \"ga\"", "algorithm = \"safe_bayes_model\"")
@@ -818,7 +818,7 @@ fn listed_run(
         .report
 }
 
-/// The resonant motor (config/lti_resonant_direct.toml) from a set in service whose integral
+/// The resonant motor (config/linear/lti_resonant_direct.toml) from a set in service whose integral
 /// forgets in a few seconds, trying `before` and then `judged`, with `settle` settle
 /// repetitions at most (to a band of 0.5 %): the records of the two trials. (The shipped
 /// sluggish set's integral takes tens of seconds: settling to it is the reported cost.)
@@ -827,7 +827,7 @@ fn judged_after(before: &[f64], judged: &[f64], settle: u32) -> Vec<evoloop::dir
     let duration = 5.2 + 4.0 * (2 + 2 * settle) as f64 + 0.5;
     let settings = format!("evaluations = 10\nsettle = {settle}\nsettle_band = 0.005");
     let report = listed_run(
-        "lti_resonant_direct.toml",
+        "linear/lti_resonant_direct.toml",
         &[
             ("duration = 406.0", &format!("duration = {duration}")),
             ("params = [1.0, 0.0, 0.0001]", "params = [2.0, 0.0, 0.001]"),
@@ -845,7 +845,7 @@ fn judged_after(before: &[f64], judged: &[f64], settle: u32) -> Vec<evoloop::dir
 }
 
 /// With settle segments the baseline is measured where every trial starts, on the configured
-/// set's orbit, not from rest: config/lti_motor_direct.toml's first repetition starts at rest on
+/// set's orbit, not from rest: config/linear/lti_motor_direct.toml's first repetition starts at rest on
 /// a 1 rad step, every later one on the 2 rad step from -1 rad, so back to back the configured
 /// set tried again as a trial costs far more than its baseline, and settled it costs the same.
 #[test]
@@ -854,7 +854,7 @@ fn a_settled_baseline_is_measured_where_the_trials_start() {
     let ratio = |settle: u32| {
         let settings = format!("evaluations = 10\nsettle = {settle}");
         let r = listed_run(
-            "lti_motor_direct.toml",
+            "linear/lti_motor_direct.toml",
             &[
                 ("duration = 303.0", "duration = 20.0"),
                 ("evaluations = 150", &settings),
@@ -933,7 +933,7 @@ fn a_set_settled_into_costs_the_same_whatever_ran_before() {
 #[test]
 fn safe_bayes_model_believes_the_least_margin_its_models_tolerance_allows() {
     let tmp = tempfile::tempdir().unwrap();
-    let shipped = std::fs::read_to_string(config("arsinh_direct.toml"))
+    let shipped = std::fs::read_to_string(config("arsinh/arsinh_direct.toml"))
         .unwrap()
         .replace("algorithm = \"ga\"", "algorithm = \"safe_bayes_model\"");
     let cut = shipped.find("[[optimiser.nominal_alternatives]]").unwrap();
@@ -1026,18 +1026,19 @@ fn the_schemes_refuse_a_scenario_with_its_cause() {
         duration: Some(f64::INFINITY),
         ..Default::default()
     };
-    let e = evoloop::direct::run_in_process(&shipped("maglev_direct.toml", &forever), |_, _| {})
-        .err()
-        .expect("a run until stopped is refused in this process");
+    let e =
+        evoloop::direct::run_in_process(&shipped("maglev/maglev_direct.toml", &forever), |_, _| {})
+            .err()
+            .expect("a run until stopped is refused in this process");
     let SchemeError::NotInProcess(cause) = &e else {
         panic!("{e:?}")
     };
     assert_eq!(cause.key, "timing.duration");
-    assert!(cause.file.ends_with("maglev_direct.toml"), "{cause}");
+    assert!(cause.file.ends_with("maglev/maglev_direct.toml"), "{cause}");
     assert!(std::error::Error::source(&e).is_some(), "the cause is kept");
     // An indirect optimiser on a plant and controller it has no model of.
-    let mut scn = shipped("maglev_direct.toml", &Overrides::default());
-    scn.plant = shipped("two_mass.toml", &Overrides::default()).plant;
+    let mut scn = shipped("maglev/maglev_direct.toml", &Overrides::default());
+    scn.plant = shipped("two_mass/two_mass.toml", &Overrides::default()).plant;
     let e = evoloop::indirect::Indirect::new(&scn)
         .err()
         .expect("refused");

@@ -111,14 +111,14 @@ fn dynamics_refuses_bad_input_with_exit_2() {
 #[test]
 fn arm_scenarios_check_and_bad_ones_name_the_key() {
     for c in [
-        "arm3_ct",
-        "arm3_pd",
-        "arm3_train1",
-        "arm3_train2",
-        "industrial6_ct",
-        "industrial6_identify",
-        "industrial6_identify_wrist",
-        "industrial6_identify_arm",
+        "arm3/arm3_ct",
+        "arm3/arm3_pd",
+        "arm3/arm3_train1",
+        "arm3/arm3_train2",
+        "industrial6/industrial6_ct",
+        "industrial6/industrial6_identify",
+        "industrial6/industrial6_identify_wrist",
+        "industrial6/industrial6_identify_arm",
     ] {
         let o = cli(&["check", &format!("config/{c}.toml")]);
         assert!(
@@ -128,12 +128,13 @@ fn arm_scenarios_check_and_bad_ones_name_the_key() {
         );
     }
     let tmp = tempfile::tempdir().unwrap();
-    let base =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3_ct.toml"))
-            .unwrap();
+    let base = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3/arm3_ct.toml"),
+    )
+    .unwrap();
     // Robot paths are relative to the scenario file: point them back at the source tree.
     let robots = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/robots");
-    let base = base.replace("\"robots/", &format!("\"{}/", robots.display()));
+    let base = base.replace("\"../robots/", &format!("\"{}/", robots.display()));
     let cases = [
         (
             base.replace("arm3.toml\"", "missing.toml\""),

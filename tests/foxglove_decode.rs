@@ -77,7 +77,7 @@ fn an_arms_joint_states_and_commands_decode_to_run_csv() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("arm");
     assert_ok(&run(
-        &config("arm3_pd.toml"),
+        &config("arm3/arm3_pd.toml"),
         &out,
         "fgarm",
         &["--duration", "1"],
@@ -136,7 +136,7 @@ fn foxgloves_decoder_and_evoloops_reader_agree_on_every_field() {
     let out = tmp.path().join("tm");
     // The scheduled set goes out at 12 s.
     assert_ok(&run(
-        &config("two_mass.toml"),
+        &config("two_mass/two_mass.toml"),
         &out,
         "fgtm",
         &["--duration", "12.5"],

@@ -35,7 +35,7 @@ fn a_run_that_fills_its_disk_says_so_and_keeps_what_it_wrote_readable() {
     let _unmount = Mounted(&disk);
     let out = disk.join("out");
     // 30 s of the two-mass run: some 1.4 MB of run.csv and run.mcap, more than the disk holds.
-    let o = run(&config("two_mass.toml"), &out, "full", &[]);
+    let o = run(&config("two_mass/two_mass.toml"), &out, "full", &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("no space left"), "{err}");

@@ -261,7 +261,7 @@ fn verdict(what: &str, n: usize, failures: Vec<(PathBuf, String, String)>) {
 fn mutated_scenarios_are_refused_with_file_and_reason_or_run_without_panic() {
     quiet_panics();
     let mut rng = StdRng::seed_from_u64(seed());
-    let originals: Vec<(PathBuf, String)> = files("config", "toml")
+    let originals: Vec<(PathBuf, String)> = crate::common::shipped_files()
         .into_iter()
         .map(|p| {
             let t = std::fs::read_to_string(&p).unwrap();
@@ -377,7 +377,7 @@ fn mutated_robot_files_are_refused_with_file_and_reason_or_load_without_panic() 
 fn a_controller_takes_a_set_whole_or_refuses_it_with_a_code_and_keeps_its_last_good_values() {
     quiet_panics();
     let mut rng = StdRng::seed_from_u64(seed() ^ 0xc0de);
-    let scenarios: Vec<Scenario> = files("config", "toml")
+    let scenarios: Vec<Scenario> = crate::common::shipped_files()
         .iter()
         .filter_map(|p| Scenario::load(p, &Overrides::default()).ok())
         .collect();
@@ -505,7 +505,7 @@ fn recording() -> Vec<u8> {
         .current_dir(root())
         .args([
             "run",
-            "config/two_mass.toml",
+            "config/two_mass/two_mass.toml",
             "--duration",
             "0.3",
             "--quiet",

@@ -451,7 +451,7 @@ fn maglev_is_unstable_open_loop_and_stabilised_by_the_tuned_controller() {
 
 #[test]
 fn fuzzy_anti_windup_against_the_baselines_over_seeds_as_the_study_reports() {
-    // The claims README.md makes from `evoloop tune config/maglev_tune.toml --seeds 1..20`,
+    // The claims README.md makes from `evoloop tune config/experiments/maglev_tune.toml --seeds 1..20`,
     // checked on seeds 1-6 (each controller tuned with the same 310-evaluation budget per seed):
     // fuzzy anti-windup has a lower eq. 31 index than no anti-windup and than conditional
     // integration on every seed, and a lower mean than back-calculation; it tracks better than the

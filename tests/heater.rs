@@ -1,5 +1,5 @@
 //! The heated block (the README's example of adding a plant kind) under the PID of
-//! config/heater.toml: the heater only heats, so the integrator winds up on the 20 -> 60 °C step
+//! config/heater/heater.toml: the heater only heats, so the integrator winds up on the 20 -> 60 °C step
 //! unless the anti-windup scheme stops it; the config's comment quotes these figures.
 
 use evoloop::config::{ControllerModel, Overrides, Scenario};
@@ -9,7 +9,7 @@ use evoloop::sim::simulate;
 /// Overshoot of the first step (20 -> 60 °C at 10 s, next change at 400 s), % of the step, and
 /// the time the output is back within 2 % of the step for good before 400 s.
 fn first_step(aw: AntiWindup) -> (f64, Option<f64>) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/heater.toml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/heater/heater.toml");
     let mut scn = Scenario::load(&path, &Overrides::default()).unwrap();
     let ControllerModel::Pid(pid) = &mut scn.controller.model else {
         unreachable!("the heater runs a PID")

@@ -189,7 +189,8 @@ fn identification_errors_shrink_as_the_trajectory_grows() {
     // The shipped one-stage experiment simulated in this process for 9 periods with encoder
     // noise (plant.noise_std) and 2 N m torque noise; the first 3, 5 and 9 periods estimated
     // alone (one dropped, one held out: 1, 3 and 7 averaged).
-    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/industrial6_identify.toml");
+    let cfg =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/industrial6/industrial6_identify.toml");
     let ov = Overrides {
         duration: Some(90.0),
         ..Overrides::default()
@@ -269,7 +270,7 @@ fn scenario_text(name: &str) -> String {
 }
 
 fn parse(text: &str) -> Scenario {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/inline.toml");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/industrial6/inline.toml");
     Scenario::parse(text, &path, &Overrides::default()).unwrap()
 }
 
@@ -278,7 +279,7 @@ fn the_identified_model_set_brings_tracking_from_the_nominal_models_to_the_noise
     use evoloop::msg::ParamCode;
     // The shipped scenario: the nominal model for the first pass, the identified one (a model
     // set from config/identified/industrial6/lls.json) from 8.25 s on.
-    let text = scenario_text("industrial6_identified.toml");
+    let text = scenario_text("industrial6/industrial6_identified.toml");
     let scn = parse(&text);
     let sim = evoloop::sim::simulate(&scn);
     assert_eq!(sim.events.len(), 1);
@@ -291,7 +292,7 @@ fn the_identified_model_set_brings_tracking_from_the_nominal_models_to_the_noise
     // The same moves on the true model and on the nominal model throughout.
     let truth = parse(
         &text
-            .replace("model = \"robots/industrial6_nominal.toml\"\n", "")
+            .replace("model = \"../robots/industrial6_nominal.toml\"\n", "")
             .replace("mode = \"schedule\"", "mode = \"off\""),
     );
     let nominal = parse(&text.replace("mode = \"schedule\"", "mode = \"off\""));
@@ -323,8 +324,8 @@ fn a_model_set_that_is_not_positive_definite_or_of_the_wrong_length_is_refused()
         .iter()
         .map(|v| format!("{}", -v))
         .collect();
-    let text = scenario_text("industrial6_identified.toml").replace(
-        "{ at = 8.25, kind = \"model\", file = \"identified/industrial6/lls.json\" },",
+    let text = scenario_text("industrial6/industrial6_identified.toml").replace(
+        "{ at = 8.25, kind = \"model\", file = \"../identified/industrial6/lls.json\" },",
         &format!(
             "{{ at = 2.0, kind = \"model\", values = [{}] }}, {{ at = 3.0, kind = \"model\", values = [1.0, 2.0] }},",
             bad.join(", ")
@@ -343,11 +344,11 @@ fn a_model_set_that_is_not_positive_definite_or_of_the_wrong_length_is_refused()
     // The loop ran on: the arm still tracks on the model it had.
     assert!(rms(&sim, &scn, 3.5, 4.0) < 0.05);
     // A model set for a law that takes none is refused when the file is checked.
-    let pd = scenario_text("arm3_pd.toml").replace(
+    let pd = scenario_text("arm3/arm3_pd.toml").replace(
         "mode = \"off\"",
         "mode = \"schedule\"\nschedule = [{ at = 1.0, kind = \"model\", values = [1.0] }]",
     );
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/inline.toml");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/industrial6/inline.toml");
     let e = Scenario::parse(&pd, &path, &Overrides::default())
         .unwrap_err()
         .to_string();
@@ -399,8 +400,8 @@ fn the_papers_cartesian_path_keeps_the_wrist_centre_on_it_and_identifies_the_arm
     let dir = tempfile::tempdir().unwrap();
     let traj = dir.path().join("mfs.json");
     std::fs::write(&traj, serde_json::json!({ "series": o.series }).to_string()).unwrap();
-    let text = scenario_text("industrial6_identify_arm.toml")
-        .replace("excitation/industrial6_arm.json", traj.to_str().unwrap())
+    let text = scenario_text("industrial6/industrial6_identify_arm.toml")
+        .replace("../excitation/industrial6_arm.json", traj.to_str().unwrap())
         .replace("duration = 60.0", "duration = 40.0");
     let scn = parse(&text);
     let sim = evoloop::sim::simulate(&scn);

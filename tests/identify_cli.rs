@@ -64,15 +64,19 @@ fn excitation_then_processes_then_lls_identify_the_wrist() {
     assert_plotted(&dir.join("wrist.png"));
     // The file as a scenario's reference, through the plant and controller processes.
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(root.join("config/industrial6_identify_wrist.toml"))
-        .unwrap()
-        .replace("excitation/industrial6_wrist.json", traj.to_str().unwrap())
-        .replace(
-            "robots/industrial6.toml",
-            root.join("config/robots/industrial6.toml")
-                .to_str()
-                .unwrap(),
-        );
+    let text =
+        std::fs::read_to_string(root.join("config/industrial6/industrial6_identify_wrist.toml"))
+            .unwrap()
+            .replace(
+                "../excitation/industrial6_wrist.json",
+                traj.to_str().unwrap(),
+            )
+            .replace(
+                "../robots/industrial6.toml",
+                root.join("config/robots/industrial6.toml")
+                    .to_str()
+                    .unwrap(),
+            );
     let cfg = write(dir, "wrist.toml", &text);
     let out = dir.join("run");
     let l = run_then_lls(&cfg, &out, "idw", "lockstep");
@@ -124,11 +128,14 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
     let scratch = tmp("bad");
     let dir = scratch.path();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(root.join("config/industrial6_identify.toml"))
+    let text = std::fs::read_to_string(root.join("config/industrial6/industrial6_identify.toml"))
         .unwrap()
-        .replace("excitation/industrial6_all.json", "/nonexistent/traj.json")
         .replace(
-            "robots/industrial6.toml",
+            "../excitation/industrial6_all.json",
+            "/nonexistent/traj.json",
+        )
+        .replace(
+            "../robots/industrial6.toml",
             root.join("config/robots/industrial6.toml")
                 .to_str()
                 .unwrap(),
@@ -143,7 +150,7 @@ fn bad_excitation_input_is_refused_with_the_key_and_reason() {
     // lls on a run whose reference is not a periodic excitation.
     let out = dir.join("ct");
     assert_ok(&run(
-        &root.join("config/industrial6_ct.toml"),
+        &root.join("config/industrial6/industrial6_ct.toml"),
         &out,
         "idct",
         &["--duration", "1", "--mode", "lockstep"],

@@ -11,7 +11,7 @@ use std::path::Path;
 fn the_optimiser_tracks_the_load_and_is_ten_percent_cheaper_than_frozen_after_it_and_no_worse_before(
 ) {
     let _alone = alone();
-    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_indirect.toml");
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev/maglev_indirect.toml");
     let tmp = tempfile::tempdir().unwrap();
     let tuned = tmp.path().join("tuned");
     let frozen = tmp.path().join("frozen");
@@ -93,15 +93,15 @@ fn the_optimiser_tracks_the_load_and_is_ten_percent_cheaper_than_frozen_after_it
     );
 }
 
-/// The encoder on the driven mass (config/two_mass_indirect_collocated.toml): the filter with
+/// The encoder on the driven mass (config/two_mass/two_mass_indirect_collocated.toml): the filter with
 /// a state noise keeps its error poles off the antiresonance, and the scheme beats the frozen
 /// gains after the drift by far. Measured on seed 1: 1831 against 5466 (-66 %); the same file
 /// without `state_noise` 6903 against 5658, one set published, which fails this test.
 #[test]
 fn the_two_mass_optimiser_on_a_collocated_encoder_beats_the_frozen_gains() {
     let _alone = alone();
-    let cfg =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect_collocated.toml");
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("config/two_mass/two_mass_indirect_collocated.toml");
     let tmp = tempfile::tempdir().unwrap();
     let (tuned, frozen) = (tmp.path().join("tuned"), tmp.path().join("frozen"));
     assert_ok(&run(&cfg, &tuned, "tmcol", &[]));
@@ -123,7 +123,7 @@ fn the_two_mass_optimiser_on_a_collocated_encoder_beats_the_frozen_gains() {
 #[test]
 fn the_two_mass_optimiser_tracks_the_spring_and_beats_the_frozen_gains() {
     let _alone = alone();
-    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml");
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass/two_mass_indirect.toml");
     let tmp = tempfile::tempdir().unwrap();
     let (tuned, frozen) = (tmp.path().join("tuned"), tmp.path().join("frozen"));
     assert_ok(&run(&cfg, &tuned, "tmind", &[]));
@@ -186,7 +186,7 @@ fn a_killed_optimiser_leaves_the_loop_running_and_a_restarted_one_rejoins_and_tu
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_indirect.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev/maglev_indirect.toml"),
     )
     .unwrap()
     .replace("duration = 30.0", "duration = 60.0");
@@ -242,7 +242,7 @@ fn a_killed_optimiser_leaves_the_loop_running_and_a_restarted_one_rejoins_and_tu
 #[test]
 fn a_multi_seed_run_compares_the_indirect_scheme_with_the_frozen_controller() {
     let _alone = alone();
-    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml");
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass/two_mass_indirect.toml");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("study");
     assert_ok(&run(
@@ -283,7 +283,7 @@ fn a_multi_seed_run_compares_the_indirect_scheme_with_the_frozen_controller() {
     assert_plotted(&out.join("study_cost.png"));
 
     // Only an indirect scenario has a frozen comparison to make.
-    let plain = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass.toml");
+    let plain = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass/two_mass.toml");
     let o = run(
         &plain,
         &tmp.path().join("plain"),
@@ -303,7 +303,7 @@ fn in_realtime_an_epoch_longer_than_the_state_queue_loses_no_sample() {
     let _alone = alone();
     let tmp = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev_indirect.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev/maglev_indirect.toml"),
     )
     .unwrap();
     let long = text.replace("epoch_evaluations = 150 ", "epoch_evaluations = 1500 ");
@@ -352,7 +352,7 @@ fn in_realtime_an_epoch_longer_than_the_state_queue_loses_no_sample() {
 fn the_general_scheme_beats_the_frozen_pid_and_the_nominally_tuned_one_after_the_motor_s_load_change(
 ) {
     let _alone = alone();
-    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/lti_motor_indirect.toml");
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/linear/lti_motor_indirect.toml");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("study");
     assert_ok(&run(

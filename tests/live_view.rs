@@ -90,7 +90,7 @@ fn live_command(addr: &str, seconds: &str, run_id: &str, out: &Path) -> std::pro
     c.current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
             "run",
-            "config/two_mass.toml",
+            "config/two_mass/two_mass.toml",
             "--mode",
             "realtime",
             "--no-rt",

@@ -127,7 +127,8 @@ fn the_multi_process_lockstep_run_equals_the_in_process_simulation_bit_for_bit()
 #[test]
 fn the_robust_scenario_tracks_while_the_spring_drifts_across_its_range() {
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_robust.toml");
+    let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("config/two_mass/two_mass_robust.toml");
     let out = tmp.path().join("out");
     assert_ok(&run(&cfg, &out, "robust", &[]));
     let csv = Csv::read(&out.join("run.csv"));

@@ -13,7 +13,7 @@ fn a_long_runs_report_reads_run_csv_in_bounded_memory() {
     // some 190 MB (549 MB for an hour).
     let o = cli(&[
         "run",
-        "config/two_mass.toml",
+        "config/two_mass/two_mass.toml",
         "--duration",
         "1200",
         "--out",

@@ -248,7 +248,7 @@ fn the_shipped_lti_scenarios_run_through_the_processes() {
     let pendulum = |out: &str| {
         let out = dir.path().join(out);
         common::assert_ok(&common::run(
-            &common::config("lti_pendulum.toml"),
+            &common::config("linear/lti_pendulum.toml"),
             &out,
             "ltip",
             &[],
@@ -275,7 +275,7 @@ fn the_shipped_lti_scenarios_run_through_the_processes() {
 
     let out = dir.path().join("motor");
     common::assert_ok(&common::run(
-        &common::config("lti_motor.toml"),
+        &common::config("linear/lti_motor.toml"),
         &out,
         "ltim",
         &[],

@@ -5,8 +5,8 @@ use evoloop::law::model_check::ModelCheck;
 use evoloop::msg::ModelEstimate;
 
 fn two_mass() -> Scenario {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("config/two_mass/two_mass_indirect.toml");
     Scenario::load(&path, &Overrides::default()).unwrap()
 }
 

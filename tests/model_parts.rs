@@ -13,7 +13,11 @@ use evoloop::rkgnn::live::ModelUpdate;
 use evoloop::rkgnn::RkgnnModel;
 
 fn arm7() -> Scenario {
-    Scenario::load(&common::config("arm7_fuzzy_ct.toml"), &Overrides::default()).unwrap()
+    Scenario::load(
+        &common::config("arm7/arm7_fuzzy_ct.toml"),
+        &Overrides::default(),
+    )
+    .unwrap()
 }
 
 /// `cycle` on a state near the reference's start for one cycle per set in `sets`: the events.
@@ -99,11 +103,11 @@ fn an_arm7_model_crosses_the_processes_ports_in_parts_and_is_applied_whole() {
 #[test]
 fn identify_mode_takes_arm7_models_larger_than_a_set() {
     let config = common::config("");
-    let text = std::fs::read_to_string(common::config("arm7_fuzzy_ct.toml"))
+    let text = std::fs::read_to_string(common::config("arm7/arm7_fuzzy_ct.toml"))
         .unwrap()
         .replace("mode = \"off\"", "mode = \"identify\"")
-        .replace("\"models/", &format!("\"{}/models/", config.display()))
-        .replace("\"robots/", &format!("\"{}/robots/", config.display()));
+        .replace("\"../models/", &format!("\"{}/models/", config.display()))
+        .replace("\"../robots/", &format!("\"{}/robots/", config.display()));
     let dir = tempfile::tempdir().unwrap();
     let path = common::write(dir.path(), "arm7_identify.toml", &text);
     let scn = Scenario::load(&path, &Overrides::default()).unwrap();
@@ -114,7 +118,7 @@ fn identify_mode_takes_arm7_models_larger_than_a_set() {
 /// part, and keeps its gains.
 #[test]
 fn a_law_without_models_refuses_a_model_in_parts_once() {
-    let scn = Scenario::load(&common::config("arm3_pd.toml"), &Overrides::default()).unwrap();
+    let scn = Scenario::load(&common::config("arm3/arm3_pd.toml"), &Overrides::default()).unwrap();
     let mut cycle = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());
     let gains = cycle.controller.params().to_vec();
     let sets = ParamSet::model_sets(1, 0, f64::NAN, ParamKind::RkgnnModel, &[0.5; 3000]);

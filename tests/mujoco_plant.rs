@@ -41,10 +41,10 @@ fn evoloop_arm(dir: &Path, coulomb: bool) -> std::path::PathBuf {
         robot.replace("coulomb = 0.1", "coulomb = 0.0")
     };
     common::write(dir, "arm3.toml", &robot);
-    let scenario = std::fs::read_to_string(common::config("arm3_ct.toml"))
+    let scenario = std::fs::read_to_string(common::config("arm3/arm3_ct.toml"))
         .unwrap()
         .replace("noise_std = 0.0001", "noise_std = 0.0")
-        .replace("robots/arm3.toml", "arm3.toml");
+        .replace("../robots/arm3.toml", "arm3.toml");
     let config = common::write(dir, "arm3_ct.toml", &scenario);
     let out = dir.join(if coulomb { "with" } else { "without" });
     common::assert_ok(&common::run(&config, &out, "mjarm", &[]));
@@ -58,8 +58,8 @@ fn on_filtered_velocity(name: &str) -> String {
     let abs = |p: &str| root().join("config").join(p).display().to_string();
     let text = std::fs::read_to_string(common::config(name))
         .unwrap()
-        .replace("\"robots/", &format!("\"{}/", abs("robots")))
-        .replace("\"plants/", &format!("\"{}/", abs("plants")));
+        .replace("\"../robots/", &format!("\"{}/", abs("robots")))
+        .replace("\"../plants/", &format!("\"{}/", abs("plants")));
     common::without_lines(&text, "velocity = ").replace(
         "[controller.computed_torque]\n",
         "[controller.computed_torque]\nvelocity = \"filtered\"\n",
@@ -95,7 +95,10 @@ fn computed_torque_runs_against_the_mujoco_arm_reproducibly() {
         common::assert_ok(&common::run(&common::config(name), &out, "mjct", &[]));
         out
     };
-    let (a, b) = (run("arm3_mujoco.toml", "a"), run("arm3_mujoco.toml", "b"));
+    let (a, b) = (
+        run("arm3/arm3_mujoco.toml", "a"),
+        run("arm3/arm3_mujoco.toml", "b"),
+    );
     let csv = |d: &Path| std::fs::read(d.join("run.csv")).unwrap();
     assert!(csv(&a) == csv(&b), "lockstep reruns against MuJoCo differ");
     let rms = |d: &Path| {
@@ -115,7 +118,7 @@ fn computed_torque_runs_against_the_mujoco_arm_reproducibly() {
     let own_file = common::write(
         dir.path(),
         "own.toml",
-        &on_filtered_velocity("arm3_ct.toml"),
+        &on_filtered_velocity("arm3/arm3_ct.toml"),
     );
     let own_out = dir.path().join("own");
     common::assert_ok(&common::run(&own_file, &own_out, "mjct", &[]));
@@ -129,7 +132,7 @@ fn computed_torque_runs_against_the_mujoco_arm_reproducibly() {
         );
     }
     let mujoco = rms(&a);
-    let wall = rms(&run("arm3_mujoco_wall.toml", "wall"));
+    let wall = rms(&run("arm3/arm3_mujoco_wall.toml", "wall"));
     println!("with the wall: {wall}");
     assert!(
         wall > 10.0 * mujoco,
@@ -157,15 +160,16 @@ fn computed_torque_runs_the_mujoco_arm_on_its_encoders_alone() {
                 "\"--noise\", \"0.0001\", \"--no-truth\"]"
             },
         );
-        common::write(dir.path(), &format!("{truth}-{name}"), &text)
+        let file = format!("{truth}-{}", name.replace('/', "-"));
+        common::write(dir.path(), &file, &text)
     };
     let run = |file: &Path, out: &str| {
         let out = dir.path().join(out);
         common::assert_ok(&common::run(file, &out, "mjblind", &[]));
         out
     };
-    let blind = run(&config("arm3_mujoco.toml", false), "blind");
-    let seen = run(&config("arm3_mujoco.toml", true), "seen");
+    let blind = run(&config("arm3/arm3_mujoco.toml", false), "blind");
+    let seen = run(&config("arm3/arm3_mujoco.toml", true), "seen");
     let rows = |d: &Path| common::Csv::read(&d.join("run.csv"));
     let (b, s) = (rows(&blind), rows(&seen));
     for j in 0..3 {
@@ -195,7 +199,7 @@ fn computed_torque_runs_the_mujoco_arm_on_its_encoders_alone() {
         let rms = s["tracking_after_1s"]["rms"].as_array().unwrap().clone();
         rms.iter().map(|v| v.as_f64().unwrap()).collect()
     };
-    let own = settled(&run(&config("arm3_ct.toml", true), "own"));
+    let own = settled(&run(&config("arm3/arm3_ct.toml", true), "own"));
     let on_mujoco = settled(&blind);
     println!(
         "filtered velocity, rms after 1 s: MuJoCo arm blind {on_mujoco:?}, evoloop's arm {own:?}"

@@ -55,7 +55,8 @@ fn the_control_cycle_allocates_nothing() {
         .subscriber::<ModelEstimate>(Topic::Estimate, 4, false)
         .unwrap();
     let scn = evoloop::config::Scenario::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass_indirect.toml"),
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config/two_mass/two_mass_indirect.toml"),
         &evoloop::config::Overrides::default(),
     )
     .unwrap();
@@ -76,7 +77,7 @@ fn the_control_cycle_allocates_nothing() {
     // The law on the default scenario's filter, as its controller runs it, told of a sensor
     // 100 samples late (the filter's input ring and its prediction across them).
     let default = evoloop::config::Scenario::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass.toml"),
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/two_mass/two_mass.toml"),
         &evoloop::config::Overrides::default(),
     )
     .unwrap();
@@ -235,7 +236,7 @@ fn computed_torque_on_estimated_velocities_allocates_nothing() {
     use evoloop::law::estimator::VelocitySource;
     use evoloop::law::{ComputedTorque, Controller};
     let scn = evoloop::config::Scenario::load(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3_ct.toml"),
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3/arm3_ct.toml"),
         &evoloop::config::Overrides::default(),
     )
     .unwrap();

@@ -103,10 +103,11 @@ fn scenario(name: &str) -> Scenario {
 #[test]
 fn arm_plant_and_computed_torque_cycles_allocate_nothing() {
     computed_torque();
-    fuzzy_computed_torque(scenario("arm3_fuzzy_ct"), "fuzzy");
+    fuzzy_computed_torque(scenario("arm3/arm3_fuzzy_ct"), "fuzzy");
     // The evidence rule: its filter, its residuals (a model evaluation and a solve) and the
     // per-joint weights, every cycle.
-    let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3_fuzzy_ct.toml");
+    let cfg =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3/arm3_fuzzy_ct.toml");
     let text = std::fs::read_to_string(&cfg)
         .unwrap()
         .replace("selection = \"max\"", "selection = \"evidence\"");
@@ -119,10 +120,10 @@ fn arm_plant_and_computed_torque_cycles_allocate_nothing() {
 
 /// The P-D servo with a model's gravity torque (`gravity_model`): G(q) every cycle.
 fn pd_servo_with_gravity_compensation() {
-    let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3_train1.toml");
+    let cfg = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/arm3/arm3_train1.toml");
     let text = std::fs::read_to_string(&cfg).unwrap().replace(
         "kd = [15.0, 20.0, 8.0]",
-        "kd = [15.0, 20.0, 8.0]\ngravity_model = \"robots/arm3.urdf\"",
+        "kd = [15.0, 20.0, 8.0]\ngravity_model = \"../robots/arm3.urdf\"",
     );
     let scn = Scenario::parse(&text, &cfg, &Overrides::default()).unwrap();
     assert!(serde_json::to_value(&scn.controller).unwrap()["gravity_model"].is_object());
@@ -148,7 +149,7 @@ fn pd_servo_with_gravity_compensation() {
 }
 
 fn computed_torque() {
-    let scn = scenario("industrial6_ct");
+    let scn = scenario("industrial6/industrial6_ct");
     let model = scn.plant.model.config().rigid_body().unwrap().clone();
     let mut plant = PlantSim::new(scn.build_plant(), scn.plant.step, 1e-4, 3);
     let mut cyc = ControlCycle::new(scn.build_controller(), scn.reference.clone(), scn.bounds());

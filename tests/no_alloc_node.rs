@@ -23,10 +23,8 @@ fn allocations(s: &serde_json::Value) -> (u64, u64) {
 fn every_shipped_scenario_runs_its_control_cycle_without_allocating() {
     let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
-    let mut files: Vec<_> = std::fs::read_dir(config(""))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+    let files: Vec<_> = shipped_files()
+        .into_iter()
         // `evoloop tune` experiments (arsinh_tune, maglev_tune) are not runs of the processes;
         // a plant of the user's own needs its process's language (tests/python_plant.rs counts
         // the controller's allocations on external_motor).
@@ -37,7 +35,6 @@ fn every_shipped_scenario_runs_its_control_cycle_without_allocating() {
                 .any(|l| l.starts_with("experiment") || l.starts_with("kind = \"external\""))
         })
         .collect();
-    files.sort();
     assert!(files.len() >= 23, "{} shipped scenarios", files.len());
     let mut sets_after_warmup = 0;
     for (i, f) in files.iter().enumerate() {
@@ -78,7 +75,7 @@ fn a_realtime_run_reports_its_cycle_allocations_too() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("rt");
     let o = run(
-        &config("two_mass_indirect.toml"),
+        &config("two_mass/two_mass_indirect.toml"),
         &out,
         "noallocrt",
         &["--mode", "realtime", "--duration", "3"],

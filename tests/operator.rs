@@ -39,7 +39,7 @@ fn revert_restores_an_earlier_set_bit_for_bit_while_the_loop_runs() {
     let (_, run_id) = unique("operator");
     let mut child = Command::new(evoloop())
         .arg("run")
-        .arg(config("maglev_direct.toml"))
+        .arg(config("maglev/maglev_direct.toml"))
         .args([
             "--mode",
             "realtime",

@@ -55,13 +55,13 @@ fn a_python_plant_runs_the_motor_as_the_built_in_lti_plant_does() {
     let dir = tempfile::tempdir().unwrap();
     let external = dir.path().join("external");
     common::assert_ok(&common::run(
-        &common::config("external_motor.toml"),
+        &common::config("external/external_motor.toml"),
         &external,
         "pyext",
         &[],
     ));
     // lti_motor without its encoder noise: the same motor, discretised exactly.
-    let lti = std::fs::read_to_string(common::config("lti_motor.toml"))
+    let lti = std::fs::read_to_string(common::config("linear/lti_motor.toml"))
         .unwrap()
         .replace("noise_std = 0.0005", "noise_std = 0.0");
     let lti = common::write(dir.path(), "lti.toml", &lti);
@@ -102,7 +102,7 @@ fn a_python_plant_runs_the_motor_as_the_built_in_lti_plant_does() {
 #[ignore = "needs Python 3 with the evoloop_plant package's deps: pip install ./python"]
 fn the_general_indirect_scheme_tunes_through_a_python_plant_after_its_load_change() {
     let dir = tempfile::tempdir().unwrap();
-    let cfg = common::config("external_motor_indirect.toml");
+    let cfg = common::config("external/external_motor_indirect.toml");
     let (tuned, frozen) = (dir.path().join("tuned"), dir.path().join("frozen"));
     common::assert_ok(&common::run(&cfg, &tuned, "pyind", &[]));
     common::assert_ok(&common::run(
@@ -146,9 +146,9 @@ fn run_script_plant(
     replace: &[(&str, &str)],
 ) -> (std::process::Output, std::path::PathBuf, String) {
     common::write(dir, script, text);
-    let mut scenario = std::fs::read_to_string(common::config("external_motor.toml"))
+    let mut scenario = std::fs::read_to_string(common::config("external/external_motor.toml"))
         .unwrap()
-        .replace("plants/motor_plant.py", script);
+        .replace("../plants/motor_plant.py", script);
     for (from, to) in replace {
         scenario = scenario.replace(from, to);
     }
@@ -251,7 +251,7 @@ fn a_python_plant_that_stalls_then_dies_fails_the_run_with_its_report_and_no_orp
 #[test]
 fn a_plant_program_that_cannot_start_is_refused_by_evoloop_check() {
     let dir = tempfile::tempdir().unwrap();
-    let shipped = std::fs::read_to_string(common::config("external_motor.toml")).unwrap();
+    let shipped = std::fs::read_to_string(common::config("external/external_motor.toml")).unwrap();
     common::write(dir.path(), "plant.py", "print('a plant')\n");
     let cases = [
         (
@@ -264,7 +264,10 @@ fn a_plant_program_that_cannot_start_is_refused_by_evoloop_check() {
         ),
     ];
     for (command, reason) in cases {
-        let text = shipped.replace(r#"command = ["python3", "plants/motor_plant.py"]"#, command);
+        let text = shipped.replace(
+            r#"command = ["python3", "../plants/motor_plant.py"]"#,
+            command,
+        );
         let file = common::write(dir.path(), "s.toml", &text);
         let o = common::cli(&["check", file.to_str().unwrap()]);
         common::assert_refused(&o, "key `plant.external.command`: ");
@@ -288,10 +291,10 @@ fn a_plant_program_relative_to_the_scenario_starts_from_any_scenario_path() {
     std::fs::write(&program, "#!/bin/sh\npwd > started\nexit 3\n").unwrap();
     std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
     std::os::unix::fs::symlink(&program, scenarios.join("plants/m.sh")).unwrap();
-    let text = std::fs::read_to_string(common::config("external_motor.toml"))
+    let text = std::fs::read_to_string(common::config("external/external_motor.toml"))
         .unwrap()
         .replace(
-            r#"command = ["python3", "plants/motor_plant.py"]"#,
+            r#"command = ["python3", "../plants/motor_plant.py"]"#,
             r#"command = ["plants/m.sh"]"#,
         );
     common::write(&scenarios, "m.toml", &text);
@@ -337,17 +340,17 @@ fn a_plant_program_relative_to_the_scenario_starts_from_any_scenario_path() {
     }
 }
 
-/// `config/external_motor.toml` with its plant a shell script of `body`, written executable as
+/// `config/external/external_motor.toml` with its plant a shell script of `body`, written executable as
 /// `dir/name` (the scenario's directory, where the plant runs).
 fn shell_plant(dir: &Path, name: &str, body: &str) -> String {
     use std::os::unix::fs::PermissionsExt;
     let program = dir.join(name);
     std::fs::write(&program, format!("#!/bin/sh\n{body}\n")).unwrap();
     std::fs::set_permissions(&program, std::fs::Permissions::from_mode(0o755)).unwrap();
-    std::fs::read_to_string(common::config("external_motor.toml"))
+    std::fs::read_to_string(common::config("external/external_motor.toml"))
         .unwrap()
         .replace(
-            r#"command = ["python3", "plants/motor_plant.py"]"#,
+            r#"command = ["python3", "../plants/motor_plant.py"]"#,
             &format!(r#"command = ["./{name}"]"#),
         )
 }

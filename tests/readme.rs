@@ -201,7 +201,7 @@ fn check_files(cmd: &Cmd) -> Result<(), String> {
     match cmd {
         Cmd::Run(a) => match &a.file {
             Some(f) => scenario(f),
-            None => scenario(Path::new("config/two_mass.toml")),
+            None => scenario(Path::new("config/two_mass/two_mass.toml")),
         },
         Cmd::Check { file } => scenario(file),
         Cmd::Tune(a) if !path(&a.file).exists() => {
@@ -297,9 +297,9 @@ fn the_checker_itself_rejects_what_does_not_parse() {
         let a = evoloop_args(c).unwrap().unwrap();
         Cli::try_parse_from(std::iter::once("evoloop".to_string()).chain(a))
     };
-    assert!(parse("evoloop run config/two_mass.toml --mode sideways").is_err());
+    assert!(parse("evoloop run config/two_mass/two_mass.toml --mode sideways").is_err());
     assert!(parse("evoloop dynamics --robot x.urdf --frobnicate").is_err());
-    assert!(parse("evoloop tune config/arsinh_tune.toml --seed N").is_err());
+    assert!(parse("evoloop tune config/experiments/arsinh_tune.toml --seed N").is_err());
     let missing = parse("evoloop run config/no_such.toml").unwrap();
     assert!(check_files(missing.command.as_ref().unwrap()).is_err());
 }
@@ -457,8 +457,9 @@ fn the_book_quotes_the_message_crates_own_version() {
     }
 }
 
-/// config/README.md is the index of the shipped scenarios: it names every `.toml` of config/
-/// (in backticks, as its tables do) and names no file that is not there.
+/// config/README.md is the index of the shipped scenarios: it names every `.toml` of config/'s
+/// plant and experiment folders (`maglev/maglev.toml`, in backticks, as its tables do) and names
+/// no file that is not there.
 #[test]
 fn the_config_index_names_every_scenario_and_only_those() {
     let index = std::fs::read_to_string(root().join("config/README.md")).unwrap();
@@ -466,13 +467,25 @@ fn the_config_index_names_every_scenario_and_only_those() {
         .split('`')
         .skip(1)
         .step_by(2)
-        .filter(|s| s.ends_with(".toml") && !s.contains('/') && !s.contains(' '))
+        // `PLANT/FILE.toml`, not a robot (`robots/arm3.toml`), a path inside a scenario
+        // (`../robots/arm3.toml`) or a path from the root (`config/...`).
+        .filter(|s| s.ends_with(".toml") && !s.contains(' ') && s.matches('/').count() == 1)
+        .filter(|s| {
+            !["robots/", "../", "config/"]
+                .iter()
+                .any(|p| s.starts_with(p))
+        })
         .map(str::to_string)
         .collect();
-    let shipped: std::collections::BTreeSet<String> = std::fs::read_dir(root().join("config"))
-        .unwrap()
-        .filter_map(|e| e.ok()?.file_name().into_string().ok())
-        .filter(|n| n.ends_with(".toml"))
+    let config = root().join("config");
+    let shipped: std::collections::BTreeSet<String> = crate::common::shipped_files()
+        .iter()
+        .map(|p| {
+            p.strip_prefix(&config)
+                .unwrap()
+                .to_string_lossy()
+                .into_owned()
+        })
         .collect();
     let missing: Vec<_> = shipped.difference(&named).collect();
     let stale: Vec<_> = named.difference(&shipped).collect();

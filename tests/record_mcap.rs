@@ -18,7 +18,7 @@ fn a_lockstep_run_records_every_topic_with_the_right_counts_and_stamps() {
     let out = tmp.path().join("run");
     // The indirect scheme: parameter sets and model estimates flow as well as the loop's topics.
     let o = run(
-        std::path::Path::new("config/two_mass_indirect.toml"),
+        std::path::Path::new("config/two_mass/two_mass_indirect.toml"),
         &out,
         "mcap",
         &["--duration", "12"],

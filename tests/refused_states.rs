@@ -11,10 +11,10 @@ use evoloop::msg::{Command, PlantState, STATE_FLAG_END};
 use std::process::{Command as Process, Stdio};
 use std::time::Duration;
 
-/// config/lti_motor.toml with a safe command of -3 V and no noise (its simulated state is
+/// config/linear/lti_motor.toml with a safe command of -3 V and no noise (its simulated state is
 /// [x1, x2, the input in force]: 3 states, 1 joint, 1 output).
 fn scenario(dir: &std::path::Path) -> std::path::PathBuf {
-    let text = std::fs::read_to_string(common::config("lti_motor.toml"))
+    let text = std::fs::read_to_string(common::config("linear/lti_motor.toml"))
         .unwrap()
         .replace("noise_std = 0.0005", "noise_std = 0.0\nsafe_command = -3.0");
     common::write(dir, "motor.toml", &text)

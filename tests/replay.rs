@@ -8,7 +8,11 @@ use common::{cli, stdout_json};
 /// replay must deliver at the cycles the live controller took them; the first three sets are
 /// published at 8.9, 11.9 and 14.9 s), recorded.
 fn recorded_run(dir: &std::path::Path) {
-    recorded("config/two_mass_indirect.toml", dir, &["--duration", "16"]);
+    recorded(
+        "config/two_mass/two_mass_indirect.toml",
+        dir,
+        &["--duration", "16"],
+    );
 }
 
 /// `evoloop run CONFIG --out DIR --quiet EXTRA...`, which must succeed.
@@ -69,7 +73,7 @@ fn replaying_a_lockstep_recording_into_its_controller_gives_the_live_commands() 
 
     // Another controller on the same plant data: other gains, other commands, and the replay
     // says where they first differ.
-    let text = std::fs::read_to_string("config/two_mass_indirect.toml").unwrap();
+    let text = std::fs::read_to_string("config/two_mass/two_mass_indirect.toml").unwrap();
     let other = text.replace(
         "gains = [18.49, 19.04, 47.27, 7.30, -10.54]",
         "gains = [9.0, 19.04, 47.27, 7.30, -10.54]",
@@ -101,7 +105,7 @@ fn a_general_indirect_recording_replays_its_linear_estimates() {
     let tmp = tempfile::tempdir().unwrap();
     let live = tmp.path().join("live");
     recorded(
-        "config/lti_motor_indirect.toml",
+        "config/linear/lti_motor_indirect.toml",
         &live,
         &["--duration", "8"],
     );
@@ -160,7 +164,7 @@ fn a_realtime_recording_replays_to_its_live_commands() {
     let tmp = tempfile::tempdir().unwrap();
     let live = tmp.path().join("live");
     recorded(
-        "config/two_mass_indirect.toml",
+        "config/two_mass/two_mass_indirect.toml",
         &live,
         &["--mode", "realtime", "--no-rt", "--duration", "4"],
     );

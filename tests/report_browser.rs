@@ -74,7 +74,7 @@ fn chromium_renders_report_html_with_its_plots() {
     let dir = tmp.path().join("run");
     let o = cli(&[
         "run",
-        "config/two_mass_indirect.toml",
+        "config/two_mass/two_mass_indirect.toml",
         "--duration",
         "10",
         "--out",

@@ -12,7 +12,7 @@ fn every_run_writes_one_self_contained_page_and_report_rebuilds_it_exactly() {
     let d = dir.to_str().unwrap();
     let o = cli(&[
         "run",
-        "config/two_mass_indirect.toml",
+        "config/two_mass/two_mass_indirect.toml",
         "--duration",
         "10",
         "--out",

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 fn training_run(dir: &Path, tag: &str) -> PathBuf {
     let out = dir.join("train1");
     assert_ok(&run(
-        &config("arm3_train1.toml"),
+        &config("arm3/arm3_train1.toml"),
         &out,
         tag,
         &["--duration", "2"],
@@ -163,7 +163,12 @@ fn the_shipped_models_are_what_their_command_makes_of_the_training_runs() {
     let tmp = tempfile::tempdir().unwrap();
     for name in ["arm3_train1", "arm3_train2"] {
         let out = tmp.path().join(name);
-        assert_ok(&run(&config(&format!("{name}.toml")), &out, "rk_ship", &[]));
+        assert_ok(&run(
+            &config(&format!("arm3/{name}.toml")),
+            &out,
+            "rk_ship",
+            &[],
+        ));
         let model = tmp.path().join(format!("{name}.json"));
         let o = identify(&out, &model, "0", &[&SHIPPED[..], &["--quiet"]].concat());
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -245,7 +250,12 @@ fn a_servo_behind_a_drives_filter_is_reconstructed_with_its_filters_lag() {
     let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("train1");
-    assert_ok(&run(&config("arm3_train1.toml"), &out, "rk_drive", &[]));
+    assert_ok(&run(
+        &config("arm3/arm3_train1.toml"),
+        &out,
+        "rk_drive",
+        &[],
+    ));
     let gains = ["--servo", "known", "--start", "least-squares"];
     let fit = |name: &str, extra: &[&str]| {
         let model = tmp.path().join(name);
@@ -318,7 +328,7 @@ fn a_model_identified_under_the_known_servo_has_the_arms_gravity_and_an_inertia_
     // the reference, the output, the servo's gains and eq. 2's two numbers.
     let m = RkgnnModel::load(&config("models/arm3_train1.json")).unwrap();
     let arm = evoloop::dynamics::load(&config("robots/arm3.toml")).unwrap();
-    let scn = Scenario::load(&config("arm3_train1.toml"), &Overrides::default()).unwrap();
+    let scn = Scenario::load(&config("arm3/arm3_train1.toml"), &Overrides::default()).unwrap();
     let sim = simulate(&scn);
     let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period, SMOOTHING);
     let mut d = arm.data();
@@ -395,7 +405,8 @@ fn identification_never_opens_the_robot_file() {
 fn the_shipped_models_are_positive_definite_on_every_training_sample() {
     for name in ["arm3_train1", "arm3_train2"] {
         let m = RkgnnModel::load(&config(&format!("models/{name}.json"))).unwrap();
-        let scn = Scenario::load(&config(&format!("{name}.toml")), &Overrides::default()).unwrap();
+        let scn =
+            Scenario::load(&config(&format!("arm3/{name}.toml")), &Overrides::default()).unwrap();
         let sim = simulate(&scn);
         let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period, SMOOTHING);
         let lo = min_eig_on(&m, &data);
@@ -446,13 +457,13 @@ fn the_fuzzy_scenario_through_the_processes_equals_the_in_process_simulation() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
     assert_ok(&run(
-        &config("arm3_fuzzy_ct.toml"),
+        &config("arm3/arm3_fuzzy_ct.toml"),
         &out,
         "rk_fuzzy",
         &["--duration", "2"],
     ));
     let scn = Scenario::load(
-        &config("arm3_fuzzy_ct.toml"),
+        &config("arm3/arm3_fuzzy_ct.toml"),
         &Overrides {
             duration: Some(2.0),
             ..Default::default()
@@ -476,7 +487,7 @@ fn the_fuzzy_scenario_runs_at_one_kilohertz_in_realtime() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
     assert_ok(&run(
-        &config("arm3_fuzzy_ct.toml"),
+        &config("arm3/arm3_fuzzy_ct.toml"),
         &out,
         "rk_fuzzy_rt",
         &["--mode", "realtime", "--duration", "3"],
@@ -490,7 +501,7 @@ fn the_fuzzy_scenario_runs_at_one_kilohertz_in_realtime() {
 
 #[test]
 fn the_evidence_rule_takes_its_keys_and_they_are_refused_elsewhere_with_file_key_and_reason() {
-    let cfg = config("arm3_fuzzy_ct.toml");
+    let cfg = config("arm3/arm3_fuzzy_ct.toml");
     let text = std::fs::read_to_string(&cfg).unwrap();
     let with = |rule: &str| text.replace("selection = \"max\"", rule);
     let parse =
@@ -527,7 +538,7 @@ fn the_evidence_rule_takes_its_keys_and_they_are_refused_elsewhere_with_file_key
     assert_eq!(v["evidence_prior"], "memberships");
     let refused = |rule: &str, key: &str, reason: &str| {
         let e = parse(&with(rule)).unwrap_err();
-        assert!(e.contains("arm3_fuzzy_ct.toml"), "{e}");
+        assert!(e.contains("arm3/arm3_fuzzy_ct.toml"), "{e}");
         assert!(
             e.contains(&format!("controller.fuzzy_computed_torque.{key}")),
             "{e}"
@@ -571,8 +582,9 @@ fn a_model_file_for_another_arm_is_refused_with_file_key_and_reason() {
     let robots = tmp.path().join("robots");
     std::fs::create_dir_all(&robots).unwrap();
     std::fs::copy(config("robots/arm3.toml"), robots.join("arm3.toml")).unwrap();
-    let scn = std::fs::read_to_string(config("arm3_fuzzy_ct.toml"))
+    let scn = std::fs::read_to_string(config("arm3/arm3_fuzzy_ct.toml"))
         .unwrap()
+        .replace("\"../", "\"")
         .replace("models/arm3_train2.json", "models/short.json")
         .replace(
             "models/arm3_train1.json",
@@ -600,10 +612,10 @@ fn a_model_file_for_another_arm_is_refused_with_file_key_and_reason() {
 /// simulated in process: the RMS tracking error per joint over the whole run (rad).
 fn tracking_rms(edit: impl Fn(String) -> String) -> [f64; 3] {
     let dir = config("");
-    let text = std::fs::read_to_string(config("arm3_fuzzy_ct.toml"))
+    let text = std::fs::read_to_string(config("arm3/arm3_fuzzy_ct.toml"))
         .unwrap()
-        .replace("\"robots/", &format!("\"{}robots/", dir.display()))
-        .replace("\"models/", &format!("\"{}models/", dir.display()));
+        .replace("\"../robots/", &format!("\"{}robots/", dir.display()))
+        .replace("\"../models/", &format!("\"{}models/", dir.display()));
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("variant.toml");
     std::fs::write(&path, edit(text)).unwrap();
@@ -647,7 +659,7 @@ fn fuzzy_computed_torque_tracks_the_new_trajectory_better_than_the_servo_and_eac
             let t = seeded(t);
             let c = t.find("[controller]").unwrap();
             let r = t.find("[reference]").unwrap();
-            let servo = std::fs::read_to_string(config("arm3_train1.toml")).unwrap();
+            let servo = std::fs::read_to_string(config("arm3/arm3_train1.toml")).unwrap();
             let (sc, sr) = (
                 servo.find("[controller]").unwrap(),
                 servo.find("[reference]").unwrap(),
@@ -741,7 +753,7 @@ fn rkgnn_study_on_arm3_is_the_shipped_scenarios_and_writes_figures_7_to_10() {
     let rms = study_rms(&v);
     assert_paper_ordering(&rms);
     // On arm3 the servo is the training scenarios' own (ratio exactly 1), the models are the
-    // shipped ones and the fuzzy case is config/arm3_fuzzy_ct.toml.
+    // shipped ones and the fuzzy case is config/arm3/arm3_fuzzy_ct.toml.
     assert!(v["inertia_ratio"]
         .as_array()
         .unwrap()
@@ -882,7 +894,7 @@ fn identify_mode_publishes_only_models_that_predict_fresh_data_better_and_the_lo
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
     // arm3_payload: arm3_identify's loop, whose arm changes at 6 s.
     for (out, tag) in [(&a, "rk_ident_a"), (&b, "rk_ident_b")] {
-        assert_ok(&run(&config("arm3_payload.toml"), out, tag, &[]));
+        assert_ok(&run(&config("arm3/arm3_payload.toml"), out, tag, &[]));
     }
     // Lockstep: the attempts are at fixed simulated times, so the run is reproducible.
     let csv = |d: &Path| std::fs::read_to_string(d.join("run.csv")).unwrap();
@@ -931,7 +943,7 @@ fn identify_mode_updates_arm7s_models_in_parts_and_tracks_the_loaded_arm_better(
     let out = tmp.path().join("arm7");
     let args = ["--duration", "14"];
     assert_ok(&run(
-        &config("arm7_payload.toml"),
+        &config("arm7/arm7_payload.toml"),
         &out,
         "rk_arm7_ident",
         &args,
@@ -957,7 +969,7 @@ fn a_seeds_study_of_an_unchanging_arm_compares_the_last_quarter() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("study");
     assert_ok(&run(
-        &config("arm3_identify.toml"),
+        &config("arm3/arm3_identify.toml"),
         &out,
         "rk_unchanged",
         &["--seeds", "1..3"],
@@ -985,7 +997,7 @@ fn identify_mode_on_a_controller_without_models_is_refused_with_the_key() {
     let out = tmp.path().to_str().unwrap();
     let args = [
         "run",
-        "config/arm3_pd.toml",
+        "config/arm3/arm3_pd.toml",
         "--optimiser",
         "identify",
         "--out",
@@ -995,7 +1007,7 @@ fn identify_mode_on_a_controller_without_models_is_refused_with_the_key() {
     assert_eq!(o.status.code(), Some(2), "{o:?}");
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(
-        e.contains("arm3_pd.toml") && e.contains("optimiser.mode"),
+        e.contains("arm3/arm3_pd.toml") && e.contains("optimiser.mode"),
         "{e}"
     );
 }
@@ -1009,7 +1021,7 @@ fn identification_alongside_operation_beats_the_frozen_models_after_a_payload_ov
     let _heavy = heavy();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("study");
-    let scn = config("arm3_payload.toml");
+    let scn = config("arm3/arm3_payload.toml");
     assert_ok(&run(&scn, &out, "rk_payload", &["--seeds", "1..10"]));
     let study = json(&out.join("study.json"));
     assert_eq!(study["measure"]["column"], "tracking_mrad");
@@ -1375,7 +1387,7 @@ fn identification_alongside_operation_in_this_process_equals_the_processes_in_lo
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
     assert_ok(&run(
-        &config("arm3_identify.toml"),
+        &config("arm3/arm3_identify.toml"),
         &out,
         "rk_live_sim",
         &["--duration", "8"],
@@ -1384,7 +1396,7 @@ fn identification_alongside_operation_in_this_process_equals_the_processes_in_lo
         duration: Some(8.0),
         ..Default::default()
     };
-    let scn = Scenario::load(&config("arm3_identify.toml"), &ov).unwrap();
+    let scn = Scenario::load(&config("arm3/arm3_identify.toml"), &ov).unwrap();
     let (sim, epochs) = evoloop::rkgnn::live::simulate(&scn).unwrap();
     let opt = json(&out.join("optimiser.json"));
     let published = |e: &&serde_json::Value| e["published"].is_u64();
@@ -1590,7 +1602,7 @@ fn arm7_least_squares_without_a_positive_definite_m_hat_is_refused_with_the_reas
     // velocities the weighted fit did, smallest eigenvalue 0.0048: the book's Known limits.)
     use evoloop::rkgnn::identify::{self, Prior, Settings};
     use evoloop::rkgnn::model::ServoPrior;
-    let scn = Scenario::load(&config("arm7_train1.toml"), &Overrides::default()).unwrap();
+    let scn = Scenario::load(&config("arm7/arm7_train1.toml"), &Overrides::default()).unwrap();
     let sim = simulate(&scn);
     let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period, SMOOTHING);
     let prior = Prior::new(0.003532, 3.827894).unwrap(); // `evoloop rkgnn prior --robot arm7.urdf`

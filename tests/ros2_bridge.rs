@@ -70,7 +70,7 @@ fn a_ros_2_node_gets_joint_states_equal_to_run_csv_and_sets_gains_through_the_co
     };
     let mut run = spawn(&[
         "run",
-        config("arm3_pd.toml").to_str().unwrap(),
+        config("arm3/arm3_pd.toml").to_str().unwrap(),
         "--mode",
         "realtime",
         "--no-rt",

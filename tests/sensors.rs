@@ -12,13 +12,8 @@ use evoloop::sim::simulate;
 /// Every shipped scenario evoloop simulates, as `simulate` runs it: 3 s, optimiser off (the
 /// laws and their estimators are what is compared; the schemes' sets arrive the same way).
 fn shipped() -> Vec<(String, Scenario)> {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
-    let mut names: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .filter_map(|e| {
-            let p = e.unwrap().path();
-            (p.extension()? == "toml").then_some(p)
-        })
+    let names: Vec<_> = shipped_files()
+        .into_iter()
         // Scenarios, not the tuning experiments beside them (`[experiment]`).
         .filter(|p| {
             std::fs::read_to_string(p)
@@ -27,7 +22,6 @@ fn shipped() -> Vec<(String, Scenario)> {
                 .any(|l| l == "[plant]")
         })
         .collect();
-    names.sort();
     let ov = Overrides {
         duration: Some(3.0),
         optimiser: Some(OptimiserMode::Off),
@@ -37,7 +31,8 @@ fn shipped() -> Vec<(String, Scenario)> {
         .into_iter()
         .map(|p| {
             let scn = Scenario::load(&p, &ov).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-            (p.file_name().unwrap().to_string_lossy().into_owned(), scn)
+            let name = p.strip_prefix(config("")).unwrap();
+            (name.to_string_lossy().into_owned(), scn)
         })
         .filter(|(_, s)| s.require_in_process().is_ok())
         .collect()
@@ -81,19 +76,19 @@ fn withholding_the_truth_changes_no_command_of_a_law_on_sensors() {
     // motor's PID and every arm law (the servo, computed torque on its observer and on a drive's
     // filter, fuzzy computed torque) run on their sensors.
     for name in [
-        "two_mass.toml",
-        "lti_pendulum.toml",
-        "maglev.toml",
-        "lti_motor.toml",
-        "arm3_pd.toml",
-        "arm3_ct.toml",
-        "arm7_ct.toml",
-        "industrial6_ct.toml",
-        "arm3_fuzzy_ct.toml",
-        "arm7_payload.toml",
-        "industrial6_identify.toml",
-        "industrial6_identified.toml",
-        "two_mass_indirect.toml",
+        "two_mass/two_mass.toml",
+        "linear/lti_pendulum.toml",
+        "maglev/maglev.toml",
+        "linear/lti_motor.toml",
+        "arm3/arm3_pd.toml",
+        "arm3/arm3_ct.toml",
+        "arm7/arm7_ct.toml",
+        "industrial6/industrial6_ct.toml",
+        "arm3/arm3_fuzzy_ct.toml",
+        "arm7/arm7_payload.toml",
+        "industrial6/industrial6_identify.toml",
+        "industrial6/industrial6_identified.toml",
+        "two_mass/two_mass_indirect.toml",
     ] {
         assert!(compared.iter().any(|c| c == name), "{name} not compared");
     }
@@ -113,7 +108,7 @@ fn withholding_the_truth_changes_no_command_of_a_law_on_sensors() {
 #[test]
 fn a_law_that_reads_the_truth_is_refused_when_the_plant_withholds_it() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(config("two_mass_robust.toml"))
+    let text = std::fs::read_to_string(config("two_mass/two_mass_robust.toml"))
         .unwrap()
         .replacen("[plant]\n", "[plant]\npublish_truth = false\n", 1);
     let file = write(dir.path(), "blind.toml", &text);
@@ -144,7 +139,10 @@ fn scenario_with(
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
     let mut text = std::fs::read_to_string(config(file)).unwrap();
     for sub in ["robots/", "models/"] {
-        text = text.replace(&format!("\"{sub}"), &format!("\"{}/{sub}", root.display()));
+        text = text.replace(
+            &format!("\"../{sub}"),
+            &format!("\"{}/{sub}", root.display()),
+        );
     }
     if extra.contains("velocity = ") {
         text = without_lines(&text, "velocity = ");
@@ -164,7 +162,7 @@ fn scenario_with(
     write(dir, name, &text)
 }
 
-const ARM3_CT: (&str, &str) = ("arm3_ct.toml", "computed_torque");
+const ARM3_CT: (&str, &str) = ("arm3/arm3_ct.toml", "computed_torque");
 
 /// `velocity = "observer"` predicts with the law's own model: computed torque takes it, the
 /// P-D servo (no model) and fuzzy computed torque (no single model in service) are refused with
@@ -193,10 +191,11 @@ fn the_velocity_observer_is_taken_by_computed_torque_only() {
         "controller.computed_torque.velocity_cutoff_hz",
     );
     for case in [
-        ("arm3_pd.toml", "pd_servo"),
-        ("arm3_fuzzy_ct.toml", "fuzzy_computed_torque"),
+        ("arm3/arm3_pd.toml", "pd_servo"),
+        ("arm3/arm3_fuzzy_ct.toml", "fuzzy_computed_torque"),
     ] {
-        let path = scenario_with(dir.path(), case, case.0, "velocity = \"observer\"\n", false);
+        let name = format!("{}.toml", case.1);
+        let path = scenario_with(dir.path(), case, &name, "velocity = \"observer\"\n", false);
         let o = cli(&["check", path.to_str().unwrap()]);
         assert_refused(&o, &format!("controller.{}.velocity", case.1));
     }
@@ -208,7 +207,13 @@ fn the_velocity_observer_is_taken_by_computed_torque_only() {
 fn the_default_velocity_filter_fits_a_slow_loop() {
     let dir = tempfile::tempdir().unwrap();
     let slow = |name: &str, extra: &str| {
-        let path = scenario_with(dir.path(), ("arm3_pd.toml", "pd_servo"), name, extra, true);
+        let path = scenario_with(
+            dir.path(),
+            ("arm3/arm3_pd.toml", "pd_servo"),
+            name,
+            extra,
+            true,
+        );
         let text = std::fs::read_to_string(&path).unwrap().replacen(
             "period = 0.001 ",
             "period = 0.01 ",
@@ -261,7 +266,7 @@ fn computed_torque_on_its_observer_runs_blind_and_tracks_better_than_on_the_low_
 /// late is the output of `delay` samples before).
 fn delayed_two_mass_iae(delay: usize, told: bool) -> f64 {
     use evoloop::law::{ControllerModel, StateFeedback};
-    let scn = Scenario::load(&config("two_mass.toml"), &Overrides::default()).unwrap();
+    let scn = Scenario::load(&config("two_mass/two_mass.toml"), &Overrides::default()).unwrap();
     let ControllerModel::StateFeedback(sf) = &scn.controller.model else {
         panic!("two_mass.toml runs state feedback")
     };
@@ -313,7 +318,7 @@ fn a_late_sensor_costs_the_default_loop_little_once_its_filter_is_told() {
 #[test]
 fn a_scenarios_sensor_delay_delays_the_plants_readings_and_its_filter_predicts_across_it() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(config("two_mass.toml")).unwrap();
+    let text = std::fs::read_to_string(config("two_mass/two_mass.toml")).unwrap();
     let late = |d: &str| {
         let file = write(
             dir.path(),
@@ -322,7 +327,7 @@ fn a_scenarios_sensor_delay_delays_the_plants_readings_and_its_filter_predicts_a
         );
         Scenario::load(&file, &Overrides::default())
     };
-    let on_time = Scenario::load(&config("two_mass.toml"), &Overrides::default()).unwrap();
+    let on_time = Scenario::load(&config("two_mass/two_mass.toml"), &Overrides::default()).unwrap();
     let scn = late("100").unwrap();
     assert_eq!(scn.plant.sensor_delay, 100);
     let (a, b) = (simulate(&on_time), simulate(&scn));

@@ -63,7 +63,7 @@ fn a_fifo_as_a_model_file_is_refused_not_waited_on() {
     let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
     // SAFETY: a valid C string.
     assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
-    let text = std::fs::read_to_string(common::config("lti_pendulum.toml")).unwrap();
+    let text = std::fs::read_to_string(common::config("linear/lti_pendulum.toml")).unwrap();
     let cfg = write(tmp.path(), "s.toml", &text);
     let with_fifo = |line: &str| {
         if line.trim_start().starts_with("file =") {
@@ -108,7 +108,7 @@ fn a_seed_range_is_counted_before_it_is_built() {
         ("3,4,3", "seed 3 is given twice"),
     ] {
         let t0 = std::time::Instant::now();
-        let o = cli(&["run", "config/two_mass.toml", "--seeds", seeds]);
+        let o = cli(&["run", "config/two_mass/two_mass.toml", "--seeds", seeds]);
         assert_refused(&o, why);
         assert!(t0.elapsed() < std::time::Duration::from_secs(10), "{seeds}");
     }
@@ -119,7 +119,7 @@ fn a_seed_range_is_counted_before_it_is_built() {
 fn an_optimiser_named_twice_in_a_comparison_is_refused() {
     let o = cli(&[
         "tune",
-        "config/maglev_direct.toml",
+        "config/maglev/maglev_direct.toml",
         "--compare",
         "ga,ga",
         "--seeds",

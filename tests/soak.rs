@@ -16,7 +16,7 @@ fn a_short_soak_records_every_process_per_interval_and_leaves_nothing_behind() {
         .arg("--scenario")
         .arg(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/config/two_mass_indirect.toml"
+            "/config/two_mass/two_mass_indirect.toml"
         ))
         .output()
         .expect("start evoloop soak");

@@ -16,7 +16,7 @@ fn top_attaches_to_a_running_run_and_its_snapshot_is_the_run_s() {
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
             "run",
-            "config/two_mass_indirect.toml",
+            "config/two_mass/two_mass_indirect.toml",
             "--mode",
             "realtime",
             "--no-rt",
@@ -167,7 +167,7 @@ fn top_exits_when_its_terminal_goes_away_and_on_sigterm() {
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
             "run",
-            "config/two_mass.toml",
+            "config/two_mass/two_mass.toml",
             "--mode",
             "realtime",
             "--no-rt",

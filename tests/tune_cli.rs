@@ -12,7 +12,7 @@ fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
     let out = tmp.path().join("a");
     let v = stdout_json(&cli(&[
         "tune",
-        "config/arsinh_tune.toml",
+        "config/experiments/arsinh_tune.toml",
         "--json",
         "--out",
         out.to_str().unwrap(),
@@ -45,7 +45,7 @@ fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
     // Seeded: the same seed gives the same result, another seed another one.
     let again = stdout_json(&cli(&[
         "tune",
-        "config/arsinh_tune.toml",
+        "config/experiments/arsinh_tune.toml",
         "--json",
         "--out",
         out.to_str().unwrap(),
@@ -53,7 +53,7 @@ fn tune_arsinh_reports_the_keys_and_writes_data_and_figures() {
     assert_eq!(v["G_final"], again["G_final"]);
     let other = stdout_json(&cli(&[
         "tune",
-        "config/arsinh_tune.toml",
+        "config/experiments/arsinh_tune.toml",
         "--json",
         "--seed",
         "2",
@@ -70,7 +70,7 @@ fn tune_maglev_reports_the_tuned_set_and_g_of_every_variant() {
     let out = tmp.path().join("m");
     let v = stdout_json(&cli(&[
         "tune",
-        "config/maglev_tune.toml",
+        "config/experiments/maglev_tune.toml",
         "--json",
         "--out",
         out.to_str().unwrap(),
@@ -140,7 +140,7 @@ fn tune_refuses_bad_files_with_the_key() {
 #[test]
 fn the_maglev_scenario_runs_in_lockstep_like_the_in_process_simulation_and_in_realtime() {
     let _alone = alone();
-    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev.toml");
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/maglev/maglev.toml");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("lock");
     assert_ok(&run(&cfg, &out, "maglev", &["--duration", "3"]));
@@ -194,7 +194,7 @@ fn tune_maglev_over_seeds_writes_the_statistics_and_sentences_that_follow_them()
     let out = tmp.path().join("s");
     let v = stdout_json(&cli(&[
         "tune",
-        "config/maglev_tune.toml",
+        "config/experiments/maglev_tune.toml",
         "--seeds",
         "1..3",
         "--json",
@@ -238,9 +238,19 @@ fn tune_maglev_over_seeds_writes_the_statistics_and_sentences_that_follow_them()
     for f in ["study.json", "study.md", "study_g.png", "study_error.png"] {
         assert!(out.join(f).exists(), "{f}");
     }
-    let bad = cli(&["tune", "config/arsinh_tune.toml", "--seeds", "1..3"]);
+    let bad = cli(&[
+        "tune",
+        "config/experiments/arsinh_tune.toml",
+        "--seeds",
+        "1..3",
+    ]);
     assert_eq!(bad.status.code(), Some(2));
-    let bad = cli(&["tune", "config/maglev_tune.toml", "--seeds", "5"]);
+    let bad = cli(&[
+        "tune",
+        "config/experiments/maglev_tune.toml",
+        "--seeds",
+        "5",
+    ]);
     assert!(!bad.status.success());
 }
 
@@ -287,7 +297,7 @@ fn no_progress_bar_when_stderr_is_not_a_terminal() {
     let out = tmp.path().join("a");
     let piped = cli(&[
         "tune",
-        "config/arsinh_tune.toml",
+        "config/experiments/arsinh_tune.toml",
         "--out",
         out.to_str().unwrap(),
     ]);
@@ -313,7 +323,7 @@ fn the_progress_bar_shows_on_a_terminal() {
             .current_dir(env!("CARGO_MANIFEST_DIR"))
             .args([
                 "-qec",
-                &format!("{exe} tune config/arsinh_tune.toml --out {out} {extra}"),
+                &format!("{exe} tune config/experiments/arsinh_tune.toml --out {out} {extra}"),
                 "/dev/null",
             ])
             .output()

@@ -30,7 +30,7 @@ fn check_says_a_scenario_without_a_duration_runs_until_stopped() {
 
 #[test]
 fn duration_takes_seconds_or_forever_and_nothing_else() {
-    let cfg = "config/two_mass.toml";
+    let cfg = "config/two_mass/two_mass.toml";
     for bad in ["0", "-1", "nan", "soon", "inf s"] {
         let o = cli(&["run", cfg, &format!("--duration={bad}"), "--quiet"]);
         assert_eq!(o.status.code(), Some(2), "--duration {bad}");
@@ -82,7 +82,7 @@ fn a_stopped_indirect_run_keeps_the_optimisers_estimates_and_sets() {
     let mut child = Command::new(evoloop())
         .args([
             "run",
-            "config/maglev_indirect.toml",
+            "config/maglev/maglev_indirect.toml",
             "--duration",
             "forever",
         ])

@@ -106,7 +106,7 @@ fn remote_tuning(tag: &str, secs: &str, bridge_args: &[&str]) -> RemoteTuning {
     let (prefix, run_id) = unique(tag);
     let ep = loopback();
     let (host, remote) = (tmp.path().join("host"), tmp.path().join("remote"));
-    let file = config("maglev_indirect.toml");
+    let file = config("maglev/maglev_indirect.toml");
     let file = file.to_str().unwrap();
     let run = spawn_host_run(file, secs, &run_id, &prefix, &host);
     let bridge = spawn(&[&["bridge", "--run", &run_id, "--listen", &ep], bridge_args].concat());
@@ -272,7 +272,7 @@ fn a_parameter_set_from_the_network_is_validated_by_the_controller() {
     let tmp = tempfile::tempdir().unwrap();
     let (prefix, run_id) = unique("zval");
     let ep = loopback();
-    let file = config("maglev.toml");
+    let file = config("maglev/maglev.toml");
     let scn = Scenario::load(&file, &Overrides::default()).unwrap();
     let out = tmp.path().join("host");
     let run = spawn_host_run(file.to_str().unwrap(), "4", &run_id, &prefix, &out);
@@ -329,7 +329,7 @@ fn a_parameter_set_from_the_network_is_validated_by_the_controller() {
 fn a_remote_optimiser_refuses_a_lockstep_run() {
     let out = Command::new(evoloop())
         .args(["optimiser", "--config"])
-        .arg(config("maglev_indirect.toml"))
+        .arg(config("maglev/maglev_indirect.toml"))
         .args(["--run-id", "nolockstep", "--connect", "tcp/127.0.0.1:9"])
         .output()
         .unwrap();

@@ -39,7 +39,10 @@ fn evaluations(dir: &Path) -> (u64, u64, u64) {
 #[test]
 fn a_seeded_lockstep_run_with_two_workers_equals_the_local_run_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    for scenario in ["maglev_indirect.toml", "two_mass_indirect.toml"] {
+    for scenario in [
+        "maglev/maglev_indirect.toml",
+        "two_mass/two_mass_indirect.toml",
+    ] {
         let (alone, spread) = (dir.path().join("alone"), dir.path().join("spread"));
         assert_ok(&run(&config(scenario), &alone, "wk-alone", &[]));
         assert_ok(&run(
@@ -83,7 +86,12 @@ fn a_seeded_lockstep_run_with_two_workers_equals_the_local_run_bit_for_bit() {
 fn killing_a_worker_mid_run_changes_nothing_in_the_run() {
     let dir = tempfile::tempdir().unwrap();
     let alone = dir.path().join("alone");
-    assert_ok(&run(&config("maglev_indirect.toml"), &alone, "wk-ref", &[]));
+    assert_ok(&run(
+        &config("maglev/maglev_indirect.toml"),
+        &alone,
+        "wk-ref",
+        &[],
+    ));
     // The run first, so that its optimiser binds the port at once, before another process on
     // this host (another test's connection, say) can take it.
     let ep = format!(
@@ -93,7 +101,10 @@ fn killing_a_worker_mid_run_changes_nothing_in_the_run() {
     let spread = dir.path().join("spread");
     let (_, run_id) = unique("wk-kill");
     let mut r = Command::new(evoloop())
-        .args(["run", config("maglev_indirect.toml").to_str().unwrap()])
+        .args([
+            "run",
+            config("maglev/maglev_indirect.toml").to_str().unwrap(),
+        ])
         .args([
             "--out",
             spread.to_str().unwrap(),
@@ -150,7 +161,7 @@ fn killing_a_worker_mid_run_changes_nothing_in_the_run() {
     assert!(remote > 0, "the kept worker evaluated nothing: {why}");
 }
 
-/// `evoloop tune config/maglev_tune.toml --workers 2`: the GA experiment with its populations
+/// `evoloop tune config/experiments/maglev_tune.toml --workers 2`: the GA experiment with its populations
 /// spread over two local workers writes the same response.csv, and the same results apart from
 /// the timings, as without them.
 #[cfg(feature = "zenoh")]
@@ -160,7 +171,10 @@ fn the_maglev_ga_experiment_with_two_workers_equals_the_local_one() {
     let (alone, spread) = (dir.path().join("alone"), dir.path().join("spread"));
     let tune = |out: &Path, extra: &[&str]| {
         let o = cli(&[
-            &["tune", config("maglev_tune.toml").to_str().unwrap()][..],
+            &[
+                "tune",
+                config("experiments/maglev_tune.toml").to_str().unwrap(),
+            ][..],
             &["--out", out.to_str().unwrap(), "--quiet"],
             extra,
         ]
@@ -222,7 +236,7 @@ fn without_the_zenoh_feature_workers_say_how_to_build_them() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("--features zenoh"));
     let dir = tempfile::tempdir().unwrap();
     let o = run(
-        &config("maglev_indirect.toml"),
+        &config("maglev/maglev_indirect.toml"),
         dir.path(),
         "wk-nofeat",
         &["--workers", "2"],
@@ -234,7 +248,7 @@ fn without_the_zenoh_feature_workers_say_how_to_build_them() {
         "{err}"
     );
     // The same from the scenario's key.
-    let base = std::fs::read_to_string(config("maglev_indirect.toml")).unwrap();
+    let base = std::fs::read_to_string(config("maglev/maglev_indirect.toml")).unwrap();
     let text = base.replacen("[optimiser]", "[optimiser]\nworkers = \"zenoh\"", 1);
     let o = cli(&[
         "check",
@@ -252,7 +266,7 @@ fn without_the_zenoh_feature_workers_say_how_to_build_them() {
 #[test]
 fn workers_keys_are_validated() {
     let dir = tempfile::tempdir().unwrap();
-    let base = std::fs::read_to_string(config("maglev_indirect.toml")).unwrap();
+    let base = std::fs::read_to_string(config("maglev/maglev_indirect.toml")).unwrap();
     let with = |extra: &str| {
         let text = base.replacen("[optimiser]", &format!("[optimiser]\n{extra}"), 1);
         write(dir.path(), "w.toml", &text)

@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""The DC motor of config/lti_motor.toml written as a plant of the user's own, in Python:
+"""The DC motor of config/linear/lti_motor.toml written as a plant of the user's own, in Python:
 theta/V = K / (s (tau s + 1)), K = 2 rad/(V s), tau = 50 ms, a +-12 V amplifier. RK4 at a tenth
-of the step it is asked for. config/external_motor.toml starts it (`plant.kind = "external"`);
+of the step it is asked for. config/external/external_motor.toml starts it (`plant.kind = "external"`);
 tests/python_plant.rs checks its run against the built-in lti plant's.
 
 `--load-at T` couples a load at T s that triples the inertia (tau 50 ms -> 150 ms, K unchanged):
-config/external_motor_indirect.toml tunes the PID through it with the general indirect scheme.
+config/external/external_motor_indirect.toml tunes the PID through it with the general indirect scheme.
 
 Needs the evoloop_plant package (`pip install ./python`); run from the repository, it is found
 there without installing."""

@@ -22,6 +22,23 @@ pub fn config(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// Every shipped scenario and experiment file: the `.toml` files of config/'s folders (one per
+/// plant, and `experiments/`), not the robot files of `config/robots/`. Sorted.
+pub fn shipped_files() -> Vec<PathBuf> {
+    let root = config("");
+    let mut files = Vec::new();
+    for group in std::fs::read_dir(&root).unwrap().flatten() {
+        let dir = group.path();
+        if !dir.is_dir() || dir.ends_with("robots") {
+            continue;
+        }
+        let tomls = std::fs::read_dir(&dir).unwrap().flatten().map(|e| e.path());
+        files.extend(tomls.filter(|p| p.extension().is_some_and(|e| e == "toml")));
+    }
+    files.sort();
+    files
+}
+
 pub fn evoloop() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_evoloop"))
 }

@@ -129,7 +129,7 @@ pub struct LoopArgs {
     #[arg(long)]
     pub rate: Option<f64>,
     /// Run this scenario (realtime, for `--duration`) instead of the built-in two-mass loop,
-    /// e.g. config/arm7_ct.toml for the 7-DOF computed-torque loop at 10 kHz.
+    /// e.g. config/arm7/arm7_ct.toml for the 7-DOF computed-torque loop at 10 kHz.
     #[arg(long)]
     pub scenario: Option<PathBuf>,
     /// How the controller and the plant wait: sleep, spin or hybrid (default: the scenario's

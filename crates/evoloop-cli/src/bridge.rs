@@ -67,7 +67,7 @@ pub fn main(a: &BridgeArgs) -> u8 {
 /// path through `evoloop bridge` on loopback.
 #[derive(clap::Args)]
 pub struct BridgeBenchArgs {
-    /// Scenario run in realtime for the measurement [default: config/two_mass.toml].
+    /// Scenario run in realtime for the measurement [default: config/two_mass/two_mass.toml].
     #[arg(long)]
     pub scenario: Option<PathBuf>,
     /// Parameter sets per phase (local, through the bridge, local again).

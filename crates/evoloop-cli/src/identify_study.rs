@@ -16,7 +16,7 @@ use std::path::PathBuf;
 pub struct StudyArgs {
     /// The identification experiment: an arm scenario whose reference each trajectory replaces
     /// (its duration must hold at least three periods).
-    #[arg(long, default_value = "config/industrial6_identify.toml")]
+    #[arg(long, default_value = "config/industrial6/industrial6_identify.toml")]
     pub scenario: PathBuf,
     /// Seeds 0..N (search, encoder noise and torque noise).
     #[arg(long, default_value_t = 10)]

@@ -43,10 +43,10 @@ use std::process::ExitCode;
     about = "Real-time control loops tuned by evolutionary optimisers while the plant runs",
     long_about = "evoloop starts a plant simulator, a fixed-rate controller and an optimiser as separate \
 processes that talk over iceoryx2 shared memory.\n\nWithout a subcommand it runs the default scenario \
-(config/two_mass.toml) and writes its report to runs/two_mass/."
+(config/two_mass/two_mass.toml) and writes its report to runs/two_mass/."
 )]
 pub struct Cli {
-    /// The subcommand; without one the default scenario runs (config/two_mass.toml, report in
+    /// The subcommand; without one the default scenario runs (config/two_mass/two_mass.toml, report in
     /// runs/two_mass/).
     #[command(subcommand)]
     pub command: Option<Cmd>,
@@ -86,8 +86,8 @@ pub enum Cmd {
         #[command(subcommand)]
         cmd: robot::RobotCmd,
     },
-    /// The fuzzy-network paper's GA experiments: `tune config/arsinh_tune.toml` (Section 5.1),
-    /// `tune config/maglev_tune.toml` (Section 5.2).
+    /// The fuzzy-network paper's GA experiments: `tune config/experiments/arsinh_tune.toml` (Section 5.1),
+    /// `tune config/experiments/maglev_tune.toml` (Section 5.2).
     Tune(tune::TuneArgs),
     /// System identification from run data: `identify rkgnn` (the RKGNN paper, no torques).
     Identify {

@@ -19,7 +19,7 @@ pub struct SoakArgs {
     /// Seconds to run (the book's figure: 3600).
     #[arg(long)]
     pub duration: f64,
-    /// Scenario to run in realtime [default: config/two_mass_indirect.toml, the indirect scheme
+    /// Scenario to run in realtime [default: config/two_mass/two_mass_indirect.toml, the indirect scheme
     /// tuning all run long].
     #[arg(long)]
     pub scenario: Option<PathBuf>,
@@ -98,10 +98,9 @@ fn prepare(a: &SoakArgs) -> Result<(PathBuf, Scenario), ExitCode> {
     if !(a.interval.is_finite() && a.interval >= 1.0) {
         return Err(refuse("--interval: must be at least 1 s".into()));
     }
-    let file = a
-        .scenario
-        .clone()
-        .unwrap_or_else(|| evoloop_run::node::launcher::shipped("config/two_mass_indirect.toml"));
+    let file = a.scenario.clone().unwrap_or_else(|| {
+        evoloop_run::node::launcher::shipped("config/two_mass/two_mass_indirect.toml")
+    });
     let ov = Overrides {
         duration: Some(a.duration),
         ..Default::default()

@@ -8,8 +8,8 @@ use std::path::PathBuf;
 /// to compare and the evaluation workers.
 #[derive(Args)]
 pub struct TuneArgs {
-    /// Experiment file (TOML): config/arsinh_tune.toml or config/maglev_tune.toml; or a scenario
-    /// of the direct scheme (config/maglev_direct.toml), run in this process in lockstep.
+    /// Experiment file (TOML): config/experiments/arsinh_tune.toml or config/experiments/maglev_tune.toml; or a scenario
+    /// of the direct scheme (config/maglev/maglev_direct.toml), run in this process in lockstep.
     pub file: PathBuf,
     /// Seed of the GA (and of the plant's noise) [default: the file's `seed`].
     #[arg(long)]

@@ -100,7 +100,7 @@ mod tests {
         let scn = Scenario::load(
             std::path::Path::new(concat!(
                 env!("CARGO_MANIFEST_DIR"),
-                "/../../config/two_mass_indirect.toml"
+                "/../../config/two_mass/two_mass_indirect.toml"
             )),
             &Overrides::default(),
         )

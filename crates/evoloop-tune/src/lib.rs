@@ -149,7 +149,7 @@ fn hybrid_config(
 fn read(file: &Path) -> Result<RawTune, ConfigError> {
     let check = Check::new(file);
     let text =
-        crate::files::read_text(file).or_else(|e| check.fail("", format!("cannot read: {e}")))?;
+        crate::files::read_text(file).or_else(|e| check.fail("", config::unreadable(file, &e)))?;
     crate::files::from_toml(&text).or_else(|p| check.fail(&p.key, p.reason))
 }
 

@@ -524,7 +524,7 @@ fn study_plots(out: &Path, seeds: &[u64], costs: &[Vec<Option<Cost>>]) -> Result
     Ok(())
 }
 
-/// `evoloop tune config/maglev_tune.toml --seeds 1..20`: for every seed, each variant tuned with
+/// `evoloop tune config/experiments/maglev_tune.toml --seeds 1..20`: for every seed, each variant tuned with
 /// the same GA budget (tuning noise = the seed) and scored on the test run (noise seed + 1000);
 /// per variant the mean and 95 % interval of G and its parts; fuzzy against each baseline by a
 /// paired Wilcoxon test on G, the error term and the control term. Writes `seeds.csv`,

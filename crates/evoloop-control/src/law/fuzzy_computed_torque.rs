@@ -775,7 +775,7 @@ mod tests {
         );
     }
 
-    /// arm7's fuzzy CT on `models` at config/arm7_fuzzy_ct.toml's mean position, held there.
+    /// arm7's fuzzy CT on `models` at config/arm7/arm7_fuzzy_ct.toml's mean position, held there.
     fn arm7_cycle(models: Vec<RkgnnModel>) -> ControlCycle {
         let q = vec![0.15, -0.4, 0.15, -2.0, 0.15, 1.75, 0.8];
         let mut gains = vec![900.0; 7];

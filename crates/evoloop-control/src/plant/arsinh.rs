@@ -2,7 +2,7 @@
 //! (Section 5.1, eq. 23):
 //!   x_{k+1} = -a x_k + arsinh(u_k),   a = 1.1,
 //! one map per control period (`Plant::map`: nothing is integrated). The output is the state.
-//! `evoloop tune config/arsinh_tune.toml` evaluates controllers on the same map from x_0 = 0
+//! `evoloop tune config/experiments/arsinh_tune.toml` evaluates controllers on the same map from x_0 = 0
 //! (`fuzzy::arsinh::plant`); this kind puts it behind the processes, for the direct scheme.
 //! A physical plant cannot grow without bound: |x| is held within `limit` (default 100, where
 //! the tune experiment charges a diverged run), so a lost loop stays finite.

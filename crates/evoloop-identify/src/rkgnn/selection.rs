@@ -43,7 +43,7 @@ use crate::stats::{median, median_of_numbers, wilcoxon, Wilcoxon};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-const BASE: &str = include_str!("../../../../config/arm3_train1.toml");
+const BASE: &str = include_str!("../../../../config/arm3/arm3_train1.toml");
 
 /// A sines reference: offsets per joint, amplitudes per joint per frequency, frequencies (Hz).
 #[derive(Clone, Debug)]
@@ -839,7 +839,7 @@ impl Training<'_> {
 pub const NOMINAL_SPREAD: f64 = 0.2;
 
 /// online_model's identification alongside operation (`optimiser.mode = "identify"`): the
-/// shipped settings of config/arm3_identify.toml (4 s window, 1 s fresh, every 2 s) halved to
+/// shipped settings of config/arm3/arm3_identify.toml (4 s window, 1 s fresh, every 2 s) halved to
 /// fit a 10 s task, set before any run of this baseline; the margin as shipped.
 const ONLINE: [(&str, f64); 5] = [
     ("identify_window", 2.0),

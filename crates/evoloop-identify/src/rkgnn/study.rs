@@ -5,8 +5,8 @@
 //! "blend"), and draw Figs. 7-10.
 //!
 //! The trajectories, servo, computed-torque gains and plant settings are the shipped scenarios'
-//! (`config/arm3_train1.toml`, `config/arm3_train2.toml` and the new trajectory of
-//! `config/arm3_fuzzy_ct.toml`), compiled in, so the study on `config/robots/arm3.toml` is those
+//! (`config/arm3/arm3_train1.toml`, `config/arm3/arm3_train2.toml` and the new trajectory of
+//! `config/arm3/arm3_fuzzy_ct.toml`), compiled in, so the study on `config/robots/arm3.toml` is those
 //! scenarios and its models are the shipped models' recipe (`identify::Settings::least_squares`).
 //! On another arm only the robot changes, and the servo, which a vendor tunes to its arm: each
 //! joint's k_p, k_d scale with the mid-range of the arm's M_jj over the trajectories relative to arm3's (the
@@ -29,9 +29,9 @@ use crate::sim::{simulate, JointTraces, SimResult};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-const TRAIN1: &str = include_str!("../../../../config/arm3_train1.toml");
-const TRAIN2: &str = include_str!("../../../../config/arm3_train2.toml");
-const NEW: &str = include_str!("../../../../config/arm3_fuzzy_ct.toml");
+const TRAIN1: &str = include_str!("../../../../config/arm3/arm3_train1.toml");
+const TRAIN2: &str = include_str!("../../../../config/arm3/arm3_train2.toml");
+const NEW: &str = include_str!("../../../../config/arm3/arm3_fuzzy_ct.toml");
 /// The arm the shipped servo gains are for (its inertia is the gains' unit).
 const ARM3: &str = include_str!("../../../../config/robots/arm3.toml");
 

@@ -312,5 +312,5 @@ pub use evoloop_run::node::launcher::free_port;
 
 /// The scenario `bench bridge` runs by default.
 pub fn default_scenario() -> PathBuf {
-    evoloop_run::node::launcher::shipped("config/two_mass.toml")
+    evoloop_run::node::launcher::shipped("config/two_mass/two_mass.toml")
 }

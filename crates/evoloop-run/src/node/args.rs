@@ -9,7 +9,7 @@ use std::path::PathBuf;
 /// prefix, its seeds, its floor, workers on this host and the live view.
 #[derive(clap::Args)]
 pub struct RunArgs {
-    /// Scenario file (TOML) [default: config/two_mass.toml, here or in the source tree]
+    /// Scenario file (TOML) [default: config/two_mass/two_mass.toml, here or in the source tree]
     pub file: Option<PathBuf>,
     /// Overrides of the scenario file; the launcher passes them on to the run's processes.
     #[command(flatten)]

@@ -23,7 +23,7 @@ use std::process::{Child, ExitCode};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-const DEFAULT_SCENARIO: &str = "config/two_mass.toml";
+const DEFAULT_SCENARIO: &str = "config/two_mass/two_mass.toml";
 
 /// The default scenario, relative to the working directory or to the source tree.
 pub fn default_scenario() -> PathBuf {

@@ -964,7 +964,7 @@ mod tests {
         let scn = crate::config::Scenario::load(
             std::path::Path::new(concat!(
                 env!("CARGO_MANIFEST_DIR"),
-                "/../../config/two_mass.toml"
+                "/../../config/two_mass/two_mass.toml"
             )),
             &crate::config::Overrides::default(),
         )

@@ -3,7 +3,7 @@
 //! Loading is two-stage. Serde reads the file into raw structs that refuse unknown keys and wrong
 //! types; validation then checks ranges and cross-field rules and builds a `Scenario`. Every error
 //! names the file, the key (as a dotted path) and the reason, like
-//! `config/two_mass.toml: key `timing.period`: must be > 0 (got -0.01)`.
+//! `config/two_mass/two_mass.toml: key `timing.period`: must be > 0 (got -0.01)`.
 //!
 //! The loader keeps the shared tables (`[timing]`, `[reference]`, `[optimiser]`, `[output]`) and
 //! composes the rest: each plant kind owns its `[plant.<kind>]` table in its module under
@@ -122,13 +122,37 @@ pub struct Overrides {
     pub workers_expect: Option<usize>,
 }
 
+/// Why a scenario or experiment file cannot be read. A path of the flat layout `config/` had
+/// until 2026-12-06 (`config/maglev_direct.toml`) that is gone is answered with the file's place
+/// in its plant's folder now, so a user's script or habit finds it.
+pub fn unreadable(path: &Path, e: &std::io::Error) -> String {
+    match regrouped(path) {
+        Some(now) => format!(
+            "cannot read: {e}; the shipped scenarios are in one folder per plant since \
+             2026-12-06: {}",
+            now.display()
+        ),
+        None => format!("cannot read: {e}"),
+    }
+}
+
+/// `config/NAME` that is not there but `config/GROUP/NAME` is: the latter.
+fn regrouped(path: &Path) -> Option<PathBuf> {
+    let (dir, name) = (path.parent()?, path.file_name()?);
+    if dir.file_name()? != "config" || path.exists() {
+        return None;
+    }
+    let groups = std::fs::read_dir(dir).ok()?.flatten();
+    groups.map(|g| g.path().join(name)).find(|p| p.is_file())
+}
+
 impl Scenario {
     /// Read, parse and validate a scenario file.
     pub fn load(path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
         let text = crate::files::read_text(path).map_err(|e| ConfigError {
             file: path.to_path_buf(),
             key: String::new(),
-            reason: format!("cannot read: {e}"),
+            reason: unreadable(path, &e),
             line: None,
         })?;
         Self::parse(&text, path, ov)

@@ -256,7 +256,7 @@ mod tests {
     /// feedback is refused under the general scheme, each naming its key.
     #[test]
     fn the_prior_comes_from_the_plant_or_the_table_and_misuse_names_its_key() {
-        let s = parse("lti_motor_indirect.toml", |t| t).unwrap();
+        let s = parse("linear/lti_motor_indirect.toml", |t| t).unwrap();
         let p = s.optimiser.model.unwrap();
         assert_eq!(p.den.len(), 3);
         assert!(
@@ -268,15 +268,15 @@ mod tests {
         );
         assert!((p.num[2] - 40.0).abs() < 1e-9 && p.zeros == 0, "{p:?}");
         assert!((p.filter_pole - 60.0).abs() < 1e-6, "{}", p.filter_pole);
-        let s = parse("external_motor_indirect.toml", |t| t).unwrap();
+        let s = parse("external/external_motor_indirect.toml", |t| t).unwrap();
         assert_eq!(s.optimiser.model.unwrap().den, vec![1.0, 20.0, 0.0]);
         // A slow loop (20 Hz): the default filter pole is capped below the sampling rate.
-        let slow = parse("lti_motor_indirect.toml", |t| {
+        let slow = parse("linear/lti_motor_indirect.toml", |t| {
             t.replace("period = 0.001", "period = 0.05")
         })
         .unwrap();
         assert!((slow.optimiser.model.unwrap().filter_pole - 2.0).abs() < 1e-12);
-        let e = parse("external_motor_indirect.toml", |t| {
+        let e = parse("external/external_motor_indirect.toml", |t| {
             t.replace("num = [40.0]", "")
                 .replace("den = [1.0, 20.0, 0.0]", "")
         })
@@ -288,18 +288,18 @@ mod tests {
             ..Default::default()
         };
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/external_motor_indirect.toml");
+            .join("../../config/external/external_motor_indirect.toml");
         assert!(Scenario::load(&path, &frozen)
             .unwrap()
             .optimiser
             .model
             .is_none());
-        let e = parse("maglev_indirect.toml", |t| {
+        let e = parse("maglev/maglev_indirect.toml", |t| {
             t.replace("[output]", "[optimiser.model]\nmemory = 2.0\n\n[output]")
         })
         .unwrap_err();
         assert_eq!(e.key, "optimiser.model");
-        let e = parse("lti_pendulum.toml", |t| {
+        let e = parse("linear/lti_pendulum.toml", |t| {
             t.replace("mode = \"schedule\"", "mode = \"indirect\"")
         })
         .unwrap_err();

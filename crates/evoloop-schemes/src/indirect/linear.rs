@@ -516,7 +516,7 @@ mod tests {
     /// as (t, estimate, std, true input gain).
     fn estimate_run(noise: f64, seconds: f64) -> (LinearEstimator, Vec<(f64, f64, f64, f64)>) {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/lti_motor_indirect.toml");
+            .join("../../config/linear/lti_motor_indirect.toml");
         let scn = Scenario::load(&path, &Overrides::default()).unwrap();
         let prior = scn
             .optimiser
@@ -608,7 +608,7 @@ mod tests {
     #[test]
     fn a_plant_at_rest_teaches_nothing_and_the_model_is_held() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/lti_motor_indirect.toml");
+            .join("../../config/linear/lti_motor_indirect.toml");
         let scn = Scenario::load(&path, &Overrides::default()).unwrap();
         let prior = scn.optimiser.model.clone().unwrap();
         let (mut est, _) = scheme(&scn, &prior).unwrap();
@@ -631,7 +631,7 @@ mod tests {
     #[test]
     fn an_unstable_set_costs_infinity_on_the_model() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/lti_motor_indirect.toml");
+            .join("../../config/linear/lti_motor_indirect.toml");
         let scn = Scenario::load(&path, &Overrides::default()).unwrap();
         let prior = scn.optimiser.model.clone().unwrap();
         let (_, tuner) = scheme(&scn, &prior).unwrap();
@@ -654,7 +654,7 @@ mod tests {
     fn the_controller_refuses_a_pid_set_unstable_on_the_adopted_estimate() {
         use crate::msg::{ParamCode, ParamSet, Telemetry};
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/lti_motor_indirect.toml");
+            .join("../../config/linear/lti_motor_indirect.toml");
         let scn = Scenario::load(&path, &Overrides::default()).unwrap();
         let offer = |cycle: &mut crate::law::cycle::ControlCycle, v: u64, values: &[f64]| {
             let seq = cycle.next_cycle();

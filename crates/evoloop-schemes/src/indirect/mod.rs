@@ -777,7 +777,7 @@ mod tests {
     #[test]
     fn samples_the_estimator_never_saw_are_counted() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/maglev_indirect.toml");
+            .join("../../config/maglev/maglev_indirect.toml");
         let scn =
             crate::config::Scenario::load(&path, &crate::config::Overrides::default()).unwrap();
         let mut ind = super::Indirect::new(&scn).unwrap();

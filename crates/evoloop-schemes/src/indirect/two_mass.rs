@@ -410,7 +410,7 @@ mod tests {
         // test the estimator on (on the shipped scenario's filter, designed at the nominal
         // spring and not again with the optimiser off, the frozen loop diverges at k = 0.5).
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/two_mass_indirect.toml");
+            .join("../../config/two_mass/two_mass_indirect.toml");
         let text = std::fs::read_to_string(&path).unwrap().replacen(
             "[controller.state_feedback]\n",
             "[controller.state_feedback]\nstate = \"true\"\n",

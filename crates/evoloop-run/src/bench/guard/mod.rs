@@ -35,7 +35,7 @@ pub enum HotPath {
     Rnea,
     /// M(q) by CRBA of the 7-DOF arm, per call, against textbook Newton-Euler column by column.
     Crba,
-    /// One computed-torque control cycle of `config/arm7_ct.toml`, against textbook Newton-Euler.
+    /// One computed-torque control cycle of `config/arm7/arm7_ct.toml`, against textbook Newton-Euler.
     CtCycle,
     /// PSO's overhead per evaluation (D = 30, population 30), against a bare swarm.
     Pso,
@@ -86,7 +86,9 @@ impl HotPath {
         match self {
             HotPath::Rnea => "inverse dynamics (RNEA), 7-DOF arm, per call",
             HotPath::Crba => "M(q) (CRBA), 7-DOF arm, per call",
-            HotPath::CtCycle => "computed-torque control cycle (config/arm7_ct.toml), per cycle",
+            HotPath::CtCycle => {
+                "computed-torque control cycle (config/arm7/arm7_ct.toml), per cycle"
+            }
             HotPath::Pso => "PSO's overhead, D = 30, population 30, per evaluation",
             HotPath::De => "DE's overhead, D = 30, population 30, per evaluation",
             HotPath::Ga => "GA's overhead, D = 30, population 30, per evaluation",
@@ -262,7 +264,7 @@ pub struct Bench {
 
 /// `evoloop bench guard`'s files: the arm and its computed-torque scenario.
 const ROBOT: &str = "config/robots/arm7.urdf";
-const SCENARIO: &str = "config/arm7_ct.toml";
+const SCENARIO: &str = "config/arm7/arm7_ct.toml";
 
 /// Keeps the plant's samples of a loop from `from` seconds on.
 struct Samples {
