@@ -45,6 +45,7 @@ fn bridge(a: &BridgeArgs) -> u8 {
     let ros_name = a.ros2.then(|| {
         ros_domain(a).and_then(|d| {
             evoloop_report::ros2::rmw_zenoh::NodeName::new(d, &a.ros_namespace, &a.ros_node)
+                .map_err(|e| e.to_string())
         })
     });
     let ros_name = match ros_name.transpose() {

@@ -118,7 +118,7 @@ impl Ros2Node {
         let mut next_id = 0u64;
         let mut entity = |topic: &str, ty: &MessageType, kind, qos| {
             next_id += 1;
-            let fq = name.topic(topic)?;
+            let fq = name.topic(topic).map_err(|e| e.to_string())?;
             Ok::<_, String>(me.entity(next_id, kind, &fq, ty, qos))
         };
         let stream = rz::Qos::BestEffort { depth: 10 };

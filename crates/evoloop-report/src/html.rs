@@ -119,10 +119,42 @@ fn name(p: &Path) -> String {
         .unwrap_or_default()
 }
 
+/// Why `report.html` was not written.
+#[derive(Debug)]
+pub enum HtmlError {
+    /// The run's `summary.json` cannot be read.
+    Summary(crate::ReadJsonError),
+    /// The page cannot be written.
+    Write {
+        /// `report.html`.
+        file: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+}
+
+impl std::fmt::Display for HtmlError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HtmlError::Summary(e) => e.fmt(f),
+            HtmlError::Write { file, source } => write!(f, "{}: {source}", file.display()),
+        }
+    }
+}
+
+impl std::error::Error for HtmlError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            HtmlError::Summary(e) => e.source(),
+            HtmlError::Write { source, .. } => Some(source),
+        }
+    }
+}
+
 /// Write `dir/report.html` from the run's `summary.json`, `scenario.json` and plots; returns
 /// its path. Err names the file that is missing or unreadable.
-pub fn write(dir: &Path) -> Result<PathBuf, String> {
-    let summary = crate::read_json::<Value>(dir, "summary.json")?;
+pub fn write(dir: &Path) -> Result<PathBuf, HtmlError> {
+    let summary = crate::read_json::<Value>(dir, "summary.json").map_err(HtmlError::Summary)?;
     let scenario = crate::read_json::<Value>(dir, "scenario.json").ok();
     let get = |k: &str| summary.get(k).and_then(scalar).unwrap_or_default();
     let title = format!("evoloop run: {}", get("scenario"));
@@ -206,8 +238,10 @@ pub fn write(dir: &Path) -> Result<PathBuf, String> {
         esc(&text)
     );
     let path = dir.join("report.html");
-    evoloop_files::write(&path, h).map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(path)
+    match evoloop_files::write(&path, h) {
+        Ok(()) => Ok(path),
+        Err(source) => Err(HtmlError::Write { file: path, source }),
+    }
 }
 
 #[cfg(test)]

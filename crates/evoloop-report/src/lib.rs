@@ -59,17 +59,63 @@ pub fn write_json<T: serde::Serialize>(dir: &Path, name: &str, value: &T) -> std
 /// A JSON file a run wrote (`write_json`) read back: only the run's own (no link planted in its
 /// directory, a regular file of this user with one name), up to `MAX_DATA_BYTES`. The error
 /// names the file.
-pub fn read_json<T: serde::de::DeserializeOwned>(dir: &Path, name: &str) -> Result<T, String> {
-    let p = dir.join(name);
-    let bytes = evoloop_files::read_own(&p, evoloop_files::MAX_DATA_BYTES).map_err(|e| {
-        // The refusals name the file already; "not found" does not.
-        if e.kind() == std::io::ErrorKind::NotFound {
-            format!("{}: {e}", p.display())
-        } else {
-            e.to_string()
+pub fn read_json<T: serde::de::DeserializeOwned>(
+    dir: &Path,
+    name: &str,
+) -> Result<T, ReadJsonError> {
+    let file = dir.join(name);
+    match evoloop_files::read_own(&file, evoloop_files::MAX_DATA_BYTES) {
+        Ok(bytes) => {
+            serde_json::from_slice(&bytes).map_err(|source| ReadJsonError::Parse { file, source })
         }
-    })?;
-    serde_json::from_slice(&bytes).map_err(|e| format!("{}: {e}", p.display()))
+        Err(source) => Err(ReadJsonError::Read { file, source }),
+    }
+}
+
+/// Why a run's JSON file cannot be read back.
+#[derive(Debug)]
+pub enum ReadJsonError {
+    /// Missing, refused (a link, another user's file, too large) or unreadable.
+    Read {
+        /// The file.
+        file: std::path::PathBuf,
+        /// The system's reason, or `evoloop_files::read_own`'s refusal.
+        source: std::io::Error,
+    },
+    /// Not the JSON expected.
+    Parse {
+        /// The file.
+        file: std::path::PathBuf,
+        /// The parser's reason.
+        source: serde_json::Error,
+    },
+}
+
+impl ReadJsonError {
+    /// Whether the file is not there (a run that stopped before writing it).
+    pub fn is_missing(&self) -> bool {
+        matches!(self, ReadJsonError::Read { source, .. } if source.kind() == std::io::ErrorKind::NotFound)
+    }
+}
+
+impl std::fmt::Display for ReadJsonError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            // `read_own`'s refusals name the file already; "not found" does not.
+            ReadJsonError::Read { source, .. } if !self.is_missing() => source.fmt(f),
+            ReadJsonError::Read { file, source } => write!(f, "{}: {source}", file.display()),
+            ReadJsonError::Parse { file, source } => write!(f, "{}: {source}", file.display()),
+        }
+    }
+}
+
+impl std::error::Error for ReadJsonError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ReadJsonError::Read { source, .. } => Some(source),
+            ReadJsonError::Parse { source, .. } => Some(source),
+        }
+    }
 }
 
 #[cfg(test)]

@@ -94,6 +94,41 @@ const CHUNK: usize = 64 << 10;
 /// How long the writer sleeps when it finds every queue empty.
 const IDLE: Duration = Duration::from_millis(2);
 
+/// Why a recording could not be started.
+#[derive(Debug)]
+pub enum RecorderError {
+    /// The file cannot be created (`evoloop_files::create`'s error, which names it).
+    Create(std::io::Error),
+    /// The file's header, schemas, channels or metadata cannot be written.
+    Write {
+        /// The recording.
+        file: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+    /// The writer's thread cannot be started.
+    Thread(std::io::Error),
+}
+
+impl std::fmt::Display for RecorderError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RecorderError::Create(e) => e.fmt(f),
+            RecorderError::Write { file, source } => write!(f, "{}: {source}", file.display()),
+            RecorderError::Thread(e) => write!(f, "cannot start the MCAP writer: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for RecorderError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            RecorderError::Create(e) => e.source(),
+            RecorderError::Write { source, .. } | RecorderError::Thread(source) => Some(source),
+        }
+    }
+}
+
 impl Recorder {
     /// Create `path` and start the writer. `lockstep`: wait when a queue is full instead of
     /// dropping. `metadata` goes into the file's `evoloop` metadata record. `joints`: an arm's
@@ -104,9 +139,12 @@ impl Recorder {
         metadata: BTreeMap<String, String>,
         avoid_cpu: Option<usize>,
         joints: Vec<String>,
-    ) -> Result<Self, String> {
-        let file = evoloop_files::create(path).map_err(|e| e.to_string())?;
-        let at = |e: std::io::Error| format!("{}: {e}", path.display());
+    ) -> Result<Self, RecorderError> {
+        let file = evoloop_files::create(path).map_err(RecorderError::Create)?;
+        let at = |source| RecorderError::Write {
+            file: path.to_path_buf(),
+            source,
+        };
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
             _ => Path::new("."),
@@ -167,7 +205,7 @@ impl Recorder {
                     &d,
                 )
             })
-            .map_err(|e| format!("cannot start the MCAP writer: {e}"))?;
+            .map_err(RecorderError::Thread)?;
         Ok(Self {
             cycles,
             params,

@@ -13,7 +13,7 @@
 use super::ros2;
 use evoloop_msg::{Command, LinearEstimate, ModelEstimate, ParamSet, PlantState};
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A recorded run: the `evoloop` metadata record and the messages of each topic in the order
 /// they were written. Parameter sets and estimates carry when the controller took them.
@@ -51,7 +51,7 @@ pub struct Received {
 /// the sizes it reads inside a chunk are the ones written. Walks the file's top-level records
 /// (opcode u8, length u64 LE, body); one running past the end is left to the reader, which
 /// calls the file cut short.
-fn check_chunks(bytes: &[u8]) -> Result<(), String> {
+fn check_chunks(bytes: &[u8]) -> Result<(), (usize, String)> {
     use super::mcap_file::{op, MAGIC};
     let mut at = MAGIC.len();
     while let Some(len) = le_u64(bytes, at + 1) {
@@ -63,8 +63,7 @@ fn check_chunks(bytes: &[u8]) -> Result<(), String> {
             return Ok(());
         }
         if bytes[at] == op::CHUNK {
-            check_chunk(&bytes[body..end], len)
-                .map_err(|e| format!("the chunk at byte {at} {e}: the recording is damaged"))?;
+            check_chunk(&bytes[body..end], len).map_err(|e| (at, e))?;
         }
         at = end;
     }
@@ -109,45 +108,165 @@ fn check_chunk(b: &[u8], len: u64) -> Result<(), String> {
     Ok(())
 }
 
+/// Why a recording cannot be read; each names the file.
+#[derive(Debug)]
+pub enum RecordingError {
+    /// The file cannot be read.
+    Read {
+        /// The recording.
+        file: PathBuf,
+        /// The system's reason.
+        source: std::io::Error,
+    },
+    /// The MCAP reader refuses it: not an MCAP file, cut short, a record it cannot parse.
+    Mcap {
+        /// The recording.
+        file: PathBuf,
+        /// The reader's reason.
+        source: mcap::McapError,
+    },
+    /// An MCAP file but not a run of evoloop's, or one cut short before its summary.
+    NotEvoloop {
+        /// The recording.
+        file: PathBuf,
+        /// What it lacks.
+        missing: &'static str,
+    },
+    /// A chunk whose declared size or CRC says the file is damaged.
+    Damaged {
+        /// The recording.
+        file: PathBuf,
+        /// The chunk's first byte in the file.
+        at: usize,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A channel a replay reads whose schema is not evoloop's message.
+    Schema {
+        /// The recording.
+        file: PathBuf,
+        /// The channel's topic.
+        topic: String,
+        /// The schema found against the one expected.
+        reason: String,
+    },
+    /// A message that does not decode as its channel's encoding says.
+    Message {
+        /// The recording.
+        file: PathBuf,
+        /// The channel's topic.
+        topic: String,
+        /// The message's sequence number.
+        sequence: u32,
+        /// Why it does not decode.
+        reason: String,
+    },
+}
+
+impl RecordingError {
+    /// The recording the error is about.
+    pub fn file(&self) -> &Path {
+        match self {
+            RecordingError::Read { file, .. }
+            | RecordingError::Mcap { file, .. }
+            | RecordingError::NotEvoloop { file, .. }
+            | RecordingError::Damaged { file, .. }
+            | RecordingError::Schema { file, .. }
+            | RecordingError::Message { file, .. } => file,
+        }
+    }
+}
+
+impl std::fmt::Display for RecordingError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: ", self.file().display())?;
+        match self {
+            RecordingError::Read { source, .. } => source.fmt(f),
+            RecordingError::Mcap { source, .. } => source.fmt(f),
+            RecordingError::NotEvoloop { missing, .. } => f.write_str(missing),
+            RecordingError::Damaged { at, reason, .. } => {
+                write!(
+                    f,
+                    "the chunk at byte {at} {reason}: the recording is damaged"
+                )
+            }
+            RecordingError::Schema { topic, reason, .. } => write!(f, "channel {topic}: {reason}"),
+            RecordingError::Message {
+                topic,
+                sequence,
+                reason,
+                ..
+            } => write!(f, "{topic} message {sequence}: {reason}"),
+        }
+    }
+}
+
+impl std::error::Error for RecordingError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            RecordingError::Read { source, .. } => Some(source),
+            RecordingError::Mcap { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
 fn le_u64(b: &[u8], at: usize) -> Option<u64> {
     Some(u64::from_le_bytes(b.get(at..at + 8)?.try_into().ok()?))
 }
 
 impl Recording {
     /// Read `path`; the error names the file and what is wrong.
-    pub fn read(path: &Path) -> Result<Self, String> {
-        let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-        let bytes = std::fs::read(path).map_err(|e| at(&e))?;
+    pub fn read(path: &Path) -> Result<Self, RecordingError> {
+        let file = || path.to_path_buf();
+        let mcap = |source| RecordingError::Mcap {
+            file: file(),
+            source,
+        };
+        let not_evoloop = |missing| RecordingError::NotEvoloop {
+            file: file(),
+            missing,
+        };
+        let bytes = std::fs::read(path).map_err(|source| RecordingError::Read {
+            file: file(),
+            source,
+        })?;
         let mut r = Recording::default();
         let summary = mcap::read::Summary::read(&bytes)
-            .map_err(|e| at(&e))?
-            .ok_or_else(|| at(&"no summary section (was the recording cut short?)"))?;
+            .map_err(mcap)?
+            .ok_or_else(|| not_evoloop("no summary section (was the recording cut short?)"))?;
         for index in &summary.metadata_indexes {
             if index.name == "evoloop" {
-                let m = mcap::read::metadata(&bytes, index).map_err(|e| at(&e))?;
-                r.metadata = m.metadata;
+                r.metadata = mcap::read::metadata(&bytes, index).map_err(mcap)?.metadata;
             }
         }
         if r.metadata.is_empty() {
-            return Err(at(
-                &"no `evoloop` metadata record: not a run.mcap of evoloop",
+            return Err(not_evoloop(
+                "no `evoloop` metadata record: not a run.mcap of evoloop",
             ));
         }
         // Every chunk's CRC is checked here, once: mcap's own check (ValidateChunkCrcs) would
         // decompress each chunk a second time.
-        check_chunks(&bytes).map_err(|e| at(&e))?;
+        check_chunks(&bytes).map_err(|(at, reason)| RecordingError::Damaged {
+            file: file(),
+            at,
+            reason,
+        })?;
         for ch in summary.channels.values() {
-            check_schema(ch).map_err(|e| at(&format!("channel {}: {e}", ch.topic)))?;
+            check_schema(ch).map_err(|reason| RecordingError::Schema {
+                file: file(),
+                topic: ch.topic.clone(),
+                reason,
+            })?;
         }
-        for msg in mcap::MessageStream::new(&bytes).map_err(|e| at(&e))? {
-            let msg = msg.map_err(|e| at(&e))?;
-            let bad = |e: String| {
-                at(&format!(
-                    "{} message {}: {e}",
-                    msg.channel.topic, msg.sequence
-                ))
-            };
-            r.add(&msg).map_err(bad)?;
+        for msg in mcap::MessageStream::new(&bytes).map_err(mcap)? {
+            let msg = msg.map_err(mcap)?;
+            r.add(&msg).map_err(|reason| RecordingError::Message {
+                file: file(),
+                topic: msg.channel.topic.clone(),
+                sequence: msg.sequence,
+                reason,
+            })?;
         }
         Ok(r)
     }

@@ -158,7 +158,7 @@ fn definitions(ty: &MessageType) -> Result<BTreeMap<String, Fields>, String> {
         let (head, body) = part.split_once('\n').unwrap_or((part, ""));
         let name = head
             .strip_prefix("MSG: ")
-            .ok_or_else(|| format!("{}: a dependency without its `MSG:` line", ty.name))?;
+            .ok_or_else(|| "a dependency without its `MSG:` line".to_string())?;
         let name = qualified(name.trim(), "");
         let f = fields(body, package(&name))?;
         out.insert(name, f);
@@ -204,9 +204,30 @@ fn json_type(name: &str, fields: &Fields, out: &mut String) {
     out.push_str("]}");
 }
 
+/// A message type whose definition does not parse as a ROS 2 `.msg` (evoloop's own always do).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DefinitionError {
+    /// The type, `pkg/msg/Type`.
+    pub type_name: &'static str,
+    /// What does not parse.
+    pub reason: String,
+}
+
+impl std::fmt::Display for DefinitionError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.type_name, self.reason)
+    }
+}
+
+impl std::error::Error for DefinitionError {}
+
 /// The description REP-2016 hashes, as the text hashed.
-pub fn hashed_description(ty: &MessageType) -> Result<String, String> {
-    let defs = definitions(ty)?;
+pub fn hashed_description(ty: &MessageType) -> Result<String, DefinitionError> {
+    let refused = |reason| DefinitionError {
+        type_name: ty.name,
+        reason,
+    };
+    let defs = definitions(ty).map_err(refused)?;
     let own = qualified(ty.name, "");
     // The types referred to, directly or through another, by name (the map's order).
     let mut referenced = std::collections::BTreeSet::new();
@@ -214,7 +235,7 @@ pub fn hashed_description(ty: &MessageType) -> Result<String, String> {
     while let Some(name) = todo.pop() {
         let f = defs
             .get(&name)
-            .ok_or_else(|| format!("{}: `{name}` is used but not defined", ty.name))?;
+            .ok_or_else(|| refused(format!("`{name}` is used but not defined")))?;
         for (_, t) in f {
             if t.id % ARRAY == NESTED && referenced.insert(t.nested.clone()) {
                 todo.push(t.nested.clone());

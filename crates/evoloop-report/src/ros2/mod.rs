@@ -17,7 +17,7 @@ use evoloop_msg::{Command, LinearEstimate, ModelEstimate, ParamSet, PlantState, 
 
 mod hash;
 pub mod rmw_zenoh;
-pub use hash::{hashed_description, type_hash};
+pub use hash::{hashed_description, type_hash, DefinitionError};
 
 /// MCAP's names of the message and schema encodings.
 pub const MESSAGE_ENCODING: &str = "cdr";

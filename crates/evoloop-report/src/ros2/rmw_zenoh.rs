@@ -41,7 +41,7 @@ pub fn mangle(name: &str) -> String {
 
 /// A ROS 2 name's token (a node's name, a namespace's or a topic's part): a letter or '_', then
 /// letters, digits and '_'.
-fn check_token(what: &str, token: &str) -> Result<(), String> {
+fn check_token(what: &'static str, token: &str) -> Result<(), NameError> {
     let mut chars = token.chars();
     let first_ok = chars
         .next()
@@ -49,11 +49,43 @@ fn check_token(what: &str, token: &str) -> Result<(), String> {
     if first_ok && chars.all(|c| c.is_ascii_alphanumeric() || c == '_') {
         Ok(())
     } else {
-        Err(format!(
-            "{what} `{token}`: a ROS 2 name is a letter or '_' then letters, digits or '_'"
-        ))
+        Err(NameError::Token {
+            what,
+            token: token.into(),
+        })
     }
 }
+
+/// A node's or topic's name that ROS 2 refuses.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum NameError {
+    /// A domain above 232.
+    Domain(u32),
+    /// A namespace that does not start with '/'.
+    Namespace(String),
+    /// A namespace part, node name or topic name part that is not a ROS 2 token.
+    Token {
+        /// Which ("node name", "namespace part", "topic name part").
+        what: &'static str,
+        /// The token as given.
+        token: String,
+    },
+}
+
+impl std::fmt::Display for NameError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NameError::Domain(d) => write!(f, "ROS 2 domain {d}: domains are 0..=232"),
+            NameError::Namespace(ns) => write!(f, "namespace `{ns}`: it starts with '/'"),
+            NameError::Token { what, token } => write!(
+                f,
+                "{what} `{token}`: a ROS 2 name is a letter or '_' then letters, digits or '_'"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for NameError {}
 
 /// Where a node is: its domain, namespace and name, checked as ROS 2 checks them.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -74,14 +106,14 @@ impl NodeName {
     ///
     /// A domain above 232, a namespace not starting with '/', or a name or namespace part that is
     /// not a ROS 2 token.
-    pub fn new(domain: u32, namespace: &str, name: &str) -> Result<Self, String> {
+    pub fn new(domain: u32, namespace: &str, name: &str) -> Result<Self, NameError> {
         // ROS 2's domain ids run to 232 (rmw_zenoh takes any u32; DDS's ports stop there).
         if domain > 232 {
-            return Err(format!("ROS 2 domain {domain}: domains are 0..=232"));
+            return Err(NameError::Domain(domain));
         }
         let ns = namespace.trim_end_matches('/');
         if !namespace.starts_with('/') {
-            return Err(format!("namespace `{namespace}`: it starts with '/'"));
+            return Err(NameError::Namespace(namespace.into()));
         }
         for part in ns.split('/').skip(1) {
             check_token("namespace part", part)?;
@@ -95,7 +127,7 @@ impl NodeName {
     }
 
     /// A topic `name` relative to the node's namespace, fully qualified.
-    pub fn topic(&self, name: &str) -> Result<String, String> {
+    pub fn topic(&self, name: &str) -> Result<String, NameError> {
         for part in name.split('/') {
             check_token("topic name part", part)?;
         }
@@ -310,12 +342,25 @@ mod tests {
 
     #[test]
     fn names_are_checked_as_ros_2_checks_them() {
-        assert!(NodeName::new(0, "evoloop", "n").is_err());
-        assert!(NodeName::new(0, "/a-b", "n").is_err());
-        assert!(NodeName::new(0, "/", "1n").is_err());
-        assert!(NodeName::new(233, "/", "n").is_err());
+        let token = |what, token: &str| NameError::Token {
+            what,
+            token: token.into(),
+        };
+        let ns = NameError::Namespace("evoloop".into());
+        assert_eq!(NodeName::new(0, "evoloop", "n"), Err(ns));
+        assert_eq!(
+            NodeName::new(0, "/a-b", "n"),
+            Err(token("namespace part", "a-b"))
+        );
+        assert_eq!(NodeName::new(0, "/", "1n"), Err(token("node name", "1n")));
+        assert_eq!(NodeName::new(233, "/", "n"), Err(NameError::Domain(233)));
         let n = NodeName::new(0, "/", "n").unwrap();
-        assert!(n.topic("a//b").is_err());
+        assert_eq!(n.topic("a//b"), Err(token("topic name part", "")));
+        let e = n.topic("a-b").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "topic name part `a-b`: a ROS 2 name is a letter or '_' then letters, digits or '_'"
+        );
         assert_eq!(n.topic("a/b").unwrap(), "/a/b");
     }
 

@@ -159,7 +159,7 @@ fn run_once(out: &Path, cfg: &Path, no_rt: bool, spec: &LoopSpec) -> Result<Summ
             String::from_utf8_lossy(&o.stderr)
         ));
     }
-    crate::report::read_json(out, "summary.json")
+    crate::report::read_json(out, "summary.json").map_err(|e| e.to_string())
 }
 
 /// What one `evoloop bench loop` measured, and its JSON report (also written as loop.json).

@@ -231,16 +231,19 @@ impl Loop {
                 ),
             ];
             let meta = meta.into_iter().map(|(k, v)| (k.to_string(), v)).collect();
-            Some(Recorder::start(
-                &dir.join("run.mcap"),
-                scn.timing.mode == Mode::Lockstep,
-                meta,
-                match scn.timing.mode {
-                    Mode::Realtime => scn.timing.controller_cpu,
-                    Mode::Lockstep => None,
-                },
-                scn.joint_names(),
-            )?)
+            Some(
+                Recorder::start(
+                    &dir.join("run.mcap"),
+                    scn.timing.mode == Mode::Lockstep,
+                    meta,
+                    match scn.timing.mode {
+                        Mode::Realtime => scn.timing.controller_cpu,
+                        Mode::Lockstep => None,
+                    },
+                    scn.joint_names(),
+                )
+                .map_err(|e| e.to_string())?,
+            )
         } else {
             None
         };

@@ -432,6 +432,7 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
                 Err(format!("{}: {last}", o.status))
             }
             Ok(_) => crate::report::read_json::<Summary>(&dir, "summary.json")
+                .map_err(|e| e.to_string())
                 .and_then(|s| SeedRun::from_summary(seed, &s, &measure, changed)),
         };
         match result {

@@ -157,7 +157,7 @@ pub fn main(a: &ReplayArgs) -> i32 {
 }
 
 fn replay(a: &ReplayArgs) -> Result<ReplayReport, Failure> {
-    let rec = Recording::read(&a.file).map_err(Failure::Setup)?;
+    let rec = Recording::read(&a.file).map_err(|e| Failure::Setup(e.to_string()))?;
     if rec.states.is_empty() {
         return Err(Failure::Setup(format!(
             "{}: no states recorded",

@@ -409,14 +409,15 @@ struct Inputs {
 }
 
 fn read_inputs(dir: &Path) -> Result<Inputs, String> {
-    let ctrl: ControllerReport = crate::report::read_json(dir, "controller.json")?;
+    let ctrl: ControllerReport =
+        crate::report::read_json(dir, "controller.json").map_err(|e| e.to_string())?;
     let plant: PlantReport = crate::report::read_json(dir, "plant.json").unwrap_or_default();
     // A missing optimiser.json is normal (it was killed); an unreadable one loses the estimates
     // and epochs from the report, so say so.
     let opt: OptimiserReport = match crate::report::read_json(dir, "optimiser.json") {
         Ok(o) => o,
         Err(e) => {
-            if dir.join("optimiser.json").is_file() {
+            if !e.is_missing() {
                 eprintln!("evoloop: warning: {e}; the optimiser's estimates and epochs are left out of the report");
             }
             OptimiserReport::default()
