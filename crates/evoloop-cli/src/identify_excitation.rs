@@ -94,7 +94,7 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
     if a.population < 2 || a.iterations == 0 {
         return Err("--population must be >= 2 and --iterations >= 1".into());
     }
-    let stage = Stage::new(a.stage, &model)?;
+    let stage = Stage::new(a.stage, &model).map_err(|e| e.to_string())?;
     let harmonics = a.harmonics.unwrap_or(match a.trajectory {
         TrajectoryKind::Fourier => 5,
         TrajectoryKind::Mfs => 3,
@@ -109,7 +109,7 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
         qdd_max: a.qdd_max,
         ..Settings::default()
     };
-    let problem = ExcitationProblem::new(model, stage, settings)?;
+    let problem = ExcitationProblem::new(model, stage, settings).map_err(|e| e.to_string())?;
     let s = Search {
         population: a.population,
         iterations: a.iterations,
@@ -128,7 +128,7 @@ fn run(a: &ExcitationArgs) -> Result<(), String> {
         }
     };
     let t0 = std::time::Instant::now();
-    let o = search(&problem, &s, &mut progress)?;
+    let o = search(&problem, &s, &mut progress).map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     let c = o.criteria;
     let model = &problem.model;

@@ -64,7 +64,7 @@ fn run(a: &LlsArgs) -> Result<(), String> {
     };
     let mut stages: Vec<Estimate> = Vec::new();
     for (i, dir) in a.data.iter().enumerate() {
-        let mut rec = Recording::from_run(dir)?;
+        let mut rec = Recording::from_run(dir).map_err(|e| e.to_string())?;
         if a.torque_noise > 0.0 {
             rec.add_torque_noise(a.torque_noise, a.seed.wrapping_add(i as u64));
         }

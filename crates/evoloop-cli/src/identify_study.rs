@@ -93,8 +93,8 @@ fn prepare(a: &StudyArgs) -> Result<(ExcitationProblem, String), String> {
             settings.period
         ));
     }
-    let stage = Stage::new(a.stage, &model)?;
-    let problem = ExcitationProblem::new(model, stage, settings)?;
+    let stage = Stage::new(a.stage, &model).map_err(|e| e.to_string())?;
+    let problem = ExcitationProblem::new(model, stage, settings).map_err(|e| e.to_string())?;
     Ok((problem, text))
 }
 
@@ -120,7 +120,8 @@ fn study(a: &StudyArgs) -> Result<(), String> {
                 r.seed, r.error_optimised, r.error_initial
             ));
         },
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     let opt: Vec<f64> = rows.iter().map(|r| r.error_optimised).collect();
     let ini: Vec<f64> = rows.iter().map(|r| r.error_initial).collect();

@@ -453,7 +453,7 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
         return Err("--evaluations must be >= 1 (0 only with --start least-squares)".into());
     }
     let prior = Prior::new(a.m1, a.m2).map_err(|e| format!("--m1, --m2: {e}"))?;
-    let data = Trajectory::from_run(&a.data, a.smoothing)?;
+    let data = Trajectory::from_run(&a.data, a.smoothing).map_err(|e| e.to_string())?;
     let mut s = Settings::paper(data.n, a.seed, a.evaluations);
     s.stride = a.stride;
     s.start = a.start;
@@ -484,7 +484,8 @@ fn identify_rkgnn(a: &IdentifyArgs) -> Result<(), String> {
             bar.set_position(evals as u64);
             bar.set_message(format!("best J {best:.4}"));
         },
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     model.save(&a.out).map_err(|e| e.to_string())?;
     let r = &model.report;
@@ -589,7 +590,8 @@ fn prior(a: &PriorArgs) -> Result<(), String> {
     let n = arm.dof();
     let (p, positions) = match &a.data {
         Some(dir) => {
-            let d = Trajectory::from_run(dir, evoloop_identify::rkgnn::data::SMOOTHING)?;
+            let d = Trajectory::from_run(dir, evoloop_identify::rkgnn::data::SMOOTHING)
+                .map_err(|e| e.to_string())?;
             if d.n != n {
                 return Err(format!(
                     "{} has {n} joints, the data {}",
@@ -666,7 +668,7 @@ fn selection(args: &SelectionArgs) -> Result<(), String> {
     let a = &args.study;
     let settings = selection_settings(a, robot);
     let r = with_bar("runs", a.quiet || a.json, |p| {
-        selection::run(&settings, &a.out, p)
+        selection::run(&settings, &a.out, p).map_err(|e| e.to_string())
     })?;
     if a.json {
         crate::print_json(&r);
@@ -702,7 +704,7 @@ fn zoo(a: &ZooArgs) -> Result<(), String> {
         settings.models_from = sel.models_from.as_ref().map(|d| d.join(&arm.name));
         let label = format!("{} ({} of {})", arm.name, i + 1, arms.len());
         let r = with_bar(&label, sel.quiet || sel.json, |p| {
-            selection::run(&settings, &sel.out.join(&arm.name), p)
+            selection::run(&settings, &sel.out.join(&arm.name), p).map_err(|e| e.to_string())
         })?;
         let line = zoo::arm_line(&arm.name, &r);
         if !sel.quiet && !sel.json {
@@ -722,7 +724,7 @@ fn zoo(a: &ZooArgs) -> Result<(), String> {
         arms: lines,
         seconds: t0.elapsed().as_secs_f64(),
     };
-    zoo::write(&sel.out, &result)?;
+    zoo::write(&sel.out, &result).map_err(|e| e.to_string())?;
     if sel.json {
         crate::print_json(&result);
     } else {
@@ -746,7 +748,7 @@ fn study(a: &StudyArgs) -> Result<(), String> {
         threads: a.threads.unwrap_or_else(evoloop_optim::all_cores),
     };
     let r = with_bar("stages", a.quiet || a.json, |p| {
-        study::run(&settings, &a.out, p)
+        study::run(&settings, &a.out, p).map_err(|e| e.to_string())
     })?;
     if a.json {
         crate::print_json(&r);

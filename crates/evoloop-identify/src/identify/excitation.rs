@@ -24,6 +24,7 @@
 //!    iterations, 30 iterations (the paper's settings; all are options).
 
 use super::mfs::MfsDesign;
+use super::ExcitationError;
 use super::{stage_base, states_needed, Columns, Stacker, Stage};
 use crate::dynamics::base::BaseParameters;
 use crate::dynamics::Model;
@@ -182,12 +183,16 @@ impl ExcitationProblem {
         model: Model,
         stage: Stage,
         settings: Settings,
-    ) -> Result<ExcitationProblem, String> {
+    ) -> Result<ExcitationProblem, ExcitationError> {
         if settings.harmonics < 2 {
-            return Err("at least 2 harmonics (the last one brings the start to rest)".into());
+            return Err(ExcitationError::setting(
+                "harmonics",
+                "at least 2 harmonics (the last one brings the start to rest)",
+            ));
         }
         if settings.period.is_nan() || settings.period <= 0.0 {
-            return Err(format!("period {} s: must be > 0", settings.period));
+            let reason = format!("period {} s: must be > 0", settings.period);
+            return Err(ExcitationError::setting("period", reason));
         }
         let base = stage_base(
             &model,
@@ -198,11 +203,12 @@ impl ExcitationProblem {
         );
         let rows = stage.rows().len();
         if settings.samples * rows < base.base_count() {
-            return Err(format!(
+            let reason = format!(
                 "{} samples x {rows} torques cannot identify {} base parameters",
                 settings.samples,
                 base.base_count()
-            ));
+            );
+            return Err(ExcitationError::setting("samples", reason));
         }
         let limits = JointLimits::of(&model, settings.margin, settings.qd_max, settings.qdd_max);
         let design = Design {
@@ -216,11 +222,11 @@ impl ExcitationProblem {
             TrajectoryKind::Mfs => {
                 let n = model.dof();
                 if stage.kind == super::StageKind::Wrist {
-                    return Err(
-                        "the modified Fourier series moves the wrist centre, which the \
-                                wrist stage holds: use --trajectory fourier for the wrist"
+                    return Err(ExcitationError::Robot(
+                        "the modified Fourier series moves the wrist centre, which the wrist \
+                         stage holds: use --trajectory fourier for the wrist"
                             .into(),
-                    );
+                    ));
                 }
                 // The wrist joints that move follow a joint-space series.
                 let wrist_moves = (n.saturating_sub(3)..n).any(|j| stage.moving[j]);
@@ -449,7 +455,7 @@ pub fn search(
     problem: &ExcitationProblem,
     s: &Search,
     progress: Progress,
-) -> Result<Outcome, String> {
+) -> Result<Outcome, ExcitationError> {
     let (lo, hi) = problem.bounds();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(s.seed ^ 0x5eed_e11e);
     let random = |rng: &mut rand_chacha::ChaCha8Rng| -> Vec<f64> {
@@ -466,7 +472,7 @@ pub fn search(
         iterations: s.elite_iterations,
         seed: s.seed,
     };
-    let mut pso = Pso::new(cfg).map_err(|e| e.to_string())?;
+    let mut pso = Pso::new(cfg)?;
     let mut elites: Vec<Vec<f64>> = Vec::new();
     let mut near: Vec<(f64, Vec<f64>)> = Vec::new();
     let mut evaluations = 0;
@@ -529,7 +535,7 @@ pub fn search(
         iterations: s.iterations,
         seed: s.seed,
     };
-    let mut opt = EmuPso::new(cfg, settings).map_err(|e| e.to_string())?;
+    let mut opt = EmuPso::new(cfg, settings)?;
     opt.swarm.start_from(&start);
     let mut history = Vec::with_capacity(s.iterations + 1);
     while opt.generation() <= s.iterations {
@@ -540,9 +546,11 @@ pub fn search(
         progress("emupso", opt.generation(), opt.best().1);
     }
     let best = opt.best().0;
-    let series = problem
-        .decode(best)
-        .ok_or("no reachable Cartesian path found (widen the search or move the centre)")?;
+    let series = problem.decode(best).ok_or_else(|| {
+        ExcitationError::NotFound(
+            "no reachable Cartesian path found (widen the search or move the centre)".into(),
+        )
+    })?;
     Ok(Outcome {
         x: best.to_vec(),
         initial_x: elites,

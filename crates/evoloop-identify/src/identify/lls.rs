@@ -23,7 +23,134 @@ use crate::reference::series::FourierSeries;
 use crate::report::Outcome;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// Why a periodic run cannot be read, or its parameters estimated from it.
+#[derive(Debug)]
+pub enum LlsError {
+    /// A file of the run directory (scenario.json, run.csv) is missing, unreadable or lacks
+    /// what the estimate needs.
+    RunFile {
+        /// The file.
+        file: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+        /// The system's or the parser's error, where there is one.
+        source: Option<Box<dyn std::error::Error + Send + Sync>>,
+    },
+    /// The run's reference is not a periodic excitation (`file`: the run's scenario.json, if
+    /// the run was read from one).
+    NotExcitation(Option<PathBuf>),
+    /// The excitation's period is not a whole number of samples.
+    Period {
+        /// The period, s.
+        period: f64,
+        /// The sample interval, s.
+        h: f64,
+    },
+    /// The run's joints are not the robot's.
+    Joints {
+        /// The run's joints.
+        run: usize,
+        /// The robot's name.
+        robot: String,
+        /// Its degrees of freedom.
+        dof: usize,
+    },
+    /// Fewer full periods than the options need.
+    Periods {
+        /// The full periods recorded.
+        recorded: usize,
+        /// The period, s.
+        period: f64,
+        /// The periods skipped at the start.
+        skip: usize,
+    },
+    /// No joint moves in the run.
+    NoMotion,
+    /// The least-squares solve failed (the SVD's reason).
+    Solve(&'static str),
+}
+
+impl LlsError {
+    fn run_file(file: &Path, reason: impl Into<String>) -> Self {
+        LlsError::RunFile {
+            file: file.to_path_buf(),
+            reason: reason.into(),
+            source: None,
+        }
+    }
+
+    fn run_file_from(
+        file: &Path,
+        reason: impl Into<String>,
+        e: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
+        LlsError::RunFile {
+            file: file.to_path_buf(),
+            reason: reason.into(),
+            source: Some(Box::new(e)),
+        }
+    }
+}
+
+impl std::fmt::Display for LlsError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LlsError::RunFile {
+                file,
+                reason,
+                source,
+            } => {
+                write!(f, "{}: {reason}", file.display())?;
+                match source {
+                    Some(e) if reason.is_empty() => write!(f, "{e}"),
+                    Some(e) => write!(f, ": {e}"),
+                    None => Ok(()),
+                }
+            }
+            LlsError::NotExcitation(Some(file)) => write!(
+                f,
+                "{}: the run's reference is not a periodic excitation (a `sines` reference \
+                 with frequencies 1/T, 2/T, ...; see `evoloop identify excitation`)",
+                file.display()
+            ),
+            LlsError::NotExcitation(None) => {
+                f.write_str("the scenario's reference is not a periodic excitation")
+            }
+            LlsError::Period { period, h } => write!(
+                f,
+                "the period {period} s is not a whole number of {h} s samples"
+            ),
+            LlsError::Joints { run, robot, dof } => {
+                write!(f, "the run has {run} joints, the robot {robot} has {dof}")
+            }
+            LlsError::Periods {
+                recorded,
+                period,
+                skip,
+            } => write!(
+                f,
+                "{recorded} full period(s) of {period} s recorded: need {} (skip {skip}, at \
+                 least one to average and one to validate on)",
+                skip + 2
+            ),
+            LlsError::NoMotion => f.write_str("no joint moves in the run"),
+            LlsError::Solve(e) => write!(f, "the least-squares solve failed: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for LlsError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            LlsError::RunFile {
+                source: Some(e), ..
+            } => Some(e.as_ref()),
+            _ => None,
+        }
+    }
+}
 
 /// A periodic run: its sampling, period, which joints moved and the records.
 #[derive(Debug, Clone)]
@@ -45,31 +172,27 @@ pub struct Recording {
 impl Recording {
     /// A run directory's run.csv (`t`, `y*`, `u*`) and scenario.json (the reference: a
     /// harmonic `sines` reference, e.g. from `evoloop identify excitation`).
-    pub fn from_run(dir: &Path) -> Result<Recording, String> {
+    pub fn from_run(dir: &Path) -> Result<Recording, LlsError> {
         let sj = dir.join("scenario.json");
         let text = crate::files::read_text(&sj)
-            .map_err(|e| format!("{}: cannot read: {e}", sj.display()))?;
+            .map_err(|e| LlsError::run_file_from(&sj, "cannot read", e))?;
         let v: serde_json::Value =
-            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", sj.display()))?;
+            serde_json::from_str(&text).map_err(|e| LlsError::run_file_from(&sj, "", e))?;
         let reference: crate::reference::Reference = serde_json::from_value(v["reference"].clone())
-            .map_err(|e| format!("{}: reference: {e}", sj.display()))?;
-        let series = FourierSeries::from_reference(&reference).ok_or_else(|| {
-            format!(
-                "{}: the run's reference is not a periodic excitation (a `sines` reference \
-                 with frequencies 1/T, 2/T, ...; see `evoloop identify excitation`)",
-                sj.display()
-            )
-        })?;
+            .map_err(|e| LlsError::run_file_from(&sj, "reference", e))?;
+        let series = FourierSeries::from_reference(&reference)
+            .ok_or_else(|| LlsError::NotExcitation(Some(sj.clone())))?;
         let csv = dir.join("run.csv");
-        let t = crate::report::Table::read(&csv).map_err(|e| format!("{}: {e}", csv.display()))?;
+        let t =
+            crate::report::Table::read(&csv).map_err(|e| LlsError::run_file_from(&csv, "", e))?;
         let n = series.joints();
         let col = |name: String| {
             t.col(&name)
-                .ok_or_else(|| format!("{}: no column `{name}`", csv.display()))
+                .ok_or_else(|| LlsError::run_file(&csv, format!("no column `{name}`")))
         };
         let time = col("t".into())?;
         if time.len() < 3 {
-            return Err(format!("{}: fewer than 3 samples", csv.display()));
+            return Err(LlsError::run_file(&csv, "fewer than 3 samples"));
         }
         let y: Vec<Vec<f64>> = (0..n)
             .map(|j| col(format!("y{j}")))
@@ -104,9 +227,9 @@ impl Recording {
     pub fn from_sim(
         scn: &crate::config::Scenario,
         sim: &crate::sim::SimResult,
-    ) -> Result<Recording, String> {
-        let series = FourierSeries::from_reference(&scn.reference)
-            .ok_or("the scenario's reference is not a periodic excitation")?;
+    ) -> Result<Recording, LlsError> {
+        let series =
+            FourierSeries::from_reference(&scn.reference).ok_or(LlsError::NotExcitation(None))?;
         let n = series.joints();
         Ok(Recording {
             h: scn.timing.period,
@@ -123,7 +246,7 @@ impl Recording {
     }
 
     /// The first `periods` periods only.
-    pub fn truncated(&self, periods: usize) -> Result<Recording, String> {
+    pub fn truncated(&self, periods: usize) -> Result<Recording, LlsError> {
         let keep = periods * self.per_period()?;
         let cut = |c: &Vec<Vec<f64>>| c.iter().map(|x| x[..keep.min(x.len())].to_vec()).collect();
         Ok(Recording {
@@ -134,13 +257,13 @@ impl Recording {
     }
 
     /// Samples per period (the period must be a whole number of samples).
-    pub fn per_period(&self) -> Result<usize, String> {
+    pub fn per_period(&self) -> Result<usize, LlsError> {
         let m = (self.period / self.h).round();
         if m < 4.0 || (m * self.h - self.period).abs() > 1e-6 * self.period {
-            return Err(format!(
-                "the period {} s is not a whole number of {} s samples",
-                self.period, self.h
-            ));
+            return Err(LlsError::Period {
+                period: self.period,
+                h: self.h,
+            });
         }
         Ok(m as usize)
     }
@@ -386,30 +509,27 @@ fn regression(
 }
 
 /// Estimate the base parameters of `model`'s stage that `rec` excited.
-pub fn estimate(model: &Model, rec: &Recording, o: &Options) -> Result<Estimate, String> {
+pub fn estimate(model: &Model, rec: &Recording, o: &Options) -> Result<Estimate, LlsError> {
     let n = model.dof();
     if rec.y.len() != n || rec.u.len() != n {
-        return Err(format!(
-            "the run has {} joints, the robot {} has {n}",
-            rec.y.len(),
-            model.name
-        ));
+        return Err(LlsError::Joints {
+            run: rec.y.len(),
+            robot: model.name.clone(),
+            dof: n,
+        });
     }
     let m = rec.per_period()?;
     let total = rec.y[0].len() / m;
     if total < o.skip + 2 {
-        return Err(format!(
-            "{} full period(s) of {} s recorded: need {} (skip {}, at least one to average and \
-             one to validate on)",
-            total,
-            rec.period,
-            o.skip + 2,
-            o.skip
-        ));
+        return Err(LlsError::Periods {
+            recorded: total,
+            period: rec.period,
+            skip: o.skip,
+        });
     }
     let stage = Stage::from_moving(rec.moving.clone(), rec.hold.clone());
     if stage.rows().is_empty() {
-        return Err("no joint moves in the run".into());
+        return Err(LlsError::NoMotion);
     }
     let base = stage_base(
         model,
@@ -444,7 +564,7 @@ pub fn estimate(model: &Model, rec: &Recording, o: &Options) -> Result<Estimate,
     let (wb, tau) = regression(model, o.columns, &stage, &cols, &fit_p, stride);
     let svd = wb.clone().svd(true, true);
     let cond = svd.singular_values.max() / svd.singular_values.min();
-    let beta = svd.solve(&tau, 1e-12)?;
+    let beta = svd.solve(&tau, 1e-12).map_err(LlsError::Solve)?;
     // Validation on the held-out (last) period.
     let last = o.skip + fit;
     let y_last: Vec<Vec<f64>> = rec.y.iter().map(|c| slice(c, last)).collect();

@@ -29,6 +29,7 @@
 //! so the limits, the regressor and the scenario reference work on it alike. The fit's largest
 //! position error is reported.
 
+use super::ExcitationError;
 use crate::dynamics::Model;
 use crate::reference::series::{Design, FourierSeries};
 use glam::DVec3;
@@ -90,14 +91,14 @@ impl WristCentre {
     /// The wrist centre of an arm whose last three joint axes meet in a point: the origin of
     /// the fifth or sixth (of n) body's frame when none of the last three joints moves it (a
     /// body's origin lies on its own joint's axis, so it then lies on the wrist's axes).
-    pub fn of(model: &Model) -> Result<WristCentre, String> {
+    pub fn of(model: &Model) -> Result<WristCentre, ExcitationError> {
         let n = model.dof();
         if n < 4 {
-            return Err(format!(
+            return Err(ExcitationError::Robot(format!(
                 "the modified Fourier series moves a wrist centre: {} has {n} joints (use \
                  --trajectory fourier)",
                 model.name
-            ));
+            )));
         }
         let mut d = model.data();
         let base: Vec<f64> = (0..n).map(|j| 0.3 + 0.1 * j as f64).collect();
@@ -114,11 +115,11 @@ impl WristCentre {
                 return Ok(WristCentre { body, arm: n - 3 });
             }
         }
-        Err(format!(
+        Err(ExcitationError::Robot(format!(
             "{}: the last three joint axes do not meet in a point (no spherical wrist), so the \
              modified Fourier series has no wrist centre to move (use --trajectory fourier)",
             model.name
-        ))
+        )))
     }
 
     /// Arm joints placing the wrist centre at `target`, from `q` (updated in place; the other
@@ -192,9 +193,12 @@ impl MfsDesign {
         harmonics: usize,
         hold: Vec<f64>,
         joints: Option<Design>,
-    ) -> Result<MfsDesign, String> {
+    ) -> Result<MfsDesign, ExcitationError> {
         if harmonics < 2 {
-            return Err("the modified Fourier series needs at least 2 harmonics".into());
+            return Err(ExcitationError::setting(
+                "harmonics",
+                "the modified Fourier series needs at least 2 harmonics",
+            ));
         }
         let wrist = WristCentre::of(model)?;
         let mut d = model.data();

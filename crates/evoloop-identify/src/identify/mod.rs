@@ -16,10 +16,13 @@
 //! - `lls`: least squares on a run's recorded positions and torques;
 //! - `study`: optimised against random feasible excitation, paired over seeds.
 
+mod error;
 pub mod excitation;
 pub mod lls;
 pub mod mfs;
 pub mod study;
+
+pub use error::ExcitationError;
 
 use crate::dynamics::base::{reduce, BaseParameters};
 use crate::dynamics::{Data, Model};
@@ -118,7 +121,7 @@ pub struct Stage {
 impl Stage {
     /// The stage `kind` of `model`, held joints at zero (or the middle of their range when zero
     /// is outside it). Wrist and arm stages need at least four joints.
-    pub fn new(kind: StageKind, model: &Model) -> Result<Stage, String> {
+    pub fn new(kind: StageKind, model: &Model) -> Result<Stage, ExcitationError> {
         let n = model.dof();
         if kind != StageKind::All && n < 4 {
             let name = if kind == StageKind::Wrist {
@@ -126,11 +129,11 @@ impl Stage {
             } else {
                 "arm"
             };
-            return Err(format!(
+            return Err(ExcitationError::Robot(format!(
                 "a {name} stage splits the last three joints from the others: {} has {n} \
                  joints (use --stage all)",
                 model.name
-            ));
+            )));
         }
         let moving = (0..n)
             .map(|j| match kind {

@@ -6,8 +6,10 @@
 
 use super::excitation::{search, ExcitationProblem, Search};
 use super::lls::{estimate, Options, Recording};
-use crate::config::{Overrides, Scenario};
+use super::ExcitationError;
+use crate::config::{ConfigError, Overrides, Scenario};
 use crate::reference::series::FourierSeries;
+use evoloop_control::check::Check;
 use serde::Serialize;
 use std::path::Path;
 
@@ -33,10 +35,12 @@ pub fn with_trajectory(
     path: &Path,
     series: &FourierSeries,
     seed: u64,
-) -> Result<Scenario, String> {
-    let mut doc: toml::Table = scenario_text
-        .parse()
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+) -> Result<Scenario, ConfigError> {
+    let check = Check::new(path);
+    let mut doc: toml::Table = match scenario_text.parse() {
+        Ok(doc) => doc,
+        Err(e) => return check.fail("", e.to_string()),
+    };
     let reference = toml::Value::try_from(match series.to_reference() {
         crate::reference::Reference::Sines {
             offsets,
@@ -48,8 +52,11 @@ pub fn with_trajectory(
             "frequencies": frequencies, "phases": phases,
         }),
         _ => unreachable!("a Fourier series is a sines reference"),
-    })
-    .map_err(|e| e.to_string())?;
+    });
+    let reference = match reference {
+        Ok(r) => r,
+        Err(e) => return check.fail("reference", e.to_string()),
+    };
     doc.insert("reference".into(), reference);
     doc.insert("seed".into(), toml::Value::Integer(seed as i64));
     if let Some(arm) = doc
@@ -59,7 +66,7 @@ pub fn with_trajectory(
     {
         arm.remove("initial_q");
     }
-    Scenario::parse(&doc.to_string(), path, &Overrides::default()).map_err(|e| e.to_string())
+    Scenario::parse(&doc.to_string(), path, &Overrides::default())
 }
 
 /// The study: for each seed, a search on `problem` and the experiment on its first feasible
@@ -72,7 +79,7 @@ pub fn run(
     search_settings: &Search,
     torque_noise: f64,
     progress: &mut dyn FnMut(&SeedResult),
-) -> Result<Vec<SeedResult>, String> {
+) -> Result<Vec<SeedResult>, ExcitationError> {
     let mut out = Vec::with_capacity(seeds.len());
     for &seed in seeds {
         let o = search(
@@ -84,14 +91,14 @@ pub fn run(
             &mut |_, _, _| {},
         )?;
         if o.feasible_elites == 0 {
-            return Err(format!(
+            return Err(ExcitationError::NotFound(format!(
                 "seed {seed}: the elite phase found no feasible trajectory"
-            ));
+            )));
         }
         let initial = problem
             .decode(&o.initial_x[0])
-            .ok_or("the first elite is not reachable")?;
-        let error = |s: &FourierSeries| -> Result<f64, String> {
+            .ok_or_else(|| ExcitationError::NotFound("the first elite is not reachable".into()))?;
+        let error = |s: &FourierSeries| -> Result<f64, ExcitationError> {
             let scn = with_trajectory(scenario_text, path, s, seed)?;
             let sim = crate::sim::simulate(&scn);
             let mut rec = Recording::from_sim(&scn, &sim)?;

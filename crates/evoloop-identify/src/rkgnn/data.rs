@@ -4,6 +4,7 @@
 //! RKGNN paper's premise is that the joint torques of an industrial arm are not available), nor
 //! the simulator's noise-free velocities.
 
+use super::RkgnnError;
 use crate::report::Table;
 use crate::sim::SimRow;
 use evoloop_control::filter::smoothing::{half_window, smooth, smooth_where};
@@ -187,29 +188,33 @@ impl Trajectory {
     /// ..., theta_d' from `rd*`, theta from the measured `y*`; theta' is estimated from `y*`
     /// (`from_positions`). The logged `qd*` (the simulator's noise-free velocities) and the
     /// torques `u*` are never read. `smoothing`: the low-pass's half width, s (`SMOOTHING`).
-    pub fn from_run(dir: &Path, smoothing: f64) -> Result<Trajectory, String> {
+    pub fn from_run(dir: &Path, smoothing: f64) -> Result<Trajectory, RkgnnError> {
         let path = dir.join("run.csv");
-        let t = Table::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let col = |name: &str| -> Result<Vec<f64>, String> {
+        let t = Table::read(&path).map_err(|e| RkgnnError::RunFile {
+            file: path.clone(),
+            reason: String::new(),
+            source: Some(e),
+        })?;
+        let col = |name: &str| -> Result<Vec<f64>, RkgnnError> {
             t.col(name).ok_or_else(|| {
-                format!(
-                    "{}: no column `{name}` (identification needs the reference, its velocity \
-                     and the measured joint positions an arm run logs: reference, r1.., rd*, y*)",
-                    path.display()
-                )
+                let reason = format!(
+                    "no column `{name}` (identification needs the reference, its velocity \
+                     and the measured joint positions an arm run logs: reference, r1.., rd*, y*)"
+                );
+                RkgnnError::run_file(&path, reason)
             })
         };
         let n = t.cols_with_prefix("rd").len();
         if n == 0 {
-            return Err(format!(
-                "{}: no reference velocity columns rd0.. (not an arm run, or written before they \
+            return Err(RkgnnError::run_file(
+                &path,
+                "no reference velocity columns rd0.. (not an arm run, or written before they \
                  were logged)",
-                path.display()
             ));
         }
         let time = col("t")?;
         if time.len() < 3 {
-            return Err(format!("{}: fewer than 3 samples", path.display()));
+            return Err(RkgnnError::run_file(&path, "fewer than 3 samples"));
         }
         let h = time[1] - time[0];
         let mut cols = Vec::with_capacity(3 * n);
@@ -235,7 +240,7 @@ impl Trajectory {
             q.extend(qc.iter().map(|c| c[i]));
         }
         if r.iter().chain(&q).any(|v| !v.is_finite()) {
-            return Err(format!("{}: non-finite values", path.display()));
+            return Err(RkgnnError::run_file(&path, "non-finite values"));
         }
         Ok(Trajectory::from_positions(n, h, r, &q, smoothing))
     }

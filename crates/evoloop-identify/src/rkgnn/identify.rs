@@ -152,11 +152,9 @@ pub struct Prior {
 
 impl Prior {
     /// Checked: 0 < m1 <= m2, both finite.
-    pub fn new(m1: f64, m2: f64) -> Result<Self, String> {
+    pub fn new(m1: f64, m2: f64) -> Result<Self, super::RkgnnError> {
         if !(m1 > 0.0 && m1.is_finite() && m2.is_finite() && m1 <= m2) {
-            return Err(format!(
-                "eq. 2's bounds need 0 < m1 <= m2 (finite), got m1 = {m1}, m2 = {m2}"
-            ));
+            return Err(super::RkgnnError::Prior { m1, m2 });
         }
         Ok(Self { m1, m2 })
     }
@@ -509,7 +507,7 @@ pub fn identify_model(
     s: &Settings,
     source: String,
     progress: impl FnMut(usize, f64),
-) -> Result<super::RkgnnModel, String> {
+) -> Result<super::RkgnnModel, super::RkgnnError> {
     let (net, report) = identify(data, prior, s, progress)?;
     let d = data.every(s.stride.max(1));
     Ok(super::RkgnnModel::new(net, d.h, d.r, source, report))
@@ -523,16 +521,16 @@ pub fn identify(
     prior: &Prior,
     s: &Settings,
     mut progress: impl FnMut(usize, f64),
-) -> Result<(Network, Report), String> {
+) -> Result<(Network, Report), super::RkgnnError> {
     let t0 = std::time::Instant::now();
     let d = data.every(s.stride.max(1));
     let n_hold = ((d.len() as f64) * s.holdout).round() as usize;
     if d.len() < 20 || d.len() - n_hold < 10 {
-        return Err(format!(
+        return Err(super::RkgnnError::TooFewSamples(format!(
             "too few samples: {} at stride {} (need at least 20)",
             d.len(),
             s.stride
-        ));
+        )));
     }
     let split = d.len() - n_hold;
     let train = d.window(0, split);
@@ -546,18 +544,16 @@ pub fn identify(
         Start::LeastSquares => {
             let full = data.window(0, ((split - 1) * s.stride.max(1) + 1).min(data.len()));
             if full.len() < 2 * full.trim() + MIN_ROWS * s.stride.max(1) {
-                return Err(format!(
+                return Err(super::RkgnnError::TooFewSamples(format!(
                     "too few samples for the least-squares start: {:.2} s, the low-pass \
                      (--smoothing {} s) drops {:.2} s at each end and {MIN_ROWS} rows must remain",
                     full.len() as f64 * full.h,
                     full.smoothing,
                     full.trim() as f64 * full.h
-                ));
+                )));
             }
-            let (x, w) = least_squares_start(&layout, &x0, &full, &probes, prior, s).ok_or(
-                "the least-squares start found no model with a positive definite M-hat \
-                     (give --start random)",
-            )?;
+            let (x, w) = least_squares_start(&layout, &x0, &full, &probes, prior, s)
+                .ok_or(super::RkgnnError::NoStart)?;
             let x = refine_start(&layout, x, &train, &probes, prior, s);
             (x, s0.iter().map(|v| v * LS_SIGMA).collect(), w)
         }

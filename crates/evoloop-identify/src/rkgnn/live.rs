@@ -99,12 +99,10 @@ impl LiveIdentify {
     /// The identification for `scn`: its controller's models as loaded, the window, fresh
     /// data and interval from `scn.optimiser`. Fails unless the controller is
     /// `fuzzy_computed_torque`.
-    pub fn new(scn: &crate::config::Scenario) -> Result<Self, String> {
+    pub fn new(scn: &crate::config::Scenario) -> Result<Self, super::RkgnnError> {
         // The scenario's validation refuses identify mode for other controllers.
         let crate::law::ControllerModel::FuzzyComputedTorque(f) = &scn.controller.model else {
-            return Err(
-                "optimiser.mode = \"identify\" needs a fuzzy_computed_torque controller".into(),
-            );
+            return Err(super::RkgnnError::NotFuzzy);
         };
         let o = &scn.optimiser;
         let samples = |s: f64| (s / scn.timing.period).round() as usize;
@@ -334,8 +332,8 @@ impl crate::sim::LoopHook for Identifying<'_> {
 /// in lockstep: every sample, and the identification's epochs (one per attempt).
 pub fn simulate(
     scn: &crate::config::Scenario,
-) -> Result<(crate::sim::SimResult, Vec<EpochRecord>), String> {
-    scn.require_in_process().map_err(|e| e.to_string())?;
+) -> Result<(crate::sim::SimResult, Vec<EpochRecord>), super::RkgnnError> {
+    scn.require_in_process()?;
     let mut hook = Identifying {
         keep: crate::sim::Keep::new(scn),
         live: LiveIdentify::new(scn)?,

@@ -20,6 +20,7 @@
 //! `law::fuzzy_select`.
 
 pub mod data;
+pub(crate) mod error;
 pub mod identify;
 pub mod live;
 pub mod model_error;
@@ -31,5 +32,6 @@ pub mod study;
 pub mod zoo;
 
 pub use data::Trajectory;
+pub use error::{RkgnnError, StudyError};
 pub use model::RkgnnModel;
 pub use network::{Layout, Network, RbfCounts};

@@ -35,9 +35,10 @@ use super::study::{
 };
 use crate::dynamics::Model;
 use crate::law::fuzzy_computed_torque::check_along_reference;
+use crate::rkgnn::error::write_error;
 use crate::rkgnn::model::{ServoPrior, Weighing};
 use crate::rkgnn::model_error::{model_error, ModelError, RigidBody};
-use crate::rkgnn::Trajectory;
+use crate::rkgnn::{StudyError, Trajectory};
 use crate::sim::{JointTraces, SimResult};
 use crate::stats::{median, median_of_numbers, wilcoxon, Wilcoxon};
 use serde::Serialize;
@@ -469,20 +470,20 @@ const OFFSET_SPREAD: f64 = 0.1;
 const AMPLITUDE_SPREAD: f64 = 0.15;
 
 /// `t[section][key]`, a number, made at most `max`.
-fn at_most(t: &mut toml::Table, section: &str, key: &str, max: f64) -> Result<(), String> {
+fn at_most(t: &mut toml::Table, section: &str, key: &str, max: f64) -> Result<(), StudyError> {
     let s = table(t, section)?;
     let v = s.get(key).and_then(toml::Value::as_float);
-    let v = v.ok_or_else(|| format!("built-in scenario: no {section}.{key}"))?;
+    let v = v.ok_or_else(|| StudyError::BuiltIn(format!("no {section}.{key}")))?;
     s.insert(key.into(), toml::Value::Float(v.min(max)));
     Ok(())
 }
 
 /// `base` with its reference replaced by `s`, run at `period` (None: the base's 1 ms): the
 /// plant's RK4 step at most the period.
-fn with_reference(s: &Sines, period: Option<f64>) -> Result<String, String> {
+fn with_reference(s: &Sines, period: Option<f64>) -> Result<String, StudyError> {
     let mut t: toml::Table = BASE
         .parse()
-        .map_err(|e| format!("built-in scenario: {e}"))?;
+        .map_err(|e: toml::de::Error| StudyError::BuiltIn(e.to_string()))?;
     if let Some(p) = period {
         table(&mut t, "timing")?.insert("period".into(), toml::Value::Float(p));
         at_most(&mut t, "plant", "step", p)?;
@@ -497,7 +498,7 @@ fn with_reference(s: &Sines, period: Option<f64>) -> Result<String, String> {
     let amps = s.amplitudes.iter().map(|a| float_list(a)).collect();
     r.insert("amplitudes".into(), toml::Value::Array(amps));
     t.insert("reference".into(), r.into());
-    toml::to_string(&t).map_err(|e| e.to_string())
+    toml::to_string(&t).map_err(|e| StudyError::BuiltIn(e.to_string()))
 }
 
 /// Run the study into `dir`; `progress(done, total, stage)`.
@@ -505,22 +506,22 @@ pub fn run(
     s: &SelectionSettings,
     dir: &Path,
     progress: &(dyn Fn(u64, u64, &str) + Sync),
-) -> Result<SelectionResult, String> {
+) -> Result<SelectionResult, StudyError> {
     let t0 = std::time::Instant::now();
     if s.seeds == 0 {
-        return Err("--seeds must be >= 1".into());
+        return Err(StudyError::Setting("--seeds must be >= 1".into()));
     }
     let (robot, arm) = arm_of(&s.robot, dir)?;
     // Every file the scenarios name (models, the nominal model) absolute: a scenario resolves a
     // relative path against its own directory, not the working directory.
-    let dir = &std::path::absolute(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let dir = &std::path::absolute(dir).map_err(write_error(dir))?;
     let n = arm.dof();
     // The nominal model must be writable before any run is made (URDF has no armature).
     crate::dynamics::urdf::writable(&arm).map_err(|e| {
-        format!(
+        StudyError::Arm(format!(
             "{}: its nominal model cannot be written as URDF: {e}",
             robot.display()
-        )
+        ))
     })?;
     let (training_set, new_set, trajectory_source) = trajectories_for(&arm);
     let mut g = gains()?;
@@ -562,9 +563,9 @@ pub fn run(
         servo: [servo_kp, servo_kd],
     };
     let first_new = training_set.len();
-    let one_seed = |seed: u64| -> Result<SeedOut, String> {
+    let one_seed = |seed: u64| -> Result<SeedOut, StudyError> {
         let sd = dir.join(format!("seed{seed}"));
-        std::fs::create_dir_all(&sd).map_err(|e| format!("{}: {e}", sd.display()))?;
+        std::fs::create_dir_all(&sd).map_err(write_error(&sd))?;
         let found = training.models(seed, &sd, &tick)?;
         let models = found.models;
         // This seed's CAD model: the arm with its mass properties off (`nominal`), written
@@ -623,10 +624,9 @@ pub fn run(
     };
     let result = assemble(s, frame, per_seed, t0.elapsed().as_secs_f64());
     crate::report::write_json(dir, "selection.json", &result)
-        .map_err(|e| format!("{}: {e}", dir.join("selection.json").display()))?;
+        .map_err(write_error(&dir.join("selection.json")))?;
     let p = dir.join("report.md");
-    crate::files::write(&p, report_markdown(&result))
-        .map_err(|e| format!("{}: {e}", p.display()))?;
+    crate::files::write(&p, report_markdown(&result)).map_err(write_error(&p))?;
     Ok(result)
 }
 
@@ -703,7 +703,7 @@ fn probes(
     n: usize,
     velocity: JointVelocity,
     dir: &Path,
-) -> Result<Vec<Case>, String> {
+) -> Result<Vec<Case>, StudyError> {
     let unit = vec![1.0; n];
     texts
         .iter()
@@ -758,7 +758,7 @@ impl Training<'_> {
         seed: u64,
         sd: &Path,
         tick: &(dyn Fn(&str) + Sync),
-    ) -> Result<SeedModels, String> {
+    ) -> Result<SeedModels, StudyError> {
         let (s, arm, n) = (self.s, self.arm, self.arm.dof());
         let [servo_kp, servo_kd] = self.servo;
         let training: Vec<Case> = self
@@ -811,7 +811,8 @@ impl Training<'_> {
                     &settings,
                     c.name.clone(),
                     |_, _| {},
-                ),
+                )
+                .map_err(StudyError::from),
             };
             tick("identification");
             match found {
@@ -821,7 +822,7 @@ impl Training<'_> {
                         out.weighed.push(format!("seed {seed}, {}", c.name));
                     }
                     let file = sd.join(format!("model_{}.json", c.name));
-                    model.save(&file).map_err(|e| e.to_string())?;
+                    model.save(&file)?;
                     out.models.push(Some((file, model)));
                 }
                 Err(e) => {
@@ -880,7 +881,7 @@ fn nominal_seed(arm: &Model, seed: u64) -> u64 {
 
 /// `arm` as its CAD model has it for `seed` (mass properties off, no friction), written to
 /// `dir/nominal.urdf`.
-fn nominal_model(arm: &Model, seed: u64, dir: &Path) -> Result<Nominal, String> {
+fn nominal_model(arm: &Model, seed: u64, dir: &Path) -> Result<Nominal, StudyError> {
     use crate::dynamics::nominal;
     let drawn_from = nominal_seed(arm, seed);
     let errors = nominal::draw(arm.dof(), NOMINAL_SPREAD, drawn_from);
@@ -888,9 +889,9 @@ fn nominal_model(arm: &Model, seed: u64, dir: &Path) -> Result<Nominal, String> 
     let mut model = nominal::perturbed(arm, &errors);
     model.clear_friction();
     let file = dir.join("nominal.urdf");
-    let text =
-        crate::dynamics::urdf::to_urdf(&model).map_err(|e| format!("the nominal model: {e}"))?;
-    crate::files::write(&file, text).map_err(|e| format!("{}: {e}", file.display()))?;
+    let text = crate::dynamics::urdf::to_urdf(&model)
+        .map_err(|e| StudyError::Arm(format!("the nominal model: {e}")))?;
+    crate::files::write(&file, text).map_err(write_error(&file))?;
     Ok(Nominal {
         model,
         written: NominalWritten {
@@ -903,24 +904,24 @@ fn nominal_model(arm: &Model, seed: u64, dir: &Path) -> Result<Nominal, String> 
 }
 
 /// `[controller]` with `key = file` added to its law's table.
-fn with_file(mut c: toml::Table, key: &str, file: &Path) -> Result<toml::Table, String> {
+fn with_file(mut c: toml::Table, key: &str, file: &Path) -> Result<toml::Table, StudyError> {
     let law = c.get("kind").and_then(|k| k.as_str()).map(str::to_owned);
-    let law = law.ok_or("built-in scenario: a controller without its kind")?;
+    let law = law.ok_or_else(|| StudyError::BuiltIn("a controller without its kind".into()))?;
     table(&mut c, &law)?.insert(key.into(), file.display().to_string().into());
     Ok(c)
 }
 
 /// A tracking scenario's text with identification alongside operation (`ONLINE`).
-fn identifying(text: &str) -> Result<String, String> {
+fn identifying(text: &str) -> Result<String, StudyError> {
     let mut t: toml::Table = text
         .parse()
-        .map_err(|e| format!("built-in scenario: {e}"))?;
+        .map_err(|e: toml::de::Error| StudyError::BuiltIn(e.to_string()))?;
     let o = table(&mut t, "optimiser")?;
     o.insert("mode".into(), "identify".into());
     for (k, v) in ONLINE {
         o.insert(k.into(), toml::Value::Float(v));
     }
-    toml::to_string(&t).map_err(|e| e.to_string())
+    toml::to_string(&t).map_err(|e| StudyError::BuiltIn(e.to_string()))
 }
 
 /// One seed's tracking: what every trajectory's runs share.
@@ -949,7 +950,7 @@ impl SeedRun<'_> {
         text: &str,
         reference: &crate::config::Scenario,
         tick: &(dyn Fn(&str) + Sync),
-    ) -> Result<Cell, String> {
+    ) -> Result<Cell, StudyError> {
         let (s, g, n) = (self.s, self.g, self.arm.dof());
         let models = self.models;
         // The controller refuses a model whose M-hat is not positive definite along the
@@ -1051,7 +1052,7 @@ impl SeedRun<'_> {
             Some(c) => {
                 let active = sims[c]
                     .law_column("fuzzy_model")
-                    .ok_or("fuzzy run logged no active model")?;
+                    .ok_or(StudyError::Data("fuzzy run logged no active model"))?;
                 let share = (0..models.len())
                     .map(|m| {
                         active
@@ -1140,22 +1141,25 @@ fn earlier_model(
     name: &str,
     settings: &Settings,
     velocity: JointVelocity,
-) -> Result<crate::rkgnn::RkgnnModel, String> {
+) -> Result<crate::rkgnn::RkgnnModel, StudyError> {
     let seed_dir = from.join(format!("seed{seed}"));
     let file = seed_dir.join(format!("model_{name}.json"));
     if !file.is_file() {
-        return Err(format!("no model in {}", file.display()));
+        return Err(StudyError::Setting(format!(
+            "no model in {}",
+            file.display()
+        )));
     }
     let training = seed_dir.join("scenarios").join(format!("{name}.toml"));
     let trained_on = training_velocity(&training)?;
     if trained_on != velocity.key() {
-        return Err(format!(
+        return Err(StudyError::Setting(format!(
             "{}: its training servo acted on velocity = \"{trained_on}\", this study's on \"{}\"",
             training.display(),
             velocity.key()
-        ));
+        )));
     }
-    let model = crate::rkgnn::RkgnnModel::load(&file).map_err(|e| e.to_string())?;
+    let model = crate::rkgnn::RkgnnModel::load(&file)?;
     let r = &model.report;
     let known = matches!(settings.servo, ServoPrior::Known { .. });
     let same = r.seed == settings.ea.seed
@@ -1164,7 +1168,7 @@ fn earlier_model(
         && std::mem::discriminant(&r.servo) == std::mem::discriminant(&settings.servo)
         && r.evaluations >= settings.evaluations;
     if !same {
-        return Err(format!(
+        return Err(StudyError::Setting(format!(
             "{}: identified otherwise (seed {}, {} start, {} evaluations, joints weighed: {}) \
              than this study asks",
             file.display(),
@@ -1172,7 +1176,7 @@ fn earlier_model(
             r.start.name(),
             r.evaluations,
             r.weighing().name()
-        ));
+        )));
     }
     Ok(model)
 }
@@ -1190,12 +1194,11 @@ fn same_weighing(setting: Weighing, r: &crate::rkgnn::model::Report) -> bool {
 
 /// The `velocity` key of a training run's servo as its scenario file says: "true" where the file
 /// has none (studies written before the scenarios' default became "filtered").
-fn training_velocity(scenario: &Path) -> Result<String, String> {
-    let text =
-        crate::files::read_text(scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
-    let t: toml::Table = text
-        .parse()
-        .map_err(|e| format!("{}: {e}", scenario.display()))?;
+fn training_velocity(scenario: &Path) -> Result<String, StudyError> {
+    let refused =
+        |e: &dyn std::fmt::Display| StudyError::Setting(format!("{}: {e}", scenario.display()));
+    let text = crate::files::read_text(scenario).map_err(|e| refused(&e))?;
+    let t: toml::Table = text.parse().map_err(|e| refused(&e))?;
     let servo = t.get("controller").and_then(|c| c.get("pd_servo"));
     Ok(servo
         .and_then(|s| s.get("velocity"))

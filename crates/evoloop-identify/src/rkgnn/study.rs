@@ -22,9 +22,10 @@ use crate::report::metrics::tracking;
 use crate::report::plot::{stacked_png, Panel, PlotError, Series};
 use crate::report::Csv;
 use crate::report::RunLog;
+use crate::rkgnn::error::write_error;
 use crate::rkgnn::identify::{self, Prior, Settings};
 use crate::rkgnn::model::Report;
-use crate::rkgnn::Trajectory;
+use crate::rkgnn::{StudyError, Trajectory};
 use crate::sim::{simulate, JointTraces, SimResult};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -225,20 +226,23 @@ pub(super) struct Case {
     pub(super) scenario: Scenario,
 }
 
-pub(super) fn table<'a>(t: &'a mut toml::Table, key: &str) -> Result<&'a mut toml::Table, String> {
+pub(super) fn table<'a>(
+    t: &'a mut toml::Table,
+    key: &str,
+) -> Result<&'a mut toml::Table, StudyError> {
     t.get_mut(key)
         .and_then(toml::Value::as_table_mut)
-        .ok_or_else(|| format!("built-in scenario: no table [{key}]"))
+        .ok_or_else(|| StudyError::BuiltIn(format!("no table [{key}]")))
 }
 
-pub(super) fn floats(v: &toml::Value) -> Result<Vec<f64>, String> {
+pub(super) fn floats(v: &toml::Value) -> Result<Vec<f64>, StudyError> {
     v.as_array()
         .and_then(|a| {
             a.iter()
                 .map(toml::Value::as_float)
                 .collect::<Option<Vec<_>>>()
         })
-        .ok_or_else(|| format!("built-in scenario: `{v}` is not a list of numbers"))
+        .ok_or_else(|| StudyError::BuiltIn(format!("`{v}` is not a list of numbers")))
 }
 
 pub(super) fn float_list(v: &[f64]) -> toml::Value {
@@ -255,16 +259,16 @@ pub(super) fn case(
     mut controller: toml::Table,
     velocity: JointVelocity,
     dir: &Path,
-) -> Result<Case, String> {
+) -> Result<Case, StudyError> {
     let kind = controller
         .get("kind")
         .and_then(|k| k.as_str())
         .map(str::to_owned);
-    let law = kind.ok_or("built-in scenario: a controller without its kind")?;
+    let law = kind.ok_or_else(|| StudyError::BuiltIn("a controller without its kind".into()))?;
     table(&mut controller, &law)?.insert("velocity".into(), velocity.key().into());
     let mut t: toml::Table = base
         .parse()
-        .map_err(|e| format!("built-in scenario: {e}"))?;
+        .map_err(|e: toml::de::Error| StudyError::BuiltIn(e.to_string()))?;
     t.insert("name".into(), format!("rkgnn_study_{name}").into());
     t.insert("seed".into(), toml::Value::Integer(seed as i64));
     let plant = table(&mut t, "plant")?;
@@ -274,11 +278,10 @@ pub(super) fn case(
         "dir".into(),
         dir.join("runs").join(name).display().to_string().into(),
     );
-    let text = toml::to_string(&t).map_err(|e| e.to_string())?;
+    let text = toml::to_string(&t).map_err(|e| StudyError::BuiltIn(e.to_string()))?;
     let path = dir.join("scenarios").join(format!("{name}.toml"));
-    let scenario =
-        Scenario::parse(&text, &path, &Overrides::default()).map_err(|e| e.to_string())?;
-    scenario.require_in_process().map_err(|e| e.to_string())?;
+    let scenario = Scenario::parse(&text, &path, &Overrides::default())?;
+    scenario.require_in_process()?;
     Ok(Case {
         name: name.to_string(),
         text,
@@ -307,12 +310,12 @@ pub(super) fn servo_prior(
 }
 
 /// Write each case's scenario file, so that it can be rerun through the processes.
-pub(super) fn write_scenarios(cases: &[Case]) -> Result<(), String> {
+pub(super) fn write_scenarios(cases: &[Case]) -> Result<(), StudyError> {
     for c in cases {
         let path = &c.scenario.source;
         std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")))
             .and_then(|_| crate::files::write(path, &c.text))
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+            .map_err(write_error(path))?;
     }
     Ok(())
 }
@@ -373,15 +376,16 @@ pub(super) struct Gains {
     pub(super) startup_rate: f64,
 }
 
-pub(super) fn gains() -> Result<Gains, String> {
-    let train: toml::Table = TRAIN1.parse().map_err(|e| format!("{e}"))?;
-    let new: toml::Table = NEW.parse().map_err(|e| format!("{e}"))?;
-    let get = |t: &toml::Table, law: &str, key: &str| -> Result<toml::Value, String> {
+pub(super) fn gains() -> Result<Gains, StudyError> {
+    let built_in = |e: toml::de::Error| StudyError::BuiltIn(e.to_string());
+    let train: toml::Table = TRAIN1.parse().map_err(built_in)?;
+    let new: toml::Table = NEW.parse().map_err(built_in)?;
+    let get = |t: &toml::Table, law: &str, key: &str| -> Result<toml::Value, StudyError> {
         t.get("controller")
             .and_then(|c| c.get(law))
             .and_then(|l| l.get(key))
             .cloned()
-            .ok_or_else(|| format!("built-in scenario: no controller.{law}.{key}"))
+            .ok_or_else(|| StudyError::BuiltIn(format!("no controller.{law}.{key}")))
     };
     let fct = "fuzzy_computed_torque";
     Ok(Gains {
@@ -395,7 +399,7 @@ pub(super) fn gains() -> Result<Gains, String> {
         ],
         startup_rate: get(&new, fct, "startup_rate")?
             .as_float()
-            .ok_or("built-in scenario: startup_rate is not a number")?,
+            .ok_or_else(|| StudyError::BuiltIn("startup_rate is not a number".into()))?,
     })
 }
 
@@ -433,23 +437,23 @@ pub(super) fn diagonal_mid(arm: &Model, qs: &[Vec<f64>]) -> Vec<f64> {
 }
 
 /// A study's arm (its absolute path and model), and the output directory created.
-pub(super) fn arm_of(robot: &Path, dir: &Path) -> Result<(PathBuf, Model), String> {
-    let robot = std::path::absolute(robot).map_err(|e| format!("{}: {e}", robot.display()))?;
-    let arm = crate::dynamics::load(&robot).map_err(|e| e.to_string())?;
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+pub(super) fn arm_of(robot: &Path, dir: &Path) -> Result<(PathBuf, Model), StudyError> {
+    let robot = std::path::absolute(robot).map_err(write_error(robot))?;
+    let arm = crate::dynamics::load(&robot)?;
+    std::fs::create_dir_all(dir).map_err(write_error(dir))?;
     Ok((robot, arm))
 }
 
 /// The study's arm as `arm_of`, refused unless it has `JOINTS` joints.
-pub(super) fn three_joint_arm(robot: &Path, dir: &Path) -> Result<(PathBuf, Model), String> {
+pub(super) fn three_joint_arm(robot: &Path, dir: &Path) -> Result<(PathBuf, Model), StudyError> {
     let (robot, arm) = arm_of(robot, dir)?;
     if arm.dof() != JOINTS {
-        return Err(format!(
+        return Err(StudyError::Arm(format!(
             "{}: the study's trajectories are for {JOINTS}-joint arms, this one has {} \
              (`evoloop rkgnn selection --robot FILE` builds trajectories for any arm)",
             robot.display(),
             arm.dof()
-        ));
+        )));
     }
     Ok((robot, arm))
 }
@@ -460,7 +464,7 @@ pub(super) fn simulate_all(
     cases: &[Case],
     threads: usize,
     done: &(dyn Fn() + Sync),
-) -> Result<Vec<SimResult>, String> {
+) -> Result<Vec<SimResult>, StudyError> {
     let one = |c: &Case| {
         // A case identifying alongside operation runs the optimiser's identification too.
         let r = match c.scenario.optimiser.mode {
@@ -470,7 +474,10 @@ pub(super) fn simulate_all(
             _ => Ok(simulate(&c.scenario)),
         };
         done();
-        r.map_err(|e| format!("{}: {e}", c.name))
+        r.map_err(|source| StudyError::Run {
+            case: c.name.clone(),
+            source,
+        })
     };
     // Work-stealing rather than one fixed share per thread: a case identifying alongside
     // operation costs several times a frozen one, and a fixed share left a core idle.
@@ -483,7 +490,7 @@ pub(super) fn simulate_all(
 pub(super) trait StudyTraces {
     fn rms(&self) -> Vec<f64>;
     fn error(&self, j: usize) -> Vec<f64>;
-    fn write_csv(&self, sim: &SimResult, path: &Path) -> Result<(), String>;
+    fn write_csv(&self, sim: &SimResult, path: &Path) -> Result<(), StudyError>;
 }
 
 impl StudyTraces for JointTraces {
@@ -501,7 +508,7 @@ impl StudyTraces for JointTraces {
     }
 
     /// run CSV: t, r*, y*, u*, then the law's own columns.
-    fn write_csv(&self, sim: &SimResult, path: &Path) -> Result<(), String> {
+    fn write_csv(&self, sim: &SimResult, path: &Path) -> Result<(), StudyError> {
         let mut header = vec!["t".to_string()];
         for p in ["r", "y", "u"] {
             header.extend((0..JOINTS).map(|j| format!("{p}{j}")));
@@ -518,8 +525,7 @@ impl StudyTraces for JointTraces {
             row.extend_from_slice(sim.law_values(i));
             log.push(&row);
         }
-        log.write_csv(path)
-            .map_err(|e| format!("{}: {e}", path.display()))
+        log.write_csv(path).map_err(write_error(path))
     }
 }
 
@@ -528,7 +534,7 @@ pub fn run(
     s: &StudySettings,
     dir: &Path,
     progress: &(dyn Fn(u64, u64, &str) + Sync),
-) -> Result<StudyResult, String> {
+) -> Result<StudyResult, StudyError> {
     let t0 = std::time::Instant::now();
     let (robot, arm) = three_joint_arm(&s.robot, dir)?;
     let g = gains()?;
@@ -548,9 +554,8 @@ pub fn run(
     let probes = [probe(TRAIN1)?, probe(TRAIN2)?, probe(NEW)?];
     let qs = trajectory_positions(&probes.iter().map(|c| &c.scenario).collect::<Vec<_>>());
     // Each probe's scenario was refused above (`case`) if its reference leaves a joint limit.
-    let arm3 = crate::dynamics::dh::parse_with(ARM3, Path::new("arm3.toml"), &Default::default())
-        .map_err(|e| e.to_string())?
-        .model;
+    let arm3 =
+        crate::dynamics::dh::parse_with(ARM3, Path::new("arm3.toml"), &Default::default())?.model;
     let ratio: Vec<f64> = diagonal_mid(&arm, &qs)
         .iter()
         .zip(diagonal_mid(&arm3, &qs))
@@ -649,7 +654,7 @@ fn identify_each(
     along: &[Vec<f64>],
     dir: &Path,
     tick: &(dyn Fn(&str) + Sync),
-) -> Result<(Vec<PathBuf>, Vec<ModelSummary>, IdentificationInputs), String> {
+) -> Result<(Vec<PathBuf>, Vec<ModelSummary>, IdentificationInputs), StudyError> {
     let mut models = Vec::new();
     let mut summaries = Vec::new();
     let mut inputs = None;
@@ -673,7 +678,7 @@ fn identify_each(
             |_, _| {},
         )?;
         let file = dir.join(format!("model_{}.json", k + 1));
-        model.save(&file).map_err(|e| e.to_string())?;
+        model.save(&file)?;
         let on_reference = model.min_eig(along.iter().map(Vec::as_slice));
         summaries.push(ModelSummary::of(
             file.clone(),
@@ -698,7 +703,11 @@ fn identify_each(
         models.push(file);
         tick("identification");
     }
-    Ok((models, summaries, inputs.ok_or("no training run")?))
+    Ok((
+        models,
+        summaries,
+        inputs.ok_or(StudyError::Data("no training run"))?,
+    ))
 }
 
 /// Each case's traces per joint, written as runs/NAME.csv.
@@ -706,14 +715,14 @@ fn traces_written(
     cases: &[Case],
     sims: &[SimResult],
     dir: &Path,
-) -> Result<Vec<JointTraces>, String> {
+) -> Result<Vec<JointTraces>, StudyError> {
     let traces: Vec<JointTraces> = cases
         .iter()
         .zip(sims)
         .map(|(c, sim)| JointTraces::of(sim, &c.scenario.reference, JOINTS))
         .collect();
     let runs = dir.join("runs");
-    std::fs::create_dir_all(&runs).map_err(|e| format!("{}: {e}", runs.display()))?;
+    std::fs::create_dir_all(&runs).map_err(write_error(&runs))?;
     for ((c, sim), tr) in cases.iter().zip(sims).zip(&traces) {
         tr.write_csv(sim, &runs.join(format!("{}.csv", c.name)))?;
     }
@@ -722,13 +731,13 @@ fn traces_written(
 
 /// How long fuzzy selection kept each of the two models active, and the range of model 0's
 /// membership, from the fuzzy run's law columns.
-fn fuzzy_usage(sim: &SimResult) -> Result<(Vec<f64>, [f64; 2]), String> {
+fn fuzzy_usage(sim: &SimResult) -> Result<(Vec<f64>, [f64; 2]), StudyError> {
     let active = sim
         .law_column("fuzzy_model")
-        .ok_or("fuzzy run logged no active model")?;
+        .ok_or(StudyError::Data("fuzzy run logged no active model"))?;
     let membership_range = sim
         .law_column("fuzzy_w0")
-        .ok_or("fuzzy run logged no memberships")?
+        .ok_or(StudyError::Data("fuzzy run logged no memberships"))?
         .iter()
         .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], w| {
             [lo.min(*w), hi.max(*w)]
@@ -739,10 +748,6 @@ fn fuzzy_usage(sim: &SimResult) -> Result<(Vec<f64>, [f64; 2]), String> {
         })
         .collect();
     Ok((share, membership_range))
-}
-
-fn io(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
-    move |e| format!("{}: {e}", path.display())
 }
 
 fn overall(v: &[f64]) -> f64 {
@@ -756,17 +761,18 @@ fn write_outputs(
     cases: &[Case],
     traces: &[JointTraces],
     fuzzy: &SimResult,
-) -> Result<(), String> {
-    crate::report::write_json(dir, "study.json", r).map_err(io(&dir.join("study.json")))?;
+) -> Result<(), StudyError> {
+    crate::report::write_json(dir, "study.json", r)
+        .map_err(write_error(&dir.join("study.json")))?;
     let mut csv = Csv::new(["controller", "joint1", "joint2", "joint3", "overall"]);
     for (key, _, v) in r.tracking_rms.entries() {
         csv.row().put(key).all(&v[..3]).put(overall(v));
     }
     let p = dir.join("tracking_rms.csv");
-    csv.write(&p).map_err(io(&p))?;
+    csv.write(&p).map_err(write_error(&p))?;
     let p = dir.join("report.md");
-    crate::files::write(&p, report_markdown(r)).map_err(io(&p))?;
-    figures(dir, cases, traces, fuzzy).map_err(|e| e.to_string())
+    crate::files::write(&p, report_markdown(r)).map_err(write_error(&p))?;
+    Ok(figures(dir, cases, traces, fuzzy)?)
 }
 
 /// The report's sentences, each from this run's numbers.

@@ -196,9 +196,10 @@ pub fn report_markdown(z: &ZooResult) -> String {
 }
 
 /// zoo.json and zoo.md into `dir`.
-pub fn write(dir: &std::path::Path, z: &ZooResult) -> Result<(), String> {
+pub fn write(dir: &std::path::Path, z: &ZooResult) -> Result<(), evoloop_schemes::WriteError> {
+    use evoloop_schemes::WriteError;
     crate::report::write_json(dir, "zoo.json", z)
-        .map_err(|e| format!("{}: {e}", dir.join("zoo.json").display()))?;
+        .map_err(WriteError::file(&dir.join("zoo.json")))?;
     let md = dir.join("zoo.md");
-    crate::files::write(&md, report_markdown(z)).map_err(|e| format!("{}: {e}", md.display()))
+    crate::files::write(&md, report_markdown(z)).map_err(WriteError::file(&md))
 }

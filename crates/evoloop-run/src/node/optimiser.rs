@@ -216,7 +216,8 @@ impl<'a> Serve<'a> {
             serve.indirect = Some(ind);
         }
         if mode == OptimiserMode::Identify {
-            let mut l = crate::rkgnn::live::LiveIdentify::new(scn).map_err(Failure::Setup)?;
+            let mut l = crate::rkgnn::live::LiveIdentify::new(scn)
+                .map_err(|e| Failure::Setup(e.to_string()))?;
             if let Some((version, values)) = last() {
                 l.resume(version, &values);
             }
