@@ -7,7 +7,7 @@
 //! states and commands are relayed in order, every one (a remote optimiser's estimator counts
 //! gaps), telemetry as it comes.
 
-use super::{key, open, wire, Endpoint, POLL};
+use super::{key, open, wire, Endpoint, NetError, POLL};
 use crate::ipc::{Ipc, IpcError, Pub, Sub, Topic};
 use crate::msg::{
     Command, ModelEstimate, OptimiserStatus, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
@@ -33,11 +33,9 @@ pub(crate) struct Out<T: Debug + ZeroCopySend + Copy + 'static> {
 }
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> Out<T> {
-    pub fn new(ipc: &Ipc, z: &zenoh::Session, topic: Topic, key: String) -> Result<Self, String> {
+    pub fn new(ipc: &Ipc, z: &zenoh::Session, topic: Topic, key: String) -> Result<Self, NetError> {
         Ok(Self {
-            sub: ipc
-                .subscriber(topic, topic.max_buffer(), false)
-                .map_err(ipc_err)?,
+            sub: ipc.subscriber(topic, topic.max_buffer(), false)?,
             // A parameter set must not be dropped (the sender's version numbering goes on
             // from it); the streams may be, rather than hold up the relay.
             net: publisher(
@@ -53,13 +51,16 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Out<T> {
     }
 
     /// Relay what is waiting; calls `seen` on each sample. Returns how many went out.
-    pub fn drain(&self, mut seen: impl FnMut(&T)) -> Result<u64, String> {
+    pub fn drain(&self, mut seen: impl FnMut(&T)) -> Result<u64, NetError> {
         let mut n = 0;
-        while let Some(v) = self.sub.next().map_err(ipc_err)? {
+        while let Some(v) = self.sub.next()? {
             self.net
                 .put(wire::encode(&v))
                 .wait()
-                .map_err(|e| format!("Zenoh put on {}: {e}", self.net.key_expr()))?;
+                .map_err(NetError::zenoh(format!(
+                    "Zenoh put on {}",
+                    self.net.key_expr()
+                )))?;
             seen(&v);
             n += 1;
         }
@@ -80,17 +81,17 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> In<T> {
         key: String,
         topic: Topic,
         wake: bool,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, NetError> {
         Ok(Self {
             net: subscriber(z, key)?,
-            publ: ipc.publisher(topic, wake).map_err(ipc_err)?,
+            publ: ipc.publisher(topic, wake)?,
         })
     }
 
     /// Publish what has arrived, after waiting up to `wait` for the first message. A message
     /// of another layout is dropped and counted in `refused`. Returns how many went in.
-    pub fn drain(&self, wait: Duration, refused: &mut u64) -> Result<u64, String> {
-        let err = |e: zenoh::Error| format!("Zenoh receive on {}: {e}", self.net.key_expr());
+    pub fn drain(&self, wait: Duration, refused: &mut u64) -> Result<u64, NetError> {
+        let err = |e| NetError::zenoh(format!("Zenoh receive on {}", self.net.key_expr()))(e);
         let mut next = if wait.is_zero() {
             self.net.try_recv().map_err(err)?
         } else {
@@ -100,7 +101,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> In<T> {
         while let Some(s) = next {
             match wire::decode::<T>(&s.payload().to_bytes()) {
                 Ok(v) => {
-                    self.publ.send(&v).map_err(ipc_err)?;
+                    self.publ.send(&v)?;
                     n += 1;
                 }
                 Err(e) => {
@@ -122,11 +123,11 @@ pub fn publisher(
     z: &zenoh::Session,
     key: String,
     cc: CongestionControl,
-) -> Result<Publisher<'static>, String> {
+) -> Result<Publisher<'static>, NetError> {
     z.declare_publisher(key.clone())
         .congestion_control(cc)
         .wait()
-        .map_err(|e| format!("Zenoh publisher on {key}: {e}"))
+        .map_err(NetError::zenoh(format!("Zenoh publisher on {key}")))
 }
 
 /// A Zenoh subscriber on `key` whose queue holds 4096 samples (0.4 s of a 10 kHz run's states);
@@ -134,11 +135,11 @@ pub fn publisher(
 pub fn subscriber(
     z: &zenoh::Session,
     key: String,
-) -> Result<Subscriber<FifoChannelHandler<Sample>>, String> {
+) -> Result<Subscriber<FifoChannelHandler<Sample>>, NetError> {
     z.declare_subscriber(key.clone())
         .with(FifoChannel::new(NET_QUEUE))
         .wait()
-        .map_err(|e| format!("Zenoh subscriber on {key}: {e}"))
+        .map_err(NetError::zenoh(format!("Zenoh subscriber on {key}")))
 }
 
 /// An iceoryx2 error as this crate's `String` errors.
@@ -201,10 +202,10 @@ pub fn run(
     duration: Option<Duration>,
     ros: Option<Ros2Bridge>,
     stop: &AtomicBool,
-) -> Result<BridgeReport, String> {
+) -> Result<BridgeReport, NetError> {
     let z = open(ep, config)?;
     // No clean-up of dead nodes from here: the bridge changes nothing of the run's.
-    let ipc = Ipc::with_cleanup("evoloop-bridge", run_id, prefix, false).map_err(ipc_err)?;
+    let ipc = Ipc::with_cleanup("evoloop-bridge", run_id, prefix, false)?;
     let mut ros = match ros {
         Some(r) => Some(super::ros2::Ros2Node::new(&z, &ipc, r.scenario, &r.name)?),
         None => None,

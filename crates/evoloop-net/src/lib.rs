@@ -45,12 +45,14 @@ extern crate evoloop_scenario;
 pub mod bench;
 pub mod bridge;
 pub mod cli;
+mod error;
 mod hooks;
 pub mod mirror;
 pub mod ros2;
 pub mod wire;
 pub mod workers;
 
+pub use error::NetError;
 use std::path::Path;
 use std::time::Duration;
 use zenoh::Wait;
@@ -81,15 +83,19 @@ pub enum Endpoint {
 
 /// Open a Zenoh session in peer mode on `ep` alone: scouting off (nothing discovered, nothing
 /// announced), the configuration file's settings (TLS, access control) first when given.
-pub fn open(ep: &Endpoint, config_file: Option<&Path>) -> Result<zenoh::Session, String> {
+pub fn open(ep: &Endpoint, config_file: Option<&Path>) -> Result<zenoh::Session, NetError> {
     let mut cfg = match config_file {
-        Some(p) => zenoh::Config::from_file(p)
-            .map_err(|e| format!("{}: not a Zenoh configuration: {e}", p.display()))?,
+        Some(p) => zenoh::Config::from_file(p).map_err(|source| NetError::ConfigFile {
+            file: p.to_path_buf(),
+            source,
+        })?,
         None => zenoh::Config::default(),
     };
     let set = |cfg: &mut zenoh::Config, key: &str, value: &str| {
         cfg.insert_json5(key, value)
-            .map_err(|e| format!("Zenoh configuration {key} = {value}: {e}"))
+            .map_err(NetError::zenoh(format!(
+                "Zenoh configuration {key} = {value}"
+            )))
     };
     set(&mut cfg, "mode", "\"peer\"")?;
     set(&mut cfg, "scouting/multicast/enabled", "false")?;
@@ -106,9 +112,9 @@ pub fn open(ep: &Endpoint, config_file: Option<&Path>) -> Result<zenoh::Session,
         set(&mut cfg, "connect/timeout_ms", "-1")?;
         set(&mut cfg, "connect/exit_on_failure", "false")?;
     }
-    zenoh::open(cfg)
-        .wait()
-        .map_err(|e| format!("opening a Zenoh session on {endpoint}: {e}"))
+    zenoh::open(cfg).wait().map_err(NetError::zenoh(format!(
+        "opening a Zenoh session on {endpoint}"
+    )))
 }
 
 /// The Zenoh key of `topic` of run `run_id` (see the module docs for `remote`).

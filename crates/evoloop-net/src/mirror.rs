@@ -118,22 +118,31 @@ impl Ports {
         ep: &Endpoint,
         config: Option<&std::path::Path>,
     ) -> Result<Self, String> {
-        let z = open(ep, config)?;
+        let z = open(ep, config).map_err(|e| e.to_string())?;
         let ipc = Ipc::new("evoloop-mirror", run_id, prefix).map_err(ipc_err)?;
         let k = |t: Topic| key(run_id, t, false);
         let kr = |t: Topic| key(run_id, t, true);
         Ok(Self {
             // The optimiser blocks on the state's event: wake it with each state.
-            state: In::new(&ipc, &z, k(Topic::State), Topic::State, true)?,
+            state: In::new(&ipc, &z, k(Topic::State), Topic::State, true)
+                .map_err(|e| e.to_string())?,
             // The direct scheme blocks on the command's event.
-            command: In::new(&ipc, &z, k(Topic::Command), Topic::Command, true)?,
-            telemetry: In::new(&ipc, &z, k(Topic::Telemetry), Topic::Telemetry, false)?,
-            params: Out::new(&ipc, &z, Topic::Params, k(Topic::Params))?,
-            estimate: Out::new(&ipc, &z, Topic::Estimate, kr(Topic::Estimate))?,
-            estimate_linear: Out::new(&ipc, &z, Topic::LinearEstimate, kr(Topic::LinearEstimate))?,
-            status: Out::new(&ipc, &z, Topic::OptimiserStatus, kr(Topic::OptimiserStatus))?,
-            operator: In::new(&ipc, &z, k(Topic::Operator), Topic::Operator, false)?,
-            operator_ack: Out::new(&ipc, &z, Topic::OperatorAck, kr(Topic::OperatorAck))?,
+            command: In::new(&ipc, &z, k(Topic::Command), Topic::Command, true)
+                .map_err(|e| e.to_string())?,
+            telemetry: In::new(&ipc, &z, k(Topic::Telemetry), Topic::Telemetry, false)
+                .map_err(|e| e.to_string())?,
+            params: Out::new(&ipc, &z, Topic::Params, k(Topic::Params))
+                .map_err(|e| e.to_string())?,
+            estimate: Out::new(&ipc, &z, Topic::Estimate, kr(Topic::Estimate))
+                .map_err(|e| e.to_string())?,
+            estimate_linear: Out::new(&ipc, &z, Topic::LinearEstimate, kr(Topic::LinearEstimate))
+                .map_err(|e| e.to_string())?,
+            status: Out::new(&ipc, &z, Topic::OptimiserStatus, kr(Topic::OptimiserStatus))
+                .map_err(|e| e.to_string())?,
+            operator: In::new(&ipc, &z, k(Topic::Operator), Topic::Operator, false)
+                .map_err(|e| e.to_string())?,
+            operator_ack: Out::new(&ipc, &z, Topic::OperatorAck, kr(Topic::OperatorAck))
+                .map_err(|e| e.to_string())?,
             _z: z,
         })
     }
@@ -144,22 +153,40 @@ impl Ports {
         while !stop.load(Ordering::Relaxed) {
             // Commands before the state they answer follows: the optimiser reads commands up to
             // each state it takes. Waiting for the next state paces the loop.
-            rep.commands_in += self.command.drain(none, &mut rep.refused)?;
-            rep.states_in += self.state.drain(POLL, &mut rep.refused)?;
-            rep.telemetry_in += self.telemetry.drain(none, &mut rep.refused)?;
-            rep.params_out += self.params.drain(|_| {})?;
-            rep.estimates_out += self.estimate.drain(|_| {})?;
-            rep.estimates_out += self.estimate_linear.drain(|_| {})?;
-            self.status.drain(|_| {})?;
-            rep.operator_in += self.operator.drain(none, &mut rep.refused)?;
-            rep.operator_acks_out += self.operator_ack.drain(|_| {})?;
+            rep.commands_in += self
+                .command
+                .drain(none, &mut rep.refused)
+                .map_err(|e| e.to_string())?;
+            rep.states_in += self
+                .state
+                .drain(POLL, &mut rep.refused)
+                .map_err(|e| e.to_string())?;
+            rep.telemetry_in += self
+                .telemetry
+                .drain(none, &mut rep.refused)
+                .map_err(|e| e.to_string())?;
+            rep.params_out += self.params.drain(|_| {}).map_err(|e| e.to_string())?;
+            rep.estimates_out += self.estimate.drain(|_| {}).map_err(|e| e.to_string())?;
+            rep.estimates_out += self
+                .estimate_linear
+                .drain(|_| {})
+                .map_err(|e| e.to_string())?;
+            self.status.drain(|_| {}).map_err(|e| e.to_string())?;
+            rep.operator_in += self
+                .operator
+                .drain(none, &mut rep.refused)
+                .map_err(|e| e.to_string())?;
+            rep.operator_acks_out += self.operator_ack.drain(|_| {}).map_err(|e| e.to_string())?;
         }
         // What the optimiser published last.
-        rep.params_out += self.params.drain(|_| {})?;
-        rep.estimates_out += self.estimate.drain(|_| {})?;
-        rep.estimates_out += self.estimate_linear.drain(|_| {})?;
+        rep.params_out += self.params.drain(|_| {}).map_err(|e| e.to_string())?;
+        rep.estimates_out += self.estimate.drain(|_| {}).map_err(|e| e.to_string())?;
+        rep.estimates_out += self
+            .estimate_linear
+            .drain(|_| {})
+            .map_err(|e| e.to_string())?;
         // The answers to commands the run's end stopped.
-        rep.operator_acks_out += self.operator_ack.drain(|_| {})?;
+        rep.operator_acks_out += self.operator_ack.drain(|_| {}).map_err(|e| e.to_string())?;
         Ok(rep)
     }
 }

@@ -19,12 +19,12 @@
 //! publisher of any type hash (the type's name must be `Float64MultiArray`'s and the message
 //! must read as one): some ROS 2 libraries on Zenoh do not compute hashes.
 
-use super::bridge::ipc_err;
 use crate::config::Scenario;
 use crate::gains::{Answer, Gains};
 use crate::ipc::{Ipc, Sub, Topic};
 use crate::msg::{Command, ParamSet, PlantState, Telemetry, MAX_PARAMS};
 use crate::report::ros2::{self, rmw_zenoh as rz, MessageType};
+use crate::NetError;
 use std::time::{Duration, Instant, SystemTime};
 use zenoh::handlers::{FifoChannel, FifoChannelHandler};
 use zenoh::liveliness::LivelinessToken;
@@ -92,11 +92,11 @@ pub struct Ros2Node {
 /// How often `gains` is published when nothing changes (a late subscriber hears it soon).
 const GAINS_EVERY: Duration = Duration::from_secs(1);
 
-fn token(z: &zenoh::Session, key: String) -> Result<LivelinessToken, String> {
+fn token(z: &zenoh::Session, key: String) -> Result<LivelinessToken, NetError> {
     z.liveliness()
         .declare_token(key.clone())
         .wait()
-        .map_err(|e| format!("Zenoh liveliness token {key}: {e}"))
+        .map_err(NetError::zenoh(format!("Zenoh liveliness token {key}")))
 }
 
 impl Ros2Node {
@@ -108,7 +108,7 @@ impl Ros2Node {
         ipc: &Ipc,
         scn: &Scenario,
         name: &rz::NodeName,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, NetError> {
         let me = rz::Node {
             name: name.clone(),
             zid: z.zid().to_string(),
@@ -118,8 +118,8 @@ impl Ros2Node {
         let mut next_id = 0u64;
         let mut entity = |topic: &str, ty: &MessageType, kind, qos| {
             next_id += 1;
-            let fq = name.topic(topic).map_err(|e| e.to_string())?;
-            Ok::<_, String>(me.entity(next_id, kind, &fq, ty, qos))
+            let fq = name.topic(topic)?;
+            Ok::<_, NetError>(me.entity(next_id, kind, &fq, ty, qos))
         };
         let stream = rz::Qos::BestEffort { depth: 10 };
         let reliable = rz::Qos::Reliable { depth: 10 };
@@ -129,7 +129,7 @@ impl Ros2Node {
                 rz::Qos::BestEffort { .. } => CongestionControl::Drop,
                 rz::Qos::Reliable { .. } => CongestionControl::Block,
             };
-            Ok::<_, String>(RosPub {
+            Ok::<_, NetError>(RosPub {
                 net: super::bridge::publisher(z, e.key, cc)?,
                 gid: rz::gid(&e.token),
                 _token: token(z, e.token)?,
@@ -163,7 +163,7 @@ impl Ros2Node {
             .declare_subscriber(any_hash.clone())
             .with(FifoChannel::new(64))
             .wait()
-            .map_err(|e| format!("Zenoh subscriber on {any_hash}: {e}"))?;
+            .map_err(NetError::zenoh(format!("Zenoh subscriber on {any_hash}")))?;
         Ok(Self {
             _node: node,
             joint_states,
@@ -175,10 +175,8 @@ impl Ros2Node {
             result,
             set_gains,
             _set_gains_token: token(z, e.token)?,
-            params: ipc
-                .subscriber(Topic::Params, Topic::Params.max_buffer(), false)
-                .map_err(ipc_err)?,
-            gains: Gains::new(ipc, scn, "ROS 2 `set_gains`").map_err(ipc_err)?,
+            params: ipc.subscriber(Topic::Params, Topic::Params.max_buffer(), false)?,
+            gains: Gains::new(ipc, scn, "ROS 2 `set_gains`")?,
             joints,
             buf: Vec::with_capacity(4096),
             gains_published: None,

@@ -48,31 +48,82 @@ pub fn encode<T: ZeroCopySend + Copy>(value: &T) -> Vec<u8> {
     out
 }
 
+/// Why bytes from the network are not a message of this build.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum WireError {
+    /// No evoloop header (another program's message on the key).
+    NoHeader {
+        /// The type expected.
+        expected: &'static str,
+    },
+    /// The header is cut short.
+    CutShort {
+        /// The type expected.
+        expected: &'static str,
+    },
+    /// The sender's message is of another type.
+    Type {
+        /// The type expected.
+        expected: &'static str,
+        /// The sender's.
+        theirs: String,
+    },
+    /// The same type, another size (another build's layout).
+    Size {
+        /// The type expected.
+        expected: &'static str,
+        /// The payload's bytes.
+        theirs: usize,
+        /// This build's.
+        ours: usize,
+    },
+}
+
+impl std::fmt::Display for WireError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            WireError::NoHeader { expected } => write!(f, "not a {expected}: no evoloop header"),
+            WireError::CutShort { expected } => write!(f, "not a {expected}: header cut short"),
+            WireError::Type { expected, theirs } => {
+                write!(f, "not a {expected}: the sender's type is {theirs:?}")
+            }
+            WireError::Size {
+                expected,
+                theirs,
+                ours,
+            } => write!(
+                f,
+                "not a {expected}: {theirs} bytes where this build has {ours}"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for WireError {}
+
 /// The message in `bytes`, or why it is not a `T` of this build.
-pub fn decode<T: ZeroCopySend + Copy>(bytes: &[u8]) -> Result<T, String> {
-    let name = type_name::<T>();
+pub fn decode<T: ZeroCopySend + Copy>(bytes: &[u8]) -> Result<T, WireError> {
+    let expected = type_name::<T>();
     let size = std::mem::size_of::<T>();
-    let bad = |why: String| Err(format!("not a {name}: {why}"));
     if bytes.len() < 9 || &bytes[..4] != MAGIC {
-        return bad("no evoloop header".into());
+        return Err(WireError::NoHeader { expected });
     }
     let their_size = u32::from_le_bytes(bytes[4..8].try_into().expect("4 bytes")) as usize;
     let n = bytes[8] as usize;
     let Some(their_name) = bytes.get(9..9 + n) else {
-        return bad("header cut short".into());
+        return Err(WireError::CutShort { expected });
     };
-    if their_name != name.as_bytes() {
-        return bad(format!(
-            "the sender's type is {:?}",
-            String::from_utf8_lossy(their_name)
-        ));
+    if their_name != expected.as_bytes() {
+        let theirs = String::from_utf8_lossy(their_name).into_owned();
+        return Err(WireError::Type { expected, theirs });
     }
     let payload = &bytes[9 + n..];
     if their_size != size || payload.len() != size {
-        return bad(format!(
-            "{} bytes where this build has {size}",
-            payload.len()
-        ));
+        return Err(WireError::Size {
+            expected,
+            theirs: payload.len(),
+            ours: size,
+        });
     }
     // SAFETY: exactly size_of::<T>() bytes; every bit pattern is a valid T (fields are u64,
     // u32 and f64 only); read_unaligned because a network buffer has no alignment.

@@ -141,7 +141,7 @@ pub fn install(
 impl ZenohWorkers {
     /// Open the optimiser's session on `ep` and follow the workers' tokens.
     pub fn start(ep: &Endpoint, zenoh_config: Option<&Path>) -> Result<Self, String> {
-        let session = super::open(ep, zenoh_config)?;
+        let session = super::open(ep, zenoh_config).map_err(|e| e.to_string())?;
         let live: Shared<BTreeMap<String, Slot>> = Default::default();
         let stats: Shared<BTreeMap<String, WorkerStats>> = Default::default();
         let other_builds: Shared<BTreeSet<String>> = Default::default();
@@ -376,7 +376,7 @@ pub fn serve(
     duration: Option<Duration>,
     stop: &AtomicBool,
 ) -> Result<WorkerReport, String> {
-    let session = super::open(ep, zenoh_config)?;
+    let session = super::open(ep, zenoh_config).map_err(|e| e.to_string())?;
     let queryable = session
         .declare_queryable(format!("{EVAL}/{id}"))
         .wait()

@@ -215,7 +215,9 @@ fn recv<T: iceoryx2::prelude::ZeroCopySend + Copy>(
     sub: &Subscriber<FifoChannelHandler<Sample>>,
 ) -> Result<Option<T>, String> {
     match sub.try_recv().map_err(|e| e.to_string())? {
-        Some(s) => wire::decode(&s.payload().to_bytes()).map(Some),
+        Some(s) => wire::decode(&s.payload().to_bytes())
+            .map(Some)
+            .map_err(|e| e.to_string()),
         None => Ok(None),
     }
 }
@@ -274,13 +276,15 @@ fn measure(
             crate::bridge::run(&run_id, &prefix, &ep, None, None, None, &stop)
         })
     };
-    let z = open(&Endpoint::Connect(ep), None)?;
-    let zt = crate::bridge::subscriber(&z, key(run_id, Topic::Telemetry, false))?;
+    let z = open(&Endpoint::Connect(ep), None).map_err(|e| e.to_string())?;
+    let zt = crate::bridge::subscriber(&z, key(run_id, Topic::Telemetry, false))
+        .map_err(|e| e.to_string())?;
     let zp = crate::bridge::publisher(
         &z,
         key(run_id, Topic::Params, false),
         zenoh::qos::CongestionControl::Block,
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     first(|| recv::<Telemetry>(&zt), "no telemetry through the bridge")?;
     let through = trips.run(
         sets,
@@ -288,13 +292,15 @@ fn measure(
         || recv(&zt),
     )?;
     let state_bridge = {
-        let zs = crate::bridge::subscriber(&z, key(run_id, Topic::State, false))?;
+        let zs = crate::bridge::subscriber(&z, key(run_id, Topic::State, false))
+            .map_err(|e| e.to_string())?;
         state_ages(|| recv(&zs))?
     };
     stop.store(true, Ordering::SeqCst);
     let report = bridge
         .join()
-        .map_err(|_| "the bridge thread panicked".to_string())??;
+        .map_err(|_| "the bridge thread panicked".to_string())?
+        .map_err(|e| e.to_string())?;
     drop((zt, zp, z));
     let local_again = local(&mut trips)?;
     Ok(Phases {
