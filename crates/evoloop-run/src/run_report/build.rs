@@ -8,14 +8,89 @@ use crate::config::{OptimiserMode, Scenario};
 use crate::msg::ParamCode;
 use crate::msg::MAX_JOINTS;
 use crate::report::metrics::{ResponseAcc, TrackingAcc};
+use crate::report::plot::PlotError;
 use crate::report::plot::{two_panel_png, Panel, Series};
 use crate::report::scan::{Extent, PlotColumns, Rows};
 use crate::report::Csv;
 use crate::report::Outcome;
+use crate::report::ReadJsonError;
 use crate::sim::cost::TrackingCost;
 use crate::sim::JointTraces;
+use evoloop_schemes::WriteError;
 use std::collections::VecDeque;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// Why a run's report (`build_report`) could not be made.
+#[derive(Debug)]
+pub enum ReportError {
+    /// The controller's report (controller.json) cannot be read.
+    Inputs(ReadJsonError),
+    /// run.csv cannot be read.
+    RunCsv {
+        /// The file.
+        file: PathBuf,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// run.csv lacks a column the report reads.
+    Column {
+        /// The file.
+        file: PathBuf,
+        /// The column.
+        name: String,
+    },
+    /// A table or figure could not be written.
+    Write(WriteError),
+}
+
+impl std::fmt::Display for ReportError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ReportError::Inputs(e) => e.fmt(f),
+            ReportError::RunCsv { file, source } => {
+                // evoloop_files' refusals name the file; a bare system error does not.
+                let (p, message) = (file.display().to_string(), source.to_string());
+                if message.contains(&p) {
+                    f.write_str(&message)
+                } else {
+                    write!(f, "{p}: {message}")
+                }
+            }
+            ReportError::Column { file, name } => {
+                write!(f, "{}: no column {name:?}", file.display())
+            }
+            ReportError::Write(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for ReportError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ReportError::Inputs(e) => e.source(),
+            ReportError::RunCsv { source, .. } => Some(source),
+            ReportError::Column { .. } => None,
+            ReportError::Write(e) => e.source(),
+        }
+    }
+}
+
+impl From<WriteError> for ReportError {
+    fn from(e: WriteError) -> Self {
+        ReportError::Write(e)
+    }
+}
+
+impl From<PlotError> for ReportError {
+    fn from(e: PlotError) -> Self {
+        ReportError::Write(WriteError::Figure(e))
+    }
+}
+
+/// `source` on writing `path`, for `map_err`.
+fn write_error(path: &Path) -> impl FnOnce(std::io::Error) -> ReportError + '_ {
+    move |e| ReportError::Write(WriteError::file(path)(e))
+}
 
 /// Cost per repetition of a repeating (square-wave) reference, one sample at a time:
 /// (start, end, sum |e| + w sum |u|) over each whole period.
@@ -257,13 +332,18 @@ struct RunPlot {
 /// Read run.csv twice, a row at a time: its extent, then every metric and the plot columns.
 /// Memory is bounded whatever the run's length (the repetitions and windows aside, a few
 /// numbers per second of the run).
-fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, String> {
-    let err = |e: std::io::Error| e.to_string();
+fn scan_run(scn: &Scenario, path: &Path) -> Result<Scan, ReportError> {
+    let err = |source| ReportError::RunCsv {
+        file: path.to_path_buf(),
+        source,
+    };
     let extent = Extent::of(path).map_err(err)?;
     let mut rows = Rows::open(path).map_err(err)?;
     let column = |name: &str| {
-        rows.index(name)
-            .ok_or_else(|| format!("{}: no column {name:?}", path.display()))
+        rows.index(name).ok_or_else(|| ReportError::Column {
+            file: path.to_path_buf(),
+            name: name.to_string(),
+        })
     };
     let (ti, ri) = (column("t")?, column("reference")?);
     // Joint i's reference: `reference` for joint 0, then r1, r2, ... for trajectories.
@@ -408,9 +488,9 @@ struct Inputs {
     opt: OptimiserReport,
 }
 
-fn read_inputs(dir: &Path) -> Result<Inputs, String> {
+fn read_inputs(dir: &Path) -> Result<Inputs, ReportError> {
     let ctrl: ControllerReport =
-        crate::report::read_json(dir, "controller.json").map_err(|e| e.to_string())?;
+        crate::report::read_json(dir, "controller.json").map_err(ReportError::Inputs)?;
     let plant: PlantReport = crate::report::read_json(dir, "plant.json").unwrap_or_default();
     // A missing optimiser.json is normal (it was killed); an unreadable one loses the estimates
     // and epochs from the report, so say so.
@@ -585,7 +665,7 @@ pub fn build_report(
     floor: Option<FloorReport>,
     cleaned: usize,
     optimiser: OptimiserLife,
-) -> Result<Summary, String> {
+) -> Result<Summary, ReportError> {
     let dir = &scn.output.dir;
     let inputs = read_inputs(dir)?;
     let scan = scan_run(scn, &dir.join("run.csv"))?;
@@ -606,7 +686,7 @@ pub fn build_report(
     }
     let opt = &inputs.opt;
     if let Some(d) = &opt.direct {
-        crate::direct::write_files(dir, d, scn.output.plots).map_err(|e| e.to_string())?;
+        crate::direct::write_files(dir, d, scn.output.plots)?;
     }
     if !scan.reps.is_empty() {
         write_repetitions(dir, &scan.reps, &frozen_reps)?;
@@ -621,7 +701,8 @@ pub fn build_report(
             truth(scn),
         )?;
     }
-    crate::report::write_json(dir, "summary.json", &summary).map_err(|e| e.to_string())?;
+    crate::report::write_json(dir, "summary.json", &summary)
+        .map_err(write_error(&dir.join("summary.json")))?;
     if let Some(p) = &scan.plot {
         write_response_plots(scn, inputs.ctrl.mode, p, &marks)?;
     }
@@ -770,14 +851,14 @@ fn write_repetitions(
     dir: &Path,
     reps: &[(f64, f64, f64)],
     frozen_reps: &[(f64, f64, f64)],
-) -> Result<(), String> {
+) -> Result<(), ReportError> {
     let mut csv = Csv::new(["repetition", "t_start", "t_end", "cost", "cost_frozen"]);
     for (j, r) in reps.iter().enumerate() {
         let f = frozen_reps.get(j).map_or(f64::NAN, |x| x.2);
         csv.row().put(j).all([r.0, r.1, r.2, f]);
     }
-    csv.write(&dir.join("repetitions.csv"))
-        .map_err(|e| e.to_string())
+    let file = dir.join("repetitions.csv");
+    csv.write(&file).map_err(write_error(&file))
 }
 
 /// identify.png: tracking RMS per window, identified alongside operation against the frozen
@@ -788,7 +869,7 @@ fn write_identify_plot(
     (tw, run_rms): &(Vec<f64>, Vec<f64>),
     marks: &[f64],
     truth: impl Fn(f64) -> Option<f64>,
-) -> Result<(), String> {
+) -> Result<(), ReportError> {
     let frozen_rms = &frozen.windowed.1;
     let frozen_rms: Vec<f64> = (0..tw.len())
         .map(|k| frozen_rms.get(k).copied().unwrap_or(f64::NAN))
@@ -823,7 +904,7 @@ fn write_identify_plot(
         },
         marks,
     )
-    .map_err(|e| e.to_string())
+    .map_err(ReportError::from)
 }
 
 /// estimates.csv and indirect.png: the model estimate against the true value, and the cost per
@@ -835,15 +916,15 @@ fn write_estimates(
     frozen: &[(f64, f64, f64)],
     marks: &[f64],
     truth: impl Fn(f64) -> Option<f64>,
-) -> Result<(), String> {
+) -> Result<(), ReportError> {
     let dir = &scn.output.dir;
     let mut csv = Csv::new(["t", "estimate", "std", "true"]);
     for e in estimates {
         csv.row()
             .all([e.t, e.value, e.std, truth(e.t).unwrap_or(f64::NAN)]);
     }
-    csv.write(&dir.join("estimates.csv"))
-        .map_err(|e| e.to_string())?;
+    let file = dir.join("estimates.csv");
+    csv.write(&file).map_err(write_error(&file))?;
     if scn.output.plots {
         let te: Vec<f64> = estimates.iter().map(|e| e.t).collect();
         let est: Vec<f64> = estimates.iter().map(|e| e.value).collect();
@@ -899,8 +980,7 @@ fn write_estimates(
                 label: "cost",
             },
             marks,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
     }
     Ok(())
 }
@@ -911,7 +991,7 @@ fn write_response_plots(
     mode: crate::config::Mode,
     p: &RunPlot,
     marks: &[f64],
-) -> Result<(), String> {
+) -> Result<(), ReportError> {
     let dir = &scn.output.dir;
     let (top, bottom) = (series(&p.top), series(&p.bottom));
     let envelope = if p.exact { "" } else { " (min-max envelope)" };
@@ -931,8 +1011,7 @@ fn write_response_plots(
             label: "control u",
         },
         marks,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     if p.errors.len() > 1 {
         // Joint-space tracking: the errors are far below what the overlaid curves resolve.
         two_panel_png(
@@ -951,8 +1030,7 @@ fn write_response_plots(
                 label: "torque u",
             },
             marks,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
     }
     Ok(())
 }
