@@ -29,9 +29,14 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 WRONG = [1.2, 0.85, 1.1, 0.9, 1.15, 0.8, 1.05]
 
 
+def beside(name, rel):
+    """A path `rel` of scenario `name` (`arm3/arm3_ct`), which is relative to the scenario's folder."""
+    return os.path.normpath(os.path.join(ROOT, "config", os.path.dirname(name), rel))
+
+
 def wrong_model(robot, out):
     """The robot file with link k's mass and inertia scaled by WRONG[k] (a D-H .toml, or a URDF)."""
-    text = open(os.path.join(ROOT, "config", robot)).read()
+    text = open(robot).read()
     if robot.endswith(".toml"):
         parts = text.split("[[joint]]")
         for k in range(1, len(parts)):
@@ -73,13 +78,14 @@ def scenario(name, velocity, model, out):
     """The shipped scenario with `velocity` and the controller's `model`, written into `out`."""
     text = open(os.path.join(ROOT, "config", name + ".toml")).read()
     text = re.sub(r'(?m)^robot = "([^"]+)"',
-                  lambda m: f'robot = "{os.path.join(ROOT, "config", m.group(1))}"', text)
+                  lambda m: f'robot = "{beside(name, m.group(1))}"', text)
     text = re.sub(r'(?m)^velocity = "[a-z]+"\n', "", text)  # the file's own choice
     extra = f'velocity = "{velocity}"\n'
     if model:
         extra += f'model = "{model}"\n'
     text = text.replace("[controller.computed_torque]\n", "[controller.computed_torque]\n" + extra, 1)
-    path = os.path.join(out, f"{name}-{velocity}-{'wrong' if model else 'true'}.toml")
+    stem = name.replace("/", "-")
+    path = os.path.join(out, f"{stem}-{velocity}-{'wrong' if model else 'true'}.toml")
     open(path, "w").write(text)
     return path
 
@@ -96,14 +102,14 @@ def main():
     ap.add_argument("--bin", default=os.path.join(ROOT, "target/release/evoloop"))
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", default=os.path.join(ROOT, "runs/velocity_study"))
-    ap.add_argument("--arms", default="arm3_ct,arm7_ct")
+    ap.add_argument("--arms", default="arm3/arm3_ct,arm7/arm7_ct")
     a = ap.parse_args()
     a.out = os.path.abspath(a.out)
     os.makedirs(a.out, exist_ok=True)
     rows = []
     for name in a.arms.split(","):
-        robot = re.search(r'(?m)^robot = "([^"]+)"',
-                          open(os.path.join(ROOT, "config", name + ".toml")).read()).group(1)
+        robot = beside(name, re.search(r'(?m)^robot = "([^"]+)"',
+                                       open(os.path.join(ROOT, "config", name + ".toml")).read()).group(1))
         for model in (None, wrong_model(robot, a.out)):
             res = {}
             for velocity in ("true", "filtered", "observer"):

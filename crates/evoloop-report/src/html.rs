@@ -137,7 +137,7 @@ impl std::fmt::Display for HtmlError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             HtmlError::Summary(e) => e.fmt(f),
-            HtmlError::Write { file, source } => write!(f, "{}: {source}", file.display()),
+            HtmlError::Write { file, source } => crate::with_path(f, file, source),
         }
     }
 }

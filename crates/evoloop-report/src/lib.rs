@@ -72,6 +72,21 @@ pub fn read_json<T: serde::de::DeserializeOwned>(
     }
 }
 
+/// `error` on `file`, the file named once: `evoloop_files`' errors name it already (and some
+/// system errors do not).
+pub(crate) fn with_path(
+    f: &mut std::fmt::Formatter<'_>,
+    file: &Path,
+    error: &dyn std::fmt::Display,
+) -> std::fmt::Result {
+    let (p, message) = (file.display().to_string(), error.to_string());
+    if message.contains(&p) {
+        f.write_str(&message)
+    } else {
+        write!(f, "{p}: {message}")
+    }
+}
+
 /// Why a run's JSON file cannot be read back.
 #[derive(Debug)]
 pub enum ReadJsonError {
@@ -101,9 +116,7 @@ impl ReadJsonError {
 impl std::fmt::Display for ReadJsonError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            // `read_own`'s refusals name the file already; "not found" does not.
-            ReadJsonError::Read { source, .. } if !self.is_missing() => source.fmt(f),
-            ReadJsonError::Read { file, source } => write!(f, "{}: {source}", file.display()),
+            ReadJsonError::Read { file, source } => with_path(f, file, source),
             ReadJsonError::Parse { file, source } => write!(f, "{}: {source}", file.display()),
         }
     }

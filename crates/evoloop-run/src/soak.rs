@@ -13,6 +13,7 @@
 use crate::msg::TELEMETRY_FLAG_OVERRUN;
 use crate::report::Csv;
 use crate::rt::timing::{Accumulator, Percentiles};
+use evoloop_schemes::WriteError;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
@@ -307,9 +308,10 @@ pub fn drift(
 }
 
 /// Write soak.json, soak.csv and the two plots into `dir`.
-pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
+pub fn write(dir: &Path, r: &SoakReport) -> Result<(), WriteError> {
     use crate::report::plot::{xy_png, Style, XySeries};
-    crate::report::write_json(dir, "soak.json", r).map_err(|e| e.to_string())?;
+    crate::report::write_json(dir, "soak.json", r)
+        .map_err(WriteError::file(&dir.join("soak.json")))?;
     let timing = [
         "cycles",
         "missed_deadlines",
@@ -336,8 +338,8 @@ pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
             .all([i.cycles, i.missed_deadlines, i.overruns])
             .all([l.p50_ns, l.p99_ns, l.p99_9_ns, l.max_ns]);
     }
-    csv.write(&dir.join("soak.csv"))
-        .map_err(|e| e.to_string())?;
+    let file = dir.join("soak.csv");
+    csv.write(&file).map_err(WriteError::file(&file))?;
     let minutes: Vec<f64> = r.intervals.iter().map(|i| i.t_s / 60.0).collect();
     let rss: Vec<(String, Vec<f64>, Vec<f64>)> = PROCESSES
         .iter()
@@ -370,7 +372,7 @@ pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
         None,
         None,
     )
-    .map_err(|e| e.to_string())?;
+    .map_err(WriteError::Figure)?;
     let misses: Vec<f64> = r
         .intervals
         .iter()
@@ -414,7 +416,7 @@ pub fn write(dir: &Path, r: &SoakReport) -> Result<(), String> {
         None,
         None,
     )
-    .map_err(|e| e.to_string())
+    .map_err(WriteError::Figure)
 }
 
 #[cfg(test)]

@@ -13,6 +13,7 @@ use crate::config::OptimiserMode;
 use crate::report::Csv;
 use crate::run_report::summary::Summary;
 use crate::stats::{lower_first, mean_ci, paired_sentence, wilcoxon, MeanCi, Wilcoxon};
+use evoloop_schemes::WriteError;
 use serde::Serialize;
 use std::path::Path;
 
@@ -350,7 +351,7 @@ impl Study {
     }
 
     /// Write `seeds.csv`, `study.json`, `study.md` and (with `plots`) `study_cost.png` to `out`.
-    pub fn write(&self, out: &Path, runs: &[SeedRun], plots: bool) -> Result<(), String> {
+    pub fn write(&self, out: &Path, runs: &[SeedRun], plots: bool) -> Result<(), WriteError> {
         let c = self.measure.column;
         let mut csv = Csv::new([
             "seed".to_string(),
@@ -371,10 +372,12 @@ impl Study {
                 .put(r.accepted)
                 .put(r.rejected);
         }
-        csv.write(&out.join("seeds.csv"))
-            .map_err(|e| e.to_string())?;
-        crate::report::write_json(out, "study.json", self).map_err(|e| e.to_string())?;
-        crate::files::write(out.join("study.md"), self.markdown()).map_err(|e| e.to_string())?;
+        let file = out.join("seeds.csv");
+        csv.write(&file).map_err(WriteError::file(&file))?;
+        crate::report::write_json(out, "study.json", self)
+            .map_err(WriteError::file(&out.join("study.json")))?;
+        let md = out.join("study.md");
+        crate::files::write(&md, self.markdown()).map_err(WriteError::file(&md))?;
         if plots && !runs.is_empty() {
             use crate::report::plot::{xy_png, Curve, Style, XySeries};
             let xs: Vec<f64> = runs.iter().map(|r| r.seed as f64).collect();
@@ -417,7 +420,7 @@ impl Study {
                 None,
                 None,
             )
-            .map_err(|e| e.to_string())?;
+            .map_err(WriteError::Figure)?;
         }
         Ok(())
     }

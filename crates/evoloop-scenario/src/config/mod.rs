@@ -142,7 +142,17 @@ fn regrouped(path: &Path) -> Option<PathBuf> {
     if dir.file_name()? != "config" || path.exists() {
         return None;
     }
+    // The plant folders and experiments/, not the files scenarios share (robots/, models/...).
+    const SHARED: [&str; 6] = [
+        "robots",
+        "models",
+        "plants",
+        "excitation",
+        "identified",
+        "zenoh",
+    ];
     let groups = std::fs::read_dir(dir).ok()?.flatten();
+    let groups = groups.filter(|g| !SHARED.iter().any(|s| g.file_name() == *s));
     groups.map(|g| g.path().join(name)).find(|p| p.is_file())
 }
 
