@@ -60,7 +60,8 @@ fn workers(a: &TuneArgs) -> Result<evoloop_run::node::launcher::LocalWorkers, St
         (Some(_), _) => local_workers_endpoint()?,
         (None, Some(ep)) => ep.clone(),
     };
-    let net = evoloop_run::network::required("--workers (or --workers-listen)")?;
+    let net = evoloop_run::network::required("--workers (or --workers-listen)")
+        .map_err(|e| e.to_string())?;
     // Niceness 10, the optimiser's default: they yield to whatever else runs here.
     let local = LocalWorkers::start(&listen, a.workers.unwrap_or(0) as usize, 1, 10, "tune")?;
     let expect = a
@@ -69,7 +70,8 @@ fn workers(a: &TuneArgs) -> Result<evoloop_run::node::launcher::LocalWorkers, St
         .or(a.remote.workers_expect)
         .unwrap_or(0);
     let stop = std::sync::atomic::AtomicBool::new(false);
-    net.install_workers(&listen, None, expect, &stop)?;
+    net.install_workers(&listen, None, expect, &stop)
+        .map_err(|e| e.to_string())?;
     Ok(local)
 }
 

@@ -5,6 +5,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
+use evoloop_run::network::NetworkError;
+
 /// The network, as evoloop-run calls it.
 pub struct Zenoh;
 
@@ -15,8 +17,9 @@ impl evoloop_run::network::Network for Zenoh {
         zenoh_config: Option<&Path>,
         expect: usize,
         stop: &AtomicBool,
-    ) -> Result<&'static dyn evoloop_run::network::Workers, String> {
-        Ok(crate::workers::install(listen, zenoh_config, expect, stop)?)
+    ) -> Result<&'static dyn evoloop_run::network::Workers, NetworkError> {
+        Ok(crate::workers::install(listen, zenoh_config, expect, stop)
+            .map_err(NetworkError::failed)?)
     }
 
     fn mirror(
@@ -24,9 +27,10 @@ impl evoloop_run::network::Network for Zenoh {
         run_id: &str,
         connect: String,
         zenoh_config: Option<PathBuf>,
-    ) -> Result<Box<dyn evoloop_run::network::Mirror>, String> {
+    ) -> Result<Box<dyn evoloop_run::network::Mirror>, NetworkError> {
         let ep = crate::Endpoint::Connect(connect);
-        let m = crate::mirror::Mirror::start(run_id, crate::mirror::PREFIX, ep, zenoh_config)?;
+        let m = crate::mirror::Mirror::start(run_id, crate::mirror::PREFIX, ep, zenoh_config)
+            .map_err(NetworkError::failed)?;
         Ok(Box::new(m))
     }
 
@@ -45,15 +49,17 @@ impl evoloop_run::network::Workers for crate::workers::ZenohWorkers {
 }
 
 impl evoloop_run::network::Mirror for crate::mirror::Mirror {
-    fn finish(self: Box<Self>, dir: &Path) -> Result<String, String> {
-        let r = self.join()?;
+    fn finish(self: Box<Self>, dir: &Path) -> Result<String, NetworkError> {
+        let r = self.join().map_err(NetworkError::failed)?;
         let line = format!(
             "{} states, {} commands in; {} sets, {} estimates out",
             r.states_in, r.commands_in, r.params_out, r.estimates_out
         );
         match crate::report::write_json(dir, "network.json", &r) {
             Ok(()) => Ok(line),
-            Err(e) => Err(format!("{line}; cannot write network.json: {e}")),
+            Err(e) => Err(NetworkError::failed(format!(
+                "{line}; cannot write network.json: {e}"
+            ))),
         }
     }
 }

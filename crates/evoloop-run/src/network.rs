@@ -10,6 +10,40 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::OnceLock;
 
+/// Why the network could not do what a run asked of it.
+#[derive(Debug)]
+pub enum NetworkError {
+    /// This binary was built without the network: what needed it.
+    NotBuilt(String),
+    /// The network refused or failed: its own error.
+    Failed(Box<dyn std::error::Error + Send + Sync>),
+}
+
+impl NetworkError {
+    /// The network's `error`, for `map_err`.
+    pub fn failed(error: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> Self {
+        NetworkError::Failed(error.into())
+    }
+}
+
+impl std::fmt::Display for NetworkError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NetworkError::NotBuilt(what) => f.write_str(&crate::needs_zenoh(what)),
+            NetworkError::Failed(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for NetworkError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            NetworkError::NotBuilt(_) => None,
+            NetworkError::Failed(e) => e.source(),
+        }
+    }
+}
+
 /// What the network offers a run.
 pub trait Network: Sync {
     /// Listen for evaluation workers at `listen` (a Zenoh endpoint), install them for
@@ -20,7 +54,7 @@ pub trait Network: Sync {
         zenoh_config: Option<&Path>,
         expect: usize,
         stop: &AtomicBool,
-    ) -> Result<&'static dyn Workers, String>;
+    ) -> Result<&'static dyn Workers, NetworkError>;
 
     /// Mirror run `run_id` from the bridge at `connect` into the iceoryx2 namespace of remote
     /// optimisers (`mirror_prefix`), so that an optimiser on this host runs against it unchanged.
@@ -29,7 +63,7 @@ pub trait Network: Sync {
         run_id: &str,
         connect: String,
         zenoh_config: Option<PathBuf>,
-    ) -> Result<Box<dyn Mirror>, String>;
+    ) -> Result<Box<dyn Mirror>, NetworkError>;
 
     /// The iceoryx2 prefix of the namespace remote optimisers run in.
     fn mirror_prefix(&self) -> &'static str;
@@ -45,7 +79,7 @@ pub trait Workers: Sync {
 pub trait Mirror: Send {
     /// Stop mirroring and write what crossed the network into `dir` (network.json); a line
     /// that says it, or why it could not.
-    fn finish(self: Box<Self>, dir: &Path) -> Result<String, String>;
+    fn finish(self: Box<Self>, dir: &Path) -> Result<String, NetworkError>;
 }
 
 static NETWORK: OnceLock<&'static dyn Network> = OnceLock::new();
@@ -61,6 +95,6 @@ pub fn get() -> Option<&'static dyn Network> {
 }
 
 /// The network, or the error that `what` needs it.
-pub fn required(what: &str) -> Result<&'static dyn Network, String> {
-    get().ok_or_else(|| crate::needs_zenoh(what))
+pub fn required(what: &str) -> Result<&'static dyn Network, NetworkError> {
+    get().ok_or_else(|| NetworkError::NotBuilt(what.to_string()))
 }

@@ -433,7 +433,9 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
             }
             Ok(_) => crate::report::read_json::<Summary>(&dir, "summary.json")
                 .map_err(|e| e.to_string())
-                .and_then(|s| SeedRun::from_summary(seed, &s, &measure, changed)),
+                .and_then(|s| {
+                    SeedRun::from_summary(seed, &s, &measure, changed).map_err(|e| e.to_string())
+                }),
         };
         match result {
             Ok(r) => {

@@ -863,9 +863,11 @@ mod workers {
         let Some(w) = &scn.optimiser.workers else {
             return Ok(None);
         };
-        let net = crate::network::required("optimiser.workers = \"zenoh\"")?;
+        let net =
+            crate::network::required("optimiser.workers = \"zenoh\"").map_err(|e| e.to_string())?;
         net.install_workers(&w.listen, w.zenoh_config.as_deref(), w.expect, stop)
             .map(Some)
+            .map_err(|e| e.to_string())
     }
 
     /// The evaluations by where they ran, and every worker seen, into the report.
@@ -886,8 +888,8 @@ mod remote {
     /// Start mirroring the run (realtime runs only) and point the process at the mirror's
     /// iceoryx2 namespace.
     pub fn join(cli: &mut OptimiserArgs, ep: String) -> Box<dyn crate::network::Mirror> {
-        let net =
-            crate::network::required("--connect").unwrap_or_else(|e| fail(WHO, Failure::Setup(e)));
+        let net = crate::network::required("--connect")
+            .unwrap_or_else(|e| fail(WHO, Failure::Setup(e.to_string())));
         // Checked before `start` creates this process's iceoryx2 node: a refused optimiser
         // leaves nothing in the namespace (the scenario is loaded again there, as always).
         let scn = crate::node::start::load_scenario(&cli.args, WHO);
@@ -913,7 +915,7 @@ mod remote {
         // prefix, and a node created here cleans up what a killed predecessor left.
         cli.args.ipc_prefix = net.mirror_prefix().to_string();
         net.mirror(&cli.args.run_id, ep, cli.zenoh_config.clone())
-            .unwrap_or_else(|e| fail(WHO, Failure::Setup(e)))
+            .unwrap_or_else(|e| fail(WHO, Failure::Setup(e.to_string())))
     }
 }
 

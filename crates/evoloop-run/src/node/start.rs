@@ -88,11 +88,11 @@ pub fn ports<P>(who: &str, build: impl FnOnce() -> Result<P, IpcError>) -> P {
 pub fn load(path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
     let scn = Scenario::load(path, ov)?;
     if scn.optimiser.workers.is_some() {
-        if let Err(reason) = crate::network::required("\"zenoh\"") {
+        if let Err(e) = crate::network::required("\"zenoh\"") {
             return Err(ConfigError {
                 file: path.to_path_buf(),
                 key: "optimiser.workers".into(),
-                reason,
+                reason: e.to_string(),
                 line: None,
             });
         }

@@ -129,6 +129,27 @@ pub struct SeedRun {
     pub rejected: u64,
 }
 
+/// A seed's summary.json without a number the study reads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MissingNumber {
+    /// The seed.
+    pub seed: u64,
+    /// The summary's key.
+    pub key: &'static str,
+}
+
+impl std::fmt::Display for MissingNumber {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "summary.json of seed {} has no number `{}`",
+            self.seed, self.key
+        )
+    }
+}
+
+impl std::error::Error for MissingNumber {}
+
 impl SeedRun {
     /// Take what the study needs from a run's summary, of a scenario whose plant `changed`
     /// (else it has no "before"); an error names what is missing.
@@ -137,10 +158,8 @@ impl SeedRun {
         s: &Summary,
         m: &Measure,
         changed: bool,
-    ) -> Result<Self, String> {
-        let f = |v: Option<f64>, k: &str| {
-            v.ok_or_else(|| format!("summary.json of seed {seed} has no number `{k}`"))
-        };
+    ) -> Result<Self, MissingNumber> {
+        let f = |v: Option<f64>, key: &'static str| v.ok_or(MissingNumber { seed, key });
         let [b, bf, a, af] = (m.read)(s);
         let before = match changed {
             true => Some((m.scale * f(b, m.keys[0])?, m.scale * f(bf, m.keys[1])?)),
@@ -492,6 +511,8 @@ mod tests {
             ..Default::default()
         };
         let e = SeedRun::from_summary(3, &s, &Measure::INDIRECT, true).unwrap_err();
+        assert_eq!(e.key, "cost_before_change_frozen");
+        let e = e.to_string();
         assert!(
             e.contains("seed 3") && e.contains("cost_before_change_frozen"),
             "{e}"
@@ -528,7 +549,9 @@ mod tests {
             tracking_before_change: Some(0.002),
             ..s
         };
-        let e = SeedRun::from_summary(2, &half, &Measure::IDENTIFY, true).unwrap_err();
+        let e = SeedRun::from_summary(2, &half, &Measure::IDENTIFY, true)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("tracking_before_change_frozen"), "{e}");
     }
 }
