@@ -6,8 +6,8 @@
 //! Losing the link is losing the data: the optimiser sees no state, and ends as it does when
 //! the plant goes silent (`no plant state within ...`); the run goes on with the set in service.
 
-use super::bridge::{ipc_err, In, Out};
-use super::{key, open, Endpoint, POLL};
+use super::bridge::{In, Out};
+use super::{key, open, Endpoint, NetError, POLL};
 use crate::ipc::{Ipc, Topic};
 use crate::msg::{Command, ModelEstimate, OptimiserStatus, ParamSet, PlantState, Telemetry};
 use std::path::PathBuf;
@@ -24,7 +24,38 @@ pub const PREFIX: &str = "evoloop_net_";
 pub struct Mirror {
     /// Raised to end the mirror (`join` raises it too).
     pub stop: Arc<AtomicBool>,
-    handle: Option<JoinHandle<Result<MirrorReport, String>>>,
+    handle: Option<JoinHandle<Result<MirrorReport, NetError>>>,
+}
+
+/// Why a mirror did not start, or how it ended.
+#[derive(Debug)]
+pub enum MirrorError {
+    /// Zenoh or iceoryx2 refused its ports, or a relay.
+    Net(NetError),
+    /// Its thread could not be started.
+    Thread(std::io::Error),
+    /// Its thread ended before its ports were ready, or panicked.
+    Died(&'static str),
+}
+
+impl std::fmt::Display for MirrorError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MirrorError::Net(e) => e.fmt(f),
+            MirrorError::Thread(e) => write!(f, "cannot start the network mirror: {e}"),
+            MirrorError::Died(why) => write!(f, "the network mirror {why}"),
+        }
+    }
+}
+
+impl std::error::Error for MirrorError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            MirrorError::Net(e) => e.source(),
+            MirrorError::Thread(e) => Some(e),
+            MirrorError::Died(_) => None,
+        }
+    }
 }
 
 /// What a mirror relayed (`Mirror::join`).
@@ -56,9 +87,9 @@ impl Mirror {
         prefix: &str,
         ep: Endpoint,
         config: Option<PathBuf>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, MirrorError> {
         let stop = Arc::new(AtomicBool::new(false));
-        let (ready_tx, ready_rx) = sync_channel::<Result<(), String>>(1);
+        let (ready_tx, ready_rx) = sync_channel::<Result<(), NetError>>(1);
         let (run_id, prefix, s) = (run_id.to_string(), prefix.to_string(), stop.clone());
         let handle = std::thread::Builder::new()
             .name("net-mirror".into())
@@ -70,29 +101,31 @@ impl Mirror {
                         p.serve(&s)
                     }
                     Err(e) => {
-                        let _ = ready_tx.send(Err(e.clone()));
-                        Err(e)
+                        // `start` returns the error and drops this thread's handle: nothing
+                        // reads what the thread returns.
+                        let _ = ready_tx.send(Err(e));
+                        Ok(MirrorReport::default())
                     }
                 }
             })
-            .map_err(|e| format!("cannot start the network mirror: {e}"))?;
+            .map_err(MirrorError::Thread)?;
         match ready_rx.recv() {
             Ok(Ok(())) => Ok(Self {
                 stop,
                 handle: Some(handle),
             }),
-            Ok(Err(e)) => Err(e),
-            Err(_) => Err("the network mirror ended before it was ready".into()),
+            Ok(Err(e)) => Err(MirrorError::Net(e)),
+            Err(_) => Err(MirrorError::Died("ended before it was ready")),
         }
     }
 
     /// Stop the mirror and wait for its thread: what it relayed, or the error that ended it (or
     /// that it panicked).
-    pub fn join(mut self) -> Result<MirrorReport, String> {
+    pub fn join(mut self) -> Result<MirrorReport, MirrorError> {
         self.stop.store(true, Ordering::SeqCst);
         match self.handle.take().map(JoinHandle::join) {
-            Some(Ok(r)) => r,
-            _ => Err("the network mirror panicked".into()),
+            Some(Ok(r)) => r.map_err(MirrorError::Net),
+            _ => Err(MirrorError::Died("panicked")),
         }
     }
 }
@@ -117,76 +150,49 @@ impl Ports {
         prefix: &str,
         ep: &Endpoint,
         config: Option<&std::path::Path>,
-    ) -> Result<Self, String> {
-        let z = open(ep, config).map_err(|e| e.to_string())?;
-        let ipc = Ipc::new("evoloop-mirror", run_id, prefix).map_err(ipc_err)?;
+    ) -> Result<Self, NetError> {
+        let z = open(ep, config)?;
+        let ipc = Ipc::new("evoloop-mirror", run_id, prefix)?;
         let k = |t: Topic| key(run_id, t, false);
         let kr = |t: Topic| key(run_id, t, true);
         Ok(Self {
             // The optimiser blocks on the state's event: wake it with each state.
-            state: In::new(&ipc, &z, k(Topic::State), Topic::State, true)
-                .map_err(|e| e.to_string())?,
+            state: In::new(&ipc, &z, k(Topic::State), Topic::State, true)?,
             // The direct scheme blocks on the command's event.
-            command: In::new(&ipc, &z, k(Topic::Command), Topic::Command, true)
-                .map_err(|e| e.to_string())?,
-            telemetry: In::new(&ipc, &z, k(Topic::Telemetry), Topic::Telemetry, false)
-                .map_err(|e| e.to_string())?,
-            params: Out::new(&ipc, &z, Topic::Params, k(Topic::Params))
-                .map_err(|e| e.to_string())?,
-            estimate: Out::new(&ipc, &z, Topic::Estimate, kr(Topic::Estimate))
-                .map_err(|e| e.to_string())?,
-            estimate_linear: Out::new(&ipc, &z, Topic::LinearEstimate, kr(Topic::LinearEstimate))
-                .map_err(|e| e.to_string())?,
-            status: Out::new(&ipc, &z, Topic::OptimiserStatus, kr(Topic::OptimiserStatus))
-                .map_err(|e| e.to_string())?,
-            operator: In::new(&ipc, &z, k(Topic::Operator), Topic::Operator, false)
-                .map_err(|e| e.to_string())?,
-            operator_ack: Out::new(&ipc, &z, Topic::OperatorAck, kr(Topic::OperatorAck))
-                .map_err(|e| e.to_string())?,
+            command: In::new(&ipc, &z, k(Topic::Command), Topic::Command, true)?,
+            telemetry: In::new(&ipc, &z, k(Topic::Telemetry), Topic::Telemetry, false)?,
+            params: Out::new(&ipc, &z, Topic::Params, k(Topic::Params))?,
+            estimate: Out::new(&ipc, &z, Topic::Estimate, kr(Topic::Estimate))?,
+            estimate_linear: Out::new(&ipc, &z, Topic::LinearEstimate, kr(Topic::LinearEstimate))?,
+            status: Out::new(&ipc, &z, Topic::OptimiserStatus, kr(Topic::OptimiserStatus))?,
+            operator: In::new(&ipc, &z, k(Topic::Operator), Topic::Operator, false)?,
+            operator_ack: Out::new(&ipc, &z, Topic::OperatorAck, kr(Topic::OperatorAck))?,
             _z: z,
         })
     }
 
-    fn serve(&self, stop: &AtomicBool) -> Result<MirrorReport, String> {
+    fn serve(&self, stop: &AtomicBool) -> Result<MirrorReport, NetError> {
         let mut rep = MirrorReport::default();
         let none = Duration::ZERO;
         while !stop.load(Ordering::Relaxed) {
             // Commands before the state they answer follows: the optimiser reads commands up to
             // each state it takes. Waiting for the next state paces the loop.
-            rep.commands_in += self
-                .command
-                .drain(none, &mut rep.refused)
-                .map_err(|e| e.to_string())?;
-            rep.states_in += self
-                .state
-                .drain(POLL, &mut rep.refused)
-                .map_err(|e| e.to_string())?;
-            rep.telemetry_in += self
-                .telemetry
-                .drain(none, &mut rep.refused)
-                .map_err(|e| e.to_string())?;
-            rep.params_out += self.params.drain(|_| {}).map_err(|e| e.to_string())?;
-            rep.estimates_out += self.estimate.drain(|_| {}).map_err(|e| e.to_string())?;
-            rep.estimates_out += self
-                .estimate_linear
-                .drain(|_| {})
-                .map_err(|e| e.to_string())?;
-            self.status.drain(|_| {}).map_err(|e| e.to_string())?;
-            rep.operator_in += self
-                .operator
-                .drain(none, &mut rep.refused)
-                .map_err(|e| e.to_string())?;
-            rep.operator_acks_out += self.operator_ack.drain(|_| {}).map_err(|e| e.to_string())?;
+            rep.commands_in += self.command.drain(none, &mut rep.refused)?;
+            rep.states_in += self.state.drain(POLL, &mut rep.refused)?;
+            rep.telemetry_in += self.telemetry.drain(none, &mut rep.refused)?;
+            rep.params_out += self.params.drain(|_| {})?;
+            rep.estimates_out += self.estimate.drain(|_| {})?;
+            rep.estimates_out += self.estimate_linear.drain(|_| {})?;
+            self.status.drain(|_| {})?;
+            rep.operator_in += self.operator.drain(none, &mut rep.refused)?;
+            rep.operator_acks_out += self.operator_ack.drain(|_| {})?;
         }
         // What the optimiser published last.
-        rep.params_out += self.params.drain(|_| {}).map_err(|e| e.to_string())?;
-        rep.estimates_out += self.estimate.drain(|_| {}).map_err(|e| e.to_string())?;
-        rep.estimates_out += self
-            .estimate_linear
-            .drain(|_| {})
-            .map_err(|e| e.to_string())?;
+        rep.params_out += self.params.drain(|_| {})?;
+        rep.estimates_out += self.estimate.drain(|_| {})?;
+        rep.estimates_out += self.estimate_linear.drain(|_| {})?;
         // The answers to commands the run's end stopped.
-        rep.operator_acks_out += self.operator_ack.drain(|_| {}).map_err(|e| e.to_string())?;
+        rep.operator_acks_out += self.operator_ack.drain(|_| {})?;
         Ok(rep)
     }
 }

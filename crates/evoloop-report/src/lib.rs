@@ -74,7 +74,7 @@ pub fn read_json<T: serde::de::DeserializeOwned>(
 
 /// `error` on `file`, the file named once: `evoloop_files`' errors name it already (and some
 /// system errors do not).
-pub(crate) fn with_path(
+pub fn with_path(
     f: &mut std::fmt::Formatter<'_>,
     file: &Path,
     error: &dyn std::fmt::Display,

@@ -88,14 +88,7 @@ impl std::fmt::Display for WriteError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             // evoloop_files' errors name the path already; a bare io::Error does not.
-            WriteError::File { path, source } => {
-                let (p, message) = (path.display().to_string(), source.to_string());
-                if message.contains(&p) {
-                    f.write_str(&message)
-                } else {
-                    write!(f, "{p}: {message}")
-                }
-            }
+            WriteError::File { path, source } => crate::report::with_path(f, path, source),
             WriteError::Figure(e) => e.fmt(f),
         }
     }

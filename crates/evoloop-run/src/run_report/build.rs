@@ -47,15 +47,7 @@ impl std::fmt::Display for ReportError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             ReportError::Inputs(e) => e.fmt(f),
-            ReportError::RunCsv { file, source } => {
-                // evoloop_files' refusals name the file; a bare system error does not.
-                let (p, message) = (file.display().to_string(), source.to_string());
-                if message.contains(&p) {
-                    f.write_str(&message)
-                } else {
-                    write!(f, "{p}: {message}")
-                }
-            }
+            ReportError::RunCsv { file, source } => crate::report::with_path(f, file, source),
             ReportError::Column { file, name } => {
                 write!(f, "{}: no column {name:?}", file.display())
             }
