@@ -184,10 +184,3 @@ impl From<crate::report::plot::PlotError> for StudyError {
         StudyError::Write(evoloop_schemes::WriteError::Figure(e))
     }
 }
-
-/// `source` on writing `path`, for `map_err`.
-pub(crate) fn write_error(
-    path: &std::path::Path,
-) -> impl FnOnce(std::io::Error) -> StudyError + '_ {
-    move |e| StudyError::Write(evoloop_schemes::WriteError::file(path)(e))
-}

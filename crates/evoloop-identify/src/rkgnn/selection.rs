@@ -35,12 +35,12 @@ use super::study::{
 };
 use crate::dynamics::Model;
 use crate::law::fuzzy_computed_torque::check_along_reference;
-use crate::rkgnn::error::write_error;
 use crate::rkgnn::model::{ServoPrior, Weighing};
 use crate::rkgnn::model_error::{model_error, ModelError, RigidBody};
 use crate::rkgnn::{StudyError, Trajectory};
 use crate::sim::{JointTraces, SimResult};
 use crate::stats::{median, median_of_numbers, wilcoxon, Wilcoxon};
+use evoloop_schemes::WriteError;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -514,7 +514,7 @@ pub fn run(
     let (robot, arm) = arm_of(&s.robot, dir)?;
     // Every file the scenarios name (models, the nominal model) absolute: a scenario resolves a
     // relative path against its own directory, not the working directory.
-    let dir = &std::path::absolute(dir).map_err(write_error(dir))?;
+    let dir = &std::path::absolute(dir).map_err(WriteError::file(dir))?;
     let n = arm.dof();
     // The nominal model must be writable before any run is made (URDF has no armature).
     crate::dynamics::urdf::writable(&arm).map_err(|e| {
@@ -565,7 +565,7 @@ pub fn run(
     let first_new = training_set.len();
     let one_seed = |seed: u64| -> Result<SeedOut, StudyError> {
         let sd = dir.join(format!("seed{seed}"));
-        std::fs::create_dir_all(&sd).map_err(write_error(&sd))?;
+        std::fs::create_dir_all(&sd).map_err(WriteError::file(&sd))?;
         let found = training.models(seed, &sd, &tick)?;
         let models = found.models;
         // This seed's CAD model: the arm with its mass properties off (`nominal`), written
@@ -624,9 +624,9 @@ pub fn run(
     };
     let result = assemble(s, frame, per_seed, t0.elapsed().as_secs_f64());
     crate::report::write_json(dir, "selection.json", &result)
-        .map_err(write_error(&dir.join("selection.json")))?;
+        .map_err(WriteError::file(&dir.join("selection.json")))?;
     let p = dir.join("report.md");
-    crate::files::write(&p, report_markdown(&result)).map_err(write_error(&p))?;
+    crate::files::write(&p, report_markdown(&result)).map_err(WriteError::file(&p))?;
     Ok(result)
 }
 
@@ -891,7 +891,7 @@ fn nominal_model(arm: &Model, seed: u64, dir: &Path) -> Result<Nominal, StudyErr
     let file = dir.join("nominal.urdf");
     let text = crate::dynamics::urdf::to_urdf(&model)
         .map_err(|e| StudyError::Arm(format!("the nominal model: {e}")))?;
-    crate::files::write(&file, text).map_err(write_error(&file))?;
+    crate::files::write(&file, text).map_err(WriteError::file(&file))?;
     Ok(Nominal {
         model,
         written: NominalWritten {

@@ -22,11 +22,11 @@ use crate::report::metrics::tracking;
 use crate::report::plot::{stacked_png, Panel, PlotError, Series};
 use crate::report::Csv;
 use crate::report::RunLog;
-use crate::rkgnn::error::write_error;
 use crate::rkgnn::identify::{self, Prior, Settings};
 use crate::rkgnn::model::Report;
 use crate::rkgnn::{StudyError, Trajectory};
 use crate::sim::{simulate, JointTraces, SimResult};
+use evoloop_schemes::WriteError;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -315,7 +315,7 @@ pub(super) fn write_scenarios(cases: &[Case]) -> Result<(), StudyError> {
         let path = &c.scenario.source;
         std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")))
             .and_then(|_| crate::files::write(path, &c.text))
-            .map_err(write_error(path))?;
+            .map_err(WriteError::file(path))?;
     }
     Ok(())
 }
@@ -438,9 +438,9 @@ pub(super) fn diagonal_mid(arm: &Model, qs: &[Vec<f64>]) -> Vec<f64> {
 
 /// A study's arm (its absolute path and model), and the output directory created.
 pub(super) fn arm_of(robot: &Path, dir: &Path) -> Result<(PathBuf, Model), StudyError> {
-    let robot = std::path::absolute(robot).map_err(write_error(robot))?;
+    let robot = std::path::absolute(robot).map_err(WriteError::file(robot))?;
     let arm = crate::dynamics::load(&robot)?;
-    std::fs::create_dir_all(dir).map_err(write_error(dir))?;
+    std::fs::create_dir_all(dir).map_err(WriteError::file(dir))?;
     Ok((robot, arm))
 }
 
@@ -525,7 +525,7 @@ impl StudyTraces for JointTraces {
             row.extend_from_slice(sim.law_values(i));
             log.push(&row);
         }
-        log.write_csv(path).map_err(write_error(path))
+        Ok(log.write_csv(path).map_err(WriteError::file(path))?)
     }
 }
 
@@ -722,7 +722,7 @@ fn traces_written(
         .map(|(c, sim)| JointTraces::of(sim, &c.scenario.reference, JOINTS))
         .collect();
     let runs = dir.join("runs");
-    std::fs::create_dir_all(&runs).map_err(write_error(&runs))?;
+    std::fs::create_dir_all(&runs).map_err(WriteError::file(&runs))?;
     for ((c, sim), tr) in cases.iter().zip(sims).zip(&traces) {
         tr.write_csv(sim, &runs.join(format!("{}.csv", c.name)))?;
     }
@@ -763,15 +763,15 @@ fn write_outputs(
     fuzzy: &SimResult,
 ) -> Result<(), StudyError> {
     crate::report::write_json(dir, "study.json", r)
-        .map_err(write_error(&dir.join("study.json")))?;
+        .map_err(WriteError::file(&dir.join("study.json")))?;
     let mut csv = Csv::new(["controller", "joint1", "joint2", "joint3", "overall"]);
     for (key, _, v) in r.tracking_rms.entries() {
         csv.row().put(key).all(&v[..3]).put(overall(v));
     }
     let p = dir.join("tracking_rms.csv");
-    csv.write(&p).map_err(write_error(&p))?;
+    csv.write(&p).map_err(WriteError::file(&p))?;
     let p = dir.join("report.md");
-    crate::files::write(&p, report_markdown(r)).map_err(write_error(&p))?;
+    crate::files::write(&p, report_markdown(r)).map_err(WriteError::file(&p))?;
     Ok(figures(dir, cases, traces, fuzzy)?)
 }
 

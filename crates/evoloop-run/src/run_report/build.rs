@@ -79,11 +79,6 @@ impl From<PlotError> for ReportError {
     }
 }
 
-/// `source` on writing `path`, for `map_err`.
-fn write_error(path: &Path) -> impl FnOnce(std::io::Error) -> ReportError + '_ {
-    move |e| ReportError::Write(WriteError::file(path)(e))
-}
-
 /// Cost per repetition of a repeating (square-wave) reference, one sample at a time:
 /// (start, end, sum |e| + w sum |u|) over each whole period.
 struct Repetitions {
@@ -694,7 +689,7 @@ pub fn build_report(
         )?;
     }
     crate::report::write_json(dir, "summary.json", &summary)
-        .map_err(write_error(&dir.join("summary.json")))?;
+        .map_err(WriteError::file(&dir.join("summary.json")))?;
     if let Some(p) = &scan.plot {
         write_response_plots(scn, inputs.ctrl.mode, p, &marks)?;
     }
@@ -850,7 +845,7 @@ fn write_repetitions(
         csv.row().put(j).all([r.0, r.1, r.2, f]);
     }
     let file = dir.join("repetitions.csv");
-    csv.write(&file).map_err(write_error(&file))
+    Ok(csv.write(&file).map_err(WriteError::file(&file))?)
 }
 
 /// identify.png: tracking RMS per window, identified alongside operation against the frozen
@@ -916,7 +911,7 @@ fn write_estimates(
             .all([e.t, e.value, e.std, truth(e.t).unwrap_or(f64::NAN)]);
     }
     let file = dir.join("estimates.csv");
-    csv.write(&file).map_err(write_error(&file))?;
+    csv.write(&file).map_err(WriteError::file(&file))?;
     if scn.output.plots {
         let te: Vec<f64> = estimates.iter().map(|e| e.t).collect();
         let est: Vec<f64> = estimates.iter().map(|e| e.value).collect();
