@@ -25,10 +25,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 static SENDS: AtomicU64 = AtomicU64::new(0);
 
 /// Send through iceoryx2, counting the sends (each is one loan from the pool).
-fn send<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
-    p: &evoloop::ipc::Pub<T>,
-    v: &T,
-) {
+fn send<T: evoloop::ipc::Message>(p: &evoloop::ipc::Pub<T>, v: &T) {
     SENDS.fetch_add(1, Ordering::Relaxed);
     p.send(v).unwrap();
 }

@@ -8,16 +8,18 @@
 use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
-use iceoryx2::port::publisher::Publisher;
-use iceoryx2::port::subscriber::Subscriber;
-use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
-use std::fmt::{self, Debug};
+use std::fmt;
+use std::mem::ManuallyDrop;
 use std::time::{Duration, Instant};
 
 pub mod namespace;
 pub mod pooled;
+mod ports;
 pub mod service;
+
+pub use ports::Message;
+use ports::{PubPorts, SubPorts};
 
 /// The iceoryx2 service type of every evoloop port (iceoryx2's ipc service, pooled loans).
 pub type Svc = service::Service;
@@ -421,26 +423,6 @@ impl Ipc {
         orphans.len()
     }
 
-    fn pubsub<T: Debug + ZeroCopySend + 'static>(
-        &self,
-        topic: Topic,
-    ) -> Result<PubSubFactory<T>, IpcError> {
-        let name = self.service_name(topic)?;
-        retry(&format!("opening service {}", name.as_str()), || {
-            self.node
-                .service_builder(&name)
-                .publish_subscribe::<T>()
-                .subscriber_max_buffer_size(topic.max_buffer())
-                .subscriber_max_borrowed_samples(2)
-                .history_size(0)
-                .max_publishers(topic.max_publishers())
-                .max_subscribers(topic.max_subscribers())
-                .max_nodes(topic.max_nodes())
-                .enable_safe_overflow(true)
-                .open_or_create()
-        })
-    }
-
     fn event(
         &self,
         topic: Topic,
@@ -464,127 +446,89 @@ impl Ipc {
 
     /// The ringing end of an event-only topic, kept for repeated use.
     pub fn bell(&self, topic: Topic) -> Result<Bell, IpcError> {
-        let notifier = self
-            .event(topic)?
-            .notifier_builder()
-            .create()
-            .map_err(|e| IpcError::new(format!("notifier on {}", topic.name()), e))?;
-        Ok(Bell { notifier, topic })
+        Ok(Bell {
+            notifier: self.notifier(topic)?,
+            topic,
+        })
     }
 
     /// A listener on an event-only topic.
     pub fn doorbell(&self, topic: Topic) -> Result<Doorbell, IpcError> {
-        let listener = self
-            .event(topic)?
-            .listener_builder()
-            .create()
-            .map_err(|e| IpcError::new(format!("listener on {}", topic.name()), e))?;
-        Ok(Doorbell { listener, topic })
-    }
-
-    /// A publisher; with `wake` it also notifies listeners after each send.
-    pub fn publisher<T: Debug + ZeroCopySend + Copy + 'static>(
-        &self,
-        topic: Topic,
-        wake: bool,
-    ) -> Result<Pub<T>, IpcError> {
-        let svc = self.pubsub::<T>(topic)?;
-        let publisher = svc
-            .publisher_builder()
-            .max_loaned_samples(1)
-            .create()
-            .map_err(|e| IpcError::new(format!("publisher on {}", topic.name()), e))?;
-        let notifier = if wake {
-            let ev = self.event(topic)?;
-            Some(
-                ev.notifier_builder()
-                    .create()
-                    .map_err(|e| IpcError::new(format!("notifier on {}", topic.name()), e))?,
-            )
-        } else {
-            None
-        };
-        Ok(Pub {
-            publisher,
-            notifier,
+        Ok(Doorbell {
+            listener: self.listener(topic)?,
             topic,
-            service: svc,
         })
     }
 
+    /// A notifier on `topic`'s event (a bell, or a waking publisher's).
+    fn notifier(&self, topic: Topic) -> Result<Notifier<Svc>, IpcError> {
+        self.event(topic)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| IpcError::new(format!("notifier on {}", topic.name()), e))
+    }
+
+    /// A listener on `topic`'s event (a doorbell, or a waiting subscriber's).
+    fn listener(&self, topic: Topic) -> Result<Listener<Svc>, IpcError> {
+        self.event(topic)?
+            .listener_builder()
+            .create()
+            .map_err(|e| IpcError::new(format!("listener on {}", topic.name()), e))
+    }
+
+    /// A publisher; with `wake` it also notifies listeners after each send.
+    pub fn publisher<T: Message>(&self, topic: Topic, wake: bool) -> Result<Pub<T>, IpcError> {
+        T::publisher(self, topic, wake)
+    }
+
     /// A subscriber with its own queue depth; with `wake` it can block until a sample arrives.
-    pub fn subscriber<T: Debug + ZeroCopySend + Copy + 'static>(
+    pub fn subscriber<T: Message>(
         &self,
         topic: Topic,
         buffer: usize,
         wake: bool,
     ) -> Result<Sub<T>, IpcError> {
-        let svc = self.pubsub::<T>(topic)?;
-        let subscriber = svc
-            .subscriber_builder()
-            .buffer_size(buffer.clamp(1, topic.max_buffer()))
-            .create()
-            .map_err(|e| IpcError::new(format!("subscriber on {}", topic.name()), e))?;
-        let listener = if wake {
-            let ev = self.event(topic)?;
-            Some(
-                ev.listener_builder()
-                    .create()
-                    .map_err(|e| IpcError::new(format!("listener on {}", topic.name()), e))?,
-            )
-        } else {
-            None
-        };
-        Ok(Sub {
-            subscriber,
-            listener,
-            topic,
-            service: svc,
-        })
+        T::subscriber(self, topic, buffer, wake)
     }
 }
 
 /// A typed publisher, optionally paired with an event notifier.
-pub struct Pub<T: Debug + ZeroCopySend + 'static> {
-    publisher: Publisher<Svc, T, ()>,
-    notifier: Option<Notifier<Svc>>,
+pub struct Pub<T: Message> {
+    /// iceoryx2's side, dropped by code compiled in this crate (`ports`).
+    ports: ManuallyDrop<PubPorts<T>>,
     topic: Topic,
-    service: PubSubFactory<T>,
 }
 
-type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;
+impl<T: Message> Drop for Pub<T> {
+    fn drop(&mut self) {
+        T::drop_publisher(&mut self.ports);
+    }
+}
 
-impl<T: Debug + ZeroCopySend + Copy + 'static> Pub<T> {
+impl<T: Message> Pub<T> {
+    fn new(ports: PubPorts<T>, topic: Topic) -> Self {
+        Pub {
+            ports: ManuallyDrop::new(ports),
+            topic,
+        }
+    }
+
     /// Connect to subscribers that joined since the last call (or send). A loop calls this
     /// between its cycles: connecting maps the newcomer's memory, which allocates and takes
     /// time, and `send` would otherwise do it inside the cycle (a viewer or a bridge that
     /// attaches mid-run).
     pub fn update_connections(&self) -> Result<(), IpcError> {
-        self.publisher
-            .update_connections()
-            .map_err(|e| IpcError::new(format!("connections of {}", self.topic.name()), e))
+        T::connect_publisher(&self.ports, self.topic)
     }
 
     /// Copy `value` into a shared-memory slot, send it and wake the listeners. No allocation.
     pub fn send(&self, value: &T) -> Result<(), IpcError> {
-        let sample = self
-            .publisher
-            .loan_uninit()
-            .map_err(|e| IpcError::new(format!("loan on {}", self.topic.name()), e))?;
-        sample
-            .write_payload(*value)
-            .send()
-            .map_err(|e| IpcError::new(format!("send on {}", self.topic.name()), e))?;
-        if let Some(n) = &self.notifier {
-            n.notify()
-                .map_err(|e| IpcError::new(format!("notify on {}", self.topic.name()), e))?;
-        }
-        Ok(())
+        T::send(&self.ports, value, self.topic)
     }
 
     /// Number of subscribers (all processes) connected to this topic.
     pub fn subscribers(&self) -> usize {
-        self.service.dynamic_config().number_of_subscribers()
+        T::subscribers(&self.ports)
     }
 }
 
@@ -628,11 +572,16 @@ fn listen(listener: &Listener<Svc>, timeout: Duration, topic: Topic) -> Result<(
 }
 
 /// A typed subscriber, optionally paired with an event listener for blocking waits.
-pub struct Sub<T: Debug + ZeroCopySend + 'static> {
-    subscriber: Subscriber<Svc, T, ()>,
-    listener: Option<Listener<Svc>>,
+pub struct Sub<T: Message> {
+    /// iceoryx2's side, dropped by code compiled in this crate (`ports`).
+    ports: ManuallyDrop<SubPorts<T>>,
     topic: Topic,
-    service: PubSubFactory<T>,
+}
+
+impl<T: Message> Drop for Sub<T> {
+    fn drop(&mut self) {
+        T::drop_subscriber(&mut self.ports);
+    }
 }
 
 /// What a bounded wait ended with.
@@ -659,7 +608,14 @@ pub enum Waited<T> {
 /// has gone silent.
 const STOP_CHECK: Duration = Duration::from_millis(100);
 
-impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
+impl<T: Message> Sub<T> {
+    fn new(ports: SubPorts<T>, topic: Topic) -> Self {
+        Sub {
+            ports: ManuallyDrop::new(ports),
+            topic,
+        }
+    }
+
     /// Wait up to `timeout` for a sample satisfying `done`, discarding the others, noticing
     /// `stop` within 100 ms. Polls for `spin` per slice before blocking on the event.
     pub fn wait_for(
@@ -689,34 +645,23 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
     /// Publishers currently connected to this topic (a killed process's stay counted until its
     /// resources are cleaned up).
     pub fn publishers(&self) -> usize {
-        self.service.dynamic_config().number_of_publishers()
+        T::publishers(&self.ports)
     }
 
     /// Whether unread samples are waiting.
     pub fn has_pending(&self) -> Result<bool, IpcError> {
-        self.subscriber
-            .has_samples()
-            .map_err(|e| IpcError::new(format!("poll {}", self.topic.name()), e))
+        T::has_pending(&self.ports, self.topic)
     }
 
     /// Connect to publishers that joined since the last call (or receive): see
     /// `Pub::update_connections`.
     pub fn update_connections(&self) -> Result<(), IpcError> {
-        self.subscriber
-            .update_connections()
-            .map_err(|e| IpcError::new(format!("connections of {}", self.topic.name()), e))
+        T::connect_subscriber(&self.ports, self.topic)
     }
 
     /// The oldest unread sample, if any (in-order consumption).
     pub fn next(&self) -> Result<Option<T>, IpcError> {
-        match self.subscriber.receive() {
-            Ok(Some(s)) => Ok(Some(*s.payload())),
-            Ok(None) => Ok(None),
-            Err(e) => Err(IpcError::new(
-                format!("receive on {}", self.topic.name()),
-                e,
-            )),
-        }
+        T::receive(&self.ports, self.topic)
     }
 
     /// The newest sample, dropping older unread ones (zero-order-hold consumers).
@@ -744,7 +689,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sub<T> {
                 std::hint::spin_loop();
                 continue;
             }
-            match &self.listener {
+            match &self.ports.listener {
                 Some(l) => listen(l, timeout - waited, self.topic)?,
                 None => std::hint::spin_loop(),
             }

@@ -8,11 +8,10 @@
 //! gaps), telemetry as it comes.
 
 use super::{key, open, wire, Endpoint, NetError, POLL};
-use crate::ipc::{Ipc, IpcError, Pub, Sub, Topic};
+use crate::ipc::{Ipc, IpcError, Message, Pub, Sub, Topic};
 use crate::msg::{
     Command, ModelEstimate, OptimiserStatus, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
 };
-use iceoryx2::prelude::ZeroCopySend;
 use std::fmt::Debug;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -27,12 +26,12 @@ use zenoh::Wait as _;
 const NET_QUEUE: usize = 4096;
 
 /// An iceoryx2 topic relayed to a Zenoh key.
-pub(crate) struct Out<T: Debug + ZeroCopySend + Copy + 'static> {
+pub(crate) struct Out<T: Message> {
     pub sub: Sub<T>,
     pub net: Publisher<'static>,
 }
 
-impl<T: Debug + ZeroCopySend + Copy + 'static> Out<T> {
+impl<T: Message> Out<T> {
     pub fn new(ipc: &Ipc, z: &zenoh::Session, topic: Topic, key: String) -> Result<Self, NetError> {
         Ok(Self {
             sub: ipc.subscriber(topic, topic.max_buffer(), false)?,
@@ -69,12 +68,12 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Out<T> {
 }
 
 /// A Zenoh key relayed to an iceoryx2 topic.
-pub(crate) struct In<T: Debug + ZeroCopySend + Copy + 'static> {
+pub(crate) struct In<T: Message> {
     pub net: Subscriber<FifoChannelHandler<Sample>>,
     pub publ: Pub<T>,
 }
 
-impl<T: Debug + ZeroCopySend + Copy + 'static> In<T> {
+impl<T: Message> In<T> {
     pub fn new(
         ipc: &Ipc,
         z: &zenoh::Session,
