@@ -230,7 +230,7 @@ fn losing_the_link_ends_the_remote_optimiser_and_the_run_goes_on() {
         mut bridge,
         optimiser,
         ..
-    } = remote_tuning("zlost", "20", &[]);
+    } = remote_tuning("zlost", "12", &[]);
     std::thread::sleep(Duration::from_secs(5));
     bridge.kill().unwrap();
     let _ = bridge.wait();
@@ -252,8 +252,8 @@ fn losing_the_link_ends_the_remote_optimiser_and_the_run_goes_on() {
     assert_ok(&run);
     let s = json(&host.join("summary.json"));
     assert_eq!(s["outcome"], "ok");
-    // The loop ran to its end after the link went.
-    assert!(s["ran_s"].as_f64().unwrap() >= 19.9, "{}", s["ran_s"]);
+    // The loop ran to its end after the link went (at 5 s of the 12).
+    assert!(s["ran_s"].as_f64().unwrap() >= 11.9, "{}", s["ran_s"]);
 }
 
 /// A set from the network goes through the controller's validation: a NaN gain is refused with
@@ -343,7 +343,9 @@ fn a_remote_optimiser_refuses_a_lockstep_run() {
 }
 
 /// Without the feature, the bridge says how to get it.
-#[cfg(not(feature = "zenoh"))]
+// Compiled in both builds, so the zenoh build's clippy lints it too (CI lints once, with the
+// feature); run where the feature is off.
+#[cfg_attr(feature = "zenoh", ignore = "this build has the zenoh feature")]
 #[test]
 fn without_the_zenoh_feature_the_bridge_says_how_to_build_it() {
     let out = Command::new(evoloop())
