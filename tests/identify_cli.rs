@@ -15,8 +15,9 @@ fn tmp(tag: &str) -> tempfile::TempDir {
 }
 
 /// 12 s of the scenario (three periods of the test's 4 s excitation) through the processes in
-/// `mode`, then `identify lls --json` on its log. (A last cycle missed in realtime under load once left the third
-/// period a sample short and lls found two; the log's grid now runs to the run's duration.)
+/// `mode`, then `identify lls --json` on its log. (A last cycle missed in realtime under load
+/// once left the third period a sample short and lls found two; the log's grid now runs to the
+/// run's duration.)
 fn run_then_lls(cfg: &Path, out: &Path, tag: &str, mode: &str) -> serde_json::Value {
     assert_ok(&run(cfg, out, tag, &["--duration", "12", "--mode", mode]));
     stdout_json(&lls(out, &["--json"]))

@@ -496,7 +496,6 @@ impl Ipc {
 pub struct Pub<T: Message> {
     /// iceoryx2's side, dropped by code compiled in this crate (`ports`).
     ports: ManuallyDrop<PubPorts<T>>,
-    topic: Topic,
 }
 
 impl<T: Message> Drop for Pub<T> {
@@ -506,10 +505,9 @@ impl<T: Message> Drop for Pub<T> {
 }
 
 impl<T: Message> Pub<T> {
-    fn new(ports: PubPorts<T>, topic: Topic) -> Self {
+    fn new(ports: PubPorts<T>) -> Self {
         Pub {
             ports: ManuallyDrop::new(ports),
-            topic,
         }
     }
 
@@ -518,12 +516,12 @@ impl<T: Message> Pub<T> {
     /// time, and `send` would otherwise do it inside the cycle (a viewer or a bridge that
     /// attaches mid-run).
     pub fn update_connections(&self) -> Result<(), IpcError> {
-        T::connect_publisher(&self.ports, self.topic)
+        T::connect_publisher(&self.ports)
     }
 
     /// Copy `value` into a shared-memory slot, send it and wake the listeners. No allocation.
     pub fn send(&self, value: &T) -> Result<(), IpcError> {
-        T::send(&self.ports, value, self.topic)
+        T::send(&self.ports, value)
     }
 
     /// Number of subscribers (all processes) connected to this topic.
@@ -575,7 +573,6 @@ fn listen(listener: &Listener<Svc>, timeout: Duration, topic: Topic) -> Result<(
 pub struct Sub<T: Message> {
     /// iceoryx2's side, dropped by code compiled in this crate (`ports`).
     ports: ManuallyDrop<SubPorts<T>>,
-    topic: Topic,
 }
 
 impl<T: Message> Drop for Sub<T> {
@@ -609,10 +606,9 @@ pub enum Waited<T> {
 const STOP_CHECK: Duration = Duration::from_millis(100);
 
 impl<T: Message> Sub<T> {
-    fn new(ports: SubPorts<T>, topic: Topic) -> Self {
+    fn new(ports: SubPorts<T>) -> Self {
         Sub {
             ports: ManuallyDrop::new(ports),
-            topic,
         }
     }
 
@@ -650,18 +646,18 @@ impl<T: Message> Sub<T> {
 
     /// Whether unread samples are waiting.
     pub fn has_pending(&self) -> Result<bool, IpcError> {
-        T::has_pending(&self.ports, self.topic)
+        T::has_pending(&self.ports)
     }
 
     /// Connect to publishers that joined since the last call (or receive): see
     /// `Pub::update_connections`.
     pub fn update_connections(&self) -> Result<(), IpcError> {
-        T::connect_subscriber(&self.ports, self.topic)
+        T::connect_subscriber(&self.ports)
     }
 
     /// The oldest unread sample, if any (in-order consumption).
     pub fn next(&self) -> Result<Option<T>, IpcError> {
-        T::receive(&self.ports, self.topic)
+        T::receive(&self.ports)
     }
 
     /// The newest sample, dropping older unread ones (zero-order-hold consumers).
@@ -690,7 +686,7 @@ impl<T: Message> Sub<T> {
                 continue;
             }
             match &self.ports.listener {
-                Some(l) => listen(l, timeout - waited, self.topic)?,
+                Some(l) => listen(l, timeout - waited, self.ports.topic)?,
                 None => std::hint::spin_loop(),
             }
         }

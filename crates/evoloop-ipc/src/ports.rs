@@ -39,15 +39,15 @@ pub trait Message: Debug + ZeroCopySend + Copy + 'static {
         wake: bool,
     ) -> Result<Sub<Self>, IpcError>;
     #[doc(hidden)]
-    fn send(port: &PubPorts<Self>, value: &Self, topic: Topic) -> Result<(), IpcError>;
+    fn send(port: &PubPorts<Self>, value: &Self) -> Result<(), IpcError>;
     #[doc(hidden)]
-    fn receive(port: &SubPorts<Self>, topic: Topic) -> Result<Option<Self>, IpcError>;
+    fn receive(port: &SubPorts<Self>) -> Result<Option<Self>, IpcError>;
     #[doc(hidden)]
-    fn has_pending(port: &SubPorts<Self>, topic: Topic) -> Result<bool, IpcError>;
+    fn has_pending(port: &SubPorts<Self>) -> Result<bool, IpcError>;
     #[doc(hidden)]
-    fn connect_publisher(port: &PubPorts<Self>, topic: Topic) -> Result<(), IpcError>;
+    fn connect_publisher(port: &PubPorts<Self>) -> Result<(), IpcError>;
     #[doc(hidden)]
-    fn connect_subscriber(port: &SubPorts<Self>, topic: Topic) -> Result<(), IpcError>;
+    fn connect_subscriber(port: &SubPorts<Self>) -> Result<(), IpcError>;
     #[doc(hidden)]
     fn subscribers(port: &PubPorts<Self>) -> usize;
     #[doc(hidden)]
@@ -60,22 +60,27 @@ pub trait Message: Debug + ZeroCopySend + Copy + 'static {
 
 type PubSubFactory<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, T, ()>;
 
-/// A publisher's iceoryx2 side: the port, its notifier (a waking publisher) and its service.
+/// A publisher's iceoryx2 side: the port, its notifier (a waking publisher), its service and
+/// its topic (which names it in errors).
 #[doc(hidden)]
 pub struct PubPorts<T: Debug + ZeroCopySend + 'static> {
     publisher: Publisher<Svc, T, ()>,
     notifier: Option<Notifier<Svc>>,
     service: PubSubFactory<T>,
+    topic: Topic,
 }
 
-/// A subscriber's iceoryx2 side: the port, its listener (a waiting subscriber) and its service.
+/// A subscriber's iceoryx2 side: the port, its listener (a waiting subscriber), its service and
+/// its topic.
 #[doc(hidden)]
 pub struct SubPorts<T: Debug + ZeroCopySend + 'static> {
     subscriber: Subscriber<Svc, T, ()>,
     pub(crate) listener: Option<Listener<Svc>>,
     service: PubSubFactory<T>,
+    pub(crate) topic: Topic,
 }
 
+/// `topic`'s publish-subscribe service, opened or created with the topic's limits.
 fn pubsub<T: Debug + ZeroCopySend + 'static>(
     ipc: &Ipc,
     topic: Topic,
@@ -96,97 +101,80 @@ fn pubsub<T: Debug + ZeroCopySend + 'static>(
     })
 }
 
-fn publisher<T: Message>(ipc: &Ipc, topic: Topic, wake: bool) -> Result<Pub<T>, IpcError> {
-    let service = pubsub::<T>(ipc, topic)?;
-    let publisher = service
-        .publisher_builder()
-        .max_loaned_samples(1)
-        .create()
-        .map_err(|e| IpcError::new(format!("publisher on {}", topic.name()), e))?;
-    let notifier = if wake {
-        Some(ipc.notifier(topic)?)
-    } else {
-        None
-    };
-    Ok(Pub::new(
-        PubPorts {
-            publisher,
-            notifier,
-            service,
-        },
-        topic,
-    ))
+/// `what` failed on `topic`: the error names the operation and the topic.
+fn failed<E: std::error::Error + Send + Sync + 'static>(
+    what: &'static str,
+    topic: Topic,
+) -> impl FnOnce(E) -> IpcError {
+    move |e| IpcError::new(format!("{what} {}", topic.name()), e)
 }
 
-fn subscriber<T: Message>(
-    ipc: &Ipc,
-    topic: Topic,
-    buffer: usize,
-    wake: bool,
-) -> Result<Sub<T>, IpcError> {
-    let service = pubsub::<T>(ipc, topic)?;
-    let subscriber = service
-        .subscriber_builder()
-        .buffer_size(buffer.clamp(1, topic.max_buffer()))
-        .create()
-        .map_err(|e| IpcError::new(format!("subscriber on {}", topic.name()), e))?;
-    let listener = if wake {
-        Some(ipc.listener(topic)?)
-    } else {
-        None
-    };
-    Ok(Sub::new(
-        SubPorts {
-            subscriber,
-            listener,
+impl<T: Debug + ZeroCopySend + Copy + 'static> PubPorts<T> {
+    fn open(ipc: &Ipc, topic: Topic, wake: bool) -> Result<Self, IpcError> {
+        let service = pubsub::<T>(ipc, topic)?;
+        Ok(PubPorts {
+            publisher: service
+                .publisher_builder()
+                .max_loaned_samples(1)
+                .create()
+                .map_err(failed("publisher on", topic))?,
+            notifier: wake.then(|| ipc.notifier(topic)).transpose()?,
             service,
-        },
-        topic,
-    ))
-}
-
-/// Copy `value` into a shared-memory slot, send it and wake the listeners. No allocation.
-fn send<T: Debug + ZeroCopySend + Copy + 'static>(
-    p: &PubPorts<T>,
-    value: &T,
-    topic: Topic,
-) -> Result<(), IpcError> {
-    let sample = p
-        .publisher
-        .loan_uninit()
-        .map_err(|e| IpcError::new(format!("loan on {}", topic.name()), e))?;
-    sample
-        .write_payload(*value)
-        .send()
-        .map_err(|e| IpcError::new(format!("send on {}", topic.name()), e))?;
-    if let Some(n) = &p.notifier {
-        n.notify()
-            .map_err(|e| IpcError::new(format!("notify on {}", topic.name()), e))?;
+            topic,
+        })
     }
-    Ok(())
+
+    /// Copy `value` into a shared-memory slot, send it and wake the listeners. No allocation.
+    fn send(&self, value: &T) -> Result<(), IpcError> {
+        let sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(failed("loan on", self.topic))?;
+        sample
+            .write_payload(*value)
+            .send()
+            .map_err(failed("send on", self.topic))?;
+        if let Some(n) = &self.notifier {
+            n.notify().map_err(failed("notify on", self.topic))?;
+        }
+        Ok(())
+    }
 }
 
-fn receive<T: Debug + ZeroCopySend + Copy + 'static>(
-    s: &SubPorts<T>,
-    topic: Topic,
-) -> Result<Option<T>, IpcError> {
-    match s.subscriber.receive() {
-        Ok(Some(sample)) => Ok(Some(*sample.payload())),
-        Ok(None) => Ok(None),
-        Err(e) => Err(IpcError::new(format!("receive on {}", topic.name()), e)),
+impl<T: Debug + ZeroCopySend + Copy + 'static> SubPorts<T> {
+    fn open(ipc: &Ipc, topic: Topic, buffer: usize, wake: bool) -> Result<Self, IpcError> {
+        let service = pubsub::<T>(ipc, topic)?;
+        Ok(SubPorts {
+            subscriber: service
+                .subscriber_builder()
+                .buffer_size(buffer.clamp(1, topic.max_buffer()))
+                .create()
+                .map_err(failed("subscriber on", topic))?,
+            listener: wake.then(|| ipc.listener(topic)).transpose()?,
+            service,
+            topic,
+        })
+    }
+
+    fn receive(&self) -> Result<Option<T>, IpcError> {
+        let sample = self
+            .subscriber
+            .receive()
+            .map_err(failed("receive on", self.topic))?;
+        Ok(sample.map(|s| *s.payload()))
     }
 }
 
 fn connections(topic: Topic, port: &dyn UpdateConnections) -> Result<(), IpcError> {
     port.update_connections()
-        .map_err(|e| IpcError::new(format!("connections of {}", topic.name()), e))
+        .map_err(failed("connections of", topic))
 }
 
 macro_rules! messages {
     ($($t:ty),* $(,)?) => {$(
         impl Message for $t {
             fn publisher(ipc: &Ipc, topic: Topic, wake: bool) -> Result<Pub<Self>, IpcError> {
-                publisher(ipc, topic, wake)
+                PubPorts::open(ipc, topic, wake).map(Pub::new)
             }
             fn subscriber(
                 ipc: &Ipc,
@@ -194,24 +182,22 @@ macro_rules! messages {
                 buffer: usize,
                 wake: bool,
             ) -> Result<Sub<Self>, IpcError> {
-                subscriber(ipc, topic, buffer, wake)
+                SubPorts::open(ipc, topic, buffer, wake).map(Sub::new)
             }
-            fn send(port: &PubPorts<Self>, value: &Self, topic: Topic) -> Result<(), IpcError> {
-                send(port, value, topic)
+            fn send(port: &PubPorts<Self>, value: &Self) -> Result<(), IpcError> {
+                port.send(value)
             }
-            fn receive(port: &SubPorts<Self>, topic: Topic) -> Result<Option<Self>, IpcError> {
-                receive(port, topic)
+            fn receive(port: &SubPorts<Self>) -> Result<Option<Self>, IpcError> {
+                port.receive()
             }
-            fn has_pending(port: &SubPorts<Self>, topic: Topic) -> Result<bool, IpcError> {
-                port.subscriber
-                    .has_samples()
-                    .map_err(|e| IpcError::new(format!("poll {}", topic.name()), e))
+            fn has_pending(port: &SubPorts<Self>) -> Result<bool, IpcError> {
+                port.subscriber.has_samples().map_err(failed("poll", port.topic))
             }
-            fn connect_publisher(port: &PubPorts<Self>, topic: Topic) -> Result<(), IpcError> {
-                connections(topic, &port.publisher)
+            fn connect_publisher(port: &PubPorts<Self>) -> Result<(), IpcError> {
+                connections(port.topic, &port.publisher)
             }
-            fn connect_subscriber(port: &SubPorts<Self>, topic: Topic) -> Result<(), IpcError> {
-                connections(topic, &port.subscriber)
+            fn connect_subscriber(port: &SubPorts<Self>) -> Result<(), IpcError> {
+                connections(port.topic, &port.subscriber)
             }
             fn subscribers(port: &PubPorts<Self>) -> usize {
                 port.service.dynamic_config().number_of_subscribers()
