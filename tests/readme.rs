@@ -457,6 +457,61 @@ fn the_book_quotes_the_message_crates_own_version() {
     }
 }
 
+/// Every place the docs, the Python package and the interop pins quote iceoryx2's version
+/// (`iceoryx2 0.10`, `iceoryx2==0.10.0`) quotes the one Cargo.lock builds against: the Python
+/// binding must speak the same wire layout, and a version bump cannot leave a chapter behind.
+#[test]
+fn every_quoted_iceoryx2_version_is_the_locked_one() {
+    let lock = std::fs::read_to_string(root().join("Cargo.lock")).unwrap();
+    let locked = lock
+        .split("[[package]]")
+        .find_map(|p| {
+            p.contains("\nname = \"iceoryx2\"\n")
+                .then(|| p.split("version = \"").nth(1)?.split('"').next())
+                .flatten()
+        })
+        .expect("Cargo.lock holds iceoryx2");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(root().join("docs/src"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "md"))
+        .collect();
+    for f in [
+        "README.md",
+        "python/README.md",
+        "python/pyproject.toml",
+        "scripts/interop.txt",
+    ] {
+        files.push(root().join(f));
+    }
+    let mut quoted = 0;
+    for file in &files {
+        let text = std::fs::read_to_string(file).unwrap();
+        for sep in ["iceoryx2 ", "iceoryx2=="] {
+            for rest in text.split(sep).skip(1) {
+                let v: String = rest
+                    .chars()
+                    .take_while(|c| c.is_ascii_digit() || *c == '.')
+                    .collect();
+                let v = v.trim_end_matches('.');
+                if v.is_empty() || !v.contains('.') {
+                    continue; // "iceoryx2 is ...", not a version
+                }
+                quoted += 1;
+                assert!(
+                    locked == v || locked.starts_with(&format!("{v}.")),
+                    "{} quotes iceoryx2 {v}; Cargo.lock has {locked}",
+                    file.display()
+                );
+            }
+        }
+    }
+    assert!(
+        quoted >= 5,
+        "the docs quote iceoryx2's version in 5 places, found {quoted}"
+    );
+}
+
 /// config/README.md is the index of the shipped scenarios: it names every `.toml` of config/'s
 /// plant and experiment folders (`maglev/maglev.toml`, in backticks, as its tables do) and names
 /// no file that is not there.

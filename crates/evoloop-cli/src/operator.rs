@@ -56,7 +56,7 @@ pub fn main(a: &OperatorArgs) -> u8 {
 
 /// Send the command and wait for its answer.
 pub fn send(a: &OperatorArgs) -> Result<OperatorAck, String> {
-    let run = pick_run(a.run.as_deref())?;
+    let run = pick_run(a.run.as_deref()).map_err(|e| e.to_string())?;
     let io = |e: evoloop_ipc::IpcError| e.to_string();
     // Nothing of the run's is cleaned up from here.
     let ipc =

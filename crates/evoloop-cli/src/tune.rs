@@ -57,13 +57,14 @@ fn workers(a: &TuneArgs) -> Result<evoloop_run::node::launcher::LocalWorkers, St
             return Err("--workers-expect goes with --workers-listen".into())
         }
         (None, None) => return Ok(LocalWorkers::default()),
-        (Some(_), _) => local_workers_endpoint()?,
+        (Some(_), _) => local_workers_endpoint().map_err(|e| e.to_string())?,
         (None, Some(ep)) => ep.clone(),
     };
     let net = evoloop_run::network::required("--workers (or --workers-listen)")
         .map_err(|e| e.to_string())?;
     // Niceness 10, the optimiser's default: they yield to whatever else runs here.
-    let local = LocalWorkers::start(&listen, a.workers.unwrap_or(0) as usize, 1, 10, "tune")?;
+    let local = LocalWorkers::start(&listen, a.workers.unwrap_or(0) as usize, 1, 10, "tune")
+        .map_err(|e| e.to_string())?;
     let expect = a
         .workers
         .map(usize::from)

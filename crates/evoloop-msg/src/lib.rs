@@ -81,6 +81,21 @@ pub const STATE_FLAG_SAFE: u32 = 1;
 pub const STATE_FLAG_END: u32 = 2;
 
 /// One sample of the plant, published by the plant process every control period.
+///
+/// Fixed-size and `repr(C)`, so it travels by shared memory as it is: the counts say how many
+/// entries of each array are valid, the rest stay zero.
+///
+/// ```
+/// use evoloop_msg::{PlantState, STATE_FLAG_END};
+///
+/// // A two-joint arm's sample 41 at t = 0.041 s, measured by encoders.
+/// let mut s = PlantState { seq: 41, t: 0.041, n_q: 2, n_y: 2, ..PlantState::default() };
+/// s.y[..2].copy_from_slice(&[0.1005, -0.2495]);
+/// assert_eq!(&s.y[..s.n_y as usize], &[0.1005, -0.2495]);
+/// // The last sample of a run says so in its flags.
+/// s.flags |= STATE_FLAG_END;
+/// assert!(s.flags & STATE_FLAG_END != 0);
+/// ```
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlantState {
@@ -131,6 +146,15 @@ impl Default for PlantState {
 }
 
 /// The controller's answer to one state sample.
+///
+/// ```
+/// use evoloop_msg::Command;
+///
+/// // Cycle 7 answers state 41 with two torques, under parameter set 3.
+/// let mut c = Command { cycle: 7, state_seq: 41, param_version: 3, n_u: 2, ..Command::default() };
+/// c.u[..2].copy_from_slice(&[1.5, -0.25]);
+/// assert_eq!(&c.u[..c.n_u as usize], &[1.5, -0.25]);
+/// ```
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Command {
@@ -188,6 +212,16 @@ pub enum ParamCode {
 
 impl ParamCode {
     /// Whether the set was refused (a trial's end or abort is not a refusal).
+    ///
+    /// ```
+    /// use evoloop_msg::ParamCode;
+    ///
+    /// assert!(!ParamCode::Accepted.is_rejection());
+    /// assert!(ParamCode::RejectedPartMissing.is_rejection());
+    /// // Telemetry carries the code as a number; an unknown one is an error, not a default.
+    /// assert_eq!(ParamCode::try_from(1), Ok(ParamCode::Accepted));
+    /// assert!(ParamCode::try_from(9999).is_err());
+    /// ```
     pub fn is_rejection(self) -> bool {
         !matches!(
             self,

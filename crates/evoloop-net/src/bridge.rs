@@ -8,7 +8,7 @@
 //! gaps), telemetry as it comes.
 
 use super::{key, open, wire, Endpoint, NetError, POLL};
-use crate::ipc::{Ipc, IpcError, Message, Pub, Sub, Topic};
+use crate::ipc::{Ipc, Message, Pub, Sub, Topic};
 use crate::msg::{
     Command, ModelEstimate, OptimiserStatus, ParamSet, PlantState, Telemetry, STATE_FLAG_END,
 };
@@ -139,11 +139,6 @@ pub fn subscriber(
         .with(FifoChannel::new(NET_QUEUE))
         .wait()
         .map_err(NetError::zenoh(format!("Zenoh subscriber on {key}")))
-}
-
-/// An iceoryx2 error as this crate's `String` errors.
-pub fn ipc_err(e: IpcError) -> String {
-    e.to_string()
 }
 
 /// What a bridge did, printed and returned at its end.

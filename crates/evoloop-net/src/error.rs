@@ -3,7 +3,8 @@
 use crate::ipc::IpcError;
 use std::path::PathBuf;
 
-/// Why `open`, the bridge's relays, `bridge::run` or `Ros2Node::new` stopped.
+/// Why `open`, the bridge's relays, `bridge::run`, `Ros2Node::new` or the evaluation workers'
+/// pool (`workers::install`, `workers::serve`) stopped.
 #[derive(Debug)]
 pub enum NetError {
     /// Zenoh refused an operation: what (e.g. "Zenoh publisher on KEY"), and Zenoh's error.
@@ -24,6 +25,15 @@ pub enum NetError {
     Ipc(IpcError),
     /// A ROS 2 name refused (a topic under the node's namespace).
     Name(crate::report::ros2::rmw_zenoh::NameError),
+    /// This process has evaluation workers already (`optim::remote::install` takes one pool).
+    WorkersInstalled(crate::optim::remote::AlreadyInstalled),
+    /// A message that postcard could not encode: what it was.
+    Encode {
+        /// The message.
+        what: &'static str,
+        /// postcard's error.
+        source: postcard::Error,
+    },
 }
 
 impl NetError {
@@ -43,6 +53,8 @@ impl std::fmt::Display for NetError {
             }
             NetError::Ipc(e) => e.fmt(f),
             NetError::Name(e) => e.fmt(f),
+            NetError::WorkersInstalled(e) => e.fmt(f),
+            NetError::Encode { what, source } => write!(f, "encoding {what}: {source}"),
         }
     }
 }
@@ -55,6 +67,8 @@ impl std::error::Error for NetError {
             }
             NetError::Ipc(e) => e.source(),
             NetError::Name(_) => None,
+            NetError::WorkersInstalled(_) => None,
+            NetError::Encode { source, .. } => Some(source),
         }
     }
 }

@@ -17,6 +17,7 @@
 //! Payloads are postcard (every f64 its 8 bytes), so nothing is lost in transit.
 
 use super::Endpoint;
+use crate::error::NetError;
 use crate::optim::remote::{Pending, Reply, Slot, Workers};
 use crate::optim::Job;
 use serde::{Deserialize, Serialize};
@@ -121,11 +122,11 @@ pub fn install(
     zenoh_config: Option<&Path>,
     expect: usize,
     stop: &AtomicBool,
-) -> Result<&'static ZenohWorkers, String> {
+) -> Result<&'static ZenohWorkers, NetError> {
     let z = ZenohWorkers::start(&Endpoint::Listen(listen.to_string()), zenoh_config)?;
     // For the rest of the process: `optim::evaluate` may run on any thread at any time.
     let z: &'static ZenohWorkers = Box::leak(Box::new(z));
-    crate::optim::remote::install(z).map_err(|e| e.to_string())?;
+    crate::optim::remote::install(z).map_err(NetError::WorkersInstalled)?;
     if expect > 0 {
         let limit = crate::config::WORKERS_WAIT_S;
         let up = z.wait_for(expect, Duration::from_secs_f64(limit), stop);
@@ -140,8 +141,8 @@ pub fn install(
 
 impl ZenohWorkers {
     /// Open the optimiser's session on `ep` and follow the workers' tokens.
-    pub fn start(ep: &Endpoint, zenoh_config: Option<&Path>) -> Result<Self, String> {
-        let session = super::open(ep, zenoh_config).map_err(|e| e.to_string())?;
+    pub fn start(ep: &Endpoint, zenoh_config: Option<&Path>) -> Result<Self, NetError> {
+        let session = super::open(ep, zenoh_config)?;
         let live: Shared<BTreeMap<String, Slot>> = Default::default();
         let stats: Shared<BTreeMap<String, WorkerStats>> = Default::default();
         let other_builds: Shared<BTreeSet<String>> = Default::default();
@@ -174,7 +175,7 @@ impl ZenohWorkers {
                 }
             })
             .wait()
-            .map_err(|e| format!("Zenoh: following the workers' tokens: {e}"))?;
+            .map_err(NetError::zenoh("Zenoh: following the workers' tokens"))?;
         Ok(Self {
             session,
             live,
@@ -375,18 +376,18 @@ pub fn serve(
     threads: usize,
     duration: Option<Duration>,
     stop: &AtomicBool,
-) -> Result<WorkerReport, String> {
-    let session = super::open(ep, zenoh_config).map_err(|e| e.to_string())?;
+) -> Result<WorkerReport, NetError> {
+    let session = super::open(ep, zenoh_config)?;
     let queryable = session
         .declare_queryable(format!("{EVAL}/{id}"))
         .wait()
-        .map_err(|e| format!("Zenoh: declaring {EVAL}/{id}: {e}"))?;
+        .map_err(NetError::zenoh(format!("Zenoh: declaring {EVAL}/{id}")))?;
     // The token after the queryable: an optimiser that sees the worker can query it.
     let _token = session
         .liveliness()
         .declare_token(format!("{TOKENS}/{id}/{threads}/{}", build()))
         .wait()
-        .map_err(|e| format!("Zenoh: declaring the worker's token: {e}"))?;
+        .map_err(NetError::zenoh("Zenoh: declaring the worker's token"))?;
     let mut report = WorkerReport {
         id: id.to_string(),
         threads,
@@ -400,7 +401,7 @@ pub fn serve(
         let query = match queryable.recv_timeout(Duration::from_millis(100)) {
             Ok(Some(q)) => q,
             Ok(None) => continue,
-            Err(e) => return Err(format!("Zenoh: the queryable closed: {e}")),
+            Err(e) => return Err(NetError::zenoh("Zenoh: the queryable closed")(e)),
         };
         let started = Instant::now();
         let sent = match evaluate(&query, &mut cached, threads) {
@@ -411,7 +412,10 @@ pub fn serve(
                     compute_ns: started.elapsed().as_nanos() as u64,
                     values,
                 })
-                .map_err(|e| e.to_string())?;
+                .map_err(|source| NetError::Encode {
+                    what: "a worker's answer",
+                    source,
+                })?;
                 query.reply(query.key_expr().clone(), bytes).wait()
             }
             Err(why) => {

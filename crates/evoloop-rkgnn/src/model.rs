@@ -232,10 +232,10 @@ impl Start {
 }
 
 /// Why a model file was not read, written or accepted.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug)]
 pub enum ModelError {
-    /// Reading or writing the file failed.
-    Io(String),
+    /// Reading or writing the file failed: the system's error (or the JSON writer's).
+    Io(std::io::Error),
     /// Not a model file this build reads: not its JSON layout (the key path in the reason),
     /// another format or another version.
     NotAModelFile(String),
@@ -256,9 +256,8 @@ impl ModelError {
 impl std::fmt::Display for ModelError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            ModelError::Io(e) | ModelError::NotAModelFile(e) | ModelError::Invalid(e) => {
-                f.write_str(e)
-            }
+            ModelError::Io(e) => e.fmt(f),
+            ModelError::NotAModelFile(e) | ModelError::Invalid(e) => f.write_str(e),
             ModelError::Indefinite(lo) => write!(
                 f,
                 "M-hat is not positive definite on its own trajectory (smallest eigenvalue {lo:.3e})"
@@ -268,7 +267,16 @@ impl std::fmt::Display for ModelError {
     }
 }
 
-impl std::error::Error for ModelError {}
+impl std::error::Error for ModelError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            // Reads as the system's error: its source is that error's.
+            ModelError::Io(e) => e.source(),
+            ModelError::In(_, e) => Some(&**e),
+            _ => None,
+        }
+    }
+}
 
 /// The `format` value of a model file.
 pub const FORMAT: &str = "evoloop-rkgnn";
@@ -377,15 +385,15 @@ impl RkgnnModel {
     /// (`evoloop_files::write`). Fails with `ModelError::Io` naming the path.
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
         let s = serde_json::to_string_pretty(&self.to_file())
-            .map_err(|e| ModelError::Io(e.to_string()).at(path))?;
-        evoloop_files::write(path, s + "\n").map_err(|e| ModelError::Io(e.to_string()).at(path))
+            .map_err(|e| ModelError::Io(e.into()).at(path))?;
+        evoloop_files::write(path, s + "\n").map_err(|e| ModelError::Io(e).at(path))
     }
 
     /// Read and check a model file: format and version, joint count, parameter count, finite
     /// values, premise rows of 2n values, M-hat positive definite on the premise positions.
     pub fn load(path: &Path) -> Result<RkgnnModel, ModelError> {
         let text = evoloop_files::read_text_up_to(path, evoloop_files::MAX_DATA_BYTES)
-            .map_err(|e| ModelError::Io(e.to_string()).at(path))?;
+            .map_err(|e| ModelError::Io(e).at(path))?;
         let de = &mut serde_json::Deserializer::from_str(&text);
         let f: ModelFile = serde_path_to_error::deserialize(de).map_err(|e| {
             ModelError::NotAModelFile(format!("{} ({})", e.inner(), e.path())).at(path)

@@ -42,13 +42,72 @@ impl RunningRun {
         &self,
         config: Option<&std::path::Path>,
         ov: &crate::config::Overrides,
-    ) -> Result<crate::config::Scenario, String> {
+    ) -> Result<crate::config::Scenario, PickError> {
         let file = config
             .or(self.config.as_deref())
-            .ok_or("the run's scenario is unknown: give --config")?;
+            .ok_or(PickError::UnknownScenario)?;
         let mut ov = ov.clone();
         ov.optimiser = ov.optimiser.or(self.optimiser);
-        crate::config::Scenario::load(file, &ov).map_err(|e| e.to_string())
+        crate::config::Scenario::load(file, &ov).map_err(PickError::Config)
+    }
+}
+
+/// Why no one running run was picked, or its scenario could not be had.
+#[derive(Debug)]
+pub enum PickError {
+    /// No run of the id asked for is running: the id, and the ids of those that are.
+    NotRunning {
+        /// The id asked for.
+        id: String,
+        /// The runs that are running.
+        running: Vec<String>,
+    },
+    /// No evoloop run is running.
+    NoneRunning,
+    /// Several are running and none was named: their ids.
+    Several(Vec<String>),
+    /// The run's controller was started without `--config`, and none was given.
+    UnknownScenario,
+    /// The run's scenario did not load.
+    Config(crate::config::ConfigError),
+}
+
+impl std::fmt::Display for PickError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PickError::NotRunning { id, running } if running.is_empty() => {
+                write!(f, "no run `{id}` is running (no evoloop run is)")
+            }
+            PickError::NotRunning { id, running } => {
+                write!(
+                    f,
+                    "no run `{id}` is running (running: {})",
+                    running.join(", ")
+                )
+            }
+            PickError::NoneRunning => {
+                f.write_str("no evoloop run is running (start one with `evoloop run`)")
+            }
+            PickError::Several(ids) => write!(
+                f,
+                "several runs are running, name one with --run: {}",
+                ids.join(", ")
+            ),
+            PickError::UnknownScenario => {
+                f.write_str("the run's scenario is unknown: give --config")
+            }
+            PickError::Config(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for PickError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            // Reads as the scenario's error: its source is that error's.
+            PickError::Config(e) => e.source(),
+            _ => None,
+        }
     }
 }
 
@@ -77,33 +136,22 @@ pub fn running_runs() -> Vec<RunningRun> {
 }
 
 /// The run `run` names, or the only one running.
-pub fn pick_run(run: Option<&str>) -> Result<RunningRun, String> {
+pub fn pick_run(run: Option<&str>) -> Result<RunningRun, PickError> {
     let runs = running_runs();
-    let ids = || {
-        runs.iter()
-            .map(|r| r.run_id.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
+    let ids = || runs.iter().map(|r| r.run_id.clone()).collect::<Vec<_>>();
     match run {
         Some(id) => runs
             .iter()
             .find(|r| r.run_id == id)
             .cloned()
-            .ok_or_else(|| {
-                if runs.is_empty() {
-                    format!("no run `{id}` is running (no evoloop run is)")
-                } else {
-                    format!("no run `{id}` is running (running: {})", ids())
-                }
+            .ok_or_else(|| PickError::NotRunning {
+                id: id.to_string(),
+                running: ids(),
             }),
         None => match runs.len() {
-            0 => Err("no evoloop run is running (start one with `evoloop run`)".into()),
+            0 => Err(PickError::NoneRunning),
             1 => Ok(runs[0].clone()),
-            _ => Err(format!(
-                "several runs are running, name one with --run: {}",
-                ids()
-            )),
+            _ => Err(PickError::Several(ids())),
         },
     }
 }

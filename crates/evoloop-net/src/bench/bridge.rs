@@ -12,7 +12,9 @@
 //! drifted. They cannot interleave sample by sample: the run's params topic takes two
 //! publishers (its optimiser's and one more).
 
-use crate::bridge::{ipc_err, BridgeReport};
+use super::BenchError;
+use crate::bridge::BridgeReport;
+use crate::error::NetError;
 use crate::ipc::{Ipc, Topic};
 use crate::msg::{ParamKind, ParamSet, PlantState, Telemetry};
 use crate::{key, open, wire, Endpoint};
@@ -56,9 +58,9 @@ pub struct BridgeBench {
 }
 
 /// Send `sets` sets each way on a realtime run of `scenario` and time them.
-pub fn run(scenario: &std::path::Path, sets: usize, port: u16) -> Result<BridgeBench, String> {
+pub fn run(scenario: &std::path::Path, sets: usize, port: u16) -> Result<BridgeBench, BenchError> {
     let scn = crate::config::Scenario::load(scenario, &crate::config::Overrides::default())
-        .map_err(|e| e.to_string())?;
+        .map_err(BenchError::Config)?;
     let kind = scn.controller.param_kind();
     let gains = scn.controller.tunable().gains.clone();
     let pid = std::process::id();
@@ -93,8 +95,8 @@ fn start_run(
     run_id: &str,
     prefix: &str,
     out: &std::path::Path,
-) -> Result<Child, String> {
-    let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+) -> Result<Child, BenchError> {
+    let exe = std::env::current_exe().map_err(BenchError::Start)?;
     Command::new(exe)
         .arg("run")
         .arg(scenario)
@@ -118,7 +120,7 @@ fn start_run(
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
-        .map_err(|e| format!("cannot start the run: {e}"))
+        .map_err(BenchError::Start)
 }
 
 struct Phases {
@@ -139,14 +141,17 @@ fn random_phase(rng: &mut impl rand::Rng, period_ns: u64) {
 }
 
 /// Poll `next` until it gives something, for at most 20 s (`what` names it in the error).
-fn first<T>(mut next: impl FnMut() -> Result<Option<T>, String>, what: &str) -> Result<T, String> {
+fn first<T>(
+    mut next: impl FnMut() -> Result<Option<T>, BenchError>,
+    what: &str,
+) -> Result<T, BenchError> {
     let t0 = Instant::now();
     loop {
         if let Some(v) = next()? {
             return Ok(v);
         }
         if t0.elapsed() > Duration::from_secs(20) {
-            return Err(format!("{what} within 20 s"));
+            return Err(BenchError::Timeout(format!("{what} within 20 s")));
         }
         std::thread::sleep(Duration::from_millis(1));
     }
@@ -166,9 +171,9 @@ impl<R: rand::Rng> RoundTrips<'_, R> {
     fn run(
         &mut self,
         sets: usize,
-        mut send: impl FnMut(&ParamSet) -> Result<(), String>,
-        mut next: impl FnMut() -> Result<Option<Telemetry>, String>,
-    ) -> Result<Vec<f64>, String> {
+        mut send: impl FnMut(&ParamSet) -> Result<(), BenchError>,
+        mut next: impl FnMut() -> Result<Option<Telemetry>, BenchError>,
+    ) -> Result<Vec<f64>, BenchError> {
         let mut out = Vec::with_capacity(sets);
         for _ in 0..sets {
             self.version += 1;
@@ -188,7 +193,9 @@ impl<R: rand::Rng> RoundTrips<'_, R> {
                     break;
                 }
                 if sent.elapsed() > SET_TIMEOUT {
-                    return Err(format!("set {v} not in service after 2 s"));
+                    return Err(BenchError::Timeout(format!(
+                        "set {v} not in service after 2 s"
+                    )));
                 }
                 std::hint::spin_loop();
             }
@@ -199,8 +206,8 @@ impl<R: rand::Rng> RoundTrips<'_, R> {
 
 /// Ages on arrival of `STATES` states from `next` (the plant's stamp to now, one clock).
 fn state_ages(
-    mut next: impl FnMut() -> Result<Option<PlantState>, String>,
-) -> Result<Vec<f64>, String> {
+    mut next: impl FnMut() -> Result<Option<PlantState>, BenchError>,
+) -> Result<Vec<f64>, BenchError> {
     let mut ages = Vec::with_capacity(STATES);
     while ages.len() < STATES {
         if let Some(s) = next()? {
@@ -213,11 +220,12 @@ fn state_ages(
 /// The next message of `sub` as a `T`, if one has arrived.
 fn recv<T: iceoryx2::prelude::ZeroCopySend + Copy>(
     sub: &Subscriber<FifoChannelHandler<Sample>>,
-) -> Result<Option<T>, String> {
-    match sub.try_recv().map_err(|e| e.to_string())? {
-        Some(s) => wire::decode(&s.payload().to_bytes())
-            .map(Some)
-            .map_err(|e| e.to_string()),
+) -> Result<Option<T>, BenchError> {
+    match sub
+        .try_recv()
+        .map_err(NetError::zenoh("Zenoh: receiving through the bridge"))?
+    {
+        Some(s) => Ok(Some(wire::decode(&s.payload().to_bytes())?)),
         None => Ok(None),
     }
 }
@@ -230,7 +238,7 @@ fn measure(
     sets: usize,
     port: u16,
     period_ns: u64,
-) -> Result<Phases, String> {
+) -> Result<Phases, BenchError> {
     use rand::SeedableRng;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
     let mut trips = RoundTrips {
@@ -240,27 +248,21 @@ fn measure(
         gains,
         version: 1_000_000,
     };
-    let ipc = Ipc::with_cleanup("evoloop-bench-bridge", run_id, prefix, false).map_err(ipc_err)?;
-    let telemetry = ipc
-        .subscriber::<Telemetry>(Topic::Telemetry, 64, false)
-        .map_err(ipc_err)?;
-    let local_tel = || telemetry.next().map_err(ipc_err);
+    let ipc = Ipc::with_cleanup("evoloop-bench-bridge", run_id, prefix, false)?;
+    let telemetry = ipc.subscriber::<Telemetry>(Topic::Telemetry, 64, false)?;
+    let local_tel = || Ok(telemetry.next()?);
     // The run is up once its controller's telemetry flows.
     first(local_tel, "no telemetry from the run's controller")?;
     // The local publisher lives for one phase: the params topic takes two publishers, the
     // run's optimiser's and one more (the bridge's in the middle phase).
     let local = |trips: &mut RoundTrips<_>| {
-        let params = ipc
-            .publisher::<ParamSet>(Topic::Params, false)
-            .map_err(ipc_err)?;
-        trips.run(sets, |s| params.send(s).map_err(ipc_err), local_tel)
+        let params = ipc.publisher::<ParamSet>(Topic::Params, false)?;
+        trips.run(sets, |s| Ok(params.send(s)?), local_tel)
     };
     let local_first = local(&mut trips)?;
     let state_local = {
-        let states = ipc
-            .subscriber::<PlantState>(Topic::State, 8, false)
-            .map_err(ipc_err)?;
-        state_ages(|| states.next().map_err(ipc_err))?
+        let states = ipc.subscriber::<PlantState>(Topic::State, 8, false)?;
+        state_ages(|| Ok(states.next()?))?
     };
     // Through a bridge of this process (its own thread, as `evoloop bridge` would run).
     let ep = format!("tcp/127.0.0.1:{port}");
@@ -276,31 +278,29 @@ fn measure(
             crate::bridge::run(&run_id, &prefix, &ep, None, None, None, &stop)
         })
     };
-    let z = open(&Endpoint::Connect(ep), None).map_err(|e| e.to_string())?;
-    let zt = crate::bridge::subscriber(&z, key(run_id, Topic::Telemetry, false))
-        .map_err(|e| e.to_string())?;
+    let z = open(&Endpoint::Connect(ep), None)?;
+    let zt = crate::bridge::subscriber(&z, key(run_id, Topic::Telemetry, false))?;
     let zp = crate::bridge::publisher(
         &z,
         key(run_id, Topic::Params, false),
         zenoh::qos::CongestionControl::Block,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     first(|| recv::<Telemetry>(&zt), "no telemetry through the bridge")?;
     let through = trips.run(
         sets,
-        |s| zp.put(wire::encode(s)).wait().map_err(|e| e.to_string()),
+        |s| {
+            zp.put(wire::encode(s))
+                .wait()
+                .map_err(|e| NetError::zenoh("Zenoh: sending a set to the bridge")(e).into())
+        },
         || recv(&zt),
     )?;
     let state_bridge = {
-        let zs = crate::bridge::subscriber(&z, key(run_id, Topic::State, false))
-            .map_err(|e| e.to_string())?;
+        let zs = crate::bridge::subscriber(&z, key(run_id, Topic::State, false))?;
         state_ages(|| recv(&zs))?
     };
     stop.store(true, Ordering::SeqCst);
-    let report = bridge
-        .join()
-        .map_err(|_| "the bridge thread panicked".to_string())?
-        .map_err(|e| e.to_string())?;
+    let report = bridge.join().map_err(|_| BenchError::BridgePanicked)??;
     drop((zt, zp, z));
     let local_again = local(&mut trips)?;
     Ok(Phases {

@@ -3,6 +3,7 @@
 //! every phase, and what the remote path costs per run and per evaluation (a run's round trip
 //! minus the worker's own compute time), for the scaling model in the book.
 
+use super::BenchError;
 use crate::optim::remote::{totals, Workers as _};
 use crate::optim::{evaluate, Objective};
 use crate::workers::ZenohWorkers;
@@ -106,15 +107,18 @@ const PROBE_RUNS: usize = 300;
 
 /// `runs` round trips of one candidate of a one-sample maglev job to the one worker up, one at
 /// a time: round trip minus the worker's compute time, us each.
-fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
+fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, BenchError> {
     use crate::optim::remote::Reply;
     let mut f = objective();
     f.spec.duration = f.spec.period;
     let xs = candidates(1, 7);
-    let job = f
-        .describe()
-        .ok_or("the maglev objective describes itself")?;
-    let id = pool.live().first().ok_or("no worker up")?.id.clone();
+    let job = f.describe().expect("the maglev objective describes itself");
+    let id = pool
+        .live()
+        .first()
+        .ok_or_else(|| BenchError::Timeout("no worker up for the probe".into()))?
+        .id
+        .clone();
     let mut out = Vec::with_capacity(runs);
     for _ in 0..runs {
         let (stats0, t0) = (pool.stats(), Instant::now());
@@ -123,7 +127,7 @@ fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
             match pending.poll(Duration::from_secs(5)) {
                 Reply::Waiting if t0.elapsed() < Duration::from_secs(5) => continue,
                 Reply::Values(_) => break,
-                r => return Err(format!("probe run: {r:?}")),
+                r => return Err(BenchError::Probe(format!("probe run: {r:?}"))),
             }
         }
         let (w, w0) = (&pool.stats()[&id], &stats0[&id]);
@@ -136,7 +140,7 @@ fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, String> {
 /// same populations, and probe the remote path alone in the first phase of one worker.
 /// `progress` gets a line per result. Fails when the workers are not up within 20 s or a probe
 /// run fails.
-pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
+pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, BenchError> {
     let ep = evoloop_run::node::launcher::local_workers_endpoint()?;
     let stop = std::sync::atomic::AtomicBool::new(false);
     let pool = crate::workers::install(&ep, None, 0, &stop)?;
@@ -170,10 +174,10 @@ pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, String> {
         let t0 = Instant::now();
         while pool.live().len() != n {
             if t0.elapsed() > Duration::from_secs(20) {
-                return Err(format!(
+                return Err(BenchError::Timeout(format!(
                     "{} of {n} workers up after 20 s",
                     pool.live().len()
-                ));
+                )));
             }
             pool.wait_for(n, Duration::from_millis(50), &stop);
         }

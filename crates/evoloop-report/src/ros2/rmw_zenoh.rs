@@ -266,16 +266,32 @@ pub fn attachment(seq: i64, stamp_ns: i64, gid: &[u8; 16]) -> [u8; 33] {
 }
 
 /// An attachment read back: (sequence number, source timestamp, GID).
-pub fn parse_attachment(b: &[u8]) -> Result<(i64, i64, [u8; 16]), String> {
+pub fn parse_attachment(b: &[u8]) -> Result<(i64, i64, [u8; 16]), NotAnAttachment> {
     if b.len() != 33 || b[16] != 16 {
-        return Err(format!(
-            "an rmw_zenoh attachment is 33 bytes (seq, stamp, 16, gid), not these {}",
-            b.len()
-        ));
+        return Err(NotAnAttachment { len: b.len() });
     }
     let i64_at = |at: usize| i64::from_le_bytes(b[at..at + 8].try_into().expect("8 bytes"));
     Ok((i64_at(0), i64_at(8), b[17..].try_into().expect("16 bytes")))
 }
+
+/// Bytes that are not an rmw_zenoh attachment (33 bytes: seq, stamp, 16, gid).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NotAnAttachment {
+    /// How many bytes there were.
+    pub len: usize,
+}
+
+impl std::fmt::Display for NotAnAttachment {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "an rmw_zenoh attachment is 33 bytes (seq, stamp, 16, gid), not these {}",
+            self.len
+        )
+    }
+}
+
+impl std::error::Error for NotAnAttachment {}
 
 #[cfg(test)]
 mod tests {

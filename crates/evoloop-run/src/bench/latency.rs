@@ -14,6 +14,7 @@ use crate::report::Csv;
 use crate::rt::now_ns;
 use crate::rt::timing::Percentiles;
 use clap::ValueEnum;
+use evoloop_schemes::WriteError;
 use iceoryx2::prelude::*;
 use serde::Serialize;
 use std::process::{Child, Command as Proc, Stdio};
@@ -106,8 +107,36 @@ impl VariantResult {
 
 const WARMUP: usize = 2_000;
 
-fn err(context: &str, e: impl std::fmt::Debug) -> IpcError {
-    IpcError::reason(context, format!("{e:?}"))
+fn err<E: std::error::Error + Send + Sync + 'static>(context: &str, e: E) -> IpcError {
+    IpcError::new(context, e)
+}
+
+/// Why `measure` gave no figures.
+#[derive(Debug)]
+pub enum LatencyError {
+    /// The peer process could not be started.
+    Peer(std::io::Error),
+    /// iceoryx2 refused, or the peer did not answer in time.
+    Ipc(IpcError),
+}
+
+impl std::fmt::Display for LatencyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LatencyError::Peer(e) => write!(f, "cannot start the peer process: {e}"),
+            LatencyError::Ipc(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for LatencyError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            LatencyError::Peer(e) => Some(e),
+            // Reads as the iceoryx2 error: its source is that error's.
+            LatencyError::Ipc(e) => e.source(),
+        }
+    }
 }
 
 fn spawn_peer(v: Variant, prefix: &str, run_id: &str, payload: usize) -> std::io::Result<Child> {
@@ -150,7 +179,7 @@ pub fn measure(
     samples: usize,
     payload: usize,
     progress: &dyn Fn(Variant),
-) -> Result<Measured, String> {
+) -> Result<Measured, LatencyError> {
     measure_variants(&ALL, samples, payload, progress)
 }
 
@@ -160,14 +189,13 @@ pub fn measure_variants(
     samples: usize,
     payload: usize,
     progress: &dyn Fn(Variant),
-) -> Result<Measured, String> {
+) -> Result<Measured, LatencyError> {
     let prefix = crate::ipc::DEFAULT_PREFIX.to_string();
     let mut raw: Vec<(Variant, Vec<i64>)> = Vec::new();
     for &v in variants {
         let run_id = format!("{}-{}", std::process::id(), v.name());
         progress(v);
-        let mut child = spawn_peer(v, &prefix, &run_id, payload)
-            .map_err(|e| format!("cannot start the peer process: {e}"))?;
+        let mut child = spawn_peer(v, &prefix, &run_id, payload).map_err(LatencyError::Peer)?;
         let r = if matches!(v, Variant::BareBusy | Variant::BareEvent) {
             ping_bare(v, &prefix, &run_id, payload, samples)
         } else {
@@ -183,7 +211,7 @@ pub fn measure_variants(
                 // otherwise hold the benchmark until its own timeout.
                 let _ = child.kill();
                 let _ = child.wait();
-                return Err(e.to_string());
+                return Err(LatencyError::Ipc(e));
             }
         }
     }
@@ -240,14 +268,15 @@ pub fn write_out(
     report: &serde_json::Value,
     results: &[VariantResult],
     raw: &[(Variant, Vec<i64>)],
-) -> Result<(), String> {
-    crate::report::write_json(dir, "latency.json", report).map_err(|e| e.to_string())?;
+) -> Result<(), WriteError> {
+    crate::report::write_json(dir, "latency.json", report)
+        .map_err(WriteError::file(&dir.join("latency.json")))?;
     let mut csv = Csv::new(std::iter::once("variant").chain(VariantResult::FIGURES));
     for r in results {
         csv.row().put(r.variant.name()).all(r.figures());
     }
-    csv.write(&dir.join("latency.csv"))
-        .map_err(|e| e.to_string())?;
+    let file = dir.join("latency.csv");
+    csv.write(&file).map_err(WriteError::file(&file))?;
     // CDF on a log time axis: x = log10(RTT / ns), y = fraction of round trips at or below.
     let curves: Vec<(String, Vec<f64>, Vec<f64>)> = raw
         .iter()
@@ -274,7 +303,7 @@ pub fn write_out(
         None,
         Some((0.0, 1.0)),
     )
-    .map_err(|e| e.to_string())
+    .map_err(WriteError::Figure)
 }
 
 /// Wait (set-up only, before any timing) until `connected` holds, for up to 10 s.
@@ -282,7 +311,10 @@ fn wait_connected(mut connected: impl FnMut() -> bool) -> Result<(), IpcError> {
     let t0 = std::time::Instant::now();
     while !connected() {
         if t0.elapsed() > Duration::from_secs(10) {
-            return Err(err("bench", "the peer process did not connect within 10 s"));
+            return Err(IpcError::reason(
+                "bench",
+                "the peer process did not connect within 10 s",
+            ));
         }
         std::thread::sleep(Duration::from_millis(1));
     }
@@ -326,7 +358,9 @@ fn ping_evoloop(
                 Wait::Got(c) if c.state_seq == k => break,
                 Wait::Got(_) => {}
                 Wait::TimedOut if busy && now_ns() < deadline => std::hint::spin_loop(),
-                Wait::TimedOut => return Err(err("bench", "peer did not answer within 5 s")),
+                Wait::TimedOut => {
+                    return Err(IpcError::reason("bench", "peer did not answer within 5 s"))
+                }
             }
         }
         if k as usize >= WARMUP {
@@ -381,7 +415,7 @@ fn pong_evoloop(v: Variant, prefix: &str, run_id: &str) -> Result<(), IpcError> 
                     s
                 }
                 None if now_ns() - last > PEER_TIMEOUT_NS => {
-                    return Err(err("bench", "no state within 10 s"));
+                    return Err(IpcError::reason("bench", "no state within 10 s"));
                 }
                 None => {
                     std::hint::spin_loop();
@@ -391,7 +425,7 @@ fn pong_evoloop(v: Variant, prefix: &str, run_id: &str) -> Result<(), IpcError> 
         } else {
             match state.wait_next(Duration::ZERO, Duration::from_secs(10))? {
                 Wait::Got(s) => s,
-                Wait::TimedOut => return Err(err("bench", "no state within 10 s")),
+                Wait::TimedOut => return Err(IpcError::reason("bench", "no state within 10 s")),
             }
         };
         if s.flags & STATE_FLAG_END != 0 {
@@ -517,7 +551,10 @@ impl Bare {
                 return Ok(s.payload().first().copied().unwrap_or(0));
             }
             if now_ns() > deadline {
-                return Err(err("bench", "no message from the peer within 10 s"));
+                return Err(IpcError::reason(
+                    "bench",
+                    "no message from the peer within 10 s",
+                ));
             }
             match &self.listener {
                 Some(l) => {

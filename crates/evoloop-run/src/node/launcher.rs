@@ -99,7 +99,7 @@ impl LocalWorkers {
         threads: usize,
         nice: i32,
         name: &str,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, LocalWorkersError> {
         let mut w = LocalWorkers::default();
         for i in 0..n {
             let args: Vec<String> = [
@@ -115,8 +115,7 @@ impl LocalWorkers {
             ]
             .map(String::from)
             .to_vec();
-            let c = spawn_process("evoloop-worker", &args)
-                .map_err(|e| format!("cannot start evoloop-worker: {e}"))?;
+            let c = spawn_process("evoloop-worker", &args).map_err(LocalWorkersError::Spawn)?;
             w.0.push(c);
         }
         Ok(w)
@@ -132,17 +131,43 @@ impl Drop for LocalWorkers {
     }
 }
 
+/// Why evaluation workers on this host could not be had.
+#[derive(Debug)]
+pub enum LocalWorkersError {
+    /// The kernel gave no free TCP port on 127.0.0.1.
+    NoPort(std::io::Error),
+    /// An `evoloop-worker` process could not be started.
+    Spawn(std::io::Error),
+}
+
+impl std::fmt::Display for LocalWorkersError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LocalWorkersError::NoPort(e) => write!(f, "no free port on 127.0.0.1: {e}"),
+            LocalWorkersError::Spawn(e) => write!(f, "cannot start evoloop-worker: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for LocalWorkersError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            LocalWorkersError::NoPort(e) | LocalWorkersError::Spawn(e) => Some(e),
+        }
+    }
+}
+
 /// A Zenoh endpoint on a free loopback port, for `--workers N`.
-pub fn local_workers_endpoint() -> Result<String, String> {
+pub fn local_workers_endpoint() -> Result<String, LocalWorkersError> {
     Ok(format!("tcp/127.0.0.1:{}", free_port()?))
 }
 
 /// A TCP port free on 127.0.0.1 now (the kernel's pick; free until someone else binds it).
-pub fn free_port() -> Result<u16, String> {
+pub fn free_port() -> Result<u16, LocalWorkersError> {
     std::net::TcpListener::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())
         .map(|a| a.port())
-        .map_err(|e| format!("no free port on 127.0.0.1: {e}"))
+        .map_err(LocalWorkersError::NoPort)
 }
 
 /// The options every process of a run takes (`ProcessArgs`), before the overrides.

@@ -136,10 +136,12 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
             config: Some(config.clone()),
             optimiser: None,
         },
-        _ => crate::run_watch::pick_run(a.run.as_deref())?,
+        _ => crate::run_watch::pick_run(a.run.as_deref()).map_err(|e| e.to_string())?,
     };
     let prefix = a.ipc_prefix.clone().unwrap_or(run.ipc_prefix.clone());
-    let scn = run.scenario(a.config.as_deref(), &a.overrides.to_overrides())?;
+    let scn = run
+        .scenario(a.config.as_deref(), &a.overrides.to_overrides())
+        .map_err(|e| e.to_string())?;
     let listener = match a.listen_fd {
         // SAFETY: the descriptor is the bound listener `evoloop run --live` made for this
         // process and passed on, owned by nothing else here.
@@ -151,7 +153,7 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
             // takes it over.
             unsafe { std::os::fd::FromRawFd::from_raw_fd(fd) }
         }
-        None => bind(&a.addr, a.remote, "--remote")?,
+        None => bind(&a.addr, a.remote, "--remote").map_err(|e| e.to_string())?,
     };
     let access = Access::new(&listener)?;
     let ipc = Ipc::with_cleanup("evoloop-live", &run.run_id, &prefix, false)
@@ -383,20 +385,62 @@ fn status(level: u8, message: &str) -> String {
 
 /// `addr` bound for viewers; an address beyond loopback only with `remote` (the flag that
 /// says so is `flag`): anyone who reaches the port sees the run.
-pub fn bind(addr: &str, remote: bool, flag: &str) -> Result<TcpListener, String> {
+pub fn bind(addr: &str, remote: bool, flag: &'static str) -> Result<TcpListener, BindError> {
     use std::net::ToSocketAddrs;
-    let addrs: Vec<_> = addr
-        .to_socket_addrs()
-        .map_err(|e| format!("{addr}: {e}"))?
-        .collect();
+    let system = |source| BindError::System {
+        addr: addr.to_string(),
+        source,
+    };
+    let addrs: Vec<_> = addr.to_socket_addrs().map_err(system)?.collect();
     if !remote && addrs.iter().any(|a| !a.ip().to_canonical().is_loopback()) {
-        return Err(format!(
-            "{addr} listens beyond this machine: anyone who reaches it sees the run; listen on \
-             127.0.0.1 (the default), or add {flag} to mean it (viewers on other machines then \
-             set gains only with the token it prints)"
-        ));
+        return Err(BindError::BeyondLoopback {
+            addr: addr.to_string(),
+            flag,
+        });
     }
-    TcpListener::bind(&addrs[..]).map_err(|e| format!("{addr}: {e}"))
+    TcpListener::bind(&addrs[..]).map_err(system)
+}
+
+/// Why `bind` gave no listener.
+#[derive(Debug)]
+pub enum BindError {
+    /// The address does not resolve, or the system refused to bind it.
+    System {
+        /// The address.
+        addr: String,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// The address reaches beyond this machine and the flag that allows it was not given.
+    BeyondLoopback {
+        /// The address.
+        addr: String,
+        /// The flag that would allow it.
+        flag: &'static str,
+    },
+}
+
+impl std::fmt::Display for BindError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BindError::System { addr, source } => write!(f, "{addr}: {source}"),
+            BindError::BeyondLoopback { addr, flag } => write!(
+                f,
+                "{addr} listens beyond this machine: anyone who reaches it sees the run; listen \
+                 on 127.0.0.1 (the default), or add {flag} to mean it (viewers on other machines \
+                 then set gains only with the token it prints)"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for BindError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            BindError::System { source, .. } => Some(source),
+            BindError::BeyondLoopback { .. } => None,
+        }
+    }
 }
 
 /// Who may set `gains`: a viewer on this machine, and one elsewhere only with the token (made
@@ -764,8 +808,13 @@ mod tests {
     fn an_address_beyond_loopback_is_refused_without_its_flag() {
         let e = super::bind("0.0.0.0:0", false, "--live-remote").unwrap_err();
         assert!(
-            e.contains("beyond this machine") && e.contains("--live-remote"),
-            "{e}"
+            matches!(e, super::BindError::BeyondLoopback { flag: "--live-remote", .. }),
+            "{e:?}"
+        );
+        let said = e.to_string();
+        assert!(
+            said.contains("beyond this machine") && said.contains("--live-remote"),
+            "{said}"
         );
         assert!(super::bind("127.0.0.1:0", false, "--live-remote").is_ok());
         assert!(super::bind("0.0.0.0:0", true, "--live-remote").is_ok());

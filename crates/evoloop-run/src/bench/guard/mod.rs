@@ -289,9 +289,9 @@ impl crate::sim::LoopHook for Samples {
 impl Bench {
     /// Read the arm and the scenario, draw the states, run the scenario's loop for its samples,
     /// and check the textbook against evoloop's dynamics on every state.
-    pub fn new() -> Result<Bench, String> {
+    pub fn new() -> Result<Bench, GuardError> {
         let shipped = crate::node::launcher::shipped;
-        let mut model = crate::dynamics::load(&shipped(ROBOT)).map_err(|e| e.to_string())?;
+        let mut model = crate::dynamics::load(&shipped(ROBOT)).map_err(GuardError::Robot)?;
         model.clear_friction();
         let states = random_states(model.dof());
         let overrides = crate::config::Overrides {
@@ -300,7 +300,7 @@ impl Bench {
             ..Default::default()
         };
         let scenario = crate::config::Scenario::load(&shipped(SCENARIO), &overrides)
-            .map_err(|e| e.to_string())?;
+            .map_err(GuardError::Scenario)?;
         let mut samples = Samples {
             from: CYCLE_FROM,
             kept: Vec::new(),
@@ -308,10 +308,7 @@ impl Bench {
         crate::sim::run_loop(&scenario, &mut samples);
         samples.kept.truncate(CYCLE_SAMPLES);
         if samples.kept.len() < CYCLE_SAMPLES {
-            return Err(format!(
-                "{SCENARIO} gave {} samples from {CYCLE_FROM} s on, the guard replays {CYCLE_SAMPLES}",
-                samples.kept.len()
-            ));
+            return Err(GuardError::FewSamples(samples.kept.len()));
         }
         let mut bench = Bench {
             data: model.data(),
@@ -329,23 +326,20 @@ impl Bench {
 
     /// The textbook's torques and M(q) equal evoloop's on every state: the two sides time the
     /// same work, or the guard says so and stops.
-    fn check_references(&mut self) -> Result<(), String> {
+    fn check_references(&mut self) -> Result<(), GuardError> {
         for [q, qd, qdd, _] in &self.states {
             let found = self
                 .textbook
                 .disagreement(&self.model, &mut self.data, q, qd, qdd);
             if let Some(what) = found {
-                return Err(format!(
-                    "the guard's textbook reference disagrees with evoloop's dynamics on {ROBOT} \
-                     ({what}): the two would time different work"
-                ));
+                return Err(GuardError::ReferenceDisagrees(what));
             }
         }
         Ok(())
     }
 
     /// One measurement of `path` over `rounds` interleaved rounds.
-    pub fn measure(&mut self, path: HotPath, rounds: usize) -> Result<Reading, String> {
+    pub fn measure(&mut self, path: HotPath, rounds: usize) -> Result<Reading, GuardError> {
         match path {
             HotPath::Rnea => Ok(self.dynamics(rounds, false)),
             HotPath::Crba => Ok(self.dynamics(rounds, true)),
@@ -465,11 +459,12 @@ impl Bench {
 
 /// The evoloop round trip's p50 against raw iceoryx2's, each in its own peer process, in
 /// `ROUND_TRIP_ROUNDS` rounds of the two back to back: the round of median ratio.
-fn round_trip(bare: Variant, evoloop: Variant) -> Result<Reading, String> {
+fn round_trip(bare: Variant, evoloop: Variant) -> Result<Reading, GuardError> {
     let payload = std::mem::size_of::<PlantState>();
     let mut rounds = Vec::new();
     for _ in 0..ROUND_TRIP_ROUNDS {
-        let m = latency::measure_variants(&[bare, evoloop], ROUND_TRIPS, payload, &|_| {})?;
+        let m = latency::measure_variants(&[bare, evoloop], ROUND_TRIPS, payload, &|_| {})
+            .map_err(GuardError::RoundTrip)?;
         let p50 = |v: Variant| {
             m.results
                 .iter()
@@ -478,17 +473,75 @@ fn round_trip(bare: Variant, evoloop: Variant) -> Result<Reading, String> {
         };
         match (p50(evoloop), p50(bare)) {
             (Some(hot), Some(reference)) => rounds.push(Reading::of(hot, reference)),
-            _ => {
-                return Err(format!(
-                    "no {} or {} round trips measured",
-                    evoloop.name(),
-                    bare.name()
-                ))
-            }
+            _ => unreachable!("measure_variants measures every variant it is given"),
         }
     }
     rounds.sort_by(|a, b| a.ratio.total_cmp(&b.ratio));
     Ok(rounds[rounds.len() / 2])
+}
+
+/// Why the guard judged nothing: its references could not be set up, or a path could not be
+/// measured.
+#[derive(Debug)]
+pub enum GuardError {
+    /// The arm did not load.
+    Robot(crate::dynamics::RobotError),
+    /// The scenario whose control cycle is timed did not load.
+    Scenario(crate::config::ConfigError),
+    /// The scenario gave fewer samples than the cycle replays: how many.
+    FewSamples(usize),
+    /// The textbook reference and evoloop's dynamics disagree (what differs): the two would
+    /// time different work.
+    ReferenceDisagrees(String),
+    /// A round trip could not be measured.
+    RoundTrip(latency::LatencyError),
+    /// Every attempt at `path` failed: why, each time.
+    NotMeasured {
+        /// The path.
+        path: HotPath,
+        /// Each attempt's error.
+        failures: Vec<GuardError>,
+    },
+}
+
+impl std::fmt::Display for GuardError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            GuardError::Robot(e) => e.fmt(f),
+            GuardError::Scenario(e) => e.fmt(f),
+            GuardError::FewSamples(n) => write!(
+                f,
+                "{SCENARIO} gave {n} samples from {CYCLE_FROM} s on, the guard replays {CYCLE_SAMPLES}"
+            ),
+            GuardError::ReferenceDisagrees(what) => write!(
+                f,
+                "the guard's textbook reference disagrees with evoloop's dynamics on {ROBOT} \
+                 ({what}): the two would time different work"
+            ),
+            GuardError::RoundTrip(e) => e.fmt(f),
+            GuardError::NotMeasured { path, failures } => {
+                write!(f, "{} could not be measured: ", path.name())?;
+                for (i, e) in failures.iter().enumerate() {
+                    write!(f, "{}{e}", if i > 0 { "; " } else { "" })?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+impl std::error::Error for GuardError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            // A wrapping variant reads as the error it wraps: its source is that error's.
+            GuardError::Robot(e) => e.source(),
+            GuardError::Scenario(e) => e.source(),
+            GuardError::RoundTrip(e) => e.source(),
+            GuardError::FewSamples(_)
+            | GuardError::ReferenceDisagrees(_)
+            | GuardError::NotMeasured { .. } => None,
+        }
+    }
 }
 
 /// What `run` measures and how it judges.
@@ -504,7 +557,7 @@ pub struct Plan<'a> {
 /// Every path of the plan, each measured again while over its limit or while its measurement
 /// fails (a peer that did not start), up to `ATTEMPTS` times; `progress` is told each
 /// measurement as it starts. Err when a path could not be measured on any attempt.
-pub fn run(plan: &Plan, progress: &dyn Fn(HotPath, usize)) -> Result<Vec<Verdict>, String> {
+pub fn run(plan: &Plan, progress: &dyn Fn(HotPath, usize)) -> Result<Vec<Verdict>, GuardError> {
     let mut bench = Bench::new()?;
     let mut verdicts = Vec::new();
     for &path in plan.paths {
@@ -523,11 +576,7 @@ pub fn run(plan: &Plan, progress: &dyn Fn(HotPath, usize)) -> Result<Vec<Verdict
             }
         }
         if attempts.is_empty() {
-            return Err(format!(
-                "{} could not be measured: {}",
-                path.name(),
-                failures.join("; ")
-            ));
+            return Err(GuardError::NotMeasured { path, failures });
         }
         verdicts.push(judge(path, limit, attempts));
     }
