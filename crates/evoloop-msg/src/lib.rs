@@ -83,7 +83,7 @@ pub const STATE_FLAG_END: u32 = 2;
 /// One sample of the plant, published by the plant process every control period.
 ///
 /// Fixed-size and `repr(C)`, so it travels by shared memory as it is: the counts say how many
-/// entries of each array are valid, the rest stay zero.
+/// entries of each array are valid; the rest are ignored (zero by default).
 ///
 /// ```
 /// use evoloop_msg::{PlantState, STATE_FLAG_END};

@@ -4,7 +4,7 @@ use crate::ipc::IpcError;
 use std::path::PathBuf;
 
 /// Why `open`, the bridge's relays, `bridge::run`, `Ros2Node::new` or the evaluation workers'
-/// pool (`workers::install`, `workers::serve`) stopped.
+/// pool (`workers::install`, `ZenohWorkers::start`, `workers::serve`) stopped.
 #[derive(Debug)]
 pub enum NetError {
     /// Zenoh refused an operation: what (e.g. "Zenoh publisher on KEY"), and Zenoh's error.
@@ -67,7 +67,7 @@ impl std::error::Error for NetError {
             }
             NetError::Ipc(e) => e.source(),
             NetError::Name(_) => None,
-            NetError::WorkersInstalled(_) => None,
+            NetError::WorkersInstalled(e) => e.source(),
             NetError::Encode { source, .. } => Some(source),
         }
     }

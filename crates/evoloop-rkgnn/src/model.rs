@@ -382,7 +382,7 @@ impl RkgnnModel {
     }
 
     /// Write the model to `path` as pretty-printed JSON, whole or not at all
-    /// (`evoloop_files::write`). Fails with `ModelError::Io` naming the path.
+    /// (`evoloop_files::write`). Fails with `ModelError::In(path, Io(..))`.
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
         let s = serde_json::to_string_pretty(&self.to_file())
             .map_err(|e| ModelError::Io(e.into()).at(path))?;

@@ -142,7 +142,11 @@ impl std::error::Error for StudyError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
             StudyError::Run { source, .. } => Some(source),
+            // A wrapping variant reads as the error it wraps: its source is that error's.
+            StudyError::Scenario(e) => e.source(),
+            StudyError::Robot(e) => e.source(),
             StudyError::Identify(e) => e.source(),
+            StudyError::Model(e) => e.source(),
             StudyError::Write(e) => e.source(),
             _ => None,
         }

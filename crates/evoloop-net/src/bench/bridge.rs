@@ -151,7 +151,7 @@ fn first<T>(
             return Ok(v);
         }
         if t0.elapsed() > Duration::from_secs(20) {
-            return Err(BenchError::Timeout(format!("{what} within 20 s")));
+            return Err(BenchError::NotMeasured(format!("{what} within 20 s")));
         }
         std::thread::sleep(Duration::from_millis(1));
     }
@@ -193,7 +193,7 @@ impl<R: rand::Rng> RoundTrips<'_, R> {
                     break;
                 }
                 if sent.elapsed() > SET_TIMEOUT {
-                    return Err(BenchError::Timeout(format!(
+                    return Err(BenchError::NotMeasured(format!(
                         "set {v} not in service after 2 s"
                     )));
                 }

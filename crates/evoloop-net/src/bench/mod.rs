@@ -25,10 +25,9 @@ pub enum BenchError {
     Start(std::io::Error),
     /// No free port, or the local workers could not be started.
     Local(LocalWorkersError),
-    /// What the bench waited for did not come in time: what.
-    Timeout(String),
-    /// A probe run came back without values: the pool's reply.
-    Probe(String),
+    /// What the bench needed did not happen: telemetry or a set in service within its time,
+    /// workers up, a probe run's values.
+    NotMeasured(String),
     /// The bridge's thread panicked.
     BridgePanicked,
 }
@@ -42,7 +41,7 @@ impl std::fmt::Display for BenchError {
             BenchError::Wire(e) => e.fmt(f),
             BenchError::Start(e) => write!(f, "cannot start the run: {e}"),
             BenchError::Local(e) => e.fmt(f),
-            BenchError::Timeout(what) | BenchError::Probe(what) => f.write_str(what),
+            BenchError::NotMeasured(what) => f.write_str(what),
             BenchError::BridgePanicked => f.write_str("the bridge thread panicked"),
         }
     }
@@ -58,7 +57,7 @@ impl std::error::Error for BenchError {
             BenchError::Wire(e) => e.source(),
             BenchError::Local(e) => e.source(),
             BenchError::Start(e) => Some(e),
-            BenchError::Timeout(_) | BenchError::Probe(_) | BenchError::BridgePanicked => None,
+            BenchError::NotMeasured(_) | BenchError::BridgePanicked => None,
         }
     }
 }

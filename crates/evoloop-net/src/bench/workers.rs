@@ -116,7 +116,7 @@ fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, BenchError> {
     let id = pool
         .live()
         .first()
-        .ok_or_else(|| BenchError::Timeout("no worker up for the probe".into()))?
+        .ok_or_else(|| BenchError::NotMeasured("no worker up for the probe".into()))?
         .id
         .clone();
     let mut out = Vec::with_capacity(runs);
@@ -127,7 +127,7 @@ fn transport(pool: &ZenohWorkers, runs: usize) -> Result<Vec<f64>, BenchError> {
             match pending.poll(Duration::from_secs(5)) {
                 Reply::Waiting if t0.elapsed() < Duration::from_secs(5) => continue,
                 Reply::Values(_) => break,
-                r => return Err(BenchError::Probe(format!("probe run: {r:?}"))),
+                r => return Err(BenchError::NotMeasured(format!("probe run: {r:?}"))),
             }
         }
         let (w, w0) = (&pool.stats()[&id], &stats0[&id]);
@@ -174,7 +174,7 @@ pub fn run(s: &Settings, progress: impl Fn(&str)) -> Result<Report, BenchError> 
         let t0 = Instant::now();
         while pool.live().len() != n {
             if t0.elapsed() > Duration::from_secs(20) {
-                return Err(BenchError::Timeout(format!(
+                return Err(BenchError::NotMeasured(format!(
                     "{} of {n} workers up after 20 s",
                     pool.live().len()
                 )));

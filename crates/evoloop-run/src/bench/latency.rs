@@ -107,10 +107,6 @@ impl VariantResult {
 
 const WARMUP: usize = 2_000;
 
-fn err<E: std::error::Error + Send + Sync + 'static>(context: &str, e: E) -> IpcError {
-    IpcError::new(context, e)
-}
-
 /// Why `measure` gave no figures.
 #[derive(Debug)]
 pub enum LatencyError {
@@ -470,13 +466,14 @@ fn bare(
     let cfg = ipc_config(prefix)?;
     let node =
         crate::ipc::create_node::<ipc::Service>(NodeBuilder::new().config(&cfg), prefix, "node")?;
-    let name =
-        |t: &str| ServiceName::new(&format!("bench/{run_id}/{t}")).map_err(|e| err("name", e));
+    let name = |t: &str| {
+        ServiceName::new(&format!("bench/{run_id}/{t}")).map_err(|e| IpcError::new("name", e))
+    };
     let svc = |t: &str| {
         node.service_builder(&name(t)?)
             .publish_subscribe::<[u8]>()
             .open_or_create()
-            .map_err(|e| err("service", e))
+            .map_err(|e| IpcError::new("service", e))
     };
     let out_svc = svc(out)?;
     let in_svc = svc(inp)?;
@@ -484,30 +481,30 @@ fn bare(
         .publisher_builder()
         .initial_max_slice_len(payload)
         .create()
-        .map_err(|e| err("publisher", e))?;
+        .map_err(|e| IpcError::new("publisher", e))?;
     let subscriber = in_svc
         .subscriber_builder()
         .create()
-        .map_err(|e| err("subscriber", e))?;
+        .map_err(|e| IpcError::new("subscriber", e))?;
     let (notifier, listener) = if events {
         let ev = |t: &str| {
             node.service_builder(&name(t)?)
                 .event()
                 .open_or_create()
-                .map_err(|e| err("event", e))
+                .map_err(|e| IpcError::new("event", e))
         };
         (
             Some(
                 ev(out)?
                     .notifier_builder()
                     .create()
-                    .map_err(|e| err("notifier", e))?,
+                    .map_err(|e| IpcError::new("notifier", e))?,
             ),
             Some(
                 ev(inp)?
                     .listener_builder()
                     .create()
-                    .map_err(|e| err("listener", e))?,
+                    .map_err(|e| IpcError::new("listener", e))?,
             ),
         )
     } else {
@@ -535,11 +532,11 @@ impl Bare {
         let s = self
             .publisher
             .loan_slice_uninit(payload)
-            .map_err(|e| err("loan", e))?;
+            .map_err(|e| IpcError::new("loan", e))?;
         let s = s.write_from_fn(|i| if i == 0 { fill } else { i as u8 });
-        s.send().map_err(|e| err("send", e))?;
+        s.send().map_err(|e| IpcError::new("send", e))?;
         if let Some(n) = &self.notifier {
-            n.notify().map_err(|e| err("notify", e))?;
+            n.notify().map_err(|e| IpcError::new("notify", e))?;
         }
         Ok(())
     }
@@ -547,7 +544,11 @@ impl Bare {
     fn recv(&self) -> Result<u8, IpcError> {
         let deadline = now_ns() + PEER_TIMEOUT_NS;
         loop {
-            if let Some(s) = self.subscriber.receive().map_err(|e| err("receive", e))? {
+            if let Some(s) = self
+                .subscriber
+                .receive()
+                .map_err(|e| IpcError::new("receive", e))?
+            {
                 return Ok(s.payload().first().copied().unwrap_or(0));
             }
             if now_ns() > deadline {
@@ -559,7 +560,7 @@ impl Bare {
             match &self.listener {
                 Some(l) => {
                     l.timed_wait(|_| {}, Duration::from_secs(5))
-                        .map_err(|e| err("wait", e))?;
+                        .map_err(|e| IpcError::new("wait", e))?;
                 }
                 None => std::hint::spin_loop(),
             }

@@ -808,7 +808,13 @@ mod tests {
     fn an_address_beyond_loopback_is_refused_without_its_flag() {
         let e = super::bind("0.0.0.0:0", false, "--live-remote").unwrap_err();
         assert!(
-            matches!(e, super::BindError::BeyondLoopback { flag: "--live-remote", .. }),
+            matches!(
+                e,
+                super::BindError::BeyondLoopback {
+                    flag: "--live-remote",
+                    ..
+                }
+            ),
             "{e:?}"
         );
         let said = e.to_string();
