@@ -136,9 +136,6 @@ pub struct Data {
     pub x: Vec<Transform>,
     /// Joint motion subspaces (axis) per body, in body coordinates.
     pub(super) s: Vec<Motion>,
-    /// Whether body i's joint is revolute about its z axis (S = [z; 0]): CRBA then reads a
-    /// force's component along S instead of taking the dot product.
-    z_axis: Vec<bool>,
     /// Body velocities and accelerations (gravity included as the root's) of the last pass.
     pub(super) v: Vec<Motion>,
     pub(super) a: Vec<Motion>,
@@ -236,7 +233,6 @@ impl Model {
                     },
                 })
                 .collect(),
-            z_axis: self.bodies.iter().map(Body::is_z_revolute).collect(),
             v: vec![Motion::ZERO; n],
             a: vec![Motion::ZERO; n],
             f: vec![Force::ZERO; n],
@@ -328,17 +324,13 @@ impl Model {
             }
         }
         for i in 0..n {
-            let mut f = if d.z_axis[i] {
-                d.ic[i].apply_z()
-            } else {
-                d.ic[i].apply(d.s[i])
-            };
-            d.m[(i, i)] = axis_component(d, i, f) + self.bodies[i].armature;
+            let mut f = d.ic[i].apply(d.s[i]);
+            d.m[(i, i)] = d.s[i].dot(f) + self.bodies[i].armature;
             let mut j = i;
             while let Some(p) = self.bodies[j].parent {
                 f = d.x[j].apply_transpose_force(f);
                 j = p;
-                let mij = axis_component(d, j, f);
+                let mij = d.s[j].dot(f);
                 d.m[(i, j)] = mij;
                 d.m[(j, i)] = mij;
             }
@@ -577,18 +569,6 @@ fn body_motion(
         a = a + s.scaled(qdd[i]);
     }
     (v, a)
-}
-
-/// S_j · f for body j's joint: the force's moment about z where the joint turns about z (the
-/// dot product's value: its other terms are products with exact zeros), the dot product
-/// otherwise.
-#[inline]
-fn axis_component(d: &Data, j: usize, f: Force) -> f64 {
-    if d.z_axis[j] {
-        f.n.z
-    } else {
-        d.s[j].dot(f)
-    }
 }
 
 #[cfg(test)]

@@ -209,18 +209,6 @@ impl Inertia {
         }
     }
 
-    /// The momentum of a unit rotation about z, `apply` of S = [z; 0] written out: the
-    /// rotational inertia's third column and z × h. The same values as `apply`, whose other
-    /// terms are products with exact zeros (an exact zero may differ in sign), for the composite
-    /// rigid body algorithm.
-    #[inline]
-    pub fn apply_z(&self) -> Force {
-        Force {
-            n: self.i.z_axis,
-            f: DVec3::new(-self.h.y, self.h.x, 0.0),
-        }
-    }
-
     /// This inertia (given in the child frame of `x`) in the parent frame: Xᵀ I X.
     pub fn to_parent(&self, x: &Transform) -> Inertia {
         let et = x.e.transpose();
@@ -396,26 +384,6 @@ mod tests {
         let lhs = x.apply_motion(m).dot(f);
         let rhs = m.dot(x.apply_transpose_force(f));
         assert!((lhs - rhs).abs() < 1e-12);
-    }
-
-    /// `apply_z` is `apply` of a unit rotation about z, value for value (an exact zero may
-    /// differ in sign: `apply` sums products with exact zeros): on a body inertia and on one
-    /// moved to a tilted parent (products of inertia), as the CRBA meets them.
-    #[test]
-    fn apply_z_is_apply_of_the_z_axis() {
-        let z = Motion {
-            w: DVec3::Z,
-            v: DVec3::ZERO,
-        };
-        let body = sample_body();
-        assert!(
-            body.i.z_axis.x != 0.0 && body.h.x != 0.0 && body.h.y != 0.0,
-            "every term"
-        );
-        for body in [body, body.to_parent(&sample_transform())] {
-            let (a, b) = (body.apply_z(), body.apply(z));
-            assert!(a.n == b.n && a.f == b.f, "{a:?} {b:?}");
-        }
     }
 
     #[test]
