@@ -37,10 +37,13 @@ pub enum NetError {
 }
 
 impl NetError {
-    /// Zenoh's `source` on `doing`, for `map_err`.
+    /// Zenoh's `source` on `doing`, for `map_err`. `doing` becomes a `String` only on the error: a `&'static str` costs nothing on success,
+    /// so a receive in a loop can name its operation without allocating.
     pub(crate) fn zenoh(doing: impl Into<String>) -> impl FnOnce(zenoh::Error) -> NetError {
-        let doing = doing.into();
-        move |source| NetError::Zenoh { doing, source }
+        move |source| NetError::Zenoh {
+            doing: doing.into(),
+            source,
+        }
     }
 }
 

@@ -398,10 +398,12 @@ pub fn serve(
     // The last job's objective, kept while the optimiser sends runs of the same job.
     let mut cached: Option<(Job, Box<dyn crate::optim::Objective + Send>)> = None;
     while !stop.load(Ordering::SeqCst) && duration.is_none_or(|d| t0.elapsed() < d) {
-        let query = match queryable.recv_timeout(Duration::from_millis(100)) {
-            Ok(Some(q)) => q,
-            Ok(None) => continue,
-            Err(e) => return Err(NetError::zenoh("Zenoh: the queryable closed")(e)),
+        let query = match queryable
+            .recv_timeout(Duration::from_millis(100))
+            .map_err(NetError::zenoh("Zenoh: the queryable closed"))?
+        {
+            Some(q) => q,
+            None => continue,
         };
         let started = Instant::now();
         let sent = match evaluate(&query, &mut cached, threads) {

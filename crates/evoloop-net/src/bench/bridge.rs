@@ -289,9 +289,8 @@ fn measure(
     let through = trips.run(
         sets,
         |s| {
-            zp.put(wire::encode(s))
-                .wait()
-                .map_err(|e| NetError::zenoh("Zenoh: sending a set to the bridge")(e).into())
+            let sent = zp.put(wire::encode(s)).wait();
+            Ok(sent.map_err(NetError::zenoh("Zenoh: sending a set to the bridge"))?)
         },
         || recv(&zt),
     )?;
