@@ -342,7 +342,7 @@ fn fuzzy(c: &mut Criterion) {
 fn rkgnn(c: &mut Criterion) {
     use evoloop::config::{ControllerModel, Overrides, Scenario};
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
-    let m = evoloop::rkgnn::RkgnnModel::load(&root.join("models/arm3_train1.json")).unwrap();
+    let m = evoloop::rkgnn_model::RkgnnModel::load(&root.join("models/arm3_train1.json")).unwrap();
     let x = [0.1, 0.7, -1.3, 0.5, -0.2, 0.3];
     let r = [0.12, 0.72, -1.28, 0.45, -0.25, 0.35];
     let mut dx = [0.0; 6];
@@ -352,9 +352,9 @@ fn rkgnn(c: &mut Criterion) {
     );
     // V-hat from M-hat's Christoffel symbols (`--velocity christoffel`): M-hat and V-hat as two
     // calls evaluate the inertia network twice; `inertia_and_velocity` once.
-    let layout = evoloop::rkgnn::Layout::new(
+    let layout = evoloop::rkgnn_model::Layout::new(
         3,
-        evoloop::rkgnn::RbfCounts {
+        evoloop::rkgnn_model::RbfCounts {
             velocity: 0,
             ..m.net.layout.counts
         },
@@ -362,7 +362,7 @@ fn rkgnn(c: &mut Criterion) {
     let params = (0..layout.len)
         .map(|k| 0.5 + 0.1 * (k as f64).sin())
         .collect();
-    let chr = evoloop::rkgnn::Network::new(layout, params);
+    let chr = evoloop::rkgnn_model::Network::new(layout, params);
     let mut mm = [0.0; evoloop::MAX_JOINTS * evoloop::MAX_JOINTS];
     let mut v = [0.0; 3];
     c.bench_function("RKGNN Christoffel: M-hat, then V-hat (two passes)", |b| {

@@ -22,6 +22,7 @@ pub use evoloop_msg as msg;
 pub use evoloop_net as net;
 pub use evoloop_optim as optim;
 pub use evoloop_report as report;
+pub use evoloop_rkgnn as rkgnn_model;
 pub use evoloop_rt as rt;
 pub use evoloop_run::{bench, needs_zenoh, node, run_report, run_watch, soak};
 pub use evoloop_scenario::{config, sim};

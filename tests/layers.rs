@@ -158,6 +158,81 @@ fn no_module_re_exports_a_crate_whole() {
     assert!(found.is_empty(), "{found:#?}");
 }
 
+/// No module of a library crate holds another crate's module beside its own: a file that
+/// declares modules (`mod x;`) re-exports no module of another crate (`pub use
+/// evoloop_y::{model, network};` made `evoloop::rkgnn` out of two crates' directories). The
+/// facade (`src/lib.rs`, which declares no module) names each crate, or a crate's module, once.
+#[test]
+fn no_module_holds_another_crates_module_beside_its_own() {
+    let mut found = Vec::new();
+    for e in std::fs::read_dir(root().join("crates")).unwrap() {
+        let src = e.unwrap().path().join("src");
+        if !src.is_dir() {
+            continue;
+        }
+        for (p, text) in rust_sources(&src) {
+            let declares = text.lines().any(|l| {
+                let l = l.trim_start();
+                let l = ["pub ", "pub(crate) "]
+                    .iter()
+                    .find_map(|v| l.strip_prefix(v))
+                    .unwrap_or(l);
+                l.starts_with("mod ") && l.ends_with(';')
+            });
+            if !declares {
+                continue;
+            }
+            for (i, path) in re_exported_paths(&text) {
+                if is_module_of_another_crate(&path) {
+                    found.push(format!("{}:{}: {path}", p.display(), i + 1));
+                }
+            }
+        }
+    }
+    assert!(found.is_empty(), "{found:#?}");
+}
+
+/// Each path a `pub use evoloop_...;` line names (`a::b::{c, d}` gives `a::b::c` and
+/// `a::b::d`), with its line's index; single-line uses only, as rustfmt writes short ones.
+fn re_exported_paths(text: &str) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let Some(rest) = line.trim().strip_prefix("pub use ") else {
+            continue;
+        };
+        let Some(rest) = rest.strip_suffix(';') else {
+            continue;
+        };
+        if !rest.starts_with("evoloop_") || rest.contains(" as ") {
+            continue;
+        }
+        match rest.split_once("::{") {
+            Some((head, list)) => {
+                for name in list.trim_end_matches('}').split(',') {
+                    out.push((i, format!("{head}::{}", name.trim())));
+                }
+            }
+            None => out.push((i, rest.to_string())),
+        }
+    }
+    out
+}
+
+/// Whether `evoloop_x::a::b` is a module of crate `evoloop-x` (its file or directory exists).
+fn is_module_of_another_crate(path: &str) -> bool {
+    let mut parts = path.split("::");
+    let krate = parts.next().unwrap().replace('_', "-");
+    let mut dir = root().join("crates").join(krate).join("src");
+    let rest: Vec<&str> = parts.collect();
+    for p in &rest[..rest.len().saturating_sub(1)] {
+        dir = dir.join(p);
+    }
+    let Some(last) = rest.last() else {
+        return false;
+    };
+    dir.join(format!("{last}.rs")).is_file() || dir.join(last).join("mod.rs").is_file()
+}
+
 /// The house rules the compiler keeps, taken by every crate: the workspace's lints (every public
 /// item documented, every unsafe block with the reason it is sound; warnings are errors in CI),
 /// and `#![forbid(unsafe_code)]` in each crate with no unsafe code, so that adding some is a

@@ -10,7 +10,7 @@ use evoloop::ipc::{Ipc, Topic};
 use evoloop::law::ControlCycle;
 use evoloop::msg::{ParamCode, ParamKind, ParamSet, PlantState, Telemetry, MAX_PARAMS};
 use evoloop::rkgnn::live::ModelUpdate;
-use evoloop::rkgnn::RkgnnModel;
+use evoloop::rkgnn_model::RkgnnModel;
 
 fn arm7() -> Scenario {
     Scenario::load(

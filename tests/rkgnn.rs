@@ -5,9 +5,10 @@
 mod common;
 use common::*;
 use evoloop::config::{Overrides, Scenario};
-use evoloop::rkgnn::data::SMOOTHING;
-use evoloop::rkgnn::network::Part;
-use evoloop::rkgnn::{RkgnnModel, Trajectory};
+use evoloop::rkgnn::Trajectory;
+use evoloop::rkgnn_model::network::Part;
+use evoloop::rkgnn_model::RkgnnModel;
+use evoloop::rkgnn_model::SMOOTHING;
 use evoloop::sim::simulate;
 use std::path::{Path, PathBuf};
 
@@ -283,7 +284,7 @@ fn a_servo_behind_a_drives_filter_is_reconstructed_with_its_filters_lag() {
     let untold = fit("untold.json", &servo);
     let from_run = fit("from_run.json", &[]);
     let cutoff = |m: &RkgnnModel| match &m.report.servo {
-        evoloop::rkgnn::model::ServoPrior::Known {
+        evoloop::rkgnn_model::model::ServoPrior::Known {
             velocity_cutoff_hz, ..
         } => *velocity_cutoff_hz,
         other => panic!("{other:?}"),
@@ -375,7 +376,7 @@ fn a_model_identified_under_the_known_servo_has_the_arms_gravity_and_an_inertia_
     );
     assert_eq!(
         m.report.servo,
-        evoloop::rkgnn::model::ServoPrior::Known {
+        evoloop::rkgnn_model::model::ServoPrior::Known {
             kp: vec![150.0, 200.0, 100.0],
             kd: vec![15.0, 20.0, 8.0],
             limits: Some(vec![40.0, 60.0, 30.0]),
@@ -1316,7 +1317,7 @@ fn a_fit_in_newton_metres_without_a_positive_definite_m_hat_is_weighed_as_needed
     assert_eq!(old.report.weighing, None);
     assert_eq!(
         old.report.weighing(),
-        evoloop::rkgnn::model::Weighing::Never
+        evoloop::rkgnn_model::model::Weighing::Never
     );
 }
 
@@ -1608,7 +1609,7 @@ fn arm7_least_squares_without_a_positive_definite_m_hat_is_refused_with_the_reas
     // region; the identification says so and writes nothing. (With the simulator's noise-free
     // velocities the weighted fit did, smallest eigenvalue 0.0048: the book's Known limits.)
     use evoloop::rkgnn::identify::{self, Prior, Settings};
-    use evoloop::rkgnn::model::ServoPrior;
+    use evoloop::rkgnn_model::model::ServoPrior;
     let scn = Scenario::load(&config("arm7/arm7_train1.toml"), &Overrides::default()).unwrap();
     let sim = simulate(&scn);
     let data = Trajectory::from_sim(&sim.rows, &scn.reference, scn.timing.period, SMOOTHING);
@@ -1625,7 +1626,7 @@ fn arm7_least_squares_without_a_positive_definite_m_hat_is_refused_with_the_reas
         s.weighing = weigh;
         s
     };
-    use evoloop::rkgnn::model::Weighing;
+    use evoloop::rkgnn_model::model::Weighing;
     for weigh in [Weighing::Never, Weighing::AsNeeded, Weighing::Always] {
         let e = identify::identify_model(&data, &prior, &settings(weigh), "a".into(), |_, _| {})
             .expect_err("least squares found a positive definite M-hat: update the book");
@@ -1744,7 +1745,7 @@ fn the_selection_study_identifies_by_the_papers_recipe_and_tracks_at_its_own_per
 /// amplitudes `a` at 1 kHz from `t0` for `seconds`, as positions (the velocities estimated from
 /// them, as a run's are) and torques.
 fn network_arm_data(
-    truth: &evoloop::rkgnn::Network,
+    truth: &evoloop::rkgnn_model::Network,
     a: [f64; 3],
     t0: f64,
     seconds: f64,
@@ -1811,7 +1812,7 @@ fn the_live_update_moves_the_model_in_service_towards_the_arms_data() {
         .step_by(100)
         .map(|i| window.x_at(i)[..3].to_vec())
         .collect();
-    let in_service = evoloop::rkgnn::Network::new(layout.clone(), p0.clone());
+    let in_service = evoloop::rkgnn_model::Network::new(layout.clone(), p0.clone());
     let floor = 0.1 * in_service.min_eig(probes.iter().map(Vec::as_slice));
     let p = update_with_torques(&layout, &p0, &window, &tau, 5, &probes, floor)
         .expect("an update above the floor");
@@ -1829,7 +1830,7 @@ fn the_live_update_moves_the_model_in_service_towards_the_arms_data() {
             "parameter {k} is not an output weight and moved"
         );
     }
-    let updated = evoloop::rkgnn::Network::new(layout.clone(), p);
+    let updated = evoloop::rkgnn_model::Network::new(layout.clone(), p);
     assert!(updated.min_eig(probes.iter().map(Vec::as_slice)) >= floor);
 
     // Centred on the model in service: with the third joint at rest its M_33 never enters the

@@ -2,10 +2,11 @@
 
 use clap::{Args, Subcommand};
 use evoloop_identify::rkgnn::identify::{self, Prior, Settings};
-use evoloop_identify::rkgnn::model::{ServoPrior, Start, Weighing};
-use evoloop_identify::rkgnn::network::RbfCounts;
 use evoloop_identify::rkgnn::study::JointVelocity;
-use evoloop_identify::rkgnn::{RkgnnModel, Trajectory};
+use evoloop_identify::rkgnn::Trajectory;
+use evoloop_rkgnn::model::{ServoPrior, Start, Weighing};
+use evoloop_rkgnn::network::RbfCounts;
+use evoloop_rkgnn::RkgnnModel;
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -65,7 +66,7 @@ pub struct IdentifyArgs {
     /// side, and the positions are smoothed with it. 0.08 s passes arm motion below 3.6 Hz (-3 dB
     /// on the velocities) and cuts 1e-4 rad encoder noise to 2e-4 rad/s; widen it for noisier
     /// encoders, narrow it for faster motion.
-    #[arg(long, default_value_t = evoloop_identify::rkgnn::data::SMOOTHING,
+    #[arg(long, default_value_t = evoloop_rkgnn::SMOOTHING,
           value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 10.0))]
     pub smoothing: f64,
     /// Eq. 2's lower bound m1 on the arm's inertia matrix (y^T M(q) y >= m1 |y|^2, kg m^2): the
@@ -244,8 +245,8 @@ pub struct StudySettingsArgs {
     pub servo: StudyServo,
     /// Where the identification starts: `least-squares` (the shipped recipe) or `random` (the
     /// paper's; give --evaluations).
-    #[arg(long, value_enum, default_value_t = evoloop_identify::rkgnn::model::Start::LeastSquares)]
-    pub start: evoloop_identify::rkgnn::model::Start,
+    #[arg(long, value_enum, default_value_t = evoloop_rkgnn::model::Start::LeastSquares)]
+    pub start: evoloop_rkgnn::model::Start,
     /// The paper's EA evaluations per model after the start; 0 keeps the start.
     #[arg(long, default_value_t = 0)]
     pub evaluations: usize,
@@ -318,7 +319,7 @@ pub struct StudyArgs {
     #[arg(long, value_enum, default_value_t = StudyServo::Known)]
     pub servo: StudyServo,
     /// Half width of the identification's low-pass, s (as `identify rkgnn --smoothing`).
-    #[arg(long, default_value_t = evoloop_identify::rkgnn::data::SMOOTHING,
+    #[arg(long, default_value_t = evoloop_rkgnn::SMOOTHING,
           value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 10.0))]
     pub smoothing: f64,
     /// The joint velocity the training servo and every tracking law act on: `filtered` (the
@@ -329,8 +330,8 @@ pub struct StudyArgs {
     /// Where the EA starts: `least-squares` (the shipped models' recipe) or `random` (the
     /// paper's: a stiff critically damped servo, every other weight 0, the population about
     /// it; give --evaluations).
-    #[arg(long, value_enum, default_value_t = evoloop_identify::rkgnn::model::Start::LeastSquares)]
-    pub start: evoloop_identify::rkgnn::model::Start,
+    #[arg(long, value_enum, default_value_t = evoloop_rkgnn::model::Start::LeastSquares)]
+    pub start: evoloop_rkgnn::model::Start,
     /// Threads [default: all cores].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -590,8 +591,8 @@ fn prior(a: &PriorArgs) -> Result<(), String> {
     let n = arm.dof();
     let (p, positions) = match &a.data {
         Some(dir) => {
-            let d = Trajectory::from_run(dir, evoloop_identify::rkgnn::data::SMOOTHING)
-                .map_err(|e| e.to_string())?;
+            let d =
+                Trajectory::from_run(dir, evoloop_rkgnn::SMOOTHING).map_err(|e| e.to_string())?;
             if d.n != n {
                 return Err(format!(
                     "{} has {n} joints, the data {}",

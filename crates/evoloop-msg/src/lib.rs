@@ -346,7 +346,7 @@ pub enum ParamKind {
     /// Gains of `fuzzy_computed_torque`: [Kp_1..Kp_n, Kv_1..Kv_n], per joint.
     FuzzyComputedTorque = 9,
     /// An identified RKGNN model for one slot of a fuzzy computed-torque controller: values =
-    /// [slot, the network's parameters in `rkgnn::Layout` order].
+    /// [slot, the network's parameters in `evoloop_rkgnn::Layout` order].
     RkgnnModel = 10,
     /// A rigid-body model for a computed-torque controller: values = the parameters in the
     /// regressor's order, ten per body, then viscous and Coulomb friction per joint, then the

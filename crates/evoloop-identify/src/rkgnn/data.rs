@@ -291,10 +291,6 @@ impl Trajectory {
     }
 }
 
-/// The low-pass's default half width (its reasons where it is defined, below the config that
-/// bounds the identification windows by it).
-pub use evoloop_rkgnn::SMOOTHING;
-
 /// Column `j` of `v`, rows of `width` values each (one joint's samples of a sample-major record).
 fn column(v: &[f64], width: usize, j: usize) -> Vec<f64> {
     v.iter().skip(j).step_by(width).copied().collect()
@@ -303,6 +299,7 @@ fn column(v: &[f64], width: usize, j: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use evoloop_rkgnn::SMOOTHING;
 
     /// The filter where a fit reads gives the whole filter's numbers bit for bit at every row
     /// the fit reads (each stride's row, its neighbours' velocities, the torques at the row),

@@ -115,7 +115,7 @@ pub enum StudyError {
     /// An identification the study needs failed.
     Identify(RkgnnError),
     /// A model file could not be saved or loaded.
-    Model(crate::rkgnn::model::ModelError),
+    Model(evoloop_rkgnn::model::ModelError),
     /// A result or scenario file, or its directory, could not be written.
     Write(evoloop_schemes::WriteError),
     /// A run logged less than the study reads.
@@ -171,8 +171,8 @@ impl From<RkgnnError> for StudyError {
     }
 }
 
-impl From<crate::rkgnn::model::ModelError> for StudyError {
-    fn from(e: crate::rkgnn::model::ModelError) -> Self {
+impl From<evoloop_rkgnn::model::ModelError> for StudyError {
+    fn from(e: evoloop_rkgnn::model::ModelError) -> Self {
         StudyError::Model(e)
     }
 }

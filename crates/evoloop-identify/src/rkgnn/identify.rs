@@ -49,13 +49,13 @@
 //!   wrong ones (M-hat_33 three times the truth, G-hat_2 at 40 % of it, seen at stride 10).
 
 use super::data::Trajectory;
-use super::model::{Report, ServoPrior, Start, Weighing};
-use super::network::{self, Layout, Network, Part, RbfCounts};
 use crate::linalg::{min_leading_minor, sym_eig_range, Mat};
 use crate::msg::MAX_JOINTS;
 use crate::optim::chaotic::{ChaoticEa, ChaoticEaConfig};
 use crate::optim::{evaluate, Objective, Optimiser};
 use crate::plant::gill::RungeKuttaGill;
+use evoloop_rkgnn::model::{Report, ServoPrior, Start, Weighing};
+use evoloop_rkgnn::network::{self, Layout, Network, Part, RbfCounts};
 use serde::{Deserialize, Serialize};
 
 /// Error charged per sample left when a prediction diverges.
@@ -507,10 +507,12 @@ pub fn identify_model(
     s: &Settings,
     source: String,
     progress: impl FnMut(usize, f64),
-) -> Result<super::RkgnnModel, super::RkgnnError> {
+) -> Result<evoloop_rkgnn::RkgnnModel, super::RkgnnError> {
     let (net, report) = identify(data, prior, s, progress)?;
     let d = data.every(s.stride.max(1));
-    Ok(super::RkgnnModel::new(net, d.h, d.r, source, report))
+    Ok(evoloop_rkgnn::RkgnnModel::new(
+        net, d.h, d.r, source, report,
+    ))
 }
 
 /// Identify an RKGNN on `data` (the first 1 - holdout of it) with eq. 2's bounds `prior`.

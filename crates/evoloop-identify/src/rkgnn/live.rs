@@ -27,8 +27,9 @@ use crate::msg::MAX_JOINTS;
 use crate::msg::{ParamKind, ParamSet, PlantState};
 use crate::reference::{Reference, Setpoint};
 use crate::rkgnn::identify::update_with_torques;
-use crate::rkgnn::network;
-use crate::rkgnn::{RkgnnModel, Trajectory};
+use crate::rkgnn::Trajectory;
+use evoloop_rkgnn::network;
+use evoloop_rkgnn::RkgnnModel;
 use std::collections::VecDeque;
 
 /// Time between the rows the fit and the comparison use (the identification's step), s: the
@@ -177,7 +178,7 @@ impl LiveIdentify {
             tau.extend_from_slice(&s.u[..n]);
         }
         (
-            Trajectory::from_positions(n, self.dt, r, &q, super::data::SMOOTHING),
+            Trajectory::from_positions(n, self.dt, r, &q, evoloop_rkgnn::SMOOTHING),
             tau,
         )
     }

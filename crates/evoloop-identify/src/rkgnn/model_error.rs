@@ -64,7 +64,7 @@ impl ArmTerms for RigidBody<'_> {
 }
 
 /// An identified model's terms: its network's M-hat, V-hat, G-hat.
-impl ArmTerms for &crate::rkgnn::network::Network {
+impl ArmTerms for &evoloop_rkgnn::network::Network {
     fn terms(&mut self, q: &[f64], qd: &[f64], m: &mut DMatrix<f64>, v: &mut [f64], g: &mut [f64]) {
         let n = self.dof();
         let mut buf = [0.0; crate::msg::MAX_JOINTS * crate::msg::MAX_JOINTS];

@@ -13,7 +13,7 @@
 
 use super::data::Trajectory;
 use super::identify::DIVERGED;
-use super::network::Layout;
+use evoloop_rkgnn::network::Layout;
 use nalgebra::{DMatrix, DVector};
 
 /// Velocity residuals are weighed by this (s): rad/s against rad, the arm's motion is a few

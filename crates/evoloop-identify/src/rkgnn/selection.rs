@@ -35,11 +35,11 @@ use super::study::{
 };
 use crate::dynamics::Model;
 use crate::law::fuzzy_computed_torque::check_along_reference;
-use crate::rkgnn::model::{ServoPrior, Weighing};
 use crate::rkgnn::model_error::{model_error, ModelError, RigidBody};
 use crate::rkgnn::{StudyError, Trajectory};
 use crate::sim::{JointTraces, SimResult};
 use crate::stats::{median, median_of_numbers, wilcoxon, Wilcoxon};
+use evoloop_rkgnn::model::{ServoPrior, Weighing};
 use evoloop_schemes::WriteError;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -280,7 +280,7 @@ pub struct SelectionSettings {
     pub servo_known: bool,
     /// Where the identification starts: least squares (the shipped recipe) or the paper's
     /// random start (give `evaluations`).
-    pub start: crate::rkgnn::model::Start,
+    pub start: evoloop_rkgnn::model::Start,
     /// The paper's EA evaluations after the start (0 = the start itself).
     pub evaluations: usize,
     /// The tracking runs' loop period, s (None: the training runs', 1 ms). The training runs
@@ -367,7 +367,7 @@ pub struct SelectionResult {
     /// evaluations, the joints' weighing, V-hat's form.
     pub servo_known: bool,
     /// Where each identification started.
-    pub start: crate::rkgnn::model::Start,
+    pub start: evoloop_rkgnn::model::Start,
     /// The EA's evaluations after the start (0 = the start itself).
     pub evaluations: usize,
     /// When each joint's equations were to be weighed by its torque rms (`never`, `as-needed`,
@@ -735,7 +735,7 @@ struct Training<'a> {
 /// The models one seed's training runs yield (None where identification found none), why not,
 /// and how long each identification took.
 struct SeedModels {
-    models: Vec<Option<(PathBuf, crate::rkgnn::RkgnnModel)>>,
+    models: Vec<Option<(PathBuf, evoloop_rkgnn::RkgnnModel)>>,
     unidentified: Vec<String>,
     weighed: Vec<String>,
     seconds: Vec<f64>,
@@ -791,7 +791,7 @@ impl Training<'_> {
                 &sim.rows,
                 &c.scenario.reference,
                 c.scenario.timing.period,
-                crate::rkgnn::data::SMOOTHING,
+                evoloop_rkgnn::SMOOTHING,
             );
             let mut settings = Settings::least_squares(n, seed, s.evaluations);
             settings.threads = s.threads.max(1);
@@ -933,7 +933,7 @@ struct SeedRun<'a> {
     dir: &'a Path,
     seed: u64,
     /// The three training runs' models (None: not identified) and their files.
-    models: &'a [Option<(PathBuf, crate::rkgnn::RkgnnModel)>],
+    models: &'a [Option<(PathBuf, evoloop_rkgnn::RkgnnModel)>],
     servo: [&'a [f64]; 2],
     matched: [&'a [f64]; 2],
     /// The matched servo's gains tuned on the nominal model (pd_gravity's).
@@ -1141,7 +1141,7 @@ fn earlier_model(
     name: &str,
     settings: &Settings,
     velocity: JointVelocity,
-) -> Result<crate::rkgnn::RkgnnModel, StudyError> {
+) -> Result<evoloop_rkgnn::RkgnnModel, StudyError> {
     let seed_dir = from.join(format!("seed{seed}"));
     let file = seed_dir.join(format!("model_{name}.json"));
     if !file.is_file() {
@@ -1159,7 +1159,7 @@ fn earlier_model(
             velocity.key()
         )));
     }
-    let model = crate::rkgnn::RkgnnModel::load(&file)?;
+    let model = evoloop_rkgnn::RkgnnModel::load(&file)?;
     let r = &model.report;
     let known = matches!(settings.servo, ServoPrior::Known { .. });
     let same = r.seed == settings.ea.seed
@@ -1184,7 +1184,7 @@ fn earlier_model(
 /// Whether a known servo's model `r` is the one `setting` would have identified: a fit in N m is
 /// also what `as-needed` keeps (the weighing is tried only where it fails), a weighed fit also
 /// what `always` gives; a weighed fit under `always` need not be `as-needed`'s.
-fn same_weighing(setting: Weighing, r: &crate::rkgnn::model::Report) -> bool {
+fn same_weighing(setting: Weighing, r: &evoloop_rkgnn::model::Report) -> bool {
     match setting {
         Weighing::Never => !r.weigh_joints,
         Weighing::AsNeeded => !r.weigh_joints || r.weighing() == Weighing::AsNeeded,

@@ -23,9 +23,9 @@ use crate::report::plot::{stacked_png, Panel, PlotError, Series};
 use crate::report::Csv;
 use crate::report::RunLog;
 use crate::rkgnn::identify::{self, Prior, Settings};
-use crate::rkgnn::model::Report;
 use crate::rkgnn::{StudyError, Trajectory};
 use crate::sim::{simulate, JointTraces, SimResult};
+use evoloop_rkgnn::model::Report;
 use evoloop_schemes::WriteError;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -54,8 +54,8 @@ pub struct StudySettings {
     /// servo) or, as in the paper's premise, not.
     pub servo_known: bool,
     /// Where the EA starts (the shipped recipe: least squares).
-    pub start: crate::rkgnn::model::Start,
-    /// Half width of the identification's low-pass, s (`data::SMOOTHING` by default).
+    pub start: evoloop_rkgnn::model::Start,
+    /// Half width of the identification's low-pass, s (`evoloop_rkgnn::SMOOTHING` by default).
     pub smoothing: f64,
     /// The joint velocity every run's controller acts on.
     pub velocity: JointVelocity,
@@ -170,9 +170,9 @@ pub struct IdentificationInputs {
     /// Eq. 2's upper bound m_2.
     pub m2: f64,
     /// What the identification was told of the training servo.
-    pub servo: crate::rkgnn::model::ServoPrior,
+    pub servo: evoloop_rkgnn::model::ServoPrior,
     /// Where the identification started.
-    pub start: crate::rkgnn::model::Start,
+    pub start: evoloop_rkgnn::model::Start,
     /// Samples per RKGNN step (h = stride x the runs' period).
     pub stride: usize,
     /// The velocity estimate's and position smoothing's half width, s.
@@ -297,15 +297,15 @@ pub(super) fn servo_prior(
     [kp, kd]: [&[f64]; 2],
     (velocity, case): (JointVelocity, &Case),
     arm: &crate::dynamics::Model,
-) -> crate::rkgnn::model::ServoPrior {
+) -> evoloop_rkgnn::model::ServoPrior {
     match known {
-        true => crate::rkgnn::model::ServoPrior::Known {
+        true => evoloop_rkgnn::model::ServoPrior::Known {
             kp: kp.to_vec(),
             kd: kd.to_vec(),
             limits: Some(arm.bodies.iter().map(|b| b.limits.effort).collect()),
             velocity_cutoff_hz: velocity.drive_cutoff_hz(case.scenario.timing.period),
         },
-        false => crate::rkgnn::model::ServoPrior::Unknown,
+        false => evoloop_rkgnn::model::ServoPrior::Unknown,
     }
 }
 
