@@ -27,6 +27,7 @@ pub mod ga;
 pub mod hooke_jeeves;
 pub mod hybrid;
 pub mod jade;
+pub mod levenberg_marquardt;
 pub mod listed;
 pub mod peers;
 pub mod problem;

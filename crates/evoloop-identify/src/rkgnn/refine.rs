@@ -7,36 +7,19 @@
 //! free-run prediction against the measured output) has neither flaw: measurement noise enters
 //! it additively, once. Its parameters are those the least squares solved for (every output
 //! weight and servo gain but k_p,1, which holds the scale: torque-free data cannot tell it);
-//! the RBF centres and widths stay put. The Jacobian is by forward differences, its columns
-//! computed in parallel; a step is taken only if it lowers the error and leaves M-hat positive
-//! definite over the operating region's probes.
+//! the RBF centres and widths stay put. The search is `optim::levenberg_marquardt` (a
+//! forward-difference Jacobian, its columns computed in parallel); a step is taken only if it
+//! lowers the error and leaves M-hat positive definite over the operating region's probes.
 
 use super::data::Trajectory;
 use super::identify::DIVERGED;
+use evoloop_optim::levenberg_marquardt::{self as lm, Outcome};
 use evoloop_rkgnn::network::Layout;
-use nalgebra::{DMatrix, DVector};
 
 /// Velocity residuals are weighed by this (s): rad/s against rad, the arm's motion is a few
 /// tenths of a hertz to a hertz, so a velocity error means about as much as a position error
 /// a tenth of it.
 const VELOCITY_WEIGHT: f64 = 0.1;
-/// Forward-difference step, relative to the parameter (with a floor for parameters near 0).
-const FD_STEP: f64 = 1e-6;
-/// Levenberg-Marquardt damping: start, growth on a rejected step, shrink on an accepted one.
-const MU: (f64, f64, f64) = (1e-3, 10.0, 0.3);
-/// A refinement stops when an accepted step improves the error by less than this fraction.
-const TOLERANCE: f64 = 1e-5;
-
-/// What a refinement did.
-#[derive(Debug, Clone, Copy)]
-pub struct Outcome {
-    /// Steps tried, accepted or rejected (a failed Cholesky factorisation counts too).
-    pub iterations: usize,
-    /// Sum of squared residuals before and after.
-    pub before: f64,
-    /// After the last accepted step (`before` when none was).
-    pub after: f64,
-}
 
 /// Samples per free-run segment (multiple shooting): each segment's prediction starts from its
 /// first measured state. One free run over the whole record is what eq. 13 scores, but from a
@@ -110,97 +93,10 @@ pub fn refine(
             !o.contains(&DIVERGED)
         })
         .collect();
-    let mut r = Vec::new();
-    residual(layout, p, train, &mut r);
-    let cost = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
-    let before = cost(&r);
-    let mut now = before;
-    let mut mu = MU.0;
-    let mut done = 0;
-    let mut jac = jacobian(layout, p, free, train, &r, threads);
-    while done < iterations {
-        done += 1;
-        let jt = jac.transpose();
-        let mut a = &jt * &jac;
-        let g = &jt * DVector::from_column_slice(&r);
-        for k in 0..free.len() {
-            a[(k, k)] += mu * a[(k, k)].max(1e-12);
-        }
-        let Some(chol) = a.cholesky() else {
-            mu *= MU.1;
-            continue;
-        };
-        let step = chol.solve(&(-g));
-        let mut trial = p.to_vec();
-        for (k, &i) in free.iter().enumerate() {
-            trial[i] += step[k];
-        }
-        let mut rt = Vec::new();
-        residual(layout, &trial, train, &mut rt);
-        let c = cost(&rt);
-        if c < now && c.is_finite() && keep(&trial) {
-            let gain = (now - c) / now;
-            p.copy_from_slice(&trial);
-            r = rt;
-            now = c;
-            mu *= MU.2;
-            if gain < TOLERANCE {
-                break;
-            }
-            jac = jacobian(layout, p, free, train, &r, threads);
-        } else {
-            mu *= MU.1;
-            if mu > 1e8 {
-                break;
-            }
-        }
-    }
-    Outcome {
-        iterations: done,
-        before,
-        after: now,
-    }
-}
-
-/// d residual / d p[free[k]] by forward differences, columns shared among `threads` threads.
-fn jacobian(
-    layout: &Layout,
-    p: &[f64],
-    free: &[usize],
-    train: &[Trajectory],
-    r0: &[f64],
-    threads: usize,
-) -> DMatrix<f64> {
-    let rows = r0.len();
-    let mut jac = DMatrix::<f64>::zeros(rows, free.len());
-    let threads = threads.max(1).min(free.len().max(1));
-    let chunk = free.len().div_ceil(threads);
-    let columns: Vec<Vec<(usize, Vec<f64>)>> = std::thread::scope(|s| {
-        let handles: Vec<_> = free
-            .chunks(chunk.max(1))
-            .enumerate()
-            .map(|(t, ks)| {
-                s.spawn(move || {
-                    let mut q = p.to_vec();
-                    let mut r = Vec::new();
-                    ks.iter()
-                        .enumerate()
-                        .map(|(c, &i)| {
-                            let h = FD_STEP * p[i].abs().max(1e-3);
-                            q[i] = p[i] + h;
-                            residual(layout, &q, train, &mut r);
-                            q[i] = p[i];
-                            let col = r.iter().zip(r0).map(|(a, b)| (a - b) / h).collect();
-                            (t * chunk + c, col)
-                        })
-                        .collect()
-                })
-            })
-            .collect();
-        handles.into_iter().map(|h| h.join().unwrap()).collect()
-    });
-    for (c, col) in columns.into_iter().flatten() {
-        jac.set_column(c, &DVector::from_vec(col));
-    }
-    jac
+    let settings = lm::Settings {
+        iterations,
+        threads,
+    };
+    let free_run = |p: &[f64], out: &mut Vec<f64>| residual(layout, p, train, out);
+    lm::minimise(p, free, free_run, keep, settings)
 }
