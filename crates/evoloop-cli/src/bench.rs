@@ -29,7 +29,7 @@ pub struct LatencyArgs {
 #[derive(Args)]
 pub struct PeerArgs {
     /// Round trip to answer: evoloop state/command or the bare ping-pong, busy-poll or event
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = crate::choice::choice::<Variant>())]
     pub variant: Variant,
     /// Prefix of the iceoryx2 resources of the measuring process, so both open the same services
     #[arg(long)]
@@ -134,13 +134,13 @@ pub struct LoopArgs {
     pub scenario: Option<PathBuf>,
     /// How the controller and the plant wait: sleep, spin or hybrid (default: the scenario's
     /// `timing.wait`; sleep on the built-in loop). The floor waits the same way.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = crate::choice::choice::<evoloop_rt::WaitKind>())]
     pub wait: Option<evoloop_rt::WaitKind>,
     /// Seconds per measurement.
     #[arg(long, default_value_t = 5.0)]
     pub duration: f64,
     /// What else runs during each measurement: nothing, the live optimiser or a busy thread per CPU
-    #[arg(long, value_enum, default_value_t = Load::Off)]
+    #[arg(long, value_parser = crate::choice::choice::<Load>(), default_value = "off")]
     pub load: Load,
     /// Only with SCHED_FIFO/mlockall (default: with and without).
     #[arg(long)]
@@ -286,7 +286,7 @@ pub struct GuardArgs {
     #[arg(long, default_value_t = 101)]
     pub rounds: usize,
     /// Only these paths, comma-separated (default: all).
-    #[arg(long, value_enum, value_delimiter = ',')]
+    #[arg(long, value_parser = crate::choice::choice::<evoloop_run::bench::guard::HotPath>(), value_delimiter = ',')]
     pub paths: Option<Vec<evoloop_run::bench::guard::HotPath>>,
     /// Every limit times this: the guard's own test of its failure path.
     #[arg(long, default_value_t = 1.0, hide = true)]

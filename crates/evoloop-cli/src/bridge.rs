@@ -27,7 +27,7 @@ pub struct BridgeArgs {
     #[arg(long, value_name = "FILE")]
     pub zenoh_config: Option<PathBuf>,
     /// Seconds to relay, then stop [default: until the run ends or Ctrl-C].
-    #[arg(long, value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 1e6))]
+    #[arg(long, value_parser = |s: &str| crate::args::seconds_in(s, 1e6))]
     pub duration: Option<f64>,
     /// Print what was relayed as JSON at the end.
     #[arg(long)]

@@ -6,9 +6,11 @@
 #[macro_use]
 extern crate evoloop_scenario;
 
+pub mod args;
 pub mod bench;
 pub mod bridge;
 pub mod check;
+pub mod choice;
 pub mod dynamics;
 pub mod floor;
 pub mod identify_base;
@@ -26,10 +28,9 @@ pub mod top;
 pub mod tune;
 pub mod worker;
 
+pub use args::{OptimiserOptions, OverrideOptions, ProcessOptions, RunOptions};
 use clap::{Parser, Subcommand};
-pub use evoloop_run::node::args::{
-    parse_seeds, OptimiserArgs, OverrideArgs, ProcessArgs, RunArgs, Seeds,
-};
+use evoloop_run::node::args::RunArgs;
 use evoloop_run::node::launcher;
 pub use evoloop_run::node::start::stop_flag;
 use std::path::PathBuf;
@@ -56,7 +57,7 @@ pub struct Cli {
 #[derive(Subcommand)]
 pub enum Cmd {
     /// Run a scenario: start the three processes, supervise them, write the report.
-    Run(RunArgs),
+    Run(RunOptions),
     /// Validate a scenario file and print what it resolves to.
     Check {
         /// Scenario file (TOML).
@@ -109,11 +110,11 @@ pub enum Cmd {
     },
     /// The plant simulator process of a run (`evoloop run` starts it; for starting processes by
     /// hand or under your own supervisor).
-    Plant(ProcessArgs),
+    Plant(ProcessOptions),
     /// The fixed-rate controller process of a run (`evoloop run` starts it).
-    Controller(ProcessArgs),
+    Controller(ProcessOptions),
     /// The optimiser process of a run (`evoloop run` starts it).
-    Optimiser(OptimiserArgs),
+    Optimiser(OptimiserOptions),
     /// A long realtime run with the optimiser tuning: memory of every process, missed deadlines
     /// and lateness per minute, shared-memory files before and after (soak.json, soak.csv, plots).
     Soak(soak::SoakArgs),
@@ -125,11 +126,11 @@ pub enum Cmd {
     /// Play a recorded run (its run.mcap) into a controller over the run's iceoryx2 topics, in
     /// the plant's place, and compare its commands with the recorded ones (replay.json,
     /// replay.csv, replay.png); `--scenario FILE` tries another controller on the recorded data.
-    Replay(evoloop_run::node::replay::ReplayArgs),
+    Replay(args::ReplayOptions),
     /// Serve a running run to Foxglove or PlotJuggler in Foxglove's WebSocket protocol: its
     /// topics (ROS 2 CDR) and the controller's gains as a parameter a viewer may set (checked by
     /// the controller like any set). `evoloop run --live` starts it with the run.
-    Live(evoloop_run::node::live::LiveArgs),
+    Live(args::LiveOptions),
     /// A live terminal view of a running run: processes, the controller's rate, lateness and
     /// misses (last second and since start), parameter sets and model estimate, a sparkline of
     /// the tracking error (`--json`: one snapshot for scripts); keys h, g, b, x hold, resume,
@@ -205,31 +206,20 @@ pub fn main() -> ExitCode {
         unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
     }
     match cli.command {
-        None => launcher::run(RunArgs {
-            file: None,
-            overrides: OverrideArgs::default(),
-            run_id: None,
-            ipc_prefix: evoloop_ipc::DEFAULT_PREFIX.into(),
-            quiet: false,
-            seeds: None,
-            floor_duration: None,
-            workers: None,
-            live: None,
-            live_remote: false,
-        }),
-        Some(Cmd::Run(a)) if a.seeds.is_some() => launcher::run_seeds(a),
-        Some(Cmd::Run(a)) => launcher::run(a),
+        None => launcher::run(RunArgs::default_run()),
+        Some(Cmd::Run(a)) if a.seeds.is_some() => launcher::run_seeds(a.into_args()),
+        Some(Cmd::Run(a)) => launcher::run(a.into_args()),
         Some(Cmd::Check { file }) => check::check(&file),
         Some(Cmd::Plant(a)) => {
-            evoloop_run::node::plant::main(&a);
+            evoloop_run::node::plant::main(&a.into_args());
             ExitCode::SUCCESS
         }
         Some(Cmd::Controller(a)) => {
-            evoloop_run::node::controller::main(&a);
+            evoloop_run::node::controller::main(&a.into_args());
             ExitCode::SUCCESS
         }
         Some(Cmd::Optimiser(a)) => {
-            evoloop_run::node::optimiser::main(&a);
+            evoloop_run::node::optimiser::main(&a.into_args());
             ExitCode::SUCCESS
         }
         Some(Cmd::Bench { cmd }) => ExitCode::from(match cmd {
@@ -263,8 +253,10 @@ pub fn main() -> ExitCode {
             }
         },
         Some(Cmd::Soak(a)) => soak::main(a),
-        Some(Cmd::Replay(a)) => ExitCode::from(evoloop_run::node::replay::main(&a) as u8),
-        Some(Cmd::Live(a)) => ExitCode::from(evoloop_run::node::live::main(&a)),
+        Some(Cmd::Replay(a)) => {
+            ExitCode::from(evoloop_run::node::replay::main(&a.into_args()) as u8)
+        }
+        Some(Cmd::Live(a)) => ExitCode::from(evoloop_run::node::live::main(&a.into_args())),
         Some(Cmd::Top(a)) => ExitCode::from(top::main(&a)),
         Some(Cmd::Operator(a)) => ExitCode::from(operator::main(&a)),
         Some(Cmd::Bridge(a)) => ExitCode::from(bridge::main(&a)),
@@ -273,3 +265,63 @@ pub fn main() -> ExitCode {
 }
 
 pub use evoloop_report::print_json;
+
+/// One process of a run on its own (`evoloop-plant`, `evoloop-controller`), for users who start
+/// a run's processes by hand or under their own supervisor: the same options and code as
+/// `evoloop plant` and `evoloop controller`.
+#[derive(Parser)]
+struct ProcessCli {
+    #[command(flatten)]
+    args: ProcessOptions,
+}
+
+/// The optimiser process on its own (`evoloop-optimiser`), as `evoloop optimiser`.
+#[derive(Parser)]
+struct OptimiserCli {
+    #[command(flatten)]
+    args: OptimiserOptions,
+}
+
+/// Which process a binary of its own runs.
+#[derive(Debug, Clone, Copy)]
+pub enum Process {
+    /// `evoloop-plant`.
+    Plant,
+    /// `evoloop-controller`.
+    Controller,
+    /// `evoloop-optimiser`.
+    Optimiser,
+}
+
+/// The `main` of the binary that runs `process` alone: its command line parsed, then the
+/// process's loop (which exits the process itself on a failure).
+pub fn process_main(process: Process) {
+    let (name, role) = match process {
+        Process::Plant => ("evoloop-plant", "plant"),
+        Process::Controller => ("evoloop-controller", "controller"),
+        Process::Optimiser => ("evoloop-optimiser", "optimiser"),
+    };
+    let about = format!(
+        "evoloop {role} process (normally started by `evoloop run`; the same as `evoloop {role}`)"
+    );
+    match process {
+        Process::Plant => {
+            let a = parse_as::<ProcessCli>(name, about).args.into_args();
+            evoloop_run::node::plant::main(&a);
+        }
+        Process::Controller => {
+            let a = parse_as::<ProcessCli>(name, about).args.into_args();
+            evoloop_run::node::controller::main(&a);
+        }
+        Process::Optimiser => {
+            let a = parse_as::<OptimiserCli>(name, about).args.into_args();
+            evoloop_run::node::optimiser::main(&a);
+        }
+    }
+}
+
+/// This process's command line parsed as `T`, under the binary's own name and description.
+fn parse_as<T: Parser>(name: &'static str, about: String) -> T {
+    let matches = T::command().name(name).about(about).get_matches();
+    T::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+}

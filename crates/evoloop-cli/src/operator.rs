@@ -24,7 +24,7 @@ pub struct OperatorArgs {
     #[arg(long)]
     pub run: Option<String>,
     /// Seconds to wait for the optimiser's answer.
-    #[arg(long, default_value_t = 5.0, value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 3600.0))]
+    #[arg(long, default_value_t = 5.0, value_parser = |s: &str| crate::args::seconds_in(s, 3600.0))]
     pub timeout: f64,
     /// Print the answer as JSON.
     #[arg(long)]

@@ -67,7 +67,7 @@ pub struct IdentifyArgs {
     /// on the velocities) and cuts 1e-4 rad encoder noise to 2e-4 rad/s; widen it for noisier
     /// encoders, narrow it for faster motion.
     #[arg(long, default_value_t = evoloop_rkgnn::SMOOTHING,
-          value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 10.0))]
+          value_parser = |s: &str| crate::args::seconds_in(s, 10.0))]
     pub smoothing: f64,
     /// Eq. 2's lower bound m1 on the arm's inertia matrix (y^T M(q) y >= m1 |y|^2, kg m^2): the
     /// smallest eigenvalue of M(q) over the workspace, from a datasheet, a CAD model
@@ -92,7 +92,7 @@ pub struct IdentifyArgs {
     /// Where the EA starts: `random` (the paper's) or `least-squares` (the inverse-dynamics
     /// equation solved for the output weights; needs --servo linear). With `least-squares`,
     /// --evaluations 0 returns the start itself.
-    #[arg(long, value_enum, default_value_t = Start::Random)]
+    #[arg(long, value_parser = crate::choice::choice::<Start>(), default_value = "random")]
     pub start: Start,
     /// With --servo known: the servo's proportional gains, one per joint [default: the run's
     /// scenario.json controller.gains].
@@ -112,8 +112,8 @@ pub struct IdentifyArgs {
     /// shoulder: `as-needed` (where the fit in N m finds no positive definite M-hat; the
     /// default), `always` (what `--weigh-joints` alone means; arm7 needs it) or `never` (the
     /// recipe before 2026-12-06)
-    #[arg(long, value_enum, value_name = "WHEN", num_args = 0..=1,
-          default_value_t = Weighing::AsNeeded, default_missing_value = "always")]
+    #[arg(long, value_parser = crate::choice::choice::<Weighing>(), value_name = "WHEN", num_args = 0..=1,
+          default_value = "as-needed", default_missing_value = "always")]
     pub weigh_joints: Weighing,
     /// Evaluation threads [default: all cores].
     #[arg(long)]
@@ -232,8 +232,8 @@ pub struct StudySettingsArgs {
     /// arms; the default), `always` (what `--weigh-joints` alone means; a 7-DOF arm's least
     /// squares needs it, its shoulder's torques are 100x its wrist's) or `never` (the recipe
     /// before 2026-12-06)
-    #[arg(long, value_enum, value_name = "WHEN", num_args = 0..=1,
-          default_value_t = Weighing::AsNeeded, default_missing_value = "always")]
+    #[arg(long, value_parser = crate::choice::choice::<Weighing>(), value_name = "WHEN", num_args = 0..=1,
+          default_value = "as-needed", default_missing_value = "always")]
     pub weigh_joints: Weighing,
     /// V-hat: `network` (the paper's velocity network; the shipped recipe) or `christoffel`
     /// (from M-hat's Christoffel symbols; 8x faster to fit on a 7-DOF arm).
@@ -245,14 +245,14 @@ pub struct StudySettingsArgs {
     pub servo: StudyServo,
     /// Where the identification starts: `least-squares` (the shipped recipe) or `random` (the
     /// paper's; give --evaluations).
-    #[arg(long, value_enum, default_value_t = evoloop_rkgnn::model::Start::LeastSquares)]
+    #[arg(long, value_parser = crate::choice::choice::<evoloop_rkgnn::model::Start>(), default_value = "least-squares")]
     pub start: evoloop_rkgnn::model::Start,
     /// The paper's EA evaluations per model after the start; 0 keeps the start.
     #[arg(long, default_value_t = 0)]
     pub evaluations: usize,
     /// The tracking runs' loop period, s (e.g. 0.0001: a 7-DOF arm's 10 kHz); the training
     /// runs stay at 1 ms [default: 0.001].
-    #[arg(long, value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 0.01))]
+    #[arg(long, value_parser = |s: &str| crate::args::seconds_in(s, 0.01))]
     pub period: Option<f64>,
     /// Take each seed's models from an earlier study's --out (its `seed<N>/model_<run>.json`,
     /// identified by the same recipe and seeds) instead of identifying them again: to compare
@@ -262,7 +262,7 @@ pub struct StudySettingsArgs {
     /// The joint velocity the training servo and every tracking law act on: `filtered` (the
     /// measured positions differenced and low-passed at 50 Hz, as a drive does) or `true` (the
     /// simulator's velocities, an ideal sensor no plant has: the figures before 2026-12-03).
-    #[arg(long, value_enum, default_value_t = JointVelocity::Filtered)]
+    #[arg(long, value_parser = crate::choice::choice::<JointVelocity>(), default_value = "filtered")]
     pub joint_velocity: JointVelocity,
     /// Threads [default: all cores].
     #[arg(long)]
@@ -320,17 +320,17 @@ pub struct StudyArgs {
     pub servo: StudyServo,
     /// Half width of the identification's low-pass, s (as `identify rkgnn --smoothing`).
     #[arg(long, default_value_t = evoloop_rkgnn::SMOOTHING,
-          value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 10.0))]
+          value_parser = |s: &str| crate::args::seconds_in(s, 10.0))]
     pub smoothing: f64,
     /// The joint velocity the training servo and every tracking law act on: `filtered` (the
     /// measured positions differenced and low-passed at 50 Hz, as a drive does) or `true` (the
     /// simulator's velocities, an ideal sensor no plant has: the figures before 2026-12-03).
-    #[arg(long, value_enum, default_value_t = JointVelocity::Filtered)]
+    #[arg(long, value_parser = crate::choice::choice::<JointVelocity>(), default_value = "filtered")]
     pub joint_velocity: JointVelocity,
     /// Where the EA starts: `least-squares` (the shipped models' recipe) or `random` (the
     /// paper's: a stiff critically damped servo, every other weight 0, the population about
     /// it; give --evaluations).
-    #[arg(long, value_enum, default_value_t = evoloop_rkgnn::model::Start::LeastSquares)]
+    #[arg(long, value_parser = crate::choice::choice::<evoloop_rkgnn::model::Start>(), default_value = "least-squares")]
     pub start: evoloop_rkgnn::model::Start,
     /// Threads [default: all cores].
     #[arg(long)]

@@ -25,7 +25,7 @@ pub struct TopArgs {
     #[arg(long)]
     pub json: bool,
     /// Seconds to watch, then quit [default: until q, Esc or Ctrl-C, or the run ends].
-    #[arg(long, value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 1e6))]
+    #[arg(long, value_parser = |s: &str| crate::args::seconds_in(s, 1e6))]
     pub duration: Option<f64>,
 }
 

@@ -1,7 +1,7 @@
 //! `evoloop tune FILE`: the fuzzy-network paper's GA experiments.
 
-use super::{parse_seeds, Seeds};
 use clap::Args;
+use evoloop_run::node::args::{parse_seeds, Seeds};
 use std::path::PathBuf;
 
 /// Options of `evoloop tune`: the experiment file or direct scenario, its seed(s), the optimisers
@@ -45,7 +45,7 @@ pub struct TuneArgs {
     pub workers: Option<u16>,
     /// Evaluation workers on other hosts: `--workers-listen` and `--workers-expect`.
     #[command(flatten)]
-    pub remote: evoloop_run::node::args::WorkersArgs,
+    pub remote: crate::args::WorkersOptions,
 }
 
 /// Evaluation workers for the experiment, when asked for: those started here (kept until the

@@ -21,7 +21,7 @@ pub struct WorkerArgs {
     #[arg(long, value_name = "FILE")]
     pub zenoh_config: Option<PathBuf>,
     /// Seconds to serve, then stop [default: until Ctrl-C].
-    #[arg(long, value_parser = |s: &str| evoloop_run::node::args::seconds_in(s, 1e7))]
+    #[arg(long, value_parser = |s: &str| crate::args::seconds_in(s, 1e7))]
     pub duration: Option<f64>,
     /// Print what was served as JSON at the end.
     #[arg(long)]

@@ -79,7 +79,6 @@ impl Report {
 /// the price of the noise on the small ones (on 3-joint arms whose unweighted fit is fine, it
 /// costs models).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Weighing {
     /// Every equation in N m (the recipe before 2026-12-06).
@@ -92,6 +91,9 @@ pub enum Weighing {
 }
 
 impl Weighing {
+    /// Every policy, as `--weigh-joints` lists them.
+    pub const ALL: [Weighing; 3] = [Weighing::Never, Weighing::AsNeeded, Weighing::Always];
+
     /// Its name as the command line and the model file spell it.
     pub fn name(self) -> &'static str {
         match self {
@@ -210,8 +212,6 @@ impl std::error::Error for ServoError {}
 
 /// The EA's starting point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-// The command line offers it as a flag's values (feature `clap`, which the evoloop package turns on).
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Start {
     /// The paper's: `initial` (a stiff critically damped servo, every other weight 0) and a
@@ -222,6 +222,9 @@ pub enum Start {
 }
 
 impl Start {
+    /// Both starts, as `--start` lists them.
+    pub const ALL: [Start; 2] = [Start::Random, Start::LeastSquares];
+
     /// Its name as the command line and the model file spell it.
     pub fn name(self) -> &'static str {
         match self {

@@ -59,8 +59,6 @@ pub fn spin_until_ns(deadline_ns: u64) {
 ///   absorbed when it is under the margin; the loop spins about margin - sleep lateness per
 ///   period. The margin should cover the sleep's p99.9 lateness (`evoloop floor` shows it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-// The command line offers it as a flag's values (feature `clap`, which the evoloop package turns on).
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum WaitKind {
     /// clock_nanosleep to the deadline: no CPU used, the kernel's wake-up lateness
@@ -73,6 +71,9 @@ pub enum WaitKind {
 }
 
 impl WaitKind {
+    /// Every strategy, as `--wait` lists them.
+    pub const ALL: [WaitKind; 3] = [WaitKind::Sleep, WaitKind::Spin, WaitKind::Hybrid];
+
     /// The strategy's name as `timing.wait` writes it: "sleep", "spin" or "hybrid".
     pub fn name(self) -> &'static str {
         match self {

@@ -45,7 +45,7 @@ pub const PENALTY: f64 = 1e6;
 pub const UNREACHABLE: f64 = 100.0;
 
 /// What the trajectory is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TrajectoryKind {
     /// A joint-space finite Fourier series per moving joint (Swevers).
@@ -53,6 +53,19 @@ pub enum TrajectoryKind {
     /// The paper's modified Fourier series: a Cartesian path of the wrist centre through
     /// inverse kinematics (arm joints); moving wrist joints follow a joint-space series.
     Mfs,
+}
+
+impl TrajectoryKind {
+    /// Every kind, as `--trajectory` lists them.
+    pub const ALL: [TrajectoryKind; 2] = [TrajectoryKind::Fourier, TrajectoryKind::Mfs];
+
+    /// The kind's name as commands and reports spell it: `fourier` or `mfs`.
+    pub fn name(self) -> &'static str {
+        match self {
+            TrajectoryKind::Fourier => "fourier",
+            TrajectoryKind::Mfs => "mfs",
+        }
+    }
 }
 
 /// The limits a trajectory must respect, per joint.

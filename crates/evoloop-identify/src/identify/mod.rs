@@ -96,7 +96,7 @@ impl Columns {
 }
 
 /// Which part of the arm an experiment identifies.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StageKind {
     /// The last three joints move, the others are held (the paper's first stage).
@@ -179,7 +179,17 @@ impl Stage {
 
     /// The stage's name as commands and reports spell it: `wrist`, `arm` or `all`.
     pub fn name(&self) -> &'static str {
-        match self.kind {
+        self.kind.name()
+    }
+}
+
+impl StageKind {
+    /// Every kind, as `--stage` lists them.
+    pub const ALL: [StageKind; 3] = [StageKind::Wrist, StageKind::Arm, StageKind::All];
+
+    /// The kind's name as commands and reports spell it: `wrist`, `arm` or `all`.
+    pub fn name(self) -> &'static str {
+        match self {
             StageKind::Wrist => "wrist",
             StageKind::Arm => "arm",
             StageKind::All => "all",

@@ -65,7 +65,7 @@ pub struct StudySettings {
 
 /// The joint velocity an arm study's controllers act on (the training servo's and every
 /// tracking law's `velocity` key).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum JointVelocity {
     /// The measured positions differenced and low-passed at 50 Hz, as a servo drive does: the
@@ -77,6 +77,9 @@ pub enum JointVelocity {
 }
 
 impl JointVelocity {
+    /// Both, as `--velocity` lists them.
+    pub const ALL: [JointVelocity; 2] = [JointVelocity::Filtered, JointVelocity::True];
+
     /// The value of the scenarios' `velocity` key: "filtered" or "true".
     pub fn key(self) -> &'static str {
         match self {

@@ -13,7 +13,6 @@ use crate::report::plot::{xy_png, Style, XySeries};
 use crate::report::Csv;
 use crate::rt::now_ns;
 use crate::rt::timing::Percentiles;
-use clap::ValueEnum;
 use evoloop_schemes::WriteError;
 use iceoryx2::prelude::*;
 use serde::Serialize;
@@ -22,7 +21,7 @@ use std::time::Duration;
 
 /// One kind of round trip `bench latency` times: evoloop's messages and control law, or the
 /// bare iceoryx2 ping-pong it is measured against, each busy-polled or event-woken.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Variant {
     /// evoloop state/command with the control law, peers busy-poll.
@@ -36,6 +35,25 @@ pub enum Variant {
 }
 
 impl Variant {
+    /// Every variant, each reference before the variant it is the reference of: what `bench
+    /// latency` measures when `--variant` is not given, in this order.
+    pub const ALL: [Variant; 4] = [
+        Variant::BareBusy,
+        Variant::EvoloopBusy,
+        Variant::BareEvent,
+        Variant::EvoloopEvent,
+    ];
+
+    /// The variant's name on the command line (`--variant evoloop-busy`).
+    pub fn arg(self) -> &'static str {
+        match self {
+            Variant::EvoloopBusy => "evoloop-busy",
+            Variant::EvoloopEvent => "evoloop-event",
+            Variant::BareBusy => "bare-busy",
+            Variant::BareEvent => "bare-event",
+        }
+    }
+
     /// The variant's snake_case name: its key in latency.json and its row in latency.csv.
     pub fn name(self) -> &'static str {
         match self {
@@ -139,11 +157,7 @@ fn spawn_peer(v: Variant, prefix: &str, run_id: &str, payload: usize) -> std::io
     let exe = std::env::current_exe()?;
     Proc::new(exe)
         .args(["bench", "latency-peer", "--variant"])
-        .arg(
-            v.to_possible_value()
-                .map(|p| p.get_name().to_string())
-                .unwrap_or_default(),
-        )
+        .arg(v.arg())
         .args(["--prefix", prefix, "--run-id", run_id, "--payload"])
         .arg(payload.to_string())
         .stdout(Stdio::null())
@@ -161,14 +175,6 @@ pub struct Measured {
     pub raw: Vec<(Variant, Vec<i64>)>,
 }
 
-/// Every variant, each reference before the variant it is the reference of.
-pub const ALL: [Variant; 4] = [
-    Variant::BareBusy,
-    Variant::EvoloopBusy,
-    Variant::BareEvent,
-    Variant::EvoloopEvent,
-];
-
 /// Measure every variant, `samples` round trips each with a `payload`-byte bare message;
 /// `progress` is told each variant as it starts.
 pub fn measure(
@@ -176,7 +182,7 @@ pub fn measure(
     payload: usize,
     progress: &dyn Fn(Variant),
 ) -> Result<Measured, LatencyError> {
-    measure_variants(&ALL, samples, payload, progress)
+    measure_variants(&Variant::ALL, samples, payload, progress)
 }
 
 /// `measure` for some of the variants (a ratio needs its reference among them).

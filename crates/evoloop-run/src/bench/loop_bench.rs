@@ -8,7 +8,6 @@ use crate::node::start::Failure;
 use crate::report::plot::{xy_png, Style, XySeries};
 use crate::report::Table;
 use crate::run_report::summary::Summary;
-use clap::ValueEnum;
 use serde::Serialize;
 use std::path::Path;
 use std::process::{Child, Command};
@@ -16,7 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 /// The background load `bench loop` measures the loop under.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Load {
     /// Nothing else running.
@@ -27,6 +26,20 @@ pub enum Load {
     Optimiser,
     /// One busy-looping thread per CPU at normal priority.
     Hog,
+}
+
+impl Load {
+    /// Every load, as `--load` lists them.
+    pub const ALL: [Load; 3] = [Load::Off, Load::Optimiser, Load::Hog];
+
+    /// The load's name on the command line and in results: `off`, `optimiser` or `hog`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Load::Off => "off",
+            Load::Optimiser => "optimiser",
+            Load::Hog => "hog",
+        }
+    }
 }
 
 /// One run of `bench loop`: its setting and the summary.json it wrote.

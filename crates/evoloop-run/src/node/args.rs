@@ -1,61 +1,53 @@
-//! The options of a run and of its processes: what `evoloop run` takes and what the launcher
-//! hands each child (which parses exactly these), so both sides share one definition.
+//! What a run and each of its processes are started with: the options `evoloop run` takes (parsed
+//! by the command line, crate `evoloop-cli`), and the arguments the launcher hands each child,
+//! which parses exactly these (`override_args`).
 
-use crate::config::{Mode, OptimiserMode, Overrides};
-use clap::Args;
+use crate::config::Overrides;
 use std::path::PathBuf;
 
-/// The options of `evoloop run`: the scenario file and its overrides, the run's id and IPC
-/// prefix, its seeds, its floor, workers on this host and the live view.
-#[derive(clap::Args)]
+/// `evoloop run`: the scenario file and its overrides, the run's id and IPC prefix, its seeds,
+/// its floor, workers on this host and the live view.
+#[derive(Debug, Clone)]
 pub struct RunArgs {
-    /// Scenario file (TOML) [default: config/two_mass/two_mass.toml, here or in the source tree]
+    /// Scenario file (TOML); `None`: the default scenario, here or in the source tree.
     pub file: Option<PathBuf>,
     /// Overrides of the scenario file; the launcher passes them on to the run's processes.
-    #[command(flatten)]
-    pub overrides: OverrideArgs,
-    /// Run id used in the service names: ASCII letters, digits, '_' and '-' (default:
-    /// generated, unique on this machine).
-    #[arg(long, value_parser = crate::ipc::parse_run_id)]
+    pub overrides: Overrides,
+    /// Run id used in the service names (`None`: generated, unique on this machine).
     pub run_id: Option<String>,
-    /// Prefix of iceoryx2's files (separate namespace, e.g. for parallel tests).
-    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX, value_parser = crate::ipc::parse_prefix)]
+    /// Prefix of iceoryx2's files.
     pub ipc_prefix: String,
     /// No progress lines.
-    #[arg(long, short)]
     pub quiet: bool,
-    /// Several seeds, e.g. `1..20` (inclusive) or `1,4,9`, for a scenario with
-    /// `optimiser.mode = "indirect"` or `"identify"`: one run per seed (in `<out>/seed-<n>/`),
-    /// each against the frozen controller on the same seed (cost per repetition, or tracking RMS
-    /// for identify); statistics and paired tests in `<out>/study.md`,
-    /// `study.json`, `seeds.csv`, `study_cost.png`.
-    #[arg(long, value_parser = parse_seeds, conflicts_with = "seed")]
+    /// Several seeds: one run per seed and a paired study (`--seeds`).
     pub seeds: Option<Seeds>,
-    /// Realtime: seconds of the bare loop measured after the run as its floor (default: the
-    /// run's duration, at most 5 s). As long as the run, rare stalls of the machine have the
-    /// same chance to show in the floor as in the run (`bench loop` does this).
-    #[arg(long, value_parser = parse_floor_duration)]
+    /// Realtime: seconds of the bare loop measured after the run as its floor (`None`: the
+    /// run's duration, at most 5 s).
     pub floor_duration: Option<f64>,
-    /// Start N evaluation workers on this host (`evoloop worker`, one thread each) connected to
-    /// the optimiser over Zenoh on loopback, for trying `optimiser.workers = "zenoh"` on one
-    /// machine; summary.json reports `evaluations_remote` and `evaluations_local` (feature
-    /// `zenoh`, indirect scenarios).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=64), conflicts_with = "workers_listen")]
+    /// Evaluation workers to start on this host, connected over Zenoh on loopback.
     pub workers: Option<u16>,
-    /// Serve the run live to Foxglove or PlotJuggler (Foxglove WebSocket protocol) on ADDR
-    /// [default ADDR: 127.0.0.1:8765]: `evoloop live` started beside the run's processes, its
-    /// own process, stopped with the run.
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765")]
+    /// Serve the run live (Foxglove WebSocket protocol) on this address.
     pub live: Option<String>,
-    /// Let --live listen beyond loopback (e.g. 0.0.0.0:8765): anyone who reaches the port sees
-    /// the run, and a viewer on another machine sets gains only with the token the live view
-    /// prints (ws://HOST:PORT/?token=TOKEN). Without it such an ADDR is refused.
-    #[arg(long, requires = "live")]
+    /// Let `live` listen beyond loopback.
     pub live_remote: bool,
 }
 
-fn parse_floor_duration(s: &str) -> Result<f64, String> {
-    seconds_in(s, 3600.0)
+impl RunArgs {
+    /// The default scenario with no override, as `evoloop` without a subcommand runs it.
+    pub fn default_run() -> Self {
+        RunArgs {
+            file: None,
+            overrides: Overrides::default(),
+            run_id: None,
+            ipc_prefix: crate::ipc::DEFAULT_PREFIX.to_string(),
+            quiet: false,
+            seeds: None,
+            floor_duration: None,
+            workers: None,
+            live: None,
+            live_remote: false,
+        }
+    }
 }
 
 /// A time option's value: seconds in (0, `max`].
@@ -66,154 +58,68 @@ pub fn seconds_in(s: &str, max: f64) -> Result<f64, String> {
     }
 }
 
-/// Options every process of a run receives from the launcher.
-#[derive(Debug, Clone, Args)]
+/// What every process of a run receives from the launcher.
+#[derive(Debug, Clone)]
 pub struct ProcessArgs {
     /// Scenario file (TOML).
-    #[arg(long)]
     pub config: PathBuf,
     /// Run id: part of every service name, so runs never cross-talk.
-    #[arg(long, value_parser = crate::ipc::parse_run_id)]
     pub run_id: String,
     /// Prefix of iceoryx2's files for this run.
-    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX, value_parser = crate::ipc::parse_prefix)]
     pub ipc_prefix: String,
-    /// `evoloop run`'s overrides of the scenario file, with `--out` set to the run's directory.
-    #[command(flatten)]
-    pub overrides: OverrideArgs,
+    /// `evoloop run`'s overrides of the scenario file, with `out` set to the run's directory.
+    pub overrides: Overrides,
 }
 
-/// The optimiser process's options: those of every process, and `--rejoin`.
-#[derive(Debug, Clone, Args)]
+/// What the optimiser process receives: what every process does, and its own options.
+#[derive(Debug, Clone)]
 pub struct OptimiserArgs {
-    /// The options every process receives.
-    #[command(flatten)]
+    /// What every process receives.
     pub args: ProcessArgs,
-    /// Rejoin a running run (started again after a crash): continue the version numbering and the
-    /// set in service from `published.jsonl`, and release the plant's pending lockstep wait.
-    #[arg(long)]
+    /// Rejoin a running run (started again after a crash).
     pub rejoin: bool,
-    /// Join the run from another host through its bridge (`evoloop bridge --run RUN_ID
-    /// --listen ENDPOINT` there), e.g. `tcp/192.0.2.10:7447`: realtime runs only; needs the
-    /// `zenoh` feature. The run's states, commands and telemetry come in over Zenoh, the sets go
-    /// out to its controller, which validates them as any other.
-    #[arg(long, value_name = "ENDPOINT")]
+    /// Join the run from another host through its bridge at this Zenoh endpoint.
     pub connect: Option<String>,
-    /// A Zenoh configuration file (JSON5) for `--connect`: TLS, access control (see
-    /// config/zenoh/).
-    #[arg(long, value_name = "FILE", requires = "connect")]
+    /// A Zenoh configuration file (JSON5) for `connect`.
     pub zenoh_config: Option<PathBuf>,
 }
 
-/// Overrides of the scenario file, accepted by `evoloop run` and passed on to the children.
-#[derive(Debug, Clone, Default, Args)]
-pub struct OverrideArgs {
-    /// Timing mode: lockstep (reproducible, as fast as possible) or realtime (wall clock).
-    #[arg(long)]
-    pub mode: Option<Mode>,
-    /// Run length in simulated seconds, or `forever` to run until Ctrl-C (as a scenario
-    /// without `timing.duration` does). Default: the scenario's.
-    #[arg(long, value_parser = crate::config::parse_duration)]
-    pub duration: Option<f64>,
-    /// Output directory for run.csv, summary.json and the plots.
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// Seed of every random number generator in the run.
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Optimiser mode: off (listens only), schedule (publishes the configured sets) or indirect
-    /// (estimates the model online, tunes on it, publishes better sets).
-    #[arg(long)]
-    pub optimiser: Option<OptimiserMode>,
-    /// Realtime mode without SCHED_FIFO, mlockall or CPU pinning, whatever the scenario asks.
-    #[arg(long)]
-    pub no_rt: bool,
-    /// How the realtime controller and plant wait for each deadline: sleep (no CPU, the kernel's
-    /// wake-up lateness), spin (a core held, clock-read lateness) or hybrid (sleep until
-    /// `timing.wait_margin_us` before it, then spin). Default: the scenario's `timing.wait`.
-    #[arg(long)]
-    pub wait: Option<crate::rt::WaitKind>,
-    /// Evaluation workers on other hosts for the optimiser (`--workers-listen`,
-    /// `--workers-expect`).
-    #[command(flatten)]
-    pub remote: WorkersArgs,
-}
-
-/// Evaluation workers on other hosts, for `run` (the optimiser) and `tune`.
-#[derive(Debug, Clone, Default, Args)]
-pub struct WorkersArgs {
-    /// Take evaluation workers (`evoloop worker --connect ENDPOINT` on any host) on this Zenoh
-    /// endpoint, e.g. `tcp/0.0.0.0:7448`; for a run, `optimiser.workers = "zenoh"` with
-    /// `workers_listen` set (feature `zenoh`).
-    #[arg(long, value_name = "ENDPOINT")]
-    pub workers_listen: Option<String>,
-    /// Evaluation workers to wait for (up to 8 s) before starting.
-    #[arg(long, value_name = "N")]
-    pub workers_expect: Option<usize>,
-}
-
-impl OverrideArgs {
-    /// These options as the `Overrides` a scenario is loaded with.
-    pub fn to_overrides(&self) -> Overrides {
-        Overrides {
-            mode: self.mode,
-            duration: self.duration,
-            seed: self.seed,
-            out: self.out.clone(),
-            optimiser: self.optimiser,
-            no_rt: self.no_rt,
-            wait: self.wait,
-            workers_listen: self.remote.workers_listen.clone(),
-            workers_expect: self.remote.workers_expect,
-        }
+/// `overrides` as the command-line arguments a child process parses back into them (the
+/// options `evoloop run` takes of the same names).
+pub fn override_args(o: &Overrides) -> Vec<String> {
+    let mut a = Vec::new();
+    let mut flag = |name: &str, value: Option<String>| {
+        a.push(name.to_string());
+        a.extend(value);
+    };
+    if let Some(m) = o.mode {
+        flag("--mode", Some(m.to_string()));
     }
-
-    /// The same options as command-line arguments for a child process.
-    pub fn to_args(&self) -> Vec<String> {
-        let mut a = Vec::new();
-        if let Some(m) = self.mode {
-            a.push("--mode".into());
-            a.push(m.to_string());
-        }
-        if let Some(d) = self.duration {
-            a.push("--duration".into());
-            a.push(d.to_string());
-        }
-        if let Some(o) = &self.out {
-            a.push("--out".into());
-            a.push(o.display().to_string());
-        }
-        if let Some(s) = self.seed {
-            a.push("--seed".into());
-            a.push(s.to_string());
-        }
-        if let Some(o) = self.optimiser {
-            a.push("--optimiser".into());
-            a.push(match o {
-                OptimiserMode::Off => "off".into(),
-                OptimiserMode::Schedule => "schedule".into(),
-                OptimiserMode::Indirect => "indirect".into(),
-                OptimiserMode::Identify => "identify".into(),
-                OptimiserMode::Direct => "direct".into(),
-            });
-        }
-        if self.no_rt {
-            a.push("--no-rt".into());
-        }
-        if let Some(w) = self.wait {
-            a.push("--wait".into());
-            a.push(w.name().into());
-        }
-        if let Some(e) = &self.remote.workers_listen {
-            a.push("--workers-listen".into());
-            a.push(e.clone());
-        }
-        if let Some(n) = self.remote.workers_expect {
-            a.push("--workers-expect".into());
-            a.push(n.to_string());
-        }
-        a
+    if let Some(d) = o.duration {
+        flag("--duration", Some(d.to_string()));
     }
+    if let Some(out) = &o.out {
+        flag("--out", Some(out.display().to_string()));
+    }
+    if let Some(s) = o.seed {
+        flag("--seed", Some(s.to_string()));
+    }
+    if let Some(m) = o.optimiser {
+        flag("--optimiser", Some(m.to_string()));
+    }
+    if o.no_rt {
+        flag("--no-rt", None);
+    }
+    if let Some(w) = o.wait {
+        flag("--wait", Some(w.name().to_string()));
+    }
+    if let Some(e) = &o.workers_listen {
+        flag("--workers-listen", Some(e.clone()));
+    }
+    if let Some(n) = o.workers_expect {
+        flag("--workers-expect", Some(n.to_string()));
+    }
+    a
 }
 
 /// The seeds of a multi-seed study.

@@ -3,7 +3,7 @@
 //! and writes the run report (run.csv, summary.json, response.png); `--seeds` repeats that per
 //! seed and writes the study.
 
-use super::args::RunArgs;
+use super::args::{override_args, RunArgs};
 use super::external::EXTERNAL;
 use super::start::stop_flag;
 use crate::config::{Mode, Scenario};
@@ -386,7 +386,7 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
     use crate::run_report::seeds_study::{after_phase, Measure, SeedRun, Study};
     let seeds = a.seeds.clone().map(|s| s.0).unwrap_or_default();
     let file = a.file.clone().unwrap_or_else(default_scenario);
-    let scn = match super::start::load(&file, &a.overrides.to_overrides()) {
+    let scn = match super::start::load(&file, &a.overrides) {
         Ok(s) => s,
         Err(e) => {
             err!("error: {e}");
@@ -438,7 +438,7 @@ pub fn run_seeds(a: RunArgs) -> ExitCode {
         die_with_parent(&mut cmd);
         cmd.arg("run")
             .arg(&file)
-            .args(ov.to_args())
+            .args(override_args(&ov))
             .args(["--ipc-prefix", &a.ipc_prefix, "--quiet"])
             .stdin(std::process::Stdio::null());
         if let Some(id) = &a.run_id {
@@ -546,10 +546,10 @@ fn prepare(a: &mut RunArgs) -> Result<Prepared, ExitCode> {
         }
     };
     if let Some((n, ep)) = &local {
-        a.overrides.remote.workers_listen = Some(ep.clone());
-        a.overrides.remote.workers_expect = Some(*n);
+        a.overrides.workers_listen = Some(ep.clone());
+        a.overrides.workers_expect = Some(*n);
     }
-    let ov = a.overrides.to_overrides();
+    let ov = a.overrides.clone();
     let scn = match super::start::load(&file, &ov) {
         Ok(s) => s,
         Err(e) => {
@@ -937,7 +937,7 @@ impl Running {
         let mut child_ov = a.overrides.clone();
         child_ov.out = Some(p.dir.clone());
         let mut args = process_args(&config, &p.run_id, &a.ipc_prefix);
-        args.extend(child_ov.to_args());
+        args.extend(override_args(&child_ov));
         // The evaluation workers first: the optimiser waits for them before the run starts.
         let nice = p.scn.optimiser.nice;
         let workers = match &p.local {
@@ -965,7 +965,7 @@ impl Running {
             .to_vec();
             // The scenario as the run's processes read it (`--optimiser off` decides whether
             // viewers may set the gains).
-            live.extend(child_ov.to_args());
+            live.extend(override_args(&child_ov));
             let c = spawn_process("evoloop-live", &live).map_err(|e| {
                 err!("error: cannot start evoloop-live: {e}");
                 ExitCode::from(1)

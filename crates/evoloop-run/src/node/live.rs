@@ -34,32 +34,25 @@ pub const SUBPROTOCOL: &str = "foxglove.websocket.v1";
 pub const GAINS: &str = "gains";
 
 /// The options of `evoloop live`: which run to serve, on which address, and to whom.
-#[derive(clap::Args, Debug)]
+#[derive(Debug, Clone)]
 pub struct LiveArgs {
     /// The run to serve (its run id); default: the only run running.
-    #[arg(long)]
     pub run: Option<String>,
     /// Address to listen on (Foxglove: "Open connection", Foxglove WebSocket, ws://ADDR).
-    #[arg(long, default_value = "127.0.0.1:8765")]
     pub addr: String,
     /// The run's scenario (default: the one its controller was started with).
-    #[arg(long)]
     pub config: Option<PathBuf>,
     /// Prefix of iceoryx2's files (default: the run's).
-    #[arg(long)]
     pub ipc_prefix: Option<String>,
     /// The run's overrides of its scenario (`evoloop run --live` passes its own).
-    #[command(flatten)]
-    pub overrides: crate::node::args::OverrideArgs,
+    pub overrides: crate::config::Overrides,
     /// Listen beyond loopback (ADDR on another interface, e.g. 0.0.0.0:8765): anyone who
     /// reaches the port sees the run, and a viewer on another machine sets `gains` only with
     /// the token printed at start (ws://HOST:PORT/?token=TOKEN). Without it such an ADDR is
     /// refused.
-    #[arg(long)]
     pub remote: bool,
     /// A listening socket already bound, inherited as this descriptor (`evoloop run --live`
     /// binds ADDR itself, so a port it cannot have fails the run before it starts).
-    #[arg(long, hide = true)]
     pub listen_fd: Option<i32>,
 }
 
@@ -140,7 +133,7 @@ fn serve(a: &LiveArgs) -> Result<(), String> {
     };
     let prefix = a.ipc_prefix.clone().unwrap_or(run.ipc_prefix.clone());
     let scn = run
-        .scenario(a.config.as_deref(), &a.overrides.to_overrides())
+        .scenario(a.config.as_deref(), &a.overrides)
         .map_err(|e| e.to_string())?;
     let listener = match a.listen_fd {
         // SAFETY: the descriptor is the bound listener `evoloop run --live` made for this

@@ -36,41 +36,27 @@ use std::time::{Duration, Instant};
 
 /// The options of `evoloop replay`: the recording, the controller's scenario, the pace and
 /// where the results go.
-#[derive(clap::Args)]
+#[derive(Debug, Clone)]
 pub struct ReplayArgs {
     /// The recording: a run's run.mcap.
     pub file: PathBuf,
     /// The controller's scenario [default: the recording's own, named in its metadata]. Another
     /// file tries another controller (gains, law) on the recorded plant data.
-    #[arg(long)]
     pub scenario: Option<PathBuf>,
     /// Play at this multiple of real time, by the states' own time t (1: a 10 s run takes 10 s,
     /// lockstep recordings too) [default: as fast as the controller answers].
-    #[arg(long, value_parser = parse_speed)]
     pub speed: Option<f64>,
     /// Output directory: replay.json, replay.csv, replay.png and the controller's own files
     /// [default: replay/ beside the recording].
-    #[arg(long)]
     pub out: Option<PathBuf>,
     /// Run id of the replay's services (default: generated, unique on this machine).
-    #[arg(long)]
     pub run_id: Option<String>,
     /// Prefix of iceoryx2's files.
-    #[arg(long, default_value = crate::ipc::DEFAULT_PREFIX, value_parser = crate::ipc::parse_prefix)]
     pub ipc_prefix: String,
     /// Print replay.json on stdout.
-    #[arg(long)]
     pub json: bool,
     /// No progress lines.
-    #[arg(long, short)]
     pub quiet: bool,
-}
-
-fn parse_speed(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v > 0.0 && v <= 1e6 => Ok(v),
-        _ => Err(format!("{s:?}: a speed in (0, 1e6], e.g. 1 (as recorded)")),
-    }
 }
 
 /// The first cycle whose replayed command differs from the recorded one.

@@ -102,7 +102,7 @@ pub fn load(path: &Path, ov: &Overrides) -> Result<Scenario, ConfigError> {
 
 /// Load the scenario with the launcher's overrides, or exit with the config error.
 pub fn load_scenario(args: &ProcessArgs, who: &str) -> Scenario {
-    match load(&args.config, &args.overrides.to_overrides()) {
+    match load(&args.config, &args.overrides) {
         Ok(s) => s,
         Err(e) => fail(who, Failure::Setup(e.to_string())),
     }

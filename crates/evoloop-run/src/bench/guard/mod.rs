@@ -27,9 +27,8 @@ pub const FACTOR: f64 = 1.5;
 pub const ATTEMPTS: usize = 3;
 
 /// The hot paths the guard times.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-#[value(rename_all = "snake_case")]
 pub enum HotPath {
     /// Inverse dynamics (RNEA) of the 7-DOF arm, per call, against textbook Newton-Euler.
     Rnea,
