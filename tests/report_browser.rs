@@ -8,7 +8,7 @@
 //! and are laid out where a reader sees them, not merely present in the file.
 
 use crate::common;
-use common::cli;
+use common::{cli, read_rgb};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -56,10 +56,11 @@ fn browse(browser: &Path, profile: &Path, page: &Path, args: &[String]) -> std::
 /// Pixels of a clearly warm colour: the plots' red and orange lines. The page's own text and
 /// rules are black and grey, its links blue.
 fn warm_pixels(png: &Path) -> usize {
-    let img = image::open(png).expect("a PNG screenshot").to_rgb8();
-    img.pixels()
+    let img = read_rgb(png).expect("a PNG screenshot");
+    img.pixels
+        .iter()
         .filter(|p| {
-            let [r, g, b] = p.0.map(i32::from);
+            let [r, g, b] = p.map(i32::from);
             r - g > 60 && r - b > 100
         })
         .count()

@@ -417,24 +417,59 @@ pub fn signal(pid: u32, sig: i32) {
     unsafe { libc::kill(pid as i32, sig) };
 }
 
+/// A PNG's pixels as 8-bit RGB, whatever its colour type and depth (the plots are RGB,
+/// Chromium's screenshots RGBA), read with the PNG codec's own decoder.
+pub struct Rgb {
+    /// Pixels per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Row by row, left to right.
+    pub pixels: Vec<[u8; 3]>,
+}
+
+/// `path` decoded as a PNG into `Rgb`.
+pub fn read_rgb(path: &Path) -> Result<Rgb, String> {
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
+    // Palette and low bit depths expanded, 16 bits cut to 8: every pixel is 1 to 4 bytes.
+    decoder.set_transformations(png::Transformations::normalize_to_color8());
+    let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let frame = reader.next_frame(&mut buf).map_err(|e| e.to_string())?;
+    let bytes = &buf[..frame.buffer_size()];
+    let pixels = match frame.color_type {
+        png::ColorType::Rgb => bytes.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect(),
+        png::ColorType::Rgba => bytes.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect(),
+        png::ColorType::Grayscale => bytes.iter().map(|&v| [v; 3]).collect(),
+        png::ColorType::GrayscaleAlpha => bytes.chunks_exact(2).map(|p| [p[0]; 3]).collect(),
+        png::ColorType::Indexed => return Err("an indexed PNG left unexpanded".into()),
+    };
+    Ok(Rgb {
+        width: frame.width,
+        height: frame.height,
+        pixels,
+    })
+}
+
 /// A plot that shows data, not only that a file was written: `path` decodes as a PNG of at least
 /// 300 x 200 pixels with at least 500 coloured pixels (the plots draw their series in saturated
 /// colours; axes, grid and labels are grey or black, so an empty chart has none).
 pub fn assert_plotted(path: &Path) {
-    let img = image::open(path)
-        .unwrap_or_else(|e| panic!("{}: not a readable image: {e}", path.display()))
-        .to_rgb8();
+    let img =
+        read_rgb(path).unwrap_or_else(|e| panic!("{}: not a readable PNG: {e}", path.display()));
     assert!(
-        img.width() >= 300 && img.height() >= 200,
+        img.width >= 300 && img.height >= 200,
         "{}: {} x {} pixels",
         path.display(),
-        img.width(),
-        img.height()
+        img.width,
+        img.height
     );
     let coloured = img
-        .pixels()
+        .pixels
+        .iter()
         .filter(|p| {
-            let [r, g, b] = p.0;
+            let [r, g, b] = **p;
             r.max(g).max(b) - r.min(g).min(b) > 60
         })
         .count();

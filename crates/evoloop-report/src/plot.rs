@@ -25,7 +25,7 @@ pub enum PlotError {
         /// The PNG file.
         path: PathBuf,
         /// The encoder's error.
-        source: image::ImageError,
+        source: png::EncodingError,
     },
 }
 
@@ -56,7 +56,6 @@ fn png(
     size: (u32, u32),
     draw: impl for<'a> FnOnce(DrawingArea<BitMapBackend<'a>, Shift>) -> Result<(), String>,
 ) -> Result<(), PlotError> {
-    use image::ImageEncoder;
     let mut buf = vec![0u8; size.0 as usize * size.1 as usize * 3];
     draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area()).map_err(|reason| {
         PlotError::Draw {
@@ -65,12 +64,21 @@ fn png(
         }
     })?;
     let file = evoloop_files::create(path).map_err(PlotError::Create)?;
-    image::codecs::png::PngEncoder::new(std::io::BufWriter::new(file))
-        .write_image(&buf, size.0, size.1, image::ColorType::Rgb8)
-        .map_err(|source| PlotError::Encode {
-            path: path.to_path_buf(),
-            source,
-        })
+    // 8-bit RGB, fast deflate, each row's filter chosen adaptively: the PNG the `image` crate's
+    // encoder wrote with its defaults until 2026-12-07, byte for byte.
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(png::Compression::Fast);
+    encoder.set_filter(png::FilterType::Sub);
+    encoder.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
+    let encoded = encoder
+        .write_header()
+        .and_then(|mut w| w.write_image_data(&buf));
+    encoded.map_err(|source| PlotError::Encode {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 static FONT: Once = Once::new();
