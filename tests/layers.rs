@@ -212,27 +212,45 @@ fn no_module_holds_another_crates_module_beside_its_own() {
     assert!(found.is_empty(), "{found:#?}");
 }
 
-/// Each path a `pub use evoloop_...;` line names (`a::b::{c, d}` gives `a::b::c` and
-/// `a::b::d`), with its line's index; single-line uses only, as rustfmt writes short ones.
+/// Each path a `pub use evoloop_...;` statement names (`a::b::{c, d as e}` gives `a::b::c` and
+/// `a::b::d`; a statement may span lines, as rustfmt writes long ones), with the index of the
+/// line it starts on.
 fn re_exported_paths(text: &str) -> Vec<(usize, String)> {
     let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let Some(rest) = line.trim().strip_prefix("pub use ") else {
-            continue;
-        };
-        let Some(rest) = rest.strip_suffix(';') else {
-            continue;
-        };
-        if !rest.starts_with("evoloop_") || rest.contains(" as ") {
+    let lines: Vec<&str> = text.lines().collect();
+    for (i, line) in lines.iter().enumerate() {
+        if !line.trim_start().starts_with("pub use evoloop_") {
             continue;
         }
-        match rest.split_once("::{") {
+        // The statement up to its `;`, its lines joined.
+        let mut statement = String::new();
+        for l in &lines[i..] {
+            statement.push_str(l.trim());
+            statement.push(' ');
+            if l.contains(';') {
+                break;
+            }
+        }
+        let body = statement.trim_start_matches("pub use ");
+        let body = body.split(';').next().unwrap_or_default().trim();
+        let named = |item: &str| {
+            item.split(" as ")
+                .next()
+                .unwrap_or_default()
+                .trim()
+                .to_string()
+        };
+        match body.split_once("::{") {
             Some((head, list)) => {
-                for name in list.trim_end_matches('}').split(',') {
-                    out.push((i, format!("{head}::{}", name.trim())));
+                for item in list.trim_end_matches('}').split(',') {
+                    let item = named(item);
+                    if !item.is_empty() {
+                        out.push((i, format!("{head}::{item}")));
+                    }
                 }
             }
-            None => out.push((i, rest.to_string())),
+            None if body.contains(" as ") && !body.contains("::") => {} // a crate renamed
+            None => out.push((i, named(body))),
         }
     }
     out

@@ -21,7 +21,7 @@ pub struct StudyArgs {
     /// Seeds 0..N (search, encoder noise and torque noise).
     #[arg(long, default_value_t = 10)]
     pub seeds: u64,
-    /// Which joints move.
+    /// Which joints move: the wrist (last three), the arm (the others) or all.
     #[arg(long, value_parser = crate::choice::choice::<StageKind>(), default_value = "all")]
     pub stage: StageKind,
     /// The trajectory: a joint-space Fourier series, or the paper's modified Fourier series (mfs)

@@ -28,7 +28,7 @@ pub mod top;
 pub mod tune;
 pub mod worker;
 
-pub use args::{OptimiserOptions, OverrideOptions, ProcessOptions, RunOptions};
+use args::{OptimiserOptions, ProcessOptions, RunOptions};
 use clap::{Parser, Subcommand};
 use evoloop_run::node::args::RunArgs;
 use evoloop_run::node::launcher;

@@ -1,6 +1,8 @@
-//! Optimisers. Every optimiser is an ask/tell object over the `Optimiser` trait: it proposes a
-//! generation of candidates, the caller evaluates them (in parallel, on whatever model), and
-//! tells it the objective values (minimised). Seeded for reproducibility.
+//! Optimisers. Every global optimiser is an ask/tell object over the `Optimiser` trait: it
+//! proposes a generation of candidates, the caller evaluates them (in parallel, on whatever
+//! model), and tells it the objective values (minimised). Seeded for reproducibility. The local
+//! refinement of a least-squares fit, which needs the residual vector and not only its sum, is
+//! `levenberg_marquardt`.
 //!
 //! ```
 //! use evoloop_optim::{DeConfig, DifferentialEvolution};

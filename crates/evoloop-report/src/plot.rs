@@ -72,9 +72,12 @@ fn png(
     encoder.set_compression(png::Compression::Fast);
     encoder.set_filter(png::FilterType::Sub);
     encoder.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
-    let encoded = encoder
-        .write_header()
-        .and_then(|mut w| w.write_image_data(&buf));
+    // `finish` writes the closing chunk and flushes, so a full disk is an error here and not a
+    // cut-off file.
+    let encoded = encoder.write_header().and_then(|mut w| {
+        w.write_image_data(&buf)?;
+        w.finish()
+    });
     encoded.map_err(|source| PlotError::Encode {
         path: path.to_path_buf(),
         source,

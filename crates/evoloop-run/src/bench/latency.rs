@@ -36,7 +36,7 @@ pub enum Variant {
 
 impl Variant {
     /// Every variant, each reference before the variant it is the reference of: what `bench
-    /// latency` measures when `--variant` is not given, in this order.
+    /// latency` measures, in this order.
     pub const ALL: [Variant; 4] = [
         Variant::BareBusy,
         Variant::EvoloopBusy,

@@ -50,14 +50,6 @@ impl RunArgs {
     }
 }
 
-/// A time option's value: seconds in (0, `max`].
-pub fn seconds_in(s: &str, max: f64) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v > 0.0 && v <= max => Ok(v),
-        _ => Err(format!("{s:?}: seconds in (0, {max}]")),
-    }
-}
-
 /// What every process of a run receives from the launcher.
 #[derive(Debug, Clone)]
 pub struct ProcessArgs {
