@@ -6,7 +6,7 @@
 #[global_allocator]
 static ALLOC: evoloop::rt::alloc_count::Counting = evoloop::rt::alloc_count::Counting;
 
-fn main() {
+fn main() -> std::process::ExitCode {
     evoloop::install_network();
-    evoloop_cli::process_main(evoloop_cli::Process::Controller);
+    evoloop_cli::process_main(evoloop_cli::Process::Controller)
 }

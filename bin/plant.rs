@@ -2,7 +2,7 @@
 //! under their own supervisor. `evoloop run` starts the same code as `evoloop plant`; the command
 //! line is crate `evoloop-cli`'s.
 
-fn main() {
+fn main() -> std::process::ExitCode {
     evoloop::install_network();
-    evoloop_cli::process_main(evoloop_cli::Process::Plant);
+    evoloop_cli::process_main(evoloop_cli::Process::Plant)
 }

@@ -53,6 +53,18 @@ fn rust_sources(dir: &Path) -> Vec<(std::path::PathBuf, String)> {
     out
 }
 
+/// Every `.rs` file of the library crates (`crates/*/src`), with its text.
+fn crate_sources() -> Vec<(std::path::PathBuf, String)> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(root().join("crates")).unwrap() {
+        let src = e.unwrap().path().join("src");
+        if src.is_dir() {
+            out.extend(rust_sources(&src));
+        }
+    }
+    out
+}
+
 /// Each package of the workspace but the test peers under `tests/`: its name, its manifest and
 /// its normal dependencies' names.
 fn packages() -> Vec<(String, std::path::PathBuf, Vec<String>)> {
@@ -158,15 +170,10 @@ fn the_command_line_and_the_terminal_view_are_the_command_lines_crate_alone() {
 /// No module re-exports a crate whole (`pub use evoloop_x::*;`): each namespace is one crate's.
 #[test]
 fn no_module_re_exports_a_crate_whole() {
-    let mut dirs = vec![root().join("src")];
-    for e in std::fs::read_dir(root().join("crates")).unwrap() {
-        dirs.push(e.unwrap().path().join("src"));
-    }
     let mut found = Vec::new();
-    for (p, text) in dirs
-        .iter()
-        .filter(|d| d.is_dir())
-        .flat_map(|d| rust_sources(d))
+    for (p, text) in rust_sources(&root().join("src"))
+        .into_iter()
+        .chain(crate_sources())
     {
         for (i, line) in text.lines().enumerate() {
             let l = line.trim();
@@ -185,27 +192,21 @@ fn no_module_re_exports_a_crate_whole() {
 #[test]
 fn no_module_holds_another_crates_module_beside_its_own() {
     let mut found = Vec::new();
-    for e in std::fs::read_dir(root().join("crates")).unwrap() {
-        let src = e.unwrap().path().join("src");
-        if !src.is_dir() {
+    for (p, text) in crate_sources() {
+        let declares = text.lines().any(|l| {
+            let l = l.trim_start();
+            let l = ["pub ", "pub(crate) "]
+                .iter()
+                .find_map(|v| l.strip_prefix(v))
+                .unwrap_or(l);
+            l.starts_with("mod ") && l.ends_with(';')
+        });
+        if !declares {
             continue;
         }
-        for (p, text) in rust_sources(&src) {
-            let declares = text.lines().any(|l| {
-                let l = l.trim_start();
-                let l = ["pub ", "pub(crate) "]
-                    .iter()
-                    .find_map(|v| l.strip_prefix(v))
-                    .unwrap_or(l);
-                l.starts_with("mod ") && l.ends_with(';')
-            });
-            if !declares {
-                continue;
-            }
-            for (i, path) in re_exported_paths(&text) {
-                if is_module_of_another_crate(&path) {
-                    found.push(format!("{}:{}: {path}", p.display(), i + 1));
-                }
+        for (i, path) in re_exported_paths(&text) {
+            if is_module_of_another_crate(&path) {
+                found.push(format!("{}:{}: {path}", p.display(), i + 1));
             }
         }
     }

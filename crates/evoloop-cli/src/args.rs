@@ -79,10 +79,12 @@ impl RunOptions {
 
 /// A time option's value: seconds in (0, `max`].
 pub fn seconds_in(s: &str, max: f64) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v > 0.0 && v <= max => Ok(v),
-        _ => Err(format!("{s:?}: seconds in (0, {max}]")),
-    }
+    positive_up_to(s, max).ok_or_else(|| format!("{s:?}: seconds in (0, {max}]"))
+}
+
+/// `s` as a number in (0, `max`].
+fn positive_up_to(s: &str, max: f64) -> Option<f64> {
+    s.parse::<f64>().ok().filter(|v| *v > 0.0 && *v <= max)
 }
 
 /// Options every process of a run receives from the launcher.
@@ -174,7 +176,7 @@ pub struct OverrideOptions {
     /// How the realtime controller and plant wait for each deadline: sleep (no CPU, the kernel's
     /// wake-up lateness), spin (a core held, clock-read lateness) or hybrid (sleep until
     /// `timing.wait_margin_us` before it, then spin). Default: the scenario's `timing.wait`.
-    #[arg(long, value_parser = crate::choice::choice::<evoloop_rt::WaitKind>())]
+    #[arg(long, value_parser = crate::choice::choice(&evoloop_rt::WaitKind::ALL, evoloop_rt::WaitKind::name))]
     pub wait: Option<evoloop_rt::WaitKind>,
     /// Evaluation workers on other hosts for the optimiser (`--workers-listen`,
     /// `--workers-expect`).
@@ -306,10 +308,8 @@ impl ReplayOptions {
 }
 
 fn parse_speed(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v > 0.0 && v <= 1e6 => Ok(v),
-        _ => Err(format!("{s:?}: a speed in (0, 1e6], e.g. 1 (as recorded)")),
-    }
+    positive_up_to(s, 1e6)
+        .ok_or_else(|| format!("{s:?}: a speed in (0, 1e6], e.g. 1 (as recorded)"))
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! they print. The measurements live in `evoloop_run::bench`.
 
 use clap::Args;
+use evoloop_run::bench::guard::HotPath;
 use evoloop_run::bench::latency::{self, Variant};
 use evoloop_run::bench::loop_bench::{self, Load};
 use std::path::PathBuf;
@@ -29,7 +30,7 @@ pub struct LatencyArgs {
 #[derive(Args)]
 pub struct PeerArgs {
     /// Round trip to answer: evoloop state/command or the bare ping-pong, busy-poll or event
-    #[arg(long, value_parser = crate::choice::choice::<Variant>())]
+    #[arg(long, value_parser = crate::choice::choice(&Variant::ALL, Variant::arg))]
     pub variant: Variant,
     /// Prefix of the iceoryx2 resources of the measuring process, so both open the same services
     #[arg(long)]
@@ -134,13 +135,13 @@ pub struct LoopArgs {
     pub scenario: Option<PathBuf>,
     /// How the controller and the plant wait: sleep, spin or hybrid (default: the scenario's
     /// `timing.wait`; sleep on the built-in loop). The floor waits the same way.
-    #[arg(long, value_parser = crate::choice::choice::<evoloop_rt::WaitKind>())]
+    #[arg(long, value_parser = crate::choice::choice(&evoloop_rt::WaitKind::ALL, evoloop_rt::WaitKind::name))]
     pub wait: Option<evoloop_rt::WaitKind>,
     /// Seconds per measurement.
     #[arg(long, default_value_t = 5.0)]
     pub duration: f64,
     /// What else runs during each measurement: nothing, the live optimiser or a busy thread per CPU
-    #[arg(long, value_parser = crate::choice::choice::<Load>(), default_value = "off")]
+    #[arg(long, value_parser = crate::choice::choice(&Load::ALL, Load::name), default_value = "off")]
     pub load: Load,
     /// Only with SCHED_FIFO/mlockall (default: with and without).
     #[arg(long)]
@@ -286,8 +287,9 @@ pub struct GuardArgs {
     #[arg(long, default_value_t = 101)]
     pub rounds: usize,
     /// Only these paths, comma-separated (default: all).
-    #[arg(long, value_parser = crate::choice::choice::<evoloop_run::bench::guard::HotPath>(), value_delimiter = ',')]
-    pub paths: Option<Vec<evoloop_run::bench::guard::HotPath>>,
+    #[arg(long, value_parser = crate::choice::described(&HotPath::ALL, HotPath::name, |p| Some(p.what())),
+          value_delimiter = ',')]
+    pub paths: Option<Vec<HotPath>>,
     /// Every limit times this: the guard's own test of its failure path.
     #[arg(long, default_value_t = 1.0, hide = true)]
     pub limit_scale: f64,
@@ -302,7 +304,7 @@ pub struct GuardArgs {
 /// `evoloop bench guard`: every hot path's ratio to its reference against its limit; exit 1 if
 /// one is over it on every attempt.
 pub fn guard(a: GuardArgs) -> i32 {
-    use evoloop_run::bench::guard::{self, HotPath};
+    use evoloop_run::bench::guard;
     if !(1..=1001).contains(&a.rounds) {
         eprintln!("error: --rounds must be in 1..=1001");
         return 2;

@@ -1,107 +1,76 @@
 //! The library crates' enums as a flag's values. The libraries know nothing of clap: each such
-//! enum lists its values (`ALL`) and spells them (`name`, as its files and reports do), and this
-//! gives clap those names, so that `--help` lists them and a wrong value is refused with the
-//! list (`[possible values: sleep, spin, hybrid]`); where the library describes each value
-//! (`HotPath::what`), `--help` shows that beside its name.
+//! enum lists its values (`ALL`) and spells them (`name`, as its files and reports do), and
+//! `choice` gives clap those names, so that `--help` lists them and a wrong value is refused
+//! with the list (`[possible values: sleep, spin, hybrid]`); `described` adds a line per value
+//! where the library has one (`HotPath::what`).
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 
-/// An enum whose values a flag takes by name.
-pub trait Choice: Copy + Send + Sync + 'static {
-    /// Every value, in the order `--help` lists them.
-    const ALL: &'static [Self];
-    /// The value's name on the command line.
-    fn name(self) -> &'static str;
-    /// What the value means, where its library says it in a line.
-    fn help(self) -> Option<&'static str> {
-        None
-    }
+/// clap's parser of an enum whose values are `all`, each spelt by `name`.
+pub fn choice<T: Copy + Send + Sync + 'static>(
+    all: &'static [T],
+    name: fn(T) -> &'static str,
+) -> impl TypedValueParser<Value = T> {
+    described(all, name, |_| None)
 }
 
-/// clap's parser of a `Choice`: its names, each read back as its value.
-pub fn choice<T: Choice>() -> impl TypedValueParser<Value = T> {
-    let values = T::ALL.iter().map(|t| {
-        let value = PossibleValue::new(t.name());
-        match t.help() {
-            Some(help) => value.help(help),
+/// `choice` with each value's meaning in `--help`, where `help` gives one.
+pub fn described<T: Copy + Send + Sync + 'static>(
+    all: &'static [T],
+    name: fn(T) -> &'static str,
+    help: fn(T) -> Option<&'static str>,
+) -> impl TypedValueParser<Value = T> {
+    let values = all.iter().map(move |&t| {
+        let value = PossibleValue::new(name(t));
+        match help(t) {
+            Some(h) => value.help(h),
             None => value,
         }
     });
-    PossibleValuesParser::new(values).map(|s| {
-        *T::ALL
-            .iter()
-            .find(|t| t.name() == s)
+    PossibleValuesParser::new(values).map(move |s| {
+        *all.iter()
+            .find(|&&t| name(t) == s)
             .expect("clap passes on only the names it was given")
     })
-}
-
-/// `Choice` for enums that have `ALL` and a name method of their own (`name` unless given).
-macro_rules! choices {
-    ($($t:ty $(=> $name:ident)?),* $(,)?) => {$(
-        impl Choice for $t {
-            const ALL: &'static [Self] = &<$t>::ALL;
-            fn name(self) -> &'static str {
-                choices!(@name self $($name)?)
-            }
-        }
-    )*};
-    (@name $v:ident) => { $v.name() };
-    (@name $v:ident $name:ident) => { $v.$name() };
-}
-
-choices!(
-    evoloop_rt::WaitKind,
-    evoloop_rkgnn::model::Weighing,
-    evoloop_rkgnn::model::Start,
-    evoloop_identify::identify::StageKind,
-    evoloop_identify::identify::excitation::TrajectoryKind,
-    evoloop_identify::rkgnn::study::JointVelocity => key,
-    evoloop_run::bench::latency::Variant => arg,
-    evoloop_run::bench::loop_bench::Load,
-);
-
-impl Choice for evoloop_run::bench::guard::HotPath {
-    const ALL: &'static [Self] = &Self::ALL;
-    fn name(self) -> &'static str {
-        Self::name(self)
-    }
-    fn help(self) -> Option<&'static str> {
-        Some(self.what())
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use evoloop_identify::identify::{excitation::TrajectoryKind, StageKind};
+    use evoloop_identify::rkgnn::study::JointVelocity;
+    use evoloop_rkgnn::model::{Start, Weighing};
+    use evoloop_rt::WaitKind;
+    use evoloop_run::bench::{guard::HotPath, latency::Variant, loop_bench::Load};
 
-    /// Each value's name reads back as that value, and no two values share a name.
-    fn round_trips<T: Choice + PartialEq + std::fmt::Debug>() {
+    /// Each value's name reads back as that value, no two values share a name, and another
+    /// name is refused.
+    fn round_trips<T>(all: &'static [T], name: fn(T) -> &'static str)
+    where
+        T: Copy + Send + Sync + PartialEq + std::fmt::Debug + 'static,
+    {
         let cmd = clap::Command::new("t").arg(clap::Arg::new("v"));
-        for t in T::ALL {
-            let got = choice::<T>()
-                .parse_ref(&cmd, None, std::ffi::OsStr::new(t.name()))
-                .unwrap();
-            assert_eq!(got, *t);
+        let parse = |s: &str| choice(all, name).parse_ref(&cmd, None, std::ffi::OsStr::new(s));
+        for &t in all {
+            assert_eq!(parse(name(t)).unwrap(), t);
         }
-        let mut names: Vec<_> = T::ALL.iter().map(|t| t.name()).collect();
+        let mut names: Vec<_> = all.iter().map(|&t| name(t)).collect();
         names.sort_unstable();
         names.dedup();
-        assert_eq!(names.len(), T::ALL.len());
-        assert!(choice::<T>()
-            .parse_ref(&cmd, None, std::ffi::OsStr::new("no-such-value"))
-            .is_err());
+        assert_eq!(names.len(), all.len());
+        assert!(parse("no-such-value").is_err());
     }
 
     #[test]
     fn every_choice_reads_its_names_back_and_refuses_others() {
-        round_trips::<evoloop_rt::WaitKind>();
-        round_trips::<evoloop_rkgnn::model::Weighing>();
-        round_trips::<evoloop_rkgnn::model::Start>();
-        round_trips::<evoloop_identify::identify::StageKind>();
-        round_trips::<evoloop_identify::identify::excitation::TrajectoryKind>();
-        round_trips::<evoloop_identify::rkgnn::study::JointVelocity>();
-        round_trips::<evoloop_run::bench::latency::Variant>();
-        round_trips::<evoloop_run::bench::loop_bench::Load>();
-        round_trips::<evoloop_run::bench::guard::HotPath>();
+        round_trips(&WaitKind::ALL, WaitKind::name);
+        round_trips(&Weighing::ALL, Weighing::name);
+        round_trips(&Start::ALL, Start::name);
+        round_trips(&StageKind::ALL, StageKind::name);
+        round_trips(&TrajectoryKind::ALL, TrajectoryKind::name);
+        round_trips(&JointVelocity::ALL, JointVelocity::key);
+        round_trips(&Variant::ALL, Variant::arg);
+        round_trips(&Load::ALL, Load::name);
+        round_trips(&HotPath::ALL, HotPath::name);
     }
 }

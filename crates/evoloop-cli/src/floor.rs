@@ -23,7 +23,7 @@ pub struct FloorArgs {
     #[arg(long)]
     pub cpu: Option<usize>,
     /// How the loop waits: sleep, spin or hybrid (as `timing.wait`).
-    #[arg(long, value_parser = crate::choice::choice::<WaitKind>(), default_value = "sleep")]
+    #[arg(long, value_parser = crate::choice::choice(&WaitKind::ALL, WaitKind::name), default_value = "sleep")]
     pub wait: WaitKind,
     /// Hybrid: stop sleeping this many microseconds before the deadline, then spin (default as
     /// `timing.wait_margin_us`: 100, at most 80 % of the period).

@@ -20,7 +20,7 @@ pub struct ExcitationArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Which joints move: the wrist (last three), the arm (the others) or all.
-    #[arg(long, value_parser = crate::choice::choice::<StageKind>(), default_value = "all")]
+    #[arg(long, value_parser = crate::choice::choice(&StageKind::ALL, StageKind::name), default_value = "all")]
     pub stage: StageKind,
     /// Seed of the search.
     #[arg(long, default_value_t = 1)]
@@ -30,7 +30,7 @@ pub struct ExcitationArgs {
     pub period: f64,
     /// The trajectory: a joint-space Fourier series, or the paper's modified Fourier series (a
     /// Cartesian path of the wrist centre through inverse kinematics; arm and all stages).
-    #[arg(long, value_parser = crate::choice::choice::<TrajectoryKind>(), default_value = "fourier")]
+    #[arg(long, value_parser = crate::choice::choice(&TrajectoryKind::ALL, TrajectoryKind::name), default_value = "fourier")]
     pub trajectory: TrajectoryKind,
     /// Harmonics (the last one brings the start to rest); default 5 for fourier, 3 (the
     /// paper's) for mfs.

@@ -22,10 +22,10 @@ pub struct StudyArgs {
     #[arg(long, default_value_t = 10)]
     pub seeds: u64,
     /// Which joints move: the wrist (last three), the arm (the others) or all.
-    #[arg(long, value_parser = crate::choice::choice::<StageKind>(), default_value = "all")]
+    #[arg(long, value_parser = crate::choice::choice(&StageKind::ALL, StageKind::name), default_value = "all")]
     pub stage: StageKind,
     /// The trajectory: a joint-space Fourier series, or the paper's modified Fourier series (mfs)
-    #[arg(long, value_parser = crate::choice::choice::<TrajectoryKind>(), default_value = "fourier")]
+    #[arg(long, value_parser = crate::choice::choice(&TrajectoryKind::ALL, TrajectoryKind::name), default_value = "fourier")]
     pub trajectory: TrajectoryKind,
     /// eMuPSO iterations per search.
     #[arg(long, default_value_t = 30)]

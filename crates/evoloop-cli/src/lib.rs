@@ -30,7 +30,6 @@ pub mod worker;
 
 use args::{OptimiserOptions, ProcessOptions, RunOptions};
 use clap::{Parser, Subcommand};
-use evoloop_run::node::args::RunArgs;
 use evoloop_run::node::launcher;
 pub use evoloop_run::node::start::stop_flag;
 use std::path::PathBuf;
@@ -205,24 +204,32 @@ pub fn main() -> ExitCode {
         // SAFETY: resetting a signal disposition before any thread is started.
         unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
     }
-    match cli.command {
-        None => launcher::run(RunArgs::default_run()),
-        Some(Cmd::Run(a)) if a.seeds.is_some() => launcher::run_seeds(a.into_args()),
-        Some(Cmd::Run(a)) => launcher::run(a.into_args()),
-        Some(Cmd::Check { file }) => check::check(&file),
-        Some(Cmd::Plant(a)) => {
+    run(cli.command)
+}
+
+/// Run `command`; none is `evoloop run` with no argument (the same defaults, from its parser).
+fn run(command: Option<Cmd>) -> ExitCode {
+    let Some(command) = command else {
+        let default = options_from::<RunOptions>("evoloop", String::new(), ["evoloop"]);
+        return launcher::run(default.into_args());
+    };
+    match command {
+        Cmd::Run(a) if a.seeds.is_some() => launcher::run_seeds(a.into_args()),
+        Cmd::Run(a) => launcher::run(a.into_args()),
+        Cmd::Check { file } => check::check(&file),
+        Cmd::Plant(a) => {
             evoloop_run::node::plant::main(&a.into_args());
             ExitCode::SUCCESS
         }
-        Some(Cmd::Controller(a)) => {
+        Cmd::Controller(a) => {
             evoloop_run::node::controller::main(&a.into_args());
             ExitCode::SUCCESS
         }
-        Some(Cmd::Optimiser(a)) => {
+        Cmd::Optimiser(a) => {
             evoloop_run::node::optimiser::main(&a.into_args());
             ExitCode::SUCCESS
         }
-        Some(Cmd::Bench { cmd }) => ExitCode::from(match cmd {
+        Cmd::Bench { cmd } => ExitCode::from(match cmd {
             BenchCmd::Latency(a) => bench::latency(a),
             BenchCmd::LatencyPeer(a) => bench::latency_peer(a),
             BenchCmd::Loop(a) => bench::loop_(a),
@@ -231,15 +238,15 @@ pub fn main() -> ExitCode {
             BenchCmd::Bridge(a) => bridge::bench(&a) as i32,
             BenchCmd::Workers(a) => worker::bench(&a) as i32,
         } as u8),
-        Some(Cmd::Optim { cmd }) => ExitCode::from(optim::main(cmd) as u8),
-        Some(Cmd::Robust { cmd }) => ExitCode::from(robust::main(cmd) as u8),
-        Some(Cmd::Tune(a)) => ExitCode::from(tune::main(a) as u8),
-        Some(Cmd::Identify { cmd }) => ExitCode::from(rkgnn::identify(cmd) as u8),
-        Some(Cmd::Rkgnn { cmd }) => ExitCode::from(rkgnn::main(cmd) as u8),
-        Some(Cmd::Dynamics(a)) => ExitCode::from(dynamics::main(a) as u8),
-        Some(Cmd::Robot { cmd }) => ExitCode::from(robot::main(cmd) as u8),
-        Some(Cmd::Floor(a)) => floor::main(&a),
-        Some(Cmd::Report(a)) => match evoloop_report::html::write(&a.dir) {
+        Cmd::Optim { cmd } => ExitCode::from(optim::main(cmd) as u8),
+        Cmd::Robust { cmd } => ExitCode::from(robust::main(cmd) as u8),
+        Cmd::Tune(a) => ExitCode::from(tune::main(a) as u8),
+        Cmd::Identify { cmd } => ExitCode::from(rkgnn::identify(cmd) as u8),
+        Cmd::Rkgnn { cmd } => ExitCode::from(rkgnn::main(cmd) as u8),
+        Cmd::Dynamics(a) => ExitCode::from(dynamics::main(a) as u8),
+        Cmd::Robot { cmd } => ExitCode::from(robot::main(cmd) as u8),
+        Cmd::Floor(a) => floor::main(&a),
+        Cmd::Report(a) => match evoloop_report::html::write(&a.dir) {
             Ok(p) => {
                 out!("wrote {}", p.display());
                 ExitCode::SUCCESS
@@ -252,37 +259,21 @@ pub fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
-        Some(Cmd::Soak(a)) => soak::main(a),
-        Some(Cmd::Replay(a)) => {
-            ExitCode::from(evoloop_run::node::replay::main(&a.into_args()) as u8)
-        }
-        Some(Cmd::Live(a)) => ExitCode::from(evoloop_run::node::live::main(&a.into_args())),
-        Some(Cmd::Top(a)) => ExitCode::from(top::main(&a)),
-        Some(Cmd::Operator(a)) => ExitCode::from(operator::main(&a)),
-        Some(Cmd::Bridge(a)) => ExitCode::from(bridge::main(&a)),
-        Some(Cmd::Worker(a)) => ExitCode::from(worker::main(&a)),
+        Cmd::Soak(a) => soak::main(a),
+        Cmd::Replay(a) => ExitCode::from(evoloop_run::node::replay::main(&a.into_args()) as u8),
+        Cmd::Live(a) => ExitCode::from(evoloop_run::node::live::main(&a.into_args())),
+        Cmd::Top(a) => ExitCode::from(top::main(&a)),
+        Cmd::Operator(a) => ExitCode::from(operator::main(&a)),
+        Cmd::Bridge(a) => ExitCode::from(bridge::main(&a)),
+        Cmd::Worker(a) => ExitCode::from(worker::main(&a)),
     }
 }
 
 pub use evoloop_report::print_json;
 
-/// One process of a run on its own (`evoloop-plant`, `evoloop-controller`), for users who start
-/// a run's processes by hand or under their own supervisor: the same options and code as
-/// `evoloop plant` and `evoloop controller`.
-#[derive(Parser)]
-struct ProcessCli {
-    #[command(flatten)]
-    args: ProcessOptions,
-}
-
-/// The optimiser process on its own (`evoloop-optimiser`), as `evoloop optimiser`.
-#[derive(Parser)]
-struct OptimiserCli {
-    #[command(flatten)]
-    args: OptimiserOptions,
-}
-
-/// Which process a binary of its own runs.
+/// Which process a binary of its own runs (`evoloop-plant`, `evoloop-controller`,
+/// `evoloop-optimiser`), for users who start a run's processes by hand or under their own
+/// supervisor: the same options and code as `evoloop plant`, `controller` and `optimiser`.
 #[derive(Debug, Clone, Copy)]
 pub enum Process {
     /// `evoloop-plant`.
@@ -293,9 +284,9 @@ pub enum Process {
     Optimiser,
 }
 
-/// The `main` of the binary that runs `process` alone: its command line parsed, then the
-/// process's loop (which exits the process itself on a failure).
-pub fn process_main(process: Process) {
+/// The `main` of the binary that runs `process` alone: its command line parsed under the
+/// binary's own name, then the process as `evoloop ROLE` runs it.
+pub fn process_main(process: Process) -> ExitCode {
     let (name, role) = match process {
         Process::Plant => ("evoloop-plant", "plant"),
         Process::Controller => ("evoloop-controller", "controller"),
@@ -304,24 +295,24 @@ pub fn process_main(process: Process) {
     let about = format!(
         "evoloop {role} process (normally started by `evoloop run`; the same as `evoloop {role}`)"
     );
-    match process {
-        Process::Plant => {
-            let a = parse_as::<ProcessCli>(name, about).args.into_args();
-            evoloop_run::node::plant::main(&a);
-        }
-        Process::Controller => {
-            let a = parse_as::<ProcessCli>(name, about).args.into_args();
-            evoloop_run::node::controller::main(&a);
-        }
-        Process::Optimiser => {
-            let a = parse_as::<OptimiserCli>(name, about).args.into_args();
-            evoloop_run::node::optimiser::main(&a);
-        }
-    }
+    let args = std::env::args_os();
+    run(Some(match process {
+        Process::Plant => Cmd::Plant(options_from(name, about, args)),
+        Process::Controller => Cmd::Controller(options_from(name, about, args)),
+        Process::Optimiser => Cmd::Optimiser(options_from(name, about, args)),
+    }))
 }
 
-/// This process's command line parsed as `T`, under the binary's own name and description.
-fn parse_as<T: Parser>(name: &'static str, about: String) -> T {
-    let matches = T::command().name(name).about(about).get_matches();
+/// `T`'s options read from `args` (the program's name first) as command `name`, described by
+/// `about` in its `--help`; a usage error or `--help` ends the process as clap's parser does.
+fn options_from<T: clap::Args>(
+    name: &'static str,
+    about: String,
+    args: impl IntoIterator<Item = impl Into<std::ffi::OsString> + Clone>,
+) -> T {
+    // `about` after the options: their struct's doc would otherwise describe the command.
+    let matches = T::augment_args(clap::Command::new(name))
+        .about(about)
+        .get_matches_from(args);
     T::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
 }

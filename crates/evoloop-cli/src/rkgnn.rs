@@ -92,7 +92,7 @@ pub struct IdentifyArgs {
     /// Where the EA starts: `random` (the paper's) or `least-squares` (the inverse-dynamics
     /// equation solved for the output weights; needs --servo linear). With `least-squares`,
     /// --evaluations 0 returns the start itself.
-    #[arg(long, value_parser = crate::choice::choice::<Start>(), default_value = "random")]
+    #[arg(long, value_parser = crate::choice::choice(&Start::ALL, Start::name), default_value = "random")]
     pub start: Start,
     /// With --servo known: the servo's proportional gains, one per joint [default: the run's
     /// scenario.json controller.gains].
@@ -112,7 +112,7 @@ pub struct IdentifyArgs {
     /// shoulder: `as-needed` (where the fit in N m finds no positive definite M-hat; the
     /// default), `always` (what `--weigh-joints` alone means; arm7 needs it) or `never` (the
     /// recipe before 2026-12-06)
-    #[arg(long, value_parser = crate::choice::choice::<Weighing>(), value_name = "WHEN", num_args = 0..=1,
+    #[arg(long, value_parser = crate::choice::choice(&Weighing::ALL, Weighing::name), value_name = "WHEN", num_args = 0..=1,
           default_value = "as-needed", default_missing_value = "always")]
     pub weigh_joints: Weighing,
     /// Evaluation threads [default: all cores].
@@ -232,7 +232,7 @@ pub struct StudySettingsArgs {
     /// arms; the default), `always` (what `--weigh-joints` alone means; a 7-DOF arm's least
     /// squares needs it, its shoulder's torques are 100x its wrist's) or `never` (the recipe
     /// before 2026-12-06)
-    #[arg(long, value_parser = crate::choice::choice::<Weighing>(), value_name = "WHEN", num_args = 0..=1,
+    #[arg(long, value_parser = crate::choice::choice(&Weighing::ALL, Weighing::name), value_name = "WHEN", num_args = 0..=1,
           default_value = "as-needed", default_missing_value = "always")]
     pub weigh_joints: Weighing,
     /// V-hat: `network` (the paper's velocity network; the shipped recipe) or `christoffel`
@@ -245,7 +245,7 @@ pub struct StudySettingsArgs {
     pub servo: StudyServo,
     /// Where the identification starts: `least-squares` (the shipped recipe) or `random` (the
     /// paper's; give --evaluations).
-    #[arg(long, value_parser = crate::choice::choice::<evoloop_rkgnn::model::Start>(), default_value = "least-squares")]
+    #[arg(long, value_parser = crate::choice::choice(&evoloop_rkgnn::model::Start::ALL, evoloop_rkgnn::model::Start::name), default_value = "least-squares")]
     pub start: evoloop_rkgnn::model::Start,
     /// The paper's EA evaluations per model after the start; 0 keeps the start.
     #[arg(long, default_value_t = 0)]
@@ -262,7 +262,7 @@ pub struct StudySettingsArgs {
     /// The joint velocity the training servo and every tracking law act on: `filtered` (the
     /// measured positions differenced and low-passed at 50 Hz, as a drive does) or `true` (the
     /// simulator's velocities, an ideal sensor no plant has: the figures before 2026-12-03).
-    #[arg(long, value_parser = crate::choice::choice::<JointVelocity>(), default_value = "filtered")]
+    #[arg(long, value_parser = crate::choice::choice(&JointVelocity::ALL, JointVelocity::key), default_value = "filtered")]
     pub joint_velocity: JointVelocity,
     /// Threads [default: all cores].
     #[arg(long)]
@@ -325,12 +325,12 @@ pub struct StudyArgs {
     /// The joint velocity the training servo and every tracking law act on: `filtered` (the
     /// measured positions differenced and low-passed at 50 Hz, as a drive does) or `true` (the
     /// simulator's velocities, an ideal sensor no plant has: the figures before 2026-12-03).
-    #[arg(long, value_parser = crate::choice::choice::<JointVelocity>(), default_value = "filtered")]
+    #[arg(long, value_parser = crate::choice::choice(&JointVelocity::ALL, JointVelocity::key), default_value = "filtered")]
     pub joint_velocity: JointVelocity,
     /// Where the EA starts: `least-squares` (the shipped models' recipe) or `random` (the
     /// paper's: a stiff critically damped servo, every other weight 0, the population about
     /// it; give --evaluations).
-    #[arg(long, value_parser = crate::choice::choice::<evoloop_rkgnn::model::Start>(), default_value = "least-squares")]
+    #[arg(long, value_parser = crate::choice::choice(&evoloop_rkgnn::model::Start::ALL, evoloop_rkgnn::model::Start::name), default_value = "least-squares")]
     pub start: evoloop_rkgnn::model::Start,
     /// Threads [default: all cores].
     #[arg(long)]

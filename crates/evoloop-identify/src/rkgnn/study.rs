@@ -77,7 +77,7 @@ pub enum JointVelocity {
 }
 
 impl JointVelocity {
-    /// Both, as `--velocity` lists them.
+    /// Both, as `--joint-velocity` lists them.
     pub const ALL: [JointVelocity; 2] = [JointVelocity::Filtered, JointVelocity::True];
 
     /// The value of the scenarios' `velocity` key: "filtered" or "true".

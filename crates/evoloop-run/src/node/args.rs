@@ -32,24 +32,6 @@ pub struct RunArgs {
     pub live_remote: bool,
 }
 
-impl RunArgs {
-    /// The default scenario with no override, as `evoloop` without a subcommand runs it.
-    pub fn default_run() -> Self {
-        RunArgs {
-            file: None,
-            overrides: Overrides::default(),
-            run_id: None,
-            ipc_prefix: crate::ipc::DEFAULT_PREFIX.to_string(),
-            quiet: false,
-            seeds: None,
-            floor_duration: None,
-            workers: None,
-            live: None,
-            live_remote: false,
-        }
-    }
-}
-
 /// What every process of a run receives from the launcher.
 #[derive(Debug, Clone)]
 pub struct ProcessArgs {

@@ -549,8 +549,7 @@ fn prepare(a: &mut RunArgs) -> Result<Prepared, ExitCode> {
         a.overrides.workers_listen = Some(ep.clone());
         a.overrides.workers_expect = Some(*n);
     }
-    let ov = a.overrides.clone();
-    let scn = match super::start::load(&file, &ov) {
+    let scn = match super::start::load(&file, &a.overrides) {
         Ok(s) => s,
         Err(e) => {
             err!("error: {e}");
