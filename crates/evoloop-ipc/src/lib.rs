@@ -17,9 +17,11 @@ pub mod namespace;
 pub mod pooled;
 mod ports;
 pub mod service;
+pub mod spin;
 
 pub use ports::Message;
 use ports::{PubPorts, SubPorts};
+pub use spin::Spin;
 
 /// The iceoryx2 service type of every evoloop port (iceoryx2's ipc service, pooled loans).
 pub type Svc = service::Service;
@@ -613,25 +615,30 @@ impl<T: Message> Sub<T> {
     }
 
     /// Wait up to `timeout` for a sample satisfying `done`, discarding the others, noticing
-    /// `stop` within 100 ms. Polls for `spin` per slice before blocking on the event.
+    /// `stop` within 100 ms. Polls for what `spin` says before blocking on the event, and tells
+    /// `spin` whether the poll was answered (`Spin`: a poll that goes unanswered pauses).
     pub fn wait_for(
         &self,
-        spin: Duration,
+        spin: &mut Spin,
         timeout: Duration,
         stop: &std::sync::atomic::AtomicBool,
         done: impl Fn(&T) -> bool,
     ) -> Result<Waited<T>, IpcError> {
         let t0 = Instant::now();
+        let poll = spin.poll();
         loop {
             if stop.load(std::sync::atomic::Ordering::Relaxed) {
                 return Ok(Waited::Stopped);
             }
-            let left = timeout.saturating_sub(t0.elapsed());
+            let waited = t0.elapsed();
+            let left = timeout.saturating_sub(waited);
             if left.is_zero() {
                 return Ok(Waited::TimedOut);
             }
-            if let Wait::Got(m) = self.wait_next(spin, left.min(STOP_CHECK))? {
+            let polling = poll.saturating_sub(waited);
+            if let Wait::Got(m) = self.wait_next(polling, left.min(STOP_CHECK))? {
                 if done(&m) {
+                    spin.record(poll, t0.elapsed());
                     return Ok(Waited::Got(m));
                 }
             }

@@ -11,7 +11,7 @@
 
 use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
-use crate::ipc::{IpcError, Pub, Sub, Topic, Waited};
+use crate::ipc::{IpcError, Pub, Spin, Sub, Topic, Waited};
 use crate::law::cycle::{ControlCycle, ParamEvent};
 use crate::law::model_check::{ModelCheck, ModelCheckReport};
 use crate::law::state_check::{SampleTime, StateFault};
@@ -492,7 +492,7 @@ pub fn main(args: &ProcessArgs) {
 /// Wait for the next state, in slices so a signal is noticed. Ok(None): stopped by a signal.
 fn next_state(
     ports: &Ports,
-    spin: Duration,
+    spin: &mut Spin,
     timeout: Duration,
     stop: &AtomicBool,
 ) -> Result<Option<PlantState>, Failure> {
@@ -512,7 +512,7 @@ fn run_lockstep(
     lp: &mut Loop,
     stop: &AtomicBool,
 ) -> Result<(), Failure> {
-    let spin = Duration::from_micros(scn.timing.spin_us);
+    let mut spin = Spin::new(Duration::from_micros(scn.timing.spin_us));
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout);
     // The first sample may take as long as the start-up of all processes. After that the plant
     // may itself wait up to `timeout` for a stalled optimiser before it goes on without it, so
@@ -524,7 +524,7 @@ fn run_lockstep(
         } else {
             2 * timeout
         };
-        let Some(state) = next_state(ports, spin, wait, stop)? else {
+        let Some(state) = next_state(ports, &mut spin, wait, stop)? else {
             return Ok(());
         };
         first = false;
@@ -577,7 +577,8 @@ fn run_realtime(
 ) -> Result<(), Failure> {
     let period = scn.period_ns();
     let stale_ns = scn.controller.stale_after_periods as u64 * period;
-    let Some(mut state) = next_state(ports, Duration::ZERO, scn.first_state_wait(), stop)? else {
+    let Some(mut state) = next_state(ports, &mut Spin::none(), scn.first_state_wait(), stop)?
+    else {
         return Ok(());
     };
     // Align to the plant's sample clock: cycle k runs `phase` of a period after sample k. A

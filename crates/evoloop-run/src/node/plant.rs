@@ -10,7 +10,7 @@
 
 use super::args::ProcessArgs;
 use crate::config::{Mode, Scenario};
-use crate::ipc::{Bell, Doorbell, Pub, Sub, Topic, Waited};
+use crate::ipc::{Bell, Doorbell, Pub, Spin, Sub, Topic, Waited};
 use crate::msg::MAX_JOINTS;
 use crate::msg::{Command, OptimiserAck, PlantState, STATE_FLAG_END, STATE_FLAG_SAFE};
 use crate::node::start::{fail, leave_and_fail, ports, start, Failure, Started};
@@ -130,7 +130,9 @@ fn run_lockstep(
 ) -> Result<(), Failure> {
     let n = scn.cycles();
     let dt = scn.timing.period;
-    let spin = Duration::from_micros(scn.timing.spin_us);
+    // Two waiting places, each polling while its peer answers in time.
+    let poll = Duration::from_micros(scn.timing.spin_us);
+    let (mut answer, mut ack) = (Spin::new(poll), Spin::new(poll));
     let timeout = Duration::from_secs_f64(scn.timing.lockstep_timeout);
     let n_u = sim.plant.n_inputs();
     let mut u = [0.0; MAX_JOINTS];
@@ -153,14 +155,14 @@ fn run_lockstep(
         if scn.is_sync_point(k) {
             // The optimiser sleeps between these samples and catches up on the queue here.
             ring(ports)?;
-            wait_for_optimiser(ports, k, spin, timeout, stop, &mut paced, report)?;
+            wait_for_optimiser(ports, k, &mut ack, timeout, stop, &mut paced, report)?;
             if stop.load(std::sync::atomic::Ordering::Relaxed) {
                 return Ok(());
             }
         }
         let cmd = match ports
             .command
-            .wait_for(spin, timeout, stop, |c: &Command| c.state_seq == k)
+            .wait_for(&mut answer, timeout, stop, |c: &Command| c.state_seq == k)
             .map_err(|e| Failure::Setup(e.to_string()))?
         {
             Waited::Got(c) => c,
@@ -210,7 +212,7 @@ fn diverged(sim: &PlantSim, k: u64) -> Result<(), Failure> {
 fn wait_for_optimiser(
     ports: &Ports,
     k: u64,
-    spin: Duration,
+    spin: &mut Spin,
     timeout: Duration,
     stop: &AtomicBool,
     paced: &mut bool,

@@ -20,7 +20,7 @@
 //! answers.
 
 use crate::config::{Mode, Overrides, Scenario};
-use crate::ipc::{Doorbell, Ipc, Pub, Sub, Topic, Waited};
+use crate::ipc::{Doorbell, Ipc, Pub, Spin, Sub, Topic, Waited};
 use crate::msg::{Command, LinearEstimate, ModelEstimate, ParamSet, PlantState, STATE_FLAG_END};
 use crate::node::launcher::{process_args, signal, spawn_process};
 use crate::node::start::stop_flag;
@@ -280,7 +280,7 @@ fn play(
         }
         ports.ready.wait(Duration::from_millis(100)).map_err(io)?;
     }
-    let spin = Duration::from_micros(scn.timing.spin_us);
+    let mut spin = Spin::new(Duration::from_micros(scn.timing.spin_us));
     let timeout = Duration::from_secs_f64(scn.timing.start_timeout());
     let t_first = rec.states[0].t;
     let progress =
@@ -342,7 +342,9 @@ fn play(
         ports.state.send(state).map_err(io)?;
         let cmd = match ports
             .command
-            .wait_for(spin, timeout, stop, |c: &Command| c.state_seq == state.seq)
+            .wait_for(&mut spin, timeout, stop, |c: &Command| {
+                c.state_seq == state.seq
+            })
             .map_err(io)?
         {
             Waited::Got(c) => c,

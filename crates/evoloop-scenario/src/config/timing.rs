@@ -73,7 +73,8 @@ pub struct Timing {
     /// (`until_stopped`), serialised as null.
     pub duration: f64,
     /// How long in us a waiting process polls before it blocks on an iceoryx2 event (default
-    /// 50, at most 1 000 000).
+    /// 50, at most 1 000 000); in lockstep each waiting place stops polling for a while when its
+    /// polls go unanswered (`evoloop_ipc::Spin`).
     pub spin_us: u64,
     /// Longest wait in s for a peer's answer in lockstep (default 10): an optimiser that does
     /// not acknowledge within it stops pacing the loop, which goes on without it.
