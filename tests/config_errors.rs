@@ -361,3 +361,124 @@ fn a_scenario_path_from_before_the_plant_folders_names_the_files_place_now() {
     assert_refused(&o, "cannot read");
     assert!(!String::from_utf8_lossy(&o.stderr).contains("per plant"));
 }
+
+/// The indirect scheme's model prior: an lti plant's prior is its own configured model (not its
+/// changes); an external plant must give one; the table is refused on a plant with a scheme of
+/// its own, and state feedback is refused under the general scheme, each naming its key.
+#[test]
+fn the_prior_comes_from_the_plant_or_the_table_and_misuse_names_its_key() {
+    let s = shipped("linear/lti_motor_indirect.toml", |t| t).unwrap();
+    let p = s.optimiser.model.unwrap();
+    assert_eq!(p.den.len(), 3);
+    assert!(
+        p.den
+            .iter()
+            .zip([1.0, 20.0, 0.0])
+            .all(|(a, b)| (a - b).abs() < 1e-9),
+        "{p:?}"
+    );
+    assert!((p.num[2] - 40.0).abs() < 1e-9 && p.zeros == 0, "{p:?}");
+    assert!((p.filter_pole - 60.0).abs() < 1e-6, "{}", p.filter_pole);
+    let s = shipped("external/external_motor_indirect.toml", |t| t).unwrap();
+    assert_eq!(s.optimiser.model.unwrap().den, vec![1.0, 20.0, 0.0]);
+    // A slow loop (20 Hz): the default filter pole is capped below the sampling rate.
+    let slow = shipped("linear/lti_motor_indirect.toml", |t| {
+        t.replace("period = 0.001", "period = 0.05")
+    })
+    .unwrap();
+    assert!((slow.optimiser.model.unwrap().filter_pole - 2.0).abs() < 1e-12);
+    let e = shipped("external/external_motor_indirect.toml", |t| {
+        t.replace("num = [40.0]", "")
+            .replace("den = [1.0, 20.0, 0.0]", "")
+    })
+    .unwrap_err();
+    assert_eq!(e.key, "optimiser.model.num");
+    // Kept, unused, when the run is frozen.
+    let frozen = Overrides {
+        optimiser: Some(evoloop::config::OptimiserMode::Off),
+        ..Default::default()
+    };
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/external/external_motor_indirect.toml");
+    assert!(Scenario::load(&path, &frozen)
+        .unwrap()
+        .optimiser
+        .model
+        .is_none());
+    let e = shipped("maglev/maglev_indirect.toml", |t| {
+        t.replace("[output]", "[optimiser.model]\nmemory = 2.0\n\n[output]")
+    })
+    .unwrap_err();
+    assert_eq!(e.key, "optimiser.model");
+    let e = shipped("linear/lti_pendulum.toml", |t| {
+        t.replace("mode = \"schedule\"", "mode = \"indirect\"")
+    })
+    .unwrap_err();
+    assert_eq!(e.key, "controller.kind");
+}
+
+/// A prior's transfer function is made monic (num and den divided by den's leading
+/// coefficient), num is padded to den's order, its default filter pole is three times den's
+/// largest root (here 60 rad/s, inside the bounds the sampling rate sets), and orders it cannot
+/// take are refused with the key and index.
+#[test]
+fn the_prior_is_made_monic_and_padded_and_bad_orders_are_refused() {
+    let prior = |num: &str, den: &str| {
+        shipped("external/external_motor_indirect.toml", |t| {
+            t.replace("num = [40.0]", &format!("num = {num}"))
+                .replace("den = [1.0, 20.0, 0.0]", &format!("den = {den}"))
+        })
+    };
+    let p = prior("[4.0]", "[2.0, 40.0, 0.0]")
+        .unwrap()
+        .optimiser
+        .model
+        .unwrap();
+    assert_eq!(
+        (p.num, p.den, p.zeros),
+        (vec![0.0, 0.0, 2.0], vec![1.0, 20.0, 0.0], 0)
+    );
+    assert!((p.filter_pole - 60.0).abs() < 1e-6, "{}", p.filter_pole);
+    let key = |num: &str, den: &str| prior(num, den).unwrap_err().key;
+    assert_eq!(key("[1.0, 0.0]", "[1.0, 1.0]"), "optimiser.model.num");
+    assert_eq!(
+        key("[1.0]", "[1.0, 1.0, 1.0, 1.0, 1.0, 1.0]"),
+        "optimiser.model.den"
+    );
+    assert_eq!(key("[nan]", "[1.0, 1.0]"), "optimiser.model.num[0]");
+}
+
+#[test]
+fn modes_display_as_they_serialise() {
+    use evoloop::config::{Mode, OptimiserMode::*};
+    for m in [Off, Schedule, Indirect, Identify, Direct] {
+        assert_eq!(serde_json::to_string(&m).unwrap(), format!("\"{m}\""));
+    }
+    for m in [Mode::Lockstep, Mode::Realtime] {
+        assert_eq!(serde_json::to_string(&m).unwrap(), format!("\"{m}\""));
+        assert_eq!(m.to_string().parse::<Mode>().unwrap(), m);
+    }
+}
+
+/// The tracking cost's two parts and its total, against a sum written out.
+#[test]
+fn the_tracking_costs_parts_and_total_agree_with_a_direct_sum() {
+    let mut c = evoloop::sim::cost::TrackingCost::new(0.5);
+    c.add(&[1.0, 2.0], &[0.5, 3.0], &[-4.0]);
+    c.add(&[0.0, 0.0], &[1.0, 0.0], &[2.0]);
+    assert_eq!(c.error, 0.5 + 1.0 + 1.0);
+    assert_eq!(c.control, 2.0 + 1.0);
+    assert_eq!(c.total, 5.5);
+}
+
+/// A shipped scenario (`config/FILE`), edited by `edit`, parsed as if it were that file.
+fn shipped(
+    file: &str,
+    edit: impl Fn(String) -> String,
+) -> Result<Scenario, evoloop::config::ConfigError> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("config")
+        .join(file);
+    let text = edit(std::fs::read_to_string(&path).unwrap());
+    Scenario::parse(&text, &path, &Overrides::default())
+}

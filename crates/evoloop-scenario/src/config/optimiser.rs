@@ -663,21 +663,3 @@ fn model_file(path: &std::path::Path) -> Result<Vec<f64>, String> {
         )
     })
 }
-
-#[cfg(test)]
-mod display_tests {
-    use super::OptimiserMode;
-    use crate::config::Mode;
-
-    #[test]
-    fn modes_display_as_they_serialise() {
-        use OptimiserMode::*;
-        for m in [Off, Schedule, Indirect, Identify, Direct] {
-            assert_eq!(serde_json::to_string(&m).unwrap(), format!("\"{m}\""));
-        }
-        for m in [Mode::Lockstep, Mode::Realtime] {
-            assert_eq!(serde_json::to_string(&m).unwrap(), format!("\"{m}\""));
-            assert_eq!(m.to_string().parse::<Mode>().unwrap(), m);
-        }
-    }
-}

@@ -43,18 +43,3 @@ impl TrackingCost {
         self.total += e + c;
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_parts_and_the_total_agree_with_a_direct_sum() {
-        let mut c = TrackingCost::new(0.5);
-        c.add(&[1.0, 2.0], &[0.5, 3.0], &[-4.0]);
-        c.add(&[0.0, 0.0], &[1.0, 0.0], &[2.0]);
-        assert_eq!(c.error, 0.5 + 1.0 + 1.0);
-        assert_eq!(c.control, 2.0 + 1.0);
-        assert_eq!(c.total, 5.5);
-    }
-}
