@@ -93,6 +93,33 @@ fn a_python_plant_runs_the_motor_as_the_built_in_lti_plant_does() {
     assert_eq!(a["allocations"], 0, "{a}");
 }
 
+/// The binding's floor (config/plants/floor_plant.py, which scripts/python_floor.sh times beside
+/// the motor): the motor's scenario with a plant that computes nothing runs to its end through
+/// the contract, every sample answered, its output never moving whatever the PID commands.
+#[test]
+#[ignore = "needs Python 3 with the evoloop_plant package's deps: pip install ./python"]
+fn the_floor_plant_plays_the_contract_and_computes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let floor = common::config("plants/floor_plant.py");
+    let scn = std::fs::read_to_string(common::config("external/external_motor.toml"))
+        .unwrap()
+        .replace("\"../plants/motor_plant.py\"", &format!("{:?}", floor))
+        .replace("duration = 6.0", "duration = 2.0");
+    assert!(scn.contains("floor_plant.py"), "the motor's command moved");
+    let scn = common::write(dir.path(), "floor.toml", &scn);
+    let out = dir.path().join("floor");
+    common::assert_ok(&common::run(&scn, &out, "pyfloor", &[]));
+    let rows = common::Csv::read(&out.join("run.csv"));
+    assert_eq!(rows.rows.len(), 2000);
+    assert!(rows.col("y0").iter().all(|&y| y == 0.0));
+    assert!(
+        rows.col("u0").iter().any(|&u| u != 0.0),
+        "the PID never acted"
+    );
+    let s = common::json(&out.join("summary.json"));
+    assert_eq!(s["outcome"], "ok");
+}
+
 /// The general indirect scheme through a plant evoloop did not write (issue 45): the Python
 /// motor's inertia triples at 20 s; from the nominal transfer function in [optimiser.model]
 /// and the streamed angle and voltage alone, the estimate ends on the loaded motor's input gain
