@@ -14,7 +14,11 @@ while getopts n:d: o; do
   case $o in n) runs=$OPTARG ;; d) duration=$OPTARG ;; *) exit 2 ;; esac
 done
 shift $((OPTIND - 1))
-bin=${1:-target/release/evoloop}
+bin=${1:-}
+# A BIN given is taken from where the script was started; the rest from the repository's root.
+case $bin in "" | /*) ;; *) bin="$PWD/$bin" ;; esac
+cd "$(dirname "$0")/.."
+bin=${bin:-target/release/evoloop}
 scenario=config/external/external_motor.toml
 tmp=$(mktemp -d)
 # The floor's scenario beside the shipped one, so that its relative command path resolves.
@@ -30,8 +34,9 @@ for i in $(seq "$runs"); do
     file=$scenario
     [ $plant = floor ] && file=$floor
     [ $plant = floor-event ] && file=$event
-    line=$("$bin" run "$file" --duration "$duration" --out "$tmp/run" --quiet 2>&1 | grep 'samples/s' || true)
-    [ -n "$line" ] || { echo "$plant: the run printed no rate (did it fail?)" >&2; exit 1; }
+    out=$("$bin" run "$file" --duration "$duration" --out "$tmp/run" --quiet 2>&1) ||
+      { echo "$plant: the run failed:" >&2; tail -5 <<<"$out" >&2; exit 1; }
+    line=$(grep 'samples/s' <<<"$out") || { echo "$plant: the run printed no rate" >&2; exit 1; }
     rate=$(sed -E 's/.*\(([0-9]+) samples\/s\).*/\1/' <<<"$line")
     echo "$plant $rate $(awk -v r="$rate" 'BEGIN { printf "%.1f", 1e6 / r }')"
     rm -rf "$tmp/run"

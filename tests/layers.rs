@@ -348,3 +348,38 @@ fn every_crate_takes_the_house_rules() {
     }
     assert!(bad.is_empty(), "{bad:#?}");
 }
+
+/// A crate without a unit-test target (`[lib] test = false`, as evoloop-scenario, whose tests
+/// are the root package's) holds no unit test: one added there would compile in no target and
+/// pass by never running.
+#[test]
+fn a_crate_without_a_unit_test_target_holds_no_unit_test() {
+    let mut checked = 0;
+    let mut bad = Vec::new();
+    for e in std::fs::read_dir(root().join("crates")).unwrap() {
+        let dir = e.unwrap().path();
+        let Ok(text) = std::fs::read_to_string(dir.join("Cargo.toml")) else {
+            continue;
+        };
+        let manifest: toml::Table = text.parse().unwrap();
+        let no_tests = manifest
+            .get("lib")
+            .and_then(|l| l.get("test"))
+            .and_then(|t| t.as_bool())
+            == Some(false);
+        if !no_tests {
+            continue;
+        }
+        checked += 1;
+        for (p, src) in rust_sources(&dir.join("src")) {
+            if src.contains("#[test]") || src.contains("cfg(test)") {
+                bad.push(p.display().to_string());
+            }
+        }
+    }
+    assert!(checked >= 1, "no crate has `[lib] test = false`");
+    assert!(
+        bad.is_empty(),
+        "unit tests in a crate that never runs them: {bad:?}"
+    );
+}

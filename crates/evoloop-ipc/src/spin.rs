@@ -21,7 +21,8 @@ const MAX_LEVEL: u32 = 6;
 
 /// The poll policy of one waiting place (a loop's wait for its peer's answer): up to `limit`,
 /// or none while polls there go unanswered.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+// Not Copy: a copy would carry on the pause apart from the place it belongs to.
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Spin {
     limit: Duration,
     /// 0 while polls are answered; each unanswered probe raises it, each answered one lowers it.
