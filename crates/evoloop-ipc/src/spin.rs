@@ -69,11 +69,6 @@ impl Spin {
         };
         self.skip = (1 << self.level) - 1;
     }
-
-    /// Whether the next wait skips its poll (for tests and reports).
-    pub fn pausing(&self) -> bool {
-        self.skip > 0
-    }
 }
 
 #[cfg(test)]
@@ -81,6 +76,11 @@ mod tests {
     use super::*;
 
     const US: Duration = Duration::from_micros(1);
+
+    /// Whether the next wait skips its poll.
+    fn pausing(s: &Spin) -> bool {
+        s.poll().is_zero()
+    }
 
     /// Polls answered in time keep every wait polling; one unanswered poll skips the next
     /// wait's; misses in a row double the pause up to 63 waits; answered probes shorten it
@@ -103,7 +103,7 @@ mod tests {
         for _ in 0..8 {
             s.record(s.poll(), 400 * US);
             let mut n = 0;
-            while s.pausing() {
+            while pausing(&s) {
                 s.record(s.poll(), 400 * US);
                 n += 1;
             }
@@ -114,10 +114,10 @@ mod tests {
         let mut pauses = Vec::new();
         while {
             s.record(s.poll(), 3 * US);
-            s.pausing()
+            pausing(&s)
         } {
             let mut n = 0;
-            while s.pausing() {
+            while pausing(&s) {
                 s.record(s.poll(), 400 * US);
                 n += 1;
             }
