@@ -398,8 +398,7 @@ fn the_prior_comes_from_the_plant_or_the_table_and_misuse_names_its_key() {
         optimiser: Some(evoloop::config::OptimiserMode::Off),
         ..Default::default()
     };
-    let path =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/external/external_motor_indirect.toml");
+    let path = config("external/external_motor_indirect.toml");
     assert!(Scenario::load(&path, &frozen)
         .unwrap()
         .optimiser
@@ -476,9 +475,7 @@ fn shipped(
     file: &str,
     edit: impl Fn(String) -> String,
 ) -> Result<Scenario, evoloop::config::ConfigError> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("config")
-        .join(file);
+    let path = config(file);
     let text = edit(std::fs::read_to_string(&path).unwrap());
     Scenario::parse(&text, &path, &Overrides::default())
 }
