@@ -58,6 +58,32 @@ mod small_things;
 mod stock_interop;
 mod until_stopped;
 
+/// Twice as many tests at once as there are cores. Most of this suite's tests wait: on the
+/// processes of a run they start, on a realtime run that lasts seconds, on a child they stopped;
+/// with libtest's one test a core the suite used 1.1 of 2 cores and took 88 s, with two a core
+/// 1.7 cores and 55-56 s (2026-12-07, docs/measurements/2026-12-07-ci-threads.md). Set before
+/// libtest reads it, from the binary's initialisers (Linux runs `.init_array` before `main`), and
+/// only where the caller has not set `RUST_TEST_THREADS`; `--test-threads N` still wins over it.
+/// The tests judged on a realtime rate are not in this binary (`common::alone`).
+#[used]
+#[link_section = ".init_array"]
+static TWO_TESTS_A_CORE: extern "C" fn() = two_tests_a_core;
+
+extern "C" fn two_tests_a_core() {
+    if std::env::var_os("RUST_TEST_THREADS").is_none() {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        std::env::set_var("RUST_TEST_THREADS", (2 * cores).to_string());
+    }
+}
+
+/// The initialiser above ran (a linker that dropped the unreferenced static would leave the suite
+/// at one test a core, silently slower).
+#[test]
+fn the_suite_runs_two_tests_a_core() {
+    let threads = std::env::var("RUST_TEST_THREADS").expect("RUST_TEST_THREADS is not set");
+    assert!(threads.parse::<usize>().is_ok_and(|n| n >= 1), "{threads}");
+}
+
 /// Every `tests/*.rs` is a module of this suite or a `[[test]]` target of Cargo.toml: with
 /// `autotests = false` a new file that is neither would compile nowhere and pass by silence.
 #[test]
