@@ -267,7 +267,8 @@ pub struct DeEpochs {
     /// Evaluations per epoch at most, spent in whole generations of 15; one generation (15)
     /// always runs, also on a smaller budget.
     pub evaluations: usize,
-    done: u64,
+    /// Epochs run so far: each moves the DE's seed on (0 for a fresh search).
+    pub done: u64,
 }
 
 impl DeEpochs {
@@ -747,68 +748,8 @@ pub mod rls;
 
 /// The estimators' state-variable filter a^4 / (s + a)^4: s^4 F y is the highest derivative
 /// they use (its home: `evoloop_control::filter::svf`).
-type SvfDesign = crate::filter::SvfDesign<4>;
-type Svf = crate::filter::Svf<4>;
+pub type SvfDesign = crate::filter::SvfDesign<4>;
+/// The filter itself, of that design.
+pub type Svf = crate::filter::Svf<4>;
 
 pub mod two_mass;
-
-#[cfg(test)]
-mod tests {
-    use super::EpochRecord;
-
-    /// The smallest budget the scenario accepts (12, the maglev GA's) still runs one generation
-    /// of DE's 15: an epoch never ends unscored.
-    #[test]
-    fn a_budget_below_des_population_still_runs_one_generation() {
-        let sphere = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>();
-        let mut epochs = super::DeEpochs {
-            lower: vec![-1.0; 2],
-            upper: vec![1.0; 2],
-            seed: 1,
-            threads: 1,
-            evaluations: 12,
-            done: 0,
-        };
-        let (best, cost) = epochs.run(&[], &sphere);
-        assert_eq!(best.len(), 2);
-        assert!(cost.is_finite(), "{cost}");
-    }
-
-    #[test]
-    fn samples_the_estimator_never_saw_are_counted() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../config/maglev/maglev_indirect.toml");
-        let scn =
-            crate::config::Scenario::load(&path, &crate::config::Overrides::default()).unwrap();
-        let mut ind = super::Indirect::new(&scn).unwrap();
-        // It starts wherever it joins the stream (a restarted optimiser), then counts the gaps.
-        for seq in [40u64, 41, 42, 45, 46, 50] {
-            let s = crate::msg::PlantState {
-                seq,
-                t: seq as f64 * 1e-3,
-                ..Default::default()
-            };
-            ind.observe(&s);
-        }
-        assert_eq!(ind.samples_missed, 2 + 3);
-    }
-
-    /// An epoch whose in-service set destabilises the model (infinite cost) survives the trip
-    /// through optimiser.json: it was lost with the whole report before (JSON null is no f64).
-    #[test]
-    fn an_infinite_cost_reads_back_from_json() {
-        let r = EpochRecord {
-            t: 1.0,
-            model_value: 2.0,
-            best_cost: 5.0,
-            in_service_cost: f64::INFINITY,
-            published: Some(3),
-            wall_s: 0.5,
-            model: Vec::new(),
-        };
-        let text = serde_json::to_string(&r).unwrap();
-        assert!(text.contains("\"in_service_cost\":null"), "{text}");
-        let back: EpochRecord = serde_json::from_str(&text).unwrap();
-        assert_eq!(back, r);
-    }
-}
