@@ -349,9 +349,11 @@ fn every_crate_takes_the_house_rules() {
     assert!(bad.is_empty(), "{bad:#?}");
 }
 
-/// A crate without a unit-test target (`[lib] test = false`, as evoloop-scenario, whose tests
-/// are the root package's) holds no unit test: one added there would compile in no target and
-/// pass by never running.
+/// A crate without a unit-test target (`[lib] test = false`: evoloop-scenario, whose tests are the
+/// root package's, and evoloop-schemes and evoloop-tune, whose tests are their `tests/unit/`)
+/// holds no unit test: one added there would compile in no target and pass by never running. And
+/// every file of a crate's `tests/unit/` is a module of its `main.rs`, where a file it does not
+/// declare would compile nowhere.
 #[test]
 fn a_crate_without_a_unit_test_target_holds_no_unit_test() {
     let mut checked = 0;
@@ -367,6 +369,7 @@ fn a_crate_without_a_unit_test_target_holds_no_unit_test() {
             .and_then(|l| l.get("test"))
             .and_then(|t| t.as_bool())
             == Some(false);
+        bad.extend(undeclared_unit_tests(&dir.join("tests/unit")));
         if !no_tests {
             continue;
         }
@@ -377,9 +380,35 @@ fn a_crate_without_a_unit_test_target_holds_no_unit_test() {
             }
         }
     }
-    assert!(checked >= 1, "no crate has `[lib] test = false`");
+    assert!(
+        checked >= 3,
+        "only {checked} crates have `[lib] test = false`"
+    );
     assert!(
         bad.is_empty(),
-        "unit tests in a crate that never runs them: {bad:?}"
+        "unit tests in a crate that never runs them, or not declared in tests/unit/main.rs: {bad:?}"
     );
+}
+
+/// The files of `unit` (a crate's `tests/unit/`) that its `main.rs` does not declare as `mod`.
+fn undeclared_unit_tests(unit: &Path) -> Vec<String> {
+    let Ok(main) = std::fs::read_to_string(unit.join("main.rs")) else {
+        return Vec::new();
+    };
+    let declared: Vec<&str> = main
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("mod ")?.strip_suffix(';'))
+        .collect();
+    let mut bad = Vec::new();
+    for e in std::fs::read_dir(unit).unwrap() {
+        let path = e.unwrap().path();
+        let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+        if path.extension().is_some_and(|x| x == "rs")
+            && stem != "main"
+            && !declared.contains(&stem)
+        {
+            bad.push(path.display().to_string());
+        }
+    }
+    bad
 }

@@ -3,7 +3,7 @@
 //! of one per file: each of these files was linked against the whole library and compiled
 //! iceoryx2's generics again (a 3.9 s floor a binary, up to 20 s), and libtest ran the files one
 //! after the other, each leaving a core idle behind its slowest test; here all of them share the
-//! two threads. Files that cannot share a process have targets of their own in Cargo.toml: a
+//! binary's threads (two a core, below). Files that cannot share a process have targets of their own in Cargo.toml: a
 //! counting global allocator (`no_alloc*`, `optim_no_alloc`, `recorder_memory`), a memory peak
 //! taken over every child of the process (`long_report`: a spawned child's peak includes its
 //! parent's resident set, which a binary of 40 files running beside it makes 180 MiB), the shared
@@ -13,6 +13,8 @@
 //! `tests/suite.rs`'s own test checks that every file in tests/ is one or the other.
 
 mod common;
+
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 mod config_errors;
 mod direct;
@@ -69,19 +71,33 @@ mod until_stopped;
 #[link_section = ".init_array"]
 static TWO_TESTS_A_CORE: extern "C" fn() = two_tests_a_core;
 
+/// What the initialiser did: the count it set, or `CALLER_SET` where the caller had set one.
+static SET_TO: AtomicUsize = AtomicUsize::new(0);
+const CALLER_SET: usize = usize::MAX;
+
 extern "C" fn two_tests_a_core() {
-    if std::env::var_os("RUST_TEST_THREADS").is_none() {
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        std::env::set_var("RUST_TEST_THREADS", (2 * cores).to_string());
+    if std::env::var_os("RUST_TEST_THREADS").is_some() {
+        SET_TO.store(CALLER_SET, Ordering::Relaxed);
+        return;
     }
+    let threads = 2 * std::thread::available_parallelism().map_or(1, |n| n.get());
+    std::env::set_var("RUST_TEST_THREADS", threads.to_string());
+    SET_TO.store(threads, Ordering::Relaxed);
 }
 
-/// The initialiser above ran (a linker that dropped the unreferenced static would leave the suite
-/// at one test a core, silently slower).
+/// The initialiser above ran and set twice the cores (a linker that dropped the unreferenced
+/// static would leave the suite at one test a core, silently slower); a caller's own count is
+/// left alone.
 #[test]
 fn the_suite_runs_two_tests_a_core() {
+    let set = SET_TO.load(Ordering::Relaxed);
+    assert_ne!(set, 0, "the initialiser did not run");
     let threads = std::env::var("RUST_TEST_THREADS").expect("RUST_TEST_THREADS is not set");
-    assert!(threads.parse::<usize>().is_ok_and(|n| n >= 1), "{threads}");
+    if set != CALLER_SET {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        assert_eq!(set, 2 * cores);
+        assert_eq!(threads, set.to_string());
+    }
 }
 
 /// Every `tests/*.rs` is a module of this suite or a `[[test]]` target of Cargo.toml: with

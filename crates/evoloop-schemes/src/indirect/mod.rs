@@ -267,20 +267,37 @@ pub struct DeEpochs {
     /// Evaluations per epoch at most, spent in whole generations of 15; one generation (15)
     /// always runs, also on a smaller budget.
     pub evaluations: usize,
-    /// Epochs run so far: each moves the DE's seed on (0 for a fresh search).
-    pub done: u64,
+    done: u64,
 }
 
 impl DeEpochs {
     /// Epochs within `bounds`, seeded with the scenario's seed, on `optimiser.threads` threads,
     /// `optimiser.epoch_evaluations` evaluations each.
     pub fn new(scn: &crate::config::Scenario, bounds: &crate::law::ParamBounds) -> Self {
+        Self::within(
+            bounds.lower.clone(),
+            bounds.upper.clone(),
+            scn.seed,
+            scn.optimiser.threads,
+            scn.optimiser.epoch_evaluations,
+        )
+    }
+
+    /// Epochs within `lower..upper`, the first seeded with `seed`, on `threads` threads,
+    /// `evaluations` evaluations each: none run yet.
+    pub fn within(
+        lower: Vec<f64>,
+        upper: Vec<f64>,
+        seed: u64,
+        threads: usize,
+        evaluations: usize,
+    ) -> Self {
         Self {
-            lower: bounds.lower.clone(),
-            upper: bounds.upper.clone(),
-            seed: scn.seed,
-            threads: scn.optimiser.threads,
-            evaluations: scn.optimiser.epoch_evaluations,
+            lower,
+            upper,
+            seed,
+            threads,
+            evaluations,
             done: 0,
         }
     }

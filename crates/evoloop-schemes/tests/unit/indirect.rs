@@ -5,14 +5,8 @@ use evoloop_schemes::indirect::EpochRecord;
 #[test]
 fn a_budget_below_des_population_still_runs_one_generation() {
     let sphere = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>();
-    let mut epochs = evoloop_schemes::indirect::DeEpochs {
-        lower: vec![-1.0; 2],
-        upper: vec![1.0; 2],
-        seed: 1,
-        threads: 1,
-        evaluations: 12,
-        done: 0,
-    };
+    let mut epochs =
+        evoloop_schemes::indirect::DeEpochs::within(vec![-1.0; 2], vec![1.0; 2], 1, 1, 12);
     let (best, cost) = epochs.run(&[], &sphere);
     assert_eq!(best.len(), 2);
     assert!(cost.is_finite(), "{cost}");
