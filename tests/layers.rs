@@ -392,20 +392,16 @@ fn a_crate_without_a_unit_test_target_holds_no_unit_test() {
 
 /// The files of `unit` (a crate's `tests/unit/`) that its `main.rs` does not declare as `mod`.
 fn undeclared_unit_tests(unit: &Path) -> Vec<String> {
-    let Ok(main) = std::fs::read_to_string(unit.join("main.rs")) else {
+    let Ok(declared) = crate::common::declared_modules(&unit.join("main.rs")) else {
         return Vec::new();
     };
-    let declared: Vec<&str> = main
-        .lines()
-        .filter_map(|l| l.trim().strip_prefix("mod ")?.strip_suffix(';'))
-        .collect();
     let mut bad = Vec::new();
     for e in std::fs::read_dir(unit).unwrap() {
         let path = e.unwrap().path();
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
         if path.extension().is_some_and(|x| x == "rs")
             && stem != "main"
-            && !declared.contains(&stem)
+            && !declared.iter().any(|m| m == stem)
         {
             bad.push(path.display().to_string());
         }

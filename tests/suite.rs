@@ -3,8 +3,8 @@
 //! of one per file: each of these files was linked against the whole library and compiled
 //! iceoryx2's generics again (a 3.9 s floor a binary, up to 20 s), and libtest ran the files one
 //! after the other, each leaving a core idle behind its slowest test; here all of them share the
-//! binary's threads (two a core, below). Files that cannot share a process have targets of their own in Cargo.toml: a
-//! counting global allocator (`no_alloc*`, `optim_no_alloc`, `recorder_memory`), a memory peak
+//! binary's threads (two a core, below). Files that cannot share a process have targets of their
+//! own in Cargo.toml: a counting global allocator (`no_alloc*`, `optim_no_alloc`, `recorder_memory`), a memory peak
 //! taken over every child of the process (`long_report`: a spawned child's peak includes its
 //! parent's resident set, which a binary of 40 files running beside it makes 180 MiB), the shared
 //! memory a soak finds left under the default prefix, which other tests' runs share (`soak`), the
@@ -13,8 +13,6 @@
 //! `tests/suite.rs`'s own test checks that every file in tests/ is one or the other.
 
 mod common;
-
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 mod config_errors;
 mod direct;
@@ -71,16 +69,23 @@ mod until_stopped;
 #[link_section = ".init_array"]
 static TWO_TESTS_A_CORE: extern "C" fn() = two_tests_a_core;
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 /// What the initialiser did: the count it set, or `CALLER_SET` where the caller had set one.
 static SET_TO: AtomicUsize = AtomicUsize::new(0);
 const CALLER_SET: usize = usize::MAX;
+
+/// Two tests a core on this machine.
+fn two_a_core() -> usize {
+    2 * std::thread::available_parallelism().map_or(1, |n| n.get())
+}
 
 extern "C" fn two_tests_a_core() {
     if std::env::var_os("RUST_TEST_THREADS").is_some() {
         SET_TO.store(CALLER_SET, Ordering::Relaxed);
         return;
     }
-    let threads = 2 * std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = two_a_core();
     std::env::set_var("RUST_TEST_THREADS", threads.to_string());
     SET_TO.store(threads, Ordering::Relaxed);
 }
@@ -94,8 +99,7 @@ fn the_suite_runs_two_tests_a_core() {
     assert_ne!(set, 0, "the initialiser did not run");
     let threads = std::env::var("RUST_TEST_THREADS").expect("RUST_TEST_THREADS is not set");
     if set != CALLER_SET {
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        assert_eq!(set, 2 * cores);
+        assert_eq!(set, two_a_core());
         assert_eq!(threads, set.to_string());
     }
 }

@@ -579,13 +579,17 @@ pub fn test_targets() -> Vec<String> {
 
 /// The files of tests/ that are modules of tests/suite.rs (its `mod NAME;` lines).
 pub fn suite_modules() -> Vec<String> {
-    let suite =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/suite.rs"))
-            .unwrap();
-    suite
+    let suite = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/suite.rs");
+    let mut modules = declared_modules(&suite).unwrap();
+    modules.retain(|m| m != "common");
+    modules
+}
+
+/// The modules `file` declares from files of their own (its `mod NAME;` lines).
+pub fn declared_modules(file: &Path) -> std::io::Result<Vec<String>> {
+    Ok(std::fs::read_to_string(file)?
         .lines()
         .filter_map(|l| l.strip_prefix("mod ")?.strip_suffix(';'))
-        .filter(|m| *m != "common")
         .map(String::from)
-        .collect()
+        .collect())
 }

@@ -2,8 +2,7 @@ use evoloop_control::plant::lti::LtiSpec;
 use evoloop_control::plant::PlantSim;
 use evoloop_control::reference::Reference;
 use evoloop_msg::PlantState;
-use evoloop_scenario::config::Overrides;
-use evoloop_scenario::config::Scenario;
+use evoloop_scenario::config::{Overrides, Scenario};
 use evoloop_schemes::indirect::linear::*;
 use evoloop_schemes::indirect::Estimator;
 

@@ -1,11 +1,9 @@
 use evoloop_control::plant::two_mass::{Sensor, TwoMass};
 use evoloop_control::plant::PlantSim;
 use evoloop_msg::PlantState;
-use evoloop_scenario::config::Overrides;
-use evoloop_scenario::config::Scenario;
+use evoloop_scenario::config::{Overrides, Scenario};
 use evoloop_schemes::indirect::two_mass::*;
-use evoloop_schemes::indirect::Estimator;
-use evoloop_schemes::indirect::{Svf, SvfDesign};
+use evoloop_schemes::indirect::{Estimator, Svf, SvfDesign};
 
 /// The shipped scenario (k 0.5 until 20 s, ramp to 2 at 40 s) under its frozen gains, with
 /// the given sensor chain; the estimates at the 10 Hz records as (t, estimate, std, true k).

@@ -1,6 +1,5 @@
 use evoloop_schemes::WriteError;
-use evoloop_tune::TuneError;
-use evoloop_tune::{tune, validate_file, TuneRequest};
+use evoloop_tune::{tune, validate_file, TuneError, TuneRequest};
 use std::error::Error;
 use std::path::{Path, PathBuf};
 
