@@ -274,16 +274,20 @@ fn the_two_commands_come_first_and_are_what_ci_runs() {
         ".ci/run runs the README's two commands, read from the README"
     );
     // The cargo commands .ci/run executes, in order: the README's first one must come first,
-    // before anything else has built the tree, then the test command (its output also copied
-    // to a log by `tee`, which the background jobs read; the command itself as written).
+    // before anything else has built the tree, then the test command as written, its output
+    // also copied to the log the background jobs read (and its status kept: pipefail).
     let run: Vec<&str> = ci
         .lines()
         .map(str::trim)
         .filter(|l| l.starts_with("cargo ") || l.starts_with("eval "))
-        .map(|l| l.split(" 2>&1 | tee ").next().unwrap())
         .collect();
     assert_eq!(run.first(), Some(&"cargo run --release"), "{run:?}");
-    assert_eq!(run.get(1), Some(&"cargo test --release"), "{run:?}");
+    assert_eq!(
+        run.get(1),
+        Some(&r#"cargo test --release 2>&1 | tee "$test_log""#),
+        "{run:?}"
+    );
+    assert!(ci.lines().any(|l| l == "set -euo pipefail"));
 }
 
 #[test]

@@ -6,7 +6,8 @@
 //! controller's answers to its sets must reach it.
 //!
 //! The peer is a member of the workspace that no default build includes (the lock file and the
-//! feature pins are evoloop's); give its binary in EVOLOOP_ROS2_PEER. CI:
+//! feature pins are evoloop's); give its binary in EVOLOOP_ROS2_PEER. By hand (CI builds the
+//! same with the zenoh feature's tests and runs this test's binary itself, after them):
 //!   cargo build --release --locked -p ros2-peer
 //!   EVOLOOP_ROS2_PEER=target/release/ros2-peer cargo test --release --features zenoh --test ros2_bridge -- --ignored
 

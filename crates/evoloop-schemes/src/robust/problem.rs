@@ -270,7 +270,8 @@ impl RobustProblem {
         match hinf_from_poles(&acl, e, h, &poles, level) {
             Ok(Bounded::Exact(n, _)) if n > 0.0 => -1.0 / n,
             Ok(Bounded::Exact(..)) => f64::NEG_INFINITY,
-            Ok(Bounded::Above(lb)) => -1.0 / lb,
+            // Above the threshold, strictly: -1/lb may round onto it.
+            Ok(Bounded::Above(lb)) => (-1.0 / lb).max(threshold.next_up()),
             // Not computable: the candidate is refused (+inf never wins a DE selection) rather
             // than scored as r_c = 0, which would rank it above every infeasible candidate.
             Err(_) => f64::INFINITY,
