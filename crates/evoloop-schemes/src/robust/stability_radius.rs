@@ -44,8 +44,6 @@ pub const HINF_TOL: f64 = 1e-9;
 /// 30 times: none allocates while G is at most 2 x 2; a larger G's singular values do).
 pub struct Transfer {
     a: DMatrix<f64>,
-    e: DMatrix<f64>,
-    h: DMatrix<f64>,
     /// E and H as complex matrices, made once for the many gain evaluations.
     e_c: DMatrix<Complex<f64>>,
     h_c: DMatrix<Complex<f64>>,
@@ -94,14 +92,12 @@ impl Transfer {
             swaps: Vec::with_capacity(n),
             x: vec![zero; n * e.ncols()],
             g: vec![zero; h.nrows() * e.ncols()],
-            e,
-            h,
         })
     }
 
     /// sigma_max(G(jw)).
     pub fn gain(&mut self, w: f64) -> f64 {
-        let (p, m) = (self.h.nrows(), self.e.ncols());
+        let (p, m) = (self.h_c.nrows(), self.e_c.ncols());
         if m == 0 || p == 0 {
             return 0.0;
         }
@@ -173,8 +169,7 @@ impl Transfer {
                 }
             }
         }
-        let m = self.e.ncols();
-        for j in 0..m {
+        for j in 0..self.e_c.ncols() {
             let x = &mut self.x[j * n..(j + 1) * n];
             for (i, v) in x.iter_mut().enumerate() {
                 *v = self.e_c[(i, j)];
@@ -290,19 +285,15 @@ pub fn hinf_from_poles(
     // Lower bound from the frequencies where a peak is likely: DC and each pole's natural and
     // damped frequency.
     // Each gain above `level` settles a bounded call at once (its caller needs no more).
-    let mut best = (g.gain(0.0), 0.0);
-    if best.0 > level {
-        return Ok(Bounded::Above(best.0));
-    }
-    for p in poles.iter() {
-        for w in [p.norm(), p.im.abs()] {
-            let v = g.gain(w);
-            if v > level {
-                return Ok(Bounded::Above(v));
-            }
-            if v > best.0 {
-                best = (v, w);
-            }
+    let mut best = (0.0, 0.0);
+    let peaks = poles.iter().flat_map(|p| [p.norm(), p.im.abs()]);
+    for w in std::iter::once(0.0).chain(peaks) {
+        let v = g.gain(w);
+        if v > level {
+            return Ok(Bounded::Above(v));
+        }
+        if v > best.0 {
+            best = (v, w);
         }
     }
     if best.0 == 0.0 {
