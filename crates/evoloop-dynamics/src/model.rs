@@ -141,6 +141,14 @@ pub struct Data {
     pub(super) a: Vec<Motion>,
     f: Vec<Force>,
     ic: Vec<Inertia>,
+    /// CRBA's column forces: entry k is Ic_k S_k carried toward the root (`crba_pass`).
+    col: Vec<Force>,
+    /// Per body, whether its joint is revolute about its frame's z axis (S = [z; 0]): products
+    /// with S then pick or place one component (`Data::subspace_dot`, `Data::subspace_scaled`,
+    /// `Inertia::apply_z`), the values of the general products for fewer operations.
+    z: Vec<bool>,
+    /// Body i's subtree: i, then its descendants in increasing order.
+    subtree: Vec<Vec<usize>>,
     /// The joint-space inertia matrix from the last `mass_matrix` call.
     pub m: DMatrix<f64>,
     /// Workspace for the Cholesky factor (M is kept intact).
@@ -160,6 +168,33 @@ pub struct Data {
     ua: Vec<Force>,
     d_inv: Vec<f64>,
     u: Vec<f64>,
+}
+
+impl Data {
+    /// S_jᵀ f, joint j's share of the force f (in body j's coordinates): for a joint about z the
+    /// moment's z component (the general product's other terms are products with exact zeros).
+    #[inline(always)]
+    fn subspace_dot(&self, j: usize, f: Force) -> f64 {
+        if self.z[j] {
+            f.n.z
+        } else {
+            self.s[j].dot(f)
+        }
+    }
+
+    /// S_j x, joint j's motion at rate x: for a joint about z, [0, 0, x; 0] (the general
+    /// product's other components are exact zeros, up to their sign).
+    #[inline(always)]
+    fn subspace_scaled(&self, j: usize, x: f64) -> Motion {
+        if self.z[j] {
+            Motion {
+                w: DVec3::new(0.0, 0.0, x),
+                v: DVec3::ZERO,
+            }
+        } else {
+            self.s[j].scaled(x)
+        }
+    }
 }
 
 impl Body {
@@ -237,6 +272,9 @@ impl Model {
             a: vec![Motion::ZERO; n],
             f: vec![Force::ZERO; n],
             ic: vec![Inertia::ZERO; n],
+            col: vec![Force::ZERO; n],
+            z: self.bodies.iter().map(Body::is_z_revolute).collect(),
+            subtree: self.subtrees(),
             m: DMatrix::zeros(n, n),
             chol: DMatrix::zeros(n, n),
             rhs: DVector::zeros(n),
@@ -252,10 +290,24 @@ impl Model {
         }
     }
 
+    /// Each body's subtree: the body, then its descendants in increasing order (a body's
+    /// descendants come after it).
+    fn subtrees(&self) -> Vec<Vec<usize>> {
+        let mut subtree = vec![Vec::new(); self.dof()];
+        for k in 0..self.dof() {
+            let mut j = Some(k);
+            while let Some(a) = j {
+                subtree[a].push(k);
+                j = self.bodies[a].parent;
+            }
+        }
+        subtree
+    }
+
     /// The parent → body transforms for configuration q.
     pub fn update(&self, d: &mut Data, q: &[f64]) {
         for (i, b) in self.bodies.iter().enumerate() {
-            d.x[i] = if b.is_z_revolute() {
+            d.x[i] = if d.z[i] {
                 b.transform_z(q[i])
             } else {
                 b.transform(q[i])
@@ -300,7 +352,7 @@ impl Model {
         }
         for i in (0..self.dof()).rev() {
             let fi = d.f[i];
-            tau[i] = d.s[i].dot(fi);
+            tau[i] = d.subspace_dot(i, fi);
             if let Some(qdd) = qdd {
                 tau[i] += self.bodies[i].armature * qdd[i];
             }
@@ -312,27 +364,39 @@ impl Model {
     }
 
     /// Composite rigid body algorithm on the transforms of the last `update`, into `d.m`.
+    ///
+    /// One backward pass: body i's composite inertia is complete once its children (later in
+    /// the order) have added theirs, so its column's force Ic_i S_i is formed there; then every
+    /// column force that has reached body i (its own and its descendants', `Data::subtree`)
+    /// gives row i's entries and moves on to the parent (Pinocchio's order). Each column goes
+    /// through the same operations as when carried to the root on its own, in the same order,
+    /// so M(q) is the same to the last bit; with the z joints' products written out this order
+    /// took 7 % less time on arm7 than the column-by-column one, where either change alone
+    /// took none less (measurement record 2026-12-07-crba).
     fn crba_pass(&self, d: &mut Data) {
-        let n = self.dof();
-        for i in 0..n {
-            d.ic[i] = self.bodies[i].inertia;
+        for (ic, b) in d.ic.iter_mut().zip(&self.bodies) {
+            *ic = b.inertia;
         }
-        for i in (0..n).rev() {
-            if let Some(p) = self.bodies[i].parent {
-                let add = d.ic[i].to_parent(&d.x[i]);
-                d.ic[p] = d.ic[p] + add;
+        for i in (0..self.dof()).rev() {
+            let b = &self.bodies[i];
+            d.col[i] = if d.z[i] {
+                d.ic[i].apply_z()
+            } else {
+                d.ic[i].apply(d.s[i])
+            };
+            d.m[(i, i)] = d.subspace_dot(i, d.col[i]) + b.armature;
+            for &k in &d.subtree[i][1..] {
+                let mik = d.subspace_dot(i, d.col[k]);
+                d.m[(i, k)] = mik;
+                d.m[(k, i)] = mik;
             }
-        }
-        for i in 0..n {
-            let mut f = d.ic[i].apply(d.s[i]);
-            d.m[(i, i)] = d.s[i].dot(f) + self.bodies[i].armature;
-            let mut j = i;
-            while let Some(p) = self.bodies[j].parent {
-                f = d.x[j].apply_transpose_force(f);
-                j = p;
-                let mij = d.s[j].dot(f);
-                d.m[(i, j)] = mij;
-                d.m[(j, i)] = mij;
+            if let Some(p) = b.parent {
+                let x = d.x[i];
+                for &k in &d.subtree[i] {
+                    d.col[k] = x.apply_transpose_force(d.col[k]);
+                }
+                let add = d.ic[i].to_parent(&x);
+                d.ic[p] = d.ic[p] + add;
             }
         }
         // Entries between bodies on different branches stay zero.
@@ -561,12 +625,12 @@ fn body_motion(
         Some(p) => (d.v[p], d.a[p]),
         None => (Motion::ZERO, a_root),
     };
-    let (x, s) = (d.x[i], d.s[i]);
-    let vj = s.scaled(qd[i]);
+    let x = d.x[i];
+    let vj = d.subspace_scaled(i, qd[i]);
     let v = x.apply_motion(v_p) + vj;
     let mut a = x.apply_motion(a_p) + v.cross_motion(vj);
     if let Some(qdd) = qdd {
-        a = a + s.scaled(qdd[i]);
+        a = a + d.subspace_scaled(i, qdd[i]);
     }
     (v, a)
 }
@@ -602,5 +666,40 @@ mod tests {
             }
         }
         assert!(checked > 10 * 801, "{checked}");
+    }
+
+    /// RNEA and CRBA with a z joint's S written out give the general products' values exactly,
+    /// on every shipped arm over a sweep of states.
+    #[test]
+    fn z_joints_written_out_give_the_general_products_values_exactly() {
+        for file in [
+            "config/robots/arm7.urdf",
+            "config/robots/industrial6.toml",
+            "config/robots/arm3.toml",
+            "tests/robots/ur5_style.urdf",
+        ] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../..")
+                .join(file);
+            let model = crate::load(&path).unwrap();
+            let (mut fast, mut general) = (model.data(), model.data());
+            assert!(fast.z.iter().any(|&z| z), "{file}: no z joint");
+            general.z.fill(false);
+            let n = model.dof();
+            let state = |k: usize, c: f64| -> Vec<f64> {
+                (0..n)
+                    .map(|j| ((k * 7 + j * 3) as f64 * c).sin() * 2.5)
+                    .collect()
+            };
+            for k in 0..200 {
+                let (q, qd, qdd) = (state(k, 0.377), state(k, 0.291), state(k, 0.613));
+                let m = model.mass_matrix(&mut fast, &q).clone();
+                assert_eq!(&m, model.mass_matrix(&mut general, &q), "{file} at {q:?}");
+                let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+                model.rnea(&mut fast, &q, &qd, &qdd, &mut a);
+                model.rnea(&mut general, &q, &qd, &qdd, &mut b);
+                assert_eq!(a, b, "{file} at {q:?}");
+            }
+        }
     }
 }
