@@ -639,21 +639,31 @@ fn body_motion(
 mod tests {
     use super::*;
 
-    /// The written-out z rotation gives exactly the general product's values, on every z joint
-    /// of the shipped arms (D-H and URDF placements) over a sweep of angles.
-    #[test]
-    fn z_joint_transform_equals_the_general_product_exactly() {
-        let mut checked = 0;
-        for file in [
+    /// The shipped arms (D-H and URDF placements) and the UR5-style test arm (joints about y
+    /// beside joints about z), loaded from the workspace's files, with their names.
+    fn arms() -> Vec<(&'static str, Model)> {
+        [
             "config/robots/arm7.urdf",
             "config/robots/industrial6.toml",
             "config/robots/arm3.toml",
-        ] {
-            // The workspace's robot files (config/robots at its root).
+            "tests/robots/ur5_style.urdf",
+        ]
+        .into_iter()
+        .map(|file| {
             let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
                 .join("../..")
                 .join(file);
-            let model = crate::load(&path).unwrap();
+            (file, crate::load(&path).unwrap())
+        })
+        .collect()
+    }
+
+    /// The written-out z rotation gives exactly the general product's values, on every z joint
+    /// of the arms over a sweep of angles.
+    #[test]
+    fn z_joint_transform_equals_the_general_product_exactly() {
+        let mut checked = 0;
+        for (file, model) in arms() {
             for b in model.bodies.iter().filter(|b| b.axis == DVec3::Z) {
                 for k in -400..=400 {
                     let q = k as f64 * 0.0123 + 1e-3;
@@ -669,19 +679,10 @@ mod tests {
     }
 
     /// RNEA and CRBA with a z joint's S written out give the general products' values exactly,
-    /// on every shipped arm over a sweep of states.
+    /// on every arm over a sweep of states.
     #[test]
     fn z_joints_written_out_give_the_general_products_values_exactly() {
-        for file in [
-            "config/robots/arm7.urdf",
-            "config/robots/industrial6.toml",
-            "config/robots/arm3.toml",
-            "tests/robots/ur5_style.urdf",
-        ] {
-            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../..")
-                .join(file);
-            let model = crate::load(&path).unwrap();
+        for (file, model) in arms() {
             let (mut fast, mut general) = (model.data(), model.data());
             assert!(fast.z.iter().any(|&z| z), "{file}: no z joint");
             general.z.fill(false);
