@@ -301,6 +301,9 @@ impl Model {
                 j = self.bodies[a].parent;
             }
         }
+        // A body heads its own list only if parents precede their children, as `crba_pass`
+        // needs (it reads the descendants from index 1 on).
+        debug_assert!(subtree.iter().enumerate().all(|(i, s)| s[0] == i));
         subtree
     }
 
@@ -370,9 +373,9 @@ impl Model {
     /// column force that has reached body i (its own and its descendants', `Data::subtree`)
     /// gives row i's entries and moves on to the parent (Pinocchio's order). Each column goes
     /// through the same operations as when carried to the root on its own, in the same order,
-    /// so M(q) is the same to the last bit; with the z joints' products written out this order
-    /// took 7 % less time on arm7 than the column-by-column one, where either change alone
-    /// took none less (measurement record 2026-12-07-crba).
+    /// so M(q) is the column-by-column pass's (tested against it). With the z joints' products
+    /// written out, this order is the faster one; either change alone gained nothing
+    /// (measurement record 2026-12-07-crba).
     fn crba_pass(&self, d: &mut Data) {
         for (ic, b) in d.ic.iter_mut().zip(&self.bodies) {
             *ic = b.inertia;
@@ -678,8 +681,65 @@ mod tests {
         assert!(checked > 10 * 801, "{checked}");
     }
 
-    /// RNEA and CRBA with a z joint's S written out give the general products' values exactly,
-    /// on every arm over a sweep of states.
+    /// M(q) by the column-by-column CRBA (each column's force carried to the root on its own,
+    /// the general products throughout): the pass `crba_pass` replaced, kept as its reference.
+    fn column_by_column_crba(model: &Model, d: &mut Data, q: &[f64]) -> DMatrix<f64> {
+        let n = model.dof();
+        model.update(d, q);
+        let mut ic: Vec<Inertia> = model.bodies.iter().map(|b| b.inertia).collect();
+        for i in (0..n).rev() {
+            if let Some(p) = model.bodies[i].parent {
+                let add = ic[i].to_parent(&d.x[i]);
+                ic[p] = ic[p] + add;
+            }
+        }
+        let mut m = DMatrix::zeros(n, n);
+        for i in 0..n {
+            let mut f = ic[i].apply(d.s[i]);
+            m[(i, i)] = d.s[i].dot(f) + model.bodies[i].armature;
+            let mut j = i;
+            while let Some(p) = model.bodies[j].parent {
+                f = d.x[j].apply_transpose_force(f);
+                j = p;
+                m[(i, j)] = d.s[j].dot(f);
+                m[(j, i)] = m[(i, j)];
+            }
+        }
+        m
+    }
+
+    /// A sweep of states of an n-joint arm: entry j of state k, scaled by c.
+    fn state(n: usize, k: usize, c: f64) -> Vec<f64> {
+        (0..n)
+            .map(|j| ((k * 7 + j * 3) as f64 * c).sin() * 2.5)
+            .collect()
+    }
+
+    /// Pinocchio's order gives the column-by-column pass's M(q), on chains and on a branched
+    /// tree with a prismatic joint and tilted axes: the same operations in the same order.
+    #[test]
+    fn crba_in_one_backward_pass_equals_the_column_by_column_pass() {
+        let branched = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../tests/robots/branched.urdf");
+        let mut all = arms();
+        all.push((
+            "tests/robots/branched.urdf",
+            crate::load(&branched).unwrap(),
+        ));
+        for (file, model) in all {
+            let (mut d, mut reference) = (model.data(), model.data());
+            reference.z.fill(false);
+            for k in 0..200 {
+                let q = state(model.dof(), k, 0.377);
+                let want = column_by_column_crba(&model, &mut reference, &q);
+                assert_eq!(model.mass_matrix(&mut d, &q), &want, "{file} at {q:?}");
+            }
+        }
+    }
+
+    /// RNEA, CRBA and the regressor with a z joint's S written out give the general products'
+    /// values (== to the last bit; only an exact zero may differ in sign), on every arm over a
+    /// sweep of states.
     #[test]
     fn z_joints_written_out_give_the_general_products_values_exactly() {
         for (file, model) in arms() {
@@ -687,19 +747,20 @@ mod tests {
             assert!(fast.z.iter().any(|&z| z), "{file}: no z joint");
             general.z.fill(false);
             let n = model.dof();
-            let state = |k: usize, c: f64| -> Vec<f64> {
-                (0..n)
-                    .map(|j| ((k * 7 + j * 3) as f64 * c).sin() * 2.5)
-                    .collect()
-            };
+            let columns = model.regressor_columns(true);
+            let (mut y_fast, mut y_general) =
+                (DMatrix::zeros(n, columns), DMatrix::zeros(n, columns));
             for k in 0..200 {
-                let (q, qd, qdd) = (state(k, 0.377), state(k, 0.291), state(k, 0.613));
+                let (q, qd, qdd) = (state(n, k, 0.377), state(n, k, 0.291), state(n, k, 0.613));
                 let m = model.mass_matrix(&mut fast, &q).clone();
                 assert_eq!(&m, model.mass_matrix(&mut general, &q), "{file} at {q:?}");
                 let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
                 model.rnea(&mut fast, &q, &qd, &qdd, &mut a);
                 model.rnea(&mut general, &q, &qd, &qdd, &mut b);
                 assert_eq!(a, b, "{file} at {q:?}");
+                model.regressor(&mut fast, &q, &qd, &qdd, &mut y_fast);
+                model.regressor(&mut general, &q, &qd, &qdd, &mut y_general);
+                assert_eq!(y_fast, y_general, "{file} at {q:?}");
             }
         }
     }

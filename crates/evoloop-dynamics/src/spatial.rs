@@ -435,7 +435,7 @@ mod tests {
 
     /// `apply_z` gives `apply`'s values on S = [z; 0] exactly (== holds for 0.0 against -0.0,
     /// the only difference a dropped zero product can make), on random bodies of mixed
-    /// magnitudes and signs.
+    /// magnitudes and signs and on bodies with exact zeros.
     #[test]
     fn apply_z_equals_the_general_product_exactly() {
         use rand::{Rng, SeedableRng};
@@ -452,13 +452,20 @@ mod tests {
             w: DVec3::Z,
             v: DVec3::ZERO,
         };
-        for _ in 0..2000 {
+        for k in 0..2000 {
             let (a, b, c) = (v(), v(), v());
-            let body = Inertia {
+            let mut body = Inertia {
                 m: c.x.abs(),
                 h: a,
                 i: DMat3::from_cols(b, c, a.cross(b)),
             };
+            // Exact zeros too, where only a sign can differ: a centre of mass on the z axis, a
+            // diagonal inertia, no mass.
+            if k % 4 == 0 {
+                body.h = DVec3::new(0.0, -0.0, a.z);
+                body.i = DMat3::from_diagonal(b.abs());
+                body.m = 0.0;
+            }
             assert_eq!(body.apply_z(), body.apply(z));
         }
     }
