@@ -33,7 +33,15 @@ fn bench_latency_reports_every_variant_against_the_bare_reference() {
             .collect();
         assert!(vals.windows(2).all(|w| w[0] <= w[1]), "{name}: {vals:?}");
         assert_eq!(r["samples"], 500);
+        // Taken in the default five interleaved rounds, each with its own median.
+        let p50s = r["p50_rounds_ns"].as_array().unwrap();
+        assert_eq!(p50s.len(), 5, "{name}");
+        let (lo, hi) = (vals[0], vals[vals.len() - 1]);
+        assert!(p50s
+            .iter()
+            .all(|p| (lo..=hi).contains(&p.as_i64().unwrap())));
     }
+    assert_eq!(v["rounds"], 5);
     // Each ratio is evoloop's percentile over the bare loop's of the same wake-up, as the
     // README's table reads it (it was only checked to be > 0).
     for (name, bare) in [
@@ -49,15 +57,34 @@ fn bench_latency_reports_every_variant_against_the_bare_reference() {
                 "{name}.{ratio} {r} != {want}"
             );
         }
+        // Each round's ratio is its p50 over the reference's p50 of the same round.
+        let rounds = |n: &str, k: &str| -> Vec<f64> {
+            let a = v["variants"][n][k].as_array().unwrap();
+            a.iter().map(|x| x.as_f64().unwrap()).collect()
+        };
+        let (hot, reference) = (rounds(name, "p50_rounds_ns"), rounds(bare, "p50_rounds_ns"));
+        let want: Vec<f64> = hot
+            .iter()
+            .zip(&reference)
+            .map(|(h, r)| h / r.max(1.0))
+            .collect();
+        assert_eq!(rounds(name, "ratio_p50_rounds"), want, "{name}");
+        assert!(rounds(bare, "ratio_p50_rounds").is_empty());
     }
     for f in ["latency.json", "latency.csv", "latency_cdf.png"] {
         assert!(dir.path().join(f).is_file(), "{f}");
     }
-    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
-        .args(["bench", "latency", "--samples", "5"])
-        .output()
-        .unwrap();
-    assert_eq!(bad.status.code(), Some(2));
+    for args in [
+        &["--samples", "5"][..],
+        &["--samples", "500", "--rounds", "10"],
+    ] {
+        let bad = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
+            .args(["bench", "latency"])
+            .args(args)
+            .output()
+            .unwrap();
+        assert_eq!(bad.status.code(), Some(2), "{args:?}");
+    }
 }
 
 /// The guard's report holds every hot path, each judged against 1.5x its recorded ratio, and its

@@ -14,6 +14,10 @@ pub struct LatencyArgs {
     /// Timed round trips per variant.
     #[arg(long, default_value_t = 20_000)]
     pub samples: usize,
+    /// Interleaved rounds the round trips are taken in: each round times every variant once,
+    /// each evoloop variant right after its bare reference, so both see the same machine.
+    #[arg(long, default_value_t = 5)]
+    pub rounds: usize,
     /// Payload of the bare ping-pong in bytes (default: the size of the evoloop state message).
     #[arg(long)]
     pub payload: Option<usize>,
@@ -56,15 +60,24 @@ pub fn latency(a: LatencyArgs) -> i32 {
         eprintln!("error: --payload must be in 1..=1048576 bytes");
         return 2;
     }
-    let bar = evoloop_report::progress::stages(4, "variants", a.json);
-    let progress = |v: Variant| {
-        bar.inc_stage(&format!("{} ({} round trips)", v.name(), a.samples));
+    if a.rounds == 0 || a.samples / a.rounds < 100 {
+        eprintln!("error: --rounds must be at least 1 and leave 100 round trips a round (--samples / --rounds >= 100)");
+        return 2;
+    }
+    let bar = evoloop_report::progress::stages(4 * a.rounds as u64, "variants", a.json);
+    let progress = |v: Variant, round: usize| {
+        bar.inc_stage(&format!(
+            "{} (round {} of {})",
+            v.name(),
+            round + 1,
+            a.rounds
+        ));
     };
     let latency::Measured {
         report,
         results,
         raw,
-    } = match latency::measure(a.samples, payload, &progress) {
+    } = match latency::measure(a.samples, a.rounds, payload, &progress) {
         Ok(m) => m,
         Err(e) => {
             eprintln!("error: {e}");
@@ -75,8 +88,9 @@ pub fn latency(a: LatencyArgs) -> i32 {
         super::print_json(&report);
     } else {
         out!(
-            "round trip, {payload}-byte payload, {} samples per variant (ns):",
-            a.samples
+            "round trip, {payload}-byte payload, {} samples per variant in {} interleaved rounds (ns):",
+            a.samples,
+            a.rounds
         );
         out!(
             "{:<14} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>10}  ratio p50 / p99.9 to bare",
@@ -98,6 +112,18 @@ pub fn latency(a: LatencyArgs) -> i32 {
             out!(
                 "{:<14} {min:>8} {p50:>8} {p90:>8} {p99:>8} {p99_9:>9} {p99_99:>9} {max:>10}  {ratio}",
                 r.variant.name(),
+            );
+        }
+        for r in results.iter().filter(|r| !r.ratio_p50_rounds.is_empty()) {
+            let each: Vec<String> = r
+                .ratio_p50_rounds
+                .iter()
+                .map(|x| format!("{x:.2}"))
+                .collect();
+            out!(
+                "{} p50 ratio by round: {}",
+                r.variant.name(),
+                each.join(" ")
             );
         }
     }

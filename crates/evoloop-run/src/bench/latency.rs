@@ -96,6 +96,12 @@ pub struct VariantResult {
     /// `p99_9_ns` against the same reference; `None`, as `ratio_p50`, for a bare variant or
     /// when its reference was not measured.
     pub ratio_p99_9: Option<f64>,
+    /// Each round's median round trip, ns, in the order the rounds ran (every variant runs once
+    /// a round, right after or before the others: `measure_variants`).
+    pub p50_rounds_ns: Vec<i64>,
+    /// Each round's p50 over its reference's in the same round; empty where `ratio_p50` is
+    /// `None`. Their spread says how far the machine's drift moves the ratio.
+    pub ratio_p50_rounds: Vec<f64>,
 }
 
 impl VariantResult {
@@ -166,8 +172,8 @@ fn spawn_peer(v: Variant, prefix: &str, run_id: &str, payload: usize) -> std::io
 
 /// What `measure` found: the JSON report, one result per variant and the raw round trips.
 pub struct Measured {
-    /// latency.json's content: the payload size, the samples per variant and each variant's
-    /// result under its name.
+    /// latency.json's content: the payload size, the samples per variant, the rounds they were
+    /// taken in and each variant's result under its name.
     pub report: serde_json::Value,
     /// One result per variant measured, in the order measured.
     pub results: Vec<VariantResult>,
@@ -175,51 +181,47 @@ pub struct Measured {
     pub raw: Vec<(Variant, Vec<i64>)>,
 }
 
-/// Measure every variant, `samples` round trips each with a `payload`-byte bare message;
-/// `progress` is told each variant as it starts.
+/// Measure every variant, `samples` round trips each in `rounds` interleaved rounds, with a
+/// `payload`-byte bare message; `progress` is told each variant as it starts, with its round.
 pub fn measure(
     samples: usize,
+    rounds: usize,
     payload: usize,
-    progress: &dyn Fn(Variant),
+    progress: &dyn Fn(Variant, usize),
 ) -> Result<Measured, LatencyError> {
-    measure_variants(&Variant::ALL, samples, payload, progress)
+    measure_variants(&Variant::ALL, samples, rounds, payload, progress)
 }
 
-/// `measure` for some of the variants (a ratio needs its reference among them).
+/// `measure` for some of the variants (a ratio needs its reference among them), in `rounds`
+/// interleaved rounds: each round times every variant once, in the order given, with its share
+/// of the `samples` round trips (each after its own warm-up and its own peer process), so a
+/// variant and its reference see the same drift of a shared machine; the percentiles pool the
+/// rounds. `progress` hears each variant as it starts, with its round.
 pub fn measure_variants(
     variants: &[Variant],
     samples: usize,
+    rounds: usize,
     payload: usize,
-    progress: &dyn Fn(Variant),
+    progress: &dyn Fn(Variant, usize),
 ) -> Result<Measured, LatencyError> {
     let prefix = crate::ipc::DEFAULT_PREFIX.to_string();
-    let mut raw: Vec<(Variant, Vec<i64>)> = Vec::new();
-    for &v in variants {
-        let run_id = format!("{}-{}", std::process::id(), v.name());
-        progress(v);
-        let mut child = spawn_peer(v, &prefix, &run_id, payload).map_err(LatencyError::Peer)?;
-        let r = if matches!(v, Variant::BareBusy | Variant::BareEvent) {
-            ping_bare(v, &prefix, &run_id, payload, samples)
-        } else {
-            ping_evoloop(v, &prefix, &run_id, samples)
-        };
-        match r {
-            Ok(s) => {
-                let _ = child.wait();
-                raw.push((v, s));
-            }
-            Err(e) => {
-                // Killed before it is reaped: a peer still waiting for its partner would
-                // otherwise hold the benchmark until its own timeout.
-                let _ = child.kill();
-                let _ = child.wait();
-                return Err(LatencyError::Ipc(e));
-            }
+    let rounds = rounds.clamp(1, samples.max(1));
+    let mut raw: Vec<(Variant, Vec<i64>)> = variants.iter().map(|&v| (v, Vec::new())).collect();
+    let mut p50_rounds: Vec<Vec<i64>> = vec![Vec::new(); variants.len()];
+    for round in 0..rounds {
+        // The first `samples % rounds` rounds take one more, so the rounds add up to `samples`.
+        let share = samples / rounds + usize::from(round < samples % rounds);
+        for (i, &v) in variants.iter().enumerate() {
+            progress(v, round);
+            let s = measure_one(v, &prefix, round, share, payload)?;
+            p50_rounds[i].push(Percentiles::from_samples(s.iter().copied()).p50_ns);
+            raw[i].1.extend(s);
         }
     }
-    let results: Vec<VariantResult> = raw
+    let mut results: Vec<VariantResult> = raw
         .iter()
-        .map(|(v, s)| {
+        .zip(p50_rounds)
+        .map(|((v, s), p50_rounds_ns)| {
             let p = Percentiles::from_samples(s.iter().copied());
             let mut sorted = s.clone();
             sorted.sort_unstable();
@@ -237,10 +239,11 @@ pub fn measure_variants(
                 max_ns: p.max_ns,
                 ratio_p50: None,
                 ratio_p99_9: None,
+                p50_rounds_ns,
+                ratio_p50_rounds: Vec::new(),
             }
         })
         .collect();
-    let mut results = results;
     for i in 0..results.len() {
         let reference = match results[i].variant {
             Variant::EvoloopBusy => Variant::BareBusy,
@@ -248,13 +251,19 @@ pub fn measure_variants(
             _ => continue,
         };
         if let Some(r) = results.iter().find(|r| r.variant == reference).cloned() {
-            results[i].ratio_p50 = Some(results[i].p50_ns as f64 / r.p50_ns.max(1) as f64);
-            results[i].ratio_p99_9 = Some(results[i].p99_9_ns as f64 / r.p99_9_ns.max(1) as f64);
+            let ratio = |hot: i64, reference: i64| hot as f64 / reference.max(1) as f64;
+            let hot = &mut results[i];
+            hot.ratio_p50 = Some(ratio(hot.p50_ns, r.p50_ns));
+            hot.ratio_p99_9 = Some(ratio(hot.p99_9_ns, r.p99_9_ns));
+            hot.ratio_p50_rounds = (hot.p50_rounds_ns.iter().zip(&r.p50_rounds_ns))
+                .map(|(&h, &b)| ratio(h, b))
+                .collect();
         }
     }
     let report = serde_json::json!({
         "payload_bytes": payload,
         "samples": samples,
+        "rounds": rounds,
         "variants": results.iter().map(|r| (r.variant.name().to_string(), serde_json::to_value(r).unwrap_or_default())).collect::<serde_json::Map<_, _>>(),
     });
     Ok(Measured {
@@ -262,6 +271,37 @@ pub fn measure_variants(
         results,
         raw,
     })
+}
+
+/// `samples` timed round trips of variant `v` (after `WARMUP` untimed ones) against a peer
+/// process of its own, started for this round and reaped after it.
+fn measure_one(
+    v: Variant,
+    prefix: &str,
+    round: usize,
+    samples: usize,
+    payload: usize,
+) -> Result<Vec<i64>, LatencyError> {
+    let run_id = format!("{}-{}-{round}", std::process::id(), v.name());
+    let mut child = spawn_peer(v, prefix, &run_id, payload).map_err(LatencyError::Peer)?;
+    let r = if matches!(v, Variant::BareBusy | Variant::BareEvent) {
+        ping_bare(v, prefix, &run_id, payload, samples)
+    } else {
+        ping_evoloop(v, prefix, &run_id, samples)
+    };
+    match r {
+        Ok(s) => {
+            let _ = child.wait();
+            Ok(s)
+        }
+        Err(e) => {
+            // Killed before it is reaped: a peer still waiting for its partner would otherwise
+            // hold the benchmark until its own timeout.
+            let _ = child.kill();
+            let _ = child.wait();
+            Err(LatencyError::Ipc(e))
+        }
+    }
 }
 
 /// latency.json, latency.csv and latency_cdf.png in `dir`.

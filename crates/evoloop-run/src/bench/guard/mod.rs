@@ -457,24 +457,23 @@ impl Bench {
 }
 
 /// The evoloop round trip's p50 against raw iceoryx2's, each in its own peer process, in
-/// `ROUND_TRIP_ROUNDS` rounds of the two back to back: the round of median ratio.
+/// `ROUND_TRIP_ROUNDS` interleaved rounds of the two back to back: the round of median ratio.
 fn round_trip(bare: Variant, evoloop: Variant) -> Result<Reading, GuardError> {
     let payload = std::mem::size_of::<PlantState>();
-    let mut rounds = Vec::new();
-    for _ in 0..ROUND_TRIP_ROUNDS {
-        let m = latency::measure_variants(&[bare, evoloop], ROUND_TRIPS, payload, &|_| {})
-            .map_err(GuardError::RoundTrip)?;
-        let p50 = |v: Variant| {
-            m.results
-                .iter()
-                .find(|r| r.variant == v)
-                .map(|r| r.p50_ns.max(1) as f64)
-        };
-        match (p50(evoloop), p50(bare)) {
-            (Some(hot), Some(reference)) => rounds.push(Reading::of(hot, reference)),
-            _ => unreachable!("measure_variants measures every variant it is given"),
-        }
-    }
+    let m = latency::measure_variants(
+        &[bare, evoloop],
+        ROUND_TRIPS * ROUND_TRIP_ROUNDS,
+        ROUND_TRIP_ROUNDS,
+        payload,
+        &|_, _| {},
+    )
+    .map_err(GuardError::RoundTrip)?;
+    let [reference, hot] = &m.results[..] else {
+        unreachable!("measure_variants measures every variant it is given, in order")
+    };
+    let mut rounds: Vec<Reading> = (hot.p50_rounds_ns.iter().zip(&reference.p50_rounds_ns))
+        .map(|(&h, &r)| Reading::of(h.max(1) as f64, r.max(1) as f64))
+        .collect();
     rounds.sort_by(|a, b| a.ratio.total_cmp(&b.ratio));
     Ok(rounds[rounds.len() / 2])
 }
