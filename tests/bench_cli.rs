@@ -3,7 +3,7 @@
 //! scenario; `bench guard`'s verdicts and exit status. No timing thresholds. Every test takes `alone()`: each starts realtime processes.
 
 mod common;
-use common::{alone, assert_plotted};
+use common::{alone, assert_plotted, cli};
 
 #[test]
 fn bench_latency_reports_every_variant_against_the_bare_reference() {
@@ -78,11 +78,7 @@ fn bench_latency_reports_every_variant_against_the_bare_reference() {
         &["--samples", "5"][..],
         &["--samples", "500", "--rounds", "10"],
     ] {
-        let bad = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
-            .args(["bench", "latency"])
-            .args(args)
-            .output()
-            .unwrap();
+        let bad = cli(&[&["bench", "latency"][..], args].concat());
         assert_eq!(bad.status.code(), Some(2), "{args:?}");
     }
 }
@@ -162,11 +158,7 @@ fn bench_guard_judges_every_hot_path_by_its_ratio_and_exits_by_its_verdict() {
         &["--paths", "rnea,no_such_path"],
         &["--limit-scale", "-1"],
     ] {
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_evoloop"))
-            .args(["bench", "guard"])
-            .args(bad)
-            .output()
-            .unwrap();
+        let o = cli(&[&["bench", "guard"][..], bad].concat());
         assert_eq!(o.status.code(), Some(2), "{bad:?}");
     }
 }

@@ -135,7 +135,7 @@ pub struct Data {
     /// Parent → body transforms at the last `update` configuration.
     pub x: Vec<Transform>,
     /// Joint motion subspaces (axis) per body, in body coordinates.
-    pub(super) s: Vec<Motion>,
+    pub(super) s: Vec<Subspace>,
     /// Body velocities and accelerations (gravity included as the root's) of the last pass.
     pub(super) v: Vec<Motion>,
     pub(super) a: Vec<Motion>,
@@ -143,10 +143,6 @@ pub struct Data {
     ic: Vec<Inertia>,
     /// CRBA's column forces: entry k is Ic_k S_k carried toward the root (`crba_pass`).
     col: Vec<Force>,
-    /// Per body, whether its joint is revolute about its frame's z axis (S = [z; 0]): products
-    /// with S then pick or place one component (`Data::subspace_dot`, `Data::subspace_scaled`,
-    /// `Inertia::apply_z`), the values of the general products for fewer operations.
-    z: Vec<bool>,
     /// Body i's subtree: i, then its descendants in increasing order.
     subtree: Vec<Vec<usize>>,
     /// The joint-space inertia matrix from the last `mass_matrix` call.
@@ -170,29 +166,73 @@ pub struct Data {
     u: Vec<f64>,
 }
 
-impl Data {
-    /// S_jᵀ f, joint j's share of the force f (in body j's coordinates): for a joint about z the
-    /// moment's z component (the general product's other terms are products with exact zeros).
-    #[inline(always)]
-    fn subspace_dot(&self, j: usize, f: Force) -> f64 {
-        if self.z[j] {
-            f.n.z
-        } else {
-            self.s[j].dot(f)
+/// A joint's motion subspace S, in its body's coordinates. A revolute joint about its frame's z
+/// axis (every D-H joint, most URDF ones) has S = [z; 0], and its products with S pick or place
+/// one component: the general products' values (their other terms are products with exact
+/// zeros; an exact zero may differ in sign), for fewer operations in RNEA, CRBA and ABA.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Subspace {
+    /// Revolute about the body frame's z axis: S = [z; 0].
+    RevoluteZ,
+    /// Any other joint: S as a motion vector.
+    General(Motion),
+}
+
+impl Subspace {
+    /// The joint's subspace: [axis; 0] for a revolute joint, [0; axis] for a prismatic one.
+    fn of(b: &Body) -> Subspace {
+        match b.kind {
+            _ if b.is_z_revolute() => Subspace::RevoluteZ,
+            JointKind::Revolute => Subspace::General(Motion {
+                w: b.axis,
+                v: DVec3::ZERO,
+            }),
+            JointKind::Prismatic => Subspace::General(Motion {
+                w: DVec3::ZERO,
+                v: b.axis,
+            }),
         }
     }
 
-    /// S_j x, joint j's motion at rate x: for a joint about z, [0, 0, x; 0] (the general
-    /// product's other components are exact zeros, up to their sign).
+    /// S as a motion vector.
     #[inline(always)]
-    fn subspace_scaled(&self, j: usize, x: f64) -> Motion {
-        if self.z[j] {
-            Motion {
+    pub(super) fn motion(self) -> Motion {
+        match self {
+            Subspace::RevoluteZ => Motion {
+                w: DVec3::Z,
+                v: DVec3::ZERO,
+            },
+            Subspace::General(s) => s,
+        }
+    }
+
+    /// Sᵀ f, the joint's share of the force f.
+    #[inline(always)]
+    fn dot(self, f: Force) -> f64 {
+        match self {
+            Subspace::RevoluteZ => f.n.z,
+            Subspace::General(s) => s.dot(f),
+        }
+    }
+
+    /// S x, the joint's motion at rate x.
+    #[inline(always)]
+    fn scaled(self, x: f64) -> Motion {
+        match self {
+            Subspace::RevoluteZ => Motion {
                 w: DVec3::new(0.0, 0.0, x),
                 v: DVec3::ZERO,
-            }
-        } else {
-            self.s[j].scaled(x)
+            },
+            Subspace::General(s) => s.scaled(x),
+        }
+    }
+
+    /// I S, the momentum of a rigid body of inertia `i` moving as S.
+    #[inline(always)]
+    fn momentum(self, i: &Inertia) -> Force {
+        match self {
+            Subspace::RevoluteZ => i.apply_z(),
+            Subspace::General(s) => i.apply(s),
         }
     }
 }
@@ -254,26 +294,12 @@ impl Model {
         let n = self.dof();
         Data {
             x: vec![Transform::IDENTITY; n],
-            s: self
-                .bodies
-                .iter()
-                .map(|b| match b.kind {
-                    JointKind::Revolute => Motion {
-                        w: b.axis,
-                        v: DVec3::ZERO,
-                    },
-                    JointKind::Prismatic => Motion {
-                        w: DVec3::ZERO,
-                        v: b.axis,
-                    },
-                })
-                .collect(),
+            s: self.bodies.iter().map(Subspace::of).collect(),
             v: vec![Motion::ZERO; n],
             a: vec![Motion::ZERO; n],
             f: vec![Force::ZERO; n],
             ic: vec![Inertia::ZERO; n],
             col: vec![Force::ZERO; n],
-            z: self.bodies.iter().map(Body::is_z_revolute).collect(),
             subtree: self.subtrees(),
             m: DMatrix::zeros(n, n),
             chol: DMatrix::zeros(n, n),
@@ -310,7 +336,7 @@ impl Model {
     /// The parent → body transforms for configuration q.
     pub fn update(&self, d: &mut Data, q: &[f64]) {
         for (i, b) in self.bodies.iter().enumerate() {
-            d.x[i] = if d.z[i] {
+            d.x[i] = if matches!(d.s[i], Subspace::RevoluteZ) {
                 b.transform_z(q[i])
             } else {
                 b.transform(q[i])
@@ -355,7 +381,7 @@ impl Model {
         }
         for i in (0..self.dof()).rev() {
             let fi = d.f[i];
-            tau[i] = d.subspace_dot(i, fi);
+            tau[i] = d.s[i].dot(fi);
             if let Some(qdd) = qdd {
                 tau[i] += self.bodies[i].armature * qdd[i];
             }
@@ -382,14 +408,11 @@ impl Model {
         }
         for i in (0..self.dof()).rev() {
             let b = &self.bodies[i];
-            d.col[i] = if d.z[i] {
-                d.ic[i].apply_z()
-            } else {
-                d.ic[i].apply(d.s[i])
-            };
-            d.m[(i, i)] = d.subspace_dot(i, d.col[i]) + b.armature;
+            let s = d.s[i];
+            d.col[i] = s.momentum(&d.ic[i]);
+            d.m[(i, i)] = s.dot(d.col[i]) + b.armature;
             for &k in &d.subtree[i][1..] {
-                let mik = d.subspace_dot(i, d.col[k]);
+                let mik = s.dot(d.col[k]);
                 d.m[(i, k)] = mik;
                 d.m[(k, i)] = mik;
             }
@@ -547,7 +570,7 @@ impl Model {
         for i in (0..n).rev() {
             let b = &self.bodies[i];
             let s = d.s[i];
-            let ua = d.ia[i].apply(s);
+            let ua = d.ia[i].apply(s.motion());
             let di = s.dot(ua) + b.armature;
             if di.is_nan() || di <= 0.0 {
                 return Err(NotPositiveDefinite { joint: i });
@@ -629,11 +652,11 @@ fn body_motion(
         None => (Motion::ZERO, a_root),
     };
     let x = d.x[i];
-    let vj = d.subspace_scaled(i, qd[i]);
+    let vj = d.s[i].scaled(qd[i]);
     let v = x.apply_motion(v_p) + vj;
     let mut a = x.apply_motion(a_p) + v.cross_motion(vj);
     if let Some(qdd) = qdd {
-        a = a + d.subspace_scaled(i, qdd[i]);
+        a = a + d.s[i].scaled(qdd[i]);
     }
     (v, a)
 }
@@ -695,17 +718,24 @@ mod tests {
         }
         let mut m = DMatrix::zeros(n, n);
         for i in 0..n {
-            let mut f = ic[i].apply(d.s[i]);
-            m[(i, i)] = d.s[i].dot(f) + model.bodies[i].armature;
+            let mut f = ic[i].apply(d.s[i].motion());
+            m[(i, i)] = d.s[i].motion().dot(f) + model.bodies[i].armature;
             let mut j = i;
             while let Some(p) = model.bodies[j].parent {
                 f = d.x[j].apply_transpose_force(f);
                 j = p;
-                m[(i, j)] = d.s[j].dot(f);
+                m[(i, j)] = d.s[j].motion().dot(f);
                 m[(j, i)] = m[(i, j)];
             }
         }
         m
+    }
+
+    /// `d` with every joint's subspace in its general form: the products with S in full.
+    fn in_general_form(d: &mut Data) {
+        for s in &mut d.s {
+            *s = Subspace::General(s.motion());
+        }
     }
 
     /// A sweep of states of an n-joint arm: entry j of state k, scaled by c.
@@ -728,7 +758,7 @@ mod tests {
         ));
         for (file, model) in all {
             let (mut d, mut reference) = (model.data(), model.data());
-            reference.z.fill(false);
+            in_general_form(&mut reference);
             for k in 0..200 {
                 let q = state(model.dof(), k, 0.377);
                 let want = column_by_column_crba(&model, &mut reference, &q);
@@ -737,15 +767,15 @@ mod tests {
         }
     }
 
-    /// RNEA, CRBA and the regressor with a z joint's S written out give the general products'
-    /// values (== to the last bit; only an exact zero may differ in sign), on every arm over a
-    /// sweep of states.
+    /// RNEA, CRBA, ABA and the regressor with a z joint's S written out give the general
+    /// products' values (== to the last bit; only an exact zero may differ in sign), on every
+    /// arm over a sweep of states.
     #[test]
     fn z_joints_written_out_give_the_general_products_values_exactly() {
         for (file, model) in arms() {
             let (mut fast, mut general) = (model.data(), model.data());
-            assert!(fast.z.iter().any(|&z| z), "{file}: no z joint");
-            general.z.fill(false);
+            assert!(fast.s.contains(&Subspace::RevoluteZ), "{file}: no z joint");
+            in_general_form(&mut general);
             let n = model.dof();
             let columns = model.regressor_columns(true);
             let (mut y_fast, mut y_general) =
@@ -761,6 +791,13 @@ mod tests {
                 model.regressor(&mut fast, &q, &qd, &qdd, &mut y_fast);
                 model.regressor(&mut general, &q, &qd, &qdd, &mut y_general);
                 assert_eq!(y_fast, y_general, "{file} at {q:?}");
+                model
+                    .forward_dynamics_aba(&mut fast, &q, &qd, &qdd, &mut a)
+                    .unwrap();
+                model
+                    .forward_dynamics_aba(&mut general, &q, &qd, &qdd, &mut b)
+                    .unwrap();
+                assert_eq!(a, b, "{file} at {q:?}");
             }
         }
     }

@@ -152,7 +152,7 @@ impl Model {
         y.as_mut_slice().fill(0.0); // a memset (DMatrix::fill walks entry by entry)
         for (i, b) in self.bodies.iter().enumerate() {
             // Carry the ancestors' subspaces into body i's coordinates.
-            d.sub[i * n + i] = d.s[i];
+            d.sub[i * n + i] = d.s[i].motion();
             let mut j = b.parent;
             while let Some(k) = j {
                 let p = b.parent.unwrap_or(k);
