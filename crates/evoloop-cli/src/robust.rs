@@ -262,10 +262,7 @@ fn problem(
 /// filter's poles, and the springs the loop stays stable for. None without a filter.
 fn filter_report(prob: &RobustProblem, gains: &[f64], r_c: f64) -> Option<serde_json::Value> {
     let o = prob.observer.as_ref()?;
-    let full = RobustProblem {
-        observer: None,
-        ..prob.clone()
-    };
+    let full = prob.clone().without_observer();
     let full_rc = full.evaluate(gains).map(|e| e.stability_radius).ok();
     let full_springs = full_rc.map(|rc| full.spring_ranges(gains, rc).continuous);
     let poles: Vec<(f64, f64)> = o

@@ -12,12 +12,22 @@ pub fn eigenvalues(a: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
     if n == 0 {
         return Some(Vec::new());
     }
-    let h = a.clone().hessenberg().h();
+    hessenberg_eigenvalues(&a.clone().hessenberg().h())
+}
+
+/// Eigenvalues of `h`, which must be upper Hessenberg (zero below its subdiagonal; what lies
+/// there is ignored), by the QR iteration alone: for a caller that keeps its matrices in a basis
+/// where they are Hessenberg and so pays for no reduction. None if the iteration does not converge.
+pub fn hessenberg_eigenvalues(h: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
+    let n = h.nrows();
+    if n == 0 {
+        return Some(Vec::new());
+    }
     // 1-based working copy, as in the classical formulation.
     let mut m = vec![0.0; (n + 1) * (n + 1)];
     let w = n + 1;
     for i in 0..n {
-        for j in 0..n {
+        for j in i.saturating_sub(1)..n {
             m[(i + 1) * w + j + 1] = h[(i, j)];
         }
     }
@@ -31,6 +41,11 @@ pub fn eigenvalues(a: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
 /// case the QR iteration does not converge.
 pub fn eig(a: &DMatrix<f64>) -> Vec<Complex<f64>> {
     eigenvalues(a).unwrap_or_else(|| a.complex_eigenvalues().iter().copied().collect())
+}
+
+/// Eigenvalues of the upper Hessenberg `h` by `hessenberg_eigenvalues`, with `eig`'s fallback.
+pub fn hessenberg_eig(h: &DMatrix<f64>) -> Vec<Complex<f64>> {
+    hessenberg_eigenvalues(h).unwrap_or_else(|| h.complex_eigenvalues().iter().copied().collect())
 }
 
 /// The 1-based Hessenberg matrix of order `n` stored row by row with stride `n + 1`, as the

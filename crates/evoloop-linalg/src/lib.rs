@@ -13,7 +13,7 @@ pub mod householder;
 pub mod small;
 
 pub use dots::dots;
-pub use eigen::{eig, eigenvalues};
+pub use eigen::{eig, eigenvalues, hessenberg_eig, hessenberg_eigenvalues};
 pub use householder::{householder_reduce, Ridges};
 pub use small::{
     cholesky_solve_in_place, min_leading_minor, solve, sym_eig_range, Mat, NotPositiveDefinite,

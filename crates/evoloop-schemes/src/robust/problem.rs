@@ -17,7 +17,7 @@
 use super::observer::{continuous_loop, sampled_loop, spectral_radius, spring_range, Observer};
 use super::pole_region::Wedge;
 use super::stability_radius::{hinf_from_poles, stability_radius, Bounded, HinfError};
-use crate::linalg::eig;
+use crate::linalg::{eig, hessenberg_eig};
 use crate::optim::Objective;
 use crate::plant::linear::LinearModel;
 use crate::plant::two_mass::{Sensor, TwoMass};
@@ -104,6 +104,68 @@ pub struct RobustProblem {
     pub upper: Vec<f64>,
     /// The filter the feedback acts on (`with_observer`); None: the full state, as the paper.
     pub observer: Option<Observer>,
+    /// Â, B̂, Ê and Ĥ in a basis where every full-state closed loop is upper Hessenberg.
+    basis: HessenbergBasis,
+}
+
+/// The full-state loop in an orthonormal basis Q made once per problem, in which Qᵀ B̂ = β e1 and
+/// Qᵀ Â Q is upper Hessenberg: Qᵀ (Â - B̂ K) Q = Qᵀ Â Q - β e1 (K Q) changes only the first row,
+/// so every candidate's closed loop is Hessenberg as it is built. Its eigenvalues then need no
+/// reduction and each of the norm's gain evaluations factorises a Hessenberg jwI - A (a similarity
+/// by Q changes neither the poles nor G(s) = Ĥ Q (sI - Qᵀ Ã Q)^-1 Qᵀ Ê, only their rounding).
+#[derive(Debug, Clone)]
+struct HessenbergBasis {
+    /// Q.
+    q: DMatrix<f64>,
+    /// Qᵀ Â Q.
+    a: DMatrix<f64>,
+    /// β.
+    beta: f64,
+    /// Qᵀ Ê.
+    e: DMatrix<f64>,
+    /// Ĥ Q.
+    h: DMatrix<f64>,
+}
+
+impl HessenbergBasis {
+    /// The basis for (Â, B̂) with the single input B̂: a Householder reflection P takes B̂ to
+    /// β e1, then P Â P is reduced to Hessenberg form by reflections that leave e1 alone.
+    fn new(a: &DMatrix<f64>, b: &DMatrix<f64>, e: &DMatrix<f64>, h: &DMatrix<f64>) -> Self {
+        let n = a.nrows();
+        let b = b.column(0);
+        let norm = b.norm();
+        let mut p = DMatrix::identity(n, n);
+        let mut beta = b[0];
+        if norm > 0.0 {
+            beta = -norm.copysign(b[0]);
+            let mut v = b.clone_owned();
+            v[0] -= beta;
+            p -= (2.0 / v.norm_squared()) * &v * v.transpose();
+        }
+        let (qh, hess) = (&p * a * &p).hessenberg().unpack();
+        let q = p * qh;
+        Self {
+            a: hess,
+            beta,
+            e: q.transpose() * e,
+            h: h * &q,
+            q,
+        }
+    }
+
+    /// Qᵀ (Â - B̂ K) Q.
+    fn closed_loop(&self, gains: &[f64]) -> DMatrix<f64> {
+        let mut acl = self.a.clone();
+        for j in 0..acl.ncols() {
+            let kq: f64 = gains
+                .iter()
+                .zip(self.q.column(j).iter())
+                .map(|(k, q)| k * q)
+                .sum();
+            acl[(0, j)] -= self.beta * kq;
+        }
+        acl
+    }
 }
 
 impl RobustProblem {
@@ -124,7 +186,9 @@ impl RobustProblem {
             Perturbation::Literal => vec![0.0, 1.0, 1.0, 0.0, 0.0],
         };
         let h = DMatrix::from_diagonal(&nalgebra::DVector::from_vec(h_diag));
+        let basis = HessenbergBasis::new(&a_hat, &b_hat, &e, &h);
         Self {
+            basis,
             a_hat,
             b_hat,
             e,
@@ -150,6 +214,14 @@ impl RobustProblem {
         let model = self.nominal_model();
         self.observer = Some(Observer::new(&model, (&self.e, &self.h), design, period)?);
         Ok(self)
+    }
+
+    /// The same problem with the feedback on the full state (the filter dropped).
+    pub fn without_observer(self) -> Self {
+        Self {
+            observer: None,
+            ..self
+        }
     }
 
     /// The nominal plant's continuous model (A, B, C).
@@ -226,7 +298,8 @@ impl RobustProblem {
         &self.a_hat - &self.b_hat * k
     }
 
-    /// The full-state closed loop's poles: the eigenvalues of Ã = Â - B̂ K.
+    /// The full-state closed loop's poles: the eigenvalues of Ã = Â - B̂ K (nalgebra's Schur
+    /// decomposition: independent of the objective's computation).
     pub fn poles(&self, gains: &[f64]) -> Vec<Complex<f64>> {
         self.closed_loop(gains)
             .complex_eigenvalues()
@@ -245,23 +318,18 @@ impl RobustProblem {
     /// `Objective::value_below`): a feasible candidate only beats a feasible target of value
     /// -r_t if its norm is at most 1/r_t, and one frequency with a larger gain disproves that.
     pub fn objective_below(&self, gains: &[f64], threshold: f64) -> f64 {
-        let acl = self.closed_loop(gains);
-        let poles = eig(&acl);
+        let (acl, poles) = self.full_state_loop(gains);
         let f = self.wedge.total_distance(&poles);
         if f > 0.0 {
             return f;
         }
         // Feasible: every pole has Re <= -rho < 0, so the full-state loop is Hurwitz (with a
         // filter, the loop's other poles are the filter's, stable by its design).
-        let (acl, poles) = match self.observer {
-            None => (acl, poles),
-            Some(_) => {
-                let whole = self.whole_loop(gains, None);
-                let poles = eig(&whole);
-                (whole, poles)
-            }
+        let (acl, e, h) = self.norm_loop(gains, acl);
+        let poles = match self.observer {
+            None => poles,
+            Some(_) => eig(&acl),
         };
-        let (e, h) = self.loop_perturbation();
         let level = if threshold < 0.0 {
             -1.0 / threshold
         } else {
@@ -278,12 +346,36 @@ impl RobustProblem {
         }
     }
 
-    /// Full evaluation for reports; an error when r_c cannot be computed.
+    /// The full-state closed loop in the Hessenberg basis and its poles.
+    fn full_state_loop(&self, gains: &[f64]) -> (DMatrix<f64>, Vec<Complex<f64>>) {
+        let acl = self.basis.closed_loop(gains);
+        let poles = hessenberg_eig(&acl);
+        (acl, poles)
+    }
+
+    /// The loop r_c is computed on, with its Ê and Ĥ: the full-state loop `acl` (in the
+    /// Hessenberg basis) or, with a filter, `whole_loop`.
+    fn norm_loop(
+        &self,
+        gains: &[f64],
+        acl: DMatrix<f64>,
+    ) -> (DMatrix<f64>, &DMatrix<f64>, &DMatrix<f64>) {
+        match self.observer {
+            None => (acl, &self.basis.e, &self.basis.h),
+            Some(_) => {
+                let (e, h) = self.loop_perturbation();
+                (self.whole_loop(gains, None), e, h)
+            }
+        }
+    }
+
+    /// Full evaluation for reports, computed as the objective computes it; an error when r_c
+    /// cannot be computed.
     pub fn evaluate(&self, gains: &[f64]) -> Result<Evaluation, HinfError> {
-        let poles = eig(&self.closed_loop(gains));
+        let (acl, poles) = self.full_state_loop(gains);
         let f = self.wedge.total_distance(&poles);
-        let (e, h) = self.loop_perturbation();
-        let rc = stability_radius(&self.whole_loop(gains, None), e, h)?;
+        let (acl, e, h) = self.norm_loop(gains, acl);
+        let rc = stability_radius(&acl, e, h)?;
         Ok(Evaluation {
             poles: poles.iter().map(|p| (p.re, p.im)).collect(),
             wedge_distance: f,
