@@ -549,6 +549,49 @@ fn the_hqr_eigenvalues_match_the_schur_decomposition() {
 }
 
 #[test]
+fn the_square_reduced_hamiltonian_eigenvalues_match_the_schur_decomposition() {
+    // M = [[A, G], [Q, -A']] with G, Q symmetric: its eigenvalues are +-lambda; the square-reduced
+    // method gives one of each pair, which must be, up to sign, one of nalgebra's, and together
+    // with their negatives all of them. Its accuracy is about eps |M|^2 / |lambda|.
+    use evoloop::linalg::hamiltonian_eigenvalues;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(29);
+    let mut on_axis = 0;
+    for trial in 0..400 {
+        let n = 1 + trial % 7;
+        let a = DMatrix::from_fn(n, n, |_, _| rng.gen_range(-3.0..3.0));
+        let g = DMatrix::from_fn(n, n, |_, _| rng.gen_range(0.0..1.0));
+        let q = DMatrix::from_fn(n, n, |_, _| rng.gen_range(0.0..1.0));
+        // Semidefinite G and -Q (as the norm's are) leave imaginary eigenvalues in some trials.
+        let (g, q) = (&g * g.transpose(), -(&q * q.transpose()));
+        let mut m = DMatrix::zeros(2 * n, 2 * n);
+        m.view_mut((0, 0), (n, n)).copy_from(&a);
+        m.view_mut((0, n), (n, n)).copy_from(&g);
+        m.view_mut((n, 0), (n, n)).copy_from(&q);
+        m.view_mut((n, n), (n, n)).copy_from(&(-a.transpose()));
+        let half = hamiltonian_eigenvalues(&m).expect("converges");
+        assert_eq!(half.len(), n);
+        let mut theirs: Vec<Complex<f64>> = m.complex_eigenvalues().iter().copied().collect();
+        let scale = m.norm().powi(2);
+        for z in half.iter().flat_map(|z| [*z, -*z]) {
+            let (i, d) = theirs
+                .iter()
+                .enumerate()
+                .map(|(i, w)| (i, (w - z).norm()))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .unwrap();
+            assert!(
+                d < 1e-9 * scale / z.norm().max(1e-3),
+                "n = {n}: {z} has no match ({})",
+                theirs[i]
+            );
+            theirs.remove(i);
+        }
+        on_axis += half.iter().filter(|z| z.re == 0.0).count();
+    }
+    assert!(on_axis > 50, "{on_axis} imaginary pairs");
+}
+
+#[test]
 fn a_radius_that_cannot_be_computed_is_an_error_not_zero() {
     use evoloop::robust::stability_radius::{stability_radius, HinfError};
     use nalgebra::DMatrix;

@@ -7,7 +7,7 @@
 //! intervals where sigma_max(G(jw)) > gamma, whose midpoints give a better lower bound. The
 //! iteration converges quadratically to a relative accuracy `tol`. r_c = 0 when A is not Hurwitz.
 
-use crate::linalg::eig;
+use crate::linalg::{eig, hamiltonian_eigenvalues};
 use nalgebra::{Complex, DMatrix};
 use std::fmt;
 
@@ -219,13 +219,24 @@ impl Transfer {
         m
     }
 
-    /// Frequencies w >= 0 where jw is an eigenvalue of M(gamma), sorted.
+    /// Frequencies w >= 0 where jw is an eigenvalue of M(gamma), sorted: from one of each pair
+    /// +-lambda by the square-reduced method (a pair off the axis by rounding, a tangency, is
+    /// taken as on it), or from all 2n eigenvalues should its QR iteration fail.
     fn crossings(&self, gamma: f64) -> Vec<f64> {
-        let mut w: Vec<f64> = eig(&self.hamiltonian(gamma))
-            .iter()
-            .filter(|z| z.re.abs() <= 1e-7 * z.norm().max(1.0) && z.im >= 0.0)
-            .map(|z| z.im)
-            .collect();
+        let m = self.hamiltonian(gamma);
+        let on_axis = |z: &Complex<f64>| z.re.abs() <= 1e-7 * z.norm().max(1.0);
+        let mut w: Vec<f64> = match hamiltonian_eigenvalues(&m) {
+            Some(half) => half
+                .iter()
+                .filter(|z| on_axis(z))
+                .map(|z| z.im.abs())
+                .collect(),
+            None => eig(&m)
+                .iter()
+                .filter(|z| on_axis(z) && z.im >= 0.0)
+                .map(|z| z.im)
+                .collect(),
+        };
         w.sort_by(|a, b| a.total_cmp(b));
         w
     }
