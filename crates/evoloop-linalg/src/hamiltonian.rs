@@ -17,7 +17,7 @@ use nalgebra::{Complex, DMatrix};
 /// order or the QR iteration does not converge.
 pub fn hamiltonian_eigenvalues(m: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
     let nn = m.nrows();
-    if m.ncols() != nn || nn % 2 != 0 {
+    if m.ncols() != nn || !nn.is_multiple_of(2) {
         return None;
     }
     let mut w = m * m;

@@ -379,7 +379,7 @@ fn refine_peak(g: &mut Transfer, start: (f64, f64), level: f64) -> (f64, f64) {
         if denom < 0.0
             && ga <= best.0
             && gc <= best.0
-            && (gc - ga).powi(2) / (-8.0 * denom) < 0.1 * HINF_TOL * best.0
+            && (gc - ga).powi(2) / (-8.0 * denom) < 0.01 * HINF_TOL * best.0
         {
             break;
         }
