@@ -1,7 +1,8 @@
 //! Eigenvalues of a small real matrix without eigenvectors: Householder reduction to Hessenberg
 //! form, then the Francis double-shift QR iteration (the classical `hqr` of EISPACK / Numerical
 //! Recipes). It does only what the stability radius needs, several times faster than a full
-//! Schur decomposition for the 5x5 closed loops and 10x10 Hamiltonians here; tests check it
+//! Schur decomposition for the 5x5 closed loops and the Hamiltonians' 5x5 square-reduced blocks
+//! here (`hessenberg_eigenvalues` for a matrix already in Hessenberg form); tests check it
 //! against nalgebra's Schur-based eigenvalues.
 
 use nalgebra::{Complex, DMatrix};

@@ -41,7 +41,7 @@ pub const HINF_TOL: f64 = 1e-9;
 
 /// A transfer matrix G(s) = H (sI - A)^-1 E reduced to the nonzero columns of E and rows of H,
 /// with the workspace its gain evaluations reuse (one H-infinity norm evaluates the gain some
-/// 30 times: none allocates while G is at most 2 x 2; a larger G's singular values do).
+/// 15 to 30 times: none allocates while G is at most 2 x 2; a larger G's singular values do).
 pub struct Transfer {
     a: DMatrix<f64>,
     /// E and H as complex matrices, made once for the many gain evaluations.
