@@ -293,19 +293,9 @@ fn the_objective_in_its_hessenberg_basis_changes_only_the_rounding() {
             let mut theirs = prob.poles(&k);
             for (re, im) in &ev.poles {
                 let z = Complex::new(*re, *im);
-                let (i, d) = theirs
-                    .iter()
-                    .enumerate()
-                    .map(|(i, w)| (i, (w - z).norm()))
-                    .min_by(|a, b| a.1.total_cmp(&b.1))
-                    .unwrap();
+                let (w, d) = take_nearest(&mut theirs, z);
                 // Clustered poles move with rounding by its root, so the bound is loose.
-                assert!(
-                    d < 1e-5 * (1.0 + z.norm()),
-                    "{k:?}: pole {z} vs {}",
-                    theirs[i]
-                );
-                theirs.remove(i);
+                assert!(d < 1e-5 * (1.0 + z.norm()), "{k:?}: pole {z} vs {w}");
             }
             let (e, h) = prob.loop_perturbation();
             let rc =
@@ -511,6 +501,18 @@ fn the_spring_schedule_interpolates_and_drives_the_dynamics() {
     assert_eq!(TwoMass::new(1.0, 1.0, 1.0, Sensor::Far).spring_at(5.0), 1.0);
 }
 
+/// The eigenvalue of `theirs` nearest to `z`, removed from it (eigenvalues come unordered), and
+/// its distance to `z`.
+fn take_nearest(theirs: &mut Vec<Complex<f64>>, z: Complex<f64>) -> (Complex<f64>, f64) {
+    let (i, d) = theirs
+        .iter()
+        .enumerate()
+        .map(|(i, w)| (i, (w - z).norm()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("as many eigenvalues on both sides");
+    (theirs.remove(i), d)
+}
+
 #[test]
 fn the_hqr_eigenvalues_match_the_schur_decomposition() {
     use evoloop::linalg::eigenvalues;
@@ -532,18 +534,12 @@ fn the_hqr_eigenvalues_match_the_schur_decomposition() {
         assert_eq!(ours.len(), n);
         // Match each of ours to the nearest of theirs (eigenvalues are unordered).
         for z in ours.drain(..) {
-            let (i, d) = theirs
-                .iter()
-                .enumerate()
-                .map(|(i, w)| (i, (w - z).norm()))
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-                .unwrap();
+            let (_, d) = take_nearest(&mut theirs, z);
             assert!(
                 d < 1e-7 * (1.0 + z.norm()),
                 "n = {n}: {:?} has no match",
                 key(&z)
             );
-            theirs.remove(i);
         }
     }
 }
@@ -573,18 +569,11 @@ fn the_square_reduced_hamiltonian_eigenvalues_match_the_schur_decomposition() {
         let mut theirs: Vec<Complex<f64>> = m.complex_eigenvalues().iter().copied().collect();
         let scale = m.norm().powi(2);
         for z in half.iter().flat_map(|z| [*z, -*z]) {
-            let (i, d) = theirs
-                .iter()
-                .enumerate()
-                .map(|(i, w)| (i, (w - z).norm()))
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-                .unwrap();
+            let (w, d) = take_nearest(&mut theirs, z);
             assert!(
                 d < 1e-9 * scale / z.norm().max(1e-3),
-                "n = {n}: {z} has no match ({})",
-                theirs[i]
+                "n = {n}: {z} has no match ({w})"
             );
-            theirs.remove(i);
         }
         on_axis += half.iter().filter(|z| z.re == 0.0).count();
     }
