@@ -77,10 +77,10 @@ fn robust(c: &mut Criterion) {
     let acl = prob.closed_loop(&TUNED);
     c.bench_function(
         "stability radius r_c (5 states, level-set H-infinity)",
-        |b| b.iter(|| black_box(stability_radius(black_box(&acl), &prob.e, &prob.h).unwrap())),
+        |b| b.iter(|| black_box(stability_radius(black_box(&acl), prob.e(), prob.h()).unwrap())),
     );
     c.bench_function("H-infinity norm (same loop)", |b| {
-        b.iter(|| black_box(hinf_norm(black_box(&acl), &prob.e, &prob.h).unwrap()))
+        b.iter(|| black_box(hinf_norm(black_box(&acl), prob.e(), prob.h()).unwrap()))
     });
     assert!(prob.evaluate(&DEFC).unwrap().in_wedge);
     c.bench_function(

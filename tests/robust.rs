@@ -90,8 +90,8 @@ fn hinf_norm_agrees_with_a_dense_sweep_on_random_stable_loops() {
         if acl.complex_eigenvalues().iter().any(|z| z.re >= -1e-3) {
             continue;
         }
-        let (norm, _) = hinf_norm(&acl, &prob.e, &prob.h).unwrap();
-        let sweep = hinf_norm_sweep(&acl, &prob.e, &prob.h, 4000);
+        let (norm, _) = hinf_norm(&acl, prob.e(), prob.h()).unwrap();
+        let sweep = hinf_norm_sweep(&acl, prob.e(), prob.h(), 4000);
         assert!(
             ((norm - sweep) / sweep).abs() < 1e-6,
             "{k:?}: level set {norm} vs sweep {sweep}"
@@ -208,12 +208,14 @@ fn the_gain_is_nalgebras_lu_bit_for_bit_on_random_systems() {
     for _ in 0..500 {
         let k: Vec<f64> = (0..5).map(|_| rng.gen_range(-50.0..50.0)).collect();
         let acl = prob.closed_loop(&k);
-        let mut g = Transfer::new(&acl, &prob.e, &prob.h).unwrap();
+        let mut g = Transfer::new(&acl, prob.e(), prob.h()).unwrap();
         // The reference gets Ê's nonzero columns and Ĥ's nonzero rows, as the transfer keeps.
-        let cols: Vec<usize> = (0..5).filter(|&j| prob.e.column(j).amax() > 0.0).collect();
-        let rows: Vec<usize> = (0..5).filter(|&i| prob.h.row(i).amax() > 0.0).collect();
+        let cols: Vec<usize> = (0..5)
+            .filter(|&j| prob.e().column(j).amax() > 0.0)
+            .collect();
+        let rows: Vec<usize> = (0..5).filter(|&i| prob.h().row(i).amax() > 0.0).collect();
         assert_eq!((cols.len(), rows.len()), (2, 2));
-        let (e, h) = (prob.e.select_columns(&cols), prob.h.select_rows(&rows));
+        let (e, h) = (prob.e().select_columns(&cols), prob.h().select_rows(&rows));
         for w in [0.0, 0.3, 1.0, 2.7] {
             assert_eq!(
                 g.gain(w).to_bits(),

@@ -44,9 +44,14 @@ pub fn eig(a: &DMatrix<f64>) -> Vec<Complex<f64>> {
     eigenvalues(a).unwrap_or_else(|| a.complex_eigenvalues().iter().copied().collect())
 }
 
-/// Eigenvalues of the upper Hessenberg `h` by `hessenberg_eigenvalues`, with `eig`'s fallback.
+/// Eigenvalues of the upper Hessenberg `h` by `hessenberg_eigenvalues`, with `eig`'s fallback
+/// (on `h` with what lies below its subdiagonal ignored, as the QR iteration ignores it).
 pub fn hessenberg_eig(h: &DMatrix<f64>) -> Vec<Complex<f64>> {
-    hessenberg_eigenvalues(h).unwrap_or_else(|| h.complex_eigenvalues().iter().copied().collect())
+    hessenberg_eigenvalues(h).unwrap_or_else(|| {
+        let mut upper = h.clone();
+        upper.fill_lower_triangle(0.0, 2);
+        upper.complex_eigenvalues().iter().copied().collect()
+    })
 }
 
 /// The 1-based Hessenberg matrix of order `n` stored row by row with stride `n + 1`, as the

@@ -68,6 +68,15 @@ const LANES: usize = 4;
 /// zeros, beta returned; `None` (the identity) where those rows are already zero.
 fn reflection(col: &mut [f64], j: usize, v: &mut [f64]) -> Option<f64> {
     let x = &mut col[j..j + v.len()];
+    let (alpha, beta) = householder_vector(x, v)?;
+    x[0] = alpha;
+    x[1..].fill(0.0);
+    Some(beta)
+}
+
+/// The Householder reflection I - beta v v^T that maps `x` to alpha e_1: v (as long as x)
+/// written into `v`, (alpha, beta) returned; `None` (the identity) where x is zero.
+pub fn householder_vector(x: &[f64], v: &mut [f64]) -> Option<(f64, f64)> {
     let norm = x.iter().map(|e| e * e).sum::<f64>().sqrt();
     if norm == 0.0 {
         return None;
@@ -76,9 +85,7 @@ fn reflection(col: &mut [f64], j: usize, v: &mut [f64]) -> Option<f64> {
     let alpha = if x[0] >= 0.0 { -norm } else { norm };
     v.copy_from_slice(x);
     v[0] -= alpha;
-    x[0] = alpha;
-    x[1..].fill(0.0);
-    Some(2.0 / v.iter().map(|e| e * e).sum::<f64>())
+    Some((alpha, 2.0 / v.iter().map(|e| e * e).sum::<f64>()))
 }
 
 /// Rows j.. of each whole column (`m` rows) in `cols` reflected by I - beta v v^T, LANES

@@ -16,12 +16,12 @@
 
 use super::observer::{continuous_loop, sampled_loop, spectral_radius, spring_range, Observer};
 use super::pole_region::Wedge;
-use super::stability_radius::{hinf_from_poles, stability_radius, Bounded, HinfError};
-use crate::linalg::{eig, hessenberg_eig};
+use super::stability_radius::{hinf_from_poles, radius_from_poles, Bounded, HinfError};
+use crate::linalg::{eig, hessenberg_eig, householder_vector};
 use crate::optim::Objective;
 use crate::plant::linear::LinearModel;
 use crate::plant::two_mass::{Sensor, TwoMass};
-use nalgebra::{Complex, DMatrix};
+use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
 
 /// Where the uncertainty Ê Δ Ĥ enters the augmented loop: the structure r_c is computed for.
@@ -82,15 +82,17 @@ pub struct Evaluation {
 /// the wedge and the stability radius r_c (the DOCHM objective, which DE minimises).
 #[derive(Debug, Clone)]
 pub struct RobustProblem {
-    /// Â, the augmented open loop's state matrix (5 x 5) at the nominal spring.
-    pub a_hat: DMatrix<f64>,
+    /// Â, the augmented open loop's state matrix (5 x 5) at the nominal spring. Â, B̂, Ê and Ĥ
+    /// are read through their methods: `basis` is made from them once, in `new`.
+    a_hat: DMatrix<f64>,
     /// B̂, the augmented open loop's input matrix (5 x 1).
-    pub b_hat: DMatrix<f64>,
+    b_hat: DMatrix<f64>,
     /// Ê of the perturbation Ê Δ Ĥ: diag(0,0,1,1,0).
-    pub e: DMatrix<f64>,
+    e: DMatrix<f64>,
     /// Ĥ of the perturbation Ê Δ Ĥ, as `perturbation` gives it.
-    pub h: DMatrix<f64>,
-    /// The nominal spring and the sensor Â and B̂ are built from.
+    h: DMatrix<f64>,
+    /// The nominal spring and the sensor Â and B̂ were built from (changing them rebuilds
+    /// nothing: make a new problem).
     pub k: f64,
     /// The position sensor's body (far: body 2, the paper's).
     pub sensor: Sensor,
@@ -106,6 +108,14 @@ pub struct RobustProblem {
     pub observer: Option<Observer>,
     /// Â, B̂, Ê and Ĥ in a basis where every full-state closed loop is upper Hessenberg.
     basis: HessenbergBasis,
+}
+
+/// A loop r_c is computed on: its state matrix, its poles, and the perturbation's Ê and Ĥ.
+struct NormLoop<'a> {
+    a: DMatrix<f64>,
+    poles: Vec<Complex<f64>>,
+    e: &'a DMatrix<f64>,
+    h: &'a DMatrix<f64>,
 }
 
 /// The full-state loop in an orthonormal basis Q made once per problem, in which Qᵀ B̂ = β e1 and
@@ -132,15 +142,13 @@ impl HessenbergBasis {
     /// β e1, then P Â P is reduced to Hessenberg form by reflections that leave e1 alone.
     fn new(a: &DMatrix<f64>, b: &DMatrix<f64>, e: &DMatrix<f64>, h: &DMatrix<f64>) -> Self {
         let n = a.nrows();
-        let b = b.column(0);
-        let norm = b.norm();
         let mut p = DMatrix::identity(n, n);
-        let mut beta = b[0];
-        if norm > 0.0 {
-            beta = -norm.copysign(b[0]);
-            let mut v = b.clone_owned();
-            v[0] -= beta;
-            p -= (2.0 / v.norm_squared()) * &v * v.transpose();
+        let mut v = DVector::zeros(n);
+        // B̂ = 0 leaves the identity and beta 0: the closed loop is Â for every K.
+        let mut beta = 0.0;
+        if let Some((alpha, tau)) = householder_vector(b.column(0).as_slice(), v.as_mut_slice()) {
+            beta = alpha;
+            p -= tau * &v * v.transpose();
         }
         let (qh, hess) = (&p * a * &p).hessenberg().unpack();
         let q = p * qh;
@@ -153,8 +161,9 @@ impl HessenbergBasis {
         }
     }
 
-    /// Qᵀ (Â - B̂ K) Q.
+    /// Qᵀ (Â - B̂ K) Q; K must have one gain per state.
     fn closed_loop(&self, gains: &[f64]) -> DMatrix<f64> {
+        assert_eq!(gains.len(), self.q.nrows(), "one gain per state");
         let mut acl = self.a.clone();
         for j in 0..acl.ncols() {
             let kq: f64 = gains
@@ -214,6 +223,26 @@ impl RobustProblem {
         let model = self.nominal_model();
         self.observer = Some(Observer::new(&model, (&self.e, &self.h), design, period)?);
         Ok(self)
+    }
+
+    /// Â, the augmented open loop's state matrix (5 x 5) at the nominal spring.
+    pub fn a_hat(&self) -> &DMatrix<f64> {
+        &self.a_hat
+    }
+
+    /// B̂, the augmented open loop's input matrix (5 x 1).
+    pub fn b_hat(&self) -> &DMatrix<f64> {
+        &self.b_hat
+    }
+
+    /// Ê of the perturbation Ê Δ Ĥ on the full-state loop: diag(0,0,1,1,0).
+    pub fn e(&self) -> &DMatrix<f64> {
+        &self.e
+    }
+
+    /// Ĥ of the perturbation Ê Δ Ĥ on the full-state loop, as `perturbation` gives it.
+    pub fn h(&self) -> &DMatrix<f64> {
+        &self.h
     }
 
     /// The same problem with the feedback on the full state (the filter dropped).
@@ -325,11 +354,12 @@ impl RobustProblem {
         }
         // Feasible: every pole has Re <= -rho < 0, so the full-state loop is Hurwitz (with a
         // filter, the loop's other poles are the filter's, stable by its design).
-        let (acl, e, h) = self.norm_loop(gains, acl);
-        let poles = match self.observer {
-            None => poles,
-            Some(_) => eig(&acl),
-        };
+        let NormLoop {
+            a: acl,
+            poles,
+            e,
+            h,
+        } = self.norm_loop(gains, acl, poles);
         let level = if threshold < 0.0 {
             -1.0 / threshold
         } else {
@@ -353,18 +383,26 @@ impl RobustProblem {
         (acl, poles)
     }
 
-    /// The loop r_c is computed on, with its Ê and Ĥ: the full-state loop `acl` (in the
-    /// Hessenberg basis) or, with a filter, `whole_loop`.
+    /// The loop r_c is computed on: the full-state loop `acl` in the Hessenberg basis with its
+    /// `poles`, or, with a filter, `whole_loop` and its eigenvalues.
     fn norm_loop(
         &self,
         gains: &[f64],
         acl: DMatrix<f64>,
-    ) -> (DMatrix<f64>, &DMatrix<f64>, &DMatrix<f64>) {
+        poles: Vec<Complex<f64>>,
+    ) -> NormLoop<'_> {
         match self.observer {
-            None => (acl, &self.basis.e, &self.basis.h),
+            None => NormLoop {
+                a: acl,
+                poles,
+                e: &self.basis.e,
+                h: &self.basis.h,
+            },
             Some(_) => {
                 let (e, h) = self.loop_perturbation();
-                (self.whole_loop(gains, None), e, h)
+                let a = self.whole_loop(gains, None);
+                let poles = eig(&a);
+                NormLoop { a, poles, e, h }
             }
         }
     }
@@ -374,10 +412,11 @@ impl RobustProblem {
     pub fn evaluate(&self, gains: &[f64]) -> Result<Evaluation, HinfError> {
         let (acl, poles) = self.full_state_loop(gains);
         let f = self.wedge.total_distance(&poles);
-        let (acl, e, h) = self.norm_loop(gains, acl);
-        let rc = stability_radius(&acl, e, h)?;
+        let reported = poles.iter().map(|p| (p.re, p.im)).collect();
+        let l = self.norm_loop(gains, acl, poles);
+        let rc = radius_from_poles(&l.a, l.e, l.h, &l.poles)?;
         Ok(Evaluation {
-            poles: poles.iter().map(|p| (p.re, p.im)).collect(),
+            poles: reported,
             wedge_distance: f,
             in_wedge: f == 0.0,
             stability_radius: rc,
