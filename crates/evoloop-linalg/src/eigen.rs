@@ -38,14 +38,18 @@ pub fn hessenberg_eigenvalues(h: &DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
     Some((1..=n).map(|i| Complex::new(wr[i], wi[i])).collect())
 }
 
-/// Eigenvalues by `eigenvalues`, falling back to nalgebra's Schur decomposition in the (rare)
-/// case the QR iteration does not converge.
+/// Eigenvalues by `eigenvalues`, falling back to nalgebra's Schur decomposition (of the
+/// Hessenberg form) in the (rare) case the QR iteration does not converge.
 pub fn eig(a: &DMatrix<f64>) -> Vec<Complex<f64>> {
-    eigenvalues(a).unwrap_or_else(|| a.complex_eigenvalues().iter().copied().collect())
+    if a.nrows() == 0 {
+        return Vec::new();
+    }
+    hessenberg_eig(&a.clone().hessenberg().h())
 }
 
-/// Eigenvalues of the upper Hessenberg `h` by `hessenberg_eigenvalues`, with `eig`'s fallback
-/// (on `h` with what lies below its subdiagonal ignored, as the QR iteration ignores it).
+/// Eigenvalues of the upper Hessenberg `h` by `hessenberg_eigenvalues`, falling back to
+/// nalgebra's Schur decomposition (of `h` with what lies below its subdiagonal ignored, as the
+/// QR iteration ignores it) in the (rare) case the QR iteration does not converge.
 pub fn hessenberg_eig(h: &DMatrix<f64>) -> Vec<Complex<f64>> {
     hessenberg_eigenvalues(h).unwrap_or_else(|| {
         let mut upper = h.clone();

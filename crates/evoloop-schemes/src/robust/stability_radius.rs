@@ -289,14 +289,11 @@ pub fn hinf_norm_bounded(
     h: &DMatrix<f64>,
     level: f64,
 ) -> Result<Bounded, HinfError> {
-    let poles = eig(a);
-    if poles.iter().any(|p| p.re >= 0.0) {
-        return Err(HinfError::NotStable);
-    }
-    hinf_from_poles(a, e, h, &poles, level)
+    hinf_from_poles(a, e, h, &eig(a), level)
 }
 
-/// The bounded norm when the caller already has A's eigenvalues (all in the open left half-plane).
+/// The bounded norm when the caller already has A's eigenvalues `poles`; `NotStable` unless
+/// they all lie in the open left half-plane.
 pub fn hinf_from_poles(
     a: &DMatrix<f64>,
     e: &DMatrix<f64>,
@@ -304,6 +301,9 @@ pub fn hinf_from_poles(
     poles: &[Complex<f64>],
     level: f64,
 ) -> Result<Bounded, HinfError> {
+    if poles.iter().any(|p| p.re >= 0.0) {
+        return Err(HinfError::NotStable);
+    }
     let mut g = Transfer::new(a, e, h)?;
     // Lower bound from the frequencies where a peak is likely: DC and each pole's natural and
     // damped frequency.
@@ -431,14 +431,13 @@ pub fn radius_from_poles(
     h: &DMatrix<f64>,
     poles: &[Complex<f64>],
 ) -> Result<f64, HinfError> {
-    if poles.iter().any(|p| p.re >= 0.0) {
-        return Ok(0.0);
+    match hinf_from_poles(a, e, h, poles, f64::INFINITY) {
+        Ok(Bounded::Exact(n, _)) if n > 0.0 => Ok(1.0 / n),
+        Ok(Bounded::Exact(..)) => Ok(f64::INFINITY),
+        Ok(Bounded::Above(lb)) => Ok(1.0 / lb), // unreachable: no bound exceeds infinity
+        Err(HinfError::NotStable) => Ok(0.0),
+        Err(e) => Err(e),
     }
-    Ok(match hinf_from_poles(a, e, h, poles, f64::INFINITY)? {
-        Bounded::Exact(n, _) if n > 0.0 => 1.0 / n,
-        Bounded::Exact(..) => f64::INFINITY,
-        Bounded::Above(lb) => 1.0 / lb, // unreachable: no bound exceeds infinity
-    })
 }
 
 /// The norm by a dense frequency sweep refined by golden-section search: an independent
